@@ -1,0 +1,16 @@
+//! `pingcal ba`: not built yet (issue 2).
+
+use super::CmdResult;
+
+/// Arguments of `pingcal ba`.
+#[derive(clap::Args)]
+pub struct Args {
+    /// Arguments (not yet defined).
+    #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
+    rest: Vec<String>,
+}
+
+/// Runs the command.
+pub fn run(_args: Args) -> CmdResult {
+    Err("'pingcal ba' is not implemented yet (issue 2)".into())
+}

@@ -1,0 +1,56 @@
+//! `pingcal`: calibrate a camera (mono or stereo) against a rotating 2D laser range finder.
+//!
+//! Each subcommand lives in its own file under `commands/`; this file only parses the
+//! command line and turns errors into a one-line message and a non-zero exit code.
+
+use clap::{Parser, Subcommand};
+
+mod commands;
+
+#[derive(Parser)]
+#[command(name = "pingcal", version, about = "Camera to rotating-2D-LRF calibration with a photogrammetric test field and ping-pong balls")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Simulate the paper's test field and sensors, calibrate, print the check-point table.
+    Demo(commands::demo::Args),
+    /// Write a complete simulated project directory with ground truth.
+    Simulate(commands::simulate::Args),
+    /// Run the whole calibration pipeline on a project file.
+    Calibrate(commands::calibrate::Args),
+    /// Find targets and balls in images.
+    Detect(commands::detect::Args),
+    /// Draw printable AICON-style coded targets (SVG).
+    Targets(commands::targets::Args),
+    /// Run a bundle adjustment on its own (BAL or pingcal measurement file).
+    Ba(commands::ba::Args),
+    /// Generate a synthetic BAL problem (for tests and benchmarks).
+    GenBal(commands::gen_bal::Args),
+    /// Build the LRF cloud from scans and fit the spheres.
+    Cloud(commands::cloud::Args),
+    /// 3D conformal transform between two files of labelled points, with check points.
+    Register(commands::register::Args),
+}
+
+fn main() {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Demo(a) => commands::demo::run(a),
+        Command::Simulate(a) => commands::simulate::run(a),
+        Command::Calibrate(a) => commands::calibrate::run(a),
+        Command::Detect(a) => commands::detect::run(a),
+        Command::Targets(a) => commands::targets::run(a),
+        Command::Ba(a) => commands::ba::run(a),
+        Command::GenBal(a) => commands::gen_bal::run(a),
+        Command::Cloud(a) => commands::cloud::run(a),
+        Command::Register(a) => commands::register::run(a),
+    };
+    if let Err(e) = result {
+        eprintln!("pingcal: error: {e}");
+        std::process::exit(1);
+    }
+}
