@@ -1,4 +1,13 @@
 //! # pingcal-ba: bundle adjustment for close-range photogrammetry
 //!
-//! Geometry (SO(3), poses), camera models with analytic Jacobians, a sparse
-//! Schur-complement Levenberg–Marquardt solver, and BAL problem I/O.
+//! A library a photogrammetrist can reuse for any test field:
+//!
+//! | module | what it holds |
+//! |---|---|
+//! | [`rotation`] | SO(3): exp/log maps, skew matrix, ω φ κ angles |
+//! | [`pose`] | exterior orientation `x_cam = R·X + t` and its local update |
+//! | [`camera`] | camera models ([`camera::CameraModel`]): photogrammetric (SPEC.md), BAL |
+
+pub mod camera;
+pub mod pose;
+pub mod rotation;
