@@ -149,6 +149,12 @@ def main(argv=None):
         print(f"error: {e}", file=sys.stderr)
         return 2
 
+    short = np.bincount(prob["pt_idx"], minlength=len(prob["pts"])) < 2
+    if short.any():
+        print(f"error: {a.file}: point {int(np.nonzero(short)[0][0])} has fewer than 2 observations "
+              "(COLMAP's bundle adjuster requires tracks of length >= 2)", file=sys.stderr)
+        return 2
+
     import pycolmap
     pc = pycolmap._core.pyceres  # Ceres enums/options as compiled into pycolmap
 

@@ -247,6 +247,13 @@ def make_table(results, meta):
     ]
     if meta.get("repeat", 1) > 1:
         notes.append(f"Every setting ran {meta['repeat']} times; the run with the smallest solve time is shown.")
+    notes += ["", "Files (numpy's own BAL cost of each file, and ½σ²(m − n), the final cost to expect "
+              "for noise σ when the model fits: m residuals, n = 9C + 3P − 7):", ""]
+    for size in results:
+        if "numpy_initial_cost" in size:
+            notes.append(f"- {size['cameras']}/{size['points']}/{size['observations']}: "
+                         f"`{os.path.relpath(size['file'], REPO)}` ({size['generator']}), initial cost "
+                         f"{size['numpy_initial_cost']:.6e}, expected final ≈ {size['expected_final_cost']:.6e}")
     if verdicts:
         notes += ["", "Goal (same final cost within 1e-4, pingcal faster than Ceres's best):", ""]
         notes += [f"- {v}" for v in verdicts]
@@ -270,6 +277,7 @@ def main():
                     help="auto: pingcal gen-bal when it works, else make_bal.py; python: test mode")
     ap.add_argument("--no-pingcal", action="store_true", help="run the Ceres side only")
     ap.add_argument("--skip-build", action="store_true", help="do not run cargo build")
+    ap.add_argument("--pingcal-bin", help="use this pingcal binary (no cargo build); default target/release/pingcal")
     ap.add_argument("--pingcal-args", default="", help="extra arguments for `pingcal ba`")
     ap.add_argument("--repeat", type=int, default=1, help="runs per setting; the fastest is kept")
     ap.add_argument("--timeout", type=float, default=900, help="seconds per run")
@@ -280,7 +288,11 @@ def main():
     ap.add_argument("--out", default=os.path.join(REPO, "bench", "out", "ba-table.md"))
     a = ap.parse_args()
 
+    global PINGCAL
     t_start = time.time()
+    if a.pingcal_bin:
+        PINGCAL = os.path.abspath(a.pingcal_bin)
+        a.skip_build = True
     load0 = " ".join(open("/proc/loadavg").read().split()[:3])
     ensure_venv()
     have_pingcal = False
