@@ -1,0 +1,157 @@
+//! Candidate blobs: connected components at every rung of the threshold ladder that pass the
+//! shape tests, grouped across rungs (a real target is a component at several consecutive
+//! levels, noise rarely is).
+
+use crate::blobs::{components_above, Blob};
+use crate::ellipse::Ellipse;
+use crate::image_io::GrayImage;
+use crate::threshold::threshold_levels;
+use rayon::prelude::*;
+
+/// Settings of the candidate search.
+#[derive(Clone, Debug)]
+pub struct CandidateParams {
+    /// Accepted blob diameters (pixels, of the equivalent disc).
+    pub min_diameter_px: f64,
+    pub max_diameter_px: f64,
+    /// Number of threshold levels.
+    pub levels: usize,
+    /// Smallest fill ratio (area over moment-ellipse area).
+    pub min_fill: f64,
+    /// Smallest minor/major axis ratio (0.3 ≈ 72° of tilt).
+    pub min_axis_ratio: f64,
+    /// A candidate must be found at this many levels.
+    pub min_repeat: usize,
+}
+
+impl Default for CandidateParams {
+    fn default() -> Self {
+        CandidateParams {
+            min_diameter_px: 5.0,
+            max_diameter_px: 200.0,
+            levels: 14,
+            min_fill: 0.8,
+            min_axis_ratio: 0.3,
+            min_repeat: 2,
+        }
+    }
+}
+
+/// A candidate: the moment ellipse of its representative component and how many levels it
+/// was seen at.
+#[derive(Clone, Debug)]
+pub struct Candidate {
+    pub seed: Ellipse,
+    pub repeats: usize,
+    pub area: usize,
+}
+
+fn shape_ok(b: &Blob, w: usize, h: usize, p: &CandidateParams) -> Option<Ellipse> {
+    if b.touches_border(w, h) {
+        return None;
+    }
+    let e = b.moment_ellipse()?;
+    if e.b / e.a < p.min_axis_ratio {
+        return None;
+    }
+    // Small blobs are ragged by quantisation: relax the fill test below ~10 px diameter.
+    let d = 2.0 * e.radius();
+    let min_fill = if d < 10.0 {
+        p.min_fill - 0.1
+    } else {
+        p.min_fill
+    };
+    let fill = b.fill_ratio();
+    if fill < min_fill || fill > 1.15 {
+        return None;
+    }
+    Some(e)
+}
+
+/// All candidates of an image, sorted by position (row-major of their centres).
+pub fn find_candidates(img: &GrayImage, p: &CandidateParams) -> Vec<Candidate> {
+    let levels = threshold_levels(img, p.levels);
+    let min_area = (std::f64::consts::PI * (p.min_diameter_px / 2.0).powi(2) * 0.7)
+        .floor()
+        .max(3.0) as usize;
+    let max_area = (std::f64::consts::PI * (p.max_diameter_px / 2.0).powi(2) * 1.3).ceil() as usize;
+    let (w, h) = (img.width, img.height);
+    let per_level: Vec<Vec<(Ellipse, usize)>> = levels
+        .par_iter()
+        .map(|&l| {
+            components_above(img, l, min_area, max_area)
+                .into_iter()
+                .filter_map(|b| shape_ok(&b, w, h, p).map(|e| (e, b.area)))
+                .collect()
+        })
+        .collect();
+    // Group across levels: same centre within half the smaller radius.
+    struct Group {
+        members: Vec<(Ellipse, usize)>,
+        cx: f64,
+        cy: f64,
+        r: f64,
+    }
+    let cell = 16.0;
+    let mut grid: std::collections::HashMap<(i64, i64), Vec<usize>> =
+        std::collections::HashMap::new();
+    let mut groups: Vec<Group> = Vec::new();
+    for lvl in per_level {
+        for (e, area) in lvl {
+            let key = ((e.cx / cell).floor() as i64, (e.cy / cell).floor() as i64);
+            let mut hit = None;
+            'search: for dx in -1..=1 {
+                for dy in -1..=1 {
+                    if let Some(v) = grid.get(&(key.0 + dx, key.1 + dy)) {
+                        for &gi in v {
+                            let g = &groups[gi];
+                            let d = ((g.cx - e.cx).powi(2) + (g.cy - e.cy).powi(2)).sqrt();
+                            if d <= (0.5 * g.r.min(e.radius())).max(1.0) {
+                                hit = Some(gi);
+                                break 'search;
+                            }
+                        }
+                    }
+                }
+            }
+            match hit {
+                Some(gi) => groups[gi].members.push((e, area)),
+                None => {
+                    grid.entry(key).or_default().push(groups.len());
+                    groups.push(Group {
+                        members: vec![(e, area)],
+                        cx: e.cx,
+                        cy: e.cy,
+                        r: e.radius(),
+                    });
+                }
+            }
+        }
+    }
+    let mut out: Vec<Candidate> = groups
+        .into_iter()
+        .filter(|g| g.members.len() >= p.min_repeat)
+        .map(|g| {
+            // Levels ascend, so members go from the largest to the smallest component; take
+            // the middle one as the representative.
+            let (seed, area) = g.members[g.members.len() / 2];
+            let d = 2.0 * seed.radius();
+            (
+                Candidate {
+                    seed,
+                    repeats: g.members.len(),
+                    area,
+                },
+                d,
+            )
+        })
+        .filter(|(_, d)| *d >= p.min_diameter_px && *d <= p.max_diameter_px)
+        .map(|(c, _)| c)
+        .collect();
+    out.sort_by(|a, b| {
+        (a.seed.cy, a.seed.cx)
+            .partial_cmp(&(b.seed.cy, b.seed.cx))
+            .unwrap_or(std::cmp::Ordering::Equal)
+    });
+    out
+}

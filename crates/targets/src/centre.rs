@@ -1,0 +1,279 @@
+//! Sub-pixel centre of a circular target: sub-pixel edge points along rays, a robust ellipse
+//! fit to them, and the intensity-weighted centroid, each with an estimate of its σ in pixels.
+
+use crate::ellipse::{fit_ellipse, Ellipse};
+use crate::image_io::GrayImage;
+use crate::threshold::{foreground_level, local_levels};
+
+/// Why a candidate was not accepted as a target.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Reject {
+    /// Too many samples at the saturation level: the edge would be biased outward.
+    Saturated,
+    /// Edge rays leave the image: the target is cut by the border.
+    Clipped,
+    /// The target is not brighter than its surroundings by enough.
+    LowContrast,
+    /// Too few edge points were found.
+    FewEdges,
+    /// The edge points are not an ellipse (partly covered, merged, ragged).
+    BadFit,
+}
+
+/// Settings of the centre refinement.
+#[derive(Clone, Debug)]
+pub struct CentreParams {
+    /// Minimum foreground − background contrast (grey units, image in [0, 1]).
+    pub min_contrast: f32,
+    /// Grey level treated as saturated.
+    pub saturation: f32,
+    /// Largest accepted fraction of saturated samples inside the target.
+    pub max_saturated_fraction: f64,
+    /// Where on the edge ramp the edge is put: 0.5 = half way between inside and outside.
+    pub edge_fraction: f32,
+    /// Background search window, in units of the seed ellipse's radius.
+    pub bg_window: (f64, f64),
+    /// Largest accepted fraction of rejected edge rays.
+    pub max_outlier_fraction: f64,
+    /// Largest accepted RMS of edge residuals, pixels, plus this fraction of the radius.
+    pub max_rms: (f64, f64),
+}
+
+impl Default for CentreParams {
+    fn default() -> Self {
+        CentreParams {
+            min_contrast: 0.03,
+            saturation: 0.995,
+            max_saturated_fraction: 0.2,
+            edge_fraction: 0.5,
+            bg_window: (0.8, 1.6),
+            max_outlier_fraction: 0.2,
+            max_rms: (0.35, 0.03),
+        }
+    }
+}
+
+/// A refined target centre.
+#[derive(Clone, Debug)]
+pub struct Refined {
+    /// Ellipse fitted to the sub-pixel edge points.
+    pub ellipse: Ellipse,
+    /// σ of the ellipse centre, pixels (from the edge residuals).
+    pub sigma_ellipse: f64,
+    /// Intensity-weighted centroid.
+    pub centroid: (f64, f64),
+    /// σ of the centroid, pixels (from the image noise).
+    pub sigma_centroid: f64,
+    /// Foreground and (mean) background levels.
+    pub fg: f32,
+    pub bg: f32,
+    /// Edge points used, and the RMS of their residuals (pixels).
+    pub n_edges: usize,
+    pub rms_edge: f64,
+}
+
+/// Sub-pixel edge points along rays from the centre of `seed` through its outline, where the
+/// profile crosses the level between `fg` and the per-ray background.
+/// Returns the points and the mean background, or a rejection.
+pub fn edge_points(
+    img: &GrayImage,
+    seed: &Ellipse,
+    fg: f32,
+    p: &CentreParams,
+) -> Result<(Vec<(f64, f64)>, f32), Reject> {
+    let r = seed.radius();
+    let perimeter = 2.0 * std::f64::consts::PI * r;
+    let k = (perimeter.round() as usize).clamp(24, 256);
+    let t_max = p.bg_window.1;
+    if !img.inside(seed.cx - seed.a * t_max, seed.cy - seed.a * t_max, 1.0)
+        || !img.inside(seed.cx + seed.a * t_max, seed.cy + seed.a * t_max, 1.0)
+    {
+        return Err(Reject::Clipped);
+    }
+    let step_px = 0.2;
+    let mut pts = Vec::with_capacity(k);
+    let mut bg_sum = 0.0f64;
+    let mut profile = Vec::with_capacity(64);
+    let mut ts = Vec::with_capacity(64);
+    for i in 0..k {
+        let psi = i as f64 * 2.0 * std::f64::consts::PI / k as f64;
+        let (u, v) = (psi.cos(), psi.sin());
+        let (ex, ey) = seed.map(u, v);
+        let (dx, dy) = (ex - seed.cx, ey - seed.cy);
+        let len = (dx * dx + dy * dy).sqrt();
+        if len <= 0.0 {
+            continue;
+        }
+        let dt = step_px / len;
+        profile.clear();
+        ts.clear();
+        let mut t = 0.3;
+        while t <= t_max {
+            profile.push(img.sample(seed.cx + t * dx, seed.cy + t * dy));
+            ts.push(t);
+            t += dt;
+        }
+        let Some((bg, level)) = local_levels(
+            &profile,
+            &ts,
+            fg,
+            p.edge_fraction,
+            p.bg_window.0,
+            p.bg_window.1,
+        ) else {
+            continue;
+        };
+        if fg - bg < p.min_contrast {
+            continue;
+        }
+        // First downward crossing of `level` going outward.
+        let mut found = None;
+        for j in 1..profile.len() {
+            if profile[j - 1] >= level && profile[j] < level {
+                let f = (profile[j - 1] - level) / (profile[j - 1] - profile[j]);
+                found = Some(ts[j - 1] + f as f64 * (ts[j] - ts[j - 1]));
+                break;
+            }
+        }
+        if let Some(te) = found {
+            pts.push((seed.cx + te * dx, seed.cy + te * dy));
+            bg_sum += bg as f64;
+        }
+    }
+    if pts.len() < 12 || pts.len() * 10 < k * 6 {
+        return Err(Reject::FewEdges);
+    }
+    let bg = (bg_sum / pts.len() as f64) as f32;
+    Ok((pts, bg))
+}
+
+/// Robust ellipse fit: fit, drop points whose residual exceeds max(3·1.48·MAD, 0.25 px), refit.
+/// Returns the ellipse, the inlier residual RMS and the number of inliers.
+pub fn robust_ellipse_fit(pts: &[(f64, f64)]) -> Option<(Ellipse, f64, usize)> {
+    let e = fit_ellipse(pts)?;
+    let res: Vec<f64> = pts.iter().map(|p| e.sampson_distance(p.0, p.1)).collect();
+    let mut abs: Vec<f64> = res.iter().map(|r| r.abs()).collect();
+    abs.sort_by(|a, b| a.total_cmp(b));
+    let mad = abs[abs.len() / 2];
+    let lim = (3.0 * 1.4826 * mad).max(0.25);
+    let inl: Vec<(f64, f64)> = pts
+        .iter()
+        .zip(&res)
+        .filter(|(_, r)| r.abs() <= lim)
+        .map(|(p, _)| *p)
+        .collect();
+    let e2 = if inl.len() < pts.len() {
+        fit_ellipse(&inl)?
+    } else {
+        e
+    };
+    let ss: f64 = inl
+        .iter()
+        .map(|p| e2.sampson_distance(p.0, p.1).powi(2))
+        .sum();
+    let rms = (ss / (inl.len().saturating_sub(5).max(1)) as f64).sqrt();
+    Some((e2, rms, inl.len()))
+}
+
+/// Refines a candidate whose rough outline is `seed`: two rounds of edge points + robust
+/// ellipse fit, then the intensity-weighted centroid.
+pub fn refine(img: &GrayImage, seed: &Ellipse, p: &CentreParams) -> Result<Refined, Reject> {
+    let (fg, sat) = foreground_level(img, seed, p.saturation);
+    if sat > p.max_saturated_fraction {
+        return Err(Reject::Saturated);
+    }
+    let mut cur = *seed;
+    let mut out = None;
+    for _round in 0..2 {
+        let (pts, bg) = edge_points(img, &cur, fg, p)?;
+        if fg - bg < p.min_contrast {
+            return Err(Reject::LowContrast);
+        }
+        let (e, rms, n_in) = robust_ellipse_fit(&pts).ok_or(Reject::BadFit)?;
+        let moved = ((e.cx - cur.cx).powi(2) + (e.cy - cur.cy).powi(2)).sqrt();
+        if !(e.b > 0.3)
+            || e.b / e.a < 0.15
+            || moved > 0.5 * cur.radius() + 1.0
+            || e.a > 2.0 * cur.a + 2.0
+        {
+            return Err(Reject::BadFit);
+        }
+        let outliers = 1.0 - n_in as f64 / pts.len() as f64;
+        if outliers > p.max_outlier_fraction || rms > p.max_rms.0 + p.max_rms.1 * e.radius() {
+            return Err(Reject::BadFit);
+        }
+        cur = e;
+        out = Some((e, rms, n_in, bg));
+    }
+    let (e, rms, n_in, bg) = out.ok_or(Reject::BadFit)?;
+    // Centre σ of an ellipse fitted to n points with independent radial errors σ_e is about
+    // σ_e·√(2/n); edge points closer than a pixel along the outline are not independent, so n is
+    // capped by the perimeter in pixels.
+    let perim = 2.0 * std::f64::consts::PI * e.radius();
+    let n_eff = (n_in as f64).min(perim).max(1.0);
+    let sigma_ellipse = rms * (2.0 / n_eff).sqrt();
+    let (centroid, sigma_centroid) = weighted_centroid(img, &e, bg, fg);
+    Ok(Refined {
+        ellipse: e,
+        sigma_ellipse,
+        centroid,
+        sigma_centroid,
+        fg,
+        bg,
+        n_edges: n_in,
+        rms_edge: rms,
+    })
+}
+
+/// Intensity-weighted centroid over the pixels within 1.15× the ellipse, weights
+/// max(I − bg, 0). σ from the noise of the foreground (MAD of neighbour differences).
+pub fn weighted_centroid(img: &GrayImage, e: &Ellipse, bg: f32, fg: f32) -> ((f64, f64), f64) {
+    let ext = e.scaled(1.15);
+    let x0 = ((e.cx - ext.a).floor().max(0.0)) as usize;
+    let x1 = ((e.cx + ext.a).ceil().max(0.0) as usize).min(img.width.saturating_sub(1));
+    let y0 = ((e.cy - ext.a).floor().max(0.0)) as usize;
+    let y1 = ((e.cy + ext.a).ceil().max(0.0) as usize).min(img.height.saturating_sub(1));
+    let (mut sw, mut sx, mut sy) = (0.0f64, 0.0f64, 0.0f64);
+    let mut pix = Vec::new();
+    for y in y0..=y1 {
+        for x in x0..=x1 {
+            let (u, v) = ext.unmap(x as f64, y as f64);
+            if u * u + v * v > 1.0 {
+                continue;
+            }
+            let w = (img.get(x, y) - bg).max(0.0) as f64;
+            sw += w;
+            sx += w * x as f64;
+            sy += w * y as f64;
+            pix.push((x, y));
+        }
+    }
+    if sw <= 0.0 {
+        return ((e.cx, e.cy), f64::INFINITY);
+    }
+    let (cx, cy) = (sx / sw, sy / sw);
+    // Noise: MAD of horizontal neighbour differences inside the inner half (flat region),
+    // divided by √2 for the difference of two samples.
+    let mut d = Vec::new();
+    for &(x, y) in &pix {
+        let (u, v) = e.unmap(x as f64, y as f64);
+        if u * u + v * v < 0.36 && x + 1 < img.width {
+            d.push((img.get(x + 1, y) - img.get(x, y)).abs() as f64);
+        }
+    }
+    let sigma_n = if d.len() >= 5 {
+        d.sort_by(|a, b| a.total_cmp(b));
+        1.4826 * d[d.len() / 2] / std::f64::consts::SQRT_2
+    } else {
+        0.0
+    };
+    // Var(cx) = σ_n² Σ (x − cx)² / (Σw)², plus the same for y; report the mean of both.
+    let (mut sxx, mut syy) = (0.0, 0.0);
+    for &(x, y) in &pix {
+        sxx += (x as f64 - cx).powi(2);
+        syy += (y as f64 - cy).powi(2);
+    }
+    let s = sigma_n * ((sxx + syy) / 2.0).sqrt() / sw;
+    let _ = fg;
+    ((cx, cy), s)
+}

@@ -1,0 +1,319 @@
+//! Ellipses: the conic fit (Fitzgibbon's direct least squares in Halíř & Flusser's numerically
+//! stable form, on normalised coordinates), conversion between conic and geometric parameters,
+//! the affine map from the unit circle, and point-to-ellipse (Sampson) distances.
+
+use nalgebra::{Matrix3, Vector3};
+use serde::Serialize;
+
+/// An ellipse in pixel coordinates: centre, semi-axes `a >= b > 0`, and `theta`, the angle of
+/// the major axis from the x axis towards the y axis (radians).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Ellipse {
+    pub cx: f64,
+    pub cy: f64,
+    pub a: f64,
+    pub b: f64,
+    pub theta: f64,
+}
+
+impl Ellipse {
+    /// A circle.
+    pub fn circle(cx: f64, cy: f64, r: f64) -> Self {
+        Ellipse {
+            cx,
+            cy,
+            a: r,
+            b: r,
+            theta: 0.0,
+        }
+    }
+
+    /// The ellipse of the second moments of a region: for a uniformly filled ellipse the
+    /// (central) moments are a²/4 along the major axis and b²/4 along the minor one.
+    pub fn from_moments(cx: f64, cy: f64, mxx: f64, mxy: f64, myy: f64) -> Option<Self> {
+        let tr = mxx + myy;
+        let det = mxx * myy - mxy * mxy;
+        let disc = ((tr * tr) / 4.0 - det).max(0.0).sqrt();
+        let l1 = tr / 2.0 + disc;
+        let l2 = tr / 2.0 - disc;
+        if !(l2 > 0.0) || !l1.is_finite() {
+            return None;
+        }
+        let theta = 0.5 * (2.0 * mxy).atan2(mxx - myy);
+        Some(Ellipse {
+            cx,
+            cy,
+            a: 2.0 * l1.sqrt(),
+            b: 2.0 * l2.sqrt(),
+            theta,
+        })
+    }
+
+    /// Linear part of the map from the unit circle onto this ellipse: R(θ)·diag(a, b).
+    pub fn affine(&self) -> [[f64; 2]; 2] {
+        let (s, c) = self.theta.sin_cos();
+        [[c * self.a, -s * self.b], [s * self.a, c * self.b]]
+    }
+
+    /// Maps (u, v) in the unit-circle frame to the image.
+    #[inline]
+    pub fn map(&self, u: f64, v: f64) -> (f64, f64) {
+        let (s, c) = self.theta.sin_cos();
+        let (p, q) = (u * self.a, v * self.b);
+        (self.cx + c * p - s * q, self.cy + s * p + c * q)
+    }
+
+    /// Maps an image point to the unit-circle frame (inverse of [`Ellipse::map`]).
+    #[inline]
+    pub fn unmap(&self, x: f64, y: f64) -> (f64, f64) {
+        let (s, c) = self.theta.sin_cos();
+        let (dx, dy) = (x - self.cx, y - self.cy);
+        ((c * dx + s * dy) / self.a, (-s * dx + c * dy) / self.b)
+    }
+
+    /// Point of the ellipse at parameter `t`.
+    pub fn point(&self, t: f64) -> (f64, f64) {
+        self.map(t.cos(), t.sin())
+    }
+
+    /// Scaled copy (same centre and orientation).
+    pub fn scaled(&self, k: f64) -> Self {
+        Ellipse {
+            a: self.a * k,
+            b: self.b * k,
+            ..*self
+        }
+    }
+
+    /// Mean radius √(ab).
+    pub fn radius(&self) -> f64 {
+        (self.a * self.b).sqrt()
+    }
+
+    /// Conic coefficients (A, B, C, D, E, F) of A x² + B xy + C y² + D x + E y + F = 0.
+    pub fn conic(&self) -> [f64; 6] {
+        let (s, c) = self.theta.sin_cos();
+        let (a2, b2) = (self.a * self.a, self.b * self.b);
+        let aa = c * c / a2 + s * s / b2;
+        let bb = 2.0 * c * s * (1.0 / a2 - 1.0 / b2);
+        let cc = s * s / a2 + c * c / b2;
+        let (x0, y0) = (self.cx, self.cy);
+        let dd = -2.0 * aa * x0 - bb * y0;
+        let ee = -bb * x0 - 2.0 * cc * y0;
+        let ff = aa * x0 * x0 + bb * x0 * y0 + cc * y0 * y0 - 1.0;
+        [aa, bb, cc, dd, ee, ff]
+    }
+
+    /// Signed Sampson distance of a point to the ellipse (first-order orthogonal distance;
+    /// positive outside).
+    pub fn sampson_distance(&self, x: f64, y: f64) -> f64 {
+        let [a, b, c, d, e, f] = self.conic();
+        let q = a * x * x + b * x * y + c * y * y + d * x + e * y + f;
+        let gx = 2.0 * a * x + b * y + d;
+        let gy = b * x + 2.0 * c * y + e;
+        let g = (gx * gx + gy * gy).sqrt();
+        if g > 0.0 {
+            q / g
+        } else {
+            0.0
+        }
+    }
+
+    /// Geometric parameters from conic coefficients; `None` unless the conic is a real ellipse.
+    pub fn from_conic(k: [f64; 6]) -> Option<Self> {
+        let [a, b, c, d, e, f] = k;
+        let den = 4.0 * a * c - b * b;
+        if !(den > 0.0) {
+            return None;
+        }
+        let cx = (b * e - 2.0 * c * d) / den;
+        let cy = (b * d - 2.0 * a * e) / den;
+        // Value at the centre; the quadratic part is [[a, b/2], [b/2, c]].
+        let f0 = f + 0.5 * (d * cx + e * cy);
+        let tr = a + c;
+        let disc = (((a - c) * (a - c)) + b * b).sqrt();
+        let l1 = (tr + disc) / 2.0;
+        let l2 = (tr - disc) / 2.0;
+        // Ellipse: l1 u² + l2 v² = -f0 in the eigenframe. Both l must have sign opposite to f0.
+        let (l1, l2, f0) = if l1 < 0.0 {
+            (-l1, -l2, -f0)
+        } else {
+            (l1, l2, f0)
+        };
+        if !(l2 > 0.0) || !(f0 < 0.0) {
+            return None;
+        }
+        // Larger eigenvalue ↔ minor axis.
+        let semi_minor = (-f0 / l1).sqrt();
+        let semi_major = (-f0 / l2).sqrt();
+        // Direction of the eigenvector of l2 (the major axis).
+        let theta = if b.abs() < 1e-300 && (a - c).abs() < 1e-300 {
+            0.0
+        } else {
+            // angle of the axis of the smaller eigenvalue of [[a,b/2],[b/2,c]]
+            0.5 * (b).atan2(a - c) + std::f64::consts::FRAC_PI_2
+        };
+        let el = Ellipse {
+            cx,
+            cy,
+            a: semi_major,
+            b: semi_minor,
+            theta: normalize_angle(theta),
+        };
+        if el.a.is_finite() && el.b.is_finite() && el.cx.is_finite() && el.cy.is_finite() {
+            Some(el)
+        } else {
+            None
+        }
+    }
+}
+
+fn normalize_angle(t: f64) -> f64 {
+    let pi = std::f64::consts::PI;
+    let mut t = t % pi;
+    if t < -pi / 2.0 {
+        t += pi;
+    }
+    if t >= pi / 2.0 {
+        t -= pi;
+    }
+    t
+}
+
+/// Direct least-squares ellipse fit (Fitzgibbon, Pilu & Fisher 1999; Halíř & Flusser 1998)
+/// to at least 5 points. Coordinates are centred and scaled first. `None` when the points do
+/// not determine an ellipse.
+pub fn fit_ellipse(points: &[(f64, f64)]) -> Option<Ellipse> {
+    let n = points.len();
+    if n < 5 {
+        return None;
+    }
+    let (mut mx, mut my) = (0.0, 0.0);
+    for &(x, y) in points {
+        mx += x;
+        my += y;
+    }
+    mx /= n as f64;
+    my /= n as f64;
+    let mut s = 0.0;
+    for &(x, y) in points {
+        s += ((x - mx).powi(2) + (y - my).powi(2)).sqrt();
+    }
+    s /= n as f64;
+    if !(s > 0.0) {
+        return None;
+    }
+    let mut s1 = Matrix3::<f64>::zeros();
+    let mut s2 = Matrix3::<f64>::zeros();
+    let mut s3 = Matrix3::<f64>::zeros();
+    for &(x, y) in points {
+        let (x, y) = ((x - mx) / s, (y - my) / s);
+        let d1 = Vector3::new(x * x, x * y, y * y);
+        let d2 = Vector3::new(x, y, 1.0);
+        s1 += d1 * d1.transpose();
+        s2 += d1 * d2.transpose();
+        s3 += d2 * d2.transpose();
+    }
+    let s3inv = s3.try_inverse()?;
+    let t = -(s3inv * s2.transpose());
+    let m = s1 + s2 * t;
+    // C1⁻¹ · M with C1 = [[0,0,2],[0,-1,0],[2,0,0]].
+    let m = Matrix3::new(
+        m[(2, 0)] / 2.0,
+        m[(2, 1)] / 2.0,
+        m[(2, 2)] / 2.0,
+        -m[(1, 0)],
+        -m[(1, 1)],
+        -m[(1, 2)],
+        m[(0, 0)] / 2.0,
+        m[(0, 1)] / 2.0,
+        m[(0, 2)] / 2.0,
+    );
+    let eig = m.complex_eigenvalues();
+    let mut best: Option<(f64, Vector3<f64>)> = None;
+    for l in eig.iter() {
+        if l.im.abs() > 1e-9 * (1.0 + l.re.abs()) {
+            continue;
+        }
+        let a = m - Matrix3::identity() * l.re;
+        let svd = a.svd(false, true);
+        let vt = svd.v_t?;
+        // Right singular vector of the smallest singular value.
+        let (imin, _) =
+            svd.singular_values
+                .iter()
+                .enumerate()
+                .fold(
+                    (0, f64::INFINITY),
+                    |acc, (i, &v)| if v < acc.1 { (i, v) } else { acc },
+                );
+        let v = Vector3::new(vt[(imin, 0)], vt[(imin, 1)], vt[(imin, 2)]);
+        let cond = 4.0 * v[0] * v[2] - v[1] * v[1];
+        if cond > 0.0 && best.as_ref().is_none_or(|(c, _)| cond > *c) {
+            best = Some((cond, v));
+        }
+    }
+    let (_, a1) = best?;
+    let a2 = t * a1;
+    // Conic in normalised coordinates x' = (x - mx)/s; substitute back.
+    let (a, b, c, d, e, f) = (a1[0], a1[1], a1[2], a2[0], a2[1], a2[2]);
+    let s2_ = s * s;
+    let aa = a / s2_;
+    let bb = b / s2_;
+    let cc = c / s2_;
+    let dd = d / s - 2.0 * a * mx / s2_ - b * my / s2_;
+    let ee = e / s - 2.0 * c * my / s2_ - b * mx / s2_;
+    let ff = f + (a * mx * mx + b * mx * my + c * my * my) / s2_ - (d * mx + e * my) / s;
+    Ellipse::from_conic([aa, bb, cc, dd, ee, ff])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn conic_round_trip() {
+        let e = Ellipse {
+            cx: 10.0,
+            cy: -3.0,
+            a: 7.0,
+            b: 3.0,
+            theta: 0.4,
+        };
+        let back = Ellipse::from_conic(e.conic()).unwrap();
+        assert!((back.cx - e.cx).abs() < 1e-9 && (back.cy - e.cy).abs() < 1e-9);
+        assert!((back.a - e.a).abs() < 1e-9 && (back.b - e.b).abs() < 1e-9);
+        assert!((back.theta - e.theta).abs() < 1e-9);
+    }
+
+    #[test]
+    fn fit_exact_points() {
+        let e = Ellipse {
+            cx: 1000.5,
+            cy: 700.25,
+            a: 12.0,
+            b: 5.0,
+            theta: -1.1,
+        };
+        let pts: Vec<_> = (0..40).map(|i| e.point(i as f64 * 0.157)).collect();
+        let f = fit_ellipse(&pts).unwrap();
+        assert!(
+            (f.cx - e.cx).abs() < 1e-6 && (f.cy - e.cy).abs() < 1e-6,
+            "{f:?}"
+        );
+        assert!((f.a - e.a).abs() < 1e-6 && (f.b - e.b).abs() < 1e-6);
+        assert!((f.theta - e.theta).abs() < 1e-6);
+        for p in &pts {
+            assert!(f.sampson_distance(p.0, p.1).abs() < 1e-6);
+        }
+        let (u, v) = e.unmap(e.map(0.3, -0.7).0, e.map(0.3, -0.7).1);
+        assert!((u - 0.3).abs() < 1e-12 && (v + 0.7).abs() < 1e-12);
+    }
+
+    #[test]
+    fn moments_of_a_filled_ellipse() {
+        // Moments of a uniformly filled ellipse: a²/4 and b²/4.
+        let e = Ellipse::from_moments(0.0, 0.0, 25.0 / 4.0, 0.0, 4.0 / 4.0).unwrap();
+        assert!((e.a - 5.0).abs() < 1e-12 && (e.b - 2.0).abs() < 1e-12);
+    }
+}

@@ -1,0 +1,133 @@
+//! Thresholding that survives flash hot spots and vignetting.
+//!
+//! A single global threshold fails on these photographs: inside a flash hot spot the carbon
+//! background is brighter than the targets, and in the vignetted corners the targets are darker
+//! than the background in the centre. What every target does have is a *local* contrast: it
+//! is brighter than the dark annulus (or dark code square) just around it. So:
+//!
+//! 1. [`threshold_levels`] picks a ladder of grey levels spanning the image's dynamic range
+//!    (geometric spacing, so dim and bright regions are both covered); every target is an
+//!    isolated connected component at some rung of the ladder, whatever the brightness of the
+//!    background further away (as in OpenCV's SimpleBlobDetector, but with the ladder adapted
+//!    to the image).
+//! 2. [`local_levels`] then sets, for each candidate, its own foreground level (robust mean
+//!    inside the blob) and, per edge ray, the background level (minimum just outside), and the
+//!    edge is where the profile crosses the mid level between the two. That per-ray level is
+//!    the adaptive threshold that makes the sub-pixel edge independent of slow illumination
+//!    gradients.
+
+use crate::ellipse::Ellipse;
+use crate::image_io::GrayImage;
+
+/// A ladder of `n` threshold levels between the dark and bright ends of the image histogram
+/// (0.5th and 99.9th percentiles), geometrically spaced above the dark end.
+pub fn threshold_levels(img: &GrayImage, n: usize) -> Vec<f32> {
+    const BINS: usize = 1024;
+    let mut hist = [0usize; BINS];
+    // A strided sample is plenty for percentiles.
+    let step = (img.data.len() / 400_000).max(1);
+    let mut total = 0usize;
+    for v in img.data.iter().step_by(step) {
+        let b = ((v.clamp(0.0, 1.0)) * (BINS - 1) as f32) as usize;
+        hist[b] += 1;
+        total += 1;
+    }
+    if total == 0 || n == 0 {
+        return Vec::new();
+    }
+    let pct = |p: f64| -> f32 {
+        let target = (p * total as f64) as usize;
+        let mut acc = 0;
+        for (i, h) in hist.iter().enumerate() {
+            acc += h;
+            if acc > target {
+                return i as f32 / (BINS - 1) as f32;
+            }
+        }
+        1.0
+    };
+    let lo = pct(0.005);
+    let hi = pct(0.999).max(lo + 0.02);
+    let span = hi - lo;
+    // Fractions of the span from 0.04 to 0.92, geometric.
+    let (f0, f1) = (0.04f64, 0.92f64);
+    (0..n)
+        .map(|i| {
+            let t = if n == 1 {
+                0.5
+            } else {
+                i as f64 / (n - 1) as f64
+            };
+            let f = f0 * (f1 / f0).powf(t);
+            lo + span * f as f32
+        })
+        .collect()
+}
+
+/// Foreground level of a candidate (mean of the samples inside half its ellipse, with the
+/// upper and lower 10 % trimmed) and the fraction of those samples at or above `saturation`.
+pub fn foreground_level(img: &GrayImage, e: &Ellipse, saturation: f32) -> (f32, f64) {
+    let mut v = Vec::with_capacity(64);
+    let k = 6;
+    for i in -k..=k {
+        for j in -k..=k {
+            let (u, w) = (i as f64 / k as f64 * 0.6, j as f64 / k as f64 * 0.6);
+            if u * u + w * w > 0.36 {
+                continue;
+            }
+            let (x, y) = e.map(u, w);
+            v.push(img.sample(x, y));
+        }
+    }
+    if v.is_empty() {
+        return (0.0, 0.0);
+    }
+    let sat = v.iter().filter(|&&s| s >= saturation).count() as f64 / v.len() as f64;
+    v.sort_by(|a, b| a.total_cmp(b));
+    let t = v.len() / 10;
+    let inner = &v[t..v.len() - t];
+    (inner.iter().sum::<f32>() / inner.len() as f32, sat)
+}
+
+/// Per-ray local levels: for a profile sampled outward from the centre (`profile[i]` at
+/// parameter `t[i]`, t = 1 on the seed ellipse), the background is the minimum of the profile
+/// for t in `[t_lo, t_hi]`, and the threshold is `fg + frac·(bg − fg)`. Returns
+/// (background, threshold), or `None` when the ray does not reach `t_lo`.
+pub fn local_levels(
+    profile: &[f32],
+    t: &[f64],
+    fg: f32,
+    frac: f32,
+    t_lo: f64,
+    t_hi: f64,
+) -> Option<(f32, f32)> {
+    let mut bg = f32::INFINITY;
+    for (p, &ti) in profile.iter().zip(t) {
+        if ti >= t_lo && ti <= t_hi {
+            bg = bg.min(*p);
+        }
+    }
+    if !bg.is_finite() {
+        return None;
+    }
+    Some((bg, fg + frac * (bg - fg)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ladder_spans_the_histogram() {
+        let mut img = GrayImage::new(100, 100, 0.1);
+        for v in img.data.iter_mut().take(5000) {
+            *v = 0.8;
+        }
+        let l = threshold_levels(&img, 10);
+        assert_eq!(l.len(), 10);
+        assert!(
+            l[0] > 0.1 && l[9] < 0.8 && l.windows(2).all(|w| w[0] < w[1]),
+            "{l:?}"
+        );
+    }
+}
