@@ -1,4 +1,40 @@
 //! # pingcal-lrf: the rotating 2D laser range finder side of the calibration
 //!
-//! Scan files to point clouds, automatic ball (sphere) finding and fitting, rigid
-//! registration with check points, and the Fan et al. 2019 corner baseline.
+//! This crate replaces GOM Inspect and the registration step of Manouchehri &
+//! Hosseininaveh (ISPRS 2023): it reads LRF scans, builds the 3D cloud (paper eq. 2), finds
+//! the ping-pong balls automatically and fits their centres with a fixed-radius fit along the
+//! beams, registers the LRF and photogrammetric frames (3D conformal transform with σ's,
+//! control/check table and leave-one-out), matches the balls of both frames without labels,
+//! and implements the Fan et al. 2019 room-corner baseline the paper compares against.
+//!
+//! Units are millimetres; frames are those of SPEC.md (`p_camera = R · p_lrf + t`).
+//!
+//! Modules, in pipeline order:
+//! - [`scan`]: the `pingcal-scan` CSV format, streaming reader and writer.
+//! - [`cloud`]: eq. 2 plus the mount model; [`cloud::read_cloud_file`] reads scans, PLY or XYZ.
+//! - [`ply`], [`xyz`]: PLY (ascii/binary) and text clouds; labelled point files.
+//! - [`sphere_fit`]: along-ray fixed-radius fit, orthogonal and free-radius fits, covariances.
+//! - [`ball_finder`]: planes removed, clusters, RANSAC with radius bounds, along-ray fit,
+//!   mixed-pixel rejection; balls with too few points are reported, not used.
+//! - [`registration`]: Horn/Umeyama closed form, weighted least squares with the covariances of
+//!   both sides (optional scale), σ of R and t, control/check table, leave-one-out.
+//! - [`correspondence`]: automatic ball matching by pairwise-distance invariants, RANSAC over triples.
+//! - [`corner`]: the Fan et al. 2019 baseline (scan lines on a room corner, P3P with
+//!   orthogonal edges, corner frame from target planes, DLT + resection, composition).
+//! - [`simulate`]: URG-04LX noise model and scene ray casting, for tests and benchmarks.
+//! - [`error`]: the error type; every failure names the file and line, or the points.
+
+pub mod ball_finder;
+pub mod cloud;
+pub mod corner;
+pub mod correspondence;
+pub mod error;
+pub mod ply;
+pub mod registration;
+pub mod scan;
+pub mod simulate;
+pub mod sphere_fit;
+pub mod xyz;
+
+pub use cloud::{Cloud, MountModel};
+pub use error::{LrfError, Result};

@@ -1,0 +1,464 @@
+//! Automatic ball finding in a room-sized cloud.
+//!
+//! 1. **Planes out.** Sequential RANSAC of large planes (walls, floor) on a seeded sub-sample,
+//!    refined by least squares; every point within `plane_k_sigma · σ(range)` of a plane is
+//!    removed. A plane must be large (second principal spread over 2·D), so a ball cap is
+//!    never taken for a plane.
+//! 2. **Clusters.** Euclidean clustering of what is left (link distance
+//!    `max(D/2, 2.5 σ(range))`, so noisy far balls stay in one piece); clusters with fewer
+//!    than `min_points` points or larger than `max_cluster_extent_d · D` are dropped.
+//! 3. **RANSAC** in each cluster: spheres through 4 points, kept only with a radius within
+//!    `radius_bounds` of the nominal one and the centre behind the sampled surface; the
+//!    hypothesis with the most points within `2σ` of the nominal sphere wins.
+//! 4. **Fit** with [`crate::sphere_fit::fit_along_ray`] at the nominal radius, which rejects
+//!    mixed pixels (beams grazing the silhouette, returning a range between ball and wall)
+//!    and stem points. Each ball carries its covariance and inlier count; a ball with fewer
+//!    than `min_inliers` rays, or a fit whose σ₀ shows it is not a sphere of that size, is
+//!    reported in [`FindResult::rejected`], not used.
+
+use crate::cloud::Cloud;
+use crate::simulate::UrgNoise;
+use crate::sphere_fit::{self, FitOptions, Ray};
+use nalgebra::{Matrix3, Vector3};
+use rand::rngs::StdRng;
+use rand::{Rng, SeedableRng};
+use rayon::prelude::*;
+use std::collections::HashMap;
+
+/// Options of [`find_balls`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FinderOptions {
+    /// Ball diameter, mm (38 for a ping-pong ball).
+    pub diameter_mm: f64,
+    /// Range noise model (σ of each range).
+    pub noise: UrgNoise,
+    /// Options of the along-ray fit.
+    pub fit: FitOptions,
+    /// Remove large planes first.
+    pub remove_planes: bool,
+    /// At most this many planes.
+    pub max_planes: usize,
+    /// A plane must hold at least this fraction of the points.
+    pub plane_min_fraction: f64,
+    /// Points within this many σ of a plane are removed.
+    pub plane_k_sigma: f64,
+    /// Clusters with fewer points are ignored.
+    pub min_points: usize,
+    /// Clusters larger than this many diameters (largest distance from their centroid) are ignored.
+    pub max_cluster_extent_d: f64,
+    /// RANSAC hypotheses per cluster.
+    pub ransac_iters: usize,
+    /// Accepted radius of a 4-point hypothesis, as fractions of the nominal radius.
+    pub radius_bounds: (f64, f64),
+    /// A ball needs at least this many rays after mixed-pixel rejection.
+    pub min_inliers: usize,
+    /// A fit with σ₀ above this is not a sphere of the nominal size.
+    pub max_sigma0: f64,
+    /// Seed of every random choice.
+    pub seed: u64,
+}
+
+impl Default for FinderOptions {
+    fn default() -> Self {
+        FinderOptions {
+            diameter_mm: 38.0,
+            noise: UrgNoise::default(),
+            fit: FitOptions::default(),
+            remove_planes: true,
+            max_planes: 6,
+            plane_min_fraction: 0.03,
+            plane_k_sigma: 2.5,
+            min_points: 6,
+            max_cluster_extent_d: 6.0,
+            ransac_iters: 200,
+            radius_bounds: (0.5, 1.5),
+            min_inliers: 6,
+            max_sigma0: 2.5,
+            seed: 1,
+        }
+    }
+}
+
+/// A ball found in the cloud.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Ball {
+    /// Centre in the LRF frame, mm.
+    pub centre: Vector3<f64>,
+    /// Covariance of the centre, mm².
+    pub cov: Matrix3<f64>,
+    /// Cloud indices of the rays used by the fit.
+    pub inliers: Vec<usize>,
+    /// Points in the cluster the ball came from.
+    pub cluster_points: usize,
+    /// Cluster points not used (mixed pixels, stem, outliers).
+    pub rejected_points: usize,
+    /// σ₀ of the fit.
+    pub sigma0: f64,
+    /// Range of the centre from the origin, mm.
+    pub range_mm: f64,
+}
+
+/// A candidate that was not accepted as a ball.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Rejected {
+    /// Best estimate of where it is, mm.
+    pub centre: Vector3<f64>,
+    /// Points in its cluster.
+    pub cluster_points: usize,
+    /// Why it was not used.
+    pub reason: String,
+}
+
+/// What [`find_balls`] found.
+#[derive(Debug, Clone, Default)]
+pub struct FindResult {
+    /// Accepted balls, sorted by range.
+    pub balls: Vec<Ball>,
+    /// Candidates not used, with the reason.
+    pub rejected: Vec<Rejected>,
+    /// Planes removed (unit normal, offset: n·x = d).
+    pub planes: Vec<(Vector3<f64>, f64)>,
+    /// Clusters examined.
+    pub clusters: usize,
+}
+
+fn point_sigma(cloud: &Cloud, noise: &UrgNoise, i: usize) -> f64 {
+    noise
+        .sigma((cloud.points[i] - cloud.origin(i)).norm())
+        .max(0.5)
+}
+
+fn fit_plane(pts: &[Vector3<f64>]) -> Option<(Vector3<f64>, f64, Vector3<f64>)> {
+    if pts.len() < 3 {
+        return None;
+    }
+    let m = pts.iter().sum::<Vector3<f64>>() / pts.len() as f64;
+    let mut s = Matrix3::zeros();
+    for p in pts {
+        let d = p - m;
+        s += d * d.transpose();
+    }
+    let e = s.symmetric_eigen();
+    let mut idx = [0usize, 1, 2];
+    idx.sort_by(|&a, &b| e.eigenvalues[a].total_cmp(&e.eigenvalues[b]));
+    let n = e.eigenvectors.column(idx[0]).into_owned();
+    let spreads = Vector3::new(
+        e.eigenvalues[idx[0]],
+        e.eigenvalues[idx[1]],
+        e.eigenvalues[idx[2]],
+    ) / pts.len() as f64;
+    Some((n, n.dot(&m), spreads.map(|v| v.max(0.0).sqrt())))
+}
+
+/// Removes large planes; returns the planes and a mask of the points kept.
+fn remove_planes(
+    cloud: &Cloud,
+    opt: &FinderOptions,
+    rng: &mut StdRng,
+) -> (Vec<(Vector3<f64>, f64)>, Vec<bool>) {
+    let n = cloud.len();
+    let mut keep = vec![true; n];
+    let mut planes = Vec::new();
+    let sigma: Vec<f64> = (0..n).map(|i| point_sigma(cloud, &opt.noise, i)).collect();
+    let sub_n = n.min(40_000);
+    let mut sample: Vec<usize> = if sub_n == n {
+        (0..n).collect()
+    } else {
+        (0..sub_n).map(|_| rng.random_range(0..n)).collect()
+    };
+    let min_count = (opt.plane_min_fraction * sub_n as f64).max(30.0) as usize;
+    for _ in 0..opt.max_planes {
+        if sample.len() < min_count {
+            break;
+        }
+        let mut best: Option<(usize, Vector3<f64>, f64)> = None;
+        for _ in 0..300 {
+            let a = cloud.points[sample[rng.random_range(0..sample.len())]];
+            let b = cloud.points[sample[rng.random_range(0..sample.len())]];
+            let c = cloud.points[sample[rng.random_range(0..sample.len())]];
+            let nrm = (b - a).cross(&(c - a));
+            if nrm.norm() < 1e-9 {
+                continue;
+            }
+            let nrm = nrm.normalize();
+            let d = nrm.dot(&a);
+            let count = sample
+                .iter()
+                .filter(|&&i| (nrm.dot(&cloud.points[i]) - d).abs() < opt.plane_k_sigma * sigma[i])
+                .count();
+            if best.is_none_or(|b| count > b.0) {
+                best = Some((count, nrm, d));
+            }
+        }
+        let Some((count, nrm, d)) = best else { break };
+        if count < min_count {
+            break;
+        }
+        let inl: Vec<Vector3<f64>> = sample
+            .iter()
+            .filter(|&&i| (nrm.dot(&cloud.points[i]) - d).abs() < opt.plane_k_sigma * sigma[i])
+            .map(|&i| cloud.points[i])
+            .collect();
+        let Some((n2, d2, spread)) = fit_plane(&inl) else {
+            break;
+        };
+        if spread[1] < 2.0 * opt.diameter_mm {
+            break; // not a wall: too small
+        }
+        planes.push((n2, d2));
+        sample.retain(|&i| (n2.dot(&cloud.points[i]) - d2).abs() >= opt.plane_k_sigma * sigma[i]);
+    }
+    keep.par_iter_mut().enumerate().for_each(|(i, k)| {
+        let p = cloud.points[i];
+        *k = planes
+            .iter()
+            .all(|(nv, d)| (nv.dot(&p) - d).abs() >= opt.plane_k_sigma * sigma[i]);
+    });
+    (planes, keep)
+}
+
+/// Euclidean clusters of the kept points (union-find on a hash grid).
+fn clusters(cloud: &Cloud, idx: &[usize], opt: &FinderOptions) -> Vec<Vec<usize>> {
+    if idx.is_empty() {
+        return Vec::new();
+    }
+    let link: Vec<f64> = idx
+        .iter()
+        .map(|&i| (0.5 * opt.diameter_mm).max(2.5 * point_sigma(cloud, &opt.noise, i)))
+        .collect();
+    let cell = link.iter().cloned().fold(0.0, f64::max);
+    let key = |p: &Vector3<f64>| {
+        (
+            (p.x / cell).floor() as i64,
+            (p.y / cell).floor() as i64,
+            (p.z / cell).floor() as i64,
+        )
+    };
+    let mut grid: HashMap<(i64, i64, i64), Vec<usize>> = HashMap::new();
+    for (k, &i) in idx.iter().enumerate() {
+        grid.entry(key(&cloud.points[i])).or_default().push(k);
+    }
+    let mut parent: Vec<usize> = (0..idx.len()).collect();
+    fn root(p: &mut [usize], mut a: usize) -> usize {
+        while p[a] != a {
+            p[a] = p[p[a]];
+            a = p[a];
+        }
+        a
+    }
+    for (k, &i) in idx.iter().enumerate() {
+        let p = cloud.points[i];
+        let (x, y, z) = key(&p);
+        for dx in -1..=1 {
+            for dy in -1..=1 {
+                for dz in -1..=1 {
+                    if let Some(v) = grid.get(&(x + dx, y + dy, z + dz)) {
+                        for &m in v {
+                            if m > k && (cloud.points[idx[m]] - p).norm() < link[k].max(link[m]) {
+                                let (a, b) = (root(&mut parent, k), root(&mut parent, m));
+                                if a != b {
+                                    parent[a.max(b)] = a.min(b);
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+    let mut groups: HashMap<usize, Vec<usize>> = HashMap::new();
+    for k in 0..idx.len() {
+        let r = root(&mut parent, k);
+        groups.entry(r).or_default().push(idx[k]);
+    }
+    let mut out: Vec<Vec<usize>> = groups.into_values().collect();
+    out.sort_by_key(|g| g[0]);
+    out
+}
+
+/// Sphere through four points: (centre, radius).
+pub fn sphere_through(p: [Vector3<f64>; 4]) -> Option<(Vector3<f64>, f64)> {
+    let a = Matrix3::from_rows(&[
+        (p[1] - p[0]).transpose() * 2.0,
+        (p[2] - p[0]).transpose() * 2.0,
+        (p[3] - p[0]).transpose() * 2.0,
+    ]);
+    let n0 = p[0].norm_squared();
+    let b = Vector3::new(
+        p[1].norm_squared() - n0,
+        p[2].norm_squared() - n0,
+        p[3].norm_squared() - n0,
+    );
+    let c = a.lu().solve(&b)?;
+    let r = (p[0] - c).norm();
+    (c.iter().all(|v| v.is_finite()) && r.is_finite()).then_some((c, r))
+}
+
+enum Outcome {
+    Ball(Ball),
+    Rejected(Rejected),
+}
+
+fn examine(cloud: &Cloud, cl: &[usize], opt: &FinderOptions, seed: u64) -> Outcome {
+    let radius = opt.diameter_mm / 2.0;
+    let rays: Vec<Ray> = cl
+        .iter()
+        .map(|&i| {
+            Ray::from_point(
+                cloud.origin(i),
+                cloud.points[i],
+                point_sigma(cloud, &opt.noise, i),
+            )
+        })
+        .collect();
+    let pts: Vec<Vector3<f64>> = rays.iter().map(|r| r.point()).collect();
+    let mean = pts.iter().sum::<Vector3<f64>>() / pts.len() as f64;
+    let mut rng = StdRng::seed_from_u64(seed);
+    let mut best: Option<(usize, Vector3<f64>)> = None;
+    for _ in 0..opt.ransac_iters {
+        let mut s = [0usize; 4];
+        for k in 0..4 {
+            s[k] = rng.random_range(0..pts.len());
+        }
+        if (0..4).any(|a| (a + 1..4).any(|b| s[a] == s[b])) {
+            continue;
+        }
+        let Some((c, r)) = sphere_through([pts[s[0]], pts[s[1]], pts[s[2]], pts[s[3]]]) else {
+            continue;
+        };
+        if r < opt.radius_bounds.0 * radius || r > opt.radius_bounds.1 * radius {
+            continue;
+        }
+        let sm = s.iter().map(|&k| pts[k]).sum::<Vector3<f64>>() / 4.0;
+        let view = s.iter().map(|&k| rays[k].dir).sum::<Vector3<f64>>();
+        if (c - sm).dot(&view) <= 0.0 {
+            continue; // the visible cap is in front of the centre
+        }
+        let count = rays
+            .iter()
+            .zip(&pts)
+            .filter(|(ray, p)| ((*p - c).norm() - radius).abs() < 2.0 * ray.sigma)
+            .count();
+        if best.is_none_or(|b| count > b.0) {
+            best = Some((count, c));
+        }
+    }
+    let init = best.map(|b| b.1);
+    let reject = |centre: Vector3<f64>, reason: String| {
+        Outcome::Rejected(Rejected {
+            centre,
+            cluster_points: cl.len(),
+            reason,
+        })
+    };
+    match sphere_fit::fit_along_ray(&rays, radius, init, &opt.fit) {
+        Err(e) => reject(init.unwrap_or(mean), format!("no sphere fit: {e}")),
+        Ok(f) if f.used.len() < opt.min_inliers => reject(
+            f.centre,
+            format!(
+                "too few points on the ball after mixed-pixel rejection: {} (need {})",
+                f.used.len(),
+                opt.min_inliers
+            ),
+        ),
+        Ok(f) if f.sigma0 > opt.max_sigma0 => reject(
+            f.centre,
+            format!("not a {} mm sphere: σ₀ = {:.2}", opt.diameter_mm, f.sigma0),
+        ),
+        Ok(f) if (f.centre - mean).norm() > opt.diameter_mm * 2.0 => {
+            reject(f.centre, "fit left its cluster".into())
+        }
+        Ok(f) => Outcome::Ball(Ball {
+            range_mm: f.centre.norm(),
+            centre: f.centre,
+            cov: f.cov,
+            inliers: f.used.iter().map(|&k| cl[k]).collect(),
+            cluster_points: cl.len(),
+            rejected_points: cl.len() - f.used.len(),
+            sigma0: f.sigma0,
+        }),
+    }
+}
+
+/// Finds every ball of the given diameter in the cloud.
+pub fn find_balls(cloud: &Cloud, opt: &FinderOptions) -> FindResult {
+    let mut rng = StdRng::seed_from_u64(opt.seed);
+    let (planes, keep) = if opt.remove_planes {
+        remove_planes(cloud, opt, &mut rng)
+    } else {
+        (Vec::new(), vec![true; cloud.len()])
+    };
+    let idx: Vec<usize> = (0..cloud.len()).filter(|&i| keep[i]).collect();
+    let all = clusters(cloud, &idx, opt);
+    let n_clusters = all.len();
+    let cands: Vec<Vec<usize>> = all
+        .into_iter()
+        .filter(|c| {
+            if c.len() < opt.min_points {
+                return false;
+            }
+            let m = c.iter().map(|&i| cloud.points[i]).sum::<Vector3<f64>>() / c.len() as f64;
+            c.iter().all(|&i| {
+                (cloud.points[i] - m).norm() <= opt.max_cluster_extent_d * opt.diameter_mm
+            })
+        })
+        .collect();
+    let outcomes: Vec<Outcome> = cands
+        .par_iter()
+        .enumerate()
+        .map(|(k, c)| {
+            examine(
+                cloud,
+                c,
+                opt,
+                opt.seed ^ (k as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15),
+            )
+        })
+        .collect();
+    let mut res = FindResult {
+        planes,
+        clusters: n_clusters,
+        ..Default::default()
+    };
+    for o in outcomes {
+        match o {
+            Outcome::Ball(b) => {
+                // one ball split into two clusters: keep the better-supported fit
+                if let Some(prev) = res
+                    .balls
+                    .iter_mut()
+                    .find(|p| (p.centre - b.centre).norm() < opt.diameter_mm / 2.0)
+                {
+                    if b.inliers.len() > prev.inliers.len() {
+                        *prev = b;
+                    }
+                } else {
+                    res.balls.push(b);
+                }
+            }
+            Outcome::Rejected(r) => res.rejected.push(r),
+        }
+    }
+    res.balls.sort_by(|a, b| a.range_mm.total_cmp(&b.range_mm));
+    res
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn four_point_sphere() {
+        let c = Vector3::new(1.0, 2.0, 3.0);
+        let p = [Vector3::x(), Vector3::y(), Vector3::z(), -Vector3::x()].map(|d| c + d * 19.0);
+        let (cc, r) = sphere_through(p).unwrap();
+        assert!((cc - c).norm() < 1e-9 && (r - 19.0).abs() < 1e-9);
+        assert!(sphere_through([
+            Vector3::zeros(),
+            Vector3::x(),
+            Vector3::y(),
+            Vector3::x() + Vector3::y()
+        ])
+        .is_none());
+    }
+}

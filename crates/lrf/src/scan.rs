@@ -1,0 +1,425 @@
+//! The `pingcal-scan` CSV format (SPEC.md): one 2D scan per line, with the servo angle.
+//!
+//! ```text
+//! # pingcal-scan v1
+//! # angle_min_deg=-119.53125
+//! # angle_increment_deg=0.3515625
+//! # range_unit=mm
+//! stamp_s,servo_deg,r0,r1,r2,...
+//! 0.000,-45.056,1532,1530,0,...
+//! ```
+//!
+//! [`ScanReader`] streams the file line by line through a [`BufRead`], so a log of
+//! millions of beams never has to fit in memory as one string. Ranges under 20 mm (the URG
+//! error codes, and 0) mean "no return" and are stored as `0.0`.
+
+use crate::error::{LrfError, Result};
+use std::io::{BufRead, Write};
+
+/// Ranges under this many millimetres are URG error codes: no return.
+pub const MIN_VALID_RANGE_MM: f64 = 20.0;
+
+/// The header of a scan file: the beam geometry shared by all lines.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct ScanHeader {
+    /// Angle α of beam 0, degrees.
+    pub angle_min_deg: f64,
+    /// Angle step between beams, degrees.
+    pub angle_increment_deg: f64,
+    /// Millimetres per range unit of the file (1 for `mm`, 10 for `cm`, 1000 for `m`).
+    pub mm_per_unit: f64,
+}
+
+impl ScanHeader {
+    /// The Hokuyo URG-04LX geometry: 682 beams from −119.53125° in 0.3515625° steps, mm.
+    pub const URG_04LX: ScanHeader = ScanHeader {
+        angle_min_deg: -119.53125,
+        angle_increment_deg: 0.3515625,
+        mm_per_unit: 1.0,
+    };
+
+    /// Beam angle α of beam `i`, in degrees.
+    pub fn beam_angle_deg(&self, i: usize) -> f64 {
+        self.angle_min_deg + i as f64 * self.angle_increment_deg
+    }
+}
+
+/// One 2D scan: the servo angle and one range per beam.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ScanLine {
+    /// 1-based line number in the file (0 when not read from a file).
+    pub line: usize,
+    /// Time stamp, seconds.
+    pub stamp_s: f64,
+    /// Servo angle β, degrees.
+    pub servo_deg: f64,
+    /// Ranges in mm; `0.0` where the beam had no return.
+    pub ranges_mm: Vec<f64>,
+}
+
+/// A streaming reader of a `pingcal-scan` CSV file.
+///
+/// The header (the `#` lines and the column line) is read by [`ScanReader::new`]; the
+/// scans are then yielded one at a time by the iterator.
+pub struct ScanReader<R: BufRead> {
+    input: R,
+    file: String,
+    header: ScanHeader,
+    n_beams: Option<usize>,
+    line_no: usize,
+    pending: Option<(usize, String)>,
+    buf: Vec<u8>,
+    failed: bool,
+}
+
+fn read_line<R: BufRead>(
+    input: &mut R,
+    buf: &mut Vec<u8>,
+    file: &str,
+    line_no: usize,
+) -> Result<Option<String>> {
+    buf.clear();
+    let n = input
+        .read_until(b'\n', buf)
+        .map_err(|e| LrfError::io(file, e))?;
+    if n == 0 {
+        return Ok(None);
+    }
+    let s =
+        std::str::from_utf8(buf).map_err(|_| LrfError::parse(file, line_no, "not UTF-8 text"))?;
+    Ok(Some(s.trim_end_matches(['\n', '\r']).to_string()))
+}
+
+fn parse_f64(file: &str, line: usize, what: &str, s: &str) -> Result<f64> {
+    let t = s.trim();
+    match t.parse::<f64>() {
+        Ok(v) if v.is_finite() => Ok(v),
+        _ => Err(LrfError::parse(
+            file,
+            line,
+            format!("{what}: expected a number, found {t:?}"),
+        )),
+    }
+}
+
+impl<R: BufRead> ScanReader<R> {
+    /// Reads the header. `file` is the name used in error messages.
+    pub fn new(mut input: R, file: &str) -> Result<Self> {
+        let mut buf = Vec::new();
+        let mut line_no = 0;
+        let mut angle_min = None;
+        let mut increment = None;
+        let mut mm_per_unit = 1.0;
+        let mut n_beams = None;
+        let mut pending = None;
+        loop {
+            line_no += 1;
+            let Some(line) = read_line(&mut input, &mut buf, file, line_no)? else {
+                break;
+            };
+            let t = line.trim();
+            if t.is_empty() {
+                continue;
+            }
+            if let Some(rest) = t.strip_prefix('#') {
+                let rest = rest.trim();
+                if let Some((k, v)) = rest.split_once('=') {
+                    let (k, v) = (k.trim(), v.trim());
+                    match k {
+                        "angle_min_deg" => angle_min = Some(parse_f64(file, line_no, k, v)?),
+                        "angle_increment_deg" => {
+                            let inc = parse_f64(file, line_no, k, v)?;
+                            if inc == 0.0 {
+                                return Err(LrfError::parse(
+                                    file,
+                                    line_no,
+                                    "angle_increment_deg must not be 0",
+                                ));
+                            }
+                            increment = Some(inc)
+                        }
+                        "range_unit" => {
+                            mm_per_unit = match v {
+                                "mm" => 1.0,
+                                "cm" => 10.0,
+                                "m" => 1000.0,
+                                _ => {
+                                    return Err(LrfError::parse(
+                                        file,
+                                        line_no,
+                                        format!("range_unit: expected mm, cm or m, found {v:?}"),
+                                    ))
+                                }
+                            }
+                        }
+                        _ => {} // unknown keys are ignored (SPEC.md)
+                    }
+                }
+                continue;
+            }
+            if t.starts_with("stamp_s") {
+                let cols: Vec<&str> = t.split(',').map(str::trim).collect();
+                if cols.len() < 3 || cols[1] != "servo_deg" {
+                    return Err(LrfError::parse(
+                        file,
+                        line_no,
+                        "column line: expected `stamp_s,servo_deg,r0,r1,...`",
+                    ));
+                }
+                n_beams = Some(cols.len() - 2);
+                continue;
+            }
+            pending = Some((line_no, line));
+            break;
+        }
+        let missing = |key: &str| LrfError::Empty {
+            file: file.to_string(),
+            msg: format!("header has no `# {key}=` line"),
+        };
+        if angle_min.is_none() && increment.is_none() && pending.is_none() && n_beams.is_none() {
+            return Err(LrfError::Empty {
+                file: file.to_string(),
+                msg: "empty file: no header and no scans".into(),
+            });
+        }
+        let angle_min_deg = angle_min.ok_or_else(|| missing("angle_min_deg"))?;
+        let angle_increment_deg = increment.ok_or_else(|| missing("angle_increment_deg"))?;
+        Ok(ScanReader {
+            input,
+            file: file.to_string(),
+            header: ScanHeader {
+                angle_min_deg,
+                angle_increment_deg,
+                mm_per_unit,
+            },
+            n_beams,
+            line_no,
+            pending,
+            buf,
+            failed: false,
+        })
+    }
+
+    /// The beam geometry.
+    pub fn header(&self) -> ScanHeader {
+        self.header
+    }
+
+    /// Number of beams per scan, once known (column line or first scan).
+    pub fn n_beams(&self) -> Option<usize> {
+        self.n_beams
+    }
+
+    fn parse_scan(&mut self, line_no: usize, line: &str) -> Result<ScanLine> {
+        let file = self.file.as_str();
+        let mut fields = line.split(',');
+        let stamp_s = parse_f64(file, line_no, "stamp_s", fields.next().unwrap_or(""))?;
+        let servo_deg = parse_f64(
+            file,
+            line_no,
+            "servo_deg",
+            fields.next().ok_or_else(|| {
+                LrfError::parse(file, line_no, "expected `stamp_s,servo_deg,r0,...`")
+            })?,
+        )?;
+        let mut ranges_mm = Vec::with_capacity(self.n_beams.unwrap_or(0));
+        for (i, f) in fields.enumerate() {
+            let v = parse_f64(file, line_no, &format!("range r{i}"), f)?;
+            if v < 0.0 {
+                return Err(LrfError::parse(
+                    file,
+                    line_no,
+                    format!("range r{i}: negative value {v}"),
+                ));
+            }
+            let mm = v * self.header.mm_per_unit;
+            ranges_mm.push(if mm < MIN_VALID_RANGE_MM { 0.0 } else { mm });
+        }
+        if ranges_mm.is_empty() {
+            return Err(LrfError::parse(
+                file,
+                line_no,
+                "no ranges after stamp_s,servo_deg",
+            ));
+        }
+        match self.n_beams {
+            Some(n) if n != ranges_mm.len() => {
+                return Err(LrfError::parse(
+                    file,
+                    line_no,
+                    format!("expected {n} ranges, found {}", ranges_mm.len()),
+                ))
+            }
+            None => self.n_beams = Some(ranges_mm.len()),
+            _ => {}
+        }
+        Ok(ScanLine {
+            line: line_no,
+            stamp_s,
+            servo_deg,
+            ranges_mm,
+        })
+    }
+
+    fn next_scan(&mut self) -> Result<Option<ScanLine>> {
+        loop {
+            let (line_no, line) = match self.pending.take() {
+                Some(p) => p,
+                None => {
+                    self.line_no += 1;
+                    match read_line(&mut self.input, &mut self.buf, &self.file, self.line_no)? {
+                        Some(l) => (self.line_no, l),
+                        None => return Ok(None),
+                    }
+                }
+            };
+            let t = line.trim();
+            if t.is_empty() || t.starts_with('#') {
+                continue;
+            }
+            return self.parse_scan(line_no, t).map(Some);
+        }
+    }
+}
+
+impl<R: BufRead> Iterator for ScanReader<R> {
+    type Item = Result<ScanLine>;
+    fn next(&mut self) -> Option<Self::Item> {
+        if self.failed {
+            return None;
+        }
+        match self.next_scan() {
+            Ok(Some(s)) => Some(Ok(s)),
+            Ok(None) => None,
+            Err(e) => {
+                self.failed = true;
+                Some(Err(e))
+            }
+        }
+    }
+}
+
+/// Opens a scan file for streaming.
+pub fn open_scan_file(
+    path: &std::path::Path,
+) -> Result<ScanReader<std::io::BufReader<std::fs::File>>> {
+    let name = path.display().to_string();
+    let f = std::fs::File::open(path).map_err(|e| LrfError::io(&name, e))?;
+    ScanReader::new(std::io::BufReader::with_capacity(1 << 16, f), &name)
+}
+
+/// Writes scans in the `pingcal-scan` v1 format (ranges rounded to whole mm, as the URG does;
+/// no return written as 0).
+pub fn write_scans<W: Write>(
+    mut w: W,
+    header: &ScanHeader,
+    scans: &[ScanLine],
+) -> std::io::Result<()> {
+    let n = scans.first().map_or(0, |s| s.ranges_mm.len());
+    writeln!(w, "# pingcal-scan v1")?;
+    writeln!(w, "# angle_min_deg={}", header.angle_min_deg)?;
+    writeln!(w, "# angle_increment_deg={}", header.angle_increment_deg)?;
+    writeln!(w, "# range_unit=mm")?;
+    write!(w, "stamp_s,servo_deg")?;
+    for i in 0..n {
+        write!(w, ",r{i}")?;
+    }
+    writeln!(w)?;
+    for s in scans {
+        write!(w, "{:.3},{:.3}", s.stamp_s, s.servo_deg)?;
+        for &r in &s.ranges_mm {
+            write!(w, ",{}", r.round() as i64)?;
+        }
+        writeln!(w)?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn read_all(text: &str) -> Result<(ScanHeader, Vec<ScanLine>)> {
+        let r = ScanReader::new(text.as_bytes(), "t.csv")?;
+        let h = r.header();
+        let v: Result<Vec<_>> = r.collect();
+        Ok((h, v?))
+    }
+
+    const GOOD: &str = "# pingcal-scan v1\n# angle_min_deg=-119.53125\n# angle_increment_deg=0.3515625\n# range_unit=mm\n# sensor=URG-04LX\nstamp_s,servo_deg,r0,r1,r2\n0.000,-45.056,1532,1530,0\n0.100,-44.9,1531,7,1529\n";
+
+    #[test]
+    fn reads_header_and_lines() {
+        let (h, v) = read_all(GOOD).unwrap();
+        assert_eq!(h.angle_min_deg, -119.53125);
+        assert_eq!(h.angle_increment_deg, 0.3515625);
+        assert_eq!(v.len(), 2);
+        assert_eq!(v[0].line, 7);
+        assert_eq!(v[0].ranges_mm, vec![1532.0, 1530.0, 0.0]);
+        // 7 is a URG error code: no return
+        assert_eq!(v[1].ranges_mm, vec![1531.0, 0.0, 1529.0]);
+        assert_eq!(v[1].servo_deg, -44.9);
+    }
+
+    #[test]
+    fn range_unit_metres() {
+        let t = GOOD
+            .replace("range_unit=mm", "range_unit=m")
+            .replace("1532,1530,0", "1.532,1.5,0.01");
+        let (_, v) = read_all(&t).unwrap();
+        assert_eq!(v[0].ranges_mm, vec![1532.0, 1500.0, 0.0]);
+    }
+
+    #[test]
+    fn wrong_count_names_line() {
+        let t = GOOD.replace("1531,7,1529", "1531,7");
+        let e = read_all(&t).unwrap_err().to_string();
+        assert_eq!(e, "t.csv:8: expected 3 ranges, found 2");
+    }
+
+    #[test]
+    fn non_numeric_names_line_and_field() {
+        let t = GOOD.replace("1531,7", "1531,abc");
+        let e = read_all(&t).unwrap_err().to_string();
+        assert_eq!(e, "t.csv:8: range r1: expected a number, found \"abc\"");
+        let t = GOOD.replace("-44.9", "x");
+        let e = read_all(&t).unwrap_err().to_string();
+        assert!(e.starts_with("t.csv:8: servo_deg"), "{e}");
+    }
+
+    #[test]
+    fn empty_file_and_missing_increment() {
+        let e = read_all("").unwrap_err().to_string();
+        assert!(e.contains("empty file"), "{e}");
+        let t = GOOD.replace("# angle_increment_deg=0.3515625\n", "");
+        let e = read_all(&t).unwrap_err().to_string();
+        assert_eq!(e, "t.csv: header has no `# angle_increment_deg=` line");
+    }
+
+    #[test]
+    fn write_then_read_round_trip() {
+        let scans = vec![
+            ScanLine {
+                line: 0,
+                stamp_s: 0.0,
+                servo_deg: 1.5,
+                ranges_mm: vec![1000.0, 0.0, 2500.0],
+            },
+            ScanLine {
+                line: 0,
+                stamp_s: 0.1,
+                servo_deg: 1.6,
+                ranges_mm: vec![1001.0, 30.0, 0.0],
+            },
+        ];
+        let mut out = Vec::new();
+        write_scans(&mut out, &ScanHeader::URG_04LX, &scans).unwrap();
+        let (h, v) = read_all(std::str::from_utf8(&out).unwrap()).unwrap();
+        assert_eq!(h, ScanHeader::URG_04LX);
+        assert_eq!(v.len(), 2);
+        for (a, b) in scans.iter().zip(&v) {
+            assert_eq!(a.ranges_mm, b.ranges_mm);
+            assert_eq!(a.servo_deg, b.servo_deg);
+        }
+    }
+}

@@ -1,0 +1,210 @@
+//! Text coordinate files: plain XYZ clouds (`x y z [anything...]`) and labelled points
+//! (`id x y z [sx sy sz]`) as `pingcal register` reads them. Whitespace or commas separate
+//! the fields; `#` starts a comment.
+
+use crate::cloud::Cloud;
+use crate::error::{LrfError, Result};
+use nalgebra::Vector3;
+use std::io::BufRead;
+
+fn fields(line: &str) -> Vec<&str> {
+    let body = line.split('#').next().unwrap_or("");
+    body.split(|c: char| c == ',' || c.is_whitespace())
+        .filter(|s| !s.is_empty())
+        .collect()
+}
+
+fn num(file: &str, line: usize, what: &str, s: &str) -> Result<f64> {
+    match s.parse::<f64>() {
+        Ok(v) if v.is_finite() => Ok(v),
+        _ => Err(LrfError::parse(
+            file,
+            line,
+            format!("{what}: expected a number, found {s:?}"),
+        )),
+    }
+}
+
+fn lines<R: BufRead>(
+    input: R,
+    file: &str,
+    mut f: impl FnMut(usize, &str) -> Result<()>,
+) -> Result<()> {
+    let mut input = input;
+    let mut buf = Vec::new();
+    let mut n = 0;
+    loop {
+        buf.clear();
+        n += 1;
+        if input
+            .read_until(b'\n', &mut buf)
+            .map_err(|e| LrfError::io(file, e))?
+            == 0
+        {
+            return Ok(());
+        }
+        let s =
+            std::str::from_utf8(&buf).map_err(|_| LrfError::parse(file, n, "not UTF-8 text"))?;
+        f(n, s)?;
+    }
+}
+
+/// Reads an XYZ cloud: the first three numeric columns of each line are x, y, z in mm.
+pub fn read_xyz<R: BufRead>(input: R, file: &str) -> Result<Cloud> {
+    let mut pts = Vec::new();
+    lines(input, file, |n, s| {
+        let f = fields(s);
+        if f.is_empty() {
+            return Ok(());
+        }
+        if f.len() < 3 {
+            return Err(LrfError::parse(
+                file,
+                n,
+                format!("expected `x y z`, found {} field(s)", f.len()),
+            ));
+        }
+        pts.push(Vector3::new(
+            num(file, n, "x", f[0])?,
+            num(file, n, "y", f[1])?,
+            num(file, n, "z", f[2])?,
+        ));
+        Ok(())
+    })?;
+    if pts.is_empty() {
+        return Err(LrfError::Empty {
+            file: file.into(),
+            msg: "no points".into(),
+        });
+    }
+    Ok(Cloud::from_points(pts))
+}
+
+/// Reads an XYZ file from disk.
+pub fn read_xyz_file(path: &std::path::Path) -> Result<Cloud> {
+    let name = path.display().to_string();
+    let f = std::fs::File::open(path).map_err(|e| LrfError::io(&name, e))?;
+    read_xyz(std::io::BufReader::new(f), &name)
+}
+
+/// One labelled point: an id, coordinates in mm and optional standard deviations in mm.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LabelledPoint {
+    /// Point id as written in the file.
+    pub id: String,
+    /// Coordinates, mm.
+    pub xyz: Vector3<f64>,
+    /// Standard deviations of x, y, z in mm, when the file gives them.
+    pub sigma: Option<Vector3<f64>>,
+}
+
+/// Reads labelled points: `id x y z` or `id x y z sx sy sz` per line. Ids must be unique.
+pub fn read_labelled<R: BufRead>(input: R, file: &str) -> Result<Vec<LabelledPoint>> {
+    let mut out: Vec<LabelledPoint> = Vec::new();
+    let mut seen = std::collections::HashMap::new();
+    lines(input, file, |n, s| {
+        let f = fields(s);
+        if f.is_empty() {
+            return Ok(());
+        }
+        if f.len() != 4 && f.len() != 7 {
+            return Err(LrfError::parse(
+                file,
+                n,
+                format!(
+                    "expected `id x y z` or `id x y z sx sy sz`, found {} field(s)",
+                    f.len()
+                ),
+            ));
+        }
+        let xyz = Vector3::new(
+            num(file, n, "x", f[1])?,
+            num(file, n, "y", f[2])?,
+            num(file, n, "z", f[3])?,
+        );
+        let sigma = if f.len() == 7 {
+            let s = Vector3::new(
+                num(file, n, "sx", f[4])?,
+                num(file, n, "sy", f[5])?,
+                num(file, n, "sz", f[6])?,
+            );
+            if s.iter().any(|&v| v <= 0.0) {
+                return Err(LrfError::parse(
+                    file,
+                    n,
+                    "standard deviations must be positive",
+                ));
+            }
+            Some(s)
+        } else {
+            None
+        };
+        if let Some(prev) = seen.insert(f[0].to_string(), n) {
+            return Err(LrfError::parse(
+                file,
+                n,
+                format!("id {:?} already on line {prev}", f[0]),
+            ));
+        }
+        out.push(LabelledPoint {
+            id: f[0].to_string(),
+            xyz,
+            sigma,
+        });
+        Ok(())
+    })?;
+    if out.is_empty() {
+        return Err(LrfError::Empty {
+            file: file.into(),
+            msg: "no points (expected `id x y z` lines)".into(),
+        });
+    }
+    Ok(out)
+}
+
+/// Reads a labelled-point file from disk.
+pub fn read_labelled_file(path: &std::path::Path) -> Result<Vec<LabelledPoint>> {
+    let name = path.display().to_string();
+    let f = std::fs::File::open(path).map_err(|e| LrfError::io(&name, e))?;
+    read_labelled(std::io::BufReader::new(f), &name)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn xyz_with_comments_commas_and_extra_columns() {
+        let c = read_xyz(
+            "# cloud\n1 2 3\n4,5,6, 255 0 0\n\n7\t8\t9 # c\n".as_bytes(),
+            "a.xyz",
+        )
+        .unwrap();
+        assert_eq!(c.len(), 3);
+        assert_eq!(c.points[1], Vector3::new(4.0, 5.0, 6.0));
+        let e = read_xyz("1 2 3\n1 2\n".as_bytes(), "a.xyz")
+            .unwrap_err()
+            .to_string();
+        assert_eq!(e, "a.xyz:2: expected `x y z`, found 2 field(s)");
+        let e = read_xyz("1 2 zz\n".as_bytes(), "a.xyz")
+            .unwrap_err()
+            .to_string();
+        assert_eq!(e, "a.xyz:1: z: expected a number, found \"zz\"");
+        assert!(read_xyz("# nothing\n".as_bytes(), "a.xyz").is_err());
+    }
+
+    #[test]
+    fn labelled_points() {
+        let v = read_labelled("B1 1 2 3\nB2, 4, 5, 6, 0.5, 0.5, 1\n".as_bytes(), "p.txt").unwrap();
+        assert_eq!(v[0].id, "B1");
+        assert_eq!(v[1].sigma, Some(Vector3::new(0.5, 0.5, 1.0)));
+        let e = read_labelled("B1 1 2 3\nB1 1 2 3\n".as_bytes(), "p.txt")
+            .unwrap_err()
+            .to_string();
+        assert_eq!(e, "p.txt:2: id \"B1\" already on line 1");
+        let e = read_labelled("B1 1 2\n".as_bytes(), "p.txt")
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("p.txt:1: expected `id x y z`"), "{e}");
+    }
+}
