@@ -165,24 +165,34 @@ impl Detector {
                 }
             })
             .collect();
-        // Blobs inside the ring zone of a coded target are its ring segments: drop them.
-        let coded: Vec<&Ellipse> = keep
+        // Blobs inside the ring zone of a coded target are its ring segments: drop them
+        // (first around decoded targets, then around the unidentified ones that remain).
+        let in_ring_of = |r: &Refined, rings: &[&Ellipse]| {
+            rings.iter().any(|c| {
+                let (u, v) = c.unmap(r.ellipse.cx, r.ellipse.cy);
+                let d2 = u * u + v * v;
+                d2 > 0.25 && d2 < 3.6 * 3.6
+            })
+        };
+        let decoded: Vec<&Ellipse> = keep
             .iter()
             .zip(&reads)
-            .filter(|(_, r)| r.0 == Some(TargetKind::Coded))
+            .filter(|(_, r)| r.1.is_some())
             .map(|(k, _)| &k.ellipse)
             .collect();
+        let survivors: Vec<usize> = (0..keep.len())
+            .filter(|&i| reads[i].1.is_some() || !in_ring_of(&keep[i], &decoded))
+            .collect();
+        let unread: Vec<&Ellipse> = survivors
+            .iter()
+            .filter(|&&i| reads[i].0 == Some(TargetKind::Coded) && reads[i].1.is_none())
+            .map(|&i| &keep[i].ellipse)
+            .collect();
         let mut targets = Vec::new();
-        for (r, (kind, id)) in keep.iter().zip(&reads) {
-            if kind.is_none() {
-                let inside_ring = coded.iter().any(|c| {
-                    let (u, v) = c.unmap(r.ellipse.cx, r.ellipse.cy);
-                    let d2 = u * u + v * v;
-                    d2 > 0.25 && d2 < 3.6 * 3.6
-                });
-                if inside_ring {
-                    continue;
-                }
+        for &i in &survivors {
+            let (r, (kind, id)) = (&keep[i], &reads[i]);
+            if kind.is_none() && in_ring_of(r, &unread) {
+                continue;
             }
             targets.push(Target {
                 kind: kind.unwrap_or(TargetKind::Plain),
