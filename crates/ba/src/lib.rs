@@ -8,6 +8,11 @@
 //! | [`pose`] | exterior orientation `x_cam = R·X + t` and its local update |
 //! | [`camera`] | camera models ([`camera::CameraModel`]): photogrammetric (SPEC.md), BAL |
 
+pub mod bal;
 pub mod camera;
+pub mod loss;
 pub mod pose;
+pub mod problem;
 pub mod rotation;
+pub mod solver;
+pub mod synthetic;

@@ -33,7 +33,7 @@ impl CameraModel for BalCamera {
         jac_params: Option<&mut [f64]>,
     ) -> Option<Vector2<f64>> {
         let (f, k1, k2) = (params[0], params[1], params[2]);
-        if xc.z.abs() < 1e-300 || !xc.z.is_finite() {
+        if !(xc.z.abs() > 1e-12 * xc.norm()) {
             return None;
         }
         let iz = 1.0 / xc.z;

@@ -1,16 +1,159 @@
-//! `pingcal ba`: not built yet (issue 2).
+//! `pingcal ba PROBLEM`: a bundle adjustment on its own, on a BAL file (plain or `.bz2`).
+//!
+//! Prints a per-iteration log (as Ceres does) and a one-line summary; `--out FILE` writes
+//! the JSON of SPEC.md, with cost = ½ Σ r² in pixels so that it compares with Ceres.
 
-use super::CmdResult;
+use super::{write_atomic, CmdResult};
+use pingcal_ba::loss::Loss;
+use pingcal_ba::solver::{self, Iteration, LinearSolverKind, Options};
+use std::path::PathBuf;
+use std::time::Instant;
 
 /// Arguments of `pingcal ba`.
 #[derive(clap::Args)]
 pub struct Args {
-    /// Arguments (not yet defined).
-    #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
-    rest: Vec<String>,
+    /// The problem: a BAL file (`.bal`, `.txt`, optionally `.bz2`).
+    pub problem: PathBuf,
+    /// Write the result summary as JSON here.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Worker threads (0: all cores).
+    #[arg(long, default_value_t = 0)]
+    pub threads: usize,
+    /// Factorization of the reduced camera system.
+    #[arg(long, value_enum, default_value_t = SolverArg::Auto)]
+    pub solver: SolverArg,
+    /// Most Levenberg–Marquardt iterations.
+    #[arg(long, default_value_t = 50)]
+    pub max_iterations: usize,
+    /// Relative cost-change tolerance (Ceres' function_tolerance).
+    #[arg(long, default_value_t = 1e-6)]
+    pub function_tolerance: f64,
+    /// Gradient max-norm tolerance (Ceres' gradient_tolerance).
+    #[arg(long, default_value_t = 1e-10)]
+    pub gradient_tolerance: f64,
+    /// Relative step tolerance (Ceres' parameter_tolerance).
+    #[arg(long, default_value_t = 1e-8)]
+    pub parameter_tolerance: f64,
+    /// Robust loss: `huber:SCALE` or `cauchy:SCALE` (scale in pixels); none by default.
+    #[arg(long)]
+    pub loss: Option<String>,
+    /// Do not print the per-iteration log.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// Linear solver choice on the command line.
+#[derive(Clone, Copy, clap::ValueEnum)]
+pub enum SolverArg {
+    /// Dense for small reduced systems, sparse otherwise.
+    Auto,
+    /// Dense Cholesky of the reduced camera system.
+    Dense,
+    /// Sparse Cholesky of the reduced camera system.
+    Sparse,
+}
+
+fn parse_loss(s: &str) -> Result<Loss, String> {
+    let (kind, scale) = s
+        .split_once(':')
+        .ok_or_else(|| format!("--loss '{s}': expected huber:SCALE or cauchy:SCALE"))?;
+    let a: f64 = scale
+        .parse()
+        .map_err(|_| format!("--loss '{s}': scale '{scale}' is not a number"))?;
+    if !(a > 0.0 && a.is_finite()) {
+        return Err(format!("--loss '{s}': the scale must be positive"));
+    }
+    match kind {
+        "huber" => Ok(Loss::Huber(a)),
+        "cauchy" => Ok(Loss::Cauchy(a)),
+        _ => Err(format!(
+            "--loss '{s}': unknown loss '{kind}', expected huber or cauchy"
+        )),
+    }
 }
 
 /// Runs the command.
-pub fn run(_args: Args) -> CmdResult {
-    Err("'pingcal ba' is not implemented yet (issue 2)".into())
+pub fn run(args: Args) -> CmdResult {
+    let t_read = Instant::now();
+    let mut problem = pingcal_ba::bal::read_bal(&args.problem)?;
+    if let Some(l) = &args.loss {
+        problem.loss = parse_loss(l)?;
+    }
+    let read_s = t_read.elapsed().as_secs_f64();
+    let options = Options {
+        max_iterations: args.max_iterations,
+        function_tolerance: args.function_tolerance,
+        gradient_tolerance: args.gradient_tolerance,
+        parameter_tolerance: args.parameter_tolerance,
+        linear_solver: match args.solver {
+            SolverArg::Auto => LinearSolverKind::Auto,
+            SolverArg::Dense => LinearSolverKind::Dense,
+            SolverArg::Sparse => LinearSolverKind::Sparse,
+        },
+        threads: args.threads,
+        ..Options::default()
+    };
+    let quiet = args.quiet;
+    if !quiet {
+        println!(
+            "{}: {} cameras, {} points, {} observations (read in {:.2} s)",
+            args.problem.display(),
+            problem.images.len(),
+            problem.points.len(),
+            problem.observations.len(),
+            read_s
+        );
+        println!("iter      cost      cost_change  |gradient|   |step|    tr_ratio  tr_radius  ls_time  iter_time");
+    }
+    let summary = solver::solve(&mut problem, &options, |it: &Iteration| {
+        if !quiet {
+            println!(
+                "{:4} {:12.6e} {:11.4e} {:11.4e} {:10.3e} {:9.2e} {:9.2e} {:8.3} {:9.3}{}",
+                it.iteration,
+                it.cost,
+                it.cost_change,
+                it.gradient_max_norm,
+                it.step_norm,
+                it.relative_decrease,
+                it.trust_region_radius,
+                it.linear_solver_time_s,
+                it.iteration_time_s,
+                if it.accepted { "" } else { "  (rejected)" }
+            );
+        }
+    })?;
+    let rms = problem.rms_px();
+    println!(
+        "pingcal ba: cost {:.6e} -> {:.6e} in {} iterations ({} accepted), {:.3} s ({} linear solver, reduced system {} x {}), RMS {:.4} px; {}",
+        summary.initial_cost,
+        summary.final_cost,
+        summary.iterations,
+        summary.successful_steps,
+        summary.time_s,
+        if summary.dense { "dense" } else { "sparse" },
+        summary.reduced_dimension,
+        summary.reduced_dimension,
+        rms,
+        summary.termination
+    );
+    if let Some(out) = &args.out {
+        let json = serde_json::json!({
+            "initial_cost": summary.initial_cost,
+            "final_cost": summary.final_cost,
+            "iterations": summary.iterations,
+            "successful_steps": summary.successful_steps,
+            "time_s": summary.time_s,
+            "linear_solver_time_s": summary.linear_solver_time_s,
+            "linear_solver": if summary.dense { "dense" } else { "sparse" },
+            "termination": summary.termination,
+            "rms_px": rms,
+            "cameras": problem.images.len(),
+            "points": problem.points.len(),
+            "observations": problem.observations.len(),
+            "threads": args.threads,
+        });
+        write_atomic(out, serde_json::to_string_pretty(&json)?.as_bytes())?;
+    }
+    Ok(())
 }

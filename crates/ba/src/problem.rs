@@ -1,0 +1,260 @@
+//! The scene of a bundle adjustment: cameras (intrinsics shared by all their images),
+//! images (exterior orientation), object points, and image observations.
+//!
+//! Everything the solver may change lives here and is updated in place by
+//! [`crate::solver::solve`]; what is held fixed is said here too.
+
+use crate::camera::CameraModel;
+use crate::loss::Loss;
+use crate::pose::Pose;
+use nalgebra::{Vector2, Vector3};
+use std::sync::Arc;
+
+/// A physical camera: its model, intrinsic parameter values and which are held fixed.
+#[derive(Clone, Debug)]
+pub struct Camera {
+    /// Name used in reports (e.g. "left").
+    pub name: String,
+    /// The camera model.
+    pub model: Arc<dyn CameraModel>,
+    /// Intrinsic parameter values, in the model's order.
+    pub params: Vec<f64>,
+    /// `true` for each parameter held fixed.
+    pub fixed: Vec<bool>,
+}
+
+impl Camera {
+    /// A camera with all intrinsics free.
+    pub fn new(name: impl Into<String>, model: Arc<dyn CameraModel>, params: Vec<f64>) -> Self {
+        let n = params.len();
+        Self {
+            name: name.into(),
+            model,
+            params,
+            fixed: vec![false; n],
+        }
+    }
+
+    /// Holds every intrinsic fixed.
+    pub fn fix_all(mut self) -> Self {
+        self.fixed.iter_mut().for_each(|f| *f = true);
+        self
+    }
+
+    /// Indices of the free intrinsics.
+    pub fn free_indices(&self) -> Vec<usize> {
+        (0..self.params.len()).filter(|&k| !self.fixed[k]).collect()
+    }
+}
+
+/// One photograph: which camera took it and from where.
+#[derive(Clone, Debug)]
+pub struct Image {
+    /// Name used in reports (e.g. the file name).
+    pub name: String,
+    /// Index into [`Problem::cameras`].
+    pub camera: usize,
+    /// Exterior orientation (object → camera).
+    pub pose: Pose,
+    /// Pose held fixed.
+    pub fixed: bool,
+}
+
+/// An object point.
+#[derive(Clone, Debug)]
+pub struct Point {
+    /// Name used in reports (target number, ball label).
+    pub name: String,
+    /// Object-space coordinates.
+    pub position: Vector3<f64>,
+    /// Held fixed (e.g. a fixed control point).
+    pub fixed: bool,
+}
+
+/// An image measurement of a point, with its standard deviation in pixels.
+#[derive(Clone, Copy, Debug)]
+pub struct Observation {
+    /// Index into [`Problem::images`].
+    pub image: usize,
+    /// Index into [`Problem::points`].
+    pub point: usize,
+    /// Measured pixel coordinates.
+    pub uv: Vector2<f64>,
+    /// Standard deviation of each coordinate, pixels.
+    pub sigma: f64,
+}
+
+/// A bundle-adjustment problem.
+#[derive(Clone, Debug, Default)]
+pub struct Problem {
+    /// Cameras (intrinsics).
+    pub cameras: Vec<Camera>,
+    /// Images (poses).
+    pub images: Vec<Image>,
+    /// Object points.
+    pub points: Vec<Point>,
+    /// Image observations.
+    pub observations: Vec<Observation>,
+    /// Robust loss applied to every image observation.
+    pub loss: Loss,
+}
+
+/// Why a problem cannot be adjusted as given.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum ProblemError {
+    /// The problem has no observations.
+    #[error("the problem has no observations")]
+    NoObservations,
+    /// An observation refers to an image that does not exist.
+    #[error("observation {index} refers to image {image}, but there are only {count} images")]
+    UnknownImage {
+        index: usize,
+        image: usize,
+        count: usize,
+    },
+    /// An observation refers to a point that does not exist.
+    #[error("observation {index} refers to point {point}, but there are only {count} points")]
+    UnknownPoint {
+        index: usize,
+        point: usize,
+        count: usize,
+    },
+    /// An image refers to a camera that does not exist.
+    #[error("image '{name}' refers to camera {camera}, but there are only {count} cameras")]
+    UnknownCamera {
+        name: String,
+        camera: usize,
+        count: usize,
+    },
+    /// A camera's parameter count does not match its model.
+    #[error("camera '{name}' has {got} parameters, its model '{model}' takes {expected}")]
+    ParameterCount {
+        name: String,
+        model: &'static str,
+        got: usize,
+        expected: usize,
+    },
+    /// A value is NaN or infinite.
+    #[error("{what} is not a finite number")]
+    NotFinite { what: String },
+    /// An observation's σ is not positive.
+    #[error("observation {index} has σ = {sigma}, expected a positive number")]
+    BadSigma { index: usize, sigma: f64 },
+    /// The loss scale is not positive.
+    #[error("the robust loss scale must be positive and finite")]
+    BadLoss,
+    /// A point is not imaged by the camera model at the current estimate.
+    #[error("point '{point}' cannot be projected into image '{image}' (behind the camera?)")]
+    NotProjectable { point: String, image: String },
+}
+
+impl Problem {
+    /// Checks indices, counts and values; the solver calls it before anything else.
+    pub fn validate(&self) -> Result<(), ProblemError> {
+        if self.observations.is_empty() {
+            return Err(ProblemError::NoObservations);
+        }
+        if !self.loss.is_valid() {
+            return Err(ProblemError::BadLoss);
+        }
+        for c in &self.cameras {
+            let expected = c.model.num_params();
+            if c.params.len() != expected || c.fixed.len() != expected {
+                return Err(ProblemError::ParameterCount {
+                    name: c.name.clone(),
+                    model: c.model.name(),
+                    got: c.params.len(),
+                    expected,
+                });
+            }
+            if !c.params.iter().all(|v| v.is_finite()) {
+                return Err(ProblemError::NotFinite {
+                    what: format!("an intrinsic of camera '{}'", c.name),
+                });
+            }
+        }
+        for im in &self.images {
+            if im.camera >= self.cameras.len() {
+                return Err(ProblemError::UnknownCamera {
+                    name: im.name.clone(),
+                    camera: im.camera,
+                    count: self.cameras.len(),
+                });
+            }
+            let p = &im.pose;
+            if !p
+                .rotation
+                .iter()
+                .chain(p.translation.iter())
+                .all(|v| v.is_finite())
+            {
+                return Err(ProblemError::NotFinite {
+                    what: format!("the pose of image '{}'", im.name),
+                });
+            }
+        }
+        for pt in &self.points {
+            if !pt.position.iter().all(|v| v.is_finite()) {
+                return Err(ProblemError::NotFinite {
+                    what: format!("point '{}'", pt.name),
+                });
+            }
+        }
+        for (index, o) in self.observations.iter().enumerate() {
+            if o.image >= self.images.len() {
+                return Err(ProblemError::UnknownImage {
+                    index,
+                    image: o.image,
+                    count: self.images.len(),
+                });
+            }
+            if o.point >= self.points.len() {
+                return Err(ProblemError::UnknownPoint {
+                    index,
+                    point: o.point,
+                    count: self.points.len(),
+                });
+            }
+            if !(o.sigma > 0.0 && o.sigma.is_finite()) {
+                return Err(ProblemError::BadSigma {
+                    index,
+                    sigma: o.sigma,
+                });
+            }
+            if !o.uv.iter().all(|v| v.is_finite()) {
+                return Err(ProblemError::NotFinite {
+                    what: format!("observation {index}"),
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// Reprojection residual (predicted − measured, pixels) of one observation, or `None`
+    /// if the point does not project.
+    pub fn residual(&self, o: &Observation) -> Option<Vector2<f64>> {
+        let im = &self.images[o.image];
+        let cam = &self.cameras[im.camera];
+        let xc = im.pose.transform(&self.points[o.point].position);
+        cam.model
+            .project(&cam.params, &xc, None, None)
+            .map(|uv| uv - o.uv)
+    }
+
+    /// RMS of the reprojection residuals in pixels (over both coordinates of every
+    /// observation that projects).
+    pub fn rms_px(&self) -> f64 {
+        let (mut s, mut n) = (0.0, 0usize);
+        for o in &self.observations {
+            if let Some(r) = self.residual(o) {
+                s += r.norm_squared();
+                n += 2;
+            }
+        }
+        if n == 0 {
+            f64::NAN
+        } else {
+            (s / n as f64).sqrt()
+        }
+    }
+}

@@ -1,0 +1,145 @@
+//! Residuals and Jacobians of the image observations at the current estimate.
+//!
+//! Residuals are whitened (divided by the observation's σ) and robustified (scaled by
+//! √ρ′), so that the solver sees an ordinary least-squares problem ½ Σ |r|² whose value at
+//! the current estimate is the true robust cost ½ Σ ρ(|r/σ|²).
+
+use super::layout::Layout;
+use crate::problem::Problem;
+use crate::rotation::skew;
+use nalgebra::{Matrix2x3, Vector2};
+use rayon::prelude::*;
+
+/// The linearization of all observations.
+pub(crate) struct Linearization {
+    /// Whitened, robustified residual per observation.
+    pub r: Vec<Vector2<f64>>,
+    /// Camera-side Jacobian per observation, column by column (2 values per column).
+    pub jc: Vec<f64>,
+    /// Point Jacobian per observation.
+    pub jp: Vec<Matrix2x3<f64>>,
+    /// W = J_cᵀ J_p per observation, row by row (3 values per camera-side column).
+    pub w: Vec<f64>,
+    /// ½ Σ ρ.
+    pub cost: f64,
+}
+
+impl Linearization {
+    pub fn new(layout: &Layout) -> Self {
+        let n = layout.obs_ncols.len();
+        Self {
+            r: vec![Vector2::zeros(); n],
+            jc: vec![0.0; layout.jc_len],
+            jp: vec![Matrix2x3::zeros(); n],
+            w: vec![0.0; layout.w_len],
+            cost: 0.0,
+        }
+    }
+}
+
+/// Splits `buf` into consecutive mutable pieces starting at `offsets` (increasing), the
+/// last ending at `buf.len()`.
+pub(crate) fn split_at_offsets<'a, T>(mut buf: &'a mut [T], offsets: &[usize]) -> Vec<&'a mut [T]> {
+    let mut out = Vec::with_capacity(offsets.len());
+    let mut base = 0;
+    for k in 0..offsets.len() {
+        let end = if k + 1 < offsets.len() {
+            offsets[k + 1]
+        } else {
+            base + buf.len()
+        };
+        let (head, tail) = buf.split_at_mut(end - base);
+        out.push(head);
+        buf = tail;
+        base = end;
+    }
+    out
+}
+
+/// The robust cost ½ Σ ρ(|r/σ|²) at the current estimate, or the index of the first
+/// observation that does not project.
+pub(crate) fn cost(problem: &Problem) -> Result<f64, usize> {
+    problem
+        .observations
+        .par_iter()
+        .enumerate()
+        .with_min_len(256)
+        .map(|(i, o)| {
+            let r = problem.residual(o).ok_or(i)? / o.sigma;
+            Ok::<f64, usize>(0.5 * problem.loss.evaluate(r.norm_squared()).0)
+        })
+        .try_reduce(|| 0.0, |a, b| Ok(a + b))
+}
+
+/// Fills `lin` at the current estimate. Returns the index of the first observation that
+/// does not project, if any.
+pub(crate) fn linearize(
+    problem: &Problem,
+    layout: &Layout,
+    lin: &mut Linearization,
+) -> Result<(), usize> {
+    let jc_parts = split_at_offsets(&mut lin.jc, &layout.obs_jc_offset);
+    let w_parts = split_at_offsets(&mut lin.w, &layout.obs_w_offset);
+    let cost = lin
+        .r
+        .par_iter_mut()
+        .zip(lin.jp.par_iter_mut())
+        .zip(jc_parts.into_par_iter().zip(w_parts.into_par_iter()))
+        .enumerate()
+        .with_min_len(256)
+        .map(|(i, ((r, jp), (jc, w)))| {
+            let o = &problem.observations[i];
+            let im = &problem.images[o.image];
+            let cam = &problem.cameras[im.camera];
+            let x = &problem.points[o.point].position;
+            let rx = im.pose.rotation * x;
+            let xc = rx + im.pose.translation;
+            let mut dxc = Matrix2x3::zeros();
+            let n = cam.params.len();
+            let mut ji = [0.0f64; 32];
+            let ji = if n <= 32 {
+                &mut ji[..2 * n]
+            } else {
+                unreachable!("camera models have at most 16 parameters")
+            };
+            let uv = cam
+                .model
+                .project(&cam.params, &xc, Some(&mut dxc), Some(ji))
+                .ok_or(i)?;
+            let res = (uv - o.uv) / o.sigma;
+            let (rho, rho1) = problem.loss.evaluate(res.norm_squared());
+            let scale = rho1.sqrt() / o.sigma;
+            *r = res * rho1.sqrt();
+            let dxc = dxc * scale;
+            *jp = dxc * im.pose.rotation;
+            let mut col = 0;
+            if layout.image_slot[o.image].is_some() {
+                // ∂xc/∂δω = −[R X]×, ∂xc/∂δt = I.
+                let jw = -(dxc * skew(&rx));
+                for k in 0..3 {
+                    jc[2 * k] = jw[(0, k)];
+                    jc[2 * k + 1] = jw[(1, k)];
+                    jc[6 + 2 * k] = dxc[(0, k)];
+                    jc[6 + 2 * k + 1] = dxc[(1, k)];
+                }
+                col = 6;
+            }
+            if layout.camera_slot[im.camera].is_some() {
+                for &k in &layout.camera_free[im.camera] {
+                    jc[2 * col] = ji[k] * scale;
+                    jc[2 * col + 1] = ji[n + k] * scale;
+                    col += 1;
+                }
+            }
+            for k in 0..col {
+                let (a, b) = (jc[2 * k], jc[2 * k + 1]);
+                for m in 0..3 {
+                    w[3 * k + m] = a * jp[(0, m)] + b * jp[(1, m)];
+                }
+            }
+            Ok::<f64, usize>(0.5 * rho)
+        })
+        .try_reduce(|| 0.0, |a, b| Ok(a + b))?;
+    lin.cost = cost;
+    Ok(())
+}

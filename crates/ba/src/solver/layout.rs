@@ -1,0 +1,332 @@
+//! The block structure of the reduced camera system, computed once per problem.
+//!
+//! Unknowns other than points are grouped in *blocks*: one per image with a free pose
+//! (6 parameters: δω, δt), and one per camera with free intrinsics. Intrinsics of a camera
+//! used by a single image with a free pose are folded into that image's block (the BAL
+//! case: one 9-parameter block per image), which keeps the reduced system's blocks few and
+//! dense. Free points are eliminated by the Schur complement; fixed points only add to the
+//! camera blocks.
+//!
+//! The reduced matrix S is stored as the upper triangle of a scalar CSC matrix whose
+//! pattern (block column b holds the blocks a ≤ b that share an observation or a point
+//! with b) is fixed for the whole adjustment, so its symbolic Cholesky factorization is
+//! computed once and reused at every iteration.
+
+use crate::problem::Problem;
+
+/// One contiguous run of an observation's camera-side Jacobian columns that lands in one
+/// block.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Seg {
+    /// The block.
+    pub block: u32,
+    /// First column in the observation's camera-side Jacobian.
+    pub jac_col: u16,
+    /// Offset inside the block.
+    pub block_off: u16,
+    /// Number of columns.
+    pub len: u16,
+}
+
+/// Where a parameter group lives in the reduced system.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Slot {
+    pub block: u32,
+    pub off: u16,
+}
+
+pub(crate) struct Layout {
+    pub block_dim: Vec<usize>,
+    pub block_offset: Vec<usize>,
+    /// Dimension of the reduced system.
+    pub n_reduced: usize,
+    pub image_slot: Vec<Option<Slot>>,
+    pub camera_slot: Vec<Option<Slot>>,
+    pub camera_free: Vec<Vec<usize>>,
+    /// Per observation: number of camera-side Jacobian columns, offset into the flat
+    /// Jacobian buffer (2 values per column), and its segments (at most 2).
+    pub obs_ncols: Vec<u16>,
+    pub obs_jc_offset: Vec<usize>,
+    pub obs_segs: Vec<([Seg; 2], u8)>,
+    /// Per observation, its point.
+    pub obs_point: Vec<u32>,
+    pub jc_len: usize,
+    /// Per observation, offset of its W and Y rows (3 values per camera-side column).
+    pub obs_w_offset: Vec<usize>,
+    pub w_len: usize,
+    /// Free points: `point_index[p]` is its index among free points, or `u32::MAX`.
+    pub free_point_index: Vec<u32>,
+    pub free_points: Vec<usize>,
+    /// CSR: free point (by free index) → observations.
+    pub fp_obs_ptr: Vec<usize>,
+    pub fp_obs: Vec<u32>,
+    /// CSR: block → (observation, segment index) touching it.
+    pub block_obs_ptr: Vec<usize>,
+    pub block_obs: Vec<(u32, u8)>,
+    /// Block column b: sorted row blocks (the last is b itself), and the row offset of each
+    /// inside every scalar column of b.
+    pub col_blocks: Vec<Vec<u32>>,
+    pub col_row_off: Vec<Vec<usize>>,
+    /// Scalar CSC pattern of the upper triangle.
+    pub col_ptr: Vec<usize>,
+    pub row_idx: Vec<usize>,
+}
+
+impl Layout {
+    pub fn new(problem: &Problem) -> Self {
+        let n_img = problem.images.len();
+        let n_cam = problem.cameras.len();
+        let camera_free: Vec<Vec<usize>> =
+            problem.cameras.iter().map(|c| c.free_indices()).collect();
+        let mut images_of_camera = vec![0usize; n_cam];
+        for im in &problem.images {
+            images_of_camera[im.camera] += 1;
+        }
+        let mut block_dim = Vec::new();
+        let mut image_slot = vec![None; n_img];
+        let mut camera_slot = vec![None; n_cam];
+        for (i, im) in problem.images.iter().enumerate() {
+            if im.fixed {
+                continue;
+            }
+            let b = block_dim.len() as u32;
+            let mut dim = 6;
+            image_slot[i] = Some(Slot { block: b, off: 0 });
+            let c = im.camera;
+            if images_of_camera[c] == 1 && !camera_free[c].is_empty() {
+                camera_slot[c] = Some(Slot { block: b, off: 6 });
+                dim += camera_free[c].len();
+            }
+            block_dim.push(dim);
+        }
+        for c in 0..n_cam {
+            if camera_slot[c].is_none() && !camera_free[c].is_empty() && images_of_camera[c] > 0 {
+                camera_slot[c] = Some(Slot {
+                    block: block_dim.len() as u32,
+                    off: 0,
+                });
+                block_dim.push(camera_free[c].len());
+            }
+        }
+        let mut block_offset = Vec::with_capacity(block_dim.len());
+        let mut n_reduced = 0;
+        for &d in &block_dim {
+            block_offset.push(n_reduced);
+            n_reduced += d;
+        }
+
+        // Observations.
+        let n_obs = problem.observations.len();
+        let mut obs_ncols = Vec::with_capacity(n_obs);
+        let mut obs_jc_offset = Vec::with_capacity(n_obs);
+        let mut obs_w_offset = Vec::with_capacity(n_obs);
+        let mut obs_segs = Vec::with_capacity(n_obs);
+        let (mut jc_len, mut w_len) = (0, 0);
+        let empty = Seg {
+            block: 0,
+            jac_col: 0,
+            block_off: 0,
+            len: 0,
+        };
+        for o in &problem.observations {
+            let im = &problem.images[o.image];
+            let mut segs = [empty; 2];
+            let mut ns = 0u8;
+            let mut ncols = 0u16;
+            if let Some(s) = image_slot[o.image] {
+                segs[ns as usize] = Seg {
+                    block: s.block,
+                    jac_col: ncols,
+                    block_off: s.off,
+                    len: 6,
+                };
+                ns += 1;
+                ncols += 6;
+            }
+            if let Some(s) = camera_slot[im.camera] {
+                let len = camera_free[im.camera].len() as u16;
+                segs[ns as usize] = Seg {
+                    block: s.block,
+                    jac_col: ncols,
+                    block_off: s.off,
+                    len,
+                };
+                ns += 1;
+                ncols += len;
+            }
+            obs_ncols.push(ncols);
+            obs_jc_offset.push(jc_len);
+            obs_w_offset.push(w_len);
+            jc_len += 2 * ncols as usize;
+            w_len += 3 * ncols as usize;
+            obs_segs.push((segs, ns));
+        }
+
+        // Free points and their observations.
+        let mut free_point_index = vec![u32::MAX; problem.points.len()];
+        let mut free_points = Vec::new();
+        for (p, pt) in problem.points.iter().enumerate() {
+            if !pt.fixed {
+                free_point_index[p] = free_points.len() as u32;
+                free_points.push(p);
+            }
+        }
+        let mut counts = vec![0usize; free_points.len() + 1];
+        for o in &problem.observations {
+            let f = free_point_index[o.point];
+            if f != u32::MAX {
+                counts[f as usize + 1] += 1;
+            }
+        }
+        for k in 1..counts.len() {
+            counts[k] += counts[k - 1];
+        }
+        let fp_obs_ptr = counts.clone();
+        let mut fp_obs = vec![0u32; *counts.last().unwrap()];
+        let mut fill = counts;
+        for (oi, o) in problem.observations.iter().enumerate() {
+            let f = free_point_index[o.point];
+            if f != u32::MAX {
+                fp_obs[fill[f as usize]] = oi as u32;
+                fill[f as usize] += 1;
+            }
+        }
+
+        // Block → observations.
+        let nb = block_dim.len();
+        let mut bcount = vec![0usize; nb + 1];
+        for (segs, ns) in &obs_segs {
+            for s in &segs[..*ns as usize] {
+                bcount[s.block as usize + 1] += 1;
+            }
+        }
+        for k in 1..bcount.len() {
+            bcount[k] += bcount[k - 1];
+        }
+        let block_obs_ptr = bcount.clone();
+        let mut block_obs = vec![(0u32, 0u8); *bcount.last().unwrap()];
+        let mut bfill = bcount;
+        for (oi, (segs, ns)) in obs_segs.iter().enumerate() {
+            for (si, s) in segs[..*ns as usize].iter().enumerate() {
+                block_obs[bfill[s.block as usize]] = (oi as u32, si as u8);
+                bfill[s.block as usize] += 1;
+            }
+        }
+
+        // Block pattern: pairs within an observation, and pairs among a free point's blocks.
+        let mut pairs: Vec<(u32, u32)> = Vec::new(); // (col, row) with row ≤ col
+        let push_set = |blocks: &mut Vec<u32>, pairs: &mut Vec<(u32, u32)>| {
+            blocks.sort_unstable();
+            blocks.dedup();
+            for (i, &a) in blocks.iter().enumerate() {
+                for &b in &blocks[i..] {
+                    pairs.push((b, a));
+                }
+            }
+        };
+        let mut scratch = Vec::new();
+        for (segs, ns) in &obs_segs {
+            scratch.clear();
+            scratch.extend(segs[..*ns as usize].iter().map(|s| s.block));
+            push_set(&mut scratch, &mut pairs);
+        }
+        for f in 0..free_points.len() {
+            scratch.clear();
+            for &o in &fp_obs[fp_obs_ptr[f]..fp_obs_ptr[f + 1]] {
+                let (segs, ns) = &obs_segs[o as usize];
+                scratch.extend(segs[..*ns as usize].iter().map(|s| s.block));
+            }
+            push_set(&mut scratch, &mut pairs);
+        }
+        for b in 0..nb as u32 {
+            pairs.push((b, b));
+        }
+        pairs.sort_unstable();
+        pairs.dedup();
+        let mut col_blocks = vec![Vec::new(); nb];
+        for (b, a) in pairs {
+            col_blocks[b as usize].push(a);
+        }
+
+        // Scalar CSC pattern (upper triangle, rows sorted).
+        let mut col_ptr = Vec::with_capacity(n_reduced + 1);
+        let mut row_idx = Vec::new();
+        let mut col_row_off = Vec::with_capacity(nb);
+        col_ptr.push(0);
+        for b in 0..nb {
+            let mut offs = Vec::with_capacity(col_blocks[b].len());
+            let mut acc = 0;
+            for &a in &col_blocks[b] {
+                offs.push(acc);
+                acc += block_dim[a as usize];
+            }
+            col_row_off.push(offs);
+            for j in 0..block_dim[b] {
+                for &a in &col_blocks[b] {
+                    let a = a as usize;
+                    let rows = if a == b { j + 1 } else { block_dim[a] };
+                    row_idx.extend((0..rows).map(|i| block_offset[a] + i));
+                }
+                col_ptr.push(row_idx.len());
+            }
+        }
+
+        Self {
+            block_dim,
+            block_offset,
+            n_reduced,
+            image_slot,
+            camera_slot,
+            camera_free,
+            obs_ncols,
+            obs_jc_offset,
+            obs_segs,
+            obs_point: problem
+                .observations
+                .iter()
+                .map(|o| o.point as u32)
+                .collect(),
+            jc_len,
+            obs_w_offset,
+            w_len,
+            free_point_index,
+            free_points,
+            fp_obs_ptr,
+            fp_obs,
+            block_obs_ptr,
+            block_obs,
+            col_blocks,
+            col_row_off,
+            col_ptr,
+            row_idx,
+        }
+    }
+
+    pub fn num_blocks(&self) -> usize {
+        self.block_dim.len()
+    }
+
+    /// Range of S's values held by block column b.
+    pub fn block_value_range(&self, b: usize) -> (usize, usize) {
+        let c0 = self.block_offset[b];
+        (self.col_ptr[c0], self.col_ptr[c0 + self.block_dim[b]])
+    }
+
+    pub fn segs(&self, o: usize) -> &[Seg] {
+        let (s, n) = &self.obs_segs[o];
+        &s[..*n as usize]
+    }
+
+    pub fn point_obs(&self, f: usize) -> &[u32] {
+        &self.fp_obs[self.fp_obs_ptr[f]..self.fp_obs_ptr[f + 1]]
+    }
+
+    pub fn obs_of_block(&self, b: usize) -> &[(u32, u8)] {
+        &self.block_obs[self.block_obs_ptr[b]..self.block_obs_ptr[b + 1]]
+    }
+
+    /// Number of stored entries of the upper triangle of S.
+    pub fn nnz(&self) -> usize {
+        *self.col_ptr.last().unwrap()
+    }
+}

@@ -1,0 +1,580 @@
+//! Levenberg–Marquardt with the Schur complement.
+//!
+//! The trust-region strategy is Ceres' Levenberg–Marquardt: the damped system
+//! `(JᵀJ + D/μ) δ = −Jᵀr` with D the diagonal of JᵀJ clamped to [1e-6, 1e32], the step
+//! accepted when the ratio ρ of actual to predicted cost decrease exceeds 1e-3, and the
+//! radius μ updated by `μ ← μ / max(1/3, 1 − (2ρ − 1)³)` on success, `μ ← μ/ν, ν ← 2ν` on
+//! failure. Convergence is declared by the same three tests as Ceres (function, gradient
+//! and parameter tolerance), so that both stop at the same point on the same problem.
+//!
+//! Each iteration: evaluate residuals and Jacobians ([`evaluate`]) in parallel; eliminate
+//! the points ([`schur`]); factorize the reduced camera system ([`linear`]) with a
+//! symbolic factorization computed once ([`layout`]); back-substitute the points.
+
+mod evaluate;
+mod layout;
+mod linear;
+mod schur;
+
+pub use linear::LinearSolverKind;
+
+use crate::problem::{Problem, ProblemError};
+use crate::rotation::log_so3;
+use layout::Layout;
+use nalgebra::Vector3;
+use rayon::prelude::*;
+use std::time::Instant;
+
+/// Options of the solver. The defaults are Ceres' defaults.
+#[derive(Clone, Debug)]
+pub struct Options {
+    /// Most LM iterations (accepted and rejected steps).
+    pub max_iterations: usize,
+    /// Stop when |Δcost| ≤ function_tolerance · cost after an accepted step.
+    pub function_tolerance: f64,
+    /// Stop when max |Jᵀr| ≤ gradient_tolerance.
+    pub gradient_tolerance: f64,
+    /// Stop when |δ| ≤ parameter_tolerance · (|x| + parameter_tolerance).
+    pub parameter_tolerance: f64,
+    /// Initial trust-region radius μ (the damping is 1/μ).
+    pub initial_trust_region_radius: f64,
+    /// Largest trust-region radius.
+    pub max_trust_region_radius: f64,
+    /// Stop when the radius falls below this.
+    pub min_trust_region_radius: f64,
+    /// Factorization of the reduced camera system.
+    pub linear_solver: LinearSolverKind,
+    /// Worker threads (0: all cores).
+    pub threads: usize,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Self {
+            max_iterations: 50,
+            function_tolerance: 1e-6,
+            gradient_tolerance: 1e-10,
+            parameter_tolerance: 1e-8,
+            initial_trust_region_radius: 1e4,
+            max_trust_region_radius: 1e16,
+            min_trust_region_radius: 1e-32,
+            linear_solver: LinearSolverKind::Auto,
+            threads: 0,
+        }
+    }
+}
+
+/// Why the solver stopped.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Termination {
+    /// The relative cost change of an accepted step fell below the function tolerance.
+    FunctionTolerance,
+    /// The gradient's max-norm fell below the gradient tolerance.
+    GradientTolerance,
+    /// The step fell below the parameter tolerance.
+    ParameterTolerance,
+    /// The iteration limit was reached.
+    MaxIterations,
+    /// The trust region shrank below its minimum: no step decreases the cost.
+    TrustRegionTooSmall,
+}
+
+impl std::fmt::Display for Termination {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Termination::FunctionTolerance => {
+                "converged: relative cost change below the function tolerance"
+            }
+            Termination::GradientTolerance => "converged: gradient below the gradient tolerance",
+            Termination::ParameterTolerance => "converged: step below the parameter tolerance",
+            Termination::MaxIterations => "stopped: iteration limit reached",
+            Termination::TrustRegionTooSmall => {
+                "stopped: trust region too small, no step decreases the cost"
+            }
+        })
+    }
+}
+
+/// One iteration, as the per-iteration log shows it.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Iteration {
+    /// Iteration number (1-based).
+    pub iteration: usize,
+    /// Cost after this iteration (½ Σ ρ).
+    pub cost: f64,
+    /// Cost decrease achieved (0 for a rejected step).
+    pub cost_change: f64,
+    /// Max-norm of the gradient at the start of the iteration.
+    pub gradient_max_norm: f64,
+    /// Norm of the step.
+    pub step_norm: f64,
+    /// Ratio of actual to predicted decrease.
+    pub relative_decrease: f64,
+    /// Trust-region radius used.
+    pub trust_region_radius: f64,
+    /// Whether the step was accepted.
+    pub accepted: bool,
+    /// Time in the linear solver, seconds.
+    pub linear_solver_time_s: f64,
+    /// Wall time of the iteration, seconds.
+    pub iteration_time_s: f64,
+}
+
+/// What the solver did.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Summary {
+    /// Cost ½ Σ ρ at the start.
+    pub initial_cost: f64,
+    /// Cost at the end.
+    pub final_cost: f64,
+    /// LM iterations (accepted + rejected).
+    pub iterations: usize,
+    /// Accepted steps.
+    pub successful_steps: usize,
+    /// Why it stopped.
+    pub termination: Termination,
+    /// Wall time, seconds.
+    pub time_s: f64,
+    /// Time in the linear solver, seconds.
+    pub linear_solver_time_s: f64,
+    /// Whether the dense path was used.
+    pub dense: bool,
+    /// Dimension of the reduced camera system.
+    pub reduced_dimension: usize,
+    /// Stored entries of its upper triangle.
+    pub reduced_nonzeros: usize,
+    /// Per-iteration log.
+    pub log: Vec<Iteration>,
+}
+
+/// Why the solver could not run.
+#[derive(Debug, thiserror::Error)]
+pub enum SolveError {
+    /// The problem is malformed.
+    #[error(transparent)]
+    Problem(#[from] ProblemError),
+    /// The linear algebra could not be set up.
+    #[error("{0}")]
+    Setup(String),
+}
+
+/// Adjusts `problem` in place. `on_iteration` is called after every iteration (for logs
+/// and progress bars).
+pub fn solve(
+    problem: &mut Problem,
+    options: &Options,
+    mut on_iteration: impl FnMut(&Iteration) + Send,
+) -> Result<Summary, SolveError> {
+    problem.validate()?;
+    let threads = if options.threads == 0 {
+        rayon::current_num_threads()
+    } else {
+        options.threads
+    };
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .map_err(|e| SolveError::Setup(format!("cannot start {threads} threads: {e}")))?;
+    let par = if threads > 1 {
+        faer::Par::rayon(threads)
+    } else {
+        faer::Par::Seq
+    };
+    pool.install(|| run(problem, options, par, &mut on_iteration))
+}
+
+struct Backup {
+    poses: Vec<crate::pose::Pose>,
+    intrinsics: Vec<Vec<f64>>,
+    points: Vec<Vector3<f64>>,
+}
+
+impl Backup {
+    fn take(p: &Problem) -> Self {
+        Self {
+            poses: p.images.iter().map(|i| i.pose).collect(),
+            intrinsics: p.cameras.iter().map(|c| c.params.clone()).collect(),
+            points: p.points.iter().map(|x| x.position).collect(),
+        }
+    }
+    fn restore(&self, p: &mut Problem) {
+        for (i, pose) in p.images.iter_mut().zip(&self.poses) {
+            i.pose = *pose;
+        }
+        for (c, v) in p.cameras.iter_mut().zip(&self.intrinsics) {
+            c.params.copy_from_slice(v);
+        }
+        for (x, v) in p.points.iter_mut().zip(&self.points) {
+            x.position = *v;
+        }
+    }
+}
+
+fn not_projectable(problem: &Problem, o: usize) -> SolveError {
+    let ob = &problem.observations[o];
+    SolveError::Problem(ProblemError::NotProjectable {
+        point: problem.points[ob.point].name.clone(),
+        image: problem.images[ob.image].name.clone(),
+    })
+}
+
+fn run(
+    problem: &mut Problem,
+    options: &Options,
+    par: faer::Par,
+    on_iteration: &mut (impl FnMut(&Iteration) + Send),
+) -> Result<Summary, SolveError> {
+    let t0 = Instant::now();
+    let layout = Layout::new(problem);
+    let mut factorizer =
+        linear::Factorizer::new(&layout, options.linear_solver, par).map_err(SolveError::Setup)?;
+    let mut lin = evaluate::Linearization::new(&layout);
+    evaluate::linearize(problem, &layout, &mut lin).map_err(|o| not_projectable(problem, o))?;
+    let mut schur = schur::Schur::new(&layout);
+    schur.prepare(&layout, &lin);
+
+    let initial_cost = lin.cost;
+    if !initial_cost.is_finite() {
+        return Err(SolveError::Problem(ProblemError::NotFinite {
+            what: "the initial cost".into(),
+        }));
+    }
+    let mut cost = lin.cost;
+    let mut radius = options.initial_trust_region_radius;
+    let mut decrease_factor = 2.0;
+    let mut log = Vec::new();
+    let mut successful_steps = 0;
+    let mut linear_time = 0.0;
+    let mut dc = vec![0.0; layout.n_reduced];
+    let mut dp = vec![Vector3::zeros(); layout.free_points.len()];
+    let mut termination = Termination::MaxIterations;
+
+    for iteration in 1..=options.max_iterations {
+        let ti = Instant::now();
+        let gradient_max_norm = schur.gradient_max_norm();
+        if gradient_max_norm <= options.gradient_tolerance {
+            termination = Termination::GradientTolerance;
+            break;
+        }
+        let mut it = Iteration {
+            iteration,
+            cost,
+            cost_change: 0.0,
+            gradient_max_norm,
+            step_norm: 0.0,
+            relative_decrease: 0.0,
+            trust_region_radius: radius,
+            accepted: false,
+            linear_solver_time_s: 0.0,
+            iteration_time_s: 0.0,
+        };
+        // Solve the damped normal equations.
+        let mut solved = schur.assemble(&layout, &lin, 1.0 / radius).is_ok();
+        if solved {
+            dc.copy_from_slice(&schur.rhs);
+            let tl = Instant::now();
+            solved = factorizer.solve(&layout, &schur.values, &mut dc);
+            it.linear_solver_time_s = tl.elapsed().as_secs_f64();
+            linear_time += it.linear_solver_time_s;
+        }
+        if solved {
+            schur.back_substitute(&layout, &lin, &dc, &mut dp);
+            let step_norm = (dc.iter().map(|v| v * v).sum::<f64>()
+                + dp.iter().map(|v| v.norm_squared()).sum::<f64>())
+            .sqrt();
+            it.step_norm = step_norm;
+            let x_norm = parameter_norm(problem);
+            if step_norm <= options.parameter_tolerance * (x_norm + options.parameter_tolerance) {
+                termination = Termination::ParameterTolerance;
+                it.iteration_time_s = ti.elapsed().as_secs_f64();
+                on_iteration(&it);
+                log.push(it);
+                break;
+            }
+            let predicted = predicted_decrease(&layout, &lin, &dc, &dp);
+            let backup = Backup::take(problem);
+            apply_step(problem, &layout, &dc, &dp);
+            let new_cost = evaluate::cost(problem).ok().filter(|c| c.is_finite());
+            match new_cost {
+                Some(new_cost) if predicted > 0.0 && (cost - new_cost) / predicted > 1e-3 => {
+                    let rho = (cost - new_cost) / predicted;
+                    it.relative_decrease = rho;
+                    it.cost_change = cost - new_cost;
+                    it.accepted = true;
+                    it.cost = new_cost;
+                    successful_steps += 1;
+                    let converged = (cost - new_cost).abs() <= options.function_tolerance * cost;
+                    cost = new_cost;
+                    radius = (radius / (1.0f64 / 3.0).max(1.0 - (2.0 * rho - 1.0).powi(3)))
+                        .min(options.max_trust_region_radius);
+                    decrease_factor = 2.0;
+                    evaluate::linearize(problem, &layout, &mut lin)
+                        .map_err(|o| not_projectable(problem, o))?;
+                    schur.prepare(&layout, &lin);
+                    if converged {
+                        termination = Termination::FunctionTolerance;
+                        it.iteration_time_s = ti.elapsed().as_secs_f64();
+                        on_iteration(&it);
+                        log.push(it);
+                        break;
+                    }
+                }
+                other => {
+                    it.relative_decrease =
+                        other.map_or(f64::NEG_INFINITY, |c| (cost - c) / predicted);
+                    backup.restore(problem);
+                    radius /= decrease_factor;
+                    decrease_factor *= 2.0;
+                }
+            }
+        } else {
+            radius /= decrease_factor;
+            decrease_factor *= 2.0;
+        }
+        it.iteration_time_s = ti.elapsed().as_secs_f64();
+        on_iteration(&it);
+        log.push(it);
+        if radius < options.min_trust_region_radius {
+            termination = Termination::TrustRegionTooSmall;
+            break;
+        }
+    }
+    Ok(Summary {
+        initial_cost,
+        final_cost: cost,
+        iterations: log.len(),
+        successful_steps,
+        termination,
+        time_s: t0.elapsed().as_secs_f64(),
+        linear_solver_time_s: linear_time,
+        dense: factorizer.is_dense(),
+        reduced_dimension: layout.n_reduced,
+        reduced_nonzeros: layout.nnz(),
+        log,
+    })
+}
+
+/// |x|: rotations as angle-axis vectors, translations, intrinsics, points.
+fn parameter_norm(p: &Problem) -> f64 {
+    let mut s = 0.0;
+    for im in &p.images {
+        s += log_so3(&im.pose.rotation).norm_squared() + im.pose.translation.norm_squared();
+    }
+    for c in &p.cameras {
+        s += c.params.iter().map(|v| v * v).sum::<f64>();
+    }
+    for x in &p.points {
+        s += x.position.norm_squared();
+    }
+    s.sqrt()
+}
+
+/// Decrease of the linear model: ½|r|² − ½|r + Jδ|² = −rᵀJδ − ½|Jδ|².
+fn predicted_decrease(
+    layout: &Layout,
+    lin: &evaluate::Linearization,
+    dc: &[f64],
+    dp: &[Vector3<f64>],
+) -> f64 {
+    (0..lin.r.len())
+        .into_par_iter()
+        .with_min_len(256)
+        .map(|o| {
+            let mut jd = nalgebra::Vector2::zeros();
+            let jc = &lin.jc[layout.obs_jc_offset[o]..];
+            for s in layout.segs(o) {
+                let base = layout.block_offset[s.block as usize] + s.block_off as usize;
+                for k in 0..s.len as usize {
+                    let c = s.jac_col as usize + k;
+                    jd.x += jc[2 * c] * dc[base + k];
+                    jd.y += jc[2 * c + 1] * dc[base + k];
+                }
+            }
+            let f = layout.free_point_index[layout.obs_point[o] as usize];
+            if f != u32::MAX {
+                jd += lin.jp[o] * dp[f as usize];
+            }
+            -lin.r[o].dot(&jd) - 0.5 * jd.norm_squared()
+        })
+        .sum()
+}
+
+fn apply_step(problem: &mut Problem, layout: &Layout, dc: &[f64], dp: &[Vector3<f64>]) {
+    for (i, im) in problem.images.iter_mut().enumerate() {
+        if let Some(s) = layout.image_slot[i] {
+            let o = layout.block_offset[s.block as usize] + s.off as usize;
+            im.pose = im.pose.plus(&dc[o..o + 6]);
+        }
+    }
+    for (c, cam) in problem.cameras.iter_mut().enumerate() {
+        if let Some(s) = layout.camera_slot[c] {
+            let o = layout.block_offset[s.block as usize] + s.off as usize;
+            for (k, &idx) in layout.camera_free[c].iter().enumerate() {
+                cam.params[idx] += dc[o + k];
+            }
+        }
+    }
+    for (f, &p) in layout.free_points.iter().enumerate() {
+        problem.points[p].position += dp[f];
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    //! Finite-difference check of the whole observation Jacobian as the solver assembles it
+    //! (camera model ∘ pose update ∘ point), through the same step mapping the solver uses.
+    use super::*;
+    use crate::camera::PhotogrammetricCamera;
+    use crate::pose::Pose;
+    use crate::problem::{Camera, Image, Observation, Point};
+    use crate::rotation::exp_so3;
+    use nalgebra::{Vector2, Vector3};
+    use std::sync::Arc;
+
+    fn small_problem(loss: crate::loss::Loss) -> Problem {
+        let model = Arc::new(PhotogrammetricCamera::new(1280, 720, 0.00375));
+        let params = vec![
+            2.45, 0.01, -0.02, -0.02, 3e-4, -1e-5, 2e-4, -1e-4, 1e-4, -2e-4,
+        ];
+        let mut left = Camera::new("left", model.clone(), params.clone());
+        left.fixed[5] = true; // one intrinsic held fixed
+        let right = Camera::new("right", model, params); // shared by two images
+        let mut images = Vec::new();
+        for (k, cam) in [0usize, 1, 1].into_iter().enumerate() {
+            let r = exp_so3(&Vector3::new(0.1 * k as f64, -0.05, 0.2 - 0.1 * k as f64));
+            images.push(Image {
+                name: format!("i{k}"),
+                camera: cam,
+                pose: Pose::from_rotation_and_centre(r, Vector3::new(0.3 * k as f64, -2.0, 0.1)),
+                fixed: false,
+            });
+        }
+        let points: Vec<Point> = (0..6)
+            .map(|k| Point {
+                name: k.to_string(),
+                position: Vector3::new(
+                    -0.5 + 0.2 * k as f64,
+                    0.5 + 0.1 * (k % 3) as f64,
+                    -0.3 + 0.1 * k as f64,
+                ),
+                fixed: k == 5,
+            })
+            .collect();
+        let mut observations = Vec::new();
+        for i in 0..3 {
+            for p in 0..6 {
+                // Measurements a few pixels off, so that residuals (and the robust
+                // weights) are not trivial.
+                let uv = Vector2::new(600.0 + 13.0 * p as f64, 300.0 + 7.0 * i as f64);
+                observations.push(Observation {
+                    image: i,
+                    point: p,
+                    uv,
+                    sigma: 0.5,
+                });
+            }
+        }
+        Problem {
+            cameras: vec![left, right],
+            images,
+            points,
+            observations,
+            loss,
+        }
+    }
+
+    /// Whitened residuals, and the robust cost ½ Σ ρ.
+    fn residuals(p: &Problem) -> (Vec<f64>, f64) {
+        let mut cost = 0.0;
+        let r = p
+            .observations
+            .iter()
+            .flat_map(|o| {
+                let r = p.residual(o).unwrap() / o.sigma;
+                cost += 0.5 * p.loss.evaluate(r.norm_squared()).0;
+                [r.x, r.y]
+            })
+            .collect();
+        (r, cost)
+    }
+
+    /// With the trivial loss every Jacobian column is checked; with a robust loss (where the
+    /// solver uses the IRLS weights √ρ′, as Ceres does for ρ″ ≤ 0) the gradient Jᵀr of the
+    /// robust cost is checked instead.
+    #[test]
+    fn assembled_jacobian_matches_central_differences() {
+        for loss in [
+            crate::loss::Loss::Trivial,
+            crate::loss::Loss::Huber(3.0),
+            crate::loss::Loss::Cauchy(5.0),
+        ] {
+            let robust = loss != crate::loss::Loss::Trivial;
+            let problem = small_problem(loss);
+            let layout = Layout::new(&problem);
+            // Image 0 owns camera "left" alone, so its intrinsics fold into its block.
+            assert_eq!(layout.num_blocks(), 4);
+            let mut lin = evaluate::Linearization::new(&layout);
+            evaluate::linearize(&problem, &layout, &mut lin).unwrap();
+            let nc = layout.n_reduced;
+            let np = layout.free_points.len();
+            for v in 0..nc + 3 * np {
+                let mut dc = vec![0.0; nc];
+                let mut dp = vec![Vector3::zeros(); np];
+                let h = 1e-6;
+                let mut eval = |sign: f64| {
+                    dc.iter_mut().for_each(|x| *x = 0.0);
+                    dp.iter_mut().for_each(|x| *x = Vector3::zeros());
+                    if v < nc {
+                        dc[v] = sign * h;
+                    } else {
+                        dp[(v - nc) / 3][(v - nc) % 3] = sign * h;
+                    }
+                    let mut q = problem.clone();
+                    apply_step(&mut q, &layout, &dc, &dp);
+                    residuals(&q)
+                };
+                let ((plus, cost_plus), (minus, cost_minus)) = (eval(1.0), eval(-1.0));
+                let mut gradient = 0.0;
+                for o in 0..problem.observations.len() {
+                    // Analytic column v of observation o.
+                    let mut an = Vector2::zeros();
+                    if v < nc {
+                        for s in layout.segs(o) {
+                            let base = layout.block_offset[s.block as usize] + s.block_off as usize;
+                            if v >= base && v < base + s.len as usize {
+                                let c = s.jac_col as usize + v - base;
+                                let jc = &lin.jc[layout.obs_jc_offset[o]..];
+                                an = Vector2::new(jc[2 * c], jc[2 * c + 1]);
+                            }
+                        }
+                    } else {
+                        let f = layout.free_point_index[problem.observations[o].point];
+                        if f as usize == (v - nc) / 3 {
+                            an = lin.jp[o].column((v - nc) % 3).into_owned();
+                        }
+                    }
+                    gradient += an.dot(&lin.r[o]);
+                    if robust {
+                        continue;
+                    }
+                    let fd = Vector2::new(
+                        plus[2 * o] - minus[2 * o],
+                        plus[2 * o + 1] - minus[2 * o + 1],
+                    ) / (2.0 * h);
+                    let scale = an.norm().max(fd.norm()).max(1.0);
+                    assert!(
+                        (an - fd).norm() / scale < 1e-6,
+                        "obs {o} var {v}: analytic {an:?} fd {fd:?}"
+                    );
+                }
+                let fd = (cost_plus - cost_minus) / (2.0 * h);
+                let scale = gradient.abs().max(fd.abs()).max(1.0);
+                assert!(
+                    (gradient - fd).abs() / scale < 1e-6,
+                    "{loss:?} var {v}: gradient {gradient} fd {fd}"
+                );
+            }
+        }
+    }
+}
