@@ -54,6 +54,8 @@ pub struct FinderOptions {
     pub min_inliers: usize,
     /// A fit with σ₀ above this is not a sphere of the nominal size.
     pub max_sigma0: f64,
+    /// A centre whose largest standard deviation exceeds this (mm) is not determined by its rays.
+    pub max_centre_sigma_mm: f64,
     /// Seed of every random choice.
     pub seed: u64,
 }
@@ -74,6 +76,7 @@ impl Default for FinderOptions {
             radius_bounds: (0.5, 1.5),
             min_inliers: 6,
             max_sigma0: 2.5,
+            max_centre_sigma_mm: 10.0,
             seed: 1,
         }
     }
@@ -368,6 +371,14 @@ fn examine(cloud: &Cloud, cl: &[usize], opt: &FinderOptions, seed: u64) -> Outco
         Ok(f) if (f.centre - mean).norm() > opt.diameter_mm * 2.0 => {
             reject(f.centre, "fit left its cluster".into())
         }
+        Ok(f) if f.cov.symmetric_eigenvalues().max().sqrt() > opt.max_centre_sigma_mm => reject(
+            f.centre,
+            format!(
+                "centre not determined by its {} rays: σ = {:.1} mm",
+                f.used.len(),
+                f.cov.symmetric_eigenvalues().max().sqrt()
+            ),
+        ),
         Ok(f) => Outcome::Ball(Ball {
             range_mm: f.centre.norm(),
             centre: f.centre,

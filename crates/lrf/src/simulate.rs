@@ -194,11 +194,12 @@ impl Scene {
 }
 
 /// The paper-like test field: a room corner (two walls and the floor) seen from the LRF,
-/// with `n_balls` 38 mm balls on stems in front of the walls, between about 0.8 and 2 m.
-/// The corner is at `(±…)`: wall 1 is the plane x = −x0, wall 2 the plane y = y0 (in front
-/// of the sensor, which looks along +Y at β = 0 for α = 90°), the floor z = −z0.
+/// with `n_balls` 38 mm balls on stems in front of the walls, between about 0.7 and 1.5 m
+/// (the paper's balls are 0.85–1.35 m from the LRF). Wall 1 is the plane x = −800, wall 2
+/// the plane y = 1600 (in front of the sensor: +Y is the servo shaft, the beam α = 90°), the
+/// floor z = −600.
 pub fn room_corner_scene<R: Rng>(n_balls: usize, rng: &mut R) -> Scene {
-    let (x0, y0, z0) = (900.0, 2100.0, 700.0);
+    let (x0, y0, z0) = (800.0, 1600.0, 600.0);
     let planes = vec![
         (Vector3::new(1.0, 0.0, 0.0), -x0),
         (Vector3::new(0.0, 1.0, 0.0), y0),
