@@ -4,6 +4,7 @@
 //! (12 and 14 bit) and ping-pong-ball silhouettes.
 
 pub mod aicon;
+pub mod ball;
 pub mod blobs;
 pub mod candidates;
 pub mod centre;
