@@ -67,7 +67,7 @@ impl GrayImage {
 
 /// Largest image side accepted (pixels) and largest decoder allocation (bytes).
 const MAX_SIDE: u32 = 40_000;
-const MAX_ALLOC: u64 = 2 << 30;
+const MAX_ALLOC: u64 = 1 << 30;
 
 /// Decodes an encoded image (format guessed from the bytes) to grey `f32`.
 /// `name` is used in error messages.
