@@ -13,6 +13,7 @@ pub mod ellipse;
 pub mod homography;
 pub mod image_io;
 pub mod overlay;
+pub mod printable;
 pub mod threshold;
 
 pub use detect::{

@@ -341,3 +341,88 @@ fn ball_centre_with_and_without_eccentricity_correction() {
     assert!(worst_corr < 0.1, "corrected error up to {worst_corr:.3} px");
     assert!(sum_cor < 0.3 * sum_unc, "correction does not help enough");
 }
+
+/// Printed targets (the geometry of `printable`) seen under a perspective tilt decode to their
+/// numbers: rendering → detection → ID.
+#[test]
+fn printed_targets_decode_to_their_numbers() {
+    use pingcal_targets::aicon::CodeTable;
+    use pingcal_targets::printable::target_is_white;
+    let table = CodeTable::generate(14).unwrap();
+    let det = Detector::new(DetectParams {
+        balls: BallMode::Off,
+        ..DetectParams::default()
+    })
+    .unwrap();
+    let mut rng = StdRng::seed_from_u64(99);
+    let mut ok = 0;
+    let mut wrong = 0;
+    let n = 40;
+    for k in 0..n {
+        let id = 2 + (k * 13) % 500;
+        let code = table.code(id).unwrap();
+        // Target plane → image: rotation about the target normal, tilt up to 60° about a random
+        // axis (a foreshortening), scale (dot radius 5–12 px), projective term.
+        let rad = rng.random_range(5.0..12.0);
+        let rot: f64 = rng.random_range(0.0..6.28);
+        let tilt: f64 = rng.random_range(0.0f64..60.0).to_radians();
+        let axis: f64 = rng.random_range(0.0..3.14);
+        let (w, h) = (160usize, 160usize);
+        let mut img = GrayImage::new(w, h, 0.35);
+        let (ca, sa) = (axis.cos(), axis.sin());
+        // Inverse map image → target plane for rendering: undo the translation and scale, then
+        // stretch along the tilt axis by 1/cos(tilt), then undo the in-plane rotation.
+        const SS: usize = 4;
+        for y in 0..h {
+            for x in 0..w {
+                let mut acc = 0.0;
+                for sy in 0..SS {
+                    for sx in 0..SS {
+                        let px = (x as f64 - 0.5 + (sx as f64 + 0.5) / SS as f64 - 80.0) / rad;
+                        let py = (y as f64 - 0.5 + (sy as f64 + 0.5) / SS as f64 - 80.0) / rad;
+                        // Components along / across the tilt axis.
+                        let along = px * ca + py * sa;
+                        let across = (-px * sa + py * ca) / tilt.cos();
+                        let (qx, qy) = (along * ca - across * sa, along * sa + across * ca);
+                        let (u, v) = (
+                            qx * rot.cos() + qy * rot.sin(),
+                            -qx * rot.sin() + qy * rot.cos(),
+                        );
+                        let white =
+                            u.abs() <= 4.0 && v.abs() <= 4.0 && target_is_white(code, 14, u, v);
+                        let black = u.abs() <= 4.0 && v.abs() <= 4.0;
+                        acc += if white {
+                            0.8
+                        } else if black {
+                            0.05
+                        } else {
+                            0.35
+                        };
+                    }
+                }
+                img.data[y * w + x] = acc / (SS * SS) as f32;
+            }
+        }
+        gaussian_blur(&mut img, 0.8);
+        add_noise(&mut img, 0.01, &mut rng);
+        let r = det.detect(&img);
+        match r
+            .targets
+            .iter()
+            .find(|t| t.kind == TargetKind::Coded && t.id.is_some())
+        {
+            Some(t) if t.id == Some(id) => ok += 1,
+            Some(t) => {
+                println!("WRONG: id {id} read as {:?}", t.id);
+                wrong += 1
+            }
+            None => println!(
+                "missed id {id} (dot radius {rad:.1} px, tilt {:.0}°)",
+                tilt.to_degrees()
+            ),
+        }
+    }
+    println!("printed targets: {ok}/{n} decoded, {wrong} wrong");
+    assert_eq!(wrong, 0);
+    assert!(ok >= n * 3 / 4, "only {ok}/{n} decoded");
+}
