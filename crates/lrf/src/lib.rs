@@ -38,3 +38,5 @@ pub mod xyz;
 
 pub use cloud::{Cloud, MountModel};
 pub use error::{LrfError, Result};
+/// The linear-algebra crate of the public API (points are `nalgebra::Vector3<f64>`).
+pub use nalgebra;
