@@ -14,11 +14,12 @@ use rayon::prelude::*;
 pub(crate) struct Linearization {
     /// Whitened, robustified residual per observation.
     pub r: Vec<Vector2<f64>>,
-    /// Camera-side Jacobian per observation, column by column (2 values per column).
+    /// Camera-side Jacobian per observation: its two rows, each `ncols` long.
     pub jc: Vec<f64>,
     /// Point Jacobian per observation.
     pub jp: Vec<Matrix2x3<f64>>,
-    /// W = J_cᵀ J_p per observation, row by row (3 values per camera-side column).
+    /// W = J_cᵀ J_p per observation (ncols × 3), stored as its three columns, each
+    /// `ncols` long.
     pub w: Vec<f64>,
     /// ½ Σ ρ.
     pub cost: f64,
@@ -112,29 +113,34 @@ pub(crate) fn linearize(
             *r = res * rho1.sqrt();
             let dxc = dxc * scale;
             *jp = dxc * im.pose.rotation;
+            let nc = jc.len() / 2;
+            let (j0, j1) = jc.split_at_mut(nc);
             let mut col = 0;
             if layout.image_slot[o.image].is_some() {
                 // ∂xc/∂δω = −[R X]×, ∂xc/∂δt = I.
                 let jw = -(dxc * skew(&rx));
                 for k in 0..3 {
-                    jc[2 * k] = jw[(0, k)];
-                    jc[2 * k + 1] = jw[(1, k)];
-                    jc[6 + 2 * k] = dxc[(0, k)];
-                    jc[6 + 2 * k + 1] = dxc[(1, k)];
+                    j0[k] = jw[(0, k)];
+                    j1[k] = jw[(1, k)];
+                    j0[3 + k] = dxc[(0, k)];
+                    j1[3 + k] = dxc[(1, k)];
                 }
                 col = 6;
             }
             if layout.camera_slot[im.camera].is_some() {
                 for &k in &layout.camera_free[im.camera] {
-                    jc[2 * col] = ji[k] * scale;
-                    jc[2 * col + 1] = ji[n + k] * scale;
+                    j0[col] = ji[k] * scale;
+                    j1[col] = ji[n + k] * scale;
                     col += 1;
                 }
             }
-            for k in 0..col {
-                let (a, b) = (jc[2 * k], jc[2 * k + 1]);
-                for m in 0..3 {
-                    w[3 * k + m] = a * jp[(0, m)] + b * jp[(1, m)];
+            for m in 0..3 {
+                let (a, b) = (jp[(0, m)], jp[(1, m)]);
+                for (wk, (x, y)) in w[m * nc..(m + 1) * nc]
+                    .iter_mut()
+                    .zip(j0.iter().zip(j1.iter()))
+                {
+                    *wk = x * a + y * b;
                 }
             }
             Ok::<f64, usize>(0.5 * rho)

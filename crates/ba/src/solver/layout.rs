@@ -325,6 +325,24 @@ impl Layout {
         &self.block_obs[self.block_obs_ptr[b]..self.block_obs_ptr[b + 1]]
     }
 
+    /// The two rows of observation `o`'s camera-side Jacobian restricted to segment `s`.
+    #[inline]
+    pub fn jc_rows<'a>(&self, jc: &'a [f64], o: usize, s: &Seg) -> (&'a [f64], &'a [f64]) {
+        let nc = self.obs_ncols[o] as usize;
+        let base = self.obs_jc_offset[o] + s.jac_col as usize;
+        let len = s.len as usize;
+        (&jc[base..base + len], &jc[base + nc..base + nc + len])
+    }
+
+    /// The three columns of observation `o`'s W (or Y) restricted to segment `s`.
+    #[inline]
+    pub fn w_cols<'a>(&self, w: &'a [f64], o: usize, s: &Seg) -> [&'a [f64]; 3] {
+        let nc = self.obs_ncols[o] as usize;
+        let base = self.obs_w_offset[o] + s.jac_col as usize;
+        let len = s.len as usize;
+        std::array::from_fn(|m| &w[base + m * nc..base + m * nc + len])
+    }
+
     /// Number of stored entries of the upper triangle of S.
     pub fn nnz(&self) -> usize {
         *self.col_ptr.last().unwrap()

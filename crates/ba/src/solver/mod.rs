@@ -382,13 +382,12 @@ fn predicted_decrease(
         .with_min_len(256)
         .map(|o| {
             let mut jd = nalgebra::Vector2::zeros();
-            let jc = &lin.jc[layout.obs_jc_offset[o]..];
             for s in layout.segs(o) {
                 let base = layout.block_offset[s.block as usize] + s.block_off as usize;
+                let (j0, j1) = layout.jc_rows(&lin.jc, o, s);
                 for k in 0..s.len as usize {
-                    let c = s.jac_col as usize + k;
-                    jd.x += jc[2 * c] * dc[base + k];
-                    jd.y += jc[2 * c + 1] * dc[base + k];
+                    jd.x += j0[k] * dc[base + k];
+                    jd.y += j1[k] * dc[base + k];
                 }
             }
             let f = layout.free_point_index[layout.obs_point[o] as usize];
@@ -543,9 +542,8 @@ mod tests {
                         for s in layout.segs(o) {
                             let base = layout.block_offset[s.block as usize] + s.block_off as usize;
                             if v >= base && v < base + s.len as usize {
-                                let c = s.jac_col as usize + v - base;
-                                let jc = &lin.jc[layout.obs_jc_offset[o]..];
-                                an = Vector2::new(jc[2 * c], jc[2 * c + 1]);
+                                let (j0, j1) = layout.jc_rows(&lin.jc, o, s);
+                                an = Vector2::new(j0[v - base], j1[v - base]);
                             }
                         }
                     } else {
@@ -576,5 +574,94 @@ mod tests {
                 );
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod schur_tests {
+    //! The Schur-complement step equals the step from the full damped normal equations.
+    use super::*;
+    use crate::synthetic::SyntheticBal;
+    use nalgebra::{DMatrix, DVector};
+
+    #[test]
+    fn schur_step_equals_full_normal_equations_step() {
+        let s = SyntheticBal {
+            cameras: 5,
+            points: 40,
+            obs_per_point: 3,
+            noise_px: 1.0,
+            perturbation: 1.0,
+            seed: 5,
+        };
+        let mut problem = s.generate().unwrap().problem;
+        problem.images[0].fixed = true;
+        problem.points[3].fixed = true;
+        // A camera shared by two images: its intrinsics get a block of their own.
+        problem.images[4].camera = 3;
+        let layout = Layout::new(&problem);
+        let mut lin = evaluate::Linearization::new(&layout);
+        evaluate::linearize(&problem, &layout, &mut lin).unwrap();
+        let mut schur = schur::Schur::new(&layout);
+        schur.prepare(&layout, &lin);
+        let lambda = 0.37;
+        schur.assemble(&layout, &lin, lambda).unwrap();
+        let mut dc = schur.rhs.clone();
+        let mut fact =
+            linear::Factorizer::new(&layout, LinearSolverKind::Sparse, faer::Par::Seq).unwrap();
+        assert!(fact.solve(&layout, &schur.values, &mut dc));
+        let mut dp = vec![Vector3::zeros(); layout.free_points.len()];
+        schur.back_substitute(&layout, &lin, &dc, &mut dp);
+
+        // Dense J over [camera-side unknowns, free points].
+        let nc = layout.n_reduced;
+        let n = nc + 3 * layout.free_points.len();
+        let m = 2 * problem.observations.len();
+        let mut j = DMatrix::<f64>::zeros(m, n);
+        let mut r = DVector::<f64>::zeros(m);
+        for o in 0..problem.observations.len() {
+            r[2 * o] = lin.r[o].x;
+            r[2 * o + 1] = lin.r[o].y;
+            for s in layout.segs(o) {
+                let base = layout.block_offset[s.block as usize] + s.block_off as usize;
+                let (j0, j1) = layout.jc_rows(&lin.jc, o, s);
+                for k in 0..s.len as usize {
+                    j[(2 * o, base + k)] = j0[k];
+                    j[(2 * o + 1, base + k)] = j1[k];
+                }
+            }
+            let f = layout.free_point_index[problem.observations[o].point];
+            if f != u32::MAX {
+                for k in 0..3 {
+                    j[(2 * o, nc + 3 * f as usize + k)] = lin.jp[o][(0, k)];
+                    j[(2 * o + 1, nc + 3 * f as usize + k)] = lin.jp[o][(1, k)];
+                }
+            }
+        }
+        let mut h = j.transpose() * &j;
+        for k in 0..n {
+            h[(k, k)] += lambda * h[(k, k)].clamp(1e-6, 1e32);
+        }
+        let g = j.transpose() * &r;
+        let full = h.cholesky().unwrap().solve(&(-g));
+        let mut err: f64 = 0.0;
+        for k in 0..nc {
+            err = err.max((full[k] - dc[k]).abs() / full.amax());
+        }
+        for (f, d) in dp.iter().enumerate() {
+            for k in 0..3 {
+                err = err.max((full[nc + 3 * f + k] - d[k]).abs() / full.amax());
+            }
+        }
+        assert!(err < 1e-9, "relative difference {err}");
+        // And the dense path gives the same.
+        let mut dc2 = schur.rhs.clone();
+        let mut dense =
+            linear::Factorizer::new(&layout, LinearSolverKind::Dense, faer::Par::Seq).unwrap();
+        assert!(dense.solve(&layout, &schur.values, &mut dc2));
+        assert!(dc
+            .iter()
+            .zip(&dc2)
+            .all(|(a, b)| (a - b).abs() <= 1e-9 * full.amax()));
     }
 }

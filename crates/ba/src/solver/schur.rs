@@ -22,7 +22,7 @@ pub(crate) struct Schur {
     pub v: Vec<Matrix3<f64>>,
     pub gp: Vec<Vector3<f64>>,
     pub vinv: Vec<Matrix3<f64>>,
-    /// Per observation: Y = W (V + λD)⁻¹, laid out like W.
+    /// Per observation: Y = W (V + λD)⁻¹, laid out like W (three columns).
     pub y: Vec<f64>,
     /// diag(U) and the camera-side gradient g_c.
     pub diag_c: Vec<f64>,
@@ -78,10 +78,10 @@ impl Schur {
                 for &(o, si) in layout.obs_of_block(b) {
                     let o = o as usize;
                     let s = layout.segs(o)[si as usize];
-                    let jc = &lin.jc[layout.obs_jc_offset[o] + 2 * s.jac_col as usize..];
+                    let (j0, j1) = layout.jc_rows(&lin.jc, o, &s);
                     let r = lin.r[o];
                     for k in 0..s.len as usize {
-                        let (a, c) = (jc[2 * k], jc[2 * k + 1]);
+                        let (a, c) = (j0[k], j1[k]);
                         d[s.block_off as usize + k] += a * a + c * c;
                         g[s.block_off as usize + k] += a * r.x + c * r.y;
                     }
@@ -130,10 +130,17 @@ impl Schur {
                     return;
                 }
                 let m = &vinv[f as usize];
-                let w = &lin.w[layout.obs_w_offset[o]..layout.obs_w_offset[o] + y.len()];
-                for (wr, yr) in w.chunks_exact(3).zip(y.chunks_exact_mut(3)) {
-                    for c in 0..3 {
-                        yr[c] = wr[0] * m[(0, c)] + wr[1] * m[(1, c)] + wr[2] * m[(2, c)];
+                let nc = y.len() / 3;
+                if nc == 0 {
+                    return;
+                }
+                let w = &lin.w[layout.obs_w_offset[o]..layout.obs_w_offset[o] + 3 * nc];
+                let (w0, w12) = w.split_at(nc);
+                let (w1, w2) = w12.split_at(nc);
+                for (c, yc) in y.chunks_exact_mut(nc).enumerate() {
+                    let (a, b, d) = (m[(0, c)], m[(1, c)], m[(2, c)]);
+                    for (k, v) in yc.iter_mut().enumerate() {
+                        *v = w0[k] * a + w1[k] * b + w2[k] * d;
                     }
                 }
             });
@@ -169,15 +176,12 @@ impl Schur {
                 let mut rhs = -self.gp[f];
                 for &o in layout.point_obs(f) {
                     let o = o as usize;
-                    let w = &lin.w[layout.obs_w_offset[o]..];
                     for s in layout.segs(o) {
                         let base = layout.block_offset[s.block as usize] + s.block_off as usize;
-                        for k in 0..s.len as usize {
-                            let x = dc[base + k];
-                            let row = &w[3 * (s.jac_col as usize + k)..];
-                            rhs.x -= row[0] * x;
-                            rhs.y -= row[1] * x;
-                            rhs.z -= row[2] * x;
+                        let x = &dc[base..base + s.len as usize];
+                        let w = layout.w_cols(&lin.w, o, s);
+                        for m in 0..3 {
+                            rhs[m] -= w[m].iter().zip(x).map(|(a, b)| a * b).sum::<f64>();
                         }
                     }
                 }
@@ -225,20 +229,23 @@ fn assemble_column(
     for &(o2, s2i) in layout.obs_of_block(b) {
         let o2 = o2 as usize;
         let s2 = layout.segs(o2)[s2i as usize];
-        let (c2, l2, off2) = (s2.jac_col as usize, s2.len as usize, s2.block_off as usize);
-        let jc2 =
-            &lin.jc[layout.obs_jc_offset[o2] + 2 * c2..layout.obs_jc_offset[o2] + 2 * (c2 + l2)];
+        let (l2, off2) = (s2.len as usize, s2.block_off as usize);
+        let (a0, a1) = layout.jc_rows(&lin.jc, o2, &s2);
         // U = Σ J_cᵀ J_c.
         for s1 in layout.segs(o2) {
             if s1.block as usize > b {
                 continue;
             }
-            let (c1, l1) = (s1.jac_col as usize, s1.len as usize);
-            let jc1 = &lin.jc
-                [layout.obs_jc_offset[o2] + 2 * c1..layout.obs_jc_offset[o2] + 2 * (c1 + l1)];
-            col.add(s1.block, s1.block_off as usize, l1, off2, l2, |i, j| {
-                jc1[2 * i] * jc2[2 * j] + jc1[2 * i + 1] * jc2[2 * j + 1]
-            });
+            let (l0, l1) = layout.jc_rows(&lin.jc, o2, s1);
+            col.add(
+                [l0, l1],
+                [a0, a1],
+                s1.block,
+                s1.block_off as usize,
+                off2,
+                l2,
+                1.0,
+            );
         }
         // − W V⁻¹ Wᵀ and + W V⁻¹ g_p.
         let f = layout.free_point_index[layout.obs_point[o2] as usize];
@@ -246,11 +253,11 @@ fn assemble_column(
             continue;
         }
         let f = f as usize;
-        let w2 = &lin.w[layout.obs_w_offset[o2] + 3 * c2..layout.obs_w_offset[o2] + 3 * (c2 + l2)];
-        let y2 = &y[layout.obs_w_offset[o2] + 3 * c2..layout.obs_w_offset[o2] + 3 * (c2 + l2)];
+        let w2 = layout.w_cols(&lin.w, o2, &s2);
+        let y2 = layout.w_cols(y, o2, &s2);
         let g = gp[f];
         for k in 0..l2 {
-            rhs[off2 + k] += y2[3 * k] * g.x + y2[3 * k + 1] * g.y + y2[3 * k + 2] * g.z;
+            rhs[off2 + k] += y2[0][k] * g.x + y2[1][k] * g.y + y2[2][k] * g.z;
         }
         for &o1 in layout.point_obs(f) {
             let o1 = o1 as usize;
@@ -258,14 +265,8 @@ fn assemble_column(
                 if s1.block as usize > b {
                     continue;
                 }
-                let (c1, l1) = (s1.jac_col as usize, s1.len as usize);
-                let y1 =
-                    &y[layout.obs_w_offset[o1] + 3 * c1..layout.obs_w_offset[o1] + 3 * (c1 + l1)];
-                col.add(s1.block, s1.block_off as usize, l1, off2, l2, |i, j| {
-                    -(y1[3 * i] * w2[3 * j]
-                        + y1[3 * i + 1] * w2[3 * j + 1]
-                        + y1[3 * i + 2] * w2[3 * j + 2])
-                });
+                let y1 = layout.w_cols(y, o1, s1);
+                col.add(y1, w2, s1.block, s1.block_off as usize, off2, l2, -1.0);
             }
         }
     }
@@ -288,16 +289,19 @@ struct Column<'a> {
 }
 
 impl Column<'_> {
-    /// Adds f(i, j) to S[(block a, row off1 + i), (block b, col off2 + j)], upper triangle only.
+    /// Adds `scale · Σ_k left[k][i] · right[k][j]` to S[(block a, row off1 + i), (block b,
+    /// col off2 + j)] for j < len2, upper triangle only. Each column update is a
+    /// contiguous axpy, which the compiler vectorizes.
     #[inline(always)]
-    fn add(
+    fn add<const K: usize>(
         &mut self,
+        left: [&[f64]; K],
+        right: [&[f64]; K],
         a: u32,
         off1: usize,
-        len1: usize,
         off2: usize,
         len2: usize,
-        f: impl Fn(usize, usize) -> f64,
+        scale: f64,
     ) {
         let ai = self
             .rows
@@ -305,17 +309,27 @@ impl Column<'_> {
             .expect("block pair in the pattern");
         let roff = self.roffs[ai];
         let diag = a as usize == self.b;
+        let len1 = left[0].len();
         for j in 0..len2 {
             let col = off2 + j;
-            let base = self.col_ptr[col] - self.v0 + roff;
+            let base = self.col_ptr[col] - self.v0 + roff + off1;
             let n = if diag {
                 len1.min((col + 1).saturating_sub(off1))
             } else {
                 len1
             };
-            let dst = &mut self.vals[base + off1..base + off1 + n];
-            for (i, d) in dst.iter_mut().enumerate() {
-                *d += f(i, j);
+            let dst = &mut self.vals[base..base + n];
+            let c: [f64; K] = std::array::from_fn(|k| scale * right[k][j]);
+            if K == 2 {
+                let (l0, l1) = (&left[0][..n], &left[1][..n]);
+                for ((d, x), y) in dst.iter_mut().zip(l0).zip(l1) {
+                    *d += x * c[0] + y * c[1];
+                }
+            } else {
+                let (l0, l1, l2) = (&left[0][..n], &left[1][..n], &left[2][..n]);
+                for (((d, x), y), z) in dst.iter_mut().zip(l0).zip(l1).zip(l2) {
+                    *d += x * c[0] + y * c[1] + z * c[2];
+                }
             }
         }
     }
