@@ -138,6 +138,10 @@ pub struct Summary {
     pub time_s: f64,
     /// Time in the linear solver, seconds.
     pub linear_solver_time_s: f64,
+    /// Time evaluating residuals and Jacobians (and the cost of trial steps), seconds.
+    pub evaluation_time_s: f64,
+    /// Time forming the Schur complement and back-substituting, seconds.
+    pub schur_time_s: f64,
     /// Whether the dense path was used.
     pub dense: bool,
     /// Dimension of the reduced camera system.
@@ -246,6 +250,8 @@ fn run(
     let mut log = Vec::new();
     let mut successful_steps = 0;
     let mut linear_time = 0.0;
+    let mut eval_time = 0.0;
+    let mut schur_time = 0.0;
     let mut dc = vec![0.0; layout.n_reduced];
     let mut dp = vec![Vector3::zeros(); layout.free_points.len()];
     let mut termination = Termination::MaxIterations;
@@ -270,7 +276,9 @@ fn run(
             iteration_time_s: 0.0,
         };
         // Solve the damped normal equations.
+        let ts = Instant::now();
         let mut solved = schur.assemble(&layout, &lin, 1.0 / radius).is_ok();
+        schur_time += ts.elapsed().as_secs_f64();
         if solved {
             dc.copy_from_slice(&schur.rhs);
             let tl = Instant::now();
@@ -279,7 +287,9 @@ fn run(
             linear_time += it.linear_solver_time_s;
         }
         if solved {
+            let ts = Instant::now();
             schur.back_substitute(&layout, &lin, &dc, &mut dp);
+            schur_time += ts.elapsed().as_secs_f64();
             let step_norm = (dc.iter().map(|v| v * v).sum::<f64>()
                 + dp.iter().map(|v| v.norm_squared()).sum::<f64>())
             .sqrt();
@@ -295,7 +305,9 @@ fn run(
             let predicted = predicted_decrease(&layout, &lin, &dc, &dp);
             let backup = Backup::take(problem);
             apply_step(problem, &layout, &dc, &dp);
+            let te = Instant::now();
             let new_cost = evaluate::cost(problem).ok().filter(|c| c.is_finite());
+            eval_time += te.elapsed().as_secs_f64();
             match new_cost {
                 Some(new_cost) if predicted > 0.0 && (cost - new_cost) / predicted > 1e-3 => {
                     let rho = (cost - new_cost) / predicted;
@@ -348,6 +360,8 @@ fn run(
         termination,
         time_s: t0.elapsed().as_secs_f64(),
         linear_solver_time_s: linear_time,
+        evaluation_time_s: eval_time,
+        schur_time_s: schur_time,
         dense: factorizer.is_dense(),
         reduced_dimension: layout.n_reduced,
         reduced_nonzeros: layout.nnz(),

@@ -124,6 +124,12 @@ pub fn run(args: Args) -> CmdResult {
         }
     })?;
     let rms = problem.rms_px();
+    if !quiet {
+        println!(
+            "time: evaluation {:.3} s, Schur complement {:.3} s, linear solver {:.3} s, total {:.3} s",
+            summary.evaluation_time_s, summary.schur_time_s, summary.linear_solver_time_s, summary.time_s
+        );
+    }
     println!(
         "pingcal ba: cost {:.6e} -> {:.6e} in {} iterations ({} accepted), {:.3} s ({} linear solver, reduced system {} x {}), RMS {:.4} px; {}",
         summary.initial_cost,
@@ -145,6 +151,8 @@ pub fn run(args: Args) -> CmdResult {
             "successful_steps": summary.successful_steps,
             "time_s": summary.time_s,
             "linear_solver_time_s": summary.linear_solver_time_s,
+            "evaluation_time_s": summary.evaluation_time_s,
+            "schur_time_s": summary.schur_time_s,
             "linear_solver": if summary.dense { "dense" } else { "sparse" },
             "termination": summary.termination,
             "rms_px": rms,
