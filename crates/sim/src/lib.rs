@@ -1,4 +1,146 @@
 //! # pingcal-sim: simulator of the paper's test field and sensors
 //!
 //! Room corner with targets and ping-pong balls, a stereo camera and a rotating LRF,
-//! written as real project files (PNG images, `pingcal-scan` CSV) with ground truth.
+//! written as real project files (PNG images, `pingcal-scan` CSV, `project.toml`) with
+//! ground truth (`truth.json`), after Manouchehri & Hosseininaveh (ISPRS 2023).
+//!
+//! | module | what it simulates |
+//! |---|---|
+//! | [`config`] | every number, from TOML, defaults from the paper, validation |
+//! | [`scene`] | the room corner (tilted, bulged planes), targets, balls on stems, caliper distances; ray casting |
+//! | [`coded_target`] | AICON ring codes (the table rule) |
+//! | [`stations`] | the MYNT EYE D1000-like stereo head and the camera stations |
+//! | [`render`] | images: exact ray casting with supersampling, flash, blur, vignetting, noise |
+//! | [`lrf`] | the Hokuyo URG-04LX on a Dynamixel MX-28T: scans with the sensor's noise |
+//! | [`project_files`] | `project.toml`, PNG images, scan CSV, `truth.json` |
+//!
+//! ## Frames (all lengths in mm)
+//! * **World** (test field): origin at the corner's vertex, X along wall 1's floor edge,
+//!   Y along wall 2's floor edge, Z up; the room is x, y, z > 0. The planes are tilted by a
+//!   few tenths of a degree and bulged by a few mm, so they are not exactly these axes.
+//! * **Camera** (SPEC.md): origin at the projection centre, X image right, Y optical axis,
+//!   Z image up. Poses are world → camera, `x_cam = R·X + t`.
+//! * **Photogrammetric**: the main station's left camera frame (the paper's origin).
+//! * **LRF** (paper eq. 2): origin at the scanner centre, Y along the servo shaft.
+//! * **Extrinsic** (truth.json, as results.json): `p_camera = R·p_lrf + t`, camera = the
+//!   main station's left camera.
+//!
+//! ## Entry points
+//! ```no_run
+//! let cfg = pingcal_sim::SimConfig::default();
+//! let sim = pingcal_sim::Simulation::new(&cfg, 1).unwrap();
+//! let summary = pingcal_sim::project_files::write_project(&sim, std::path::Path::new("out")).unwrap();
+//! let truth = pingcal_sim::project_files::read_truth(&std::path::Path::new("out/truth.json")).unwrap();
+//! ```
+//! Same configuration and seed ⇒ byte-identical files.
+
+pub mod coded_target;
+pub mod config;
+pub mod lrf;
+pub mod project_files;
+pub mod render;
+pub mod scene;
+pub mod stations;
+
+pub use config::{ConfigError, SimConfig};
+pub use project_files::{read_truth, write_project, ProjectSummary, Truth};
+pub use scene::Scene;
+pub use stations::{Station, StereoRig};
+
+use pingcal_ba::pose::Pose;
+use rand::SeedableRng;
+
+/// Errors of the simulator, each one line naming what is wrong.
+#[derive(Debug, thiserror::Error)]
+pub enum SimError {
+    /// An impossible configuration value.
+    #[error("invalid configuration: {0}")]
+    Invalid(#[from] ConfigError),
+    /// A configuration file that cannot be read as TOML or holds an impossible value.
+    #[error("{file}: {what}")]
+    Config {
+        /// The file.
+        file: String,
+        /// What is wrong.
+        what: String,
+    },
+    /// A file that cannot be written or read.
+    #[error("{path}: {what}")]
+    Io {
+        /// The path.
+        path: String,
+        /// What went wrong.
+        what: String,
+    },
+}
+
+/// An independent random stream for (`seed`, `stream`, `index`): every random choice of
+/// the simulator draws from its own stream, so parallel work stays deterministic.
+pub fn rng_for(seed: u64, stream: &str, index: u64) -> rand_chacha::ChaCha8Rng {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for b in stream.bytes() {
+        h ^= b as u64;
+        h = h.wrapping_mul(0x0100_0000_01b3);
+    }
+    let mut z = seed ^ h.rotate_left(17) ^ index.wrapping_mul(0x9E37_79B9_7F4A_7C15);
+    // splitmix64 finaliser.
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^= z >> 31;
+    rand_chacha::ChaCha8Rng::seed_from_u64(z)
+}
+
+/// Everything simulated except the images (which [`project_files::write_project`]
+/// renders while writing).
+#[derive(Debug, Clone)]
+pub struct Simulation {
+    /// The configuration used.
+    pub config: SimConfig,
+    /// The seed.
+    pub seed: u64,
+    /// The test field (world frame).
+    pub scene: Scene,
+    /// The stereo head with its true intrinsics.
+    pub rig: StereoRig,
+    /// The stations, main first.
+    pub stations: Vec<Station>,
+    /// World → LRF frame (at the main station).
+    pub world_to_lrf: Pose,
+    /// The servo sweep at the main station.
+    pub scans: Vec<lrf::Scan>,
+}
+
+impl Simulation {
+    /// Builds the scene, stations and LRF scans for `cfg` and `seed`.
+    pub fn new(cfg: &SimConfig, seed: u64) -> Result<Self, SimError> {
+        cfg.validate()?;
+        let scene = Scene::build(cfg, seed)?;
+        let stations = stations::build_stations(cfg, &scene, seed)?;
+        let rig = StereoRig::from_config(cfg);
+        let main = stations
+            .iter()
+            .find(|s| s.main)
+            .expect("main station")
+            .left_pose;
+        let world_to_lrf = lrf::world_to_lrf(&main, &cfg.lrf);
+        let scans = lrf::simulate_scans(&scene.transformed(&world_to_lrf), &cfg.lrf, seed);
+        Ok(Self {
+            config: cfg.clone(),
+            seed,
+            scene,
+            rig,
+            stations,
+            world_to_lrf,
+            scans,
+        })
+    }
+
+    /// World → photogrammetric frame (the main station's left camera).
+    pub fn world_to_photogrammetric(&self) -> Pose {
+        self.stations
+            .iter()
+            .find(|s| s.main)
+            .expect("main station")
+            .left_pose
+    }
+}

@@ -1,0 +1,861 @@
+//! Every number of the simulation, readable from a TOML file, with the paper's values as
+//! defaults, and a validation that refuses impossible values with an error naming the key.
+//!
+//! All lengths in mm, angles in degrees, unless the key name says otherwise. A TOML file
+//! needs to give only the keys it changes; unknown keys are refused (a typo must not be
+//! silently ignored).
+
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// A configuration error: the key (TOML path), its value and why it is refused.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{key} = {value}: {why}")]
+pub struct ConfigError {
+    /// TOML path of the offending value, e.g. `targets.dot_radius_mm`.
+    pub key: String,
+    /// The value as given.
+    pub value: String,
+    /// What is wrong with it.
+    pub why: String,
+}
+
+impl ConfigError {
+    pub(crate) fn new(
+        key: impl Into<String>,
+        value: impl std::fmt::Display,
+        why: impl Into<String>,
+    ) -> Self {
+        Self {
+            key: key.into(),
+            value: value.to_string(),
+            why: why.into(),
+        }
+    }
+}
+
+/// The whole simulation configuration.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+#[serde(default, deny_unknown_fields)]
+pub struct SimConfig {
+    /// The room corner (walls and floor).
+    pub room: RoomConfig,
+    /// Retro-reflective targets (coded and plain).
+    pub targets: TargetConfig,
+    /// Ping-pong balls on stems.
+    pub balls: BallConfig,
+    /// Caliper distances between coded targets.
+    pub distances: DistanceConfig,
+    /// The stereo head.
+    pub camera: CameraConfig,
+    /// The camera stations.
+    pub stations: StationConfig,
+    /// Image formation.
+    pub render: RenderConfig,
+    /// The 2D LRF and its servo.
+    pub lrf: LrfConfig,
+}
+
+/// The room corner: vertex at the world origin, wall 1 along +X (plane y ≈ 0), wall 2 along
+/// +Y (plane x ≈ 0), floor z ≈ 0; the room is x > 0, y > 0, z > 0.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct RoomConfig {
+    /// Length of each wall along the floor.
+    pub wall_length_mm: f64,
+    /// Height of the walls.
+    pub wall_height_mm: f64,
+    /// Each plane's normal is tilted by up to this angle about each axis (uniform), so the
+    /// corner is neither exactly orthogonal nor exactly the world axes.
+    pub max_tilt_deg: f64,
+    /// Each plane bulges (pillow shape, zero at its edges) by up to this much (random sign).
+    pub max_bulge_mm: f64,
+    /// Mean diffuse albedo of the walls (matt paint).
+    pub wall_albedo: f64,
+    /// Mean diffuse albedo of the floor.
+    pub floor_albedo: f64,
+    /// Relative amplitude of the procedural texture (0 = uniform).
+    pub texture_amplitude: f64,
+}
+
+impl Default for RoomConfig {
+    fn default() -> Self {
+        Self {
+            wall_length_mm: 2500.0,
+            wall_height_mm: 2000.0,
+            max_tilt_deg: 0.3,
+            max_bulge_mm: 3.0,
+            wall_albedo: 0.45,
+            floor_albedo: 0.3,
+            texture_amplitude: 0.15,
+        }
+    }
+}
+
+/// Printed retro-reflective targets. Geometry in units of the dot radius R: central dot of
+/// radius R, code ring between `ring_inner` R and `ring_outer` R, black background disc of
+/// radius `background` R (plain targets: `plain_background` R).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct TargetConfig {
+    /// Total number of targets (paper: 78).
+    pub count: usize,
+    /// How many of them are AICON coded (the rest are plain).
+    pub coded: usize,
+    /// Bits of the AICON code ring (12 or 14).
+    pub code_bits: u32,
+    /// Radius R of the central dot.
+    pub dot_radius_mm: f64,
+    /// Inner radius of the code ring, in R.
+    pub ring_inner: f64,
+    /// Outer radius of the code ring, in R.
+    pub ring_outer: f64,
+    /// Radius of the black background of a coded target, in R.
+    pub background: f64,
+    /// Radius of the black background of a plain target, in R.
+    pub plain_background: f64,
+    /// Spacing of the candidate grid on each plane (targets are then thinned evenly).
+    pub grid_spacing_mm: f64,
+    /// Keep targets at least this far from a plane's edges.
+    pub edge_margin_mm: f64,
+    /// Albedo of the black background print.
+    pub black_albedo: f64,
+    /// Brightness of retro-reflective material relative to a white Lambertian surface lit
+    /// by the same flash, for light returning to the flash.
+    pub retro_gain: f64,
+}
+
+impl Default for TargetConfig {
+    fn default() -> Self {
+        Self {
+            count: 78,
+            coded: 26,
+            code_bits: 14,
+            dot_radius_mm: 6.0,
+            ring_inner: 2.0,
+            ring_outer: 3.0,
+            background: 3.5,
+            plain_background: 2.0,
+            grid_spacing_mm: 110.0,
+            edge_margin_mm: 80.0,
+            black_albedo: 0.04,
+            retro_gain: 3.0,
+        }
+    }
+}
+
+/// Where one ball stands (optional explicit placement).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BallPlacement {
+    /// `wall1`, `wall2` or `floor`.
+    pub surface: String,
+    /// Position of the stem's foot along the plane's first edge.
+    pub u_mm: f64,
+    /// Position of the stem's foot along the plane's second edge.
+    pub v_mm: f64,
+    /// Distance from the plane to the ball centre.
+    pub standoff_mm: f64,
+}
+
+/// Ping-pong balls on stems.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct BallConfig {
+    /// Number of balls (paper: 16).
+    pub count: usize,
+    /// Ball diameter (paper: 38 mm).
+    pub diameter_mm: f64,
+    /// Distance from the plane to the ball centre: drawn uniformly in this range.
+    pub standoff_range_mm: [f64; 2],
+    /// Radius of the stem (a thin grey rod along the plane normal).
+    pub stem_radius_mm: f64,
+    /// Albedo of the ball (white celluloid).
+    pub albedo: f64,
+    /// Albedo of the stem.
+    pub stem_albedo: f64,
+    /// Keep a stem's foot this far from any target centre.
+    pub clearance_mm: f64,
+    /// Explicit placements (replace the automatic ones when given).
+    pub placements: Option<Vec<BallPlacement>>,
+    /// Ball numbers used as check points (paper: 4, 9, 11, 12, 15).
+    pub check_balls: Vec<u32>,
+}
+
+impl Default for BallConfig {
+    fn default() -> Self {
+        Self {
+            count: 16,
+            diameter_mm: 38.0,
+            standoff_range_mm: [60.0, 140.0],
+            stem_radius_mm: 2.0,
+            albedo: 0.9,
+            stem_albedo: 0.3,
+            clearance_mm: 40.0,
+            placements: None,
+            check_balls: vec![4, 9, 11, 12, 15],
+        }
+    }
+}
+
+/// Caliper distances between coded targets.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct DistanceConfig {
+    /// Number of measured distances (paper: 5).
+    pub count: usize,
+    /// Standard deviation of a caliper measurement.
+    pub sigma_mm: f64,
+    /// Shortest and longest distance chosen.
+    pub length_range_mm: [f64; 2],
+}
+
+impl Default for DistanceConfig {
+    fn default() -> Self {
+        Self {
+            count: 5,
+            sigma_mm: 0.1,
+            length_range_mm: [300.0, 1200.0],
+        }
+    }
+}
+
+/// Intrinsics of one camera in the SPEC.md photogrammetric model.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Intrinsics {
+    /// `[c, xp, yp, K1, K2, K3, P1, P2, B1, B2]` (mm, mm⁻², mm⁻⁴, mm⁻⁶, mm⁻¹, unitless).
+    pub params: [f64; 10],
+}
+
+/// The stereo head (MYNT EYE D1000-like).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct CameraConfig {
+    /// Image width in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+    /// Pixel pitch.
+    pub pixel_size_mm: f64,
+    /// True intrinsics of the left camera.
+    pub left: Intrinsics,
+    /// True intrinsics of the right camera.
+    pub right: Intrinsics,
+    /// Centre of the right camera in the left camera frame (X right, Y forward, Z up).
+    pub right_offset_mm: [f64; 3],
+    /// Rotation of the right camera relative to the left (ω, φ, κ), degrees.
+    pub right_opk_deg: [f64; 3],
+    /// Nominal focal length written as the initial value in project.toml.
+    pub nominal_c_mm: f64,
+}
+
+impl Default for CameraConfig {
+    fn default() -> Self {
+        Self {
+            width: 1280,
+            height: 720,
+            pixel_size_mm: 0.00375,
+            // Barrel distortion of a ~90° lens: K1 r² ≈ −15 % at the image corner (r = 2.75 mm).
+            left: Intrinsics {
+                params: [
+                    2.45, 0.012, -0.009, -0.021, 4.0e-4, -2.0e-6, 1.5e-4, -1.0e-4, 1.0e-4, 0.0,
+                ],
+            },
+            right: Intrinsics {
+                params: [
+                    2.452, -0.010, 0.007, -0.020, 3.6e-4, -1.0e-6, -1.2e-4, 0.8e-4, -0.5e-4, 0.0,
+                ],
+            },
+            right_offset_mm: [120.0, 0.4, -0.3],
+            right_opk_deg: [0.15, -0.25, 0.1],
+            nominal_c_mm: 2.45,
+        }
+    }
+}
+
+/// An explicitly placed extra station.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StationPlacement {
+    /// Left camera centre in world coordinates.
+    pub centre_mm: [f64; 3],
+    /// The point the optical axis passes through.
+    pub look_at_mm: [f64; 3],
+    /// Roll about the optical axis.
+    pub roll_deg: f64,
+}
+
+/// Camera stations: the main station (beside the LRF) and a convergent network.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct StationConfig {
+    /// Left camera centre of the main station (world).
+    pub main_centre_mm: [f64; 3],
+    /// Where the main station looks.
+    pub main_look_at_mm: [f64; 3],
+    /// Number of convergent (non-main) stations.
+    pub convergent: usize,
+    /// Heights of the convergent stations (cycled).
+    pub heights_mm: Vec<f64>,
+    /// Horizontal distance range from the look-at point.
+    pub distance_range_mm: [f64; 2],
+    /// Azimuth span (about the corner's diagonal) covered by the convergent stations.
+    pub azimuth_span_deg: f64,
+    /// Rolls about the optical axis (cycled), e.g. 0, 90, −90.
+    pub rolls_deg: Vec<f64>,
+    /// Where the convergent stations look.
+    pub look_at_mm: [f64; 3],
+    /// Random jitter of each station's look-at point.
+    pub look_jitter_mm: f64,
+    /// Explicit stations added to the generated ones.
+    pub extra: Vec<StationPlacement>,
+    /// A camera centre must be at least this far inside the room.
+    pub min_wall_clearance_mm: f64,
+}
+
+impl Default for StationConfig {
+    fn default() -> Self {
+        Self {
+            main_centre_mm: [1150.0, 1100.0, 700.0],
+            main_look_at_mm: [250.0, 230.0, 520.0],
+            convergent: 10,
+            heights_mm: vec![450.0, 900.0, 1350.0],
+            distance_range_mm: [1100.0, 1600.0],
+            azimuth_span_deg: 70.0,
+            rolls_deg: vec![0.0, 90.0, 0.0, -90.0],
+            look_at_mm: [300.0, 300.0, 450.0],
+            look_jitter_mm: 60.0,
+            extra: Vec::new(),
+            min_wall_clearance_mm: 100.0,
+        }
+    }
+}
+
+/// Image formation.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct RenderConfig {
+    /// Sub-pixel rays per axis on pixels near targets, balls and stems (n² rays per pixel).
+    pub supersampling: u32,
+    /// Flash irradiance on a surface facing it at 1 m, as a fraction of full scale for a
+    /// white (albedo 1) Lambertian surface.
+    pub flash_at_1m: f64,
+    /// Ambient light, same unit.
+    pub ambient: f64,
+    /// Gaussian blur (optics + defocus), σ in pixels; 0 = none.
+    pub blur_sigma_px: f64,
+    /// Vignetting: relative loss of light at the image corner (cos⁴-like, quadratic in r).
+    pub vignetting: f64,
+    /// Electrons at full scale (photon noise: Poisson in electrons).
+    pub full_well_e: f64,
+    /// Read noise, electrons RMS.
+    pub read_noise_e: f64,
+    /// Switch all noise off (for tests).
+    pub noise: bool,
+}
+
+impl Default for RenderConfig {
+    fn default() -> Self {
+        Self {
+            supersampling: 4,
+            flash_at_1m: 0.8,
+            ambient: 0.12,
+            blur_sigma_px: 0.6,
+            vignetting: 0.25,
+            full_well_e: 6000.0,
+            read_noise_e: 6.0,
+            noise: true,
+        }
+    }
+}
+
+/// The Hokuyo URG-04LX turned by a Dynamixel MX-28T, and its mount on the stereo head.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct LrfConfig {
+    /// Number of beams per scan.
+    pub beams: usize,
+    /// Angle of beam 0.
+    pub angle_min_deg: f64,
+    /// Angle between beams.
+    pub angle_increment_deg: f64,
+    /// Maximum range.
+    pub max_range_mm: f64,
+    /// Minimum range (URG error codes below 20).
+    pub min_range_mm: f64,
+    /// Datasheet accuracy under 1 m (± value).
+    pub accuracy_near_mm: f64,
+    /// Datasheet accuracy beyond 1 m, fraction of the range (± value).
+    pub accuracy_far_fraction: f64,
+    /// How many σ the datasheet's ± is taken to be (3: the ± bounds 99.7 % of readings).
+    pub accuracy_sigmas: f64,
+    /// Full width of the beam footprint (for mixed pixels), degrees.
+    pub beam_width_deg: f64,
+    /// Surfaces with a reflectivity under this give no return.
+    pub min_reflectivity: f64,
+    /// Servo angle of the first scan.
+    pub servo_start_deg: f64,
+    /// Servo angle of the last scan.
+    pub servo_end_deg: f64,
+    /// Servo step between scans.
+    pub servo_step_deg: f64,
+    /// Encoder resolution of the servo (MX-28T: 360/4096 degrees).
+    pub servo_resolution_deg: f64,
+    /// Servo positioning noise (true angle minus reported), σ.
+    pub servo_sigma_deg: f64,
+    /// Scan period.
+    pub scan_period_s: f64,
+    /// Extrinsic, `p_camera = R·p_lrf + t` with the main left camera: rotation ω, φ, κ.
+    pub extrinsic_opk_deg: [f64; 3],
+    /// Extrinsic translation t.
+    pub extrinsic_t_mm: [f64; 3],
+    /// Offset of the 2D scanner's centre from the servo shaft, in the rotating frame
+    /// (eq. 2 assumes zero; a real gimbal is never perfect).
+    pub mount_offset_mm: [f64; 3],
+    /// Switch range and servo noise off (for tests).
+    pub noise: bool,
+}
+
+impl Default for LrfConfig {
+    fn default() -> Self {
+        Self {
+            beams: 682,
+            angle_min_deg: -119.53125,
+            angle_increment_deg: 0.3515625,
+            max_range_mm: 5600.0,
+            min_range_mm: 20.0,
+            accuracy_near_mm: 30.0,
+            accuracy_far_fraction: 0.03,
+            accuracy_sigmas: 3.0,
+            beam_width_deg: 0.35,
+            min_reflectivity: 0.08,
+            servo_start_deg: -90.0,
+            servo_end_deg: 90.0,
+            servo_step_deg: 0.3515625,
+            servo_resolution_deg: 360.0 / 4096.0,
+            servo_sigma_deg: 0.02,
+            scan_period_s: 0.1,
+            // Paper Table 2: the LRF frame is close to the camera frame, offset by ~(70, 10, 90) mm.
+            extrinsic_opk_deg: [0.8, -1.2, 0.6],
+            extrinsic_t_mm: [72.0, 12.0, 91.0],
+            mount_offset_mm: [0.0, 0.0, 0.0],
+            noise: true,
+        }
+    }
+}
+
+impl LrfConfig {
+    /// Range noise σ at true range `r` (mm): the datasheet accuracy divided by
+    /// `accuracy_sigmas`: ±30 mm under 1 m, ±3 % of the range beyond.
+    pub fn range_sigma_mm(&self, r: f64) -> f64 {
+        let acc = if r < 1000.0 {
+            self.accuracy_near_mm
+        } else {
+            self.accuracy_far_fraction * r
+        };
+        acc / self.accuracy_sigmas
+    }
+}
+
+impl SimConfig {
+    /// Reads a TOML file (only the keys it gives override the defaults) and validates it.
+    pub fn from_toml_file(path: &Path) -> Result<Self, crate::SimError> {
+        let text = std::fs::read_to_string(path).map_err(|e| crate::SimError::Io {
+            path: path.display().to_string(),
+            what: e.to_string(),
+        })?;
+        let cfg = Self::from_toml_str(&text).map_err(|e| crate::SimError::Config {
+            file: path.display().to_string(),
+            what: e,
+        })?;
+        Ok(cfg)
+    }
+
+    /// Parses and validates TOML text. The error is one line naming the key.
+    pub fn from_toml_str(text: &str) -> Result<Self, String> {
+        let cfg: SimConfig = toml::from_str(text).map_err(|e| {
+            e.to_string()
+                .lines()
+                .filter(|l| !l.trim().is_empty())
+                .map(str::trim)
+                .collect::<Vec<_>>()
+                .join(" ")
+        })?;
+        cfg.validate().map_err(|e| e.to_string())?;
+        Ok(cfg)
+    }
+
+    /// The configuration as TOML text (all keys).
+    pub fn to_toml_string(&self) -> String {
+        toml::to_string(self).expect("the configuration serialises")
+    }
+
+    /// Checks every value that could make the simulation impossible or meaningless.
+    /// Geometric checks that need the built scene (a ball inside a wall, a camera behind a
+    /// wall) are repeated by [`crate::scene::Scene::build`] and [`crate::stations::build_stations`].
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        fn pos(key: &str, v: f64) -> Result<(), ConfigError> {
+            if v.is_finite() && v > 0.0 {
+                Ok(())
+            } else {
+                Err(ConfigError::new(key, v, "must be a positive number"))
+            }
+        }
+        fn nonneg(key: &str, v: f64) -> Result<(), ConfigError> {
+            if v.is_finite() && v >= 0.0 {
+                Ok(())
+            } else {
+                Err(ConfigError::new(key, v, "must be zero or positive"))
+            }
+        }
+        fn unit(key: &str, v: f64) -> Result<(), ConfigError> {
+            if v.is_finite() && (0.0..=1.0).contains(&v) {
+                Ok(())
+            } else {
+                Err(ConfigError::new(key, v, "must be between 0 and 1"))
+            }
+        }
+        fn range(key: &str, r: [f64; 2]) -> Result<(), ConfigError> {
+            if r.iter().all(|v| v.is_finite() && *v > 0.0) && r[0] <= r[1] {
+                Ok(())
+            } else {
+                Err(ConfigError::new(
+                    key,
+                    format!("[{}, {}]", r[0], r[1]),
+                    "must be two positive numbers, the first not larger",
+                ))
+            }
+        }
+        fn finite3(key: &str, v: [f64; 3]) -> Result<(), ConfigError> {
+            if v.iter().all(|x| x.is_finite()) {
+                Ok(())
+            } else {
+                Err(ConfigError::new(
+                    key,
+                    format!("{v:?}"),
+                    "must be finite numbers",
+                ))
+            }
+        }
+        let r = &self.room;
+        pos("room.wall_length_mm", r.wall_length_mm)?;
+        pos("room.wall_height_mm", r.wall_height_mm)?;
+        nonneg("room.max_tilt_deg", r.max_tilt_deg)?;
+        if r.max_tilt_deg > 10.0 {
+            return Err(ConfigError::new(
+                "room.max_tilt_deg",
+                r.max_tilt_deg,
+                "a room corner tilted by more than 10° is not a room corner",
+            ));
+        }
+        nonneg("room.max_bulge_mm", r.max_bulge_mm)?;
+        if r.max_bulge_mm > 0.05 * r.wall_length_mm.min(r.wall_height_mm) {
+            return Err(ConfigError::new(
+                "room.max_bulge_mm",
+                r.max_bulge_mm,
+                "larger than 5 % of the wall size: not a plane",
+            ));
+        }
+        unit("room.wall_albedo", r.wall_albedo)?;
+        unit("room.floor_albedo", r.floor_albedo)?;
+        unit("room.texture_amplitude", r.texture_amplitude)?;
+
+        let t = &self.targets;
+        if t.count == 0 {
+            return Err(ConfigError::new(
+                "targets.count",
+                t.count,
+                "needs at least one target",
+            ));
+        }
+        if t.coded > t.count {
+            return Err(ConfigError::new(
+                "targets.coded",
+                t.coded,
+                format!("more coded targets than targets ({})", t.count),
+            ));
+        }
+        if !(t.code_bits == 12 || t.code_bits == 14) {
+            return Err(ConfigError::new(
+                "targets.code_bits",
+                t.code_bits,
+                "AICON rings have 12 or 14 bits",
+            ));
+        }
+        let ncodes = crate::coded_target::code_table(t.code_bits).len();
+        if t.coded > ncodes {
+            return Err(ConfigError::new(
+                "targets.coded",
+                t.coded,
+                format!("the {}-bit table has only {ncodes} codes", t.code_bits),
+            ));
+        }
+        pos("targets.dot_radius_mm", t.dot_radius_mm)?;
+        pos("targets.grid_spacing_mm", t.grid_spacing_mm)?;
+        nonneg("targets.edge_margin_mm", t.edge_margin_mm)?;
+        if !(t.ring_inner > 1.0) {
+            return Err(ConfigError::new(
+                "targets.ring_inner",
+                t.ring_inner,
+                "the code ring must start outside the dot (> 1 dot radius)",
+            ));
+        }
+        if !(t.ring_outer > t.ring_inner) {
+            return Err(ConfigError::new(
+                "targets.ring_outer",
+                t.ring_outer,
+                format!("must exceed targets.ring_inner ({})", t.ring_inner),
+            ));
+        }
+        if !(t.background > t.ring_outer) {
+            return Err(ConfigError::new(
+                "targets.background",
+                t.background,
+                format!("must exceed targets.ring_outer ({})", t.ring_outer),
+            ));
+        }
+        if !(t.plain_background > 1.0) {
+            return Err(ConfigError::new(
+                "targets.plain_background",
+                t.plain_background,
+                "must exceed the dot (> 1 dot radius)",
+            ));
+        }
+        if t.grid_spacing_mm < 2.0 * t.background * t.dot_radius_mm {
+            return Err(ConfigError::new(
+                "targets.grid_spacing_mm",
+                t.grid_spacing_mm,
+                format!(
+                    "targets of diameter {} mm would overlap",
+                    2.0 * t.background * t.dot_radius_mm
+                ),
+            ));
+        }
+        unit("targets.black_albedo", t.black_albedo)?;
+        nonneg("targets.retro_gain", t.retro_gain)?;
+
+        let b = &self.balls;
+        pos("balls.diameter_mm", b.diameter_mm)?;
+        range("balls.standoff_range_mm", b.standoff_range_mm)?;
+        if b.standoff_range_mm[0] <= 0.5 * b.diameter_mm {
+            return Err(ConfigError::new(
+                "balls.standoff_range_mm",
+                format!("[{}, {}]", b.standoff_range_mm[0], b.standoff_range_mm[1]),
+                format!(
+                    "a standoff under the ball radius ({} mm) puts the ball inside the wall",
+                    0.5 * b.diameter_mm
+                ),
+            ));
+        }
+        pos("balls.stem_radius_mm", b.stem_radius_mm)?;
+        if b.stem_radius_mm >= 0.5 * b.diameter_mm {
+            return Err(ConfigError::new(
+                "balls.stem_radius_mm",
+                b.stem_radius_mm,
+                "the stem must be thinner than the ball",
+            ));
+        }
+        unit("balls.albedo", b.albedo)?;
+        unit("balls.stem_albedo", b.stem_albedo)?;
+        nonneg("balls.clearance_mm", b.clearance_mm)?;
+        if let Some(ps) = &b.placements {
+            for (i, p) in ps.iter().enumerate() {
+                if !["wall1", "wall2", "floor"].contains(&p.surface.as_str()) {
+                    return Err(ConfigError::new(
+                        format!("balls.placements[{i}].surface"),
+                        &p.surface,
+                        "must be wall1, wall2 or floor",
+                    ));
+                }
+                if !(p.standoff_mm.is_finite() && p.standoff_mm > 0.5 * b.diameter_mm) {
+                    return Err(ConfigError::new(
+                        format!("balls.placements[{i}].standoff_mm"),
+                        p.standoff_mm,
+                        format!(
+                            "under the ball radius ({} mm): the ball is inside the wall",
+                            0.5 * b.diameter_mm
+                        ),
+                    ));
+                }
+            }
+        } else if b.count == 0 {
+            return Err(ConfigError::new(
+                "balls.count",
+                b.count,
+                "needs at least 3 balls",
+            ));
+        }
+        let nballs = b.placements.as_ref().map_or(b.count, |p| p.len());
+        if nballs < 3 {
+            return Err(ConfigError::new(
+                "balls.count",
+                nballs,
+                "needs at least 3 balls",
+            ));
+        }
+        for &c in &b.check_balls {
+            if c == 0 || c as usize > nballs {
+                return Err(ConfigError::new(
+                    "balls.check_balls",
+                    c,
+                    format!("no such ball (1..={nballs})"),
+                ));
+            }
+        }
+
+        let d = &self.distances;
+        pos("distances.sigma_mm", d.sigma_mm).or_else(|e| {
+            if d.sigma_mm == 0.0 {
+                Ok(())
+            } else {
+                Err(e)
+            }
+        })?;
+        range("distances.length_range_mm", d.length_range_mm)?;
+
+        let c = &self.camera;
+        if c.width < 16 || c.width > 20000 {
+            return Err(ConfigError::new(
+                "camera.width",
+                c.width,
+                "must be between 16 and 20000 pixels",
+            ));
+        }
+        if c.height < 16 || c.height > 20000 {
+            return Err(ConfigError::new(
+                "camera.height",
+                c.height,
+                "must be between 16 and 20000 pixels",
+            ));
+        }
+        pos("camera.pixel_size_mm", c.pixel_size_mm)?;
+        pos("camera.nominal_c_mm", c.nominal_c_mm)?;
+        for (name, i) in [("left", &c.left), ("right", &c.right)] {
+            if !i.params.iter().all(|v| v.is_finite()) {
+                return Err(ConfigError::new(
+                    format!("camera.{name}.params"),
+                    format!("{:?}", i.params),
+                    "must be finite numbers",
+                ));
+            }
+            pos(&format!("camera.{name}.params[0] (c)"), i.params[0])?;
+        }
+        finite3("camera.right_offset_mm", c.right_offset_mm)?;
+        finite3("camera.right_opk_deg", c.right_opk_deg)?;
+
+        let s = &self.stations;
+        finite3("stations.main_centre_mm", s.main_centre_mm)?;
+        finite3("stations.main_look_at_mm", s.main_look_at_mm)?;
+        finite3("stations.look_at_mm", s.look_at_mm)?;
+        if s.main_centre_mm == s.main_look_at_mm {
+            return Err(ConfigError::new(
+                "stations.main_look_at_mm",
+                format!("{:?}", s.main_look_at_mm),
+                "equals the main station's centre",
+            ));
+        }
+        if s.convergent > 0 && s.heights_mm.is_empty() {
+            return Err(ConfigError::new(
+                "stations.heights_mm",
+                "[]",
+                "needs at least one height",
+            ));
+        }
+        if s.convergent > 0 && s.rolls_deg.is_empty() {
+            return Err(ConfigError::new(
+                "stations.rolls_deg",
+                "[]",
+                "needs at least one roll",
+            ));
+        }
+        for (i, h) in s.heights_mm.iter().enumerate() {
+            pos(&format!("stations.heights_mm[{i}]"), *h)?;
+        }
+        range("stations.distance_range_mm", s.distance_range_mm)?;
+        nonneg("stations.look_jitter_mm", s.look_jitter_mm)?;
+        nonneg("stations.min_wall_clearance_mm", s.min_wall_clearance_mm)?;
+        nonneg("stations.azimuth_span_deg", s.azimuth_span_deg)?;
+
+        let rc = &self.render;
+        if rc.supersampling == 0 || rc.supersampling > 64 {
+            return Err(ConfigError::new(
+                "render.supersampling",
+                rc.supersampling,
+                "must be between 1 and 64",
+            ));
+        }
+        nonneg("render.flash_at_1m", rc.flash_at_1m)?;
+        nonneg("render.ambient", rc.ambient)?;
+        nonneg("render.blur_sigma_px", rc.blur_sigma_px)?;
+        if rc.blur_sigma_px > 20.0 {
+            return Err(ConfigError::new(
+                "render.blur_sigma_px",
+                rc.blur_sigma_px,
+                "more than 20 px of blur",
+            ));
+        }
+        unit("render.vignetting", rc.vignetting)?;
+        pos("render.full_well_e", rc.full_well_e)?;
+        nonneg("render.read_noise_e", rc.read_noise_e)?;
+
+        let l = &self.lrf;
+        if l.beams == 0 {
+            return Err(ConfigError::new(
+                "lrf.beams",
+                l.beams,
+                "needs at least one beam",
+            ));
+        }
+        pos("lrf.angle_increment_deg", l.angle_increment_deg)?;
+        if !l.angle_min_deg.is_finite() || l.angle_min_deg < -180.0 {
+            return Err(ConfigError::new(
+                "lrf.angle_min_deg",
+                l.angle_min_deg,
+                "must be at least -180",
+            ));
+        }
+        pos("lrf.max_range_mm", l.max_range_mm)?;
+        nonneg("lrf.min_range_mm", l.min_range_mm)?;
+        if l.min_range_mm >= l.max_range_mm {
+            return Err(ConfigError::new(
+                "lrf.min_range_mm",
+                l.min_range_mm,
+                format!("not under lrf.max_range_mm ({})", l.max_range_mm),
+            ));
+        }
+        nonneg("lrf.accuracy_near_mm", l.accuracy_near_mm)?;
+        nonneg("lrf.accuracy_far_fraction", l.accuracy_far_fraction)?;
+        pos("lrf.accuracy_sigmas", l.accuracy_sigmas)?;
+        nonneg("lrf.beam_width_deg", l.beam_width_deg)?;
+        unit("lrf.min_reflectivity", l.min_reflectivity)?;
+        pos("lrf.servo_step_deg", l.servo_step_deg)?;
+        pos("lrf.servo_resolution_deg", l.servo_resolution_deg)?;
+        nonneg("lrf.servo_sigma_deg", l.servo_sigma_deg)?;
+        pos("lrf.scan_period_s", l.scan_period_s)?;
+        if !(l.servo_start_deg.is_finite()
+            && l.servo_end_deg.is_finite()
+            && l.servo_start_deg <= l.servo_end_deg)
+        {
+            return Err(ConfigError::new(
+                "lrf.servo_end_deg",
+                l.servo_end_deg,
+                format!(
+                    "must not be under lrf.servo_start_deg ({})",
+                    l.servo_start_deg
+                ),
+            ));
+        }
+        if (l.servo_end_deg - l.servo_start_deg) / l.servo_step_deg > 100_000.0 {
+            return Err(ConfigError::new(
+                "lrf.servo_step_deg",
+                l.servo_step_deg,
+                "more than 100000 scans",
+            ));
+        }
+        finite3("lrf.extrinsic_opk_deg", l.extrinsic_opk_deg)?;
+        finite3("lrf.extrinsic_t_mm", l.extrinsic_t_mm)?;
+        finite3("lrf.mount_offset_mm", l.mount_offset_mm)?;
+        Ok(())
+    }
+}

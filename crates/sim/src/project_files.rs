@@ -1,0 +1,659 @@
+//! Writing a simulated project directory:
+//!
+//! ```text
+//! project.toml        what the pipeline needs (cameras, images, targets, balls, distances, LRF)
+//! images/S00_left.png one 8-bit PNG per camera per station (S00 is the main station)
+//! scans/S00.csv       the servo sweep as `pingcal-scan` v1 CSV (SPEC.md)
+//! truth.json          the ground truth (see [`Truth`])
+//! simulation.toml     the full simulator configuration used (re-run with --config)
+//! ```
+//!
+//! `project.toml` (version 1) is described by [`ProjectFile`]; every path in it is relative
+//! to the folder holding it.
+
+use crate::render::{render_image, RayTable};
+use crate::{SimError, Simulation};
+use image::ImageEncoder;
+use nalgebra::{Matrix3, Vector3};
+use pingcal_ba::pose::Pose;
+use pingcal_ba::rotation::to_opk;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// `project.toml`, version 1.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ProjectFile {
+    /// Format version (1).
+    pub version: u32,
+    /// A name for reports.
+    pub name: String,
+    /// `spheres`, `corner` or `both`.
+    pub method: String,
+    /// The station where the LRF scanned; its `main_camera` image defines the
+    /// photogrammetric frame.
+    pub main_station: String,
+    /// The camera whose frame is the photogrammetric frame (`left`).
+    pub main_camera: String,
+    /// Coded targets.
+    pub targets: ProjectTargets,
+    /// Balls.
+    pub balls: ProjectBalls,
+    /// Cameras with initial intrinsics.
+    pub cameras: Vec<ProjectCamera>,
+    /// The stereo head (optional for a mono camera).
+    pub stereo: Option<ProjectStereo>,
+    /// Images.
+    pub images: Vec<ProjectImage>,
+    /// Caliper distances between coded targets.
+    pub distances: Vec<ProjectDistance>,
+    /// The LRF.
+    pub lrf: ProjectLrf,
+}
+
+/// `[targets]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ProjectTargets {
+    /// `aicon14` or `aicon12`.
+    pub family: String,
+    /// Radius of the central dot (mm), printed size.
+    pub dot_radius_mm: f64,
+    /// Inner radius of the code ring, in dot radii.
+    pub ring_inner: f64,
+    /// Outer radius of the code ring, in dot radii.
+    pub ring_outer: f64,
+}
+
+/// `[balls]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ProjectBalls {
+    /// Ball diameter (mm).
+    pub diameter_mm: f64,
+    /// Balls used as check points (ids `B4`, …); optional.
+    pub check: Vec<String>,
+}
+
+/// `[[cameras]]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ProjectCamera {
+    /// Camera id used by images.
+    pub id: String,
+    /// `photogrammetric` (SPEC.md).
+    pub model: String,
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// Pixel pitch (mm).
+    pub pixel_size_mm: f64,
+    /// Initial values (camera manual).
+    pub initial: CameraParams,
+    /// Which parameters to self-calibrate (names of `PHOTOGRAMMETRIC_PARAMS`).
+    pub free: Vec<String>,
+}
+
+/// The ten photogrammetric parameters, named as in results.json.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct CameraParams {
+    /// Principal distance (mm).
+    pub c_mm: f64,
+    /// Principal point x (mm).
+    pub xp_mm: f64,
+    /// Principal point y (mm).
+    pub yp_mm: f64,
+    /// K1 (mm⁻²).
+    pub k1: f64,
+    /// K2 (mm⁻⁴).
+    pub k2: f64,
+    /// K3 (mm⁻⁶).
+    pub k3: f64,
+    /// P1 (mm⁻¹).
+    pub p1: f64,
+    /// P2 (mm⁻¹).
+    pub p2: f64,
+    /// B1.
+    pub b1: f64,
+    /// B2.
+    pub b2: f64,
+}
+
+impl CameraParams {
+    /// From the slice order `[c, xp, yp, K1, K2, K3, P1, P2, B1, B2]`.
+    pub fn from_slice(p: &[f64; 10]) -> Self {
+        Self {
+            c_mm: p[0],
+            xp_mm: p[1],
+            yp_mm: p[2],
+            k1: p[3],
+            k2: p[4],
+            k3: p[5],
+            p1: p[6],
+            p2: p[7],
+            b1: p[8],
+            b2: p[9],
+        }
+    }
+
+    /// To the slice order.
+    pub fn to_slice(&self) -> [f64; 10] {
+        [
+            self.c_mm, self.xp_mm, self.yp_mm, self.k1, self.k2, self.k3, self.p1, self.p2,
+            self.b1, self.b2,
+        ]
+    }
+}
+
+/// `[stereo]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ProjectStereo {
+    /// Left camera id.
+    pub left: String,
+    /// Right camera id.
+    pub right: String,
+    /// Nominal baseline (mm), an initial value.
+    pub baseline_mm: f64,
+}
+
+/// `[[images]]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ProjectImage {
+    /// Path relative to project.toml.
+    pub file: String,
+    /// Camera id.
+    pub camera: String,
+    /// Station id (images of one station were taken at the same time by the head).
+    pub station: String,
+}
+
+/// `[[distances]]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ProjectDistance {
+    /// Coded target number at one end.
+    pub from: u32,
+    /// Coded target number at the other end.
+    pub to: u32,
+    /// Measured distance (mm).
+    pub distance_mm: f64,
+    /// Its σ (mm).
+    pub sigma_mm: f64,
+}
+
+/// `[lrf]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ProjectLrf {
+    /// Sensor model, for reports.
+    pub model: String,
+    /// Station where it scanned (the main station).
+    pub station: String,
+    /// Scan files (`pingcal-scan` CSV), relative to project.toml.
+    pub scans: Vec<String>,
+    /// Maximum range (mm).
+    pub max_range_mm: f64,
+    /// Datasheet accuracy under 1 m (± mm).
+    pub accuracy_near_mm: f64,
+    /// Datasheet accuracy beyond 1 m (± fraction of range).
+    pub accuracy_far_fraction: f64,
+    /// Offset of the scanner centre from the servo shaft in the rotating frame (mm).
+    pub mount_offset_mm: [f64; 3],
+    /// Servo encoder resolution (degrees).
+    pub servo_resolution_deg: f64,
+}
+
+/// A rigid transform as written in JSON: `y = rotation · x + translation_mm`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct PoseJson {
+    /// Row-major 3×3 rotation.
+    pub rotation: [[f64; 3]; 3],
+    /// Translation (mm).
+    pub translation_mm: [f64; 3],
+    /// ω, φ, κ of the rotation (degrees, R = R_ω R_φ R_κ).
+    pub opk_deg: [f64; 3],
+}
+
+impl PoseJson {
+    /// From a [`Pose`].
+    pub fn from_pose(p: &Pose) -> Self {
+        let r = p.rotation;
+        let (o, f, k) = to_opk(&r);
+        Self {
+            rotation: [
+                [r[(0, 0)], r[(0, 1)], r[(0, 2)]],
+                [r[(1, 0)], r[(1, 1)], r[(1, 2)]],
+                [r[(2, 0)], r[(2, 1)], r[(2, 2)]],
+            ],
+            translation_mm: [p.translation.x, p.translation.y, p.translation.z],
+            opk_deg: [o.to_degrees(), f.to_degrees(), k.to_degrees()],
+        }
+    }
+
+    /// To a [`Pose`].
+    pub fn to_pose(&self) -> Pose {
+        let r = &self.rotation;
+        Pose {
+            rotation: Matrix3::new(
+                r[0][0], r[0][1], r[0][2], r[1][0], r[1][1], r[1][2], r[2][0], r[2][1], r[2][2],
+            ),
+            translation: Vector3::from(self.translation_mm),
+        }
+    }
+}
+
+/// True intrinsics of one camera (names as in results.json).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TruthCamera {
+    /// `left` / `right`.
+    pub id: String,
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// Pixel pitch (mm).
+    pub pixel_size_mm: f64,
+    /// The ten parameters.
+    #[serde(flatten)]
+    pub params: CameraParams,
+}
+
+/// True pose of one image.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TruthImage {
+    /// File (relative to the project folder).
+    pub file: String,
+    /// Camera id.
+    pub camera: String,
+    /// Station id.
+    pub station: String,
+    /// Photogrammetric frame → this camera.
+    pub photogrammetric_to_camera: PoseJson,
+    /// World → this camera.
+    pub world_to_camera: PoseJson,
+    /// Projection centre in the photogrammetric frame (mm).
+    pub centre_photogrammetric_mm: [f64; 3],
+}
+
+/// A true target centre.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TruthTarget {
+    /// Target number (AICON number, or 1001… for plain targets).
+    pub id: u32,
+    /// `coded` or `plain`.
+    pub kind: String,
+    /// Ring code value (smallest rotation) for coded targets.
+    pub code: Option<u32>,
+    /// Surface it is on.
+    pub surface: String,
+    /// Centre in the photogrammetric frame.
+    pub photogrammetric_mm: [f64; 3],
+    /// Centre in the LRF frame.
+    pub lrf_mm: [f64; 3],
+    /// Centre in the world (room corner) frame.
+    pub world_mm: [f64; 3],
+    /// Unit normal in the photogrammetric frame.
+    pub normal_photogrammetric: [f64; 3],
+}
+
+/// A true ball centre.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TruthBall {
+    /// `B1` … `B16`.
+    pub id: String,
+    /// Diameter (mm).
+    pub diameter_mm: f64,
+    /// Check ball (true) or control ball.
+    pub check: bool,
+    /// Centre in the photogrammetric frame.
+    pub photogrammetric_mm: [f64; 3],
+    /// Centre in the LRF frame.
+    pub lrf_mm: [f64; 3],
+    /// Centre in the world frame.
+    pub world_mm: [f64; 3],
+}
+
+/// A true plane of the corner.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TruthSurface {
+    /// `wall1`, `wall2`, `floor`.
+    pub name: String,
+    /// Unit normal of the base plane (world, into the room).
+    pub normal_world: [f64; 3],
+    /// Bulge at the centre (mm, along the normal).
+    pub bulge_mm: f64,
+    /// Extents (mm).
+    pub size_mm: [f64; 2],
+}
+
+/// `truth.json`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Truth {
+    /// The seed.
+    pub seed: u64,
+    /// What wrote it.
+    pub generator: String,
+    /// Conventions, in words.
+    pub conventions: Vec<String>,
+    /// The extrinsic, `p_camera = R·p_lrf + t` (results.json convention).
+    pub extrinsic: PoseJson,
+    /// World → photogrammetric frame.
+    pub world_to_photogrammetric: PoseJson,
+    /// World → LRF frame.
+    pub world_to_lrf: PoseJson,
+    /// LRF mount offset (rotating frame), mm.
+    pub lrf_mount_offset_mm: [f64; 3],
+    /// True intrinsics.
+    pub cameras: Vec<TruthCamera>,
+    /// Left camera frame → right camera frame.
+    pub left_to_right: PoseJson,
+    /// Image poses.
+    pub images: Vec<TruthImage>,
+    /// Targets.
+    pub targets: Vec<TruthTarget>,
+    /// Balls.
+    pub balls: Vec<TruthBall>,
+    /// Caliper distances with their true values.
+    pub distances: Vec<crate::scene::Distance>,
+    /// The corner's planes.
+    pub surfaces: Vec<TruthSurface>,
+}
+
+/// What was written.
+#[derive(Debug, Clone)]
+pub struct ProjectSummary {
+    /// Number of images.
+    pub images: usize,
+    /// Number of scans.
+    pub scans: usize,
+    /// Number of targets (coded).
+    pub targets: usize,
+    /// Coded targets.
+    pub coded: usize,
+    /// Balls.
+    pub balls: usize,
+}
+
+fn arr(v: &Vector3<f64>) -> [f64; 3] {
+    [v.x, v.y, v.z]
+}
+
+fn io(path: &Path, e: impl std::fmt::Display) -> SimError {
+    SimError::Io {
+        path: path.display().to_string(),
+        what: e.to_string(),
+    }
+}
+
+/// Image file name of camera `cam` at station `st`.
+fn image_file(st: &str, cam: &str) -> String {
+    format!("images/{st}_{cam}.png")
+}
+
+/// The ground truth of a simulation.
+pub fn truth_of(sim: &Simulation) -> Truth {
+    let w2p = sim.world_to_photogrammetric();
+    let w2l = sim.world_to_lrf;
+    let ext = crate::lrf::extrinsic(&sim.config.lrf);
+    let mut images = Vec::new();
+    for st in &sim.stations {
+        for (ci, cam) in sim.rig.cameras.iter().enumerate() {
+            let w2c = st.camera_pose(&sim.rig, ci);
+            let p2c = w2c.compose(&w2p.inverse());
+            images.push(TruthImage {
+                file: image_file(&st.id, &cam.id),
+                camera: cam.id.clone(),
+                station: st.id.clone(),
+                photogrammetric_to_camera: PoseJson::from_pose(&p2c),
+                world_to_camera: PoseJson::from_pose(&w2c),
+                centre_photogrammetric_mm: arr(&p2c.centre()),
+            });
+        }
+    }
+    let checks = &sim.config.balls.check_balls;
+    Truth {
+        seed: sim.seed,
+        generator: format!("pingcal-sim {}", env!("CARGO_PKG_VERSION")),
+        conventions: vec![
+            "lengths in mm; angles in degrees; opk_deg = (omega, phi, kappa) with R = R_omega R_phi R_kappa".into(),
+            "camera frame: X image right, Y optical axis, Z image up; photogrammetric frame = the main station's left camera".into(),
+            "LRF frame: paper eq. 2, x = r cos(a) cos(b), y = r sin(a), z = r cos(a) sin(b), Y = servo shaft".into(),
+            "extrinsic: p_camera = rotation * p_lrf + translation_mm (as results.json)".into(),
+            "poses: y = rotation * x + translation_mm from the named frame to the camera".into(),
+            "intrinsics: SPEC.md photogrammetric model, distortion applied forward; pixels from the centre of the top-left pixel, v down".into(),
+            "world: origin at the room corner, X along wall1, Y along wall2, Z up".into(),
+        ],
+        extrinsic: PoseJson::from_pose(&ext),
+        world_to_photogrammetric: PoseJson::from_pose(&w2p),
+        world_to_lrf: PoseJson::from_pose(&w2l),
+        lrf_mount_offset_mm: sim.config.lrf.mount_offset_mm,
+        cameras: sim
+            .rig
+            .cameras
+            .iter()
+            .map(|c| TruthCamera {
+                id: c.id.clone(),
+                width: c.model.width,
+                height: c.model.height,
+                pixel_size_mm: c.model.pixel_size_mm,
+                params: CameraParams::from_slice(&c.params),
+            })
+            .collect(),
+        left_to_right: PoseJson::from_pose(&sim.rig.left_to_right),
+        images,
+        targets: sim
+            .scene
+            .targets
+            .iter()
+            .map(|t| TruthTarget {
+                id: t.id,
+                kind: if t.code.is_some() { "coded" } else { "plain" }.into(),
+                code: t.code,
+                surface: sim.scene.surfaces[t.surface].name.clone(),
+                photogrammetric_mm: arr(&w2p.transform(&t.centre)),
+                lrf_mm: arr(&w2l.transform(&t.centre)),
+                world_mm: arr(&t.centre),
+                normal_photogrammetric: arr(&(w2p.rotation * t.normal)),
+            })
+            .collect(),
+        balls: sim
+            .scene
+            .balls
+            .iter()
+            .map(|b| TruthBall {
+                id: format!("B{}", b.id),
+                diameter_mm: 2.0 * b.radius,
+                check: checks.contains(&b.id),
+                photogrammetric_mm: arr(&w2p.transform(&b.centre)),
+                lrf_mm: arr(&w2l.transform(&b.centre)),
+                world_mm: arr(&b.centre),
+            })
+            .collect(),
+        distances: sim.scene.distances.clone(),
+        surfaces: sim
+            .scene
+            .surfaces
+            .iter()
+            .map(|s| TruthSurface {
+                name: s.name.clone(),
+                normal_world: arr(&s.n),
+                bulge_mm: s.bulge_mm,
+                size_mm: [s.u_max, s.v_max],
+            })
+            .collect(),
+    }
+}
+
+/// The project file of a simulation.
+pub fn project_of(sim: &Simulation) -> ProjectFile {
+    let cfg = &sim.config;
+    let main = sim.stations.iter().find(|s| s.main).expect("main station");
+    let mut initial = [0.0; 10];
+    initial[0] = cfg.camera.nominal_c_mm;
+    ProjectFile {
+        version: 1,
+        name: format!("simulated test field (seed {})", sim.seed),
+        method: "both".into(),
+        main_station: main.id.clone(),
+        main_camera: "left".into(),
+        targets: ProjectTargets {
+            family: format!("aicon{}", cfg.targets.code_bits),
+            dot_radius_mm: cfg.targets.dot_radius_mm,
+            ring_inner: cfg.targets.ring_inner,
+            ring_outer: cfg.targets.ring_outer,
+        },
+        balls: ProjectBalls {
+            diameter_mm: cfg.balls.diameter_mm,
+            check: cfg
+                .balls
+                .check_balls
+                .iter()
+                .map(|b| format!("B{b}"))
+                .collect(),
+        },
+        cameras: sim
+            .rig
+            .cameras
+            .iter()
+            .map(|c| ProjectCamera {
+                id: c.id.clone(),
+                model: "photogrammetric".into(),
+                width: c.model.width,
+                height: c.model.height,
+                pixel_size_mm: c.model.pixel_size_mm,
+                initial: CameraParams::from_slice(&initial),
+                free: pingcal_ba::camera::PHOTOGRAMMETRIC_PARAMS
+                    .iter()
+                    .map(|s| s.to_string())
+                    .collect(),
+            })
+            .collect(),
+        stereo: Some(ProjectStereo {
+            left: "left".into(),
+            right: "right".into(),
+            baseline_mm: 120.0,
+        }),
+        images: sim
+            .stations
+            .iter()
+            .flat_map(|st| {
+                sim.rig.cameras.iter().map(move |c| ProjectImage {
+                    file: image_file(&st.id, &c.id),
+                    camera: c.id.clone(),
+                    station: st.id.clone(),
+                })
+            })
+            .collect(),
+        distances: sim
+            .scene
+            .distances
+            .iter()
+            .map(|d| ProjectDistance {
+                from: d.from,
+                to: d.to,
+                distance_mm: (d.measured_mm * 1e4).round() / 1e4,
+                sigma_mm: d.sigma_mm,
+            })
+            .collect(),
+        lrf: ProjectLrf {
+            model: "Hokuyo URG-04LX on Dynamixel MX-28T".into(),
+            station: main.id.clone(),
+            scans: vec![format!("scans/{}.csv", main.id)],
+            max_range_mm: cfg.lrf.max_range_mm,
+            accuracy_near_mm: cfg.lrf.accuracy_near_mm,
+            accuracy_far_fraction: cfg.lrf.accuracy_far_fraction,
+            mount_offset_mm: cfg.lrf.mount_offset_mm,
+            servo_resolution_deg: cfg.lrf.servo_resolution_deg,
+        },
+    }
+}
+
+/// Renders every image and writes the whole project into `dir` (created if needed).
+/// Callers that must not leave a partial project looking complete write into a temporary
+/// folder and rename it (as `pingcal simulate` does).
+pub fn write_project(sim: &Simulation, dir: &Path) -> Result<ProjectSummary, SimError> {
+    std::fs::create_dir_all(dir.join("images")).map_err(|e| io(&dir.join("images"), e))?;
+    std::fs::create_dir_all(dir.join("scans")).map_err(|e| io(&dir.join("scans"), e))?;
+    let tables: Vec<RayTable> = sim.rig.cameras.iter().map(RayTable::new).collect();
+    let jobs: Vec<(usize, usize, usize)> = sim
+        .stations
+        .iter()
+        .enumerate()
+        .flat_map(|(si, _)| (0..sim.rig.cameras.len()).map(move |ci| (si, ci)))
+        .enumerate()
+        .map(|(k, (si, ci))| (k, si, ci))
+        .collect();
+    jobs.par_iter().try_for_each(|&(k, si, ci)| {
+        let st = &sim.stations[si];
+        let cam = &sim.rig.cameras[ci];
+        let img = render_image(
+            &sim.scene,
+            cam,
+            &st.camera_pose(&sim.rig, ci),
+            &sim.config.render,
+            Some(&tables[ci]),
+            sim.seed,
+            k as u64,
+        );
+        let path = dir.join(image_file(&st.id, &cam.id));
+        let mut bytes = Vec::new();
+        image::codecs::png::PngEncoder::new_with_quality(
+            &mut bytes,
+            image::codecs::png::CompressionType::Fast,
+            image::codecs::png::FilterType::Sub,
+        )
+        .write_image(
+            img.as_raw(),
+            img.width(),
+            img.height(),
+            image::ExtendedColorType::L8,
+        )
+        .map_err(|e| io(&path, e))?;
+        std::fs::write(&path, bytes).map_err(|e| io(&path, e))
+    })?;
+    let main = sim.stations.iter().find(|s| s.main).expect("main station");
+    let scan_path = dir.join(format!("scans/{}.csv", main.id));
+    std::fs::write(
+        &scan_path,
+        crate::lrf::scans_to_csv(&sim.scans, &sim.config.lrf),
+    )
+    .map_err(|e| io(&scan_path, e))?;
+    let project = project_of(sim);
+    let text = format!(
+        "# pingcal project file, version 1, written by `pingcal simulate --seed {}`.\n# Paths are relative to this file; lengths in mm.\n\n{}",
+        sim.seed,
+        toml::to_string(&project).map_err(|e| io(&dir.join("project.toml"), e))?
+    );
+    std::fs::write(dir.join("project.toml"), text).map_err(|e| io(&dir.join("project.toml"), e))?;
+    let truth = truth_of(sim);
+    let json = serde_json::to_string_pretty(&truth).map_err(|e| io(&dir.join("truth.json"), e))?;
+    std::fs::write(dir.join("truth.json"), json + "\n")
+        .map_err(|e| io(&dir.join("truth.json"), e))?;
+    let cfg_text = format!(
+        "# The simulator configuration that produced this project (seed {}).\n{}",
+        sim.seed,
+        sim.config.to_toml_string()
+    );
+    std::fs::write(dir.join("simulation.toml"), cfg_text)
+        .map_err(|e| io(&dir.join("simulation.toml"), e))?;
+    Ok(ProjectSummary {
+        images: jobs.len(),
+        scans: sim.scans.len(),
+        targets: sim.scene.targets.len(),
+        coded: sim
+            .scene
+            .targets
+            .iter()
+            .filter(|t| t.code.is_some())
+            .count(),
+        balls: sim.scene.balls.len(),
+    })
+}
+
+/// Reads a `truth.json`.
+pub fn read_truth(path: &Path) -> Result<Truth, SimError> {
+    let text = std::fs::read_to_string(path).map_err(|e| io(path, e))?;
+    serde_json::from_str(&text).map_err(|e| io(path, e))
+}
+
+/// Reads a `project.toml`.
+pub fn read_project(path: &Path) -> Result<ProjectFile, SimError> {
+    let text = std::fs::read_to_string(path).map_err(|e| io(path, e))?;
+    toml::from_str(&text).map_err(|e| io(path, e))
+}
