@@ -29,7 +29,7 @@ impl Default for CandidateParams {
         CandidateParams {
             min_diameter_px: 5.0,
             max_diameter_px: 200.0,
-            levels: 14,
+            levels: 10,
             min_fill: 0.8,
             min_axis_ratio: 0.3,
             min_repeat: 2,

@@ -90,7 +90,7 @@ pub fn edge_points(
     {
         return Err(Reject::Clipped);
     }
-    let step_px = 0.2;
+    let step_px = 0.25;
     let mut pts = Vec::with_capacity(k);
     let mut bg_sum = 0.0f64;
     let mut profile = Vec::with_capacity(64);
@@ -107,7 +107,7 @@ pub fn edge_points(
         let dt = step_px / len;
         profile.clear();
         ts.clear();
-        let mut t = 0.3;
+        let mut t = 0.45;
         while t <= t_max {
             profile.push(img.sample(seed.cx + t * dx, seed.cy + t * dy));
             ts.push(t);

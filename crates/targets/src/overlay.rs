@@ -119,3 +119,32 @@ impl Overlay {
             })
     }
 }
+
+/// The overlay of one image's detections: coded targets with their number in green (yellow
+/// '?' when not identified), plain targets in cyan, balls in magenta; a cross at each centre.
+pub fn draw_detections(img: &GrayImage, det: &crate::detect::ImageDetections) -> Overlay {
+    use crate::detect::TargetKind;
+    let mut ov = Overlay::new(img);
+    let size = ((img.width.max(img.height) as f64 / 1000.0).round() as u32).max(1) * 2;
+    for t in &det.targets {
+        let c = match (t.kind, t.id) {
+            (TargetKind::Coded, Some(_)) => GREEN,
+            (TargetKind::Coded, None) => YELLOW,
+            (TargetKind::Plain, _) => CYAN,
+            (TargetKind::Ball, _) => MAGENTA,
+        };
+        ov.ellipse(&t.ellipse, c);
+        ov.cross(t.x, t.y, 2, RED);
+        if t.kind == TargetKind::Coded {
+            ov.ellipse(&t.ellipse.scaled(3.0), c);
+            ov.number(
+                t.x + t.ellipse.a * 2.2,
+                t.y - t.ellipse.a * 2.2,
+                t.id.map(u64::from),
+                size,
+                c,
+            );
+        }
+    }
+    ov
+}

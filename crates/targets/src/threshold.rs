@@ -49,8 +49,8 @@ pub fn threshold_levels(img: &GrayImage, n: usize) -> Vec<f32> {
     let lo = pct(0.005);
     let hi = pct(0.999).max(lo + 0.02);
     let span = hi - lo;
-    // Fractions of the span from 0.04 to 0.92, geometric.
-    let (f0, f1) = (0.04f64, 0.92f64);
+    // Fractions of the span from 0.06 to 0.9, geometric.
+    let (f0, f1) = (0.06f64, 0.9f64);
     (0..n)
         .map(|i| {
             let t = if n == 1 {
