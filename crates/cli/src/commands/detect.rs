@@ -1,16 +1,97 @@
-//! `pingcal detect`: not built yet (issue 4).
+//! `pingcal detect IMAGE... [--out FILE] [--debug DIR]`: targets (coded, plain) and balls found
+//! in images, as the JSON of SPEC.md (pixel origin at the centre of the top-left pixel, x to the
+//! right, y down).
 
 use super::CmdResult;
+use pingcal_targets::detect::BallMode;
+use pingcal_targets::{load_image, DetectParams, Detector};
+use std::path::PathBuf;
 
 /// Arguments of `pingcal detect`.
 #[derive(clap::Args)]
 pub struct Args {
-    /// Arguments (not yet defined).
-    #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
-    rest: Vec<String>,
+    /// Images (TIFF, PNG or JPEG; 8 or 16 bit; grey or colour).
+    #[arg(required = true)]
+    pub images: Vec<PathBuf>,
+    /// Write the detections as JSON to this file.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Write an overlay PNG per image (ellipses, centres, IDs) into this folder.
+    #[arg(long)]
+    pub debug: Option<PathBuf>,
+    /// Ring-code bit counts to read, comma separated (AICON: 14 or 12).
+    #[arg(long, value_delimiter = ',', default_value = "14")]
+    pub bits: Vec<u32>,
+    /// The images contain no ping-pong balls (do not classify large blobs as balls).
+    #[arg(long)]
+    pub no_balls: bool,
 }
 
 /// Runs the command.
-pub fn run(_args: Args) -> CmdResult {
-    Err("'pingcal detect' is not implemented yet (issue 4)".into())
+pub fn run(args: Args) -> CmdResult {
+    let mut params = DetectParams {
+        code_bits: args.bits.clone(),
+        ..DetectParams::default()
+    };
+    if args.no_balls {
+        params.balls = BallMode::Off;
+    }
+    let det = Detector::new(params)?;
+    if let Some(dir) = &args.debug {
+        std::fs::create_dir_all(dir)
+            .map_err(|e| format!("{}: cannot create folder: {e}", dir.display()))?;
+    }
+    let mut images = Vec::new();
+    let (mut n_coded, mut n_ids, mut n_plain, mut n_balls) = (0, 0, 0, 0);
+    for path in &args.images {
+        let img = load_image(path)?;
+        let d = det.detect(&img);
+        if let Some(dir) = &args.debug {
+            let stem = path
+                .file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_else(|| "image".into());
+            let out = dir.join(format!("{stem}.overlay.png"));
+            pingcal_targets::overlay::draw_detections(&img, &d).save(&out)?;
+        }
+        let targets: Vec<serde_json::Value> = d
+            .targets
+            .iter()
+            .map(|t| {
+                serde_json::json!({
+                    "id": t.id,
+                    "kind": t.kind,
+                    "x": t.x,
+                    "y": t.y,
+                    "sigma_px": t.sigma_px,
+                })
+            })
+            .collect();
+        for t in &d.targets {
+            match t.kind {
+                pingcal_targets::TargetKind::Coded => {
+                    n_coded += 1;
+                    n_ids += t.id.is_some() as usize;
+                }
+                pingcal_targets::TargetKind::Plain => n_plain += 1,
+                pingcal_targets::TargetKind::Ball => n_balls += 1,
+            }
+        }
+        images.push(serde_json::json!({
+            "file": path.display().to_string(),
+            "width": d.width,
+            "height": d.height,
+            "targets": targets,
+        }));
+    }
+    if let Some(out) = &args.out {
+        let text = serde_json::to_string_pretty(&serde_json::json!({ "images": images }))?;
+        super::write_atomic(out, text.as_bytes())?;
+    }
+    println!(
+        "detect: {} images; {n_coded} coded targets ({n_ids} identified), {n_plain} plain, {n_balls} balls{}",
+        args.images.len(),
+        args.out.as_ref().map(|p| format!("; written to {}", p.display())).unwrap_or_default()
+    );
+    Ok(())
 }
