@@ -613,6 +613,14 @@ impl Scene {
 
         // The main left camera decides where targets and balls go: spread over its image.
         let main = crate::stations::main_left_pose(&cfg.stations);
+        crate::stations::check_inside(
+            &surfaces,
+            &main.centre(),
+            "stations.main_centre_mm",
+            "S00",
+            "left",
+            cfg.stations.min_wall_clearance_mm,
+        )?;
         let rig = crate::stations::StereoRig::from_config(cfg);
         let left = &rig.cameras[0];
         let r_max = left.max_ideal_radius_mm();

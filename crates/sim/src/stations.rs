@@ -227,26 +227,42 @@ pub fn build_stations(cfg: &SimConfig, scene: &Scene, seed: u64) -> Result<Vec<S
     for (st, key) in out.iter().zip(&keys) {
         for cam in 0..2 {
             let c = st.camera_pose(&rig, cam).centre();
-            for s in &scene.surfaces {
-                let d = s.plane_distance(&c);
-                if d < sc.min_wall_clearance_mm {
-                    return Err(ConfigError::new(
-                        key.clone(),
-                        format!("[{:.0}, {:.0}, {:.0}]", c.x, c.y, c.z),
-                        format!(
-                            "station {} puts the {} camera {:.0} mm {} {} (needs {} mm inside the room): a camera behind a wall",
-                            st.id,
-                            rig.cameras[cam].id,
-                            d.abs(),
-                            if d < 0.0 { "behind" } else { "in front of" },
-                            s.name,
-                            sc.min_wall_clearance_mm
-                        ),
-                    )
-                    .into());
-                }
-            }
+            check_inside(
+                &scene.surfaces,
+                &c,
+                key,
+                &st.id,
+                &rig.cameras[cam].id,
+                sc.min_wall_clearance_mm,
+            )?;
         }
     }
     Ok(out)
+}
+
+/// Refuses a camera centre `c` less than `clearance` inside any of the room's planes.
+pub fn check_inside(
+    surfaces: &[crate::scene::Surface],
+    c: &V3,
+    key: &str,
+    station: &str,
+    camera: &str,
+    clearance: f64,
+) -> Result<(), ConfigError> {
+    for s in surfaces {
+        let d = s.plane_distance(c);
+        if d < clearance {
+            return Err(ConfigError::new(
+                key,
+                format!("[{:.0}, {:.0}, {:.0}]", c.x, c.y, c.z),
+                format!(
+                    "station {station} puts the {camera} camera {:.0} mm {} {} (needs {clearance} mm inside the room): a camera behind a wall",
+                    d.abs(),
+                    if d < 0.0 { "behind" } else { "in front of" },
+                    s.name,
+                ),
+            ));
+        }
+    }
+    Ok(())
 }
