@@ -136,9 +136,10 @@ fn bright_fraction(
     samples_per_turn: usize,
 ) -> f64 {
     let mut c = 0;
+    let fr = e.frame();
     for i in 0..samples_per_turn {
         let t = i as f64 * 2.0 * std::f64::consts::PI / samples_per_turn as f64;
-        let (x, y) = e.map(rho * t.cos(), rho * t.sin());
+        let (x, y) = fr.map(rho * t.cos(), rho * t.sin());
         if img.sample(x, y) > mid {
             c += 1;
         }
@@ -173,12 +174,13 @@ pub fn read_ring(
         .map(|i| reader.ring.0 + (reader.ring.1 - reader.ring.0) * i as f64 / 4.0)
         .collect();
     let mut v = vec![0.0f32; m];
+    let fr = dot.frame();
     for (j, vj) in v.iter_mut().enumerate() {
         let t = j as f64 * 2.0 * std::f64::consts::PI / m as f64;
         let (c, s) = (t.cos(), t.sin());
         let mut acc = 0.0;
         for &r in &radii {
-            let (x, y) = dot.map(r * c, r * s);
+            let (x, y) = fr.map(r * c, r * s);
             acc += img.sample(x, y);
         }
         *vj = acc / radii.len() as f32 - mid;

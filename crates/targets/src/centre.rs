@@ -1,7 +1,7 @@
 //! Sub-pixel centre of a circular target: sub-pixel edge points along rays, a robust ellipse
 //! fit to them, and the intensity-weighted centroid, each with an estimate of its σ in pixels.
 
-use crate::ellipse::{fit_ellipse, Ellipse};
+use crate::ellipse::{fit_ellipse, sampson, Ellipse};
 use crate::image_io::GrayImage;
 use crate::threshold::{foreground_level, local_levels};
 
@@ -151,7 +151,8 @@ pub fn edge_points(
 /// Returns the ellipse, the inlier residual RMS and the number of inliers.
 pub fn robust_ellipse_fit(pts: &[(f64, f64)]) -> Option<(Ellipse, f64, usize)> {
     let e = fit_ellipse(pts)?;
-    let res: Vec<f64> = pts.iter().map(|p| e.sampson_distance(p.0, p.1)).collect();
+    let k = e.conic();
+    let res: Vec<f64> = pts.iter().map(|p| sampson(&k, p.0, p.1)).collect();
     let mut abs: Vec<f64> = res.iter().map(|r| r.abs()).collect();
     abs.sort_by(|a, b| a.total_cmp(b));
     let mad = abs[abs.len() / 2];
@@ -229,6 +230,8 @@ pub fn refine(img: &GrayImage, seed: &Ellipse, p: &CentreParams) -> Result<Refin
 /// max(I − bg, 0). σ from the noise of the foreground (MAD of neighbour differences).
 pub fn weighted_centroid(img: &GrayImage, e: &Ellipse, bg: f32, fg: f32) -> ((f64, f64), f64) {
     let ext = e.scaled(1.15);
+    let fr = ext.frame();
+    let fe = e.frame();
     let x0 = ((e.cx - ext.a).floor().max(0.0)) as usize;
     let x1 = ((e.cx + ext.a).ceil().max(0.0) as usize).min(img.width.saturating_sub(1));
     let y0 = ((e.cy - ext.a).floor().max(0.0)) as usize;
@@ -237,7 +240,7 @@ pub fn weighted_centroid(img: &GrayImage, e: &Ellipse, bg: f32, fg: f32) -> ((f6
     let mut pix = Vec::new();
     for y in y0..=y1 {
         for x in x0..=x1 {
-            let (u, v) = ext.unmap(x as f64, y as f64);
+            let (u, v) = fr.unmap(x as f64, y as f64);
             if u * u + v * v > 1.0 {
                 continue;
             }
@@ -256,7 +259,7 @@ pub fn weighted_centroid(img: &GrayImage, e: &Ellipse, bg: f32, fg: f32) -> ((f6
     // divided by √2 for the difference of two samples.
     let mut d = Vec::new();
     for &(x, y) in &pix {
-        let (u, v) = e.unmap(x as f64, y as f64);
+        let (u, v) = fe.unmap(x as f64, y as f64);
         if u * u + v * v < 0.36 && x + 1 < img.width {
             d.push((img.get(x + 1, y) - img.get(x, y)).abs() as f64);
         }

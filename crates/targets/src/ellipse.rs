@@ -104,10 +104,64 @@ impl Ellipse {
         [aa, bb, cc, dd, ee, ff]
     }
 
+    /// The map to and from the unit-circle frame with its trigonometry done once (for loops).
+    pub fn frame(&self) -> Frame {
+        let (s, c) = self.theta.sin_cos();
+        Frame {
+            cx: self.cx,
+            cy: self.cy,
+            c,
+            s,
+            a: self.a,
+            b: self.b,
+        }
+    }
+
     /// Signed Sampson distance of a point to the ellipse (first-order orthogonal distance;
     /// positive outside).
     pub fn sampson_distance(&self, x: f64, y: f64) -> f64 {
-        let [a, b, c, d, e, f] = self.conic();
+        sampson(&self.conic(), x, y)
+    }
+}
+
+/// [`Ellipse::map`] and [`Ellipse::unmap`] with precomputed cosine and sine.
+#[derive(Clone, Copy, Debug)]
+pub struct Frame {
+    cx: f64,
+    cy: f64,
+    c: f64,
+    s: f64,
+    a: f64,
+    b: f64,
+}
+
+impl Frame {
+    /// Unit-circle frame → image.
+    #[inline]
+    pub fn map(&self, u: f64, v: f64) -> (f64, f64) {
+        let (p, q) = (u * self.a, v * self.b);
+        (
+            self.cx + self.c * p - self.s * q,
+            self.cy + self.s * p + self.c * q,
+        )
+    }
+
+    /// Image → unit-circle frame.
+    #[inline]
+    pub fn unmap(&self, x: f64, y: f64) -> (f64, f64) {
+        let (dx, dy) = (x - self.cx, y - self.cy);
+        (
+            (self.c * dx + self.s * dy) / self.a,
+            (-self.s * dx + self.c * dy) / self.b,
+        )
+    }
+}
+
+/// Signed Sampson distance of (x, y) to the conic `k` (see [`Ellipse::conic`]).
+#[inline]
+pub fn sampson(k: &[f64; 6], x: f64, y: f64) -> f64 {
+    {
+        let [a, b, c, d, e, f] = *k;
         let q = a * x * x + b * x * y + c * y * y + d * x + e * y + f;
         let gx = 2.0 * a * x + b * y + d;
         let gy = b * x + 2.0 * c * y + e;
@@ -118,7 +172,9 @@ impl Ellipse {
             0.0
         }
     }
+}
 
+impl Ellipse {
     /// Geometric parameters from conic coefficients; `None` unless the conic is a real ellipse.
     pub fn from_conic(k: [f64; 6]) -> Option<Self> {
         let [a, b, c, d, e, f] = k;

@@ -35,17 +35,30 @@ impl GrayImage {
     pub fn sample(&self, x: f64, y: f64) -> f32 {
         let w = self.width as isize;
         let h = self.height as isize;
-        if w == 0 || h == 0 {
+        if w == 0 || h == 0 || !x.is_finite() || !y.is_finite() {
             return 0.0;
         }
-        let xf = x.floor();
-        let yf = y.floor();
-        let fx = (x - xf) as f32;
-        let fy = (y - yf) as f32;
-        let x0 = (xf as isize).clamp(0, w - 1) as usize;
-        let y0 = (yf as isize).clamp(0, h - 1) as usize;
-        let x1 = ((xf as isize) + 1).clamp(0, w - 1) as usize;
-        let y1 = ((yf as isize) + 1).clamp(0, h - 1) as usize;
+        // floor() without a libm call (the baseline x86-64 target has no SSE4.1 rounding).
+        let xt = x as isize;
+        let yt = y as isize;
+        let xi = xt - ((xt as f64) > x) as isize;
+        let yi = yt - ((yt as f64) > y) as isize;
+        let fx = (x - xi as f64) as f32;
+        let fy = (y - yi as f64) as f32;
+        if xi >= 0 && yi >= 0 && xi + 1 < w && yi + 1 < h {
+            let i = yi as usize * self.width + xi as usize;
+            let a = self.data[i];
+            let b = self.data[i + 1];
+            let c = self.data[i + self.width];
+            let d = self.data[i + self.width + 1];
+            let top = a + (b - a) * fx;
+            let bot = c + (d - c) * fx;
+            return top + (bot - top) * fy;
+        }
+        let x0 = xi.clamp(0, w - 1) as usize;
+        let y0 = yi.clamp(0, h - 1) as usize;
+        let x1 = (xi + 1).clamp(0, w - 1) as usize;
+        let y1 = (yi + 1).clamp(0, h - 1) as usize;
         let a = self.get(x0, y0);
         let b = self.get(x1, y0);
         let c = self.get(x0, y1);

@@ -68,6 +68,7 @@ pub fn threshold_levels(img: &GrayImage, n: usize) -> Vec<f32> {
 /// upper and lower 10 % trimmed) and the fraction of those samples at or above `saturation`.
 pub fn foreground_level(img: &GrayImage, e: &Ellipse, saturation: f32) -> (f32, f64) {
     let mut v = Vec::with_capacity(64);
+    let fr = e.frame();
     let k = 6;
     for i in -k..=k {
         for j in -k..=k {
@@ -75,7 +76,7 @@ pub fn foreground_level(img: &GrayImage, e: &Ellipse, saturation: f32) -> (f32, 
             if u * u + w * w > 0.36 {
                 continue;
             }
-            let (x, y) = e.map(u, w);
+            let (x, y) = fr.map(u, w);
             v.push(img.sample(x, y));
         }
     }
