@@ -1,16 +1,100 @@
-//! `pingcal simulate`: not built yet (issue 6).
+//! `pingcal simulate --out DIR [--seed N] [--config FILE]`: a complete simulated project
+//! (project.toml, PNG images, pingcal-scan CSV, truth.json) of the paper's test field and
+//! sensors (issue 6, crate `pingcal-sim`).
+//!
+//! The project is written into a hidden temporary folder beside DIR and renamed to DIR at
+//! the end, so an interrupted run never leaves a partial project looking complete.
 
 use super::CmdResult;
+use std::path::PathBuf;
 
 /// Arguments of `pingcal simulate`.
 #[derive(clap::Args)]
 pub struct Args {
-    /// Arguments (not yet defined).
-    #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
-    rest: Vec<String>,
+    /// Output folder (must not exist, or be empty).
+    #[arg(long)]
+    out: PathBuf,
+    /// Seed of every random choice (same seed and config ⇒ identical files).
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Simulator configuration (TOML; keys not given keep the paper's defaults).
+    #[arg(long)]
+    config: Option<PathBuf>,
 }
 
 /// Runs the command.
-pub fn run(_args: Args) -> CmdResult {
-    Err("'pingcal simulate' is not implemented yet (issue 6)".into())
+pub fn run(args: Args) -> CmdResult {
+    let t0 = std::time::Instant::now();
+    let cfg = match &args.config {
+        Some(p) => pingcal_sim::SimConfig::from_toml_file(p)?,
+        None => pingcal_sim::SimConfig::default(),
+    };
+    let out = &args.out;
+    if out.exists() {
+        let empty = out.is_dir()
+            && std::fs::read_dir(out)
+                .map_err(|e| format!("{}: {e}", out.display()))?
+                .next()
+                .is_none();
+        if !empty {
+            return Err(format!(
+                "{}: already exists and is not an empty folder",
+                out.display()
+            )
+            .into());
+        }
+    }
+    let sim = pingcal_sim::Simulation::new(&cfg, args.seed).map_err(|e| match &args.config {
+        Some(p) if matches!(e, pingcal_sim::SimError::Invalid(_)) => {
+            format!("{}: {e}", p.display())
+        }
+        _ => e.to_string(),
+    })?;
+    let parent = out
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(std::path::Path::new("."));
+    std::fs::create_dir_all(parent)
+        .map_err(|e| format!("{}: cannot create: {e}", parent.display()))?;
+    let name = out
+        .file_name()
+        .ok_or_else(|| format!("{}: not a folder name", out.display()))?;
+    let tmp = parent.join(format!(
+        ".{}.partial-{}",
+        name.to_string_lossy(),
+        std::process::id()
+    ));
+    let _ = std::fs::remove_dir_all(&tmp);
+    let written = pingcal_sim::write_project(&sim, &tmp);
+    let summary = match written {
+        Ok(s) => s,
+        Err(e) => {
+            let _ = std::fs::remove_dir_all(&tmp);
+            return Err(e.into());
+        }
+    };
+    if out.exists() {
+        std::fs::remove_dir(out).map_err(|e| format!("{}: {e}", out.display()))?;
+    }
+    if let Err(e) = std::fs::rename(&tmp, out) {
+        let _ = std::fs::remove_dir_all(&tmp);
+        return Err(format!(
+            "{}: cannot rename the finished project into place: {e}",
+            out.display()
+        )
+        .into());
+    }
+    println!(
+        "simulate: wrote {} ({} images, {} LRF scans, {} targets of which {} coded, {} balls, {} distances; seed {}) in {:.1} s",
+        out.join("project.toml").display(),
+        summary.images,
+        summary.scans,
+        summary.targets,
+        summary.coded,
+        summary.balls,
+        sim.scene.distances.len(),
+        args.seed,
+        t0.elapsed().as_secs_f64()
+    );
+    Ok(())
 }
