@@ -138,16 +138,30 @@ def generate(c, p, a, use_pingcal):
 
 # ----------------------------------------------------------------------------- runs
 
-def run_pingcal(path, threads, a, extra):
+def save_log(a, name, cmd, out, err):
+    d = os.path.join(os.path.dirname(a.out), "ba-logs")
+    os.makedirs(d, exist_ok=True)
+    with open(os.path.join(d, name + ".log"), "w") as fh:
+        fh.write("$ " + " ".join(map(shlex.quote, cmd)) + "\n" + out + ("\n--- stderr\n" + err if err else ""))
+
+
+def run_pingcal(path, solver, threads, a, extra):
     with tempfile.TemporaryDirectory() as td:
         outj = os.path.join(td, "out.json")
-        cmd = [PINGCAL, "ba", path, "--out", outj, "--threads", str(threads)] + extra
+        cmd = [PINGCAL, "ba", path, "--out", outj, "--threads", str(threads)]
+        if solver != "auto":
+            cmd += ["--solver", solver]
+        cmd += extra
         code, out, err, wall, rss = run_child(cmd, threads, a.timeout)
-        res = {"side": "pingcal", "solver": "pingcal", "threads": threads, "wall_s": wall,
+        save_log(a, f"{os.path.basename(path)}.pingcal-{solver}-t{threads}", cmd, out, err)
+        res = {"side": "pingcal", "solver": "pingcal " + solver,
+               "threads": threads, "wall_s": wall,
                "peak_mib": rss, "exit": code, "cmd": " ".join(map(shlex.quote, cmd))}
         if code == 0 and os.path.exists(outj):
             with open(outj) as fh:
                 res.update(json.load(fh))
+            if "linear_solver" in res and solver == "auto":
+                res["solver"] += f" → {res['linear_solver']}"
         else:
             res["error"] = last_line(err) or f"exit {code}"
         return res
@@ -159,6 +173,7 @@ def run_ceres(path, solver, threads, a):
     if not a.check:
         cmd.append("--no-check")
     code, out, err, wall, rss = run_child(cmd, threads, a.timeout)
+    save_log(a, f"{os.path.basename(path)}.ceres-{solver}-t{threads}", cmd, out, err)
     res = {"side": "ceres", "solver": solver, "threads": threads, "wall_s": wall,
            "peak_mib": rss, "exit": code, "cmd": " ".join(map(shlex.quote, cmd))}
     try:
@@ -204,7 +219,7 @@ def make_table(results, meta):
                     lines.append(f"| {prob} | {label} | {t} | – | – | – | – | – | "
                                  f"{r['wall_s']:.1f} | {r['peak_mib']:.0f} | {r['error']} |")
                     if r["side"] == "pingcal":
-                        verdicts.append(f"{prob}, {t} thread(s): pingcal failed ({r['error']})")
+                        verdicts.append(f"{prob}, {t} thread(s), {r['solver']}: failed ({r['error']})")
                     continue
                 if r.get("skipped"):
                     lines.append(f"| {prob} | {label} | {t} | – | – | – | – | – | – | – | {r['skipped']} |")
@@ -219,7 +234,7 @@ def make_table(results, meta):
                         ok_cost = abs(d) < 1e-4
                         ok_time = r["time_s"] < best["time_s"]
                         verdicts.append(
-                            f"{prob}, {t} thread(s): cost {'OK' if ok_cost else 'DIFFERS'} "
+                            f"{prob}, {t} thread(s), {r['solver']}: cost {'OK' if ok_cost else 'DIFFERS'} "
                             f"(|rel| {abs(d):.1e} {'<' if ok_cost else '>='} 1e-4), "
                             f"time {'OK' if ok_time else 'SLOWER'} ({r['time_s']:.2f} s vs "
                             f"Ceres {best['solver']} {best['time_s']:.2f} s)")
@@ -270,6 +285,9 @@ def main():
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--threads", default="1,2")
     ap.add_argument("--solvers", default="DENSE_SCHUR,SPARSE_SCHUR")
+    ap.add_argument("--pingcal-solvers", default="auto",
+                    help="comma-separated values of `pingcal ba --solver` (auto, dense, sparse); "
+                         "auto passes no --solver")
     ap.add_argument("--dense-max-cameras", type=int, default=600,
                     help="skip DENSE_SCHUR above this many cameras (a dense 9C x 9C Cholesky "
                          "at 1500 cameras takes minutes per iteration)")
@@ -333,11 +351,16 @@ def main():
             log(f"make_bal.py --check failed: {last_line(chk.stderr)}")
             size["observations"] = "?"
         for t in threads:
-            if run_pingcal_side:
-                r = best_of([run_pingcal(path, t, a, extra) for _ in range(a.repeat)])
+            for ps in (a.pingcal_solvers.split(",") if run_pingcal_side else []):
+                ps = ps.strip().lower()
+                if ps == "dense" and c > a.dense_max_cameras:
+                    size["rows"].append({"side": "pingcal", "solver": "pingcal dense", "threads": t,
+                                         "skipped": f"skipped: > {a.dense_max_cameras} cameras"})
+                    continue
+                r = best_of([run_pingcal(path, ps, t, a, extra) for _ in range(a.repeat)])
                 size["rows"].append(r)
-                log(f"   pingcal         T={t}: " + (r.get("error") or
-                    f"{r['final_cost']:.6e} in {r['iterations']} it, {r['time_s']:.2f} s, {r['peak_mib']:.0f} MiB"))
+                log(f"   {r['solver']:24s} T={t}: " + (r.get("error") or
+                    f"{r['final_cost']:.6e} in {r['iterations']} it, {r['time_s']:.2f} s, {r['peak_mib']:.0f} MiB, {r.get('termination', '')}"))
             for s in solvers:
                 if s == "DENSE_SCHUR" and c > a.dense_max_cameras:
                     size["rows"].append({"side": "ceres", "solver": s, "threads": t,
@@ -345,7 +368,7 @@ def main():
                     continue
                 r = best_of([run_ceres(path, s, t, a) for _ in range(a.repeat)])
                 size["rows"].append(r)
-                log(f"   Ceres {s:12s} T={t}: " + (r.get("error") or
+                log(f"   Ceres {s:18s} T={t}: " + (r.get("error") or
                     f"{r['final_cost']:.6e} in {r['iterations']} it, {r['time_s']:.2f} s, {r['peak_mib']:.0f} MiB"))
                 if "check_initial_cost_numpy" in r:
                     d0 = abs(r["initial_cost"] - r["check_initial_cost_numpy"]) / r["check_initial_cost_numpy"]
