@@ -1,7 +1,39 @@
 //! # pingcal-targets: target detection and identification in images
 //!
-//! Plain circular (retro-reflective) targets, AICON / Schneider ring-coded targets
-//! (12 and 14 bit) and ping-pong-ball silhouettes.
+//! Replaces Australis's automatic target measurement: plain circular (retro-reflective)
+//! targets, AICON / Schneider ring-coded targets (12 and 14 bit) and ping-pong-ball
+//! silhouettes, measured to a few hundredths of a pixel, on real photographs (flash hot spots,
+//! vignetting, partly covered targets).
+//!
+//! Pixel coordinates everywhere: origin at the centre of the top-left pixel, x to the right,
+//! y down.
+//!
+//! ## Entry points
+//! - [`load_image`] / [`decode_image`]: any TIFF / PNG / JPEG (8 or 16 bit, grey or colour) to
+//!   an `f32` grey [`GrayImage`], with errors naming the file.
+//! - [`Detector::new`]`(DetectParams)` then [`Detector::detect`]`(&GrayImage) -> ImageDetections`
+//!   (or [`detect_image`], [`detect_file`]): targets with kind coded / plain / ball, number,
+//!   centre and σ.
+//! - [`ball::sphere_centre_from_ellipse`]`(&Ellipse, &dyn CameraRays, Option<radius>)`: the
+//!   eccentricity correction of a ball's silhouette, once the camera's intrinsics are known.
+//! - [`driveback::assign`]: plain targets and balls identified by projecting the model.
+//! - [`homography::ransac_homography`]: seeded RANSAC homography (ID checks on flat panels).
+//! - [`printable::targets_svg`]: printable coded targets at true size.
+//! - [`overlay::draw_detections`]: debug overlay PNG.
+//!
+//! ## Modules, in pipeline order
+//! - [`image_io`]: loading and conversion.
+//! - [`threshold`]: the threshold ladder and per-target local levels (hot spots, vignetting).
+//! - [`blobs`]: connected components with moments.
+//! - [`candidates`]: shape tests, grouping across threshold levels.
+//! - [`centre`]: sub-pixel edge points, robust ellipse fit, weighted centroid, σ estimates.
+//! - [`ellipse`]: ellipse geometry and the direct least-squares fit.
+//! - [`aicon`]: code tables (generated), ring sampling after affine rectification, bit
+//!   reading, minimum rotation, lookup, refusals.
+//! - [`ball`]: sphere silhouettes and the eccentricity correction.
+//! - [`detect`]: the top-level detector.
+//! - [`driveback`]: identification by projection.
+//! - [`homography`], [`printable`], [`overlay`].
 
 pub mod aicon;
 pub mod ball;
@@ -9,6 +41,7 @@ pub mod blobs;
 pub mod candidates;
 pub mod centre;
 pub mod detect;
+pub mod driveback;
 pub mod ellipse;
 pub mod homography;
 pub mod image_io;
