@@ -430,8 +430,10 @@ impl Default for LrfConfig {
             accuracy_sigmas: 3.0,
             beam_width_deg: 0.35,
             min_reflectivity: 0.08,
-            servo_start_deg: -90.0,
-            servo_end_deg: 90.0,
+            // A full turn: the URG's 240° field reaches only 29.5° past the shaft (α = 90°)
+            // on the far side, so a half turn would leave half the field unscanned.
+            servo_start_deg: -180.0,
+            servo_end_deg: 180.0 - 0.3515625,
             servo_step_deg: 0.3515625,
             servo_resolution_deg: 360.0 / 4096.0,
             servo_sigma_deg: 0.02,
@@ -857,5 +859,31 @@ impl SimConfig {
         finite3("lrf.extrinsic_t_mm", l.extrinsic_t_mm)?;
         finite3("lrf.mount_offset_mm", l.mount_offset_mm)?;
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_are_valid_and_round_trip_through_toml() {
+        let cfg = SimConfig::default();
+        cfg.validate().unwrap();
+        let back = SimConfig::from_toml_str(&cfg.to_toml_string()).unwrap();
+        assert_eq!(back, cfg);
+        // A partial file keeps the other defaults.
+        let partial =
+            SimConfig::from_toml_str("[balls]\nstandoff_range_mm = [70.0, 150.0]\n").unwrap();
+        assert_eq!(partial.balls.standoff_range_mm, [70.0, 150.0]);
+        assert_eq!(partial.balls.count, 16);
+        assert_eq!(partial.targets, TargetConfig::default());
+    }
+
+    #[test]
+    fn range_sigma_follows_the_datasheet() {
+        let l = LrfConfig::default();
+        assert_eq!(l.range_sigma_mm(500.0), 10.0);
+        assert!((l.range_sigma_mm(3000.0) - 30.0).abs() < 1e-12);
     }
 }
