@@ -72,7 +72,7 @@ pub(crate) fn cost(problem: &Problem) -> Result<f64, usize> {
         .try_reduce(|| 0.0, |a, b| Ok(a + b))
 }
 
-/// Fills `lin` at the current estimate. Returns the index of the first observation that
+/// Fills `lin` at the current estimate. Returns the (problem) index of an observation that
 /// does not project, if any.
 pub(crate) fn linearize(
     problem: &Problem,
@@ -89,7 +89,7 @@ pub(crate) fn linearize(
         .enumerate()
         .with_min_len(256)
         .map(|(i, ((r, jp), (jc, w)))| {
-            let o = &problem.observations[i];
+            let o = &problem.observations[layout.obs_order[i] as usize];
             let im = &problem.images[o.image];
             let cam = &problem.cameras[im.camera];
             let x = &problem.points[o.point].position;
@@ -106,7 +106,7 @@ pub(crate) fn linearize(
             let uv = cam
                 .model
                 .project(&cam.params, &xc, Some(&mut dxc), Some(ji))
-                .ok_or(i)?;
+                .ok_or(layout.obs_order[i] as usize)?;
             let res = (uv - o.uv) / o.sigma;
             let (rho, rho1) = problem.loss.evaluate(res.norm_squared());
             let scale = rho1.sqrt() / o.sigma;

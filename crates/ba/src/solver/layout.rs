@@ -50,6 +50,9 @@ pub(crate) struct Layout {
     pub obs_segs: Vec<([Seg; 2], u8)>,
     /// Per observation, its point.
     pub obs_point: Vec<u32>,
+    /// Internal observation k is `problem.observations[obs_order[k]]`; every per-observation
+    /// array here and in the solver is in internal order.
+    pub obs_order: Vec<u32>,
     pub jc_len: usize,
     /// Per observation, offset of its W and Y rows (3 values per camera-side column).
     pub obs_w_offset: Vec<usize>,
@@ -60,9 +63,6 @@ pub(crate) struct Layout {
     /// CSR: free point (by free index) → observations.
     pub fp_obs_ptr: Vec<usize>,
     pub fp_obs: Vec<u32>,
-    /// CSR: block → (observation, segment index) touching it.
-    pub block_obs_ptr: Vec<usize>,
-    pub block_obs: Vec<(u32, u8)>,
     /// Block column b: sorted row blocks (the last is b itself), and the row offset of each
     /// inside every scalar column of b.
     pub col_blocks: Vec<Vec<u32>>,
@@ -115,8 +115,18 @@ impl Layout {
             n_reduced += d;
         }
 
-        // Observations.
+        // Observations, in the solver's internal order: by point, so that the W and Y rows
+        // of one point are adjacent in memory (the Schur complement reads them together).
         let n_obs = problem.observations.len();
+        let mut obs_order: Vec<u32> = (0..n_obs as u32).collect();
+        obs_order.sort_by_key(|&o| {
+            let ob = &problem.observations[o as usize];
+            (ob.point, ob.image)
+        });
+        let observations: Vec<&crate::problem::Observation> = obs_order
+            .iter()
+            .map(|&o| &problem.observations[o as usize])
+            .collect();
         let mut obs_ncols = Vec::with_capacity(n_obs);
         let mut obs_jc_offset = Vec::with_capacity(n_obs);
         let mut obs_w_offset = Vec::with_capacity(n_obs);
@@ -128,7 +138,7 @@ impl Layout {
             block_off: 0,
             len: 0,
         };
-        for o in &problem.observations {
+        for o in &observations {
             let im = &problem.images[o.image];
             let mut segs = [empty; 2];
             let mut ns = 0u8;
@@ -172,7 +182,7 @@ impl Layout {
             }
         }
         let mut counts = vec![0usize; free_points.len() + 1];
-        for o in &problem.observations {
+        for o in &observations {
             let f = free_point_index[o.point];
             if f != u32::MAX {
                 counts[f as usize + 1] += 1;
@@ -184,7 +194,7 @@ impl Layout {
         let fp_obs_ptr = counts.clone();
         let mut fp_obs = vec![0u32; *counts.last().unwrap()];
         let mut fill = counts;
-        for (oi, o) in problem.observations.iter().enumerate() {
+        for (oi, o) in observations.iter().enumerate() {
             let f = free_point_index[o.point];
             if f != u32::MAX {
                 fp_obs[fill[f as usize]] = oi as u32;
@@ -192,27 +202,7 @@ impl Layout {
             }
         }
 
-        // Block → observations.
         let nb = block_dim.len();
-        let mut bcount = vec![0usize; nb + 1];
-        for (segs, ns) in &obs_segs {
-            for s in &segs[..*ns as usize] {
-                bcount[s.block as usize + 1] += 1;
-            }
-        }
-        for k in 1..bcount.len() {
-            bcount[k] += bcount[k - 1];
-        }
-        let block_obs_ptr = bcount.clone();
-        let mut block_obs = vec![(0u32, 0u8); *bcount.last().unwrap()];
-        let mut bfill = bcount;
-        for (oi, (segs, ns)) in obs_segs.iter().enumerate() {
-            for (si, s) in segs[..*ns as usize].iter().enumerate() {
-                block_obs[bfill[s.block as usize]] = (oi as u32, si as u8);
-                bfill[s.block as usize] += 1;
-            }
-        }
-
         // Block pattern: pairs within an observation, and pairs among a free point's blocks.
         let mut pairs: Vec<(u32, u32)> = Vec::new(); // (col, row) with row ≤ col
         let push_set = |blocks: &mut Vec<u32>, pairs: &mut Vec<(u32, u32)>| {
@@ -281,11 +271,8 @@ impl Layout {
             obs_ncols,
             obs_jc_offset,
             obs_segs,
-            obs_point: problem
-                .observations
-                .iter()
-                .map(|o| o.point as u32)
-                .collect(),
+            obs_point: observations.iter().map(|o| o.point as u32).collect(),
+            obs_order,
             jc_len,
             obs_w_offset,
             w_len,
@@ -293,8 +280,6 @@ impl Layout {
             free_points,
             fp_obs_ptr,
             fp_obs,
-            block_obs_ptr,
-            block_obs,
             col_blocks,
             col_row_off,
             col_ptr,
@@ -306,12 +291,6 @@ impl Layout {
         self.block_dim.len()
     }
 
-    /// Range of S's values held by block column b.
-    pub fn block_value_range(&self, b: usize) -> (usize, usize) {
-        let c0 = self.block_offset[b];
-        (self.col_ptr[c0], self.col_ptr[c0 + self.block_dim[b]])
-    }
-
     pub fn segs(&self, o: usize) -> &[Seg] {
         let (s, n) = &self.obs_segs[o];
         &s[..*n as usize]
@@ -319,10 +298,6 @@ impl Layout {
 
     pub fn point_obs(&self, f: usize) -> &[u32] {
         &self.fp_obs[self.fp_obs_ptr[f]..self.fp_obs_ptr[f + 1]]
-    }
-
-    pub fn obs_of_block(&self, b: usize) -> &[(u32, u8)] {
-        &self.block_obs[self.block_obs_ptr[b]..self.block_obs_ptr[b + 1]]
     }
 
     /// The two rows of observation `o`'s camera-side Jacobian restricted to segment `s`.

@@ -561,7 +561,7 @@ mod tests {
                             }
                         }
                     } else {
-                        let f = layout.free_point_index[problem.observations[o].point];
+                        let f = layout.free_point_index[layout.obs_point[o] as usize];
                         if f as usize == (v - nc) / 3 {
                             an = lin.jp[o].column((v - nc) % 3).into_owned();
                         }
@@ -570,9 +570,10 @@ mod tests {
                     if robust {
                         continue;
                     }
+                    let q = layout.obs_order[o] as usize; // problem order of residuals
                     let fd = Vector2::new(
-                        plus[2 * o] - minus[2 * o],
-                        plus[2 * o + 1] - minus[2 * o + 1],
+                        plus[2 * q] - minus[2 * q],
+                        plus[2 * q + 1] - minus[2 * q + 1],
                     ) / (2.0 * h);
                     let scale = an.norm().max(fd.norm()).max(1.0);
                     assert!(
@@ -644,7 +645,7 @@ mod schur_tests {
                     j[(2 * o + 1, base + k)] = j1[k];
                 }
             }
-            let f = layout.free_point_index[problem.observations[o].point];
+            let f = layout.free_point_index[layout.obs_point[o] as usize];
             if f != u32::MAX {
                 for k in 0..3 {
                     j[(2 * o, nc + 3 * f as usize + k)] = lin.jp[o][(0, k)];

@@ -30,6 +30,11 @@ pub(crate) struct Schur {
     /// Values of S (upper triangle, CSC of the layout) and the right-hand side b.
     pub values: Vec<f64>,
     pub rhs: Vec<f64>,
+    /// Work split: contiguous ranges of (internal, point-ordered) observations that start
+    /// and end on point boundaries, one per worker, each with its own copy of S and b.
+    chunks: Vec<(usize, usize)>,
+    work_values: Vec<Vec<f64>>,
+    work_rhs: Vec<Vec<f64>>,
 }
 
 impl Schur {
@@ -44,7 +49,30 @@ impl Schur {
             gc: vec![0.0; layout.n_reduced],
             values: vec![0.0; layout.nnz()],
             rhs: vec![0.0; layout.n_reduced],
+            chunks: Vec::new(),
+            work_values: Vec::new(),
+            work_rhs: Vec::new(),
         }
+        .with_chunks(layout)
+    }
+
+    fn with_chunks(mut self, layout: &Layout) -> Self {
+        let n_obs = layout.obs_point.len();
+        let workers = rayon::current_num_threads().max(1);
+        let mut bounds = vec![0];
+        for w in 1..workers {
+            let mut k = (n_obs * w / workers).max(*bounds.last().unwrap());
+            while k < n_obs && k > 0 && layout.obs_point[k] == layout.obs_point[k - 1] {
+                k += 1;
+            }
+            bounds.push(k);
+        }
+        bounds.push(n_obs);
+        bounds.dedup();
+        self.chunks = bounds.windows(2).map(|w| (w[0], w[1])).collect();
+        self.work_values = vec![Vec::new(); self.chunks.len()];
+        self.work_rhs = vec![Vec::new(); self.chunks.len()];
+        self
     }
 
     /// Computes what depends on the linearization only: V, g_p, diag(U), g_c.
@@ -65,28 +93,33 @@ impl Schur {
                 *v = vv;
                 *g = gg;
             });
-        let offsets = &layout.block_offset;
-        let diag_parts = split_at_offsets(&mut self.diag_c, offsets);
-        let g_parts = split_at_offsets(&mut self.gc, offsets);
-        diag_parts
-            .into_par_iter()
-            .zip(g_parts.into_par_iter())
-            .enumerate()
-            .for_each(|(b, (d, g))| {
-                d.fill(0.0);
-                g.fill(0.0);
-                for &(o, si) in layout.obs_of_block(b) {
-                    let o = o as usize;
-                    let s = layout.segs(o)[si as usize];
-                    let (j0, j1) = layout.jc_rows(&lin.jc, o, &s);
+        // diag(U) and g_c: each worker streams its observations into its own vectors.
+        let n = layout.n_reduced;
+        let chunks = &self.chunks;
+        let parts: Vec<(Vec<f64>, Vec<f64>)> = chunks
+            .par_iter()
+            .map(|&(lo, hi)| {
+                let (mut d, mut g) = (vec![0.0; n], vec![0.0; n]);
+                for o in lo..hi {
                     let r = lin.r[o];
-                    for k in 0..s.len as usize {
-                        let (a, c) = (j0[k], j1[k]);
-                        d[s.block_off as usize + k] += a * a + c * c;
-                        g[s.block_off as usize + k] += a * r.x + c * r.y;
+                    for s in layout.segs(o) {
+                        let base = layout.block_offset[s.block as usize] + s.block_off as usize;
+                        let (j0, j1) = layout.jc_rows(&lin.jc, o, s);
+                        for k in 0..s.len as usize {
+                            d[base + k] += j0[k] * j0[k] + j1[k] * j1[k];
+                            g[base + k] += j0[k] * r.x + j1[k] * r.y;
+                        }
                     }
                 }
-            });
+                (d, g)
+            })
+            .collect();
+        self.diag_c.fill(0.0);
+        self.gc.fill(0.0);
+        for (d, g) in parts {
+            self.diag_c.iter_mut().zip(&d).for_each(|(a, b)| *a += b);
+            self.gc.iter_mut().zip(&g).for_each(|(a, b)| *a += b);
+        }
     }
 
     /// Max-norm of the full gradient Jᵀr.
@@ -144,20 +177,46 @@ impl Schur {
                     }
                 }
             });
-        // S and b by block column.
-        let value_starts: Vec<usize> = (0..layout.num_blocks())
-            .map(|b| layout.block_value_range(b).0)
-            .collect();
-        let val_parts = split_at_offsets(&mut self.values, &value_starts);
-        let rhs_parts = split_at_offsets(&mut self.rhs, &layout.block_offset);
-        let (y, gp, diag_c, gc) = (&self.y, &self.gp, &self.diag_c, &self.gc);
-        val_parts
-            .into_par_iter()
-            .zip(rhs_parts.into_par_iter())
-            .enumerate()
-            .for_each(|(b, (vals, rhs))| {
-                assemble_column(layout, lin, y, gp, diag_c, gc, lambda, b, vals, rhs);
+        // S and b: each worker streams a contiguous range of points into its own copy.
+        let (y, gp) = (&self.y, &self.gp);
+        let (nnz, n) = (layout.nnz(), layout.n_reduced);
+        self.chunks
+            .par_iter()
+            .zip(
+                self.work_values
+                    .par_iter_mut()
+                    .zip(self.work_rhs.par_iter_mut()),
+            )
+            .for_each(|(&(lo, hi), (vals, rhs))| {
+                vals.clear();
+                vals.resize(nnz, 0.0);
+                rhs.clear();
+                rhs.resize(n, 0.0);
+                accumulate_range(layout, lin, y, gp, lo, hi, vals, rhs);
             });
+        // Sum the copies, then −g_c and the damping.
+        let works = &self.work_values;
+        self.values
+            .par_chunks_mut(1 << 14)
+            .enumerate()
+            .for_each(|(c, out)| {
+                let base = c << 14;
+                out.copy_from_slice(&works[0][base..base + out.len()]);
+                for w in &works[1..] {
+                    out.iter_mut().zip(&w[base..]).for_each(|(a, b)| *a += b);
+                }
+            });
+        for (k, r) in self.rhs.iter_mut().enumerate() {
+            *r = -self.gc[k] + self.work_rhs.iter().map(|w| w[k]).sum::<f64>();
+        }
+        for b in 0..layout.num_blocks() {
+            let off_b = layout.block_offset[b];
+            let roff = *layout.col_row_off[b].last().unwrap();
+            for j in 0..layout.block_dim[b] {
+                let d = self.diag_c[off_b + j].clamp(MIN_DIAGONAL, MAX_DIAGONAL);
+                self.values[layout.col_ptr[off_b + j] + roff + j] += lambda * d;
+            }
+        }
         Ok(())
     }
 
@@ -195,90 +254,75 @@ fn lin_point(layout: &Layout, o: usize) -> usize {
     layout.obs_point[o] as usize
 }
 
+/// Adds to `vals` (S, upper triangle) and `rhs` the contributions of the observations
+/// `lo..hi` (whole points): J_cᵀJ_c of every observation, −Y Wᵀ and +Y g_p of every free
+/// point.
 #[allow(clippy::too_many_arguments)]
-fn assemble_column(
+fn accumulate_range(
     layout: &Layout,
     lin: &Linearization,
     y: &[f64],
     gp: &[Vector3<f64>],
-    diag_c: &[f64],
-    gc: &[f64],
-    lambda: f64,
-    b: usize,
+    lo: usize,
+    hi: usize,
     vals: &mut [f64],
     rhs: &mut [f64],
 ) {
-    vals.fill(0.0);
-    let off_b = layout.block_offset[b];
-    let dim_b = layout.block_dim[b];
-    let v0 = layout.col_ptr[off_b];
-    let col_ptr = &layout.col_ptr[off_b..=off_b + dim_b];
-    let rows = &layout.col_blocks[b];
-    let roffs = &layout.col_row_off[b];
-    for k in 0..dim_b {
-        rhs[k] = -gc[off_b + k];
-    }
-    let mut col = Column {
-        vals,
-        col_ptr,
-        v0,
-        rows,
-        roffs,
-        b,
-    };
-    for &(o2, s2i) in layout.obs_of_block(b) {
-        let o2 = o2 as usize;
-        let s2 = layout.segs(o2)[s2i as usize];
-        let (l2, off2) = (s2.len as usize, s2.block_off as usize);
-        let (a0, a1) = layout.jc_rows(&lin.jc, o2, &s2);
-        // U = Σ J_cᵀ J_c.
-        for s1 in layout.segs(o2) {
-            if s1.block as usize > b {
-                continue;
-            }
-            let (l0, l1) = layout.jc_rows(&lin.jc, o2, s1);
-            col.add(
-                [l0, l1],
-                [a0, a1],
-                s1.block,
-                s1.block_off as usize,
-                off2,
-                l2,
-                1.0,
-            );
+    let mut start = lo;
+    while start < hi {
+        let point = layout.obs_point[start];
+        let mut end = start + 1;
+        while end < hi && layout.obs_point[end] == point {
+            end += 1;
         }
-        // − W V⁻¹ Wᵀ and + W V⁻¹ g_p.
-        let f = layout.free_point_index[layout.obs_point[o2] as usize];
-        if f == u32::MAX {
-            continue;
-        }
-        let f = f as usize;
-        let w2 = layout.w_cols(&lin.w, o2, &s2);
-        let y2 = layout.w_cols(y, o2, &s2);
-        let g = gp[f];
-        for k in 0..l2 {
-            rhs[off2 + k] += y2[0][k] * g.x + y2[1][k] * g.y + y2[2][k] * g.z;
-        }
-        for &o1 in layout.point_obs(f) {
-            let o1 = o1 as usize;
-            for s1 in layout.segs(o1) {
-                if s1.block as usize > b {
+        let f = layout.free_point_index[point as usize];
+        for o2 in start..end {
+            for s2 in layout.segs(o2) {
+                let b = s2.block as usize;
+                let (l2, off2) = (s2.len as usize, s2.block_off as usize);
+                let mut col = Column::new(layout, vals, b);
+                // U = Σ J_cᵀ J_c.
+                let (a0, a1) = layout.jc_rows(&lin.jc, o2, s2);
+                for s1 in layout.segs(o2) {
+                    if s1.block as usize <= b {
+                        let (l0, l1) = layout.jc_rows(&lin.jc, o2, s1);
+                        col.add(
+                            [l0, l1],
+                            [a0, a1],
+                            s1.block,
+                            s1.block_off as usize,
+                            off2,
+                            l2,
+                            1.0,
+                        );
+                    }
+                }
+                if f == u32::MAX {
                     continue;
                 }
-                let y1 = layout.w_cols(y, o1, s1);
-                col.add(y1, w2, s1.block, s1.block_off as usize, off2, l2, -1.0);
+                // − Y Wᵀ over every pair of this point's observations, and + Y g_p.
+                let w2 = layout.w_cols(&lin.w, o2, s2);
+                for o1 in start..end {
+                    for s1 in layout.segs(o1) {
+                        if s1.block as usize <= b {
+                            let y1 = layout.w_cols(y, o1, s1);
+                            col.add(y1, w2, s1.block, s1.block_off as usize, off2, l2, -1.0);
+                        }
+                    }
+                }
+                let y2 = layout.w_cols(y, o2, s2);
+                let g = gp[f as usize];
+                let base = layout.block_offset[b] + off2;
+                for k in 0..l2 {
+                    rhs[base + k] += y2[0][k] * g.x + y2[1][k] * g.y + y2[2][k] * g.z;
+                }
             }
         }
-    }
-    // Levenberg–Marquardt damping on the diagonal (the diagonal block is the last row block).
-    let roff = *roffs.last().unwrap();
-    for j in 0..dim_b {
-        let d = diag_c[off_b + j].clamp(MIN_DIAGONAL, MAX_DIAGONAL);
-        col.vals[col_ptr[j] - v0 + roff + j] += lambda * d;
+        start = end;
     }
 }
 
-/// The values of one block column of S.
+/// Block column b of S, inside the full value array.
 struct Column<'a> {
     vals: &'a mut [f64],
     col_ptr: &'a [usize],
@@ -288,7 +332,20 @@ struct Column<'a> {
     b: usize,
 }
 
-impl Column<'_> {
+impl<'a> Column<'a> {
+    #[inline(always)]
+    fn new(layout: &'a Layout, vals: &'a mut [f64], b: usize) -> Self {
+        let off_b = layout.block_offset[b];
+        Column {
+            vals,
+            col_ptr: &layout.col_ptr[off_b..=off_b + layout.block_dim[b]],
+            v0: 0,
+            rows: &layout.col_blocks[b],
+            roffs: &layout.col_row_off[b],
+            b,
+        }
+    }
+
     /// Adds `scale · Σ_k left[k][i] · right[k][j]` to S[(block a, row off1 + i), (block b,
     /// col off2 + j)] for j < len2, upper triangle only. Each column update is a
     /// contiguous axpy, which the compiler vectorizes.
@@ -310,26 +367,92 @@ impl Column<'_> {
         let roff = self.roffs[ai];
         let diag = a as usize == self.b;
         let len1 = left[0].len();
+        let base = roff + off1;
+        // Off-diagonal blocks of the common sizes go through fully unrolled kernels.
+        if !diag {
+            macro_rules! fixed {
+                ($($m:literal x $n:literal),*) => {
+                    match (len1, len2) {
+                        $(($m, $n) => {
+                            return self.add_fixed::<K, $m, $n>(left, right, base, off2, scale);
+                        })*
+                        _ => {}
+                    }
+                };
+            }
+            fixed!(9 x 9, 6 x 6, 6 x 9, 9 x 6);
+        } else if off1 == off2 && len1 == len2 {
+            match len1 {
+                9 => return self.add_fixed_diag::<K, 9>(left, right, base, off2, scale),
+                6 => return self.add_fixed_diag::<K, 6>(left, right, base, off2, scale),
+                _ => {}
+            }
+        }
         for j in 0..len2 {
             let col = off2 + j;
-            let base = self.col_ptr[col] - self.v0 + roff + off1;
+            let start = self.col_ptr[col] - self.v0 + base;
             let n = if diag {
                 len1.min((col + 1).saturating_sub(off1))
             } else {
                 len1
             };
-            let dst = &mut self.vals[base..base + n];
+            let dst = &mut self.vals[start..start + n];
             let c: [f64; K] = std::array::from_fn(|k| scale * right[k][j]);
-            if K == 2 {
-                let (l0, l1) = (&left[0][..n], &left[1][..n]);
-                for ((d, x), y) in dst.iter_mut().zip(l0).zip(l1) {
-                    *d += x * c[0] + y * c[1];
+            for (i, d) in dst.iter_mut().enumerate() {
+                let mut acc = 0.0;
+                for k in 0..K {
+                    acc += left[k][i] * c[k];
                 }
-            } else {
-                let (l0, l1, l2) = (&left[0][..n], &left[1][..n], &left[2][..n]);
-                for (((d, x), y), z) in dst.iter_mut().zip(l0).zip(l1).zip(l2) {
-                    *d += x * c[0] + y * c[1] + z * c[2];
+                *d += acc;
+            }
+        }
+    }
+
+    /// A square block on the diagonal of S: only its upper triangle is stored.
+    #[inline(always)]
+    fn add_fixed_diag<const K: usize, const M: usize>(
+        &mut self,
+        left: [&[f64]; K],
+        right: [&[f64]; K],
+        base: usize,
+        off2: usize,
+        scale: f64,
+    ) {
+        let l: [[f64; M]; K] = std::array::from_fn(|k| left[k][..M].try_into().unwrap());
+        let r: [[f64; M]; K] = std::array::from_fn(|k| right[k][..M].try_into().unwrap());
+        for j in 0..M {
+            let start = self.col_ptr[off2 + j] - self.v0 + base;
+            let dst = &mut self.vals[start..start + j + 1];
+            for (i, d) in dst.iter_mut().enumerate() {
+                let mut acc = 0.0;
+                for k in 0..K {
+                    acc += l[k][i] * r[k][j];
                 }
+                *d += scale * acc;
+            }
+        }
+    }
+
+    #[inline(always)]
+    fn add_fixed<const K: usize, const M: usize, const N: usize>(
+        &mut self,
+        left: [&[f64]; K],
+        right: [&[f64]; K],
+        base: usize,
+        off2: usize,
+        scale: f64,
+    ) {
+        let l: [[f64; M]; K] = std::array::from_fn(|k| left[k][..M].try_into().unwrap());
+        let r: [[f64; N]; K] = std::array::from_fn(|k| right[k][..N].try_into().unwrap());
+        for j in 0..N {
+            let start = self.col_ptr[off2 + j] - self.v0 + base;
+            let dst: &mut [f64; M] = (&mut self.vals[start..start + M]).try_into().unwrap();
+            for i in 0..M {
+                let mut acc = 0.0;
+                for k in 0..K {
+                    acc += l[k][i] * r[k][j];
+                }
+                dst[i] += scale * acc;
             }
         }
     }
