@@ -1,0 +1,1 @@
+//! Initial values from nothing but image measurements and approximate intrinsics.

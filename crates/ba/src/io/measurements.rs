@@ -1,0 +1,798 @@
+//! pingcal's own measurement file: cameras, images, image points, distances and control
+//! points of a photogrammetric network, in JSON (read and written with serde).
+//!
+//! # The format
+//!
+//! A complete example (units: object space in mm, image points in pixels with the origin at
+//! the centre of the top-left pixel, x right, y down, as everywhere in pingcal):
+//!
+//! ```json
+//! {
+//!   "format": "pingcal-measurements v1",
+//!   "cameras": [
+//!     {
+//!       "name": "left",
+//!       "model": "photogrammetric",
+//!       "width": 1280, "height": 720, "pixel_size_mm": 0.00375,
+//!       "intrinsics": {"c": 2.45, "xp": 0.0, "yp": 0.0, "K1": 0.0},
+//!       "calibrate": ["c", "xp", "yp", "K1", "K2", "K3", "P1", "P2"]
+//!     }
+//!   ],
+//!   "images": [
+//!     {"name": "main", "camera": "left",
+//!      "pose": {"centre": [0, 0, 0], "omega_phi_kappa_deg": [0, 0, 0]}, "fixed": true},
+//!     {"name": "st02", "camera": "left"}
+//!   ],
+//!   "image_points": [
+//!     {"image": "main", "point": "17", "x": 640.25, "y": 355.5, "sigma_px": 0.05},
+//!     {"image": "st02", "point": "17", "x": 512.0, "y": 300.75, "sigma_px": 0.05}
+//!   ],
+//!   "distances": [
+//!     {"a": "17", "b": "18", "mm": 1000.12, "sigma_mm": 0.05}
+//!   ],
+//!   "control_points": [
+//!     {"id": "17", "xyz": [0, 2000, 0], "fixed": true},
+//!     {"id": "18", "xyz": [1000, 2000, 0], "sigma_mm": [0.1, 0.1, 0.1]},
+//!     {"id": "19", "xyz": [0, 2500, 300]}
+//!   ]
+//! }
+//! ```
+//!
+//! * `format` is optional on reading; the writer always writes it.
+//! * `model`: only `"photogrammetric"` (the model of SPEC.md, [`PhotogrammetricCamera`]).
+//!   `intrinsics` holds any of `c, xp, yp, K1, K2, K3, P1, P2, B1, B2` (missing ones are 0;
+//!   `c` is required) and `calibrate` lists the ones adjusted (self-calibration); the others
+//!   are held fixed. An empty or missing `calibrate` holds the camera fixed.
+//! * `pose` (optional): the projection centre in object space and the angles ω, φ, κ in
+//!   degrees with R = R_ω R_φ R_κ ([`crate::rotation::from_opk`]), the object → camera
+//!   rotation. An image without a pose gets one from [`crate::initial`]. `fixed: true`
+//!   (default false) holds the pose (datum (a) of issue 3: the main station).
+//! * `image_points`: `sigma_px` is the standard deviation of each coordinate.
+//! * `distances`: measured distance `mm` between the points `a` and `b`, with σ `sigma_mm`.
+//! * `control_points`: `fixed: true` holds the point at `xyz`; `sigma_mm` (per axis) makes
+//!   it a weighted control point; with neither, `xyz` is only an approximate coordinate
+//!   (an initial value for resection) and the point is free.
+//!
+//! # Conversion to a [`Problem`]
+//!
+//! [`Measurements::to_problem`] checks the references and values and builds the
+//! [`Problem`]: one [`crate::problem::Camera`] per camera, one image per image, one point
+//! per distinct point name (in order of first appearance in `image_points`, then control
+//! points and distances), one observation per image point. Fixed control points become
+//! [`crate::problem::Point::fixed`]; weighted control and distances stay in the
+//! [`Measurements`] for the solver's extra observation equations. Points and images without
+//! known coordinates or poses are left at zero / identity and are flagged in
+//! [`Built::known_points`] / [`Built::known_poses`] for the initialiser.
+
+use crate::camera::{PhotogrammetricCamera, PHOTOGRAMMETRIC_PARAMS};
+use crate::pose::Pose;
+use crate::problem::{Camera, Image, Observation, Point, Problem};
+use crate::rotation::{from_opk, to_opk};
+use nalgebra::{Vector2, Vector3};
+use serde::{Deserialize, Serialize};
+use std::collections::{BTreeMap, HashMap};
+use std::path::Path;
+use std::sync::Arc;
+
+/// The format tag written into every file.
+pub const FORMAT: &str = "pingcal-measurements v1";
+
+/// A whole measurement file.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Measurements {
+    /// Format tag ([`FORMAT`]).
+    #[serde(default)]
+    pub format: Option<String>,
+    /// Cameras (interior orientation).
+    #[serde(default)]
+    pub cameras: Vec<CameraSpec>,
+    /// Images.
+    #[serde(default)]
+    pub images: Vec<ImageSpec>,
+    /// Image measurements.
+    #[serde(default)]
+    pub image_points: Vec<ImagePoint>,
+    /// Measured distances between object points.
+    #[serde(default)]
+    pub distances: Vec<Distance>,
+    /// Control points.
+    #[serde(default)]
+    pub control_points: Vec<ControlPoint>,
+}
+
+/// A camera: model, sensor and initial intrinsics.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CameraSpec {
+    /// Name, referred to by images.
+    pub name: String,
+    /// Camera model; only `photogrammetric`.
+    #[serde(default = "default_model")]
+    pub model: String,
+    /// Image width, pixels.
+    pub width: u32,
+    /// Image height, pixels.
+    pub height: u32,
+    /// Pixel pitch, mm.
+    pub pixel_size_mm: f64,
+    /// Initial intrinsics by name (`c` required; others default to 0).
+    pub intrinsics: BTreeMap<String, f64>,
+    /// Names of the intrinsics to adjust.
+    #[serde(default)]
+    pub calibrate: Vec<String>,
+}
+
+fn default_model() -> String {
+    "photogrammetric".into()
+}
+
+/// Exterior orientation as written in the file.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PoseSpec {
+    /// Projection centre in object space, mm.
+    pub centre: [f64; 3],
+    /// ω, φ, κ in degrees (R = R_ω R_φ R_κ, object → camera).
+    pub omega_phi_kappa_deg: [f64; 3],
+}
+
+impl PoseSpec {
+    /// The pose.
+    pub fn to_pose(&self) -> Pose {
+        let [o, p, k] = self.omega_phi_kappa_deg.map(f64::to_radians);
+        Pose::from_rotation_and_centre(from_opk(o, p, k), Vector3::from(self.centre))
+    }
+
+    /// The file form of a pose.
+    pub fn from_pose(pose: &Pose) -> Self {
+        let (o, p, k) = to_opk(&pose.rotation);
+        let c = pose.centre();
+        Self {
+            centre: [c.x, c.y, c.z],
+            omega_phi_kappa_deg: [o.to_degrees(), p.to_degrees(), k.to_degrees()],
+        }
+    }
+}
+
+/// An image.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ImageSpec {
+    /// Name, referred to by image points.
+    pub name: String,
+    /// Name of the camera that took it.
+    pub camera: String,
+    /// Approximate or known pose.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pose: Option<PoseSpec>,
+    /// Pose held fixed (needs `pose`).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub fixed: bool,
+}
+
+/// One image measurement.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ImagePoint {
+    /// Image name.
+    pub image: String,
+    /// Point name.
+    pub point: String,
+    /// Pixel column (origin at the centre of the top-left pixel, right).
+    pub x: f64,
+    /// Pixel row (down).
+    pub y: f64,
+    /// Standard deviation of each coordinate, pixels.
+    pub sigma_px: f64,
+}
+
+/// A measured distance between two object points.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Distance {
+    /// First point.
+    pub a: String,
+    /// Second point.
+    pub b: String,
+    /// Measured distance, mm.
+    pub mm: f64,
+    /// Its standard deviation, mm.
+    pub sigma_mm: f64,
+}
+
+/// A control point.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ControlPoint {
+    /// Point name.
+    pub id: String,
+    /// Coordinates, mm.
+    pub xyz: [f64; 3],
+    /// Standard deviations per axis, mm (weighted control).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sigma_mm: Option<[f64; 3]>,
+    /// Held fixed.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub fixed: bool,
+}
+
+/// What is wrong with a measurement file. Each names the item concerned.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum MeasurementError {
+    /// The file could not be read or written.
+    #[error("{file}: {message}")]
+    Io { file: String, message: String },
+    /// The JSON is malformed or does not match the format.
+    #[error("{file}:{line}:{column}: {message}")]
+    Syntax {
+        file: String,
+        line: usize,
+        column: usize,
+        message: String,
+    },
+    /// An unsupported camera model.
+    #[error("camera '{camera}': unknown model '{model}' (expected 'photogrammetric')")]
+    UnknownModel { camera: String, model: String },
+    /// An intrinsic name that the model does not have.
+    #[error("camera '{camera}': unknown intrinsic parameter '{name}' (expected one of c, xp, yp, K1, K2, K3, P1, P2, B1, B2)")]
+    UnknownParameter { camera: String, name: String },
+    /// A camera without `c`, or with a bad size or pixel pitch.
+    #[error("camera '{camera}': {message}")]
+    BadCamera { camera: String, message: String },
+    /// Two items with the same name.
+    #[error("duplicate {what} '{name}'")]
+    Duplicate { what: &'static str, name: String },
+    /// An image of an unknown camera.
+    #[error("image '{image}' refers to unknown camera '{camera}'")]
+    UnknownCamera { image: String, camera: String },
+    /// A camera that took no image.
+    #[error("camera '{camera}' has no images")]
+    CameraWithoutImages { camera: String },
+    /// An image point of an unknown image.
+    #[error("image point {index} (point '{point}') refers to unknown image '{image}'")]
+    UnknownImage {
+        index: usize,
+        image: String,
+        point: String,
+    },
+    /// A distance between points that are nowhere else.
+    #[error("distance {index} ('{a}'–'{b}') refers to unknown point '{point}' (not measured in any image nor a control point)")]
+    UnknownDistancePoint {
+        index: usize,
+        a: String,
+        b: String,
+        point: String,
+    },
+    /// A fixed image without a pose.
+    #[error("image '{image}' is fixed but has no pose")]
+    FixedWithoutPose { image: String },
+    /// A NaN, infinite or non-positive value where a positive finite one is required.
+    #[error("{what}: {value} is not a valid value ({expected})")]
+    BadValue {
+        what: String,
+        value: f64,
+        expected: &'static str,
+    },
+    /// The same point measured twice in one image.
+    #[error("point '{point}' is measured twice in image '{image}'")]
+    DuplicateObservation { image: String, point: String },
+}
+
+/// Things that do not stop the conversion but deserve the user's attention.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Warning {
+    /// An image with fewer than 3 points cannot be oriented.
+    FewPoints { image: String, count: usize },
+    /// A point measured in one image only, and not control: it adds nothing.
+    SingleRay { point: String },
+}
+
+impl std::fmt::Display for Warning {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Warning::FewPoints { image, count } => write!(
+                f,
+                "image '{image}' has only {count} points (at least 3 are needed to orient it)"
+            ),
+            Warning::SingleRay { point } => {
+                write!(f, "point '{point}' is measured in one image only")
+            }
+        }
+    }
+}
+
+/// A [`Problem`] built from [`Measurements`], with what the initialiser needs to know.
+#[derive(Clone, Debug)]
+pub struct Built {
+    /// The problem.
+    pub problem: Problem,
+    /// Per point: coordinates known (control point, fixed, weighted or approximate).
+    pub known_points: Vec<bool>,
+    /// Per image: pose given in the file.
+    pub known_poses: Vec<bool>,
+    /// Point name → index in `problem.points`.
+    pub point_index: HashMap<String, usize>,
+    /// Non-fatal findings.
+    pub warnings: Vec<Warning>,
+}
+
+fn positive(what: impl FnOnce() -> String, v: f64) -> Result<(), MeasurementError> {
+    if v.is_finite() && v > 0.0 {
+        Ok(())
+    } else {
+        Err(MeasurementError::BadValue {
+            what: what(),
+            value: v,
+            expected: "a positive finite number",
+        })
+    }
+}
+
+fn finite(what: impl FnOnce() -> String, v: f64) -> Result<(), MeasurementError> {
+    if v.is_finite() {
+        Ok(())
+    } else {
+        Err(MeasurementError::BadValue {
+            what: what(),
+            value: v,
+            expected: "a finite number",
+        })
+    }
+}
+
+impl CameraSpec {
+    /// The model and the ten parameter values with their fixed flags.
+    pub fn build(&self) -> Result<Camera, MeasurementError> {
+        if self.model != "photogrammetric" {
+            return Err(MeasurementError::UnknownModel {
+                camera: self.name.clone(),
+                model: self.model.clone(),
+            });
+        }
+        let bad = |message: String| MeasurementError::BadCamera {
+            camera: self.name.clone(),
+            message,
+        };
+        if self.width == 0 || self.height == 0 {
+            return Err(bad(format!(
+                "image size {}×{} must be positive",
+                self.width, self.height
+            )));
+        }
+        positive(
+            || format!("camera '{}': pixel_size_mm", self.name),
+            self.pixel_size_mm,
+        )?;
+        let index = |name: &str| PHOTOGRAMMETRIC_PARAMS.iter().position(|p| *p == name);
+        let mut params = [0.0; 10];
+        for (name, v) in &self.intrinsics {
+            let k = index(name).ok_or_else(|| MeasurementError::UnknownParameter {
+                camera: self.name.clone(),
+                name: name.clone(),
+            })?;
+            finite(|| format!("camera '{}': intrinsic {name}", self.name), *v)?;
+            params[k] = *v;
+        }
+        if !self.intrinsics.contains_key("c") {
+            return Err(bad(
+                "the camera constant 'c' is required in intrinsics".into()
+            ));
+        }
+        positive(|| format!("camera '{}': c", self.name), params[0])?;
+        let mut fixed = vec![true; 10];
+        for name in &self.calibrate {
+            let k = index(name).ok_or_else(|| MeasurementError::UnknownParameter {
+                camera: self.name.clone(),
+                name: name.clone(),
+            })?;
+            fixed[k] = false;
+        }
+        let model = PhotogrammetricCamera::new(self.width, self.height, self.pixel_size_mm);
+        let mut cam = Camera::new(self.name.clone(), Arc::new(model), params.to_vec());
+        cam.fixed = fixed;
+        Ok(cam)
+    }
+}
+
+impl Measurements {
+    /// Parses the JSON text; `file` names the source in errors.
+    pub fn parse(text: &str, file: &str) -> Result<Self, MeasurementError> {
+        serde_json::from_str(text).map_err(|e| MeasurementError::Syntax {
+            file: file.into(),
+            line: e.line(),
+            column: e.column(),
+            message: e.to_string(),
+        })
+    }
+
+    /// Reads a file.
+    pub fn read(path: &Path) -> Result<Self, MeasurementError> {
+        let file = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|e| MeasurementError::Io {
+            file: file.clone(),
+            message: e.to_string(),
+        })?;
+        Self::parse(&text, &file)
+    }
+
+    /// The JSON text (pretty-printed, with the format tag).
+    pub fn to_json(&self) -> String {
+        let mut m = self.clone();
+        m.format = Some(FORMAT.into());
+        // Serialization of these plain structs cannot fail; non-finite numbers become null.
+        serde_json::to_string_pretty(&m).unwrap_or_default()
+    }
+
+    /// Writes the file atomically (a temporary file renamed over the target), so that a
+    /// failed write never leaves a partial file looking complete.
+    pub fn write(&self, path: &Path) -> Result<(), MeasurementError> {
+        let file = path.display().to_string();
+        let io = |e: std::io::Error| MeasurementError::Io {
+            file: file.clone(),
+            message: e.to_string(),
+        };
+        let tmp = path.with_extension("json.partial");
+        std::fs::write(&tmp, self.to_json()).map_err(io)?;
+        std::fs::rename(&tmp, path).map_err(io)
+    }
+
+    /// Checks the file and builds the [`Problem`] (see the module doc).
+    pub fn to_problem(&self) -> Result<Built, MeasurementError> {
+        let mut problem = Problem::default();
+        let mut cam_index = HashMap::new();
+        for c in &self.cameras {
+            if cam_index
+                .insert(c.name.clone(), problem.cameras.len())
+                .is_some()
+            {
+                return Err(MeasurementError::Duplicate {
+                    what: "camera",
+                    name: c.name.clone(),
+                });
+            }
+            problem.cameras.push(c.build()?);
+        }
+        let mut image_index = HashMap::new();
+        let mut known_poses = Vec::new();
+        let mut used_cameras = vec![false; self.cameras.len()];
+        for im in &self.images {
+            let camera =
+                *cam_index
+                    .get(&im.camera)
+                    .ok_or_else(|| MeasurementError::UnknownCamera {
+                        image: im.name.clone(),
+                        camera: im.camera.clone(),
+                    })?;
+            used_cameras[camera] = true;
+            if image_index
+                .insert(im.name.clone(), problem.images.len())
+                .is_some()
+            {
+                return Err(MeasurementError::Duplicate {
+                    what: "image",
+                    name: im.name.clone(),
+                });
+            }
+            if im.fixed && im.pose.is_none() {
+                return Err(MeasurementError::FixedWithoutPose {
+                    image: im.name.clone(),
+                });
+            }
+            if let Some(p) = &im.pose {
+                for v in p.centre.iter().chain(&p.omega_phi_kappa_deg) {
+                    finite(|| format!("pose of image '{}'", im.name), *v)?;
+                }
+            }
+            known_poses.push(im.pose.is_some());
+            problem.images.push(Image {
+                name: im.name.clone(),
+                camera,
+                pose: im.pose.map(|p| p.to_pose()).unwrap_or_default(),
+                fixed: im.fixed,
+            });
+        }
+        if let Some(k) = used_cameras.iter().position(|u| !u) {
+            return Err(MeasurementError::CameraWithoutImages {
+                camera: self.cameras[k].name.clone(),
+            });
+        }
+        let mut point_index: HashMap<String, usize> = HashMap::new();
+        let mut add_point = |problem: &mut Problem, name: &str| -> usize {
+            if let Some(&k) = point_index.get(name) {
+                return k;
+            }
+            point_index.insert(name.to_string(), problem.points.len());
+            problem.points.push(Point {
+                name: name.to_string(),
+                position: Vector3::zeros(),
+                fixed: false,
+            });
+            problem.points.len() - 1
+        };
+        let mut seen = std::collections::HashSet::new();
+        for (index, ip) in self.image_points.iter().enumerate() {
+            let image =
+                *image_index
+                    .get(&ip.image)
+                    .ok_or_else(|| MeasurementError::UnknownImage {
+                        index,
+                        image: ip.image.clone(),
+                        point: ip.point.clone(),
+                    })?;
+            let what = || format!("image point {index} ('{}' in '{}')", ip.point, ip.image);
+            finite(what, ip.x)?;
+            finite(what, ip.y)?;
+            positive(|| format!("{}: sigma_px", what()), ip.sigma_px)?;
+            let point = add_point(&mut problem, &ip.point);
+            if !seen.insert((image, point)) {
+                return Err(MeasurementError::DuplicateObservation {
+                    image: ip.image.clone(),
+                    point: ip.point.clone(),
+                });
+            }
+            problem.observations.push(Observation {
+                image,
+                point,
+                uv: Vector2::new(ip.x, ip.y),
+                sigma: ip.sigma_px,
+            });
+        }
+        let mut control_seen = std::collections::HashSet::new();
+        for cp in &self.control_points {
+            if !control_seen.insert(cp.id.clone()) {
+                return Err(MeasurementError::Duplicate {
+                    what: "control point",
+                    name: cp.id.clone(),
+                });
+            }
+            for v in cp.xyz {
+                finite(|| format!("control point '{}'", cp.id), v)?;
+            }
+            if let Some(s) = cp.sigma_mm {
+                for v in s {
+                    positive(|| format!("control point '{}': sigma_mm", cp.id), v)?;
+                }
+            }
+            let k = add_point(&mut problem, &cp.id);
+            problem.points[k].position = Vector3::from(cp.xyz);
+            problem.points[k].fixed = cp.fixed;
+        }
+        let mut known_points = vec![false; problem.points.len()];
+        for cp in &self.control_points {
+            known_points[point_index[&cp.id]] = true;
+        }
+        for (index, d) in self.distances.iter().enumerate() {
+            for p in [&d.a, &d.b] {
+                if !point_index.contains_key(p.as_str()) {
+                    return Err(MeasurementError::UnknownDistancePoint {
+                        index,
+                        a: d.a.clone(),
+                        b: d.b.clone(),
+                        point: p.clone(),
+                    });
+                }
+            }
+            positive(|| format!("distance {index} ('{}'–'{}')", d.a, d.b), d.mm)?;
+            positive(
+                || format!("distance {index} ('{}'–'{}'): sigma_mm", d.a, d.b),
+                d.sigma_mm,
+            )?;
+        }
+        // Warnings.
+        let mut warnings = Vec::new();
+        let mut per_image = vec![0usize; problem.images.len()];
+        let mut per_point = vec![0usize; problem.points.len()];
+        for o in &problem.observations {
+            per_image[o.image] += 1;
+            per_point[o.point] += 1;
+        }
+        for (im, &n) in problem.images.iter().zip(&per_image) {
+            if n < 3 {
+                warnings.push(Warning::FewPoints {
+                    image: im.name.clone(),
+                    count: n,
+                });
+            }
+        }
+        for (k, pt) in problem.points.iter().enumerate() {
+            if per_point[k] == 1 && !known_points[k] {
+                warnings.push(Warning::SingleRay {
+                    point: pt.name.clone(),
+                });
+            }
+        }
+        Ok(Built {
+            problem,
+            known_points,
+            known_poses,
+            point_index,
+            warnings,
+        })
+    }
+}
+
+/// The model of a camera of a [`Problem`] built by [`Measurements::to_problem`] (or
+/// by hand), when it is the photogrammetric one: needed to write it back.
+pub fn camera_spec(
+    name: &str,
+    model: &PhotogrammetricCamera,
+    params: &[f64],
+    fixed: &[bool],
+) -> CameraSpec {
+    CameraSpec {
+        name: name.into(),
+        model: default_model(),
+        width: model.width,
+        height: model.height,
+        pixel_size_mm: model.pixel_size_mm,
+        intrinsics: PHOTOGRAMMETRIC_PARAMS
+            .iter()
+            .zip(params)
+            .map(|(n, v)| (n.to_string(), *v))
+            .collect(),
+        calibrate: PHOTOGRAMMETRIC_PARAMS
+            .iter()
+            .zip(fixed)
+            .filter(|(_, f)| !**f)
+            .map(|(n, _)| n.to_string())
+            .collect(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    pub(crate) const EXAMPLE: &str = r#"{
+      "format": "pingcal-measurements v1",
+      "cameras": [
+        {"name": "left", "model": "photogrammetric",
+         "width": 1280, "height": 720, "pixel_size_mm": 0.00375,
+         "intrinsics": {"c": 2.45, "xp": 0.0, "yp": 0.0, "K1": 0.0},
+         "calibrate": ["c", "xp", "yp", "K1", "K2", "K3", "P1", "P2"]}
+      ],
+      "images": [
+        {"name": "main", "camera": "left",
+         "pose": {"centre": [0, 0, 0], "omega_phi_kappa_deg": [0, 0, 0]}, "fixed": true},
+        {"name": "st02", "camera": "left"}
+      ],
+      "image_points": [
+        {"image": "main", "point": "17", "x": 640.25, "y": 355.5, "sigma_px": 0.05},
+        {"image": "st02", "point": "17", "x": 512.0, "y": 300.75, "sigma_px": 0.05}
+      ],
+      "distances": [
+        {"a": "17", "b": "18", "mm": 1000.12, "sigma_mm": 0.05}
+      ],
+      "control_points": [
+        {"id": "17", "xyz": [0, 2000, 0], "fixed": true},
+        {"id": "18", "xyz": [1000, 2000, 0], "sigma_mm": [0.1, 0.1, 0.1]},
+        {"id": "19", "xyz": [0, 2500, 300]}
+      ]
+    }"#;
+
+    #[test]
+    fn the_documented_example_parses_builds_and_round_trips() {
+        let m = Measurements::parse(EXAMPLE, "example.json").unwrap();
+        let b = m.to_problem().unwrap();
+        assert_eq!(b.problem.cameras.len(), 1);
+        assert_eq!(b.problem.images.len(), 2);
+        assert_eq!(b.problem.points.len(), 3);
+        assert_eq!(b.problem.observations.len(), 2);
+        let p17 = b.point_index["17"];
+        assert!(b.problem.points[p17].fixed && b.known_points[p17]);
+        let p18 = b.point_index["18"];
+        assert!(!b.problem.points[p18].fixed && b.known_points[p18]);
+        assert_eq!(b.known_poses, vec![true, false]);
+        assert!(b.problem.images[0].fixed);
+        let cam = &b.problem.cameras[0];
+        assert_eq!(cam.params[0], 2.45);
+        assert_eq!(
+            cam.fixed,
+            vec![false, false, false, false, false, false, false, false, true, true]
+        );
+        // Both images have fewer than 3 points.
+        assert_eq!(
+            b.warnings
+                .iter()
+                .filter(|w| matches!(w, Warning::FewPoints { .. }))
+                .count(),
+            2
+        );
+        let again = Measurements::parse(&m.to_json(), "again.json").unwrap();
+        assert_eq!(again.cameras, m.cameras);
+        assert_eq!(again.images, m.images);
+        assert_eq!(again.image_points, m.image_points);
+        assert_eq!(again.distances, m.distances);
+        assert_eq!(again.control_points, m.control_points);
+    }
+
+    #[test]
+    fn writer_writes_a_file_that_reads_back() {
+        let m = Measurements::parse(EXAMPLE, "example.json").unwrap();
+        let dir = std::env::temp_dir().join(format!("pingcal-meas-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("m.json");
+        m.write(&path).unwrap();
+        let back = Measurements::read(&path).unwrap();
+        assert_eq!(back.image_points, m.image_points);
+        std::fs::remove_dir_all(&dir).ok();
+    }
+
+    #[test]
+    fn pose_spec_round_trips() {
+        let p = PoseSpec {
+            centre: [1.0, -2.0, 3.0],
+            omega_phi_kappa_deg: [10.0, -20.0, 170.0],
+        };
+        let q = PoseSpec::from_pose(&p.to_pose());
+        for k in 0..3 {
+            assert!((p.centre[k] - q.centre[k]).abs() < 1e-9);
+            assert!((p.omega_phi_kappa_deg[k] - q.omega_phi_kappa_deg[k]).abs() < 1e-9);
+        }
+    }
+
+    fn edit(f: impl FnOnce(&mut Measurements)) -> Result<Built, MeasurementError> {
+        let mut m = Measurements::parse(EXAMPLE, "example.json").unwrap();
+        f(&mut m);
+        m.to_problem()
+    }
+
+    #[test]
+    fn bad_input_is_named() {
+        let e = edit(|m| m.image_points[1].image = "nowhere".into()).unwrap_err();
+        assert!(matches!(&e, MeasurementError::UnknownImage { image, .. } if image == "nowhere"));
+        assert!(e.to_string().contains("nowhere"));
+        let e = edit(|m| m.distances[0].b = "99".into()).unwrap_err();
+        assert!(
+            matches!(&e, MeasurementError::UnknownDistancePoint { point, .. } if point == "99")
+        );
+        let e = edit(|m| {
+            let mut c = m.cameras[0].clone();
+            c.name = "right".into();
+            m.cameras.push(c);
+        })
+        .unwrap_err();
+        assert_eq!(
+            e,
+            MeasurementError::CameraWithoutImages {
+                camera: "right".into()
+            }
+        );
+        let e = edit(|m| m.images[1].camera = "middle".into()).unwrap_err();
+        assert!(matches!(e, MeasurementError::UnknownCamera { .. }));
+        let e = edit(|m| m.image_points[0].sigma_px = 0.0).unwrap_err();
+        assert!(matches!(e, MeasurementError::BadValue { .. }), "{e}");
+        let e = edit(|m| m.image_points[0].x = f64::NAN).unwrap_err();
+        assert!(matches!(e, MeasurementError::BadValue { .. }), "{e}");
+        let e = edit(|m| m.cameras[0].calibrate.push("K9".into())).unwrap_err();
+        assert!(matches!(e, MeasurementError::UnknownParameter { .. }));
+        let e = edit(|m| {
+            m.cameras[0].intrinsics.remove("c");
+        })
+        .unwrap_err();
+        assert!(matches!(e, MeasurementError::BadCamera { .. }));
+        let e = edit(|m| m.images[1].fixed = true).unwrap_err();
+        assert!(matches!(e, MeasurementError::FixedWithoutPose { .. }));
+        let e = edit(|m| {
+            let d = m.image_points[0].clone();
+            m.image_points.push(d)
+        })
+        .unwrap_err();
+        assert!(matches!(e, MeasurementError::DuplicateObservation { .. }));
+        let e = Measurements::parse("{\"cameras\": [}", "broken.json").unwrap_err();
+        assert!(
+            matches!(&e, MeasurementError::Syntax { file, line: 1, .. } if file == "broken.json"),
+            "{e}"
+        );
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn arbitrary_text_never_panics(s in "\\PC{0,200}") {
+            if let Ok(m) = Measurements::parse(&s, "x.json") {
+                let _ = m.to_problem();
+            }
+        }
+    }
+}
