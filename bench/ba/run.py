@@ -288,9 +288,10 @@ def main():
     ap.add_argument("--pingcal-solvers", default="auto",
                     help="comma-separated values of `pingcal ba --solver` (auto, dense, sparse); "
                          "auto passes no --solver")
-    ap.add_argument("--dense-max-cameras", type=int, default=600,
-                    help="skip DENSE_SCHUR above this many cameras (a dense 9C x 9C Cholesky "
-                         "at 1500 cameras takes minutes per iteration)")
+    ap.add_argument("--dense-max-cameras", type=int, default=300,
+                    help="skip DENSE_SCHUR (and a forced pingcal dense) above this many cameras: "
+                         "the dense 9C x 9C Cholesky costs ~3 s per iteration at 600 cameras and "
+                         "~40 s at 1500, never the fastest there (default 300)")
     ap.add_argument("--generator", choices=["auto", "pingcal", "python"], default="auto",
                     help="auto: pingcal gen-bal when it works, else make_bal.py; python: test mode")
     ap.add_argument("--no-pingcal", action="store_true", help="run the Ceres side only")
