@@ -118,10 +118,17 @@ impl Layout {
         // Observations, in the solver's internal order: by point, so that the W and Y rows
         // of one point are adjacent in memory (the Schur complement reads them together).
         let n_obs = problem.observations.len();
+        // Points are taken in the order of the first block (image) that sees them, so that
+        // consecutive points update neighbouring blocks of S and those stay in cache.
+        let mut first_seen = vec![u32::MAX; problem.points.len()];
+        for ob in &problem.observations {
+            let key = image_slot[ob.image].map_or(u32::MAX - 1, |s| s.block);
+            first_seen[ob.point] = first_seen[ob.point].min(key);
+        }
         let mut obs_order: Vec<u32> = (0..n_obs as u32).collect();
         obs_order.sort_by_key(|&o| {
             let ob = &problem.observations[o as usize];
-            (ob.point, ob.image)
+            (first_seen[ob.point], ob.point, ob.image)
         });
         let observations: Vec<&crate::problem::Observation> = obs_order
             .iter()
@@ -172,11 +179,13 @@ impl Layout {
             obs_segs.push((segs, ns));
         }
 
-        // Free points and their observations.
+        // Free points, numbered in the internal observation order (so that per-point data
+        // is read sequentially too), then free points nobody observes.
         let mut free_point_index = vec![u32::MAX; problem.points.len()];
         let mut free_points = Vec::new();
-        for (p, pt) in problem.points.iter().enumerate() {
-            if !pt.fixed {
+        let observed = observations.iter().map(|o| o.point);
+        for p in observed.chain(0..problem.points.len()) {
+            if !problem.points[p].fixed && free_point_index[p] == u32::MAX {
                 free_point_index[p] = free_points.len() as u32;
                 free_points.push(p);
             }

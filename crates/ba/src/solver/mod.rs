@@ -142,6 +142,8 @@ pub struct Summary {
     pub evaluation_time_s: f64,
     /// Time forming the Schur complement and back-substituting, seconds.
     pub schur_time_s: f64,
+    /// Time setting up (block structure, ordering, symbolic factorization), seconds.
+    pub setup_time_s: f64,
     /// Whether the dense path was used.
     pub dense: bool,
     /// Dimension of the reduced camera system.
@@ -233,6 +235,7 @@ fn run(
     let layout = Layout::new(problem);
     let mut factorizer =
         linear::Factorizer::new(&layout, options.linear_solver, par).map_err(SolveError::Setup)?;
+    let setup_time_s = t0.elapsed().as_secs_f64();
     let mut lin = evaluate::Linearization::new(&layout);
     evaluate::linearize(problem, &layout, &mut lin).map_err(|o| not_projectable(problem, o))?;
     let mut schur = schur::Schur::new(&layout);
@@ -362,6 +365,7 @@ fn run(
         linear_solver_time_s: linear_time,
         evaluation_time_s: eval_time,
         schur_time_s: schur_time,
+        setup_time_s,
         dense: factorizer.is_dense(),
         reduced_dimension: layout.n_reduced,
         reduced_nonzeros: layout.nnz(),

@@ -126,7 +126,8 @@ pub fn run(args: Args) -> CmdResult {
     let rms = problem.rms_px();
     if !quiet {
         println!(
-            "time: evaluation {:.3} s, Schur complement {:.3} s, linear solver {:.3} s, total {:.3} s",
+            "time: setup {:.3} s, evaluation {:.3} s, Schur complement {:.3} s, linear solver {:.3} s, total {:.3} s",
+            summary.setup_time_s,
             summary.evaluation_time_s, summary.schur_time_s, summary.linear_solver_time_s, summary.time_s
         );
     }
@@ -153,6 +154,7 @@ pub fn run(args: Args) -> CmdResult {
             "linear_solver_time_s": summary.linear_solver_time_s,
             "evaluation_time_s": summary.evaluation_time_s,
             "schur_time_s": summary.schur_time_s,
+            "setup_time_s": summary.setup_time_s,
             "linear_solver": if summary.dense { "dense" } else { "sparse" },
             "termination": summary.termination,
             "rms_px": rms,
