@@ -13,7 +13,12 @@ use std::time::Instant;
 #[derive(clap::Args)]
 pub struct Args {
     /// The problem: a BAL file (`.bal`, `.txt`, optionally `.bz2`).
-    pub problem: PathBuf,
+    #[arg(required_unless_present = "synthetic")]
+    pub problem: Option<PathBuf>,
+    /// Instead of a file, a synthetic BAL problem of CAMERASxPOINTS (6 observations per
+    /// point, σ = 0.5 px, seed 1), e.g. `200x30000`.
+    #[arg(long, conflicts_with = "problem")]
+    pub synthetic: Option<String>,
     /// Write the result summary as JSON here.
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -76,7 +81,18 @@ fn parse_loss(s: &str) -> Result<Loss, String> {
 /// Runs the command.
 pub fn run(args: Args) -> CmdResult {
     let t_read = Instant::now();
-    let mut problem = pingcal_ba::bal::read_bal(&args.problem)?;
+    let (mut problem, source) = match (&args.problem, &args.synthetic) {
+        (Some(path), _) => (pingcal_ba::bal::read_bal(path)?, path.display().to_string()),
+        (None, Some(size)) => {
+            let (c, p) = size
+                .split_once('x')
+                .and_then(|(c, p)| Some((c.parse::<usize>().ok()?, p.parse::<usize>().ok()?)))
+                .ok_or_else(|| format!("--synthetic '{size}': expected CAMERASxPOINTS, e.g. 200x30000"))?;
+            let spec = pingcal_ba::synthetic::SyntheticBal { cameras: c, points: p, obs_per_point: 6.min(c), ..Default::default() };
+            (spec.generate()?.problem, format!("synthetic {c}x{p}"))
+        }
+        (None, None) => return Err("give a BAL file or --synthetic CAMERASxPOINTS".into()),
+    };
     if let Some(l) = &args.loss {
         problem.loss = parse_loss(l)?;
     }
@@ -98,7 +114,7 @@ pub fn run(args: Args) -> CmdResult {
     if !quiet {
         println!(
             "{}: {} cameras, {} points, {} observations (read in {:.2} s)",
-            args.problem.display(),
+            source,
             problem.images.len(),
             problem.points.len(),
             problem.observations.len(),
