@@ -1,0 +1,355 @@
+//! Relative orientation of two images: the essential matrix from corresponding rays,
+//! by the normalised 8-point algorithm inside RANSAC, decomposed into the four (R, t)
+//! candidates of which cheirality (points in front of both cameras) keeps one.
+//!
+//! Conventions: the rays are unit vectors in each camera's frame (X right, Y forward,
+//! Z up, as [`crate::camera::CameraModel::unproject`] gives them); the result is the pose of
+//! the second camera in the first camera's frame, `x₂ = R x₁ + t` with |t| = 1, and the
+//! epipolar constraint is `d₂ᵀ E d₁ = 0` with `E = [t]× R`. For the 8-point system the rays
+//! are put on the image plane Y = 1 and normalised (Hartley: centroid at the origin, mean
+//! distance √2), which keeps it well conditioned for narrow fields of view.
+//!
+//! Limitation: the 8-point algorithm is degenerate when all points lie on one plane (a flat
+//! test field seen by two images); then no consistent solution is found and
+//! [`RelativeError::NoConsensus`] is returned. Use control points and resection there.
+
+use crate::pose::Pose;
+use crate::rotation::skew;
+use nalgebra::{Matrix3, SMatrix, Vector2, Vector3};
+use rand::{Rng, SeedableRng};
+
+/// Options of [`relative_orientation`].
+#[derive(Clone, Debug)]
+pub struct RelativeOptions {
+    /// Inlier threshold on the epipolar (angular) error, radians (pixels / focal length in
+    /// pixels).
+    pub threshold_rad: f64,
+    /// RANSAC samples.
+    pub samples: usize,
+    /// Seed of the sampler.
+    pub seed: u64,
+    /// Fewest inliers accepted.
+    pub min_inliers: usize,
+}
+
+impl Default for RelativeOptions {
+    fn default() -> Self {
+        Self {
+            threshold_rad: 2e-3,
+            samples: 500,
+            seed: 1,
+            min_inliers: 12,
+        }
+    }
+}
+
+/// A relative orientation.
+#[derive(Clone, Debug)]
+pub struct Relative {
+    /// Pose of camera 2 in camera 1's frame (|t| = 1).
+    pub pose: Pose,
+    /// The essential matrix.
+    pub essential: Matrix3<f64>,
+    /// Per correspondence: consistent with the epipolar geometry and in front of both.
+    pub inliers: Vec<bool>,
+    /// Median intersection angle of the inliers, degrees (the strength of the baseline).
+    pub median_angle_deg: f64,
+}
+
+/// Why a relative orientation failed.
+#[derive(Clone, Debug, thiserror::Error, PartialEq)]
+pub enum RelativeError {
+    /// Fewer than 8 correspondences.
+    #[error("relative orientation needs at least 8 corresponding rays, got {got}")]
+    TooFewPoints { got: usize },
+    /// No consistent essential matrix.
+    #[error("no essential matrix with at least {needed} inliers (best {best} of {count}); a flat scene or a pure rotation?")]
+    NoConsensus {
+        needed: usize,
+        best: usize,
+        count: usize,
+    },
+}
+
+fn plane(d: &Vector3<f64>) -> Option<Vector2<f64>> {
+    (d.y > 1e-9).then(|| Vector2::new(d.x / d.y, d.z / d.y))
+}
+
+fn normaliser(p: &[Vector2<f64>]) -> Matrix3<f64> {
+    let n = p.len() as f64;
+    let m = p.iter().sum::<Vector2<f64>>() / n;
+    let md = p.iter().map(|q| (q - m).norm()).sum::<f64>() / n;
+    let s = if md > 0.0 { 2f64.sqrt() / md } else { 1.0 };
+    Matrix3::new(s, 0.0, -s * m.x, 0.0, s, -s * m.y, 0.0, 0.0, 1.0)
+}
+
+/// The essential matrix (singular values 1, 1, 0) from eight or more correspondences of
+/// unit rays (camera frames), by the normalised 8-point algorithm.
+pub fn essential_8point(d1: &[Vector3<f64>], d2: &[Vector3<f64>]) -> Option<Matrix3<f64>> {
+    let n = d1.len().min(d2.len());
+    if n < 8 {
+        return None;
+    }
+    let p1: Vec<Vector2<f64>> = d1[..n].iter().map(plane).collect::<Option<_>>()?;
+    let p2: Vec<Vector2<f64>> = d2[..n].iter().map(plane).collect::<Option<_>>()?;
+    let (t1, t2) = (normaliser(&p1), normaliser(&p2));
+    let mut ata = SMatrix::<f64, 9, 9>::zeros();
+    for (a, b) in p1.iter().zip(&p2) {
+        let h1 = t1 * Vector3::new(a.x, a.y, 1.0);
+        let h2 = t2 * Vector3::new(b.x, b.y, 1.0);
+        let mut row = SMatrix::<f64, 9, 1>::zeros();
+        for i in 0..3 {
+            for j in 0..3 {
+                row[3 * i + j] = h2[i] * h1[j];
+            }
+        }
+        ata += row * row.transpose();
+    }
+    let eig = ata.symmetric_eigen();
+    let k = eig.eigenvalues.imin();
+    let v = eig.eigenvectors.column(k);
+    let fhat = Matrix3::from_fn(|i, j| v[3 * i + j]);
+    // Back to homogeneous plane coordinates h = (X/Y, Z/Y, 1) = P d / Y.
+    let eh = t2.transpose() * fhat * t1;
+    let perm = Matrix3::new(1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 1.0, 0.0);
+    let e = perm.transpose() * eh * perm;
+    let svd = e.svd(true, true);
+    let (u, vt) = (svd.u?, svd.v_t?);
+    let e = u * Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, 0.0)) * vt;
+    e.iter().all(|x| x.is_finite()).then_some(e)
+}
+
+/// The four (R, t) of an essential matrix.
+pub fn decompose_essential(e: &Matrix3<f64>) -> Vec<Pose> {
+    let svd = e.svd(true, true);
+    let (Some(mut u), Some(mut vt)) = (svd.u, svd.v_t) else {
+        return Vec::new();
+    };
+    if u.determinant() < 0.0 {
+        u = -u;
+    }
+    if vt.determinant() < 0.0 {
+        vt = -vt;
+    }
+    let w = Matrix3::new(0.0, -1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0);
+    let t: Vector3<f64> = u.column(2).into_owned();
+    let mut out = Vec::new();
+    for r in [u * w * vt, u * w.transpose() * vt] {
+        for s in [1.0, -1.0] {
+            out.push(Pose {
+                rotation: r,
+                translation: t * s,
+            });
+        }
+    }
+    out
+}
+
+/// Depths (λ₁, λ₂) along the two rays of the point closest to both, camera 2 at `pose`
+/// relative to camera 1.
+pub fn depths(pose: &Pose, d1: &Vector3<f64>, d2: &Vector3<f64>) -> Option<(f64, f64)> {
+    // λ₁ R d₁ − λ₂ d₂ = −t, least squares.
+    let a = pose.rotation * d1;
+    let m = nalgebra::Matrix3x2::from_columns(&[a, -d2]);
+    let ata = m.transpose() * m;
+    let sol = ata.try_inverse()? * (m.transpose() * (-pose.translation));
+    Some((sol[0], sol[1]))
+}
+
+fn epipolar_error(e: &Matrix3<f64>, d1: &Vector3<f64>, d2: &Vector3<f64>) -> f64 {
+    let n1 = e * d1;
+    let n2 = e.transpose() * d2;
+    let den = (n1.norm_squared() + n2.norm_squared()).sqrt();
+    if den > 0.0 {
+        (d2.dot(&n1)).abs() / den * 2f64.sqrt()
+    } else {
+        f64::INFINITY
+    }
+}
+
+fn best_decomposition(
+    e: &Matrix3<f64>,
+    d1: &[Vector3<f64>],
+    d2: &[Vector3<f64>],
+    use_k: &[bool],
+) -> (Pose, usize) {
+    let mut best = (Pose::identity(), 0usize);
+    for pose in decompose_essential(e) {
+        let count = (0..d1.len())
+            .filter(|&k| {
+                use_k[k] && depths(&pose, &d1[k], &d2[k]).is_some_and(|(a, b)| a > 0.0 && b > 0.0)
+            })
+            .count();
+        if count > best.1 {
+            best = (pose, count);
+        }
+    }
+    best
+}
+
+/// Relative orientation from corresponding unit rays `d1[k]` ↔ `d2[k]`.
+pub fn relative_orientation(
+    d1: &[Vector3<f64>],
+    d2: &[Vector3<f64>],
+    options: &RelativeOptions,
+) -> Result<Relative, RelativeError> {
+    let n = d1.len().min(d2.len());
+    if n < 8 {
+        return Err(RelativeError::TooFewPoints { got: n });
+    }
+    let needed = options.min_inliers.max(8);
+    let t = options.threshold_rad;
+    let mut rng = rand::rngs::StdRng::seed_from_u64(options.seed);
+    let mut best: Option<(f64, Matrix3<f64>)> = None;
+    let mut sample = Vec::with_capacity(8);
+    for _ in 0..options.samples {
+        sample.clear();
+        while sample.len() < 8 {
+            let k = rng.random_range(0..n);
+            if !sample.contains(&k) {
+                sample.push(k);
+            }
+        }
+        let s1: Vec<_> = sample.iter().map(|&k| d1[k]).collect();
+        let s2: Vec<_> = sample.iter().map(|&k| d2[k]).collect();
+        let Some(e) = essential_8point(&s1, &s2) else {
+            continue;
+        };
+        let score: f64 = (0..n)
+            .map(|k| epipolar_error(&e, &d1[k], &d2[k]).min(t).powi(2))
+            .sum();
+        if best.as_ref().is_none_or(|b| score < b.0) {
+            best = Some((score, e));
+        }
+    }
+    let Some((_, mut e)) = best else {
+        return Err(RelativeError::NoConsensus {
+            needed,
+            best: 0,
+            count: n,
+        });
+    };
+    // Refit on the inliers (twice), then keep the decomposition with the most points in front.
+    let mut inl: Vec<bool> = (0..n)
+        .map(|k| epipolar_error(&e, &d1[k], &d2[k]) < t)
+        .collect();
+    for _ in 0..2 {
+        let s1: Vec<_> = (0..n).filter(|&k| inl[k]).map(|k| d1[k]).collect();
+        let s2: Vec<_> = (0..n).filter(|&k| inl[k]).map(|k| d2[k]).collect();
+        if let Some(e2) = essential_8point(&s1, &s2) {
+            let inl2: Vec<bool> = (0..n)
+                .map(|k| epipolar_error(&e2, &d1[k], &d2[k]) < t)
+                .collect();
+            if inl2.iter().filter(|v| **v).count() >= inl.iter().filter(|v| **v).count() {
+                e = e2;
+                inl = inl2;
+            }
+        }
+    }
+    let (pose, _) = best_decomposition(&e, &d1[..n], &d2[..n], &inl);
+    let mut angles = Vec::new();
+    for k in 0..n {
+        if inl[k] {
+            match depths(&pose, &d1[k], &d2[k]) {
+                Some((a, b)) if a > 0.0 && b > 0.0 => {
+                    // Angle between the two rays at the point, in camera 1's frame.
+                    let r2 = pose.rotation.transpose() * d2[k];
+                    angles.push(d1[k].dot(&r2).clamp(-1.0, 1.0).acos().to_degrees());
+                }
+                _ => inl[k] = false,
+            }
+        }
+    }
+    let count = angles.len();
+    if count < needed {
+        return Err(RelativeError::NoConsensus {
+            needed,
+            best: count,
+            count: n,
+        });
+    }
+    angles.sort_by(f64::total_cmp);
+    Ok(Relative {
+        pose,
+        essential: e,
+        inliers: inl,
+        median_angle_deg: angles[count / 2],
+    })
+}
+
+/// `[t]× R` (for tests and callers that build E from a pose).
+pub fn essential_from_pose(pose: &Pose) -> Matrix3<f64> {
+    skew(&pose.translation) * pose.rotation
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rotation::from_opk;
+    use rand_distr::{Distribution, Normal};
+
+    #[test]
+    fn recovers_relative_pose_from_noisy_rays_with_outliers() {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(4);
+        let truth = Pose {
+            rotation: from_opk(0.1, -0.3, 0.2),
+            translation: Vector3::new(-1.0, 0.1, 0.2).normalize(),
+        };
+        let noise = Normal::new(0.0, 2e-4).unwrap();
+        let (mut d1, mut d2) = (Vec::new(), Vec::new());
+        while d1.len() < 100 {
+            // A 3D scene 3–6 units ahead of camera 1.
+            let x = Vector3::new(
+                rng.random_range(-2.0..2.0),
+                rng.random_range(3.0..6.0),
+                rng.random_range(-1.5..1.5),
+            );
+            let x2 = truth.transform(&x);
+            if x2.y < 0.5 {
+                continue;
+            }
+            let mut n = || Vector3::new(noise.sample(&mut rng), 0.0, noise.sample(&mut rng));
+            d1.push((x / x.y + n()).normalize());
+            d2.push((x2 / x2.y + n()).normalize());
+        }
+        for k in (0..100).step_by(9) {
+            d2[k] = (d2[k] + Vector3::new(0.05, 0.0, -0.04)).normalize();
+        }
+        let r = relative_orientation(&d1, &d2, &RelativeOptions::default()).unwrap();
+        assert!(
+            (r.pose.rotation - truth.rotation).norm() < 2e-3,
+            "{:?}",
+            r.pose.rotation
+        );
+        assert!(
+            (r.pose.translation - truth.translation).norm() < 1e-2,
+            "{:?}",
+            r.pose.translation
+        );
+        for k in (0..100).step_by(9) {
+            assert!(!r.inliers[k]);
+        }
+        assert!(r.inliers.iter().filter(|v| **v).count() > 80);
+        assert!(r.median_angle_deg > 5.0);
+        // The exact E of the truth satisfies the constraint on noise-free rays.
+        let e = essential_from_pose(&truth);
+        let x = Vector3::new(0.3, 4.0, 0.2);
+        assert!(
+            truth
+                .transform(&x)
+                .normalize()
+                .dot(&(e * x.normalize()))
+                .abs()
+                < 1e-12
+        );
+    }
+
+    #[test]
+    fn too_few_points() {
+        let d = vec![Vector3::y(); 5];
+        assert_eq!(
+            relative_orientation(&d, &d, &RelativeOptions::default()).unwrap_err(),
+            RelativeError::TooFewPoints { got: 5 }
+        );
+    }
+}
