@@ -7,6 +7,7 @@
 //! | [`intersection`] | object point from several oriented rays, with angle and cheirality checks |
 //! | [`incremental`] | a whole network: resect, intersect, add images one by one, bundle between steps |
 
+pub mod incremental;
 pub mod intersection;
 pub mod relative;
 pub mod resection;

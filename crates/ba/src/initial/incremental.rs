@@ -1,0 +1,918 @@
+//! A whole network from nothing but image measurements, approximate intrinsics and,
+//! when there are any, points of known (approximate) coordinates.
+//!
+//! * **With control** (some image sees at least `min_resection_points` points of known
+//!   coordinates, or some poses are given): every such image is resected; the points seen
+//!   by two or more oriented images are intersected; a bundle adjustment
+//!   ([`crate::solver::solve`]) refines what is oriented so far; then the images that now
+//!   see enough oriented points are resected, and so on until nothing more can be added.
+//! * **Without control**: the image pair with the strongest geometry (many common points,
+//!   a large median intersection angle) is relatively oriented (the first image at the
+//!   origin with the identity rotation, a unit baseline), its common points intersected,
+//!   and the other images are resected from the intersected points a few at a time, with
+//!   intersection and a bundle adjustment after each round. If three or more control points
+//!   end up intersected, the whole network is brought into the control frame by a
+//!   similarity transform and the control points take their given coordinates.
+//!
+//! Intrinsics are held at their approximate values until `calibrate_from_images` images are
+//! oriented; from then on the bundle adjustments free those the problem frees.
+//!
+//! Images and points that cannot be oriented are left out of the returned problem and
+//! reported with the reason; nothing is ever set to NaN.
+
+use super::intersection::{intersect, IntersectionOptions, Ray};
+use super::relative::{relative_orientation, RelativeOptions};
+use super::resection::{resect, similarity_transform, ResectionOptions};
+use crate::pose::Pose;
+use crate::problem::{Problem, ProblemError};
+use crate::solver::{solve, Options};
+use nalgebra::{Vector2, Vector3};
+use std::collections::HashMap;
+
+/// Options of [`initialise`].
+#[derive(Clone, Debug)]
+pub struct IncrementalOptions {
+    /// Resection (threshold, RANSAC).
+    pub resection: ResectionOptions,
+    /// Intersection (angle and residual checks).
+    pub intersection: IntersectionOptions,
+    /// Relative orientation of the starting pair (no control).
+    pub relative: RelativeOptions,
+    /// Fewest oriented points an image must see to be resected.
+    pub min_resection_points: usize,
+    /// Most images resected per round when growing from a relative orientation (with
+    /// control, every image that sees enough control is resected in the first round).
+    pub images_per_round: usize,
+    /// Candidate pairs tried for the relative orientation.
+    pub candidate_pairs: usize,
+    /// Run a bundle adjustment after each round.
+    pub bundle_between_steps: bool,
+    /// Solver options of those bundle adjustments.
+    pub bundle: Options,
+    /// Free the problem's free intrinsics once this many images are oriented.
+    pub calibrate_from_images: usize,
+}
+
+impl Default for IncrementalOptions {
+    fn default() -> Self {
+        Self {
+            resection: ResectionOptions::default(),
+            intersection: IntersectionOptions::default(),
+            relative: RelativeOptions::default(),
+            min_resection_points: 4,
+            images_per_round: 3,
+            candidate_pairs: 6,
+            bundle_between_steps: true,
+            bundle: Options {
+                max_iterations: 50,
+                ..Options::default()
+            },
+            calibrate_from_images: 3,
+        }
+    }
+}
+
+/// One thing the initialiser did, in order.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Step {
+    /// An image resected from `points` points of which `inliers` agree.
+    Resected {
+        image: String,
+        points: usize,
+        inliers: usize,
+        rms_px: f64,
+    },
+    /// The starting pair of a network without control.
+    RelativePair {
+        first: String,
+        second: String,
+        inliers: usize,
+        median_angle_deg: f64,
+    },
+    /// Points intersected in this round.
+    Intersected { points: usize },
+    /// A bundle adjustment of what is oriented so far.
+    Bundle {
+        images: usize,
+        points: usize,
+        iterations: usize,
+        rms_px: f64,
+        calibrating: bool,
+    },
+    /// A bundle adjustment that failed (its result is discarded).
+    BundleFailed { message: String },
+    /// The network moved into the control frame by a similarity transform.
+    ToControlFrame { points: usize, scale: f64, rms: f64 },
+}
+
+impl std::fmt::Display for Step {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Step::Resected {
+                image,
+                points,
+                inliers,
+                rms_px,
+            } => write!(
+                f,
+                "resected image '{image}': {inliers}/{points} points, RMS {rms_px:.2} px"
+            ),
+            Step::RelativePair {
+                first,
+                second,
+                inliers,
+                median_angle_deg,
+            } => write!(
+                f,
+                "relative orientation '{first}'–'{second}': {inliers} points, median angle {median_angle_deg:.1}°"
+            ),
+            Step::Intersected { points } => write!(f, "intersected {points} points"),
+            Step::Bundle {
+                images,
+                points,
+                iterations,
+                rms_px,
+                calibrating,
+            } => write!(
+                f,
+                "bundle: {images} images, {points} points, {iterations} iterations, RMS {rms_px:.3} px{}",
+                if *calibrating { ", self-calibrating" } else { "" }
+            ),
+            Step::BundleFailed { message } => write!(f, "bundle failed: {message}"),
+            Step::ToControlFrame { points, scale, rms } => write!(
+                f,
+                "similarity onto {points} control points: scale {scale:.6}, RMS {rms:.4}"
+            ),
+        }
+    }
+}
+
+/// The initialised network.
+#[derive(Clone, Debug)]
+pub struct Initialised {
+    /// The oriented images and intersected (or control) points with their observations,
+    /// in the input order; cameras, their fixed flags and the loss as in the input.
+    pub problem: Problem,
+    /// Input image index → index in `problem` (None: not oriented).
+    pub image_map: Vec<Option<usize>>,
+    /// Input point index → index in `problem` (None: not determined).
+    pub point_map: Vec<Option<usize>>,
+    /// What was done, in order.
+    pub steps: Vec<Step>,
+    /// Images that could not be oriented, with the reason.
+    pub unoriented_images: Vec<(String, String)>,
+    /// Points that could not be determined, with the reason.
+    pub undetermined_points: Vec<(String, String)>,
+}
+
+/// Why no network could be started.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum InitError {
+    /// The problem is malformed.
+    #[error(transparent)]
+    Problem(#[from] ProblemError),
+    /// `known_points` / `known_poses` do not match the problem.
+    #[error("{0}")]
+    BadInput(String),
+    /// Neither control nor a usable image pair.
+    #[error("cannot start the network: {0}")]
+    NoStart(String),
+}
+
+struct State<'a> {
+    problem: &'a Problem,
+    params: Vec<Vec<f64>>,
+    poses: Vec<Option<Pose>>,
+    points: Vec<Option<Vector3<f64>>>,
+    by_image: Vec<Vec<usize>>,
+    by_point: Vec<Vec<usize>>,
+    image_reason: Vec<String>,
+    point_reason: Vec<String>,
+    steps: Vec<Step>,
+    /// Whether control coordinates are in the frame (with control) or not (relative start).
+    control_frame: bool,
+    known: Vec<bool>,
+}
+
+impl<'a> State<'a> {
+    fn oriented(&self) -> usize {
+        self.poses.iter().filter(|p| p.is_some()).count()
+    }
+
+    fn resect_image(&mut self, i: usize, options: &IncrementalOptions) -> bool {
+        let im = &self.problem.images[i];
+        let cam = &self.problem.cameras[im.camera];
+        let (mut uv, mut x) = (Vec::new(), Vec::new());
+        for &o in &self.by_image[i] {
+            let ob = &self.problem.observations[o];
+            if let Some(p) = self.points[ob.point] {
+                uv.push(ob.uv);
+                x.push(p);
+            }
+        }
+        match resect(
+            cam.model.as_ref(),
+            &self.params[im.camera],
+            &uv,
+            &x,
+            &options.resection,
+        ) {
+            Ok(r) => {
+                self.poses[i] = Some(r.pose);
+                self.steps.push(Step::Resected {
+                    image: im.name.clone(),
+                    points: uv.len(),
+                    inliers: r.inliers.iter().filter(|v| **v).count(),
+                    rms_px: r.rms_px,
+                });
+                true
+            }
+            Err(e) => {
+                self.image_reason[i] = format!("resection failed: {e}");
+                false
+            }
+        }
+    }
+
+    fn intersect_points(&mut self, options: &IncrementalOptions) -> usize {
+        let mut count = 0;
+        for j in 0..self.points.len() {
+            if self.points[j].is_some() {
+                continue;
+            }
+            let rays: Vec<Ray> = self.by_point[j]
+                .iter()
+                .filter_map(|&o| {
+                    let ob = &self.problem.observations[o];
+                    let pose = self.poses[ob.image]?;
+                    let cam = &self.problem.cameras[self.problem.images[ob.image].camera];
+                    Some(Ray {
+                        pose,
+                        model: cam.model.as_ref(),
+                        params: &self.params[self.problem.images[ob.image].camera],
+                        uv: ob.uv,
+                    })
+                })
+                .collect();
+            if rays.len() < 2 {
+                self.point_reason[j] = format!(
+                    "seen in {} oriented image{} (2 needed)",
+                    rays.len(),
+                    if rays.len() == 1 { "" } else { "s" }
+                );
+                continue;
+            }
+            match intersect(&rays, &options.intersection) {
+                Ok(r) => {
+                    self.points[j] = Some(r.position);
+                    count += 1;
+                }
+                Err(e) => self.point_reason[j] = format!("intersection failed: {e}"),
+            }
+        }
+        if count > 0 {
+            self.steps.push(Step::Intersected { points: count });
+        }
+        count
+    }
+
+    /// The sub-problem of what is oriented, with maps.
+    fn subproblem(&self, calibrating: bool) -> (Problem, Vec<Option<usize>>, Vec<Option<usize>>) {
+        let p = self.problem;
+        let mut sub = Problem {
+            cameras: p.cameras.clone(),
+            loss: p.loss,
+            ..Problem::default()
+        };
+        for (c, params) in sub.cameras.iter_mut().zip(&self.params) {
+            c.params.clone_from(params);
+            if !calibrating {
+                c.fixed.iter_mut().for_each(|f| *f = true);
+            }
+        }
+        let mut image_map = vec![None; p.images.len()];
+        for (i, im) in p.images.iter().enumerate() {
+            if let Some(pose) = self.poses[i] {
+                image_map[i] = Some(sub.images.len());
+                let mut im = im.clone();
+                im.pose = pose;
+                sub.images.push(im);
+            }
+        }
+        let mut point_map = vec![None; p.points.len()];
+        for (j, pt) in p.points.iter().enumerate() {
+            if let Some(x) = self.points[j] {
+                point_map[j] = Some(sub.points.len());
+                let mut pt = pt.clone();
+                pt.position = x;
+                // Control points are held only when the frame is the control frame.
+                pt.fixed = pt.fixed && self.control_frame && self.known[j];
+                sub.points.push(pt);
+            }
+        }
+        for o in &p.observations {
+            if let (Some(i), Some(j)) = (image_map[o.image], point_map[o.point]) {
+                let mut o = *o;
+                o.image = i;
+                o.point = j;
+                // Leave out what does not project at the current estimate.
+                if sub.residual(&o).is_some() {
+                    sub.observations.push(o);
+                }
+            }
+        }
+        (sub, image_map, point_map)
+    }
+
+    fn bundle(&mut self, options: &IncrementalOptions) {
+        let calibrating = self.oriented() >= options.calibrate_from_images;
+        let (mut sub, image_map, point_map) = self.subproblem(calibrating);
+        if sub.observations.is_empty() {
+            return;
+        }
+        // Without control the datum is the first oriented image (scale left to the damping).
+        if !self.control_frame || !sub.points.iter().any(|p| p.fixed) {
+            if let Some(first) = sub.images.first_mut() {
+                first.fixed = true;
+            }
+        }
+        match solve(&mut sub, &options.bundle, |_| {}) {
+            Ok(summary) => {
+                let finite = sub.images.iter().all(|im| {
+                    im.pose
+                        .rotation
+                        .iter()
+                        .chain(im.pose.translation.iter())
+                        .all(|v| v.is_finite())
+                }) && sub
+                    .points
+                    .iter()
+                    .all(|p| p.position.iter().all(|v| v.is_finite()))
+                    && sub
+                        .cameras
+                        .iter()
+                        .all(|c| c.params.iter().all(|v| v.is_finite()));
+                if !finite {
+                    self.steps.push(Step::BundleFailed {
+                        message: "non-finite estimate".into(),
+                    });
+                    return;
+                }
+                for (i, m) in image_map.iter().enumerate() {
+                    if let Some(k) = m {
+                        self.poses[i] = Some(sub.images[*k].pose);
+                    }
+                }
+                for (j, m) in point_map.iter().enumerate() {
+                    if let Some(k) = m {
+                        self.points[j] = Some(sub.points[*k].position);
+                    }
+                }
+                for (c, sc) in self.params.iter_mut().zip(&sub.cameras) {
+                    c.clone_from(&sc.params);
+                }
+                self.steps.push(Step::Bundle {
+                    images: sub.images.len(),
+                    points: sub.points.len(),
+                    iterations: summary.iterations,
+                    rms_px: sub.rms_px(),
+                    calibrating,
+                });
+            }
+            Err(e) => self.steps.push(Step::BundleFailed {
+                message: e.to_string(),
+            }),
+        }
+    }
+
+    /// Tries relative orientation on the best pairs; orients the winner.
+    fn bootstrap(&mut self, options: &IncrementalOptions) -> Result<(), InitError> {
+        let p = self.problem;
+        let mut common: HashMap<(usize, usize), Vec<(usize, usize)>> = HashMap::new();
+        for obs in &self.by_point {
+            for (a, &oa) in obs.iter().enumerate() {
+                for &ob in &obs[a + 1..] {
+                    let (ia, ib) = (p.observations[oa].image, p.observations[ob].image);
+                    let (key, pair) = if ia < ib {
+                        ((ia, ib), (oa, ob))
+                    } else {
+                        ((ib, ia), (ob, oa))
+                    };
+                    if ia != ib {
+                        common.entry(key).or_default().push(pair);
+                    }
+                }
+            }
+        }
+        let mut pairs: Vec<_> = common.into_iter().filter(|(_, v)| v.len() >= 8).collect();
+        pairs.sort_by(|a, b| b.1.len().cmp(&a.1.len()).then(a.0.cmp(&b.0)));
+        let mut best: Option<(f64, (usize, usize), super::relative::Relative)> = None;
+        let mut last_error = String::from("no two images share 8 or more points");
+        for ((ia, ib), obs) in pairs.into_iter().take(options.candidate_pairs.max(1)) {
+            let ray = |o: usize| {
+                let ob = &p.observations[o];
+                let cam = p.images[ob.image].camera;
+                p.cameras[cam].model.unproject(&self.params[cam], &ob.uv)
+            };
+            let (mut d1, mut d2) = (Vec::new(), Vec::new());
+            for (oa, ob) in obs {
+                if let (Some(a), Some(b)) = (ray(oa), ray(ob)) {
+                    d1.push(a);
+                    d2.push(b);
+                }
+            }
+            match relative_orientation(&d1, &d2, &options.relative) {
+                Ok(r) => {
+                    let n = r.inliers.iter().filter(|v| **v).count() as f64;
+                    let score = n * r.median_angle_deg.min(10.0);
+                    if best.as_ref().is_none_or(|b| score > b.0) {
+                        best = Some((score, (ia, ib), r));
+                    }
+                }
+                Err(e) => {
+                    last_error = format!(
+                        "images '{}'–'{}': {e}",
+                        p.images[ia].name, p.images[ib].name
+                    )
+                }
+            }
+        }
+        let Some((_, (ia, ib), r)) = best else {
+            return Err(InitError::NoStart(last_error));
+        };
+        self.poses[ia] = Some(Pose::identity());
+        self.poses[ib] = Some(r.pose);
+        self.steps.push(Step::RelativePair {
+            first: p.images[ia].name.clone(),
+            second: p.images[ib].name.clone(),
+            inliers: r.inliers.iter().filter(|v| **v).count(),
+            median_angle_deg: r.median_angle_deg,
+        });
+        Ok(())
+    }
+
+    fn to_control_frame(&mut self) {
+        let (mut from, mut to, mut idx) = (Vec::new(), Vec::new(), Vec::new());
+        for j in 0..self.points.len() {
+            if let (true, Some(x)) = (self.known[j], self.points[j]) {
+                from.push(x);
+                to.push(self.problem.points[j].position);
+                idx.push(j);
+            }
+        }
+        if from.len() < 3 {
+            return;
+        }
+        let Some((t, s)) = similarity_transform(&from, &to, true) else {
+            return;
+        };
+        if !(s > 0.0 && s.is_finite()) {
+            return;
+        }
+        let map = |x: &Vector3<f64>| s * (t.rotation * x) + t.translation;
+        let rms = (from
+            .iter()
+            .zip(&to)
+            .map(|(a, b)| (map(a) - b).norm_squared())
+            .sum::<f64>()
+            / from.len() as f64)
+            .sqrt();
+        for x in self.points.iter_mut().flatten() {
+            *x = map(x);
+        }
+        for pose in self.poses.iter_mut().flatten() {
+            let c = map(&pose.centre());
+            let r = pose.rotation * t.rotation.transpose();
+            *pose = Pose::from_rotation_and_centre(r, c);
+        }
+        for &j in &idx {
+            self.points[j] = Some(self.problem.points[j].position);
+        }
+        self.control_frame = true;
+        self.steps.push(Step::ToControlFrame {
+            points: from.len(),
+            scale: s,
+            rms,
+        });
+    }
+}
+
+/// Builds initial values for `problem` (see the module doc). `known_points[j]`: point j's
+/// coordinates in `problem` are known (control or approximate); `known_poses[i]`: image i's
+/// pose in `problem` is known. Both may be empty (nothing known).
+pub fn initialise(
+    problem: &Problem,
+    known_points: &[bool],
+    known_poses: &[bool],
+    options: &IncrementalOptions,
+) -> Result<Initialised, InitError> {
+    problem.validate()?;
+    let np = problem.points.len();
+    let ni = problem.images.len();
+    let known: Vec<bool> = if known_points.is_empty() {
+        vec![false; np]
+    } else if known_points.len() == np {
+        known_points.to_vec()
+    } else {
+        return Err(InitError::BadInput(format!(
+            "known_points has {} entries for {np} points",
+            known_points.len()
+        )));
+    };
+    let known_pose: Vec<bool> = if known_poses.is_empty() {
+        vec![false; ni]
+    } else if known_poses.len() == ni {
+        known_poses.to_vec()
+    } else {
+        return Err(InitError::BadInput(format!(
+            "known_poses has {} entries for {ni} images",
+            known_poses.len()
+        )));
+    };
+    let mut by_image = vec![Vec::new(); ni];
+    let mut by_point = vec![Vec::new(); np];
+    for (k, o) in problem.observations.iter().enumerate() {
+        by_image[o.image].push(k);
+        by_point[o.point].push(k);
+    }
+    let mut st = State {
+        problem,
+        params: problem.cameras.iter().map(|c| c.params.clone()).collect(),
+        poses: (0..ni)
+            .map(|i| known_pose[i].then_some(problem.images[i].pose))
+            .collect(),
+        points: vec![None; np],
+        by_image,
+        by_point,
+        image_reason: vec!["never tried".into(); ni],
+        point_reason: vec!["never tried".into(); np],
+        steps: Vec::new(),
+        control_frame: true,
+        known: known.clone(),
+    };
+    for j in 0..np {
+        if known[j] {
+            st.points[j] = Some(problem.points[j].position);
+        }
+    }
+    // Control available?
+    let control_images = (0..ni)
+        .filter(|&i| {
+            st.poses[i].is_none()
+                && st.by_image[i]
+                    .iter()
+                    .filter(|&&o| st.points[problem.observations[o].point].is_some())
+                    .count()
+                    >= options.min_resection_points
+        })
+        .count();
+    let with_control = control_images > 0 || st.oriented() > 0;
+    if with_control {
+        for i in 0..ni {
+            if st.poses[i].is_none() {
+                let n = st.by_image[i]
+                    .iter()
+                    .filter(|&&o| st.points[problem.observations[o].point].is_some())
+                    .count();
+                if n >= options.min_resection_points {
+                    st.resect_image(i, options);
+                } else {
+                    st.image_reason[i] = format!(
+                        "sees {n} points of known coordinates (needs {})",
+                        options.min_resection_points
+                    );
+                }
+            }
+        }
+        if st.oriented() == 0 {
+            return Err(InitError::NoStart(
+                "no image could be resected from the control points".into(),
+            ));
+        }
+    } else {
+        // The control coordinates are in another frame than the relative orientation's.
+        st.control_frame = false;
+        st.points.iter_mut().for_each(|p| *p = None);
+        st.bootstrap(options)?;
+    }
+    st.intersect_points(options);
+    if options.bundle_between_steps {
+        st.bundle(options);
+    }
+    let per_round = if with_control {
+        usize::MAX
+    } else {
+        options.images_per_round.max(1)
+    };
+    loop {
+        let mut cands: Vec<(usize, usize)> = (0..ni)
+            .filter(|&i| st.poses[i].is_none())
+            .map(|i| {
+                let n = st.by_image[i]
+                    .iter()
+                    .filter(|&&o| st.points[problem.observations[o].point].is_some())
+                    .count();
+                (n, i)
+            })
+            .collect();
+        cands.sort_by(|a, b| b.0.cmp(&a.0).then(a.1.cmp(&b.1)));
+        let mut added = 0;
+        for (n, i) in cands {
+            if added >= per_round {
+                break;
+            }
+            if n < options.min_resection_points {
+                st.image_reason[i] = format!(
+                    "sees {n} oriented points (needs {})",
+                    options.min_resection_points
+                );
+                continue;
+            }
+            if st.resect_image(i, options) {
+                added += 1;
+            }
+        }
+        let new_points = st.intersect_points(options);
+        if added == 0 && new_points == 0 {
+            break;
+        }
+        if options.bundle_between_steps {
+            st.bundle(options);
+        }
+    }
+    if !st.control_frame {
+        st.to_control_frame();
+        if st.control_frame && options.bundle_between_steps {
+            st.bundle(options);
+        }
+    }
+    // The result, with the caller's fixed flags on the intrinsics.
+    let (mut sub, image_map, point_map) = st.subproblem(true);
+    for (c, orig) in sub.cameras.iter_mut().zip(&problem.cameras) {
+        c.fixed.clone_from(&orig.fixed);
+    }
+    let unoriented_images = (0..ni)
+        .filter(|&i| st.poses[i].is_none())
+        .map(|i| (problem.images[i].name.clone(), st.image_reason[i].clone()))
+        .collect();
+    let undetermined_points = (0..np)
+        .filter(|&j| st.points[j].is_none())
+        .map(|j| (problem.points[j].name.clone(), st.point_reason[j].clone()))
+        .collect();
+    Ok(Initialised {
+        problem: sub,
+        image_map,
+        point_map,
+        steps: st.steps,
+        unoriented_images,
+        undetermined_points,
+    })
+}
+
+/// Pixel measurements of an image as `(uv, point index)` (a helper for callers that
+/// resect by hand).
+pub fn image_measurements(problem: &Problem, image: usize) -> Vec<(Vector2<f64>, usize)> {
+    problem
+        .observations
+        .iter()
+        .filter(|o| o.image == image)
+        .map(|o| (o.uv, o.point))
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::camera::{CameraModel, PhotogrammetricCamera};
+    use crate::initial::resection::tests::look_at;
+    use crate::problem::{Camera, Image, Observation, Point};
+    use rand::{Rng, SeedableRng};
+    use rand_distr::{Distribution, Normal};
+    use std::sync::Arc;
+
+    /// A 3D test field (a room corner: floor and two walls, mm) photographed from 12
+    /// stations around it; truth and a problem with zero poses/points.
+    fn network(seed: u64, noise_px: f64) -> (Problem, Problem, Vec<bool>) {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+        let cam = PhotogrammetricCamera::new(1280, 720, 0.00375);
+        let mut params = vec![0.0; 10];
+        params[0] = 2.45;
+        params[3] = -0.01;
+        let mut truth = Problem::default();
+        let mut c = Camera::new("left", Arc::new(cam), params.clone());
+        c.fixed = vec![
+            false, false, false, false, true, true, true, true, true, true,
+        ];
+        truth.cameras.push(c);
+        for k in 0..60 {
+            let (a, b) = (rng.random_range(0.0..2000.0), rng.random_range(0.0..1500.0));
+            let p = match k % 3 {
+                0 => Vector3::new(a, b, 0.0),
+                1 => Vector3::new(a, 0.0, b),
+                _ => Vector3::new(0.0, a, b),
+            };
+            truth.points.push(Point {
+                name: format!("T{k}"),
+                position: p,
+                fixed: false,
+            });
+        }
+        let target = Vector3::new(700.0, 700.0, 500.0);
+        for i in 0..12 {
+            let ang = 0.2 + 1.2 * i as f64 / 11.0;
+            let r = 3200.0 + rng.random_range(-300.0..300.0);
+            let centre = Vector3::new(
+                r * ang.cos(),
+                r * ang.sin(),
+                1200.0 + rng.random_range(-300.0..300.0),
+            );
+            truth.images.push(Image {
+                name: format!("S{i}"),
+                camera: 0,
+                pose: look_at(centre, target, rng.random_range(-0.3..0.3)),
+                fixed: false,
+            });
+        }
+        let n = Normal::new(0.0, noise_px).unwrap();
+        for (i, im) in truth.images.iter().enumerate() {
+            for (j, pt) in truth.points.iter().enumerate() {
+                if let Some(uv) = cam.project(&params, &im.pose.transform(&pt.position), None, None)
+                {
+                    if uv.x > 0.0 && uv.y > 0.0 && uv.x < 1279.0 && uv.y < 719.0 {
+                        truth.observations.push(Observation {
+                            image: i,
+                            point: j,
+                            uv: uv + Vector2::new(n.sample(&mut rng), n.sample(&mut rng)),
+                            sigma: noise_px,
+                        });
+                    }
+                }
+            }
+        }
+        let mut p = truth.clone();
+        p.cameras[0].params[0] = 2.5; // approximate c
+        p.cameras[0].params[3] = 0.0;
+        for im in &mut p.images {
+            im.pose = Pose::identity();
+        }
+        let mut known = vec![false; 60];
+        for (j, pt) in p.points.iter_mut().enumerate() {
+            if j < 6 {
+                pt.fixed = true;
+                known[j] = true;
+            } else {
+                pt.position = Vector3::zeros();
+            }
+        }
+        (truth, p, known)
+    }
+
+    #[test]
+    fn with_control_recovers_the_truth() {
+        let (truth, p, known) = network(1, 0.1);
+        let init = initialise(&p, &known, &[], &IncrementalOptions::default()).unwrap();
+        assert!(
+            init.unoriented_images.is_empty(),
+            "{:?}",
+            init.unoriented_images
+        );
+        assert!(
+            init.undetermined_points.is_empty(),
+            "{:?}",
+            init.undetermined_points
+        );
+        let q = &init.problem;
+        for (i, im) in truth.images.iter().enumerate() {
+            let k = init.image_map[i].unwrap();
+            assert!((q.images[k].pose.centre() - im.pose.centre()).norm() < 20.0);
+        }
+        for (j, pt) in truth.points.iter().enumerate() {
+            let k = init.point_map[j].unwrap();
+            assert!(
+                (q.points[k].position - pt.position).norm() < 5.0,
+                "{}",
+                pt.name
+            );
+        }
+        assert!(q.rms_px() < 0.2, "{}", q.rms_px());
+        assert!((q.cameras[0].params[0] - 2.45).abs() < 0.01);
+        assert!(init.steps.iter().any(|s| matches!(
+            s,
+            Step::Bundle {
+                calibrating: true,
+                ..
+            }
+        )));
+    }
+
+    #[test]
+    fn without_control_builds_a_network_of_the_right_shape() {
+        let (truth, p, known) = network(2, 0.1);
+        // Only approximate control (not fixed), so nothing can be resected at first: give
+        // the control only after the relative start by hiding it from the resection.
+        let mut p2 = p.clone();
+        for pt in &mut p2.points {
+            pt.fixed = false;
+        }
+        let hidden = vec![false; known.len()];
+        let init = initialise(&p2, &hidden, &[], &IncrementalOptions::default()).unwrap();
+        assert!(
+            matches!(init.steps[0], Step::RelativePair { .. }),
+            "{:?}",
+            init.steps
+        );
+        assert!(
+            init.unoriented_images.is_empty(),
+            "{:?}",
+            init.unoriented_images
+        );
+        assert!(init.problem.rms_px() < 0.2, "{}", init.problem.rms_px());
+        // Shape: distances between points agree with the truth up to one scale.
+        let q = &init.problem;
+        let d = |a: &Vector3<f64>, b: &Vector3<f64>| (a - b).norm();
+        let (j0, j1) = (init.point_map[0].unwrap(), init.point_map[1].unwrap());
+        let s = d(&truth.points[0].position, &truth.points[1].position)
+            / d(&q.points[j0].position, &q.points[j1].position);
+        for j in 2..20 {
+            let k = init.point_map[j].unwrap();
+            let e = d(&truth.points[j].position, &truth.points[0].position)
+                - s * d(&q.points[k].position, &q.points[j0].position);
+            assert!(e.abs() < 10.0, "point {j}: {e}");
+        }
+    }
+
+    #[test]
+    fn three_control_points_bring_a_relative_network_into_their_frame() {
+        let (truth, mut p, _) = network(4, 0.1);
+        // Three control points: too few to resect, enough for a similarity at the end.
+        let mut known = vec![false; p.points.len()];
+        for j in 0..p.points.len() {
+            p.points[j].fixed = j < 3;
+            known[j] = j < 3;
+        }
+        let init = initialise(&p, &known, &[], &IncrementalOptions::default()).unwrap();
+        assert!(
+            init.steps
+                .iter()
+                .any(|s| matches!(s, Step::ToControlFrame { points: 3, .. })),
+            "{:?}",
+            init.steps
+        );
+        let q = &init.problem;
+        for (i, im) in truth.images.iter().enumerate() {
+            let k = init.image_map[i].unwrap();
+            assert!(
+                (q.images[k].pose.centre() - im.pose.centre()).norm() < 50.0,
+                "image {i}"
+            );
+        }
+        for j in 0..3 {
+            let k = init.point_map[j].unwrap();
+            assert_eq!(q.points[k].position, truth.points[j].position);
+            assert!(q.points[k].fixed);
+        }
+    }
+
+    #[test]
+    fn a_disconnected_image_is_reported_not_nan() {
+        let (_, mut p, known) = network(3, 0.1);
+        // An extra image that sees only two points of its own.
+        p.images.push(Image {
+            name: "lonely".into(),
+            camera: 0,
+            pose: Pose::identity(),
+            fixed: false,
+        });
+        for k in 0..2 {
+            p.points.push(Point {
+                name: format!("L{k}"),
+                position: Vector3::zeros(),
+                fixed: false,
+            });
+            p.observations.push(Observation {
+                image: 12,
+                point: 60 + k,
+                uv: Vector2::new(100.0 + 50.0 * k as f64, 100.0),
+                sigma: 0.1,
+            });
+        }
+        let mut known = known;
+        known.extend([false, false]);
+        let init = initialise(&p, &known, &[], &IncrementalOptions::default()).unwrap();
+        assert_eq!(init.unoriented_images.len(), 1);
+        assert_eq!(init.unoriented_images[0].0, "lonely");
+        assert!(
+            init.unoriented_images[0].1.contains("sees 0"),
+            "{:?}",
+            init.unoriented_images
+        );
+        assert_eq!(init.undetermined_points.len(), 2);
+        assert!(init.image_map[12].is_none());
+        let q = &init.problem;
+        assert!(q
+            .points
+            .iter()
+            .all(|p| p.position.iter().all(|v| v.is_finite())));
+        assert!(q.validate().is_ok());
+    }
+}
