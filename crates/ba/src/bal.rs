@@ -205,7 +205,7 @@ pub fn parse_bal<R: BufRead>(reader: R, path: &str) -> Result<Problem, BalError>
         images,
         points,
         observations,
-        loss: Default::default(),
+        ..Default::default()
     })
 }
 

@@ -84,6 +84,33 @@ pub struct Observation {
     pub sigma: f64,
 }
 
+/// A measured distance between two object points (a caliper-measured scale bar), an
+/// observation equation `|X_a − X_b| − value` with standard deviation `sigma`, in the
+/// object-space unit.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Distance {
+    /// Index into [`Problem::points`].
+    pub a: usize,
+    /// Index into [`Problem::points`].
+    pub b: usize,
+    /// Measured distance.
+    pub value: f64,
+    /// Its standard deviation.
+    pub sigma: f64,
+}
+
+/// A weighted control point: an observation `X − position` of a point's coordinates with
+/// a standard deviation per axis (a fixed control point is a [`Point`] with `fixed`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PointPrior {
+    /// Index into [`Problem::points`].
+    pub point: usize,
+    /// Measured coordinates.
+    pub position: Vector3<f64>,
+    /// Standard deviation of each coordinate.
+    pub sigma: Vector3<f64>,
+}
+
 /// A bundle-adjustment problem.
 #[derive(Clone, Debug, Default)]
 pub struct Problem {
@@ -97,6 +124,10 @@ pub struct Problem {
     pub observations: Vec<Observation>,
     /// Robust loss applied to every image observation.
     pub loss: Loss,
+    /// Measured distances between points (observation equations, not a rescaling).
+    pub distances: Vec<Distance>,
+    /// Weighted control points.
+    pub point_priors: Vec<PointPrior>,
 }
 
 /// Why a problem cannot be adjusted as given.
@@ -143,6 +174,16 @@ pub enum ProblemError {
     /// The loss scale is not positive.
     #[error("the robust loss scale must be positive and finite")]
     BadLoss,
+    /// A distance or control point refers to a point that does not exist.
+    #[error("{what} refers to point {point}, but there are only {count} points")]
+    UnknownPointIn {
+        what: String,
+        point: usize,
+        count: usize,
+    },
+    /// A distance or control observation is unusable.
+    #[error("{0}")]
+    BadConstraint(String),
     /// A point is not imaged by the camera model at the current estimate.
     #[error("point '{point}' cannot be projected into image '{image}' (behind the camera?)")]
     NotProjectable { point: String, image: String },
@@ -225,6 +266,47 @@ impl Problem {
                 return Err(ProblemError::NotFinite {
                     what: format!("observation {index}"),
                 });
+            }
+        }
+        let np = self.points.len();
+        for (k, d) in self.distances.iter().enumerate() {
+            for p in [d.a, d.b] {
+                if p >= np {
+                    return Err(ProblemError::UnknownPointIn {
+                        what: format!("distance {k}"),
+                        point: p,
+                        count: np,
+                    });
+                }
+            }
+            if d.a == d.b {
+                return Err(ProblemError::BadConstraint(format!(
+                    "distance {k} joins point '{}' to itself",
+                    self.points[d.a].name
+                )));
+            }
+            if !(d.value > 0.0 && d.value.is_finite() && d.sigma > 0.0 && d.sigma.is_finite()) {
+                return Err(ProblemError::BadConstraint(format!(
+                    "distance {k} ('{}'–'{}'): value {} and σ {} must be positive and finite",
+                    self.points[d.a].name, self.points[d.b].name, d.value, d.sigma
+                )));
+            }
+        }
+        for (k, c) in self.point_priors.iter().enumerate() {
+            if c.point >= np {
+                return Err(ProblemError::UnknownPointIn {
+                    what: format!("control point {k}"),
+                    point: c.point,
+                    count: np,
+                });
+            }
+            if !(c.position.iter().all(|v| v.is_finite())
+                && c.sigma.iter().all(|s| *s > 0.0 && s.is_finite()))
+            {
+                return Err(ProblemError::BadConstraint(format!(
+                    "control point '{}': coordinates must be finite and σ positive",
+                    self.points[c.point].name
+                )));
             }
         }
         Ok(())

@@ -168,7 +168,7 @@ impl SyntheticBal {
             images,
             points,
             observations,
-            loss: Default::default(),
+            ..Default::default()
         };
         let mut problem = truth.clone();
         let s = self.perturbation;

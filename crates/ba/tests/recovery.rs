@@ -32,7 +32,9 @@ fn look_at(centre: Vector3<f64>, target: Vector3<f64>, roll: f64) -> Pose {
 /// The true network: intrinsics of a MYNT-like wide-angle camera, 14 stations, ~80 points.
 fn truth() -> Problem {
     let model = Arc::new(PhotogrammetricCamera::new(1280, 720, 0.00375));
-    let params = vec![2.45, 0.012, -0.008, -0.021, 4.0e-4, -1.0e-5, 1.5e-4, -1.0e-4, 2.0e-4, -1.0e-4];
+    let params = vec![
+        2.45, 0.012, -0.008, -0.021, 4.0e-4, -1.0e-5, 1.5e-4, -1.0e-4, 2.0e-4, -1.0e-4,
+    ];
     let camera = Camera::new("left", model.clone(), params.clone());
     let mut points = Vec::new();
     for i in 0..6 {
@@ -41,7 +43,8 @@ fn truth() -> Problem {
             points.push(Vector3::new(a, 3000.0, b)); // back wall
             points.push(Vector3::new(-1500.0, 1700.0 + 250.0 * i as f64, b)); // left wall
             if j < 3 {
-                points.push(Vector3::new(a, 1800.0 + 400.0 * j as f64, -1000.0)); // floor
+                points.push(Vector3::new(a, 1800.0 + 400.0 * j as f64, -1000.0));
+                // floor
             }
         }
     }
@@ -51,8 +54,18 @@ fn truth() -> Problem {
         let az = -0.9 + 1.1 * (k as f64) / 13.0;
         let height = [-600.0, 0.0, 600.0][k % 3];
         let centre = target + Vector3::new(2600.0 * az.sin(), -2600.0 * az.cos(), height);
-        let roll = [0.0, std::f64::consts::FRAC_PI_2, 0.0, -std::f64::consts::FRAC_PI_2][k % 4];
-        images.push(Image { name: format!("S{k:02}"), camera: 0, pose: look_at(centre, target, roll), fixed: false });
+        let roll = [
+            0.0,
+            std::f64::consts::FRAC_PI_2,
+            0.0,
+            -std::f64::consts::FRAC_PI_2,
+        ][k % 4];
+        images.push(Image {
+            name: format!("S{k:02}"),
+            camera: 0,
+            pose: look_at(centre, target, roll),
+            fixed: false,
+        });
     }
     let mut observations = Vec::new();
     for (i, im) in images.iter().enumerate() {
@@ -60,18 +73,36 @@ fn truth() -> Problem {
             let xc = im.pose.transform(x);
             if let Some(uv) = model.project(&params, &xc, None, None) {
                 if uv.x > 5.0 && uv.x < 1274.0 && uv.y > 5.0 && uv.y < 714.0 {
-                    observations.push(Observation { image: i, point: p, uv, sigma: SIGMA_PX });
+                    observations.push(Observation {
+                        image: i,
+                        point: p,
+                        uv,
+                        sigma: SIGMA_PX,
+                    });
                 }
             }
         }
     }
-    let mut pts: Vec<Point> =
-        points.iter().enumerate().map(|(p, x)| Point { name: format!("P{p}"), position: *x, fixed: false }).collect();
+    let mut pts: Vec<Point> = points
+        .iter()
+        .enumerate()
+        .map(|(p, x)| Point {
+            name: format!("P{p}"),
+            position: *x,
+            fixed: false,
+        })
+        .collect();
     // Datum: four well-spread control points held fixed.
     for &p in &[0usize, 12, 40, 70] {
         pts[p].fixed = true;
     }
-    Problem { cameras: vec![camera], images, points: pts, observations, loss: Default::default() }
+    Problem {
+        cameras: vec![camera],
+        images,
+        points: pts,
+        observations,
+        ..Default::default()
+    }
 }
 
 /// One noisy realisation, started from a perturbed truth.
@@ -85,10 +116,12 @@ fn realisation(truth: &Problem, seed: u64) -> Problem {
     for im in &mut p.images {
         let dw = Vector3::new(n.sample(&mut rng), n.sample(&mut rng), n.sample(&mut rng)) * 0.01;
         let dc = Vector3::new(n.sample(&mut rng), n.sample(&mut rng), n.sample(&mut rng)) * 30.0;
-        im.pose = Pose::from_rotation_and_centre(exp_so3(&dw) * im.pose.rotation, im.pose.centre() + dc);
+        im.pose =
+            Pose::from_rotation_and_centre(exp_so3(&dw) * im.pose.rotation, im.pose.centre() + dc);
     }
     for pt in p.points.iter_mut().filter(|x| !x.fixed) {
-        pt.position += Vector3::new(n.sample(&mut rng), n.sample(&mut rng), n.sample(&mut rng)) * 20.0;
+        pt.position +=
+            Vector3::new(n.sample(&mut rng), n.sample(&mut rng), n.sample(&mut rng)) * 20.0;
     }
     // Approximate intrinsics only: nominal c, everything else zero.
     let c = &mut p.cameras[0].params;
@@ -100,10 +133,22 @@ fn realisation(truth: &Problem, seed: u64) -> Problem {
 #[test]
 fn monte_carlo_recovers_truth_within_its_spread() {
     let truth = truth();
-    assert!(truth.observations.len() > 600, "{} observations", truth.observations.len());
-    let free_points: Vec<usize> = (0..truth.points.len()).filter(|&p| !truth.points[p].fixed).collect();
+    assert!(
+        truth.observations.len() > 600,
+        "{} observations",
+        truth.observations.len()
+    );
+    let free_points: Vec<usize> = (0..truth.points.len())
+        .filter(|&p| !truth.points[p].fixed)
+        .collect();
     let runs = 40;
-    let options = Options { function_tolerance: 1e-12, parameter_tolerance: 1e-12, max_iterations: 200, threads: 1, ..Options::default() };
+    let options = Options {
+        function_tolerance: 1e-12,
+        parameter_tolerance: 1e-12,
+        max_iterations: 200,
+        threads: 1,
+        ..Options::default()
+    };
     let n_unknowns = 6 * truth.images.len() + 10 + 3 * free_points.len();
     let redundancy = (2 * truth.observations.len() - n_unknowns) as f64;
     // Estimates minus truth, per run: 10 intrinsics then the free point coordinates.
@@ -115,7 +160,9 @@ fn monte_carlo_recovers_truth_within_its_spread() {
         // 2·cost/σ² ~ χ²(redundancy) (cost in σ units is ½Σ(r/σ)²).
         let rms = p.rms_px();
         chi2_sum += rms * rms * (2 * p.observations.len()) as f64 / (SIGMA_PX * SIGMA_PX);
-        let mut e: Vec<f64> = (0..10).map(|k| p.cameras[0].params[k] - truth.cameras[0].params[k]).collect();
+        let mut e: Vec<f64> = (0..10)
+            .map(|k| p.cameras[0].params[k] - truth.cameras[0].params[k])
+            .collect();
         for &q in &free_points {
             e.extend((p.points[q].position - truth.points[q].position).iter());
         }
@@ -124,9 +171,15 @@ fn monte_carlo_recovers_truth_within_its_spread() {
     // (1) The mean χ² over the runs: expected `redundancy`, sd √(2·redundancy/runs); 5 sd.
     let chi2_mean = chi2_sum / runs as f64;
     let tol = 5.0 * (2.0 * redundancy / runs as f64).sqrt();
-    assert!((chi2_mean - redundancy).abs() < tol, "mean χ² {chi2_mean:.1}, redundancy {redundancy}, tol {tol:.1}");
+    assert!(
+        (chi2_mean - redundancy).abs() < tol,
+        "mean χ² {chi2_mean:.1}, redundancy {redundancy}, tol {tol:.1}"
+    );
     let rms_expected = SIGMA_PX * (redundancy / (2 * truth.observations.len()) as f64).sqrt();
-    println!("RMS image residual: {:.4} px, expected {rms_expected:.4} px", (chi2_mean / (2 * truth.observations.len()) as f64).sqrt() * SIGMA_PX);
+    println!(
+        "RMS image residual: {:.4} px, expected {rms_expected:.4} px",
+        (chi2_mean / (2 * truth.observations.len()) as f64).sqrt() * SIGMA_PX
+    );
 
     // (2) Every parameter: the truth within 3 Monte Carlo sd of each estimate, at the
     // normal rate: P(|z| > 3) = 0.27 %; over m·runs trials allow that rate + 5 binomial sd.
@@ -143,12 +196,20 @@ fn monte_carlo_recovers_truth_within_its_spread() {
         outside += xs.iter().filter(|x| x.abs() > 3.0 * sd).count();
         worst_bias = worst_bias.max(mean.abs() / (sd / (runs as f64).sqrt()));
         if k < 10 {
-            println!("{:>3}: bias {:+.3e}, MC sd {:.3e}", ["c", "xp", "yp", "K1", "K2", "K3", "P1", "P2", "B1", "B2"][k], mean, sd);
+            println!(
+                "{:>3}: bias {:+.3e}, MC sd {:.3e}",
+                ["c", "xp", "yp", "K1", "K2", "K3", "P1", "P2", "B1", "B2"][k],
+                mean,
+                sd
+            );
         }
     }
     let trials = (m * runs as usize) as f64;
     let allowed = 0.0027 * trials + 5.0 * (0.0027 * trials).sqrt();
     println!("truth outside 3 MC sd: {outside} of {trials} (allowed {allowed:.0}); worst normalised bias {worst_bias:.2}");
-    assert!((outside as f64) <= allowed, "{outside} of {trials} outside 3 sd");
+    assert!(
+        (outside as f64) <= allowed,
+        "{outside} of {trials} outside 3 sd"
+    );
     assert!(worst_bias < 4.5, "worst normalised bias {worst_bias}");
 }

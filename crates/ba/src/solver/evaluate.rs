@@ -7,7 +7,7 @@
 use super::layout::Layout;
 use crate::problem::Problem;
 use crate::rotation::skew;
-use nalgebra::{Matrix2x3, Vector2};
+use nalgebra::{Matrix2x3, Vector2, Vector3};
 use rayon::prelude::*;
 
 /// The linearization of all observations.
@@ -21,7 +21,10 @@ pub(crate) struct Linearization {
     /// W = J_cᵀ J_p per observation (ncols × 3), stored as its three columns, each
     /// `ncols` long.
     pub w: Vec<f64>,
-    /// ½ Σ ρ.
+    /// Per distance: whitened residual and its Jacobian with respect to the first point
+    /// (the second point's is its negative).
+    pub dist: Vec<(f64, Vector3<f64>)>,
+    /// ½ Σ ρ + ½ Σ distance² + ½ Σ control².
     pub cost: f64,
 }
 
@@ -33,6 +36,7 @@ impl Linearization {
             jc: vec![0.0; layout.jc_len],
             jp: vec![Matrix2x3::zeros(); n],
             w: vec![0.0; layout.w_len],
+            dist: Vec::new(),
             cost: 0.0,
         }
     }
@@ -70,6 +74,21 @@ pub(crate) fn cost(problem: &Problem) -> Result<f64, usize> {
             Ok::<f64, usize>(0.5 * problem.loss.evaluate(r.norm_squared()).0)
         })
         .try_reduce(|| 0.0, |a, b| Ok(a + b))
+        .map(|c| c + constraint_cost(problem))
+}
+
+/// ½ Σ of the whitened distance and control-point residuals.
+pub(crate) fn constraint_cost(problem: &Problem) -> f64 {
+    let mut c = 0.0;
+    for d in &problem.distances {
+        let l = (problem.points[d.a].position - problem.points[d.b].position).norm();
+        c += 0.5 * ((l - d.value) / d.sigma).powi(2);
+    }
+    for pr in &problem.point_priors {
+        let r = (problem.points[pr.point].position - pr.position).component_div(&pr.sigma);
+        c += 0.5 * r.norm_squared();
+    }
+    c
 }
 
 /// Fills `lin` at the current estimate. Returns the (problem) index of an observation that
@@ -134,6 +153,12 @@ pub(crate) fn linearize(
                     col += 1;
                 }
             }
+            if layout.point_slot[o.point].is_some() {
+                for k in 0..3 {
+                    j0[col + k] = jp[(0, k)];
+                    j1[col + k] = jp[(1, k)];
+                }
+            }
             for m in 0..3 {
                 let (a, b) = (jp[(0, m)], jp[(1, m)]);
                 for (wk, (x, y)) in w[m * nc..(m + 1) * nc]
@@ -146,6 +171,13 @@ pub(crate) fn linearize(
             Ok::<f64, usize>(0.5 * rho)
         })
         .try_reduce(|| 0.0, |a, b| Ok(a + b))?;
-    lin.cost = cost;
+    lin.dist.clear();
+    for d in &problem.distances {
+        let v = problem.points[d.a].position - problem.points[d.b].position;
+        let l = v.norm();
+        let u = if l > 0.0 { v / l } else { Vector3::zeros() };
+        lin.dist.push(((l - d.value) / d.sigma, u / d.sigma));
+    }
+    lin.cost = cost + constraint_cost(problem);
     Ok(())
 }

@@ -42,12 +42,17 @@ pub(crate) struct Layout {
     pub n_reduced: usize,
     pub image_slot: Vec<Option<Slot>>,
     pub camera_slot: Vec<Option<Slot>>,
+    /// Free points kept in the reduced system (those joined by a measured distance, which
+    /// couples two points and so cannot be eliminated point by point).
+    pub point_slot: Vec<Option<Slot>>,
+    /// Per distance: the blocks of its two points (if they are in the reduced system).
+    pub distance_slots: Vec<[Option<Slot>; 2]>,
     pub camera_free: Vec<Vec<usize>>,
     /// Per observation: number of camera-side Jacobian columns, offset into the flat
     /// Jacobian buffer (2 values per column), and its segments (at most 2).
     pub obs_ncols: Vec<u16>,
     pub obs_jc_offset: Vec<usize>,
-    pub obs_segs: Vec<([Seg; 2], u8)>,
+    pub obs_segs: Vec<([Seg; 3], u8)>,
     /// Per observation, its point.
     pub obs_point: Vec<u32>,
     /// Internal observation k is `problem.observations[obs_order[k]]`; every per-observation
@@ -108,6 +113,23 @@ impl Layout {
                 block_dim.push(camera_free[c].len());
             }
         }
+        let mut point_slot = vec![None; problem.points.len()];
+        for d in &problem.distances {
+            for p in [d.a, d.b] {
+                if !problem.points[p].fixed && point_slot[p].is_none() {
+                    point_slot[p] = Some(Slot {
+                        block: block_dim.len() as u32,
+                        off: 0,
+                    });
+                    block_dim.push(3);
+                }
+            }
+        }
+        let distance_slots: Vec<[Option<Slot>; 2]> = problem
+            .distances
+            .iter()
+            .map(|d| [point_slot[d.a], point_slot[d.b]])
+            .collect();
         let mut block_offset = Vec::with_capacity(block_dim.len());
         let mut n_reduced = 0;
         for &d in &block_dim {
@@ -147,7 +169,7 @@ impl Layout {
         };
         for o in &observations {
             let im = &problem.images[o.image];
-            let mut segs = [empty; 2];
+            let mut segs = [empty; 3];
             let mut ns = 0u8;
             let mut ncols = 0u16;
             if let Some(s) = image_slot[o.image] {
@@ -171,6 +193,16 @@ impl Layout {
                 ns += 1;
                 ncols += len;
             }
+            if let Some(s) = point_slot[o.point] {
+                segs[ns as usize] = Seg {
+                    block: s.block,
+                    jac_col: ncols,
+                    block_off: 0,
+                    len: 3,
+                };
+                ns += 1;
+                ncols += 3;
+            }
             obs_ncols.push(ncols);
             obs_jc_offset.push(jc_len);
             obs_w_offset.push(w_len);
@@ -185,7 +217,10 @@ impl Layout {
         let mut free_points = Vec::new();
         let observed = observations.iter().map(|o| o.point);
         for p in observed.chain(0..problem.points.len()) {
-            if !problem.points[p].fixed && free_point_index[p] == u32::MAX {
+            if !problem.points[p].fixed
+                && point_slot[p].is_none()
+                && free_point_index[p] == u32::MAX
+            {
                 free_point_index[p] = free_points.len() as u32;
                 free_points.push(p);
             }
@@ -237,6 +272,12 @@ impl Layout {
             }
             push_set(&mut scratch, &mut pairs);
         }
+        for sl in &distance_slots {
+            if let [Some(a), Some(b)] = sl {
+                let (a, b) = (a.block.min(b.block), a.block.max(b.block));
+                pairs.push((b, a));
+            }
+        }
         for b in 0..nb as u32 {
             pairs.push((b, b));
         }
@@ -276,6 +317,8 @@ impl Layout {
             n_reduced,
             image_slot,
             camera_slot,
+            point_slot,
+            distance_slots,
             camera_free,
             obs_ncols,
             obs_jc_offset,
@@ -325,6 +368,55 @@ impl Layout {
         let base = self.obs_w_offset[o] + s.jac_col as usize;
         let len = s.len as usize;
         std::array::from_fn(|m| &w[base + m * nc..base + m * nc + len])
+    }
+
+    /// Scalar offset of a slot in the reduced system.
+    #[inline]
+    pub fn slot_offset(&self, s: Slot) -> usize {
+        self.block_offset[s.block as usize] + s.off as usize
+    }
+
+    /// The step of point `p`: from the reduced system, from back-substitution, or zero.
+    pub fn point_delta(
+        &self,
+        p: usize,
+        dc: &[f64],
+        dp: &[nalgebra::Vector3<f64>],
+    ) -> nalgebra::Vector3<f64> {
+        if let Some(s) = self.point_slot[p] {
+            let o = self.slot_offset(s);
+            nalgebra::Vector3::new(dc[o], dc[o + 1], dc[o + 2])
+        } else if self.free_point_index[p] != u32::MAX {
+            dp[self.free_point_index[p] as usize]
+        } else {
+            nalgebra::Vector3::zeros()
+        }
+    }
+
+    /// Adds `m` (rows of slot `a`, columns of slot `b`) to S's upper triangle, transposing
+    /// when block a comes after block b. `values` is the full value array.
+    pub fn add_to_s(&self, values: &mut [f64], a: Slot, b: Slot, m: &nalgebra::DMatrix<f64>) {
+        let (a, b, m) = if a.block <= b.block {
+            (a, b, m.clone())
+        } else {
+            (b, a, m.transpose())
+        };
+        let (ba, bb) = (a.block as usize, b.block as usize);
+        let ai = self.col_blocks[bb]
+            .binary_search(&a.block)
+            .expect("block pair in the pattern");
+        let roff = self.col_row_off[bb][ai];
+        for j in 0..m.ncols() {
+            let col = b.off as usize + j;
+            let base = self.col_ptr[self.block_offset[bb] + col] + roff;
+            for i in 0..m.nrows() {
+                let row = a.off as usize + i;
+                if ba == bb && row > col {
+                    continue;
+                }
+                values[base + row] += m[(i, j)];
+            }
+        }
     }
 
     /// Number of stored entries of the upper triangle of S.

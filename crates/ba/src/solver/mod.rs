@@ -239,7 +239,7 @@ fn run(
     let mut lin = evaluate::Linearization::new(&layout);
     evaluate::linearize(problem, &layout, &mut lin).map_err(|o| not_projectable(problem, o))?;
     let mut schur = schur::Schur::new(&layout);
-    schur.prepare(&layout, &lin);
+    schur.prepare(&layout, &lin, problem);
 
     let initial_cost = lin.cost;
     if !initial_cost.is_finite() {
@@ -280,7 +280,7 @@ fn run(
         };
         // Solve the damped normal equations.
         let ts = Instant::now();
-        let mut solved = schur.assemble(&layout, &lin, 1.0 / radius).is_ok();
+        let mut solved = schur.assemble(&layout, &lin, problem, 1.0 / radius).is_ok();
         schur_time += ts.elapsed().as_secs_f64();
         if solved {
             dc.copy_from_slice(&schur.rhs);
@@ -305,7 +305,8 @@ fn run(
                 log.push(it);
                 break;
             }
-            let predicted = predicted_decrease(&layout, &lin, &dc, &dp);
+            let predicted = predicted_decrease(&layout, &lin, &dc, &dp)
+                + constraint_decrease(problem, &layout, &lin, &dc, &dp);
             let backup = Backup::take(problem);
             apply_step(problem, &layout, &dc, &dp);
             let te = Instant::now();
@@ -326,7 +327,7 @@ fn run(
                     decrease_factor = 2.0;
                     evaluate::linearize(problem, &layout, &mut lin)
                         .map_err(|o| not_projectable(problem, o))?;
-                    schur.prepare(&layout, &lin);
+                    schur.prepare(&layout, &lin, problem);
                     if converged {
                         termination = Termination::FunctionTolerance;
                         it.iteration_time_s = ti.elapsed().as_secs_f64();
@@ -417,7 +418,37 @@ fn predicted_decrease(
         .sum()
 }
 
+/// The linear model's decrease for the distance and control-point residuals.
+fn constraint_decrease(
+    problem: &Problem,
+    layout: &Layout,
+    lin: &evaluate::Linearization,
+    dc: &[f64],
+    dp: &[Vector3<f64>],
+) -> f64 {
+    let mut dec = 0.0;
+    for (k, d) in problem.distances.iter().enumerate() {
+        let (r, ja) = lin.dist[k];
+        let jd = ja.dot(&(layout.point_delta(d.a, dc, dp) - layout.point_delta(d.b, dc, dp)));
+        dec += -r * jd - 0.5 * jd * jd;
+    }
+    for pr in &problem.point_priors {
+        let r = (problem.points[pr.point].position - pr.position).component_div(&pr.sigma);
+        let jd = layout
+            .point_delta(pr.point, dc, dp)
+            .component_div(&pr.sigma);
+        dec += -r.dot(&jd) - 0.5 * jd.norm_squared();
+    }
+    dec
+}
+
 fn apply_step(problem: &mut Problem, layout: &Layout, dc: &[f64], dp: &[Vector3<f64>]) {
+    for (p, slot) in layout.point_slot.iter().enumerate() {
+        if let Some(s) = slot {
+            let o = layout.slot_offset(*s);
+            problem.points[p].position += Vector3::new(dc[o], dc[o + 1], dc[o + 2]);
+        }
+    }
     for (i, im) in problem.images.iter_mut().enumerate() {
         if let Some(s) = layout.image_slot[i] {
             let o = layout.block_offset[s.block as usize] + s.off as usize;
@@ -498,6 +529,76 @@ mod tests {
             points,
             observations,
             loss,
+            ..Default::default()
+        }
+    }
+
+    /// The gradient of the total cost (image observations, distances, control points) that
+    /// the Schur step uses equals the central difference of the cost.
+    #[test]
+    fn gradient_with_distances_and_control_matches_central_differences() {
+        use crate::problem::{Distance, PointPrior};
+        let mut problem = small_problem(crate::loss::Loss::Cauchy(4.0));
+        problem.distances.push(Distance {
+            a: 0,
+            b: 3,
+            value: 0.55,
+            sigma: 0.01,
+        });
+        problem.distances.push(Distance {
+            a: 3,
+            b: 5,
+            value: 0.5,
+            sigma: 0.02,
+        }); // 5 is fixed
+        problem.point_priors.push(PointPrior {
+            point: 1,
+            position: Vector3::new(-0.29, 0.61, -0.21),
+            sigma: Vector3::new(0.01, 0.02, 0.03),
+        });
+        problem.point_priors.push(PointPrior {
+            point: 3,
+            position: Vector3::new(0.11, 0.49, 0.01),
+            sigma: Vector3::new(0.05, 0.05, 0.05),
+        });
+        let layout = Layout::new(&problem);
+        assert!(
+            layout.point_slot[0].is_some()
+                && layout.point_slot[3].is_some()
+                && layout.point_slot[5].is_none()
+        );
+        let mut lin = evaluate::Linearization::new(&layout);
+        evaluate::linearize(&problem, &layout, &mut lin).unwrap();
+        let mut schur = schur::Schur::new(&layout);
+        schur.prepare(&layout, &lin, &problem);
+        let (nc, np) = (layout.n_reduced, layout.free_points.len());
+        let cost0 = evaluate::cost(&problem).unwrap();
+        assert!((cost0 - lin.cost).abs() <= 1e-12 * cost0);
+        for v in 0..nc + 3 * np {
+            let h = 1e-6;
+            let eval = |sign: f64| {
+                let mut dc = vec![0.0; nc];
+                let mut dp = vec![Vector3::zeros(); np];
+                if v < nc {
+                    dc[v] = sign * h;
+                } else {
+                    dp[(v - nc) / 3][(v - nc) % 3] = sign * h;
+                }
+                let mut q = problem.clone();
+                apply_step(&mut q, &layout, &dc, &dp);
+                evaluate::cost(&q).unwrap()
+            };
+            let fd = (eval(1.0) - eval(-1.0)) / (2.0 * h);
+            let an = if v < nc {
+                schur.gc[v]
+            } else {
+                schur.gp[(v - nc) / 3][(v - nc) % 3]
+            };
+            let scale = an.abs().max(fd.abs()).max(1.0);
+            assert!(
+                (an - fd).abs() / scale < 1e-6,
+                "var {v}: gradient {an} fd {fd}"
+            );
         }
     }
 
@@ -618,13 +719,34 @@ mod schur_tests {
         problem.points[3].fixed = true;
         // A camera shared by two images: its intrinsics get a block of their own.
         problem.images[4].camera = 3;
+        // A distance (its points join the reduced system) and two control points, one on an
+        // eliminated point and one on a reduced one.
+        use crate::problem::{Distance, PointPrior};
+        let d0 = (problem.points[7].position - problem.points[9].position).norm();
+        problem.distances.push(Distance {
+            a: 7,
+            b: 9,
+            value: d0 + 0.01,
+            sigma: 0.005,
+        });
+        let (x10, x9) = (problem.points[10].position, problem.points[9].position);
+        problem.point_priors.push(PointPrior {
+            point: 10,
+            position: x10 + Vector3::new(0.01, 0.0, -0.02),
+            sigma: Vector3::new(0.02, 0.03, 0.04),
+        });
+        problem.point_priors.push(PointPrior {
+            point: 9,
+            position: x9,
+            sigma: Vector3::new(0.1, 0.1, 0.1),
+        });
         let layout = Layout::new(&problem);
         let mut lin = evaluate::Linearization::new(&layout);
         evaluate::linearize(&problem, &layout, &mut lin).unwrap();
         let mut schur = schur::Schur::new(&layout);
-        schur.prepare(&layout, &lin);
+        schur.prepare(&layout, &lin, &problem);
         let lambda = 0.37;
-        schur.assemble(&layout, &lin, lambda).unwrap();
+        schur.assemble(&layout, &lin, &problem, lambda).unwrap();
         let mut dc = schur.rhs.clone();
         let mut fact =
             linear::Factorizer::new(&layout, LinearSolverKind::Sparse, faer::Par::Seq).unwrap();
@@ -655,6 +777,29 @@ mod schur_tests {
                     j[(2 * o, nc + 3 * f as usize + k)] = lin.jp[o][(0, k)];
                     j[(2 * o + 1, nc + 3 * f as usize + k)] = lin.jp[o][(1, k)];
                 }
+            }
+        }
+        // Rows of the distance and the control points.
+        let col_of = |p: usize| -> usize {
+            match layout.point_slot[p] {
+                Some(sl) => layout.slot_offset(sl),
+                None => nc + 3 * layout.free_point_index[p] as usize,
+            }
+        };
+        let extra = 1 + 3 * problem.point_priors.len();
+        let mut j = j.resize_vertically(m + extra, 0.0);
+        let mut r = r.resize_vertically(m + extra, 0.0);
+        let (rd, ja) = lin.dist[0];
+        r[m] = rd;
+        for k in 0..3 {
+            j[(m, col_of(7) + k)] = ja[k];
+            j[(m, col_of(9) + k)] = -ja[k];
+        }
+        for (q, pr) in problem.point_priors.iter().enumerate() {
+            let x = problem.points[pr.point].position;
+            for k in 0..3 {
+                r[m + 1 + 3 * q + k] = (x[k] - pr.position[k]) / pr.sigma[k];
+                j[(m + 1 + 3 * q + k, col_of(pr.point) + k)] = 1.0 / pr.sigma[k];
             }
         }
         let mut h = j.transpose() * &j;
