@@ -1,110 +1,66 @@
-//! AICON / Schneider ring codes (SPEC.md "Coded targets").
+//! Drawing AICON / Schneider ring codes (SPEC.md "Coded targets").
 //!
-//! The table rule (checked against the official 12- and 14-bit tables in
-//! `shared/data/aicon-panel/`, see the tests): N-bit values with an even number of set
-//! bits, at least one pair of opposite sectors (bit i and bit i + N/2) both set, equal to
-//! their smallest cyclic rotation, and not all ones. Target number k is the k-th such value
-//! (1-based) in increasing order.
+//! The code tables themselves (which N-bit values are codes, and which number each one
+//! has) are [`pingcal_targets::aicon::CodeTable`]: the simulator draws exactly the codes the
+//! detector reads. This module only says where the bits go on a printed target.
 //!
-//! This module implements the rule itself because `pingcal_targets::aicon` did not exist
-//! when the simulator was written; it is meant to be merged with it.
-//!
-//! Sector convention used by the renderer: with the target's in-plane axes (t1, t2) (t1 × t2
-//! along the target normal, towards the viewer), sector k covers the angles
-//! `[ψ + k·360°/N, ψ + (k+1)·360°/N)` measured from t1 towards t2, ψ a random rotation of
-//! the printed target, and sector k is retro-reflective iff bit k of the code value is set.
+//! Sector convention (the one of the real AICON panel photographs and of
+//! `pingcal_targets::printable`, read by `pingcal_targets::aicon::RingReader::aicon`):
+//! with the target's in-plane axes (t1, t2), t1 × t2 along the target normal (towards the
+//! viewer), sector k covers the angles `[ψ + k·360°/N, ψ + (k+1)·360°/N)` measured from t1
+//! towards t2 — counter-clockwise as the viewer sees the target, ψ a random rotation of the
+//! printed target — and sector k is retro-reflective iff bit k of the code value is set.
+//! So on a (non-mirrored) photograph the bits follow each other counter-clockwise on
+//! screen, least significant first, bright = 1.
 
-/// Rotates an N-bit value left by one (cyclically).
-fn rotl(v: u32, n: u32) -> u32 {
-    ((v << 1) | (v >> (n - 1))) & ((1 << n) - 1)
+pub use pingcal_targets::aicon::{min_rotation, CodeTable};
+
+/// The code table of `bits`-sector rings (12 or 14 for AICON; any even count 4–24).
+///
+/// # Panics
+/// On an odd bit count or one outside 4–24 (the configuration is validated before).
+pub fn code_table(bits: u32) -> CodeTable {
+    CodeTable::generate(bits).expect("ring bits must be even, 4..=24")
 }
 
-/// The smallest cyclic rotation of an N-bit value.
-pub fn min_rotation(v: u32, n: u32) -> u32 {
-    let mut best = v;
-    let mut x = v;
-    for _ in 1..n {
-        x = rotl(x, n);
-        best = best.min(x);
-    }
-    best
+/// The sector (0 … `bits`−1) of the in-plane direction (x, y) (along t1, t2) on a ring
+/// printed with rotation `rotation` (ψ, radians).
+pub fn sector_at(x: f64, y: f64, rotation: f64, bits: u32) -> u32 {
+    let tau = std::f64::consts::TAU;
+    let phi = (y.atan2(x) - rotation).rem_euclid(tau);
+    ((phi / tau * bits as f64) as u32).min(bits - 1)
 }
 
-/// Whether `v` is a valid N-bit AICON code value (see the module doc).
-pub fn is_code(v: u32, n: u32) -> bool {
-    let all = (1u32 << n) - 1;
-    if v == 0 || v == all || v.count_ones() % 2 != 0 {
-        return false;
-    }
-    let half = n / 2;
-    let opposite = (0..half).any(|i| v & (1 << i) != 0 && v & (1 << (i + half)) != 0);
-    opposite && min_rotation(v, n) == v
-}
-
-/// The N-bit code table in target-number order: element k−1 is the code of target k.
-pub fn code_table(n: u32) -> Vec<u32> {
-    assert!(
-        (4..=24).contains(&n) && n % 2 == 0,
-        "ring bits must be even, 4..=24"
-    );
-    (1..(1u32 << n)).filter(|&v| is_code(v, n)).collect()
-}
-
-/// The code value of target number `number` (1-based), if the table has it.
-pub fn code_of(number: u32, n: u32) -> Option<u32> {
-    let t = code_table(n);
-    t.get((number as usize).checked_sub(1)?).copied()
-}
-
-/// The target number of a ring pattern read at any rotation, if it is a code.
-pub fn number_of(pattern: u32, n: u32) -> Option<u32> {
-    let v = min_rotation(pattern, n);
-    let t = code_table(n);
-    t.binary_search(&v).ok().map(|i| i as u32 + 1)
+/// Whether the ring of code value `code` printed with rotation `rotation` is
+/// retro-reflective in the in-plane direction (x, y).
+pub fn ring_is_retro(code: u32, bits: u32, rotation: f64, x: f64, y: f64) -> bool {
+    code & (1 << sector_at(x, y, rotation, bits)) != 0
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
+    /// Walking counter-clockwise (from t1 towards t2) around a drawn ring, starting at the
+    /// printed rotation ψ, meets the bits of the code least significant first; any start
+    /// reads a rotation of the code, whose smallest rotation is the code again.
     #[test]
-    fn table_sizes_are_the_aicon_ones() {
-        assert_eq!(code_table(12).len(), 147);
-        assert_eq!(code_table(14).len(), 516);
-    }
-
-    #[test]
-    fn tables_match_the_official_files_when_present() {
-        for n in [12u32, 14] {
-            let path = format!(
-                "{}/../../../shared/data/aicon-panel/aicon-{n}bit-codes.txt",
-                env!("CARGO_MANIFEST_DIR")
-            );
-            let Ok(text) = std::fs::read_to_string(&path) else {
-                eprintln!("skipping: {path} not found");
-                continue;
-            };
-            let table = code_table(n);
-            let mut count = 0;
-            for line in text.lines().filter(|l| !l.trim().is_empty()) {
-                let mut it = line.split_whitespace();
-                let k: usize = it.next().unwrap().parse().unwrap();
-                let v: u32 = it.next().unwrap().parse().unwrap();
-                assert_eq!(table[k - 1], v, "{n}-bit target {k}");
-                count += 1;
-            }
-            assert_eq!(count, table.len());
-        }
-    }
-
-    #[test]
-    fn any_rotation_reads_back_the_number() {
-        let n = 14;
-        for k in [1u32, 2, 100, 516] {
-            let mut v = code_of(k, n).unwrap();
-            for _ in 0..n {
-                assert_eq!(number_of(v, n), Some(k));
-                v = rotl(v, n);
+    fn drawn_ring_reads_back_counter_clockwise_lsb_first() {
+        let t = code_table(14);
+        for id in [1u32, 2, 77, 300, 516] {
+            let code = t.code(id).unwrap();
+            for psi in [0.0, 0.3, 2.0, 5.9] {
+                let step = std::f64::consts::TAU / 14.0;
+                let read = |start: f64| -> u32 {
+                    (0..14).fold(0, |acc, k| {
+                        let a = start + (k as f64 + 0.5) * step;
+                        acc | (ring_is_retro(code, 14, psi, a.cos(), a.sin()) as u32) << k
+                    })
+                };
+                assert_eq!(read(psi), code, "id {id}, ψ {psi}");
+                let other = read(psi + 3.0 * step);
+                assert_ne!(other, code, "a rotation of a code is not the code itself");
+                assert_eq!(t.id(min_rotation(other, 14)), Some(id));
             }
         }
     }

@@ -121,7 +121,12 @@ pub struct TargetConfig {
     /// Albedo of the black background print.
     pub black_albedo: f64,
     /// Brightness of retro-reflective material relative to a white Lambertian surface lit
-    /// by the same flash, for light returning to the flash.
+    /// by the same flash, for light returning to the flash. With the default flash this is
+    /// really the exposure of the retro targets: photogrammetrists expose so that the
+    /// targets are bright but not clipped, and a detector refuses clipped targets (their
+    /// edge level is wrong). The default 1.0 keeps a target facing the camera under full
+    /// scale from 0.95 m on (`retro_gain · flash_at_1m / d² + 0.8 · ambient < 1`); 3.0
+    /// clipped every target nearer than 1.6 m, i.e. most of the field.
     pub retro_gain: f64,
 }
 
@@ -139,7 +144,7 @@ impl Default for TargetConfig {
             grid_spacing_mm: 110.0,
             edge_margin_mm: 80.0,
             black_albedo: 0.04,
-            retro_gain: 3.0,
+            retro_gain: 1.0,
         }
     }
 }
@@ -585,7 +590,7 @@ impl SimConfig {
                 "AICON rings have 12 or 14 bits",
             ));
         }
-        let ncodes = crate::coded_target::code_table(t.code_bits).len();
+        let ncodes = crate::coded_target::code_table(t.code_bits).codes.len();
         if t.coded > ncodes {
             return Err(ConfigError::new(
                 "targets.coded",

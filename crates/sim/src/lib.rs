@@ -8,7 +8,7 @@
 //! |---|---|
 //! | [`config`] | every number, from TOML, defaults from the paper, validation |
 //! | [`scene`] | the room corner (tilted, bulged planes), targets, balls on stems, caliper distances; ray casting |
-//! | [`coded_target`] | AICON ring codes (the table rule) |
+//! | [`coded_target`] | where the bits of an AICON ring code go on a printed target (the code tables are `pingcal_targets::aicon`) |
 //! | [`stations`] | the MYNT EYE D1000-like stereo head and the camera stations |
 //! | [`render`] | images: exact ray casting with supersampling, flash, blur, vignetting, noise |
 //! | [`lrf`] | the Hokuyo URG-04LX on a Dynamixel MX-28T: scans with the sensor's noise |

@@ -254,10 +254,7 @@ impl Target {
         if r2 < self.ring_inner * self.ring_inner || r2 > self.ring_outer * self.ring_outer {
             return false;
         }
-        let tau = std::f64::consts::TAU;
-        let phi = (y.atan2(x) - self.code_rotation).rem_euclid(tau);
-        let k = ((phi / tau * self.bits as f64) as u32).min(self.bits - 1);
-        code & (1 << k) != 0
+        coded_target::ring_is_retro(code, self.bits, self.code_rotation, x, y)
     }
 }
 
@@ -685,7 +682,7 @@ impl Scene {
             .collect();
         let coded_idx = farthest_point_sampling(&placed_pts, tc.coded);
         let table = coded_target::code_table(tc.code_bits);
-        let mut numbers: Vec<u32> = (1..=table.len() as u32).collect();
+        let mut numbers: Vec<u32> = (1..=table.codes.len() as u32).collect();
         // Partial Fisher–Yates: the first `coded` numbers are a random choice.
         for i in 0..tc.coded.min(numbers.len()) {
             let j = rng.random_range(i..numbers.len());
@@ -701,7 +698,7 @@ impl Scene {
             let t2 = normal.cross(&t1);
             let coded_pos = coded_idx.iter().position(|&c| c == k);
             let (id, code) = match coded_pos {
-                Some(p) => (numbers[p], Some(table[numbers[p] as usize - 1])),
+                Some(p) => (numbers[p], table.code(numbers[p])),
                 None => {
                     next_plain += 1;
                     (next_plain - 1, None)

@@ -2,7 +2,7 @@
 //! exactly orthogonal, ~78 targets (≥ 24 coded, with valid AICON codes) lying on the
 //! planes, 16 balls of 38 mm on stems off the planes, 5 distances between coded targets.
 
-use pingcal_sim::coded_target::{code_of, number_of};
+use pingcal_sim::coded_target::{code_table, min_rotation};
 use pingcal_sim::scene::Scene;
 use pingcal_sim::SimConfig;
 
@@ -38,9 +38,10 @@ fn the_field_matches_the_paper() {
         assert_eq!(s.targets.len(), 78);
         let coded: Vec<_> = s.targets.iter().filter(|t| t.code.is_some()).collect();
         assert!(coded.len() >= 24);
+        let table = code_table(14);
         for t in &coded {
-            assert_eq!(code_of(t.id, 14), t.code);
-            assert_eq!(number_of(t.code.unwrap(), 14), Some(t.id));
+            assert_eq!(table.code(t.id), t.code);
+            assert_eq!(table.id(min_rotation(t.code.unwrap(), 14)), Some(t.id));
         }
         let mut ids: Vec<u32> = s.targets.iter().map(|t| t.id).collect();
         ids.sort();
