@@ -14,9 +14,13 @@
 mod evaluate;
 mod layout;
 mod linear;
+mod precision;
 mod schur;
 
 pub use linear::LinearSolverKind;
+pub use precision::{
+    precision, IntrinsicsPrecision, PoseSigma, Precision, PrecisionError, MAX_DENSE_PRECISION,
+};
 
 use crate::problem::{Problem, ProblemError};
 use crate::rotation::log_so3;

@@ -1,0 +1,339 @@
+//! Precision of an adjusted network, as Australis reports it: σ0, redundancy, RMS image
+//! residual, standard deviations and correlations of the intrinsics, standard deviations
+//! of every pose and every point.
+//!
+//! Computed from the Schur structure without inverting the full normal matrix: the
+//! cofactor matrix of the camera-side unknowns is `Q_cc = S⁻¹` (S undamped), and that of a
+//! point eliminated by the Schur complement is
+//! `Q_pp = V⁻¹ + (W V⁻¹)ᵀ S⁻¹ (W V⁻¹)`, which needs only the blocks of S⁻¹ of the images
+//! that see the point. Covariances are `σ0² · Q`, σ0 the a-posteriori standard deviation
+//! of unit weight, `σ0² = 2·cost / redundancy` (cost = ½ Σ of the whitened residuals).
+//!
+//! A network whose datum is not fully defined (free position, orientation or scale) has a
+//! singular S: this is diagnosed and named, never solved.
+
+use super::evaluate::{linearize, Linearization};
+use super::layout::Layout;
+use super::schur::Schur;
+use crate::problem::{Problem, ProblemError};
+use nalgebra::{DMatrix, Matrix3, Vector3};
+
+/// Largest reduced camera system whose inverse is formed densely.
+pub const MAX_DENSE_PRECISION: usize = 6000;
+
+/// Standard deviations and correlations of one camera's free intrinsics.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct IntrinsicsPrecision {
+    /// Camera name.
+    pub camera: String,
+    /// Names of the free parameters (the model's names).
+    pub names: Vec<String>,
+    /// Their values.
+    pub values: Vec<f64>,
+    /// Their standard deviations (σ0-scaled).
+    pub sigmas: Vec<f64>,
+    /// Correlation matrix, row by row, in the order of `names`.
+    pub correlation: Vec<Vec<f64>>,
+    /// Pairs whose |correlation| exceeds 0.95.
+    pub high_correlations: Vec<(String, String, f64)>,
+}
+
+/// Standard deviation of one image's exterior orientation.
+#[derive(Clone, Copy, Debug, serde::Serialize)]
+pub struct PoseSigma {
+    /// Of the small rotation about the camera axes, radians.
+    pub rotation_rad: [f64; 3],
+    /// Of the projection centre in object space.
+    pub centre: [f64; 3],
+}
+
+/// The precision of a network.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Precision {
+    /// A-posteriori standard deviation of unit weight.
+    pub sigma0: f64,
+    /// Observations minus unknowns (image coordinates, distances, control coordinates).
+    pub redundancy: i64,
+    /// Number of scalar observations.
+    pub observations: usize,
+    /// Number of unknowns.
+    pub unknowns: usize,
+    /// RMS image residual, pixels.
+    pub rms_image_px: f64,
+    /// Per camera with free intrinsics.
+    pub intrinsics: Vec<IntrinsicsPrecision>,
+    /// Per image (None for a fixed pose).
+    pub poses: Vec<Option<PoseSigma>>,
+    /// Per point: its covariance (None for a fixed point).
+    #[serde(skip)]
+    pub point_covariances: Vec<Option<Matrix3<f64>>>,
+}
+
+impl Precision {
+    /// Standard deviations of a point's coordinates.
+    pub fn point_sigma(&self, p: usize) -> Option<Vector3<f64>> {
+        self.point_covariances[p]
+            .map(|c| Vector3::new(c[(0, 0)].sqrt(), c[(1, 1)].sqrt(), c[(2, 2)].sqrt()))
+    }
+}
+
+/// Why the precision cannot be computed.
+#[derive(Debug, thiserror::Error)]
+pub enum PrecisionError {
+    /// The problem is malformed or does not project.
+    #[error(transparent)]
+    Problem(#[from] ProblemError),
+    /// The datum is not defined: S is singular.
+    #[error("the network has a datum defect: {0}")]
+    DatumDefect(String),
+    /// A point's position is not determined by its observations.
+    #[error("point '{0}' is not determined: it needs rays from at least two images with an angle between them")]
+    PointUndetermined(String),
+    /// The reduced system is too large to invert densely.
+    #[error("the reduced camera system has {0} unknowns; precision is computed for at most {MAX_DENSE_PRECISION}")]
+    TooLarge(usize),
+    /// More unknowns than observations.
+    #[error("redundancy {0} is not positive: more unknowns than observations")]
+    NoRedundancy(i64),
+}
+
+/// Computes the precision of `problem` at its current (adjusted) estimate.
+pub fn precision(problem: &Problem) -> Result<Precision, PrecisionError> {
+    problem.validate()?;
+    let layout = Layout::new(problem);
+    let n = layout.n_reduced;
+    if n > MAX_DENSE_PRECISION {
+        return Err(PrecisionError::TooLarge(n));
+    }
+    let mut lin = Linearization::new(&layout);
+    linearize(problem, &layout, &mut lin).map_err(|o| {
+        let ob = &problem.observations[o];
+        ProblemError::NotProjectable {
+            point: problem.points[ob.point].name.clone(),
+            image: problem.images[ob.image].name.clone(),
+        }
+    })?;
+    let mut schur = Schur::new(&layout);
+    schur.prepare(&layout, &lin, problem);
+    // Eliminated points must be determined on their own.
+    for (f, v) in schur.v.iter().enumerate() {
+        let scale = v.diagonal().max().max(f64::MIN_POSITIVE);
+        let eig = v.symmetric_eigenvalues();
+        if !(eig.min() > 1e-10 * scale) {
+            return Err(PrecisionError::PointUndetermined(
+                problem.points[layout.free_points[f]].name.clone(),
+            ));
+        }
+    }
+    schur.assemble(&layout, &lin, problem, 0.0).map_err(|f| {
+        PrecisionError::PointUndetermined(problem.points[layout.free_points[f]].name.clone())
+    })?;
+    let mut s = DMatrix::<f64>::zeros(n, n);
+    for j in 0..n {
+        for k in layout.col_ptr[j]..layout.col_ptr[j + 1] {
+            let i = layout.row_idx[k];
+            s[(i, j)] = schur.values[k];
+            s[(j, i)] = schur.values[k];
+        }
+    }
+    let q_cc = invert_or_diagnose(&s, problem, &layout)?;
+
+    // Redundancy and σ0.
+    let n_obs =
+        2 * problem.observations.len() + problem.distances.len() + 3 * problem.point_priors.len();
+    let unknowns = n + 3 * layout.free_points.len();
+    let redundancy = n_obs as i64 - unknowns as i64;
+    if redundancy <= 0 {
+        return Err(PrecisionError::NoRedundancy(redundancy));
+    }
+    let sigma0 = (2.0 * lin.cost / redundancy as f64).sqrt();
+    let s02 = sigma0 * sigma0;
+
+    // Intrinsics.
+    let mut intrinsics = Vec::new();
+    for (c, cam) in problem.cameras.iter().enumerate() {
+        let Some(slot) = layout.camera_slot[c] else {
+            continue;
+        };
+        let o = layout.slot_offset(slot);
+        let free = &layout.camera_free[c];
+        let k = free.len();
+        let cov = DMatrix::from_fn(k, k, |i, j| s02 * q_cc[(o + i, o + j)]);
+        let sig: Vec<f64> = (0..k).map(|i| cov[(i, i)].sqrt()).collect();
+        let names: Vec<String> = free
+            .iter()
+            .map(|&i| cam.model.parameter_names()[i].to_string())
+            .collect();
+        let corr: Vec<Vec<f64>> = (0..k)
+            .map(|i| (0..k).map(|j| cov[(i, j)] / (sig[i] * sig[j])).collect())
+            .collect();
+        let mut high = Vec::new();
+        for i in 0..k {
+            for j in i + 1..k {
+                if corr[i][j].abs() > 0.95 {
+                    high.push((names[i].clone(), names[j].clone(), corr[i][j]));
+                }
+            }
+        }
+        intrinsics.push(IntrinsicsPrecision {
+            camera: cam.name.clone(),
+            values: free.iter().map(|&i| cam.params[i]).collect(),
+            names,
+            sigmas: sig,
+            correlation: corr,
+            high_correlations: high,
+        });
+    }
+
+    // Poses: rotation about the camera axes and the projection centre C = −Rᵀt, whose
+    // derivative with respect to (δω, δt) is [−Rᵀ[t]×, −Rᵀ].
+    let poses = problem
+        .images
+        .iter()
+        .enumerate()
+        .map(|(i, im)| {
+            let slot = layout.image_slot[i]?;
+            let o = layout.slot_offset(slot);
+            let q = DMatrix::from_fn(6, 6, |a, b| s02 * q_cc[(o + a, o + b)]);
+            let rt = im.pose.rotation.transpose();
+            let jw = -(rt * crate::rotation::skew(&im.pose.translation));
+            let mut j = DMatrix::<f64>::zeros(3, 6);
+            for a in 0..3 {
+                for b in 0..3 {
+                    j[(a, b)] = jw[(a, b)];
+                    j[(a, 3 + b)] = -rt[(a, b)];
+                }
+            }
+            let cc = &j * &q * j.transpose();
+            Some(PoseSigma {
+                rotation_rad: [q[(0, 0)].sqrt(), q[(1, 1)].sqrt(), q[(2, 2)].sqrt()],
+                centre: [cc[(0, 0)].sqrt(), cc[(1, 1)].sqrt(), cc[(2, 2)].sqrt()],
+            })
+        })
+        .collect();
+
+    // Points.
+    let mut point_covariances = vec![None; problem.points.len()];
+    for (p, slot) in layout.point_slot.iter().enumerate() {
+        if let Some(sl) = slot {
+            let o = layout.slot_offset(*sl);
+            point_covariances[p] = Some(Matrix3::from_fn(|a, b| s02 * q_cc[(o + a, o + b)]));
+        }
+    }
+    for (f, &p) in layout.free_points.iter().enumerate() {
+        // M = W V⁻¹ restricted to the camera-side rows this point touches: Σ_o Y_o.
+        let mut rows: Vec<(usize, [f64; 3])> = Vec::new();
+        for &o in layout.point_obs(f) {
+            let o = o as usize;
+            for sg in layout.segs(o) {
+                let y = layout.w_cols(&schur.y, o, sg);
+                let base = layout.block_offset[sg.block as usize] + sg.block_off as usize;
+                for k in 0..sg.len as usize {
+                    rows.push((base + k, [y[0][k], y[1][k], y[2][k]]));
+                }
+            }
+        }
+        let mut extra = Matrix3::zeros();
+        for &(i, yi) in &rows {
+            for &(j, yj) in &rows {
+                let q = q_cc[(i, j)];
+                for a in 0..3 {
+                    for b in 0..3 {
+                        extra[(a, b)] += yi[a] * q * yj[b];
+                    }
+                }
+            }
+        }
+        point_covariances[p] = Some((schur.vinv[f] + extra) * s02);
+    }
+
+    Ok(Precision {
+        sigma0,
+        redundancy,
+        observations: n_obs,
+        unknowns,
+        rms_image_px: problem.rms_px(),
+        intrinsics,
+        poses,
+        point_covariances,
+    })
+}
+
+/// S⁻¹, or a diagnosis of S's null space: how many degrees of freedom the datum leaves
+/// open, and which unknowns they involve.
+fn invert_or_diagnose(
+    s: &DMatrix<f64>,
+    problem: &Problem,
+    layout: &Layout,
+) -> Result<DMatrix<f64>, PrecisionError> {
+    let n = s.nrows();
+    if n == 0 {
+        return Ok(DMatrix::zeros(0, 0));
+    }
+    // Jacobi scaling so that the rank test does not depend on units.
+    let d: Vec<f64> = (0..n)
+        .map(|i| 1.0 / s[(i, i)].max(f64::MIN_POSITIVE).sqrt())
+        .collect();
+    let scaled = DMatrix::from_fn(n, n, |i, j| s[(i, j)] * d[i] * d[j]);
+    let eig = scaled.clone().symmetric_eigen();
+    let max = eig.eigenvalues.max();
+    let null: Vec<usize> = (0..n)
+        .filter(|&k| eig.eigenvalues[k] < 1e-9 * max)
+        .collect();
+    if null.is_empty() {
+        let inv = eig.eigenvectors.clone()
+            * DMatrix::from_diagonal(&eig.eigenvalues.map(|v| 1.0 / v))
+            * eig.eigenvectors.transpose();
+        return Ok(DMatrix::from_fn(n, n, |i, j| inv[(i, j)] * d[i] * d[j]));
+    }
+    let fixed_images = problem.images.iter().filter(|i| i.fixed).count();
+    let fixed_points = problem.points.iter().filter(|p| p.fixed).count();
+    let what = match (null.len(), fixed_images, fixed_points + problem.point_priors.len(), problem.distances.len()) {
+        (1, 1.., 0, 0) => "the scale is free: measure a distance between two points or give control points".to_string(),
+        (7, 0, 0, 0) => "position, orientation and scale are free (7 degrees of freedom): fix one image and measure a distance, or give at least 3 control points".to_string(),
+        (6, 0, 0, 1..) => "position and orientation are free (6 degrees of freedom): fix one image or give at least 3 control points".to_string(),
+        (k, ..) => format!("{k} degrees of freedom are not determined by the observations and the datum"),
+    };
+    // Name the unknowns that take part most in the first null vector.
+    let v = eig.eigenvectors.column(null[0]);
+    let mut best = (0usize, 0.0f64);
+    for i in 0..n {
+        if v[i].abs() > best.1 {
+            best = (i, v[i].abs());
+        }
+    }
+    let who = describe_unknown(best.0, problem, layout);
+    Err(PrecisionError::DatumDefect(format!(
+        "{what} (it shows most in {who})"
+    )))
+}
+
+fn describe_unknown(i: usize, problem: &Problem, layout: &Layout) -> String {
+    for (im, slot) in layout.image_slot.iter().enumerate() {
+        if let Some(s) = slot {
+            let o = layout.slot_offset(*s);
+            if (o..o + 6).contains(&i) {
+                return format!("the pose of image '{}'", problem.images[im].name);
+            }
+        }
+    }
+    for (c, slot) in layout.camera_slot.iter().enumerate() {
+        if let Some(s) = slot {
+            let o = layout.slot_offset(*s);
+            let k = layout.camera_free[c].len();
+            if (o..o + k).contains(&i) {
+                let name = problem.cameras[c].model.parameter_names()[layout.camera_free[c][i - o]];
+                return format!("intrinsic {name} of camera '{}'", problem.cameras[c].name);
+            }
+        }
+    }
+    for (p, slot) in layout.point_slot.iter().enumerate() {
+        if let Some(s) = slot {
+            let o = layout.slot_offset(*s);
+            if (o..o + 3).contains(&i) {
+                return format!("point '{}'", problem.points[p].name);
+            }
+        }
+    }
+    format!("unknown {i}")
+}
