@@ -19,10 +19,13 @@
 //! size, i.e. the centre of the array in that system. pingcal's origin is the centre of the
 //! top-left pixel, so `u = x − 0.5`, `v = y − 0.5`.
 //!
-//! A DBAT principal point (px, py) in mm from the corner, with DBAT's aspect parameter `as`
-//! (DBAT scales measured x by 1 + as before its distortion correction), corresponds to
-//! pingcal's (xp, yp), relative to the array centre with y up, of
-//! `xp = px/(1 + as) − (W/2)·ps`, `yp = (H/2)·ps − py` ([`dbat_principal_point`]).
+//! A DBAT principal point (px, py), as DBAT reports it in mm from the image corner with y
+//! down, corresponds to pingcal's (xp, yp), relative to the array centre with y up, of
+//! `xp = px − (W/2)·ps`, `yp = (H/2)·ps − py` ([`dbat_principal_point`]). DBAT's model 3
+//! scales the measured x by 1 + as (its aspect parameter) *before* subtracting the
+//! principal point, and reports px in unscaled mm (its internal value divided by 1 + as):
+//! re-adjusting the `camcaldemo` data with DBAT's model written out
+//! (`tests/dbat_camcal.rs`) reproduces the published px only with that reading.
 
 use super::measurements::{CameraSpec, ControlPoint, ImagePoint, ImageSpec, Measurements};
 use nalgebra::Vector2;
@@ -109,12 +112,12 @@ pub fn dbat_pixel_to_pingcal(x: f64, y: f64) -> Vector2<f64> {
     Vector2::new(x - 0.5, y - 0.5)
 }
 
-/// DBAT's principal point (mm from the image corner, y down, x scaled by 1 + `aspect`)
-/// → pingcal's (xp, yp) in mm relative to the array centre, y up (see the module doc).
-pub fn dbat_principal_point(px: f64, py: f64, aspect: f64, camera: &DbatCamera) -> (f64, f64) {
+/// DBAT's principal point as DBAT reports it (mm from the image corner, y down) →
+/// pingcal's (xp, yp) in mm relative to the array centre, y up (see the module doc).
+pub fn dbat_principal_point(px: f64, py: f64, camera: &DbatCamera) -> (f64, f64) {
     let ps = camera.pixel_size_mm;
     (
-        px / (1.0 + aspect) - 0.5 * camera.width as f64 * ps,
+        px - 0.5 * camera.width as f64 * ps,
         0.5 * camera.height as f64 * ps - py,
     )
 }
@@ -402,12 +405,11 @@ mod tests {
         let (xp, yp) = dbat_principal_point(
             0.5 * 2272.0 * cam.pixel_size_mm,
             0.5 * 1704.0 * cam.pixel_size_mm,
-            0.0,
             &cam,
         );
         assert!(xp.abs() < 1e-12 && yp.abs() < 1e-12);
         // A principal point above the centre in the image (smaller DBAT y) has yp > 0.
-        let (_, yp) = dbat_principal_point(3.6, 2.6, 0.0, &cam);
+        let (_, yp) = dbat_principal_point(3.6, 2.6, &cam);
         assert!(yp > 0.0);
     }
 
