@@ -118,3 +118,43 @@ fn distances_fix_the_scale_and_their_absence_is_a_named_datum_defect() {
     assert!(matches!(err, PrecisionError::DatumDefect(_)), "{err}");
     assert!(err.to_string().contains("the scale is free"), "{err}");
 }
+
+#[test]
+fn data_snooping_finds_gross_errors_and_only_them() {
+    let t = truth();
+    let mut p = realisation(&t, 4242);
+    // Three gross errors of 3–5 px (10–17 σ) on different images and points.
+    let bad = [(10usize, 4.0, 0.0), (200, 0.0, -3.0), (450, 3.5, 3.5)];
+    let mut bad_ids = Vec::new();
+    for &(o, du, dv) in &bad {
+        p.observations[o].uv += nalgebra::Vector2::new(du, dv);
+        let ob = p.observations[o];
+        bad_ids.push((
+            p.images[ob.image].name.clone(),
+            p.points[ob.point].name.clone(),
+        ));
+    }
+    let n0 = p.observations.len();
+    let result = pingcal_ba::solver::adjust_with_snooping(&mut p, &options(), 3.29, 20).unwrap();
+    let removed: Vec<(String, String)> = result
+        .rejected
+        .iter()
+        .map(|r| (r.image.clone(), r.point.clone()))
+        .collect();
+    for b in &bad_ids {
+        assert!(
+            removed.contains(b),
+            "gross error {b:?} not found; removed {removed:?}"
+        );
+    }
+    // At a 0.1 % test on ~1000 good coordinates, about one false rejection is expected;
+    // more than 4 would mean the statistic is wrong.
+    assert!(removed.len() <= bad.len() + 4, "removed {removed:?}");
+    assert_eq!(p.observations.len(), n0 - removed.len());
+    // After cleaning, σ0 is back to about 1 (the a-priori σ is right).
+    assert!(
+        (result.precision.sigma0 - 1.0).abs() < 0.1,
+        "σ0 = {}",
+        result.precision.sigma0
+    );
+}

@@ -14,10 +14,12 @@
 mod evaluate;
 mod layout;
 mod linear;
+mod outliers;
 mod precision;
 mod schur;
 
 pub use linear::LinearSolverKind;
+pub use outliers::{adjust_with_snooping, Rejection, SnoopError, SnoopResult};
 pub use precision::{
     precision, IntrinsicsPrecision, PoseSigma, Precision, PrecisionError, MAX_DENSE_PRECISION,
 };

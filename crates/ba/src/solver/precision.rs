@@ -67,6 +67,11 @@ pub struct Precision {
     /// Per point: its covariance (None for a fixed point).
     #[serde(skip)]
     pub point_covariances: Vec<Option<Matrix3<f64>>>,
+    /// Per image observation (problem order): the standardized residuals of u and v,
+    /// `w = v / (σ √q_vv)` with the a-priori σ (Baarda's data snooping statistic, N(0, 1)
+    /// for a good observation). NaN where the observation has no redundancy.
+    #[serde(skip)]
+    pub standardized_residuals: Vec<[f64; 2]>,
 }
 
 impl Precision {
@@ -220,6 +225,8 @@ pub fn precision(problem: &Problem) -> Result<Precision, PrecisionError> {
             point_covariances[p] = Some(Matrix3::from_fn(|a, b| s02 * q_cc[(o + a, o + b)]));
         }
     }
+    let mut point_rows: Vec<Vec<(usize, [f64; 3])>> = Vec::with_capacity(layout.free_points.len());
+    let mut point_q: Vec<Matrix3<f64>> = Vec::with_capacity(layout.free_points.len());
     for (f, &p) in layout.free_points.iter().enumerate() {
         // M = W V⁻¹ restricted to the camera-side rows this point touches: Σ_o Y_o.
         let mut rows: Vec<(usize, [f64; 3])> = Vec::new();
@@ -245,6 +252,62 @@ pub fn precision(problem: &Problem) -> Result<Precision, PrecisionError> {
             }
         }
         point_covariances[p] = Some((schur.vinv[f] + extra) * s02);
+        point_q.push(schur.vinv[f] + extra);
+        point_rows.push(rows);
+    }
+
+    // Standardized residuals: q_vv = 1 − diag(A Q Aᵀ) in whitened units, with A = [J_c, J_p]
+    // and Q_cp = −Q_cc M for an eliminated point.
+    let mut standardized_residuals = vec![[f64::NAN; 2]; problem.observations.len()];
+    for o in 0..problem.observations.len() {
+        let mut cols: Vec<(usize, [f64; 2])> = Vec::new();
+        for sg in layout.segs(o) {
+            let (j0, j1) = layout.jc_rows(&lin.jc, o, sg);
+            let base = layout.block_offset[sg.block as usize] + sg.block_off as usize;
+            for k in 0..sg.len as usize {
+                cols.push((base + k, [j0[k], j1[k]]));
+            }
+        }
+        let mut aqa = nalgebra::Matrix2::<f64>::zeros();
+        for &(i, ji) in &cols {
+            for &(j, jj) in &cols {
+                let q = q_cc[(i, j)];
+                for a in 0..2 {
+                    for b in 0..2 {
+                        aqa[(a, b)] += ji[a] * q * jj[b];
+                    }
+                }
+            }
+        }
+        let point = layout.obs_point[o] as usize;
+        let f = layout.free_point_index[point];
+        if f != u32::MAX {
+            let f = f as usize;
+            let jp = lin.jp[o];
+            aqa += jp * point_q[f] * jp.transpose();
+            // Cross term: J_c Q_cp J_pᵀ with Q_cp = −Q_cc M.
+            let mut jc_qcp = nalgebra::Matrix2x3::<f64>::zeros();
+            for &(i, ji) in &cols {
+                for &(r, y) in &point_rows[f] {
+                    let q = q_cc[(i, r)];
+                    for a in 0..2 {
+                        for b in 0..3 {
+                            jc_qcp[(a, b)] -= ji[a] * q * y[b];
+                        }
+                    }
+                }
+            }
+            let cross = jc_qcp * jp.transpose();
+            aqa += cross + cross.transpose();
+        }
+        let r = lin.r[o];
+        let q = layout.obs_order[o] as usize;
+        for a in 0..2 {
+            let qvv = 1.0 - aqa[(a, a)];
+            if qvv > 1e-9 {
+                standardized_residuals[q][a] = r[a] / qvv.sqrt();
+            }
+        }
     }
 
     Ok(Precision {
@@ -256,6 +319,7 @@ pub fn precision(problem: &Problem) -> Result<Precision, PrecisionError> {
         intrinsics,
         poses,
         point_covariances,
+        standardized_residuals,
     })
 }
 
