@@ -45,6 +45,9 @@ const DBAT_PX: f64 = 3.61546239970888994;
 const DBAT_PY: f64 = 2.61329279848268081;
 const DBAT_AS: f64 = 0.000389598;
 const DBAT_ITERATIONS: usize = 8;
+const DBAT_SD_C: f64 = 0.00105;
+const DBAT_SD_PX: f64 = 0.00082;
+const DBAT_SD_PY: f64 = 0.00098;
 const DBAT_OBSERVATIONS: usize = 4148; // image coordinates (2 per mark point)
 const DBAT_REDUNDANCY: usize = 3725;
 const DBAT_UNKNOWNS: usize = 423;
@@ -56,11 +59,13 @@ fn data_dir() -> PathBuf {
     ))
 }
 
-/// The adjusted network (None when the data set is absent), with the solver summary.
+/// The adjusted network (None when the data set is absent), with the solver summary and
+/// the number of iterations of the initialiser's bundle adjustments.
 fn adjusted() -> Option<(
     pingcal_ba::problem::Problem,
     pingcal_ba::solver::Summary,
     DbatCamera,
+    usize,
 )> {
     let dir = data_dir();
     let marks = dir.join("measurements/markpts.txt");
@@ -122,7 +127,7 @@ fn adjusted() -> Option<(
         .all(|s| !matches!(s, Step::BundleFailed { .. })));
 
     // The self-calibrating bundle adjustment itself.
-    let mut p = init.problem;
+    let mut p = init.problem.clone();
     assert_eq!(2 * p.observations.len(), DBAT_OBSERVATIONS);
     let summary = solve(
         &mut p,
@@ -136,12 +141,20 @@ fn adjusted() -> Option<(
         |_| {},
     )
     .expect("bundle adjustment");
-    Some((p, summary, camera))
+    let init_iterations = init
+        .steps
+        .iter()
+        .map(|s| match s {
+            Step::Bundle { iterations, .. } => *iterations,
+            _ => 0,
+        })
+        .sum();
+    Some((p, summary, camera, init_iterations))
 }
 
 #[test]
 fn reproduces_dbat_camcal_from_no_exterior_orientation() {
-    let Some((p, summary, camera)) = adjusted() else {
+    let Some((p, summary, camera, init_iterations)) = adjusted() else {
         return;
     };
     let free_intrinsics: usize = p.cameras.iter().map(|c| c.free_indices().len()).sum();
@@ -164,7 +177,7 @@ fn reproduces_dbat_camcal_from_no_exterior_orientation() {
     println!("| yp mm (centre, y up) | {dbat_yp:.5} | {yp:.5} |");
     println!("| aspect / B1 | as = {DBAT_AS:.6} | B1 = {b1:.6} |");
     println!(
-        "| iterations | {DBAT_ITERATIONS} | {} ({}) |",
+        "| iterations | {DBAT_ITERATIONS} | {} after the initialiser's {init_iterations} ({}) |",
         summary.iterations, summary.termination
     );
     println!(
@@ -183,6 +196,40 @@ fn reproduces_dbat_camcal_from_no_exterior_orientation() {
         par[4],
         par[5]
     );
+
+    // Precision as the solver reports it (σ0-scaled standard deviations).
+    let prec = pingcal_ba::solver::precision(&p).expect("precision");
+    let intr = &prec.intrinsics[0];
+    let sd = |name: &str| {
+        intr.names
+            .iter()
+            .position(|n| n == name)
+            .map(|k| intr.sigmas[k])
+    };
+    let (sc, sxp, syp) = (sd("c").unwrap(), sd("xp").unwrap(), sd("yp").unwrap());
+    println!(
+        "| σ0 (precision module) | | {:.4} (redundancy {}) |",
+        prec.sigma0, prec.redundancy
+    );
+    println!("| σ(c) mm | {DBAT_SD_C:.5} | {sc:.5} |");
+    println!("| σ(xp) mm | {DBAT_SD_PX:.5} | {sxp:.5} |");
+    println!("| σ(yp) mm | {DBAT_SD_PY:.5} | {syp:.5} |");
+    println!(
+        "| correlations > 0.95 | K2–K3 -97.9 % | {:?} |",
+        intr.high_correlations
+    );
+    assert!(
+        (prec.sigma0 / sigma0 - 1.0).abs() < 1e-6,
+        "{} vs {sigma0}",
+        prec.sigma0
+    );
+    assert_eq!(prec.redundancy, DBAT_REDUNDANCY as i64);
+    for (ours, theirs) in [(sc, DBAT_SD_C), (sxp, DBAT_SD_PX), (syp, DBAT_SD_PY)] {
+        assert!(
+            ours / theirs > 0.67 && ours / theirs < 1.5,
+            "σ {ours} vs DBAT {theirs}"
+        );
+    }
 
     assert_eq!(2 * p.observations.len(), DBAT_OBSERVATIONS);
     assert_eq!(unknowns, DBAT_UNKNOWNS);
@@ -237,7 +284,7 @@ fn dbat_residual(
 #[test]
 fn dbat_model_in_dbat_metric_gives_dbat_sigma0() {
     use nalgebra::{DMatrix, DVector};
-    let Some((p, summary, camera)) = adjusted() else {
+    let Some((p, summary, camera, _)) = adjusted() else {
         return;
     };
     let pingcal_sigma0 = (2.0 * summary.final_cost / DBAT_REDUNDANCY as f64).sqrt();

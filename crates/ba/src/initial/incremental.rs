@@ -24,7 +24,7 @@ use super::intersection::{intersect, IntersectionOptions, Ray};
 use super::relative::{relative_orientation, RelativeOptions};
 use super::resection::{resect, similarity_transform, ResectionOptions};
 use crate::pose::Pose;
-use crate::problem::{Problem, ProblemError};
+use crate::problem::{Distance, PointPrior, Problem, ProblemError};
 use crate::solver::{solve, Options};
 use nalgebra::{Vector2, Vector3};
 use std::collections::HashMap;
@@ -101,6 +101,8 @@ pub enum Step {
     },
     /// A bundle adjustment that failed (its result is discarded).
     BundleFailed { message: String },
+    /// A relative network scaled so that its measured distances hold.
+    ScaledByDistances { distances: usize, scale: f64 },
     /// The network moved into the control frame by a similarity transform.
     ToControlFrame { points: usize, scale: f64, rms: f64 },
 }
@@ -139,6 +141,10 @@ impl std::fmt::Display for Step {
                 if *calibrating { ", self-calibrating" } else { "" }
             ),
             Step::BundleFailed { message } => write!(f, "bundle failed: {message}"),
+            Step::ScaledByDistances { distances, scale } => write!(
+                f,
+                "scaled by {scale:.6} from {distances} measured distances"
+            ),
             Step::ToControlFrame { points, scale, rms } => write!(
                 f,
                 "similarity onto {points} control points: scale {scale:.6}, RMS {rms:.4}"
@@ -163,6 +169,10 @@ pub struct Initialised {
     pub unoriented_images: Vec<(String, String)>,
     /// Points that could not be determined, with the reason.
     pub undetermined_points: Vec<(String, String)>,
+    /// Whether the network is in the frame of the control points (always with control;
+    /// without, once three or more of them were intersected). When false, control points
+    /// are not held fixed and weighted control is left out of `problem`.
+    pub in_control_frame: bool,
 }
 
 /// Why no network could be started.
@@ -310,6 +320,18 @@ impl<'a> State<'a> {
                 sub.points.push(pt);
             }
         }
+        for d in &p.distances {
+            if let (Some(a), Some(b)) = (point_map[d.a], point_map[d.b]) {
+                sub.distances.push(Distance { a, b, ..*d });
+            }
+        }
+        if self.control_frame {
+            for c in &p.point_priors {
+                if let Some(point) = point_map[c.point] {
+                    sub.point_priors.push(PointPrior { point, ..*c });
+                }
+            }
+        }
         for o in &p.observations {
             if let (Some(i), Some(j)) = (image_map[o.image], point_map[o.point]) {
                 let mut o = *o;
@@ -330,8 +352,10 @@ impl<'a> State<'a> {
         if sub.observations.is_empty() {
             return;
         }
-        // Without control the datum is the first oriented image (scale left to the damping).
-        if !self.control_frame || !sub.points.iter().any(|p| p.fixed) {
+        // Without control the datum is the first oriented image (scale from the distances,
+        // if any, otherwise left to the damping).
+        let control_datum = sub.points.iter().any(|p| p.fixed) || sub.point_priors.len() >= 3;
+        if !control_datum {
             if let Some(first) = sub.images.first_mut() {
                 first.fixed = true;
             }
@@ -449,6 +473,36 @@ impl<'a> State<'a> {
             median_angle_deg: r.median_angle_deg,
         });
         Ok(())
+    }
+
+    /// Scales a relative network so that its measured distances hold (median ratio).
+    fn scale_from_distances(&mut self) {
+        let mut ratios: Vec<f64> = self
+            .problem
+            .distances
+            .iter()
+            .filter_map(|d| {
+                let (a, b) = (self.points[d.a]?, self.points[d.b]?);
+                let l = (a - b).norm();
+                (l > 0.0).then(|| d.value / l)
+            })
+            .filter(|r| r.is_finite() && *r > 0.0)
+            .collect();
+        if ratios.is_empty() {
+            return;
+        }
+        ratios.sort_by(f64::total_cmp);
+        let s = ratios[ratios.len() / 2];
+        for x in self.points.iter_mut().flatten() {
+            *x *= s;
+        }
+        for pose in self.poses.iter_mut().flatten() {
+            pose.translation *= s;
+        }
+        self.steps.push(Step::ScaledByDistances {
+            distances: ratios.len(),
+            scale: s,
+        });
     }
 
     fn to_control_frame(&mut self) {
@@ -596,6 +650,9 @@ pub fn initialise(
         st.bootstrap(options)?;
     }
     st.intersect_points(options);
+    if !with_control {
+        st.scale_from_distances();
+    }
     if options.bundle_between_steps {
         st.bundle(options);
     }
@@ -666,6 +723,7 @@ pub fn initialise(
         steps: st.steps,
         unoriented_images,
         undetermined_points,
+        in_control_frame: st.control_frame || !known.iter().any(|k| *k),
     })
 }
 
@@ -806,38 +864,48 @@ mod tests {
     }
 
     #[test]
-    fn without_control_builds_a_network_of_the_right_shape() {
-        let (truth, p, known) = network(2, 0.1);
-        // Only approximate control (not fixed), so nothing can be resected at first: give
-        // the control only after the relative start by hiding it from the resection.
+    fn without_control_builds_a_network_scaled_by_its_distances() {
+        let (truth, p, _) = network(2, 0.1);
         let mut p2 = p.clone();
         for pt in &mut p2.points {
             pt.fixed = false;
         }
-        let hidden = vec![false; known.len()];
-        let init = initialise(&p2, &hidden, &[], &IncrementalOptions::default()).unwrap();
+        // Two measured distances (scale bars), no control.
+        for (a, b) in [(0, 1), (2, 3)] {
+            p2.distances.push(Distance {
+                a,
+                b,
+                value: (truth.points[a].position - truth.points[b].position).norm(),
+                sigma: 0.05,
+            });
+        }
+        let init = initialise(&p2, &[], &[], &IncrementalOptions::default()).unwrap();
         assert!(
             matches!(init.steps[0], Step::RelativePair { .. }),
             "{:?}",
             init.steps
         );
+        assert!(init
+            .steps
+            .iter()
+            .any(|s| matches!(s, Step::ScaledByDistances { distances: 2, .. })));
         assert!(
             init.unoriented_images.is_empty(),
             "{:?}",
             init.unoriented_images
         );
+        assert!(init.undetermined_points.is_empty());
+        assert!(init.in_control_frame);
+        assert_eq!(init.problem.distances.len(), 2);
         assert!(init.problem.rms_px() < 0.2, "{}", init.problem.rms_px());
-        // Shape: distances between points agree with the truth up to one scale.
+        // Shape and scale: distances from point 0 agree with the truth (mm).
         let q = &init.problem;
-        let d = |a: &Vector3<f64>, b: &Vector3<f64>| (a - b).norm();
-        let (j0, j1) = (init.point_map[0].unwrap(), init.point_map[1].unwrap());
-        let s = d(&truth.points[0].position, &truth.points[1].position)
-            / d(&q.points[j0].position, &q.points[j1].position);
-        for j in 2..20 {
+        let j0 = init.point_map[0].unwrap();
+        for j in 1..60 {
             let k = init.point_map[j].unwrap();
-            let e = d(&truth.points[j].position, &truth.points[0].position)
-                - s * d(&q.points[k].position, &q.points[j0].position);
-            assert!(e.abs() < 10.0, "point {j}: {e}");
+            let e = (truth.points[j].position - truth.points[0].position).norm()
+                - (q.points[k].position - q.points[j0].position).norm();
+            assert!(e.abs() < 5.0, "point {j}: {e} mm");
         }
     }
 

@@ -58,15 +58,16 @@
 //! [`Measurements::to_problem`] checks the references and values and builds the
 //! [`Problem`]: one [`crate::problem::Camera`] per camera, one image per image, one point
 //! per distinct point name (in order of first appearance in `image_points`, then control
-//! points and distances), one observation per image point. Fixed control points become
-//! [`crate::problem::Point::fixed`]; weighted control and distances stay in the
-//! [`Measurements`] for the solver's extra observation equations. Points and images without
-//! known coordinates or poses are left at zero / identity and are flagged in
-//! [`Built::known_points`] / [`Built::known_poses`] for the initialiser.
+//! points), one observation per image point. Fixed control points become
+//! [`crate::problem::Point::fixed`] (a point both fixed and with σ is fixed); weighted
+//! control points become [`crate::problem::PointPrior`]s and distances
+//! [`crate::problem::Distance`]s, observation equations of the same adjustment.
+//! Points and images without known coordinates or poses are left at zero / identity and
+//! are flagged in [`Built::known_points`] / [`Built::known_poses`] for the initialiser.
 
 use crate::camera::{PhotogrammetricCamera, PHOTOGRAMMETRIC_PARAMS};
 use crate::pose::Pose;
-use crate::problem::{Camera, Image, Observation, Point, Problem};
+use crate::problem::{Camera, Image, Observation, Point, PointPrior, Problem};
 use crate::rotation::{from_opk, to_opk};
 use nalgebra::{Vector2, Vector3};
 use serde::{Deserialize, Serialize};
@@ -578,6 +579,29 @@ impl Measurements {
                 || format!("distance {index} ('{}'–'{}'): sigma_mm", d.a, d.b),
                 d.sigma_mm,
             )?;
+            let (a, b) = (point_index[&d.a], point_index[&d.b]);
+            if a == b {
+                return Err(MeasurementError::BadValue {
+                    what: format!("distance {index} joins '{}' to itself", d.a),
+                    value: d.mm,
+                    expected: "two different points",
+                });
+            }
+            problem.distances.push(crate::problem::Distance {
+                a,
+                b,
+                value: d.mm,
+                sigma: d.sigma_mm,
+            });
+        }
+        for cp in &self.control_points {
+            if let (Some(s), false) = (cp.sigma_mm, cp.fixed) {
+                problem.point_priors.push(PointPrior {
+                    point: point_index[&cp.id],
+                    position: Vector3::from(cp.xyz),
+                    sigma: Vector3::from(s),
+                });
+            }
         }
         // Warnings.
         let mut warnings = Vec::new();
@@ -679,6 +703,10 @@ mod tests {
         assert_eq!(b.problem.images.len(), 2);
         assert_eq!(b.problem.points.len(), 3);
         assert_eq!(b.problem.observations.len(), 2);
+        assert_eq!(b.problem.distances.len(), 1);
+        assert_eq!(b.problem.distances[0].value, 1000.12);
+        assert_eq!(b.problem.point_priors.len(), 1);
+        assert_eq!(b.problem.point_priors[0].point, b.point_index["18"]);
         let p17 = b.point_index["17"];
         assert!(b.problem.points[p17].fixed && b.known_points[p17]);
         let p18 = b.point_index["18"];
