@@ -212,8 +212,11 @@ def main(argv=None):
     out = {
         "initial_cost": s.initial_cost,
         "final_cost": s.final_cost,
-        "iterations": s.num_successful_steps + s.num_unsuccessful_steps,
-        "successful_steps": s.num_successful_steps,
+        # Ceres records iteration 0 (the initial evaluation) as a successful step: LM steps
+        # taken = successful + unsuccessful − 1, which is what pingcal counts.
+        "iterations": s.num_successful_steps + s.num_unsuccessful_steps - 1,
+        "successful_steps": s.num_successful_steps - 1,
+        "ceres_minimizer_iterations": s.num_successful_steps + s.num_unsuccessful_steps,
         "time_s": s.total_time_in_seconds,
         "wall_solve_s": wall,
         "solver": a.solver,

@@ -258,7 +258,8 @@ def make_table(results, meta):
         "problem, Python start-up for Ceres); peak MiB = the child's max RSS (Ceres's includes "
         "the Python interpreter, numpy and pycolmap's copy of the scene). "
         "Ceres best = the fastest Ceres setting for that size and thread count; ratio = solve s / "
-        "Ceres best's solve s. Iterations: Ceres counts successful + unsuccessful LM steps.",
+        "Ceres best's solve s. Iterations = LM steps taken, accepted or not (for Ceres: successful + unsuccessful steps − 1, "
+        "since Ceres counts the initial evaluation as iteration 0).",
     ]
     if meta.get("repeat", 1) > 1:
         notes.append(f"Every setting ran {meta['repeat']} times; the run with the smallest solve time is shown.")
@@ -303,11 +304,18 @@ def main():
     ap.add_argument("--regen", action="store_true", help="regenerate BAL files even if present")
     ap.add_argument("--no-check", dest="check", action="store_false",
                     help="skip Ceres's numpy recomputation of the costs")
+    ap.add_argument("--table-from", metavar="JSON",
+                    help="only re-render the table from a ba-table.json of an earlier run")
     ap.add_argument("--data-dir", default=os.path.join(REPO, "bench", "data", "ba"))
     ap.add_argument("--out", default=os.path.join(REPO, "bench", "out", "ba-table.md"))
     a = ap.parse_args()
 
     global PINGCAL
+    if a.table_from:
+        with open(a.table_from) as fh:
+            saved = json.load(fh)
+        print(make_table(saved["results"], saved["meta"]))
+        return 0
     t_start = time.time()
     if a.pingcal_bin:
         PINGCAL = os.path.abspath(a.pingcal_bin)
