@@ -61,7 +61,9 @@ fn data_dir() -> PathBuf {
 
 /// The adjusted network (None when the data set is absent), with the solver summary and
 /// the number of iterations of the initialiser's bundle adjustments.
-fn adjusted() -> Option<(
+fn adjusted(
+    control_file: &str,
+) -> Option<(
     pingcal_ba::problem::Problem,
     pingcal_ba::solver::Summary,
     DbatCamera,
@@ -69,7 +71,7 @@ fn adjusted() -> Option<(
 )> {
     let dir = data_dir();
     let marks = dir.join("measurements/markpts.txt");
-    let control = dir.join("reference/camcal-fixed.txt");
+    let control = dir.join("reference").join(control_file);
     if !marks.exists() || !control.exists() {
         println!(
             "skipped: DBAT's camcal data set not found at {} (shared data absent)",
@@ -154,7 +156,7 @@ fn adjusted() -> Option<(
 
 #[test]
 fn reproduces_dbat_camcal_from_no_exterior_orientation() {
-    let Some((p, summary, camera, init_iterations)) = adjusted() else {
+    let Some((p, summary, camera, init_iterations)) = adjusted("camcal-fixed.txt") else {
         return;
     };
     let free_intrinsics: usize = p.cameras.iter().map(|c| c.free_indices().len()).sum();
@@ -284,7 +286,7 @@ fn dbat_residual(
 #[test]
 fn dbat_model_in_dbat_metric_gives_dbat_sigma0() {
     use nalgebra::{DMatrix, DVector};
-    let Some((p, summary, camera, _)) = adjusted() else {
+    let Some((p, summary, camera, _)) = adjusted("camcal-fixed.txt") else {
         return;
     };
     let pingcal_sigma0 = (2.0 * summary.final_cost / DBAT_REDUNDANCY as f64).sqrt();
@@ -457,4 +459,35 @@ fn dbat_model_in_dbat_metric_gives_dbat_sigma0() {
     assert!((sigma0_px_metric / pingcal_sigma0 - 1.0).abs() < 0.01);
     assert!((io[0] - DBAT_C).abs() < 1e-3, "c {}", io[0]);
     assert!((px_reported - DBAT_PX).abs() < 1e-4 && (io[2] - DBAT_PY).abs() < 1e-4);
+}
+
+/// DBAT's weighted control variant (the same 4 points with σ = 1 mm, as observations):
+/// the datum comes from the weighted control, the redundancy gains their 12 coordinate
+/// observations and loses their 12 unknowns, and the calibration stays DBAT's.
+#[test]
+fn weighted_control_variant() {
+    let Some((p, summary, _, _)) = adjusted("camcal-weighted.txt") else {
+        return;
+    };
+    assert_eq!(p.point_priors.len(), 4);
+    assert!(p.points.iter().all(|x| !x.fixed));
+    let prec = pingcal_ba::solver::precision(&p).expect("precision");
+    let c = p.cameras[0].params[0];
+    println!(
+        "weighted control: σ0 {:.4}, redundancy {}, c {c:.5} mm, final cost {:.3}",
+        prec.sigma0, prec.redundancy, summary.final_cost
+    );
+    let dev: Vec<f64> = p
+        .point_priors
+        .iter()
+        .map(|c| (p.points[c.point].position - c.position).norm())
+        .collect();
+    println!("adjusted control minus given, mm: {dev:.2?}");
+    assert_eq!(prec.redundancy, DBAT_REDUNDANCY as i64);
+    // Holding the four corners exactly on a 1 m square strains the network (the sheet's
+    // control coordinates are nominal): with them weighted at 1 mm they move by ~0.7 mm and
+    // σ0 drops well below the fixed-control value. DBAT publishes no weighted result.
+    assert!(prec.sigma0 < DBAT_SIGMA0, "σ0 {}", prec.sigma0);
+    assert!(dev.iter().all(|d| *d < 5.0), "{dev:?}");
+    assert!((c - DBAT_C).abs() < 0.01);
 }
