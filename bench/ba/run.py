@@ -82,14 +82,21 @@ def ensure_venv():
         subprocess.run(["bash", os.path.join(HERE, "setup_venv.sh")], check=True)
 
 
+BUILD_NOTE = ""
+
+
 def build_pingcal(skip):
+    global BUILD_NOTE
     if not skip:
         log("cargo build --release -p pingcal ...")
         env = dict(os.environ)
-        env.pop("CARGO_TARGET_DIR", None)   # the default /work/main/target, where PINGCAL is
+        env.pop("CARGO_TARGET_DIR", None)   # the default <repo>/target, where PINGCAL is
         r = subprocess.run(["cargo", "build", "--release", "-p", "pingcal"], cwd=REPO, env=env)
         if r.returncode != 0:
             log("warning: the release build of pingcal failed")
+            if os.path.exists(PINGCAL):
+                BUILD_NOTE = ("the release build FAILED: the binary is an older one, built " +
+                              time.strftime("%Y-%m-%d %H:%M", time.localtime(os.path.getmtime(PINGCAL))))
     return os.path.exists(PINGCAL)
 
 
@@ -252,7 +259,9 @@ def make_table(results, meta):
         f"Ceres: pycolmap {meta.get('pycolmap', '?')} (C++ COLMAP reprojection cost, RADIAL camera per image, "
         "principal point fixed), LEVENBERG_MARQUARDT, function/gradient/parameter tolerance "
         f"{TOL:g}, max {MAX_ITER} iterations, squared loss, no gauge fixing.",
-        f"pingcal: `pingcal ba FILE --out OUT.json --threads T{(' ' + meta['pingcal_extra']) if meta['pingcal_extra'] else ''}`.",
+        f"pingcal: `pingcal ba FILE --out OUT.json --threads T{(' ' + meta['pingcal_extra']) if meta['pingcal_extra'] else ''}`"
+        + (f" (binary `{meta['pingcal_bin']}`)" if meta.get("pingcal_bin") else "")
+        + (f"; {meta['pingcal_build']}" if meta.get("pingcal_build") else "") + ".",
         "solve s = time reported by the solver (Ceres: Summary::total_time_in_seconds; pingcal: "
         "time_s of its JSON); wall s = the whole child process (reading the file, building the "
         "problem, Python start-up for Ceres); peak MiB = the child's max RSS (Ceres's includes "
@@ -395,7 +404,9 @@ def main():
             "command": "python3 bench/ba/run.py " + " ".join(map(shlex.quote, sys.argv[1:])),
             "generator": " and ".join(sorted(generators)), "obs_per_point": a.obs_per_point,
             "noise_px": a.noise_px, "seed": a.seed, "pycolmap": pyver,
-            "pingcal_extra": " ".join(extra), "repeat": a.repeat}
+            "pingcal_extra": " ".join(extra), "repeat": a.repeat,
+            "pingcal_bin": os.path.relpath(PINGCAL, REPO) if run_pingcal_side else "",
+            "pingcal_build": BUILD_NOTE}
     table = make_table(results, meta)
     print(table)
     os.makedirs(os.path.dirname(a.out), exist_ok=True)
