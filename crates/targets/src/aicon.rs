@@ -12,8 +12,9 @@
 //! targets, measured on the panel photographs) is sampled on 16 angles per sector at five radii
 //! between 2.2 and 2.8 dot radii, averaged over the radii. The sector phase is the one that
 //! maximises Σ|sector mean − mid level|; each sector is read from its central 60 %. A *bright*
-//! sector is a 1, and bit i is sector i in the order of increasing angle in the image (x right,
-//! y down: clockwise on screen), least significant bit first — this reading was established
+//! sector is a 1, and bit i is sector i in the order of *decreasing* angle in the image (x
+//! right, y down: counter-clockwise on screen), least significant bit first
+//! ([`RingReader::aicon`] has `clockwise: false`) — this reading was established
 //! against the reference IDs of the real panel photographs (it is the one of the four
 //! direction × polarity choices under which the decoded IDs agree with the panel's geometry,
 //! see `tests/real_panel.rs`). The code is the smallest cyclic rotation; its table index is
