@@ -45,6 +45,11 @@ pub trait CameraModel: Send + Sync + std::fmt::Debug {
     /// Back-projects a pixel to a unit ray direction in the camera frame, or `None` if the
     /// distortion cannot be inverted there.
     fn unproject(&self, params: &[f64], uv: &Vector2<f64>) -> Option<Vector3<f64>>;
+
+    /// Pixel pitch in mm, for models that know their sensor (reports give residuals in µm).
+    fn pixel_size_mm(&self) -> Option<f64> {
+        None
+    }
 }
 
 #[cfg(test)]

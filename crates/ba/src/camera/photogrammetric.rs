@@ -198,6 +198,10 @@ impl CameraModel for PhotogrammetricCamera {
         Some(uv)
     }
 
+    fn pixel_size_mm(&self) -> Option<f64> {
+        Some(self.pixel_size_mm)
+    }
+
     fn unproject(&self, params: &[f64], uv: &Vector2<f64>) -> Option<Vector3<f64>> {
         let q = self.undistort_sensor(params, &self.pixel_to_sensor(uv))?;
         let c = params[0];

@@ -5,6 +5,10 @@
 //! critical value (3.29 for a 0.1 % two-sided test), and the network is adjusted again;
 //! one observation at a time, because a gross error spreads into the residuals of its
 //! neighbours. A point left with fewer than two rays is dropped with its last ray.
+//!
+//! The statistic uses the a-priori σ of each observation (Baarda) while σ0 ≤ 1; when σ0
+//! shows the a-priori σ to be optimistic (σ0 > 1), w is divided by σ0 (Pope's τ test), so
+//! that a uniformly pessimistic prior does not reject good observations wholesale.
 
 use super::{precision, solve, Options, Precision, PrecisionError, SolveError, Summary};
 use crate::problem::Problem;
@@ -58,12 +62,13 @@ pub fn adjust_with_snooping(
     loop {
         let summary = solve(problem, options, |_| {})?;
         let prec = precision(problem)?;
+        let scale = prec.sigma0.max(1.0);
         let worst = prec
             .standardized_residuals
             .iter()
             .enumerate()
             .filter_map(|(o, w)| {
-                let m = w[0].abs().max(w[1].abs());
+                let m = w[0].abs().max(w[1].abs()) / scale;
                 m.is_finite().then_some((o, m))
             })
             .max_by(|a, b| a.1.total_cmp(&b.1));
@@ -76,7 +81,13 @@ pub fn adjust_with_snooping(
                     point: problem.points[ob.point].name.clone(),
                     uv: [ob.uv.x, ob.uv.y],
                     w,
-                    reason: format!("standardized residual {m:.2} > {critical:.2}"),
+                    reason: if scale > 1.0 {
+                        format!(
+                            "standardized residual {m:.2} (÷ sigma0 {scale:.3}) > {critical:.2}"
+                        )
+                    } else {
+                        format!("standardized residual {m:.2} > {critical:.2}")
+                    },
                 });
                 problem.observations.remove(o);
                 // A point with a single ray left is not determined: drop that ray too.

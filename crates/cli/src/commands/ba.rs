@@ -1,7 +1,13 @@
-//! `pingcal ba PROBLEM`: a bundle adjustment on its own, on a BAL file (plain or `.bz2`).
+//! `pingcal ba PROBLEM`: a bundle adjustment on its own.
 //!
-//! Prints a per-iteration log (as Ceres does) and a one-line summary; `--out FILE` writes
-//! the JSON of SPEC.md, with cost = ½ Σ r² in pixels so that it compares with Ceres.
+//! * A BAL file (plain or `.bz2`): prints a per-iteration log (as Ceres does) and a
+//!   one-line summary; `--out FILE` writes the JSON of SPEC.md, with cost = ½ Σ r² in
+//!   pixels so that it compares with Ceres.
+//! * pingcal's measurement file (`.json`, see `pingcal_ba::io::measurements`), or DBAT's
+//!   `markpts.txt` with `--dbat CONTROL`: initial values from the measurements alone, a
+//!   self-calibrating adjustment with distances and control, optional data snooping, and
+//!   the report laid out like Australis's (text on stdout or `--report FILE`; JSON with
+//!   `--out FILE`).
 
 use super::{write_atomic, CmdResult};
 use pingcal_ba::loss::Loss;
@@ -46,6 +52,19 @@ pub struct Args {
     /// Do not print the per-iteration log.
     #[arg(long)]
     pub quiet: bool,
+    /// PROBLEM is DBAT's `markpts.txt`; this is DBAT's control file (metres).
+    #[arg(long, value_name = "CONTROL")]
+    pub dbat: Option<PathBuf>,
+    /// Reject gross errors by data snooping (standardized residual above this, e.g. 3.29).
+    #[arg(long, value_name = "W")]
+    pub snoop: Option<f64>,
+    /// Self-calibrate these intrinsics of every camera (comma separated, e.g.
+    /// `c,xp,yp,K1,K2,K3,P1,P2,B1`), overriding the file. DBAT files default to that list.
+    #[arg(long, value_delimiter = ',')]
+    pub calibrate: Option<Vec<String>>,
+    /// Write the text report here (measurement files) instead of printing it.
+    #[arg(long)]
+    pub report: Option<PathBuf>,
 }
 
 /// Linear solver choice on the command line.
@@ -80,6 +99,12 @@ fn parse_loss(s: &str) -> Result<Loss, String> {
 
 /// Runs the command.
 pub fn run(args: Args) -> CmdResult {
+    if let Some(path) = &args.problem {
+        let is_json = path.extension().is_some_and(|e| e == "json");
+        if is_json || args.dbat.is_some() {
+            return run_measurements(path, &args);
+        }
+    }
     let t_read = Instant::now();
     let (mut problem, source) = match (&args.problem, &args.synthetic) {
         (Some(path), _) => (pingcal_ba::bal::read_bal(path)?, path.display().to_string()),
@@ -87,8 +112,15 @@ pub fn run(args: Args) -> CmdResult {
             let (c, p) = size
                 .split_once('x')
                 .and_then(|(c, p)| Some((c.parse::<usize>().ok()?, p.parse::<usize>().ok()?)))
-                .ok_or_else(|| format!("--synthetic '{size}': expected CAMERASxPOINTS, e.g. 200x30000"))?;
-            let spec = pingcal_ba::synthetic::SyntheticBal { cameras: c, points: p, obs_per_point: 6.min(c), ..Default::default() };
+                .ok_or_else(|| {
+                    format!("--synthetic '{size}': expected CAMERASxPOINTS, e.g. 200x30000")
+                })?;
+            let spec = pingcal_ba::synthetic::SyntheticBal {
+                cameras: c,
+                points: p,
+                obs_per_point: 6.min(c),
+                ..Default::default()
+            };
             (spec.generate()?.problem, format!("synthetic {c}x{p}"))
         }
         (None, None) => return Err("give a BAL file or --synthetic CAMERASxPOINTS".into()),
@@ -182,4 +214,111 @@ pub fn run(args: Args) -> CmdResult {
         write_atomic(out, serde_json::to_string_pretty(&json)?.as_bytes())?;
     }
     Ok(())
+}
+
+/// A photogrammetric adjustment of pingcal's measurement file or DBAT's files.
+fn run_measurements(path: &std::path::Path, args: &Args) -> CmdResult {
+    use pingcal_ba::initial::incremental::{initialise, IncrementalOptions};
+    use pingcal_ba::io::{dbat, measurements::Measurements};
+    use pingcal_ba::report::AdjustmentReport;
+    let mut meas = match &args.dbat {
+        Some(control) => {
+            let mut m = dbat::read_dbat(path, control, &dbat::DbatCamera::c4040z(), 1000.0)?;
+            // DBAT's camcal demo self-calibrates these (B1 plays its aspect parameter).
+            for c in &mut m.cameras {
+                c.calibrate = ["c", "xp", "yp", "K1", "K2", "K3", "P1", "P2", "B1"]
+                    .map(String::from)
+                    .to_vec();
+            }
+            m
+        }
+        None => Measurements::read(path)?,
+    };
+    if let Some(list) = &args.calibrate {
+        for c in &mut meas.cameras {
+            c.calibrate = list.clone();
+        }
+    }
+    let built = meas.to_problem()?;
+    for w in &built.warnings {
+        eprintln!("pingcal ba: warning: {}: {w}", path.display());
+    }
+    let options = Options {
+        max_iterations: args.max_iterations,
+        function_tolerance: args.function_tolerance,
+        gradient_tolerance: args.gradient_tolerance,
+        parameter_tolerance: args.parameter_tolerance,
+        threads: args.threads,
+        ..Options::default()
+    };
+    let init_options = IncrementalOptions {
+        bundle: options.clone(),
+        ..IncrementalOptions::default()
+    };
+    let init = initialise(
+        &built.problem,
+        &built.known_points,
+        &built.known_poses,
+        &init_options,
+    )
+    .map_err(|e| format!("{}: no initial values: {e}", path.display()))?;
+    if !args.quiet {
+        for s in &init.steps {
+            println!("  {s}");
+        }
+    }
+    for (name, why) in &init.unoriented_images {
+        eprintln!("pingcal ba: warning: image '{name}' not oriented: {why}");
+    }
+    for (name, why) in &init.undetermined_points {
+        eprintln!("pingcal ba: warning: point '{name}' not determined: {why}");
+    }
+    let mut problem = init.problem;
+    if let Some(l) = &args.loss {
+        problem.loss = parse_loss(l)?;
+    }
+    let initial: Vec<Vec<f64>> = meas_initial_intrinsics(&built.problem);
+    let (summary, precision, rejected) = match args.snoop {
+        Some(w) => {
+            let max_rejections = problem.observations.len() / 10;
+            let r = solver::adjust_with_snooping(&mut problem, &options, w, max_rejections)?;
+            (r.summary, r.precision, r.rejected)
+        }
+        None => {
+            let summary = solver::solve(&mut problem, &options, |_| {})?;
+            let precision = solver::precision(&problem)?;
+            (summary, precision, Vec::new())
+        }
+    };
+    let report = AdjustmentReport::new(&problem, &initial, &summary, &precision, &rejected);
+    match &args.report {
+        Some(file) => write_atomic(file, report.to_text().as_bytes())?,
+        None if !args.quiet => print!("{}", report.to_text()),
+        None => {}
+    }
+    if let Some(out) = &args.out {
+        let mut json = serde_json::to_value(&report)?;
+        json["initial_cost"] = summary.initial_cost.into();
+        json["final_cost"] = summary.final_cost.into();
+        json["time_s"] = summary.time_s.into();
+        json["rms_px"] = precision.rms_image_px.into();
+        write_atomic(out, serde_json::to_string_pretty(&json)?.as_bytes())?;
+    }
+    println!(
+        "pingcal ba: {} images, {} points, {} observations; sigma0 {:.4}, RMS {:.4} px, redundancy {}, {} rejected; {}",
+        problem.images.len(),
+        problem.points.len(),
+        problem.observations.len(),
+        precision.sigma0,
+        precision.rms_image_px,
+        precision.redundancy,
+        rejected.len(),
+        summary.termination
+    );
+    Ok(())
+}
+
+/// The intrinsics as given in the file, before any adjustment.
+fn meas_initial_intrinsics(p: &pingcal_ba::problem::Problem) -> Vec<Vec<f64>> {
+    p.cameras.iter().map(|c| c.params.clone()).collect()
 }
