@@ -491,3 +491,85 @@ fn weighted_control_variant() {
     assert!(dev.iter().all(|d| *d < 5.0), "{dev:?}");
     assert!((c - DBAT_C).abs() < 0.01);
 }
+
+/// Not even control for the initial values: the network starts from the relative
+/// orientation of the best image pair (a flat sheet, so through the homography), grows by
+/// resection and intersection, and only then is moved onto the 4 control points by a
+/// similarity; the final adjustment is the same as in the main test.
+#[test]
+fn from_a_relative_orientation_of_a_flat_sheet() {
+    let dir = data_dir();
+    let marks = dir.join("measurements/markpts.txt");
+    let control = dir.join("reference/camcal-fixed.txt");
+    if !marks.exists() || !control.exists() {
+        println!(
+            "skipped: DBAT's camcal data set not found at {}",
+            dir.display()
+        );
+        return;
+    }
+    let camera = DbatCamera::c4040z();
+    let mut meas = read_dbat(&marks, &control, &camera, 1000.0).expect("DBAT files");
+    meas.cameras[0].calibrate = ["c", "xp", "yp", "K1", "K2", "K3", "P1", "P2", "B1"]
+        .map(String::from)
+        .to_vec();
+    let built = meas.to_problem().expect("a valid problem");
+    let options = IncrementalOptions {
+        resect_from_control: false,
+        relative: pingcal_ba::initial::relative::RelativeOptions {
+            // ~20 px at c = 2337 px: the approximate camera has no distortion.
+            threshold_rad: 0.01,
+            ..Default::default()
+        },
+        resection: pingcal_ba::initial::resection::ResectionOptions {
+            threshold_px: 60.0,
+            ..Default::default()
+        },
+        intersection: pingcal_ba::initial::intersection::IntersectionOptions {
+            min_angle_deg: 2.0,
+            max_rms_px: 30.0,
+        },
+        ..IncrementalOptions::default()
+    };
+    let init = initialise(
+        &built.problem,
+        &built.known_points,
+        &built.known_poses,
+        &options,
+    )
+    .expect("initial values");
+    for s in &init.steps {
+        println!("  {s}");
+    }
+    assert!(matches!(init.steps[0], Step::RelativePair { .. }));
+    assert!(
+        init.unoriented_images.is_empty(),
+        "{:?}",
+        init.unoriented_images
+    );
+    assert!(
+        init.undetermined_points.is_empty(),
+        "{:?}",
+        init.undetermined_points
+    );
+    assert!(init.in_control_frame);
+    let mut p = init.problem;
+    assert_eq!(p.points.iter().filter(|x| x.fixed).count(), 4);
+    let summary = solve(
+        &mut p,
+        &Options {
+            max_iterations: 100,
+            function_tolerance: 1e-12,
+            gradient_tolerance: 1e-12,
+            parameter_tolerance: 1e-12,
+            ..Options::default()
+        },
+        |_| {},
+    )
+    .expect("bundle adjustment");
+    let sigma0 = (2.0 * summary.final_cost / DBAT_REDUNDANCY as f64).sqrt();
+    let c = p.cameras[0].params[0];
+    println!("from a relative start: σ0 {sigma0:.4}, c {c:.5} mm");
+    assert!((sigma0 / DBAT_SIGMA0 - 1.0).abs() < 0.05);
+    assert!((c - DBAT_C).abs() < 0.01);
+}

@@ -51,6 +51,10 @@ pub struct IncrementalOptions {
     pub bundle: Options,
     /// Free the problem's free intrinsics once this many images are oriented.
     pub calibrate_from_images: usize,
+    /// Resect images from the known points (default). When false, the network is built
+    /// from a relative orientation and the known points serve only to move it into their
+    /// frame at the end.
+    pub resect_from_control: bool,
 }
 
 impl Default for IncrementalOptions {
@@ -68,6 +72,7 @@ impl Default for IncrementalOptions {
                 ..Options::default()
             },
             calibrate_from_images: 3,
+            resect_from_control: true,
         }
     }
 }
@@ -620,7 +625,7 @@ pub fn initialise(
                     >= options.min_resection_points
         })
         .count();
-    let with_control = control_images > 0 || st.oriented() > 0;
+    let with_control = (options.resect_from_control && control_images > 0) || st.oriented() > 0;
     if with_control {
         for i in 0..ni {
             if st.poses[i].is_none() {

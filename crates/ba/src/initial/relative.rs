@@ -9,9 +9,14 @@
 //! are put on the image plane Y = 1 and normalised (Hartley: centroid at the origin, mean
 //! distance √2), which keeps it well conditioned for narrow fields of view.
 //!
-//! Limitation: the 8-point algorithm is degenerate when all points lie on one plane (a flat
-//! test field seen by two images); then no consistent solution is found and
-//! [`RelativeError::NoConsensus`] is returned. Use control points and resection there.
+//! Flat scenes: the 8-point algorithm is degenerate when all points lie on one plane (a flat
+//! test field), where a whole family of essential matrices fits. A homography between the
+//! two images is therefore estimated as well (normalised 4-point DLT in RANSAC on the same
+//! plane coordinates); when it explains at least 80 % as many correspondences as the
+//! essential matrix, the scene is taken as planar and the pose comes from the homography's
+//! decomposition (Faugeras & Lustman 1988: eight candidates, ±t), the candidate with the
+//! most points in front of both cameras winning. [`Relative::planar`] says which path
+//! was taken.
 
 use crate::pose::Pose;
 use crate::rotation::skew;
@@ -54,6 +59,8 @@ pub struct Relative {
     pub inliers: Vec<bool>,
     /// Median intersection angle of the inliers, degrees (the strength of the baseline).
     pub median_angle_deg: f64,
+    /// The pose came from a homography (a planar scene).
+    pub planar: bool,
 }
 
 /// Why a relative orientation failed.
@@ -187,6 +194,186 @@ fn best_decomposition(
     best
 }
 
+/// The permutation between pingcal's camera frame (X right, Y forward, Z up) and the frame
+/// (X, Z, Y) in which the plane coordinates (X/Y, Z/Y, 1) are homogeneous points.
+fn perm() -> Matrix3<f64> {
+    Matrix3::new(1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 1.0, 0.0)
+}
+
+/// The homography `h₂ ~ H h₁` between the plane coordinates h = (X/Y, Z/Y, 1) of four or
+/// more correspondences of unit rays (normalised DLT), or `None`.
+pub fn homography_dlt(d1: &[Vector3<f64>], d2: &[Vector3<f64>]) -> Option<Matrix3<f64>> {
+    let n = d1.len().min(d2.len());
+    if n < 4 {
+        return None;
+    }
+    let p1: Vec<Vector2<f64>> = d1[..n].iter().map(plane).collect::<Option<_>>()?;
+    let p2: Vec<Vector2<f64>> = d2[..n].iter().map(plane).collect::<Option<_>>()?;
+    let (t1, t2) = (normaliser(&p1), normaliser(&p2));
+    let mut ata = SMatrix::<f64, 9, 9>::zeros();
+    for (a, b) in p1.iter().zip(&p2) {
+        let x = t1 * Vector3::new(a.x, a.y, 1.0);
+        let y = t2 * Vector3::new(b.x, b.y, 1.0);
+        // y × (H x) = 0: two independent rows.
+        let mut r1 = SMatrix::<f64, 9, 1>::zeros();
+        let mut r2 = SMatrix::<f64, 9, 1>::zeros();
+        for j in 0..3 {
+            r1[3 + j] = -y.z * x[j];
+            r1[6 + j] = y.y * x[j];
+            r2[j] = y.z * x[j];
+            r2[6 + j] = -y.x * x[j];
+        }
+        ata += r1 * r1.transpose() + r2 * r2.transpose();
+    }
+    let eig = ata.symmetric_eigen();
+    let k = eig.eigenvalues.imin();
+    let v = eig.eigenvectors.column(k);
+    let hn = Matrix3::from_fn(|i, j| v[3 * i + j]);
+    let h = t2.try_inverse()? * hn * t1;
+    let s = h.norm();
+    (s > 0.0 && h.iter().all(|x| x.is_finite())).then(|| h / s)
+}
+
+/// Transfer error of a homography for one correspondence (plane units ≈ radians).
+fn homography_error(h: &Matrix3<f64>, d1: &Vector3<f64>, d2: &Vector3<f64>) -> f64 {
+    let (Some(a), Some(b)) = (plane(d1), plane(d2)) else {
+        return f64::INFINITY;
+    };
+    let q = h * Vector3::new(a.x, a.y, 1.0);
+    if q.z.abs() < 1e-12 {
+        return f64::INFINITY;
+    }
+    let e = Vector2::new(q.x / q.z, q.y / q.z) - b;
+    let r = h.try_inverse().map(|hi| hi * Vector3::new(b.x, b.y, 1.0));
+    let e2 = match r {
+        Some(r) if r.z.abs() > 1e-12 => (Vector2::new(r.x / r.z, r.y / r.z) - a).norm(),
+        _ => f64::INFINITY,
+    };
+    0.5 * (e.norm() + e2)
+}
+
+/// The candidate poses (camera 2 in camera 1's frame, |t| = 1, both signs of t) of a
+/// homography between plane coordinates (Faugeras & Lustman's SVD decomposition).
+pub fn decompose_homography(h: &Matrix3<f64>) -> Vec<Pose> {
+    let svd = h.svd(true, true);
+    let (Some(u), Some(vt)) = (svd.u, svd.v_t) else {
+        return Vec::new();
+    };
+    // Sort the singular values (nalgebra does not promise an order).
+    let mut order = [0usize, 1, 2];
+    order.sort_by(|&a, &b| svd.singular_values[b].total_cmp(&svd.singular_values[a]));
+    let u = Matrix3::from_columns(&order.map(|k| u.column(k).into_owned()));
+    let vt = Matrix3::from_rows(&order.map(|k| vt.row(k).into_owned()));
+    let w = order.map(|k| svd.singular_values[k]);
+    let (d1, d2, d3) = (w[0], w[1], w[2]);
+    if !(d3 > 0.0) || d1 / d2 < 1.00001 || d2 / d3 < 1.00001 {
+        return Vec::new();
+    }
+    let s = u.determinant() * vt.determinant();
+    let (q1, q2, q3) = (d1 * d1, d2 * d2, d3 * d3);
+    let a1 = ((q1 - q2) / (q1 - q3)).sqrt();
+    let a3 = ((q2 - q3) / (q1 - q3)).sqrt();
+    let x1 = [a1, a1, -a1, -a1];
+    let x3 = [a3, -a3, a3, -a3];
+    let p = perm();
+    let mut out = Vec::new();
+    let mut push = |r: Matrix3<f64>, t: Vector3<f64>| {
+        let tn = t.norm();
+        if tn > 0.0 && r.iter().all(|v| v.is_finite()) {
+            for sign in [1.0, -1.0] {
+                out.push(Pose {
+                    rotation: p * r * p,
+                    translation: p * (t * (sign / tn)),
+                });
+            }
+        }
+    };
+    // d' = d2.
+    let st = ((q1 - q2) * (q2 - q3)).sqrt() / ((d1 + d3) * d2);
+    let ct = (q2 + d1 * d3) / ((d1 + d3) * d2);
+    for (i, sg) in [1.0, -1.0, -1.0, 1.0].iter().enumerate() {
+        let rp = Matrix3::new(ct, 0.0, -st * sg, 0.0, 1.0, 0.0, st * sg, 0.0, ct);
+        let tp = Vector3::new(x1[i], 0.0, -x3[i]) * (d1 - d3);
+        push(u * rp * vt * s, u * tp);
+    }
+    // d' = −d2.
+    let sp = ((q1 - q2) * (q2 - q3)).sqrt() / ((d1 - d3) * d2);
+    let cp = (d1 * d3 - q2) / ((d1 - d3) * d2);
+    for (i, sg) in [1.0, -1.0, -1.0, 1.0].iter().enumerate() {
+        let rp = Matrix3::new(cp, 0.0, sp * sg, 0.0, -1.0, 0.0, sp * sg, 0.0, -cp);
+        let tp = Vector3::new(x1[i], 0.0, x3[i]) * (d1 + d3);
+        push(u * rp * vt * s, u * tp);
+    }
+    out
+}
+
+/// Angular error of a correspondence under a pose: the rays' distance from the point
+/// closest to both, as seen from each camera (radians, the larger of the two); infinite
+/// behind a camera.
+fn pose_error(pose: &Pose, d1: &Vector3<f64>, d2: &Vector3<f64>) -> f64 {
+    match depths(pose, d1, d2) {
+        Some((a, b)) if a > 0.0 && b > 0.0 => {
+            let x1 = d1 * a;
+            let x2 = pose.transform(&x1);
+            let e2 = (x2.normalize() - d2).norm();
+            // Camera 1 sees x1 exactly along d1; measure the miss at camera 2 and the
+            // symmetric one through the other depth.
+            let y2 = d2 * b;
+            let y1 = pose.inverse().transform(&y2);
+            e2.max((y1.normalize() - d1).norm())
+        }
+        _ => f64::INFINITY,
+    }
+}
+
+fn homography_ransac(
+    d1: &[Vector3<f64>],
+    d2: &[Vector3<f64>],
+    options: &RelativeOptions,
+) -> Option<(Matrix3<f64>, Vec<bool>)> {
+    let n = d1.len();
+    let t = options.threshold_rad;
+    let mut rng = rand::rngs::StdRng::seed_from_u64(options.seed ^ 0x5eed);
+    let mut best: Option<(f64, Matrix3<f64>)> = None;
+    let mut sample = Vec::with_capacity(4);
+    for _ in 0..options.samples {
+        sample.clear();
+        while sample.len() < 4 {
+            let k = rng.random_range(0..n);
+            if !sample.contains(&k) {
+                sample.push(k);
+            }
+        }
+        let s1: Vec<_> = sample.iter().map(|&k| d1[k]).collect();
+        let s2: Vec<_> = sample.iter().map(|&k| d2[k]).collect();
+        let Some(h) = homography_dlt(&s1, &s2) else {
+            continue;
+        };
+        let score: f64 = (0..n)
+            .map(|k| homography_error(&h, &d1[k], &d2[k]).min(t).powi(2))
+            .sum();
+        if best.as_ref().is_none_or(|b| score < b.0) {
+            best = Some((score, h));
+        }
+    }
+    let (_, mut h) = best?;
+    let mut inl: Vec<bool> = (0..n)
+        .map(|k| homography_error(&h, &d1[k], &d2[k]) < t)
+        .collect();
+    let s1: Vec<_> = (0..n).filter(|&k| inl[k]).map(|k| d1[k]).collect();
+    let s2: Vec<_> = (0..n).filter(|&k| inl[k]).map(|k| d2[k]).collect();
+    if let Some(h2) = homography_dlt(&s1, &s2) {
+        let inl2: Vec<bool> = (0..n)
+            .map(|k| homography_error(&h2, &d1[k], &d2[k]) < t)
+            .collect();
+        if inl2.iter().filter(|v| **v).count() >= inl.iter().filter(|v| **v).count() {
+            h = h2;
+            inl = inl2;
+        }
+    }
+    Some((h, inl))
+}
+
 /// Relative orientation from corresponding unit rays `d1[k]` ↔ `d2[k]`.
 pub fn relative_orientation(
     d1: &[Vector3<f64>],
@@ -246,7 +433,44 @@ pub fn relative_orientation(
             }
         }
     }
-    let (pose, _) = best_decomposition(&e, &d1[..n], &d2[..n], &inl);
+    let (mut pose, _) = best_decomposition(&e, &d1[..n], &d2[..n], &inl);
+    let mut planar = false;
+    let n_e = inl.iter().filter(|v| **v).count();
+    if let Some((h, h_inl)) = homography_ransac(&d1[..n], &d2[..n], options) {
+        let n_h = h_inl.iter().filter(|v| **v).count();
+        if n_h >= 8 && 5 * n_h >= 4 * n_e {
+            // A planar scene (or too little parallax for E): the homography decides.
+            let mut best_h: Option<(usize, f64, Pose)> = None;
+            for cand in decompose_homography(&h) {
+                let (mut count, mut err) = (0usize, 0.0);
+                for k in 0..n {
+                    if h_inl[k] {
+                        let e = pose_error(&cand, &d1[k], &d2[k]);
+                        if e < 2.0 * t {
+                            count += 1;
+                            err += e;
+                        }
+                    }
+                }
+                let better = best_h
+                    .as_ref()
+                    .is_none_or(|b| count > b.0 || (count == b.0 && err < b.1));
+                if better {
+                    best_h = Some((count, err, cand));
+                }
+            }
+            if let Some((count, _, cand)) = best_h {
+                if count >= 8 {
+                    pose = cand;
+                    e = essential_from_pose(&cand);
+                    inl = (0..n)
+                        .map(|k| h_inl[k] && pose_error(&cand, &d1[k], &d2[k]) < 2.0 * t)
+                        .collect();
+                    planar = true;
+                }
+            }
+        }
+    }
     let mut angles = Vec::new();
     for k in 0..n {
         if inl[k] {
@@ -274,6 +498,7 @@ pub fn relative_orientation(
         essential: e,
         inliers: inl,
         median_angle_deg: angles[count / 2],
+        planar,
     })
 }
 
@@ -331,6 +556,7 @@ mod tests {
         }
         assert!(r.inliers.iter().filter(|v| **v).count() > 80);
         assert!(r.median_angle_deg > 5.0);
+        assert!(!r.planar);
         // The exact E of the truth satisfies the constraint on noise-free rays.
         let e = essential_from_pose(&truth);
         let x = Vector3::new(0.3, 4.0, 0.2);
@@ -342,6 +568,65 @@ mod tests {
                 .abs()
                 < 1e-12
         );
+    }
+
+    #[test]
+    fn a_flat_scene_goes_through_the_homography() {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(8);
+        // Camera 1 looks at a plane 4 units ahead, tilted; camera 2 moved sideways and turned.
+        let truth = Pose {
+            rotation: from_opk(0.15, 0.05, 0.3),
+            translation: Vector3::new(-1.0, 0.2, 0.1).normalize(),
+        };
+        let normal = Vector3::new(0.2, -1.0, 0.3).normalize();
+        let noise = Normal::new(0.0, 2e-4).unwrap();
+        let (mut d1, mut d2) = (Vec::new(), Vec::new());
+        while d1.len() < 80 {
+            // A point of the plane n·x = −4·n_y (through (0, 4, 0)).
+            let (a, b) = (rng.random_range(-2.0..2.0), rng.random_range(-1.5..1.5));
+            let x0 = Vector3::new(a, 4.0, b);
+            let x = x0 - normal * (normal.dot(&x0) - normal.dot(&Vector3::new(0.0, 4.0, 0.0)));
+            let x2 = truth.transform(&x);
+            if x2.y < 0.5 || x.y < 0.5 {
+                continue;
+            }
+            let mut n = || Vector3::new(noise.sample(&mut rng), 0.0, noise.sample(&mut rng));
+            d1.push((x / x.y + n()).normalize());
+            d2.push((x2 / x2.y + n()).normalize());
+        }
+        let r = relative_orientation(&d1, &d2, &RelativeOptions::default()).unwrap();
+        assert!(r.planar);
+        assert!(
+            (r.pose.rotation - truth.rotation).norm() < 5e-3,
+            "{:?}",
+            r.pose.rotation
+        );
+        assert!(
+            (r.pose.translation - truth.translation).norm() < 2e-2,
+            "{:?}",
+            r.pose.translation
+        );
+        assert!(r.inliers.iter().filter(|v| **v).count() > 70);
+    }
+
+    #[test]
+    fn homography_decomposition_contains_the_truth() {
+        let truth = Pose {
+            rotation: from_opk(-0.2, 0.1, 0.4),
+            translation: Vector3::new(0.3, -0.5, 0.8).normalize(),
+        };
+        // Plane n·x = d in camera 1 (pingcal frame); H in plane coordinates.
+        let n = Vector3::new(0.1, 1.0, -0.2).normalize();
+        let d = 3.0;
+        let p = perm();
+        let h = p * (truth.rotation + truth.translation * n.transpose() / d) * p;
+        let best = decompose_homography(&h)
+            .iter()
+            .map(|c| {
+                (c.rotation - truth.rotation).norm() + (c.translation - truth.translation).norm()
+            })
+            .fold(f64::INFINITY, f64::min);
+        assert!(best < 1e-9, "{best}");
     }
 
     #[test]
