@@ -111,6 +111,32 @@ pub struct PointPrior {
     pub sigma: Vector3<f64>,
 }
 
+/// A camera rig (e.g. a stereo head): the relative pose between its cameras is the same at
+/// every station. A member image's pose is `rig.pose ∘ base image's pose`, so
+/// `rig.pose` maps the base camera's frame into the member camera's frame; the member's
+/// own [`Image::pose`] is kept equal to that composition by the solver, and its `fixed`
+/// flag is ignored.
+#[derive(Clone, Debug)]
+pub struct Rig {
+    /// Name used in reports (e.g. "stereo").
+    pub name: String,
+    /// Base camera frame → member camera frame.
+    pub pose: Pose,
+    /// Held fixed (a calibrated rig).
+    pub fixed: bool,
+    /// Member images and their base images (same station).
+    pub members: Vec<RigMember>,
+}
+
+/// One image whose pose follows a base image through a [`Rig`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct RigMember {
+    /// The member image (e.g. the right image of a station).
+    pub image: usize,
+    /// The base image of the same station (e.g. the left image).
+    pub base: usize,
+}
+
 /// A bundle-adjustment problem.
 #[derive(Clone, Debug, Default)]
 pub struct Problem {
@@ -128,6 +154,8 @@ pub struct Problem {
     pub distances: Vec<Distance>,
     /// Weighted control points.
     pub point_priors: Vec<PointPrior>,
+    /// Camera rigs (relative orientation constraints between images of one station).
+    pub rigs: Vec<Rig>,
 }
 
 /// Why a problem cannot be adjusted as given.
@@ -292,6 +320,34 @@ impl Problem {
                 )));
             }
         }
+        let mut member_of = vec![false; self.images.len()];
+        for rig in &self.rigs {
+            for m in &rig.members {
+                if m.image >= self.images.len() || m.base >= self.images.len() {
+                    return Err(ProblemError::BadConstraint(format!(
+                        "rig '{}' refers to image {} but there are only {} images",
+                        rig.name,
+                        m.image.max(m.base),
+                        self.images.len()
+                    )));
+                }
+                if m.image == m.base || member_of[m.image] {
+                    return Err(ProblemError::BadConstraint(format!(
+                        "rig '{}': image '{}' is its own base or a member twice",
+                        rig.name, self.images[m.image].name
+                    )));
+                }
+                member_of[m.image] = true;
+            }
+        }
+        for rig in &self.rigs {
+            if let Some(m) = rig.members.iter().find(|m| member_of[m.base]) {
+                return Err(ProblemError::BadConstraint(format!(
+                    "rig '{}': base image '{}' is itself a rig member",
+                    rig.name, self.images[m.base].name
+                )));
+            }
+        }
         for (k, c) in self.point_priors.iter().enumerate() {
             if c.point >= np {
                 return Err(ProblemError::UnknownPointIn {
@@ -310,6 +366,15 @@ impl Problem {
             }
         }
         Ok(())
+    }
+
+    /// Sets every rig member's pose to `rig.pose ∘ base pose`.
+    pub fn sync_rigs(&mut self) {
+        for rig in &self.rigs {
+            for m in &rig.members {
+                self.images[m.image].pose = rig.pose.compose(&self.images[m.base].pose);
+            }
+        }
     }
 
     /// Reprojection residual (predicted − measured, pixels) of one observation, or `None`

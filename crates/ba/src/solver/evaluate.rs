@@ -135,7 +135,33 @@ pub(crate) fn linearize(
             let nc = jc.len() / 2;
             let (j0, j1) = jc.split_at_mut(nc);
             let mut col = 0;
-            if layout.image_slot[o.image].is_some() {
+            if let Some((r, base)) = layout.image_rig[o.image] {
+                // xc = R_r (R_b X + t_b) + t_r with left updates of both poses:
+                // ∂xc/∂δω_b = −R_r [R_b X]×, ∂xc/∂δt_b = R_r; ∂xc/∂δω_r = −[xc − t_r]×, ∂xc/∂δt_r = I.
+                let rig = &problem.rigs[r].pose;
+                let b = &problem.images[base].pose;
+                if layout.image_slot[base].is_some() {
+                    let jr = dxc * rig.rotation;
+                    let jw = -(jr * skew(&(b.rotation * x)));
+                    for k in 0..3 {
+                        j0[k] = jw[(0, k)];
+                        j1[k] = jw[(1, k)];
+                        j0[3 + k] = jr[(0, k)];
+                        j1[3 + k] = jr[(1, k)];
+                    }
+                    col = 6;
+                }
+                if layout.rig_slot[r].is_some() {
+                    let jw = -(dxc * skew(&(xc - rig.translation)));
+                    for k in 0..3 {
+                        j0[col + k] = jw[(0, k)];
+                        j1[col + k] = jw[(1, k)];
+                        j0[col + 3 + k] = dxc[(0, k)];
+                        j1[col + 3 + k] = dxc[(1, k)];
+                    }
+                    col += 6;
+                }
+            } else if layout.image_slot[o.image].is_some() {
                 // ∂xc/∂δω = −[R X]×, ∂xc/∂δt = I.
                 let jw = -(dxc * skew(&rx));
                 for k in 0..3 {

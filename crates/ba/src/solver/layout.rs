@@ -45,6 +45,10 @@ pub(crate) struct Layout {
     /// Free points kept in the reduced system (those joined by a measured distance, which
     /// couples two points and so cannot be eliminated point by point).
     pub point_slot: Vec<Option<Slot>>,
+    /// Rig member images: (rig, base image). Their pose has no block of its own.
+    pub image_rig: Vec<Option<(usize, usize)>>,
+    /// Rigs with a free relative pose.
+    pub rig_slot: Vec<Option<Slot>>,
     /// Per distance: the blocks of its two points (if they are in the reduced system).
     pub distance_slots: Vec<[Option<Slot>; 2]>,
     pub camera_free: Vec<Vec<usize>>,
@@ -52,7 +56,7 @@ pub(crate) struct Layout {
     /// Jacobian buffer (2 values per column), and its segments (at most 2).
     pub obs_ncols: Vec<u16>,
     pub obs_jc_offset: Vec<usize>,
-    pub obs_segs: Vec<([Seg; 3], u8)>,
+    pub obs_segs: Vec<([Seg; 4], u8)>,
     /// Per observation, its point.
     pub obs_point: Vec<u32>,
     /// Internal observation k is `problem.observations[obs_order[k]]`; every per-observation
@@ -90,8 +94,14 @@ impl Layout {
         let mut block_dim = Vec::new();
         let mut image_slot = vec![None; n_img];
         let mut camera_slot = vec![None; n_cam];
+        let mut image_rig = vec![None; n_img];
+        for (r, rig) in problem.rigs.iter().enumerate() {
+            for m in &rig.members {
+                image_rig[m.image] = Some((r, m.base));
+            }
+        }
         for (i, im) in problem.images.iter().enumerate() {
-            if im.fixed {
+            if im.fixed || image_rig[i].is_some() {
                 continue;
             }
             let b = block_dim.len() as u32;
@@ -111,6 +121,16 @@ impl Layout {
                     off: 0,
                 });
                 block_dim.push(camera_free[c].len());
+            }
+        }
+        let mut rig_slot = vec![None; problem.rigs.len()];
+        for (r, rig) in problem.rigs.iter().enumerate() {
+            if !rig.fixed && !rig.members.is_empty() {
+                rig_slot[r] = Some(Slot {
+                    block: block_dim.len() as u32,
+                    off: 0,
+                });
+                block_dim.push(6);
             }
         }
         let mut point_slot = vec![None; problem.points.len()];
@@ -144,7 +164,8 @@ impl Layout {
         // consecutive points update neighbouring blocks of S and those stay in cache.
         let mut first_seen = vec![u32::MAX; problem.points.len()];
         for ob in &problem.observations {
-            let key = image_slot[ob.image].map_or(u32::MAX - 1, |s| s.block);
+            let own = image_rig[ob.image].map_or(ob.image, |(_, base)| base);
+            let key = image_slot[own].map_or(u32::MAX - 1, |s| s.block);
             first_seen[ob.point] = first_seen[ob.point].min(key);
         }
         let mut obs_order: Vec<u32> = (0..n_obs as u32).collect();
@@ -169,14 +190,29 @@ impl Layout {
         };
         for o in &observations {
             let im = &problem.images[o.image];
-            let mut segs = [empty; 3];
+            let mut segs = [empty; 4];
             let mut ns = 0u8;
             let mut ncols = 0u16;
-            if let Some(s) = image_slot[o.image] {
+            // A rig member's image point depends on its base image's pose and the rig.
+            let (pose_image, rig) = match image_rig[o.image] {
+                Some((r, base)) => (base, rig_slot[r]),
+                None => (o.image, None),
+            };
+            if let Some(s) = image_slot[pose_image] {
                 segs[ns as usize] = Seg {
                     block: s.block,
                     jac_col: ncols,
                     block_off: s.off,
+                    len: 6,
+                };
+                ns += 1;
+                ncols += 6;
+            }
+            if let Some(s) = rig {
+                segs[ns as usize] = Seg {
+                    block: s.block,
+                    jac_col: ncols,
+                    block_off: 0,
                     len: 6,
                 };
                 ns += 1;
@@ -318,6 +354,8 @@ impl Layout {
             image_slot,
             camera_slot,
             point_slot,
+            image_rig,
+            rig_slot,
             distance_slots,
             camera_free,
             obs_ncols,

@@ -179,6 +179,7 @@ pub fn solve(
     mut on_iteration: impl FnMut(&Iteration) + Send,
 ) -> Result<Summary, SolveError> {
     problem.validate()?;
+    problem.sync_rigs();
     let threads = if options.threads == 0 {
         rayon::current_num_threads()
     } else {
@@ -197,6 +198,7 @@ pub fn solve(
 }
 
 struct Backup {
+    rigs: Vec<crate::pose::Pose>,
     poses: Vec<crate::pose::Pose>,
     intrinsics: Vec<Vec<f64>>,
     points: Vec<Vector3<f64>>,
@@ -205,6 +207,7 @@ struct Backup {
 impl Backup {
     fn take(p: &Problem) -> Self {
         Self {
+            rigs: p.rigs.iter().map(|r| r.pose).collect(),
             poses: p.images.iter().map(|i| i.pose).collect(),
             intrinsics: p.cameras.iter().map(|c| c.params.clone()).collect(),
             points: p.points.iter().map(|x| x.position).collect(),
@@ -213,6 +216,9 @@ impl Backup {
     fn restore(&self, p: &mut Problem) {
         for (i, pose) in p.images.iter_mut().zip(&self.poses) {
             i.pose = *pose;
+        }
+        for (r, pose) in p.rigs.iter_mut().zip(&self.rigs) {
+            r.pose = *pose;
         }
         for (c, v) in p.cameras.iter_mut().zip(&self.intrinsics) {
             c.params.copy_from_slice(v);
@@ -455,6 +461,12 @@ fn apply_step(problem: &mut Problem, layout: &Layout, dc: &[f64], dp: &[Vector3<
             problem.points[p].position += Vector3::new(dc[o], dc[o + 1], dc[o + 2]);
         }
     }
+    for (r, slot) in layout.rig_slot.iter().enumerate() {
+        if let Some(s) = slot {
+            let o = layout.slot_offset(*s);
+            problem.rigs[r].pose = problem.rigs[r].pose.plus(&dc[o..o + 6]);
+        }
+    }
     for (i, im) in problem.images.iter_mut().enumerate() {
         if let Some(s) = layout.image_slot[i] {
             let o = layout.block_offset[s.block as usize] + s.off as usize;
@@ -472,6 +484,7 @@ fn apply_step(problem: &mut Problem, layout: &Layout, dc: &[f64], dp: &[Vector3<
     for (f, &p) in layout.free_points.iter().enumerate() {
         problem.points[p].position += dp[f];
     }
+    problem.sync_rigs();
 }
 
 #[cfg(test)]
@@ -542,7 +555,7 @@ mod tests {
     /// The gradient of the total cost (image observations, distances, control points) that
     /// the Schur step uses equals the central difference of the cost.
     #[test]
-    fn gradient_with_distances_and_control_matches_central_differences() {
+    fn gradient_with_distances_control_and_rig_matches_central_differences() {
         use crate::problem::{Distance, PointPrior};
         let mut problem = small_problem(crate::loss::Loss::Cauchy(4.0));
         problem.distances.push(Distance {
@@ -567,12 +580,24 @@ mod tests {
             position: Vector3::new(0.11, 0.49, 0.01),
             sigma: Vector3::new(0.05, 0.05, 0.05),
         });
+        // Image 2 follows image 0 through a free rig (a stereo head).
+        let rig_pose = problem.images[2]
+            .pose
+            .compose(&problem.images[0].pose.inverse());
+        problem.rigs.push(crate::problem::Rig {
+            name: "stereo".into(),
+            pose: rig_pose,
+            fixed: false,
+            members: vec![crate::problem::RigMember { image: 2, base: 0 }],
+        });
+        problem.sync_rigs();
         let layout = Layout::new(&problem);
         assert!(
             layout.point_slot[0].is_some()
                 && layout.point_slot[3].is_some()
                 && layout.point_slot[5].is_none()
         );
+        assert!(layout.image_slot[2].is_none() && layout.rig_slot[0].is_some());
         let mut lin = evaluate::Linearization::new(&layout);
         evaluate::linearize(&problem, &layout, &mut lin).unwrap();
         let mut schur = schur::Schur::new(&layout);
