@@ -510,7 +510,7 @@ impl<'a> State<'a> {
         });
     }
 
-    fn to_control_frame(&mut self) {
+    fn move_to_control_frame(&mut self) {
         let (mut from, mut to, mut idx) = (Vec::new(), Vec::new(), Vec::new());
         for j in 0..self.points.len() {
             if let (true, Some(x)) = (self.known[j], self.points[j]) {
@@ -609,9 +609,9 @@ pub fn initialise(
         control_frame: true,
         known: known.clone(),
     };
-    for j in 0..np {
+    for (j, pt) in st.points.iter_mut().enumerate() {
         if known[j] {
-            st.points[j] = Some(problem.points[j].position);
+            *pt = Some(problem.points[j].position);
         }
     }
     // Control available?
@@ -703,7 +703,7 @@ pub fn initialise(
         }
     }
     if !st.control_frame {
-        st.to_control_frame();
+        st.move_to_control_frame();
         if st.control_frame && options.bundle_between_steps {
             st.bundle(options);
         }
@@ -918,10 +918,9 @@ mod tests {
     fn three_control_points_bring_a_relative_network_into_their_frame() {
         let (truth, mut p, _) = network(4, 0.1);
         // Three control points: too few to resect, enough for a similarity at the end.
-        let mut known = vec![false; p.points.len()];
-        for j in 0..p.points.len() {
-            p.points[j].fixed = j < 3;
-            known[j] = j < 3;
+        let known: Vec<bool> = (0..p.points.len()).map(|j| j < 3).collect();
+        for (pt, k) in p.points.iter_mut().zip(&known) {
+            pt.fixed = *k;
         }
         let init = initialise(&p, &known, &[], &IncrementalOptions::default()).unwrap();
         assert!(

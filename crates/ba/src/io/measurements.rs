@@ -636,6 +636,40 @@ impl Measurements {
     }
 }
 
+impl Measurements {
+    /// A copy with the adjusted values of `problem` (built from `self` by
+    /// [`Measurements::to_problem`], possibly reduced by the initialiser: images and
+    /// cameras are matched by name): camera intrinsics, image poses, and the coordinates
+    /// of the file's control points left free (approximate ones). To write a result file in
+    /// the input format.
+    pub fn with_solution(&self, problem: &Problem) -> Measurements {
+        let mut out = self.clone();
+        for c in &mut out.cameras {
+            if let Some(pc) = problem.cameras.iter().find(|pc| pc.name == c.name) {
+                for (name, v) in PHOTOGRAMMETRIC_PARAMS.iter().zip(&pc.params) {
+                    if *v != 0.0 || c.intrinsics.contains_key(*name) {
+                        c.intrinsics.insert(name.to_string(), *v);
+                    }
+                }
+            }
+        }
+        for im in &mut out.images {
+            if let Some(pi) = problem.images.iter().find(|pi| pi.name == im.name) {
+                im.pose = Some(PoseSpec::from_pose(&pi.pose));
+            }
+        }
+        for cp in &mut out.control_points {
+            if cp.fixed || cp.sigma_mm.is_some() {
+                continue;
+            }
+            if let Some(pt) = problem.points.iter().find(|pt| pt.name == cp.id) {
+                cp.xyz = [pt.position.x, pt.position.y, pt.position.z];
+            }
+        }
+        out
+    }
+}
+
 /// The model of a camera of a [`Problem`] built by [`Measurements::to_problem`] (or
 /// by hand), when it is the photogrammetric one: needed to write it back.
 pub fn camera_spec(
@@ -745,6 +779,28 @@ mod tests {
         let back = Measurements::read(&path).unwrap();
         assert_eq!(back.image_points, m.image_points);
         std::fs::remove_dir_all(&dir).ok();
+    }
+
+    #[test]
+    fn with_solution_writes_poses_and_intrinsics_back() {
+        let m = Measurements::parse(EXAMPLE, "example.json").unwrap();
+        let mut b = m.to_problem().unwrap();
+        b.problem.cameras[0].params[0] = 2.5;
+        b.problem.cameras[0].params[4] = 1e-4;
+        b.problem.images[1].pose = PoseSpec {
+            centre: [100.0, 0.0, 5.0],
+            omega_phi_kappa_deg: [1.0, 2.0, 3.0],
+        }
+        .to_pose();
+        let out = m.with_solution(&b.problem);
+        assert_eq!(out.cameras[0].intrinsics["c"], 2.5);
+        assert_eq!(out.cameras[0].intrinsics["K2"], 1e-4);
+        let pose = out.images[1].pose.unwrap();
+        assert!((pose.centre[0] - 100.0).abs() < 1e-9);
+        assert!((pose.omega_phi_kappa_deg[2] - 3.0).abs() < 1e-9);
+        // The result reads back and builds the same problem size.
+        let again = Measurements::parse(&out.to_json(), "out.json").unwrap();
+        assert_eq!(again.to_problem().unwrap().problem.points.len(), 3);
     }
 
     #[test]
