@@ -55,6 +55,15 @@ pub struct IncrementalOptions {
     /// from a relative orientation and the known points serve only to move it into their
     /// frame at the end.
     pub resect_from_control: bool,
+    /// Reject gross errors after the bundle adjustments whose intrinsics are final
+    /// (self-calibrating, or nothing to calibrate): an observation whose residual exceeds
+    /// `max(reject_sigmas · s, reject_min_px)`, s the robust (MAD) residual scale, is left
+    /// out of the rest of the initialisation and of the returned problem.
+    pub reject_outliers: bool,
+    /// See `reject_outliers`.
+    pub reject_sigmas: f64,
+    /// See `reject_outliers`, pixels.
+    pub reject_min_px: f64,
 }
 
 impl Default for IncrementalOptions {
@@ -73,6 +82,9 @@ impl Default for IncrementalOptions {
             },
             calibrate_from_images: 3,
             resect_from_control: true,
+            reject_outliers: true,
+            reject_sigmas: 10.0,
+            reject_min_px: 3.0,
         }
     }
 }
@@ -103,6 +115,11 @@ pub enum Step {
         iterations: usize,
         rms_px: f64,
         calibrating: bool,
+    },
+    /// Observations rejected as gross errors after a bundle adjustment.
+    Rejected {
+        observations: usize,
+        threshold_px: f64,
     },
     /// A bundle adjustment that failed (its result is discarded).
     BundleFailed { message: String },
@@ -146,6 +163,13 @@ impl std::fmt::Display for Step {
                 if *calibrating { ", self-calibrating" } else { "" }
             ),
             Step::BundleFailed { message } => write!(f, "bundle failed: {message}"),
+            Step::Rejected {
+                observations,
+                threshold_px,
+            } => write!(
+                f,
+                "rejected {observations} observations with residuals above {threshold_px:.2} px"
+            ),
             Step::ScaledByDistances { distances, scale } => write!(
                 f,
                 "scaled by {scale:.6} from {distances} measured distances"
@@ -178,6 +202,8 @@ pub struct Initialised {
     /// without, once three or more of them were intersected). When false, control points
     /// are not held fixed and weighted control is left out of `problem`.
     pub in_control_frame: bool,
+    /// Observations rejected as gross errors: image, point, residual in pixels.
+    pub rejected_observations: Vec<(String, String, f64)>,
 }
 
 /// Why no network could be started.
@@ -207,6 +233,8 @@ struct State<'a> {
     /// Whether control coordinates are in the frame (with control) or not (relative start).
     control_frame: bool,
     known: Vec<bool>,
+    /// Per observation: rejected as a gross error (with its residual, px).
+    rejected: Vec<Option<f64>>,
 }
 
 impl<'a> State<'a> {
@@ -292,7 +320,11 @@ impl<'a> State<'a> {
     }
 
     /// The sub-problem of what is oriented, with maps.
-    fn subproblem(&self, calibrating: bool) -> (Problem, Vec<Option<usize>>, Vec<Option<usize>>) {
+    #[allow(clippy::type_complexity)]
+    fn subproblem(
+        &self,
+        calibrating: bool,
+    ) -> (Problem, Vec<Option<usize>>, Vec<Option<usize>>, Vec<usize>) {
         let p = self.problem;
         let mut sub = Problem {
             cameras: p.cameras.clone(),
@@ -337,7 +369,11 @@ impl<'a> State<'a> {
                 }
             }
         }
-        for o in &p.observations {
+        let mut obs_map = Vec::new();
+        for (k, o) in p.observations.iter().enumerate() {
+            if self.rejected[k].is_some() {
+                continue;
+            }
             if let (Some(i), Some(j)) = (image_map[o.image], point_map[o.point]) {
                 let mut o = *o;
                 o.image = i;
@@ -345,15 +381,73 @@ impl<'a> State<'a> {
                 // Leave out what does not project at the current estimate.
                 if sub.residual(&o).is_some() {
                     sub.observations.push(o);
+                    obs_map.push(k);
                 }
             }
         }
-        (sub, image_map, point_map)
+        (sub, image_map, point_map, obs_map)
+    }
+
+    /// Flags gross errors in the adjusted sub-problem; returns how many were flagged.
+    fn reject(&mut self, sub: &Problem, obs_map: &[usize], options: &IncrementalOptions) -> usize {
+        let res: Vec<f64> = sub
+            .observations
+            .iter()
+            .map(|o| sub.residual(o).map_or(f64::INFINITY, |r| r.norm()))
+            .collect();
+        let mut comps: Vec<f64> = sub
+            .observations
+            .iter()
+            .filter_map(|o| sub.residual(o))
+            .flat_map(|r| [r.x.abs(), r.y.abs()])
+            .collect();
+        if comps.is_empty() {
+            return 0;
+        }
+        comps.sort_by(f64::total_cmp);
+        let scale = 1.4826 * comps[comps.len() / 2];
+        let threshold = (options.reject_sigmas * scale).max(options.reject_min_px);
+        let mut count = 0;
+        for (k, r) in res.iter().enumerate() {
+            if *r > threshold {
+                let o = obs_map[k];
+                self.rejected[o] = Some(*r);
+                let ob = self.problem.observations[o];
+                self.by_image[ob.image].retain(|&x| x != o);
+                self.by_point[ob.point].retain(|&x| x != o);
+                count += 1;
+            }
+        }
+        if count == 0 {
+            return 0;
+        }
+        // Points left with fewer than two rays are undetermined again.
+        for j in 0..self.points.len() {
+            if self.points[j].is_some() && !self.known[j] {
+                let rays = self.by_point[j]
+                    .iter()
+                    .filter(|&&o| self.poses[self.problem.observations[o].image].is_some())
+                    .count();
+                if rays < 2 {
+                    self.points[j] = None;
+                    self.point_reason[j] = "too few rays left after rejecting gross errors".into();
+                }
+            }
+        }
+        self.steps.push(Step::Rejected {
+            observations: count,
+            threshold_px: threshold,
+        });
+        count
     }
 
     fn bundle(&mut self, options: &IncrementalOptions) {
+        self.bundle_once(options, options.reject_outliers);
+    }
+
+    fn bundle_once(&mut self, options: &IncrementalOptions, allow_reject: bool) {
         let calibrating = self.oriented() >= options.calibrate_from_images;
-        let (mut sub, image_map, point_map) = self.subproblem(calibrating);
+        let (mut sub, image_map, point_map, obs_map) = self.subproblem(calibrating);
         if sub.observations.is_empty() {
             return;
         }
@@ -407,6 +501,15 @@ impl<'a> State<'a> {
                     rms_px: sub.rms_px(),
                     calibrating,
                 });
+                let model_final = calibrating
+                    || self
+                        .problem
+                        .cameras
+                        .iter()
+                        .all(|c| c.fixed.iter().all(|f| *f));
+                if allow_reject && model_final && self.reject(&sub, &obs_map, options) > 0 {
+                    self.bundle_once(options, false);
+                }
             }
             Err(e) => self.steps.push(Step::BundleFailed {
                 message: e.to_string(),
@@ -608,6 +711,7 @@ pub fn initialise(
         steps: Vec::new(),
         control_frame: true,
         known: known.clone(),
+        rejected: vec![None; problem.observations.len()],
     };
     for (j, pt) in st.points.iter_mut().enumerate() {
         if known[j] {
@@ -709,7 +813,7 @@ pub fn initialise(
         }
     }
     // The result, with the caller's fixed flags on the intrinsics.
-    let (mut sub, image_map, point_map) = st.subproblem(true);
+    let (mut sub, image_map, point_map, _) = st.subproblem(true);
     for (c, orig) in sub.cameras.iter_mut().zip(&problem.cameras) {
         c.fixed.clone_from(&orig.fixed);
     }
@@ -729,6 +833,21 @@ pub fn initialise(
         unoriented_images,
         undetermined_points,
         in_control_frame: st.control_frame || !known.iter().any(|k| *k),
+        rejected_observations: st
+            .rejected
+            .iter()
+            .enumerate()
+            .filter_map(|(k, r)| {
+                let o = &problem.observations[k];
+                r.map(|r| {
+                    (
+                        problem.images[o.image].name.clone(),
+                        problem.points[o.point].name.clone(),
+                        r,
+                    )
+                })
+            })
+            .collect(),
     })
 }
 
@@ -942,6 +1061,37 @@ mod tests {
             let k = init.point_map[j].unwrap();
             assert_eq!(q.points[k].position, truth.points[j].position);
             assert!(q.points[k].fixed);
+        }
+    }
+
+    #[test]
+    fn gross_errors_are_rejected_and_reported() {
+        let (truth, mut p, known) = network(5, 0.1);
+        let mut bad = Vec::new();
+        for k in (0..p.observations.len()).step_by(37) {
+            p.observations[k].uv += Vector2::new(25.0, -18.0);
+            bad.push((
+                p.images[p.observations[k].image].name.clone(),
+                p.points[p.observations[k].point].name.clone(),
+            ));
+        }
+        let init = initialise(&p, &known, &[], &IncrementalOptions::default()).unwrap();
+        let rejected: Vec<(String, String)> = init
+            .rejected_observations
+            .iter()
+            .map(|(i, pt, _)| (i.clone(), pt.clone()))
+            .collect();
+        assert_eq!(rejected, bad, "{:?}", init.steps);
+        assert_eq!(
+            init.problem.observations.len(),
+            p.observations.len() - bad.len()
+        );
+        assert!(init.problem.rms_px() < 0.2, "{}", init.problem.rms_px());
+        assert!(init.unoriented_images.is_empty());
+        for (j, pt) in truth.points.iter().enumerate() {
+            if let Some(k) = init.point_map[j] {
+                assert!((init.problem.points[k].position - pt.position).norm() < 5.0);
+            }
         }
     }
 
