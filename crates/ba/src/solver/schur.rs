@@ -432,7 +432,7 @@ impl<'a> Column<'a> {
                 ($($m:literal x $n:literal),*) => {
                     match (len1, len2) {
                         $(($m, $n) => {
-                            return self.add_fixed::<K, $m, $n>(left, right, base, off2, scale);
+                            return self.add_fixed::<K, $m, $n, false>(left, right, base, off2, scale);
                         })*
                         _ => {}
                     }
@@ -441,8 +441,8 @@ impl<'a> Column<'a> {
             fixed!(9 x 9, 6 x 6, 6 x 9, 9 x 6);
         } else if off1 == off2 && len1 == len2 {
             match len1 {
-                9 => return self.add_fixed_diag::<K, 9>(left, right, base, off2, scale),
-                6 => return self.add_fixed_diag::<K, 6>(left, right, base, off2, scale),
+                9 => return self.add_fixed::<K, 9, 9, true>(left, right, base, off2, scale),
+                6 => return self.add_fixed::<K, 6, 6, true>(left, right, base, off2, scale),
                 _ => {}
             }
         }
@@ -466,33 +466,10 @@ impl<'a> Column<'a> {
         }
     }
 
-    /// A square block on the diagonal of S: only its upper triangle is stored.
+    /// A fixed-size block; with `UPPER` (a square block on the diagonal of S) only its
+    /// upper triangle, which is all that is stored there.
     #[inline(always)]
-    fn add_fixed_diag<const K: usize, const M: usize>(
-        &mut self,
-        left: [&[f64]; K],
-        right: [&[f64]; K],
-        base: usize,
-        off2: usize,
-        scale: f64,
-    ) {
-        let l: [[f64; M]; K] = std::array::from_fn(|k| left[k][..M].try_into().unwrap());
-        let r: [[f64; M]; K] = std::array::from_fn(|k| right[k][..M].try_into().unwrap());
-        for j in 0..M {
-            let start = self.col_ptr[off2 + j] - self.v0 + base;
-            let dst = &mut self.vals[start..start + j + 1];
-            for (i, d) in dst.iter_mut().enumerate() {
-                let mut acc = 0.0;
-                for k in 0..K {
-                    acc += l[k][i] * r[k][j];
-                }
-                *d += scale * acc;
-            }
-        }
-    }
-
-    #[inline(always)]
-    fn add_fixed<const K: usize, const M: usize, const N: usize>(
+    fn add_fixed<const K: usize, const M: usize, const N: usize, const UPPER: bool>(
         &mut self,
         left: [&[f64]; K],
         right: [&[f64]; K],
@@ -504,13 +481,14 @@ impl<'a> Column<'a> {
         let r: [[f64; N]; K] = std::array::from_fn(|k| right[k][..N].try_into().unwrap());
         for j in 0..N {
             let start = self.col_ptr[off2 + j] - self.v0 + base;
-            let dst: &mut [f64; M] = (&mut self.vals[start..start + M]).try_into().unwrap();
-            for i in 0..M {
+            let rows = if UPPER { j + 1 } else { M };
+            let dst = &mut self.vals[start..start + rows];
+            for (i, d) in dst.iter_mut().enumerate() {
                 let mut acc = 0.0;
                 for k in 0..K {
                     acc += l[k][i] * r[k][j];
                 }
-                dst[i] += scale * acc;
+                *d += scale * acc;
             }
         }
     }
