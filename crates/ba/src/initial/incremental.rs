@@ -1096,6 +1096,57 @@ mod tests {
     }
 
     #[test]
+    fn a_network_in_two_pieces_orients_one_and_names_the_other() {
+        let (_, a, _) = network(6, 0.1);
+        let (_, b, _) = network(7, 0.1);
+        // Two copies side by side sharing no point, no control at all.
+        let mut p = a.clone();
+        let (ni, np) = (a.images.len(), a.points.len());
+        for im in &b.images {
+            let mut im = im.clone();
+            im.name = format!("B-{}", im.name);
+            p.images.push(im);
+        }
+        for pt in &b.points {
+            let mut pt = pt.clone();
+            pt.name = format!("B-{}", pt.name);
+            pt.fixed = false;
+            p.points.push(pt);
+        }
+        for pt in p.points.iter_mut() {
+            pt.fixed = false;
+        }
+        for o in &b.observations {
+            let mut o = *o;
+            o.image += ni;
+            o.point += np;
+            p.observations.push(o);
+        }
+        let init = initialise(&p, &[], &[], &IncrementalOptions::default()).unwrap();
+        assert_eq!(
+            init.unoriented_images.len(),
+            12,
+            "{:?}",
+            init.unoriented_images
+        );
+        let names: Vec<&str> = init
+            .unoriented_images
+            .iter()
+            .map(|(n, _)| n.as_str())
+            .collect();
+        let piece_b = names.iter().all(|n| n.starts_with("B-"));
+        let piece_a = names.iter().all(|n| !n.starts_with("B-"));
+        assert!(piece_a || piece_b, "{names:?}");
+        assert!(init
+            .unoriented_images
+            .iter()
+            .all(|(_, why)| why.contains("sees 0")));
+        assert_eq!(init.undetermined_points.len(), 60);
+        assert!(init.problem.validate().is_ok());
+        assert!(init.problem.rms_px() < 0.2);
+    }
+
+    #[test]
     fn a_disconnected_image_is_reported_not_nan() {
         let (_, mut p, known) = network(3, 0.1);
         // An extra image that sees only two points of its own.
