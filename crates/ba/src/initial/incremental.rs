@@ -26,7 +26,7 @@ use super::resection::{resect, similarity_transform, ResectionOptions};
 use crate::pose::Pose;
 use crate::problem::{Distance, PointPrior, Problem, ProblemError};
 use crate::solver::{solve, Options};
-use nalgebra::{Vector2, Vector3};
+use nalgebra::Vector3;
 use std::collections::HashMap;
 
 /// Options of [`initialise`].
@@ -851,23 +851,13 @@ pub fn initialise(
     })
 }
 
-/// Pixel measurements of an image as `(uv, point index)` (a helper for callers that
-/// resect by hand).
-pub fn image_measurements(problem: &Problem, image: usize) -> Vec<(Vector2<f64>, usize)> {
-    problem
-        .observations
-        .iter()
-        .filter(|o| o.image == image)
-        .map(|o| (o.uv, o.point))
-        .collect()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::camera::{CameraModel, PhotogrammetricCamera};
     use crate::initial::resection::tests::look_at;
     use crate::problem::{Camera, Image, Observation, Point};
+    use nalgebra::Vector2;
     use rand::{Rng, SeedableRng};
     use rand_distr::{Distribution, Normal};
     use std::sync::Arc;

@@ -428,7 +428,7 @@ pub fn resect(
             }
         }
     }
-    let Some((_, best_inliers, pose)) = best else {
+    let Some((_, _, pose)) = best else {
         return Err(ResectionError::NoConsensus {
             needed,
             best: 0,
@@ -437,11 +437,15 @@ pub fn resect(
         });
     };
     // Refine on the inliers, re-select, refine again.
+    let mut usable = vec![false; n];
+    for &k in &idx {
+        usable[k] = true;
+    }
     let mut pose = pose;
     let mut inliers = vec![false; n];
     for _ in 0..2 {
         for (k, flag) in inliers.iter_mut().enumerate() {
-            *flag = idx.contains(&k)
+            *flag = usable[k]
                 && reprojection(model, params, &pose, &x[k], &uv[k])
                     .is_some_and(|r| r.norm_squared() < t2);
         }
@@ -451,7 +455,7 @@ pub fn resect(
         pose = refine_pose(model, params, uv, x, &inliers, &pose);
     }
     for (k, flag) in inliers.iter_mut().enumerate() {
-        *flag = idx.contains(&k)
+        *flag = usable[k]
             && reprojection(model, params, &pose, &x[k], &uv[k])
                 .is_some_and(|r| r.norm_squared() < t2);
     }
@@ -459,7 +463,7 @@ pub fn resect(
     if count < needed {
         return Err(ResectionError::NoConsensus {
             needed,
-            best: count.max(best_inliers.min(count)),
+            best: count,
             count: m,
             threshold_px: options.threshold_px,
         });
