@@ -158,3 +158,53 @@ fn data_snooping_finds_gross_errors_and_only_them() {
         result.precision.sigma0
     );
 }
+
+/// A free network (no fixed image, no control): the precision comes from inner
+/// constraints on the points. Intrinsics are estimable, so their σ must equal those of a
+/// minimal datum (one image fixed, scale from one distance held by a tiny σ); the point
+/// covariance has the minimum trace of all datums.
+#[test]
+fn free_network_by_inner_constraints() {
+    let mut free = realisation(&truth(), 31);
+    for pt in &mut free.points {
+        pt.fixed = false;
+    }
+    solve(&mut free, &options(), |_| {}).unwrap();
+    let inner = precision(&free).expect("inner constraints define the datum");
+
+    let mut minimal = free.clone();
+    minimal.images[0].fixed = true;
+    let l = (minimal.points[0].position - minimal.points[40].position).norm();
+    minimal.distances.push(Distance {
+        a: 0,
+        b: 40,
+        value: l,
+        sigma: 1e-3,
+    });
+    let fixed = precision(&minimal).unwrap();
+
+    assert_eq!(inner.redundancy, fixed.redundancy);
+    assert!((inner.sigma0 - fixed.sigma0).abs() < 1e-6 * fixed.sigma0);
+    for (a, b) in inner.intrinsics[0]
+        .sigmas
+        .iter()
+        .zip(&fixed.intrinsics[0].sigmas)
+    {
+        assert!(
+            (a - b).abs() < 1e-4 * b,
+            "intrinsic σ differs with the datum: {a} vs {b}"
+        );
+    }
+    let trace = |p: &pingcal_ba::solver::Precision| -> f64 {
+        p.point_covariances
+            .iter()
+            .flatten()
+            .map(|c| c.trace())
+            .sum()
+    };
+    let (ti, tf) = (trace(&inner), trace(&fixed));
+    println!(
+        "trace of point covariance: inner constraints {ti:.4}, one image + one distance {tf:.4}"
+    );
+    assert!(ti < tf, "minimum trace: {ti} vs {tf}");
+}

@@ -12,12 +12,14 @@
 //! symbolic factorization computed once ([`layout`]); back-substitute the points.
 
 mod evaluate;
+mod free_network;
 mod layout;
 mod linear;
 mod outliers;
 mod precision;
 mod schur;
 
+pub use free_network::MAX_FREE_NETWORK_UNKNOWNS;
 pub use linear::LinearSolverKind;
 pub use outliers::{adjust_with_snooping, Rejection, SnoopError, SnoopResult};
 pub use precision::{

@@ -141,7 +141,14 @@ pub fn precision(problem: &Problem) -> Result<Precision, PrecisionError> {
             s[(j, i)] = schur.values[k];
         }
     }
-    let q_cc = invert_or_diagnose(&s, problem, &layout)?;
+    let q_cc = match invert_or_diagnose(&s, problem, &layout) {
+        Ok(q) => q,
+        // A free network: the datum by inner constraints on the points.
+        Err(PrecisionError::DatumDefect(_)) if super::free_network::is_free(problem) => {
+            return super::free_network::precision(problem, &layout, &lin);
+        }
+        Err(e) => return Err(e),
+    };
 
     // Redundancy and σ0.
     let n_obs =

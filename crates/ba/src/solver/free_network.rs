@@ -1,0 +1,269 @@
+//! Precision of a free network: the datum by inner constraints on the object points
+//! (the minimum-trace solution), for networks with no fixed image, no control point and
+//! no fixed rig, whose normal matrix is singular by the 7 degrees of freedom of a
+//! similarity transform (6 when distances fix the scale).
+//!
+//! With N = JᵀJ the normal matrix, G (n × d) a basis of its null space (the similarity's
+//! effect on every unknown) and C = G restricted to the point coordinates (the inner
+//! constraints Cᵀδx = 0), the cofactor matrix is
+//! `Q = (N + C Cᵀ)⁻¹ − G (CᵀG)⁻¹ (GᵀC)⁻¹ Gᵀ` (Koch, *Parameter Estimation and Hypothesis
+//! Testing in Linear Models*, §3.2.6). It is formed densely, so only for networks of at
+//! most [`MAX_FREE_NETWORK_UNKNOWNS`] unknowns. Intrinsic parameters are estimable: their
+//! standard deviations do not depend on the datum.
+
+use super::evaluate::Linearization;
+use super::layout::Layout;
+use super::precision::{IntrinsicsPrecision, PoseSigma, Precision, PrecisionError};
+use crate::problem::Problem;
+use nalgebra::{DMatrix, Matrix3, Vector3};
+
+/// Largest free network (unknowns) whose precision is formed densely.
+pub const MAX_FREE_NETWORK_UNKNOWNS: usize = 4000;
+
+/// Whether `problem` has no datum of its own (then inner constraints define one).
+pub(crate) fn is_free(problem: &Problem) -> bool {
+    problem.images.iter().all(|i| !i.fixed)
+        && problem.points.iter().all(|p| !p.fixed)
+        && problem.point_priors.is_empty()
+        && problem.rigs.iter().all(|r| !r.fixed)
+}
+
+/// Column of unknown groups in the dense system: reduced first, then eliminated points.
+fn point_col(layout: &Layout, p: usize) -> Option<usize> {
+    if let Some(s) = layout.point_slot[p] {
+        Some(layout.slot_offset(s))
+    } else if layout.free_point_index[p] != u32::MAX {
+        Some(layout.n_reduced + 3 * layout.free_point_index[p] as usize)
+    } else {
+        None
+    }
+}
+
+pub(crate) fn precision(
+    problem: &Problem,
+    layout: &Layout,
+    lin: &Linearization,
+) -> Result<Precision, PrecisionError> {
+    let nc = layout.n_reduced;
+    let n = nc + 3 * layout.free_points.len();
+    if n > MAX_FREE_NETWORK_UNKNOWNS {
+        return Err(PrecisionError::DatumDefect(format!(
+            "the network is free (no fixed image, no control) and too large ({n} unknowns) for inner constraints: fix one image and give a distance, or give control points"
+        )));
+    }
+    let n_img_obs = problem.observations.len();
+    let m = 2 * n_img_obs + problem.distances.len();
+    // Dense Jacobian and residual (whitened), internal observation order.
+    let mut j = DMatrix::<f64>::zeros(m, n);
+    let mut r = vec![0.0; m];
+    for o in 0..n_img_obs {
+        r[2 * o] = lin.r[o].x;
+        r[2 * o + 1] = lin.r[o].y;
+        for sg in layout.segs(o) {
+            let base = layout.block_offset[sg.block as usize] + sg.block_off as usize;
+            let (j0, j1) = layout.jc_rows(&lin.jc, o, sg);
+            for k in 0..sg.len as usize {
+                j[(2 * o, base + k)] = j0[k];
+                j[(2 * o + 1, base + k)] = j1[k];
+            }
+        }
+        let f = layout.free_point_index[layout.obs_point[o] as usize];
+        if f != u32::MAX {
+            let c = nc + 3 * f as usize;
+            for k in 0..3 {
+                j[(2 * o, c + k)] = lin.jp[o][(0, k)];
+                j[(2 * o + 1, c + k)] = lin.jp[o][(1, k)];
+            }
+        }
+    }
+    for (k, d) in problem.distances.iter().enumerate() {
+        let (rd, ja) = lin.dist[k];
+        let row = 2 * n_img_obs + k;
+        r[row] = rd;
+        for (p, sign) in [(d.a, 1.0), (d.b, -1.0)] {
+            if let Some(c) = point_col(layout, p) {
+                for a in 0..3 {
+                    j[(row, c + a)] = sign * ja[a];
+                }
+            }
+        }
+    }
+    let normal = j.transpose() * &j;
+
+    // Null space of the similarity: translation (3), rotation (3), scale (1, unless
+    // distances fix it). For a pose (left update R ← exp(δω)R, t ← t + δt):
+    // translation T → δt = −R T; rotation ω → δω = −R ω; scale s → δt = s·t.
+    let d = if problem.distances.is_empty() { 7 } else { 6 };
+    let mut g = DMatrix::<f64>::zeros(n, d);
+    let mut c = DMatrix::<f64>::zeros(n, d);
+    for (i, slot) in layout.image_slot.iter().enumerate() {
+        let Some(s) = slot else { continue };
+        let o = layout.slot_offset(*s);
+        let pose = &problem.images[i].pose;
+        for k in 0..3 {
+            let e = Vector3::ith(k, 1.0);
+            let dt = -(pose.rotation * e);
+            let dw = -(pose.rotation * e);
+            for a in 0..3 {
+                g[(o + 3 + a, k)] = dt[a];
+                g[(o + a, 3 + k)] = dw[a];
+            }
+        }
+        if d == 7 {
+            for a in 0..3 {
+                g[(o + 3 + a, 6)] = pose.translation[a];
+            }
+        }
+    }
+    for (rg, slot) in layout.rig_slot.iter().enumerate() {
+        if let (Some(s), 7) = (slot, d) {
+            let o = layout.slot_offset(*s);
+            for a in 0..3 {
+                g[(o + 3 + a, 6)] = problem.rigs[rg].pose.translation[a];
+            }
+        }
+    }
+    for (p, pt) in problem.points.iter().enumerate() {
+        let Some(col) = point_col(layout, p) else {
+            continue;
+        };
+        let x = pt.position;
+        for k in 0..3 {
+            let rot = Vector3::ith(k, 1.0).cross(&x);
+            for a in 0..3 {
+                let v = [(k, if a == k { 1.0 } else { 0.0 }), (3 + k, rot[a])];
+                for (col_g, val) in v {
+                    g[(col + a, col_g)] = val;
+                    c[(col + a, col_g)] = val;
+                }
+            }
+        }
+        if d == 7 {
+            for a in 0..3 {
+                g[(col + a, 6)] = x[a];
+                c[(col + a, 6)] = x[a];
+            }
+        }
+    }
+    // Scale the constraint columns to the size of N so that N + CCᵀ is well conditioned.
+    let scale = (normal.diagonal().mean()
+        / c.column_iter()
+            .map(|v| v.norm_squared())
+            .sum::<f64>()
+            .max(1e-300))
+    .sqrt();
+    let cs = &c * scale;
+    let augmented = &normal + &cs * cs.transpose();
+    let Some(chol) = augmented.clone().cholesky() else {
+        return Err(PrecisionError::DatumDefect(
+            "the network is free and, beyond position, orientation and scale, still not determined (too few points per image, or disconnected pieces)".into(),
+        ));
+    };
+    let inv = chol.inverse();
+    let ctg = cs.transpose() * &g;
+    let Some(ctg_inv) = ctg.clone().try_inverse() else {
+        return Err(PrecisionError::DatumDefect(
+            "the inner constraints do not fix the datum (all points coincide?)".into(),
+        ));
+    };
+    // (CᵀG)⁻¹(GᵀC)⁻¹ with the scaled C.
+    let mid = &ctg_inv * ctg_inv.transpose();
+    let q = inv - &g * mid * g.transpose();
+
+    let redundancy = m as i64 - n as i64 + d as i64;
+    if redundancy <= 0 {
+        return Err(PrecisionError::NoRedundancy(redundancy));
+    }
+    let sigma0 = (2.0 * lin.cost / redundancy as f64).sqrt();
+    let s02 = sigma0 * sigma0;
+
+    let mut intrinsics = Vec::new();
+    for (ci, cam) in problem.cameras.iter().enumerate() {
+        let Some(slot) = layout.camera_slot[ci] else {
+            continue;
+        };
+        let o = layout.slot_offset(slot);
+        let free = &layout.camera_free[ci];
+        let k = free.len();
+        let sig: Vec<f64> = (0..k)
+            .map(|i| (s02 * q[(o + i, o + i)]).max(0.0).sqrt())
+            .collect();
+        let names: Vec<String> = free
+            .iter()
+            .map(|&i| cam.model.parameter_names()[i].to_string())
+            .collect();
+        let corr: Vec<Vec<f64>> = (0..k)
+            .map(|a| {
+                (0..k)
+                    .map(|b| s02 * q[(o + a, o + b)] / (sig[a] * sig[b]))
+                    .collect()
+            })
+            .collect();
+        let mut high = Vec::new();
+        for a in 0..k {
+            for b in a + 1..k {
+                if corr[a][b].abs() > 0.95 {
+                    high.push((names[a].clone(), names[b].clone(), corr[a][b]));
+                }
+            }
+        }
+        intrinsics.push(IntrinsicsPrecision {
+            camera: cam.name.clone(),
+            values: free.iter().map(|&i| cam.params[i]).collect(),
+            names,
+            sigmas: sig,
+            correlation: corr,
+            high_correlations: high,
+        });
+    }
+    let poses = problem
+        .images
+        .iter()
+        .enumerate()
+        .map(|(i, im)| {
+            let o = layout.slot_offset(layout.image_slot[i]?);
+            let qq = DMatrix::from_fn(6, 6, |a, b| s02 * q[(o + a, o + b)]);
+            let rt = im.pose.rotation.transpose();
+            let jw = -(rt * crate::rotation::skew(&im.pose.translation));
+            let mut jj = DMatrix::<f64>::zeros(3, 6);
+            for a in 0..3 {
+                for b in 0..3 {
+                    jj[(a, b)] = jw[(a, b)];
+                    jj[(a, 3 + b)] = -rt[(a, b)];
+                }
+            }
+            let cc = &jj * &qq * jj.transpose();
+            Some(PoseSigma {
+                rotation_rad: [qq[(0, 0)].sqrt(), qq[(1, 1)].sqrt(), qq[(2, 2)].sqrt()],
+                centre: [cc[(0, 0)].sqrt(), cc[(1, 1)].sqrt(), cc[(2, 2)].sqrt()],
+            })
+        })
+        .collect();
+    let point_covariances = (0..problem.points.len())
+        .map(|p| point_col(layout, p).map(|c| Matrix3::from_fn(|a, b| s02 * q[(c + a, c + b)])))
+        .collect();
+    // Standardized residuals: q_vv = 1 − (J Q Jᵀ)_ii.
+    let jq = &j * &q;
+    let mut standardized_residuals = vec![[f64::NAN; 2]; n_img_obs];
+    for o in 0..n_img_obs {
+        let q_index = layout.obs_order[o] as usize;
+        for a in 0..2 {
+            let row = 2 * o + a;
+            let qvv = 1.0 - jq.row(row).dot(&j.row(row));
+            if qvv > 1e-9 {
+                standardized_residuals[q_index][a] = r[row] / qvv.sqrt();
+            }
+        }
+    }
+    Ok(Precision {
+        sigma0,
+        redundancy,
+        observations: m,
+        unknowns: n,
+        rms_image_px: problem.rms_px(),
+        intrinsics,
+        poses,
+        point_covariances,
+        standardized_residuals,
+    })
+}
