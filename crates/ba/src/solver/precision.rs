@@ -349,7 +349,7 @@ fn invert_or_diagnose(
     let eig = scaled.clone().symmetric_eigen();
     let max = eig.eigenvalues.max();
     let null: Vec<usize> = (0..n)
-        .filter(|&k| eig.eigenvalues[k] < 1e-9 * max)
+        .filter(|&k| eig.eigenvalues[k] < 1e-13 * max)
         .collect();
     if null.is_empty() {
         let inv = eig.eigenvectors.clone()
