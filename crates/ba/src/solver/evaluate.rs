@@ -116,11 +116,14 @@ pub(crate) fn linearize(
             let xc = rx + im.pose.translation;
             let mut dxc = Matrix2x3::zeros();
             let n = cam.params.len();
-            let mut ji = [0.0f64; 32];
-            let ji = if n <= 32 {
-                &mut ji[..2 * n]
+            // Intrinsic Jacobian on the stack for the usual models (≤ 16 parameters).
+            let mut small = [0.0f64; 32];
+            let mut large = Vec::new();
+            let ji = if n <= 16 {
+                &mut small[..2 * n]
             } else {
-                unreachable!("camera models have at most 16 parameters")
+                large.resize(2 * n, 0.0);
+                &mut large[..]
             };
             let uv = cam
                 .model
