@@ -13,7 +13,7 @@
 
 use super::evaluate::Linearization;
 use super::layout::Layout;
-use super::precision::{IntrinsicsPrecision, PoseSigma, Precision, PrecisionError};
+use super::precision::{intrinsics_precision, pose_sigmas, Precision, PrecisionError};
 use crate::problem::Problem;
 use nalgebra::{DMatrix, Matrix3, Vector3};
 
@@ -177,68 +177,8 @@ pub(crate) fn precision(
     let sigma0 = (2.0 * lin.cost / redundancy as f64).sqrt();
     let s02 = sigma0 * sigma0;
 
-    let mut intrinsics = Vec::new();
-    for (ci, cam) in problem.cameras.iter().enumerate() {
-        let Some(slot) = layout.camera_slot[ci] else {
-            continue;
-        };
-        let o = layout.slot_offset(slot);
-        let free = &layout.camera_free[ci];
-        let k = free.len();
-        let sig: Vec<f64> = (0..k)
-            .map(|i| (s02 * q[(o + i, o + i)]).max(0.0).sqrt())
-            .collect();
-        let names: Vec<String> = free
-            .iter()
-            .map(|&i| cam.model.parameter_names()[i].to_string())
-            .collect();
-        let corr: Vec<Vec<f64>> = (0..k)
-            .map(|a| {
-                (0..k)
-                    .map(|b| s02 * q[(o + a, o + b)] / (sig[a] * sig[b]))
-                    .collect()
-            })
-            .collect();
-        let mut high = Vec::new();
-        for a in 0..k {
-            for b in a + 1..k {
-                if corr[a][b].abs() > 0.95 {
-                    high.push((names[a].clone(), names[b].clone(), corr[a][b]));
-                }
-            }
-        }
-        intrinsics.push(IntrinsicsPrecision {
-            camera: cam.name.clone(),
-            values: free.iter().map(|&i| cam.params[i]).collect(),
-            names,
-            sigmas: sig,
-            correlation: corr,
-            high_correlations: high,
-        });
-    }
-    let poses = problem
-        .images
-        .iter()
-        .enumerate()
-        .map(|(i, im)| {
-            let o = layout.slot_offset(layout.image_slot[i]?);
-            let qq = DMatrix::from_fn(6, 6, |a, b| s02 * q[(o + a, o + b)]);
-            let rt = im.pose.rotation.transpose();
-            let jw = -(rt * crate::rotation::skew(&im.pose.translation));
-            let mut jj = DMatrix::<f64>::zeros(3, 6);
-            for a in 0..3 {
-                for b in 0..3 {
-                    jj[(a, b)] = jw[(a, b)];
-                    jj[(a, 3 + b)] = -rt[(a, b)];
-                }
-            }
-            let cc = &jj * &qq * jj.transpose();
-            Some(PoseSigma {
-                rotation_rad: [qq[(0, 0)].sqrt(), qq[(1, 1)].sqrt(), qq[(2, 2)].sqrt()],
-                centre: [cc[(0, 0)].sqrt(), cc[(1, 1)].sqrt(), cc[(2, 2)].sqrt()],
-            })
-        })
-        .collect();
+    let intrinsics = intrinsics_precision(problem, layout, s02, |i, j| q[(i, j)]);
+    let poses = pose_sigmas(problem, layout, s02, |i, j| q[(i, j)]);
     let point_covariances = (0..problem.points.len())
         .map(|p| point_col(layout, p).map(|c| Matrix3::from_fn(|a, b| s02 * q[(c + a, c + b)])))
         .collect();

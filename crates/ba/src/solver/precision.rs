@@ -161,68 +161,8 @@ pub fn precision(problem: &Problem) -> Result<Precision, PrecisionError> {
     let sigma0 = (2.0 * lin.cost / redundancy as f64).sqrt();
     let s02 = sigma0 * sigma0;
 
-    // Intrinsics.
-    let mut intrinsics = Vec::new();
-    for (c, cam) in problem.cameras.iter().enumerate() {
-        let Some(slot) = layout.camera_slot[c] else {
-            continue;
-        };
-        let o = layout.slot_offset(slot);
-        let free = &layout.camera_free[c];
-        let k = free.len();
-        let cov = DMatrix::from_fn(k, k, |i, j| s02 * q_cc[(o + i, o + j)]);
-        let sig: Vec<f64> = (0..k).map(|i| cov[(i, i)].sqrt()).collect();
-        let names: Vec<String> = free
-            .iter()
-            .map(|&i| cam.model.parameter_names()[i].to_string())
-            .collect();
-        let corr: Vec<Vec<f64>> = (0..k)
-            .map(|i| (0..k).map(|j| cov[(i, j)] / (sig[i] * sig[j])).collect())
-            .collect();
-        let mut high = Vec::new();
-        for i in 0..k {
-            for j in i + 1..k {
-                if corr[i][j].abs() > 0.95 {
-                    high.push((names[i].clone(), names[j].clone(), corr[i][j]));
-                }
-            }
-        }
-        intrinsics.push(IntrinsicsPrecision {
-            camera: cam.name.clone(),
-            values: free.iter().map(|&i| cam.params[i]).collect(),
-            names,
-            sigmas: sig,
-            correlation: corr,
-            high_correlations: high,
-        });
-    }
-
-    // Poses: rotation about the camera axes and the projection centre C = −Rᵀt, whose
-    // derivative with respect to (δω, δt) is [−Rᵀ[t]×, −Rᵀ].
-    let poses = problem
-        .images
-        .iter()
-        .enumerate()
-        .map(|(i, im)| {
-            let slot = layout.image_slot[i]?;
-            let o = layout.slot_offset(slot);
-            let q = DMatrix::from_fn(6, 6, |a, b| s02 * q_cc[(o + a, o + b)]);
-            let rt = im.pose.rotation.transpose();
-            let jw = -(rt * crate::rotation::skew(&im.pose.translation));
-            let mut j = DMatrix::<f64>::zeros(3, 6);
-            for a in 0..3 {
-                for b in 0..3 {
-                    j[(a, b)] = jw[(a, b)];
-                    j[(a, 3 + b)] = -rt[(a, b)];
-                }
-            }
-            let cc = &j * &q * j.transpose();
-            Some(PoseSigma {
-                rotation_rad: [q[(0, 0)].sqrt(), q[(1, 1)].sqrt(), q[(2, 2)].sqrt()],
-                centre: [cc[(0, 0)].sqrt(), cc[(1, 1)].sqrt(), cc[(2, 2)].sqrt()],
-            })
-        })
-        .collect();
+    let intrinsics = intrinsics_precision(problem, &layout, s02, |i, j| q_cc[(i, j)]);
+    let poses = pose_sigmas(problem, &layout, s02, |i, j| q_cc[(i, j)]);
 
     // Points.
     let mut point_covariances = vec![None; problem.points.len()];
@@ -407,4 +347,83 @@ fn describe_unknown(i: usize, problem: &Problem, layout: &Layout) -> String {
         }
     }
     format!("unknown {i}")
+}
+
+/// Standard deviations and correlations of every camera's free intrinsics, from the
+/// cofactor matrix `q` (indexed in the reduced system) scaled by σ0².
+pub(crate) fn intrinsics_precision(
+    problem: &Problem,
+    layout: &Layout,
+    s02: f64,
+    q: impl Fn(usize, usize) -> f64,
+) -> Vec<IntrinsicsPrecision> {
+    let mut out = Vec::new();
+    for (c, cam) in problem.cameras.iter().enumerate() {
+        let Some(slot) = layout.camera_slot[c] else {
+            continue;
+        };
+        let o = layout.slot_offset(slot);
+        let free = &layout.camera_free[c];
+        let k = free.len();
+        let cov = DMatrix::from_fn(k, k, |i, j| s02 * q(o + i, o + j));
+        let sig: Vec<f64> = (0..k).map(|i| cov[(i, i)].max(0.0).sqrt()).collect();
+        let names: Vec<String> = free
+            .iter()
+            .map(|&i| cam.model.parameter_names()[i].to_string())
+            .collect();
+        let corr: Vec<Vec<f64>> = (0..k)
+            .map(|i| (0..k).map(|j| cov[(i, j)] / (sig[i] * sig[j])).collect())
+            .collect();
+        let mut high = Vec::new();
+        for i in 0..k {
+            for j in i + 1..k {
+                if corr[i][j].abs() > 0.95 {
+                    high.push((names[i].clone(), names[j].clone(), corr[i][j]));
+                }
+            }
+        }
+        out.push(IntrinsicsPrecision {
+            camera: cam.name.clone(),
+            values: free.iter().map(|&i| cam.params[i]).collect(),
+            names,
+            sigmas: sig,
+            correlation: corr,
+            high_correlations: high,
+        });
+    }
+    out
+}
+
+/// Standard deviations of every free pose: rotation about the camera axes and the
+/// projection centre C = −Rᵀt, whose derivative with respect to (δω, δt) is
+/// [−Rᵀ[t]×, −Rᵀ].
+pub(crate) fn pose_sigmas(
+    problem: &Problem,
+    layout: &Layout,
+    s02: f64,
+    q: impl Fn(usize, usize) -> f64,
+) -> Vec<Option<PoseSigma>> {
+    problem
+        .images
+        .iter()
+        .enumerate()
+        .map(|(i, im)| {
+            let o = layout.slot_offset(layout.image_slot[i]?);
+            let qq = DMatrix::from_fn(6, 6, |a, b| s02 * q(o + a, o + b));
+            let rt = im.pose.rotation.transpose();
+            let jw = -(rt * crate::rotation::skew(&im.pose.translation));
+            let mut j = DMatrix::<f64>::zeros(3, 6);
+            for a in 0..3 {
+                for b in 0..3 {
+                    j[(a, b)] = jw[(a, b)];
+                    j[(a, 3 + b)] = -rt[(a, b)];
+                }
+            }
+            let cc = &j * &qq * j.transpose();
+            Some(PoseSigma {
+                rotation_rad: [qq[(0, 0)].sqrt(), qq[(1, 1)].sqrt(), qq[(2, 2)].sqrt()],
+                centre: [cc[(0, 0)].sqrt(), cc[(1, 1)].sqrt(), cc[(2, 2)].sqrt()],
+            })
+        })
+        .collect()
 }
