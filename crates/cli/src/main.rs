@@ -8,7 +8,11 @@ use clap::{Parser, Subcommand};
 mod commands;
 
 #[derive(Parser)]
-#[command(name = "pingcal", version, about = "Camera to rotating-2D-LRF calibration with a photogrammetric test field and ping-pong balls")]
+#[command(
+    name = "pingcal",
+    version,
+    about = "Camera to rotating-2D-LRF calibration with a photogrammetric test field and ping-pong balls"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,

@@ -18,8 +18,13 @@ pub type CmdResult = Result<(), CmdError>;
 /// Writes `bytes` to `path` atomically (temporary file in the same folder, then rename),
 /// so that an interrupted run never leaves a partial output file looking complete.
 pub fn write_atomic(path: &std::path::Path, bytes: &[u8]) -> CmdResult {
-    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(std::path::Path::new("."));
-    let name = path.file_name().ok_or_else(|| format!("{}: not a file name", path.display()))?;
+    let dir = path
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(std::path::Path::new("."));
+    let name = path
+        .file_name()
+        .ok_or_else(|| format!("{}: not a file name", path.display()))?;
     let tmp = dir.join(format!(".{}.partial", name.to_string_lossy()));
     std::fs::write(&tmp, bytes).map_err(|e| format!("{}: cannot write: {e}", tmp.display()))?;
     std::fs::rename(&tmp, path).map_err(|e| format!("{}: cannot write: {e}", path.display()))?;
