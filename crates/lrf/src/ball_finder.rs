@@ -221,13 +221,14 @@ fn remove_planes(
 }
 
 /// Euclidean clusters of the kept points (union-find on a hash grid).
-fn clusters(cloud: &Cloud, idx: &[usize], opt: &FinderOptions) -> Vec<Vec<usize>> {
+/// `scale` shrinks the link distance (used to split a cluster that is too large).
+fn clusters(cloud: &Cloud, idx: &[usize], opt: &FinderOptions, scale: f64) -> Vec<Vec<usize>> {
     if idx.is_empty() {
         return Vec::new();
     }
     let link: Vec<f64> = idx
         .iter()
-        .map(|&i| (0.5 * opt.diameter_mm).max(2.5 * point_sigma(cloud, &opt.noise, i)))
+        .map(|&i| scale * (0.5 * opt.diameter_mm).max(2.5 * point_sigma(cloud, &opt.noise, i)))
         .collect();
     let cell = link.iter().cloned().fold(0.0, f64::max);
     let key = |p: &Vector3<f64>| {
@@ -279,6 +280,11 @@ fn clusters(cloud: &Cloud, idx: &[usize], opt: &FinderOptions) -> Vec<Vec<usize>
     out
 }
 
+/// Each split of a too-large cluster shortens the link by this factor…
+const SPLIT_FACTOR: f64 = 0.7;
+/// …down to this fraction of the nominal link.
+const SPLIT_MIN_SCALE: f64 = 0.1;
+
 /// Sphere through four points: (centre, radius).
 pub fn sphere_through(p: [Vector3<f64>; 4]) -> Option<(Vector3<f64>, f64)> {
     let a = Matrix3::from_rows(&[
@@ -302,7 +308,13 @@ enum Outcome {
     Rejected(Rejected),
 }
 
-fn examine(cloud: &Cloud, cl: &[usize], opt: &FinderOptions, seed: u64) -> Outcome {
+fn examine(
+    cloud: &Cloud,
+    cl: &[usize],
+    opt: &FinderOptions,
+    planes: &[(Vector3<f64>, f64)],
+    seed: u64,
+) -> Outcome {
     let radius = opt.diameter_mm / 2.0;
     let rays: Vec<Ray> = cl
         .iter()
@@ -371,6 +383,20 @@ fn examine(cloud: &Cloud, cl: &[usize], opt: &FinderOptions, seed: u64) -> Outco
         Ok(f) if (f.centre - mean).norm() > opt.diameter_mm * 2.0 => {
             reject(f.centre, "fit left its cluster".into())
         }
+        // a real ball stands clear in front of every wall (seen from the sensor); a "sphere"
+        // whose back is within one range σ of a wall, or behind it, is a fit to the wall's
+        // noise tail (the points just beyond the plane gate)
+        Ok(f)
+            if planes.iter().any(|(n, d)| {
+                let side = if *d > 0.0 { -1.0 } else { 1.0 }; // sensor side of n·x = d
+                side * (n.dot(&f.centre) - d) < radius + opt.noise.sigma(f.centre.norm())
+            }) =>
+        {
+            reject(
+                f.centre,
+                "sphere cuts a wall plane or stands within 1σ of it".into(),
+            )
+        }
         Ok(f) if f.cov.symmetric_eigenvalues().max().sqrt() > opt.max_centre_sigma_mm => reject(
             f.centre,
             format!(
@@ -400,20 +426,32 @@ pub fn find_balls(cloud: &Cloud, opt: &FinderOptions) -> FindResult {
         (Vec::new(), vec![true; cloud.len()])
     };
     let idx: Vec<usize> = (0..cloud.len()).filter(|&i| keep[i]).collect();
-    let all = clusters(cloud, &idx, opt);
+    let all = clusters(cloud, &idx, opt, 1.0);
     let n_clusters = all.len();
-    let cands: Vec<Vec<usize>> = all
-        .into_iter()
-        .filter(|c| {
-            if c.len() < opt.min_points {
-                return false;
-            }
-            let m = c.iter().map(|&i| cloud.points[i]).sum::<Vector3<f64>>() / c.len() as f64;
-            c.iter().all(|&i| {
-                (cloud.points[i] - m).norm() <= opt.max_cluster_extent_d * opt.diameter_mm
-            })
-        })
-        .collect();
+    // A cluster larger than a ball is split by clustering it again with a shorter link. In a
+    // dense sweep the few wall points beyond the plane gate (the Gaussian tail, ~1 % of a
+    // wall) come closer together than the link distance and chain the balls in front of the
+    // wall into one wall-sized cluster; a ball's own points are far denser than that tail, so
+    // a shorter link separates them again. A sparse sweep never needs the split.
+    let extent_ok = |c: &[usize]| {
+        let m = c.iter().map(|&i| cloud.points[i]).sum::<Vector3<f64>>() / c.len() as f64;
+        c.iter()
+            .all(|&i| (cloud.points[i] - m).norm() <= opt.max_cluster_extent_d * opt.diameter_mm)
+    };
+    let mut cands: Vec<Vec<usize>> = Vec::new();
+    let mut work: Vec<(Vec<usize>, f64)> = all.into_iter().map(|c| (c, 1.0)).collect();
+    while let Some((c, scale)) = work.pop() {
+        if c.len() < opt.min_points {
+            continue;
+        }
+        if extent_ok(&c) {
+            cands.push(c);
+        } else if scale > SPLIT_MIN_SCALE {
+            let s = scale * SPLIT_FACTOR;
+            work.extend(clusters(cloud, &c, opt, s).into_iter().map(|p| (p, s)));
+        }
+    }
+    cands.sort_by_key(|g| g[0]);
     let outcomes: Vec<Outcome> = cands
         .par_iter()
         .enumerate()
@@ -422,6 +460,7 @@ pub fn find_balls(cloud: &Cloud, opt: &FinderOptions) -> FindResult {
                 cloud,
                 c,
                 opt,
+                &planes,
                 opt.seed ^ (k as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15),
             )
         })
