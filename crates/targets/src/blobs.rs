@@ -119,24 +119,74 @@ pub fn components_above(
     min_area: usize,
     max_area: usize,
 ) -> Vec<Blob> {
-    let (w, h) = (img.width, img.height);
+    let idx = level_index(img, &[level]);
+    components_of_index(&idx, img.width, img.height, 0, level, min_area, max_area)
+}
+
+/// For a non-decreasing ladder `levels`, the number of levels each pixel is strictly above
+/// (so pixel > `levels[i]` exactly when its index is > `i`). Computed once and shared by all
+/// rungs of the ladder: each connected-component pass then scans bytes instead of floats.
+/// At most 255 levels.
+pub fn level_index(img: &GrayImage, levels: &[f32]) -> Vec<u8> {
+    use rayon::prelude::*;
+    assert!(levels.len() <= 255, "at most 255 threshold levels");
+    let sorted = levels.windows(2).all(|w| w[0] <= w[1]);
+    assert!(sorted, "threshold levels must be non-decreasing");
+    let mut out = vec![0u8; img.data.len()];
+    // Blocks of 4096 pixels (cache-resident), one pass per level over each block so the
+    // comparison loop vectorises.
+    out.par_chunks_mut(1 << 16)
+        .zip(img.data.par_chunks(1 << 16))
+        .for_each(|(o, d)| {
+            for (o, d) in o.chunks_mut(4096).zip(d.chunks(4096)) {
+                for &l in levels {
+                    for (o, &v) in o.iter_mut().zip(d) {
+                        *o += (v > l) as u8;
+                    }
+                }
+            }
+        });
+    out
+}
+
+/// Connected components (8-connected) of the pixels whose level index (see [`level_index`]) is
+/// greater than `k`, i.e. whose value is above `level`, keeping only those whose area is in
+/// `min_area..=max_area`.
+pub fn components_of_index(
+    idx: &[u8],
+    w: usize,
+    h: usize,
+    k: u8,
+    level: f32,
+    min_area: usize,
+    max_area: usize,
+) -> Vec<Blob> {
+    assert_eq!(idx.len(), w * h, "index image size");
     // Runs: (x0, x1, label) per row; only the previous row is needed for connectivity.
     let mut runs_prev: Vec<(usize, usize, u32)> = Vec::new();
     let mut runs_cur: Vec<(usize, usize, u32)> = Vec::new();
     let mut parent: Vec<u32> = Vec::new();
     let mut stats: Vec<Blob> = Vec::new();
+    const CHUNK: usize = 32;
     for y in 0..h {
         runs_cur.clear();
-        let row = &img.data[y * w..(y + 1) * w];
+        let row = &idx[y * w..(y + 1) * w];
         let mut x = 0;
         let mut j = 0; // index into runs_prev
         while x < w {
-            if row[x] <= level {
+            // Skip background quickly, a chunk of bytes at a time.
+            while x + CHUNK <= w && row[x..x + CHUNK].iter().fold(0u8, |m, &v| m.max(v)) <= k {
+                x += CHUNK;
+            }
+            if x >= w {
+                break;
+            }
+            if row[x] <= k {
                 x += 1;
                 continue;
             }
             let x0 = x;
-            while x < w && row[x] > level {
+            while x < w && row[x] > k {
                 x += 1;
             }
             let x1 = x - 1;
@@ -145,9 +195,9 @@ pub fn components_above(
             while j < runs_prev.len() && runs_prev[j].1 + 1 < x0 {
                 j += 1;
             }
-            let mut k = j;
-            while k < runs_prev.len() && runs_prev[k].0 <= x1 + 1 {
-                let r = find(&mut parent, runs_prev[k].2);
+            let mut kk = j;
+            while kk < runs_prev.len() && runs_prev[kk].0 <= x1 + 1 {
+                let r = find(&mut parent, runs_prev[kk].2);
                 if label == u32::MAX {
                     label = r;
                 } else if r != label {
@@ -155,7 +205,7 @@ pub fn components_above(
                     parent[hi as usize] = lo;
                     label = lo;
                 }
-                k += 1;
+                kk += 1;
             }
             if label == u32::MAX {
                 label = parent.len() as u32;

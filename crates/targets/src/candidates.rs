@@ -2,7 +2,7 @@
 //! shape tests, grouped across rungs (a real target is a component at several consecutive
 //! levels, noise rarely is).
 
-use crate::blobs::{components_above, Blob};
+use crate::blobs::{components_of_index, level_index, Blob};
 use crate::ellipse::Ellipse;
 use crate::image_io::GrayImage;
 use crate::threshold::threshold_levels;
@@ -76,13 +76,22 @@ pub fn find_candidates(img: &GrayImage, p: &CandidateParams) -> Vec<Candidate> {
         .max(3.0) as usize;
     let max_area = (std::f64::consts::PI * (p.max_diameter_px / 2.0).powi(2) * 1.3).ceil() as usize;
     let (w, h) = (img.width, img.height);
+    // One level index shared by all rungs (levels ascend: pixel > levels[i] ⇔ index > i).
+    // (More than 255 levels: one index per level.)
+    let shared = (levels.len() <= 255).then(|| level_index(img, &levels));
     let per_level: Vec<Vec<(Ellipse, usize)>> = levels
         .par_iter()
-        .map(|&l| {
-            components_above(img, l, min_area, max_area)
-                .into_iter()
-                .filter_map(|b| shape_ok(&b, w, h, p).map(|e| (e, b.area)))
-                .collect()
+        .enumerate()
+        .map(|(i, &l)| {
+            match &shared {
+                Some(idx) => components_of_index(idx, w, h, i as u8, l, min_area, max_area),
+                None => {
+                    components_of_index(&level_index(img, &[l]), w, h, 0, l, min_area, max_area)
+                }
+            }
+            .into_iter()
+            .filter_map(|b| shape_ok(&b, w, h, p).map(|e| (e, b.area)))
+            .collect()
         })
         .collect();
     // Group across levels: same centre within half the smaller radius.

@@ -31,7 +31,7 @@ impl GrayImage {
 
     /// Bilinear interpolation at (x, y), pixel centres at integer coordinates.
     /// Outside the image the nearest border value is used.
-    #[inline]
+    #[inline(always)]
     pub fn sample(&self, x: f64, y: f64) -> f32 {
         let w = self.width as isize;
         let h = self.height as isize;
