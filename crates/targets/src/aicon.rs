@@ -138,9 +138,8 @@ fn bright_fraction(
 ) -> f64 {
     let mut c = 0;
     let fr = e.frame();
-    for i in 0..samples_per_turn {
-        let t = i as f64 * 2.0 * std::f64::consts::PI / samples_per_turn as f64;
-        let (x, y) = fr.map(rho * t.cos(), rho * t.sin());
+    for &(co, si) in crate::ellipse::unit_circle(samples_per_turn).iter() {
+        let (x, y) = fr.map(rho * co, rho * si);
         if img.sample(x, y) > mid {
             c += 1;
         }
@@ -176,9 +175,8 @@ pub fn read_ring(
         .collect();
     let mut v = vec![0.0f32; m];
     let fr = dot.frame();
-    for (j, vj) in v.iter_mut().enumerate() {
-        let t = j as f64 * 2.0 * std::f64::consts::PI / m as f64;
-        let (c, s) = (t.cos(), t.sin());
+    let trig = crate::ellipse::unit_circle(m);
+    for (vj, &(c, s)) in v.iter_mut().zip(trig.iter()) {
         let mut acc = 0.0;
         for &r in &radii {
             let (x, y) = fr.map(r * c, r * s);

@@ -1,7 +1,7 @@
 //! Sub-pixel centre of a circular target: sub-pixel edge points along rays, a robust ellipse
 //! fit to them, and the intensity-weighted centroid, each with an estimate of its σ in pixels.
 
-use crate::ellipse::{fit_ellipse, sampson, Ellipse};
+use crate::ellipse::{fit_ellipse, sampson, unit_circle, Ellipse};
 use crate::image_io::GrayImage;
 use crate::threshold::{foreground_level, local_levels};
 
@@ -95,8 +95,8 @@ pub fn edge_points(
     let mut bg_sum = 0.0f64;
     let mut profile = Vec::with_capacity(64);
     let mut ts = Vec::with_capacity(64);
-    let trig = ray_directions(k);
-    for &(u, v) in trig {
+    let trig = unit_circle(k);
+    for &(u, v) in trig.iter() {
         let (ex, ey) = seed.map(u, v);
         let (dx, dy) = (ex - seed.cx, ey - seed.cy);
         let len = (dx * dx + dy * dy).sqrt();
@@ -144,24 +144,6 @@ pub fn edge_points(
     }
     let bg = (bg_sum / pts.len() as f64) as f32;
     Ok((pts, bg))
-}
-
-/// Unit-circle directions of `k` rays (`k` in 24..=256), cos and sin of i·2π/k, computed once.
-fn ray_directions(k: usize) -> &'static [(f64, f64)] {
-    static TABLES: std::sync::OnceLock<Vec<Vec<(f64, f64)>>> = std::sync::OnceLock::new();
-    let t = TABLES.get_or_init(|| {
-        (0..=256usize)
-            .map(|k| {
-                (0..k)
-                    .map(|i| {
-                        let psi = i as f64 * 2.0 * std::f64::consts::PI / k as f64;
-                        (psi.cos(), psi.sin())
-                    })
-                    .collect()
-            })
-            .collect()
-    });
-    &t[k]
 }
 
 /// Robust ellipse fit: fit, drop points whose residual exceeds max(3·1.48·MAD, 0.25 px), refit.
