@@ -333,30 +333,15 @@ fn homography_ransac(
 ) -> Option<(Matrix3<f64>, Vec<bool>)> {
     let n = d1.len();
     let t = options.threshold_rad;
-    let mut rng = rand::rngs::StdRng::seed_from_u64(options.seed ^ 0x5eed);
-    let mut best: Option<(f64, Matrix3<f64>)> = None;
-    let mut sample = Vec::with_capacity(4);
-    for _ in 0..options.samples {
-        sample.clear();
-        while sample.len() < 4 {
-            let k = rng.random_range(0..n);
-            if !sample.contains(&k) {
-                sample.push(k);
-            }
-        }
-        let s1: Vec<_> = sample.iter().map(|&k| d1[k]).collect();
-        let s2: Vec<_> = sample.iter().map(|&k| d2[k]).collect();
-        let Some(h) = homography_dlt(&s1, &s2) else {
-            continue;
-        };
-        let score: f64 = (0..n)
-            .map(|k| homography_error(&h, &d1[k], &d2[k]).min(t).powi(2))
-            .sum();
-        if best.as_ref().is_none_or(|b| score < b.0) {
-            best = Some((score, h));
-        }
-    }
-    let (_, mut h) = best?;
+    let mut h = msac(
+        d1,
+        d2,
+        4,
+        options.samples,
+        options.seed ^ 0x5eed,
+        |s1, s2| homography_dlt(s1, s2),
+        |h, a, b| homography_error(h, a, b).min(t).powi(2),
+    )?;
     let mut inl: Vec<bool> = (0..n)
         .map(|k| homography_error(&h, &d1[k], &d2[k]) < t)
         .collect();
@@ -386,30 +371,16 @@ pub fn relative_orientation(
     }
     let needed = options.min_inliers.max(8);
     let t = options.threshold_rad;
-    let mut rng = rand::rngs::StdRng::seed_from_u64(options.seed);
-    let mut best: Option<(f64, Matrix3<f64>)> = None;
-    let mut sample = Vec::with_capacity(8);
-    for _ in 0..options.samples {
-        sample.clear();
-        while sample.len() < 8 {
-            let k = rng.random_range(0..n);
-            if !sample.contains(&k) {
-                sample.push(k);
-            }
-        }
-        let s1: Vec<_> = sample.iter().map(|&k| d1[k]).collect();
-        let s2: Vec<_> = sample.iter().map(|&k| d2[k]).collect();
-        let Some(e) = essential_8point(&s1, &s2) else {
-            continue;
-        };
-        let score: f64 = (0..n)
-            .map(|k| epipolar_error(&e, &d1[k], &d2[k]).min(t).powi(2))
-            .sum();
-        if best.as_ref().is_none_or(|b| score < b.0) {
-            best = Some((score, e));
-        }
-    }
-    let Some((_, mut e)) = best else {
+    let best = msac(
+        d1,
+        d2,
+        8,
+        options.samples,
+        options.seed,
+        |s1, s2| essential_8point(s1, s2),
+        |e, a, b| epipolar_error(e, a, b).min(t).powi(2),
+    );
+    let Some(mut e) = best else {
         return Err(RelativeError::NoConsensus {
             needed,
             best: 0,
@@ -637,4 +608,41 @@ mod tests {
             RelativeError::TooFewPoints { got: 5 }
         );
     }
+}
+
+/// MSAC over ray pairs: `samples` random minimal sets of `size` distinct pairs (seeded),
+/// a model from each by `fit`, scored by the sum of `cost` (truncated squared errors)
+/// over all pairs; the best model, or `None` if no sample gave one.
+fn msac(
+    d1: &[Vector3<f64>],
+    d2: &[Vector3<f64>],
+    size: usize,
+    samples: usize,
+    seed: u64,
+    fit: impl Fn(&[Vector3<f64>], &[Vector3<f64>]) -> Option<Matrix3<f64>>,
+    cost: impl Fn(&Matrix3<f64>, &Vector3<f64>, &Vector3<f64>) -> f64,
+) -> Option<Matrix3<f64>> {
+    let n = d1.len();
+    let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+    let mut best: Option<(f64, Matrix3<f64>)> = None;
+    let mut sample = Vec::with_capacity(size);
+    for _ in 0..samples {
+        sample.clear();
+        while sample.len() < size {
+            let k = rng.random_range(0..n);
+            if !sample.contains(&k) {
+                sample.push(k);
+            }
+        }
+        let s1: Vec<_> = sample.iter().map(|&k| d1[k]).collect();
+        let s2: Vec<_> = sample.iter().map(|&k| d2[k]).collect();
+        let Some(m) = fit(&s1, &s2) else {
+            continue;
+        };
+        let score: f64 = (0..n).map(|k| cost(&m, &d1[k], &d2[k])).sum();
+        if best.as_ref().is_none_or(|b| score < b.0) {
+            best = Some((score, m));
+        }
+    }
+    best.map(|(_, m)| m)
 }
