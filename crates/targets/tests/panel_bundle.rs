@@ -22,7 +22,10 @@
 //!
 //! Run `cargo test -p pingcal-targets --release --test panel_bundle -- --nocapture`.
 
+mod panel;
+
 use nalgebra::{Matrix3, Vector3};
+use panel::{reference, DATA};
 use pingcal_ba::initial::incremental::{initialise, IncrementalOptions};
 use pingcal_ba::io::measurements::{CameraSpec, ControlPoint, ImagePoint, ImageSpec, Measurements};
 use pingcal_ba::solver::{adjust_with_snooping, Options};
@@ -31,34 +34,12 @@ use pingcal_targets::{detect_file, DetectParams, Detector, TargetKind};
 use std::collections::HashMap;
 use std::path::PathBuf;
 
-const DATA: &str = concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/../../../shared/data/aicon-panel"
-);
 /// Homography inlier threshold and plain-target matching radius (a homography misses the
 /// lens distortion: up to ~4.6 px in the corners, see tests/real_panel.rs).
 const MATCH_PX: f64 = 8.0;
 const PRIOR_SIGMA_MM: f64 = 10.0;
 /// Bound on the 3D RMS after the similarity, mm (reasoning at the assertion).
 const BOUND_MM: f64 = 0.05;
-
-fn reference() -> Option<HashMap<u32, [f64; 3]>> {
-    let text = std::fs::read_to_string(format!("{DATA}/target-coordinates.txt")).ok()?;
-    Some(
-        text.lines()
-            .filter_map(|l| {
-                let f: Vec<&str> = l.split_whitespace().collect();
-                if f.len() < 4 {
-                    return None;
-                }
-                Some((
-                    f[0].parse().ok()?,
-                    [f[1].parse().ok()?, f[2].parse().ok()?, f[3].parse().ok()?],
-                ))
-            })
-            .collect(),
-    )
-}
 
 /// Similarity (scale s, rotation r, translation t) minimising Σ |s·r·a + t − b|² (Umeyama 1991).
 fn umeyama(a: &[Vector3<f64>], b: &[Vector3<f64>]) -> (f64, Matrix3<f64>, Vector3<f64>) {

@@ -16,34 +16,14 @@
 //!
 //! Run `cargo test -p pingcal-targets --release --test real_panel -- --nocapture` for the table.
 
+mod panel;
+
+use panel::{reference, DATA};
 use pingcal_targets::homography::ransac_homography;
 use pingcal_targets::{detect_file, DetectParams, Detector, TargetKind};
-use std::collections::HashMap;
 use std::path::PathBuf;
 
-const DATA: &str = concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/../../../shared/data/aicon-panel"
-);
 const BOUND_PX: f64 = 8.0;
-
-fn reference() -> Option<HashMap<u32, [f64; 3]>> {
-    let text = std::fs::read_to_string(format!("{DATA}/target-coordinates.txt")).ok()?;
-    Some(
-        text.lines()
-            .filter_map(|l| {
-                let f: Vec<&str> = l.split_whitespace().collect();
-                if f.len() < 4 {
-                    return None;
-                }
-                Some((
-                    f[0].parse().ok()?,
-                    [f[1].parse().ok()?, f[2].parse().ok()?, f[3].parse().ok()?],
-                ))
-            })
-            .collect(),
-    )
-}
 
 /// Fits p3 in x ~ H·(X, Y, 1) + Z·p3 to the given points by linear least squares and returns
 /// the reprojection errors (pixels).
