@@ -90,6 +90,24 @@ fn normaliser(p: &[Vector2<f64>]) -> Matrix3<f64> {
     Matrix3::new(s, 0.0, -s * m.x, 0.0, s, -s * m.y, 0.0, 0.0, 1.0)
 }
 
+/// Plane coordinates of both ray sets and their Hartley normalising transforms, or `None`
+/// if a ray does not point forward.
+#[allow(clippy::type_complexity)]
+fn normalised_planes(
+    d1: &[Vector3<f64>],
+    d2: &[Vector3<f64>],
+) -> Option<(
+    Vec<Vector2<f64>>,
+    Vec<Vector2<f64>>,
+    Matrix3<f64>,
+    Matrix3<f64>,
+)> {
+    let p1: Vec<Vector2<f64>> = d1.iter().map(plane).collect::<Option<_>>()?;
+    let p2: Vec<Vector2<f64>> = d2.iter().map(plane).collect::<Option<_>>()?;
+    let (t1, t2) = (normaliser(&p1), normaliser(&p2));
+    Some((p1, p2, t1, t2))
+}
+
 /// The essential matrix (singular values 1, 1, 0) from eight or more correspondences of
 /// unit rays (camera frames), by the normalised 8-point algorithm.
 pub fn essential_8point(d1: &[Vector3<f64>], d2: &[Vector3<f64>]) -> Option<Matrix3<f64>> {
@@ -97,9 +115,7 @@ pub fn essential_8point(d1: &[Vector3<f64>], d2: &[Vector3<f64>]) -> Option<Matr
     if n < 8 {
         return None;
     }
-    let p1: Vec<Vector2<f64>> = d1[..n].iter().map(plane).collect::<Option<_>>()?;
-    let p2: Vec<Vector2<f64>> = d2[..n].iter().map(plane).collect::<Option<_>>()?;
-    let (t1, t2) = (normaliser(&p1), normaliser(&p2));
+    let (p1, p2, t1, t2) = normalised_planes(&d1[..n], &d2[..n])?;
     let mut ata = SMatrix::<f64, 9, 9>::zeros();
     for (a, b) in p1.iter().zip(&p2) {
         let h1 = t1 * Vector3::new(a.x, a.y, 1.0);
@@ -207,9 +223,7 @@ pub fn homography_dlt(d1: &[Vector3<f64>], d2: &[Vector3<f64>]) -> Option<Matrix
     if n < 4 {
         return None;
     }
-    let p1: Vec<Vector2<f64>> = d1[..n].iter().map(plane).collect::<Option<_>>()?;
-    let p2: Vec<Vector2<f64>> = d2[..n].iter().map(plane).collect::<Option<_>>()?;
-    let (t1, t2) = (normaliser(&p1), normaliser(&p2));
+    let (p1, p2, t1, t2) = normalised_planes(&d1[..n], &d2[..n])?;
     let mut ata = SMatrix::<f64, 9, 9>::zeros();
     for (a, b) in p1.iter().zip(&p2) {
         let x = t1 * Vector3::new(a.x, a.y, 1.0);
