@@ -25,14 +25,13 @@
 mod panel;
 
 use nalgebra::{Matrix3, Vector3};
-use panel::{reference, DATA};
+use panel::panel;
 use pingcal_ba::initial::incremental::{initialise, IncrementalOptions};
 use pingcal_ba::io::measurements::{CameraSpec, ControlPoint, ImagePoint, ImageSpec, Measurements};
 use pingcal_ba::solver::{adjust_with_snooping, Options};
 use pingcal_targets::homography::ransac_homography;
 use pingcal_targets::{detect_file, DetectParams, Detector, TargetKind};
 use std::collections::HashMap;
-use std::path::PathBuf;
 
 /// Homography inlier threshold and plain-target matching radius (a homography misses the
 /// lens distortion: up to ~4.6 px in the corners, see tests/real_panel.rs).
@@ -110,21 +109,9 @@ fn match_plain(
 
 #[test]
 fn panel_3d_rms_after_self_calibrating_bundle_and_similarity() {
-    let Some(refs) = reference() else {
-        println!("SKIP: {DATA} not found (real AICON panel data absent)");
+    let Some((refs, files)) = panel() else {
         return;
     };
-    let mut files: Vec<PathBuf> = match std::fs::read_dir(format!("{DATA}/images")) {
-        Ok(d) => d
-            .filter_map(|e| e.ok().map(|e| e.path()))
-            .filter(|p| p.extension().is_some_and(|e| e == "tif"))
-            .collect(),
-        Err(_) => {
-            println!("SKIP: {DATA}/images not found");
-            return;
-        }
-    };
-    files.sort();
     let t0 = std::time::Instant::now();
     let det = Detector::new(DetectParams::default()).unwrap();
 

@@ -18,10 +18,9 @@
 
 mod panel;
 
-use panel::{reference, DATA};
+use panel::panel;
 use pingcal_targets::homography::ransac_homography;
 use pingcal_targets::{detect_file, DetectParams, Detector, TargetKind};
-use std::path::PathBuf;
 
 const BOUND_PX: f64 = 8.0;
 
@@ -52,21 +51,9 @@ fn off_plane_errors(h: &nalgebra::Matrix3<f64>, pts: &[([f64; 3], [f64; 2])]) ->
 
 #[test]
 fn real_panel_ids_are_all_right() {
-    let Some(refs) = reference() else {
-        println!("SKIP: {DATA} not found (real AICON panel data absent)");
+    let Some((refs, files)) = panel() else {
         return;
     };
-    let mut files: Vec<PathBuf> = match std::fs::read_dir(format!("{DATA}/images")) {
-        Ok(d) => d
-            .filter_map(|e| e.ok().map(|e| e.path()))
-            .filter(|p| p.extension().is_some_and(|e| e == "tif"))
-            .collect(),
-        Err(_) => {
-            println!("SKIP: {DATA}/images not found");
-            return;
-        }
-    };
-    files.sort();
     let det = Detector::new(DetectParams::default()).unwrap();
     let t0 = std::time::Instant::now();
     let results: Vec<_> = files

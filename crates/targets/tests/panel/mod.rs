@@ -3,6 +3,7 @@
 #![allow(dead_code)]
 
 use std::collections::HashMap;
+use std::path::PathBuf;
 
 /// The data folder, relative to this crate.
 pub const DATA: &str = concat!(
@@ -27,4 +28,23 @@ pub fn reference() -> Option<HashMap<u32, [f64; 3]>> {
             })
             .collect(),
     )
+}
+
+/// The reference coordinates and the sorted TIFF images of the panel, or `None` (with the
+/// reason printed) when the data is absent and the calling test should skip.
+pub fn panel() -> Option<(HashMap<u32, [f64; 3]>, Vec<PathBuf>)> {
+    let Some(refs) = reference() else {
+        println!("SKIP: {DATA} not found (real AICON panel data absent)");
+        return None;
+    };
+    let Ok(dir) = std::fs::read_dir(format!("{DATA}/images")) else {
+        println!("SKIP: {DATA}/images not found");
+        return None;
+    };
+    let mut files: Vec<PathBuf> = dir
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|e| e == "tif"))
+        .collect();
+    files.sort();
+    Some((refs, files))
 }
