@@ -16,8 +16,8 @@ use pingcal_sim::config::LrfConfig;
 use pingcal_sim::lrf::simulate_scans;
 use pingcal_sim::scene::{Scene, Surface};
 
-#[test]
-fn ranges_on_a_flat_wall_have_the_datasheet_mean_and_spread() {
+/// A single flat wall 14 m × 14 m, 700 mm in front of the LRF, of the given albedo.
+fn flat_wall(albedo: f64) -> Scene {
     let wall = Surface::new(
         "wall",
         Vector3::new(-7000.0, 700.0, -7000.0),
@@ -27,11 +27,11 @@ fn ranges_on_a_flat_wall_have_the_datasheet_mean_and_spread() {
         14000.0,
         14000.0,
         0.0,
-        0.5,
+        albedo,
         0.0,
         0,
     );
-    let scene = Scene {
+    Scene {
         surfaces: vec![wall],
         targets: vec![],
         balls: vec![],
@@ -40,7 +40,12 @@ fn ranges_on_a_flat_wall_have_the_datasheet_mean_and_spread() {
         retro_gain: 3.0,
         ball_albedo: 0.9,
         stem_albedo: 0.3,
-    };
+    }
+}
+
+#[test]
+fn ranges_on_a_flat_wall_have_the_datasheet_mean_and_spread() {
+    let scene = flat_wall(0.5);
     let cfg = LrfConfig {
         servo_start_deg: -40.0,
         servo_end_deg: 40.0,
@@ -102,29 +107,7 @@ fn ranges_on_a_flat_wall_have_the_datasheet_mean_and_spread() {
 
 #[test]
 fn dark_surfaces_give_no_return_and_servo_angles_are_encoder_steps() {
-    let wall = Surface::new(
-        "wall",
-        Vector3::new(-7000.0, 700.0, -7000.0),
-        Vector3::x(),
-        Vector3::z(),
-        Vector3::new(0.0, -1.0, 0.0),
-        14000.0,
-        14000.0,
-        0.0,
-        0.05,
-        0.0,
-        0,
-    );
-    let scene = Scene {
-        surfaces: vec![wall],
-        targets: vec![],
-        balls: vec![],
-        distances: vec![],
-        black_albedo: 0.04,
-        retro_gain: 3.0,
-        ball_albedo: 0.9,
-        stem_albedo: 0.3,
-    };
+    let scene = flat_wall(0.05);
     let cfg = LrfConfig {
         servo_start_deg: -5.0,
         servo_end_deg: 5.0,
