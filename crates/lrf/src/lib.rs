@@ -21,12 +21,14 @@
 //! - [`correspondence`]: automatic ball matching by pairwise-distance invariants, RANSAC over triples.
 //! - [`corner`]: the Fan et al. 2019 baseline (scan lines on a room corner, P3P with
 //!   orthogonal edges, corner frame from target planes, DLT + resection, composition).
+//! - [`corner_baseline`]: the whole Fan et al. 2019 baseline from pipeline data in one call.
 //! - [`simulate`]: URG-04LX noise model and scene ray casting, for tests and benchmarks.
 //! - [`error`]: the error type; every failure names the file and line, or the points.
 
 pub mod ball_finder;
 pub mod cloud;
 pub mod corner;
+pub mod corner_baseline;
 pub mod correspondence;
 pub mod error;
 pub mod ply;

@@ -1,0 +1,675 @@
+//! The whole Fan et al. 2019 baseline from pipeline data, in one call: [`fan_baseline`].
+//!
+//! Inputs are what the pipeline already has: the main-station LRF sweep, the bundle-adjusted
+//! target centres in the photogrammetric frame (the main image's camera frame: X right,
+//! Y forward, Z up) and the undistorted normalised image coordinates of the targets measured
+//! in the main image. The steps (the pieces are in [`crate::corner`]):
+//!
+//! 1. **Faces.** Sequential seeded RANSAC finds three planes among the targets: tolerance
+//!    5 mm for the consensus, then `max(5 mm, 3 × median |residual|)` around the least-squares
+//!    plane; the second and third planes must be nearly orthogonal to those found before
+//!    (`|cos| < 0.2`) and every face needs [`MIN_FACE_TARGETS`] targets spread over an area
+//!    (not in one row). Targets on no face are reported in the notes and not used.
+//!    **Assumption:** the main camera is roughly level, so the floor is the plane whose
+//!    normal is closest to the photogrammetric Z axis (up); the two others are the walls.
+//!    Normals point to the camera (it sees the targets, so it is in front of every face);
+//!    the walls are ordered so that `(n_wall1 × n_wall2) · n_floor > 0`, which makes the
+//!    corner frame of [`corner_frame_from_planes`] right-handed with Z up out of the floor.
+//!    The camera centre must then have all three corner coordinates positive (the room is
+//!    the positive octant); otherwise the other wall order is tried and the notes say so.
+//! 2. **Camera pose** by [`dlt_resection`] (DLT, then Gauss–Newton) from the main-image
+//!    targets and their corner-frame coordinates (`inverse(corner_in_camera)` applied to the
+//!    photogrammetric coordinates). At least 6 targets, on at least two faces (not coplanar).
+//! 3. **LRF pose in the corner** from one scan, as Fan does: every scan line is tried
+//!    ([`scan_lines`] with inlier tolerance 3σ of the ranges, then [`lrf_pose_in_corner`]);
+//!    a scan is usable when its three lines have ≥ [`MIN_LINE_INLIERS`] points each and the
+//!    corner P3P succeeds. **Assumption (the rough prior the method needs):** the LRF and the
+//!    camera are roughly aligned on the rig (`R_cam←lrf ≈ I`, within some 30°: the prior only
+//!    picks which line is on which face and the sign of each edge distance, choices that are
+//!    ≥ 60° apart), so the prior corner←LRF rotation is the corner←camera rotation of the
+//!    DLT. Scans whose pose disagrees with the others (rotation > 30° from the prior, or
+//!    position farther than `max(50 mm, 5 × median deviation)` from the median position of
+//!    the usable scans: a spurious line) are dropped; among the rest the scan whose three
+//!    lines have the most points in total is used (ties: the stronger weakest line, then the
+//!    first scan). In simulation (tests/corner_baseline.rs, 20 seeds) this choice gave a
+//!    mean error of 9.6 mm / 0.56°, against 15.3 mm / 0.58° when choosing the scan whose
+//!    weakest line is strongest. The spread of the usable scans' poses is in the notes.
+//! 4. **Composition:** `T_cam←lrf = T_cam←corner · T_corner←lrf`, i.e.
+//!    `compose(camera_from_dlt, lrf_in_corner)` (`compose(a, b)` applies `b` first).
+//!
+//! Every failure is an [`LrfError`] naming the step and what was missing.
+
+use crate::cloud::MountModel;
+use crate::corner::{
+    compose, corner_frame_from_planes, dlt_resection, inverse, lrf_pose_in_corner, rotation_angle,
+    scan_lines, Line2,
+};
+use crate::error::{LrfError, Result};
+use crate::registration::Transform;
+use crate::scan::{ScanHeader, ScanLine};
+use nalgebra::{Matrix3, Vector2, Vector3};
+use rand::rngs::StdRng;
+use rand::{Rng, SeedableRng};
+use rayon::prelude::*;
+
+/// Fewest targets accepted on one face of the corner.
+pub const MIN_FACE_TARGETS: usize = 6;
+/// Fewest scan points on each of the three lines of the scan used.
+pub const MIN_LINE_INLIERS: usize = 20;
+/// Largest `|cos|` between two face normals (the faces must be nearly orthogonal).
+pub const MAX_FACE_COS: f64 = 0.2;
+/// Smallest plane tolerance, mm.
+const MIN_PLANE_TOL_MM: f64 = 5.0;
+/// Largest angle between the chosen scan's corner←LRF rotation and the camera prior.
+const MAX_PRIOR_DEG: f64 = 30.0;
+
+/// The pipeline data the baseline needs.
+#[derive(Debug, Clone, Copy)]
+pub struct BaselineInput<'a> {
+    /// Beam geometry of the scans.
+    pub header: &'a ScanHeader,
+    /// All servo lines of the main-station sweep.
+    pub scans: &'a [ScanLine],
+    /// The LRF mount on the servo.
+    pub mount: &'a MountModel,
+    /// Range σ, mm, for the line-inlier tolerance (3σ); URG-04LX: about 10 mm near.
+    pub range_sigma_mm: f64,
+    /// Target centres in the photogrammetric frame (mm; camera frame of the main image:
+    /// X right, Y forward, Z up), labelled.
+    pub targets: &'a [(String, Vector3<f64>)],
+    /// Normalised image coordinates (x = X/Y, y = Z/Y; distortion already removed) of
+    /// labelled targets measured in the main image.
+    pub main_image: &'a [(String, Vector2<f64>)],
+    /// Seed of the RANSAC searches (the result is deterministic for a seed).
+    pub seed: u64,
+}
+
+/// The baseline's answer and its intermediate poses.
+#[derive(Debug, Clone)]
+pub struct BaselineResult {
+    /// The extrinsic: `p_camera = R · p_lrf + t` (SPEC convention).
+    pub lrf_to_camera: Transform,
+    /// LRF pose in the corner frame: `p_corner = T · p_lrf`.
+    pub lrf_in_corner: Transform,
+    /// Corner frame in the photogrammetric frame, from the target planes: `p_photo = T · p_corner`.
+    pub corner_in_camera: Transform,
+    /// Camera pose from the DLT on the main image: `p_camera = T · p_corner`.
+    pub camera_from_dlt: Transform,
+    /// Servo angle of the scan line used, degrees.
+    pub servo_deg: f64,
+    /// Targets on the faces x = 0, y = 0 (the walls) and z = 0 (the floor).
+    pub face_sizes: [usize; 3],
+    /// What was chosen and why (faces, residuals, scan chosen).
+    pub notes: Vec<String>,
+}
+
+/// One face found among the targets: indices into the target list and the fitted plane.
+#[derive(Debug, Clone)]
+struct Face {
+    members: Vec<usize>,
+    normal: Vector3<f64>,
+    centroid: Vector3<f64>,
+    rms_mm: f64,
+    tol_mm: f64,
+}
+
+/// Least-squares plane: (centroid, unit normal, eigenvalues ascending).
+fn fit_plane(pts: &[Vector3<f64>]) -> (Vector3<f64>, Vector3<f64>, [f64; 3]) {
+    let m = pts.iter().sum::<Vector3<f64>>() / pts.len() as f64;
+    let mut s = Matrix3::zeros();
+    for p in pts {
+        s += (p - m) * (p - m).transpose();
+    }
+    let e = s.symmetric_eigen();
+    let mut idx = [0usize, 1, 2];
+    idx.sort_by(|&a, &b| e.eigenvalues[a].total_cmp(&e.eigenvalues[b]));
+    let n = e.eigenvectors.column(idx[0]).into_owned();
+    (
+        m,
+        n,
+        [
+            e.eigenvalues[idx[0]],
+            e.eigenvalues[idx[1]],
+            e.eigenvalues[idx[2]],
+        ],
+    )
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
+
+fn fmt_v(v: &Vector3<f64>) -> String {
+    format!("({:.3}, {:.3}, {:.3})", v.x, v.y, v.z)
+}
+
+/// Sequential RANSAC: up to three mutually near-orthogonal planes among the targets.
+fn find_faces(pts: &[Vector3<f64>], seed: u64) -> Vec<Face> {
+    let mut rng = StdRng::seed_from_u64(seed ^ 0x5EED_FACE);
+    let mut left: Vec<usize> = (0..pts.len()).collect();
+    let mut faces: Vec<Face> = Vec::new();
+    while faces.len() < 3 && left.len() >= MIN_FACE_TARGETS {
+        let mut best: Option<(f64, Vector3<f64>, f64)> = None; // (MSAC cost, n, d)
+        let tol2 = MIN_PLANE_TOL_MM * MIN_PLANE_TOL_MM;
+        for _ in 0..2000 {
+            let (a, b, c) = (
+                pts[left[rng.random_range(0..left.len())]],
+                pts[left[rng.random_range(0..left.len())]],
+                pts[left[rng.random_range(0..left.len())]],
+            );
+            let (u, v) = (b - a, c - a);
+            let n = u.cross(&v);
+            // reject near-collinear samples (sin of the angle at `a` below 0.2)
+            let degenerate = n.norm() <= 0.2 * u.norm() * v.norm() || !n.norm().is_finite();
+            if degenerate || u.norm() < 20.0 || v.norm() < 20.0 {
+                continue;
+            }
+            let n = n.normalize();
+            if faces.iter().any(|f| f.normal.dot(&n).abs() >= MAX_FACE_COS) {
+                continue;
+            }
+            let d = n.dot(&a);
+            let cost: f64 = left
+                .iter()
+                .map(|&i| (n.dot(&pts[i]) - d).powi(2).min(tol2))
+                .sum();
+            if best.is_none_or(|b| cost < b.0) {
+                best = Some((cost, n, d));
+            }
+        }
+        let Some((_, mut n, mut d)) = best else { break };
+        // refine: least squares on the inliers, tolerance max(5 mm, 3 × median |residual|)
+        let mut tol = MIN_PLANE_TOL_MM;
+        let mut members: Vec<usize> = Vec::new();
+        let mut fit = None;
+        for _ in 0..4 {
+            let on: Vec<usize> = left
+                .iter()
+                .copied()
+                .filter(|&i| (n.dot(&pts[i]) - d).abs() < tol)
+                .collect();
+            if on.len() < 3 {
+                break;
+            }
+            let p: Vec<Vector3<f64>> = on.iter().map(|&i| pts[i]).collect();
+            let (m, nn, ev) = fit_plane(&p);
+            n = nn;
+            d = n.dot(&m);
+            let res: Vec<f64> = p.iter().map(|q| (n.dot(q) - d).abs()).collect();
+            tol = MIN_PLANE_TOL_MM.max(3.0 * median(res));
+            let same = on == members;
+            members = on;
+            fit = Some((m, ev));
+            if same {
+                break;
+            }
+        }
+        let Some((m, ev)) = fit else { break };
+        // members of the last fit that are still within the final tolerance
+        members.retain(|&i| (n.dot(&pts[i]) - d).abs() < tol);
+        // a face needs enough targets spread over an area (std across its minor in-plane
+        // direction ≥ 30 mm), or its plane turns freely about their line
+        let spread = (ev[1].max(0.0) / members.len().max(1) as f64).sqrt();
+        if members.len() < MIN_FACE_TARGETS || spread < 30.0 {
+            break;
+        }
+        if faces.iter().any(|f| f.normal.dot(&n).abs() >= MAX_FACE_COS) {
+            break;
+        }
+        let rms = (members
+            .iter()
+            .map(|&i| (n.dot(&pts[i]) - d).powi(2))
+            .sum::<f64>()
+            / members.len() as f64)
+            .sqrt();
+        left.retain(|i| !members.contains(i));
+        faces.push(Face {
+            members,
+            normal: n,
+            centroid: m,
+            rms_mm: rms,
+            tol_mm: tol,
+        });
+    }
+    faces
+}
+
+/// The outcome of one scan line.
+enum ScanTry {
+    Lines,
+    Weak,
+    P3p,
+    Ok(Box<(Transform, [Line2; 3])>),
+}
+
+/// Runs the Fan et al. 2019 baseline on pipeline data (see the module doc for the steps and
+/// the assumptions).
+pub fn fan_baseline(input: &BaselineInput) -> Result<BaselineResult> {
+    let mut notes = Vec::new();
+    if !(input.range_sigma_mm.is_finite() && input.range_sigma_mm > 0.0) {
+        return Err(LrfError::Invalid(format!(
+            "corner baseline: range σ must be a positive number of mm, got {}",
+            input.range_sigma_mm
+        )));
+    }
+    if input.scans.is_empty() {
+        return Err(LrfError::Invalid(
+            "corner baseline: no scan lines given (the main-station sweep is empty)".into(),
+        ));
+    }
+    for (id, p) in input.targets {
+        if !p.iter().all(|v| v.is_finite()) {
+            return Err(LrfError::Invalid(format!(
+                "corner baseline: target {id} has a non-finite coordinate {p:?}"
+            )));
+        }
+    }
+    for (id, u) in input.main_image {
+        if !u.iter().all(|v| v.is_finite()) {
+            return Err(LrfError::Invalid(format!(
+                "corner baseline: image point {id} has a non-finite coordinate {u:?}"
+            )));
+        }
+    }
+    {
+        let mut ids: Vec<&str> = input.targets.iter().map(|t| t.0.as_str()).collect();
+        ids.sort_unstable();
+        if let Some(w) = ids.windows(2).find(|w| w[0] == w[1]) {
+            return Err(LrfError::Invalid(format!(
+                "corner baseline: target label {} appears more than once",
+                w[0]
+            )));
+        }
+    }
+
+    // ---- 1. faces ----
+    let pts: Vec<Vector3<f64>> = input.targets.iter().map(|t| t.1).collect();
+    let faces = find_faces(&pts, input.seed);
+    if faces.len() < 3 {
+        let desc: Vec<String> = faces
+            .iter()
+            .enumerate()
+            .map(|(k, f)| {
+                format!(
+                    "plane {}: {} targets, normal {}",
+                    k + 1,
+                    f.members.len(),
+                    fmt_v(&f.normal)
+                )
+            })
+            .collect();
+        return Err(LrfError::Degenerate(format!(
+            "corner baseline: only {} plane(s) found among {} targets{}{}; the Fan baseline needs \
+             ≥ {MIN_FACE_TARGETS} targets spread on each of the two walls and the floor, nearly \
+             orthogonal (|cos| < {MAX_FACE_COS})",
+            faces.len(),
+            pts.len(),
+            if desc.is_empty() { "" } else { " (" },
+            if desc.is_empty() {
+                String::new()
+            } else {
+                desc.join("; ") + ")"
+            }
+        )));
+    }
+    // normals towards the camera (the photogrammetric origin)
+    let normals: Vec<Vector3<f64>> = faces
+        .iter()
+        .map(|f| {
+            if f.normal.dot(&f.centroid) > 0.0 {
+                -f.normal
+            } else {
+                f.normal
+            }
+        })
+        .collect();
+    let up = Vector3::z();
+    let mut by_up: Vec<usize> = (0..3).collect();
+    by_up.sort_by(|&a, &b| {
+        normals[b]
+            .dot(&up)
+            .abs()
+            .total_cmp(&normals[a].dot(&up).abs())
+    });
+    let floor = by_up[0];
+    let (mut w1, mut w2) = (by_up[1], by_up[2]);
+    if normals[w1].cross(&normals[w2]).dot(&normals[floor]) < 0.0 {
+        std::mem::swap(&mut w1, &mut w2);
+    }
+    let up_margin = normals[floor].dot(&up).abs() - normals[by_up[1]].dot(&up).abs();
+    notes.push(format!(
+        "faces: {} targets; floor = the plane whose normal is closest to the camera's Z axis \
+         (assumes a roughly level camera): |n·Z| = {:.3} vs {:.3} for the most upward wall{}",
+        pts.len(),
+        normals[floor].dot(&up).abs(),
+        normals[by_up[1]].dot(&up).abs(),
+        if up_margin < 0.2 {
+            " — AMBIGUOUS: check that the camera was roughly level"
+        } else {
+            ""
+        }
+    ));
+    if normals[floor].dot(&up) < 0.0 {
+        notes.push(
+            "warning: the floor normal towards the camera points down in the photogrammetric \
+             frame (camera below the floor plane or upside down?)"
+                .into(),
+        );
+    }
+    let face_pts =
+        |k: usize| -> Vec<Vector3<f64>> { faces[k].members.iter().map(|&i| pts[i]).collect() };
+    let mut chosen: Option<(Transform, [usize; 3])> = None;
+    let mut why = Vec::new();
+    for (attempt, order) in [[w1, w2, floor], [w2, w1, floor]].into_iter().enumerate() {
+        let (a, b, c) = (face_pts(order[0]), face_pts(order[1]), face_pts(order[2]));
+        match corner_frame_from_planes([&a, &b, &c]) {
+            Ok(t) => {
+                let cam = inverse(&t).translation;
+                if cam.iter().all(|&v| v > 0.0) {
+                    if attempt == 1 {
+                        notes.push(
+                            "the expected wall order did not put the camera in the positive \
+                             octant; the other wall order does and is used"
+                                .into(),
+                        );
+                    }
+                    chosen = Some((t, order));
+                    break;
+                }
+                why.push(format!(
+                    "wall order {}: camera at corner coordinates {} (not all > 0)",
+                    attempt + 1,
+                    fmt_v(&cam)
+                ));
+            }
+            Err(e) => why.push(format!("wall order {}: {e}", attempt + 1)),
+        }
+    }
+    let Some((corner_in_camera, order)) = chosen else {
+        return Err(LrfError::Degenerate(format!(
+            "corner baseline: the three target planes do not form a room corner around the \
+             camera ({}); the camera must see the two walls and the floor from inside the room",
+            why.join("; ")
+        )));
+    };
+    let face_sizes = order.map(|k| faces[k].members.len());
+    let names = ["wall x=0", "wall y=0", "floor z=0"];
+    for (name, &k) in names.iter().zip(&order) {
+        notes.push(format!(
+            "{name}: {} targets, plane rms {:.2} mm (tolerance {:.1} mm), normal {}",
+            faces[k].members.len(),
+            faces[k].rms_mm,
+            faces[k].tol_mm,
+            fmt_v(&normals[k])
+        ));
+    }
+    let mut face_of = vec![None; pts.len()];
+    for (slot, &k) in order.iter().enumerate() {
+        for &i in &faces[k].members {
+            face_of[i] = Some(slot);
+        }
+    }
+    let unassigned: Vec<&str> = (0..pts.len())
+        .filter(|&i| face_of[i].is_none())
+        .map(|i| input.targets[i].0.as_str())
+        .collect();
+    if !unassigned.is_empty() {
+        notes.push(format!(
+            "{} target(s) on no face, not used: {}",
+            unassigned.len(),
+            unassigned.join(", ")
+        ));
+    }
+    let cos = |a: usize, b: usize| normals[order[a]].dot(&normals[order[b]]);
+    let cam_c = inverse(&corner_in_camera).translation;
+    notes.push(format!(
+        "corner frame: face cosines {:.4} {:.4} {:.4}; camera centre at corner coordinates {} mm",
+        cos(0, 1),
+        cos(1, 2),
+        cos(0, 2),
+        fmt_v(&cam_c)
+    ));
+
+    // ---- 2. camera pose by DLT ----
+    let corner_from_photo = inverse(&corner_in_camera);
+    let mut world = Vec::new();
+    let mut image = Vec::new();
+    let mut faces_seen = [0usize; 3];
+    let mut unknown = Vec::new();
+    let mut off_face = Vec::new();
+    for (id, u) in input.main_image {
+        match input.targets.iter().position(|t| &t.0 == id) {
+            Some(i) => {
+                match face_of[i] {
+                    Some(s) => faces_seen[s] += 1,
+                    None => off_face.push(id.as_str()),
+                }
+                world.push(corner_from_photo.apply(&pts[i]));
+                image.push(*u);
+            }
+            None => unknown.push(id.as_str()),
+        }
+    }
+    if !unknown.is_empty() {
+        notes.push(format!(
+            "{} image point(s) with no 3D target, not used: {}",
+            unknown.len(),
+            unknown.join(", ")
+        ));
+    }
+    if !off_face.is_empty() {
+        notes.push(format!(
+            "{} image point(s) on targets of no face (used in the DLT): {}",
+            off_face.len(),
+            off_face.join(", ")
+        ));
+    }
+    if world.len() < 6 {
+        return Err(LrfError::TooFewPoints {
+            needed: 6,
+            got: world.len(),
+            ids: "corner baseline: main-image targets with 3D coordinates, for the DLT".into(),
+        });
+    }
+    if faces_seen.iter().filter(|&&c| c > 0).count() < 2 && off_face.is_empty() {
+        return Err(LrfError::Degenerate(format!(
+            "corner baseline: the {} main-image targets all lie on one face ({} on wall x=0, {} \
+             on wall y=0, {} on the floor): the DLT needs targets that are not coplanar",
+            world.len(),
+            faces_seen[0],
+            faces_seen[1],
+            faces_seen[2]
+        )));
+    }
+    let camera_from_dlt = dlt_resection(&world, &image).map_err(|e| {
+        LrfError::Degenerate(format!("corner baseline: camera resection failed: {e}"))
+    })?;
+    let rms = (world
+        .iter()
+        .zip(&image)
+        .map(|(x, u)| {
+            let c = camera_from_dlt.apply(x);
+            (Vector2::new(c.x / c.y, c.z / c.y) - u).norm_squared()
+        })
+        .sum::<f64>()
+        / world.len() as f64)
+        .sqrt();
+    notes.push(format!(
+        "DLT + resection on {} main-image targets ({} / {} / {} on the faces): reprojection rms \
+         {:.3} mrad (normalised units × 1000); differs from the photogrammetric camera frame by \
+         {:.3}° and {:.1} mm",
+        world.len(),
+        faces_seen[0],
+        faces_seen[1],
+        faces_seen[2],
+        rms * 1e3,
+        rotation_angle(&(camera_from_dlt.rotation * corner_in_camera.rotation.transpose()))
+            .to_degrees(),
+        (inverse(&camera_from_dlt).translation - cam_c).norm()
+    ));
+
+    // ---- 3. LRF pose in the corner from one scan ----
+    // rough prior: LRF axes ≈ camera axes, so corner←LRF ≈ corner←camera
+    let prior: Matrix3<f64> = camera_from_dlt.rotation.transpose();
+    let tol = 3.0 * input.range_sigma_mm;
+    let tries: Vec<ScanTry> = input
+        .scans
+        .par_iter()
+        .enumerate()
+        .map(|(k, scan)| {
+            let seed = input
+                .seed
+                .wrapping_mul(0x9E37_79B9_7F4A_7C15)
+                .wrapping_add(k as u64);
+            let lines = match scan_lines(input.header, scan, tol, seed) {
+                Ok(l) => l,
+                Err(_) => return ScanTry::Lines,
+            };
+            let inl = lines.map(|l| l.inliers);
+            if inl.iter().any(|&c| c < MIN_LINE_INLIERS) {
+                return ScanTry::Weak;
+            }
+            match lrf_pose_in_corner(&lines, scan.servo_deg, input.mount, &prior) {
+                Ok(t)
+                    if t.rotation
+                        .iter()
+                        .chain(t.translation.iter())
+                        .all(|v| v.is_finite()) =>
+                {
+                    ScanTry::Ok(Box::new((t, lines)))
+                }
+                _ => ScanTry::P3p,
+            }
+        })
+        .collect();
+    let (mut n_lines, mut n_weak, mut n_p3p) = (0, 0, 0);
+    let mut cands: Vec<(usize, Transform, [usize; 3])> = Vec::new();
+    for (k, t) in tries.into_iter().enumerate() {
+        match t {
+            ScanTry::Lines => n_lines += 1,
+            ScanTry::Weak => n_weak += 1,
+            ScanTry::P3p => n_p3p += 1,
+            ScanTry::Ok(b) => {
+                let (tr, lines) = *b;
+                cands.push((k, tr, lines.map(|l| l.inliers)));
+            }
+        }
+    }
+    let summary = format!(
+        "{} scan lines: {} with fewer than 3 lines, {} with a line under {MIN_LINE_INLIERS} \
+         points, {} where the lines do not meet as an orthogonal corner, {} usable",
+        input.scans.len(),
+        n_lines,
+        n_weak,
+        n_p3p,
+        cands.len()
+    );
+    if cands.is_empty() {
+        return Err(LrfError::Degenerate(format!(
+            "corner baseline: no scan line shows three corner faces ({summary}; inlier tolerance \
+             {tol:.1} mm)"
+        )));
+    }
+    // consistency: near the prior, and near the median position of the usable scans
+    let n_all = cands.len();
+    cands.retain(|c| {
+        rotation_angle(&(c.1.rotation * prior.transpose())).to_degrees() < MAX_PRIOR_DEG
+    });
+    let n_prior = n_all - cands.len();
+    if cands.is_empty() {
+        return Err(LrfError::Degenerate(format!(
+            "corner baseline: every usable scan gives an LRF rotation more than {MAX_PRIOR_DEG}° \
+             from the camera's (the prior assumes the LRF and camera axes roughly aligned); \
+             {summary}"
+        )));
+    }
+    let med = Vector3::from_fn(|i, _| median(cands.iter().map(|c| c.1.translation[i]).collect()));
+    let dev: Vec<f64> = cands
+        .iter()
+        .map(|c| (c.1.translation - med).norm())
+        .collect();
+    let gate = (5.0 * median(dev.clone())).max(50.0);
+    let mut kept: Vec<(usize, Transform, [usize; 3])> = cands
+        .into_iter()
+        .zip(&dev)
+        .filter(|(_, d)| **d <= gate)
+        .map(|(c, _)| c)
+        .collect();
+    let n_far = n_all - n_prior - kept.len();
+    kept.sort_by(|a, b| {
+        let key = |c: &(usize, Transform, [usize; 3])| {
+            (
+                c.2.iter().sum::<usize>(),
+                c.2.iter().copied().min().unwrap_or(0),
+            )
+        };
+        key(b).cmp(&key(a)).then(a.0.cmp(&b.0))
+    });
+    let Some((best_k, lrf_in_corner, best_inl)) = kept.first().cloned() else {
+        return Err(LrfError::Degenerate(format!(
+            "corner baseline: no usable scan agrees with the others ({summary})"
+        )));
+    };
+    let spread = if kept.len() > 1 {
+        let m = kept.iter().map(|c| c.1.translation).sum::<Vector3<f64>>() / kept.len() as f64;
+        (kept
+            .iter()
+            .map(|c| (c.1.translation - m).norm_squared())
+            .sum::<f64>()
+            / (kept.len() - 1) as f64)
+            .sqrt()
+    } else {
+        0.0
+    };
+    let servo_deg = input.scans[best_k].servo_deg;
+    notes.push(format!(
+        "{summary}; {n_prior} dropped for a rotation > {MAX_PRIOR_DEG}° from the camera prior, \
+         {n_far} for a position > {gate:.0} mm from the median; the {} consistent scans' LRF \
+         positions scatter by {spread:.1} mm (rms)",
+        kept.len()
+    ));
+    notes.push(format!(
+        "scan used: #{} (file line {}, servo {servo_deg:.3}°), line inliers {:?} (the most \
+         points on three lines of all consistent scans); LRF at corner coordinates {} mm",
+        best_k + 1,
+        input.scans[best_k].line,
+        best_inl,
+        fmt_v(&lrf_in_corner.translation)
+    ));
+
+    // ---- 4. composition: T_cam←lrf = T_cam←corner · T_corner←lrf ----
+    let lrf_to_camera = compose(&camera_from_dlt, &lrf_in_corner);
+    if !lrf_to_camera
+        .rotation
+        .iter()
+        .chain(lrf_to_camera.translation.iter())
+        .all(|v| v.is_finite())
+    {
+        return Err(LrfError::Degenerate(
+            "corner baseline: the composed extrinsic is not finite".into(),
+        ));
+    }
+    notes.push(format!(
+        "extrinsic: t = {} mm, ω φ κ = {} °",
+        fmt_v(&lrf_to_camera.translation),
+        fmt_v(&lrf_to_camera.euler_deg())
+    ));
+    Ok(BaselineResult {
+        lrf_to_camera,
+        lrf_in_corner,
+        corner_in_camera,
+        camera_from_dlt,
+        servo_deg,
+        face_sizes,
+        notes,
+    })
+}
