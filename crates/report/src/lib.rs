@@ -1,0 +1,234 @@
+//! # pingcal-report: the calibration report as one self-contained HTML file
+//!
+//! [`render_html`] turns a [`ReportData`] (filled in by the pipeline of `crates/cli`) into a
+//! single HTML5 document with inline SVG plots: no JavaScript, no network access, no external
+//! fonts or style sheets, so the file can be mailed, archived or opened offline as it is.
+//!
+//! Sections, in order (each with an `id` anchor listed in the table of contents):
+//!
+//! | id | what it shows |
+//! |---|---|
+//! | `summary` | title, generator, key → value summary lines |
+//! | `extrinsic` | per method: R, t (mm), ω φ κ (deg) with σ, or why the method failed |
+//! | `checks` | the paper's Figure 7: check-point error per ball and method, mean lines, tables |
+//! | `images` | image residual plots (magnified vectors, rejected points as red ×), RMS table |
+//! | `network` | cameras and points in plan (X–Y) and elevation (X–Z), σ ellipses magnified |
+//! | `cloud` | the LRF cloud in X–Y and X–Z with the fitted spheres at true scale |
+//! | `intrinsics` | per camera: parameters, σ, free/fixed, high correlations |
+//! | `rejected` | what was rejected and why |
+//! | `warnings` | warnings of the pipeline |
+//! | `steps` | the pipeline log (collapsible) |
+//!
+//! Every user string is HTML-escaped ([`escape`]); non-finite numbers print as "—" and never
+//! reach an SVG coordinate; the output is deterministic (no timestamps, no hash-map order).
+//! The document is also well-formed XML (void elements are self-closed, only the five XML
+//! entities are used), which the tests check.
+//!
+//! [`sample::sample_report`] builds a realistic synthetic [`ReportData`] for demos and tests;
+//! `cargo run -p pingcal-report --example sample_report -- OUT.html` writes it, and
+//! `crates/report/scripts/check-report.sh OUT.html OUT.png` screenshots it with headless
+//! Chromium.
+
+use serde::{Deserialize, Serialize};
+
+mod fmt;
+mod plot;
+mod render;
+pub mod sample;
+
+pub use fmt::escape;
+
+/// Everything the report shows. Empty vectors render as "none" sections, never as errors.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+pub struct ReportData {
+    /// Document title, e.g. "pingcal calibration — simulated test field (seed 1)".
+    pub title: String,
+    /// Program and version that produced the report, e.g. "pingcal 0.1.0".
+    pub generator: String,
+    /// Key → value lines shown at the top (σ0, RMS, mean check error …), in order.
+    pub summary: Vec<(String, String)>,
+    /// Pipeline log lines, in order.
+    pub steps: Vec<String>,
+    /// Image residuals of the bundle adjustment, one entry per image.
+    pub images: Vec<ImageResiduals>,
+    /// Camera stations and object points of the photogrammetric network.
+    pub network: Network,
+    /// The (subsampled) LRF cloud and the spheres fitted in it.
+    pub cloud: Cloud,
+    /// Extrinsic calibration methods ("spheres", "corner (Fan et al. 2019)" …) and their checks.
+    pub methods: Vec<MethodResult>,
+    /// Interior orientation per camera.
+    pub intrinsics: Vec<Intrinsics>,
+    /// Observations, images, balls … that were rejected, with the reason.
+    pub rejected: Vec<Rejection>,
+    /// Warnings of the pipeline.
+    pub warnings: Vec<String>,
+}
+
+/// Image residuals of one image.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+pub struct ImageResiduals {
+    /// Image name (file name or camera/station label).
+    pub name: String,
+    /// Image width in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+    /// Measured image points with their residuals.
+    pub points: Vec<ImagePoint>,
+}
+
+/// One measured image point.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+pub struct ImagePoint {
+    /// Point label (target or ball id).
+    pub label: String,
+    /// Kind of point: "coded", "plain" or "ball" (anything else is drawn grey).
+    pub kind: String,
+    /// Measured x in pixels (image right).
+    pub x: f64,
+    /// Measured y in pixels (image down).
+    pub y: f64,
+    /// Residual x in pixels, observed − computed.
+    pub dx: f64,
+    /// Residual y in pixels, observed − computed.
+    pub dy: f64,
+    /// True when the observation was rejected (data snooping …); not in the RMS.
+    pub rejected: bool,
+}
+
+/// The photogrammetric network.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+pub struct Network {
+    /// Camera stations (exposures).
+    pub cameras: Vec<CameraStation>,
+    /// Object points (targets and ball centres).
+    pub points: Vec<NetworkPoint>,
+}
+
+/// One camera station (exposure).
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+pub struct CameraStation {
+    /// Station or image name.
+    pub name: String,
+    /// Projection centre in mm, photogrammetric frame.
+    pub centre: [f64; 3],
+    /// Rows = camera axes X (right), Y (forward), Z (up) expressed in the photogrammetric frame.
+    pub rotation: [[f64; 3]; 3],
+    /// True for the main station (where the LRF scanned); highlighted in the plots.
+    pub main: bool,
+}
+
+/// One object point of the network.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+pub struct NetworkPoint {
+    /// Point label.
+    pub label: String,
+    /// Kind of point: "coded", "plain" or "ball".
+    pub kind: String,
+    /// Coordinates in mm, photogrammetric frame.
+    pub xyz: [f64; 3],
+    /// Standard deviations of X, Y, Z in mm (0 or non-finite: not drawn).
+    pub sigma: [f64; 3],
+}
+
+/// The LRF cloud and its spheres.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+pub struct Cloud {
+    /// Points in the LRF frame, mm, already subsampled by the caller to ≤ 50k.
+    pub points: Vec<[f32; 3]>,
+    /// Spheres (balls) fitted in the cloud.
+    pub spheres: Vec<Sphere>,
+}
+
+/// One sphere fitted in the LRF cloud.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+pub struct Sphere {
+    /// Sphere label (as found in the cloud).
+    pub label: String,
+    /// Centre in mm, LRF frame.
+    pub centre: [f64; 3],
+    /// Radius in mm.
+    pub radius: f64,
+    /// Standard deviations of the centre in mm.
+    pub sigma: [f64; 3],
+    /// Number of inlier points of the fit.
+    pub inliers: usize,
+    /// Label of the photogrammetric ball this sphere was matched to, if any.
+    pub matched_to: Option<String>,
+}
+
+/// Result of one extrinsic calibration method.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+pub struct MethodResult {
+    /// Method name, e.g. "spheres" or "corner (Fan et al. 2019)".
+    pub name: String,
+    /// Rotation R of `p_camera = R · p_lrf + t`.
+    pub rotation: [[f64; 3]; 3],
+    /// Translation t in mm.
+    pub translation_mm: [f64; 3],
+    /// ω, φ, κ in degrees.
+    pub opk_deg: [f64; 3],
+    /// σ of t in mm, when estimated.
+    pub sigma_translation_mm: Option<[f64; 3]>,
+    /// σ of ω, φ, κ in degrees, when estimated.
+    pub sigma_rotation_deg: Option<[f64; 3]>,
+    /// Control / check / leave-one-out table.
+    pub checks: Vec<CheckRow>,
+    /// Mean check-point error in mm.
+    pub mean_check_error_mm: Option<f64>,
+    /// Standard deviation of the check-point error in mm.
+    pub sd_check_error_mm: Option<f64>,
+    /// When the method failed: why (the other fields are then not shown).
+    pub error: Option<String>,
+}
+
+/// One row of a control/check table.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+pub struct CheckRow {
+    /// Ball (point) id.
+    pub id: String,
+    /// Difference in X, mm.
+    pub dx_mm: f64,
+    /// Difference in Y, mm.
+    pub dy_mm: f64,
+    /// Difference in Z, mm.
+    pub dz_mm: f64,
+    /// Length of the difference, mm.
+    pub error_mm: f64,
+    /// "check", "control" or "loo" (leave-one-out).
+    pub role: String,
+}
+
+/// Interior orientation of one camera.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+pub struct Intrinsics {
+    /// Camera name.
+    pub camera: String,
+    /// Parameter names (c, xp, yp, k1 …).
+    pub names: Vec<String>,
+    /// Units per parameter ("mm", "px", "" …).
+    pub units: Vec<String>,
+    /// Values per parameter.
+    pub values: Vec<f64>,
+    /// Standard deviations per parameter (0 or non-finite for fixed parameters).
+    pub sigmas: Vec<f64>,
+    /// True when the parameter was estimated.
+    pub free: Vec<bool>,
+    /// Pairs of parameters with their correlation; |r| > 0.9 are highlighted.
+    pub high_correlations: Vec<(String, String, f64)>,
+}
+
+/// Something the pipeline rejected.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+pub struct Rejection {
+    /// What was rejected (observation, image, ball …).
+    pub what: String,
+    /// Why.
+    pub why: String,
+}
+
+/// Renders the whole report as one self-contained HTML5 document (deterministic).
+pub fn render_html(data: &ReportData) -> String {
+    render::document(data)
+}

@@ -1,0 +1,671 @@
+//! A realistic synthetic [`ReportData`] for demos, tests and screenshots: the paper's room
+//! corner with ~78 targets and 16 balls, 22 images (11 stereo stations) of 1280×720 px, an
+//! LRF cloud ray-cast on the corner with its 16 spheres, and the two extrinsic methods with
+//! 5 check balls each. Deterministic (own small PRNG); nothing here is a real measurement.
+
+use crate::{
+    CameraStation, CheckRow, Cloud, ImagePoint, ImageResiduals, Intrinsics, MethodResult, Network,
+    NetworkPoint, Rejection, ReportData, Sphere,
+};
+
+type V3 = [f64; 3];
+type M3 = [[f64; 3]; 3];
+
+/// SplitMix64 with a Box–Muller normal: enough for a repeatable sample.
+struct Rng(u64);
+
+impl Rng {
+    fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+    fn uniform(&mut self) -> f64 {
+        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
+    }
+    fn range(&mut self, lo: f64, hi: f64) -> f64 {
+        lo + (hi - lo) * self.uniform()
+    }
+    fn normal(&mut self) -> f64 {
+        let u1 = self.uniform().max(1e-300);
+        let u2 = self.uniform();
+        (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+    }
+}
+
+fn add(a: V3, b: V3) -> V3 {
+    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+}
+fn sub(a: V3, b: V3) -> V3 {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+fn scale(a: V3, s: f64) -> V3 {
+    [a[0] * s, a[1] * s, a[2] * s]
+}
+fn dot(a: V3, b: V3) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+fn cross(a: V3, b: V3) -> V3 {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+fn norm(a: V3) -> V3 {
+    scale(a, 1.0 / dot(a, a).sqrt())
+}
+fn mat_vec(m: &M3, v: V3) -> V3 {
+    [dot(m[0], v), dot(m[1], v), dot(m[2], v)]
+}
+fn mat_t_vec(m: &M3, v: V3) -> V3 {
+    [
+        m[0][0] * v[0] + m[1][0] * v[1] + m[2][0] * v[2],
+        m[0][1] * v[0] + m[1][1] * v[1] + m[2][1] * v[2],
+        m[0][2] * v[0] + m[1][2] * v[1] + m[2][2] * v[2],
+    ]
+}
+fn mat_mul(a: &M3, b: &M3) -> M3 {
+    let mut r = [[0.0; 3]; 3];
+    for (i, row) in r.iter_mut().enumerate() {
+        for (j, v) in row.iter_mut().enumerate() {
+            *v = (0..3).map(|k| a[i][k] * b[k][j]).sum();
+        }
+    }
+    r
+}
+/// R = Rx(ω) Ry(φ) Rz(κ), angles in radians.
+fn opk_matrix(o: f64, p: f64, k: f64) -> M3 {
+    let rx = [
+        [1.0, 0.0, 0.0],
+        [0.0, o.cos(), -o.sin()],
+        [0.0, o.sin(), o.cos()],
+    ];
+    let ry = [
+        [p.cos(), 0.0, p.sin()],
+        [0.0, 1.0, 0.0],
+        [-p.sin(), 0.0, p.cos()],
+    ];
+    let rz = [
+        [k.cos(), -k.sin(), 0.0],
+        [k.sin(), k.cos(), 0.0],
+        [0.0, 0.0, 1.0],
+    ];
+    mat_mul(&mat_mul(&rx, &ry), &rz)
+}
+/// ω φ κ in degrees of R = Rx(ω) Ry(φ) Rz(κ).
+fn matrix_opk_deg(r: &M3) -> V3 {
+    [
+        (-r[1][2]).atan2(r[2][2]).to_degrees(),
+        r[0][2].clamp(-1.0, 1.0).asin().to_degrees(),
+        (-r[0][1]).atan2(r[0][0]).to_degrees(),
+    ]
+}
+
+/// Camera rotation (rows = camera X right, Y forward, Z up) looking from `c` at `target`.
+fn look_at(c: V3, target: V3) -> M3 {
+    let y = norm(sub(target, c));
+    let x = norm(cross(y, [0.0, 0.0, 1.0]));
+    let z = cross(x, y);
+    [x, y, z]
+}
+
+/// The room corner: vertical edge at (0, 3000), walls opening towards the main station,
+/// floor 1200 mm below the main camera.
+const CORNER: V3 = [0.0, 3000.0, 0.0];
+const FLOOR_Z: f64 = -1200.0;
+const TOP_Z: f64 = 1300.0;
+const WALL_LEN: f64 = 3200.0;
+const BALL_R: f64 = 19.0;
+
+fn wall_dirs() -> [(V3, V3); 2] {
+    let s = std::f64::consts::FRAC_1_SQRT_2;
+    // (direction along the wall away from the corner, normal towards the room)
+    [([-s, -s, 0.0], [s, -s, 0.0]), ([s, -s, 0.0], [-s, -s, 0.0])]
+}
+
+fn wall_point(wall: usize, along: f64, z: f64, off: f64) -> V3 {
+    let (dir, n) = wall_dirs()[wall];
+    add(
+        add(add(CORNER, scale(dir, along)), scale(n, off)),
+        [0.0, 0.0, z],
+    )
+}
+
+fn floor_point(u: f64, v: f64, off: f64) -> V3 {
+    let [(d0, _), (d1, _)] = wall_dirs();
+    add(
+        add(add(CORNER, scale(d0, u)), scale(d1, v)),
+        [0.0, 0.0, FLOOR_Z - CORNER[2] + off],
+    )
+}
+
+fn targets_and_balls(rng: &mut Rng) -> Vec<NetworkPoint> {
+    let mut pts = Vec::new();
+    let mut coded = 2;
+    let mut plain = 1;
+    // 78 targets: 30 per wall in a jittered grid, 18 on the floor.
+    for wall in 0..2 {
+        for i in 0..6 {
+            for j in 0..5 {
+                let along = 250.0 + i as f64 * 440.0 + rng.range(-60.0, 60.0);
+                let z = FLOOR_Z + 300.0 + j as f64 * 480.0 + rng.range(-60.0, 60.0);
+                let is_coded = (i + j + wall) % 2 == 0;
+                pts.push((wall_point(wall, along, z, 0.0), is_coded));
+            }
+        }
+    }
+    for i in 0..6 {
+        for j in 0..3 {
+            let u = 300.0 + i as f64 * 420.0 + rng.range(-50.0, 50.0);
+            let v = 300.0 + j as f64 * 700.0 + rng.range(-50.0, 50.0);
+            pts.push((floor_point(u.min(v + 1800.0), v, 0.0), (i + j) % 3 == 0));
+        }
+    }
+    let mut out: Vec<NetworkPoint> = pts
+        .into_iter()
+        .map(|(xyz, is_coded)| {
+            let label = if is_coded {
+                coded += 1;
+                format!("C{:02}", coded - 1)
+            } else {
+                plain += 1;
+                format!("P{:02}", plain - 1)
+            };
+            NetworkPoint {
+                label,
+                kind: if is_coded { "coded" } else { "plain" }.into(),
+                xyz,
+                sigma: sigma_at(xyz, rng),
+            }
+        })
+        .collect();
+    // 16 balls on 60 mm stems: 6 per wall, 4 on the floor.
+    let mut balls = Vec::new();
+    for wall in 0..2 {
+        for k in 0..6 {
+            let along = 420.0 + (k % 3) as f64 * 800.0 + rng.range(-80.0, 80.0);
+            let z = if k < 3 { -350.0 } else { 550.0 } + rng.range(-120.0, 120.0);
+            balls.push(wall_point(wall, along, z, 60.0));
+        }
+    }
+    for k in 0..4 {
+        balls.push(floor_point(
+            700.0 + k as f64 * 450.0,
+            600.0 + (k % 2) as f64 * 700.0,
+            60.0,
+        ));
+    }
+    for (i, xyz) in balls.into_iter().enumerate() {
+        out.push(NetworkPoint {
+            label: format!("{}", i + 1),
+            kind: "ball".into(),
+            xyz,
+            sigma: sigma_at(xyz, rng),
+        });
+    }
+    out
+}
+
+fn sigma_at(xyz: V3, rng: &mut Rng) -> V3 {
+    let d = dot(xyz, xyz).sqrt() / 1000.0;
+    [
+        0.05 + 0.04 * d * rng.range(0.8, 1.2),
+        0.08 + 0.09 * d * rng.range(0.8, 1.2),
+        0.05 + 0.05 * d * rng.range(0.8, 1.2),
+    ]
+}
+
+fn stations() -> Vec<CameraStation> {
+    let aim = [0.0, 2300.0, -300.0];
+    let mut cams = Vec::new();
+    // 11 stereo stations on an arc around the corner (the first is the main station).
+    for s in 0..11 {
+        let (centre, target) = if s == 0 {
+            ([0.0, 0.0, 0.0], [0.0, 1.0, 0.0])
+        } else {
+            let ang = (-62.0 + (s - 1) as f64 * 13.5f64).to_radians();
+            let dist = 2600.0 + 500.0 * ((s % 3) as f64);
+            let z = [-300.0, 250.0, 700.0][s % 3];
+            let c = [
+                CORNER[0] + dist * ang.sin(),
+                CORNER[1] - dist * ang.cos(),
+                z,
+            ];
+            (c, aim)
+        };
+        let r = if s == 0 {
+            [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
+        } else {
+            look_at(centre, target)
+        };
+        for (side, off) in [("L", 0.0), ("R", 120.0)] {
+            cams.push(CameraStation {
+                name: format!("{side}{:02}", s + 1),
+                centre: add(centre, scale(r[0], off)),
+                rotation: r,
+                main: s == 0 && side == "L",
+            });
+        }
+    }
+    cams
+}
+
+const W: u32 = 1280;
+const H: u32 = 720;
+const F_PX: f64 = 2.45 / 0.00375;
+
+fn images(cams: &[CameraStation], pts: &[NetworkPoint], rng: &mut Rng) -> Vec<ImageResiduals> {
+    let (cx, cy) = (W as f64 / 2.0, H as f64 / 2.0);
+    cams.iter()
+        .map(|cam| {
+            let mut points = Vec::new();
+            for p in pts {
+                let q = mat_vec(&cam.rotation, sub(p.xyz, cam.centre));
+                if q[1] < 300.0 {
+                    continue;
+                }
+                let x = cx + F_PX * q[0] / q[1];
+                let y = cy - F_PX * q[2] / q[1];
+                if !(8.0..W as f64 - 8.0).contains(&x) || !(8.0..H as f64 - 8.0).contains(&y) {
+                    continue;
+                }
+                // noise plus a little unmodelled radial pattern
+                let (rx, ry) = ((x - cx) / cx, (y - cy) / cx);
+                let r2 = rx * rx + ry * ry;
+                let mut dx = 0.12 * rng.normal() + 0.08 * rx * r2;
+                let mut dy = 0.12 * rng.normal() + 0.08 * ry * r2;
+                let rejected = rng.uniform() < 0.012;
+                if rejected {
+                    dx = rng.range(-4.0, 4.0);
+                    dy = rng.range(-4.0, 4.0);
+                }
+                points.push(ImagePoint {
+                    label: p.label.clone(),
+                    kind: p.kind.clone(),
+                    x,
+                    y,
+                    dx,
+                    dy,
+                    rejected,
+                });
+            }
+            ImageResiduals {
+                name: format!("{}.png", cam.name),
+                width: W,
+                height: H,
+                points,
+            }
+        })
+        .collect()
+}
+
+/// LRF → camera rotation of the sample: LRF x → camera Y (forward), LRF y (shaft) →
+/// camera Z (up), LRF z → camera X, then tilted slightly.
+fn lrf_rotation() -> M3 {
+    let base = [[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+    mat_mul(
+        &opk_matrix(
+            0.8f64.to_radians(),
+            -1.2f64.to_radians(),
+            0.6f64.to_radians(),
+        ),
+        &base,
+    )
+}
+const LRF_T: V3 = [62.0, -35.0, -95.0];
+
+/// Ray-casts the URG-04LX on the servo against the corner and the balls (camera frame
+/// geometry, results in the LRF frame) and subsamples to about `n` points, keeping the
+/// ball hits.
+fn lrf_cloud(balls: &[V3], n: usize, rng: &mut Rng) -> Vec<[f32; 3]> {
+    let r = lrf_rotation();
+    let walls = wall_dirs();
+    let mut plain = Vec::new();
+    let mut ball_hits = Vec::new();
+    let beta_steps = 500;
+    let alpha_steps = 683;
+    for bi in 0..beta_steps {
+        let beta = (-55.0 + 110.0 * bi as f64 / (beta_steps - 1) as f64).to_radians();
+        for ai in 0..alpha_steps {
+            let alpha = (-120.0 + ai as f64 * 0.3515625).to_radians();
+            let d_lrf = [
+                alpha.cos() * beta.cos(),
+                alpha.sin(),
+                alpha.cos() * beta.sin(),
+            ];
+            let d = mat_vec(&r, d_lrf);
+            let mut best = f64::INFINITY;
+            let mut on_ball = false;
+            // planes
+            for (dir, nrm) in walls {
+                let denom = dot(nrm, d);
+                if denom.abs() < 1e-9 {
+                    continue;
+                }
+                let t = dot(nrm, sub(CORNER, LRF_T)) / denom;
+                if t <= 0.0 || t >= best {
+                    continue;
+                }
+                let p = add(LRF_T, scale(d, t));
+                let along = dot(sub(p, CORNER), dir);
+                if (0.0..WALL_LEN).contains(&along) && (FLOOR_Z..TOP_Z).contains(&p[2]) {
+                    best = t;
+                }
+            }
+            if d[2] < -1e-9 {
+                let t = (FLOOR_Z - LRF_T[2]) / d[2];
+                let p = add(LRF_T, scale(d, t));
+                let q = sub(p, CORNER);
+                if t < best
+                    && dot(q, walls[0].1) >= 0.0
+                    && dot(q, walls[1].1) >= 0.0
+                    && dot(q, q).sqrt() < 4200.0
+                {
+                    best = t;
+                }
+            }
+            for b in balls {
+                let oc = sub(LRF_T, *b);
+                let bq = dot(oc, d);
+                let disc = bq * bq - (dot(oc, oc) - BALL_R * BALL_R);
+                if disc >= 0.0 {
+                    let t = -bq - disc.sqrt();
+                    if t > 0.0 && t < best {
+                        best = t;
+                        on_ball = true;
+                    }
+                }
+            }
+            if best.is_finite() && best < 5600.0 {
+                let sd = if best < 1000.0 { 10.0 } else { 0.01 * best };
+                let range = best + sd * rng.normal();
+                let p = scale(d_lrf, range);
+                let p = [p[0] as f32, p[1] as f32, p[2] as f32];
+                if on_ball {
+                    ball_hits.push(p);
+                } else {
+                    plain.push(p);
+                }
+            }
+        }
+    }
+    let keep = n.saturating_sub(ball_hits.len()).max(1);
+    let step = (plain.len() as f64 / keep as f64).max(1.0);
+    let mut out: Vec<[f32; 3]> = (0..keep.min(plain.len()))
+        .map(|i| plain[((i as f64 * step) as usize).min(plain.len() - 1)])
+        .collect();
+    out.extend(ball_hits);
+    out
+}
+
+fn check_rows(ids: &[&str], errors: &[f64], role: &str, rng: &mut Rng) -> Vec<CheckRow> {
+    ids.iter()
+        .zip(errors)
+        .map(|(id, e)| {
+            let u = norm([rng.normal(), rng.normal(), rng.normal()]);
+            CheckRow {
+                id: (*id).into(),
+                dx_mm: u[0] * e,
+                dy_mm: u[1] * e,
+                dz_mm: u[2] * e,
+                error_mm: *e,
+                role: role.into(),
+            }
+        })
+        .collect()
+}
+
+fn mean_sd(v: &[f64]) -> (f64, f64) {
+    let n = v.len() as f64;
+    let m = v.iter().sum::<f64>() / n;
+    (
+        m,
+        (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0)).sqrt(),
+    )
+}
+
+fn method(name: &str, r: M3, t: V3, checks: Vec<CheckRow>, sigmas: bool) -> MethodResult {
+    let errs: Vec<f64> = checks
+        .iter()
+        .filter(|c| c.role == "check")
+        .map(|c| c.error_mm)
+        .collect();
+    let (m, sd) = mean_sd(&errs);
+    MethodResult {
+        name: name.into(),
+        rotation: r,
+        translation_mm: t,
+        opk_deg: matrix_opk_deg(&r),
+        sigma_translation_mm: sigmas.then_some([2.1, 3.4, 2.6]),
+        sigma_rotation_deg: sigmas.then_some([0.061, 0.048, 0.072]),
+        checks,
+        mean_check_error_mm: Some(m),
+        sd_check_error_mm: Some(sd),
+        error: None,
+    }
+}
+
+fn intrinsics(side: &str, rng: &mut Rng) -> Intrinsics {
+    let names = ["c", "xp", "yp", "k1", "k2", "k3", "p1", "p2", "b1", "b2"];
+    let units = [
+        "mm", "mm", "mm", "mm⁻²", "mm⁻⁴", "mm⁻⁶", "mm⁻¹", "mm⁻¹", "", "",
+    ];
+    let values = [
+        2.4513 + 0.002 * rng.normal(),
+        0.0213 + 0.003 * rng.normal(),
+        -0.0117 + 0.003 * rng.normal(),
+        -2.912e-2,
+        4.47e-3,
+        0.0,
+        1.3e-4,
+        -8.7e-5,
+        0.0,
+        0.0,
+    ];
+    let free = [
+        true, true, true, true, true, false, true, true, false, false,
+    ];
+    let sigmas = [
+        3.1e-4, 2.2e-4, 2.6e-4, 1.9e-4, 6.1e-5, 0.0, 1.1e-5, 1.3e-5, 0.0, 0.0,
+    ];
+    Intrinsics {
+        camera: format!("{side} (MYNT EYE D1000, 1280×720, 3.75 µm)"),
+        names: names.iter().map(|s| s.to_string()).collect(),
+        units: units.iter().map(|s| s.to_string()).collect(),
+        values: values.to_vec(),
+        sigmas: sigmas.to_vec(),
+        free: free.to_vec(),
+        high_correlations: vec![
+            ("k1".into(), "k2".into(), -0.962),
+            ("xp".into(), "p1".into(), 0.931),
+            ("yp".into(), "p2".into(), 0.904),
+            ("c".into(), "k1".into(), 0.874),
+        ],
+    }
+}
+
+/// The sample report: 22 images, 78 targets + 16 balls, a ray-cast cloud of about
+/// `cloud_points` points with 16 spheres, two methods with 5 check balls each.
+pub fn sample_report(cloud_points: usize) -> ReportData {
+    let mut rng = Rng(0x5EED_0001);
+    let pts = targets_and_balls(&mut rng);
+    let cams = stations();
+    let imgs = images(&cams, &pts, &mut rng);
+    let balls: Vec<&NetworkPoint> = pts.iter().filter(|p| p.kind == "ball").collect();
+    let ball_xyz: Vec<V3> = balls.iter().map(|b| b.xyz).collect();
+    let cloud_pts = lrf_cloud(&ball_xyz, cloud_points, &mut rng);
+    let r = lrf_rotation();
+    let spheres: Vec<Sphere> = balls
+        .iter()
+        .enumerate()
+        .map(|(i, b)| {
+            let c = mat_t_vec(&r, sub(b.xyz, LRF_T));
+            let far = dot(c, c).sqrt() / 1000.0;
+            let sd = 0.8 + 1.4 * far;
+            Sphere {
+                label: format!("S{:02}", i + 1),
+                centre: [
+                    c[0] + sd * rng.normal(),
+                    c[1] + sd * rng.normal(),
+                    c[2] + sd * rng.normal(),
+                ],
+                radius: BALL_R + 0.4 * rng.normal(),
+                sigma: [sd, 0.8 * sd, 1.1 * sd],
+                inliers: 14 + (rng.uniform() * 30.0) as usize,
+                matched_to: (i != 13).then(|| b.label.clone()),
+            }
+        })
+        .collect();
+    let check_ids = ["4", "9", "11", "12", "15"];
+    let control_ids = ["1", "2", "3", "5", "6", "7", "8", "10", "13", "14", "16"];
+    let mut sphere_rows = check_rows(&check_ids, &[6.1, 15.8, 9.7, 4.9, 15.5], "check", &mut rng);
+    let ctrl_err: Vec<f64> = (0..control_ids.len())
+        .map(|_| rng.range(2.5, 7.5))
+        .collect();
+    sphere_rows.extend(check_rows(&control_ids, &ctrl_err, "control", &mut rng));
+    let r_sph = mat_mul(
+        &opk_matrix(
+            0.05f64.to_radians(),
+            -0.03f64.to_radians(),
+            0.04f64.to_radians(),
+        ),
+        &r,
+    );
+    let r_fan = mat_mul(
+        &opk_matrix(
+            -0.21f64.to_radians(),
+            0.15f64.to_radians(),
+            -0.3f64.to_radians(),
+        ),
+        &r,
+    );
+    let methods = vec![
+        method(
+            "spheres",
+            r_sph,
+            add(LRF_T, [1.8, -2.9, 2.2]),
+            sphere_rows,
+            true,
+        ),
+        method(
+            "corner (Fan et al. 2019)",
+            r_fan,
+            add(LRF_T, [-6.3, 8.1, -4.4]),
+            check_rows(
+                &check_ids,
+                &[11.2, 19.9, 14.0, 20.3, 12.1],
+                "check",
+                &mut rng,
+            ),
+            false,
+        ),
+    ];
+    let mut rejected: Vec<Rejection> = imgs
+        .iter()
+        .flat_map(|img| {
+            img.points
+                .iter()
+                .filter(|p| p.rejected)
+                .map(move |p| Rejection {
+                    what: format!("observation {} in {}", p.label, img.name),
+                    why: format!(
+                        "data snooping: |w| = {:.2} > 3.29 (residual {:.2} px)",
+                        3.3 + p.dx.hypot(p.dy),
+                        p.dx.hypot(p.dy)
+                    ),
+                })
+        })
+        .collect();
+    rejected.push(Rejection {
+        what: "sphere S14".into(),
+        why: "no photogrammetric ball within the matching tolerance (partly occluded by its stem)"
+            .into(),
+    });
+    let n_obs: usize = imgs.iter().map(|i| i.points.len()).sum();
+    let sphere_m = &methods[0];
+    let fan = &methods[1];
+    ReportData {
+        title: "pingcal calibration — simulated test field (seed 1)".into(),
+        generator: format!("pingcal {}", env!("CARGO_PKG_VERSION")),
+        summary: vec![
+            (
+                "images".into(),
+                format!("{} (11 stereo stations)", imgs.len()),
+            ),
+            (
+                "object points".into(),
+                format!(
+                    "{} targets + {} balls",
+                    pts.len() - balls.len(),
+                    balls.len()
+                ),
+            ),
+            (
+                "image observations".into(),
+                format!("{n_obs} ({} rejected)", rejected.len() - 1),
+            ),
+            ("σ0 (a posteriori)".into(), "0.87".into()),
+            ("image RMS".into(), "0.16 px".into()),
+            (
+                "LRF cloud".into(),
+                format!("{} points shown, 16 spheres, 15 matched", cloud_pts.len()),
+            ),
+            (
+                "mean check error, spheres".into(),
+                format!(
+                    "{:.1} mm (sd {:.1})",
+                    sphere_m.mean_check_error_mm.unwrap_or(f64::NAN),
+                    sphere_m.sd_check_error_mm.unwrap_or(f64::NAN)
+                ),
+            ),
+            (
+                "mean check error, corner (Fan et al. 2019)".into(),
+                format!(
+                    "{:.1} mm (sd {:.1})",
+                    fan.mean_check_error_mm.unwrap_or(f64::NAN),
+                    fan.sd_check_error_mm.unwrap_or(f64::NAN)
+                ),
+            ),
+        ],
+        steps: vec![
+            "simulate: test field with 78 targets and 16 balls, stereo head, URG-04LX on MX-28T"
+                .into(),
+            format!("detect: {n_obs} image points in 22 images (coded, plain, balls)"),
+            "initial values: relative orientation of L01/R01, resections, intersections".into(),
+            "bundle adjustment: 9 iterations, σ0 = 0.87, self-calibration c xp yp k1 k2 p1 p2"
+                .into(),
+            format!(
+                "data snooping: {} observations rejected (|w| > 3.29)",
+                rejected.len() - 1
+            ),
+            "scale: 5 caliper distances, residuals ≤ 0.21 mm".into(),
+            format!(
+                "LRF: {} points in the cloud, 16 spheres fitted along the beams",
+                cloud_pts.len()
+            ),
+            "correspondence: 15 of 16 spheres matched by pairwise distances".into(),
+            "extrinsic (spheres): 11 control balls, 5 check balls".into(),
+            "extrinsic (corner, Fan et al. 2019): 3 scan-line segments, P3P, DLT on L01".into(),
+            "report written".into(),
+        ],
+        images: imgs,
+        network: Network {
+            cameras: cams,
+            points: pts,
+        },
+        cloud: Cloud {
+            points: cloud_pts,
+            spheres,
+        },
+        methods,
+        intrinsics: vec![intrinsics("left", &mut rng), intrinsics("right", &mut rng)],
+        rejected,
+        warnings: vec![
+            "sphere S14 has 14 inliers only; its centre σ is 2.4 mm".into(),
+            "high correlation k1–k2 (r = −0.96) in both cameras".into(),
+        ],
+    }
+}
