@@ -5,7 +5,7 @@
 
 use clap::{Parser, Subcommand};
 
-mod commands;
+use pingcal::commands;
 
 #[derive(Parser)]
 #[command(

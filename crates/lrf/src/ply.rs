@@ -325,6 +325,46 @@ pub fn write_ply<W: Write>(
     w.write_all(&rec)
 }
 
+/// Colours of the balls in [`write_cloud_with_spheres`], in turn.
+pub const PALETTE: [[u8; 3]; 8] = [
+    [230, 25, 75],
+    [60, 180, 75],
+    [0, 130, 200],
+    [245, 130, 48],
+    [145, 30, 180],
+    [70, 240, 240],
+    [240, 50, 230],
+    [210, 245, 60],
+];
+
+/// The cloud in grey with each ball's inliers in its colour, and each fitted sphere drawn
+/// as 400 points (Fibonacci lattice) of radius `radius`, as binary PLY.
+pub fn write_cloud_with_spheres<W: Write>(
+    w: W,
+    cloud: &Cloud,
+    balls: &[crate::ball_finder::Ball],
+    radius: f64,
+    comments: &[String],
+) -> std::io::Result<()> {
+    let mut colors = vec![[160u8, 160, 160]; cloud.len()];
+    let mut points = cloud.points.clone();
+    for (k, b) in balls.iter().enumerate() {
+        let c = PALETTE[k % PALETTE.len()];
+        for &i in &b.inliers {
+            colors[i] = c;
+        }
+        let n = 400;
+        for j in 0..n {
+            let z = 1.0 - 2.0 * (j as f64 + 0.5) / n as f64;
+            let phi = j as f64 * std::f64::consts::PI * (3.0 - 5f64.sqrt());
+            let rho = (1.0 - z * z).sqrt();
+            points.push(b.centre + Vector3::new(rho * phi.cos(), rho * phi.sin(), z) * radius);
+            colors.push(c);
+        }
+    }
+    write_ply(w, &points, &colors, comments)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -136,7 +136,7 @@ impl Default for TargetConfig {
             count: 78,
             coded: 26,
             code_bits: 14,
-            dot_radius_mm: 6.0,
+            dot_radius_mm: 8.0,
             ring_inner: 2.0,
             ring_outer: 3.0,
             background: 3.5,

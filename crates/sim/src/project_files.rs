@@ -21,183 +21,10 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
-/// `project.toml`, version 1.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct ProjectFile {
-    /// Format version (1).
-    pub version: u32,
-    /// A name for reports.
-    pub name: String,
-    /// `spheres`, `corner` or `both`.
-    pub method: String,
-    /// The station where the LRF scanned; its `main_camera` image defines the
-    /// photogrammetric frame.
-    pub main_station: String,
-    /// The camera whose frame is the photogrammetric frame (`left`).
-    pub main_camera: String,
-    /// Coded targets.
-    pub targets: ProjectTargets,
-    /// Balls.
-    pub balls: ProjectBalls,
-    /// Cameras with initial intrinsics.
-    pub cameras: Vec<ProjectCamera>,
-    /// The stereo head (optional for a mono camera).
-    pub stereo: Option<ProjectStereo>,
-    /// Images.
-    pub images: Vec<ProjectImage>,
-    /// Caliper distances between coded targets.
-    pub distances: Vec<ProjectDistance>,
-    /// The LRF.
-    pub lrf: ProjectLrf,
-}
-
-/// `[targets]`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct ProjectTargets {
-    /// `aicon14` or `aicon12`.
-    pub family: String,
-    /// Radius of the central dot (mm), printed size.
-    pub dot_radius_mm: f64,
-    /// Inner radius of the code ring, in dot radii.
-    pub ring_inner: f64,
-    /// Outer radius of the code ring, in dot radii.
-    pub ring_outer: f64,
-}
-
-/// `[balls]`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct ProjectBalls {
-    /// Ball diameter (mm).
-    pub diameter_mm: f64,
-    /// Balls used as check points (ids `B4`, …); optional.
-    pub check: Vec<String>,
-}
-
-/// `[[cameras]]`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct ProjectCamera {
-    /// Camera id used by images.
-    pub id: String,
-    /// `photogrammetric` (SPEC.md).
-    pub model: String,
-    /// Width in pixels.
-    pub width: u32,
-    /// Height in pixels.
-    pub height: u32,
-    /// Pixel pitch (mm).
-    pub pixel_size_mm: f64,
-    /// Initial values (camera manual).
-    pub initial: CameraParams,
-    /// Which parameters to self-calibrate (names of `PHOTOGRAMMETRIC_PARAMS`).
-    pub free: Vec<String>,
-}
-
-/// The ten photogrammetric parameters, named as in results.json.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct CameraParams {
-    /// Principal distance (mm).
-    pub c_mm: f64,
-    /// Principal point x (mm).
-    pub xp_mm: f64,
-    /// Principal point y (mm).
-    pub yp_mm: f64,
-    /// K1 (mm⁻²).
-    pub k1: f64,
-    /// K2 (mm⁻⁴).
-    pub k2: f64,
-    /// K3 (mm⁻⁶).
-    pub k3: f64,
-    /// P1 (mm⁻¹).
-    pub p1: f64,
-    /// P2 (mm⁻¹).
-    pub p2: f64,
-    /// B1.
-    pub b1: f64,
-    /// B2.
-    pub b2: f64,
-}
-
-impl CameraParams {
-    /// From the slice order `[c, xp, yp, K1, K2, K3, P1, P2, B1, B2]`.
-    pub fn from_slice(p: &[f64; 10]) -> Self {
-        Self {
-            c_mm: p[0],
-            xp_mm: p[1],
-            yp_mm: p[2],
-            k1: p[3],
-            k2: p[4],
-            k3: p[5],
-            p1: p[6],
-            p2: p[7],
-            b1: p[8],
-            b2: p[9],
-        }
-    }
-
-    /// To the slice order.
-    pub fn to_slice(&self) -> [f64; 10] {
-        [
-            self.c_mm, self.xp_mm, self.yp_mm, self.k1, self.k2, self.k3, self.p1, self.p2,
-            self.b1, self.b2,
-        ]
-    }
-}
-
-/// `[stereo]`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct ProjectStereo {
-    /// Left camera id.
-    pub left: String,
-    /// Right camera id.
-    pub right: String,
-    /// Nominal baseline (mm), an initial value.
-    pub baseline_mm: f64,
-}
-
-/// `[[images]]`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct ProjectImage {
-    /// Path relative to project.toml.
-    pub file: String,
-    /// Camera id.
-    pub camera: String,
-    /// Station id (images of one station were taken at the same time by the head).
-    pub station: String,
-}
-
-/// `[[distances]]`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct ProjectDistance {
-    /// Coded target number at one end.
-    pub from: u32,
-    /// Coded target number at the other end.
-    pub to: u32,
-    /// Measured distance (mm).
-    pub distance_mm: f64,
-    /// Its σ (mm).
-    pub sigma_mm: f64,
-}
-
-/// `[lrf]`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct ProjectLrf {
-    /// Sensor model, for reports.
-    pub model: String,
-    /// Station where it scanned (the main station).
-    pub station: String,
-    /// Scan files (`pingcal-scan` CSV), relative to project.toml.
-    pub scans: Vec<String>,
-    /// Maximum range (mm).
-    pub max_range_mm: f64,
-    /// Datasheet accuracy under 1 m (± mm).
-    pub accuracy_near_mm: f64,
-    /// Datasheet accuracy beyond 1 m (± fraction of range).
-    pub accuracy_far_fraction: f64,
-    /// Offset of the scanner centre from the servo shaft in the rotating frame (mm).
-    pub mount_offset_mm: [f64; 3],
-    /// Servo encoder resolution (degrees).
-    pub servo_resolution_deg: f64,
-}
+pub use pingcal_project::{
+    BallLabel, CameraParams, ProjectBalls, ProjectCamera, ProjectDistance, ProjectFile,
+    ProjectImage, ProjectLrf, ProjectStereo, ProjectTargets,
+};
 
 /// A rigid transform as written in JSON: `y = rotation · x + translation_mm`.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -480,6 +307,33 @@ pub fn truth_of(sim: &Simulation) -> Truth {
     }
 }
 
+/// Where each ball is in the main image, to the nearest pixel, as a user would note it on
+/// the photograph (balls outside the image are left out).
+fn ball_labels(sim: &Simulation) -> Vec<BallLabel> {
+    use pingcal_ba::camera::CameraModel;
+    let main = sim.stations.iter().find(|s| s.main).expect("main station");
+    let cam = &sim.rig.cameras[0];
+    let pose = main.camera_pose(&sim.rig, 0);
+    sim.scene
+        .balls
+        .iter()
+        .filter_map(|b| {
+            let uv = cam
+                .model
+                .project(&cam.params, &pose.transform(&b.centre), None, None)?;
+            let inside = uv.x >= 0.0
+                && uv.y >= 0.0
+                && uv.x <= cam.model.width as f64 - 1.0
+                && uv.y <= cam.model.height as f64 - 1.0;
+            inside.then(|| BallLabel {
+                id: format!("B{}", b.id),
+                x: uv.x.round(),
+                y: uv.y.round(),
+            })
+        })
+        .collect()
+}
+
 /// The project file of a simulation.
 pub fn project_of(sim: &Simulation) -> ProjectFile {
     let cfg = &sim.config;
@@ -506,6 +360,7 @@ pub fn project_of(sim: &Simulation) -> ProjectFile {
                 .iter()
                 .map(|b| format!("B{b}"))
                 .collect(),
+            labels: ball_labels(sim),
         },
         cameras: sim
             .rig
@@ -559,6 +414,9 @@ pub fn project_of(sim: &Simulation) -> ProjectFile {
             accuracy_near_mm: cfg.lrf.accuracy_near_mm,
             accuracy_far_fraction: cfg.lrf.accuracy_far_fraction,
             mount_offset_mm: cfg.lrf.mount_offset_mm,
+            mount_tilt_x_deg: 0.0,
+            mount_tilt_z_deg: 0.0,
+            servo_zero_deg: 0.0,
             servo_resolution_deg: cfg.lrf.servo_resolution_deg,
         },
     }
@@ -618,7 +476,7 @@ pub fn write_project(sim: &Simulation, dir: &Path) -> Result<ProjectSummary, Sim
     let text = format!(
         "# pingcal project file, version 1, written by `pingcal simulate --seed {}`.\n# Paths are relative to this file; lengths in mm.\n\n{}",
         sim.seed,
-        toml::to_string(&project).map_err(|e| io(&dir.join("project.toml"), e))?
+        project.to_toml_string()
     );
     std::fs::write(dir.join("project.toml"), text).map_err(|e| io(&dir.join("project.toml"), e))?;
     let truth = truth_of(sim);
@@ -655,5 +513,8 @@ pub fn read_truth(path: &Path) -> Result<Truth, SimError> {
 /// Reads a `project.toml`.
 pub fn read_project(path: &Path) -> Result<ProjectFile, SimError> {
     let text = std::fs::read_to_string(path).map_err(|e| io(path, e))?;
-    toml::from_str(&text).map_err(|e| io(path, e))
+    ProjectFile::parse(&text, &path.display().to_string()).map_err(|e| SimError::Io {
+        path: path.display().to_string(),
+        what: e.to_string(),
+    })
 }

@@ -7,7 +7,6 @@
 use super::CmdResult;
 use pingcal_lrf::ball_finder::{find_balls, FinderOptions};
 use pingcal_lrf::cloud::{read_cloud_file, Cloud, MountModel};
-use pingcal_lrf::nalgebra::Vector3;
 use std::path::PathBuf;
 
 /// Arguments of `pingcal cloud`.
@@ -30,17 +29,6 @@ pub struct Args {
     pub seed: u64,
 }
 
-const PALETTE: [[u8; 3]; 8] = [
-    [230, 25, 75],
-    [60, 180, 75],
-    [0, 130, 200],
-    [245, 130, 48],
-    [145, 30, 180],
-    [70, 240, 240],
-    [240, 50, 230],
-    [210, 245, 60],
-];
-
 /// Runs the command.
 pub fn run(args: Args) -> CmdResult {
     if !(args.diameter_mm > 0.0 && args.diameter_mm.is_finite()) {
@@ -61,24 +49,6 @@ pub fn run(args: Args) -> CmdResult {
     };
     let found = find_balls(&cloud, &opt);
     if let Some(out) = &args.out {
-        let mut colors = vec![[160u8, 160, 160]; cloud.len()];
-        let mut points = cloud.points.clone();
-        let r = args.diameter_mm / 2.0;
-        for (k, b) in found.balls.iter().enumerate() {
-            let c = PALETTE[k % PALETTE.len()];
-            for &i in &b.inliers {
-                colors[i] = c;
-            }
-            // the fitted sphere: 400 points on a Fibonacci lattice
-            let n = 400;
-            for j in 0..n {
-                let z = 1.0 - 2.0 * (j as f64 + 0.5) / n as f64;
-                let phi = j as f64 * std::f64::consts::PI * (3.0 - 5f64.sqrt());
-                let rho = (1.0 - z * z).sqrt();
-                points.push(b.centre + Vector3::new(rho * phi.cos(), rho * phi.sin(), z) * r);
-                colors.push(c);
-            }
-        }
         let comments = vec![format!(
             "pingcal cloud: {} points, {} balls of {} mm",
             cloud.len(),
@@ -86,7 +56,13 @@ pub fn run(args: Args) -> CmdResult {
             args.diameter_mm
         )];
         let mut bytes = Vec::new();
-        pingcal_lrf::ply::write_ply(&mut bytes, &points, &colors, &comments)?;
+        pingcal_lrf::ply::write_cloud_with_spheres(
+            &mut bytes,
+            &cloud,
+            &found.balls,
+            args.diameter_mm / 2.0,
+            &comments,
+        )?;
         super::write_atomic(out, &bytes)?;
     }
     if let Some(path) = &args.balls {

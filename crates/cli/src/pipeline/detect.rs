@@ -1,0 +1,106 @@
+//! Step 1: targets and ball silhouettes in every image.
+//!
+//! Images are decoded and measured in parallel (one image per worker). The detector runs
+//! with ball classification off: whether a round blob is a flat target or a ball is decided
+//! later, in millimetres, once the blob has been triangulated ([`super::matching`]). For
+//! every plain blob the silhouette is also refitted with the ball settings
+//! ([`pingcal_targets::ball::fit_ball_silhouette`]), so that no image needs to be kept in
+//! memory for the eccentricity correction of the balls.
+
+use super::{PipelineError, Reporter, Result};
+use pingcal_project::Project;
+use pingcal_targets::detect::BallMode;
+use pingcal_targets::ellipse::Ellipse;
+use pingcal_targets::{load_image, DetectParams, Detector, Target, TargetKind};
+use rayon::prelude::*;
+
+/// The measurements of one image.
+#[derive(Clone, Debug)]
+pub struct ImageDetections {
+    /// Width (px).
+    pub width: usize,
+    /// Height (px).
+    pub height: usize,
+    /// Targets: coded (with or without a number) and plain (targets or balls).
+    pub targets: Vec<Target>,
+    /// For each target: the silhouette refitted as a ball (plain blobs only), with its σ.
+    pub ball_fits: Vec<Option<(Ellipse, f64)>>,
+}
+
+/// Detects every image of the project; an image of the wrong size for its camera is an error.
+pub fn detect_all(project: &Project, rep: &Reporter) -> Result<Vec<ImageDetections>> {
+    let f = &project.file;
+    let bits = if f.targets.family == "aicon12" {
+        12
+    } else {
+        14
+    };
+    let detector = Detector::new(DetectParams {
+        code_bits: vec![bits],
+        balls: BallMode::Off,
+        ..DetectParams::default()
+    })
+    .map_err(|e| PipelineError::new(format!("detector: {e}")))?;
+    let pb = rep.bar(project.image_paths.len() as u64, "detecting targets");
+    let out: Vec<Result<ImageDetections>> = project
+        .image_paths
+        .par_iter()
+        .zip(&f.images)
+        .map(|(path, im)| {
+            let img = load_image(path).map_err(|e| PipelineError::new(e.to_string()))?;
+            let cam = f
+                .cameras
+                .iter()
+                .find(|c| c.id == im.camera)
+                .expect("validated camera");
+            if img.width != cam.width as usize || img.height != cam.height as usize {
+                return Err(PipelineError::new(format!(
+                    "{}: the image is {}×{} pixels, but camera '{}' is {}×{} (project.toml [[cameras]])",
+                    path.display(),
+                    img.width,
+                    img.height,
+                    cam.id,
+                    cam.width,
+                    cam.height
+                )));
+            }
+            let d = detector.detect(&img);
+            let ball_fits = d
+                .targets
+                .iter()
+                .map(|t| {
+                    (t.kind == TargetKind::Plain && t.ellipse.radius() >= 2.0)
+                        .then(|| pingcal_targets::ball::fit_ball_silhouette(&img, &t.ellipse).ok())
+                        .flatten()
+                        .map(|r| (r.ellipse, r.sigma_ellipse))
+                })
+                .collect();
+            pb.inc(1);
+            Ok(ImageDetections {
+                width: d.width,
+                height: d.height,
+                targets: d.targets,
+                ball_fits,
+            })
+        })
+        .collect();
+    pb.finish_and_clear();
+    let dets = out.into_iter().collect::<Result<Vec<_>>>()?;
+    let (mut coded, mut ids, mut plain) = (0, 0, 0);
+    for d in &dets {
+        for t in &d.targets {
+            match t.kind {
+                TargetKind::Coded => {
+                    coded += 1;
+                    ids += t.id.is_some() as usize;
+                }
+                _ => plain += 1,
+            }
+        }
+    }
+    rep.log(format!(
+        "detected in {} images: {coded} coded targets ({ids} numbers read), {plain} round blobs (plain targets or balls)",
+        dets.len()
+    ));
+    Ok(dets)
+}

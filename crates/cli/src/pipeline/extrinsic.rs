@@ -1,0 +1,286 @@
+//! Step 6: the extrinsic, by the paper's sphere method and by the Fan et al. 2019 baseline.
+//!
+//! **Spheres.** The LRF spheres and the photogrammetric balls are matched without labels
+//! ([`pingcal_lrf::correspondence::match_balls`]: distances between balls are the same in
+//! both frames); the 3D conformal transform `p_camera = R · p_lrf + t` is estimated on the
+//! control balls (all matched balls not listed as check balls) by weighted least squares with
+//! the covariances of both sides ([`pingcal_lrf::registration::evaluate`]) and judged on the
+//! check balls (dx = estimated − reference, as the paper's Table 4) and by leave-one-out.
+//!
+//! **Corner.** [`pingcal_lrf::corner_baseline::fan_baseline`]: the LRF pose in the room
+//! corner from one scan's three lines, the camera pose by DLT on the main image, composed.
+//! It uses no ball; it is judged on the same check balls (all matched balls when there are
+//! no check balls).
+
+use super::bundle::{problem_point, Adjusted};
+use super::detect::ImageDetections;
+use super::lrf::LrfData;
+use super::{Model, Options, PipelineError, PointKind, Reporter, Result};
+use nalgebra::{Matrix3, Vector2, Vector3};
+use pingcal_ba::camera::CameraModel;
+use pingcal_lrf::corner_baseline::{fan_baseline, BaselineInput};
+use pingcal_lrf::correspondence::{match_balls, MatchOptions};
+use pingcal_lrf::registration::{
+    check_table, evaluate, CheckTable, Evaluation, PointObs, RegistrationOptions, Transform,
+};
+use pingcal_project::Project;
+
+/// The corner baseline's outcome.
+pub struct CornerOutcome {
+    /// LRF → camera.
+    pub transform: Transform,
+    /// Its check table.
+    pub check: CheckTable,
+    /// What the baseline chose and why.
+    pub notes: Vec<String>,
+}
+
+/// Both methods.
+pub struct Extrinsics {
+    /// Matched pairs: (LRF sphere index, model point index of the ball).
+    pub pairs: Vec<(usize, usize)>,
+    /// RMS of the matching (mm).
+    pub match_rms_mm: f64,
+    /// LRF spheres, labelled with their matched ball ids.
+    pub lrf_points: Vec<PointObs>,
+    /// Camera balls, labelled.
+    pub cam_points: Vec<PointObs>,
+    /// The sphere method (None when not asked).
+    pub spheres: Option<Evaluation>,
+    /// The corner baseline (None when not asked), or why it failed.
+    pub corner: Option<std::result::Result<CornerOutcome, String>>,
+    /// Check balls used.
+    pub check_ids: Vec<String>,
+}
+
+/// Runs the methods the project asks for.
+pub fn extrinsics(
+    project: &Project,
+    model: &Model,
+    adj: &Adjusted,
+    lrf: &LrfData,
+    dets: &[ImageDetections],
+    opts: &Options,
+    rep: &Reporter,
+) -> Result<Extrinsics> {
+    let f = &project.file;
+    let method = f.method();
+    // camera balls with their covariances
+    let mut cam_balls: Vec<(usize, Vector3<f64>, Matrix3<f64>)> = Vec::new();
+    for (j, p) in model.points.iter().enumerate() {
+        if p.kind != PointKind::Ball {
+            continue;
+        }
+        let Some(k) = problem_point(adj, model, j) else {
+            continue;
+        };
+        let cov = adj.precision.point_covariances[k].unwrap_or(Matrix3::identity());
+        cam_balls.push((j, p.position, cov));
+    }
+    let lrf_centres: Vec<Vector3<f64>> = lrf.found.balls.iter().map(|b| b.centre).collect();
+    let cam_centres: Vec<Vector3<f64>> = cam_balls.iter().map(|b| b.1).collect();
+    let too_few = |n: usize| {
+        PipelineError::new(format!(
+            "{}: only {n} balls were found by both sensors (LRF: {} spheres in {}; photographs: {} balls); at least 3 are needed for the extrinsic",
+            project.path.display(),
+            lrf_centres.len(),
+            f.lrf.scans.join(", "),
+            cam_centres.len()
+        ))
+    };
+    let matching =
+        match_balls(&lrf_centres, &cam_centres, &MatchOptions::default()).map_err(|e| {
+            if lrf_centres.len() < 3 || cam_centres.len() < 3 {
+                too_few(lrf_centres.len().min(cam_centres.len()))
+            } else {
+                PipelineError::new(format!(
+                    "{}: the LRF spheres cannot be matched to the balls of the photographs: {e}",
+                    project.path.display()
+                ))
+            }
+        })?;
+    if matching.pairs.len() < 3 {
+        return Err(too_few(matching.pairs.len()));
+    }
+    let mut pairs: Vec<(usize, usize)> = matching
+        .pairs
+        .iter()
+        .map(|&(l, c)| (l, cam_balls[c].0))
+        .collect();
+    pairs.sort_by(|a, b| model.points[a.1].name.cmp(&model.points[b.1].name));
+    let mut lrf_points = Vec::new();
+    let mut cam_points = Vec::new();
+    for &(l, j) in &pairs {
+        let name = model.points[j].name.clone();
+        let b = &lrf.found.balls[l];
+        lrf_points.push(PointObs {
+            id: name.clone(),
+            xyz: b.centre,
+            cov: b.cov,
+        });
+        let cb = cam_balls.iter().find(|c| c.0 == j).expect("matched ball");
+        cam_points.push(PointObs {
+            id: name,
+            xyz: cb.1,
+            cov: cb.2,
+        });
+    }
+    rep.log(format!(
+        "correspondence: {} of {} LRF spheres matched to {} photogrammetric balls, RMS {:.1} mm",
+        pairs.len(),
+        lrf_centres.len(),
+        cam_centres.len(),
+        matching.rms_mm
+    ));
+    let matched: Vec<String> = cam_points.iter().map(|p| p.id.clone()).collect();
+    let mut check_ids = Vec::new();
+    for c in &f.balls.check {
+        if matched.contains(c) {
+            check_ids.push(c.clone());
+        } else {
+            rep.log(format!(
+                "  check ball {c} was not found by both sensors: it cannot be judged"
+            ));
+        }
+    }
+    let spheres = if method.spheres() {
+        let control = matched.len() - check_ids.len();
+        if control < 3 {
+            return Err(PipelineError::new(format!(
+                "{}: only {control} control balls are left after taking the check balls ({}) out of the {} matched; at least 3 are needed",
+                project.path.display(),
+                check_ids.join(", "),
+                matched.len()
+            )));
+        }
+        let ev = evaluate(
+            &lrf_points,
+            &cam_points,
+            &[],
+            &check_ids,
+            &RegistrationOptions::default(),
+        )
+        .map_err(|e| PipelineError::new(format!("sphere registration: {e}")))?;
+        let table = if ev.check.rows.is_empty() {
+            &ev.leave_one_out
+        } else {
+            &ev.check
+        };
+        rep.log(format!(
+            "spheres: extrinsic from {} control balls, mean check error {:.2} mm (sd {:.2}) on {} balls{}",
+            ev.control.rows.len(),
+            table.mean_mm,
+            table.sd_mm,
+            table.rows.len(),
+            if ev.check.rows.is_empty() { " (leave-one-out)" } else { "" }
+        ));
+        Some(ev)
+    } else {
+        None
+    };
+    let corner = if method.corner() {
+        let r = corner_method(
+            project,
+            model,
+            lrf,
+            dets,
+            opts,
+            &lrf_points,
+            &cam_points,
+            &check_ids,
+        );
+        match &r {
+            Ok(c) => rep.log(format!(
+                "corner baseline: mean check error {:.2} mm (sd {:.2}) on {} balls",
+                c.check.mean_mm,
+                c.check.sd_mm,
+                c.check.rows.len()
+            )),
+            Err(e) => {
+                if !method.spheres() {
+                    return Err(PipelineError::new(format!("corner baseline: {e}")));
+                }
+                rep.log(format!("corner baseline failed: {e}"));
+            }
+        }
+        Some(r)
+    } else {
+        None
+    };
+    Ok(Extrinsics {
+        pairs,
+        match_rms_mm: matching.rms_mm,
+        lrf_points,
+        cam_points,
+        spheres,
+        corner,
+        check_ids,
+    })
+}
+
+#[allow(clippy::too_many_arguments)]
+fn corner_method(
+    project: &Project,
+    model: &Model,
+    lrf: &LrfData,
+    dets: &[ImageDetections],
+    opts: &Options,
+    lrf_points: &[PointObs],
+    cam_points: &[PointObs],
+    check_ids: &[String],
+) -> std::result::Result<CornerOutcome, String> {
+    let Some((header, scans)) = &lrf.scans else {
+        return Err("it needs the scan lines (a pingcal-scan CSV), not a point cloud".into());
+    };
+    let main = project.main_image();
+    let cam_of = super::network::camera_index(project);
+    let c = cam_of[main];
+    let cams = super::matching::models(project);
+    let targets: Vec<(String, Vector3<f64>)> = model
+        .points
+        .iter()
+        .filter(|p| p.kind != PointKind::Ball)
+        .map(|p| (p.name.clone(), p.position))
+        .collect();
+    let mut main_image = Vec::new();
+    for p in model.points.iter().filter(|p| p.kind != PointKind::Ball) {
+        for &(i, k) in &p.obs {
+            if i != main {
+                continue;
+            }
+            let t = &dets[i].targets[k];
+            if let Some(r) = cams[c].unproject(&model.intrinsics[c], &Vector2::new(t.x, t.y)) {
+                if r.y > 0.0 {
+                    main_image.push((p.name.clone(), Vector2::new(r.x / r.y, r.z / r.y)));
+                }
+            }
+        }
+    }
+    let l = &project.file.lrf;
+    let input = BaselineInput {
+        header,
+        scans,
+        mount: &lrf.mount,
+        range_sigma_mm: l.accuracy_near_mm / 3.0,
+        targets: &targets,
+        main_image: &main_image,
+        seed: opts.seed,
+    };
+    let res = fan_baseline(&input).map_err(|e| e.to_string())?;
+    let ids: Vec<&String> = if check_ids.is_empty() {
+        cam_points.iter().map(|p| &p.id).collect()
+    } else {
+        check_ids.iter().collect()
+    };
+    let pick = |set: &[PointObs]| -> Vec<PointObs> {
+        ids.iter()
+            .filter_map(|id| set.iter().find(|p| &p.id == *id).cloned())
+            .collect()
+    };
+    let check = check_table(&res.lrf_to_camera, &pick(lrf_points), &pick(cam_points));
+    Ok(CornerOutcome {
+        transform: res.lrf_to_camera,
+        check,
+        notes: res.notes,
+    })
+}

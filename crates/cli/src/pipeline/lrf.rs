@@ -1,0 +1,102 @@
+//! Step 5: the LRF cloud and its spheres.
+//!
+//! Every scan file of `[lrf] scans` is read (`pingcal-scan` CSV through the mount model of
+//! the project, or a PLY / XYZ cloud already in the LRF frame) into one cloud; the balls are
+//! found and fitted by [`pingcal_lrf::ball_finder`] with the ball diameter of the project and
+//! the URG noise model from the datasheet accuracies (taken as 3σ). The scan lines are kept
+//! for the corner baseline.
+
+use super::{Options, PipelineError, Reporter, Result};
+use pingcal_lrf::ball_finder::{find_balls, FindResult, FinderOptions};
+use pingcal_lrf::cloud::{read_cloud_file, Cloud, MountModel};
+use pingcal_lrf::scan::{open_scan_file, ScanHeader, ScanLine};
+use pingcal_lrf::simulate::UrgNoise;
+use pingcal_project::Project;
+
+/// The LRF side.
+pub struct LrfData {
+    /// The cloud (LRF frame, mm).
+    pub cloud: Cloud,
+    /// The spheres found, and what was rejected.
+    pub found: FindResult,
+    /// The scan lines of the first CSV scan file (for the corner baseline), if any.
+    pub scans: Option<(ScanHeader, Vec<ScanLine>)>,
+    /// The mount model used.
+    pub mount: MountModel,
+    /// The noise model used.
+    pub noise: UrgNoise,
+}
+
+/// The mount model of the project.
+pub fn mount_of(project: &Project) -> MountModel {
+    let l = &project.file.lrf;
+    MountModel {
+        offset_mm: l.mount_offset_mm,
+        tilt_x_deg: l.mount_tilt_x_deg,
+        tilt_z_deg: l.mount_tilt_z_deg,
+        servo_zero_deg: l.servo_zero_deg,
+    }
+}
+
+/// Reads the scans and finds the spheres.
+pub fn lrf_spheres(project: &Project, opts: &Options, rep: &Reporter) -> Result<LrfData> {
+    let l = &project.file.lrf;
+    let mount = mount_of(project);
+    let pb = rep.bar(project.scan_paths.len() as u64 + 1, "LRF cloud and spheres");
+    let mut cloud = Cloud::default();
+    let mut scans = None;
+    for path in &project.scan_paths {
+        let c = read_cloud_file(path, &mount).map_err(|e| PipelineError::new(e.to_string()))?;
+        cloud.extend(c);
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .unwrap_or("")
+            .to_ascii_lowercase();
+        if scans.is_none() && !matches!(ext.as_str(), "ply" | "xyz" | "txt" | "pts") {
+            let reader = open_scan_file(path).map_err(|e| PipelineError::new(e.to_string()))?;
+            let header = reader.header();
+            let lines = reader
+                .collect::<std::result::Result<Vec<_>, _>>()
+                .map_err(|e| PipelineError::new(e.to_string()))?;
+            scans = Some((header, lines));
+        }
+        pb.inc(1);
+    }
+    let noise = UrgNoise {
+        sigma_near_mm: l.accuracy_near_mm / 3.0,
+        sigma_rel_far: l.accuracy_far_fraction / 3.0,
+        max_range_mm: l.max_range_mm,
+        ..UrgNoise::default()
+    };
+    let found = find_balls(
+        &cloud,
+        &FinderOptions {
+            diameter_mm: project.file.balls.diameter_mm,
+            noise: noise.clone(),
+            seed: opts.seed,
+            ..FinderOptions::default()
+        },
+    );
+    pb.finish_and_clear();
+    rep.log(format!(
+        "LRF: {} points from {} file(s); {} spheres fitted, {} clusters rejected",
+        cloud.len(),
+        project.scan_paths.len(),
+        found.balls.len(),
+        found.rejected.len()
+    ));
+    for r in &found.rejected {
+        rep.log(format!(
+            "  LRF cluster at ({:.0}, {:.0}, {:.0}) mm rejected: {}",
+            r.centre.x, r.centre.y, r.centre.z, r.reason
+        ));
+    }
+    Ok(LrfData {
+        cloud,
+        found,
+        scans,
+        mount,
+        noise,
+    })
+}

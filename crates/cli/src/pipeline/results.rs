@@ -1,0 +1,461 @@
+//! Step 7: `results.json` (the keys of SPEC.md and more), `cloud.ply`, and the report data.
+//!
+//! `extrinsic`, `check_points` and `mean_check_error_mm` are the sphere method's when it
+//! ran, else the corner baseline's; `methods` holds both side by side. Every estimate has
+//! its standard deviation. Camera parameters are in the units of SPEC.md (mm, mm⁻², …) and
+//! also converted to OpenCV's (fx, fy, cx, cy, k1, k2, p1, p2, k3): `k1 = K1 c²`,
+//! `k2 = K2 c⁴`, `k3 = K3 c⁶`, `p1 = −P2 c`, `p2 = P1 c` (OpenCV's y axis points down),
+//! `fx = c (1 + B1) / pixel`, `fy = c / pixel`, `cx = (W − 1)/2 + xp / pixel`,
+//! `cy = (H − 1)/2 − yp / pixel`; B1 enters fx to first order and B2 (shear) has no OpenCV
+//! counterpart: `opencv_dropped_b2` says how large it was.
+
+use super::bundle::{problem_point, Adjusted};
+use super::detect::ImageDetections;
+use super::extrinsic::Extrinsics;
+use super::lrf::LrfData;
+use super::{Model, Outcome, PointKind, Reporter};
+use nalgebra::Matrix3;
+use pingcal_ba::rotation::to_opk;
+use pingcal_lrf::registration::{CheckRow, Transform};
+use pingcal_project::Project;
+use serde::Serialize;
+
+/// The extrinsic as `results.json` writes it.
+#[derive(Clone, Debug, Serialize)]
+pub struct ExtrinsicJson {
+    /// R (row-major), `p_camera = R · p_lrf + t`.
+    pub rotation: [[f64; 3]; 3],
+    /// t (mm).
+    pub translation_mm: [f64; 3],
+    /// σ of t (mm); null for the corner baseline (it gives none).
+    pub sigma_translation_mm: Option<[f64; 3]>,
+    /// σ of ω, φ, κ (degrees).
+    pub sigma_rotation_deg: Option<[f64; 3]>,
+    /// ω, φ, κ (degrees), R = R_ω R_φ R_κ.
+    pub opk_deg: [f64; 3],
+}
+
+/// One method's results.
+#[derive(Clone, Debug, Serialize)]
+pub struct MethodJson {
+    /// `spheres` or `corner`.
+    pub method: String,
+    /// The extrinsic.
+    pub extrinsic: Option<ExtrinsicJson>,
+    /// Check balls (dx = estimated − reference).
+    pub check_points: Vec<CheckRow>,
+    /// Mean of their errors (mm).
+    pub mean_check_error_mm: Option<f64>,
+    /// Their standard deviation (mm).
+    pub sd_check_error_mm: Option<f64>,
+    /// Where the check rows come from: `check` balls or `leave_one_out`.
+    pub check_points_source: String,
+    /// Residuals of the control balls (spheres only).
+    pub control_points: Vec<CheckRow>,
+    /// Leave-one-out over the control balls (spheres only).
+    pub leave_one_out: Vec<CheckRow>,
+    /// σ0 of the registration (spheres only).
+    pub sigma0: Option<f64>,
+    /// Why the method failed.
+    pub error: Option<String>,
+    /// What it chose and why.
+    pub notes: Vec<String>,
+}
+
+/// Bundle adjustment summary.
+#[derive(Clone, Debug, Serialize)]
+pub struct BundleJson {
+    /// A-posteriori σ0.
+    pub sigma0: f64,
+    /// RMS image residual (px).
+    pub rms_image_px: f64,
+    /// Oriented images.
+    pub images: usize,
+    /// Images of the project left out (file, why).
+    pub unoriented_images: Vec<(String, String)>,
+    /// Object points.
+    pub points: usize,
+    /// Image observations.
+    pub observations: usize,
+    /// Distances.
+    pub distances: usize,
+    /// Iterations of the final adjustments.
+    pub iterations: usize,
+    /// Redundancy.
+    pub redundancy: i64,
+    /// Image points rejected by data snooping.
+    pub rejected: usize,
+    /// Stereo rig, left → right camera frame.
+    pub rig: Option<RigJson>,
+}
+
+/// The stereo rig.
+#[derive(Clone, Debug, Serialize)]
+pub struct RigJson {
+    /// R (row-major), `p_right = R · p_left + t`.
+    pub rotation: [[f64; 3]; 3],
+    /// t (mm).
+    pub translation_mm: [f64; 3],
+    /// Baseline length (mm).
+    pub baseline_mm: f64,
+}
+
+/// A camera's intrinsics.
+#[derive(Clone, Debug, Serialize)]
+pub struct CameraJson {
+    /// Camera id.
+    pub id: String,
+    /// c (mm).
+    pub c_mm: f64,
+    /// xp (mm).
+    pub xp_mm: f64,
+    /// yp (mm).
+    pub yp_mm: f64,
+    /// K1 (mm⁻²).
+    pub k1: f64,
+    /// K2 (mm⁻⁴).
+    pub k2: f64,
+    /// K3 (mm⁻⁶).
+    pub k3: f64,
+    /// P1 (mm⁻¹).
+    pub p1: f64,
+    /// P2 (mm⁻¹).
+    pub p2: f64,
+    /// B1.
+    pub b1: f64,
+    /// B2.
+    pub b2: f64,
+    /// σ of each parameter, by name (free parameters only; fixed ones are absent).
+    pub sigma: std::collections::BTreeMap<String, f64>,
+    /// Pairs of parameters correlated beyond 0.9.
+    pub high_correlations: Vec<(String, String, f64)>,
+    /// The same camera in OpenCV's model (pixels; see the module doc).
+    pub opencv: OpenCvJson,
+}
+
+/// OpenCV intrinsics.
+#[derive(Clone, Debug, Serialize)]
+pub struct OpenCvJson {
+    /// fx (px).
+    pub fx: f64,
+    /// fy (px).
+    pub fy: f64,
+    /// cx (px).
+    pub cx: f64,
+    /// cy (px).
+    pub cy: f64,
+    /// k1, k2, p1, p2, k3.
+    pub dist: [f64; 5],
+    /// B2, which OpenCV cannot hold.
+    pub opencv_dropped_b2: f64,
+}
+
+/// A ball in both frames.
+#[derive(Clone, Debug, Serialize)]
+pub struct BallJson {
+    /// Id.
+    pub id: String,
+    /// Check ball.
+    pub check: bool,
+    /// Centre in the photogrammetric frame (mm).
+    pub photogrammetric_mm: [f64; 3],
+    /// Its σ (mm).
+    pub photogrammetric_sigma_mm: [f64; 3],
+    /// Centre of the matched LRF sphere (mm), if any.
+    pub lrf_mm: Option<[f64; 3]>,
+    /// Its σ (mm).
+    pub lrf_sigma_mm: Option<[f64; 3]>,
+    /// Images measuring the ball.
+    pub rays: usize,
+}
+
+/// `results.json`.
+#[derive(Clone, Debug, Serialize)]
+pub struct Results {
+    /// What wrote it.
+    pub generator: String,
+    /// The project's name.
+    pub project: String,
+    /// The extrinsic of the primary method (spheres when run).
+    pub extrinsic: ExtrinsicJson,
+    /// Its check points.
+    pub check_points: Vec<CheckRow>,
+    /// Their mean error (mm).
+    pub mean_check_error_mm: f64,
+    /// Both methods.
+    pub methods: Vec<MethodJson>,
+    /// The bundle adjustment.
+    pub bundle: BundleJson,
+    /// Intrinsics.
+    pub cameras: Vec<CameraJson>,
+    /// Balls.
+    pub balls: Vec<BallJson>,
+    /// Targets (label, kind, position mm, σ mm).
+    pub targets: Vec<(String, String, [f64; 3], [f64; 3])>,
+    /// Seconds per step, in order.
+    pub time_s: Vec<(String, f64)>,
+}
+
+fn mat(r: &Matrix3<f64>) -> [[f64; 3]; 3] {
+    [
+        [r[(0, 0)], r[(0, 1)], r[(0, 2)]],
+        [r[(1, 0)], r[(1, 1)], r[(1, 2)]],
+        [r[(2, 0)], r[(2, 1)], r[(2, 2)]],
+    ]
+}
+
+fn extrinsic_json(
+    t: &Transform,
+    sigma_t: Option<[f64; 3]>,
+    sigma_r: Option<[f64; 3]>,
+) -> ExtrinsicJson {
+    let (o, p, k) = to_opk(&t.rotation);
+    ExtrinsicJson {
+        rotation: mat(&t.rotation),
+        translation_mm: [t.translation.x, t.translation.y, t.translation.z],
+        sigma_translation_mm: sigma_t,
+        sigma_rotation_deg: sigma_r,
+        opk_deg: [o.to_degrees(), p.to_degrees(), k.to_degrees()],
+    }
+}
+
+fn methods(ext: &Extrinsics) -> Vec<MethodJson> {
+    let mut out = Vec::new();
+    if let Some(ev) = &ext.spheres {
+        let r = &ev.registration;
+        let (table, source) = if ev.check.rows.is_empty() {
+            (&ev.leave_one_out, "leave_one_out")
+        } else {
+            (&ev.check, "check")
+        };
+        out.push(MethodJson {
+            method: "spheres".into(),
+            extrinsic: Some(extrinsic_json(
+                &r.transform,
+                Some(r.sigma_translation_mm.into()),
+                Some(r.sigma_euler_deg.into()),
+            )),
+            check_points: table.rows.clone(),
+            mean_check_error_mm: Some(table.mean_mm),
+            sd_check_error_mm: Some(table.sd_mm),
+            check_points_source: source.into(),
+            control_points: ev.control.rows.clone(),
+            leave_one_out: ev.leave_one_out.rows.clone(),
+            sigma0: Some(r.sigma0),
+            error: None,
+            notes: ev
+                .loo_skipped
+                .iter()
+                .map(|(id, why)| format!("leave-one-out skipped {id}: {why}"))
+                .collect(),
+        });
+    }
+    if let Some(c) = &ext.corner {
+        out.push(match c {
+            Ok(c) => MethodJson {
+                method: "corner".into(),
+                extrinsic: Some(extrinsic_json(&c.transform, None, None)),
+                check_points: c.check.rows.clone(),
+                mean_check_error_mm: Some(c.check.mean_mm),
+                sd_check_error_mm: Some(c.check.sd_mm),
+                check_points_source: if ext.check_ids.is_empty() {
+                    "all_balls".into()
+                } else {
+                    "check".into()
+                },
+                control_points: Vec::new(),
+                leave_one_out: Vec::new(),
+                sigma0: None,
+                error: None,
+                notes: c.notes.clone(),
+            },
+            Err(e) => MethodJson {
+                method: "corner".into(),
+                extrinsic: None,
+                check_points: Vec::new(),
+                mean_check_error_mm: None,
+                sd_check_error_mm: None,
+                check_points_source: String::new(),
+                control_points: Vec::new(),
+                leave_one_out: Vec::new(),
+                sigma0: None,
+                error: Some(e.clone()),
+                notes: Vec::new(),
+            },
+        });
+    }
+    out
+}
+
+fn camera_json(project: &Project, model: &Model, adj: &Adjusted, c: usize) -> CameraJson {
+    let cam = &project.file.cameras[c];
+    let p = &model.intrinsics[c];
+    let prec = adj
+        .precision
+        .intrinsics
+        .iter()
+        .find(|ip| ip.camera == cam.id);
+    let mut sigma = std::collections::BTreeMap::new();
+    let mut high = Vec::new();
+    if let Some(ip) = prec {
+        for (n, s) in ip.names.iter().zip(&ip.sigmas) {
+            sigma.insert(n.clone(), *s);
+        }
+        high = ip
+            .high_correlations
+            .iter()
+            .filter(|h| h.2.abs() > 0.9)
+            .cloned()
+            .collect();
+    }
+    let ps = cam.pixel_size_mm;
+    let cc = p[0];
+    CameraJson {
+        id: cam.id.clone(),
+        c_mm: p[0],
+        xp_mm: p[1],
+        yp_mm: p[2],
+        k1: p[3],
+        k2: p[4],
+        k3: p[5],
+        p1: p[6],
+        p2: p[7],
+        b1: p[8],
+        b2: p[9],
+        sigma,
+        high_correlations: high,
+        opencv: OpenCvJson {
+            fx: cc * (1.0 + p[8]) / ps,
+            fy: cc / ps,
+            cx: (cam.width as f64 - 1.0) / 2.0 + p[1] / ps,
+            cy: (cam.height as f64 - 1.0) / 2.0 - p[2] / ps,
+            dist: [
+                p[3] * cc * cc,
+                p[4] * cc.powi(4),
+                -p[7] * cc,
+                p[6] * cc,
+                p[5] * cc.powi(6),
+            ],
+            opencv_dropped_b2: p[9],
+        },
+    }
+}
+
+fn sigma3(m: &Option<Matrix3<f64>>) -> [f64; 3] {
+    match m {
+        Some(m) => [m[(0, 0)].sqrt(), m[(1, 1)].sqrt(), m[(2, 2)].sqrt()],
+        None => [f64::NAN; 3],
+    }
+}
+
+/// Puts everything together.
+pub fn assemble(
+    project: &Project,
+    dets: &[ImageDetections],
+    model: &Model,
+    adj: &Adjusted,
+    lrf: &LrfData,
+    ext: &Extrinsics,
+    rep: &Reporter,
+    time_s: Vec<(String, f64)>,
+) -> Outcome {
+    let f = &project.file;
+    let methods = methods(ext);
+    let primary = methods
+        .iter()
+        .find(|m| m.extrinsic.is_some())
+        .expect("the pipeline fails unless one method succeeded");
+    let mut balls = Vec::new();
+    let mut targets = Vec::new();
+    for (j, p) in model.points.iter().enumerate() {
+        let Some(k) = problem_point(adj, model, j) else {
+            continue;
+        };
+        let sig = sigma3(&adj.precision.point_covariances[k]);
+        let xyz = [p.position.x, p.position.y, p.position.z];
+        if p.kind == PointKind::Ball {
+            let l = ext.lrf_points.iter().find(|l| l.id == p.name);
+            balls.push(BallJson {
+                id: p.name.clone(),
+                check: ext.check_ids.contains(&p.name),
+                photogrammetric_mm: xyz,
+                photogrammetric_sigma_mm: sig,
+                lrf_mm: l.map(|l| [l.xyz.x, l.xyz.y, l.xyz.z]),
+                lrf_sigma_mm: l.map(|l| sigma3(&Some(l.cov))),
+                rays: p.obs.len(),
+            });
+        } else {
+            targets.push((p.name.clone(), p.kind.as_str().to_string(), xyz, sig));
+        }
+    }
+    balls.sort_by(|a, b| natural(&a.id).cmp(&natural(&b.id)));
+    let rig = adj.rig.map(|r| RigJson {
+        rotation: mat(&r.rotation),
+        translation_mm: [r.translation.x, r.translation.y, r.translation.z],
+        baseline_mm: r.centre().norm(),
+    });
+    let results = Results {
+        generator: format!("pingcal {}", env!("CARGO_PKG_VERSION")),
+        project: f.name.clone(),
+        extrinsic: primary.extrinsic.clone().expect("found above"),
+        check_points: primary.check_points.clone(),
+        mean_check_error_mm: primary.mean_check_error_mm.unwrap_or(f64::NAN),
+        methods,
+        bundle: BundleJson {
+            sigma0: adj.precision.sigma0,
+            rms_image_px: adj.precision.rms_image_px,
+            images: adj.problem.images.len(),
+            unoriented_images: model
+                .unoriented
+                .iter()
+                .map(|(i, w)| (f.images[*i].file.clone(), w.clone()))
+                .collect(),
+            points: adj.problem.points.len(),
+            observations: adj.problem.observations.len(),
+            distances: adj.problem.distances.len(),
+            iterations: adj.iterations,
+            redundancy: adj.precision.redundancy,
+            rejected: adj.rejected.len(),
+            rig,
+        },
+        cameras: (0..f.cameras.len())
+            .map(|c| camera_json(project, model, adj, c))
+            .collect(),
+        balls,
+        targets,
+        time_s,
+    };
+    let report = super::report::build(project, dets, model, adj, lrf, ext, &results, rep);
+    let cloud_ply = cloud_ply(lrf, 0.5 * f.balls.diameter_mm);
+    Outcome {
+        results,
+        report,
+        cloud_ply,
+    }
+}
+
+/// `B12` sorts after `B4`.
+pub fn natural(id: &str) -> (String, u64, String) {
+    let digits: String = id.chars().filter(|c| c.is_ascii_digit()).collect();
+    let prefix: String = id.chars().take_while(|c| !c.is_ascii_digit()).collect();
+    (prefix, digits.parse().unwrap_or(u64::MAX), id.to_string())
+}
+
+/// The cloud as binary PLY, the balls' points coloured, the fitted spheres drawn.
+fn cloud_ply(lrf: &LrfData, radius: f64) -> Vec<u8> {
+    let comments = vec![format!(
+        "pingcal calibrate: LRF cloud in the LRF frame (mm), {} points, {} spheres of radius {radius} mm",
+        lrf.cloud.len(),
+        lrf.found.balls.len()
+    )];
+    let mut bytes = Vec::new();
+    pingcal_lrf::ply::write_cloud_with_spheres(
+        &mut bytes,
+        &lrf.cloud,
+        &lrf.found.balls,
+        radius,
+        &comments,
+    )
+    .expect("writing to memory cannot fail");
+    bytes
+}
