@@ -241,6 +241,15 @@ fn rays_of(
 fn params() -> DetectParams {
     let mut p = DetectParams::default();
     p.candidates.min_diameter_px = 3.0;
+    // The default tells balls from targets by a diameter 2.5× the image's median blob,
+    // meant for 38 mm balls among ≤ 10 mm dots; the simulated dots are 16 mm (38/16 ≈ 2.4),
+    // so the ratio is set from the scene, 70 % of the true ratio (the pipeline instead decides
+    // in millimetres after triangulation).
+    let cfg = pingcal_sim::SimConfig::default();
+    p.balls = pingcal_targets::detect::BallMode::Auto {
+        ratio: 0.7 * cfg.balls.diameter_mm / (2.0 * cfg.targets.dot_radius_mm),
+        min_px: 12.0,
+    };
     p
 }
 

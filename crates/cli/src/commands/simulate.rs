@@ -22,14 +22,14 @@ pub struct Args {
     config: Option<PathBuf>,
 }
 
-/// Runs the command.
-pub fn run(args: Args) -> CmdResult {
-    let t0 = std::time::Instant::now();
-    let cfg = match &args.config {
-        Some(p) => pingcal_sim::SimConfig::from_toml_file(p)?,
-        None => pingcal_sim::SimConfig::default(),
-    };
-    let out = &args.out;
+/// Simulates with `cfg` and `seed` and writes the project into `out` (which must not exist,
+/// or be an empty folder), through a hidden temporary folder renamed at the end.
+pub fn simulate_into(
+    out: &std::path::Path,
+    cfg: &pingcal_sim::SimConfig,
+    seed: u64,
+    config_file: Option<&std::path::Path>,
+) -> Result<(pingcal_sim::ProjectSummary, pingcal_sim::Simulation), super::CmdError> {
     if out.exists() {
         let empty = out.is_dir()
             && std::fs::read_dir(out)
@@ -44,7 +44,7 @@ pub fn run(args: Args) -> CmdResult {
             .into());
         }
     }
-    let sim = pingcal_sim::Simulation::new(&cfg, args.seed).map_err(|e| match &args.config {
+    let sim = pingcal_sim::Simulation::new(cfg, seed).map_err(|e| match config_file {
         Some(p) if matches!(e, pingcal_sim::SimError::Invalid(_)) => {
             format!("{}: {e}", p.display())
         }
@@ -65,8 +65,7 @@ pub fn run(args: Args) -> CmdResult {
         std::process::id()
     ));
     let _ = std::fs::remove_dir_all(&tmp);
-    let written = pingcal_sim::write_project(&sim, &tmp);
-    let summary = match written {
+    let summary = match pingcal_sim::write_project(&sim, &tmp) {
         Ok(s) => s,
         Err(e) => {
             let _ = std::fs::remove_dir_all(&tmp);
@@ -84,6 +83,18 @@ pub fn run(args: Args) -> CmdResult {
         )
         .into());
     }
+    Ok((summary, sim))
+}
+
+/// Runs the command.
+pub fn run(args: Args) -> CmdResult {
+    let t0 = std::time::Instant::now();
+    let cfg = match &args.config {
+        Some(p) => pingcal_sim::SimConfig::from_toml_file(p)?,
+        None => pingcal_sim::SimConfig::default(),
+    };
+    let out = &args.out;
+    let (summary, sim) = simulate_into(out, &cfg, args.seed, args.config.as_deref())?;
     println!(
         "simulate: wrote {} ({} images, {} LRF scans, {} targets of which {} coded, {} balls, {} distances; seed {}) in {:.1} s",
         out.join("project.toml").display(),

@@ -288,22 +288,14 @@ pub fn refine(
     Ok(())
 }
 
-/// Removes rejected measurements from the model.
-fn remove_rejected(project: &Project, b: &Built, model: &mut Model, rejected: &[Rejection]) {
+/// Removes rejected measurements from the model (a point has one measurement per image).
+fn remove_rejected(project: &Project, model: &mut Model, rejected: &[Rejection]) {
     for r in rejected {
-        let hit = b
-            .obs_map
-            .iter()
-            .zip(&b.problem.observations)
-            .find(|((j, i, _), ob)| {
-                project.file.images[*i].file == r.image
-                    && model.points[*j].name == r.point
-                    && ob.uv.x == r.uv[0]
-                    && ob.uv.y == r.uv[1]
-            });
-        if let Some(((j, i, k), _)) = hit {
-            let (j, i, k) = (*j, *i, *k);
-            model.points[j].obs.retain(|&o| o != (i, k));
+        let Some(i) = project.file.images.iter().position(|im| im.file == r.image) else {
+            continue;
+        };
+        for p in model.points.iter_mut().filter(|p| p.name == r.point) {
+            p.obs.retain(|&(im, _)| im != i);
         }
     }
 }
@@ -348,9 +340,7 @@ pub fn final_adjustment(
         iterations += r.summary.iterations;
         read_back(model, &b);
         rig = b.problem.rigs.first().map(|r| r.pose).or(rig);
-        // `b.problem` lost the rejected observations; `b.obs_map` is still the full list
-        let full = build(project, dets, model, rig);
-        remove_rejected(project, &full, model, &r.rejected);
+        remove_rejected(project, model, &r.rejected);
         rep.log(format!(
             "  bundle round {}: {} iterations, sigma0 {:.3}, RMS {:.3} px, {} image points rejected",
             round + 1,

@@ -86,10 +86,17 @@ pub fn lrf_spheres(project: &Project, opts: &Options, rep: &Reporter) -> Result<
         found.balls.len(),
         found.rejected.len()
     ));
-    for r in &found.rejected {
+    // small clusters (plane-removal leftovers at edges and targets) are many and dull:
+    // the log names only those large enough to have been a ball; the report lists all
+    let min_ball_points = 20;
+    for r in found
+        .rejected
+        .iter()
+        .filter(|r| r.cluster_points >= min_ball_points)
+    {
         rep.log(format!(
-            "  LRF cluster at ({:.0}, {:.0}, {:.0}) mm rejected: {}",
-            r.centre.x, r.centre.y, r.centre.z, r.reason
+            "  LRF cluster of {} points at ({:.0}, {:.0}, {:.0}) mm rejected: {}",
+            r.cluster_points, r.centre.x, r.centre.y, r.centre.z, r.reason
         ));
     }
     Ok(LrfData {
