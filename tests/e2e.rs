@@ -1,1 +1,489 @@
+//! End-to-end tests of the `pingcal` binary (issue 7, "Must show"): a simulated project is
+//! calibrated and compared with the simulator's truth, and broken copies of it must fail
+//! with one clear `pingcal: error: ` line, no panic and no output files.
+//!
+//! `pingcal simulate --seed 3` runs once per test binary ([`common::pristine`]); every test
+//! works on its own copy under `$TMP/pingcal-e2e-<pid>/<test>`, removed when it passes.
 
+#[path = "e2e/common.rs"]
+mod common;
+
+use common::{assert_clean_failure, read_json, replace_once, Work, OUTPUTS};
+use serde_json::Value;
+use std::fs;
+use std::path::Path;
+
+/// A path argument.
+fn s(p: &Path) -> &str {
+    p.to_str().expect("utf-8 temp path")
+}
+
+/// A number of a JSON value, with the key path in the failure message.
+fn num(v: &Value, what: &str) -> f64 {
+    let x = v
+        .as_f64()
+        .unwrap_or_else(|| panic!("{what} is not a number: {v}"));
+    assert!(x.is_finite(), "{what} = {x} is not finite");
+    x
+}
+
+/// A 3-vector of a JSON value.
+fn vec3(v: &Value, what: &str) -> [f64; 3] {
+    let a = v
+        .as_array()
+        .unwrap_or_else(|| panic!("{what} is not an array: {v}"));
+    assert_eq!(a.len(), 3, "{what} has {} elements, not 3", a.len());
+    [0, 1, 2].map(|i| num(&a[i], &format!("{what}[{i}]")))
+}
+
+/// A 3×3 matrix (rows) of a JSON value.
+fn mat3(v: &Value, what: &str) -> [[f64; 3]; 3] {
+    let a = v
+        .as_array()
+        .unwrap_or_else(|| panic!("{what} is not an array: {v}"));
+    assert_eq!(a.len(), 3, "{what} has {} rows, not 3", a.len());
+    [0, 1, 2].map(|i| vec3(&a[i], &format!("{what}[{i}]")))
+}
+
+/// Angle of the rotation a·bᵀ, in degrees (atan2 form: accurate for small angles).
+fn angle_between_deg(a: &[[f64; 3]; 3], b: &[[f64; 3]; 3]) -> f64 {
+    let d = |i: usize, j: usize| (0..3).map(|k| a[i][k] * b[j][k]).sum::<f64>();
+    let cos2 = d(0, 0) + d(1, 1) + d(2, 2) - 1.0; // 2 cos θ
+    let axis = [d(2, 1) - d(1, 2), d(0, 2) - d(2, 0), d(1, 0) - d(0, 1)]; // 2 sin θ · n
+    let sin2 = axis.iter().map(|x| x * x).sum::<f64>().sqrt();
+    sin2.atan2(cos2).to_degrees()
+}
+
+/// The pristine simulated project calibrates, and its results agree with the simulator's
+/// truth within the precision the results claim.
+#[test]
+fn calibrate_simulated_project() {
+    let w = Work::new("calibrate_simulated_project");
+    let p = w.project("project");
+    let out = w.dir.join("out");
+    let run = w.run(&[
+        "calibrate",
+        s(&p.join("project.toml")),
+        "--out",
+        s(&out),
+        "--json",
+    ]);
+    let ctx = format!(
+        "exit {:?}\nstdout: {}\nstderr: {}",
+        run.code, run.stdout, run.stderr
+    );
+    assert!(run.success(), "calibrate failed: {ctx}");
+    assert!(!run.stderr.contains("panicked"), "{ctx}");
+    eprintln!("calibrate: {:.1} s", run.secs);
+
+    // stdout: one JSON line
+    let lines: Vec<&str> = run
+        .stdout
+        .lines()
+        .filter(|l| !l.trim().is_empty())
+        .collect();
+    assert_eq!(lines.len(), 1, "--json prints one line per project: {ctx}");
+    let summary: Value = serde_json::from_str(lines[0]).expect("the stdout line is JSON");
+    assert_eq!(summary["ok"], Value::Bool(true), "{ctx}");
+    assert_eq!(summary["out"].as_str(), Some(s(&out)), "{ctx}");
+    for f in OUTPUTS {
+        assert!(out.join(f).is_file(), "no {f} in {}", out.display());
+    }
+
+    let r = read_json(&out.join("results.json"));
+    let truth = read_json(&p.join("truth.json"));
+    let project_text = fs::read_to_string(p.join("project.toml")).unwrap();
+
+    // --- the extrinsic: a proper rotation, σ's, and the truth within them ---
+    let ext = &r["extrinsic"];
+    let rot = mat3(&ext["rotation"], "extrinsic.rotation");
+    for i in 0..3 {
+        for j in 0..3 {
+            let dot: f64 = (0..3).map(|k| rot[k][i] * rot[k][j]).sum();
+            let want = if i == j { 1.0 } else { 0.0 };
+            assert!(
+                (dot - want).abs() < 1e-9,
+                "extrinsic.rotation is not orthonormal: (RᵀR)[{i}][{j}] = {dot}"
+            );
+        }
+    }
+    let det = rot[0][0] * (rot[1][1] * rot[2][2] - rot[1][2] * rot[2][1])
+        - rot[0][1] * (rot[1][0] * rot[2][2] - rot[1][2] * rot[2][0])
+        + rot[0][2] * (rot[1][0] * rot[2][1] - rot[1][1] * rot[2][0]);
+    assert!((det - 1.0).abs() < 1e-9, "det(extrinsic.rotation) = {det}");
+    let t = vec3(&ext["translation_mm"], "extrinsic.translation_mm");
+    let sig_t = vec3(
+        &ext["sigma_translation_mm"],
+        "extrinsic.sigma_translation_mm",
+    );
+    let sig_r = vec3(&ext["sigma_rotation_deg"], "extrinsic.sigma_rotation_deg");
+    for (i, s) in sig_t.iter().chain(&sig_r).enumerate() {
+        assert!(*s > 0.0, "σ {i} of the extrinsic is {s}: expected positive");
+    }
+
+    // the top-level extrinsic is the sphere method's (SPEC: the paper's method)
+    let spheres = r["methods"]
+        .as_array()
+        .expect("results.methods")
+        .iter()
+        .find(|m| m["method"] == "spheres")
+        .expect("the sphere method ran (method = \"both\")");
+    assert_eq!(spheres["error"], Value::Null, "sphere method: {spheres}");
+    assert_eq!(
+        vec3(
+            &spheres["extrinsic"]["translation_mm"],
+            "spheres translation"
+        ),
+        t,
+        "the top-level extrinsic is not the sphere method's"
+    );
+
+    let true_rot = mat3(&truth["extrinsic"]["rotation"], "truth.extrinsic.rotation");
+    let true_t = vec3(
+        &truth["extrinsic"]["translation_mm"],
+        "truth.extrinsic.translation_mm",
+    );
+    // Each component within 5σ + 0.5 mm: if the reported σ is honest, a 5σ deviation of a
+    // normal error happens about once in 1.7 million, so this does not fail by chance; the
+    // 0.5 mm floor covers the error of the photogrammetric frame itself (datum of the main
+    // image, scale from five distances of σ 0.1 mm), which the extrinsic's σ does not hold.
+    for i in 0..3 {
+        let err = t[i] - true_t[i];
+        let bound = 5.0 * sig_t[i] + 0.5;
+        eprintln!(
+            "translation[{i}]: {:.3} mm, true {:.3}, error {err:+.3} mm, σ {:.3}, bound {bound:.3}",
+            t[i], true_t[i], sig_t[i]
+        );
+        assert!(
+            err.abs() < bound,
+            "translation[{i}] = {} mm, truth {} mm: error {err} mm exceeds 5σ + 0.5 = {bound} mm",
+            t[i],
+            true_t[i]
+        );
+    }
+    // The same reasoning for the rotation: 5 times the largest angle σ, plus 0.02° for the
+    // frame's own orientation error.
+    let ang = angle_between_deg(&rot, &true_rot);
+    let max_sig_r = sig_r.iter().cloned().fold(0.0, f64::max);
+    let bound = 5.0 * max_sig_r + 0.02;
+    eprintln!("rotation error {ang:.4}°, max σ {max_sig_r:.4}°, bound {bound:.4}°");
+    assert!(
+        ang < bound,
+        "rotation error {ang}° exceeds 5·max σ + 0.02° = {bound}°"
+    );
+
+    // --- check points ---
+    let checks = r["check_points"].as_array().expect("results.check_points");
+    assert!(!checks.is_empty(), "no check points");
+    let mut sum = 0.0;
+    let mut ids = Vec::new();
+    for (k, c) in checks.iter().enumerate() {
+        let id = c["id"]
+            .as_str()
+            .unwrap_or_else(|| panic!("check_points[{k}].id is not a string: {c}"));
+        let [dx, dy, dz, e] =
+            ["dx_mm", "dy_mm", "dz_mm", "error_mm"].map(|f| num(&c[f], &format!("{id}.{f}")));
+        let norm = (dx * dx + dy * dy + dz * dz).sqrt();
+        assert!(
+            (e - norm).abs() < 1e-9 * (1.0 + norm),
+            "{id}: error_mm = {e}, |(dx, dy, dz)| = {norm}"
+        );
+        sum += e;
+        ids.push(id.to_string());
+    }
+    let mean = num(&r["mean_check_error_mm"], "mean_check_error_mm");
+    assert!(
+        (mean - sum / checks.len() as f64).abs() < 1e-9,
+        "mean_check_error_mm = {mean}, mean of check_points = {}",
+        sum / checks.len() as f64
+    );
+    // the project names its check balls; those are the ones judged
+    for id in &ids {
+        assert!(
+            project_text.contains(&format!("\"{id}\"")),
+            "check point {id} is not a ball of project.toml"
+        );
+    }
+
+    // --- bundle ---
+    let b = &r["bundle"];
+    let sigma0 = num(&b["sigma0"], "bundle.sigma0");
+    let rms = num(&b["rms_image_px"], "bundle.rms_image_px");
+    assert!(sigma0 > 0.0 && rms > 0.0, "bundle: {b}");
+    let n_images = project_text.matches("[[images]]").count() as u64;
+    assert_eq!(b["images"].as_u64(), Some(n_images), "bundle.images: {b}");
+    assert!(b["points"].as_u64().unwrap_or(0) > 0, "bundle.points: {b}");
+    assert!(
+        b["iterations"].as_u64().unwrap_or(0) > 0,
+        "bundle.iterations: {b}"
+    );
+
+    // --- cameras: every SPEC key, and c against the truth ---
+    let cams = r["cameras"].as_array().expect("results.cameras");
+    let true_cams = truth["cameras"].as_array().expect("truth.cameras");
+    assert_eq!(cams.len(), true_cams.len(), "number of cameras");
+    for tc in true_cams {
+        let id = tc["id"].as_str().expect("truth camera id");
+        let c = cams
+            .iter()
+            .find(|c| c["id"] == id)
+            .unwrap_or_else(|| panic!("camera {id} is not in results.json"));
+        for k in [
+            "c_mm", "xp_mm", "yp_mm", "k1", "k2", "k3", "p1", "p2", "b1", "b2",
+        ] {
+            num(&c[k], &format!("cameras[{id}].{k}"));
+        }
+        let (est, tru) = (num(&c["c_mm"], "c_mm"), num(&tc["c_mm"], "truth c_mm"));
+        eprintln!("camera {id}: c = {est:.5} mm, true {tru:.5} mm");
+        assert!(
+            (est - tru).abs() < 0.005,
+            "camera {id}: c = {est} mm, truth {tru} mm"
+        );
+    }
+
+    // --- report and cloud ---
+    let html = fs::read_to_string(out.join("report.html")).expect("report.html");
+    assert!(
+        html.starts_with("<!DOCTYPE html>"),
+        "report.html starts with {:?}",
+        &html[..html.len().min(40)]
+    );
+    for id in &ids {
+        assert!(html.contains(id.as_str()), "report.html does not name {id}");
+    }
+    let ply = fs::read(out.join("cloud.ply")).expect("cloud.ply");
+    assert!(ply.starts_with(b"ply\n"), "cloud.ply is not a PLY file");
+}
+
+/// A missing image: named.
+#[test]
+fn missing_image() {
+    let w = Work::new("missing_image");
+    let p = w.project("project");
+    fs::remove_file(p.join("images/S03_left.png")).unwrap();
+    let out = w.dir.join("out");
+    let run = w.run(&[
+        "calibrate",
+        s(&p.join("project.toml")),
+        "--out",
+        s(&out),
+        "--quiet",
+    ]);
+    assert_clean_failure(&run, &out, &["S03_left.png"]);
+}
+
+/// A missing scan: named.
+#[test]
+fn missing_scan() {
+    let w = Work::new("missing_scan");
+    let p = w.project("project");
+    fs::remove_file(p.join("scans/S00.csv")).unwrap();
+    let out = w.dir.join("out");
+    let run = w.run(&[
+        "calibrate",
+        s(&p.join("project.toml")),
+        "--out",
+        s(&out),
+        "--quiet",
+    ]);
+    assert_clean_failure(&run, &out, &["S00.csv"]);
+}
+
+/// An image of the wrong size for its camera: both sizes and the image named.
+#[test]
+fn image_of_the_wrong_size() {
+    let w = Work::new("image_of_the_wrong_size");
+    let p = w.project("project");
+    fs::write(p.join("images/S02_right.png"), common::gray_png(640, 480)).unwrap();
+    let out = w.dir.join("out");
+    let run = w.run(&[
+        "calibrate",
+        s(&p.join("project.toml")),
+        "--out",
+        s(&out),
+        "--quiet",
+    ]);
+    // the detect step prints sizes as W×H (crates/cli/src/pipeline/detect.rs)
+    assert_clean_failure(&run, &out, &["S02_right.png", "640×480", "1280×720"]);
+}
+
+/// A truncated image: named, no panic.
+#[test]
+fn corrupt_image() {
+    let w = Work::new("corrupt_image");
+    let p = w.project("project");
+    let f = p.join("images/S04_left.png");
+    let bytes = fs::read(&f).unwrap();
+    fs::write(&f, &bytes[..5000]).unwrap();
+    let out = w.dir.join("out");
+    let run = w.run(&[
+        "calibrate",
+        s(&p.join("project.toml")),
+        "--out",
+        s(&out),
+        "--quiet",
+    ]);
+    assert_clean_failure(&run, &out, &["S04_left.png"]);
+}
+
+/// A scan line that is not numbers: the file and the line named.
+#[test]
+fn malformed_scan_line() {
+    let w = Work::new("malformed_scan_line");
+    let p = w.project("project");
+    let f = p.join("scans/S00.csv");
+    let text = fs::read_to_string(&f).unwrap();
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    // line 100 (1-based) is a scan: stamp, servo angle, ranges
+    let (stamp, rest) = lines[99].split_once(',').expect("a scan line");
+    let (_servo, ranges) = rest.split_once(',').expect("a scan line");
+    lines[99] = format!("{stamp},forty-five,{ranges}");
+    fs::write(&f, lines.join("\n") + "\n").unwrap();
+    let out = w.dir.join("out");
+    let run = w.run(&[
+        "calibrate",
+        s(&p.join("project.toml")),
+        "--out",
+        s(&out),
+        "--quiet",
+    ]);
+    assert_clean_failure(&run, &out, &["S00.csv", "100"]);
+}
+
+/// A distance to a target no image shows: the target named.
+#[test]
+fn distance_to_an_unseen_target() {
+    let w = Work::new("distance_to_an_unseen_target");
+    let p = w.project("project");
+    let toml = p.join("project.toml");
+    let mut text = fs::read_to_string(&toml).unwrap();
+    // `[[distances]]` after `[lrf]` is valid TOML: one more element of the array of tables.
+    // From 8 (an end of a simulated distance, so seen) to 999 (not in the test field).
+    text.push_str("\n[[distances]]\nfrom = 8\nto = 999\ndistance_mm = 500.0\nsigma_mm = 0.1\n");
+    fs::write(&toml, text).unwrap();
+    let out = w.dir.join("out");
+    let run = w.run(&["calibrate", s(&toml), "--out", s(&out), "--quiet"]);
+    let err = assert_clean_failure(&run, &out, &["999"]);
+    eprintln!("{err}");
+}
+
+/// A scan that shows no ball (only its first 30 lines are kept): "at least 3" balls asked.
+#[test]
+fn fewer_than_three_balls_seen_by_both_sensors() {
+    let w = Work::new("fewer_than_three_balls");
+    let p = w.project("project");
+    let f = p.join("scans/S00.csv");
+    let text = fs::read_to_string(&f).unwrap();
+    let head: Vec<&str> = text.lines().take(36).collect(); // 6 header lines + 30 scans
+    assert!(head[35].split(',').count() > 100, "line 36 is a scan");
+    fs::write(&f, head.join("\n") + "\n").unwrap();
+    let out = w.dir.join("out");
+    let run = w.run(&[
+        "calibrate",
+        s(&p.join("project.toml")),
+        "--out",
+        s(&out),
+        "--quiet",
+    ]);
+    let err = assert_clean_failure(&run, &out, &["balls", "at least 3", "S00.csv"]);
+    eprintln!("{err}");
+}
+
+/// A main station with no image: named (the LRF station moves with it, or the
+/// LRF-station check would answer first).
+#[test]
+fn main_station_not_in_the_images() {
+    let w = Work::new("main_station_not_in_the_images");
+    let p = w.project("project");
+    let toml = p.join("project.toml");
+    replace_once(&toml, "main_station = \"S00\"", "main_station = \"S99\"");
+    let text = fs::read_to_string(&toml).unwrap();
+    let lrf = text.find("\n[lrf]\n").expect("an [lrf] table");
+    let (before, after) = text.split_at(lrf);
+    assert_eq!(after.matches("station = \"S00\"").count(), 1);
+    fs::write(
+        &toml,
+        format!(
+            "{before}{}",
+            after.replace("station = \"S00\"", "station = \"S99\"")
+        ),
+    )
+    .unwrap();
+    let out = w.dir.join("out");
+    let run = w.run(&["calibrate", s(&toml), "--out", s(&out), "--quiet"]);
+    assert_clean_failure(&run, &out, &["S99", "main_station"]);
+}
+
+/// A value of the wrong type in project.toml: the file and the line named.
+#[test]
+fn project_file_syntax_error() {
+    let w = Work::new("project_file_syntax_error");
+    let p = w.project("project");
+    let toml = p.join("project.toml");
+    let text = fs::read_to_string(&toml).unwrap();
+    let line = 1 + text
+        .lines()
+        .position(|l| l == "width = 1280")
+        .expect("a camera width");
+    fs::write(&toml, text.replacen("width = 1280", "width = \"wide\"", 1)).unwrap();
+    let out = w.dir.join("out");
+    let run = w.run(&["calibrate", s(&toml), "--out", s(&out), "--quiet"]);
+    assert_clean_failure(&run, &out, &["project.toml", &format!("line {line}")]);
+}
+
+/// Two projects in one run, one broken: the good one is written, the bad one reported,
+/// one JSON line each, and the exit code says that something failed.
+#[test]
+fn batch_with_one_bad_project() {
+    let w = Work::new("batch_with_one_bad_project");
+    let good = w.project("good");
+    let bad = w.project("bad");
+    fs::remove_file(bad.join("images/S03_left.png")).unwrap();
+    let run = w.run(&[
+        "calibrate",
+        s(&good.join("project.toml")),
+        s(&bad.join("project.toml")),
+        "--json",
+    ]);
+    let ctx = format!(
+        "exit {:?}\nstdout: {}\nstderr: {}",
+        run.code, run.stdout, run.stderr
+    );
+    assert!(
+        !run.success() && run.code.is_some(),
+        "one project failed: expected a non-zero exit: {ctx}"
+    );
+    assert!(!run.stderr.contains("panicked"), "{ctx}");
+    for l in run.stderr.lines().filter(|l| !l.trim().is_empty()) {
+        assert!(
+            l.starts_with("pingcal: error: "),
+            "stderr line {l:?}: {ctx}"
+        );
+    }
+    let lines: Vec<Value> = run
+        .stdout
+        .lines()
+        .filter(|l| !l.trim().is_empty())
+        .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("{l:?} is not JSON: {e}")))
+        .collect();
+    assert_eq!(lines.len(), 2, "one JSON line per project: {ctx}");
+    let find = |dir: &Path| {
+        let name = s(&dir.join("project.toml")).to_string();
+        lines
+            .iter()
+            .find(|l| l["project"].as_str() == Some(name.as_str()))
+            .unwrap_or_else(|| panic!("no JSON line for {name}: {ctx}"))
+    };
+    let g = find(&good);
+    assert_eq!(g["ok"], Value::Bool(true), "{g}");
+    let b = find(&bad);
+    assert_eq!(b["ok"], Value::Bool(false), "{b}");
+    let e = b["error"].as_str().expect("the bad project's error");
+    assert!(e.contains("S03_left.png"), "error {e:?}");
+    // without --out each project writes into results/ beside its project file
+    for f in OUTPUTS {
+        assert!(good.join("results").join(f).is_file(), "good: no {f}");
+        assert!(!bad.join("results").join(f).exists(), "bad: {f} written");
+    }
+    read_json(&good.join("results/results.json"));
+}

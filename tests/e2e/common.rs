@@ -1,0 +1,335 @@
+//! Helpers of the end-to-end tests: the simulated project (made once per test binary), a
+//! private copy of it per test, running the binary with a time limit, the checks every
+//! failed run must pass, and a hand-written PNG encoder (the `image` crate is not a
+//! dependency of this package).
+
+use std::fs;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::sync::OnceLock;
+use std::time::{Duration, Instant};
+
+/// Seed of the simulated project every test starts from.
+pub const SEED: u64 = 3;
+
+/// Longest a single run of the binary may take before the test fails (a hang is a bug).
+const RUN_LIMIT: Duration = Duration::from_secs(180);
+
+/// The binary under test.
+pub fn bin() -> &'static str {
+    env!("CARGO_BIN_EXE_pingcal")
+}
+
+/// `$TMP/pingcal-e2e-<pid>`: everything this test binary writes.
+pub fn root() -> &'static Path {
+    static ROOT: OnceLock<PathBuf> = OnceLock::new();
+    ROOT.get_or_init(|| {
+        let tmp = std::env::temp_dir();
+        remove_dead_roots(&tmp);
+        let root = tmp.join(format!("pingcal-e2e-{}", std::process::id()));
+        let _ = fs::remove_dir_all(&root);
+        fs::create_dir_all(&root).expect("create the e2e temp dir");
+        root
+    })
+}
+
+/// Removes the folders left by earlier runs of this test binary whose process is gone
+/// (Linux only: a live process has `/proc/<pid>`; elsewhere nothing is removed).
+fn remove_dead_roots(tmp: &Path) {
+    if !Path::new("/proc/self").exists() {
+        return;
+    }
+    let Ok(entries) = fs::read_dir(tmp) else {
+        return;
+    };
+    for e in entries.flatten() {
+        let name = e.file_name().to_string_lossy().into_owned();
+        let Some(pid) = name
+            .strip_prefix("pingcal-e2e-")
+            .and_then(|p| p.parse::<u32>().ok())
+        else {
+            continue;
+        };
+        if pid != std::process::id() && !Path::new(&format!("/proc/{pid}")).exists() {
+            let _ = fs::remove_dir_all(e.path());
+        }
+    }
+}
+
+/// The pristine simulated project (`pingcal simulate --seed 3`), made on first use.
+pub fn pristine() -> &'static Path {
+    static PRISTINE: OnceLock<PathBuf> = OnceLock::new();
+    PRISTINE.get_or_init(|| {
+        let dir = root().join("pristine");
+        let log = root().join("simulate");
+        let t0 = Instant::now();
+        fs::create_dir_all(&log).expect("create the simulate log dir");
+        let run = run(
+            &[
+                "simulate",
+                "--out",
+                dir.to_str().expect("utf-8 temp path"),
+                "--seed",
+                &SEED.to_string(),
+            ],
+            &log,
+        );
+        assert!(
+            run.success(),
+            "pingcal simulate failed ({:?}):\nstdout: {}\nstderr: {}",
+            run.code,
+            run.stdout,
+            run.stderr
+        );
+        eprintln!("simulate: {:.1} s", t0.elapsed().as_secs_f64());
+        for f in ["project.toml", "truth.json", "scans/S00.csv"] {
+            assert!(dir.join(f).is_file(), "pingcal simulate wrote no {f}");
+        }
+        dir
+    })
+}
+
+/// Copies the folder `src` into `dst` (created), recursively.
+pub fn copy_dir(src: &Path, dst: &Path) {
+    fs::create_dir_all(dst).unwrap_or_else(|e| panic!("create {}: {e}", dst.display()));
+    for e in fs::read_dir(src).unwrap_or_else(|e| panic!("read {}: {e}", src.display())) {
+        let e = e.expect("directory entry");
+        let to = dst.join(e.file_name());
+        if e.file_type().expect("file type").is_dir() {
+            copy_dir(&e.path(), &to);
+        } else {
+            fs::copy(e.path(), &to).unwrap_or_else(|err| {
+                panic!("copy {} → {}: {err}", e.path().display(), to.display())
+            });
+        }
+    }
+}
+
+/// One test's folder: its own copy of the simulated project and an output folder. Removed
+/// when the test passes, kept (for a look) when it fails.
+pub struct Work {
+    /// `root()/<name>`.
+    pub dir: PathBuf,
+    /// When the test started (its time is printed when it ends).
+    start: Instant,
+}
+
+impl Work {
+    /// A fresh folder `root()/<name>` (names must differ between tests).
+    pub fn new(name: &str) -> Self {
+        let dir = root().join(name);
+        let _ = fs::remove_dir_all(&dir);
+        fs::create_dir_all(&dir).expect("create the test dir");
+        Work {
+            dir,
+            start: Instant::now(),
+        }
+    }
+
+    /// A copy of the pristine project in `<dir>/<sub>`; returns that folder.
+    pub fn project(&self, sub: &str) -> PathBuf {
+        let p = self.dir.join(sub);
+        copy_dir(pristine(), &p);
+        p
+    }
+
+    /// `pingcal ARGS` with stdout and stderr captured in files of this folder.
+    pub fn run(&self, args: &[&str]) -> Run {
+        run(args, &self.dir)
+    }
+}
+
+impl Drop for Work {
+    fn drop(&mut self) {
+        eprintln!(
+            "{}: {:.1} s",
+            self.dir.display(),
+            self.start.elapsed().as_secs_f64()
+        );
+        if !std::thread::panicking() {
+            let _ = fs::remove_dir_all(&self.dir);
+        }
+    }
+}
+
+/// What a run of the binary did.
+#[derive(Debug)]
+pub struct Run {
+    /// Exit code (None: killed by a signal).
+    pub code: Option<i32>,
+    /// Standard output.
+    pub stdout: String,
+    /// Standard error.
+    pub stderr: String,
+    /// Wall time.
+    pub secs: f64,
+}
+
+impl Run {
+    /// Exit code 0.
+    pub fn success(&self) -> bool {
+        self.code == Some(0)
+    }
+}
+
+/// Runs `pingcal ARGS`; stdout and stderr go to files in `dir` (no pipe to fill up), and a
+/// run longer than [`RUN_LIMIT`] is killed and fails the test.
+pub fn run(args: &[&str], dir: &Path) -> Run {
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    static N: AtomicUsize = AtomicUsize::new(0);
+    let n = N.fetch_add(1, Ordering::Relaxed);
+    let (out_path, err_path) = (
+        dir.join(format!("run{n}.stdout")),
+        dir.join(format!("run{n}.stderr")),
+    );
+    let t0 = Instant::now();
+    let mut child = Command::new(bin())
+        .args(args)
+        .stdin(Stdio::null())
+        .stdout(fs::File::create(&out_path).expect("stdout file"))
+        .stderr(fs::File::create(&err_path).expect("stderr file"))
+        .spawn()
+        .expect("start pingcal");
+    let status = loop {
+        if let Some(s) = child.try_wait().expect("wait for pingcal") {
+            break s;
+        }
+        if t0.elapsed() > RUN_LIMIT {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("pingcal {args:?} still running after {RUN_LIMIT:?}: killed");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    let secs = t0.elapsed().as_secs_f64();
+    let read = |p: &Path| String::from_utf8_lossy(&fs::read(p).unwrap_or_default()).into_owned();
+    Run {
+        code: status.code(),
+        stdout: read(&out_path),
+        stderr: read(&err_path),
+        secs,
+    }
+}
+
+/// The outputs of a calibration.
+pub const OUTPUTS: [&str; 3] = ["results.json", "report.html", "cloud.ply"];
+
+/// Checks a run that must fail cleanly: non-zero exit, exactly one stderr line starting
+/// `pingcal: error: ` that contains every one of `needles`, no panic, and none of the
+/// outputs in `out`. Returns the error line.
+pub fn assert_clean_failure(run: &Run, out: &Path, needles: &[&str]) -> String {
+    let ctx = format!(
+        "exit {:?}\nstdout: {}\nstderr: {}",
+        run.code, run.stdout, run.stderr
+    );
+    assert!(
+        !run.success() && run.code.is_some(),
+        "expected a non-zero exit code: {ctx}"
+    );
+    assert!(
+        !run.stderr.contains("panicked") && !run.stdout.contains("panicked"),
+        "pingcal panicked: {ctx}"
+    );
+    let err = run.stderr.trim();
+    assert_eq!(err.lines().count(), 1, "expected one line on stderr: {ctx}");
+    assert!(
+        err.starts_with("pingcal: error: "),
+        "the error line must start with `pingcal: error: `: {ctx}"
+    );
+    for n in needles {
+        assert!(err.contains(n), "the error does not name {n:?}: {ctx}");
+    }
+    for f in OUTPUTS {
+        assert!(
+            !out.join(f).exists(),
+            "a failed run left {} behind: {ctx}",
+            out.join(f).display()
+        );
+    }
+    err.to_string()
+}
+
+/// Replaces the one occurrence of `from` in `file` by `to` (fails if there is not exactly
+/// one).
+pub fn replace_once(file: &Path, from: &str, to: &str) {
+    let text = fs::read_to_string(file).expect("read the file to edit");
+    assert_eq!(
+        text.matches(from).count(),
+        1,
+        "{from:?} must occur once in {}",
+        file.display()
+    );
+    fs::write(file, text.replacen(from, to, 1)).expect("write the edited file");
+}
+
+/// A parsed JSON file.
+pub fn read_json(path: &Path) -> serde_json::Value {
+    let text = fs::read_to_string(path).unwrap_or_else(|e| panic!("read {}: {e}", path.display()));
+    serde_json::from_str(&text).unwrap_or_else(|e| panic!("{}: not JSON: {e}", path.display()))
+}
+
+/// A valid 8-bit grayscale PNG of `width`×`height` (a horizontal ramp), written by hand:
+/// signature, IHDR, one IDAT holding a zlib stream of stored (uncompressed) deflate
+/// blocks, IEND.
+pub fn gray_png(width: u32, height: u32) -> Vec<u8> {
+    // the raw image: each row is filter byte 0 (none) followed by the pixels
+    let mut raw = Vec::with_capacity((height * (width + 1)) as usize);
+    for _ in 0..height {
+        raw.push(0);
+        raw.extend((0..width).map(|x| (x % 256) as u8));
+    }
+    // zlib: CMF/FLG (deflate, 32 K window, no dictionary, FCHECK so that it is a
+    // multiple of 31), stored blocks of at most 65535 bytes, Adler-32 of the raw data
+    let mut z = vec![0x78, 0x01];
+    let chunks: Vec<&[u8]> = raw.chunks(65535).collect();
+    for (k, c) in chunks.iter().enumerate() {
+        z.push((k + 1 == chunks.len()) as u8); // BFINAL, BTYPE = 00
+        let len = c.len() as u16;
+        z.extend(len.to_le_bytes());
+        z.extend((!len).to_le_bytes());
+        z.extend_from_slice(c);
+    }
+    z.extend(adler32(&raw).to_be_bytes());
+
+    let mut ihdr = Vec::new();
+    ihdr.extend(width.to_be_bytes());
+    ihdr.extend(height.to_be_bytes());
+    ihdr.extend([8, 0, 0, 0, 0]); // bit depth 8, grayscale, deflate, filter 0, no interlace
+
+    let mut png = vec![0x89, b'P', b'N', b'G', b'\r', b'\n', 0x1a, b'\n'];
+    for (kind, data) in [(b"IHDR", &ihdr[..]), (b"IDAT", &z[..]), (b"IEND", &[][..])] {
+        png.extend((data.len() as u32).to_be_bytes());
+        let start = png.len();
+        png.extend_from_slice(kind);
+        png.extend_from_slice(data);
+        let crc = crc32(&png[start..]); // over the chunk type and data
+        png.extend(crc.to_be_bytes());
+    }
+    png
+}
+
+/// CRC-32 (IEEE 802.3, reflected, as PNG uses it), bit by bit: fast enough for a test.
+pub fn crc32(data: &[u8]) -> u32 {
+    let mut crc = 0xffff_ffffu32;
+    for &b in data {
+        crc ^= b as u32;
+        for _ in 0..8 {
+            crc = if crc & 1 != 0 {
+                (crc >> 1) ^ 0xedb8_8320
+            } else {
+                crc >> 1
+            };
+        }
+    }
+    !crc
+}
+
+/// Adler-32 (RFC 1950).
+pub fn adler32(data: &[u8]) -> u32 {
+    let (mut a, mut b) = (1u32, 0u32);
+    for &x in data {
+        a = (a + x as u32) % 65521;
+        b = (b + a) % 65521;
+    }
+    (b << 16) | a
+}
