@@ -4,7 +4,8 @@
 //! Writes `results.json`, `report.html` and `cloud.ply` into DIR (default: `results/` beside
 //! the project file; with several projects and `--out`, one sub-folder per project, named
 //! after the project's folder). Several projects run in parallel. Nothing is written for a
-//! project that fails; each output file is written atomically.
+//! project that fails, and the outputs of an earlier run in DIR are removed first; each
+//! output file is written atomically, `results.json` last.
 
 use super::{write_atomic, CmdResult};
 use crate::pipeline::{self, Outcome, Reporter};
@@ -53,6 +54,22 @@ pub fn out_dir(project: &Path, out: Option<&Path>, several: bool) -> PathBuf {
             o.join(name)
         }
     }
+}
+
+/// The files a calibration writes into its output folder.
+pub const OUTPUTS: [&str; 3] = ["results.json", "report.html", "cloud.ply"];
+
+/// Removes the outputs of an earlier run from `dir`, so that a run that fails never leaves
+/// older results looking like its own.
+pub fn clear_outputs(dir: &Path) -> Result<(), String> {
+    for name in OUTPUTS {
+        let p = dir.join(name);
+        if p.exists() {
+            std::fs::remove_file(&p)
+                .map_err(|e| format!("{}: cannot remove the earlier result: {e}", p.display()))?;
+        }
+    }
+    Ok(())
 }
 
 /// Writes the three outputs of a calibration into `dir`.
@@ -131,30 +148,32 @@ pub fn run(args: Args) -> CmdResult {
             };
             let rep = Reporter::new(multi.clone(), prefix);
             let dir = out_dir(path, args.out.as_deref(), several);
-            let r = calibrate_one(path, &opts, &rep).and_then(|o| {
-                write_outputs(&dir, &o).map_err(|e| e.to_string())?;
-                let secs = t0.elapsed().as_secs_f64();
-                Ok(if args.json {
-                    serde_json::json!({
-                        "project": path.display().to_string(),
-                        "ok": true,
-                        "out": dir.display().to_string(),
-                        "mean_check_error_mm": o.results.mean_check_error_mm,
-                        "methods": o.results.methods.iter().map(|m| serde_json::json!({
-                            "method": m.method,
-                            "mean_check_error_mm": m.mean_check_error_mm,
-                            "error": m.error,
-                        })).collect::<Vec<_>>(),
-                        "translation_mm": o.results.extrinsic.translation_mm,
-                        "sigma_translation_mm": o.results.extrinsic.sigma_translation_mm,
-                        "sigma0": o.results.bundle.sigma0,
-                        "time_s": secs,
+            let r = clear_outputs(&dir)
+                .and_then(|_| calibrate_one(path, &opts, &rep))
+                .and_then(|o| {
+                    write_outputs(&dir, &o).map_err(|e| e.to_string())?;
+                    let secs = t0.elapsed().as_secs_f64();
+                    Ok(if args.json {
+                        serde_json::json!({
+                            "project": path.display().to_string(),
+                            "ok": true,
+                            "out": dir.display().to_string(),
+                            "mean_check_error_mm": o.results.mean_check_error_mm,
+                            "methods": o.results.methods.iter().map(|m| serde_json::json!({
+                                "method": m.method,
+                                "mean_check_error_mm": m.mean_check_error_mm,
+                                "error": m.error,
+                            })).collect::<Vec<_>>(),
+                            "translation_mm": o.results.extrinsic.translation_mm,
+                            "sigma_translation_mm": o.results.extrinsic.sigma_translation_mm,
+                            "sigma0": o.results.bundle.sigma0,
+                            "time_s": secs,
+                        })
+                        .to_string()
+                    } else {
+                        summary_line(path, &dir, &o, secs)
                     })
-                    .to_string()
-                } else {
-                    summary_line(path, &dir, &o, secs)
-                })
-            });
+                });
             (path.clone(), r)
         })
         .collect();

@@ -4,7 +4,8 @@
 //! ([`pingcal_lrf::correspondence::match_balls`]: distances between balls are the same in
 //! both frames); the 3D conformal transform `p_camera = R · p_lrf + t` is estimated on the
 //! control balls (all matched balls not listed as check balls) by weighted least squares with
-//! the covariances of both sides ([`pingcal_lrf::registration::evaluate`]) and judged on the
+//! the covariances of both sides ([`pingcal_lrf::registration::evaluate`]; σ's scaled by the
+//! registration's a-posteriori σ0²) and judged on the
 //! check balls (dx = estimated − reference, as the paper's Table 4) and by leave-one-out.
 //!
 //! **Corner.** [`pingcal_lrf::corner_baseline::fan_baseline`]: the LRF pose in the room
@@ -153,12 +154,18 @@ pub fn extrinsics(
                 matched.len()
             )));
         }
+        // σ's scaled by the registration's own σ0²: the sphere-fit covariances are nominal
+        // (they treat every beam as independent, while one scan line's points share its
+        // servo angle error), and 11 control balls give 27 degrees of freedom to estimate σ0
         let ev = evaluate(
             &lrf_points,
             &cam_points,
             &[],
             &check_ids,
-            &RegistrationOptions::default(),
+            &RegistrationOptions {
+                posterior: true,
+                ..RegistrationOptions::default()
+            },
         )
         .map_err(|e| PipelineError::new(format!("sphere registration: {e}")))?;
         let table = if ev.check.rows.is_empty() {

@@ -4,7 +4,8 @@
 //!    oriented image that does not measure it yet; the nearest unused detection of the
 //!    right kind takes it when it is within [`TOL_PX`] and the next one is at least twice as
 //!    far ([`pingcal_targets::driveback::assign`]).
-//! 2. **New points**: for every pair of oriented images, two unused round blobs whose rays
+//! 2. **New points** (first coded targets whose number was read in fewer than two images,
+//!    then round blobs): for every pair of oriented images, two unused detections whose rays
 //!    meet within [`TOL_PX`] (reprojected) in front of both cameras give a candidate point;
 //!    its support is the number of other oriented images with an unused blob within
 //!    [`TOL_PX`] of its projection. Candidates are taken greedily, best supported first;
@@ -128,8 +129,27 @@ struct WorldRay {
     dir: Vector3<f64>,
 }
 
-/// Step 2: new points from unused round blobs. Returns how many were added.
-pub fn new_points(project: &Project, dets: &[ImageDetections], model: &mut Model) -> usize {
+/// Step 2: new points from unused detections of one kind: round blobs (`Plain`), or coded
+/// targets whose number is not in the model yet (`Coded`: read in one image only, or not
+/// read at all; a point takes the number one of its detections read, and detections that
+/// read different numbers never pair). Returns how many were added.
+pub fn new_points(
+    project: &Project,
+    dets: &[ImageDetections],
+    model: &mut Model,
+    kind: TargetKind,
+) -> usize {
+    let known: Vec<u32> = model
+        .points
+        .iter()
+        .filter_map(|p| match p.kind {
+            PointKind::Coded(n) => Some(n),
+            _ => None,
+        })
+        .collect();
+    let wanted = |t: &Target| {
+        t.kind == kind && (kind != TargetKind::Coded || t.id.is_none_or(|n| !known.contains(&n)))
+    };
     let cams = models(project);
     let cam_of = super::network::camera_index(project);
     let used = model.used(dets);
@@ -147,7 +167,7 @@ pub fn new_points(project: &Project, dets: &[ImageDetections], model: &mut Model
                 .targets
                 .iter()
                 .enumerate()
-                .filter(|(k, t)| !used[i][*k] && t.kind == TargetKind::Plain)
+                .filter(|(k, t)| !used[i][*k] && wanted(t))
                 .filter_map(|(k, t)| {
                     let d = cams[c].unproject(&model.intrinsics[c], &Vector2::new(t.x, t.y))?;
                     Some((
@@ -218,6 +238,11 @@ pub fn new_points(project: &Project, dets: &[ImageDetections], model: &mut Model
                     };
                     let ta = &dets[a].targets[*ka];
                     let tb = &dets[b].targets[*kb];
+                    if let (Some(na), Some(nb)) = (ta.id, tb.id) {
+                        if na != nb {
+                            continue;
+                        }
+                    }
                     let ra_px = (ua - Vector2::new(ta.x, ta.y)).norm();
                     let rb_px = (ub - Vector2::new(tb.x, tb.y)).norm();
                     if ra_px > TOL_PX || rb_px > TOL_PX {
@@ -272,6 +297,19 @@ pub fn new_points(project: &Project, dets: &[ImageDetections], model: &mut Model
         if obs.len() < MIN_RAYS {
             continue;
         }
+        let mut numbers: Vec<u32> = obs
+            .iter()
+            .filter_map(|&(i, k)| dets[i].targets[k].id)
+            .collect();
+        numbers.sort_unstable();
+        numbers.dedup();
+        if numbers.len() > 1
+            || numbers
+                .iter()
+                .any(|n| model.points.iter().any(|p| p.kind == PointKind::Coded(*n)))
+        {
+            continue;
+        }
         let ray_list: Vec<Ray> = obs
             .iter()
             .map(|&(i, k)| {
@@ -297,9 +335,13 @@ pub fn new_points(project: &Project, dets: &[ImageDetections], model: &mut Model
             taken[i][k] = true;
         }
         added += 1;
+        let (name, point_kind) = match numbers.first() {
+            Some(n) => (n.to_string(), PointKind::Coded(*n)),
+            None => (format!("P{}", first_plain + added), PointKind::Plain),
+        };
         model.points.push(ModelPoint {
-            name: format!("P{}", first_plain + added),
-            kind: PointKind::Plain,
+            name,
+            kind: point_kind,
             position: ix.position,
             obs,
         });
@@ -460,11 +502,13 @@ pub fn add_points(
 ) -> Result<()> {
     let pb = rep.bar(3, "matching targets");
     let a1 = driveback(project, dets, model, TOL_PX);
-    let n1 = new_points(project, dets, model);
+    let n1 = new_points(project, dets, model, TargetKind::Coded)
+        + new_points(project, dets, model, TargetKind::Plain);
     pb.inc(1);
     super::bundle::refine(project, dets, model, opts)?;
     let a2 = driveback(project, dets, model, TOL_PX);
-    let n2 = new_points(project, dets, model);
+    let n2 = new_points(project, dets, model, TargetKind::Coded)
+        + new_points(project, dets, model, TargetKind::Plain);
     pb.inc(1);
     super::bundle::refine(project, dets, model, opts)?;
     let a3 = driveback(project, dets, model, TOL_PX);
