@@ -253,6 +253,28 @@ fn calibrate_simulated_project() {
     }
     let ply = fs::read(out.join("cloud.ply")).expect("cloud.ply");
     assert!(ply.starts_with(b"ply\n"), "cloud.ply is not a PLY file");
+
+    // --- the report in a real browser (headless Chromium), when the machine has one ---
+    if std::path::Path::new("/usr/bin/chromium").exists() {
+        let script = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../report/scripts/check-report.sh"
+        );
+        let png = out.join("report.png");
+        let st = std::process::Command::new("bash")
+            .arg(script)
+            .arg(out.join("report.html"))
+            .arg(&png)
+            .arg("100000")
+            .status()
+            .expect("run check-report.sh");
+        assert!(
+            st.success(),
+            "headless Chromium could not render report.html"
+        );
+    } else {
+        println!("skipped the browser check: /usr/bin/chromium not installed");
+    }
 }
 
 /// A missing image: named.

@@ -1,5 +1,7 @@
-//! `pingcal cloud SCAN... [--out FILE.ply] [--diameter-mm 38] [--balls FILE]`: the LRF cloud
-//! (paper eq. 2) from scan files (or PLY/XYZ clouds), the balls found and fitted in it.
+//! `pingcal cloud SCAN... [--out FILE.ply] [--diameter-mm 38] [--balls FILE] [--mount-offset-mm
+//! x,y,z] [--tilt-x-deg a] [--tilt-z-deg b] [--servo-zero-deg c]`: the LRF cloud (paper eq. 2,
+//! with the mount model of `pingcal_lrf::cloud`) from scan files (or PLY/XYZ clouds), the
+//! balls found and fitted in it.
 //! The PLY holds the cloud in grey, each ball's inlier points and a sampled sphere surface in
 //! one colour per ball; `--balls` writes the centres as `id x y z sx sy sz`, the input format
 //! of `pingcal register`.
@@ -27,6 +29,19 @@ pub struct Args {
     /// Seed of the RANSAC choices.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Mount model: the scanner centre seen from the servo shaft, in the rotating frame
+    /// (mm, `x,y,z`; eq. 2 assumes 0,0,0).
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true, default_values_t = [0.0, 0.0, 0.0])]
+    pub mount_offset_mm: Vec<f64>,
+    /// Mount model: tilt of the scan plane about the rotating frame's X axis (degrees).
+    #[arg(long, default_value_t = 0.0)]
+    pub tilt_x_deg: f64,
+    /// Mount model: tilt of the scan plane about the rotating frame's Z axis (degrees).
+    #[arg(long, default_value_t = 0.0)]
+    pub tilt_z_deg: f64,
+    /// Mount model: servo reading at which the scan plane is the LRF frame's X–Y plane.
+    #[arg(long, default_value_t = 0.0)]
+    pub servo_zero_deg: f64,
 }
 
 /// Runs the command.
@@ -38,9 +53,34 @@ pub fn run(args: Args) -> CmdResult {
         )
         .into());
     }
+    let m = &args.mount_offset_mm;
+    if m.len() != 3 {
+        return Err(format!(
+            "--mount-offset-mm: expected three numbers x,y,z, found {}",
+            m.len()
+        )
+        .into());
+    }
+    let values = [
+        m[0],
+        m[1],
+        m[2],
+        args.tilt_x_deg,
+        args.tilt_z_deg,
+        args.servo_zero_deg,
+    ];
+    if values.iter().any(|v| !v.is_finite()) {
+        return Err("mount model: --mount-offset-mm, --tilt-x-deg, --tilt-z-deg and --servo-zero-deg must be finite numbers".into());
+    }
+    let mount = MountModel {
+        offset_mm: [m[0], m[1], m[2]],
+        tilt_x_deg: args.tilt_x_deg,
+        tilt_z_deg: args.tilt_z_deg,
+        servo_zero_deg: args.servo_zero_deg,
+    };
     let mut cloud = Cloud::default();
     for f in &args.scans {
-        cloud.extend(read_cloud_file(f, &MountModel::default())?);
+        cloud.extend(read_cloud_file(f, &mount)?);
     }
     let opt = FinderOptions {
         diameter_mm: args.diameter_mm,

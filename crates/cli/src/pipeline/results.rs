@@ -287,6 +287,25 @@ fn methods(ext: &Extrinsics) -> Vec<MethodJson> {
     out
 }
 
+/// The photogrammetric parameters `p` (slice order) in OpenCV's model (see the module doc).
+pub fn opencv_of(p: &[f64], width: u32, height: u32, pixel_mm: f64) -> OpenCvJson {
+    let cc = p[0];
+    OpenCvJson {
+        fx: cc * (1.0 + p[8]) / pixel_mm,
+        fy: cc / pixel_mm,
+        cx: (width as f64 - 1.0) / 2.0 + p[1] / pixel_mm,
+        cy: (height as f64 - 1.0) / 2.0 - p[2] / pixel_mm,
+        dist: [
+            p[3] * cc * cc,
+            p[4] * cc.powi(4),
+            -p[7] * cc,
+            p[6] * cc,
+            p[5] * cc.powi(6),
+        ],
+        opencv_dropped_b2: p[9],
+    }
+}
+
 fn camera_json(project: &Project, model: &Model, adj: &Adjusted, c: usize) -> CameraJson {
     let cam = &project.file.cameras[c];
     let p = &model.intrinsics[c];
@@ -309,7 +328,6 @@ fn camera_json(project: &Project, model: &Model, adj: &Adjusted, c: usize) -> Ca
             .collect();
     }
     let ps = cam.pixel_size_mm;
-    let cc = p[0];
     CameraJson {
         id: cam.id.clone(),
         c_mm: p[0],
@@ -324,20 +342,7 @@ fn camera_json(project: &Project, model: &Model, adj: &Adjusted, c: usize) -> Ca
         b2: p[9],
         sigma,
         high_correlations: high,
-        opencv: OpenCvJson {
-            fx: cc * (1.0 + p[8]) / ps,
-            fy: cc / ps,
-            cx: (cam.width as f64 - 1.0) / 2.0 + p[1] / ps,
-            cy: (cam.height as f64 - 1.0) / 2.0 - p[2] / ps,
-            dist: [
-                p[3] * cc * cc,
-                p[4] * cc.powi(4),
-                -p[7] * cc,
-                p[6] * cc,
-                p[5] * cc.powi(6),
-            ],
-            opencv_dropped_b2: p[9],
-        },
+        opencv: opencv_of(p, cam.width, cam.height, ps),
     }
 }
 
@@ -458,4 +463,43 @@ fn cloud_ply(lrf: &LrfData, radius: f64) -> Vec<u8> {
     )
     .expect("writing to memory cannot fail");
     bytes
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::Vector3;
+    use pingcal_ba::camera::{CameraModel, PhotogrammetricCamera};
+
+    /// OpenCV's projection (x right, y down, z forward) of a point in its camera frame.
+    fn opencv_project(o: &OpenCvJson, p: &Vector3<f64>) -> [f64; 2] {
+        let (x, y) = (p.x / p.z, p.y / p.z);
+        let r2 = x * x + y * y;
+        let [k1, k2, p1, p2, k3] = o.dist;
+        let rad = 1.0 + k1 * r2 + k2 * r2 * r2 + k3 * r2 * r2 * r2;
+        let xd = x * rad + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x);
+        let yd = y * rad + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y;
+        [o.fx * xd + o.cx, o.fy * yd + o.cy]
+    }
+
+    /// Without B1 and B2 the conversion is exact: both models put every point on the same
+    /// pixel (p_cv = (X, −Z, Y) from the photogrammetric camera frame, SPEC.md).
+    #[test]
+    fn opencv_conversion_projects_identically() {
+        let cam = PhotogrammetricCamera::new(1280, 720, 0.00375);
+        let p = [
+            2.45, 0.012, -0.009, -0.021, 0.0004, -2e-6, 0.00015, -0.0001, 0.0, 0.0,
+        ];
+        let o = opencv_of(&p, 1280, 720, 0.00375);
+        let mut worst: f64 = 0.0;
+        for i in 0..15 {
+            for j in 0..9 {
+                let xc = Vector3::new(-0.75 + 0.1 * i as f64, 1.0, -0.4 + 0.1 * j as f64);
+                let uv = cam.project(&p, &xc, None, None).unwrap();
+                let cv = opencv_project(&o, &Vector3::new(xc.x, -xc.z, xc.y));
+                worst = worst.max((uv.x - cv[0]).abs()).max((uv.y - cv[1]).abs());
+            }
+        }
+        assert!(worst < 1e-9, "largest difference {worst} px");
+    }
 }
