@@ -128,25 +128,103 @@ pub fn components_above(
 /// rungs of the ladder: each connected-component pass then scans bytes instead of floats.
 /// At most 255 levels.
 pub fn level_index(img: &GrayImage, levels: &[f32]) -> Vec<u8> {
-    use rayon::prelude::*;
-    assert!(levels.len() <= 255, "at most 255 threshold levels");
-    let sorted = levels.windows(2).all(|w| w[0] <= w[1]);
-    assert!(sorted, "threshold levels must be non-decreasing");
-    let mut out = vec![0u8; img.data.len()];
-    // Blocks of 4096 pixels (cache-resident), one pass per level over each block so the
-    // comparison loop vectorises.
-    out.par_chunks_mut(1 << 16)
-        .zip(img.data.par_chunks(1 << 16))
-        .for_each(|(o, d)| {
-            for (o, d) in o.chunks_mut(4096).zip(d.chunks(4096)) {
-                for &l in levels {
-                    for (o, &v) in o.iter_mut().zip(d) {
-                        *o += (v > l) as u8;
-                    }
+    LevelIndex::new(img, levels).idx
+}
+
+/// Width of the blocks of [`LevelIndex::block_max`].
+const BLOCK: usize = 32;
+
+/// The level index of an image (see [`level_index`]) with, for every row, the largest index in
+/// each block of [`BLOCK`] pixels: a component pass skips a block whose maximum is not above
+/// its rung by reading one byte instead of 32.
+#[derive(Clone, Debug)]
+pub struct LevelIndex {
+    pub width: usize,
+    pub height: usize,
+    /// Level index per pixel, row-major.
+    pub idx: Vec<u8>,
+    /// Per row, the maximum of `idx` over each block of 32 pixels (the last one may be shorter);
+    /// `blocks_per_row()` entries per row.
+    pub block_max: Vec<u8>,
+}
+
+impl LevelIndex {
+    /// Computes the index and the block maxima in one pass over the image (in parallel over
+    /// bands of rows).
+    pub fn new(img: &GrayImage, levels: &[f32]) -> Self {
+        use rayon::prelude::*;
+        assert!(levels.len() <= 255, "at most 255 threshold levels");
+        let sorted = levels.windows(2).all(|w| w[0] <= w[1]);
+        assert!(sorted, "threshold levels must be non-decreasing");
+        let (w, h) = (img.width, img.height);
+        let nb = w.div_ceil(BLOCK);
+        let mut idx = vec![0u8; w * h];
+        let mut block_max = vec![0u8; nb * h];
+        if w == 0 || h == 0 {
+            return LevelIndex {
+                width: w,
+                height: h,
+                idx,
+                block_max,
+            };
+        }
+        let rows = (1usize << 16).div_ceil(w).max(1);
+        idx.par_chunks_mut(rows * w)
+            .zip(block_max.par_chunks_mut(rows * nb))
+            .zip(img.data.par_chunks(rows * w))
+            .for_each(|((o, bm), d)| {
+                for ((o, bm), d) in o.chunks_mut(w).zip(bm.chunks_mut(nb)).zip(d.chunks(w)) {
+                    index_row(d, levels, o, bm);
                 }
+            });
+        LevelIndex {
+            width: w,
+            height: h,
+            idx,
+            block_max,
+        }
+    }
+
+    /// Blocks per row in [`LevelIndex::block_max`].
+    pub fn blocks_per_row(&self) -> usize {
+        self.width.div_ceil(BLOCK)
+    }
+}
+
+/// One row of the level index: 32 pixels at a time, the per-level counts kept in registers
+/// (the comparisons vectorise), then narrowed to bytes; and the maximum of each block.
+#[inline]
+fn index_row(d: &[f32], levels: &[f32], o: &mut [u8], bm: &mut [u8]) {
+    let full = d.len() / BLOCK;
+    for ((dc, oc), m) in d
+        .chunks_exact(BLOCK)
+        .zip(o.chunks_exact_mut(BLOCK))
+        .zip(bm.iter_mut())
+    {
+        let dc: &[f32; BLOCK] = dc.try_into().expect("block");
+        let mut acc = [0u32; BLOCK];
+        for &l in levels {
+            for j in 0..BLOCK {
+                acc[j] += (dc[j] > l) as u32;
             }
-        });
-    out
+        }
+        let mut mx = 0u8;
+        for (o, &a) in oc.iter_mut().zip(&acc) {
+            *o = a as u8;
+            mx = mx.max(a as u8);
+        }
+        *m = mx;
+    }
+    let rest = full * BLOCK;
+    if rest < d.len() {
+        let mut mx = 0u8;
+        for (o, &v) in o[rest..].iter_mut().zip(&d[rest..]) {
+            let c = levels.iter().filter(|&&l| v > l).count() as u8;
+            *o = c;
+            mx = mx.max(c);
+        }
+        bm[full] = mx;
+    }
 }
 
 /// Connected components (8-connected) of the pixels whose level index (see [`level_index`]) is
@@ -162,24 +240,72 @@ pub fn components_of_index(
     max_area: usize,
 ) -> Vec<Blob> {
     assert_eq!(idx.len(), w * h, "index image size");
+    let nb = w.div_ceil(BLOCK);
+    let mut block_max = vec![0u8; nb * h];
+    for (row, bm) in idx.chunks(w.max(1)).zip(block_max.chunks_mut(nb.max(1))) {
+        for (c, m) in row.chunks(BLOCK).zip(bm.iter_mut()) {
+            *m = c.iter().fold(0, |a, &v| a.max(v));
+        }
+    }
+    components_with_blocks(idx, &block_max, w, h, k, level, min_area, max_area)
+}
+
+/// [`components_of_index`] on a precomputed [`LevelIndex`].
+pub fn components_of_level_index(
+    li: &LevelIndex,
+    k: u8,
+    level: f32,
+    min_area: usize,
+    max_area: usize,
+) -> Vec<Blob> {
+    components_with_blocks(
+        &li.idx,
+        &li.block_max,
+        li.width,
+        li.height,
+        k,
+        level,
+        min_area,
+        max_area,
+    )
+}
+
+#[allow(clippy::too_many_arguments)]
+fn components_with_blocks(
+    idx: &[u8],
+    block_max: &[u8],
+    w: usize,
+    h: usize,
+    k: u8,
+    level: f32,
+    min_area: usize,
+    max_area: usize,
+) -> Vec<Blob> {
+    assert_eq!(idx.len(), w * h, "index image size");
+    let nb = w.div_ceil(BLOCK);
+    assert_eq!(block_max.len(), nb * h, "block maxima size");
     // Runs: (x0, x1, label) per row; only the previous row is needed for connectivity.
     let mut runs_prev: Vec<(usize, usize, u32)> = Vec::new();
     let mut runs_cur: Vec<(usize, usize, u32)> = Vec::new();
     let mut parent: Vec<u32> = Vec::new();
     let mut stats: Vec<Blob> = Vec::new();
-    const CHUNK: usize = 32;
     for y in 0..h {
         runs_cur.clear();
         let row = &idx[y * w..(y + 1) * w];
+        let bm = &block_max[y * nb..(y + 1) * nb];
         let mut x = 0;
         let mut j = 0; // index into runs_prev
         while x < w {
-            // Skip background quickly, a chunk of bytes at a time.
-            while x + CHUNK <= w && row[x..x + CHUNK].iter().fold(0u8, |m, &v| m.max(v)) <= k {
-                x += CHUNK;
-            }
-            if x >= w {
-                break;
+            // Skip background quickly: whole blocks whose maximum is not above the rung.
+            if x % BLOCK == 0 {
+                let mut b = x / BLOCK;
+                while b < nb && bm[b] <= k {
+                    b += 1;
+                }
+                x = (b * BLOCK).min(w);
+                if x >= w {
+                    break;
+                }
             }
             if row[x] <= k {
                 x += 1;

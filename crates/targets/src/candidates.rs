@@ -2,7 +2,7 @@
 //! shape tests, grouped across rungs (a real target is a component at several consecutive
 //! levels, noise rarely is).
 
-use crate::blobs::{components_of_index, level_index, Blob};
+use crate::blobs::{components_of_index, components_of_level_index, level_index, Blob, LevelIndex};
 use crate::ellipse::Ellipse;
 use crate::image_io::GrayImage;
 use crate::threshold::threshold_levels;
@@ -78,13 +78,13 @@ pub fn find_candidates(img: &GrayImage, p: &CandidateParams) -> Vec<Candidate> {
     let (w, h) = (img.width, img.height);
     // One level index shared by all rungs (levels ascend: pixel > levels[i] ⇔ index > i).
     // (More than 255 levels: one index per level.)
-    let shared = (levels.len() <= 255).then(|| level_index(img, &levels));
+    let shared = (levels.len() <= 255).then(|| LevelIndex::new(img, &levels));
     let per_level: Vec<Vec<(Ellipse, usize)>> = levels
         .par_iter()
         .enumerate()
         .map(|(i, &l)| {
             match &shared {
-                Some(idx) => components_of_index(idx, w, h, i as u8, l, min_area, max_area),
+                Some(li) => components_of_level_index(li, i as u8, l, min_area, max_area),
                 None => {
                     components_of_index(&level_index(img, &[l]), w, h, 0, l, min_area, max_area)
                 }
