@@ -140,7 +140,7 @@ fn bright_fraction(
     let fr = e.frame();
     for &(co, si) in crate::ellipse::unit_circle(samples_per_turn).iter() {
         let (x, y) = fr.map(rho * co, rho * si);
-        if img.sample(x, y) > mid {
+        if img.sample_inside(x, y) > mid {
             c += 1;
         }
     }
@@ -180,7 +180,7 @@ pub fn read_ring(
         let mut acc = 0.0;
         for &r in &radii {
             let (x, y) = fr.map(r * c, r * s);
-            acc += img.sample(x, y);
+            acc += img.sample_inside(x, y);
         }
         *vj = acc / radii.len() as f32 - mid;
     }
@@ -196,14 +196,16 @@ pub fn read_ring(
             reason: "surround of the ring is not dark",
         };
     }
-    // Sector phase.
+    // Sector phase. `v` is extended by one sector (wrapped round) so that the sums below need
+    // no modulo.
+    v.extend_from_within(..S);
     let mut best = (f32::NEG_INFINITY, 0usize);
     for phi in 0..S {
         let mut score = 0.0f32;
         for k in 0..n {
             let mut s = 0.0f32;
-            for q in 0..S {
-                s += v[(phi + k * S + q) % m];
+            for &x in &v[phi + k * S..phi + k * S + S] {
+                s += x;
             }
             score += s.abs();
         }
@@ -216,7 +218,7 @@ pub fn read_ring(
     let mut code = 0u32;
     let mut margin = f32::INFINITY;
     for k in 0..n {
-        let samples: Vec<f32> = (q0..q1).map(|q| v[(phi + k * S + q) % m]).collect();
+        let samples = &v[phi + k * S + q0..phi + k * S + q1];
         let mean = samples.iter().sum::<f32>() / samples.len() as f32;
         let is_bright = mean > 0.0;
         if samples.iter().any(|&s| (s > 0.0) != is_bright) {

@@ -3,7 +3,7 @@
 
 use crate::ellipse::{fit_ellipse, sampson, unit_circle, Ellipse};
 use crate::image_io::GrayImage;
-use crate::threshold::{foreground_level, local_levels};
+use crate::threshold::foreground_level;
 
 /// Why a candidate was not accepted as a target.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -93,11 +93,13 @@ pub fn edge_points(
     let step_px = 0.25;
     let mut pts = Vec::with_capacity(k);
     let mut bg_sum = 0.0f64;
-    let mut profile = Vec::with_capacity(64);
-    let mut ts = Vec::with_capacity(64);
+    let mut profile: Vec<f32> = Vec::with_capacity(64);
+    let mut ts: Vec<f64> = Vec::with_capacity(64);
     let trig = unit_circle(k);
+    let (t_lo, t_hi) = p.bg_window;
+    let fr = seed.frame();
     for &(u, v) in trig.iter() {
-        let (ex, ey) = seed.map(u, v);
+        let (ex, ey) = fr.map(u, v);
         let (dx, dy) = (ex - seed.cx, ey - seed.cy);
         let len = (dx * dx + dy * dy).sqrt();
         if len <= 0.0 {
@@ -106,31 +108,32 @@ pub fn edge_points(
         let dt = step_px / len;
         profile.clear();
         ts.clear();
+        // The whole ray is inside the image (checked above), and the background (the minimum
+        // over the window, as `local_levels`) is taken while sampling.
+        let mut bg = f32::INFINITY;
         let mut t = 0.45;
         while t <= t_max {
-            profile.push(img.sample(seed.cx + t * dx, seed.cy + t * dy));
+            let s = img.sample_inside(seed.cx + t * dx, seed.cy + t * dy);
+            if t >= t_lo && t <= t_hi {
+                bg = bg.min(s);
+            }
+            profile.push(s);
             ts.push(t);
             t += dt;
         }
-        let Some((bg, level)) = local_levels(
-            &profile,
-            &ts,
-            fg,
-            p.edge_fraction,
-            p.bg_window.0,
-            p.bg_window.1,
-        ) else {
+        if !bg.is_finite() {
             continue;
-        };
+        }
+        let level = fg + p.edge_fraction * (bg - fg);
         if fg - bg < p.min_contrast {
             continue;
         }
         // First downward crossing of `level` going outward.
         let mut found = None;
-        for j in 1..profile.len() {
-            if profile[j - 1] >= level && profile[j] < level {
-                let f = (profile[j - 1] - level) / (profile[j - 1] - profile[j]);
-                found = Some(ts[j - 1] + f as f64 * (ts[j] - ts[j - 1]));
+        for (j, w) in profile.windows(2).enumerate() {
+            if w[0] >= level && w[1] < level {
+                let f = (w[0] - level) / (w[0] - w[1]);
+                found = Some(ts[j] + f as f64 * (ts[j + 1] - ts[j]));
                 break;
             }
         }

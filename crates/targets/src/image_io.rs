@@ -68,6 +68,29 @@ impl GrayImage {
         top + (bot - top) * fy
     }
 
+    /// [`GrayImage::sample`] for points the caller knows to be inside the image (at least a
+    /// pixel from the right and bottom edges): no border handling, no `floor` fix-up (the
+    /// coordinates are non-negative). The same value as `sample` bit for bit; a point that is
+    /// not inside after all goes the general way.
+    #[inline(always)]
+    pub fn sample_inside(&self, x: f64, y: f64) -> f32 {
+        // `as usize` saturates (negative and NaN → 0), so the test below is exact.
+        let xi = x as usize;
+        let yi = y as usize;
+        if x >= 0.0 && y >= 0.0 && xi + 1 < self.width && yi + 1 < self.height {
+            let fx = (x - xi as f64) as f32;
+            let fy = (y - yi as f64) as f32;
+            let i = yi * self.width + xi;
+            let r0 = &self.data[i..i + 2];
+            let r1 = &self.data[i + self.width..i + self.width + 2];
+            let top = r0[0] + (r0[1] - r0[0]) * fx;
+            let bot = r1[0] + (r1[1] - r1[0]) * fx;
+            top + (bot - top) * fy
+        } else {
+            self.sample(x, y)
+        }
+    }
+
     /// True when (x, y) is inside the image with `margin` pixels to spare.
     #[inline]
     pub fn inside(&self, x: f64, y: f64, margin: f64) -> bool {
@@ -112,18 +135,69 @@ pub fn decode_image(bytes: &[u8], name: &str) -> Result<GrayImage, TargetError> 
     if w == 0 || h == 0 {
         return Err(bad("image has no pixels".into()));
     }
-    let luma = decoded.to_luma32f();
-    let mut data = luma.into_raw();
-    for v in &mut data {
-        if !v.is_finite() {
-            *v = 0.0;
+    let data = match &decoded {
+        // Grey 8 and 16 bit (the usual photogrammetric TIFFs): one table look-up per pixel, in
+        // parallel; the table is the `image` crate's own conversion, so the values are the
+        // same as `to_luma32f`'s.
+        image::DynamicImage::ImageLuma8(b) => convert_with(b.as_raw(), lut_u8()),
+        image::DynamicImage::ImageLuma16(b) => convert_with(b.as_raw(), lut_u16()),
+        _ => {
+            let mut data = decoded.to_luma32f().into_raw();
+            for v in &mut data {
+                if !v.is_finite() {
+                    *v = 0.0;
+                }
+            }
+            data
         }
-    }
+    };
     Ok(GrayImage {
         width: w,
         height: h,
         data,
     })
+}
+
+/// `src` mapped through `lut` (in parallel over blocks).
+fn convert_with<T: Copy + Into<usize> + Sync>(src: &[T], lut: &[f32]) -> Vec<f32> {
+    use rayon::prelude::*;
+    let mut out = vec![0.0f32; src.len()];
+    out.par_chunks_mut(1 << 16)
+        .zip(src.par_chunks(1 << 16))
+        .for_each(|(o, s)| {
+            for (o, &v) in o.iter_mut().zip(s) {
+                *o = lut[v.into()];
+            }
+        });
+    out
+}
+
+/// Grey value of every 8-bit (16-bit) level as `to_luma32f` gives it, non-finite values as 0.
+fn lut_u8() -> &'static [f32] {
+    static LUT: std::sync::OnceLock<Vec<f32>> = std::sync::OnceLock::new();
+    LUT.get_or_init(|| {
+        let b = image::GrayImage::from_fn(256, 1, |x, _| image::Luma([x as u8]));
+        finite(image::DynamicImage::ImageLuma8(b).to_luma32f().into_raw())
+    })
+}
+
+fn lut_u16() -> &'static [f32] {
+    static LUT: std::sync::OnceLock<Vec<f32>> = std::sync::OnceLock::new();
+    LUT.get_or_init(|| {
+        let b = image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::from_fn(65536, 1, |x, _| {
+            image::Luma([x as u16])
+        });
+        finite(image::DynamicImage::ImageLuma16(b).to_luma32f().into_raw())
+    })
+}
+
+fn finite(mut v: Vec<f32>) -> Vec<f32> {
+    for x in &mut v {
+        if !x.is_finite() {
+            *x = 0.0;
+        }
+    }
+    v
 }
 
 /// Loads an image file to grey `f32`.
@@ -148,4 +222,35 @@ pub fn to_luma8(img: &GrayImage) -> image::GrayImage {
         .collect();
     image::GrayImage::from_raw(img.width as u32, img.height as u32, raw)
         .expect("buffer length matches dimensions")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The table conversion of grey 8 and 16-bit images gives exactly `to_luma32f`'s values.
+    #[test]
+    fn grey_tables_match_the_image_crate() {
+        let l8 = image::GrayImage::from_fn(256, 3, |x, y| image::Luma([(x as u8) ^ (y as u8)]));
+        let l16 = image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::from_fn(512, 128, |x, y| {
+            image::Luma([(y * 512 + x) as u16])
+        });
+        for dynimg in [
+            image::DynamicImage::ImageLuma8(l8),
+            image::DynamicImage::ImageLuma16(l16),
+        ] {
+            let mut png = Vec::new();
+            dynimg
+                .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+                .unwrap();
+            let got = decode_image(&png, "t.png").unwrap();
+            let want = dynimg.to_luma32f().into_raw();
+            assert_eq!(got.data.len(), want.len());
+            assert!(got
+                .data
+                .iter()
+                .zip(&want)
+                .all(|(a, b)| a.to_bits() == b.to_bits()));
+        }
+    }
 }

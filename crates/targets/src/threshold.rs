@@ -77,7 +77,7 @@ pub fn foreground_level(img: &GrayImage, e: &Ellipse, saturation: f32) -> (f32, 
                 continue;
             }
             let (x, y) = fr.map(u, w);
-            v.push(img.sample(x, y));
+            v.push(img.sample_inside(x, y));
         }
     }
     if v.is_empty() {
