@@ -36,6 +36,10 @@ pub struct Line2 {
     pub dir: Vector2<f64>,
     /// Number of scan points on it.
     pub inliers: usize,
+    /// Rms distance of its points from it, mm (the line-fit noise).
+    pub rms_mm: f64,
+    /// `Σ s²` of its points' positions `s` along it from `point`, mm² (the lever of the fit).
+    pub sxx_mm2: f64,
 }
 
 impl Line2 {
@@ -92,21 +96,48 @@ pub fn scan_lines(
         if c < 10 {
             break;
         }
-        let (on, off): (Vec<Vector2<f64>>, Vec<Vector2<f64>>) =
-            pts.iter().partition(|p| nrm.dot(&(*p - a)).abs() < tol_mm);
-        let m = on.iter().sum::<Vector2<f64>>() / on.len() as f64;
-        let mut s = nalgebra::Matrix2::zeros();
-        for p in &on {
-            s += (p - m) * (p - m).transpose();
+        // least squares on the band around the 2-point hypothesis, then again on the band
+        // around the fitted line until the band is stable: the hypothesis through two noisy
+        // points is tilted, and a band (±3σ near, only ±1.5σ at 2 m where σ = 1 % of the
+        // range) kept around it would pull the fit towards it
+        let (mut pt, mut nrm) = (a, nrm);
+        let mut mask: Vec<bool> = Vec::new();
+        let mut fit = None;
+        for _ in 0..8 {
+            let new: Vec<bool> = pts
+                .iter()
+                .map(|p| nrm.dot(&(*p - pt)).abs() < tol_mm)
+                .collect();
+            let n_on = new.iter().filter(|&&b| b).count();
+            if n_on < 10 || new == mask {
+                break;
+            }
+            let on = pts.iter().zip(&new).filter(|(_, &b)| b).map(|(p, _)| *p);
+            let m = on.clone().sum::<Vector2<f64>>() / n_on as f64;
+            let mut s = nalgebra::Matrix2::zeros();
+            for p in on {
+                s += (p - m) * (p - m).transpose();
+            }
+            let e = s.symmetric_eigen();
+            let dir: Vector2<f64> = e.eigenvectors.column(e.eigenvalues.imax()).into_owned();
+            let rms = (e.eigenvalues.min().max(0.0) / (n_on.max(3) - 2) as f64).sqrt();
+            fit = Some((m, dir, n_on, rms, e.eigenvalues.max()));
+            pt = m;
+            nrm = Vector2::new(-dir.y, dir.x);
+            mask = new;
         }
-        let e = s.symmetric_eigen();
-        let dir = e.eigenvectors.column(e.eigenvalues.imax()).into_owned();
+        let Some((m, dir, n_on, rms, sxx)) = fit else {
+            break;
+        };
         lines.push(Line2 {
             point: m,
             dir,
-            inliers: on.len(),
+            inliers: n_on,
+            rms_mm: rms,
+            sxx_mm2: sxx,
         });
-        pts = off;
+        // remove the points of the band around the final line
+        pts.retain(|p| nrm.dot(&(*p - pt)).abs() >= tol_mm);
     }
     if lines.len() < 3 {
         return Err(LrfError::Degenerate(format!(
@@ -188,6 +219,48 @@ pub fn lrf_pose_in_corner(
             "the three scan lines do not meet as the faces of an orthogonal corner".into(),
         )
     })
+}
+
+/// Predicted standard deviations (position mm, rotation degrees) of the
+/// [`lrf_pose_in_corner`] answer, from the fit noise of the three lines: each line's offset
+/// (σ/√n at its centroid) and direction (σ/√Σs²), σ its residual rms (at least
+/// `min_sigma_mm`), are moved by one standard deviation in turn and the pose differences added
+/// in quadrature (first-order propagation by finite differences). `None` when a moved line
+/// no longer gives a corner (the P3P is near its degenerate configuration).
+pub fn pose_uncertainty(
+    lines: &[Line2; 3],
+    servo_deg: f64,
+    mount: &MountModel,
+    prior: &Matrix3<f64>,
+    min_sigma_mm: f64,
+) -> Option<(f64, f64)> {
+    let base = lrf_pose_in_corner(lines, servo_deg, mount, prior).ok()?;
+    let (mut vp, mut vr) = (0.0, 0.0);
+    for k in 0..3 {
+        let l = lines[k];
+        let sigma = l.rms_mm.max(min_sigma_mm);
+        let n = l.inliers.max(3) as f64;
+        let nrm = Vector2::new(-l.dir.y, l.dir.x);
+        let d_off = sigma / n.sqrt();
+        let d_ang = sigma / l.sxx_mm2.max(1.0).sqrt();
+        for moved in [
+            Line2 {
+                point: l.point + nrm * d_off,
+                ..l
+            },
+            Line2 {
+                dir: (l.dir + nrm * d_ang).normalize(),
+                ..l
+            },
+        ] {
+            let mut ls = *lines;
+            ls[k] = moved;
+            let t = lrf_pose_in_corner(&ls, servo_deg, mount, prior).ok()?;
+            vp += (t.translation - base.translation).norm_squared();
+            vr += rotation_angle(&(t.rotation * base.rotation.transpose())).powi(2);
+        }
+    }
+    Some((vp.sqrt(), vr.sqrt().to_degrees()))
 }
 
 /// Corner frame in the photogrammetric frame (`p_photo = T · p_corner`) from the targets on

@@ -29,11 +29,17 @@
 //!    ≥ 60° apart), so the prior corner←LRF rotation is the corner←camera rotation of the
 //!    DLT. Scans whose pose disagrees with the others (rotation > 30° from the prior, or
 //!    position farther than `max(50 mm, 5 × median deviation)` from the median position of
-//!    the usable scans: a spurious line) are dropped; among the rest the scan whose three
-//!    lines have the most points in total is used (ties: the stronger weakest line, then the
-//!    first scan). In simulation (tests/corner_baseline.rs, 20 seeds) this choice gave a
-//!    mean error of 9.6 mm / 0.56°, against 15.3 mm / 0.58° when choosing the scan whose
-//!    weakest line is strongest. The spread of the usable scans' poses is in the notes.
+//!    the usable scans: a spurious line) are dropped; among the rest the scan used is the one
+//!    whose LRF position is predicted most precise ([`pose_uncertainty`]: the line-fit noise
+//!    of each line — residual rms, at least the range σ, over √n for its offset and over
+//!    √Σs² for its direction — propagated through the P3P; ties: the first scan). Still one
+//!    scan, as Fan does; only the choice of that scan uses the sweep. The earlier rule, the
+//!    most points on the three lines, preferred scans with a long near floor line and a
+//!    short far wall line (~30–40 points, ~1.5 m away) whose direction is poorly fixed, and
+//!    whose edge points are extrapolated far from it: on the full simulator (`pingcal
+//!    simulate`, 23 seeds; examples/corner_on_project.rs) it gave 44 ± 23 mm / 2.1 ± 1.0°,
+//!    this rule 12 ± 6 mm / 0.66 ± 0.25°. The spread of the usable scans' poses is in the
+//!    notes.
 //! 4. **Composition:** `T_cam←lrf = T_cam←corner · T_corner←lrf`, i.e.
 //!    `compose(camera_from_dlt, lrf_in_corner)` (`compose(a, b)` applies `b` first).
 //!
@@ -41,8 +47,8 @@
 
 use crate::cloud::MountModel;
 use crate::corner::{
-    compose, corner_frame_from_planes, dlt_resection, inverse, lrf_pose_in_corner, rotation_angle,
-    scan_lines, Line2,
+    compose, corner_frame_from_planes, dlt_resection, inverse, lrf_pose_in_corner,
+    pose_uncertainty, rotation_angle, scan_lines, Line2,
 };
 use crate::error::{LrfError, Result};
 use crate::registration::Transform;
@@ -248,7 +254,7 @@ enum ScanTry {
     Lines,
     Weak,
     P3p,
-    Ok(Box<(Transform, [Line2; 3])>),
+    Ok(Box<(Transform, [Line2; 3], f64)>),
 }
 
 /// Runs the Fan et al. 2019 baseline on pipeline data (see the module doc for the steps and
@@ -545,22 +551,30 @@ pub fn fan_baseline(input: &BaselineInput) -> Result<BaselineResult> {
                         .chain(t.translation.iter())
                         .all(|v| v.is_finite()) =>
                 {
-                    ScanTry::Ok(Box::new((t, lines)))
+                    let sd = pose_uncertainty(
+                        &lines,
+                        scan.servo_deg,
+                        input.mount,
+                        &prior,
+                        input.range_sigma_mm,
+                    )
+                    .map_or(f64::INFINITY, |u| u.0);
+                    ScanTry::Ok(Box::new((t, lines, sd)))
                 }
                 _ => ScanTry::P3p,
             }
         })
         .collect();
     let (mut n_lines, mut n_weak, mut n_p3p) = (0, 0, 0);
-    let mut cands: Vec<(usize, Transform, [usize; 3])> = Vec::new();
+    let mut cands: Vec<(usize, Transform, [usize; 3], f64)> = Vec::new();
     for (k, t) in tries.into_iter().enumerate() {
         match t {
             ScanTry::Lines => n_lines += 1,
             ScanTry::Weak => n_weak += 1,
             ScanTry::P3p => n_p3p += 1,
             ScanTry::Ok(b) => {
-                let (tr, lines) = *b;
-                cands.push((k, tr, lines.map(|l| l.inliers)));
+                let (tr, lines, sd) = *b;
+                cands.push((k, tr, lines.map(|l| l.inliers), sd));
             }
         }
     }
@@ -598,23 +612,16 @@ pub fn fan_baseline(input: &BaselineInput) -> Result<BaselineResult> {
         .map(|c| (c.1.translation - med).norm())
         .collect();
     let gate = (5.0 * median(dev.clone())).max(50.0);
-    let mut kept: Vec<(usize, Transform, [usize; 3])> = cands
+    let mut kept: Vec<(usize, Transform, [usize; 3], f64)> = cands
         .into_iter()
         .zip(&dev)
         .filter(|(_, d)| **d <= gate)
         .map(|(c, _)| c)
         .collect();
     let n_far = n_all - n_prior - kept.len();
-    kept.sort_by(|a, b| {
-        let key = |c: &(usize, Transform, [usize; 3])| {
-            (
-                c.2.iter().sum::<usize>(),
-                c.2.iter().copied().min().unwrap_or(0),
-            )
-        };
-        key(b).cmp(&key(a)).then(a.0.cmp(&b.0))
-    });
-    let Some((best_k, lrf_in_corner, best_inl)) = kept.first().cloned() else {
+    // the scan whose pose is predicted most precise (ties: the first scan)
+    kept.sort_by(|a, b| a.3.total_cmp(&b.3).then(a.0.cmp(&b.0)));
+    let Some((best_k, lrf_in_corner, best_inl, best_sd)) = kept.first().cloned() else {
         return Err(LrfError::Degenerate(format!(
             "corner baseline: no usable scan agrees with the others ({summary})"
         )));
@@ -638,8 +645,9 @@ pub fn fan_baseline(input: &BaselineInput) -> Result<BaselineResult> {
         kept.len()
     ));
     notes.push(format!(
-        "scan used: #{} (file line {}, servo {servo_deg:.3}°), line inliers {:?} (the most \
-         points on three lines of all consistent scans); LRF at corner coordinates {} mm",
+        "scan used: #{} (file line {}, servo {servo_deg:.3}°), line inliers {:?}, predicted LRF \
+         position σ {best_sd:.1} mm from the line-fit noise (the smallest of all consistent \
+         scans); LRF at corner coordinates {} mm",
         best_k + 1,
         input.scans[best_k].line,
         best_inl,

@@ -1,0 +1,387 @@
+//! Diagnostic: the Fan et al. 2019 corner baseline ([`fan_baseline`]) on a simulated project
+//! (`pingcal simulate --out DIR`), fed with the TRUE target coordinates and their exact
+//! normalised projections, compared step by step with `DIR/truth.json`.
+//!
+//! `cargo run -p pingcal-lrf --release --example corner_on_project -- DIR [--all] [--quiet]`
+//!
+//! Prints: the extrinsic error; the corner frame vs the truth (world frame = corner frame:
+//! X along wall 1's floor edge, Y along wall 2's, Z up; wall 1 is the plane y ≈ 0, wall 2 the
+//! plane x ≈ 0); the DLT camera pose vs the truth; the LRF pose in the corner vs the truth;
+//! the chosen scan's three lines (inliers, rms to their true plane, points of other surfaces
+//! they took) and the edge points vs their true positions (the true edges are the
+//! intersections of the true planes, which pass through the vertex). With `--all`: every
+//! usable scan's P3P pose error vs its line supports, and what other choice rules would give.
+//! The last line `SUMMARY dt da chk` is for scripts.
+
+use pingcal_lrf::corner::{
+    compose, inverse, lrf_pose_in_corner, pose_uncertainty, rotation_angle, scan_lines,
+};
+use pingcal_lrf::corner_baseline::{fan_baseline, BaselineInput};
+use pingcal_lrf::nalgebra::{Matrix3, Vector2, Vector3};
+use pingcal_lrf::registration::Transform;
+use pingcal_lrf::scan::{open_scan_file, ScanHeader, ScanLine};
+use pingcal_lrf::MountModel;
+use serde_json::Value;
+use std::path::Path;
+
+fn v3(v: &Value) -> Vector3<f64> {
+    Vector3::new(
+        v[0].as_f64().unwrap(),
+        v[1].as_f64().unwrap(),
+        v[2].as_f64().unwrap(),
+    )
+}
+
+fn pose(v: &Value) -> Transform {
+    let r = &v["rotation"];
+    Transform {
+        rotation: Matrix3::from_fn(|i, j| r[i][j].as_f64().unwrap()),
+        translation: v3(&v["translation_mm"]),
+        scale: 1.0,
+    }
+}
+
+fn ang(a: &Matrix3<f64>, b: &Matrix3<f64>) -> f64 {
+    rotation_angle(&(a * b.transpose())).to_degrees()
+}
+
+fn f3(v: &Vector3<f64>) -> String {
+    format!("({:8.1}, {:8.1}, {:8.1})", v.x, v.y, v.z)
+}
+
+/// Point where the scan plane (through `o`, normal `n`) cuts the edge through the vertex
+/// with direction `d`.
+fn edge_hit(o: &Vector3<f64>, n: &Vector3<f64>, d: &Vector3<f64>) -> Vector3<f64> {
+    d * (n.dot(o) / n.dot(d))
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let dir = Path::new(args.first().expect("usage: corner_on_project DIR [--all]"));
+    let all = args.iter().any(|a| a == "--all");
+    let quiet = args.iter().any(|a| a == "--quiet");
+    let truth: Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("truth.json")).unwrap()).unwrap();
+    let mut rd = open_scan_file(&dir.join("scans/S00.csv")).unwrap();
+    let header: ScanHeader = rd.header();
+    let scans: Vec<ScanLine> = rd.by_ref().map(|s| s.unwrap()).collect();
+    let ext = pose(&truth["extrinsic"]); // p_cam = T p_lrf
+    let w2p = pose(&truth["world_to_photogrammetric"]); // p_photo = T p_world
+    let w2l = pose(&truth["world_to_lrf"]); // p_lrf = T p_world
+    let lrf_in_world = inverse(&w2l);
+    let mut targets = Vec::new();
+    let mut image = Vec::new();
+    let mut surf_of = Vec::new();
+    for t in truth["targets"].as_array().unwrap() {
+        let id = t["id"].to_string();
+        let p = v3(&t["photogrammetric_mm"]);
+        targets.push((id.clone(), p));
+        surf_of.push(t["surface"].as_str().unwrap().to_string());
+        if p.y > 0.0 {
+            image.push((id, Vector2::new(p.x / p.y, p.z / p.y)));
+        }
+    }
+    let mut normal = std::collections::HashMap::new();
+    for s in truth["surfaces"].as_array().unwrap() {
+        normal.insert(
+            s["name"].as_str().unwrap().to_string(),
+            (v3(&s["normal_world"]), s["bulge_mm"].as_f64().unwrap()),
+        );
+    }
+    // corner faces x = 0, y = 0, z = 0 are wall2, wall1, floor
+    let face_names = ["wall2 (x=0)", "wall1 (y=0)", "floor (z=0)"];
+    let nf = [normal["wall2"].0, normal["wall1"].0, normal["floor"].0];
+    let mount = MountModel::default();
+    let seed = truth["seed"].as_u64().unwrap_or(1);
+    let input = BaselineInput {
+        header: &header,
+        scans: &scans,
+        mount: &mount,
+        range_sigma_mm: 10.0,
+        targets: &targets,
+        main_image: &image,
+        seed,
+    };
+    let t0 = std::time::Instant::now();
+    let r = fan_baseline(&input).unwrap();
+    let el = t0.elapsed().as_secs_f64();
+    let dt = r.lrf_to_camera.translation - ext.translation;
+    let da = ang(&r.lrf_to_camera.rotation, &ext.rotation);
+    let e_from_t = compose(&r.lrf_to_camera, &inverse(&ext));
+    let chk = targets
+        .iter()
+        .map(|(_, q)| (e_from_t.apply(q) - q).norm())
+        .sum::<f64>()
+        / targets.len() as f64;
+    println!(
+        "== {}: fan_baseline in {el:.2} s; extrinsic error |Δt| = {:.1} mm, Δt = {} (camera frame), \
+         rotation {da:.3}°, mean at the targets {chk:.1} mm",
+        dir.display(),
+        dt.norm(),
+        f3(&dt)
+    );
+    if !quiet {
+        for n in &r.notes {
+            println!("  note: {n}");
+        }
+    }
+    // 1. corner frame (p_photo = T p_corner) vs truth (p_photo = w2p p_world)
+    let dc = r.corner_in_camera.translation - w2p.translation;
+    println!(
+        "corner frame vs truth: rotation {:.3}°, origin {:.2} mm {}",
+        ang(&r.corner_in_camera.rotation, &w2p.rotation),
+        dc.norm(),
+        f3(&dc)
+    );
+    // 2. DLT camera pose (p_cam = T p_corner) vs truth (same: the photo frame is the camera's)
+    let dd = inverse(&r.camera_from_dlt).translation - inverse(&w2p).translation;
+    println!(
+        "DLT camera pose vs truth: rotation {:.3}°, centre {:.2} mm {}",
+        ang(&r.camera_from_dlt.rotation, &w2p.rotation),
+        dd.norm(),
+        f3(&dd)
+    );
+    // 3. LRF pose in the corner
+    let dl = r.lrf_in_corner.translation - lrf_in_world.translation;
+    println!(
+        "LRF in corner vs truth: rotation {:.3}°, position {:.1} mm {} (true position {})",
+        ang(&r.lrf_in_corner.rotation, &lrf_in_world.rotation),
+        dl.norm(),
+        f3(&dl),
+        f3(&lrf_in_world.translation)
+    );
+    // error budget: extrinsic error from each part alone
+    let only_dlt = compose(&r.camera_from_dlt, &lrf_in_world);
+    let only_lrf = compose(&w2p, &r.lrf_in_corner);
+    println!(
+        "  extrinsic with the true LRF-in-corner: {:.1} mm {:.3}°; with the true camera pose: \
+         {:.1} mm {:.3}°",
+        (only_dlt.translation - ext.translation).norm(),
+        ang(&only_dlt.rotation, &ext.rotation),
+        (only_lrf.translation - ext.translation).norm(),
+        ang(&only_lrf.rotation, &ext.rotation)
+    );
+    let prior = r.camera_from_dlt.rotation.transpose();
+    // per-scan analysis
+    let analyse = |k: usize, verbose: bool| -> Option<(Transform, [usize; 3], [f64; 3], f64)> {
+        let scan = &scans[k];
+        let s = seed
+            .wrapping_mul(0x9E37_79B9_7F4A_7C15)
+            .wrapping_add(k as u64);
+        let lines = scan_lines(&header, scan, 30.0, s).ok()?;
+        let inl = lines.map(|l| l.inliers);
+        let est = lrf_pose_in_corner(&lines, scan.servo_deg, &mount, &prior).ok()?;
+        // which line is on which face: the one whose points are nearest the true plane
+        let rb = pingcal_lrf::cloud::servo_rotation(scan.servo_deg.to_radians());
+        let to_w = |p: Vector2<f64>| lrf_in_world.apply(&(rb * Vector3::new(p.x, p.y, 0.0)));
+        let o = lrf_in_world.translation;
+        let n_scan = lrf_in_world.rotation * rb * Vector3::z();
+        let mut face_of_line = [usize::MAX; 3];
+        for (li, l) in lines.iter().enumerate() {
+            let c = to_w(l.point);
+            let f = (0..3)
+                .min_by(|&a, &b| nf[a].dot(&c).abs().total_cmp(&nf[b].dot(&c).abs()))
+                .unwrap();
+            face_of_line[li] = f;
+        }
+        // edge points: where lines of faces f, g meet lies on the edge along the third axis
+        let mut edge_err = [f64::NAN; 3];
+        for axis in 0..3 {
+            let (f, g) = ((axis + 1) % 3, (axis + 2) % 3);
+            let lf = face_of_line.iter().position(|&x| x == f);
+            let lg = face_of_line.iter().position(|&x| x == g);
+            let (Some(a), Some(b)) = (lf, lg) else {
+                continue;
+            };
+            let Some(p) = lines[a].intersect(&lines[b]) else {
+                continue;
+            };
+            let pw = to_w(p);
+            let d = nf[f].cross(&nf[g]).normalize();
+            let tru = edge_hit(&o, &n_scan, &d);
+            edge_err[axis] = (pw - tru).norm();
+            if verbose {
+                println!(
+                    "    edge point on the {} axis: measured {} true {} error {:.1} mm \
+                     ({:.0} mm from the LRF)",
+                    ["X", "Y", "Z"][axis],
+                    f3(&pw),
+                    f3(&tru),
+                    (pw - tru).norm(),
+                    (tru - o).norm()
+                );
+            }
+        }
+        let pe = (est.translation - o).norm();
+        if verbose {
+            for (li, l) in lines.iter().enumerate() {
+                let f = face_of_line[li];
+                println!(
+                    "    line {li}: {} inliers, on {}, centroid {:.0} mm from the LRF, direction \
+                     {:.3},{:.3}",
+                    l.inliers,
+                    face_names[f],
+                    l.point.norm(),
+                    l.dir.x,
+                    l.dir.y
+                );
+            }
+            // points near each fitted line: distance to the true plane (clutter = far from it)
+            let pts: Vec<Vector2<f64>> = scan
+                .ranges_mm
+                .iter()
+                .enumerate()
+                .filter(|(_, r)| **r > 0.0)
+                .map(|(i, r)| {
+                    let a = header.beam_angle_deg(i).to_radians();
+                    Vector2::new(r * a.cos(), r * a.sin())
+                })
+                .collect();
+            for (li, l) in lines.iter().enumerate() {
+                let nrm = Vector2::new(-l.dir.y, l.dir.x);
+                let near: Vec<&Vector2<f64>> = pts
+                    .iter()
+                    .filter(|p| nrm.dot(&(*p - l.point)).abs() < 30.0)
+                    .collect();
+                let f = face_of_line[li];
+                let dists: Vec<f64> = near.iter().map(|p| nf[f].dot(&to_w(**p))).collect();
+                let off = dists.iter().filter(|d| d.abs() > 30.0).count();
+                let rms = (dists.iter().map(|d| d * d).sum::<f64>() / dists.len() as f64).sqrt();
+                let mean = dists.iter().sum::<f64>() / dists.len() as f64;
+                // the fitted line's offset from the true plane at its centroid
+                println!(
+                    "    line {li}: {} points within 30 mm, {} of them > 30 mm off its true \
+                     plane; mean {mean:.1} rms {rms:.1} mm from the true plane; fitted centroid \
+                     {:.1} mm off it",
+                    near.len(),
+                    off,
+                    nf[f].dot(&to_w(l.point))
+                );
+            }
+        }
+        Some((est, inl, edge_err, pe))
+    };
+    let k = scans
+        .iter()
+        .position(|s| s.servo_deg == r.servo_deg)
+        .unwrap();
+    println!("chosen scan #{} servo {:.3}°:", k + 1, r.servo_deg);
+    analyse(k, true);
+    if all {
+        let res: Vec<(usize, Transform, [usize; 3], [f64; 3], f64)> = (0..scans.len())
+            .filter_map(|k| analyse(k, false).map(|(t, i, e, p)| (k, t, i, e, p)))
+            .filter(|c| ang(&c.1.rotation, &prior) < 30.0 && c.2.iter().all(|&n| n >= 20))
+            .collect();
+        let err = |c: &(usize, Transform, [usize; 3], [f64; 3], f64)| {
+            (c.1.translation - lrf_in_world.translation).norm()
+        };
+        let rot = |c: &(usize, Transform, [usize; 3], [f64; 3], f64)| {
+            ang(&c.1.rotation, &lrf_in_world.rotation)
+        };
+        let mut e: Vec<f64> = res.iter().map(err).collect();
+        e.sort_by(f64::total_cmp);
+        println!(
+            "{} usable scans: LRF position error median {:.1} mm, 10 % {:.1}, 90 % {:.1}",
+            res.len(),
+            e[e.len() / 2],
+            e[e.len() / 10],
+            e[9 * e.len() / 10]
+        );
+        for step in (0..res.len()).step_by((res.len() / 40).max(1)) {
+            let c = &res[step];
+            println!(
+                "  scan #{:4} servo {:7.2}°: inliers {:?} sum {} min {}; edge errors {:.1} {:.1} \
+                 {:.1}; pose {:.1} mm {:.2}°",
+                c.0 + 1,
+                scans[c.0].servo_deg,
+                c.2,
+                c.2.iter().sum::<usize>(),
+                c.2.iter().min().unwrap(),
+                c.3[0],
+                c.3[1],
+                c.3[2],
+                err(c),
+                rot(c)
+            );
+        }
+    }
+    if all {
+        // the choice rules on the same consistent scans (gates as in fan_baseline)
+        let mut c: Vec<(usize, Transform, [usize; 3], f64, f64)> = Vec::new();
+        for k in 0..scans.len() {
+            let s = seed
+                .wrapping_mul(0x9E37_79B9_7F4A_7C15)
+                .wrapping_add(k as u64);
+            let Ok(lines) = scan_lines(&header, &scans[k], 30.0, s) else {
+                continue;
+            };
+            if lines.iter().any(|l| l.inliers < 20) {
+                continue;
+            }
+            let Ok(t) = lrf_pose_in_corner(&lines, scans[k].servo_deg, &mount, &prior) else {
+                continue;
+            };
+            if ang(&t.rotation, &prior) >= 30.0 {
+                continue;
+            }
+            let (up, ur) = pose_uncertainty(&lines, scans[k].servo_deg, &mount, &prior, 10.0)
+                .unwrap_or((f64::INFINITY, f64::INFINITY));
+            c.push((k, t, lines.map(|l| l.inliers), up, ur));
+        }
+        let med = |v: Vec<f64>| {
+            let mut v = v;
+            v.sort_by(f64::total_cmp);
+            v[v.len() / 2]
+        };
+        let m = Vector3::from_fn(|i, _| med(c.iter().map(|x| x.1.translation[i]).collect()));
+        let gate = (5.0 * med(c.iter().map(|x| (x.1.translation - m).norm()).collect())).max(50.0);
+        c.retain(|x| (x.1.translation - m).norm() <= gate);
+        let report = |name: &str, x: &(usize, Transform, [usize; 3], f64, f64)| {
+            let e = compose(&w2p, &x.1); // with the true camera pose: the LRF-in-corner part
+            let ee = compose(&r.camera_from_dlt, &x.1);
+            println!(
+                "RULE {name:8} scan #{:4} servo {:7.2}° inliers {:?} predicted {:.1} mm {:.2}°: \
+                 LRF-in-corner {:.1} mm {:.2}°; extrinsic {:.1} mm {:.3}°",
+                x.0 + 1,
+                scans[x.0].servo_deg,
+                x.2,
+                x.3,
+                x.4,
+                (e.translation - ext.translation).norm(),
+                ang(&e.rotation, &ext.rotation),
+                (ee.translation - ext.translation).norm(),
+                ang(&ee.rotation, &ext.rotation)
+            );
+        };
+        let by = |f: &dyn Fn(&(usize, Transform, [usize; 3], f64, f64)) -> f64| {
+            c.iter()
+                .min_by(|a, b| f(a).total_cmp(&f(b)))
+                .unwrap()
+                .clone()
+        };
+        report("sum", &by(&|x| -(x.2.iter().sum::<usize>() as f64)));
+        report("min", &by(&|x| -(*x.2.iter().min().unwrap() as f64)));
+        report("pred_pos", &by(&|x| x.3));
+        report("pred_rot", &by(&|x| x.4));
+        // how well the prediction ranks the scans: true error of the best-predicted 10 %
+        let mut sorted = c.clone();
+        sorted.sort_by(|a, b| a.3.total_cmp(&b.3));
+        let err = |x: &(usize, Transform, [usize; 3], f64, f64)| {
+            (x.1.translation - lrf_in_world.translation).norm()
+        };
+        let top: Vec<f64> = sorted[..(sorted.len() / 10).max(1)]
+            .iter()
+            .map(err)
+            .collect();
+        println!(
+            "best-predicted 10 % of {} scans: predicted {:.1}…{:.1} mm, true error median {:.1} \
+             mm, all scans median {:.1}",
+            sorted.len(),
+            sorted[0].3,
+            sorted[top.len() - 1].3,
+            med(top.clone()),
+            med(c.iter().map(err).collect())
+        );
+    }
+    println!("SUMMARY {:.2} {:.3} {:.2}", dt.norm(), da, chk);
+}
