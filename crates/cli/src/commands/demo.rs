@@ -58,10 +58,11 @@ pub fn run(args: Args) -> CmdResult {
         out.display()
     ));
     let cfg = pingcal_sim::SimConfig::default();
-    let (summary, _) = super::simulate::simulate_into(&out, &cfg, args.seed, None)?;
+    let (summary, _, [t_scene, t_write]) =
+        super::simulate::simulate_into(&out, &cfg, args.seed, None)?;
     let t_sim = t0.elapsed().as_secs_f64();
     rep.log(format!(
-        "demo: {} images, {} LRF scans, {} targets ({} coded), {} balls simulated in {t_sim:.1} s",
+        "demo: {} images, {} LRF scans, {} targets ({} coded), {} balls simulated in {t_sim:.1} s (scene and LRF sweep {t_scene:.1} s, rendering and writing {t_write:.1} s)",
         summary.images, summary.scans, summary.targets, summary.coded, summary.balls
     ));
     let opts = pipeline::Options {

@@ -23,13 +23,21 @@ pub struct Args {
 }
 
 /// Simulates with `cfg` and `seed` and writes the project into `out` (which must not exist,
-/// or be an empty folder), through a hidden temporary folder renamed at the end.
+/// or be an empty folder), through a hidden temporary folder renamed at the end. Also
+/// returns the seconds spent on the scene and LRF sweep, and on rendering and writing.
 pub fn simulate_into(
     out: &std::path::Path,
     cfg: &pingcal_sim::SimConfig,
     seed: u64,
     config_file: Option<&std::path::Path>,
-) -> Result<(pingcal_sim::ProjectSummary, pingcal_sim::Simulation), super::CmdError> {
+) -> Result<
+    (
+        pingcal_sim::ProjectSummary,
+        pingcal_sim::Simulation,
+        [f64; 2],
+    ),
+    super::CmdError,
+> {
     if out.exists() {
         let empty = out.is_dir()
             && std::fs::read_dir(out)
@@ -44,6 +52,7 @@ pub fn simulate_into(
             .into());
         }
     }
+    let t0 = std::time::Instant::now();
     let sim = pingcal_sim::Simulation::new(cfg, seed).map_err(|e| match config_file {
         Some(p) if matches!(e, pingcal_sim::SimError::Invalid(_)) => {
             format!("{}: {e}", p.display())
@@ -65,6 +74,7 @@ pub fn simulate_into(
         std::process::id()
     ));
     let _ = std::fs::remove_dir_all(&tmp);
+    let t_scene = t0.elapsed().as_secs_f64();
     let summary = match pingcal_sim::write_project(&sim, &tmp) {
         Ok(s) => s,
         Err(e) => {
@@ -83,7 +93,11 @@ pub fn simulate_into(
         )
         .into());
     }
-    Ok((summary, sim))
+    Ok((
+        summary,
+        sim,
+        [t_scene, t0.elapsed().as_secs_f64() - t_scene],
+    ))
 }
 
 /// Runs the command.
@@ -94,7 +108,7 @@ pub fn run(args: Args) -> CmdResult {
         None => pingcal_sim::SimConfig::default(),
     };
     let out = &args.out;
-    let (summary, sim) = simulate_into(out, &cfg, args.seed, args.config.as_deref())?;
+    let (summary, sim, _) = simulate_into(out, &cfg, args.seed, args.config.as_deref())?;
     println!(
         "simulate: wrote {} ({} images, {} LRF scans, {} targets of which {} coded, {} balls, {} distances; seed {}) in {:.1} s",
         out.join("project.toml").display(),

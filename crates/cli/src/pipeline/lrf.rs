@@ -13,6 +13,10 @@ use pingcal_lrf::scan::{open_scan_file, ScanHeader, ScanLine};
 use pingcal_lrf::simulate::UrgNoise;
 use pingcal_project::Project;
 
+/// Rejected clusters smaller than this are counted, not listed one by one (a 38 mm ball
+/// at 1.5 m gives well over 100 points in a slow sweep).
+pub const MIN_REPORTED_CLUSTER: usize = 20;
+
 /// The LRF side.
 pub struct LrfData {
     /// The cloud (LRF frame, mm).
@@ -79,20 +83,28 @@ pub fn lrf_spheres(project: &Project, opts: &Options, rep: &Reporter) -> Result<
         },
     );
     pb.finish_and_clear();
+    let mut s0: Vec<f64> = found.balls.iter().map(|b| b.sigma0).collect();
+    s0.sort_by(|a, b| a.total_cmp(b));
+    let mut inl: Vec<usize> = found.balls.iter().map(|b| b.inliers.len()).collect();
+    inl.sort_unstable();
     rep.log(format!(
-        "LRF: {} points from {} file(s); {} spheres fitted, {} clusters rejected",
+        "LRF: {} points from {} file(s); {} spheres fitted ({} to {} beams each, fit sigma0 {:.2} to {:.2}, median {:.2}), {} clusters rejected",
         cloud.len(),
         project.scan_paths.len(),
         found.balls.len(),
+        inl.first().copied().unwrap_or(0),
+        inl.last().copied().unwrap_or(0),
+        s0.first().copied().unwrap_or(f64::NAN),
+        s0.last().copied().unwrap_or(f64::NAN),
+        s0.get(s0.len() / 2).copied().unwrap_or(f64::NAN),
         found.rejected.len()
     ));
     // small clusters (plane-removal leftovers at edges and targets) are many and dull:
     // the log names only those large enough to have been a ball; the report lists all
-    let min_ball_points = 20;
     for r in found
         .rejected
         .iter()
-        .filter(|r| r.cluster_points >= min_ball_points)
+        .filter(|r| r.cluster_points >= MIN_REPORTED_CLUSTER)
     {
         rep.log(format!(
             "  LRF cluster of {} points at ({:.0}, {:.0}, {:.0}) mm rejected: {}",

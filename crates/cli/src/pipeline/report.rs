@@ -240,7 +240,27 @@ pub fn build(
             why: r.reason.clone(),
         })
         .collect();
-    for r in &lrf.found.rejected {
+    let small = lrf
+        .found
+        .rejected
+        .iter()
+        .filter(|r| r.cluster_points < super::lrf::MIN_REPORTED_CLUSTER)
+        .count();
+    if small > 0 {
+        rejected.push(rp::Rejection {
+            what: format!(
+                "{small} small LRF clusters (under {} points)",
+                super::lrf::MIN_REPORTED_CLUSTER
+            ),
+            why: "left over after the walls were removed (plane edges, target rims, stems): too few points for a ball".into(),
+        });
+    }
+    for r in lrf
+        .found
+        .rejected
+        .iter()
+        .filter(|r| r.cluster_points >= super::lrf::MIN_REPORTED_CLUSTER)
+    {
         rejected.push(rp::Rejection {
             what: format!(
                 "LRF cluster at ({:.0}, {:.0}, {:.0}) mm, {} points",
