@@ -201,17 +201,20 @@ fn index_row(d: &[f32], levels: &[f32], o: &mut [u8], bm: &mut [u8]) {
         .zip(o.chunks_exact_mut(BLOCK))
         .zip(bm.iter_mut())
     {
-        let dc: &[f32; BLOCK] = dc.try_into().expect("block");
-        let mut acc = [0u32; BLOCK];
-        for &l in levels {
-            for j in 0..BLOCK {
-                acc[j] += (dc[j] > l) as u32;
-            }
-        }
+        // Two halves of 16 (with 32 lanes the counts no longer fit the registers).
         let mut mx = 0u8;
-        for (o, &a) in oc.iter_mut().zip(&acc) {
-            *o = a as u8;
-            mx = mx.max(a as u8);
+        for (dc, oc) in dc.chunks_exact(16).zip(oc.chunks_exact_mut(16)) {
+            let dc: &[f32; 16] = dc.try_into().expect("half block");
+            let mut acc = [0u32; 16];
+            for &l in levels {
+                for j in 0..16 {
+                    acc[j] += (dc[j] > l) as u32;
+                }
+            }
+            for (o, &a) in oc.iter_mut().zip(&acc) {
+                *o = a as u8;
+                mx = mx.max(a as u8);
+            }
         }
         *m = mx;
     }
