@@ -285,3 +285,19 @@ pub fn detect_file(
     let img = load_image(path)?;
     Ok(detector.detect(&img))
 }
+
+/// Loads and detects many image files, in parallel over the images as well as within each one
+/// (rayon's current pool: `RAYON_NUM_THREADS`, or the caller's `ThreadPool::install`), so that
+/// the decoding of one image — single-threaded inside the decoders — overlaps with the
+/// detection in others. The results are in the order of `paths`, each the same as
+/// [`detect_file`]'s.
+pub fn detect_files<P: AsRef<std::path::Path> + Sync>(
+    paths: &[P],
+    detector: &Detector,
+) -> Vec<Result<ImageDetections, TargetError>> {
+    paths
+        .par_iter()
+        .with_max_len(1)
+        .map(|p| detect_file(p.as_ref(), detector))
+        .collect()
+}

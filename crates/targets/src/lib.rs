@@ -12,7 +12,8 @@
 //! - [`load_image`] / [`decode_image`]: any TIFF / PNG / JPEG (8 or 16 bit, grey or colour) to
 //!   an `f32` grey [`GrayImage`], with errors naming the file.
 //! - [`Detector::new`]`(DetectParams)` then [`Detector::detect`]`(&GrayImage) -> ImageDetections`
-//!   (or [`detect_image`], [`detect_file`]): targets with kind coded / plain / ball, number,
+//!   (or [`detect_image`], [`detect_file`], and [`detect_files`] for many files decoded and
+//!   detected in parallel): targets with kind coded / plain / ball, number,
 //!   centre and σ.
 //! - [`ball::sphere_centre_from_ellipse`]`(&Ellipse, &dyn CameraRays, Option<radius>)`: the
 //!   eccentricity correction of a ball's silhouette, once the camera's intrinsics are known.
@@ -50,7 +51,8 @@ pub mod printable;
 pub mod threshold;
 
 pub use detect::{
-    detect_file, detect_image, DetectParams, Detector, ImageDetections, Target, TargetKind,
+    detect_file, detect_files, detect_image, DetectParams, Detector, ImageDetections, Target,
+    TargetKind,
 };
 pub use image_io::{decode_image, load_image, GrayImage};
 
