@@ -3,13 +3,16 @@ truth is known (a rendered 24-megapixel image of ellipses with known centres).
 
 OpenCV pipeline: SimpleBlobDetector (bright blobs, its default multi-threshold search) finds
 the targets; each is refined by fitEllipse on the outer contour of an Otsu-thresholded patch
-around it (the usual way to get sub-pixel centres with OpenCV). Both sides run with 2 threads.
+around it (the usual way to get sub-pixel centres with OpenCV). Both sides run with the same
+thread count (cv2.setNumThreads; RAYON_NUM_THREADS for pingcal), 1 and 2 by default.
+
+Timing: the two programs are run alternately, `--reps` times each, and the best (shortest)
+time of each is reported, so that load from other jobs on the machine hits both alike.
 """
 import argparse, glob, json, os, subprocess, time
 import numpy as np
 import cv2
 
-cv2.setNumThreads(2)
 
 
 def render_synthetic(path_png, path_truth, seed=1):
@@ -105,6 +108,9 @@ def main():
     ap.add_argument("--pingcal", required=True)
     ap.add_argument("--panel", required=True)
     ap.add_argument("--work", required=True)
+    ap.add_argument("--pingcal-base", help="optional second build (e.g. an older commit), timed in the same runs")
+    ap.add_argument("--threads", default="1,2", help="comma-separated thread counts")
+    ap.add_argument("--reps", type=int, default=5, help="alternating runs of each side; best time kept")
     a = ap.parse_args()
     syn = os.path.join(a.work, "synthetic24mp.png")
     syn_truth = os.path.join(a.work, "synthetic24mp_truth.txt")
@@ -112,38 +118,46 @@ def main():
         render_synthetic(syn, syn_truth)
     truth = np.loadtxt(syn_truth)
     panel = sorted(glob.glob(os.path.join(a.panel, "*.tif")))
-    print("| image set | images | pingcal images/s | OpenCV images/s | speed-up |")
-    print("|---|---|---|---|---|")
+    base = " pingcal-base images/s | base speed-up |" if a.pingcal_base else ""
+    print("| image set | images | threads | pingcal images/s | OpenCV images/s | speed-up |" + base)
+    print("|---|---|---|---|---|---|" + ("---|---|" if a.pingcal_base else ""))
     rows = []
-    for name, files, reps in [("real AICON panel (2000x1333)", panel, 1), ("synthetic 24 MP (6000x4000)", [syn], 3)]:
-        if not files:
-            print(f"| {name} | 0 (data absent) | | | |")
-            continue
-        out = os.path.join(a.work, "pingcal.json")
-        t0 = time.perf_counter()
-        for _ in range(reps):
-            subprocess.run([a.pingcal, out] + files, check=True)
-        tp = (time.perf_counter() - t0) / reps
-        res = json.load(open(out))
-        t0 = time.perf_counter()
-        for _ in range(reps):
-            oc = [opencv_detect(f) for f in files]
-        to = (time.perf_counter() - t0) / reps
-        print(f"| {name} | {len(files)} | {len(files) / tp:.2f} | {len(files) / to:.2f} | {to / tp:.2f}x |")
-        rows.append((name, res, oc))
+    for threads in [int(t) for t in a.threads.split(",")]:
+        cv2.setNumThreads(threads)
+        env = dict(os.environ, RAYON_NUM_THREADS=str(threads))
+        for name, files in [("real AICON panel (2000x1333)", panel), ("synthetic 24 MP (6000x4000)", [syn])]:
+            if not files:
+                print(f"| {name} | 0 (data absent) | | | | |")
+                continue
+            out = os.path.join(a.work, "pingcal.json")
+            tp, to, tb = float("inf"), float("inf"), float("inf")
+            for _ in range(a.reps):
+                if a.pingcal_base:
+                    t0 = time.perf_counter()
+                    subprocess.run([a.pingcal_base, out + ".base"] + files, check=True, env=env)
+                    tb = min(tb, time.perf_counter() - t0)
+                t0 = time.perf_counter()
+                subprocess.run([a.pingcal, out] + files, check=True, env=env)
+                tp = min(tp, time.perf_counter() - t0)
+                t0 = time.perf_counter()
+                oc = [opencv_detect(f) for f in files]
+                to = min(to, time.perf_counter() - t0)
+            res = json.load(open(out))
+            print(f"| {name} | {len(files)} | {threads} | {len(files) / tp:.2f} | {len(files) / to:.2f} | {to / tp:.2f}x |"
+                  + (f" {len(files) / tb:.2f} | {to / tb:.2f}x |" if a.pingcal_base else ""), flush=True)
+            rows.append((name, res, oc))
     print()
     print("Centre accuracy on the synthetic image (%d ellipses, truth known; matched within 2 px):" % len(truth))
     print()
     print("| method | matched | RMS error px | max mean bias px |")
     print("|---|---|---|---|")
-    for name, res, oc in rows:
-        if not name.startswith("synthetic"):
-            continue
+    for name, res, oc in rows[-1:] if rows and rows[-1][0].startswith("synthetic") else []:
         for label, pts in [("pingcal ellipse fit", res[0]["centres"]), ("pingcal centroid", res[0]["centroids"]), ("OpenCV blob + fitEllipse", oc[0])]:
             n, rms, bias = accuracy(pts, truth)
             print(f"| {label} | {n} | {rms:.4f} | {bias:.4f} |")
     print()
-    print("(pingcal timings include process start and image loading; OpenCV's include cv2.imread.)")
+    print("(pingcal timings include process start and image loading; OpenCV's include cv2.imread."
+          f" Best of {a.reps} alternating runs each.)")
 
 
 if __name__ == "__main__":

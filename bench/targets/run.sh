@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # pingcal vs OpenCV (SimpleBlobDetector + fitEllipse) on the real AICON panel photographs and a
 # 24-megapixel synthetic image with known centres. Not part of CI.
-#   bash bench/targets/run.sh            (from the repository root)
+#   bash bench/targets/run.sh [--threads 1,2] [--reps 5]      (from the repository root)
 # Makes its own virtual environment in bench/targets/.venv (opencv-python-headless from PyPI).
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
@@ -18,4 +18,4 @@ mkdir -p "$here/out"
 "$venv/bin/python" "$here/compare.py" \
   --pingcal "$CARGO_TARGET_DIR/release/examples/bench_detect" \
   --panel "$root/../shared/data/aicon-panel/images" \
-  --work "$here/out" | tee "$here/out/report.md"
+  --work "$here/out" "$@" 2> >(grep -v TIFF_Warning >&2) | tee "$here/out/report.md"
