@@ -77,7 +77,7 @@ pub fn lrf_spheres(project: &Project, opts: &Options, rep: &Reporter) -> Result<
         &cloud,
         &FinderOptions {
             diameter_mm: project.file.balls.diameter_mm,
-            noise: noise.clone(),
+            noise,
             seed: opts.seed,
             ..FinderOptions::default()
         },

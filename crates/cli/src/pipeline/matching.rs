@@ -207,7 +207,8 @@ pub fn new_points(
         .collect();
     let no_taken: Vec<Vec<bool>> = dets.iter().map(|d| vec![false; d.targets.len()]).collect();
     // candidates: (support, rms, image a, det a, image b, det b, point)
-    let mut cands: Vec<(usize, f64, usize, usize, usize, usize, Vector3<f64>)> = Vec::new();
+    type Candidate = (usize, f64, usize, usize, usize, usize, Vector3<f64>);
+    let mut cands: Vec<Candidate> = Vec::new();
     for (ai, &a) in oriented.iter().enumerate() {
         for &b in &oriented[ai + 1..] {
             for (ka, ra) in &rays[a] {

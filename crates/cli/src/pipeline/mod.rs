@@ -226,7 +226,29 @@ pub fn calibrate(project: &Project, opts: &Options, rep: &Reporter) -> Result<Ou
         .collect::<Vec<_>>()
         .join(", ");
     rep.log(format!("time: {line}"));
-    Ok(results::assemble(
-        project, &dets, &model, &adjusted, &lrf, &ext, rep, timing,
-    ))
+    let stages = Stages {
+        project,
+        dets: &dets,
+        model: &model,
+        adjusted: &adjusted,
+        lrf: &lrf,
+        ext: &ext,
+    };
+    Ok(results::assemble(&stages, rep, timing))
+}
+
+/// What the steps produced, for the results and the report.
+pub struct Stages<'a> {
+    /// The project.
+    pub project: &'a Project,
+    /// Step 1.
+    pub dets: &'a [detect::ImageDetections],
+    /// Steps 2–4 (the final model).
+    pub model: &'a Model,
+    /// Step 4.
+    pub adjusted: &'a bundle::Adjusted,
+    /// Step 5.
+    pub lrf: &'a lrf::LrfData,
+    /// Step 6.
+    pub ext: &'a extrinsic::Extrinsics,
 }

@@ -1,12 +1,8 @@
 //! The data of `report.html` ([`pingcal_report::ReportData`]) from the pipeline's results.
 
-use super::bundle::{problem_point, Adjusted};
-use super::detect::ImageDetections;
-use super::extrinsic::Extrinsics;
-use super::lrf::LrfData;
+use super::bundle::problem_point;
 use super::results::Results;
-use super::{Model, PointKind, Reporter};
-use pingcal_project::Project;
+use super::{PointKind, Reporter, Stages};
 use pingcal_report as rp;
 
 /// Most cloud points drawn in the report (an even subsample).
@@ -30,17 +26,9 @@ fn check_rows(rows: &[pingcal_lrf::registration::CheckRow], role: &str) -> Vec<r
 }
 
 /// Builds the report data.
-#[allow(clippy::too_many_arguments)]
-pub fn build(
-    project: &Project,
-    dets: &[ImageDetections],
-    model: &Model,
-    adj: &Adjusted,
-    lrf: &LrfData,
-    ext: &Extrinsics,
-    results: &Results,
-    rep: &Reporter,
-) -> rp::ReportData {
+pub fn build(st: &Stages, results: &Results, rep: &Reporter) -> rp::ReportData {
+    let (project, dets, model, adj, lrf, ext) =
+        (st.project, st.dets, st.model, st.adjusted, st.lrf, st.ext);
     let f = &project.file;
     let p = &adj.problem;
     // image residuals

@@ -10,10 +10,9 @@
 //! counterpart: `opencv_dropped_b2` says how large it was.
 
 use super::bundle::{problem_point, Adjusted};
-use super::detect::ImageDetections;
 use super::extrinsic::Extrinsics;
 use super::lrf::LrfData;
-use super::{Model, Outcome, PointKind, Reporter};
+use super::{Model, Outcome, PointKind, Reporter, Stages};
 use nalgebra::Matrix3;
 use pingcal_ba::rotation::to_opk;
 use pingcal_lrf::registration::{CheckRow, Transform};
@@ -354,16 +353,8 @@ fn sigma3(m: &Option<Matrix3<f64>>) -> [f64; 3] {
 }
 
 /// Puts everything together.
-pub fn assemble(
-    project: &Project,
-    dets: &[ImageDetections],
-    model: &Model,
-    adj: &Adjusted,
-    lrf: &LrfData,
-    ext: &Extrinsics,
-    rep: &Reporter,
-    time_s: Vec<(String, f64)>,
-) -> Outcome {
+pub fn assemble(st: &Stages, rep: &Reporter, time_s: Vec<(String, f64)>) -> Outcome {
+    let (project, model, adj, lrf, ext) = (st.project, st.model, st.adjusted, st.lrf, st.ext);
     let f = &project.file;
     let methods = methods(ext);
     let primary = methods
@@ -393,7 +384,7 @@ pub fn assemble(
             targets.push((p.name.clone(), p.kind.as_str().to_string(), xyz, sig));
         }
     }
-    balls.sort_by(|a, b| natural(&a.id).cmp(&natural(&b.id)));
+    balls.sort_by_key(|b| natural(&b.id));
     let rig = adj.rig.map(|r| RigJson {
         rotation: mat(&r.rotation),
         translation_mm: [r.translation.x, r.translation.y, r.translation.z],
@@ -430,7 +421,7 @@ pub fn assemble(
         targets,
         time_s,
     };
-    let report = super::report::build(project, dets, model, adj, lrf, ext, &results, rep);
+    let report = super::report::build(st, &results, rep);
     let cloud_ply = cloud_ply(lrf, 0.5 * f.balls.diameter_mm);
     Outcome {
         results,
