@@ -9,7 +9,7 @@ thread count (cv2.setNumThreads; RAYON_NUM_THREADS for pingcal), 1 and 2 by defa
 Timing: the two programs are run alternately, `--reps` times each, and the best (shortest)
 time of each is reported, so that load from other jobs on the machine hits both alike.
 """
-import argparse, glob, json, os, subprocess, time
+import argparse, glob, json, os, resource, subprocess, time
 import numpy as np
 import cv2
 
@@ -118,33 +118,41 @@ def main():
         render_synthetic(syn, syn_truth)
     truth = np.loadtxt(syn_truth)
     panel = sorted(glob.glob(os.path.join(a.panel, "*.tif")))
-    base = " pingcal-base images/s | base speed-up |" if a.pingcal_base else ""
-    print("| image set | images | threads | pingcal images/s | OpenCV images/s | speed-up |" + base)
-    print("|---|---|---|---|---|---|" + ("---|---|" if a.pingcal_base else ""))
+    base = " pingcal-base images/s | base speed-up | base CPU ms/image |" if a.pingcal_base else ""
+    print("| image set | images | threads | pingcal images/s | OpenCV images/s | speed-up |"
+          " pingcal CPU ms/image | OpenCV CPU ms/image |" + base)
+    print("|---|---|---|---|---|---|---|---|" + ("---|---|---|" if a.pingcal_base else ""))
     rows = []
     for threads in [int(t) for t in a.threads.split(",")]:
         cv2.setNumThreads(threads)
         env = dict(os.environ, RAYON_NUM_THREADS=str(threads))
         for name, files in [("real AICON panel (2000x1333)", panel), ("synthetic 24 MP (6000x4000)", [syn])]:
             if not files:
-                print(f"| {name} | 0 (data absent) | | | | |")
+                print(f"| {name} | 0 (data absent) | | | | | | |")
                 continue
             out = os.path.join(a.work, "pingcal.json")
             tp, to, tb = float("inf"), float("inf"), float("inf")
+            cp, co, cb = float("inf"), float("inf"), float("inf")  # CPU seconds (user + sys)
+
+            def child_cpu():
+                r = resource.getrusage(resource.RUSAGE_CHILDREN)
+                return r.ru_utime + r.ru_stime
+
             for _ in range(a.reps):
                 if a.pingcal_base:
-                    t0 = time.perf_counter()
+                    t0, c0 = time.perf_counter(), child_cpu()
                     subprocess.run([a.pingcal_base, out + ".base"] + files, check=True, env=env)
-                    tb = min(tb, time.perf_counter() - t0)
-                t0 = time.perf_counter()
+                    tb, cb = min(tb, time.perf_counter() - t0), min(cb, child_cpu() - c0)
+                t0, c0 = time.perf_counter(), child_cpu()
                 subprocess.run([a.pingcal, out] + files, check=True, env=env)
-                tp = min(tp, time.perf_counter() - t0)
-                t0 = time.perf_counter()
+                tp, cp = min(tp, time.perf_counter() - t0), min(cp, child_cpu() - c0)
+                t0, c0 = time.perf_counter(), time.process_time()
                 oc = [opencv_detect(f) for f in files]
-                to = min(to, time.perf_counter() - t0)
+                to, co = min(to, time.perf_counter() - t0), min(co, time.process_time() - c0)
             res = json.load(open(out))
             print(f"| {name} | {len(files)} | {threads} | {len(files) / tp:.2f} | {len(files) / to:.2f} | {to / tp:.2f}x |"
-                  + (f" {len(files) / tb:.2f} | {to / tb:.2f}x |" if a.pingcal_base else ""), flush=True)
+                  f" {1e3 * cp / len(files):.1f} | {1e3 * co / len(files):.1f} |"
+                  + (f" {len(files) / tb:.2f} | {to / tb:.2f}x | {1e3 * cb / len(files):.1f} |" if a.pingcal_base else ""), flush=True)
             rows.append((name, res, oc))
     print()
     print("Centre accuracy on the synthetic image (%d ellipses, truth known; matched within 2 px):" % len(truth))

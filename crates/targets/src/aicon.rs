@@ -263,7 +263,7 @@ mod tests {
 
     #[test]
     fn rotation_and_reversal() {
-        assert_eq!(min_rotation(0b1000_0000_0000_01, 14), 0b11);
+        assert_eq!(min_rotation(0b10_0000_0000_0001, 14), 0b11);
         assert_eq!(reverse_bits(0b0011, 4), 0b1100);
         for v in [5u32, 129, 1234, 9999] {
             let m = min_rotation(v, 14);

@@ -323,6 +323,26 @@ pub fn fit_ellipse(points: &[(f64, f64)]) -> Option<Ellipse> {
     Ellipse::from_conic([aa, bb, cc, dd, ee, ff])
 }
 
+/// cos and sin of i·2π/k for i in 0..k (the sampling angles of rays and rings), computed once
+/// per `k` up to 256 and shared; larger `k` are computed on the spot.
+pub(crate) fn unit_circle(k: usize) -> std::borrow::Cow<'static, [(f64, f64)]> {
+    const MAX_CACHED: usize = 256;
+    fn angles(k: usize) -> Vec<(f64, f64)> {
+        (0..k)
+            .map(|i| {
+                let psi = i as f64 * 2.0 * std::f64::consts::PI / k as f64;
+                (psi.cos(), psi.sin())
+            })
+            .collect()
+    }
+    static TABLES: std::sync::OnceLock<Vec<Vec<(f64, f64)>>> = std::sync::OnceLock::new();
+    if k > MAX_CACHED {
+        return std::borrow::Cow::Owned(angles(k));
+    }
+    let t = TABLES.get_or_init(|| (0..=MAX_CACHED).map(angles).collect());
+    std::borrow::Cow::Borrowed(&t[k])
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -372,24 +392,4 @@ mod tests {
         let e = Ellipse::from_moments(0.0, 0.0, 25.0 / 4.0, 0.0, 4.0 / 4.0).unwrap();
         assert!((e.a - 5.0).abs() < 1e-12 && (e.b - 2.0).abs() < 1e-12);
     }
-}
-
-/// cos and sin of i·2π/k for i in 0..k (the sampling angles of rays and rings), computed once
-/// per `k` up to 256 and shared; larger `k` are computed on the spot.
-pub(crate) fn unit_circle(k: usize) -> std::borrow::Cow<'static, [(f64, f64)]> {
-    const MAX_CACHED: usize = 256;
-    fn angles(k: usize) -> Vec<(f64, f64)> {
-        (0..k)
-            .map(|i| {
-                let psi = i as f64 * 2.0 * std::f64::consts::PI / k as f64;
-                (psi.cos(), psi.sin())
-            })
-            .collect()
-    }
-    static TABLES: std::sync::OnceLock<Vec<Vec<(f64, f64)>>> = std::sync::OnceLock::new();
-    if k > MAX_CACHED {
-        return std::borrow::Cow::Owned(angles(k));
-    }
-    let t = TABLES.get_or_init(|| (0..=MAX_CACHED).map(angles).collect());
-    std::borrow::Cow::Borrowed(&t[k])
 }

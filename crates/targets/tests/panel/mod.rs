@@ -32,6 +32,7 @@ pub fn reference() -> Option<HashMap<u32, [f64; 3]>> {
 
 /// The reference coordinates and the sorted TIFF images of the panel, or `None` (with the
 /// reason printed) when the data is absent and the calling test should skip.
+#[allow(clippy::type_complexity)]
 pub fn panel() -> Option<(HashMap<u32, [f64; 3]>, Vec<PathBuf>)> {
     let Some(refs) = reference() else {
         println!("SKIP: {DATA} not found (real AICON panel data absent)");
