@@ -194,41 +194,45 @@ impl Scene {
 }
 
 /// The paper-like test field: a room corner (two walls and the floor) seen from the LRF,
-/// with `n_balls` 38 mm balls on stems in front of the walls, between about 0.7 and 1.5 m
-/// (the paper's balls are 0.85–1.35 m from the LRF). Wall 1 is the plane x = −800, wall 2
-/// the plane y = 1600 (in front of the sensor: +Y is the servo shaft, the beam α = 90°), the
-/// floor z = −600.
+/// with `n_balls` 38 mm balls on stems 60–120 mm out from the walls and the floor, every ball
+/// 0.85–1.35 m from the LRF as in the paper, clear of the other two surfaces by at least
+/// 40 mm and 150 mm from every other ball, and where a half sweep (servo −90…90°) sees it.
+/// Wall 1 is the plane x = −450, wall 2 the plane y = 1200 (in front of the sensor: +Y is
+/// the servo shaft, the beam α = 90°), the floor z = −600.
 pub fn room_corner_scene<R: Rng>(n_balls: usize, rng: &mut R) -> Scene {
-    let (x0, y0, z0) = (800.0, 1600.0, 600.0);
+    let (x0, y0, z0) = (450.0, 1200.0, 600.0);
     let planes = vec![
         (Vector3::new(1.0, 0.0, 0.0), -x0),
         (Vector3::new(0.0, 1.0, 0.0), y0),
         (Vector3::new(0.0, 0.0, 1.0), -z0),
     ];
     let radius = 19.0;
+    let clear = radius + 40.0;
     let mut balls: Vec<Vector3<f64>> = Vec::new();
     while balls.len() < n_balls {
-        // on a stem 60–120 mm out from a wall (or the floor)
         let stem = rng.random_range(60.0..120.0);
-        let which = rng.random_range(0..3);
-        let c = match which {
+        let c = match rng.random_range(0..3) {
             0 => Vector3::new(
                 -x0 + stem + radius,
-                rng.random_range(800.0..2000.0),
-                rng.random_range(-600.0..500.0),
+                rng.random_range(300.0..y0 - clear),
+                rng.random_range(-z0 + clear..600.0),
             ),
             1 => Vector3::new(
-                rng.random_range(-800.0..800.0),
+                rng.random_range(-x0 + clear..700.0),
                 y0 - stem - radius,
-                rng.random_range(-600.0..500.0),
+                rng.random_range(-z0 + clear..600.0),
             ),
             _ => Vector3::new(
-                rng.random_range(-800.0..800.0),
-                rng.random_range(800.0..2000.0),
+                rng.random_range(-x0 + clear..700.0),
+                rng.random_range(300.0..y0 - clear),
                 -z0 + stem + radius,
             ),
         };
-        if balls.iter().all(|b| (b - c).norm() > 150.0) {
+        let range = c.norm();
+        // seen by a half sweep (servo −90…90°, beams −120…120°): x ≥ 0, or within 30° of +Y
+        let seen = c.x >= 0.0 || c.y >= 0.87 * range;
+        if seen && (850.0..=1350.0).contains(&range) && balls.iter().all(|b| (b - c).norm() > 150.0)
+        {
             balls.push(c);
         }
     }
