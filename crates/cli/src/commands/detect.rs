@@ -41,19 +41,31 @@ pub fn run(args: Args) -> CmdResult {
         std::fs::create_dir_all(dir)
             .map_err(|e| format!("{}: cannot create folder: {e}", dir.display()))?;
     }
+    // without overlays, images are decoded and measured in parallel (decoding of one
+    // overlaps detection in others); overlays need each image kept, one at a time
+    let detections: Vec<pingcal_targets::ImageDetections> = match &args.debug {
+        None => pingcal_targets::detect_files(&args.images, &det)
+            .into_iter()
+            .collect::<Result<_, _>>()?,
+        Some(dir) => {
+            let mut v = Vec::with_capacity(args.images.len());
+            for path in &args.images {
+                let img = load_image(path)?;
+                let d = det.detect(&img);
+                let stem = path
+                    .file_stem()
+                    .map(|s| s.to_string_lossy().into_owned())
+                    .unwrap_or_else(|| "image".into());
+                let out = dir.join(format!("{stem}.overlay.png"));
+                pingcal_targets::overlay::draw_detections(&img, &d).save(&out)?;
+                v.push(d);
+            }
+            v
+        }
+    };
     let mut images = Vec::new();
     let (mut n_coded, mut n_ids, mut n_plain, mut n_balls) = (0, 0, 0, 0);
-    for path in &args.images {
-        let img = load_image(path)?;
-        let d = det.detect(&img);
-        if let Some(dir) = &args.debug {
-            let stem = path
-                .file_stem()
-                .map(|s| s.to_string_lossy().into_owned())
-                .unwrap_or_else(|| "image".into());
-            let out = dir.join(format!("{stem}.overlay.png"));
-            pingcal_targets::overlay::draw_detections(&img, &d).save(&out)?;
-        }
+    for (path, d) in args.images.iter().zip(&detections) {
         let targets: Vec<serde_json::Value> = d
             .targets
             .iter()
