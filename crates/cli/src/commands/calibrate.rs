@@ -103,10 +103,15 @@ pub fn summary_line(path: &Path, dir: &Path, o: &Outcome, secs: f64) -> String {
     for m in &r.methods {
         match (m.mean_check_error_mm, &m.error) {
             (Some(e), _) => methods.push(format!(
-                "{} {:.2} mm on {} check balls",
+                "{} {:.2} mm on {} {}",
                 m.method,
                 e,
-                m.check_points.len()
+                m.check_points.len(),
+                match m.check_points_source.as_str() {
+                    "leave_one_out" => "balls left out one at a time",
+                    "all_balls" => "balls",
+                    _ => "check balls",
+                }
             )),
             (None, Some(_)) => methods.push(format!("{} failed", m.method)),
             _ => {}

@@ -9,7 +9,8 @@
 //!    meet within [`TOL_PX`] (reprojected) in front of both cameras give a candidate point;
 //!    its support is the number of other oriented images with an unused blob within
 //!    [`TOL_PX`] of its projection. Candidates are taken greedily, best supported first;
-//!    a point needs [`MIN_RAYS`] rays, and is intersected again from all of them.
+//!    a point needs [`MIN_RAYS`] rays ([`MIN_RAYS_NUMBERED`] for a coded target whose
+//!    number was read), and is intersected again from all of them.
 //! 3. **Balls or targets**: a blob's size in millimetres is its semi-major axis in pixels
 //!    times depth over principal distance; the median over its images decides: nearer the
 //!    ball diameter than the target dot diameter → a ball.
@@ -32,6 +33,9 @@ use pingcal_targets::{Target, TargetKind};
 pub const TOL_PX: f64 = 2.0;
 /// Fewest rays of a new point.
 pub const MIN_RAYS: usize = 3;
+/// Fewest rays of a new coded target whose number one of its detections read: the number
+/// already says which target it is, so one more ray on its epipolar line suffices.
+pub const MIN_RAYS_NUMBERED: usize = 2;
 
 /// The camera models of the project (one per camera, in project order).
 pub fn models(project: &Project) -> Vec<PhotogrammetricCamera> {
@@ -260,7 +264,13 @@ pub fn new_points(
                             }
                         }
                     }
-                    if support >= MIN_RAYS {
+                    let numbered = ta.id.is_some() || tb.id.is_some();
+                    let needed = if numbered {
+                        MIN_RAYS_NUMBERED
+                    } else {
+                        MIN_RAYS
+                    };
+                    if support >= needed {
                         let rms = ((ra_px * ra_px + rb_px * rb_px) / 2.0).sqrt();
                         cands.push((support, rms, a, *ka, b, *kb, x));
                     }
@@ -295,15 +305,20 @@ pub fn new_points(
                 }
             }
         }
-        if obs.len() < MIN_RAYS {
-            continue;
-        }
         let mut numbers: Vec<u32> = obs
             .iter()
             .filter_map(|&(i, k)| dets[i].targets[k].id)
             .collect();
         numbers.sort_unstable();
         numbers.dedup();
+        let needed = if numbers.is_empty() {
+            MIN_RAYS
+        } else {
+            MIN_RAYS_NUMBERED
+        };
+        if obs.len() < needed {
+            continue;
+        }
         if numbers.len() > 1
             || numbers
                 .iter()
