@@ -160,10 +160,14 @@ pub struct BallJson {
     pub photogrammetric_mm: [f64; 3],
     /// Its σ (mm).
     pub photogrammetric_sigma_mm: [f64; 3],
+    /// Its covariance (mm², row-major), from the bundle adjustment.
+    pub photogrammetric_cov_mm2: [[f64; 3]; 3],
     /// Centre of the matched LRF sphere (mm), if any.
     pub lrf_mm: Option<[f64; 3]>,
     /// Its σ (mm).
     pub lrf_sigma_mm: Option<[f64; 3]>,
+    /// Its covariance (mm², row-major), from the sphere fit.
+    pub lrf_cov_mm2: Option<[[f64; 3]; 3]>,
     /// Images measuring the ball.
     pub rays: usize,
 }
@@ -376,8 +380,12 @@ pub fn assemble(st: &Stages, rep: &Reporter, time_s: Vec<(String, f64)>) -> Outc
                 check: ext.check_ids.contains(&p.name),
                 photogrammetric_mm: xyz,
                 photogrammetric_sigma_mm: sig,
+                photogrammetric_cov_mm2: adj.precision.point_covariances[k]
+                    .map(|c| mat(&c))
+                    .unwrap_or([[f64::NAN; 3]; 3]),
                 lrf_mm: l.map(|l| [l.xyz.x, l.xyz.y, l.xyz.z]),
                 lrf_sigma_mm: l.map(|l| sigma3(&Some(l.cov))),
+                lrf_cov_mm2: l.map(|l| mat(&l.cov)),
                 rays: p.obs.len(),
             });
         } else {
