@@ -16,6 +16,7 @@ for r in $(seq 1 "$runs"); do
   read -r wall rss <"$log.time"
   split=$(grep -o 'simulated in [0-9.]* s, calibrated in [0-9.]* s' "$log")
   steps=$(grep -o 'time: .*' "$log.err" | head -1)
-  echo "run $r: wall ${wall} s, peak RSS $((rss / 1024)) MiB; $split; $steps"
+  sim=$(grep -o '(scene and LRF sweep [^)]*)' "$log.err" | head -1)
+  echo "run $r: wall ${wall} s, peak RSS $((rss / 1024)) MiB; $split; simulation $sim; calibration $steps"
   rm -f "$log" "$log.time" "$log.err"
 done
