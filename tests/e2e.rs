@@ -8,7 +8,7 @@
 #[path = "e2e/common.rs"]
 mod common;
 
-use common::{assert_clean_failure, read_json, replace_once, Work, OUTPUTS};
+use common::{read_json, replace_once, Work, OUTPUTS};
 use serde_json::Value;
 use std::fs;
 use std::path::Path;
@@ -283,15 +283,7 @@ fn missing_image() {
     let w = Work::new("missing_image");
     let p = w.project("project");
     fs::remove_file(p.join("images/S03_left.png")).unwrap();
-    let out = w.dir.join("out");
-    let run = w.run(&[
-        "calibrate",
-        s(&p.join("project.toml")),
-        "--out",
-        s(&out),
-        "--quiet",
-    ]);
-    assert_clean_failure(&run, &out, &["S03_left.png"]);
+    w.calibrate_fails(&p, &["S03_left.png"]);
 }
 
 /// A missing scan: named.
@@ -300,15 +292,7 @@ fn missing_scan() {
     let w = Work::new("missing_scan");
     let p = w.project("project");
     fs::remove_file(p.join("scans/S00.csv")).unwrap();
-    let out = w.dir.join("out");
-    let run = w.run(&[
-        "calibrate",
-        s(&p.join("project.toml")),
-        "--out",
-        s(&out),
-        "--quiet",
-    ]);
-    assert_clean_failure(&run, &out, &["S00.csv"]);
+    w.calibrate_fails(&p, &["S00.csv"]);
 }
 
 /// An image of the wrong size for its camera: both sizes and the image named.
@@ -317,16 +301,8 @@ fn image_of_the_wrong_size() {
     let w = Work::new("image_of_the_wrong_size");
     let p = w.project("project");
     fs::write(p.join("images/S02_right.png"), common::gray_png(640, 480)).unwrap();
-    let out = w.dir.join("out");
-    let run = w.run(&[
-        "calibrate",
-        s(&p.join("project.toml")),
-        "--out",
-        s(&out),
-        "--quiet",
-    ]);
     // the detect step prints sizes as W×H (crates/cli/src/pipeline/detect.rs)
-    assert_clean_failure(&run, &out, &["S02_right.png", "640×480", "1280×720"]);
+    w.calibrate_fails(&p, &["S02_right.png", "640×480", "1280×720"]);
 }
 
 /// A truncated image: named, no panic.
@@ -337,15 +313,7 @@ fn corrupt_image() {
     let f = p.join("images/S04_left.png");
     let bytes = fs::read(&f).unwrap();
     fs::write(&f, &bytes[..5000]).unwrap();
-    let out = w.dir.join("out");
-    let run = w.run(&[
-        "calibrate",
-        s(&p.join("project.toml")),
-        "--out",
-        s(&out),
-        "--quiet",
-    ]);
-    assert_clean_failure(&run, &out, &["S04_left.png"]);
+    w.calibrate_fails(&p, &["S04_left.png"]);
 }
 
 /// A scan line that is not numbers: the file and the line named.
@@ -361,15 +329,7 @@ fn malformed_scan_line() {
     let (_servo, ranges) = rest.split_once(',').expect("a scan line");
     lines[99] = format!("{stamp},forty-five,{ranges}");
     fs::write(&f, lines.join("\n") + "\n").unwrap();
-    let out = w.dir.join("out");
-    let run = w.run(&[
-        "calibrate",
-        s(&p.join("project.toml")),
-        "--out",
-        s(&out),
-        "--quiet",
-    ]);
-    assert_clean_failure(&run, &out, &["S00.csv", "100"]);
+    w.calibrate_fails(&p, &["S00.csv", "100"]);
 }
 
 /// A distance to a target no image shows: the target named.
@@ -383,9 +343,7 @@ fn distance_to_an_unseen_target() {
     // From 8 (an end of a simulated distance, so seen) to 999 (not in the test field).
     text.push_str("\n[[distances]]\nfrom = 8\nto = 999\ndistance_mm = 500.0\nsigma_mm = 0.1\n");
     fs::write(&toml, text).unwrap();
-    let out = w.dir.join("out");
-    let run = w.run(&["calibrate", s(&toml), "--out", s(&out), "--quiet"]);
-    let err = assert_clean_failure(&run, &out, &["999"]);
+    let err = w.calibrate_fails(&p, &["999"]);
     eprintln!("{err}");
 }
 
@@ -399,15 +357,7 @@ fn fewer_than_three_balls_seen_by_both_sensors() {
     let head: Vec<&str> = text.lines().take(36).collect(); // 6 header lines + 30 scans
     assert!(head[35].split(',').count() > 100, "line 36 is a scan");
     fs::write(&f, head.join("\n") + "\n").unwrap();
-    let out = w.dir.join("out");
-    let run = w.run(&[
-        "calibrate",
-        s(&p.join("project.toml")),
-        "--out",
-        s(&out),
-        "--quiet",
-    ]);
-    let err = assert_clean_failure(&run, &out, &["balls", "at least 3", "S00.csv"]);
+    let err = w.calibrate_fails(&p, &["balls", "at least 3", "S00.csv"]);
     eprintln!("{err}");
 }
 
@@ -431,9 +381,7 @@ fn main_station_not_in_the_images() {
         ),
     )
     .unwrap();
-    let out = w.dir.join("out");
-    let run = w.run(&["calibrate", s(&toml), "--out", s(&out), "--quiet"]);
-    assert_clean_failure(&run, &out, &["S99", "main_station"]);
+    w.calibrate_fails(&p, &["S99", "main_station"]);
 }
 
 /// A value of the wrong type in project.toml: the file and the line named.
@@ -448,9 +396,7 @@ fn project_file_syntax_error() {
         .position(|l| l == "width = 1280")
         .expect("a camera width");
     fs::write(&toml, text.replacen("width = 1280", "width = \"wide\"", 1)).unwrap();
-    let out = w.dir.join("out");
-    let run = w.run(&["calibrate", s(&toml), "--out", s(&out), "--quiet"]);
-    assert_clean_failure(&run, &out, &["project.toml", &format!("line {line}")]);
+    w.calibrate_fails(&p, &["project.toml", &format!("line {line}")]);
 }
 
 /// Two projects in one run, one broken: the good one is written, the bad one reported,

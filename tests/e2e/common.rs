@@ -134,6 +134,21 @@ impl Work {
     }
 
     /// `pingcal ARGS` with stdout and stderr captured in files of this folder.
+    /// Runs `pingcal calibrate PROJECT/project.toml --out DIR/out --quiet`, which must fail
+    /// cleanly naming every needle (see [`assert_clean_failure`]); returns the error line.
+    pub fn calibrate_fails(&self, project: &Path, needles: &[&str]) -> String {
+        let out = self.dir.join("out");
+        let toml = project.join("project.toml");
+        let run = self.run(&[
+            "calibrate",
+            toml.to_str().expect("UTF-8 path"),
+            "--out",
+            out.to_str().expect("UTF-8 path"),
+            "--quiet",
+        ]);
+        assert_clean_failure(&run, &out, needles)
+    }
+
     pub fn run(&self, args: &[&str]) -> Run {
         run(args, &self.dir)
     }

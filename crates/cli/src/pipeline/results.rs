@@ -16,7 +16,7 @@ use super::{Model, Outcome, PointKind, Reporter, Stages};
 use nalgebra::Matrix3;
 use pingcal_ba::rotation::to_opk;
 use pingcal_lrf::registration::{CheckRow, Transform};
-use pingcal_project::Project;
+use pingcal_project::{CameraParams, Project};
 use serde::Serialize;
 
 /// The extrinsic as `results.json` writes it.
@@ -104,26 +104,9 @@ pub struct RigJson {
 pub struct CameraJson {
     /// Camera id.
     pub id: String,
-    /// c (mm).
-    pub c_mm: f64,
-    /// xp (mm).
-    pub xp_mm: f64,
-    /// yp (mm).
-    pub yp_mm: f64,
-    /// K1 (mm⁻²).
-    pub k1: f64,
-    /// K2 (mm⁻⁴).
-    pub k2: f64,
-    /// K3 (mm⁻⁶).
-    pub k3: f64,
-    /// P1 (mm⁻¹).
-    pub p1: f64,
-    /// P2 (mm⁻¹).
-    pub p2: f64,
-    /// B1.
-    pub b1: f64,
-    /// B2.
-    pub b2: f64,
+    /// The ten parameters (`c_mm`, `xp_mm`, `yp_mm`, `k1` … `b2`, SPEC.md units).
+    #[serde(flatten)]
+    pub params: CameraParams,
     /// σ of each parameter, by name (free parameters only; fixed ones are absent).
     pub sigma: std::collections::BTreeMap<String, f64>,
     /// Pairs of parameters correlated beyond 0.9.
@@ -333,16 +316,7 @@ fn camera_json(project: &Project, model: &Model, adj: &Adjusted, c: usize) -> Ca
     let ps = cam.pixel_size_mm;
     CameraJson {
         id: cam.id.clone(),
-        c_mm: p[0],
-        xp_mm: p[1],
-        yp_mm: p[2],
-        k1: p[3],
-        k2: p[4],
-        k3: p[5],
-        p1: p[6],
-        p2: p[7],
-        b1: p[8],
-        b2: p[9],
+        params: CameraParams::from_slice(p.as_slice().try_into().expect("ten parameters")),
         sigma,
         high_correlations: high,
         opencv: opencv_of(p, cam.width, cam.height, ps),
