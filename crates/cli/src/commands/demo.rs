@@ -92,7 +92,7 @@ fn print_table(r: &pipeline::results::Results, truth: &pingcal_sim::Truth) {
     let mut header = format!("{:<6}", "ball");
     for m in &r.methods {
         header += &format!(
-            " | {:^31}",
+            " | {:^29}",
             if m.method == "spheres" {
                 "spheres (this method)"
             } else {
@@ -106,7 +106,7 @@ fn print_table(r: &pipeline::results::Results, truth: &pingcal_sim::Truth) {
     for _ in &r.methods {
         sub += &format!(" | {:>7}{:>7}{:>7}{:>8}", "dx", "dy", "dz", "error");
     }
-    sub += " |  error";
+    sub += &format!(" | {:>14}", "error");
     println!("{sub}");
     let ids: Vec<String> = r
         .methods
@@ -134,9 +134,9 @@ fn print_table(r: &pipeline::results::Results, truth: &pingcal_sim::Truth) {
             Some((l, p)) => {
                 let e = (true_t.transform(&Vector3::from(l)) - Vector3::from(p)).norm();
                 floor.push(e);
-                line += &format!(" | {e:>6.2}");
+                line += &format!(" | {e:>14.2}");
             }
-            None => line += " |      —",
+            None => line += &format!(" | {:>14}", "—"),
         }
         println!("{line}");
     }
@@ -153,7 +153,10 @@ fn print_table(r: &pipeline::results::Results, truth: &pingcal_sim::Truth) {
         }
     }
     if !floor.is_empty() {
-        mean += &format!(" | {:>6.2}", floor.iter().sum::<f64>() / floor.len() as f64);
+        mean += &format!(
+            " | {:>14.2}",
+            floor.iter().sum::<f64>() / floor.len() as f64
+        );
     }
     println!("{mean}");
     println!();
