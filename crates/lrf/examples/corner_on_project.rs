@@ -227,16 +227,7 @@ fn main() {
                 );
             }
             // points near each fitted line: distance to the true plane (clutter = far from it)
-            let pts: Vec<Vector2<f64>> = scan
-                .ranges_mm
-                .iter()
-                .enumerate()
-                .filter(|(_, r)| **r > 0.0)
-                .map(|(i, r)| {
-                    let a = header.beam_angle_deg(i).to_radians();
-                    Vector2::new(r * a.cos(), r * a.sin())
-                })
-                .collect();
+            let pts = pingcal_lrf::corner::scan_plane_points(&header, scan);
             for (li, l) in lines.iter().enumerate() {
                 let nrm = Vector2::new(-l.dir.y, l.dir.x);
                 let near: Vec<&Vector2<f64>> = pts

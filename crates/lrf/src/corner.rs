@@ -52,6 +52,19 @@ impl Line2 {
     }
 }
 
+/// The returns of one scan as points `(r cos α, r sin α)` in its scan plane (mm).
+pub fn scan_plane_points(header: &ScanHeader, scan: &ScanLine) -> Vec<Vector2<f64>> {
+    scan.ranges_mm
+        .iter()
+        .enumerate()
+        .filter(|(_, r)| **r > 0.0)
+        .map(|(i, r)| {
+            let a = header.beam_angle_deg(i).to_radians();
+            Vector2::new(r * a.cos(), r * a.sin())
+        })
+        .collect()
+}
+
 /// The three largest lines of one scan (points `(r cos α, r sin α)` in the scan plane);
 /// `tol_mm` is the inlier distance (3σ of the ranges).
 pub fn scan_lines(
@@ -60,16 +73,7 @@ pub fn scan_lines(
     tol_mm: f64,
     seed: u64,
 ) -> Result<[Line2; 3]> {
-    let mut pts: Vec<Vector2<f64>> = scan
-        .ranges_mm
-        .iter()
-        .enumerate()
-        .filter(|(_, r)| **r > 0.0)
-        .map(|(i, r)| {
-            let a = header.beam_angle_deg(i).to_radians();
-            Vector2::new(r * a.cos(), r * a.sin())
-        })
-        .collect();
+    let mut pts = scan_plane_points(header, scan);
     let mut rng = StdRng::seed_from_u64(seed);
     let mut lines = Vec::new();
     while lines.len() < 3 && pts.len() >= 10 {

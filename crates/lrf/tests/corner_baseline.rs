@@ -27,6 +27,24 @@ struct Field {
     corner_in_camera: Transform,
 }
 
+/// The default mount (eq. 2), shared by every input.
+static MOUNT: std::sync::LazyLock<MountModel> = std::sync::LazyLock::new(MountModel::default);
+
+impl Field {
+    /// The baseline's input for this field, URG-04LX header and σ 10 mm.
+    fn input(&self, seed: u64) -> BaselineInput<'_> {
+        BaselineInput {
+            header: &ScanHeader::URG_04LX,
+            scans: &self.scans,
+            mount: &MOUNT,
+            range_sigma_mm: 10.0,
+            targets: &self.targets,
+            main_image: &self.image,
+            seed,
+        }
+    }
+}
+
 /// The room corner (walls x = 0, y = 0, floor z = 0 in the corner frame), ~70 targets, the
 /// camera at (1150, 1100, 700) looking at (250, 230, 520), the LRF rigidly offset from it.
 fn field(seed: u64, with_floor: bool) -> Field {
@@ -128,15 +146,7 @@ fn field(seed: u64, with_floor: bool) -> Field {
 /// (translation error mm, rotation error deg, mean error at the targets mm) of one seed.
 fn run(seed: u64) -> (f64, f64, f64) {
     let f = field(seed, true);
-    let input = BaselineInput {
-        header: &ScanHeader::URG_04LX,
-        scans: &f.scans,
-        mount: &MountModel::default(),
-        range_sigma_mm: 10.0,
-        targets: &f.targets,
-        main_image: &f.image,
-        seed,
-    };
+    let input = f.input(seed);
     let r = fan_baseline(&input).unwrap_or_else(|e| panic!("seed {seed}: {e}"));
     assert_eq!(r.face_sizes.iter().sum::<usize>(), f.targets.len());
     // the corner frame from the target planes is nearly exact (0.3 mm target noise)
@@ -231,15 +241,7 @@ fn sixty_seeds() {
 #[test]
 fn targets_on_two_planes_are_an_error_naming_the_planes() {
     let f = field(3, false);
-    let input = BaselineInput {
-        header: &ScanHeader::URG_04LX,
-        scans: &f.scans,
-        mount: &MountModel::default(),
-        range_sigma_mm: 10.0,
-        targets: &f.targets,
-        main_image: &f.image,
-        seed: 3,
-    };
+    let input = f.input(3);
     let e = fan_baseline(&input).unwrap_err().to_string();
     println!("{e}");
     assert!(e.contains("only 2 plane(s)"), "{e}");
