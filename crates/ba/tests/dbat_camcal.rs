@@ -59,16 +59,11 @@ fn data_dir() -> PathBuf {
     ))
 }
 
-/// The adjusted network (None when the data set is absent), with the solver summary and
-/// the number of iterations of the initialiser's bundle adjustments.
-fn adjusted(
-    control_file: &str,
-) -> Option<(
-    pingcal_ba::problem::Problem,
-    pingcal_ba::solver::Summary,
-    DbatCamera,
-    usize,
-)> {
+/// DBAT's measurements with the control points of `control_file`, in millimetres, with the
+/// camera self-calibrating what DBAT's camcal demo frees (c, xp, yp, K1–K3, P1, P2 and B1 as
+/// DBAT's aspect; B2, DBAT's skew, fixed); None, with the skip printed, when the shared data
+/// set is absent.
+fn dbat_measurements(control_file: &str) -> Option<pingcal_ba::io::measurements::Measurements> {
     let dir = data_dir();
     let marks = dir.join("measurements/markpts.txt");
     let control = dir.join("reference").join(control_file);
@@ -79,13 +74,26 @@ fn adjusted(
         );
         return None;
     }
-    let camera = DbatCamera::c4040z();
     // DBAT's object unit is the metre; pingcal's is the millimetre.
-    let mut meas = read_dbat(&marks, &control, &camera, 1000.0).expect("DBAT files");
-    // Self-calibrate c, xp, yp, K1–K3, P1, P2 and B1 (DBAT's aspect); B2 (DBAT's skew) fixed.
+    let mut meas = read_dbat(&marks, &control, &DbatCamera::c4040z(), 1000.0).expect("DBAT files");
     meas.cameras[0].calibrate = ["c", "xp", "yp", "K1", "K2", "K3", "P1", "P2", "B1"]
         .map(String::from)
         .to_vec();
+    Some(meas)
+}
+
+/// The adjusted network (None when the data set is absent), with the solver summary and
+/// the number of iterations of the initialiser's bundle adjustments.
+fn adjusted(
+    control_file: &str,
+) -> Option<(
+    pingcal_ba::problem::Problem,
+    pingcal_ba::solver::Summary,
+    DbatCamera,
+    usize,
+)> {
+    let camera = DbatCamera::c4040z();
+    let meas = dbat_measurements(control_file)?;
     let built = meas.to_problem().expect("a valid problem");
     assert!(built.warnings.is_empty(), "{:?}", built.warnings);
     let problem = &built.problem;
@@ -498,21 +506,9 @@ fn weighted_control_variant() {
 /// similarity; the final adjustment is the same as in the main test.
 #[test]
 fn from_a_relative_orientation_of_a_flat_sheet() {
-    let dir = data_dir();
-    let marks = dir.join("measurements/markpts.txt");
-    let control = dir.join("reference/camcal-fixed.txt");
-    if !marks.exists() || !control.exists() {
-        println!(
-            "skipped: DBAT's camcal data set not found at {}",
-            dir.display()
-        );
+    let Some(meas) = dbat_measurements("camcal-fixed.txt") else {
         return;
-    }
-    let camera = DbatCamera::c4040z();
-    let mut meas = read_dbat(&marks, &control, &camera, 1000.0).expect("DBAT files");
-    meas.cameras[0].calibrate = ["c", "xp", "yp", "K1", "K2", "K3", "P1", "P2", "B1"]
-        .map(String::from)
-        .to_vec();
+    };
     let built = meas.to_problem().expect("a valid problem");
     let options = IncrementalOptions {
         resect_from_control: false,
@@ -578,17 +574,9 @@ fn from_a_relative_orientation_of_a_flat_sheet() {
 /// problem (what `pingcal ba FILE` would read).
 #[test]
 fn dbat_data_round_trip_through_the_measurement_file() {
-    let dir = data_dir();
-    let marks = dir.join("measurements/markpts.txt");
-    let control = dir.join("reference/camcal-weighted.txt");
-    if !marks.exists() || !control.exists() {
-        println!(
-            "skipped: DBAT's camcal data set not found at {}",
-            dir.display()
-        );
+    let Some(meas) = dbat_measurements("camcal-weighted.txt") else {
         return;
-    }
-    let meas = read_dbat(&marks, &control, &DbatCamera::c4040z(), 1000.0).unwrap();
+    };
     let text = meas.to_json();
     let back = pingcal_ba::io::measurements::Measurements::parse(&text, "dbat.json").unwrap();
     // (serde_json's default float parsing may differ from the written value in the last
