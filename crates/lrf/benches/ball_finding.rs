@@ -13,20 +13,13 @@ use std::io::Write;
 fn main() {
     let mut rng = rand::rngs::StdRng::seed_from_u64(42);
     let scene = room_corner_scene(16, &mut rng);
-    let n = 2150;
-    let servo: Vec<f64> = (0..n)
-        .map(|k| -90.0 + k as f64 * 180.0 / n as f64)
-        .collect();
-    let h = ScanHeader::URG_04LX;
-    let scans = scene.scan(
-        &h,
-        682,
-        &servo,
+    let scans = scene.half_sweep(2150, &UrgNoise::default(), &mut rng);
+    let cloud = Cloud::from_scans(
+        &ScanHeader::URG_04LX,
+        scans.into_iter().map(Ok),
         &MountModel::default(),
-        &UrgNoise::default(),
-        &mut rng,
-    );
-    let cloud = Cloud::from_scans(&h, scans.into_iter().map(Ok), &MountModel::default()).unwrap();
+    )
+    .unwrap();
     if let Ok(path) = std::env::var("PINGCAL_BENCH_XYZ") {
         let mut w = std::io::BufWriter::new(std::fs::File::create(&path).unwrap());
         for p in &cloud.points {

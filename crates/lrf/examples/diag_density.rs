@@ -13,19 +13,13 @@ fn main() {
     let seed: u64 = a.next().map(|s| s.parse().unwrap()).unwrap_or(42);
     let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
     let scene = room_corner_scene(nb, &mut rng);
-    let servo: Vec<f64> = (0..n)
-        .map(|k| -90.0 + k as f64 * 180.0 / n as f64)
-        .collect();
-    let h = ScanHeader::URG_04LX;
-    let scans = scene.scan(
-        &h,
-        682,
-        &servo,
+    let scans = scene.half_sweep(n, &UrgNoise::default(), &mut rng);
+    let cloud = Cloud::from_scans(
+        &ScanHeader::URG_04LX,
+        scans.into_iter().map(Ok),
         &MountModel::default(),
-        &UrgNoise::default(),
-        &mut rng,
-    );
-    let cloud = Cloud::from_scans(&h, scans.into_iter().map(Ok), &MountModel::default()).unwrap();
+    )
+    .unwrap();
     let t0 = std::time::Instant::now();
     let f = find_balls(&cloud, &FinderOptions::default());
     println!(

@@ -5,7 +5,6 @@
 //! writes OUT_DIR/sweep.csv, OUT_DIR/balls_lrf_true.txt (id x y z, LRF frame) and
 //! OUT_DIR/balls_camera.txt (the same balls under the paper's Table 1 transform).
 
-use pingcal_lrf::cloud::MountModel;
 use pingcal_lrf::registration::matrix_from_euler;
 use pingcal_lrf::scan::{write_scans, ScanHeader};
 use pingcal_lrf::simulate::{room_corner_scene, UrgNoise};
@@ -28,15 +27,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
     let scene = room_corner_scene(16, &mut rng);
     let n = (180.0 / step).round() as usize;
-    let servo: Vec<f64> = (0..n).map(|k| -90.0 + k as f64 * step).collect();
-    let scans = scene.scan(
-        &ScanHeader::URG_04LX,
-        682,
-        &servo,
-        &MountModel::default(),
-        &UrgNoise::default(),
-        &mut rng,
-    );
+    let scans = scene.half_sweep(n, &UrgNoise::default(), &mut rng);
     write_scans(
         std::io::BufWriter::new(std::fs::File::create(dir.join("sweep.csv"))?),
         &ScanHeader::URG_04LX,

@@ -191,6 +191,27 @@ impl Scene {
             })
             .collect()
     }
+
+    /// A URG-04LX half sweep with eq. 2's mount: `n_scans` scans at servo angles
+    /// −90° + k·180°/`n_scans`, 682 beams each.
+    pub fn half_sweep<R: Rng>(
+        &self,
+        n_scans: usize,
+        noise: &UrgNoise,
+        rng: &mut R,
+    ) -> Vec<ScanLine> {
+        let servo: Vec<f64> = (0..n_scans)
+            .map(|k| -90.0 + k as f64 * 180.0 / n_scans as f64)
+            .collect();
+        self.scan(
+            &ScanHeader::URG_04LX,
+            682,
+            &servo,
+            &MountModel::default(),
+            noise,
+            rng,
+        )
+    }
 }
 
 /// The paper-like test field: a room corner (two walls and the floor) seen from the LRF,

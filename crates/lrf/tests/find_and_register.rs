@@ -2,6 +2,8 @@
 //! back, balls found automatically, matched to "camera" balls without labels, registered
 //! with the paper's control/check split.
 
+mod common;
+
 use nalgebra::Vector3;
 use pingcal_lrf::ball_finder::{find_balls, FinderOptions};
 use pingcal_lrf::cloud::{read_cloud_file, MountModel};
@@ -17,16 +19,7 @@ fn simulated_room_end_to_end() {
     let mut rng = StdRng::seed_from_u64(42);
     let scene = room_corner_scene(16, &mut rng);
     let header = ScanHeader::URG_04LX;
-    let servo: Vec<f64> = (0..512).map(|k| -90.0 + k as f64 * 0.3515625).collect();
-    let noise = UrgNoise::default();
-    let scans = scene.scan(
-        &header,
-        682,
-        &servo,
-        &MountModel::default(),
-        &noise,
-        &mut rng,
-    );
+    let scans = scene.half_sweep(512, &UrgNoise::default(), &mut rng);
     let dir = std::env::temp_dir().join(format!("pingcal-lrf-test-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let file = dir.join("sweep.csv");
@@ -60,24 +53,7 @@ fn simulated_room_end_to_end() {
     }
     assert_eq!(found.planes.len(), 3, "two walls and the floor");
     // every found ball is a true ball, within 4σ of its fitted covariance (+0.5 mm model slack)
-    let mut hit = vec![false; scene.balls.len()];
-    for b in &found.balls {
-        let (k, d) = scene
-            .balls
-            .iter()
-            .enumerate()
-            .map(|(k, c)| (k, (c - b.centre).norm()))
-            .min_by(|a, b| a.1.total_cmp(&b.1))
-            .unwrap();
-        let sd = b.cov.symmetric_eigenvalues().max().sqrt();
-        println!(
-            "  ball {k}: range {:.0} mm, error {d:.2} mm, σmax {sd:.2}, {} rays",
-            b.range_mm,
-            b.inliers.len()
-        );
-        assert!(d < 4.0 * sd + 0.5, "ball {k} off by {d:.2} mm (σ {sd:.2})");
-        hit[k] = true;
-    }
+    let hit = common::assert_true_balls(&scene, &found, "simulated room");
     // balls within 1.2 m carry enough points at URG density (σ 10–12 mm, 30+ rays): all must be
     // found; farther ones may be reported as not determined (σ 14+ mm on a 19 mm ball)
     for (k, c) in scene.balls.iter().enumerate() {
