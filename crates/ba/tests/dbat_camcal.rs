@@ -59,6 +59,32 @@ fn data_dir() -> PathBuf {
     ))
 }
 
+/// Every image oriented and every point determined by the initialiser.
+fn assert_everything_determined(init: &pingcal_ba::initial::incremental::Initialised) {
+    assert!(
+        init.unoriented_images.is_empty(),
+        "{:?}",
+        init.unoriented_images
+    );
+    assert!(
+        init.undetermined_points.is_empty(),
+        "{:?}",
+        init.undetermined_points
+    );
+}
+
+/// Solver options that run the adjustment to convergence (tolerances 1e-12), so that σ0 and
+/// c are compared with DBAT's converged values.
+fn converged() -> Options {
+    Options {
+        max_iterations: 100,
+        function_tolerance: 1e-12,
+        gradient_tolerance: 1e-12,
+        parameter_tolerance: 1e-12,
+        ..Options::default()
+    }
+}
+
 /// DBAT's measurements with the control points of `control_file`, in millimetres, with the
 /// camera self-calibrating what DBAT's camcal demo frees (c, xp, yp, K1–K3, P1, P2 and B1 as
 /// DBAT's aspect; B2, DBAT's skew, fixed); None, with the skip printed, when the shared data
@@ -121,16 +147,7 @@ fn adjusted(
     for s in &init.steps {
         println!("  {s}");
     }
-    assert!(
-        init.unoriented_images.is_empty(),
-        "{:?}",
-        init.unoriented_images
-    );
-    assert!(
-        init.undetermined_points.is_empty(),
-        "{:?}",
-        init.undetermined_points
-    );
+    assert_everything_determined(&init);
     assert!(init
         .steps
         .iter()
@@ -139,18 +156,7 @@ fn adjusted(
     // The self-calibrating bundle adjustment itself.
     let mut p = init.problem.clone();
     assert_eq!(2 * p.observations.len(), DBAT_OBSERVATIONS);
-    let summary = solve(
-        &mut p,
-        &Options {
-            max_iterations: 100,
-            function_tolerance: 1e-12,
-            gradient_tolerance: 1e-12,
-            parameter_tolerance: 1e-12,
-            ..Options::default()
-        },
-        |_| {},
-    )
-    .expect("bundle adjustment");
+    let summary = solve(&mut p, &converged(), |_| {}).expect("bundle adjustment");
     let init_iterations = init
         .steps
         .iter()
@@ -538,31 +544,11 @@ fn from_a_relative_orientation_of_a_flat_sheet() {
         println!("  {s}");
     }
     assert!(matches!(init.steps[0], Step::RelativePair { .. }));
-    assert!(
-        init.unoriented_images.is_empty(),
-        "{:?}",
-        init.unoriented_images
-    );
-    assert!(
-        init.undetermined_points.is_empty(),
-        "{:?}",
-        init.undetermined_points
-    );
+    assert_everything_determined(&init);
     assert!(init.in_control_frame);
     let mut p = init.problem;
     assert_eq!(p.points.iter().filter(|x| x.fixed).count(), 4);
-    let summary = solve(
-        &mut p,
-        &Options {
-            max_iterations: 100,
-            function_tolerance: 1e-12,
-            gradient_tolerance: 1e-12,
-            parameter_tolerance: 1e-12,
-            ..Options::default()
-        },
-        |_| {},
-    )
-    .expect("bundle adjustment");
+    let summary = solve(&mut p, &converged(), |_| {}).expect("bundle adjustment");
     let sigma0 = (2.0 * summary.final_cost / DBAT_REDUNDANCY as f64).sqrt();
     let c = p.cameras[0].params[0];
     println!("from a relative start: σ0 {sigma0:.4}, c {c:.5} mm");
