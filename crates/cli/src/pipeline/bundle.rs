@@ -19,7 +19,7 @@ use nalgebra::Vector2;
 use pingcal_ba::camera::{CameraModel, PhotogrammetricCamera};
 use pingcal_ba::pose::Pose;
 use pingcal_ba::problem::{Distance, Image, Observation, Point, Problem, Rig, RigMember};
-use pingcal_ba::solver::{self, Precision, Rejection, Summary};
+use pingcal_ba::solver::{self, Precision, Rejection};
 use pingcal_project::Project;
 use pingcal_targets::ball::{sphere_centre_from_ellipse, FnCamera};
 
@@ -35,9 +35,9 @@ pub struct Adjusted {
     pub obs_map: Vec<(usize, usize, usize)>,
     /// Project image → image of `problem`.
     pub image_index: Vec<Option<usize>>,
-    /// Last adjustment.
-    pub summary: Summary,
-    /// Its precision.
+    /// Model point → point of `problem` (None: fewer than two rays).
+    pub point_index: Vec<Option<usize>>,
+    /// Precision of the last adjustment.
     pub precision: Precision,
     /// Image points removed as gross errors.
     pub rejected: Vec<Rejection>,
@@ -45,8 +45,6 @@ pub struct Adjusted {
     pub rig: Option<Pose>,
     /// Eccentricity corrections of the ball measurements (px), for the report.
     pub ball_shifts_px: Vec<f64>,
-    /// Intrinsics as the project gave them.
-    pub initial_intrinsics: Vec<Vec<f64>>,
     /// Iterations of all final adjustments.
     pub iterations: usize,
 }
@@ -378,27 +376,14 @@ pub fn final_adjustment(
         rejected_all.len()
     ));
     Ok(Adjusted {
-        initial_intrinsics: f
-            .cameras
-            .iter()
-            .map(|c| c.initial.to_slice().to_vec())
-            .collect(),
         obs_map: b.obs_map,
         image_index: b.image_index,
+        point_index: b.point_index,
         ball_shifts_px: b.shifts,
         problem: b.problem,
-        summary,
         precision,
         rejected: rejected_all,
         rig,
         iterations,
     })
-}
-
-/// Index of model point `j` in the adjusted problem.
-pub fn problem_point(adj: &Adjusted, model: &Model, j: usize) -> Option<usize> {
-    adj.problem
-        .points
-        .iter()
-        .position(|p| p.name == model.points[j].name)
 }

@@ -13,7 +13,7 @@
 //! It uses no ball; it is judged on the same check balls (all matched balls when there are
 //! no check balls).
 
-use super::bundle::{problem_point, Adjusted};
+use super::bundle::Adjusted;
 use super::detect::ImageDetections;
 use super::lrf::LrfData;
 use super::{Model, Options, PipelineError, PointKind, Reporter, Result};
@@ -72,7 +72,7 @@ pub fn extrinsics(
         if p.kind != PointKind::Ball {
             continue;
         }
-        let Some(k) = problem_point(adj, model, j) else {
+        let Some(k) = adj.point_index[j] else {
             continue;
         };
         let cov = adj.precision.point_covariances[k].unwrap_or(Matrix3::identity());

@@ -1,6 +1,5 @@
 //! The data of `report.html` ([`pingcal_report::ReportData`]) from the pipeline's results.
 
-use super::bundle::problem_point;
 use super::results::Results;
 use super::{PointKind, Reporter, Stages};
 use pingcal_report as rp;
@@ -113,7 +112,7 @@ pub fn build(st: &Stages, results: &Results, rep: &Reporter) -> rp::ReportData {
         .iter()
         .enumerate()
         .filter_map(|(j, pt)| {
-            let k = problem_point(adj, model, j)?;
+            let k = adj.point_index[j]?;
             let s = adj.precision.point_sigma(k).unwrap_or_default();
             Some(rp::NetworkPoint {
                 label: pt.name.clone(),

@@ -9,7 +9,7 @@
 //! `cy = (H − 1)/2 − yp / pixel`; B1 enters fx to first order and B2 (shear) has no OpenCV
 //! counterpart: `opencv_dropped_b2` says how large it was.
 
-use super::bundle::{problem_point, Adjusted};
+use super::bundle::Adjusted;
 use super::extrinsic::Extrinsics;
 use super::lrf::LrfData;
 use super::{Model, Outcome, PointKind, Reporter, Stages};
@@ -342,7 +342,7 @@ pub fn assemble(st: &Stages, rep: &Reporter, time_s: Vec<(String, f64)>) -> Outc
     let mut balls = Vec::new();
     let mut targets = Vec::new();
     for (j, p) in model.points.iter().enumerate() {
-        let Some(k) = problem_point(adj, model, j) else {
+        let Some(k) = adj.point_index[j] else {
             continue;
         };
         let sig = sigma3(&adj.precision.point_covariances[k]);
