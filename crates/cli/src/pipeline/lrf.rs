@@ -3,12 +3,12 @@
 //! Every scan file of `[lrf] scans` is read (`pingcal-scan` CSV through the mount model of
 //! the project, or a PLY / XYZ cloud already in the LRF frame) into one cloud; the balls are
 //! found and fitted by [`pingcal_lrf::ball_finder`] with the ball diameter of the project and
-//! the URG noise model from the datasheet accuracies (taken as 3σ). The scan lines are kept
-//! for the corner baseline.
+//! the URG noise model from the datasheet accuracies (taken as 3σ). Scan files are read once:
+//! their lines make the cloud and are kept for the corner baseline.
 
 use super::{Options, PipelineError, Reporter, Result};
 use pingcal_lrf::ball_finder::{find_balls, FindResult, FinderOptions};
-use pingcal_lrf::cloud::{read_cloud_file, Cloud, MountModel};
+use pingcal_lrf::cloud::{file_kind, non_empty, read_cloud_file, Cloud, CloudFileKind, MountModel};
 use pingcal_lrf::scan::{open_scan_file, ScanHeader, ScanLine};
 use pingcal_lrf::simulate::UrgNoise;
 use pingcal_project::Project;
@@ -50,20 +50,24 @@ pub fn lrf_spheres(project: &Project, opts: &Options, rep: &Reporter) -> Result<
     let mut cloud = Cloud::default();
     let mut scans = None;
     for path in &project.scan_paths {
-        let c = read_cloud_file(path, &mount).map_err(|e| PipelineError::new(e.to_string()))?;
-        cloud.extend(c);
-        let ext = path
-            .extension()
-            .and_then(|e| e.to_str())
-            .unwrap_or("")
-            .to_ascii_lowercase();
-        if scans.is_none() && !matches!(ext.as_str(), "ply" | "xyz" | "txt" | "pts") {
-            let reader = open_scan_file(path).map_err(|e| PipelineError::new(e.to_string()))?;
+        let err = |e: pingcal_lrf::LrfError| PipelineError::new(e.to_string());
+        if file_kind(path) == CloudFileKind::Scans {
+            // read once: the lines make the cloud and are kept for the corner baseline
+            let reader = open_scan_file(path).map_err(err)?;
             let header = reader.header();
             let lines = reader
                 .collect::<std::result::Result<Vec<_>, _>>()
-                .map_err(|e| PipelineError::new(e.to_string()))?;
-            scans = Some((header, lines));
+                .map_err(err)?;
+            let mut c = Cloud::default();
+            for line in &lines {
+                c.push_scan(&header, line, &mount);
+            }
+            cloud.extend(non_empty(c, path).map_err(err)?);
+            if scans.is_none() {
+                scans = Some((header, lines));
+            }
+        } else {
+            cloud.extend(read_cloud_file(path, &mount).map_err(err)?);
         }
         pb.inc(1);
     }
