@@ -13,6 +13,7 @@
 
 use nalgebra::{Matrix3, Vector3};
 use pingcal::pipeline::{self, Reporter};
+use pingcal_lrf::corner::rotation_angle;
 use pingcal_lrf::registration::euler_from_matrix;
 
 fn mean_sd(v: &[f64]) -> (f64, f64) {
@@ -87,11 +88,7 @@ fn main() {
             let t = Vector3::from(e.translation_mm);
             let r = Matrix3::from_row_slice(&e.rotation.concat());
             let dt = t - tp.translation;
-            let d = r * tp.rotation.transpose();
-            let dr = ((d.trace() - 1.0) / 2.0)
-                .clamp(-1.0, 1.0)
-                .acos()
-                .to_degrees();
+            let dr = rotation_angle(&(r * tp.rotation.transpose())).to_degrees();
             let mut z = [f64::NAN; 6];
             if let (Some(st), Some(sr)) = (e.sigma_translation_mm, e.sigma_rotation_deg) {
                 let de =

@@ -10,6 +10,7 @@ use super::CmdResult;
 use crate::pipeline::{self, Reporter};
 use indicatif::MultiProgress;
 use nalgebra::{Matrix3, Vector3};
+use pingcal_lrf::corner::rotation_angle;
 use pingcal_sim::project_files::PoseJson;
 use std::path::PathBuf;
 
@@ -26,14 +27,6 @@ pub struct Args {
     /// No progress bars and no step log.
     #[arg(long)]
     pub quiet: bool,
-}
-
-fn rotation_error_deg(a: &Matrix3<f64>, b: &Matrix3<f64>) -> f64 {
-    let d = a * b.transpose();
-    ((d.trace() - 1.0) / 2.0)
-        .clamp(-1.0, 1.0)
-        .acos()
-        .to_degrees()
 }
 
 /// Runs the command.
@@ -189,7 +182,7 @@ fn print_table(r: &pipeline::results::Results, truth: &pingcal_sim::Truth) {
         let t = e.translation_mm;
         let dt = ((t[0] - tt[0]).powi(2) + (t[1] - tt[1]).powi(2) + (t[2] - tt[2]).powi(2)).sqrt();
         let r_est = Matrix3::from_row_slice(&e.rotation.concat());
-        let dr = rotation_error_deg(&r_est, &true_t.rotation);
+        let dr = rotation_angle(&(r_est * true_t.rotation.transpose())).to_degrees();
         let st = e
             .sigma_translation_mm
             .map(|s| format!("({:.2}, {:.2}, {:.2})", s[0], s[1], s[2]))
