@@ -72,70 +72,100 @@ pub struct Refined {
     pub rms_edge: f64,
 }
 
+/// Which of the two refinement rounds [`edge_points`] serves.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Round {
+    /// From the rough seed outline (a moment ellipse): one ray per 2 px of perimeter (at least
+    /// 24), the edge searched from 0.45 of the way out. Only the next round's outline comes of it.
+    Seed,
+    /// From an ellipse already fitted to edges: one ray per pixel of perimeter (24 to 256), the
+    /// edge searched from [`EDGE_SEARCH_INSIDE_PX`] inside the outline (or 0.45 of the way out,
+    /// whichever is further out).
+    Final,
+}
+
+/// How far inside the previous round's outline the final round starts looking for the edge,
+/// pixels: more than the half-width of the edge ramp of a target blurred by σ = 1.5 px, so the
+/// upper shoulder of the ramp is always searched.
+pub const EDGE_SEARCH_INSIDE_PX: f64 = 3.0;
+
+/// Sampling step along a ray where the edge is searched, pixels.
+const EDGE_STEP_PX: f64 = 0.25;
+
+/// Largest sampling step along a ray in the background window, pixels (the window is sampled at
+/// least 8 times).
+const BG_STEP_PX: f64 = 1.0;
+
 /// Sub-pixel edge points along rays from the centre of `seed` through its outline, where the
 /// profile crosses the level between `fg` and the per-ray background.
+///
+/// Per ray, at parameter t (t = 1 on the outline): the background is the minimum of the
+/// bilinearly interpolated profile sampled every ≤ 1 px over t ∈ `p.bg_window`; the level is
+/// `fg + p.edge_fraction·(bg − fg)` (the per-ray adaptive threshold of [`crate::threshold`]);
+/// the edge is the first downward crossing of that level going outward from the round's start
+/// (see [`Round`]), profile sampled every 0.25 px and the crossing interpolated linearly between
+/// the two samples that bracket it. Rays with less than `p.min_contrast` or without a crossing
+/// before the end of the background window give no point.
 /// Returns the points and the mean background, or a rejection.
 pub fn edge_points(
     img: &GrayImage,
     seed: &Ellipse,
     fg: f32,
     p: &CentreParams,
+    round: Round,
 ) -> Result<(Vec<(f64, f64)>, f32), Reject> {
     let r = seed.radius();
     let perimeter = 2.0 * std::f64::consts::PI * r;
-    let k = (perimeter.round() as usize).clamp(24, 256);
-    let t_max = p.bg_window.1;
-    if !img.inside(seed.cx - seed.a * t_max, seed.cy - seed.a * t_max, 1.0)
-        || !img.inside(seed.cx + seed.a * t_max, seed.cy + seed.a * t_max, 1.0)
+    let k = match round {
+        Round::Seed => ((perimeter / 2.0).round() as usize).clamp(24, 128),
+        Round::Final => (perimeter.round() as usize).clamp(24, 256),
+    };
+    let (t_lo, t_hi) = p.bg_window;
+    if !img.inside(seed.cx - seed.a * t_hi, seed.cy - seed.a * t_hi, 1.0)
+        || !img.inside(seed.cx + seed.a * t_hi, seed.cy + seed.a * t_hi, 1.0)
     {
         return Err(Reject::Clipped);
     }
-    let step_px = 0.25;
     let mut pts = Vec::with_capacity(k);
     let mut bg_sum = 0.0f64;
-    let mut profile: Vec<f32> = Vec::with_capacity(64);
-    let mut ts: Vec<f64> = Vec::with_capacity(64);
     let trig = unit_circle(k);
-    let (t_lo, t_hi) = p.bg_window;
     let fr = seed.frame();
     for &(u, v) in trig.iter() {
         let (ex, ey) = fr.map(u, v);
         let (dx, dy) = (ex - seed.cx, ey - seed.cy);
         let len = (dx * dx + dy * dy).sqrt();
-        if len <= 0.0 {
+        if !(len > 0.0) {
             continue;
         }
-        let dt = step_px / len;
-        profile.clear();
-        ts.clear();
-        // The whole ray is inside the image (checked above), and the background (the minimum
-        // over the window, as `local_levels`) is taken while sampling.
+        // The whole ray is inside the image (checked above).
+        let at = |t: f64| img.sample_inside(seed.cx + t * dx, seed.cy + t * dy);
+        let n_bg = (((t_hi - t_lo) * len / BG_STEP_PX).ceil() as usize).max(8);
         let mut bg = f32::INFINITY;
-        let mut t = 0.45;
-        while t <= t_max {
-            let s = img.sample_inside(seed.cx + t * dx, seed.cy + t * dy);
-            if t >= t_lo && t <= t_hi {
-                bg = bg.min(s);
-            }
-            profile.push(s);
-            ts.push(t);
-            t += dt;
+        for i in 0..=n_bg {
+            bg = bg.min(at(t_lo + (t_hi - t_lo) * i as f64 / n_bg as f64));
         }
-        if !bg.is_finite() {
+        if !(fg - bg >= p.min_contrast) {
             continue;
         }
         let level = fg + p.edge_fraction * (bg - fg);
-        if fg - bg < p.min_contrast {
-            continue;
-        }
+        let t0 = match round {
+            Round::Seed => 0.45,
+            Round::Final => (1.0 - EDGE_SEARCH_INSIDE_PX / len).max(0.45),
+        };
+        let dt = EDGE_STEP_PX / len;
         // First downward crossing of `level` going outward.
+        let mut t = t0;
+        let mut prev = at(t);
         let mut found = None;
-        for (j, w) in profile.windows(2).enumerate() {
-            if w[0] >= level && w[1] < level {
-                let f = (w[0] - level) / (w[0] - w[1]);
-                found = Some(ts[j] + f as f64 * (ts[j + 1] - ts[j]));
+        while t + dt <= t_hi {
+            let s = at(t + dt);
+            if prev >= level && s < level {
+                let f = (prev - level) / (prev - s);
+                found = Some(t + f as f64 * dt);
                 break;
             }
+            prev = s;
+            t += dt;
         }
         if let Some(te) = found {
             pts.push((seed.cx + te * dx, seed.cy + te * dy));
@@ -187,8 +217,8 @@ pub fn refine(img: &GrayImage, seed: &Ellipse, p: &CentreParams) -> Result<Refin
     }
     let mut cur = *seed;
     let mut out = None;
-    for _round in 0..2 {
-        let (pts, bg) = edge_points(img, &cur, fg, p)?;
+    for round in [Round::Seed, Round::Final] {
+        let (pts, bg) = edge_points(img, &cur, fg, p, round)?;
         if fg - bg < p.min_contrast {
             return Err(Reject::LowContrast);
         }
