@@ -89,8 +89,11 @@ pub enum Round {
 /// upper shoulder of the ramp is always searched.
 pub const EDGE_SEARCH_INSIDE_PX: f64 = 3.0;
 
-/// Sampling step along a ray where the edge is searched, pixels.
+/// Sampling step along a ray where the edge is located, pixels.
 const EDGE_STEP_PX: f64 = 0.25;
+
+/// The edge is first bracketed with steps of this many [`EDGE_STEP_PX`] (1 px).
+const EDGE_STEPS_PER_PX: usize = 4;
 
 /// Largest sampling step along a ray in the background window, pixels (the window is sampled at
 /// least 8 times).
@@ -103,8 +106,9 @@ const BG_STEP_PX: f64 = 1.0;
 /// bilinearly interpolated profile sampled every ≤ 1 px over t ∈ `p.bg_window`; the level is
 /// `fg + p.edge_fraction·(bg − fg)` (the per-ray adaptive threshold of [`crate::threshold`]);
 /// the edge is the first downward crossing of that level going outward from the round's start
-/// (see [`Round`]), profile sampled every 0.25 px and the crossing interpolated linearly between
-/// the two samples that bracket it. Rays with less than `p.min_contrast` or without a crossing
+/// (see [`Round`]): bracketed by 1-px steps (a dip below the level narrower than a pixel before
+/// the edge is stepped over), then located by 0.25-px steps inside the bracket and interpolated
+/// linearly between the two samples either side of it. Rays with less than `p.min_contrast` or without a crossing
 /// before the end of the background window give no point.
 /// Returns the points and the mean background, or a rejection.
 pub fn edge_points(
@@ -152,20 +156,32 @@ pub fn edge_points(
             Round::Seed => 0.45,
             Round::Final => (1.0 - EDGE_SEARCH_INSIDE_PX / len).max(0.45),
         };
+        // First downward crossing of `level` going outward: 1-px steps until a sample is
+        // below the level, then 0.25-px steps from the last sample above it.
         let dt = EDGE_STEP_PX / len;
-        // First downward crossing of `level` going outward.
+        let coarse = EDGE_STEPS_PER_PX as f64 * dt;
         let mut t = t0;
         let mut prev = at(t);
         let mut found = None;
-        while t + dt <= t_hi {
-            let s = at(t + dt);
-            if prev >= level && s < level {
-                let f = (prev - level) / (prev - s);
-                found = Some(t + f as f64 * dt);
-                break;
+        'search: while t < t_hi {
+            let tc = (t + coarse).min(t_hi);
+            let sc = at(tc);
+            if prev >= level && sc >= level {
+                (t, prev) = (tc, sc);
+                continue;
             }
-            prev = s;
-            t += dt;
+            // A crossing lies in (t, tc] (or, when `prev` is already below the level, the
+            // profile may rise and fall again there).
+            while t < tc {
+                let tn = (t + dt).min(tc);
+                let s = if tn == tc { sc } else { at(tn) };
+                if prev >= level && s < level {
+                    let f = (prev - level) / (prev - s);
+                    found = Some(t + f as f64 * (tn - t));
+                    break 'search;
+                }
+                (t, prev) = (tn, s);
+            }
         }
         if let Some(te) = found {
             pts.push((seed.cx + te * dx, seed.cy + te * dy));

@@ -39,8 +39,15 @@ fn off_plane_errors(h: &nalgebra::Matrix3<f64>, pts: &[([f64; 3], [f64; 2])]) ->
         a[(2 * i + 1, 2)] = -q[1] * p[2];
         b[2 * i + 1] = q[1] * v[2] - v[1];
     }
+    // The third column is ~1000× the first two (pixel coordinates times Z): scale the columns
+    // to unit norm first. Unscaled, the SVD of this 6×3 system came out different for inputs
+    // that differed in the 13th digit (and with it p3, by 10 px in one image).
+    let scale: Vec<f64> = (0..3).map(|j| a.column(j).norm().max(1e-300)).collect();
+    for (j, s) in scale.iter().enumerate() {
+        a.column_mut(j).scale_mut(1.0 / s);
+    }
     let s = a.svd(true, true).solve(&b, 1e-12).expect("svd solve");
-    let p3 = nalgebra::Vector3::new(s[0], s[1], s[2]);
+    let p3 = nalgebra::Vector3::new(s[0] / scale[0], s[1] / scale[1], s[2] / scale[2]);
     pts.iter()
         .map(|(p, q)| {
             let v = h * nalgebra::Vector3::new(p[0], p[1], 1.0) + p3 * p[2];
