@@ -209,6 +209,13 @@ impl Ellipse {
             // angle of the axis of the smaller eigenvalue of [[a,b/2],[b/2,c]]
             0.5 * (b).atan2(a - c) + std::f64::consts::FRAC_PI_2
         };
+        // After the sign flip above the eigenvalues have changed order: the axis along `theta`
+        // (of length `semi_major`) is then the shorter one; swap to keep a ≥ b.
+        let (semi_major, semi_minor, theta) = if semi_major >= semi_minor {
+            (semi_major, semi_minor, theta)
+        } else {
+            (semi_minor, semi_major, theta + std::f64::consts::FRAC_PI_2)
+        };
         let el = Ellipse {
             cx,
             cy,
@@ -360,6 +367,29 @@ mod tests {
         assert!((back.cx - e.cx).abs() < 1e-9 && (back.cy - e.cy).abs() < 1e-9);
         assert!((back.a - e.a).abs() < 1e-9 && (back.b - e.b).abs() < 1e-9);
         assert!((back.theta - e.theta).abs() < 1e-9);
+    }
+
+    /// A conic and its negative are the same ellipse: both give a ≥ b and the same axes (the
+    /// negative once came back with a and b swapped and `theta` along the minor axis).
+    #[test]
+    fn negated_conic_is_the_same_ellipse() {
+        for theta in [-1.4, -0.3, 0.0, 0.4, 1.2] {
+            let e = Ellipse {
+                cx: 10.0,
+                cy: -3.0,
+                a: 7.0,
+                b: 3.0,
+                theta,
+            };
+            let k = e.conic().map(|v| -2.5 * v);
+            let back = Ellipse::from_conic(k).unwrap();
+            assert!((back.cx - e.cx).abs() < 1e-9 && (back.cy - e.cy).abs() < 1e-9);
+            assert!(
+                (back.a - e.a).abs() < 1e-9 && (back.b - e.b).abs() < 1e-9,
+                "{back:?}"
+            );
+            assert!((back.theta - e.theta).abs() < 1e-9, "{back:?}");
+        }
     }
 
     #[test]
