@@ -274,57 +274,162 @@ pub fn refine(img: &GrayImage, seed: &Ellipse, p: &CentreParams) -> Result<Refin
     })
 }
 
-/// Intensity-weighted centroid over the pixels within 1.15× the ellipse, weights
-/// max(I − bg, 0). σ from the noise of the foreground (MAD of neighbour differences).
+/// The pixel columns `x0..=x1` of row `y` whose centres lie inside the ellipse (none when the
+/// row misses it), clipped to `0..width`.
+fn row_span(e: &Ellipse, y: usize, width: usize) -> Option<(usize, usize)> {
+    // (x, y) is inside when u² + v² ≤ 1 (see `Ellipse::unmap`); with dx = x − cx and dy fixed
+    // that is the quadratic α·dx² + β·dx + γ ≤ 0.
+    let (s, c) = e.theta.sin_cos();
+    let (ia2, ib2) = (1.0 / (e.a * e.a), 1.0 / (e.b * e.b));
+    let dy = y as f64 - e.cy;
+    let alpha = c * c * ia2 + s * s * ib2;
+    let beta = 2.0 * dy * c * s * (ia2 - ib2);
+    let gamma = dy * dy * (s * s * ia2 + c * c * ib2) - 1.0;
+    let disc = beta * beta - 4.0 * alpha * gamma;
+    if !(disc >= 0.0) || !(alpha > 0.0) {
+        return None;
+    }
+    let r = disc.sqrt();
+    let lo = e.cx + (-beta - r) / (2.0 * alpha);
+    let hi = e.cx + (-beta + r) / (2.0 * alpha);
+    let x0 = lo.ceil().max(0.0);
+    let x1 = hi.floor().min(width as f64 - 1.0);
+    (x0 <= x1).then_some((x0 as usize, x1 as usize))
+}
+
+/// Intensity-weighted centroid over the pixels whose centres lie within 1.15× the ellipse,
+/// weights max(I − bg, 0). σ from the noise of the foreground (MAD of horizontal neighbour
+/// differences inside 0.6× the ellipse).
 pub fn weighted_centroid(img: &GrayImage, e: &Ellipse, bg: f32, fg: f32) -> ((f64, f64), f64) {
     let ext = e.scaled(1.15);
-    let fr = ext.frame();
-    let fe = e.frame();
-    let x0 = ((e.cx - ext.a).floor().max(0.0)) as usize;
-    let x1 = ((e.cx + ext.a).ceil().max(0.0) as usize).min(img.width.saturating_sub(1));
     let y0 = ((e.cy - ext.a).floor().max(0.0)) as usize;
     let y1 = ((e.cy + ext.a).ceil().max(0.0) as usize).min(img.height.saturating_sub(1));
     let (mut sw, mut sx, mut sy) = (0.0f64, 0.0f64, 0.0f64);
-    let mut pix = Vec::new();
+    // Unweighted sums over the same pixels, for the spread Σ(x − cx)² below.
+    let (mut n, mut px, mut py, mut pxx, mut pyy) = (0.0f64, 0.0f64, 0.0f64, 0.0f64, 0.0f64);
     for y in y0..=y1 {
-        for x in x0..=x1 {
-            let (u, v) = fr.unmap(x as f64, y as f64);
-            if u * u + v * v > 1.0 {
-                continue;
-            }
-            let w = (img.get(x, y) - bg).max(0.0) as f64;
-            sw += w;
-            sx += w * x as f64;
-            sy += w * y as f64;
-            pix.push((x, y));
+        let Some((x0, x1)) = row_span(&ext, y, img.width) else {
+            continue;
+        };
+        let row = &img.data[y * img.width..(y + 1) * img.width];
+        let yf = y as f64;
+        let (mut rw, mut rx) = (0.0f64, 0.0f64);
+        for (x, &v) in row.iter().enumerate().take(x1 + 1).skip(x0) {
+            let w = (v - bg).max(0.0) as f64;
+            rw += w;
+            rx += w * x as f64;
         }
+        sw += rw;
+        sx += rx;
+        sy += rw * yf;
+        let (a, b) = (x0 as f64, x1 as f64);
+        let k = b - a + 1.0;
+        n += k;
+        px += (a + b) * k / 2.0;
+        pxx += (b * (b + 1.0) * (2.0 * b + 1.0) - (a - 1.0) * a * (2.0 * a - 1.0)) / 6.0;
+        py += yf * k;
+        pyy += yf * yf * k;
     }
     if sw <= 0.0 {
         return ((e.cx, e.cy), f64::INFINITY);
     }
     let (cx, cy) = (sx / sw, sy / sw);
-    // Noise: MAD of horizontal neighbour differences inside the inner half (flat region),
+    // Noise: MAD of horizontal neighbour differences inside the inner 0.6 (flat region),
     // divided by √2 for the difference of two samples.
+    let inner = e.scaled(0.6);
     let mut d = Vec::new();
-    for &(x, y) in &pix {
-        let (u, v) = fe.unmap(x as f64, y as f64);
-        if u * u + v * v < 0.36 && x + 1 < img.width {
-            d.push((img.get(x + 1, y) - img.get(x, y)).abs() as f64);
+    for y in y0..=y1 {
+        let Some((x0, x1)) = row_span(&inner, y, img.width.saturating_sub(1)) else {
+            continue;
+        };
+        let row = &img.data[y * img.width..(y + 1) * img.width];
+        for x in x0..=x1 {
+            d.push((row[x + 1] - row[x]).abs() as f64);
         }
     }
     let sigma_n = if d.len() >= 5 {
-        d.sort_by(|a, b| a.total_cmp(b));
-        1.4826 * d[d.len() / 2] / std::f64::consts::SQRT_2
+        let mid = d.len() / 2;
+        let (_, m, _) = d.select_nth_unstable_by(mid, |a, b| a.total_cmp(b));
+        1.4826 * *m / std::f64::consts::SQRT_2
     } else {
         0.0
     };
     // Var(cx) = σ_n² Σ (x − cx)² / (Σw)², plus the same for y; report the mean of both.
-    let (mut sxx, mut syy) = (0.0, 0.0);
-    for &(x, y) in &pix {
-        sxx += (x as f64 - cx).powi(2);
-        syy += (y as f64 - cy).powi(2);
-    }
-    let s = sigma_n * ((sxx + syy) / 2.0).sqrt() / sw;
+    let sxx = pxx - 2.0 * cx * px + n * cx * cx;
+    let syy = pyy - 2.0 * cy * py + n * cy * cy;
+    let s = sigma_n * ((sxx.max(0.0) + syy.max(0.0)) / 2.0).sqrt() / sw;
     let _ = fg;
     ((cx, cy), s)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The centroid and its σ by testing every pixel of the bounding box (the definition).
+    fn centroid_by_pixels(img: &GrayImage, e: &Ellipse, bg: f32) -> ((f64, f64), f64) {
+        let (ext, inner) = (e.scaled(1.15), e.scaled(0.6));
+        let inside = |el: &Ellipse, x: usize, y: usize| {
+            let (u, v) = el.unmap(x as f64, y as f64);
+            u * u + v * v <= 1.0
+        };
+        let (mut sw, mut sx, mut sy, mut pix, mut d) = (0.0, 0.0, 0.0, vec![], vec![]);
+        for y in 0..img.height {
+            for x in 0..img.width {
+                if inside(&ext, x, y) {
+                    let w = (img.get(x, y) - bg).max(0.0) as f64;
+                    (sw, sx, sy) = (sw + w, sx + w * x as f64, sy + w * y as f64);
+                    pix.push((x, y));
+                }
+                if inside(&inner, x, y) && x + 1 < img.width {
+                    d.push((img.get(x + 1, y) - img.get(x, y)).abs() as f64);
+                }
+            }
+        }
+        let (cx, cy) = (sx / sw, sy / sw);
+        d.sort_by(|a, b| a.total_cmp(b));
+        let sn = if d.len() >= 5 {
+            1.4826 * d[d.len() / 2] / std::f64::consts::SQRT_2
+        } else {
+            0.0
+        };
+        let ss: f64 = pix
+            .iter()
+            .map(|&(x, y)| (x as f64 - cx).powi(2) + (y as f64 - cy).powi(2))
+            .sum();
+        ((cx, cy), sn * (ss / 2.0).sqrt() / sw)
+    }
+
+    #[test]
+    fn weighted_centroid_by_row_spans_equals_the_pixel_definition() {
+        let mut seed = 7u64;
+        let mut rnd = move || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for _ in 0..200 {
+            let (w, h) = (64, 48);
+            let mut img = GrayImage::new(w, h, 0.0);
+            for v in img.data.iter_mut() {
+                *v = 0.1 + 0.8 * rnd() as f32;
+            }
+            let a = 2.0 + 12.0 * rnd();
+            let e = Ellipse {
+                cx: 4.0 + 56.0 * rnd(),
+                cy: 4.0 + 40.0 * rnd(),
+                a,
+                b: a * (0.2 + 0.8 * rnd()),
+                theta: 3.2 * rnd(),
+            };
+            let ((x, y), s) = weighted_centroid(&img, &e, 0.3, 0.9);
+            let ((xr, yr), sr) = centroid_by_pixels(&img, &e, 0.3);
+            assert!((x - xr).abs() < 1e-9 && (y - yr).abs() < 1e-9, "{e:?}");
+            assert!(
+                (s - sr).abs() <= 1e-9 * sr.max(1e-9),
+                "{e:?}: σ {s} vs {sr}"
+            );
+        }
+    }
 }
