@@ -298,19 +298,21 @@ pub fn fit_ellipse(points: &[(f64, f64)]) -> Option<Ellipse> {
         if l.im.abs() > 1e-9 * (1.0 + l.re.abs()) {
             continue;
         }
+        // Eigenvector: the null vector of M − λI, the largest of the cross products of two of
+        // its rows (the matrix has rank 2 for a simple eigenvalue).
         let a = m - Matrix3::identity() * l.re;
-        let svd = a.svd(false, true);
-        let vt = svd.v_t?;
-        // Right singular vector of the smallest singular value.
-        let (imin, _) =
-            svd.singular_values
-                .iter()
-                .enumerate()
-                .fold(
-                    (0, f64::INFINITY),
-                    |acc, (i, &v)| if v < acc.1 { (i, v) } else { acc },
-                );
-        let v = Vector3::new(vt[(imin, 0)], vt[(imin, 1)], vt[(imin, 2)]);
+        let (r0, r1, r2) = (
+            a.row(0).transpose(),
+            a.row(1).transpose(),
+            a.row(2).transpose(),
+        );
+        let v = [r0.cross(&r1), r0.cross(&r2), r1.cross(&r2)]
+            .into_iter()
+            .max_by(|p, q| p.norm_squared().total_cmp(&q.norm_squared()))?;
+        if !(v.norm_squared() > 0.0) {
+            continue;
+        }
+        let v = v.normalize();
         let cond = 4.0 * v[0] * v[2] - v[1] * v[1];
         if cond > 0.0 && best.as_ref().is_none_or(|(c, _)| cond > *c) {
             best = Some((cond, v));
