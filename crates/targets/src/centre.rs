@@ -216,10 +216,8 @@ pub fn robust_ellipse_fit(pts: &[(f64, f64)]) -> Option<(Ellipse, f64, usize)> {
     } else {
         e
     };
-    let ss: f64 = inl
-        .iter()
-        .map(|p| e2.sampson_distance(p.0, p.1).powi(2))
-        .sum();
+    let k2 = e2.conic();
+    let ss: f64 = inl.iter().map(|p| sampson(&k2, p.0, p.1).powi(2)).sum();
     let rms = (ss / (inl.len().saturating_sub(5).max(1)) as f64).sqrt();
     Some((e2, rms, inl.len()))
 }

@@ -3,7 +3,7 @@
 use crate::aicon::{read_ring, RingRead, RingReader};
 use crate::candidates::{find_candidates, CandidateParams};
 use crate::centre::{refine, CentreParams, Refined};
-use crate::ellipse::Ellipse;
+use crate::ellipse::{Ellipse, Frame};
 use crate::image_io::{load_image, GrayImage};
 use crate::TargetError;
 use rayon::prelude::*;
@@ -167,26 +167,32 @@ impl Detector {
             .collect();
         // Blobs inside the ring zone of a coded target are its ring segments: drop them
         // (first around decoded targets, then around the unidentified ones that remain).
-        let in_ring_of = |r: &Refined, rings: &[&Ellipse]| {
-            rings.iter().any(|c| {
-                let (u, v) = c.unmap(r.ellipse.cx, r.ellipse.cy);
+        // (The distance test skips the rings further away than 3.6 major semi-axes.)
+        let in_ring_of = |r: &Refined, rings: &[(&Ellipse, Frame)]| {
+            let (x, y) = (r.ellipse.cx, r.ellipse.cy);
+            rings.iter().any(|(c, f)| {
+                let reach = 3.6 * c.a;
+                if (x - c.cx).abs() >= reach || (y - c.cy).abs() >= reach {
+                    return false;
+                }
+                let (u, v) = f.unmap(x, y);
                 let d2 = u * u + v * v;
                 d2 > 0.25 && d2 < 3.6 * 3.6
             })
         };
-        let decoded: Vec<&Ellipse> = keep
+        let decoded: Vec<(&Ellipse, Frame)> = keep
             .iter()
             .zip(&reads)
             .filter(|(_, r)| r.1.is_some())
-            .map(|(k, _)| &k.ellipse)
+            .map(|(k, _)| (&k.ellipse, k.ellipse.frame()))
             .collect();
         let survivors: Vec<usize> = (0..keep.len())
             .filter(|&i| reads[i].1.is_some() || !in_ring_of(&keep[i], &decoded))
             .collect();
-        let unread: Vec<&Ellipse> = survivors
+        let unread: Vec<(&Ellipse, Frame)> = survivors
             .iter()
             .filter(|&&i| reads[i].0 == Some(TargetKind::Coded) && reads[i].1.is_none())
-            .map(|&i| &keep[i].ellipse)
+            .map(|&i| (&keep[i].ellipse, keep[i].ellipse.frame()))
             .collect();
         let mut targets = Vec::new();
         for &i in &survivors {
