@@ -102,8 +102,8 @@ impl GrayImage {
 }
 
 /// Largest image side accepted (pixels) and largest decoder allocation (bytes).
-const MAX_SIDE: u32 = 40_000;
-const MAX_ALLOC: u64 = 1 << 30;
+pub(crate) const MAX_SIDE: u32 = 40_000;
+pub(crate) const MAX_ALLOC: u64 = 1 << 30;
 
 /// Decodes an encoded image (format guessed from the bytes) to grey `f32`.
 /// `name` is used in error messages.
@@ -114,6 +114,11 @@ pub fn decode_image(bytes: &[u8], name: &str) -> Result<GrayImage, TargetError> 
     };
     if bytes.is_empty() {
         return Err(bad("empty file".into()));
+    }
+    // Grey strip TIFFs (the usual photogrammetric images) go the fast way; anything it does not
+    // handle, or finds damaged, goes on to the general decoder, which has the last word.
+    if let Ok(img) = crate::tiff_strips::decode_grey_strips(bytes) {
+        return Ok(img);
     }
     let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes))
         .with_guessed_format()
@@ -173,7 +178,7 @@ fn convert_with<T: Copy + Into<usize> + Sync>(src: &[T], lut: &[f32]) -> Vec<f32
 }
 
 /// Grey value of every 8-bit (16-bit) level as `to_luma32f` gives it, non-finite values as 0.
-fn lut_u8() -> &'static [f32] {
+pub(crate) fn lut_u8() -> &'static [f32] {
     static LUT: std::sync::OnceLock<Vec<f32>> = std::sync::OnceLock::new();
     LUT.get_or_init(|| {
         let b = image::GrayImage::from_fn(256, 1, |x, _| image::Luma([x as u8]));
@@ -181,7 +186,7 @@ fn lut_u8() -> &'static [f32] {
     })
 }
 
-fn lut_u16() -> &'static [f32] {
+pub(crate) fn lut_u16() -> &'static [f32] {
     static LUT: std::sync::OnceLock<Vec<f32>> = std::sync::OnceLock::new();
     LUT.get_or_init(|| {
         let b = image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::from_fn(65536, 1, |x, _| {

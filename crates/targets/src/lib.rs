@@ -23,7 +23,7 @@
 //! - [`overlay::draw_detections`]: debug overlay PNG.
 //!
 //! ## Modules, in pipeline order
-//! - [`image_io`]: loading and conversion.
+//! - [`image_io`]: loading and conversion; [`tiff_strips`]: its fast path for grey strip TIFFs.
 //! - [`threshold`]: the threshold ladder and per-target local levels (hot spots, vignetting).
 //! - [`blobs`]: connected components with moments.
 //! - [`candidates`]: shape tests, grouping across threshold levels.
@@ -52,6 +52,7 @@ pub mod image_io;
 pub mod overlay;
 pub mod printable;
 pub mod threshold;
+pub mod tiff_strips;
 
 pub use detect::{
     detect_file, detect_files, detect_image, DetectParams, Detector, ImageDetections, Target,
