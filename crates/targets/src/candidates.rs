@@ -2,11 +2,10 @@
 //! shape tests, grouped across rungs (a real target is a component at several consecutive
 //! levels, noise rarely is).
 
-use crate::blobs::{components_of_index, components_of_level_index, level_index, Blob, LevelIndex};
+use crate::blobs::{components_at_levels, Blob};
 use crate::ellipse::Ellipse;
 use crate::image_io::GrayImage;
 use crate::threshold::threshold_levels;
-use rayon::prelude::*;
 
 /// Settings of the candidate search.
 #[derive(Clone, Debug)]
@@ -76,24 +75,16 @@ pub fn find_candidates(img: &GrayImage, p: &CandidateParams) -> Vec<Candidate> {
         .max(3.0) as usize;
     let max_area = (std::f64::consts::PI * (p.max_diameter_px / 2.0).powi(2) * 1.3).ceil() as usize;
     let (w, h) = (img.width, img.height);
-    // One level index shared by all rungs (levels ascend: pixel > levels[i] ⇔ index > i).
-    // (More than 255 levels: one index per level.)
-    let shared = (levels.len() <= 255).then(|| LevelIndex::new(img, &levels));
-    let per_level: Vec<Vec<(Ellipse, usize)>> = levels
-        .par_iter()
-        .enumerate()
-        .map(|(i, &l)| {
-            match &shared {
-                Some(li) => components_of_level_index(li, i as u8, l, min_area, max_area),
-                None => {
-                    components_of_index(&level_index(img, &[l]), w, h, 0, l, min_area, max_area)
-                }
-            }
+    let per_level: Vec<Vec<(Ellipse, usize)>> =
+        components_at_levels(img, &levels, min_area, max_area)
             .into_iter()
-            .filter_map(|b| shape_ok(&b, w, h, p).map(|e| (e, b.area)))
-            .collect()
-        })
-        .collect();
+            .map(|blobs| {
+                blobs
+                    .iter()
+                    .filter_map(|b| shape_ok(b, w, h, p).map(|e| (e, b.area)))
+                    .collect()
+            })
+            .collect();
     // Group across levels: same centre within half the smaller radius.
     struct Group {
         members: Vec<(Ellipse, usize)>,
