@@ -19,20 +19,22 @@
 use crate::ellipse::Ellipse;
 use crate::image_io::GrayImage;
 
-/// A ladder of `n` threshold levels between the dark and bright ends of the image histogram
-/// (0.5th and 99.9th percentiles), geometrically spaced above the dark end.
-pub fn threshold_levels(img: &GrayImage, n: usize) -> Vec<f32> {
-    const BINS: usize = 1024;
-    // Bin of a value: its [0, 1]-clamped value times BINS − 1, truncated (NaN: bin 0). The
-    // product is in 0..=1023, so the cheaper conversion to i32 gives the same number.
+/// Bins of [`sample_histogram`].
+const BINS: usize = 1024;
+
+/// Histogram of a strided sample of `data` (every `step`-th value from the first, step =
+/// max(1, len / 400 000): a sample is plenty for percentiles) in [`BINS`] bins: a value's bin is
+/// its [0, 1]-clamped value times BINS − 1, truncated (NaN: bin 0). Returns the counts and the
+/// sample size.
+fn sample_histogram(data: &[f32]) -> ([usize; BINS], usize) {
+    // The product is in 0..=1023, so the cheaper conversion to i32 gives the same number.
     let bin = |v: f32| ((v.clamp(0.0, 1.0) * (BINS - 1) as f32) as i32 as usize) & (BINS - 1);
-    // A strided sample is plenty for percentiles: every `step`-th value, counted in four
-    // histograms in turn (consecutive samples often fall in the same bin, and one histogram
-    // would make each count wait for the previous one), then added up. (Fewer than 800 000
-    // samples, so u32 counts.)
-    let step = (img.data.len() / 400_000).max(1);
+    // Counted in four histograms in turn (consecutive samples often fall in the same bin, and
+    // one histogram would make each count wait for the previous one), then added up. (Fewer
+    // than 800 000 samples, so u32 counts.)
+    let step = (data.len() / 400_000).max(1);
     let mut hists = [[0u32; BINS]; 4];
-    let mut quads = img.data.chunks_exact(4 * step);
+    let mut quads = data.chunks_exact(4 * step);
     for q in quads.by_ref() {
         for (h, i) in hists.iter_mut().zip([0, step, 2 * step, 3 * step]) {
             h[bin(q[i])] += 1;
@@ -45,7 +47,13 @@ pub fn threshold_levels(img: &GrayImage, n: usize) -> Vec<f32> {
     for (i, h) in hist.iter_mut().enumerate() {
         *h = hists.iter().map(|s| s[i] as usize).sum();
     }
-    let total = img.data.len().div_ceil(step);
+    (hist, data.len().div_ceil(step))
+}
+
+/// A ladder of `n` threshold levels between the dark and bright ends of the image histogram
+/// (0.5th and 99.9th percentiles), geometrically spaced above the dark end.
+pub fn threshold_levels(img: &GrayImage, n: usize) -> Vec<f32> {
+    let (hist, total) = sample_histogram(&img.data);
     if total == 0 || n == 0 {
         return Vec::new();
     }
@@ -131,6 +139,40 @@ pub fn local_levels(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The histogram equals a plain count of every `step`-th value, for lengths with every
+    /// step from 1 to 5 and every remainder modulo 4·step.
+    #[test]
+    fn sample_histogram_counts_every_step_th_value() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand::rngs::StdRng::seed_from_u64(7);
+        let all: Vec<f32> = (0..2_500_000)
+            .map(|_| match rng.random_range(0..8) {
+                0 => f32::from_bits(rng.random()),
+                1 => rng.random_range(-1.0..2.0),
+                _ => rng.random_range(0.0..=1.0),
+            })
+            .collect();
+        let mut lens: Vec<usize> = (0..40).collect();
+        for step in 1..=5 {
+            for r in 0..4 * step {
+                lens.push(400_000 * step + 4 * step * 1000 + r);
+            }
+        }
+        for len in lens {
+            let data = &all[..len];
+            let step = (len / 400_000).max(1);
+            let mut want = [0usize; BINS];
+            let mut total = 0;
+            for v in data.iter().step_by(step) {
+                want[((v.clamp(0.0, 1.0)) * (BINS - 1) as f32) as usize] += 1;
+                total += 1;
+            }
+            let (got, n) = sample_histogram(data);
+            assert_eq!(n, total, "len {len}");
+            assert!(got == want, "len {len}");
+        }
+    }
 
     #[test]
     fn ladder_spans_the_histogram() {
