@@ -60,7 +60,8 @@ fn shape_ok(b: &Blob, w: usize, h: usize, p: &CandidateParams) -> Option<Ellipse
     } else {
         p.min_fill
     };
-    let fill = b.fill_ratio();
+    // `b.fill_ratio()` without computing the moment ellipse again.
+    let fill = b.area as f64 / (std::f64::consts::PI * e.a * e.b);
     if fill < min_fill || fill > 1.15 {
         return None;
     }
@@ -91,38 +92,59 @@ pub fn find_candidates(img: &GrayImage, p: &CandidateParams) -> Vec<Candidate> {
         cx: f64,
         cy: f64,
         r: f64,
+        /// The next group of the same grid cell.
+        next: u32,
     }
+    // The groups by grid cell of 16 px, in order of creation: a list from `head` through
+    // `Group::next` to `tail` per cell. A component's centre is inside the image, so its cell
+    // is one of the grid's (the clamp is never active).
+    const NONE: u32 = u32::MAX;
     let cell = 16.0;
-    let mut grid: std::collections::HashMap<(i64, i64), Vec<usize>> =
-        std::collections::HashMap::new();
+    let (gw, gh) = (w.div_ceil(16).max(1) as i64, h.div_ceil(16).max(1) as i64);
+    let mut head = vec![NONE; (gw * gh) as usize];
+    let mut tail = vec![NONE; (gw * gh) as usize];
+    let cell_of = |x: f64, y: f64| {
+        let (i, j) = ((x / cell).floor() as i64, (y / cell).floor() as i64);
+        (i.clamp(0, gw - 1), j.clamp(0, gh - 1))
+    };
     let mut groups: Vec<Group> = Vec::new();
     for lvl in per_level {
         for (e, area) in lvl {
-            let key = ((e.cx / cell).floor() as i64, (e.cy / cell).floor() as i64);
+            let key = cell_of(e.cx, e.cy);
             let mut hit = None;
             'search: for dx in -1..=1 {
                 for dy in -1..=1 {
-                    if let Some(v) = grid.get(&(key.0 + dx, key.1 + dy)) {
-                        for &gi in v {
-                            let g = &groups[gi];
-                            let d = ((g.cx - e.cx).powi(2) + (g.cy - e.cy).powi(2)).sqrt();
-                            if d <= (0.5 * g.r.min(e.radius())).max(1.0) {
-                                hit = Some(gi);
-                                break 'search;
-                            }
+                    let (i, j) = (key.0 + dx, key.1 + dy);
+                    if i < 0 || j < 0 || i >= gw || j >= gh {
+                        continue;
+                    }
+                    let mut gi = head[(j * gw + i) as usize];
+                    while gi != NONE {
+                        let g = &groups[gi as usize];
+                        let d = ((g.cx - e.cx).powi(2) + (g.cy - e.cy).powi(2)).sqrt();
+                        if d <= (0.5 * g.r.min(e.radius())).max(1.0) {
+                            hit = Some(gi as usize);
+                            break 'search;
                         }
+                        gi = g.next;
                     }
                 }
             }
             match hit {
                 Some(gi) => groups[gi].members.push((e, area)),
                 None => {
-                    grid.entry(key).or_default().push(groups.len());
+                    let (c, gi) = ((key.1 * gw + key.0) as usize, groups.len() as u32);
+                    match tail[c] {
+                        NONE => head[c] = gi,
+                        t => groups[t as usize].next = gi,
+                    }
+                    tail[c] = gi;
                     groups.push(Group {
                         members: vec![(e, area)],
                         cx: e.cx,
                         cy: e.cy,
                         r: e.radius(),
+                        next: NONE,
                     });
                 }
             }
