@@ -1,6 +1,8 @@
 //! Image loading: any TIFF / PNG / JPEG (8 or 16 bit, grey or colour) to an `f32` grey image
 //! with values in [0, 1]. Errors name the file and what is wrong; nothing here panics on
-//! malformed input (decoding runs under size limits, and the decoder is guarded).
+//! malformed input (decoding runs under size limits, and the decoder is guarded). Grey strip
+//! TIFFs and grey PNGs go fast paths ([`tiff_strips`](crate::tiff_strips),
+//! [`png_rows`](crate::png_rows)) with the same values.
 
 use crate::TargetError;
 use std::path::Path;
@@ -108,6 +110,16 @@ pub(crate) const MAX_ALLOC: u64 = 1 << 30;
 /// Decodes an encoded image (format guessed from the bytes) to grey `f32`.
 /// `name` is used in error messages.
 pub fn decode_image(bytes: &[u8], name: &str) -> Result<GrayImage, TargetError> {
+    // Grey strip TIFFs (the usual photogrammetric images) go the fast way; anything it does not
+    // handle, or finds damaged, goes on to the general decoder, which has the last word.
+    if let Ok(img) = crate::tiff_strips::decode_grey_strips(bytes) {
+        return Ok(img);
+    }
+    decode_general(bytes, name, true)
+}
+
+/// [`decode_image`] past the TIFF fast path; `try_png`: whether to try the PNG one.
+fn decode_general(bytes: &[u8], name: &str, try_png: bool) -> Result<GrayImage, TargetError> {
     let bad = |what: String| TargetError::Image {
         file: name.to_string(),
         what,
@@ -115,10 +127,11 @@ pub fn decode_image(bytes: &[u8], name: &str) -> Result<GrayImage, TargetError> 
     if bytes.is_empty() {
         return Err(bad("empty file".into()));
     }
-    // Grey strip TIFFs (the usual photogrammetric images) go the fast way; anything it does not
-    // handle, or finds damaged, goes on to the general decoder, which has the last word.
-    if let Ok(img) = crate::tiff_strips::decode_grey_strips(bytes) {
-        return Ok(img);
+    // Grey PNGs likewise.
+    if try_png {
+        if let Ok(img) = crate::png_rows::decode_grey_png(bytes) {
+            return Ok(img);
+        }
     }
     let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes))
         .with_guessed_format()
@@ -166,7 +179,7 @@ pub fn decode_image(bytes: &[u8], name: &str) -> Result<GrayImage, TargetError> 
 /// `src` mapped through `lut` (in parallel over blocks).
 fn convert_with<T: Copy + Into<usize> + Sync>(src: &[T], lut: &[f32]) -> Vec<f32> {
     use rayon::prelude::*;
-    let mut out = vec![0.0f32; src.len()];
+    let mut out = zeroed_f32(src.len());
     out.par_chunks_mut(1 << 16)
         .zip(src.par_chunks(1 << 16))
         .for_each(|(o, s)| {
@@ -175,6 +188,11 @@ fn convert_with<T: Copy + Into<usize> + Sync>(src: &[T], lut: &[f32]) -> Vec<f32
             }
         });
     out
+}
+
+/// `n` zeros, for an image to be written.
+pub(crate) fn zeroed_f32(n: usize) -> Vec<f32> {
+    vec![0.0f32; n]
 }
 
 /// Grey value of every 8-bit (16-bit) level as `to_luma32f` gives it, non-finite values as 0.
@@ -208,6 +226,13 @@ fn finite(mut v: Vec<f32>) -> Vec<f32> {
 /// Loads an image file to grey `f32`.
 pub fn load_image(path: &Path) -> Result<GrayImage, TargetError> {
     let name = path.display().to_string();
+    // A PNG is decoded as it is read (see `png_rows`); if that path does not take it, the file
+    // is read again and goes the general way (which then skips the PNG fast path).
+    let png_tried = match load_grey_png(path) {
+        Some(Ok(img)) => return Ok(img),
+        Some(Err(_)) => true,
+        None => false,
+    };
     let bytes = std::fs::read(path).map_err(|e| TargetError::Image {
         file: name.clone(),
         what: match e.kind() {
@@ -215,7 +240,26 @@ pub fn load_image(path: &Path) -> Result<GrayImage, TargetError> {
             _ => format!("cannot read: {e}"),
         },
     })?;
-    decode_image(&bytes, &name)
+    if png_tried {
+        decode_general(&bytes, &name, false)
+    } else {
+        decode_image(&bytes, &name)
+    }
+}
+
+/// The PNG fast path on the file, streamed: `None` when it is not a PNG (or cannot be read).
+fn load_grey_png(path: &Path) -> Option<Result<GrayImage, crate::tiff_strips::NotDecoded>> {
+    use std::io::{Read, Seek};
+    let mut file = std::fs::File::open(path).ok()?;
+    let mut head = [0u8; 8];
+    file.read_exact(&mut head).ok()?;
+    if head != crate::png_rows::SIGNATURE {
+        return None;
+    }
+    file.rewind().ok()?;
+    Some(crate::png_rows::decode_grey_png_from(
+        std::io::BufReader::with_capacity(1 << 16, file),
+    ))
 }
 
 /// Converts to an 8-bit `image` buffer (for overlays and debugging).

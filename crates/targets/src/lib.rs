@@ -24,6 +24,7 @@
 //!
 //! ## Modules, in pipeline order
 //! - [`image_io`]: loading and conversion; [`tiff_strips`]: its fast path for grey strip TIFFs.
+//!   [`png_rows`]: its fast path for grey PNGs.
 //! - [`threshold`]: the threshold ladder and per-target local levels (hot spots, vignetting).
 //! - [`blobs`]: connected components with moments.
 //! - [`candidates`]: shape tests, grouping across threshold levels.
@@ -50,6 +51,7 @@ pub mod ellipse;
 pub mod homography;
 pub mod image_io;
 pub mod overlay;
+pub mod png_rows;
 pub mod printable;
 pub mod threshold;
 pub mod tiff_strips;
