@@ -8,7 +8,11 @@
 //! per rung, rung after rung until a mask is empty (a pixel above a rung is above every lower
 //! one). The masks give the runs of the row for every rung, and each rung's runs are labelled
 //! against that rung's runs of the previous row. Nothing per pixel is stored, and on these
-//! images (a few bright targets on a dark background) most blocks cost one test.
+//! images (a few bright targets on a dark background) most blocks cost one test. A component's
+//! statistics are kept only while it is open: once it has no run in the last two rows they
+//! are moved to the output (or dropped, by area), and their slot is reused, so the memory
+//! follows the number of components open at a time, not the thousands of specks of noise
+//! met over the image.
 
 use crate::ellipse::Ellipse;
 use crate::image_io::GrayImage;
@@ -67,7 +71,7 @@ impl Blob {
 /// 60 000 × 60 000 px), so the order in which runs and partial components are added up does
 /// not matter, and a [`Blob`]'s `f64` sums, converted at the end, are the exact sums rounded
 /// once (the exact sums themselves below 2⁵³).
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, Default)]
 struct Sums {
     area: u64,
     sx: u64,
@@ -113,23 +117,39 @@ impl Sums {
     }
 }
 
+/// In a union-find forest (see [`Labels::parent`]), marks a root: its entry is `ROOT | data`.
+const ROOT: u32 = 1 << 31;
+/// With [`ROOT`]: the data is an index into [`Labels::pending`], not an open slot.
+const PENDING: u32 = 1 << 30;
+/// The data bits of a root's entry.
+const DATA: u32 = PENDING - 1;
+
+/// The root of label `i` in the forest `parent` (entries: the parent label, or `ROOT | data`
+/// for a root), halving the path.
+#[inline]
 fn find(parent: &mut [u32], mut i: u32) -> u32 {
+    loop {
+        let p = parent[i as usize];
+        if p & ROOT != 0 {
+            return i;
+        }
+        let g = parent[p as usize];
+        if g & ROOT != 0 {
+            return p;
+        }
+        parent[i as usize] = g;
+        i = g;
+    }
+}
+
+/// The root of `i` in a plain forest (a root is its own parent), halving the path.
+fn find_plain(parent: &mut [u32], mut i: u32) -> u32 {
     while parent[i as usize] != i {
         let p = parent[i as usize];
         parent[i as usize] = parent[p as usize];
         i = p;
     }
     i
-}
-
-/// Makes the roots of `a` and `b` one set, rooted at the smaller label.
-#[inline]
-fn union(parent: &mut [u32], a: u32, b: u32) {
-    let (ra, rb) = (find(parent, a), find(parent, b));
-    if ra != rb {
-        let (lo, hi) = if ra < rb { (ra, rb) } else { (rb, ra) };
-        parent[hi as usize] = lo;
-    }
 }
 
 /// Connected components (8-connected) of the pixels with value > `level`, keeping only those
@@ -190,7 +210,7 @@ pub fn components_at_levels_banded(
         .into_par_iter()
         .map(|b| {
             let (y0, y1) = band_rows(b);
-            label_band(img, levels, y0, y1)
+            label_band(img, levels, y0, y1, min_area, max_area)
         })
         .collect();
     // Per rung: the bands' labels one after the other, the cuts joined.
@@ -215,32 +235,62 @@ struct Run {
     label: u32,
 }
 
-/// The labelling of one rung over a band of rows: union-find forest and sums per label, the
-/// runs of the band's first row and of the row last labelled.
+/// Slots of [`Labels::open`] before the first collection of finished components.
+const MIN_SLOTS: usize = 64;
+
+/// The labelling of one rung over a band of rows. Labels are numbered in the order their
+/// first run is met (row-major), and a component's root is its smallest label, so sorting
+/// components by root label puts them in the order of their first pixel. Each open component
+/// has a slot for its sums; when the slots run out, the components without a run in the
+/// previous or the current row (finished: nothing can join them any more) are collected and
+/// their slots reused, so memory grows only by the 4 bytes of `parent` per label.
 #[derive(Default)]
 struct Labels {
+    /// Union-find forest over the labels: the parent label, or for a root `ROOT | slot` (an
+    /// open component) or `ROOT | PENDING | i` (a component in `pending[i]`).
     parent: Vec<u32>,
-    sums: Vec<Sums>,
+    /// Per slot: the sums of its component (area 0: slot not in use; `y_max` is the last row
+    /// the component has a run in)
+    open: Vec<Sums>,
+    /// and the component's root label.
+    owner: Vec<u32>,
+    /// Slots not in use.
+    free: Vec<u32>,
+    /// Number of slots at which finished components are collected.
+    collect_at: usize,
+    /// (root label, sums) of the finished components with area in `min_area..=max_area`.
+    done: Vec<(u32, Sums)>,
+    /// (root label, sums) of the components that touch the band's first row (above it, another
+    /// band may continue them) and, once the band is labelled, its last row.
+    pending: Vec<(u32, Sums)>,
+    /// The band's first row when another band is above it (else `u32::MAX`): components with
+    /// a run in it (`y_min` equal to it) may continue above.
+    top: u32,
     first: Vec<Run>,
     prev: Vec<Run>,
     cur: Vec<Run>,
+    min_area: u64,
+    max_area: u64,
 }
 
 impl Labels {
+    fn new(top: u32, min_area: usize, max_area: usize) -> Self {
+        Labels {
+            min_area: min_area as u64,
+            max_area: max_area as u64,
+            collect_at: MIN_SLOTS,
+            top,
+            ..Labels::default()
+        }
+    }
+
     /// Labels row y given its foreground as (block, mask) pairs in increasing block order (bit
     /// i of the mask of block b is pixel 32·b + i): each run is joined to every run of the
     /// previous row it touches (8-connectivity: x ranges overlapping or diagonally adjacent),
-    /// or gets a new label; the run's pixels are added to its label's sums (`px`: the prefix
-    /// sums of x over the row).
+    /// or starts a component; the run's pixels are added to its component's sums (`px`: the
+    /// prefix sums of x over the row).
     fn row(&mut self, y: u32, blocks: &[(u32, u32)], px: &PrefixSums) {
-        let Labels {
-            parent,
-            sums,
-            prev,
-            cur,
-            ..
-        } = self;
-        cur.clear();
+        self.cur.clear();
         // The runs (a run crossing a block boundary is one run).
         for &(b, m) in blocks {
             let base = b * BLOCK as u32;
@@ -249,22 +299,24 @@ impl Labels {
                 let s = m.trailing_zeros();
                 let len = (!(m >> s)).trailing_zeros();
                 let (x0, x1) = (base + s, base + s + len - 1);
-                match cur.last_mut() {
+                match self.cur.last_mut() {
                     Some(r) if r.x1 + 1 == x0 => r.x1 = x1,
-                    _ => cur.push(Run { x0, x1, label: 0 }),
+                    _ => self.cur.push(Run { x0, x1, label: 0 }),
                 }
                 // Clear the lowest run of ones.
                 m &= m + (m & m.wrapping_neg());
             }
         }
         // Their labels. `j`: the first previous-row run that can touch this or a later run.
-        let above: &[Run] = prev;
+        let mut cur = std::mem::take(&mut self.cur);
+        let above = std::mem::take(&mut self.prev);
         let (y64, mut j) = (u64::from(y), 0);
         for r in cur.iter_mut() {
             let (x0, x1) = (r.x0, r.x1);
             while j < above.len() && above[j].x1 + 1 < x0 {
                 j += 1;
             }
+            let parent = &mut self.parent;
             let mut label = u32::MAX;
             let mut kk = j;
             while kk < above.len() && above[kk].x0 <= x1 + 1 {
@@ -272,43 +324,113 @@ impl Labels {
                 if label == u32::MAX {
                     label = l;
                 } else if l != label {
+                    // Two open components meet: the one with the larger root joins the other.
                     let (lo, hi) = if l < label { (l, label) } else { (label, l) };
+                    let (sl, sh) = (
+                        (parent[lo as usize] & DATA) as usize,
+                        (parent[hi as usize] & DATA) as usize,
+                    );
+                    let oh = self.open[sh];
+                    self.open[sl].add(&oh);
+                    self.open[sh].area = 0;
+                    self.free.push(sh as u32);
                     parent[hi as usize] = lo;
                     label = lo;
                 }
                 kk += 1;
             }
             let (n, sx, sxx) = px.run(x0, x1);
+            let sums = Sums {
+                area: n,
+                sx,
+                sy: y64 * n,
+                sxx,
+                sxy: y64 * sx,
+                syy: y64 * y64 * n,
+                x_min: x0,
+                x_max: x1,
+                y_min: y,
+                y_max: y,
+            };
             if label == u32::MAX {
-                label = parent.len() as u32;
-                parent.push(label);
-                sums.push(Sums {
-                    area: n,
-                    sx,
-                    sy: y64 * n,
-                    sxx,
-                    sxy: y64 * sx,
-                    syy: y64 * y64 * n,
-                    x_min: x0,
-                    x_max: x1,
-                    y_min: y,
-                    y_max: y,
-                });
+                label = self.parent.len() as u32;
+                assert!(label < PENDING, "too many components");
+                let slot = self.slot(y);
+                self.open[slot] = sums;
+                self.owner[slot] = label;
+                self.parent.push(ROOT | slot as u32);
             } else {
-                let t = &mut sums[label as usize];
-                t.area += n;
-                t.sx += sx;
-                t.sy += y64 * n;
-                t.sxx += sxx;
-                t.sxy += y64 * sx;
-                t.syy += y64 * y64 * n;
-                t.x_min = t.x_min.min(x0);
-                t.x_max = t.x_max.max(x1);
-                t.y_max = y;
+                let slot = (self.parent[label as usize] & DATA) as usize;
+                self.open[slot].add(&sums);
             }
             r.label = label;
         }
-        std::mem::swap(prev, cur);
+        self.prev = cur;
+        self.cur = above;
+    }
+
+    /// A free slot for a component starting in row y: a free one, else (with enough slots)
+    /// one freed by collecting the finished components, else a new one.
+    #[inline]
+    fn slot(&mut self, y: u32) -> usize {
+        if self.free.is_empty() && self.open.len() >= self.collect_at {
+            // Finished: no run in row y − 1 or y.
+            self.collect(y.saturating_sub(1));
+            let live = self.open.len() - self.free.len();
+            self.collect_at = MIN_SLOTS.max(2 * live);
+        }
+        match self.free.pop() {
+            Some(s) => s as usize,
+            None => {
+                self.open.push(Sums::default());
+                self.owner.push(0);
+                self.open.len() - 1
+            }
+        }
+    }
+
+    /// Ends every open component whose last run is in a row before `row`.
+    fn collect(&mut self, row: u32) {
+        for slot in 0..self.open.len() {
+            let s = &self.open[slot];
+            if s.area != 0 && s.y_max < row {
+                self.end(slot, false);
+            }
+        }
+    }
+
+    /// Ends the component in `slot`: pending if `pending` or it touches the band's first row,
+    /// else done (when its area is in range); the slot is freed.
+    fn end(&mut self, slot: usize, pending: bool) {
+        let (l, s) = (self.owner[slot], self.open[slot]);
+        if pending || s.y_min == self.top {
+            self.parent[l as usize] = ROOT | PENDING | self.pending.len() as u32;
+            self.pending.push((l, s));
+        } else if s.area >= self.min_area && s.area <= self.max_area {
+            self.done.push((l, s));
+        }
+        self.open[slot].area = 0;
+        self.free.push(slot as u32);
+    }
+
+    /// After the band's last row `y`: the components still open are ended, those with a run in
+    /// that row as pending (for the band below).
+    fn close(&mut self, y: u32) {
+        for slot in 0..self.open.len() {
+            let s = &self.open[slot];
+            if s.area != 0 {
+                self.end(slot, s.y_max == y);
+            }
+        }
+    }
+
+    /// The index in `pending` of the component of label `l` (of the band's first or last
+    /// row).
+    fn pending_of(&mut self, l: u32) -> u32 {
+        let r = find(&mut self.parent, l);
+        let v = self.parent[r as usize];
+        debug_assert!(v & PENDING != 0);
+        v & DATA
     }
 }
 
@@ -397,11 +519,21 @@ fn push_masks(levels: &[f32], masks: &mut [Vec<(u32, u32)>], b: usize, mask: imp
 }
 
 /// Labels rows `y0..y1` of `img` for every rung of `levels` (non-empty, non-decreasing).
-fn label_band(img: &GrayImage, levels: &[f32], y0: usize, y1: usize) -> Vec<Labels> {
+fn label_band(
+    img: &GrayImage,
+    levels: &[f32],
+    y0: usize,
+    y1: usize,
+    min_area: usize,
+    max_area: usize,
+) -> Vec<Labels> {
     let w = img.width;
     let l0 = levels[0];
     let px = PrefixSums::new(w);
-    let mut labels: Vec<Labels> = (0..levels.len()).map(|_| Labels::default()).collect();
+    let top = if y0 > 0 { y0 as u32 } else { u32::MAX };
+    let mut labels: Vec<Labels> = (0..levels.len())
+        .map(|_| Labels::new(top, min_area, max_area))
+        .collect();
     // Per rung, the (block, mask) pairs of the current row.
     let mut masks: Vec<Vec<(u32, u32)>> = vec![Vec::new(); levels.len()];
     for y in y0..y1 {
@@ -420,65 +552,81 @@ fn label_band(img: &GrayImage, levels: &[f32], y0: usize, y1: usize) -> Vec<Labe
         for (l, m) in labels.iter_mut().zip(masks.iter_mut()) {
             l.row(y as u32, m, &px);
             m.clear();
-            if y == y0 {
+            if y == y0 && y0 > 0 {
                 l.first.clone_from(&l.prev);
             }
         }
     }
+    for l in labels.iter_mut() {
+        l.close((y1 - 1) as u32);
+    }
     labels
 }
 
-/// One rung's labellings of consecutive bands made one (the labels of band i offset by the
-/// label counts of the bands above it; runs of a band's last row joined to the touching runs
-/// of the next band's first row), then the components with area in `min_area..=max_area`, in
-/// label order.
-fn join_bands(bands: Vec<Labels>, level: f32, min_area: usize, max_area: usize) -> Vec<Blob> {
-    let mut bands = bands.into_iter();
-    let Some(mut all) = bands.next() else {
-        return Vec::new();
-    };
-    for b in bands {
-        let off = all.parent.len() as u32;
-        all.parent.extend(b.parent.iter().map(|&p| p + off));
-        all.sums.extend_from_slice(&b.sums);
-        // `all.prev`: the runs of the row above this band's first row.
+/// One rung's labellings of consecutive bands made one: the pending components of each band's
+/// last row joined to those of the next band's first row they touch, the labels of band i
+/// offset by the label counts of the bands above it. Returns the components with area in
+/// `min_area..=max_area` in the order of their smallest label (their first pixel).
+fn join_bands(mut bands: Vec<Labels>, level: f32, min_area: usize, max_area: usize) -> Vec<Blob> {
+    // (global root label, sums) of the pending components, band after band.
+    let mut pend: Vec<(u32, Sums)> = Vec::new();
+    let mut pend_off = Vec::with_capacity(bands.len());
+    let mut out: Vec<(u32, Sums)> = Vec::new();
+    let mut off = 0u32;
+    for b in &bands {
+        pend_off.push(pend.len() as u32);
+        pend.extend(b.pending.iter().map(|&(l, s)| (l + off, s)));
+        out.extend(b.done.iter().map(|&(l, s)| (l + off, s)));
+        off = off
+            .checked_add(b.parent.len() as u32)
+            .expect("too many components");
+    }
+    // Union-find over the pending components: runs of a band's last row and of the next
+    // band's first row that touch.
+    let mut parent: Vec<u32> = (0..pend.len() as u32).collect();
+    for i in 1..bands.len() {
+        let (upper, lower) = bands.split_at_mut(i);
+        let (a, b) = (&mut upper[i - 1], &mut lower[0]);
+        let (oa, ob) = (pend_off[i - 1], pend_off[i]);
+        let last = std::mem::take(&mut a.prev);
+        let first = std::mem::take(&mut b.first);
         let mut j = 0;
-        for r in &b.first {
-            while j < all.prev.len() && all.prev[j].x1 + 1 < r.x0 {
+        for r in &first {
+            while j < last.len() && last[j].x1 + 1 < r.x0 {
                 j += 1;
             }
             let mut kk = j;
-            while kk < all.prev.len() && all.prev[kk].x0 <= r.x1 + 1 {
-                union(&mut all.parent, all.prev[kk].label, r.label + off);
+            while kk < last.len() && last[kk].x0 <= r.x1 + 1 {
+                let pa = find_plain(&mut parent, oa + a.pending_of(last[kk].label));
+                let pb = find_plain(&mut parent, ob + b.pending_of(r.label));
+                if pa != pb {
+                    let (lo, hi) = if pa < pb { (pa, pb) } else { (pb, pa) };
+                    parent[hi as usize] = lo;
+                }
                 kk += 1;
             }
         }
-        all.prev.clear();
-        all.prev.extend(b.prev.iter().map(|r| Run {
-            label: r.label + off,
-            ..*r
-        }));
     }
-    let Labels {
-        mut parent,
-        mut sums,
-        ..
-    } = all;
-    // Sums into roots (a root is its set's smallest label, so it precedes its members).
-    let n = parent.len();
-    for i in 0..n {
-        let r = find(&mut parent, i as u32) as usize;
+    // Sums and smallest label into the roots (a root is its set's smallest index, so it
+    // precedes its members).
+    for i in 0..pend.len() {
+        let r = find_plain(&mut parent, i as u32) as usize;
         if r != i {
-            let s = sums[i];
-            sums[r].add(&s);
+            let (l, s) = pend[i];
+            pend[r].0 = pend[r].0.min(l);
+            pend[r].1.add(&s);
         }
     }
-    (0..n)
-        .filter(|&i| parent[i] as usize == i)
-        .map(|i| &sums[i])
-        .filter(|s| s.area >= min_area as u64 && s.area <= max_area as u64)
-        .map(|s| s.blob(level))
-        .collect()
+    out.extend(
+        pend.iter()
+            .enumerate()
+            .filter(|&(i, (_, s))| {
+                parent[i] as usize == i && s.area >= min_area as u64 && s.area <= max_area as u64
+            })
+            .map(|(_, p)| *p),
+    );
+    out.sort_unstable_by_key(|&(l, _)| l);
+    out.iter().map(|(_, s)| s.blob(level)).collect()
 }
 
 #[cfg(test)]
