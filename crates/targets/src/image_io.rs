@@ -190,10 +190,43 @@ fn convert_with<T: Copy + Into<usize> + Sync>(src: &[T], lut: &[f32]) -> Vec<f32
     out
 }
 
-/// `n` zeros, for an image to be written.
+/// `n` zeros, for an image to be written: a big buffer goes in memory the kernel is asked to
+/// back with 2 MB pages. The pages of a fresh allocation are only mapped when first written,
+/// one page fault each, and on 4 kB pages that was the most expensive part of decoding a big
+/// image: writing a fresh 96 MB buffer (a 24-megapixel `f32` image) takes 33 ms of one thread
+/// in page faults, 5 ms on 2 MB pages (Linux 6.18 in a VM, transparent huge pages on
+/// `madvise`); written from two threads at once, the 4 kB faults take no less time.
 pub(crate) fn zeroed_f32(n: usize) -> Vec<f32> {
-    vec![0.0f32; n]
+    let mut v = vec![0.0f32; n];
+    advise_huge_pages(&mut v);
+    v
 }
+
+/// Asks the kernel to back `buf` with huge pages where it covers whole 2 MB pages (a hint,
+/// which changes neither the contents nor their addresses; nothing elsewhere).
+#[cfg(target_os = "linux")]
+fn advise_huge_pages<T>(buf: &mut [T]) {
+    const HUGE: usize = 2 << 20;
+    let start = buf.as_mut_ptr() as usize;
+    let end = start + std::mem::size_of_val(buf);
+    let first = start.next_multiple_of(HUGE);
+    let last = end - end % HUGE;
+    if first < last {
+        // SAFETY: the range lies inside `buf`, which we borrow mutably, and is page aligned;
+        // MADV_HUGEPAGE only tells the kernel which page size to use for it and leaves the
+        // memory as it is. A failure (no transparent huge pages) changes nothing.
+        unsafe {
+            libc::madvise(
+                first as *mut libc::c_void,
+                last - first,
+                libc::MADV_HUGEPAGE,
+            );
+        }
+    }
+}
+
+#[cfg(not(target_os = "linux"))]
+fn advise_huge_pages<T>(_buf: &mut [T]) {}
 
 /// Grey value of every 8-bit (16-bit) level as `to_luma32f` gives it, non-finite values as 0.
 pub(crate) fn lut_u8() -> &'static [f32] {
@@ -276,6 +309,20 @@ pub fn to_luma8(img: &GrayImage) -> image::GrayImage {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Huge-page advice or not, the buffer is `n` zeros, writable everywhere.
+    #[test]
+    fn zeroed_buffers_are_zeros() {
+        for n in [0, 1, 1000, (2 << 20) / 4 - 3, 5 << 20] {
+            let mut v = zeroed_f32(n);
+            assert_eq!(v.len(), n);
+            assert!(v.iter().all(|&x| x.to_bits() == 0));
+            for (i, x) in v.iter_mut().enumerate() {
+                *x = i as f32;
+            }
+            assert!(v.iter().enumerate().all(|(i, &x)| x == i as f32));
+        }
+    }
 
     /// The table conversion of grey 8 and 16-bit images gives exactly `to_luma32f`'s values.
     #[test]

@@ -16,14 +16,14 @@
 //! `to_luma32f`'s bit for bit (tests/png_fast_path.rs).
 //!
 //! Measured on the 24-megapixel synthetic image of `bench/targets` (6000 × 4000, 8 bit, zlib
-//! level 1, every row with the Sub filter), fresh process each time, best of 10: the decode
-//! step of `bench_stages` (file read included) went from 85 to 69 ms on one thread and from 88
-//! to 68 ms on two. Of the old 85 ms, reading the file took 5 ms, the `image` crate's decode
-//! 40 ms (inflating and unfiltering the rows alone take 33 ms, then the copy and the kernel's
-//! page faults on the fresh 24 MB image), and the conversion to `f32` 40 ms, of which 35 ms
-//! are page faults on the fresh 96 MB `f32` image. Those faults are what is left beside the
-//! inflating; they do not get cheaper spread over two threads on this machine (a VM), which is
-//! why two threads gain nothing yet.
+//! level 1, every row with the Sub filter), fresh process each time, best of 10 alternating
+//! runs: the decode step of `bench_stages` (file read included) went from 85 to 43 ms on one
+//! thread and from 67 to 35 ms on two, which is about the time of inflating and unfiltering
+//! the rows alone (33 ms of one thread), the part that cannot be spread. Of the old 85 ms,
+//! reading the file took 5 ms, the `image` crate's decode 40 ms (inflate and unfilter, then
+//! the copy and the page faults on the fresh 24 MB image), and the conversion to `f32` 40 ms,
+//! 35 ms of it page faults on the fresh 96 MB `f32` image (now on huge pages, see
+//! [`zeroed_f32`](crate::image_io::zeroed_f32)).
 
 use crate::image_io::{lut_u16, lut_u8, zeroed_f32, GrayImage, MAX_ALLOC, MAX_SIDE};
 use crate::tiff_strips::NotDecoded;
