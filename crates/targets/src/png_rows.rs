@@ -23,7 +23,7 @@
 //! reading the file took 5 ms, the `image` crate's decode 40 ms (inflate and unfilter, then
 //! the copy and the page faults on the fresh 24 MB image), and the conversion to `f32` 40 ms,
 //! 35 ms of it page faults on the fresh 96 MB `f32` image (now on huge pages, see
-//! [`zeroed_f32`](crate::image_io::zeroed_f32)).
+//! `image_io::zeroed_f32`).
 
 use crate::image_io::{lut_u16, lut_u8, zeroed_f32, GrayImage, MAX_ALLOC, MAX_SIDE};
 use crate::tiff_strips::NotDecoded;
