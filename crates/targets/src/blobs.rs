@@ -227,7 +227,7 @@ pub fn components_at_levels_banded(
         .collect()
 }
 
-/// One run x0..=x1 of a row and its label.
+/// One run x0..=x1 of a row and its label ([`NONE`]: a run not labelled yet).
 #[derive(Clone, Copy, Debug)]
 struct Run {
     x0: u32,
@@ -235,36 +235,64 @@ struct Run {
     label: u32,
 }
 
+/// [`Run::label`] of a run that touches no run of the row above and is too small to be a
+/// component by itself: it gets a label only if a run of the row below touches it.
+const NONE: u32 = u32::MAX;
+
 /// Slots of [`Labels::open`] before the first collection of finished components.
 const MIN_SLOTS: usize = 64;
 
-/// The labelling of one rung over a band of rows. Labels are numbered in the order their
-/// first run is met (row-major), and a component's root is its smallest label, so sorting
-/// components by root label puts them in the order of their first pixel. Each open component
-/// has a slot for its sums; when the slots run out, the components without a run in the
-/// previous or the current row (finished: nothing can join them any more) are collected and
-/// their slots reused, so memory grows only by the 4 bytes of `parent` per label.
+/// The order of components: (row << 32) | column of their first pixel in row-major order.
+type Key = u64;
+
+/// The sums of the run x0..=x1 of row y (`px`: the prefix sums of x over a row).
+#[inline(always)]
+fn run_sums(y: u32, x0: u32, x1: u32, px: &PrefixSums) -> Sums {
+    let (n, sx, sxx) = px.run(x0, x1);
+    let y64 = u64::from(y);
+    Sums {
+        area: n,
+        sx,
+        sy: y64 * n,
+        sxx,
+        sxy: y64 * sx,
+        syy: y64 * y64 * n,
+        x_min: x0,
+        x_max: x1,
+        y_min: y,
+        y_max: y,
+    }
+}
+
+/// The labelling of one rung over a band of rows. Each open component has a slot for its
+/// sums, its root label and its [`Key`]; when the slots run out, the components without a run
+/// in the previous or the current row (finished: nothing can join them any more) are collected
+/// and their slots reused, so memory grows only by the 4 bytes of `parent` per label. A run
+/// that touches nothing above and is smaller than `min_area` waits for a run below to touch it
+/// before it is labelled (most specks of noise are never labelled).
 #[derive(Default)]
 struct Labels {
     /// Union-find forest over the labels: the parent label, or for a root `ROOT | slot` (an
     /// open component) or `ROOT | PENDING | i` (a component in `pending[i]`).
     parent: Vec<u32>,
     /// Per slot: the sums of its component (area 0: slot not in use; `y_max` is the last row
-    /// the component has a run in)
+    /// the component has a run in),
     open: Vec<Sums>,
-    /// and the component's root label.
+    /// its root label
     owner: Vec<u32>,
+    /// and its key.
+    key: Vec<Key>,
     /// Slots not in use.
     free: Vec<u32>,
     /// Number of slots at which finished components are collected.
     collect_at: usize,
-    /// (root label, sums) of the finished components with area in `min_area..=max_area`.
-    done: Vec<(u32, Sums)>,
-    /// (root label, sums) of the components that touch the band's first row (above it, another
-    /// band may continue them) and, once the band is labelled, its last row.
-    pending: Vec<(u32, Sums)>,
+    /// (key, sums) of the finished components with area in `min_area..=max_area`.
+    done: Vec<(Key, Sums)>,
+    /// (key, sums) of the components that touch the band's first row (above it, another band
+    /// may continue them) and, once the band is labelled, its last row.
+    pending: Vec<(Key, Sums)>,
     /// The band's first row when another band is above it (else `u32::MAX`): components with
-    /// a run in it (`y_min` equal to it) may continue above.
+    /// a run in it (`y_min` equal to it) may continue above, and its runs are all labelled.
     top: u32,
     first: Vec<Run>,
     prev: Vec<Run>,
@@ -284,6 +312,19 @@ impl Labels {
         }
     }
 
+    /// A new component: the run x0..=x1 of row y (`y` is the current row or the one before).
+    #[inline]
+    fn start(&mut self, y: u32, x0: u32, x1: u32, px: &PrefixSums) -> u32 {
+        let label = self.parent.len() as u32;
+        assert!(label < PENDING, "too many components");
+        let slot = self.slot(y);
+        self.open[slot] = run_sums(y, x0, x1, px);
+        self.owner[slot] = label;
+        self.key[slot] = (Key::from(y) << 32) | Key::from(x0);
+        self.parent.push(ROOT | slot as u32);
+        label
+    }
+
     /// Labels row y given its foreground as (block, mask) pairs in increasing block order (bit
     /// i of the mask of block b is pixel 32·b + i): each run is joined to every run of the
     /// previous row it touches (8-connectivity: x ranges overlapping or diagonally adjacent),
@@ -301,7 +342,11 @@ impl Labels {
                 let (x0, x1) = (base + s, base + s + len - 1);
                 match self.cur.last_mut() {
                     Some(r) if r.x1 + 1 == x0 => r.x1 = x1,
-                    _ => self.cur.push(Run { x0, x1, label: 0 }),
+                    _ => self.cur.push(Run {
+                        x0,
+                        x1,
+                        label: NONE,
+                    }),
                 }
                 // Clear the lowest run of ones.
                 m &= m + (m & m.wrapping_neg());
@@ -309,22 +354,26 @@ impl Labels {
         }
         // Their labels. `j`: the first previous-row run that can touch this or a later run.
         let mut cur = std::mem::take(&mut self.cur);
-        let above = std::mem::take(&mut self.prev);
-        let (y64, mut j) = (u64::from(y), 0);
+        let mut above = std::mem::take(&mut self.prev);
+        let mut j = 0;
         for r in cur.iter_mut() {
             let (x0, x1) = (r.x0, r.x1);
             while j < above.len() && above[j].x1 + 1 < x0 {
                 j += 1;
             }
-            let parent = &mut self.parent;
-            let mut label = u32::MAX;
+            let mut label = NONE;
             let mut kk = j;
             while kk < above.len() && above[kk].x0 <= x1 + 1 {
-                let l = find(parent, above[kk].label);
-                if label == u32::MAX {
+                let a = &mut above[kk];
+                if a.label == NONE {
+                    a.label = self.start(y - 1, a.x0, a.x1, px);
+                }
+                let l = find(&mut self.parent, a.label);
+                if label == NONE {
                     label = l;
                 } else if l != label {
                     // Two open components meet: the one with the larger root joins the other.
+                    let parent = &mut self.parent;
                     let (lo, hi) = if l < label { (l, label) } else { (label, l) };
                     let (sl, sh) = (
                         (parent[lo as usize] & DATA) as usize,
@@ -332,6 +381,7 @@ impl Labels {
                     );
                     let oh = self.open[sh];
                     self.open[sl].add(&oh);
+                    self.key[sl] = self.key[sl].min(self.key[sh]);
                     self.open[sh].area = 0;
                     self.free.push(sh as u32);
                     parent[hi as usize] = lo;
@@ -339,29 +389,11 @@ impl Labels {
                 }
                 kk += 1;
             }
-            let (n, sx, sxx) = px.run(x0, x1);
-            let sums = Sums {
-                area: n,
-                sx,
-                sy: y64 * n,
-                sxx,
-                sxy: y64 * sx,
-                syy: y64 * y64 * n,
-                x_min: x0,
-                x_max: x1,
-                y_min: y,
-                y_max: y,
-            };
-            if label == u32::MAX {
-                label = self.parent.len() as u32;
-                assert!(label < PENDING, "too many components");
-                let slot = self.slot(y);
-                self.open[slot] = sums;
-                self.owner[slot] = label;
-                self.parent.push(ROOT | slot as u32);
-            } else {
+            if label != NONE {
                 let slot = (self.parent[label as usize] & DATA) as usize;
-                self.open[slot].add(&sums);
+                self.open[slot].add(&run_sums(y, x0, x1, px));
+            } else if u64::from(x1 - x0 + 1) >= self.min_area || y == self.top {
+                label = self.start(y, x0, x1, px);
             }
             r.label = label;
         }
@@ -369,12 +401,12 @@ impl Labels {
         self.cur = above;
     }
 
-    /// A free slot for a component starting in row y: a free one, else (with enough slots)
+    /// A free slot for a component with a run in row y: a free one, else (with enough slots)
     /// one freed by collecting the finished components, else a new one.
     #[inline]
     fn slot(&mut self, y: u32) -> usize {
         if self.free.is_empty() && self.open.len() >= self.collect_at {
-            // Finished: no run in row y − 1 or y.
+            // Finished: no run in row y − 1 or later.
             self.collect(y.saturating_sub(1));
             let live = self.open.len() - self.free.len();
             self.collect_at = MIN_SLOTS.max(2 * live);
@@ -384,6 +416,7 @@ impl Labels {
             None => {
                 self.open.push(Sums::default());
                 self.owner.push(0);
+                self.key.push(0);
                 self.open.len() - 1
             }
         }
@@ -402,20 +435,25 @@ impl Labels {
     /// Ends the component in `slot`: pending if `pending` or it touches the band's first row,
     /// else done (when its area is in range); the slot is freed.
     fn end(&mut self, slot: usize, pending: bool) {
-        let (l, s) = (self.owner[slot], self.open[slot]);
+        let (l, k, s) = (self.owner[slot], self.key[slot], self.open[slot]);
         if pending || s.y_min == self.top {
             self.parent[l as usize] = ROOT | PENDING | self.pending.len() as u32;
-            self.pending.push((l, s));
+            self.pending.push((k, s));
         } else if s.area >= self.min_area && s.area <= self.max_area {
-            self.done.push((l, s));
+            self.done.push((k, s));
         }
         self.open[slot].area = 0;
         self.free.push(slot as u32);
     }
 
-    /// After the band's last row `y`: the components still open are ended, those with a run in
-    /// that row as pending (for the band below).
-    fn close(&mut self, y: u32) {
+    /// After the band's last row `y`: its runs are all labelled, and the components still open
+    /// are ended, those with a run in that row as pending (for the band below).
+    fn close(&mut self, y: u32, px: &PrefixSums) {
+        let mut last = std::mem::take(&mut self.prev);
+        for r in last.iter_mut().filter(|r| r.label == NONE) {
+            r.label = self.start(y, r.x0, r.x1, px);
+        }
+        self.prev = last;
         for slot in 0..self.open.len() {
             let s = &self.open[slot];
             if s.area != 0 {
@@ -558,28 +596,23 @@ fn label_band(
         }
     }
     for l in labels.iter_mut() {
-        l.close((y1 - 1) as u32);
+        l.close((y1 - 1) as u32, &px);
     }
     labels
 }
 
 /// One rung's labellings of consecutive bands made one: the pending components of each band's
-/// last row joined to those of the next band's first row they touch, the labels of band i
-/// offset by the label counts of the bands above it. Returns the components with area in
-/// `min_area..=max_area` in the order of their smallest label (their first pixel).
+/// last row joined to those of the next band's first row they touch. Returns the finished and
+/// joined components with area in `min_area..=max_area` in the order of their first pixel.
 fn join_bands(mut bands: Vec<Labels>, level: f32, min_area: usize, max_area: usize) -> Vec<Blob> {
-    // (global root label, sums) of the pending components, band after band.
-    let mut pend: Vec<(u32, Sums)> = Vec::new();
+    // (key, sums) of the pending components, band after band.
+    let mut pend: Vec<(Key, Sums)> = Vec::new();
     let mut pend_off = Vec::with_capacity(bands.len());
-    let mut out: Vec<(u32, Sums)> = Vec::new();
-    let mut off = 0u32;
+    let mut out: Vec<(Key, Sums)> = Vec::new();
     for b in &bands {
         pend_off.push(pend.len() as u32);
-        pend.extend(b.pending.iter().map(|&(l, s)| (l + off, s)));
-        out.extend(b.done.iter().map(|&(l, s)| (l + off, s)));
-        off = off
-            .checked_add(b.parent.len() as u32)
-            .expect("too many components");
+        pend.extend_from_slice(&b.pending);
+        out.extend_from_slice(&b.done);
     }
     // Union-find over the pending components: runs of a band's last row and of the next
     // band's first row that touch.
@@ -607,7 +640,7 @@ fn join_bands(mut bands: Vec<Labels>, level: f32, min_area: usize, max_area: usi
             }
         }
     }
-    // Sums and smallest label into the roots (a root is its set's smallest index, so it
+    // Sums and smallest key into the roots (a root is its set's smallest index, so it
     // precedes its members).
     for i in 0..pend.len() {
         let r = find_plain(&mut parent, i as u32) as usize;
@@ -625,8 +658,17 @@ fn join_bands(mut bands: Vec<Labels>, level: f32, min_area: usize, max_area: usi
             })
             .map(|(_, p)| *p),
     );
-    out.sort_unstable_by_key(|&(l, _)| l);
-    out.iter().map(|(_, s)| s.blob(level)).collect()
+    // By first pixel: sort (key, index) pairs, not the 72-byte entries.
+    let mut order: Vec<(Key, u32)> = out
+        .iter()
+        .enumerate()
+        .map(|(i, &(k, _))| (k, i as u32))
+        .collect();
+    order.sort_unstable();
+    order
+        .iter()
+        .map(|&(_, i)| out[i as usize].1.blob(level))
+        .collect()
 }
 
 #[cfg(test)]
