@@ -76,7 +76,7 @@ struct Layout {
 /// Decodes `bytes` if it is a grey strip TIFF this path handles (see the module doc).
 pub fn decode_grey_strips(bytes: &[u8]) -> Result<GrayImage, NotDecoded> {
     let l = layout(bytes)?;
-    let mut data = vec![0.0f32; l.width * l.height];
+    let mut data = crate::image_io::zeroed_f32(l.width * l.height);
     let lut = Lut::new(&l);
     if l.lzw {
         let rows = l.rows_per_strip * l.width;
