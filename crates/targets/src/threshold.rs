@@ -25,14 +25,48 @@ const BINS: usize = 1024;
 /// Histogram of a strided sample of `data` (every `step`-th value from the first, step =
 /// max(1, len / 400 000): a sample is plenty for percentiles) in [`BINS`] bins: a value's bin is
 /// its [0, 1]-clamped value times BINS − 1, truncated (NaN: bin 0). Returns the counts and the
-/// sample size.
+/// sample size. Counted in parallel, in as many pieces as rayon has threads.
 fn sample_histogram(data: &[f32]) -> ([usize; BINS], usize) {
+    sample_histogram_in(data, rayon::current_num_threads())
+}
+
+/// [`sample_histogram`] counted in `pieces` pieces (at least one) of a multiple of step values
+/// each (so each piece's sample starts at its first value), their counts added up.
+fn sample_histogram_in(data: &[f32], pieces: usize) -> ([usize; BINS], usize) {
+    use rayon::prelude::*;
+    let step = (data.len() / 400_000).max(1);
+    let total = data.len().div_ceil(step);
+    let per_piece = total.div_ceil(pieces.max(1)).max(1);
+    let hist = data
+        .par_chunks(step * per_piece)
+        .fold(
+            || [0usize; BINS],
+            |mut hist, piece| {
+                for (h, c) in hist.iter_mut().zip(piece_histogram(piece, step).iter()) {
+                    *h += *c as usize;
+                }
+                hist
+            },
+        )
+        .reduce(
+            || [0usize; BINS],
+            |mut a, b| {
+                for (a, b) in a.iter_mut().zip(b.iter()) {
+                    *a += b;
+                }
+                a
+            },
+        );
+    (hist, total)
+}
+
+/// The histogram of every `step`-th value of `data` from the first (u32 counts: a piece has
+/// fewer than 800 000 samples).
+fn piece_histogram(data: &[f32], step: usize) -> [u32; BINS] {
     // The product is in 0..=1023, so the cheaper conversion to i32 gives the same number.
     let bin = |v: f32| ((v.clamp(0.0, 1.0) * (BINS - 1) as f32) as i32 as usize) & (BINS - 1);
     // Counted in four histograms in turn (consecutive samples often fall in the same bin, and
-    // one histogram would make each count wait for the previous one), then added up. (Fewer
-    // than 800 000 samples, so u32 counts.)
-    let step = (data.len() / 400_000).max(1);
+    // one histogram would make each count wait for the previous one), then added up.
     let mut hists = [[0u32; BINS]; 4];
     let mut quads = data.chunks_exact(4 * step);
     for q in quads.by_ref() {
@@ -43,11 +77,11 @@ fn sample_histogram(data: &[f32]) -> ([usize; BINS], usize) {
     for v in quads.remainder().iter().step_by(step) {
         hists[0][bin(*v)] += 1;
     }
-    let mut hist = [0usize; BINS];
+    let mut hist = [0u32; BINS];
     for (i, h) in hist.iter_mut().enumerate() {
-        *h = hists.iter().map(|s| s[i] as usize).sum();
+        *h = hists.iter().map(|s| s[i]).sum();
     }
-    (hist, data.len().div_ceil(step))
+    hist
 }
 
 /// A ladder of `n` threshold levels between the dark and bright ends of the image histogram
@@ -141,7 +175,7 @@ mod tests {
     use super::*;
 
     /// The histogram equals a plain count of every `step`-th value, for lengths with every
-    /// step from 1 to 5 and every remainder modulo 4·step.
+    /// step from 1 to 5 and every remainder modulo 4·step, counted in 1 to 4 pieces.
     #[test]
     fn sample_histogram_counts_every_step_th_value() {
         use rand::{Rng, SeedableRng};
@@ -168,9 +202,11 @@ mod tests {
                 want[((v.clamp(0.0, 1.0)) * (BINS - 1) as f32) as usize] += 1;
                 total += 1;
             }
-            let (got, n) = sample_histogram(data);
-            assert_eq!(n, total, "len {len}");
-            assert!(got == want, "len {len}");
+            for pieces in 1..=4 {
+                let (got, n) = sample_histogram_in(data, pieces);
+                assert_eq!(n, total, "len {len}, {pieces} pieces");
+                assert!(got == want, "len {len}, {pieces} pieces");
+            }
         }
     }
 
