@@ -3,16 +3,16 @@
 //! second moments, and whether the component touches the image border.
 //!
 //! [`components_at_levels`] labels the components above every rung of a threshold ladder in
-//! one pass over the image. Per row, each block of 32 pixels is first tested against the lowest
-//! rung (one vector comparison per 4 pixels); only blocks with a pixel above it get a bit mask
-//! per rung, rung after rung until a mask is empty (a pixel above a rung is above every lower
-//! one). The masks give the runs of the row for every rung, and each rung's runs are labelled
-//! against that rung's runs of the previous row. Nothing per pixel is stored, and on these
-//! images (a few bright targets on a dark background) most blocks cost one test. A component's
-//! statistics are kept only while it is open: once it has no run in the last two rows they
-//! are moved to the output (or dropped, by area), and their slot is reused, so the memory
-//! follows the number of components open at a time, not the thousands of specks of noise
-//! met over the image.
+//! one pass over the image. Per row, each block of 32 pixels gets its bit mask of the pixels
+//! above the lowest rung (vector comparisons, one `pmovmskb` per 16 pixels), and a block with a
+//! pixel above it the masks of the next rungs, rung after rung until a mask is empty (a pixel
+//! above a rung is above every lower one). The masks give the runs of the row for every rung,
+//! and each rung's runs are labelled against that rung's runs of the previous row. Nothing per
+//! pixel is stored, and on these images (a few bright targets on a dark background) most blocks
+//! cost one mask. A component's statistics are kept only while it is open: once it has no run
+//! in the last two rows they are moved to the output (or dropped, by area), and their slot is
+//! reused, so the memory follows the number of components open at a time, not the thousands of
+//! specks of noise met over the image.
 
 use crate::ellipse::Ellipse;
 use crate::image_io::GrayImage;
@@ -537,12 +537,6 @@ fn mask_above_block(d: &[f32; BLOCK], l: f32) -> u32 {
     mask_above(d, l)
 }
 
-/// Whether any of 32 values is above `l`.
-#[inline(always)]
-fn any_above(d: &[f32; BLOCK], l: f32) -> bool {
-    d.iter().fold(false, |a, &v| a | (v > l))
-}
-
 /// Appends block `b`'s mask `mask(level)` to `masks[k]` for the rungs k = 0, 1, … up to the
 /// first empty mask (the masks of the higher rungs are empty too).
 #[inline(always)]
@@ -566,7 +560,6 @@ fn label_band(
     max_area: usize,
 ) -> Vec<Labels> {
     let w = img.width;
-    let l0 = levels[0];
     let px = PrefixSums::new(w);
     let top = if y0 > 0 { y0 as u32 } else { u32::MAX };
     let mut labels: Vec<Labels> = (0..levels.len())
@@ -579,9 +572,7 @@ fn label_band(
         let mut chunks = row.chunks_exact(BLOCK);
         for (b, d) in chunks.by_ref().enumerate() {
             let d: &[f32; BLOCK] = d.try_into().expect("block");
-            if any_above(d, l0) {
-                push_masks(levels, &mut masks, b, |l| mask_above_block(d, l));
-            }
+            push_masks(levels, &mut masks, b, |l| mask_above_block(d, l));
         }
         let tail = chunks.remainder();
         if !tail.is_empty() {
