@@ -86,6 +86,7 @@ struct Sums {
 }
 
 impl Sums {
+    /// Adds the pixels of `o` (disjoint from these): sums added, bounding boxes joined.
     #[inline]
     fn add(&mut self, o: &Sums) {
         self.area += o.area;
@@ -100,6 +101,7 @@ impl Sums {
         self.y_max = self.y_max.max(o.y_max);
     }
 
+    /// The [`Blob`] of these pixels, extracted at `level`.
     fn blob(&self, level: f32) -> Blob {
         Blob {
             area: self.area as usize,
@@ -302,6 +304,7 @@ struct Labels {
 }
 
 impl Labels {
+    /// No rows labelled yet; `top`: see [`Labels::top`].
     fn new(top: u32, min_area: usize, max_area: usize) -> Self {
         Labels {
             min_area: min_area as u64,
@@ -479,6 +482,7 @@ struct PrefixSums {
 }
 
 impl PrefixSums {
+    /// The prefix sums of a row of `w` pixels.
     fn new(w: usize) -> Self {
         let (mut s1, mut s2) = (Vec::with_capacity(w + 1), Vec::with_capacity(w + 1));
         let (mut a, mut b) = (0u64, 0u64);
@@ -531,6 +535,7 @@ fn mask_above_block(d: &[f32; BLOCK], l: f32) -> u32 {
     }
 }
 
+/// [`mask_above`] of a full block.
 #[cfg(not(target_arch = "x86_64"))]
 #[inline(always)]
 fn mask_above_block(d: &[f32; BLOCK], l: f32) -> u32 {
@@ -550,7 +555,8 @@ fn push_masks(levels: &[f32], masks: &mut [Vec<(u32, u32)>], b: usize, mask: imp
     }
 }
 
-/// Labels rows `y0..y1` of `img` for every rung of `levels` (non-empty, non-decreasing).
+/// Labels rows `y0..y1` of `img` for every rung of `levels` (non-empty, non-decreasing): one
+/// closed [`Labels`] per rung (finished components in range done, the others pending).
 fn label_band(
     img: &GrayImage,
     levels: &[f32],
@@ -665,6 +671,33 @@ fn join_bands(mut bands: Vec<Labels>, level: f32, min_area: usize, max_area: usi
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The SSE2 mask of a block is the plain comparison, lane for lane (NaN is above nothing).
+    #[test]
+    fn block_mask_is_the_plain_comparison() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand::rngs::StdRng::seed_from_u64(3);
+        let levels = [0.0f32, 0.25, 0.5, 1.0, -0.0, f32::MIN_POSITIVE];
+        for _ in 0..20_000 {
+            let l = if rng.random_bool(0.5) {
+                levels[rng.random_range(0..levels.len())]
+            } else {
+                rng.random_range(-0.5..1.5)
+            };
+            let d: [f32; BLOCK] = std::array::from_fn(|_| match rng.random_range(0..6) {
+                0 => l,
+                1 => f32::NAN,
+                2 => f32::from_bits(rng.random()),
+                _ => rng.random_range(-0.5..1.5),
+            });
+            let want = d
+                .iter()
+                .enumerate()
+                .fold(0u32, |m, (i, &v)| if v > l { m | 1 << i } else { m });
+            assert_eq!(mask_above_block(&d, l), want, "{d:?} > {l}");
+            assert_eq!(mask_above(&d, l), want);
+        }
+    }
 
     #[test]
     fn disc_and_ring_components() {
