@@ -21,8 +21,8 @@
 //! the number.
 //!
 //! A dot is taken to have **no ring** when fewer than 5 % of the ring's samples are above the
-//! mid level, or none of every fourth of them (the quick test that spares plain targets the
-//! full reading).
+//! mid level, or none of 4 samples per sector on the middle of the band (2.5 dot radii; the
+//! quick test that spares plain targets the full reading).
 //!
 //! **Refusals.** No ID is given (a wrong ID is far worse than a missing one) when: any sector's
 //! mean lies within 25 % of the contrast of the mid level; any central sample of a sector
@@ -189,18 +189,19 @@ pub fn read_ring(
         }
         acc / radii.len() as f32 - mid
     };
-    // Most dots have no ring (plain targets): every 4th angle first (4 per sector), and no
-    // ring when none of them is bright.
-    let mut any_bright = false;
-    for j in (0..m).step_by(4) {
-        v[j] = ring_at(j);
-        any_bright |= v[j] > 0.0;
-    }
+    // Most dots have no ring (plain targets): first every 4th angle (4 per sector) on the middle
+    // of the band, and no ring when none of them is bright.
+    let r_mid = 0.5 * (reader.ring.0 + reader.ring.1);
+    let any_bright = (0..m).step_by(4).any(|j| {
+        let (c, s) = trig[j];
+        let (x, y) = fr.map(r_mid * c, r_mid * s);
+        img.sample_inside(x, y) > mid
+    });
     if !any_bright {
         return RingRead::NoRing;
     }
-    for j in (0..m).filter(|j| j % 4 != 0) {
-        v[j] = ring_at(j);
+    for (j, vj) in v.iter_mut().enumerate() {
+        *vj = ring_at(j);
     }
     let bright = v.iter().filter(|&&x| x > 0.0).count() as f64 / m as f64;
     if bright < 0.05 {
