@@ -157,6 +157,52 @@ impl Frame {
     }
 }
 
+/// The real eigenvalues of a 3×3 matrix: the real roots of its characteristic cubic, by the
+/// trigonometric form (three real roots) or Cardano's (one), each polished by two Newton steps
+/// on the cubic. A pair of complex roots whose imaginary parts vanish (a double root) counts as
+/// real, once per root.
+pub fn real_eigenvalues(m: &Matrix3<f64>) -> Vec<f64> {
+    // λ³ + a λ² + b λ + c = 0.
+    let a = -m.trace();
+    let b = m[(0, 0)] * m[(1, 1)] - m[(0, 1)] * m[(1, 0)] + m[(0, 0)] * m[(2, 2)]
+        - m[(0, 2)] * m[(2, 0)]
+        + m[(1, 1)] * m[(2, 2)]
+        - m[(1, 2)] * m[(2, 1)];
+    let c = -m.determinant();
+    if !(a.is_finite() && b.is_finite() && c.is_finite()) {
+        return Vec::new();
+    }
+    // λ = t − a/3: t³ + p t + q = 0.
+    let p = b - a * a / 3.0;
+    let q = 2.0 * a * a * a / 27.0 - a * b / 3.0 + c;
+    let disc = (q / 2.0).powi(2) + (p / 3.0).powi(3);
+    let mut roots: Vec<f64> = if disc > 0.0 {
+        let sq = disc.sqrt();
+        vec![(-q / 2.0 + sq).cbrt() + (-q / 2.0 - sq).cbrt()]
+    } else if p < 0.0 {
+        let r = (-p / 3.0).sqrt();
+        let phi = (-q / (2.0 * r * r * r)).clamp(-1.0, 1.0).acos();
+        (0..3)
+            .map(|k| 2.0 * r * ((phi - 2.0 * std::f64::consts::PI * k as f64) / 3.0).cos())
+            .collect()
+    } else {
+        // p = q = 0: a triple root.
+        vec![0.0; 3]
+    };
+    for t in roots.iter_mut() {
+        let mut l = *t - a / 3.0;
+        for _ in 0..2 {
+            let f = ((l + a) * l + b) * l + c;
+            let d = (3.0 * l + 2.0 * a) * l + b;
+            if d != 0.0 && (f / d).is_finite() {
+                l -= f / d;
+            }
+        }
+        *t = l;
+    }
+    roots
+}
+
 /// Signed Sampson distance of (x, y) to the conic `k` (see [`Ellipse::conic`]).
 #[inline]
 pub fn sampson(k: &[f64; 6], x: f64, y: f64) -> f64 {
@@ -292,15 +338,11 @@ pub fn fit_ellipse(points: &[(f64, f64)]) -> Option<Ellipse> {
         m[(0, 1)] / 2.0,
         m[(0, 2)] / 2.0,
     );
-    let eig = m.complex_eigenvalues();
     let mut best: Option<(f64, Vector3<f64>)> = None;
-    for l in eig.iter() {
-        if l.im.abs() > 1e-9 * (1.0 + l.re.abs()) {
-            continue;
-        }
+    for l in real_eigenvalues(&m) {
         // Eigenvector: the null vector of M − λI, the largest of the cross products of two of
         // its rows (the matrix has rank 2 for a simple eigenvalue).
-        let a = m - Matrix3::identity() * l.re;
+        let a = m - Matrix3::identity() * l;
         let (r0, r1, r2) = (
             a.row(0).transpose(),
             a.row(1).transpose(),
@@ -391,6 +433,37 @@ mod tests {
                 "{back:?}"
             );
             assert!((back.theta - e.theta).abs() < 1e-9, "{back:?}");
+        }
+    }
+
+    /// The closed-form real eigenvalues agree with nalgebra's Schur decomposition.
+    #[test]
+    fn real_eigenvalues_match_schur() {
+        let mut seed = 11u64;
+        let mut rnd = move || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        for _ in 0..2000 {
+            let m = Matrix3::from_fn(|_, _| rnd() * 10.0);
+            let mut want: Vec<f64> = m
+                .complex_eigenvalues()
+                .iter()
+                .filter(|l| l.im.abs() <= 1e-9 * (1.0 + l.re.abs()))
+                .map(|l| l.re)
+                .collect();
+            let mut got = real_eigenvalues(&m);
+            want.sort_by(f64::total_cmp);
+            got.sort_by(f64::total_cmp);
+            assert_eq!(want.len(), got.len(), "{m} {want:?} {got:?}");
+            for (w, g) in want.iter().zip(&got) {
+                assert!(
+                    (w - g).abs() <= 1e-9 * (1.0 + w.abs()),
+                    "{m} {want:?} {got:?}"
+                );
+            }
         }
     }
 
