@@ -202,8 +202,8 @@ pub fn robust_ellipse_fit(pts: &[(f64, f64)]) -> Option<(Ellipse, f64, usize)> {
     let k = e.conic();
     let res: Vec<f64> = pts.iter().map(|p| sampson(&k, p.0, p.1)).collect();
     let mut abs: Vec<f64> = res.iter().map(|r| r.abs()).collect();
-    abs.sort_by(|a, b| a.total_cmp(b));
-    let mad = abs[abs.len() / 2];
+    let mid = abs.len() / 2;
+    let mad = *abs.select_nth_unstable_by(mid, |a, b| a.total_cmp(b)).1;
     let lim = (3.0 * 1.4826 * mad).max(0.25);
     let inl: Vec<(f64, f64)> = pts
         .iter()
