@@ -19,7 +19,7 @@ use nalgebra::Vector2;
 use pingcal_ba::camera::{CameraModel, PhotogrammetricCamera};
 use pingcal_ba::pose::Pose;
 use pingcal_ba::problem::{Distance, Image, Observation, Point, Problem, Rig, RigMember};
-use pingcal_ba::solver::{self, Precision, Rejection};
+use pingcal_ba::solver::{self, Precision, PrecisionError, Rejection, SnoopError};
 use pingcal_project::Project;
 use pingcal_targets::ball::{sphere_centre_from_ellipse, FnCamera};
 
@@ -298,6 +298,52 @@ fn remove_rejected(project: &Project, model: &mut Model, rejected: &[Rejection])
     }
 }
 
+/// Removes from the model a point whose position the network does not determine and returns its
+/// measurements as rejections. This happens when data snooping has taken the rays of a point
+/// down to one, and then that one too (`pingcal_ba::solver::adjust_with_snooping` drops a lone
+/// ray but keeps the point, which the precision then finds undetermined), or when its rays are
+/// nearly parallel. A coded target that a distance refers to cannot go: that is an error naming
+/// it.
+fn drop_undetermined(
+    project: &Project,
+    dets: &[ImageDetections],
+    model: &mut Model,
+    name: &str,
+) -> Result<Vec<Rejection>> {
+    let Some(j) = model.points.iter().position(|p| p.name == name) else {
+        return Err(PipelineError::new(format!(
+            "final bundle adjustment: point '{name}' is not determined by its rays"
+        )));
+    };
+    if let PointKind::Coded(n) = model.points[j].kind {
+        if project
+            .file
+            .distances
+            .iter()
+            .any(|d| d.from == n || d.to == n)
+        {
+            return Err(PipelineError::new(format!(
+                "{}: coded target {n} of the distances is not determined by its rays after data snooping: it needs more images in which it is measured well",
+                project.path.display()
+            )));
+        }
+    }
+    let p = model.points.remove(j);
+    Ok(p.obs
+        .iter()
+        .map(|&(i, k)| {
+            let t = &dets[i].targets[k];
+            Rejection {
+                image: project.file.images[i].file.clone(),
+                point: name.to_string(),
+                uv: [t.x, t.y],
+                w: [f64::NAN; 2],
+                reason: "data snooping left the point too few rays to determine it: the point is dropped".into(),
+            }
+        })
+        .collect())
+}
+
 /// The final adjustment (see the module doc).
 pub fn final_adjustment(
     project: &Project,
@@ -330,11 +376,27 @@ pub fn final_adjustment(
     let mut iterations = 0;
     let pb = rep.bar(3, "bundle adjustment");
     for round in 0..2 {
-        let mut b = build(project, dets, model, rig);
-        let max_rej = b.problem.observations.len() / 20;
-        let r =
-            solver::adjust_with_snooping(&mut b.problem, &options, opts.snoop_critical, max_rej)
-                .map_err(|e| PipelineError::new(format!("final bundle adjustment: {e}")))?;
+        let (b, r) = loop {
+            let mut b = build(project, dets, model, rig);
+            let max_rej = b.problem.observations.len() / 20;
+            match solver::adjust_with_snooping(
+                &mut b.problem,
+                &options,
+                opts.snoop_critical,
+                max_rej,
+            ) {
+                Ok(r) => break (b, r),
+                Err(SnoopError::Precision(PrecisionError::PointUndetermined(name))) => {
+                    rejected_all.extend(drop_undetermined(project, dets, model, &name)?);
+                    rep.log(format!(
+                        "  point {name} dropped: after data snooping its rays no longer determine it"
+                    ));
+                }
+                Err(e) => {
+                    return Err(PipelineError::new(format!("final bundle adjustment: {e}")));
+                }
+            }
+        };
         iterations += r.summary.iterations;
         read_back(model, &b);
         rig = b.problem.rigs.first().map(|r| r.pose).or(rig);
