@@ -192,12 +192,7 @@ pub fn read_ring(
     // Most dots have no ring (plain targets): first every 4th angle (4 per sector) on the middle
     // of the band, and no ring when none of them is bright.
     let r_mid = 0.5 * (reader.ring.0 + reader.ring.1);
-    let any_bright = (0..m).step_by(4).any(|j| {
-        let (c, s) = trig[j];
-        let (x, y) = fr.map(r_mid * c, r_mid * s);
-        img.sample_inside(x, y) > mid
-    });
-    if !any_bright {
+    if bright_fraction(img, dot, r_mid, mid, m / 4) == 0.0 {
         return RingRead::NoRing;
     }
     for (j, vj) in v.iter_mut().enumerate() {
