@@ -147,13 +147,10 @@ fn references(module: &[String], text: &str) -> Vec<Vec<String>> {
             }
             let mut rest = &text[from..];
             // super::super::
-            while base == 1 {
-                match rest.strip_prefix("super::") {
-                    Some(r) => {
-                        root.pop();
-                        rest = r;
-                    }
-                    None => break,
+            if base == 1 {
+                while let Some(r) = rest.strip_prefix("super::") {
+                    root.pop();
+                    rest = r;
                 }
             }
             let start = text.len() - rest.len();
