@@ -22,8 +22,9 @@ use serde::{Deserialize, Serialize};
 use std::path::Path;
 
 pub use pingcal_project::{
-    BallLabel, CameraParams, ProjectBalls, ProjectCamera, ProjectDistance, ProjectFile,
-    ProjectImage, ProjectLrf, ProjectStereo, ProjectTargets,
+    BallLabel, CameraModel, CameraParams, Method, Parameter, ProjectBalls, ProjectCamera,
+    ProjectDistance, ProjectFile, ProjectImage, ProjectLrf, ProjectStereo, ProjectTargets,
+    TargetFamily,
 };
 
 /// A rigid transform as written in JSON: `y = rotation · x + translation_mm`.
@@ -343,11 +344,12 @@ pub fn project_of(sim: &Simulation) -> ProjectFile {
     ProjectFile {
         version: 1,
         name: format!("simulated test field (seed {})", sim.seed),
-        method: "both".into(),
+        method: Method::Both,
         main_station: main.id.clone(),
         main_camera: "left".into(),
         targets: ProjectTargets {
-            family: format!("aicon{}", cfg.targets.code_bits),
+            family: TargetFamily::from_code_bits(cfg.targets.code_bits)
+                .expect("validated: targets.code_bits is 12 or 14"),
             dot_radius_mm: cfg.targets.dot_radius_mm,
             ring_inner: cfg.targets.ring_inner,
             ring_outer: cfg.targets.ring_outer,
@@ -368,15 +370,12 @@ pub fn project_of(sim: &Simulation) -> ProjectFile {
             .iter()
             .map(|c| ProjectCamera {
                 id: c.id.clone(),
-                model: "photogrammetric".into(),
+                model: CameraModel::Photogrammetric,
                 width: c.model.width,
                 height: c.model.height,
                 pixel_size_mm: c.model.pixel_size_mm,
                 initial: CameraParams::from_slice(&initial),
-                free: pingcal_ba::camera::PHOTOGRAMMETRIC_PARAMS
-                    .iter()
-                    .map(|s| s.to_string())
-                    .collect(),
+                free: Parameter::ALL.to_vec(),
             })
             .collect(),
         stereo: Some(ProjectStereo {
@@ -517,4 +516,17 @@ pub fn read_project(path: &Path) -> Result<ProjectFile, SimError> {
         path: path.display().to_string(),
         what: e.to_string(),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    /// A simulated project frees every parameter, and the pipeline fixes a camera's
+    /// parameters by `Parameter::index`: the project's order is the bundle adjuster's.
+    #[test]
+    fn the_free_parameters_are_in_the_bundle_adjusters_order() {
+        assert_eq!(
+            super::Parameter::NAMES,
+            pingcal_ba::camera::PHOTOGRAMMETRIC_PARAMS
+        );
+    }
 }

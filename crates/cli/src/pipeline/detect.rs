@@ -30,11 +30,7 @@ pub struct ImageDetections {
 /// Detects every image of the project; an image of the wrong size for its camera is an error.
 pub fn detect_all(project: &Project, rep: &Reporter) -> Result<Vec<ImageDetections>> {
     let f = &project.file;
-    let bits = if f.targets.family == "aicon12" {
-        12
-    } else {
-        14
-    };
+    let bits = f.targets.family.code_bits();
     let detector = Detector::new(DetectParams {
         code_bits: vec![bits],
         balls: BallMode::Off,

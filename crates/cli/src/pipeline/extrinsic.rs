@@ -65,7 +65,7 @@ pub fn extrinsics(
     rep: &Reporter,
 ) -> Result<Extrinsics> {
     let f = &project.file;
-    let method = f.method();
+    let method = f.method;
     // camera balls with their covariances
     let mut cam_balls: Vec<(usize, Vector3<f64>, Matrix3<f64>)> = Vec::new();
     for (j, p) in model.points.iter().enumerate() {

@@ -16,7 +16,7 @@ use pingcal_ba::initial::incremental::{initialise, IncrementalOptions};
 use pingcal_ba::pose::Pose;
 use pingcal_ba::problem::{Camera, Distance, Image, Observation, Point, Problem};
 use pingcal_ba::solver;
-use pingcal_project::{Project, PARAMETER_NAMES};
+use pingcal_project::{Parameter, Project};
 use pingcal_targets::{Target, TargetKind};
 use std::collections::BTreeMap;
 use std::sync::Arc;
@@ -53,8 +53,8 @@ pub fn ba_cameras(project: &Project, params: &[Vec<f64>]) -> Vec<Camera> {
                 c.pixel_size_mm,
             ));
             let mut cam = Camera::new(c.id.clone(), model, p.clone());
-            for (k, name) in PARAMETER_NAMES.iter().enumerate() {
-                cam.fixed[k] = !c.free.iter().any(|f| f == name);
+            for p in Parameter::ALL {
+                cam.fixed[p.index()] = !c.free.contains(&p);
             }
             cam
         })

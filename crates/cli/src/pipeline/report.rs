@@ -210,9 +210,9 @@ pub fn build(st: &Stages, results: &Results, rep: &Reporter) -> rp::ReportData {
                     .iter()
                     .map(|n| cj.sigma.get(*n).copied().unwrap_or(f64::NAN))
                     .collect(),
-                free: pingcal_project::PARAMETER_NAMES
+                free: pingcal_project::Parameter::ALL
                     .iter()
-                    .map(|n| cam.free.iter().any(|x| x == n))
+                    .map(|p| cam.free.contains(p))
                     .collect(),
                 high_correlations: cj.high_correlations.clone(),
             }
@@ -282,7 +282,7 @@ pub fn build(st: &Stages, results: &Results, rep: &Reporter) -> rp::ReportData {
     }
     let mut summary = vec![
         ("project".to_string(), f.name.clone()),
-        ("method".to_string(), f.method.clone()),
+        ("method".to_string(), f.method.to_string()),
         (
             "mean check-point error".to_string(),
             format!("{:.2} mm", results.mean_check_error_mm),

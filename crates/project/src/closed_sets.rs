@@ -1,0 +1,201 @@
+//! # The closed sets of the project file
+//!
+//! Four entries of `project.toml` take one word of a fixed list: `method`, `[targets]
+//! family`, a camera's `model` and the words of its `free` list. Each is an enum here, so a
+//! misspelling is refused while the file is read, with the line, the value and the words
+//! allowed (`project.toml: line 3: method = "joint2": expected one of spheres, corner, both`),
+//! and the pipeline matches on variants instead of comparing strings.
+//!
+//! The macro `closed_set!` writes, from one list of `Variant = "spelling"` pairs, the enum,
+//! its `ALL` and `NAMES` lists, `as_str` (the file's spelling, also its `Display`) and the
+//! serde impls, so each spelling is written once. Reading goes through [`WordVisitor`],
+//! whose refusal lists the allowed words; the parser adds the file, the line and the value
+//! (see `parse.rs`).
+
+use serde::de::{Error, Visitor};
+use std::fmt;
+
+/// Writes a closed set: the enum with the given variants and their spellings in the file,
+/// `ALL`, `NAMES`, `as_str`, `Display`, `Serialize` (the spelling) and `Deserialize` (the
+/// spelling, anything else refused with the list of `NAMES`).
+macro_rules! closed_set {
+    (
+        $(#[$meta:meta])*
+        pub enum $name:ident {
+            $( $(#[$vmeta:meta])* $variant:ident = $spelling:literal, )+
+        }
+    ) => {
+        $(#[$meta])*
+        #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+        pub enum $name {
+            $( $(#[$vmeta])* $variant, )+
+        }
+
+        impl $name {
+            /// Every value, in the order of the file format's documentation.
+            pub const ALL: [Self; [$($spelling),+].len()] = [$(Self::$variant),+];
+
+            /// The spelling of every value in the file, in the order of `ALL`.
+            pub const NAMES: [&'static str; [$($spelling),+].len()] = [$($spelling),+];
+
+            /// The spelling in the file.
+            pub const fn as_str(self) -> &'static str {
+                match self {
+                    $(Self::$variant => $spelling,)+
+                }
+            }
+
+            /// The value spelled `word` in the file, if any.
+            pub fn from_word(word: &str) -> Option<Self> {
+                Self::ALL.into_iter().find(|v| v.as_str() == word)
+            }
+        }
+
+        impl std::fmt::Display for $name {
+            fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                f.write_str(self.as_str())
+            }
+        }
+
+        impl serde::Serialize for $name {
+            fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+                s.serialize_str(self.as_str())
+            }
+        }
+
+        impl<'de> serde::Deserialize<'de> for $name {
+            fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+                d.deserialize_str($crate::closed_sets::WordVisitor::new(
+                    &Self::NAMES,
+                    Self::from_word,
+                ))
+            }
+        }
+    };
+}
+
+closed_set! {
+    /// Which extrinsic method(s) to run (`method`).
+    pub enum Method {
+        /// Ping-pong balls (the paper's method).
+        Spheres = "spheres",
+        /// Fan et al. 2019 room corner.
+        Corner = "corner",
+        /// Both, side by side.
+        Both = "both",
+    }
+}
+
+impl Method {
+    /// Runs the sphere method.
+    pub fn spheres(self) -> bool {
+        matches!(self, Method::Spheres | Method::Both)
+    }
+
+    /// Runs the corner baseline.
+    pub fn corner(self) -> bool {
+        matches!(self, Method::Corner | Method::Both)
+    }
+}
+
+closed_set! {
+    /// The coded-target family (`[targets] family`).
+    pub enum TargetFamily {
+        /// AICON-style ring codes of 14 bits.
+        Aicon14 = "aicon14",
+        /// AICON-style ring codes of 12 bits.
+        Aicon12 = "aicon12",
+    }
+}
+
+impl TargetFamily {
+    /// The number of bits of the code ring.
+    pub fn code_bits(self) -> u32 {
+        match self {
+            TargetFamily::Aicon14 => 14,
+            TargetFamily::Aicon12 => 12,
+        }
+    }
+
+    /// The family whose code ring has `bits` bits, if there is one.
+    pub fn from_code_bits(bits: u32) -> Option<Self> {
+        Self::ALL.into_iter().find(|f| f.code_bits() == bits)
+    }
+}
+
+closed_set! {
+    /// A camera's model (`[[cameras]] model`).
+    pub enum CameraModel {
+        /// The ten-parameter model of SPEC.md (c, xp, yp, K1-K3, P1, P2, B1, B2).
+        Photogrammetric = "photogrammetric",
+    }
+}
+
+closed_set! {
+    /// One of the ten photogrammetric parameters, as named in a camera's `free` list; the
+    /// order of `ALL` is the order of [`crate::CameraParams::to_slice`].
+    pub enum Parameter {
+        /// Principal distance.
+        C = "c",
+        /// Principal point x.
+        Xp = "xp",
+        /// Principal point y.
+        Yp = "yp",
+        /// Radial distortion r².
+        K1 = "K1",
+        /// Radial distortion r⁴.
+        K2 = "K2",
+        /// Radial distortion r⁶.
+        K3 = "K3",
+        /// Decentring distortion 1.
+        P1 = "P1",
+        /// Decentring distortion 2.
+        P2 = "P2",
+        /// Affinity.
+        B1 = "B1",
+        /// Shear.
+        B2 = "B2",
+    }
+}
+
+impl Parameter {
+    /// Its position in [`crate::CameraParams::to_slice`] (and in `ALL`).
+    pub fn index(self) -> usize {
+        self as usize
+    }
+}
+
+/// Reads one word of a closed set: `from_word` finds it, or the error lists `names`
+/// ("expected one of spheres, corner, both"); the parser puts the file, the line and the
+/// value in front.
+pub struct WordVisitor<T> {
+    names: &'static [&'static str],
+    from_word: fn(&str) -> Option<T>,
+}
+
+impl<T> WordVisitor<T> {
+    /// The visitor of the set spelled `names`.
+    pub fn new(names: &'static [&'static str], from_word: fn(&str) -> Option<T>) -> Self {
+        Self { names, from_word }
+    }
+
+    /// "one of spheres, corner, both", or the only word.
+    fn allowed(&self) -> String {
+        match self.names {
+            [one] => one.to_string(),
+            names => format!("one of {}", names.join(", ")),
+        }
+    }
+}
+
+impl<T> Visitor<'_> for WordVisitor<T> {
+    type Value = T;
+
+    fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.allowed())
+    }
+
+    fn visit_str<E: Error>(self, v: &str) -> Result<T, E> {
+        (self.from_word)(v).ok_or_else(|| E::custom(format_args!("expected {}", self.allowed())))
+    }
+}

@@ -1,0 +1,251 @@
+//! # The schema of `project.toml`
+//!
+//! One struct per table of the file, named `Project…` after it, with serde's
+//! `deny_unknown_fields` so a misspelt key is refused. The closed sets (`method`, `family`,
+//! `model`, `free`) are the enums of [`crate::closed_sets`]; the rest is plain numbers and
+//! strings, checked after reading by [`ProjectFile::validate`]. Defaults are serde's
+//! `default` attributes below and nothing else.
+
+use crate::closed_sets::{CameraModel, Method, Parameter, TargetFamily};
+use serde::{Deserialize, Serialize};
+
+/// Names of the ten photogrammetric parameters, in the order of [`CameraParams::to_slice`]
+/// (the spellings of [`Parameter`]).
+pub const PARAMETER_NAMES: [&str; 10] = Parameter::NAMES;
+
+/// `project.toml`, version 1.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ProjectFile {
+    /// Format version (1).
+    pub version: u32,
+    /// A name for reports.
+    pub name: String,
+    /// `spheres`, `corner` or `both` (required: there is no default).
+    pub method: Method,
+    /// The station where the LRF scanned; its `main_camera` image defines the
+    /// photogrammetric frame.
+    pub main_station: String,
+    /// The camera whose frame is the photogrammetric frame (`left`).
+    pub main_camera: String,
+    /// Coded targets.
+    pub targets: ProjectTargets,
+    /// Balls.
+    pub balls: ProjectBalls,
+    /// Cameras with initial intrinsics.
+    pub cameras: Vec<ProjectCamera>,
+    /// The stereo head (optional for a mono camera).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stereo: Option<ProjectStereo>,
+    /// Images.
+    pub images: Vec<ProjectImage>,
+    /// Caliper distances between coded targets.
+    #[serde(default)]
+    pub distances: Vec<ProjectDistance>,
+    /// The LRF.
+    pub lrf: ProjectLrf,
+}
+
+/// `[targets]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ProjectTargets {
+    /// `aicon14` or `aicon12`.
+    pub family: TargetFamily,
+    /// Radius of the central dot (mm), printed size.
+    pub dot_radius_mm: f64,
+    /// Inner radius of the code ring, in dot radii.
+    #[serde(default = "default_ring_inner")]
+    pub ring_inner: f64,
+    /// Outer radius of the code ring, in dot radii.
+    #[serde(default = "default_ring_outer")]
+    pub ring_outer: f64,
+}
+
+fn default_ring_inner() -> f64 {
+    2.0
+}
+
+fn default_ring_outer() -> f64 {
+    3.0
+}
+
+/// `[balls]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ProjectBalls {
+    /// Ball diameter (mm).
+    pub diameter_mm: f64,
+    /// Balls used as check points (ids `B4`, …); optional.
+    #[serde(default)]
+    pub check: Vec<String>,
+    /// Where numbered balls are in the main image (optional).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub labels: Vec<BallLabel>,
+}
+
+/// A ball's number and its approximate position in the main image (pixels, origin at the
+/// centre of the top-left pixel, y down); the nearest ball found within a few ball radii
+/// takes the id.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BallLabel {
+    /// Ball id (`B1` …).
+    pub id: String,
+    /// Column (px).
+    pub x: f64,
+    /// Row (px).
+    pub y: f64,
+}
+
+/// `[[cameras]]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ProjectCamera {
+    /// Camera id used by images.
+    pub id: String,
+    /// `photogrammetric` (SPEC.md).
+    pub model: CameraModel,
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// Pixel pitch (mm).
+    pub pixel_size_mm: f64,
+    /// Initial values (camera manual).
+    pub initial: CameraParams,
+    /// Which parameters to self-calibrate (`c`, `xp`, … as in [`PARAMETER_NAMES`]).
+    pub free: Vec<Parameter>,
+}
+
+/// The ten photogrammetric parameters, named as in results.json. Missing ones are 0.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CameraParams {
+    /// Principal distance (mm).
+    pub c_mm: f64,
+    /// Principal point x (mm).
+    #[serde(default)]
+    pub xp_mm: f64,
+    /// Principal point y (mm).
+    #[serde(default)]
+    pub yp_mm: f64,
+    /// K1 (mm⁻²).
+    #[serde(default)]
+    pub k1: f64,
+    /// K2 (mm⁻⁴).
+    #[serde(default)]
+    pub k2: f64,
+    /// K3 (mm⁻⁶).
+    #[serde(default)]
+    pub k3: f64,
+    /// P1 (mm⁻¹).
+    #[serde(default)]
+    pub p1: f64,
+    /// P2 (mm⁻¹).
+    #[serde(default)]
+    pub p2: f64,
+    /// B1.
+    #[serde(default)]
+    pub b1: f64,
+    /// B2.
+    #[serde(default)]
+    pub b2: f64,
+}
+
+impl CameraParams {
+    /// From the slice order `[c, xp, yp, K1, K2, K3, P1, P2, B1, B2]`.
+    pub fn from_slice(p: &[f64; 10]) -> Self {
+        Self {
+            c_mm: p[0],
+            xp_mm: p[1],
+            yp_mm: p[2],
+            k1: p[3],
+            k2: p[4],
+            k3: p[5],
+            p1: p[6],
+            p2: p[7],
+            b1: p[8],
+            b2: p[9],
+        }
+    }
+
+    /// To the slice order.
+    pub fn to_slice(&self) -> [f64; 10] {
+        [
+            self.c_mm, self.xp_mm, self.yp_mm, self.k1, self.k2, self.k3, self.p1, self.p2,
+            self.b1, self.b2,
+        ]
+    }
+}
+
+/// `[stereo]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ProjectStereo {
+    /// Left camera id.
+    pub left: String,
+    /// Right camera id.
+    pub right: String,
+    /// Nominal baseline (mm), an initial value.
+    pub baseline_mm: f64,
+}
+
+/// `[[images]]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ProjectImage {
+    /// Path relative to project.toml.
+    pub file: String,
+    /// Camera id.
+    pub camera: String,
+    /// Station id (images of one station were taken at the same time by the head).
+    pub station: String,
+}
+
+/// `[[distances]]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ProjectDistance {
+    /// Coded target number at one end.
+    pub from: u32,
+    /// Coded target number at the other end.
+    pub to: u32,
+    /// Measured distance (mm).
+    pub distance_mm: f64,
+    /// Its σ (mm).
+    pub sigma_mm: f64,
+}
+
+/// `[lrf]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ProjectLrf {
+    /// Sensor model, for reports.
+    pub model: String,
+    /// Station where it scanned (the main station).
+    pub station: String,
+    /// Scan files (`pingcal-scan` CSV, or PLY / XYZ clouds), relative to project.toml.
+    pub scans: Vec<String>,
+    /// Maximum range (mm).
+    pub max_range_mm: f64,
+    /// Datasheet accuracy under 1 m (± mm, taken as 3σ).
+    pub accuracy_near_mm: f64,
+    /// Datasheet accuracy beyond 1 m (± fraction of range, taken as 3σ).
+    pub accuracy_far_fraction: f64,
+    /// Offset of the scanner centre from the servo shaft in the rotating frame (mm).
+    #[serde(default)]
+    pub mount_offset_mm: [f64; 3],
+    /// Tilt of the scan plane about the rotating frame's X axis (degrees).
+    #[serde(default)]
+    pub mount_tilt_x_deg: f64,
+    /// Tilt of the scan plane about the rotating frame's Z axis (degrees).
+    #[serde(default)]
+    pub mount_tilt_z_deg: f64,
+    /// Servo reading at which the scan plane is the LRF frame's X–Y plane (degrees).
+    #[serde(default)]
+    pub servo_zero_deg: f64,
+    /// Servo encoder resolution (degrees).
+    #[serde(default)]
+    pub servo_resolution_deg: f64,
+}

@@ -1,0 +1,265 @@
+//! Tests of the crate: the README's example parses and validates; every closed set refuses
+//! an unknown word at parse time with the file, the line, the value and the words allowed;
+//! invalid values are named; the parser never panics.
+
+use super::*;
+
+/// The README's example: the first ```toml block after the heading "## The project file".
+fn readme_example() -> String {
+    let readme = include_str!("../../../README.md");
+    let at = readme
+        .find("## The project file")
+        .expect("README has a section '## The project file'");
+    let rest = &readme[at..];
+    let start = rest
+        .find("```toml\n")
+        .expect("a toml block in that section")
+        + 8;
+    let len = rest[start..].find("```").expect("the block ends");
+    rest[start..start + len].to_string()
+}
+
+#[test]
+fn the_documented_example_is_valid() {
+    let p = ProjectFile::parse(&readme_example(), "example.toml").unwrap();
+    p.validate("example.toml").unwrap();
+    assert_eq!(p.cameras.len(), 2);
+    assert_eq!(p.balls.labels.len(), 2);
+    assert_eq!(p.method, Method::Both);
+    assert_eq!(p.targets.family, TargetFamily::Aicon14);
+    assert_eq!(p.cameras[0].model, CameraModel::Photogrammetric);
+    assert_eq!(p.cameras[0].free, Parameter::ALL);
+    assert_eq!(p.cameras[1].free, Parameter::ALL[..8]);
+    // round trip
+    let again = ProjectFile::parse(&p.to_toml_string(), "again").unwrap();
+    assert_eq!(again, p);
+}
+
+fn err_of(edit: impl Fn(&mut ProjectFile)) -> String {
+    let mut p = ProjectFile::parse(&readme_example(), "example.toml").unwrap();
+    edit(&mut p);
+    p.validate("p.toml").unwrap_err().to_string()
+}
+
+#[test]
+fn invalid_values_are_named() {
+    let e = err_of(|p| p.main_station = "S99".into());
+    assert!(
+        e.contains("main_station = \"S99\" is not the station of any image"),
+        "{e}"
+    );
+    let e = err_of(|p| p.images[0].camera = "middle".into());
+    assert!(e.contains("camera 'middle' is not in [[cameras]]"), "{e}");
+    let e = err_of(|p| p.distances[0].sigma_mm = 0.0);
+    assert!(e.contains("distances[0]") && e.contains("sigma_mm"), "{e}");
+    let e = err_of(|p| p.balls.check.push("B99".into()));
+    assert!(e.contains("'B99' is not one of the labelled balls"), "{e}");
+    assert!(e.starts_with("p.toml: "), "{e}");
+}
+
+#[test]
+fn syntax_errors_have_the_line() {
+    let text = readme_example().replace("width = 1280", "width = \"wide\"");
+    let e = ProjectFile::parse(&text, "x.toml").unwrap_err().to_string();
+    assert!(e.starts_with("x.toml: ") && e.contains("line"), "{e}");
+    assert!(!e.contains('\n'));
+    let e = ProjectFile::parse(
+        &readme_example().replace("[lrf]", "[lrf]\ncolour = 3"),
+        "x.toml",
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("colour"), "{e}");
+}
+
+/// The README's example with the first `from` replaced by `to`, parsed: the error, and the
+/// line of the replacement.
+fn parse_err_of(from: &str, to: &str) -> (String, usize) {
+    let example = readme_example();
+    let at = example
+        .find(from)
+        .unwrap_or_else(|| panic!("{from:?} in the example"));
+    let line = 1 + example[..at].matches('\n').count();
+    let text = example.replacen(from, to, 1);
+    let e = ProjectFile::parse(&text, "project.toml")
+        .unwrap_err()
+        .to_string();
+    assert!(!e.contains('\n'), "{e}");
+    (e, line)
+}
+
+#[test]
+fn an_unknown_method_is_refused_at_parse_time() {
+    let (e, line) = parse_err_of("method = \"both\"", "method = \"joint2\"");
+    assert_eq!(
+        e,
+        format!(
+            "project.toml: line {line}: method = \"joint2\": expected one of spheres, corner, both"
+        )
+    );
+    // the message of the validation this replaces
+    let (e, _) = parse_err_of("method = \"both\"", "method = \"magic\"");
+    assert!(e.contains("method = \"magic\""), "{e}");
+}
+
+#[test]
+fn an_unknown_target_family_is_refused_at_parse_time() {
+    let (e, line) = parse_err_of("family = \"aicon14\"", "family = \"aicon16\"");
+    assert_eq!(
+        e,
+        format!(
+            "project.toml: line {line}: family = \"aicon16\": expected one of aicon14, aicon12"
+        )
+    );
+}
+
+#[test]
+fn an_unknown_camera_model_is_refused_at_parse_time() {
+    let (e, line) = parse_err_of("model = \"photogrammetric\"", "model = \"pinhole\"");
+    assert_eq!(
+        e,
+        format!("project.toml: line {line}: model = \"pinhole\": expected photogrammetric")
+    );
+}
+
+#[test]
+fn an_unknown_free_parameter_is_refused_at_parse_time() {
+    let all = "c, xp, yp, K1, K2, K3, P1, P2, B1, B2";
+    let (e, line) = parse_err_of("free = [\"c\", ", "free = [\"K9\", \"c\", ");
+    assert_eq!(
+        e,
+        format!("project.toml: line {line}: free: \"K9\": expected one of {all}")
+    );
+    // a list over several lines: the value alone
+    let (e, line) = parse_err_of("free = [\"c\", ", "free = [\n\"K9\", \"c\", ");
+    assert_eq!(
+        e,
+        format!(
+            "project.toml: line {}: \"K9\": expected one of {all}",
+            line + 1
+        )
+    );
+}
+
+#[test]
+fn a_word_of_the_wrong_type_is_refused_with_the_words_allowed() {
+    let (e, line) = parse_err_of("method = \"both\"", "method = 3");
+    assert_eq!(
+        e,
+        format!("project.toml: line {line}: method = 3: invalid type: integer `3`, expected one of spheres, corner, both")
+    );
+}
+
+/// `method` has no default: a file without it is refused (as before the enum).
+#[test]
+fn the_method_is_required() {
+    let (e, _) = parse_err_of("method = \"both\"", "");
+    assert_eq!(e, "project.toml: missing field `method`");
+}
+
+#[test]
+fn other_syntax_errors_name_the_entry() {
+    let (e, line) = parse_err_of("width = 1280", "width = \"wide\"");
+    assert_eq!(
+        e,
+        format!("project.toml: line {line}: width = \"wide\": invalid type: string \"wide\", expected u32")
+    );
+    let (e, line) = parse_err_of("c_mm = 2.45", "c_mm = 2.45\nc_mm = 2.5");
+    assert_eq!(
+        e,
+        format!("project.toml: line {}: c_mm: duplicate key", line + 1)
+    );
+    // inside an inline table: the key of the value, quotes and separators in strings skipped
+    let (e, line) = parse_err_of("id = \"B4\", x = 61.5", "id = \"B=,{\\\"4\", x = \"61.5\"");
+    assert_eq!(
+        e,
+        format!(
+            "project.toml: line {line}: x = \"61.5\": invalid type: string \"61.5\", expected f64"
+        )
+    );
+    let (e, line) = parse_err_of("x = 61.5", "y = 1.0, x = 61.5");
+    assert_eq!(e, format!("project.toml: line {line}: y: duplicate key"));
+    // a missing key of a table: the table's header
+    let (e, _) = parse_err_of("dot_radius_mm = 8.0", "");
+    let header = 1 + readme_example()
+        .lines()
+        .position(|l| l == "[targets]")
+        .unwrap();
+    assert_eq!(
+        e,
+        format!("project.toml: line {header}: [targets]: missing field `dot_radius_mm`")
+    );
+}
+
+#[test]
+fn the_closed_sets_spell_as_the_file() {
+    fn check<T: Copy + PartialEq + std::fmt::Debug + std::fmt::Display + serde::Serialize>(
+        all: &[T],
+        names: &[&str],
+        as_str: fn(T) -> &'static str,
+        from_word: fn(&str) -> Option<T>,
+    ) {
+        assert_eq!(all.len(), names.len());
+        for (v, n) in all.iter().zip(names) {
+            assert_eq!(as_str(*v), *n);
+            assert_eq!(v.to_string(), *n);
+            assert_eq!(from_word(n), Some(*v));
+        }
+        assert_eq!(from_word("nothing"), None);
+    }
+    check(
+        &Method::ALL,
+        &Method::NAMES,
+        Method::as_str,
+        Method::from_word,
+    );
+    check(
+        &TargetFamily::ALL,
+        &TargetFamily::NAMES,
+        TargetFamily::as_str,
+        TargetFamily::from_word,
+    );
+    check(
+        &CameraModel::ALL,
+        &CameraModel::NAMES,
+        CameraModel::as_str,
+        CameraModel::from_word,
+    );
+    check(
+        &Parameter::ALL,
+        &Parameter::NAMES,
+        Parameter::as_str,
+        Parameter::from_word,
+    );
+    assert_eq!(Method::NAMES, ["spheres", "corner", "both"]);
+    assert_eq!(TargetFamily::NAMES, ["aicon14", "aicon12"]);
+    assert_eq!(CameraModel::NAMES, ["photogrammetric"]);
+    assert_eq!(
+        PARAMETER_NAMES,
+        ["c", "xp", "yp", "K1", "K2", "K3", "P1", "P2", "B1", "B2"]
+    );
+    for (k, p) in Parameter::ALL.iter().enumerate() {
+        assert_eq!(p.index(), k);
+    }
+    for f in TargetFamily::ALL {
+        assert_eq!(TargetFamily::from_code_bits(f.code_bits()), Some(f));
+        assert_eq!(f.as_str(), format!("aicon{}", f.code_bits()));
+    }
+    assert_eq!(TargetFamily::from_code_bits(16), None);
+    assert!(Method::Both.spheres() && Method::Both.corner());
+    assert!(Method::Spheres.spheres() && !Method::Spheres.corner());
+    assert!(!Method::Corner.spheres() && Method::Corner.corner());
+}
+
+proptest::proptest! {
+    #[test]
+    fn parser_never_panics(cut in 0usize..4000, junk in "[ -~\n]{0,40}") {
+        let example = readme_example();
+        let cut = cut.min(example.len());
+        let cut = (0..=cut).rev().find(|&c| example.is_char_boundary(c)).unwrap_or(0);
+        let text = format!("{}{}", &example[..cut], junk);
+        if let Ok(p) = ProjectFile::parse(&text, "fuzz.toml") {
+            let _ = p.validate("fuzz.toml");
+        }
+    }
+}

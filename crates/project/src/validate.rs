@@ -1,0 +1,261 @@
+//! # Checking a project file against itself
+//!
+//! What the types cannot say: positive lengths and σ, unique ids, references that resolve
+//! (an image's camera, the stereo pair, the main camera and station, the LRF's station),
+//! one image per camera per station. [`ProjectFile::validate`] runs one check per part of
+//! the file, in the order of the file, and reports the first failure as one line naming the
+//! entry and its value. The closed sets (`method`, `family`, `model`, `free`) are refused
+//! earlier, while reading (see `closed_sets.rs`).
+
+use crate::schema::{
+    ProjectBalls, ProjectCamera, ProjectDistance, ProjectFile, ProjectImage, ProjectLrf,
+    ProjectStereo, ProjectTargets,
+};
+use crate::ProjectError;
+use std::collections::{BTreeMap, BTreeSet};
+
+/// Camera ids of `[[cameras]]`.
+type CameraIds<'a> = BTreeSet<&'a str>;
+
+/// For each station, the cameras that have an image there.
+type Stations<'a> = BTreeMap<&'a str, BTreeSet<&'a str>>;
+
+impl ProjectFile {
+    /// Checks the file against itself (not the files it names); `file` names it in errors.
+    pub fn validate(&self, file: &str) -> Result<(), ProjectError> {
+        self.check().map_err(|what| ProjectError::Invalid {
+            path: file.to_string(),
+            what,
+        })
+    }
+
+    /// The checks in order; the first failure, as the error's text.
+    fn check(&self) -> Result<(), String> {
+        if self.version != 1 {
+            return Err(format!(
+                "version = {}: this pingcal reads version 1",
+                self.version
+            ));
+        }
+        validate_targets(&self.targets)?;
+        validate_balls(&self.balls)?;
+        let cameras = validate_cameras(&self.cameras)?;
+        if let Some(s) = &self.stereo {
+            validate_stereo(s, &cameras)?;
+        }
+        if !cameras.contains(self.main_camera.as_str()) {
+            return Err(format!(
+                "main_camera = \"{}\" is not in [[cameras]]",
+                self.main_camera
+            ));
+        }
+        let stations = validate_images(&self.images, &cameras)?;
+        validate_main_station(&self.main_station, &self.main_camera, &stations)?;
+        validate_distances(&self.distances)?;
+        validate_lrf(&self.lrf, &self.main_station)
+    }
+}
+
+/// `[targets]`: a positive dot radius, 1 < ring_inner < ring_outer.
+fn validate_targets(t: &ProjectTargets) -> Result<(), String> {
+    if !(t.dot_radius_mm > 0.0 && t.dot_radius_mm.is_finite()) {
+        return Err(format!(
+            "[targets] dot_radius_mm = {}: expected a positive length",
+            t.dot_radius_mm
+        ));
+    }
+    if !(t.ring_inner > 1.0 && t.ring_outer > t.ring_inner && t.ring_outer.is_finite()) {
+        return Err(format!(
+            "[targets] ring_inner = {}, ring_outer = {}: expected 1 < ring_inner < ring_outer",
+            t.ring_inner, t.ring_outer
+        ));
+    }
+    Ok(())
+}
+
+/// `[balls]`: a positive diameter, labels with unique ids and finite positions, and (when
+/// there are labels) check balls among them.
+fn validate_balls(b: &ProjectBalls) -> Result<(), String> {
+    if !(b.diameter_mm > 0.0 && b.diameter_mm.is_finite()) {
+        return Err(format!(
+            "[balls] diameter_mm = {}: expected a positive length",
+            b.diameter_mm
+        ));
+    }
+    let mut seen = BTreeSet::new();
+    for l in &b.labels {
+        if !seen.insert(l.id.as_str()) {
+            return Err(format!("[balls] labels: id '{}' appears twice", l.id));
+        }
+        if !(l.x.is_finite() && l.y.is_finite()) {
+            return Err(format!("[balls] labels: '{}' has no finite position", l.id));
+        }
+    }
+    if !b.labels.is_empty() {
+        if let Some(c) = b.check.iter().find(|c| !seen.contains(c.as_str())) {
+            return Err(format!(
+                "[balls] check: '{c}' is not one of the labelled balls"
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// `[[cameras]]`: at least one, unique ids, each camera sensible; their ids.
+fn validate_cameras(cameras: &[ProjectCamera]) -> Result<CameraIds<'_>, String> {
+    if cameras.is_empty() {
+        return Err("no [[cameras]]".into());
+    }
+    let mut ids = CameraIds::new();
+    for (k, c) in cameras.iter().enumerate() {
+        let at = format!("cameras[{k}] (id '{}')", c.id);
+        if !ids.insert(c.id.as_str()) {
+            return Err(format!("{at}: the id is used twice"));
+        }
+        validate_camera(c).map_err(|e| format!("{at}: {e}"))?;
+    }
+    Ok(ids)
+}
+
+/// One camera: an image size, a pixel pitch in mm, a positive principal distance and finite
+/// initial values.
+fn validate_camera(c: &ProjectCamera) -> Result<(), String> {
+    if c.width < 16 || c.height < 16 {
+        return Err(format!(
+            "{}×{} pixels is not an image size",
+            c.width, c.height
+        ));
+    }
+    if !(c.pixel_size_mm > 0.0 && c.pixel_size_mm < 1.0) {
+        return Err(format!(
+            "pixel_size_mm = {}: expected a pitch in mm (e.g. 0.00375)",
+            c.pixel_size_mm
+        ));
+    }
+    if !(c.initial.c_mm > 0.0 && c.initial.c_mm.is_finite()) {
+        return Err(format!(
+            "initial c_mm = {}: expected a positive principal distance",
+            c.initial.c_mm
+        ));
+    }
+    if c.initial.to_slice().iter().any(|v| !v.is_finite()) {
+        return Err("an initial parameter is not finite".into());
+    }
+    Ok(())
+}
+
+/// `[stereo]`: two different cameras of `[[cameras]]`.
+fn validate_stereo(s: &ProjectStereo, cameras: &CameraIds) -> Result<(), String> {
+    for id in [&s.left, &s.right] {
+        if !cameras.contains(id.as_str()) {
+            return Err(format!("[stereo]: camera '{id}' is not in [[cameras]]"));
+        }
+    }
+    if s.left == s.right {
+        return Err("[stereo]: left and right are the same camera".into());
+    }
+    Ok(())
+}
+
+/// `[[images]]`: at least one, each of a known camera, no file twice, at most one image per
+/// camera per station; the cameras of each station.
+fn validate_images<'a>(
+    images: &'a [ProjectImage],
+    cameras: &CameraIds,
+) -> Result<Stations<'a>, String> {
+    if images.is_empty() {
+        return Err("no [[images]]".into());
+    }
+    let mut files = BTreeSet::new();
+    let mut stations = Stations::new();
+    for (k, im) in images.iter().enumerate() {
+        let at = format!("images[{k}] ('{}')", im.file);
+        if !cameras.contains(im.camera.as_str()) {
+            return Err(format!(
+                "{at}: camera '{}' is not in [[cameras]]",
+                im.camera
+            ));
+        }
+        if !files.insert(im.file.as_str()) {
+            return Err(format!("{at}: the file is listed twice"));
+        }
+        let at_station = stations.entry(im.station.as_str()).or_default();
+        if !at_station.insert(im.camera.as_str()) {
+            return Err(format!(
+                "{at}: station '{}' already has an image of camera '{}'",
+                im.station, im.camera
+            ));
+        }
+    }
+    Ok(stations)
+}
+
+/// `main_station`: a station of the images, with an image of the main camera.
+fn validate_main_station(
+    main_station: &str,
+    main_camera: &str,
+    stations: &Stations,
+) -> Result<(), String> {
+    match stations.get(main_station) {
+        None => Err(format!(
+            "main_station = \"{main_station}\" is not the station of any image (stations: {})",
+            stations.keys().cloned().collect::<Vec<_>>().join(", ")
+        )),
+        Some(c) if !c.contains(main_camera) => Err(format!(
+            "main_station \"{main_station}\" has no image of the main camera '{main_camera}'"
+        )),
+        _ => Ok(()),
+    }
+}
+
+/// `[[distances]]`: two different targets, a positive length and σ.
+fn validate_distances(distances: &[ProjectDistance]) -> Result<(), String> {
+    for (k, d) in distances.iter().enumerate() {
+        let at = format!("distances[{k}] ({} – {})", d.from, d.to);
+        if d.from == d.to {
+            return Err(format!("{at}: both ends are the same target"));
+        }
+        if !(d.distance_mm > 0.0 && d.distance_mm.is_finite()) {
+            return Err(format!(
+                "{at}: distance_mm = {}: expected a positive length",
+                d.distance_mm
+            ));
+        }
+        if !(d.sigma_mm > 0.0 && d.sigma_mm.is_finite()) {
+            return Err(format!(
+                "{at}: sigma_mm = {}: expected a positive σ",
+                d.sigma_mm
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// `[lrf]`: scans, taken from the main station, a positive range and accuracy, a finite
+/// mount.
+fn validate_lrf(l: &ProjectLrf, main_station: &str) -> Result<(), String> {
+    if l.scans.is_empty() {
+        return Err("[lrf] scans: no scan file".into());
+    }
+    if l.station != main_station {
+        return Err(format!(
+            "[lrf] station = \"{}\" but main_station = \"{main_station}\": the LRF scans from the main station",
+            l.station
+        ));
+    }
+    let sensor = [l.max_range_mm, l.accuracy_near_mm, l.accuracy_far_fraction];
+    if !sensor.iter().all(|v| *v > 0.0 && v.is_finite()) {
+        return Err(
+            "[lrf] max_range_mm, accuracy_near_mm and accuracy_far_fraction must be positive"
+                .into(),
+        );
+    }
+    if l.mount_offset_mm.iter().any(|v| !v.is_finite())
+        || ![l.mount_tilt_x_deg, l.mount_tilt_z_deg, l.servo_zero_deg]
+            .iter()
+            .all(|v| v.is_finite())
+    {
+        return Err("[lrf] a mount value is not finite".into());
+    }
+    Ok(())
+}
