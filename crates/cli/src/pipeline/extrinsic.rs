@@ -14,9 +14,10 @@
 //! no check balls).
 
 use super::bundle::Adjusted;
-use super::detect::ImageDetections;
+use super::ids::{PointId, SphereId};
 use super::lrf::LrfData;
-use super::{Model, Options, PipelineError, PointKind, Reporter, Result};
+use super::scene::{main_image, Detections, PointKind, Scene};
+use super::{Options, PipelineError, Reporter, Result};
 use nalgebra::{Matrix3, Vector2, Vector3};
 use pingcal_ba::camera::CameraModel;
 use pingcal_lrf::corner_baseline::{fan_baseline, BaselineInput};
@@ -38,8 +39,8 @@ pub struct CornerOutcome {
 
 /// Both methods.
 pub struct Extrinsics {
-    /// Matched pairs: (LRF sphere index, model point index of the ball).
-    pub pairs: Vec<(usize, usize)>,
+    /// Matched pairs: (LRF sphere, scene point of the ball).
+    pub pairs: Vec<(SphereId, PointId)>,
     /// RMS of the matching (mm).
     pub match_rms_mm: f64,
     /// LRF spheres, labelled with their matched ball ids.
@@ -57,22 +58,22 @@ pub struct Extrinsics {
 /// Runs the methods the project asks for.
 pub fn extrinsics(
     project: &Project,
-    model: &Model,
+    scene: &Scene,
     adj: &Adjusted,
     lrf: &LrfData,
-    dets: &[ImageDetections],
+    dets: &Detections,
     opts: &Options,
     rep: &Reporter,
 ) -> Result<Extrinsics> {
     let f = &project.file;
     let method = f.method();
     // camera balls with their covariances
-    let mut cam_balls: Vec<(usize, Vector3<f64>, Matrix3<f64>)> = Vec::new();
-    for (j, p) in model.points.iter().enumerate() {
+    let mut cam_balls: Vec<(PointId, Vector3<f64>, Matrix3<f64>)> = Vec::new();
+    for (j, p) in scene.points.iter_enumerated() {
         if p.kind != PointKind::Ball {
             continue;
         }
-        let Some(k) = adj.point_index[j] else {
+        let Some(k) = adj.solved.map.point(j) else {
             continue;
         };
         let cov = adj.precision.point_covariances[k].unwrap_or(Matrix3::identity());
@@ -103,17 +104,17 @@ pub fn extrinsics(
     if matching.pairs.len() < 3 {
         return Err(too_few(matching.pairs.len()));
     }
-    let mut pairs: Vec<(usize, usize)> = matching
+    let mut pairs: Vec<(SphereId, PointId)> = matching
         .pairs
         .iter()
-        .map(|&(l, c)| (l, cam_balls[c].0))
+        .map(|&(l, c)| (SphereId(l), cam_balls[c].0))
         .collect();
-    pairs.sort_by(|a, b| model.points[a.1].name.cmp(&model.points[b.1].name));
+    pairs.sort_by(|a, b| scene.points[a.1].name.cmp(&scene.points[b.1].name));
     let mut lrf_points = Vec::new();
     let mut cam_points = Vec::new();
     for &(l, j) in &pairs {
-        let name = model.points[j].name.clone();
-        let b = &lrf.found.balls[l];
+        let name = scene.points[j].name.clone();
+        let b = &lrf.found.balls[l.0];
         lrf_points.push(PointObs {
             id: name.clone(),
             xyz: b.centre,
@@ -188,7 +189,7 @@ pub fn extrinsics(
     let corner = if method.corner() {
         let r = corner_method(
             project,
-            model,
+            scene,
             lrf,
             dets,
             opts,
@@ -228,9 +229,9 @@ pub fn extrinsics(
 #[allow(clippy::too_many_arguments)]
 fn corner_method(
     project: &Project,
-    model: &Model,
+    scene: &Scene,
     lrf: &LrfData,
-    dets: &[ImageDetections],
+    dets: &Detections,
     opts: &Options,
     lrf_points: &[PointObs],
     cam_points: &[PointObs],
@@ -239,24 +240,24 @@ fn corner_method(
     let Some((header, scans)) = &lrf.scans else {
         return Err("it needs the scan lines (a pingcal-scan CSV), not a point cloud".into());
     };
-    let main = project.main_image();
-    let cam_of = super::network::camera_index(project);
-    let c = cam_of[main];
-    let cams = super::matching::models(project);
-    let targets: Vec<(String, Vector3<f64>)> = model
+    let main = main_image(project);
+    let c = scene.camera_of[main];
+    let targets: Vec<(String, Vector3<f64>)> = scene
         .points
         .iter()
         .filter(|p| p.kind != PointKind::Ball)
         .map(|p| (p.name.clone(), p.position))
         .collect();
     let mut main_image = Vec::new();
-    for p in model.points.iter().filter(|p| p.kind != PointKind::Ball) {
-        for &(i, k) in &p.obs {
-            if i != main {
+    for p in scene.points.iter().filter(|p| p.kind != PointKind::Ball) {
+        for &d in &p.obs {
+            if d.image != main {
                 continue;
             }
-            let t = &dets[i].targets[k];
-            if let Some(r) = cams[c].unproject(&model.intrinsics[c], &Vector2::new(t.x, t.y)) {
+            let t = dets.target(d);
+            if let Some(r) =
+                scene.cameras[c].unproject(&scene.intrinsics[c], &Vector2::new(t.x, t.y))
+            {
                 if r.y > 0.0 {
                     main_image.push((p.name.clone(), Vector2::new(r.x / r.y, r.z / r.y)));
                 }
