@@ -14,7 +14,7 @@
 
 use super::adjust::{rig_cameras, Datum, SceneProblem};
 use super::ids::ImageId;
-use super::scene::{Detections, PointKind, Scene};
+use super::scene::{image_file, Detections, PointKind, Scene};
 use super::{Options, PipelineError, Reporter, Result};
 use pingcal_ba::pose::Pose;
 use pingcal_ba::solver::{self, Precision, PrecisionError, Rejection, SnoopError};
@@ -104,7 +104,7 @@ fn drop_undetermined(
         .map(|&d| {
             let t = dets.target(d);
             Rejection {
-                image: project.file.images[d.image.0].file.clone(),
+                image: image_file(project, d.image).to_string(),
                 point: name.to_string(),
                 uv: [t.x, t.y],
                 w: [f64::NAN; 2],

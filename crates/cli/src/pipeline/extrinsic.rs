@@ -55,20 +55,12 @@ pub struct Extrinsics {
     pub check_ids: Vec<String>,
 }
 
-/// Runs the methods the project asks for.
-pub fn extrinsics(
-    project: &Project,
-    scene: &Scene,
-    adj: &Adjusted,
-    lrf: &LrfData,
-    dets: &Detections,
-    opts: &Options,
-    rep: &Reporter,
-) -> Result<Extrinsics> {
-    let f = &project.file;
-    let method = f.method();
-    // camera balls with their covariances
-    let mut cam_balls: Vec<(PointId, Vector3<f64>, Matrix3<f64>)> = Vec::new();
+/// The balls of the scene with their positions and covariances from the bundle adjustment.
+type CameraBalls = Vec<(PointId, Vector3<f64>, Matrix3<f64>)>;
+
+/// The balls of the scene that the bundle adjustment determined.
+fn camera_balls(scene: &Scene, adj: &Adjusted) -> CameraBalls {
+    let mut cam_balls = Vec::new();
     for (j, p) in scene.points.iter_enumerated() {
         if p.kind != PointKind::Ball {
             continue;
@@ -79,6 +71,26 @@ pub fn extrinsics(
         let cov = adj.precision.point_covariances[k].unwrap_or(Matrix3::identity());
         cam_balls.push((j, p.position, cov));
     }
+    cam_balls
+}
+
+/// The LRF spheres matched to the camera balls, by ball name.
+struct Matched {
+    pairs: Vec<(SphereId, PointId)>,
+    rms_mm: f64,
+    lrf_points: Vec<PointObs>,
+    cam_points: Vec<PointObs>,
+}
+
+/// Matches the LRF spheres to the camera balls; fewer than three pairs is an error.
+fn match_spheres(
+    project: &Project,
+    scene: &Scene,
+    lrf: &LrfData,
+    cam_balls: &CameraBalls,
+    rep: &Reporter,
+) -> Result<Matched> {
+    let f = &project.file;
     let lrf_centres: Vec<Vector3<f64>> = lrf.found.balls.iter().map(|b| b.centre).collect();
     let cam_centres: Vec<Vector3<f64>> = cam_balls.iter().map(|b| b.1).collect();
     let too_few = |n: usize| {
@@ -134,9 +146,19 @@ pub fn extrinsics(
         cam_centres.len(),
         matching.rms_mm
     ));
-    let matched: Vec<String> = cam_points.iter().map(|p| p.id.clone()).collect();
+    Ok(Matched {
+        pairs,
+        rms_mm: matching.rms_mm,
+        lrf_points,
+        cam_points,
+    })
+}
+
+/// The check balls of the project (`check`) that both sensors found (the others are logged).
+fn check_balls(check: &[String], m: &Matched, rep: &Reporter) -> Vec<String> {
+    let matched: Vec<String> = m.cam_points.iter().map(|p| p.id.clone()).collect();
     let mut check_ids = Vec::new();
-    for c in &f.balls.check {
+    for c in check {
         if matched.contains(c) {
             check_ids.push(c.clone());
         } else {
@@ -145,44 +167,74 @@ pub fn extrinsics(
             ));
         }
     }
+    check_ids
+}
+
+/// The sphere method: the registration on the control balls, judged on the check balls
+/// (or by leave-one-out without them).
+fn sphere_method(
+    project: &Project,
+    m: &Matched,
+    check_ids: &[String],
+    rep: &Reporter,
+) -> Result<Evaluation> {
+    let matched = m.cam_points.len();
+    let control = matched - check_ids.len();
+    if control < 3 {
+        return Err(PipelineError::new(format!(
+            "{}: only {control} control balls are left after taking the check balls ({}) out of the {} matched; at least 3 are needed",
+            project.path.display(),
+            check_ids.join(", "),
+            matched
+        )));
+    }
+    // σ's scaled by the registration's own σ0²: the sphere-fit covariances are nominal
+    // (they treat every beam as independent, while one scan line's points share its
+    // servo angle error), and 11 control balls give 27 degrees of freedom to estimate σ0
+    let ev = evaluate(
+        &m.lrf_points,
+        &m.cam_points,
+        &[],
+        check_ids,
+        &RegistrationOptions {
+            posterior: true,
+            ..RegistrationOptions::default()
+        },
+    )
+    .map_err(|e| PipelineError::new(format!("sphere registration: {e}")))?;
+    let table = if ev.check.rows.is_empty() {
+        &ev.leave_one_out
+    } else {
+        &ev.check
+    };
+    rep.log(format!(
+        "spheres: extrinsic from {} control balls, mean check error {:.2} mm (sd {:.2}) on {} balls{}",
+        ev.control.rows.len(),
+        table.mean_mm,
+        table.sd_mm,
+        table.rows.len(),
+        if ev.check.rows.is_empty() { " (leave-one-out)" } else { "" }
+    ));
+    Ok(ev)
+}
+
+/// Runs the methods the project asks for.
+pub fn extrinsics(
+    project: &Project,
+    scene: &Scene,
+    adj: &Adjusted,
+    lrf: &LrfData,
+    dets: &Detections,
+    opts: &Options,
+    rep: &Reporter,
+) -> Result<Extrinsics> {
+    let f = &project.file;
+    let method = f.method();
+    let cam_balls = camera_balls(scene, adj);
+    let m = match_spheres(project, scene, lrf, &cam_balls, rep)?;
+    let check_ids = check_balls(&f.balls.check, &m, rep);
     let spheres = if method.spheres() {
-        let control = matched.len() - check_ids.len();
-        if control < 3 {
-            return Err(PipelineError::new(format!(
-                "{}: only {control} control balls are left after taking the check balls ({}) out of the {} matched; at least 3 are needed",
-                project.path.display(),
-                check_ids.join(", "),
-                matched.len()
-            )));
-        }
-        // σ's scaled by the registration's own σ0²: the sphere-fit covariances are nominal
-        // (they treat every beam as independent, while one scan line's points share its
-        // servo angle error), and 11 control balls give 27 degrees of freedom to estimate σ0
-        let ev = evaluate(
-            &lrf_points,
-            &cam_points,
-            &[],
-            &check_ids,
-            &RegistrationOptions {
-                posterior: true,
-                ..RegistrationOptions::default()
-            },
-        )
-        .map_err(|e| PipelineError::new(format!("sphere registration: {e}")))?;
-        let table = if ev.check.rows.is_empty() {
-            &ev.leave_one_out
-        } else {
-            &ev.check
-        };
-        rep.log(format!(
-            "spheres: extrinsic from {} control balls, mean check error {:.2} mm (sd {:.2}) on {} balls{}",
-            ev.control.rows.len(),
-            table.mean_mm,
-            table.sd_mm,
-            table.rows.len(),
-            if ev.check.rows.is_empty() { " (leave-one-out)" } else { "" }
-        ));
-        Some(ev)
+        Some(sphere_method(project, &m, &check_ids, rep)?)
     } else {
         None
     };
@@ -193,8 +245,8 @@ pub fn extrinsics(
             lrf,
             dets,
             opts,
-            &lrf_points,
-            &cam_points,
+            &m.lrf_points,
+            &m.cam_points,
             &check_ids,
         );
         match &r {
@@ -216,10 +268,10 @@ pub fn extrinsics(
         None
     };
     Ok(Extrinsics {
-        pairs,
-        match_rms_mm: matching.rms_mm,
-        lrf_points,
-        cam_points,
+        pairs: m.pairs,
+        match_rms_mm: m.rms_mm,
+        lrf_points: m.lrf_points,
+        cam_points: m.cam_points,
         spheres,
         corner,
         check_ids,

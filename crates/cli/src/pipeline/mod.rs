@@ -8,7 +8,15 @@
 //! | 4 | [`bundle`] | the final self-calibrating adjustment: distances, stereo rig, main image as datum, ball centres corrected for the sphere's eccentricity, data snooping, precision |
 //! | 5 | [`lrf`] | the LRF cloud from the scans and the spheres fitted to the balls |
 //! | 6 | [`extrinsic`] | spheres ↔ balls by distance invariants, the 3D conformal transform with σ, control / check / leave-one-out tables; the Fan et al. 2019 corner baseline |
-//! | 7 | [`results`], [`report`] | `results.json` (SPEC.md), `cloud.ply`, and the data of `report.html` |
+//! | 7 | [`results`], then [`report`] | `results.json` (SPEC.md) and `cloud.ply`, then the data of `report.html` |
+//!
+//! Below the steps lie the modules they share, lowest first: [`ids`] (typed ids and the
+//! vector they index), [`progress`] (the [`Reporter`] and the [`Progress`] trait through
+//! which the caller shows the progress: the library never prints), [`scene`] (the
+//! [`scene::Scene`] that the steps pass along and refine, and the helpers they share) and
+//! [`adjust`] (the scene as a bundle-adjustment problem and back, for every step that
+//! adjusts). Each module uses only those before it, shared modules first, then the steps in
+//! their order (`tests/pipeline_layers.rs` checks it).
 //!
 //! Every failure is a [`PipelineError`]: one line that names the file, image, target or ball
 //! concerned and what was expected. Nothing is written until every step has succeeded.

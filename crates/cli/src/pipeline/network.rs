@@ -10,7 +10,7 @@
 
 use super::adjust::{Datum, SceneProblem};
 use super::ids::{DetectionId, IdVec, ImageId};
-use super::scene::{main_image, Detections, PointKind, Scene, ScenePoint};
+use super::scene::{image_file, main_image, Detections, PointKind, Scene, ScenePoint};
 use super::{Options, PipelineError, Reporter, Result};
 use nalgebra::Vector3;
 use pingcal_ba::initial::incremental::{initialise, IncrementalOptions, Initialised};
@@ -74,7 +74,7 @@ pub fn initial_network(
     for (i, why) in &scene.unoriented {
         rep.log(format!(
             "  image {} not oriented: {why}",
-            f.images[i.0].file
+            image_file(project, *i)
         ));
     }
     rep.log(format!(
@@ -138,12 +138,12 @@ fn into_main_frame(
         let why = init
             .unoriented_images
             .iter()
-            .find(|(n, _)| *n == f.images[main.0].file)
+            .find(|(n, _)| n == image_file(project, main))
             .map(|(_, w)| w.clone())
             .unwrap_or_else(|| "unknown".into());
         return Err(PipelineError::new(format!(
             "{}: the main image could not be oriented: {why}",
-            f.images[main.0].file
+            image_file(project, main)
         )));
     };
     // into the main image's frame: X' = R X + t; image poses P' = P ∘ M⁻¹
@@ -163,7 +163,7 @@ fn into_main_frame(
         p.position = main_pose.transform(&init.problem.points[m].position);
         p.obs.retain(|d| {
             poses[d.image].is_some()
-                && !rejected.contains(&(f.images[d.image.0].file.as_str(), p.name.as_str()))
+                && !rejected.contains(&(image_file(project, d.image), p.name.as_str()))
         });
         if p.obs.len() >= 2 {
             points.push(p);

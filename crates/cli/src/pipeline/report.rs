@@ -5,7 +5,7 @@
 use super::ids::{ImageId, SphereId};
 use super::lrf::MIN_REPORTED_CLUSTER;
 use super::results::Results;
-use super::scene::{main_image, PointKind};
+use super::scene::{image_file, main_image, PointKind};
 use super::{Reporter, Stages};
 use pingcal_report as rp;
 
@@ -56,7 +56,7 @@ fn image_residuals(st: &Stages) -> Vec<rp::ImageResiduals> {
         .images
         .iter()
         .map(|&i| rp::ImageResiduals {
-            name: f.images[i.0].file.clone(),
+            name: image_file(st.project, i).to_string(),
             width: st.dets[i].width as u32,
             height: st.dets[i].height as u32,
             points: Vec::new(),
@@ -308,12 +308,11 @@ fn rejections(st: &Stages) -> Vec<rp::Rejection> {
 
 /// Images not oriented and methods that failed.
 fn warnings(st: &Stages, results: &Results) -> Vec<String> {
-    let f = &st.project.file;
     let mut warnings: Vec<String> = st
         .scene
         .unoriented
         .iter()
-        .map(|(i, w)| format!("image {} not oriented: {w}", f.images[i.0].file))
+        .map(|(i, w)| format!("image {} not oriented: {w}", image_file(st.project, *i)))
         .collect();
     for m in &results.methods {
         if let Some(e) = &m.error {

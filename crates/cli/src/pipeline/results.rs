@@ -14,7 +14,7 @@ use super::bundle::Adjusted;
 use super::extrinsic::Extrinsics;
 use super::ids::CameraId;
 use super::lrf::LrfData;
-use super::scene::{PointKind, Scene};
+use super::scene::{image_file, PointKind, Scene};
 use super::Stages;
 use nalgebra::Matrix3;
 use pingcal_ba::rotation::to_opk;
@@ -389,7 +389,7 @@ pub fn assemble(st: &Stages, time_s: Vec<(String, f64)>) -> Results {
             unoriented_images: scene
                 .unoriented
                 .iter()
-                .map(|(i, w)| (f.images[i.0].file.clone(), w.clone()))
+                .map(|(i, w)| (image_file(project, *i).to_string(), w.clone()))
                 .collect(),
             points: adj.solved.problem.points.len(),
             observations: adj.solved.problem.observations.len(),

@@ -213,3 +213,8 @@ impl Scene {
 pub fn main_image(project: &Project) -> ImageId {
     ImageId(project.main_image())
 }
+
+/// The file name of image `i` (as `[[images]] file` gives it).
+pub fn image_file(project: &Project, i: ImageId) -> &str {
+    &project.file.images[i.0].file
+}
