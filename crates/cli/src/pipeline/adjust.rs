@@ -298,3 +298,159 @@ impl SceneProblem {
             .collect();
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::pipeline::ids::DetIdx;
+    use crate::pipeline::scene::{ImageDetections, ScenePoint};
+    use nalgebra::Vector3;
+    use pingcal_project::ProjectFile;
+    use pingcal_targets::ellipse::Ellipse;
+    use pingcal_targets::{Target, TargetKind};
+
+    const PROJECT: &str = r#"
+version = 1
+name = "three images"
+method = "spheres"
+main_station = "S1"
+main_camera = "cam"
+[targets]
+family = "aicon14"
+dot_radius_mm = 5.0
+[balls]
+diameter_mm = 38.0
+[[cameras]]
+id = "cam"
+model = "photogrammetric"
+width = 100
+height = 80
+pixel_size_mm = 0.01
+free = ["c"]
+initial = { c_mm = 5.0 }
+[[images]]
+file = "a.png"
+camera = "cam"
+station = "S0"
+[[images]]
+file = "b.png"
+camera = "cam"
+station = "S1"
+[[images]]
+file = "c.png"
+camera = "cam"
+station = "S2"
+[[distances]]
+from = 1
+to = 2
+distance_mm = 100.0
+sigma_mm = 0.1
+[lrf]
+model = "urg"
+station = "S1"
+scans = ["scan.csv"]
+max_range_mm = 4000.0
+accuracy_near_mm = 30.0
+accuracy_far_fraction = 0.03
+"#;
+
+    fn target(x: f64, id: u32) -> Target {
+        Target {
+            kind: TargetKind::Coded,
+            id: Some(id),
+            x,
+            y: 40.0,
+            sigma_px: 0.05,
+            ellipse: Ellipse::circle(x, 40.0, 3.0),
+            centroid: [x, 40.0],
+            sigma_centroid_px: 0.05,
+            contrast: 0.5,
+        }
+    }
+
+    /// Images a and b oriented, c not; points 1 and 2 seen in all three, point 3 in a and
+    /// c only (one ray in an oriented image).
+    fn fixture() -> (Project, Detections, Scene) {
+        let file = ProjectFile::parse(PROJECT, "project.toml").expect("valid project");
+        let project = Project {
+            path: "project.toml".into(),
+            dir: ".".into(),
+            image_paths: Vec::new(),
+            scan_paths: Vec::new(),
+            file,
+        };
+        let det = || ImageDetections {
+            width: 100,
+            height: 80,
+            targets: vec![target(30.0, 1), target(50.0, 2), target(70.0, 3)].into(),
+            ball_fits: vec![None; 3].into(),
+        };
+        let dets: Detections = vec![det(), det(), det()].into();
+        let mut scene = Scene::new(&project);
+        scene.poses[ImageId(0)] = Some(Pose::identity());
+        scene.poses[ImageId(1)] = Some(Pose::identity());
+        let d = |i, k| DetectionId::new(ImageId(i), DetIdx(k));
+        for (n, obs) in [
+            (1, vec![d(0, 0), d(1, 0), d(2, 0)]),
+            (2, vec![d(0, 1), d(1, 1), d(2, 1)]),
+            (3, vec![d(0, 2), d(2, 2)]),
+        ] {
+            scene.points.push(ScenePoint {
+                name: n.to_string(),
+                kind: PointKind::Coded(n),
+                position: Vector3::new(n as f64, 1000.0, 0.0),
+                obs,
+            });
+        }
+        (project, dets, scene)
+    }
+
+    #[test]
+    fn the_map_names_the_scene_objects_of_the_problem() {
+        let (project, dets, scene) = fixture();
+        let sp = SceneProblem::build(&project, &dets, &scene, Datum::MainImage, None);
+        assert_eq!(sp.map.images, vec![ImageId(0), ImageId(1)]);
+        assert_eq!(sp.map.image(ImageId(2)), None);
+        assert_eq!(sp.map.points, vec![PointId(0), PointId(1)]);
+        assert_eq!(sp.map.point(PointId(2)), None, "one ray in oriented images");
+        assert_eq!(sp.problem.observations.len(), 4);
+        for (ob, (j, d)) in sp.problem.observations.iter().zip(&sp.map.observations) {
+            assert_eq!(sp.map.images[ob.image], d.image);
+            assert_eq!(sp.map.points[ob.point], *j);
+            assert_eq!(ob.uv.x, dets.target(*d).x);
+        }
+        assert_eq!(sp.problem.distances.len(), 1);
+        let fixed: Vec<bool> = sp.problem.images.iter().map(|im| im.fixed).collect();
+        assert_eq!(
+            fixed,
+            vec![false, true],
+            "the main image (station S1) is the datum"
+        );
+        let free = SceneProblem::build(&project, &dets, &scene, Datum::Free, None);
+        assert!(free.problem.images.iter().all(|im| !im.fixed));
+    }
+
+    #[test]
+    fn write_back_moves_the_scene_to_the_solution() {
+        let (project, dets, mut scene) = fixture();
+        let mut sp = SceneProblem::build(&project, &dets, &scene, Datum::MainImage, None);
+        sp.problem.points[1].position = Vector3::new(7.0, 8.0, 9.0);
+        sp.problem.images[0].pose.translation = Vector3::new(1.0, 2.0, 3.0);
+        sp.problem.cameras[0].params[0] = 5.5;
+        sp.write_back(&mut scene);
+        assert_eq!(
+            scene.points[PointId(1)].position,
+            Vector3::new(7.0, 8.0, 9.0)
+        );
+        assert_eq!(
+            scene.points[PointId(2)].position,
+            Vector3::new(3.0, 1000.0, 0.0)
+        );
+        assert_eq!(
+            scene.poses[ImageId(0)].expect("oriented").translation,
+            Vector3::new(1.0, 2.0, 3.0)
+        );
+        assert!(scene.poses[ImageId(2)].is_none());
+        assert_eq!(scene.intrinsics[crate::pipeline::ids::CameraId(0)][0], 5.5);
+    }
+}

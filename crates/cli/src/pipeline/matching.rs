@@ -1,6 +1,6 @@
 //! Step 3: plain targets and balls, which carry no number.
 //!
-//! 1. **Driveback** (Australis' term): every point of the model is projected into every
+//! 1. **Driveback** (Australis' term): every point of the scene is projected into every
 //!    oriented image that does not measure it yet; the nearest unused detection of the
 //!    right kind takes it when it is within [`TOL_PX`] and the next one is at least twice as
 //!    far ([`pingcal_targets::driveback::assign`]).
