@@ -7,6 +7,7 @@
 //! project that fails, and the outputs of an earlier run in DIR are removed first; each
 //! output file is written atomically, `results.json` last.
 
+use super::progress::reporter;
 use super::{write_atomic, CmdResult};
 use crate::pipeline::{self, Outcome, Reporter};
 use indicatif::MultiProgress;
@@ -151,7 +152,7 @@ pub fn run(args: Args) -> CmdResult {
             } else {
                 String::new()
             };
-            let rep = Reporter::new(multi.clone(), prefix);
+            let rep = reporter(multi.as_ref(), prefix);
             let dir = out_dir(path, args.out.as_deref(), several);
             let r = clear_outputs(&dir)
                 .and_then(|_| calibrate_one(path, &opts, &rep))

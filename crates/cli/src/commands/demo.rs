@@ -6,8 +6,9 @@
 //! the same measurements (the floor set by the measurement noise).
 
 use super::calibrate::{calibrate_one, write_outputs};
+use super::progress::reporter;
 use super::CmdResult;
-use crate::pipeline::{self, Reporter};
+use crate::pipeline;
 use indicatif::MultiProgress;
 use nalgebra::{Matrix3, Vector3};
 use pingcal_lrf::corner::rotation_angle;
@@ -44,7 +45,7 @@ pub fn run(args: Args) -> CmdResult {
         }
     };
     let multi = (!args.quiet).then(MultiProgress::new);
-    let rep = Reporter::new(multi, "");
+    let rep = reporter(multi.as_ref(), "");
     rep.log(format!(
         "demo: simulating the paper's test field (seed {}) into {}",
         args.seed,

@@ -7,28 +7,15 @@
 //! ([`pingcal_targets::ball::fit_ball_silhouette`]), so that no image needs to be kept in
 //! memory for the eccentricity correction of the balls.
 
+use super::scene::{Detections, ImageDetections};
 use super::{PipelineError, Reporter, Result};
 use pingcal_project::Project;
 use pingcal_targets::detect::BallMode;
-use pingcal_targets::ellipse::Ellipse;
-use pingcal_targets::{load_image, DetectParams, Detector, Target, TargetKind};
+use pingcal_targets::{load_image, DetectParams, Detector, TargetKind};
 use rayon::prelude::*;
 
-/// The measurements of one image.
-#[derive(Clone, Debug)]
-pub struct ImageDetections {
-    /// Width (px).
-    pub width: usize,
-    /// Height (px).
-    pub height: usize,
-    /// Targets: coded (with or without a number) and plain (targets or balls).
-    pub targets: Vec<Target>,
-    /// For each target: the silhouette refitted as a ball (plain blobs only), with its σ.
-    pub ball_fits: Vec<Option<(Ellipse, f64)>>,
-}
-
 /// Detects every image of the project; an image of the wrong size for its camera is an error.
-pub fn detect_all(project: &Project, rep: &Reporter) -> Result<Vec<ImageDetections>> {
+pub fn detect_all(project: &Project, rep: &Reporter) -> Result<Detections> {
     let f = &project.file;
     let bits = f.targets.family.code_bits();
     let detector = Detector::new(DetectParams {
@@ -37,7 +24,7 @@ pub fn detect_all(project: &Project, rep: &Reporter) -> Result<Vec<ImageDetectio
         ..DetectParams::default()
     })
     .map_err(|e| PipelineError::new(format!("detector: {e}")))?;
-    let pb = rep.bar(project.image_paths.len() as u64, "detecting targets");
+    let pb = rep.task("detecting targets", project.image_paths.len() as u64);
     let out: Vec<Result<ImageDetections>> = project
         .image_paths
         .par_iter()
@@ -71,17 +58,17 @@ pub fn detect_all(project: &Project, rep: &Reporter) -> Result<Vec<ImageDetectio
                         .map(|r| (r.ellipse, r.sigma_ellipse))
                 })
                 .collect();
-            pb.inc(1);
+            pb.advance(1);
             Ok(ImageDetections {
                 width: d.width,
                 height: d.height,
-                targets: d.targets,
+                targets: d.targets.into(),
                 ball_fits,
             })
         })
         .collect();
-    pb.finish_and_clear();
-    let dets = out.into_iter().collect::<Result<Vec<_>>>()?;
+    pb.finish();
+    let dets: Detections = out.into_iter().collect::<Result<_>>()?;
     let (mut coded, mut ids, mut plain) = (0, 0, 0);
     for d in &dets {
         for t in &d.targets {

@@ -14,9 +14,10 @@
 //! no check balls).
 
 use super::bundle::Adjusted;
-use super::detect::ImageDetections;
+use super::ids::{PointId, SphereId};
 use super::lrf::LrfData;
-use super::{Model, Options, PipelineError, PointKind, Reporter, Result};
+use super::scene::{main_image, Detections, PointKind, Scene};
+use super::{Options, PipelineError, Reporter, Result};
 use nalgebra::{Matrix3, Vector2, Vector3};
 use pingcal_ba::camera::CameraModel;
 use pingcal_lrf::corner_baseline::{fan_baseline, BaselineInput};
@@ -38,8 +39,8 @@ pub struct CornerOutcome {
 
 /// Both methods.
 pub struct Extrinsics {
-    /// Matched pairs: (LRF sphere index, model point index of the ball).
-    pub pairs: Vec<(usize, usize)>,
+    /// Matched pairs: (LRF sphere, scene point of the ball).
+    pub pairs: Vec<(SphereId, PointId)>,
     /// RMS of the matching (mm).
     pub match_rms_mm: f64,
     /// LRF spheres, labelled with their matched ball ids.
@@ -54,30 +55,42 @@ pub struct Extrinsics {
     pub check_ids: Vec<String>,
 }
 
-/// Runs the methods the project asks for.
-pub fn extrinsics(
-    project: &Project,
-    model: &Model,
-    adj: &Adjusted,
-    lrf: &LrfData,
-    dets: &[ImageDetections],
-    opts: &Options,
-    rep: &Reporter,
-) -> Result<Extrinsics> {
-    let f = &project.file;
-    let method = f.method;
-    // camera balls with their covariances
-    let mut cam_balls: Vec<(usize, Vector3<f64>, Matrix3<f64>)> = Vec::new();
-    for (j, p) in model.points.iter().enumerate() {
+/// The balls of the scene with their positions and covariances from the bundle adjustment.
+type CameraBalls = Vec<(PointId, Vector3<f64>, Matrix3<f64>)>;
+
+/// The balls of the scene that the bundle adjustment determined.
+fn camera_balls(scene: &Scene, adj: &Adjusted) -> CameraBalls {
+    let mut cam_balls = Vec::new();
+    for (j, p) in scene.points.iter_enumerated() {
         if p.kind != PointKind::Ball {
             continue;
         }
-        let Some(k) = adj.point_index[j] else {
+        let Some(k) = adj.solved.map.point(j) else {
             continue;
         };
         let cov = adj.precision.point_covariances[k].unwrap_or(Matrix3::identity());
         cam_balls.push((j, p.position, cov));
     }
+    cam_balls
+}
+
+/// The LRF spheres matched to the camera balls, by ball name.
+struct Matched {
+    pairs: Vec<(SphereId, PointId)>,
+    rms_mm: f64,
+    lrf_points: Vec<PointObs>,
+    cam_points: Vec<PointObs>,
+}
+
+/// Matches the LRF spheres to the camera balls; fewer than three pairs is an error.
+fn match_spheres(
+    project: &Project,
+    scene: &Scene,
+    lrf: &LrfData,
+    cam_balls: &CameraBalls,
+    rep: &Reporter,
+) -> Result<Matched> {
+    let f = &project.file;
     let lrf_centres: Vec<Vector3<f64>> = lrf.found.balls.iter().map(|b| b.centre).collect();
     let cam_centres: Vec<Vector3<f64>> = cam_balls.iter().map(|b| b.1).collect();
     let too_few = |n: usize| {
@@ -103,17 +116,17 @@ pub fn extrinsics(
     if matching.pairs.len() < 3 {
         return Err(too_few(matching.pairs.len()));
     }
-    let mut pairs: Vec<(usize, usize)> = matching
+    let mut pairs: Vec<(SphereId, PointId)> = matching
         .pairs
         .iter()
-        .map(|&(l, c)| (l, cam_balls[c].0))
+        .map(|&(l, c)| (SphereId(l), cam_balls[c].0))
         .collect();
-    pairs.sort_by(|a, b| model.points[a.1].name.cmp(&model.points[b.1].name));
+    pairs.sort_by(|a, b| scene.points[a.1].name.cmp(&scene.points[b.1].name));
     let mut lrf_points = Vec::new();
     let mut cam_points = Vec::new();
     for &(l, j) in &pairs {
-        let name = model.points[j].name.clone();
-        let b = &lrf.found.balls[l];
+        let name = scene.points[j].name.clone();
+        let b = &lrf.found.balls[l.0];
         lrf_points.push(PointObs {
             id: name.clone(),
             xyz: b.centre,
@@ -133,9 +146,19 @@ pub fn extrinsics(
         cam_centres.len(),
         matching.rms_mm
     ));
-    let matched: Vec<String> = cam_points.iter().map(|p| p.id.clone()).collect();
+    Ok(Matched {
+        pairs,
+        rms_mm: matching.rms_mm,
+        lrf_points,
+        cam_points,
+    })
+}
+
+/// The check balls of the project (`check`) that both sensors found (the others are logged).
+fn check_balls(check: &[String], m: &Matched, rep: &Reporter) -> Vec<String> {
+    let matched: Vec<String> = m.cam_points.iter().map(|p| p.id.clone()).collect();
     let mut check_ids = Vec::new();
-    for c in &f.balls.check {
+    for c in check {
         if matched.contains(c) {
             check_ids.push(c.clone());
         } else {
@@ -144,56 +167,86 @@ pub fn extrinsics(
             ));
         }
     }
+    check_ids
+}
+
+/// The sphere method: the registration on the control balls, judged on the check balls
+/// (or by leave-one-out without them).
+fn sphere_method(
+    project: &Project,
+    m: &Matched,
+    check_ids: &[String],
+    rep: &Reporter,
+) -> Result<Evaluation> {
+    let matched = m.cam_points.len();
+    let control = matched - check_ids.len();
+    if control < 3 {
+        return Err(PipelineError::new(format!(
+            "{}: only {control} control balls are left after taking the check balls ({}) out of the {} matched; at least 3 are needed",
+            project.path.display(),
+            check_ids.join(", "),
+            matched
+        )));
+    }
+    // σ's scaled by the registration's own σ0²: the sphere-fit covariances are nominal
+    // (they treat every beam as independent, while one scan line's points share its
+    // servo angle error), and 11 control balls give 27 degrees of freedom to estimate σ0
+    let ev = evaluate(
+        &m.lrf_points,
+        &m.cam_points,
+        &[],
+        check_ids,
+        &RegistrationOptions {
+            posterior: true,
+            ..RegistrationOptions::default()
+        },
+    )
+    .map_err(|e| PipelineError::new(format!("sphere registration: {e}")))?;
+    let table = if ev.check.rows.is_empty() {
+        &ev.leave_one_out
+    } else {
+        &ev.check
+    };
+    rep.log(format!(
+        "spheres: extrinsic from {} control balls, mean check error {:.2} mm (sd {:.2}) on {} balls{}",
+        ev.control.rows.len(),
+        table.mean_mm,
+        table.sd_mm,
+        table.rows.len(),
+        if ev.check.rows.is_empty() { " (leave-one-out)" } else { "" }
+    ));
+    Ok(ev)
+}
+
+/// Runs the methods the project asks for.
+pub fn extrinsics(
+    project: &Project,
+    scene: &Scene,
+    adj: &Adjusted,
+    lrf: &LrfData,
+    dets: &Detections,
+    opts: &Options,
+    rep: &Reporter,
+) -> Result<Extrinsics> {
+    let f = &project.file;
+    let method = f.method();
+    let cam_balls = camera_balls(scene, adj);
+    let m = match_spheres(project, scene, lrf, &cam_balls, rep)?;
+    let check_ids = check_balls(&f.balls.check, &m, rep);
     let spheres = if method.spheres() {
-        let control = matched.len() - check_ids.len();
-        if control < 3 {
-            return Err(PipelineError::new(format!(
-                "{}: only {control} control balls are left after taking the check balls ({}) out of the {} matched; at least 3 are needed",
-                project.path.display(),
-                check_ids.join(", "),
-                matched.len()
-            )));
-        }
-        // σ's scaled by the registration's own σ0²: the sphere-fit covariances are nominal
-        // (they treat every beam as independent, while one scan line's points share its
-        // servo angle error), and 11 control balls give 27 degrees of freedom to estimate σ0
-        let ev = evaluate(
-            &lrf_points,
-            &cam_points,
-            &[],
-            &check_ids,
-            &RegistrationOptions {
-                posterior: true,
-                ..RegistrationOptions::default()
-            },
-        )
-        .map_err(|e| PipelineError::new(format!("sphere registration: {e}")))?;
-        let table = if ev.check.rows.is_empty() {
-            &ev.leave_one_out
-        } else {
-            &ev.check
-        };
-        rep.log(format!(
-            "spheres: extrinsic from {} control balls, mean check error {:.2} mm (sd {:.2}) on {} balls{}",
-            ev.control.rows.len(),
-            table.mean_mm,
-            table.sd_mm,
-            table.rows.len(),
-            if ev.check.rows.is_empty() { " (leave-one-out)" } else { "" }
-        ));
-        Some(ev)
+        Some(sphere_method(project, &m, &check_ids, rep)?)
     } else {
         None
     };
     let corner = if method.corner() {
         let r = corner_method(
             project,
-            model,
+            scene,
             lrf,
             dets,
             opts,
-            &lrf_points,
-            &cam_points,
+            &m.lrf_points,
+            &m.cam_points,
             &check_ids,
         );
         match &r {
@@ -215,10 +268,10 @@ pub fn extrinsics(
         None
     };
     Ok(Extrinsics {
-        pairs,
-        match_rms_mm: matching.rms_mm,
-        lrf_points,
-        cam_points,
+        pairs: m.pairs,
+        match_rms_mm: m.rms_mm,
+        lrf_points: m.lrf_points,
+        cam_points: m.cam_points,
         spheres,
         corner,
         check_ids,
@@ -228,9 +281,9 @@ pub fn extrinsics(
 #[allow(clippy::too_many_arguments)]
 fn corner_method(
     project: &Project,
-    model: &Model,
+    scene: &Scene,
     lrf: &LrfData,
-    dets: &[ImageDetections],
+    dets: &Detections,
     opts: &Options,
     lrf_points: &[PointObs],
     cam_points: &[PointObs],
@@ -239,24 +292,24 @@ fn corner_method(
     let Some((header, scans)) = &lrf.scans else {
         return Err("it needs the scan lines (a pingcal-scan CSV), not a point cloud".into());
     };
-    let main = project.main_image();
-    let cam_of = super::network::camera_index(project);
-    let c = cam_of[main];
-    let cams = super::matching::models(project);
-    let targets: Vec<(String, Vector3<f64>)> = model
+    let main = main_image(project);
+    let c = scene.camera_of[main];
+    let targets: Vec<(String, Vector3<f64>)> = scene
         .points
         .iter()
         .filter(|p| p.kind != PointKind::Ball)
         .map(|p| (p.name.clone(), p.position))
         .collect();
     let mut main_image = Vec::new();
-    for p in model.points.iter().filter(|p| p.kind != PointKind::Ball) {
-        for &(i, k) in &p.obs {
-            if i != main {
+    for p in scene.points.iter().filter(|p| p.kind != PointKind::Ball) {
+        for &d in &p.obs {
+            if d.image != main {
                 continue;
             }
-            let t = &dets[i].targets[k];
-            if let Some(r) = cams[c].unproject(&model.intrinsics[c], &Vector2::new(t.x, t.y)) {
+            let t = dets.target(d);
+            if let Some(r) =
+                scene.cameras[c].unproject(&scene.intrinsics[c], &Vector2::new(t.x, t.y))
+            {
                 if r.y > 0.0 {
                     main_image.push((p.name.clone(), Vector2::new(r.x / r.y, r.z / r.y)));
                 }

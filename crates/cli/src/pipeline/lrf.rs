@@ -46,7 +46,7 @@ pub fn mount_of(project: &Project) -> MountModel {
 pub fn lrf_spheres(project: &Project, opts: &Options, rep: &Reporter) -> Result<LrfData> {
     let l = &project.file.lrf;
     let mount = mount_of(project);
-    let pb = rep.bar(project.scan_paths.len() as u64 + 1, "LRF cloud and spheres");
+    let pb = rep.task("LRF cloud and spheres", project.scan_paths.len() as u64 + 1);
     let mut cloud = Cloud::default();
     let mut scans = None;
     for path in &project.scan_paths {
@@ -69,7 +69,7 @@ pub fn lrf_spheres(project: &Project, opts: &Options, rep: &Reporter) -> Result<
         } else {
             cloud.extend(read_cloud_file(path, &mount).map_err(err)?);
         }
-        pb.inc(1);
+        pb.advance(1);
     }
     let noise = UrgNoise {
         sigma_near_mm: l.accuracy_near_mm / 3.0,
@@ -86,7 +86,7 @@ pub fn lrf_spheres(project: &Project, opts: &Options, rep: &Reporter) -> Result<
             ..FinderOptions::default()
         },
     );
-    pb.finish_and_clear();
+    pb.finish();
     let mut s0: Vec<f64> = found.balls.iter().map(|b| b.sigma0).collect();
     s0.sort_by(|a, b| a.total_cmp(b));
     let mut inl: Vec<usize> = found.balls.iter().map(|b| b.inliers.len()).collect();

@@ -1,6 +1,6 @@
 //! Step 3: plain targets and balls, which carry no number.
 //!
-//! 1. **Driveback** (Australis' term): every point of the model is projected into every
+//! 1. **Driveback** (Australis' term): every point of the scene is projected into every
 //!    oriented image that does not measure it yet; the nearest unused detection of the
 //!    right kind takes it when it is within [`TOL_PX`] and the next one is at least twice as
 //!    far ([`pingcal_targets::driveback::assign`]).
@@ -18,13 +18,16 @@
 //!    image) name the ball projecting nearest to each; without labels, balls are numbered
 //!    B1, B2, … by their column in the main image.
 //!
-//! A short bundle adjustment between rounds keeps the model consistent.
+//! A short bundle adjustment between rounds ([`refine`]) keeps the scene consistent.
 
-use super::detect::ImageDetections;
-use super::{Model, ModelPoint, Options, PipelineError, PointKind, Reporter, Result};
+use super::adjust::{Datum, SceneProblem};
+use super::ids::{DetIdx, DetectionId, IdVec, ImageId, PointId};
+use super::scene::{main_image, DetectionSet, Detections, PointKind, Scene, ScenePoint};
+use super::{Options, PipelineError, Reporter, Result};
 use nalgebra::{Vector2, Vector3};
-use pingcal_ba::camera::{CameraModel, PhotogrammetricCamera};
+use pingcal_ba::camera::CameraModel;
 use pingcal_ba::initial::intersection::{intersect, IntersectionOptions, Ray};
+use pingcal_ba::solver;
 use pingcal_project::Project;
 use pingcal_targets::driveback::{assign, Predicted};
 use pingcal_targets::{Target, TargetKind};
@@ -37,64 +40,25 @@ pub const MIN_RAYS: usize = 3;
 /// already says which target it is, so one more ray on its epipolar line suffices.
 pub const MIN_RAYS_NUMBERED: usize = 2;
 
-/// The camera models of the project (one per camera, in project order).
-pub fn models(project: &Project) -> Vec<PhotogrammetricCamera> {
-    project
-        .file
-        .cameras
-        .iter()
-        .map(|c| PhotogrammetricCamera::new(c.width, c.height, c.pixel_size_mm))
-        .collect()
-}
-
-/// Projects `x` into image `i` (None: not oriented, behind, or outside the frame).
-pub fn project_into(
-    model: &Model,
-    cams: &[PhotogrammetricCamera],
-    cam_of: &[usize],
-    i: usize,
-    x: &Vector3<f64>,
-) -> Option<Vector2<f64>> {
-    let pose = model.poses[i]?;
-    let c = cam_of[i];
-    let xc = pose.transform(x);
-    if xc.y <= 0.0 {
-        return None;
-    }
-    let uv = cams[c].project(&model.intrinsics[c], &xc, None, None)?;
-    let (w, h) = (cams[c].width as f64, cams[c].height as f64);
-    (uv.x >= -0.5 && uv.y >= -0.5 && uv.x <= w - 0.5 && uv.y <= h - 0.5).then_some(uv)
-}
-
-fn kind_of(p: &ModelPoint) -> TargetKind {
+fn kind_of(p: &ScenePoint) -> TargetKind {
     match p.kind {
         PointKind::Coded(_) => TargetKind::Coded,
         _ => TargetKind::Plain,
     }
 }
 
-/// Step 1: driveback of every model point. Returns the number of measurements added.
-pub fn driveback(
-    project: &Project,
-    dets: &[ImageDetections],
-    model: &mut Model,
-    tol_px: f64,
-) -> usize {
-    let cams = models(project);
-    let cam_of = super::network::camera_index(project);
-    let mut used = model.used(dets);
+/// Step 1: driveback of every scene point. Returns the number of measurements added.
+pub fn driveback(dets: &Detections, scene: &mut Scene, tol_px: f64) -> usize {
+    let mut used = scene.used(dets);
     let mut added = 0;
-    for i in 0..dets.len() {
-        if model.poses[i].is_none() {
-            continue;
-        }
+    for i in scene.oriented() {
         let mut predicted = Vec::new();
-        let mut which = Vec::new();
-        for (j, p) in model.points.iter().enumerate() {
-            if p.obs.iter().any(|&(im, _)| im == i) {
+        let mut which: Vec<PointId> = Vec::new();
+        for (j, p) in scene.points.iter_enumerated() {
+            if p.obs.iter().any(|d| d.image == i) {
                 continue;
             }
-            if let Some(uv) = project_into(model, &cams, &cam_of, i, &p.position) {
+            if let Some(uv) = scene.project_into(i, &p.position) {
                 predicted.push(Predicted {
                     label: p.name.clone(),
                     kind: kind_of(p),
@@ -106,93 +70,96 @@ pub fn driveback(
         }
         // only unused detections, and a coded detection whose number was read only by
         // its own point (a different number is a different target)
-        let free: Vec<usize> = (0..dets[i].targets.len())
-            .filter(|&k| !used[i][k])
+        let free: Vec<DetectionId> = dets[i]
+            .targets
+            .ids()
+            .map(|k| DetectionId::new(i, k))
+            .filter(|&d| !used.contains(d))
             .collect();
-        let cand: Vec<Target> = free.iter().map(|&k| dets[i].targets[k].clone()).collect();
+        let cand: Vec<Target> = free.iter().map(|&d| dets.target(d).clone()).collect();
         for (pi, di) in assign(&predicted, &cand, tol_px) {
-            let k = free[di];
+            let d = free[di];
             let j = which[pi];
-            let t = &dets[i].targets[k];
-            if let (Some(read), PointKind::Coded(id)) = (t.id, model.points[j].kind) {
+            if let (Some(read), PointKind::Coded(id)) = (dets.target(d).id, scene.points[j].kind) {
                 if read != id {
                     continue;
                 }
             }
-            model.points[j].obs.push((i, k));
-            used[i][k] = true;
+            scene.points[j].obs.push(d);
+            used.insert(d);
             added += 1;
         }
     }
     added
 }
 
-/// A camera ray in the model frame.
+/// A camera ray in the scene frame.
 struct WorldRay {
     centre: Vector3<f64>,
     dir: Vector3<f64>,
 }
 
-/// Step 2: new points from unused detections of one kind: round blobs (`Plain`), or coded
-/// targets whose number is not in the model yet (`Coded`: read in one image only, or not
-/// read at all; a point takes the number one of its detections read, and detections that
-/// read different numbers never pair). Returns how many were added.
-pub fn new_points(
-    project: &Project,
-    dets: &[ImageDetections],
-    model: &mut Model,
-    kind: TargetKind,
-) -> usize {
-    let known: Vec<u32> = model
-        .points
-        .iter()
-        .filter_map(|p| match p.kind {
-            PointKind::Coded(n) => Some(n),
-            _ => None,
-        })
-        .collect();
-    let wanted = |t: &Target| {
-        t.kind == kind && (kind != TargetKind::Coded || t.id.is_none_or(|n| !known.contains(&n)))
-    };
-    let cams = models(project);
-    let cam_of = super::network::camera_index(project);
-    let used = model.used(dets);
-    let oriented: Vec<usize> = (0..dets.len())
-        .filter(|&i| model.poses[i].is_some())
-        .collect();
-    // unused plain blobs and their rays, per image
-    let rays: Vec<Vec<(usize, WorldRay)>> = (0..dets.len())
-        .map(|i| {
-            let Some(pose) = model.poses[i] else {
-                return Vec::new();
-            };
-            let c = cam_of[i];
-            dets[i]
-                .targets
-                .iter()
-                .enumerate()
-                .filter(|(k, t)| !used[i][*k] && wanted(t))
-                .filter_map(|(k, t)| {
-                    let d = cams[c].unproject(&model.intrinsics[c], &Vector2::new(t.x, t.y))?;
-                    Some((
-                        k,
-                        WorldRay {
-                            centre: pose.centre(),
-                            dir: pose.rotation.transpose() * d.normalize(),
-                        },
-                    ))
-                })
-                .collect()
-        })
-        .collect();
-    let nearest = |i: usize, uv: &Vector2<f64>, taken: &[Vec<bool>]| -> Option<(usize, f64)> {
-        let mut best: Option<(usize, f64)> = None;
+/// The detections a round of new points may use, with their rays, per image.
+struct Blobs<'a> {
+    dets: &'a Detections,
+    rays: IdVec<ImageId, Vec<(DetIdx, WorldRay)>>,
+    /// Principal distance of each image's camera, in pixels.
+    f_px: IdVec<ImageId, f64>,
+    /// No detection (the support of a candidate counts every blob).
+    none_taken: DetectionSet,
+}
+
+impl<'a> Blobs<'a> {
+    /// The unused detections for which `wanted` is true, in the oriented images.
+    fn new(dets: &'a Detections, scene: &Scene, wanted: impl Fn(&Target) -> bool) -> Self {
+        let used = scene.used(dets);
+        let rays = dets
+            .iter_enumerated()
+            .map(|(i, di)| {
+                let Some(pose) = scene.poses[i] else {
+                    return Vec::new();
+                };
+                let c = scene.camera_of[i];
+                di.targets
+                    .iter_enumerated()
+                    .filter(|(k, t)| !used.contains(DetectionId::new(i, *k)) && wanted(t))
+                    .filter_map(|(k, t)| {
+                        let d = scene.cameras[c]
+                            .unproject(&scene.intrinsics[c], &Vector2::new(t.x, t.y))?;
+                        Some((
+                            k,
+                            WorldRay {
+                                centre: pose.centre(),
+                                dir: pose.rotation.transpose() * d.normalize(),
+                            },
+                        ))
+                    })
+                    .collect()
+            })
+            .collect();
+        let f_px = scene
+            .camera_of
+            .iter()
+            .map(|&c| scene.intrinsics[c][0] / scene.cameras[c].pixel_size_mm)
+            .collect();
+        Blobs {
+            dets,
+            rays,
+            f_px,
+            none_taken: DetectionSet::empty(dets),
+        }
+    }
+
+    /// The blob of image `i` nearest `uv`, unless taken: within [`TOL_PX`], and the next one
+    /// at least twice as far.
+    fn nearest(&self, i: ImageId, uv: &Vector2<f64>, taken: &DetectionSet) -> Option<DetIdx> {
+        let mut best: Option<(DetIdx, f64)> = None;
         let mut second = f64::INFINITY;
-        for (k, _) in &rays[i] {
-            if taken[i][*k] {
+        for (k, _) in &self.rays[i] {
+            if taken.contains(DetectionId::new(i, *k)) {
                 continue;
             }
-            let t = &dets[i].targets[*k];
+            let t = &self.dets[i].targets[*k];
             let d = (Vector2::new(t.x, t.y) - uv).norm();
             match best {
                 Some((_, bd)) if d >= bd => second = second.min(d),
@@ -205,184 +172,258 @@ pub fn new_points(
             }
         }
         best.filter(|&(_, d)| d <= TOL_PX && second > 2.0 * d.max(TOL_PX / 2.0))
+            .map(|(k, _)| k)
+    }
+}
+
+/// A candidate point from two detections of two images.
+struct Candidate {
+    /// Images whose free blobs agree with it (the two included).
+    support: usize,
+    /// RMS reprojection error in the two images (px).
+    rms: f64,
+    a: DetectionId,
+    b: DetectionId,
+    /// Midpoint of the two rays.
+    x: Vector3<f64>,
+}
+
+/// The midpoint of the closest approach of two rays, when both meet it in front of their
+/// cameras and their gap, seen from camera a (`f_px`: its principal distance in pixels),
+/// is within 4 · [`TOL_PX`].
+fn ray_meeting(ra: &WorldRay, rb: &WorldRay, f_px: f64) -> Option<Vector3<f64>> {
+    // closest points of the two rays
+    let w0 = ra.centre - rb.centre;
+    let (aa, bb, cc) = (1.0, ra.dir.dot(&rb.dir), 1.0);
+    let (dd, ee) = (ra.dir.dot(&w0), rb.dir.dot(&w0));
+    let den = aa * cc - bb * bb;
+    if den < 1e-6 {
+        return None; // < ~0.08° between the rays
+    }
+    let s = (bb * ee - cc * dd) / den;
+    let t = (aa * ee - bb * dd) / den;
+    if s <= 0.0 || t <= 0.0 {
+        return None;
+    }
+    // the rays' gap seen from camera a, in pixels, before any projection
+    let gap = (ra.centre + ra.dir * s - rb.centre - rb.dir * t).norm();
+    if gap / s.min(t) * f_px > 4.0 * TOL_PX {
+        return None;
+    }
+    Some(0.5 * (ra.centre + ra.dir * s + rb.centre + rb.dir * t))
+}
+
+/// The candidate of detections `a` and `b` (rays `ra`, `rb`), if their rays meet, the point
+/// reprojects within [`TOL_PX`] onto both, the numbers they read (if any) agree, and
+/// enough oriented images have a free blob where it projects.
+fn pair_candidate(
+    scene: &Scene,
+    blobs: &Blobs,
+    oriented: &[ImageId],
+    (a, ra): (DetectionId, &WorldRay),
+    (b, rb): (DetectionId, &WorldRay),
+) -> Option<Candidate> {
+    let x = ray_meeting(ra, rb, blobs.f_px[a.image])?;
+    let ua = scene.project_into(a.image, &x)?;
+    let ub = scene.project_into(b.image, &x)?;
+    let ta = blobs.dets.target(a);
+    let tb = blobs.dets.target(b);
+    if let (Some(na), Some(nb)) = (ta.id, tb.id) {
+        if na != nb {
+            return None;
+        }
+    }
+    let ra_px = (ua - Vector2::new(ta.x, ta.y)).norm();
+    let rb_px = (ub - Vector2::new(tb.x, tb.y)).norm();
+    if ra_px > TOL_PX || rb_px > TOL_PX {
+        return None;
+    }
+    let mut support = 2;
+    for &o in oriented {
+        if o == a.image || o == b.image {
+            continue;
+        }
+        if let Some(uv) = scene.project_into(o, &x) {
+            if blobs.nearest(o, &uv, &blobs.none_taken).is_some() {
+                support += 1;
+            }
+        }
+    }
+    let numbered = ta.id.is_some() || tb.id.is_some();
+    let needed = if numbered {
+        MIN_RAYS_NUMBERED
+    } else {
+        MIN_RAYS
     };
-    let f_px: Vec<f64> = (0..dets.len())
-        .map(|i| model.intrinsics[cam_of[i]][0] / cams[cam_of[i]].pixel_size_mm)
-        .collect();
-    let no_taken: Vec<Vec<bool>> = dets.iter().map(|d| vec![false; d.targets.len()]).collect();
-    // candidates: (support, rms, image a, det a, image b, det b, point)
-    type Candidate = (usize, f64, usize, usize, usize, usize, Vector3<f64>);
-    let mut cands: Vec<Candidate> = Vec::new();
+    (support >= needed).then(|| Candidate {
+        support,
+        rms: ((ra_px * ra_px + rb_px * rb_px) / 2.0).sqrt(),
+        a,
+        b,
+        x,
+    })
+}
+
+/// Every candidate of every pair of oriented images, best supported first, then by RMS,
+/// then by detection.
+fn candidates(scene: &Scene, blobs: &Blobs, oriented: &[ImageId]) -> Vec<Candidate> {
+    let mut cands = Vec::new();
     for (ai, &a) in oriented.iter().enumerate() {
         for &b in &oriented[ai + 1..] {
-            for (ka, ra) in &rays[a] {
-                for (kb, rb) in &rays[b] {
-                    // closest points of the two rays
-                    let w0 = ra.centre - rb.centre;
-                    let (aa, bb, cc) = (1.0, ra.dir.dot(&rb.dir), 1.0);
-                    let (dd, ee) = (ra.dir.dot(&w0), rb.dir.dot(&w0));
-                    let den = aa * cc - bb * bb;
-                    if den < 1e-6 {
-                        continue; // < ~0.08° between the rays
-                    }
-                    let s = (bb * ee - cc * dd) / den;
-                    let t = (aa * ee - bb * dd) / den;
-                    if s <= 0.0 || t <= 0.0 {
-                        continue;
-                    }
-                    // the rays' gap seen from camera a, in pixels, before any projection
-                    let gap = (ra.centre + ra.dir * s - rb.centre - rb.dir * t).norm();
-                    if gap / s.min(t) * f_px[a] > 4.0 * TOL_PX {
-                        continue;
-                    }
-                    let x = 0.5 * (ra.centre + ra.dir * s + rb.centre + rb.dir * t);
-                    let ea = project_into(model, &cams, &cam_of, a, &x);
-                    let eb = project_into(model, &cams, &cam_of, b, &x);
-                    let (Some(ua), Some(ub)) = (ea, eb) else {
-                        continue;
-                    };
-                    let ta = &dets[a].targets[*ka];
-                    let tb = &dets[b].targets[*kb];
-                    if let (Some(na), Some(nb)) = (ta.id, tb.id) {
-                        if na != nb {
-                            continue;
-                        }
-                    }
-                    let ra_px = (ua - Vector2::new(ta.x, ta.y)).norm();
-                    let rb_px = (ub - Vector2::new(tb.x, tb.y)).norm();
-                    if ra_px > TOL_PX || rb_px > TOL_PX {
-                        continue;
-                    }
-                    let mut support = 2;
-                    for &o in &oriented {
-                        if o == a || o == b {
-                            continue;
-                        }
-                        if let Some(uv) = project_into(model, &cams, &cam_of, o, &x) {
-                            if nearest(o, &uv, &no_taken).is_some() {
-                                support += 1;
-                            }
-                        }
-                    }
-                    let numbered = ta.id.is_some() || tb.id.is_some();
-                    let needed = if numbered {
-                        MIN_RAYS_NUMBERED
-                    } else {
-                        MIN_RAYS
-                    };
-                    if support >= needed {
-                        let rms = ((ra_px * ra_px + rb_px * rb_px) / 2.0).sqrt();
-                        cands.push((support, rms, a, *ka, b, *kb, x));
-                    }
+            for (ka, ra) in &blobs.rays[a] {
+                for (kb, rb) in &blobs.rays[b] {
+                    let da = (DetectionId::new(a, *ka), ra);
+                    let db = (DetectionId::new(b, *kb), rb);
+                    cands.extend(pair_candidate(scene, blobs, oriented, da, db));
                 }
             }
         }
     }
     cands.sort_by(|p, q| {
-        q.0.cmp(&p.0)
-            .then(p.1.total_cmp(&q.1))
-            .then((p.2, p.3, p.4, p.5).cmp(&(q.2, q.3, q.4, q.5)))
+        q.support
+            .cmp(&p.support)
+            .then(p.rms.total_cmp(&q.rms))
+            .then((p.a, p.b).cmp(&(q.a, q.b)))
     });
-    let mut taken = no_taken;
+    cands
+}
+
+/// A new point grown from a candidate: its detections and the number it carries.
+struct Grown {
+    obs: Vec<DetectionId>,
+    number: Option<u32>,
+    position: Vector3<f64>,
+}
+
+/// Grows candidate `c` with the nearest untaken blob of every other oriented image, and
+/// intersects it from all its rays. None when it has too few rays, reads two numbers or
+/// one the scene already has, or does not intersect within [`TOL_PX`].
+fn grow(
+    scene: &Scene,
+    blobs: &Blobs,
+    oriented: &[ImageId],
+    taken: &DetectionSet,
+    c: &Candidate,
+) -> Option<Grown> {
+    let mut obs = vec![c.a, c.b];
+    for &o in oriented {
+        if o == c.a.image || o == c.b.image {
+            continue;
+        }
+        if let Some(uv) = scene.project_into(o, &c.x) {
+            if let Some(k) = blobs.nearest(o, &uv, taken) {
+                obs.push(DetectionId::new(o, k));
+            }
+        }
+    }
+    let mut numbers: Vec<u32> = obs
+        .iter()
+        .filter_map(|&d| blobs.dets.target(d).id)
+        .collect();
+    numbers.sort_unstable();
+    numbers.dedup();
+    let needed = if numbers.is_empty() {
+        MIN_RAYS
+    } else {
+        MIN_RAYS_NUMBERED
+    };
+    if obs.len() < needed {
+        return None;
+    }
+    if numbers.len() > 1 || numbers.iter().any(|n| scene.coded(*n).is_some()) {
+        return None;
+    }
+    let ray_list: Vec<Ray> = obs
+        .iter()
+        .map(|&d| {
+            let c = scene.camera_of[d.image];
+            let t = blobs.dets.target(d);
+            Ray {
+                pose: scene.poses[d.image].expect("oriented"),
+                model: &scene.cameras[c],
+                params: &scene.intrinsics[c],
+                uv: Vector2::new(t.x, t.y),
+            }
+        })
+        .collect();
+    let ix = intersect(
+        &ray_list,
+        &IntersectionOptions {
+            min_angle_deg: 1.0,
+            max_rms_px: TOL_PX,
+        },
+    )
+    .ok()?;
+    Some(Grown {
+        obs,
+        number: numbers.first().copied(),
+        position: ix.position,
+    })
+}
+
+/// Step 2: new points from unused detections of one kind: round blobs (`Plain`), or coded
+/// targets whose number is not in the scene yet (`Coded`: read in one image only, or not
+/// read at all; a point takes the number one of its detections read, and detections that
+/// read different numbers never pair). Candidates are taken greedily, best first, each
+/// detection by one point at most. Returns how many were added.
+pub fn new_points(dets: &Detections, scene: &mut Scene, kind: TargetKind) -> usize {
+    let known: Vec<u32> = scene
+        .points
+        .iter()
+        .filter_map(|p| match p.kind {
+            PointKind::Coded(n) => Some(n),
+            _ => None,
+        })
+        .collect();
+    let wanted = |t: &Target| {
+        t.kind == kind && (kind != TargetKind::Coded || t.id.is_none_or(|n| !known.contains(&n)))
+    };
+    let blobs = Blobs::new(dets, scene, wanted);
+    let oriented = scene.oriented();
+    let mut taken = DetectionSet::empty(dets);
     let mut added = 0;
-    let first_plain = model
+    let first_plain = scene
         .points
         .iter()
         .filter(|p| !matches!(p.kind, PointKind::Coded(_)))
         .count();
-    for (_, _, a, ka, b, kb, x) in cands {
-        if taken[a][ka] || taken[b][kb] {
+    for c in candidates(scene, &blobs, &oriented) {
+        if taken.contains(c.a) || taken.contains(c.b) {
             continue;
         }
-        let mut obs = vec![(a, ka), (b, kb)];
-        for &o in &oriented {
-            if o == a || o == b {
-                continue;
-            }
-            if let Some(uv) = project_into(model, &cams, &cam_of, o, &x) {
-                if let Some((k, _)) = nearest(o, &uv, &taken) {
-                    obs.push((o, k));
-                }
-            }
-        }
-        let mut numbers: Vec<u32> = obs
-            .iter()
-            .filter_map(|&(i, k)| dets[i].targets[k].id)
-            .collect();
-        numbers.sort_unstable();
-        numbers.dedup();
-        let needed = if numbers.is_empty() {
-            MIN_RAYS
-        } else {
-            MIN_RAYS_NUMBERED
-        };
-        if obs.len() < needed {
-            continue;
-        }
-        if numbers.len() > 1
-            || numbers
-                .iter()
-                .any(|n| model.points.iter().any(|p| p.kind == PointKind::Coded(*n)))
-        {
-            continue;
-        }
-        let ray_list: Vec<Ray> = obs
-            .iter()
-            .map(|&(i, k)| {
-                let c = cam_of[i];
-                Ray {
-                    pose: model.poses[i].expect("oriented"),
-                    model: &cams[c],
-                    params: &model.intrinsics[c],
-                    uv: Vector2::new(dets[i].targets[k].x, dets[i].targets[k].y),
-                }
-            })
-            .collect();
-        let Ok(ix) = intersect(
-            &ray_list,
-            &IntersectionOptions {
-                min_angle_deg: 1.0,
-                max_rms_px: TOL_PX,
-            },
-        ) else {
+        let Some(g) = grow(scene, &blobs, &oriented, &taken, &c) else {
             continue;
         };
-        for &(i, k) in &obs {
-            taken[i][k] = true;
+        for &d in &g.obs {
+            taken.insert(d);
         }
         added += 1;
-        let (name, point_kind) = match numbers.first() {
-            Some(n) => (n.to_string(), PointKind::Coded(*n)),
+        let (name, point_kind) = match g.number {
+            Some(n) => (n.to_string(), PointKind::Coded(n)),
             None => (format!("P{}", first_plain + added), PointKind::Plain),
         };
-        model.points.push(ModelPoint {
+        scene.points.push(ScenePoint {
             name,
             kind: point_kind,
-            position: ix.position,
-            obs,
+            position: g.position,
+            obs: g.obs,
         });
     }
     added
 }
 
 /// Median size (mm) of a point's blobs: semi-major axis × depth / principal distance, × 2.
-pub fn blob_diameter_mm(
-    project: &Project,
-    dets: &[ImageDetections],
-    model: &Model,
-    p: &ModelPoint,
-) -> Option<f64> {
-    let cam_of = super::network::camera_index(project);
+pub fn blob_diameter_mm(dets: &Detections, scene: &Scene, p: &ScenePoint) -> Option<f64> {
     let mut d: Vec<f64> = p
         .obs
         .iter()
-        .filter_map(|&(i, k)| {
-            let pose = model.poses[i]?;
-            let c = cam_of[i];
+        .filter_map(|&o| {
+            let pose = scene.poses[o.image]?;
+            let c = scene.camera_of[o.image];
             let depth = pose.transform(&p.position).y;
-            let px = project.file.cameras[c].pixel_size_mm;
-            let cc = model.intrinsics[c][0];
-            let a = dets[i].targets[k].ellipse.a;
+            let px = scene.cameras[c].pixel_size_mm;
+            let cc = scene.intrinsics[c][0];
+            let a = dets.target(o).ellipse.a;
             (depth > 0.0).then(|| 2.0 * a * px * depth / cc)
         })
         .collect();
@@ -393,146 +434,216 @@ pub fn blob_diameter_mm(
     Some(d[d.len() / 2])
 }
 
-/// Step 3 and 4: which new points are balls, and their ids.
-pub fn classify_and_name_balls(
+/// Step 3: the plain points whose blobs are nearer the ball diameter than the target dot
+/// diameter become balls. Returns them.
+pub fn classify_balls(
     project: &Project,
-    dets: &[ImageDetections],
-    model: &mut Model,
+    dets: &Detections,
+    scene: &mut Scene,
     rep: &Reporter,
-) -> Result<()> {
+) -> Result<Vec<PointId>> {
     let f = &project.file;
     let ball_d = f.balls.diameter_mm;
     let dot_d = 2.0 * f.targets.dot_radius_mm;
     let threshold = 0.5 * (ball_d + dot_d);
     let mut sizes = Vec::new();
-    for j in 0..model.points.len() {
-        if model.points[j].kind != PointKind::Plain {
+    for j in scene.points.ids() {
+        if scene.points[j].kind != PointKind::Plain {
             continue;
         }
-        if let Some(d) = blob_diameter_mm(project, dets, model, &model.points[j]) {
+        if let Some(d) = blob_diameter_mm(dets, scene, &scene.points[j]) {
             if d > threshold {
-                model.points[j].kind = PointKind::Ball;
+                scene.points[j].kind = PointKind::Ball;
                 sizes.push(d);
             }
         }
     }
-    let balls: Vec<usize> = (0..model.points.len())
-        .filter(|&j| model.points[j].kind == PointKind::Ball)
+    let balls: Vec<PointId> = scene
+        .points
+        .ids()
+        .filter(|&j| scene.points[j].kind == PointKind::Ball)
         .collect();
-    if !sizes.is_empty() {
-        sizes.sort_by(|a, b| a.total_cmp(b));
-        rep.log(format!(
-            "balls: {} found (blob sizes {:.1}–{:.1} mm, median {:.1}; nominal {ball_d} mm, target dots {dot_d} mm)",
-            balls.len(),
-            sizes[0],
-            sizes[sizes.len() - 1],
-            sizes[sizes.len() / 2]
-        ));
-    }
-    // ids
-    let cams = models(project);
-    let cam_of = super::network::camera_index(project);
-    let main = project.main_image();
-    let mc = cam_of[main];
-    let pose = model.poses[main].expect("main image oriented");
-    let uv: Vec<Option<Vector2<f64>>> = balls
-        .iter()
-        .map(|&j| {
-            let xc = pose.transform(&model.points[j].position);
-            cams[mc].project(&model.intrinsics[mc], &xc, None, None)
-        })
-        .collect();
-    let mut names: Vec<Option<String>> = vec![None; balls.len()];
-    if f.balls.labels.is_empty() {
-        let mut order: Vec<usize> = (0..balls.len()).collect();
-        order.sort_by(|&a, &b| {
-            let ka = uv[a].map(|p| (p.x, p.y)).unwrap_or((f64::INFINITY, 0.0));
-            let kb = uv[b].map(|p| (p.x, p.y)).unwrap_or((f64::INFINITY, 0.0));
-            ka.partial_cmp(&kb).unwrap_or(std::cmp::Ordering::Equal)
-        });
-        for (n, &k) in order.iter().enumerate() {
-            names[k] = Some(format!("B{}", n + 1));
-        }
-    } else {
-        // each label takes the nearest ball within 3 ball radii (in pixels at that ball)
-        for l in &f.balls.labels {
-            let lp = Vector2::new(l.x, l.y);
-            let best = (0..balls.len())
-                .filter(|&k| names[k].is_none())
-                .filter_map(|k| uv[k].map(|p| (k, (p - lp).norm())))
-                .min_by(|a, b| a.1.total_cmp(&b.1));
-            let Some((k, d)) = best else { continue };
-            let depth = pose.transform(&model.points[balls[k]].position).y;
-            let r_px =
-                0.5 * ball_d * model.intrinsics[mc][0] / (depth * f.cameras[mc].pixel_size_mm);
-            if d <= (3.0 * r_px).max(10.0) {
-                names[k] = Some(l.id.clone());
-            } else {
-                rep.log(format!(
-                    "  label {} at ({:.0}, {:.0}) in the main image: no ball within {:.0} px (nearest {d:.0} px)",
-                    l.id,
-                    l.x,
-                    l.y,
-                    (3.0 * r_px).max(10.0)
-                ));
-            }
-        }
-        let mut extra = 0;
-        for n in names.iter_mut().filter(|n| n.is_none()) {
-            extra += 1;
-            *n = Some(format!("B?{extra}"));
-        }
-        if extra > 0 {
-            rep.log(format!(
-                "  {extra} balls have no label (named B?1…); they are used as control points"
-            ));
-        }
-    }
-    for (k, &j) in balls.iter().enumerate() {
-        model.points[j].name = names[k].clone().expect("named");
-    }
-    // plain targets renumbered P1… in a stable order
-    let mut n = 0;
-    for p in model.points.iter_mut() {
-        if p.kind == PointKind::Plain {
-            n += 1;
-            p.name = format!("P{n}");
-        }
-    }
     if balls.is_empty() {
         return Err(PipelineError::new(format!(
             "{}: no ball was found in two or more oriented images (balls of {ball_d} mm; targets of {dot_d} mm)",
             project.path.display()
         )));
     }
+    sizes.sort_by(|a, b| a.total_cmp(b));
+    rep.log(format!(
+        "balls: {} found (blob sizes {:.1}–{:.1} mm, median {:.1}; nominal {ball_d} mm, target dots {dot_d} mm)",
+        balls.len(),
+        sizes[0],
+        sizes[sizes.len() - 1],
+        sizes[sizes.len() / 2]
+    ));
+    Ok(balls)
+}
+
+/// Step 4: the ids of the balls, and plain targets renumbered P1… in a stable order.
+pub fn name_balls(project: &Project, scene: &mut Scene, balls: &[PointId], rep: &Reporter) {
+    let main = main_image(project);
+    let mc = scene.camera_of[main];
+    let pose = scene.poses[main].expect("main image oriented");
+    let uv: Vec<Option<Vector2<f64>>> = balls
+        .iter()
+        .map(|&j| {
+            let xc = pose.transform(&scene.points[j].position);
+            scene.cameras[mc].project(&scene.intrinsics[mc], &xc, None, None)
+        })
+        .collect();
+    let names = if project.file.balls.labels.is_empty() {
+        names_by_column(&uv)
+    } else {
+        names_by_label(project, scene, balls, &uv, rep)
+    };
+    for (k, &j) in balls.iter().enumerate() {
+        scene.points[j].name = names[k].clone();
+    }
+    let mut n = 0;
+    for p in scene.points.iter_mut() {
+        if p.kind == PointKind::Plain {
+            n += 1;
+            p.name = format!("P{n}");
+        }
+    }
+}
+
+/// Without labels: B1, B2, … by column (then row) in the main image.
+fn names_by_column(uv: &[Option<Vector2<f64>>]) -> Vec<String> {
+    let mut names = vec![String::new(); uv.len()];
+    let mut order: Vec<usize> = (0..uv.len()).collect();
+    order.sort_by(|&a, &b| {
+        let ka = uv[a].map(|p| (p.x, p.y)).unwrap_or((f64::INFINITY, 0.0));
+        let kb = uv[b].map(|p| (p.x, p.y)).unwrap_or((f64::INFINITY, 0.0));
+        ka.partial_cmp(&kb).unwrap_or(std::cmp::Ordering::Equal)
+    });
+    for (n, &k) in order.iter().enumerate() {
+        names[k] = format!("B{}", n + 1);
+    }
+    names
+}
+
+/// With labels: each label takes the nearest ball within 3 ball radii (in pixels at that
+/// ball) of its position in the main image; balls no label takes are B?1, B?2, …
+fn names_by_label(
+    project: &Project,
+    scene: &Scene,
+    balls: &[PointId],
+    uv: &[Option<Vector2<f64>>],
+    rep: &Reporter,
+) -> Vec<String> {
+    let f = &project.file;
+    let ball_d = f.balls.diameter_mm;
+    let main = main_image(project);
+    let mc = scene.camera_of[main];
+    let pose = scene.poses[main].expect("main image oriented");
+    let mut names: Vec<Option<String>> = vec![None; balls.len()];
+    for l in &f.balls.labels {
+        let lp = Vector2::new(l.x, l.y);
+        let best = (0..balls.len())
+            .filter(|&k| names[k].is_none())
+            .filter_map(|k| uv[k].map(|p| (k, (p - lp).norm())))
+            .min_by(|a, b| a.1.total_cmp(&b.1));
+        let Some((k, d)) = best else { continue };
+        let depth = pose.transform(&scene.points[balls[k]].position).y;
+        let r_px =
+            0.5 * ball_d * scene.intrinsics[mc][0] / (depth * scene.cameras[mc].pixel_size_mm);
+        if d <= (3.0 * r_px).max(10.0) {
+            names[k] = Some(l.id.clone());
+        } else {
+            rep.log(format!(
+                "  label {} at ({:.0}, {:.0}) in the main image: no ball within {:.0} px (nearest {d:.0} px)",
+                l.id,
+                l.x,
+                l.y,
+                (3.0 * r_px).max(10.0)
+            ));
+        }
+    }
+    let mut extra = 0;
+    let names: Vec<String> = names
+        .into_iter()
+        .map(|n| {
+            n.unwrap_or_else(|| {
+                extra += 1;
+                format!("B?{extra}")
+            })
+        })
+        .collect();
+    if extra > 0 {
+        rep.log(format!(
+            "  {extra} balls have no label (named B?1…); they are used as control points"
+        ));
+    }
+    names
+}
+
+/// A quick adjustment of the scene as it stands (no rig, no snooping); measurements more
+/// than `3 ·` [`TOL_PX`] from their point afterwards are dropped, and points left with
+/// fewer than two.
+pub fn refine(
+    project: &Project,
+    dets: &Detections,
+    scene: &mut Scene,
+    opts: &Options,
+) -> Result<()> {
+    let mut sp = SceneProblem::build(project, dets, scene, Datum::MainImage, None);
+    let options = solver::Options {
+        max_iterations: 30,
+        threads: opts.threads,
+        ..solver::Options::default()
+    };
+    solver::solve(&mut sp.problem, &options, |_| {})
+        .map_err(|e| PipelineError::new(format!("bundle adjustment during matching: {e}")))?;
+    sp.write_back(scene);
+    let limit = 3.0 * TOL_PX;
+    let mut drop: Vec<(PointId, DetectionId)> = Vec::new();
+    for (o, ob) in sp.problem.observations.iter().enumerate() {
+        if let Some(r) = sp.problem.residual(ob) {
+            if r.norm() > limit {
+                drop.push(sp.map.observations[o]);
+            }
+        }
+    }
+    for (j, d) in drop {
+        scene.points[j].obs.retain(|&o| o != d);
+    }
+    scene.points.retain(|p| p.obs.len() >= 2);
     Ok(())
+}
+
+/// One round: driveback, then new coded targets, then new round blobs. Returns the
+/// measurements and the points added.
+fn round(dets: &Detections, scene: &mut Scene) -> (usize, usize) {
+    let a = driveback(dets, scene, TOL_PX);
+    let n = new_points(dets, scene, TargetKind::Coded) + new_points(dets, scene, TargetKind::Plain);
+    (a, n)
 }
 
 /// Runs steps 1–4 with bundle adjustments in between.
 pub fn add_points(
     project: &Project,
-    dets: &[ImageDetections],
-    model: &mut Model,
+    dets: &Detections,
+    scene: &mut Scene,
     opts: &Options,
     rep: &Reporter,
 ) -> Result<()> {
-    let pb = rep.bar(3, "matching targets");
-    let a1 = driveback(project, dets, model, TOL_PX);
-    let n1 = new_points(project, dets, model, TargetKind::Coded)
-        + new_points(project, dets, model, TargetKind::Plain);
-    pb.inc(1);
-    super::bundle::refine(project, dets, model, opts)?;
-    let a2 = driveback(project, dets, model, TOL_PX);
-    let n2 = new_points(project, dets, model, TargetKind::Coded)
-        + new_points(project, dets, model, TargetKind::Plain);
-    pb.inc(1);
-    super::bundle::refine(project, dets, model, opts)?;
-    let a3 = driveback(project, dets, model, TOL_PX);
-    pb.finish_and_clear();
+    let pb = rep.task("matching targets", 3);
+    let (a1, n1) = round(dets, scene);
+    pb.advance(1);
+    refine(project, dets, scene, opts)?;
+    let (a2, n2) = round(dets, scene);
+    pb.advance(1);
+    refine(project, dets, scene, opts)?;
+    let a3 = driveback(dets, scene, TOL_PX);
+    pb.finish();
     rep.log(format!(
         "matching: {} measurements added by driveback, {} new points by multi-image matching",
         a1 + a2 + a3,
         n1 + n2
     ));
-    classify_and_name_balls(project, dets, model, rep)
+    let balls = classify_balls(project, dets, scene, rep)?;
+    name_balls(project, scene, &balls, rep);
+    Ok(())
 }

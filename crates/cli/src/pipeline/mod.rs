@@ -8,25 +8,34 @@
 //! | 4 | [`bundle`] | the final self-calibrating adjustment: distances, stereo rig, main image as datum, ball centres corrected for the sphere's eccentricity, data snooping, precision |
 //! | 5 | [`lrf`] | the LRF cloud from the scans and the spheres fitted to the balls |
 //! | 6 | [`extrinsic`] | spheres ↔ balls by distance invariants, the 3D conformal transform with σ, control / check / leave-one-out tables; the Fan et al. 2019 corner baseline |
-//! | 7 | [`results`], [`report`] | `results.json` (SPEC.md), `cloud.ply`, and the data of `report.html` |
+//! | 7 | [`results`], then [`report`] | `results.json` (SPEC.md) and `cloud.ply`, then the data of `report.html` |
+//!
+//! Below the steps lie the modules they share, lowest first: [`ids`] (typed ids and the
+//! vector they index), [`progress`] (the [`Reporter`] and the [`Progress`] trait through
+//! which the caller shows the progress: the library never prints), [`scene`] (the
+//! [`scene::Scene`] that the steps pass along and refine, and the helpers they share) and
+//! [`adjust`] (the scene as a bundle-adjustment problem and back, for every step that
+//! adjusts). Each module uses only those before it, shared modules first, then the steps in
+//! their order (`tests/pipeline_layers.rs` checks it).
 //!
 //! Every failure is a [`PipelineError`]: one line that names the file, image, target or ball
 //! concerned and what was expected. Nothing is written until every step has succeeded.
 
+pub mod adjust;
 pub mod bundle;
 pub mod detect;
 pub mod extrinsic;
+pub mod ids;
 pub mod lrf;
 pub mod matching;
 pub mod network;
+pub mod progress;
 pub mod report;
 pub mod results;
+pub mod scene;
 
-use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
-use nalgebra::Vector3;
-use pingcal_ba::pose::Pose;
 use pingcal_project::Project;
-use std::sync::Mutex;
+pub use progress::{Progress, Reporter, Task};
 
 /// Why a calibration failed: one line.
 #[derive(Debug, thiserror::Error)]
@@ -64,132 +73,6 @@ impl Default for Options {
     }
 }
 
-/// Progress bars and the step log of one project. Lines go to stderr (unless quiet) and
-/// into the report.
-pub struct Reporter {
-    multi: Option<MultiProgress>,
-    prefix: String,
-    lines: Mutex<Vec<String>>,
-}
-
-impl Reporter {
-    /// `multi`: where bars and lines are drawn (None: silent).
-    pub fn new(multi: Option<MultiProgress>, prefix: impl Into<String>) -> Self {
-        Self {
-            multi,
-            prefix: prefix.into(),
-            lines: Mutex::new(Vec::new()),
-        }
-    }
-
-    /// A silent reporter (tests, batch with --quiet).
-    pub fn silent() -> Self {
-        Self::new(None, "")
-    }
-
-    /// Logs one line.
-    pub fn log(&self, line: impl Into<String>) {
-        let line = line.into();
-        if let Some(m) = &self.multi {
-            if m.is_hidden() {
-                eprintln!("{}{line}", self.prefix);
-            } else {
-                let _ = m.println(format!("{}{line}", self.prefix));
-            }
-        }
-        self.lines.lock().expect("log lock").push(line);
-    }
-
-    /// A progress bar of `len` steps (hidden when silent).
-    pub fn bar(&self, len: u64, what: &str) -> ProgressBar {
-        match &self.multi {
-            Some(m) => {
-                let pb = m.add(ProgressBar::new(len));
-                pb.set_style(
-                    ProgressStyle::with_template(
-                        "{prefix}{msg:<24} [{bar:30}] {pos}/{len} {elapsed_precise}",
-                    )
-                    .expect("valid template")
-                    .progress_chars("=> "),
-                );
-                pb.set_prefix(self.prefix.clone());
-                pb.set_message(what.to_string());
-                pb
-            }
-            None => ProgressBar::hidden(),
-        }
-    }
-
-    /// The lines logged so far.
-    pub fn lines(&self) -> Vec<String> {
-        self.lines.lock().expect("log lock").clone()
-    }
-}
-
-/// What a point of the model is.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum PointKind {
-    /// A coded target with its number.
-    Coded(u32),
-    /// A plain target.
-    Plain,
-    /// A ping-pong ball (its centre).
-    Ball,
-}
-
-impl PointKind {
-    /// `coded`, `plain` or `ball`.
-    pub fn as_str(&self) -> &'static str {
-        match self {
-            PointKind::Coded(_) => "coded",
-            PointKind::Plain => "plain",
-            PointKind::Ball => "ball",
-        }
-    }
-}
-
-/// An object point and the detections that measure it.
-#[derive(Clone, Debug)]
-pub struct ModelPoint {
-    /// Label: the coded number, `P1`…, or the ball id.
-    pub name: String,
-    /// What it is.
-    pub kind: PointKind,
-    /// Position (photogrammetric frame once [`network`] is done), mm.
-    pub position: Vector3<f64>,
-    /// (project image index, detection index) of each measurement.
-    pub obs: Vec<(usize, usize)>,
-}
-
-/// The photogrammetric model as it grows through the steps.
-#[derive(Clone, Debug)]
-pub struct Model {
-    /// Pose of each project image (None: not oriented).
-    pub poses: Vec<Option<Pose>>,
-    /// Intrinsics of each project camera.
-    pub intrinsics: Vec<Vec<f64>>,
-    /// Object points.
-    pub points: Vec<ModelPoint>,
-    /// Why images are not oriented (project image index, reason).
-    pub unoriented: Vec<(usize, String)>,
-}
-
-impl Model {
-    /// Detections already used by a point, per image.
-    pub fn used(&self, detections: &[detect::ImageDetections]) -> Vec<Vec<bool>> {
-        let mut used: Vec<Vec<bool>> = detections
-            .iter()
-            .map(|d| vec![false; d.targets.len()])
-            .collect();
-        for p in &self.points {
-            for &(i, k) in &p.obs {
-                used[i][k] = true;
-            }
-        }
-        used
-    }
-}
-
 /// Everything a calibration produces.
 pub struct Outcome {
     /// `results.json`.
@@ -206,19 +89,19 @@ pub fn calibrate(project: &Project, opts: &Options, rep: &Reporter) -> Result<Ou
     let dets = detect::detect_all(project, rep)?;
     let mut timing = vec![("detection".to_string(), t0.elapsed().as_secs_f64())];
     let t = std::time::Instant::now();
-    let mut model = network::initial_network(project, &dets, opts, rep)?;
+    let mut scene = network::initial_network(project, &dets, opts, rep)?;
     timing.push(("initial orientation".into(), t.elapsed().as_secs_f64()));
     let t = std::time::Instant::now();
-    matching::add_points(project, &dets, &mut model, opts, rep)?;
+    matching::add_points(project, &dets, &mut scene, opts, rep)?;
     timing.push(("matching".into(), t.elapsed().as_secs_f64()));
     let t = std::time::Instant::now();
-    let adjusted = bundle::final_adjustment(project, &dets, &mut model, opts, rep)?;
+    let adjusted = bundle::final_adjustment(project, &dets, &mut scene, opts, rep)?;
     timing.push(("bundle adjustment".into(), t.elapsed().as_secs_f64()));
     let t = std::time::Instant::now();
     let lrf = lrf::lrf_spheres(project, opts, rep)?;
     timing.push(("LRF spheres".into(), t.elapsed().as_secs_f64()));
     let t = std::time::Instant::now();
-    let ext = extrinsic::extrinsics(project, &model, &adjusted, &lrf, &dets, opts, rep)?;
+    let ext = extrinsic::extrinsics(project, &scene, &adjusted, &lrf, &dets, opts, rep)?;
     timing.push(("extrinsic".into(), t.elapsed().as_secs_f64()));
     let line = timing
         .iter()
@@ -229,12 +112,19 @@ pub fn calibrate(project: &Project, opts: &Options, rep: &Reporter) -> Result<Ou
     let stages = Stages {
         project,
         dets: &dets,
-        model: &model,
+        scene: &scene,
         adjusted: &adjusted,
         lrf: &lrf,
         ext: &ext,
     };
-    Ok(results::assemble(&stages, rep, timing))
+    let results = results::assemble(&stages, timing);
+    let report = report::build(&stages, &results, rep);
+    let cloud_ply = results::cloud_ply(&lrf, 0.5 * project.file.balls.diameter_mm);
+    Ok(Outcome {
+        results,
+        report,
+        cloud_ply,
+    })
 }
 
 /// What the steps produced, for the results and the report.
@@ -242,9 +132,9 @@ pub struct Stages<'a> {
     /// The project.
     pub project: &'a Project,
     /// Step 1.
-    pub dets: &'a [detect::ImageDetections],
-    /// Steps 2–4 (the final model).
-    pub model: &'a Model,
+    pub dets: &'a scene::Detections,
+    /// Steps 2–4 (the final scene).
+    pub scene: &'a scene::Scene,
     /// Step 4.
     pub adjusted: &'a bundle::Adjusted,
     /// Step 5.

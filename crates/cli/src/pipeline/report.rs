@@ -1,7 +1,12 @@
-//! The data of `report.html` ([`pingcal_report::ReportData`]) from the pipeline's results.
+//! The data of `report.html` ([`pingcal_report::ReportData`]) from the pipeline's results:
+//! one function per part of the report (image residuals, network, cloud, methods,
+//! intrinsics, rejections and warnings, summary), put together by [`build`].
 
+use super::ids::{ImageId, SphereId};
+use super::lrf::MIN_REPORTED_CLUSTER;
 use super::results::Results;
-use super::{PointKind, Reporter, Stages};
+use super::scene::{image_file, main_image, PointKind};
+use super::{Reporter, Stages};
 use pingcal_report as rp;
 
 /// Most cloud points drawn in the report (an even subsample).
@@ -26,73 +31,81 @@ fn check_rows(rows: &[pingcal_lrf::registration::CheckRow], role: &str) -> Vec<r
 
 /// Builds the report data.
 pub fn build(st: &Stages, results: &Results, rep: &Reporter) -> rp::ReportData {
-    let (project, dets, model, adj, lrf, ext) =
-        (st.project, st.dets, st.model, st.adjusted, st.lrf, st.ext);
-    let f = &project.file;
-    let p = &adj.problem;
-    // image residuals
-    let mut images: Vec<rp::ImageResiduals> = f
+    let f = &st.project.file;
+    rp::ReportData {
+        title: format!("pingcal calibration — {}", f.name),
+        generator: results.generator.clone(),
+        summary: summary(st, results),
+        steps: rep.lines(),
+        images: image_residuals(st),
+        network: network(st),
+        cloud: cloud(st),
+        methods: methods(results),
+        intrinsics: intrinsics(st, results),
+        rejected: rejections(st),
+        warnings: warnings(st, results),
+    }
+}
+
+/// Per oriented image (in the order of the final problem): the residual of every image point,
+/// and the image points rejected as gross errors.
+fn image_residuals(st: &Stages) -> Vec<rp::ImageResiduals> {
+    let (f, scene, adj) = (&st.project.file, st.scene, st.adjusted);
+    let (p, map) = (&adj.solved.problem, &adj.solved.map);
+    let mut images: Vec<rp::ImageResiduals> = map
         .images
         .iter()
-        .enumerate()
-        .filter(|(i, _)| adj.image_index[*i].is_some())
-        .map(|(i, im)| rp::ImageResiduals {
-            name: im.file.clone(),
-            width: dets[i].width as u32,
-            height: dets[i].height as u32,
+        .map(|&i| rp::ImageResiduals {
+            name: image_file(st.project, i).to_string(),
+            width: st.dets[i].width as u32,
+            height: st.dets[i].height as u32,
             points: Vec::new(),
         })
         .collect();
-    let slot: Vec<Option<usize>> = {
-        let mut n = 0;
-        adj.image_index
-            .iter()
-            .map(|x| {
-                x.map(|_| {
-                    n += 1;
-                    n - 1
-                })
-            })
-            .collect()
-    };
     for (o, ob) in p.observations.iter().enumerate() {
-        let (j, i, _) = adj.obs_map[o];
+        let (j, _) = map.observations[o];
         let Some(r) = p.residual(ob) else { continue };
-        if let Some(s) = slot[i] {
+        images[ob.image].points.push(rp::ImagePoint {
+            label: scene.points[j].name.clone(),
+            kind: scene.points[j].kind.as_str().into(),
+            x: ob.uv.x,
+            y: ob.uv.y,
+            dx: r.x,
+            dy: r.y,
+            rejected: false,
+        });
+    }
+    for r in &adj.rejected {
+        let slot = f
+            .images
+            .iter()
+            .position(|im| im.file == r.image)
+            .and_then(|i| map.image(ImageId(i)));
+        if let Some(s) = slot {
             images[s].points.push(rp::ImagePoint {
-                label: model.points[j].name.clone(),
-                kind: model.points[j].kind.as_str().into(),
-                x: ob.uv.x,
-                y: ob.uv.y,
-                dx: r.x,
-                dy: r.y,
-                rejected: false,
+                label: r.point.clone(),
+                kind: "rejected".into(),
+                x: r.uv[0],
+                y: r.uv[1],
+                dx: 0.0,
+                dy: 0.0,
+                rejected: true,
             });
         }
     }
-    for r in &adj.rejected {
-        if let Some(i) = f.images.iter().position(|im| im.file == r.image) {
-            if let Some(s) = slot[i] {
-                images[s].points.push(rp::ImagePoint {
-                    label: r.point.clone(),
-                    kind: "rejected".into(),
-                    x: r.uv[0],
-                    y: r.uv[1],
-                    dx: 0.0,
-                    dy: 0.0,
-                    rejected: true,
-                });
-            }
-        }
-    }
-    // network
-    let main = project.main_image();
-    let cameras = f
-        .images
-        .iter()
-        .enumerate()
-        .filter_map(|(i, im)| {
-            let pose = model.poses[i]?;
+    images
+}
+
+/// The camera stations and the adjusted points with their σ.
+fn network(st: &Stages) -> rp::Network {
+    let (f, scene, adj) = (&st.project.file, st.scene, st.adjusted);
+    let main = main_image(st.project);
+    let cameras = scene
+        .poses
+        .iter_enumerated()
+        .filter_map(|(i, pose)| {
+            let pose = (*pose)?;
+            let im = &f.images[i.0];
             let c = pose.centre();
             let r = pose.rotation;
             Some(rp::CameraStation {
@@ -107,12 +120,11 @@ pub fn build(st: &Stages, results: &Results, rep: &Reporter) -> rp::ReportData {
             })
         })
         .collect();
-    let points = model
+    let points = scene
         .points
-        .iter()
-        .enumerate()
+        .iter_enumerated()
         .filter_map(|(j, pt)| {
-            let k = adj.point_index[j]?;
+            let k = adj.solved.map.point(j)?;
             let s = adj.precision.point_sigma(k).unwrap_or_default();
             Some(rp::NetworkPoint {
                 label: pt.name.clone(),
@@ -122,10 +134,24 @@ pub fn build(st: &Stages, results: &Results, rep: &Reporter) -> rp::ReportData {
             })
         })
         .collect();
-    // cloud
+    rp::Network { cameras, points }
+}
+
+/// The name of the ball LRF sphere `k` was matched to, if any.
+fn matched_ball(st: &Stages, k: SphereId) -> Option<String> {
+    st.ext
+        .pairs
+        .iter()
+        .find(|(l, _)| *l == k)
+        .map(|(_, j)| st.scene.points[*j].name.clone())
+}
+
+/// The LRF cloud (subsampled to at most [`MAX_CLOUD_POINTS`]) and its spheres.
+fn cloud(st: &Stages) -> rp::Cloud {
+    let lrf = st.lrf;
     let n = lrf.cloud.points.len();
     let step = n.div_ceil(MAX_CLOUD_POINTS).max(1);
-    let cloud_points = lrf
+    let points = lrf
         .cloud
         .points
         .iter()
@@ -138,23 +164,23 @@ pub fn build(st: &Stages, results: &Results, rep: &Reporter) -> rp::ReportData {
         .iter()
         .enumerate()
         .map(|(k, b)| {
-            let matched = ext
-                .pairs
-                .iter()
-                .find(|(l, _)| *l == k)
-                .map(|(_, j)| model.points[*j].name.clone());
+            let matched = matched_ball(st, SphereId(k));
             let d = b.cov.diagonal().map(|v| v.max(0.0).sqrt());
             rp::Sphere {
                 label: matched.clone().unwrap_or_else(|| format!("L{}", k + 1)),
                 centre: [b.centre.x, b.centre.y, b.centre.z],
-                radius: 0.5 * f.balls.diameter_mm,
+                radius: 0.5 * st.project.file.balls.diameter_mm,
                 sigma: [d.x, d.y, d.z],
                 inliers: b.inliers.len(),
                 matched_to: matched,
             }
         })
         .collect();
-    // methods
+    rp::Cloud { points, spheres }
+}
+
+/// Each method's extrinsic and check table, or why it failed.
+fn methods(results: &Results) -> Vec<rp::MethodResult> {
     let mut methods = Vec::new();
     for m in &results.methods {
         let name = match m.method.as_str() {
@@ -191,12 +217,18 @@ pub fn build(st: &Stages, results: &Results, rep: &Reporter) -> rp::ReportData {
             },
         });
     }
-    // intrinsics
-    let intrinsics = results
+    methods
+}
+
+/// Each camera's parameters with their units, σ, free flags and high correlations.
+fn intrinsics(st: &Stages, results: &Results) -> Vec<rp::Intrinsics> {
+    let f = &st.project.file;
+    results
         .cameras
         .iter()
+        .zip(st.scene.intrinsics.iter())
         .enumerate()
-        .map(|(c, cj)| {
+        .map(|(c, (cj, values))| {
             let cam = &f.cameras[c];
             rp::Intrinsics {
                 camera: cj.id.clone(),
@@ -205,7 +237,7 @@ pub fn build(st: &Stages, results: &Results, rep: &Reporter) -> rp::ReportData {
                     .map(|s| s.to_string())
                     .collect(),
                 units: UNITS.iter().map(|s| s.to_string()).collect(),
-                values: model.intrinsics[c].clone(),
+                values: values.clone(),
                 sigmas: pingcal_project::PARAMETER_NAMES
                     .iter()
                     .map(|n| cj.sigma.get(*n).copied().unwrap_or(f64::NAN))
@@ -217,8 +249,12 @@ pub fn build(st: &Stages, results: &Results, rep: &Reporter) -> rp::ReportData {
                 high_correlations: cj.high_correlations.clone(),
             }
         })
-        .collect();
-    // rejections and warnings
+        .collect()
+}
+
+/// What was left out and why: image points, LRF clusters, unmatched LRF spheres.
+fn rejections(st: &Stages) -> Vec<rp::Rejection> {
+    let (adj, lrf) = (st.adjusted, st.lrf);
     let mut rejected: Vec<rp::Rejection> = adj
         .rejected
         .iter()
@@ -231,14 +267,11 @@ pub fn build(st: &Stages, results: &Results, rep: &Reporter) -> rp::ReportData {
         .found
         .rejected
         .iter()
-        .filter(|r| r.cluster_points < super::lrf::MIN_REPORTED_CLUSTER)
+        .filter(|r| r.cluster_points < MIN_REPORTED_CLUSTER)
         .count();
     if small > 0 {
         rejected.push(rp::Rejection {
-            what: format!(
-                "{small} small LRF clusters (under {} points)",
-                super::lrf::MIN_REPORTED_CLUSTER
-            ),
+            what: format!("{small} small LRF clusters (under {MIN_REPORTED_CLUSTER} points)"),
             why: "left over after the walls were removed (plane edges, target rims, stems): too few points for a ball".into(),
         });
     }
@@ -246,7 +279,7 @@ pub fn build(st: &Stages, results: &Results, rep: &Reporter) -> rp::ReportData {
         .found
         .rejected
         .iter()
-        .filter(|r| r.cluster_points >= super::lrf::MIN_REPORTED_CLUSTER)
+        .filter(|r| r.cluster_points >= MIN_REPORTED_CLUSTER)
     {
         rejected.push(rp::Rejection {
             what: format!(
@@ -257,7 +290,7 @@ pub fn build(st: &Stages, results: &Results, rep: &Reporter) -> rp::ReportData {
         });
     }
     for (k, b) in lrf.found.balls.iter().enumerate() {
-        if !ext.pairs.iter().any(|(l, _)| *l == k) {
+        if !st.ext.pairs.iter().any(|(l, _)| *l == SphereId(k)) {
             rejected.push(rp::Rejection {
                 what: format!(
                     "LRF sphere L{} at ({:.0}, {:.0}, {:.0}) mm",
@@ -270,16 +303,34 @@ pub fn build(st: &Stages, results: &Results, rep: &Reporter) -> rp::ReportData {
             });
         }
     }
-    let mut warnings: Vec<String> = model
+    rejected
+}
+
+/// Images not oriented and methods that failed.
+fn warnings(st: &Stages, results: &Results) -> Vec<String> {
+    let mut warnings: Vec<String> = st
+        .scene
         .unoriented
         .iter()
-        .map(|(i, w)| format!("image {} not oriented: {w}", f.images[*i].file))
+        .map(|(i, w)| format!("image {} not oriented: {w}", image_file(st.project, *i)))
         .collect();
     for m in &results.methods {
         if let Some(e) = &m.error {
             warnings.push(format!("method {} failed: {e}", m.method));
         }
     }
+    warnings
+}
+
+/// The summary table at the top of the report.
+fn summary(st: &Stages, results: &Results) -> Vec<(String, String)> {
+    let f = &st.project.file;
+    let balls = st
+        .scene
+        .points
+        .iter()
+        .filter(|p| p.kind == PointKind::Ball)
+        .count();
     let mut summary = vec![
         ("project".to_string(), f.name.clone()),
         ("method".to_string(), f.method.to_string()),
@@ -314,18 +365,15 @@ pub fn build(st: &Stages, results: &Results, rep: &Reporter) -> rp::ReportData {
             "balls (photographs / LRF / matched)".to_string(),
             format!(
                 "{} / {} / {}",
-                model
-                    .points
-                    .iter()
-                    .filter(|p| p.kind == PointKind::Ball)
-                    .count(),
-                lrf.found.balls.len(),
-                ext.pairs.len()
+                balls,
+                st.lrf.found.balls.len(),
+                st.ext.pairs.len()
             ),
         ),
     ];
-    if !adj.ball_shifts_px.is_empty() {
-        let mut s = adj.ball_shifts_px.clone();
+    let shifts = &st.adjusted.solved.ball_shifts_px;
+    if !shifts.is_empty() {
+        let mut s = shifts.clone();
         s.sort_by(|a, b| a.total_cmp(b));
         summary.push((
             "ball eccentricity correction".to_string(),
@@ -336,20 +384,5 @@ pub fn build(st: &Stages, results: &Results, rep: &Reporter) -> rp::ReportData {
             ),
         ));
     }
-    rp::ReportData {
-        title: format!("pingcal calibration — {}", f.name),
-        generator: results.generator.clone(),
-        summary,
-        steps: rep.lines(),
-        images,
-        network: rp::Network { cameras, points },
-        cloud: rp::Cloud {
-            points: cloud_points,
-            spheres,
-        },
-        methods,
-        intrinsics,
-        rejected,
-        warnings,
-    }
+    summary
 }

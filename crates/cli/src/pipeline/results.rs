@@ -1,4 +1,5 @@
-//! Step 7: `results.json` (the keys of SPEC.md and more), `cloud.ply`, and the report data.
+//! Step 7: `results.json` (the keys of SPEC.md and more) and `cloud.ply`; [`super::report`]
+//! builds the report data from them.
 //!
 //! `extrinsic`, `check_points` and `mean_check_error_mm` are the sphere method's when it
 //! ran, else the corner baseline's; `methods` holds both side by side. Every estimate has
@@ -11,8 +12,10 @@
 
 use super::bundle::Adjusted;
 use super::extrinsic::Extrinsics;
+use super::ids::CameraId;
 use super::lrf::LrfData;
-use super::{Model, Outcome, PointKind, Reporter, Stages};
+use super::scene::{image_file, PointKind, Scene};
+use super::Stages;
 use nalgebra::Matrix3;
 use pingcal_ba::rotation::to_opk;
 use pingcal_lrf::registration::{CheckRow, Transform};
@@ -292,9 +295,9 @@ pub fn opencv_of(p: &[f64], width: u32, height: u32, pixel_mm: f64) -> OpenCvJso
     }
 }
 
-fn camera_json(project: &Project, model: &Model, adj: &Adjusted, c: usize) -> CameraJson {
-    let cam = &project.file.cameras[c];
-    let p = &model.intrinsics[c];
+fn camera_json(project: &Project, scene: &Scene, adj: &Adjusted, c: CameraId) -> CameraJson {
+    let cam = &project.file.cameras[c.0];
+    let p = &scene.intrinsics[c];
     let prec = adj
         .precision
         .intrinsics
@@ -330,9 +333,9 @@ fn sigma3(m: &Option<Matrix3<f64>>) -> [f64; 3] {
     }
 }
 
-/// Puts everything together.
-pub fn assemble(st: &Stages, rep: &Reporter, time_s: Vec<(String, f64)>) -> Outcome {
-    let (project, model, adj, lrf, ext) = (st.project, st.model, st.adjusted, st.lrf, st.ext);
+/// `results.json` from what the steps produced.
+pub fn assemble(st: &Stages, time_s: Vec<(String, f64)>) -> Results {
+    let (project, scene, adj, ext) = (st.project, st.scene, st.adjusted, st.ext);
     let f = &project.file;
     let methods = methods(ext);
     let primary = methods
@@ -341,8 +344,8 @@ pub fn assemble(st: &Stages, rep: &Reporter, time_s: Vec<(String, f64)>) -> Outc
         .expect("the pipeline fails unless one method succeeded");
     let mut balls = Vec::new();
     let mut targets = Vec::new();
-    for (j, p) in model.points.iter().enumerate() {
-        let Some(k) = adj.point_index[j] else {
+    for (j, p) in scene.points.iter_enumerated() {
+        let Some(k) = adj.solved.map.point(j) else {
             continue;
         };
         let sig = sigma3(&adj.precision.point_covariances[k]);
@@ -372,7 +375,7 @@ pub fn assemble(st: &Stages, rep: &Reporter, time_s: Vec<(String, f64)>) -> Outc
         translation_mm: [r.translation.x, r.translation.y, r.translation.z],
         baseline_mm: r.centre().norm(),
     });
-    let results = Results {
+    Results {
         generator: format!("pingcal {}", env!("CARGO_PKG_VERSION")),
         project: f.name.clone(),
         extrinsic: primary.extrinsic.clone().expect("found above"),
@@ -382,33 +385,28 @@ pub fn assemble(st: &Stages, rep: &Reporter, time_s: Vec<(String, f64)>) -> Outc
         bundle: BundleJson {
             sigma0: adj.precision.sigma0,
             rms_image_px: adj.precision.rms_image_px,
-            images: adj.problem.images.len(),
-            unoriented_images: model
+            images: adj.solved.problem.images.len(),
+            unoriented_images: scene
                 .unoriented
                 .iter()
-                .map(|(i, w)| (f.images[*i].file.clone(), w.clone()))
+                .map(|(i, w)| (image_file(project, *i).to_string(), w.clone()))
                 .collect(),
-            points: adj.problem.points.len(),
-            observations: adj.problem.observations.len(),
-            distances: adj.problem.distances.len(),
+            points: adj.solved.problem.points.len(),
+            observations: adj.solved.problem.observations.len(),
+            distances: adj.solved.problem.distances.len(),
             iterations: adj.iterations,
             redundancy: adj.precision.redundancy,
             rejected: adj.rejected.len(),
             rig,
         },
-        cameras: (0..f.cameras.len())
-            .map(|c| camera_json(project, model, adj, c))
+        cameras: scene
+            .intrinsics
+            .ids()
+            .map(|c| camera_json(project, scene, adj, c))
             .collect(),
         balls,
         targets,
         time_s,
-    };
-    let report = super::report::build(st, &results, rep);
-    let cloud_ply = cloud_ply(lrf, 0.5 * f.balls.diameter_mm);
-    Outcome {
-        results,
-        report,
-        cloud_ply,
     }
 }
 
@@ -419,8 +417,9 @@ pub fn natural(id: &str) -> (String, u64, String) {
     (prefix, digits.parse().unwrap_or(u64::MAX), id.to_string())
 }
 
-/// The cloud as binary PLY, the balls' points coloured, the fitted spheres drawn.
-fn cloud_ply(lrf: &LrfData, radius: f64) -> Vec<u8> {
+/// `cloud.ply`: the cloud as binary PLY, the balls' points coloured, the fitted spheres
+/// (of `radius`) drawn.
+pub fn cloud_ply(lrf: &LrfData, radius: f64) -> Vec<u8> {
     let comments = vec![format!(
         "pingcal calibrate: LRF cloud in the LRF frame (mm), {} points, {} spheres of radius {radius} mm",
         lrf.cloud.len(),
