@@ -53,6 +53,7 @@ pub mod image_io;
 pub mod overlay;
 pub mod png_rows;
 pub mod printable;
+pub mod raster;
 pub mod threshold;
 pub mod tiff_strips;
 

@@ -25,8 +25,7 @@
 //! 35 ms of it page faults on the fresh 96 MB `f32` image (now on huge pages, see
 //! `image_io::zeroed_f32`).
 
-use crate::image_io::{lut_u16, lut_u8, zeroed_f32, GrayImage, MAX_ALLOC, MAX_SIDE};
-use crate::tiff_strips::NotDecoded;
+use crate::raster::{lut_u16, lut_u8, zeroed_f32, GrayImage, NotDecoded, MAX_ALLOC, MAX_SIDE};
 use std::io::{BufRead, Seek};
 
 /// The eight bytes every PNG file starts with (the `image` crate recognises PNG by them).

@@ -21,30 +21,12 @@
 //! The header and the tags are read by the `tiff` crate (the same code, with the same default
 //! limits, that the `image` crate runs first), so a header it refuses is refused here too.
 
-use crate::image_io::{lut_u16, lut_u8, GrayImage, MAX_ALLOC, MAX_SIDE};
+pub use crate::raster::NotDecoded;
+use crate::raster::{lut_u16, lut_u8, zeroed_f32, GrayImage, MAX_ALLOC, MAX_SIDE};
 use rayon::prelude::*;
 use std::io::Cursor;
 use tiff::decoder::{ChunkType, Decoder};
 use tiff::tags::Tag;
-
-/// Why [`decode_grey_strips`] did not decode a file. Either way [`decode_image`](crate::decode_image)
-/// then runs the general decoder.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub enum NotDecoded {
-    /// Not a layout this path handles.
-    Unsupported(String),
-    /// A damaged file (what is wrong).
-    Corrupt(String),
-}
-
-impl std::fmt::Display for NotDecoded {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            NotDecoded::Unsupported(s) => write!(f, "not handled here: {s}"),
-            NotDecoded::Corrupt(s) => write!(f, "corrupt: {s}"),
-        }
-    }
-}
 
 fn unsupported(s: impl Into<String>) -> NotDecoded {
     NotDecoded::Unsupported(s.into())
@@ -76,7 +58,7 @@ struct Layout {
 /// Decodes `bytes` if it is a grey strip TIFF this path handles (see the module doc).
 pub fn decode_grey_strips(bytes: &[u8]) -> Result<GrayImage, NotDecoded> {
     let l = layout(bytes)?;
-    let mut data = crate::image_io::zeroed_f32(l.width * l.height);
+    let mut data = zeroed_f32(l.width * l.height);
     let lut = Lut::new(&l);
     if l.lzw {
         let rows = l.rows_per_strip * l.width;
