@@ -12,6 +12,9 @@
 //! [`ScanReader`] streams the file line by line through a [`BufRead`], so a log of
 //! millions of beams never has to fit in memory as one string. Ranges under 20 mm (the URG
 //! error codes, and 0) mean "no return" and are stored as `0.0`.
+//!
+//! [`ScanWriter`] is the one writer of the format (the simulator writes through it too):
+//! time stamps with 3 decimals, servo angles with 6, ranges in whole mm.
 
 use crate::error::{LrfError, Result};
 use std::io::{BufRead, Write};
