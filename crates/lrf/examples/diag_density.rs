@@ -3,7 +3,7 @@
 use pingcal_lrf::ball_finder::{find_balls, FinderOptions};
 use pingcal_lrf::cloud::{Cloud, MountModel};
 use pingcal_lrf::scan::ScanHeader;
-use pingcal_lrf::simulate::{room_corner_scene, UrgNoise};
+use pingcal_lrf::simulate::{room_corner_scene, SimulatedLrf};
 use rand::SeedableRng;
 
 fn main() {
@@ -13,7 +13,7 @@ fn main() {
     let seed: u64 = a.next().map(|s| s.parse().unwrap()).unwrap_or(42);
     let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
     let scene = room_corner_scene(nb, &mut rng);
-    let scans = scene.half_sweep(n, &UrgNoise::default(), &mut rng);
+    let scans = scene.half_sweep(n, &SimulatedLrf::default(), &mut rng);
     let cloud = Cloud::from_scans(
         &ScanHeader::URG_04LX,
         scans.into_iter().map(Ok),

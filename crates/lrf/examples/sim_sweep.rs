@@ -7,7 +7,7 @@
 
 use pingcal_lrf::registration::matrix_from_euler;
 use pingcal_lrf::scan::{write_scans, ScanHeader};
-use pingcal_lrf::simulate::{room_corner_scene, UrgNoise};
+use pingcal_lrf::simulate::{room_corner_scene, SimulatedLrf};
 use rand::SeedableRng;
 use std::io::Write;
 
@@ -27,7 +27,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
     let scene = room_corner_scene(16, &mut rng);
     let n = (180.0 / step).round() as usize;
-    let scans = scene.half_sweep(n, &UrgNoise::default(), &mut rng);
+    let scans = scene.half_sweep(n, &SimulatedLrf::default(), &mut rng);
     write_scans(
         std::io::BufWriter::new(std::fs::File::create(dir.join("sweep.csv"))?),
         &ScanHeader::URG_04LX,

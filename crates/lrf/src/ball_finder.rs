@@ -17,7 +17,7 @@
 //!    reported in [`FindResult::rejected`], not used.
 
 use crate::cloud::Cloud;
-use crate::simulate::UrgNoise;
+use crate::sensor::RangeNoise;
 use crate::sphere_fit::{self, FitOptions, Ray};
 use nalgebra::{Matrix3, Vector3};
 use rand::rngs::StdRng;
@@ -31,7 +31,7 @@ pub struct FinderOptions {
     /// Ball diameter, mm (38 for a ping-pong ball).
     pub diameter_mm: f64,
     /// Range noise model (σ of each range).
-    pub noise: UrgNoise,
+    pub noise: RangeNoise,
     /// Options of the along-ray fit.
     pub fit: FitOptions,
     /// Remove large planes first.
@@ -64,7 +64,7 @@ impl Default for FinderOptions {
     fn default() -> Self {
         FinderOptions {
             diameter_mm: 38.0,
-            noise: UrgNoise::default(),
+            noise: RangeNoise::urg_04lx(),
             fit: FitOptions::default(),
             remove_planes: true,
             max_planes: 6,
@@ -125,7 +125,7 @@ pub struct FindResult {
     pub clusters: usize,
 }
 
-fn point_sigma(cloud: &Cloud, noise: &UrgNoise, i: usize) -> f64 {
+fn point_sigma(cloud: &Cloud, noise: &RangeNoise, i: usize) -> f64 {
     noise
         .sigma((cloud.points[i] - cloud.origin(i)).norm())
         .max(0.5)

@@ -444,7 +444,7 @@ pub fn inverse(t: &Transform) -> Transform {
 mod tests {
     use super::*;
     use crate::registration::matrix_from_euler;
-    use crate::simulate::{Scene, UrgNoise};
+    use crate::simulate::{Scene, SimulatedLrf};
 
     #[test]
     fn fan_baseline_recovers_the_lrf_pose_from_one_scan() {
@@ -474,21 +474,14 @@ mod tests {
             balls: vec![],
             radius: 19.0,
         };
-        let noise = UrgNoise {
-            mixed_pixels: false,
-            ..UrgNoise::default()
+        let lrf = SimulatedLrf {
+            footprint: None,
+            ..SimulatedLrf::default()
         };
         let mut rng = StdRng::seed_from_u64(9);
         let header = ScanHeader::URG_04LX;
         let servo = -30.0;
-        let scan = &scene.scan(
-            &header,
-            682,
-            &[servo],
-            &MountModel::default(),
-            &noise,
-            &mut rng,
-        )[0];
+        let scan = &scene.scan(&[servo], &lrf, &mut rng)[0];
         let lines = scan_lines(&header, scan, 30.0, 1).unwrap();
         let truth = inverse(&t_lc); // corner ← LRF
         let prior =

@@ -11,7 +11,10 @@
 //!
 //! Modules, in pipeline order:
 //! - [`scan`]: the `pingcal-scan` CSV format, streaming reader and writer.
-//! - [`cloud`]: eq. 2 plus the mount model; [`cloud::read_cloud_file`] reads scans, PLY or XYZ.
+//! - [`sensor`]: the LRF as a sensor: beam geometry (eq. 2 plus the mount model), the range
+//!   noise profile (URG-04LX), and the forward model a simulator needs (rays, readings).
+//! - [`cloud`]: scans to a 3D cloud through the sensor's beam geometry.
+//! - [`cloud_file`]: [`cloud_file::read_cloud_file`] reads scans, PLY or XYZ into a cloud.
 //! - [`ply`], [`xyz`]: PLY (ascii/binary) and text clouds; labelled point files.
 //! - [`sphere_fit`]: along-ray fixed-radius fit, orthogonal and free-radius fits, covariances.
 //! - [`ball_finder`]: planes removed, clusters, RANSAC with radius bounds, along-ray fit,
@@ -22,11 +25,13 @@
 //! - [`corner`]: the Fan et al. 2019 baseline (scan lines on a room corner, P3P with
 //!   orthogonal edges, corner frame from target planes, DLT + resection, composition).
 //! - [`corner_baseline`]: the whole Fan et al. 2019 baseline from pipeline data in one call.
-//! - [`simulate`]: URG-04LX noise model and scene ray casting, for tests and benchmarks.
+//! - [`simulate`]: test and benchmark support: scans of a scene of planes and balls,
+//!   through [`sensor`] (no production module uses it).
 //! - [`error`]: the error type; every failure names the file and line, or the points.
 
 pub mod ball_finder;
 pub mod cloud;
+pub mod cloud_file;
 pub mod corner;
 pub mod corner_baseline;
 pub mod correspondence;
@@ -34,11 +39,13 @@ pub mod error;
 pub mod ply;
 pub mod registration;
 pub mod scan;
+pub mod sensor;
 pub mod simulate;
 pub mod sphere_fit;
 pub mod xyz;
 
-pub use cloud::{Cloud, MountModel};
+pub use cloud::Cloud;
 pub use error::{LrfError, Result};
 /// The linear-algebra crate of the public API (points are `nalgebra::Vector3<f64>`).
 pub use nalgebra;
+pub use sensor::{LrfSensor, MountModel, RangeNoise};

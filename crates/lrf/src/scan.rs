@@ -12,6 +12,9 @@
 //! [`ScanReader`] streams the file line by line through a [`BufRead`], so a log of
 //! millions of beams never has to fit in memory as one string. Ranges under 20 mm (the URG
 //! error codes, and 0) mean "no return" and are stored as `0.0`.
+//!
+//! [`ScanWriter`] is the one writer of the format (the simulator writes through it too):
+//! time stamps with 3 decimals, servo angles with 6, ranges in whole mm.
 
 use crate::error::{LrfError, Result};
 use std::io::{BufRead, Write};
@@ -308,31 +311,74 @@ pub fn open_scan_file(
     ScanReader::new(std::io::BufReader::with_capacity(1 << 16, f), &name)
 }
 
-/// Writes scans in the `pingcal-scan` v1 format (ranges rounded to whole mm, as the URG does;
-/// no return written as 0).
-pub fn write_scans<W: Write>(
-    mut w: W,
-    header: &ScanHeader,
-    scans: &[ScanLine],
-) -> std::io::Result<()> {
-    let n = scans.first().map_or(0, |s| s.ranges_mm.len());
-    writeln!(w, "# pingcal-scan v1")?;
-    writeln!(w, "# angle_min_deg={}", header.angle_min_deg)?;
-    writeln!(w, "# angle_increment_deg={}", header.angle_increment_deg)?;
-    writeln!(w, "# range_unit=mm")?;
-    write!(w, "stamp_s,servo_deg")?;
-    for i in 0..n {
-        write!(w, ",r{i}")?;
-    }
-    writeln!(w)?;
-    for s in scans {
-        write!(w, "{:.3},{:.3}", s.stamp_s, s.servo_deg)?;
-        for &r in &s.ranges_mm {
-            write!(w, ",{}", r.round() as i64)?;
+/// A streaming writer of the `pingcal-scan` v1 format: the header (with optional extra
+/// `# key=value` lines) when created, then one scan per [`ScanWriter::write_scan`]. Time
+/// stamps are written with 3 decimals, servo angles with 6 (the simulator's encoder steps
+/// of 0.088° need more than 3), ranges rounded to whole mm as the URG reports them, no
+/// return as 0.
+pub struct ScanWriter<W: Write> {
+    out: W,
+}
+
+impl<W: Write> ScanWriter<W> {
+    /// Writes the header: the beam geometry of `header`, ranges in mm, the `extra` lines
+    /// (each written as `# line`, e.g. `sensor=...`) and the column line of `n_beams` ranges.
+    pub fn new(
+        mut out: W,
+        header: &ScanHeader,
+        n_beams: usize,
+        extra: &[&str],
+    ) -> std::io::Result<Self> {
+        writeln!(out, "# pingcal-scan v1")?;
+        writeln!(out, "# angle_min_deg={}", header.angle_min_deg)?;
+        writeln!(out, "# angle_increment_deg={}", header.angle_increment_deg)?;
+        writeln!(out, "# range_unit=mm")?;
+        for line in extra {
+            writeln!(out, "# {line}")?;
         }
-        writeln!(w)?;
+        write!(out, "stamp_s,servo_deg")?;
+        for i in 0..n_beams {
+            write!(out, ",r{i}")?;
+        }
+        writeln!(out)?;
+        Ok(ScanWriter { out })
     }
-    Ok(())
+
+    /// Writes one scan: its time stamp (s), servo angle (degrees) and ranges (mm, 0 for
+    /// no return).
+    pub fn write_scan<I>(
+        &mut self,
+        stamp_s: f64,
+        servo_deg: f64,
+        ranges_mm: I,
+    ) -> std::io::Result<()>
+    where
+        I: IntoIterator,
+        I::Item: Into<f64>,
+    {
+        write!(self.out, "{stamp_s:.3},{servo_deg:.6}")?;
+        for r in ranges_mm {
+            write!(self.out, ",{}", r.into().round() as i64)?;
+        }
+        writeln!(self.out)
+    }
+
+    /// The underlying writer (flushed).
+    pub fn finish(mut self) -> std::io::Result<W> {
+        self.out.flush()?;
+        Ok(self.out)
+    }
+}
+
+/// Writes scans in the `pingcal-scan` v1 format through [`ScanWriter`], without extra
+/// header lines.
+pub fn write_scans<W: Write>(w: W, header: &ScanHeader, scans: &[ScanLine]) -> std::io::Result<()> {
+    let n = scans.first().map_or(0, |s| s.ranges_mm.len());
+    let mut out = ScanWriter::new(w, header, n, &[])?;
+    for s in scans {
+        out.write_scan(s.stamp_s, s.servo_deg, s.ranges_mm.iter().copied())?;
+    }
+    out.finish().map(drop)
 }
 
 #[cfg(test)]
@@ -421,5 +467,24 @@ mod tests {
             assert_eq!(a.ranges_mm, b.ranges_mm);
             assert_eq!(a.servo_deg, b.servo_deg);
         }
+    }
+
+    #[test]
+    fn writer_puts_extra_lines_in_the_header_and_six_servo_decimals() {
+        let mut out =
+            ScanWriter::new(Vec::new(), &ScanHeader::URG_04LX, 2, &["sensor=test"]).unwrap();
+        out.write_scan(0.1, -179.912109375, [1532u32, 0]).unwrap();
+        out.write_scan(0.2, 0.087890625, [1531.4f64, 1529.6])
+            .unwrap();
+        let text = String::from_utf8(out.finish().unwrap()).unwrap();
+        assert_eq!(
+            text,
+            "# pingcal-scan v1\n# angle_min_deg=-119.53125\n# angle_increment_deg=0.3515625\n\
+             # range_unit=mm\n# sensor=test\nstamp_s,servo_deg,r0,r1\n\
+             0.100,-179.912109,1532,0\n0.200,0.087891,1531,1530\n"
+        );
+        let (h, v) = read_all(&text).unwrap();
+        assert_eq!(h, ScanHeader::URG_04LX);
+        assert_eq!(v[0].ranges_mm, vec![1532.0, 0.0]);
     }
 }

@@ -1,77 +1,68 @@
-//! Simulated LRF scans of a scene of planes and balls, with the URG-04LX noise model.
-//!
-//! **Noise model** ([`UrgNoise`]). The datasheet gives ±30 mm under 1 m and ±3 % of the
-//! range beyond; we read these bounds as ±3σ, so σ = 10 mm under 1 m and 1 % of the range
-//! beyond (continuous at 1 m). Ranges are Gaussian along the ray and then rounded to whole
-//! millimetres, as the sensor reports them.
+//! Test and benchmark support: simulated LRF scans of a scene of planes and balls. No
+//! production module uses it; the sensor itself (rays, range noise, what a reading is) is
+//! [`crate::sensor`], and `pingcal-sim` is the full simulator of the paper's test field.
 //!
 //! **Mixed pixels.** The beam has a finite footprint, half-width `a + b·r` (defaults 1 mm +
 //! 0.2 % of the range: 3 mm at 1 m; an assumption, the datasheet gives no divergence). When
 //! a ball's silhouette edge falls inside the footprint (ray passing the centre at a distance
 //! `h` within `R ± half-width`), the sensor returns a blend `f·r_ball + (1 − f)·r_behind`,
 //! `f` the covered fraction of the footprint `(R + w − h)/(2w)`: a range between ball and
-//! wall (Kneip et al. 2009).
+//! wall (Kneip et al. 2009). The blended range is then read by the sensor
+//! ([`LrfSensor::read`]: noise, rounding to whole mm, range limits).
 
-use crate::cloud::MountModel;
-use crate::scan::{ScanHeader, ScanLine};
+use crate::scan::ScanLine;
+use crate::sensor::{LrfSensor, RangeNoise};
 use nalgebra::Vector3;
 use rand::Rng;
-use rand_distr::{Distribution, Normal};
 
-/// The URG-04LX range noise model (see the module doc).
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct UrgNoise {
-    /// σ under `near_limit_mm`, mm.
-    pub sigma_near_mm: f64,
-    /// σ as a fraction of the range beyond `near_limit_mm`.
-    pub sigma_rel_far: f64,
-    /// Where the model switches, mm.
-    pub near_limit_mm: f64,
-    /// Round ranges to whole mm.
-    pub quantise: bool,
-    /// Beam half-width `a` (mm) in `a + b·r`; mixed pixels are simulated when `mixed_pixels`.
-    pub beam_width_a_mm: f64,
-    /// Beam half-width `b` in `a + b·r`.
-    pub beam_width_b: f64,
-    /// Simulate mixed pixels at ball edges.
-    pub mixed_pixels: bool,
-    /// Maximum range, mm (no return beyond).
-    pub max_range_mm: f64,
+/// The beam footprint of the mixed-pixel model: half-width `a_mm + b · r` (see the module doc).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Footprint {
+    /// Half-width at range 0, mm.
+    pub a_mm: f64,
+    /// Growth of the half-width with the range.
+    pub b: f64,
 }
 
-impl Default for UrgNoise {
+/// The sensor as the test scene measures it: [`LrfSensor`] plus the footprint of its mixed
+/// pixels (`None`: no mixed pixels).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SimulatedLrf {
+    /// Beams, mount, range noise and reading limits.
+    pub sensor: LrfSensor,
+    /// Footprint of the mixed-pixel model.
+    pub footprint: Option<Footprint>,
+}
+
+impl Default for SimulatedLrf {
+    /// The URG-04LX ([`LrfSensor::urg_04lx`]) with mixed pixels of a 1 mm + 0.2 % footprint.
     fn default() -> Self {
-        UrgNoise {
-            sigma_near_mm: 10.0,
-            sigma_rel_far: 0.01,
-            near_limit_mm: 1000.0,
-            quantise: true,
-            beam_width_a_mm: 1.0,
-            beam_width_b: 0.002,
-            mixed_pixels: true,
-            max_range_mm: 5600.0,
+        SimulatedLrf {
+            sensor: LrfSensor::urg_04lx(),
+            footprint: Some(Footprint {
+                a_mm: 1.0,
+                b: 0.002,
+            }),
         }
     }
 }
 
-impl UrgNoise {
+impl SimulatedLrf {
+    /// Exact ranges, not rounded, without mixed pixels (for exact-data tests).
+    pub fn noiseless() -> Self {
+        SimulatedLrf {
+            sensor: LrfSensor {
+                noise: RangeNoise::Noiseless,
+                quantise: false,
+                ..LrfSensor::urg_04lx()
+            },
+            footprint: None,
+        }
+    }
+
     /// Range σ at range `r` (mm).
     pub fn sigma(&self, r: f64) -> f64 {
-        if r <= self.near_limit_mm {
-            self.sigma_near_mm
-        } else {
-            self.sigma_rel_far * r
-        }
-    }
-    /// A noiseless model (for exact-data tests).
-    pub fn noiseless() -> Self {
-        UrgNoise {
-            sigma_near_mm: 0.0,
-            sigma_rel_far: 0.0,
-            quantise: false,
-            mixed_pixels: false,
-            ..Default::default()
-        }
+        self.sensor.noise.sigma(r)
     }
 }
 
@@ -128,58 +119,55 @@ impl Scene {
         best.is_finite().then_some(best)
     }
 
-    /// The measured range of one beam (before the `max_range` cut), with noise and mixed pixels.
+    /// The measured range of one beam: the nearest hit, blended at ball edges when the
+    /// footprint is modelled, read by the sensor. `None`: no return.
     pub fn measure<R: Rng>(
         &self,
         o: &Vector3<f64>,
         d: &Vector3<f64>,
-        noise: &UrgNoise,
+        lrf: &SimulatedLrf,
         rng: &mut R,
     ) -> Option<f64> {
         let truth = self.cast(o, d, None)?;
-        let mut r = truth;
-        if noise.mixed_pixels {
-            let w = noise.beam_width_a_mm + noise.beam_width_b * truth;
-            for (k, c) in self.balls.iter().enumerate() {
-                let (_, h, b) = sphere_hit(o, d, c, self.radius);
-                if b > 0.0 && (h - self.radius).abs() < w && b <= truth + self.radius {
-                    let f = ((self.radius + w - h) / (2.0 * w)).clamp(0.0, 1.0);
-                    let r_ball = b - (self.radius * self.radius - h * h).max(0.0).sqrt();
-                    let r_behind = self.cast(o, d, Some(k)).unwrap_or(r_ball);
-                    r = f * r_ball + (1.0 - f) * r_behind;
-                    break;
-                }
-            }
-        }
-        let s = noise.sigma(r);
-        if s > 0.0 {
-            r += Normal::new(0.0, s).expect("finite σ").sample(rng);
-        }
-        if noise.quantise {
-            r = r.round();
-        }
-        (r > 0.0 && r <= noise.max_range_mm).then_some(r)
+        let r = match lrf.footprint {
+            Some(fp) => self.mixed_pixel(o, d, truth, fp.a_mm + fp.b * truth),
+            None => truth,
+        };
+        lrf.sensor.read(r, rng)
     }
 
-    /// Simulates a sweep: one scan per servo angle, `n_beams` beams of `header`.
+    /// The range of a beam of half-width `w` whose nearest hit is at `truth`: a blend of
+    /// ball and background when a ball's silhouette edge falls inside the footprint.
+    fn mixed_pixel(&self, o: &Vector3<f64>, d: &Vector3<f64>, truth: f64, w: f64) -> f64 {
+        for (k, c) in self.balls.iter().enumerate() {
+            let (_, h, b) = sphere_hit(o, d, c, self.radius);
+            if b > 0.0 && (h - self.radius).abs() < w && b <= truth + self.radius {
+                let f = ((self.radius + w - h) / (2.0 * w)).clamp(0.0, 1.0);
+                let r_ball = b - (self.radius * self.radius - h * h).max(0.0).sqrt();
+                let r_behind = self.cast(o, d, Some(k)).unwrap_or(r_ball);
+                return f * r_ball + (1.0 - f) * r_behind;
+            }
+        }
+        truth
+    }
+
+    /// Simulates a sweep: one scan per servo angle, every beam of `lrf.sensor` (its beam
+    /// geometry and mount).
     pub fn scan<R: Rng>(
         &self,
-        header: &ScanHeader,
-        n_beams: usize,
         servo_deg: &[f64],
-        mount: &MountModel,
-        noise: &UrgNoise,
+        lrf: &SimulatedLrf,
         rng: &mut R,
     ) -> Vec<ScanLine> {
+        let sensor = &lrf.sensor;
         servo_deg
             .iter()
             .enumerate()
             .map(|(k, &b)| {
-                let ranges_mm = (0..n_beams)
+                let ranges_mm = (0..sensor.beams)
                     .map(|i| {
-                        let (p, o) = mount.beam(1.0, header.beam_angle_deg(i), b);
-                        let d = (p - o).normalize();
-                        self.measure(&o, &d, noise, rng).unwrap_or(0.0)
+                        let (o, d) = sensor.ray(i, b);
+                        self.measure(&o, &d, lrf, rng).unwrap_or(0.0)
                     })
                     .collect();
                 ScanLine {
@@ -192,25 +180,18 @@ impl Scene {
             .collect()
     }
 
-    /// A URG-04LX half sweep with eq. 2's mount: `n_scans` scans at servo angles
-    /// −90° + k·180°/`n_scans`, 682 beams each.
+    /// A half sweep: `n_scans` scans at servo angles −90° + k·180°/`n_scans` (with the
+    /// URG-04LX of [`SimulatedLrf::default`]: 682 beams each, eq. 2's mount).
     pub fn half_sweep<R: Rng>(
         &self,
         n_scans: usize,
-        noise: &UrgNoise,
+        lrf: &SimulatedLrf,
         rng: &mut R,
     ) -> Vec<ScanLine> {
         let servo: Vec<f64> = (0..n_scans)
             .map(|k| -90.0 + k as f64 * 180.0 / n_scans as f64)
             .collect();
-        self.scan(
-            &ScanHeader::URG_04LX,
-            682,
-            &servo,
-            &MountModel::default(),
-            noise,
-            rng,
-        )
+        self.scan(&servo, lrf, rng)
     }
 }
 
@@ -279,12 +260,12 @@ mod tests {
         let mut rng = rand::rngs::StdRng::seed_from_u64(1);
         let d = Vector3::new(0.0, 1.0, 0.0);
         let r = scene
-            .measure(&Vector3::zeros(), &d, &UrgNoise::noiseless(), &mut rng)
+            .measure(&Vector3::zeros(), &d, &SimulatedLrf::noiseless(), &mut rng)
             .unwrap();
         assert!((r - 981.0).abs() < 1e-9);
         let d = Vector3::new(0.1, 1.0, 0.0).normalize();
         let r = scene
-            .measure(&Vector3::zeros(), &d, &UrgNoise::noiseless(), &mut rng)
+            .measure(&Vector3::zeros(), &d, &SimulatedLrf::noiseless(), &mut rng)
             .unwrap();
         assert!((r - 2000.0 / d.y).abs() < 1e-9);
     }
@@ -296,9 +277,9 @@ mod tests {
             balls: vec![Vector3::new(0.0, 1000.0, 0.0)],
             radius: 19.0,
         };
-        let noise = UrgNoise {
-            mixed_pixels: true,
-            ..UrgNoise::noiseless()
+        let noise = SimulatedLrf {
+            footprint: SimulatedLrf::default().footprint,
+            ..SimulatedLrf::noiseless()
         };
         let mut rng = rand::rngs::StdRng::seed_from_u64(1);
         // a ray passing 19 mm from the centre: right on the silhouette

@@ -6,7 +6,7 @@ use pingcal_lrf::corner_baseline::{fan_baseline, BaselineInput};
 use pingcal_lrf::nalgebra::{Matrix3, Vector2, Vector3};
 use pingcal_lrf::registration::{matrix_from_euler, Transform};
 use pingcal_lrf::scan::{ScanHeader, ScanLine};
-use pingcal_lrf::simulate::{Scene, UrgNoise};
+use pingcal_lrf::simulate::{Scene, SimulatedLrf};
 use pingcal_lrf::MountModel;
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
@@ -123,14 +123,7 @@ fn field(seed: u64, with_floor: bool) -> Field {
         radius: 19.0,
     };
     let servo: Vec<f64> = (0..=240).map(|k| -60.0 + 0.5 * k as f64).collect();
-    let mut scans = scene.scan(
-        &ScanHeader::URG_04LX,
-        682,
-        &servo,
-        &MountModel::default(),
-        &UrgNoise::default(),
-        &mut rng,
-    );
+    let mut scans = scene.scan(&servo, &SimulatedLrf::default(), &mut rng);
     for (k, s) in scans.iter_mut().enumerate() {
         s.line = k + 1;
     }

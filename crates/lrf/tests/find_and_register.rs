@@ -6,11 +6,12 @@ mod common;
 
 use nalgebra::Vector3;
 use pingcal_lrf::ball_finder::{find_balls, FinderOptions};
-use pingcal_lrf::cloud::{read_cloud_file, MountModel};
+use pingcal_lrf::cloud::MountModel;
+use pingcal_lrf::cloud_file::read_cloud_file;
 use pingcal_lrf::correspondence::{match_balls, MatchOptions};
 use pingcal_lrf::registration::{self, PointObs, RegistrationOptions};
 use pingcal_lrf::scan::{write_scans, ScanHeader};
-use pingcal_lrf::simulate::{room_corner_scene, UrgNoise};
+use pingcal_lrf::simulate::{room_corner_scene, SimulatedLrf};
 use rand::rngs::StdRng;
 use rand::SeedableRng;
 
@@ -19,7 +20,7 @@ fn simulated_room_end_to_end() {
     let mut rng = StdRng::seed_from_u64(42);
     let scene = room_corner_scene(16, &mut rng);
     let header = ScanHeader::URG_04LX;
-    let scans = scene.half_sweep(512, &UrgNoise::default(), &mut rng);
+    let scans = scene.half_sweep(512, &SimulatedLrf::default(), &mut rng);
     let dir = std::env::temp_dir().join(format!("pingcal-lrf-test-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let file = dir.join("sweep.csv");

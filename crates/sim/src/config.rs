@@ -5,6 +5,8 @@
 //! needs to give only the keys it changes; unknown keys are refused (a typo must not be
 //! silently ignored).
 
+use pingcal_lrf::scan::ScanHeader;
+use pingcal_lrf::sensor::{LrfSensor, MountModel, RangeNoise};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -455,15 +457,46 @@ impl Default for LrfConfig {
 }
 
 impl LrfConfig {
-    /// Range noise σ at true range `r` (mm): the datasheet accuracy divided by
-    /// `accuracy_sigmas`: ±30 mm under 1 m, ±3 % of the range beyond.
+    /// The range-noise profile of the datasheet accuracies, each divided by
+    /// `accuracy_sigmas` (±30 mm up to 1 m, ±3 % of the range beyond), whether or not
+    /// `noise` is on.
+    pub fn range_noise(&self) -> RangeNoise {
+        RangeNoise::from_datasheet(
+            self.accuracy_near_mm,
+            self.accuracy_far_fraction,
+            self.accuracy_sigmas,
+        )
+    }
+
+    /// Range noise σ at true range `r` (mm), of [`LrfConfig::range_noise`].
     pub fn range_sigma_mm(&self, r: f64) -> f64 {
-        let acc = if r < 1000.0 {
-            self.accuracy_near_mm
-        } else {
-            self.accuracy_far_fraction * r
-        };
-        acc / self.accuracy_sigmas
+        self.range_noise().sigma(r)
+    }
+
+    /// The sensor these keys describe, as the calibration models it: the beams, eq. 2 with
+    /// the mount offset, the range noise (none when `noise` is off), readings rounded to
+    /// whole mm between `min_range_mm` and `max_range_mm`.
+    pub fn sensor(&self) -> LrfSensor {
+        LrfSensor {
+            header: ScanHeader {
+                angle_min_deg: self.angle_min_deg,
+                angle_increment_deg: self.angle_increment_deg,
+                mm_per_unit: 1.0,
+            },
+            beams: self.beams,
+            mount: MountModel {
+                offset_mm: self.mount_offset_mm,
+                ..MountModel::default()
+            },
+            noise: if self.noise {
+                self.range_noise()
+            } else {
+                RangeNoise::Noiseless
+            },
+            min_range_mm: self.min_range_mm,
+            max_range_mm: self.max_range_mm,
+            quantise: true,
+        }
     }
 }
 
@@ -504,369 +537,421 @@ impl SimConfig {
     /// Geometric checks that need the built scene (a ball inside a wall, a camera behind a
     /// wall) are repeated by [`crate::scene::Scene::build`] and [`crate::stations::build_stations`].
     pub fn validate(&self) -> Result<(), ConfigError> {
-        fn pos(key: &str, v: f64) -> Result<(), ConfigError> {
-            if v.is_finite() && v > 0.0 {
-                Ok(())
-            } else {
-                Err(ConfigError::new(key, v, "must be a positive number"))
-            }
-        }
-        fn nonneg(key: &str, v: f64) -> Result<(), ConfigError> {
-            if v.is_finite() && v >= 0.0 {
-                Ok(())
-            } else {
-                Err(ConfigError::new(key, v, "must be zero or positive"))
-            }
-        }
-        fn unit(key: &str, v: f64) -> Result<(), ConfigError> {
-            if v.is_finite() && (0.0..=1.0).contains(&v) {
-                Ok(())
-            } else {
-                Err(ConfigError::new(key, v, "must be between 0 and 1"))
-            }
-        }
-        fn range(key: &str, r: [f64; 2]) -> Result<(), ConfigError> {
-            if r.iter().all(|v| v.is_finite() && *v > 0.0) && r[0] <= r[1] {
-                Ok(())
-            } else {
-                Err(ConfigError::new(
-                    key,
-                    format!("[{}, {}]", r[0], r[1]),
-                    "must be two positive numbers, the first not larger",
-                ))
-            }
-        }
-        fn finite3(key: &str, v: [f64; 3]) -> Result<(), ConfigError> {
-            if v.iter().all(|x| x.is_finite()) {
-                Ok(())
-            } else {
-                Err(ConfigError::new(
-                    key,
-                    format!("{v:?}"),
-                    "must be finite numbers",
-                ))
-            }
-        }
-        let r = &self.room;
-        pos("room.wall_length_mm", r.wall_length_mm)?;
-        pos("room.wall_height_mm", r.wall_height_mm)?;
-        nonneg("room.max_tilt_deg", r.max_tilt_deg)?;
-        if r.max_tilt_deg > 10.0 {
-            return Err(ConfigError::new(
-                "room.max_tilt_deg",
-                r.max_tilt_deg,
-                "a room corner tilted by more than 10° is not a room corner",
-            ));
-        }
-        nonneg("room.max_bulge_mm", r.max_bulge_mm)?;
-        if r.max_bulge_mm > 0.05 * r.wall_length_mm.min(r.wall_height_mm) {
-            return Err(ConfigError::new(
-                "room.max_bulge_mm",
-                r.max_bulge_mm,
-                "larger than 5 % of the wall size: not a plane",
-            ));
-        }
-        unit("room.wall_albedo", r.wall_albedo)?;
-        unit("room.floor_albedo", r.floor_albedo)?;
-        unit("room.texture_amplitude", r.texture_amplitude)?;
-
-        let t = &self.targets;
-        if t.count == 0 {
-            return Err(ConfigError::new(
-                "targets.count",
-                t.count,
-                "needs at least one target",
-            ));
-        }
-        if t.coded > t.count {
-            return Err(ConfigError::new(
-                "targets.coded",
-                t.coded,
-                format!("more coded targets than targets ({})", t.count),
-            ));
-        }
-        if !(t.code_bits == 12 || t.code_bits == 14) {
-            return Err(ConfigError::new(
-                "targets.code_bits",
-                t.code_bits,
-                "AICON rings have 12 or 14 bits",
-            ));
-        }
-        let ncodes = crate::coded_target::code_table(t.code_bits).codes.len();
-        if t.coded > ncodes {
-            return Err(ConfigError::new(
-                "targets.coded",
-                t.coded,
-                format!("the {}-bit table has only {ncodes} codes", t.code_bits),
-            ));
-        }
-        pos("targets.dot_radius_mm", t.dot_radius_mm)?;
-        pos("targets.grid_spacing_mm", t.grid_spacing_mm)?;
-        nonneg("targets.edge_margin_mm", t.edge_margin_mm)?;
-        if !(t.ring_inner > 1.0) {
-            return Err(ConfigError::new(
-                "targets.ring_inner",
-                t.ring_inner,
-                "the code ring must start outside the dot (> 1 dot radius)",
-            ));
-        }
-        if !(t.ring_outer > t.ring_inner) {
-            return Err(ConfigError::new(
-                "targets.ring_outer",
-                t.ring_outer,
-                format!("must exceed targets.ring_inner ({})", t.ring_inner),
-            ));
-        }
-        if !(t.background > t.ring_outer) {
-            return Err(ConfigError::new(
-                "targets.background",
-                t.background,
-                format!("must exceed targets.ring_outer ({})", t.ring_outer),
-            ));
-        }
-        if !(t.plain_background > 1.0) {
-            return Err(ConfigError::new(
-                "targets.plain_background",
-                t.plain_background,
-                "must exceed the dot (> 1 dot radius)",
-            ));
-        }
-        if t.grid_spacing_mm < 2.0 * t.background * t.dot_radius_mm {
-            return Err(ConfigError::new(
-                "targets.grid_spacing_mm",
-                t.grid_spacing_mm,
-                format!(
-                    "targets of diameter {} mm would overlap",
-                    2.0 * t.background * t.dot_radius_mm
-                ),
-            ));
-        }
-        unit("targets.black_albedo", t.black_albedo)?;
-        nonneg("targets.retro_gain", t.retro_gain)?;
-
-        let b = &self.balls;
-        pos("balls.diameter_mm", b.diameter_mm)?;
-        range("balls.standoff_range_mm", b.standoff_range_mm)?;
-        if b.standoff_range_mm[0] <= 0.5 * b.diameter_mm {
-            return Err(ConfigError::new(
-                "balls.standoff_range_mm",
-                format!("[{}, {}]", b.standoff_range_mm[0], b.standoff_range_mm[1]),
-                format!(
-                    "a standoff under the ball radius ({} mm) puts the ball inside the wall",
-                    0.5 * b.diameter_mm
-                ),
-            ));
-        }
-        pos("balls.stem_radius_mm", b.stem_radius_mm)?;
-        if b.stem_radius_mm >= 0.5 * b.diameter_mm {
-            return Err(ConfigError::new(
-                "balls.stem_radius_mm",
-                b.stem_radius_mm,
-                "the stem must be thinner than the ball",
-            ));
-        }
-        unit("balls.albedo", b.albedo)?;
-        unit("balls.stem_albedo", b.stem_albedo)?;
-        nonneg("balls.clearance_mm", b.clearance_mm)?;
-        if let Some(ps) = &b.placements {
-            for (i, p) in ps.iter().enumerate() {
-                if !["wall1", "wall2", "floor"].contains(&p.surface.as_str()) {
-                    return Err(ConfigError::new(
-                        format!("balls.placements[{i}].surface"),
-                        &p.surface,
-                        "must be wall1, wall2 or floor",
-                    ));
-                }
-                if !(p.standoff_mm.is_finite() && p.standoff_mm > 0.5 * b.diameter_mm) {
-                    return Err(ConfigError::new(
-                        format!("balls.placements[{i}].standoff_mm"),
-                        p.standoff_mm,
-                        format!(
-                            "under the ball radius ({} mm): the ball is inside the wall",
-                            0.5 * b.diameter_mm
-                        ),
-                    ));
-                }
-            }
-        } else if b.count == 0 {
-            return Err(ConfigError::new(
-                "balls.count",
-                b.count,
-                "needs at least 3 balls",
-            ));
-        }
-        let nballs = b.placements.as_ref().map_or(b.count, |p| p.len());
-        if nballs < 3 {
-            return Err(ConfigError::new(
-                "balls.count",
-                nballs,
-                "needs at least 3 balls",
-            ));
-        }
-        for &c in &b.check_balls {
-            if c == 0 || c as usize > nballs {
-                return Err(ConfigError::new(
-                    "balls.check_balls",
-                    c,
-                    format!("no such ball (1..={nballs})"),
-                ));
-            }
-        }
-
-        let d = &self.distances;
-        pos("distances.sigma_mm", d.sigma_mm).or_else(|e| {
-            if d.sigma_mm == 0.0 {
-                Ok(())
-            } else {
-                Err(e)
-            }
-        })?;
-        range("distances.length_range_mm", d.length_range_mm)?;
-
-        let c = &self.camera;
-        if c.width < 16 || c.width > 20000 {
-            return Err(ConfigError::new(
-                "camera.width",
-                c.width,
-                "must be between 16 and 20000 pixels",
-            ));
-        }
-        if c.height < 16 || c.height > 20000 {
-            return Err(ConfigError::new(
-                "camera.height",
-                c.height,
-                "must be between 16 and 20000 pixels",
-            ));
-        }
-        pos("camera.pixel_size_mm", c.pixel_size_mm)?;
-        pos("camera.nominal_c_mm", c.nominal_c_mm)?;
-        for (name, i) in [("left", &c.left), ("right", &c.right)] {
-            if !i.params.iter().all(|v| v.is_finite()) {
-                return Err(ConfigError::new(
-                    format!("camera.{name}.params"),
-                    format!("{:?}", i.params),
-                    "must be finite numbers",
-                ));
-            }
-            pos(&format!("camera.{name}.params[0] (c)"), i.params[0])?;
-        }
-        finite3("camera.right_offset_mm", c.right_offset_mm)?;
-        finite3("camera.right_opk_deg", c.right_opk_deg)?;
-
-        let s = &self.stations;
-        finite3("stations.main_centre_mm", s.main_centre_mm)?;
-        finite3("stations.main_look_at_mm", s.main_look_at_mm)?;
-        finite3("stations.look_at_mm", s.look_at_mm)?;
-        if s.main_centre_mm == s.main_look_at_mm {
-            return Err(ConfigError::new(
-                "stations.main_look_at_mm",
-                format!("{:?}", s.main_look_at_mm),
-                "equals the main station's centre",
-            ));
-        }
-        if s.convergent > 0 && s.heights_mm.is_empty() {
-            return Err(ConfigError::new(
-                "stations.heights_mm",
-                "[]",
-                "needs at least one height",
-            ));
-        }
-        if s.convergent > 0 && s.rolls_deg.is_empty() {
-            return Err(ConfigError::new(
-                "stations.rolls_deg",
-                "[]",
-                "needs at least one roll",
-            ));
-        }
-        for (i, h) in s.heights_mm.iter().enumerate() {
-            pos(&format!("stations.heights_mm[{i}]"), *h)?;
-        }
-        range("stations.distance_range_mm", s.distance_range_mm)?;
-        nonneg("stations.look_jitter_mm", s.look_jitter_mm)?;
-        nonneg("stations.min_wall_clearance_mm", s.min_wall_clearance_mm)?;
-        nonneg("stations.azimuth_span_deg", s.azimuth_span_deg)?;
-
-        let rc = &self.render;
-        if rc.supersampling == 0 || rc.supersampling > 64 {
-            return Err(ConfigError::new(
-                "render.supersampling",
-                rc.supersampling,
-                "must be between 1 and 64",
-            ));
-        }
-        nonneg("render.flash_at_1m", rc.flash_at_1m)?;
-        nonneg("render.ambient", rc.ambient)?;
-        nonneg("render.blur_sigma_px", rc.blur_sigma_px)?;
-        if rc.blur_sigma_px > 20.0 {
-            return Err(ConfigError::new(
-                "render.blur_sigma_px",
-                rc.blur_sigma_px,
-                "more than 20 px of blur",
-            ));
-        }
-        unit("render.vignetting", rc.vignetting)?;
-        pos("render.full_well_e", rc.full_well_e)?;
-        nonneg("render.read_noise_e", rc.read_noise_e)?;
-
-        let l = &self.lrf;
-        if l.beams == 0 {
-            return Err(ConfigError::new(
-                "lrf.beams",
-                l.beams,
-                "needs at least one beam",
-            ));
-        }
-        pos("lrf.angle_increment_deg", l.angle_increment_deg)?;
-        if !l.angle_min_deg.is_finite() || l.angle_min_deg < -180.0 {
-            return Err(ConfigError::new(
-                "lrf.angle_min_deg",
-                l.angle_min_deg,
-                "must be at least -180",
-            ));
-        }
-        pos("lrf.max_range_mm", l.max_range_mm)?;
-        nonneg("lrf.min_range_mm", l.min_range_mm)?;
-        if l.min_range_mm >= l.max_range_mm {
-            return Err(ConfigError::new(
-                "lrf.min_range_mm",
-                l.min_range_mm,
-                format!("not under lrf.max_range_mm ({})", l.max_range_mm),
-            ));
-        }
-        nonneg("lrf.accuracy_near_mm", l.accuracy_near_mm)?;
-        nonneg("lrf.accuracy_far_fraction", l.accuracy_far_fraction)?;
-        pos("lrf.accuracy_sigmas", l.accuracy_sigmas)?;
-        nonneg("lrf.beam_width_deg", l.beam_width_deg)?;
-        unit("lrf.min_reflectivity", l.min_reflectivity)?;
-        pos("lrf.servo_step_deg", l.servo_step_deg)?;
-        pos("lrf.servo_resolution_deg", l.servo_resolution_deg)?;
-        nonneg("lrf.servo_sigma_deg", l.servo_sigma_deg)?;
-        pos("lrf.scan_period_s", l.scan_period_s)?;
-        if !(l.servo_start_deg.is_finite()
-            && l.servo_end_deg.is_finite()
-            && l.servo_start_deg <= l.servo_end_deg)
-        {
-            return Err(ConfigError::new(
-                "lrf.servo_end_deg",
-                l.servo_end_deg,
-                format!(
-                    "must not be under lrf.servo_start_deg ({})",
-                    l.servo_start_deg
-                ),
-            ));
-        }
-        if (l.servo_end_deg - l.servo_start_deg) / l.servo_step_deg > 100_000.0 {
-            return Err(ConfigError::new(
-                "lrf.servo_step_deg",
-                l.servo_step_deg,
-                "more than 100000 scans",
-            ));
-        }
-        finite3("lrf.extrinsic_opk_deg", l.extrinsic_opk_deg)?;
-        finite3("lrf.extrinsic_t_mm", l.extrinsic_t_mm)?;
-        finite3("lrf.mount_offset_mm", l.mount_offset_mm)?;
-        Ok(())
+        validate_room(&self.room)?;
+        validate_target_codes(&self.targets)?;
+        validate_target_geometry(&self.targets)?;
+        validate_balls(&self.balls)?;
+        validate_ball_placements(&self.balls)?;
+        validate_distances(&self.distances)?;
+        validate_camera(&self.camera)?;
+        validate_stations(&self.stations)?;
+        validate_render(&self.render)?;
+        validate_lrf_ranges(&self.lrf)?;
+        validate_lrf_servo(&self.lrf)
     }
+}
+
+// The checks of one value each, shared by the sections.
+fn pos(key: &str, v: f64) -> Result<(), ConfigError> {
+    if v.is_finite() && v > 0.0 {
+        Ok(())
+    } else {
+        Err(ConfigError::new(key, v, "must be a positive number"))
+    }
+}
+fn nonneg(key: &str, v: f64) -> Result<(), ConfigError> {
+    if v.is_finite() && v >= 0.0 {
+        Ok(())
+    } else {
+        Err(ConfigError::new(key, v, "must be zero or positive"))
+    }
+}
+fn unit(key: &str, v: f64) -> Result<(), ConfigError> {
+    if v.is_finite() && (0.0..=1.0).contains(&v) {
+        Ok(())
+    } else {
+        Err(ConfigError::new(key, v, "must be between 0 and 1"))
+    }
+}
+fn range(key: &str, r: [f64; 2]) -> Result<(), ConfigError> {
+    if r.iter().all(|v| v.is_finite() && *v > 0.0) && r[0] <= r[1] {
+        Ok(())
+    } else {
+        Err(ConfigError::new(
+            key,
+            format!("[{}, {}]", r[0], r[1]),
+            "must be two positive numbers, the first not larger",
+        ))
+    }
+}
+fn finite3(key: &str, v: [f64; 3]) -> Result<(), ConfigError> {
+    if v.iter().all(|x| x.is_finite()) {
+        Ok(())
+    } else {
+        Err(ConfigError::new(
+            key,
+            format!("{v:?}"),
+            "must be finite numbers",
+        ))
+    }
+}
+
+/// `[room]`: sizes, tilt, bulge and albedos.
+fn validate_room(r: &RoomConfig) -> Result<(), ConfigError> {
+    pos("room.wall_length_mm", r.wall_length_mm)?;
+    pos("room.wall_height_mm", r.wall_height_mm)?;
+    nonneg("room.max_tilt_deg", r.max_tilt_deg)?;
+    if r.max_tilt_deg > 10.0 {
+        return Err(ConfigError::new(
+            "room.max_tilt_deg",
+            r.max_tilt_deg,
+            "a room corner tilted by more than 10° is not a room corner",
+        ));
+    }
+    nonneg("room.max_bulge_mm", r.max_bulge_mm)?;
+    if r.max_bulge_mm > 0.05 * r.wall_length_mm.min(r.wall_height_mm) {
+        return Err(ConfigError::new(
+            "room.max_bulge_mm",
+            r.max_bulge_mm,
+            "larger than 5 % of the wall size: not a plane",
+        ));
+    }
+    unit("room.wall_albedo", r.wall_albedo)?;
+    unit("room.floor_albedo", r.floor_albedo)?;
+    unit("room.texture_amplitude", r.texture_amplitude)?;
+    Ok(())
+}
+
+/// `[targets]`: how many targets, how many coded, and the code table.
+fn validate_target_codes(t: &TargetConfig) -> Result<(), ConfigError> {
+    if t.count == 0 {
+        return Err(ConfigError::new(
+            "targets.count",
+            t.count,
+            "needs at least one target",
+        ));
+    }
+    if t.coded > t.count {
+        return Err(ConfigError::new(
+            "targets.coded",
+            t.coded,
+            format!("more coded targets than targets ({})", t.count),
+        ));
+    }
+    if !(t.code_bits == 12 || t.code_bits == 14) {
+        return Err(ConfigError::new(
+            "targets.code_bits",
+            t.code_bits,
+            "AICON rings have 12 or 14 bits",
+        ));
+    }
+    let ncodes = crate::coded_target::code_table(t.code_bits).codes.len();
+    if t.coded > ncodes {
+        return Err(ConfigError::new(
+            "targets.coded",
+            t.coded,
+            format!("the {}-bit table has only {ncodes} codes", t.code_bits),
+        ));
+    }
+    Ok(())
+}
+
+/// `[targets]`: dot, ring and background radii, grid, print.
+fn validate_target_geometry(t: &TargetConfig) -> Result<(), ConfigError> {
+    pos("targets.dot_radius_mm", t.dot_radius_mm)?;
+    pos("targets.grid_spacing_mm", t.grid_spacing_mm)?;
+    nonneg("targets.edge_margin_mm", t.edge_margin_mm)?;
+    if !(t.ring_inner > 1.0) {
+        return Err(ConfigError::new(
+            "targets.ring_inner",
+            t.ring_inner,
+            "the code ring must start outside the dot (> 1 dot radius)",
+        ));
+    }
+    if !(t.ring_outer > t.ring_inner) {
+        return Err(ConfigError::new(
+            "targets.ring_outer",
+            t.ring_outer,
+            format!("must exceed targets.ring_inner ({})", t.ring_inner),
+        ));
+    }
+    if !(t.background > t.ring_outer) {
+        return Err(ConfigError::new(
+            "targets.background",
+            t.background,
+            format!("must exceed targets.ring_outer ({})", t.ring_outer),
+        ));
+    }
+    if !(t.plain_background > 1.0) {
+        return Err(ConfigError::new(
+            "targets.plain_background",
+            t.plain_background,
+            "must exceed the dot (> 1 dot radius)",
+        ));
+    }
+    if t.grid_spacing_mm < 2.0 * t.background * t.dot_radius_mm {
+        return Err(ConfigError::new(
+            "targets.grid_spacing_mm",
+            t.grid_spacing_mm,
+            format!(
+                "targets of diameter {} mm would overlap",
+                2.0 * t.background * t.dot_radius_mm
+            ),
+        ));
+    }
+    unit("targets.black_albedo", t.black_albedo)?;
+    nonneg("targets.retro_gain", t.retro_gain)?;
+    Ok(())
+}
+
+/// `[balls]`: ball and stem sizes and albedos.
+fn validate_balls(b: &BallConfig) -> Result<(), ConfigError> {
+    pos("balls.diameter_mm", b.diameter_mm)?;
+    range("balls.standoff_range_mm", b.standoff_range_mm)?;
+    if b.standoff_range_mm[0] <= 0.5 * b.diameter_mm {
+        return Err(ConfigError::new(
+            "balls.standoff_range_mm",
+            format!("[{}, {}]", b.standoff_range_mm[0], b.standoff_range_mm[1]),
+            format!(
+                "a standoff under the ball radius ({} mm) puts the ball inside the wall",
+                0.5 * b.diameter_mm
+            ),
+        ));
+    }
+    pos("balls.stem_radius_mm", b.stem_radius_mm)?;
+    if b.stem_radius_mm >= 0.5 * b.diameter_mm {
+        return Err(ConfigError::new(
+            "balls.stem_radius_mm",
+            b.stem_radius_mm,
+            "the stem must be thinner than the ball",
+        ));
+    }
+    unit("balls.albedo", b.albedo)?;
+    unit("balls.stem_albedo", b.stem_albedo)?;
+    nonneg("balls.clearance_mm", b.clearance_mm)?;
+    Ok(())
+}
+
+/// `[balls]`: explicit placements, how many balls, the check balls.
+fn validate_ball_placements(b: &BallConfig) -> Result<(), ConfigError> {
+    if let Some(ps) = &b.placements {
+        for (i, p) in ps.iter().enumerate() {
+            if !["wall1", "wall2", "floor"].contains(&p.surface.as_str()) {
+                return Err(ConfigError::new(
+                    format!("balls.placements[{i}].surface"),
+                    &p.surface,
+                    "must be wall1, wall2 or floor",
+                ));
+            }
+            if !(p.standoff_mm.is_finite() && p.standoff_mm > 0.5 * b.diameter_mm) {
+                return Err(ConfigError::new(
+                    format!("balls.placements[{i}].standoff_mm"),
+                    p.standoff_mm,
+                    format!(
+                        "under the ball radius ({} mm): the ball is inside the wall",
+                        0.5 * b.diameter_mm
+                    ),
+                ));
+            }
+        }
+    } else if b.count == 0 {
+        return Err(ConfigError::new(
+            "balls.count",
+            b.count,
+            "needs at least 3 balls",
+        ));
+    }
+    let nballs = b.placements.as_ref().map_or(b.count, |p| p.len());
+    if nballs < 3 {
+        return Err(ConfigError::new(
+            "balls.count",
+            nballs,
+            "needs at least 3 balls",
+        ));
+    }
+    for &c in &b.check_balls {
+        if c == 0 || c as usize > nballs {
+            return Err(ConfigError::new(
+                "balls.check_balls",
+                c,
+                format!("no such ball (1..={nballs})"),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// `[distances]`: caliper σ and lengths.
+fn validate_distances(d: &DistanceConfig) -> Result<(), ConfigError> {
+    pos("distances.sigma_mm", d.sigma_mm).or_else(|e| {
+        if d.sigma_mm == 0.0 {
+            Ok(())
+        } else {
+            Err(e)
+        }
+    })?;
+    range("distances.length_range_mm", d.length_range_mm)?;
+    Ok(())
+}
+
+/// `[camera]`: image size, pixel, intrinsics and the right camera's pose.
+fn validate_camera(c: &CameraConfig) -> Result<(), ConfigError> {
+    if c.width < 16 || c.width > 20000 {
+        return Err(ConfigError::new(
+            "camera.width",
+            c.width,
+            "must be between 16 and 20000 pixels",
+        ));
+    }
+    if c.height < 16 || c.height > 20000 {
+        return Err(ConfigError::new(
+            "camera.height",
+            c.height,
+            "must be between 16 and 20000 pixels",
+        ));
+    }
+    pos("camera.pixel_size_mm", c.pixel_size_mm)?;
+    pos("camera.nominal_c_mm", c.nominal_c_mm)?;
+    for (name, i) in [("left", &c.left), ("right", &c.right)] {
+        if !i.params.iter().all(|v| v.is_finite()) {
+            return Err(ConfigError::new(
+                format!("camera.{name}.params"),
+                format!("{:?}", i.params),
+                "must be finite numbers",
+            ));
+        }
+        pos(&format!("camera.{name}.params[0] (c)"), i.params[0])?;
+    }
+    finite3("camera.right_offset_mm", c.right_offset_mm)?;
+    finite3("camera.right_opk_deg", c.right_opk_deg)?;
+    Ok(())
+}
+
+/// `[stations]`: the main station and the convergent network.
+fn validate_stations(s: &StationConfig) -> Result<(), ConfigError> {
+    finite3("stations.main_centre_mm", s.main_centre_mm)?;
+    finite3("stations.main_look_at_mm", s.main_look_at_mm)?;
+    finite3("stations.look_at_mm", s.look_at_mm)?;
+    if s.main_centre_mm == s.main_look_at_mm {
+        return Err(ConfigError::new(
+            "stations.main_look_at_mm",
+            format!("{:?}", s.main_look_at_mm),
+            "equals the main station's centre",
+        ));
+    }
+    if s.convergent > 0 && s.heights_mm.is_empty() {
+        return Err(ConfigError::new(
+            "stations.heights_mm",
+            "[]",
+            "needs at least one height",
+        ));
+    }
+    if s.convergent > 0 && s.rolls_deg.is_empty() {
+        return Err(ConfigError::new(
+            "stations.rolls_deg",
+            "[]",
+            "needs at least one roll",
+        ));
+    }
+    for (i, h) in s.heights_mm.iter().enumerate() {
+        pos(&format!("stations.heights_mm[{i}]"), *h)?;
+    }
+    range("stations.distance_range_mm", s.distance_range_mm)?;
+    nonneg("stations.look_jitter_mm", s.look_jitter_mm)?;
+    nonneg("stations.min_wall_clearance_mm", s.min_wall_clearance_mm)?;
+    nonneg("stations.azimuth_span_deg", s.azimuth_span_deg)?;
+    Ok(())
+}
+
+/// `[render]`: supersampling, light, blur, vignetting and sensor noise.
+fn validate_render(rc: &RenderConfig) -> Result<(), ConfigError> {
+    if rc.supersampling == 0 || rc.supersampling > 64 {
+        return Err(ConfigError::new(
+            "render.supersampling",
+            rc.supersampling,
+            "must be between 1 and 64",
+        ));
+    }
+    nonneg("render.flash_at_1m", rc.flash_at_1m)?;
+    nonneg("render.ambient", rc.ambient)?;
+    nonneg("render.blur_sigma_px", rc.blur_sigma_px)?;
+    if rc.blur_sigma_px > 20.0 {
+        return Err(ConfigError::new(
+            "render.blur_sigma_px",
+            rc.blur_sigma_px,
+            "more than 20 px of blur",
+        ));
+    }
+    unit("render.vignetting", rc.vignetting)?;
+    pos("render.full_well_e", rc.full_well_e)?;
+    nonneg("render.read_noise_e", rc.read_noise_e)?;
+    Ok(())
+}
+
+/// `[lrf]`: beams, ranges, accuracy, footprint and reflectivity.
+fn validate_lrf_ranges(l: &LrfConfig) -> Result<(), ConfigError> {
+    if l.beams == 0 {
+        return Err(ConfigError::new(
+            "lrf.beams",
+            l.beams,
+            "needs at least one beam",
+        ));
+    }
+    pos("lrf.angle_increment_deg", l.angle_increment_deg)?;
+    if !l.angle_min_deg.is_finite() || l.angle_min_deg < -180.0 {
+        return Err(ConfigError::new(
+            "lrf.angle_min_deg",
+            l.angle_min_deg,
+            "must be at least -180",
+        ));
+    }
+    pos("lrf.max_range_mm", l.max_range_mm)?;
+    nonneg("lrf.min_range_mm", l.min_range_mm)?;
+    if l.min_range_mm >= l.max_range_mm {
+        return Err(ConfigError::new(
+            "lrf.min_range_mm",
+            l.min_range_mm,
+            format!("not under lrf.max_range_mm ({})", l.max_range_mm),
+        ));
+    }
+    nonneg("lrf.accuracy_near_mm", l.accuracy_near_mm)?;
+    nonneg("lrf.accuracy_far_fraction", l.accuracy_far_fraction)?;
+    pos("lrf.accuracy_sigmas", l.accuracy_sigmas)?;
+    nonneg("lrf.beam_width_deg", l.beam_width_deg)?;
+    unit("lrf.min_reflectivity", l.min_reflectivity)?;
+    Ok(())
+}
+
+/// `[lrf]`: the servo sweep, the extrinsic and the mount.
+fn validate_lrf_servo(l: &LrfConfig) -> Result<(), ConfigError> {
+    pos("lrf.servo_step_deg", l.servo_step_deg)?;
+    pos("lrf.servo_resolution_deg", l.servo_resolution_deg)?;
+    nonneg("lrf.servo_sigma_deg", l.servo_sigma_deg)?;
+    pos("lrf.scan_period_s", l.scan_period_s)?;
+    if !(l.servo_start_deg.is_finite()
+        && l.servo_end_deg.is_finite()
+        && l.servo_start_deg <= l.servo_end_deg)
+    {
+        return Err(ConfigError::new(
+            "lrf.servo_end_deg",
+            l.servo_end_deg,
+            format!(
+                "must not be under lrf.servo_start_deg ({})",
+                l.servo_start_deg
+            ),
+        ));
+    }
+    if (l.servo_end_deg - l.servo_start_deg) / l.servo_step_deg > 100_000.0 {
+        return Err(ConfigError::new(
+            "lrf.servo_step_deg",
+            l.servo_step_deg,
+            "more than 100000 scans",
+        ));
+    }
+    finite3("lrf.extrinsic_opk_deg", l.extrinsic_opk_deg)?;
+    finite3("lrf.extrinsic_t_mm", l.extrinsic_t_mm)?;
+    finite3("lrf.mount_offset_mm", l.mount_offset_mm)?;
+    Ok(())
 }
 
 #[cfg(test)]
@@ -885,6 +970,45 @@ mod tests {
         assert_eq!(partial.balls.standoff_range_mm, [70.0, 150.0]);
         assert_eq!(partial.balls.count, 16);
         assert_eq!(partial.targets, TargetConfig::default());
+    }
+
+    #[test]
+    fn each_section_refuses_its_bad_values_naming_the_key() {
+        let cases: Vec<(&str, &str)> = vec![
+            ("[room]\nmax_tilt_deg = 11.0\n", "room.max_tilt_deg = 11: a room corner tilted by more than 10° is not a room corner"),
+            ("[targets]\ncode_bits = 13\n", "targets.code_bits = 13: AICON rings have 12 or 14 bits"),
+            ("[targets]\nring_outer = 1.5\n", "targets.ring_outer = 1.5: must exceed targets.ring_inner (2)"),
+            ("[balls]\nstem_radius_mm = 30.0\n", "balls.stem_radius_mm = 30: the stem must be thinner than the ball"),
+            ("[balls]\ncheck_balls = [17]\n", "balls.check_balls = 17: no such ball (1..=16)"),
+            ("[distances]\nsigma_mm = -1.0\n", "distances.sigma_mm = -1: must be a positive number"),
+            ("[camera]\nwidth = 8\n", "camera.width = 8: must be between 16 and 20000 pixels"),
+            ("[stations]\nconvergent = 2\nrolls_deg = []\n", "stations.rolls_deg = []: needs at least one roll"),
+            ("[render]\nsupersampling = 0\n", "render.supersampling = 0: must be between 1 and 64"),
+            ("[lrf]\nmin_range_mm = 6000.0\n", "lrf.min_range_mm = 6000: not under lrf.max_range_mm (5600)"),
+            ("[lrf]\nservo_end_deg = -200.0\n", "lrf.servo_end_deg = -200: must not be under lrf.servo_start_deg (-180)"),
+        ];
+        for (toml, want) in cases {
+            assert_eq!(SimConfig::from_toml_str(toml).unwrap_err(), want, "{toml}");
+        }
+    }
+
+    #[test]
+    fn sensor_maps_the_lrf_keys() {
+        let l = LrfConfig {
+            mount_offset_mm: [1.0, 2.0, 3.0],
+            ..LrfConfig::default()
+        };
+        let s = l.sensor();
+        assert_eq!(s.beams, 682);
+        assert_eq!(s.header.beam_angle_deg(0), -119.53125);
+        assert_eq!(s.mount.offset_mm, [1.0, 2.0, 3.0]);
+        assert_eq!(s.noise, RangeNoise::urg_04lx());
+        assert_eq!((s.min_range_mm, s.max_range_mm), (20.0, 5600.0));
+        let quiet = LrfConfig {
+            noise: false,
+            ..LrfConfig::default()
+        };
+        assert_eq!(quiet.sensor().noise, RangeNoise::Noiseless);
     }
 
     #[test]

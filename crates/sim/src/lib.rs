@@ -11,7 +11,7 @@
 //! | [`coded_target`] | where the bits of an AICON ring code go on a printed target (the code tables are `pingcal_targets::aicon`) |
 //! | [`stations`] | the MYNT EYE D1000-like stereo head and the camera stations |
 //! | [`render`] | images: exact ray casting with supersampling, flash, blur, vignetting, noise |
-//! | [`lrf`] | the Hokuyo URG-04LX on a Dynamixel MX-28T: scans with the sensor's noise |
+//! | [`lrf`] | the Hokuyo URG-04LX on a Dynamixel MX-28T: scans through `pingcal_lrf::sensor` (the calibration's own sensor model), with footprint and servo |
 //! | [`project_files`] | `project.toml`, PNG images, scan CSV, `truth.json` |
 //!
 //! ## Frames (all lengths in mm)

@@ -18,13 +18,21 @@
 //!   0.088°;
 //! * a mount offset: the scanner centre off the shaft by `mount_offset_mm` in the rotating
 //!   frame (eq. 2 assumes zero; the default is zero).
+//!
+//! The sensor itself (beam geometry with the mount, the range-noise profile, what a reading
+//! is) is `pingcal_lrf::sensor`, the model the calibration uses; [`LrfConfig::sensor`] maps
+//! the configuration onto it. This module adds what only a simulator needs: the scene, the
+//! beam footprint, the reflectivity threshold and the servo. The CSV is written by
+//! `pingcal_lrf::scan::ScanWriter`.
 
 use crate::config::LrfConfig;
 use crate::rng_for;
 use crate::scene::{Object, Scene};
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::Vector3;
 use pingcal_ba::pose::Pose;
 use pingcal_ba::rotation::from_opk;
+use pingcal_lrf::scan::ScanWriter;
+use pingcal_lrf::sensor::{LrfSensor, ScannerPose};
 use rand::Rng;
 use rand_distr::StandardNormal;
 use rayon::prelude::*;
@@ -44,21 +52,6 @@ pub struct Scan {
     pub ranges_mm: Vec<u32>,
 }
 
-/// `M(β)`: rotation about the shaft (Y) taking X to (cos β, 0, sin β).
-pub fn servo_rotation(beta: f64) -> Matrix3<f64> {
-    let (s, c) = beta.sin_cos();
-    Matrix3::new(c, 0.0, -s, 0.0, 1.0, 0.0, s, 0.0, c)
-}
-
-/// Unit direction of beam angle α at servo angle β (radians), LRF frame (eq. 2).
-pub fn beam_direction(alpha: f64, beta: f64) -> V3 {
-    V3::new(
-        alpha.cos() * beta.cos(),
-        alpha.sin(),
-        alpha.cos() * beta.sin(),
-    )
-}
-
 /// The true extrinsic as a pose LRF → main left camera: `p_camera = R·p_lrf + t`.
 pub fn extrinsic(cfg: &LrfConfig) -> Pose {
     let o = cfg.extrinsic_opk_deg;
@@ -73,11 +66,6 @@ pub fn world_to_lrf(main_left: &Pose, cfg: &LrfConfig) -> Pose {
     extrinsic(cfg).inverse().compose(main_left)
 }
 
-/// The URG-04LX range noise σ at range `r` (mm).
-pub fn range_sigma_mm(cfg: &LrfConfig, r: f64) -> f64 {
-    cfg.range_sigma_mm(r)
-}
-
 /// Simulates the whole servo sweep; `scene_lrf` must already be in the LRF frame
 /// (`scene.transformed(&world_to_lrf(..))`). Scans are independent (one random stream
 /// each), computed in parallel, identical for the same seed.
@@ -85,6 +73,26 @@ pub fn simulate_scans(scene_lrf: &Scene, cfg: &LrfConfig, seed: u64) -> Vec<Scan
     let nscans = ((cfg.servo_end_deg - cfg.servo_start_deg) / cfg.servo_step_deg + 1e-9).floor()
         as usize
         + 1;
+    let sensor = cfg.sensor();
+    let caps = culling_caps(scene_lrf, cfg);
+    (0..nscans)
+        .into_par_iter()
+        .map(|k| simulate_scan(scene_lrf, cfg, &sensor, &caps, seed, k))
+        .collect()
+}
+
+/// An object's bounding cone seen from the LRF, widened by the beam footprint and the
+/// mount offset: a beam whose direction is outside it cannot hit the object.
+struct Cap {
+    object: Object,
+    /// Unit direction of the cone's axis.
+    axis: V3,
+    /// Cosine of the cone's half-angle.
+    cos_max: f64,
+}
+
+/// The culling cones of the scene's targets and balls (with their stems).
+fn culling_caps(scene_lrf: &Scene, cfg: &LrfConfig) -> Vec<Cap> {
     // Bounding spheres of the objects, for angular culling.
     let mut bounds: Vec<(Object, V3, f64)> = Vec::new();
     for (i, t) in scene_lrf.targets.iter().enumerate() {
@@ -98,10 +106,9 @@ pub fn simulate_scans(scene_lrf: &Scene, cfg: &LrfConfig, seed: u64) -> Vec<Scan
             0.5 * b.stem_length + b.radius + b.stem_radius,
         ));
     }
-    let off = V3::from(cfg.mount_offset_mm);
-    let slack = off.norm() + 1.0;
+    let slack = V3::from(cfg.mount_offset_mm).norm() + 1.0;
     let half_beam = 0.5 * cfg.beam_width_deg.to_radians();
-    let caps: Vec<(Object, V3, f64)> = bounds
+    bounds
         .iter()
         .map(|(o, c, r)| {
             let d = c.norm();
@@ -110,114 +117,112 @@ pub fn simulate_scans(scene_lrf: &Scene, cfg: &LrfConfig, seed: u64) -> Vec<Scan
             } else {
                 ((r + slack) / d).asin()
             };
-            (
-                *o,
-                c / d,
-                (ang + 2.0 * half_beam).min(std::f64::consts::PI).cos(),
-            )
-        })
-        .collect();
-    (0..nscans)
-        .into_par_iter()
-        .map(|k| {
-            let mut rng = rng_for(seed, "lrf-scan", k as u64);
-            let commanded = cfg.servo_start_deg + k as f64 * cfg.servo_step_deg;
-            let err: f64 = if cfg.noise && cfg.servo_sigma_deg > 0.0 {
-                cfg.servo_sigma_deg * rng.sample::<f64, _>(StandardNormal)
-            } else {
-                0.0
-            };
-            let true_deg = commanded + err;
-            let reported = (true_deg / cfg.servo_resolution_deg).round() * cfg.servo_resolution_deg;
-            let beta = true_deg.to_radians();
-            let m = servo_rotation(beta);
-            let origin = m * off;
-            let mut objs: Vec<Object> = Vec::new();
-            let mut ranges = Vec::with_capacity(cfg.beams);
-            for i in 0..cfg.beams {
-                let alpha = (cfg.angle_min_deg + i as f64 * cfg.angle_increment_deg).to_radians();
-                let centre_dir = m * V3::new(alpha.cos(), alpha.sin(), 0.0);
-                objs.clear();
-                for (o, dir, cosmax) in &caps {
-                    if centre_dir.dot(dir) >= *cosmax {
-                        objs.push(*o);
-                    }
-                }
-                let h = half_beam * (2.0 / 3.0);
-                let subs: [(f64, f64, f64); 5] = [
-                    (0.0, 0.0, 2.0),
-                    (h, 0.0, 1.0),
-                    (-h, 0.0, 1.0),
-                    (0.0, h, 1.0),
-                    (0.0, -h, 1.0),
-                ];
-                let (mut sw, mut swr) = (0.0, 0.0);
-                for (da, dg, wt) in subs {
-                    let (a, g) = (alpha + da, dg);
-                    let d = m * V3::new(a.cos() * g.cos(), a.sin() * g.cos(), g.sin());
-                    if let Some(hit) = scene_lrf.cast(&origin, &d, Some(&objs)) {
-                        let refl = scene_lrf.reflectivity(&hit);
-                        if refl >= cfg.min_reflectivity {
-                            let cos_i = d.dot(&hit.normal).abs().max(0.05);
-                            let w = wt * refl * cos_i / (hit.t * hit.t);
-                            sw += w;
-                            swr += w * hit.t;
-                        }
-                    }
-                }
-                let r = if sw > 0.0 {
-                    let r_true = swr / sw;
-                    let noisy = if cfg.noise {
-                        r_true + cfg.range_sigma_mm(r_true) * rng.sample::<f64, _>(StandardNormal)
-                    } else {
-                        r_true
-                    };
-                    let q = noisy.round();
-                    if r_true > cfg.max_range_mm || q < cfg.min_range_mm || q > cfg.max_range_mm {
-                        0
-                    } else {
-                        q as u32
-                    }
-                } else {
-                    0
-                };
-                ranges.push(r);
-            }
-            Scan {
-                stamp_s: k as f64 * cfg.scan_period_s,
-                servo_deg: reported,
-                true_servo_deg: true_deg,
-                ranges_mm: ranges,
+            Cap {
+                object: *o,
+                axis: c / d,
+                cos_max: (ang + 2.0 * half_beam).min(std::f64::consts::PI).cos(),
             }
         })
         .collect()
 }
 
-/// The scans as a `pingcal-scan` v1 CSV (SPEC.md).
-pub fn scans_to_csv(scans: &[Scan], cfg: &LrfConfig) -> String {
-    use std::fmt::Write;
-    let mut s = String::new();
-    s.push_str("# pingcal-scan v1\n");
-    let _ = writeln!(s, "# angle_min_deg={}", cfg.angle_min_deg);
-    let _ = writeln!(s, "# angle_increment_deg={}", cfg.angle_increment_deg);
-    s.push_str("# range_unit=mm\n");
-    s.push_str("# sensor=Hokuyo URG-04LX (simulated by pingcal simulate)\n");
-    s.push_str("stamp_s,servo_deg");
-    for i in 0..cfg.beams {
-        let _ = write!(s, ",r{i}");
+/// Scan `k` of the sweep, from its own random stream: the servo's true and reported angle
+/// (one draw when the servo is noisy), then the beams in order.
+fn simulate_scan(
+    scene_lrf: &Scene,
+    cfg: &LrfConfig,
+    sensor: &LrfSensor,
+    caps: &[Cap],
+    seed: u64,
+    k: usize,
+) -> Scan {
+    let mut rng = rng_for(seed, "lrf-scan", k as u64);
+    let commanded = cfg.servo_start_deg + k as f64 * cfg.servo_step_deg;
+    let err: f64 = if cfg.noise && cfg.servo_sigma_deg > 0.0 {
+        cfg.servo_sigma_deg * rng.sample::<f64, _>(StandardNormal)
+    } else {
+        0.0
+    };
+    let true_deg = commanded + err;
+    let reported = (true_deg / cfg.servo_resolution_deg).round() * cfg.servo_resolution_deg;
+    let pose = sensor.scanner_at(true_deg);
+    let mut objs: Vec<Object> = Vec::new();
+    let ranges = (0..sensor.beams)
+        .map(|i| {
+            let alpha = sensor.beam_angle(i);
+            let centre_dir = pose.direction(alpha, 0.0);
+            objs.clear();
+            objs.extend(
+                caps.iter()
+                    .filter(|c| centre_dir.dot(&c.axis) >= c.cos_max)
+                    .map(|c| c.object),
+            );
+            match footprint_range(scene_lrf, cfg, &pose, alpha, &objs) {
+                Some(r_true) => sensor.read(r_true, &mut rng).map_or(0, |q| q as u32),
+                None => 0,
+            }
+        })
+        .collect();
+    Scan {
+        stamp_s: k as f64 * cfg.scan_period_s,
+        servo_deg: reported,
+        true_servo_deg: true_deg,
+        ranges_mm: ranges,
     }
-    s.push('\n');
-    for sc in scans {
-        let _ = write!(s, "{:.3},{:.6}", sc.stamp_s, sc.servo_deg);
-        for r in &sc.ranges_mm {
-            let _ = write!(s, ",{r}");
-        }
-        s.push('\n');
-    }
-    s
 }
 
-/// Turns one reading into a point of the eq. 2 frame (what a consumer of the CSV does).
-pub fn point_from_reading(r_mm: f64, alpha_deg: f64, beta_deg: f64) -> V3 {
-    beam_direction(alpha_deg.to_radians(), beta_deg.to_radians()) * r_mm
+/// The true range of one beam of angle `alpha` (radians): the power-weighted mean of the
+/// ranges of five sub-rays over the footprint (weights reflectivity·cos i / r²), over the
+/// surfaces bright enough to return; `None` when none does. `objs` are the objects the beam
+/// may hit.
+fn footprint_range(
+    scene_lrf: &Scene,
+    cfg: &LrfConfig,
+    pose: &ScannerPose,
+    alpha: f64,
+    objs: &[Object],
+) -> Option<f64> {
+    let h = 0.5 * cfg.beam_width_deg.to_radians() * (2.0 / 3.0);
+    let subs: [(f64, f64, f64); 5] = [
+        (0.0, 0.0, 2.0),
+        (h, 0.0, 1.0),
+        (-h, 0.0, 1.0),
+        (0.0, h, 1.0),
+        (0.0, -h, 1.0),
+    ];
+    let origin = pose.origin();
+    let (mut sw, mut swr) = (0.0, 0.0);
+    for (da, dg, wt) in subs {
+        let d = pose.direction(alpha + da, dg);
+        if let Some(hit) = scene_lrf.cast(&origin, &d, Some(objs)) {
+            let refl = scene_lrf.reflectivity(&hit);
+            if refl >= cfg.min_reflectivity {
+                let cos_i = d.dot(&hit.normal).abs().max(0.05);
+                let w = wt * refl * cos_i / (hit.t * hit.t);
+                sw += w;
+                swr += w * hit.t;
+            }
+        }
+    }
+    (sw > 0.0).then(|| swr / sw)
+}
+
+/// Writes the scans as a `pingcal-scan` v1 CSV (SPEC.md) through the calibration's own
+/// writer, with a `# sensor=` line naming the simulator.
+pub fn write_scans_csv<W: std::io::Write>(
+    out: W,
+    scans: &[Scan],
+    cfg: &LrfConfig,
+) -> std::io::Result<W> {
+    let sensor = cfg.sensor();
+    let mut w = ScanWriter::new(
+        out,
+        &sensor.header,
+        sensor.beams,
+        &["sensor=Hokuyo URG-04LX (simulated by pingcal simulate)"],
+    )?;
+    for sc in scans {
+        w.write_scan(sc.stamp_s, sc.servo_deg, sc.ranges_mm.iter().copied())?;
+    }
+    w.finish()
 }

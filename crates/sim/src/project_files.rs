@@ -466,11 +466,9 @@ pub fn write_project(sim: &Simulation, dir: &Path) -> Result<ProjectSummary, Sim
     })?;
     let main = sim.stations.iter().find(|s| s.main).expect("main station");
     let scan_path = dir.join(format!("scans/{}.csv", main.id));
-    std::fs::write(
-        &scan_path,
-        crate::lrf::scans_to_csv(&sim.scans, &sim.config.lrf),
-    )
-    .map_err(|e| io(&scan_path, e))?;
+    let csv = crate::lrf::write_scans_csv(Vec::new(), &sim.scans, &sim.config.lrf)
+        .map_err(|e| io(&scan_path, e))?;
+    std::fs::write(&scan_path, csv).map_err(|e| io(&scan_path, e))?;
     let project = project_of(sim);
     let text = format!(
         "# pingcal project file, version 1, written by `pingcal simulate --seed {}`.\n# Paths are relative to this file; lengths in mm.\n\n{}",

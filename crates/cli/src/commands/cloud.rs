@@ -8,7 +8,8 @@
 
 use super::CmdResult;
 use pingcal_lrf::ball_finder::{find_balls, FinderOptions};
-use pingcal_lrf::cloud::{read_cloud_file, Cloud, MountModel};
+use pingcal_lrf::cloud::{Cloud, MountModel};
+use pingcal_lrf::cloud_file::read_cloud_file;
 use std::path::PathBuf;
 
 /// Arguments of `pingcal cloud`.

@@ -8,9 +8,10 @@
 
 use super::{Options, PipelineError, Reporter, Result};
 use pingcal_lrf::ball_finder::{find_balls, FindResult, FinderOptions};
-use pingcal_lrf::cloud::{file_kind, non_empty, read_cloud_file, Cloud, CloudFileKind, MountModel};
+use pingcal_lrf::cloud::{Cloud, MountModel};
+use pingcal_lrf::cloud_file::{file_kind, non_empty, read_cloud_file, CloudFileKind};
 use pingcal_lrf::scan::{open_scan_file, ScanHeader, ScanLine};
-use pingcal_lrf::simulate::UrgNoise;
+use pingcal_lrf::sensor::RangeNoise;
 use pingcal_project::Project;
 
 /// Rejected clusters smaller than this are counted, not listed one by one (a 38 mm ball
@@ -28,7 +29,7 @@ pub struct LrfData {
     /// The mount model used.
     pub mount: MountModel,
     /// The noise model used.
-    pub noise: UrgNoise,
+    pub noise: RangeNoise,
 }
 
 /// The mount model of the project.
@@ -71,12 +72,7 @@ pub fn lrf_spheres(project: &Project, opts: &Options, rep: &Reporter) -> Result<
         }
         pb.advance(1);
     }
-    let noise = UrgNoise {
-        sigma_near_mm: l.accuracy_near_mm / 3.0,
-        sigma_rel_far: l.accuracy_far_fraction / 3.0,
-        max_range_mm: l.max_range_mm,
-        ..UrgNoise::default()
-    };
+    let noise = RangeNoise::from_datasheet(l.accuracy_near_mm, l.accuracy_far_fraction, 3.0);
     let found = find_balls(
         &cloud,
         &FinderOptions {

@@ -1,0 +1,358 @@
+//! The rotating 2D LRF as a sensor: where each beam goes, how noisy its ranges are, and
+//! what a reading is. The cloud ([`crate::cloud`]) turns readings into points with this
+//! geometry, the ball finder ([`crate::ball_finder`]) weighs points with this noise, and a
+//! simulator (`pingcal-sim`, [`crate::simulate`]) produces readings with both.
+//!
+//! **Beam geometry** (paper eq. 2; Y along the servo shaft, X along the beam at α = 0 when
+//! β = 0): `x = r cos α cos β,  y = r sin α,  z = r cos α sin β`, i.e.
+//! `p = R_β · (r cos α, r sin α, 0)` with `R_β = [[cos β, 0, −sin β], [0, 1, 0], [sin β, 0, cos β]]`.
+//!
+//! **Mount model** ([`MountModel`], zero by default, which is exactly eq. 2):
+//! `p = R_β · (R_x(tilt_x) · R_z(tilt_z) · (r cos α, r sin α, 0) + offset)`, with
+//! `β = servo − servo_zero`. `offset` is the 2D LRF centre seen from the servo axis (in the
+//! frame that turns with the servo), the tilts turn the scan plane. With a non-zero offset
+//! the frame origin is the point of the servo axis, and each beam starts at `R_β · offset`.
+//! [`ScannerPose`] is this geometry at one servo reading: the one implementation of
+//! beam → ray and beam → point.
+//!
+//! **Range noise** ([`RangeNoise`]). The URG-04LX datasheet gives ±30 mm under 1 m and
+//! ±3 % of the range beyond; read as ±3σ bounds this is σ = 10 mm up to 1 m and 1 % of the
+//! range beyond (continuous at 1 m), Gaussian along the ray.
+//!
+//! **A reading** ([`LrfSensor::read`]): the true range plus noise, rounded to whole
+//! millimetres as the sensor reports them, and no return when the true range is beyond the
+//! maximum or the reading outside `[min_range, max_range]`.
+
+use crate::scan::{ScanHeader, MIN_VALID_RANGE_MM};
+use nalgebra::{Matrix3, Vector3};
+use rand::Rng;
+use rand_distr::StandardNormal;
+
+/// The geometry of the LRF on its servo. All zero: paper eq. 2.
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct MountModel {
+    /// 2D LRF centre relative to the servo axis, in the turning frame, mm.
+    pub offset_mm: [f64; 3],
+    /// Tilt of the scan plane about X (the α = 0 beam), degrees.
+    pub tilt_x_deg: f64,
+    /// Tilt of the scan plane about Z, degrees.
+    pub tilt_z_deg: f64,
+    /// Servo reading at which the scan plane is the XY plane, degrees.
+    pub servo_zero_deg: f64,
+}
+
+/// `R_β` of eq. 2 (β in radians).
+pub fn servo_rotation(beta: f64) -> Matrix3<f64> {
+    let (s, c) = beta.sin_cos();
+    Matrix3::new(c, 0.0, -s, 0.0, 1.0, 0.0, s, 0.0, c)
+}
+
+impl MountModel {
+    fn tilt(&self) -> Matrix3<f64> {
+        let (sx, cx) = self.tilt_x_deg.to_radians().sin_cos();
+        let (sz, cz) = self.tilt_z_deg.to_radians().sin_cos();
+        let rx = Matrix3::new(1.0, 0.0, 0.0, 0.0, cx, -sx, 0.0, sx, cx);
+        let rz = Matrix3::new(cz, -sz, 0.0, sz, cz, 0.0, 0.0, 0.0, 1.0);
+        rx * rz
+    }
+
+    /// True when the model is eq. 2 exactly (every ray starts at the origin).
+    pub fn is_identity(&self) -> bool {
+        *self == MountModel::default()
+    }
+
+    /// The scanner at one servo reading (degrees).
+    pub fn scanner_at(&self, servo_deg: f64) -> ScannerPose {
+        let servo = servo_rotation((servo_deg - self.servo_zero_deg).to_radians());
+        ScannerPose {
+            servo,
+            tilt: self.tilt(),
+            origin: servo * Vector3::from(self.offset_mm),
+        }
+    }
+
+    /// The 3D point and the ray origin of one beam: range `r` (mm), beam angle α and servo
+    /// reading, both in degrees.
+    pub fn beam(&self, r: f64, alpha_deg: f64, servo_deg: f64) -> (Vector3<f64>, Vector3<f64>) {
+        let pose = self.scanner_at(servo_deg);
+        (pose.point(r, alpha_deg.to_radians()), pose.origin)
+    }
+}
+
+/// The scanner at one servo reading: where its rays start and where they go, in the LRF
+/// frame (see the module doc).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ScannerPose {
+    servo: Matrix3<f64>,
+    tilt: Matrix3<f64>,
+    origin: Vector3<f64>,
+}
+
+impl ScannerPose {
+    /// Where every ray of this scan starts, mm.
+    pub fn origin(&self) -> Vector3<f64> {
+        self.origin
+    }
+
+    /// Unit direction of beam angle α, raised by `elevation` out of the scan plane (both in
+    /// radians; a beam's own direction has elevation 0, a sub-ray of its footprint not).
+    pub fn direction(&self, alpha: f64, elevation: f64) -> Vector3<f64> {
+        let (a, g) = (alpha, elevation);
+        let local = Vector3::new(a.cos() * g.cos(), a.sin() * g.cos(), g.sin());
+        self.servo * (self.tilt * local)
+    }
+
+    /// The point at range `r` (mm) of beam angle α (radians).
+    pub fn point(&self, r: f64, alpha: f64) -> Vector3<f64> {
+        let (sa, ca) = alpha.sin_cos();
+        self.servo * (self.tilt * Vector3::new(r * ca, r * sa, 0.0)) + self.origin
+    }
+}
+
+/// How noisy a range reading is, as a function of the range: σ along the ray, mm. One
+/// variant per kind of profile, so another sensor's profile can be added beside the URG's.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub enum RangeNoise {
+    /// Exact ranges (for exact-data tests and noise-free simulations).
+    Noiseless,
+    /// σ = `sigma_near_mm` up to `near_limit_mm`, `sigma_rel_far` · r beyond (the shape of
+    /// the URG-04LX datasheet accuracy).
+    NearFar {
+        /// σ up to `near_limit_mm`, mm.
+        sigma_near_mm: f64,
+        /// σ as a fraction of the range beyond `near_limit_mm`.
+        sigma_rel_far: f64,
+        /// Where the profile switches, mm (a range equal to it is near).
+        near_limit_mm: f64,
+    },
+}
+
+impl Default for RangeNoise {
+    fn default() -> Self {
+        RangeNoise::urg_04lx()
+    }
+}
+
+impl RangeNoise {
+    /// The URG-04LX: σ = 10 mm up to 1 m, 1 % of the range beyond (the datasheet's ±30 mm
+    /// and ±3 % read as 3σ).
+    pub fn urg_04lx() -> Self {
+        RangeNoise::NearFar {
+            sigma_near_mm: 10.0,
+            sigma_rel_far: 0.01,
+            near_limit_mm: 1000.0,
+        }
+    }
+
+    /// A URG-like profile from datasheet accuracies: ±`accuracy_near_mm` up to 1 m,
+    /// ±`accuracy_far_fraction` of the range beyond, the ± bounds being `sigmas` σ.
+    pub fn from_datasheet(accuracy_near_mm: f64, accuracy_far_fraction: f64, sigmas: f64) -> Self {
+        RangeNoise::NearFar {
+            sigma_near_mm: accuracy_near_mm / sigmas,
+            sigma_rel_far: accuracy_far_fraction / sigmas,
+            near_limit_mm: 1000.0,
+        }
+    }
+
+    /// Range σ at range `r` (mm).
+    pub fn sigma(&self, r: f64) -> f64 {
+        match *self {
+            RangeNoise::Noiseless => 0.0,
+            RangeNoise::NearFar {
+                sigma_near_mm,
+                sigma_rel_far,
+                near_limit_mm,
+            } => {
+                if r <= near_limit_mm {
+                    sigma_near_mm
+                } else {
+                    sigma_rel_far * r
+                }
+            }
+        }
+    }
+
+    /// `r` plus Gaussian noise of σ([`RangeNoise::sigma`]) at `r`, drawn from `rng`: one
+    /// standard-normal draw unless the profile is [`RangeNoise::Noiseless`].
+    pub fn perturb<R: Rng + ?Sized>(&self, r: f64, rng: &mut R) -> f64 {
+        match self {
+            RangeNoise::Noiseless => r,
+            _ => r + self.sigma(r) * rng.sample::<f64, _>(StandardNormal),
+        }
+    }
+}
+
+/// A rotating 2D LRF: its beams, its mount on the servo, its range noise and the limits of
+/// a reading. The forward model of a simulator: [`LrfSensor::ray`] for where a beam goes,
+/// [`LrfSensor::read`] for what it reports.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LrfSensor {
+    /// Beam geometry: angle of beam 0 and step between beams (ranges are in mm).
+    pub header: ScanHeader,
+    /// Beams per scan.
+    pub beams: usize,
+    /// The LRF on its servo.
+    pub mount: MountModel,
+    /// Range noise.
+    pub noise: RangeNoise,
+    /// Shortest reading, mm (shorter: no return).
+    pub min_range_mm: f64,
+    /// Longest reading, mm (longer, or a true range beyond it: no return).
+    pub max_range_mm: f64,
+    /// Readings are rounded to whole millimetres.
+    pub quantise: bool,
+}
+
+impl LrfSensor {
+    /// The Hokuyo URG-04LX on eq. 2's mount: 682 beams of [`ScanHeader::URG_04LX`],
+    /// [`RangeNoise::urg_04lx`], readings in whole mm from 20 mm to 5.6 m.
+    pub fn urg_04lx() -> Self {
+        LrfSensor {
+            header: ScanHeader::URG_04LX,
+            beams: 682,
+            mount: MountModel::default(),
+            noise: RangeNoise::urg_04lx(),
+            min_range_mm: MIN_VALID_RANGE_MM,
+            max_range_mm: 5600.0,
+            quantise: true,
+        }
+    }
+
+    /// Beam angle α of beam `i`, radians.
+    pub fn beam_angle(&self, i: usize) -> f64 {
+        self.header.beam_angle_deg(i).to_radians()
+    }
+
+    /// The scanner at servo reading `servo_deg` (degrees).
+    pub fn scanner_at(&self, servo_deg: f64) -> ScannerPose {
+        self.mount.scanner_at(servo_deg)
+    }
+
+    /// The ray of beam `i` at servo reading `servo_deg`: origin and unit direction, LRF frame.
+    pub fn ray(&self, i: usize, servo_deg: f64) -> (Vector3<f64>, Vector3<f64>) {
+        let pose = self.scanner_at(servo_deg);
+        (pose.origin(), pose.direction(self.beam_angle(i), 0.0))
+    }
+
+    /// What the sensor reports for a beam of true range `r_true` (mm), the noise drawn from
+    /// `rng` ([`RangeNoise::perturb`]); `None` is no return.
+    pub fn read<R: Rng + ?Sized>(&self, r_true: f64, rng: &mut R) -> Option<f64> {
+        let noisy = self.noise.perturb(r_true, rng);
+        let r = if self.quantise { noisy.round() } else { noisy };
+        let valid = r_true <= self.max_range_mm
+            && r >= self.min_range_mm
+            && r <= self.max_range_mm
+            && r > 0.0;
+        valid.then_some(r)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::SeedableRng;
+
+    #[test]
+    fn eq2_exactly_with_default_mount() {
+        let m = MountModel::default();
+        for &(r, a, b) in &[
+            (1000.0f64, 30.0f64, 20.0f64),
+            (2500.0, -100.0, -45.0),
+            (700.0, 0.0, 90.0),
+        ] {
+            let (p, o) = m.beam(r, a, b);
+            let (ar, br) = (f64::to_radians(a), f64::to_radians(b));
+            let want = Vector3::new(
+                r * ar.cos() * br.cos(),
+                r * ar.sin(),
+                r * ar.cos() * br.sin(),
+            );
+            assert!((p - want).norm() < 1e-9, "{p} vs {want}");
+            assert_eq!(o, Vector3::zeros());
+        }
+    }
+
+    #[test]
+    fn mount_offset_moves_ray_origin_and_range_is_kept() {
+        let m = MountModel {
+            offset_mm: [10.0, -5.0, 30.0],
+            tilt_x_deg: 1.0,
+            tilt_z_deg: -0.5,
+            servo_zero_deg: 2.0,
+        };
+        let (p, o) = m.beam(1234.0, 17.0, 33.0);
+        assert!(((p - o).norm() - 1234.0).abs() < 1e-9);
+        assert!((o.norm() - Vector3::<f64>::new(10.0, -5.0, 30.0).norm()).abs() < 1e-9);
+        // servo_zero shifts β
+        let m0 = MountModel {
+            servo_zero_deg: 2.0,
+            ..Default::default()
+        };
+        let (p0, _) = m0.beam(1000.0, 10.0, 12.0);
+        let (p1, _) = MountModel::default().beam(1000.0, 10.0, 10.0);
+        assert!((p0 - p1).norm() < 1e-9);
+    }
+
+    #[test]
+    fn ray_points_at_the_beam_point() {
+        let sensor = LrfSensor {
+            mount: MountModel {
+                offset_mm: [4.0, 1.0, -3.0],
+                tilt_x_deg: 0.7,
+                tilt_z_deg: 0.2,
+                servo_zero_deg: -1.0,
+            },
+            ..LrfSensor::urg_04lx()
+        };
+        let (o, d) = sensor.ray(100, 25.0);
+        let (p, o2) = sensor
+            .mount
+            .beam(1500.0, sensor.header.beam_angle_deg(100), 25.0);
+        assert_eq!(o, o2);
+        assert!((d.norm() - 1.0).abs() < 1e-12);
+        assert!((o + 1500.0 * d - p).norm() < 1e-9);
+        // a sub-ray raised out of the scan plane leaves it by that angle
+        let pose = sensor.scanner_at(25.0);
+        let up = pose.direction(sensor.beam_angle(100), 0.01);
+        assert!((up.dot(&d).acos() - 0.01).abs() < 1e-9);
+    }
+
+    #[test]
+    fn urg_profile_is_the_datasheet_read_as_three_sigma() {
+        let urg = RangeNoise::urg_04lx();
+        assert_eq!(RangeNoise::from_datasheet(30.0, 0.03, 3.0), urg);
+        assert_eq!(urg.sigma(500.0), 10.0);
+        assert_eq!(urg.sigma(1000.0), 10.0);
+        assert!((urg.sigma(3000.0) - 30.0).abs() < 1e-12);
+        assert_eq!(RangeNoise::Noiseless.sigma(3000.0), 0.0);
+    }
+
+    #[test]
+    fn reading_is_noisy_rounded_and_limited() {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(3);
+        let exact = LrfSensor {
+            noise: RangeNoise::Noiseless,
+            quantise: false,
+            ..LrfSensor::urg_04lx()
+        };
+        assert_eq!(exact.read(1234.56, &mut rng), Some(1234.56));
+        assert_eq!(exact.read(10.0, &mut rng), None);
+        assert_eq!(exact.read(5600.5, &mut rng), None);
+        let urg = LrfSensor::urg_04lx();
+        let n = 4000;
+        let rs: Vec<f64> = (0..n).filter_map(|_| urg.read(2000.0, &mut rng)).collect();
+        assert_eq!(rs.len(), n);
+        assert!(rs.iter().all(|r| r.fract() == 0.0));
+        let mean = rs.iter().sum::<f64>() / n as f64;
+        let sd = (rs.iter().map(|r| (r - mean).powi(2)).sum::<f64>() / (n - 1) as f64).sqrt();
+        // σ = 20 mm: mean within 5 SE, sd within 5 SE of 20
+        assert!(
+            (mean - 2000.0).abs() < 5.0 * 20.0 / (n as f64).sqrt(),
+            "{mean}"
+        );
+        assert!(
+            (sd - 20.0).abs() < 5.0 * 20.0 / (2.0 * n as f64).sqrt(),
+            "{sd}"
+        );
+    }
+}
