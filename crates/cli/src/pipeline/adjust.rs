@@ -17,7 +17,7 @@ use nalgebra::Vector2;
 use pingcal_ba::camera::{CameraModel, PhotogrammetricCamera};
 use pingcal_ba::pose::Pose;
 use pingcal_ba::problem::{Camera, Distance, Image, Observation, Point, Problem, Rig, RigMember};
-use pingcal_project::{Project, PARAMETER_NAMES};
+use pingcal_project::{Parameter, Project};
 use pingcal_targets::ball::{sphere_centre_from_ellipse, FnCamera};
 use std::sync::Arc;
 
@@ -87,8 +87,8 @@ pub fn ba_cameras(project: &Project, params: &[Vec<f64>]) -> Vec<Camera> {
                 c.pixel_size_mm,
             ));
             let mut cam = Camera::new(c.id.clone(), model, p.clone());
-            for (k, name) in PARAMETER_NAMES.iter().enumerate() {
-                cam.fixed[k] = !c.free.iter().any(|f| f == name);
+            for p in Parameter::ALL {
+                cam.fixed[p.index()] = !c.free.contains(&p);
             }
             cam
         })

@@ -229,7 +229,7 @@ pub fn extrinsics(
     rep: &Reporter,
 ) -> Result<Extrinsics> {
     let f = &project.file;
-    let method = f.method();
+    let method = f.method;
     let cam_balls = camera_balls(scene, adj);
     let m = match_spheres(project, scene, lrf, &cam_balls, rep)?;
     let check_ids = check_balls(&f.balls.check, &m, rep);
