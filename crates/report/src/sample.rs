@@ -497,8 +497,46 @@ pub fn sample_report(cloud_points: usize) -> ReportData {
     let balls: Vec<&NetworkPoint> = pts.iter().filter(|p| p.kind == "ball").collect();
     let ball_xyz: Vec<V3> = balls.iter().map(|b| b.xyz).collect();
     let cloud_pts = lrf_cloud(&ball_xyz, cloud_points, &mut rng);
+    let spheres = fitted_spheres(&balls, &mut rng);
+    let methods = methods(&mut rng);
+    let rejected = rejections(&imgs);
+    let counts = Counts {
+        images: imgs.len(),
+        targets: pts.len() - balls.len(),
+        balls: balls.len(),
+        observations: imgs.iter().map(|i| i.points.len()).sum(),
+        rejected_observations: rejected.len() - 1,
+        cloud_points: cloud_pts.len(),
+    };
+    ReportData {
+        title: "pingcal calibration — simulated test field (seed 1)".into(),
+        generator: format!("pingcal {}", env!("CARGO_PKG_VERSION")),
+        summary: summary(&counts, &methods),
+        steps: steps(&counts),
+        images: imgs,
+        network: Network {
+            cameras: cams,
+            points: pts,
+        },
+        cloud: Cloud {
+            points: cloud_pts,
+            spheres,
+        },
+        methods,
+        intrinsics: vec![intrinsics("left", &mut rng), intrinsics("right", &mut rng)],
+        rejected,
+        warnings: vec![
+            "sphere S14 has 14 inliers only; its centre σ is 2.4 mm".into(),
+            "high correlation k1–k2 (r = −0.96) in both cameras".into(),
+        ],
+    }
+}
+
+/// The spheres fitted in the LRF cloud, one per ball (in the LRF frame, with noise), all
+/// matched to their ball but S14.
+fn fitted_spheres(balls: &[&NetworkPoint], rng: &mut Rng) -> Vec<Sphere> {
     let r = lrf_rotation();
-    let spheres: Vec<Sphere> = balls
+    balls
         .iter()
         .enumerate()
         .map(|(i, b)| {
@@ -518,14 +556,20 @@ pub fn sample_report(cloud_points: usize) -> ReportData {
                 matched_to: (i != 13).then(|| b.label.clone()),
             }
         })
-        .collect();
+        .collect()
+}
+
+/// The two methods' results: the spheres (5 check balls and 11 control balls) and the
+/// corner method of Fan et al. (2019) (5 check balls), each slightly off the true pose.
+fn methods(rng: &mut Rng) -> Vec<MethodResult> {
+    let r = lrf_rotation();
     let check_ids = ["4", "9", "11", "12", "15"];
     let control_ids = ["1", "2", "3", "5", "6", "7", "8", "10", "13", "14", "16"];
-    let mut sphere_rows = check_rows(&check_ids, &[6.1, 15.8, 9.7, 4.9, 15.5], "check", &mut rng);
+    let mut sphere_rows = check_rows(&check_ids, &[6.1, 15.8, 9.7, 4.9, 15.5], "check", rng);
     let ctrl_err: Vec<f64> = (0..control_ids.len())
         .map(|_| rng.range(2.5, 7.5))
         .collect();
-    sphere_rows.extend(check_rows(&control_ids, &ctrl_err, "control", &mut rng));
+    sphere_rows.extend(check_rows(&control_ids, &ctrl_err, "control", rng));
     let r_sph = mat_mul(
         &opk_matrix(
             0.05f64.to_radians(),
@@ -542,7 +586,7 @@ pub fn sample_report(cloud_points: usize) -> ReportData {
         ),
         &r,
     );
-    let methods = vec![
+    vec![
         method(
             "spheres",
             r_sph,
@@ -554,15 +598,14 @@ pub fn sample_report(cloud_points: usize) -> ReportData {
             "corner (Fan et al. 2019)",
             r_fan,
             add(LRF_T, [-6.3, 8.1, -4.4]),
-            check_rows(
-                &check_ids,
-                &[11.2, 19.9, 14.0, 20.3, 12.1],
-                "check",
-                &mut rng,
-            ),
+            check_rows(&check_ids, &[11.2, 19.9, 14.0, 20.3, 12.1], "check", rng),
             false,
         ),
-    ];
+    ]
+}
+
+/// The rejected observations of `imgs` (data snooping), then the unmatched sphere S14.
+fn rejections(imgs: &[ImageResiduals]) -> Vec<Rejection> {
     let mut rejected: Vec<Rejection> = imgs
         .iter()
         .flat_map(|img| {
@@ -584,88 +627,77 @@ pub fn sample_report(cloud_points: usize) -> ReportData {
         why: "no photogrammetric ball within the matching tolerance (partly occluded by its stem)"
             .into(),
     });
-    let n_obs: usize = imgs.iter().map(|i| i.points.len()).sum();
-    let sphere_m = &methods[0];
-    let fan = &methods[1];
-    ReportData {
-        title: "pingcal calibration — simulated test field (seed 1)".into(),
-        generator: format!("pingcal {}", env!("CARGO_PKG_VERSION")),
-        summary: vec![
-            (
-                "images".into(),
-                format!("{} (11 stereo stations)", imgs.len()),
-            ),
-            (
-                "object points".into(),
-                format!(
-                    "{} targets + {} balls",
-                    pts.len() - balls.len(),
-                    balls.len()
-                ),
-            ),
-            (
-                "image observations".into(),
-                format!("{n_obs} ({} rejected)", rejected.len() - 1),
-            ),
-            ("σ0 (a posteriori)".into(), "0.87".into()),
-            ("image RMS".into(), "0.16 px".into()),
-            (
-                "LRF cloud".into(),
-                format!("{} points shown, 16 spheres, 15 matched", cloud_pts.len()),
-            ),
-            (
-                "mean check error, spheres".into(),
-                format!(
-                    "{:.1} mm (sd {:.1})",
-                    sphere_m.mean_check_error_mm.unwrap_or(f64::NAN),
-                    sphere_m.sd_check_error_mm.unwrap_or(f64::NAN)
-                ),
-            ),
-            (
-                "mean check error, corner (Fan et al. 2019)".into(),
-                format!(
-                    "{:.1} mm (sd {:.1})",
-                    fan.mean_check_error_mm.unwrap_or(f64::NAN),
-                    fan.sd_check_error_mm.unwrap_or(f64::NAN)
-                ),
-            ),
-        ],
-        steps: vec![
-            "simulate: test field with 78 targets and 16 balls, stereo head, URG-04LX on MX-28T"
-                .into(),
-            format!("detect: {n_obs} image points in 22 images (coded, plain, balls)"),
-            "initial values: relative orientation of L01/R01, resections, intersections".into(),
-            "bundle adjustment: 9 iterations, σ0 = 0.87, self-calibration c xp yp k1 k2 p1 p2"
-                .into(),
-            format!(
-                "data snooping: {} observations rejected (|w| > 3.29)",
-                rejected.len() - 1
-            ),
-            "scale: 5 caliper distances, residuals ≤ 0.21 mm".into(),
-            format!(
-                "LRF: {} points in the cloud, 16 spheres fitted along the beams",
-                cloud_pts.len()
-            ),
-            "correspondence: 15 of 16 spheres matched by pairwise distances".into(),
-            "extrinsic (spheres): 11 control balls, 5 check balls".into(),
-            "extrinsic (corner, Fan et al. 2019): 3 scan-line segments, P3P, DLT on L01".into(),
-            "report written".into(),
-        ],
-        images: imgs,
-        network: Network {
-            cameras: cams,
-            points: pts,
-        },
-        cloud: Cloud {
-            points: cloud_pts,
-            spheres,
-        },
-        methods,
-        intrinsics: vec![intrinsics("left", &mut rng), intrinsics("right", &mut rng)],
-        rejected,
-        warnings: vec![
-            "sphere S14 has 14 inliers only; its centre σ is 2.4 mm".into(),
-            "high correlation k1–k2 (r = −0.96) in both cameras".into(),
-        ],
-    }
+    rejected
+}
+
+/// The sizes the summary and the steps quote.
+struct Counts {
+    images: usize,
+    targets: usize,
+    balls: usize,
+    observations: usize,
+    rejected_observations: usize,
+    cloud_points: usize,
+}
+
+/// The summary table: sizes, σ0, residuals and each method's mean check error.
+fn summary(n: &Counts, methods: &[MethodResult]) -> Vec<(String, String)> {
+    let check_error = |m: &MethodResult| {
+        format!(
+            "{:.1} mm (sd {:.1})",
+            m.mean_check_error_mm.unwrap_or(f64::NAN),
+            m.sd_check_error_mm.unwrap_or(f64::NAN)
+        )
+    };
+    vec![
+        (
+            "images".into(),
+            format!("{} (11 stereo stations)", n.images),
+        ),
+        (
+            "object points".into(),
+            format!("{} targets + {} balls", n.targets, n.balls),
+        ),
+        (
+            "image observations".into(),
+            format!("{} ({} rejected)", n.observations, n.rejected_observations),
+        ),
+        ("σ0 (a posteriori)".into(), "0.87".into()),
+        ("image RMS".into(), "0.16 px".into()),
+        (
+            "LRF cloud".into(),
+            format!("{} points shown, 16 spheres, 15 matched", n.cloud_points),
+        ),
+        ("mean check error, spheres".into(), check_error(&methods[0])),
+        (
+            "mean check error, corner (Fan et al. 2019)".into(),
+            check_error(&methods[1]),
+        ),
+    ]
+}
+
+/// The processing steps, as the pipeline would log them.
+fn steps(n: &Counts) -> Vec<String> {
+    vec![
+        "simulate: test field with 78 targets and 16 balls, stereo head, URG-04LX on MX-28T".into(),
+        format!(
+            "detect: {} image points in 22 images (coded, plain, balls)",
+            n.observations
+        ),
+        "initial values: relative orientation of L01/R01, resections, intersections".into(),
+        "bundle adjustment: 9 iterations, σ0 = 0.87, self-calibration c xp yp k1 k2 p1 p2".into(),
+        format!(
+            "data snooping: {} observations rejected (|w| > 3.29)",
+            n.rejected_observations
+        ),
+        "scale: 5 caliper distances, residuals ≤ 0.21 mm".into(),
+        format!(
+            "LRF: {} points in the cloud, 16 spheres fitted along the beams",
+            n.cloud_points
+        ),
+        "correspondence: 15 of 16 spheres matched by pairwise distances".into(),
+        "extrinsic (spheres): 11 control balls, 5 check balls".into(),
+        "extrinsic (corner, Fan et al. 2019): 3 scan-line segments, P3P, DLT on L01".into(),
+        "report written".into(),
+    ]
 }

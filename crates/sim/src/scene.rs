@@ -8,13 +8,14 @@
 //! the axes, and the planes are not exactly orthogonal.
 
 use crate::coded_target;
-use crate::config::{ConfigError, SimConfig};
+use crate::config::{BallConfig, ConfigError, RoomConfig, SimConfig, TargetConfig};
+use crate::stations::CameraUnit;
 use crate::{rng_for, SimError};
 use nalgebra::{Matrix3, Vector2, Vector3};
-use pingcal_ba::camera::PhotogrammetricCamera;
 use pingcal_ba::pose::Pose;
 use pingcal_ba::rotation::from_opk;
 use rand::Rng;
+use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
 type V3 = Vector3<f64>;
@@ -529,324 +530,36 @@ impl Scene {
 
     /// Builds the paper's test field from the configuration: the corner, the targets and
     /// balls spread over what the main station sees, and the caliper distances.
+    ///
+    /// The `room` random stream is drawn in a fixed order: the corner's tilts and bulges,
+    /// then the targets' jitter, code numbers and code rotations, then the balls'
+    /// stand-offs; the distances have their own stream.
     pub fn build(cfg: &SimConfig, seed: u64) -> Result<Self, SimError> {
         cfg.validate()?;
         let mut rng = rng_for(seed, "room", 0);
-        let rc = &cfg.room;
-        let tilt = rc.max_tilt_deg;
-        let small_rot = |rng: &mut rand_chacha::ChaCha8Rng| {
-            let mut a = [0.0; 3];
-            for x in a.iter_mut() {
-                *x = if tilt > 0.0 {
-                    rng.random_range(-tilt..=tilt)
-                } else {
-                    0.0
-                };
-            }
-            from_opk(a[0].to_radians(), a[1].to_radians(), a[2].to_radians())
-        };
-        let n_floor = small_rot(&mut rng) * V3::z();
-        let n_w1 = small_rot(&mut rng) * V3::y();
-        let n_w2 = small_rot(&mut rng) * V3::x();
-        let orient = |v: V3, along: V3| if v.dot(&along) < 0.0 { -v } else { v };
-        let ex = orient(n_floor.cross(&n_w1).normalize(), V3::x());
-        let ey = orient(n_w2.cross(&n_floor).normalize(), V3::y());
-        let ez = orient(n_w1.cross(&n_w2).normalize(), V3::z());
-        let mut bulge = || {
-            if rc.max_bulge_mm > 0.0 {
-                let m: f64 = rng.random_range(0.3..=1.0) * rc.max_bulge_mm;
-                if rng.random_bool(0.5) {
-                    m
-                } else {
-                    -m
-                }
-            } else {
-                0.0
-            }
-        };
-        let (l, h) = (rc.wall_length_mm, rc.wall_height_mm);
-        let (b1, b2, b3) = (bulge(), bulge(), bulge());
-        let surfaces = vec![
-            Surface::new(
-                "wall1",
-                V3::zeros(),
-                ex,
-                ez,
-                n_w1,
-                l,
-                h,
-                b1,
-                rc.wall_albedo,
-                rc.texture_amplitude,
-                seed ^ 0x11,
-            ),
-            Surface::new(
-                "wall2",
-                V3::zeros(),
-                ey,
-                ez,
-                n_w2,
-                l,
-                h,
-                b2,
-                rc.wall_albedo,
-                rc.texture_amplitude,
-                seed ^ 0x22,
-            ),
-            Surface::new(
-                "floor",
-                V3::zeros(),
-                ex,
-                ey,
-                n_floor,
-                l,
-                l,
-                b3,
-                rc.floor_albedo,
-                rc.texture_amplitude,
-                seed ^ 0x33,
-            ),
-        ];
-
-        // The main left camera decides where targets and balls go: spread over its image.
-        let main = crate::stations::main_left_pose(&cfg.stations);
-        crate::stations::check_inside(
-            &surfaces,
-            &main.centre(),
-            "stations.main_centre_mm",
-            "S00",
-            "left",
-            cfg.stations.min_wall_clearance_mm,
-        )?;
-        let rig = crate::stations::StereoRig::from_config(cfg);
-        let left = &rig.cameras[0];
-        let r_max = left.max_ideal_radius_mm();
-        let cam = PhotogrammetricCamera::new(
-            cfg.camera.width,
-            cfg.camera.height,
-            cfg.camera.pixel_size_mm,
-        );
-        let in_view = |p: &V3, n: &V3, margin: f64| -> Option<Vector2<f64>> {
-            let xc = main.transform(p);
-            let to_cam = main.centre() - p;
-            if n.dot(&to_cam) < 0.25 * to_cam.norm() {
-                return None; // seen at more than ~75° incidence
-            }
-            let uv = left.project_in_view(&xc, r_max)?;
-            (uv.x > margin
-                && uv.y > margin
-                && uv.x < cam.width as f64 - 1.0 - margin
-                && uv.y < cam.height as f64 - 1.0 - margin)
-                .then_some(uv)
-        };
-
-        let tc = &cfg.targets;
-        let sp = tc.grid_spacing_mm;
-        let mut cands: Vec<(usize, f64, f64, V3)> = Vec::new();
-        for (si, s) in surfaces.iter().enumerate() {
-            let m = tc.edge_margin_mm;
-            let mut u = m;
-            while u <= s.u_max - m {
-                let mut v = m;
-                while v <= s.v_max - m {
-                    let p = s.point(u, v);
-                    if in_view(&p, &s.normal(u, v), 30.0).is_some() {
-                        cands.push((si, u, v, p));
-                    }
-                    v += sp;
-                }
-                u += sp;
-            }
-        }
-        if cands.len() < tc.count {
-            return Err(ConfigError::new(
-                "targets.count",
-                tc.count,
-                format!("only {} grid places of targets.grid_spacing_mm = {sp} are in the main station's view", cands.len()),
-            )
-            .into());
-        }
-        let pts: Vec<V3> = cands.iter().map(|c| c.3).collect();
-        let chosen = farthest_point_sampling(&pts, tc.count);
-        let rr = tc.dot_radius_mm;
-        let mut placed: Vec<(usize, f64, f64)> = Vec::new();
-        for &ci in &chosen {
-            let (si, u, v, _) = cands[ci];
-            let j = 0.15 * sp;
-            let (du, dv): (f64, f64) = (rng.random_range(-j..=j), rng.random_range(-j..=j));
-            placed.push((si, u + du, v + dv));
-        }
-        let placed_pts: Vec<V3> = placed
-            .iter()
-            .map(|&(si, u, v)| surfaces[si].point(u, v))
-            .collect();
-        let coded_idx = farthest_point_sampling(&placed_pts, tc.coded);
-        let table = coded_target::code_table(tc.code_bits);
-        let mut numbers: Vec<u32> = (1..=table.codes.len() as u32).collect();
-        // Partial Fisher–Yates: the first `coded` numbers are a random choice.
-        for i in 0..tc.coded.min(numbers.len()) {
-            let j = rng.random_range(i..numbers.len());
-            numbers.swap(i, j);
-        }
-        let mut targets = Vec::with_capacity(tc.count);
-        let mut next_plain = 1001;
-        for (k, &(si, u, v)) in placed.iter().enumerate() {
-            let s = &surfaces[si];
-            let normal = s.normal(u, v);
-            // t1 along the plane's first edge, made orthogonal to the normal.
-            let t1 = (s.a - normal * s.a.dot(&normal)).normalize();
-            let t2 = normal.cross(&t1);
-            let coded_pos = coded_idx.iter().position(|&c| c == k);
-            let (id, code) = match coded_pos {
-                Some(p) => (numbers[p], table.code(numbers[p])),
-                None => {
-                    next_plain += 1;
-                    (next_plain - 1, None)
-                }
-            };
-            let bg = if code.is_some() {
-                tc.background
-            } else {
-                tc.plain_background
-            };
-            targets.push(Target {
-                id,
-                code,
-                surface: si,
-                centre: s.point(u, v),
-                normal,
-                t1,
-                t2,
-                dot_radius: rr,
-                ring_inner: tc.ring_inner * rr,
-                ring_outer: tc.ring_outer * rr,
-                background: bg * rr,
-                code_rotation: rng.random_range(0.0..std::f64::consts::TAU),
-                bits: tc.code_bits,
-            });
-        }
-
-        // Balls.
-        let bc = &cfg.balls;
-        let radius = 0.5 * bc.diameter_mm;
-        let mut feet: Vec<(usize, f64, f64, f64)> = Vec::new(); // surface, u, v, standoff
-        if let Some(ps) = &bc.placements {
-            for p in ps {
-                let si = ["wall1", "wall2", "floor"]
-                    .iter()
-                    .position(|n| *n == p.surface)
-                    .unwrap();
-                feet.push((si, p.u_mm, p.v_mm, p.standoff_mm));
-            }
-        } else {
-            let mut bcands: Vec<(usize, f64, f64, V3)> = Vec::new();
-            for (si, s) in surfaces.iter().enumerate() {
-                let m = tc.edge_margin_mm + 0.5 * sp;
-                let mut u = m;
-                while u <= s.u_max - m {
-                    let mut v = m;
-                    while v <= s.v_max - m {
-                        let foot = s.point(u, v);
-                        let c = foot
-                            + s.normal(u, v)
-                                * 0.5
-                                * (bc.standoff_range_mm[0] + bc.standoff_range_mm[1]);
-                        let clear = targets
-                            .iter()
-                            .all(|t| (t.centre - foot).norm() > bc.clearance_mm + t.background);
-                        if clear && in_view(&c, &s.normal(u, v), 60.0).is_some() {
-                            bcands.push((si, u, v, c));
-                        }
-                        v += 0.5 * sp;
-                    }
-                    u += 0.5 * sp;
-                }
-            }
-            if bcands.len() < bc.count {
-                return Err(ConfigError::new(
-                    "balls.count",
-                    bc.count,
-                    format!(
-                        "only {} places for balls in the main station's view",
-                        bcands.len()
-                    ),
-                )
-                .into());
-            }
-            let pts: Vec<V3> = bcands.iter().map(|c| c.3).collect();
-            for ci in farthest_point_sampling(&pts, bc.count) {
-                let (si, u, v, _) = bcands[ci];
-                let st = rng.random_range(bc.standoff_range_mm[0]..=bc.standoff_range_mm[1]);
-                feet.push((si, u, v, st));
-            }
-        }
-        let mut balls = Vec::new();
-        for (k, &(si, u, v, st)) in feet.iter().enumerate() {
-            let s = &surfaces[si];
-            let key = |f: &str| format!("balls.placements[{k}].{f}");
-            if bc.placements.is_some() && !(u >= 0.0 && u <= s.u_max && v >= 0.0 && v <= s.v_max) {
-                return Err(ConfigError::new(
-                    key("u_mm"),
-                    format!("{u}, v_mm = {v}"),
-                    format!("outside {} ({} × {} mm)", s.name, s.u_max, s.v_max),
-                )
-                .into());
-            }
-            let foot = s.point(u, v);
-            let axis = s.normal(u, v);
-            let centre = foot + axis * st;
-            for other in &surfaces {
-                let dist = other.plane_distance(&centre) - other.bulge_mm.max(0.0);
-                if dist < radius {
-                    return Err(ConfigError::new(
-                        if bc.placements.is_some() { key("standoff_mm") } else { "balls.standoff_range_mm".to_string() },
-                        st,
-                        format!("ball {} would be {dist:.1} mm from {}, less than its radius {radius} mm: a ball inside a wall", k + 1, other.name),
-                    )
-                    .into());
-                }
-            }
-            balls.push(Ball {
-                id: 0,
-                centre,
-                radius,
-                foot,
-                axis,
-                stem_length: st,
-                stem_radius: bc.stem_radius_mm,
-                surface: si,
-            });
-        }
-        // Number the balls as a reader of the main image would: rows of ~100 px, left to right.
-        if bc.placements.is_none() {
-            let key = |b: &Ball| {
-                let uv = left
-                    .project_in_view(&main.transform(&b.centre), r_max)
-                    .unwrap_or_default();
-                ((uv.y / 100.0).floor() as i64, uv.x)
-            };
-            balls.sort_by(|a, b| {
-                let (ka, kb) = (key(a), key(b));
-                ka.0.cmp(&kb.0).then(ka.1.total_cmp(&kb.1))
-            });
+        let surfaces = corner_surfaces(&cfg.room, seed, &mut rng);
+        let view = MainView::new(cfg, &surfaces)?;
+        let targets = place_targets(&cfg.targets, &surfaces, &view, &mut rng)?;
+        let feet = ball_feet(cfg, &surfaces, &targets, &view, &mut rng)?;
+        let mut balls = mount_balls(&cfg.balls, &surfaces, &feet)?;
+        if cfg.balls.placements.is_none() {
+            sort_as_read(&mut balls, &view);
         }
         for (i, b) in balls.iter_mut().enumerate() {
             b.id = i as u32 + 1;
         }
-
         let distances = choose_distances(cfg, &targets, &mut rng_for(seed, "distances", 0))?;
         Ok(Scene {
             surfaces,
             targets,
             balls,
             distances,
-            black_albedo: tc.black_albedo,
-            retro_gain: tc.retro_gain,
-            ball_albedo: bc.albedo,
-            stem_albedo: bc.stem_albedo,
+            black_albedo: cfg.targets.black_albedo,
+            retro_gain: cfg.targets.retro_gain,
+            ball_albedo: cfg.balls.albedo,
+            stem_albedo: cfg.balls.stem_albedo,
         })
     }
-
     /// Moves everything by a rigid transform `x' = pose(x)` (e.g. into a camera frame).
     pub fn transformed(&self, pose: &Pose) -> Scene {
         let r = pose.rotation;
@@ -879,6 +592,441 @@ impl Scene {
         }
         s
     }
+}
+
+/// A place on the field: a surface (index into [`Scene::surfaces`]) and coordinates on it.
+#[derive(Debug, Clone, Copy)]
+struct Spot {
+    surface: usize,
+    u: f64,
+    v: f64,
+}
+
+/// A small random rotation: omega, phi and kappa each uniform in ±`tilt_deg` (three draws,
+/// none when `tilt_deg` is 0).
+fn small_rotation(tilt_deg: f64, rng: &mut ChaCha8Rng) -> Matrix3<f64> {
+    let mut a = [0.0; 3];
+    for x in a.iter_mut() {
+        *x = if tilt_deg > 0.0 {
+            rng.random_range(-tilt_deg..=tilt_deg)
+        } else {
+            0.0
+        };
+    }
+    from_opk(a[0].to_radians(), a[1].to_radians(), a[2].to_radians())
+}
+
+/// A random bulge height: 30 to 100 % of `max_mm`, either sign (two draws, none when
+/// `max_mm` is 0).
+fn random_bulge(max_mm: f64, rng: &mut ChaCha8Rng) -> f64 {
+    if max_mm > 0.0 {
+        let m: f64 = rng.random_range(0.3..=1.0) * max_mm;
+        if rng.random_bool(0.5) {
+            m
+        } else {
+            -m
+        }
+    } else {
+        0.0
+    }
+}
+
+/// The room corner: wall1, wall2 and the floor, each tilted by a small random rotation and
+/// bulged at random, meeting along their common edges at the origin.
+fn corner_surfaces(rc: &RoomConfig, seed: u64, rng: &mut ChaCha8Rng) -> Vec<Surface> {
+    let n_floor = small_rotation(rc.max_tilt_deg, rng) * V3::z();
+    let n_w1 = small_rotation(rc.max_tilt_deg, rng) * V3::y();
+    let n_w2 = small_rotation(rc.max_tilt_deg, rng) * V3::x();
+    let orient = |v: V3, along: V3| if v.dot(&along) < 0.0 { -v } else { v };
+    let ex = orient(n_floor.cross(&n_w1).normalize(), V3::x());
+    let ey = orient(n_w2.cross(&n_floor).normalize(), V3::y());
+    let ez = orient(n_w1.cross(&n_w2).normalize(), V3::z());
+    let (l, h) = (rc.wall_length_mm, rc.wall_height_mm);
+    let b1 = random_bulge(rc.max_bulge_mm, rng);
+    let b2 = random_bulge(rc.max_bulge_mm, rng);
+    let b3 = random_bulge(rc.max_bulge_mm, rng);
+    vec![
+        Surface::new(
+            "wall1",
+            V3::zeros(),
+            ex,
+            ez,
+            n_w1,
+            l,
+            h,
+            b1,
+            rc.wall_albedo,
+            rc.texture_amplitude,
+            seed ^ 0x11,
+        ),
+        Surface::new(
+            "wall2",
+            V3::zeros(),
+            ey,
+            ez,
+            n_w2,
+            l,
+            h,
+            b2,
+            rc.wall_albedo,
+            rc.texture_amplitude,
+            seed ^ 0x22,
+        ),
+        Surface::new(
+            "floor",
+            V3::zeros(),
+            ex,
+            ey,
+            n_floor,
+            l,
+            l,
+            b3,
+            rc.floor_albedo,
+            rc.texture_amplitude,
+            seed ^ 0x33,
+        ),
+    ]
+}
+
+/// The main station's left camera, over whose image the targets and balls are spread.
+struct MainView {
+    /// World → camera.
+    pose: Pose,
+    /// The left camera of the head.
+    camera: CameraUnit,
+    /// Its largest ideal image radius (see [`CameraUnit::max_ideal_radius_mm`]).
+    r_max: f64,
+}
+
+impl MainView {
+    /// The main left camera of the configuration, refused when it stands outside the room
+    /// (or too close to a wall).
+    fn new(cfg: &SimConfig, surfaces: &[Surface]) -> Result<Self, SimError> {
+        let pose = crate::stations::main_left_pose(&cfg.stations);
+        crate::stations::check_inside(
+            surfaces,
+            &pose.centre(),
+            "stations.main_centre_mm",
+            "S00",
+            "left",
+            cfg.stations.min_wall_clearance_mm,
+        )?;
+        let [camera, _] = crate::stations::StereoRig::from_config(cfg).cameras;
+        let r_max = camera.max_ideal_radius_mm();
+        Ok(Self {
+            pose,
+            camera,
+            r_max,
+        })
+    }
+
+    /// The image point of `p` (on a surface of normal `n`) when the camera sees it at less
+    /// than ~75° incidence and more than `margin` pixels inside the image border.
+    fn sees(&self, p: &V3, n: &V3, margin: f64) -> Option<Vector2<f64>> {
+        let xc = self.pose.transform(p);
+        let to_cam = self.pose.centre() - p;
+        if n.dot(&to_cam) < 0.25 * to_cam.norm() {
+            return None; // seen at more than ~75° incidence
+        }
+        let uv = self.camera.project_in_view(&xc, self.r_max)?;
+        let (w, h) = (self.camera.model.width, self.camera.model.height);
+        (uv.x > margin
+            && uv.y > margin
+            && uv.x < w as f64 - 1.0 - margin
+            && uv.y < h as f64 - 1.0 - margin)
+            .then_some(uv)
+    }
+
+    /// The image point of `p`, or (0, 0) when it is out of view.
+    fn image_point(&self, p: &V3) -> Vector2<f64> {
+        self.camera
+            .project_in_view(&self.pose.transform(p), self.r_max)
+            .unwrap_or_default()
+    }
+}
+
+/// The (u, v) of a square grid of `step` on surface `s`, `margin` inside its edges, in rows
+/// of constant u.
+fn grid(s: &Surface, margin: f64, step: f64) -> Vec<(f64, f64)> {
+    let mut out = Vec::new();
+    let mut u = margin;
+    while u <= s.u_max - margin {
+        let mut v = margin;
+        while v <= s.v_max - margin {
+            out.push((u, v));
+            v += step;
+        }
+        u += step;
+    }
+    out
+}
+
+/// Where the targets go: `tc.count` places of the target grid that the main view sees,
+/// spread by farthest-point sampling, each jittered by up to 15 % of the grid spacing (two
+/// draws per target).
+fn target_spots(
+    tc: &TargetConfig,
+    surfaces: &[Surface],
+    view: &MainView,
+    rng: &mut ChaCha8Rng,
+) -> Result<Vec<Spot>, SimError> {
+    let sp = tc.grid_spacing_mm;
+    let mut cands: Vec<(Spot, V3)> = Vec::new();
+    for (si, s) in surfaces.iter().enumerate() {
+        for (u, v) in grid(s, tc.edge_margin_mm, sp) {
+            let p = s.point(u, v);
+            if view.sees(&p, &s.normal(u, v), 30.0).is_some() {
+                cands.push((Spot { surface: si, u, v }, p));
+            }
+        }
+    }
+    if cands.len() < tc.count {
+        return Err(ConfigError::new(
+            "targets.count",
+            tc.count,
+            format!("only {} grid places of targets.grid_spacing_mm = {sp} are in the main station's view", cands.len()),
+        )
+        .into());
+    }
+    let pts: Vec<V3> = cands.iter().map(|c| c.1).collect();
+    let j = 0.15 * sp;
+    Ok(farthest_point_sampling(&pts, tc.count)
+        .into_iter()
+        .map(|ci| {
+            let spot = cands[ci].0;
+            let (du, dv): (f64, f64) = (rng.random_range(-j..=j), rng.random_range(-j..=j));
+            Spot {
+                u: spot.u + du,
+                v: spot.v + dv,
+                ..spot
+            }
+        })
+        .collect())
+}
+
+/// The numbers of the coded targets: `coded` distinct numbers out of 1..=`table_len`,
+/// drawn at random (a partial Fisher–Yates shuffle).
+fn coded_numbers(coded: usize, table_len: usize, rng: &mut ChaCha8Rng) -> Vec<u32> {
+    let mut numbers: Vec<u32> = (1..=table_len as u32).collect();
+    for i in 0..coded.min(numbers.len()) {
+        let j = rng.random_range(i..numbers.len());
+        numbers.swap(i, j);
+    }
+    numbers.truncate(coded);
+    numbers
+}
+
+/// The targets at [`target_spots`]: the `tc.coded` most spread of them coded with random
+/// numbers, the others plain and numbered 1001, 1002, … in placing order; each printed with
+/// a random code rotation.
+fn place_targets(
+    tc: &TargetConfig,
+    surfaces: &[Surface],
+    view: &MainView,
+    rng: &mut ChaCha8Rng,
+) -> Result<Vec<Target>, SimError> {
+    let spots = target_spots(tc, surfaces, view, rng)?;
+    let pts: Vec<V3> = spots
+        .iter()
+        .map(|s| surfaces[s.surface].point(s.u, s.v))
+        .collect();
+    let coded_idx = farthest_point_sampling(&pts, tc.coded);
+    let table = coded_target::code_table(tc.code_bits);
+    let numbers = coded_numbers(tc.coded, table.codes.len(), rng);
+    let mut targets = Vec::with_capacity(tc.count);
+    let mut next_plain = 1001;
+    for (k, &spot) in spots.iter().enumerate() {
+        let (id, code) = match coded_idx.iter().position(|&c| c == k) {
+            Some(p) => (numbers[p], table.code(numbers[p])),
+            None => {
+                next_plain += 1;
+                (next_plain - 1, None)
+            }
+        };
+        let code_rotation = rng.random_range(0.0..std::f64::consts::TAU);
+        targets.push(sticker(tc, surfaces, spot, id, code, code_rotation));
+    }
+    Ok(targets)
+}
+
+/// The target sticker number `id` (with ring `code` when coded) at `spot`, lying in the
+/// tangent plane of its surface, `t1` along the surface's first edge.
+fn sticker(
+    tc: &TargetConfig,
+    surfaces: &[Surface],
+    spot: Spot,
+    id: u32,
+    code: Option<u32>,
+    code_rotation: f64,
+) -> Target {
+    let s = &surfaces[spot.surface];
+    let normal = s.normal(spot.u, spot.v);
+    // t1 along the plane's first edge, made orthogonal to the normal.
+    let t1 = (s.a - normal * s.a.dot(&normal)).normalize();
+    let t2 = normal.cross(&t1);
+    let rr = tc.dot_radius_mm;
+    let bg = if code.is_some() {
+        tc.background
+    } else {
+        tc.plain_background
+    };
+    Target {
+        id,
+        code,
+        surface: spot.surface,
+        centre: s.point(spot.u, spot.v),
+        normal,
+        t1,
+        t2,
+        dot_radius: rr,
+        ring_inner: tc.ring_inner * rr,
+        ring_outer: tc.ring_outer * rr,
+        background: bg * rr,
+        code_rotation,
+        bits: tc.code_bits,
+    }
+}
+
+/// Where the balls' stems stand and their stand-off: the configured placements, or
+/// `balls.count` of [`ball_candidates`] spread by farthest-point sampling, each with a
+/// random stand-off (one draw per ball).
+fn ball_feet(
+    cfg: &SimConfig,
+    surfaces: &[Surface],
+    targets: &[Target],
+    view: &MainView,
+    rng: &mut ChaCha8Rng,
+) -> Result<Vec<(Spot, f64)>, SimError> {
+    let bc = &cfg.balls;
+    if let Some(ps) = &bc.placements {
+        return Ok(ps
+            .iter()
+            .map(|p| {
+                // The configuration's validation has checked the surface names.
+                let si = ["wall1", "wall2", "floor"]
+                    .iter()
+                    .position(|n| *n == p.surface)
+                    .unwrap();
+                (
+                    Spot {
+                        surface: si,
+                        u: p.u_mm,
+                        v: p.v_mm,
+                    },
+                    p.standoff_mm,
+                )
+            })
+            .collect());
+    }
+    let cands = ball_candidates(cfg, surfaces, targets, view);
+    if cands.len() < bc.count {
+        return Err(ConfigError::new(
+            "balls.count",
+            bc.count,
+            format!(
+                "only {} places for balls in the main station's view",
+                cands.len()
+            ),
+        )
+        .into());
+    }
+    let pts: Vec<V3> = cands.iter().map(|c| c.1).collect();
+    Ok(farthest_point_sampling(&pts, bc.count)
+        .into_iter()
+        .map(|ci| {
+            let st = rng.random_range(bc.standoff_range_mm[0]..=bc.standoff_range_mm[1]);
+            (cands[ci].0, st)
+        })
+        .collect())
+}
+
+/// The places a ball could stand, with its centre at mid-range stand-off: a grid of half
+/// the target spacing, clear of the targets, where the main view sees the ball well inside
+/// the image.
+fn ball_candidates(
+    cfg: &SimConfig,
+    surfaces: &[Surface],
+    targets: &[Target],
+    view: &MainView,
+) -> Vec<(Spot, V3)> {
+    let (bc, tc) = (&cfg.balls, &cfg.targets);
+    let sp = tc.grid_spacing_mm;
+    let mut cands = Vec::new();
+    for (si, s) in surfaces.iter().enumerate() {
+        for (u, v) in grid(s, tc.edge_margin_mm + 0.5 * sp, 0.5 * sp) {
+            let foot = s.point(u, v);
+            let c =
+                foot + s.normal(u, v) * 0.5 * (bc.standoff_range_mm[0] + bc.standoff_range_mm[1]);
+            let clear = targets
+                .iter()
+                .all(|t| (t.centre - foot).norm() > bc.clearance_mm + t.background);
+            if clear && view.sees(&c, &s.normal(u, v), 60.0).is_some() {
+                cands.push((Spot { surface: si, u, v }, c));
+            }
+        }
+    }
+    cands
+}
+
+/// The balls on their stems at `feet` (unnumbered: `id` 0), refused when a configured foot
+/// is off its surface or a ball would cut into a wall.
+fn mount_balls(
+    bc: &BallConfig,
+    surfaces: &[Surface],
+    feet: &[(Spot, f64)],
+) -> Result<Vec<Ball>, SimError> {
+    let radius = 0.5 * bc.diameter_mm;
+    let mut balls = Vec::with_capacity(feet.len());
+    for (k, &(Spot { surface: si, u, v }, st)) in feet.iter().enumerate() {
+        let s = &surfaces[si];
+        let key = |f: &str| format!("balls.placements[{k}].{f}");
+        if bc.placements.is_some() && !(u >= 0.0 && u <= s.u_max && v >= 0.0 && v <= s.v_max) {
+            return Err(ConfigError::new(
+                key("u_mm"),
+                format!("{u}, v_mm = {v}"),
+                format!("outside {} ({} × {} mm)", s.name, s.u_max, s.v_max),
+            )
+            .into());
+        }
+        let foot = s.point(u, v);
+        let axis = s.normal(u, v);
+        let centre = foot + axis * st;
+        for other in surfaces {
+            let dist = other.plane_distance(&centre) - other.bulge_mm.max(0.0);
+            if dist < radius {
+                return Err(ConfigError::new(
+                    if bc.placements.is_some() { key("standoff_mm") } else { "balls.standoff_range_mm".to_string() },
+                    st,
+                    format!("ball {} would be {dist:.1} mm from {}, less than its radius {radius} mm: a ball inside a wall", k + 1, other.name),
+                )
+                .into());
+            }
+        }
+        balls.push(Ball {
+            id: 0,
+            centre,
+            radius,
+            foot,
+            axis,
+            stem_length: st,
+            stem_radius: bc.stem_radius_mm,
+            surface: si,
+        });
+    }
+    Ok(balls)
+}
+
+/// Orders the balls as a reader of the main image would number them: in rows of ~100 px,
+/// left to right.
+fn sort_as_read(balls: &mut [Ball], view: &MainView) {
+    let key = |b: &Ball| {
+        let uv = view.image_point(&b.centre);
+        ((uv.y / 100.0).floor() as i64, uv.x)
+    };
+    balls.sort_by(|a, b| {
+        let (ka, kb) = (key(a), key(b));
+        ka.0.cmp(&kb.0).then(ka.1.total_cmp(&kb.1))
+    });
 }
 
 /// Picks `k` of `pts`, spread evenly: start nearest the centroid, then repeatedly the point

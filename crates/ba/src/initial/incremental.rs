@@ -659,6 +659,161 @@ impl<'a> State<'a> {
     }
 }
 
+/// The per-item flags `given` for `n` items: all false when empty, refused when of another
+/// length (`name` and `items` name them in the error).
+fn flags(given: &[bool], n: usize, name: &str, items: &str) -> Result<Vec<bool>, InitError> {
+    if given.is_empty() {
+        Ok(vec![false; n])
+    } else if given.len() == n {
+        Ok(given.to_vec())
+    } else {
+        Err(InitError::BadInput(format!(
+            "{name} has {} entries for {n} {items}",
+            given.len()
+        )))
+    }
+}
+
+impl<'a> State<'a> {
+    /// The starting state: the known poses and point coordinates of `problem`, nothing
+    /// else determined.
+    fn new(problem: &'a Problem, known: &[bool], known_pose: &[bool]) -> Self {
+        let (np, ni) = (problem.points.len(), problem.images.len());
+        let mut by_image = vec![Vec::new(); ni];
+        let mut by_point = vec![Vec::new(); np];
+        for (k, o) in problem.observations.iter().enumerate() {
+            by_image[o.image].push(k);
+            by_point[o.point].push(k);
+        }
+        Self {
+            problem,
+            params: problem.cameras.iter().map(|c| c.params.clone()).collect(),
+            poses: (0..ni)
+                .map(|i| known_pose[i].then_some(problem.images[i].pose))
+                .collect(),
+            points: (0..np)
+                .map(|j| known[j].then_some(problem.points[j].position))
+                .collect(),
+            by_image,
+            by_point,
+            image_reason: vec!["never tried".into(); ni],
+            point_reason: vec!["never tried".into(); np],
+            steps: Vec::new(),
+            control_frame: true,
+            known: known.to_vec(),
+            rejected: vec![None; problem.observations.len()],
+        }
+    }
+
+    /// How many points of image `i` have coordinates (known or intersected).
+    fn determined_points_seen(&self, i: usize) -> usize {
+        self.by_image[i]
+            .iter()
+            .filter(|&&o| self.points[self.problem.observations[o].point].is_some())
+            .count()
+    }
+
+    /// The start with control: every image not yet oriented that sees enough points of
+    /// known coordinates is resected; fails when none could be.
+    fn resect_from_control(&mut self, options: &IncrementalOptions) -> Result<(), InitError> {
+        for i in 0..self.problem.images.len() {
+            if self.poses[i].is_none() {
+                let n = self.determined_points_seen(i);
+                if n >= options.min_resection_points {
+                    self.resect_image(i, options);
+                } else {
+                    self.image_reason[i] = format!(
+                        "sees {n} points of known coordinates (needs {})",
+                        options.min_resection_points
+                    );
+                }
+            }
+        }
+        if self.oriented() == 0 {
+            return Err(InitError::NoStart(
+                "no image could be resected from the control points".into(),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Grows the network until nothing changes: in each round, resects up to `per_round`
+    /// images (those seeing the most determined points first), intersects the new
+    /// points, and bundles when asked to.
+    fn grow(&mut self, options: &IncrementalOptions, per_round: usize) {
+        loop {
+            let mut cands: Vec<(usize, usize)> = (0..self.problem.images.len())
+                .filter(|&i| self.poses[i].is_none())
+                .map(|i| (self.determined_points_seen(i), i))
+                .collect();
+            cands.sort_by(|a, b| b.0.cmp(&a.0).then(a.1.cmp(&b.1)));
+            let mut added = 0;
+            for (n, i) in cands {
+                if added >= per_round {
+                    break;
+                }
+                if n < options.min_resection_points {
+                    self.image_reason[i] = format!(
+                        "sees {n} oriented points (needs {})",
+                        options.min_resection_points
+                    );
+                    continue;
+                }
+                if self.resect_image(i, options) {
+                    added += 1;
+                }
+            }
+            let new_points = self.intersect_points(options);
+            if added == 0 && new_points == 0 {
+                break;
+            }
+            if options.bundle_between_steps {
+                self.bundle(options);
+            }
+        }
+    }
+
+    /// The result: the oriented part as a problem, with the caller's fixed flags on the
+    /// intrinsics, and what could not be oriented or determined, and why.
+    fn into_initialised(self) -> Initialised {
+        let problem = self.problem;
+        let (mut sub, image_map, point_map, _) = self.subproblem(true);
+        for (c, orig) in sub.cameras.iter_mut().zip(&problem.cameras) {
+            c.fixed.clone_from(&orig.fixed);
+        }
+        let unoriented_images = (0..problem.images.len())
+            .filter(|&i| self.poses[i].is_none())
+            .map(|i| (problem.images[i].name.clone(), self.image_reason[i].clone()))
+            .collect();
+        let undetermined_points = (0..problem.points.len())
+            .filter(|&j| self.points[j].is_none())
+            .map(|j| (problem.points[j].name.clone(), self.point_reason[j].clone()))
+            .collect();
+        let rejected_observations = (self.rejected.iter().enumerate())
+            .filter_map(|(k, r)| {
+                let o = &problem.observations[k];
+                r.map(|r| {
+                    (
+                        problem.images[o.image].name.clone(),
+                        problem.points[o.point].name.clone(),
+                        r,
+                    )
+                })
+            })
+            .collect();
+        Initialised {
+            problem: sub,
+            image_map,
+            point_map,
+            in_control_frame: self.control_frame || !self.known.iter().any(|k| *k),
+            steps: self.steps,
+            unoriented_images,
+            undetermined_points,
+            rejected_observations,
+        }
+    }
+}
+
 /// Builds initial values for `problem` (see the module doc). `known_points[j]`: point j's
 /// coordinates in `problem` are known (control or approximate); `known_poses[i]`: image i's
 /// pose in `problem` is known. Both may be empty (nothing known).
@@ -669,89 +824,18 @@ pub fn initialise(
     options: &IncrementalOptions,
 ) -> Result<Initialised, InitError> {
     problem.validate()?;
-    let np = problem.points.len();
-    let ni = problem.images.len();
-    let known: Vec<bool> = if known_points.is_empty() {
-        vec![false; np]
-    } else if known_points.len() == np {
-        known_points.to_vec()
-    } else {
-        return Err(InitError::BadInput(format!(
-            "known_points has {} entries for {np} points",
-            known_points.len()
-        )));
-    };
-    let known_pose: Vec<bool> = if known_poses.is_empty() {
-        vec![false; ni]
-    } else if known_poses.len() == ni {
-        known_poses.to_vec()
-    } else {
-        return Err(InitError::BadInput(format!(
-            "known_poses has {} entries for {ni} images",
-            known_poses.len()
-        )));
-    };
-    let mut by_image = vec![Vec::new(); ni];
-    let mut by_point = vec![Vec::new(); np];
-    for (k, o) in problem.observations.iter().enumerate() {
-        by_image[o.image].push(k);
-        by_point[o.point].push(k);
-    }
-    let mut st = State {
-        problem,
-        params: problem.cameras.iter().map(|c| c.params.clone()).collect(),
-        poses: (0..ni)
-            .map(|i| known_pose[i].then_some(problem.images[i].pose))
-            .collect(),
-        points: vec![None; np],
-        by_image,
-        by_point,
-        image_reason: vec!["never tried".into(); ni],
-        point_reason: vec!["never tried".into(); np],
-        steps: Vec::new(),
-        control_frame: true,
-        known: known.clone(),
-        rejected: vec![None; problem.observations.len()],
-    };
-    for (j, pt) in st.points.iter_mut().enumerate() {
-        if known[j] {
-            *pt = Some(problem.points[j].position);
-        }
-    }
+    let known = flags(known_points, problem.points.len(), "known_points", "points")?;
+    let known_pose = flags(known_poses, problem.images.len(), "known_poses", "images")?;
+    let mut st = State::new(problem, &known, &known_pose);
     // Control available?
-    let control_images = (0..ni)
+    let control_images = (0..problem.images.len())
         .filter(|&i| {
-            st.poses[i].is_none()
-                && st.by_image[i]
-                    .iter()
-                    .filter(|&&o| st.points[problem.observations[o].point].is_some())
-                    .count()
-                    >= options.min_resection_points
+            st.poses[i].is_none() && st.determined_points_seen(i) >= options.min_resection_points
         })
         .count();
     let with_control = (options.resect_from_control && control_images > 0) || st.oriented() > 0;
     if with_control {
-        for i in 0..ni {
-            if st.poses[i].is_none() {
-                let n = st.by_image[i]
-                    .iter()
-                    .filter(|&&o| st.points[problem.observations[o].point].is_some())
-                    .count();
-                if n >= options.min_resection_points {
-                    st.resect_image(i, options);
-                } else {
-                    st.image_reason[i] = format!(
-                        "sees {n} points of known coordinates (needs {})",
-                        options.min_resection_points
-                    );
-                }
-            }
-        }
-        if st.oriented() == 0 {
-            return Err(InitError::NoStart(
-                "no image could be resected from the control points".into(),
-            ));
-        }
+        st.resect_from_control(options)?;
     } else {
         // The control coordinates are in another frame than the relative orientation's.
         st.control_frame = false;
@@ -770,85 +854,14 @@ pub fn initialise(
     } else {
         options.images_per_round.max(1)
     };
-    loop {
-        let mut cands: Vec<(usize, usize)> = (0..ni)
-            .filter(|&i| st.poses[i].is_none())
-            .map(|i| {
-                let n = st.by_image[i]
-                    .iter()
-                    .filter(|&&o| st.points[problem.observations[o].point].is_some())
-                    .count();
-                (n, i)
-            })
-            .collect();
-        cands.sort_by(|a, b| b.0.cmp(&a.0).then(a.1.cmp(&b.1)));
-        let mut added = 0;
-        for (n, i) in cands {
-            if added >= per_round {
-                break;
-            }
-            if n < options.min_resection_points {
-                st.image_reason[i] = format!(
-                    "sees {n} oriented points (needs {})",
-                    options.min_resection_points
-                );
-                continue;
-            }
-            if st.resect_image(i, options) {
-                added += 1;
-            }
-        }
-        let new_points = st.intersect_points(options);
-        if added == 0 && new_points == 0 {
-            break;
-        }
-        if options.bundle_between_steps {
-            st.bundle(options);
-        }
-    }
+    st.grow(options, per_round);
     if !st.control_frame {
         st.move_to_control_frame();
         if st.control_frame && options.bundle_between_steps {
             st.bundle(options);
         }
     }
-    // The result, with the caller's fixed flags on the intrinsics.
-    let (mut sub, image_map, point_map, _) = st.subproblem(true);
-    for (c, orig) in sub.cameras.iter_mut().zip(&problem.cameras) {
-        c.fixed.clone_from(&orig.fixed);
-    }
-    let unoriented_images = (0..ni)
-        .filter(|&i| st.poses[i].is_none())
-        .map(|i| (problem.images[i].name.clone(), st.image_reason[i].clone()))
-        .collect();
-    let undetermined_points = (0..np)
-        .filter(|&j| st.points[j].is_none())
-        .map(|j| (problem.points[j].name.clone(), st.point_reason[j].clone()))
-        .collect();
-    Ok(Initialised {
-        problem: sub,
-        image_map,
-        point_map,
-        steps: st.steps,
-        unoriented_images,
-        undetermined_points,
-        in_control_frame: st.control_frame || !known.iter().any(|k| *k),
-        rejected_observations: st
-            .rejected
-            .iter()
-            .enumerate()
-            .filter_map(|(k, r)| {
-                let o = &problem.observations[k];
-                r.map(|r| {
-                    (
-                        problem.images[o.image].name.clone(),
-                        problem.points[o.point].name.clone(),
-                        r,
-                    )
-                })
-            })
-            .collect(),
-    })
+    Ok(st.into_initialised())
 }
 
 #[cfg(test)]
@@ -937,6 +950,26 @@ mod tests {
             }
         }
         (truth, p, known)
+    }
+
+    #[test]
+    fn flags_of_another_length_are_refused() {
+        let (p, _, known) = network(1, 0.3);
+        let opts = IncrementalOptions::default();
+        let (np, ni) = (p.points.len(), p.images.len());
+        assert_eq!(
+            initialise(&p, &known[..1], &[], &opts).unwrap_err(),
+            InitError::BadInput(format!("known_points has 1 entries for {np} points"))
+        );
+        assert_eq!(
+            initialise(&p, &known, &[true; 2], &opts).unwrap_err(),
+            InitError::BadInput(format!("known_poses has 2 entries for {ni} images"))
+        );
+        assert_eq!(flags(&[], 3, "x", "y").unwrap(), vec![false; 3]);
+        assert_eq!(
+            flags(&[true, false], 2, "x", "y").unwrap(),
+            vec![true, false]
+        );
     }
 
     #[test]

@@ -440,11 +440,42 @@ impl Measurements {
 
     /// Checks the file and builds the [`Problem`] (see the module doc).
     pub fn to_problem(&self) -> Result<Built, MeasurementError> {
-        let mut problem = Problem::default();
-        let mut cam_index = HashMap::new();
-        for c in &self.cameras {
-            if cam_index
-                .insert(c.name.clone(), problem.cameras.len())
+        let mut b = Builder::default();
+        b.add_cameras(&self.cameras)?;
+        let known_poses = b.add_images(&self.images)?;
+        b.add_image_points(&self.image_points)?;
+        let known_points = b.add_control_points(&self.control_points)?;
+        b.add_distances(&self.distances)?;
+        b.add_priors(&self.control_points);
+        let warnings = warnings(&b.problem, &known_points);
+        Ok(Built {
+            problem: b.problem,
+            known_points,
+            known_poses,
+            point_index: b.point_index,
+            warnings,
+        })
+    }
+}
+
+/// The [`Problem`] being built from a measurements file, with the name → index maps its
+/// sections are resolved with. The sections are added in the file's order of dependence:
+/// cameras, images, image points, control points, distances.
+#[derive(Default)]
+struct Builder {
+    problem: Problem,
+    camera_index: HashMap<String, usize>,
+    image_index: HashMap<String, usize>,
+    point_index: HashMap<String, usize>,
+}
+
+impl Builder {
+    /// The cameras, refusing a name given twice.
+    fn add_cameras(&mut self, cameras: &[CameraSpec]) -> Result<(), MeasurementError> {
+        for c in cameras {
+            if self
+                .camera_index
+                .insert(c.name.clone(), self.problem.cameras.len())
                 .is_some()
             {
                 return Err(MeasurementError::Duplicate {
@@ -452,22 +483,28 @@ impl Measurements {
                     name: c.name.clone(),
                 });
             }
-            problem.cameras.push(c.build()?);
+            self.problem.cameras.push(c.build()?);
         }
-        let mut image_index = HashMap::new();
+        Ok(())
+    }
+
+    /// The images, refusing an unknown camera, a name given twice, a fixed image without
+    /// a pose, a non-finite pose and a camera no image uses. Returns, per image, whether
+    /// the file gives its pose.
+    fn add_images(&mut self, images: &[ImageSpec]) -> Result<Vec<bool>, MeasurementError> {
         let mut known_poses = Vec::new();
-        let mut used_cameras = vec![false; self.cameras.len()];
-        for im in &self.images {
-            let camera =
-                *cam_index
-                    .get(&im.camera)
-                    .ok_or_else(|| MeasurementError::UnknownCamera {
-                        image: im.name.clone(),
-                        camera: im.camera.clone(),
-                    })?;
+        let mut used_cameras = vec![false; self.problem.cameras.len()];
+        for im in images {
+            let camera = *self.camera_index.get(&im.camera).ok_or_else(|| {
+                MeasurementError::UnknownCamera {
+                    image: im.name.clone(),
+                    camera: im.camera.clone(),
+                }
+            })?;
             used_cameras[camera] = true;
-            if image_index
-                .insert(im.name.clone(), problem.images.len())
+            if self
+                .image_index
+                .insert(im.name.clone(), self.problem.images.len())
                 .is_some()
             {
                 return Err(MeasurementError::Duplicate {
@@ -486,7 +523,7 @@ impl Measurements {
                 }
             }
             known_poses.push(im.pose.is_some());
-            problem.images.push(Image {
+            self.problem.images.push(Image {
                 name: im.name.clone(),
                 camera,
                 pose: im.pose.map(|p| p.to_pose()).unwrap_or_default(),
@@ -495,26 +532,35 @@ impl Measurements {
         }
         if let Some(k) = used_cameras.iter().position(|u| !u) {
             return Err(MeasurementError::CameraWithoutImages {
-                camera: self.cameras[k].name.clone(),
+                camera: self.problem.cameras[k].name.clone(),
             });
         }
-        let mut point_index: HashMap<String, usize> = HashMap::new();
-        let mut add_point = |problem: &mut Problem, name: &str| -> usize {
-            if let Some(&k) = point_index.get(name) {
-                return k;
-            }
-            point_index.insert(name.to_string(), problem.points.len());
-            problem.points.push(Point {
-                name: name.to_string(),
-                position: Vector3::zeros(),
-                fixed: false,
-            });
-            problem.points.len() - 1
-        };
+        Ok(known_poses)
+    }
+
+    /// The index of the point named `name`, added (free, at the origin) when new.
+    fn point(&mut self, name: &str) -> usize {
+        if let Some(&k) = self.point_index.get(name) {
+            return k;
+        }
+        self.point_index
+            .insert(name.to_string(), self.problem.points.len());
+        self.problem.points.push(Point {
+            name: name.to_string(),
+            position: Vector3::zeros(),
+            fixed: false,
+        });
+        self.problem.points.len() - 1
+    }
+
+    /// The observations (and their points), refusing an unknown image, a non-finite
+    /// coordinate, a non-positive σ and a point measured twice in one image.
+    fn add_image_points(&mut self, image_points: &[ImagePoint]) -> Result<(), MeasurementError> {
         let mut seen = std::collections::HashSet::new();
-        for (index, ip) in self.image_points.iter().enumerate() {
+        for (index, ip) in image_points.iter().enumerate() {
             let image =
-                *image_index
+                *self
+                    .image_index
                     .get(&ip.image)
                     .ok_or_else(|| MeasurementError::UnknownImage {
                         index,
@@ -525,22 +571,32 @@ impl Measurements {
             finite(what, ip.x)?;
             finite(what, ip.y)?;
             positive(|| format!("{}: sigma_px", what()), ip.sigma_px)?;
-            let point = add_point(&mut problem, &ip.point);
+            let point = self.point(&ip.point);
             if !seen.insert((image, point)) {
                 return Err(MeasurementError::DuplicateObservation {
                     image: ip.image.clone(),
                     point: ip.point.clone(),
                 });
             }
-            problem.observations.push(Observation {
+            self.problem.observations.push(Observation {
                 image,
                 point,
                 uv: Vector2::new(ip.x, ip.y),
                 sigma: ip.sigma_px,
             });
         }
+        Ok(())
+    }
+
+    /// The control points' coordinates (and fixedness), refusing an id given twice, a
+    /// non-finite coordinate and a non-positive σ. Returns, per point, whether its
+    /// coordinates are known.
+    fn add_control_points(
+        &mut self,
+        control_points: &[ControlPoint],
+    ) -> Result<Vec<bool>, MeasurementError> {
         let mut control_seen = std::collections::HashSet::new();
-        for cp in &self.control_points {
+        for cp in control_points {
             if !control_seen.insert(cp.id.clone()) {
                 return Err(MeasurementError::Duplicate {
                     what: "control point",
@@ -555,17 +611,23 @@ impl Measurements {
                     positive(|| format!("control point '{}': sigma_mm", cp.id), v)?;
                 }
             }
-            let k = add_point(&mut problem, &cp.id);
-            problem.points[k].position = Vector3::from(cp.xyz);
-            problem.points[k].fixed = cp.fixed;
+            let k = self.point(&cp.id);
+            self.problem.points[k].position = Vector3::from(cp.xyz);
+            self.problem.points[k].fixed = cp.fixed;
         }
-        let mut known_points = vec![false; problem.points.len()];
-        for cp in &self.control_points {
-            known_points[point_index[&cp.id]] = true;
+        let mut known_points = vec![false; self.problem.points.len()];
+        for cp in control_points {
+            known_points[self.point_index[&cp.id]] = true;
         }
-        for (index, d) in self.distances.iter().enumerate() {
+        Ok(known_points)
+    }
+
+    /// The measured distances, refusing an unknown point, a non-positive length or σ and
+    /// a distance from a point to itself.
+    fn add_distances(&mut self, distances: &[Distance]) -> Result<(), MeasurementError> {
+        for (index, d) in distances.iter().enumerate() {
             for p in [&d.a, &d.b] {
-                if !point_index.contains_key(p.as_str()) {
+                if !self.point_index.contains_key(p.as_str()) {
                     return Err(MeasurementError::UnknownDistancePoint {
                         index,
                         a: d.a.clone(),
@@ -579,7 +641,7 @@ impl Measurements {
                 || format!("distance {index} ('{}'–'{}'): sigma_mm", d.a, d.b),
                 d.sigma_mm,
             )?;
-            let (a, b) = (point_index[&d.a], point_index[&d.b]);
+            let (a, b) = (self.point_index[&d.a], self.point_index[&d.b]);
             if a == b {
                 return Err(MeasurementError::BadValue {
                     what: format!("distance {index} joins '{}' to itself", d.a),
@@ -587,53 +649,56 @@ impl Measurements {
                     expected: "two different points",
                 });
             }
-            problem.distances.push(crate::problem::Distance {
+            self.problem.distances.push(crate::problem::Distance {
                 a,
                 b,
                 value: d.mm,
                 sigma: d.sigma_mm,
             });
         }
-        for cp in &self.control_points {
+        Ok(())
+    }
+
+    /// The priors of the free control points given with a σ (weighted control points).
+    fn add_priors(&mut self, control_points: &[ControlPoint]) {
+        for cp in control_points {
             if let (Some(s), false) = (cp.sigma_mm, cp.fixed) {
-                problem.point_priors.push(PointPrior {
-                    point: point_index[&cp.id],
+                self.problem.point_priors.push(PointPrior {
+                    point: self.point_index[&cp.id],
                     position: Vector3::from(cp.xyz),
                     sigma: Vector3::from(s),
                 });
             }
         }
-        // Warnings.
-        let mut warnings = Vec::new();
-        let mut per_image = vec![0usize; problem.images.len()];
-        let mut per_point = vec![0usize; problem.points.len()];
-        for o in &problem.observations {
-            per_image[o.image] += 1;
-            per_point[o.point] += 1;
-        }
-        for (im, &n) in problem.images.iter().zip(&per_image) {
-            if n < 3 {
-                warnings.push(Warning::FewPoints {
-                    image: im.name.clone(),
-                    count: n,
-                });
-            }
-        }
-        for (k, pt) in problem.points.iter().enumerate() {
-            if per_point[k] == 1 && !known_points[k] {
-                warnings.push(Warning::SingleRay {
-                    point: pt.name.clone(),
-                });
-            }
-        }
-        Ok(Built {
-            problem,
-            known_points,
-            known_poses,
-            point_index,
-            warnings,
-        })
     }
+}
+
+/// The non-fatal findings: images with fewer than 3 points, and points of unknown
+/// coordinates measured in one image only.
+fn warnings(problem: &Problem, known_points: &[bool]) -> Vec<Warning> {
+    let mut warnings = Vec::new();
+    let mut per_image = vec![0usize; problem.images.len()];
+    let mut per_point = vec![0usize; problem.points.len()];
+    for o in &problem.observations {
+        per_image[o.image] += 1;
+        per_point[o.point] += 1;
+    }
+    for (im, &n) in problem.images.iter().zip(&per_image) {
+        if n < 3 {
+            warnings.push(Warning::FewPoints {
+                image: im.name.clone(),
+                count: n,
+            });
+        }
+    }
+    for (k, pt) in problem.points.iter().enumerate() {
+        if per_point[k] == 1 && !known_points[k] {
+            warnings.push(Warning::SingleRay {
+                point: pt.name.clone(),
+            });
+        }
+    }
+    warnings
 }
 
 impl Measurements {

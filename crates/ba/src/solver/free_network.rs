@@ -39,21 +39,62 @@ fn point_col(layout: &Layout, p: usize) -> Option<usize> {
     }
 }
 
+/// The precision of a free network, its datum by inner constraints on the points (see the
+/// module doc); refused when the network is too large to be formed densely.
 pub(crate) fn precision(
     problem: &Problem,
     layout: &Layout,
     lin: &Linearization,
 ) -> Result<Precision, PrecisionError> {
-    let nc = layout.n_reduced;
-    let n = nc + 3 * layout.free_points.len();
+    let n = layout.n_reduced + 3 * layout.free_points.len();
     if n > MAX_FREE_NETWORK_UNKNOWNS {
         return Err(PrecisionError::DatumDefect(format!(
             "the network is free (no fixed image, no control) and too large ({n} unknowns) for inner constraints: fix one image and give a distance, or give control points"
         )));
     }
+    let (j, r) = dense_system(problem, layout, lin, n);
+    let m = j.nrows();
+    // Translation, rotation and scale (unless distances fix it).
+    let d = if problem.distances.is_empty() { 7 } else { 6 };
+    let (g, c) = similarity_null_space(problem, layout, n, d);
+    let q = inner_constraint_cofactors(&(j.transpose() * &j), &g, &c)?;
+
+    let redundancy = m as i64 - n as i64 + d as i64;
+    if redundancy <= 0 {
+        return Err(PrecisionError::NoRedundancy(redundancy));
+    }
+    let sigma0 = (2.0 * lin.cost / redundancy as f64).sqrt();
+    let s02 = sigma0 * sigma0;
+
+    let intrinsics = intrinsics_precision(problem, layout, s02, |i, j| q[(i, j)]);
+    let poses = pose_sigmas(problem, layout, s02, |i, j| q[(i, j)]);
+    let point_covariances = (0..problem.points.len())
+        .map(|p| point_col(layout, p).map(|c| Matrix3::from_fn(|a, b| s02 * q[(c + a, c + b)])))
+        .collect();
+    Ok(Precision {
+        sigma0,
+        redundancy,
+        observations: m,
+        unknowns: n,
+        rms_image_px: problem.rms_px(),
+        intrinsics,
+        poses,
+        point_covariances,
+        standardized_residuals: standardized_residuals(layout, &j, &q, &r),
+    })
+}
+
+/// The whitened Jacobian (dense, `n` columns: reduced unknowns, then eliminated points)
+/// and residuals: two rows per image observation in internal order, then one per distance.
+fn dense_system(
+    problem: &Problem,
+    layout: &Layout,
+    lin: &Linearization,
+    n: usize,
+) -> (DMatrix<f64>, Vec<f64>) {
+    let nc = layout.n_reduced;
     let n_img_obs = problem.observations.len();
     let m = 2 * n_img_obs + problem.distances.len();
-    // Dense Jacobian and residual (whitened), internal observation order.
     let mut j = DMatrix::<f64>::zeros(m, n);
     let mut r = vec![0.0; m];
     for o in 0..n_img_obs {
@@ -88,12 +129,20 @@ pub(crate) fn precision(
             }
         }
     }
-    let normal = j.transpose() * &j;
+    (j, r)
+}
 
-    // Null space of the similarity: translation (3), rotation (3), scale (1, unless
-    // distances fix it). For a pose (left update R ← exp(δω)R, t ← t + δt):
-    // translation T → δt = −R T; rotation ω → δω = −R ω; scale s → δt = s·t.
-    let d = if problem.distances.is_empty() { 7 } else { 6 };
+/// G, the `d` (7, or 6 without scale) directions of the similarity transform in the
+/// unknowns, and C, G restricted to the point coordinates (the inner constraints).
+///
+/// Translation (3), rotation (3), scale (1). For a pose (left update R ← exp(δω)R,
+/// t ← t + δt): translation T → δt = −R T; rotation ω → δω = −R ω; scale s → δt = s·t.
+fn similarity_null_space(
+    problem: &Problem,
+    layout: &Layout,
+    n: usize,
+    d: usize,
+) -> (DMatrix<f64>, DMatrix<f64>) {
     let mut g = DMatrix::<f64>::zeros(n, d);
     let mut c = DMatrix::<f64>::zeros(n, d);
     for (i, slot) in layout.image_slot.iter().enumerate() {
@@ -145,6 +194,16 @@ pub(crate) fn precision(
             }
         }
     }
+    (g, c)
+}
+
+/// The cofactor matrix of the minimum-trace datum,
+/// `Q = (N + C Cᵀ)⁻¹ − G (CᵀG)⁻¹ (GᵀC)⁻¹ Gᵀ`, with C scaled to the size of N.
+fn inner_constraint_cofactors(
+    normal: &DMatrix<f64>,
+    g: &DMatrix<f64>,
+    c: &DMatrix<f64>,
+) -> Result<DMatrix<f64>, PrecisionError> {
     // Scale the constraint columns to the size of N so that N + CCᵀ is well conditioned.
     let scale = (normal.diagonal().mean()
         / c.column_iter()
@@ -152,15 +211,15 @@ pub(crate) fn precision(
             .sum::<f64>()
             .max(1e-300))
     .sqrt();
-    let cs = &c * scale;
-    let augmented = &normal + &cs * cs.transpose();
+    let cs = c * scale;
+    let augmented = normal + &cs * cs.transpose();
     let Some(chol) = augmented.clone().cholesky() else {
         return Err(PrecisionError::DatumDefect(
             "the network is free and, beyond position, orientation and scale, still not determined (too few points per image, or disconnected pieces)".into(),
         ));
     };
     let inv = chol.inverse();
-    let ctg = cs.transpose() * &g;
+    let ctg = cs.transpose() * g;
     let Some(ctg_inv) = ctg.clone().try_inverse() else {
         return Err(PrecisionError::DatumDefect(
             "the inner constraints do not fix the datum (all points coincide?)".into(),
@@ -168,42 +227,29 @@ pub(crate) fn precision(
     };
     // (CᵀG)⁻¹(GᵀC)⁻¹ with the scaled C.
     let mid = &ctg_inv * ctg_inv.transpose();
-    let q = inv - &g * mid * g.transpose();
+    Ok(inv - g * mid * g.transpose())
+}
 
-    let redundancy = m as i64 - n as i64 + d as i64;
-    if redundancy <= 0 {
-        return Err(PrecisionError::NoRedundancy(redundancy));
-    }
-    let sigma0 = (2.0 * lin.cost / redundancy as f64).sqrt();
-    let s02 = sigma0 * sigma0;
-
-    let intrinsics = intrinsics_precision(problem, layout, s02, |i, j| q[(i, j)]);
-    let poses = pose_sigmas(problem, layout, s02, |i, j| q[(i, j)]);
-    let point_covariances = (0..problem.points.len())
-        .map(|p| point_col(layout, p).map(|c| Matrix3::from_fn(|a, b| s02 * q[(c + a, c + b)])))
-        .collect();
-    // Standardized residuals: q_vv = 1 − (J Q Jᵀ)_ii.
-    let jq = &j * &q;
-    let mut standardized_residuals = vec![[f64::NAN; 2]; n_img_obs];
+/// The standardized residuals of the image observations (in the problem's order):
+/// `r / √q_vv` with `q_vv = 1 − (J Q Jᵀ)_ii`; NaN where q_vv vanishes.
+fn standardized_residuals(
+    layout: &Layout,
+    j: &DMatrix<f64>,
+    q: &DMatrix<f64>,
+    r: &[f64],
+) -> Vec<[f64; 2]> {
+    let jq = j * q;
+    let n_img_obs = layout.obs_order.len();
+    let mut standardized = vec![[f64::NAN; 2]; n_img_obs];
     for o in 0..n_img_obs {
         let q_index = layout.obs_order[o] as usize;
-        for a in 0..2 {
+        for (a, w) in standardized[q_index].iter_mut().enumerate() {
             let row = 2 * o + a;
             let qvv = 1.0 - jq.row(row).dot(&j.row(row));
             if qvv > 1e-9 {
-                standardized_residuals[q_index][a] = r[row] / qvv.sqrt();
+                *w = r[row] / qvv.sqrt();
             }
         }
     }
-    Ok(Precision {
-        sigma0,
-        redundancy,
-        observations: m,
-        unknowns: n,
-        rms_image_px: problem.rms_px(),
-        intrinsics,
-        poses,
-        point_covariances,
-        standardized_residuals,
-    })
+    standardized
 }

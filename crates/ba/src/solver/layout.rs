@@ -12,7 +12,7 @@
 //! with b) is fixed for the whole adjustment, so its symbolic Cholesky factorization is
 //! computed once and reused at every iteration.
 
-use crate::problem::Problem;
+use crate::problem::{Observation, Problem};
 
 /// One contiguous run of an observation's camera-side Jacobian columns that lands in one
 /// block.
@@ -82,290 +82,48 @@ pub(crate) struct Layout {
 }
 
 impl Layout {
+    /// The layout of `problem`: its blocks, the internal order and Jacobian segments of the
+    /// observations, the free points eliminated by the Schur complement, and the pattern
+    /// of S.
     pub fn new(problem: &Problem) -> Self {
-        let n_img = problem.images.len();
-        let n_cam = problem.cameras.len();
-        let camera_free: Vec<Vec<usize>> =
-            problem.cameras.iter().map(|c| c.free_indices()).collect();
-        let mut images_of_camera = vec![0usize; n_cam];
-        for im in &problem.images {
-            images_of_camera[im.camera] += 1;
-        }
-        let mut block_dim = Vec::new();
-        let mut image_slot = vec![None; n_img];
-        let mut camera_slot = vec![None; n_cam];
-        let mut image_rig = vec![None; n_img];
-        for (r, rig) in problem.rigs.iter().enumerate() {
-            for m in &rig.members {
-                image_rig[m.image] = Some((r, m.base));
-            }
-        }
-        for (i, im) in problem.images.iter().enumerate() {
-            if im.fixed || image_rig[i].is_some() {
-                continue;
-            }
-            let b = block_dim.len() as u32;
-            let mut dim = 6;
-            image_slot[i] = Some(Slot { block: b, off: 0 });
-            let c = im.camera;
-            if images_of_camera[c] == 1 && !camera_free[c].is_empty() {
-                camera_slot[c] = Some(Slot { block: b, off: 6 });
-                dim += camera_free[c].len();
-            }
-            block_dim.push(dim);
-        }
-        for c in 0..n_cam {
-            if camera_slot[c].is_none() && !camera_free[c].is_empty() && images_of_camera[c] > 0 {
-                camera_slot[c] = Some(Slot {
-                    block: block_dim.len() as u32,
-                    off: 0,
-                });
-                block_dim.push(camera_free[c].len());
-            }
-        }
-        let mut rig_slot = vec![None; problem.rigs.len()];
-        for (r, rig) in problem.rigs.iter().enumerate() {
-            if !rig.fixed && !rig.members.is_empty() {
-                rig_slot[r] = Some(Slot {
-                    block: block_dim.len() as u32,
-                    off: 0,
-                });
-                block_dim.push(6);
-            }
-        }
-        let mut point_slot = vec![None; problem.points.len()];
-        for d in &problem.distances {
-            for p in [d.a, d.b] {
-                if !problem.points[p].fixed && point_slot[p].is_none() {
-                    point_slot[p] = Some(Slot {
-                        block: block_dim.len() as u32,
-                        off: 0,
-                    });
-                    block_dim.push(3);
-                }
-            }
-        }
-        let distance_slots: Vec<[Option<Slot>; 2]> = problem
-            .distances
-            .iter()
-            .map(|d| [point_slot[d.a], point_slot[d.b]])
-            .collect();
-        let mut block_offset = Vec::with_capacity(block_dim.len());
-        let mut n_reduced = 0;
-        for &d in &block_dim {
-            block_offset.push(n_reduced);
-            n_reduced += d;
-        }
-
-        // Observations, in the solver's internal order: by point, so that the W and Y rows
-        // of one point are adjacent in memory (the Schur complement reads them together).
-        let n_obs = problem.observations.len();
-        // Points are taken in the order of the first block (image) that sees them, so that
-        // consecutive points update neighbouring blocks of S and those stay in cache.
-        let mut first_seen = vec![u32::MAX; problem.points.len()];
-        for ob in &problem.observations {
-            let own = image_rig[ob.image].map_or(ob.image, |(_, base)| base);
-            let key = image_slot[own].map_or(u32::MAX - 1, |s| s.block);
-            first_seen[ob.point] = first_seen[ob.point].min(key);
-        }
-        let mut obs_order: Vec<u32> = (0..n_obs as u32).collect();
-        obs_order.sort_by_key(|&o| {
-            let ob = &problem.observations[o as usize];
-            (first_seen[ob.point], ob.point, ob.image)
-        });
-        let observations: Vec<&crate::problem::Observation> = obs_order
+        let blocks = Blocks::assign(problem);
+        let obs_order = internal_order(problem, &blocks);
+        let observations: Vec<&Observation> = obs_order
             .iter()
             .map(|&o| &problem.observations[o as usize])
             .collect();
-        let mut obs_ncols = Vec::with_capacity(n_obs);
-        let mut obs_jc_offset = Vec::with_capacity(n_obs);
-        let mut obs_w_offset = Vec::with_capacity(n_obs);
-        let mut obs_segs = Vec::with_capacity(n_obs);
-        let (mut jc_len, mut w_len) = (0, 0);
-        let empty = Seg {
-            block: 0,
-            jac_col: 0,
-            block_off: 0,
-            len: 0,
-        };
-        for o in &observations {
-            let im = &problem.images[o.image];
-            let mut segs = [empty; 4];
-            let mut ns = 0u8;
-            let mut ncols = 0u16;
-            // A rig member's image point depends on its base image's pose and the rig.
-            let (pose_image, rig) = match image_rig[o.image] {
-                Some((r, base)) => (base, rig_slot[r]),
-                None => (o.image, None),
-            };
-            if let Some(s) = image_slot[pose_image] {
-                segs[ns as usize] = Seg {
-                    block: s.block,
-                    jac_col: ncols,
-                    block_off: s.off,
-                    len: 6,
-                };
-                ns += 1;
-                ncols += 6;
-            }
-            if let Some(s) = rig {
-                segs[ns as usize] = Seg {
-                    block: s.block,
-                    jac_col: ncols,
-                    block_off: 0,
-                    len: 6,
-                };
-                ns += 1;
-                ncols += 6;
-            }
-            if let Some(s) = camera_slot[im.camera] {
-                let len = camera_free[im.camera].len() as u16;
-                segs[ns as usize] = Seg {
-                    block: s.block,
-                    jac_col: ncols,
-                    block_off: s.off,
-                    len,
-                };
-                ns += 1;
-                ncols += len;
-            }
-            if let Some(s) = point_slot[o.point] {
-                segs[ns as usize] = Seg {
-                    block: s.block,
-                    jac_col: ncols,
-                    block_off: 0,
-                    len: 3,
-                };
-                ns += 1;
-                ncols += 3;
-            }
-            obs_ncols.push(ncols);
-            obs_jc_offset.push(jc_len);
-            obs_w_offset.push(w_len);
-            jc_len += 2 * ncols as usize;
-            w_len += 3 * ncols as usize;
-            obs_segs.push((segs, ns));
-        }
-
-        // Free points, numbered in the internal observation order (so that per-point data
-        // is read sequentially too), then free points nobody observes.
-        let mut free_point_index = vec![u32::MAX; problem.points.len()];
-        let mut free_points = Vec::new();
-        let observed = observations.iter().map(|o| o.point);
-        for p in observed.chain(0..problem.points.len()) {
-            if !problem.points[p].fixed
-                && point_slot[p].is_none()
-                && free_point_index[p] == u32::MAX
-            {
-                free_point_index[p] = free_points.len() as u32;
-                free_points.push(p);
-            }
-        }
-        let mut counts = vec![0usize; free_points.len() + 1];
-        for o in &observations {
-            let f = free_point_index[o.point];
-            if f != u32::MAX {
-                counts[f as usize + 1] += 1;
-            }
-        }
-        for k in 1..counts.len() {
-            counts[k] += counts[k - 1];
-        }
-        let fp_obs_ptr = counts.clone();
-        let mut fp_obs = vec![0u32; *counts.last().unwrap()];
-        let mut fill = counts;
-        for (oi, o) in observations.iter().enumerate() {
-            let f = free_point_index[o.point];
-            if f != u32::MAX {
-                fp_obs[fill[f as usize]] = oi as u32;
-                fill[f as usize] += 1;
-            }
-        }
-
-        let nb = block_dim.len();
-        // Block pattern: pairs within an observation, and pairs among a free point's blocks.
-        let mut pairs: Vec<(u32, u32)> = Vec::new(); // (col, row) with row ≤ col
-        let push_set = |blocks: &mut Vec<u32>, pairs: &mut Vec<(u32, u32)>| {
-            blocks.sort_unstable();
-            blocks.dedup();
-            for (i, &a) in blocks.iter().enumerate() {
-                for &b in &blocks[i..] {
-                    pairs.push((b, a));
-                }
-            }
-        };
-        let mut scratch = Vec::new();
-        for (segs, ns) in &obs_segs {
-            scratch.clear();
-            scratch.extend(segs[..*ns as usize].iter().map(|s| s.block));
-            push_set(&mut scratch, &mut pairs);
-        }
-        for f in 0..free_points.len() {
-            scratch.clear();
-            for &o in &fp_obs[fp_obs_ptr[f]..fp_obs_ptr[f + 1]] {
-                let (segs, ns) = &obs_segs[o as usize];
-                scratch.extend(segs[..*ns as usize].iter().map(|s| s.block));
-            }
-            push_set(&mut scratch, &mut pairs);
-        }
-        for sl in &distance_slots {
-            if let [Some(a), Some(b)] = sl {
-                let (a, b) = (a.block.min(b.block), a.block.max(b.block));
-                pairs.push((b, a));
-            }
-        }
-        for b in 0..nb as u32 {
-            pairs.push((b, b));
-        }
-        pairs.sort_unstable();
-        pairs.dedup();
-        let mut col_blocks = vec![Vec::new(); nb];
-        for (b, a) in pairs {
-            col_blocks[b as usize].push(a);
-        }
-
-        // Scalar CSC pattern (upper triangle, rows sorted).
-        let mut col_ptr = Vec::with_capacity(n_reduced + 1);
-        let mut row_idx = Vec::new();
-        let mut col_row_off = Vec::with_capacity(nb);
-        col_ptr.push(0);
-        for b in 0..nb {
-            let mut offs = Vec::with_capacity(col_blocks[b].len());
-            let mut acc = 0;
-            for &a in &col_blocks[b] {
-                offs.push(acc);
-                acc += block_dim[a as usize];
-            }
-            col_row_off.push(offs);
-            for j in 0..block_dim[b] {
-                for &a in &col_blocks[b] {
-                    let a = a as usize;
-                    let rows = if a == b { j + 1 } else { block_dim[a] };
-                    row_idx.extend((0..rows).map(|i| block_offset[a] + i));
-                }
-                col_ptr.push(row_idx.len());
-            }
-        }
-
+        let columns = blocks.observation_columns(problem, &observations);
+        let (free_point_index, free_points) =
+            number_free_points(problem, &blocks.point_slot, &observations);
+        let (fp_obs_ptr, fp_obs) =
+            point_observations(&free_point_index, free_points.len(), &observations);
+        let col_blocks = block_pattern(
+            blocks.dim.len(),
+            &columns.segs,
+            &fp_obs_ptr,
+            &fp_obs,
+            &blocks.distance_slots,
+        );
+        let (col_ptr, row_idx, col_row_off) = scalar_pattern(&col_blocks, &blocks);
         Self {
-            block_dim,
-            block_offset,
-            n_reduced,
-            image_slot,
-            camera_slot,
-            point_slot,
-            image_rig,
-            rig_slot,
-            distance_slots,
-            camera_free,
-            obs_ncols,
-            obs_jc_offset,
-            obs_segs,
+            block_dim: blocks.dim,
+            block_offset: blocks.offset,
+            n_reduced: blocks.n_reduced,
+            image_slot: blocks.image_slot,
+            camera_slot: blocks.camera_slot,
+            point_slot: blocks.point_slot,
+            image_rig: blocks.image_rig,
+            rig_slot: blocks.rig_slot,
+            distance_slots: blocks.distance_slots,
+            camera_free: blocks.camera_free,
+            obs_ncols: columns.ncols,
+            obs_jc_offset: columns.jc_offset,
+            obs_segs: columns.segs,
             obs_point: observations.iter().map(|o| o.point as u32).collect(),
             obs_order,
-            jc_len,
-            obs_w_offset,
-            w_len,
+            jc_len: columns.jc_len,
+            obs_w_offset: columns.w_offset,
+            w_len: columns.w_len,
             free_point_index,
             free_points,
             fp_obs_ptr,
@@ -460,5 +218,454 @@ impl Layout {
     /// Number of stored entries of the upper triangle of S.
     pub fn nnz(&self) -> usize {
         *self.col_ptr.last().unwrap()
+    }
+}
+
+/// The blocks of the reduced system and where each parameter group lives in them (the
+/// fields of [`Layout`] of the same names).
+struct Blocks {
+    dim: Vec<usize>,
+    offset: Vec<usize>,
+    n_reduced: usize,
+    image_slot: Vec<Option<Slot>>,
+    camera_slot: Vec<Option<Slot>>,
+    point_slot: Vec<Option<Slot>>,
+    image_rig: Vec<Option<(usize, usize)>>,
+    rig_slot: Vec<Option<Slot>>,
+    distance_slots: Vec<[Option<Slot>; 2]>,
+    camera_free: Vec<Vec<usize>>,
+}
+
+/// Per observation, in internal order: its camera-side Jacobian columns and where they
+/// land (the `obs_*`, `jc_len` and `w_len` fields of [`Layout`]).
+struct ObsColumns {
+    ncols: Vec<u16>,
+    jc_offset: Vec<usize>,
+    w_offset: Vec<usize>,
+    segs: Vec<([Seg; 4], u8)>,
+    jc_len: usize,
+    w_len: usize,
+}
+
+impl Blocks {
+    /// Numbers the blocks: images with a free pose (with their camera's intrinsics when
+    /// no other image uses it), then the other free cameras, the free rigs, and the free
+    /// points joined by a distance.
+    fn assign(problem: &Problem) -> Self {
+        let camera_free: Vec<Vec<usize>> =
+            problem.cameras.iter().map(|c| c.free_indices()).collect();
+        let mut images_of_camera = vec![0usize; problem.cameras.len()];
+        for im in &problem.images {
+            images_of_camera[im.camera] += 1;
+        }
+        let image_rig = rig_bases(problem);
+        let mut dim = Vec::new();
+        let mut new_block = |d: usize| {
+            dim.push(d);
+            Slot {
+                block: dim.len() as u32 - 1,
+                off: 0,
+            }
+        };
+        let mut image_slot = vec![None; problem.images.len()];
+        let mut camera_slot = vec![None; problem.cameras.len()];
+        for (i, im) in problem.images.iter().enumerate() {
+            if im.fixed || image_rig[i].is_some() {
+                continue;
+            }
+            let c = im.camera;
+            let own_camera = images_of_camera[c] == 1 && !camera_free[c].is_empty();
+            let slot = new_block(6 + if own_camera { camera_free[c].len() } else { 0 });
+            image_slot[i] = Some(slot);
+            if own_camera {
+                camera_slot[c] = Some(Slot { off: 6, ..slot });
+            }
+        }
+        for (c, free) in camera_free.iter().enumerate() {
+            if camera_slot[c].is_none() && !free.is_empty() && images_of_camera[c] > 0 {
+                camera_slot[c] = Some(new_block(free.len()));
+            }
+        }
+        let rig_slot: Vec<Option<Slot>> = (problem.rigs.iter())
+            .map(|rig| (!rig.fixed && !rig.members.is_empty()).then(|| new_block(6)))
+            .collect();
+        let mut point_slot = vec![None; problem.points.len()];
+        for d in &problem.distances {
+            for p in [d.a, d.b] {
+                if !problem.points[p].fixed && point_slot[p].is_none() {
+                    point_slot[p] = Some(new_block(3));
+                }
+            }
+        }
+        let distance_slots = (problem.distances.iter())
+            .map(|d| [point_slot[d.a], point_slot[d.b]])
+            .collect();
+        let mut offset = Vec::with_capacity(dim.len());
+        let mut n_reduced = 0;
+        for &d in &dim {
+            offset.push(n_reduced);
+            n_reduced += d;
+        }
+        Self {
+            dim,
+            offset,
+            n_reduced,
+            image_slot,
+            camera_slot,
+            point_slot,
+            image_rig,
+            rig_slot,
+            distance_slots,
+            camera_free,
+        }
+    }
+
+    /// The segments and Jacobian buffer offsets of `observations` (in internal order).
+    fn observation_columns(&self, problem: &Problem, observations: &[&Observation]) -> ObsColumns {
+        let n_obs = observations.len();
+        let mut columns = ObsColumns {
+            ncols: Vec::with_capacity(n_obs),
+            jc_offset: Vec::with_capacity(n_obs),
+            w_offset: Vec::with_capacity(n_obs),
+            segs: Vec::with_capacity(n_obs),
+            jc_len: 0,
+            w_len: 0,
+        };
+        for o in observations {
+            let (segs, ns, ncols) = self.segments(problem, o);
+            columns.ncols.push(ncols);
+            columns.jc_offset.push(columns.jc_len);
+            columns.w_offset.push(columns.w_len);
+            columns.jc_len += 2 * ncols as usize;
+            columns.w_len += 3 * ncols as usize;
+            columns.segs.push((segs, ns));
+        }
+        columns
+    }
+
+    /// The blocks an observation's camera-side Jacobian columns land in, in column order
+    /// (pose, rig, intrinsics, point: those that are free): the segments, their number
+    /// and the total number of columns.
+    fn segments(&self, problem: &Problem, o: &Observation) -> ([Seg; 4], u8, u16) {
+        let empty = Seg {
+            block: 0,
+            jac_col: 0,
+            block_off: 0,
+            len: 0,
+        };
+        let mut segs = [empty; 4];
+        let mut ns = 0u8;
+        let mut ncols = 0u16;
+        let mut push = |slot: Slot, len: u16| {
+            segs[ns as usize] = Seg {
+                block: slot.block,
+                jac_col: ncols,
+                block_off: slot.off,
+                len,
+            };
+            ns += 1;
+            ncols += len;
+        };
+        // A rig member's image point depends on its base image's pose and the rig.
+        let (pose_image, rig) = match self.image_rig[o.image] {
+            Some((r, base)) => (base, self.rig_slot[r]),
+            None => (o.image, None),
+        };
+        if let Some(s) = self.image_slot[pose_image] {
+            push(s, 6);
+        }
+        if let Some(s) = rig {
+            push(s, 6);
+        }
+        let camera = problem.images[o.image].camera;
+        if let Some(s) = self.camera_slot[camera] {
+            push(s, self.camera_free[camera].len() as u16);
+        }
+        if let Some(s) = self.point_slot[o.point] {
+            push(s, 3);
+        }
+        (segs, ns, ncols)
+    }
+}
+
+/// Per image: `(rig, base image)` when it is a rig member (its pose has no block).
+fn rig_bases(problem: &Problem) -> Vec<Option<(usize, usize)>> {
+    let mut image_rig = vec![None; problem.images.len()];
+    for (r, rig) in problem.rigs.iter().enumerate() {
+        for m in &rig.members {
+            image_rig[m.image] = Some((r, m.base));
+        }
+    }
+    image_rig
+}
+
+/// The solver's internal order of the observations: by point, so that the W and Y rows of
+/// one point are adjacent in memory (the Schur complement reads them together); points in
+/// the order of the first block (image) that sees them, so that consecutive points update
+/// neighbouring blocks of S and those stay in cache.
+fn internal_order(problem: &Problem, blocks: &Blocks) -> Vec<u32> {
+    let mut first_seen = vec![u32::MAX; problem.points.len()];
+    for ob in &problem.observations {
+        let own = blocks.image_rig[ob.image].map_or(ob.image, |(_, base)| base);
+        let key = blocks.image_slot[own].map_or(u32::MAX - 1, |s| s.block);
+        first_seen[ob.point] = first_seen[ob.point].min(key);
+    }
+    let mut obs_order: Vec<u32> = (0..problem.observations.len() as u32).collect();
+    obs_order.sort_by_key(|&o| {
+        let ob = &problem.observations[o as usize];
+        (first_seen[ob.point], ob.point, ob.image)
+    });
+    obs_order
+}
+
+/// The free points eliminated by the Schur complement (not fixed, not in the reduced
+/// system), numbered in the internal observation order (so that per-point data is read
+/// sequentially too), then those nobody observes: `(free index per point or u32::MAX,
+/// point per free index)`.
+fn number_free_points(
+    problem: &Problem,
+    point_slot: &[Option<Slot>],
+    observations: &[&Observation],
+) -> (Vec<u32>, Vec<usize>) {
+    let mut free_point_index = vec![u32::MAX; problem.points.len()];
+    let mut free_points = Vec::new();
+    let observed = observations.iter().map(|o| o.point);
+    for p in observed.chain(0..problem.points.len()) {
+        if !problem.points[p].fixed && point_slot[p].is_none() && free_point_index[p] == u32::MAX {
+            free_point_index[p] = free_points.len() as u32;
+            free_points.push(p);
+        }
+    }
+    (free_point_index, free_points)
+}
+
+/// CSR of the observations of each free point (by free index): `(row pointers,
+/// observations in internal order)`.
+fn point_observations(
+    free_point_index: &[u32],
+    n_free: usize,
+    observations: &[&Observation],
+) -> (Vec<usize>, Vec<u32>) {
+    let mut counts = vec![0usize; n_free + 1];
+    for o in observations {
+        let f = free_point_index[o.point];
+        if f != u32::MAX {
+            counts[f as usize + 1] += 1;
+        }
+    }
+    for k in 1..counts.len() {
+        counts[k] += counts[k - 1];
+    }
+    let fp_obs_ptr = counts.clone();
+    let mut fp_obs = vec![0u32; *counts.last().unwrap()];
+    let mut fill = counts;
+    for (oi, o) in observations.iter().enumerate() {
+        let f = free_point_index[o.point];
+        if f != u32::MAX {
+            fp_obs[fill[f as usize]] = oi as u32;
+            fill[f as usize] += 1;
+        }
+    }
+    (fp_obs_ptr, fp_obs)
+}
+
+/// The block pattern of S's upper triangle: per block column, its sorted row blocks (the
+/// last is the column itself): pairs within an observation, among a free point's blocks,
+/// and between the two points of a distance.
+fn block_pattern(
+    nb: usize,
+    obs_segs: &[([Seg; 4], u8)],
+    fp_obs_ptr: &[usize],
+    fp_obs: &[u32],
+    distance_slots: &[[Option<Slot>; 2]],
+) -> Vec<Vec<u32>> {
+    let mut pairs: Vec<(u32, u32)> = Vec::new(); // (col, row) with row ≤ col
+    let push_set = |blocks: &mut Vec<u32>, pairs: &mut Vec<(u32, u32)>| {
+        blocks.sort_unstable();
+        blocks.dedup();
+        for (i, &a) in blocks.iter().enumerate() {
+            for &b in &blocks[i..] {
+                pairs.push((b, a));
+            }
+        }
+    };
+    let mut scratch = Vec::new();
+    for (segs, ns) in obs_segs {
+        scratch.clear();
+        scratch.extend(segs[..*ns as usize].iter().map(|s| s.block));
+        push_set(&mut scratch, &mut pairs);
+    }
+    for f in 0..fp_obs_ptr.len() - 1 {
+        scratch.clear();
+        for &o in &fp_obs[fp_obs_ptr[f]..fp_obs_ptr[f + 1]] {
+            let (segs, ns) = &obs_segs[o as usize];
+            scratch.extend(segs[..*ns as usize].iter().map(|s| s.block));
+        }
+        push_set(&mut scratch, &mut pairs);
+    }
+    for sl in distance_slots {
+        if let [Some(a), Some(b)] = sl {
+            let (a, b) = (a.block.min(b.block), a.block.max(b.block));
+            pairs.push((b, a));
+        }
+    }
+    for b in 0..nb as u32 {
+        pairs.push((b, b));
+    }
+    pairs.sort_unstable();
+    pairs.dedup();
+    let mut col_blocks = vec![Vec::new(); nb];
+    for (b, a) in pairs {
+        col_blocks[b as usize].push(a);
+    }
+    col_blocks
+}
+
+/// The scalar CSC pattern of S's upper triangle (rows sorted) from its block pattern:
+/// `(col_ptr, row_idx, col_row_off)` as in [`Layout`].
+fn scalar_pattern(
+    col_blocks: &[Vec<u32>],
+    blocks: &Blocks,
+) -> (Vec<usize>, Vec<usize>, Vec<Vec<usize>>) {
+    let (block_dim, block_offset) = (&blocks.dim, &blocks.offset);
+    let mut col_ptr = Vec::with_capacity(blocks.n_reduced + 1);
+    let mut row_idx = Vec::new();
+    let mut col_row_off = Vec::with_capacity(col_blocks.len());
+    col_ptr.push(0);
+    for (b, rows_of_b) in col_blocks.iter().enumerate() {
+        let mut offs = Vec::with_capacity(rows_of_b.len());
+        let mut acc = 0;
+        for &a in rows_of_b {
+            offs.push(acc);
+            acc += block_dim[a as usize];
+        }
+        col_row_off.push(offs);
+        for j in 0..block_dim[b] {
+            for &a in rows_of_b {
+                let a = a as usize;
+                let rows = if a == b { j + 1 } else { block_dim[a] };
+                row_idx.extend((0..rows).map(|i| block_offset[a] + i));
+            }
+            col_ptr.push(row_idx.len());
+        }
+    }
+    (col_ptr, row_idx, col_row_off)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::problem::{Distance, Rig, RigMember};
+    use crate::synthetic::SyntheticBal;
+
+    /// A synthetic problem with shared and fixed cameras, a fixed image, fixed points, an
+    /// unobserved point, distances and a free and a fixed rig.
+    fn mixed_problem() -> Problem {
+        let mut p = SyntheticBal {
+            cameras: 12,
+            points: 300,
+            obs_per_point: 4,
+            ..Default::default()
+        }
+        .generate()
+        .unwrap()
+        .problem;
+        for (i, im) in p.images.iter_mut().enumerate() {
+            if i % 3 == 1 {
+                im.camera = 0;
+            }
+        }
+        p.images[5].fixed = true;
+        p.cameras[4] = p.cameras[4].clone().fix_all();
+        for k in (0..p.points.len()).step_by(17) {
+            p.points[k].fixed = true;
+        }
+        p.points.push(p.points[3].clone());
+        p.points.last_mut().unwrap().fixed = false;
+        let distance = |a, b| Distance {
+            a,
+            b,
+            value: 1.0,
+            sigma: 0.1,
+        };
+        p.distances = vec![distance(10, 200), distance(10, 18)];
+        let rig = |fixed, members: &[(usize, usize)]| Rig {
+            name: "rig".into(),
+            pose: p.images[7].pose,
+            fixed,
+            members: (members.iter())
+                .map(|&(image, base)| RigMember { image, base })
+                .collect(),
+        };
+        p.rigs = vec![rig(false, &[(8, 6), (9, 7)]), rig(true, &[(11, 10)])];
+        p
+    }
+
+    #[test]
+    fn blocks_follow_what_is_free_and_shared() {
+        let p = mixed_problem();
+        let l = Layout::new(&p);
+        // Image 0 has camera 0 with 4 other images: a 6-block and a camera block of its own.
+        let s0 = l.image_slot[0].unwrap();
+        assert_eq!(l.block_dim[s0.block as usize], 6);
+        let c0 = l.camera_slot[0].unwrap();
+        assert_eq!((c0.off, l.block_dim[c0.block as usize]), (0, 3));
+        // Image 2 has camera 2 alone: folded into one 9-block.
+        let (s2, c2) = (l.image_slot[2].unwrap(), l.camera_slot[2].unwrap());
+        assert_eq!((c2.block, c2.off), (s2.block, 6));
+        assert_eq!(l.block_dim[s2.block as usize], 9);
+        // Fixed image, fixed camera, rig members: no block.
+        assert!(l.image_slot[5].is_none() && l.camera_slot[4].is_none());
+        assert!(l.image_slot[8].is_none() && l.image_slot[11].is_none());
+        assert_eq!(l.image_rig[8], Some((0, 6)));
+        assert!(l.rig_slot[0].is_some() && l.rig_slot[1].is_none());
+        // Distance points are in the reduced system, shared ones once.
+        assert_eq!(
+            l.distance_slots[0][0].unwrap().block,
+            l.point_slot[10].unwrap().block
+        );
+        assert_eq!(
+            l.distance_slots[1][0].unwrap().block,
+            l.point_slot[10].unwrap().block
+        );
+        assert!(l.point_slot[200].is_some() && l.point_slot[18].is_some());
+        // Free points: neither fixed nor in the reduced system; the unobserved one last.
+        let last = p.points.len() - 1;
+        assert_eq!(*l.free_points.last().unwrap(), last);
+        for (p_i, pt) in p.points.iter().enumerate() {
+            let free = !pt.fixed && l.point_slot[p_i].is_none();
+            assert_eq!(l.free_point_index[p_i] != u32::MAX, free);
+        }
+        assert!(l.point_obs(l.free_points.len() - 1).is_empty());
+        // Offsets add up, each block column ends with itself, the CSC has one column per
+        // unknown.
+        assert_eq!(l.n_reduced, l.block_dim.iter().sum::<usize>());
+        for (b, rows) in l.col_blocks.iter().enumerate() {
+            assert_eq!(*rows.last().unwrap() as usize, b);
+            assert!(rows.windows(2).all(|w| w[0] < w[1]));
+        }
+        assert_eq!(l.col_ptr.len(), l.n_reduced + 1);
+    }
+
+    #[test]
+    fn observations_are_grouped_by_point_with_their_segments() {
+        let p = mixed_problem();
+        let l = Layout::new(&p);
+        let mut order = l.obs_order.clone();
+        order.sort_unstable();
+        assert!(order.iter().enumerate().all(|(k, &o)| k == o as usize));
+        for k in 0..l.obs_order.len() {
+            let ob = &p.observations[l.obs_order[k] as usize];
+            assert_eq!(l.obs_point[k] as usize, ob.point);
+            if k > 0 && l.obs_point[k - 1] as usize != ob.point {
+                assert!(!l.obs_point[..k - 1].contains(&(ob.point as u32)));
+            }
+            let cols: u16 = l.segs(k).iter().map(|s| s.len).sum();
+            assert_eq!(cols, l.obs_ncols[k]);
+            if let Some((0, _)) = l.image_rig[ob.image] {
+                // Base pose, then the free rig's relative pose.
+                assert_eq!(l.segs(k)[1].block, l.rig_slot[0].unwrap().block);
+            }
+        }
     }
 }

@@ -16,7 +16,7 @@ use super::evaluate::{linearize, Linearization};
 use super::layout::Layout;
 use super::schur::Schur;
 use crate::problem::{Problem, ProblemError};
-use nalgebra::{DMatrix, Matrix3, Vector3};
+use nalgebra::{DMatrix, Matrix2, Matrix2x3, Matrix3, Vector3};
 
 /// Largest reduced camera system whose inverse is formed densely.
 pub const MAX_DENSE_PRECISION: usize = 6000;
@@ -118,29 +118,7 @@ pub fn precision(problem: &Problem) -> Result<Precision, PrecisionError> {
             image: problem.images[ob.image].name.clone(),
         }
     })?;
-    let mut schur = Schur::new(&layout);
-    schur.prepare(&layout, &lin, problem);
-    // Eliminated points must be determined on their own.
-    for (f, v) in schur.v.iter().enumerate() {
-        let scale = v.diagonal().max().max(f64::MIN_POSITIVE);
-        let eig = v.symmetric_eigenvalues();
-        if !(eig.min() > 1e-10 * scale) {
-            return Err(PrecisionError::PointUndetermined(
-                problem.points[layout.free_points[f]].name.clone(),
-            ));
-        }
-    }
-    schur.assemble(&layout, &lin, problem, 0.0).map_err(|f| {
-        PrecisionError::PointUndetermined(problem.points[layout.free_points[f]].name.clone())
-    })?;
-    let mut s = DMatrix::<f64>::zeros(n, n);
-    for j in 0..n {
-        for k in layout.col_ptr[j]..layout.col_ptr[j + 1] {
-            let i = layout.row_idx[k];
-            s[(i, j)] = schur.values[k];
-            s[(j, i)] = schur.values[k];
-        }
-    }
+    let (schur, s) = reduced_system(problem, &layout, &lin)?;
     let q_cc = match invert_or_diagnose(&s, problem, &layout) {
         Ok(q) => q,
         // A free network: the datum by inner constraints on the points.
@@ -164,7 +142,7 @@ pub fn precision(problem: &Problem) -> Result<Precision, PrecisionError> {
     let intrinsics = intrinsics_precision(problem, &layout, s02, |i, j| q_cc[(i, j)]);
     let poses = pose_sigmas(problem, &layout, s02, |i, j| q_cc[(i, j)]);
 
-    // Points.
+    // Points: those in the reduced system from Q_cc, the eliminated ones from theirs.
     let mut point_covariances = vec![None; problem.points.len()];
     for (p, slot) in layout.point_slot.iter().enumerate() {
         if let Some(sl) = slot {
@@ -172,9 +150,73 @@ pub fn precision(problem: &Problem) -> Result<Precision, PrecisionError> {
             point_covariances[p] = Some(Matrix3::from_fn(|a, b| s02 * q_cc[(o + a, o + b)]));
         }
     }
-    let mut point_rows: Vec<Vec<(usize, [f64; 3])>> = Vec::with_capacity(layout.free_points.len());
-    let mut point_q: Vec<Matrix3<f64>> = Vec::with_capacity(layout.free_points.len());
-    for (f, &p) in layout.free_points.iter().enumerate() {
+    let eliminated: Vec<EliminatedPoint> = (0..layout.free_points.len())
+        .map(|f| EliminatedPoint::new(&layout, &schur, &q_cc, f))
+        .collect();
+    for (ep, &p) in eliminated.iter().zip(&layout.free_points) {
+        point_covariances[p] = Some(ep.q * s02);
+    }
+
+    Ok(Precision {
+        sigma0,
+        redundancy,
+        observations: n_obs,
+        unknowns,
+        rms_image_px: problem.rms_px(),
+        intrinsics,
+        poses,
+        point_covariances,
+        standardized_residuals: standardized_residuals(&layout, &lin, &q_cc, &eliminated),
+    })
+}
+
+/// The undamped Schur complement at the linearization and S as a dense symmetric matrix;
+/// refused when an eliminated point is not determined by its own observations.
+fn reduced_system(
+    problem: &Problem,
+    layout: &Layout,
+    lin: &Linearization,
+) -> Result<(Schur, DMatrix<f64>), PrecisionError> {
+    let mut schur = Schur::new(layout);
+    schur.prepare(layout, lin, problem);
+    // Eliminated points must be determined on their own.
+    for (f, v) in schur.v.iter().enumerate() {
+        let scale = v.diagonal().max().max(f64::MIN_POSITIVE);
+        let eig = v.symmetric_eigenvalues();
+        if !(eig.min() > 1e-10 * scale) {
+            return Err(PrecisionError::PointUndetermined(
+                problem.points[layout.free_points[f]].name.clone(),
+            ));
+        }
+    }
+    schur.assemble(layout, lin, problem, 0.0).map_err(|f| {
+        PrecisionError::PointUndetermined(problem.points[layout.free_points[f]].name.clone())
+    })?;
+    let n = layout.n_reduced;
+    let mut s = DMatrix::<f64>::zeros(n, n);
+    for j in 0..n {
+        for k in layout.col_ptr[j]..layout.col_ptr[j + 1] {
+            let i = layout.row_idx[k];
+            s[(i, j)] = schur.values[k];
+            s[(j, i)] = schur.values[k];
+        }
+    }
+    Ok((schur, s))
+}
+
+/// A point eliminated by the Schur complement: M = W V⁻¹ restricted to the camera-side
+/// rows it touches, and its cofactor matrix `Q_pp = V⁻¹ + Mᵀ Q_cc M`.
+struct EliminatedPoint {
+    /// (row of the reduced system, the 3 values of M in that row), one per row of each
+    /// observation's segments (a row may repeat: the entries add up).
+    rows: Vec<(usize, [f64; 3])>,
+    /// Q_pp.
+    q: Matrix3<f64>,
+}
+
+impl EliminatedPoint {
+    /// Free point `f` of the layout, with the Schur complement's Y = W V⁻¹.
+    fn new(layout: &Layout, schur: &Schur, q_cc: &DMatrix<f64>, f: usize) -> Self {
         // M = W V⁻¹ restricted to the camera-side rows this point touches: Σ_o Y_o.
         let mut rows: Vec<(usize, [f64; 3])> = Vec::new();
         for &o in layout.point_obs(f) {
@@ -182,9 +224,7 @@ pub fn precision(problem: &Problem) -> Result<Precision, PrecisionError> {
             for sg in layout.segs(o) {
                 let y = layout.w_cols(&schur.y, o, sg);
                 let base = layout.block_offset[sg.block as usize] + sg.block_off as usize;
-                for k in 0..sg.len as usize {
-                    rows.push((base + k, [y[0][k], y[1][k], y[2][k]]));
-                }
+                rows.extend((0..sg.len as usize).map(|k| (base + k, [y[0][k], y[1][k], y[2][k]])));
             }
         }
         let mut extra = Matrix3::zeros();
@@ -198,76 +238,85 @@ pub fn precision(problem: &Problem) -> Result<Precision, PrecisionError> {
                 }
             }
         }
-        point_covariances[p] = Some((schur.vinv[f] + extra) * s02);
-        point_q.push(schur.vinv[f] + extra);
-        point_rows.push(rows);
+        Self {
+            rows,
+            q: schur.vinv[f] + extra,
+        }
     }
+}
 
-    // Standardized residuals: q_vv = 1 − diag(A Q Aᵀ) in whitened units, with A = [J_c, J_p]
-    // and Q_cp = −Q_cc M for an eliminated point.
-    let mut standardized_residuals = vec![[f64::NAN; 2]; problem.observations.len()];
-    for o in 0..problem.observations.len() {
-        let mut cols: Vec<(usize, [f64; 2])> = Vec::new();
-        for sg in layout.segs(o) {
-            let (j0, j1) = layout.jc_rows(&lin.jc, o, sg);
-            let base = layout.block_offset[sg.block as usize] + sg.block_off as usize;
-            for k in 0..sg.len as usize {
-                cols.push((base + k, [j0[k], j1[k]]));
-            }
-        }
-        let mut aqa = nalgebra::Matrix2::<f64>::zeros();
-        for &(i, ji) in &cols {
-            for &(j, jj) in &cols {
-                let q = q_cc[(i, j)];
-                for a in 0..2 {
-                    for b in 0..2 {
-                        aqa[(a, b)] += ji[a] * q * jj[b];
-                    }
-                }
-            }
-        }
-        let point = layout.obs_point[o] as usize;
-        let f = layout.free_point_index[point];
-        if f != u32::MAX {
-            let f = f as usize;
-            let jp = lin.jp[o];
-            aqa += jp * point_q[f] * jp.transpose();
-            // Cross term: J_c Q_cp J_pᵀ with Q_cp = −Q_cc M.
-            let mut jc_qcp = nalgebra::Matrix2x3::<f64>::zeros();
-            for &(i, ji) in &cols {
-                for &(r, y) in &point_rows[f] {
-                    let q = q_cc[(i, r)];
-                    for a in 0..2 {
-                        for b in 0..3 {
-                            jc_qcp[(a, b)] -= ji[a] * q * y[b];
-                        }
-                    }
-                }
-            }
-            let cross = jc_qcp * jp.transpose();
-            aqa += cross + cross.transpose();
-        }
+/// The standardized residuals of the image observations (in the problem's order):
+/// `r / √q_vv` with `q_vv = 1 − (A Q Aᵀ)_ii`; NaN where q_vv vanishes.
+fn standardized_residuals(
+    layout: &Layout,
+    lin: &Linearization,
+    q_cc: &DMatrix<f64>,
+    eliminated: &[EliminatedPoint],
+) -> Vec<[f64; 2]> {
+    let mut standardized = vec![[f64::NAN; 2]; layout.obs_order.len()];
+    for o in 0..layout.obs_order.len() {
+        let aqa = observation_cofactor(layout, lin, q_cc, eliminated, o);
         let r = lin.r[o];
         let q = layout.obs_order[o] as usize;
-        for a in 0..2 {
+        for (a, w) in standardized[q].iter_mut().enumerate() {
             let qvv = 1.0 - aqa[(a, a)];
             if qvv > 1e-9 {
-                standardized_residuals[q][a] = r[a] / qvv.sqrt();
+                *w = r[a] / qvv.sqrt();
             }
         }
     }
+    standardized
+}
 
-    Ok(Precision {
-        sigma0,
-        redundancy,
-        observations: n_obs,
-        unknowns,
-        rms_image_px: problem.rms_px(),
-        intrinsics,
-        poses,
-        point_covariances,
-        standardized_residuals,
-    })
+/// A Q Aᵀ of observation `o` (internal order) in whitened units, with A = [J_c, J_p] and
+/// Q_cp = −Q_cc M for an eliminated point.
+fn observation_cofactor(
+    layout: &Layout,
+    lin: &Linearization,
+    q_cc: &DMatrix<f64>,
+    eliminated: &[EliminatedPoint],
+    o: usize,
+) -> Matrix2<f64> {
+    let mut cols: Vec<(usize, [f64; 2])> = Vec::new();
+    for sg in layout.segs(o) {
+        let (j0, j1) = layout.jc_rows(&lin.jc, o, sg);
+        let base = layout.block_offset[sg.block as usize] + sg.block_off as usize;
+        for k in 0..sg.len as usize {
+            cols.push((base + k, [j0[k], j1[k]]));
+        }
+    }
+    let mut aqa = Matrix2::<f64>::zeros();
+    for &(i, ji) in &cols {
+        for &(j, jj) in &cols {
+            let q = q_cc[(i, j)];
+            for a in 0..2 {
+                for b in 0..2 {
+                    aqa[(a, b)] += ji[a] * q * jj[b];
+                }
+            }
+        }
+    }
+    let f = layout.free_point_index[layout.obs_point[o] as usize];
+    if f != u32::MAX {
+        let point = &eliminated[f as usize];
+        let jp = lin.jp[o];
+        aqa += jp * point.q * jp.transpose();
+        // Cross term: J_c Q_cp J_pᵀ with Q_cp = −Q_cc M.
+        let mut jc_qcp = Matrix2x3::<f64>::zeros();
+        for &(i, ji) in &cols {
+            for &(r, y) in &point.rows {
+                let q = q_cc[(i, r)];
+                for a in 0..2 {
+                    for b in 0..3 {
+                        jc_qcp[(a, b)] -= ji[a] * q * y[b];
+                    }
+                }
+            }
+        }
+        let cross = jc_qcp * jp.transpose();
+        aqa += cross + cross.transpose();
+    }
+    aqa
 }
 
 /// S⁻¹, or a diagnosis of S's null space: how many degrees of freedom the datum leaves
