@@ -36,6 +36,7 @@
 
 pub mod coded_target;
 pub mod config;
+pub mod head;
 pub mod lrf;
 pub mod project_files;
 pub mod render;

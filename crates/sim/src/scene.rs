@@ -9,7 +9,7 @@
 
 use crate::coded_target;
 use crate::config::{BallConfig, ConfigError, RoomConfig, SimConfig, TargetConfig};
-use crate::stations::CameraUnit;
+use crate::head::CameraUnit;
 use crate::{rng_for, SimError};
 use nalgebra::{Matrix3, Vector2, Vector3};
 use pingcal_ba::pose::Pose;
@@ -702,8 +702,8 @@ impl MainView {
     /// The main left camera of the configuration, refused when it stands outside the room
     /// (or too close to a wall).
     fn new(cfg: &SimConfig, surfaces: &[Surface]) -> Result<Self, SimError> {
-        let pose = crate::stations::main_left_pose(&cfg.stations);
-        crate::stations::check_inside(
+        let pose = crate::head::main_left_pose(&cfg.stations);
+        check_inside(
             surfaces,
             &pose.centre(),
             "stations.main_centre_mm",
@@ -711,7 +711,7 @@ impl MainView {
             "left",
             cfg.stations.min_wall_clearance_mm,
         )?;
-        let [camera, _] = crate::stations::StereoRig::from_config(cfg).cameras;
+        let [camera, _] = crate::head::StereoRig::from_config(cfg).cameras;
         let r_max = camera.max_ideal_radius_mm();
         Ok(Self {
             pose,
@@ -1128,4 +1128,31 @@ fn choose_distances(
             }
         })
         .collect())
+}
+
+/// Refuses a camera centre `c` less than `clearance` inside any of the room's planes.
+pub fn check_inside(
+    surfaces: &[Surface],
+    c: &V3,
+    key: &str,
+    station: &str,
+    camera: &str,
+    clearance: f64,
+) -> Result<(), ConfigError> {
+    for s in surfaces {
+        let d = s.plane_distance(c);
+        if d < clearance {
+            return Err(ConfigError::new(
+                key,
+                format!("[{:.0}, {:.0}, {:.0}]", c.x, c.y, c.z),
+                format!(
+                    "station {station} puts the {camera} camera {:.0} mm {} {} (needs {clearance} mm inside the room): a camera behind a wall",
+                    d.abs(),
+                    if d < 0.0 { "behind" } else { "in front of" },
+                    s.name,
+                ),
+            ));
+        }
+    }
+    Ok(())
 }

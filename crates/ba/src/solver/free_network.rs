@@ -13,7 +13,7 @@
 
 use super::evaluate::Linearization;
 use super::layout::Layout;
-use super::precision::{intrinsics_precision, pose_sigmas, Precision, PrecisionError};
+use super::sigma::{intrinsics_precision, pose_sigmas, Precision, PrecisionError};
 use crate::problem::Problem;
 use nalgebra::{DMatrix, Matrix3, Vector3};
 

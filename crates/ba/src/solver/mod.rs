@@ -18,13 +18,13 @@ mod linear;
 mod outliers;
 mod precision;
 mod schur;
+mod sigma;
 
 pub use free_network::MAX_FREE_NETWORK_UNKNOWNS;
 pub use linear::LinearSolverKind;
 pub use outliers::{adjust_with_snooping, Rejection, SnoopError, SnoopResult};
-pub use precision::{
-    precision, IntrinsicsPrecision, PoseSigma, Precision, PrecisionError, MAX_DENSE_PRECISION,
-};
+pub use precision::precision;
+pub use sigma::{IntrinsicsPrecision, PoseSigma, Precision, PrecisionError, MAX_DENSE_PRECISION};
 
 use crate::problem::{Problem, ProblemError};
 use crate::rotation::log_so3;

@@ -1,0 +1,175 @@
+//! What the precision of an adjusted network is, as Australis reports it — σ0, redundancy,
+//! RMS image residual, σ's and correlations of the intrinsics, σ's of every pose and point,
+//! standardized residuals — and the propagation of a cofactor matrix of the reduced system
+//! into the σ's of intrinsics and poses.
+//!
+//! Two computations fill it in: [`precision`](super::precision) for a network whose datum is
+//! fixed (minimal or more constraints), and [`free_network`](super::free_network) for a free
+//! network (inner constraints). Both stand on this module, which uses neither.
+
+use super::layout::Layout;
+use crate::problem::{Problem, ProblemError};
+use nalgebra::{DMatrix, Matrix3, Vector3};
+
+/// Largest reduced camera system whose inverse is formed densely.
+pub const MAX_DENSE_PRECISION: usize = 6000;
+
+/// Standard deviations and correlations of one camera's free intrinsics.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct IntrinsicsPrecision {
+    /// Camera name.
+    pub camera: String,
+    /// Names of the free parameters (the model's names).
+    pub names: Vec<String>,
+    /// Their values.
+    pub values: Vec<f64>,
+    /// Their standard deviations (σ0-scaled).
+    pub sigmas: Vec<f64>,
+    /// Correlation matrix, row by row, in the order of `names`.
+    pub correlation: Vec<Vec<f64>>,
+    /// Pairs whose |correlation| exceeds 0.95.
+    pub high_correlations: Vec<(String, String, f64)>,
+}
+
+/// Standard deviation of one image's exterior orientation.
+#[derive(Clone, Copy, Debug, serde::Serialize)]
+pub struct PoseSigma {
+    /// Of the small rotation about the camera axes, radians.
+    pub rotation_rad: [f64; 3],
+    /// Of the projection centre in object space.
+    pub centre: [f64; 3],
+}
+
+/// The precision of a network.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Precision {
+    /// A-posteriori standard deviation of unit weight.
+    pub sigma0: f64,
+    /// Observations minus unknowns (image coordinates, distances, control coordinates).
+    pub redundancy: i64,
+    /// Number of scalar observations.
+    pub observations: usize,
+    /// Number of unknowns.
+    pub unknowns: usize,
+    /// RMS image residual, pixels.
+    pub rms_image_px: f64,
+    /// Per camera with free intrinsics.
+    pub intrinsics: Vec<IntrinsicsPrecision>,
+    /// Per image (None for a fixed pose).
+    pub poses: Vec<Option<PoseSigma>>,
+    /// Per point: its covariance (None for a fixed point).
+    #[serde(skip)]
+    pub point_covariances: Vec<Option<Matrix3<f64>>>,
+    /// Per image observation (problem order): the standardized residuals of u and v,
+    /// `w = v / (σ √q_vv)` with the a-priori σ (Baarda's data snooping statistic, N(0, 1)
+    /// for a good observation). NaN where the observation has no redundancy.
+    #[serde(skip)]
+    pub standardized_residuals: Vec<[f64; 2]>,
+}
+
+impl Precision {
+    /// Standard deviations of a point's coordinates.
+    pub fn point_sigma(&self, p: usize) -> Option<Vector3<f64>> {
+        self.point_covariances[p]
+            .map(|c| Vector3::new(c[(0, 0)].sqrt(), c[(1, 1)].sqrt(), c[(2, 2)].sqrt()))
+    }
+}
+
+/// Why the precision cannot be computed.
+#[derive(Debug, thiserror::Error)]
+pub enum PrecisionError {
+    /// The problem is malformed or does not project.
+    #[error(transparent)]
+    Problem(#[from] ProblemError),
+    /// The datum is not defined: S is singular.
+    #[error("the network has a datum defect: {0}")]
+    DatumDefect(String),
+    /// A point's position is not determined by its observations.
+    #[error("point '{0}' is not determined: it needs rays from at least two images with an angle between them")]
+    PointUndetermined(String),
+    /// The reduced system is too large to invert densely.
+    #[error("the reduced camera system has {0} unknowns; precision is computed for at most {MAX_DENSE_PRECISION}")]
+    TooLarge(usize),
+    /// More unknowns than observations.
+    #[error("redundancy {0} is not positive: more unknowns than observations")]
+    NoRedundancy(i64),
+}
+
+/// Standard deviations and correlations of every camera's free intrinsics, from the
+/// cofactor matrix `q` (indexed in the reduced system) scaled by σ0².
+pub(crate) fn intrinsics_precision(
+    problem: &Problem,
+    layout: &Layout,
+    s02: f64,
+    q: impl Fn(usize, usize) -> f64,
+) -> Vec<IntrinsicsPrecision> {
+    let mut out = Vec::new();
+    for (c, cam) in problem.cameras.iter().enumerate() {
+        let Some(slot) = layout.camera_slot[c] else {
+            continue;
+        };
+        let o = layout.slot_offset(slot);
+        let free = &layout.camera_free[c];
+        let k = free.len();
+        let cov = DMatrix::from_fn(k, k, |i, j| s02 * q(o + i, o + j));
+        let sig: Vec<f64> = (0..k).map(|i| cov[(i, i)].max(0.0).sqrt()).collect();
+        let names: Vec<String> = free
+            .iter()
+            .map(|&i| cam.model.parameter_names()[i].to_string())
+            .collect();
+        let corr: Vec<Vec<f64>> = (0..k)
+            .map(|i| (0..k).map(|j| cov[(i, j)] / (sig[i] * sig[j])).collect())
+            .collect();
+        let mut high = Vec::new();
+        for i in 0..k {
+            for j in i + 1..k {
+                if corr[i][j].abs() > 0.95 {
+                    high.push((names[i].clone(), names[j].clone(), corr[i][j]));
+                }
+            }
+        }
+        out.push(IntrinsicsPrecision {
+            camera: cam.name.clone(),
+            values: free.iter().map(|&i| cam.params[i]).collect(),
+            names,
+            sigmas: sig,
+            correlation: corr,
+            high_correlations: high,
+        });
+    }
+    out
+}
+
+/// Standard deviations of every free pose: rotation about the camera axes and the
+/// projection centre C = −Rᵀt, whose derivative with respect to (δω, δt) is
+/// [−Rᵀ[t]×, −Rᵀ].
+pub(crate) fn pose_sigmas(
+    problem: &Problem,
+    layout: &Layout,
+    s02: f64,
+    q: impl Fn(usize, usize) -> f64,
+) -> Vec<Option<PoseSigma>> {
+    problem
+        .images
+        .iter()
+        .enumerate()
+        .map(|(i, im)| {
+            let o = layout.slot_offset(layout.image_slot[i]?);
+            let qq = DMatrix::from_fn(6, 6, |a, b| s02 * q(o + a, o + b));
+            let rt = im.pose.rotation.transpose();
+            let jw = -(rt * crate::rotation::skew(&im.pose.translation));
+            let mut j = DMatrix::<f64>::zeros(3, 6);
+            for a in 0..3 {
+                for b in 0..3 {
+                    j[(a, b)] = jw[(a, b)];
+                    j[(a, 3 + b)] = -rt[(a, b)];
+                }
+            }
+            let cc = &j * &qq * j.transpose();
+            Some(PoseSigma {
+                rotation_rad: [qq[(0, 0)].sqrt(), qq[(1, 1)].sqrt(), qq[(2, 2)].sqrt()],
+                centre: [cc[(0, 0)].sqrt(), cc[(1, 1)].sqrt(), cc[(2, 2)].sqrt()],
+            })
+        })
+        .collect()
+}

@@ -1,0 +1,132 @@
+//! The stereo head (MYNT EYE D1000-like): its two cameras with their true parameters, the
+//! rig's relative pose, and the pose of the main station's left camera. Below both the
+//! scene (which places the targets where the main image sees them) and the station plan.
+//!
+//! Poses are world → camera (`x_cam = R·X + t`, [`Pose`]), camera frame X right, Y forward
+//! (optical axis), Z up (SPEC.md).
+
+use crate::config::{SimConfig, StationConfig};
+use nalgebra::{Matrix3, Vector3};
+use pingcal_ba::camera::PhotogrammetricCamera;
+use pingcal_ba::pose::Pose;
+use pingcal_ba::rotation::from_opk;
+
+type V3 = Vector3<f64>;
+
+/// One camera of the head: its model and true parameters.
+#[derive(Debug, Clone)]
+pub struct CameraUnit {
+    /// `left` or `right`.
+    pub id: String,
+    /// Sensor geometry.
+    pub model: PhotogrammetricCamera,
+    /// True `[c, xp, yp, K1, K2, K3, P1, P2, B1, B2]`.
+    pub params: [f64; 10],
+}
+
+impl CameraUnit {
+    /// Largest ideal (undistorted) image radius, in mm from the principal point, over the
+    /// image border. Points whose ideal radius exceeds it are outside the image even when
+    /// the distortion polynomial (which folds back far outside the field of view) maps
+    /// them inside.
+    pub fn max_ideal_radius_mm(&self) -> f64 {
+        let (w, h) = (
+            self.model.width as f64 - 1.0,
+            self.model.height as f64 - 1.0,
+        );
+        let mut r: f64 = 0.0;
+        for (u, v) in [
+            (0.0, 0.0),
+            (w, 0.0),
+            (0.0, h),
+            (w, h),
+            (0.5 * w, 0.0),
+            (0.5 * w, h),
+            (0.0, 0.5 * h),
+            (w, 0.5 * h),
+        ] {
+            let xy = self.model.pixel_to_sensor(&nalgebra::Vector2::new(u, v));
+            if let Some(q) = self.model.undistort_sensor(&self.params, &xy) {
+                r = r.max(q.norm());
+            }
+        }
+        r
+    }
+
+    /// Projects a camera-frame point if it is really in the field of view (in front, and
+    /// within the ideal radius of the image border, see [`Self::max_ideal_radius_mm`]).
+    pub fn project_in_view(&self, xc: &V3, r_max: f64) -> Option<nalgebra::Vector2<f64>> {
+        if xc.y <= 0.0 {
+            return None;
+        }
+        let c = self.params[0];
+        let (x, z) = (
+            c * xc.x / xc.y - self.params[1],
+            c * xc.z / xc.y - self.params[2],
+        );
+        if (x * x + z * z).sqrt() > r_max {
+            return None;
+        }
+        use pingcal_ba::camera::CameraModel;
+        self.model.project(&self.params, xc, None, None)
+    }
+}
+
+/// The stereo head: left and right cameras and the right camera's pose in the left frame.
+#[derive(Debug, Clone)]
+pub struct StereoRig {
+    /// Left camera (index 0) and right camera (index 1).
+    pub cameras: [CameraUnit; 2],
+    /// Left-camera frame → right-camera frame.
+    pub left_to_right: Pose,
+}
+
+impl StereoRig {
+    /// The head from the configuration.
+    pub fn from_config(cfg: &SimConfig) -> Self {
+        let c = &cfg.camera;
+        let model = PhotogrammetricCamera::new(c.width, c.height, c.pixel_size_mm);
+        let o = c.right_opk_deg;
+        // Right camera orientation relative to left: x_right = R_rel (x_left − C_right).
+        let r_rel = from_opk(o[0].to_radians(), o[1].to_radians(), o[2].to_radians());
+        let left_to_right = Pose::from_rotation_and_centre(r_rel, V3::from(c.right_offset_mm));
+        Self {
+            cameras: [
+                CameraUnit {
+                    id: "left".into(),
+                    model,
+                    params: c.left.params,
+                },
+                CameraUnit {
+                    id: "right".into(),
+                    model,
+                    params: c.right.params,
+                },
+            ],
+            left_to_right,
+        }
+    }
+}
+
+/// The rotation world → camera for a camera at `centre` looking at `look_at`, rolled by
+/// `roll` (radians) about its optical axis; image up is world up when `roll` = 0.
+pub fn look_at_rotation(centre: &V3, look_at: &V3, roll: f64) -> Matrix3<f64> {
+    let fwd = (look_at - centre).normalize();
+    let up_world = if fwd.cross(&V3::z()).norm() < 1e-6 {
+        V3::y()
+    } else {
+        V3::z()
+    };
+    let right = fwd.cross(&up_world).normalize();
+    let up = right.cross(&fwd);
+    let (s, c) = roll.sin_cos();
+    let right_r = right * c + up * s;
+    let up_r = up * c - right * s;
+    Matrix3::from_rows(&[right_r.transpose(), fwd.transpose(), up_r.transpose()])
+}
+
+/// The main station's left camera pose (world → camera).
+pub fn main_left_pose(sc: &StationConfig) -> Pose {
+    let c = V3::from(sc.main_centre_mm);
+    Pose::from_rotation_and_centre(look_at_rotation(&c, &V3::from(sc.main_look_at_mm), 0.0), c)
+}
