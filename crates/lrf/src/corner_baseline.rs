@@ -54,8 +54,8 @@ use crate::error::{LrfError, Result};
 use crate::registration::Transform;
 use crate::scan::{ScanHeader, ScanLine};
 use nalgebra::{Matrix3, Vector2, Vector3};
-use rand::rngs::StdRng;
-use rand::{Rng, SeedableRng};
+use pingcal_geometry::consensus::{self, ConsensusOptions, Estimator, Sampling};
+use pingcal_geometry::Plane;
 use rayon::prelude::*;
 
 /// Fewest targets accepted on one face of the corner.
@@ -119,26 +119,49 @@ struct Face {
     tol_mm: f64,
 }
 
-/// Least-squares plane: (centroid, unit normal, eigenvalues ascending).
-fn fit_plane(pts: &[Vector3<f64>]) -> (Vector3<f64>, Vector3<f64>, [f64; 3]) {
-    let m = pts.iter().sum::<Vector3<f64>>() / pts.len() as f64;
-    let mut s = Matrix3::zeros();
-    for p in pts {
-        s += (p - m) * (p - m).transpose();
+/// Planes through three targets of `left` (indices into `pts`), for [`consensus::find`]:
+/// the sample must span a triangle (sides ≥ 20 mm, sine of the angle at the first point
+/// ≥ 0.2; three independent draws may repeat a target) and the plane be nearly orthogonal
+/// to the faces already found; the residual is the distance in mm.
+struct FaceSamples<'a> {
+    pts: &'a [Vector3<f64>],
+    left: &'a [usize],
+    found: &'a [Face],
+}
+
+impl Estimator for FaceSamples<'_> {
+    type Model = (Vector3<f64>, f64);
+    fn len(&self) -> usize {
+        self.left.len()
     }
-    let e = s.symmetric_eigen();
-    let mut idx = [0usize, 1, 2];
-    idx.sort_by(|&a, &b| e.eigenvalues[a].total_cmp(&e.eigenvalues[b]));
-    let n = e.eigenvectors.column(idx[0]).into_owned();
-    (
-        m,
-        n,
-        [
-            e.eigenvalues[idx[0]],
-            e.eigenvalues[idx[1]],
-            e.eigenvalues[idx[2]],
-        ],
-    )
+    fn sample_size(&self) -> usize {
+        3
+    }
+    fn fit(&self, s: &[usize], planes: &mut Vec<(Vector3<f64>, f64)>) {
+        let [a, b, c] = [0, 1, 2].map(|k| self.pts[self.left[s[k]]]);
+        let (u, v) = (b - a, c - a);
+        let n = u.cross(&v);
+        // reject near-collinear samples (sin of the angle at `a` below 0.2)
+        let degenerate = n.norm() <= 0.2 * u.norm() * v.norm() || !n.norm().is_finite();
+        if degenerate || u.norm() < 20.0 || v.norm() < 20.0 {
+            return;
+        }
+        let n = n.normalize();
+        if self
+            .found
+            .iter()
+            .any(|f| f.normal.dot(&n).abs() >= MAX_FACE_COS)
+        {
+            return;
+        }
+        planes.push((n, n.dot(&a)));
+    }
+    fn residual(&self, plane: &(Vector3<f64>, f64), k: usize) -> f64 {
+        self.residual_squared(plane, k).sqrt()
+    }
+    fn residual_squared(&self, (n, d): &(Vector3<f64>, f64), k: usize) -> f64 {
+        (n.dot(&self.pts[self.left[k]]) - d).powi(2)
+    }
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -160,39 +183,23 @@ fn fmt_v(v: &Vector3<f64>) -> String {
 
 /// Sequential RANSAC: up to three mutually near-orthogonal planes among the targets.
 fn find_faces(pts: &[Vector3<f64>], seed: u64) -> Vec<Face> {
-    let mut rng = StdRng::seed_from_u64(seed ^ 0x5EED_FACE);
+    let mut rng = consensus::rng(seed ^ 0x5EED_FACE);
+    let opts = ConsensusOptions {
+        sampling: Sampling::Independent,
+        ..ConsensusOptions::msac(MIN_PLANE_TOL_MM, 2000)
+    };
     let mut left: Vec<usize> = (0..pts.len()).collect();
     let mut faces: Vec<Face> = Vec::new();
     while faces.len() < 3 && left.len() >= MIN_FACE_TARGETS {
-        let mut best: Option<(f64, Vector3<f64>, f64)> = None; // (MSAC cost, n, d)
-        let tol2 = MIN_PLANE_TOL_MM * MIN_PLANE_TOL_MM;
-        for _ in 0..2000 {
-            let (a, b, c) = (
-                pts[left[rng.random_range(0..left.len())]],
-                pts[left[rng.random_range(0..left.len())]],
-                pts[left[rng.random_range(0..left.len())]],
-            );
-            let (u, v) = (b - a, c - a);
-            let n = u.cross(&v);
-            // reject near-collinear samples (sin of the angle at `a` below 0.2)
-            let degenerate = n.norm() <= 0.2 * u.norm() * v.norm() || !n.norm().is_finite();
-            if degenerate || u.norm() < 20.0 || v.norm() < 20.0 {
-                continue;
-            }
-            let n = n.normalize();
-            if faces.iter().any(|f| f.normal.dot(&n).abs() >= MAX_FACE_COS) {
-                continue;
-            }
-            let d = n.dot(&a);
-            let cost: f64 = left
-                .iter()
-                .map(|&i| (n.dot(&pts[i]) - d).powi(2).min(tol2))
-                .sum();
-            if best.is_none_or(|b| cost < b.0) {
-                best = Some((cost, n, d));
-            }
-        }
-        let Some((_, mut n, mut d)) = best else { break };
+        let samples = FaceSamples {
+            pts,
+            left: &left,
+            found: &faces,
+        };
+        let Some(best) = consensus::find(&samples, &opts, &mut rng) else {
+            break;
+        };
+        let (mut n, mut d) = best.model;
         // refine: least squares on the inliers, tolerance max(5 mm, 3 × median |residual|)
         let mut tol = MIN_PLANE_TOL_MM;
         let mut members: Vec<usize> = Vec::new();
@@ -207,9 +214,10 @@ fn find_faces(pts: &[Vector3<f64>], seed: u64) -> Vec<Face> {
                 break;
             }
             let p: Vec<Vector3<f64>> = on.iter().map(|&i| pts[i]).collect();
-            let (m, nn, ev) = fit_plane(&p);
-            n = nn;
-            d = n.dot(&m);
+            let Some(plane) = Plane::fit(&p) else { break };
+            let (m, ev) = (plane.centroid, plane.eigenvalues);
+            n = plane.normal;
+            d = plane.offset;
             let res: Vec<f64> = p.iter().map(|q| (n.dot(q) - d).abs()).collect();
             tol = MIN_PLANE_TOL_MM.max(3.0 * median(res));
             let same = on == members;
