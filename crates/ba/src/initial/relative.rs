@@ -313,6 +313,9 @@ fn pose_error(pose: &Pose, d1: &Vector3<f64>, d2: &Vector3<f64>) -> f64 {
     }
 }
 
+/// A 3×3 matrix from corresponding rays (the 8-point E, the 4-point homography).
+type RaySolver = fn(&[Vector3<f64>], &[Vector3<f64>]) -> Option<Matrix3<f64>>;
+
 /// A 3×3 matrix model (essential matrix or homography) of corresponding ray pairs, for
 /// [`consensus::find`]: a minimal solver (also the least-squares refit on more pairs) and
 /// the error of one pair (radians).
@@ -320,7 +323,7 @@ struct RayPairs<'a> {
     d1: &'a [Vector3<f64>],
     d2: &'a [Vector3<f64>],
     size: usize,
-    solve: fn(&[Vector3<f64>], &[Vector3<f64>]) -> Option<Matrix3<f64>>,
+    solve: RaySolver,
     error: fn(&Matrix3<f64>, &Vector3<f64>, &Vector3<f64>) -> f64,
 }
 
