@@ -16,8 +16,9 @@
 use crate::camera::CameraModel;
 use crate::pose::Pose;
 use crate::rotation::skew;
-use nalgebra::{DMatrix, Matrix3, Matrix6, Vector2, Vector3, Vector6};
+use nalgebra::{DMatrix, Matrix6, Vector2, Vector3, Vector6};
 use pingcal_geometry::consensus::{self, ConsensusOptions, Estimator, Sampling};
+use pingcal_geometry::Plane;
 
 /// Options of [`resect`].
 #[derive(Clone, Debug)]
@@ -342,16 +343,13 @@ impl Estimator for P3pSamples<'_> {
     }
 }
 
+/// Whether the points are (nearly) on one line: the second spread of their scatter (the
+/// eigenvalues of [`Plane::fit`]) is tiny against the first.
 fn collinear(x: &[Vector3<f64>]) -> bool {
-    let n = x.len() as f64;
-    let m = x.iter().sum::<Vector3<f64>>() / n;
-    let mut c = Matrix3::zeros();
-    for p in x {
-        c += (p - m) * (p - m).transpose();
-    }
-    let mut s = c.symmetric_eigenvalues().as_slice().to_vec();
-    s.sort_by(|a, b| b.total_cmp(a));
-    !(s[0] > 0.0) || s[1] < 1e-8 * s[0]
+    Plane::fit(x).is_none_or(|p| {
+        let [_, second, first] = p.eigenvalues;
+        !(first > 0.0) || second < 1e-8 * first
+    })
 }
 
 /// Resects one image from the pixel measurements `uv` of the object points `x` (same
@@ -460,6 +458,7 @@ pub(crate) mod tests {
     use super::*;
     use crate::camera::PhotogrammetricCamera;
     use crate::rotation::{exp_so3, from_opk};
+    use nalgebra::Matrix3;
     use rand::Rng;
     use rand_distr::{Distribution, Normal};
 
