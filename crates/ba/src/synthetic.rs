@@ -11,7 +11,7 @@ use crate::pose::Pose;
 use crate::problem::{Camera, Image, Observation, Point, Problem};
 use crate::rotation::exp_so3;
 use nalgebra::{Matrix3, Vector2, Vector3};
-use rand::{Rng, SeedableRng};
+use rand::Rng;
 use rand_distr::{Distribution, Normal};
 use std::sync::Arc;
 
@@ -70,7 +70,7 @@ impl SyntheticBal {
         if !(self.noise_px >= 0.0 && self.noise_px.is_finite()) || !(self.perturbation >= 0.0) {
             return Err("noise and perturbation must be non-negative".into());
         }
-        let mut rng = rand::rngs::StdRng::seed_from_u64(self.seed);
+        let mut rng = pingcal_geometry::consensus::rng(self.seed);
         let n01 = Normal::new(0.0, 1.0).unwrap();
         let spacing = 0.5;
         let model = Arc::new(BalCamera);

@@ -11,7 +11,6 @@ use pingcal_ba::pose::Pose;
 use pingcal_ba::problem::{Camera, Image, Observation, Problem, Rig, RigMember};
 use pingcal_ba::rotation::{exp_so3, log_so3};
 use pingcal_ba::solver::{solve, Options};
-use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
 
 /// Left network of `common` plus a right camera 120 mm to the right, slightly toed in.
@@ -75,7 +74,7 @@ fn stereo_rig_is_recovered_without_bias() {
     let runs = 20;
     let mut errs: Vec<[f64; 6]> = Vec::new();
     for run in 0..runs {
-        let mut rng = rand::rngs::StdRng::seed_from_u64(900 + run);
+        let mut rng = pingcal_geometry::consensus::rng(900 + run);
         let n = Normal::new(0.0, 1.0).unwrap();
         let mut p = t.clone();
         for o in &mut p.observations {

@@ -1,16 +1,27 @@
 //! Robust estimation by random sample consensus: one loop for every RANSAC of pingcal.
 //!
 //! A problem is an [`Estimator`]: `len()` data items, a minimal solver that turns a sample of
-//! `sample_size()` distinct items into zero or more candidate models, a residual of any item
-//! under a model (in the units of the threshold τ), and optionally a least-squares refit on a
-//! larger set (the local optimisation of LO-RANSAC, Chum, Matas & Kittler 2003).
+//! `sample_size()` items into zero or more candidate models (none for a degenerate sample:
+//! the per-sample tests of a problem live there), a residual of any item under a model (in
+//! the units of the threshold τ; divide by a per-item σ for per-item thresholds), and
+//! optionally a least-squares refit on a larger set (the local optimisation of LO-RANSAC,
+//! Chum, Matas & Kittler 2003).
 //!
 //! [`find`] draws samples from a seeded [`SeededRng`], scores every candidate over all items
-//! and keeps the best:
-//! - [`Scoring::InlierCount`] (RANSAC): the number of items with residual ≤ τ, more is
+//! and keeps the best. Scores compare the squared residual `rᵢ²` (the estimator may give it
+//! directly, [`Estimator::residual_squared`], to spare a square root) with `τ²`:
+//! - [`Scoring::InlierCount`] (RANSAC): the number of items with `rᵢ² ≤ τ²`, more is
 //!   better;
 //! - [`Scoring::Msac`] (Torr & Zisserman 2000): `Σ min(rᵢ², τ²)`, less is better, so that
 //!   among models with as many inliers the one that fits them better wins.
+//!
+//! Samples are drawn as [`Sampling`] says: `k` distinct items (a repeat drawn again, the
+//! default), `k` independent draws that may repeat an item (the estimator's `fit` rejects
+//! such a sample as degenerate, and it counts as drawn), or `k` independent draws of which a
+//! sample with a repeat is drawn again whole (not counted). With
+//! [`ConsensusOptions::exhaustive`], when there are no more `k`-subsets than
+//! `max_iterations`, every subset is tried once in lexicographic order instead, and the
+//! generator is not touched.
 //!
 //! A candidate replaces the best only when it scores strictly better, so the first of equal
 //! models is kept and the result is a function of the seed alone. When a new best is found
@@ -19,9 +30,10 @@
 //! the probability of never having drawn an all-inlier sample falls below `1 − p`, i.e.
 //! after `N = ln(1 − p) / ln(1 − wᵏ)` samples for the best model's inlier ratio `w` and
 //! sample size `k` (never before `min_iterations`, never after `max_iterations`). Finally
-//! the best model is refitted on its inliers `final_refits` times (each accepted when the
-//! refit succeeds and leaves at least `sample_size()` inliers), as a closing least-squares
-//! polish.
+//! the best model is refitted on its inliers `final_refits` times, as a closing
+//! least-squares polish; [`RefitRule`] says which refits are kept (by default those that
+//! leave at least `sample_size()` inliers), and the polish stops at the first refused or
+//! failed one (refitting the same inliers again would give the same model).
 //!
 //! ## Seeds and streams
 //!
@@ -62,12 +74,19 @@ pub trait Estimator {
     }
     /// Size of a minimal sample.
     fn sample_size(&self) -> usize;
-    /// Candidate models from the minimal sample `sample` (distinct indices), appended to
-    /// `models` (none for a degenerate sample).
+    /// Candidate models from the minimal sample `sample` (item indices, distinct unless
+    /// [`Sampling::Independent`]), appended to `models` (none for a degenerate sample).
     fn fit(&self, sample: &[usize], models: &mut Vec<Self::Model>);
     /// Residual of item `i` under `model`, ≥ 0, in the units of the threshold (∞ when the
     /// model cannot explain the item at all).
     fn residual(&self, model: &Self::Model, i: usize) -> f64;
+    /// The squared residual, which the scores use: by default `residual²`; an estimator
+    /// whose residual is a norm gives its square directly (no square root, and the same
+    /// sums as a loop written on squared norms).
+    fn residual_squared(&self, model: &Self::Model, i: usize) -> f64 {
+        let r = self.residual(model, i);
+        r * r
+    }
     /// A least-squares model on `inliers` (more than a minimal sample), starting from
     /// `model`; `None` when the estimator has no refit or it fails. Used by local
     /// optimisation and by the final polish.
@@ -83,6 +102,33 @@ pub enum Scoring {
     InlierCount,
     /// MSAC: the sum of squared residuals truncated at the threshold.
     Msac,
+}
+
+/// How a sample of `k` items is drawn (see the module doc).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Sampling {
+    /// `k` distinct items, each by `random_range(0..n)`, a repeat drawn again
+    /// ([`sample_distinct`]).
+    #[default]
+    Distinct,
+    /// `k` independent `random_range(0..n)`; the sample may repeat an item, which the
+    /// estimator's `fit` must treat as degenerate. Every sample counts as drawn.
+    Independent,
+    /// `k` independent `random_range(0..n)`; a sample that repeats an item is discarded
+    /// whole and drawn again, and does not count as drawn.
+    RejectRepeats,
+}
+
+/// Which refits of the final polish are kept (see the module doc).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum RefitRule {
+    /// A refit that leaves at least `sample_size()` inliers.
+    #[default]
+    EnoughInliers,
+    /// A refit with at least as many inliers as the model it replaces.
+    NotFewerInliers,
+    /// Every refit that succeeds.
+    Always,
 }
 
 /// Settings of [`find`].
@@ -102,6 +148,13 @@ pub struct ConsensusOptions {
     pub local_refits: usize,
     /// Refits of the final model on its inliers.
     pub final_refits: usize,
+    /// Which of those refits are kept.
+    pub final_refit_rule: RefitRule,
+    /// How samples are drawn.
+    pub sampling: Sampling,
+    /// Try every `k`-subset once (lexicographic order, no random draws) when there are at
+    /// most `max_iterations` of them.
+    pub exhaustive: bool,
 }
 
 impl ConsensusOptions {
@@ -115,6 +168,9 @@ impl ConsensusOptions {
             scoring: Scoring::Msac,
             local_refits: 0,
             final_refits: 0,
+            final_refit_rule: RefitRule::EnoughInliers,
+            sampling: Sampling::Distinct,
+            exhaustive: false,
         }
     }
 
@@ -157,17 +213,93 @@ pub fn sample_distinct(rng: &mut impl Rng, n: usize, k: usize, out: &mut Vec<usi
     true
 }
 
+/// Draws `k` independent indices below `n` into `out` (cleared first), each by
+/// `rng.random_range(0..n)`; they may repeat. `false` (and `out` empty) if `n == 0`.
+pub fn sample_independent(rng: &mut impl Rng, n: usize, k: usize, out: &mut Vec<usize>) -> bool {
+    out.clear();
+    if n == 0 {
+        return false;
+    }
+    out.extend((0..k).map(|_| rng.random_range(0..n)));
+    true
+}
+
+/// Number of `k`-subsets of `n` items, `None` when it does not fit a `usize`.
+fn subsets(n: usize, k: usize) -> Option<usize> {
+    let mut c = 1usize;
+    for i in 0..k.min(n + 1) {
+        // C(n, i + 1) = C(n, i) (n − i) / (i + 1), exact in integers.
+        c = c.checked_mul(n - i)? / (i + 1);
+    }
+    Some(if k > n { 0 } else { c })
+}
+
+/// The `k`-subset after `c` in lexicographic order (`c` ascending), in place; `false` after
+/// the last.
+fn next_subset(c: &mut [usize], n: usize) -> bool {
+    let k = c.len();
+    for i in (0..k).rev() {
+        if c[i] < n - k + i {
+            c[i] += 1;
+            for j in i + 1..k {
+                c[j] = c[j - 1] + 1;
+            }
+            return true;
+        }
+    }
+    false
+}
+
+/// Where the samples of one run come from.
+enum Sampler {
+    /// Every subset in turn; `None` before the first.
+    Exhaustive(Option<Vec<usize>>),
+    /// Random draws.
+    Random(Sampling),
+}
+
+impl Sampler {
+    /// The next sample into `out`; `false` when there is none (all subsets tried).
+    fn next(&mut self, rng: &mut impl Rng, n: usize, k: usize, out: &mut Vec<usize>) -> bool {
+        match self {
+            Sampler::Exhaustive(c) => {
+                let more = match c {
+                    None => {
+                        *c = Some((0..k).collect());
+                        true
+                    }
+                    Some(c) => next_subset(c, n),
+                };
+                out.clear();
+                out.extend(c.iter().flatten());
+                more
+            }
+            Sampler::Random(Sampling::Distinct) => sample_distinct(rng, n, k, out),
+            Sampler::Random(Sampling::Independent) => sample_independent(rng, n, k, out),
+            Sampler::Random(Sampling::RejectRepeats) => loop {
+                if !sample_independent(rng, n, k, out) || k > n {
+                    out.clear();
+                    return false;
+                }
+                if (1..k).all(|a| !out[..a].contains(&out[a])) {
+                    return true;
+                }
+            },
+        }
+    }
+}
+
 /// Scores `model` over all items: (cost, inlier count).
 pub fn score<E: Estimator>(est: &E, model: &E::Model, opts: &ConsensusOptions) -> (f64, usize) {
-    let tau = opts.threshold;
+    let tau2 = opts.threshold * opts.threshold;
     let (mut cost, mut count) = (0.0, 0usize);
     for i in 0..est.len() {
-        let r = est.residual(model, i);
-        if r <= tau {
+        let r2 = est.residual_squared(model, i);
+        if r2 <= tau2 {
             count += 1;
         }
         if opts.scoring == Scoring::Msac {
-            cost += if r <= tau { r * r } else { tau * tau };
+            cost += if r2 <= tau2 { r2 } else { tau2 };
         }
     }
     if opts.scoring == Scoring::InlierCount {
@@ -176,10 +308,11 @@ pub fn score<E: Estimator>(est: &E, model: &E::Model, opts: &ConsensusOptions) -
     (cost, count)
 }
 
-/// The items within the threshold of `model`, ascending.
+/// The items within the threshold of `model` (`r² ≤ τ²`), ascending.
 pub fn inliers<E: Estimator>(est: &E, model: &E::Model, threshold: f64) -> Vec<usize> {
+    let tau2 = threshold * threshold;
     (0..est.len())
-        .filter(|&i| est.residual(model, i) <= threshold)
+        .filter(|&i| est.residual_squared(model, i) <= tau2)
         .collect()
 }
 
@@ -239,10 +372,19 @@ pub fn find<E: Estimator>(
     let mut sample = Vec::with_capacity(k);
     let mut models = Vec::new();
     let mut limit = opts.max_iterations;
+    let mut sampler = match subsets(n, k) {
+        Some(all) if opts.exhaustive && all <= opts.max_iterations => {
+            limit = all;
+            Sampler::Exhaustive(None)
+        }
+        _ => Sampler::Random(opts.sampling),
+    };
     let mut drawn = 0;
     while drawn < limit {
+        if !sampler.next(rng, n, k, &mut sample) {
+            break;
+        }
         drawn += 1;
-        sample_distinct(rng, n, k, &mut sample);
         models.clear();
         est.fit(&sample, &mut models);
         let mut improved = false;
@@ -273,7 +415,12 @@ pub fn find<E: Estimator>(
             break;
         };
         let (c, cnt) = score(est, &m, opts);
-        if cnt < k {
+        let keep = match opts.final_refit_rule {
+            RefitRule::EnoughInliers => cnt >= k,
+            RefitRule::NotFewerInliers => cnt >= best.1,
+            RefitRule::Always => true,
+        };
+        if !keep {
             break;
         }
         best = (c, cnt, m);
@@ -394,6 +541,146 @@ mod tests {
             &mut rng(1)
         )
         .is_none());
+    }
+
+    /// Records every sample `find` hands to `fit`, and fits nothing unless asked.
+    struct Recorder {
+        n: usize,
+        k: usize,
+        seen: std::cell::RefCell<Vec<Vec<usize>>>,
+    }
+
+    impl Estimator for Recorder {
+        type Model = usize;
+        fn len(&self) -> usize {
+            self.n
+        }
+        fn sample_size(&self) -> usize {
+            self.k
+        }
+        fn fit(&self, s: &[usize], out: &mut Vec<usize>) {
+            self.seen.borrow_mut().push(s.to_vec());
+            out.push(s[0]);
+        }
+        fn residual(&self, m: &usize, i: usize) -> f64 {
+            (*m as f64 - i as f64).abs()
+        }
+    }
+
+    fn recorded(n: usize, k: usize, opts: &ConsensusOptions, seed: u64) -> Vec<Vec<usize>> {
+        let est = Recorder {
+            n,
+            k,
+            seen: Default::default(),
+        };
+        find(&est, opts, &mut rng(seed)).unwrap();
+        est.seen.into_inner()
+    }
+
+    #[test]
+    fn exhaustive_tries_every_subset_once_in_order_when_few() {
+        let opts = ConsensusOptions {
+            exhaustive: true,
+            ..ConsensusOptions::msac(0.5, 10)
+        };
+        let all = recorded(5, 3, &opts, 1);
+        let mut expected = Vec::new();
+        for a in 0..5 {
+            for b in a + 1..5 {
+                for c in b + 1..5 {
+                    expected.push(vec![a, b, c]);
+                }
+            }
+        }
+        assert_eq!(all, expected);
+        // 35 subsets of 7 are more than 10 samples: drawn at random instead
+        let drawn = recorded(7, 3, &opts, 1);
+        assert_eq!(drawn, recorded(7, 3, &ConsensusOptions::msac(0.5, 10), 1));
+        assert_eq!(subsets(40, 3), Some(9880));
+        assert_eq!(subsets(3, 4), Some(0));
+        assert_eq!(subsets(1 << 40, 5), None);
+    }
+
+    #[test]
+    fn each_sampling_draws_as_it_says() {
+        let (n, k) = (4, 3);
+        let mut r = rng(2);
+        let raw: Vec<usize> = (0..3000).map(|_| r.random_range(0..n)).collect();
+        let opts = |sampling| ConsensusOptions {
+            sampling,
+            ..ConsensusOptions::ransac(0.5, 40)
+        };
+        // independent: the raw stream cut in threes, repeats and all
+        let ind = recorded(n, k, &opts(Sampling::Independent), 2);
+        assert_eq!(ind.concat(), raw[..120]);
+        assert!(ind
+            .iter()
+            .any(|s| s[0] == s[1] || s[1] == s[2] || s[0] == s[2]));
+        // reject repeats: the raw triples without a repeat, in order
+        let distinct_triples: Vec<Vec<usize>> = raw
+            .chunks(3)
+            .filter(|s| s[0] != s[1] && s[1] != s[2] && s[0] != s[2])
+            .take(40)
+            .map(<[usize]>::to_vec)
+            .collect();
+        assert_eq!(
+            recorded(n, k, &opts(Sampling::RejectRepeats), 2),
+            distinct_triples
+        );
+        // distinct: each repeat drawn again
+        let mut by_hand = Vec::new();
+        let mut s = Vec::new();
+        let mut r = rng(2);
+        for _ in 0..40 {
+            sample_distinct(&mut r, n, k, &mut s);
+            by_hand.push(s.clone());
+        }
+        assert_eq!(recorded(n, k, &opts(Sampling::Distinct), 2), by_hand);
+    }
+
+    /// A "model" is a set of accepted items; the refit drops the largest inlier, so each
+    /// refit has one inlier fewer.
+    struct Shrinking;
+
+    impl Estimator for Shrinking {
+        type Model = usize;
+        fn len(&self) -> usize {
+            10
+        }
+        fn sample_size(&self) -> usize {
+            2
+        }
+        fn fit(&self, s: &[usize], out: &mut Vec<usize>) {
+            if s.contains(&0) {
+                out.push(5);
+            }
+        }
+        fn residual(&self, m: &usize, i: usize) -> f64 {
+            if i < *m {
+                0.0
+            } else {
+                1.0
+            }
+        }
+        fn refit(&self, inl: &[usize], _: &usize) -> Option<usize> {
+            Some(inl.len() - 1)
+        }
+    }
+
+    #[test]
+    fn the_refit_rule_decides_which_refits_are_kept() {
+        let run = |rule| {
+            let opts = ConsensusOptions {
+                final_refits: 4,
+                final_refit_rule: rule,
+                exhaustive: true,
+                ..ConsensusOptions::ransac(0.5, 100)
+            };
+            find(&Shrinking, &opts, &mut rng(1)).unwrap().inliers.len()
+        };
+        assert_eq!(run(RefitRule::NotFewerInliers), 5);
+        assert_eq!(run(RefitRule::Always), 1);
+        assert_eq!(run(RefitRule::EnoughInliers), 2);
     }
 
     /// The stream is ChaCha12's: fixed values, whatever the crate versions (and the stream

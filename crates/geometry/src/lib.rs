@@ -42,7 +42,7 @@ pub mod rigid;
 pub mod so3;
 pub mod umeyama;
 
-pub use consensus::{Consensus, ConsensusOptions, Estimator, Scoring};
+pub use consensus::{Consensus, ConsensusOptions, Estimator, RefitRule, Sampling, Scoring};
 pub use opk::{from_opk, from_opk_deg, to_opk, to_opk_deg};
 pub use plane::Plane;
 pub use rigid::{Rigid3, Sim3};

@@ -7,11 +7,10 @@ use pingcal_lrf::ball_finder::{find_balls, FinderOptions};
 use pingcal_lrf::cloud::{Cloud, MountModel};
 use pingcal_lrf::scan::ScanHeader;
 use pingcal_lrf::simulate::{room_corner_scene, SimulatedLrf};
-use rand::SeedableRng;
 use std::io::Write;
 
 fn main() {
-    let mut rng = rand::rngs::StdRng::seed_from_u64(42);
+    let mut rng = pingcal_geometry::consensus::rng(42);
     let scene = room_corner_scene(16, &mut rng);
     let scans = scene.half_sweep(2150, &SimulatedLrf::default(), &mut rng);
     let cloud = Cloud::from_scans(

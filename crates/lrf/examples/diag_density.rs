@@ -4,14 +4,13 @@ use pingcal_lrf::ball_finder::{find_balls, FinderOptions};
 use pingcal_lrf::cloud::{Cloud, MountModel};
 use pingcal_lrf::scan::ScanHeader;
 use pingcal_lrf::simulate::{room_corner_scene, SimulatedLrf};
-use rand::SeedableRng;
 
 fn main() {
     let mut a = std::env::args().skip(1);
     let n: usize = a.next().map(|s| s.parse().unwrap()).unwrap_or(2150);
     let nb: usize = a.next().map(|s| s.parse().unwrap()).unwrap_or(16);
     let seed: u64 = a.next().map(|s| s.parse().unwrap()).unwrap_or(42);
-    let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+    let mut rng = pingcal_geometry::consensus::rng(seed);
     let scene = room_corner_scene(nb, &mut rng);
     let scans = scene.half_sweep(n, &SimulatedLrf::default(), &mut rng);
     let cloud = Cloud::from_scans(

@@ -8,7 +8,6 @@
 use pingcal_lrf::registration::matrix_from_euler;
 use pingcal_lrf::scan::{write_scans, ScanHeader};
 use pingcal_lrf::simulate::{room_corner_scene, SimulatedLrf};
-use rand::SeedableRng;
 use std::io::Write;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -24,7 +23,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .unwrap_or(0.3515625);
     let seed: u64 = a.next().map(|s| s.parse()).transpose()?.unwrap_or(42);
     std::fs::create_dir_all(&dir)?;
-    let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+    let mut rng = pingcal_geometry::consensus::rng(seed);
     let scene = room_corner_scene(16, &mut rng);
     let n = (180.0 / step).round() as usize;
     let scans = scene.half_sweep(n, &SimulatedLrf::default(), &mut rng);

@@ -20,8 +20,9 @@ use crate::cloud::Cloud;
 use crate::sensor::RangeNoise;
 use crate::sphere_fit::{self, FitOptions, Ray};
 use nalgebra::{Matrix3, Vector3};
-use rand::rngs::StdRng;
-use rand::{Rng, SeedableRng};
+use pingcal_geometry::consensus::{self, ConsensusOptions, Estimator, Sampling, SeededRng};
+use pingcal_geometry::Plane;
+use rand::Rng;
 use rayon::prelude::*;
 use std::collections::HashMap;
 
@@ -131,33 +132,44 @@ fn point_sigma(cloud: &Cloud, noise: &RangeNoise, i: usize) -> f64 {
         .max(0.5)
 }
 
-fn fit_plane(pts: &[Vector3<f64>]) -> Option<(Vector3<f64>, f64, Vector3<f64>)> {
-    if pts.len() < 3 {
-        return None;
+/// Planes through three points of the sub-sample `sample` (cloud indices), for
+/// [`consensus::find`]; the residual is the distance in units of `k_sigma` × the point's
+/// range σ. Three independent draws may repeat a point: no plane then.
+struct WallSamples<'a> {
+    cloud: &'a Cloud,
+    sample: &'a [usize],
+    sigma: &'a [f64],
+    k_sigma: f64,
+}
+
+impl Estimator for WallSamples<'_> {
+    type Model = (Vector3<f64>, f64);
+    fn len(&self) -> usize {
+        self.sample.len()
     }
-    let m = pts.iter().sum::<Vector3<f64>>() / pts.len() as f64;
-    let mut s = Matrix3::zeros();
-    for p in pts {
-        let d = p - m;
-        s += d * d.transpose();
+    fn sample_size(&self) -> usize {
+        3
     }
-    let e = s.symmetric_eigen();
-    let mut idx = [0usize, 1, 2];
-    idx.sort_by(|&a, &b| e.eigenvalues[a].total_cmp(&e.eigenvalues[b]));
-    let n = e.eigenvectors.column(idx[0]).into_owned();
-    let spreads = Vector3::new(
-        e.eigenvalues[idx[0]],
-        e.eigenvalues[idx[1]],
-        e.eigenvalues[idx[2]],
-    ) / pts.len() as f64;
-    Some((n, n.dot(&m), spreads.map(|v| v.max(0.0).sqrt())))
+    fn fit(&self, s: &[usize], planes: &mut Vec<(Vector3<f64>, f64)>) {
+        let [a, b, c] = [0, 1, 2].map(|k| self.cloud.points[self.sample[s[k]]]);
+        let nrm = (b - a).cross(&(c - a));
+        if nrm.norm() < 1e-9 {
+            return;
+        }
+        let nrm = nrm.normalize();
+        planes.push((nrm, nrm.dot(&a)));
+    }
+    fn residual(&self, (nrm, d): &(Vector3<f64>, f64), k: usize) -> f64 {
+        let i = self.sample[k];
+        (nrm.dot(&self.cloud.points[i]) - d).abs() / (self.k_sigma * self.sigma[i])
+    }
 }
 
 /// Removes large planes; returns the planes and a mask of the points kept.
 fn remove_planes(
     cloud: &Cloud,
     opt: &FinderOptions,
-    rng: &mut StdRng,
+    rng: &mut SeededRng,
 ) -> (Vec<(Vector3<f64>, f64)>, Vec<bool>) {
     let n = cloud.len();
     let mut keep = vec![true; n];
@@ -174,40 +186,34 @@ fn remove_planes(
         if sample.len() < min_count {
             break;
         }
-        let mut best: Option<(usize, Vector3<f64>, f64)> = None;
-        for _ in 0..300 {
-            let a = cloud.points[sample[rng.random_range(0..sample.len())]];
-            let b = cloud.points[sample[rng.random_range(0..sample.len())]];
-            let c = cloud.points[sample[rng.random_range(0..sample.len())]];
-            let nrm = (b - a).cross(&(c - a));
-            if nrm.norm() < 1e-9 {
-                continue;
-            }
-            let nrm = nrm.normalize();
-            let d = nrm.dot(&a);
-            let count = sample
-                .iter()
-                .filter(|&&i| (nrm.dot(&cloud.points[i]) - d).abs() < opt.plane_k_sigma * sigma[i])
-                .count();
-            if best.is_none_or(|b| count > b.0) {
-                best = Some((count, nrm, d));
-            }
-        }
-        let Some((count, nrm, d)) = best else { break };
-        if count < min_count {
-            break;
-        }
-        let inl: Vec<Vector3<f64>> = sample
-            .iter()
-            .filter(|&&i| (nrm.dot(&cloud.points[i]) - d).abs() < opt.plane_k_sigma * sigma[i])
-            .map(|&i| cloud.points[i])
-            .collect();
-        let Some((n2, d2, spread)) = fit_plane(&inl) else {
+        let walls = WallSamples {
+            cloud,
+            sample: &sample,
+            sigma: &sigma,
+            k_sigma: opt.plane_k_sigma,
+        };
+        let opts = ConsensusOptions {
+            sampling: Sampling::Independent,
+            ..ConsensusOptions::ransac(1.0, 300)
+        };
+        let Some(best) = consensus::find(&walls, &opts, rng) else {
             break;
         };
-        if spread[1] < 2.0 * opt.diameter_mm {
+        if best.inliers.len() < min_count {
+            break;
+        }
+        let inl: Vec<Vector3<f64>> = best
+            .inliers
+            .iter()
+            .map(|&k| cloud.points[sample[k]])
+            .collect();
+        let Some(plane) = Plane::fit(&inl) else {
+            break;
+        };
+        if plane.spreads()[1] < 2.0 * opt.diameter_mm {
             break; // not a wall: too small
         }
+        let (n2, d2) = (plane.normal, plane.offset);
         planes.push((n2, d2));
         sample.retain(|&i| (n2.dot(&cloud.points[i]) - d2).abs() >= opt.plane_k_sigma * sigma[i]);
     }
@@ -303,6 +309,47 @@ pub fn sphere_through(p: [Vector3<f64>; 4]) -> Option<(Vector3<f64>, f64)> {
     (c.iter().all(|v| v.is_finite()) && r.is_finite()).then_some((c, r))
 }
 
+/// Spheres through four points of a cluster, for [`consensus::find`]: a centre is kept
+/// only with a radius within `bounds` of the nominal one and behind the sampled surface;
+/// the residual is the distance from the nominal sphere in units of the ray's range σ.
+struct SphereSamples<'a> {
+    rays: &'a [Ray],
+    pts: &'a [Vector3<f64>],
+    radius: f64,
+    bounds: (f64, f64),
+}
+
+impl Estimator for SphereSamples<'_> {
+    type Model = Vector3<f64>;
+    fn len(&self) -> usize {
+        self.pts.len()
+    }
+    fn sample_size(&self) -> usize {
+        4
+    }
+    fn fit(&self, s: &[usize], centres: &mut Vec<Vector3<f64>>) {
+        if (0..4).any(|a| (a + 1..4).any(|b| s[a] == s[b])) {
+            return;
+        }
+        let pts = self.pts;
+        let Some((c, r)) = sphere_through([pts[s[0]], pts[s[1]], pts[s[2]], pts[s[3]]]) else {
+            return;
+        };
+        if r < self.bounds.0 * self.radius || r > self.bounds.1 * self.radius {
+            return;
+        }
+        let sm = s.iter().map(|&k| pts[k]).sum::<Vector3<f64>>() / 4.0;
+        let view = s.iter().map(|&k| self.rays[k].dir).sum::<Vector3<f64>>();
+        if (c - sm).dot(&view) <= 0.0 {
+            return; // the visible cap is in front of the centre
+        }
+        centres.push(c);
+    }
+    fn residual(&self, c: &Vector3<f64>, k: usize) -> f64 {
+        ((self.pts[k] - c).norm() - self.radius).abs() / self.rays[k].sigma
+    }
+}
+
 enum Outcome {
     Ball(Ball),
     Rejected(Rejected),
@@ -328,37 +375,17 @@ fn examine(
         .collect();
     let pts: Vec<Vector3<f64>> = rays.iter().map(|r| r.point()).collect();
     let mean = pts.iter().sum::<Vector3<f64>>() / pts.len() as f64;
-    let mut rng = StdRng::seed_from_u64(seed);
-    let mut best: Option<(usize, Vector3<f64>)> = None;
-    for _ in 0..opt.ransac_iters {
-        let mut s = [0usize; 4];
-        for k in 0..4 {
-            s[k] = rng.random_range(0..pts.len());
-        }
-        if (0..4).any(|a| (a + 1..4).any(|b| s[a] == s[b])) {
-            continue;
-        }
-        let Some((c, r)) = sphere_through([pts[s[0]], pts[s[1]], pts[s[2]], pts[s[3]]]) else {
-            continue;
-        };
-        if r < opt.radius_bounds.0 * radius || r > opt.radius_bounds.1 * radius {
-            continue;
-        }
-        let sm = s.iter().map(|&k| pts[k]).sum::<Vector3<f64>>() / 4.0;
-        let view = s.iter().map(|&k| rays[k].dir).sum::<Vector3<f64>>();
-        if (c - sm).dot(&view) <= 0.0 {
-            continue; // the visible cap is in front of the centre
-        }
-        let count = rays
-            .iter()
-            .zip(&pts)
-            .filter(|(ray, p)| ((*p - c).norm() - radius).abs() < 2.0 * ray.sigma)
-            .count();
-        if best.is_none_or(|b| count > b.0) {
-            best = Some((count, c));
-        }
-    }
-    let init = best.map(|b| b.1);
+    let spheres = SphereSamples {
+        rays: &rays,
+        pts: &pts,
+        radius,
+        bounds: opt.radius_bounds,
+    };
+    let opts = ConsensusOptions {
+        sampling: Sampling::Independent,
+        ..ConsensusOptions::ransac(2.0, opt.ransac_iters)
+    };
+    let init = consensus::find(&spheres, &opts, &mut consensus::rng(seed)).map(|c| c.model);
     let reject = |centre: Vector3<f64>, reason: String| {
         Outcome::Rejected(Rejected {
             centre,
@@ -419,7 +446,7 @@ fn examine(
 
 /// Finds every ball of the given diameter in the cloud.
 pub fn find_balls(cloud: &Cloud, opt: &FinderOptions) -> FindResult {
-    let mut rng = StdRng::seed_from_u64(opt.seed);
+    let mut rng = pingcal_geometry::consensus::rng(opt.seed);
     let (planes, keep) = if opt.remove_planes {
         remove_planes(cloud, opt, &mut rng)
     } else {

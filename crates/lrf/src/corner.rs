@@ -24,8 +24,8 @@ use crate::error::{LrfError, Result};
 use crate::registration::{umeyama, Transform};
 use crate::scan::{ScanHeader, ScanLine};
 use nalgebra::{DMatrix, Matrix3, Rotation3, Vector2, Vector3};
-use rand::rngs::StdRng;
-use rand::{Rng, SeedableRng};
+use pingcal_geometry::consensus::{self, ConsensusOptions, Estimator, Sampling};
+use pingcal_geometry::Plane;
 
 /// A line in the scan plane: a point and a unit direction, with its inlier count.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -65,6 +65,31 @@ pub fn scan_plane_points(header: &ScanHeader, scan: &ScanLine) -> Vec<Vector2<f6
         .collect()
 }
 
+/// Lines through two scan-plane points at least 50 mm apart, for [`consensus::find`]: the
+/// model is a point of the line and its unit normal, the residual the distance from it.
+struct LineSamples<'a>(&'a [Vector2<f64>]);
+
+impl Estimator for LineSamples<'_> {
+    type Model = (Vector2<f64>, Vector2<f64>);
+    fn len(&self) -> usize {
+        self.0.len()
+    }
+    fn sample_size(&self) -> usize {
+        2
+    }
+    fn fit(&self, s: &[usize], lines: &mut Vec<(Vector2<f64>, Vector2<f64>)>) {
+        let (a, b) = (self.0[s[0]], self.0[s[1]]);
+        if (b - a).norm() < 50.0 {
+            return;
+        }
+        let d = (b - a).normalize();
+        lines.push((a, Vector2::new(-d.y, d.x)));
+    }
+    fn residual(&self, (a, nrm): &(Vector2<f64>, Vector2<f64>), i: usize) -> f64 {
+        nrm.dot(&(self.0[i] - a)).abs()
+    }
+}
+
 /// The three largest lines of one scan (points `(r cos α, r sin α)` in the scan plane);
 /// `tol_mm` is the inlier distance (3σ of the ranges).
 pub fn scan_lines(
@@ -74,29 +99,17 @@ pub fn scan_lines(
     seed: u64,
 ) -> Result<[Line2; 3]> {
     let mut pts = scan_plane_points(header, scan);
-    let mut rng = StdRng::seed_from_u64(seed);
+    let mut rng = consensus::rng(seed);
+    let opts = ConsensusOptions {
+        sampling: Sampling::Independent,
+        ..ConsensusOptions::ransac(tol_mm, 500)
+    };
     let mut lines = Vec::new();
     while lines.len() < 3 && pts.len() >= 10 {
-        let mut best: Option<(usize, Vector2<f64>, Vector2<f64>)> = None;
-        for _ in 0..500 {
-            let (a, b) = (
-                pts[rng.random_range(0..pts.len())],
-                pts[rng.random_range(0..pts.len())],
-            );
-            if (b - a).norm() < 50.0 {
-                continue;
-            }
-            let d = (b - a).normalize();
-            let nrm = Vector2::new(-d.y, d.x);
-            let c = pts
-                .iter()
-                .filter(|p| nrm.dot(&(*p - a)).abs() < tol_mm)
-                .count();
-            if best.is_none_or(|x| c > x.0) {
-                best = Some((c, a, nrm));
-            }
-        }
-        let Some((c, a, nrm)) = best else { break };
+        let Some(best) = consensus::find(&LineSamples(&pts), &opts, &mut rng) else {
+            break;
+        };
+        let (c, (a, nrm)) = (best.inliers.len(), best.model);
         if c < 10 {
             break;
         }
@@ -281,13 +294,10 @@ pub fn corner_frame_from_planes(faces: [&[Vector3<f64>]; 3]) -> Result<Transform
                 ids: format!("targets on corner face {k}"),
             });
         }
-        let m = f.iter().sum::<Vector3<f64>>() / f.len() as f64;
-        let mut s = Matrix3::zeros();
-        for p in f.iter() {
-            s += (p - m) * (p - m).transpose();
-        }
-        let e = s.symmetric_eigen();
-        let mut n = e.eigenvectors.column(e.eigenvalues.imin()).into_owned();
+        let plane = Plane::fit(f).ok_or_else(|| {
+            LrfError::Degenerate(format!("corner face {k}: no plane through its targets"))
+        })?;
+        let (m, mut n) = (plane.centroid, plane.normal);
         // the room interior (the other faces' targets) is on the positive side
         let inside = all.iter().map(|p| n.dot(&(p - m))).sum::<f64>();
         if inside < 0.0 {
@@ -478,7 +488,7 @@ mod tests {
             footprint: None,
             ..SimulatedLrf::default()
         };
-        let mut rng = StdRng::seed_from_u64(9);
+        let mut rng = consensus::rng(9);
         let header = ScanHeader::URG_04LX;
         let servo = -30.0;
         let scan = &scene.scan(&[servo], &lrf, &mut rng)[0];

@@ -54,8 +54,8 @@ use crate::error::{LrfError, Result};
 use crate::registration::Transform;
 use crate::scan::{ScanHeader, ScanLine};
 use nalgebra::{Matrix3, Vector2, Vector3};
-use rand::rngs::StdRng;
-use rand::{Rng, SeedableRng};
+use pingcal_geometry::consensus::{self, ConsensusOptions, Estimator, Sampling};
+use pingcal_geometry::Plane;
 use rayon::prelude::*;
 
 /// Fewest targets accepted on one face of the corner.
@@ -119,26 +119,49 @@ struct Face {
     tol_mm: f64,
 }
 
-/// Least-squares plane: (centroid, unit normal, eigenvalues ascending).
-fn fit_plane(pts: &[Vector3<f64>]) -> (Vector3<f64>, Vector3<f64>, [f64; 3]) {
-    let m = pts.iter().sum::<Vector3<f64>>() / pts.len() as f64;
-    let mut s = Matrix3::zeros();
-    for p in pts {
-        s += (p - m) * (p - m).transpose();
+/// Planes through three targets of `left` (indices into `pts`), for [`consensus::find`]:
+/// the sample must span a triangle (sides ≥ 20 mm, sine of the angle at the first point
+/// ≥ 0.2; three independent draws may repeat a target) and the plane be nearly orthogonal
+/// to the faces already found; the residual is the distance in mm.
+struct FaceSamples<'a> {
+    pts: &'a [Vector3<f64>],
+    left: &'a [usize],
+    found: &'a [Face],
+}
+
+impl Estimator for FaceSamples<'_> {
+    type Model = (Vector3<f64>, f64);
+    fn len(&self) -> usize {
+        self.left.len()
     }
-    let e = s.symmetric_eigen();
-    let mut idx = [0usize, 1, 2];
-    idx.sort_by(|&a, &b| e.eigenvalues[a].total_cmp(&e.eigenvalues[b]));
-    let n = e.eigenvectors.column(idx[0]).into_owned();
-    (
-        m,
-        n,
-        [
-            e.eigenvalues[idx[0]],
-            e.eigenvalues[idx[1]],
-            e.eigenvalues[idx[2]],
-        ],
-    )
+    fn sample_size(&self) -> usize {
+        3
+    }
+    fn fit(&self, s: &[usize], planes: &mut Vec<(Vector3<f64>, f64)>) {
+        let [a, b, c] = [0, 1, 2].map(|k| self.pts[self.left[s[k]]]);
+        let (u, v) = (b - a, c - a);
+        let n = u.cross(&v);
+        // reject near-collinear samples (sin of the angle at `a` below 0.2)
+        let degenerate = n.norm() <= 0.2 * u.norm() * v.norm() || !n.norm().is_finite();
+        if degenerate || u.norm() < 20.0 || v.norm() < 20.0 {
+            return;
+        }
+        let n = n.normalize();
+        if self
+            .found
+            .iter()
+            .any(|f| f.normal.dot(&n).abs() >= MAX_FACE_COS)
+        {
+            return;
+        }
+        planes.push((n, n.dot(&a)));
+    }
+    fn residual(&self, plane: &(Vector3<f64>, f64), k: usize) -> f64 {
+        self.residual_squared(plane, k).sqrt()
+    }
+    fn residual_squared(&self, (n, d): &(Vector3<f64>, f64), k: usize) -> f64 {
+        (n.dot(&self.pts[self.left[k]]) - d).powi(2)
+    }
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -160,39 +183,23 @@ fn fmt_v(v: &Vector3<f64>) -> String {
 
 /// Sequential RANSAC: up to three mutually near-orthogonal planes among the targets.
 fn find_faces(pts: &[Vector3<f64>], seed: u64) -> Vec<Face> {
-    let mut rng = StdRng::seed_from_u64(seed ^ 0x5EED_FACE);
+    let mut rng = consensus::rng(seed ^ 0x5EED_FACE);
+    let opts = ConsensusOptions {
+        sampling: Sampling::Independent,
+        ..ConsensusOptions::msac(MIN_PLANE_TOL_MM, 2000)
+    };
     let mut left: Vec<usize> = (0..pts.len()).collect();
     let mut faces: Vec<Face> = Vec::new();
     while faces.len() < 3 && left.len() >= MIN_FACE_TARGETS {
-        let mut best: Option<(f64, Vector3<f64>, f64)> = None; // (MSAC cost, n, d)
-        let tol2 = MIN_PLANE_TOL_MM * MIN_PLANE_TOL_MM;
-        for _ in 0..2000 {
-            let (a, b, c) = (
-                pts[left[rng.random_range(0..left.len())]],
-                pts[left[rng.random_range(0..left.len())]],
-                pts[left[rng.random_range(0..left.len())]],
-            );
-            let (u, v) = (b - a, c - a);
-            let n = u.cross(&v);
-            // reject near-collinear samples (sin of the angle at `a` below 0.2)
-            let degenerate = n.norm() <= 0.2 * u.norm() * v.norm() || !n.norm().is_finite();
-            if degenerate || u.norm() < 20.0 || v.norm() < 20.0 {
-                continue;
-            }
-            let n = n.normalize();
-            if faces.iter().any(|f| f.normal.dot(&n).abs() >= MAX_FACE_COS) {
-                continue;
-            }
-            let d = n.dot(&a);
-            let cost: f64 = left
-                .iter()
-                .map(|&i| (n.dot(&pts[i]) - d).powi(2).min(tol2))
-                .sum();
-            if best.is_none_or(|b| cost < b.0) {
-                best = Some((cost, n, d));
-            }
-        }
-        let Some((_, mut n, mut d)) = best else { break };
+        let samples = FaceSamples {
+            pts,
+            left: &left,
+            found: &faces,
+        };
+        let Some(best) = consensus::find(&samples, &opts, &mut rng) else {
+            break;
+        };
+        let (mut n, mut d) = best.model;
         // refine: least squares on the inliers, tolerance max(5 mm, 3 × median |residual|)
         let mut tol = MIN_PLANE_TOL_MM;
         let mut members: Vec<usize> = Vec::new();
@@ -207,9 +214,10 @@ fn find_faces(pts: &[Vector3<f64>], seed: u64) -> Vec<Face> {
                 break;
             }
             let p: Vec<Vector3<f64>> = on.iter().map(|&i| pts[i]).collect();
-            let (m, nn, ev) = fit_plane(&p);
-            n = nn;
-            d = n.dot(&m);
+            let Some(plane) = Plane::fit(&p) else { break };
+            let (m, ev) = (plane.centroid, plane.eigenvalues);
+            n = plane.normal;
+            d = plane.offset;
             let res: Vec<f64> = p.iter().map(|q| (n.dot(q) - d).abs()).collect();
             tol = MIN_PLANE_TOL_MM.max(3.0 * median(res));
             let same = on == members;
@@ -257,10 +265,74 @@ enum ScanTry {
     Ok(Box<(Transform, [Line2; 3], f64)>),
 }
 
+/// The LRF pose in the corner from one usable scan line.
+#[derive(Debug, Clone)]
+struct ScanPose {
+    /// Index of the scan line in the sweep.
+    k: usize,
+    /// `p_corner = T · p_lrf`.
+    lrf_in_corner: Transform,
+    /// Points on each of its three lines.
+    line_inliers: [usize; 3],
+    /// Predicted σ of the LRF position, mm ([`pose_uncertainty`]).
+    sd_mm: f64,
+}
+
+/// The corner frame of step 1 and which face each target is on.
+struct Corner {
+    /// `p_photo = T · p_corner`.
+    corner_in_camera: Transform,
+    /// Per target: the slot of its face (0 wall x=0, 1 wall y=0, 2 floor), or `None`.
+    face_of: Vec<Option<usize>>,
+    /// Targets on each slot's face.
+    face_sizes: [usize; 3],
+}
+
 /// Runs the Fan et al. 2019 baseline on pipeline data (see the module doc for the steps and
 /// the assumptions).
 pub fn fan_baseline(input: &BaselineInput) -> Result<BaselineResult> {
+    check_input(input)?;
     let mut notes = Vec::new();
+    // ---- 1. faces ----
+    let pts: Vec<Vector3<f64>> = input.targets.iter().map(|t| t.1).collect();
+    let corner = corner_from_targets(input, &pts, &mut notes)?;
+    // ---- 2. camera pose by DLT ----
+    let camera_from_dlt = camera_by_dlt(input, &pts, &corner, &mut notes)?;
+    // ---- 3. LRF pose in the corner from one scan ----
+    // rough prior: LRF axes ≈ camera axes, so corner←LRF ≈ corner←camera
+    let prior: Matrix3<f64> = camera_from_dlt.rotation.transpose();
+    let scan = lrf_in_corner_from_one_scan(input, &prior, &mut notes)?;
+    // ---- 4. composition: T_cam←lrf = T_cam←corner · T_corner←lrf ----
+    let lrf_to_camera = compose(&camera_from_dlt, &scan.lrf_in_corner);
+    if !lrf_to_camera
+        .rotation
+        .iter()
+        .chain(lrf_to_camera.translation.iter())
+        .all(|v| v.is_finite())
+    {
+        return Err(LrfError::Degenerate(
+            "corner baseline: the composed extrinsic is not finite".into(),
+        ));
+    }
+    notes.push(format!(
+        "extrinsic: t = {} mm, ω φ κ = {} °",
+        fmt_v(&lrf_to_camera.translation),
+        fmt_v(&lrf_to_camera.euler_deg())
+    ));
+    Ok(BaselineResult {
+        lrf_to_camera,
+        lrf_in_corner: scan.lrf_in_corner,
+        corner_in_camera: corner.corner_in_camera,
+        camera_from_dlt,
+        servo_deg: input.scans[scan.k].servo_deg,
+        face_sizes: corner.face_sizes,
+        notes,
+    })
+}
+
+/// The checks of the input: a positive range σ, some scans, finite coordinates, distinct
+/// target labels.
+fn check_input(input: &BaselineInput) -> Result<()> {
     if !(input.range_sigma_mm.is_finite() && input.range_sigma_mm > 0.0) {
         return Err(LrfError::Invalid(format!(
             "corner baseline: range σ must be a positive number of mm, got {}",
@@ -286,46 +358,27 @@ pub fn fan_baseline(input: &BaselineInput) -> Result<BaselineResult> {
             )));
         }
     }
-    {
-        let mut ids: Vec<&str> = input.targets.iter().map(|t| t.0.as_str()).collect();
-        ids.sort_unstable();
-        if let Some(w) = ids.windows(2).find(|w| w[0] == w[1]) {
-            return Err(LrfError::Invalid(format!(
-                "corner baseline: target label {} appears more than once",
-                w[0]
-            )));
-        }
-    }
-
-    // ---- 1. faces ----
-    let pts: Vec<Vector3<f64>> = input.targets.iter().map(|t| t.1).collect();
-    let faces = find_faces(&pts, input.seed);
-    if faces.len() < 3 {
-        let desc: Vec<String> = faces
-            .iter()
-            .enumerate()
-            .map(|(k, f)| {
-                format!(
-                    "plane {}: {} targets, normal {}",
-                    k + 1,
-                    f.members.len(),
-                    fmt_v(&f.normal)
-                )
-            })
-            .collect();
-        return Err(LrfError::Degenerate(format!(
-            "corner baseline: only {} plane(s) found among {} targets{}{}; the Fan baseline needs \
-             ≥ {MIN_FACE_TARGETS} targets spread on each of the two walls and the floor, nearly \
-             orthogonal (|cos| < {MAX_FACE_COS})",
-            faces.len(),
-            pts.len(),
-            if desc.is_empty() { "" } else { " (" },
-            if desc.is_empty() {
-                String::new()
-            } else {
-                desc.join("; ") + ")"
-            }
+    let mut ids: Vec<&str> = input.targets.iter().map(|t| t.0.as_str()).collect();
+    ids.sort_unstable();
+    if let Some(w) = ids.windows(2).find(|w| w[0] == w[1]) {
+        return Err(LrfError::Invalid(format!(
+            "corner baseline: target label {} appears more than once",
+            w[0]
         )));
+    }
+    Ok(())
+}
+
+/// Step 1: the three faces among the targets, the floor and the wall order, the corner
+/// frame (see the module doc).
+fn corner_from_targets(
+    input: &BaselineInput,
+    pts: &[Vector3<f64>],
+    notes: &mut Vec<String>,
+) -> Result<Corner> {
+    let faces = find_faces(pts, input.seed);
+    if faces.len() < 3 {
+        return Err(too_few_faces(&faces, pts.len()));
     }
     // normals towards the camera (the photogrammetric origin)
     let normals: Vec<Vector3<f64>> = faces
@@ -338,76 +391,8 @@ pub fn fan_baseline(input: &BaselineInput) -> Result<BaselineResult> {
             }
         })
         .collect();
-    let up = Vector3::z();
-    let mut by_up: Vec<usize> = (0..3).collect();
-    by_up.sort_by(|&a, &b| {
-        normals[b]
-            .dot(&up)
-            .abs()
-            .total_cmp(&normals[a].dot(&up).abs())
-    });
-    let floor = by_up[0];
-    let (mut w1, mut w2) = (by_up[1], by_up[2]);
-    if normals[w1].cross(&normals[w2]).dot(&normals[floor]) < 0.0 {
-        std::mem::swap(&mut w1, &mut w2);
-    }
-    let up_margin = normals[floor].dot(&up).abs() - normals[by_up[1]].dot(&up).abs();
-    notes.push(format!(
-        "faces: {} targets; floor = the plane whose normal is closest to the camera's Z axis \
-         (assumes a roughly level camera): |n·Z| = {:.3} vs {:.3} for the most upward wall{}",
-        pts.len(),
-        normals[floor].dot(&up).abs(),
-        normals[by_up[1]].dot(&up).abs(),
-        if up_margin < 0.2 {
-            " — AMBIGUOUS: check that the camera was roughly level"
-        } else {
-            ""
-        }
-    ));
-    if normals[floor].dot(&up) < 0.0 {
-        notes.push(
-            "warning: the floor normal towards the camera points down in the photogrammetric \
-             frame (camera below the floor plane or upside down?)"
-                .into(),
-        );
-    }
-    let face_pts =
-        |k: usize| -> Vec<Vector3<f64>> { faces[k].members.iter().map(|&i| pts[i]).collect() };
-    let mut chosen: Option<(Transform, [usize; 3])> = None;
-    let mut why = Vec::new();
-    for (attempt, order) in [[w1, w2, floor], [w2, w1, floor]].into_iter().enumerate() {
-        let (a, b, c) = (face_pts(order[0]), face_pts(order[1]), face_pts(order[2]));
-        match corner_frame_from_planes([&a, &b, &c]) {
-            Ok(t) => {
-                let cam = inverse(&t).translation;
-                if cam.iter().all(|&v| v > 0.0) {
-                    if attempt == 1 {
-                        notes.push(
-                            "the expected wall order did not put the camera in the positive \
-                             octant; the other wall order does and is used"
-                                .into(),
-                        );
-                    }
-                    chosen = Some((t, order));
-                    break;
-                }
-                why.push(format!(
-                    "wall order {}: camera at corner coordinates {} (not all > 0)",
-                    attempt + 1,
-                    fmt_v(&cam)
-                ));
-            }
-            Err(e) => why.push(format!("wall order {}: {e}", attempt + 1)),
-        }
-    }
-    let Some((corner_in_camera, order)) = chosen else {
-        return Err(LrfError::Degenerate(format!(
-            "corner baseline: the three target planes do not form a room corner around the \
-             camera ({}); the camera must see the two walls and the floor from inside the room",
-            why.join("; ")
-        )));
-    };
-    let face_sizes = order.map(|k| faces[k].members.len());
+    let walls_floor = floor_and_walls(&normals, pts.len(), notes);
+    let (corner_in_camera, order) = corner_frame(&faces, pts, walls_floor, notes)?;
     let names = ["wall x=0", "wall y=0", "floor z=0"];
     for (name, &k) in names.iter().zip(&order) {
         notes.push(format!(
@@ -436,35 +421,190 @@ pub fn fan_baseline(input: &BaselineInput) -> Result<BaselineResult> {
         ));
     }
     let cos = |a: usize, b: usize| normals[order[a]].dot(&normals[order[b]]);
-    let cam_c = inverse(&corner_in_camera).translation;
     notes.push(format!(
         "corner frame: face cosines {:.4} {:.4} {:.4}; camera centre at corner coordinates {} mm",
         cos(0, 1),
         cos(1, 2),
         cos(0, 2),
-        fmt_v(&cam_c)
+        fmt_v(&inverse(&corner_in_camera).translation)
     ));
+    Ok(Corner {
+        corner_in_camera,
+        face_of,
+        face_sizes: order.map(|k| faces[k].members.len()),
+    })
+}
 
-    // ---- 2. camera pose by DLT ----
-    let corner_from_photo = inverse(&corner_in_camera);
-    let mut world = Vec::new();
-    let mut image = Vec::new();
-    let mut faces_seen = [0usize; 3];
-    let mut unknown = Vec::new();
-    let mut off_face = Vec::new();
+/// The error when fewer than three faces were found, naming those that were.
+fn too_few_faces(faces: &[Face], targets: usize) -> LrfError {
+    let desc: Vec<String> = faces
+        .iter()
+        .enumerate()
+        .map(|(k, f)| {
+            format!(
+                "plane {}: {} targets, normal {}",
+                k + 1,
+                f.members.len(),
+                fmt_v(&f.normal)
+            )
+        })
+        .collect();
+    LrfError::Degenerate(format!(
+        "corner baseline: only {} plane(s) found among {} targets{}{}; the Fan baseline needs \
+         ≥ {MIN_FACE_TARGETS} targets spread on each of the two walls and the floor, nearly \
+         orthogonal (|cos| < {MAX_FACE_COS})",
+        faces.len(),
+        targets,
+        if desc.is_empty() { "" } else { " (" },
+        if desc.is_empty() {
+            String::new()
+        } else {
+            desc.join("; ") + ")"
+        }
+    ))
+}
+
+/// The floor (the face whose normal is closest to the camera's Z axis) and the two walls,
+/// ordered so that `(n_wall1 × n_wall2) · n_floor > 0`: `[wall1, wall2, floor]`.
+fn floor_and_walls(
+    normals: &[Vector3<f64>],
+    targets: usize,
+    notes: &mut Vec<String>,
+) -> [usize; 3] {
+    let up = Vector3::z();
+    let mut by_up: Vec<usize> = (0..3).collect();
+    by_up.sort_by(|&a, &b| {
+        normals[b]
+            .dot(&up)
+            .abs()
+            .total_cmp(&normals[a].dot(&up).abs())
+    });
+    let floor = by_up[0];
+    let (mut w1, mut w2) = (by_up[1], by_up[2]);
+    if normals[w1].cross(&normals[w2]).dot(&normals[floor]) < 0.0 {
+        std::mem::swap(&mut w1, &mut w2);
+    }
+    let up_margin = normals[floor].dot(&up).abs() - normals[by_up[1]].dot(&up).abs();
+    notes.push(format!(
+        "faces: {} targets; floor = the plane whose normal is closest to the camera's Z axis \
+         (assumes a roughly level camera): |n·Z| = {:.3} vs {:.3} for the most upward wall{}",
+        targets,
+        normals[floor].dot(&up).abs(),
+        normals[by_up[1]].dot(&up).abs(),
+        if up_margin < 0.2 {
+            " — AMBIGUOUS: check that the camera was roughly level"
+        } else {
+            ""
+        }
+    ));
+    if normals[floor].dot(&up) < 0.0 {
+        notes.push(
+            "warning: the floor normal towards the camera points down in the photogrammetric \
+             frame (camera below the floor plane or upside down?)"
+                .into(),
+        );
+    }
+    [w1, w2, floor]
+}
+
+/// The corner frame from the faces in the order `[w1, w2, floor]`, or with the walls
+/// swapped when that alone puts the camera inside the room (positive octant).
+fn corner_frame(
+    faces: &[Face],
+    pts: &[Vector3<f64>],
+    [w1, w2, floor]: [usize; 3],
+    notes: &mut Vec<String>,
+) -> Result<(Transform, [usize; 3])> {
+    let face_pts =
+        |k: usize| -> Vec<Vector3<f64>> { faces[k].members.iter().map(|&i| pts[i]).collect() };
+    let mut why = Vec::new();
+    for (attempt, order) in [[w1, w2, floor], [w2, w1, floor]].into_iter().enumerate() {
+        let (a, b, c) = (face_pts(order[0]), face_pts(order[1]), face_pts(order[2]));
+        match corner_frame_from_planes([&a, &b, &c]) {
+            Ok(t) => {
+                let cam = inverse(&t).translation;
+                if cam.iter().all(|&v| v > 0.0) {
+                    if attempt == 1 {
+                        notes.push(
+                            "the expected wall order did not put the camera in the positive \
+                             octant; the other wall order does and is used"
+                                .into(),
+                        );
+                    }
+                    return Ok((t, order));
+                }
+                why.push(format!(
+                    "wall order {}: camera at corner coordinates {} (not all > 0)",
+                    attempt + 1,
+                    fmt_v(&cam)
+                ));
+            }
+            Err(e) => why.push(format!("wall order {}: {e}", attempt + 1)),
+        }
+    }
+    Err(LrfError::Degenerate(format!(
+        "corner baseline: the three target planes do not form a room corner around the \
+         camera ({}); the camera must see the two walls and the floor from inside the room",
+        why.join("; ")
+    )))
+}
+
+/// The main-image targets with 3D coordinates, in corner coordinates, for the DLT.
+struct DltPoints<'a> {
+    world: Vec<Vector3<f64>>,
+    image: Vec<Vector2<f64>>,
+    /// Of them, on each slot's face.
+    faces_seen: [usize; 3],
+    /// Image labels with no 3D target.
+    unknown: Vec<&'a str>,
+    /// Image labels of targets on no face.
+    off_face: Vec<&'a str>,
+}
+
+fn dlt_points<'a>(
+    input: &BaselineInput<'a>,
+    pts: &[Vector3<f64>],
+    corner: &Corner,
+) -> DltPoints<'a> {
+    let corner_from_photo = inverse(&corner.corner_in_camera);
+    let mut p = DltPoints {
+        world: Vec::new(),
+        image: Vec::new(),
+        faces_seen: [0; 3],
+        unknown: Vec::new(),
+        off_face: Vec::new(),
+    };
     for (id, u) in input.main_image {
         match input.targets.iter().position(|t| &t.0 == id) {
             Some(i) => {
-                match face_of[i] {
-                    Some(s) => faces_seen[s] += 1,
-                    None => off_face.push(id.as_str()),
+                match corner.face_of[i] {
+                    Some(s) => p.faces_seen[s] += 1,
+                    None => p.off_face.push(id.as_str()),
                 }
-                world.push(corner_from_photo.apply(&pts[i]));
-                image.push(*u);
+                p.world.push(corner_from_photo.apply(&pts[i]));
+                p.image.push(*u);
             }
-            None => unknown.push(id.as_str()),
+            None => p.unknown.push(id.as_str()),
         }
     }
+    p
+}
+
+/// Step 2: the camera pose in the corner frame (`p_camera = T · p_corner`) by
+/// [`dlt_resection`] on the main-image targets.
+fn camera_by_dlt(
+    input: &BaselineInput,
+    pts: &[Vector3<f64>],
+    corner: &Corner,
+    notes: &mut Vec<String>,
+) -> Result<Transform> {
+    let DltPoints {
+        world,
+        image,
+        faces_seen,
+        unknown,
+        off_face,
+    } = dlt_points(input, pts, corner);
     if !unknown.is_empty() {
         notes.push(format!(
             "{} image point(s) with no 3D target, not used: {}",
@@ -509,6 +649,7 @@ pub fn fan_baseline(input: &BaselineInput) -> Result<BaselineResult> {
         .sum::<f64>()
         / world.len() as f64)
         .sqrt();
+    let cam_c = inverse(&corner.corner_in_camera).translation;
     notes.push(format!(
         "DLT + resection on {} main-image targets ({} / {} / {} on the faces): reprojection rms \
          {:.3} mrad (normalised units × 1000); differs from the photogrammetric camera frame by \
@@ -518,63 +659,71 @@ pub fn fan_baseline(input: &BaselineInput) -> Result<BaselineResult> {
         faces_seen[1],
         faces_seen[2],
         rms * 1e3,
-        rotation_angle(&(camera_from_dlt.rotation * corner_in_camera.rotation.transpose()))
+        rotation_angle(&(camera_from_dlt.rotation * corner.corner_in_camera.rotation.transpose()))
             .to_degrees(),
         (inverse(&camera_from_dlt).translation - cam_c).norm()
     ));
+    Ok(camera_from_dlt)
+}
 
-    // ---- 3. LRF pose in the corner from one scan ----
-    // rough prior: LRF axes ≈ camera axes, so corner←LRF ≈ corner←camera
-    let prior: Matrix3<f64> = camera_from_dlt.rotation.transpose();
+/// Scan line `k`: its three lines and the LRF pose in the corner they give.
+fn try_scan(input: &BaselineInput, k: usize, prior: &Matrix3<f64>, tol: f64) -> ScanTry {
+    let scan = &input.scans[k];
+    let seed = input
+        .seed
+        .wrapping_mul(0x9E37_79B9_7F4A_7C15)
+        .wrapping_add(k as u64);
+    let lines = match scan_lines(input.header, scan, tol, seed) {
+        Ok(l) => l,
+        Err(_) => return ScanTry::Lines,
+    };
+    let inl = lines.map(|l| l.inliers);
+    if inl.iter().any(|&c| c < MIN_LINE_INLIERS) {
+        return ScanTry::Weak;
+    }
+    match lrf_pose_in_corner(&lines, scan.servo_deg, input.mount, prior) {
+        Ok(t)
+            if t.rotation
+                .iter()
+                .chain(t.translation.iter())
+                .all(|v| v.is_finite()) =>
+        {
+            let sd = pose_uncertainty(
+                &lines,
+                scan.servo_deg,
+                input.mount,
+                prior,
+                input.range_sigma_mm,
+            )
+            .map_or(f64::INFINITY, |u| u.0);
+            ScanTry::Ok(Box::new((t, lines, sd)))
+        }
+        _ => ScanTry::P3p,
+    }
+}
+
+/// Every scan line tried (in parallel): the usable ones and a summary of the others.
+fn usable_scans(input: &BaselineInput, prior: &Matrix3<f64>) -> Result<(Vec<ScanPose>, String)> {
     let tol = 3.0 * input.range_sigma_mm;
-    let tries: Vec<ScanTry> = input
-        .scans
-        .par_iter()
-        .enumerate()
-        .map(|(k, scan)| {
-            let seed = input
-                .seed
-                .wrapping_mul(0x9E37_79B9_7F4A_7C15)
-                .wrapping_add(k as u64);
-            let lines = match scan_lines(input.header, scan, tol, seed) {
-                Ok(l) => l,
-                Err(_) => return ScanTry::Lines,
-            };
-            let inl = lines.map(|l| l.inliers);
-            if inl.iter().any(|&c| c < MIN_LINE_INLIERS) {
-                return ScanTry::Weak;
-            }
-            match lrf_pose_in_corner(&lines, scan.servo_deg, input.mount, &prior) {
-                Ok(t)
-                    if t.rotation
-                        .iter()
-                        .chain(t.translation.iter())
-                        .all(|v| v.is_finite()) =>
-                {
-                    let sd = pose_uncertainty(
-                        &lines,
-                        scan.servo_deg,
-                        input.mount,
-                        &prior,
-                        input.range_sigma_mm,
-                    )
-                    .map_or(f64::INFINITY, |u| u.0);
-                    ScanTry::Ok(Box::new((t, lines, sd)))
-                }
-                _ => ScanTry::P3p,
-            }
-        })
+    let tries: Vec<ScanTry> = (0..input.scans.len())
+        .into_par_iter()
+        .map(|k| try_scan(input, k, prior, tol))
         .collect();
     let (mut n_lines, mut n_weak, mut n_p3p) = (0, 0, 0);
-    let mut cands: Vec<(usize, Transform, [usize; 3], f64)> = Vec::new();
+    let mut cands = Vec::new();
     for (k, t) in tries.into_iter().enumerate() {
         match t {
             ScanTry::Lines => n_lines += 1,
             ScanTry::Weak => n_weak += 1,
             ScanTry::P3p => n_p3p += 1,
             ScanTry::Ok(b) => {
-                let (tr, lines, sd) = *b;
-                cands.push((k, tr, lines.map(|l| l.inliers), sd));
+                let (lrf_in_corner, lines, sd_mm) = *b;
+                cands.push(ScanPose {
+                    k,
+                    lrf_in_corner,
+                    line_inliers: lines.map(|l| l.inliers),
+                    sd_mm,
+                });
             }
         }
     }
@@ -593,10 +742,21 @@ pub fn fan_baseline(input: &BaselineInput) -> Result<BaselineResult> {
              {tol:.1} mm)"
         )));
     }
+    Ok((cands, summary))
+}
+
+/// Step 3: the LRF pose in the corner from the one consistent scan whose pose is predicted
+/// most precise (see the module doc).
+fn lrf_in_corner_from_one_scan(
+    input: &BaselineInput,
+    prior: &Matrix3<f64>,
+    notes: &mut Vec<String>,
+) -> Result<ScanPose> {
+    let (mut cands, summary) = usable_scans(input, prior)?;
     // consistency: near the prior, and near the median position of the usable scans
     let n_all = cands.len();
     cands.retain(|c| {
-        rotation_angle(&(c.1.rotation * prior.transpose())).to_degrees() < MAX_PRIOR_DEG
+        rotation_angle(&(c.lrf_in_corner.rotation * prior.transpose())).to_degrees() < MAX_PRIOR_DEG
     });
     let n_prior = n_all - cands.len();
     if cands.is_empty() {
@@ -606,13 +766,11 @@ pub fn fan_baseline(input: &BaselineInput) -> Result<BaselineResult> {
              {summary}"
         )));
     }
-    let med = Vector3::from_fn(|i, _| median(cands.iter().map(|c| c.1.translation[i]).collect()));
-    let dev: Vec<f64> = cands
-        .iter()
-        .map(|c| (c.1.translation - med).norm())
-        .collect();
+    let position = |c: &ScanPose| c.lrf_in_corner.translation;
+    let med = Vector3::from_fn(|i, _| median(cands.iter().map(|c| position(c)[i]).collect()));
+    let dev: Vec<f64> = cands.iter().map(|c| (position(c) - med).norm()).collect();
     let gate = (5.0 * median(dev.clone())).max(50.0);
-    let mut kept: Vec<(usize, Transform, [usize; 3], f64)> = cands
+    let mut kept: Vec<ScanPose> = cands
         .into_iter()
         .zip(&dev)
         .filter(|(_, d)| **d <= gate)
@@ -620,24 +778,24 @@ pub fn fan_baseline(input: &BaselineInput) -> Result<BaselineResult> {
         .collect();
     let n_far = n_all - n_prior - kept.len();
     // the scan whose pose is predicted most precise (ties: the first scan)
-    kept.sort_by(|a, b| a.3.total_cmp(&b.3).then(a.0.cmp(&b.0)));
-    let Some((best_k, lrf_in_corner, best_inl, best_sd)) = kept.first().cloned() else {
+    kept.sort_by(|a, b| a.sd_mm.total_cmp(&b.sd_mm).then(a.k.cmp(&b.k)));
+    let Some(best) = kept.first().cloned() else {
         return Err(LrfError::Degenerate(format!(
             "corner baseline: no usable scan agrees with the others ({summary})"
         )));
     };
     let spread = if kept.len() > 1 {
-        let m = kept.iter().map(|c| c.1.translation).sum::<Vector3<f64>>() / kept.len() as f64;
+        let m = kept.iter().map(position).sum::<Vector3<f64>>() / kept.len() as f64;
         (kept
             .iter()
-            .map(|c| (c.1.translation - m).norm_squared())
+            .map(|c| (position(c) - m).norm_squared())
             .sum::<f64>()
             / (kept.len() - 1) as f64)
             .sqrt()
     } else {
         0.0
     };
-    let servo_deg = input.scans[best_k].servo_deg;
+    let scan = &input.scans[best.k];
     notes.push(format!(
         "{summary}; {n_prior} dropped for a rotation > {MAX_PRIOR_DEG}° from the camera prior, \
          {n_far} for a position > {gate:.0} mm from the median; the {} consistent scans' LRF \
@@ -645,39 +803,15 @@ pub fn fan_baseline(input: &BaselineInput) -> Result<BaselineResult> {
         kept.len()
     ));
     notes.push(format!(
-        "scan used: #{} (file line {}, servo {servo_deg:.3}°), line inliers {:?}, predicted LRF \
-         position σ {best_sd:.1} mm from the line-fit noise (the smallest of all consistent \
+        "scan used: #{} (file line {}, servo {:.3}°), line inliers {:?}, predicted LRF \
+         position σ {:.1} mm from the line-fit noise (the smallest of all consistent \
          scans); LRF at corner coordinates {} mm",
-        best_k + 1,
-        input.scans[best_k].line,
-        best_inl,
-        fmt_v(&lrf_in_corner.translation)
+        best.k + 1,
+        scan.line,
+        scan.servo_deg,
+        best.line_inliers,
+        best.sd_mm,
+        fmt_v(&best.lrf_in_corner.translation)
     ));
-
-    // ---- 4. composition: T_cam←lrf = T_cam←corner · T_corner←lrf ----
-    let lrf_to_camera = compose(&camera_from_dlt, &lrf_in_corner);
-    if !lrf_to_camera
-        .rotation
-        .iter()
-        .chain(lrf_to_camera.translation.iter())
-        .all(|v| v.is_finite())
-    {
-        return Err(LrfError::Degenerate(
-            "corner baseline: the composed extrinsic is not finite".into(),
-        ));
-    }
-    notes.push(format!(
-        "extrinsic: t = {} mm, ω φ κ = {} °",
-        fmt_v(&lrf_to_camera.translation),
-        fmt_v(&lrf_to_camera.euler_deg())
-    ));
-    Ok(BaselineResult {
-        lrf_to_camera,
-        lrf_in_corner,
-        corner_in_camera,
-        camera_from_dlt,
-        servo_deg,
-        face_sizes,
-        notes,
-    })
+    Ok(best)
 }

@@ -213,12 +213,11 @@ pub fn match_balls(
 mod tests {
     use super::*;
     use crate::registration::matrix_from_euler;
-    use rand::rngs::StdRng;
-    use rand::{Rng, SeedableRng};
+    use rand::Rng;
 
     #[test]
     fn finds_the_permutation_with_missing_and_false_balls() {
-        let mut rng = StdRng::seed_from_u64(3);
+        let mut rng = pingcal_geometry::consensus::rng(3);
         let truth: Vec<Vector3<f64>> = (0..16)
             .map(|_| {
                 Vector3::new(

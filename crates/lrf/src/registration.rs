@@ -18,6 +18,7 @@
 
 use crate::error::{LrfError, Result};
 use nalgebra::{DMatrix, DVector, Matrix3, Rotation3, Vector3};
+use pingcal_geometry::UmeyamaError;
 
 /// A labelled point with its covariance (mm, mm²).
 #[derive(Debug, Clone, PartialEq)]
@@ -187,78 +188,32 @@ pub fn check_geometry(src: &[PointObs], tol_mm: Option<f64>) -> Result<()> {
     Ok(())
 }
 
-/// Closed-form (Horn/Umeyama) similarity or rigid transform `dst ≈ s R src + t`, weighted.
+/// Closed-form (Horn/Umeyama) similarity or rigid transform `dst ≈ s R src + t`, weighted:
+/// [`pingcal_geometry::umeyama`] as a [`Transform`], its errors as [`LrfError`]s.
 pub fn umeyama(
     src: &[Vector3<f64>],
     dst: &[Vector3<f64>],
     weights: Option<&[f64]>,
     with_scale: bool,
 ) -> Result<Transform> {
-    if src.len() != dst.len() {
-        return Err(LrfError::Invalid(format!(
-            "{} source and {} target points",
-            src.len(),
-            dst.len()
-        )));
-    }
-    if src.len() < 3 {
-        return Err(LrfError::TooFewPoints {
+    match pingcal_geometry::umeyama(src, dst, weights, with_scale) {
+        Ok(s) => Ok(Transform {
+            rotation: s.rotation,
+            translation: s.translation,
+            scale: s.scale,
+        }),
+        Err(UmeyamaError::TooFew(got)) => Err(LrfError::TooFewPoints {
             needed: 3,
-            got: src.len(),
+            got,
             ids: String::new(),
-        });
-    }
-    let w: Vec<f64> = weights.map_or_else(|| vec![1.0; src.len()], |w| w.to_vec());
-    let ws: f64 = w.iter().sum();
-    if !(ws > 0.0) {
-        return Err(LrfError::Invalid("weights sum to zero".into()));
-    }
-    let ms = src
-        .iter()
-        .zip(&w)
-        .map(|(p, w)| p * *w)
-        .sum::<Vector3<f64>>()
-        / ws;
-    let md = dst
-        .iter()
-        .zip(&w)
-        .map(|(p, w)| p * *w)
-        .sum::<Vector3<f64>>()
-        / ws;
-    let mut cov = Matrix3::zeros();
-    let mut var_s = 0.0;
-    for ((p, q), wi) in src.iter().zip(dst).zip(&w) {
-        cov += (q - md) * (p - ms).transpose() * *wi;
-        var_s += wi * (p - ms).norm_squared();
-    }
-    let svd = cov.svd(true, true);
-    let (u, vt) = (svd.u.unwrap(), svd.v_t.unwrap());
-    let mut d = Matrix3::identity();
-    if (u * vt).determinant() < 0.0 {
-        d[(2, 2)] = -1.0;
-    }
-    let r = u * d * vt;
-    let scale = if with_scale {
-        if var_s <= 0.0 {
-            return Err(LrfError::Degenerate(
-                "all source points coincide: no scale".into(),
-            ));
+        }),
+        Err(e @ (UmeyamaError::LengthMismatch { .. } | UmeyamaError::Weights(_))) => {
+            Err(LrfError::Invalid(e.to_string()))
         }
-        (svd.singular_values.component_mul(&d.diagonal())).sum() / var_s
-    } else {
-        1.0
-    };
-    let t = md - r * ms * scale;
-    if !r.iter().all(|v| v.is_finite()) || !t.iter().all(|v| v.is_finite()) {
-        return Err(LrfError::Degenerate(
-            "closed-form registration gave a non-finite result".into(),
-        ));
+        Err(e) => Err(LrfError::Degenerate(format!(
+            "closed-form registration: {e}"
+        ))),
     }
-    Ok(Transform {
-        rotation: r,
-        translation: t,
-        scale,
-    })
 }
 
 /// Registers `src` (LRF) onto `dst` (camera), paired by index, with the covariances of both.

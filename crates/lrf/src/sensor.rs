@@ -250,7 +250,6 @@ impl LrfSensor {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use rand::SeedableRng;
 
     #[test]
     fn eq2_exactly_with_default_mount() {
@@ -329,7 +328,7 @@ mod tests {
 
     #[test]
     fn reading_is_noisy_rounded_and_limited() {
-        let mut rng = rand::rngs::StdRng::seed_from_u64(3);
+        let mut rng = pingcal_geometry::consensus::rng(3);
         let exact = LrfSensor {
             noise: RangeNoise::Noiseless,
             quantise: false,

@@ -248,7 +248,6 @@ pub fn room_corner_scene<R: Rng>(n_balls: usize, rng: &mut R) -> Scene {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use rand::SeedableRng;
 
     #[test]
     fn noiseless_scan_hits_the_surfaces() {
@@ -257,7 +256,7 @@ mod tests {
             balls: vec![Vector3::new(0.0, 1000.0, 0.0)],
             radius: 19.0,
         };
-        let mut rng = rand::rngs::StdRng::seed_from_u64(1);
+        let mut rng = pingcal_geometry::consensus::rng(1);
         let d = Vector3::new(0.0, 1.0, 0.0);
         let r = scene
             .measure(&Vector3::zeros(), &d, &SimulatedLrf::noiseless(), &mut rng)
@@ -281,7 +280,7 @@ mod tests {
             footprint: SimulatedLrf::default().footprint,
             ..SimulatedLrf::noiseless()
         };
-        let mut rng = rand::rngs::StdRng::seed_from_u64(1);
+        let mut rng = pingcal_geometry::consensus::rng(1);
         // a ray passing 19 mm from the centre: right on the silhouette
         let d = Vector3::new(19.0, 1000.0, 0.0).normalize();
         let r = scene

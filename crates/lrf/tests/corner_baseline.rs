@@ -8,8 +8,7 @@ use pingcal_lrf::registration::{matrix_from_euler, Transform};
 use pingcal_lrf::scan::{ScanHeader, ScanLine};
 use pingcal_lrf::simulate::{Scene, SimulatedLrf};
 use pingcal_lrf::MountModel;
-use rand::rngs::StdRng;
-use rand::{Rng, SeedableRng};
+use rand::Rng;
 use rand_distr::{Distribution, Normal};
 
 /// Focal length in pixels (MYNT EYE D1000: 2.45 mm / 3.75 µm) and the image half-size.
@@ -48,7 +47,7 @@ impl Field {
 /// The room corner (walls x = 0, y = 0, floor z = 0 in the corner frame), ~70 targets, the
 /// camera at (1150, 1100, 700) looking at (250, 230, 520), the LRF rigidly offset from it.
 fn field(seed: u64, with_floor: bool) -> Field {
-    let mut rng = StdRng::seed_from_u64(seed);
+    let mut rng = pingcal_geometry::consensus::rng(seed);
     // camera: Y forward, X right, Z up (photogrammetric frame = this camera's frame)
     let c = Vector3::new(1150.0, 1100.0, 700.0);
     let y = (Vector3::new(250.0, 230.0, 520.0) - c).normalize();

@@ -12,12 +12,10 @@ use pingcal_lrf::correspondence::{match_balls, MatchOptions};
 use pingcal_lrf::registration::{self, PointObs, RegistrationOptions};
 use pingcal_lrf::scan::{write_scans, ScanHeader};
 use pingcal_lrf::simulate::{room_corner_scene, SimulatedLrf};
-use rand::rngs::StdRng;
-use rand::SeedableRng;
 
 #[test]
 fn simulated_room_end_to_end() {
-    let mut rng = StdRng::seed_from_u64(42);
+    let mut rng = pingcal_geometry::consensus::rng(42);
     let scene = room_corner_scene(16, &mut rng);
     let header = ScanHeader::URG_04LX;
     let scans = scene.half_sweep(512, &SimulatedLrf::default(), &mut rng);

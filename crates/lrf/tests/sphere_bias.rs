@@ -11,17 +11,17 @@
 //! five standard errors wide.
 
 use nalgebra::Vector3;
+use pingcal_geometry::consensus::SeededRng;
 use pingcal_lrf::simulate::{Scene, SimulatedLrf};
 use pingcal_lrf::sphere_fit::{self, FitMethod, FitOptions, Ray};
-use rand::rngs::StdRng;
-use rand::{Rng, SeedableRng};
+use rand::Rng;
 
 const STEP_DEG: f64 = 0.3515625;
 const R: f64 = 19.0;
 
 /// Rays of one simulated sweep over a ball at distance `dist` (mm), cut to the points within
 /// R + 3σ + 10 mm of the true centre (what a segmentation would keep, mixed pixels included).
-fn ball_rays(dist: f64, noise: &SimulatedLrf, rng: &mut StdRng) -> (Vector3<f64>, Vec<Ray>) {
+fn ball_rays(dist: f64, noise: &SimulatedLrf, rng: &mut SeededRng) -> (Vector3<f64>, Vec<Ray>) {
     let (a0, b0) = (20f64.to_radians(), 10f64.to_radians());
     let dir = Vector3::new(a0.cos() * b0.cos(), a0.sin(), a0.cos() * b0.sin());
     let c = dir * dist;
@@ -89,7 +89,7 @@ impl Stats {
 
 fn run(dist: f64, trials: usize, seed: u64) -> Vec<(FitMethod, Stats)> {
     let noise = SimulatedLrf::default();
-    let mut rng = StdRng::seed_from_u64(seed);
+    let mut rng = pingcal_geometry::consensus::rng(seed);
     let methods = [
         FitMethod::AlongRay,
         FitMethod::Orthogonal,

@@ -675,8 +675,8 @@ mod tests {
     /// The SSE2 mask of a block is the plain comparison, lane for lane (NaN is above nothing).
     #[test]
     fn block_mask_is_the_plain_comparison() {
-        use rand::{Rng, SeedableRng};
-        let mut rng = rand::rngs::StdRng::seed_from_u64(3);
+        use rand::Rng;
+        let mut rng = pingcal_geometry::consensus::rng(3);
         let levels = [0.0f32, 0.25, 0.5, 1.0, -0.0, f32::MIN_POSITIVE];
         for _ in 0..20_000 {
             let l = if rng.random_bool(0.5) {

@@ -1,9 +1,10 @@
-//! Plane-to-image homography: normalised DLT, and RANSAC with a seeded generator (results are
-//! deterministic for a given seed). Used to verify coded-target IDs on a flat panel and to
-//! predict where the other targets of the panel are.
+//! Plane-to-image homography: the normalised DLT and the RANSAC loop of `pingcal-geometry`,
+//! with a seeded generator (results are deterministic for a given seed). Used to verify
+//! coded-target IDs on a flat panel and to predict where the other targets of the panel are.
 
-use nalgebra::{DMatrix, Matrix3, Vector3};
-use rand::{rngs::StdRng, Rng, SeedableRng};
+use nalgebra::{Matrix3, Vector2, Vector3};
+use pingcal_geometry::consensus::{self, ConsensusOptions, Estimator, RefitRule};
+use pingcal_geometry::dlt::homography_dlt;
 
 /// A homography `x' ~ H x` between 2D points.
 #[derive(Clone, Copy, Debug)]
@@ -20,73 +21,13 @@ impl Homography {
     }
 }
 
-fn normaliser(pts: &[[f64; 2]]) -> Matrix3<f64> {
-    let n = pts.len() as f64;
-    let (mut mx, mut my) = (0.0, 0.0);
-    for p in pts {
-        mx += p[0];
-        my += p[1];
-    }
-    mx /= n;
-    my /= n;
-    let mut d = 0.0;
-    for p in pts {
-        d += ((p[0] - mx).powi(2) + (p[1] - my).powi(2)).sqrt();
-    }
-    d /= n;
-    let s = if d > 0.0 {
-        std::f64::consts::SQRT_2 / d
-    } else {
-        1.0
-    };
-    Matrix3::new(s, 0.0, -s * mx, 0.0, s, -s * my, 0.0, 0.0, 1.0)
-}
-
-/// Least-squares homography (normalised DLT) from at least 4 correspondences `src[i] → dst[i]`.
+/// Least-squares homography (normalised DLT, [`pingcal_geometry::dlt::homography_dlt`]) from
+/// at least 4 correspondences `src[i] → dst[i]`.
 pub fn fit_homography(src: &[[f64; 2]], dst: &[[f64; 2]]) -> Option<Homography> {
-    let n = src.len();
-    if n < 4 || dst.len() != n {
-        return None;
-    }
-    let ts = normaliser(src);
-    let td = normaliser(dst);
-    let mut a = DMatrix::<f64>::zeros(2 * n, 9);
-    for i in 0..n {
-        let s = ts * Vector3::new(src[i][0], src[i][1], 1.0);
-        let d = td * Vector3::new(dst[i][0], dst[i][1], 1.0);
-        let (x, y, u, v) = (s[0], s[1], d[0], d[1]);
-        let r = 2 * i;
-        for (j, val) in [-x, -y, -1.0, 0.0, 0.0, 0.0, u * x, u * y, u]
-            .iter()
-            .enumerate()
-        {
-            a[(r, j)] = *val;
-        }
-        for (j, val) in [0.0, 0.0, 0.0, -x, -y, -1.0, v * x, v * y, v]
-            .iter()
-            .enumerate()
-        {
-            a[(r + 1, j)] = *val;
-        }
-    }
-    // Null vector of A: eigenvector of AᵀA with the smallest eigenvalue.
-    let ata = a.transpose() * &a;
-    let eig = nalgebra::SymmetricEigen::new(ata);
-    let (imin, _) = eig
-        .eigenvalues
-        .iter()
-        .enumerate()
-        .fold(
-            (0, f64::INFINITY),
-            |acc, (i, &v)| if v < acc.1 { (i, v) } else { acc },
-        );
-    let h = eig.eigenvectors.column(imin);
-    let hn = Matrix3::new(h[0], h[1], h[2], h[3], h[4], h[5], h[6], h[7], h[8]);
-    let hm = td.try_inverse()? * hn * ts;
-    if !hm.iter().all(|v| v.is_finite()) || hm[(2, 2)].abs() < 1e-300 && hm.norm() == 0.0 {
-        return None;
-    }
-    Some(Homography(hm / hm.norm()))
+    let all: Vec<usize> = (0..src.len().min(dst.len())).collect();
+    (src.len() == dst.len())
+        .then(|| Correspondences { src, dst }.fit_on(&all))
+        .flatten()
 }
 
 /// Result of [`ransac_homography`].
@@ -97,6 +38,48 @@ pub struct RansacHomography {
     pub inliers: Vec<bool>,
     /// Per correspondence: transfer error |H src − dst| in destination units.
     pub errors: Vec<f64>,
+}
+
+/// Point correspondences under a homography, for [`consensus::find`]: 4-point DLT, the
+/// transfer error, the least-squares refit on the inliers.
+struct Correspondences<'a> {
+    src: &'a [[f64; 2]],
+    dst: &'a [[f64; 2]],
+}
+
+impl Correspondences<'_> {
+    fn fit_on(&self, idx: &[usize]) -> Option<Homography> {
+        let s: Vec<Vector2<f64>> = idx.iter().map(|&i| Vector2::from(self.src[i])).collect();
+        let d: Vec<Vector2<f64>> = idx.iter().map(|&i| Vector2::from(self.dst[i])).collect();
+        homography_dlt(&s, &d).map(Homography)
+    }
+
+    /// Transfer error |H src − dst| of correspondence `i`.
+    fn error(&self, h: &Homography, i: usize) -> f64 {
+        match h.apply(self.src[i]) {
+            Some(p) => ((p[0] - self.dst[i][0]).powi(2) + (p[1] - self.dst[i][1]).powi(2)).sqrt(),
+            None => f64::INFINITY,
+        }
+    }
+}
+
+impl Estimator for Correspondences<'_> {
+    type Model = Homography;
+    fn len(&self) -> usize {
+        self.src.len()
+    }
+    fn sample_size(&self) -> usize {
+        4
+    }
+    fn fit(&self, sample: &[usize], models: &mut Vec<Homography>) {
+        models.extend(self.fit_on(sample));
+    }
+    fn residual(&self, h: &Homography, i: usize) -> f64 {
+        self.error(h, i)
+    }
+    fn refit(&self, inliers: &[usize], _: &Homography) -> Option<Homography> {
+        self.fit_on(inliers)
+    }
 }
 
 /// RANSAC homography: `iterations` random 4-point samples from a generator seeded with `seed`,
@@ -112,49 +95,14 @@ pub fn ransac_homography(
     if n < 4 || dst.len() != n {
         return None;
     }
-    let err = |h: &Homography, i: usize| -> f64 {
-        match h.apply(src[i]) {
-            Some(p) => ((p[0] - dst[i][0]).powi(2) + (p[1] - dst[i][1]).powi(2)).sqrt(),
-            None => f64::INFINITY,
-        }
+    let est = Correspondences { src, dst };
+    let opts = ConsensusOptions {
+        final_refits: 2,
+        final_refit_rule: RefitRule::Always,
+        ..ConsensusOptions::ransac(threshold, iterations)
     };
-    let mut rng = StdRng::seed_from_u64(seed);
-    let mut best: Option<(usize, Homography)> = None;
-    for _ in 0..iterations {
-        let mut idx = [0usize; 4];
-        for k in 0..4 {
-            loop {
-                let c = rng.random_range(0..n);
-                if !idx[..k].contains(&c) {
-                    idx[k] = c;
-                    break;
-                }
-            }
-        }
-        let s: Vec<[f64; 2]> = idx.iter().map(|&i| src[i]).collect();
-        let d: Vec<[f64; 2]> = idx.iter().map(|&i| dst[i]).collect();
-        let Some(h) = fit_homography(&s, &d) else {
-            continue;
-        };
-        let count = (0..n).filter(|&i| err(&h, i) <= threshold).count();
-        if best.as_ref().is_none_or(|(c, _)| count > *c) {
-            best = Some((count, h));
-        }
-    }
-    let (_, mut h) = best?;
-    for _ in 0..2 {
-        let inl: Vec<usize> = (0..n).filter(|&i| err(&h, i) <= threshold).collect();
-        if inl.len() < 4 {
-            break;
-        }
-        let s: Vec<[f64; 2]> = inl.iter().map(|&i| src[i]).collect();
-        let d: Vec<[f64; 2]> = inl.iter().map(|&i| dst[i]).collect();
-        match fit_homography(&s, &d) {
-            Some(h2) => h = h2,
-            None => break,
-        }
-    }
-    let errors: Vec<f64> = (0..n).map(|i| err(&h, i)).collect();
+    let h = consensus::find(&est, &opts, &mut consensus::rng(seed))?.model;
+    let errors: Vec<f64> = (0..n).map(|i| est.error(&h, i)).collect();
     let inliers = errors.iter().map(|&e| e <= threshold).collect();
     Some(RansacHomography { h, inliers, errors })
 }

@@ -183,8 +183,8 @@ mod tests {
     /// step from 1 to 5 and every remainder modulo 4·step, counted in 1 to 4 pieces.
     #[test]
     fn sample_histogram_counts_every_step_th_value() {
-        use rand::{Rng, SeedableRng};
-        let mut rng = rand::rngs::StdRng::seed_from_u64(7);
+        use rand::Rng;
+        let mut rng = pingcal_geometry::consensus::rng(7);
         let all: Vec<f32> = (0..2_500_000)
             .map(|_| match rng.random_range(0..8) {
                 0 => f32::from_bits(rng.random()),

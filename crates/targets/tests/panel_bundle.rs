@@ -24,7 +24,7 @@
 
 mod panel;
 
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::Vector3;
 use panel::panel;
 use pingcal_ba::initial::incremental::{initialise, IncrementalOptions};
 use pingcal_ba::io::measurements::{CameraSpec, ControlPoint, ImagePoint, ImageSpec, Measurements};
@@ -39,31 +39,6 @@ const MATCH_PX: f64 = 8.0;
 const PRIOR_SIGMA_MM: f64 = 10.0;
 /// Bound on the 3D RMS after the similarity, mm (reasoning at the assertion).
 const BOUND_MM: f64 = 0.05;
-
-/// Similarity (scale s, rotation r, translation t) minimising Σ |s·r·a + t − b|² (Umeyama 1991).
-fn umeyama(a: &[Vector3<f64>], b: &[Vector3<f64>]) -> (f64, Matrix3<f64>, Vector3<f64>) {
-    let n = a.len() as f64;
-    let ma = a.iter().sum::<Vector3<f64>>() / n;
-    let mb = b.iter().sum::<Vector3<f64>>() / n;
-    let mut cov = Matrix3::zeros();
-    let mut var_a = 0.0;
-    for (p, q) in a.iter().zip(b) {
-        cov += (q - mb) * (p - ma).transpose();
-        var_a += (p - ma).norm_squared();
-    }
-    cov /= n;
-    var_a /= n;
-    let svd = cov.svd(true, true);
-    let (u, vt) = (svd.u.unwrap(), svd.v_t.unwrap());
-    let mut d = Matrix3::identity();
-    if (u * vt).determinant() < 0.0 {
-        d[(2, 2)] = -1.0;
-    }
-    let r = u * d * vt;
-    let s = (Matrix3::from_diagonal(&svd.singular_values) * d).trace() / var_a;
-    let t = mb - s * r * ma;
-    (s, r, t)
-}
 
 /// Plain detections → reference IDs through the homography `h`, unambiguous matches only.
 fn match_plain(
@@ -318,13 +293,13 @@ fn panel_3d_rms_after_self_calibrating_bundle_and_similarity() {
         .collect();
     let a: Vec<_> = pairs.iter().map(|x| x.1).collect();
     let b: Vec<_> = pairs.iter().map(|x| x.2).collect();
-    let (s, r, t) = umeyama(&a, &b);
-    println!("similarity: scale 1 + {:.2e}", s - 1.0);
+    let sim = pingcal_geometry::umeyama(&a, &b, None, true).expect("a similarity of the panel");
+    println!("similarity: scale 1 + {:.2e}", sim.scale - 1.0);
     let stats = |coded: bool| {
         let d: Vec<f64> = pairs
             .iter()
             .filter(|x| (x.0 < 1000) == coded)
-            .map(|(_, a, b)| (s * r * a + t - b).norm())
+            .map(|(_, a, b)| (sim.transform(a) - b).norm())
             .collect();
         let rms = (d.iter().map(|e| e * e).sum::<f64>() / d.len() as f64).sqrt();
         let max = d.iter().cloned().fold(0.0, f64::max);

@@ -4,11 +4,12 @@
 //!
 //! Run `cargo test -p pingcal-targets --release --test synthetic -- --nocapture` for the tables.
 
+use pingcal_geometry::consensus::SeededRng;
 use pingcal_targets::ball::{sphere_centre_from_ellipse, Pinhole};
 use pingcal_targets::detect::BallMode;
 use pingcal_targets::ellipse::Ellipse;
 use pingcal_targets::{DetectParams, Detector, GrayImage, TargetKind};
-use rand::{rngs::StdRng, Rng, SeedableRng};
+use rand::Rng;
 use rand_distr::{Distribution, Normal};
 
 fn gaussian_blur(img: &mut GrayImage, sigma: f64) {
@@ -45,7 +46,7 @@ fn gaussian_blur(img: &mut GrayImage, sigma: f64) {
     }
 }
 
-fn add_noise(img: &mut GrayImage, sigma: f64, rng: &mut StdRng) {
+fn add_noise(img: &mut GrayImage, sigma: f64, rng: &mut SeededRng) {
     let n = Normal::new(0.0, sigma).unwrap();
     for v in &mut img.data {
         *v += n.sample(rng) as f32;
@@ -111,7 +112,7 @@ fn centre_bias_and_sigma_on_rendered_ellipses() {
         ..DetectParams::default()
     })
     .unwrap();
-    let mut rng = StdRng::seed_from_u64(2024);
+    let mut rng = pingcal_geometry::consensus::rng(2024);
     const TRIALS: usize = 16;
     println!("| diameter px | tilt ° | blur σ px | noise σ | detected | ellipse bias x, y px | ellipse σ px | reported σ px | centroid bias x, y px | centroid σ px | reported centroid σ px |");
     println!("|---|---|---|---|---|---|---|---|---|---|---|");
@@ -280,7 +281,7 @@ fn ball_centre_with_and_without_eccentricity_correction() {
         ..DetectParams::default()
     })
     .unwrap();
-    let mut rng = StdRng::seed_from_u64(7);
+    let mut rng = pingcal_geometry::consensus::rng(7);
     let r = 19.0; // 38 mm ping-pong ball
     println!("| f px | distance mm | off-axis px | uncorrected error px | corrected error px | distance from cone mm |");
     println!("|---|---|---|---|---|---|");
@@ -360,7 +361,7 @@ fn printed_targets_decode_to_their_numbers() {
         ..DetectParams::default()
     })
     .unwrap();
-    let mut rng = StdRng::seed_from_u64(99);
+    let mut rng = pingcal_geometry::consensus::rng(99);
     let mut ok = 0;
     let mut wrong = 0;
     let n = 40;

@@ -56,7 +56,7 @@ pub trait CameraModel: Send + Sync + std::fmt::Debug {
 pub(crate) mod jacobian_checks {
     //! Central finite-difference checks of every analytic camera Jacobian.
     use super::*;
-    use rand::{Rng, SeedableRng};
+    use rand::Rng;
 
     /// Compares analytic and central-difference Jacobians at `xc`, `params`.
     /// Relative tolerance `tol` with respect to the larger of |analytic| and the column norm.
@@ -110,11 +110,11 @@ pub(crate) mod jacobian_checks {
         }
     }
 
-    pub fn rng(seed: u64) -> rand::rngs::StdRng {
-        rand::rngs::StdRng::seed_from_u64(seed)
+    pub fn rng(seed: u64) -> pingcal_geometry::consensus::SeededRng {
+        pingcal_geometry::consensus::rng(seed)
     }
 
-    pub fn uniform(r: &mut rand::rngs::StdRng, lo: f64, hi: f64) -> f64 {
+    pub fn uniform(r: &mut pingcal_geometry::consensus::SeededRng, lo: f64, hi: f64) -> f64 {
         r.random_range(lo..hi)
     }
 }

@@ -216,7 +216,7 @@ mod tests {
 
     /// A MYNT EYE D1000-like camera (1280×720, 3.75 µm, c = 2.45 mm) with wide-angle
     /// distortion of the size such lenses have (K1 r² up to ~20 % at the corner, 2.75 mm).
-    fn random_params(r: &mut rand::rngs::StdRng) -> [f64; 10] {
+    fn random_params(r: &mut pingcal_geometry::consensus::SeededRng) -> [f64; 10] {
         [
             uniform(r, 2.3, 2.6),
             uniform(r, -0.05, 0.05),

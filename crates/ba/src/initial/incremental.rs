@@ -871,14 +871,14 @@ mod tests {
     use crate::initial::resection::tests::look_at;
     use crate::problem::{Camera, Image, Observation, Point};
     use nalgebra::Vector2;
-    use rand::{Rng, SeedableRng};
+    use rand::Rng;
     use rand_distr::{Distribution, Normal};
     use std::sync::Arc;
 
     /// A 3D test field (a room corner: floor and two walls, mm) photographed from 12
     /// stations around it; truth and a problem with zero poses/points.
     fn network(seed: u64, noise_px: f64) -> (Problem, Problem, Vec<bool>) {
-        let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+        let mut rng = pingcal_geometry::consensus::rng(seed);
         let cam = PhotogrammetricCamera::new(1280, 720, 0.00375);
         let mut params = vec![0.0; 10];
         params[0] = 2.45;

@@ -188,7 +188,6 @@ pub fn intersect(
 mod tests {
     use super::*;
     use crate::initial::resection::tests::{camera, look_at};
-    use rand::SeedableRng;
     use rand_distr::{Distribution, Normal};
 
     #[test]
@@ -229,7 +228,7 @@ mod tests {
         ];
         let truth = Vector3::new(0.3, 0.6, 0.0);
         let noise = Normal::new(0.0, 0.1).unwrap();
-        let mut rng = rand::rngs::StdRng::seed_from_u64(9);
+        let mut rng = pingcal_geometry::consensus::rng(9);
         let rays: Vec<Ray> = poses
             .iter()
             .map(|pose| Ray {

@@ -21,7 +21,8 @@
 use crate::pose::Pose;
 use crate::rotation::skew;
 use nalgebra::{Matrix3, SMatrix, Vector2, Vector3};
-use rand::{Rng, SeedableRng};
+use pingcal_geometry::consensus::{self, ConsensusOptions, Estimator, RefitRule};
+use pingcal_geometry::dlt::hartley_normaliser;
 
 /// Options of [`relative_orientation`].
 #[derive(Clone, Debug)]
@@ -82,14 +83,6 @@ fn plane(d: &Vector3<f64>) -> Option<Vector2<f64>> {
     (d.y > 1e-9).then(|| Vector2::new(d.x / d.y, d.z / d.y))
 }
 
-fn normaliser(p: &[Vector2<f64>]) -> Matrix3<f64> {
-    let n = p.len() as f64;
-    let m = p.iter().sum::<Vector2<f64>>() / n;
-    let md = p.iter().map(|q| (q - m).norm()).sum::<f64>() / n;
-    let s = if md > 0.0 { 2f64.sqrt() / md } else { 1.0 };
-    Matrix3::new(s, 0.0, -s * m.x, 0.0, s, -s * m.y, 0.0, 0.0, 1.0)
-}
-
 /// Plane coordinates of both ray sets and their Hartley normalising transforms, or `None`
 /// if a ray does not point forward.
 #[allow(clippy::type_complexity)]
@@ -104,7 +97,7 @@ fn normalised_planes(
 )> {
     let p1: Vec<Vector2<f64>> = d1.iter().map(plane).collect::<Option<_>>()?;
     let p2: Vec<Vector2<f64>> = d2.iter().map(plane).collect::<Option<_>>()?;
-    let (t1, t2) = (normaliser(&p1), normaliser(&p2));
+    let (t1, t2) = (hartley_normaliser(&p1), hartley_normaliser(&p2));
     Some((p1, p2, t1, t2))
 }
 
@@ -223,29 +216,9 @@ pub fn homography_dlt(d1: &[Vector3<f64>], d2: &[Vector3<f64>]) -> Option<Matrix
     if n < 4 {
         return None;
     }
-    let (p1, p2, t1, t2) = normalised_planes(&d1[..n], &d2[..n])?;
-    let mut ata = SMatrix::<f64, 9, 9>::zeros();
-    for (a, b) in p1.iter().zip(&p2) {
-        let x = t1 * Vector3::new(a.x, a.y, 1.0);
-        let y = t2 * Vector3::new(b.x, b.y, 1.0);
-        // y × (H x) = 0: two independent rows.
-        let mut r1 = SMatrix::<f64, 9, 1>::zeros();
-        let mut r2 = SMatrix::<f64, 9, 1>::zeros();
-        for j in 0..3 {
-            r1[3 + j] = -y.z * x[j];
-            r1[6 + j] = y.y * x[j];
-            r2[j] = y.z * x[j];
-            r2[6 + j] = -y.x * x[j];
-        }
-        ata += r1 * r1.transpose() + r2 * r2.transpose();
-    }
-    let eig = ata.symmetric_eigen();
-    let k = eig.eigenvalues.imin();
-    let v = eig.eigenvectors.column(k);
-    let hn = Matrix3::from_fn(|i, j| v[3 * i + j]);
-    let h = t2.try_inverse()? * hn * t1;
-    let s = h.norm();
-    (s > 0.0 && h.iter().all(|x| x.is_finite())).then(|| h / s)
+    let p1: Vec<Vector2<f64>> = d1[..n].iter().map(plane).collect::<Option<_>>()?;
+    let p2: Vec<Vector2<f64>> = d2[..n].iter().map(plane).collect::<Option<_>>()?;
+    pingcal_geometry::dlt::homography_dlt(&p1, &p2)
 }
 
 /// Transfer error of a homography for one correspondence (plane units ≈ radians).
@@ -340,37 +313,82 @@ fn pose_error(pose: &Pose, d1: &Vector3<f64>, d2: &Vector3<f64>) -> f64 {
     }
 }
 
+/// A 3×3 matrix from corresponding rays (the 8-point E, the 4-point homography).
+type RaySolver = fn(&[Vector3<f64>], &[Vector3<f64>]) -> Option<Matrix3<f64>>;
+
+/// A 3×3 matrix model (essential matrix or homography) of corresponding ray pairs, for
+/// [`consensus::find`]: a minimal solver (also the least-squares refit on more pairs) and
+/// the error of one pair (radians).
+struct RayPairs<'a> {
+    d1: &'a [Vector3<f64>],
+    d2: &'a [Vector3<f64>],
+    size: usize,
+    solve: RaySolver,
+    error: fn(&Matrix3<f64>, &Vector3<f64>, &Vector3<f64>) -> f64,
+}
+
+impl RayPairs<'_> {
+    fn solve_on(&self, pairs: &[usize]) -> Option<Matrix3<f64>> {
+        let s1: Vec<_> = pairs.iter().map(|&k| self.d1[k]).collect();
+        let s2: Vec<_> = pairs.iter().map(|&k| self.d2[k]).collect();
+        (self.solve)(&s1, &s2)
+    }
+}
+
+impl Estimator for RayPairs<'_> {
+    type Model = Matrix3<f64>;
+    fn len(&self) -> usize {
+        self.d1.len()
+    }
+    fn sample_size(&self) -> usize {
+        self.size
+    }
+    fn fit(&self, sample: &[usize], models: &mut Vec<Matrix3<f64>>) {
+        models.extend(self.solve_on(sample));
+    }
+    fn residual(&self, m: &Matrix3<f64>, k: usize) -> f64 {
+        (self.error)(m, &self.d1[k], &self.d2[k])
+    }
+    fn refit(&self, inliers: &[usize], _: &Matrix3<f64>) -> Option<Matrix3<f64>> {
+        self.solve_on(inliers)
+    }
+}
+
+/// MSAC over `options.samples` seeded minimal samples of `est`, the best model refitted on
+/// its inliers `refits` times (a refit kept when it has at least as many inliers): the
+/// model and its inlier flags.
+fn ray_msac(
+    est: &RayPairs,
+    options: &RelativeOptions,
+    seed: u64,
+    refits: usize,
+) -> Option<(Matrix3<f64>, Vec<bool>)> {
+    let opts = ConsensusOptions {
+        final_refits: refits,
+        final_refit_rule: RefitRule::NotFewerInliers,
+        ..ConsensusOptions::msac(options.threshold_rad, options.samples)
+    };
+    let found = consensus::find(est, &opts, &mut consensus::rng(seed))?;
+    let mut inl = vec![false; est.len()];
+    for k in found.inliers {
+        inl[k] = true;
+    }
+    Some((found.model, inl))
+}
+
 fn homography_ransac(
     d1: &[Vector3<f64>],
     d2: &[Vector3<f64>],
     options: &RelativeOptions,
 ) -> Option<(Matrix3<f64>, Vec<bool>)> {
-    let n = d1.len();
-    let t = options.threshold_rad;
-    let mut h = msac(
+    let est = RayPairs {
         d1,
         d2,
-        4,
-        options.samples,
-        options.seed ^ 0x5eed,
-        |s1, s2| homography_dlt(s1, s2),
-        |h, a, b| homography_error(h, a, b).min(t).powi(2),
-    )?;
-    let mut inl: Vec<bool> = (0..n)
-        .map(|k| homography_error(&h, &d1[k], &d2[k]) < t)
-        .collect();
-    let s1: Vec<_> = (0..n).filter(|&k| inl[k]).map(|k| d1[k]).collect();
-    let s2: Vec<_> = (0..n).filter(|&k| inl[k]).map(|k| d2[k]).collect();
-    if let Some(h2) = homography_dlt(&s1, &s2) {
-        let inl2: Vec<bool> = (0..n)
-            .map(|k| homography_error(&h2, &d1[k], &d2[k]) < t)
-            .collect();
-        if inl2.iter().filter(|v| **v).count() >= inl.iter().filter(|v| **v).count() {
-            h = h2;
-            inl = inl2;
-        }
-    }
-    Some((h, inl))
+        size: 4,
+        solve: homography_dlt,
+        error: homography_error,
+    };
+    ray_msac(&est, options, options.seed ^ 0x5eed, 1)
 }
 
 /// Relative orientation from corresponding unit rays `d1[k]` ↔ `d2[k]`.
@@ -385,39 +403,22 @@ pub fn relative_orientation(
     }
     let needed = options.min_inliers.max(8);
     let t = options.threshold_rad;
-    let best = msac(
-        d1,
-        d2,
-        8,
-        options.samples,
-        options.seed,
-        |s1, s2| essential_8point(s1, s2),
-        |e, a, b| epipolar_error(e, a, b).min(t).powi(2),
-    );
-    let Some(mut e) = best else {
+    // MSAC, the best E refitted on its inliers (twice), then the decomposition with the most
+    // points in front.
+    let est = RayPairs {
+        d1: &d1[..n],
+        d2: &d2[..n],
+        size: 8,
+        solve: essential_8point,
+        error: epipolar_error,
+    };
+    let Some((mut e, mut inl)) = ray_msac(&est, options, options.seed, 2) else {
         return Err(RelativeError::NoConsensus {
             needed,
             best: 0,
             count: n,
         });
     };
-    // Refit on the inliers (twice), then keep the decomposition with the most points in front.
-    let mut inl: Vec<bool> = (0..n)
-        .map(|k| epipolar_error(&e, &d1[k], &d2[k]) < t)
-        .collect();
-    for _ in 0..2 {
-        let s1: Vec<_> = (0..n).filter(|&k| inl[k]).map(|k| d1[k]).collect();
-        let s2: Vec<_> = (0..n).filter(|&k| inl[k]).map(|k| d2[k]).collect();
-        if let Some(e2) = essential_8point(&s1, &s2) {
-            let inl2: Vec<bool> = (0..n)
-                .map(|k| epipolar_error(&e2, &d1[k], &d2[k]) < t)
-                .collect();
-            if inl2.iter().filter(|v| **v).count() >= inl.iter().filter(|v| **v).count() {
-                e = e2;
-                inl = inl2;
-            }
-        }
-    }
     let (mut pose, _) = best_decomposition(&e, &d1[..n], &d2[..n], &inl);
     let mut planar = false;
     let n_e = inl.iter().filter(|v| **v).count();
@@ -496,11 +497,12 @@ pub fn essential_from_pose(pose: &Pose) -> Matrix3<f64> {
 mod tests {
     use super::*;
     use crate::rotation::from_opk;
+    use rand::Rng;
     use rand_distr::{Distribution, Normal};
 
     #[test]
     fn recovers_relative_pose_from_noisy_rays_with_outliers() {
-        let mut rng = rand::rngs::StdRng::seed_from_u64(4);
+        let mut rng = pingcal_geometry::consensus::rng(4);
         let truth = Pose {
             rotation: from_opk(0.1, -0.3, 0.2),
             translation: Vector3::new(-1.0, 0.1, 0.2).normalize(),
@@ -557,7 +559,7 @@ mod tests {
 
     #[test]
     fn a_flat_scene_goes_through_the_homography() {
-        let mut rng = rand::rngs::StdRng::seed_from_u64(8);
+        let mut rng = pingcal_geometry::consensus::rng(8);
         // Camera 1 looks at a plane 4 units ahead, tilted; camera 2 moved sideways and turned.
         let truth = Pose {
             rotation: from_opk(0.15, 0.05, 0.3),
@@ -622,41 +624,4 @@ mod tests {
             RelativeError::TooFewPoints { got: 5 }
         );
     }
-}
-
-/// MSAC over ray pairs: `samples` random minimal sets of `size` distinct pairs (seeded),
-/// a model from each by `fit`, scored by the sum of `cost` (truncated squared errors)
-/// over all pairs; the best model, or `None` if no sample gave one.
-fn msac(
-    d1: &[Vector3<f64>],
-    d2: &[Vector3<f64>],
-    size: usize,
-    samples: usize,
-    seed: u64,
-    fit: impl Fn(&[Vector3<f64>], &[Vector3<f64>]) -> Option<Matrix3<f64>>,
-    cost: impl Fn(&Matrix3<f64>, &Vector3<f64>, &Vector3<f64>) -> f64,
-) -> Option<Matrix3<f64>> {
-    let n = d1.len();
-    let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
-    let mut best: Option<(f64, Matrix3<f64>)> = None;
-    let mut sample = Vec::with_capacity(size);
-    for _ in 0..samples {
-        sample.clear();
-        while sample.len() < size {
-            let k = rng.random_range(0..n);
-            if !sample.contains(&k) {
-                sample.push(k);
-            }
-        }
-        let s1: Vec<_> = sample.iter().map(|&k| d1[k]).collect();
-        let s2: Vec<_> = sample.iter().map(|&k| d2[k]).collect();
-        let Some(m) = fit(&s1, &s2) else {
-            continue;
-        };
-        let score: f64 = (0..n).map(|k| cost(&m, &d1[k], &d2[k])).sum();
-        if best.as_ref().is_none_or(|b| score < b.0) {
-            best = Some((score, m));
-        }
-    }
-    best.map(|(_, m)| m)
 }

@@ -16,8 +16,9 @@
 use crate::camera::CameraModel;
 use crate::pose::Pose;
 use crate::rotation::skew;
-use nalgebra::{DMatrix, Matrix3, Matrix6, Vector2, Vector3, Vector6};
-use rand::{Rng, SeedableRng};
+use nalgebra::{DMatrix, Matrix6, Vector2, Vector3, Vector6};
+use pingcal_geometry::consensus::{self, ConsensusOptions, Estimator, Sampling};
+use pingcal_geometry::Plane;
 
 /// Options of [`resect`].
 #[derive(Clone, Debug)]
@@ -134,53 +135,20 @@ pub fn rigid_transform(from: &[Vector3<f64>], to: &[Vector3<f64>]) -> Option<Pos
     similarity_transform(from, to, false).map(|(p, _)| p)
 }
 
-/// The similarity `to ≈ s·R·from + t` (Umeyama); with `with_scale == false`, s = 1.
-/// Returns the pose (R, t) and s.
+/// The similarity `to ≈ s·R·from + t` ([`pingcal_geometry::umeyama`]); with
+/// `with_scale == false`, s = 1. Returns the pose (R, t) and s, or `None` where Umeyama
+/// gives an error (fewer than 3 points, coincident points for a scale, non-finite data).
 pub fn similarity_transform(
     from: &[Vector3<f64>],
     to: &[Vector3<f64>],
     with_scale: bool,
 ) -> Option<(Pose, f64)> {
-    let n = from.len();
-    if n < 3 || to.len() != n {
-        return None;
-    }
-    let mf = from.iter().sum::<Vector3<f64>>() / n as f64;
-    let mt = to.iter().sum::<Vector3<f64>>() / n as f64;
-    let mut h = Matrix3::zeros();
-    let mut var = 0.0;
-    for (a, b) in from.iter().zip(to) {
-        h += (b - mt) * (a - mf).transpose();
-        var += (a - mf).norm_squared();
-    }
-    let svd = h.svd(true, true);
-    let (u, vt) = (svd.u?, svd.v_t?);
-    let mut d = Matrix3::identity();
-    if (u * vt).determinant() < 0.0 {
-        d[(2, 2)] = -1.0;
-    }
-    let r = u * d * vt;
-    let s = if with_scale {
-        let tr =
-            svd.singular_values[0] + svd.singular_values[1] + d[(2, 2)] * svd.singular_values[2];
-        if var <= 0.0 {
-            return None;
-        }
-        tr / var
-    } else {
-        1.0
+    let s = pingcal_geometry::umeyama(from, to, None, with_scale).ok()?;
+    let pose = Pose {
+        rotation: s.rotation,
+        translation: s.translation,
     };
-    let t = mt - s * r * mf;
-    if !(r.iter().all(|v| v.is_finite()) && t.iter().all(|v| v.is_finite()) && s.is_finite()) {
-        return None;
-    }
-    Some((
-        Pose {
-            rotation: r,
-            translation: t,
-        },
-        s,
-    ))
+    Some((pose, s.scale))
 }
 
 /// Grunert's P3P: the poses (up to four) that put the object points `x` on the unit rays
@@ -332,16 +300,56 @@ pub fn refine_pose(
     pose
 }
 
-fn collinear(x: &[Vector3<f64>]) -> bool {
-    let n = x.len() as f64;
-    let m = x.iter().sum::<Vector3<f64>>() / n;
-    let mut c = Matrix3::zeros();
-    for p in x {
-        c += (p - m) * (p - m).transpose();
+/// The P3P poses of triples of (ray, object point) pairs, for [`consensus::find`]; the
+/// residual is the reprojection error in pixels.
+struct P3pSamples<'a> {
+    model: &'a dyn CameraModel,
+    params: &'a [f64],
+    uv: Vec<Vector2<f64>>,
+    pts: &'a [Vector3<f64>],
+    rays: &'a [Vector3<f64>],
+}
+
+impl Estimator for P3pSamples<'_> {
+    type Model = Pose;
+    fn len(&self) -> usize {
+        self.pts.len()
     }
-    let mut s = c.symmetric_eigenvalues().as_slice().to_vec();
-    s.sort_by(|a, b| b.total_cmp(a));
-    !(s[0] > 0.0) || s[1] < 1e-8 * s[0]
+    fn sample_size(&self) -> usize {
+        3
+    }
+    fn fit(&self, t: &[usize], poses: &mut Vec<Pose>) {
+        let xs = [self.pts[t[0]], self.pts[t[1]], self.pts[t[2]]];
+        // Skip thin triangles: the P3P is ill-conditioned on them.
+        let area = (xs[1] - xs[0]).cross(&(xs[2] - xs[0])).norm();
+        let side = (xs[1] - xs[0])
+            .norm_squared()
+            .max((xs[2] - xs[0]).norm_squared())
+            .max((xs[2] - xs[1]).norm_squared());
+        if area < 1e-3 * side {
+            return;
+        }
+        poses.extend(p3p(
+            &[self.rays[t[0]], self.rays[t[1]], self.rays[t[2]]],
+            &xs,
+        ));
+    }
+    fn residual(&self, pose: &Pose, k: usize) -> f64 {
+        self.residual_squared(pose, k).sqrt()
+    }
+    fn residual_squared(&self, pose: &Pose, k: usize) -> f64 {
+        reprojection(self.model, self.params, pose, &self.pts[k], &self.uv[k])
+            .map_or(f64::INFINITY, |r| r.norm_squared())
+    }
+}
+
+/// Whether the points are (nearly) on one line: the second spread of their scatter (the
+/// eigenvalues of [`Plane::fit`]) is tiny against the first.
+fn collinear(x: &[Vector3<f64>]) -> bool {
+    Plane::fit(x).is_none_or(|p| {
+        let [_, second, first] = p.eigenvalues;
+        !(first > 0.0) || second < 1e-8 * first
+    })
 }
 
 /// Resects one image from the pixel measurements `uv` of the object points `x` (same
@@ -375,60 +383,23 @@ pub fn resect(
         return Err(ResectionError::Collinear { count: m });
     }
     let t2 = options.threshold_px * options.threshold_px;
-    let score = |pose: &Pose| -> (f64, usize) {
-        let (mut s, mut inl) = (0.0, 0);
-        for &k in &idx {
-            match reprojection(model, params, pose, &x[k], &uv[k]) {
-                Some(r) if r.norm_squared() < t2 => {
-                    s += r.norm_squared();
-                    inl += 1;
-                }
-                _ => s += t2,
-            }
-        }
-        (s, inl)
+    // MSAC on the reprojection errors: every triple when there are at most `max_samples`,
+    // otherwise seeded random triples.
+    let est = P3pSamples {
+        model,
+        params,
+        uv: idx.iter().map(|&k| uv[k]).collect(),
+        pts: &pts,
+        rays: &rays,
     };
-    let total = m * (m - 1) * (m - 2) / 6;
-    let mut triples: Vec<[usize; 3]> = Vec::new();
-    if total <= options.max_samples {
-        for a in 0..m {
-            for b in a + 1..m {
-                for c in b + 1..m {
-                    triples.push([a, b, c]);
-                }
-            }
-        }
-    } else {
-        let mut rng = rand::rngs::StdRng::seed_from_u64(options.seed);
-        while triples.len() < options.max_samples {
-            let a = rng.random_range(0..m);
-            let b = rng.random_range(0..m);
-            let c = rng.random_range(0..m);
-            if a != b && b != c && a != c {
-                triples.push([a, b, c]);
-            }
-        }
-    }
-    let mut best: Option<(f64, usize, Pose)> = None;
-    for t in triples {
-        let xs = [pts[t[0]], pts[t[1]], pts[t[2]]];
-        // Skip thin triangles: the P3P is ill-conditioned on them.
-        let area = (xs[1] - xs[0]).cross(&(xs[2] - xs[0])).norm();
-        let side = (xs[1] - xs[0])
-            .norm_squared()
-            .max((xs[2] - xs[0]).norm_squared())
-            .max((xs[2] - xs[1]).norm_squared());
-        if area < 1e-3 * side {
-            continue;
-        }
-        for pose in p3p(&[rays[t[0]], rays[t[1]], rays[t[2]]], &xs) {
-            let (s, inl) = score(&pose);
-            if best.as_ref().is_none_or(|b| s < b.0) {
-                best = Some((s, inl, pose));
-            }
-        }
-    }
-    let Some((_, _, pose)) = best else {
+    let opts = ConsensusOptions {
+        sampling: Sampling::RejectRepeats,
+        exhaustive: true,
+        ..ConsensusOptions::msac(options.threshold_px, options.max_samples)
+    };
+    let Some(pose) =
+        consensus::find(&est, &opts, &mut consensus::rng(options.seed)).map(|c| c.model)
+    else {
         return Err(ResectionError::NoConsensus {
             needed,
             best: 0,
@@ -487,6 +458,8 @@ pub(crate) mod tests {
     use super::*;
     use crate::camera::PhotogrammetricCamera;
     use crate::rotation::{exp_so3, from_opk};
+    use nalgebra::Matrix3;
+    use rand::Rng;
     use rand_distr::{Distribution, Normal};
 
     pub fn camera() -> (PhotogrammetricCamera, Vec<f64>) {
@@ -526,7 +499,7 @@ pub(crate) mod tests {
 
     #[test]
     fn p3p_recovers_the_true_pose_among_its_candidates() {
-        let mut rng = rand::rngs::StdRng::seed_from_u64(5);
+        let mut rng = pingcal_geometry::consensus::rng(5);
         for _ in 0..200 {
             let pose = Pose::from_rotation_and_centre(
                 from_opk(
@@ -606,7 +579,7 @@ pub(crate) mod tests {
         );
         let x = sheet();
         let noise = Normal::new(0.0, 0.2).unwrap();
-        let mut rng = rand::rngs::StdRng::seed_from_u64(3);
+        let mut rng = pingcal_geometry::consensus::rng(3);
         let mut uv: Vec<Vector2<f64>> = x
             .iter()
             .map(|x| {

@@ -8,7 +8,6 @@ use pingcal_ba::camera::{CameraModel, PhotogrammetricCamera};
 use pingcal_ba::pose::Pose;
 use pingcal_ba::problem::{Camera, Image, Observation, Point, Problem};
 use pingcal_ba::rotation::exp_so3;
-use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
 use std::sync::Arc;
 
@@ -102,7 +101,7 @@ pub fn truth() -> Problem {
 
 /// One noisy realisation, started from a perturbed truth.
 pub fn realisation(truth: &Problem, seed: u64) -> Problem {
-    let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+    let mut rng = pingcal_geometry::consensus::rng(seed);
     let n = Normal::new(0.0, 1.0).unwrap();
     let mut p = truth.clone();
     for o in &mut p.observations {
