@@ -6,10 +6,10 @@
 //! separated. Errors name the line and what was expected there.
 
 use crate::camera::BalCamera;
-use crate::pose::Pose;
 use crate::problem::{Camera, Image, Observation, Point, Problem};
-use crate::rotation::{exp_so3, log_so3};
 use nalgebra::{Vector2, Vector3};
+use pingcal_geometry::Rigid3;
+use pingcal_geometry::{exp_so3, log_so3};
 use std::io::{BufRead, BufReader, Read, Write};
 use std::path::Path;
 use std::sync::Arc;
@@ -182,7 +182,7 @@ pub fn parse_bal<R: BufRead>(reader: R, path: &str) -> Result<Problem, BalError>
         images.push(Image {
             name: format!("image{c}"),
             camera: c,
-            pose: Pose {
+            pose: Rigid3 {
                 rotation,
                 translation: Vector3::new(v[3], v[4], v[5]),
             },

@@ -4,8 +4,7 @@
 //!
 //! | module | what it holds |
 //! |---|---|
-//! | [`rotation`] | SO(3): exp/log maps, skew matrix, ω φ κ angles |
-//! | [`pose`] | exterior orientation `x_cam = R·X + t` and its local update |
+//! | [`geometry`] | re-exported [`pingcal_geometry`]: [`Rigid3`] (an image's `camera_from_object`, `x_cam = R·X + t`, and its local update), SO(3), the ω φ κ convention |
 //! | [`camera`] | camera models ([`camera::CameraModel`]): photogrammetric (SPEC.md), BAL |
 //! | [`io`] | pingcal's measurement file (JSON) and DBAT's mark-point and control files |
 //! | [`loss`] | robust losses (Huber, Cauchy) |
@@ -20,9 +19,12 @@ pub mod camera;
 pub mod initial;
 pub mod io;
 pub mod loss;
-pub mod pose;
 pub mod problem;
 pub mod report;
-pub mod rotation;
 pub mod solver;
 pub mod synthetic;
+
+/// The geometry foundation ([`Rigid3`], SO(3), ω φ κ, Umeyama, consensus), re-exported so
+/// that a user of the adjuster needs one dependency.
+pub use pingcal_geometry as geometry;
+pub use pingcal_geometry::{Rigid3, Sim3};

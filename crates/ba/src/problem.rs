@@ -6,8 +6,8 @@
 
 use crate::camera::CameraModel;
 use crate::loss::Loss;
-use crate::pose::Pose;
 use nalgebra::{Vector2, Vector3};
+use pingcal_geometry::Rigid3;
 use std::sync::Arc;
 
 /// A physical camera: its model, intrinsic parameter values and which are held fixed.
@@ -55,7 +55,7 @@ pub struct Image {
     /// Index into [`Problem::cameras`].
     pub camera: usize,
     /// Exterior orientation (object → camera).
-    pub pose: Pose,
+    pub pose: Rigid3,
     /// Pose held fixed.
     pub fixed: bool,
 }
@@ -121,7 +121,7 @@ pub struct Rig {
     /// Name used in reports (e.g. "stereo").
     pub name: String,
     /// Base camera frame → member camera frame.
-    pub pose: Pose,
+    pub pose: Rigid3,
     /// Held fixed (a calibrated rig).
     pub fixed: bool,
     /// Member images and their base images (same station).

@@ -4,8 +4,8 @@
 //! The same content as JSON for programs.
 
 use crate::problem::Problem;
-use crate::rotation::to_opk;
 use crate::solver::{Precision, Rejection, Summary};
+use pingcal_geometry::to_opk;
 use serde::Serialize;
 use std::fmt::Write;
 

@@ -7,10 +7,10 @@
 //! to the least-squares solution near the truth.
 
 use crate::camera::{BalCamera, CameraModel};
-use crate::pose::Pose;
 use crate::problem::{Camera, Image, Observation, Point, Problem};
-use crate::rotation::exp_so3;
 use nalgebra::{Matrix3, Vector2, Vector3};
+use pingcal_geometry::exp_so3;
+use pingcal_geometry::Rigid3;
 use rand::Rng;
 use rand_distr::{Distribution, Normal};
 use std::sync::Arc;
@@ -98,7 +98,7 @@ impl SyntheticBal {
             images.push(Image {
                 name: format!("image{c}"),
                 camera: c,
-                pose: Pose::from_rotation_and_centre(r, centre),
+                pose: Rigid3::from_rotation_and_centre(r, centre),
                 fixed: false,
             });
         }
@@ -184,7 +184,7 @@ impl SyntheticBal {
                 n01.sample(&mut rng),
             ) * (0.02 * s);
             let r = exp_so3(&dw) * im.pose.rotation;
-            im.pose = Pose::from_rotation_and_centre(r, im.pose.centre() + dc);
+            im.pose = Rigid3::from_rotation_and_centre(r, im.pose.centre() + dc);
         }
         for c in &mut problem.cameras {
             c.params[0] *= 1.0 + 0.005 * s * n01.sample(&mut rng);

@@ -267,7 +267,7 @@ fn reproduces_dbat_camcal_from_no_exterior_orientation() {
 /// corner. `io = [c, px, py, K1, K2, K3, P1, P2, as]` in DBAT's units.
 fn dbat_residual(
     io: &[f64],
-    pose: &pingcal_ba::pose::Pose,
+    pose: &pingcal_geometry::Rigid3,
     x: &nalgebra::Vector3<f64>,
     uv: &nalgebra::Vector2<f64>,
     sz: f64,
@@ -323,7 +323,7 @@ fn dbat_model_in_dbat_metric_gives_dbat_sigma0() {
     }
     let n = 9 + 6 * poses.len() + 3 * free_pts.len();
     let sigma_mm = 0.1 * sz;
-    let cost = |io: &[f64], poses: &[pingcal_ba::pose::Pose], pts: &[nalgebra::Vector3<f64>]| {
+    let cost = |io: &[f64], poses: &[pingcal_geometry::Rigid3], pts: &[nalgebra::Vector3<f64>]| {
         p.observations
             .iter()
             .map(|o| {
@@ -341,7 +341,7 @@ fn dbat_model_in_dbat_metric_gives_dbat_sigma0() {
         let mut h = DMatrix::<f64>::zeros(n, n);
         let mut g = DVector::<f64>::zeros(n);
         for o in &p.observations {
-            let f = |io: &[f64], pose: &pingcal_ba::pose::Pose, x: &nalgebra::Vector3<f64>| {
+            let f = |io: &[f64], pose: &pingcal_geometry::Rigid3, x: &nalgebra::Vector3<f64>| {
                 dbat_residual(io, pose, x, &o.uv, sz) / sigma_mm
             };
             let (pose, x) = (poses[o.image], pts[o.point]);

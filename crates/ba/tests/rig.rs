@@ -7,14 +7,14 @@ mod common;
 
 use common::{truth, SIGMA_PX};
 use nalgebra::{Vector2, Vector3};
-use pingcal_ba::pose::Pose;
 use pingcal_ba::problem::{Camera, Image, Observation, Problem, Rig, RigMember};
-use pingcal_ba::rotation::{exp_so3, log_so3};
 use pingcal_ba::solver::{solve, Options};
+use pingcal_geometry::Rigid3;
+use pingcal_geometry::{exp_so3, log_so3};
 use rand_distr::{Distribution, Normal};
 
 /// Left network of `common` plus a right camera 120 mm to the right, slightly toed in.
-fn stereo_truth() -> (Problem, Pose) {
+fn stereo_truth() -> (Problem, Rigid3) {
     let mut p = truth();
     let right_cam = Camera::new("right", p.cameras[0].model.clone(), {
         let mut v = p.cameras[0].params.clone();
@@ -26,7 +26,7 @@ fn stereo_truth() -> (Problem, Pose) {
     // Base (left) camera frame → right camera frame: the right centre is at +120 mm on the
     // left camera's X axis, rotated 1° about its Z (up) axis.
     let rot = exp_so3(&Vector3::new(0.0, 0.0, 1f64.to_radians()));
-    let rig = Pose::from_rotation_and_centre(rot, Vector3::new(120.0, 0.0, 0.0));
+    let rig = Rigid3::from_rotation_and_centre(rot, Vector3::new(120.0, 0.0, 0.0));
     let n_left = p.images.len();
     let mut members = Vec::new();
     for i in 0..n_left {
@@ -82,14 +82,14 @@ fn stereo_rig_is_recovered_without_bias() {
         }
         // Start from a rough rig (5 mm, 0.5°) and perturbed left poses.
         let r0 = &p.rigs[0].pose;
-        p.rigs[0].pose = Pose::from_rotation_and_centre(
+        p.rigs[0].pose = Rigid3::from_rotation_and_centre(
             exp_so3(&Vector3::new(0.004, -0.006, 0.008)) * r0.rotation,
             r0.centre() + Vector3::new(5.0, -3.0, 2.0),
         );
         for im in p.images.iter_mut().take(14) {
             let c = im.pose.centre()
                 + Vector3::new(n.sample(&mut rng), n.sample(&mut rng), n.sample(&mut rng)) * 20.0;
-            im.pose = Pose::from_rotation_and_centre(im.pose.rotation, c);
+            im.pose = Rigid3::from_rotation_and_centre(im.pose.rotation, c);
         }
         let opts = Options {
             function_tolerance: 1e-12,

@@ -13,8 +13,8 @@
 
 use nalgebra::{Matrix3, Vector3};
 use pingcal::pipeline::{self, Reporter};
-use pingcal_lrf::corner::rotation_angle;
-use pingcal_lrf::registration::euler_from_matrix;
+use pingcal_geometry::rotation_angle;
+use pingcal_geometry::to_opk_deg;
 
 fn mean_sd(v: &[f64]) -> (f64, f64) {
     let n = v.len() as f64;
@@ -91,8 +91,7 @@ fn main() {
             let dr = rotation_angle(&(r * tp.rotation.transpose())).to_degrees();
             let mut z = [f64::NAN; 6];
             if let (Some(st), Some(sr)) = (e.sigma_translation_mm, e.sigma_rotation_deg) {
-                let de =
-                    (euler_from_matrix(&r) - euler_from_matrix(&tp.rotation)).map(f64::to_degrees);
+                let de = Vector3::from(to_opk_deg(&r)) - Vector3::from(to_opk_deg(&tp.rotation));
                 for k in 0..3 {
                     z[k] = dt[k] / st[k];
                     z[3 + k] = de[k] / sr[k];

@@ -70,9 +70,15 @@ pub fn log_so3(r: &Matrix3<f64>) -> Vector3<f64> {
 }
 
 /// The angle of the rotation `r` (radians, in [0, π]): `|log_so3(r)|`, computed from the
-/// trace.
+/// trace; π (the worst) for a non-finite matrix, so that a comparison against a tolerance
+/// fails instead of passing on NaN.
 pub fn rotation_angle(r: &Matrix3<f64>) -> f64 {
-    ((r.trace() - 1.0) * 0.5).clamp(-1.0, 1.0).acos()
+    let c = ((r.trace() - 1.0) * 0.5).clamp(-1.0, 1.0);
+    if c.is_nan() {
+        std::f64::consts::PI
+    } else {
+        c.acos()
+    }
 }
 
 /// Makes `r` exactly orthonormal (the nearest rotation by SVD), guarding against drift.

@@ -13,12 +13,11 @@
 //! usable scan's P3P pose error vs its line supports, and what other choice rules would give.
 //! The last line `SUMMARY dt da chk` is for scripts.
 
-use pingcal_lrf::corner::{
-    compose, inverse, lrf_pose_in_corner, pose_uncertainty, rotation_angle, scan_lines,
-};
+use pingcal_geometry::rotation_angle;
+use pingcal_geometry::Sim3;
+use pingcal_lrf::corner::{lrf_pose_in_corner, pose_uncertainty, scan_lines};
 use pingcal_lrf::corner_baseline::{fan_baseline, BaselineInput};
 use pingcal_lrf::nalgebra::{Matrix3, Vector2, Vector3};
-use pingcal_lrf::registration::Transform;
 use pingcal_lrf::scan::{open_scan_file, ScanHeader, ScanLine};
 use pingcal_lrf::MountModel;
 use serde_json::Value;
@@ -32,9 +31,9 @@ fn v3(v: &Value) -> Vector3<f64> {
     )
 }
 
-fn pose(v: &Value) -> Transform {
+fn pose(v: &Value) -> Sim3 {
     let r = &v["rotation"];
-    Transform {
+    Sim3 {
         rotation: Matrix3::from_fn(|i, j| r[i][j].as_f64().unwrap()),
         translation: v3(&v["translation_mm"]),
         scale: 1.0,
@@ -68,7 +67,7 @@ fn main() {
     let ext = pose(&truth["extrinsic"]); // p_cam = T p_lrf
     let w2p = pose(&truth["world_to_photogrammetric"]); // p_photo = T p_world
     let w2l = pose(&truth["world_to_lrf"]); // p_lrf = T p_world
-    let lrf_in_world = inverse(&w2l);
+    let lrf_in_world = w2l.inverse();
     let mut targets = Vec::new();
     let mut image = Vec::new();
     let mut surf_of = Vec::new();
@@ -107,10 +106,10 @@ fn main() {
     let el = t0.elapsed().as_secs_f64();
     let dt = r.lrf_to_camera.translation - ext.translation;
     let da = ang(&r.lrf_to_camera.rotation, &ext.rotation);
-    let e_from_t = compose(&r.lrf_to_camera, &inverse(&ext));
+    let e_from_t = r.lrf_to_camera.compose(&ext.inverse());
     let chk = targets
         .iter()
-        .map(|(_, q)| (e_from_t.apply(q) - q).norm())
+        .map(|(_, q)| (e_from_t.transform(q) - q).norm())
         .sum::<f64>()
         / targets.len() as f64;
     println!(
@@ -134,7 +133,7 @@ fn main() {
         f3(&dc)
     );
     // 2. DLT camera pose (p_cam = T p_corner) vs truth (same: the photo frame is the camera's)
-    let dd = inverse(&r.camera_from_dlt).translation - inverse(&w2p).translation;
+    let dd = r.camera_from_dlt.inverse().translation - w2p.inverse().translation;
     println!(
         "DLT camera pose vs truth: rotation {:.3}°, centre {:.2} mm {}",
         ang(&r.camera_from_dlt.rotation, &w2p.rotation),
@@ -151,8 +150,8 @@ fn main() {
         f3(&lrf_in_world.translation)
     );
     // error budget: extrinsic error from each part alone
-    let only_dlt = compose(&r.camera_from_dlt, &lrf_in_world);
-    let only_lrf = compose(&w2p, &r.lrf_in_corner);
+    let only_dlt = r.camera_from_dlt.compose(&lrf_in_world);
+    let only_lrf = w2p.compose(&r.lrf_in_corner);
     println!(
         "  extrinsic with the true LRF-in-corner: {:.1} mm {:.3}°; with the true camera pose: \
          {:.1} mm {:.3}°",
@@ -163,7 +162,7 @@ fn main() {
     );
     let prior = r.camera_from_dlt.rotation.transpose();
     // per-scan analysis
-    let analyse = |k: usize, verbose: bool| -> Option<(Transform, [usize; 3], [f64; 3], f64)> {
+    let analyse = |k: usize, verbose: bool| -> Option<(Sim3, [usize; 3], [f64; 3], f64)> {
         let scan = &scans[k];
         let s = seed
             .wrapping_mul(0x9E37_79B9_7F4A_7C15)
@@ -173,7 +172,7 @@ fn main() {
         let est = lrf_pose_in_corner(&lines, scan.servo_deg, &mount, &prior).ok()?;
         // which line is on which face: the one whose points are nearest the true plane
         let rb = pingcal_lrf::cloud::servo_rotation(scan.servo_deg.to_radians());
-        let to_w = |p: Vector2<f64>| lrf_in_world.apply(&(rb * Vector3::new(p.x, p.y, 0.0)));
+        let to_w = |p: Vector2<f64>| lrf_in_world.transform(&(rb * Vector3::new(p.x, p.y, 0.0)));
         let o = lrf_in_world.translation;
         let n_scan = lrf_in_world.rotation * rb * Vector3::z();
         let mut face_of_line = [usize::MAX; 3];
@@ -259,14 +258,14 @@ fn main() {
     println!("chosen scan #{} servo {:.3}°:", k + 1, r.servo_deg);
     analyse(k, true);
     if all {
-        let res: Vec<(usize, Transform, [usize; 3], [f64; 3], f64)> = (0..scans.len())
+        let res: Vec<(usize, Sim3, [usize; 3], [f64; 3], f64)> = (0..scans.len())
             .filter_map(|k| analyse(k, false).map(|(t, i, e, p)| (k, t, i, e, p)))
             .filter(|c| ang(&c.1.rotation, &prior) < 30.0 && c.2.iter().all(|&n| n >= 20))
             .collect();
-        let err = |c: &(usize, Transform, [usize; 3], [f64; 3], f64)| {
+        let err = |c: &(usize, Sim3, [usize; 3], [f64; 3], f64)| {
             (c.1.translation - lrf_in_world.translation).norm()
         };
-        let rot = |c: &(usize, Transform, [usize; 3], [f64; 3], f64)| {
+        let rot = |c: &(usize, Sim3, [usize; 3], [f64; 3], f64)| {
             ang(&c.1.rotation, &lrf_in_world.rotation)
         };
         let mut e: Vec<f64> = res.iter().map(err).collect();
@@ -298,7 +297,7 @@ fn main() {
     }
     if all {
         // the choice rules on the same consistent scans (gates as in fan_baseline)
-        let mut c: Vec<(usize, Transform, [usize; 3], f64, f64)> = Vec::new();
+        let mut c: Vec<(usize, Sim3, [usize; 3], f64, f64)> = Vec::new();
         for k in 0..scans.len() {
             let s = seed
                 .wrapping_mul(0x9E37_79B9_7F4A_7C15)
@@ -327,9 +326,9 @@ fn main() {
         let m = Vector3::from_fn(|i, _| med(c.iter().map(|x| x.1.translation[i]).collect()));
         let gate = (5.0 * med(c.iter().map(|x| (x.1.translation - m).norm()).collect())).max(50.0);
         c.retain(|x| (x.1.translation - m).norm() <= gate);
-        let report = |name: &str, x: &(usize, Transform, [usize; 3], f64, f64)| {
-            let e = compose(&w2p, &x.1); // with the true camera pose: the LRF-in-corner part
-            let ee = compose(&r.camera_from_dlt, &x.1);
+        let report = |name: &str, x: &(usize, Sim3, [usize; 3], f64, f64)| {
+            let e = w2p.compose(&x.1); // with the true camera pose: the LRF-in-corner part
+            let ee = r.camera_from_dlt.compose(&x.1);
             println!(
                 "RULE {name:8} scan #{:4} servo {:7.2}° inliers {:?} predicted {:.1} mm {:.2}°: \
                  LRF-in-corner {:.1} mm {:.2}°; extrinsic {:.1} mm {:.3}°",
@@ -344,7 +343,7 @@ fn main() {
                 ang(&ee.rotation, &ext.rotation)
             );
         };
-        let by = |f: &dyn Fn(&(usize, Transform, [usize; 3], f64, f64)) -> f64| {
+        let by = |f: &dyn Fn(&(usize, Sim3, [usize; 3], f64, f64)) -> f64| {
             c.iter()
                 .min_by(|a, b| f(a).total_cmp(&f(b)))
                 .unwrap()
@@ -357,7 +356,7 @@ fn main() {
         // how well the prediction ranks the scans: true error of the best-predicted 10 %
         let mut sorted = c.clone();
         sorted.sort_by(|a, b| a.3.total_cmp(&b.3));
-        let err = |x: &(usize, Transform, [usize; 3], f64, f64)| {
+        let err = |x: &(usize, Sim3, [usize; 3], f64, f64)| {
             (x.1.translation - lrf_in_world.translation).norm()
         };
         let top: Vec<f64> = sorted[..(sorted.len() / 10).max(1)]

@@ -5,7 +5,7 @@
 //! writes OUT_DIR/sweep.csv, OUT_DIR/balls_lrf_true.txt (id x y z, LRF frame) and
 //! OUT_DIR/balls_camera.txt (the same balls under the paper's Table 1 transform).
 
-use pingcal_lrf::registration::matrix_from_euler;
+use pingcal_geometry::from_opk;
 use pingcal_lrf::scan::{write_scans, ScanHeader};
 use pingcal_lrf::simulate::{room_corner_scene, SimulatedLrf};
 use std::io::Write;
@@ -32,7 +32,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         &ScanHeader::URG_04LX,
         &scans,
     )?;
-    let r = matrix_from_euler(0.012, -0.016, 0.0);
+    let r = from_opk(0.012, -0.016, 0.0);
     let t = nalgebra::Vector3::new(65.9, 8.4, 107.4);
     let mut f1 = std::fs::File::create(dir.join("balls_lrf_true.txt"))?;
     let mut f2 = std::fs::File::create(dir.join("balls_camera.txt"))?;

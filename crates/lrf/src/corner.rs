@@ -21,11 +21,12 @@
 
 use crate::cloud::MountModel;
 use crate::error::{LrfError, Result};
-use crate::registration::{umeyama, Transform};
+use crate::registration::umeyama;
 use crate::scan::{ScanHeader, ScanLine};
 use nalgebra::{DMatrix, Matrix3, Rotation3, Vector2, Vector3};
 use pingcal_geometry::consensus::{self, ConsensusOptions, Estimator, Sampling};
 use pingcal_geometry::Plane;
+use pingcal_geometry::{rotation_angle, Sim3};
 
 /// A line in the scan plane: a point and a unit direction, with its inlier count.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -175,7 +176,7 @@ pub fn lrf_pose_in_corner(
     servo_deg: f64,
     mount: &MountModel,
     prior: &Matrix3<f64>,
-) -> Result<Transform> {
+) -> Result<Sim3> {
     let to3 = |p: Vector2<f64>| {
         let r = p.norm();
         let a = p.y.atan2(p.x).to_degrees();
@@ -189,7 +190,7 @@ pub fn lrf_pose_in_corner(
         [2, 0, 1],
         [2, 1, 0],
     ];
-    let mut best: Option<(f64, Transform)> = None;
+    let mut best: Option<(f64, Sim3)> = None;
     for s in perms {
         // s[f]: the line on face f (x = 0, y = 0, z = 0); the edge point on axis k is where the
         // lines of the two other faces meet
@@ -282,7 +283,7 @@ pub fn pose_uncertainty(
 
 /// Corner frame in the photogrammetric frame (`p_photo = T · p_corner`) from the targets on
 /// the faces x = 0, y = 0 and z = 0 of the corner (the order gives a right-handed frame).
-pub fn corner_frame_from_planes(faces: [&[Vector3<f64>]; 3]) -> Result<Transform> {
+pub fn corner_frame_from_planes(faces: [&[Vector3<f64>]; 3]) -> Result<Sim3> {
     let mut normals = [Vector3::zeros(); 3];
     let mut offsets = [0.0; 3];
     let all: Vec<Vector3<f64>> = faces.iter().flat_map(|f| f.iter().copied()).collect();
@@ -319,7 +320,7 @@ pub fn corner_frame_from_planes(faces: [&[Vector3<f64>]; 3]) -> Result<Transform
         .try_inverse()
         .map(|a| a * Vector3::from(offsets))
         .ok_or_else(|| LrfError::Degenerate("corner planes do not meet in one point".into()))?;
-    Ok(Transform {
+    Ok(Sim3 {
         rotation: r,
         translation: origin,
         scale: 1.0,
@@ -333,7 +334,7 @@ fn project(r: &Matrix3<f64>, t: &Vector3<f64>, x: &Vector3<f64>) -> (Vector2<f64
 
 /// Camera pose (`p_cam = T · p_world`) from ≥ 6 non-coplanar control points and their
 /// undistorted normalised image coordinates `(X/Y, Z/Y)`: DLT, then Gauss–Newton resection.
-pub fn dlt_resection(world: &[Vector3<f64>], image: &[Vector2<f64>]) -> Result<Transform> {
+pub fn dlt_resection(world: &[Vector3<f64>], image: &[Vector2<f64>]) -> Result<Sim3> {
     let n = world.len();
     if n != image.len() {
         return Err(LrfError::Invalid(format!(
@@ -414,47 +415,18 @@ pub fn dlt_resection(world: &[Vector3<f64>], image: &[Vector2<f64>]) -> Result<T
             "DLT resection: control points behind the camera".into(),
         ));
     }
-    Ok(Transform {
+    Ok(Sim3 {
         rotation: r,
         translation: t,
         scale: 1.0,
     })
 }
 
-/// Angle of a rotation matrix, radians (from its trace; never iterates, NaN-safe).
-pub fn rotation_angle(r: &Matrix3<f64>) -> f64 {
-    let c = ((r.trace() - 1.0) / 2.0).clamp(-1.0, 1.0);
-    if c.is_nan() {
-        std::f64::consts::PI
-    } else {
-        c.acos()
-    }
-}
-
-/// `a ∘ b` (apply `b` first).
-pub fn compose(a: &Transform, b: &Transform) -> Transform {
-    Transform {
-        rotation: a.rotation * b.rotation,
-        translation: a.rotation * b.translation * a.scale + a.translation,
-        scale: a.scale * b.scale,
-    }
-}
-
-/// Inverse of a rigid transform.
-pub fn inverse(t: &Transform) -> Transform {
-    let ri = t.rotation.transpose();
-    Transform {
-        rotation: ri,
-        translation: -(ri * t.translation) / t.scale,
-        scale: 1.0 / t.scale,
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::registration::matrix_from_euler;
     use crate::simulate::{Scene, SimulatedLrf};
+    use pingcal_geometry::from_opk;
 
     #[test]
     fn fan_baseline_recovers_the_lrf_pose_from_one_scan() {
@@ -468,7 +440,7 @@ mod tests {
         ]);
         assert!((r_lc.determinant() - 1.0).abs() < 1e-12);
         let v = Vector3::new(0.0, 1600.0, -600.0);
-        let t_lc = Transform {
+        let t_lc = Sim3 {
             rotation: r_lc,
             translation: v,
             scale: 1.0,
@@ -493,7 +465,7 @@ mod tests {
         let servo = -30.0;
         let scan = &scene.scan(&[servo], &lrf, &mut rng)[0];
         let lines = scan_lines(&header, scan, 30.0, 1).unwrap();
-        let truth = inverse(&t_lc); // corner ← LRF
+        let truth = t_lc.inverse(); // corner ← LRF
         let prior =
             Rotation3::from_axis_angle(&Vector3::z_axis(), 0.1).into_inner() * truth.rotation;
         let est = lrf_pose_in_corner(&lines, servo, &MountModel::default(), &prior).unwrap();
@@ -505,9 +477,9 @@ mod tests {
 
     #[test]
     fn corner_frame_and_dlt_exact() {
-        let r = matrix_from_euler(0.1, -0.05, 0.7);
+        let r = from_opk(0.1, -0.05, 0.7);
         let o = Vector3::new(-500.0, 2000.0, -400.0);
-        let t = Transform {
+        let t = Sim3 {
             rotation: r,
             translation: o,
             scale: 1.0,
@@ -517,9 +489,9 @@ mod tests {
         for i in 1..6 {
             for j in 1..5 {
                 let (a, b) = (i as f64 * 150.0, j as f64 * 120.0);
-                faces[0].push(t.apply(&Vector3::new(0.0, a, b)));
-                faces[1].push(t.apply(&Vector3::new(a, 0.0, b)));
-                faces[2].push(t.apply(&Vector3::new(a, b, 0.0)));
+                faces[0].push(t.transform(&Vector3::new(0.0, a, b)));
+                faces[1].push(t.transform(&Vector3::new(a, 0.0, b)));
+                faces[2].push(t.transform(&Vector3::new(a, b, 0.0)));
                 world.extend([
                     Vector3::new(0.0, a, b),
                     Vector3::new(a, 0.0, b),
@@ -543,7 +515,7 @@ mod tests {
         );
         assert!(dlt_resection(&world[..5], &image[..5]).is_err());
         // compose and inverse
-        let id = compose(&t, &inverse(&t));
+        let id = t.compose(&t.inverse());
         assert!((id.rotation - Matrix3::identity()).norm() < 1e-12 && id.translation.norm() < 1e-9);
     }
 }

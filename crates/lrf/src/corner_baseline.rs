@@ -18,7 +18,7 @@
 //!    The camera centre must then have all three corner coordinates positive (the room is
 //!    the positive octant); otherwise the other wall order is tried and the notes say so.
 //! 2. **Camera pose** by [`dlt_resection`] (DLT, then Gauss–Newton) from the main-image
-//!    targets and their corner-frame coordinates (`inverse(corner_in_camera)` applied to the
+//!    targets and their corner-frame coordinates (`corner_in_camera.inverse()` applied to the
 //!    photogrammetric coordinates). At least 6 targets, on at least two faces (not coplanar).
 //! 3. **LRF pose in the corner** from one scan, as Fan does: every scan line is tried
 //!    ([`scan_lines`] with inlier tolerance 3σ of the ranges, then [`lrf_pose_in_corner`]);
@@ -41,21 +41,22 @@
 //!    this rule 12 ± 6 mm / 0.66 ± 0.25°. The spread of the usable scans' poses is in the
 //!    notes.
 //! 4. **Composition:** `T_cam←lrf = T_cam←corner · T_corner←lrf`, i.e.
-//!    `compose(camera_from_dlt, lrf_in_corner)` (`compose(a, b)` applies `b` first).
+//!    `camera_from_dlt.compose(&lrf_in_corner)` (`a.compose(&b)` applies `b` first).
 //!
 //! Every failure is an [`LrfError`] naming the step and what was missing.
 
 use crate::cloud::MountModel;
 use crate::corner::{
-    compose, corner_frame_from_planes, dlt_resection, inverse, lrf_pose_in_corner,
-    pose_uncertainty, rotation_angle, scan_lines, Line2,
+    corner_frame_from_planes, dlt_resection, lrf_pose_in_corner, pose_uncertainty, scan_lines,
+    Line2,
 };
 use crate::error::{LrfError, Result};
-use crate::registration::Transform;
 use crate::scan::{ScanHeader, ScanLine};
 use nalgebra::{Matrix3, Vector2, Vector3};
 use pingcal_geometry::consensus::{self, ConsensusOptions, Estimator, Sampling};
+use pingcal_geometry::rotation_angle;
 use pingcal_geometry::Plane;
+use pingcal_geometry::Sim3;
 use rayon::prelude::*;
 
 /// Fewest targets accepted on one face of the corner.
@@ -94,13 +95,13 @@ pub struct BaselineInput<'a> {
 #[derive(Debug, Clone)]
 pub struct BaselineResult {
     /// The extrinsic: `p_camera = R · p_lrf + t` (SPEC convention).
-    pub lrf_to_camera: Transform,
+    pub lrf_to_camera: Sim3,
     /// LRF pose in the corner frame: `p_corner = T · p_lrf`.
-    pub lrf_in_corner: Transform,
+    pub lrf_in_corner: Sim3,
     /// Corner frame in the photogrammetric frame, from the target planes: `p_photo = T · p_corner`.
-    pub corner_in_camera: Transform,
+    pub corner_in_camera: Sim3,
     /// Camera pose from the DLT on the main image: `p_camera = T · p_corner`.
-    pub camera_from_dlt: Transform,
+    pub camera_from_dlt: Sim3,
     /// Servo angle of the scan line used, degrees.
     pub servo_deg: f64,
     /// Targets on the faces x = 0, y = 0 (the walls) and z = 0 (the floor).
@@ -262,7 +263,7 @@ enum ScanTry {
     Lines,
     Weak,
     P3p,
-    Ok(Box<(Transform, [Line2; 3], f64)>),
+    Ok(Box<(Sim3, [Line2; 3], f64)>),
 }
 
 /// The LRF pose in the corner from one usable scan line.
@@ -271,7 +272,7 @@ struct ScanPose {
     /// Index of the scan line in the sweep.
     k: usize,
     /// `p_corner = T · p_lrf`.
-    lrf_in_corner: Transform,
+    lrf_in_corner: Sim3,
     /// Points on each of its three lines.
     line_inliers: [usize; 3],
     /// Predicted σ of the LRF position, mm ([`pose_uncertainty`]).
@@ -281,7 +282,7 @@ struct ScanPose {
 /// The corner frame of step 1 and which face each target is on.
 struct Corner {
     /// `p_photo = T · p_corner`.
-    corner_in_camera: Transform,
+    corner_in_camera: Sim3,
     /// Per target: the slot of its face (0 wall x=0, 1 wall y=0, 2 floor), or `None`.
     face_of: Vec<Option<usize>>,
     /// Targets on each slot's face.
@@ -303,7 +304,7 @@ pub fn fan_baseline(input: &BaselineInput) -> Result<BaselineResult> {
     let prior: Matrix3<f64> = camera_from_dlt.rotation.transpose();
     let scan = lrf_in_corner_from_one_scan(input, &prior, &mut notes)?;
     // ---- 4. composition: T_cam←lrf = T_cam←corner · T_corner←lrf ----
-    let lrf_to_camera = compose(&camera_from_dlt, &scan.lrf_in_corner);
+    let lrf_to_camera = camera_from_dlt.compose(&scan.lrf_in_corner);
     if !lrf_to_camera
         .rotation
         .iter()
@@ -317,7 +318,7 @@ pub fn fan_baseline(input: &BaselineInput) -> Result<BaselineResult> {
     notes.push(format!(
         "extrinsic: t = {} mm, ω φ κ = {} °",
         fmt_v(&lrf_to_camera.translation),
-        fmt_v(&lrf_to_camera.euler_deg())
+        fmt_v(&Vector3::from(lrf_to_camera.opk_deg()))
     ));
     Ok(BaselineResult {
         lrf_to_camera,
@@ -426,7 +427,7 @@ fn corner_from_targets(
         cos(0, 1),
         cos(1, 2),
         cos(0, 2),
-        fmt_v(&inverse(&corner_in_camera).translation)
+        fmt_v(&corner_in_camera.inverse().translation)
     ));
     Ok(Corner {
         corner_in_camera,
@@ -514,7 +515,7 @@ fn corner_frame(
     pts: &[Vector3<f64>],
     [w1, w2, floor]: [usize; 3],
     notes: &mut Vec<String>,
-) -> Result<(Transform, [usize; 3])> {
+) -> Result<(Sim3, [usize; 3])> {
     let face_pts =
         |k: usize| -> Vec<Vector3<f64>> { faces[k].members.iter().map(|&i| pts[i]).collect() };
     let mut why = Vec::new();
@@ -522,7 +523,7 @@ fn corner_frame(
         let (a, b, c) = (face_pts(order[0]), face_pts(order[1]), face_pts(order[2]));
         match corner_frame_from_planes([&a, &b, &c]) {
             Ok(t) => {
-                let cam = inverse(&t).translation;
+                let cam = t.inverse().translation;
                 if cam.iter().all(|&v| v > 0.0) {
                     if attempt == 1 {
                         notes.push(
@@ -566,7 +567,7 @@ fn dlt_points<'a>(
     pts: &[Vector3<f64>],
     corner: &Corner,
 ) -> DltPoints<'a> {
-    let corner_from_photo = inverse(&corner.corner_in_camera);
+    let corner_from_photo = corner.corner_in_camera.inverse();
     let mut p = DltPoints {
         world: Vec::new(),
         image: Vec::new(),
@@ -581,7 +582,7 @@ fn dlt_points<'a>(
                     Some(s) => p.faces_seen[s] += 1,
                     None => p.off_face.push(id.as_str()),
                 }
-                p.world.push(corner_from_photo.apply(&pts[i]));
+                p.world.push(corner_from_photo.transform(&pts[i]));
                 p.image.push(*u);
             }
             None => p.unknown.push(id.as_str()),
@@ -597,7 +598,7 @@ fn camera_by_dlt(
     pts: &[Vector3<f64>],
     corner: &Corner,
     notes: &mut Vec<String>,
-) -> Result<Transform> {
+) -> Result<Sim3> {
     let DltPoints {
         world,
         image,
@@ -643,13 +644,13 @@ fn camera_by_dlt(
         .iter()
         .zip(&image)
         .map(|(x, u)| {
-            let c = camera_from_dlt.apply(x);
+            let c = camera_from_dlt.transform(x);
             (Vector2::new(c.x / c.y, c.z / c.y) - u).norm_squared()
         })
         .sum::<f64>()
         / world.len() as f64)
         .sqrt();
-    let cam_c = inverse(&corner.corner_in_camera).translation;
+    let cam_c = corner.corner_in_camera.inverse().translation;
     notes.push(format!(
         "DLT + resection on {} main-image targets ({} / {} / {} on the faces): reprojection rms \
          {:.3} mrad (normalised units × 1000); differs from the photogrammetric camera frame by \
@@ -661,7 +662,7 @@ fn camera_by_dlt(
         rms * 1e3,
         rotation_angle(&(camera_from_dlt.rotation * corner.corner_in_camera.rotation.transpose()))
             .to_degrees(),
-        (inverse(&camera_from_dlt).translation - cam_c).norm()
+        (camera_from_dlt.inverse().translation - cam_c).norm()
     ));
     Ok(camera_from_dlt)
 }

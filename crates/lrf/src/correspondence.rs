@@ -10,8 +10,9 @@
 //! is an error, never a silent guess.
 
 use crate::error::{LrfError, Result};
-use crate::registration::{umeyama, Transform};
+use crate::registration::umeyama;
 use nalgebra::Vector3;
+use pingcal_geometry::Sim3;
 
 /// Options of [`match_balls`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -37,13 +38,13 @@ pub struct Matching {
     /// (LRF index, camera index) pairs.
     pub pairs: Vec<(usize, usize)>,
     /// Rigid transform LRF → camera from all pairs.
-    pub transform: Transform,
+    pub transform: Sim3,
     /// RMS distance of the matched pairs after the transform, mm.
     pub rms_mm: f64,
 }
 
 fn assign(
-    t: &Transform,
+    t: &Sim3,
     lrf: &[Vector3<f64>],
     cam: &[Vector3<f64>],
     tol: f64,
@@ -51,7 +52,7 @@ fn assign(
     // greedy by distance: mutual one-to-one pairs within tol
     let mut cand: Vec<(f64, usize, usize)> = Vec::new();
     for (i, p) in lrf.iter().enumerate() {
-        let q = t.apply(p);
+        let q = t.transform(p);
         for (j, c) in cam.iter().enumerate() {
             let d = (q - c).norm();
             if d < tol {
@@ -212,7 +213,7 @@ pub fn match_balls(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::registration::matrix_from_euler;
+    use pingcal_geometry::from_opk;
     use rand::Rng;
 
     #[test]
@@ -227,7 +228,7 @@ mod tests {
                 )
             })
             .collect();
-        let r = matrix_from_euler(0.2, -0.1, 0.4);
+        let r = from_opk(0.2, -0.1, 0.4);
         let t = Vector3::new(65.9, 8.4, 107.4);
         let mut lrf: Vec<Vector3<f64>> = truth
             .iter()

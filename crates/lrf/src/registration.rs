@@ -10,15 +10,15 @@
 //!    on `R ← exp([δθ]×) R`, `t`, `s`.
 //! 3. Covariance of (δθ, t, s) = `(Σ Jᵢᵀ Σᵢ⁻¹ Jᵢ)⁻¹`, a priori, or scaled by the a-posteriori
 //!    σ₀² when the input σ's are nominal ([`RegistrationOptions::posterior`]). σ of ω, φ, κ by
-//!    propagating through the Euler extraction (`R = R_ω R_φ R_κ`, `R_ω = R_x(ω)`,
-//!    `R_φ = R_y(φ)`, `R_κ = R_z(κ)`, counter-clockwise elementary rotations).
+//!    propagating through their extraction, in pingcal's one convention
+//!    ([`pingcal_geometry::opk`]: `R = R_ω R_φ R_κ`, passive elementary rotations).
 //!
 //! Degenerate inputs give a named error: fewer than 3 points, or points nearly on one line
 //! (the rotation about that line is undetermined).
 
 use crate::error::{LrfError, Result};
 use nalgebra::{DMatrix, DVector, Matrix3, Rotation3, Vector3};
-use pingcal_geometry::UmeyamaError;
+use pingcal_geometry::{skew, to_opk, Sim3, UmeyamaError};
 
 /// A labelled point with its covariance (mm, mm²).
 #[derive(Debug, Clone, PartialEq)]
@@ -40,56 +40,6 @@ impl PointObs {
             cov: Matrix3::identity() * (sigma * sigma),
         }
     }
-}
-
-/// `p ↦ s · R · p + t`.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Transform {
-    /// Proper rotation.
-    pub rotation: Matrix3<f64>,
-    /// Translation, mm.
-    pub translation: Vector3<f64>,
-    /// Scale (1 for a rigid transform).
-    pub scale: f64,
-}
-
-impl Transform {
-    /// The identity.
-    pub fn identity() -> Self {
-        Transform {
-            rotation: Matrix3::identity(),
-            translation: Vector3::zeros(),
-            scale: 1.0,
-        }
-    }
-    /// Applies the transform.
-    pub fn apply(&self, p: &Vector3<f64>) -> Vector3<f64> {
-        self.rotation * p * self.scale + self.translation
-    }
-    /// ω, φ, κ in degrees with R = R_x(ω) R_y(φ) R_z(κ).
-    pub fn euler_deg(&self) -> Vector3<f64> {
-        euler_from_matrix(&self.rotation).map(f64::to_degrees)
-    }
-}
-
-/// ω, φ, κ (radians) of `R = R_x(ω) R_y(φ) R_z(κ)`.
-pub fn euler_from_matrix(r: &Matrix3<f64>) -> Vector3<f64> {
-    let phi = r[(0, 2)].clamp(-1.0, 1.0).asin();
-    let omega = (-r[(1, 2)]).atan2(r[(2, 2)]);
-    let kappa = (-r[(0, 1)]).atan2(r[(0, 0)]);
-    Vector3::new(omega, phi, kappa)
-}
-
-/// `R = R_x(ω) R_y(φ) R_z(κ)` (radians).
-pub fn matrix_from_euler(omega: f64, phi: f64, kappa: f64) -> Matrix3<f64> {
-    (Rotation3::from_axis_angle(&Vector3::x_axis(), omega)
-        * Rotation3::from_axis_angle(&Vector3::y_axis(), phi)
-        * Rotation3::from_axis_angle(&Vector3::z_axis(), kappa))
-    .into_inner()
-}
-
-fn skew(v: &Vector3<f64>) -> Matrix3<f64> {
-    Matrix3::new(0.0, -v.z, v.y, v.z, 0.0, -v.x, -v.y, v.x, 0.0)
 }
 
 /// Options of [`register`].
@@ -121,15 +71,15 @@ impl Default for RegistrationOptions {
 #[derive(Debug, Clone)]
 pub struct Registration {
     /// The transform LRF → camera.
-    pub transform: Transform,
+    pub transform: Sim3,
     /// Covariance of (δθ [rad, about the camera axes], t [mm], s) — 6×6 or 7×7.
     pub cov: DMatrix<f64>,
     /// σ of the translation, mm.
     pub sigma_translation_mm: Vector3<f64>,
     /// σ of the small rotation about the camera X, Y, Z axes, degrees.
     pub sigma_rotation_vector_deg: Vector3<f64>,
-    /// σ of ω, φ, κ, degrees.
-    pub sigma_euler_deg: Vector3<f64>,
+    /// σ of ω, φ, κ ([`pingcal_geometry::opk`]), degrees.
+    pub sigma_opk_deg: Vector3<f64>,
     /// σ of the scale (when estimated).
     pub sigma_scale: Option<f64>,
     /// A-posteriori σ of unit weight.
@@ -189,19 +139,15 @@ pub fn check_geometry(src: &[PointObs], tol_mm: Option<f64>) -> Result<()> {
 }
 
 /// Closed-form (Horn/Umeyama) similarity or rigid transform `dst ≈ s R src + t`, weighted:
-/// [`pingcal_geometry::umeyama`] as a [`Transform`], its errors as [`LrfError`]s.
+/// [`pingcal_geometry::umeyama`] as a [`Sim3`], its errors as [`LrfError`]s.
 pub fn umeyama(
     src: &[Vector3<f64>],
     dst: &[Vector3<f64>],
     weights: Option<&[f64]>,
     with_scale: bool,
-) -> Result<Transform> {
+) -> Result<Sim3> {
     match pingcal_geometry::umeyama(src, dst, weights, with_scale) {
-        Ok(s) => Ok(Transform {
-            rotation: s.rotation,
-            translation: s.translation,
-            scale: s.scale,
-        }),
+        Ok(s) => Ok(s),
         Err(UmeyamaError::TooFew(got)) => Err(LrfError::TooFewPoints {
             needed: 3,
             got,
@@ -237,7 +183,7 @@ pub fn register(
     let np = if opt.estimate_scale { 7 } else { 6 };
     let n = src.len();
     // one Gauss–Newton pass: returns (normal matrix, gradient, χ²)
-    let build = |tr: &Transform| -> Result<(DMatrix<f64>, DVector<f64>, f64)> {
+    let build = |tr: &Sim3| -> Result<(DMatrix<f64>, DVector<f64>, f64)> {
         let mut nm = DMatrix::zeros(np, np);
         let mut g = DVector::zeros(np);
         let mut chi2 = 0.0;
@@ -314,14 +260,16 @@ pub fn register(
         cov *= sigma0 * sigma0;
     }
     let sd = |k: usize| cov[(k, k)].max(0.0).sqrt();
-    // Euler σ's: Jacobian of (ω, φ, κ) w.r.t. δθ by central differences of the extraction
-    let e0 = euler_from_matrix(&tr.rotation);
+    // σ's of ω, φ, κ (pingcal's one convention, pingcal_geometry::opk): Jacobian of the
+    // angles w.r.t. δθ by central differences of the extraction
+    let opk = |r: &Matrix3<f64>| Vector3::from(<[f64; 3]>::from(to_opk(r)));
+    let e0 = opk(&tr.rotation);
     let mut je = Matrix3::zeros();
     for k in 0..3 {
         let mut d = Vector3::zeros();
         d[k] = 1e-7;
-        let ep = euler_from_matrix(&(Rotation3::new(d).into_inner() * tr.rotation));
-        let em = euler_from_matrix(&(Rotation3::new(-d).into_inner() * tr.rotation));
+        let ep = opk(&(Rotation3::new(d).into_inner() * tr.rotation));
+        let em = opk(&(Rotation3::new(-d).into_inner() * tr.rotation));
         let mut col = (ep - em) / 2e-7;
         for q in 0..3 {
             // unwrap ±π jumps of atan2
@@ -338,7 +286,7 @@ pub fn register(
         transform: tr,
         sigma_translation_mm: Vector3::new(sd(3), sd(4), sd(5)),
         sigma_rotation_vector_deg: Vector3::new(sd(0), sd(1), sd(2)).map(f64::to_degrees),
-        sigma_euler_deg: Vector3::new(ce[(0, 0)], ce[(1, 1)], ce[(2, 2)])
+        sigma_opk_deg: Vector3::new(ce[(0, 0)], ce[(1, 1)], ce[(2, 2)])
             .map(|v| v.max(0.0).sqrt().to_degrees()),
         sigma_scale: (np == 7).then(|| sd(6)),
         cov,
@@ -402,8 +350,8 @@ impl CheckTable {
 }
 
 /// The row of one point: the LRF point mapped by `t` against the camera reference.
-pub fn check_row(t: &Transform, lrf: &PointObs, cam: &PointObs) -> CheckRow {
-    let d = t.apply(&lrf.xyz) - cam.xyz;
+pub fn check_row(t: &Sim3, lrf: &PointObs, cam: &PointObs) -> CheckRow {
+    let d = t.transform(&lrf.xyz) - cam.xyz;
     CheckRow {
         id: lrf.id.clone(),
         dx_mm: d.x,
@@ -414,7 +362,7 @@ pub fn check_row(t: &Transform, lrf: &PointObs, cam: &PointObs) -> CheckRow {
 }
 
 /// Check table of paired points under `t`.
-pub fn check_table(t: &Transform, lrf: &[PointObs], cam: &[PointObs]) -> CheckTable {
+pub fn check_table(t: &Sim3, lrf: &[PointObs], cam: &[PointObs]) -> CheckTable {
     CheckTable::from_rows(
         lrf.iter()
             .zip(cam)
@@ -546,8 +494,8 @@ impl Evaluation {
                 "rotation": [[m[(0,0)], m[(0,1)], m[(0,2)]], [m[(1,0)], m[(1,1)], m[(1,2)]], [m[(2,0)], m[(2,1)], m[(2,2)]]],
                 "translation_mm": r.transform.translation.as_slice(),
                 "sigma_translation_mm": r.sigma_translation_mm.as_slice(),
-                "sigma_rotation_deg": r.sigma_euler_deg.as_slice(),
-                "euler_deg": r.transform.euler_deg().as_slice(),
+                "sigma_rotation_deg": r.sigma_opk_deg.as_slice(),
+                "opk_deg": r.transform.opk_deg(),
                 "scale": r.transform.scale,
                 "sigma_scale": r.sigma_scale,
             },
@@ -580,7 +528,7 @@ mod tests {
 
     #[test]
     fn exact_transform_recovered_with_and_without_scale() {
-        let r = matrix_from_euler(0.1, -0.2, 0.3);
+        let r = pingcal_geometry::from_opk(0.1, -0.2, 0.3);
         let t = Vector3::new(65.9, 8.4, 107.4);
         for (s, with_scale) in [(1.0, false), (1.02, true)] {
             let src: Vec<_> = layout()
@@ -609,23 +557,9 @@ mod tests {
     }
 
     #[test]
-    fn euler_round_trip() {
-        let (o, p, k) = (0.3, -0.4, 1.2);
-        let e = euler_from_matrix(&matrix_from_euler(o, p, k));
-        assert!((e - Vector3::new(o, p, k)).norm() < 1e-12);
-        // R_x(ω) is counter-clockwise: y goes to z
-        assert!(
-            (matrix_from_euler(std::f64::consts::FRAC_PI_2, 0.0, 0.0) * Vector3::y()
-                - Vector3::z())
-            .norm()
-                < 1e-12
-        );
-    }
-
-    #[test]
     fn jacobian_of_residual_matches_finite_differences() {
         // e(δθ, t, s) = q − (s exp([δθ]×) R p + t)
-        let r = matrix_from_euler(0.2, 0.1, -0.3);
+        let r = pingcal_geometry::from_opk(0.2, 0.1, -0.3);
         let p = Vector3::new(100.0, 1200.0, -50.0);
         let s = 1.01;
         let rp = r * p;

@@ -1,10 +1,10 @@
 //! The whole Fan et al. 2019 baseline on a simulated room corner: targets on the two walls
 //! and the floor, the main image, and an LRF sweep simulated with the URG-04LX noise model.
 
-use pingcal_lrf::corner::{compose, inverse, rotation_angle};
+use pingcal_geometry::rotation_angle;
+use pingcal_geometry::{from_opk, Sim3};
 use pingcal_lrf::corner_baseline::{fan_baseline, BaselineInput};
 use pingcal_lrf::nalgebra::{Matrix3, Vector2, Vector3};
-use pingcal_lrf::registration::{matrix_from_euler, Transform};
 use pingcal_lrf::scan::{ScanHeader, ScanLine};
 use pingcal_lrf::simulate::{Scene, SimulatedLrf};
 use pingcal_lrf::MountModel;
@@ -21,9 +21,9 @@ struct Field {
     targets: Vec<(String, Vector3<f64>)>,
     image: Vec<(String, Vector2<f64>)>,
     /// p_camera = T p_lrf
-    truth: Transform,
+    truth: Sim3,
     /// p_photo = T p_corner
-    corner_in_camera: Transform,
+    corner_in_camera: Sim3,
 }
 
 /// The default mount (eq. 2), shared by every input.
@@ -53,20 +53,20 @@ fn field(seed: u64, with_floor: bool) -> Field {
     let y = (Vector3::new(250.0, 230.0, 520.0) - c).normalize();
     let x = y.cross(&Vector3::z()).normalize();
     let z = x.cross(&y);
-    let world_from_cam = Transform {
+    let world_from_cam = Sim3 {
         rotation: Matrix3::from_columns(&[x, y, z]),
         translation: c,
         scale: 1.0,
     };
-    let cam_from_world = inverse(&world_from_cam);
+    let cam_from_world = world_from_cam.inverse();
     // extrinsic: p_camera = R p_lrf + t
     let d = |v: f64| v.to_radians();
-    let truth = Transform {
-        rotation: matrix_from_euler(d(0.8), d(-1.2), d(0.6)),
+    let truth = Sim3 {
+        rotation: from_opk(d(0.8), d(-1.2), d(0.6)),
         translation: Vector3::new(72.0, 12.0, 91.0),
         scale: 1.0,
     };
-    let world_from_lrf = compose(&world_from_cam, &truth);
+    let world_from_lrf = world_from_cam.compose(&truth);
     // targets: a jittered 5 × 5 grid per face, a few dropped; bundle-adjustment noise 0.3 mm
     let ba = Normal::new(0.0, 0.3).unwrap();
     let mut targets = Vec::new();
@@ -87,7 +87,7 @@ fn field(seed: u64, with_floor: bool) -> Field {
                     1 => Vector3::new(a, 0.0, b),
                     _ => Vector3::new(a, b, 0.0),
                 };
-                let q = cam_from_world.apply(&p);
+                let q = cam_from_world.transform(&p);
                 let noisy = q + Vector3::from_fn(|_, _| ba.sample(&mut rng));
                 targets.push((format!("T{}{}{}", face, i, j), noisy));
                 exact.push(q);
@@ -155,11 +155,11 @@ fn run(seed: u64) -> (f64, f64, f64) {
         rotation_angle(&(r.lrf_to_camera.rotation * f.truth.rotation.transpose())).to_degrees();
     // like the paper's check error: the extrinsic's error at points 1–2 m from the rig (the
     // targets, in the camera frame)
-    let est_from_true = compose(&r.lrf_to_camera, &inverse(&f.truth));
+    let est_from_true = r.lrf_to_camera.compose(&f.truth.inverse());
     let chk = f
         .targets
         .iter()
-        .map(|(_, q)| (est_from_true.apply(q) - q).norm())
+        .map(|(_, q)| (est_from_true.transform(q) - q).norm())
         .sum::<f64>()
         / f.targets.len() as f64;
     if seed == 0 {

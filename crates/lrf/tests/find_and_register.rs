@@ -63,7 +63,7 @@ fn simulated_room_end_to_end() {
     assert!(found.balls.len() >= 8, "only {} balls", found.balls.len());
 
     // camera side: the true balls under a known transform, labelled, order unknown to the LRF
-    let r_true = registration::matrix_from_euler(0.012, -0.016, 0.003);
+    let r_true = pingcal_geometry::from_opk(0.012, -0.016, 0.003);
     let t_true = Vector3::new(65.9, 8.4, 107.4);
     let cam: Vec<Vector3<f64>> = scene.balls.iter().map(|c| r_true * c + t_true).collect();
     let lrf: Vec<Vector3<f64>> = found.balls.iter().map(|b| b.centre).collect();

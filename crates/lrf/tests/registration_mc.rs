@@ -33,7 +33,7 @@ fn gauss(rng: &mut SeededRng, cov: &Matrix3<f64>) -> Vector3<f64> {
 
 #[test]
 fn sigma_matches_monte_carlo_and_loo_matches_check() {
-    let r_true = registration::matrix_from_euler(0.012, -0.016, 0.0);
+    let r_true = pingcal_geometry::from_opk(0.012, -0.016, 0.0);
     let t_true = Vector3::new(65.9, 8.4, 107.4);
     let truth = balls();
     // LRF centres: 3 mm along the ray, 1 mm across; camera: 0.8 mm isotropic
@@ -177,7 +177,7 @@ fn paper_tables_reproduced() {
     assert_eq!(lrf.len(), 5, "five check points in Table 2");
     // Table 1, "3D Point Cloud" (rounded to 3 decimals in the paper)
     let r = Matrix3::new(1.0, 0.0, -0.016, 0.0, 1.0, 0.012, 0.016, -0.012, 1.0);
-    let t = registration::Transform {
+    let t = pingcal_geometry::Sim3 {
         rotation: r,
         translation: Vector3::new(65.9, 8.4, 107.4),
         scale: 1.0,

@@ -76,32 +76,16 @@ fn mat_mul(a: &M3, b: &M3) -> M3 {
     }
     r
 }
-/// R = Rx(ω) Ry(φ) Rz(κ), angles in radians.
+/// The rotation of ω, φ, κ (radians) in pingcal's one convention ([`pingcal_geometry::opk`]).
 fn opk_matrix(o: f64, p: f64, k: f64) -> M3 {
-    let rx = [
-        [1.0, 0.0, 0.0],
-        [0.0, o.cos(), -o.sin()],
-        [0.0, o.sin(), o.cos()],
-    ];
-    let ry = [
-        [p.cos(), 0.0, p.sin()],
-        [0.0, 1.0, 0.0],
-        [-p.sin(), 0.0, p.cos()],
-    ];
-    let rz = [
-        [k.cos(), -k.sin(), 0.0],
-        [k.sin(), k.cos(), 0.0],
-        [0.0, 0.0, 1.0],
-    ];
-    mat_mul(&mat_mul(&rx, &ry), &rz)
+    let m = pingcal_geometry::from_opk(o, p, k);
+    std::array::from_fn(|i| std::array::from_fn(|j| m[(i, j)]))
 }
-/// ω φ κ in degrees of R = Rx(ω) Ry(φ) Rz(κ).
+/// ω φ κ in degrees of `r` ([`pingcal_geometry::opk`]).
 fn matrix_opk_deg(r: &M3) -> V3 {
-    [
-        (-r[1][2]).atan2(r[2][2]).to_degrees(),
-        r[0][2].clamp(-1.0, 1.0).asin().to_degrees(),
-        (-r[0][1]).atan2(r[0][0]).to_degrees(),
-    ]
+    pingcal_geometry::to_opk_deg(&pingcal_geometry::nalgebra::Matrix3::from_fn(|i, j| {
+        r[i][j]
+    }))
 }
 
 /// Camera rotation (rows = camera X right, Y forward, Z up) looking from `c` at `target`.

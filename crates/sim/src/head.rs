@@ -2,14 +2,14 @@
 //! rig's relative pose, and the pose of the main station's left camera. Below both the
 //! scene (which places the targets where the main image sees them) and the station plan.
 //!
-//! Poses are world → camera (`x_cam = R·X + t`, [`Pose`]), camera frame X right, Y forward
+//! Poses are world → camera (`x_cam = R·X + t`, [`Rigid3`]), camera frame X right, Y forward
 //! (optical axis), Z up (SPEC.md).
 
 use crate::config::{SimConfig, StationConfig};
 use nalgebra::{Matrix3, Vector3};
 use pingcal_ba::camera::PhotogrammetricCamera;
-use pingcal_ba::pose::Pose;
-use pingcal_ba::rotation::from_opk;
+use pingcal_geometry::from_opk;
+use pingcal_geometry::Rigid3;
 
 type V3 = Vector3<f64>;
 
@@ -78,7 +78,7 @@ pub struct StereoRig {
     /// Left camera (index 0) and right camera (index 1).
     pub cameras: [CameraUnit; 2],
     /// Left-camera frame → right-camera frame.
-    pub left_to_right: Pose,
+    pub left_to_right: Rigid3,
 }
 
 impl StereoRig {
@@ -89,7 +89,7 @@ impl StereoRig {
         let o = c.right_opk_deg;
         // Right camera orientation relative to left: x_right = R_rel (x_left − C_right).
         let r_rel = from_opk(o[0].to_radians(), o[1].to_radians(), o[2].to_radians());
-        let left_to_right = Pose::from_rotation_and_centre(r_rel, V3::from(c.right_offset_mm));
+        let left_to_right = Rigid3::from_rotation_and_centre(r_rel, V3::from(c.right_offset_mm));
         Self {
             cameras: [
                 CameraUnit {
@@ -126,7 +126,7 @@ pub fn look_at_rotation(centre: &V3, look_at: &V3, roll: f64) -> Matrix3<f64> {
 }
 
 /// The main station's left camera pose (world → camera).
-pub fn main_left_pose(sc: &StationConfig) -> Pose {
+pub fn main_left_pose(sc: &StationConfig) -> Rigid3 {
     let c = V3::from(sc.main_centre_mm);
-    Pose::from_rotation_and_centre(look_at_rotation(&c, &V3::from(sc.main_look_at_mm), 0.0), c)
+    Rigid3::from_rotation_and_centre(look_at_rotation(&c, &V3::from(sc.main_look_at_mm), 0.0), c)
 }

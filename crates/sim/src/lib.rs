@@ -48,7 +48,7 @@ pub use project_files::{read_truth, write_project, ProjectSummary, Truth};
 pub use scene::Scene;
 pub use stations::{Station, StereoRig};
 
-use pingcal_ba::pose::Pose;
+use pingcal_geometry::Rigid3;
 use rand::SeedableRng;
 
 /// Errors of the simulator, each one line naming what is wrong.
@@ -106,7 +106,7 @@ pub struct Simulation {
     /// The stations, main first.
     pub stations: Vec<Station>,
     /// World → LRF frame (at the main station).
-    pub world_to_lrf: Pose,
+    pub world_to_lrf: Rigid3,
     /// The servo sweep at the main station.
     pub scans: Vec<lrf::Scan>,
 }
@@ -137,7 +137,7 @@ impl Simulation {
     }
 
     /// World → photogrammetric frame (the main station's left camera).
-    pub fn world_to_photogrammetric(&self) -> Pose {
+    pub fn world_to_photogrammetric(&self) -> Rigid3 {
         self.stations
             .iter()
             .find(|s| s.main)

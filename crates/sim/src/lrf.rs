@@ -29,8 +29,8 @@ use crate::config::LrfConfig;
 use crate::rng_for;
 use crate::scene::{Object, Scene};
 use nalgebra::Vector3;
-use pingcal_ba::pose::Pose;
-use pingcal_ba::rotation::from_opk;
+use pingcal_geometry::from_opk;
+use pingcal_geometry::Rigid3;
 use pingcal_lrf::scan::ScanWriter;
 use pingcal_lrf::sensor::{LrfSensor, ScannerPose};
 use rand::Rng;
@@ -53,16 +53,16 @@ pub struct Scan {
 }
 
 /// The true extrinsic as a pose LRF → main left camera: `p_camera = R·p_lrf + t`.
-pub fn extrinsic(cfg: &LrfConfig) -> Pose {
+pub fn extrinsic(cfg: &LrfConfig) -> Rigid3 {
     let o = cfg.extrinsic_opk_deg;
-    Pose {
+    Rigid3 {
         rotation: from_opk(o[0].to_radians(), o[1].to_radians(), o[2].to_radians()),
         translation: V3::from(cfg.extrinsic_t_mm),
     }
 }
 
 /// World → LRF frame, given the main left camera's pose (world → camera).
-pub fn world_to_lrf(main_left: &Pose, cfg: &LrfConfig) -> Pose {
+pub fn world_to_lrf(main_left: &Rigid3, cfg: &LrfConfig) -> Rigid3 {
     extrinsic(cfg).inverse().compose(main_left)
 }
 

@@ -15,8 +15,8 @@ use crate::render::{render_image, RayTable};
 use crate::{SimError, Simulation};
 use image::ImageEncoder;
 use nalgebra::{Matrix3, Vector3};
-use pingcal_ba::pose::Pose;
-use pingcal_ba::rotation::to_opk;
+use pingcal_geometry::to_opk;
+use pingcal_geometry::Rigid3;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -39,8 +39,8 @@ pub struct PoseJson {
 }
 
 impl PoseJson {
-    /// From a [`Pose`].
-    pub fn from_pose(p: &Pose) -> Self {
+    /// From a [`Rigid3`].
+    pub fn from_pose(p: &Rigid3) -> Self {
         let r = p.rotation;
         let (o, f, k) = to_opk(&r);
         Self {
@@ -54,10 +54,10 @@ impl PoseJson {
         }
     }
 
-    /// To a [`Pose`].
-    pub fn to_pose(&self) -> Pose {
+    /// To a [`Rigid3`].
+    pub fn to_pose(&self) -> Rigid3 {
         let r = &self.rotation;
-        Pose {
+        Rigid3 {
             rotation: Matrix3::new(
                 r[0][0], r[0][1], r[0][2], r[1][0], r[1][1], r[1][2], r[2][0], r[2][1], r[2][2],
             ),

@@ -25,7 +25,7 @@ use crate::scene::{HitKind, Object, Scene};
 use crate::stations::CameraUnit;
 use nalgebra::{Vector2, Vector3};
 use pingcal_ba::camera::CameraModel;
-use pingcal_ba::pose::Pose;
+use pingcal_geometry::Rigid3;
 use rand_distr::{Distribution, StandardNormal};
 use rayon::prelude::*;
 
@@ -246,7 +246,7 @@ fn shade(sc: &Scene, d: &V3, objs: Option<&[Object]>, rc: &RenderConfig) -> f64 
 pub fn render_radiance(
     scene: &Scene,
     cam: &CameraUnit,
-    pose: &Pose,
+    pose: &Rigid3,
     rc: &RenderConfig,
     window: Option<[u32; 4]>,
     table: Option<&RayTable>,
@@ -400,7 +400,7 @@ pub fn expose(
 pub fn render_image(
     scene: &Scene,
     cam: &CameraUnit,
-    pose: &Pose,
+    pose: &Rigid3,
     rc: &RenderConfig,
     table: Option<&RayTable>,
     seed: u64,

@@ -12,8 +12,8 @@ use crate::config::{BallConfig, ConfigError, RoomConfig, SimConfig, TargetConfig
 use crate::head::CameraUnit;
 use crate::{rng_for, SimError};
 use nalgebra::{Matrix3, Vector2, Vector3};
-use pingcal_ba::pose::Pose;
-use pingcal_ba::rotation::from_opk;
+use pingcal_geometry::from_opk;
+use pingcal_geometry::Rigid3;
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
@@ -561,7 +561,7 @@ impl Scene {
         })
     }
     /// Moves everything by a rigid transform `x' = pose(x)` (e.g. into a camera frame).
-    pub fn transformed(&self, pose: &Pose) -> Scene {
+    pub fn transformed(&self, pose: &Rigid3) -> Scene {
         let r = pose.rotation;
         let mut s = self.clone();
         for sf in &mut s.surfaces {
@@ -691,7 +691,7 @@ fn corner_surfaces(rc: &RoomConfig, seed: u64, rng: &mut ChaCha8Rng) -> Vec<Surf
 /// The main station's left camera, over whose image the targets and balls are spread.
 struct MainView {
     /// World → camera.
-    pose: Pose,
+    pose: Rigid3,
     /// The left camera of the head.
     camera: CameraUnit,
     /// Its largest ideal image radius (see [`CameraUnit::max_ideal_radius_mm`]).

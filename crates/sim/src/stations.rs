@@ -2,7 +2,7 @@
 //! the LRF scanned, and a convergent network around the field at several heights, with
 //! 90° rolls, as a photogrammetrist would plan it for self-calibration.
 //!
-//! Poses are world → camera (`x_cam = R·X + t`, [`Pose`]), camera frame X right, Y forward
+//! Poses are world → camera (`x_cam = R·X + t`, [`Rigid3`]), camera frame X right, Y forward
 //! (optical axis), Z up (SPEC.md).
 
 use crate::config::{ConfigError, SimConfig};
@@ -11,7 +11,7 @@ use crate::rng_for;
 use crate::scene::{check_inside, Scene};
 use crate::SimError;
 use nalgebra::Vector3;
-use pingcal_ba::pose::Pose;
+use pingcal_geometry::Rigid3;
 use rand::Rng;
 
 type V3 = Vector3<f64>;
@@ -22,14 +22,14 @@ pub struct Station {
     /// `S00` (main), `S01`, …
     pub id: String,
     /// World → left camera.
-    pub left_pose: Pose,
+    pub left_pose: Rigid3,
     /// True for the station where the LRF scanned.
     pub main: bool,
 }
 
 impl Station {
     /// World → camera pose of camera `cam` (0 left, 1 right) of `rig` at this station.
-    pub fn camera_pose(&self, rig: &StereoRig, cam: usize) -> Pose {
+    pub fn camera_pose(&self, rig: &StereoRig, cam: usize) -> Rigid3 {
         if cam == 0 {
             self.left_pose
         } else {
@@ -78,7 +78,7 @@ pub fn build_stations(cfg: &SimConfig, scene: &Scene, seed: u64) -> Result<Vec<S
         let r = look_at_rotation(&centre, &(look + jit), roll);
         out.push(Station {
             id: format!("S{:02}", k + 1),
-            left_pose: Pose::from_rotation_and_centre(r, centre),
+            left_pose: Rigid3::from_rotation_and_centre(r, centre),
             main: false,
         });
         keys.push("stations.distance_range_mm / stations.heights_mm".to_string());
@@ -96,7 +96,7 @@ pub fn build_stations(cfg: &SimConfig, scene: &Scene, seed: u64) -> Result<Vec<S
         }
         out.push(Station {
             id: format!("S{:02}", out.len()),
-            left_pose: Pose::from_rotation_and_centre(
+            left_pose: Rigid3::from_rotation_and_centre(
                 look_at_rotation(&c, &l, e.roll_deg.to_radians()),
                 c,
             ),

@@ -35,7 +35,7 @@
 
 use nalgebra::{Vector2, Vector3};
 use pingcal_ba::camera::CameraModel;
-use pingcal_ba::pose::Pose;
+use pingcal_geometry::Rigid3;
 use pingcal_sim::render::{render_image, RayTable};
 use pingcal_sim::scene::{HitKind, Scene};
 use pingcal_sim::stations::CameraUnit;
@@ -279,7 +279,7 @@ fn detector_on_rendered_images_matches_truth() {
     let mut k = 0u64;
     for st in &sim.stations {
         for (ci, cam) in sim.rig.cameras.iter().enumerate() {
-            let pose: Pose = st.camera_pose(&sim.rig, ci);
+            let pose: Rigid3 = st.camera_pose(&sim.rig, ci);
             let img8 = render_image(
                 &sim.scene,
                 cam,
@@ -577,7 +577,7 @@ fn ball_eccentricity_correction_on_close_balls() {
     // A weaker flash at close range, so that the balls (0.45 m) are not clipped.
     let mut rc = sim.config.render.clone();
     rc.flash_at_1m = 0.15;
-    let img8 = render_image(&scene, cam, &Pose::identity(), &rc, None, 11, 0);
+    let img8 = render_image(&scene, cam, &Rigid3::identity(), &rc, None, 11, 0);
     let img = to_gray(&img8);
     let mut p = params();
     p.balls = pingcal_targets::detect::BallMode::Diameter {

@@ -24,7 +24,7 @@
 
 use nalgebra::{Matrix3x2, Vector2, Vector3};
 use pingcal_ba::camera::CameraModel;
-use pingcal_ba::pose::Pose;
+use pingcal_geometry::Rigid3;
 use pingcal_sim::config::RenderConfig;
 use pingcal_sim::render::render_radiance;
 use pingcal_sim::scene::{Scene, Surface, Target};
@@ -133,7 +133,7 @@ fn measured_centroid(
         (x1 - x0 + 1) as u32,
         (y1 - y0 + 1) as u32,
     ];
-    let img = render_radiance(scene, cam, &Pose::identity(), rc, Some(win), None);
+    let img = render_radiance(scene, cam, &Rigid3::identity(), rc, Some(win), None);
     let (mut sw, mut su) = (0.0, Vector2::zeros());
     for y in 0..img.height {
         for x in 0..img.width {

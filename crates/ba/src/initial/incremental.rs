@@ -23,10 +23,10 @@
 use super::intersection::{intersect, IntersectionOptions, Ray};
 use super::relative::{relative_orientation, RelativeOptions};
 use super::resection::{resect, similarity_transform, ResectionOptions};
-use crate::pose::Pose;
 use crate::problem::{Distance, PointPrior, Problem, ProblemError};
 use crate::solver::{solve, Options};
 use nalgebra::Vector3;
+use pingcal_geometry::Rigid3;
 use std::collections::HashMap;
 
 /// Options of [`initialise`].
@@ -223,7 +223,7 @@ pub enum InitError {
 struct State<'a> {
     problem: &'a Problem,
     params: Vec<Vec<f64>>,
-    poses: Vec<Option<Pose>>,
+    poses: Vec<Option<Rigid3>>,
     points: Vec<Option<Vector3<f64>>>,
     by_image: Vec<Vec<usize>>,
     by_point: Vec<Vec<usize>>,
@@ -572,7 +572,7 @@ impl<'a> State<'a> {
         let Some((_, (ia, ib), r)) = best else {
             return Err(InitError::NoStart(last_error));
         };
-        self.poses[ia] = Some(Pose::identity());
+        self.poses[ia] = Some(Rigid3::identity());
         self.poses[ib] = Some(r.pose);
         self.steps.push(Step::RelativePair {
             first: p.images[ia].name.clone(),
@@ -645,7 +645,7 @@ impl<'a> State<'a> {
         for pose in self.poses.iter_mut().flatten() {
             let c = map(&pose.centre());
             let r = pose.rotation * t.rotation.transpose();
-            *pose = Pose::from_rotation_and_centre(r, c);
+            *pose = Rigid3::from_rotation_and_centre(r, c);
         }
         for &j in &idx {
             self.points[j] = Some(self.problem.points[j].position);
@@ -938,7 +938,7 @@ mod tests {
         p.cameras[0].params[0] = 2.5; // approximate c
         p.cameras[0].params[3] = 0.0;
         for im in &mut p.images {
-            im.pose = Pose::identity();
+            im.pose = Rigid3::identity();
         }
         let mut known = vec![false; 60];
         for (j, pt) in p.points.iter_mut().enumerate() {
@@ -1176,7 +1176,7 @@ mod tests {
         p.images.push(Image {
             name: "lonely".into(),
             camera: 0,
-            pose: Pose::identity(),
+            pose: Rigid3::identity(),
             fixed: false,
         });
         for k in 0..2 {

@@ -7,14 +7,14 @@
 //! reprojection error exceeds a threshold.
 
 use crate::camera::CameraModel;
-use crate::pose::Pose;
 use nalgebra::{Matrix2x3, Matrix3, Vector2, Vector3};
+use pingcal_geometry::Rigid3;
 
 /// One ray: an oriented image's pose, its camera and the measured pixel.
 #[derive(Clone, Copy, Debug)]
 pub struct Ray<'a> {
     /// Pose of the image.
-    pub pose: Pose,
+    pub pose: Rigid3,
     /// Camera model.
     pub model: &'a dyn CameraModel,
     /// Intrinsics.

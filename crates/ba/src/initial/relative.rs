@@ -18,11 +18,11 @@
 //! most points in front of both cameras winning. [`Relative::planar`] says which path
 //! was taken.
 
-use crate::pose::Pose;
-use crate::rotation::skew;
 use nalgebra::{Matrix3, SMatrix, Vector2, Vector3};
 use pingcal_geometry::consensus::{self, ConsensusOptions, Estimator, RefitRule};
 use pingcal_geometry::dlt::hartley_normaliser;
+use pingcal_geometry::skew;
+use pingcal_geometry::Rigid3;
 
 /// Options of [`relative_orientation`].
 #[derive(Clone, Debug)]
@@ -53,7 +53,7 @@ impl Default for RelativeOptions {
 #[derive(Clone, Debug)]
 pub struct Relative {
     /// Pose of camera 2 in camera 1's frame (|t| = 1).
-    pub pose: Pose,
+    pub pose: Rigid3,
     /// The essential matrix.
     pub essential: Matrix3<f64>,
     /// Per correspondence: consistent with the epipolar geometry and in front of both.
@@ -136,7 +136,7 @@ pub fn essential_8point(d1: &[Vector3<f64>], d2: &[Vector3<f64>]) -> Option<Matr
 }
 
 /// The four (R, t) of an essential matrix.
-pub fn decompose_essential(e: &Matrix3<f64>) -> Vec<Pose> {
+pub fn decompose_essential(e: &Matrix3<f64>) -> Vec<Rigid3> {
     let svd = e.svd(true, true);
     let (Some(mut u), Some(mut vt)) = (svd.u, svd.v_t) else {
         return Vec::new();
@@ -152,7 +152,7 @@ pub fn decompose_essential(e: &Matrix3<f64>) -> Vec<Pose> {
     let mut out = Vec::new();
     for r in [u * w * vt, u * w.transpose() * vt] {
         for s in [1.0, -1.0] {
-            out.push(Pose {
+            out.push(Rigid3 {
                 rotation: r,
                 translation: t * s,
             });
@@ -163,7 +163,7 @@ pub fn decompose_essential(e: &Matrix3<f64>) -> Vec<Pose> {
 
 /// Depths (λ₁, λ₂) along the two rays of the point closest to both, camera 2 at `pose`
 /// relative to camera 1.
-pub fn depths(pose: &Pose, d1: &Vector3<f64>, d2: &Vector3<f64>) -> Option<(f64, f64)> {
+pub fn depths(pose: &Rigid3, d1: &Vector3<f64>, d2: &Vector3<f64>) -> Option<(f64, f64)> {
     // λ₁ R d₁ − λ₂ d₂ = −t, least squares.
     let a = pose.rotation * d1;
     let m = nalgebra::Matrix3x2::from_columns(&[a, -d2]);
@@ -188,8 +188,8 @@ fn best_decomposition(
     d1: &[Vector3<f64>],
     d2: &[Vector3<f64>],
     use_k: &[bool],
-) -> (Pose, usize) {
-    let mut best = (Pose::identity(), 0usize);
+) -> (Rigid3, usize) {
+    let mut best = (Rigid3::identity(), 0usize);
     for pose in decompose_essential(e) {
         let count = (0..d1.len())
             .filter(|&k| {
@@ -241,7 +241,7 @@ fn homography_error(h: &Matrix3<f64>, d1: &Vector3<f64>, d2: &Vector3<f64>) -> f
 
 /// The candidate poses (camera 2 in camera 1's frame, |t| = 1, both signs of t) of a
 /// homography between plane coordinates (Faugeras & Lustman's SVD decomposition).
-pub fn decompose_homography(h: &Matrix3<f64>) -> Vec<Pose> {
+pub fn decompose_homography(h: &Matrix3<f64>) -> Vec<Rigid3> {
     let svd = h.svd(true, true);
     let (Some(u), Some(vt)) = (svd.u, svd.v_t) else {
         return Vec::new();
@@ -268,7 +268,7 @@ pub fn decompose_homography(h: &Matrix3<f64>) -> Vec<Pose> {
         let tn = t.norm();
         if tn > 0.0 && r.iter().all(|v| v.is_finite()) {
             for sign in [1.0, -1.0] {
-                out.push(Pose {
+                out.push(Rigid3 {
                     rotation: p * r * p,
                     translation: p * (t * (sign / tn)),
                 });
@@ -297,7 +297,7 @@ pub fn decompose_homography(h: &Matrix3<f64>) -> Vec<Pose> {
 /// Angular error of a correspondence under a pose: the rays' distance from the point
 /// closest to both, as seen from each camera (radians, the larger of the two); infinite
 /// behind a camera.
-fn pose_error(pose: &Pose, d1: &Vector3<f64>, d2: &Vector3<f64>) -> f64 {
+fn pose_error(pose: &Rigid3, d1: &Vector3<f64>, d2: &Vector3<f64>) -> f64 {
     match depths(pose, d1, d2) {
         Some((a, b)) if a > 0.0 && b > 0.0 => {
             let x1 = d1 * a;
@@ -426,7 +426,7 @@ pub fn relative_orientation(
         let n_h = h_inl.iter().filter(|v| **v).count();
         if n_h >= 8 && 5 * n_h >= 4 * n_e {
             // A planar scene (or too little parallax for E): the homography decides.
-            let mut best_h: Option<(usize, f64, Pose)> = None;
+            let mut best_h: Option<(usize, f64, Rigid3)> = None;
             for cand in decompose_homography(&h) {
                 let (mut count, mut err) = (0usize, 0.0);
                 for k in 0..n {
@@ -489,21 +489,21 @@ pub fn relative_orientation(
 }
 
 /// `[t]× R` (for tests and callers that build E from a pose).
-pub fn essential_from_pose(pose: &Pose) -> Matrix3<f64> {
+pub fn essential_from_pose(pose: &Rigid3) -> Matrix3<f64> {
     skew(&pose.translation) * pose.rotation
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::rotation::from_opk;
+    use pingcal_geometry::from_opk;
     use rand::Rng;
     use rand_distr::{Distribution, Normal};
 
     #[test]
     fn recovers_relative_pose_from_noisy_rays_with_outliers() {
         let mut rng = pingcal_geometry::consensus::rng(4);
-        let truth = Pose {
+        let truth = Rigid3 {
             rotation: from_opk(0.1, -0.3, 0.2),
             translation: Vector3::new(-1.0, 0.1, 0.2).normalize(),
         };
@@ -561,7 +561,7 @@ mod tests {
     fn a_flat_scene_goes_through_the_homography() {
         let mut rng = pingcal_geometry::consensus::rng(8);
         // Camera 1 looks at a plane 4 units ahead, tilted; camera 2 moved sideways and turned.
-        let truth = Pose {
+        let truth = Rigid3 {
             rotation: from_opk(0.15, 0.05, 0.3),
             translation: Vector3::new(-1.0, 0.2, 0.1).normalize(),
         };
@@ -598,7 +598,7 @@ mod tests {
 
     #[test]
     fn homography_decomposition_contains_the_truth() {
-        let truth = Pose {
+        let truth = Rigid3 {
             rotation: from_opk(-0.2, 0.1, 0.4),
             translation: Vector3::new(0.3, -0.5, 0.8).normalize(),
         };

@@ -14,11 +14,11 @@
 //! requirement that points be in front of the camera (the model's `project` says so).
 
 use crate::camera::CameraModel;
-use crate::pose::Pose;
-use crate::rotation::skew;
 use nalgebra::{DMatrix, Matrix6, Vector2, Vector3, Vector6};
 use pingcal_geometry::consensus::{self, ConsensusOptions, Estimator, Sampling};
+use pingcal_geometry::skew;
 use pingcal_geometry::Plane;
+use pingcal_geometry::Rigid3;
 
 /// Options of [`resect`].
 #[derive(Clone, Debug)]
@@ -48,7 +48,7 @@ impl Default for ResectionOptions {
 #[derive(Clone, Debug)]
 pub struct Resection {
     /// The pose (object → camera).
-    pub pose: Pose,
+    pub pose: Rigid3,
     /// Per input point: reprojection error under the threshold at the refined pose.
     pub inliers: Vec<bool>,
     /// RMS reprojection error of the inliers, pixels (per coordinate).
@@ -131,7 +131,7 @@ pub fn real_roots(c: &[f64]) -> Vec<f64> {
 
 /// The rigid transform (R, t) with `to ≈ R·from + t` (least squares, SVD), or `None` for
 /// fewer than 3 points or a degenerate configuration.
-pub fn rigid_transform(from: &[Vector3<f64>], to: &[Vector3<f64>]) -> Option<Pose> {
+pub fn rigid_transform(from: &[Vector3<f64>], to: &[Vector3<f64>]) -> Option<Rigid3> {
     similarity_transform(from, to, false).map(|(p, _)| p)
 }
 
@@ -142,9 +142,9 @@ pub fn similarity_transform(
     from: &[Vector3<f64>],
     to: &[Vector3<f64>],
     with_scale: bool,
-) -> Option<(Pose, f64)> {
+) -> Option<(Rigid3, f64)> {
     let s = pingcal_geometry::umeyama(from, to, None, with_scale).ok()?;
-    let pose = Pose {
+    let pose = Rigid3 {
         rotation: s.rotation,
         translation: s.translation,
     };
@@ -153,7 +153,7 @@ pub fn similarity_transform(
 
 /// Grunert's P3P: the poses (up to four) that put the object points `x` on the unit rays
 /// `j` (camera frame). Candidates are checked against the three distance equations.
-pub fn p3p(j: &[Vector3<f64>; 3], x: &[Vector3<f64>; 3]) -> Vec<Pose> {
+pub fn p3p(j: &[Vector3<f64>; 3], x: &[Vector3<f64>; 3]) -> Vec<Rigid3> {
     let a2 = (x[1] - x[2]).norm_squared();
     let b2 = (x[0] - x[2]).norm_squared();
     let c2 = (x[0] - x[1]).norm_squared();
@@ -204,7 +204,7 @@ pub fn p3p(j: &[Vector3<f64>; 3], x: &[Vector3<f64>; 3]) -> Vec<Pose> {
 fn reprojection(
     model: &dyn CameraModel,
     params: &[f64],
-    pose: &Pose,
+    pose: &Rigid3,
     x: &Vector3<f64>,
     uv: &Vector2<f64>,
 ) -> Option<Vector2<f64>> {
@@ -218,7 +218,7 @@ fn reprojection(
 pub fn pose_residual_jacobian(
     model: &dyn CameraModel,
     params: &[f64],
-    pose: &Pose,
+    pose: &Rigid3,
     x: &Vector3<f64>,
     uv: &Vector2<f64>,
 ) -> Option<(Vector2<f64>, nalgebra::Matrix2x6<f64>)> {
@@ -241,9 +241,9 @@ pub fn refine_pose(
     uv: &[Vector2<f64>],
     x: &[Vector3<f64>],
     use_point: &[bool],
-    pose: &Pose,
-) -> Pose {
-    let cost = |p: &Pose| -> Option<f64> {
+    pose: &Rigid3,
+) -> Rigid3 {
+    let cost = |p: &Rigid3| -> Option<f64> {
         let mut s = 0.0;
         for k in 0..uv.len() {
             if use_point[k] {
@@ -311,14 +311,14 @@ struct P3pSamples<'a> {
 }
 
 impl Estimator for P3pSamples<'_> {
-    type Model = Pose;
+    type Model = Rigid3;
     fn len(&self) -> usize {
         self.pts.len()
     }
     fn sample_size(&self) -> usize {
         3
     }
-    fn fit(&self, t: &[usize], poses: &mut Vec<Pose>) {
+    fn fit(&self, t: &[usize], poses: &mut Vec<Rigid3>) {
         let xs = [self.pts[t[0]], self.pts[t[1]], self.pts[t[2]]];
         // Skip thin triangles: the P3P is ill-conditioned on them.
         let area = (xs[1] - xs[0]).cross(&(xs[2] - xs[0])).norm();
@@ -334,10 +334,10 @@ impl Estimator for P3pSamples<'_> {
             &xs,
         ));
     }
-    fn residual(&self, pose: &Pose, k: usize) -> f64 {
+    fn residual(&self, pose: &Rigid3, k: usize) -> f64 {
         self.residual_squared(pose, k).sqrt()
     }
-    fn residual_squared(&self, pose: &Pose, k: usize) -> f64 {
+    fn residual_squared(&self, pose: &Rigid3, k: usize) -> f64 {
         reprojection(self.model, self.params, pose, &self.pts[k], &self.uv[k])
             .map_or(f64::INFINITY, |r| r.norm_squared())
     }
@@ -457,8 +457,8 @@ pub fn resect(
 pub(crate) mod tests {
     use super::*;
     use crate::camera::PhotogrammetricCamera;
-    use crate::rotation::{exp_so3, from_opk};
     use nalgebra::Matrix3;
+    use pingcal_geometry::{exp_so3, from_opk};
     use rand::Rng;
     use rand_distr::{Distribution, Normal};
 
@@ -473,7 +473,7 @@ pub(crate) mod tests {
     }
 
     /// A camera at `centre` looking at `target` (Y forward, Z roughly up).
-    pub fn look_at(centre: Vector3<f64>, target: Vector3<f64>, roll: f64) -> Pose {
+    pub fn look_at(centre: Vector3<f64>, target: Vector3<f64>, roll: f64) -> Rigid3 {
         let y = (target - centre).normalize();
         let up = if y.z.abs() > 0.9 {
             Vector3::x()
@@ -483,7 +483,7 @@ pub(crate) mod tests {
         let x = y.cross(&up).normalize();
         let z = x.cross(&y);
         let r = Matrix3::from_rows(&[x.transpose(), y.transpose(), z.transpose()]);
-        Pose::from_rotation_and_centre(exp_so3(&Vector3::new(0.0, roll, 0.0)) * r, centre)
+        Rigid3::from_rotation_and_centre(exp_so3(&Vector3::new(0.0, roll, 0.0)) * r, centre)
     }
 
     #[test]
@@ -501,7 +501,7 @@ pub(crate) mod tests {
     fn p3p_recovers_the_true_pose_among_its_candidates() {
         let mut rng = pingcal_geometry::consensus::rng(5);
         for _ in 0..200 {
-            let pose = Pose::from_rotation_and_centre(
+            let pose = Rigid3::from_rotation_and_centre(
                 from_opk(
                     rng.random_range(-1.0..1.0),
                     rng.random_range(-1.0..1.0),

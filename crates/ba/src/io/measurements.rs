@@ -44,7 +44,7 @@
 //!   `c` is required) and `calibrate` lists the ones adjusted (self-calibration); the others
 //!   are held fixed. An empty or missing `calibrate` holds the camera fixed.
 //! * `pose` (optional): the projection centre in object space and the angles ω, φ, κ in
-//!   degrees with R = R_ω R_φ R_κ ([`crate::rotation::from_opk`]), the object → camera
+//!   degrees with R = R_ω R_φ R_κ ([`pingcal_geometry::from_opk`]), the object → camera
 //!   rotation. An image without a pose gets one from [`crate::initial`]. `fixed: true`
 //!   (default false) holds the pose (datum (a) of issue 3: the main station).
 //! * `image_points`: `sigma_px` is the standard deviation of each coordinate.
@@ -66,10 +66,10 @@
 //! are flagged in [`Built::known_points`] / [`Built::known_poses`] for the initialiser.
 
 use crate::camera::{PhotogrammetricCamera, PHOTOGRAMMETRIC_PARAMS};
-use crate::pose::Pose;
 use crate::problem::{Camera, Image, Observation, Point, PointPrior, Problem};
-use crate::rotation::{from_opk, to_opk};
 use nalgebra::{Vector2, Vector3};
+use pingcal_geometry::Rigid3;
+use pingcal_geometry::{from_opk, to_opk};
 use serde::{Deserialize, Serialize};
 use std::collections::{BTreeMap, HashMap};
 use std::path::Path;
@@ -140,13 +140,13 @@ pub struct PoseSpec {
 
 impl PoseSpec {
     /// The pose.
-    pub fn to_pose(&self) -> Pose {
+    pub fn to_pose(&self) -> Rigid3 {
         let [o, p, k] = self.omega_phi_kappa_deg.map(f64::to_radians);
-        Pose::from_rotation_and_centre(from_opk(o, p, k), Vector3::from(self.centre))
+        Rigid3::from_rotation_and_centre(from_opk(o, p, k), Vector3::from(self.centre))
     }
 
     /// The file form of a pose.
-    pub fn from_pose(pose: &Pose) -> Self {
+    pub fn from_pose(pose: &Rigid3) -> Self {
         let (o, p, k) = to_opk(&pose.rotation);
         let c = pose.centre();
         Self {

@@ -6,8 +6,8 @@
 
 use super::layout::Layout;
 use crate::problem::Problem;
-use crate::rotation::skew;
 use nalgebra::{Matrix2x3, Vector2, Vector3};
+use pingcal_geometry::skew;
 use rayon::prelude::*;
 
 /// The linearization of all observations.

@@ -27,9 +27,9 @@ pub use precision::precision;
 pub use sigma::{IntrinsicsPrecision, PoseSigma, Precision, PrecisionError, MAX_DENSE_PRECISION};
 
 use crate::problem::{Problem, ProblemError};
-use crate::rotation::log_so3;
 use layout::Layout;
 use nalgebra::Vector3;
+use pingcal_geometry::log_so3;
 use rayon::prelude::*;
 use std::time::Instant;
 
@@ -200,8 +200,8 @@ pub fn solve(
 }
 
 struct Backup {
-    rigs: Vec<crate::pose::Pose>,
-    poses: Vec<crate::pose::Pose>,
+    rigs: Vec<pingcal_geometry::Rigid3>,
+    poses: Vec<pingcal_geometry::Rigid3>,
     intrinsics: Vec<Vec<f64>>,
     points: Vec<Vector3<f64>>,
 }
@@ -495,10 +495,10 @@ mod tests {
     //! (camera model ∘ pose update ∘ point), through the same step mapping the solver uses.
     use super::*;
     use crate::camera::PhotogrammetricCamera;
-    use crate::pose::Pose;
     use crate::problem::{Camera, Image, Observation, Point};
-    use crate::rotation::exp_so3;
     use nalgebra::{Vector2, Vector3};
+    use pingcal_geometry::exp_so3;
+    use pingcal_geometry::Rigid3;
     use std::sync::Arc;
 
     fn small_problem(loss: crate::loss::Loss) -> Problem {
@@ -515,7 +515,7 @@ mod tests {
             images.push(Image {
                 name: format!("i{k}"),
                 camera: cam,
-                pose: Pose::from_rotation_and_centre(r, Vector3::new(0.3 * k as f64, -2.0, 0.1)),
+                pose: Rigid3::from_rotation_and_centre(r, Vector3::new(0.3 * k as f64, -2.0, 0.1)),
                 fixed: false,
             });
         }

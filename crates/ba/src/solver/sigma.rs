@@ -157,7 +157,7 @@ pub(crate) fn pose_sigmas(
             let o = layout.slot_offset(layout.image_slot[i]?);
             let qq = DMatrix::from_fn(6, 6, |a, b| s02 * q(o + a, o + b));
             let rt = im.pose.rotation.transpose();
-            let jw = -(rt * crate::rotation::skew(&im.pose.translation));
+            let jw = -(rt * pingcal_geometry::skew(&im.pose.translation));
             let mut j = DMatrix::<f64>::zeros(3, 6);
             for a in 0..3 {
                 for b in 0..3 {

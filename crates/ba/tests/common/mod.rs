@@ -5,22 +5,22 @@
 
 use nalgebra::{Matrix3, Vector2, Vector3};
 use pingcal_ba::camera::{CameraModel, PhotogrammetricCamera};
-use pingcal_ba::pose::Pose;
 use pingcal_ba::problem::{Camera, Image, Observation, Point, Problem};
-use pingcal_ba::rotation::exp_so3;
+use pingcal_geometry::exp_so3;
+use pingcal_geometry::Rigid3;
 use rand_distr::{Distribution, Normal};
 use std::sync::Arc;
 
 pub const SIGMA_PX: f64 = 0.3;
 
-pub fn look_at(centre: Vector3<f64>, target: Vector3<f64>, roll: f64) -> Pose {
+pub fn look_at(centre: Vector3<f64>, target: Vector3<f64>, roll: f64) -> Rigid3 {
     let f = (target - centre).normalize();
     let r0 = f.cross(&Vector3::z()).normalize();
     let u0 = r0.cross(&f);
     let (s, c) = roll.sin_cos();
     let (r, u) = (r0 * c + u0 * s, u0 * c - r0 * s);
     let rot = Matrix3::from_rows(&[r.transpose(), f.transpose(), u.transpose()]);
-    Pose::from_rotation_and_centre(rot, centre)
+    Rigid3::from_rotation_and_centre(rot, centre)
 }
 
 /// The true network: intrinsics of a MYNT-like wide-angle camera, 14 stations, ~80 points.
@@ -110,8 +110,10 @@ pub fn realisation(truth: &Problem, seed: u64) -> Problem {
     for im in &mut p.images {
         let dw = Vector3::new(n.sample(&mut rng), n.sample(&mut rng), n.sample(&mut rng)) * 0.01;
         let dc = Vector3::new(n.sample(&mut rng), n.sample(&mut rng), n.sample(&mut rng)) * 30.0;
-        im.pose =
-            Pose::from_rotation_and_centre(exp_so3(&dw) * im.pose.rotation, im.pose.centre() + dc);
+        im.pose = Rigid3::from_rotation_and_centre(
+            exp_so3(&dw) * im.pose.rotation,
+            im.pose.centre() + dc,
+        );
     }
     for pt in p.points.iter_mut().filter(|x| !x.fixed) {
         pt.position +=

@@ -11,7 +11,7 @@ use super::CmdResult;
 use crate::pipeline;
 use indicatif::MultiProgress;
 use nalgebra::{Matrix3, Vector3};
-use pingcal_lrf::corner::rotation_angle;
+use pingcal_geometry::rotation_angle;
 use pingcal_sim::project_files::PoseJson;
 use std::path::PathBuf;
 

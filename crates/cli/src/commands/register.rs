@@ -75,7 +75,7 @@ pub fn run(args: Args) -> CmdResult {
     let r = &ev.registration;
     let t = r.transform.translation;
     let st = r.sigma_translation_mm;
-    let e = r.transform.euler_deg();
+    let e = r.transform.opk_deg();
     let (what, table) = if ev.check.rows.is_empty() {
         ("leave-one-out", &ev.leave_one_out)
     } else {
@@ -91,9 +91,9 @@ pub fn run(args: Args) -> CmdResult {
         st.x,
         st.y,
         st.z,
-        e.x,
-        e.y,
-        e.z,
+        e[0],
+        e[1],
+        e[2],
         table.mean_mm,
         table.sd_mm,
         args.out.as_ref().map_or(String::new(), |o| format!(" → {}", o.display()))

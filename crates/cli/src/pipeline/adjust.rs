@@ -15,8 +15,8 @@ use super::ids::{DetectionId, IdVec, ImageId, PointId};
 use super::scene::{main_image, target_sigma, Detections, PointKind, Scene, SIGMA_FACTOR};
 use nalgebra::Vector2;
 use pingcal_ba::camera::{CameraModel, PhotogrammetricCamera};
-use pingcal_ba::pose::Pose;
 use pingcal_ba::problem::{Camera, Distance, Image, Observation, Point, Problem, Rig, RigMember};
+use pingcal_geometry::Rigid3;
 use pingcal_project::{Parameter, Project};
 use pingcal_targets::ball::{sphere_centre_from_ellipse, FnCamera};
 use std::sync::Arc;
@@ -150,7 +150,7 @@ impl SceneProblem {
         dets: &Detections,
         scene: &Scene,
         datum: Datum,
-        rig: Option<Pose>,
+        rig: Option<Rigid3>,
     ) -> Self {
         let mut sp = SceneProblem {
             problem: Problem {
@@ -249,7 +249,7 @@ impl SceneProblem {
     }
 
     /// The stereo rig: the member image of every station follows its base image.
-    fn add_rig(&mut self, project: &Project, rig_pose: Pose) {
+    fn add_rig(&mut self, project: &Project, rig_pose: Rigid3) {
         let Some((base_cam, member_cam)) = rig_cameras(project) else {
             return;
         };
@@ -387,8 +387,8 @@ accuracy_far_fraction = 0.03
         };
         let dets: Detections = vec![det(), det(), det()].into();
         let mut scene = Scene::new(&project);
-        scene.poses[ImageId(0)] = Some(Pose::identity());
-        scene.poses[ImageId(1)] = Some(Pose::identity());
+        scene.poses[ImageId(0)] = Some(Rigid3::identity());
+        scene.poses[ImageId(1)] = Some(Rigid3::identity());
         let d = |i, k| DetectionId::new(ImageId(i), DetIdx(k));
         for (n, obs) in [
             (1, vec![d(0, 0), d(1, 0), d(2, 0)]),

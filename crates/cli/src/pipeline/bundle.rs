@@ -16,8 +16,8 @@ use super::adjust::{rig_cameras, Datum, SceneProblem};
 use super::ids::ImageId;
 use super::scene::{image_file, Detections, PointKind, Scene};
 use super::{Options, PipelineError, Reporter, Result};
-use pingcal_ba::pose::Pose;
 use pingcal_ba::solver::{self, Precision, PrecisionError, Rejection, SnoopError};
+use pingcal_geometry::Rigid3;
 use pingcal_project::Project;
 
 /// The adjusted network.
@@ -30,14 +30,14 @@ pub struct Adjusted {
     /// Image points removed as gross errors.
     pub rejected: Vec<Rejection>,
     /// The stereo rig (left → right camera frame), when there is one.
-    pub rig: Option<Pose>,
+    pub rig: Option<Rigid3>,
     /// Iterations of all final adjustments.
     pub iterations: usize,
 }
 
 /// The rig pose (base → member camera frame) from the main station, or the first station
 /// where both cameras are oriented.
-fn initial_rig(project: &Project, scene: &Scene) -> Option<Pose> {
+fn initial_rig(project: &Project, scene: &Scene) -> Option<Rigid3> {
     let f = &project.file;
     let (base_cam, member_cam) = rig_cameras(project)?;
     let mut stations: Vec<&str> = vec![f.main_station.as_str()];
@@ -138,7 +138,7 @@ struct Rounds<'a> {
     dets: &'a Detections,
     options: solver::Options,
     snoop_critical: f64,
-    rig: Option<Pose>,
+    rig: Option<Rigid3>,
     rejected: Vec<Rejection>,
     iterations: usize,
 }

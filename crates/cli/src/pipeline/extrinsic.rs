@@ -20,17 +20,18 @@ use super::scene::{main_image, Detections, PointKind, Scene};
 use super::{Options, PipelineError, Reporter, Result};
 use nalgebra::{Matrix3, Vector2, Vector3};
 use pingcal_ba::camera::CameraModel;
+use pingcal_geometry::Sim3;
 use pingcal_lrf::corner_baseline::{fan_baseline, BaselineInput};
 use pingcal_lrf::correspondence::{match_balls, MatchOptions};
 use pingcal_lrf::registration::{
-    check_table, evaluate, CheckTable, Evaluation, PointObs, RegistrationOptions, Transform,
+    check_table, evaluate, CheckTable, Evaluation, PointObs, RegistrationOptions,
 };
 use pingcal_project::Project;
 
 /// The corner baseline's outcome.
 pub struct CornerOutcome {
     /// LRF → camera.
-    pub transform: Transform,
+    pub transform: Sim3,
     /// Its check table.
     pub check: CheckTable,
     /// What the baseline chose and why.

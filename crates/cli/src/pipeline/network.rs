@@ -14,8 +14,8 @@ use super::scene::{image_file, main_image, Detections, PointKind, Scene, ScenePo
 use super::{Options, PipelineError, Reporter, Result};
 use nalgebra::Vector3;
 use pingcal_ba::initial::incremental::{initialise, IncrementalOptions, Initialised};
-use pingcal_ba::pose::Pose;
 use pingcal_ba::solver;
+use pingcal_geometry::Rigid3;
 use pingcal_project::Project;
 use pingcal_targets::TargetKind;
 use std::collections::BTreeMap;
@@ -105,7 +105,11 @@ fn coded_tracks(dets: &Detections) -> BTreeMap<u32, Vec<DetectionId>> {
 /// (the initialiser ignores the starting poses and positions), no datum.
 fn starting_scene(project: &Project, seen: &BTreeMap<u32, Vec<DetectionId>>) -> Scene {
     let mut scene = Scene::new(project);
-    scene.poses = scene.poses.iter().map(|_| Some(Pose::identity())).collect();
+    scene.poses = scene
+        .poses
+        .iter()
+        .map(|_| Some(Rigid3::identity()))
+        .collect();
     scene.points = seen
         .iter()
         .map(|(id, obs)| ScenePoint {
@@ -129,7 +133,7 @@ fn into_main_frame(
 ) -> Result<Scene> {
     let f = &project.file;
     let mut scene = start;
-    let mut poses: IdVec<ImageId, Option<Pose>> = scene.poses.iter().map(|_| None).collect();
+    let mut poses: IdVec<ImageId, Option<Rigid3>> = scene.poses.iter().map(|_| None).collect();
     for (k, &i) in sp.map.images.iter().enumerate() {
         poses[i] = init.image_map[k].map(|m| init.problem.images[m].pose);
     }

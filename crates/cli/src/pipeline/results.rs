@@ -17,8 +17,9 @@ use super::lrf::LrfData;
 use super::scene::{image_file, PointKind, Scene};
 use super::Stages;
 use nalgebra::Matrix3;
-use pingcal_ba::rotation::to_opk;
-use pingcal_lrf::registration::{CheckRow, Transform};
+use pingcal_geometry::to_opk;
+use pingcal_geometry::Sim3;
+use pingcal_lrf::registration::CheckRow;
 use pingcal_project::{CameraParams, Project};
 use serde::Serialize;
 
@@ -193,11 +194,7 @@ fn mat(r: &Matrix3<f64>) -> [[f64; 3]; 3] {
     ]
 }
 
-fn extrinsic_json(
-    t: &Transform,
-    sigma_t: Option<[f64; 3]>,
-    sigma_r: Option<[f64; 3]>,
-) -> ExtrinsicJson {
+fn extrinsic_json(t: &Sim3, sigma_t: Option<[f64; 3]>, sigma_r: Option<[f64; 3]>) -> ExtrinsicJson {
     let (o, p, k) = to_opk(&t.rotation);
     ExtrinsicJson {
         rotation: mat(&t.rotation),
@@ -222,7 +219,7 @@ fn methods(ext: &Extrinsics) -> Vec<MethodJson> {
             extrinsic: Some(extrinsic_json(
                 &r.transform,
                 Some(r.sigma_translation_mm.into()),
-                Some(r.sigma_euler_deg.into()),
+                Some(r.sigma_opk_deg.into()),
             )),
             check_points: table.rows.clone(),
             mean_check_error_mm: Some(table.mean_mm),

@@ -14,7 +14,7 @@
 use super::ids::{CameraId, DetIdx, DetectionId, IdVec, ImageId, PointId};
 use nalgebra::{Vector2, Vector3};
 use pingcal_ba::camera::{CameraModel, PhotogrammetricCamera};
-use pingcal_ba::pose::Pose;
+use pingcal_geometry::Rigid3;
 use pingcal_project::Project;
 use pingcal_targets::ellipse::Ellipse;
 use pingcal_targets::Target;
@@ -129,7 +129,7 @@ pub struct Scene {
     /// Intrinsics of each project camera.
     pub intrinsics: IdVec<CameraId, Vec<f64>>,
     /// Pose of each project image (None: not oriented).
-    pub poses: IdVec<ImageId, Option<Pose>>,
+    pub poses: IdVec<ImageId, Option<Rigid3>>,
     /// Object points.
     pub points: IdVec<PointId, ScenePoint>,
     /// Why images are not oriented.
