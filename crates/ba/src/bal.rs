@@ -182,7 +182,7 @@ pub fn parse_bal<R: BufRead>(reader: R, path: &str) -> Result<Problem, BalError>
         images.push(Image {
             name: format!("image{c}"),
             camera: c,
-            pose: Rigid3 {
+            camera_from_object: Rigid3 {
                 rotation,
                 translation: Vector3::new(v[3], v[4], v[5]),
             },
@@ -222,11 +222,11 @@ pub fn write_bal<W: Write>(problem: &Problem, mut w: W) -> std::io::Result<()> {
         writeln!(w, "{} {} {:.17e} {:.17e}", o.image, o.point, o.uv.x, o.uv.y)?;
     }
     for im in &problem.images {
-        let aa = log_so3(&im.pose.rotation);
+        let aa = log_so3(&im.camera_from_object.rotation);
         let p = &problem.cameras[im.camera].params;
         for v in aa
             .iter()
-            .chain(im.pose.translation.iter())
+            .chain(im.camera_from_object.translation.iter())
             .chain(p.iter().take(3))
         {
             writeln!(w, "{v:.17e}")?;
@@ -257,11 +257,19 @@ mod tests {
             (2, 2, 3)
         );
         assert_eq!(p.cameras[0].params, vec![500.0, 0.01, 0.001]);
-        assert!((log_so3(&p.images[0].pose.rotation) - Vector3::new(0.1, 0.2, 0.3)).norm() < 1e-15);
+        assert!(
+            (log_so3(&p.images[0].camera_from_object.rotation) - Vector3::new(0.1, 0.2, 0.3))
+                .norm()
+                < 1e-15
+        );
         let mut out = Vec::new();
         write_bal(&p, &mut out).unwrap();
         let q = parse_bal(out.as_slice(), "again").unwrap();
-        assert!((q.images[0].pose.rotation - p.images[0].pose.rotation).norm() < 1e-15);
+        assert!(
+            (q.images[0].camera_from_object.rotation - p.images[0].camera_from_object.rotation)
+                .norm()
+                < 1e-15
+        );
         assert_eq!(q.points[1].position, p.points[1].position);
         assert_eq!(q.observations[2].uv, p.observations[2].uv);
     }

@@ -54,8 +54,8 @@ pub struct Image {
     pub name: String,
     /// Index into [`Problem::cameras`].
     pub camera: usize,
-    /// Exterior orientation (object → camera).
-    pub pose: Rigid3,
+    /// Exterior orientation: object → camera (`x_cam = R·X + t`).
+    pub camera_from_object: Rigid3,
     /// Pose held fixed.
     pub fixed: bool,
 }
@@ -121,7 +121,7 @@ pub struct Rig {
     /// Name used in reports (e.g. "stereo").
     pub name: String,
     /// Base camera frame → member camera frame.
-    pub pose: Rigid3,
+    pub member_from_base: Rigid3,
     /// Held fixed (a calibrated rig).
     pub fixed: bool,
     /// Member images and their base images (same station).
@@ -250,7 +250,7 @@ impl Problem {
                     count: self.cameras.len(),
                 });
             }
-            let p = &im.pose;
+            let p = &im.camera_from_object;
             if !p
                 .rotation
                 .iter()
@@ -372,7 +372,9 @@ impl Problem {
     pub fn sync_rigs(&mut self) {
         for rig in &self.rigs {
             for m in &rig.members {
-                self.images[m.image].pose = rig.pose.compose(&self.images[m.base].pose);
+                self.images[m.image].camera_from_object = rig
+                    .member_from_base
+                    .compose(&self.images[m.base].camera_from_object);
             }
         }
     }
@@ -382,7 +384,9 @@ impl Problem {
     pub fn residual(&self, o: &Observation) -> Option<Vector2<f64>> {
         let im = &self.images[o.image];
         let cam = &self.cameras[im.camera];
-        let xc = im.pose.transform(&self.points[o.point].position);
+        let xc = im
+            .camera_from_object
+            .transform(&self.points[o.point].position);
         cam.model
             .project(&cam.params, &xc, None, None)
             .map(|uv| uv - o.uv)

@@ -137,11 +137,11 @@ impl AdjustmentReport {
             .iter()
             .enumerate()
             .map(|(i, im)| {
-                let (o, p, k) = to_opk(&im.pose.rotation);
+                let (o, p, k) = to_opk(&im.camera_from_object.rotation);
                 let s = precision.poses.get(i).copied().flatten();
                 ImageReport {
                     name: im.name.clone(),
-                    centre: im.pose.centre().into(),
+                    centre: im.camera_from_object.centre().into(),
                     sigma_centre: s.map(|s| s.centre),
                     omega_phi_kappa_deg: [o.to_degrees(), p.to_degrees(), k.to_degrees()],
                     sigma_rotation_deg: s.map(|s| s.rotation_rad.map(f64::to_degrees)),

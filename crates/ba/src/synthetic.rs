@@ -98,7 +98,7 @@ impl SyntheticBal {
             images.push(Image {
                 name: format!("image{c}"),
                 camera: c,
-                pose: Rigid3::from_rotation_and_centre(r, centre),
+                camera_from_object: Rigid3::from_rotation_and_centre(r, centre),
                 fixed: false,
             });
         }
@@ -128,7 +128,7 @@ impl SyntheticBal {
             chosen.clear();
             let candidates: Vec<usize> = (lo..lo + window)
                 .filter(|&c| {
-                    let xc = images[c].pose.transform(&x);
+                    let xc = images[c].camera_from_object.transform(&x);
                     xc.z < -1.0 && (xc.x / xc.z).abs() < 1.0 && (xc.y / xc.z).abs() < 0.8
                 })
                 .collect();
@@ -144,7 +144,7 @@ impl SyntheticBal {
             }
             chosen.sort_unstable();
             for &c in &chosen {
-                let xc = images[c].pose.transform(&x);
+                let xc = images[c].camera_from_object.transform(&x);
                 let uv = model
                     .project(&cameras[c].params, &xc, None, None)
                     .expect("in front");
@@ -183,8 +183,9 @@ impl SyntheticBal {
                 n01.sample(&mut rng),
                 n01.sample(&mut rng),
             ) * (0.02 * s);
-            let r = exp_so3(&dw) * im.pose.rotation;
-            im.pose = Rigid3::from_rotation_and_centre(r, im.pose.centre() + dc);
+            let r = exp_so3(&dw) * im.camera_from_object.rotation;
+            im.camera_from_object =
+                Rigid3::from_rotation_and_centre(r, im.camera_from_object.centre() + dc);
         }
         for c in &mut problem.cameras {
             c.params[0] *= 1.0 + 0.005 * s * n01.sample(&mut rng);

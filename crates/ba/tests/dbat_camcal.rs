@@ -314,7 +314,7 @@ fn dbat_model_in_dbat_metric_gives_dbat_sigma0() {
     let mut io = vec![
         par[0], px0, py0, -par[3], -par[4], -par[5], -par[6], -par[7], -par[8],
     ];
-    let mut poses: Vec<_> = p.images.iter().map(|i| i.pose).collect();
+    let mut poses: Vec<_> = p.images.iter().map(|i| i.camera_from_object).collect();
     let mut pts: Vec<_> = p.points.iter().map(|x| x.position).collect();
     let free_pts: Vec<usize> = (0..pts.len()).filter(|&j| !p.points[j].fixed).collect();
     let mut pcol = vec![usize::MAX; pts.len()];

@@ -80,7 +80,7 @@ fn distances_fix_the_scale_and_their_absence_is_a_named_datum_defect() {
     for pt in &mut p.points {
         pt.fixed = false;
     }
-    p.images[0].pose = t.images[0].pose;
+    p.images[0].camera_from_object = t.images[0].camera_from_object;
     p.images[0].fixed = true;
     let d1 = (t.points[0].position - t.points[40].position).norm();
     let d2 = (t.points[12].position - t.points[70].position).norm();

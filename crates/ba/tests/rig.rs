@@ -30,11 +30,11 @@ fn stereo_truth() -> (Problem, Rigid3) {
     let n_left = p.images.len();
     let mut members = Vec::new();
     for i in 0..n_left {
-        let pose = rig.compose(&p.images[i].pose);
+        let pose = rig.compose(&p.images[i].camera_from_object);
         p.images.push(Image {
             name: format!("{}-right", p.images[i].name),
             camera: 1,
-            pose,
+            camera_from_object: pose,
             fixed: false,
         });
         members.push(RigMember {
@@ -46,7 +46,7 @@ fn stereo_truth() -> (Problem, Rigid3) {
     let params = p.cameras[1].params.clone();
     for i in n_left..p.images.len() {
         for (q, pt) in p.points.iter().enumerate() {
-            let xc = p.images[i].pose.transform(&pt.position);
+            let xc = p.images[i].camera_from_object.transform(&pt.position);
             if let Some(uv) = model.project(&params, &xc, None, None) {
                 if uv.x > 5.0 && uv.x < 1274.0 && uv.y > 5.0 && uv.y < 714.0 {
                     p.observations.push(Observation {
@@ -61,7 +61,7 @@ fn stereo_truth() -> (Problem, Rigid3) {
     }
     p.rigs.push(Rig {
         name: "stereo".into(),
-        pose: rig,
+        member_from_base: rig,
         fixed: false,
         members,
     });
@@ -81,15 +81,16 @@ fn stereo_rig_is_recovered_without_bias() {
             o.uv += Vector2::new(n.sample(&mut rng), n.sample(&mut rng)) * SIGMA_PX;
         }
         // Start from a rough rig (5 mm, 0.5°) and perturbed left poses.
-        let r0 = &p.rigs[0].pose;
-        p.rigs[0].pose = Rigid3::from_rotation_and_centre(
+        let r0 = &p.rigs[0].member_from_base;
+        p.rigs[0].member_from_base = Rigid3::from_rotation_and_centre(
             exp_so3(&Vector3::new(0.004, -0.006, 0.008)) * r0.rotation,
             r0.centre() + Vector3::new(5.0, -3.0, 2.0),
         );
         for im in p.images.iter_mut().take(14) {
-            let c = im.pose.centre()
+            let c = im.camera_from_object.centre()
                 + Vector3::new(n.sample(&mut rng), n.sample(&mut rng), n.sample(&mut rng)) * 20.0;
-            im.pose = Rigid3::from_rotation_and_centre(im.pose.rotation, c);
+            im.camera_from_object =
+                Rigid3::from_rotation_and_centre(im.camera_from_object.rotation, c);
         }
         let opts = Options {
             function_tolerance: 1e-12,
@@ -99,14 +100,14 @@ fn stereo_rig_is_recovered_without_bias() {
             ..Options::default()
         };
         solve(&mut p, &opts, |_| {}).unwrap();
-        let r = &p.rigs[0].pose;
+        let r = &p.rigs[0].member_from_base;
         let dc = r.centre() - rig_true.centre();
         let dw = log_so3(&(r.rotation * rig_true.rotation.transpose()));
         errs.push([dc.x, dc.y, dc.z, dw.x, dw.y, dw.z]);
         // Members follow: the right pose is the rig composed with the left pose.
-        let expect = r.compose(&p.images[3].pose);
-        assert!((p.images[17].pose.rotation - expect.rotation).norm() < 1e-12);
-        assert!((p.images[17].pose.translation - expect.translation).norm() < 1e-9);
+        let expect = r.compose(&p.images[3].camera_from_object);
+        assert!((p.images[17].camera_from_object.rotation - expect.rotation).norm() < 1e-12);
+        assert!((p.images[17].camera_from_object.translation - expect.translation).norm() < 1e-9);
     }
     for k in 0..6 {
         let xs: Vec<f64> = errs.iter().map(|e| e[k]).collect();

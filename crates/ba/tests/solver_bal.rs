@@ -100,7 +100,7 @@ fn a_point_behind_a_camera_is_named() {
     // Move point 7 onto the projection plane of its first camera: the BAL model cannot
     // image it there.
     let o = *p.observations.iter().find(|o| o.point == 7).unwrap();
-    let pose = p.images[o.image].pose;
+    let pose = p.images[o.image].camera_from_object;
     let xc = pose.transform(&p.points[7].position);
     let on_plane = nalgebra::Vector3::new(xc.x, xc.y, 0.0);
     p.points[7].position = pose.inverse().transform(&on_plane);

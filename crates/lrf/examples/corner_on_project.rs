@@ -104,9 +104,9 @@ fn main() {
     let t0 = std::time::Instant::now();
     let r = fan_baseline(&input).unwrap();
     let el = t0.elapsed().as_secs_f64();
-    let dt = r.lrf_to_camera.translation - ext.translation;
-    let da = ang(&r.lrf_to_camera.rotation, &ext.rotation);
-    let e_from_t = r.lrf_to_camera.compose(&ext.inverse());
+    let dt = r.camera_from_lrf.translation - ext.translation;
+    let da = ang(&r.camera_from_lrf.rotation, &ext.rotation);
+    let e_from_t = r.camera_from_lrf.compose(&ext.inverse());
     let chk = targets
         .iter()
         .map(|(_, q)| (e_from_t.transform(q) - q).norm())
@@ -125,10 +125,10 @@ fn main() {
         }
     }
     // 1. corner frame (p_photo = T p_corner) vs truth (p_photo = w2p p_world)
-    let dc = r.corner_in_camera.translation - w2p.translation;
+    let dc = r.camera_from_corner.translation - w2p.translation;
     println!(
         "corner frame vs truth: rotation {:.3}°, origin {:.2} mm {}",
-        ang(&r.corner_in_camera.rotation, &w2p.rotation),
+        ang(&r.camera_from_corner.rotation, &w2p.rotation),
         dc.norm(),
         f3(&dc)
     );
@@ -141,17 +141,17 @@ fn main() {
         f3(&dd)
     );
     // 3. LRF pose in the corner
-    let dl = r.lrf_in_corner.translation - lrf_in_world.translation;
+    let dl = r.corner_from_lrf.translation - lrf_in_world.translation;
     println!(
         "LRF in corner vs truth: rotation {:.3}°, position {:.1} mm {} (true position {})",
-        ang(&r.lrf_in_corner.rotation, &lrf_in_world.rotation),
+        ang(&r.corner_from_lrf.rotation, &lrf_in_world.rotation),
         dl.norm(),
         f3(&dl),
         f3(&lrf_in_world.translation)
     );
     // error budget: extrinsic error from each part alone
     let only_dlt = r.camera_from_dlt.compose(&lrf_in_world);
-    let only_lrf = w2p.compose(&r.lrf_in_corner);
+    let only_lrf = w2p.compose(&r.corner_from_lrf);
     println!(
         "  extrinsic with the true LRF-in-corner: {:.1} mm {:.3}°; with the true camera pose: \
          {:.1} mm {:.3}°",

@@ -18,7 +18,7 @@
 //!    The camera centre must then have all three corner coordinates positive (the room is
 //!    the positive octant); otherwise the other wall order is tried and the notes say so.
 //! 2. **Camera pose** by [`dlt_resection`] (DLT, then Gauss–Newton) from the main-image
-//!    targets and their corner-frame coordinates (`corner_in_camera.inverse()` applied to the
+//!    targets and their corner-frame coordinates (`camera_from_corner.inverse()` applied to the
 //!    photogrammetric coordinates). At least 6 targets, on at least two faces (not coplanar).
 //! 3. **LRF pose in the corner** from one scan, as Fan does: every scan line is tried
 //!    ([`scan_lines`] with inlier tolerance 3σ of the ranges, then [`lrf_pose_in_corner`]);
@@ -41,7 +41,7 @@
 //!    this rule 12 ± 6 mm / 0.66 ± 0.25°. The spread of the usable scans' poses is in the
 //!    notes.
 //! 4. **Composition:** `T_cam←lrf = T_cam←corner · T_corner←lrf`, i.e.
-//!    `camera_from_dlt.compose(&lrf_in_corner)` (`a.compose(&b)` applies `b` first).
+//!    `camera_from_dlt.compose(&corner_from_lrf)` (`a.compose(&b)` applies `b` first).
 //!
 //! Every failure is an [`LrfError`] naming the step and what was missing.
 
@@ -95,11 +95,11 @@ pub struct BaselineInput<'a> {
 #[derive(Debug, Clone)]
 pub struct BaselineResult {
     /// The extrinsic: `p_camera = R · p_lrf + t` (SPEC convention).
-    pub lrf_to_camera: Sim3,
+    pub camera_from_lrf: Sim3,
     /// LRF pose in the corner frame: `p_corner = T · p_lrf`.
-    pub lrf_in_corner: Sim3,
+    pub corner_from_lrf: Sim3,
     /// Corner frame in the photogrammetric frame, from the target planes: `p_photo = T · p_corner`.
-    pub corner_in_camera: Sim3,
+    pub camera_from_corner: Sim3,
     /// Camera pose from the DLT on the main image: `p_camera = T · p_corner`.
     pub camera_from_dlt: Sim3,
     /// Servo angle of the scan line used, degrees.
@@ -272,7 +272,7 @@ struct ScanPose {
     /// Index of the scan line in the sweep.
     k: usize,
     /// `p_corner = T · p_lrf`.
-    lrf_in_corner: Sim3,
+    corner_from_lrf: Sim3,
     /// Points on each of its three lines.
     line_inliers: [usize; 3],
     /// Predicted σ of the LRF position, mm ([`pose_uncertainty`]).
@@ -282,7 +282,7 @@ struct ScanPose {
 /// The corner frame of step 1 and which face each target is on.
 struct Corner {
     /// `p_photo = T · p_corner`.
-    corner_in_camera: Sim3,
+    camera_from_corner: Sim3,
     /// Per target: the slot of its face (0 wall x=0, 1 wall y=0, 2 floor), or `None`.
     face_of: Vec<Option<usize>>,
     /// Targets on each slot's face.
@@ -302,13 +302,13 @@ pub fn fan_baseline(input: &BaselineInput) -> Result<BaselineResult> {
     // ---- 3. LRF pose in the corner from one scan ----
     // rough prior: LRF axes ≈ camera axes, so corner←LRF ≈ corner←camera
     let prior: Matrix3<f64> = camera_from_dlt.rotation.transpose();
-    let scan = lrf_in_corner_from_one_scan(input, &prior, &mut notes)?;
+    let scan = corner_from_lrf_by_one_scan(input, &prior, &mut notes)?;
     // ---- 4. composition: T_cam←lrf = T_cam←corner · T_corner←lrf ----
-    let lrf_to_camera = camera_from_dlt.compose(&scan.lrf_in_corner);
-    if !lrf_to_camera
+    let camera_from_lrf = camera_from_dlt.compose(&scan.corner_from_lrf);
+    if !camera_from_lrf
         .rotation
         .iter()
-        .chain(lrf_to_camera.translation.iter())
+        .chain(camera_from_lrf.translation.iter())
         .all(|v| v.is_finite())
     {
         return Err(LrfError::Degenerate(
@@ -317,13 +317,13 @@ pub fn fan_baseline(input: &BaselineInput) -> Result<BaselineResult> {
     }
     notes.push(format!(
         "extrinsic: t = {} mm, ω φ κ = {} °",
-        fmt_v(&lrf_to_camera.translation),
-        fmt_v(&Vector3::from(lrf_to_camera.opk_deg()))
+        fmt_v(&camera_from_lrf.translation),
+        fmt_v(&Vector3::from(camera_from_lrf.opk_deg()))
     ));
     Ok(BaselineResult {
-        lrf_to_camera,
-        lrf_in_corner: scan.lrf_in_corner,
-        corner_in_camera: corner.corner_in_camera,
+        camera_from_lrf,
+        corner_from_lrf: scan.corner_from_lrf,
+        camera_from_corner: corner.camera_from_corner,
         camera_from_dlt,
         servo_deg: input.scans[scan.k].servo_deg,
         face_sizes: corner.face_sizes,
@@ -393,7 +393,7 @@ fn corner_from_targets(
         })
         .collect();
     let walls_floor = floor_and_walls(&normals, pts.len(), notes);
-    let (corner_in_camera, order) = corner_frame(&faces, pts, walls_floor, notes)?;
+    let (camera_from_corner, order) = corner_frame(&faces, pts, walls_floor, notes)?;
     let names = ["wall x=0", "wall y=0", "floor z=0"];
     for (name, &k) in names.iter().zip(&order) {
         notes.push(format!(
@@ -427,10 +427,10 @@ fn corner_from_targets(
         cos(0, 1),
         cos(1, 2),
         cos(0, 2),
-        fmt_v(&corner_in_camera.inverse().translation)
+        fmt_v(&camera_from_corner.inverse().translation)
     ));
     Ok(Corner {
-        corner_in_camera,
+        camera_from_corner,
         face_of,
         face_sizes: order.map(|k| faces[k].members.len()),
     })
@@ -567,7 +567,7 @@ fn dlt_points<'a>(
     pts: &[Vector3<f64>],
     corner: &Corner,
 ) -> DltPoints<'a> {
-    let corner_from_photo = corner.corner_in_camera.inverse();
+    let corner_from_photo = corner.camera_from_corner.inverse();
     let mut p = DltPoints {
         world: Vec::new(),
         image: Vec::new(),
@@ -650,7 +650,7 @@ fn camera_by_dlt(
         .sum::<f64>()
         / world.len() as f64)
         .sqrt();
-    let cam_c = corner.corner_in_camera.inverse().translation;
+    let cam_c = corner.camera_from_corner.inverse().translation;
     notes.push(format!(
         "DLT + resection on {} main-image targets ({} / {} / {} on the faces): reprojection rms \
          {:.3} mrad (normalised units × 1000); differs from the photogrammetric camera frame by \
@@ -660,8 +660,10 @@ fn camera_by_dlt(
         faces_seen[1],
         faces_seen[2],
         rms * 1e3,
-        rotation_angle(&(camera_from_dlt.rotation * corner.corner_in_camera.rotation.transpose()))
-            .to_degrees(),
+        rotation_angle(
+            &(camera_from_dlt.rotation * corner.camera_from_corner.rotation.transpose())
+        )
+        .to_degrees(),
         (camera_from_dlt.inverse().translation - cam_c).norm()
     ));
     Ok(camera_from_dlt)
@@ -718,10 +720,10 @@ fn usable_scans(input: &BaselineInput, prior: &Matrix3<f64>) -> Result<(Vec<Scan
             ScanTry::Weak => n_weak += 1,
             ScanTry::P3p => n_p3p += 1,
             ScanTry::Ok(b) => {
-                let (lrf_in_corner, lines, sd_mm) = *b;
+                let (corner_from_lrf, lines, sd_mm) = *b;
                 cands.push(ScanPose {
                     k,
-                    lrf_in_corner,
+                    corner_from_lrf,
                     line_inliers: lines.map(|l| l.inliers),
                     sd_mm,
                 });
@@ -748,7 +750,7 @@ fn usable_scans(input: &BaselineInput, prior: &Matrix3<f64>) -> Result<(Vec<Scan
 
 /// Step 3: the LRF pose in the corner from the one consistent scan whose pose is predicted
 /// most precise (see the module doc).
-fn lrf_in_corner_from_one_scan(
+fn corner_from_lrf_by_one_scan(
     input: &BaselineInput,
     prior: &Matrix3<f64>,
     notes: &mut Vec<String>,
@@ -757,7 +759,8 @@ fn lrf_in_corner_from_one_scan(
     // consistency: near the prior, and near the median position of the usable scans
     let n_all = cands.len();
     cands.retain(|c| {
-        rotation_angle(&(c.lrf_in_corner.rotation * prior.transpose())).to_degrees() < MAX_PRIOR_DEG
+        rotation_angle(&(c.corner_from_lrf.rotation * prior.transpose())).to_degrees()
+            < MAX_PRIOR_DEG
     });
     let n_prior = n_all - cands.len();
     if cands.is_empty() {
@@ -767,7 +770,7 @@ fn lrf_in_corner_from_one_scan(
              {summary}"
         )));
     }
-    let position = |c: &ScanPose| c.lrf_in_corner.translation;
+    let position = |c: &ScanPose| c.corner_from_lrf.translation;
     let med = Vector3::from_fn(|i, _| median(cands.iter().map(|c| position(c)[i]).collect()));
     let dev: Vec<f64> = cands.iter().map(|c| (position(c) - med).norm()).collect();
     let gate = (5.0 * median(dev.clone())).max(50.0);
@@ -812,7 +815,7 @@ fn lrf_in_corner_from_one_scan(
         scan.servo_deg,
         best.line_inliers,
         best.sd_mm,
-        fmt_v(&best.lrf_in_corner.translation)
+        fmt_v(&best.corner_from_lrf.translation)
     ));
     Ok(best)
 }

@@ -38,7 +38,7 @@ pub struct Matching {
     /// (LRF index, camera index) pairs.
     pub pairs: Vec<(usize, usize)>,
     /// Rigid transform LRF → camera from all pairs.
-    pub transform: Sim3,
+    pub camera_from_lrf: Sim3,
     /// RMS distance of the matched pairs after the transform, mm.
     pub rms_mm: f64,
 }
@@ -202,10 +202,10 @@ pub fn match_balls(
             ids: "common balls found by distance matching".into(),
         });
     }
-    let transform = fit(&pairs)?;
+    let camera_from_lrf = fit(&pairs)?;
     Ok(Matching {
         pairs,
-        transform,
+        camera_from_lrf,
         rms_mm: rms,
     })
 }
@@ -247,7 +247,7 @@ mod tests {
         for (i, j) in &m.pairs {
             assert_eq!(order[*j], *i, "LRF {i} matched to camera {j}");
         }
-        assert!((m.transform.translation - t).norm() < 5.0);
+        assert!((m.camera_from_lrf.translation - t).norm() < 5.0);
     }
 
     #[test]

@@ -71,7 +71,7 @@ impl Default for RegistrationOptions {
 #[derive(Debug, Clone)]
 pub struct Registration {
     /// The transform LRF → camera.
-    pub transform: Sim3,
+    pub camera_from_lrf: Sim3,
     /// Covariance of (δθ [rad, about the camera axes], t [mm], s) — 6×6 or 7×7.
     pub cov: DMatrix<f64>,
     /// σ of the translation, mm.
@@ -283,7 +283,7 @@ pub fn register(
     let cth3 = Matrix3::from_iterator(cth.iter().copied());
     let ce = je * cth3 * je.transpose();
     Ok(Registration {
-        transform: tr,
+        camera_from_lrf: tr,
         sigma_translation_mm: Vector3::new(sd(3), sd(4), sd(5)),
         sigma_rotation_vector_deg: Vector3::new(sd(0), sd(1), sd(2)).map(f64::to_degrees),
         sigma_opk_deg: Vector3::new(ce[(0, 0)], ce[(1, 1)], ce[(2, 2)])
@@ -394,7 +394,7 @@ pub fn leave_one_out(
             .map(|(_, p)| p.clone())
             .collect();
         match register(&a, &b, opt) {
-            Ok(r) => rows.push(check_row(&r.transform, &lrf[i], &cam[i])),
+            Ok(r) => rows.push(check_row(&r.camera_from_lrf, &lrf[i], &cam[i])),
             Err(e) => skipped.push((lrf[i].id.clone(), e.to_string())),
         }
     }
@@ -463,8 +463,8 @@ pub fn evaluate(
     let registration = register(&cl, &cc, opt)?;
     let (leave_one_out, loo_skipped) = leave_one_out(&cl, &cc, opt);
     Ok(Evaluation {
-        control: check_table(&registration.transform, &cl, &cc),
-        check: check_table(&registration.transform, &kl, &kc),
+        control: check_table(&registration.camera_from_lrf, &cl, &cc),
+        check: check_table(&registration.camera_from_lrf, &kl, &kc),
         registration,
         leave_one_out,
         loo_skipped,
@@ -477,7 +477,7 @@ impl Evaluation {
     /// When there are no check points, `check_points` holds the leave-one-out rows.
     pub fn to_json(&self) -> serde_json::Value {
         let r = &self.registration;
-        let m = &r.transform.rotation;
+        let m = &r.camera_from_lrf.rotation;
         let rows = |t: &CheckTable| serde_json::to_value(&t.rows).unwrap_or_default();
         let check = if self.check.rows.is_empty() {
             &self.leave_one_out
@@ -492,11 +492,11 @@ impl Evaluation {
         serde_json::json!({
             "extrinsic": {
                 "rotation": [[m[(0,0)], m[(0,1)], m[(0,2)]], [m[(1,0)], m[(1,1)], m[(1,2)]], [m[(2,0)], m[(2,1)], m[(2,2)]]],
-                "translation_mm": r.transform.translation.as_slice(),
+                "translation_mm": r.camera_from_lrf.translation.as_slice(),
                 "sigma_translation_mm": r.sigma_translation_mm.as_slice(),
                 "sigma_rotation_deg": r.sigma_opk_deg.as_slice(),
-                "opk_deg": r.transform.opk_deg(),
-                "scale": r.transform.scale,
+                "opk_deg": r.camera_from_lrf.opk_deg(),
+                "scale": r.camera_from_lrf.scale,
                 "sigma_scale": r.sigma_scale,
             },
             "check_points": check_rows,
@@ -549,9 +549,9 @@ mod tests {
                 },
             )
             .unwrap();
-            assert!((reg.transform.rotation - r).norm() < 1e-9);
-            assert!((reg.transform.translation - t).norm() < 1e-7);
-            assert!((reg.transform.scale - s).abs() < 1e-10);
+            assert!((reg.camera_from_lrf.rotation - r).norm() < 1e-9);
+            assert!((reg.camera_from_lrf.translation - t).norm() < 1e-7);
+            assert!((reg.camera_from_lrf.scale - s).abs() < 1e-10);
             assert!(reg.sigma0 < 1e-6);
         }
     }

@@ -23,7 +23,7 @@ struct Field {
     /// p_camera = T p_lrf
     truth: Sim3,
     /// p_photo = T p_corner
-    corner_in_camera: Sim3,
+    camera_from_corner: Sim3,
 }
 
 /// The default mount (eq. 2), shared by every input.
@@ -131,7 +131,7 @@ fn field(seed: u64, with_floor: bool) -> Field {
         targets,
         image,
         truth,
-        corner_in_camera: cam_from_world,
+        camera_from_corner: cam_from_world,
     }
 }
 
@@ -142,20 +142,21 @@ fn run(seed: u64) -> (f64, f64, f64) {
     let r = fan_baseline(&input).unwrap_or_else(|e| panic!("seed {seed}: {e}"));
     assert_eq!(r.face_sizes.iter().sum::<usize>(), f.targets.len());
     // the corner frame from the target planes is nearly exact (0.3 mm target noise)
-    let dc = (r.corner_in_camera.translation - f.corner_in_camera.translation).norm();
-    let ac =
-        rotation_angle(&(r.corner_in_camera.rotation * f.corner_in_camera.rotation.transpose()))
-            .to_degrees();
+    let dc = (r.camera_from_corner.translation - f.camera_from_corner.translation).norm();
+    let ac = rotation_angle(
+        &(r.camera_from_corner.rotation * f.camera_from_corner.rotation.transpose()),
+    )
+    .to_degrees();
     assert!(
         dc < 3.0 && ac < 0.2,
         "seed {seed}: corner frame {dc} mm {ac}°"
     );
-    let dt = (r.lrf_to_camera.translation - f.truth.translation).norm();
+    let dt = (r.camera_from_lrf.translation - f.truth.translation).norm();
     let da =
-        rotation_angle(&(r.lrf_to_camera.rotation * f.truth.rotation.transpose())).to_degrees();
+        rotation_angle(&(r.camera_from_lrf.rotation * f.truth.rotation.transpose())).to_degrees();
     // like the paper's check error: the extrinsic's error at points 1–2 m from the rig (the
     // targets, in the camera frame)
-    let est_from_true = r.lrf_to_camera.compose(&f.truth.inverse());
+    let est_from_true = r.camera_from_lrf.compose(&f.truth.inverse());
     let chk = f
         .targets
         .iter()

@@ -100,13 +100,13 @@ fn simulated_room_end_to_end() {
     let reg = &ev.registration;
     println!(
         "t = {:.2?} ± {:.2?} mm, σ0 {:.2}, LOO mean {:.2} mm",
-        reg.transform.translation.as_slice(),
+        reg.camera_from_lrf.translation.as_slice(),
         reg.sigma_translation_mm.as_slice(),
         reg.sigma0,
         ev.leave_one_out.mean_mm
     );
     for k in 0..3 {
-        let e = (reg.transform.translation - t_true)[k];
+        let e = (reg.camera_from_lrf.translation - t_true)[k];
         assert!(
             e.abs() < 4.0 * reg.sigma_translation_mm[k] + 0.5,
             "t[{k}] off by {e:.2} (σ {:.2})",

@@ -84,10 +84,10 @@ fn sigma_matches_monte_carlo_and_loo_matches_check() {
         )
         .unwrap();
         let reg = &ev.registration;
-        let dr =
-            Rotation3::from_matrix(&(reg.transform.rotation * r_true.transpose())).scaled_axis();
+        let dr = Rotation3::from_matrix(&(reg.camera_from_lrf.rotation * r_true.transpose()))
+            .scaled_axis();
         th.push(dr);
-        tt.push(reg.transform.translation - t_true);
+        tt.push(reg.camera_from_lrf.translation - t_true);
         pred_th += reg
             .sigma_rotation_vector_deg
             .map(|v| v.to_radians().powi(2));
@@ -207,7 +207,7 @@ fn paper_tables_reproduced() {
         },
     )
     .unwrap();
-    let own = registration::check_table(&reg.transform, &lrf, &cam);
+    let own = registration::check_table(&reg.camera_from_lrf, &lrf, &cam);
     assert!(
         own.mean_mm < table.mean_mm,
         "{} vs {}",

@@ -78,7 +78,7 @@ pub struct StereoRig {
     /// Left camera (index 0) and right camera (index 1).
     pub cameras: [CameraUnit; 2],
     /// Left-camera frame → right-camera frame.
-    pub left_to_right: Rigid3,
+    pub right_from_left: Rigid3,
 }
 
 impl StereoRig {
@@ -103,7 +103,7 @@ impl StereoRig {
                     params: c.right.params,
                 },
             ],
-            left_to_right,
+            right_from_left: left_to_right,
         }
     }
 }

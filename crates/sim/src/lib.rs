@@ -106,7 +106,7 @@ pub struct Simulation {
     /// The stations, main first.
     pub stations: Vec<Station>,
     /// World → LRF frame (at the main station).
-    pub world_to_lrf: Rigid3,
+    pub lrf_from_world: Rigid3,
     /// The servo sweep at the main station.
     pub scans: Vec<lrf::Scan>,
 }
@@ -122,7 +122,7 @@ impl Simulation {
             .iter()
             .find(|s| s.main)
             .expect("main station")
-            .left_pose;
+            .left_from_world;
         let world_to_lrf = lrf::world_to_lrf(&main, &cfg.lrf);
         let scans = lrf::simulate_scans(&scene.transformed(&world_to_lrf), &cfg.lrf, seed);
         Ok(Self {
@@ -131,7 +131,7 @@ impl Simulation {
             scene,
             rig,
             stations,
-            world_to_lrf,
+            lrf_from_world: world_to_lrf,
             scans,
         })
     }
@@ -142,6 +142,6 @@ impl Simulation {
             .iter()
             .find(|s| s.main)
             .expect("main station")
-            .left_pose
+            .left_from_world
     }
 }

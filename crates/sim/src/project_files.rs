@@ -217,7 +217,7 @@ fn image_file(st: &str, cam: &str) -> String {
 /// The ground truth of a simulation.
 pub fn truth_of(sim: &Simulation) -> Truth {
     let w2p = sim.world_to_photogrammetric();
-    let w2l = sim.world_to_lrf;
+    let w2l = sim.lrf_from_world;
     let ext = crate::lrf::extrinsic(&sim.config.lrf);
     let mut images = Vec::new();
     for st in &sim.stations {
@@ -263,7 +263,7 @@ pub fn truth_of(sim: &Simulation) -> Truth {
                 params: CameraParams::from_slice(&c.params),
             })
             .collect(),
-        left_to_right: PoseJson::from_pose(&sim.rig.left_to_right),
+        left_to_right: PoseJson::from_pose(&sim.rig.right_from_left),
         images,
         targets: sim
             .scene

@@ -22,7 +22,7 @@ pub struct Station {
     /// `S00` (main), `S01`, …
     pub id: String,
     /// World → left camera.
-    pub left_pose: Rigid3,
+    pub left_from_world: Rigid3,
     /// True for the station where the LRF scanned.
     pub main: bool,
 }
@@ -31,9 +31,9 @@ impl Station {
     /// World → camera pose of camera `cam` (0 left, 1 right) of `rig` at this station.
     pub fn camera_pose(&self, rig: &StereoRig, cam: usize) -> Rigid3 {
         if cam == 0 {
-            self.left_pose
+            self.left_from_world
         } else {
-            rig.left_to_right.compose(&self.left_pose)
+            rig.right_from_left.compose(&self.left_from_world)
         }
     }
 }
@@ -45,7 +45,7 @@ pub fn build_stations(cfg: &SimConfig, scene: &Scene, seed: u64) -> Result<Vec<S
     let mut rng = rng_for(seed, "stations", 0);
     let mut out = vec![Station {
         id: "S00".into(),
-        left_pose: main_left_pose(sc),
+        left_from_world: main_left_pose(sc),
         main: true,
     }];
     let mut keys = vec!["stations.main_centre_mm".to_string()];
@@ -78,7 +78,7 @@ pub fn build_stations(cfg: &SimConfig, scene: &Scene, seed: u64) -> Result<Vec<S
         let r = look_at_rotation(&centre, &(look + jit), roll);
         out.push(Station {
             id: format!("S{:02}", k + 1),
-            left_pose: Rigid3::from_rotation_and_centre(r, centre),
+            left_from_world: Rigid3::from_rotation_and_centre(r, centre),
             main: false,
         });
         keys.push("stations.distance_range_mm / stations.heights_mm".to_string());
@@ -96,7 +96,7 @@ pub fn build_stations(cfg: &SimConfig, scene: &Scene, seed: u64) -> Result<Vec<S
         }
         out.push(Station {
             id: format!("S{:02}", out.len()),
-            left_pose: Rigid3::from_rotation_and_centre(
+            left_from_world: Rigid3::from_rotation_and_centre(
                 look_at_rotation(&c, &l, e.roll_deg.to_radians()),
                 c,
             ),

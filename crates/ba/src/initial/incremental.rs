@@ -261,7 +261,7 @@ impl<'a> State<'a> {
             &options.resection,
         ) {
             Ok(r) => {
-                self.poses[i] = Some(r.pose);
+                self.poses[i] = Some(r.camera_from_object);
                 self.steps.push(Step::Resected {
                     image: im.name.clone(),
                     points: uv.len(),
@@ -290,7 +290,7 @@ impl<'a> State<'a> {
                     let pose = self.poses[ob.image]?;
                     let cam = &self.problem.cameras[self.problem.images[ob.image].camera];
                     Some(Ray {
-                        pose,
+                        camera_from_object: pose,
                         model: cam.model.as_ref(),
                         params: &self.params[self.problem.images[ob.image].camera],
                         uv: ob.uv,
@@ -342,7 +342,7 @@ impl<'a> State<'a> {
             if let Some(pose) = self.poses[i] {
                 image_map[i] = Some(sub.images.len());
                 let mut im = im.clone();
-                im.pose = pose;
+                im.camera_from_object = pose;
                 sub.images.push(im);
             }
         }
@@ -462,10 +462,10 @@ impl<'a> State<'a> {
         match solve(&mut sub, &options.bundle, |_| {}) {
             Ok(summary) => {
                 let finite = sub.images.iter().all(|im| {
-                    im.pose
+                    im.camera_from_object
                         .rotation
                         .iter()
-                        .chain(im.pose.translation.iter())
+                        .chain(im.camera_from_object.translation.iter())
                         .all(|v| v.is_finite())
                 }) && sub
                     .points
@@ -483,7 +483,7 @@ impl<'a> State<'a> {
                 }
                 for (i, m) in image_map.iter().enumerate() {
                     if let Some(k) = m {
-                        self.poses[i] = Some(sub.images[*k].pose);
+                        self.poses[i] = Some(sub.images[*k].camera_from_object);
                     }
                 }
                 for (j, m) in point_map.iter().enumerate() {
@@ -573,7 +573,7 @@ impl<'a> State<'a> {
             return Err(InitError::NoStart(last_error));
         };
         self.poses[ia] = Some(Rigid3::identity());
-        self.poses[ib] = Some(r.pose);
+        self.poses[ib] = Some(r.camera2_from_camera1);
         self.steps.push(Step::RelativePair {
             first: p.images[ia].name.clone(),
             second: p.images[ib].name.clone(),
@@ -689,7 +689,7 @@ impl<'a> State<'a> {
             problem,
             params: problem.cameras.iter().map(|c| c.params.clone()).collect(),
             poses: (0..ni)
-                .map(|i| known_pose[i].then_some(problem.images[i].pose))
+                .map(|i| known_pose[i].then_some(problem.images[i].camera_from_object))
                 .collect(),
             points: (0..np)
                 .map(|j| known[j].then_some(problem.points[j].position))
@@ -914,15 +914,19 @@ mod tests {
             truth.images.push(Image {
                 name: format!("S{i}"),
                 camera: 0,
-                pose: look_at(centre, target, rng.random_range(-0.3..0.3)),
+                camera_from_object: look_at(centre, target, rng.random_range(-0.3..0.3)),
                 fixed: false,
             });
         }
         let n = Normal::new(0.0, noise_px).unwrap();
         for (i, im) in truth.images.iter().enumerate() {
             for (j, pt) in truth.points.iter().enumerate() {
-                if let Some(uv) = cam.project(&params, &im.pose.transform(&pt.position), None, None)
-                {
+                if let Some(uv) = cam.project(
+                    &params,
+                    &im.camera_from_object.transform(&pt.position),
+                    None,
+                    None,
+                ) {
                     if uv.x > 0.0 && uv.y > 0.0 && uv.x < 1279.0 && uv.y < 719.0 {
                         truth.observations.push(Observation {
                             image: i,
@@ -938,7 +942,7 @@ mod tests {
         p.cameras[0].params[0] = 2.5; // approximate c
         p.cameras[0].params[3] = 0.0;
         for im in &mut p.images {
-            im.pose = Rigid3::identity();
+            im.camera_from_object = Rigid3::identity();
         }
         let mut known = vec![false; 60];
         for (j, pt) in p.points.iter_mut().enumerate() {
@@ -989,7 +993,10 @@ mod tests {
         let q = &init.problem;
         for (i, im) in truth.images.iter().enumerate() {
             let k = init.image_map[i].unwrap();
-            assert!((q.images[k].pose.centre() - im.pose.centre()).norm() < 20.0);
+            assert!(
+                (q.images[k].camera_from_object.centre() - im.camera_from_object.centre()).norm()
+                    < 20.0
+            );
         }
         for (j, pt) in truth.points.iter().enumerate() {
             let k = init.point_map[j].unwrap();
@@ -1076,7 +1083,8 @@ mod tests {
         for (i, im) in truth.images.iter().enumerate() {
             let k = init.image_map[i].unwrap();
             assert!(
-                (q.images[k].pose.centre() - im.pose.centre()).norm() < 50.0,
+                (q.images[k].camera_from_object.centre() - im.camera_from_object.centre()).norm()
+                    < 50.0,
                 "image {i}"
             );
         }
@@ -1176,7 +1184,7 @@ mod tests {
         p.images.push(Image {
             name: "lonely".into(),
             camera: 0,
-            pose: Rigid3::identity(),
+            camera_from_object: Rigid3::identity(),
             fixed: false,
         });
         for k in 0..2 {

@@ -13,8 +13,8 @@ use pingcal_geometry::Rigid3;
 /// One ray: an oriented image's pose, its camera and the measured pixel.
 #[derive(Clone, Copy, Debug)]
 pub struct Ray<'a> {
-    /// Pose of the image.
-    pub pose: Rigid3,
+    /// Exterior orientation of the image: object → camera.
+    pub camera_from_object: Rigid3,
     /// Camera model.
     pub model: &'a dyn CameraModel,
     /// Intrinsics.
@@ -75,10 +75,10 @@ pub fn point_residual_jacobian(
     ray: &Ray,
     x: &Vector3<f64>,
 ) -> Option<(Vector2<f64>, Matrix2x3<f64>)> {
-    let xc = ray.pose.transform(x);
+    let xc = ray.camera_from_object.transform(x);
     let mut jp = Matrix2x3::zeros();
     let p = ray.model.project(ray.params, &xc, Some(&mut jp), None)?;
-    Some((p - ray.uv, jp * ray.pose.rotation))
+    Some((p - ray.uv, jp * ray.camera_from_object.rotation))
 }
 
 /// Intersects the rays.
@@ -90,8 +90,8 @@ pub fn intersect(
     let mut centres = Vec::new();
     for r in rays {
         if let Some(d) = r.model.unproject(r.params, &r.uv) {
-            dirs.push(r.pose.rotation.transpose() * d);
-            centres.push(r.pose.centre());
+            dirs.push(r.camera_from_object.rotation.transpose() * d);
+            centres.push(r.camera_from_object.centre());
         }
     }
     if dirs.len() < 2 || dirs.len() < rays.len() {
@@ -167,7 +167,7 @@ pub fn intersect(
     }
     for (k, r) in rays.iter().enumerate() {
         if r.model
-            .project(r.params, &r.pose.transform(&x), None, None)
+            .project(r.params, &r.camera_from_object.transform(&x), None, None)
             .is_none()
         {
             return Err(IntersectionError::BehindCamera { ray: k });
@@ -194,7 +194,7 @@ mod tests {
     fn point_jacobian_matches_central_differences() {
         let (cam, p) = camera();
         let ray = Ray {
-            pose: look_at(
+            camera_from_object: look_at(
                 Vector3::new(0.3, -1.5, 1.2),
                 Vector3::new(0.5, 0.5, 0.0),
                 0.3,
@@ -232,7 +232,7 @@ mod tests {
         let rays: Vec<Ray> = poses
             .iter()
             .map(|pose| Ray {
-                pose: *pose,
+                camera_from_object: *pose,
                 model: &cam,
                 params: &p,
                 uv: cam
@@ -251,9 +251,9 @@ mod tests {
         assert!(r.rms_px < 0.3);
         // Two nearly identical stations: small angle.
         let mut near = rays[0];
-        near.pose = look_at(Vector3::new(-0.5, -0.5, 1.51), target, 0.0);
+        near.camera_from_object = look_at(Vector3::new(-0.5, -0.5, 1.51), target, 0.0);
         near.uv = cam
-            .project(&p, &near.pose.transform(&truth), None, None)
+            .project(&p, &near.camera_from_object.transform(&truth), None, None)
             .unwrap();
         assert!(matches!(
             intersect(&[rays[0], near], &IntersectionOptions::default()),

@@ -52,8 +52,8 @@ impl Default for RelativeOptions {
 /// A relative orientation.
 #[derive(Clone, Debug)]
 pub struct Relative {
-    /// Pose of camera 2 in camera 1's frame (|t| = 1).
-    pub pose: Rigid3,
+    /// Camera 1's frame → camera 2's frame (|t| = 1).
+    pub camera2_from_camera1: Rigid3,
     /// The essential matrix.
     pub essential: Matrix3<f64>,
     /// Per correspondence: consistent with the epipolar geometry and in front of both.
@@ -480,7 +480,7 @@ pub fn relative_orientation(
     }
     angles.sort_by(f64::total_cmp);
     Ok(Relative {
-        pose,
+        camera2_from_camera1: pose,
         essential: e,
         inliers: inl,
         median_angle_deg: angles[count / 2],
@@ -529,14 +529,14 @@ mod tests {
         }
         let r = relative_orientation(&d1, &d2, &RelativeOptions::default()).unwrap();
         assert!(
-            (r.pose.rotation - truth.rotation).norm() < 2e-3,
+            (r.camera2_from_camera1.rotation - truth.rotation).norm() < 2e-3,
             "{:?}",
-            r.pose.rotation
+            r.camera2_from_camera1.rotation
         );
         assert!(
-            (r.pose.translation - truth.translation).norm() < 1e-2,
+            (r.camera2_from_camera1.translation - truth.translation).norm() < 1e-2,
             "{:?}",
-            r.pose.translation
+            r.camera2_from_camera1.translation
         );
         for k in (0..100).step_by(9) {
             assert!(!r.inliers[k]);
@@ -584,14 +584,14 @@ mod tests {
         let r = relative_orientation(&d1, &d2, &RelativeOptions::default()).unwrap();
         assert!(r.planar);
         assert!(
-            (r.pose.rotation - truth.rotation).norm() < 5e-3,
+            (r.camera2_from_camera1.rotation - truth.rotation).norm() < 5e-3,
             "{:?}",
-            r.pose.rotation
+            r.camera2_from_camera1.rotation
         );
         assert!(
-            (r.pose.translation - truth.translation).norm() < 2e-2,
+            (r.camera2_from_camera1.translation - truth.translation).norm() < 2e-2,
             "{:?}",
-            r.pose.translation
+            r.camera2_from_camera1.translation
         );
         assert!(r.inliers.iter().filter(|v| **v).count() > 70);
     }

@@ -47,8 +47,8 @@ impl Default for ResectionOptions {
 /// A resected pose.
 #[derive(Clone, Debug)]
 pub struct Resection {
-    /// The pose (object → camera).
-    pub pose: Rigid3,
+    /// The pose: object → camera.
+    pub camera_from_object: Rigid3,
     /// Per input point: reprojection error under the threshold at the refined pose.
     pub inliers: Vec<bool>,
     /// RMS reprojection error of the inliers, pixels (per coordinate).
@@ -447,7 +447,7 @@ pub fn resect(
         }
     }
     Ok(Resection {
-        pose,
+        camera_from_object: pose,
         inliers,
         rms_px: (s / (2 * count) as f64).sqrt(),
     })
@@ -594,8 +594,8 @@ pub(crate) mod tests {
         let outliers: Vec<usize> = (0..100).filter(|k| !res.inliers[*k]).collect();
         assert_eq!(outliers, (0..100).step_by(7).collect::<Vec<_>>());
         assert!(res.rms_px < 0.3, "{}", res.rms_px);
-        assert!((res.pose.centre() - truth.centre()).norm() < 2e-3);
-        assert!((res.pose.rotation - truth.rotation).norm() < 1e-3);
+        assert!((res.camera_from_object.centre() - truth.centre()).norm() < 2e-3);
+        assert!((res.camera_from_object.rotation - truth.rotation).norm() < 1e-3);
     }
 
     #[test]

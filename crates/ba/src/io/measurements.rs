@@ -526,7 +526,7 @@ impl Builder {
             self.problem.images.push(Image {
                 name: im.name.clone(),
                 camera,
-                pose: im.pose.map(|p| p.to_pose()).unwrap_or_default(),
+                camera_from_object: im.pose.map(|p| p.to_pose()).unwrap_or_default(),
                 fixed: im.fixed,
             });
         }
@@ -720,7 +720,7 @@ impl Measurements {
         }
         for im in &mut out.images {
             if let Some(pi) = problem.images.iter().find(|pi| pi.name == im.name) {
-                im.pose = Some(PoseSpec::from_pose(&pi.pose));
+                im.pose = Some(PoseSpec::from_pose(&pi.camera_from_object));
             }
         }
         for cp in &mut out.control_points {
@@ -852,7 +852,7 @@ mod tests {
         let mut b = m.to_problem().unwrap();
         b.problem.cameras[0].params[0] = 2.5;
         b.problem.cameras[0].params[4] = 1e-4;
-        b.problem.images[1].pose = PoseSpec {
+        b.problem.images[1].camera_from_object = PoseSpec {
             centre: [100.0, 0.0, 5.0],
             omega_phi_kappa_deg: [1.0, 2.0, 3.0],
         }

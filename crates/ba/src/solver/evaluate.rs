@@ -112,8 +112,8 @@ pub(crate) fn linearize(
             let im = &problem.images[o.image];
             let cam = &problem.cameras[im.camera];
             let x = &problem.points[o.point].position;
-            let rx = im.pose.rotation * x;
-            let xc = rx + im.pose.translation;
+            let rx = im.camera_from_object.rotation * x;
+            let xc = rx + im.camera_from_object.translation;
             let mut dxc = Matrix2x3::zeros();
             let n = cam.params.len();
             // Intrinsic Jacobian on the stack for the usual models (≤ 16 parameters).
@@ -134,15 +134,15 @@ pub(crate) fn linearize(
             let scale = rho1.sqrt() / o.sigma;
             *r = res * rho1.sqrt();
             let dxc = dxc * scale;
-            *jp = dxc * im.pose.rotation;
+            *jp = dxc * im.camera_from_object.rotation;
             let nc = jc.len() / 2;
             let (j0, j1) = jc.split_at_mut(nc);
             let mut col = 0;
             if let Some((r, base)) = layout.image_rig[o.image] {
                 // xc = R_r (R_b X + t_b) + t_r with left updates of both poses:
                 // ∂xc/∂δω_b = −R_r [R_b X]×, ∂xc/∂δt_b = R_r; ∂xc/∂δω_r = −[xc − t_r]×, ∂xc/∂δt_r = I.
-                let rig = &problem.rigs[r].pose;
-                let b = &problem.images[base].pose;
+                let rig = &problem.rigs[r].member_from_base;
+                let b = &problem.images[base].camera_from_object;
                 if layout.image_slot[base].is_some() {
                     let jr = dxc * rig.rotation;
                     let jw = -(jr * skew(&(b.rotation * x)));

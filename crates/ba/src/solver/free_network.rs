@@ -148,7 +148,7 @@ fn similarity_null_space(
     for (i, slot) in layout.image_slot.iter().enumerate() {
         let Some(s) = slot else { continue };
         let o = layout.slot_offset(*s);
-        let pose = &problem.images[i].pose;
+        let pose = &problem.images[i].camera_from_object;
         for k in 0..3 {
             let e = Vector3::ith(k, 1.0);
             let dt = -(pose.rotation * e);
@@ -168,7 +168,7 @@ fn similarity_null_space(
         if let (Some(s), 7) = (slot, d) {
             let o = layout.slot_offset(*s);
             for a in 0..3 {
-                g[(o + 3 + a, 6)] = problem.rigs[rg].pose.translation[a];
+                g[(o + 3 + a, 6)] = problem.rigs[rg].member_from_base.translation[a];
             }
         }
     }

@@ -591,7 +591,7 @@ mod tests {
         p.distances = vec![distance(10, 200), distance(10, 18)];
         let rig = |fixed, members: &[(usize, usize)]| Rig {
             name: "rig".into(),
-            pose: p.images[7].pose,
+            member_from_base: p.images[7].camera_from_object,
             fixed,
             members: (members.iter())
                 .map(|&(image, base)| RigMember { image, base })

@@ -209,18 +209,18 @@ struct Backup {
 impl Backup {
     fn take(p: &Problem) -> Self {
         Self {
-            rigs: p.rigs.iter().map(|r| r.pose).collect(),
-            poses: p.images.iter().map(|i| i.pose).collect(),
+            rigs: p.rigs.iter().map(|r| r.member_from_base).collect(),
+            poses: p.images.iter().map(|i| i.camera_from_object).collect(),
             intrinsics: p.cameras.iter().map(|c| c.params.clone()).collect(),
             points: p.points.iter().map(|x| x.position).collect(),
         }
     }
     fn restore(&self, p: &mut Problem) {
         for (i, pose) in p.images.iter_mut().zip(&self.poses) {
-            i.pose = *pose;
+            i.camera_from_object = *pose;
         }
         for (r, pose) in p.rigs.iter_mut().zip(&self.rigs) {
-            r.pose = *pose;
+            r.member_from_base = *pose;
         }
         for (c, v) in p.cameras.iter_mut().zip(&self.intrinsics) {
             c.params.copy_from_slice(v);
@@ -392,7 +392,8 @@ fn run(
 fn parameter_norm(p: &Problem) -> f64 {
     let mut s = 0.0;
     for im in &p.images {
-        s += log_so3(&im.pose.rotation).norm_squared() + im.pose.translation.norm_squared();
+        s += log_so3(&im.camera_from_object.rotation).norm_squared()
+            + im.camera_from_object.translation.norm_squared();
     }
     for c in &p.cameras {
         s += c.params.iter().map(|v| v * v).sum::<f64>();
@@ -466,13 +467,13 @@ fn apply_step(problem: &mut Problem, layout: &Layout, dc: &[f64], dp: &[Vector3<
     for (r, slot) in layout.rig_slot.iter().enumerate() {
         if let Some(s) = slot {
             let o = layout.slot_offset(*s);
-            problem.rigs[r].pose = problem.rigs[r].pose.plus(&dc[o..o + 6]);
+            problem.rigs[r].member_from_base = problem.rigs[r].member_from_base.plus(&dc[o..o + 6]);
         }
     }
     for (i, im) in problem.images.iter_mut().enumerate() {
         if let Some(s) = layout.image_slot[i] {
             let o = layout.block_offset[s.block as usize] + s.off as usize;
-            im.pose = im.pose.plus(&dc[o..o + 6]);
+            im.camera_from_object = im.camera_from_object.plus(&dc[o..o + 6]);
         }
     }
     for (c, cam) in problem.cameras.iter_mut().enumerate() {
@@ -515,7 +516,10 @@ mod tests {
             images.push(Image {
                 name: format!("i{k}"),
                 camera: cam,
-                pose: Rigid3::from_rotation_and_centre(r, Vector3::new(0.3 * k as f64, -2.0, 0.1)),
+                camera_from_object: Rigid3::from_rotation_and_centre(
+                    r,
+                    Vector3::new(0.3 * k as f64, -2.0, 0.1),
+                ),
                 fixed: false,
             });
         }
@@ -584,11 +588,11 @@ mod tests {
         });
         // Image 2 follows image 0 through a free rig (a stereo head).
         let rig_pose = problem.images[2]
-            .pose
-            .compose(&problem.images[0].pose.inverse());
+            .camera_from_object
+            .compose(&problem.images[0].camera_from_object.inverse());
         problem.rigs.push(crate::problem::Rig {
             name: "stereo".into(),
-            pose: rig_pose,
+            member_from_base: rig_pose,
             fixed: false,
             members: vec![crate::problem::RigMember { image: 2, base: 0 }],
         });

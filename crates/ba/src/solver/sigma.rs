@@ -156,8 +156,8 @@ pub(crate) fn pose_sigmas(
         .map(|(i, im)| {
             let o = layout.slot_offset(layout.image_slot[i]?);
             let qq = DMatrix::from_fn(6, 6, |a, b| s02 * q(o + a, o + b));
-            let rt = im.pose.rotation.transpose();
-            let jw = -(rt * pingcal_geometry::skew(&im.pose.translation));
+            let rt = im.camera_from_object.rotation.transpose();
+            let jw = -(rt * pingcal_geometry::skew(&im.camera_from_object.translation));
             let mut j = DMatrix::<f64>::zeros(3, 6);
             for a in 0..3 {
                 for b in 0..3 {

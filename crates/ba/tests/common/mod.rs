@@ -57,14 +57,14 @@ pub fn truth() -> Problem {
         images.push(Image {
             name: format!("S{k:02}"),
             camera: 0,
-            pose: look_at(centre, target, roll),
+            camera_from_object: look_at(centre, target, roll),
             fixed: false,
         });
     }
     let mut observations = Vec::new();
     for (i, im) in images.iter().enumerate() {
         for (p, x) in points.iter().enumerate() {
-            let xc = im.pose.transform(x);
+            let xc = im.camera_from_object.transform(x);
             if let Some(uv) = model.project(&params, &xc, None, None) {
                 if uv.x > 5.0 && uv.x < 1274.0 && uv.y > 5.0 && uv.y < 714.0 {
                     observations.push(Observation {
@@ -110,9 +110,9 @@ pub fn realisation(truth: &Problem, seed: u64) -> Problem {
     for im in &mut p.images {
         let dw = Vector3::new(n.sample(&mut rng), n.sample(&mut rng), n.sample(&mut rng)) * 0.01;
         let dc = Vector3::new(n.sample(&mut rng), n.sample(&mut rng), n.sample(&mut rng)) * 30.0;
-        im.pose = Rigid3::from_rotation_and_centre(
-            exp_so3(&dw) * im.pose.rotation,
-            im.pose.centre() + dc,
+        im.camera_from_object = Rigid3::from_rotation_and_centre(
+            exp_so3(&dw) * im.camera_from_object.rotation,
+            im.camera_from_object.centre() + dc,
         );
     }
     for pt in p.points.iter_mut().filter(|x| !x.fixed) {

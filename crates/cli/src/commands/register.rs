@@ -73,9 +73,9 @@ pub fn run(args: Args) -> CmdResult {
         super::write_atomic(out, text.as_bytes())?;
     }
     let r = &ev.registration;
-    let t = r.transform.translation;
+    let t = r.camera_from_lrf.translation;
     let st = r.sigma_translation_mm;
-    let e = r.transform.opk_deg();
+    let e = r.camera_from_lrf.opk_deg();
     let (what, table) = if ev.check.rows.is_empty() {
         ("leave-one-out", &ev.leave_one_out)
     } else {

@@ -183,7 +183,7 @@ impl SceneProblem {
                 self.problem.images.push(Image {
                     name: im.file.clone(),
                     camera: scene.camera_of[i].0,
-                    pose,
+                    camera_from_object: pose,
                     fixed: datum == Datum::MainImage && i == main,
                 });
             }
@@ -274,7 +274,7 @@ impl SceneProblem {
         if !members.is_empty() {
             self.problem.rigs.push(Rig {
                 name: "stereo".into(),
-                pose: rig_pose,
+                member_from_base: rig_pose,
                 fixed: false,
                 members,
             });
@@ -285,7 +285,7 @@ impl SceneProblem {
     /// Copies the solution into the scene: poses, point positions, intrinsics.
     pub fn write_back(&self, scene: &mut Scene) {
         for (k, &i) in self.map.images.iter().enumerate() {
-            scene.poses[i] = Some(self.problem.images[k].pose);
+            scene.poses[i] = Some(self.problem.images[k].camera_from_object);
         }
         for (k, &j) in self.map.points.iter().enumerate() {
             scene.points[j].position = self.problem.points[k].position;
@@ -435,7 +435,7 @@ accuracy_far_fraction = 0.03
         let (project, dets, mut scene) = fixture();
         let mut sp = SceneProblem::build(&project, &dets, &scene, Datum::MainImage, None);
         sp.problem.points[1].position = Vector3::new(7.0, 8.0, 9.0);
-        sp.problem.images[0].pose.translation = Vector3::new(1.0, 2.0, 3.0);
+        sp.problem.images[0].camera_from_object.translation = Vector3::new(1.0, 2.0, 3.0);
         sp.problem.cameras[0].params[0] = 5.5;
         sp.write_back(&mut scene);
         assert_eq!(

@@ -172,7 +172,12 @@ impl Rounds<'_> {
         };
         self.iterations += r.summary.iterations;
         sp.write_back(scene);
-        self.rig = sp.problem.rigs.first().map(|r| r.pose).or(self.rig);
+        self.rig = sp
+            .problem
+            .rigs
+            .first()
+            .map(|r| r.member_from_base)
+            .or(self.rig);
         remove_rejected(self.project, scene, &r.rejected);
         rep.log(format!(
             "  bundle round {}: {} iterations, sigma0 {:.3}, RMS {:.3} px, {} image points rejected",
@@ -233,7 +238,7 @@ pub fn final_adjustment(
     }
     let (sp, precision) = rounds.last(scene)?;
     pb.finish();
-    let rig = sp.problem.rigs.first().map(|r| r.pose);
+    let rig = sp.problem.rigs.first().map(|r| r.member_from_base);
     rep.log(format!(
         "bundle adjustment: {} images, {} points ({} balls), {} image points, {} distances; sigma0 {:.3}, RMS {:.3} px, {} rejected",
         sp.problem.images.len(),

@@ -31,7 +31,7 @@ use pingcal_project::Project;
 /// The corner baseline's outcome.
 pub struct CornerOutcome {
     /// LRF → camera.
-    pub transform: Sim3,
+    pub camera_from_lrf: Sim3,
     /// Its check table.
     pub check: CheckTable,
     /// What the baseline chose and why.
@@ -338,9 +338,9 @@ fn corner_method(
             .filter_map(|id| set.iter().find(|p| &p.id == *id).cloned())
             .collect()
     };
-    let check = check_table(&res.lrf_to_camera, &pick(lrf_points), &pick(cam_points));
+    let check = check_table(&res.camera_from_lrf, &pick(lrf_points), &pick(cam_points));
     Ok(CornerOutcome {
-        transform: res.lrf_to_camera,
+        camera_from_lrf: res.camera_from_lrf,
         check,
         notes: res.notes,
     })

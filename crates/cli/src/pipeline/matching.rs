@@ -339,7 +339,7 @@ fn grow(
             let c = scene.camera_of[d.image];
             let t = blobs.dets.target(d);
             Ray {
-                pose: scene.poses[d.image].expect("oriented"),
+                camera_from_object: scene.poses[d.image].expect("oriented"),
                 model: &scene.cameras[c],
                 params: &scene.intrinsics[c],
                 uv: Vector2::new(t.x, t.y),

@@ -135,7 +135,7 @@ fn into_main_frame(
     let mut scene = start;
     let mut poses: IdVec<ImageId, Option<Rigid3>> = scene.poses.iter().map(|_| None).collect();
     for (k, &i) in sp.map.images.iter().enumerate() {
-        poses[i] = init.image_map[k].map(|m| init.problem.images[m].pose);
+        poses[i] = init.image_map[k].map(|m| init.problem.images[m].camera_from_object);
     }
     let main = main_image(project);
     let Some(main_pose) = poses[main] else {

@@ -217,7 +217,7 @@ fn methods(ext: &Extrinsics) -> Vec<MethodJson> {
         out.push(MethodJson {
             method: "spheres".into(),
             extrinsic: Some(extrinsic_json(
-                &r.transform,
+                &r.camera_from_lrf,
                 Some(r.sigma_translation_mm.into()),
                 Some(r.sigma_opk_deg.into()),
             )),
@@ -240,7 +240,7 @@ fn methods(ext: &Extrinsics) -> Vec<MethodJson> {
         out.push(match c {
             Ok(c) => MethodJson {
                 method: "corner".into(),
-                extrinsic: Some(extrinsic_json(&c.transform, None, None)),
+                extrinsic: Some(extrinsic_json(&c.camera_from_lrf, None, None)),
                 check_points: c.check.rows.clone(),
                 mean_check_error_mm: Some(c.check.mean_mm),
                 sd_check_error_mm: Some(c.check.sd_mm),
