@@ -495,3 +495,190 @@ fn point_left_undetermined_by_data_snooping_is_dropped() {
         );
     }
 }
+
+/// ω, φ, κ (degrees) of a rotation in pingcal's one convention, written out here from the
+/// convention's definition (passive factors, `R = R_ω R_φ R_κ`: R₀₂ = −sin φ,
+/// R₁₂ = sin ω cos φ, R₂₂ = cos ω cos φ, R₀₁ = cos φ sin κ, R₀₀ = cos φ cos κ), not taken
+/// from the code under test.
+fn opk_of(r: &[[f64; 3]; 3]) -> [f64; 3] {
+    [
+        r[1][2].atan2(r[2][2]).to_degrees(),
+        (-r[0][2]).asin().to_degrees(),
+        r[0][1].atan2(r[0][0]).to_degrees(),
+    ]
+}
+
+/// The three numbers of the first `(a, b, c)` after `key` in `text`.
+fn triple_after(text: &str, key: &str) -> [f64; 3] {
+    let at = text
+        .find(key)
+        .unwrap_or_else(|| panic!("no '{key}' in:\n{text}"));
+    let rest = &text[at + key.len()..];
+    let open = rest.find('(').expect("a '(' after the key");
+    let close = open + rest[open..].find(')').expect("a ')'");
+    let v: Vec<f64> = rest[open + 1..close]
+        .split(',')
+        .map(|x| {
+            x.trim()
+                .parse()
+                .unwrap_or_else(|_| panic!("not a number in {rest}"))
+        })
+        .collect();
+    [v[0], v[1], v[2]]
+}
+
+fn close3(a: [f64; 3], b: [f64; 3], tol: f64, what: &str) {
+    for k in 0..3 {
+        assert!(
+            (a[k] - b[k]).abs() <= tol,
+            "{what}: {a:?} against {b:?} (tolerance {tol})"
+        );
+    }
+}
+
+/// Issue 12: `calibrate` (results.json and report.html), `register` and `demo` print the
+/// same ω φ κ for the same rotation, in the documented convention; and the same project
+/// with the same seed gives the same bytes.
+#[test]
+fn one_angle_convention_everywhere_and_the_same_bytes_for_the_same_input() {
+    let w = Work::new("one_angle_convention_everywhere");
+    let p = w.project("project");
+    let toml = p.join("project.toml");
+    let (out1, out2) = (w.dir.join("out1"), w.dir.join("out2"));
+    for out in [&out1, &out2] {
+        let run = w.run(&["calibrate", s(&toml), "--out", s(out), "--quiet"]);
+        assert!(run.success(), "calibrate failed: {}", run.stderr);
+    }
+    for f in ["results.json", "cloud.ply"] {
+        assert!(
+            fs::read(out1.join(f)).unwrap() == fs::read(out2.join(f)).unwrap(),
+            "{f} differs between two runs of the same project and seed"
+        );
+    }
+
+    // results.json: opk_deg is the documented convention's angles of `rotation`, for every
+    // method; the report shows the same numbers.
+    let r = read_json(&out1.join("results.json"));
+    let report = fs::read_to_string(out1.join("report.html")).unwrap();
+    for m in r["methods"].as_array().expect("methods") {
+        let e = &m["extrinsic"];
+        if e.is_null() {
+            continue;
+        }
+        let rot = mat3(&e["rotation"], "rotation");
+        let opk = vec3(&e["opk_deg"], "opk_deg");
+        close3(
+            opk,
+            opk_of(&rot),
+            1e-9,
+            &format!("{} opk_deg against its rotation", m["method"]),
+        );
+        for a in opk {
+            let shown = format!("{:.4}", a);
+            assert!(
+                report.contains(&shown),
+                "report.html does not show ω φ κ {shown}"
+            );
+        }
+    }
+    let opk = vec3(&r["extrinsic"]["opk_deg"], "extrinsic.opk_deg");
+    let rot = mat3(&r["extrinsic"]["rotation"], "extrinsic.rotation");
+    let t = vec3(
+        &r["extrinsic"]["translation_mm"],
+        "extrinsic.translation_mm",
+    );
+
+    // register: the balls' camera coordinates, and the LRF coordinates the extrinsic gives
+    // them exactly (p_lrf = Rᵀ (q − t)), so that register must find that very rotation.
+    let (mut cam, mut lrf) = (String::new(), String::new());
+    for b in r["balls"].as_array().expect("balls") {
+        let q = vec3(&b["photogrammetric_mm"], "ball");
+        let d = [q[0] - t[0], q[1] - t[1], q[2] - t[2]];
+        let p: Vec<f64> = (0..3)
+            .map(|k| (0..3).map(|j| rot[j][k] * d[j]).sum())
+            .collect();
+        let id = b["id"].as_str().unwrap();
+        cam += &format!("{id} {:.9} {:.9} {:.9}\n", q[0], q[1], q[2]);
+        lrf += &format!("{id} {:.9} {:.9} {:.9}\n", p[0], p[1], p[2]);
+    }
+    fs::write(w.dir.join("lrf.txt"), lrf).unwrap();
+    fs::write(w.dir.join("cam.txt"), cam).unwrap();
+    let reg_json = w.dir.join("register.json");
+    let run = w.run(&[
+        "register",
+        s(&w.dir.join("lrf.txt")),
+        s(&w.dir.join("cam.txt")),
+        "--out",
+        s(&reg_json),
+    ]);
+    assert!(run.success(), "register failed: {}", run.stderr);
+    let reg = read_json(&reg_json);
+    close3(
+        vec3(&reg["extrinsic"]["opk_deg"], "register opk_deg"),
+        opk,
+        1e-6,
+        "register's opk_deg against calibrate's",
+    );
+    close3(
+        triple_after(&run.stdout, "ω φ κ ="),
+        opk,
+        0.0006,
+        "register's printed ω φ κ against calibrate's",
+    );
+
+    // demo: the printed angles of each method and of the truth are those of its own
+    // results.json and truth.json.
+    let demo = w.dir.join("demo");
+    let run = w.run(&["demo", "--out", s(&demo), "--quiet"]);
+    assert!(run.success(), "demo failed: {}", run.stderr);
+    let dr = read_json(&demo.join("results").join("results.json"));
+    for m in dr["methods"].as_array().expect("methods") {
+        let Some(name) = m["method"].as_str() else {
+            continue;
+        };
+        if m["extrinsic"].is_null() {
+            continue;
+        }
+        let line = run
+            .stdout
+            .lines()
+            .find(|l| l.starts_with(name) && l.contains('('))
+            .unwrap_or_else(|| panic!("demo prints no row for {name}:\n{}", run.stdout));
+        // the row's second triple is ω φ κ (the first is t, then σ t for the sphere method)
+        let triples: Vec<[f64; 3]> = line
+            .match_indices('(')
+            .map(|(i, _)| triple_after(&line[i..], ""))
+            .collect();
+        let opk = opk_of(&mat3(&m["extrinsic"]["rotation"], "demo rotation"));
+        assert!(
+            triples
+                .iter()
+                .any(|t| (0..3).all(|k| (t[k] - opk[k]).abs() <= 0.0006)),
+            "demo's {name} row {line:?} does not show ω φ κ {opk:?}"
+        );
+    }
+    let truth = read_json(&demo.join("truth.json"));
+    let te = &truth["extrinsic"];
+    let line = run
+        .stdout
+        .lines()
+        .find(|l| l.starts_with("truth"))
+        .expect("a truth row");
+    let shown = line
+        .match_indices('(')
+        .map(|(i, _)| triple_after(&line[i..], ""))
+        .nth(1)
+        .expect("truth ω φ κ");
+    close3(
+        shown,
+        opk_of(&mat3(&te["rotation"], "truth rotation")),
+        0.0006,
+        "demo's truth ω φ κ against truth.json's rotation",
+    );
+    close3(
+        vec3(&te["opk_deg"], "truth opk_deg"),
+        opk_of(&mat3(&te["rotation"], "truth rotation")),
+        1e-9,
+        "truth.json's opk_deg against its rotation",
+    );
+}

@@ -182,7 +182,9 @@ pub struct Results {
     pub balls: Vec<BallJson>,
     /// Targets (label, kind, position mm, σ mm).
     pub targets: Vec<(String, String, [f64; 3], [f64; 3])>,
-    /// Seconds per step, in order.
+    /// Seconds per step, in order. Not written to `results.json`, so that the same input
+    /// and seed give the same bytes (the step log of the report has the times).
+    #[serde(skip)]
     pub time_s: Vec<(String, f64)>,
 }
 
