@@ -55,6 +55,28 @@ impl Rigid3 {
         }
     }
 
+    /// The `camera_from_object` of a camera at `centre` whose optical axis points at
+    /// `target`, rolled by `roll` (radians, positive turns the image's right towards its
+    /// up) about that axis, in the camera frame of SPEC.md (X right, Y along the optical
+    /// axis, Z up): with `roll = 0` the image's up is the object's +Z (or +Y when looking
+    /// straight up or down). The rows of the rotation are the camera's axes in object
+    /// space.
+    pub fn looking_at(centre: Vector3<f64>, target: Vector3<f64>, roll: f64) -> Self {
+        let fwd = (target - centre).normalize();
+        let up_world = if fwd.cross(&Vector3::z()).norm() < 1e-6 {
+            Vector3::y()
+        } else {
+            Vector3::z()
+        };
+        let right = fwd.cross(&up_world).normalize();
+        let up = right.cross(&fwd);
+        let (s, c) = roll.sin_cos();
+        let right_r = right * c + up * s;
+        let up_r = up * c - right * s;
+        let r = Matrix3::from_rows(&[right_r.transpose(), fwd.transpose(), up_r.transpose()]);
+        Self::from_rotation_and_centre(r, centre)
+    }
+
     /// The origin of frame `a` written in frame `b`, `C = −Rᵀ t` (the projection centre of
     /// a `camera_from_object`).
     pub fn centre(&self) -> Vector3<f64> {
@@ -241,6 +263,26 @@ mod tests {
         assert!(
             (id.rotation - Matrix3::identity()).norm() < 1e-14 && id.translation.norm() < 1e-12
         );
+    }
+
+    #[test]
+    fn looking_at_points_the_optical_axis_and_keeps_up() {
+        let (c, t) = (
+            Vector3::new(100.0, -200.0, 50.0),
+            Vector3::new(400.0, 900.0, -80.0),
+        );
+        let p = Rigid3::looking_at(c, t, 0.0);
+        let dir = p.transform(&t);
+        assert!(dir.x.abs() < 1e-9 && dir.z.abs() < 1e-9 && dir.y > 0.0);
+        // the object's up is in the camera's Y-Z plane, upwards
+        let up = p.rotation * Vector3::z();
+        assert!(up.x.abs() < 1e-12 && up.z > 0.0);
+        // a quarter roll turns the image's right into its up
+        let q = Rigid3::looking_at(c, t, std::f64::consts::FRAC_PI_2);
+        assert!((q.rotation.row(0) - p.rotation.row(2)).norm() < 1e-12);
+        assert!((p.rotation.determinant() - 1.0).abs() < 1e-12);
+        let down = Rigid3::looking_at(c, c - Vector3::z(), 0.0);
+        assert!(down.rotation.iter().all(|v| v.is_finite()));
     }
 
     #[test]

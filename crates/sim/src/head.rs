@@ -109,20 +109,9 @@ impl StereoRig {
 }
 
 /// The rotation world → camera for a camera at `centre` looking at `look_at`, rolled by
-/// `roll` (radians) about its optical axis; image up is world up when `roll` = 0.
+/// `roll` (radians) about its optical axis ([`Rigid3::looking_at`]).
 pub fn look_at_rotation(centre: &V3, look_at: &V3, roll: f64) -> Matrix3<f64> {
-    let fwd = (look_at - centre).normalize();
-    let up_world = if fwd.cross(&V3::z()).norm() < 1e-6 {
-        V3::y()
-    } else {
-        V3::z()
-    };
-    let right = fwd.cross(&up_world).normalize();
-    let up = right.cross(&fwd);
-    let (s, c) = roll.sin_cos();
-    let right_r = right * c + up * s;
-    let up_r = up * c - right * s;
-    Matrix3::from_rows(&[right_r.transpose(), fwd.transpose(), up_r.transpose()])
+    Rigid3::looking_at(*centre, *look_at, roll).rotation
 }
 
 /// The main station's left camera pose (world → camera).

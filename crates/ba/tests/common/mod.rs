@@ -3,7 +3,7 @@
 //! convergent network of 14 stations with 90° rolls; a MYNT-like wide-angle camera.
 #![allow(dead_code)]
 
-use nalgebra::{Matrix3, Vector2, Vector3};
+use nalgebra::{Vector2, Vector3};
 use pingcal_ba::camera::{CameraModel, PhotogrammetricCamera};
 use pingcal_ba::problem::{Camera, Image, Observation, Point, Problem};
 use pingcal_geometry::exp_so3;
@@ -14,13 +14,7 @@ use std::sync::Arc;
 pub const SIGMA_PX: f64 = 0.3;
 
 pub fn look_at(centre: Vector3<f64>, target: Vector3<f64>, roll: f64) -> Rigid3 {
-    let f = (target - centre).normalize();
-    let r0 = f.cross(&Vector3::z()).normalize();
-    let u0 = r0.cross(&f);
-    let (s, c) = roll.sin_cos();
-    let (r, u) = (r0 * c + u0 * s, u0 * c - r0 * s);
-    let rot = Matrix3::from_rows(&[r.transpose(), f.transpose(), u.transpose()]);
-    Rigid3::from_rotation_and_centre(rot, centre)
+    Rigid3::looking_at(centre, target, roll)
 }
 
 /// The true network: intrinsics of a MYNT-like wide-angle camera, 14 stations, ~80 points.
