@@ -301,10 +301,7 @@ fn pingcal_deps(dir: &Path) -> BTreeSet<String> {
         }
         if in_deps {
             if let Some(name) = l.strip_prefix("pingcal-") {
-                let n = name
-                    .split(|c: char| c == '.' || c == ' ' || c == '=')
-                    .next()
-                    .unwrap();
+                let n = name.split(['.', ' ', '=']).next().unwrap();
                 out.insert(n.to_string());
             }
         }

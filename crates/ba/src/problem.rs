@@ -112,10 +112,10 @@ pub struct PointPrior {
 }
 
 /// A camera rig (e.g. a stereo head): the relative pose between its cameras is the same at
-/// every station. A member image's pose is `rig.pose ∘ base image's pose`, so
-/// `rig.pose` maps the base camera's frame into the member camera's frame; the member's
-/// own [`Image::pose`] is kept equal to that composition by the solver, and its `fixed`
-/// flag is ignored.
+/// every station. A member image's pose is `member_from_base ∘ base image's pose`
+/// ([`Rig::member_from_base`] maps the base camera's frame into the member camera's frame);
+/// the member's own [`Image::camera_from_object`] is kept equal to that composition by the
+/// solver, and its `fixed` flag is ignored.
 #[derive(Clone, Debug)]
 pub struct Rig {
     /// Name used in reports (e.g. "stereo").
@@ -368,7 +368,7 @@ impl Problem {
         Ok(())
     }
 
-    /// Sets every rig member's pose to `rig.pose ∘ base pose`.
+    /// Sets every rig member's pose to `member_from_base ∘ base pose`.
     pub fn sync_rigs(&mut self) {
         for rig in &self.rigs {
             for m in &rig.members {

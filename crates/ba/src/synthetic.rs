@@ -67,7 +67,8 @@ impl SyntheticBal {
                 self.obs_per_point, self.cameras
             ));
         }
-        if !(self.noise_px >= 0.0 && self.noise_px.is_finite()) || !(self.perturbation >= 0.0) {
+        // Written as `!(ok)` so that NaN fails the comparisons and is rejected with them.
+        if !(self.noise_px >= 0.0 && self.noise_px.is_finite() && self.perturbation >= 0.0) {
             return Err("noise and perturbation must be non-negative".into());
         }
         let mut rng = pingcal_geometry::consensus::rng(self.seed);

@@ -7,7 +7,7 @@
 //! | [`so3`] | rotations: the skew matrix, the exponential and logarithm maps, re-orthonormalisation, the solvers' left perturbation |
 //! | [`opk`] | the one ω φ κ angle convention of pingcal (photogrammetric, passive: `R = R_ω R_φ R_κ`) |
 //! | [`rigid`] | [`Rigid3`] (`x_a = R x_b + t`) and [`Sim3`] (`x_a = s R x_b + t`), named by their frames |
-//! | [`umeyama`] | the closed-form (weighted) rigid or similarity transform between point sets |
+//! | [`umeyama`](mod@umeyama) | the closed-form (weighted) rigid or similarity transform between point sets |
 //! | [`dlt`] | Hartley normalisation and the normalised-DLT homography |
 //! | [`plane`] | the least-squares plane of a point set |
 //! | [`consensus`] | robust estimation: an [`Estimator`] trait, MSAC / RANSAC with local optimisation, seeded ChaCha streams |

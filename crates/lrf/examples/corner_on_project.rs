@@ -54,6 +54,26 @@ fn edge_hit(o: &Vector3<f64>, n: &Vector3<f64>, d: &Vector3<f64>) -> Vector3<f64
     d * (n.dot(o) / n.dot(d))
 }
 
+/// One scan's LRF pose in the corner frame (= the world frame), checked against the truth.
+#[derive(Clone, Copy)]
+struct ScanPose {
+    scan: usize,
+    corner_from_lrf: Sim3,
+    inliers: [usize; 3],
+    /// Error of the edge point on each axis, mm (NaN where two lines do not meet).
+    edge_err: [f64; 3],
+}
+
+/// A consistent scan for the choice rules, with its predicted pose uncertainty.
+#[derive(Clone, Copy)]
+struct Candidate {
+    scan: usize,
+    corner_from_lrf: Sim3,
+    inliers: [usize; 3],
+    predicted_mm: f64,
+    predicted_deg: f64,
+}
+
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let dir = Path::new(args.first().expect("usage: corner_on_project DIR [--all]"));
@@ -162,7 +182,7 @@ fn main() {
     );
     let prior = r.camera_from_dlt.rotation.transpose();
     // per-scan analysis
-    let analyse = |k: usize, verbose: bool| -> Option<(Sim3, [usize; 3], [f64; 3], f64)> {
+    let analyse = |k: usize, verbose: bool| -> Option<ScanPose> {
         let scan = &scans[k];
         let s = seed
             .wrapping_mul(0x9E37_79B9_7F4A_7C15)
@@ -211,7 +231,6 @@ fn main() {
                 );
             }
         }
-        let pe = (est.translation - o).norm();
         if verbose {
             for (li, l) in lines.iter().enumerate() {
                 let f = face_of_line[li];
@@ -249,7 +268,12 @@ fn main() {
                 );
             }
         }
-        Some((est, inl, edge_err, pe))
+        Some(ScanPose {
+            scan: k,
+            corner_from_lrf: est,
+            inliers: inl,
+            edge_err,
+        })
     };
     let k = scans
         .iter()
@@ -258,16 +282,15 @@ fn main() {
     println!("chosen scan #{} servo {:.3}°:", k + 1, r.servo_deg);
     analyse(k, true);
     if all {
-        let res: Vec<(usize, Sim3, [usize; 3], [f64; 3], f64)> = (0..scans.len())
-            .filter_map(|k| analyse(k, false).map(|(t, i, e, p)| (k, t, i, e, p)))
-            .filter(|c| ang(&c.1.rotation, &prior) < 30.0 && c.2.iter().all(|&n| n >= 20))
+        let res: Vec<ScanPose> = (0..scans.len())
+            .filter_map(|k| analyse(k, false))
+            .filter(|c| {
+                ang(&c.corner_from_lrf.rotation, &prior) < 30.0
+                    && c.inliers.iter().all(|&n| n >= 20)
+            })
             .collect();
-        let err = |c: &(usize, Sim3, [usize; 3], [f64; 3], f64)| {
-            (c.1.translation - lrf_in_world.translation).norm()
-        };
-        let rot = |c: &(usize, Sim3, [usize; 3], [f64; 3], f64)| {
-            ang(&c.1.rotation, &lrf_in_world.rotation)
-        };
+        let err = |c: &ScanPose| (c.corner_from_lrf.translation - lrf_in_world.translation).norm();
+        let rot = |c: &ScanPose| ang(&c.corner_from_lrf.rotation, &lrf_in_world.rotation);
         let mut e: Vec<f64> = res.iter().map(err).collect();
         e.sort_by(f64::total_cmp);
         println!(
@@ -282,14 +305,14 @@ fn main() {
             println!(
                 "  scan #{:4} servo {:7.2}°: inliers {:?} sum {} min {}; edge errors {:.1} {:.1} \
                  {:.1}; pose {:.1} mm {:.2}°",
-                c.0 + 1,
-                scans[c.0].servo_deg,
-                c.2,
-                c.2.iter().sum::<usize>(),
-                c.2.iter().min().unwrap(),
-                c.3[0],
-                c.3[1],
-                c.3[2],
+                c.scan + 1,
+                scans[c.scan].servo_deg,
+                c.inliers,
+                c.inliers.iter().sum::<usize>(),
+                c.inliers.iter().min().unwrap(),
+                c.edge_err[0],
+                c.edge_err[1],
+                c.edge_err[2],
                 err(c),
                 rot(c)
             );
@@ -297,68 +320,70 @@ fn main() {
     }
     if all {
         // the choice rules on the same consistent scans (gates as in fan_baseline)
-        let mut c: Vec<(usize, Sim3, [usize; 3], f64, f64)> = Vec::new();
-        for k in 0..scans.len() {
+        let mut c: Vec<Candidate> = Vec::new();
+        for (k, scan) in scans.iter().enumerate() {
             let s = seed
                 .wrapping_mul(0x9E37_79B9_7F4A_7C15)
                 .wrapping_add(k as u64);
-            let Ok(lines) = scan_lines(&header, &scans[k], 30.0, s) else {
+            let Ok(lines) = scan_lines(&header, scan, 30.0, s) else {
                 continue;
             };
             if lines.iter().any(|l| l.inliers < 20) {
                 continue;
             }
-            let Ok(t) = lrf_pose_in_corner(&lines, scans[k].servo_deg, &mount, &prior) else {
+            let Ok(t) = lrf_pose_in_corner(&lines, scan.servo_deg, &mount, &prior) else {
                 continue;
             };
             if ang(&t.rotation, &prior) >= 30.0 {
                 continue;
             }
-            let (up, ur) = pose_uncertainty(&lines, scans[k].servo_deg, &mount, &prior, 10.0)
+            let (up, ur) = pose_uncertainty(&lines, scan.servo_deg, &mount, &prior, 10.0)
                 .unwrap_or((f64::INFINITY, f64::INFINITY));
-            c.push((k, t, lines.map(|l| l.inliers), up, ur));
+            c.push(Candidate {
+                scan: k,
+                corner_from_lrf: t,
+                inliers: lines.map(|l| l.inliers),
+                predicted_mm: up,
+                predicted_deg: ur,
+            });
         }
         let med = |v: Vec<f64>| {
             let mut v = v;
             v.sort_by(f64::total_cmp);
             v[v.len() / 2]
         };
-        let m = Vector3::from_fn(|i, _| med(c.iter().map(|x| x.1.translation[i]).collect()));
-        let gate = (5.0 * med(c.iter().map(|x| (x.1.translation - m).norm()).collect())).max(50.0);
-        c.retain(|x| (x.1.translation - m).norm() <= gate);
-        let report = |name: &str, x: &(usize, Sim3, [usize; 3], f64, f64)| {
-            let e = w2p.compose(&x.1); // with the true camera pose: the LRF-in-corner part
-            let ee = r.camera_from_dlt.compose(&x.1);
+        let position = |x: &Candidate| x.corner_from_lrf.translation;
+        let m = Vector3::from_fn(|i, _| med(c.iter().map(|x| position(x)[i]).collect()));
+        let gate = (5.0 * med(c.iter().map(|x| (position(x) - m).norm()).collect())).max(50.0);
+        c.retain(|x| (position(x) - m).norm() <= gate);
+        let report = |name: &str, x: &Candidate| {
+            // with the true camera pose: the LRF-in-corner part
+            let e = w2p.compose(&x.corner_from_lrf);
+            let ee = r.camera_from_dlt.compose(&x.corner_from_lrf);
             println!(
                 "RULE {name:8} scan #{:4} servo {:7.2}° inliers {:?} predicted {:.1} mm {:.2}°: \
                  LRF-in-corner {:.1} mm {:.2}°; extrinsic {:.1} mm {:.3}°",
-                x.0 + 1,
-                scans[x.0].servo_deg,
-                x.2,
-                x.3,
-                x.4,
+                x.scan + 1,
+                scans[x.scan].servo_deg,
+                x.inliers,
+                x.predicted_mm,
+                x.predicted_deg,
                 (e.translation - ext.translation).norm(),
                 ang(&e.rotation, &ext.rotation),
                 (ee.translation - ext.translation).norm(),
                 ang(&ee.rotation, &ext.rotation)
             );
         };
-        let by = |f: &dyn Fn(&(usize, Sim3, [usize; 3], f64, f64)) -> f64| {
-            c.iter()
-                .min_by(|a, b| f(a).total_cmp(&f(b)))
-                .unwrap()
-                .clone()
-        };
-        report("sum", &by(&|x| -(x.2.iter().sum::<usize>() as f64)));
-        report("min", &by(&|x| -(*x.2.iter().min().unwrap() as f64)));
-        report("pred_pos", &by(&|x| x.3));
-        report("pred_rot", &by(&|x| x.4));
+        let by =
+            |f: &dyn Fn(&Candidate) -> f64| *c.iter().min_by(|a, b| f(a).total_cmp(&f(b))).unwrap();
+        report("sum", &by(&|x| -(x.inliers.iter().sum::<usize>() as f64)));
+        report("min", &by(&|x| -(*x.inliers.iter().min().unwrap() as f64)));
+        report("pred_pos", &by(&|x| x.predicted_mm));
+        report("pred_rot", &by(&|x| x.predicted_deg));
         // how well the prediction ranks the scans: true error of the best-predicted 10 %
         let mut sorted = c.clone();
-        sorted.sort_by(|a, b| a.3.total_cmp(&b.3));
-        let err = |x: &(usize, Sim3, [usize; 3], f64, f64)| {
-            (x.1.translation - lrf_in_world.translation).norm()
-        };
+        sorted.sort_by(|a, b| a.predicted_mm.total_cmp(&b.predicted_mm));
+        let err = |x: &Candidate| (position(x) - lrf_in_world.translation).norm();
         let top: Vec<f64> = sorted[..(sorted.len() / 10).max(1)]
             .iter()
             .map(err)
@@ -367,8 +392,8 @@ fn main() {
             "best-predicted 10 % of {} scans: predicted {:.1}…{:.1} mm, true error median {:.1} \
              mm, all scans median {:.1}",
             sorted.len(),
-            sorted[0].3,
-            sorted[top.len() - 1].3,
+            sorted[0].predicted_mm,
+            sorted[top.len() - 1].predicted_mm,
             med(top.clone()),
             med(c.iter().map(err).collect())
         );

@@ -277,9 +277,9 @@ fn clusters(cloud: &Cloud, idx: &[usize], opt: &FinderOptions, scale: f64) -> Ve
         }
     }
     let mut groups: HashMap<usize, Vec<usize>> = HashMap::new();
-    for k in 0..idx.len() {
+    for (k, &i) in idx.iter().enumerate() {
         let r = root(&mut parent, k);
-        groups.entry(r).or_default().push(idx[k]);
+        groups.entry(r).or_default().push(i);
     }
     let mut out: Vec<Vec<usize>> = groups.into_values().collect();
     out.sort_by_key(|g| g[0]);

@@ -14,7 +14,7 @@
 //!    the three planes' common point).
 //! 4. [`dlt_resection`]: the camera pose from control points: linear DLT on undistorted,
 //!    normalised image points, then Gauss–Newton resection.
-//! 5. [`compose`]: `T_cam←lrf = T_cam←world · T_world←corner · T_corner←lrf`.
+//! 5. [`Sim3::compose`]: `T_cam←lrf = T_cam←world · T_world←corner · T_corner←lrf`.
 //!
 //! Camera convention (SPEC.md): X right, Y forward, Z up; normalised image coordinates are
 //! `(X/Y, Z/Y)` (x right, y up).

@@ -72,7 +72,7 @@ impl Default for RegistrationOptions {
 pub struct Registration {
     /// The transform LRF → camera.
     pub camera_from_lrf: Sim3,
-    /// Covariance of (δθ [rad, about the camera axes], t [mm], s) — 6×6 or 7×7.
+    /// Covariance of (δθ in rad about the camera axes, t in mm, s) — 6×6 or 7×7.
     pub cov: DMatrix<f64>,
     /// σ of the translation, mm.
     pub sigma_translation_mm: Vector3<f64>,
@@ -139,7 +139,7 @@ pub fn check_geometry(src: &[PointObs], tol_mm: Option<f64>) -> Result<()> {
 }
 
 /// Closed-form (Horn/Umeyama) similarity or rigid transform `dst ≈ s R src + t`, weighted:
-/// [`pingcal_geometry::umeyama`] as a [`Sim3`], its errors as [`LrfError`]s.
+/// [`pingcal_geometry::umeyama()`] as a [`Sim3`], its errors as [`LrfError`]s.
 pub fn umeyama(
     src: &[Vector3<f64>],
     dst: &[Vector3<f64>],

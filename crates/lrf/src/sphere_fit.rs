@@ -170,11 +170,14 @@ pub fn along_ray_hessian(ray: &Ray, c: &Vector3<f64>, radius: f64, s_min: f64) -
     }
 }
 
+/// The weighted residuals `r` and their Jacobian `J` at some parameters.
+type Linearized = (DVector<f64>, DMatrix<f64>);
+
 /// Solves min Σ r² by Levenberg–Marquardt; `f(params) -> (r, J)` with `r` already weighted.
 fn lm(
     mut x: DVector<f64>,
     max_iter: usize,
-    f: &dyn Fn(&DVector<f64>) -> (DVector<f64>, DMatrix<f64>),
+    f: &dyn Fn(&DVector<f64>) -> Linearized,
 ) -> Result<DVector<f64>> {
     let (mut r, mut j) = f(&x);
     let mut cost = r.norm_squared();
@@ -269,21 +272,34 @@ pub fn initial_centre(rays: &[Ray], radius: f64) -> Vector3<f64> {
     m + d * (2.0 * radius / 3.0)
 }
 
-fn finish(
-    rays: &[Ray],
-    used: Vec<usize>,
-    c: Vector3<f64>,
+/// What a fit estimated, before [`finish`] adds the residual statistics.
+struct Estimate {
+    centre: Vector3<f64>,
     radius: f64,
     sigma_radius: Option<f64>,
     cov: Matrix3<f64>,
-    res: &[f64],
     method: FitMethod,
-    n_par: usize,
-) -> Result<SphereFit> {
+    /// Indices (into the input) of the rays used…
+    used: Vec<usize>,
+    /// …and their residuals, mm.
+    residuals: Vec<f64>,
+}
+
+/// The fit's statistics (χ², RMS, σ₀ with `n_par` unknowns); fails on a non-finite estimate.
+fn finish(rays: &[Ray], est: Estimate, n_par: usize) -> Result<SphereFit> {
+    let Estimate {
+        centre: c,
+        radius,
+        sigma_radius,
+        cov,
+        method,
+        used,
+        residuals: res,
+    } = est;
     let n = used.len();
     let chi2: f64 = used
         .iter()
-        .zip(res)
+        .zip(&res)
         .map(|(&i, r)| (r / rays[i].sigma).powi(2))
         .sum();
     let rms = (res.iter().map(|r| r * r).sum::<f64>() / n.max(1) as f64).sqrt();
@@ -446,17 +462,16 @@ fn along_ray_passes(
             }
         }
     }
-    finish(
-        rays,
-        used,
-        c,
+    let est = Estimate {
+        centre: c,
         radius,
-        None,
+        sigma_radius: None,
         cov,
-        &res,
-        FitMethod::AlongRay,
-        3,
-    )
+        method: FitMethod::AlongRay,
+        used,
+        residuals: res,
+    };
+    finish(rays, est, 3)
 }
 
 /// Orthogonal fits (fixed or free radius) with `k·σ` outlier rejection.
@@ -575,7 +590,16 @@ fn fit_orth(
     } else {
         FitMethod::Orthogonal
     };
-    finish(rays, used, c, rad, sr, cov, &res, method, n_par)
+    let est = Estimate {
+        centre: c,
+        radius: rad,
+        sigma_radius: sr,
+        cov,
+        method,
+        used,
+        residuals: res,
+    };
+    finish(rays, est, n_par)
 }
 
 /// Fixed-radius orthogonal-distance fit.

@@ -53,6 +53,8 @@ pub struct Surface {
 impl Surface {
     /// A surface from its corner, edge directions (normalised here), extents and normal
     /// (`n` is normalised and must not be parallel to the plane).
+    // Every argument is one independent field of the surface (the constructor only
+    // normalises and caches the inverse basis): grouping them would just rename them.
     #[allow(clippy::too_many_arguments)]
     pub fn new(
         name: &str,

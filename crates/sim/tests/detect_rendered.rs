@@ -40,7 +40,9 @@ use pingcal_sim::render::{render_image, RayTable};
 use pingcal_sim::scene::{HitKind, Scene};
 use pingcal_sim::stations::CameraUnit;
 use pingcal_sim::{SimConfig, Simulation};
-use pingcal_targets::ball::{fit_ball_silhouette, sphere_centre_from_ellipse, FnCamera};
+use pingcal_targets::ball::{
+    fit_ball_silhouette, sphere_centre_from_ellipse, CameraRays, FnCamera,
+};
 use pingcal_targets::{DetectParams, Detector, GrayImage, TargetKind};
 
 type V3 = Vector3<f64>;
@@ -216,10 +218,7 @@ fn median(v: &[f64]) -> f64 {
 }
 
 /// The true camera's two maps, as the ball correction wants them.
-fn rays_of(
-    cam: &CameraUnit,
-) -> FnCamera<impl Fn(f64, f64) -> Option<[f64; 3]> + '_, impl Fn([f64; 3]) -> Option<[f64; 2]> + '_>
-{
+fn rays_of(cam: &CameraUnit) -> impl CameraRays + '_ {
     FnCamera(
         |x: f64, y: f64| {
             cam.model

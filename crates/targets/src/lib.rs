@@ -37,9 +37,6 @@
 //! - [`driveback`]: identification by projection.
 //! - [`homography`], [`printable`], [`overlay`].
 
-// `!(x > 0.0)` is used on purpose: it also rejects NaN.
-#![allow(clippy::neg_cmp_op_on_partial_ord)]
-
 pub mod aicon;
 pub mod ball;
 pub mod blobs;

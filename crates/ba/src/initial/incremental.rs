@@ -220,6 +220,17 @@ pub enum InitError {
     NoStart(String),
 }
 
+/// The oriented part of the problem as a problem of its own, and where its items come from.
+struct SubProblem {
+    problem: Problem,
+    /// Per image of the full problem, its index in the sub-problem (None: not oriented).
+    image_map: Vec<Option<usize>>,
+    /// Per point of the full problem, its index in the sub-problem (None: not determined).
+    point_map: Vec<Option<usize>>,
+    /// Per observation of the sub-problem, its index in the full problem.
+    obs_map: Vec<usize>,
+}
+
 struct State<'a> {
     problem: &'a Problem,
     params: Vec<Vec<f64>>,
@@ -320,11 +331,7 @@ impl<'a> State<'a> {
     }
 
     /// The sub-problem of what is oriented, with maps.
-    #[allow(clippy::type_complexity)]
-    fn subproblem(
-        &self,
-        calibrating: bool,
-    ) -> (Problem, Vec<Option<usize>>, Vec<Option<usize>>, Vec<usize>) {
+    fn subproblem(&self, calibrating: bool) -> SubProblem {
         let p = self.problem;
         let mut sub = Problem {
             cameras: p.cameras.clone(),
@@ -385,7 +392,12 @@ impl<'a> State<'a> {
                 }
             }
         }
-        (sub, image_map, point_map, obs_map)
+        SubProblem {
+            problem: sub,
+            image_map,
+            point_map,
+            obs_map,
+        }
     }
 
     /// Flags gross errors in the adjusted sub-problem; returns how many were flagged.
@@ -447,7 +459,12 @@ impl<'a> State<'a> {
 
     fn bundle_once(&mut self, options: &IncrementalOptions, allow_reject: bool) {
         let calibrating = self.oriented() >= options.calibrate_from_images;
-        let (mut sub, image_map, point_map, obs_map) = self.subproblem(calibrating);
+        let SubProblem {
+            problem: mut sub,
+            image_map,
+            point_map,
+            obs_map,
+        } = self.subproblem(calibrating);
         if sub.observations.is_empty() {
             return;
         }
@@ -777,7 +794,12 @@ impl<'a> State<'a> {
     /// intrinsics, and what could not be oriented or determined, and why.
     fn into_initialised(self) -> Initialised {
         let problem = self.problem;
-        let (mut sub, image_map, point_map, _) = self.subproblem(true);
+        let SubProblem {
+            problem: mut sub,
+            image_map,
+            point_map,
+            ..
+        } = self.subproblem(true);
         for (c, orig) in sub.cameras.iter_mut().zip(&problem.cameras) {
             c.fixed.clone_from(&orig.fixed);
         }

@@ -83,22 +83,12 @@ fn plane(d: &Vector3<f64>) -> Option<Vector2<f64>> {
     (d.y > 1e-9).then(|| Vector2::new(d.x / d.y, d.z / d.y))
 }
 
-/// Plane coordinates of both ray sets and their Hartley normalising transforms, or `None`
-/// if a ray does not point forward.
-#[allow(clippy::type_complexity)]
-fn normalised_planes(
-    d1: &[Vector3<f64>],
-    d2: &[Vector3<f64>],
-) -> Option<(
-    Vec<Vector2<f64>>,
-    Vec<Vector2<f64>>,
-    Matrix3<f64>,
-    Matrix3<f64>,
-)> {
-    let p1: Vec<Vector2<f64>> = d1.iter().map(plane).collect::<Option<_>>()?;
-    let p2: Vec<Vector2<f64>> = d2.iter().map(plane).collect::<Option<_>>()?;
-    let (t1, t2) = (hartley_normaliser(&p1), hartley_normaliser(&p2));
-    Some((p1, p2, t1, t2))
+/// Plane coordinates of a ray set and their Hartley normalising transform, or `None` if a
+/// ray does not point forward.
+fn normalised_plane(d: &[Vector3<f64>]) -> Option<(Vec<Vector2<f64>>, Matrix3<f64>)> {
+    let p: Vec<Vector2<f64>> = d.iter().map(plane).collect::<Option<_>>()?;
+    let t = hartley_normaliser(&p);
+    Some((p, t))
 }
 
 /// The essential matrix (singular values 1, 1, 0) from eight or more correspondences of
@@ -108,7 +98,8 @@ pub fn essential_8point(d1: &[Vector3<f64>], d2: &[Vector3<f64>]) -> Option<Matr
     if n < 8 {
         return None;
     }
-    let (p1, p2, t1, t2) = normalised_planes(&d1[..n], &d2[..n])?;
+    let (p1, t1) = normalised_plane(&d1[..n])?;
+    let (p2, t2) = normalised_plane(&d2[..n])?;
     let mut ata = SMatrix::<f64, 9, 9>::zeros();
     for (a, b) in p1.iter().zip(&p2) {
         let h1 = t1 * Vector3::new(a.x, a.y, 1.0);

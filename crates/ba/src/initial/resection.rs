@@ -135,7 +135,7 @@ pub fn rigid_transform(from: &[Vector3<f64>], to: &[Vector3<f64>]) -> Option<Rig
     similarity_transform(from, to, false).map(|(p, _)| p)
 }
 
-/// The similarity `to ≈ s·R·from + t` ([`pingcal_geometry::umeyama`]); with
+/// The similarity `to ≈ s·R·from + t` ([`pingcal_geometry::umeyama()`]); with
 /// `with_scale == false`, s = 1. Returns the pose (R, t) and s, or `None` where Umeyama
 /// gives an error (fewer than 3 points, coincident points for a scale, non-finite data).
 pub fn similarity_transform(
@@ -214,7 +214,7 @@ fn reprojection(
 }
 
 /// Residuals (pixels) and their 2×6 Jacobians with respect to the pose update of
-/// [`Pose::plus`] (δω then δt): `∂xc/∂δω = −[R X]×`, `∂xc/∂δt = I`.
+/// [`Rigid3::plus`] (δω then δt): `∂xc/∂δω = −[R X]×`, `∂xc/∂δt = I`.
 pub fn pose_residual_jacobian(
     model: &dyn CameraModel,
     params: &[f64],

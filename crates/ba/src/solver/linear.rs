@@ -24,7 +24,9 @@ pub(crate) enum Factorizer {
         par: Par,
     },
     Sparse {
-        symbolic: SymbolicCholesky<usize>,
+        /// Boxed (the variant would otherwise be ~40 times the dense one): it is built once
+        /// per adjustment and dereferenced once per factorization, far from any inner loop.
+        symbolic: Box<SymbolicCholesky<usize>>,
         l_values: Vec<f64>,
         mem: MemBuffer,
         par: Par,
@@ -64,7 +66,7 @@ impl Factorizer {
             .or(symbolic.solve_in_place_scratch::<f64>(1, par));
         let mem = MemBuffer::new(req);
         Ok(Factorizer::Sparse {
-            symbolic,
+            symbolic: Box::new(symbolic),
             l_values,
             mem,
             par,
@@ -85,10 +87,10 @@ impl Factorizer {
             Factorizer::Dense { par } => {
                 let mut m = Mat::<f64>::zeros(n, n);
                 for j in 0..n {
-                    for k in layout.col_ptr[j]..layout.col_ptr[j + 1] {
-                        let i = layout.row_idx[k];
-                        m[(i, j)] = values[k];
-                        m[(j, i)] = values[k];
+                    let col = layout.col_ptr[j]..layout.col_ptr[j + 1];
+                    for (&i, &v) in layout.row_idx[col.clone()].iter().zip(&values[col]) {
+                        m[(i, j)] = v;
+                        m[(j, i)] = v;
                     }
                 }
                 let _ = par;

@@ -7,9 +7,9 @@
 //! failure. Convergence is declared by the same three tests as Ceres (function, gradient
 //! and parameter tolerance), so that both stop at the same point on the same problem.
 //!
-//! Each iteration: evaluate residuals and Jacobians ([`evaluate`]) in parallel; eliminate
-//! the points ([`schur`]); factorize the reduced camera system ([`linear`]) with a
-//! symbolic factorization computed once ([`layout`]); back-substitute the points.
+//! Each iteration: evaluate residuals and Jacobians (`evaluate`) in parallel; eliminate
+//! the points (`schur`); factorize the reduced camera system (`linear`) with a
+//! symbolic factorization computed once (`layout`); back-substitute the points.
 
 mod evaluate;
 mod free_network;

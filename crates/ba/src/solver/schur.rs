@@ -9,7 +9,7 @@
 //! own column, so no locks are needed.
 
 use super::evaluate::{split_at_offsets, Linearization};
-use super::layout::Layout;
+use super::layout::{Layout, Seg};
 use crate::problem::Problem;
 use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
@@ -224,7 +224,7 @@ impl Schur {
                 vals.resize(nnz, 0.0);
                 rhs.clear();
                 rhs.resize(n, 0.0);
-                accumulate_range(layout, lin, y, gp, lo, hi, vals, rhs);
+                accumulate_range(layout, lin, y, gp, lo..hi, vals, rhs);
             });
         // Sum the copies, then −g_c and the damping.
         let works = &self.work_values;
@@ -313,20 +313,18 @@ fn lin_point(layout: &Layout, o: usize) -> usize {
 }
 
 /// Adds to `vals` (S, upper triangle) and `rhs` the contributions of the observations
-/// `lo..hi` (whole points): J_cᵀJ_c of every observation, −Y Wᵀ and +Y g_p of every free
+/// `obs` (whole points): J_cᵀJ_c of every observation, −Y Wᵀ and +Y g_p of every free
 /// point.
-#[allow(clippy::too_many_arguments)]
 fn accumulate_range(
     layout: &Layout,
     lin: &Linearization,
     y: &[f64],
     gp: &[Vector3<f64>],
-    lo: usize,
-    hi: usize,
+    obs: std::ops::Range<usize>,
     vals: &mut [f64],
     rhs: &mut [f64],
 ) {
-    let mut start = lo;
+    let (mut start, hi) = (obs.start, obs.end);
     while start < hi {
         let point = layout.obs_point[start];
         let mut end = start + 1;
@@ -344,15 +342,7 @@ fn accumulate_range(
                 for s1 in layout.segs(o2) {
                     if s1.block as usize <= b {
                         let (l0, l1) = layout.jc_rows(&lin.jc, o2, s1);
-                        col.add(
-                            [l0, l1],
-                            [a0, a1],
-                            s1.block,
-                            s1.block_off as usize,
-                            off2,
-                            l2,
-                            1.0,
-                        );
+                        col.add([l0, l1], [a0, a1], s1, s2, 1.0);
                     }
                 }
                 if f == u32::MAX {
@@ -364,7 +354,7 @@ fn accumulate_range(
                     for s1 in layout.segs(o1) {
                         if s1.block as usize <= b {
                             let y1 = layout.w_cols(y, o1, s1);
-                            col.add(y1, w2, s1.block, s1.block_off as usize, off2, l2, -1.0);
+                            col.add(y1, w2, s1, s2, -1.0);
                         }
                     }
                 }
@@ -405,19 +395,25 @@ impl<'a> Column<'a> {
     }
 
     /// Adds `scale · Σ_k left[k][i] · right[k][j]` to S[(block a, row off1 + i), (block b,
-    /// col off2 + j)] for j < len2, upper triangle only. Each column update is a
-    /// contiguous axpy, which the compiler vectorizes.
+    /// col off2 + j)] for j < len2, upper triangle only: the rows are the segment
+    /// `row_seg` (block a, offset off1), the columns the segment `col_seg` (block b, offset
+    /// off2, len2 columns). Each column update is a contiguous axpy, which the compiler
+    /// vectorizes.
     #[inline(always)]
     fn add<const K: usize>(
         &mut self,
         left: [&[f64]; K],
         right: [&[f64]; K],
-        a: u32,
-        off1: usize,
-        off2: usize,
-        len2: usize,
+        row_seg: &Seg,
+        col_seg: &Seg,
         scale: f64,
     ) {
+        debug_assert_eq!(
+            col_seg.block as usize, self.b,
+            "column segment of another block"
+        );
+        let (a, off1) = (row_seg.block, row_seg.block_off as usize);
+        let (off2, len2) = (col_seg.block_off as usize, col_seg.len as usize);
         let ai = self
             .rows
             .binary_search(&a)
@@ -446,6 +442,8 @@ impl<'a> Column<'a> {
                 _ => {}
             }
         }
+        // j walks column j of all K right-hand rows and of S together.
+        #[allow(clippy::needless_range_loop)]
         for j in 0..len2 {
             let col = off2 + j;
             let start = self.col_ptr[col] - self.v0 + base;
@@ -479,6 +477,8 @@ impl<'a> Column<'a> {
     ) {
         let l: [[f64; M]; K] = std::array::from_fn(|k| left[k][..M].try_into().unwrap());
         let r: [[f64; N]; K] = std::array::from_fn(|k| right[k][..N].try_into().unwrap());
+        // j walks column j of all K right-hand rows and of S together.
+        #[allow(clippy::needless_range_loop)]
         for j in 0..N {
             let start = self.col_ptr[off2 + j] - self.v0 + base;
             let rows = if UPPER { j + 1 } else { M };

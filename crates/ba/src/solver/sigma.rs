@@ -3,7 +3,7 @@
 //! standardized residuals — and the propagation of a cofactor matrix of the reduced system
 //! into the σ's of intrinsics and poses.
 //!
-//! Two computations fill it in: [`precision`](super::precision) for a network whose datum is
+//! Two computations fill it in: [`precision`](mod@super::precision) for a network whose datum is
 //! fixed (minimal or more constraints), and [`free_network`](super::free_network) for a free
 //! network (inner constraints). Both stand on this module, which uses neither.
 
@@ -142,7 +142,7 @@ pub(crate) fn intrinsics_precision(
 
 /// Standard deviations of every free pose: rotation about the camera axes and the
 /// projection centre C = −Rᵀt, whose derivative with respect to (δω, δt) is
-/// [−Rᵀ[t]×, −Rᵀ].
+/// `[−Rᵀ[t]×, −Rᵀ]`.
 pub(crate) fn pose_sigmas(
     problem: &Problem,
     layout: &Layout,

@@ -240,16 +240,7 @@ pub fn extrinsics(
         None
     };
     let corner = if method.corner() {
-        let r = corner_method(
-            project,
-            scene,
-            lrf,
-            dets,
-            opts,
-            &m.lrf_points,
-            &m.cam_points,
-            &check_ids,
-        );
+        let r = corner_method(project, scene, lrf, dets, opts, &m, &check_ids);
         match &r {
             Ok(c) => rep.log(format!(
                 "corner baseline: mean check error {:.2} mm (sd {:.2}) on {} balls",
@@ -279,17 +270,16 @@ pub fn extrinsics(
     })
 }
 
-#[allow(clippy::too_many_arguments)]
 fn corner_method(
     project: &Project,
     scene: &Scene,
     lrf: &LrfData,
     dets: &Detections,
     opts: &Options,
-    lrf_points: &[PointObs],
-    cam_points: &[PointObs],
+    m: &Matched,
     check_ids: &[String],
 ) -> std::result::Result<CornerOutcome, String> {
+    let (lrf_points, cam_points) = (&m.lrf_points, &m.cam_points);
     let Some((header, scans)) = &lrf.scans else {
         return Err("it needs the scan lines (a pingcal-scan CSV), not a point cloud".into());
     };

@@ -30,10 +30,12 @@ pub fn reference() -> Option<HashMap<u32, [f64; 3]>> {
     )
 }
 
+/// The panel's reference coordinates (by code) and its sorted TIFF images.
+pub type Panel = (HashMap<u32, [f64; 3]>, Vec<PathBuf>);
+
 /// The reference coordinates and the sorted TIFF images of the panel, or `None` (with the
 /// reason printed) when the data is absent and the calling test should skip.
-#[allow(clippy::type_complexity)]
-pub fn panel() -> Option<(HashMap<u32, [f64; 3]>, Vec<PathBuf>)> {
+pub fn panel() -> Option<Panel> {
     let Some(refs) = reference() else {
         println!("SKIP: {DATA} not found (real AICON panel data absent)");
         return None;
