@@ -4,6 +4,10 @@
 //! Format (Agarwal et al. 2010): a header `ncam npts nobs`; `nobs` lines `cam pt x y`;
 //! then 9 values per camera (angle-axis R, t, f, k1, k2) and 3 per point, whitespace
 //! separated. Errors name the line and what was expected there.
+//!
+//! The header's counts are checked against the body both ways: a file that ends early is
+//! refused, and so is one with anything but whitespace after the last point (a duplicated
+//! or extra line shifts every value after it, so reading on would solve a wrong problem).
 
 use crate::camera::BalCamera;
 use crate::problem::{Camera, Image, Observation, Point, Problem};
@@ -92,6 +96,27 @@ impl<R: BufRead> Tokens<R> {
                 });
             }
             self.line_no += 1;
+            if self.line_no == 1 {
+                // A UTF-8 byte-order mark is not part of the data.
+                if let Some(rest) = self.line.strip_prefix('\u{feff}') {
+                    self.line = rest.to_string();
+                }
+            }
+        }
+    }
+
+    /// Refuses anything but whitespace after the last value the header declares.
+    fn expect_end(&mut self, header: &str) -> Result<(), BalError> {
+        match self.next("") {
+            Ok(extra) => {
+                let extra = escape(extra);
+                Err(self.err(format!(
+                    "trailing data '{extra}' after the last point (the header declares {header}): \
+                     a duplicated or extra line?"
+                )))
+            }
+            Err(BalError::Parse { .. }) => Ok(()),
+            Err(e) => Err(e),
         }
     }
 
@@ -100,7 +125,7 @@ impl<R: BufRead> Tokens<R> {
         match t.parse::<f64>() {
             Ok(v) if v.is_finite() => Ok(v),
             _ => {
-                let t = t.to_string();
+                let t = escape(t);
                 Err(self.err(format!("expected {what} (a finite number), found '{t}'")))
             }
         }
@@ -111,13 +136,18 @@ impl<R: BufRead> Tokens<R> {
         match t.parse::<usize>() {
             Ok(v) => Ok(v),
             Err(_) => {
-                let t = t.to_string();
+                let t = escape(t);
                 Err(self.err(format!(
                     "expected {what} (a non-negative integer), found '{t}'"
                 )))
             }
         }
     }
+}
+
+/// `s` with control characters escaped, to echo a value from the input safely.
+fn escape(s: &str) -> String {
+    s.chars().flat_map(char::escape_debug).take(40).collect()
 }
 
 /// Parses a BAL problem from a reader; `path` is used in error messages.
@@ -200,6 +230,9 @@ pub fn parse_bal<R: BufRead>(reader: R, path: &str) -> Result<Problem, BalError>
             fixed: false,
         });
     }
+    t.expect_end(&format!(
+        "{ncam} cameras, {npts} points, {nobs} observations"
+    ))?;
     Ok(Problem {
         cameras,
         images,
@@ -312,7 +345,79 @@ mod tests {
         );
     }
 
+    #[test]
+    fn trailing_data_is_refused_with_the_line() {
+        let e = error_of(&format!("{SMALL}7\n"));
+        assert_eq!(
+            e,
+            "f.bal:25: trailing data '7' after the last point (the header declares 2 cameras, \
+             2 points, 3 observations): a duplicated or extra line?"
+        );
+        // A duplicated observation line shifts everything after it: caught at the end.
+        let dup = SMALL.replacen("1 0 -1.0 0.5\n", "1 0 -1.0 0.5\n1 0 -1.0 0.5\n", 1);
+        assert!(
+            error_of(&dup).contains("trailing data"),
+            "{}",
+            error_of(&dup)
+        );
+        // Trailing whitespace and blank lines are fine.
+        assert!(parse_bal(format!("{SMALL}\n  \n").as_bytes(), "f.bal").is_ok());
+    }
+
+    #[test]
+    fn a_byte_order_mark_is_skipped() {
+        let p = parse_bal(format!("\u{feff}{SMALL}").as_bytes(), "f.bal").unwrap();
+        assert_eq!(p.observations.len(), 3);
+    }
+
+    #[test]
+    fn control_characters_are_not_echoed() {
+        let e = error_of("1 1 1\n0 0 1\x1b[2J 2\n");
+        assert!(e.contains("found '1\\u{1b}[2J'"), "{e}");
+    }
+
+    #[test]
+    fn the_bad_input_with_a_duplicated_line_is_refused() {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(
+            "../../../shared/data/bad-inputs/bal_duplicated_line_accepted_rms75100px_rc0.bal",
+        );
+        if !path.exists() {
+            println!("skipped: {} is absent", path.display());
+            return;
+        }
+        let e = read_bal(&path).unwrap_err().to_string();
+        assert!(
+            e.contains("bal_duplicated_line_accepted_rms75100px_rc0.bal:")
+                && e.contains("trailing data"),
+            "{e}"
+        );
+    }
+
     proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(1000))]
+
+        /// Duplicating any line of a valid file, or cutting it anywhere before its last
+        /// value, never passes silently: the reader refuses it, naming the file.
+        #[test]
+        fn duplicated_lines_and_truncations_are_refused(line in 0usize..25, cut in 0usize..200) {
+            let lines: Vec<&str> = SMALL.lines().collect();
+            let k = line % lines.len();
+            let mut dup: Vec<&str> = lines.clone();
+            dup.insert(k, lines[k]);
+            let text = dup.join("\n") + "\n";
+            let e = parse_bal(text.as_bytes(), "f.bal").unwrap_err().to_string();
+            proptest::prop_assert!(e.starts_with("f.bal:"), "{}", e);
+            let body = SMALL.trim_end();
+            let at = cut.min(body.len() - 1);
+            // A cut inside the last number leaves a shorter, still valid number.
+            if at < body.len() - 4 {
+                let e = parse_bal(body[..at].as_bytes(), "f.bal").unwrap_err().to_string();
+                proptest::prop_assert!(e.starts_with("f.bal:"), "{}", e);
+            }
+            let huge = SMALL.replacen("1.0 2.0", "1e309 2.0", 1);
+            proptest::prop_assert!(parse_bal(huge.as_bytes(), "f.bal").is_err());
+        }
+
         #[test]
         fn arbitrary_bytes_never_panic(bytes in proptest::collection::vec(proptest::prelude::any::<u8>(), 0..400)) {
             let _ = parse_bal(bytes.as_slice(), "fuzz");
