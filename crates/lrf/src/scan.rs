@@ -13,6 +13,14 @@
 //! millions of beams never has to fit in memory as one string. Ranges under 20 mm (the URG
 //! error codes, and 0) mean "no return" and are stored as `0.0`.
 //!
+//! A range above [`MAX_RANGE_MM`] (1 km; the URG-04LX reaches 5.6 m, long-range 2D
+//! scanners some 100 m) is refused, naming the file and line. It is not treated as a
+//! glitch to skip: a range finder reports a failed beam as an error code or as 0, never as
+//! 1e300, so such a number means the line was corrupted or written with the wrong unit, and
+//! the other ranges of that line cannot be trusted either. Skipping it silently would also
+//! let it through into the cloud (an infinite PLY vertex) and the plane and ball search (a
+//! point far away that made one file take 140× longer and changed what was found).
+//!
 //! [`ScanWriter`] is the one writer of the format (the simulator writes through it too):
 //! time stamps with 3 decimals, servo angles with 6, ranges in whole mm.
 
@@ -21,6 +29,9 @@ use std::io::{BufRead, Write};
 
 /// Ranges under this many millimetres are URG error codes: no return.
 pub const MIN_VALID_RANGE_MM: f64 = 20.0;
+
+/// Ranges above this many millimetres (1 km) are beyond any 2D range finder: refused.
+pub const MAX_RANGE_MM: f64 = 1e6;
 
 /// The header of a scan file: the beam geometry shared by all lines.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -236,6 +247,15 @@ impl<R: BufRead> ScanReader<R> {
                 ));
             }
             let mm = v * self.header.mm_per_unit;
+            if mm > MAX_RANGE_MM {
+                return Err(LrfError::parse(
+                    file,
+                    line_no,
+                    format!(
+                        "range r{i}: {mm:e} mm is beyond any range finder (at most {MAX_RANGE_MM:e} mm): a corrupt line or a wrong range_unit?"
+                    ),
+                ));
+            }
             ranges_mm.push(if mm < MIN_VALID_RANGE_MM { 0.0 } else { mm });
         }
         if ranges_mm.is_empty() {
@@ -411,7 +431,8 @@ mod tests {
     fn range_unit_metres() {
         let t = GOOD
             .replace("range_unit=mm", "range_unit=m")
-            .replace("1532,1530,0", "1.532,1.5,0.01");
+            .replace("1532,1530,0", "1.532,1.5,0.01")
+            .replace("1531,7,1529", "1.531,0.007,1.529");
         let (_, v) = read_all(&t).unwrap();
         assert_eq!(v[0].ranges_mm, vec![1532.0, 1500.0, 0.0]);
     }
@@ -431,6 +452,45 @@ mod tests {
         let t = GOOD.replace("-44.9", "x");
         let e = read_all(&t).unwrap_err().to_string();
         assert!(e.starts_with("t.csv:8: servo_deg"), "{e}");
+    }
+
+    #[test]
+    fn ranges_beyond_any_sensor_are_refused_with_the_line() {
+        let t = GOOD.replace("1531,7,1529", "1531,1e300,1529");
+        let e = read_all(&t).unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "t.csv:8: range r1: 1e300 mm is beyond any range finder (at most 1e6 mm): a corrupt line or a wrong range_unit?"
+        );
+        let t = GOOD.replace("1531,7,1529", "1531,inf,1529");
+        let e = read_all(&t).unwrap_err().to_string();
+        assert!(e.starts_with("t.csv:8: range r1: expected a number"), "{e}");
+        // 1 km exactly is still a range.
+        let t = GOOD.replace("1531,7,1529", "1531,1000000,1529");
+        assert_eq!(read_all(&t).unwrap().1[1].ranges_mm[1], 1e6);
+    }
+
+    #[test]
+    fn the_bad_inputs_with_huge_ranges_are_refused() {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../../shared/data/bad-inputs");
+        for (name, line) in [
+            ("cloud_range_1e300_writes_inf_into_ply.csv", 6),
+            ("scan_csv_slow_11477156d6.csv", 12),
+        ] {
+            let path = dir.join(name);
+            if !path.exists() {
+                println!("skipped: {} is absent", path.display());
+                continue;
+            }
+            let r = open_scan_file(&path).unwrap();
+            let e = r.collect::<Result<Vec<_>>>().unwrap_err().to_string();
+            assert!(
+                e.contains(&format!("{name}:{line}: range r"))
+                    && e.contains("beyond any range finder"),
+                "{e}"
+            );
+        }
     }
 
     #[test]
