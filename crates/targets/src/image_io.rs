@@ -3,6 +3,12 @@
 //! malformed input (decoding runs under size limits, and the decoder is guarded). Grey strip
 //! TIFFs and grey PNGs go fast paths ([`tiff_strips`](crate::tiff_strips),
 //! [`png_rows`](crate::png_rows)) with the same values.
+//!
+//! A truncated file is an error. The PNG and TIFF decoders refuse one themselves; the JPEG
+//! decoder under the `image` crate (zune-jpeg, run with `strict_mode(false)`) only logs
+//! "Premature end of buffer" and fills the missing blocks with grey, so a JPEG is first
+//! walked marker by marker ([`jpeg_truncation`]) and refused when it ends before its
+//! end-of-image marker.
 
 pub use crate::raster::GrayImage;
 use crate::raster::{lut_u16, lut_u8, zeroed_f32, NotDecoded, MAX_ALLOC, MAX_SIDE};
@@ -41,6 +47,14 @@ fn decode_general(bytes: &[u8], name: &str, try_png: bool) -> Result<GrayImage, 
     if reader.format().is_none() {
         return Err(bad("not a TIFF, PNG or JPEG image".into()));
     }
+    if reader.format() == Some(image::ImageFormat::Jpeg) {
+        if let Some(at) = jpeg_truncation(bytes) {
+            return Err(bad(format!(
+                "truncated JPEG: the data ends at byte {at} of {} before the end-of-image marker (an incomplete copy?)",
+                bytes.len()
+            )));
+        }
+    }
     let mut limits = image::Limits::default();
     limits.max_image_width = Some(MAX_SIDE);
     limits.max_image_height = Some(MAX_SIDE);
@@ -76,6 +90,63 @@ fn decode_general(bytes: &[u8], name: &str, try_png: bool) -> Result<GrayImage, 
         height: h,
         data,
     })
+}
+
+/// Where a JPEG's data runs out before its end-of-image marker (EOI, `FF D9`), or `None`
+/// when the marker is reached (or the bytes are not a JPEG). Segments are skipped by their
+/// length (so an EXIF thumbnail's own EOI does not count) and entropy-coded data up to the
+/// next marker that is neither a stuffed `FF 00` nor a restart marker.
+pub fn jpeg_truncation(bytes: &[u8]) -> Option<usize> {
+    if !bytes.starts_with(&[0xFF, 0xD8]) {
+        return None;
+    }
+    let n = bytes.len();
+    let mut i = 2;
+    loop {
+        // Skip anything up to the next marker, and fill bytes.
+        while i < n && bytes[i] != 0xFF {
+            i += 1;
+        }
+        while i + 1 < n && bytes[i + 1] == 0xFF {
+            i += 1;
+        }
+        if i + 1 >= n {
+            return Some(n);
+        }
+        let marker = bytes[i + 1];
+        match marker {
+            0xD9 => return None,
+            0x01 | 0xD0..=0xD7 => {
+                i += 2;
+                continue;
+            }
+            _ => {}
+        }
+        if i + 4 > n {
+            return Some(n);
+        }
+        let len = u16::from_be_bytes([bytes[i + 2], bytes[i + 3]]) as usize;
+        i += 2 + len;
+        if i > n {
+            return Some(n);
+        }
+        if marker == 0xDA {
+            // Entropy-coded data: up to a marker that is not FF 00 or a restart.
+            loop {
+                while i < n && bytes[i] != 0xFF {
+                    i += 1;
+                }
+                if i + 1 >= n {
+                    return Some(n);
+                }
+                match bytes[i + 1] {
+                    0x00 | 0xD0..=0xD7 => i += 2,
+                    0xFF => i += 1,
+                    _ => break,
+                }
+            }
+        }
+    }
 }
 
 /// `src` mapped through `lut` (in parallel over blocks).
@@ -158,6 +229,48 @@ mod tests {
             }
             assert!(v.iter().enumerate().all(|(i, &x)| x == i as f32));
         }
+    }
+
+    fn jpeg() -> Vec<u8> {
+        let img = image::GrayImage::from_fn(64, 48, |x, y| image::Luma([(x * 3 + y) as u8]));
+        let mut out = Vec::new();
+        image::DynamicImage::ImageLuma8(img)
+            .write_to(
+                &mut std::io::Cursor::new(&mut out),
+                image::ImageFormat::Jpeg,
+            )
+            .unwrap();
+        out
+    }
+
+    #[test]
+    fn a_truncated_jpeg_is_refused_naming_the_file() {
+        let bytes = jpeg();
+        assert_eq!(jpeg_truncation(&bytes), None);
+        assert!(decode_image(&bytes, "ok.jpg").is_ok());
+        let cut = &bytes[..bytes.len() - 40];
+        let e = decode_image(cut, "cut.jpg").unwrap_err().to_string();
+        assert!(
+            e.starts_with("cut.jpg: truncated JPEG: the data ends at byte"),
+            "{e}"
+        );
+        // Only the end-of-image marker missing: still truncated.
+        assert!(jpeg_truncation(&bytes[..bytes.len() - 2]).is_some());
+    }
+
+    #[test]
+    fn the_truncated_jpeg_of_the_bad_inputs_is_refused() {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../../shared/data/bad-inputs/jpeg_truncated_accepted_0315baa11a.jpg");
+        if !path.exists() {
+            println!("skipped: {} is absent", path.display());
+            return;
+        }
+        let e = load_image(&path).unwrap_err().to_string();
+        assert!(
+            e.contains("jpeg_truncated_accepted_0315baa11a.jpg: truncated JPEG"),
+            "{e}"
+        );
     }
 
     /// The table conversion of grey 8 and 16-bit images gives exactly `to_luma32f`'s values.
