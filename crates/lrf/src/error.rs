@@ -72,6 +72,15 @@ impl LrfError {
             msg: msg.into(),
         }
     }
+    /// The text of line `line_no` without a UTF-8 byte-order mark when it is the first
+    /// line (editors on Windows write one; it is not part of the data).
+    pub(crate) fn without_bom(line_no: usize, s: &str) -> &str {
+        if line_no == 1 {
+            s.strip_prefix('\u{feff}').unwrap_or(s)
+        } else {
+            s
+        }
+    }
     pub(crate) fn io(file: &str, source: std::io::Error) -> Self {
         LrfError::Io {
             file: file.to_string(),

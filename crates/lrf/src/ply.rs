@@ -99,7 +99,7 @@ pub fn read_ply<R: BufRead>(mut input: R, file: &str) -> Result<Cloud> {
         }
         let s = std::str::from_utf8(&buf)
             .map_err(|_| LrfError::parse(file, *line_no, "header is not text"))?;
-        Ok(s.trim().to_string())
+        Ok(LrfError::without_bom(*line_no, s).trim().to_string())
     };
     let first = next_line(&mut input, &mut line_no).map_err(|e| match e {
         LrfError::Parse { .. } => LrfError::Empty {

@@ -415,6 +415,68 @@ pub struct Evaluation {
     pub leave_one_out: CheckTable,
     /// Control points that leave-one-out could not predict, with the reason.
     pub loo_skipped: Vec<(String, String)>,
+    /// Ids that do not pair up: present in one file only (see [`Unpaired`]).
+    pub unpaired: Unpaired,
+}
+
+/// The ids present in only one of the two point lists. They take no part in the
+/// registration, so a caller should say so: a typo or a stray character in an id (a
+/// byte-order mark once made `B1` into `\u{feff}B1`) silently drops a point otherwise.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Unpaired {
+    /// Ids in the LRF points only, in file order.
+    pub lrf_only: Vec<String>,
+    /// Ids in the camera points only, in file order.
+    pub camera_only: Vec<String>,
+}
+
+impl Unpaired {
+    /// The ids of each list that the other lacks.
+    pub fn of(lrf: &[PointObs], cam: &[PointObs]) -> Self {
+        let only = |a: &[PointObs], b: &[PointObs]| -> Vec<String> {
+            a.iter()
+                .filter(|p| !b.iter().any(|q| q.id == p.id))
+                .map(|p| p.id.clone())
+                .collect()
+        };
+        Unpaired {
+            lrf_only: only(lrf, cam),
+            camera_only: only(cam, lrf),
+        }
+    }
+
+    /// True when every id pairs up.
+    pub fn is_empty(&self) -> bool {
+        self.lrf_only.is_empty() && self.camera_only.is_empty()
+    }
+
+    /// The warning for the user, `None` when every id pairs up: the ids present in only one
+    /// of the files `lrf_file` and `camera_file`, each escaped (control characters and marks
+    /// shown as `\u{...}`) so that an invisible character is seen.
+    pub fn warning(&self, lrf_file: &str, camera_file: &str) -> Option<String> {
+        let list = |ids: &[String]| -> String {
+            ids.iter()
+                .map(|id| id.escape_debug().to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        let mut parts = Vec::new();
+        if !self.lrf_only.is_empty() {
+            parts.push(format!("only in {lrf_file}: {}", list(&self.lrf_only)));
+        }
+        if !self.camera_only.is_empty() {
+            parts.push(format!(
+                "only in {camera_file}: {}",
+                list(&self.camera_only)
+            ));
+        }
+        (!parts.is_empty()).then(|| {
+            format!(
+                "ids that do not pair up take no part in the registration: {}",
+                parts.join("; ")
+            )
+        })
+    }
 }
 
 /// Joins the two point lists by id, splits them into control and check sets and evaluates.
@@ -463,6 +525,7 @@ pub fn evaluate(
     let registration = register(&cl, &cc, opt)?;
     let (leave_one_out, loo_skipped) = leave_one_out(&cl, &cc, opt);
     Ok(Evaluation {
+        unpaired: Unpaired::of(lrf, cam),
         control: check_table(&registration.camera_from_lrf, &cl, &cc),
         check: check_table(&registration.camera_from_lrf, &kl, &kc),
         registration,
@@ -515,6 +578,44 @@ impl Evaluation {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn ids_in_one_file_only_are_reported() {
+        let p = |id: &str| PointObs::new(id, Vector3::zeros(), 1.0);
+        let u = Unpaired::of(&[p("\u{feff}B1"), p("B2"), p("B3")], &[p("B1"), p("B2")]);
+        assert_eq!(u.lrf_only, vec!["\u{feff}B1".to_string(), "B3".into()]);
+        assert_eq!(u.camera_only, vec!["B1".to_string()]);
+        assert_eq!(
+            u.warning("lrf.txt", "cam.txt").unwrap(),
+            "ids that do not pair up take no part in the registration: only in lrf.txt: \\u{feff}B1, B3; only in cam.txt: B1"
+        );
+        assert_eq!(Unpaired::of(&[p("B2")], &[p("B2")]).warning("a", "b"), None);
+    }
+
+    /// The bad input whose byte-order mark made the first id `\u{feff}B1`: all 16 pair up.
+    #[test]
+    fn the_bad_input_with_a_byte_order_mark_pairs_all_16_points() {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../../shared/data/bad-inputs");
+        let bom = dir.join("register_bom_in_lrf_file_silently_drops_B1.txt");
+        if !bom.exists() {
+            println!("skipped: {} is absent", bom.display());
+            return;
+        }
+        let read = |f: &str| -> Vec<PointObs> {
+            crate::xyz::read_labelled_file(&dir.join(f))
+                .unwrap()
+                .into_iter()
+                .map(|p| PointObs::new(p.id, p.xyz, 1.0))
+                .collect()
+        };
+        let lrf = read("register_bom_in_lrf_file_silently_drops_B1.txt");
+        let cam = read("register_camera_points.txt");
+        assert_eq!(lrf[0].id, "B1");
+        let ev = evaluate(&lrf, &cam, &[], &[], &RegistrationOptions::default()).unwrap();
+        assert_eq!(ev.registration.ids.len(), 16);
+        assert!(ev.unpaired.is_empty(), "{:?}", ev.unpaired);
+    }
 
     fn layout() -> Vec<Vector3<f64>> {
         vec![

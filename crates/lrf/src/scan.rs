@@ -101,6 +101,7 @@ fn read_line<R: BufRead>(
     }
     let s =
         std::str::from_utf8(buf).map_err(|_| LrfError::parse(file, line_no, "not UTF-8 text"))?;
+    let s = LrfError::without_bom(line_no, s);
     Ok(Some(s.trim_end_matches(['\n', '\r']).to_string()))
 }
 
@@ -425,6 +426,13 @@ mod tests {
         // 7 is a URG error code: no return
         assert_eq!(v[1].ranges_mm, vec![1531.0, 0.0, 1529.0]);
         assert_eq!(v[1].servo_deg, -44.9);
+    }
+
+    #[test]
+    fn a_byte_order_mark_is_skipped() {
+        let (h, v) = read_all(&format!("\u{feff}{GOOD}")).unwrap();
+        assert_eq!(h.angle_min_deg, -119.53125);
+        assert_eq!(v.len(), 2);
     }
 
     #[test]

@@ -1,6 +1,6 @@
 //! Text coordinate files: plain XYZ clouds (`x y z [anything...]`) and labelled points
 //! (`id x y z [sx sy sz]`) as `pingcal register` reads them. Whitespace or commas separate
-//! the fields; `#` starts a comment.
+//! the fields; `#` starts a comment. A UTF-8 byte-order mark at the start is skipped.
 
 use crate::cloud::Cloud;
 use crate::error::{LrfError, Result};
@@ -45,7 +45,7 @@ fn lines<R: BufRead>(
         }
         let s =
             std::str::from_utf8(&buf).map_err(|_| LrfError::parse(file, n, "not UTF-8 text"))?;
-        f(n, s)?;
+        f(n, LrfError::without_bom(n, s))?;
     }
 }
 
@@ -191,6 +191,14 @@ mod tests {
             .to_string();
         assert_eq!(e, "a.xyz:1: z: expected a number, found \"zz\"");
         assert!(read_xyz("# nothing\n".as_bytes(), "a.xyz").is_err());
+    }
+
+    #[test]
+    fn a_byte_order_mark_is_skipped() {
+        let v = read_labelled("\u{feff}B1 1 2 3\n".as_bytes(), "p.txt").unwrap();
+        assert_eq!(v[0].id, "B1");
+        let c = read_xyz("\u{feff}1 2 3\n".as_bytes(), "a.xyz").unwrap();
+        assert_eq!(c.points[0], Vector3::new(1.0, 2.0, 3.0));
     }
 
     #[test]

@@ -10,6 +10,9 @@
 //!   one σ for the three axes) or `id, label, X, Y, Z, sx, sy, sz`, in DBAT's object unit
 //!   (metres in the `camcaldemo` case).
 //!
+//!
+//! A UTF-8 byte-order mark at the start of either file is skipped.
+//!
 //! # Pixel convention
 //! DBAT (like PhotoModeler, whose exports it reads) puts the pixel origin at the *corner* of
 //! the image: the top-left pixel covers [0, 1] × [0, 1] and its centre is (0.5, 0.5), x to
@@ -122,6 +125,11 @@ pub fn dbat_principal_point(px: f64, py: f64, camera: &DbatCamera) -> (f64, f64)
     )
 }
 
+/// `text` without a UTF-8 byte-order mark at its start.
+fn without_bom(text: &str) -> &str {
+    text.strip_prefix('\u{feff}').unwrap_or(text)
+}
+
 fn fields(line: &str) -> Vec<&str> {
     line.split(|c: char| c == ',' || c.is_whitespace())
         .filter(|s| !s.is_empty())
@@ -149,7 +157,7 @@ fn number(file: &str, line: usize, what: &str, s: &str) -> Result<f64, DbatError
 /// Parses a mark-point file; `file` names it in errors.
 pub fn parse_markpts(text: &str, file: &str) -> Result<Vec<MarkPoint>, DbatError> {
     let mut out = Vec::new();
-    for (k, raw) in text.lines().enumerate() {
+    for (k, raw) in without_bom(text).lines().enumerate() {
         let line = k + 1;
         let f = fields(content(raw));
         if f.is_empty() {
@@ -193,7 +201,7 @@ pub fn parse_markpts(text: &str, file: &str) -> Result<Vec<MarkPoint>, DbatError
 /// Parses a control-point file; `file` names it in errors.
 pub fn parse_control(text: &str, file: &str) -> Result<Vec<DbatControl>, DbatError> {
     let mut out: Vec<DbatControl> = Vec::new();
-    for (k, raw) in text.lines().enumerate() {
+    for (k, raw) in without_bom(text).lines().enumerate() {
         let line = k + 1;
         let f = fields(content(raw));
         if f.is_empty() {
@@ -348,6 +356,14 @@ mod tests {
     const MARKS: &str = "# Mark points\n# Format: image id, point id, x, y, sxy\n 1,    2, 1429.1871, 1456.4278, 0.1\n 1, 1001, 10.5, 20.5, 0.1\n 2, 2, 100, 200, 0.2\n";
     const CTRL: &str = "# Id,label,X,Y,Z\n1001,CP1,0,1,0\n1002,CP2,1,1,0\n";
     const WEIGHTED: &str = "# Id,label,X,Y,Z,sxyz\n1001,CP1,0,1,0,0.001\n";
+
+    #[test]
+    fn a_byte_order_mark_is_skipped() {
+        let m = parse_markpts(&format!("\u{feff}{MARKS}"), "markpts.txt").unwrap();
+        assert_eq!(m.len(), 3);
+        let c = parse_control("\u{feff}1001,CP1,0,1,0\n", "c.txt").unwrap();
+        assert_eq!(c[0].id, "1001");
+    }
 
     #[test]
     fn parses_marks_and_control() {

@@ -397,8 +397,10 @@ impl CameraSpec {
 }
 
 impl Measurements {
-    /// Parses the JSON text; `file` names the source in errors.
+    /// Parses the JSON text (a UTF-8 byte-order mark at the start is skipped); `file` names
+    /// the source in errors.
     pub fn parse(text: &str, file: &str) -> Result<Self, MeasurementError> {
+        let text = text.strip_prefix('\u{feff}').unwrap_or(text);
         serde_json::from_str(text).map_err(|e| MeasurementError::Syntax {
             file: file.into(),
             line: e.line(),
@@ -832,6 +834,12 @@ mod tests {
         assert_eq!(again.image_points, m.image_points);
         assert_eq!(again.distances, m.distances);
         assert_eq!(again.control_points, m.control_points);
+    }
+
+    #[test]
+    fn a_byte_order_mark_is_skipped() {
+        let m = Measurements::parse(&format!("\u{feff}{EXAMPLE}"), "bom.json").unwrap();
+        assert_eq!(m.cameras.len(), 1);
     }
 
     #[test]

@@ -68,6 +68,13 @@ pub fn run(args: Args) -> CmdResult {
             args.camera_points.display()
         )
     })?;
+    let names = (
+        args.lrf_points.display().to_string(),
+        args.camera_points.display().to_string(),
+    );
+    if let Some(w) = ev.unpaired.warning(&names.0, &names.1) {
+        eprintln!("pingcal register: warning: {w}");
+    }
     if let Some(out) = &args.out {
         let text = serde_json::to_string_pretty(&ev.to_json())?;
         super::write_atomic(out, text.as_bytes())?;
