@@ -4,6 +4,7 @@
 
 use crate::cloud::Cloud;
 use crate::error::{LrfError, Result};
+use crate::xyz::MAX_COORDINATE_MM;
 use nalgebra::Vector3;
 use std::io::{BufRead, Read, Write};
 
@@ -202,7 +203,12 @@ pub fn read_ply<R: BufRead>(mut input: R, file: &str) -> Result<Cloud> {
             }
             let g = |i: usize, n: &str| -> Result<f64> {
                 match w[i].parse::<f64>() {
-                    Ok(v) if v.is_finite() => Ok(v),
+                    Ok(v) if v.abs() <= MAX_COORDINATE_MM => Ok(v),
+                    Ok(v) if v.is_finite() => Err(LrfError::parse(
+                        file,
+                        line_no,
+                        format!("{n}: {v:e} mm is beyond ±{MAX_COORDINATE_MM:e} mm (10 km)"),
+                    )),
                     _ => Err(LrfError::parse(
                         file,
                         line_no,
@@ -270,11 +276,14 @@ pub fn read_ply<R: BufRead>(mut input: R, file: &str) -> Result<Cloud> {
             })?;
             let v = |i: usize| offs[i].1.decode(&r[offs[i].0..], be);
             let p = Vector3::new(v(ix), v(iy), v(iz));
-            if !p.iter().all(|c| c.is_finite()) {
+            if !p.iter().all(|c| c.abs() <= MAX_COORDINATE_MM) {
                 return Err(LrfError::parse(
                     file,
                     k + 1,
-                    format!("binary vertex {}: not a finite number", k + 1),
+                    format!(
+                        "binary vertex {}: not a finite number within ±{MAX_COORDINATE_MM:e} mm",
+                        k + 1
+                    ),
                 ));
             }
             pts.push(p);
@@ -404,6 +413,9 @@ mod tests {
         let t = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nend_header\n1 2 3\n4 5 q\n";
         let e = read_ply(t.as_bytes(), "a.ply").unwrap_err().to_string();
         assert_eq!(e, "a.ply:9: z: expected a number, found \"q\"");
+        let t = t.replace("4 5 q", "4 5e300 6");
+        let e = read_ply(t.as_bytes(), "a.ply").unwrap_err().to_string();
+        assert_eq!(e, "a.ply:9: y: 5e300 mm is beyond ±1e7 mm (10 km)");
         let t = "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nend_header\n\0\0\0\0";
         let e = read_ply(t.as_bytes(), "b.ply").unwrap_err().to_string();
         assert!(e.contains("binary vertex 1 of 3: file ends early"), "{e}");
