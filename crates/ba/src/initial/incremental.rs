@@ -2,7 +2,7 @@
 //! when there are any, points of known (approximate) coordinates.
 //!
 //! * **With control** (some image sees at least `min_resection_points` points of known
-//!   coordinates, or some poses are given): every such image is resected; the points seen
+//!   coordinates, or two or more poses are given): every such image is resected; the points seen
 //!   by two or more oriented images are intersected; a bundle adjustment
 //!   ([`crate::solver::solve`]) refines what is oriented so far; then the images that now
 //!   see enough oriented points are resected, and so on until nothing more can be added.
@@ -13,6 +13,10 @@
 //!   intersection and a bundle adjustment after each round. If three or more control points
 //!   end up intersected, the whole network is brought into the control frame by a
 //!   similarity transform and the control points take their given coordinates.
+//! * **One given pose** and no image seeing enough control (the main station held fixed,
+//!   as in the measurement file's documented example): one pose orients no point, so the
+//!   start is the relative one, and at the end the network is moved rigidly so that this
+//!   image has its given pose (unless control points took it into their frame).
 //!
 //! Intrinsics are held at their approximate values until `calibrate_from_images` images are
 //! oriented; from then on the bundle adjustments free those the problem frees.
@@ -127,6 +131,8 @@ pub enum Step {
     ScaledByDistances { distances: usize, scale: f64 },
     /// The network moved into the control frame by a similarity transform.
     ToControlFrame { points: usize, scale: f64, rms: f64 },
+    /// The network moved rigidly so that the one image of given pose has it.
+    ToGivenPose { image: String },
 }
 
 impl std::fmt::Display for Step {
@@ -178,6 +184,9 @@ impl std::fmt::Display for Step {
                 f,
                 "similarity onto {points} control points: scale {scale:.6}, RMS {rms:.4}"
             ),
+            Step::ToGivenPose { image } => {
+                write!(f, "moved rigidly so that image '{image}' has its given pose")
+            }
         }
     }
 }
@@ -630,6 +639,29 @@ impl<'a> State<'a> {
         });
     }
 
+    /// Moves the network rigidly so that image `i` has its pose of the problem (the one the
+    /// caller gave), when it is oriented.
+    fn move_to_given_pose(&mut self, i: usize) {
+        let Some(now) = self.poses[i] else {
+            return;
+        };
+        let given = self.problem.images[i].camera_from_object;
+        // x_given = given⁻¹ · now · x_relative; each pose P becomes P · now⁻¹ · given.
+        let to_given = given.inverse().compose(&now);
+        let from_given = now.inverse().compose(&given);
+        for x in self.points.iter_mut().flatten() {
+            *x = to_given.transform(x);
+        }
+        for pose in self.poses.iter_mut().flatten() {
+            *pose = pose.compose(&from_given);
+        }
+        self.poses[i] = Some(given);
+        self.control_frame = true;
+        self.steps.push(Step::ToGivenPose {
+            image: self.problem.images[i].name.clone(),
+        });
+    }
+
     fn move_to_control_frame(&mut self) {
         let (mut from, mut to, mut idx) = (Vec::new(), Vec::new(), Vec::new());
         for j in 0..self.points.len() {
@@ -855,13 +887,22 @@ pub fn initialise(
             st.poses[i].is_none() && st.determined_points_seen(i) >= options.min_resection_points
         })
         .count();
-    let with_control = (options.resect_from_control && control_images > 0) || st.oriented() > 0;
+    // One given pose alone (the main station held fixed, as in the measurement file's
+    // documented example) orients no point: the network starts from a relative orientation
+    // and is moved, at the end, so that this image has its given pose.
+    let anchor = match (control_images, known_pose.iter().filter(|k| **k).count()) {
+        (0, 1) => known_pose.iter().position(|k| *k),
+        _ => None,
+    };
+    let with_control = (options.resect_from_control && control_images > 0)
+        || (st.oriented() > 0 && anchor.is_none());
     if with_control {
         st.resect_from_control(options)?;
     } else {
         // The control coordinates are in another frame than the relative orientation's.
         st.control_frame = false;
         st.points.iter_mut().for_each(|p| *p = None);
+        st.poses.iter_mut().for_each(|p| *p = None);
         st.bootstrap(options)?;
     }
     st.intersect_points(options);
@@ -882,6 +923,9 @@ pub fn initialise(
         if st.control_frame && options.bundle_between_steps {
             st.bundle(options);
         }
+    }
+    if let (Some(i), false) = (anchor, st.control_frame) {
+        st.move_to_given_pose(i);
     }
     Ok(st.into_initialised())
 }

@@ -842,6 +842,91 @@ mod tests {
         assert_eq!(m.cameras.len(), 1);
     }
 
+    /// A network written in the form of the module doc's example (one camera, the first
+    /// image with a pose and `fixed: true`, the others without, image points and a measured
+    /// distance, no control points) solves, and the first image keeps its given pose.
+    /// Before, one given pose sent the initialiser to its "with control" start, where
+    /// every other image "sees 0 oriented points".
+    #[test]
+    fn a_network_in_the_form_of_the_doc_example_solves() {
+        use crate::camera::CameraModel;
+        use crate::initial::incremental::{initialise, IncrementalOptions};
+        use rand::Rng;
+        let mut rng = pingcal_geometry::consensus::rng(14);
+        let cam = PhotogrammetricCamera::new(1280, 720, 0.00375);
+        let mut params = vec![0.0; 10];
+        params[0] = 2.45;
+        let points: Vec<Vector3<f64>> = (0..60)
+            .map(|k| {
+                let (a, b) = (rng.random_range(0.0..2000.0), rng.random_range(0.0..1500.0));
+                match k % 3 {
+                    0 => Vector3::new(a, b, 0.0),
+                    1 => Vector3::new(a, 0.0, b),
+                    _ => Vector3::new(0.0, a, b),
+                }
+            })
+            .collect();
+        let target = Vector3::new(700.0, 700.0, 500.0);
+        let poses: Vec<Rigid3> = (0..10)
+            .map(|i| {
+                let ang = 0.2 + 1.2 * i as f64 / 9.0;
+                let centre = Vector3::new(3200.0 * ang.cos(), 3200.0 * ang.sin(), 1200.0);
+                Rigid3::looking_at(centre, target, rng.random_range(-0.3..0.3))
+            })
+            .collect();
+        let mut image_points = Vec::new();
+        for (i, pose) in poses.iter().enumerate() {
+            for (j, x) in points.iter().enumerate() {
+                if let Some(uv) = cam.project(&params, &pose.transform(x), None, None) {
+                    if uv.x > 0.0 && uv.y > 0.0 && uv.x < 1279.0 && uv.y < 719.0 {
+                        image_points.push(serde_json::json!({
+                            "image": format!("st{i:02}"), "point": j.to_string(),
+                            "x": uv.x, "y": uv.y, "sigma_px": 0.05}));
+                    }
+                }
+            }
+        }
+        let main = PoseSpec::from_pose(&poses[0]);
+        let mut images = vec![serde_json::json!({"name": "st00", "camera": "left",
+            "pose": {"centre": main.centre, "omega_phi_kappa_deg": main.omega_phi_kappa_deg},
+            "fixed": true})];
+        images.extend(
+            (1..10).map(|i| serde_json::json!({"name": format!("st{i:02}"), "camera": "left"})),
+        );
+        let text = serde_json::json!({
+            "format": "pingcal-measurements v1",
+            "cameras": [{"name": "left", "model": "photogrammetric",
+                "width": 1280, "height": 720, "pixel_size_mm": 0.00375,
+                "intrinsics": {"c": 2.45, "xp": 0.0, "yp": 0.0, "K1": 0.0}}],
+            "images": images,
+            "image_points": image_points,
+            "distances": [{"a": "0", "b": "1", "mm": (points[0] - points[1]).norm(), "sigma_mm": 0.05}],
+        })
+        .to_string();
+        let m = Measurements::parse(&text, "doc-form.json").unwrap();
+        let built = m.to_problem().unwrap();
+        let init = initialise(
+            &built.problem,
+            &built.known_points,
+            &built.known_poses,
+            &IncrementalOptions::default(),
+        )
+        .unwrap();
+        assert!(
+            init.unoriented_images.is_empty(),
+            "{:?}",
+            init.unoriented_images
+        );
+        let mut problem = init.problem;
+        crate::solver::solve(&mut problem, &crate::solver::Options::default(), |_| {}).unwrap();
+        assert!(problem.rms_px() < 1e-3, "RMS {} px", problem.rms_px());
+        let first = &problem.images[0];
+        assert_eq!(first.name, "st00");
+        assert!((first.camera_from_object.centre() - poses[0].centre()).norm() < 1e-6);
+        let p5 = &problem.points[init.point_map[built.point_index["5"]].unwrap()];
+        assert!((p5.position - points[5]).norm() < 0.1, "{:?}", p5.position);
+    }
+
     #[test]
     fn writer_writes_a_file_that_reads_back() {
         let m = Measurements::parse(EXAMPLE, "example.json").unwrap();
