@@ -682,3 +682,42 @@ fn one_angle_convention_everywhere_and_the_same_bytes_for_the_same_input() {
         "truth.json's opk_deg against its rotation",
     );
 }
+
+/// Issue 14: the start-up bundles of `pingcal ba` reject gross errors; the summary and the
+/// report count and list them (they said "0 rejected" before). The measurement file is the
+/// one of `bad-inputs/` written in the format's documented form, with one image point moved
+/// by 60 px.
+#[test]
+fn ba_reports_the_start_up_rejections() {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/data/bad-inputs/measurements_doc_example_style.json");
+    if !src.exists() {
+        println!("skipped: {} is absent", src.display());
+        return;
+    }
+    let w = common::Work::new("ba_startup_rejections");
+    let mut m = read_json(&src);
+    let x = num(&m["image_points"][10]["x"], "x");
+    m["image_points"][10]["x"] = (x + 60.0).into();
+    let (image, point) = (
+        m["image_points"][10]["image"].as_str().unwrap().to_string(),
+        m["image_points"][10]["point"].as_str().unwrap().to_string(),
+    );
+    let file = w.dir.join("m.json");
+    fs::write(&file, serde_json::to_string(&m).unwrap()).unwrap();
+    let report = w.dir.join("report.txt");
+    let run = w.run(&["ba", s(&file), "--report", s(&report), "--quiet"]);
+    assert!(run.success(), "ba failed: {}", run.stderr);
+    let summary = run.stdout.lines().last().unwrap_or("");
+    assert!(
+        summary.contains(" rejected;") && !summary.contains(" 0 rejected;"),
+        "{summary}"
+    );
+    let text = fs::read_to_string(&report).unwrap();
+    assert!(
+        text.contains("REJECTED OBSERVATIONS")
+            && text.contains(&format!("image {image} point {point} at"))
+            && text.contains("start-up bundle: residual"),
+        "{text}"
+    );
+}

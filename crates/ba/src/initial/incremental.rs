@@ -28,7 +28,7 @@ use super::intersection::{intersect, IntersectionOptions, Ray};
 use super::relative::{relative_orientation, RelativeOptions};
 use super::resection::{resect, similarity_transform, ResectionOptions};
 use crate::problem::{Distance, PointPrior, Problem, ProblemError};
-use crate::solver::{solve, Options};
+use crate::solver::{solve, Options, Rejection};
 use nalgebra::Vector3;
 use pingcal_geometry::Rigid3;
 use std::collections::HashMap;
@@ -213,6 +213,10 @@ pub struct Initialised {
     pub in_control_frame: bool,
     /// Observations rejected as gross errors: image, point, residual in pixels.
     pub rejected_observations: Vec<(String, String, f64)>,
+    /// The same, as the adjustment report lists rejections (measured coordinates,
+    /// standardized residuals and the threshold in words): a caller reports them with the
+    /// adjustment's own, so that nothing is dropped without saying so.
+    pub rejections: Vec<Rejection>,
 }
 
 /// Why no network could be started.
@@ -253,8 +257,9 @@ struct State<'a> {
     /// Whether control coordinates are in the frame (with control) or not (relative start).
     control_frame: bool,
     known: Vec<bool>,
-    /// Per observation: rejected as a gross error (with its residual, px).
-    rejected: Vec<Option<f64>>,
+    /// Per observation: rejected as a gross error (with its residual, px, and the record
+    /// for the report).
+    rejected: Vec<Option<(f64, Rejection)>>,
 }
 
 impl<'a> State<'a> {
@@ -411,10 +416,11 @@ impl<'a> State<'a> {
 
     /// Flags gross errors in the adjusted sub-problem; returns how many were flagged.
     fn reject(&mut self, sub: &Problem, obs_map: &[usize], options: &IncrementalOptions) -> usize {
-        let res: Vec<f64> = sub
-            .observations
+        let residuals: Vec<Option<nalgebra::Vector2<f64>>> =
+            sub.observations.iter().map(|o| sub.residual(o)).collect();
+        let res: Vec<f64> = residuals
             .iter()
-            .map(|o| sub.residual(o).map_or(f64::INFINITY, |r| r.norm()))
+            .map(|r| r.map_or(f64::INFINITY, |r| r.norm()))
             .collect();
         let mut comps: Vec<f64> = sub
             .observations
@@ -432,8 +438,20 @@ impl<'a> State<'a> {
         for (k, r) in res.iter().enumerate() {
             if *r > threshold {
                 let o = obs_map[k];
-                self.rejected[o] = Some(*r);
                 let ob = self.problem.observations[o];
+                let w =
+                    residuals[k].map_or([f64::INFINITY; 2], |v| [v.x / ob.sigma, v.y / ob.sigma]);
+                let rejection = Rejection {
+                    image: self.problem.images[ob.image].name.clone(),
+                    point: self.problem.points[ob.point].name.clone(),
+                    uv: [ob.uv.x, ob.uv.y],
+                    w,
+                    reason: format!(
+                        "start-up bundle: residual {r:.2} px above {threshold:.2} px (the larger of {} robust σ and {} px)",
+                        options.reject_sigmas, options.reject_min_px
+                    ),
+                };
+                self.rejected[o] = Some((*r, rejection));
                 self.by_image[ob.image].retain(|&x| x != o);
                 self.by_point[ob.point].retain(|&x| x != o);
                 count += 1;
@@ -846,14 +864,19 @@ impl<'a> State<'a> {
         let rejected_observations = (self.rejected.iter().enumerate())
             .filter_map(|(k, r)| {
                 let o = &problem.observations[k];
-                r.map(|r| {
+                r.as_ref().map(|(r, _)| {
                     (
                         problem.images[o.image].name.clone(),
                         problem.points[o.point].name.clone(),
-                        r,
+                        *r,
                     )
                 })
             })
+            .collect();
+        let rejections = self
+            .rejected
+            .iter()
+            .filter_map(|r| r.as_ref().map(|(_, rej)| rej.clone()))
             .collect();
         Initialised {
             problem: sub,
@@ -864,6 +887,7 @@ impl<'a> State<'a> {
             unoriented_images,
             undetermined_points,
             rejected_observations,
+            rejections,
         }
     }
 }

@@ -278,16 +278,19 @@ fn run_measurements(path: &std::path::Path, args: &Args) -> CmdResult {
         problem.loss = parse_loss(l)?;
     }
     let initial: Vec<Vec<f64>> = meas_initial_intrinsics(&built.problem);
-    let (summary, precision, rejected) = match args.snoop {
+    // The start-up bundles' rejections are reported with the adjustment's own.
+    let mut rejected = init.rejections;
+    let (summary, precision) = match args.snoop {
         Some(w) => {
             let max_rejections = problem.observations.len() / 10;
             let r = solver::adjust_with_snooping(&mut problem, &options, w, max_rejections)?;
-            (r.summary, r.precision, r.rejected)
+            rejected.extend(r.rejected);
+            (r.summary, r.precision)
         }
         None => {
             let summary = solver::solve(&mut problem, &options, |_| {})?;
             let precision = solver::precision(&problem)?;
-            (summary, precision, Vec::new())
+            (summary, precision)
         }
     };
     let report = AdjustmentReport::new(&problem, &initial, &summary, &precision, &rejected);
