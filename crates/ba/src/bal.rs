@@ -109,7 +109,7 @@ impl<R: BufRead> Tokens<R> {
     fn expect_end(&mut self, header: &str) -> Result<(), BalError> {
         match self.next("") {
             Ok(extra) => {
-                let extra = escape(extra);
+                let extra = crate::io::printable(extra);
                 Err(self.err(format!(
                     "trailing data '{extra}' after the last point (the header declares {header}): \
                      a duplicated or extra line?"
@@ -125,7 +125,7 @@ impl<R: BufRead> Tokens<R> {
         match t.parse::<f64>() {
             Ok(v) if v.is_finite() => Ok(v),
             _ => {
-                let t = escape(t);
+                let t = crate::io::printable(t);
                 Err(self.err(format!("expected {what} (a finite number), found '{t}'")))
             }
         }
@@ -136,18 +136,13 @@ impl<R: BufRead> Tokens<R> {
         match t.parse::<usize>() {
             Ok(v) => Ok(v),
             Err(_) => {
-                let t = escape(t);
+                let t = crate::io::printable(t);
                 Err(self.err(format!(
                     "expected {what} (a non-negative integer), found '{t}'"
                 )))
             }
         }
     }
-}
-
-/// `s` with control characters escaped, to echo a value from the input safely.
-fn escape(s: &str) -> String {
-    s.chars().flat_map(char::escape_debug).take(40).collect()
 }
 
 /// Parses a BAL problem from a reader; `path` is used in error messages.

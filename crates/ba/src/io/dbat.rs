@@ -149,7 +149,7 @@ fn number(file: &str, line: usize, what: &str, s: &str) -> Result<f64, DbatError
         _ => Err(DbatError::Line {
             file: file.into(),
             line,
-            message: format!("{what} '{s}' is not a finite number"),
+            message: format!("{what} '{}' is not a finite number", super::printable(s)),
         }),
     }
 }
@@ -157,6 +157,7 @@ fn number(file: &str, line: usize, what: &str, s: &str) -> Result<f64, DbatError
 /// Parses a mark-point file; `file` names it in errors.
 pub fn parse_markpts(text: &str, file: &str) -> Result<Vec<MarkPoint>, DbatError> {
     let mut out = Vec::new();
+    let mut first_line = std::collections::HashMap::new();
     for (k, raw) in without_bom(text).lines().enumerate() {
         let line = k + 1;
         let f = fields(content(raw));
@@ -179,6 +180,17 @@ pub fn parse_markpts(text: &str, file: &str) -> Result<Vec<MarkPoint>, DbatError
                 file: file.into(),
                 line,
                 message: format!("sxy {sigma} must be positive"),
+            });
+        }
+        if let Some(prev) = first_line.insert((f[0], f[1]), line) {
+            return Err(DbatError::Line {
+                file: file.into(),
+                line,
+                message: format!(
+                    "point '{}' is measured twice in image '{}' (first on line {prev})",
+                    super::printable(f[1]),
+                    super::printable(f[0])
+                ),
             });
         }
         out.push(MarkPoint {
@@ -247,7 +259,7 @@ pub fn parse_control(text: &str, file: &str) -> Result<Vec<DbatControl>, DbatErr
             return Err(DbatError::Line {
                 file: file.into(),
                 line,
-                message: format!("control point '{}' is listed twice", f[0]),
+                message: format!("control point '{}' is listed twice", super::printable(f[0])),
             });
         }
         out.push(DbatControl {
@@ -412,6 +424,30 @@ mod tests {
             parse_markpts("# nothing\n", "m.txt"),
             Err(DbatError::Empty { .. })
         ));
+    }
+
+    #[test]
+    fn a_point_measured_twice_in_an_image_names_the_file_and_both_lines() {
+        let e = parse_markpts(
+            "16, 36, 1, 2, 0.1\n16, 5, 1, 2, 0.1\n16, 36, 3, 4, 0.1\n",
+            "markpts.txt",
+        )
+        .unwrap_err()
+        .to_string();
+        assert_eq!(
+            e,
+            "markpts.txt:3: point '36' is measured twice in image '16' (first on line 1)"
+        );
+        // The same point in another image is fine.
+        assert!(parse_markpts("16, 36, 1, 2, 0.1\n17, 36, 3, 4, 0.1\n", "m.txt").is_ok());
+        // Control characters of the file are not echoed raw.
+        let e = parse_markpts("1, 2, 3\u{1b}[2J, 4, 0.1\n", "m.txt")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("x '3\\u{1b}[2J'") && !e.contains('\u{1b}'),
+            "{e}"
+        );
     }
 
     #[test]

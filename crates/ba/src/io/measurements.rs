@@ -278,6 +278,27 @@ pub enum MeasurementError {
     /// The same point measured twice in one image.
     #[error("point '{point}' is measured twice in image '{image}'")]
     DuplicateObservation { image: String, point: String },
+    /// Any of the above, in the file named (control characters of echoed values escaped).
+    #[error("{file}: {}", super::printable(&.source.to_string()))]
+    InFile {
+        file: String,
+        source: Box<MeasurementError>,
+    },
+}
+
+impl MeasurementError {
+    /// The error as found in `file` (unless it names a file already).
+    pub fn in_file(self, file: &str) -> Self {
+        match self {
+            e @ (MeasurementError::Io { .. }
+            | MeasurementError::Syntax { .. }
+            | MeasurementError::InFile { .. }) => e,
+            e => MeasurementError::InFile {
+                file: file.into(),
+                source: Box::new(e),
+            },
+        }
+    }
 }
 
 /// Things that do not stop the conversion but deserve the user's attention.
@@ -405,7 +426,7 @@ impl Measurements {
             file: file.into(),
             line: e.line(),
             column: e.column(),
-            message: e.to_string(),
+            message: super::printable(&e.to_string()),
         })
     }
 
@@ -440,7 +461,8 @@ impl Measurements {
         std::fs::rename(&tmp, path).map_err(io)
     }
 
-    /// Checks the file and builds the [`Problem`] (see the module doc).
+    /// Checks the file and builds the [`Problem`] (see the module doc). The errors name the
+    /// item concerned; [`MeasurementError::in_file`] adds the file's name.
     pub fn to_problem(&self) -> Result<Built, MeasurementError> {
         let mut b = Builder::default();
         b.add_cameras(&self.cameras)?;
@@ -834,6 +856,23 @@ mod tests {
         assert_eq!(again.image_points, m.image_points);
         assert_eq!(again.distances, m.distances);
         assert_eq!(again.control_points, m.control_points);
+    }
+
+    #[test]
+    fn errors_name_the_file_and_escape_control_characters() {
+        let e = edit(|m| {
+            m.image_points[0].point = "3\r6".into();
+            let d = m.image_points[0].clone();
+            m.image_points.push(d)
+        })
+        .unwrap_err()
+        .in_file("m.json")
+        .to_string();
+        assert_eq!(e, "m.json: point '3\\r6' is measured twice in image 'main'");
+        // A syntax error names its file already and is left as it is.
+        let e = Measurements::parse("{\"cameras\": [}", "broken.json").unwrap_err();
+        let text = e.to_string();
+        assert_eq!(e.in_file("other.json").to_string(), text);
     }
 
     #[test]

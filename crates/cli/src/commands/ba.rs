@@ -239,8 +239,12 @@ fn run_measurements(path: &std::path::Path, args: &Args) -> CmdResult {
             c.calibrate = list.clone();
         }
     }
-    let built = meas.to_problem()?;
+    // DBAT's control file is checked by its reader; what is left concerns the marks.
+    let built = meas
+        .to_problem()
+        .map_err(|e| e.in_file(&path.display().to_string()))?;
     for w in &built.warnings {
+        let w = pingcal_ba::io::printable(&w.to_string());
         eprintln!("pingcal ba: warning: {}: {w}", path.display());
     }
     let options = Options {
@@ -268,9 +272,11 @@ fn run_measurements(path: &std::path::Path, args: &Args) -> CmdResult {
         }
     }
     for (name, why) in &init.unoriented_images {
+        let name = pingcal_ba::io::printable(name);
         eprintln!("pingcal ba: warning: image '{name}' not oriented: {why}");
     }
     for (name, why) in &init.undetermined_points {
+        let name = pingcal_ba::io::printable(name);
         eprintln!("pingcal ba: warning: point '{name}' not determined: {why}");
     }
     let mut problem = init.problem;

@@ -27,7 +27,23 @@ pub fn write_atomic(path: &std::path::Path, bytes: &[u8]) -> CmdResult {
         .file_name()
         .ok_or_else(|| format!("{}: not a file name", path.display()))?;
     let tmp = dir.join(format!(".{}.partial", name.to_string_lossy()));
-    std::fs::write(&tmp, bytes).map_err(|e| format!("{}: cannot write: {e}", tmp.display()))?;
+    // The error names the file the user asked for, not the temporary one.
+    std::fs::write(&tmp, bytes).map_err(|e| format!("{}: cannot write: {e}", path.display()))?;
     std::fs::rename(&tmp, path).map_err(|e| format!("{}: cannot write: {e}", path.display()))?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    /// A failed write names the file asked for, never the temporary `.partial` one.
+    #[test]
+    fn a_failed_write_names_the_target_not_the_temporary_file() {
+        let path = std::path::Path::new("/nonexistent-pingcal-dir/results.json");
+        let e = super::write_atomic(path, b"{}").unwrap_err().to_string();
+        assert!(
+            e.starts_with("/nonexistent-pingcal-dir/results.json: cannot write")
+                && !e.contains("partial"),
+            "{e}"
+        );
+    }
 }
