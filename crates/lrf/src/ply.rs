@@ -1,6 +1,11 @@
 //! PLY clouds: reads ascii, binary little- and big-endian files (the `vertex` element's
 //! `x`, `y`, `z`, any scalar type); writes binary little-endian PLY with colours, which
 //! CloudCompare and MeshLab open.
+//!
+//! The header's counts are held to: a file that ends early is refused, and so is data
+//! after the last element when that element is the vertex list. A byte-order mark before
+//! `ply` is skipped; coordinates beyond ±1e7 mm ([`crate::xyz::MAX_COORDINATE_MM`]) are
+//! refused.
 
 use crate::cloud::Cloud;
 use crate::error::{LrfError, Result};
@@ -218,6 +223,23 @@ pub fn read_ply<R: BufRead>(mut input: R, file: &str) -> Result<Cloud> {
             };
             pts.push(Vector3::new(g(ix, "x")?, g(iy, "y")?, g(iz, "z")?));
         }
+        if vi + 1 == elements.len() {
+            // Nothing but blank lines may follow the last element.
+            let mut rest = String::new();
+            loop {
+                rest.clear();
+                line_no += 1;
+                let n = input
+                    .read_line(&mut rest)
+                    .map_err(|e| LrfError::io(file, e))?;
+                if n == 0 {
+                    break;
+                }
+                if !rest.trim().is_empty() {
+                    return Err(trailing(file, line_no, vertex.count));
+                }
+            }
+        }
     } else {
         let be = format == Format::BinBe;
         for e in &elements[..vi] {
@@ -288,6 +310,12 @@ pub fn read_ply<R: BufRead>(mut input: R, file: &str) -> Result<Cloud> {
             }
             pts.push(p);
         }
+        if vi + 1 == elements.len() {
+            let mut one = [0u8; 1];
+            if input.read(&mut one).map_err(|e| LrfError::io(file, e))? > 0 {
+                return Err(trailing(file, vertex.count + 1, vertex.count));
+            }
+        }
     }
     if pts.is_empty() {
         return Err(LrfError::Empty {
@@ -296,6 +324,16 @@ pub fn read_ply<R: BufRead>(mut input: R, file: &str) -> Result<Cloud> {
         });
     }
     Ok(Cloud::from_points(pts))
+}
+
+/// The error for data after the last element the header declares (a duplicated or extra
+/// line shifts the vertices, so the cloud read would be wrong).
+fn trailing(file: &str, line: usize, count: usize) -> LrfError {
+    LrfError::parse(
+        file,
+        line,
+        format!("trailing data after the {count} vertices the header declares: a duplicated or extra line?"),
+    )
 }
 
 /// Reads a PLY file from disk.

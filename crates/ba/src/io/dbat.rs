@@ -11,7 +11,8 @@
 //!   (metres in the `camcaldemo` case).
 //!
 //!
-//! A UTF-8 byte-order mark at the start of either file is skipped.
+//! A UTF-8 byte-order mark at the start of either file is skipped; numbers beyond ±1e12
+//! ([`MAX_MAGNITUDE`]) are refused, and so is a point measured twice in one image.
 //!
 //! # Pixel convention
 //! DBAT (like PhotoModeler, whose exports it reads) puts the pixel origin at the *corner* of
@@ -30,7 +31,9 @@
 //! re-adjusting the `camcaldemo` data with DBAT's model written out
 //! (`tests/dbat_camcal.rs`) reproduces the published px only with that reading.
 
-use super::measurements::{CameraSpec, ControlPoint, ImagePoint, ImageSpec, Measurements};
+use super::measurements::{
+    CameraSpec, ControlPoint, ImagePoint, ImageSpec, Measurements, MAX_MAGNITUDE,
+};
 use nalgebra::Vector2;
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -145,7 +148,12 @@ fn content(line: &str) -> &str {
 
 fn number(file: &str, line: usize, what: &str, s: &str) -> Result<f64, DbatError> {
     match s.parse::<f64>() {
-        Ok(v) if v.is_finite() => Ok(v),
+        Ok(v) if v.abs() <= MAX_MAGNITUDE => Ok(v),
+        Ok(v) if v.is_finite() => Err(DbatError::Line {
+            file: file.into(),
+            line,
+            message: format!("{what} {v:e} is beyond ±{MAX_MAGNITUDE:e}"),
+        }),
         _ => Err(DbatError::Line {
             file: file.into(),
             line,

@@ -38,7 +38,8 @@
 //! }
 //! ```
 //!
-//! * `format` is optional on reading; the writer always writes it.
+//! * `format` is optional on reading; the writer always writes it. A UTF-8 byte-order mark
+//!   at the start is skipped. Numbers beyond ±[`MAX_MAGNITUDE`] (1e12) are refused.
 //! * `model`: only `"photogrammetric"` (the model of SPEC.md, [`PhotogrammetricCamera`]).
 //!   `intrinsics` holds any of `c, xp, yp, K1, K2, K3, P1, P2, B1, B2` (missing ones are 0;
 //!   `c` is required) and `calibrate` lists the ones adjusted (self-calibration); the others
@@ -339,26 +340,30 @@ pub struct Built {
     pub warnings: Vec<Warning>,
 }
 
+/// No value of a measurement file (mm, pixels, degrees) is larger: a `1e300` is a
+/// corrupt number, not a measurement, and would only overflow further on.
+pub const MAX_MAGNITUDE: f64 = 1e12;
+
 fn positive(what: impl FnOnce() -> String, v: f64) -> Result<(), MeasurementError> {
-    if v.is_finite() && v > 0.0 {
+    if v > 0.0 && v <= MAX_MAGNITUDE {
         Ok(())
     } else {
         Err(MeasurementError::BadValue {
             what: what(),
             value: v,
-            expected: "a positive finite number",
+            expected: "a positive number up to 1e12",
         })
     }
 }
 
 fn finite(what: impl FnOnce() -> String, v: f64) -> Result<(), MeasurementError> {
-    if v.is_finite() {
+    if v.abs() <= MAX_MAGNITUDE {
         Ok(())
     } else {
         Err(MeasurementError::BadValue {
             what: what(),
             value: v,
-            expected: "a finite number",
+            expected: "a finite number within ±1e12",
         })
     }
 }
