@@ -20,6 +20,8 @@
 //! the other ranges of that line cannot be trusted either. Skipping it silently would also
 //! let it through into the cloud (an infinite PLY vertex) and the plane and ball search (a
 //! point far away that made one file take 140× longer and changed what was found).
+//! A time stamp beyond ±1e12 s or a servo angle beyond ±1e6° is refused likewise. A
+//! UTF-8 byte-order mark at the start is skipped.
 //!
 //! [`ScanWriter`] is the one writer of the format (the simulator writes through it too):
 //! time stamps with 3 decimals, servo angles with 6, ranges in whole mm.
@@ -237,6 +239,15 @@ impl<R: BufRead> ScanReader<R> {
                 LrfError::parse(file, line_no, "expected `stamp_s,servo_deg,r0,...`")
             })?,
         )?;
+        for (what, v, max) in [("stamp_s", stamp_s, 1e12), ("servo_deg", servo_deg, 1e6)] {
+            if v.abs() > max {
+                return Err(LrfError::parse(
+                    file,
+                    line_no,
+                    format!("{what}: {v:e} is beyond ±{max:e}: a corrupt line?"),
+                ));
+            }
+        }
         let mut ranges_mm = Vec::with_capacity(self.n_beams.unwrap_or(0));
         for (i, f) in fields.enumerate() {
             let v = parse_f64(file, line_no, &format!("range r{i}"), f)?;

@@ -1,0 +1,265 @@
+//! Issue 14, "nothing silent": each text and binary reader of this crate (scan CSV, XYZ,
+//! labelled points, PLY) gets valid files mutated the ways real files go wrong — a line
+//! duplicated, data appended, the file cut short, a UTF-8 byte-order mark in front, a
+//! number made huge — 1,000 cases each. Every mutation is either refused with an error
+//! naming the file, or read with the result the mutated text legally means:
+//!
+//! * a byte-order mark or a trailing comment: the same result as the clean file;
+//! * a duplicated line of a format without counts (scan CSV, XYZ): that line read twice,
+//!   nothing shifted (labelled points refuse the repeated id; PLY, whose header counts the
+//!   vertices, refuses the extra line);
+//! * a cut of a format without counts: a prefix of the clean result whose last item may be
+//!   cut short (PLY refuses any cut);
+//! * a huge number (1e300) or a non-number: refused.
+
+use pingcal_lrf::scan::{ScanLine, ScanReader};
+use pingcal_lrf::xyz::{read_labelled, read_xyz, LabelledPoint};
+use proptest::prelude::*;
+
+/// One way a file goes wrong.
+#[derive(Clone, Debug)]
+enum Mutation {
+    /// Line `k` (modulo the line count) written twice.
+    Duplicate(usize),
+    /// `text` appended after the last line.
+    Append(String),
+    /// The file cut after `k` bytes (modulo its length).
+    Cut(usize),
+    /// A UTF-8 byte-order mark in front.
+    Bom,
+    /// The `k`-th number of a data line (modulo their count) replaced by `1e300`.
+    Huge(usize),
+}
+
+fn mutation() -> impl Strategy<Value = Mutation> {
+    prop_oneof![
+        any::<usize>().prop_map(Mutation::Duplicate),
+        prop_oneof![
+            Just("# a comment\n".to_string()),
+            Just("1 2\n".to_string()),
+            Just("abc\n".to_string()),
+            Just("1,x,3\n".to_string()),
+            Just("nan nan nan nan\n".to_string()),
+            "[a-z][a-z0-9.;]{0,11}".prop_map(|s| s + "\n"),
+        ]
+        .prop_map(Mutation::Append),
+        any::<usize>().prop_map(Mutation::Cut),
+        Just(Mutation::Bom),
+        any::<usize>().prop_map(Mutation::Huge),
+    ]
+}
+
+/// `text` mutated; `data_line(l)` tells which lines hold data numbers (for `Huge`), and
+/// `sep` what separates them.
+fn apply(text: &str, m: &Mutation, data_line: impl Fn(&str) -> bool, sep: &[char]) -> String {
+    let lines: Vec<&str> = text.lines().collect();
+    match m {
+        Mutation::Duplicate(k) => {
+            let k = k % lines.len();
+            let mut v = lines.clone();
+            v.insert(k, lines[k]);
+            v.join("\n") + "\n"
+        }
+        Mutation::Append(s) => format!("{text}{s}"),
+        Mutation::Cut(k) => text[..k % text.len()].to_string(),
+        Mutation::Bom => format!("\u{feff}{text}"),
+        Mutation::Huge(k) => {
+            // Number tokens of the data lines, as (line, token) positions.
+            let mut spots = Vec::new();
+            for (i, l) in lines.iter().enumerate() {
+                if data_line(l) {
+                    for (j, t) in l.split(sep).enumerate() {
+                        if t.trim().parse::<f64>().is_ok() {
+                            spots.push((i, j));
+                        }
+                    }
+                }
+            }
+            let (i, j) = spots[k % spots.len()];
+            let mut v: Vec<String> = lines.iter().map(|l| l.to_string()).collect();
+            let toks: Vec<String> = v[i]
+                .split(sep)
+                .enumerate()
+                .map(|(n, t)| {
+                    if n == j {
+                        "1e300".to_string()
+                    } else {
+                        t.to_string()
+                    }
+                })
+                .collect();
+            v[i] = toks.join(&sep[0].to_string());
+            v.join("\n") + "\n"
+        }
+    }
+}
+
+/// The check shared by all readers: a refusal names the file; an acceptance is what the
+/// mutated text legally means (see the module doc). `counted`: the format's header counts
+/// its items (then a duplicated line and a cut are refused).
+fn judge<T: PartialEq + std::fmt::Debug>(
+    file: &str,
+    clean: &[T],
+    m: &Mutation,
+    got: Result<Vec<T>, String>,
+    duplicated: impl Fn(usize) -> Option<Vec<T>>,
+) -> std::result::Result<(), TestCaseError>
+where
+    T: Clone,
+{
+    match got {
+        Err(e) => {
+            prop_assert!(e.starts_with(file), "error does not name {}: {}", file, e);
+            // A byte-order mark is never a reason to refuse.
+            prop_assert!(!matches!(m, Mutation::Bom), "BOM refused: {}", e);
+        }
+        Ok(v) => match m {
+            Mutation::Bom => prop_assert_eq!(&v[..], clean),
+            Mutation::Huge(_) => prop_assert!(false, "a 1e300 was accepted"),
+            Mutation::Append(_) => {
+                prop_assert_eq!(&v[..], clean, "appended data changed the result")
+            }
+            Mutation::Duplicate(k) => match duplicated(*k) {
+                Some(want) => prop_assert_eq!(v, want),
+                None => prop_assert!(false, "a duplicated line was accepted"),
+            },
+            Mutation::Cut(_) => {
+                prop_assert!(v.len() <= clean.len());
+                let n = v.len().saturating_sub(1);
+                prop_assert_eq!(
+                    &v[..n],
+                    &clean[..n],
+                    "a cut changed more than the last item"
+                );
+            }
+        },
+    }
+    Ok(())
+}
+
+const SCAN: &str = "# pingcal-scan v1\n# angle_min_deg=-119.53125\n# angle_increment_deg=0.3515625\n# range_unit=mm\nstamp_s,servo_deg,r0,r1,r2\n0.000,-45.056,1532,1530,0\n0.100,-44.9,1531,7,1529\n0.200,-44.8,1500,1501,1502\n";
+
+fn read_scan(text: &str) -> Result<Vec<ScanLine>, String> {
+    let r = ScanReader::new(text.as_bytes(), "s.csv").map_err(|e| e.to_string())?;
+    r.collect::<Result<Vec<_>, _>>().map_err(|e| e.to_string())
+}
+
+/// Scans compared without their line numbers (a duplicated line moves the later ones).
+fn scan_values(v: Vec<ScanLine>) -> Vec<(f64, f64, Vec<f64>)> {
+    v.into_iter()
+        .map(|s| (s.stamp_s, s.servo_deg, s.ranges_mm))
+        .collect()
+}
+
+const XYZ: &str = "# cloud\n1 2 3\n4,5,6, 255 0 0\n7\t8\t9\n-10 11.5 12\n";
+
+const LABELLED: &str = "B1 1 2 3\nB2, 4, 5, 6, 0.5, 0.5, 1\nB3 7 8 9\n";
+
+const PLY: &str = "ply\nformat ascii 1.0\ncomment hi\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nend_header\n1 2 3\n4 5 6\n7 8 9\n";
+
+fn points(c: pingcal_lrf::Cloud) -> Vec<[f64; 3]> {
+    c.points.iter().map(|p| [p.x, p.y, p.z]).collect()
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(1000))]
+
+    #[test]
+    fn scan_csv(m in mutation()) {
+        let text = apply(SCAN, &m, |l| !l.starts_with('#') && !l.starts_with("stamp"), &[',']);
+        let clean = scan_values(read_scan(SCAN).unwrap());
+        let got = read_scan(&text).map(scan_values);
+        let dup = |k: usize| {
+            let lines: Vec<&str> = SCAN.lines().collect();
+            let k = k % lines.len();
+            // A repeated scan reads twice; a repeated header, comment or column line
+            // changes nothing.
+            if k < 5 {
+                Some(clean.clone())
+            } else {
+                let mut v = clean.clone();
+                v.insert(k - 5, clean[k - 5].clone());
+                Some(v)
+            }
+        };
+        judge("s.csv", &clean, &m, got, dup)?;
+    }
+
+    #[test]
+    fn xyz_clouds(m in mutation()) {
+        let text = apply(XYZ, &m, |l| !l.starts_with('#'), &[' ', ',', '\t']);
+        let clean = points(read_xyz(XYZ.as_bytes(), "a.xyz").unwrap());
+        let got = read_xyz(text.as_bytes(), "a.xyz").map(points).map_err(|e| e.to_string());
+        let dup = |k: usize| {
+            let lines: Vec<&str> = XYZ.lines().collect();
+            let k = k % lines.len();
+            let mut v = clean.clone();
+            if k >= 1 {
+                v.insert(k - 1, clean[k - 1]);
+            }
+            Some(v)
+        };
+        // A cut inside a line's extra columns or a huge colour value is legal.
+        let m = match &m {
+            Mutation::Huge(_) if text.lines().filter(|l| l.contains("1e300")).any(|l| {
+                l.split([' ', ',', '\t']).filter(|t| !t.is_empty()).position(|t| t == "1e300") > Some(2)
+            }) => return Ok(()),
+            m => m.clone(),
+        };
+        judge("a.xyz", &clean, &m, got, dup)?;
+    }
+
+    #[test]
+    fn labelled_points(m in mutation()) {
+        let text = apply(LABELLED, &m, |_| true, &[' ', ',']);
+        let clean = read_labelled(LABELLED.as_bytes(), "p.txt").unwrap();
+        let got: Result<Vec<LabelledPoint>, String> =
+            read_labelled(text.as_bytes(), "p.txt").map_err(|e| e.to_string());
+        judge("p.txt", &clean, &m, got, |_| None)?;
+    }
+
+    #[test]
+    fn ascii_ply(m in mutation()) {
+        let text = apply(PLY, &m, |l| l.starts_with(|c: char| c.is_ascii_digit()), &[' ']);
+        let clean = points(pingcal_lrf::ply::read_ply(PLY.as_bytes(), "a.ply").unwrap());
+        let got = pingcal_lrf::ply::read_ply(text.as_bytes(), "a.ply")
+            .map(points)
+            .map_err(|e| e.to_string());
+        let dup = |k: usize| {
+            // A repeated comment or format line changes nothing; anything else is refused.
+            let lines: Vec<&str> = PLY.lines().collect();
+            let l = lines[k % lines.len()];
+            (l.starts_with("comment") || l.starts_with("format")).then(|| clean.clone())
+        };
+        // Only a cut of the trailing newline leaves the file whole.
+        if let (Mutation::Cut(k), Ok(v)) = (&m, &got) {
+            prop_assert!(k % PLY.len() == PLY.len() - 1 && v == &clean, "a cut PLY was accepted");
+            return Ok(());
+        }
+        judge("a.ply", &clean, &m, got, dup)?;
+    }
+
+    #[test]
+    fn binary_ply(cut in 0usize..200, extra in proptest::collection::vec(any::<u8>(), 1..8), bom: bool) {
+        let pts = vec![
+            pingcal_lrf::nalgebra::Vector3::new(1.5, -2.0, 1000.25),
+            pingcal_lrf::nalgebra::Vector3::new(0.0, 3.0, -4.0),
+        ];
+        let mut bytes = Vec::new();
+        pingcal_lrf::ply::write_ply(&mut bytes, &pts, &[[1, 2, 3], [4, 5, 6]], &[]).unwrap();
+        let read = |b: &[u8]| pingcal_lrf::ply::read_ply(b, "b.ply").map(points).map_err(|e| e.to_string());
+        let clean = read(&bytes).unwrap();
+        let at = cut % bytes.len();
+        let e = read(&bytes[..at]).unwrap_err();
+        prop_assert!(e.starts_with("b.ply"), "{}", e);
+        let mut longer = bytes.clone();
+        longer.extend_from_slice(&extra);
+        let e = read(&longer).unwrap_err();
+        prop_assert!(e.starts_with("b.ply") && e.contains("trailing data"), "{}", e);
+        if bom {
+            let mut b = "\u{feff}".as_bytes().to_vec();
+            b.extend_from_slice(&bytes);
+            prop_assert_eq!(read(&b).unwrap(), clean);
+        }
+    }
+}
