@@ -8,8 +8,10 @@
 //! The header's counts are checked against the body both ways: a file that ends early is
 //! refused, and so is one with anything but whitespace after the last point (a duplicated
 //! or extra line shifts every value after it, so reading on would solve a wrong problem).
+//! Values beyond ±1e12 are refused as corrupt.
 
 use crate::camera::BalCamera;
+use crate::io::measurements::MAX_MAGNITUDE;
 use crate::problem::{Camera, Image, Observation, Point, Problem};
 use nalgebra::{Vector2, Vector3};
 use pingcal_geometry::Rigid3;
@@ -123,7 +125,10 @@ impl<R: BufRead> Tokens<R> {
     fn f64(&mut self, what: &str) -> Result<f64, BalError> {
         let t = self.next(what)?;
         match t.parse::<f64>() {
-            Ok(v) if v.is_finite() => Ok(v),
+            Ok(v) if v.abs() <= MAX_MAGNITUDE => Ok(v),
+            Ok(v) if v.is_finite() => {
+                Err(self.err(format!("{what}: {v:e} is beyond ±{MAX_MAGNITUDE:e}")))
+            }
             _ => {
                 let t = crate::io::printable(t);
                 Err(self.err(format!("expected {what} (a finite number), found '{t}'")))

@@ -1,0 +1,302 @@
+//! Issue 14, "nothing silent": each reader of this crate (BAL, the measurement JSON with
+//! its checks, DBAT's mark-point and control files) gets valid files mutated the ways real
+//! files go wrong — a line duplicated, data appended, the file cut short, a UTF-8
+//! byte-order mark in front, a number made huge — 1,000 cases each. Every mutation is
+//! either refused with an error naming the file, or read with the result the mutated text
+//! legally means:
+//!
+//! * a byte-order mark, a trailing comment or blank: the same result as the clean file;
+//! * a duplicated line: refused (a point measured twice, an id given twice, a BAL value
+//!   shifted), except a comment and, in the JSON, a distance (measured twice: a legal
+//!   repeated measurement, read as two distances);
+//! * a cut: refused where the format is closed (JSON, BAL); in DBAT's line files, which
+//!   have no counts, a prefix of the clean result whose last record may be cut short;
+//! * a huge number (1e300): refused.
+
+use pingcal_ba::bal::{parse_bal, write_bal};
+use pingcal_ba::io::dbat::{parse_control, parse_markpts};
+use pingcal_ba::io::measurements::Measurements;
+use proptest::prelude::*;
+
+/// One way a file goes wrong.
+#[derive(Clone, Debug)]
+enum Mutation {
+    /// Line `k` (modulo the line count) written twice.
+    Duplicate(usize),
+    /// `text` appended after the last line.
+    Append(String),
+    /// The file cut after `k` bytes (modulo its length).
+    Cut(usize),
+    /// A UTF-8 byte-order mark in front.
+    Bom,
+    /// The `k`-th number of the file (modulo their count) replaced by `1e300`.
+    Huge(usize),
+}
+
+fn mutation() -> impl Strategy<Value = Mutation> {
+    prop_oneof![
+        any::<usize>().prop_map(Mutation::Duplicate),
+        prop_oneof![
+            Just("\n \n".to_string()),
+            Just("1 2\n".to_string()),
+            Just("abc\n".to_string()),
+            Just("}\n".to_string()),
+            Just("7\n".to_string()),
+            "[a-z][a-z0-9.;]{0,11}".prop_map(|s| s + "\n"),
+        ]
+        .prop_map(Mutation::Append),
+        any::<usize>().prop_map(Mutation::Cut),
+        Just(Mutation::Bom),
+        any::<usize>().prop_map(Mutation::Huge),
+    ]
+}
+
+/// The number tokens of `text`: (start, end) byte ranges of maximal runs of `[0-9.eE+-]`
+/// that parse as numbers and are not inside a `"string"`.
+fn numbers(text: &str) -> Vec<(usize, usize)> {
+    let b = text.as_bytes();
+    let (mut out, mut i, mut in_str) = (Vec::new(), 0, false);
+    while i < b.len() {
+        if b[i] == b'"' {
+            in_str = !in_str;
+            i += 1;
+            continue;
+        }
+        let num = |c: u8| c.is_ascii_digit() || b".eE+-".contains(&c);
+        if !in_str && num(b[i]) && (i == 0 || !b[i - 1].is_ascii_alphanumeric()) {
+            let s = i;
+            while i < b.len() && num(b[i]) {
+                i += 1;
+            }
+            if text[s..i].parse::<f64>().is_ok() {
+                out.push((s, i));
+            }
+        } else {
+            i += 1;
+        }
+    }
+    out
+}
+
+/// `text` mutated by `m`; for [`Mutation::Huge`] in a line file, `value_columns` is the
+/// first comma-separated column that holds values (the ones before are ids).
+fn apply_lines(text: &str, m: &Mutation, value_columns: usize) -> String {
+    let Mutation::Huge(k) = m else {
+        return apply(text, m);
+    };
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    let spots: Vec<(usize, usize)> = lines
+        .iter()
+        .enumerate()
+        .filter(|(_, l)| !l.starts_with('#'))
+        .flat_map(|(i, l)| (value_columns..l.split(',').count()).map(move |j| (i, j)))
+        .collect();
+    let (i, j) = spots[k % spots.len()];
+    let cols: Vec<String> = lines[i]
+        .split(',')
+        .enumerate()
+        .map(|(n, t)| {
+            if n == j {
+                "1e300".into()
+            } else {
+                t.to_string()
+            }
+        })
+        .collect();
+    lines[i] = cols.join(",");
+    lines.join("\n") + "\n"
+}
+
+fn apply(text: &str, m: &Mutation) -> String {
+    let lines: Vec<&str> = text.lines().collect();
+    match m {
+        Mutation::Duplicate(k) => {
+            let k = k % lines.len();
+            let mut v = lines.clone();
+            v.insert(k, lines[k]);
+            v.join("\n") + "\n"
+        }
+        Mutation::Append(s) => format!("{text}{s}"),
+        Mutation::Cut(k) => text[..k % text.len()].to_string(),
+        Mutation::Bom => format!("\u{feff}{text}"),
+        Mutation::Huge(k) => {
+            let spots = numbers(text);
+            let (s, e) = spots[k % spots.len()];
+            format!("{}1e300{}", &text[..s], &text[e..])
+        }
+    }
+}
+
+/// The duplicated line of `text` for mutation `m`.
+fn duplicated_line<'a>(text: &'a str, m: &Mutation) -> &'a str {
+    match m {
+        Mutation::Duplicate(k) => {
+            let lines: Vec<&str> = text.lines().collect();
+            lines[k % lines.len()]
+        }
+        _ => "",
+    }
+}
+
+/// A refusal names the file and is never for a byte-order mark.
+fn refused_well(file: &str, m: &Mutation, e: &str) -> std::result::Result<(), TestCaseError> {
+    prop_assert!(e.starts_with(file), "error does not name {}: {}", file, e);
+    prop_assert!(!matches!(m, Mutation::Bom), "BOM refused: {}", e);
+    Ok(())
+}
+
+/// Whether the cut `k` of `text` leaves all its data (only trailing whitespace cut).
+fn whole_after_cut(text: &str, m: &Mutation) -> bool {
+    matches!(m, Mutation::Cut(k) if k % text.len() >= text.trim_end().len())
+}
+
+const BAL: &str = "2 2 3\n0 0 1.0 2.0\n1 0 -1.0 0.5\n1 1 3.0 -2.0\n\
+    0.1\n0.2\n0.3\n1\n2\n3\n500\n0.01\n0.001\n\
+    0\n0\n0\n0\n0\n-5\n600\n0\n0\n\
+    1 2 -10\n0.5 0.5 -12\n";
+
+fn bal(text: &str) -> Result<String, String> {
+    let p = parse_bal(text.as_bytes(), "f.bal").map_err(|e| e.to_string())?;
+    let mut out = Vec::new();
+    write_bal(&p, &mut out).unwrap();
+    Ok(String::from_utf8(out).unwrap())
+}
+
+const JSON: &str = r#"{
+  "format": "pingcal-measurements v1",
+  "cameras": [
+    {"name": "left", "model": "photogrammetric", "width": 1280, "height": 720, "pixel_size_mm": 0.00375, "intrinsics": {"c": 2.45, "xp": 0.0, "K1": 0.0}, "calibrate": ["c", "xp"]}
+  ],
+  "images": [
+    {"name": "main", "camera": "left", "pose": {"centre": [0, 0, 0], "omega_phi_kappa_deg": [0, 0, 0]}, "fixed": true},
+    {"name": "st02", "camera": "left"}
+  ],
+  "image_points": [
+    {"image": "main", "point": "17", "x": 640.25, "y": 355.5, "sigma_px": 0.05},
+    {"image": "main", "point": "18", "x": 600.25, "y": 305.5, "sigma_px": 0.05},
+    {"image": "st02", "point": "17", "x": 512.0, "y": 300.75, "sigma_px": 0.05},
+    {"image": "st02", "point": "18", "x": 502.0, "y": 310.75, "sigma_px": 0.05}
+  ],
+  "distances": [
+    {"a": "17", "b": "18", "mm": 1000.12, "sigma_mm": 0.05},
+    {"a": "18", "b": "19", "mm": 500.5, "sigma_mm": 0.05}
+  ],
+  "control_points": [
+    {"id": "17", "xyz": [0, 2000, 0], "fixed": true},
+    {"id": "18", "xyz": [1000, 2000, 0], "sigma_mm": [0.1, 0.1, 0.1]},
+    {"id": "19", "xyz": [0, 2500, 300]}
+  ]
+}
+"#;
+
+/// The file as `pingcal ba` takes it: parsed and checked, errors naming the file.
+fn measurements(text: &str) -> Result<Measurements, String> {
+    let m = Measurements::parse(text, "m.json").map_err(|e| e.to_string())?;
+    m.to_problem()
+        .map_err(|e| e.in_file("m.json").to_string())?;
+    Ok(m)
+}
+
+const MARKS: &str = "# Mark points\n 1, 2, 1429.1871, 1456.4278, 0.1\n 1, 1001, 10.5, 20.5, 0.1\n 2, 2, 100, 200, 0.2\n 2, 1001, 110, 210, 0.2\n";
+
+const CONTROL: &str = "# Id,label,X,Y,Z,sxyz\n1001,CP1,0,1,0\n1002,CP2,1,1,0,0.001\n1003,CP3,1,2,0,0.001,0.001,0.002\n";
+
+/// A line format without counts: an accepted cut is a prefix whose last record may be short.
+fn prefix_ok<T: PartialEq + std::fmt::Debug>(
+    got: &[T],
+    clean: &[T],
+) -> std::result::Result<(), TestCaseError> {
+    prop_assert!(got.len() <= clean.len());
+    let n = got.len().saturating_sub(1);
+    prop_assert_eq!(
+        &got[..n],
+        &clean[..n],
+        "a cut changed more than the last record"
+    );
+    Ok(())
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(1000))]
+
+    #[test]
+    fn bal_files(m in mutation()) {
+        let text = apply(BAL, &m);
+        let clean = bal(BAL).unwrap();
+        match bal(&text) {
+            Err(e) => refused_well("f.bal", &m, &e)?,
+            Ok(got) => {
+                let blank = matches!(&m, Mutation::Append(s) if s.trim().is_empty());
+                // A cut inside the last value leaves a shorter number: the one cut BAL
+                // cannot tell.
+                let last_value = matches!(m, Mutation::Cut(k) if k % BAL.len() > BAL.len() - 4);
+                prop_assert!(
+                    matches!(m, Mutation::Bom) || blank || last_value || whole_after_cut(BAL, &m),
+                    "accepted: {:?}", m
+                );
+                if !last_value {
+                    prop_assert_eq!(got, clean);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn measurement_json(m in mutation()) {
+        let text = apply(JSON, &m);
+        let clean = measurements(JSON).unwrap();
+        match measurements(&text) {
+            Err(e) => refused_well("m.json", &m, &e)?,
+            Ok(got) => {
+                let line = duplicated_line(JSON, &m);
+                let blank = matches!(&m, Mutation::Append(s) if s.trim().is_empty());
+                if line.contains("\"mm\":") {
+                    // A distance measured twice: read as two.
+                    prop_assert_eq!(got.distances.len(), clean.distances.len() + 1);
+                } else {
+                    prop_assert!(
+                        matches!(m, Mutation::Bom) || blank || whole_after_cut(JSON, &m),
+                        "accepted: {:?}", m
+                    );
+                    prop_assert_eq!(got, clean);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn dbat_mark_points(m in mutation()) {
+        let text = apply_lines(MARKS, &m, 2);
+        let clean = parse_markpts(MARKS, "markpts.txt").unwrap();
+        match parse_markpts(&text, "markpts.txt") {
+            Err(e) => refused_well("markpts.txt", &m, &e.to_string())?,
+            Ok(got) => match m {
+                Mutation::Cut(_) => prefix_ok(&got, &clean)?,
+                _ => {
+                    let comment = duplicated_line(MARKS, &m).starts_with('#');
+                    let blank = matches!(&m, Mutation::Append(s) if s.trim().is_empty());
+                    prop_assert!(matches!(m, Mutation::Bom) || comment || blank, "accepted: {:?}", m);
+                    prop_assert_eq!(got, clean);
+                }
+            },
+        }
+    }
+
+    #[test]
+    fn dbat_control_points(m in mutation()) {
+        let text = apply_lines(CONTROL, &m, 2);
+        let clean = parse_control(CONTROL, "control.txt").unwrap();
+        match parse_control(&text, "control.txt") {
+            Err(e) => refused_well("control.txt", &m, &e.to_string())?,
+            Ok(got) => match m {
+                Mutation::Cut(_) => prefix_ok(&got, &clean)?,
+                _ => {
+                    let comment = duplicated_line(CONTROL, &m).starts_with('#');
+                    let blank = matches!(&m, Mutation::Append(s) if s.trim().is_empty());
+                    prop_assert!(matches!(m, Mutation::Bom) || comment || blank, "accepted: {:?}", m);
+                    prop_assert_eq!(got, clean);
+                }
+            },
+        }
+    }
+}
