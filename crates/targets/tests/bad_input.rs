@@ -148,3 +148,61 @@ proptest! {
         }
     }
 }
+
+/// Issue 14: a grey and a colour image in each format, cut anywhere, with bytes appended
+/// or a UTF-8 byte-order mark in front, 1,000 cases. A cut image is refused naming the file
+/// (or, where the decoder has all it needs, decoded to the same pixels); appended bytes
+/// after a complete image change nothing or are refused; a byte-order mark is refused
+/// (no image format starts with one).
+mod mutations {
+    use super::*;
+
+    fn encoded(which: usize) -> Vec<u8> {
+        let grey = image::DynamicImage::ImageLuma8(image::GrayImage::from_fn(40, 30, |x, y| {
+            image::Luma([(x * 5 + y * 3) as u8])
+        }));
+        let colour = image::DynamicImage::ImageRgb8(disc_rgb16().to_rgb8());
+        let fmts = [
+            image::ImageFormat::Png,
+            image::ImageFormat::Tiff,
+            image::ImageFormat::Jpeg,
+        ];
+        let img = if which % 2 == 0 { grey } else { colour };
+        encode(&img, fmts[(which / 2) % 3])
+    }
+
+    fn pixels(bytes: &[u8], name: &str) -> Result<Vec<u32>, String> {
+        decode_image(bytes, name)
+            .map(|g| g.data.iter().map(|v| v.to_bits()).collect())
+            .map_err(|e| e.to_string())
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 1000, ..ProptestConfig::default() })]
+
+        #[test]
+        fn cut_appended_or_marked_images_are_refused_or_unchanged(
+            which in 0usize..6,
+            cut in any::<usize>(),
+            tail in proptest::collection::vec(any::<u8>(), 1..16),
+        ) {
+            let bytes = encoded(which);
+            let clean = pixels(&bytes, "clean").unwrap();
+            let at = cut % bytes.len();
+            match pixels(&bytes[..at], "cut.img") {
+                Err(e) => prop_assert!(e.starts_with("cut.img: "), "{}", e),
+                Ok(p) => prop_assert_eq!(p, clean.clone(), "a cut image decoded to other pixels"),
+            }
+            let mut longer = bytes.clone();
+            longer.extend_from_slice(&tail);
+            match pixels(&longer, "long.img") {
+                Err(e) => prop_assert!(e.starts_with("long.img: "), "{}", e),
+                Ok(p) => prop_assert_eq!(p, clean.clone(), "appended bytes changed the pixels"),
+            }
+            let mut marked = "\u{feff}".as_bytes().to_vec();
+            marked.extend_from_slice(&bytes);
+            let e = pixels(&marked, "bom.img").unwrap_err();
+            prop_assert!(e.starts_with("bom.img: "), "{}", e);
+        }
+    }
+}
