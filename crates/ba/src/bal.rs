@@ -411,7 +411,7 @@ mod tests {
             let at = cut.min(body.len() - 1);
             // A cut inside the last number leaves a shorter, still valid number.
             if at < body.len() - 4 {
-                let e = parse_bal(body[..at].as_bytes(), "f.bal").unwrap_err().to_string();
+                let e = parse_bal(&body.as_bytes()[..at], "f.bal").unwrap_err().to_string();
                 proptest::prop_assert!(e.starts_with("f.bal:"), "{}", e);
             }
             let huge = SMALL.replacen("1.0 2.0", "1e309 2.0", 1);

@@ -97,16 +97,13 @@ fn apply(text: &str, m: &Mutation, data_line: impl Fn(&str) -> bool, sep: &[char
 /// The check shared by all readers: a refusal names the file; an acceptance is what the
 /// mutated text legally means (see the module doc). `counted`: the format's header counts
 /// its items (then a duplicated line and a cut are refused).
-fn judge<T: PartialEq + std::fmt::Debug>(
+fn judge<T: PartialEq + std::fmt::Debug + Clone>(
     file: &str,
     clean: &[T],
     m: &Mutation,
     got: Result<Vec<T>, String>,
     duplicated: impl Fn(usize) -> Option<Vec<T>>,
-) -> std::result::Result<(), TestCaseError>
-where
-    T: Clone,
-{
+) -> std::result::Result<(), TestCaseError> {
     match got {
         Err(e) => {
             prop_assert!(e.starts_with(file), "error does not name {}: {}", file, e);
