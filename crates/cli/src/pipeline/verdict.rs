@@ -108,7 +108,7 @@ pub fn chi2_upper(k: f64) -> f64 {
 pub fn judge(st: &Stages) -> Verdict {
     let mut checks = Vec::new();
     let mut reasons = Vec::new();
-    let mut test = |name: &str, value: f64, bound: f64, why: &dyn Fn(f64, f64) -> String| {
+    statistical_tests(st, &mut |name, value, bound, why| {
         let passed = value <= bound;
         if !passed {
             reasons.push(why(value, bound));
@@ -119,25 +119,7 @@ pub fn judge(st: &Stages) -> Verdict {
             bound,
             passed,
         });
-    };
-    let p = &st.adjusted.precision;
-    if p.redundancy > 0 {
-        let r = p.redundancy as f64;
-        test(
-            "bundle sigma0",
-            p.sigma0,
-            (chi2_upper(r) / r).sqrt(),
-            &|v, b| {
-                format!("the bundle adjustment's σ0 {v:.3} exceeds {b:.3}: the image points are worse than their σ's say (blur, wrong detections, or a camera model that does not fit)")
-            },
-        );
-    }
-    if let Some(ev) = &st.ext.spheres {
-        registration_tests(ev, st, &mut test);
-    }
-    sphere_fit_test(st, &mut test);
-    correlation_test(st, &mut test);
-    drop(test);
+    });
     reasons.extend(unmatched(st));
     let status = if st.ext.spheres.is_none() {
         reasons.insert(
@@ -159,6 +141,27 @@ pub fn judge(st: &Stages) -> Verdict {
 }
 
 type Test<'a> = dyn FnMut(&str, f64, f64, &dyn Fn(f64, f64) -> String) + 'a;
+
+/// Every statistical test, each reported through `test(name, value, bound, why)`.
+fn statistical_tests(st: &Stages, test: &mut Test) {
+    let p = &st.adjusted.precision;
+    if p.redundancy > 0 {
+        let r = p.redundancy as f64;
+        test(
+            "bundle sigma0",
+            p.sigma0,
+            (chi2_upper(r) / r).sqrt(),
+            &|v, b| {
+                format!("the bundle adjustment's σ0 {v:.3} exceeds {b:.3}: the image points are worse than their σ's say (blur, wrong detections, or a camera model that does not fit)")
+            },
+        );
+    }
+    if let Some(ev) = &st.ext.spheres {
+        registration_tests(ev, st, test);
+    }
+    sphere_fit_test(st, test);
+    correlation_test(st, test);
+}
 
 /// σ0 of the registration and the check points against their predicted covariances.
 fn registration_tests(ev: &Evaluation, st: &Stages, test: &mut Test) {
