@@ -9,7 +9,7 @@
 //! |---|---|---|
 //! | bundle | σ0 of the final adjustment (redundancy r) | `√(χ²₁₋α(r) / r)` |
 //! | registration | σ0 of the 3D conformal transform (redundancy 3n − 6) | `√(χ²₁₋α(dof) / dof)` × [`CENTRE_SIGMA_OPTIMISM`] |
-//! | check points | `Σ dᵢᵀ Σᵢ⁻¹ dᵢ / 3k` over the k check (or leave-one-out) balls, `dᵢ` = estimated − reference, `Σᵢ` = camera-side covariance + the LRF-side one turned into the camera frame + the transform's own, propagated | `χ²₁₋α(3k) / 3k` |
+//! | check points | `Σ dᵢᵀ Σᵢ⁻¹ dᵢ / 3k` over the k check (or leave-one-out) balls, `dᵢ` = estimated − reference, `Σᵢ` = camera-side covariance + the LRF-side one turned into the camera frame + the transform's own, propagated | `χ²₁₋α(3k) / 3k` × [`CENTRE_SIGMA_OPTIMISM`]² |
 //! | sphere fits | the pooled σ0 of the sphere fits, `√(Σ σ0ᵢ² fᵢ / Σ fᵢ)` (fᵢ = inliers − 3) | `max(√(χ²₁₋α(Σf) / Σf), `[`SPHERE_PROFILE_TOLERANCE`]`)` |
 //! | correlations | the largest \|ρ\| between two self-calibrated intrinsics | [`MAX_CORRELATION`] |
 //!
@@ -37,7 +37,8 @@ const Z_1_MINUS_ALPHA: f64 = 2.326_347_874_040_841;
 /// How optimistic the sphere centres' σ's are known to be: over simulator seeds 1–40 the
 /// RMS of (true error / reported σ) of the sphere method's extrinsic is 1.14 (README,
 /// "Accuracy on the paper-matched simulation"; mixed pixels at a ball's rim). The
-/// registration's σ0 is judged against its χ² bound widened by this factor, so that a known
+/// registration's σ0 is judged against its χ² bound widened by this factor (and the check
+/// points' χ²/n, a squared statistic, by its square), so that a known
 /// and documented optimism is not reported as a fault of every calibration.
 pub const CENTRE_SIGMA_OPTIMISM: f64 = 1.15;
 /// The sphere fits' pooled σ0 up to which the LRF's noise profile is taken as right. With
