@@ -172,7 +172,7 @@ fn registration_tests(ev: &Evaluation, st: &Stages, test: &mut Test) {
         test(
             "registration sigma0",
             reg.sigma0,
-            (chi2_upper(f) / f).sqrt(),
+            (chi2_upper(f) / f).sqrt() * CENTRE_SIGMA_OPTIMISM,
             &|v, b| {
                 format!("the registration's σ0 {v:.2} exceeds {b:.2}: the sphere centres do not fit a rigid transform of the balls within their σ's (an LRF mount or range error, or a wrong noise profile)")
             },
@@ -207,7 +207,7 @@ fn registration_tests(ev: &Evaluation, st: &Stages, test: &mut Test) {
         test(
             &format!("{what} points"),
             sum / n,
-            chi2_upper(n) / n,
+            chi2_upper(n) / n * CENTRE_SIGMA_OPTIMISM * CENTRE_SIGMA_OPTIMISM,
             &|v, b| {
                 format!("the {what} balls' errors are {:.1}× their predicted σ (χ²/n = {v:.2} > {b:.2}): the extrinsic is worse than its σ's say", v.sqrt())
             },
@@ -253,7 +253,7 @@ fn sphere_fit_test(st: &Stages, test: &mut Test) {
         test(
             "sphere fits sigma0",
             (s / f).sqrt(),
-            (chi2_upper(f) / f).sqrt(),
+            (chi2_upper(f) / f).sqrt().max(SPHERE_PROFILE_TOLERANCE),
             &|v, b| {
                 format!("the sphere fits' pooled σ0 {v:.2} exceeds {b:.2}: the LRF's noise profile is too optimistic for these ranges (set the sensor's accuracy in [lrf])")
             },
