@@ -10,7 +10,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 /// The modules of `pipeline/`, lowest first (`mod.rs`, the root that runs them, is apart).
-const ORDER: [&str; 12] = [
+const ORDER: [&str; 13] = [
     "ids",
     "progress",
     "scene",
@@ -21,6 +21,7 @@ const ORDER: [&str; 12] = [
     "bundle",
     "lrf",
     "extrinsic",
+    "verdict",
     "results",
     "report",
 ];

@@ -45,6 +45,9 @@ pub struct ReportData {
     pub title: String,
     /// Program and version that produced the report, e.g. "pingcal 0.1.0".
     pub generator: String,
+    /// The verdict on the calibration, shown first (None: not judged).
+    #[serde(default)]
+    pub verdict: Option<Verdict>,
     /// Key → value lines shown at the top (σ0, RMS, mean check error …), in order.
     pub summary: Vec<(String, String)>,
     /// Pipeline log lines, in order.
@@ -63,6 +66,32 @@ pub struct ReportData {
     pub rejected: Vec<Rejection>,
     /// Warnings of the pipeline.
     pub warnings: Vec<String>,
+}
+
+/// Whether to trust the calibration: `ok`, `doubtful` or `failed`, why, and the tests.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+pub struct Verdict {
+    /// `ok`, `doubtful` or `failed`.
+    pub status: String,
+    /// Why it is not `ok`, one sentence each.
+    pub reasons: Vec<String>,
+    /// The statistical tests.
+    pub checks: Vec<VerdictCheck>,
+    /// Their level (probability of a false alarm each).
+    pub alpha: f64,
+}
+
+/// One statistical test of the verdict.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+pub struct VerdictCheck {
+    /// What is tested.
+    pub name: String,
+    /// The statistic.
+    pub value: f64,
+    /// Its bound.
+    pub bound: f64,
+    /// `value ≤ bound`.
+    pub passed: bool,
 }
 
 /// Image residuals of one image.

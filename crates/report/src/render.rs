@@ -29,6 +29,10 @@ h1{font-size:1.55em;margin:.7em 0 .1em}
 h2{font-size:1.25em;border-bottom:2px solid #ccc;padding-bottom:2px;margin-top:1.8em}
 h3{font-size:1.05em;margin:1em 0 .3em}
 p.gen{color:#666;margin:0 0 .8em}
+div.verdict{border:2px solid #999;padding:4px 14px;margin:.6em 0;display:inline-block}
+div.verdict.ok{border-color:#2a8a2a;background:#f0faf0}
+div.verdict.doubtful{border-color:#c88a00;background:#fff8e6}
+div.verdict.failed{border-color:#b22;background:#fdeeee}
 nav.toc{background:#f6f6f6;border:1px solid #ddd;padding:4px 14px;display:inline-block}
 nav.toc ol{margin:.3em 0;padding-left:1.4em;columns:2;column-gap:3em}
 table{border-collapse:collapse;margin:.4em 0 1em;font-size:13px}
@@ -161,6 +165,9 @@ fn toc(o: &mut String, d: &ReportData) {
 
 fn summary(o: &mut String, d: &ReportData) {
     h2(o, "summary");
+    if let Some(v) = &d.verdict {
+        verdict(o, v);
+    }
     if d.summary.is_empty() {
         none(o, "no summary");
     } else {
@@ -180,6 +187,38 @@ fn summary(o: &mut String, d: &ReportData) {
 
 // ---------------------------------------------------------------------------------------
 // Extrinsic
+
+/// The verdict box: status, reasons, and the tests with their bounds.
+fn verdict(o: &mut String, v: &crate::Verdict) {
+    let _ = writeln!(
+        o,
+        r#"<div class="verdict {s}" id="verdict"><p><b>Verdict: {s}</b></p>"#,
+        s = escape(&v.status)
+    );
+    if !v.reasons.is_empty() {
+        o.push_str("<ul>\n");
+        for r in &v.reasons {
+            let _ = writeln!(o, "<li>{}</li>", escape(r));
+        }
+        o.push_str("</ul>\n");
+    }
+    let _ = writeln!(
+        o,
+        "<table><tr><th class=\"l\">test (level {})</th><th>value</th><th>bound</th><th>passed</th></tr>",
+        num(v.alpha, 2)
+    );
+    for c in &v.checks {
+        let _ = writeln!(
+            o,
+            "<tr><td class=\"l\">{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+            escape(&c.name),
+            num(c.value, 3),
+            num(c.bound, 3),
+            if c.passed { "yes" } else { "no" }
+        );
+    }
+    o.push_str("</table></div>\n");
+}
 
 fn with_sigma(v: f64, s: Option<f64>, decimals: usize, sdec: usize) -> String {
     match s {

@@ -495,6 +495,17 @@ pub fn sample_report(cloud_points: usize) -> ReportData {
     ReportData {
         title: "pingcal calibration — simulated test field (seed 1)".into(),
         generator: format!("pingcal {}", env!("CARGO_PKG_VERSION")),
+        verdict: Some(crate::Verdict {
+            status: "doubtful".into(),
+            reasons: vec!["1 sphere(s) found in the LRF cloud match no ball of the photogrammetric model (spurious spheres, or balls the images did not measure)".into()],
+            checks: vec![crate::VerdictCheck {
+                name: "registration sigma0".into(),
+                value: 1.07,
+                bound: 1.32,
+                passed: true,
+            }],
+            alpha: 0.01,
+        }),
         summary: summary(&counts, &methods),
         steps: steps(&counts),
         images: imgs,

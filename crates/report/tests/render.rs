@@ -91,6 +91,17 @@ fn user_strings_are_escaped() {
     let data = ReportData {
         title: s(),
         generator: s(),
+        verdict: Some(pingcal_report::Verdict {
+            status: s(),
+            reasons: vec![s()],
+            checks: vec![pingcal_report::VerdictCheck {
+                name: s(),
+                value: f64::NAN,
+                bound: 1.0,
+                passed: false,
+            }],
+            alpha: 0.01,
+        }),
         summary: vec![(s(), s())],
         steps: vec![s()],
         images: vec![ImageResiduals {

@@ -215,4 +215,9 @@ fn print_table(r: &pipeline::results::Results, truth: &pingcal_sim::Truth) {
         r.bundle.observations,
         r.bundle.rejected
     );
+    let v = &r.verdict;
+    println!("verdict: {}", v.status.as_str());
+    for reason in &v.reasons {
+        println!("  - {reason}");
+    }
 }

@@ -8,7 +8,8 @@
 //! | 4 | [`bundle`] | the final self-calibrating adjustment: distances, stereo rig, main image as datum, ball centres corrected for the sphere's eccentricity, data snooping, precision |
 //! | 5 | [`lrf`] | the LRF cloud from the scans and the spheres fitted to the balls |
 //! | 6 | [`extrinsic`] | spheres ↔ balls by distance invariants, the 3D conformal transform with σ, control / check / leave-one-out tables; the Fan et al. 2019 corner baseline |
-//! | 7 | [`results`], then [`report`] | `results.json` (SPEC.md) and `cloud.ply`, then the data of `report.html` |
+//! | 7 | [`verdict`] | whether to trust the calibration: `ok`, `doubtful` or `failed`, by statistical tests of every adjustment and of the check points |
+//! | 8 | [`results`], then [`report`] | `results.json` (SPEC.md) and `cloud.ply`, then the data of `report.html` |
 //!
 //! Below the steps lie the modules they share, lowest first: [`ids`] (typed ids and the
 //! vector they index), [`progress`] (the [`Reporter`] and the [`Progress`] trait through
@@ -33,6 +34,7 @@ pub mod progress;
 pub mod report;
 pub mod results;
 pub mod scene;
+pub mod verdict;
 
 use pingcal_project::Project;
 pub use progress::{Progress, Reporter, Task};
@@ -117,7 +119,17 @@ pub fn calibrate(project: &Project, opts: &Options, rep: &Reporter) -> Result<Ou
         lrf: &lrf,
         ext: &ext,
     };
-    let results = results::assemble(&stages, timing);
+    let verdict = verdict::judge(&stages);
+    rep.log(format!(
+        "verdict: {}{}",
+        verdict.status.as_str(),
+        if verdict.reasons.is_empty() {
+            String::new()
+        } else {
+            format!(" ({})", verdict.reasons.join("; "))
+        }
+    ));
+    let results = results::assemble(&stages, verdict, timing);
     let report = report::build(&stages, &results, rep);
     let cloud_ply = results::cloud_ply(&lrf, 0.5 * project.file.balls.diameter_mm);
     Ok(Outcome {

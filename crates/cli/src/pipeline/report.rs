@@ -35,6 +35,22 @@ pub fn build(st: &Stages, results: &Results, rep: &Reporter) -> rp::ReportData {
     rp::ReportData {
         title: format!("pingcal calibration — {}", f.name),
         generator: results.generator.clone(),
+        verdict: Some(rp::Verdict {
+            status: results.verdict.status.as_str().into(),
+            reasons: results.verdict.reasons.clone(),
+            checks: results
+                .verdict
+                .checks
+                .iter()
+                .map(|c| rp::VerdictCheck {
+                    name: c.name.clone(),
+                    value: c.value,
+                    bound: c.bound,
+                    passed: c.passed,
+                })
+                .collect(),
+            alpha: results.verdict.alpha,
+        }),
         summary: summary(st, results),
         steps: rep.lines(),
         images: image_residuals(st),

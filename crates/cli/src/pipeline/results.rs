@@ -15,6 +15,7 @@ use super::extrinsic::Extrinsics;
 use super::ids::CameraId;
 use super::lrf::LrfData;
 use super::scene::{image_file, PointKind, Scene};
+use super::verdict::Verdict;
 use super::Stages;
 use nalgebra::Matrix3;
 use pingcal_geometry::to_opk;
@@ -164,6 +165,8 @@ pub struct BallJson {
 pub struct Results {
     /// What wrote it.
     pub generator: String,
+    /// Whether to trust it ([`super::verdict`]).
+    pub verdict: Verdict,
     /// The project's name.
     pub project: String,
     /// The extrinsic of the primary method (spheres when run).
@@ -333,7 +336,7 @@ fn sigma3(m: &Option<Matrix3<f64>>) -> [f64; 3] {
 }
 
 /// `results.json` from what the steps produced.
-pub fn assemble(st: &Stages, time_s: Vec<(String, f64)>) -> Results {
+pub fn assemble(st: &Stages, verdict: Verdict, time_s: Vec<(String, f64)>) -> Results {
     let (project, scene, adj, ext) = (st.project, st.scene, st.adjusted, st.ext);
     let f = &project.file;
     let methods = methods(ext);
@@ -376,6 +379,7 @@ pub fn assemble(st: &Stages, time_s: Vec<(String, f64)>) -> Results {
     });
     Results {
         generator: format!("pingcal {}", env!("CARGO_PKG_VERSION")),
+        verdict,
         project: f.name.clone(),
         extrinsic: primary.extrinsic.clone().expect("found above"),
         check_points: primary.check_points.clone(),
