@@ -17,6 +17,7 @@ use std::time::Instant;
 
 /// Arguments of `pingcal ba`.
 #[derive(clap::Args)]
+#[command(allow_negative_numbers = true)]
 pub struct Args {
     /// The problem: a BAL file (`.bal`, `.txt`, optionally `.bz2`).
     #[arg(required_unless_present = "synthetic")]
@@ -38,13 +39,13 @@ pub struct Args {
     #[arg(long, default_value_t = 50)]
     pub max_iterations: usize,
     /// Relative cost-change tolerance (Ceres' function_tolerance).
-    #[arg(long, default_value_t = 1e-6)]
+    #[arg(long, allow_hyphen_values = true, default_value_t = 1e-6)]
     pub function_tolerance: f64,
     /// Gradient max-norm tolerance (Ceres' gradient_tolerance).
-    #[arg(long, default_value_t = 1e-10)]
+    #[arg(long, allow_hyphen_values = true, default_value_t = 1e-10)]
     pub gradient_tolerance: f64,
     /// Relative step tolerance (Ceres' parameter_tolerance).
-    #[arg(long, default_value_t = 1e-8)]
+    #[arg(long, allow_hyphen_values = true, default_value_t = 1e-8)]
     pub parameter_tolerance: f64,
     /// Robust loss: `huber:SCALE` or `cauchy:SCALE` (scale in pixels); none by default.
     #[arg(long)]
@@ -56,7 +57,7 @@ pub struct Args {
     #[arg(long, value_name = "CONTROL")]
     pub dbat: Option<PathBuf>,
     /// Reject gross errors by data snooping (standardized residual above this, e.g. 3.29).
-    #[arg(long, value_name = "W")]
+    #[arg(long, allow_hyphen_values = true, value_name = "W")]
     pub snoop: Option<f64>,
     /// Self-calibrate these intrinsics of every camera (comma separated, e.g.
     /// `c,xp,yp,K1,K2,K3,P1,P2,B1`), overriding the file. DBAT files default to that list.

@@ -20,6 +20,7 @@ use std::path::{Path, PathBuf};
 
 /// Arguments of `pingcal calibrate`.
 #[derive(clap::Args)]
+#[command(allow_negative_numbers = true)]
 pub struct Args {
     /// Project files (project.toml); several run in parallel.
     #[arg(required = true)]

@@ -14,6 +14,7 @@ use std::path::PathBuf;
 
 /// Arguments of `pingcal cloud`.
 #[derive(clap::Args)]
+#[command(allow_negative_numbers = true)]
 pub struct Args {
     /// Scan files (`pingcal-scan` CSV), or PLY / XYZ clouds.
     #[arg(required = true)]
@@ -22,7 +23,7 @@ pub struct Args {
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// Ball diameter, mm.
-    #[arg(long, default_value_t = 38.0)]
+    #[arg(long, allow_hyphen_values = true, default_value_t = 38.0)]
     pub diameter_mm: f64,
     /// Write the ball centres with their σ's (`id x y z sx sy sz`, mm).
     #[arg(long)]
@@ -31,17 +32,22 @@ pub struct Args {
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Mount model: the scanner centre seen from the servo shaft, in the rotating frame
-    /// (mm, `x,y,z`; eq. 2 assumes 0,0,0).
-    #[arg(long, value_delimiter = ',', allow_hyphen_values = true, default_values_t = [0.0, 0.0, 0.0])]
+    /// (mm, `x,y,z`, e.g. `-1.5,0,2`; eq. 2 assumes 0,0,0).
+    #[arg(
+        long,
+        value_delimiter = ',',
+        allow_hyphen_values = true,
+        default_value = "0,0,0"
+    )]
     pub mount_offset_mm: Vec<f64>,
     /// Mount model: tilt of the scan plane about the rotating frame's X axis (degrees).
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, allow_hyphen_values = true, default_value_t = 0.0)]
     pub tilt_x_deg: f64,
     /// Mount model: tilt of the scan plane about the rotating frame's Z axis (degrees).
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, allow_hyphen_values = true, default_value_t = 0.0)]
     pub tilt_z_deg: f64,
     /// Mount model: servo reading at which the scan plane is the LRF frame's X–Y plane.
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, allow_hyphen_values = true, default_value_t = 0.0)]
     pub servo_zero_deg: f64,
 }
 
