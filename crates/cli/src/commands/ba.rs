@@ -9,6 +9,7 @@
 //!   the report laid out like Australis's (text on stdout or `--report FILE`; JSON with
 //!   `--out FILE`).
 
+use super::preflight::{check_out_file, check_threads};
 use super::{write_atomic, CmdResult};
 use pingcal_ba::loss::Loss;
 use pingcal_ba::solver::{self, Iteration, LinearSolverKind, Options};
@@ -100,11 +101,21 @@ fn parse_loss(s: &str) -> Result<Loss, String> {
 
 /// Runs the command.
 pub fn run(args: Args) -> CmdResult {
-    if let Some(path) = &args.problem {
-        let is_json = path.extension().is_some_and(|e| e == "json");
-        if is_json || args.dbat.is_some() {
-            return run_measurements(path, &args);
+    check_threads(args.threads)?;
+    let measurements = args
+        .problem
+        .as_ref()
+        .filter(|path| path.extension().is_some_and(|e| e == "json") || args.dbat.is_some());
+    if measurements.is_none() {
+        refuse_measurement_options(&args)?;
+    }
+    for (option, file) in [("--out", &args.out), ("--report", &args.report)] {
+        if let Some(f) = file {
+            check_out_file(option, f)?;
         }
+    }
+    if let Some(path) = measurements {
+        return run_measurements(path, &args);
     }
     let t_read = Instant::now();
     let (mut problem, source) = match (&args.problem, &args.synthetic) {
@@ -215,6 +226,31 @@ pub fn run(args: Args) -> CmdResult {
         write_atomic(out, serde_json::to_string_pretty(&json)?.as_bytes())?;
     }
     Ok(())
+}
+
+/// Refuses the options of measurement files on a BAL problem, which would ignore them.
+fn refuse_measurement_options(args: &Args) -> Result<(), String> {
+    let given: Vec<&str> = [
+        ("--snoop", args.snoop.is_some()),
+        ("--calibrate", args.calibrate.is_some()),
+        ("--report", args.report.is_some()),
+    ]
+    .iter()
+    .filter(|o| o.1)
+    .map(|o| o.0)
+    .collect();
+    if given.is_empty() {
+        return Ok(());
+    }
+    let problem = match (&args.problem, &args.synthetic) {
+        (Some(p), _) => format!("the BAL file {}", p.display()),
+        _ => "a synthetic BAL problem".into(),
+    };
+    Err(format!(
+        "{} {} to measurement files (.json, or markpts.txt with --dbat), not to {problem}",
+        given.join(", "),
+        if given.len() == 1 { "applies" } else { "apply" }
+    ))
 }
 
 /// A photogrammetric adjustment of pingcal's measurement file or DBAT's files.

@@ -85,6 +85,11 @@ pub fn run(args: Args) -> CmdResult {
         tilt_z_deg: args.tilt_z_deg,
         servo_zero_deg: args.servo_zero_deg,
     };
+    for (option, file) in [("--out", &args.out), ("--balls", &args.balls)] {
+        if let Some(f) = file {
+            super::preflight::check_out_file(option, f)?;
+        }
+    }
     let mut cloud = Cloud::default();
     for f in &args.scans {
         cloud.extend(read_cloud_file(f, &mount)?);

@@ -28,6 +28,7 @@ pub struct Args {
 /// Runs the command.
 pub fn run(args: Args) -> CmdResult {
     let ids = pingcal_targets::printable::parse_id_list(&args.ids)?;
+    super::preflight::check_out_file("--out", &args.out)?;
     let svg = pingcal_targets::printable::targets_svg(args.bits, &ids, args.dot_mm, args.columns)?;
     super::write_atomic(&args.out, svg.as_bytes())?;
     println!(
