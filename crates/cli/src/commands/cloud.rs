@@ -2,8 +2,9 @@
 //! x,y,z] [--tilt-x-deg a] [--tilt-z-deg b] [--servo-zero-deg c]`: the LRF cloud (paper eq. 2,
 //! with the mount model of `pingcal_lrf::cloud`) from scan files (or PLY/XYZ clouds), the
 //! balls found and fitted in it.
-//! The PLY holds the cloud in grey, each ball's inlier points and a sampled sphere surface in
-//! one colour per ball; `--balls` writes the centres as `id x y z sx sy sz`, the input format
+//! The PLY holds the cloud in grey with each ball's inlier points in one colour per ball,
+//! and the fitted spheres as an element of their own (`element sphere N`: x y z radius and
+//! the colour), so that the file reads back as exactly the scan points; `--balls` writes the centres as `id x y z sx sy sz`, the input format
 //! of `pingcal register`.
 
 use super::CmdResult;
