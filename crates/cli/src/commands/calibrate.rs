@@ -399,7 +399,7 @@ mod tests {
         // one project alone keeps the plain names
         assert_eq!(
             out_dirs(&projects[2..3], Some(&out)).unwrap(),
-            [out.clone()]
+            vec![out.clone()]
         );
         assert_eq!(out_dirs(&projects[2..3], None).unwrap(), [p("c/results")]);
         let twice = [p("c/x.toml"), root.join("c/../c/x.toml")];
