@@ -1,8 +1,6 @@
 //! PLY clouds: reads ascii, binary little- and big-endian files (the `vertex` element's
-//! `x`, `y`, `z`, any scalar type; elements after it are not read); writes binary
-//! little-endian PLY with colours, which CloudCompare and MeshLab open, and with the fitted
-//! spheres as a `sphere` element after the vertices, so that the points read back are the
-//! scan's and nothing else.
+//! `x`, `y`, `z`, any scalar type); writes binary little-endian PLY with colours, which
+//! CloudCompare and MeshLab open.
 
 use crate::cloud::Cloud;
 use crate::error::{LrfError, Result};
