@@ -351,17 +351,28 @@ pub fn write_ply<W: Write>(
     colors: &[[u8; 3]],
     comments: &[String],
 ) -> std::io::Result<()> {
-    assert_eq!(points.len(), colors.len(), "one colour per point");
+    write_vertex_header(&mut w, points.len(), comments)?;
+    writeln!(w, "end_header")?;
+    w.write_all(&vertex_records(points, colors))
+}
+
+/// The header up to and with the `vertex` element of [`write_ply`] (no `end_header`).
+fn write_vertex_header<W: Write>(w: &mut W, n: usize, comments: &[String]) -> std::io::Result<()> {
     writeln!(w, "ply\nformat binary_little_endian 1.0")?;
     for c in comments {
         writeln!(w, "comment {}", c.replace('\n', " "))?;
     }
-    writeln!(w, "element vertex {}", points.len())?;
+    writeln!(w, "element vertex {n}")?;
     writeln!(w, "property float x\nproperty float y\nproperty float z")?;
     writeln!(
         w,
-        "property uchar red\nproperty uchar green\nproperty uchar blue\nend_header"
-    )?;
+        "property uchar red\nproperty uchar green\nproperty uchar blue"
+    )
+}
+
+/// The binary records of the `vertex` element of [`write_ply`].
+fn vertex_records(points: &[Vector3<f64>], colors: &[[u8; 3]]) -> Vec<u8> {
+    assert_eq!(points.len(), colors.len(), "one colour per point");
     let mut rec = Vec::with_capacity(points.len() * 15);
     for (p, c) in points.iter().zip(colors) {
         for k in 0..3 {
@@ -369,7 +380,7 @@ pub fn write_ply<W: Write>(
         }
         rec.extend_from_slice(c);
     }
-    w.write_all(&rec)
+    rec
 }
 
 /// Colours of the balls in [`write_cloud_with_spheres`], in turn.
@@ -384,32 +395,41 @@ pub const PALETTE: [[u8; 3]; 8] = [
     [210, 245, 60],
 ];
 
-/// The cloud in grey with each ball's inliers in its colour, and each fitted sphere drawn
-/// as 400 points (Fibonacci lattice) of radius `radius`, as binary PLY.
+/// The cloud in grey with each ball's inliers in its colour, as binary PLY, and the fitted
+/// spheres after it as an element of their own, `element sphere N` with `float x y z
+/// radius` and the ball's colour: the vertices are exactly the scan points, so the file
+/// reads back as the same cloud ([`read_ply`] reads the `vertex` element only).
 pub fn write_cloud_with_spheres<W: Write>(
-    w: W,
+    mut w: W,
     cloud: &Cloud,
     balls: &[crate::ball_finder::Ball],
     radius: f64,
     comments: &[String],
 ) -> std::io::Result<()> {
     let mut colors = vec![[160u8, 160, 160]; cloud.len()];
-    let mut points = cloud.points.clone();
     for (k, b) in balls.iter().enumerate() {
-        let c = PALETTE[k % PALETTE.len()];
         for &i in &b.inliers {
-            colors[i] = c;
-        }
-        let n = 400;
-        for j in 0..n {
-            let z = 1.0 - 2.0 * (j as f64 + 0.5) / n as f64;
-            let phi = j as f64 * std::f64::consts::PI * (3.0 - 5f64.sqrt());
-            let rho = (1.0 - z * z).sqrt();
-            points.push(b.centre + Vector3::new(rho * phi.cos(), rho * phi.sin(), z) * radius);
-            colors.push(c);
+            colors[i] = PALETTE[k % PALETTE.len()];
         }
     }
-    write_ply(w, &points, &colors, comments)
+    write_vertex_header(&mut w, cloud.len(), comments)?;
+    writeln!(w, "element sphere {}", balls.len())?;
+    writeln!(
+        w,
+        "property float x\nproperty float y\nproperty float z\nproperty float radius"
+    )?;
+    writeln!(
+        w,
+        "property uchar red\nproperty uchar green\nproperty uchar blue\nend_header"
+    )?;
+    let mut rec = vertex_records(&cloud.points, &colors);
+    for (k, b) in balls.iter().enumerate() {
+        for v in [b.centre.x, b.centre.y, b.centre.z, radius] {
+            rec.extend_from_slice(&(v as f32).to_le_bytes());
+        }
+        rec.extend_from_slice(&PALETTE[k % PALETTE.len()]);
+    }
+    w.write_all(&rec)
 }
 
 #[cfg(test)]
@@ -442,6 +462,42 @@ mod tests {
         be.extend_from_slice(&(-300i16).to_be_bytes());
         let c = read_ply(&be[..], "be.ply").unwrap();
         assert_eq!(c.points, vec![Vector3::new(7.0, -8.5, -300.0)]);
+    }
+
+    /// The cloud written with its spheres reads back as exactly its points: the spheres
+    /// are their own element, not vertices.
+    #[test]
+    fn spheres_are_not_read_back_as_points() {
+        let pts: Vec<Vector3<f64>> = (0..50)
+            .map(|i| Vector3::new(i as f64, -2.0 * i as f64, 1000.0 + 0.25 * i as f64))
+            .collect();
+        let cloud = Cloud::from_points(pts.clone());
+        let ball = crate::ball_finder::Ball {
+            centre: Vector3::new(10.0, 20.0, 1500.0),
+            cov: nalgebra::Matrix3::identity(),
+            inliers: vec![3, 4, 5],
+            cluster_points: 3,
+            rejected_points: 0,
+            sigma0: 1.0,
+            range_mm: 1500.0,
+        };
+        let mut out = Vec::new();
+        write_cloud_with_spheres(&mut out, &cloud, &[ball.clone(), ball], 19.0, &[]).unwrap();
+        let text = String::from_utf8_lossy(&out);
+        assert!(text.contains("element vertex 50\n") && text.contains("element sphere 2\n"));
+        let back = read_ply(&out[..], "c.ply").unwrap();
+        assert_eq!(
+            back.points, pts,
+            "the vertices are the scan points, no more"
+        );
+        let end = text.find("end_header\n").unwrap() + "end_header\n".len();
+        assert_eq!(out.len() - end, 50 * 15 + 2 * 19, "50 vertices, 2 spheres");
+        let r = &out[out.len() - 19 + 12..out.len() - 19 + 16];
+        assert_eq!(
+            f32::from_le_bytes(r.try_into().unwrap()),
+            19.0,
+            "the radius"
+        );
     }
 
     #[test]

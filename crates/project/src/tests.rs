@@ -55,6 +55,14 @@ fn invalid_values_are_named() {
     let e = err_of(|p| p.balls.check.push("B99".into()));
     assert!(e.contains("'B99' is not one of the labelled balls"), "{e}");
     assert!(e.starts_with("p.toml: "), "{e}");
+    let e = err_of(|p| {
+        let first = p.balls.check[0].clone();
+        p.balls.check.push(first)
+    });
+    assert!(
+        e.starts_with("p.toml: ") && e.contains("check: 'B4' appears twice"),
+        "{e}"
+    );
 }
 
 #[test]

@@ -73,8 +73,8 @@ fn validate_targets(t: &ProjectTargets) -> Result<(), String> {
     Ok(())
 }
 
-/// `[balls]`: a positive diameter, labels with unique ids and finite positions, and (when
-/// there are labels) check balls among them.
+/// `[balls]`: a positive diameter, labels with unique ids and finite positions, check balls
+/// named once each and (when there are labels) among the labels.
 fn validate_balls(b: &ProjectBalls) -> Result<(), String> {
     if !(b.diameter_mm > 0.0 && b.diameter_mm.is_finite()) {
         return Err(format!(
@@ -90,6 +90,12 @@ fn validate_balls(b: &ProjectBalls) -> Result<(), String> {
         if !(l.x.is_finite() && l.y.is_finite()) {
             return Err(format!("[balls] labels: '{}' has no finite position", l.id));
         }
+    }
+    let mut checks = BTreeSet::new();
+    if let Some(c) = b.check.iter().find(|c| !checks.insert(c.as_str())) {
+        return Err(format!(
+            "[balls] check: '{c}' appears twice (each check ball is judged once)"
+        ));
     }
     if !b.labels.is_empty() {
         if let Some(c) = b.check.iter().find(|c| !seen.contains(c.as_str())) {

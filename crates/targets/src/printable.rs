@@ -54,6 +54,12 @@ pub fn parse_id_list(s: &str) -> Result<Vec<u32>, TargetError> {
     if out.is_empty() {
         return Err(bad());
     }
+    let mut seen = std::collections::BTreeSet::new();
+    if let Some(twice) = out.iter().find(|&&id| !seen.insert(id)) {
+        return Err(TargetError::Invalid(format!(
+            "ID list '{s}': {twice} is given twice (each target is printed once)"
+        )));
+    }
     Ok(out)
 }
 
@@ -177,6 +183,13 @@ mod tests {
         assert!(parse_id_list("4-2").is_err());
         assert!(parse_id_list("x").is_err());
         assert!(parse_id_list("").is_err());
+        let e = parse_id_list("2,2,2").unwrap_err().to_string();
+        assert!(
+            e.contains("'2,2,2'") && e.contains("2 is given twice"),
+            "{e}"
+        );
+        let e = parse_id_list("2-5,4").unwrap_err().to_string();
+        assert!(e.contains("4 is given twice"), "{e}");
     }
 
     #[test]

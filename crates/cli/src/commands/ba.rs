@@ -9,6 +9,7 @@
 //!   the report laid out like Australis's (text on stdout or `--report FILE`; JSON with
 //!   `--out FILE`).
 
+use super::preflight::{check_out_file, check_threads};
 use super::{write_atomic, CmdResult};
 use pingcal_ba::loss::Loss;
 use pingcal_ba::solver::{self, Iteration, LinearSolverKind, Options};
@@ -17,6 +18,7 @@ use std::time::Instant;
 
 /// Arguments of `pingcal ba`.
 #[derive(clap::Args)]
+#[command(allow_negative_numbers = true)]
 pub struct Args {
     /// The problem: a BAL file (`.bal`, `.txt`, optionally `.bz2`).
     #[arg(required_unless_present = "synthetic")]
@@ -38,13 +40,13 @@ pub struct Args {
     #[arg(long, default_value_t = 50)]
     pub max_iterations: usize,
     /// Relative cost-change tolerance (Ceres' function_tolerance).
-    #[arg(long, default_value_t = 1e-6)]
+    #[arg(long, allow_hyphen_values = true, default_value_t = 1e-6)]
     pub function_tolerance: f64,
     /// Gradient max-norm tolerance (Ceres' gradient_tolerance).
-    #[arg(long, default_value_t = 1e-10)]
+    #[arg(long, allow_hyphen_values = true, default_value_t = 1e-10)]
     pub gradient_tolerance: f64,
     /// Relative step tolerance (Ceres' parameter_tolerance).
-    #[arg(long, default_value_t = 1e-8)]
+    #[arg(long, allow_hyphen_values = true, default_value_t = 1e-8)]
     pub parameter_tolerance: f64,
     /// Robust loss: `huber:SCALE` or `cauchy:SCALE` (scale in pixels); none by default.
     #[arg(long)]
@@ -56,7 +58,7 @@ pub struct Args {
     #[arg(long, value_name = "CONTROL")]
     pub dbat: Option<PathBuf>,
     /// Reject gross errors by data snooping (standardized residual above this, e.g. 3.29).
-    #[arg(long, value_name = "W")]
+    #[arg(long, allow_hyphen_values = true, value_name = "W")]
     pub snoop: Option<f64>,
     /// Self-calibrate these intrinsics of every camera (comma separated, e.g.
     /// `c,xp,yp,K1,K2,K3,P1,P2,B1`), overriding the file. DBAT files default to that list.
@@ -99,11 +101,21 @@ fn parse_loss(s: &str) -> Result<Loss, String> {
 
 /// Runs the command.
 pub fn run(args: Args) -> CmdResult {
-    if let Some(path) = &args.problem {
-        let is_json = path.extension().is_some_and(|e| e == "json");
-        if is_json || args.dbat.is_some() {
-            return run_measurements(path, &args);
+    check_threads(args.threads)?;
+    let measurements = args
+        .problem
+        .as_ref()
+        .filter(|path| path.extension().is_some_and(|e| e == "json") || args.dbat.is_some());
+    if measurements.is_none() {
+        refuse_measurement_options(&args)?;
+    }
+    for (option, file) in [("--out", &args.out), ("--report", &args.report)] {
+        if let Some(f) = file {
+            check_out_file(option, f)?;
         }
+    }
+    if let Some(path) = measurements {
+        return run_measurements(path, &args);
     }
     let t_read = Instant::now();
     let (mut problem, source) = match (&args.problem, &args.synthetic) {
@@ -214,6 +226,31 @@ pub fn run(args: Args) -> CmdResult {
         write_atomic(out, serde_json::to_string_pretty(&json)?.as_bytes())?;
     }
     Ok(())
+}
+
+/// Refuses the options of measurement files on a BAL problem, which would ignore them.
+fn refuse_measurement_options(args: &Args) -> Result<(), String> {
+    let given: Vec<&str> = [
+        ("--snoop", args.snoop.is_some()),
+        ("--calibrate", args.calibrate.is_some()),
+        ("--report", args.report.is_some()),
+    ]
+    .iter()
+    .filter(|o| o.1)
+    .map(|o| o.0)
+    .collect();
+    if given.is_empty() {
+        return Ok(());
+    }
+    let problem = match (&args.problem, &args.synthetic) {
+        (Some(p), _) => format!("the BAL file {}", p.display()),
+        _ => "a synthetic BAL problem".into(),
+    };
+    Err(format!(
+        "{} {} to measurement files (.json, or markpts.txt with --dbat), not to {problem}",
+        given.join(", "),
+        if given.len() == 1 { "applies" } else { "apply" }
+    ))
 }
 
 /// A photogrammetric adjustment of pingcal's measurement file or DBAT's files.

@@ -3,12 +3,15 @@
 //!
 //! Writes `results.json`, `report.html` and `cloud.ply` into DIR (default: `results/` beside
 //! the project file; with several projects and `--out`, one sub-folder per project, named
-//! after the project's folder). Several projects run in parallel. Nothing is written for a
-//! project that fails, and the outputs of an earlier run in DIR are removed first; each
-//! output file is written atomically, `results.json` last.
+//! after the project's folder, made distinct by [`out_dirs`] when two would collide).
+//! Several projects run in parallel. Before any work the output folders are created and
+//! probed ([`super::preflight`]). Nothing is written for a project that fails, and the
+//! outputs of an earlier run in DIR stay as they were until a run succeeds; then the three
+//! files are swapped in together, `results.json` last.
 
+use super::preflight::{check_out_dir, check_threads};
 use super::progress::reporter;
-use super::{write_atomic, CmdResult};
+use super::CmdResult;
 use crate::pipeline::{self, Outcome, Reporter};
 use indicatif::MultiProgress;
 use pingcal_project::Project;
@@ -17,6 +20,7 @@ use std::path::{Path, PathBuf};
 
 /// Arguments of `pingcal calibrate`.
 #[derive(clap::Args)]
+#[command(allow_negative_numbers = true)]
 pub struct Args {
     /// Project files (project.toml); several run in parallel.
     #[arg(required = true)]
@@ -38,52 +42,166 @@ pub struct Args {
     pub threads: usize,
 }
 
-/// Where a project's outputs go.
-pub fn out_dir(project: &Path, out: Option<&Path>, several: bool) -> PathBuf {
-    let dir = project
+/// Where the outputs of a project run alone go: `out`, or `results/` beside its file (see
+/// [`out_dirs`] for a batch).
+pub fn out_dir(project: &Path, out: Option<&Path>) -> PathBuf {
+    match out {
+        None => folder_of(project).join("results"),
+        Some(o) => o.to_path_buf(),
+    }
+}
+
+/// The folder that holds `project`, as given (`.` for a bare file name).
+fn folder_of(project: &Path) -> &Path {
+    project
         .parent()
         .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    match out {
-        None => dir.join("results"),
-        Some(o) if !several => o.to_path_buf(),
-        Some(o) => {
-            let name = std::fs::canonicalize(dir)
-                .ok()
-                .and_then(|d| d.file_name().map(|n| n.to_string_lossy().into_owned()))
-                .unwrap_or_else(|| "project".into());
-            o.join(name)
+        .unwrap_or(Path::new("."))
+}
+
+/// The folder that holds `project`, absolute and without links where it exists.
+fn absolute_folder(project: &Path) -> PathBuf {
+    let dir = folder_of(project);
+    std::fs::canonicalize(dir)
+        .or_else(|_| std::path::absolute(dir))
+        .unwrap_or_else(|_| dir.to_path_buf())
+}
+
+/// The last component of a folder (`project` for the root).
+fn folder_name(dir: &Path) -> String {
+    dir.file_name()
+        .map_or_else(|| "project".into(), |n| n.to_string_lossy().into_owned())
+}
+
+/// The output folder of every project of a run, all distinct, or why the run is refused.
+///
+/// One project writes into `--out` (default: `results/` beside its file). In a batch with
+/// `--out`, each project gets the sub-folder named after its project's folder; where two
+/// such names collide (`a/proj`, `b/proj`) the folder's path below the colliding folders'
+/// common parent is used instead, joined by `-` (`a-proj`, `b-proj`); where one folder
+/// holds several of the batch's project files, each file's stem is added (`proj-x`,
+/// `proj-y`; without `--out`: `results-x`, `results-y` beside them). A project file given
+/// twice, or two projects that would still share a folder, refuse the run.
+pub fn out_dirs(projects: &[PathBuf], out: Option<&Path>) -> Result<Vec<PathBuf>, String> {
+    if projects.len() == 1 {
+        return Ok(vec![out_dir(&projects[0], out)]);
+    }
+    let folders: Vec<PathBuf> = projects.iter().map(|p| absolute_folder(p)).collect();
+    let files: Vec<PathBuf> = projects
+        .iter()
+        .zip(&folders)
+        .map(|(p, f)| f.join(p.file_name().unwrap_or_default()))
+        .collect();
+    for (k, f) in files.iter().enumerate() {
+        if let Some(j) = files[..k].iter().position(|g| g == f) {
+            return Err(format!(
+                "{} and {}: the same project file is given twice",
+                projects[j].display(),
+                projects[k].display()
+            ));
         }
+    }
+    let shares_folder = |k: usize| folders.iter().filter(|f| **f == folders[k]).count() > 1;
+    let stem = |k: usize| {
+        projects[k]
+            .file_stem()
+            .map_or_else(String::new, |s| s.to_string_lossy().into_owned())
+    };
+    let dirs: Vec<PathBuf> = match out {
+        None => (0..projects.len())
+            .map(|k| match shares_folder(k) {
+                true => folder_of(&projects[k]).join(format!("results-{}", stem(k))),
+                false => folder_of(&projects[k]).join("results"),
+            })
+            .collect(),
+        Some(o) => {
+            let names: Vec<String> = folders.iter().map(|f| folder_name(f)).collect();
+            (0..projects.len())
+                .map(|k| {
+                    let same: Vec<&PathBuf> = (0..projects.len())
+                        .filter(|&j| names[j] == names[k])
+                        .map(|j| &folders[j])
+                        .collect();
+                    let mut name = if same.len() > 1 {
+                        below_common_parent(&folders[k], &same)
+                    } else {
+                        names[k].clone()
+                    };
+                    if shares_folder(k) {
+                        name = format!("{name}-{}", stem(k));
+                    }
+                    o.join(name)
+                })
+                .collect()
+        }
+    };
+    let key = |d: &Path| std::path::absolute(d).unwrap_or_else(|_| d.to_path_buf());
+    for k in 0..dirs.len() {
+        if let Some(j) = (0..k).find(|&j| key(&dirs[j]) == key(&dirs[k])) {
+            return Err(format!(
+                "{} and {} would both write into {}: give them separate --out folders",
+                projects[j].display(),
+                projects[k].display(),
+                dirs[k].display()
+            ));
+        }
+    }
+    Ok(dirs)
+}
+
+/// `folder`'s path below the common parent of `all` (which holds it), joined by `-`; its
+/// own name when that path is empty.
+fn below_common_parent(folder: &Path, all: &[&PathBuf]) -> String {
+    let mut common: PathBuf = all[0].to_path_buf();
+    while !all.iter().all(|f| f.starts_with(&common)) {
+        if !common.pop() {
+            break;
+        }
+    }
+    let parts: Vec<String> = folder
+        .strip_prefix(&common)
+        .map(|rest| {
+            rest.components()
+                .map(|c| c.as_os_str().to_string_lossy().into_owned())
+                .collect()
+        })
+        .unwrap_or_default();
+    if parts.is_empty() {
+        folder_name(folder)
+    } else {
+        parts.join("-")
     }
 }
 
 /// The files a calibration writes into its output folder.
 pub const OUTPUTS: [&str; 3] = ["results.json", "report.html", "cloud.ply"];
 
-/// Removes the outputs of an earlier run from `dir`, so that a run that fails never leaves
-/// older results looking like its own.
-pub fn clear_outputs(dir: &Path) -> Result<(), String> {
-    for name in OUTPUTS {
-        let p = dir.join(name);
-        if p.exists() {
-            std::fs::remove_file(&p)
-                .map_err(|e| format!("{}: cannot remove the earlier result: {e}", p.display()))?;
-        }
-    }
-    Ok(())
-}
-
-/// Writes the three outputs of a calibration into `dir`.
+/// Writes the three outputs of a calibration into `dir`, all or none: each is written to a
+/// temporary file beside its final name, and only when all three are written are they
+/// renamed into place (`results.json` last, its presence means the run finished). A run
+/// that fails before or while writing leaves the outputs of an earlier run as they were.
 pub fn write_outputs(dir: &Path, outcome: &Outcome) -> CmdResult {
     std::fs::create_dir_all(dir).map_err(|e| format!("{}: cannot create: {e}", dir.display()))?;
     let json = serde_json::to_string_pretty(&outcome.results)? + "\n";
-    write_atomic(&dir.join("cloud.ply"), &outcome.cloud_ply)?;
-    write_atomic(
-        &dir.join("report.html"),
-        pingcal_report::render_html(&outcome.report).as_bytes(),
-    )?;
-    // results.json last: its presence means the run finished
-    write_atomic(&dir.join("results.json"), json.as_bytes())?;
+    let html = pingcal_report::render_html(&outcome.report);
+    let files: [(&str, &[u8]); 3] = [
+        ("cloud.ply", &outcome.cloud_ply),
+        ("report.html", html.as_bytes()),
+        ("results.json", json.as_bytes()),
+    ];
+    let tmp = |name: &str| dir.join(format!(".{name}.partial"));
+    for (name, bytes) in files {
+        if let Err(e) = std::fs::write(tmp(name), bytes) {
+            for (n, _) in files {
+                let _ = std::fs::remove_file(tmp(n));
+            }
+            return Err(format!("{}: cannot write: {e}", dir.join(name).display()).into());
+        }
+    }
+    for (name, _) in files {
+        std::fs::rename(tmp(name), dir.join(name))
+            .map_err(|e| format!("{}: cannot write: {e}", dir.join(name).display()))?;
+    }
     Ok(())
 }
 
@@ -136,6 +254,11 @@ pub fn summary_line(path: &Path, dir: &Path, o: &Outcome, secs: f64) -> String {
 /// Runs the command.
 pub fn run(args: Args) -> CmdResult {
     let several = args.projects.len() > 1;
+    check_threads(args.threads)?;
+    let dirs = out_dirs(&args.projects, args.out.as_deref())?;
+    for d in &dirs {
+        check_out_dir(d)?;
+    }
     let multi = (!args.quiet && !args.json).then(MultiProgress::new);
     let opts = pipeline::Options {
         seed: args.seed,
@@ -145,7 +268,8 @@ pub fn run(args: Args) -> CmdResult {
     let results: Vec<(PathBuf, Result<String, String>)> = args
         .projects
         .par_iter()
-        .map(|path| {
+        .zip(&dirs)
+        .map(|(path, dir)| {
             let t0 = std::time::Instant::now();
             let prefix = if several {
                 format!("[{}] ", path.display())
@@ -153,11 +277,9 @@ pub fn run(args: Args) -> CmdResult {
                 String::new()
             };
             let rep = reporter(multi.as_ref(), prefix);
-            let dir = out_dir(path, args.out.as_deref(), several);
-            let r = clear_outputs(&dir)
-                .and_then(|_| calibrate_one(path, &opts, &rep))
+            let r = calibrate_one(path, &opts, &rep)
                 .and_then(|o| {
-                    write_outputs(&dir, &o).map_err(|e| e.to_string())?;
+                    write_outputs(dir, &o).map_err(|e| e.to_string())?;
                     let secs = t0.elapsed().as_secs_f64();
                     Ok(if args.json {
                         serde_json::json!({
@@ -177,9 +299,10 @@ pub fn run(args: Args) -> CmdResult {
                         })
                         .to_string()
                     } else {
-                        summary_line(path, &dir, &o, secs)
+                        summary_line(path, dir, &o, secs)
                     })
-                });
+                })
+                .map_err(|e| kept_note(e, dir));
             (path.clone(), r)
         })
         .collect();
@@ -207,5 +330,109 @@ pub fn run(args: Args) -> CmdResult {
             }
             Err(format!("{n} of {} projects failed", results.len()).into())
         }
+    }
+}
+
+/// A failure's message, with a note when `dir` holds the results of an earlier run (left
+/// as they were: they are not this run's).
+fn kept_note(e: String, dir: &Path) -> String {
+    if dir.join("results.json").is_file() {
+        format!(
+            "{e} (the earlier results in {} are left as they were)",
+            dir.display()
+        )
+    } else {
+        e
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A fresh temporary folder holding the given (empty) files.
+    fn tree(name: &str, files: &[&str]) -> PathBuf {
+        let root =
+            std::env::temp_dir().join(format!("pingcal-outdirs-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&root);
+        for f in files {
+            let p = root.join(f);
+            std::fs::create_dir_all(p.parent().unwrap()).unwrap();
+            std::fs::write(&p, b"").unwrap();
+        }
+        root
+    }
+
+    /// `a/proj` and `b/proj` (and two files in one folder) get distinct folders; a file
+    /// given twice is refused naming it.
+    #[test]
+    fn batch_output_folders_are_distinct() {
+        let root = tree(
+            "distinct",
+            &[
+                "a/proj/project.toml",
+                "b/proj/project.toml",
+                "c/x.toml",
+                "c/y.toml",
+                "solo/project.toml",
+            ],
+        );
+        let p = |f: &str| root.join(f);
+        let out = root.join("out");
+        let projects = [
+            p("a/proj/project.toml"),
+            p("b/proj/project.toml"),
+            p("c/x.toml"),
+            p("c/y.toml"),
+            p("solo/project.toml"),
+        ];
+        let dirs = out_dirs(&projects, Some(&out)).unwrap();
+        let names: Vec<_> = dirs
+            .iter()
+            .map(|d| d.strip_prefix(&out).unwrap().display().to_string())
+            .collect();
+        assert_eq!(names, ["a-proj", "b-proj", "c-x", "c-y", "solo"]);
+        let dirs = out_dirs(&projects, None).unwrap();
+        assert_eq!(dirs[0], p("a/proj/results"));
+        assert_eq!(dirs[2], p("c/results-x"));
+        assert_eq!(dirs[3], p("c/results-y"));
+        // one project alone keeps the plain names
+        assert_eq!(
+            out_dirs(&projects[2..3], Some(&out)).unwrap(),
+            vec![out.clone()]
+        );
+        assert_eq!(out_dirs(&projects[2..3], None).unwrap(), [p("c/results")]);
+        let twice = [p("c/x.toml"), root.join("c/../c/x.toml")];
+        let e = out_dirs(&twice, Some(&out)).unwrap_err();
+        assert!(e.contains("x.toml") && e.contains("given twice"), "{e}");
+        std::fs::remove_dir_all(&root).unwrap();
+    }
+
+    /// When the derived names still collide (a folder already called `a-proj`), the run is
+    /// refused naming both projects and the folder.
+    #[test]
+    fn a_collision_left_refuses_the_run() {
+        let root = tree(
+            "collide",
+            &[
+                "a/proj/project.toml",
+                "b/proj/project.toml",
+                "a-proj/project.toml",
+            ],
+        );
+        let out = root.join("out");
+        let projects = [
+            root.join("a/proj/project.toml"),
+            root.join("b/proj/project.toml"),
+            root.join("a-proj/project.toml"),
+        ];
+        let e = out_dirs(&projects, Some(&out)).unwrap_err();
+        assert!(
+            e.contains("a/proj/project.toml")
+                && e.contains("a-proj/project.toml")
+                && e.contains(&out.join("a-proj").display().to_string()),
+            "{e}"
+        );
+        std::fs::remove_dir_all(&root).unwrap();
     }
 }

@@ -2,8 +2,9 @@
 //! x,y,z] [--tilt-x-deg a] [--tilt-z-deg b] [--servo-zero-deg c]`: the LRF cloud (paper eq. 2,
 //! with the mount model of `pingcal_lrf::cloud`) from scan files (or PLY/XYZ clouds), the
 //! balls found and fitted in it.
-//! The PLY holds the cloud in grey, each ball's inlier points and a sampled sphere surface in
-//! one colour per ball; `--balls` writes the centres as `id x y z sx sy sz`, the input format
+//! The PLY holds the cloud in grey with each ball's inlier points in one colour per ball,
+//! and the fitted spheres as an element of their own (`element sphere N`: x y z radius and
+//! the colour), so that the file reads back as exactly the scan points; `--balls` writes the centres as `id x y z sx sy sz`, the input format
 //! of `pingcal register`.
 
 use super::CmdResult;
@@ -14,6 +15,7 @@ use std::path::PathBuf;
 
 /// Arguments of `pingcal cloud`.
 #[derive(clap::Args)]
+#[command(allow_negative_numbers = true)]
 pub struct Args {
     /// Scan files (`pingcal-scan` CSV), or PLY / XYZ clouds.
     #[arg(required = true)]
@@ -22,7 +24,7 @@ pub struct Args {
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// Ball diameter, mm.
-    #[arg(long, default_value_t = 38.0)]
+    #[arg(long, allow_hyphen_values = true, default_value_t = 38.0)]
     pub diameter_mm: f64,
     /// Write the ball centres with their σ's (`id x y z sx sy sz`, mm).
     #[arg(long)]
@@ -31,17 +33,22 @@ pub struct Args {
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Mount model: the scanner centre seen from the servo shaft, in the rotating frame
-    /// (mm, `x,y,z`; eq. 2 assumes 0,0,0).
-    #[arg(long, value_delimiter = ',', allow_hyphen_values = true, default_values_t = [0.0, 0.0, 0.0])]
+    /// (mm, `x,y,z`, e.g. `-1.5,0,2`; eq. 2 assumes 0,0,0).
+    #[arg(
+        long,
+        value_delimiter = ',',
+        allow_hyphen_values = true,
+        default_value = "0,0,0"
+    )]
     pub mount_offset_mm: Vec<f64>,
     /// Mount model: tilt of the scan plane about the rotating frame's X axis (degrees).
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, allow_hyphen_values = true, default_value_t = 0.0)]
     pub tilt_x_deg: f64,
     /// Mount model: tilt of the scan plane about the rotating frame's Z axis (degrees).
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, allow_hyphen_values = true, default_value_t = 0.0)]
     pub tilt_z_deg: f64,
     /// Mount model: servo reading at which the scan plane is the LRF frame's X–Y plane.
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, allow_hyphen_values = true, default_value_t = 0.0)]
     pub servo_zero_deg: f64,
 }
 
@@ -79,6 +86,11 @@ pub fn run(args: Args) -> CmdResult {
         tilt_z_deg: args.tilt_z_deg,
         servo_zero_deg: args.servo_zero_deg,
     };
+    for (option, file) in [("--out", &args.out), ("--balls", &args.balls)] {
+        if let Some(f) = file {
+            super::preflight::check_out_file(option, f)?;
+        }
+    }
     let mut cloud = Cloud::default();
     for f in &args.scans {
         cloud.extend(read_cloud_file(f, &mount)?);

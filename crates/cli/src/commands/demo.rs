@@ -17,6 +17,7 @@ use std::path::PathBuf;
 
 /// Arguments of `pingcal demo`.
 #[derive(clap::Args)]
+#[command(allow_negative_numbers = true)]
 pub struct Args {
     /// Folder for the simulated project and the results (default: a folder in the system's
     /// temporary directory, replaced on every run).

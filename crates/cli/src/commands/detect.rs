@@ -9,6 +9,7 @@ use std::path::PathBuf;
 
 /// Arguments of `pingcal detect`.
 #[derive(clap::Args)]
+#[command(allow_negative_numbers = true)]
 pub struct Args {
     /// Images (TIFF, PNG or JPEG; 8 or 16 bit; grey or colour).
     #[arg(required = true)]

@@ -7,6 +7,7 @@ use std::path::PathBuf;
 
 /// Arguments of `pingcal gen-bal`.
 #[derive(clap::Args)]
+#[command(allow_negative_numbers = true)]
 pub struct Args {
     /// Number of cameras.
     #[arg(long, default_value_t = 50)]
@@ -18,10 +19,10 @@ pub struct Args {
     #[arg(long, default_value_t = 5)]
     pub obs_per_point: usize,
     /// Image noise σ, pixels.
-    #[arg(long, default_value_t = 0.5)]
+    #[arg(long, allow_hyphen_values = true, default_value_t = 0.5)]
     pub noise_px: f64,
     /// Scale of the perturbation of the initial values.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, allow_hyphen_values = true, default_value_t = 1.0)]
     pub perturbation: f64,
     /// Random seed.
     #[arg(long, default_value_t = 1)]

@@ -1,6 +1,7 @@
 //! `pingcal register LRF_POINTS CAMERA_POINTS [--control ID,..] [--check ID,..] [--out FILE]`:
 //! the 3D conformal transform alone, with the check-point table (SPEC.md).
 
+use super::preflight::{check_out_file, check_unique};
 use super::CmdResult;
 use pingcal_lrf::registration::{self, PointObs, RegistrationOptions};
 use pingcal_lrf::xyz::{read_labelled_file, LabelledPoint};
@@ -45,6 +46,11 @@ fn to_obs(points: &[LabelledPoint]) -> Vec<PointObs> {
 
 /// Runs the command.
 pub fn run(args: Args) -> CmdResult {
+    check_unique("--control", &args.control)?;
+    check_unique("--check", &args.check)?;
+    if let Some(out) = &args.out {
+        check_out_file("--out", out)?;
+    }
     let lrf = read_labelled_file(&args.lrf_points)?;
     let cam = read_labelled_file(&args.camera_points)?;
     // without σ's in both files the weights are nominal: scale the covariance by σ₀²

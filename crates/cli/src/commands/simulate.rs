@@ -10,6 +10,7 @@ use std::path::PathBuf;
 
 /// Arguments of `pingcal simulate`.
 #[derive(clap::Args)]
+#[command(allow_negative_numbers = true)]
 pub struct Args {
     /// Output folder (must not exist, or be empty).
     #[arg(long)]

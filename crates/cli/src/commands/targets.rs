@@ -6,6 +6,7 @@ use std::path::PathBuf;
 
 /// Arguments of `pingcal targets`.
 #[derive(clap::Args)]
+#[command(allow_negative_numbers = true)]
 pub struct Args {
     /// Number of ring sectors (14 or 12 for AICON codes).
     #[arg(long, default_value_t = 14)]
@@ -14,7 +15,7 @@ pub struct Args {
     #[arg(long, default_value = "1-20")]
     pub ids: String,
     /// Diameter of the central dot in mm (the ring spans 2 to 3 dot radii, the square 8).
-    #[arg(long, default_value_t = 8.0)]
+    #[arg(long, allow_hyphen_values = true, default_value_t = 8.0)]
     pub dot_mm: f64,
     /// Targets per row.
     #[arg(long, default_value_t = 5)]
@@ -27,6 +28,7 @@ pub struct Args {
 /// Runs the command.
 pub fn run(args: Args) -> CmdResult {
     let ids = pingcal_targets::printable::parse_id_list(&args.ids)?;
+    super::preflight::check_out_file("--out", &args.out)?;
     let svg = pingcal_targets::printable::targets_svg(args.bits, &ids, args.dot_mm, args.columns)?;
     super::write_atomic(&args.out, svg.as_bytes())?;
     println!(

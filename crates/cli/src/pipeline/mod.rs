@@ -81,7 +81,7 @@ pub struct Outcome {
     pub results: results::Results,
     /// The data of `report.html`.
     pub report: pingcal_report::ReportData,
-    /// `cloud.ply` (the LRF cloud with the fitted sphere centres).
+    /// `cloud.ply` (the LRF cloud, and the fitted spheres as an element of their own).
     pub cloud_ply: Vec<u8>,
 }
 

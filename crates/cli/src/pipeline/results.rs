@@ -421,7 +421,8 @@ pub fn natural(id: &str) -> (String, u64, String) {
 }
 
 /// `cloud.ply`: the cloud as binary PLY, the balls' points coloured, the fitted spheres
-/// (of `radius`) drawn.
+/// (of `radius`) as a `sphere` element after the vertices (so the vertices are the scan
+/// points alone).
 pub fn cloud_ply(lrf: &LrfData, radius: f64) -> Vec<u8> {
     let comments = vec![format!(
         "pingcal calibrate: LRF cloud in the LRF frame (mm), {} points, {} spheres of radius {radius} mm",

@@ -1,0 +1,333 @@
+//! Nothing lost, nothing silent (issue 14): the command line refuses what it would lose or
+//! ignore, before any work, in one line naming the path, option or id.
+//!
+//! - a batch's projects write into distinct folders (or the run is refused), and a failed
+//!   re-run leaves the earlier results as they were;
+//! - an output folder that cannot be written is refused before the pipeline runs;
+//! - negative numbers parse, and `--mount-offset-mm` accepts its shown default;
+//! - `ba` refuses the measurement-file options on BAL input, and every `--threads` a count
+//!   beyond 1024;
+//! - ids given twice are refused (`register`, `targets`, project.toml's `check`);
+//! - `calibrate`'s cloud.ply reads back as exactly the scan points.
+//!
+//! Every test works on its own copy of the simulated project (`tests/e2e/common.rs`).
+
+#[path = "e2e/common.rs"]
+#[allow(
+    dead_code,
+    reason = "the helpers are shared with e2e.rs; this binary uses a part of them"
+)]
+mod common;
+
+use common::{assert_clean_failure, read_json, Run, Work, OUTPUTS};
+use serde_json::Value;
+use std::fs;
+use std::path::Path;
+
+/// A path argument.
+fn s(p: &Path) -> &str {
+    p.to_str().expect("utf-8 temp path")
+}
+
+/// The context of a run, for assertion messages.
+fn ctx(run: &Run) -> String {
+    format!(
+        "exit {:?}\nstdout: {}\nstderr: {}",
+        run.code, run.stdout, run.stderr
+    )
+}
+
+/// A run that must fail with one `pingcal: error: ` line holding every needle (no output
+/// folder to check).
+fn fails(run: &Run, needles: &[&str]) -> String {
+    let nowhere = Path::new("/nonexistent-pingcal-output");
+    assert_clean_failure(run, nowhere, needles)
+}
+
+/// Item 1: `a/proj/project.toml` and `b/proj/project.toml` with `--out out` both wrote
+/// `out/proj` and both said ok; now each has its folder and its three outputs. The same
+/// project file given twice is refused before any work.
+#[test]
+fn a_batch_writes_each_project_into_its_own_folder() {
+    let w = Work::new("batch_distinct");
+    let a = w.project("a/proj");
+    let b = w.project("b/proj");
+    let out = w.dir.join("out");
+    let run = w.run(&[
+        "calibrate",
+        s(&a.join("project.toml")),
+        s(&b.join("project.toml")),
+        "--out",
+        s(&out),
+        "--json",
+    ]);
+    assert!(run.success(), "{}", ctx(&run));
+    let lines: Vec<Value> = run
+        .stdout
+        .lines()
+        .filter(|l| !l.trim().is_empty())
+        .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("{l:?}: {e}")))
+        .collect();
+    assert_eq!(lines.len(), 2, "{}", ctx(&run));
+    let mut outs: Vec<String> = lines
+        .iter()
+        .map(|l| {
+            assert_eq!(l["ok"], Value::Bool(true), "{l}");
+            l["out"].as_str().expect("out").to_string()
+        })
+        .collect();
+    outs.sort();
+    assert_eq!(
+        outs,
+        [s(&out.join("a-proj")), s(&out.join("b-proj"))],
+        "{}",
+        ctx(&run)
+    );
+    for d in ["a-proj", "b-proj"] {
+        for f in OUTPUTS {
+            assert!(out.join(d).join(f).is_file(), "{d}: no {f}");
+        }
+        read_json(&out.join(d).join("results.json"));
+    }
+    assert!(!out.join("proj").exists(), "nothing in the shared out/proj");
+
+    let toml = a.join("project.toml");
+    let twice = w.run(&["calibrate", s(&toml), s(&toml), "--out", s(&out), "--quiet"]);
+    fails(&twice, &[s(&toml), "given twice"]);
+}
+
+/// Item 2: a failing re-run into a folder with good results used to delete them; now they
+/// stay byte for byte and the error says so.
+#[test]
+fn a_failed_rerun_keeps_the_earlier_results() {
+    let w = Work::new("failed_rerun");
+    let p = w.project("project");
+    let out = w.dir.join("out");
+    let toml = p.join("project.toml");
+    let args = ["calibrate", s(&toml), "--out", s(&out), "--quiet"];
+    let first = w.run(&args);
+    assert!(first.success(), "{}", ctx(&first));
+    let before: Vec<Vec<u8>> = OUTPUTS
+        .iter()
+        .map(|f| fs::read(out.join(f)).expect("an output"))
+        .collect();
+    fs::remove_file(p.join("images/S03_left.png")).unwrap();
+    let again = w.run(&args);
+    let err = fails(&again, &["S03_left.png", "left as they were", s(&out)]);
+    eprintln!("{err}");
+    for (f, bytes) in OUTPUTS.iter().zip(&before) {
+        let now = fs::read(out.join(f)).unwrap_or_else(|e| panic!("{f} is gone: {e}"));
+        assert!(now == *bytes, "{f} changed by the failed run");
+    }
+    let left: Vec<String> = fs::read_dir(&out)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.starts_with('.'))
+        .collect();
+    assert!(left.is_empty(), "temporary files left: {left:?}");
+}
+
+/// Item 3: `--out a_file` and `--out /proc/x` failed only after the whole pipeline; now
+/// before any work: the project's missing image (found by the first step) is not what the
+/// error names.
+#[test]
+fn an_unwritable_output_folder_is_refused_before_any_work() {
+    let w = Work::new("unwritable_out");
+    let p = w.project("project");
+    fs::remove_file(p.join("images/S03_left.png")).unwrap();
+    let toml = p.join("project.toml");
+    let file = w.dir.join("a_file");
+    fs::write(&file, b"not a folder").unwrap();
+    let run = w.run(&["calibrate", s(&toml), "--out", s(&file), "--quiet"]);
+    let err = fails(&run, &[s(&file), "not a folder"]);
+    assert!(!err.contains("S03_left"), "the pipeline ran first: {err}");
+    if Path::new("/proc/self").exists() {
+        let run = w.run(&["calibrate", s(&toml), "--out", "/proc/x", "--quiet"]);
+        let err = fails(&run, &["/proc/x", "cannot create the output folder"]);
+        assert!(!err.contains("S03_left"), "the pipeline ran first: {err}");
+    }
+    let run = w.run(&[
+        "cloud",
+        s(&p.join("scans/S00.csv")),
+        "--out",
+        "/proc/x/c.ply",
+    ]);
+    if Path::new("/proc/self").exists() {
+        fails(&run, &["--out /proc/x/c.ply", "cannot create"]);
+    }
+}
+
+/// Item 4: negative numbers parse (`--tilt-x-deg -0.3` was "unexpected argument '-0'"),
+/// and `--mount-offset-mm` accepts the default its help shows.
+#[test]
+fn negative_numbers_and_the_shown_mount_default_are_accepted() {
+    let w = Work::new("negative_numbers");
+    let p = w.project("project");
+    let scan = p.join("scans/S00.csv");
+    let help = w.run(&["cloud", "--help"]);
+    assert!(help.success(), "{}", ctx(&help));
+    let flat = help.stdout.split_whitespace().collect::<Vec<_>>().join(" ");
+    let at = flat
+        .find("--mount-offset-mm <")
+        .expect("the option in the help");
+    let rest = &flat[at..];
+    let shown = rest[rest.find("[default: ").expect("a shown default") + 10..]
+        .split(']')
+        .next()
+        .unwrap()
+        .to_string();
+    for args in [
+        vec!["--mount-offset-mm", shown.as_str()],
+        vec![
+            "--tilt-x-deg",
+            "-0.3",
+            "--tilt-z-deg",
+            "-1.5e-2",
+            "--servo-zero-deg",
+            "-0.1",
+            "--mount-offset-mm",
+            "-1.5,0,-2",
+        ],
+    ] {
+        let mut all = vec!["cloud", s(&scan)];
+        all.extend(&args);
+        let run = w.run(&all);
+        assert!(run.success(), "{args:?}: {}", ctx(&run));
+        assert!(run.stdout.contains("ball(s)"), "{}", ctx(&run));
+    }
+    let run = w.run(&["cloud", s(&scan), "--mount-offset-mm", "-1,2"]);
+    fails(&run, &["--mount-offset-mm", "three numbers"]);
+}
+
+/// Item 5: `ba` on a BAL file ignored `--snoop`, `--calibrate` and `--report`; now they are
+/// refused naming the file. `--threads 100000` is refused with the allowed range, by `ba`
+/// and `calibrate`.
+#[test]
+fn ba_refuses_measurement_options_on_bal_and_absurd_thread_counts() {
+    let w = Work::new("ba_options");
+    let bal = w.dir.join("p.bal");
+    let gen = w.run(&[
+        "gen-bal",
+        "--cameras",
+        "4",
+        "--points",
+        "40",
+        "--obs-per-point",
+        "3",
+        "--noise-px",
+        "0.5",
+        "--seed",
+        "1",
+        "--out",
+        s(&bal),
+    ]);
+    assert!(gen.success(), "{}", ctx(&gen));
+    let report = w.dir.join("r.txt");
+    for (args, named) in [
+        (vec!["--snoop", "3.29"], "--snoop applies"),
+        (vec!["--calibrate", "c,xp"], "--calibrate applies"),
+        (vec!["--report", s(&report)], "--report applies"),
+    ] {
+        let mut all = vec!["ba", s(&bal), "--quiet"];
+        all.extend(&args);
+        let run = w.run(&all);
+        fails(&run, &[named, "measurement files", s(&bal)]);
+    }
+    assert!(!report.exists(), "a report for a refused run");
+    let run = w.run(&["ba", s(&bal), "--threads", "100000"]);
+    fails(&run, &["--threads 100000", "0 (all cores) to 1024"]);
+    let p = w.project("project");
+    let toml = p.join("project.toml");
+    let run = w.run(&["calibrate", s(&toml), "--threads", "100000", "--quiet"]);
+    fails(&run, &["--threads 100000", "0 (all cores) to 1024"]);
+    let ok = w.run(&["ba", s(&bal), "--threads", "2", "--quiet"]);
+    assert!(ok.success(), "{}", ctx(&ok));
+}
+
+/// Item 6: an id given twice was counted twice (`register --check`, project.toml's
+/// `check`) or printed twice (`targets --ids 2,2,2`); now it is refused, named.
+#[test]
+fn ids_given_twice_are_refused() {
+    let w = Work::new("duplicate_ids");
+    let pts = w.dir.join("points.txt");
+    fs::write(
+        &pts,
+        "B1 0 0 0\nB2 100 0 0\nB3 0 100 0\nB4 0 0 100\nB5 100 100 0\n",
+    )
+    .unwrap();
+    let run = w.run(&["register", s(&pts), s(&pts), "--check", "B4,B5,B4"]);
+    fails(&run, &["--check", "'B4' is given twice"]);
+    let run = w.run(&["register", s(&pts), s(&pts), "--control", "B1,B2,B3,B1"]);
+    fails(&run, &["--control", "'B1' is given twice"]);
+    let svg = w.dir.join("t.svg");
+    let run = w.run(&["targets", "--ids", "2,2,2", "--out", s(&svg)]);
+    fails(&run, &["'2,2,2'", "2 is given twice"]);
+    assert!(!svg.exists(), "targets wrote the refused list");
+
+    let p = w.project("project");
+    let toml = p.join("project.toml");
+    common::replace_once(
+        &toml,
+        "check = [\"B4\", \"B9\",",
+        "check = [\"B4\", \"B9\", \"B9\",",
+    );
+    w.calibrate_fails(&p, &["project.toml", "'B9' appears twice"]);
+}
+
+/// Item 7: calibrate's cloud.ply held 400 drawn points per sphere among the scan points;
+/// now `pingcal cloud results/cloud.ply` reads back exactly the scan's points (and finds
+/// the same balls).
+#[test]
+fn cloud_ply_reads_back_as_exactly_the_scan_points() {
+    let w = Work::new("cloud_ply_round_trip");
+    let p = w.project("project");
+    let out = w.dir.join("out");
+    let run = w.run(&[
+        "calibrate",
+        s(&p.join("project.toml")),
+        "--out",
+        s(&out),
+        "--quiet",
+    ]);
+    assert!(run.success(), "{}", ctx(&run));
+    // the simulated project uses eq. 2's mount (no offset, no tilt), as `pingcal cloud`
+    let scan = w.run(&["cloud", s(&p.join("scans/S00.csv"))]);
+    let back = w.run(&["cloud", s(&out.join("cloud.ply"))]);
+    assert!(
+        scan.success() && back.success(),
+        "{}\n{}",
+        ctx(&scan),
+        ctx(&back)
+    );
+    let counts = |r: &Run| {
+        let l = r.stdout.trim();
+        let n = |after: &str, before: &str| -> usize {
+            let i = l
+                .find(before)
+                .unwrap_or_else(|| panic!("{before:?} in {l:?}"));
+            l[..i]
+                .rsplit(after)
+                .next()
+                .unwrap()
+                .trim()
+                .parse()
+                .unwrap_or_else(|e| panic!("{l:?}: {e}"))
+        };
+        (n("cloud:", " points"), n(",", " ball(s)"))
+    };
+    let (points, balls) = counts(&scan);
+    assert!(points > 1000 && balls >= 3, "{}", scan.stdout);
+    assert_eq!(
+        counts(&back),
+        (points, balls),
+        "{}\n{}",
+        scan.stdout,
+        back.stdout
+    );
+    let ply = fs::read(out.join("cloud.ply")).unwrap();
+    let head = String::from_utf8_lossy(&ply[..ply.len().min(2000)]).into_owned();
+    assert!(
+        head.contains(&format!("element vertex {points}\n")) && head.contains("element sphere "),
+        "{head}"
+    );
+}
