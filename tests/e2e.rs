@@ -751,6 +751,36 @@ fn verdict_is_ok_on_a_clean_simulation_and_doubtful_with_an_unknown_mount_offset
         report.contains("Verdict: ok"),
         "report.html shows no verdict"
     );
+    // a stereo baseline entered in centimetres: the adjusted rig says otherwise
+    let text = fs::read_to_string(p.join("project.toml")).unwrap();
+    let line = text
+        .lines()
+        .find(|l| l.starts_with("baseline_mm"))
+        .expect("the simulated project has a [stereo] baseline_mm")
+        .to_string();
+    let mm: f64 = line.split('=').nth(1).unwrap().trim().parse().unwrap();
+    replace_once(
+        &p.join("project.toml"),
+        &line,
+        &format!("baseline_mm = {}", mm / 10.0),
+    );
+    let out_b = w.dir.join("out-baseline");
+    let run = w.run(&[
+        "calibrate",
+        s(&p.join("project.toml")),
+        "--out",
+        s(&out_b),
+        "--quiet",
+    ]);
+    assert!(run.success(), "calibrate failed: {}", run.stderr);
+    let v = read_json(&out_b.join("results.json"))["verdict"].clone();
+    assert_eq!(v["status"], "doubtful", "a wrong baseline_mm: {v}");
+    assert!(
+        v["reasons"]
+            .to_string()
+            .contains("adjusted stereo baseline"),
+        "{v}"
+    );
 
     let cfg = w.dir.join("mount.toml");
     fs::write(&cfg, "[lrf]\nmount_offset_mm = [0.0, 0.0, 25.0]\n").unwrap();

@@ -65,6 +65,23 @@ fn invalid_values_are_named() {
     );
 }
 
+/// Issue 14: values that were accepted although absurd (and then not used).
+#[test]
+fn absurd_sensor_values_are_named() {
+    let e = err_of(|p| p.stereo.as_mut().unwrap().baseline_mm = f64::NAN);
+    assert!(
+        e.starts_with("p.toml: ") && e.contains("baseline_mm = NaN"),
+        "{e}"
+    );
+    let e = err_of(|p| p.lrf.servo_resolution_deg = f64::NAN);
+    assert!(e.contains("servo_resolution_deg = NaN"), "{e}");
+    let e = err_of(|p| p.lrf.max_range_mm = 1.0);
+    assert!(
+        e.contains("max_range_mm = 1") && e.contains("metres"),
+        "{e}"
+    );
+}
+
 #[test]
 fn syntax_errors_have_the_line() {
     let text = readme_example().replace("width = 1280", "width = \"wide\"");

@@ -160,6 +160,12 @@ fn validate_stereo(s: &ProjectStereo, cameras: &CameraIds) -> Result<(), String>
     if s.left == s.right {
         return Err("[stereo]: left and right are the same camera".into());
     }
+    if !(s.baseline_mm > 0.0 && s.baseline_mm.is_finite()) {
+        return Err(format!(
+            "[stereo] baseline_mm = {}: expected the measured distance between the two projection centres, a positive length in mm",
+            s.baseline_mm
+        ));
+    }
     Ok(())
 }
 
@@ -237,8 +243,11 @@ fn validate_distances(distances: &[ProjectDistance]) -> Result<(), String> {
     Ok(())
 }
 
-/// `[lrf]`: scans, taken from the main station, a positive range and accuracy, a finite
-/// mount.
+/// Smallest `max_range_mm` taken as a range in millimetres (a 2D LRF reaches metres).
+const MIN_MAX_RANGE_MM: f64 = 100.0;
+
+/// `[lrf]`: scans, taken from the main station, a positive range and accuracy, a maximum
+/// range in millimetres, a servo resolution in degrees, a finite mount.
 fn validate_lrf(l: &ProjectLrf, main_station: &str) -> Result<(), String> {
     if l.scans.is_empty() {
         return Err("[lrf] scans: no scan file".into());
@@ -255,6 +264,18 @@ fn validate_lrf(l: &ProjectLrf, main_station: &str) -> Result<(), String> {
             "[lrf] max_range_mm, accuracy_near_mm and accuracy_far_fraction must be positive"
                 .into(),
         );
+    }
+    if !(l.max_range_mm >= MIN_MAX_RANGE_MM) {
+        return Err(format!(
+            "[lrf] max_range_mm = {}: expected the sensor's maximum range in mm (at least {MIN_MAX_RANGE_MM}; a value in metres?)",
+            l.max_range_mm
+        ));
+    }
+    if !(l.servo_resolution_deg > 0.0 && l.servo_resolution_deg <= 10.0) {
+        return Err(format!(
+            "[lrf] servo_resolution_deg = {}: expected the servo encoder's step in degrees, over 0 and at most 10",
+            l.servo_resolution_deg
+        ));
     }
     if l.mount_offset_mm.iter().any(|v| !v.is_finite())
         || ![l.mount_tilt_x_deg, l.mount_tilt_z_deg, l.servo_zero_deg]

@@ -16,7 +16,8 @@
 //! Only the upper side is tested: a σ0 under 1 says the a-priori σ's are pessimistic, which
 //! makes the reported σ's safe, not doubtful. Besides the tests, a check ball the project
 //! names that no sphere was matched to, and a sphere in the cloud that matches no ball, make
-//! the verdict doubtful. The verdict is `failed` when the paper's sphere method gave no
+//! the verdict doubtful, and so does an adjusted stereo baseline more than
+//! [`BASELINE_TOLERANCE`] from the project's `baseline_mm`. The verdict is `failed` when the paper's sphere method gave no
 //! extrinsic (only the corner baseline did).
 //!
 //! χ² quantiles by the Wilson–Hilferty approximation,
@@ -47,6 +48,10 @@ pub const CENTRE_SIGMA_OPTIMISM: f64 = 1.15;
 /// profile: a profile 20 % optimistic is what matters to the sphere centres' σ, whose effect
 /// the registration's own σ0 test then shows.
 pub const SPHERE_PROFILE_TOLERANCE: f64 = 1.2;
+/// Relative difference between the adjusted stereo baseline and the project's
+/// `baseline_mm` beyond which one of them is wrong (a tape measure is good to a few mm in
+/// 120; a unit or scale mistake is off by far more).
+pub const BASELINE_TOLERANCE: f64 = 0.05;
 /// A correlation between two intrinsics beyond which they are not separated by the data.
 pub const MAX_CORRELATION: f64 = 0.999;
 
@@ -301,6 +306,15 @@ fn unmatched(st: &Stages) -> Vec<String> {
         if st.ext.spheres.is_some() && !judged.contains(&id.as_str()) {
             out.push(format!(
                 "check ball {id} was not judged: no LRF sphere was matched to it"
+            ));
+        }
+    }
+    if let (Some(s), Some(rig)) = (&st.project.file.stereo, &st.adjusted.rig) {
+        let adjusted = rig.centre().norm();
+        if (adjusted - s.baseline_mm).abs() > BASELINE_TOLERANCE * s.baseline_mm {
+            out.push(format!(
+                "the adjusted stereo baseline is {adjusted:.1} mm but [stereo] baseline_mm = {}: a wrong entry, a unit mistake, or a scale from wrong distances",
+                s.baseline_mm
             ));
         }
     }
