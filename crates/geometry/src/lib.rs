@@ -43,7 +43,7 @@ pub mod so3;
 pub mod umeyama;
 
 pub use consensus::{Consensus, ConsensusOptions, Estimator, RefitRule, Sampling, Scoring};
-pub use opk::{from_opk, from_opk_deg, to_opk, to_opk_deg};
+pub use opk::{from_opk, from_opk_deg, opk_sigma_deg, to_opk, to_opk_deg};
 pub use plane::Plane;
 pub use rigid::{Rigid3, Sim3};
 pub use so3::{exp_so3, log_so3, orthonormalize, rotation_angle, skew};

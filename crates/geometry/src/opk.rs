@@ -23,7 +23,7 @@
 //! φ is in [−π/2, π/2]; at φ = ±π/2 (gimbal lock) ω and κ are not separable and [`to_opk`]
 //! returns κ = atan2(R₀₁, R₀₀) of the rounded matrix, which is still a valid decomposition.
 
-use nalgebra::Matrix3;
+use nalgebra::{Matrix3, Vector3};
 
 /// Rotation from the angles ω, φ, κ (radians): `R = R_ω · R_φ · R_κ` (passive factors, see
 /// the module doc).
@@ -63,10 +63,56 @@ pub fn to_opk_deg(r: &Matrix3<f64>) -> [f64; 3] {
     [o.to_degrees(), p.to_degrees(), k.to_degrees()]
 }
 
+/// The standard deviations of ω, φ, κ (degrees) of the rotation `r` whose left update
+/// `r ← exp([δθ]×) r` has covariance `cov_dtheta` (rad²): `J Σ Jᵀ` with `J = ∂(ω, φ, κ)/∂δθ`
+/// by central differences of [`to_opk`] (a component that jumps by ±π across the step,
+/// at gimbal lock, gets a zero column rather than 2π/h).
+pub fn opk_sigma_deg(r: &Matrix3<f64>, cov_dtheta: &Matrix3<f64>) -> [f64; 3] {
+    let opk = |m: &Matrix3<f64>| {
+        let (o, p, k) = to_opk(m);
+        Vector3::new(o, p, k)
+    };
+    let e0 = opk(r);
+    let h = 1e-7;
+    let mut j = Matrix3::zeros();
+    for k in 0..3 {
+        let mut d = Vector3::zeros();
+        d[k] = h;
+        let ep = opk(&(crate::so3::exp_so3(&d) * r));
+        let em = opk(&(crate::so3::exp_so3(&-d) * r));
+        let mut col = (ep - em) / (2.0 * h);
+        for q in 0..3 {
+            if (ep[q] - e0[q]).abs() > 1.0 || (em[q] - e0[q]).abs() > 1.0 {
+                col[q] = 0.0;
+            }
+        }
+        j.set_column(k, &col);
+    }
+    let c = j * cov_dtheta * j.transpose();
+    [0, 1, 2].map(|k| c[(k, k)].max(0.0).sqrt().to_degrees())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use nalgebra::{Rotation3, Vector3};
+
+    /// At the identity, ω φ κ are the rotation-vector components to first order, so their
+    /// σ's are those of δθ; and a rotation about Z only moves κ.
+    #[test]
+    fn opk_sigmas_follow_the_rotation_covariance() {
+        let cov = Matrix3::from_diagonal(&Vector3::new(1e-6, 4e-6, 9e-6));
+        let s = opk_sigma_deg(&Matrix3::identity(), &cov);
+        for (k, want) in [1e-3f64, 2e-3, 3e-3].iter().enumerate() {
+            assert!(
+                (s[k] - want.to_degrees()).abs() < 1e-9 * want.to_degrees(),
+                "{s:?}"
+            );
+        }
+        let z = Matrix3::from_diagonal(&Vector3::new(0.0, 0.0, 1e-6));
+        let s = opk_sigma_deg(&from_opk(0.3, -0.2, 1.0), &z);
+        assert!(s[2] > 0.0 && s.iter().all(|v| v.is_finite()), "{s:?}");
+    }
 
     #[test]
     fn opk_round_trip() {

@@ -18,7 +18,7 @@
 
 use crate::error::{LrfError, Result};
 use nalgebra::{DMatrix, DVector, Matrix3, Rotation3, Vector3};
-use pingcal_geometry::{skew, to_opk, Sim3, UmeyamaError};
+use pingcal_geometry::{opk_sigma_deg, skew, Sim3, UmeyamaError};
 
 /// A labelled point with its covariance (mm, mm²).
 #[derive(Debug, Clone, PartialEq)]
@@ -260,34 +260,13 @@ pub fn register(
         cov *= sigma0 * sigma0;
     }
     let sd = |k: usize| cov[(k, k)].max(0.0).sqrt();
-    // σ's of ω, φ, κ (pingcal's one convention, pingcal_geometry::opk): Jacobian of the
-    // angles w.r.t. δθ by central differences of the extraction
-    let opk = |r: &Matrix3<f64>| Vector3::from(<[f64; 3]>::from(to_opk(r)));
-    let e0 = opk(&tr.rotation);
-    let mut je = Matrix3::zeros();
-    for k in 0..3 {
-        let mut d = Vector3::zeros();
-        d[k] = 1e-7;
-        let ep = opk(&(Rotation3::new(d).into_inner() * tr.rotation));
-        let em = opk(&(Rotation3::new(-d).into_inner() * tr.rotation));
-        let mut col = (ep - em) / 2e-7;
-        for q in 0..3 {
-            // unwrap ±π jumps of atan2
-            if (ep[q] - e0[q]).abs() > 1.0 || (em[q] - e0[q]).abs() > 1.0 {
-                col[q] = 0.0;
-            }
-        }
-        je.set_column(k, &col);
-    }
-    let cth = cov.view((0, 0), (3, 3)).into_owned();
-    let cth3 = Matrix3::from_iterator(cth.iter().copied());
-    let ce = je * cth3 * je.transpose();
+    let cth = Matrix3::from_fn(|a, b| cov[(a, b)]);
+    let sigma_opk_deg = Vector3::from(opk_sigma_deg(&tr.rotation, &cth));
     Ok(Registration {
         camera_from_lrf: tr,
         sigma_translation_mm: Vector3::new(sd(3), sd(4), sd(5)),
         sigma_rotation_vector_deg: Vector3::new(sd(0), sd(1), sd(2)).map(f64::to_degrees),
-        sigma_opk_deg: Vector3::new(ce[(0, 0)], ce[(1, 1)], ce[(2, 2)])
-            .map(|v| v.max(0.0).sqrt().to_degrees()),
+        sigma_opk_deg,
         sigma_scale: (np == 7).then(|| sd(6)),
         cov,
         sigma0,

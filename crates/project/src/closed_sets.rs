@@ -1,9 +1,10 @@
 //! # The closed sets of the project file
 //!
-//! Four entries of `project.toml` take one word of a fixed list: `method`, `[targets]
-//! family`, a camera's `model` and the words of its `free` list. Each is an enum here, so a
+//! Five entries of `project.toml` take one word of a fixed list: `method`, `[targets]
+//! family`, a camera's `model`, the words of its `free` list and those of `[lrf]
+//! self_calibrate`. Each is an enum here, so a
 //! misspelling is refused while the file is read, with the line, the value and the words
-//! allowed (`project.toml: line 3: method = "joint2": expected one of spheres, corner, both`),
+//! allowed (`project.toml: line 3: method = "joint2": expected one of spheres, corner, both, joint, all`),
 //! and the pipeline matches on variants instead of comparing strings.
 //!
 //! The macro `closed_set!` writes, from one list of `Variant = "spelling"` pairs, the enum,
@@ -83,18 +84,65 @@ closed_set! {
         Corner = "corner",
         /// Both, side by side.
         Both = "both",
+        /// The joint adjustment of image points, distances and LRF beams with the mount and
+        /// range errors self-calibrated; the sphere method runs beside it (its start).
+        Joint = "joint",
+        /// The joint adjustment, the sphere method and the corner baseline, side by side.
+        All = "all",
     }
 }
 
 impl Method {
     /// Runs the sphere method.
     pub fn spheres(self) -> bool {
-        matches!(self, Method::Spheres | Method::Both)
+        !matches!(self, Method::Corner)
+    }
+
+    /// Runs the joint adjustment.
+    pub fn joint(self) -> bool {
+        matches!(self, Method::Joint | Method::All)
     }
 
     /// Runs the corner baseline.
     pub fn corner(self) -> bool {
-        matches!(self, Method::Corner | Method::Both)
+        matches!(self, Method::Corner | Method::Both | Method::All)
+    }
+}
+
+impl Default for Method {
+    /// `joint`.
+    fn default() -> Self {
+        Method::Joint
+    }
+}
+
+closed_set! {
+    /// A parameter of the rotating LRF's mount and range model (`[lrf] self_calibrate`), in
+    /// the order of `pingcal_lrf::sensor::MountModel::to_params`.
+    pub enum MountParameter {
+        /// Scanner centre off the servo axis, along the turning frame's X (mm).
+        OffsetX = "offset_x",
+        /// Along the servo axis: the LRF frame's origin, never estimated.
+        OffsetY = "offset_y",
+        /// Along the turning frame's Z (mm).
+        OffsetZ = "offset_z",
+        /// Scan-plane tilt about X.
+        TiltX = "tilt_x",
+        /// Scan-plane tilt about Z (the beam angle's zero).
+        TiltZ = "tilt_z",
+        /// Servo angle scale error.
+        ServoScale = "servo_scale",
+        /// Range offset (mm).
+        RangeOffset = "range_offset",
+        /// Range scale error.
+        RangeScale = "range_scale",
+    }
+}
+
+impl MountParameter {
+    /// Its index in the mount's parameter vector.
+    pub fn index(self) -> usize {
+        self as usize
     }
 }
 

@@ -22,7 +22,7 @@ mod parse;
 mod schema;
 mod validate;
 
-pub use closed_sets::{CameraModel, Method, Parameter, TargetFamily};
+pub use closed_sets::{CameraModel, Method, MountParameter, Parameter, TargetFamily};
 pub use schema::{
     BallLabel, CameraParams, ProjectBalls, ProjectCamera, ProjectDistance, ProjectFile,
     ProjectImage, ProjectLrf, ProjectStereo, ProjectTargets, PARAMETER_NAMES,

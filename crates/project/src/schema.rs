@@ -6,7 +6,7 @@
 //! strings, checked after reading by [`ProjectFile::validate`]. Defaults are serde's
 //! `default` attributes below and nothing else.
 
-use crate::closed_sets::{CameraModel, Method, Parameter, TargetFamily};
+use crate::closed_sets::{CameraModel, Method, MountParameter, Parameter, TargetFamily};
 use serde::{Deserialize, Serialize};
 
 /// Names of the ten photogrammetric parameters, in the order of [`CameraParams::to_slice`]
@@ -21,7 +21,8 @@ pub struct ProjectFile {
     pub version: u32,
     /// A name for reports.
     pub name: String,
-    /// `spheres`, `corner` or `both` (required: there is no default).
+    /// `joint` (the default), `spheres`, `corner`, `both` (spheres and corner) or `all`.
+    #[serde(default)]
     pub method: Method,
     /// The station where the LRF scanned; its `main_camera` image defines the
     /// photogrammetric frame.
@@ -248,4 +249,22 @@ pub struct ProjectLrf {
     /// Servo encoder resolution (degrees).
     #[serde(default)]
     pub servo_resolution_deg: f64,
+    /// Mount and range parameters the joint adjustment may estimate (absent: every one the
+    /// data determine; `[]`: none). `offset_y` is the LRF frame's origin along the servo
+    /// axis and is never estimated.
+    #[serde(default)]
+    pub self_calibrate: Option<Vec<MountParameter>>,
+}
+
+impl ProjectLrf {
+    /// The mount parameters asked for (see [`ProjectLrf::self_calibrate`]).
+    pub fn self_calibrated(&self) -> Vec<MountParameter> {
+        match &self.self_calibrate {
+            Some(v) => v.clone(),
+            None => MountParameter::ALL
+                .into_iter()
+                .filter(|p| *p != MountParameter::OffsetY)
+                .collect(),
+        }
+    }
 }

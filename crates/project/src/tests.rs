@@ -119,7 +119,7 @@ fn an_unknown_method_is_refused_at_parse_time() {
     assert_eq!(
         e,
         format!(
-            "project.toml: line {line}: method = \"joint2\": expected one of spheres, corner, both"
+            "project.toml: line {line}: method = \"joint2\": expected one of spheres, corner, both, joint, all"
         )
     );
     // the message of the validation this replaces
@@ -171,15 +171,16 @@ fn a_word_of_the_wrong_type_is_refused_with_the_words_allowed() {
     let (e, line) = parse_err_of("method = \"both\"", "method = 3");
     assert_eq!(
         e,
-        format!("project.toml: line {line}: method = 3: invalid type: integer `3`, expected one of spheres, corner, both")
+        format!("project.toml: line {line}: method = 3: invalid type: integer `3`, expected one of spheres, corner, both, joint, all")
     );
 }
 
-/// `method` has no default: a file without it is refused (as before the enum).
+/// A file without `method` runs the joint adjustment.
 #[test]
-fn the_method_is_required() {
-    let (e, _) = parse_err_of("method = \"both\"", "");
-    assert_eq!(e, "project.toml: missing field `method`");
+fn the_method_defaults_to_joint() {
+    let text = readme_example().replacen("method = \"both\"", "", 1);
+    let p = ProjectFile::parse(&text, "project.toml").expect("parses");
+    assert_eq!(p.method, Method::Joint);
 }
 
 #[test]
@@ -256,7 +257,16 @@ fn the_closed_sets_spell_as_the_file() {
         Parameter::as_str,
         Parameter::from_word,
     );
-    assert_eq!(Method::NAMES, ["spheres", "corner", "both"]);
+    assert_eq!(Method::NAMES, ["spheres", "corner", "both", "joint", "all"]);
+    check(
+        &MountParameter::ALL,
+        &MountParameter::NAMES,
+        MountParameter::as_str,
+        MountParameter::from_word,
+    );
+    for (k, p) in MountParameter::ALL.iter().enumerate() {
+        assert_eq!(p.index(), k);
+    }
     assert_eq!(TargetFamily::NAMES, ["aicon14", "aicon12"]);
     assert_eq!(CameraModel::NAMES, ["photogrammetric"]);
     assert_eq!(
@@ -274,6 +284,9 @@ fn the_closed_sets_spell_as_the_file() {
     assert!(Method::Both.spheres() && Method::Both.corner());
     assert!(Method::Spheres.spheres() && !Method::Spheres.corner());
     assert!(!Method::Corner.spheres() && Method::Corner.corner());
+    assert!(Method::Joint.joint() && Method::Joint.spheres() && !Method::Joint.corner());
+    assert!(Method::All.joint() && Method::All.spheres() && Method::All.corner());
+    assert!(!Method::Both.joint() && Method::default() == Method::Joint);
 }
 
 proptest::proptest! {

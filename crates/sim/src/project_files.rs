@@ -344,7 +344,7 @@ pub fn project_of(sim: &Simulation) -> ProjectFile {
     ProjectFile {
         version: 1,
         name: format!("simulated test field (seed {})", sim.seed),
-        method: Method::Both,
+        method: Method::All,
         main_station: main.id.clone(),
         main_camera: "left".into(),
         targets: ProjectTargets {
@@ -417,6 +417,7 @@ pub fn project_of(sim: &Simulation) -> ProjectFile {
             mount_tilt_z_deg: 0.0,
             servo_zero_deg: 0.0,
             servo_resolution_deg: cfg.lrf.servo_resolution_deg,
+            self_calibrate: None,
         },
     }
 }
