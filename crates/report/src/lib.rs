@@ -15,6 +15,7 @@
 //! | `network` | cameras and points in plan (X–Y) and elevation (X–Z), σ ellipses magnified |
 //! | `cloud` | the LRF cloud in X–Y and X–Z with the fitted spheres at true scale |
 //! | `intrinsics` | per camera: parameters, σ, free/fixed, high correlations |
+//! | `lrf_mount` | the joint adjustment's LRF mount and range parameters: value, σ, why any was held, the largest correlation with the extrinsic |
 //! | `rejected` | what was rejected and why |
 //! | `warnings` | warnings of the pipeline |
 //! | `steps` | the pipeline log (collapsible) |
@@ -62,6 +63,10 @@ pub struct ReportData {
     pub methods: Vec<MethodResult>,
     /// Interior orientation per camera.
     pub intrinsics: Vec<Intrinsics>,
+    /// The LRF's mount and range parameters of the joint adjustment (empty when it did not
+    /// run).
+    #[serde(default)]
+    pub lrf_mount: Vec<MountRow>,
     /// Observations, images, balls … that were rejected, with the reason.
     pub rejected: Vec<Rejection>,
     /// Warnings of the pipeline.
@@ -246,6 +251,23 @@ pub struct Intrinsics {
     pub free: Vec<bool>,
     /// Pairs of parameters with their correlation; |r| > 0.9 are highlighted.
     pub high_correlations: Vec<(String, String, f64)>,
+}
+
+/// One parameter of the LRF's mount and range model from the joint adjustment.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+pub struct MountRow {
+    /// Its name (`offset_x`, …, `range_scale`).
+    pub name: String,
+    /// Value.
+    pub value: f64,
+    /// σ (None when held).
+    pub sigma: Option<f64>,
+    /// Unit ("mm", "°", "").
+    pub unit: String,
+    /// Why it was held (None: estimated).
+    pub held: Option<String>,
+    /// Its largest correlation with a component of the extrinsic: (component, r).
+    pub max_corr_extrinsic: Option<(String, f64)>,
 }
 
 /// Something the pipeline rejected.

@@ -10,7 +10,7 @@ use std::cmp::Ordering;
 use std::fmt::Write;
 
 /// Section ids and headings, in document order.
-pub(crate) const SECTIONS: [(&str, &str); 10] = [
+pub(crate) const SECTIONS: [(&str, &str); 11] = [
     ("summary", "Summary"),
     ("extrinsic", "Extrinsic calibration"),
     ("checks", "Check points"),
@@ -18,6 +18,7 @@ pub(crate) const SECTIONS: [(&str, &str); 10] = [
     ("network", "Network"),
     ("cloud", "LRF cloud"),
     ("intrinsics", "Intrinsics"),
+    ("mount", "LRF mount and range"),
     ("rejected", "Rejected"),
     ("warnings", "Warnings"),
     ("steps", "Pipeline steps"),
@@ -140,6 +141,7 @@ pub(crate) fn document(d: &ReportData) -> String {
     network(&mut o, d);
     cloud(&mut o, d);
     intrinsics(&mut o, d);
+    mount(&mut o, d);
     rejected(&mut o, d);
     warnings(&mut o, d);
     steps(&mut o, d);
@@ -1199,6 +1201,37 @@ fn intrinsics(o: &mut String, d: &ReportData) {
         o.push_str("</div>\n");
     }
     o.push_str("</section>\n");
+}
+
+fn mount(o: &mut String, d: &ReportData) {
+    h2(o, "mount");
+    if d.lrf_mount.is_empty() {
+        none(o, "the joint adjustment did not run: the project's mount values were used as given");
+        o.push_str("</section>\n");
+        return;
+    }
+    o.push_str("<p class=\"note\">estimated with the extrinsic in the joint adjustment; a held parameter keeps the project's value</p>\n<table>\n<tr><th class=\"l\">parameter</th><th>value</th><th>σ</th><th class=\"l\">unit</th><th class=\"l\">largest correlation with the extrinsic</th><th class=\"l\"></th></tr>\n");
+    for m in &d.lrf_mount {
+        let corr = m.max_corr_extrinsic.as_ref().map_or(DASH.to_string(), |(c, r)| {
+            format!("{} {}", escape(c), num(*r, 3))
+        });
+        let hi = if m.max_corr_extrinsic.as_ref().is_some_and(|(_, r)| r.abs() > 0.9) {
+            " class=\"hi\""
+        } else {
+            ""
+        };
+        let _ = writeln!(
+            o,
+            "<tr{hi}><td class=\"l\">{}</td><td>{}</td><td>{}</td><td class=\"l\">{}</td><td class=\"l\">{}</td><td class=\"l\">{}</td></tr>",
+            escape(&m.name),
+            sig(m.value),
+            m.sigma.map_or(DASH.to_string(), sig),
+            escape(&m.unit),
+            corr,
+            m.held.as_deref().map_or("estimated".to_string(), |h| format!("held: {}", escape(h)))
+        );
+    }
+    o.push_str("</table>\n</section>\n");
 }
 
 fn rejected(o: &mut String, d: &ReportData) {

@@ -158,6 +158,14 @@ fn user_strings_are_escaped() {
                 ..Default::default()
             },
         ],
+        lrf_mount: vec![pingcal_report::MountRow {
+            name: s(),
+            value: 1.0,
+            sigma: Some(0.1),
+            unit: s(),
+            held: Some(s()),
+            max_corr_extrinsic: Some((s(), 0.95)),
+        }],
         intrinsics: vec![Intrinsics {
             camera: s(),
             names: vec![s()],
