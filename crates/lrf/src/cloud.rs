@@ -19,6 +19,20 @@ pub struct Cloud {
     pub points: Vec<Vector3<f64>>,
     /// Ray origin of each point; `None` means every ray starts at (0, 0, 0).
     pub origins: Option<Vec<Vector3<f64>>>,
+    /// The reading each point came from, when the cloud was made from scans (`None` for
+    /// PLY / XYZ clouds): what the joint adjustment re-projects through an estimated mount.
+    pub readings: Option<Vec<BeamReading>>,
+}
+
+/// One beam as the sensor reported it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BeamReading {
+    /// Servo reading, degrees.
+    pub servo_deg: f64,
+    /// Beam angle α, radians.
+    pub alpha_rad: f64,
+    /// Reported range, mm.
+    pub range_mm: f64,
 }
 
 impl Cloud {
@@ -27,6 +41,7 @@ impl Cloud {
         Cloud {
             points,
             origins: None,
+            readings: None,
         }
     }
 
@@ -47,6 +62,9 @@ impl Cloud {
 
     /// Appends the valid beams of one scan (eq. 2 + mount).
     pub fn push_scan(&mut self, header: &ScanHeader, scan: &ScanLine, mount: &MountModel) {
+        if self.readings.is_none() && self.points.is_empty() {
+            self.readings = Some(Vec::new());
+        }
         let keep_origins = !mount.is_identity();
         if keep_origins && self.origins.is_none() {
             self.origins = Some(vec![Vector3::zeros(); self.points.len()]);
@@ -56,8 +74,15 @@ impl Cloud {
             if r <= 0.0 {
                 continue;
             }
-            self.points
-                .push(pose.point(r, header.beam_angle_deg(i).to_radians()));
+            let alpha_rad = header.beam_angle_deg(i).to_radians();
+            self.points.push(pose.point(r, alpha_rad));
+            if let Some(rs) = self.readings.as_mut() {
+                rs.push(BeamReading {
+                    servo_deg: scan.servo_deg,
+                    alpha_rad,
+                    range_mm: r,
+                });
+            }
             if let Some(os) = self.origins.as_mut() {
                 os.push(pose.origin());
             }
@@ -78,6 +103,15 @@ impl Cloud {
 
     /// Appends another cloud.
     pub fn extend(&mut self, other: Cloud) {
+        self.readings = match (self.readings.take(), other.readings) {
+            (Some(mut a), Some(b)) => {
+                a.extend(b);
+                Some(a)
+            }
+            (a, None) if other.points.is_empty() => a,
+            (None, b) if self.points.is_empty() => b,
+            _ => None,
+        };
         match (self.origins.as_mut(), other.origins) {
             (None, None) => {}
             (Some(a), Some(b)) => a.extend(b),

@@ -30,6 +30,7 @@
 //! - [`error`]: the error type; every failure names the file and line, or the points.
 
 pub mod ball_finder;
+pub mod beam;
 pub mod cloud;
 pub mod cloud_file;
 pub mod corner;

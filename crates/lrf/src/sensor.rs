@@ -9,7 +9,8 @@
 //!
 //! **Mount model** ([`MountModel`], zero by default, which is exactly eq. 2):
 //! `p = R_β · (R_x(tilt_x) · R_z(tilt_z) · (r cos α, r sin α, 0) + offset)`, with
-//! `β = servo − servo_zero`. `offset` is the 2D LRF centre seen from the servo axis (in the
+//! `β = (servo − servo_zero) · (1 + servo_scale)` and `r` the true range, from the reported
+//! one by `reported = r · (1 + range_scale) + range_offset`. `offset` is the 2D LRF centre seen from the servo axis (in the
 //! frame that turns with the servo), the tilts turn the scan plane. With a non-zero offset
 //! the frame origin is the point of the servo axis, and each beam starts at `R_β · offset`.
 //! [`ScannerPose`] is this geometry at one servo reading: the one implementation of
@@ -39,7 +40,28 @@ pub struct MountModel {
     pub tilt_z_deg: f64,
     /// Servo reading at which the scan plane is the XY plane, degrees.
     pub servo_zero_deg: f64,
+    /// Scale error of the servo angle: `β = (servo − servo_zero) · (1 + servo_scale)`.
+    #[serde(default)]
+    pub servo_scale: f64,
+    /// Range offset: `reported = true · (1 + range_scale) + range_offset_mm`, mm.
+    #[serde(default)]
+    pub range_offset_mm: f64,
+    /// Range scale error (see `range_offset_mm`).
+    #[serde(default)]
+    pub range_scale: f64,
 }
+
+/// The names of [`MountModel::to_params`], as `[lrf] self_calibrate` spells them.
+pub const MOUNT_PARAM_NAMES: [&str; 8] = [
+    "offset_x",
+    "offset_y",
+    "offset_z",
+    "tilt_x",
+    "tilt_z",
+    "servo_scale",
+    "range_offset",
+    "range_scale",
+];
 
 /// `R_β` of eq. 2 (β in radians).
 pub fn servo_rotation(beta: f64) -> Matrix3<f64> {
@@ -61,13 +83,61 @@ impl MountModel {
         *self == MountModel::default()
     }
 
+    /// The mount as the parameter vector of the joint adjustment, in the order of
+    /// [`MOUNT_PARAM_NAMES`]: offsets (mm), tilts (radians), servo scale, range offset (mm),
+    /// range scale. `servo_zero_deg` is not among them: it is the extrinsic's rotation about
+    /// the servo axis.
+    pub fn to_params(&self) -> [f64; 8] {
+        let o = self.offset_mm;
+        [
+            o[0],
+            o[1],
+            o[2],
+            self.tilt_x_deg.to_radians(),
+            self.tilt_z_deg.to_radians(),
+            self.servo_scale,
+            self.range_offset_mm,
+            self.range_scale,
+        ]
+    }
+
+    /// The mount of parameter vector `p` ([`MountModel::to_params`]) and a servo zero.
+    pub fn from_params(p: &[f64; 8], servo_zero_deg: f64) -> Self {
+        MountModel {
+            offset_mm: [p[0], p[1], p[2]],
+            tilt_x_deg: p[3].to_degrees(),
+            tilt_z_deg: p[4].to_degrees(),
+            servo_zero_deg,
+            servo_scale: p[5],
+            range_offset_mm: p[6],
+            range_scale: p[7],
+        }
+    }
+
+    /// The angle β (radians) of eq. 2 at a servo reading (degrees).
+    pub fn beta(&self, servo_deg: f64) -> f64 {
+        ((servo_deg - self.servo_zero_deg) * (1.0 + self.servo_scale)).to_radians()
+    }
+
+    /// The true range of a reported one, mm.
+    pub fn true_range(&self, reported_mm: f64) -> f64 {
+        (reported_mm - self.range_offset_mm) / (1.0 + self.range_scale)
+    }
+
+    /// What the sensor reports for a true range, mm (before noise).
+    pub fn reported_range(&self, true_mm: f64) -> f64 {
+        true_mm * (1.0 + self.range_scale) + self.range_offset_mm
+    }
+
     /// The scanner at one servo reading (degrees).
     pub fn scanner_at(&self, servo_deg: f64) -> ScannerPose {
-        let servo = servo_rotation((servo_deg - self.servo_zero_deg).to_radians());
+        let servo = servo_rotation(self.beta(servo_deg));
         ScannerPose {
             servo,
             tilt: self.tilt(),
             origin: servo * Vector3::from(self.offset_mm),
+            range_offset_mm: self.range_offset_mm,
+            range_scale: self.range_scale,
         }
     }
 
@@ -86,6 +156,8 @@ pub struct ScannerPose {
     servo: Matrix3<f64>,
     tilt: Matrix3<f64>,
     origin: Vector3<f64>,
+    range_offset_mm: f64,
+    range_scale: f64,
 }
 
 impl ScannerPose {
@@ -102,8 +174,10 @@ impl ScannerPose {
         self.servo * (self.tilt * local)
     }
 
-    /// The point at range `r` (mm) of beam angle α (radians).
+    /// The point at reported range `r` (mm; corrected for the mount's range offset and
+    /// scale) of beam angle α (radians).
     pub fn point(&self, r: f64, alpha: f64) -> Vector3<f64> {
+        let r = (r - self.range_offset_mm) / (1.0 + self.range_scale);
         let (sa, ca) = alpha.sin_cos();
         self.servo * (self.tilt * Vector3::new(r * ca, r * sa, 0.0)) + self.origin
     }
@@ -234,10 +308,13 @@ impl LrfSensor {
         (pose.origin(), pose.direction(self.beam_angle(i), 0.0))
     }
 
-    /// What the sensor reports for a beam of true range `r_true` (mm), the noise drawn from
-    /// `rng` ([`RangeNoise::perturb`]); `None` is no return.
+    /// What the sensor reports for a beam of true range `r_true` (mm): the range through the
+    /// mount's range offset and scale ([`MountModel::reported_range`]) plus the noise drawn
+    /// from `rng` ([`RangeNoise::perturb`]); `None` is no return.
     pub fn read<R: Rng + ?Sized>(&self, r_true: f64, rng: &mut R) -> Option<f64> {
-        let noisy = self.noise.perturb(r_true, rng);
+        let noisy = self
+            .noise
+            .perturb(self.mount.reported_range(r_true), rng);
         let r = if self.quantise { noisy.round() } else { noisy };
         let valid = r_true <= self.max_range_mm
             && r >= self.min_range_mm
@@ -278,6 +355,7 @@ mod tests {
             tilt_x_deg: 1.0,
             tilt_z_deg: -0.5,
             servo_zero_deg: 2.0,
+            ..Default::default()
         };
         let (p, o) = m.beam(1234.0, 17.0, 33.0);
         assert!(((p - o).norm() - 1234.0).abs() < 1e-9);
@@ -300,6 +378,7 @@ mod tests {
                 tilt_x_deg: 0.7,
                 tilt_z_deg: 0.2,
                 servo_zero_deg: -1.0,
+                ..Default::default()
             },
             ..LrfSensor::urg_04lx()
         };

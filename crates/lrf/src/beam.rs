@@ -1,0 +1,241 @@
+//! One LRF beam against a sphere of known radius: the observation the joint adjustment
+//! adds for every beam that hit a ball.
+//!
+//! For a reading (servo angle `s`, beam angle α, reported range `r`) through the mount
+//! θ ([`MountModel::to_params`]) the beam starts at `o = R_β · offset` and points along
+//! `d = R_β R_x(tilt_x) R_z(tilt_z) (cos α, sin α, 0)`, `β = (s − servo_zero)(1 + servo_scale)`
+//! ([`crate::sensor`]). With `q = c − o`, `t = d·q` and `h² = |q|² − t²` (the ray's distance
+//! from the centre `c`, squared), it meets the sphere of radius ρ first at
+//! `r_pred = t − √(ρ² − h²)`, and the sensor should report `r̂ = r_pred (1 + range_scale) +
+//! range_offset`. The residual is `e = r − r̂` (mm, not whitened: the caller divides by the
+//! sensor's σ(r)).
+//!
+//! **Grazing beams.** Where the ray passes the centre at more than `√(1 − κ²) ρ` (κ =
+//! [`GRAZING_KAPPA`], or misses the sphere), the root is clamped at κρ: the function stays
+//! continuous, its Jacobian is that of the clamped function, and [`BeamResidual::grazing`]
+//! says so, so that callers can leave such beams out (their range is a footprint effect).
+//!
+//! **Jacobians**, with `g_q = ∂r_pred/∂q = d + (q − t d)/√(ρ² − h²)` and
+//! `g_d = ∂r_pred/∂d = q − t q/√(ρ² − h²)` (the second terms vanish when clamped):
+//! `∂e/∂c = −(1 + range_scale) g_q`; for an offset component `∂o = R_β e_j`, for a tilt or
+//! the servo scale `∂d` (and `∂o`) through the derivative of the elementary rotation, and
+//! `∂e/∂θ = −(1 + range_scale)(g_d · ∂d − g_q · ∂o)`; `∂e/∂range_offset = −1`,
+//! `∂e/∂range_scale = −r_pred`. Checked against central differences in the tests.
+
+use crate::cloud::BeamReading;
+use crate::sensor::{servo_rotation, MountModel};
+use nalgebra::{Matrix3, Vector3};
+
+/// The clamp of grazing beams: the root `√(ρ² − h²)` is held at least κρ.
+pub const GRAZING_KAPPA: f64 = 0.3;
+
+/// A beam's residual against a sphere and its Jacobians.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BeamResidual {
+    /// `e = reported − predicted` range, mm.
+    pub e: f64,
+    /// `∂e/∂c`.
+    pub d_centre: [f64; 3],
+    /// `∂e/∂θ` in the order of [`MountModel::to_params`] (tilts per radian).
+    pub d_mount: [f64; 8],
+    /// The ray grazes (or misses) the sphere: the root was clamped.
+    pub grazing: bool,
+}
+
+/// Derivative of [`servo_rotation`] with respect to β.
+fn servo_rotation_dot(beta: f64) -> Matrix3<f64> {
+    let (s, c) = beta.sin_cos();
+    Matrix3::new(-s, 0.0, -c, 0.0, 0.0, 0.0, c, 0.0, -s)
+}
+
+fn rot_x(a: f64) -> (Matrix3<f64>, Matrix3<f64>) {
+    let (s, c) = a.sin_cos();
+    (
+        Matrix3::new(1.0, 0.0, 0.0, 0.0, c, -s, 0.0, s, c),
+        Matrix3::new(0.0, 0.0, 0.0, 0.0, -s, -c, 0.0, c, -s),
+    )
+}
+
+fn rot_z(a: f64) -> (Matrix3<f64>, Matrix3<f64>) {
+    let (s, c) = a.sin_cos();
+    (
+        Matrix3::new(c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0),
+        Matrix3::new(-s, -c, 0.0, c, -s, 0.0, 0.0, 0.0, 0.0),
+    )
+}
+
+/// The residual of `reading` against the sphere of `radius` centred at `centre` (LRF
+/// frame, mm), through `mount` (see the module doc).
+pub fn beam_range_residual(
+    reading: &BeamReading,
+    mount: &MountModel,
+    centre: &Vector3<f64>,
+    radius: f64,
+) -> BeamResidual {
+    let th = mount.to_params();
+    let dbeta_dk = (reading.servo_deg - mount.servo_zero_deg).to_radians();
+    let beta = mount.beta(reading.servo_deg);
+    let (rb, rb_dot) = (servo_rotation(beta), servo_rotation_dot(beta));
+    let (rx, rx_dot) = rot_x(th[3]);
+    let (rz, rz_dot) = rot_z(th[4]);
+    let (sa, ca) = reading.alpha_rad.sin_cos();
+    let l = Vector3::new(ca, sa, 0.0);
+    let off = Vector3::new(th[0], th[1], th[2]);
+    let d = rb * (rx * (rz * l));
+    let o = rb * off;
+    let q = centre - o;
+    let t = d.dot(&q);
+    // |q|² − t² cancels catastrophically at 1 m; the perpendicular part does not
+    let perp = q - d * t;
+    let h2 = perp.norm_squared();
+    let floor = (GRAZING_KAPPA * radius).powi(2);
+    let u = radius * radius - h2;
+    let grazing = u < floor;
+    let root = u.max(floor).sqrt();
+    let r_pred = t - root;
+    let (g_q, g_d) = if grazing {
+        (d, q)
+    } else {
+        (d + perp / root, q - q * (t / root))
+    };
+    let gain = 1.0 + th[7];
+    let e = reading.range_mm - (r_pred * gain + th[6]);
+    let d_centre = (-gain * g_q).into();
+    let along = |dd: Vector3<f64>, doo: Vector3<f64>| -gain * (g_d.dot(&dd) - g_q.dot(&doo));
+    let z = Vector3::zeros();
+    let mut d_mount = [0.0; 8];
+    for (j, dm) in d_mount.iter_mut().enumerate().take(3) {
+        *dm = along(z, rb.column(j).into_owned());
+    }
+    d_mount[3] = along(rb * (rx_dot * (rz * l)), z);
+    d_mount[4] = along(rb * (rx * (rz_dot * l)), z);
+    d_mount[5] = along(
+        rb_dot * (rx * (rz * l)) * dbeta_dk,
+        rb_dot * off * dbeta_dk,
+    );
+    d_mount[6] = -1.0;
+    d_mount[7] = -r_pred;
+    BeamResidual {
+        e,
+        d_centre,
+        d_mount,
+        grazing,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use pingcal_geometry::consensus::rng;
+    use rand::Rng;
+
+    fn random_case(g: &mut impl Rng) -> (BeamReading, MountModel, Vector3<f64>) {
+        let mount = MountModel {
+            offset_mm: [g.random_range(-20.0..20.0), g.random_range(-20.0..20.0), g.random_range(-20.0..20.0)],
+            tilt_x_deg: g.random_range(-1.0..1.0),
+            tilt_z_deg: g.random_range(-1.0..1.0),
+            servo_zero_deg: g.random_range(-3.0..3.0),
+            servo_scale: g.random_range(-0.005..0.005),
+            range_offset_mm: g.random_range(-25.0..25.0),
+            range_scale: g.random_range(-0.01..0.01),
+        };
+        let reading = BeamReading {
+            servo_deg: g.random_range(-80.0..80.0),
+            alpha_rad: g.random_range(-1.5f64..1.5),
+            range_mm: g.random_range(800.0..2000.0),
+        };
+        // a centre near the beam, inside the non-grazing zone
+        let pose = mount.scanner_at(reading.servo_deg);
+        let dir = pose.direction(reading.alpha_rad, 0.0);
+        let side = dir.cross(&Vector3::new(0.3, 1.0, -0.2)).normalize();
+        let c = pose.origin() + dir * (reading.range_mm + 5.0) + side * g.random_range(0.0..10.0);
+        (reading, mount, c)
+    }
+
+    /// The five-point central difference (error O(h⁴)): the root's high derivatives in the
+    /// ray's distance from the centre make the three-point one too coarse at 1e-6.
+    fn five_point(h: f64, f: impl Fn(f64) -> f64) -> f64 {
+        (f(-2.0 * h) - 8.0 * f(-h) + 8.0 * f(h) - f(2.0 * h)) / (12.0 * h)
+    }
+
+    fn residual_at(reading: &BeamReading, th: &[f64; 8], zero: f64, c: &Vector3<f64>) -> f64 {
+        beam_range_residual(reading, &MountModel::from_params(th, zero), c, 20.0).e
+    }
+
+    /// Every analytic derivative against central differences (relative 1e-6).
+    #[test]
+    fn jacobians_match_central_differences() {
+        let mut g = rng(7);
+        let mut checked = 0;
+        for _ in 0..200 {
+            let (reading, mount, c) = random_case(&mut g);
+            let b = beam_range_residual(&reading, &mount, &c, 20.0);
+            if b.grazing {
+                continue;
+            }
+            checked += 1;
+            let th = mount.to_params();
+            let z = mount.servo_zero_deg;
+            for k in 0..3 {
+                let num = five_point(1e-2, |h| {
+                    let mut cp = c;
+                    cp[k] += h;
+                    residual_at(&reading, &th, z, &cp)
+                });
+                assert!((num - b.d_centre[k]).abs() <= 1e-6 * (1.0 + num.abs()), "centre {k}: {num} vs {}", b.d_centre[k]);
+            }
+            for k in 0..8 {
+                // steps that move the ray by about 1e-2 mm at 1 m (e carries ~1e-10 mm of
+                // rounding noise, the five-point truncation is far below)
+                let step = [1e-2, 1e-2, 1e-2, 1e-5, 1e-5, 1e-5, 1e-2, 1e-5][k];
+                let num = five_point(step, |h| {
+                    let mut tp = th;
+                    tp[k] += h;
+                    residual_at(&reading, &tp, z, &c)
+                });
+                let scale = 1.0 + num.abs().max(b.d_mount[k].abs());
+                assert!((num - b.d_mount[k]).abs() <= 1e-6 * scale, "mount {k}: {num} vs {}", b.d_mount[k]);
+            }
+        }
+        assert!(checked > 100, "{checked}");
+    }
+
+    /// An exact reading of a sphere, made through the same mount, has no residual; through
+    /// another mount it has.
+    #[test]
+    fn an_exact_reading_has_no_residual() {
+        let mut g = rng(3);
+        for _ in 0..50 {
+            let (mut reading, mount, c) = random_case(&mut g);
+            let pose = mount.scanner_at(reading.servo_deg);
+            let (o, d) = (pose.origin(), pose.direction(reading.alpha_rad, 0.0));
+            let q = c - o;
+            let t = d.dot(&q);
+            let u = 400.0 - (q.norm_squared() - t * t);
+            if u < (GRAZING_KAPPA * 20.0).powi(2) {
+                continue;
+            }
+            reading.range_mm = mount.reported_range(t - u.sqrt());
+            let b = beam_range_residual(&reading, &mount, &c, 20.0);
+            assert!(b.e.abs() < 1e-9 && !b.grazing, "{}", b.e);
+            // and the cloud puts the point on the sphere
+            let p = pose.point(reading.range_mm, reading.alpha_rad);
+            assert!(((p - c).norm() - 20.0).abs() < 1e-9);
+            let other = MountModel { range_offset_mm: mount.range_offset_mm + 5.0, ..mount };
+            assert!((beam_range_residual(&reading, &other, &c, 20.0).e + 5.0).abs() < 1e-9);
+        }
+    }
+
+    /// Across the clamp the residual is continuous, and a miss is grazing.
+    #[test]
+    fn the_clamp_is_continuous() {
+        let mount = MountModel::default();
+        let reading = BeamReading { servo_deg: 0.0, alpha_rad: 0.0, range_mm: 1000.0 };
+        let h_edge = 20.0 * (1.0 - GRAZING_KAPPA * GRAZING_KAPPA).sqrt();
+        let at = |h: f64| beam_range_residual(&reading, &mount, &Vector3::new(1000.0, h, 0.0), 20.0);
+        let (a, b) = (at(h_edge - 1e-9), at(h_edge + 1e-9));
+        assert!(!a.grazing && b.grazing);
+        assert!((a.e - b.e).abs() < 1e-6, "{} {}", a.e, b.e);
+        assert!(at(30.0).grazing && at(30.0).e.is_finite());
+    }
+}
