@@ -10,7 +10,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 /// The modules of `pipeline/`, lowest first (`mod.rs`, the root that runs them, is apart).
-const ORDER: [&str; 13] = [
+const ORDER: [&str; 14] = [
     "ids",
     "progress",
     "scene",
@@ -21,6 +21,7 @@ const ORDER: [&str; 13] = [
     "bundle",
     "lrf",
     "extrinsic",
+    "joint",
     "verdict",
     "results",
     "report",

@@ -109,10 +109,7 @@ pub fn beam_range_residual(
     }
     d_mount[3] = along(rb * (rx_dot * (rz * l)), z);
     d_mount[4] = along(rb * (rx * (rz_dot * l)), z);
-    d_mount[5] = along(
-        rb_dot * (rx * (rz * l)) * dbeta_dk,
-        rb_dot * off * dbeta_dk,
-    );
+    d_mount[5] = along(rb_dot * (rx * (rz * l)) * dbeta_dk, rb_dot * off * dbeta_dk);
     d_mount[6] = -1.0;
     d_mount[7] = -r_pred;
     BeamResidual {
@@ -131,7 +128,11 @@ mod tests {
 
     fn random_case(g: &mut impl Rng) -> (BeamReading, MountModel, Vector3<f64>) {
         let mount = MountModel {
-            offset_mm: [g.random_range(-20.0..20.0), g.random_range(-20.0..20.0), g.random_range(-20.0..20.0)],
+            offset_mm: [
+                g.random_range(-20.0..20.0),
+                g.random_range(-20.0..20.0),
+                g.random_range(-20.0..20.0),
+            ],
             tilt_x_deg: g.random_range(-1.0..1.0),
             tilt_z_deg: g.random_range(-1.0..1.0),
             servo_zero_deg: g.random_range(-3.0..3.0),
@@ -182,7 +183,11 @@ mod tests {
                     cp[k] += h;
                     residual_at(&reading, &th, z, &cp)
                 });
-                assert!((num - b.d_centre[k]).abs() <= 1e-6 * (1.0 + num.abs()), "centre {k}: {num} vs {}", b.d_centre[k]);
+                assert!(
+                    (num - b.d_centre[k]).abs() <= 1e-6 * (1.0 + num.abs()),
+                    "centre {k}: {num} vs {}",
+                    b.d_centre[k]
+                );
             }
             for k in 0..8 {
                 // steps that move the ray by about 1e-2 mm at 1 m (e carries ~1e-10 mm of
@@ -194,7 +199,11 @@ mod tests {
                     residual_at(&reading, &tp, z, &c)
                 });
                 let scale = 1.0 + num.abs().max(b.d_mount[k].abs());
-                assert!((num - b.d_mount[k]).abs() <= 1e-6 * scale, "mount {k}: {num} vs {}", b.d_mount[k]);
+                assert!(
+                    (num - b.d_mount[k]).abs() <= 1e-6 * scale,
+                    "mount {k}: {num} vs {}",
+                    b.d_mount[k]
+                );
             }
         }
         assert!(checked > 100, "{checked}");
@@ -221,7 +230,10 @@ mod tests {
             // and the cloud puts the point on the sphere
             let p = pose.point(reading.range_mm, reading.alpha_rad);
             assert!(((p - c).norm() - 20.0).abs() < 1e-9);
-            let other = MountModel { range_offset_mm: mount.range_offset_mm + 5.0, ..mount };
+            let other = MountModel {
+                range_offset_mm: mount.range_offset_mm + 5.0,
+                ..mount
+            };
             assert!((beam_range_residual(&reading, &other, &c, 20.0).e + 5.0).abs() < 1e-9);
         }
     }
@@ -230,9 +242,14 @@ mod tests {
     #[test]
     fn the_clamp_is_continuous() {
         let mount = MountModel::default();
-        let reading = BeamReading { servo_deg: 0.0, alpha_rad: 0.0, range_mm: 1000.0 };
+        let reading = BeamReading {
+            servo_deg: 0.0,
+            alpha_rad: 0.0,
+            range_mm: 1000.0,
+        };
         let h_edge = 20.0 * (1.0 - GRAZING_KAPPA * GRAZING_KAPPA).sqrt();
-        let at = |h: f64| beam_range_residual(&reading, &mount, &Vector3::new(1000.0, h, 0.0), 20.0);
+        let at =
+            |h: f64| beam_range_residual(&reading, &mount, &Vector3::new(1000.0, h, 0.0), 20.0);
         let (a, b) = (at(h_edge - 1e-9), at(h_edge + 1e-9));
         assert!(!a.grazing && b.grazing);
         assert!((a.e - b.e).abs() < 1e-6, "{} {}", a.e, b.e);

@@ -312,9 +312,7 @@ impl LrfSensor {
     /// mount's range offset and scale ([`MountModel::reported_range`]) plus the noise drawn
     /// from `rng` ([`RangeNoise::perturb`]); `None` is no return.
     pub fn read<R: Rng + ?Sized>(&self, r_true: f64, rng: &mut R) -> Option<f64> {
-        let noisy = self
-            .noise
-            .perturb(self.mount.reported_range(r_true), rng);
+        let noisy = self.noise.perturb(self.mount.reported_range(r_true), rng);
         let r = if self.quantise { noisy.round() } else { noisy };
         let valid = r_true <= self.max_range_mm
             && r >= self.min_range_mm

@@ -4,8 +4,8 @@
 //! 5 check balls each. Deterministic (own small PRNG); nothing here is a real measurement.
 
 use crate::{
-    CameraStation, CheckRow, Cloud, ImagePoint, ImageResiduals, Intrinsics, MountRow, MethodResult, Network,
-    NetworkPoint, Rejection, ReportData, Sphere,
+    CameraStation, CheckRow, Cloud, ImagePoint, ImageResiduals, Intrinsics, MethodResult, MountRow,
+    Network, NetworkPoint, Rejection, ReportData, Sphere,
 };
 
 type V3 = [f64; 3];
@@ -434,17 +434,24 @@ fn method(name: &str, r: M3, t: V3, checks: Vec<CheckRow>, sigmas: bool) -> Meth
 
 /// A joint adjustment's mount: offsets and a tilt estimated, `offset_y` defined.
 fn mount_rows() -> Vec<MountRow> {
-    let row = |name: &str, value: f64, sigma: Option<f64>, unit: &str, held: Option<&str>| MountRow {
-        name: name.into(),
-        value,
-        sigma,
-        unit: unit.into(),
-        held: held.map(String::from),
-        max_corr_extrinsic: sigma.map(|_| ("tx".to_string(), -0.42)),
-    };
+    let row =
+        |name: &str, value: f64, sigma: Option<f64>, unit: &str, held: Option<&str>| MountRow {
+            name: name.into(),
+            value,
+            sigma,
+            unit: unit.into(),
+            held: held.map(String::from),
+            max_corr_extrinsic: sigma.map(|_| ("tx".to_string(), -0.42)),
+        };
     vec![
         row("offset_x", 3.1, Some(0.6), "mm", None),
-        row("offset_y", 0.0, None, "mm", Some("it is the LRF frame's origin along the servo axis")),
+        row(
+            "offset_y",
+            0.0,
+            None,
+            "mm",
+            Some("it is the LRF frame's origin along the servo axis"),
+        ),
         row("offset_z", 7.7, Some(0.9), "mm", None),
         row("tilt_x", 0.29, Some(0.02), "°", None),
         row("range_offset", 12.4, Some(0.8), "mm", None),

@@ -422,6 +422,16 @@ pub struct LrfConfig {
     /// Offset of the 2D scanner's centre from the servo shaft, in the rotating frame
     /// (eq. 2 assumes zero; a real gimbal is never perfect).
     pub mount_offset_mm: [f64; 3],
+    /// Tilt of the scan plane about the turning frame's X axis (the α = 0 beam), degrees.
+    pub mount_tilt_x_deg: f64,
+    /// Tilt of the scan plane about Z (a zero error of the beam angle), degrees.
+    pub mount_tilt_z_deg: f64,
+    /// Scale error of the servo angle (`β = servo · (1 + servo_scale)`).
+    pub servo_scale: f64,
+    /// Range offset: the sensor reports `true · (1 + range_scale) + range_offset_mm`.
+    pub range_offset_mm: f64,
+    /// Range scale error.
+    pub range_scale: f64,
     /// Switch range and servo noise off (for tests).
     pub noise: bool,
 }
@@ -451,6 +461,11 @@ impl Default for LrfConfig {
             extrinsic_opk_deg: [0.8, -1.2, 0.6],
             extrinsic_t_mm: [72.0, 12.0, 91.0],
             mount_offset_mm: [0.0, 0.0, 0.0],
+            mount_tilt_x_deg: 0.0,
+            mount_tilt_z_deg: 0.0,
+            servo_scale: 0.0,
+            range_offset_mm: 0.0,
+            range_scale: 0.0,
             noise: true,
         }
     }
@@ -466,6 +481,21 @@ impl LrfConfig {
             self.accuracy_far_fraction,
             self.accuracy_sigmas,
         )
+    }
+
+    /// The true mount and range model of the simulated scanner (written to truth.json;
+    /// the project file the simulator writes leaves it at zero, as a user who does not know
+    /// it would).
+    pub fn mount(&self) -> MountModel {
+        MountModel {
+            offset_mm: self.mount_offset_mm,
+            tilt_x_deg: self.mount_tilt_x_deg,
+            tilt_z_deg: self.mount_tilt_z_deg,
+            servo_zero_deg: 0.0,
+            servo_scale: self.servo_scale,
+            range_offset_mm: self.range_offset_mm,
+            range_scale: self.range_scale,
+        }
     }
 
     /// Range noise σ at true range `r` (mm), of [`LrfConfig::range_noise`].
@@ -484,10 +514,7 @@ impl LrfConfig {
                 mm_per_unit: 1.0,
             },
             beams: self.beams,
-            mount: MountModel {
-                offset_mm: self.mount_offset_mm,
-                ..MountModel::default()
-            },
+            mount: self.mount(),
             noise: if self.noise {
                 self.range_noise()
             } else {
@@ -951,6 +978,34 @@ fn validate_lrf_servo(l: &LrfConfig) -> Result<(), ConfigError> {
     finite3("lrf.extrinsic_opk_deg", l.extrinsic_opk_deg)?;
     finite3("lrf.extrinsic_t_mm", l.extrinsic_t_mm)?;
     finite3("lrf.mount_offset_mm", l.mount_offset_mm)?;
+    for (k, v) in l.mount_offset_mm.iter().enumerate() {
+        if v.abs() > 100.0 {
+            return Err(ConfigError::new(
+                [
+                    "lrf.mount_offset_mm[0]",
+                    "lrf.mount_offset_mm[1]",
+                    "lrf.mount_offset_mm[2]",
+                ][k],
+                *v,
+                "a scanner more than 100 mm off its servo axis is not a mount error",
+            ));
+        }
+    }
+    for (key, v, max, what) in [
+        ("lrf.mount_tilt_x_deg", l.mount_tilt_x_deg, 5.0, "degrees"),
+        ("lrf.mount_tilt_z_deg", l.mount_tilt_z_deg, 5.0, "degrees"),
+        ("lrf.servo_scale", l.servo_scale, 0.05, "(a fraction)"),
+        ("lrf.range_offset_mm", l.range_offset_mm, 100.0, "mm"),
+        ("lrf.range_scale", l.range_scale, 0.05, "(a fraction)"),
+    ] {
+        if !(v.abs() <= max) {
+            return Err(ConfigError::new(
+                key,
+                v,
+                format!("expected a finite value within ±{max} {what}"),
+            ));
+        }
+    }
     Ok(())
 }
 

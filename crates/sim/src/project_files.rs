@@ -167,6 +167,10 @@ pub struct Truth {
     pub world_to_lrf: PoseJson,
     /// LRF mount offset (rotating frame), mm.
     pub lrf_mount_offset_mm: [f64; 3],
+    /// The LRF's true mount and range model (offset, tilts, servo scale, range offset and
+    /// scale); the project file leaves it at zero.
+    #[serde(default)]
+    pub lrf_mount: pingcal_lrf::MountModel,
     /// True intrinsics.
     pub cameras: Vec<TruthCamera>,
     /// Left camera frame → right camera frame.
@@ -251,6 +255,7 @@ pub fn truth_of(sim: &Simulation) -> Truth {
         world_to_photogrammetric: PoseJson::from_pose(&w2p),
         world_to_lrf: PoseJson::from_pose(&w2l),
         lrf_mount_offset_mm: sim.config.lrf.mount_offset_mm,
+        lrf_mount: sim.config.lrf.mount(),
         cameras: sim
             .rig
             .cameras
@@ -412,7 +417,7 @@ pub fn project_of(sim: &Simulation) -> ProjectFile {
             max_range_mm: cfg.lrf.max_range_mm,
             accuracy_near_mm: cfg.lrf.accuracy_near_mm,
             accuracy_far_fraction: cfg.lrf.accuracy_far_fraction,
-            mount_offset_mm: cfg.lrf.mount_offset_mm,
+            mount_offset_mm: [0.0; 3],
             mount_tilt_x_deg: 0.0,
             mount_tilt_z_deg: 0.0,
             servo_zero_deg: 0.0,

@@ -85,6 +85,7 @@ pub fn run(args: Args) -> CmdResult {
         tilt_x_deg: args.tilt_x_deg,
         tilt_z_deg: args.tilt_z_deg,
         servo_zero_deg: args.servo_zero_deg,
+        ..MountModel::default()
     };
     for (option, file) in [("--out", &args.out), ("--balls", &args.balls)] {
         if let Some(f) = file {

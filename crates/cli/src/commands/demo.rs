@@ -88,10 +88,10 @@ fn print_table(r: &pipeline::results::Results, truth: &pingcal_sim::Truth) {
     for m in &r.methods {
         header += &format!(
             " | {:^29}",
-            if m.method == "spheres" {
-                "spheres (this method)"
-            } else {
-                "corner (Fan et al. 2019)"
+            match m.method.as_str() {
+                "joint" => "joint (mount self-calibrated)",
+                "spheres" => "spheres (paper's two steps)",
+                _ => "corner (Fan et al. 2019)",
             }
         );
     }

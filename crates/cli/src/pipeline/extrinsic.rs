@@ -83,6 +83,53 @@ struct Matched {
     cam_points: Vec<PointObs>,
 }
 
+/// Range offsets tried by [`match_tolerating_range_offset`], mm: a URG's offset reaches
+/// centimetres, and the joint adjustment estimates it once the balls are matched.
+const RANGE_OFFSETS_TRIED_MM: [f64; 9] = [0.0, -8.0, 8.0, -16.0, 16.0, -24.0, 24.0, -32.0, 32.0];
+
+/// [`match_balls`] on the LRF centres as fitted, and, when that leaves balls unmatched, on
+/// the centres corrected for each range offset δ of [`RANGE_OFFSETS_TRIED_MM`]: every beam
+/// of a scanner whose ranges are δ too long puts a fixed-radius sphere's centre δ farther
+/// along its line of sight, `c' = c − δ c/|c|`, which changes the distances between balls by
+/// up to 2δ sin(θ/2) and can defeat the distance invariants. The offset that matches the
+/// most balls (then the lowest RMS) wins; the pairs are what is kept, the centres stay as
+/// fitted.
+fn match_tolerating_range_offset(
+    lrf: &[Vector3<f64>],
+    cam: &[Vector3<f64>],
+    rep: &Reporter,
+) -> std::result::Result<pingcal_lrf::correspondence::Matching, pingcal_lrf::LrfError> {
+    let first = match_balls(lrf, cam, &MatchOptions::default());
+    let all = lrf.len().min(cam.len());
+    if first.as_ref().is_ok_and(|m| m.pairs.len() == all) {
+        return first;
+    }
+    let mut best: Option<(f64, pingcal_lrf::correspondence::Matching)> = None;
+    for &delta in &RANGE_OFFSETS_TRIED_MM[1..] {
+        let moved: Vec<Vector3<f64>> = lrf.iter().map(|c| c - c.normalize() * delta).collect();
+        let Ok(m) = match_balls(&moved, cam, &MatchOptions::default()) else {
+            continue;
+        };
+        let better = best
+            .as_ref()
+            .is_none_or(|(_, b)| (m.pairs.len(), -m.rms_mm) > (b.pairs.len(), -b.rms_mm));
+        if better {
+            best = Some((delta, m));
+        }
+    }
+    match (first, best) {
+        (Ok(f), Some((d, b))) if b.pairs.len() > f.pairs.len() => {
+            rep.log(format!("  correspondence: {} balls matched with the LRF centres corrected for a range offset of {d:+.0} mm (against {} as fitted)", b.pairs.len(), f.pairs.len()));
+            Ok(b)
+        }
+        (Err(_), Some((d, b))) => {
+            rep.log(format!("  correspondence: matched only with the LRF centres corrected for a range offset of {d:+.0} mm: the joint adjustment estimates it"));
+            Ok(b)
+        }
+        (first, _) => first,
+    }
+}
+
 /// Matches the LRF spheres to the camera balls; fewer than three pairs is an error.
 fn match_spheres(
     project: &Project,
@@ -103,17 +150,16 @@ fn match_spheres(
             cam_centres.len()
         ))
     };
-    let matching =
-        match_balls(&lrf_centres, &cam_centres, &MatchOptions::default()).map_err(|e| {
-            if lrf_centres.len() < 3 || cam_centres.len() < 3 {
-                too_few(lrf_centres.len().min(cam_centres.len()))
-            } else {
-                PipelineError::new(format!(
-                    "{}: the LRF spheres cannot be matched to the balls of the photographs: {e}",
-                    project.path.display()
-                ))
-            }
-        })?;
+    let matching = match_tolerating_range_offset(&lrf_centres, &cam_centres, rep).map_err(|e| {
+        if lrf_centres.len() < 3 || cam_centres.len() < 3 {
+            too_few(lrf_centres.len().min(cam_centres.len()))
+        } else {
+            PipelineError::new(format!(
+                "{}: the LRF spheres cannot be matched to the balls of the photographs: {e}",
+                project.path.display()
+            ))
+        }
+    })?;
     if matching.pairs.len() < 3 {
         return Err(too_few(matching.pairs.len()));
     }

@@ -40,6 +40,7 @@ pub fn mount_of(project: &Project) -> MountModel {
         tilt_x_deg: l.mount_tilt_x_deg,
         tilt_z_deg: l.mount_tilt_z_deg,
         servo_zero_deg: l.servo_zero_deg,
+        ..MountModel::default()
     }
 }
 

@@ -8,7 +8,8 @@
 //! | 4 | [`bundle`] | the final self-calibrating adjustment: distances, stereo rig, main image as datum, ball centres corrected for the sphere's eccentricity, data snooping, precision |
 //! | 5 | [`lrf`] | the LRF cloud from the scans and the spheres fitted to the balls |
 //! | 6 | [`extrinsic`] | spheres ↔ balls by distance invariants, the 3D conformal transform with σ, control / check / leave-one-out tables; the Fan et al. 2019 corner baseline |
-//! | 7 | [`verdict`] | whether to trust the calibration: `ok`, `doubtful` or `failed`, by statistical tests of every adjustment and of the check points |
+//! | 7 | [`joint`] | the joint adjustment: image points, distances and the LRF beams on the balls together, the extrinsic and the LRF's mount and range errors among the unknowns, what the data cannot determine held and named |
+//! | 7a | [`verdict`] | whether to trust the calibration: `ok`, `doubtful` or `failed`, by statistical tests of every adjustment and of the check points |
 //! | 8 | [`results`], then [`report`] | `results.json` (SPEC.md) and `cloud.ply`, then the data of `report.html` |
 //!
 //! Below the steps lie the modules they share, lowest first: [`ids`] (typed ids and the
@@ -27,6 +28,7 @@ pub mod bundle;
 pub mod detect;
 pub mod extrinsic;
 pub mod ids;
+pub mod joint;
 pub mod lrf;
 pub mod matching;
 pub mod network;
@@ -105,6 +107,17 @@ pub fn calibrate(project: &Project, opts: &Options, rep: &Reporter) -> Result<Ou
     let t = std::time::Instant::now();
     let ext = extrinsic::extrinsics(project, &scene, &adjusted, &lrf, &dets, opts, rep)?;
     timing.push(("extrinsic".into(), t.elapsed().as_secs_f64()));
+    let t = std::time::Instant::now();
+    let joint = if project.file.method.joint() {
+        let r = run_joint(project, &dets, &scene, &adjusted, &lrf, &ext, rep);
+        if let Err(e) = &r {
+            rep.log(format!("joint adjustment failed: {e}"));
+        }
+        timing.push(("joint adjustment".into(), t.elapsed().as_secs_f64()));
+        Some(r)
+    } else {
+        None
+    };
     let line = timing
         .iter()
         .map(|(n, s)| format!("{n} {s:.2} s"))
@@ -118,6 +131,7 @@ pub fn calibrate(project: &Project, opts: &Options, rep: &Reporter) -> Result<Ou
         adjusted: &adjusted,
         lrf: &lrf,
         ext: &ext,
+        joint: &joint,
     };
     let verdict = verdict::judge(&stages);
     rep.log(format!(
@@ -153,4 +167,34 @@ pub struct Stages<'a> {
     pub lrf: &'a lrf::LrfData,
     /// Step 6.
     pub ext: &'a extrinsic::Extrinsics,
+    /// Step 7 (None when the method does not ask for it), or why it failed.
+    pub joint: &'a Option<std::result::Result<joint::JointOutcome, String>>,
+}
+
+/// Step 7 from the outcomes of the steps before it: the sphere method's extrinsic is the
+/// start, the project's mount the start of the mount.
+fn run_joint(
+    project: &Project,
+    dets: &scene::Detections,
+    scene: &scene::Scene,
+    adjusted: &bundle::Adjusted,
+    lrf: &lrf::LrfData,
+    ext: &extrinsic::Extrinsics,
+    rep: &Reporter,
+) -> std::result::Result<joint::JointOutcome, String> {
+    let Some(ev) = &ext.spheres else {
+        return Err("it starts from the sphere method, which did not run".into());
+    };
+    let input = joint::JointInput {
+        project,
+        dets,
+        scene,
+        adj: adjusted,
+        lrf,
+        ext,
+        start: ev.registration.camera_from_lrf.rigid(),
+        mount0: lrf.mount,
+        noise: lrf.noise,
+    };
+    joint::joint_adjustment(&input, rep).map_err(|e| e.0)
 }

@@ -58,6 +58,7 @@ pub fn build(st: &Stages, results: &Results, rep: &Reporter) -> rp::ReportData {
         cloud: cloud(st),
         methods: methods(results),
         intrinsics: intrinsics(st, results),
+        lrf_mount: mount_rows(results),
         rejected: rejections(st),
         warnings: warnings(st, results),
     }
@@ -195,12 +196,42 @@ fn cloud(st: &Stages) -> rp::Cloud {
     rp::Cloud { points, spheres }
 }
 
+/// The joint adjustment's mount and range parameters.
+fn mount_rows(results: &Results) -> Vec<rp::MountRow> {
+    const COMPONENTS: [&str; 6] = ["δω", "δφ", "δκ", "tx", "ty", "tz"];
+    let Some(mount) = &results.lrf_mount else {
+        return Vec::new();
+    };
+    mount
+        .iter()
+        .map(|m| rp::MountRow {
+            name: m.name.clone(),
+            value: m.value,
+            sigma: m.sigma,
+            unit: match m.name.as_str() {
+                "tilt_x" | "tilt_z" => "°",
+                "servo_scale" | "range_scale" => "",
+                _ => "mm",
+            }
+            .into(),
+            held: m.held.clone(),
+            max_corr_extrinsic: m.correlation_with_extrinsic.and_then(|c| {
+                (0..6)
+                    .filter(|&k| c[k].is_finite())
+                    .max_by(|&a, &b| c[a].abs().total_cmp(&c[b].abs()))
+                    .map(|k| (COMPONENTS[k].to_string(), c[k]))
+            }),
+        })
+        .collect()
+}
+
 /// Each method's extrinsic and check table, or why it failed.
 fn methods(results: &Results) -> Vec<rp::MethodResult> {
     let mut methods = Vec::new();
     for m in &results.methods {
         let name = match m.method.as_str() {
-            "spheres" => "spheres (this paper's method)".to_string(),
+            "joint" => "joint adjustment (LRF mount self-calibrated)".to_string(),
+            "spheres" => "spheres (this paper's two steps)".to_string(),
             "corner" => "corner (Fan et al. 2019)".to_string(),
             other => other.to_string(),
         };

@@ -1,8 +1,10 @@
 //! Step 7: `results.json` (the keys of SPEC.md and more) and `cloud.ply`; [`super::report`]
 //! builds the report data from them.
 //!
-//! `extrinsic`, `check_points` and `mean_check_error_mm` are the sphere method's when it
-//! ran, else the corner baseline's; `methods` holds both side by side. Every estimate has
+//! `extrinsic`, `check_points` and `mean_check_error_mm` are the joint adjustment's when it
+//! ran and succeeded, else the sphere method's, else the corner baseline's; `methods` holds
+//! every method side by side, and `lrf_mount` the joint adjustment's mount and range
+//! parameters with their σ, why any was held, and their correlations with the extrinsic. Every estimate has
 //! its standard deviation. Camera parameters are in the units of SPEC.md (mm, mm⁻², …) and
 //! also converted to OpenCV's (fx, fy, cx, cy, k1, k2, p1, p2, k3): `k1 = K1 c²`,
 //! `k2 = K2 c⁴`, `k3 = K3 c⁶`, `p1 = −P2 c`, `p2 = P1 c` (OpenCV's y axis points down),
@@ -13,6 +15,7 @@
 use super::bundle::Adjusted;
 use super::extrinsic::Extrinsics;
 use super::ids::CameraId;
+use super::joint::JointOutcome;
 use super::lrf::LrfData;
 use super::scene::{image_file, PointKind, Scene};
 use super::verdict::Verdict;
@@ -169,14 +172,19 @@ pub struct Results {
     pub verdict: Verdict,
     /// The project's name.
     pub project: String,
-    /// The extrinsic of the primary method (spheres when run).
+    /// The extrinsic of the primary method: the joint adjustment's when it ran and
+    /// succeeded, else the sphere method's, else the corner baseline's.
     pub extrinsic: ExtrinsicJson,
     /// Its check points.
     pub check_points: Vec<CheckRow>,
     /// Their mean error (mm).
     pub mean_check_error_mm: f64,
-    /// Both methods.
+    /// Every method that ran, the primary first.
     pub methods: Vec<MethodJson>,
+    /// The LRF's mount and range parameters of the joint adjustment (absent when it did not
+    /// run or failed).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub lrf_mount: Option<Vec<MountJson>>,
     /// The bundle adjustment.
     pub bundle: BundleJson,
     /// Intrinsics.
@@ -210,8 +218,91 @@ fn extrinsic_json(t: &Sim3, sigma_t: Option<[f64; 3]>, sigma_r: Option<[f64; 3]>
     }
 }
 
-fn methods(ext: &Extrinsics) -> Vec<MethodJson> {
+/// A method that failed.
+fn failed(method: &str, e: &str) -> MethodJson {
+    MethodJson {
+        method: method.into(),
+        extrinsic: None,
+        check_points: Vec::new(),
+        mean_check_error_mm: None,
+        sd_check_error_mm: None,
+        check_points_source: String::new(),
+        control_points: Vec::new(),
+        leave_one_out: Vec::new(),
+        sigma0: None,
+        error: Some(e.to_string()),
+        notes: Vec::new(),
+    }
+}
+
+/// The joint adjustment's results.
+fn joint_json(j: &JointOutcome, ext: &Extrinsics) -> MethodJson {
+    let t = &j.camera_from_lrf;
+    let sim = Sim3::new(1.0, t.rotation, t.translation);
+    MethodJson {
+        method: "joint".into(),
+        extrinsic: Some(extrinsic_json(&sim, Some(j.sigma_translation_mm), Some(j.sigma_opk_deg))),
+        check_points: j.check.rows.clone(),
+        mean_check_error_mm: Some(j.check.mean_mm),
+        sd_check_error_mm: Some(j.check.sd_mm),
+        check_points_source: if ext.check_ids.is_empty() { "none".into() } else { "check".into() },
+        control_points: j.control.rows.clone(),
+        leave_one_out: Vec::new(),
+        sigma0: Some(j.sigma0),
+        error: None,
+        notes: std::iter::once(format!(
+            "{} LRF beams on {} control balls ({} removed as gross errors, {} grazing left out); RMS beam residual {:.2} mm; redundancy {}",
+            j.beams,
+            j.control.rows.len(),
+            j.beams_rejected,
+            j.beams_grazing,
+            j.rms_beam_mm,
+            j.redundancy
+        ))
+        .chain(j.notes.iter().cloned())
+        .collect(),
+    }
+}
+
+/// One mount parameter in `results.json`.
+#[derive(Clone, Debug, Serialize)]
+pub struct MountJson {
+    /// `offset_x`, …, `range_scale` (as `[lrf] self_calibrate` spells them).
+    pub name: String,
+    /// Value: mm for offsets, degrees for tilts, 1 for scales.
+    pub value: f64,
+    /// Its σ (null when held).
+    pub sigma: Option<f64>,
+    /// Why it was held (null: estimated).
+    pub held: Option<String>,
+    /// Correlations with the extrinsic's rotation-vector components and translation
+    /// (δω, δφ, δκ, tx, ty, tz); null when held.
+    pub correlation_with_extrinsic: Option<[f64; 6]>,
+}
+
+fn mount_json(j: &JointOutcome) -> Vec<MountJson> {
+    j.mount
+        .iter()
+        .map(|m| MountJson {
+            name: m.name.to_string(),
+            value: m.value,
+            sigma: m.sigma,
+            held: m.held.clone(),
+            correlation_with_extrinsic: m.corr_extrinsic,
+        })
+        .collect()
+}
+
+fn methods(
+    ext: &Extrinsics,
+    joint: &Option<std::result::Result<JointOutcome, String>>,
+) -> Vec<MethodJson> {
     let mut out = Vec::new();
+    match joint {
+        Some(Ok(j)) => out.push(joint_json(j, ext)),
+        Some(Err(e)) => out.push(failed("joint", e)),
+        None => {}
+    }
     if let Some(ev) = &ext.spheres {
         let r = &ev.registration;
         let (table, source) = if ev.check.rows.is_empty() {
@@ -260,19 +351,7 @@ fn methods(ext: &Extrinsics) -> Vec<MethodJson> {
                 error: None,
                 notes: c.notes.clone(),
             },
-            Err(e) => MethodJson {
-                method: "corner".into(),
-                extrinsic: None,
-                check_points: Vec::new(),
-                mean_check_error_mm: None,
-                sd_check_error_mm: None,
-                check_points_source: String::new(),
-                control_points: Vec::new(),
-                leave_one_out: Vec::new(),
-                sigma0: None,
-                error: Some(e.clone()),
-                notes: Vec::new(),
-            },
+            Err(e) => failed("corner", e),
         });
     }
     out
@@ -339,7 +418,7 @@ fn sigma3(m: &Option<Matrix3<f64>>) -> [f64; 3] {
 pub fn assemble(st: &Stages, verdict: Verdict, time_s: Vec<(String, f64)>) -> Results {
     let (project, scene, adj, ext) = (st.project, st.scene, st.adjusted, st.ext);
     let f = &project.file;
-    let methods = methods(ext);
+    let methods = methods(ext, st.joint);
     let primary = methods
         .iter()
         .find(|m| m.extrinsic.is_some())
@@ -385,6 +464,10 @@ pub fn assemble(st: &Stages, verdict: Verdict, time_s: Vec<(String, f64)>) -> Re
         check_points: primary.check_points.clone(),
         mean_check_error_mm: primary.mean_check_error_mm.unwrap_or(f64::NAN),
         methods,
+        lrf_mount: match st.joint {
+            Some(Ok(j)) => Some(mount_json(j)),
+            _ => None,
+        },
         bundle: BundleJson {
             sigma0: adj.precision.sigma0,
             rms_image_px: adj.precision.rms_image_px,

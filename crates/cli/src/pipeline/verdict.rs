@@ -11,6 +11,7 @@
 //! | registration | σ0 of the 3D conformal transform (redundancy 3n − 6) | `√(χ²₁₋α(dof) / dof)` × [`CENTRE_SIGMA_OPTIMISM`] |
 //! | check points | `Σ dᵢᵀ Σᵢ⁻¹ dᵢ / 3k` over the k check (or leave-one-out) balls, `dᵢ` = estimated − reference, `Σᵢ` = camera-side covariance + the LRF-side one turned into the camera frame + the transform's own, propagated | `χ²₁₋α(3k) / 3k` × [`CENTRE_SIGMA_OPTIMISM`]² |
 //! | sphere fits | the pooled σ0 of the sphere fits, `√(Σ σ0ᵢ² fᵢ / Σ fᵢ)` (fᵢ = inliers − 3) | `max(√(χ²₁₋α(Σf) / Σf), `[`SPHERE_PROFILE_TOLERANCE`]`)` |
+//! | joint | σ0 of the joint adjustment (image points, distances, beams), and its check balls' `χ²/3k` as above (no optimism factor: the beams' σ's are the sensor's) | `√(χ²₁₋α(r) / r)`, `χ²₁₋α(3k) / 3k` |
 //! | correlations | the largest \|ρ\| between two self-calibrated intrinsics | [`MAX_CORRELATION`] |
 //!
 //! Only the upper side is tested: a σ0 under 1 says the a-priori σ's are pessimistic, which
@@ -25,6 +26,7 @@
 //! 0.5 % of the exact value for k ≥ 3 at p = 0.99 (checked in the tests against tabulated
 //! values).
 
+use super::joint::JointOutcome;
 use super::Stages;
 use nalgebra::{Matrix3, Vector3};
 use pingcal_geometry::skew;
@@ -127,6 +129,11 @@ pub fn judge(st: &Stages) -> Verdict {
         });
     });
     reasons.extend(unmatched(st));
+    if let Some(Err(e)) = st.joint {
+        reasons.push(format!(
+            "the joint adjustment failed ({e}): the two-step result is given"
+        ));
+    }
     let status = if st.ext.spheres.is_none() {
         reasons.insert(
             0,
@@ -164,6 +171,9 @@ fn statistical_tests(st: &Stages, test: &mut Test) {
     }
     if let Some(ev) = &st.ext.spheres {
         registration_tests(ev, st, test);
+    }
+    if let Some(Ok(j)) = st.joint {
+        joint_tests(j, test);
     }
     sphere_fit_test(st, test);
     correlation_test(st, test);
@@ -217,6 +227,53 @@ fn registration_tests(ev: &Evaluation, st: &Stages, test: &mut Test) {
                 format!("the {what} balls' errors are {:.1}× their predicted σ (χ²/n = {v:.2} > {b:.2}): the extrinsic is worse than its σ's say", v.sqrt())
             },
         );
+    }
+}
+
+/// σ0 of the joint adjustment and its check points against their predicted covariances
+/// (the camera side's, the refitted sphere's turned into the camera frame, and the
+/// extrinsic's propagated: `∂/∂δθ = −[R p]×`, `∂/∂t = I`).
+fn joint_tests(j: &JointOutcome, test: &mut Test) {
+    if j.redundancy > 0 {
+        let r = j.redundancy as f64;
+        test(
+            "joint sigma0",
+            j.sigma0,
+            (chi2_upper(r) / r).sqrt(),
+            &|v, b| {
+                format!("the joint adjustment's σ0 {v:.3} exceeds {b:.3}: the image points or the LRF beams are worse than their σ's say (a mount error the model lacks, or a wrong noise profile)")
+            },
+        );
+    }
+    let t = &j.camera_from_lrf;
+    let (mut sum, mut k) = (0.0, 0usize);
+    for row in &j.check.rows {
+        let (Some(l), Some(c)) = (find(&j.lrf_points, &row.id), find(&j.cam_points, &row.id))
+        else {
+            continue;
+        };
+        let rp = t.rotation * l.xyz;
+        let mut jm = nalgebra::SMatrix::<f64, 3, 6>::zeros();
+        jm.fixed_view_mut::<3, 3>(0, 0).copy_from(&(-skew(&rp)));
+        jm.fixed_view_mut::<3, 3>(0, 3)
+            .copy_from(&Matrix3::identity());
+        let ecov = nalgebra::SMatrix::<f64, 6, 6>::from_fn(|a, b| j.extrinsic_cov[(a, b)]);
+        let cov = c.cov + t.rotation * l.cov * t.rotation.transpose() + jm * ecov * jm.transpose();
+        let d = Vector3::new(row.dx_mm, row.dy_mm, row.dz_mm);
+        if let Some(m) = cov
+            .try_inverse()
+            .map(|inv| d.dot(&(inv * d)))
+            .filter(|m| m.is_finite())
+        {
+            sum += m;
+            k += 1;
+        }
+    }
+    if k > 0 {
+        let n = 3.0 * k as f64;
+        test("joint check points", sum / n, chi2_upper(n) / n, &|v, b| {
+            format!("the joint adjustment's check balls are {:.1}× their predicted σ (χ²/n = {v:.2} > {b:.2}): its extrinsic is worse than its σ's say", v.sqrt())
+        });
     }
 }
 
