@@ -332,18 +332,60 @@ fn malformed_scan_line() {
     w.calibrate_fails(&p, &["S00.csv", "100"]);
 }
 
-/// A distance to a target no image shows: the target named.
+/// A distance to a target no image shows: the calibration still finishes (the other distances
+/// fix the scale) and warns naming the entry and the target.
 #[test]
 fn distance_to_an_unseen_target() {
     let w = Work::new("distance_to_an_unseen_target");
     let p = w.project("project");
     let toml = p.join("project.toml");
     let mut text = fs::read_to_string(&toml).unwrap();
+    let k = text.matches("[[distances]]").count();
+    assert!(k >= 1, "the simulated project has distances");
     // `[[distances]]` after `[lrf]` is valid TOML: one more element of the array of tables.
     // From 8 (an end of a simulated distance, so seen) to 999 (not in the test field).
     text.push_str("\n[[distances]]\nfrom = 8\nto = 999\ndistance_mm = 500.0\nsigma_mm = 0.1\n");
     fs::write(&toml, text).unwrap();
-    let err = w.calibrate_fails(&p, &["999"]);
+    let out = w.dir.join("out");
+    let run = w.run(&["calibrate", s(&toml), "--out", s(&out)]);
+    let ctx = format!(
+        "exit {:?}\nstdout: {}\nstderr: {}",
+        run.code, run.stdout, run.stderr
+    );
+    assert!(run.success(), "calibrate failed: {ctx}");
+    let warning =
+        format!("warning: distances[{k}] (8 – 999) not used: coded target 999 was not identified");
+    assert!(run.stderr.contains(&warning), "no '{warning}': {ctx}");
+    assert_eq!(
+        run.stderr.matches("not used: coded target").count(),
+        1,
+        "only the unseen distance is left out: {ctx}"
+    );
+}
+
+/// Every distance names a target no image shows: nothing fixes the scale, the run stops
+/// naming them.
+#[test]
+fn no_distance_left_to_fix_the_scale() {
+    let w = Work::new("no_distance_left_to_fix_the_scale");
+    let p = w.project("project");
+    let toml = p.join("project.toml");
+    let text = fs::read_to_string(&toml).unwrap();
+    let cut = text.find("[[distances]]").expect("distances");
+    let (before, after) = text.split_at(cut);
+    // the simulated distances are gone (each table ends at a blank line or the next table)
+    let rest: String = after
+        .split("\n[")
+        .skip(1)
+        .filter(|t| !t.starts_with("[distances]]"))
+        .map(|t| format!("\n[{t}"))
+        .collect();
+    let text = format!(
+        "{before}{}\n[[distances]]\nfrom = 998\nto = 999\ndistance_mm = 500.0\nsigma_mm = 0.1\n",
+        rest.trim_start()
+    );
+    fs::write(&toml, text).unwrap();
+    let err = w.calibrate_fails(&p, &["998", "999", "scale"]);
     eprintln!("{err}");
 }
 

@@ -15,10 +15,17 @@ pub struct Predicted {
     pub y: f64,
 }
 
+/// Whether a prediction of kind `p` may take a detection of kind `t`: the same kind, or a coded
+/// target seen as a plain one (a ring too blurred, too small or too oblique to be recognised as
+/// a ring leaves a plain dot; its projection identifies it).
+pub fn takes(p: TargetKind, t: TargetKind) -> bool {
+    p == t || (p == TargetKind::Coded && t == TargetKind::Plain)
+}
+
 /// Assigns detections to predictions: prediction i gets detection j when j is the nearest
-/// detection of the same kind within `tol_px`, i is the nearest prediction to j, and the second
-/// nearest detection is at least `2·tol_px` away (else the match is ambiguous and dropped).
-/// Returns (prediction index, detection index) pairs.
+/// detection it may take ([`takes`]) within `tol_px`, i is the nearest prediction that may take
+/// j, and the second nearest detection is at least `2·tol_px` away (else the match is
+/// ambiguous and dropped). Returns (prediction index, detection index) pairs.
 pub fn assign(predicted: &[Predicted], detected: &[Target], tol_px: f64) -> Vec<(usize, usize)> {
     let d2 = |p: &Predicted, t: &Target| (p.x - t.x).powi(2) + (p.y - t.y).powi(2);
     let mut out = Vec::new();
@@ -26,7 +33,7 @@ pub fn assign(predicted: &[Predicted], detected: &[Target], tol_px: f64) -> Vec<
         let mut best = (f64::INFINITY, usize::MAX);
         let mut second = f64::INFINITY;
         for (j, t) in detected.iter().enumerate() {
-            if t.kind != p.kind {
+            if !takes(p.kind, t.kind) {
                 continue;
             }
             let d = d2(p, t);
@@ -44,7 +51,7 @@ pub fn assign(predicted: &[Predicted], detected: &[Target], tol_px: f64) -> Vec<
         let nearest_pred = predicted
             .iter()
             .enumerate()
-            .filter(|(_, q)| q.kind == t.kind)
+            .filter(|(_, q)| takes(q.kind, t.kind))
             .min_by(|a, b| d2(a.1, t).total_cmp(&d2(b.1, t)))
             .map(|(k, _)| k);
         if nearest_pred == Some(i) {
@@ -109,5 +116,33 @@ mod tests {
         ];
         let a = assign(&pred, &det, 3.0);
         assert_eq!(a, vec![(0, 0), (2, 3)]);
+    }
+
+    #[test]
+    fn a_coded_projection_takes_a_plain_dot_but_not_the_reverse() {
+        let det = vec![
+            t(10.0, 10.0, TargetKind::Plain),
+            t(50.0, 10.0, TargetKind::Coded),
+        ];
+        let pred = vec![
+            Predicted {
+                label: "45".into(),
+                kind: TargetKind::Coded,
+                x: 10.5,
+                y: 10.0,
+            },
+            Predicted {
+                label: "P1".into(),
+                kind: TargetKind::Plain,
+                x: 50.5,
+                y: 10.0,
+            },
+        ];
+        assert_eq!(assign(&pred, &det, 2.0), vec![(0, 0)]);
+        // a plain projection as near to the dot as the coded one: the nearer takes it
+        let mut pred2 = pred.clone();
+        pred2[1].x = 11.0;
+        pred2[1].y = 10.0;
+        assert_eq!(assign(&pred2, &det, 2.0), vec![(0, 0)]);
     }
 }

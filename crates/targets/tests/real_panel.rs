@@ -197,7 +197,10 @@ fn real_panel_ids_are_all_right() {
     );
     assert_eq!(tot_wrong, 0, "wrong IDs");
     // Regression floors, well under what this detector reaches (see the table in the report).
-    assert!(tot_dec >= 900, "only {tot_dec} IDs decoded over 20 images");
+    assert!(
+        tot_dec >= 1051,
+        "only {tot_dec} IDs decoded over 20 images (1,051 before the blurred-ring model)"
+    );
     assert!(
         tot_plain_match >= 2200,
         "only {tot_plain_match} plain targets found"

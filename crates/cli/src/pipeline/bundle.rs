@@ -33,6 +33,8 @@ pub struct Adjusted {
     pub rig: Option<Rigid3>,
     /// Iterations of all final adjustments.
     pub iterations: usize,
+    /// Why each `[[distances]]` entry left out of the adjustment was left out.
+    pub unused_distances: Vec<String>,
 }
 
 /// The rig pose (base → member camera frame) from the main station, or the first station
@@ -72,8 +74,8 @@ fn remove_rejected(project: &Project, scene: &mut Scene, rejected: &[Rejection])
 /// measurements as rejections. This happens when data snooping has taken the rays of a point
 /// down to one, and then that one too (`pingcal_ba::solver::adjust_with_snooping` drops a lone
 /// ray but keeps the point, which the precision then finds undetermined), or when its rays are
-/// nearly parallel. A coded target that a distance refers to cannot go: that is an error naming
-/// it.
+/// nearly parallel. A coded target that a distance refers to goes too, unless no distance would
+/// be left to fix the scale: that is an error naming it.
 fn drop_undetermined(
     project: &Project,
     dets: &Detections,
@@ -85,20 +87,20 @@ fn drop_undetermined(
             "final bundle adjustment: point '{name}' is not determined by its rays"
         )));
     };
-    if let PointKind::Coded(n) = scene.points[j].kind {
-        if project
-            .file
+    let p = scene.points.remove(j);
+    if let PointKind::Coded(n) = p.kind {
+        let f = &project.file;
+        let left = f
             .distances
             .iter()
-            .any(|d| d.from == n || d.to == n)
-        {
+            .any(|d| measured(scene, d.from) && measured(scene, d.to));
+        if f.distances.iter().any(|d| d.from == n || d.to == n) && !left {
             return Err(PipelineError::new(format!(
-                "{}: coded target {n} of the distances is not determined by its rays after data snooping: it needs more images in which it is measured well",
+                "{}: coded target {n} of the distances is not determined by its rays after data snooping, and no other distance is left to fix the scale: it needs more images in which it is measured well",
                 project.path.display()
             )));
         }
     }
-    let p = scene.points.remove(j);
     Ok(p.obs
         .iter()
         .map(|&d| {
@@ -114,22 +116,47 @@ fn drop_undetermined(
         .collect())
 }
 
-/// Every coded target of the distances must be a point of two or more rays.
-fn check_distance_targets(project: &Project, scene: &Scene) -> Result<()> {
-    for (k, d) in project.file.distances.iter().enumerate() {
-        for n in [d.from, d.to] {
-            let p = scene.points.iter().find(|p| p.kind == PointKind::Coded(n));
-            if p.is_none_or(|p| p.obs.len() < 2) {
-                return Err(PipelineError::new(format!(
-                    "{}: distances[{k}] ({} – {}): coded target {n} was not identified in two or more oriented images",
-                    project.path.display(),
-                    d.from,
-                    d.to
-                )));
-            }
+/// Whether coded target `n` is a point of two or more rays in the scene.
+fn measured(scene: &Scene, n: u32) -> bool {
+    scene
+        .points
+        .iter()
+        .any(|p| p.kind == PointKind::Coded(n) && p.obs.len() >= 2)
+}
+
+/// The distances that cannot take part in the adjustment, one warning each (naming the entry
+/// and its target not identified in two or more oriented images); an error when none is left
+/// to fix the scale (the project has no control points, so the distances are the only scale).
+fn unusable_distances(project: &Project, scene: &Scene) -> Result<Vec<String>> {
+    let f = &project.file;
+    let mut warnings = Vec::new();
+    for (k, d) in f.distances.iter().enumerate() {
+        let missing: Vec<String> = [d.from, d.to]
+            .into_iter()
+            .filter(|&n| !measured(scene, n))
+            .map(|n| n.to_string())
+            .collect();
+        if !missing.is_empty() {
+            warnings.push(format!(
+                "distances[{k}] ({} – {}) not used: coded target {} was not identified in two or more oriented images",
+                d.from,
+                d.to,
+                missing.join(" and ")
+            ));
         }
     }
-    Ok(())
+    if warnings.len() == f.distances.len() {
+        return Err(PipelineError::new(format!(
+            "{}: no distance is left to fix the scale of the network: {}",
+            project.path.display(),
+            if warnings.is_empty() {
+                "the project has no [[distances]]".to_string()
+            } else {
+                warnings.join("; ")
+            }
+        )));
+    }
+    Ok(warnings)
 }
 
 /// The state of the final adjustment between its rounds.
@@ -217,7 +244,10 @@ pub fn final_adjustment(
     opts: &Options,
     rep: &Reporter,
 ) -> Result<Adjusted> {
-    check_distance_targets(project, scene)?;
+    let unused_distances = unusable_distances(project, scene)?;
+    for w in &unused_distances {
+        rep.log(format!("warning: {w}"));
+    }
     let mut rounds = Rounds {
         project,
         dets,
@@ -238,6 +268,14 @@ pub fn final_adjustment(
     }
     let (sp, precision) = rounds.last(scene)?;
     pb.finish();
+    // a coded target of a distance may have been dropped by data snooping
+    let mut unused_distances = unused_distances;
+    for w in unusable_distances(project, scene)? {
+        if !unused_distances.contains(&w) {
+            rep.log(format!("warning: {w}"));
+            unused_distances.push(w);
+        }
+    }
     let rig = sp.problem.rigs.first().map(|r| r.member_from_base);
     rep.log(format!(
         "bundle adjustment: {} images, {} points ({} balls), {} image points, {} distances; sigma0 {:.3}, RMS {:.3} px, {} rejected",
@@ -256,5 +294,6 @@ pub fn final_adjustment(
         rejected: rounds.rejected,
         rig,
         iterations: rounds.iterations,
+        unused_distances,
     })
 }
