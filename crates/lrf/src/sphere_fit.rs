@@ -369,6 +369,60 @@ pub fn fit_along_ray(
     }
 }
 
+/// True when `ray` meets the sphere of centre `c` (it passes the centre at most `radius`
+/// away, in front of its origin) and its range is within `k·σ` of the first intersection
+/// (the true one, no continuation): the invariant of every ray a fit calls an inlier. The
+/// incidence and footprint gate of [`fit_along_ray`] is a choice of the fit on top of it.
+pub fn ray_on_sphere(ray: &Ray, c: &Vector3<f64>, radius: f64, k: f64) -> bool {
+    let w = c - ray.origin;
+    let b = ray.dir.dot(&w);
+    let h2 = (w.norm_squared() - b * b).max(0.0);
+    if b <= 0.0 || h2 > radius * radius {
+        return false;
+    }
+    let s = (radius * radius - h2).sqrt();
+    (ray.range - (b - s)).abs() <= k * ray.sigma
+}
+
+/// The rays of `used` that [`ray_on_sphere`] accepts at centre `c` (with `outlier_k`).
+fn on_sphere(
+    rays: &[Ray],
+    used: &[usize],
+    c: &Vector3<f64>,
+    radius: f64,
+    opt: &FitOptions,
+) -> Vec<usize> {
+    used.iter()
+        .copied()
+        .filter(|&i| ray_on_sphere(&rays[i], c, radius, opt.outlier_k))
+        .collect()
+}
+
+/// One Levenberg–Marquardt solve of the along-ray fit on `sub`, from `c`.
+fn refine_along_ray(
+    sub: &[Ray],
+    radius: f64,
+    s_min: f64,
+    c: Vector3<f64>,
+    opt: &FitOptions,
+) -> Result<Vector3<f64>> {
+    let f = |x: &DVector<f64>| {
+        let cc = Vector3::new(x[0], x[1], x[2]);
+        let mut r = DVector::zeros(sub.len());
+        let mut j = DMatrix::zeros(sub.len(), 3);
+        for (k, ray) in sub.iter().enumerate() {
+            let (rho, g, _) = along_ray_model(ray, &cc, radius, s_min);
+            r[k] = (ray.range - rho) / ray.sigma;
+            for q in 0..3 {
+                j[(k, q)] = -g[q] / ray.sigma;
+            }
+        }
+        (r, j)
+    };
+    let x = lm(DVector::from_column_slice(c.as_slice()), opt.max_iter, &f)?;
+    Ok(Vector3::new(x[0], x[1], x[2]))
+}
+
 fn along_ray_passes(
     rays: &[Ray],
     radius: f64,
@@ -409,26 +463,33 @@ fn along_ray_passes(
             });
         }
         let sub: Vec<Ray> = used.iter().map(|&i| rays[i]).collect();
-        let f = |x: &DVector<f64>| {
-            let cc = Vector3::new(x[0], x[1], x[2]);
-            let mut r = DVector::zeros(sub.len());
-            let mut j = DMatrix::zeros(sub.len(), 3);
-            for (k, ray) in sub.iter().enumerate() {
-                let (rho, g, _) = along_ray_model(ray, &cc, radius, s_min);
-                r[k] = (ray.range - rho) / ray.sigma;
-                for q in 0..3 {
-                    j[(k, q)] = -g[q] / ray.sigma;
-                }
-            }
-            (r, j)
-        };
-        let x = lm(DVector::from_column_slice(c.as_slice()), opt.max_iter, &f)?;
-        c = Vector3::new(x[0], x[1], x[2]);
+        c = refine_along_ray(&sub, radius, s_min, c, opt)?;
         let new_used = select(&c, k_of_pass(pass + 1));
         if new_used == used && pass >= 2 {
             break;
         }
         used = new_used;
+    }
+    // The invariant of the result: every used ray meets the sphere at the *final* centre,
+    // inside the gate, within kσ. A gate held at the starting centre (or the tangent
+    // continuation, which gives a finite residual to a ray that misses the sphere) would
+    // otherwise let the centre walk off and keep rays that pass farther than R from it.
+    if fixed_gate {
+        for _ in 0..5 {
+            let kept = on_sphere(rays, &used, &c, radius, opt);
+            if kept.len() < 3 {
+                used = kept;
+                break;
+            }
+            let settled = kept == used;
+            used = kept;
+            if settled {
+                break;
+            }
+            let sub: Vec<Ray> = used.iter().map(|&i| rays[i]).collect();
+            c = refine_along_ray(&sub, radius, s_min, c, opt)?;
+        }
+        used = on_sphere(rays, &used, &c, radius, opt);
     }
     if used.len() < 3 {
         return Err(LrfError::TooFewPoints {

@@ -32,6 +32,9 @@ pub struct Args {
     /// Seed of the RANSAC choices.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Print every candidate not used, with the reason.
+    #[arg(long)]
+    pub why: bool,
     /// Mount model: the scanner centre seen from the servo shaft, in the rotating frame
     /// (mm, `x,y,z`, e.g. `-1.5,0,2`; eq. 2 assumes 0,0,0).
     #[arg(
@@ -137,6 +140,15 @@ pub fn run(args: Args) -> CmdResult {
             );
         }
         super::write_atomic(path, text.as_bytes())?;
+    }
+    if args.why {
+        for r in &found.rejected {
+            let c = r.centre;
+            println!(
+                "not used: ({:.1}, {:.1}, {:.1}) mm, {} points: {}",
+                c.x, c.y, c.z, r.cluster_points, r.reason
+            );
+        }
     }
     println!(
         "cloud: {} points from {} file(s), {} plane(s), {} ball(s) of {} mm, {} candidate(s) not used{}",
