@@ -121,22 +121,39 @@ fn calibrate_simulated_project() {
         assert!(*s > 0.0, "σ {i} of the extrinsic is {s}: expected positive");
     }
 
-    // the top-level extrinsic is the sphere method's (SPEC: the paper's method)
-    let spheres = r["methods"]
-        .as_array()
-        .expect("results.methods")
-        .iter()
-        .find(|m| m["method"] == "spheres")
-        .expect("the sphere method ran (method = \"both\")");
+    // the top-level extrinsic is the joint adjustment's (the simulator writes method =
+    // "all"), and the paper's two steps ran beside it
+    let methods = r["methods"].as_array().expect("results.methods");
+    let find = |name: &str| {
+        methods
+            .iter()
+            .find(|m| m["method"] == name)
+            .unwrap_or_else(|| panic!("the {name} method ran (method = \"all\")"))
+    };
+    let (joint, spheres) = (find("joint"), find("spheres"));
+    assert_eq!(joint["error"], Value::Null, "joint adjustment: {joint}");
     assert_eq!(spheres["error"], Value::Null, "sphere method: {spheres}");
     assert_eq!(
-        vec3(
-            &spheres["extrinsic"]["translation_mm"],
-            "spheres translation"
-        ),
+        vec3(&joint["extrinsic"]["translation_mm"], "joint translation"),
         t,
-        "the top-level extrinsic is not the sphere method's"
+        "the top-level extrinsic is not the joint adjustment's"
     );
+    let mount = r["lrf_mount"].as_array().expect("results.lrf_mount");
+    assert_eq!(mount.len(), 8, "{mount:?}");
+    let offset_y = mount
+        .iter()
+        .find(|m| m["name"] == "offset_y")
+        .expect("offset_y");
+    assert!(
+        offset_y["held"]
+            .as_str()
+            .is_some_and(|h| h.contains("origin")),
+        "offset_y is the frame's origin, never estimated: {offset_y}"
+    );
+    for m in mount.iter().filter(|m| m["held"].is_null()) {
+        let s = m["sigma"].as_f64().expect("an estimated parameter has a σ");
+        assert!(s > 0.0 && s.is_finite(), "{m}");
+    }
 
     let true_rot = mat3(&truth["extrinsic"]["rotation"], "truth.extrinsic.rotation");
     let true_t = vec3(
