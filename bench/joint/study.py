@@ -94,7 +94,11 @@ def run_seed(args, seed):
     if r.returncode != 0 or res_path is None:
         return {"seed": seed, "failed": (r.stderr or r.stdout).strip().splitlines()[-1:]}
     res = json.load(open(res_path))
-    te = truth["extrinsic"]
+    te = dict(truth["extrinsic"])
+    # the LRF frame's origin is defined on the servo axis at the scan plane (offset_y is not
+    # an unknown): in that frame the true extrinsic's t is t + R (0, offset_y, 0)
+    oy = true_mount(truth)["offset_y"]
+    te["translation_mm"] = [te["translation_mm"][k] + te["rotation"][k][1] * oy for k in range(3)]
     row = {"seed": seed, "verdict": res["verdict"]["status"], "methods": {}}
     for m in res["methods"]:
         e = m.get("extrinsic")

@@ -22,7 +22,7 @@
 //! extrinsic's translation along Y: the LRF frame is *defined* with its origin on the servo
 //! axis at the scan plane and its zero at the project's `servo_zero_deg`, so neither is an
 //! unknown. What else the sweep and the field can determine is found from the data
-//! ([`estimability`]): the adjustment is first run with a weak prior on each asked-for mount
+//! (`estimability`): the adjustment is first run with a weak prior on each asked-for mount
 //! parameter (σ of [`PRIOR_SIGMA`]); a parameter whose σ after it is more than
 //! [`MAX_PRIOR_SHARE`] of its prior (the data add nothing), or larger than a third of the
 //! plausible size of such an error ([`PLAUSIBLE`]: it would be estimated as noise), or that
