@@ -10,10 +10,11 @@
 //!
 //! **Beam observations.** A beam of a ball's sphere fit (its reading: servo angle, beam angle,
 //! range) predicts the range at which its ray meets the sphere of the project's ball radius
-//! centred on the ball: `c = camera_from_lrf⁻¹ · camera_from_object_main · X`,
+//! centred on the ball: `c = camera_from_lrf⁻¹ · X` (X in the main camera's frame, the
+//! photogrammetric frame),
 //! `e = r − r̂(θ, c)` ([`pingcal_lrf::beam::beam_range_residual`]), whitened by the sensor's
-//! σ(r). Beams that graze the ball at the two-step estimate (their ray meets the sphere at
-//! less than 0.3 of its radius from the silhouette) are left out: their range is a footprint
+//! σ(r). Beams that graze the ball at the two-step estimate (the root of the along-ray
+//! distance below `pingcal_lrf::beam::GRAZING_KAPPA` of the radius) are left out: their range is a footprint
 //! effect more than a distance. The check balls' beams are left out too, so that the check
 //! points stay independent of the estimate.
 //!
@@ -73,9 +74,6 @@ pub const BEAM_REJECT: f64 = 3.29;
 
 /// Rounds of beam rejection.
 pub const REJECT_ROUNDS: usize = 3;
-
-/// A beam meets the sphere closer than this share of the radius to its silhouette: it grazes.
-pub const GRAZING: f64 = 0.3;
 
 /// One mount parameter's outcome.
 #[derive(Clone, Debug)]

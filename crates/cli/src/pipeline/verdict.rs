@@ -28,9 +28,9 @@
 
 use super::joint::JointOutcome;
 use super::Stages;
-use nalgebra::{Matrix3, Vector3};
-use pingcal_geometry::skew;
-use pingcal_lrf::registration::{Evaluation, PointObs};
+use nalgebra::{DMatrix, Matrix3, Vector3};
+use pingcal_geometry::{skew, Sim3};
+use pingcal_lrf::registration::{CheckRow, Evaluation, PointObs};
 use serde::Serialize;
 
 /// The level of every test: the probability that it flags a calibration whose models hold.
@@ -198,30 +198,16 @@ fn registration_tests(ev: &Evaluation, st: &Stages, test: &mut Test) {
     } else {
         (&ev.check.rows, "check")
     };
-    let mut sum = 0.0;
-    let mut k = 0usize;
-    for row in rows {
-        let (Some(l), Some(c)) = (
-            find(&st.ext.lrf_points, &row.id),
-            find(&st.ext.cam_points, &row.id),
-        ) else {
-            continue;
-        };
-        let cov = predicted_covariance(ev, l, c);
-        let d = Vector3::new(row.dx_mm, row.dy_mm, row.dz_mm);
-        if let Some(inv) = cov.try_inverse() {
-            let m = d.dot(&(inv * d));
-            if m.is_finite() {
-                sum += m;
-                k += 1;
-            }
-        }
-    }
-    if k > 0 {
-        let n = 3.0 * k as f64;
+    let chi2 = mean_check_chi2(
+        rows,
+        (&st.ext.lrf_points, &st.ext.cam_points),
+        &reg.camera_from_lrf,
+        &reg.cov,
+    );
+    if let Some((mean, n)) = chi2 {
         test(
             &format!("{what} points"),
-            sum / n,
+            mean,
             chi2_upper(n) / n * CENTRE_SIGMA_OPTIMISM * CENTRE_SIGMA_OPTIMISM,
             &|v, b| {
                 format!("the {what} balls' errors are {:.1}× their predicted σ (χ²/n = {v:.2} > {b:.2}): the extrinsic is worse than its σ's say", v.sqrt())
@@ -246,32 +232,14 @@ fn joint_tests(j: &JointOutcome, test: &mut Test) {
         );
     }
     let t = &j.camera_from_lrf;
-    let (mut sum, mut k) = (0.0, 0usize);
-    for row in &j.check.rows {
-        let (Some(l), Some(c)) = (find(&j.lrf_points, &row.id), find(&j.cam_points, &row.id))
-        else {
-            continue;
-        };
-        let rp = t.rotation * l.xyz;
-        let mut jm = nalgebra::SMatrix::<f64, 3, 6>::zeros();
-        jm.fixed_view_mut::<3, 3>(0, 0).copy_from(&(-skew(&rp)));
-        jm.fixed_view_mut::<3, 3>(0, 3)
-            .copy_from(&Matrix3::identity());
-        let ecov = nalgebra::SMatrix::<f64, 6, 6>::from_fn(|a, b| j.extrinsic_cov[(a, b)]);
-        let cov = c.cov + t.rotation * l.cov * t.rotation.transpose() + jm * ecov * jm.transpose();
-        let d = Vector3::new(row.dx_mm, row.dy_mm, row.dz_mm);
-        if let Some(m) = cov
-            .try_inverse()
-            .map(|inv| d.dot(&(inv * d)))
-            .filter(|m| m.is_finite())
-        {
-            sum += m;
-            k += 1;
-        }
-    }
-    if k > 0 {
-        let n = 3.0 * k as f64;
-        test("joint check points", sum / n, chi2_upper(n) / n, &|v, b| {
+    let chi2 = mean_check_chi2(
+        &j.check.rows,
+        (&j.lrf_points, &j.cam_points),
+        &Sim3::new(1.0, t.rotation, t.translation),
+        &j.extrinsic_cov,
+    );
+    if let Some((mean, n)) = chi2 {
+        test("joint check points", mean, chi2_upper(n) / n, &|v, b| {
             format!("the joint adjustment's check balls are {:.1}× their predicted σ (χ²/n = {v:.2} > {b:.2}): its extrinsic is worse than its σ's say", v.sqrt())
         });
     }
@@ -281,21 +249,48 @@ fn find<'a>(pts: &'a [PointObs], id: &str) -> Option<&'a PointObs> {
     pts.iter().find(|p| p.id == id)
 }
 
-/// Covariance of `R p + t − q` for one ball: both sides' and the transform's, to first order
-/// (`∂/∂δθ = −[R p]×`, `∂/∂t = I`, `∂/∂s = R p`).
-fn predicted_covariance(ev: &Evaluation, l: &PointObs, c: &PointObs) -> Matrix3<f64> {
-    let t = &ev.registration.camera_from_lrf;
+/// `Σ dᵢᵀ Σᵢ⁻¹ dᵢ / 3k` over the `k` rows whose ball is in both point lists (and whose
+/// predicted covariance inverts), with `3k`; None when no row counts.
+fn mean_check_chi2(
+    rows: &[CheckRow],
+    (lrf, cam): (&[PointObs], &[PointObs]),
+    t: &Sim3,
+    tcov: &DMatrix<f64>,
+) -> Option<(f64, f64)> {
+    let (mut sum, mut k) = (0.0, 0usize);
+    for row in rows {
+        let (Some(l), Some(c)) = (find(lrf, &row.id), find(cam, &row.id)) else {
+            continue;
+        };
+        let d = Vector3::new(row.dx_mm, row.dy_mm, row.dz_mm);
+        if let Some(m) = predicted_covariance(t, tcov, l, c)
+            .try_inverse()
+            .map(|inv| d.dot(&(inv * d)))
+            .filter(|m| m.is_finite())
+        {
+            sum += m;
+            k += 1;
+        }
+    }
+    let n = 3.0 * k as f64;
+    (k > 0).then(|| (sum / n, n))
+}
+
+/// Covariance of `R p + t − q` for one ball: both sides' and the transform's (covariance
+/// `tcov` of (δθ, t) or (δθ, t, s)), to first order (`∂/∂δθ = −[R p]×`, `∂/∂t = I`,
+/// `∂/∂s = R p`).
+fn predicted_covariance(t: &Sim3, tcov: &DMatrix<f64>, l: &PointObs, c: &PointObs) -> Matrix3<f64> {
     let rp = t.rotation * l.xyz * t.scale;
     let mut cov = c.cov + t.rotation * l.cov * t.rotation.transpose() * (t.scale * t.scale);
-    let n = ev.registration.cov.nrows();
+    let n = tcov.nrows();
     if n >= 6 {
-        let mut j = nalgebra::DMatrix::<f64>::zeros(3, n);
+        let mut j = DMatrix::<f64>::zeros(3, n);
         j.view_mut((0, 0), (3, 3)).copy_from(&(-skew(&rp)));
         j.view_mut((0, 3), (3, 3)).copy_from(&Matrix3::identity());
         if n == 7 {
             j.view_mut((0, 6), (3, 1)).copy_from(&(t.rotation * l.xyz));
         }
-        let jt = &j * &ev.registration.cov * j.transpose();
+        let jt = &j * tcov * j.transpose();
         cov += Matrix3::from_fn(|a, b| jt[(a, b)]);
     }
     cov
