@@ -888,3 +888,70 @@ fn verdict_is_ok_on_a_clean_simulation_and_doubtful_with_an_unknown_mount_offset
         "report.html shows no verdict"
     );
 }
+
+/// Unit mistakes that all used to end in the bare "no ball was found in two or more
+/// oriented images": the error names the likely cause from the values.
+#[test]
+fn a_unit_mistake_is_named_when_no_ball_is_found() {
+    let w = Work::new("unit_mistake_no_ball");
+    type Edit = fn(&str) -> String;
+    let cases: [(&str, Edit, &[&str]); 4] = [
+        // the principal distance in µm
+        (
+            "c_um",
+            |t| t.replace("c_mm = 2.45\n", "c_mm = 2450.0\n"),
+            &["c_mm = 2450", "sensor widths", "in mm?"],
+        ),
+        // the distances in metres
+        (
+            "distances_m",
+            |t| metres(t),
+            &["scale", "distances", "in mm"],
+        ),
+        // a ball of 1e9 mm
+        (
+            "huge_ball",
+            |t| t.replace("diameter_mm = 38.0", "diameter_mm = 1e9"),
+            &["largest", "plain blobs", "diameter_mm"],
+        ),
+        // only the main stereo pair
+        (
+            "main_pair_only",
+            |t| only_station(t, "S00"),
+            &["only 2 of 2 images are oriented", "3 rays"],
+        ),
+    ];
+    for (name, edit, needles) in cases {
+        let p = w.project(name);
+        let toml = p.join("project.toml");
+        let text = fs::read_to_string(&toml).unwrap();
+        let edited = edit(&text);
+        assert_ne!(edited, text, "{name}: the edit changed nothing");
+        fs::write(&toml, edited).unwrap();
+        let mut all = vec!["no ball was found"];
+        all.extend_from_slice(needles);
+        let err = w.calibrate_fails(&p, &all);
+        eprintln!("{name}: {err}");
+    }
+}
+
+/// `text` with every `distance_mm` and `sigma_mm` divided by 1000.
+fn metres(text: &str) -> String {
+    text.lines()
+        .map(|l| match l.split_once(" = ") {
+            Some((k @ ("distance_mm" | "sigma_mm"), v)) => {
+                format!("{k} = {}", v.parse::<f64>().expect("a number") / 1000.0)
+            }
+            _ => l.to_string(),
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+/// `text` with the `[[images]]` tables of every station but `keep` removed.
+fn only_station(text: &str, keep: &str) -> String {
+    text.split("\n\n")
+        .filter(|t| !t.starts_with("[[images]]") || t.contains(&format!("station = \"{keep}\"")))
+        .collect::<Vec<_>>()
+        .join("\n\n")
+}

@@ -465,8 +465,9 @@ pub fn classify_balls(
         .collect();
     if balls.is_empty() {
         return Err(PipelineError::new(format!(
-            "{}: no ball was found in two or more oriented images (balls of {ball_d} mm; targets of {dot_d} mm)",
-            project.path.display()
+            "{}: no ball was found in two or more oriented images (balls of {ball_d} mm; targets of {dot_d} mm){}",
+            project.path.display(),
+            no_ball_diagnosis(project, dets, scene)
         )));
     }
     sizes.sort_by(|a, b| a.total_cmp(b));
@@ -646,4 +647,98 @@ pub fn add_points(
     let balls = classify_balls(project, dets, scene, rep)?;
     name_balls(project, scene, &balls, rep);
     Ok(())
+}
+
+/// Why no ball was found, as far as the scene tells: a clause to append to the error
+/// (empty when nothing stands out). Checked in this order, the first that applies wins:
+/// 1. fewer oriented images than a plain point needs rays ([`MIN_RAYS`]);
+/// 2. a principal distance that no lens has (under 0.1 or over 20 sensor widths), most
+///    often a value in µm or in pixels;
+/// 3. the coded targets' dots, whose size the project gives, measuring a factor of two or
+///    more from it: the network's scale is wrong, so the distances' unit is suspect;
+/// 4. no plain blob as large as the threshold between dot and ball: the ball diameter.
+fn no_ball_diagnosis(project: &Project, dets: &Detections, scene: &Scene) -> String {
+    let f = &project.file;
+    let oriented = scene.oriented();
+    if oriented.len() < MIN_RAYS {
+        return format!(
+            ": only {} of {} images are oriented and a ball needs {MIN_RAYS} rays: add stations",
+            oriented.len(),
+            f.images.len()
+        );
+    }
+    if let Some(c) = implausible_principal_distance(project) {
+        return c;
+    }
+    let dot_d = 2.0 * f.targets.dot_radius_mm;
+    let coded = blob_sizes(dets, scene, true);
+    if let Some(&m) = coded.get(coded.len() / 2) {
+        let ratio = m / dot_d;
+        if !(0.5..=2.0).contains(&ratio) {
+            let distances = f.distances.iter().map(|d| d.distance_mm);
+            let span =
+                distances.clone().fold(f64::INFINITY, f64::min)..distances.fold(0.0, f64::max);
+            return format!(
+                ": the coded targets' dots measure {m:.3} mm across (median of {}) where the project says {dot_d} mm, \
+                 so the network's scale is {} times the true one: are the distances ({}–{} mm) in mm, and dot_radius_mm a radius?",
+                coded.len(),
+                factor(ratio),
+                span.start,
+                span.end
+            );
+        }
+    }
+    let plain = blob_sizes(dets, scene, false);
+    let threshold = 0.5 * (f.balls.diameter_mm + dot_d);
+    match plain.last() {
+        None => ": no plain target or ball was intersected".into(),
+        Some(&largest) => format!(
+            ": the largest of {} plain blobs measures {largest:.1} mm, below the {threshold:.1} mm between dot and ball: \
+             is [balls] diameter_mm right?",
+            plain.len()
+        ),
+    }
+}
+
+/// The blob diameters (mm) of the coded (or else the plain) points, sorted.
+fn blob_sizes(dets: &Detections, scene: &Scene, coded: bool) -> Vec<f64> {
+    let mut v: Vec<f64> = scene
+        .points
+        .iter()
+        .filter(|p| match p.kind {
+            PointKind::Coded(_) => coded,
+            PointKind::Plain => !coded,
+            PointKind::Ball => false,
+        })
+        .filter_map(|p| blob_diameter_mm(dets, scene, p))
+        .collect();
+    v.sort_by(|a, b| a.total_cmp(b));
+    v
+}
+
+/// `x` as a factor a person reads at a glance: 0.49, 1000, 1.0e-4.
+fn factor(x: f64) -> String {
+    if (0.01..100.0).contains(&x) {
+        format!("{x:.2}")
+    } else {
+        format!("{x:.1e}")
+    }
+}
+
+/// The first camera whose initial principal distance is under 0.1 or over 20 sensor
+/// widths (a 600 mm lens on a 36 mm sensor is 17), as an error clause.
+fn implausible_principal_distance(project: &Project) -> Option<String> {
+    project.file.cameras.iter().enumerate().find_map(|(k, c)| {
+        let width = c.width as f64 * c.pixel_size_mm;
+        let rel = c.initial.c_mm / width;
+        (!(0.1..=20.0).contains(&rel)).then(|| {
+            format!(
+                ": cameras[{k}] c_mm = {} is {} sensor widths ({} px of {} mm = {width:.3} mm): is it in mm?",
+                c.initial.c_mm,
+                factor(rel),
+                c.width,
+                c.pixel_size_mm
+            )
+        })
+    })
 }
