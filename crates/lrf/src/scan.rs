@@ -23,6 +23,14 @@
 //! A time stamp beyond ±1e12 s or a servo angle beyond ±1e6° is refused likewise. A
 //! UTF-8 byte-order mark at the start is skipped.
 //!
+//! **Time stamps.** Scans must come in time order: a `stamp_s` earlier than the previous
+//! scan's is refused, naming both lines (the file was concatenated or sorted by something
+//! else). Equal stamps are legal (a logger without a clock may write 0 throughout), but a
+//! line that repeats the previous one exactly — stamp, servo angle and every range — is
+//! refused as a duplicated record: a range finder's noise never gives the same hundreds of
+//! ranges twice. Beyond this order the stamps are not used: a stop-and-go sweep gives
+//! each line its servo angle.
+//!
 //! [`ScanWriter`] is the one writer of the format (the simulator writes through it too):
 //! time stamps with 3 decimals, servo angles with 6, ranges in whole mm.
 
@@ -86,6 +94,8 @@ pub struct ScanReader<R: BufRead> {
     pending: Option<(usize, String)>,
     buf: Vec<u8>,
     failed: bool,
+    /// The previous scan's line number, stamp and text (time order, duplicated records).
+    previous: Option<(usize, f64, String)>,
 }
 
 fn read_line<R: BufRead>(
@@ -214,6 +224,7 @@ impl<R: BufRead> ScanReader<R> {
             pending,
             buf,
             failed: false,
+            previous: None,
         })
     }
 
@@ -296,6 +307,31 @@ impl<R: BufRead> ScanReader<R> {
         })
     }
 
+    /// Refuses a scan earlier than the previous one, or an exact repeat of it (module doc).
+    fn check_order(&mut self, scan: &ScanLine, text: &str) -> Result<()> {
+        if let Some((k, stamp, prev)) = &self.previous {
+            if scan.stamp_s < *stamp {
+                return Err(LrfError::parse(
+                    &self.file,
+                    scan.line,
+                    format!(
+                        "stamp_s {} is earlier than line {k}'s {stamp}: scans must be in time order",
+                        scan.stamp_s
+                    ),
+                ));
+            }
+            if text == prev {
+                return Err(LrfError::parse(
+                    &self.file,
+                    scan.line,
+                    format!("repeats line {k} exactly (stamp, servo angle and every range): a duplicated record?"),
+                ));
+            }
+        }
+        self.previous = Some((scan.line, scan.stamp_s, text.to_string()));
+        Ok(())
+    }
+
     fn next_scan(&mut self) -> Result<Option<ScanLine>> {
         loop {
             let (line_no, line) = match self.pending.take() {
@@ -312,7 +348,9 @@ impl<R: BufRead> ScanReader<R> {
             if t.is_empty() || t.starts_with('#') {
                 continue;
             }
-            return self.parse_scan(line_no, t).map(Some);
+            let scan = self.parse_scan(line_no, t)?;
+            self.check_order(&scan, t)?;
+            return Ok(Some(scan));
         }
     }
 }
@@ -437,6 +475,22 @@ mod tests {
         // 7 is a URG error code: no return
         assert_eq!(v[1].ranges_mm, vec![1531.0, 0.0, 1529.0]);
         assert_eq!(v[1].servo_deg, -44.9);
+    }
+
+    #[test]
+    fn scans_out_of_time_order_or_repeated_are_refused_naming_both_lines() {
+        let t = GOOD.replace("0.100,-44.9", "-0.100,-44.9");
+        let e = read_all(&t).unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "t.csv:8: stamp_s -0.1 is earlier than line 7's 0: scans must be in time order"
+        );
+        let t = format!("{GOOD}0.100,-44.9,1531,7,1529\n");
+        let e = read_all(&t).unwrap_err().to_string();
+        assert!(e.starts_with("t.csv:9: repeats line 8 exactly"), "{e}");
+        // equal stamps are legal (no clock), and so is the same servo angle with new ranges
+        let t = format!("{}0.000,-44.9,1530,7,1529\n", GOOD.replace("0.100,", "0.000,"));
+        assert_eq!(read_all(&t).unwrap().1.len(), 3);
     }
 
     #[test]
