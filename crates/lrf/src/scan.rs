@@ -489,7 +489,10 @@ mod tests {
         let e = read_all(&t).unwrap_err().to_string();
         assert!(e.starts_with("t.csv:9: repeats line 8 exactly"), "{e}");
         // equal stamps are legal (no clock), and so is the same servo angle with new ranges
-        let t = format!("{}0.000,-44.9,1530,7,1529\n", GOOD.replace("0.100,", "0.000,"));
+        let t = format!(
+            "{}0.000,-44.9,1530,7,1529\n",
+            GOOD.replace("0.100,", "0.000,")
+        );
         assert_eq!(read_all(&t).unwrap().1.len(), 3);
     }
 

@@ -62,13 +62,21 @@ pub struct IncrementalOptions {
     /// Reject gross errors after the bundle adjustments whose intrinsics are final
     /// (self-calibrating, or nothing to calibrate): an observation whose residual exceeds
     /// `max(reject_sigmas · s, reject_min_px)`, s the robust (MAD) residual scale, is left
-    /// out of the rest of the initialisation and of the returned problem.
+    /// out of the rest of the initialisation and of the returned problem. After the bundle
+    /// adjustment without them, every rejected observation whose residual is now under that
+    /// threshold is given back (a gross error drags its point and its image, so good
+    /// observations of both exceed the threshold before it is gone: one 60 px blunder used to
+    /// take 11 good observations with it).
     pub reject_outliers: bool,
     /// See `reject_outliers`.
     pub reject_sigmas: f64,
     /// See `reject_outliers`, pixels.
     pub reject_min_px: f64,
 }
+
+/// The most rejection rounds of one start-up bundle (each takes the worst observation of
+/// each point above the threshold, then adjusts again).
+const REJECTION_ROUNDS: usize = 5;
 
 impl Default for IncrementalOptions {
     fn default() -> Self {
@@ -125,6 +133,12 @@ pub enum Step {
         observations: usize,
         threshold_px: f64,
     },
+    /// Rejected observations given back: their residuals, adjusted without them, are under
+    /// the threshold that rejected them.
+    Readmitted {
+        observations: usize,
+        threshold_px: f64,
+    },
     /// A bundle adjustment that failed (its result is discarded).
     BundleFailed { message: String },
     /// A relative network scaled so that its measured distances hold.
@@ -175,6 +189,13 @@ impl std::fmt::Display for Step {
             } => write!(
                 f,
                 "rejected {observations} observations with residuals above {threshold_px:.2} px"
+            ),
+            Step::Readmitted {
+                observations,
+                threshold_px,
+            } => write!(
+                f,
+                "gave back {observations} rejected observations, now under {threshold_px:.2} px"
             ),
             Step::ScaledByDistances { distances, scale } => write!(
                 f,
@@ -414,8 +435,14 @@ impl<'a> State<'a> {
         }
     }
 
-    /// Flags gross errors in the adjusted sub-problem; returns how many were flagged.
-    fn reject(&mut self, sub: &Problem, obs_map: &[usize], options: &IncrementalOptions) -> usize {
+    /// Flags gross errors in the adjusted sub-problem; returns the threshold when it flagged
+    /// any.
+    fn reject(
+        &mut self,
+        sub: &Problem,
+        obs_map: &[usize],
+        options: &IncrementalOptions,
+    ) -> Option<f64> {
         let residuals: Vec<Option<nalgebra::Vector2<f64>>> =
             sub.observations.iter().map(|o| sub.residual(o)).collect();
         let res: Vec<f64> = residuals
@@ -429,14 +456,29 @@ impl<'a> State<'a> {
             .flat_map(|r| [r.x.abs(), r.y.abs()])
             .collect();
         if comps.is_empty() {
-            return 0;
+            return None;
         }
         comps.sort_by(f64::total_cmp);
         let scale = 1.4826 * comps[comps.len() / 2];
         let threshold = (options.reject_sigmas * scale).max(options.reject_min_px);
-        let mut count = 0;
+        // Only the worst observation of each point per round: a gross error drags its
+        // point, and the point's good observations must not go with it.
+        let mut worst: HashMap<usize, usize> = HashMap::new();
         for (k, r) in res.iter().enumerate() {
             if *r > threshold {
+                let j = sub.observations[k].point;
+                let e = worst.entry(j).or_insert(k);
+                if res[*e] < *r {
+                    *e = k;
+                }
+            }
+        }
+        let mut flagged: Vec<usize> = worst.into_values().collect();
+        flagged.sort_unstable();
+        let mut count = 0;
+        for k in flagged {
+            let r = &res[k];
+            {
                 let o = obs_map[k];
                 let ob = self.problem.observations[o];
                 let w =
@@ -458,7 +500,7 @@ impl<'a> State<'a> {
             }
         }
         if count == 0 {
-            return 0;
+            return None;
         }
         // Points left with fewer than two rays are undetermined again.
         for j in 0..self.points.len() {
@@ -477,6 +519,62 @@ impl<'a> State<'a> {
             observations: count,
             threshold_px: threshold,
         });
+        Some(threshold)
+    }
+
+    /// After a first rejection at `threshold` px: adjusts again and rejects again (the worst
+    /// of each point), [`REJECTION_ROUNDS`] rejections at most, then gives back what is under
+    /// the threshold at the last estimate and adjusts once more if it gave any back.
+    fn reject_rounds(&mut self, options: &IncrementalOptions, mut threshold: f64) {
+        for round in 1.. {
+            let Some((sub, obs_map, _)) = self.adjust(options) else {
+                return;
+            };
+            if round >= REJECTION_ROUNDS {
+                break;
+            }
+            match self.reject(&sub, &obs_map, options) {
+                Some(t) => threshold = t,
+                None => break,
+            }
+        }
+        if self.readmit(threshold) > 0 {
+            self.adjust(options);
+        }
+    }
+
+    /// Gives back every rejected observation whose residual at the current estimate is at
+    /// most `threshold_px` (its image oriented and its point determined); returns how many.
+    fn readmit(&mut self, threshold_px: f64) -> usize {
+        let mut count = 0;
+        for o in 0..self.rejected.len() {
+            if self.rejected[o].is_none() {
+                continue;
+            }
+            let ob = self.problem.observations[o];
+            let (Some(pose), Some(x)) = (self.poses[ob.image], self.points[ob.point]) else {
+                continue;
+            };
+            let c = self.problem.images[ob.image].camera;
+            let model = &self.problem.cameras[c].model;
+            let Some(uv) = model.project(&self.params[c], &pose.transform(&x), None, None) else {
+                continue;
+            };
+            if (uv - ob.uv).norm() <= threshold_px {
+                self.rejected[o] = None;
+                for list in [&mut self.by_image[ob.image], &mut self.by_point[ob.point]] {
+                    list.push(o);
+                    list.sort_unstable();
+                }
+                count += 1;
+            }
+        }
+        if count > 0 {
+            self.steps.push(Step::Readmitted {
+                observations: count,
+                threshold_px,
+            });
+        }
         count
     }
 
@@ -484,7 +582,23 @@ impl<'a> State<'a> {
         self.bundle_once(options, options.reject_outliers);
     }
 
+    /// A bundle adjustment, then (when `allow_reject` and the camera model is final) the
+    /// rejection of gross errors.
     fn bundle_once(&mut self, options: &IncrementalOptions, allow_reject: bool) {
+        let Some((sub, obs_map, model_final)) = self.adjust(options) else {
+            return;
+        };
+        if allow_reject && model_final {
+            if let Some(threshold) = self.reject(&sub, &obs_map, options) {
+                self.reject_rounds(options, threshold);
+            }
+        }
+    }
+
+    /// Adjusts what is oriented so far and takes its estimate; returns the adjusted
+    /// sub-problem, its observation map and whether the camera model is final (None: no
+    /// observation, or the adjustment failed, which is logged).
+    fn adjust(&mut self, options: &IncrementalOptions) -> Option<(Problem, Vec<usize>, bool)> {
         let calibrating = self.oriented() >= options.calibrate_from_images;
         let SubProblem {
             problem: mut sub,
@@ -493,7 +607,7 @@ impl<'a> State<'a> {
             obs_map,
         } = self.subproblem(calibrating);
         if sub.observations.is_empty() {
-            return;
+            return None;
         }
         // Without control the datum is the first oriented image (scale from the distances,
         // if any, otherwise left to the damping).
@@ -523,7 +637,7 @@ impl<'a> State<'a> {
                     self.steps.push(Step::BundleFailed {
                         message: "non-finite estimate".into(),
                     });
-                    return;
+                    return None;
                 }
                 for (i, m) in image_map.iter().enumerate() {
                     if let Some(k) = m {
@@ -551,13 +665,14 @@ impl<'a> State<'a> {
                         .cameras
                         .iter()
                         .all(|c| c.fixed.iter().all(|f| *f));
-                if allow_reject && model_final && self.reject(&sub, &obs_map, options) > 0 {
-                    self.bundle_once(options, false);
-                }
+                Some((sub, obs_map, model_final))
             }
-            Err(e) => self.steps.push(Step::BundleFailed {
-                message: e.to_string(),
-            }),
+            Err(e) => {
+                self.steps.push(Step::BundleFailed {
+                    message: e.to_string(),
+                });
+                None
+            }
         }
     }
 
