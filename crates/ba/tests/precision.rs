@@ -9,7 +9,7 @@ mod common;
 
 use common::{realisation, truth};
 use pingcal_ba::problem::Distance;
-use pingcal_ba::solver::{precision, solve, Options, PrecisionError};
+use pingcal_ba::solver::{points_covariance, precision, solve, Options, PrecisionError};
 
 fn options() -> Options {
     Options {
@@ -70,6 +70,85 @@ fn reported_sigmas_match_the_monte_carlo_errors() {
     let coverage = inside as f64 / total as f64;
     println!("3σ coverage: {:.4} of {total}", coverage);
     assert!(coverage >= 0.99, "3σ coverage {coverage}");
+}
+
+/// The joint covariance of all points, correlations between them included, is honest too:
+/// the stacked error e of every free point gives `eᵀ Σ⁻¹ e ~ χ²(3m)` per network, whose mean
+/// over the networks divided by 3m is 1 with sd `√(2 / (3m · runs))` (the networks are
+/// independent). The correlations are what it adds to the per-point covariances of
+/// `precision` (its diagonal blocks, checked equal): the error of the difference of two
+/// points, d = e_p − e_q, judged by `Σ_pp + Σ_qq − Σ_pq − Σ_qp`, has `dᵀΣ_d⁻¹d / 3` of mean 1;
+/// judged without the cross terms it is far from 1, because the points share the errors
+/// of the datum and the cameras.
+#[test]
+fn joint_point_covariance_matches_the_monte_carlo_errors() {
+    let truth = truth();
+    let runs = 100;
+    let (mut joint, mut dof) = (0.0, 0usize);
+    // Per network: the mean of dᵀΣ_d⁻¹d / 3 over its neighbour pairs, with and without.
+    let (mut with_cross, mut without_cross) = (Vec::new(), Vec::new());
+    for run in 0..runs {
+        let mut p = realisation(&truth, 7000 + run);
+        solve(&mut p, &options(), |_| {}).unwrap();
+        let prec = precision(&p).unwrap();
+        let free: Vec<usize> = (0..p.points.len())
+            .filter(|&q| !p.points[q].fixed)
+            .collect();
+        let cov = points_covariance(&p, &free).unwrap();
+        let err = |q: usize| p.points[q].position - truth.points[q].position;
+        let e = nalgebra::DVector::from_iterator(
+            3 * free.len(),
+            free.iter()
+                .flat_map(|&q| err(q).iter().copied().collect::<Vec<_>>()),
+        );
+        let block = |a: usize, b: usize| cov.fixed_view::<3, 3>(3 * a, 3 * b).into_owned();
+        for (k, &q) in free.iter().enumerate() {
+            let c = prec.point_covariances[q].unwrap();
+            let d = (block(k, k) - c).abs().max();
+            assert!(
+                d <= 1e-9 * c.abs().max(),
+                "point {q}: the diagonal block differs by {d}"
+            );
+        }
+        let ch = cov
+            .clone()
+            .cholesky()
+            .expect("a positive definite covariance");
+        joint += e.dot(&ch.solve(&e));
+        dof += e.len();
+        let (mut w, mut o) = (0.0, 0.0);
+        for k in 1..free.len() {
+            let d = err(free[k]) - err(free[k - 1]);
+            let own = block(k, k) + block(k - 1, k - 1);
+            let cross = block(k, k - 1) + block(k - 1, k);
+            let z2 = |m: nalgebra::Matrix3<f64>| d.dot(&(m.try_inverse().unwrap() * d));
+            w += z2(own - cross);
+            o += z2(own);
+        }
+        let pairs = 3.0 * (free.len() - 1) as f64;
+        with_cross.push(w / pairs);
+        without_cross.push(o / pairs);
+    }
+    let vj = joint / dof as f64;
+    let tol = 5.0 * (2.0 / dof as f64).sqrt();
+    // The differences of one network are correlated, the networks independent: the
+    // tolerance is 5 standard errors of the mean of the per-network values.
+    let mean_and_se = |v: &[f64]| {
+        let m = v.iter().sum::<f64>() / v.len() as f64;
+        let var = v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (v.len() - 1) as f64;
+        (m, (var / v.len() as f64).sqrt())
+    };
+    let ((vw, sw), (vo, so)) = (mean_and_se(&with_cross), mean_and_se(&without_cross));
+    let tol_pairs = 5.0 * sw.max(so);
+    println!(
+        "χ²/dof of all points {vj:.3} (±{tol:.3}); differences of neighbours {vw:.3} with the cross terms, {vo:.3} without (±{tol_pairs:.3})"
+    );
+    assert!((vj - 1.0).abs() < tol, "joint covariance: χ²/dof = {vj}");
+    assert!(
+        (vw - 1.0).abs() < tol_pairs,
+        "differences with the cross terms: {vw}"
+    );
+    assert!((vo - 1.0).abs() > tol_pairs, "without the cross terms the differences pass too ({vo}): the test does not see correlations");
 }
 
 #[test]

@@ -23,7 +23,7 @@ mod sigma;
 pub use free_network::MAX_FREE_NETWORK_UNKNOWNS;
 pub use linear::LinearSolverKind;
 pub use outliers::{adjust_with_snooping, Rejection, SnoopError, SnoopResult};
-pub use precision::precision;
+pub use precision::{points_covariance, precision};
 pub use sigma::{IntrinsicsPrecision, PoseSigma, Precision, PrecisionError, MAX_DENSE_PRECISION};
 
 use crate::problem::{Problem, ProblemError};
@@ -741,8 +741,10 @@ mod schur_tests {
     use crate::synthetic::SyntheticBal;
     use nalgebra::{DMatrix, DVector};
 
-    #[test]
-    fn schur_step_equals_full_normal_equations_step() {
+    /// A small BAL problem with every kind of unknown: a fixed image and point, a camera
+    /// shared by two images, a distance (its points join the reduced system) and two
+    /// control points, one on an eliminated point and one on a reduced one.
+    fn mixed_problem() -> Problem {
         let s = SyntheticBal {
             cameras: 5,
             points: 40,
@@ -777,20 +779,16 @@ mod schur_tests {
             position: x9,
             sigma: Vector3::new(0.1, 0.1, 0.1),
         });
-        let layout = Layout::new(&problem);
-        let mut lin = evaluate::Linearization::new(&layout);
-        evaluate::linearize(&problem, &layout, &mut lin).unwrap();
-        let mut schur = schur::Schur::new(&layout);
-        schur.prepare(&layout, &lin, &problem);
-        let lambda = 0.37;
-        schur.assemble(&layout, &lin, &problem, lambda).unwrap();
-        let mut dc = schur.rhs.clone();
-        let mut fact =
-            linear::Factorizer::new(&layout, LinearSolverKind::Sparse, faer::Par::Seq).unwrap();
-        assert!(fact.solve(&layout, &schur.values, &mut dc));
-        let mut dp = vec![Vector3::zeros(); layout.free_points.len()];
-        schur.back_substitute(&layout, &lin, &dc, &mut dp);
+        problem
+    }
 
+    /// The whole whitened Jacobian, dense over [camera-side unknowns, free points], and the
+    /// residuals: image observations, the distance, the control points.
+    fn full_jacobian(
+        problem: &Problem,
+        layout: &Layout,
+        lin: &evaluate::Linearization,
+    ) -> (DMatrix<f64>, DVector<f64>) {
         // Dense J over [camera-side unknowns, free points].
         let nc = layout.n_reduced;
         let n = nc + 3 * layout.free_points.len();
@@ -839,6 +837,77 @@ mod schur_tests {
                 j[(m + 1 + 3 * q + k, col_of(pr.point) + k)] = 1.0 / pr.sigma[k];
             }
         }
+        (j, r)
+    }
+
+    /// `points_covariance` (the Schur form, correlations between points included) equals
+    /// σ0² (JᵀJ)⁻¹ of the whole dense system, for eliminated, reduced and fixed points.
+    #[test]
+    fn joint_point_covariance_equals_the_inverse_of_the_full_normal_matrix() {
+        let mut problem = mixed_problem();
+        solve(&mut problem, &Options::default(), |_| {}).unwrap();
+        let layout = Layout::new(&problem);
+        let mut lin = evaluate::Linearization::new(&layout);
+        evaluate::linearize(&problem, &layout, &mut lin).unwrap();
+        let (j, _) = full_jacobian(&problem, &layout, &lin);
+        let q = (j.transpose() * &j).try_inverse().unwrap();
+        let s02 = precision(&problem).unwrap().sigma0.powi(2);
+        // 0, 1, 2 eliminated; 7, 9 (distance) and 10 (control) reduced; 3 fixed.
+        let points = [0usize, 7, 3, 1, 10, 9, 2];
+        let cov = points_covariance(&problem, &points).unwrap();
+        let col = |p: usize| match layout.point_slot[p] {
+            Some(sl) => Some(layout.slot_offset(sl)),
+            None if problem.points[p].fixed => None,
+            None => Some(layout.n_reduced + 3 * layout.free_point_index[p] as usize),
+        };
+        let mut worst: f64 = 0.0;
+        for (a, &pa) in points.iter().enumerate() {
+            for (b, &pb) in points.iter().enumerate() {
+                for (u, v) in (0..3).flat_map(|u| (0..3).map(move |v| (u, v))) {
+                    let want = match (col(pa), col(pb)) {
+                        (Some(ca), Some(cb)) => s02 * q[(ca + u, cb + v)],
+                        _ => 0.0,
+                    };
+                    worst = worst.max((cov[(3 * a + u, 3 * b + v)] - want).abs());
+                }
+            }
+        }
+        let scale = cov.diagonal().amax();
+        assert!(
+            worst <= 1e-8 * scale,
+            "largest difference {worst} (diagonal up to {scale})"
+        );
+        // The points are correlated (so the cross blocks are tested, not zeros against zeros).
+        let cross = (0..3).flat_map(|u| (0..3).map(move |v| (u, v)));
+        let cross = cross
+            .map(|(u, v)| cov[(u, 3 * 3 + v)].abs())
+            .fold(0.0, f64::max);
+        assert!(
+            cross > 1e-3 * scale,
+            "points 0 and 1 look uncorrelated ({cross})"
+        );
+    }
+
+    #[test]
+    fn schur_step_equals_full_normal_equations_step() {
+        let problem = mixed_problem();
+        let layout = Layout::new(&problem);
+        let mut lin = evaluate::Linearization::new(&layout);
+        evaluate::linearize(&problem, &layout, &mut lin).unwrap();
+        let mut schur = schur::Schur::new(&layout);
+        schur.prepare(&layout, &lin, &problem);
+        let lambda = 0.37;
+        schur.assemble(&layout, &lin, &problem, lambda).unwrap();
+        let mut dc = schur.rhs.clone();
+        let mut fact =
+            linear::Factorizer::new(&layout, LinearSolverKind::Sparse, faer::Par::Seq).unwrap();
+        assert!(fact.solve(&layout, &schur.values, &mut dc));
+        let mut dp = vec![Vector3::zeros(); layout.free_points.len()];
+        schur.back_substitute(&layout, &lin, &dc, &mut dp);
+
+        let (j, r) = full_jacobian(&problem, &layout, &lin);
+        let n = j.ncols();
+        let nc = layout.n_reduced;
         let mut h = j.transpose() * &j;
         for k in 0..n {
             h[(k, k)] += lambda * h[(k, k)].clamp(1e-6, 1e32);

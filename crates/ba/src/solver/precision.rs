@@ -21,8 +21,17 @@ use super::sigma::{
 use crate::problem::{Problem, ProblemError};
 use nalgebra::{DMatrix, Matrix2, Matrix2x3, Matrix3};
 
-/// Computes the precision of `problem` at its current (adjusted) estimate.
-pub fn precision(problem: &Problem) -> Result<Precision, PrecisionError> {
+/// What both [`precision`] and [`points_covariance`] start from: the linearization at the
+/// estimate, the undamped Schur complement and `Q_cc = S⁻¹`.
+struct Cofactors {
+    layout: Layout,
+    lin: Linearization,
+    schur: Schur,
+    q_cc: DMatrix<f64>,
+}
+
+/// The cofactors of `problem`; `Ok(None)` for a free network (inner constraints needed).
+fn cofactors(problem: &Problem) -> Result<Option<Cofactors>, PrecisionError> {
     problem.validate()?;
     let layout = Layout::new(problem);
     let n = layout.n_reduced;
@@ -38,24 +47,121 @@ pub fn precision(problem: &Problem) -> Result<Precision, PrecisionError> {
         }
     })?;
     let (schur, s) = reduced_system(problem, &layout, &lin)?;
-    let q_cc = match invert_or_diagnose(&s, problem, &layout) {
-        Ok(q) => q,
-        // A free network: the datum by inner constraints on the points.
-        Err(PrecisionError::DatumDefect(_)) if super::free_network::is_free(problem) => {
-            return super::free_network::precision(problem, &layout, &lin);
-        }
-        Err(e) => return Err(e),
-    };
+    match invert_or_diagnose(&s, problem, &layout) {
+        Ok(q_cc) => Ok(Some(Cofactors {
+            layout,
+            lin,
+            schur,
+            q_cc,
+        })),
+        Err(PrecisionError::DatumDefect(_)) if super::free_network::is_free(problem) => Ok(None),
+        Err(e) => Err(e),
+    }
+}
 
-    // Redundancy and σ0.
+/// Observations minus unknowns, and σ0 (`σ0² = 2·cost / redundancy`).
+fn redundancy_and_sigma0(
+    problem: &Problem,
+    c: &Cofactors,
+) -> Result<(usize, usize, i64, f64), PrecisionError> {
     let n_obs =
         2 * problem.observations.len() + problem.distances.len() + 3 * problem.point_priors.len();
-    let unknowns = n + 3 * layout.free_points.len();
+    let unknowns = c.layout.n_reduced + 3 * c.layout.free_points.len();
     let redundancy = n_obs as i64 - unknowns as i64;
     if redundancy <= 0 {
         return Err(PrecisionError::NoRedundancy(redundancy));
     }
-    let sigma0 = (2.0 * lin.cost / redundancy as f64).sqrt();
+    Ok((
+        n_obs,
+        unknowns,
+        redundancy,
+        (2.0 * c.lin.cost / redundancy as f64).sqrt(),
+    ))
+}
+
+/// The joint covariance `σ0² Q` of the coordinates of `points` (problem indices), a 3k × 3k
+/// matrix in their order, the correlations between the points included (a fixed point has
+/// zero rows).
+///
+/// A point in the reduced system moves as `δp = E δc` (E selects its rows of the camera-side
+/// update δc); a point eliminated by the Schur complement as `δp = V⁻¹ b_p − Mᵀ δc` with
+/// `M = W V⁻¹`. So `Q_pq = A_p Q_cc A_qᵀ` with `A_p = E` or `−Mᵀ`, plus `V_p⁻¹` on the diagonal
+/// block of an eliminated point (which is [`Precision::point_covariances`]' `Q_pp`).
+/// Not available for a free network (an error says so).
+pub fn points_covariance(
+    problem: &Problem,
+    points: &[usize],
+) -> Result<DMatrix<f64>, PrecisionError> {
+    let c = cofactors(problem)?.ok_or_else(|| {
+        PrecisionError::DatumDefect("a free network: joint point covariances need a datum".into())
+    })?;
+    let (_, _, _, sigma0) = redundancy_and_sigma0(problem, &c)?;
+    // A_p as (row of δc, the 3 columns' values), and V_p⁻¹ for an eliminated point.
+    let rows: Vec<(Vec<(usize, [f64; 3])>, Option<Matrix3<f64>>)> = points
+        .iter()
+        .map(|&p| {
+            if let Some(sl) = c.layout.point_slot[p] {
+                let o = c.layout.slot_offset(sl);
+                let unit = |a: usize| std::array::from_fn(|b| f64::from(u8::from(a == b)));
+                ((0..3).map(|a| (o + a, unit(a))).collect(), None)
+            } else {
+                match c.layout.free_point_index[p] {
+                    u32::MAX => (Vec::new(), None),
+                    f => {
+                        let ep = EliminatedPoint::new(&c.layout, &c.schur, &c.q_cc, f as usize);
+                        let neg = ep.rows.iter().map(|&(r, y)| (r, y.map(|v| -v))).collect();
+                        (neg, Some(c.schur.vinv[f as usize]))
+                    }
+                }
+            }
+        })
+        .collect();
+    let k = points.len();
+    let mut q = DMatrix::<f64>::zeros(3 * k, 3 * k);
+    for (a, (ra, va)) in rows.iter().enumerate() {
+        for (b, (rb, _)) in rows.iter().enumerate().skip(a) {
+            let mut block = Matrix3::<f64>::zeros();
+            for &(i, yi) in ra {
+                for &(j, yj) in rb {
+                    let qij = c.q_cc[(i, j)];
+                    block += Matrix3::from_fn(|u, v| yi[u] * qij * yj[v]);
+                }
+            }
+            if a == b {
+                block += va.unwrap_or_else(Matrix3::zeros);
+            }
+            let s02 = sigma0 * sigma0;
+            for (u, v) in (0..3).flat_map(|u| (0..3).map(move |v| (u, v))) {
+                q[(3 * a + u, 3 * b + v)] = s02 * block[(u, v)];
+                q[(3 * b + v, 3 * a + u)] = s02 * block[(u, v)];
+            }
+        }
+    }
+    Ok(q)
+}
+
+/// Computes the precision of `problem` at its current (adjusted) estimate.
+pub fn precision(problem: &Problem) -> Result<Precision, PrecisionError> {
+    let Some(c) = cofactors(problem)? else {
+        // A free network: the datum by inner constraints on the points.
+        let layout = Layout::new(problem);
+        let mut lin = Linearization::new(&layout);
+        linearize(problem, &layout, &mut lin).map_err(|o| {
+            let ob = &problem.observations[o];
+            ProblemError::NotProjectable {
+                point: problem.points[ob.point].name.clone(),
+                image: problem.images[ob.image].name.clone(),
+            }
+        })?;
+        return super::free_network::precision(problem, &layout, &lin);
+    };
+    let (n_obs, unknowns, redundancy, sigma0) = redundancy_and_sigma0(problem, &c)?;
+    let Cofactors {
+        layout,
+        lin,
+        schur,
+        q_cc,
+    } = c;
     let s02 = sigma0 * sigma0;
 
     let intrinsics = intrinsics_precision(problem, &layout, s02, |i, j| q_cc[(i, j)]);
