@@ -116,8 +116,9 @@ pub struct RingReader {
     /// Smallest accepted |sector mean − mid| as a fraction of the contrast.
     pub min_margin: f32,
     /// Every code of the table at every rotation and blur spill, as the blurred-ring model
-    /// predicts its sectors ([`read_by_model`]).
-    patterns: Patterns,
+    /// predicts its sectors ([`read_by_model`]); made from the fields above at the first
+    /// ring that needs them (few do).
+    patterns: std::sync::OnceLock<Patterns>,
 }
 
 /// The blurred-ring model's predictions: for every code of the table, rotation and spill ε,
@@ -132,29 +133,47 @@ struct Patterns {
 /// The spills ε of the blurred-ring model (a sector's share of each neighbour).
 const SPILLS: [f32; 4] = [0.0, 0.06, 0.12, 0.18];
 
+/// Σ (x̃ − mean)² of the bright sectors `mask` (n of them, bit k = sector k) blurred by the
+/// spill `eps`: x̃_k = (1 − 2ε) x_k + ε (x_{k−1} + x_{k+1}).
+fn blurred_sxx(mask: u32, n: usize, eps: f32) -> f32 {
+    let x = |k: usize| ((mask >> k) & 1) as f32;
+    let mut xs = [0.0f32; 32];
+    for (k, v) in xs[..n].iter_mut().enumerate() {
+        let prev = if k == 0 { n - 1 } else { k - 1 };
+        let next = if k + 1 == n { 0 } else { k + 1 };
+        *v = x(k) * (1.0 - 2.0 * eps) + eps * (x(prev) + x(next));
+    }
+    let xs = &xs[..n];
+    let mean = xs.iter().sum::<f32>() / n as f32;
+    xs.iter().map(|v| (v - mean).powi(2)).sum::<f32>()
+}
+
+/// The bright sectors (bit k = sector k in reading order) of `code` (bit i = code bit i).
+fn sector_mask(code: u32, n: usize, clockwise: bool, bright_is_one: bool) -> u32 {
+    let mut mask = 0u32;
+    for k in 0..n {
+        let pos = if clockwise { k } else { n - 1 - k };
+        if ((code >> pos) & 1 == 1) == bright_is_one {
+            mask |= 1 << k;
+        }
+    }
+    mask
+}
+
 impl Patterns {
     /// Every code, rotation and ε of the table as the reader reads it.
     fn new(table: &CodeTable, clockwise: bool, bright_is_one: bool) -> Self {
         let n = table.bits as usize;
-        let mut p = Patterns::default();
+        let mut p = Patterns {
+            meta: Vec::with_capacity(table.codes.len() * n * SPILLS.len()),
+        };
         for (i, &c) in table.codes.iter().enumerate() {
             for r in 0..n as u32 {
                 let code = ((c << r) | (c >> (n as u32 - r))) & ((1u32 << n) - 1);
-                let mut mask = 0u32;
-                for k in 0..n {
-                    let pos = if clockwise { k } else { n - 1 - k };
-                    if ((code >> pos) & 1 == 1) == bright_is_one {
-                        mask |= 1 << k;
-                    }
-                }
-                let x = |k: usize| ((mask >> (k % n)) & 1) as f32;
+                let mask = sector_mask(code, n, clockwise, bright_is_one);
                 for (e, eps) in SPILLS.into_iter().enumerate() {
-                    let xs: Vec<f32> = (0..n)
-                        .map(|k| x(k) * (1.0 - 2.0 * eps) + eps * (x(k + n - 1) + x(k + 1)))
-                        .collect();
-                    let mean = xs.iter().sum::<f32>() / n as f32;
-                    let sxx = xs.iter().map(|v| (v - mean).powi(2)).sum::<f32>();
-                    p.meta.push((mask, i as u32 + 1, c, e, sxx));
+                    p.meta
+                        .push((mask, i as u32 + 1, c, e, blurred_sxx(mask, n, eps)));
                 }
             }
         }
@@ -163,18 +182,36 @@ impl Patterns {
 }
 
 impl RingReader {
+    /// The blurred-ring model's patterns, made at the first call.
+    fn patterns(&self) -> &Patterns {
+        self.patterns
+            .get_or_init(|| Patterns::new(&self.table, self.clockwise, self.bright_is_one))
+    }
+
+    /// Whether the bright sectors `mask` (bit k = sector k in reading order) are a code of the
+    /// table at some rotation.
+    fn is_code_mask(&self, mask: u32) -> bool {
+        let n = self.table.bits as usize;
+        let mut code = 0u32;
+        for k in 0..n {
+            let pos = if self.clockwise { k } else { n - 1 - k };
+            if ((mask >> k) & 1 == 1) == self.bright_is_one {
+                code |= 1 << pos;
+            }
+        }
+        self.table.id(min_rotation(code, n as u32)).is_some()
+    }
+
     /// The reader for AICON targets with `bits` sectors, with the conventions established on
     /// the real panel.
     pub fn aicon(bits: u32) -> Result<Self, crate::TargetError> {
-        let table = CodeTable::generate(bits)?;
-        let patterns = Patterns::new(&table, false, true);
         Ok(RingReader {
-            table,
+            table: CodeTable::generate(bits)?,
             ring: (2.2, 2.8),
             bright_is_one: true,
             clockwise: false,
             min_margin: 0.25,
-            patterns,
+            patterns: std::sync::OnceLock::new(),
         })
     }
 }
@@ -191,23 +228,28 @@ pub enum RingRead {
     Code { code: u32, id: u32, margin: f32 },
 }
 
-/// Fraction of `samples_per_turn` angles at unit-frame radius `rho` brighter than `mid`.
-fn bright_fraction(
+/// Whether more than the fraction `limit` of `samples_per_turn` angles at unit-frame radius
+/// `rho` are brighter than `mid` (the count stops as soon as it exceeds the limit).
+fn bright_over(
     img: &GrayImage,
     e: &Ellipse,
     rho: f64,
     mid: f32,
     samples_per_turn: usize,
-) -> f64 {
+    limit: f64,
+) -> bool {
     let mut c = 0;
     let fr = e.frame();
     for &(co, si) in crate::ellipse::unit_circle(samples_per_turn).iter() {
         let (x, y) = fr.map(rho * co, rho * si);
         if img.sample_inside(x, y) > mid {
             c += 1;
+            if c as f64 / samples_per_turn as f64 > limit {
+                return true;
+            }
         }
     }
-    c as f64 / samples_per_turn as f64
+    false
 }
 
 /// Reads the code ring around a dot whose edge ellipse is `dot`, inner (dot) level `fg` and
@@ -250,10 +292,11 @@ fn read_by_thresholds(
     {
         return RingRead::NoRing;
     }
-    let radii: Vec<f64> = (0..5)
-        .map(|i| reader.ring.0 + (reader.ring.1 - reader.ring.0) * i as f64 / 4.0)
-        .collect();
-    let mut v = vec![0.0f32; m];
+    let radii: [f64; 5] =
+        std::array::from_fn(|i| reader.ring.0 + (reader.ring.1 - reader.ring.0) * i as f64 / 4.0);
+    // at most 24 sectors (CodeTable::generate), plus one wrapped round below
+    let mut vbuf = [0.0f32; 25 * S];
+    let v = &mut vbuf[..m];
     let fr = dot.frame();
     let trig = crate::ellipse::unit_circle(m);
     let ring_at = |j: usize| {
@@ -268,7 +311,7 @@ fn read_by_thresholds(
     // Most dots have no ring (plain targets): first every 4th angle (4 per sector) on the middle
     // of the band, and no ring when none of them is bright.
     let r_mid = 0.5 * (reader.ring.0 + reader.ring.1);
-    if bright_fraction(img, dot, r_mid, mid, m / 4) == 0.0 {
+    if !bright_over(img, dot, r_mid, mid, m / 4, 0.0) {
         return RingRead::NoRing;
     }
     for (j, vj) in v.iter_mut().enumerate() {
@@ -279,16 +322,17 @@ fn read_by_thresholds(
         return RingRead::NoRing;
     }
     // The gap between dot and ring and the band outside the ring must be dark.
-    let gap = bright_fraction(img, dot, 1.6, mid, 180);
-    let out = bright_fraction(img, dot, reader.ring.1 + 0.55, mid, 180);
-    if gap > 0.1 || out > 0.15 {
+    if bright_over(img, dot, 1.6, mid, 180, 0.1)
+        || bright_over(img, dot, reader.ring.1 + 0.55, mid, 180, 0.15)
+    {
         return RingRead::Unreadable {
             reason: "surround of the ring is not dark",
         };
     }
     // Sector phase. `v` is extended by one sector (wrapped round) so that the sums below need
     // no modulo.
-    v.extend_from_within(..S);
+    vbuf.copy_within(..S, m);
+    let v = &vbuf[..m + S];
     let mut best = (f32::NEG_INFINITY, 0usize);
     for phi in 0..S {
         let mut score = 0.0f32;
@@ -337,16 +381,15 @@ fn read_by_thresholds(
     }
 }
 
-/// Samples the unit-frame circle of radius `rho` at `m` angles (brightness minus `mid`).
-fn circle_samples(img: &GrayImage, dot: &Ellipse, rho: f64, m: usize, mid: f32) -> Vec<f32> {
+/// Samples the unit-frame circle of radius `rho` at `out.len()` angles (brightness minus
+/// `mid`) into `out`.
+fn circle_samples(img: &GrayImage, dot: &Ellipse, rho: f64, mid: f32, out: &mut [f32]) {
     let fr = dot.frame();
-    crate::ellipse::unit_circle(m)
-        .iter()
-        .map(|&(c, s)| {
-            let (x, y) = fr.map(rho * c, rho * s);
-            img.sample_inside(x, y) - mid
-        })
-        .collect()
+    let trig = crate::ellipse::unit_circle(out.len());
+    for (o, &(c, s)) in out.iter_mut().zip(trig.iter()) {
+        let (x, y) = fr.map(rho * c, rho * s);
+        *o = img.sample_inside(x, y) - mid;
+    }
 }
 
 /// The best fit of one code: residual sum of squares, number, code, ring contrast β.
@@ -392,7 +435,7 @@ fn fit_codes(y: &[f32], reader: &RingReader) -> (Option<Fit>, Option<Fit>) {
         })
         .collect();
     let (mut best, mut other): (Option<Fit>, Option<Fit>) = (None, None);
-    for &(mask, id, code, e, sxx) in &reader.patterns.meta {
+    for &(mask, id, code, e, sxx) in &reader.patterns().meta {
         let (l, h) = &sums[e];
         let sxy = l[(mask & ((1 << lo) - 1)) as usize] + h[(mask >> lo) as usize];
         if sxy <= 0.0 {
@@ -422,6 +465,63 @@ fn fit_codes(y: &[f32], reader: &RingReader) -> (Option<Fit>, Option<Fit>) {
     (best, other)
 }
 
+/// The acceptance limits of a model fit (`read_by_model`, (4)): β over the dot's contrast,
+/// the largest spill ε, the largest RMS residual over β.
+const BETA_RANGE: (f32, f32) = (0.8, 1.4);
+const EPS_MAX: f32 = 0.12;
+const RMS_MAX: f32 = 0.06;
+
+/// Whether any code could pass the fit tests of `read_by_model` (4) on the sector means `y`
+/// (β within [`BETA_RANGE`] of `contrast`, ε ≤ [`EPS_MAX`], RMS ≤ [`RMS_MAX`] β): a
+/// necessary condition, checked before the fit of every code, that decides exactly. Such a
+/// fit leaves no residual above RMS_MAX β √n, while it predicts at least α + (1 − 2 EPS_MAX) β
+/// on its bright sectors and at most α + 2 EPS_MAX β on its dark ones; for n ≤ 18 the two
+/// bands do not meet, so its bright sectors are the w largest y_k for some w, every one
+/// strictly above every dark one. Only those splits that are codes are fitted (at every ε ≤
+/// EPS_MAX, with 1 % of slack on the limits against rounding); beyond 18 sectors, true.
+fn may_accept(y: &[f32], contrast: f32, reader: &RingReader) -> bool {
+    let n = y.len();
+    let reach = RMS_MAX * (n as f32).sqrt();
+    if n > 32 || 1.0 - 2.0 * EPS_MAX - reach <= 2.0 * EPS_MAX + reach {
+        return true;
+    }
+    let ybar = y.iter().sum::<f32>() / n as f32;
+    let mut yc = [0.0f32; 32];
+    for (c, v) in yc.iter_mut().zip(y) {
+        *c = v - ybar;
+    }
+    let yc = &yc[..n];
+    let syy: f32 = yc.iter().map(|v| v * v).sum();
+    let mut order = [0usize; 32];
+    for (k, o) in order[..n].iter_mut().enumerate() {
+        *o = k;
+    }
+    let order = &mut order[..n];
+    order.sort_unstable_by(|&a, &b| y[b].total_cmp(&y[a]));
+    let mut mask = 0u32;
+    for w in 1..n {
+        mask |= 1 << order[w - 1];
+        if y[order[w - 1]] <= y[order[w]] || !reader.is_code_mask(mask) {
+            continue;
+        }
+        for eps in SPILLS.into_iter().filter(|&e| e <= EPS_MAX) {
+            let sxy: f32 = (0..n)
+                .filter(|&k| mask >> k & 1 == 1)
+                .map(|k| (1.0 - 2.0 * eps) * yc[k] + eps * (yc[(k + n - 1) % n] + yc[(k + 1) % n]))
+                .sum();
+            let beta = sxy / blurred_sxx(mask, n, eps);
+            let ssr = (syy - beta * sxy).max(0.0);
+            if beta >= 0.99 * BETA_RANGE.0 * contrast
+                && beta <= 1.01 * BETA_RANGE.1 * contrast
+                && (ssr / n as f32).sqrt() <= 1.01 * RMS_MAX * beta
+            {
+                return true;
+            }
+        }
+    }
+    false
+}
+
 /// Reads a ring that the sector thresholds could not, against a model of the blurred ring.
 ///
 /// Blur moves the mid-level edge of a small dot inwards (by about σ²/2r) and spreads every
@@ -442,7 +542,9 @@ fn fit_codes(y: &[f32], reader: &RingReader) -> (Option<Fit>, Option<Fit>) {
 /// next sectors only, no longer holds: on rendered targets every wrong best fit had ε ≥ 0.18),
 /// an RMS residual under 6 % of β, and the best fit of any *other* number at least 10 times
 /// worse in Σ r² and worse by at least 2 (0.25 β)² (two distinct codes differ in two or more
-/// sectors: the parity of the table). A wrong number is far worse than none.
+/// sectors: the parity of the table). A wrong number is far worse than none. The fit of every
+/// code (tens of thousands of patterns for 14 bits) runs only when `may_accept` finds that a
+/// fit could pass (4): on the real panel, almost never.
 fn read_by_model(
     img: &GrayImage,
     dot: &Ellipse,
@@ -459,26 +561,33 @@ fn read_by_model(
         let mean = v.iter().sum::<f32>() / v.len() as f32;
         v.iter().map(|x| (x - mean).powi(2)).sum::<f32>()
     };
+    // every buffer on the stack: at most 24 sectors (CodeTable::generate), plus one wrapped
+    let mut buf = [0.0f32; 25 * S];
     let rho = (0..=8)
         .map(|i| 2.0 + 0.15 * i as f64)
-        .map(|r| (variance(&circle_samples(img, dot, r, m / 4, mid)), r))
+        .map(|r| {
+            circle_samples(img, dot, r, mid, &mut buf[..m / 4]);
+            (variance(&buf[..m / 4]), r)
+        })
         .fold(
             (f32::NEG_INFINITY, 2.5),
             |b, c| if c.0 > b.0 { c } else { b },
         )
         .1;
-    if bright_fraction(img, dot, 0.64 * rho, mid, 180) > 0.1
-        || bright_fraction(img, dot, 1.42 * rho, mid, 180) > 0.15
+    if bright_over(img, dot, 0.64 * rho, mid, 180, 0.1)
+        || bright_over(img, dot, 1.42 * rho, mid, 180, 0.15)
     {
         return None;
     }
-    let mut v = vec![0.0f32; m];
+    let mut v = [0.0f32; 25 * S];
     for r in [rho - 0.15, rho, rho + 0.15] {
-        for (vj, s) in v.iter_mut().zip(circle_samples(img, dot, r, m, mid)) {
+        circle_samples(img, dot, r, mid, &mut buf[..m]);
+        for (vj, s) in v.iter_mut().zip(&buf[..m]) {
             *vj += s / 3.0;
         }
     }
-    v.extend_from_within(..S);
+    v.copy_within(..S, m);
+    let v = &v[..m + S];
     let sector = |phi: usize, k: usize, q: usize| {
         let s = &v[phi + k * S + q..phi + k * S + S - q];
         s.iter().sum::<f32>() / s.len() as f32
@@ -487,20 +596,31 @@ fn read_by_model(
         .map(|phi| ((0..n).map(|k| sector(phi, k, 0).abs()).sum::<f32>(), phi))
         .fold((f32::NEG_INFINITY, 0), |b, c| if c.0 > b.0 { c } else { b })
         .1;
-    let y: Vec<f32> = (0..n).map(|k| sector(phi, k, S / 5)).collect();
+    let mut y = [0.0f32; 24];
+    for (k, yk) in y[..n].iter_mut().enumerate() {
+        *yk = sector(phi, k, S / 5);
+    }
+    let y = &y[..n];
     // an accepted fit has β ≥ 0.8 contrast and ε ≤ 0.12: its sectors span ≥ 0.6 contrast
     let span = y.iter().fold(f32::NEG_INFINITY, |a, &b| a.max(b))
         - y.iter().fold(f32::INFINITY, |a, &b| a.min(b));
-    if span < 0.5 * contrast {
+    if span < 0.5 * contrast || !may_accept(y, contrast, reader) {
         return None;
     }
-    let (Some(best), other) = fit_codes(&y, reader) else {
+    fit_and_accept(y, contrast, reader)
+}
+
+/// Steps (3) and (4) of `read_by_model`: the fit of every code to the sector means `y` and
+/// the test of the best one.
+fn fit_and_accept(y: &[f32], contrast: f32, reader: &RingReader) -> Option<RingRead> {
+    let n = y.len();
+    let (Some(best), other) = fit_codes(y, reader) else {
         return None;
     };
     let gap = other.map_or(f32::INFINITY, |o| o.ssr - best.ssr);
-    let ok = (0.8 * contrast..=1.4 * contrast).contains(&best.beta)
-        && best.eps <= 0.12
-        && (best.ssr / n as f32).sqrt() <= 0.06 * best.beta
+    let ok = (BETA_RANGE.0 * contrast..=BETA_RANGE.1 * contrast).contains(&best.beta)
+        && best.eps <= EPS_MAX
+        && (best.ssr / n as f32).sqrt() <= RMS_MAX * best.beta
         && other.is_none_or(|o| o.ssr >= 10.0 * best.ssr)
         && gap >= 2.0 * (0.25 * best.beta).powi(2);
     ok.then(|| RingRead::Code {
@@ -533,5 +653,53 @@ mod tests {
             assert_eq!(min_rotation(m, 14), m);
             assert!(m <= v);
         }
+    }
+
+    /// Sector means of a code of the table blurred as the model says, with noise, and of no
+    /// code at all: the pre-check must pass every one that the full fit accepts (it decides
+    /// exactly), and refuse many (it is there to save the fit).
+    #[test]
+    fn the_pre_check_passes_every_ring_the_model_fit_accepts() {
+        let reader = RingReader::aicon(14).unwrap();
+        let n = 14usize;
+        let mut s = 0x2545_f491_4f6c_dd1du64;
+        let mut rnd = move || {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            (s >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let (mut accepted, mut refused) = (0, 0);
+        for trial in 0..3000 {
+            let c = reader.table.codes[(rnd() * reader.table.codes.len() as f32) as usize];
+            let r = (rnd() * n as f32) as u32 % n as u32;
+            let code = ((c << r) | (c >> (n as u32 - r))) & ((1 << n) - 1);
+            let mask = sector_mask(code, n, reader.clockwise, reader.bright_is_one);
+            let x = |k: usize| ((mask >> (k % n)) & 1) as f32;
+            let (eps, beta) = (0.2 * rnd(), 0.7 + 0.8 * rnd());
+            let (alpha, noise) = (-0.5 * beta + 0.2 * (rnd() - 0.5), 0.3 * beta * rnd());
+            let y: Vec<f32> = (0..n)
+                .map(|k| {
+                    let model = x(k) * (1.0 - 2.0 * eps) + eps * (x(k + n - 1) + x(k + 1));
+                    let y = alpha + beta * model + noise * 2.0 * (rnd() - 0.5);
+                    // every tenth: no code, the sectors at random
+                    if trial % 10 == 0 {
+                        rnd() - 0.5
+                    } else {
+                        y
+                    }
+                })
+                .collect();
+            let pre = may_accept(&y, 1.0, &reader);
+            if fit_and_accept(&y, 1.0, &reader).is_some() {
+                accepted += 1;
+                assert!(pre, "refused before the fit, accepted by it: {y:?}");
+            }
+            refused += usize::from(!pre);
+        }
+        assert!(
+            accepted > 300 && refused > 300,
+            "{accepted} accepted, {refused} refused"
+        );
     }
 }

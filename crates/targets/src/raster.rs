@@ -73,12 +73,14 @@ impl GrayImage {
     /// not inside after all goes the general way.
     #[inline(always)]
     pub fn sample_inside(&self, x: f64, y: f64) -> f32 {
-        // `as usize` saturates (negative and NaN → 0), so the test below is exact.
-        let xi = x as usize;
-        let yi = y as usize;
-        if x >= 0.0 && y >= 0.0 && xi + 1 < self.width && yi + 1 < self.height {
-            let fx = (x - xi as f64) as f32;
-            let fy = (y - yi as f64) as f32;
+        // `as i64` saturates (NaN → 0), so the test below is exact; signed conversions both
+        // ways are single instructions on x86-64, unsigned ones are not.
+        let (xt, yt) = (x as i64, y as i64);
+        let (w1, h1) = (self.width as i64 - 1, self.height as i64 - 1);
+        if x >= 0.0 && y >= 0.0 && xt < w1 && yt < h1 {
+            let fx = (x - xt as f64) as f32;
+            let fy = (y - yt as f64) as f32;
+            let (xi, yi) = (xt as usize, yt as usize);
             let i = yi * self.width + xi;
             let r0 = &self.data[i..i + 2];
             let r1 = &self.data[i + self.width..i + self.width + 2];
