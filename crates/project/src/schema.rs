@@ -55,10 +55,11 @@ pub struct ProjectTargets {
     pub family: TargetFamily,
     /// Radius of the central dot (mm), printed size.
     pub dot_radius_mm: f64,
-    /// Inner radius of the code ring, in dot radii.
+    /// Inner radius of the printed code ring, in dot radii (AICON: 2); the detector samples
+    /// the ring between this and `ring_outer`.
     #[serde(default = "default_ring_inner")]
     pub ring_inner: f64,
-    /// Outer radius of the code ring, in dot radii.
+    /// Outer radius of the printed code ring, in dot radii (AICON: 3).
     #[serde(default = "default_ring_outer")]
     pub ring_outer: f64,
 }

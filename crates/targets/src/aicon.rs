@@ -106,7 +106,10 @@ impl CodeTable {
 #[derive(Clone, Debug)]
 pub struct RingReader {
     pub table: CodeTable,
-    /// Ring sampling band, in dot radii.
+    /// The printed ring, inner and outer radius in dot radii (AICON: 2 and 3).
+    pub geometry: (f64, f64),
+    /// Ring sampling band, in dot radii: the printed ring less a fifth of its width at each
+    /// edge (2.2 to 2.8 for AICON's).
     pub ring: (f64, f64),
     /// True: bright sectors are 1s.
     pub bright_is_one: bool,
@@ -182,6 +185,12 @@ impl Patterns {
 }
 
 impl RingReader {
+    /// The radius (dot radii) of the dark gap between dot and ring where it is tested: 1.6
+    /// for AICON's ring from 2.
+    fn gap_radius(&self) -> f64 {
+        1.0 + 0.6 * (self.geometry.0 - 1.0)
+    }
+
     /// The blurred-ring model's patterns, made at the first call.
     fn patterns(&self) -> &Patterns {
         self.patterns
@@ -205,9 +214,22 @@ impl RingReader {
     /// The reader for AICON targets with `bits` sectors, with the conventions established on
     /// the real panel.
     pub fn aicon(bits: u32) -> Result<Self, crate::TargetError> {
+        Self::with_ring(bits, 2.0, 3.0)
+    }
+
+    /// The reader for ring-coded targets like AICON's whose printed ring spans `inner` to
+    /// `outer` dot radii (`[targets] ring_inner`, `ring_outer`; 1 < inner < outer).
+    pub fn with_ring(bits: u32, inner: f64, outer: f64) -> Result<Self, crate::TargetError> {
+        if !(inner > 1.0 && outer > inner && outer < 20.0) {
+            return Err(crate::TargetError::Invalid(format!(
+                "ring from {inner} to {outer} dot radii: expected 1 < inner < outer < 20"
+            )));
+        }
+        let w = outer - inner;
         Ok(RingReader {
             table: CodeTable::generate(bits)?,
-            ring: (2.2, 2.8),
+            geometry: (inner, outer),
+            ring: (inner + 0.2 * w, outer - 0.2 * w),
             bright_is_one: true,
             clockwise: false,
             min_margin: 0.25,
@@ -322,7 +344,7 @@ fn read_by_thresholds(
         return RingRead::NoRing;
     }
     // The gap between dot and ring and the band outside the ring must be dark.
-    if bright_over(img, dot, 1.6, mid, 180, 0.1)
+    if bright_over(img, dot, reader.gap_radius(), mid, 180, 0.1)
         || bright_over(img, dot, reader.ring.1 + 0.55, mid, 180, 0.15)
     {
         return RingRead::Unreadable {
@@ -527,9 +549,9 @@ fn may_accept(y: &[f32], contrast: f32, reader: &RingReader) -> bool {
 /// Blur moves the mid-level edge of a small dot inwards (by about σ²/2r) and spreads every
 /// sector into its neighbours. So (1) the ring's centre radius ρ is found where the ring
 /// varies most with the angle (its variance, 4 samples a sector, over 2.0 to 3.2 fitted dot
-/// radii), and the ring is
-/// sampled at ρ ± 0.15; the gap inside and the band outside (at 0.64 ρ and 1.42 ρ, the sharp
-/// reading's 1.6 and 3.55 of 2.5) must be dark. (2) The sector phase is the one of the largest
+/// radii for AICON's ring from 2 to 3: inner to outer + 0.2 of a ring of another size), and
+/// the ring is sampled at ρ ± 0.15 (0.15 of the ring's width); the gap inside and the band
+/// outside (at 0.64 ρ and 1.42 ρ, the sharp reading's 1.6 and 3.55 of 2.5) must be dark. (2) The sector phase is the one of the largest
 /// Σ|sector mean| (as in the sharp reading) and each sector's mean over its central 60 % is
 /// y_k; a ring whose sectors span less than half the dot's contrast is not read (an accepted
 /// fit spans at least 0.6 of it, see (4)). (3) Every code of the table, at every rotation, predicts
@@ -563,24 +585,31 @@ fn read_by_model(
     };
     // every buffer on the stack: at most 24 sectors (CodeTable::generate), plus one wrapped
     let mut buf = [0.0f32; 25 * S];
+    let (inner, outer) = reader.geometry;
+    let (mid_radius, step) = (0.5 * (inner + outer), 0.15 * (outer - inner));
     let rho = (0..=8)
-        .map(|i| 2.0 + 0.15 * i as f64)
+        .map(|i| inner + step * i as f64)
         .map(|r| {
             circle_samples(img, dot, r, mid, &mut buf[..m / 4]);
             (variance(&buf[..m / 4]), r)
         })
-        .fold(
-            (f32::NEG_INFINITY, 2.5),
-            |b, c| if c.0 > b.0 { c } else { b },
-        )
+        .fold((f32::NEG_INFINITY, mid_radius), |b, c| {
+            if c.0 > b.0 {
+                c
+            } else {
+                b
+            }
+        })
         .1;
-    if bright_over(img, dot, 0.64 * rho, mid, 180, 0.1)
-        || bright_over(img, dot, 1.42 * rho, mid, 180, 0.15)
+    // the gap and the outside at the sharp reading's radii, scaled by ρ over the ring's middle
+    let scale = rho / mid_radius;
+    if bright_over(img, dot, reader.gap_radius() * scale, mid, 180, 0.1)
+        || bright_over(img, dot, (outer + 0.55) * scale, mid, 180, 0.15)
     {
         return None;
     }
     let mut v = [0.0f32; 25 * S];
-    for r in [rho - 0.15, rho, rho + 0.15] {
+    for r in [rho - step, rho, rho + step] {
         circle_samples(img, dot, r, mid, &mut buf[..m]);
         for (vj, s) in v.iter_mut().zip(&buf[..m]) {
             *vj += s / 3.0;

@@ -61,6 +61,8 @@ pub struct DetectParams {
     pub centre: CentreParams,
     /// Ring-code bit counts to try (AICON: 14, or 12).
     pub code_bits: Vec<u32>,
+    /// The printed code ring, inner and outer radius in dot radii (AICON: 2 and 3).
+    pub ring: (f64, f64),
     pub balls: BallMode,
 }
 
@@ -70,6 +72,7 @@ impl Default for DetectParams {
             candidates: CandidateParams::default(),
             centre: CentreParams::default(),
             code_bits: vec![14],
+            ring: (2.0, 3.0),
             balls: BallMode::Auto {
                 ratio: 2.5,
                 min_px: 12.0,
@@ -99,7 +102,7 @@ impl Detector {
         let readers = params
             .code_bits
             .iter()
-            .map(|&b| RingReader::aicon(b))
+            .map(|&b| RingReader::with_ring(b, params.ring.0, params.ring.1))
             .collect::<Result<Vec<_>, _>>()?;
         Ok(Detector { params, readers })
     }

@@ -19,11 +19,16 @@ pub const RING: (f64, f64) = (2.0, 3.0);
 /// Whether the point (u, v) of a target (units of the dot radius, origin at the centre, v down
 /// the page) is white, for a ring code `code` of `bits` sectors.
 pub fn target_is_white(code: u32, bits: u32, u: f64, v: f64) -> bool {
+    target_is_white_with_ring(code, bits, u, v, RING)
+}
+
+/// [`target_is_white`] for a code ring from `ring.0` to `ring.1` dot radii.
+pub fn target_is_white_with_ring(code: u32, bits: u32, u: f64, v: f64, ring: (f64, f64)) -> bool {
     let r = (u * u + v * v).sqrt();
     if r <= 1.0 {
         return true;
     }
-    if !(RING.0..=RING.1).contains(&r) {
+    if !(ring.0..=ring.1).contains(&r) {
         return false;
     }
     // Counter-clockwise on the page (v down) is decreasing atan2(v, u).

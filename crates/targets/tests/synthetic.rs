@@ -446,8 +446,25 @@ fn render_printed(
     blur: f64,
     rng: &mut SeededRng,
 ) -> GrayImage {
-    use pingcal_targets::printable::target_is_white;
-    let w = (10.0 * rad).ceil() as usize + 20;
+    let ring = pingcal_targets::printable::RING;
+    render_printed_with_ring(code, rad, [rot, tilt, axis], blur, ring, rng)
+}
+
+/// [`render_printed`] with a code ring from `ring.0` to `ring.1` dot radii on a black square
+/// of half-side max(4, `ring.1` + 1) dot radii; `[rot, tilt, axis]` as there.
+fn render_printed_with_ring(
+    code: u32,
+    rad: f64,
+    [rot, tilt, axis]: [f64; 3],
+    blur: f64,
+    ring: (f64, f64),
+    rng: &mut SeededRng,
+) -> GrayImage {
+    let half = (ring.1 + 1.0).max(4.0);
+    let target_is_white = |code, bits, u, v| {
+        pingcal_targets::printable::target_is_white_with_ring(code, bits, u, v, ring)
+    };
+    let w = (2.5 * half * rad).ceil() as usize + 20;
     let c = 0.5 * w as f64;
     let mut img = GrayImage::new(w, w, 0.35);
     let (ca, sa) = (axis.cos(), axis.sin());
@@ -466,7 +483,7 @@ fn render_printed(
                         qx * rot.cos() + qy * rot.sin(),
                         -qx * rot.sin() + qy * rot.cos(),
                     );
-                    let inside = u.abs() <= 4.0 && v.abs() <= 4.0;
+                    let inside = u.abs() <= half && v.abs() <= half;
                     acc += if inside && target_is_white(code, 14, u, v) {
                         0.8
                     } else if inside {
@@ -564,4 +581,62 @@ fn ring_reading_rate_against_blur_and_dot_radius() {
             );
         }
     }
+}
+
+/// `[targets] ring_inner` and `ring_outer` are used: targets printed with a ring from 2.5 to
+/// 4 dot radii (not AICON's 2 to 3) are read by the detector told so, and never misread by
+/// the one that expects AICON's ring.
+#[test]
+fn a_ring_of_another_size_is_read_when_the_project_gives_it() {
+    use pingcal_targets::aicon::CodeTable;
+    let table = CodeTable::generate(14).unwrap();
+    let detector = |ring| {
+        Detector::new(DetectParams {
+            balls: BallMode::Off,
+            ring,
+            ..DetectParams::default()
+        })
+        .unwrap()
+    };
+    let (told, aicon) = (detector((2.5, 4.0)), detector((2.0, 3.0)));
+    let mut rng = pingcal_geometry::consensus::rng(2540);
+    const TRIALS: usize = 24;
+    let (mut read_told, mut read_aicon, mut wrong) = (0, 0, Vec::new());
+    for _ in 0..TRIALS {
+        let id = rng.random_range(1..=table.codes.len() as u32);
+        let rad = rng.random_range(5.0..12.0);
+        let pose = [
+            rng.random_range(0.0..std::f64::consts::TAU),
+            rng.random_range(0.0f64..40.0).to_radians(),
+            rng.random_range(0.0..std::f64::consts::PI),
+        ];
+        let code = table.code(id).unwrap();
+        let img = render_printed_with_ring(code, rad, pose, 0.7, (2.5, 4.0), &mut rng);
+        for (det, count) in [(&told, &mut read_told), (&aicon, &mut read_aicon)] {
+            for t in det
+                .detect(&img)
+                .targets
+                .iter()
+                .filter(|t| t.kind == TargetKind::Coded)
+            {
+                match t.id {
+                    Some(got) if got == id => *count += 1,
+                    Some(got) => wrong.push(format!("id {id} read as {got}")),
+                    None => {}
+                }
+            }
+        }
+    }
+    println!(
+        "ring 2.5–4: {read_told}/{TRIALS} read when told, {read_aicon}/{TRIALS} with AICON's ring"
+    );
+    assert!(wrong.is_empty(), "wrong IDs: {wrong:?}");
+    assert!(
+        read_told + 1 >= TRIALS,
+        "only {read_told}/{TRIALS} read with the ring given"
+    );
+    assert!(
+        read_aicon < read_told,
+        "AICON's ring reads as many ({read_aicon}): the test does not see the ring"
+    );
 }

@@ -23,6 +23,10 @@ pub struct Args {
     /// Ring-code bit counts to read, comma separated (AICON: 14 or 12).
     #[arg(long, value_delimiter = ',', default_value = "14")]
     pub bits: Vec<u32>,
+    /// The printed code ring's inner and outer radius in dot radii, as `[targets]
+    /// ring_inner` and `ring_outer` of project.toml (AICON: 2,3).
+    #[arg(long, value_delimiter = ',', num_args = 2, default_values_t = [2.0, 3.0])]
+    pub ring: Vec<f64>,
     /// The images contain no ping-pong balls (do not classify large blobs as balls).
     #[arg(long)]
     pub no_balls: bool,
@@ -32,6 +36,7 @@ pub struct Args {
 pub fn run(args: Args) -> CmdResult {
     let mut params = DetectParams {
         code_bits: args.bits.clone(),
+        ring: (args.ring[0], args.ring[1]),
         ..DetectParams::default()
     };
     if args.no_balls {

@@ -20,10 +20,11 @@ pub fn detect_all(project: &Project, rep: &Reporter) -> Result<Detections> {
     let bits = f.targets.family.code_bits();
     let detector = Detector::new(DetectParams {
         code_bits: vec![bits],
+        ring: (f.targets.ring_inner, f.targets.ring_outer),
         balls: BallMode::Off,
         ..DetectParams::default()
     })
-    .map_err(|e| PipelineError::new(format!("detector: {e}")))?;
+    .map_err(|e| PipelineError::new(format!("{}: [targets] {e}", project.path.display())))?;
     let pb = rep.task("detecting targets", project.image_paths.len() as u64);
     let out: Vec<Result<ImageDetections>> = project
         .image_paths

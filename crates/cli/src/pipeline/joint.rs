@@ -2,11 +2,20 @@
 //! ball in one least-squares problem, with the extrinsic and the rotating LRF's mount and
 //! range errors among its unknowns.
 //!
-//! **Unknowns.** Everything of the final bundle adjustment (intrinsics, image poses, target
-//! points, ball centres in the photogrammetric frame, the stereo rig), the extrinsic
+//! **Unknowns.** The control balls' centres in the photogrammetric frame, the extrinsic
 //! `camera_from_lrf` (a [`Rigid3`], left-perturbed like the image poses), and the mount
 //! `θ = [offset_x, offset_y, offset_z, tilt_x, tilt_z, servo_scale, range_offset, range_scale]`
 //! of [`pingcal_lrf::sensor::MountModel`].
+//!
+//! **The camera side.** The beams depend on the balls' centres and on nothing else of the
+//! bundle (intrinsics, poses, targets, distances). Eliminating all of those from the normal
+//! equations of one adjustment of images, distances and beams leaves, for the centres,
+//! exactly the bundle's own solution with its joint cofactor matrix
+//! ([`pingcal_ba::solver::points_covariance`], the correlations between balls included):
+//! so the centres enter as that prior, `Q⁻¹`-weighted, and the extrinsic and mount come out
+//! as the full joint adjustment would give them, linearized at the bundle's solution (the
+//! image side is not iterated again). The block diagonal (each ball's own 3 × 3) is the
+//! fallback only where the joint matrix is not available (a free network).
 //!
 //! **Beam observations.** A beam of a ball's sphere fit (its reading: servo angle, beam angle,
 //! range) predicts the range at which its ray meets the sphere of the project's ball radius
@@ -45,6 +54,7 @@ use super::lrf::LrfData;
 use super::scene::{Detections, Scene};
 use super::{PipelineError, Reporter, Result};
 use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
+use pingcal_ba::solver;
 use pingcal_geometry::{opk_sigma_deg, skew, Rigid3, Sim3};
 use pingcal_lrf::beam::beam_range_residual;
 use pingcal_lrf::cloud::BeamReading;
@@ -153,12 +163,10 @@ struct Beam {
     sigma: f64,
 }
 
-/// A control ball: its bundle-adjusted centre (camera frame) and the whitening `L⁻¹` of
-/// its cofactor matrix `Q = L Lᵀ` (covariance / σ0² of the bundle).
+/// A control ball: its bundle-adjusted centre (camera frame).
 struct BallPrior {
     point: PointId,
     centre: Vector3<f64>,
-    whiten: Matrix3<f64>,
 }
 
 /// The unknowns' current values.
@@ -172,6 +180,9 @@ struct State {
 /// The joint problem in its dense form (see the module doc).
 struct Dense {
     balls: Vec<BallPrior>,
+    /// The whitening `L⁻¹` of the control balls' joint cofactor matrix `Q = L Lᵀ`
+    /// (covariance / σ0² of the bundle, 3k × 3k, the correlations between balls included).
+    whiten: DMatrix<f64>,
     beams: Vec<Beam>,
     radius: f64,
     servo_zero_deg: f64,
@@ -241,16 +252,18 @@ impl Dense {
             chi2 += r * r;
             add(&row, r, &mut normal);
         }
-        for (k, bp) in self.balls.iter().enumerate() {
-            let r = bp.whiten * (st.balls[k] - bp.centre);
-            chi2 += r.norm_squared();
-            for a in 0..3 {
-                row.iter_mut().for_each(|v| *v = 0.0);
-                for c in 0..3 {
-                    row[3 * k + c] = bp.whiten[(a, c)];
-                }
-                add(&row, r[a], &mut normal);
+        let dx = DVector::from_iterator(
+            3 * self.balls.len(),
+            (self.balls.iter().zip(&st.balls)).flat_map(|(bp, x)| (x - bp.centre).data.0[0]),
+        );
+        let r = &self.whiten * dx;
+        chi2 += r.norm_squared();
+        for a in 0..r.len() {
+            row.iter_mut().for_each(|v| *v = 0.0);
+            for c in 0..=a {
+                row[c] = self.whiten[(a, c)];
             }
+            add(&row, r[a], &mut normal);
         }
         if self.priors {
             let o = 3 * self.balls.len() + 6;
@@ -342,9 +355,9 @@ fn asked(project: &Project) -> [bool; 8] {
     free
 }
 
-/// The control balls (their bundle centres and cofactors) and their beams; the count of
-/// grazing beams left out.
-fn build(input: &JointInput) -> Result<(Vec<BallPrior>, Vec<Beam>, usize)> {
+/// The control balls (their bundle centres), the whitening of their joint cofactor matrix,
+/// their beams, and the count of grazing beams left out.
+fn build(input: &JointInput) -> Result<(Vec<BallPrior>, DMatrix<f64>, Vec<Beam>, usize)> {
     let JointInput {
         project,
         scene,
@@ -362,6 +375,7 @@ fn build(input: &JointInput) -> Result<(Vec<BallPrior>, Vec<Beam>, usize)> {
     let radius = 0.5 * project.file.balls.diameter_mm;
     let s02 = adj.precision.sigma0.max(1e-9).powi(2);
     let (mut balls, mut beams, mut grazing) = (Vec::new(), Vec::new(), 0);
+    let mut problem_points = Vec::new();
     for (s, p, _, check) in joint_balls(ext, scene) {
         let Some(k) = adj.solved.map.point(p) else {
             continue;
@@ -372,12 +386,10 @@ fn build(input: &JointInput) -> Result<(Vec<BallPrior>, Vec<Beam>, usize)> {
         if check {
             continue;
         }
-        let Some(l) = (cov / s02).cholesky() else {
+        if (cov / s02).cholesky().is_none() {
             continue;
-        };
-        let Some(whiten) = l.l().try_inverse() else {
-            continue;
-        };
+        }
+        problem_points.push(k);
         let centre = scene.points[p].position;
         let c0 = input.start.inverse().transform(&centre);
         let ball = balls.len();
@@ -394,19 +406,38 @@ fn build(input: &JointInput) -> Result<(Vec<BallPrior>, Vec<Beam>, usize)> {
                 sigma,
             });
         }
-        balls.push(BallPrior {
-            point: p,
-            centre,
-            whiten,
-        });
+        balls.push(BallPrior { point: p, centre });
     }
+    let whiten = ball_whitening(adj, &problem_points, s02).ok_or_else(|| {
+        PipelineError::new(format!(
+            "{}: the control balls' joint covariance from the bundle is singular",
+            project.path.display()
+        ))
+    })?;
     if beams.is_empty() {
         return Err(PipelineError::new(format!(
             "{}: the joint adjustment has no LRF beam on a control ball",
             project.path.display()
         )));
     }
-    Ok((balls, beams, grazing))
+    Ok((balls, whiten, beams, grazing))
+}
+
+/// `L⁻¹` of the joint cofactor matrix `Q = L Lᵀ` of the bundle's points `points`
+/// ([`pingcal_ba::solver::points_covariance`] / σ0²), or of its block diagonal (each point's
+/// own covariance) where the joint one is not available (a free network).
+fn ball_whitening(adj: &Adjusted, points: &[usize], s02: f64) -> Option<DMatrix<f64>> {
+    let q = solver::points_covariance(&adj.solved.problem, points).unwrap_or_else(|_| {
+        let mut q = DMatrix::zeros(3 * points.len(), 3 * points.len());
+        for (a, &k) in points.iter().enumerate() {
+            if let Some(c) = adj.precision.point_covariances[k] {
+                q.fixed_view_mut::<3, 3>(3 * a, 3 * a).copy_from(&c);
+            }
+        }
+        q
+    });
+    let l = (q / s02).cholesky()?.l();
+    l.try_inverse()
 }
 
 /// Holds, one at a time, the asked-for mount parameters that the data cannot determine
@@ -525,7 +556,7 @@ pub fn joint_adjustment(input: &JointInput, rep: &Reporter) -> Result<JointOutco
                 Some("not asked for in [lrf] self_calibrate: held at the project's value".into());
         }
     }
-    let (balls, beams, grazing) = build(input)?;
+    let (balls, whiten, beams, grazing) = build(input)?;
     let theta0 = input.mount0.to_params();
     let start = State {
         balls: balls.iter().map(|b| b.centre).collect(),
@@ -535,6 +566,7 @@ pub fn joint_adjustment(input: &JointInput, rep: &Reporter) -> Result<JointOutco
     let radius = 0.5 * input.project.file.balls.diameter_mm;
     let mut d = Dense {
         balls,
+        whiten,
         beams,
         radius,
         servo_zero_deg: input.mount0.servo_zero_deg,

@@ -11,7 +11,7 @@
 //! | registration | σ0 of the 3D conformal transform (redundancy 3n − 6) | `√(χ²₁₋α(dof) / dof)` × [`CENTRE_SIGMA_OPTIMISM`] |
 //! | check points | `Σ dᵢᵀ Σᵢ⁻¹ dᵢ / 3k` over the k check (or leave-one-out) balls, `dᵢ` = estimated − reference, `Σᵢ` = camera-side covariance + the LRF-side one turned into the camera frame + the transform's own, propagated | `χ²₁₋α(3k) / 3k` × [`CENTRE_SIGMA_OPTIMISM`]² |
 //! | sphere fits | the pooled σ0 of the sphere fits, `√(Σ σ0ᵢ² fᵢ / Σ fᵢ)` (fᵢ = inliers − 3) | `max(√(χ²₁₋α(Σf) / Σf), `[`SPHERE_PROFILE_TOLERANCE`]`)` |
-//! | joint | σ0 of the joint adjustment (image points, distances, beams), and its check balls' `χ²/3k` as above (no optimism factor: the beams' σ's are the sensor's) | `√(χ²₁₋α(r) / r)`, `χ²₁₋α(3k) / 3k` |
+//! | joint | σ0 of the joint adjustment (image points, distances, beams), and its check balls' `χ²/3k` as above | `√(χ²₁₋α(r) / r)` (no optimism factor: the beams' σ's are the sensor's), `χ²₁₋α(3k) / 3k` × [`CENTRE_SIGMA_OPTIMISM`]² (a check ball's LRF side is a sphere fit, refitted with the estimated mount, with the sphere centres' known optimism) |
 //! | correlations | the largest \|ρ\| between two self-calibrated intrinsics | [`MAX_CORRELATION`] |
 //!
 //! Only the upper side is tested: a σ0 under 1 says the a-priori σ's are pessimistic, which
@@ -239,7 +239,8 @@ fn joint_tests(j: &JointOutcome, test: &mut Test) {
         &j.extrinsic_cov,
     );
     if let Some((mean, n)) = chi2 {
-        test("joint check points", mean, chi2_upper(n) / n, &|v, b| {
+        let bound = chi2_upper(n) / n * CENTRE_SIGMA_OPTIMISM * CENTRE_SIGMA_OPTIMISM;
+        test("joint check points", mean, bound, &|v, b| {
             format!("the joint adjustment's check balls are {:.1}× their predicted σ (χ²/n = {v:.2} > {b:.2}): its extrinsic is worse than its σ's say", v.sqrt())
         });
     }
