@@ -378,6 +378,11 @@ fn distance_to_an_unseen_target() {
         1,
         "only the unseen distance is left out: {ctx}"
     );
+    let report = fs::read_to_string(out.join("report.html")).unwrap();
+    assert!(
+        report.contains("not used: coded target 999 was not identified"),
+        "the report's warnings do not name the unused distance"
+    );
 }
 
 /// Every distance names a target no image shows: nothing fixes the scale, the run stops
