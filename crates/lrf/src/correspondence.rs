@@ -158,7 +158,9 @@ pub fn match_balls(
     }
     let Some((pairs, _)) = best else {
         return Err(LrfError::Degenerate(format!(
-            "no three LRF spheres match three camera balls in their distances (within {tol} mm): are they the same balls?"
+            "no three of the {} LRF spheres match three of the {} camera balls in their distances (within {tol} mm): are they the same balls, and are the LRF's range unit and mount right?",
+            lrf.len(),
+            cam.len()
         )));
     };
     if pairs.len() < 3 {
@@ -187,10 +189,14 @@ pub fn match_balls(
                 Err(_) => (None, f64::INFINITY),
             };
             if rt.is_some() && rrms < 2.0 * rms.max(0.1 * tol) {
+                let (median, largest) = distance_disagreement(&pairs, lrf, cam);
                 return Err(LrfError::Degenerate(format!(
-                    "ball correspondence is ambiguous: two different matchings of {} balls fit equally well (RMS {rms:.1} and {rrms:.1} mm); \
-                     the layout is (nearly) symmetric: label the balls or move one",
-                    pairs.len()
+                    "ball correspondence is ambiguous: of {} LRF spheres and {} camera balls, two different matchings of {} fit equally well (RMS {rms:.1} and {rrms:.1} mm); \
+                     the matched balls' distances differ between the two frames by a median {median:.1} mm (largest {largest:.1} mm; {tol} mm is accepted): {}",
+                    lrf.len(),
+                    cam.len(),
+                    pairs.len(),
+                    ambiguity_cause(median, tol)
                 )));
             }
         }
@@ -208,6 +214,40 @@ pub fn match_balls(
         camera_from_lrf,
         rms_mm: rms,
     })
+}
+
+/// The median and the largest |‖lᵢ − lⱼ‖ − ‖cᵢ − cⱼ‖| over the pairs of matched balls: how
+/// far the LRF's distances are from the camera's (0 but for noise when the LRF's model is
+/// right, since a rigid transform keeps distances).
+fn distance_disagreement(
+    pairs: &[(usize, usize)],
+    lrf: &[Vector3<f64>],
+    cam: &[Vector3<f64>],
+) -> (f64, f64) {
+    let mut d: Vec<f64> = Vec::new();
+    for (a, &(i, j)) in pairs.iter().enumerate() {
+        for &(k, l) in &pairs[a + 1..] {
+            d.push(((lrf[i] - lrf[k]).norm() - (cam[j] - cam[l]).norm()).abs());
+        }
+    }
+    d.sort_by(f64::total_cmp);
+    match d.last() {
+        Some(&largest) => (d[d.len() / 2], largest),
+        None => (0.0, 0.0),
+    }
+}
+
+/// The likely cause of an ambiguous matching, from how well the distances agree: a median
+/// disagreement above a quarter of the tolerance is no longer noise (a sphere centre's σ is
+/// a few mm), so the LRF's cloud is distorted; otherwise the layout itself is symmetric.
+fn ambiguity_cause(median: f64, tol: f64) -> &'static str {
+    if median > 0.25 * tol {
+        "the LRF's distances are distorted, so an LRF mount or range error the project does not give is the likely cause \
+         (scanner offset from the servo axis, scan-plane tilt, range offset): measure it, or give [lrf] values closer to the rig"
+    } else {
+        "the distances agree, so the layout of the balls is (nearly) symmetric: move a ball so that its distances to the others differ \
+         (the project's [[balls.labels]] name balls in the main image, not the LRF's spheres)"
+    }
 }
 
 #[cfg(test)]
@@ -263,6 +303,22 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("ambiguous"), "{e}");
+        assert!(e.contains("of 4 LRF spheres and 4 camera balls"), "{e}");
+        assert!(
+            e.contains("median 0.0 mm") && e.contains("symmetric: move a ball"),
+            "{e}"
+        );
+        // The LRF's distances 2 % long (a range scale error): still within 20 mm, but the
+        // message names the distortion, not the layout.
+        let stretched: Vec<_> = s.iter().map(|p| 1.02 * p).collect();
+        let e = match_balls(&stretched, &s, &MatchOptions::default())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("ambiguous") && e.contains("median 12.0 mm"),
+            "{e}"
+        );
+        assert!(e.contains("LRF mount or range error"), "{e}");
         let e = match_balls(&s[..2], &s, &MatchOptions::default())
             .unwrap_err()
             .to_string();
