@@ -80,6 +80,10 @@ pub struct Verdict {
     pub status: String,
     /// Why it is not `ok`, one sentence each.
     pub reasons: Vec<String>,
+    /// What the tests of a method whose result is not the one given found (they do not
+    /// change the status).
+    #[serde(default)]
+    pub notes: Vec<String>,
     /// The statistical tests.
     pub checks: Vec<VerdictCheck>,
     /// Their level (probability of a false alarm each).

@@ -204,6 +204,15 @@ fn verdict(o: &mut String, v: &crate::Verdict) {
         }
         o.push_str("</ul>\n");
     }
+    if !v.notes.is_empty() {
+        o.push_str(
+            "<p class=\"note\">Notes (they do not change the verdict):</p><ul class=\"note\">\n",
+        );
+        for r in &v.notes {
+            let _ = writeln!(o, "<li>{}</li>", escape(r));
+        }
+        o.push_str("</ul>\n");
+    }
     let _ = writeln!(
         o,
         "<table><tr><th class=\"l\">test (level {})</th><th>value</th><th>bound</th><th>passed</th></tr>",

@@ -524,6 +524,7 @@ pub fn sample_report(cloud_points: usize) -> ReportData {
         verdict: Some(crate::Verdict {
             status: "doubtful".into(),
             reasons: vec!["1 sphere(s) found in the LRF cloud match no ball of the photogrammetric model (spurious spheres, or balls the images did not measure)".into()],
+            notes: vec!["the two-step registration's σ0 1.60 exceeds 1.54 (a method whose result is not the one given)".into()],
             checks: vec![crate::VerdictCheck {
                 name: "registration sigma0".into(),
                 value: 1.07,

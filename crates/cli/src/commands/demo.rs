@@ -221,4 +221,7 @@ fn print_table(r: &pipeline::results::Results, truth: &pingcal_sim::Truth) {
     for reason in &v.reasons {
         println!("  - {reason}");
     }
+    for note in &v.notes {
+        println!("  note: {note}");
+    }
 }

@@ -38,6 +38,7 @@ pub fn build(st: &Stages, results: &Results, rep: &Reporter) -> rp::ReportData {
         verdict: Some(rp::Verdict {
             status: results.verdict.status.as_str().into(),
             reasons: results.verdict.reasons.clone(),
+            notes: results.verdict.notes.clone(),
             checks: results
                 .verdict
                 .checks
