@@ -94,6 +94,7 @@ fn user_strings_are_escaped() {
         verdict: Some(pingcal_report::Verdict {
             status: s(),
             reasons: vec![s()],
+            notes: vec![s()],
             checks: vec![pingcal_report::VerdictCheck {
                 name: s(),
                 value: f64::NAN,
