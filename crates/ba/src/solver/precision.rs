@@ -97,7 +97,8 @@ pub fn points_covariance(
     })?;
     let (_, _, _, sigma0) = redundancy_and_sigma0(problem, &c)?;
     // A_p as (row of δc, the 3 columns' values), and V_p⁻¹ for an eliminated point.
-    let rows: Vec<(Vec<(usize, [f64; 3])>, Option<Matrix3<f64>>)> = points
+    type PointRows = (Vec<(usize, [f64; 3])>, Option<Matrix3<f64>>);
+    let rows: Vec<PointRows> = points
         .iter()
         .map(|&p| {
             if let Some(sl) = c.layout.point_slot[p] {

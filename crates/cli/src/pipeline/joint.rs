@@ -260,8 +260,8 @@ impl Dense {
         chi2 += r.norm_squared();
         for a in 0..r.len() {
             row.iter_mut().for_each(|v| *v = 0.0);
-            for c in 0..=a {
-                row[c] = self.whiten[(a, c)];
+            for (c, v) in row.iter_mut().enumerate().take(a + 1) {
+                *v = self.whiten[(a, c)];
             }
             add(&row, r[a], &mut normal);
         }
@@ -357,7 +357,10 @@ fn asked(project: &Project) -> [bool; 8] {
 
 /// The control balls (their bundle centres), the whitening of their joint cofactor matrix,
 /// their beams, and the count of grazing beams left out.
-fn build(input: &JointInput) -> Result<(Vec<BallPrior>, DMatrix<f64>, Vec<Beam>, usize)> {
+type Built = (Vec<BallPrior>, DMatrix<f64>, Vec<Beam>, usize);
+
+/// See [`Built`].
+fn build(input: &JointInput) -> Result<Built> {
     let JointInput {
         project,
         scene,
