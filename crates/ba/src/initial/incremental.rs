@@ -233,6 +233,12 @@ pub struct Initialised {
     pub rejections: Vec<Rejection>,
 }
 
+/// Two images and their common observations (first image's, second image's).
+type PairObs = ((usize, usize), Vec<(usize, usize)>);
+
+/// A relative orientation of two images with its score.
+type Scored = (f64, (usize, usize), super::relative::Relative);
+
 /// Why no network could be started.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum InitError {
@@ -596,23 +602,62 @@ impl<'a> State<'a> {
         }
         let mut pairs: Vec<_> = common.into_iter().filter(|(_, v)| v.len() >= 8).collect();
         pairs.sort_by(|a, b| b.1.len().cmp(&a.1.len()).then(a.0.cmp(&b.0)));
-        let mut best: Option<(f64, (usize, usize), super::relative::Relative)> = None;
         let tried = pairs.len().min(options.candidate_pairs.max(1));
+        let pairs = &pairs[..tried];
+        // The rays as given first; the radial search only when no pair orients with them
+        // (a distortion-corrected start is coarser than an uncorrected one that works).
+        let plain = RelativeOptions {
+            radial_bound: 0.0,
+            ..options.relative.clone()
+        };
+        let (mut best, mut failure) = self.best_pair(pairs, &plain);
+        if best.is_none() && options.relative.radial_bound != 0.0 {
+            (best, failure) = self.best_pair(pairs, &options.relative);
+        }
+        let Some((_, (ia, ib), r)) = best else {
+            return Err(InitError::NoStart(no_start_message(
+                tried,
+                failure,
+                &options.relative,
+            )));
+        };
+        self.poses[ia] = Some(Rigid3::identity());
+        self.poses[ib] = Some(r.camera2_from_camera1);
+        self.steps.push(Step::RelativePair {
+            first: p.images[ia].name.clone(),
+            second: p.images[ib].name.clone(),
+            inliers: r.inliers.iter().filter(|v| **v).count(),
+            median_angle_deg: r.median_angle_deg,
+            radial_correction: r.radial_correction,
+        });
+        Ok(())
+    }
+
+    /// The relative orientation of `pairs` (images and their common observations) with the
+    /// largest score (consistent points × median intersection angle up to 10°), or the
+    /// failure of the pair with the most support.
+    fn best_pair(
+        &self,
+        pairs: &[PairObs],
+        relative: &RelativeOptions,
+    ) -> (Option<Scored>, Option<String>) {
+        let p = self.problem;
+        let mut best: Option<Scored> = None;
         let mut failure: Option<(usize, String)> = None;
-        for ((ia, ib), obs) in pairs.into_iter().take(tried) {
+        for &((ia, ib), ref obs) in pairs {
             let ray = |o: usize| {
                 let ob = &p.observations[o];
                 let cam = p.images[ob.image].camera;
                 p.cameras[cam].model.unproject(&self.params[cam], &ob.uv)
             };
             let (mut d1, mut d2) = (Vec::new(), Vec::new());
-            for (oa, ob) in obs {
+            for &(oa, ob) in obs {
                 if let (Some(a), Some(b)) = (ray(oa), ray(ob)) {
                     d1.push(a);
                     d2.push(b);
                 }
             }
-            match relative_orientation_radial(&d1, &d2, &options.relative) {
+            match relative_orientation_radial(&d1, &d2, relative) {
                 Ok(r) => {
                     let n = r.inliers.iter().filter(|v| **v).count() as f64;
                     let score = n * r.median_angle_deg.min(10.0);
@@ -632,23 +677,7 @@ impl<'a> State<'a> {
                 }
             }
         }
-        let Some((_, (ia, ib), r)) = best else {
-            return Err(InitError::NoStart(no_start_message(
-                tried,
-                failure.map(|f| f.1),
-                &options.relative,
-            )));
-        };
-        self.poses[ia] = Some(Rigid3::identity());
-        self.poses[ib] = Some(r.camera2_from_camera1);
-        self.steps.push(Step::RelativePair {
-            first: p.images[ia].name.clone(),
-            second: p.images[ib].name.clone(),
-            inliers: r.inliers.iter().filter(|v| **v).count(),
-            median_angle_deg: r.median_angle_deg,
-            radial_correction: r.radial_correction,
-        });
-        Ok(())
+        (best, failure.map(|f| f.1))
     }
 
     /// Scales a relative network so that its measured distances hold (median ratio).
@@ -756,11 +785,19 @@ fn no_start_message(tried: usize, failure: Option<String>, options: &RelativeOpt
     let needs = "give 4 or more control points (known coordinates) seen by one image, a known pose with control, or more targets common to two images taken from different positions";
     match failure {
         None => format!("no two images share 8 or more points: {needs}"),
-        Some(f) => format!(
-            "none of the {tried} image pairs with the most common points has a relative orientation with {} or more consistent points, even with their rays corrected for a radial distortion of up to {:.0} % ({f}): {needs}",
-            options.min_inliers.max(8),
-            100.0 * options.radial_bound.abs()
-        ),
+        Some(f) => {
+            let radial = match options.radial_bound.abs() {
+                0.0 => String::new(),
+                b => format!(
+                    ", even with their rays corrected for a radial distortion of up to {:.0} %",
+                    100.0 * b
+                ),
+            };
+            format!(
+                "none of the {tried} image pairs with the most common points has a relative orientation with {} or more consistent points{radial} ({f}): {needs}",
+                options.min_inliers.max(8),
+            )
+        }
     }
 }
 
