@@ -287,3 +287,44 @@ fn free_network_by_inner_constraints() {
     );
     assert!(ti < tf, "minimum trace: {ti} vs {tf}");
 }
+
+#[test]
+fn a_distance_point_without_rays_is_named_undetermined_not_a_datum_defect() {
+    // A point of a distance sits in the reduced system; when data snooping has taken its rays
+    // down to one and then none, the distance alone leaves two of its coordinates free. That
+    // is the point's own defect (the pipeline drops the point and its distance), not a datum
+    // defect of the network.
+    let t = truth();
+    let mut p = realisation(&t, 78);
+    p.images[0].camera_from_object = t.images[0].camera_from_object;
+    p.images[0].fixed = true;
+    for pt in &mut p.points {
+        pt.fixed = false;
+    }
+    for (a, b) in [(0, 40), (12, 70)] {
+        p.distances.push(Distance {
+            a,
+            b,
+            value: (t.points[a].position - t.points[b].position).norm(),
+            sigma: 0.1,
+        });
+    }
+    solve(&mut p, &options(), |_| {}).unwrap();
+    let name = p.points[40].name.clone();
+    for keep in [1, 0] {
+        let mut q = p.clone();
+        let mut seen = 0;
+        q.observations.retain(|o| {
+            let lose = o.point == 40 && seen >= keep;
+            seen += (o.point == 40) as usize;
+            !lose
+        });
+        match precision(&q) {
+            Err(PrecisionError::PointUndetermined(n)) => assert_eq!(n, name),
+            other => panic!(
+                "{keep} ray(s) left: {:?}",
+                other.map(|_| ()).map_err(|e| e.to_string())
+            ),
+        }
+    }
+}

@@ -25,7 +25,7 @@
 //! reported with the reason; nothing is ever set to NaN.
 
 use super::intersection::{intersect, IntersectionOptions, Ray};
-use super::relative::{relative_orientation, RelativeOptions};
+use super::relative::{relative_orientation_radial, RelativeError, RelativeOptions};
 use super::resection::{resect, similarity_transform, ResectionOptions};
 use crate::problem::{Distance, PointPrior, Problem, ProblemError};
 use crate::solver::{solve, Options, Rejection};
@@ -117,6 +117,9 @@ pub enum Step {
         second: String,
         inliers: usize,
         median_angle_deg: f64,
+        /// The radial correction of the rays estimated with it (fraction of the radius at
+        /// the outermost ray; 0: none).
+        radial_correction: f64,
     },
     /// Points intersected in this round.
     Intersected { points: usize },
@@ -166,10 +169,21 @@ impl std::fmt::Display for Step {
                 second,
                 inliers,
                 median_angle_deg,
-            } => write!(
-                f,
-                "relative orientation '{first}'–'{second}': {inliers} points, median angle {median_angle_deg:.1}°"
-            ),
+                radial_correction,
+            } => {
+                write!(
+                    f,
+                    "relative orientation '{first}'–'{second}': {inliers} points, median angle {median_angle_deg:.1}°"
+                )?;
+                if *radial_correction != 0.0 {
+                    write!(
+                        f,
+                        ", rays corrected by {:+.1} % of the radius at the outermost ray (unmodelled radial distortion)",
+                        100.0 * radial_correction
+                    )?;
+                }
+                Ok(())
+            }
             Step::Intersected { points } => write!(f, "intersected {points} points"),
             Step::Bundle {
                 images,
@@ -239,6 +253,12 @@ pub struct Initialised {
     /// adjustment's own, so that nothing is dropped without saying so.
     pub rejections: Vec<Rejection>,
 }
+
+/// Two images and their common observations (first image's, second image's).
+type PairObs = ((usize, usize), Vec<(usize, usize)>);
+
+/// A relative orientation of two images with its score.
+type Scored = (f64, (usize, usize), super::relative::Relative);
 
 /// Why no network could be started.
 #[derive(Debug, thiserror::Error, PartialEq)]
@@ -697,39 +717,24 @@ impl<'a> State<'a> {
         }
         let mut pairs: Vec<_> = common.into_iter().filter(|(_, v)| v.len() >= 8).collect();
         pairs.sort_by(|a, b| b.1.len().cmp(&a.1.len()).then(a.0.cmp(&b.0)));
-        let mut best: Option<(f64, (usize, usize), super::relative::Relative)> = None;
-        let mut last_error = String::from("no two images share 8 or more points");
-        for ((ia, ib), obs) in pairs.into_iter().take(options.candidate_pairs.max(1)) {
-            let ray = |o: usize| {
-                let ob = &p.observations[o];
-                let cam = p.images[ob.image].camera;
-                p.cameras[cam].model.unproject(&self.params[cam], &ob.uv)
-            };
-            let (mut d1, mut d2) = (Vec::new(), Vec::new());
-            for (oa, ob) in obs {
-                if let (Some(a), Some(b)) = (ray(oa), ray(ob)) {
-                    d1.push(a);
-                    d2.push(b);
-                }
-            }
-            match relative_orientation(&d1, &d2, &options.relative) {
-                Ok(r) => {
-                    let n = r.inliers.iter().filter(|v| **v).count() as f64;
-                    let score = n * r.median_angle_deg.min(10.0);
-                    if best.as_ref().is_none_or(|b| score > b.0) {
-                        best = Some((score, (ia, ib), r));
-                    }
-                }
-                Err(e) => {
-                    last_error = format!(
-                        "images '{}'–'{}': {e}",
-                        p.images[ia].name, p.images[ib].name
-                    )
-                }
-            }
+        let tried = pairs.len().min(options.candidate_pairs.max(1));
+        let pairs = &pairs[..tried];
+        // The rays as given first; the radial search only when no pair orients with them
+        // (a distortion-corrected start is coarser than an uncorrected one that works).
+        let plain = RelativeOptions {
+            radial_bound: 0.0,
+            ..options.relative.clone()
+        };
+        let (mut best, mut failure) = self.best_pair(pairs, &plain);
+        if best.is_none() && options.relative.radial_bound != 0.0 {
+            (best, failure) = self.best_pair(pairs, &options.relative);
         }
         let Some((_, (ia, ib), r)) = best else {
-            return Err(InitError::NoStart(last_error));
+            return Err(InitError::NoStart(no_start_message(
+                tried,
+                failure,
+                &options.relative,
+            )));
         };
         self.poses[ia] = Some(Rigid3::identity());
         self.poses[ib] = Some(r.camera2_from_camera1);
@@ -738,8 +743,56 @@ impl<'a> State<'a> {
             second: p.images[ib].name.clone(),
             inliers: r.inliers.iter().filter(|v| **v).count(),
             median_angle_deg: r.median_angle_deg,
+            radial_correction: r.radial_correction,
         });
         Ok(())
+    }
+
+    /// The relative orientation of `pairs` (images and their common observations) with the
+    /// largest score (consistent points × median intersection angle up to 10°), or the
+    /// failure of the pair with the most support.
+    fn best_pair(
+        &self,
+        pairs: &[PairObs],
+        relative: &RelativeOptions,
+    ) -> (Option<Scored>, Option<String>) {
+        let p = self.problem;
+        let mut best: Option<Scored> = None;
+        let mut failure: Option<(usize, String)> = None;
+        for &((ia, ib), ref obs) in pairs {
+            let ray = |o: usize| {
+                let ob = &p.observations[o];
+                let cam = p.images[ob.image].camera;
+                p.cameras[cam].model.unproject(&self.params[cam], &ob.uv)
+            };
+            let (mut d1, mut d2) = (Vec::new(), Vec::new());
+            for &(oa, ob) in obs {
+                if let (Some(a), Some(b)) = (ray(oa), ray(ob)) {
+                    d1.push(a);
+                    d2.push(b);
+                }
+            }
+            match relative_orientation_radial(&d1, &d2, relative) {
+                Ok(r) => {
+                    let n = r.inliers.iter().filter(|v| **v).count() as f64;
+                    let score = n * r.median_angle_deg.min(10.0);
+                    if best.as_ref().is_none_or(|b| score > b.0) {
+                        best = Some((score, (ia, ib), r));
+                    }
+                }
+                Err(e) => {
+                    let support = match e {
+                        RelativeError::NoConsensus { best, .. } => best,
+                        RelativeError::TooFewPoints { .. } => 0,
+                    };
+                    if failure.as_ref().is_none_or(|f| support > f.0) {
+                        let names = (&p.images[ia].name, &p.images[ib].name);
+                        failure = Some((support, format!("best '{}'–'{}': {e}", names.0, names.1)));
+                    }
+                }
+            }
+        }
+        (best, failure.map(|f| f.1))
     }
 
     /// Scales a relative network so that its measured distances hold (median ratio).
@@ -838,6 +891,28 @@ impl<'a> State<'a> {
             scale: s,
             rms,
         });
+    }
+}
+
+/// Why no relative orientation started the network, and what would start it: `tried` pairs of
+/// eight or more common points were tried, `failure` is the one with the most support.
+fn no_start_message(tried: usize, failure: Option<String>, options: &RelativeOptions) -> String {
+    let needs = "give 4 or more control points (known coordinates) seen by one image, a known pose with control, or more targets common to two images taken from different positions";
+    match failure {
+        None => format!("no two images share 8 or more points: {needs}"),
+        Some(f) => {
+            let radial = match options.radial_bound.abs() {
+                0.0 => String::new(),
+                b => format!(
+                    ", even with their rays corrected for a radial distortion of up to {:.0} %",
+                    100.0 * b
+                ),
+            };
+            format!(
+                "none of the {tried} image pairs with the most common points has a relative orientation with {} or more consistent points{radial} ({f}): {needs}",
+                options.min_inliers.max(8),
+            )
+        }
     }
 }
 
@@ -1083,18 +1158,30 @@ mod tests {
     /// A 3D test field (a room corner: floor and two walls, mm) photographed from 12
     /// stations around it; truth and a problem with zero poses/points.
     fn network(seed: u64, noise_px: f64) -> (Problem, Problem, Vec<bool>) {
+        network_with(seed, noise_px, [-0.01, 0.0], 60)
+    }
+
+    /// [`network`] with the radial distortion `k` = [K1, K2] (mm⁻², mm⁻⁴) of the truth (the
+    /// problem starts from none) and `n_points` points.
+    fn network_with(
+        seed: u64,
+        noise_px: f64,
+        k: [f64; 2],
+        n_points: usize,
+    ) -> (Problem, Problem, Vec<bool>) {
         let mut rng = pingcal_geometry::consensus::rng(seed);
         let cam = PhotogrammetricCamera::new(1280, 720, 0.00375);
         let mut params = vec![0.0; 10];
         params[0] = 2.45;
-        params[3] = -0.01;
+        params[3] = k[0];
+        params[4] = k[1];
         let mut truth = Problem::default();
         let mut c = Camera::new("left", Arc::new(cam), params.clone());
         c.fixed = vec![
             false, false, false, false, true, true, true, true, true, true,
         ];
         truth.cameras.push(c);
-        for k in 0..60 {
+        for k in 0..n_points {
             let (a, b) = (rng.random_range(0.0..2000.0), rng.random_range(0.0..1500.0));
             let p = match k % 3 {
                 0 => Vector3::new(a, b, 0.0),
@@ -1146,10 +1233,11 @@ mod tests {
         let mut p = truth.clone();
         p.cameras[0].params[0] = 2.5; // approximate c
         p.cameras[0].params[3] = 0.0;
+        p.cameras[0].params[4] = 0.0;
         for im in &mut p.images {
             im.camera_from_object = Rigid3::identity();
         }
-        let mut known = vec![false; 60];
+        let mut known = vec![false; n_points];
         for (j, pt) in p.points.iter_mut().enumerate() {
             if j < 6 {
                 pt.fixed = true;
@@ -1265,6 +1353,55 @@ mod tests {
             let e = (truth.points[j].position - truth.points[0].position).norm()
                 - (q.points[k].position - q.points[j0].position).norm();
             assert!(e.abs() < 5.0, "point {j}: {e} mm");
+        }
+    }
+
+    /// The simulated field's barrel distortion (K1 −0.021, K2 0.0004: −14 % at the image's
+    /// corners) against nominal intrinsics without distortion, no control and 14 targets (as
+    /// few as the coded targets two images of the simulated mono field share): the start must
+    /// still orient every image (issue 19, mono; without the radial search every pair had
+    /// 10 or 11 of its 14 points within the epipolar threshold). When no pair can start, the
+    /// error says what would.
+    #[test]
+    fn a_strongly_distorted_network_starts_from_nominal_intrinsics() {
+        for seed in 1..=10 {
+            let (truth, p, _) = network_with(seed, 0.1, [-0.021, 0.0004], 14);
+            let mut p2 = p.clone();
+            for pt in &mut p2.points {
+                pt.fixed = false;
+            }
+            for (a, b) in [(0, 1), (2, 3)] {
+                p2.distances.push(Distance {
+                    a,
+                    b,
+                    value: (truth.points[a].position - truth.points[b].position).norm(),
+                    sigma: 0.05,
+                });
+            }
+            let init = initialise(&p2, &[], &[], &IncrementalOptions::default())
+                .unwrap_or_else(|e| panic!("seed {seed}: {e}"));
+            assert!(
+                init.unoriented_images.is_empty(),
+                "seed {seed}: {:?}",
+                init.unoriented_images
+            );
+            assert!(
+                init.problem.rms_px() < 0.2,
+                "seed {seed}: {}",
+                init.problem.rms_px()
+            );
+        }
+        let (_, p, _) = network_with(1, 0.1, [-0.021, 0.0004], 14);
+        let mut opts = IncrementalOptions::default();
+        opts.relative.min_inliers = 15;
+        let err = initialise(&p, &[], &[], &opts).unwrap_err().to_string();
+        for part in [
+            "none of the 6 image pairs",
+            "15 or more",
+            "up to 25 %",
+            "control points",
+        ] {
+            assert!(err.contains(part), "{err}");
         }
     }
 

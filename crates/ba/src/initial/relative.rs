@@ -36,6 +36,11 @@ pub struct RelativeOptions {
     pub seed: u64,
     /// Fewest inliers accepted.
     pub min_inliers: usize,
+    /// Largest radial distortion that the rays may carry unmodelled (nominal intrinsics
+    /// without distortion), as a fraction of the radius of the pair's outermost ray: 0.25
+    /// covers the −15 % barrel distortion of a wide-angle lens at the image corners. Used by
+    /// [`relative_orientation_radial`]; 0 takes the rays as given.
+    pub radial_bound: f64,
 }
 
 impl Default for RelativeOptions {
@@ -45,6 +50,7 @@ impl Default for RelativeOptions {
             samples: 500,
             seed: 1,
             min_inliers: 12,
+            radial_bound: 0.25,
         }
     }
 }
@@ -62,6 +68,9 @@ pub struct Relative {
     pub median_angle_deg: f64,
     /// The pose came from a homography (a planar scene).
     pub planar: bool,
+    /// The radial correction of the rays with which it was found, as a fraction of the radius
+    /// at the outermost ray (0: the rays as given; see [`relative_orientation_radial`]).
+    pub radial_correction: f64,
 }
 
 /// Why a relative orientation failed.
@@ -476,7 +485,114 @@ pub fn relative_orientation(
         inliers: inl,
         median_angle_deg: angles[count / 2],
         planar,
+        radial_correction: 0.0,
     })
+}
+
+/// Ray `d` (camera frame, Y forward) with its tangent-plane radius ρ scaled by `1 + κ ρ²`
+/// (rays at or behind 90° are left as they are).
+fn radially_corrected(d: &Vector3<f64>, kappa: f64) -> Vector3<f64> {
+    if d.y <= 0.0 {
+        return *d;
+    }
+    let s = 1.0 + kappa * (d.x * d.x + d.z * d.z) / (d.y * d.y);
+    Vector3::new(d.x * s, d.y, d.z * s).normalize()
+}
+
+/// How well a relative orientation explains its rays: inliers, then the smaller sum of their
+/// epipolar errors.
+fn support(r: &Relative, d1: &[Vector3<f64>], d2: &[Vector3<f64>]) -> (usize, f64) {
+    let err = (0..r.inliers.len())
+        .filter(|&k| r.inliers[k])
+        .map(|k| epipolar_error(&r.essential, &d1[k], &d2[k]))
+        .sum();
+    (r.inliers.iter().filter(|v| **v).count(), err)
+}
+
+/// [`relative_orientation`] of rays that may carry a radial distortion the nominal intrinsics
+/// do not model, up to `options.radial_bound` of the radius at the outermost ray: a radial
+/// correction `ρ' = ρ (1 + κ ρ²)` of both images' rays is estimated with the orientation (a
+/// grid of 5 % steps within the bound, then three halvings around the best) and the one that
+/// most rays agree with wins; the rays as given win ties, and are kept without a search
+/// when every ray agrees with them. Near the image corners such a lens
+/// moves points by tens of pixels, far beyond the epipolar threshold, so that with few common
+/// points too few would remain consistent with the uncorrected rays. The error, when no
+/// correction gives an orientation, is that of the rays with the most support.
+pub fn relative_orientation_radial(
+    d1: &[Vector3<f64>],
+    d2: &[Vector3<f64>],
+    options: &RelativeOptions,
+) -> Result<Relative, RelativeError> {
+    let rho2 = d1
+        .iter()
+        .chain(d2)
+        .filter(|d| d.y > 0.0)
+        .map(|d| (d.x * d.x + d.z * d.z) / (d.y * d.y))
+        .fold(0.0, f64::max);
+    let plain = relative_orientation(d1, d2, options);
+    let bound = options.radial_bound.abs();
+    let all_agree = plain.as_ref().is_ok_and(|r| r.inliers.iter().all(|v| *v));
+    if all_agree || !(bound > 0.0 && rho2 > 0.0) {
+        return plain;
+    }
+    let mut best: Option<((usize, f64), Relative)> = None;
+    let mut best_error = plain.as_ref().err().cloned();
+    let mut consider = |fraction: f64, best: &mut Option<((usize, f64), Relative)>| {
+        let kappa = fraction / rho2;
+        let c1: Vec<_> = d1.iter().map(|d| radially_corrected(d, kappa)).collect();
+        let c2: Vec<_> = d2.iter().map(|d| radially_corrected(d, kappa)).collect();
+        match relative_orientation(&c1, &c2, options) {
+            Ok(mut r) => {
+                let s = support(&r, &c1, &c2);
+                if best
+                    .as_ref()
+                    .is_none_or(|(b, _)| s.0 > b.0 || (s.0 == b.0 && s.1 < b.1))
+                {
+                    r.radial_correction = fraction;
+                    *best = Some((s, r));
+                }
+            }
+            Err(e) => {
+                if let (
+                    Some(RelativeError::NoConsensus { best: w, .. }),
+                    RelativeError::NoConsensus { best: b, .. },
+                ) = (&best_error, &e)
+                {
+                    if b > w {
+                        best_error = Some(e);
+                    }
+                }
+            }
+        }
+    };
+    if let Ok(r) = &plain {
+        best = Some((support(r, d1, d2), r.clone()));
+    }
+    let step = 0.05;
+    let n = (bound / step).round().max(1.0) as i32;
+    for j in (-n..=n).filter(|&j| j != 0) {
+        consider(bound * f64::from(j) / f64::from(n), &mut best);
+    }
+    let mut h = bound / f64::from(n) / 2.0;
+    for _ in 0..3 {
+        let Some(centre) = best.as_ref().map(|(_, r)| r.radial_correction) else {
+            break;
+        };
+        for f in [centre - h, centre + h] {
+            if f != 0.0 && f.abs() <= bound {
+                consider(f, &mut best);
+            }
+        }
+        h /= 2.0;
+    }
+    match best {
+        Some((_, r)) => Ok(r),
+        None => Err(best_error.unwrap_or(RelativeError::NoConsensus {
+            needed: options.min_inliers.max(8),
+            best: 0,
+            count: d1.len().min(d2.len()),
+        })),
+    }
 }
 
 /// `[t]× R` (for tests and callers that build E from a pose).

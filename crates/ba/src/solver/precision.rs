@@ -215,6 +215,11 @@ fn reduced_system(
             ));
         }
     }
+    if let Some(p) = undetermined_distance_point(problem, layout, lin) {
+        return Err(PrecisionError::PointUndetermined(
+            problem.points[p].name.clone(),
+        ));
+    }
     schur.assemble(layout, lin, problem, 0.0).map_err(|f| {
         PrecisionError::PointUndetermined(problem.points[layout.free_points[f]].name.clone())
     })?;
@@ -228,6 +233,33 @@ fn reduced_system(
         }
     }
     Ok((schur, s))
+}
+
+/// The first point of a distance (a point kept in the reduced system) that its own rays do not
+/// determine, as an eliminated point must be: a distance gives one equation, so a point whose
+/// rays data snooping has taken away would otherwise show as a datum defect of two degrees of
+/// freedom in that point instead of as the undetermined point it is. A point with a prior is
+/// determined by it.
+fn undetermined_distance_point(
+    problem: &Problem,
+    layout: &Layout,
+    lin: &Linearization,
+) -> Option<usize> {
+    let mut v = vec![Matrix3::<f64>::zeros(); problem.points.len()];
+    for (o, jp) in lin.jp.iter().enumerate() {
+        let p = layout.obs_point[o] as usize;
+        if layout.point_slot[p].is_some() {
+            v[p] += jp.transpose() * jp;
+        }
+    }
+    let with_prior: Vec<usize> = problem.point_priors.iter().map(|c| c.point).collect();
+    (0..problem.points.len()).find(|&p| {
+        if layout.point_slot[p].is_none() || with_prior.contains(&p) {
+            return false;
+        }
+        let scale = v[p].diagonal().max();
+        !(scale > 0.0 && v[p].symmetric_eigenvalues().min() > 1e-10 * scale)
+    })
 }
 
 /// A point eliminated by the Schur complement: M = W V⁻¹ restricted to the camera-side
