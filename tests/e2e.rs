@@ -868,19 +868,23 @@ fn verdict_is_ok_on_a_clean_simulation_and_doubtful_with_an_unknown_mount_offset
         "method = \"all\"",
         "method = \"spheres\"",
     );
-    let out = w.dir.join("out-offset");
     // (seed 3 of the RANSAC: with the mount error the label-free ball correspondence can be
     // ambiguous for other seeds, which issues 13 and 19 deal with)
-    let run = w.run(&[
-        "calibrate",
-        s(&q.join("project.toml")),
-        "--out",
-        s(&out),
-        "--quiet",
-        "--seed",
-        "3",
-    ]);
-    assert!(run.success(), "calibrate failed: {}", run.stderr);
+    let calibrate = |out: &Path| {
+        let toml = q.join("project.toml");
+        let run = w.run(&[
+            "calibrate",
+            s(&toml),
+            "--out",
+            s(out),
+            "--quiet",
+            "--seed",
+            "3",
+        ]);
+        assert!(run.success(), "calibrate failed: {}", run.stderr);
+    };
+    let out = w.dir.join("out-offset");
+    calibrate(&out);
     let r = read_json(&out.join("results.json"));
     let v = &r["verdict"];
     assert_eq!(
@@ -905,16 +909,7 @@ fn verdict_is_ok_on_a_clean_simulation_and_doubtful_with_an_unknown_mount_offset
         "method = \"all\"",
     );
     let out = w.dir.join("out-offset-all");
-    let run = w.run(&[
-        "calibrate",
-        s(&q.join("project.toml")),
-        "--out",
-        s(&out),
-        "--quiet",
-        "--seed",
-        "3",
-    ]);
-    assert!(run.success(), "calibrate failed: {}", run.stderr);
+    calibrate(&out);
     let v = read_json(&out.join("results.json"))["verdict"].clone();
     let (notes, reasons) = (v["notes"].to_string(), v["reasons"].to_string());
     assert!(notes.contains("registration's σ0"), "{v}");

@@ -30,6 +30,20 @@ struct Cofactors {
     q_cc: DMatrix<f64>,
 }
 
+/// The linearization of `problem` at its estimate; an observation that does not project is
+/// named.
+fn linearized(problem: &Problem, layout: &Layout) -> Result<Linearization, PrecisionError> {
+    let mut lin = Linearization::new(layout);
+    linearize(problem, layout, &mut lin).map_err(|o| {
+        let ob = &problem.observations[o];
+        ProblemError::NotProjectable {
+            point: problem.points[ob.point].name.clone(),
+            image: problem.images[ob.image].name.clone(),
+        }
+    })?;
+    Ok(lin)
+}
+
 /// The cofactors of `problem`; `Ok(None)` for a free network (inner constraints needed).
 fn cofactors(problem: &Problem) -> Result<Option<Cofactors>, PrecisionError> {
     problem.validate()?;
@@ -38,14 +52,7 @@ fn cofactors(problem: &Problem) -> Result<Option<Cofactors>, PrecisionError> {
     if n > MAX_DENSE_PRECISION {
         return Err(PrecisionError::TooLarge(n));
     }
-    let mut lin = Linearization::new(&layout);
-    linearize(problem, &layout, &mut lin).map_err(|o| {
-        let ob = &problem.observations[o];
-        ProblemError::NotProjectable {
-            point: problem.points[ob.point].name.clone(),
-            image: problem.images[ob.image].name.clone(),
-        }
-    })?;
+    let lin = linearized(problem, &layout)?;
     let (schur, s) = reduced_system(problem, &layout, &lin)?;
     match invert_or_diagnose(&s, problem, &layout) {
         Ok(q_cc) => Ok(Some(Cofactors {
@@ -146,14 +153,7 @@ pub fn precision(problem: &Problem) -> Result<Precision, PrecisionError> {
     let Some(c) = cofactors(problem)? else {
         // A free network: the datum by inner constraints on the points.
         let layout = Layout::new(problem);
-        let mut lin = Linearization::new(&layout);
-        linearize(problem, &layout, &mut lin).map_err(|o| {
-            let ob = &problem.observations[o];
-            ProblemError::NotProjectable {
-                point: problem.points[ob.point].name.clone(),
-                image: problem.images[ob.image].name.clone(),
-            }
-        })?;
+        let lin = linearized(problem, &layout)?;
         return super::free_network::precision(problem, &layout, &lin);
     };
     let (n_obs, unknowns, redundancy, sigma0) = redundancy_and_sigma0(problem, &c)?;
