@@ -94,8 +94,10 @@ pub struct ScanReader<R: BufRead> {
     pending: Option<(usize, String)>,
     buf: Vec<u8>,
     failed: bool,
-    /// The previous scan's line number, stamp and text (time order, duplicated records).
-    previous: Option<(usize, f64, String)>,
+    /// The previous scan's line number and stamp (time order), and its text in `previous_text`
+    /// (duplicated records; one buffer reused for every line).
+    previous: Option<(usize, f64)>,
+    previous_text: String,
 }
 
 fn read_line<R: BufRead>(
@@ -225,6 +227,7 @@ impl<R: BufRead> ScanReader<R> {
             buf,
             failed: false,
             previous: None,
+            previous_text: String::new(),
         })
     }
 
@@ -309,7 +312,7 @@ impl<R: BufRead> ScanReader<R> {
 
     /// Refuses a scan earlier than the previous one, or an exact repeat of it (module doc).
     fn check_order(&mut self, scan: &ScanLine, text: &str) -> Result<()> {
-        if let Some((k, stamp, prev)) = &self.previous {
+        if let Some((k, stamp)) = &self.previous {
             if scan.stamp_s < *stamp {
                 return Err(LrfError::parse(
                     &self.file,
@@ -320,7 +323,7 @@ impl<R: BufRead> ScanReader<R> {
                     ),
                 ));
             }
-            if text == prev {
+            if text == self.previous_text {
                 return Err(LrfError::parse(
                     &self.file,
                     scan.line,
@@ -328,7 +331,9 @@ impl<R: BufRead> ScanReader<R> {
                 ));
             }
         }
-        self.previous = Some((scan.line, scan.stamp_s, text.to_string()));
+        self.previous = Some((scan.line, scan.stamp_s));
+        self.previous_text.clear();
+        self.previous_text.push_str(text);
         Ok(())
     }
 

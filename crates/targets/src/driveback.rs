@@ -80,6 +80,15 @@ mod tests {
         }
     }
 
+    fn pred(label: &str, kind: TargetKind, x: f64, y: f64) -> Predicted {
+        Predicted {
+            label: label.into(),
+            kind,
+            x,
+            y,
+        }
+    }
+
     #[test]
     fn nearest_unambiguous_same_kind() {
         let det = vec![
@@ -89,30 +98,10 @@ mod tests {
             t(100.0, 100.0, TargetKind::Ball),
         ];
         let pred = vec![
-            Predicted {
-                label: "1001".into(),
-                kind: TargetKind::Plain,
-                x: 11.0,
-                y: 9.5,
-            },
-            Predicted {
-                label: "1002".into(),
-                kind: TargetKind::Plain,
-                x: 51.0,
-                y: 10.0,
-            },
-            Predicted {
-                label: "B1".into(),
-                kind: TargetKind::Ball,
-                x: 101.0,
-                y: 99.0,
-            },
-            Predicted {
-                label: "1003".into(),
-                kind: TargetKind::Plain,
-                x: 100.0,
-                y: 100.0,
-            },
+            pred("1001", TargetKind::Plain, 11.0, 9.5),
+            pred("1002", TargetKind::Plain, 51.0, 10.0),
+            pred("B1", TargetKind::Ball, 101.0, 99.0),
+            pred("1003", TargetKind::Plain, 100.0, 100.0),
         ];
         let a = assign(&pred, &det, 3.0);
         assert_eq!(a, vec![(0, 0), (2, 3)]);
@@ -125,18 +114,8 @@ mod tests {
             t(50.0, 10.0, TargetKind::Coded),
         ];
         let pred = vec![
-            Predicted {
-                label: "45".into(),
-                kind: TargetKind::Coded,
-                x: 10.5,
-                y: 10.0,
-            },
-            Predicted {
-                label: "P1".into(),
-                kind: TargetKind::Plain,
-                x: 50.5,
-                y: 10.0,
-            },
+            pred("45", TargetKind::Coded, 10.5, 10.0),
+            pred("P1", TargetKind::Plain, 50.5, 10.0),
         ];
         assert_eq!(assign(&pred, &det, 2.0), vec![(0, 0)]);
         // a plain projection as near to the dot as the coded one: the nearer takes it

@@ -494,33 +494,28 @@ impl<'a> State<'a> {
             }
         }
         let mut flagged: Vec<usize> = worst.into_values().collect();
-        flagged.sort_unstable();
-        let mut count = 0;
-        for k in flagged {
-            let r = &res[k];
-            {
-                let o = obs_map[k];
-                let ob = self.problem.observations[o];
-                let w =
-                    residuals[k].map_or([f64::INFINITY; 2], |v| [v.x / ob.sigma, v.y / ob.sigma]);
-                let rejection = Rejection {
-                    image: self.problem.images[ob.image].name.clone(),
-                    point: self.problem.points[ob.point].name.clone(),
-                    uv: [ob.uv.x, ob.uv.y],
-                    w,
-                    reason: format!(
-                        "start-up bundle: residual {r:.2} px above {threshold:.2} px (the larger of {} robust σ and {} px)",
-                        options.reject_sigmas, options.reject_min_px
-                    ),
-                };
-                self.rejected[o] = Some((*r, rejection));
-                self.by_image[ob.image].retain(|&x| x != o);
-                self.by_point[ob.point].retain(|&x| x != o);
-                count += 1;
-            }
-        }
-        if count == 0 {
+        if flagged.is_empty() {
             return None;
+        }
+        flagged.sort_unstable();
+        for &k in &flagged {
+            let r = res[k];
+            let o = obs_map[k];
+            let ob = self.problem.observations[o];
+            let w = residuals[k].map_or([f64::INFINITY; 2], |v| [v.x / ob.sigma, v.y / ob.sigma]);
+            let rejection = Rejection {
+                image: self.problem.images[ob.image].name.clone(),
+                point: self.problem.points[ob.point].name.clone(),
+                uv: [ob.uv.x, ob.uv.y],
+                w,
+                reason: format!(
+                    "start-up bundle: residual {r:.2} px above {threshold:.2} px (the larger of {} robust σ and {} px)",
+                    options.reject_sigmas, options.reject_min_px
+                ),
+            };
+            self.rejected[o] = Some((r, rejection));
+            self.by_image[ob.image].retain(|&x| x != o);
+            self.by_point[ob.point].retain(|&x| x != o);
         }
         // Points left with fewer than two rays are undetermined again.
         for j in 0..self.points.len() {
@@ -536,7 +531,7 @@ impl<'a> State<'a> {
             }
         }
         self.steps.push(Step::Rejected {
-            observations: count,
+            observations: flagged.len(),
             threshold_px: threshold,
         });
         Some(threshold)
@@ -1310,14 +1305,13 @@ mod tests {
         )));
     }
 
-    #[test]
-    fn without_control_builds_a_network_scaled_by_its_distances() {
-        let (truth, p, _) = network(2, 0.1);
+    /// `p` with no control point and two measured distances (scale bars) between points 0–1
+    /// and 2–3 of `truth`.
+    fn without_control(truth: &Problem, p: &Problem) -> Problem {
         let mut p2 = p.clone();
         for pt in &mut p2.points {
             pt.fixed = false;
         }
-        // Two measured distances (scale bars), no control.
         for (a, b) in [(0, 1), (2, 3)] {
             p2.distances.push(Distance {
                 a,
@@ -1326,6 +1320,13 @@ mod tests {
                 sigma: 0.05,
             });
         }
+        p2
+    }
+
+    #[test]
+    fn without_control_builds_a_network_scaled_by_its_distances() {
+        let (truth, p, _) = network(2, 0.1);
+        let p2 = without_control(&truth, &p);
         let init = initialise(&p2, &[], &[], &IncrementalOptions::default()).unwrap();
         assert!(
             matches!(init.steps[0], Step::RelativePair { .. }),
@@ -1366,18 +1367,7 @@ mod tests {
     fn a_strongly_distorted_network_starts_from_nominal_intrinsics() {
         for seed in 1..=10 {
             let (truth, p, _) = network_with(seed, 0.1, [-0.021, 0.0004], 14);
-            let mut p2 = p.clone();
-            for pt in &mut p2.points {
-                pt.fixed = false;
-            }
-            for (a, b) in [(0, 1), (2, 3)] {
-                p2.distances.push(Distance {
-                    a,
-                    b,
-                    value: (truth.points[a].position - truth.points[b].position).norm(),
-                    sigma: 0.05,
-                });
-            }
+            let p2 = without_control(&truth, &p);
             let init = initialise(&p2, &[], &[], &IncrementalOptions::default())
                 .unwrap_or_else(|e| panic!("seed {seed}: {e}"));
             assert!(

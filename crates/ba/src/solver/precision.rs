@@ -125,6 +125,7 @@ pub fn points_covariance(
         })
         .collect();
     let k = points.len();
+    let s02 = sigma0 * sigma0;
     let mut q = DMatrix::<f64>::zeros(3 * k, 3 * k);
     for (a, (ra, va)) in rows.iter().enumerate() {
         for (b, (rb, _)) in rows.iter().enumerate().skip(a) {
@@ -138,7 +139,6 @@ pub fn points_covariance(
             if a == b {
                 block += va.unwrap_or_else(Matrix3::zeros);
             }
-            let s02 = sigma0 * sigma0;
             for (u, v) in (0..3).flat_map(|u| (0..3).map(move |v| (u, v))) {
                 q[(3 * a + u, 3 * b + v)] = s02 * block[(u, v)];
                 q[(3 * b + v, 3 * a + u)] = s02 * block[(u, v)];

@@ -118,6 +118,21 @@ pub fn chi2_upper(k: f64) -> f64 {
     k * (1.0 - a + Z_1_MINUS_ALPHA * a.sqrt()).powi(3)
 }
 
+/// The bound of a σ0 with `dof` degrees of freedom at level [`ALPHA`]: `√(χ²₁₋α(dof) / dof)`.
+fn sigma0_bound(dof: f64) -> f64 {
+    (chi2_upper(dof) / dof).sqrt()
+}
+
+/// The bound of the check balls' `χ²/n` (n = 3k coordinates) at level [`ALPHA`], widened by
+/// the sphere centres' documented optimism: a check ball's LRF side is a sphere fit.
+fn check_points_bound(n: f64) -> f64 {
+    chi2_upper(n) / n * CENTRE_SIGMA_OPTIMISM * CENTRE_SIGMA_OPTIMISM
+}
+
+/// The prefix of the two-step method's test names: when the joint adjustment's result is
+/// the one given, their failures are notes (see the module doc).
+const TWO_STEP: &str = "two-step";
+
 /// Judges the calibration of `st`.
 pub fn judge(st: &Stages) -> Verdict {
     let (mut checks, mut reasons, mut notes) = (Vec::new(), Vec::new(), Vec::new());
@@ -126,7 +141,7 @@ pub fn judge(st: &Stages) -> Verdict {
     let joint_given = matches!(st.joint, Some(Ok(_)));
     statistical_tests(st, &mut |name, value, bound, why| {
         let passed = value <= bound;
-        let secondary = joint_given && name.starts_with("two-step");
+        let secondary = joint_given && name.starts_with(TWO_STEP);
         if !passed && secondary {
             notes.push(format!("{} (the two-step method; the joint adjustment's result is the one given, and it estimates the LRF's mount and range errors)", why(value, bound)));
         } else if !passed {
@@ -172,14 +187,9 @@ fn statistical_tests(st: &Stages, test: &mut Test) {
     let p = &st.adjusted.precision;
     if p.redundancy > 0 {
         let r = p.redundancy as f64;
-        test(
-            "bundle sigma0",
-            p.sigma0,
-            (chi2_upper(r) / r).sqrt(),
-            &|v, b| {
-                format!("the bundle adjustment's σ0 {v:.3} exceeds {b:.3}: the image points are worse than their σ's say (blur, wrong detections, or a camera model that does not fit)")
-            },
-        );
+        test("bundle sigma0", p.sigma0, sigma0_bound(r), &|v, b| {
+            format!("the bundle adjustment's σ0 {v:.3} exceeds {b:.3}: the image points are worse than their σ's say (blur, wrong detections, or a camera model that does not fit)")
+        });
     }
     if let Some(ev) = &st.ext.spheres {
         registration_tests(ev, st, test);
@@ -197,9 +207,9 @@ fn registration_tests(ev: &Evaluation, st: &Stages, test: &mut Test) {
     if reg.dof > 0 {
         let f = reg.dof as f64;
         test(
-            "two-step registration sigma0",
+            &format!("{TWO_STEP} registration sigma0"),
             reg.sigma0,
-            (chi2_upper(f) / f).sqrt() * CENTRE_SIGMA_OPTIMISM,
+            sigma0_bound(f) * CENTRE_SIGMA_OPTIMISM,
             &|v, b| {
                 format!("the registration's σ0 {v:.2} exceeds {b:.2}: the sphere centres do not fit a rigid transform of the balls within their σ's (an LRF mount or range error, or a wrong noise profile)")
             },
@@ -218,9 +228,9 @@ fn registration_tests(ev: &Evaluation, st: &Stages, test: &mut Test) {
     );
     if let Some((mean, n)) = chi2 {
         test(
-            &format!("two-step {what} points"),
+            &format!("{TWO_STEP} {what} points"),
             mean,
-            chi2_upper(n) / n * CENTRE_SIGMA_OPTIMISM * CENTRE_SIGMA_OPTIMISM,
+            check_points_bound(n),
             &|v, b| {
                 format!("the {what} balls' errors are {:.1}× their predicted σ (χ²/n = {v:.2} > {b:.2}): the extrinsic is worse than its σ's say", v.sqrt())
             },
@@ -234,14 +244,9 @@ fn registration_tests(ev: &Evaluation, st: &Stages, test: &mut Test) {
 fn joint_tests(j: &JointOutcome, test: &mut Test) {
     if j.redundancy > 0 {
         let r = j.redundancy as f64;
-        test(
-            "joint sigma0",
-            j.sigma0,
-            (chi2_upper(r) / r).sqrt(),
-            &|v, b| {
-                format!("the joint adjustment's σ0 {v:.3} exceeds {b:.3}: the image points or the LRF beams are worse than their σ's say (a mount error the model lacks, or a wrong noise profile)")
-            },
-        );
+        test("joint sigma0", j.sigma0, sigma0_bound(r), &|v, b| {
+            format!("the joint adjustment's σ0 {v:.3} exceeds {b:.3}: the image points or the LRF beams are worse than their σ's say (a mount error the model lacks, or a wrong noise profile)")
+        });
     }
     let t = &j.camera_from_lrf;
     let chi2 = mean_check_chi2(
@@ -251,10 +256,14 @@ fn joint_tests(j: &JointOutcome, test: &mut Test) {
         &j.extrinsic_cov,
     );
     if let Some((mean, n)) = chi2 {
-        let bound = chi2_upper(n) / n * CENTRE_SIGMA_OPTIMISM * CENTRE_SIGMA_OPTIMISM;
-        test("joint check points", mean, bound, &|v, b| {
-            format!("the joint adjustment's check balls are {:.1}× their predicted σ (χ²/n = {v:.2} > {b:.2}): its extrinsic is worse than its σ's say", v.sqrt())
-        });
+        test(
+            "joint check points",
+            mean,
+            check_points_bound(n),
+            &|v, b| {
+                format!("the joint adjustment's check balls are {:.1}× their predicted σ (χ²/n = {v:.2} > {b:.2}): its extrinsic is worse than its σ's say", v.sqrt())
+            },
+        );
     }
 }
 
@@ -323,7 +332,7 @@ fn sphere_fit_test(st: &Stages, test: &mut Test) {
         test(
             "sphere fits sigma0",
             (s / f).sqrt(),
-            (chi2_upper(f) / f).sqrt().max(SPHERE_PROFILE_TOLERANCE),
+            sigma0_bound(f).max(SPHERE_PROFILE_TOLERANCE),
             &|v, b| {
                 format!("the sphere fits' pooled σ0 {v:.2} exceeds {b:.2}: the LRF's noise profile is too optimistic for these ranges (set the sensor's accuracy in [lrf])")
             },
