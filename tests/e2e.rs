@@ -982,3 +982,147 @@ fn only_station(text: &str, keep: &str) -> String {
         .collect::<Vec<_>>()
         .join("\n\n")
 }
+
+/// A field of 10 coded targets, too few for any image pair to be relatively oriented (issue
+/// 19: "a network start that uses every start the field allows"): `auto` starts it from the
+/// stereo head's nominal pose, or, when the project names a layout of the coded targets, by
+/// resecting every image from it; both give the same calibration, a layout point the images
+/// place elsewhere is named, and a mono field without a layout is told what to add.
+#[test]
+fn a_field_too_sparse_for_a_relative_start_starts_from_its_layout_or_its_stereo_head() {
+    let w = Work::new("sparse_field_starts");
+    let cfg = w.dir.join("sparse.toml");
+    fs::write(&cfg, "[targets]\ncoded = 10\n[distances]\ncount = 3\n").unwrap();
+    let p = w.dir.join("sparse");
+    let run = w.run(&[
+        "simulate",
+        "--out",
+        s(&p),
+        "--seed",
+        "3",
+        "--config",
+        s(&cfg),
+    ]);
+    assert!(run.success(), "simulate failed: {}", run.stderr);
+    let toml = p.join("project.toml");
+    let calibrate = |name: &str, start: &str| -> Value {
+        let out = w.dir.join(name);
+        let run = w.run(&[
+            "calibrate",
+            s(&toml),
+            "--out",
+            s(&out),
+            "--quiet",
+            "--start",
+            start,
+        ]);
+        assert!(run.success(), "{name}: calibrate failed: {}", run.stderr);
+        read_json(&out.join("results.json"))
+    };
+    // the relative orientation alone cannot start it
+    let out = w.dir.join("relative");
+    let run = w.run(&[
+        "calibrate",
+        s(&toml),
+        "--out",
+        s(&out),
+        "--quiet",
+        "--start",
+        "relative",
+    ]);
+    assert!(
+        !run.success() && run.stderr.contains("relative orientation failed"),
+        "{}",
+        run.stderr
+    );
+    // auto: the stereo head's nominal pose, the failed relative start a warning
+    let stereo = calibrate("stereo", "auto");
+    assert_eq!(
+        stereo["bundle"]["network_start"],
+        "the stereo head's nominal pose"
+    );
+    let report = fs::read_to_string(w.dir.join("stereo/report.html")).unwrap();
+    assert!(
+        report.contains("relative orientation failed"),
+        "the report names the failed start"
+    );
+
+    // a layout from the truth's room coordinates, off by up to ±10 mm, one target 400 mm off
+    let truth = read_json(&p.join("truth.json"));
+    let coded: Vec<&Value> = truth["targets"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|t| t["kind"] == "coded")
+        .collect();
+    let moved = coded[4]["id"].as_u64().unwrap();
+    let mut layout = String::from("id,x_mm,y_mm,z_mm\n");
+    for (k, t) in coded.iter().enumerate() {
+        let id = t["id"].as_u64().unwrap();
+        let x: Vec<f64> = (0..3)
+            .map(|a| t["world_mm"][a].as_f64().unwrap() + ((7 * k + 3 * a) % 21) as f64 - 10.0)
+            .collect();
+        let dz = if id == moved { 400.0 } else { 0.0 };
+        layout.push_str(&format!("{id},{},{},{}\n", x[0], x[1], x[2] + dz));
+    }
+    fs::write(p.join("layout.csv"), layout).unwrap();
+    replace_once(
+        &toml,
+        "ring_outer = 3.0\n",
+        "ring_outer = 3.0\nlayout = \"layout.csv\"\n",
+    );
+    let from_layout = calibrate("layout", "auto");
+    assert_eq!(
+        from_layout["bundle"]["network_start"],
+        "resection from the layout"
+    );
+    let report = fs::read_to_string(w.dir.join("layout/report.html")).unwrap();
+    let named = format!("target {moved} is ");
+    let at = report
+        .find(&named)
+        .expect("the report names the layout point 400 mm off");
+    let mm: f64 = report[at + named.len()..]
+        .split(' ')
+        .next()
+        .and_then(|v| v.parse().ok())
+        .expect("a distance in mm");
+    // 400 mm, give or take the layout's own errors (±10 mm on each axis)
+    assert!((mm - 400.0).abs() < 30.0, "{named}{mm} mm");
+    assert_eq!(
+        report.matches("<li>layout.csv: target ").count(),
+        1,
+        "only the moved point is named among the report's warnings"
+    );
+    // The same adjustment from either start: the same minimum, to the solver's convergence
+    // (well under a hundredth of the extrinsic's σ, ~1 mm).
+    for key in ["translation_mm", "opk_deg"] {
+        for a in 0..3 {
+            let (x, y) = (
+                stereo["extrinsic"][key][a].as_f64().unwrap(),
+                from_layout["extrinsic"][key][a].as_f64().unwrap(),
+            );
+            assert!(
+                (x - y).abs() < 1e-3,
+                "extrinsic {key}[{a}]: {x} (stereo start) vs {y} (layout start)"
+            );
+        }
+    }
+
+    // mono: without the layout nothing starts, and the error says what to add; with it, it does
+    let text = fs::read_to_string(&toml).unwrap();
+    let (head, rest) = text.split_once("\n[stereo]\n").expect("a [stereo] table");
+    let rest = &rest[rest.find("\n[").expect("a table after [stereo]")..];
+    fs::write(
+        &toml,
+        format!("{head}{rest}").replace("layout = \"layout.csv\"\n", ""),
+    )
+    .unwrap();
+    w.calibrate_fails(&p, &["relative orientation failed", "[targets] layout"]);
+    replace_once(
+        &toml,
+        "ring_outer = 3.0\n",
+        "ring_outer = 3.0\nlayout = \"layout.csv\"\n",
+    );
+    let mono = calibrate("mono", "auto");
+    assert_eq!(mono["bundle"]["network_start"], "resection from the layout");
+}

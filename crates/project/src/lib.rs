@@ -18,11 +18,13 @@
 //! of this crate parse and validate that very text, so it cannot drift.
 
 mod closed_sets;
+mod layout;
 mod parse;
 mod schema;
 mod validate;
 
 pub use closed_sets::{CameraModel, Method, MountParameter, Parameter, TargetFamily};
+pub use layout::{Layout, LayoutError};
 pub use schema::{
     BallLabel, CameraParams, ProjectBalls, ProjectCamera, ProjectDistance, ProjectFile,
     ProjectImage, ProjectLrf, ProjectStereo, ProjectTargets, PARAMETER_NAMES,
@@ -59,6 +61,27 @@ pub enum ProjectError {
     },
 }
 
+/// The most bytes of a text file the project names (a layout of 10⁶ targets is 50 MB).
+const MAX_TEXT_BYTES: u64 = 64 << 20;
+
+/// The text of `path`, refused (not read) when larger than [`MAX_TEXT_BYTES`]; `what` names
+/// it in errors.
+fn read_small(path: &Path, what: &str) -> Result<String, ProjectError> {
+    let io = |e: String| ProjectError::Io {
+        path: path.display().to_string(),
+        what: format!("cannot read {what}: {e}"),
+    };
+    let len = std::fs::metadata(path)
+        .map_err(|e| io(e.to_string()))?
+        .len();
+    if len > MAX_TEXT_BYTES {
+        return Err(io(format!(
+            "{len} bytes, more than the {MAX_TEXT_BYTES} a text file of a project may have"
+        )));
+    }
+    std::fs::read_to_string(path).map_err(|e| io(e.to_string()))
+}
+
 /// A project file read, checked, with its paths resolved.
 #[derive(Debug, Clone)]
 pub struct Project {
@@ -72,6 +95,8 @@ pub struct Project {
     pub image_paths: Vec<PathBuf>,
     /// Scan paths, resolved.
     pub scan_paths: Vec<PathBuf>,
+    /// The coded targets' layout (`[targets] layout`), read.
+    pub layout: Option<Layout>,
 }
 
 impl Project {
@@ -112,12 +137,27 @@ impl Project {
             .enumerate()
             .map(|(k, s)| resolve(s, format!("[lrf] scans[{k}] \"{s}\"")))
             .collect::<Result<Vec<_>, _>>()?;
+        let layout = match &file.targets.layout {
+            None => None,
+            Some(rel) => {
+                let p = resolve(rel, format!("[targets] layout \"{rel}\""))?;
+                let text = read_small(&p, "the layout named by [targets] layout")?;
+                let layout = Layout::parse(&text, &p.display().to_string()).map_err(|e| {
+                    ProjectError::Invalid {
+                        path: name.clone(),
+                        what: format!("[targets] layout: {e}"),
+                    }
+                })?;
+                Some(layout)
+            }
+        };
         Ok(Project {
             path: path.to_path_buf(),
             dir,
             file,
             image_paths,
             scan_paths,
+            layout,
         })
     }
 

@@ -62,6 +62,19 @@ pub struct ProjectTargets {
     /// Outer radius of the printed code ring, in dot radii (AICON: 3).
     #[serde(default = "default_ring_outer")]
     pub ring_outer: f64,
+    /// A file of the coded targets' approximate coordinates (`id,x_mm,y_mm,z_mm`, relative to
+    /// project.toml; see [`crate::Layout`]): the network then starts by resecting every image
+    /// from them. Optional.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub layout: Option<String>,
+    /// σ of each layout coordinate (mm): how far the targets may be from the layout. Only
+    /// the start uses the layout, the adjustment does not.
+    #[serde(default = "default_layout_sigma")]
+    pub layout_sigma_mm: f64,
+}
+
+fn default_layout_sigma() -> f64 {
+    20.0
 }
 
 fn default_ring_inner() -> f64 {

@@ -301,3 +301,62 @@ proptest::proptest! {
         }
     }
 }
+
+/// `[targets] layout` is read with the project: its errors name the project, the key, the
+/// layout file and its line; a layout too large to be one is refused unread; `layout_sigma_mm`
+/// must be a positive length.
+#[test]
+fn the_layout_is_read_with_the_project_and_its_errors_named() {
+    let dir = std::env::temp_dir().join(format!("pingcal-project-layout-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let mut p = ProjectFile::parse(&readme_example(), "example.toml").unwrap();
+    p.images
+        .iter()
+        .for_each(|im| std::fs::write(dir.join(im.file.replace('/', "_")), b"").unwrap());
+    for im in &mut p.images {
+        im.file = im.file.replace('/', "_");
+    }
+    p.lrf
+        .scans
+        .iter()
+        .for_each(|s| std::fs::write(dir.join(s.replace('/', "_")), b"").unwrap());
+    for s in &mut p.lrf.scans {
+        *s = s.replace('/', "_");
+    }
+    p.targets.layout = Some("layout.csv".into());
+    let toml = dir.join("project.toml");
+    std::fs::write(&toml, p.to_toml_string()).unwrap();
+    let load = |layout: &str| {
+        std::fs::write(dir.join("layout.csv"), layout).unwrap();
+        Project::load(&toml)
+    };
+    let ok = load("id,x_mm,y_mm,z_mm\n17,1,2,3\n").unwrap();
+    assert_eq!(ok.layout.unwrap().points[&17], [1.0, 2.0, 3.0]);
+    let e = load("17,1,2,3\n18,1,2\n").unwrap_err().to_string();
+    assert!(
+        e.starts_with(&format!("{}: [targets] layout: ", toml.display()))
+            && e.ends_with("layout.csv:2: 3 fields: expected 4 (id,x_mm,y_mm,z_mm)"),
+        "{e}"
+    );
+    let big = std::fs::File::create(dir.join("layout.csv")).unwrap();
+    big.set_len(MAX_TEXT_BYTES + 1).unwrap();
+    drop(big);
+    let e = Project::load(&toml).unwrap_err().to_string();
+    assert!(
+        e.contains("more than the") && e.contains("layout.csv"),
+        "{e}"
+    );
+    std::fs::remove_file(dir.join("layout.csv")).unwrap();
+    let e = Project::load(&toml).unwrap_err().to_string();
+    assert!(
+        e.contains("[targets] layout \"layout.csv\"") && e.contains("not found"),
+        "{e}"
+    );
+    let e = err_of(|p| p.targets.layout_sigma_mm = 0.0);
+    assert!(
+        e.contains("layout_sigma_mm = 0: expected a positive length"),
+        "{e}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

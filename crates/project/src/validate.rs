@@ -56,7 +56,7 @@ impl ProjectFile {
     }
 }
 
-/// `[targets]`: a positive dot radius, 1 < ring_inner < ring_outer.
+/// `[targets]`: a positive dot radius, 1 < ring_inner < ring_outer, a positive layout σ.
 fn validate_targets(t: &ProjectTargets) -> Result<(), String> {
     if !(t.dot_radius_mm > 0.0 && t.dot_radius_mm.is_finite()) {
         return Err(format!(
@@ -68,6 +68,12 @@ fn validate_targets(t: &ProjectTargets) -> Result<(), String> {
         return Err(format!(
             "[targets] ring_inner = {}, ring_outer = {}: expected 1 < ring_inner < ring_outer",
             t.ring_inner, t.ring_outer
+        ));
+    }
+    if !(t.layout_sigma_mm > 0.0 && t.layout_sigma_mm.is_finite()) {
+        return Err(format!(
+            "[targets] layout_sigma_mm = {}: expected a positive length",
+            t.layout_sigma_mm
         ));
     }
     Ok(())

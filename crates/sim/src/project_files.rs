@@ -358,6 +358,8 @@ pub fn project_of(sim: &Simulation) -> ProjectFile {
             dot_radius_mm: cfg.targets.dot_radius_mm,
             ring_inner: cfg.targets.ring_inner,
             ring_outer: cfg.targets.ring_outer,
+            layout: None,
+            layout_sigma_mm: 20.0,
         },
         balls: ProjectBalls {
             diameter_mm: cfg.balls.diameter_mm,

@@ -12,6 +12,7 @@
 use super::preflight::{check_out_dir, check_threads};
 use super::progress::reporter;
 use super::CmdResult;
+use crate::pipeline::network::Start;
 use crate::pipeline::{self, Outcome, Reporter};
 use indicatif::MultiProgress;
 use pingcal_project::Project;
@@ -40,6 +41,11 @@ pub struct Args {
     /// Worker threads of each bundle adjustment (0: all cores).
     #[arg(long, default_value_t = 0)]
     pub threads: usize,
+    /// How the initial network starts: `auto` tries the layout's resection (when
+    /// `[targets] layout` is given), the relative orientation, then the stereo head's nominal
+    /// pose, until one works.
+    #[arg(long, value_enum, default_value_t = Start::Auto)]
+    pub start: Start,
 }
 
 /// Where the outputs of a project run alone go: `out`, or `results/` beside its file (see
@@ -263,6 +269,7 @@ pub fn run(args: Args) -> CmdResult {
     let opts = pipeline::Options {
         seed: args.seed,
         threads: args.threads,
+        start: args.start,
         ..pipeline::Options::default()
     };
     let results: Vec<(PathBuf, Result<String, String>)> = args

@@ -276,6 +276,10 @@ pub fn final_adjustment(
             unused_distances.push(w);
         }
     }
+    for w in super::network::layout_warnings(project, scene) {
+        rep.log(format!("warning: {w}"));
+        scene.warnings.push(w);
+    }
     let rig = sp.problem.rigs.first().map(|r| r.member_from_base);
     rep.log(format!(
         "bundle adjustment: {} images, {} points ({} balls), {} image points, {} distances; sigma0 {:.3}, RMS {:.3} px, {} rejected",

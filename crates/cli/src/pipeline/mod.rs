@@ -65,6 +65,8 @@ pub struct Options {
     pub threads: usize,
     /// Baarda's critical value for data snooping of image points (3.29: α = 0.1 %).
     pub snoop_critical: f64,
+    /// How the initial network starts.
+    pub start: network::Start,
 }
 
 impl Default for Options {
@@ -73,6 +75,7 @@ impl Default for Options {
             seed: 1,
             threads: 0,
             snoop_critical: 3.29,
+            start: network::Start::Auto,
         }
     }
 }

@@ -8,17 +8,20 @@
 //! photogrammetric frame of SPEC.md: the main image's camera frame (origin at its
 //! projection centre, X right, Y forward, Z up).
 
-use super::adjust::{Datum, SceneProblem};
+use super::adjust::{rig_cameras, Datum, SceneProblem};
 use super::ids::{DetectionId, IdVec, ImageId};
 use super::scene::{image_file, main_image, Detections, PointKind, Scene, ScenePoint};
 use super::{Options, PipelineError, Reporter, Result};
-use nalgebra::Vector3;
+use nalgebra::{Matrix3, Vector3};
 use pingcal_ba::initial::incremental::{initialise, IncrementalOptions, Initialised};
+use pingcal_ba::problem::{PointPrior, Problem};
 use pingcal_ba::solver;
+use pingcal_geometry::rigid::Sim3;
+use pingcal_geometry::umeyama::umeyama;
 use pingcal_geometry::Rigid3;
 use pingcal_project::Project;
 use pingcal_targets::TargetKind;
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 
 /// The initial network, in the photogrammetric frame, scaled by the distances.
 pub fn initial_network(
@@ -60,17 +63,17 @@ pub fn initial_network(
         ..IncrementalOptions::default()
     };
     let pb = rep.task("orienting images", 1);
-    let init = initialise(&sp.problem, &[], &[], &options).map_err(|e| {
-        PipelineError::new(format!(
-            "{}: initial orientation: {e}",
-            project.path.display()
-        ))
-    })?;
+    let (start_used, init, scene, failed) = first_start(project, &sp, start, opts.start, &options)?;
     pb.finish();
     for s in &init.steps {
         rep.log(format!("  {s}"));
     }
-    let scene = into_main_frame(project, start, &sp, &init)?;
+    let mut scene = scene;
+    scene.start = start_used.describe().into();
+    scene.warnings = failed;
+    for w in &scene.warnings {
+        rep.log(format!("warning: {w}"));
+    }
     for (i, why) in &scene.unoriented {
         rep.log(format!(
             "  image {} not oriented: {why}",
@@ -78,7 +81,8 @@ pub fn initial_network(
         ));
     }
     rep.log(format!(
-        "initial network: {} of {} images oriented, {} coded targets, RMS {:.3} px",
+        "initial network from {}: {} of {} images oriented, {} coded targets, RMS {:.3} px",
+        scene.start,
         scene.oriented().len(),
         scene.poses.len(),
         scene.points.len(),
@@ -86,6 +90,287 @@ pub fn initial_network(
     ));
     Ok(scene)
 }
+
+/// How the initial network may start (`pingcal calibrate --start`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum Start {
+    /// Every start the project allows, in the order below, until one works.
+    #[default]
+    Auto,
+    /// Every image resected from the coded targets' approximate coordinates
+    /// (`[targets] layout`), the layout held only as loosely as `layout_sigma_mm` says.
+    Layout,
+    /// The relative orientation of the best-conditioned image pair, its rays corrected for
+    /// a radial distortion when the nominal intrinsics leave too few consistent points.
+    Relative,
+    /// One station's stereo pair at the head's nominal pose: the cameras parallel, the
+    /// right one `[stereo] baseline_mm` to the right of the left one.
+    Stereo,
+}
+
+impl Start {
+    /// For the log, the warnings and results.json.
+    pub fn describe(self) -> &'static str {
+        match self {
+            Start::Auto => "the first start that works",
+            Start::Layout => "resection from the layout",
+            Start::Relative => "relative orientation",
+            Start::Stereo => "the stereo head's nominal pose",
+        }
+    }
+}
+
+/// The starts to try for `asked`, in order: in `auto`, the layout's when the project names
+/// one, the relative orientation, then the stereo head's when there is one.
+fn starts_to_try(project: &Project, asked: Start) -> Result<Vec<Start>> {
+    let layout = project.layout.is_some();
+    let stereo = project.file.stereo.is_some();
+    let refuse = |what: &str| {
+        Err(PipelineError::new(format!(
+            "{}: --start {what}",
+            project.path.display()
+        )))
+    };
+    match asked {
+        Start::Auto => Ok([Start::Layout, Start::Relative, Start::Stereo]
+            .into_iter()
+            .filter(|s| match s {
+                Start::Layout => layout,
+                Start::Stereo => stereo,
+                _ => true,
+            })
+            .collect()),
+        Start::Layout if !layout => refuse("layout: the project names no [targets] layout"),
+        Start::Stereo if !stereo => refuse("stereo: the project has no [stereo] head"),
+        s => Ok(vec![s]),
+    }
+}
+
+/// The first start of [`starts_to_try`] that orients the main image: which one, the
+/// initialiser's solution and the scene in the main image's frame, and one warning for each
+/// start that failed before it. When none works, the error gives each one's reason and what
+/// the project could add.
+fn first_start(
+    project: &Project,
+    sp: &SceneProblem,
+    start: Scene,
+    asked: Start,
+    options: &IncrementalOptions,
+) -> Result<(Start, Initialised, Scene, Vec<String>)> {
+    let mut failed = Vec::new();
+    for s in starts_to_try(project, asked)? {
+        let tried = try_start(s, project, sp, options).and_then(|init| {
+            into_main_frame(project, start.clone(), sp, &init)
+                .map(|scene| (init, scene))
+                .map_err(|e| e.0)
+        });
+        match tried {
+            Ok((init, scene)) => {
+                let warnings = failed
+                    .iter()
+                    .map(|f| format!("the network started from {}: {f}", s.describe()))
+                    .collect();
+                return Ok((s, init, scene, warnings));
+            }
+            Err(e) => failed.push(format!("{} failed ({e})", s.describe())),
+        }
+    }
+    let mut missing = Vec::new();
+    if project.layout.is_none() {
+        missing.push("name the coded targets' approximate coordinates in [targets] layout");
+    }
+    if project.file.stereo.is_none() {
+        missing.push("describe the stereo head in [stereo] (its nominal baseline starts it)");
+    }
+    Err(PipelineError::new(format!(
+        "{}: initial orientation: {}{}",
+        project.path.display(),
+        failed.join("; "),
+        if missing.is_empty() || asked != Start::Auto {
+            String::new()
+        } else {
+            format!("; to start otherwise, {}", missing.join(", or "))
+        }
+    )))
+}
+
+/// One start of the initialiser on the coded targets' problem `sp`.
+fn try_start(
+    s: Start,
+    project: &Project,
+    sp: &SceneProblem,
+    options: &IncrementalOptions,
+) -> std::result::Result<Initialised, String> {
+    let run = |problem: &Problem, points: &[bool], poses: &[bool]| {
+        initialise(problem, points, poses, options).map_err(|e| e.to_string())
+    };
+    match s {
+        Start::Auto | Start::Relative => run(&sp.problem, &[], &[]),
+        Start::Layout => {
+            let (problem, known) = with_layout(project, sp)?;
+            run(&problem, &known, &[])
+        }
+        Start::Stereo => {
+            let (problem, known) = with_stereo_pair(project, sp)?;
+            run(&problem, &[], &known)
+        }
+    }
+}
+
+/// The fewest points a start may orient from: layout targets read in two images, or coded
+/// targets common to a stereo pair (an image needs four to be resected).
+const MIN_START_POINTS: usize = 4;
+
+/// `sp`'s problem with the layout's targets at their layout coordinates, each held by a
+/// prior of `layout_sigma_mm`; and which points are known.
+fn with_layout(
+    project: &Project,
+    sp: &SceneProblem,
+) -> std::result::Result<(Problem, Vec<bool>), String> {
+    let layout = project.layout.as_ref().ok_or("no [targets] layout")?;
+    let sigma = project.file.targets.layout_sigma_mm;
+    let mut problem = sp.problem.clone();
+    let mut known = vec![false; problem.points.len()];
+    for (k, pt) in problem.points.iter_mut().enumerate() {
+        let Some(xyz) = pt.name.parse().ok().and_then(|id| layout.points.get(&id)) else {
+            continue;
+        };
+        pt.position = Vector3::from(*xyz);
+        known[k] = true;
+        problem.point_priors.push(PointPrior {
+            point: k,
+            position: pt.position,
+            sigma: Vector3::repeat(sigma),
+        });
+    }
+    let n = known.iter().filter(|k| **k).count();
+    if n < MIN_START_POINTS {
+        return Err(format!(
+            "{n} of the {} coded targets read in two or more images are in the layout, {MIN_START_POINTS} or more are needed",
+            known.len()
+        ));
+    }
+    Ok((problem, known))
+}
+
+/// `sp`'s problem with the base and member images of the station whose stereo pair shares
+/// the most coded targets at the head's nominal pose (base at the origin, member offset by
+/// the baseline along X, no rotation between them); and which poses are known.
+fn with_stereo_pair(
+    project: &Project,
+    sp: &SceneProblem,
+) -> std::result::Result<(Problem, Vec<bool>), String> {
+    let f = &project.file;
+    let stereo = f.stereo.as_ref().ok_or("no [stereo] head")?;
+    let (base_cam, member_cam) = rig_cameras(project).ok_or("no [stereo] head")?;
+    let slot = |station: &str, cam: &str| {
+        f.images
+            .iter()
+            .position(|im| im.station == station && im.camera == cam)
+            .and_then(|i| sp.map.image(ImageId(i)))
+    };
+    let common = |a: usize, b: usize| {
+        let seen = |i: usize| -> BTreeSet<usize> {
+            sp.problem
+                .observations
+                .iter()
+                .filter(|o| o.image == i)
+                .map(|o| o.point)
+                .collect()
+        };
+        seen(a).intersection(&seen(b)).count()
+    };
+    let stations: BTreeSet<&str> = f.images.iter().map(|im| im.station.as_str()).collect();
+    let best = stations
+        .iter()
+        .filter_map(|st| Some((slot(st, base_cam)?, slot(st, member_cam)?)))
+        .map(|(a, b)| (common(a, b), a, b))
+        .max_by_key(|(n, a, _)| (*n, std::cmp::Reverse(*a)));
+    let Some((_, base, member)) = best.filter(|(n, _, _)| *n >= MIN_START_POINTS) else {
+        return Err("no station's stereo pair shares 4 or more coded targets".into());
+    };
+    // The right camera's centre in the left camera's frame is (baseline, 0, 0).
+    let sign = if base_cam == stereo.left { 1.0 } else { -1.0 };
+    let member_from_base = Rigid3::from_rotation_and_centre(
+        Matrix3::identity(),
+        Vector3::new(sign * stereo.baseline_mm, 0.0, 0.0),
+    );
+    let mut problem = sp.problem.clone();
+    problem.images[base].camera_from_object = Rigid3::identity();
+    problem.images[member].camera_from_object = member_from_base;
+    let mut known = vec![false; problem.images.len()];
+    known[base] = true;
+    known[member] = true;
+    Ok((problem, known))
+}
+
+/// The layout's targets that the adjusted `scene` places more than [`LAYOUT_GATE`] σ from
+/// their layout coordinates once the similarity transform from the layout into the scene is
+/// fitted to the others (the worst one left out and the transform fitted again, while it
+/// exceeds the gate): one warning each (a wrong id or coordinate in the layout), and one for
+/// a scale that differs from the distances' by more than [`LAYOUT_SCALE_TOLERANCE`].
+pub fn layout_warnings(project: &Project, scene: &Scene) -> Vec<String> {
+    let (Some(layout), Some(file)) = (&project.layout, &project.file.targets.layout) else {
+        return Vec::new();
+    };
+    let sigma = project.file.targets.layout_sigma_mm;
+    let mut pairs: Vec<(u32, Vector3<f64>, Vector3<f64>)> = scene
+        .points
+        .iter()
+        .filter_map(|p| match p.kind {
+            PointKind::Coded(id) => layout
+                .points
+                .get(&id)
+                .map(|xyz| (id, Vector3::from(*xyz), p.position)),
+            _ => None,
+        })
+        .collect();
+    let fit = |pairs: &[(u32, Vector3<f64>, Vector3<f64>)]| {
+        let (src, dst): (Vec<_>, Vec<_>) = pairs.iter().map(|(_, a, b)| (*a, *b)).unzip();
+        umeyama(&src, &dst, None, true).ok()
+    };
+    // the distance (mm, layout scale) of a pair from where a fit puts it
+    let off = |t: &Sim3, (_, a, b): &(u32, Vector3<f64>, Vector3<f64>)| {
+        (t.transform(a) - b).norm() / t.scale
+    };
+    let mut out = Vec::new();
+    while let Some(all) = fit(&pairs) {
+        let worst =
+            (0..pairs.len()).max_by(|&a, &b| off(&all, &pairs[a]).total_cmp(&off(&all, &pairs[b])));
+        // the worst point against the transform of the others
+        let suspect = worst
+            .filter(|_| pairs.len() > MIN_START_POINTS)
+            .and_then(|k| {
+                let mut others = pairs.clone();
+                let p = others.remove(k);
+                let d = off(&fit(&others)?, &p);
+                (d > LAYOUT_GATE * sigma).then_some((k, d))
+            });
+        let Some((k, d)) = suspect else {
+            if (all.scale - 1.0).abs() > LAYOUT_SCALE_TOLERANCE {
+                out.push(format!(
+                    "{file}: the layout's scale is {:.4} times the distances': is it in mm?",
+                    1.0 / all.scale
+                ));
+            }
+            break;
+        };
+        out.push(format!(
+            "{file}: target {} is {d:.0} mm from where the images put it (layout_sigma_mm = {sigma}): a wrong id or coordinate?",
+            pairs[k].0
+        ));
+        pairs.remove(k);
+    }
+    out
+}
+
+/// How far the layout's scale may be from the distances' before it is doubted (a tape
+/// measure over a room is good to a few parts in a thousand).
+const LAYOUT_SCALE_TOLERANCE: f64 = 0.02;
+
+/// The distance, in layout σ, beyond which a layout point is doubted: the 99.9 % quantile
+/// of a χ distribution with 3 degrees of freedom (√16.27).
+const LAYOUT_GATE: f64 = 4.03;
 
 /// Every coded number read in two or more images, with its detections.
 fn coded_tracks(dets: &Detections) -> BTreeMap<u32, Vec<DetectionId>> {

@@ -354,7 +354,8 @@ fn rejections(st: &Stages) -> Vec<rp::Rejection> {
     rejected
 }
 
-/// Images not oriented, distances left out, and methods that failed.
+/// Images not oriented, the network start's doubts, distances left out, and methods that
+/// failed.
 fn warnings(st: &Stages, results: &Results) -> Vec<String> {
     let mut warnings: Vec<String> = st
         .scene
@@ -362,6 +363,7 @@ fn warnings(st: &Stages, results: &Results) -> Vec<String> {
         .iter()
         .map(|(i, w)| format!("image {} not oriented: {w}", image_file(st.project, *i)))
         .collect();
+    warnings.extend(st.scene.warnings.iter().cloned());
     warnings.extend(st.adjusted.unused_distances.iter().cloned());
     for m in &results.methods {
         if let Some(e) = &m.error {

@@ -80,6 +80,8 @@ pub struct BundleJson {
     pub images: usize,
     /// Images of the project left out (file, why).
     pub unoriented_images: Vec<(String, String)>,
+    /// How the initial network started (`pingcal calibrate --start`).
+    pub network_start: String,
     /// Object points.
     pub points: usize,
     /// Image observations.
@@ -477,6 +479,7 @@ pub fn assemble(st: &Stages, verdict: Verdict, time_s: Vec<(String, f64)>) -> Re
                 .iter()
                 .map(|(i, w)| (image_file(project, *i).to_string(), w.clone()))
                 .collect(),
+            network_start: scene.start.clone(),
             points: adj.solved.problem.points.len(),
             observations: adj.solved.problem.observations.len(),
             distances: adj.solved.problem.distances.len(),

@@ -134,6 +134,11 @@ pub struct Scene {
     pub points: IdVec<PointId, ScenePoint>,
     /// Why images are not oriented.
     pub unoriented: Vec<(ImageId, String)>,
+    /// How the network started, for the log and results.json (e.g. "relative orientation").
+    pub start: String,
+    /// Doubts the steps raised that the report must show (a start that failed before the
+    /// one that worked, a layout point the images place elsewhere).
+    pub warnings: Vec<String>,
 }
 
 impl Scene {
@@ -167,6 +172,8 @@ impl Scene {
             poses: f.images.iter().map(|_| None).collect(),
             points: IdVec::new(),
             unoriented: Vec::new(),
+            start: String::new(),
+            warnings: Vec::new(),
         }
     }
 
