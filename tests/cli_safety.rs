@@ -331,3 +331,38 @@ fn cloud_ply_reads_back_as_exactly_the_scan_points() {
         "{head}"
     );
 }
+
+/// Issue 18: `pingcal targets` writes a real PDF (it wrote SVG bytes into a `.pdf`), one SVG
+/// per page when there are several; the old `--dot-mm` (a diameter, while the project's
+/// `dot_radius_mm` is a radius) and other extensions are refused, named.
+#[test]
+fn targets_are_written_as_pdf_or_svg_pages_by_the_extension() {
+    let w = Work::new("targets_pdf_svg");
+    let pdf = w.dir.join("t.pdf");
+    let run = w.run(&[
+        "targets",
+        "--ids",
+        "2-51",
+        "--plain",
+        "20",
+        "--out",
+        s(&pdf),
+    ]);
+    assert!(run.success(), "{}", run.stderr);
+    assert!(fs::read(&pdf).unwrap().starts_with(b"%PDF-"), "not a PDF");
+    assert!(run.stdout.contains("on 3 A4 pages"), "{}", run.stdout);
+    let svg = w.dir.join("t.svg");
+    let run = w.run(&["targets", "--ids", "2-51", "--out", s(&svg)]);
+    assert!(run.success(), "{}", run.stderr);
+    for k in 1..=2 {
+        let page = fs::read_to_string(w.dir.join(format!("t-{k}.svg"))).unwrap();
+        assert!(page.starts_with("<?xml") && page.contains("page 2 of 2") == (k == 2));
+    }
+    let run = w.run(&["targets", "--dot-mm", "8", "--out", s(&w.dir.join("d.pdf"))]);
+    fails(&run, &["--dot-mm 8", "--dot-radius-mm 4"]);
+    let run = w.run(&["targets", "--out", s(&w.dir.join("t.png"))]);
+    fails(&run, &["t.png", "expected a .pdf or .svg"]);
+    let big = w.dir.join("big.pdf");
+    let run = w.run(&["targets", "--dot-radius-mm", "30", "--out", s(&big)]);
+    fails(&run, &["does not fit on an A4 page"]);
+}

@@ -19,7 +19,8 @@
 //!   eccentricity correction of a ball's silhouette, once the camera's intrinsics are known.
 //! - [`driveback::assign`]: plain targets and balls identified by projecting the model.
 //! - [`homography::ransac_homography`]: seeded RANSAC homography (ID checks on flat panels).
-//! - [`printable::targets_svg`]: printable coded targets at true size.
+//! - [`sheet::layout`], [`sheet::to_pdf`], [`sheet::to_svg`]: printable pages of coded and
+//!   plain targets at true size, with a scale bar.
 //! - [`overlay::draw_detections`]: debug overlay PNG.
 //!
 //! ## Modules, in pipeline order
@@ -51,6 +52,7 @@ pub mod overlay;
 pub mod png_rows;
 pub mod printable;
 pub mod raster;
+pub mod sheet;
 pub mod threshold;
 pub mod tiff_strips;
 
