@@ -22,7 +22,9 @@
 
 use super::adjust::{Datum, SceneProblem};
 use super::ids::{DetIdx, DetectionId, IdVec, ImageId, PointId};
-use super::scene::{main_image, DetectionSet, Detections, PointKind, Scene, ScenePoint};
+use super::scene::{
+    image_file, main_image, DetectionSet, Detections, PointKind, Scene, ScenePoint,
+};
 use super::{Options, PipelineError, Reporter, Result};
 use nalgebra::{Vector2, Vector3};
 use pingcal_ba::camera::CameraModel;
@@ -661,8 +663,17 @@ fn no_ball_diagnosis(project: &Project, dets: &Detections, scene: &Scene) -> Str
     let f = &project.file;
     let oriented = scene.oriented();
     if oriented.len() < MIN_RAYS {
+        // with more images than are oriented, the cure is orienting them, not new stations
+        let cure = match scene.unoriented.first() {
+            Some((i, why)) => format!(
+                "the others were not oriented ({}: {why}{}): more coded targets in common, or [targets] layout",
+                image_file(project, *i),
+                if scene.unoriented.len() > 1 { ", …" } else { "" }
+            ),
+            None => "add stations".into(),
+        };
         return format!(
-            ": only {} of {} images are oriented and a ball needs {MIN_RAYS} rays: add stations",
+            ": only {} of {} images are oriented and a ball needs {MIN_RAYS} rays: {cure}",
             oriented.len(),
             f.images.len()
         );

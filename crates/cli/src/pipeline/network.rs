@@ -146,9 +146,9 @@ fn starts_to_try(project: &Project, asked: Start) -> Result<Vec<Start>> {
     }
 }
 
-/// The first start of [`starts_to_try`] that orients the main image: which one, the
-/// initialiser's solution and the scene in the main image's frame, and one warning for each
-/// start that failed before it. When none works, the error gives each one's reason and what
+/// The first start of [`starts_to_try`] that orients every image (else the one that orients
+/// the most): which one, the initialiser's solution and the scene in the main image's frame,
+/// and one warning for each start that failed. When none works, the error gives each one's reason and what
 /// the project could add.
 fn first_start(
     project: &Project,
@@ -158,6 +158,7 @@ fn first_start(
     options: &IncrementalOptions,
 ) -> Result<(Start, Initialised, Scene, Vec<String>)> {
     let mut failed = Vec::new();
+    let mut best: Option<(Start, Initialised, Scene)> = None;
     for s in starts_to_try(project, asked)? {
         let tried = try_start(s, project, sp, options).and_then(|init| {
             into_main_frame(project, start.clone(), sp, &init)
@@ -165,15 +166,27 @@ fn first_start(
                 .map_err(|e| e.0)
         });
         match tried {
+            // a start that leaves images out is kept only until one orients more
             Ok((init, scene)) => {
-                let warnings = failed
-                    .iter()
-                    .map(|f| format!("the network started from {}: {f}", s.describe()))
-                    .collect();
-                return Ok((s, init, scene, warnings));
+                if best
+                    .as_ref()
+                    .is_none_or(|b| scene.oriented().len() > b.2.oriented().len())
+                {
+                    best = Some((s, init, scene));
+                }
+                if best.as_ref().is_some_and(|b| b.2.unoriented.is_empty()) {
+                    break;
+                }
             }
             Err(e) => failed.push(format!("{} failed ({e})", s.describe())),
         }
+    }
+    if let Some((s, init, scene)) = best {
+        let warnings = failed
+            .iter()
+            .map(|f| format!("the network started from {}: {f}", s.describe()))
+            .collect();
+        return Ok((s, init, scene, warnings));
     }
     let mut missing = Vec::new();
     if project.layout.is_none() {
@@ -211,11 +224,39 @@ fn try_start(
             run(&problem, &known, &[])
         }
         Start::Stereo => {
-            let (problem, known) = with_stereo_pair(project, sp)?;
-            run(&problem, &[], &known)
+            // the stations whose pairs share the most targets, until one orients every image
+            let mut best: Option<Initialised> = None;
+            let mut first_error = None;
+            for (base, member) in stereo_pairs(project, sp)?
+                .into_iter()
+                .take(STEREO_PAIRS_TRIED)
+            {
+                let (problem, known) = with_stereo_pair(project, sp, base, member)?;
+                match run(&problem, &[], &known) {
+                    Ok(init) => {
+                        let n = |i: &Initialised| i.image_map.iter().flatten().count();
+                        if best.as_ref().is_none_or(|b| n(&init) > n(b)) {
+                            best = Some(init);
+                        }
+                        if best
+                            .as_ref()
+                            .is_some_and(|b| b.unoriented_images.is_empty())
+                        {
+                            break;
+                        }
+                    }
+                    Err(e) => {
+                        first_error.get_or_insert(e);
+                    }
+                }
+            }
+            best.ok_or_else(|| first_error.unwrap_or_default())
         }
     }
 }
+
+/// The most stations whose stereo pair [`Start::Stereo`] tries.
+const STEREO_PAIRS_TRIED: usize = 3;
 
 /// The fewest points a start may orient from: layout targets read in two images, or coded
 /// targets common to a stereo pair (an image needs four to be resected).
@@ -253,15 +294,13 @@ fn with_layout(
     Ok((problem, known))
 }
 
-/// `sp`'s problem with the base and member images of the station whose stereo pair shares
-/// the most coded targets at the head's nominal pose (base at the origin, member offset by
-/// the baseline along X, no rotation between them); and which poses are known.
-fn with_stereo_pair(
+/// The stations' stereo pairs (base and member problem images) that share four or more
+/// coded targets, those sharing the most first.
+fn stereo_pairs(
     project: &Project,
     sp: &SceneProblem,
-) -> std::result::Result<(Problem, Vec<bool>), String> {
+) -> std::result::Result<Vec<(usize, usize)>, String> {
     let f = &project.file;
-    let stereo = f.stereo.as_ref().ok_or("no [stereo] head")?;
     let (base_cam, member_cam) = rig_cameras(project).ok_or("no [stereo] head")?;
     let slot = |station: &str, cam: &str| {
         f.images
@@ -269,26 +308,39 @@ fn with_stereo_pair(
             .position(|im| im.station == station && im.camera == cam)
             .and_then(|i| sp.map.image(ImageId(i)))
     };
-    let common = |a: usize, b: usize| {
-        let seen = |i: usize| -> BTreeSet<usize> {
-            sp.problem
-                .observations
-                .iter()
-                .filter(|o| o.image == i)
-                .map(|o| o.point)
-                .collect()
-        };
-        seen(a).intersection(&seen(b)).count()
+    let seen = |i: usize| -> BTreeSet<usize> {
+        sp.problem
+            .observations
+            .iter()
+            .filter(|o| o.image == i)
+            .map(|o| o.point)
+            .collect()
     };
     let stations: BTreeSet<&str> = f.images.iter().map(|im| im.station.as_str()).collect();
-    let best = stations
+    let mut pairs: Vec<(usize, usize, usize)> = stations
         .iter()
         .filter_map(|st| Some((slot(st, base_cam)?, slot(st, member_cam)?)))
-        .map(|(a, b)| (common(a, b), a, b))
-        .max_by_key(|(n, a, _)| (*n, std::cmp::Reverse(*a)));
-    let Some((_, base, member)) = best.filter(|(n, _, _)| *n >= MIN_START_POINTS) else {
+        .map(|(a, b)| (seen(a).intersection(&seen(b)).count(), a, b))
+        .filter(|(n, _, _)| *n >= MIN_START_POINTS)
+        .collect();
+    if pairs.is_empty() {
         return Err("no station's stereo pair shares 4 or more coded targets".into());
-    };
+    }
+    pairs.sort_by_key(|(n, a, _)| (std::cmp::Reverse(*n), *a));
+    Ok(pairs.into_iter().map(|(_, a, b)| (a, b)).collect())
+}
+
+/// `sp`'s problem with the stereo pair's `base` and `member` images at the head's nominal
+/// pose (base at the origin, member offset by the baseline along X, no rotation between
+/// them); and which poses are known.
+fn with_stereo_pair(
+    project: &Project,
+    sp: &SceneProblem,
+    base: usize,
+    member: usize,
+) -> std::result::Result<(Problem, Vec<bool>), String> {
+    let stereo = project.file.stereo.as_ref().ok_or("no [stereo] head")?;
+    let (base_cam, _) = rig_cameras(project).ok_or("no [stereo] head")?;
     // The right camera's centre in the left camera's frame is (baseline, 0, 0).
     let sign = if base_cam == stereo.left { 1.0 } else { -1.0 };
     let member_from_base = Rigid3::from_rotation_and_centre(
