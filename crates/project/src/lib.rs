@@ -25,7 +25,7 @@ mod validate;
 pub use closed_sets::{CameraModel, Method, MountParameter, Parameter, TargetFamily};
 pub use schema::{
     BallLabel, CameraParams, ProjectBalls, ProjectCamera, ProjectDistance, ProjectFile,
-    ProjectImage, ProjectLrf, ProjectStereo, ProjectTargets, PARAMETER_NAMES,
+    ProjectFrames, ProjectImage, ProjectLrf, ProjectStereo, ProjectTargets, PARAMETER_NAMES,
 };
 
 use std::path::{Path, PathBuf};
