@@ -11,8 +11,15 @@
 //! `fx = c (1 + B1) / pixel`, `fy = c / pixel`, `cx = (W − 1)/2 + xp / pixel`,
 //! `cy = (H − 1)/2 − yp / pixel`; B1 enters fx to first order and B2 (shear) has no OpenCV
 //! counterpart: `opencv_dropped_b2` says how large it was.
+//!
+//! Every transform is also written as a 4×4 matrix and a unit quaternion, and again in
+//! OpenCV's camera frame (`p_cv = C · p`, C = [`cv_from_photogrammetric`]); the
+//! `conventions` block ([`conventions`]) says in words which frame is which and which way
+//! every transform maps, for the programs and people that read the file.
 
+use super::adjust::rig_cameras;
 use super::bundle::Adjusted;
+pub use super::conventions::{conventions, ConventionsJson};
 use super::extrinsic::Extrinsics;
 use super::ids::CameraId;
 use super::joint::JointOutcome;
@@ -20,9 +27,9 @@ use super::lrf::LrfData;
 use super::scene::{image_file, PointKind, Scene};
 use super::verdict::Verdict;
 use super::Stages;
-use nalgebra::Matrix3;
+use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
 use pingcal_geometry::to_opk;
-use pingcal_geometry::Sim3;
+use pingcal_geometry::{Rigid3, Sim3};
 use pingcal_lrf::registration::CheckRow;
 use pingcal_project::{CameraParams, Project};
 use serde::Serialize;
@@ -40,6 +47,27 @@ pub struct ExtrinsicJson {
     pub sigma_rotation_deg: Option<[f64; 3]>,
     /// ω, φ, κ (degrees), R = R_ω R_φ R_κ.
     pub opk_deg: [f64; 3],
+    /// `[[R, t], [0, 0, 0, 1]]` (row-major, t in mm).
+    pub matrix_4x4: [[f64; 4]; 4],
+    /// R as a unit quaternion (x, y, z, w), w ≥ 0.
+    pub quaternion_xyzw: [f64; 4],
+    /// The same transform into OpenCV's camera frame: `p_cv = R_cv · p_lrf + t_cv`.
+    pub opencv: TransformJson,
+}
+
+/// A rigid transform `p_to = R · p_from + t` in the forms other programs read.
+#[derive(Clone, Debug, Serialize)]
+pub struct TransformJson {
+    /// R (row-major).
+    pub rotation: [[f64; 3]; 3],
+    /// t (mm).
+    pub translation_mm: [f64; 3],
+    /// σ of t (mm), where known.
+    pub sigma_translation_mm: Option<[f64; 3]>,
+    /// `[[R, t], [0, 0, 0, 1]]` (row-major, t in mm).
+    pub matrix_4x4: [[f64; 4]; 4],
+    /// R as a unit quaternion (x, y, z, w), w ≥ 0.
+    pub quaternion_xyzw: [f64; 4],
 }
 
 /// One method's results.
@@ -105,6 +133,16 @@ pub struct RigJson {
     pub translation_mm: [f64; 3],
     /// Baseline length (mm).
     pub baseline_mm: f64,
+    /// The left camera's id.
+    pub left: String,
+    /// The right camera's id.
+    pub right: String,
+    /// `[[R, t], [0, 0, 0, 1]]` (row-major, t in mm).
+    pub matrix_4x4: [[f64; 4]; 4],
+    /// R as a unit quaternion (x, y, z, w), w ≥ 0.
+    pub quaternion_xyzw: [f64; 4],
+    /// The same rig in OpenCV's camera frames (`stereoCalibrate`'s R and T).
+    pub opencv: TransformJson,
 }
 
 /// A camera's intrinsics.
@@ -138,6 +176,10 @@ pub struct OpenCvJson {
     pub dist: [f64; 5],
     /// B2, which OpenCV cannot hold.
     pub opencv_dropped_b2: f64,
+    /// Image width (px).
+    pub image_width: u32,
+    /// Image height (px).
+    pub image_height: u32,
 }
 
 /// A ball in both frames.
@@ -172,6 +214,8 @@ pub struct Results {
     pub verdict: Verdict,
     /// The project's name.
     pub project: String,
+    /// Frames, axes, units, the direction of every transform and the angle orders.
+    pub conventions: ConventionsJson,
     /// The extrinsic of the primary method: the joint adjustment's when it ran and
     /// succeeded, else the sphere method's, else the corner baseline's.
     pub extrinsic: ExtrinsicJson,
@@ -207,15 +251,99 @@ fn mat(r: &Matrix3<f64>) -> [[f64; 3]; 3] {
     ]
 }
 
-fn extrinsic_json(t: &Sim3, sigma_t: Option<[f64; 3]>, sigma_r: Option<[f64; 3]>) -> ExtrinsicJson {
+/// C, from the photogrammetric camera frame (X right, Y forward, Z up) to OpenCV's (x
+/// right, y down, z forward): `p_cv = C · p = (X, −Z, Y)` (SPEC.md).
+pub fn cv_from_photogrammetric() -> Matrix3<f64> {
+    Matrix3::new(1.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 1.0, 0.0)
+}
+
+/// `[[R, t], [0, 0, 0, 1]]`, row-major.
+pub fn matrix_4x4(r: &Matrix3<f64>, t: &Vector3<f64>) -> [[f64; 4]; 4] {
+    let mut m = [[0.0; 4]; 4];
+    for (i, row) in m.iter_mut().take(3).enumerate() {
+        *row = [r[(i, 0)], r[(i, 1)], r[(i, 2)], t[i]];
+    }
+    m[3][3] = 1.0;
+    m
+}
+
+/// The unit quaternion (x, y, z, w) of the rotation `r` (Hamilton, active: it rotates a
+/// vector as `r` does), with w ≥ 0.
+pub fn quaternion_xyzw(r: &Matrix3<f64>) -> [f64; 4] {
+    let q = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(*r));
+    let s = if q.w < 0.0 { -1.0 } else { 1.0 };
+    [s * q.i, s * q.j, s * q.k, s * q.w]
+}
+
+/// `p_to = r · p_from + t` in [`TransformJson`]'s forms.
+pub fn transform_json(
+    r: &Matrix3<f64>,
+    t: &Vector3<f64>,
+    sigma_t: Option<[f64; 3]>,
+) -> TransformJson {
+    TransformJson {
+        rotation: mat(r),
+        translation_mm: [t.x, t.y, t.z],
+        sigma_translation_mm: sigma_t,
+        matrix_4x4: matrix_4x4(r, t),
+        quaternion_xyzw: quaternion_xyzw(r),
+    }
+}
+
+/// The extrinsic `p_camera = R · p_lrf + t` as `results.json` writes it; in OpenCV's frame
+/// `R_cv = C R`, `t_cv = C t`, and σ of t_cv is σ of t permuted (C only permutes axes and
+/// flips a sign).
+pub fn extrinsic_json(
+    t: &Sim3,
+    sigma_t: Option<[f64; 3]>,
+    sigma_r: Option<[f64; 3]>,
+) -> ExtrinsicJson {
     let (o, p, k) = to_opk(&t.rotation);
+    let c = cv_from_photogrammetric();
     ExtrinsicJson {
         rotation: mat(&t.rotation),
         translation_mm: [t.translation.x, t.translation.y, t.translation.z],
         sigma_translation_mm: sigma_t,
         sigma_rotation_deg: sigma_r,
         opk_deg: [o.to_degrees(), p.to_degrees(), k.to_degrees()],
+        matrix_4x4: matrix_4x4(&t.rotation, &t.translation),
+        quaternion_xyzw: quaternion_xyzw(&t.rotation),
+        opencv: transform_json(
+            &(c * t.rotation),
+            &(c * t.translation),
+            sigma_t.map(|s| [s[0], s[2], s[1]]),
+        ),
     }
+}
+
+/// The rig `p_right = R · p_left + t` (`left`, `right`: the cameras' ids); in OpenCV's
+/// frames `R_cv = C R Cᵀ`, `t_cv = C t`.
+pub fn rig_json(right_from_left: &Rigid3, left: &str, right: &str) -> RigJson {
+    let (r, t) = (&right_from_left.rotation, &right_from_left.translation);
+    let c = cv_from_photogrammetric();
+    RigJson {
+        rotation: mat(r),
+        translation_mm: [t.x, t.y, t.z],
+        baseline_mm: right_from_left.centre().norm(),
+        left: left.into(),
+        right: right.into(),
+        matrix_4x4: matrix_4x4(r, t),
+        quaternion_xyzw: quaternion_xyzw(r),
+        opencv: transform_json(&(c * r * c.transpose()), &(c * t), None),
+    }
+}
+
+/// The rig of the bundle adjustment (base → member camera frame, the base being the main
+/// camera's side) as left → right.
+fn rig_of(project: &Project, member_from_base: &Rigid3) -> Option<RigJson> {
+    let st = project.file.stereo.as_ref()?;
+    let (base, _) = rig_cameras(project)?;
+    let right_from_left = if base == st.left {
+        *member_from_base
+    } else {
+        member_from_base.inverse()
+    };
+    Some(rig_json(&right_from_left, &st.left, &st.right))
 }
 
 /// A method that failed.
@@ -373,6 +501,8 @@ pub fn opencv_of(p: &[f64], width: u32, height: u32, pixel_mm: f64) -> OpenCvJso
             p[5] * cc.powi(6),
         ],
         opencv_dropped_b2: p[9],
+        image_width: width,
+        image_height: height,
     }
 }
 
@@ -451,15 +581,12 @@ pub fn assemble(st: &Stages, verdict: Verdict, time_s: Vec<(String, f64)>) -> Re
         }
     }
     balls.sort_by_key(|b| natural(&b.id));
-    let rig = adj.rig.map(|r| RigJson {
-        rotation: mat(&r.rotation),
-        translation_mm: [r.translation.x, r.translation.y, r.translation.z],
-        baseline_mm: r.centre().norm(),
-    });
+    let rig = adj.rig.as_ref().and_then(|r| rig_of(project, r));
     Results {
         generator: format!("pingcal {}", env!("CARGO_PKG_VERSION")),
         verdict,
         project: f.name.clone(),
+        conventions: conventions(project),
         extrinsic: primary.extrinsic.clone().expect("found above"),
         check_points: primary.check_points.clone(),
         mean_check_error_mm: primary.mean_check_error_mm.unwrap_or(f64::NAN),
