@@ -302,7 +302,7 @@ pub fn kalibr_camchain(cams: &[&CameraJson], rig: Option<&RigJson>) -> String {
 }
 
 /// The cameras in Kalibr's order: left and right of the rig, else the main camera alone.
-fn chain<'a>(r: &'a Results) -> Vec<&'a CameraJson> {
+fn chain(r: &Results) -> Vec<&CameraJson> {
     let find = |id: &str| r.cameras.iter().find(|c| c.id == id);
     match &r.bundle.rig {
         Some(rig) => [&rig.left, &rig.right]
@@ -334,4 +334,184 @@ pub fn exports(r: &Results) -> Vec<OutputFile> {
         kalibr_camchain(&cams, r.bundle.rig.as_ref()),
     ));
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::results::{cv_from_photogrammetric, extrinsic_json, opencv_of, rig_json};
+    use super::*;
+    use nalgebra::{Quaternion, Rotation3, UnitQuaternion};
+    use pingcal_geometry::{from_opk_deg, Rigid3, Sim3};
+    use pingcal_project::CameraParams;
+
+    /// A rotation far from the identity (the LRF looks sideways), and t in mm.
+    fn extrinsic() -> (Matrix3<f64>, Vector3<f64>, ExtrinsicJson) {
+        let r = from_opk_deg([93.0, -31.0, 147.0]);
+        let t = Vector3::new(71.4, 12.8, -88.9);
+        let e = extrinsic_json(&Sim3::new(1.0, r, t), Some([0.5, 0.7, 0.9]), None);
+        (r, t, e)
+    }
+
+    /// A point of the LRF frame mapped by `r`, `t` (from a file) into the optical frame in
+    /// m, and the extrinsic's own image of it (p_cv = C (R p + t) / 1000).
+    fn both(rot: &Matrix3<f64>, t_m: &Vector3<f64>, r: &Matrix3<f64>, t: &Vector3<f64>) -> f64 {
+        let mut worst: f64 = 0.0;
+        for p in [
+            Vector3::new(1000.0, 0.0, 0.0),
+            Vector3::new(-300.0, 800.0, 3000.0),
+        ] {
+            let want = cv_from_photogrammetric() * (r * p + t) / 1000.0;
+            worst = worst.max((rot * (p / 1000.0) + t_m - want).norm());
+        }
+        worst
+    }
+
+    fn floats(words: &[&str]) -> Vec<f64> {
+        words.iter().map(|w| w.parse().unwrap()).collect()
+    }
+
+    fn file<'a>(files: &'a [OutputFile], name: &str) -> &'a str {
+        &files.iter().find(|(p, _)| p.ends_with(name)).unwrap().1
+    }
+
+    #[test]
+    fn numbers_read_back_exactly_and_look_like_floats() {
+        assert_eq!(num(1.0), "1.0");
+        assert_eq!(num(-0.5), "-0.5");
+        assert_eq!(num(-0.0), "-0.0");
+        for x in [
+            1e-7,
+            -1.234567,
+            0.1 + 0.2,
+            123456.789e3,
+            5.555113410016133e-9,
+        ] {
+            let s = num(x);
+            assert_eq!(s.parse::<f64>().unwrap(), x);
+            assert!(s.contains('.') && !s.contains('e'), "{s}");
+        }
+    }
+
+    /// rpy is URDF's: R = R_z(yaw) R_y(pitch) R_x(roll), also at pitch = ±90°.
+    #[test]
+    fn rpy_composes_back_in_urdf_order() {
+        for opk in [
+            [93.0, -31.0, 147.0],
+            [10.0, 90.0, -20.0],
+            [-170.0, 5.0, 179.0],
+        ] {
+            let r = from_opk_deg(opk);
+            let [roll, pitch, yaw] = rpy(&r);
+            let back = Rotation3::from_axis_angle(&Vector3::z_axis(), yaw)
+                * Rotation3::from_axis_angle(&Vector3::y_axis(), pitch)
+                * Rotation3::from_axis_angle(&Vector3::x_axis(), roll);
+            assert!((back.matrix() - r).norm() < 1e-12, "{opk:?}");
+        }
+    }
+
+    /// The ROS 1 and ROS 2 commands and the URDF map LRF points (m) as the extrinsic maps
+    /// them into the optical frame; R transposed (the inverse direction) is far off.
+    #[test]
+    fn ros_files_carry_the_extrinsic_into_the_optical_frame() {
+        let (r, t, e) = extrinsic();
+        let files = ros_files(&e, "cam", "laser");
+        let ros1 = file(&files, "ros1_static_transform_publisher.sh");
+        let line = ros1.lines().last().unwrap();
+        let words: Vec<&str> = line.split_whitespace().collect();
+        assert_eq!(
+            &words[..4],
+            ["exec", "rosrun", "tf2_ros", "static_transform_publisher"]
+        );
+        assert_eq!(&words[11..], ["cam", "laser"]);
+        let v = floats(&words[4..11]);
+        let q = UnitQuaternion::from_quaternion(Quaternion::new(v[6], v[3], v[4], v[5]));
+        let tm = Vector3::new(v[0], v[1], v[2]);
+        let rq = q.to_rotation_matrix().into_inner();
+        assert!(both(&rq, &tm, &r, &t) < 1e-12, "{}", both(&rq, &tm, &r, &t));
+        assert!(both(&rq.transpose(), &tm, &r, &t) > 0.01);
+        let ros2 = file(&files, "ros2_static_transform_publisher.sh");
+        let flags: Vec<&str> = ros2.lines().last().unwrap().split_whitespace().collect();
+        let at = |k: &str| flags[flags.iter().position(|w| *w == k).unwrap() + 1];
+        let v2 = floats(&["--x", "--y", "--z", "--qx", "--qy", "--qz", "--qw"].map(at));
+        assert_eq!(v2, v);
+        assert_eq!((at("--frame-id"), at("--child-frame-id")), ("cam", "laser"));
+        let urdf = file(&files, "laser_joint.urdf");
+        let attr = |k: &str| {
+            let s = &urdf[urdf.find(&format!("{k}=\"")).unwrap() + k.len() + 2..];
+            floats(&s[..s.find('"').unwrap()].split(' ').collect::<Vec<_>>())
+        };
+        let (xyz, a) = (attr("xyz"), attr("rpy"));
+        let ru = Rotation3::from_euler_angles(a[0], a[1], a[2]).into_inner();
+        assert!(both(&ru, &Vector3::new(xyz[0], xyz[1], xyz[2]), &r, &t) < 1e-12);
+        assert!(
+            urdf.contains("<parent link=\"cam\"/>") && urdf.contains("<child link=\"laser\"/>")
+        );
+    }
+
+    fn camera_json(id: &str, c_mm: f64) -> CameraJson {
+        let p = [
+            c_mm, 0.012, -0.009, -0.021, 0.0004, -2e-6, 0.00015, -0.0001, 0.0, 0.0,
+        ];
+        CameraJson {
+            id: id.into(),
+            params: CameraParams::from_slice(&p),
+            sigma: Default::default(),
+            high_correlations: Vec::new(),
+            opencv: opencv_of(&p, 1280, 720, 0.00375),
+        }
+    }
+
+    /// The `data` of matrix `name` in a FileStorage YAML.
+    fn cv_data(yaml: &str, name: &str) -> Vec<f64> {
+        let s = &yaml[yaml.find(&format!("\n{name}: !!opencv-matrix")).unwrap()..];
+        let s = &s[s.find("data: [").unwrap() + 7..];
+        floats(
+            &s[..s.find(']').unwrap()]
+                .split(',')
+                .map(str::trim)
+                .collect::<Vec<_>>(),
+        )
+    }
+
+    /// K is laid out as OpenCV's [fx 0 cx; 0 fy cy; 0 0 1], distortion k1 k2 p1 p2 k3.
+    #[test]
+    fn opencv_camera_yaml_has_opencvs_layout() {
+        let c = camera_json("left", 2.45);
+        let y = opencv_camera_yaml(&c);
+        assert!(y.starts_with("%YAML:1.0\n---\n"));
+        let o = &c.opencv;
+        assert_eq!(
+            cv_data(&y, "camera_matrix"),
+            [o.fx, 0.0, o.cx, 0.0, o.fy, o.cy, 0.0, 0.0, 1.0]
+        );
+        assert_eq!(cv_data(&y, "distortion_coefficients"), o.dist);
+        assert!(y.contains("image_width: 1280\nimage_height: 720\n"));
+    }
+
+    /// cam1's T_cn_cnm1 maps a point of cam0's optical frame (m) into cam1's as the rig
+    /// does; the stereo YAML's R, T are the rig's in OpenCV frames.
+    #[test]
+    fn camchain_and_stereo_carry_the_rig_left_to_right() {
+        let r = from_opk_deg([0.3, -0.25, 0.1]);
+        let t = Vector3::new(-120.0, -0.12, 0.83);
+        let rig = rig_json(&Rigid3::new(r, t), "left", "right");
+        let (a, b) = (camera_json("left", 2.45), camera_json("right", 2.452));
+        let chain = kalibr_camchain(&[&a, &b], Some(&rig));
+        let rows: Vec<Vec<f64>> = chain
+            .lines()
+            .filter(|l| l.starts_with("  - ["))
+            .map(|l| floats(&l[5..l.len() - 1].split(", ").collect::<Vec<_>>()))
+            .collect();
+        let m = nalgebra::Matrix4::from_fn(|i, j| rows[i][j]);
+        let c = cv_from_photogrammetric();
+        let p_left = Vector3::new(150.0, 2000.0, -80.0);
+        let want = c * (r * p_left + t) / 1000.0;
+        let got = m * (c * p_left / 1000.0).push(1.0);
+        assert!((got.xyz() - want).norm() < 1e-15, "{got:?} vs {want:?}");
+        let y = opencv_stereo_yaml(&a, &b, &rig).unwrap();
+        let rc = Matrix3::from_row_slice(&cv_data(&y, "R"));
+        let tc = Vector3::from_row_slice(&cv_data(&y, "T"));
+        assert!((rc * c * p_left + tc - c * (r * p_left + t)).norm() < 1e-12);
+        assert!(chain.contains("cam0:\n") && chain.contains("distortion_model: radtan"));
+    }
 }

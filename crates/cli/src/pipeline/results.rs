@@ -668,6 +668,73 @@ mod tests {
         [o.fx * xd + o.cx, o.fy * yd + o.cy]
     }
 
+    /// The README's example project (two cameras, `[stereo]` left and right).
+    fn example_project(main_camera: &str) -> Project {
+        let readme = include_str!("../../../../README.md");
+        let at = readme.find("## The project file").unwrap();
+        let start = readme[at..].find("```toml\n").unwrap() + at + 8;
+        let len = readme[start..].find("```").unwrap();
+        let mut file =
+            pingcal_project::ProjectFile::parse(&readme[start..start + len], "x.toml").unwrap();
+        file.main_camera = main_camera.into();
+        Project {
+            path: "x.toml".into(),
+            dir: ".".into(),
+            file,
+            image_paths: Vec::new(),
+            scan_paths: Vec::new(),
+        }
+    }
+
+    /// `bundle.rig` is left → right whichever camera is the main one (the adjustment's rig
+    /// goes from the main camera's side to the other), in both frames.
+    #[test]
+    fn the_rig_is_left_to_right_whichever_camera_is_main() {
+        let r = pingcal_geometry::from_opk_deg([0.3, -0.25, 0.1]);
+        let right_from_left = Rigid3::new(r, Vector3::new(-120.0, -0.12, 0.83));
+        let p_left = Vector3::new(150.0, 2000.0, -80.0);
+        let p_right = right_from_left.transform(&p_left);
+        for (main, member_from_base) in [
+            ("left", right_from_left),
+            ("right", right_from_left.inverse()),
+        ] {
+            let rig = rig_of(&example_project(main), &member_from_base).unwrap();
+            assert_eq!((rig.left.as_str(), rig.right.as_str()), ("left", "right"));
+            let (rot, t) = (
+                Matrix3::from(rig.rotation).transpose(),
+                Vector3::from(rig.translation_mm),
+            );
+            assert!((rot * p_left + t - p_right).norm() < 1e-9, "main {main}");
+            let c = cv_from_photogrammetric();
+            let o = &rig.opencv;
+            let (rc, tc) = (
+                Matrix3::from(o.rotation).transpose(),
+                Vector3::from(o.translation_mm),
+            );
+            assert!(
+                (rc * c * p_left + tc - c * p_right).norm() < 1e-9,
+                "main {main}"
+            );
+            assert!((rig.baseline_mm - 120.0).abs() < 0.01);
+        }
+    }
+
+    /// A rotation of almost 180° gives the quaternion that rotates as R does, w ≥ 0, and
+    /// the 4×4 holds R and t.
+    #[test]
+    fn quaternion_and_matrix_are_of_the_same_transform() {
+        let r = pingcal_geometry::from_opk_deg([179.0, 2.0, -178.5]);
+        let t = Vector3::new(1.0, -2.0, 3.0);
+        let [x, y, z, w] = quaternion_xyzw(&r);
+        assert!(w >= 0.0 && (x * x + y * y + z * z + w * w - 1.0).abs() < 1e-15);
+        let q = UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(w, x, y, z));
+        let v = Vector3::new(0.3, -0.4, 0.87);
+        assert!((q * v - r * v).norm() < 1e-15);
+        let m = matrix_4x4(&r, &t);
+        let p = nalgebra::Matrix4::from_fn(|i, j| m[i][j]) * v.push(1.0);
+        assert!((p.xyz() - (r * v + t)).norm() < 1e-15 && p.w == 1.0);
+    }
+
     /// Without B1 and B2 the conversion is exact: both models put every point on the same
     /// pixel (p_cv = (X, −Z, Y) from the photogrammetric camera frame, SPEC.md).
     #[test]
