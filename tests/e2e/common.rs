@@ -226,8 +226,21 @@ pub fn run(args: &[&str], dir: &Path) -> Run {
     }
 }
 
-/// The outputs of a calibration.
-pub const OUTPUTS: [&str; 3] = ["results.json", "report.html", "cloud.ply"];
+/// The outputs of a calibration of the simulated (stereo) project, `results.json` first.
+pub const OUTPUTS: [&str; 12] = [
+    "results.json",
+    "report.html",
+    "cloud.ply",
+    "ros/ros1_static_transform_publisher.sh",
+    "ros/ros2_static_transform_publisher.sh",
+    "ros/static_transform_ros1.launch",
+    "ros/static_transform_ros2.launch.py",
+    "ros/laser_joint.urdf",
+    "opencv/camera_left.yaml",
+    "opencv/camera_right.yaml",
+    "opencv/stereo.yaml",
+    "kalibr/camchain.yaml",
+];
 
 /// Checks a run that must fail cleanly: non-zero exit, exactly one stderr line starting
 /// `pingcal: error: ` that contains every one of `needles`, no panic, and none of the

@@ -10,7 +10,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 /// The modules of `pipeline/`, lowest first (`mod.rs`, the root that runs them, is apart).
-const ORDER: [&str; 14] = [
+const ORDER: [&str; 17] = [
     "ids",
     "progress",
     "scene",
@@ -23,8 +23,11 @@ const ORDER: [&str; 14] = [
     "extrinsic",
     "joint",
     "verdict",
+    "conventions",
     "results",
     "report",
+    "rectify",
+    "exports",
 ];
 
 /// The text of `src` without its `//` comments (doc comments included).

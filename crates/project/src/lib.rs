@@ -27,7 +27,7 @@ pub use closed_sets::{CameraModel, Method, MountParameter, Parameter, TargetFami
 pub use layout::{Layout, LayoutError};
 pub use schema::{
     BallLabel, CameraParams, ProjectBalls, ProjectCamera, ProjectDistance, ProjectFile,
-    ProjectImage, ProjectLrf, ProjectStereo, ProjectTargets, PARAMETER_NAMES,
+    ProjectFrames, ProjectImage, ProjectLrf, ProjectStereo, ProjectTargets, PARAMETER_NAMES,
 };
 
 use std::path::{Path, PathBuf};

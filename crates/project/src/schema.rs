@@ -45,6 +45,46 @@ pub struct ProjectFile {
     pub distances: Vec<ProjectDistance>,
     /// The LRF.
     pub lrf: ProjectLrf,
+    /// Names of the frames in the ROS outputs (optional).
+    #[serde(default, skip_serializing_if = "ProjectFrames::is_default")]
+    pub frames: ProjectFrames,
+}
+
+/// `[frames]`: the tf frame ids (and URDF link names) that `calibrate` writes into `ros/`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ProjectFrames {
+    /// The main camera's optical frame (x right, y down, z forward), the tf parent
+    /// (`camera_optical`).
+    #[serde(default = "default_camera_frame")]
+    pub camera: String,
+    /// The LRF frame of `cloud.ply`, the tf child (`laser`).
+    #[serde(default = "default_lrf_frame")]
+    pub lrf: String,
+}
+
+impl Default for ProjectFrames {
+    fn default() -> Self {
+        ProjectFrames {
+            camera: default_camera_frame(),
+            lrf: default_lrf_frame(),
+        }
+    }
+}
+
+impl ProjectFrames {
+    /// Whether both names are the defaults (the table is then not written).
+    pub fn is_default(&self) -> bool {
+        *self == ProjectFrames::default()
+    }
+}
+
+fn default_camera_frame() -> String {
+    "camera_optical".into()
+}
+
+fn default_lrf_frame() -> String {
+    "laser".into()
 }
 
 /// `[targets]`.

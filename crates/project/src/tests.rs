@@ -65,6 +65,28 @@ fn invalid_values_are_named() {
     );
 }
 
+/// Issue 16: `[frames]` defaults to `camera_optical` and `laser`; a name that cannot go
+/// unquoted into a shell command, XML or Python, or two equal names, are refused.
+#[test]
+fn frame_names_default_and_are_checked() {
+    let p = ProjectFile::parse(&readme_example(), "example.toml").unwrap();
+    assert_eq!(p.frames, ProjectFrames::default());
+    assert_eq!(
+        (p.frames.camera.as_str(), p.frames.lrf.as_str()),
+        ("camera_optical", "laser")
+    );
+    let e = err_of(|p| p.frames.lrf = "my laser".into());
+    assert!(e.contains("[frames] lrf = \"my laser\""), "{e}");
+    let e = err_of(|p| p.frames.camera = "/cam".into());
+    assert!(e.contains("[frames] camera = \"/cam\""), "{e}");
+    let e = err_of(|p| p.frames.camera = "laser".into());
+    assert!(e.contains("distinct"), "{e}");
+    let mut q = p.clone();
+    q.frames.lrf = "hokuyo_link".into();
+    q.validate("q.toml").unwrap();
+    assert_eq!(ProjectFile::parse(&q.to_toml_string(), "again").unwrap(), q);
+}
+
 /// Issue 14: values that were accepted although absurd (and then not used).
 #[test]
 fn absurd_sensor_values_are_named() {

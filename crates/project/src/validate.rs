@@ -8,8 +8,8 @@
 //! earlier, while reading (see `closed_sets.rs`).
 
 use crate::schema::{
-    ProjectBalls, ProjectCamera, ProjectDistance, ProjectFile, ProjectImage, ProjectLrf,
-    ProjectStereo, ProjectTargets,
+    ProjectBalls, ProjectCamera, ProjectDistance, ProjectFile, ProjectFrames, ProjectImage,
+    ProjectLrf, ProjectStereo, ProjectTargets,
 };
 use crate::ProjectError;
 use std::collections::{BTreeMap, BTreeSet};
@@ -52,8 +52,32 @@ impl ProjectFile {
         let stations = validate_images(&self.images, &cameras)?;
         validate_main_station(&self.main_station, &self.main_camera, &stations)?;
         validate_distances(&self.distances)?;
-        validate_lrf(&self.lrf, &self.main_station)
+        validate_lrf(&self.lrf, &self.main_station)?;
+        validate_frames(&self.frames)
     }
+}
+
+/// `[frames]`: two distinct tf frame ids of letters, digits and `_ - . /`, not starting
+/// with `/` (tf2 refuses a leading slash), so that they go into shell commands, XML and
+/// Python unquoted.
+fn validate_frames(f: &ProjectFrames) -> Result<(), String> {
+    for (key, name) in [("camera", &f.camera), ("lrf", &f.lrf)] {
+        let ok = name
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.' | '/'));
+        if name.is_empty() || name.starts_with('/') || !ok {
+            return Err(format!(
+                "[frames] {key} = \"{name}\": expected a tf frame id (letters, digits, _ - . /, not starting with /)"
+            ));
+        }
+    }
+    if f.camera == f.lrf {
+        return Err(format!(
+            "[frames] camera and lrf are both \"{}\": the two frames need distinct names",
+            f.camera
+        ));
+    }
+    Ok(())
 }
 
 /// `[targets]`: a positive dot radius, 1 < ring_inner < ring_outer, a positive layout σ.

@@ -23,8 +23,8 @@ use std::path::Path;
 
 pub use pingcal_project::{
     BallLabel, CameraModel, CameraParams, Method, Parameter, ProjectBalls, ProjectCamera,
-    ProjectDistance, ProjectFile, ProjectImage, ProjectLrf, ProjectStereo, ProjectTargets,
-    TargetFamily,
+    ProjectDistance, ProjectFile, ProjectFrames, ProjectImage, ProjectLrf, ProjectStereo,
+    ProjectTargets, TargetFamily,
 };
 
 /// A rigid transform as written in JSON: `y = rotation · x + translation_mm`.
@@ -426,6 +426,7 @@ pub fn project_of(sim: &Simulation) -> ProjectFile {
             servo_resolution_deg: cfg.lrf.servo_resolution_deg,
             self_calibrate: None,
         },
+        frames: ProjectFrames::default(),
     }
 }
 

@@ -1,12 +1,13 @@
 //! `pingcal calibrate PROJECT.toml... [--out DIR] [--quiet] [--json] [--seed N]`: the whole
 //! pipeline ([`crate::pipeline`]) on one or many projects.
 //!
-//! Writes `results.json`, `report.html` and `cloud.ply` into DIR (default: `results/` beside
+//! Writes `results.json`, `report.html`, `cloud.ply` and the folders `ros/`, `opencv/` and
+//! `kalibr/` ([`crate::pipeline::exports`]) into DIR (default: `results/` beside
 //! the project file; with several projects and `--out`, one sub-folder per project, named
 //! after the project's folder, made distinct by [`out_dirs`] when two would collide).
 //! Several projects run in parallel. Before any work the output folders are created and
 //! probed ([`super::preflight`]). Nothing is written for a project that fails, and the
-//! outputs of an earlier run in DIR stay as they were until a run succeeds; then the three
+//! outputs of an earlier run in DIR stay as they were until a run succeeds; then all the
 //! files are swapped in together, `results.json` last.
 
 use super::preflight::{check_out_dir, check_threads};
@@ -179,34 +180,59 @@ fn below_common_parent(folder: &Path, all: &[&PathBuf]) -> String {
     }
 }
 
-/// The files a calibration writes into its output folder.
+/// The files a calibration writes into its output folder (besides those of `ros/`,
+/// `opencv/` and `kalibr/`, [`crate::pipeline::exports`]).
 pub const OUTPUTS: [&str; 3] = ["results.json", "report.html", "cloud.ply"];
 
-/// Writes the three outputs of a calibration into `dir`, all or none: each is written to a
-/// temporary file beside its final name, and only when all three are written are they
-/// renamed into place (`results.json` last, its presence means the run finished). A run
-/// that fails before or while writing leaves the outputs of an earlier run as they were.
+/// `path`'s temporary name while it is written: `.NAME.partial` beside it.
+fn partial(path: &Path) -> PathBuf {
+    let name = path.file_name().unwrap_or_default().to_string_lossy();
+    path.with_file_name(format!(".{name}.partial"))
+}
+
+/// Writes `bytes` to `partial(path)` (its folder created), executable when it is a script.
+fn write_partial(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    if let Some(parent) = path.parent() {
+        std::fs::create_dir_all(parent)?;
+    }
+    std::fs::write(partial(path), bytes)?;
+    #[cfg(unix)]
+    if path.extension().is_some_and(|x| x == "sh") {
+        use std::os::unix::fs::PermissionsExt;
+        std::fs::set_permissions(partial(path), std::fs::Permissions::from_mode(0o755))?;
+    }
+    Ok(())
+}
+
+/// Writes the outputs of a calibration into `dir`, all or none: `ros/`, `opencv/` and
+/// `kalibr/` ([`crate::pipeline::exports`]), `cloud.ply`, `report.html` and `results.json`.
+/// Each is written to a temporary file beside its final name, and only when all are written
+/// are they renamed into place (`results.json` last, its presence means the run finished).
+/// A run that fails before or while writing leaves the outputs of an earlier run as they
+/// were.
 pub fn write_outputs(dir: &Path, outcome: &Outcome) -> CmdResult {
     std::fs::create_dir_all(dir).map_err(|e| format!("{}: cannot create: {e}", dir.display()))?;
     let json = serde_json::to_string_pretty(&outcome.results)? + "\n";
     let html = pingcal_report::render_html(&outcome.report);
-    let files: [(&str, &[u8]); 3] = [
-        ("cloud.ply", &outcome.cloud_ply),
-        ("report.html", html.as_bytes()),
-        ("results.json", json.as_bytes()),
-    ];
-    let tmp = |name: &str| dir.join(format!(".{name}.partial"));
-    for (name, bytes) in files {
-        if let Err(e) = std::fs::write(tmp(name), bytes) {
-            for (n, _) in files {
-                let _ = std::fs::remove_file(tmp(n));
+    let mut files: Vec<(PathBuf, &[u8])> = outcome
+        .exports
+        .iter()
+        .map(|(rel, text)| (dir.join(rel), text.as_bytes()))
+        .collect();
+    files.push((dir.join("cloud.ply"), &outcome.cloud_ply));
+    files.push((dir.join("report.html"), html.as_bytes()));
+    files.push((dir.join("results.json"), json.as_bytes()));
+    for (k, (path, bytes)) in files.iter().enumerate() {
+        if let Err(e) = write_partial(path, bytes) {
+            for (p, _) in &files[..=k] {
+                let _ = std::fs::remove_file(partial(p));
             }
-            return Err(format!("{}: cannot write: {e}", dir.join(name).display()).into());
+            return Err(format!("{}: cannot write: {e}", path.display()).into());
         }
     }
-    for (name, _) in files {
-        std::fs::rename(tmp(name), dir.join(name))
-            .map_err(|e| format!("{}: cannot write: {e}", dir.join(name).display()))?;
+    for (path, _) in &files {
+        std::fs::rename(partial(path), path)
+            .map_err(|e| format!("{}: cannot write: {e}", path.display()))?;
     }
     Ok(())
 }

@@ -10,7 +10,8 @@
 //! | 6 | [`extrinsic`] | spheres ↔ balls by distance invariants, the 3D conformal transform with σ, control / check / leave-one-out tables; the Fan et al. 2019 corner baseline |
 //! | 7 | [`joint`] | the joint adjustment: image points, distances and the LRF beams on the balls together, the extrinsic and the LRF's mount and range errors among the unknowns, what the data cannot determine held and named |
 //! | 7a | [`verdict`] | whether to trust the calibration: `ok`, `doubtful` or `failed`, by statistical tests of every adjustment and of the check points |
-//! | 8 | [`results`], then [`report`] | `results.json` (SPEC.md) and `cloud.ply`, then the data of `report.html` |
+//! | 8 | [`conventions`], [`results`], then [`report`] | `results.json` (SPEC.md; its `conventions` block names every frame and transform) and `cloud.ply`, then the data of `report.html` |
+//! | 9 | [`rectify`], [`exports`] | the same numbers for ROS (tf commands, launch files, URDF joint), OpenCV (FileStorage YAML, stereo rectification as `stereoRectify` gives it) and Kalibr (camchain) |
 //!
 //! Below the steps lie the modules they share, lowest first: [`ids`] (typed ids and the
 //! vector they index), [`progress`] (the [`Reporter`] and the [`Progress`] trait through
@@ -25,7 +26,9 @@
 
 pub mod adjust;
 pub mod bundle;
+pub mod conventions;
 pub mod detect;
+pub mod exports;
 pub mod extrinsic;
 pub mod ids;
 pub mod joint;
@@ -33,6 +36,7 @@ pub mod lrf;
 pub mod matching;
 pub mod network;
 pub mod progress;
+pub mod rectify;
 pub mod report;
 pub mod results;
 pub mod scene;
@@ -88,6 +92,9 @@ pub struct Outcome {
     pub report: pingcal_report::ReportData,
     /// `cloud.ply` (the LRF cloud, and the fitted spheres as an element of their own).
     pub cloud_ply: Vec<u8>,
+    /// The files of `ros/`, `opencv/` and `kalibr/` ([`exports`]): path below the output
+    /// folder, text.
+    pub exports: Vec<exports::OutputFile>,
 }
 
 /// Runs the whole calibration of `project`.
@@ -149,10 +156,12 @@ pub fn calibrate(project: &Project, opts: &Options, rep: &Reporter) -> Result<Ou
     let results = results::assemble(&stages, verdict, timing);
     let report = report::build(&stages, &results, rep);
     let cloud_ply = results::cloud_ply(&lrf, 0.5 * project.file.balls.diameter_mm);
+    let exports = exports::exports(&results);
     Ok(Outcome {
         results,
         report,
         cloud_ply,
+        exports,
     })
 }
 

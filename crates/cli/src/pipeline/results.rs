@@ -11,8 +11,15 @@
 //! `fx = c (1 + B1) / pixel`, `fy = c / pixel`, `cx = (W − 1)/2 + xp / pixel`,
 //! `cy = (H − 1)/2 − yp / pixel`; B1 enters fx to first order and B2 (shear) has no OpenCV
 //! counterpart: `opencv_dropped_b2` says how large it was.
+//!
+//! Every transform is also written as a 4×4 matrix and a unit quaternion, and again in
+//! OpenCV's camera frame (`p_cv = C · p`, C = [`cv_from_photogrammetric`]); the
+//! `conventions` block ([`conventions`]) says in words which frame is which and which way
+//! every transform maps, for the programs and people that read the file.
 
+use super::adjust::rig_cameras;
 use super::bundle::Adjusted;
+pub use super::conventions::{conventions, ConventionsJson};
 use super::extrinsic::Extrinsics;
 use super::ids::CameraId;
 use super::joint::JointOutcome;
@@ -20,9 +27,9 @@ use super::lrf::LrfData;
 use super::scene::{image_file, PointKind, Scene};
 use super::verdict::Verdict;
 use super::Stages;
-use nalgebra::Matrix3;
+use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
 use pingcal_geometry::to_opk;
-use pingcal_geometry::Sim3;
+use pingcal_geometry::{Rigid3, Sim3};
 use pingcal_lrf::registration::CheckRow;
 use pingcal_project::{CameraParams, Project};
 use serde::Serialize;
@@ -40,6 +47,27 @@ pub struct ExtrinsicJson {
     pub sigma_rotation_deg: Option<[f64; 3]>,
     /// ω, φ, κ (degrees), R = R_ω R_φ R_κ.
     pub opk_deg: [f64; 3],
+    /// `[[R, t], [0, 0, 0, 1]]` (row-major, t in mm).
+    pub matrix_4x4: [[f64; 4]; 4],
+    /// R as a unit quaternion (x, y, z, w), w ≥ 0.
+    pub quaternion_xyzw: [f64; 4],
+    /// The same transform into OpenCV's camera frame: `p_cv = R_cv · p_lrf + t_cv`.
+    pub opencv: TransformJson,
+}
+
+/// A rigid transform `p_to = R · p_from + t` in the forms other programs read.
+#[derive(Clone, Debug, Serialize)]
+pub struct TransformJson {
+    /// R (row-major).
+    pub rotation: [[f64; 3]; 3],
+    /// t (mm).
+    pub translation_mm: [f64; 3],
+    /// σ of t (mm), where known.
+    pub sigma_translation_mm: Option<[f64; 3]>,
+    /// `[[R, t], [0, 0, 0, 1]]` (row-major, t in mm).
+    pub matrix_4x4: [[f64; 4]; 4],
+    /// R as a unit quaternion (x, y, z, w), w ≥ 0.
+    pub quaternion_xyzw: [f64; 4],
 }
 
 /// One method's results.
@@ -107,6 +135,16 @@ pub struct RigJson {
     pub translation_mm: [f64; 3],
     /// Baseline length (mm).
     pub baseline_mm: f64,
+    /// The left camera's id.
+    pub left: String,
+    /// The right camera's id.
+    pub right: String,
+    /// `[[R, t], [0, 0, 0, 1]]` (row-major, t in mm).
+    pub matrix_4x4: [[f64; 4]; 4],
+    /// R as a unit quaternion (x, y, z, w), w ≥ 0.
+    pub quaternion_xyzw: [f64; 4],
+    /// The same rig in OpenCV's camera frames (`stereoCalibrate`'s R and T).
+    pub opencv: TransformJson,
 }
 
 /// A camera's intrinsics.
@@ -140,6 +178,10 @@ pub struct OpenCvJson {
     pub dist: [f64; 5],
     /// B2, which OpenCV cannot hold.
     pub opencv_dropped_b2: f64,
+    /// Image width (px).
+    pub image_width: u32,
+    /// Image height (px).
+    pub image_height: u32,
 }
 
 /// A ball in both frames.
@@ -174,6 +216,8 @@ pub struct Results {
     pub verdict: Verdict,
     /// The project's name.
     pub project: String,
+    /// Frames, axes, units, the direction of every transform and the angle orders.
+    pub conventions: ConventionsJson,
     /// The extrinsic of the primary method: the joint adjustment's when it ran and
     /// succeeded, else the sphere method's, else the corner baseline's.
     pub extrinsic: ExtrinsicJson,
@@ -209,15 +253,99 @@ fn mat(r: &Matrix3<f64>) -> [[f64; 3]; 3] {
     ]
 }
 
-fn extrinsic_json(t: &Sim3, sigma_t: Option<[f64; 3]>, sigma_r: Option<[f64; 3]>) -> ExtrinsicJson {
+/// C, from the photogrammetric camera frame (X right, Y forward, Z up) to OpenCV's (x
+/// right, y down, z forward): `p_cv = C · p = (X, −Z, Y)` (SPEC.md).
+pub fn cv_from_photogrammetric() -> Matrix3<f64> {
+    Matrix3::new(1.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 1.0, 0.0)
+}
+
+/// `[[R, t], [0, 0, 0, 1]]`, row-major.
+pub fn matrix_4x4(r: &Matrix3<f64>, t: &Vector3<f64>) -> [[f64; 4]; 4] {
+    let mut m = [[0.0; 4]; 4];
+    for (i, row) in m.iter_mut().take(3).enumerate() {
+        *row = [r[(i, 0)], r[(i, 1)], r[(i, 2)], t[i]];
+    }
+    m[3][3] = 1.0;
+    m
+}
+
+/// The unit quaternion (x, y, z, w) of the rotation `r` (Hamilton, active: it rotates a
+/// vector as `r` does), with w ≥ 0.
+pub fn quaternion_xyzw(r: &Matrix3<f64>) -> [f64; 4] {
+    let q = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(*r));
+    let s = if q.w < 0.0 { -1.0 } else { 1.0 };
+    [s * q.i, s * q.j, s * q.k, s * q.w]
+}
+
+/// `p_to = r · p_from + t` in [`TransformJson`]'s forms.
+pub fn transform_json(
+    r: &Matrix3<f64>,
+    t: &Vector3<f64>,
+    sigma_t: Option<[f64; 3]>,
+) -> TransformJson {
+    TransformJson {
+        rotation: mat(r),
+        translation_mm: [t.x, t.y, t.z],
+        sigma_translation_mm: sigma_t,
+        matrix_4x4: matrix_4x4(r, t),
+        quaternion_xyzw: quaternion_xyzw(r),
+    }
+}
+
+/// The extrinsic `p_camera = R · p_lrf + t` as `results.json` writes it; in OpenCV's frame
+/// `R_cv = C R`, `t_cv = C t`, and σ of t_cv is σ of t permuted (C only permutes axes and
+/// flips a sign).
+pub fn extrinsic_json(
+    t: &Sim3,
+    sigma_t: Option<[f64; 3]>,
+    sigma_r: Option<[f64; 3]>,
+) -> ExtrinsicJson {
     let (o, p, k) = to_opk(&t.rotation);
+    let c = cv_from_photogrammetric();
     ExtrinsicJson {
         rotation: mat(&t.rotation),
         translation_mm: [t.translation.x, t.translation.y, t.translation.z],
         sigma_translation_mm: sigma_t,
         sigma_rotation_deg: sigma_r,
         opk_deg: [o.to_degrees(), p.to_degrees(), k.to_degrees()],
+        matrix_4x4: matrix_4x4(&t.rotation, &t.translation),
+        quaternion_xyzw: quaternion_xyzw(&t.rotation),
+        opencv: transform_json(
+            &(c * t.rotation),
+            &(c * t.translation),
+            sigma_t.map(|s| [s[0], s[2], s[1]]),
+        ),
     }
+}
+
+/// The rig `p_right = R · p_left + t` (`left`, `right`: the cameras' ids); in OpenCV's
+/// frames `R_cv = C R Cᵀ`, `t_cv = C t`.
+pub fn rig_json(right_from_left: &Rigid3, left: &str, right: &str) -> RigJson {
+    let (r, t) = (&right_from_left.rotation, &right_from_left.translation);
+    let c = cv_from_photogrammetric();
+    RigJson {
+        rotation: mat(r),
+        translation_mm: [t.x, t.y, t.z],
+        baseline_mm: right_from_left.centre().norm(),
+        left: left.into(),
+        right: right.into(),
+        matrix_4x4: matrix_4x4(r, t),
+        quaternion_xyzw: quaternion_xyzw(r),
+        opencv: transform_json(&(c * r * c.transpose()), &(c * t), None),
+    }
+}
+
+/// The rig of the bundle adjustment (base → member camera frame, the base being the main
+/// camera's side) as left → right.
+fn rig_of(project: &Project, member_from_base: &Rigid3) -> Option<RigJson> {
+    let st = project.file.stereo.as_ref()?;
+    let (base, _) = rig_cameras(project)?;
+    let right_from_left = if base == st.left {
+        *member_from_base
+    } else {
+        member_from_base.inverse()
+    };
+    Some(rig_json(&right_from_left, &st.left, &st.right))
 }
 
 /// A method that failed.
@@ -375,6 +503,8 @@ pub fn opencv_of(p: &[f64], width: u32, height: u32, pixel_mm: f64) -> OpenCvJso
             p[5] * cc.powi(6),
         ],
         opencv_dropped_b2: p[9],
+        image_width: width,
+        image_height: height,
     }
 }
 
@@ -453,15 +583,12 @@ pub fn assemble(st: &Stages, verdict: Verdict, time_s: Vec<(String, f64)>) -> Re
         }
     }
     balls.sort_by_key(|b| natural(&b.id));
-    let rig = adj.rig.map(|r| RigJson {
-        rotation: mat(&r.rotation),
-        translation_mm: [r.translation.x, r.translation.y, r.translation.z],
-        baseline_mm: r.centre().norm(),
-    });
+    let rig = adj.rig.as_ref().and_then(|r| rig_of(project, r));
     Results {
         generator: format!("pingcal {}", env!("CARGO_PKG_VERSION")),
         verdict,
         project: f.name.clone(),
+        conventions: conventions(project),
         extrinsic: primary.extrinsic.clone().expect("found above"),
         check_points: primary.check_points.clone(),
         mean_check_error_mm: primary.mean_check_error_mm.unwrap_or(f64::NAN),
@@ -542,6 +669,74 @@ mod tests {
         let xd = x * rad + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x);
         let yd = y * rad + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y;
         [o.fx * xd + o.cx, o.fy * yd + o.cy]
+    }
+
+    /// The README's example project (two cameras, `[stereo]` left and right).
+    fn example_project(main_camera: &str) -> Project {
+        let readme = include_str!("../../../../README.md");
+        let at = readme.find("## The project file").unwrap();
+        let start = readme[at..].find("```toml\n").unwrap() + at + 8;
+        let len = readme[start..].find("```").unwrap();
+        let mut file =
+            pingcal_project::ProjectFile::parse(&readme[start..start + len], "x.toml").unwrap();
+        file.main_camera = main_camera.into();
+        Project {
+            path: "x.toml".into(),
+            dir: ".".into(),
+            file,
+            image_paths: Vec::new(),
+            scan_paths: Vec::new(),
+            layout: None,
+        }
+    }
+
+    /// `bundle.rig` is left → right whichever camera is the main one (the adjustment's rig
+    /// goes from the main camera's side to the other), in both frames.
+    #[test]
+    fn the_rig_is_left_to_right_whichever_camera_is_main() {
+        let r = pingcal_geometry::from_opk_deg([0.3, -0.25, 0.1]);
+        let right_from_left = Rigid3::new(r, Vector3::new(-120.0, -0.12, 0.83));
+        let p_left = Vector3::new(150.0, 2000.0, -80.0);
+        let p_right = right_from_left.transform(&p_left);
+        for (main, member_from_base) in [
+            ("left", right_from_left),
+            ("right", right_from_left.inverse()),
+        ] {
+            let rig = rig_of(&example_project(main), &member_from_base).unwrap();
+            assert_eq!((rig.left.as_str(), rig.right.as_str()), ("left", "right"));
+            let (rot, t) = (
+                Matrix3::from(rig.rotation).transpose(),
+                Vector3::from(rig.translation_mm),
+            );
+            assert!((rot * p_left + t - p_right).norm() < 1e-9, "main {main}");
+            let c = cv_from_photogrammetric();
+            let o = &rig.opencv;
+            let (rc, tc) = (
+                Matrix3::from(o.rotation).transpose(),
+                Vector3::from(o.translation_mm),
+            );
+            assert!(
+                (rc * c * p_left + tc - c * p_right).norm() < 1e-9,
+                "main {main}"
+            );
+            assert!((rig.baseline_mm - 120.0).abs() < 0.01);
+        }
+    }
+
+    /// A rotation of almost 180° gives the quaternion that rotates as R does, w ≥ 0, and
+    /// the 4×4 holds R and t.
+    #[test]
+    fn quaternion_and_matrix_are_of_the_same_transform() {
+        let r = pingcal_geometry::from_opk_deg([179.0, 2.0, -178.5]);
+        let t = Vector3::new(1.0, -2.0, 3.0);
+        let [x, y, z, w] = quaternion_xyzw(&r);
+        assert!(w >= 0.0 && (x * x + y * y + z * z + w * w - 1.0).abs() < 1e-15);
+        let q = UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(w, x, y, z));
+        let v = Vector3::new(0.3, -0.4, 0.87);
+        assert!((q * v - r * v).norm() < 1e-15);
+        let m = matrix_4x4(&r, &t);
+        let p = nalgebra::Matrix4::from_fn(|i, j| m[i][j]) * v.push(1.0);
+        assert!((p.xyz() - (r * v + t)).norm() < 1e-15 && p.w == 1.0);
     }
 
     /// Without B1 and B2 the conversion is exact: both models put every point on the same

@@ -1,0 +1,207 @@
+//! The outputs for other ecosystems (issue 16), checked by each ecosystem's own code:
+//! OpenCV (`cv2.projectPoints` with `opencv/camera_*.yaml` against pingcal's projection,
+//! `cv2.stereoRectify` against `opencv/stereo.yaml`), SciPy's `spatial.transform` (the
+//! quaternions, 4×4 matrices and ω φ κ of `results.json`), the ROS tools' argument orders
+//! (commands and launch files parsed as they parse them), a URDF parser (`urdf_parser_py`)
+//! and PyYAML (Kalibr's camchain).
+//!
+//! The checks are `tests/ecosystem/check.py`, run in the virtual environment that
+//! `bash tests/ecosystem/setup.sh` makes under `target/ecosystem-venv`; without it each test
+//! prints why it is skipped and passes. The project is the simulated one of the e2e tests
+//! with `[frames]` renamed (so that the names are seen to come from the project),
+//! calibrated once per test binary.
+
+#[path = "e2e/common.rs"]
+#[allow(
+    dead_code,
+    reason = "the helpers are shared with e2e.rs; this binary uses a part of them"
+)]
+mod common;
+
+use nalgebra::{Matrix3, Vector3};
+use pingcal_ba::camera::{CameraModel, PhotogrammetricCamera};
+use serde_json::{json, Value};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::sync::OnceLock;
+
+/// The frame names written into the test project.
+const FRAMES: &str = "\n[frames]\ncamera = \"cam_left_optical\"\nlrf = \"hokuyo_servo\"\n";
+
+fn workspace() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+/// The venv's Python, or `None` after printing why the test is skipped.
+fn python(test: &str) -> Option<PathBuf> {
+    let py = workspace().join("target/ecosystem-venv/bin/python");
+    if py.is_file() {
+        return Some(py);
+    }
+    eprintln!(
+        "{test}: skipped: no {} (run `bash tests/ecosystem/setup.sh` to install OpenCV, SciPy, PyYAML and urdf_parser_py there)",
+        py.display()
+    );
+    None
+}
+
+/// The output folder of the test project, calibrated on first use.
+fn calibrated() -> &'static Path {
+    static OUT: OnceLock<PathBuf> = OnceLock::new();
+    OUT.get_or_init(|| {
+        let dir = common::root().join("ecosystem");
+        common::copy_dir(common::pristine(), &dir);
+        let toml = dir.join("project.toml");
+        let text = std::fs::read_to_string(&toml).expect("project.toml");
+        std::fs::write(&toml, text + FRAMES).expect("write project.toml");
+        let out = dir.join("out");
+        let args = [
+            "calibrate",
+            toml.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--quiet",
+        ];
+        let run = common::run(&args, &dir);
+        assert!(run.success(), "calibrate failed: {}", run.stderr);
+        out
+    })
+}
+
+fn mat3(v: &Value) -> Matrix3<f64> {
+    Matrix3::from_fn(|i, j| v[i][j].as_f64().expect("a number"))
+}
+
+fn vec3(v: &Value) -> Vector3<f64> {
+    Vector3::from_fn(|i, _| v[i].as_f64().expect("a number"))
+}
+
+/// pingcal's photogrammetric camera `c` of `results.json`, with its parameters.
+fn camera(project: &pingcal_project::Project, c: &Value) -> (PhotogrammetricCamera, Vec<f64>) {
+    let id = c["id"].as_str().unwrap();
+    let pc = project.file.cameras.iter().find(|p| p.id == id).unwrap();
+    let names = [
+        "c_mm", "xp_mm", "yp_mm", "k1", "k2", "k3", "p1", "p2", "b1", "b2",
+    ];
+    let p = names.iter().map(|n| c[*n].as_f64().unwrap()).collect();
+    (
+        PhotogrammetricCamera::new(pc.width, pc.height, pc.pixel_size_mm),
+        p,
+    )
+}
+
+/// `probe.json`: for each camera, points of the LRF frame spread over its image at 0.8 to
+/// 6 m, and pingcal's projection of them (through the extrinsic, and the rig for the right
+/// camera).
+fn probe(out: &Path) -> PathBuf {
+    let r = common::read_json(&out.join("results.json"));
+    let project = pingcal_project::Project::load(&out.join("../project.toml")).unwrap();
+    let (rot, t) = (
+        mat3(&r["extrinsic"]["rotation"]),
+        vec3(&r["extrinsic"]["translation_mm"]),
+    );
+    let main = r["conventions"]["main_camera"].as_str().unwrap();
+    let rig = &r["bundle"]["rig"];
+    let mut cams = Vec::new();
+    for c in r["cameras"].as_array().unwrap() {
+        let (cam, p) = camera(&project, c);
+        let (mut lrf, mut px) = (Vec::new(), Vec::new());
+        for i in 0..9 {
+            for j in 0..7 {
+                for depth in [800.0, 2500.0, 6000.0] {
+                    let (x, z) = (-0.7 + 0.175 * i as f64, -0.4 + 0.133 * j as f64);
+                    let main_cam = Vector3::new(x * depth, depth, z * depth);
+                    let p_lrf = rot.transpose() * (main_cam - t);
+                    let here = if c["id"] == main {
+                        main_cam
+                    } else {
+                        mat3(&rig["rotation"]) * main_cam + vec3(&rig["translation_mm"])
+                    };
+                    let uv = cam.project(&p, &here, None, None).expect("in front");
+                    lrf.push([p_lrf.x, p_lrf.y, p_lrf.z]);
+                    px.push([uv.x, uv.y]);
+                }
+            }
+        }
+        let (w, h) = (cam.width, cam.height);
+        cams.push(
+            json!({"id": c["id"], "width": w, "height": h, "lrf_points_mm": lrf, "pingcal_px": px}),
+        );
+    }
+    let path = out.join("../probe.json");
+    std::fs::write(&path, json!({ "cameras": cams }).to_string()).unwrap();
+    path
+}
+
+/// Runs `check.py CHECK OUT [EXTRA]`; prints its figures; fails the test when it fails.
+fn check(test: &str, name: &str, extra: Option<&Path>) {
+    let Some(py) = python(test) else { return };
+    let out = calibrated();
+    let mut cmd = Command::new(py);
+    cmd.arg(workspace().join("tests/ecosystem/check.py"))
+        .arg(name)
+        .arg(out);
+    if let Some(e) = extra {
+        cmd.arg(e);
+    }
+    let o = cmd.output().expect("run python");
+    let (so, se) = (
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr),
+    );
+    eprintln!("{so}");
+    assert!(o.status.success(), "check.py {name} failed:\n{so}\n{se}");
+}
+
+/// `cv2.projectPoints` with each camera's YAML and the OpenCV extrinsic (and rig) of
+/// `results.json` puts the LRF points where pingcal's own model does, within 0.02 px.
+#[test]
+fn opencv_projects_the_lrf_points_where_pingcal_does() {
+    if python("opencv").is_some() {
+        let p = probe(calibrated());
+        check("opencv", "opencv", Some(&p));
+    }
+}
+
+/// `cv2.stereoRectify` on `stereo.yaml`'s cameras gives its R1, R2, P1, P2, Q; E and F
+/// follow from its R, T, K; R and T are the rig of `results.json`.
+#[test]
+fn opencv_stereo_rectify_agrees() {
+    check("stereo", "stereo", None);
+}
+
+/// Every quaternion and 4×4 matrix, through `scipy.spatial.transform`, is the R and t of
+/// `results.json` (and ω φ κ give the same R), in both frames.
+#[test]
+fn quaternions_and_matrices_agree_with_scipy() {
+    check("transforms", "transforms", None);
+}
+
+/// The ROS 1 and ROS 2 commands and launch files carry the extrinsic in the optical frame
+/// in metres, between the project's frame names.
+#[test]
+fn ros_commands_and_launch_files_publish_the_extrinsic() {
+    check("ros", "ros", None);
+}
+
+/// The URDF joint, parsed by `urdf_parser_py` and composed, maps back to the extrinsic.
+#[test]
+fn urdf_joint_composes_back_to_the_extrinsic() {
+    check("urdf", "urdf", None);
+}
+
+/// Kalibr's camchain, read by PyYAML, has the cameras' intrinsics and the rig.
+#[test]
+fn kalibr_camchain_reads_back() {
+    check("kalibr", "kalibr", None);
+}
+
+/// The project's `[frames]` names reach every ROS file (checked without Python).
+#[test]
+fn frame_names_come_from_the_project() {
+    let ros = calibrated().join("ros");
+    for f in std::fs::read_dir(&ros).unwrap() {
+        let text = std::fs::read_to_string(f.unwrap().path()).unwrap();
+        assert!(text.contains("cam_left_optical") && text.contains("hokuyo_servo"));
+    }
+}
