@@ -1,0 +1,154 @@
+"""Writes the rosbag crate's test bags with an independent writer, the `rosbags` package.
+
+    python make_fixtures.py SCANS.csv OUT_DIR
+
+From a pingcal-scan v1 CSV (a simulated project's scans) it takes 6 scans spread over the
+sweep and writes:
+
+- scans.csv: those scans, stamped from T0 = 1.7e9 s (the CSV the bags must decode to);
+- ros1.bag, ros1_bz2.bag, ros1_lz4.bag: ROS 1 bags, chunks uncompressed, bz2 and lz4;
+- ros2.db3 (sqlite3), ros2.mcap (CDR little endian) and ros2_be.mcap (CDR big endian).
+
+Each has /scan (sensor_msgs/LaserScan, ranges in metres as float32, a no-return as inf,
+NaN or 0 in turn), /joint_states (sensor_msgs/JointState, joints `pan` and `servo`, the
+servo in radians) and /servo_ticks (std_msgs/Float64, Dynamixel-like ticks: degrees =
+ticks * 0.087890625 - 180). The servo stands still during each scan (stop-and-go): two
+servo messages per scan, at its first beam and just after its last, and it moves between
+scans. /empty (std_msgs/Float64) has no message.
+"""
+
+import math
+import shutil
+import sys
+from pathlib import Path
+
+import numpy as np
+from rosbags.rosbag1 import Writer as Writer1
+from rosbags.rosbag2 import StoragePlugin, Writer as Writer2
+from rosbags.typesys import Stores, get_typestore
+
+T0_NS = 1_700_000_000 * 1_000_000_000
+SCALE, OFFSET = 0.087890625, -180.0
+N_SCANS = 6
+TIME_INCREMENT = np.float32(0.1 / 1024)
+SERVO_END_S = 0.07  # after the last beam (681 * time_increment = 0.0665 s)
+
+
+def read_csv(path):
+    header, scans = {}, []
+    for line in Path(path).read_text().splitlines():
+        if line.startswith('#'):
+            if '=' in line:
+                k, v = line[1:].split('=', 1)
+                header[k.strip()] = v.strip()
+        elif line.startswith('stamp_s'):
+            continue
+        elif line.strip():
+            f = line.split(',')
+            scans.append((f[0], f[1], [int(x) for x in f[2:]]))
+    step = max(1, len(scans) // N_SCANS)
+    return header, scans[::step][:N_SCANS]
+
+
+def stamp_ns(stamp_text):
+    sec, _, frac = stamp_text.partition('.')
+    return T0_NS + int(sec) * 1_000_000_000 + int((frac + '000000000')[:9])
+
+
+def write_csv(path, header, scans):
+    lines = ['# pingcal-scan v1']
+    lines += [f'# {k}={header[k]}' for k in ('angle_min_deg', 'angle_increment_deg', 'range_unit')]
+    lines.append('stamp_s,servo_deg,' + ','.join(f'r{i}' for i in range(len(scans[0][2]))))
+    for stamp, servo, ranges in scans:
+        ns = stamp_ns(stamp) - T0_NS
+        lines.append(f'{1_700_000_000 + ns // 1_000_000_000}.{ns % 1_000_000_000 // 1_000_000:03d},{servo},'
+                     + ','.join(map(str, ranges)))
+    Path(path).write_text('\n'.join(lines) + '\n')
+
+
+def messages(ts, header, scans, ros1):
+    """(topic, time_ns, message) in time order."""
+    Time = ts.types['builtin_interfaces/msg/Time']
+    Header = ts.types['std_msgs/msg/Header']
+    LaserScan = ts.types['sensor_msgs/msg/LaserScan']
+    JointState = ts.types['sensor_msgs/msg/JointState']
+    Float64 = ts.types['std_msgs/msg/Float64']
+    amin = math.radians(float(header['angle_min_deg']))
+    inc = math.radians(float(header['angle_increment_deg']))
+    no_return = [math.inf, math.nan, 0.0]
+    out = []
+    for k, (stamp, servo, ranges) in enumerate(scans):
+        t = stamp_ns(stamp)
+        def hdr(ns, frame):
+            stamp = Time(sec=ns // 10**9, nanosec=ns % 10**9)
+            return Header(seq=k, stamp=stamp, frame_id=frame) if ros1 else Header(stamp=stamp, frame_id=frame)
+        r = np.array([r / 1000.0 if r > 0 else no_return[(i + k) % 3] for i, r in enumerate(ranges)],
+                     dtype=np.float32)
+        n = len(ranges)
+        scan = LaserScan(header=hdr(t, 'laser'), angle_min=amin, angle_max=amin + (n - 1) * inc,
+                         angle_increment=inc, time_increment=float(TIME_INCREMENT), scan_time=0.1,
+                         range_min=0.02, range_max=30.0, ranges=r,
+                         intensities=np.zeros(0, dtype=np.float32))
+        deg = float(servo)
+        for ns in (t, t + int(SERVO_END_S * 1e9)):
+            js = JointState(header=hdr(ns, ''), name=['pan', 'servo'],
+                            position=np.array([0.25, math.radians(deg)]),
+                            velocity=np.zeros(0), effort=np.zeros(0))
+            out.append(('/joint_states', ns, js, 'sensor_msgs/msg/JointState'))
+            out.append(('/servo_ticks', ns, Float64(data=(deg - OFFSET) / SCALE), 'std_msgs/msg/Float64'))
+        out.append(('/scan', t, scan, 'sensor_msgs/msg/LaserScan'))
+    out.sort(key=lambda m: m[1])
+    return out
+
+
+TYPES = {'/scan': 'sensor_msgs/msg/LaserScan', '/joint_states': 'sensor_msgs/msg/JointState',
+         '/servo_ticks': 'std_msgs/msg/Float64', '/empty': 'std_msgs/msg/Float64'}
+
+
+def write_ros1(path, header, scans, compression):
+    ts = get_typestore(Stores.ROS1_NOETIC)
+    msgs = messages(ts, header, scans, True)
+    path.unlink(missing_ok=True)
+    w = Writer1(path)
+    if compression:
+        w.set_compression(compression)
+    w.open()
+    conns = {t: w.add_connection(t, ty, typestore=ts) for t, ty in TYPES.items()}
+    for topic, ns, msg, ty in msgs:
+        w.write(conns[topic], ns, ts.serialize_ros1(msg, ty))
+    w.close()
+
+
+def write_ros2(path, header, scans, plugin, little_endian=True):
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    msgs = messages(ts, header, scans, False)
+    tmp = path.with_suffix('.dir')
+    shutil.rmtree(tmp, ignore_errors=True)
+    w = Writer2(tmp, version=9, storage_plugin=plugin)
+    w.open()
+    conns = {t: w.add_connection(t, ty, typestore=ts) for t, ty in TYPES.items()}
+    for topic, ns, msg, ty in msgs:
+        w.write(conns[topic], ns, ts.serialize_cdr(msg, ty, little_endian=little_endian))
+    w.close()
+    (stored,) = [p for p in tmp.iterdir() if p.suffix in ('.db3', '.mcap')]
+    shutil.move(stored, path)
+    shutil.rmtree(tmp)
+
+
+def main(src, out_dir):
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    header, scans = read_csv(src)
+    write_csv(out / 'scans.csv', header, scans)
+    write_ros1(out / 'ros1.bag', header, scans, None)
+    write_ros1(out / 'ros1_bz2.bag', header, scans, Writer1.CompressionFormat.BZ2)
+    write_ros1(out / 'ros1_lz4.bag', header, scans, Writer1.CompressionFormat.LZ4)
+    write_ros2(out / 'ros2.db3', header, scans, StoragePlugin.SQLITE3)
+    write_ros2(out / 'ros2.mcap', header, scans, StoragePlugin.MCAP)
+    write_ros2(out / 'ros2_be.mcap', header, scans, StoragePlugin.MCAP, little_endian=False)
+    for p in sorted(out.iterdir()):
+        print(f'{p.name}: {p.stat().st_size} bytes')
+
+
+if __name__ == '__main__':
+    main(*sys.argv[1:3])
