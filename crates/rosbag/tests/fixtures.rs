@@ -43,6 +43,17 @@ fn ticks() -> Topics {
     }
 }
 
+fn tf() -> Topics {
+    Topics {
+        scan: "/scan".into(),
+        servo: "/tf".into(),
+        source: ServoSource::Tf {
+            child: "servo_link".into(),
+            axis: [0.0, 1.0, 0.0],
+        },
+    }
+}
+
 type Scans = (Option<ScanHeader>, Vec<ScanLine>, Assembled);
 
 fn read(paths: &[PathBuf], topics: &Topics) -> Result<Scans, RosbagError> {
@@ -77,7 +88,7 @@ fn every_format_gives_the_csv_scans_and_cloud() {
     let mount = MountModel::default();
     let want_cloud = Cloud::from_scans(&h, want.iter().cloned().map(Ok), &mount).unwrap();
     for name in BAGS {
-        for topics in [joint("servo"), ticks()] {
+        for topics in [joint("servo"), ticks(), tf()] {
             let (got_h, got, done) = read(&[data(name)], &topics).unwrap();
             assert_eq!(got_h, Some(h), "{name}");
             assert_eq!(
@@ -118,6 +129,37 @@ fn every_format_gives_the_csv_scans_and_cloud() {
     }
 }
 
+/// A continuous sweep: the servo turns at 30°/s while it scans; each scan's first and last
+/// beam get the ramp's angle at their own time (sweep.csv, written from the ramp).
+#[test]
+fn a_continuous_sweep_gives_each_beam_its_time_s_servo_angle() {
+    let r = open_scan_file(&data("sweep.csv")).unwrap();
+    let h = r.header();
+    let want: Vec<ScanLine> = r.map(Result::unwrap).collect();
+    let (got_h, got, done) = read(&[data("sweep.mcap")], &joint("servo")).unwrap();
+    assert_eq!((got_h, done.scans), (Some(h), 2));
+    for (g, w) in got.iter().zip(&want) {
+        assert!(
+            (g.servo_deg - w.servo_deg).abs() < 1e-9,
+            "{} {}",
+            g.servo_deg,
+            w.servo_deg
+        );
+        let (ge, we) = (g.servo_end_deg.unwrap(), w.servo_end_deg.unwrap());
+        assert!((ge - we).abs() < 1e-9, "{ge} {we}");
+        assert!(
+            ge - g.servo_deg > 1.9,
+            "the servo turned ~2° during the scan"
+        );
+        assert_eq!(g.ranges_mm, w.ranges_mm);
+    }
+    let mount = MountModel::default();
+    let a = Cloud::from_scans(&h, got.into_iter().map(Ok), &mount).unwrap();
+    let b = Cloud::from_scans(&h, want.into_iter().map(Ok), &mount).unwrap();
+    let d = max_abs(a.points.iter().zip(&b.points).map(|(p, q)| (p - q).norm()));
+    assert!(a.len() == b.len() && d < 1e-6, "{d} mm");
+}
+
 #[test]
 fn topics_are_listed_with_types_and_counts() {
     for name in BAGS {
@@ -130,9 +172,10 @@ fn topics_are_listed_with_types_and_counts() {
             .collect();
         let want = [
             ("/empty", "std_msgs/Float64", 0),
-            ("/joint_states", "sensor_msgs/JointState", 12),
-            ("/scan", "sensor_msgs/LaserScan", 6),
-            ("/servo_ticks", "std_msgs/Float64", 12),
+            ("/joint_states", "sensor_msgs/JointState", 10),
+            ("/scan", "sensor_msgs/LaserScan", 5),
+            ("/servo_ticks", "std_msgs/Float64", 10),
+            ("/tf", "tf2_msgs/TFMessage", 10),
         ];
         let want: Vec<_> = want
             .iter()
@@ -187,7 +230,7 @@ fn missing_and_mistyped_topics_name_the_file_and_topic() {
         let e = error(&p, &t);
         assert!(e.ends_with("topic /empty: no messages on the topic"), "{e}");
         let e = error(&p, &joint("tilt"));
-        assert!(e.contains("topic /joint_states: no joint named \"tilt\" in its 0 JointState messages (12 messages)"), "{e}");
+        assert!(e.contains("topic /joint_states: no joint named \"tilt\" in its 0 JointState messages (10 messages)"), "{e}");
     }
 }
 
