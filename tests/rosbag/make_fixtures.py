@@ -1,6 +1,11 @@
 """Writes the rosbag crate's test bags with an independent writer, the `rosbags` package.
 
     python make_fixtures.py SCANS.csv OUT_DIR
+    python make_fixtures.py --project SIM_DIR
+
+The second form writes every scan of a simulated project (SIM_DIR/scans/S00.csv) as
+SIM_DIR/bags/{ros1.bag,ros2.db3,ros2.mcap} and, beside project.toml, project-ros1.toml,
+project-db3.toml and project-mcap.toml that read the LRF from those bags ([lrf.bag]).
 
 From a pingcal-scan v1 CSV (a simulated project's scans) it takes 5 scans spread over the
 sweep and writes:
@@ -39,7 +44,7 @@ TIME_INCREMENT = np.float32(0.1 / 1024)
 SERVO_END_S = 0.07  # after the last beam (681 * time_increment = 0.0665 s)
 
 
-def read_csv(path):
+def read_csv(path, subset=True):
     header, scans = {}, []
     for line in Path(path).read_text().splitlines():
         if line.startswith('#'):
@@ -51,6 +56,8 @@ def read_csv(path):
         elif line.strip():
             f = line.split(',')
             scans.append((f[0], f[1], [int(x) for x in f[2:]]))
+    if not subset:
+        return header, scans
     step = max(1, len(scans) // N_SCANS)
     return header, scans[::step][:N_SCANS]
 
@@ -220,5 +227,28 @@ def main(src, out_dir):
     print(f'total: {total} bytes')
 
 
+def project(sim_dir):
+    sim = Path(sim_dir)
+    header, scans = read_csv(sim / 'scans/S00.csv', subset=False)
+    bags = sim / 'bags'
+    bags.mkdir(exist_ok=True)
+    global T0_NS
+    T0_NS = 0  # the CSV's own stamps
+    write_ros1(bags / 'ros1.bag', header, scans, None)
+    write_ros2(bags / 'ros2.db3', header, scans, StoragePlugin.SQLITE3)
+    write_ros2(bags / 'ros2.mcap', header, scans, StoragePlugin.MCAP)
+    text = (sim / 'project.toml').read_text()
+    for name, bag in (('ros1', 'ros1.bag'), ('db3', 'ros2.db3'), ('mcap', 'ros2.mcap')):
+        lrf = text.replace('scans = ["scans/S00.csv"]\n', '') + (
+            f'\n[lrf.bag]\nfiles = ["bags/{bag}"]\nscan_topic = "/scan"\n'
+            'servo_topic = "/joint_states"\nservo_joint = "servo"\n')
+        (sim / f'project-{name}.toml').write_text(lrf)
+    for p in sorted(bags.iterdir()):
+        print(f'{p}: {p.stat().st_size} bytes')
+
+
 if __name__ == '__main__':
-    main(*sys.argv[1:3])
+    if sys.argv[1] == '--project':
+        project(sys.argv[2])
+    else:
+        main(*sys.argv[1:3])

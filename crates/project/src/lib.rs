@@ -24,7 +24,7 @@ mod validate;
 
 pub use closed_sets::{CameraModel, Method, MountParameter, Parameter, TargetFamily};
 pub use schema::{
-    BallLabel, CameraParams, ProjectBalls, ProjectCamera, ProjectDistance, ProjectFile,
+    BallLabel, CameraParams, ProjectBag, ProjectBalls, ProjectCamera, ProjectDistance, ProjectFile,
     ProjectImage, ProjectLrf, ProjectStereo, ProjectTargets, PARAMETER_NAMES,
 };
 
@@ -72,6 +72,8 @@ pub struct Project {
     pub image_paths: Vec<PathBuf>,
     /// Scan paths, resolved.
     pub scan_paths: Vec<PathBuf>,
+    /// `[lrf.bag]` files (bag files or ROS 2 bag folders), resolved.
+    pub bag_paths: Vec<PathBuf>,
 }
 
 impl Project {
@@ -112,12 +114,29 @@ impl Project {
             .enumerate()
             .map(|(k, s)| resolve(s, format!("[lrf] scans[{k}] \"{s}\"")))
             .collect::<Result<Vec<_>, _>>()?;
+        let bags = file.lrf.bag.as_ref().map_or(&[][..], |b| &b.files[..]);
+        let bag_paths = bags
+            .iter()
+            .enumerate()
+            .map(|(k, s)| {
+                let p = dir.join(s);
+                if p.exists() {
+                    Ok(p)
+                } else {
+                    Err(ProjectError::Invalid {
+                        path: name.clone(),
+                        what: format!("[lrf.bag] files[{k}] \"{s}\": {} not found", p.display()),
+                    })
+                }
+            })
+            .collect::<Result<Vec<_>, _>>()?;
         Ok(Project {
             path: path.to_path_buf(),
             dir,
             file,
             image_paths,
             scan_paths,
+            bag_paths,
         })
     }
 

@@ -12,8 +12,11 @@
 //! Units: metres become millimetres and radians degrees. The message stores `float32`
 //! values, so the millimetres (and the beam geometry's degrees) are the shortest decimal
 //! that rounds to the stored `float32` (whole mm for a sensor that measures in mm, as the
-//! recorder's metres were), else the exact `float32` value; ranges that are not finite or
+//! recorder's metres were), else the exact `float32` value; a JointState's radians
+//! likewise become the shortest decimal degrees that convert back to them exactly; ranges that are not finite or
 //! outside `[range_min, range_max]` are no return (0, as in the CSV).
+//!
+//! A scan's `line` is its 1-based message number on the scan topic (in its bag).
 //!
 //! The beam geometry (count, first angle, step) must be the same in every message: a scan
 //! that differs is refused with an error naming it (pingcal-scan has one geometry per
@@ -153,7 +156,7 @@ fn servo_samples(
                 .position
                 .get(k)
                 .ok_or_else(|| format!("joint {name} has no position"))?;
-            out.push((js.stamp_ns, p.to_degrees()));
+            out.push((js.stamp_ns, joint_deg(*p)));
         }
         ServoSource::Numeric { scale, offset } => {
             let v = msgs::decode_numeric(m.msg_type, m.data, m.encoding)?;
@@ -268,6 +271,13 @@ pub fn angle_deg(a: f32) -> f64 {
     shortest_decimal(f64::from(a).to_degrees(), 9, |c| c.to_radians() as f32 == a)
 }
 
+/// A joint position in radians (`float64`) as degrees: the shortest decimal (at most 9
+/// decimals) whose radians are exactly `p` (the degrees a recorder or an encoder's steps
+/// of 360/2ⁿ° gave), else the plain conversion.
+pub fn joint_deg(p: f64) -> f64 {
+    shortest_decimal(p.to_degrees(), 9, |c| c.to_radians() == p)
+}
+
 /// What [`assemble`] did.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct Assembled {
@@ -325,7 +335,7 @@ impl Pass<'_> {
     }
 
     /// The scan line of one message, or `None` when it is outside the servo samples.
-    fn line(&mut self, s: &LaserScan) -> std::result::Result<Option<ScanLine>, String> {
+    fn line(&mut self, s: &LaserScan, index: u64) -> std::result::Result<Option<ScanLine>, String> {
         self.check_geometry(s)?;
         if self.last_stamp.is_some_and(|t| s.stamp_ns < t) {
             return Err(
@@ -352,7 +362,7 @@ impl Pass<'_> {
             return Ok(None);
         };
         Ok(Some(ScanLine {
-            line: 0,
+            line: usize::try_from(index + 1).unwrap_or(usize::MAX),
             stamp_s: s.stamp_ns as f64 * 1e-9,
             servo_deg: start,
             servo_end_deg: Some(end),
@@ -385,7 +395,7 @@ pub fn assemble(
             expect_type(bag, m, &[msgs::LASER_SCAN])?;
             let scan =
                 LaserScan::decode(m.data, m.encoding).map_err(|e| decode_err(bag, m, index, e))?;
-            let line = pass.line(&scan).map_err(|e| {
+            let line = pass.line(&scan, index).map_err(|e| {
                 RosbagError::topic(bag.name(), m.topic, format!("message {index}: {e}"))
             })?;
             index += 1;
@@ -434,6 +444,9 @@ mod tests {
         assert_eq!(range_mm(31.0, 0.02, 30.0), 0.0);
         assert_eq!(angle_deg((-119.53125f64).to_radians() as f32), -119.53125);
         assert_eq!(angle_deg(0.3515625f64.to_radians() as f32), 0.3515625);
+        for deg in [-179.824219, 45.0, 0.087890625 * 37.0, -0.000001] {
+            assert_eq!(joint_deg(f64::to_radians(deg)), deg);
+        }
     }
 
     #[test]

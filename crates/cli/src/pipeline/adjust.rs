@@ -377,6 +377,7 @@ accuracy_far_fraction = 0.03
             dir: ".".into(),
             image_paths: Vec::new(),
             scan_paths: Vec::new(),
+            bag_paths: Vec::new(),
             file,
         };
         let det = || ImageDetections {
