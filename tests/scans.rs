@@ -164,3 +164,42 @@ fn a_failed_run_keeps_the_earlier_file_and_an_input_is_never_the_output() {
     assert!(stderr.contains("is one of the bags read"), "{stderr}");
     assert_eq!(std::fs::read(&copy).unwrap(), std::fs::read(&b).unwrap());
 }
+
+#[test]
+fn a_ros2_bag_folder_reads_its_storage_files() {
+    let dir = tmp("bagdir");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::copy(data("ros2.db3"), dir.join("run_0.db3")).unwrap();
+    std::fs::write(
+        dir.join("metadata.yaml"),
+        "rosbag2_bagfile_information: {}\n",
+    )
+    .unwrap();
+    let out = tmp("bagdir.csv");
+    let _ = std::fs::remove_file(&out);
+    let (ok, stdout, stderr) = pingcal(&[
+        "scans",
+        dir.to_str().unwrap(),
+        "--scan-topic",
+        "/scan",
+        "--servo-topic",
+        "/joint_states",
+        "--servo-joint",
+        "servo",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(ok, "{stderr}");
+    assert!(
+        stdout.starts_with("scans: 5 scans of 682 beams from 1 bag(s)"),
+        "{stdout}"
+    );
+    let empty = tmp("emptydir");
+    std::fs::create_dir_all(&empty).unwrap();
+    let (ok, _, stderr) = pingcal(&["scans", empty.to_str().unwrap(), "--list"]);
+    assert!(
+        !ok && stderr.contains("a directory without .db3 or .mcap files"),
+        "{stderr}"
+    );
+}

@@ -462,4 +462,71 @@ mod tests {
         assert_eq!(s.at(999, 0.0), None);
         assert_eq!(s.at(4_000, 0.5), None);
     }
+
+    fn scan(stamp_ns: i64, n: usize, angle_min: f32) -> LaserScan {
+        LaserScan {
+            stamp_ns,
+            frame_id: "laser".into(),
+            angle_min,
+            angle_max: 1.0,
+            angle_increment: 0.01,
+            time_increment: 0.001,
+            scan_time: 0.1,
+            range_min: 0.02,
+            range_max: 30.0,
+            ranges: vec![1.5; n],
+            intensities: vec![],
+        }
+    }
+
+    fn pass(series: &ServoSeries) -> Pass<'_> {
+        Pass {
+            series,
+            geometry: None,
+            last_stamp: None,
+            done: Assembled::default(),
+        }
+    }
+
+    #[test]
+    fn each_beam_time_is_stamp_plus_index_times_increment() {
+        // the servo turns 1°/ms from t = 0; beams 1 ms apart
+        let s = ServoSeries {
+            times_ns: vec![0, 1_000_000_000],
+            deg: vec![0.0, 1000.0],
+        };
+        let mut p = pass(&s);
+        let l = p.line(&scan(10_000_000, 11, -1.0), 0).unwrap().unwrap();
+        assert!((l.servo_deg - 10.0).abs() < 1e-9, "{}", l.servo_deg);
+        assert!(
+            (l.servo_end_deg.unwrap() - 20.0).abs() < 1e-6,
+            "{:?}",
+            l.servo_end_deg
+        );
+        assert_eq!((l.line, l.stamp_s), (1, 0.01));
+    }
+
+    #[test]
+    fn scans_outside_the_servo_samples_are_counted_and_a_changed_geometry_refused() {
+        let s = ServoSeries {
+            times_ns: vec![1_000_000_000, 2_000_000_000],
+            deg: vec![0.0, 10.0],
+        };
+        let mut p = pass(&s);
+        assert_eq!(p.line(&scan(0, 10, -1.0), 0), Ok(None));
+        assert!(p.line(&scan(1_500_000_000, 10, -1.0), 1).unwrap().is_some());
+        // its last beam, 9 ms after the stamp, is after the last sample
+        assert_eq!(p.line(&scan(1_995_000_000, 10, -1.0), 2), Ok(None));
+        assert_eq!((p.done.before_servo, p.done.after_servo), (1, 1));
+        let e = p.line(&scan(1_996_000_000, 11, -1.0), 3).unwrap_err();
+        assert!(e.starts_with("11 beams from"), "{e}");
+        assert!(e.contains("the first scan had 10 from"), "{e}");
+        let e = p.line(&scan(1_996_000_000, 10, -0.5), 3).unwrap_err();
+        assert!(
+            e.contains("pingcal-scan needs one beam geometry per file"),
+            "{e}"
+        );
+        let e = p.line(&scan(1_000_000_000, 10, -1.0), 4).unwrap_err();
+        assert!(e.contains("scans must be in time order"), "{e}");
+    }
 }
