@@ -157,9 +157,16 @@ impl Bag {
         }
     }
 
+    fn release(&self, upto: usize) {
+        if let Source::Mapped(m) = &self.source {
+            m.release(upto);
+        }
+    }
+
     fn ros1_topics(&self, buf: &[u8]) -> Result<Vec<TopicInfo>> {
         let mut counts = std::collections::BTreeMap::<(String, String), u64>::new();
-        let all = ros1::Ros1Reader::new(&self.name).read(buf, &mut |m| {
+        let release = |at| self.release(at);
+        let all = ros1::Ros1Reader::new(&self.name).read(buf, &release, &mut |m| {
             *counts
                 .entry((m.topic.to_string(), m.msg_type.to_string()))
                 .or_default() += 1;
@@ -192,10 +199,10 @@ impl Bag {
         match (&self.source, self.format) {
             (Source::Sqlite(c), _) => storage::db3_messages(&self.name, c, &want, f),
             (Source::Mapped(m), Format::Mcap) => {
-                storage::mcap_messages(&self.name, m.bytes(), &want, f)
+                storage::mcap_messages(&self.name, m.bytes(), &|at| m.release(at), &want, f)
             }
             (Source::Mapped(m), _) => ros1::Ros1Reader::new(&self.name)
-                .read(m.bytes(), &mut |msg| {
+                .read(m.bytes(), &|at| m.release(at), &mut |msg| {
                     if want(msg.topic) {
                         f(msg)
                     } else {

@@ -1,7 +1,9 @@
 //! A read-only memory map of a whole file: the bag is paged in by the kernel as it is
 //! read, never copied whole into memory.
 //!
-//! The map is private and read-only; as with every memory map, a file truncated by another
+//! A reader that has finished with a part of the file hands it back
+//! ([`Mapped::release`]), so that the pages it read do not stay counted in the process's
+//! memory for the rest of a long bag. The map is private and read-only; as with every memory map, a file truncated by another
 //! process while it is mapped makes the reads past its new end fault.
 
 use std::fs::File;
@@ -12,6 +14,8 @@ use std::os::fd::AsRawFd;
 pub struct Mapped {
     ptr: *mut libc::c_void,
     len: usize,
+    /// Bytes from the start already handed back to the kernel (page-aligned).
+    released: std::cell::Cell<usize>,
 }
 
 impl Mapped {
@@ -23,6 +27,7 @@ impl Mapped {
             return Ok(Mapped {
                 ptr: std::ptr::null_mut(),
                 len,
+                released: std::cell::Cell::new(0),
             });
         }
         // SAFETY: a fresh private read-only mapping of an open file descriptor; the result
@@ -42,7 +47,36 @@ impl Mapped {
         }
         // SAFETY: advice on the mapping just made; failure only loses the read-ahead hint.
         unsafe { libc::madvise(ptr, len, libc::MADV_SEQUENTIAL) };
-        Ok(Mapped { ptr, len })
+        Ok(Mapped {
+            ptr,
+            len,
+            released: std::cell::Cell::new(0),
+        })
+    }
+
+    /// Hands the pages of `..upto` back to the kernel: they are read again from the file
+    /// (or the page cache) if touched later, so this changes no byte the map reads.
+    pub fn release(&self, upto: usize) {
+        const PAGE: usize = 4096;
+        let end = upto.min(self.len) / PAGE * PAGE;
+        if upto < self.released.get() {
+            self.released.set(0); // a new pass from the start
+        }
+        let start = self.released.get();
+        if end <= start + (1 << 20) {
+            return; // at least 1 MiB at a time
+        }
+        // SAFETY: `start..end` lies inside the mapping and is page-aligned (the mapping
+        // starts on a page); MADV_DONTNEED on a private read-only file mapping only drops
+        // the pages, which are read again from the file when touched.
+        unsafe {
+            libc::madvise(
+                (self.ptr as *mut u8).add(start) as *mut libc::c_void,
+                end - start,
+                libc::MADV_DONTNEED,
+            )
+        };
+        self.released.set(end);
     }
 
     /// The file's bytes.

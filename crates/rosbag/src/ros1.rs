@@ -115,9 +115,11 @@ impl<'a> Ros1Reader<'a> {
 
     /// Reads every record of `bag` in order, calling `f` for each message; returns the
     /// connections' topics and types (all of them, also those without messages).
+    /// `release(pos)` is called after each record with the position reached.
     pub fn read(
         &mut self,
         bag: &[u8],
+        release: &dyn Fn(usize),
         f: &mut dyn FnMut(&RawMessage) -> Result<()>,
     ) -> Result<Vec<(String, String)>> {
         if !bag.starts_with(MAGIC) {
@@ -134,6 +136,7 @@ impl<'a> Ros1Reader<'a> {
                 Some([_]) => {} // bag header, index data, chunk info
                 _ => return Err(self.err(format!("record at byte {} has no op field", rec.at))),
             }
+            release(pos);
         }
         let mut topics: Vec<_> = self
             .connections

@@ -23,32 +23,67 @@ fn mcap_err(file: &str, e: mcap::McapError) -> RosbagError {
     RosbagError::format(file, format!("MCAP: {e}"))
 }
 
-/// Streams the messages of an MCAP file, calling `f` for those whose topic `want`s.
-pub fn mcap_messages(
+fn mcap_message(
     file: &str,
-    buf: &[u8],
+    m: &mcap::Message,
     want: &dyn Fn(&str) -> bool,
     f: &mut dyn FnMut(&RawMessage) -> Result<()>,
 ) -> Result<()> {
+    let topic = m.channel.topic.as_str();
+    if !want(topic) {
+        return Ok(());
+    }
+    let ty = m
+        .channel
+        .schema
+        .as_ref()
+        .map_or(String::new(), |s| normalize_type(&s.name));
+    f(&RawMessage {
+        topic,
+        msg_type: &ty,
+        time_ns: i64::try_from(m.log_time).unwrap_or(i64::MAX),
+        data: &m.data,
+        encoding: encoding(file, topic, &m.channel.message_encoding)?,
+    })
+}
+
+/// The chunk indexes of an MCAP summary in file order, when every one points inside the
+/// file (the `mcap` crate slices the file with them unchecked).
+fn chunk_indexes(summary: &mcap::Summary, len: usize) -> Option<Vec<mcap::records::ChunkIndex>> {
+    let mut idx = summary.chunk_indexes.clone();
+    idx.sort_by_key(|c| c.chunk_start_offset);
+    let fits = |c: &mcap::records::ChunkIndex| {
+        c.chunk_length >= 9
+            && c.chunk_start_offset
+                .checked_add(c.chunk_length)
+                .is_some_and(|e| e <= len as u64)
+    };
+    (!idx.is_empty() && idx.iter().all(fits)).then_some(idx)
+}
+
+/// Streams the messages of an MCAP file, calling `f` for those whose topic `want`s: chunk
+/// by chunk through the summary's index when the file has one (handing each chunk's pages
+/// back with `release` once read), else through the data section in order.
+pub fn mcap_messages(
+    file: &str,
+    buf: &[u8],
+    release: &dyn Fn(usize),
+    want: &dyn Fn(&str) -> bool,
+    f: &mut dyn FnMut(&RawMessage) -> Result<()>,
+) -> Result<()> {
+    let summary = mcap::Summary::read(buf).ok().flatten();
+    if let Some((s, idx)) = summary.and_then(|s| chunk_indexes(&s, buf.len()).map(|i| (s, i))) {
+        for c in &idx {
+            for m in s.stream_chunk(buf, c).map_err(|e| mcap_err(file, e))? {
+                mcap_message(file, &m.map_err(|e| mcap_err(file, e))?, want, f)?;
+            }
+            release((c.chunk_start_offset + c.chunk_length) as usize);
+        }
+        return Ok(());
+    }
     let stream = mcap::MessageStream::new(buf).map_err(|e| mcap_err(file, e))?;
     for m in stream {
-        let m = m.map_err(|e| mcap_err(file, e))?;
-        let topic = m.channel.topic.as_str();
-        if !want(topic) {
-            continue;
-        }
-        let ty = m
-            .channel
-            .schema
-            .as_ref()
-            .map_or(String::new(), |s| normalize_type(&s.name));
-        f(&RawMessage {
-            topic,
-            msg_type: &ty,
-            time_ns: i64::try_from(m.log_time).unwrap_or(i64::MAX),
-            data: &m.data,
-            encoding: encoding(file, topic, &m.channel.message_encoding)?,
-        })?;
+        mcap_message(file, &m.map_err(|e| mcap_err(file, e))?, want, f)?;
     }
     Ok(())
 }
@@ -79,7 +114,7 @@ pub fn mcap_topics(file: &str, buf: &[u8]) -> Result<Vec<TopicInfo>> {
         return Ok(out);
     }
     let mut map: BTreeMap<String, TopicInfo> = BTreeMap::new();
-    mcap_messages(file, buf, &|_| true, &mut |m| {
+    mcap_messages(file, buf, &|_| {}, &|_| true, &mut |m| {
         map.entry(m.topic.to_string())
             .or_insert_with(|| TopicInfo {
                 name: m.topic.to_string(),
