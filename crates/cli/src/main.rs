@@ -36,6 +36,8 @@ enum Command {
     GenBal(commands::gen_bal::Args),
     /// Build the LRF cloud from scans and fit the spheres.
     Cloud(commands::cloud::Args),
+    /// Read the LRF's scans from ROS 1 / ROS 2 bags into a pingcal-scan CSV, or list a bag's topics.
+    Scans(commands::scans::Args),
     /// 3D conformal transform between two files of labelled points, with check points.
     Register(commands::register::Args),
 }
@@ -51,6 +53,7 @@ fn main() {
         Command::Ba(a) => commands::ba::run(a),
         Command::GenBal(a) => commands::gen_bal::run(a),
         Command::Cloud(a) => commands::cloud::run(a),
+        Command::Scans(a) => commands::scans::run(a),
         Command::Register(a) => commands::register::run(a),
     };
     if let Err(e) = result {

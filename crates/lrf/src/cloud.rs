@@ -60,7 +60,8 @@ impl Cloud {
         self.origins.as_ref().map_or(Vector3::zeros(), |o| o[i])
     }
 
-    /// Appends the valid beams of one scan (eq. 2 + mount).
+    /// Appends the valid beams of one scan (eq. 2 + mount), each at its own servo angle
+    /// ([`ScanLine::servo_deg_at`]: constant for a stop-and-go scan).
     pub fn push_scan(&mut self, header: &ScanHeader, scan: &ScanLine, mount: &MountModel) {
         if self.readings.is_none() && self.points.is_empty() {
             self.readings = Some(Vec::new());
@@ -69,16 +70,21 @@ impl Cloud {
         if keep_origins && self.origins.is_none() {
             self.origins = Some(vec![Vector3::zeros(); self.points.len()]);
         }
-        let pose = mount.scanner_at(scan.servo_deg);
+        let sweep = scan.is_sweep();
+        let mut pose = mount.scanner_at(scan.servo_deg);
         for (i, &r) in scan.ranges_mm.iter().enumerate() {
             if r <= 0.0 {
                 continue;
+            }
+            let servo_deg = scan.servo_deg_at(i);
+            if sweep {
+                pose = mount.scanner_at(servo_deg);
             }
             let alpha_rad = header.beam_angle_deg(i).to_radians();
             self.points.push(pose.point(r, alpha_rad));
             if let Some(rs) = self.readings.as_mut() {
                 rs.push(BeamReading {
-                    servo_deg: scan.servo_deg,
+                    servo_deg,
                     alpha_rad,
                     range_mm: r,
                 });
@@ -141,10 +147,42 @@ mod tests {
             line: 1,
             stamp_s: 0.0,
             servo_deg: 0.0,
+            servo_end_deg: None,
             ranges_mm: vec![1000.0, 0.0, 1000.0],
         };
         let c = Cloud::from_scans(&h, vec![Ok(s)], &MountModel::default()).unwrap();
         assert_eq!(c.len(), 2);
         assert!((c.points[1].y - 1000.0 * 10f64.to_radians().sin()).abs() < 1e-9);
+    }
+
+    #[test]
+    fn a_sweep_gives_each_beam_its_own_servo_angle() {
+        let h = ScanHeader {
+            angle_min_deg: 0.0,
+            angle_increment_deg: 0.0001,
+            mm_per_unit: 1.0,
+        };
+        let s = ScanLine {
+            line: 1,
+            stamp_s: 0.0,
+            servo_deg: 0.0,
+            servo_end_deg: Some(90.0),
+            ranges_mm: vec![1000.0, 1000.0, 1000.0],
+        };
+        let mount = MountModel::default();
+        let c = Cloud::from_scans(&h, vec![Ok(s.clone())], &mount).unwrap();
+        let servo: Vec<f64> = c.readings.unwrap().iter().map(|r| r.servo_deg).collect();
+        assert_eq!(servo, vec![0.0, 45.0, 90.0]);
+        for (i, p) in c.points.iter().enumerate() {
+            let one = ScanLine {
+                servo_deg: s.servo_deg_at(i),
+                servo_end_deg: None,
+                ranges_mm: (0..3).map(|k| if k == i { 1000.0 } else { 0.0 }).collect(),
+                ..s.clone()
+            };
+            let q = Cloud::from_scans(&h, vec![Ok(one)], &mount).unwrap().points[0];
+            assert_eq!(*p, q);
+        }
+        assert!((c.points[0] - c.points[2]).norm() > 1000.0);
     }
 }

@@ -33,6 +33,22 @@
 //!
 //! [`ScanWriter`] is the one writer of the format (the simulator writes through it too):
 //! time stamps with 3 decimals, servo angles with 6, ranges in whole mm.
+//!
+//! **Version 2: continuous sweeps.** A servo that turns while the LRF scans gives each
+//! beam its own servo angle. `# pingcal-scan v2` files have a third column,
+//! `servo_end_deg`: the servo angle at the scan's last beam, `servo_deg` being the one at
+//! its first beam, and beam i of n at β = servo_deg + (servo_end_deg − servo_deg) · i/(n−1)
+//! ([`ScanLine::servo_deg_at`]). Everything else is as in v1, which is read unchanged (one
+//! servo angle for the whole scan: stop-and-go). A file naming another version is refused.
+//!
+//! ```text
+//! # pingcal-scan v2
+//! # angle_min_deg=-119.53125
+//! # angle_increment_deg=0.3515625
+//! # range_unit=mm
+//! stamp_s,servo_deg,servo_end_deg,r0,r1,r2,...
+//! 0.000,-45.056,-44.956,1532,1530,0,...
+//! ```
 
 use crate::error::{LrfError, Result};
 use std::io::{BufRead, Write};
@@ -75,10 +91,32 @@ pub struct ScanLine {
     pub line: usize,
     /// Time stamp, seconds.
     pub stamp_s: f64,
-    /// Servo angle β, degrees.
+    /// Servo angle β, degrees (at the first beam when `servo_end_deg` is given).
     pub servo_deg: f64,
+    /// Servo angle at the last beam, degrees, for a scan taken while the servo turned
+    /// (`pingcal-scan` v2); `None`: the servo stood at `servo_deg` for the whole scan.
+    pub servo_end_deg: Option<f64>,
     /// Ranges in mm; `0.0` where the beam had no return.
     pub ranges_mm: Vec<f64>,
+}
+
+impl ScanLine {
+    /// The servo angle of beam `i`, degrees: linear in the beam index from `servo_deg` at
+    /// the first beam to `servo_end_deg` at the last.
+    pub fn servo_deg_at(&self, i: usize) -> f64 {
+        match self.servo_end_deg {
+            Some(end) if self.ranges_mm.len() > 1 && end != self.servo_deg => {
+                let f = i as f64 / (self.ranges_mm.len() - 1) as f64;
+                self.servo_deg + f * (end - self.servo_deg)
+            }
+            _ => self.servo_deg,
+        }
+    }
+
+    /// True when the servo turned during the scan.
+    pub fn is_sweep(&self) -> bool {
+        self.servo_end_deg.is_some_and(|e| e != self.servo_deg)
+    }
 }
 
 /// A streaming reader of a `pingcal-scan` CSV file.
@@ -90,6 +128,8 @@ pub struct ScanReader<R: BufRead> {
     file: String,
     header: ScanHeader,
     n_beams: Option<usize>,
+    /// `pingcal-scan` v2: a `servo_end_deg` column.
+    sweep: bool,
     line_no: usize,
     pending: Option<(usize, String)>,
     buf: Vec<u8>,
@@ -140,6 +180,8 @@ impl<R: BufRead> ScanReader<R> {
         let mut increment = None;
         let mut mm_per_unit = 1.0;
         let mut n_beams = None;
+        let mut version = None;
+        let mut sweep = false;
         let mut pending = None;
         loop {
             line_no += 1;
@@ -152,6 +194,20 @@ impl<R: BufRead> ScanReader<R> {
             }
             if let Some(rest) = t.strip_prefix('#') {
                 let rest = rest.trim();
+                if let Some(v) = rest.strip_prefix("pingcal-scan v") {
+                    version = Some(match v.trim() {
+                        "1" => 1,
+                        "2" => 2,
+                        v => {
+                            return Err(LrfError::parse(
+                                file,
+                                line_no,
+                                format!("pingcal-scan version {v:?}: this pingcal reads v1 and v2"),
+                            ))
+                        }
+                    });
+                    continue;
+                }
                 if let Some((k, v)) = rest.split_once('=') {
                     let (k, v) = (k.trim(), v.trim());
                     match k {
@@ -188,15 +244,28 @@ impl<R: BufRead> ScanReader<R> {
             }
             if t.starts_with("stamp_s") {
                 let cols: Vec<&str> = t.split(',').map(str::trim).collect();
-                if cols.len() < 3 || cols[1] != "servo_deg" {
-                    return Err(LrfError::parse(
-                        file,
-                        line_no,
-                        "column line: expected `stamp_s,servo_deg,r0,r1,...`",
-                    ));
+                sweep = version == Some(2);
+                let fixed = if sweep { 3 } else { 2 };
+                let ok = cols.len() > fixed
+                    && cols[1] == "servo_deg"
+                    && (cols[2] == "servo_end_deg") == sweep;
+                if !ok {
+                    let expected = if sweep {
+                        "a v2 column line: expected `stamp_s,servo_deg,servo_end_deg,r0,r1,...`"
+                    } else {
+                        "column line: expected `stamp_s,servo_deg,r0,r1,...` (a servo_end_deg column needs `# pingcal-scan v2`)"
+                    };
+                    return Err(LrfError::parse(file, line_no, expected));
                 }
-                n_beams = Some(cols.len() - 2);
+                n_beams = Some(cols.len() - fixed);
                 continue;
+            }
+            if version == Some(2) && n_beams.is_none() {
+                return Err(LrfError::parse(
+                    file,
+                    line_no,
+                    "a v2 file needs its column line `stamp_s,servo_deg,servo_end_deg,r0,...` before the scans",
+                ));
             }
             pending = Some((line_no, line));
             break;
@@ -222,6 +291,7 @@ impl<R: BufRead> ScanReader<R> {
                 mm_per_unit,
             },
             n_beams,
+            sweep,
             line_no,
             pending,
             buf,
@@ -253,7 +323,24 @@ impl<R: BufRead> ScanReader<R> {
                 LrfError::parse(file, line_no, "expected `stamp_s,servo_deg,r0,...`")
             })?,
         )?;
-        for (what, v, max) in [("stamp_s", stamp_s, 1e12), ("servo_deg", servo_deg, 1e6)] {
+        let servo_end_deg = if self.sweep {
+            let f = fields.next().ok_or_else(|| {
+                LrfError::parse(
+                    file,
+                    line_no,
+                    "expected `stamp_s,servo_deg,servo_end_deg,r0,...`",
+                )
+            })?;
+            Some(parse_f64(file, line_no, "servo_end_deg", f)?)
+        } else {
+            None
+        };
+        let end = servo_end_deg.unwrap_or(servo_deg);
+        for (what, v, max) in [
+            ("stamp_s", stamp_s, 1e12),
+            ("servo_deg", servo_deg, 1e6),
+            ("servo_end_deg", end, 1e6),
+        ] {
             if v.abs() > max {
                 return Err(LrfError::parse(
                     file,
@@ -306,6 +393,7 @@ impl<R: BufRead> ScanReader<R> {
             line: line_no,
             stamp_s,
             servo_deg,
+            servo_end_deg,
             ranges_mm,
         })
     }
@@ -386,25 +474,47 @@ pub fn open_scan_file(
     ScanReader::new(std::io::BufReader::with_capacity(1 << 16, f), &name)
 }
 
-/// A streaming writer of the `pingcal-scan` v1 format: the header (with optional extra
-/// `# key=value` lines) when created, then one scan per [`ScanWriter::write_scan`]. Time
-/// stamps are written with 3 decimals, servo angles with 6 (the simulator's encoder steps
-/// of 0.088° need more than 3), ranges rounded to whole mm as the URG reports them, no
-/// return as 0.
+/// A streaming writer of the `pingcal-scan` format: the header (with optional extra
+/// `# key=value` lines) when created, then one scan per [`ScanWriter::write_scan`] (v1, or
+/// v2 made by [`ScanWriter::new_v2`]). Time stamps are written with 3 decimals, servo
+/// angles with 6 (the simulator's encoder steps of 0.088° need more than 3), ranges
+/// rounded to whole mm as the URG reports them, no return as 0.
 pub struct ScanWriter<W: Write> {
     out: W,
+    sweep: bool,
 }
 
 impl<W: Write> ScanWriter<W> {
-    /// Writes the header: the beam geometry of `header`, ranges in mm, the `extra` lines
+    /// Writes a v1 header: the beam geometry of `header`, ranges in mm, the `extra` lines
     /// (each written as `# line`, e.g. `sensor=...`) and the column line of `n_beams` ranges.
     pub fn new(
-        mut out: W,
+        out: W,
         header: &ScanHeader,
         n_beams: usize,
         extra: &[&str],
     ) -> std::io::Result<Self> {
-        writeln!(out, "# pingcal-scan v1")?;
+        Self::with_version(out, header, n_beams, extra, false)
+    }
+
+    /// Writes a v2 header (a `servo_end_deg` column: continuous sweeps), otherwise as
+    /// [`ScanWriter::new`].
+    pub fn new_v2(
+        out: W,
+        header: &ScanHeader,
+        n_beams: usize,
+        extra: &[&str],
+    ) -> std::io::Result<Self> {
+        Self::with_version(out, header, n_beams, extra, true)
+    }
+
+    fn with_version(
+        mut out: W,
+        header: &ScanHeader,
+        n_beams: usize,
+        extra: &[&str],
+        sweep: bool,
+    ) -> std::io::Result<Self> {
+        writeln!(out, "# pingcal-scan v{}", if sweep { 2 } else { 1 })?;
         writeln!(out, "# angle_min_deg={}", header.angle_min_deg)?;
         writeln!(out, "# angle_increment_deg={}", header.angle_increment_deg)?;
         writeln!(out, "# range_unit=mm")?;
@@ -412,15 +522,18 @@ impl<W: Write> ScanWriter<W> {
             writeln!(out, "# {line}")?;
         }
         write!(out, "stamp_s,servo_deg")?;
+        if sweep {
+            write!(out, ",servo_end_deg")?;
+        }
         for i in 0..n_beams {
             write!(out, ",r{i}")?;
         }
         writeln!(out)?;
-        Ok(ScanWriter { out })
+        Ok(ScanWriter { out, sweep })
     }
 
-    /// Writes one scan: its time stamp (s), servo angle (degrees) and ranges (mm, 0 for
-    /// no return).
+    /// Writes one scan taken with the servo at `servo_deg`: its time stamp (s), servo
+    /// angle (degrees) and ranges (mm, 0 for no return).
     pub fn write_scan<I>(
         &mut self,
         stamp_s: f64,
@@ -431,11 +544,41 @@ impl<W: Write> ScanWriter<W> {
         I: IntoIterator,
         I::Item: Into<f64>,
     {
+        self.write_sweep_scan(stamp_s, servo_deg, servo_deg, ranges_mm)
+    }
+
+    /// Writes one scan with the servo at `servo_deg` at its first beam and `servo_end_deg`
+    /// at its last; a v1 writer refuses a scan whose two angles differ.
+    pub fn write_sweep_scan<I>(
+        &mut self,
+        stamp_s: f64,
+        servo_deg: f64,
+        servo_end_deg: f64,
+        ranges_mm: I,
+    ) -> std::io::Result<()>
+    where
+        I: IntoIterator,
+        I::Item: Into<f64>,
+    {
         write!(self.out, "{stamp_s:.3},{servo_deg:.6}")?;
+        if self.sweep {
+            write!(self.out, ",{servo_end_deg:.6}")?;
+        } else if servo_end_deg != servo_deg {
+            return Err(std::io::Error::new(
+                std::io::ErrorKind::InvalidInput,
+                "a scan taken while the servo turned needs a pingcal-scan v2 writer",
+            ));
+        }
         for r in ranges_mm {
             write!(self.out, ",{}", r.into().round() as i64)?;
         }
         writeln!(self.out)
+    }
+
+    /// Writes one scan line (its `servo_end_deg`, when given, needs a v2 writer).
+    pub fn write_line(&mut self, s: &ScanLine) -> std::io::Result<()> {
+        let end = s.servo_end_deg.unwrap_or(s.servo_deg);
+        self.write_sweep_scan(s.stamp_s, s.servo_deg, end, s.ranges_mm.iter().copied())
     }
 
     /// The underlying writer (flushed).
@@ -445,13 +588,17 @@ impl<W: Write> ScanWriter<W> {
     }
 }
 
-/// Writes scans in the `pingcal-scan` v1 format through [`ScanWriter`], without extra
-/// header lines.
+/// Writes scans through [`ScanWriter`], without extra header lines: v1, or v2 when a scan
+/// has a `servo_end_deg`.
 pub fn write_scans<W: Write>(w: W, header: &ScanHeader, scans: &[ScanLine]) -> std::io::Result<()> {
     let n = scans.first().map_or(0, |s| s.ranges_mm.len());
-    let mut out = ScanWriter::new(w, header, n, &[])?;
+    let mut out = if scans.iter().any(|s| s.servo_end_deg.is_some()) {
+        ScanWriter::new_v2(w, header, n, &[])?
+    } else {
+        ScanWriter::new(w, header, n, &[])?
+    };
     for s in scans {
-        out.write_scan(s.stamp_s, s.servo_deg, s.ranges_mm.iter().copied())?;
+        out.write_line(s)?;
     }
     out.finish().map(drop)
 }
@@ -590,12 +737,14 @@ mod tests {
                 line: 0,
                 stamp_s: 0.0,
                 servo_deg: 1.5,
+                servo_end_deg: None,
                 ranges_mm: vec![1000.0, 0.0, 2500.0],
             },
             ScanLine {
                 line: 0,
                 stamp_s: 0.1,
                 servo_deg: 1.6,
+                servo_end_deg: None,
                 ranges_mm: vec![1001.0, 30.0, 0.0],
             },
         ];
@@ -627,5 +776,52 @@ mod tests {
         let (h, v) = read_all(&text).unwrap();
         assert_eq!(h, ScanHeader::URG_04LX);
         assert_eq!(v[0].ranges_mm, vec![1532.0, 0.0]);
+    }
+
+    #[test]
+    fn v2_gives_each_beam_its_servo_angle_and_round_trips() {
+        let scans = vec![ScanLine {
+            line: 0,
+            stamp_s: 0.1,
+            servo_deg: 10.0,
+            servo_end_deg: Some(12.0),
+            ranges_mm: vec![1000.0, 0.0, 2500.0],
+        }];
+        let mut out = Vec::new();
+        write_scans(&mut out, &ScanHeader::URG_04LX, &scans).unwrap();
+        let text = String::from_utf8(out).unwrap();
+        assert!(text.starts_with("# pingcal-scan v2\n"), "{text}");
+        assert!(text.contains(
+            "stamp_s,servo_deg,servo_end_deg,r0,r1,r2\n0.100,10.000000,12.000000,1000,0,2500\n"
+        ));
+        let (_, v) = read_all(&text).unwrap();
+        assert_eq!(v[0].servo_end_deg, Some(12.0));
+        assert_eq!(
+            (0..3).map(|i| v[0].servo_deg_at(i)).collect::<Vec<_>>(),
+            vec![10.0, 11.0, 12.0]
+        );
+        // v1 lines stand still
+        let (_, v) = read_all(GOOD).unwrap();
+        assert_eq!((v[0].servo_end_deg, v[0].servo_deg_at(2)), (None, -45.056));
+    }
+
+    #[test]
+    fn v2_needs_its_column_and_other_versions_are_refused() {
+        let v2 = GOOD.replace("v1", "v2");
+        let e = read_all(&v2).unwrap_err().to_string();
+        assert!(
+            e.starts_with("t.csv:6: a v2 column line: expected `stamp_s,servo_deg,servo_end_deg"),
+            "{e}"
+        );
+        let e = read_all(&GOOD.replace("v1", "v3")).unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "t.csv:1: pingcal-scan version \"3\": this pingcal reads v1 and v2"
+        );
+        let t = GOOD.replace("servo_deg,r0", "servo_deg,servo_end_deg,r0");
+        let e = read_all(&t).unwrap_err().to_string();
+        assert!(e.contains("needs `# pingcal-scan v2`"), "{e}");
+        let mut w = ScanWriter::new(Vec::new(), &ScanHeader::URG_04LX, 1, &[]).unwrap();
+        assert!(w.write_sweep_scan(0.0, 1.0, 2.0, [1000.0]).is_err());
     }
 }

@@ -174,6 +174,7 @@ impl Scene {
                     line: 0,
                     stamp_s: k as f64 * 0.1,
                     servo_deg: b,
+                    servo_end_deg: None,
                     ranges_mm,
                 }
             })

@@ -26,7 +26,7 @@ mod validate;
 pub use closed_sets::{CameraModel, Method, MountParameter, Parameter, TargetFamily};
 pub use layout::{Layout, LayoutError};
 pub use schema::{
-    BallLabel, CameraParams, ProjectBalls, ProjectCamera, ProjectDistance, ProjectFile,
+    BallLabel, CameraParams, ProjectBag, ProjectBalls, ProjectCamera, ProjectDistance, ProjectFile,
     ProjectFrames, ProjectImage, ProjectLrf, ProjectStereo, ProjectTargets, PARAMETER_NAMES,
 };
 
@@ -97,6 +97,8 @@ pub struct Project {
     pub scan_paths: Vec<PathBuf>,
     /// The coded targets' layout (`[targets] layout`), read.
     pub layout: Option<Layout>,
+    /// `[lrf.bag]` files (bag files or ROS 2 bag folders), resolved.
+    pub bag_paths: Vec<PathBuf>,
 }
 
 impl Project {
@@ -151,6 +153,22 @@ impl Project {
                 Some(layout)
             }
         };
+        let bags = file.lrf.bag.as_ref().map_or(&[][..], |b| &b.files[..]);
+        let bag_paths = bags
+            .iter()
+            .enumerate()
+            .map(|(k, s)| {
+                let p = dir.join(s);
+                if p.exists() {
+                    Ok(p)
+                } else {
+                    Err(ProjectError::Invalid {
+                        path: name.clone(),
+                        what: format!("[lrf.bag] files[{k}] \"{s}\": {} not found", p.display()),
+                    })
+                }
+            })
+            .collect::<Result<Vec<_>, _>>()?;
         Ok(Project {
             path: path.to_path_buf(),
             dir,
@@ -158,6 +176,7 @@ impl Project {
             image_paths,
             scan_paths,
             layout,
+            bag_paths,
         })
     }
 

@@ -280,8 +280,13 @@ pub struct ProjectLrf {
     pub model: String,
     /// Station where it scanned (the main station).
     pub station: String,
-    /// Scan files (`pingcal-scan` CSV, or PLY / XYZ clouds), relative to project.toml.
+    /// Scan files (`pingcal-scan` CSV, or PLY / XYZ clouds), relative to project.toml
+    /// (may be empty when `[lrf.bag]` names bags).
+    #[serde(default)]
     pub scans: Vec<String>,
+    /// ROS bags to read the scans from, besides `scans` (`[lrf.bag]`).
+    #[serde(default)]
+    pub bag: Option<ProjectBag>,
     /// Maximum range (mm).
     pub max_range_mm: f64,
     /// Datasheet accuracy under 1 m (± mm, taken as 3σ).
@@ -308,6 +313,28 @@ pub struct ProjectLrf {
     /// axis and is never estimated.
     #[serde(default)]
     pub self_calibrate: Option<Vec<MountParameter>>,
+}
+
+/// `[lrf.bag]`: ROS 1 / ROS 2 bags holding the LRF's scans and the servo angle (as
+/// `pingcal scans` reads them).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ProjectBag {
+    /// Bag files or ROS 2 bag folders, relative to project.toml.
+    pub files: Vec<String>,
+    /// The `sensor_msgs/LaserScan` topic.
+    pub scan_topic: String,
+    /// The servo topic (`sensor_msgs/JointState` with `servo_joint`, else numeric `std_msgs`).
+    pub servo_topic: String,
+    /// The servo's joint name in the JointState messages.
+    #[serde(default)]
+    pub servo_joint: Option<String>,
+    /// Numeric servo topic: degrees per unit (default 1).
+    #[serde(default)]
+    pub servo_scale: Option<f64>,
+    /// Numeric servo topic: degrees at value 0 (default 0).
+    #[serde(default)]
+    pub servo_offset: Option<f64>,
 }
 
 impl ProjectLrf {

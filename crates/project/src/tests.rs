@@ -382,3 +382,47 @@ fn the_layout_is_read_with_the_project_and_its_errors_named() {
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Issue 16: `[lrf.bag]` names bags and their topics instead of (or besides) scan files.
+#[test]
+fn an_lrf_bag_section_is_read_and_checked() {
+    let bag = "\n[lrf.bag]\nfiles = [\"run.bag\"]\nscan_topic = \"/scan\"\nservo_topic = \"/joint_states\"\nservo_joint = \"servo\"\n";
+    let text = format!("{}{bag}", readme_example());
+    let p = ProjectFile::parse(&text, "p.toml").unwrap();
+    p.validate("p.toml").unwrap();
+    let b = p.lrf.bag.clone().unwrap();
+    assert_eq!(
+        (b.files.len(), b.servo_joint.as_deref()),
+        (1, Some("servo"))
+    );
+    let again = ProjectFile::parse(&p.to_toml_string(), "again").unwrap();
+    assert_eq!(again, p);
+    let check = |edit: &dyn Fn(&mut ProjectFile)| {
+        let mut q = p.clone();
+        edit(&mut q);
+        q.validate("p.toml").unwrap_err().to_string()
+    };
+    let e = check(&|q| q.lrf.bag.as_mut().unwrap().servo_scale = Some(0.088));
+    assert!(
+        e.contains("[lrf.bag] servo_joint and servo_scale/servo_offset: give one"),
+        "{e}"
+    );
+    let e = check(&|q| q.lrf.bag.as_mut().unwrap().files.clear());
+    assert!(e.contains("[lrf.bag] files: no bag"), "{e}");
+    let e = check(&|q| {
+        q.lrf.bag = None;
+        q.lrf.scans.clear()
+    });
+    assert!(
+        e.contains("[lrf] scans: no scan file (and no [lrf.bag])"),
+        "{e}"
+    );
+    let e = check(&|q| {
+        let b = q.lrf.bag.as_mut().unwrap();
+        b.servo_joint = None;
+        b.servo_scale = Some(0.0);
+    });
+    assert!(e.contains("the scale not 0"), "{e}");
+    let t = text.replace("servo_joint = ", "servo_jiont = ");
+    assert!(ProjectFile::parse(&t, "p.toml").is_err());
+}

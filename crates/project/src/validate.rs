@@ -8,8 +8,8 @@
 //! earlier, while reading (see `closed_sets.rs`).
 
 use crate::schema::{
-    ProjectBalls, ProjectCamera, ProjectDistance, ProjectFile, ProjectFrames, ProjectImage,
-    ProjectLrf, ProjectStereo, ProjectTargets,
+    ProjectBag, ProjectBalls, ProjectCamera, ProjectDistance, ProjectFile, ProjectFrames,
+    ProjectImage, ProjectLrf, ProjectStereo, ProjectTargets,
 };
 use crate::ProjectError;
 use std::collections::{BTreeMap, BTreeSet};
@@ -278,9 +278,34 @@ const MIN_MAX_RANGE_MM: f64 = 100.0;
 
 /// `[lrf]`: scans, taken from the main station, a positive range and accuracy, a maximum
 /// range in millimetres, a servo resolution in degrees, a finite mount.
+/// `[lrf.bag]`: files, the two topics, and the servo as a joint or as a finite scale
+/// and offset, not both.
+fn validate_bag(b: &ProjectBag) -> Result<(), String> {
+    if b.files.is_empty() {
+        return Err("[lrf.bag] files: no bag".into());
+    }
+    if b.scan_topic.trim().is_empty() || b.servo_topic.trim().is_empty() {
+        return Err("[lrf.bag] scan_topic and servo_topic must name topics".into());
+    }
+    let numeric = b.servo_scale.is_some() || b.servo_offset.is_some();
+    if b.servo_joint.is_some() && numeric {
+        return Err("[lrf.bag] servo_joint and servo_scale/servo_offset: give one, the joint of a JointState topic or the scale and offset of a numeric one".into());
+    }
+    let scale = b.servo_scale.unwrap_or(1.0);
+    let offset = b.servo_offset.unwrap_or(0.0);
+    if !(scale.is_finite() && scale != 0.0 && offset.is_finite()) {
+        return Err(format!("[lrf.bag] servo_scale = {scale}, servo_offset = {offset}: expected finite numbers, the scale not 0"));
+    }
+    Ok(())
+}
+
 fn validate_lrf(l: &ProjectLrf, main_station: &str) -> Result<(), String> {
-    if l.scans.is_empty() {
-        return Err("[lrf] scans: no scan file".into());
+    match &l.bag {
+        None if l.scans.is_empty() => {
+            return Err("[lrf] scans: no scan file (and no [lrf.bag])".into())
+        }
+        Some(b) => validate_bag(b)?,
+        None => {}
     }
     if l.station != main_station {
         return Err(format!(

@@ -9,6 +9,7 @@ pub mod gen_bal;
 pub mod preflight;
 pub mod progress;
 pub mod register;
+pub mod scans;
 pub mod simulate;
 pub mod targets;
 
@@ -20,6 +21,16 @@ pub type CmdResult = Result<(), CmdError>;
 /// Writes `bytes` to `path` atomically (temporary file in the same folder, then rename),
 /// so that an interrupted run never leaves a partial output file looking complete.
 pub fn write_atomic(path: &std::path::Path, bytes: &[u8]) -> CmdResult {
+    let tmp = partial_path(path)?;
+    // The error names the file the user asked for, not the temporary one.
+    std::fs::write(&tmp, bytes).map_err(|e| format!("{}: cannot write: {e}", path.display()))?;
+    std::fs::rename(&tmp, path).map_err(|e| format!("{}: cannot write: {e}", path.display()))?;
+    Ok(())
+}
+
+/// The temporary file [`write_atomic`] (and a streaming writer) writes `path` through:
+/// `.NAME.partial` in the same folder, renamed onto `path` once complete.
+pub fn partial_path(path: &std::path::Path) -> Result<std::path::PathBuf, CmdError> {
     let dir = path
         .parent()
         .filter(|p| !p.as_os_str().is_empty())
@@ -27,11 +38,7 @@ pub fn write_atomic(path: &std::path::Path, bytes: &[u8]) -> CmdResult {
     let name = path
         .file_name()
         .ok_or_else(|| format!("{}: not a file name", path.display()))?;
-    let tmp = dir.join(format!(".{}.partial", name.to_string_lossy()));
-    // The error names the file the user asked for, not the temporary one.
-    std::fs::write(&tmp, bytes).map_err(|e| format!("{}: cannot write: {e}", path.display()))?;
-    std::fs::rename(&tmp, path).map_err(|e| format!("{}: cannot write: {e}", path.display()))?;
-    Ok(())
+    Ok(dir.join(format!(".{}.partial", name.to_string_lossy())))
 }
 
 #[cfg(test)]

@@ -378,6 +378,7 @@ accuracy_far_fraction = 0.03
             image_paths: Vec::new(),
             scan_paths: Vec::new(),
             layout: None,
+            bag_paths: Vec::new(),
             file,
         };
         let det = || ImageDetections {

@@ -4,7 +4,9 @@
 //! the project, or a PLY / XYZ cloud already in the LRF frame) into one cloud; the balls are
 //! found and fitted by [`pingcal_lrf::ball_finder`] with the ball diameter of the project and
 //! the URG noise model from the datasheet accuracies (taken as 3σ). Scan files are read once:
-//! their lines make the cloud and are kept for the corner baseline.
+//! their lines make the cloud and are kept for the corner baseline. The bags of
+//! `[lrf.bag]` are read as `pingcal scans` reads them ([`pingcal_rosbag::assemble`]), and
+//! their scans join the cloud in the same way.
 
 use super::{Options, PipelineError, Reporter, Result};
 use pingcal_lrf::ball_finder::{find_balls, FindResult, FinderOptions};
@@ -12,7 +14,8 @@ use pingcal_lrf::cloud::{Cloud, MountModel};
 use pingcal_lrf::cloud_file::{file_kind, non_empty, read_cloud_file, CloudFileKind};
 use pingcal_lrf::scan::{open_scan_file, ScanHeader, ScanLine};
 use pingcal_lrf::sensor::RangeNoise;
-use pingcal_project::Project;
+use pingcal_project::{Project, ProjectBag};
+use pingcal_rosbag::assemble::{assemble, servo_series, ServoSource, Topics};
 
 /// Rejected clusters smaller than this are counted, not listed one by one (a 38 mm ball
 /// at 1.5 m gives well over 100 points in a slow sweep).
@@ -44,6 +47,56 @@ pub fn mount_of(project: &Project) -> MountModel {
     }
 }
 
+/// The scans of the `[lrf.bag]` bags, with the servo interpolated at each beam's time;
+/// the scans outside the servo messages are skipped with a warning in the log.
+fn bag_scans(
+    project: &Project,
+    bag: &ProjectBag,
+    rep: &Reporter,
+) -> Result<(ScanHeader, Vec<ScanLine>)> {
+    let err = |e: pingcal_rosbag::RosbagError| PipelineError::new(e.to_string());
+    let mut bags = Vec::new();
+    for p in &project.bag_paths {
+        for f in pingcal_rosbag::bag_files(p).map_err(err)? {
+            bags.push(pingcal_rosbag::Bag::open(&f).map_err(err)?);
+        }
+    }
+    let source = match &bag.servo_joint {
+        Some(j) => ServoSource::Joint(j.clone()),
+        None => ServoSource::Numeric {
+            scale: bag.servo_scale.unwrap_or(1.0),
+            offset: bag.servo_offset.unwrap_or(0.0),
+        },
+    };
+    let topics = Topics {
+        scan: bag.scan_topic.clone(),
+        servo: bag.servo_topic.clone(),
+        source,
+    };
+    let series = servo_series(&bags, &topics).map_err(err)?;
+    let mut header = None;
+    let mut lines = Vec::new();
+    let done = assemble(&bags, &topics, &series, &mut |h, l| {
+        header = Some(*h);
+        lines.push(l);
+        Ok(())
+    })
+    .map_err(err)?;
+    if done.before_servo + done.after_servo > 0 {
+        rep.log(format!(
+            "warning: [lrf.bag] topic {}: {} scan(s) before the first and {} after the last servo message skipped",
+            topics.scan, done.before_servo, done.after_servo
+        ));
+    }
+    let header = header.ok_or_else(|| {
+        PipelineError::new(format!(
+            "[lrf.bag] topic {}: no scan lies within the servo messages",
+            topics.scan
+        ))
+    })?;
+    Ok((header, lines))
+}
+
 /// Reads the scans and finds the spheres.
 pub fn lrf_spheres(project: &Project, opts: &Options, rep: &Reporter) -> Result<LrfData> {
     let l = &project.file.lrf;
@@ -72,6 +125,15 @@ pub fn lrf_spheres(project: &Project, opts: &Options, rep: &Reporter) -> Result<
             cloud.extend(read_cloud_file(path, &mount).map_err(err)?);
         }
         pb.advance(1);
+    }
+    if let Some(bag) = &l.bag {
+        let (header, lines) = bag_scans(project, bag, rep)?;
+        for line in &lines {
+            cloud.push_scan(&header, line, &mount);
+        }
+        if scans.is_none() {
+            scans = Some((header, lines));
+        }
     }
     let noise = RangeNoise::from_datasheet(l.accuracy_near_mm, l.accuracy_far_fraction, 3.0);
     let found = find_balls(

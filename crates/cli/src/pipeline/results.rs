@@ -687,6 +687,7 @@ mod tests {
             image_paths: Vec::new(),
             scan_paths: Vec::new(),
             layout: None,
+            bag_paths: Vec::new(),
         }
     }
 

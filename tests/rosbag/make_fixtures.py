@@ -1,0 +1,254 @@
+"""Writes the rosbag crate's test bags with an independent writer, the `rosbags` package.
+
+    python make_fixtures.py SCANS.csv OUT_DIR
+    python make_fixtures.py --project SIM_DIR
+
+The second form writes every scan of a simulated project (SIM_DIR/scans/S00.csv) as
+SIM_DIR/bags/{ros1.bag,ros2.db3,ros2.mcap} and, beside project.toml, project-ros1.toml,
+project-db3.toml and project-mcap.toml that read the LRF from those bags ([lrf.bag]).
+
+From a pingcal-scan v1 CSV (a simulated project's scans) it takes 5 scans spread over the
+sweep and writes:
+
+- scans.csv: those scans, stamped from T0 = 1.7e9 s (the CSV the bags must decode to);
+- ros1.bag, ros1_bz2.bag, ros1_lz4.bag: ROS 1 bags, chunks uncompressed, bz2 and lz4;
+- ros2.db3 (sqlite3), ros2.mcap (CDR little endian) and ros2_be.mcap (CDR big endian).
+
+Each has /scan (sensor_msgs/LaserScan, ranges in metres as float32, a no-return as inf,
+NaN or 0 in turn), /joint_states (sensor_msgs/JointState, joints `pan` and `servo`, the
+servo in radians) and /servo_ticks (std_msgs/Float64, Dynamixel-like ticks: degrees =
+ticks * 0.087890625 - 180). The servo stands still during each scan (stop-and-go): two
+servo messages per scan, at its first beam and just after its last, and it moves between
+scans. /tf (tf2_msgs/TFMessage) turns child frame `servo_link` about y by the servo angle.
+/empty (std_msgs/Float64) has no message.
+
+sweep.mcap and sweep.csv: a continuous sweep, the servo turning at 30°/s while it scans,
+JointState at 50 Hz; the CSV (v2) gives each scan's servo angle at its first and its last
+beam (stamp + 681 * time_increment), from the same ramp.
+"""
+
+import math
+import shutil
+import sys
+from pathlib import Path
+
+import numpy as np
+from rosbags.rosbag1 import Writer as Writer1
+from rosbags.rosbag2 import StoragePlugin, Writer as Writer2
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+T0_NS = 1_700_000_000 * 1_000_000_000
+SCALE, OFFSET = 0.087890625, -180.0
+N_SCANS = 5
+TIME_INCREMENT = np.float32(0.1 / 1024)
+SERVO_END_S = 0.07  # after the last beam (681 * time_increment = 0.0665 s)
+
+
+def read_csv(path, subset=True):
+    header, scans = {}, []
+    for line in Path(path).read_text().splitlines():
+        if line.startswith('#'):
+            if '=' in line:
+                k, v = line[1:].split('=', 1)
+                header[k.strip()] = v.strip()
+        elif line.startswith('stamp_s'):
+            continue
+        elif line.strip():
+            f = line.split(',')
+            scans.append((f[0], f[1], [int(x) for x in f[2:]]))
+    if not subset:
+        return header, scans
+    step = max(1, len(scans) // N_SCANS)
+    return header, scans[::step][:N_SCANS]
+
+
+def stamp_ns(stamp_text):
+    sec, _, frac = stamp_text.partition('.')
+    return T0_NS + int(sec) * 1_000_000_000 + int((frac + '000000000')[:9])
+
+
+def write_csv(path, header, scans):
+    lines = ['# pingcal-scan v1']
+    lines += [f'# {k}={header[k]}' for k in ('angle_min_deg', 'angle_increment_deg', 'range_unit')]
+    lines.append('stamp_s,servo_deg,' + ','.join(f'r{i}' for i in range(len(scans[0][2]))))
+    for stamp, servo, ranges in scans:
+        ns = stamp_ns(stamp) - T0_NS
+        lines.append(f'{1_700_000_000 + ns // 1_000_000_000}.{ns % 1_000_000_000 // 1_000_000:03d},{servo},'
+                     + ','.join(map(str, ranges)))
+    Path(path).write_text('\n'.join(lines) + '\n')
+
+
+def messages(ts, header, scans, ros1):
+    """(topic, time_ns, message) in time order."""
+    if 'tf2_msgs/msg/TFMessage' not in ts.types:  # rosbags' Noetic store lacks it
+        ts.register(get_types_from_msg('geometry_msgs/TransformStamped[] transforms',
+                                       'tf2_msgs/msg/TFMessage'))
+    Time = ts.types['builtin_interfaces/msg/Time']
+    Header = ts.types['std_msgs/msg/Header']
+    LaserScan = ts.types['sensor_msgs/msg/LaserScan']
+    JointState = ts.types['sensor_msgs/msg/JointState']
+    Float64 = ts.types['std_msgs/msg/Float64']
+    TFMessage = ts.types['tf2_msgs/msg/TFMessage']
+    TransformStamped = ts.types['geometry_msgs/msg/TransformStamped']
+    Transform = ts.types['geometry_msgs/msg/Transform']
+    Vector3 = ts.types['geometry_msgs/msg/Vector3']
+    Quaternion = ts.types['geometry_msgs/msg/Quaternion']
+    amin = math.radians(float(header['angle_min_deg']))
+    inc = math.radians(float(header['angle_increment_deg']))
+    no_return = [math.inf, math.nan, 0.0]
+    out = []
+    for k, (stamp, servo, ranges) in enumerate(scans):
+        t = stamp_ns(stamp)
+        def hdr(ns, frame):
+            stamp = Time(sec=ns // 10**9, nanosec=ns % 10**9)
+            return Header(seq=k, stamp=stamp, frame_id=frame) if ros1 else Header(stamp=stamp, frame_id=frame)
+        r = np.array([r / 1000.0 if r > 0 else no_return[(i + k) % 3] for i, r in enumerate(ranges)],
+                     dtype=np.float32)
+        n = len(ranges)
+        scan = LaserScan(header=hdr(t, 'laser'), angle_min=amin, angle_max=amin + (n - 1) * inc,
+                         angle_increment=inc, time_increment=float(TIME_INCREMENT), scan_time=0.1,
+                         range_min=0.02, range_max=30.0, ranges=r,
+                         intensities=np.zeros(0, dtype=np.float32))
+        deg = float(servo)
+        for ns in (t, t + int(SERVO_END_S * 1e9)):
+            js = JointState(header=hdr(ns, ''), name=['pan', 'servo'],
+                            position=np.array([0.25, math.radians(deg)]),
+                            velocity=np.zeros(0), effort=np.zeros(0))
+            out.append(('/joint_states', ns, js, 'sensor_msgs/msg/JointState'))
+            out.append(('/servo_ticks', ns, Float64(data=(deg - OFFSET) / SCALE), 'std_msgs/msg/Float64'))
+            h = math.radians(deg) / 2
+            tf = TransformStamped(header=hdr(ns, 'laser_base'), child_frame_id='servo_link',
+                                  transform=Transform(translation=Vector3(x=0.0, y=0.01, z=0.0),
+                                                      rotation=Quaternion(x=0.0, y=math.sin(h), z=0.0, w=math.cos(h))))
+            out.append(('/tf', ns, TFMessage(transforms=[tf]), 'tf2_msgs/msg/TFMessage'))
+        out.append(('/scan', t, scan, 'sensor_msgs/msg/LaserScan'))
+    out.sort(key=lambda m: m[1])
+    return out
+
+
+TYPES = {'/scan': 'sensor_msgs/msg/LaserScan', '/joint_states': 'sensor_msgs/msg/JointState',
+         '/servo_ticks': 'std_msgs/msg/Float64', '/tf': 'tf2_msgs/msg/TFMessage',
+         '/empty': 'std_msgs/msg/Float64'}
+SWEEP_DEG_PER_S = 30.0
+
+
+def sweep(out, header, scans):
+    """sweep.mcap and sweep.csv: the same ranges, taken 0.1 s apart while the servo turns."""
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    Time = ts.types['builtin_interfaces/msg/Time']
+    Header = ts.types['std_msgs/msg/Header']
+    LaserScan = ts.types['sensor_msgs/msg/LaserScan']
+    JointState = ts.types['sensor_msgs/msg/JointState']
+    hdr = lambda ns: Header(stamp=Time(sec=ns // 10**9, nanosec=ns % 10**9), frame_id='laser')
+    ramp = lambda ns: -10.0 + SWEEP_DEG_PER_S * (ns - T0_NS) * 1e-9
+    amin = math.radians(float(header['angle_min_deg']))
+    inc = math.radians(float(header['angle_increment_deg']))
+    n = len(scans[0][2])
+    msgs = []
+    for k in range(0, 50):  # 1 s of JointState at 50 Hz
+        ns = T0_NS + k * 20_000_000
+        msgs.append(('/joint_states', ns, JointState(header=hdr(ns), name=['servo'],
+                     position=np.array([math.radians(ramp(ns))]), velocity=np.zeros(0),
+                     effort=np.zeros(0)), 'sensor_msgs/msg/JointState'))
+    lines = ['# pingcal-scan v2']
+    lines += [f'# {k}={header[k]}' for k in ('angle_min_deg', 'angle_increment_deg', 'range_unit')]
+    lines.append('stamp_s,servo_deg,servo_end_deg,' + ','.join(f'r{i}' for i in range(n)))
+    for k, (_, _, ranges) in enumerate(scans):
+        t = T0_NS + 10_000_000 + k * 100_000_000
+        r = np.array([x / 1000.0 if x > 0 else math.inf for x in ranges], dtype=np.float32)
+        msgs.append(('/scan', t, LaserScan(header=hdr(t), angle_min=amin, angle_max=amin + (n - 1) * inc,
+                     angle_increment=inc, time_increment=float(TIME_INCREMENT), scan_time=0.1,
+                     range_min=0.02, range_max=30.0, ranges=r, intensities=np.zeros(0, dtype=np.float32)),
+                     'sensor_msgs/msg/LaserScan'))
+        end = ramp(t) + SWEEP_DEG_PER_S * (n - 1) * float(TIME_INCREMENT)
+        lines.append(f'{(t - T0_NS) / 1e9 + 1_700_000_000:.3f},{ramp(t):.12f},{end:.12f},'
+                     + ','.join(map(str, ranges)))
+    (out / 'sweep.csv').write_text('\n'.join(lines) + '\n')
+    msgs.sort(key=lambda m: m[1])
+    tmp = out / 'sweep.dir'
+    shutil.rmtree(tmp, ignore_errors=True)
+    w = Writer2(tmp, version=9, storage_plugin=StoragePlugin.MCAP)
+    w.open()
+    conns = {t: w.add_connection(t, TYPES[t], typestore=ts) for t in ('/scan', '/joint_states')}
+    for topic, ns, msg, ty in msgs:
+        w.write(conns[topic], ns, ts.serialize_cdr(msg, ty))
+    w.close()
+    (stored,) = [p for p in tmp.iterdir() if p.suffix == '.mcap']
+    shutil.move(stored, out / 'sweep.mcap')
+    shutil.rmtree(tmp)
+
+
+def write_ros1(path, header, scans, compression):
+    ts = get_typestore(Stores.ROS1_NOETIC)
+    msgs = messages(ts, header, scans, True)
+    path.unlink(missing_ok=True)
+    w = Writer1(path)
+    if compression:
+        w.set_compression(compression)
+    w.open()
+    conns = {t: w.add_connection(t, ty, typestore=ts) for t, ty in TYPES.items()}
+    for topic, ns, msg, ty in msgs:
+        w.write(conns[topic], ns, ts.serialize_ros1(msg, ty))
+    w.close()
+
+
+def write_ros2(path, header, scans, plugin, little_endian=True):
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    msgs = messages(ts, header, scans, False)
+    tmp = path.with_suffix('.dir')
+    shutil.rmtree(tmp, ignore_errors=True)
+    w = Writer2(tmp, version=9, storage_plugin=plugin)
+    w.open()
+    conns = {t: w.add_connection(t, ty, typestore=ts) for t, ty in TYPES.items()}
+    for topic, ns, msg, ty in msgs:
+        w.write(conns[topic], ns, ts.serialize_cdr(msg, ty, little_endian=little_endian))
+    w.close()
+    (stored,) = [p for p in tmp.iterdir() if p.suffix in ('.db3', '.mcap')]
+    shutil.move(stored, path)
+    shutil.rmtree(tmp)
+
+
+def main(src, out_dir):
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    header, scans = read_csv(src)
+    write_csv(out / 'scans.csv', header, scans)
+    write_ros1(out / 'ros1.bag', header, scans, None)
+    write_ros1(out / 'ros1_bz2.bag', header, scans, Writer1.CompressionFormat.BZ2)
+    write_ros1(out / 'ros1_lz4.bag', header, scans, Writer1.CompressionFormat.LZ4)
+    write_ros2(out / 'ros2.db3', header, scans, StoragePlugin.SQLITE3)
+    write_ros2(out / 'ros2.mcap', header, scans, StoragePlugin.MCAP)
+    write_ros2(out / 'ros2_be.mcap', header, scans, StoragePlugin.MCAP, little_endian=False)
+    sweep(out, header, scans[:2])
+    total = 0
+    for p in sorted(out.iterdir()):
+        total += p.stat().st_size
+        print(f'{p.name}: {p.stat().st_size} bytes')
+    print(f'total: {total} bytes')
+
+
+def project(sim_dir):
+    sim = Path(sim_dir)
+    header, scans = read_csv(sim / 'scans/S00.csv', subset=False)
+    bags = sim / 'bags'
+    bags.mkdir(exist_ok=True)
+    global T0_NS
+    T0_NS = 0  # the CSV's own stamps
+    write_ros1(bags / 'ros1.bag', header, scans, None)
+    write_ros2(bags / 'ros2.db3', header, scans, StoragePlugin.SQLITE3)
+    write_ros2(bags / 'ros2.mcap', header, scans, StoragePlugin.MCAP)
+    text = (sim / 'project.toml').read_text()
+    for name, bag in (('ros1', 'ros1.bag'), ('db3', 'ros2.db3'), ('mcap', 'ros2.mcap')):
+        lrf = text.replace('scans = ["scans/S00.csv"]\n', '') + (
+            f'\n[lrf.bag]\nfiles = ["bags/{bag}"]\nscan_topic = "/scan"\n'
+            'servo_topic = "/joint_states"\nservo_joint = "servo"\n')
+        (sim / f'project-{name}.toml').write_text(lrf)
+    for p in sorted(bags.iterdir()):
+        print(f'{p}: {p.stat().st_size} bytes')
+
+
+if __name__ == '__main__':
+    if sys.argv[1] == '--project':
+        project(sys.argv[2])
+    else:
+        main(*sys.argv[1:3])

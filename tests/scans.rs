@@ -1,0 +1,205 @@
+//! `pingcal scans` (issue 16): bags written by an independent writer (the `rosbags` Python
+//! package, `tests/rosbag/make_fixtures.sh`) become the scan file they were made from, and
+//! the command keeps the other commands' output rule (an earlier file survives a failed
+//! run, no partial file is left, an input is never the output).
+
+use pingcal_lrf::cloud::{Cloud, MountModel};
+use pingcal_lrf::scan::{open_scan_file, ScanHeader, ScanLine};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn data(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../rosbag/tests/data")
+        .join(name)
+}
+
+fn tmp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("pingcal-scans-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d.join(name)
+}
+
+fn pingcal(args: &[&str]) -> (bool, String, String) {
+    let o = Command::new(env!("CARGO_BIN_EXE_pingcal"))
+        .args(args)
+        .output()
+        .unwrap();
+    let text = |b: &[u8]| String::from_utf8_lossy(b).into_owned();
+    (o.status.success(), text(&o.stdout), text(&o.stderr))
+}
+
+fn read(p: &Path) -> (ScanHeader, Vec<ScanLine>) {
+    let r = open_scan_file(p).unwrap();
+    let h = r.header();
+    (h, r.map(Result::unwrap).collect())
+}
+
+#[test]
+fn every_bag_becomes_the_scan_file_it_was_made_from() {
+    let (h, want) = read(&data("scans.csv"));
+    let mount = MountModel::default();
+    let want_cloud = Cloud::from_scans(&h, want.iter().cloned().map(Ok), &mount).unwrap();
+    let servo = [
+        vec!["--servo-topic", "/joint_states", "--servo-joint", "servo"],
+        vec![
+            "--servo-topic",
+            "/servo_ticks",
+            "--servo-scale",
+            "0.087890625",
+            "--servo-offset",
+            "-180",
+        ],
+    ];
+    for bag in [
+        "ros1.bag",
+        "ros1_bz2.bag",
+        "ros1_lz4.bag",
+        "ros2.db3",
+        "ros2.mcap",
+        "ros2_be.mcap",
+    ] {
+        for s in &servo {
+            let out = tmp(&format!("{bag}.csv"));
+            let _ = std::fs::remove_file(&out);
+            let b = data(bag);
+            let mut args = vec![
+                "scans",
+                b.to_str().unwrap(),
+                "--scan-topic",
+                "/scan",
+                "--out",
+                out.to_str().unwrap(),
+            ];
+            args.extend(s);
+            let (ok, stdout, stderr) = pingcal(&args);
+            assert!(ok, "{bag}: {stderr}");
+            assert!(
+                stdout.starts_with("scans: 5 scans of 682 beams from 1 bag(s)"),
+                "{stdout}"
+            );
+            let text = std::fs::read_to_string(&out).unwrap();
+            assert!(text.starts_with("# pingcal-scan v2\n"), "{bag}");
+            let (got_h, got) = read(&out);
+            assert_eq!(got_h, h, "{bag}");
+            assert_eq!(got.len(), want.len(), "{bag}");
+            for (g, w) in got.iter().zip(&want) {
+                assert_eq!(
+                    (g.stamp_s, g.servo_deg, &g.ranges_mm),
+                    (w.stamp_s, w.servo_deg, &w.ranges_mm),
+                    "{bag}"
+                );
+                assert_eq!(g.servo_end_deg, Some(w.servo_deg), "{bag}");
+            }
+            let cloud = Cloud::from_scans(&got_h, got.into_iter().map(Ok), &mount).unwrap();
+            assert_eq!(cloud.points, want_cloud.points, "{bag}");
+        }
+    }
+}
+
+#[test]
+fn list_prints_topics_types_and_counts() {
+    let b = data("ros2.mcap");
+    let (ok, stdout, stderr) = pingcal(&["scans", b.to_str().unwrap(), "--list"]);
+    assert!(ok, "{stderr}");
+    let rows: Vec<Vec<&str>> = stdout
+        .lines()
+        .skip(1)
+        .map(|l| l.split_whitespace().collect())
+        .collect();
+    assert_eq!(rows[2], ["/scan", "sensor_msgs/LaserScan", "5"], "{stdout}");
+    assert_eq!(
+        rows[1],
+        ["/joint_states", "sensor_msgs/JointState", "10"],
+        "{stdout}"
+    );
+    assert_eq!(stdout.lines().last(), Some("scans: 5 topic(s) in 1 bag(s)"));
+}
+
+#[test]
+fn a_failed_run_keeps_the_earlier_file_and_an_input_is_never_the_output() {
+    let out = tmp("kept.csv");
+    std::fs::write(&out, "earlier\n").unwrap();
+    let b = data("ros1.bag");
+    let (ok, _, stderr) = pingcal(&[
+        "scans",
+        b.to_str().unwrap(),
+        "--scan-topic",
+        "/scan",
+        "--servo-topic",
+        "/joint_states",
+        "--servo-joint",
+        "tilt",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(!ok);
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(
+        stderr.contains("ros1.bag: topic /joint_states: no joint named \"tilt\""),
+        "{stderr}"
+    );
+    assert_eq!(std::fs::read_to_string(&out).unwrap(), "earlier\n");
+    let left: Vec<_> = std::fs::read_dir(out.parent().unwrap())
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().ends_with(".partial"))
+        .collect();
+    assert!(left.is_empty(), "{left:?}");
+    // the bag given as --out is refused before it is touched
+    let copy = tmp("copy.bag");
+    std::fs::copy(&b, &copy).unwrap();
+    let c = copy.to_str().unwrap();
+    let (ok, _, stderr) = pingcal(&[
+        "scans",
+        c,
+        "--scan-topic",
+        "/scan",
+        "--servo-topic",
+        "/servo_ticks",
+        "--out",
+        c,
+    ]);
+    assert!(!ok);
+    assert!(stderr.contains("is one of the bags read"), "{stderr}");
+    assert_eq!(std::fs::read(&copy).unwrap(), std::fs::read(&b).unwrap());
+}
+
+#[test]
+fn a_ros2_bag_folder_reads_its_storage_files() {
+    let dir = tmp("bagdir");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::copy(data("ros2.db3"), dir.join("run_0.db3")).unwrap();
+    std::fs::write(
+        dir.join("metadata.yaml"),
+        "rosbag2_bagfile_information: {}\n",
+    )
+    .unwrap();
+    let out = tmp("bagdir.csv");
+    let _ = std::fs::remove_file(&out);
+    let (ok, stdout, stderr) = pingcal(&[
+        "scans",
+        dir.to_str().unwrap(),
+        "--scan-topic",
+        "/scan",
+        "--servo-topic",
+        "/joint_states",
+        "--servo-joint",
+        "servo",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(ok, "{stderr}");
+    assert!(
+        stdout.starts_with("scans: 5 scans of 682 beams from 1 bag(s)"),
+        "{stdout}"
+    );
+    let empty = tmp("emptydir");
+    std::fs::create_dir_all(&empty).unwrap();
+    let (ok, _, stderr) = pingcal(&["scans", empty.to_str().unwrap(), "--list"]);
+    assert!(
+        !ok && stderr.contains("a directory without .db3 or .mcap files"),
+        "{stderr}"
+    );
+}
