@@ -22,6 +22,17 @@ pub fn escape(s: &str) -> String {
     out
 }
 
+/// Decimals of a length or coordinate in mm (one format per quantity, everywhere).
+pub(crate) const MM: usize = 2;
+/// Decimals of a σ in mm.
+pub(crate) const SIGMA_MM: usize = 3;
+/// Decimals of an angle or its σ in degrees.
+pub(crate) const DEG: usize = 4;
+/// Decimals of an image quantity in pixels.
+pub(crate) const PX: usize = 3;
+/// Decimals of a correlation coefficient or a normalised residual.
+pub(crate) const RATIO: usize = 2;
+
 /// Fixed decimals; "—" for NaN/inf; never "-0.00".
 pub(crate) fn num(v: f64, decimals: usize) -> String {
     if !v.is_finite() {

@@ -32,10 +32,12 @@
 
 use serde::{Deserialize, Serialize};
 
+mod charts;
 mod fmt;
 mod plot;
 mod render;
 pub mod sample;
+mod tables;
 
 pub use fmt::escape;
 
@@ -71,6 +73,67 @@ pub struct ReportData {
     pub rejected: Vec<Rejection>,
     /// Warnings of the pipeline.
     pub warnings: Vec<String>,
+    /// Exterior orientation of every adjusted image.
+    #[serde(default)]
+    pub exterior: Vec<ExteriorRow>,
+    /// The measured distances of the bundle adjustment.
+    #[serde(default)]
+    pub distances: Vec<DistanceRow>,
+    /// The stereo rig's relative orientation (None: no rig).
+    #[serde(default)]
+    pub rig: Option<RigOrientation>,
+}
+
+/// Exterior orientation of one image.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+pub struct ExteriorRow {
+    /// Image name.
+    pub name: String,
+    /// Projection centre X, Y, Z in mm, photogrammetric frame.
+    pub centre_mm: [f64; 3],
+    /// ω, φ, κ of the rotation object → camera, degrees.
+    pub opk_deg: [f64; 3],
+    /// σ of the projection centre, mm (None: not adjusted, e.g. the datum image).
+    pub sigma_centre_mm: Option<[f64; 3]>,
+    /// σ of the small rotations about the camera's X, Y, Z axes, degrees (None: not
+    /// adjusted).
+    pub sigma_rotation_deg: Option<[f64; 3]>,
+    /// Why there is no σ (datum, rig member …), empty otherwise.
+    pub note: String,
+}
+
+/// One measured distance of the bundle adjustment.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+pub struct DistanceRow {
+    /// From point (label).
+    pub from: String,
+    /// To point (label).
+    pub to: String,
+    /// Measured length, mm.
+    pub measured_mm: f64,
+    /// Adjusted length, mm.
+    pub adjusted_mm: f64,
+    /// A-priori σ of the measurement, mm.
+    pub sigma_mm: f64,
+}
+
+/// The stereo rig: `p_right = R · p_left + t`.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+pub struct RigOrientation {
+    /// Left (base) camera.
+    pub left: String,
+    /// Right (member) camera.
+    pub right: String,
+    /// t in mm.
+    pub translation_mm: [f64; 3],
+    /// ω, φ, κ of R in degrees.
+    pub opk_deg: [f64; 3],
+    /// Length of the baseline, mm.
+    pub baseline_mm: f64,
+    /// σ of t in mm (None: not computed).
+    pub sigma_translation_mm: Option<[f64; 3]>,
+    /// σ of ω, φ, κ in degrees (None: not computed).
+    pub sigma_rotation_deg: Option<[f64; 3]>,
 }
 
 /// Whether to trust the calibration: `ok`, `doubtful` or `failed`, why, and the tests.
@@ -219,6 +282,10 @@ pub struct MethodResult {
     pub sd_check_error_mm: Option<f64>,
     /// When the method failed: why (the other fields are then not shown).
     pub error: Option<String>,
+    /// Correlation matrix (6 × 6, row by row) of (θx, θy, θz, tx, ty, tz): the small
+    /// rotations about the camera axes and the translation (None: not computed).
+    #[serde(default)]
+    pub correlation: Option<Vec<Vec<f64>>>,
 }
 
 /// One row of a control/check table.
@@ -255,6 +322,32 @@ pub struct Intrinsics {
     pub free: Vec<bool>,
     /// Pairs of parameters with their correlation; |r| > 0.9 are highlighted.
     pub high_correlations: Vec<(String, String, f64)>,
+    /// Radial distance from the principal point to the farthest sensor corner, mm (None:
+    /// unknown; the distortion profile is then not drawn).
+    #[serde(default)]
+    pub r_max_mm: Option<f64>,
+    /// The same camera in OpenCV's pinhole model (None: not converted).
+    #[serde(default)]
+    pub opencv: Option<OpenCvParams>,
+}
+
+/// A camera in OpenCV's model: the camera matrix and (k1, k2, p1, p2, k3).
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+pub struct OpenCvParams {
+    /// fx, px.
+    pub fx: f64,
+    /// fy, px.
+    pub fy: f64,
+    /// cx, px.
+    pub cx: f64,
+    /// cy, px.
+    pub cy: f64,
+    /// k1, k2, p1, p2, k3.
+    pub dist: [f64; 5],
+    /// Image width, px.
+    pub width: u32,
+    /// Image height, px.
+    pub height: u32,
 }
 
 /// One parameter of the LRF's mount and range model from the joint adjustment.

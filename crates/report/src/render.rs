@@ -5,19 +5,28 @@ use crate::plot::{
     axes, nice_number, nice_step, quantile, svg_open, ticks, Bounds, Frame, LabelPlacer,
     MARGIN_LEFT, MARGIN_TOP,
 };
-use crate::{CheckRow, ImageResiduals, MethodResult, NetworkPoint, ReportData};
+use crate::{charts, tables, CheckRow, ImageResiduals, MethodResult, NetworkPoint, ReportData};
 use std::cmp::Ordering;
 use std::fmt::Write;
 
 /// Section ids and headings, in document order.
-pub(crate) const SECTIONS: [(&str, &str); 11] = [
+pub(crate) const SECTIONS: [(&str, &str); 20] = [
     ("summary", "Summary"),
     ("extrinsic", "Extrinsic calibration"),
+    ("extrinsic_precision", "Extrinsic precision"),
     ("checks", "Check points"),
     ("images", "Image residuals"),
+    ("histogram", "Residual histogram"),
+    ("coverage", "Image coverage"),
     ("network", "Network"),
+    ("exterior", "Exterior orientation"),
+    ("points", "Point precision"),
+    ("distances", "Distances"),
+    ("rig", "Stereo rig"),
     ("cloud", "LRF cloud"),
     ("intrinsics", "Intrinsics"),
+    ("distortion", "Distortion profile"),
+    ("opencv", "OpenCV parameters"),
     ("mount", "LRF mount and range"),
     ("rejected", "Rejected"),
     ("warnings", "Warnings"),
@@ -94,7 +103,7 @@ fn kind_legend(o: &mut String, with_camera: bool) {
     o.push_str("</div>\n");
 }
 
-fn h2(o: &mut String, id: &str) {
+pub(crate) fn h2(o: &mut String, id: &str) {
     let title = SECTIONS
         .iter()
         .find(|(i, _)| *i == id)
@@ -102,7 +111,7 @@ fn h2(o: &mut String, id: &str) {
     let _ = write!(o, "<section id=\"{id}\">\n<h2>{}</h2>\n", escape(title));
 }
 
-fn none(o: &mut String, text: &str) {
+pub(crate) fn none(o: &mut String, text: &str) {
     let _ = writeln!(o, r#"<p class="none">{}</p>"#, escape(text));
 }
 
@@ -132,15 +141,27 @@ pub(crate) fn document(d: &ReportData) -> String {
             escape(&d.generator)
         );
     }
+    if let Some(v) = &d.verdict {
+        verdict(&mut o, v);
+    }
     toc(&mut o, d);
     o.push_str("</header>\n");
     summary(&mut o, d);
     extrinsic(&mut o, d);
+    charts::extrinsic_precision(&mut o, d);
     checks(&mut o, d);
     images(&mut o, d);
+    charts::histogram(&mut o, d);
+    charts::coverage(&mut o, d);
     network(&mut o, d);
+    tables::exterior(&mut o, d);
+    tables::points(&mut o, d);
+    tables::distances(&mut o, d);
+    tables::rig(&mut o, d);
     cloud(&mut o, d);
     intrinsics(&mut o, d);
+    charts::distortion(&mut o, d);
+    tables::opencv(&mut o, d);
     mount(&mut o, d);
     rejected(&mut o, d);
     warnings(&mut o, d);
@@ -167,9 +188,6 @@ fn toc(o: &mut String, d: &ReportData) {
 
 fn summary(o: &mut String, d: &ReportData) {
     h2(o, "summary");
-    if let Some(v) = &d.verdict {
-        verdict(o, v);
-    }
     if d.summary.is_empty() {
         none(o, "no summary");
     } else {
@@ -341,14 +359,20 @@ fn check_stats(m: &MethodResult) -> (Option<f64>, Option<f64>, Option<&'static s
     }
 }
 
-/// Natural order of ids: numbers first by value, then other strings.
-fn id_cmp(a: &str, b: &str) -> Ordering {
-    match (a.trim().parse::<f64>(), b.trim().parse::<f64>()) {
-        (Ok(x), Ok(y)) if x.is_finite() && y.is_finite() => x.total_cmp(&y).then(a.cmp(b)),
-        (Ok(x), Err(_)) if x.is_finite() => Ordering::Less,
-        (Err(_), Ok(y)) if y.is_finite() => Ordering::Greater,
-        _ => a.cmp(b),
-    }
+/// Natural order of ids: by the text before the first digit, then the number its digits
+/// make (B4 before B11; plain numbers first by value), then the whole id.
+pub(crate) fn id_cmp(a: &str, b: &str) -> Ordering {
+    natural_key(a).cmp(&natural_key(b))
+}
+
+fn natural_key(id: &str) -> (&str, u64, &str) {
+    let id = id.trim();
+    let start = id.find(|c: char| c.is_ascii_digit()).unwrap_or(id.len());
+    let end = id[start..]
+        .find(|c: char| !c.is_ascii_digit())
+        .map_or(id.len(), |e| start + e);
+    let n = id[start..end].parse().unwrap_or(u64::MAX);
+    (&id[..start], n, id)
 }
 
 fn checks(o: &mut String, d: &ReportData) {
@@ -1313,6 +1337,9 @@ mod tests {
         let mut v = vec!["12", "b", "4", "a", "9", "15", "11"];
         v.sort_by(|a, b| id_cmp(a, b));
         assert_eq!(v, ["4", "9", "11", "12", "15", "a", "b"]);
+        let mut w = vec!["B11", "B4", "T2", "B1", "T10"];
+        w.sort_by(|a, b| id_cmp(a, b));
+        assert_eq!(w, ["B1", "B4", "B11", "T2", "T10"]);
     }
 
     #[test]

@@ -429,7 +429,21 @@ fn method(name: &str, r: M3, t: V3, checks: Vec<CheckRow>, sigmas: bool) -> Meth
         mean_check_error_mm: Some(m),
         sd_check_error_mm: Some(sd),
         error: None,
+        correlation: sigmas.then(sample_correlation),
     }
+}
+
+/// A plausible correlation matrix of (θ, t): rotation and translation couple.
+fn sample_correlation() -> Vec<Vec<f64>> {
+    let mut r = vec![vec![0.0; 6]; 6];
+    for (i, row) in r.iter_mut().enumerate() {
+        row[i] = 1.0;
+    }
+    for (i, j, v) in [(0, 5, 0.93), (2, 3, -0.71), (1, 4, 0.34)] {
+        r[i][j] = v;
+        r[j][i] = v;
+    }
+    r
 }
 
 /// A joint adjustment's mount: offsets and a tilt estimated, `offset_y` defined.
@@ -494,7 +508,51 @@ fn intrinsics(side: &str, rng: &mut Rng) -> Intrinsics {
             ("yp".into(), "p2".into(), 0.904),
             ("c".into(), "k1".into(), 0.874),
         ],
+        r_max_mm: Some(0.5 * (4.8f64.powi(2) + 2.7f64.powi(2)).sqrt()),
+        opencv: Some(crate::OpenCvParams {
+            fx: values[0] / 0.00375,
+            fy: values[0] / 0.00375,
+            cx: 639.5 + values[1] / 0.00375,
+            cy: 359.5 - values[2] / 0.00375,
+            dist: [-0.175, 0.161, 7.8e-4, 5.2e-4, 0.0],
+            width: 1280,
+            height: 720,
+        }),
     }
+}
+
+/// The exterior orientation of the stations (the first is the datum).
+fn exterior(cams: &[CameraStation], rng: &mut Rng) -> Vec<crate::ExteriorRow> {
+    cams.iter()
+        .enumerate()
+        .map(|(i, c)| crate::ExteriorRow {
+            name: c.name.clone(),
+            centre_mm: c.centre,
+            opk_deg: matrix_opk_deg(&c.rotation),
+            sigma_centre_mm: (i > 0)
+                .then(|| [0.3, 0.2, 0.3].map(|s| s * (1.0 + 0.3 * rng.normal().abs()))),
+            sigma_rotation_deg: (i > 0).then_some([0.011, 0.009, 0.004]),
+            note: if i == 0 {
+                "datum (held)".into()
+            } else {
+                String::new()
+            },
+        })
+        .collect()
+}
+
+/// Measured distances between coded targets, with small residuals.
+fn distances(rng: &mut Rng) -> Vec<crate::DistanceRow> {
+    [("11", "4", 1500.0), ("2", "31", 2480.0), ("7", "19", 998.5)]
+        .iter()
+        .map(|(a, b, l)| crate::DistanceRow {
+            from: a.to_string(),
+            to: b.to_string(),
+            measured_mm: *l,
+            adjusted_mm: l + 0.2 * rng.normal(),
+            sigma_mm: 0.1,
+        })
+        .collect()
 }
 
 /// The sample report: 22 images, 78 targets + 16 balls, a ray-cast cloud of about
@@ -504,6 +562,7 @@ pub fn sample_report(cloud_points: usize) -> ReportData {
     let pts = targets_and_balls(&mut rng);
     let cams = stations();
     let imgs = images(&cams, &pts, &mut rng);
+    let ext = exterior(&cams, &mut rng);
     let balls: Vec<&NetworkPoint> = pts.iter().filter(|p| p.kind == "ball").collect();
     let ball_xyz: Vec<V3> = balls.iter().map(|b| b.xyz).collect();
     let cloud_pts = lrf_cloud(&ball_xyz, cloud_points, &mut rng);
@@ -552,6 +611,17 @@ pub fn sample_report(cloud_points: usize) -> ReportData {
             "sphere S14 has 14 inliers only; its centre σ is 2.4 mm".into(),
             "high correlation k1–k2 (r = −0.96) in both cameras".into(),
         ],
+        exterior: ext,
+        distances: distances(&mut rng),
+        rig: Some(crate::RigOrientation {
+            left: "left".into(),
+            right: "right".into(),
+            translation_mm: [-120.1, 0.4, -0.2],
+            opk_deg: [0.12, -0.31, 0.05],
+            baseline_mm: 120.1,
+            sigma_translation_mm: None,
+            sigma_rotation_deg: None,
+        }),
     }
 }
 

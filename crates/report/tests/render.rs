@@ -4,14 +4,24 @@
 use pingcal_report::sample::sample_report;
 use pingcal_report::*;
 
-const IDS: [&str; 10] = [
+const IDS: [&str; 20] = [
     "summary",
     "extrinsic",
+    "extrinsic_precision",
     "checks",
     "images",
+    "histogram",
+    "coverage",
     "network",
+    "exterior",
+    "points",
+    "distances",
+    "rig",
     "cloud",
     "intrinsics",
+    "distortion",
+    "opencv",
+    "mount",
     "rejected",
     "warnings",
     "steps",
@@ -49,7 +59,20 @@ fn sample_is_well_formed_with_all_sections_in_order() {
     let doc = parse(&html);
     // every <svg is an element of the parsed tree: 1 chart + 22 images + 2 network + 2 cloud
     assert_eq!(svg_count(&doc), html.matches("<svg ").count());
-    assert_eq!(svg_count(&doc), 1 + 22 + 2 + 2);
+    // + 2 extrinsic σ bar plots + 1 histogram + 22 coverage thumbnails + 1 distortion profile
+    assert_eq!(svg_count(&doc), 1 + 22 + 2 + 2 + 2 + 1 + 22 + 1);
+    for text in [
+        "Relative precision <b>1 : ",
+        "correlations of (θ, t)",
+        "σ of the rig not computed",
+        "at the corner (r = ",
+        "/25 cells",
+        "distCoeffs = (k1, k2, p1, p2, k3)",
+    ] {
+        assert!(html.contains(text), "{text:?} missing");
+    }
+    // the verdict comes before the table of contents and every section
+    assert!(html.find("id=\"verdict\"").unwrap() < html.find("<nav").unwrap());
     let mut last = 0;
     for id in IDS {
         let at = html
@@ -175,12 +198,30 @@ fn user_strings_are_escaped() {
             sigmas: vec![0.1],
             free: vec![true],
             high_correlations: vec![(s(), s(), 0.95)],
+            r_max_mm: Some(3.0),
+            opencv: Some(Default::default()),
         }],
         rejected: vec![Rejection {
             what: s(),
             why: s(),
         }],
         warnings: vec![s()],
+        exterior: vec![ExteriorRow {
+            name: s(),
+            note: s(),
+            ..Default::default()
+        }],
+        distances: vec![DistanceRow {
+            from: s(),
+            to: s(),
+            sigma_mm: 0.1,
+            ..Default::default()
+        }],
+        rig: Some(RigOrientation {
+            left: s(),
+            right: s(),
+            ..Default::default()
+        }),
     };
     let html = render_html(&data);
     assert!(!html.contains("<script"), "raw markup leaked");
@@ -217,6 +258,14 @@ fn non_finite_numbers_print_as_dash_and_keep_svg_valid() {
     data.methods[1].checks[1].dx_mm = -inf;
     data.intrinsics[0].values[0] = nan;
     data.intrinsics[0].high_correlations[0].2 = nan;
+    data.intrinsics[1].values[3] = inf; // K1: no distortion profile for this camera
+    data.intrinsics[0].r_max_mm = Some(nan);
+    data.exterior[1].centre_mm[0] = nan;
+    data.exterior[2].sigma_centre_mm = Some([inf; 3]);
+    data.distances[0].sigma_mm = 0.0;
+    data.distances[1].adjusted_mm = nan;
+    data.methods[0].correlation.as_mut().unwrap()[0][1] = nan;
+    data.methods[0].sigma_rotation_deg = Some([nan; 3]);
     let html = render_html(&data);
     assert!(html.contains("—"));
     let doc = parse(&html);
