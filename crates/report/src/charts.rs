@@ -2,7 +2,7 @@
 //! the image-residual histogram, the image coverage and the radial distortion profile.
 
 use crate::fmt::{c, escape, num, DEG, PX, RATIO, SIGMA_MM};
-use crate::plot::{axes, nice_step, svg_open, Frame, MARGIN_LEFT, MARGIN_TOP};
+use crate::plot::{axes, axes_with, nice_step, svg_open, Frame, MARGIN_LEFT, MARGIN_TOP};
 use crate::render::{h2, none};
 use crate::{ImageResiduals, Intrinsics, MethodResult, ReportData};
 use std::fmt::Write;
@@ -49,7 +49,13 @@ fn bars(o: &mut String, cats: &[&str], series: &[(&str, &str, [f64; 3])], ylabel
     let f = frame([0.0, cats.len() as f64], nice_range(0.0, max), 300.0, 200.0);
     let (w, h) = f.svg_size();
     svg_open(o, w, h, ylabel);
-    axes(o, &f, "component", ylabel);
+    axes_with(
+        o,
+        &f,
+        "component (camera frame: X right, Y forward, Z up)",
+        ylabel,
+        false,
+    );
     let bw = 0.8 / series.len().max(1) as f64;
     for (k, (name, col, vals)) in series.iter().enumerate() {
         for (i, v) in vals.iter().enumerate().filter(|(_, v)| v.is_finite()) {
@@ -72,7 +78,7 @@ fn bars(o: &mut String, cats: &[&str], series: &[(&str, &str, [f64; 3])], ylabel
             o,
             r#"<text class="lbl" x="{}" y="{}" text-anchor="middle">{cat}</text>"#,
             c(f.px(i as f64 + 0.5)),
-            c(f.top + 12.0)
+            c(f.top + f.h + 14.0)
         );
     }
     o.push_str("</svg>\n");

@@ -163,6 +163,11 @@ pub(crate) fn svg_open(out: &mut String, w: f64, h: f64, label: &str) {
 
 /// Draws the plot rectangle, grid lines, ticks with nice numbers and the axis labels.
 pub(crate) fn axes(out: &mut String, f: &Frame, xlabel: &str, ylabel: &str) {
+    axes_with(out, f, xlabel, ylabel, true);
+}
+
+/// [`axes`], with the x ticks left out when `x_ticks` is false (categories on x).
+pub(crate) fn axes_with(out: &mut String, f: &Frame, xlabel: &str, ylabel: &str, x_ticks: bool) {
     let nx = ((f.w / 90.0).round() as usize).clamp(2, 10);
     let ny = ((f.h / 60.0).round() as usize).clamp(2, 10);
     let sx = nice_step(f.x1 - f.x0, nx);
@@ -170,7 +175,7 @@ pub(crate) fn axes(out: &mut String, f: &Frame, xlabel: &str, ylabel: &str) {
     let (l, t, r, b) = (f.left, f.top, f.left + f.w, f.top + f.h);
     let mut grid = String::new();
     let mut labels = String::new();
-    for v in ticks(f.x0, f.x1, sx) {
+    for v in ticks(f.x0, f.x1, sx).into_iter().filter(|_| x_ticks) {
         let x = c(f.px(v));
         let _ = write!(grid, "M{x} {}V{}", c(t), c(b + 4.0));
         let _ = write!(

@@ -57,12 +57,124 @@ pub fn build(st: &Stages, results: &Results, rep: &Reporter) -> rp::ReportData {
         images: image_residuals(st),
         network: network(st),
         cloud: cloud(st),
-        methods: methods(results),
+        methods: methods(st, results),
         intrinsics: intrinsics(st, results),
         lrf_mount: mount_rows(results),
         rejected: rejections(st),
         warnings: warnings(st, results),
+        exterior: exterior(st),
+        distances: distances(st),
+        rig: results.bundle.rig.as_ref().map(rig),
     }
+}
+
+/// Why an image of the final problem has no σ of its own.
+fn no_sigma_note(st: &Stages, s: usize) -> &'static str {
+    let p = &st.adjusted.solved.problem;
+    if p.images[s].fixed {
+        "datum (held)"
+    } else if p
+        .rigs
+        .iter()
+        .any(|r| r.members.iter().any(|m| m.image == s))
+    {
+        "rig member: follows its base image through the rig"
+    } else {
+        "no σ"
+    }
+}
+
+/// The exterior orientation of every image of the final problem with its σ.
+fn exterior(st: &Stages) -> Vec<rp::ExteriorRow> {
+    let adj = st.adjusted;
+    adj.solved
+        .map
+        .images
+        .iter()
+        .enumerate()
+        .filter_map(|(s, &i)| {
+            let pose = st.scene.poses[i]?;
+            let c = pose.centre();
+            let sigma = adj.precision.poses.get(s).copied().flatten();
+            Some(rp::ExteriorRow {
+                name: image_file(st.project, i).to_string(),
+                centre_mm: [c.x, c.y, c.z],
+                opk_deg: pose.opk_deg(),
+                sigma_centre_mm: sigma.map(|p| p.centre),
+                sigma_rotation_deg: sigma.map(|p| p.rotation_rad.map(f64::to_degrees)),
+                note: if sigma.is_some() {
+                    String::new()
+                } else {
+                    no_sigma_note(st, s).into()
+                },
+            })
+        })
+        .collect()
+}
+
+/// The measured distances of the final adjustment: measured and adjusted.
+fn distances(st: &Stages) -> Vec<rp::DistanceRow> {
+    let p = &st.adjusted.solved.problem;
+    p.distances
+        .iter()
+        .map(|d| rp::DistanceRow {
+            from: p.points[d.a].name.clone(),
+            to: p.points[d.b].name.clone(),
+            measured_mm: d.value,
+            adjusted_mm: (p.points[d.a].position - p.points[d.b].position).norm(),
+            sigma_mm: d.sigma,
+        })
+        .collect()
+}
+
+/// The stereo rig of `results.json` (its σ are not computed by the precision).
+fn rig(r: &super::results::RigJson) -> rp::RigOrientation {
+    let m = nalgebra::Matrix3::from_fn(|i, j| r.rotation[i][j]);
+    rp::RigOrientation {
+        left: r.left.clone(),
+        right: r.right.clone(),
+        translation_mm: r.translation_mm,
+        opk_deg: pingcal_geometry::to_opk_deg(&m),
+        baseline_mm: r.baseline_mm,
+        sigma_translation_mm: None,
+        sigma_rotation_deg: None,
+    }
+}
+
+/// The correlation matrix of the first six unknowns (θ, t) of a covariance matrix.
+fn correlation(cov: &nalgebra::DMatrix<f64>) -> Option<Vec<Vec<f64>>> {
+    if cov.nrows() < 6 || cov.ncols() < 6 {
+        return None;
+    }
+    let s: Vec<f64> = (0..6).map(|i| cov[(i, i)].max(0.0).sqrt()).collect();
+    Some(
+        (0..6)
+            .map(|i| (0..6).map(|j| cov[(i, j)] / (s[i] * s[j])).collect())
+            .collect(),
+    )
+}
+
+/// The covariance of (θ, t) of a method's extrinsic, when it has one.
+fn method_correlation(st: &Stages, method: &str) -> Option<Vec<Vec<f64>>> {
+    match method {
+        "spheres" => correlation(&st.ext.spheres.as_ref()?.registration.cov),
+        "joint" => correlation(&st.joint.as_ref()?.as_ref().ok()?.extrinsic_cov),
+        _ => None,
+    }
+}
+
+/// Distance from the principal point to the farthest corner of camera `c`'s sensor, mm.
+fn r_max_mm(st: &Stages, c: usize, values: &[f64]) -> Option<f64> {
+    let cam = st.project.file.cameras.get(c)?;
+    let (hw, hh) = (
+        0.5 * cam.width as f64 * cam.pixel_size_mm,
+        0.5 * cam.height as f64 * cam.pixel_size_mm,
+    );
+    let (xp, yp) = (*values.get(1)?, *values.get(2)?);
+    [(hw, hh), (-hw, hh), (hw, -hh), (-hw, -hh)]
+        .iter()
+        .map(|(x, y)| (x - xp).hypot(y - yp))
+        .reduce(f64::max)
 }
 
 /// Per oriented image (in the order of the final problem): the residual of every image point,
@@ -227,7 +339,7 @@ fn mount_rows(results: &Results) -> Vec<rp::MountRow> {
 }
 
 /// Each method's extrinsic and check table, or why it failed.
-fn methods(results: &Results) -> Vec<rp::MethodResult> {
+fn methods(st: &Stages, results: &Results) -> Vec<rp::MethodResult> {
     let mut methods = Vec::new();
     for m in &results.methods {
         let name = match m.method.as_str() {
@@ -257,6 +369,7 @@ fn methods(results: &Results) -> Vec<rp::MethodResult> {
                 mean_check_error_mm: m.mean_check_error_mm,
                 sd_check_error_mm: m.sd_check_error_mm,
                 error: None,
+                correlation: method_correlation(st, &m.method),
             },
             None => rp::MethodResult {
                 name,
@@ -295,6 +408,16 @@ fn intrinsics(st: &Stages, results: &Results) -> Vec<rp::Intrinsics> {
                     .map(|p| cam.free.contains(p))
                     .collect(),
                 high_correlations: cj.high_correlations.clone(),
+                r_max_mm: r_max_mm(st, c, values),
+                opencv: Some(rp::OpenCvParams {
+                    fx: cj.opencv.fx,
+                    fy: cj.opencv.fy,
+                    cx: cj.opencv.cx,
+                    cy: cj.opencv.cy,
+                    dist: cj.opencv.dist,
+                    width: cj.opencv.image_width,
+                    height: cj.opencv.image_height,
+                }),
             }
         })
         .collect()
