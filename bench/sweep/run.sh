@@ -27,7 +27,8 @@ for s in $seeds; do
   python3 - "$out/continuous-$s" <<'PY'
 import glob, os, shutil, sys
 d = sys.argv[1]
-v1 = d + "-v1"
+head, seed = d.rsplit("-", 1)
+v1 = f"{head}-v1-{seed}"
 shutil.rmtree(v1, ignore_errors=True)
 shutil.copytree(d, v1, ignore=shutil.ignore_patterns("out*"))
 for f in glob.glob(f"{v1}/scans/*.csv"):
