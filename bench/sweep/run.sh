@@ -5,7 +5,10 @@
 # stop-and-go at the same servo step.
 #   bash bench/sweep/run.sh [SEEDS] [STEP_DEG]     (from the repository root)
 # Default: seeds 1..5, a 0.3515625° step per 0.1 s scan (3.5°/s; the beams of one scan then
-# span 0.23° of servo travel). Needs the release binary. Writes bench/sweep/out/.
+# span 0.23° of servo travel). NOISE=0 switches the LRF's range and servo noise off, to see
+# the geometry alone. Needs the release binary. Writes bench/sweep/out/ (or $OUT).
+# Besides the check errors, the table gives the RMS distance of the fitted sphere centres
+# from the true ones in the LRF frame (results.json balls[].lrf_mm against truth.json).
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
 root="$(cd "$here/../.." && pwd)"
@@ -14,9 +17,10 @@ seeds="${1:-1 2 3 4 5}"
 step="${2:-0.3515625}"
 out="${OUT:-$here/out}"
 mkdir -p "$out"
-printf '[lrf]\nservo_step_deg = %s\ncontinuous_sweep = true\n' "$step" >"$out/continuous.toml"
-printf '[lrf]\nservo_step_deg = %s\n' "$step" >"$out/stop.toml"
-printf 'case\tseed\tfinished\tmean_check_mm\tjoint_check_mm\tspheres_check_mm\n' >"$out/runs.tsv"
+noise="$([ "${NOISE:-1}" = 0 ] && echo 'noise = false' || true)"
+printf '[lrf]\nservo_step_deg = %s\ncontinuous_sweep = true\n%s\n' "$step" "$noise" >"$out/continuous.toml"
+printf '[lrf]\nservo_step_deg = %s\n%s\n' "$step" "$noise" >"$out/stop.toml"
+printf 'case\tseed\tfinished\tmean_check_mm\tjoint_check_mm\tspheres_check_mm\tsphere_centre_rms_mm\n' >"$out/runs.tsv"
 for s in $seeds; do
   for sweep in continuous stop; do
     d="$out/$sweep-$s"
@@ -51,17 +55,20 @@ PY
     d="$out/$case-$s"
     if "$bin" calibrate "$d/project.toml" --out "$d/out" --quiet --seed "$s" >/dev/null 2>"$d/calibrate.err"; then ok=1; else ok=0; fi
     python3 - "$d" "$case" "$s" "$ok" >>"$out/runs.tsv" <<'PY'
-import json, sys
+import json, math, sys
 d, case, s, ok = sys.argv[1:5]
-m = j = sp = ""
+m = j = sp = rms = ""
 if ok == "1":
     r = json.load(open(f"{d}/out/results.json"))
+    truth = {b["id"]: b["lrf_mm"] for b in json.load(open(f"{d}/truth.json"))["balls"]}
+    e = [math.dist(b["lrf_mm"], truth[b["id"]]) for b in r["balls"] if b.get("lrf_mm") and b["id"] in truth]
+    rms = f"{math.sqrt(sum(x * x for x in e) / len(e)):.3f}" if e else ""
     m = f'{r["mean_check_error_mm"]:.3f}'
     for x in r["methods"]:
         v = x.get("mean_check_error_mm")
         if v is not None and x["method"] == "joint": j = f"{v:.3f}"
         if v is not None and x["method"] == "spheres": sp = f"{v:.3f}"
-print(f"{case}\t{s}\t{ok}\t{m}\t{j}\t{sp}")
+print(f"{case}\t{s}\t{ok}\t{m}\t{j}\t{sp}\t{rms}")
 PY
   done
   rm -rf "$out"/*-"$s"/images
@@ -69,13 +76,13 @@ done
 python3 - "$out/runs.tsv" <<'PY' | tee "$out/table.md"
 import csv, sys
 rows = list(csv.DictReader(open(sys.argv[1]), delimiter="\t"))
-print("| scans | calibrations that finish | mean check error, joint (mm) | mean check error, spheres (mm) |")
-print("|---|---|---|---|")
+print("| scans | calibrations that finish | mean check error, joint (mm) | mean check error, spheres (mm) | sphere centres vs truth, RMS (mm) |")
+print("|---|---|---|---|---|")
 names = {"stop": "stop-and-go", "continuous": "continuous sweep, per-beam servo angles (v2)",
          "continuous-v1": "continuous sweep, one servo angle per scan (v1)"}
 for c in ["stop", "continuous", "continuous-v1"]:
     rs = [r for r in rows if r["case"] == c]
     ok = [r for r in rs if r["finished"] == "1"]
     mean = lambda k: (f"{sum(float(r[k]) for r in ok if r[k]) / max(1, sum(1 for r in ok if r[k])):.2f}" if ok else "—")
-    print(f"| {names[c]} | {len(ok)} / {len(rs)} | {mean('joint_check_mm')} | {mean('spheres_check_mm')} |")
+    print(f"| {names[c]} | {len(ok)} / {len(rs)} | {mean('joint_check_mm')} | {mean('spheres_check_mm')} | {mean('sphere_centre_rms_mm')} |")
 PY
