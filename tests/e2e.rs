@@ -845,19 +845,7 @@ fn verdict_is_ok_on_a_clean_simulation_and_doubtful_with_an_unknown_mount_offset
         "{v}"
     );
 
-    let cfg = w.dir.join("mount.toml");
-    fs::write(&cfg, "[lrf]\nmount_offset_mm = [0.0, 0.0, 25.0]\n").unwrap();
-    let q = w.dir.join("offset");
-    let run = w.run(&[
-        "simulate",
-        "--out",
-        s(&q),
-        "--seed",
-        "3",
-        "--config",
-        s(&cfg),
-    ]);
-    assert!(run.success(), "simulate failed: {}", run.stderr);
+    let q = w.simulate("offset", "[lrf]\nmount_offset_mm = [0.0, 0.0, 25.0]\n");
     // the simulator's project leaves the mount at zero, as a user who does not know it would
     assert!(fs::read_to_string(q.join("project.toml"))
         .unwrap()
@@ -991,19 +979,7 @@ fn only_station(text: &str, keep: &str) -> String {
 #[test]
 fn a_field_too_sparse_for_a_relative_start_starts_from_its_layout_or_its_stereo_head() {
     let w = Work::new("sparse_field_starts");
-    let cfg = w.dir.join("sparse.toml");
-    fs::write(&cfg, "[targets]\ncoded = 10\n[distances]\ncount = 3\n").unwrap();
-    let p = w.dir.join("sparse");
-    let run = w.run(&[
-        "simulate",
-        "--out",
-        s(&p),
-        "--seed",
-        "3",
-        "--config",
-        s(&cfg),
-    ]);
-    assert!(run.success(), "simulate failed: {}", run.stderr);
+    let p = w.simulate("sparse", "[targets]\ncoded = 10\n[distances]\ncount = 3\n");
     let toml = p.join("project.toml");
     let calibrate = |name: &str, start: &str| -> Value {
         let out = w.dir.join(name);

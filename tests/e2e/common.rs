@@ -149,6 +149,25 @@ impl Work {
         assert_clean_failure(&run, &out, needles)
     }
 
+    /// `pingcal simulate --seed SEED --config <config> --out <dir>/<name>` with the simulator
+    /// configuration `config` (TOML), which must succeed; returns the project's folder.
+    pub fn simulate(&self, name: &str, config: &str) -> PathBuf {
+        let cfg = self.dir.join(format!("{name}.toml"));
+        fs::write(&cfg, config).expect("write the simulator configuration");
+        let out = self.dir.join(name);
+        let run = self.run(&[
+            "simulate",
+            "--out",
+            out.to_str().expect("UTF-8 path"),
+            "--seed",
+            &SEED.to_string(),
+            "--config",
+            cfg.to_str().expect("UTF-8 path"),
+        ]);
+        assert!(run.success(), "simulate {name} failed: {}", run.stderr);
+        out
+    }
+
     pub fn run(&self, args: &[&str]) -> Run {
         run(args, &self.dir)
     }

@@ -115,9 +115,11 @@ impl Project {
             .parent()
             .map(Path::to_path_buf)
             .unwrap_or_else(|| PathBuf::from("."));
-        let resolve = |rel: &str, what: String| -> Result<PathBuf, ProjectError> {
+        // `rel` under the project's folder, when `accept` takes it (a file; a bag may be a
+        // ROS 2 bag's folder)
+        let resolve_as = |rel: &str, what: String, accept: fn(&Path) -> bool| {
             let p = dir.join(rel);
-            if p.is_file() {
+            if accept(&p) {
                 Ok(p)
             } else {
                 Err(ProjectError::Invalid {
@@ -126,6 +128,7 @@ impl Project {
                 })
             }
         };
+        let resolve = |rel: &str, what: String| resolve_as(rel, what, Path::is_file);
         let image_paths = file
             .images
             .iter()
@@ -157,17 +160,7 @@ impl Project {
         let bag_paths = bags
             .iter()
             .enumerate()
-            .map(|(k, s)| {
-                let p = dir.join(s);
-                if p.exists() {
-                    Ok(p)
-                } else {
-                    Err(ProjectError::Invalid {
-                        path: name.clone(),
-                        what: format!("[lrf.bag] files[{k}] \"{s}\": {} not found", p.display()),
-                    })
-                }
-            })
+            .map(|(k, s)| resolve_as(s, format!("[lrf.bag] files[{k}] \"{s}\""), Path::exists))
             .collect::<Result<Vec<_>, _>>()?;
         Ok(Project {
             path: path.to_path_buf(),

@@ -415,6 +415,13 @@ pub struct LrfConfig {
     pub servo_sigma_deg: f64,
     /// Scan period.
     pub scan_period_s: f64,
+    /// Time between two beams of a scan (URG-04LX: a 100 ms turn of 1024 steps).
+    pub beam_time_s: f64,
+    /// The servo turns while the LRF scans (at `servo_step_deg` per `scan_period_s`), each
+    /// beam at its own angle; the scan file is then `pingcal-scan` v2 with the servo angle at
+    /// each scan's first and last beam. False: stop-and-go (the servo stands still during
+    /// each scan).
+    pub continuous_sweep: bool,
     /// Extrinsic, `p_camera = R·p_lrf + t` with the main left camera: rotation ω, φ, κ.
     pub extrinsic_opk_deg: [f64; 3],
     /// Extrinsic translation t.
@@ -457,6 +464,8 @@ impl Default for LrfConfig {
             servo_resolution_deg: 360.0 / 4096.0,
             servo_sigma_deg: 0.02,
             scan_period_s: 0.1,
+            beam_time_s: 0.1 / 1024.0,
+            continuous_sweep: false,
             // Paper Table 2: the LRF frame is close to the camera frame, offset by ~(70, 10, 90) mm.
             extrinsic_opk_deg: [0.8, -1.2, 0.6],
             extrinsic_t_mm: [72.0, 12.0, 91.0],
@@ -955,6 +964,17 @@ fn validate_lrf_servo(l: &LrfConfig) -> Result<(), ConfigError> {
     pos("lrf.servo_resolution_deg", l.servo_resolution_deg)?;
     nonneg("lrf.servo_sigma_deg", l.servo_sigma_deg)?;
     pos("lrf.scan_period_s", l.scan_period_s)?;
+    pos("lrf.beam_time_s", l.beam_time_s)?;
+    if l.beam_time_s * l.beams.saturating_sub(1) as f64 > l.scan_period_s {
+        return Err(ConfigError::new(
+            "lrf.beam_time_s",
+            l.beam_time_s,
+            format!(
+                "the {} beams would take longer than lrf.scan_period_s ({})",
+                l.beams, l.scan_period_s
+            ),
+        ));
+    }
     if !(l.servo_start_deg.is_finite()
         && l.servo_end_deg.is_finite()
         && l.servo_start_deg <= l.servo_end_deg)

@@ -44,9 +44,13 @@ type V3 = Vector3<f64>;
 pub struct Scan {
     /// Time stamp (s).
     pub stamp_s: f64,
-    /// Servo angle reported by the encoder (degrees).
+    /// Servo angle reported by the encoder (degrees), at the first beam.
     pub servo_deg: f64,
-    /// True servo angle (degrees).
+    /// In a continuous sweep, the reported servo angle at the last beam: the first beam's
+    /// reading advanced at the commanded speed, as a reader that interpolates the servo's
+    /// readings at each beam's time gets it. None: stop-and-go.
+    pub servo_end_deg: Option<f64>,
+    /// True servo angle (degrees), at the first beam.
     pub true_servo_deg: f64,
     /// Ranges in mm; 0 = no return.
     pub ranges_mm: Vec<u32>,
@@ -145,10 +149,22 @@ fn simulate_scan(
     };
     let true_deg = commanded + err;
     let reported = (true_deg / cfg.servo_resolution_deg).round() * cfg.servo_resolution_deg;
-    let pose = sensor.scanner_at(true_deg);
+    // in a continuous sweep, the servo's advance from the first beam to beam i
+    let speed = cfg.servo_step_deg / cfg.scan_period_s;
+    let advance = |i: usize| {
+        if cfg.continuous_sweep {
+            speed * cfg.beam_time_s * i as f64
+        } else {
+            0.0
+        }
+    };
+    let mut pose = sensor.scanner_at(true_deg);
     let mut objs: Vec<Object> = Vec::new();
     let ranges = (0..sensor.beams)
         .map(|i| {
+            if cfg.continuous_sweep {
+                pose = sensor.scanner_at(true_deg + advance(i));
+            }
             let alpha = sensor.beam_angle(i);
             let centre_dir = pose.direction(alpha, 0.0);
             objs.clear();
@@ -166,6 +182,9 @@ fn simulate_scan(
     Scan {
         stamp_s: k as f64 * cfg.scan_period_s,
         servo_deg: reported,
+        servo_end_deg: cfg
+            .continuous_sweep
+            .then(|| reported + advance(sensor.beams.saturating_sub(1))),
         true_servo_deg: true_deg,
         ranges_mm: ranges,
     }
@@ -207,22 +226,27 @@ fn footprint_range(
     (sw > 0.0).then(|| swr / sw)
 }
 
-/// Writes the scans as a `pingcal-scan` v1 CSV (SPEC.md) through the calibration's own
-/// writer, with a `# sensor=` line naming the simulator.
+/// Writes the scans as a `pingcal-scan` CSV through the calibration's own writer, with a
+/// `# sensor=` line naming the simulator: v1 for stop-and-go, v2 (each scan's servo angle at
+/// its first and last beam) for a continuous sweep.
 pub fn write_scans_csv<W: std::io::Write>(
     out: W,
     scans: &[Scan],
     cfg: &LrfConfig,
 ) -> std::io::Result<W> {
     let sensor = cfg.sensor();
-    let mut w = ScanWriter::new(
-        out,
-        &sensor.header,
-        sensor.beams,
-        &["sensor=Hokuyo URG-04LX (simulated by pingcal simulate)"],
-    )?;
+    let note = ["sensor=Hokuyo URG-04LX (simulated by pingcal simulate)"];
+    let mut w = if cfg.continuous_sweep {
+        ScanWriter::new_v2(out, &sensor.header, sensor.beams, &note)?
+    } else {
+        ScanWriter::new(out, &sensor.header, sensor.beams, &note)?
+    };
     for sc in scans {
-        w.write_scan(sc.stamp_s, sc.servo_deg, sc.ranges_mm.iter().copied())?;
+        let ranges = sc.ranges_mm.iter().copied();
+        match sc.servo_end_deg {
+            Some(end) => w.write_sweep_scan(sc.stamp_s, sc.servo_deg, end, ranges)?,
+            None => w.write_scan(sc.stamp_s, sc.servo_deg, ranges)?,
+        }
     }
     w.finish()
 }

@@ -125,3 +125,70 @@ fn dark_surfaces_give_no_return_and_servo_angles_are_encoder_steps() {
         assert!((s.servo_deg - s.true_servo_deg).abs() < 0.2);
     }
 }
+
+/// A continuous sweep (issue 16): the servo turns while the LRF scans, each beam at its own
+/// angle. Written as `pingcal-scan` v2 and read back by the calibration's reader, each beam's
+/// servo angle (`ScanLine::servo_deg_at`) puts its point on the wall z = 700 mm of the LRF
+/// frame (eq. 2: z = r cos α sin β) to within the encoder's half step and the footprint's
+/// bias; the one angle per scan that a v1 file keeps misplaces the same points by the servo's
+/// travel during the scan.
+#[test]
+fn a_continuous_sweep_reads_back_with_each_beam_at_its_own_servo_angle() {
+    let wall = Surface::new(
+        "wall",
+        Vector3::new(-7000.0, -7000.0, 700.0),
+        Vector3::x(),
+        Vector3::y(),
+        Vector3::new(0.0, 0.0, -1.0),
+        14000.0,
+        14000.0,
+        0.0,
+        0.5,
+        0.0,
+        0,
+    );
+    let scene = Scene {
+        surfaces: vec![wall],
+        ..flat_wall(0.5)
+    };
+    let cfg = LrfConfig {
+        servo_start_deg: 30.0,
+        servo_end_deg: 60.0,
+        servo_step_deg: 5.0, // 50°/s: 3.3° of travel over a scan's 682 beams
+        continuous_sweep: true,
+        noise: false,
+        ..LrfConfig::default()
+    };
+    let scans = simulate_scans(&scene, &cfg, 7);
+    let csv = pingcal_sim::lrf::write_scans_csv(Vec::new(), &scans, &cfg).unwrap();
+    assert!(csv.starts_with(b"# pingcal-scan v2\n"));
+    let reader = pingcal_lrf::scan::ScanReader::new(&csv[..], "sweep.csv").unwrap();
+    let (mut worst_v2, mut worst_v1, mut n) = (0.0f64, 0.0f64, 0);
+    for line in reader {
+        let line = line.unwrap();
+        for (i, &r) in line.ranges_mm.iter().enumerate() {
+            let alpha = (cfg.angle_min_deg + i as f64 * cfg.angle_increment_deg).to_radians();
+            if !(20.0..=3000.0).contains(&r) {
+                continue;
+            }
+            let z = |beta_deg: f64| r * alpha.cos() * beta_deg.to_radians().sin();
+            // the encoder's half step and 1 mm of footprint bias, at this beam's lever arm
+            let x = r * alpha.cos();
+            let allowed = x * (0.5 * cfg.servo_resolution_deg).to_radians() + 1.5;
+            let e2 = (z(line.servo_deg_at(i)) - 700.0).abs();
+            assert!(
+                e2 <= allowed,
+                "beam {i}: z off the wall by {e2:.2} mm (allowed {allowed:.2})"
+            );
+            worst_v2 = worst_v2.max(e2);
+            worst_v1 = worst_v1.max((z(line.servo_deg) - 700.0).abs());
+            n += 1;
+        }
+    }
+    println!("{n} returns: worst |z − 700| {worst_v2:.2} mm per beam, {worst_v1:.1} mm with one angle per scan");
+    assert!(n > 1000, "only {n} returns");
+    assert!(
+        worst_v1 > 10.0 * worst_v2,
+        "the per-scan angle is not worse: {worst_v1} vs {worst_v2}"
+    );
+}
