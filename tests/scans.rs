@@ -203,3 +203,68 @@ fn a_ros2_bag_folder_reads_its_storage_files() {
         "{stderr}"
     );
 }
+
+/// A driver that changes the beam geometry between messages (`geometry.bag`: A A B A C,
+/// `make_fixtures.py`): no scan is lost or resampled; each geometry's scans are in a file of
+/// their own, every range and servo angle as recorded.
+#[test]
+fn a_changed_beam_geometry_keeps_every_scan_in_a_file_per_geometry() {
+    let out = tmp("geometry.csv");
+    let more = [tmp("geometry.g2.csv"), tmp("geometry.g3.csv")];
+    for p in std::iter::once(&out).chain(&more) {
+        let _ = std::fs::remove_file(p);
+    }
+    let b = data("geometry.bag");
+    let (ok, stdout, stderr) = pingcal(&[
+        "scans",
+        b.to_str().unwrap(),
+        "--scan-topic",
+        "/scan",
+        "--servo-topic",
+        "/joint_states",
+        "--servo-joint",
+        "servo",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(ok, "{stderr}");
+    assert!(stdout.starts_with("scans: 3 scans of 10 beams"), "{stdout}");
+    assert!(
+        stdout.contains("scans: 1 scans of 11 beams from -10° → ")
+            && stdout.contains("scans: 1 scans of 10 beams from -5° → "),
+        "{stdout}"
+    );
+    assert!(
+        stderr.contains("the beam geometry changes between scans"),
+        "{stderr}"
+    );
+    // (file, scan indices k in the bag, beams, first angle)
+    let want: [(&Path, &[usize], usize, f64); 3] = [
+        (&out, &[0, 1, 3], 10, -10.0),
+        (&more[0], &[2], 11, -10.0),
+        (&more[1], &[4], 10, -5.0),
+    ];
+    for (path, ks, n, a0) in want {
+        let (h, lines) = read(path);
+        assert_eq!(
+            (h.angle_min_deg, h.angle_increment_deg),
+            (a0, 1.0),
+            "{path:?}"
+        );
+        assert_eq!(lines.len(), ks.len(), "{path:?}");
+        for (l, &k) in lines.iter().zip(ks) {
+            let ranges: Vec<f64> = (0..n).map(|i| (1000 + 10 * k + i) as f64).collect();
+            assert_eq!(l.ranges_mm, ranges, "{path:?} scan {k}");
+            assert!(
+                (l.servo_deg - 2.0 * k as f64).abs() < 1e-9,
+                "{path:?} scan {k}"
+            );
+        }
+    }
+    let dir = out.parent().unwrap();
+    let partial = std::fs::read_dir(dir)
+        .unwrap()
+        .filter_map(Result::ok)
+        .any(|e| e.file_name().to_string_lossy().ends_with(".partial"));
+    assert!(!partial, "a .partial file was left in {dir:?}");
+}

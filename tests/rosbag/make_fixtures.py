@@ -178,6 +178,41 @@ def sweep(out, header, scans):
     shutil.rmtree(tmp)
 
 
+# geometry.bag: a driver that changes its beam geometry between scans (A A B A C); scan k's
+# beam i measures 1000 + 10 k + i mm, the servo stands at 2 k degrees while it scans
+GEOMETRIES = {'A': (10, -10.0, 1.0), 'B': (11, -10.0, 1.0), 'C': (10, -5.0, 1.0)}
+GEOMETRY_ORDER = 'AABAC'
+
+
+def geometry(out):
+    ts = get_typestore(Stores.ROS1_NOETIC)
+    T = ts.types
+    hdr = lambda ns, k, frame: T['std_msgs/msg/Header'](
+        seq=k, stamp=T['builtin_interfaces/msg/Time'](sec=ns // 10**9, nanosec=ns % 10**9), frame_id=frame)
+    path = out / 'geometry.bag'
+    path.unlink(missing_ok=True)
+    w = Writer1(path)
+    w.open()
+    cs = w.add_connection('/scan', 'sensor_msgs/msg/LaserScan', typestore=ts)
+    cj = w.add_connection('/joint_states', 'sensor_msgs/msg/JointState', typestore=ts)
+    for k, g in enumerate(GEOMETRY_ORDER):
+        n, a0, step = GEOMETRIES[g]
+        t = T0_NS + k * 100_000_000
+        for ns in (t, t + int(SERVO_END_S * 1e9)):
+            w.write(cj, ns, ts.serialize_ros1(T['sensor_msgs/msg/JointState'](
+                header=hdr(ns, k, ''), name=['servo'], position=np.array([math.radians(2.0 * k)]),
+                velocity=np.zeros(0), effort=np.zeros(0)), 'sensor_msgs/msg/JointState'))
+            if ns == t:
+                r = np.array([(1000 + 10 * k + i) / 1000.0 for i in range(n)], dtype=np.float32)
+                scan = T['sensor_msgs/msg/LaserScan'](
+                    header=hdr(t, k, 'laser'), angle_min=math.radians(a0),
+                    angle_max=math.radians(a0 + (n - 1) * step), angle_increment=math.radians(step),
+                    time_increment=float(TIME_INCREMENT), scan_time=0.1, range_min=0.02, range_max=30.0,
+                    ranges=r, intensities=np.zeros(0, dtype=np.float32))
+                w.write(cs, t, ts.serialize_ros1(scan, 'sensor_msgs/msg/LaserScan'))
+    w.close()
+
+
 def write_ros1(path, header, scans, compression):
     ts = get_typestore(Stores.ROS1_NOETIC)
     msgs = messages(ts, header, scans, True)
@@ -220,6 +255,7 @@ def main(src, out_dir):
     write_ros2(out / 'ros2.mcap', header, scans, StoragePlugin.MCAP)
     write_ros2(out / 'ros2_be.mcap', header, scans, StoragePlugin.MCAP, little_endian=False)
     sweep(out, header, scans[:2])
+    geometry(out)
     total = 0
     for p in sorted(out.iterdir()):
         total += p.stat().st_size
@@ -250,5 +286,7 @@ def project(sim_dir):
 if __name__ == '__main__':
     if sys.argv[1] == '--project':
         project(sys.argv[2])
+    elif sys.argv[1] == '--geometry':
+        geometry(Path(sys.argv[2]))
     else:
         main(*sys.argv[1:3])

@@ -1,6 +1,7 @@
 //! A stereo head as a rig: the right image of every station follows the left one through
 //! one shared relative pose, adjusted together with both cameras' intrinsics. Over noise
-//! realisations the recovered rig (baseline and relative rotation) is unbiased, and an
+//! realisations the recovered rig (baseline and relative rotation) is unbiased, its
+//! reported covariance ([`pingcal_ba::solver::Precision::rig_covariances`]) is honest, and an
 //! image not tied to the rig keeps its own pose.
 
 mod common;
@@ -8,7 +9,7 @@ mod common;
 use common::{truth, SIGMA_PX};
 use nalgebra::{Vector2, Vector3};
 use pingcal_ba::problem::{Camera, Image, Observation, Problem, Rig, RigMember};
-use pingcal_ba::solver::{solve, Options};
+use pingcal_ba::solver::{precision, solve, Options};
 use pingcal_geometry::Rigid3;
 use pingcal_geometry::{exp_so3, log_so3};
 use rand_distr::{Distribution, Normal};
@@ -73,6 +74,7 @@ fn stereo_rig_is_recovered_without_bias() {
     let (t, rig_true) = stereo_truth();
     let runs = 20;
     let mut errs: Vec<[f64; 6]> = Vec::new();
+    let mut z2 = [0.0; 6];
     for run in 0..runs {
         let mut rng = pingcal_geometry::consensus::rng(900 + run);
         let n = Normal::new(0.0, 1.0).unwrap();
@@ -104,6 +106,13 @@ fn stereo_rig_is_recovered_without_bias() {
         let dc = r.centre() - rig_true.centre();
         let dw = log_so3(&(r.rotation * rig_true.rotation.transpose()));
         errs.push([dc.x, dc.y, dc.z, dw.x, dw.y, dw.z]);
+        // The rig's reported covariance, in its update's terms (δω, δt of member_from_base)
+        let cov = precision(&p).unwrap().rig_covariances[0].unwrap();
+        let dt = r.translation - rig_true.translation;
+        let e = [dw.x, dw.y, dw.z, dt.x, dt.y, dt.z];
+        for (k, ek) in e.iter().enumerate() {
+            z2[k] += ek * ek / cov[(k, k)];
+        }
         // Members follow: the right pose is the rig composed with the left pose.
         let expect = r.compose(&p.images[3].camera_from_object);
         assert!((p.images[17].camera_from_object.rotation - expect.rotation).norm() < 1e-12);
@@ -118,6 +127,14 @@ fn stereo_rig_is_recovered_without_bias() {
         assert!(
             mean.abs() < 4.0 * sd / (runs as f64).sqrt() + 1e-9,
             "component {k}: mean {mean}, sd {sd}"
+        );
+        // The reported σ is honest: Σz²/runs is χ²(20)/20, within 0.372-2.266 but for 0.1 %
+        // in each tail (the six components: about 1.2 % false alarms in all)
+        let chi = z2[k] / runs as f64;
+        println!("rig update component {k}: mean z² {chi:.3}");
+        assert!(
+            (0.372..2.266).contains(&chi),
+            "component {k}: mean z² {chi}"
         );
         // And far better than the 5 mm / 0.5° start.
         assert!(

@@ -18,9 +18,11 @@
 //!
 //! A scan's `line` is its 1-based message number on the scan topic (in its bag).
 //!
-//! The beam geometry (count, first angle, step) must be the same in every message: a scan
-//! that differs is refused with an error naming it (pingcal-scan has one geometry per
-//! file).
+//! Each scan comes with its own beam geometry (count, first angle, step) in the
+//! [`ScanHeader`] handed over with it: some drivers change it between messages (a beam
+//! more or less, another field of view), and no scan is lost or resampled for it. The
+//! caller groups the scans by geometry (`pingcal scans` writes one file per geometry, as a
+//! `pingcal-scan` file has one); [`Assembled::geometry_changes`] counts the changes.
 
 use crate::error::{Result, RosbagError};
 use crate::msgs::{self, JointState, LaserScan};
@@ -287,9 +289,11 @@ pub struct Assembled {
     pub before_servo: u64,
     /// Scans skipped because they end after the last servo sample.
     pub after_servo: u64,
+    /// Scans whose beam geometry differs from the scan before them.
+    pub geometry_changes: u64,
 }
 
-/// The beam geometry of the first scan, to compare the others with.
+/// The beam geometry of a scan.
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Geometry {
     n: usize,
@@ -299,6 +303,7 @@ struct Geometry {
 
 struct Pass<'a> {
     series: &'a ServoSeries,
+    /// The geometry of the last scan read.
     geometry: Option<Geometry>,
     last_stamp: Option<i64>,
     done: Assembled,
@@ -321,17 +326,25 @@ impl Pass<'_> {
                 g.n, g.angle_min, g.angle_increment
             ));
         }
-        match self.geometry {
-            None => self.geometry = Some(g),
-            Some(first) if first != g => {
-                return Err(format!(
-                    "{} beams from {}° in {}° steps, the first scan had {} from {}° in {}°: pingcal-scan needs one beam geometry per file (split the bag where the driver changed it)",
-                    g.n, angle_deg(g.angle_min), angle_deg(g.angle_increment), first.n, angle_deg(first.angle_min), angle_deg(first.angle_increment)
-                ))
-            }
-            _ => {}
+        if self.geometry.is_some_and(|last| last != g) {
+            self.done.geometry_changes += 1;
         }
+        self.geometry = Some(g);
         Ok(())
+    }
+
+    /// The header of the last scan read (its beam geometry, in mm and degrees).
+    fn header(&self) -> ScanHeader {
+        let g = self.geometry.unwrap_or(Geometry {
+            n: 0,
+            angle_min: 0.0,
+            angle_increment: 0.0,
+        });
+        ScanHeader {
+            angle_min_deg: angle_deg(g.angle_min),
+            angle_increment_deg: angle_deg(g.angle_increment),
+            mm_per_unit: 1.0,
+        }
     }
 
     /// The scan line of one message, or `None` when it is outside the servo samples.
@@ -375,7 +388,7 @@ impl Pass<'_> {
     }
 }
 
-/// Reads the scans of all `bags` in order (second pass) and gives each one, with the
+/// Reads the scans of all `bags` in order (second pass) and gives each one, with its own
 /// beam geometry, to `f`.
 pub fn assemble(
     bags: &[Bag],
@@ -400,16 +413,7 @@ pub fn assemble(
             })?;
             index += 1;
             let Some(line) = line else { return Ok(()) };
-            let g = pass.geometry.unwrap_or(Geometry {
-                n: 0,
-                angle_min: 0.0,
-                angle_increment: 0.0,
-            });
-            let header = ScanHeader {
-                angle_min_deg: angle_deg(g.angle_min),
-                angle_increment_deg: angle_deg(g.angle_increment),
-                mm_per_unit: 1.0,
-            };
+            let header = pass.header();
             pass.done.scans += 1;
             f(&header, line)
         })?;
@@ -507,7 +511,7 @@ mod tests {
     }
 
     #[test]
-    fn scans_outside_the_servo_samples_are_counted_and_a_changed_geometry_refused() {
+    fn scans_outside_the_servo_samples_are_counted_and_out_of_order_refused() {
         let s = ServoSeries {
             times_ns: vec![1_000_000_000, 2_000_000_000],
             deg: vec![0.0, 10.0],
@@ -518,15 +522,27 @@ mod tests {
         // its last beam, 9 ms after the stamp, is after the last sample
         assert_eq!(p.line(&scan(1_995_000_000, 10, -1.0), 2), Ok(None));
         assert_eq!((p.done.before_servo, p.done.after_servo), (1, 1));
-        let e = p.line(&scan(1_996_000_000, 11, -1.0), 3).unwrap_err();
-        assert!(e.starts_with("11 beams from"), "{e}");
-        assert!(e.contains("the first scan had 10 from"), "{e}");
-        let e = p.line(&scan(1_996_000_000, 10, -0.5), 3).unwrap_err();
-        assert!(
-            e.contains("pingcal-scan needs one beam geometry per file"),
-            "{e}"
-        );
         let e = p.line(&scan(1_000_000_000, 10, -1.0), 4).unwrap_err();
         assert!(e.contains("scans must be in time order"), "{e}");
+    }
+
+    #[test]
+    fn each_scan_keeps_its_own_beam_geometry_and_the_changes_are_counted() {
+        let s = ServoSeries {
+            times_ns: vec![0, 10_000_000_000],
+            deg: vec![0.0, 10.0],
+        };
+        let mut p = pass(&s);
+        assert!(p.line(&scan(1_000_000_000, 10, -1.0), 0).unwrap().is_some());
+        // a beam more, then another first angle, then back
+        let l = p.line(&scan(2_000_000_000, 11, -1.0), 1).unwrap().unwrap();
+        assert_eq!(l.ranges_mm.len(), 11);
+        assert!(p.line(&scan(3_000_000_000, 10, -0.5), 2).unwrap().is_some());
+        assert_eq!(p.header().angle_min_deg, angle_deg(-0.5));
+        assert!(p.line(&scan(4_000_000_000, 10, -1.0), 3).unwrap().is_some());
+        assert_eq!(p.header().angle_min_deg, angle_deg(-1.0));
+        assert_eq!(p.done.geometry_changes, 3);
+        let e = p.line(&scan(5_000_000_000, 0, -1.0), 4).unwrap_err();
+        assert!(e.contains("not a scan"), "{e}");
     }
 }

@@ -13,7 +13,7 @@
 
 use super::evaluate::Linearization;
 use super::layout::Layout;
-use super::sigma::{intrinsics_precision, pose_sigmas, Precision, PrecisionError};
+use super::sigma::{intrinsics_precision, pose_sigmas, rig_covariances, Precision, PrecisionError};
 use crate::problem::Problem;
 use nalgebra::{DMatrix, Matrix3, Vector3};
 
@@ -68,6 +68,7 @@ pub(crate) fn precision(
 
     let intrinsics = intrinsics_precision(problem, layout, s02, |i, j| q[(i, j)]);
     let poses = pose_sigmas(problem, layout, s02, |i, j| q[(i, j)]);
+    let rig_covariances = rig_covariances(layout, s02, |i, j| q[(i, j)]);
     let point_covariances = (0..problem.points.len())
         .map(|p| point_col(layout, p).map(|c| Matrix3::from_fn(|a, b| s02 * q[(c + a, c + b)])))
         .collect();
@@ -79,6 +80,7 @@ pub(crate) fn precision(
         rms_image_px: problem.rms_px(),
         intrinsics,
         poses,
+        rig_covariances,
         point_covariances,
         standardized_residuals: standardized_residuals(layout, &j, &q, &r),
     })

@@ -16,7 +16,8 @@ use super::evaluate::{linearize, Linearization};
 use super::layout::Layout;
 use super::schur::Schur;
 use super::sigma::{
-    intrinsics_precision, pose_sigmas, Precision, PrecisionError, MAX_DENSE_PRECISION,
+    intrinsics_precision, pose_sigmas, rig_covariances, Precision, PrecisionError,
+    MAX_DENSE_PRECISION,
 };
 use crate::problem::{Problem, ProblemError};
 use nalgebra::{DMatrix, Matrix2, Matrix2x3, Matrix3};
@@ -167,6 +168,7 @@ pub fn precision(problem: &Problem) -> Result<Precision, PrecisionError> {
 
     let intrinsics = intrinsics_precision(problem, &layout, s02, |i, j| q_cc[(i, j)]);
     let poses = pose_sigmas(problem, &layout, s02, |i, j| q_cc[(i, j)]);
+    let rig_covariances = rig_covariances(&layout, s02, |i, j| q_cc[(i, j)]);
 
     // Points: those in the reduced system from Q_cc, the eliminated ones from theirs.
     let mut point_covariances = vec![None; problem.points.len()];
@@ -191,6 +193,7 @@ pub fn precision(problem: &Problem) -> Result<Precision, PrecisionError> {
         rms_image_px: problem.rms_px(),
         intrinsics,
         poses,
+        rig_covariances,
         point_covariances,
         standardized_residuals: standardized_residuals(&layout, &lin, &q_cc, &eliminated),
     })

@@ -9,7 +9,7 @@
 
 use super::layout::Layout;
 use crate::problem::{Problem, ProblemError};
-use nalgebra::{DMatrix, Matrix3, Vector3};
+use nalgebra::{DMatrix, Matrix3, Matrix6, Vector3};
 
 /// Largest reduced camera system whose inverse is formed densely.
 pub const MAX_DENSE_PRECISION: usize = 6000;
@@ -57,6 +57,11 @@ pub struct Precision {
     pub intrinsics: Vec<IntrinsicsPrecision>,
     /// Per image (None for a fixed pose).
     pub poses: Vec<Option<PoseSigma>>,
+    /// Per rig: the covariance (σ0²-scaled) of the update `(δω, δt)` of its
+    /// `member_from_base` ([`pingcal_geometry::Rigid3::plus`]: the small rotations about the
+    /// member camera's axes, radians, then the translation, mm); `None` when held.
+    #[serde(skip)]
+    pub rig_covariances: Vec<Option<Matrix6<f64>>>,
     /// Per point: its covariance (None for a fixed point).
     #[serde(skip)]
     pub point_covariances: Vec<Option<Matrix3<f64>>>,
@@ -143,6 +148,23 @@ pub(crate) fn intrinsics_precision(
 /// Standard deviations of every free pose: rotation about the camera axes and the
 /// projection centre C = −Rᵀt, whose derivative with respect to (δω, δt) is
 /// `[−Rᵀ[t]×, −Rᵀ]`.
+/// Each rig's `(δω, δt)` covariance ([`Precision::rig_covariances`]) from the cofactors `q`
+/// of the reduced system.
+pub(crate) fn rig_covariances(
+    layout: &Layout,
+    s02: f64,
+    q: impl Fn(usize, usize) -> f64,
+) -> Vec<Option<Matrix6<f64>>> {
+    layout
+        .rig_slot
+        .iter()
+        .map(|slot| {
+            let o = layout.slot_offset((*slot)?);
+            Some(Matrix6::from_fn(|a, b| s02 * q(o + a, o + b)))
+        })
+        .collect()
+}
+
 pub(crate) fn pose_sigmas(
     problem: &Problem,
     layout: &Layout,

@@ -5,14 +5,18 @@
 //! angle at the first and one at the last beam of each scan). `pingcal scans BAG... --list`
 //! prints each bag's topics, types and message counts.
 //!
+//! A driver may change the beam geometry (count, first angle, step) between messages: no
+//! scan is dropped or resampled for it; the scans of the first geometry go to `--out`, those
+//! of each further one to a file of its own beside it (`scans.g2.csv`, `scans.g3.csv`, …),
+//! since a `pingcal-scan` file has one geometry; the project lists them all.
+//!
 //! The output is written to `.NAME.partial` beside it and renamed when complete, as the
 //! other commands write theirs: a failed run leaves an earlier file untouched.
 
 use super::CmdResult;
-use pingcal_lrf::scan::ScanWriter;
+use pingcal_lrf::scan::{ScanHeader, ScanWriter};
 use pingcal_rosbag::assemble::{assemble, servo_series, ServoSource, Topics};
 use pingcal_rosbag::{bag_files, Bag};
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
 /// Arguments of `pingcal scans`.
@@ -117,16 +121,74 @@ fn check_not_an_input(out: &Path, bags: &[PathBuf]) -> Result<(), String> {
     Ok(())
 }
 
-/// Writes the scans of `bags` to `tmp`; returns (scans, beams, skipped before, after).
-fn write_scans(
-    bags: &[Bag],
-    topics: &Topics,
-    tmp: &Path,
-    out: &Path,
-) -> Result<[u64; 4], super::CmdError> {
+/// The file of the `k`-th beam geometry (from 2): `scans.csv` → `scans.g2.csv`.
+fn geometry_path(out: &Path, k: usize) -> PathBuf {
+    let stem = out
+        .file_stem()
+        .map_or_else(String::new, |s| s.to_string_lossy().into_owned());
+    let name = match out.extension() {
+        Some(e) => format!("{stem}.g{k}.{}", e.to_string_lossy()),
+        None => format!("{stem}.g{k}"),
+    };
+    out.with_file_name(name)
+}
+
+/// One output file: the scans of one beam geometry.
+struct GeometryFile {
+    header: ScanHeader,
+    beams: usize,
+    path: PathBuf,
+    tmp: PathBuf,
+    scans: u64,
+    writer: ScanWriter<std::io::BufWriter<std::fs::File>>,
+}
+
+impl GeometryFile {
+    fn create(
+        header: &ScanHeader,
+        beams: usize,
+        path: PathBuf,
+        extra: &str,
+    ) -> Result<Self, String> {
+        super::preflight::check_out_file("--out", &path)?;
+        let tmp = super::partial_path(&path).map_err(|e| e.to_string())?;
+        let cannot = |e: std::io::Error| format!("{}: cannot write: {e}", path.display());
+        let file = std::fs::File::create(&tmp).map_err(cannot)?;
+        let w = std::io::BufWriter::with_capacity(1 << 16, file);
+        let writer = ScanWriter::new_v2(w, header, beams, &[extra]).map_err(cannot)?;
+        Ok(Self {
+            header: *header,
+            beams,
+            path,
+            tmp,
+            scans: 0,
+            writer,
+        })
+    }
+
+    fn finish(self) -> Result<(PathBuf, PathBuf), String> {
+        let cannot = |e: std::io::Error| format!("{}: cannot write: {e}", self.path.display());
+        let w = self.writer.finish().map_err(cannot)?;
+        let file = w.into_inner().map_err(|e| cannot(e.into_error()))?;
+        file.sync_all().map_err(cannot)?;
+        Ok((self.tmp, self.path))
+    }
+}
+
+/// What [`write_scans`] wrote: per file its path, scans, beams and first angle, and the
+/// scans skipped before and after the servo messages.
+struct Written {
+    files: Vec<(PathBuf, u64, usize, f64)>,
+    before: u64,
+    after: u64,
+}
+
+/// Writes the scans of `bags` to `out`'s temporary file, and the scans of every further beam
+/// geometry (a driver may change it between messages) to a file of its own
+/// ([`geometry_path`]); renames them all once every one is complete, and removes them on a
+/// failure.
+fn write_scans(bags: &[Bag], topics: &Topics, out: &Path) -> Result<Written, super::CmdError> {
     let series = servo_series(bags, topics)?;
-    let file =
-        std::fs::File::create(tmp).map_err(|e| format!("{}: cannot write: {e}", out.display()))?;
     let names: Vec<&str> = bags.iter().map(Bag::name).collect();
     let extra = format!(
         "source=pingcal scans {} (scans {}, servo {})",
@@ -134,38 +196,83 @@ fn write_scans(
         topics.scan,
         topics.servo
     );
-    let mut writer = None;
-    let mut beams = 0;
-    let io = |e: std::io::Error| pingcal_rosbag::RosbagError::Io {
-        file: out.display().to_string(),
-        msg: format!("cannot write: {e}"),
-    };
-    let done = assemble(bags, topics, &series, &mut |h, line| {
-        if writer.is_none() {
-            beams = line.ranges_mm.len();
-            let w = std::io::BufWriter::with_capacity(1 << 16, file.try_clone().map_err(io)?);
-            writer = Some(ScanWriter::new_v2(w, h, beams, &[extra.as_str()]).map_err(io)?);
+    let mut files: Vec<GeometryFile> = Vec::new();
+    let result = assemble(bags, topics, &series, &mut |h, line| {
+        let beams = line.ranges_mm.len();
+        let k = match files
+            .iter()
+            .position(|f| f.header == *h && f.beams == beams)
+        {
+            Some(k) => k,
+            None => {
+                let path = match files.len() {
+                    0 => out.to_path_buf(),
+                    n => geometry_path(out, n + 1),
+                };
+                let f = GeometryFile::create(h, beams, path, &extra).map_err(|msg| {
+                    pingcal_rosbag::RosbagError::Io {
+                        file: out.display().to_string(),
+                        msg,
+                    }
+                })?;
+                files.push(f);
+                files.len() - 1
+            }
+        };
+        let f = &mut files[k];
+        f.scans += 1;
+        f.writer
+            .write_line(&line)
+            .map_err(|e| pingcal_rosbag::RosbagError::Io {
+                file: f.path.display().to_string(),
+                msg: format!("cannot write: {e}"),
+            })
+    });
+    let remove = |files: &[GeometryFile]| {
+        for f in files {
+            let _ = std::fs::remove_file(&f.tmp);
         }
-        writer
-            .as_mut()
-            .map_or(Ok(()), |w| w.write_line(&line))
-            .map_err(io)
-    })?;
-    let Some(w) = writer else {
+    };
+    let done = match result {
+        Ok(d) => d,
+        Err(e) => {
+            remove(&files);
+            return Err(e.into());
+        }
+    };
+    if files.is_empty() {
         return Err(format!(
             "{}: topic {}: no scan lies within the servo messages ({} before the first, {} after the last)",
             names.join(", "), topics.scan, done.before_servo, done.after_servo
         )
         .into());
-    };
-    w.finish().and_then(|mut w| w.flush()).map_err(io)?;
-    file.sync_all().map_err(io)?;
-    Ok([
-        done.scans,
-        beams as u64,
-        done.before_servo,
-        done.after_servo,
-    ])
+    }
+    let summary: Vec<_> = files
+        .iter()
+        .map(|f| (f.path.clone(), f.scans, f.beams, f.header.angle_min_deg))
+        .collect();
+    let mut finished = Vec::new();
+    let tmps: Vec<PathBuf> = files.iter().map(|f| f.tmp.clone()).collect();
+    for f in files {
+        match f.finish() {
+            Ok(pair) => finished.push(pair),
+            Err(e) => {
+                for t in &tmps {
+                    let _ = std::fs::remove_file(t);
+                }
+                return Err(e.into());
+            }
+        }
+    }
+    for (tmp, path) in finished {
+        std::fs::rename(&tmp, &path)
+            .map_err(|e| format!("{}: cannot write: {e}", path.display()))?;
+    }
+    Ok(Written {
+        files: summary,
+        before: done.before_servo,
+        after: done.after_servo,
+    })
 }
 
 /// Runs the command.
@@ -185,16 +292,11 @@ pub fn run(args: Args) -> CmdResult {
         servo: servo.clone(),
         source: source(&args)?,
     };
-    let tmp = super::partial_path(out)?;
-    let result = write_scans(&bags, &topics, &tmp, out);
-    let [n, beams, before, after] = match result {
-        Ok(r) => r,
-        Err(e) => {
-            let _ = std::fs::remove_file(&tmp);
-            return Err(e);
-        }
-    };
-    std::fs::rename(&tmp, out).map_err(|e| format!("{}: cannot write: {e}", out.display()))?;
+    let Written {
+        files,
+        before,
+        after,
+    } = write_scans(&bags, &topics, out)?;
     for (k, what) in [
         (before, "before the first servo message"),
         (after, "after the last servo message"),
@@ -203,10 +305,26 @@ pub fn run(args: Args) -> CmdResult {
             eprintln!("pingcal: warning: topic {scan}: {k} scan(s) {what} skipped (no servo angle to interpolate)");
         }
     }
+    let Some((first, more)) = files.split_first() else {
+        return Err(format!("topic {scan}: no scan written").into());
+    };
     println!(
-        "scans: {n} scans of {beams} beams from {} bag(s), servo from {servo} → {} (pingcal-scan v2); {before} skipped before the servo messages, {after} after",
+        "scans: {} scans of {} beams from {} bag(s), servo from {servo} → {} (pingcal-scan v2); {before} skipped before the servo messages, {after} after",
+        first.1,
+        first.2,
         bags.len(),
-        out.display()
+        first.0.display()
     );
+    if !more.is_empty() {
+        eprintln!(
+            "pingcal: warning: topic {scan}: the beam geometry changes between scans; the scans of each other geometry are in a file of their own (list them all in [lrf] scans):"
+        );
+        for (path, n, beams, a0) in more {
+            println!(
+                "scans: {n} scans of {beams} beams from {a0}° → {}",
+                path.display()
+            );
+        }
+    }
     Ok(())
 }

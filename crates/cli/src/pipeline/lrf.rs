@@ -47,13 +47,14 @@ pub fn mount_of(project: &Project) -> MountModel {
     }
 }
 
-/// The scans of the `[lrf.bag]` bags, with the servo interpolated at each beam's time;
-/// the scans outside the servo messages are skipped with a warning in the log.
+/// The scans of the `[lrf.bag]` bags, with the servo interpolated at each beam's time, in
+/// runs of one beam geometry (a driver may change it between messages: each scan keeps
+/// its own); the scans outside the servo messages are skipped with a warning in the log.
 fn bag_scans(
     project: &Project,
     bag: &ProjectBag,
     rep: &Reporter,
-) -> Result<(ScanHeader, Vec<ScanLine>)> {
+) -> Result<Vec<(ScanHeader, Vec<ScanLine>)>> {
     let err = |e: pingcal_rosbag::RosbagError| PipelineError::new(e.to_string());
     let mut bags = Vec::new();
     for p in &project.bag_paths {
@@ -74,27 +75,36 @@ fn bag_scans(
         source,
     };
     let series = servo_series(&bags, &topics).map_err(err)?;
-    let mut header = None;
-    let mut lines = Vec::new();
+    let mut runs: Vec<(ScanHeader, Vec<ScanLine>)> = Vec::new();
     let done = assemble(&bags, &topics, &series, &mut |h, l| {
-        header = Some(*h);
-        lines.push(l);
+        match runs.last_mut() {
+            Some((last, lines)) if last == h && lines[0].ranges_mm.len() == l.ranges_mm.len() => {
+                lines.push(l)
+            }
+            _ => runs.push((*h, vec![l])),
+        }
         Ok(())
     })
     .map_err(err)?;
+    if done.geometry_changes > 0 {
+        rep.log(format!(
+            "[lrf.bag] topic {}: the beam geometry changes {} time(s) between scans; each scan is read with its own",
+            topics.scan, done.geometry_changes
+        ));
+    }
     if done.before_servo + done.after_servo > 0 {
         rep.log(format!(
             "warning: [lrf.bag] topic {}: {} scan(s) before the first and {} after the last servo message skipped",
             topics.scan, done.before_servo, done.after_servo
         ));
     }
-    let header = header.ok_or_else(|| {
-        PipelineError::new(format!(
+    if runs.is_empty() {
+        return Err(PipelineError::new(format!(
             "[lrf.bag] topic {}: no scan lies within the servo messages",
             topics.scan
-        ))
-    })?;
-    Ok((header, lines))
+        )));
+    }
+    Ok(runs)
 }
 
 /// Reads the scans and finds the spheres.
@@ -127,12 +137,14 @@ pub fn lrf_spheres(project: &Project, opts: &Options, rep: &Reporter) -> Result<
         pb.advance(1);
     }
     if let Some(bag) = &l.bag {
-        let (header, lines) = bag_scans(project, bag, rep)?;
-        for line in &lines {
-            cloud.push_scan(&header, line, &mount);
-        }
-        if scans.is_none() {
-            scans = Some((header, lines));
+        for (header, lines) in bag_scans(project, bag, rep)? {
+            for line in &lines {
+                cloud.push_scan(&header, line, &mount);
+            }
+            // the corner baseline reads one geometry: the first run's
+            if scans.is_none() {
+                scans = Some((header, lines));
+            }
         }
     }
     let noise = RangeNoise::from_datasheet(l.accuracy_near_mm, l.accuracy_far_fraction, 3.0);

@@ -145,6 +145,11 @@ pub struct RigJson {
     pub quaternion_xyzw: [f64; 4],
     /// The same rig in OpenCV's camera frames (`stereoCalibrate`'s R and T).
     pub opencv: TransformJson,
+    /// σ of the small rotations of R about the right camera's axes, degrees, from the
+    /// bundle's covariance (None: the rig was held or had no precision).
+    pub sigma_rotation_deg: Option<[f64; 3]>,
+    /// σ of t (mm, as `translation_mm`).
+    pub sigma_translation_mm: Option<[f64; 3]>,
 }
 
 /// A camera's intrinsics.
@@ -332,20 +337,50 @@ pub fn rig_json(right_from_left: &Rigid3, left: &str, right: &str) -> RigJson {
         matrix_4x4: matrix_4x4(r, t),
         quaternion_xyzw: quaternion_xyzw(r),
         opencv: transform_json(&(c * r * c.transpose()), &(c * t), None),
+        sigma_rotation_deg: None,
+        sigma_translation_mm: None,
     }
 }
 
+/// The Jacobian of the inverse of `m` (`(Rᵀ, −Rᵀ t)`) in its update `(δω, δt)`
+/// ([`Rigid3::plus`]) with respect to `m`'s: `exp(δω)R` inverts to `exp(−Rᵀδω) Rᵀ`, and
+/// `−Rᵀ exp(−δω)(t + δt) ≈ −Rᵀ t − Rᵀ δt − Rᵀ [t]× δω`.
+fn inverse_update_jacobian(m: &Rigid3) -> nalgebra::Matrix6<f64> {
+    let rt = m.rotation.transpose();
+    let mut j = nalgebra::Matrix6::zeros();
+    j.fixed_view_mut::<3, 3>(0, 0).copy_from(&(-rt));
+    j.fixed_view_mut::<3, 3>(3, 0)
+        .copy_from(&(-rt * pingcal_geometry::skew(&m.translation)));
+    j.fixed_view_mut::<3, 3>(3, 3).copy_from(&(-rt));
+    j
+}
+
 /// The rig of the bundle adjustment (base → member camera frame, the base being the main
-/// camera's side) as left → right.
-fn rig_of(project: &Project, member_from_base: &Rigid3) -> Option<RigJson> {
+/// camera's side) as left → right, with its σ from `cov` (the bundle's covariance of the
+/// rig's update, [`pingcal_ba::solver::Precision::rig_covariances`]).
+fn rig_of(
+    project: &Project,
+    member_from_base: &Rigid3,
+    cov: Option<&nalgebra::Matrix6<f64>>,
+) -> Option<RigJson> {
     let st = project.file.stereo.as_ref()?;
     let (base, _) = rig_cameras(project)?;
-    let right_from_left = if base == st.left {
-        *member_from_base
+    let (right_from_left, cov) = if base == st.left {
+        (*member_from_base, cov.copied())
     } else {
-        member_from_base.inverse()
+        let j = inverse_update_jacobian(member_from_base);
+        (
+            member_from_base.inverse(),
+            cov.map(|c| j * c * j.transpose()),
+        )
     };
-    Some(rig_json(&right_from_left, &st.left, &st.right))
+    let mut json = rig_json(&right_from_left, &st.left, &st.right);
+    if let Some(c) = cov {
+        let sd = |k: usize| c[(k, k)].max(0.0).sqrt();
+        json.sigma_rotation_deg = Some([0, 1, 2].map(|k| sd(k).to_degrees()));
+        json.sigma_translation_mm = Some([3, 4, 5].map(sd));
+    }
+    Some(json)
 }
 
 /// A method that failed.
@@ -583,7 +618,11 @@ pub fn assemble(st: &Stages, verdict: Verdict, time_s: Vec<(String, f64)>) -> Re
         }
     }
     balls.sort_by_key(|b| natural(&b.id));
-    let rig = adj.rig.as_ref().and_then(|r| rig_of(project, r));
+    let rig_cov = adj.precision.rig_covariances.first().copied().flatten();
+    let rig = adj
+        .rig
+        .as_ref()
+        .and_then(|r| rig_of(project, r, rig_cov.as_ref()));
     Results {
         generator: format!("pingcal {}", env!("CARGO_PKG_VERSION")),
         verdict,
@@ -693,6 +732,41 @@ mod tests {
 
     /// `bundle.rig` is left → right whichever camera is the main one (the adjustment's rig
     /// goes from the main camera's side to the other), in both frames.
+    /// The inverse's update Jacobian against central differences of `plus` and `inverse`.
+    #[test]
+    fn the_inverse_rigs_jacobian_matches_central_differences() {
+        let m = Rigid3::new(
+            pingcal_geometry::from_opk_deg([0.3, -0.25, 12.0]),
+            Vector3::new(-120.0, 4.0, 30.0),
+        );
+        let j = inverse_update_jacobian(&m);
+        let inv = m.inverse();
+        let h = 1e-6;
+        for k in 0..6 {
+            let mut d = [0.0; 6];
+            d[k] = h;
+            let plus = m.plus(&d).inverse();
+            d[k] = -h;
+            let minus = m.plus(&d).inverse();
+            // the inverse's update that gives plus / minus from inv
+            let up = |x: &Rigid3| {
+                let w = pingcal_geometry::log_so3(&(x.rotation * inv.rotation.transpose()));
+                let t = x.translation - inv.translation;
+                [w.x, w.y, w.z, t.x, t.y, t.z]
+            };
+            let (a, b) = (up(&plus), up(&minus));
+            for r in 0..6 {
+                let fd = (a[r] - b[r]) / (2.0 * h);
+                let tol = 1e-6 * (1.0 + j[(r, k)].abs());
+                assert!(
+                    (fd - j[(r, k)]).abs() < tol,
+                    "({r}, {k}): {fd} vs {}",
+                    j[(r, k)]
+                );
+            }
+        }
+    }
+
     #[test]
     fn the_rig_is_left_to_right_whichever_camera_is_main() {
         let r = pingcal_geometry::from_opk_deg([0.3, -0.25, 0.1]);
@@ -703,7 +777,7 @@ mod tests {
             ("left", right_from_left),
             ("right", right_from_left.inverse()),
         ] {
-            let rig = rig_of(&example_project(main), &member_from_base).unwrap();
+            let rig = rig_of(&example_project(main), &member_from_base, None).unwrap();
             assert_eq!((rig.left.as_str(), rig.right.as_str()), ("left", "right"));
             let (rot, t) = (
                 Matrix3::from(rig.rotation).transpose(),

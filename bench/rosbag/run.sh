@@ -1,0 +1,44 @@
+#!/usr/bin/env bash
+# Issue 16's streaming benchmark: `pingcal scans` on ROS 1 and MCAP bags of SIZE_MB (default
+# 1,100 MB) written by the independent `rosbags` writer; prints MB/s (bag bytes over wall
+# time, from a warm page cache) and peak RSS (GNU time), for --list and for a full decode to
+# a scan file.   bash bench/rosbag/run.sh [SIZE_MB]      (from the repository root)
+# Installs rosbags in target/rosbags-venv. Writes target/rosbag-big/ (several GB: removed
+# at the end unless KEEP=1).
+set -euo pipefail
+root="$(cd "$(dirname "$0")/../.." && pwd)"
+cd "$root"
+size="${1:-1100}"
+venv=target/rosbags-venv
+if [ ! -x "$venv/bin/python" ] || ! "$venv/bin/python" -c 'import rosbags, numpy' 2>/dev/null; then
+    python3 -m venv "$venv" && "$venv/bin/pip" install -q 'rosbags==0.11.9' numpy
+fi
+bin="${PINGCAL:-target/release/pingcal}"
+cargo build --release -q -p pingcal && cargo build --release -q -p pingcal-rosbag --example read_bag
+big=target/rosbag-big
+mkdir -p "$big"
+[ -f "$big/sim/scans/S00.csv" ] || "$bin" simulate --out "$big/sim" --seed 7 >/dev/null
+printf '| bag | size MB | command | wall s | MB/s | peak RSS MB |\n|---|---|---|---|---|---|\n' >"$big/table.md"
+for ext in bag mcap; do
+    f="$big/big.$ext"
+    [ -f "$f" ] || "$venv/bin/python" bench/rosbag/big_bag.py "$big/sim" "$f" "$size"
+    mb=$(python3 -c "import os; print(os.path.getsize('$f') / 1e6)")
+    cat "$f" >/dev/null # warm the page cache
+    "${READ_BAG:-target/release/examples/read_bag}" "$f" /scan /joint_states servo | tee "$big/read.txt"
+    python3 - "$big/read.txt" "$ext" "$mb" >>"$big/table.md" <<'PY'
+import re, sys
+t = open(sys.argv[1]).read()
+s = float(re.search(r"([0-9.]+) s \(", t).group(1)); rss = float(re.search(r"peak RSS ([0-9.]+)", t).group(1))
+mb = float(sys.argv[3])
+print(f"| {sys.argv[2]} | {mb:.0f} | read (decode every scan, no output) | {s:.2f} | {mb / s:.0f} | {rss:.1f} |")
+PY
+    for mode in list decode; do
+        rm -f "$big/out.csv"
+        if [ $mode = list ]; then args=(--list); else args=(--scan-topic /scan --servo-topic /joint_states --servo-joint servo --out "$big/out.csv"); fi
+        /usr/bin/time -f "%e %M" -o "$big/time" "$bin" scans "$f" "${args[@]}" >/dev/null
+        read -r wall kb <"$big/time"
+        python3 -c "print(f'| $ext | {$mb:.0f} | $mode | {$wall:.2f} | {$mb / max($wall, 1e-3):.0f} | {$kb / 1024:.1f} |')" >>"$big/table.md"
+    done
+done
+cat "$big/table.md"
+[ "${KEEP:-0}" = 1 ] || rm -f "$big"/big.* "$big/out.csv"
