@@ -132,7 +132,8 @@ pub struct RigOrientation {
     pub baseline_mm: f64,
     /// σ of t in mm (None: not computed).
     pub sigma_translation_mm: Option<[f64; 3]>,
-    /// σ of ω, φ, κ in degrees (None: not computed).
+    /// σ of the small rotations of R about the right camera's axes, degrees (None: not
+    /// computed).
     pub sigma_rotation_deg: Option<[f64; 3]>,
 }
 

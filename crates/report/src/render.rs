@@ -454,7 +454,7 @@ fn checks(o: &mut String, d: &ReportData) {
                     o,
                     "<tr><td class=\"l\">{}</td><td class=\"l\">{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
                     escape(&r.id),
-                    escape(&r.role),
+                    escape(role_label(&r.role)),
                     num(r.dx_mm, 2),
                     num(r.dy_mm, 2),
                     num(r.dz_mm, 2),
@@ -471,8 +471,22 @@ fn checks(o: &mut String, d: &ReportData) {
             );
         }
         o.push_str("</div>\n");
+        if d.methods
+            .iter()
+            .any(|m| m.checks.iter().any(|r| r.role == "loo"))
+        {
+            o.push_str("<p class=\"note\">left out (leave-one-out): each control ball in turn left out of the registration and transformed with the extrinsic from the others; its error says how well the rest predicts it.</p>\n");
+        }
     }
     o.push_str("</section>\n");
+}
+
+/// How a row's role reads in the tables.
+fn role_label(role: &str) -> &str {
+    match role {
+        "loo" => "left out",
+        other => other,
+    }
 }
 
 fn role_rank(role: &str) -> u8 {
@@ -1071,7 +1085,9 @@ fn cloud(o: &mut String, d: &ReportData) {
     o.push_str("</div>\n");
     if !cl.spheres.is_empty() {
         o.push_str("<table>\n<tr><th class=\"l\">sphere</th><th class=\"l\">matched to</th><th>X (mm)</th><th>Y (mm)</th><th>Z (mm)</th><th>r (mm)</th><th>σX</th><th>σY</th><th>σZ</th><th>inliers</th></tr>\n");
-        for s in &cl.spheres {
+        let mut spheres: Vec<_> = cl.spheres.iter().collect();
+        spheres.sort_by(|a, b| id_cmp(&a.label, &b.label));
+        for s in spheres {
             let _ = writeln!(
                 o,
                 "<tr><td class=\"l\">{}</td><td class=\"l\">{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",

@@ -619,8 +619,8 @@ pub fn sample_report(cloud_points: usize) -> ReportData {
             translation_mm: [-120.1, 0.4, -0.2],
             opk_deg: [0.12, -0.31, 0.05],
             baseline_mm: 120.1,
-            sigma_translation_mm: None,
-            sigma_rotation_deg: None,
+            sigma_translation_mm: Some([0.21, 0.35, 0.18]),
+            sigma_rotation_deg: Some([0.011, 0.004, 0.009]),
         }),
     }
 }

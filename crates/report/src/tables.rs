@@ -165,11 +165,14 @@ pub(crate) fn rig(o: &mut String, d: &ReportData) {
     cells(o, r.sigma_translation_mm, SIGMA_MM);
     o.push_str("</tr>\n<tr><th class=\"l\">ω φ κ (°)</th>");
     cells(o, Some(r.opk_deg), DEG);
-    o.push_str("</tr>\n<tr><th class=\"l\">σ ω φ κ (°)</th>");
+    o.push_str("</tr>\n<tr><th class=\"l\">σ rotation about the right camera's X, Y, Z (°)</th>");
     cells(o, r.sigma_rotation_deg, DEG);
     o.push_str("</tr>\n</table>\n");
     if r.sigma_translation_mm.is_none() || r.sigma_rotation_deg.is_none() {
-        none(o, "σ of the rig not computed: the adjustment's precision does not give the covariance of the rig pose");
+        none(
+            o,
+            "σ of the rig not computed: the rig was held fixed or the adjustment gave no precision",
+        );
     }
     o.push_str("</section>\n");
 }

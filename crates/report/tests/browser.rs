@@ -1,5 +1,5 @@
 //! Renders the sample report in headless Chromium (scripts/check-report.sh) and checks the
-//! screenshot is a real page. Skips, with a printed reason, where /usr/bin/chromium is absent.
+//! screenshot is a real page and that Chromium's DOM holds every section. Skips, with a printed reason, where /usr/bin/chromium is absent.
 
 use std::path::Path;
 use std::process::Command;
@@ -41,5 +41,50 @@ fn sample_report_renders_in_chromium() {
         png.display()
     );
     println!("{}: {size} bytes", png.display());
+    // the DOM Chromium built holds every section (Australis-like ones included) as an element
+    let profile = dir.join("profile");
+    let dom = Command::new("timeout")
+        .args([
+            "120",
+            "/usr/bin/chromium",
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+        ])
+        .arg(format!("--user-data-dir={}", profile.display()))
+        .arg("--dump-dom")
+        .arg(format!("file://{}", html.display()))
+        .output()
+        .expect("run chromium --dump-dom");
+    let dom = String::from_utf8_lossy(&dom.stdout);
+    for id in [
+        "verdict",
+        "summary",
+        "extrinsic",
+        "extrinsic_precision",
+        "checks",
+        "images",
+        "histogram",
+        "coverage",
+        "network",
+        "exterior",
+        "points",
+        "distances",
+        "rig",
+        "cloud",
+        "intrinsics",
+        "distortion",
+        "opencv",
+        "mount",
+        "rejected",
+        "warnings",
+        "steps",
+    ] {
+        assert!(
+            dom.contains(&format!("id=\"{id}\"")),
+            "section {id} missing from Chromium's DOM ({} bytes)",
+            dom.len()
+        );
+    }
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -64,7 +64,7 @@ fn sample_is_well_formed_with_all_sections_in_order() {
     for text in [
         "Relative precision <b>1 : ",
         "correlations of (θ, t)",
-        "σ of the rig not computed",
+        "σ rotation about the right camera's X, Y, Z (°)",
         "at the corner (r = ",
         "/25 cells",
         "distCoeffs = (k1, k2, p1, p2, k3)",

@@ -127,7 +127,7 @@ fn distances(st: &Stages) -> Vec<rp::DistanceRow> {
         .collect()
 }
 
-/// The stereo rig of `results.json` (its σ are not computed by the precision).
+/// The stereo rig of `results.json`, with its σ from the bundle.
 fn rig(r: &super::results::RigJson) -> rp::RigOrientation {
     let m = nalgebra::Matrix3::from_fn(|i, j| r.rotation[i][j]);
     rp::RigOrientation {
@@ -136,8 +136,8 @@ fn rig(r: &super::results::RigJson) -> rp::RigOrientation {
         translation_mm: r.translation_mm,
         opk_deg: pingcal_geometry::to_opk_deg(&m),
         baseline_mm: r.baseline_mm,
-        sigma_translation_mm: None,
-        sigma_rotation_deg: None,
+        sigma_translation_mm: r.sigma_translation_mm,
+        sigma_rotation_deg: r.sigma_rotation_deg,
     }
 }
 
@@ -357,6 +357,10 @@ fn methods(st: &Stages, results: &Results) -> Vec<rp::MethodResult> {
             },
         );
         checks.extend(check_rows(&m.control_points, "control"));
+        if m.check_points_source != "leave_one_out" {
+            // each control ball left out of the registration in turn, judged by the others
+            checks.extend(check_rows(&m.leave_one_out, "loo"));
+        }
         methods.push(match &m.extrinsic {
             Some(e) => rp::MethodResult {
                 name,
