@@ -3,7 +3,7 @@
 
 use crate::fmt::{c, escape, num, DEG, PX, RATIO, SIGMA_MM};
 use crate::plot::{axes, axes_with, nice_step, svg_open, Frame, MARGIN_LEFT, MARGIN_TOP};
-use crate::render::{h2, none};
+use crate::section::{h2, none};
 use crate::{ImageResiduals, Intrinsics, MethodResult, ReportData};
 use std::fmt::Write;
 

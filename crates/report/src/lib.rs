@@ -37,6 +37,7 @@ mod fmt;
 mod plot;
 mod render;
 pub mod sample;
+mod section;
 mod tables;
 
 pub use fmt::escape;

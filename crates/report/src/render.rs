@@ -5,33 +5,9 @@ use crate::plot::{
     axes, nice_number, nice_step, quantile, svg_open, ticks, Bounds, Frame, LabelPlacer,
     MARGIN_LEFT, MARGIN_TOP,
 };
+use crate::section::{h2, id_cmp, none, SECTIONS};
 use crate::{charts, tables, CheckRow, ImageResiduals, MethodResult, NetworkPoint, ReportData};
-use std::cmp::Ordering;
 use std::fmt::Write;
-
-/// Section ids and headings, in document order.
-pub(crate) const SECTIONS: [(&str, &str); 20] = [
-    ("summary", "Summary"),
-    ("extrinsic", "Extrinsic calibration"),
-    ("extrinsic_precision", "Extrinsic precision"),
-    ("checks", "Check points"),
-    ("images", "Image residuals"),
-    ("histogram", "Residual histogram"),
-    ("coverage", "Image coverage"),
-    ("network", "Network"),
-    ("exterior", "Exterior orientation"),
-    ("points", "Point precision"),
-    ("distances", "Distances"),
-    ("rig", "Stereo rig"),
-    ("cloud", "LRF cloud"),
-    ("intrinsics", "Intrinsics"),
-    ("distortion", "Distortion profile"),
-    ("opencv", "OpenCV parameters"),
-    ("mount", "LRF mount and range"),
-    ("rejected", "Rejected"),
-    ("warnings", "Warnings"),
-    ("steps", "Pipeline steps"),
-];
 
 const STYLE: &str = r#"
 body{font-family:system-ui,-apple-system,"Segoe UI",Roboto,"Helvetica Neue",Arial,sans-serif;margin:0 auto;max-width:1360px;padding:0 18px 40px;color:#222;line-height:1.4;background:#fff}
@@ -101,18 +77,6 @@ fn kind_legend(o: &mut String, with_camera: bool) {
         o.push_str(r#"<span class="sw" style="background:#9467bd;border-radius:0"></span>camera (wedge along the viewing direction)<span class="sw" style="background:#d62728;border-radius:0"></span>main station"#);
     }
     o.push_str("</div>\n");
-}
-
-pub(crate) fn h2(o: &mut String, id: &str) {
-    let title = SECTIONS
-        .iter()
-        .find(|(i, _)| *i == id)
-        .map_or(id, |(_, t)| t);
-    let _ = write!(o, "<section id=\"{id}\">\n<h2>{}</h2>\n", escape(title));
-}
-
-pub(crate) fn none(o: &mut String, text: &str) {
-    let _ = writeln!(o, r#"<p class="none">{}</p>"#, escape(text));
 }
 
 pub(crate) fn document(d: &ReportData) -> String {
@@ -357,22 +321,6 @@ fn check_stats(m: &MethodResult) -> (Option<f64>, Option<f64>, Option<&'static s
     } else {
         (cm, cs, role)
     }
-}
-
-/// Natural order of ids: by the text before the first digit, then the number its digits
-/// make (B4 before B11; plain numbers first by value), then the whole id.
-pub(crate) fn id_cmp(a: &str, b: &str) -> Ordering {
-    natural_key(a).cmp(&natural_key(b))
-}
-
-fn natural_key(id: &str) -> (&str, u64, &str) {
-    let id = id.trim();
-    let start = id.find(|c: char| c.is_ascii_digit()).unwrap_or(id.len());
-    let end = id[start..]
-        .find(|c: char| !c.is_ascii_digit())
-        .map_or(id.len(), |e| start + e);
-    let n = id[start..end].parse().unwrap_or(u64::MAX);
-    (&id[..start], n, id)
 }
 
 fn checks(o: &mut String, d: &ReportData) {

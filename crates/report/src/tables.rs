@@ -2,7 +2,7 @@
 //! point precision, distance residuals, the stereo rig, and the cameras in OpenCV's model.
 
 use crate::fmt::{escape, num, sig, DASH, DEG, MM, PX, RATIO, SIGMA_MM};
-use crate::render::{h2, id_cmp, none};
+use crate::section::{h2, id_cmp, none};
 use crate::{NetworkPoint, ReportData};
 use std::fmt::Write;
 
