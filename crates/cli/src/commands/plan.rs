@@ -570,11 +570,7 @@ pub fn run(args: Args) -> CmdResult {
             key(b).total_cmp(&key(a))
         });
     }
-    for s in &sims {
-        if let Ok(s) = s {
-            let _ = std::fs::remove_dir_all(root.0.join(format!("seed{}", s.seed)));
-        }
-    }
+    drop(root); // the simulations are no longer needed
 
     let ok: Vec<&SeedRun> = runs.iter().collect();
     let names = ["tx mm", "ty mm", "tz mm", "ω deg", "φ deg", "κ deg"];

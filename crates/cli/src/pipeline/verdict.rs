@@ -301,7 +301,7 @@ fn mean_check_chi2(
 /// The check error to expect from the covariances the calibration reports: for each check
 /// (or leave-one-out) ball of the result given (the joint adjustment's when it succeeded,
 /// else the sphere method's), `E|dᵢ|` of a zero-mean normal `dᵢ` with the covariance `Σᵢ`
-/// of [`mean_check_chi2`]'s test, to second order `√T (1 − tr Σᵢ² / 4T²)`, `T = tr Σᵢ`
+/// of the check-point test (`mean_check_chi2`), to second order `√T (1 − tr Σᵢ² / 4T²)`, `T = tr Σᵢ`
 /// (exact to 0.5 % for an isotropic Σᵢ), averaged over the balls; None without a check
 /// ball in both point lists. What `pingcal plan` predicts the mean check error to be.
 pub fn expected_check_error_mm(st: &Stages) -> Option<f64> {
