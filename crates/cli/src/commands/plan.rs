@@ -394,7 +394,17 @@ pub fn run(args: Args) -> CmdResult {
     if let Some(out) = &args.out {
         check_out_file("--out", out)?;
     }
-    let seeds: Vec<u64> = (0..args.seeds).map(|k| args.seed + k).collect();
+    let seeds: Vec<u64> = (0..args.seeds)
+        .map(|k| args.seed.checked_add(k))
+        .collect::<Option<_>>()
+        .ok_or_else(|| {
+            format!(
+                "--seed {} --seeds {}: the last seed would pass {}",
+                args.seed,
+                args.seeds,
+                u64::MAX
+            )
+        })?;
     let sens_seeds: Vec<u64> = if args.no_sensitivity {
         Vec::new()
     } else {
