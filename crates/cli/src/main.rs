@@ -26,6 +26,8 @@ enum Command {
     Simulate(commands::simulate::Args),
     /// Run the whole calibration pipeline on a project file.
     Calibrate(commands::calibrate::Args),
+    /// Plan a field before building it: simulate and calibrate it many times, print the σ to expect and what matters most.
+    Plan(commands::plan::Args),
     /// Find targets and balls in images.
     Detect(commands::detect::Args),
     /// Draw printable AICON-style coded targets (SVG).
@@ -48,6 +50,7 @@ fn main() {
         Command::Demo(a) => commands::demo::run(a),
         Command::Simulate(a) => commands::simulate::run(a),
         Command::Calibrate(a) => commands::calibrate::run(a),
+        Command::Plan(a) => commands::plan::run(a),
         Command::Detect(a) => commands::detect::run(a),
         Command::Targets(a) => commands::targets::run(a),
         Command::Ba(a) => commands::ba::run(a),

@@ -6,6 +6,7 @@ pub mod cloud;
 pub mod demo;
 pub mod detect;
 pub mod gen_bal;
+pub mod plan;
 pub mod preflight;
 pub mod progress;
 pub mod register;

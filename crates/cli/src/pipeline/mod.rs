@@ -95,6 +95,10 @@ pub struct Outcome {
     /// The files of `ros/`, `opencv/` and `kalibr/` ([`exports`]): path below the output
     /// folder, text.
     pub exports: Vec<exports::OutputFile>,
+    /// The mean check error the reported covariances predict
+    /// ([`verdict::expected_check_error_mm`]; not in `results.json`): what `pingcal plan`
+    /// averages.
+    pub expected_check_error_mm: Option<f64>,
 }
 
 /// Runs the whole calibration of `project`.
@@ -144,6 +148,7 @@ pub fn calibrate(project: &Project, opts: &Options, rep: &Reporter) -> Result<Ou
         joint: &joint,
     };
     let verdict = verdict::judge(&stages);
+    let expected_check_error_mm = verdict::expected_check_error_mm(&stages);
     rep.log(format!(
         "verdict: {}{}",
         verdict.status.as_str(),
@@ -162,6 +167,7 @@ pub fn calibrate(project: &Project, opts: &Options, rep: &Reporter) -> Result<Ou
         report,
         cloud_ply,
         exports,
+        expected_check_error_mm,
     })
 }
 

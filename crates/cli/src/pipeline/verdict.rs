@@ -298,6 +298,52 @@ fn mean_check_chi2(
     (k > 0).then(|| (sum / n, n))
 }
 
+/// The check error to expect from the covariances the calibration reports: for each check
+/// (or leave-one-out) ball of the result given (the joint adjustment's when it succeeded,
+/// else the sphere method's), `E|dᵢ|` of a zero-mean normal `dᵢ` with the covariance `Σᵢ`
+/// of the check-point test (`mean_check_chi2`), to second order `√T (1 − tr Σᵢ² / 4T²)`, `T = tr Σᵢ`
+/// (exact to 0.5 % for an isotropic Σᵢ), averaged over the balls; None without a check
+/// ball in both point lists. What `pingcal plan` predicts the mean check error to be.
+pub fn expected_check_error_mm(st: &Stages) -> Option<f64> {
+    let (rows, pts, t, tcov) = match st.joint {
+        Some(Ok(j)) => (
+            &j.check.rows,
+            (&j.lrf_points[..], &j.cam_points[..]),
+            Sim3::new(
+                1.0,
+                j.camera_from_lrf.rotation,
+                j.camera_from_lrf.translation,
+            ),
+            &j.extrinsic_cov,
+        ),
+        _ => {
+            let ev = st.ext.spheres.as_ref()?;
+            let rows = if ev.check.rows.is_empty() {
+                &ev.leave_one_out.rows
+            } else {
+                &ev.check.rows
+            };
+            (
+                rows,
+                (&st.ext.lrf_points[..], &st.ext.cam_points[..]),
+                ev.registration.camera_from_lrf,
+                &ev.registration.cov,
+            )
+        }
+    };
+    let expected: Vec<f64> = rows
+        .iter()
+        .filter_map(|row| {
+            let (l, c) = (find(pts.0, &row.id)?, find(pts.1, &row.id)?);
+            let cov = predicted_covariance(&t, tcov, l, c);
+            let tr = cov.trace();
+            let tr2 = (cov * cov).trace();
+            (tr.is_finite() && tr > 0.0).then(|| tr.sqrt() * (1.0 - tr2 / (4.0 * tr * tr)))
+        })
+        .collect();
+    (!expected.is_empty()).then(|| expected.iter().sum::<f64>() / expected.len() as f64)
+}
+
 /// Covariance of `R p + t − q` for one ball: both sides' and the transform's (covariance
 /// `tcov` of (δθ, t) or (δθ, t, s)), to first order (`∂/∂δθ = −[R p]×`, `∂/∂t = I`,
 /// `∂/∂s = R p`).

@@ -1,0 +1,751 @@
+//! `pingcal plan [--config simulation.toml] [--seeds N] [--seed BASE] [--out plan.json]`:
+//! pre-analysis of a planned field (issue 18). Before a hole is drilled, the planned field
+//! (the simulator's configuration: room, targets, balls, distances, stations, camera, LRF;
+//! the paper's field when no file is given) is simulated with `N` seeds and each simulation
+//! is calibrated by the whole pipeline ([`super::simulate::simulate_into`], then
+//! [`crate::pipeline::calibrate`], in a temporary folder removed at the end).
+//!
+//! It prints, and writes into `plan.json`:
+//! - the **predicted σ** of the extrinsic (tx, ty, tz in mm, ω, φ, κ in degrees) and of the
+//!   ball centres (camera side): the RMS over the seeds of the σ's each calibration reports,
+//!   with its σ0 as estimated;
+//! - beside them the **Monte Carlo** RMS of the true errors over the seeds (the simulator
+//!   knows the truth), and their ratio: about 1 when the σ's are honest;
+//! - the **check error to expect**: the mean of `E|dᵢ|` from each check ball's predicted
+//!   covariance ([`crate::pipeline::verdict::expected_check_error_mm`]), beside the mean
+//!   check error the simulations gave;
+//! - **what matters most**: each non-main station and each measured distance removed in
+//!   turn from the same simulated data (the first `--sensitivity-seeds` seeds, the same for
+//!   every variant, so the comparison is paired), ranked by how much the extrinsic's
+//!   translation σ (`√trace`) grows; a removal that breaks the calibration ranks first.
+//!
+//! Every random choice is seeded: the same input and seeds give the same `plan.json`
+//! (times are printed, not written). A seed that fails is counted and its reason given.
+
+use super::preflight::{check_out_file, check_threads};
+use super::progress::reporter;
+use super::CmdResult;
+use crate::pipeline::{self, Outcome, Reporter};
+use indicatif::MultiProgress;
+use pingcal_project::Project;
+use rayon::prelude::*;
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+
+/// Arguments of `pingcal plan`.
+#[derive(clap::Args)]
+#[command(allow_negative_numbers = true)]
+pub struct Args {
+    /// The planned field: a simulator configuration (TOML, as `pingcal simulate --config`;
+    /// keys not given keep the paper's defaults). Default: the paper's field.
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// Simulations (each simulated and calibrated) of the plan.
+    #[arg(long, default_value_t = 5)]
+    pub seeds: u64,
+    /// Seed of the first simulation (the others follow: BASE, BASE+1, ...).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// How many of the seeds (the first ones) each removal is calibrated with.
+    #[arg(long, default_value_t = 1)]
+    pub sensitivity_seeds: u64,
+    /// No "remove each and see" (only the predicted σ's and the Monte Carlo spread).
+    #[arg(long)]
+    pub no_sensitivity: bool,
+    /// Write the plan's numbers as JSON into this file (written only when the plan finished).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Worker threads (0: all cores).
+    #[arg(long, default_value_t = 0)]
+    pub threads: usize,
+    /// No progress bar.
+    #[arg(long)]
+    pub quiet: bool,
+    /// Write the whole configuration (every key, the defaults filled in) into this file and
+    /// stop: a `simulation.toml` to edit into your plan. An existing file is not replaced.
+    #[arg(long)]
+    pub write_config: Option<PathBuf>,
+}
+
+/// What one removal takes out of the project.
+#[derive(Clone, Debug)]
+enum Removed {
+    /// Every image of a station.
+    Station(String),
+    /// One measured distance (its index in the project).
+    Distance(usize),
+}
+
+/// One calibration of one seed, against the truth.
+#[derive(Clone, Debug, Serialize)]
+pub struct SeedRun {
+    /// The seed.
+    pub seed: u64,
+    /// The method whose extrinsic is the one given (`joint`, `spheres`, `corner`).
+    pub method: String,
+    /// `ok`, `doubtful`, `failed`.
+    pub verdict: String,
+    /// Reported σ of the extrinsic's translation (mm).
+    pub sigma_translation_mm: [f64; 3],
+    /// Reported σ of ω, φ, κ (degrees).
+    pub sigma_rotation_deg: [f64; 3],
+    /// Estimated − true translation (mm).
+    pub error_translation_mm: [f64; 3],
+    /// Estimated − true ω, φ, κ (degrees).
+    pub error_rotation_deg: [f64; 3],
+    /// RMS over the balls of the reported σ of the camera-side centres, X Y Z (mm).
+    pub ball_sigma_mm: [f64; 3],
+    /// RMS over the balls of the camera-side centres' true errors, X Y Z (mm).
+    pub ball_error_mm: [f64; 3],
+    /// The mean check error the reported covariances predict (mm).
+    pub expected_check_error_mm: Option<f64>,
+    /// The mean check error of the calibration (mm).
+    pub mean_check_error_mm: f64,
+    /// Check balls in the mean.
+    pub check_balls: usize,
+    /// σ0 of the bundle adjustment.
+    pub bundle_sigma0: f64,
+}
+
+/// A seed that did not calibrate.
+#[derive(Clone, Debug, Serialize)]
+pub struct SeedFailure {
+    /// The seed.
+    pub seed: u64,
+    /// Why.
+    pub error: String,
+}
+
+/// Predicted σ and Monte Carlo RMS error of one component.
+#[derive(Clone, Debug, Serialize)]
+pub struct Component {
+    /// `tx`, `ty`, `tz` (mm), `omega`, `phi`, `kappa` (degrees), `ball X` ... (mm).
+    pub name: String,
+    /// RMS over the seeds of the reported σ.
+    pub predicted_sigma: f64,
+    /// RMS over the seeds of the true error (None with fewer than 2 seeds).
+    pub monte_carlo_rms_error: Option<f64>,
+    /// Monte Carlo / predicted.
+    pub ratio: Option<f64>,
+}
+
+/// One removal's effect, paired with the plan on the same seeds.
+#[derive(Clone, Debug, Serialize)]
+pub struct Sensitivity {
+    /// `station S03`, `distance 2 (3–17)`.
+    pub removed: String,
+    /// Mean over the seeds of σ(removed)/σ(plan) of the translation (√trace).
+    pub translation_sigma_growth: Option<f64>,
+    /// The same for ω φ κ.
+    pub rotation_sigma_growth: Option<f64>,
+    /// The same for the ball centres' σ (camera side, RMS over the balls).
+    pub ball_sigma_growth: Option<f64>,
+    /// The same for the expected check error.
+    pub check_error_growth: Option<f64>,
+    /// Why a calibration without it failed (it then ranks first).
+    pub failed: Option<String>,
+}
+
+/// `plan.json`.
+#[derive(Clone, Debug, Serialize)]
+pub struct Plan {
+    /// What wrote it.
+    pub generator: String,
+    /// The configuration file, or `default` (the paper's field).
+    pub config: String,
+    /// The seeds simulated.
+    pub seeds: Vec<u64>,
+    /// Stations (main first), distances, balls and check balls of the first simulation.
+    pub stations: Vec<String>,
+    /// Measured distances.
+    pub distances: usize,
+    /// Balls.
+    pub balls: usize,
+    /// Check balls.
+    pub check_balls: usize,
+    /// Seeds that calibrated.
+    pub calibrated: usize,
+    /// Seeds that failed, with why.
+    pub failures: Vec<SeedFailure>,
+    /// The extrinsic: tx ty tz (mm), ω φ κ (degrees).
+    pub extrinsic: Vec<Component>,
+    /// The ball centres (camera side): X Y Z (mm).
+    pub ball_centres: Vec<Component>,
+    /// Mean over the seeds of the expected mean check error (mm).
+    pub expected_check_error_mm: Option<f64>,
+    /// Mean over the seeds of the calibrations' mean check error (mm).
+    pub mean_check_error_mm: Option<f64>,
+    /// Its standard deviation over the seeds (mm).
+    pub sd_check_error_mm: Option<f64>,
+    /// The seeds each removal was calibrated with.
+    pub sensitivity_seeds: Vec<u64>,
+    /// Removals, most harmful first.
+    pub sensitivity: Vec<Sensitivity>,
+    /// Every calibration of the plan as given.
+    pub runs: Vec<SeedRun>,
+}
+
+/// Removes its folder when dropped (the simulations of a plan are temporary).
+struct TempRoot(PathBuf);
+
+impl Drop for TempRoot {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+/// `project` without what `removed` names (the same data otherwise).
+fn without(project: &Project, removed: &Removed) -> Project {
+    let mut p = project.clone();
+    match removed {
+        Removed::Station(id) => {
+            let keep: Vec<bool> = p.file.images.iter().map(|im| &im.station != id).collect();
+            let mut k = keep.iter();
+            p.file
+                .images
+                .retain(|_| *k.next().expect("one flag per image"));
+            let mut k = keep.iter();
+            p.image_paths
+                .retain(|_| *k.next().expect("one flag per image"));
+        }
+        Removed::Distance(i) => {
+            p.file.distances.remove(*i);
+        }
+    }
+    p
+}
+
+/// The label of a removal in `project`.
+fn label(project: &Project, removed: &Removed) -> String {
+    match removed {
+        Removed::Station(id) => format!("station {id}"),
+        Removed::Distance(i) => {
+            let d = &project.file.distances[*i];
+            format!("distance {} ({}–{})", i + 1, d.from, d.to)
+        }
+    }
+}
+
+fn norm3(v: &[f64; 3]) -> f64 {
+    (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
+}
+
+/// `a − b` of two angles in degrees, in (−180, 180].
+fn angle_diff(a: f64, b: f64) -> f64 {
+    let d = (a - b).rem_euclid(360.0);
+    if d > 180.0 {
+        d - 360.0
+    } else {
+        d
+    }
+}
+
+/// One calibration against the truth, or why it cannot be judged.
+fn judge_run(seed: u64, o: &Outcome, truth: &pingcal_sim::Truth) -> Result<SeedRun, String> {
+    let r = &o.results;
+    let e = &r.extrinsic;
+    let (Some(st), Some(sr)) = (e.sigma_translation_mm, e.sigma_rotation_deg) else {
+        return Err("the calibration reported no σ for its extrinsic".into());
+    };
+    let te = &truth.extrinsic;
+    let error_translation_mm = std::array::from_fn(|k| e.translation_mm[k] - te.translation_mm[k]);
+    let error_rotation_deg = std::array::from_fn(|k| angle_diff(e.opk_deg[k], te.opk_deg[k]));
+    let (mut s2, mut e2, mut n) = ([0.0; 3], [0.0; 3], 0usize);
+    for b in &r.balls {
+        let Some(t) = truth.balls.iter().find(|t| t.id == b.id) else {
+            continue;
+        };
+        for k in 0..3 {
+            s2[k] += b.photogrammetric_sigma_mm[k].powi(2);
+            e2[k] += (b.photogrammetric_mm[k] - t.photogrammetric_mm[k]).powi(2);
+        }
+        n += 1;
+    }
+    if n == 0 {
+        return Err("no ball of the calibration is in the truth".into());
+    }
+    let rms = |v: [f64; 3]| v.map(|x| (x / n as f64).sqrt());
+    let method = r
+        .methods
+        .iter()
+        .find(|m| m.extrinsic.as_ref().map(|x| x.translation_mm) == Some(e.translation_mm))
+        .map_or_else(|| "?".into(), |m| m.method.clone());
+    Ok(SeedRun {
+        seed,
+        method,
+        verdict: r.verdict.status.as_str().into(),
+        sigma_translation_mm: st,
+        sigma_rotation_deg: sr,
+        error_translation_mm,
+        error_rotation_deg,
+        ball_sigma_mm: rms(s2),
+        ball_error_mm: rms(e2),
+        expected_check_error_mm: o.expected_check_error_mm,
+        mean_check_error_mm: r.mean_check_error_mm,
+        check_balls: r.check_points.len(),
+        bundle_sigma0: r.bundle.sigma0,
+    })
+}
+
+/// One simulated seed: its project and truth (in `dir`), and the plan's calibration.
+struct Simulated {
+    seed: u64,
+    project: Project,
+    truth: pingcal_sim::Truth,
+    run: Result<SeedRun, String>,
+}
+
+/// Simulates `seed` into `dir` and calibrates it.
+fn simulate_and_calibrate(
+    dir: &Path,
+    cfg: &pingcal_sim::SimConfig,
+    config_file: Option<&Path>,
+    seed: u64,
+    opts: &pipeline::Options,
+) -> Result<Simulated, String> {
+    super::simulate::simulate_into(dir, cfg, seed, config_file).map_err(|e| e.to_string())?;
+    let project = Project::load(&dir.join("project.toml")).map_err(|e| e.to_string())?;
+    let truth = pingcal_sim::read_truth(&dir.join("truth.json")).map_err(|e| e.to_string())?;
+    let opts = pipeline::Options {
+        seed,
+        ..opts.clone()
+    };
+    let run = pipeline::calibrate(&project, &opts, &Reporter::silent())
+        .map_err(|e| e.to_string())
+        .and_then(|o| judge_run(seed, &o, &truth));
+    Ok(Simulated {
+        seed,
+        project,
+        truth,
+        run,
+    })
+}
+
+/// RMS of `f` over `runs`.
+fn rms_of(runs: &[&SeedRun], f: impl Fn(&SeedRun) -> f64) -> f64 {
+    (runs.iter().map(|r| f(r).powi(2)).sum::<f64>() / runs.len() as f64).sqrt()
+}
+
+fn component(
+    name: &str,
+    runs: &[&SeedRun],
+    sigma: impl Fn(&SeedRun) -> f64,
+    err: impl Fn(&SeedRun) -> f64,
+) -> Component {
+    let predicted_sigma = rms_of(runs, sigma);
+    let mc = (runs.len() >= 2).then(|| rms_of(runs, err));
+    Component {
+        name: name.into(),
+        predicted_sigma,
+        monte_carlo_rms_error: mc,
+        ratio: mc.map(|m| m / predicted_sigma),
+    }
+}
+
+fn mean(v: &[f64]) -> Option<f64> {
+    (!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64)
+}
+
+/// Mean over the paired seeds of `f(variant) / f(plan)`.
+fn growth(pairs: &[(&SeedRun, &SeedRun)], f: impl Fn(&SeedRun) -> Option<f64>) -> Option<f64> {
+    let v: Vec<f64> = pairs
+        .iter()
+        .filter_map(|(base, var)| Some(f(var)? / f(base)?))
+        .filter(|g| g.is_finite())
+        .collect();
+    mean(&v)
+}
+
+/// Runs the command.
+pub fn run(args: Args) -> CmdResult {
+    let t0 = std::time::Instant::now();
+    check_threads(args.threads)?;
+    let cfg = match &args.config {
+        Some(p) => pingcal_sim::SimConfig::from_toml_file(p)?,
+        None => pingcal_sim::SimConfig::default(),
+    };
+    if let Some(path) = &args.write_config {
+        check_out_file("--write-config", path)?;
+        if path.exists() {
+            return Err(format!(
+                "--write-config {}: already exists (not replaced: remove it or choose another name)",
+                path.display()
+            )
+            .into());
+        }
+        super::write_atomic(path, cfg.to_toml_string().as_bytes())?;
+        println!("plan: wrote the configuration into {}", path.display());
+        return Ok(());
+    }
+    if args.seeds == 0 {
+        return Err("--seeds 0: expected at least 1 (each seed is one simulated calibration; 2 or more for the Monte Carlo spread)".into());
+    }
+    let config_name = args.config.as_ref().map_or_else(
+        || "the paper's field (default)".to_string(),
+        |p| p.display().to_string(),
+    );
+    if cfg.stations.convergent + cfg.stations.extra.len() == 0 {
+        return Err(format!(
+            "{}: stations.convergent = 0 and no stations.extra: only the main station would photograph the field, which cannot calibrate the camera nor place the balls (give three or more convergent stations, docs/field.md §6)",
+            config_name
+        )
+        .into());
+    }
+    if let Some(out) = &args.out {
+        check_out_file("--out", out)?;
+    }
+    let seeds: Vec<u64> = (0..args.seeds)
+        .map(|k| args.seed.checked_add(k))
+        .collect::<Option<_>>()
+        .ok_or_else(|| {
+            format!(
+                "--seed {} --seeds {}: the last seed would pass {}",
+                args.seed,
+                args.seeds,
+                u64::MAX
+            )
+        })?;
+    let sens_seeds: Vec<u64> = if args.no_sensitivity {
+        Vec::new()
+    } else {
+        seeds
+            .iter()
+            .copied()
+            .take(args.sensitivity_seeds as usize)
+            .collect()
+    };
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(args.threads)
+        .build()
+        .map_err(|e| format!("--threads {}: {e}", args.threads))?;
+    let root = TempRoot(std::env::temp_dir().join(format!("pingcal-plan-{}", std::process::id())));
+    let _ = std::fs::remove_dir_all(&root.0);
+    std::fs::create_dir_all(&root.0)
+        .map_err(|e| format!("{}: cannot create: {e}", root.0.display()))?;
+    let opts = pipeline::Options {
+        threads: args.threads,
+        ..pipeline::Options::default()
+    };
+    let multi = (!args.quiet).then(MultiProgress::new);
+    let rep = reporter(multi.as_ref(), "plan: ");
+    rep.log(format!(
+        "simulating and calibrating {} seed(s) of {config_name}",
+        seeds.len()
+    ));
+    let bar = rep.task("simulate + calibrate", seeds.len() as u64);
+    let config_file = args.config.as_deref();
+    let sims: Vec<Result<Simulated, SeedFailure>> = pool.install(|| {
+        seeds
+            .par_iter()
+            .map(|&seed| {
+                let dir = root.0.join(format!("seed{seed}"));
+                let r = simulate_and_calibrate(&dir, &cfg, config_file, seed, &opts)
+                    .map_err(|error| SeedFailure { seed, error });
+                if !sens_seeds.contains(&seed) {
+                    let _ = std::fs::remove_dir_all(&dir);
+                }
+                bar.advance(1);
+                r
+            })
+            .collect()
+    });
+    bar.finish();
+    let mut failures = Vec::new();
+    let mut runs = Vec::new();
+    for s in &sims {
+        match s {
+            Ok(s) => match &s.run {
+                Ok(r) => runs.push(r.clone()),
+                Err(error) => failures.push(SeedFailure {
+                    seed: s.seed,
+                    error: error.clone(),
+                }),
+            },
+            Err(f) => failures.push(f.clone()),
+        }
+    }
+    let Some(first) = sims.iter().find_map(|s| s.as_ref().ok()) else {
+        return Err(format!(
+            "{config_name}: no seed could be simulated ({})",
+            failures.first().map_or("", |f| f.error.as_str())
+        )
+        .into());
+    };
+    if runs.is_empty() {
+        return Err(format!(
+            "{config_name}: none of the {} simulations calibrated, so the field as planned gives no extrinsic; seed {}: {}",
+            seeds.len(),
+            failures[0].seed,
+            failures[0].error
+        )
+        .into());
+    }
+
+    // Remove each and see, on the same data.
+    let mut removals: Vec<Removed> = Vec::new();
+    let main = first.project.file.main_station.clone();
+    let mut stations: Vec<String> = Vec::new();
+    for im in &first.project.file.images {
+        if !stations.contains(&im.station) {
+            stations.push(im.station.clone());
+        }
+    }
+    stations.sort_by_key(|s| (s != &main, s.clone()));
+    if !sens_seeds.is_empty() {
+        removals.extend(
+            stations
+                .iter()
+                .filter(|s| **s != main)
+                .map(|s| Removed::Station(s.clone())),
+        );
+        removals.extend((0..first.project.file.distances.len()).map(Removed::Distance));
+    }
+    let bases: Vec<&Simulated> = sims
+        .iter()
+        .filter_map(|s| s.as_ref().ok())
+        .filter(|s| sens_seeds.contains(&s.seed) && s.run.is_ok())
+        .collect();
+    let jobs: Vec<(usize, &Simulated)> = (0..removals.len())
+        .flat_map(|k| bases.iter().map(move |b| (k, *b)))
+        .collect();
+    let mut sensitivity = Vec::new();
+    if !jobs.is_empty() {
+        rep.log(format!(
+            "removing each of {} stations and {} distances in turn (seed {})",
+            stations.len() - 1,
+            first.project.file.distances.len(),
+            bases
+                .iter()
+                .map(|b| b.seed.to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
+        ));
+        let bar = rep.task("remove each and see", jobs.len() as u64);
+        let results: Vec<Result<SeedRun, String>> = pool.install(|| {
+            jobs.par_iter()
+                .map(|(k, s)| {
+                    let r = match &removals[*k] {
+                        Removed::Distance(i) if *i >= s.project.file.distances.len() => {
+                            Err("this seed has fewer distances".to_string())
+                        }
+                        removed => {
+                            let p = without(&s.project, removed);
+                            let opts = pipeline::Options {
+                                seed: s.seed,
+                                ..opts.clone()
+                            };
+                            pipeline::calibrate(&p, &opts, &Reporter::silent())
+                                .map_err(|e| e.to_string())
+                                .and_then(|o| judge_run(s.seed, &o, &s.truth))
+                        }
+                    };
+                    bar.advance(1);
+                    r
+                })
+                .collect()
+        });
+        bar.finish();
+        for (k, removed) in removals.iter().enumerate() {
+            let mut pairs = Vec::new();
+            let mut failed = None;
+            for ((j, s), r) in jobs.iter().zip(&results) {
+                if *j != k {
+                    continue;
+                }
+                match (r, &s.run) {
+                    (Ok(v), Ok(b)) => pairs.push((b, v)),
+                    (Err(e), _) => failed = Some(format!("seed {}: {e}", s.seed)),
+                    _ => {}
+                }
+            }
+            sensitivity.push(Sensitivity {
+                removed: label(&first.project, removed),
+                translation_sigma_growth: growth(&pairs, |r| Some(norm3(&r.sigma_translation_mm))),
+                rotation_sigma_growth: growth(&pairs, |r| Some(norm3(&r.sigma_rotation_deg))),
+                ball_sigma_growth: growth(&pairs, |r| Some(norm3(&r.ball_sigma_mm))),
+                check_error_growth: growth(&pairs, |r| r.expected_check_error_mm),
+                failed,
+            });
+        }
+        // most harmful first: a removal that breaks the calibration, then by the growth
+        // of the translation's σ (stable: ties keep the stations' and distances' order)
+        sensitivity.sort_by(|a, b| {
+            let key = |s: &Sensitivity| {
+                if s.failed.is_some() {
+                    f64::INFINITY
+                } else {
+                    s.translation_sigma_growth.unwrap_or(0.0)
+                }
+            };
+            key(b).total_cmp(&key(a))
+        });
+    }
+    drop(root); // the simulations are no longer needed
+
+    let ok: Vec<&SeedRun> = runs.iter().collect();
+    let names = ["tx mm", "ty mm", "tz mm", "ω deg", "φ deg", "κ deg"];
+    let extrinsic: Vec<Component> = (0..6)
+        .map(|k| {
+            if k < 3 {
+                component(
+                    names[k],
+                    &ok,
+                    |r| r.sigma_translation_mm[k],
+                    |r| r.error_translation_mm[k],
+                )
+            } else {
+                component(
+                    names[k],
+                    &ok,
+                    |r| r.sigma_rotation_deg[k - 3],
+                    |r| r.error_rotation_deg[k - 3],
+                )
+            }
+        })
+        .collect();
+    let ball_centres: Vec<Component> = ["ball X mm", "ball Y mm", "ball Z mm"]
+        .iter()
+        .enumerate()
+        .map(|(k, n)| component(n, &ok, |r| r.ball_sigma_mm[k], |r| r.ball_error_mm[k]))
+        .collect();
+    let expected: Vec<f64> = ok
+        .iter()
+        .filter_map(|r| r.expected_check_error_mm)
+        .collect();
+    let checks: Vec<f64> = ok
+        .iter()
+        .filter(|r| r.check_balls > 0)
+        .map(|r| r.mean_check_error_mm)
+        .collect();
+    let mean_check = mean(&checks);
+    let sd_check = mean_check.filter(|_| checks.len() > 1).map(|m| {
+        (checks.iter().map(|c| (c - m).powi(2)).sum::<f64>() / (checks.len() - 1) as f64).sqrt()
+    });
+    let plan = Plan {
+        generator: format!("pingcal plan {}", env!("CARGO_PKG_VERSION")),
+        config: args
+            .config
+            .as_ref()
+            .map_or_else(|| "default".into(), |p| p.display().to_string()),
+        seeds: seeds.clone(),
+        stations,
+        distances: first.project.file.distances.len(),
+        balls: first.truth.balls.len(),
+        check_balls: first.truth.balls.iter().filter(|b| b.check).count(),
+        calibrated: runs.len(),
+        failures,
+        extrinsic,
+        ball_centres,
+        expected_check_error_mm: mean(&expected),
+        mean_check_error_mm: mean_check,
+        sd_check_error_mm: sd_check,
+        sensitivity_seeds: bases.iter().map(|b| b.seed).collect(),
+        sensitivity,
+        runs,
+    };
+    drop(rep);
+    drop(multi);
+    print!("{}", table(&plan));
+    if let Some(out) = &args.out {
+        let json = serde_json::to_string_pretty(&plan)? + "\n";
+        super::write_atomic(out, json.as_bytes())?;
+        println!("plan: wrote {}", out.display());
+    }
+    println!(
+        "plan: {} calibration(s) in {:.1} s",
+        plan.seeds.len() + jobs.len(),
+        t0.elapsed().as_secs_f64()
+    );
+    Ok(())
+}
+
+fn opt(v: Option<f64>, p: usize) -> String {
+    v.map_or_else(|| "—".into(), |x| format!("{x:.p$}"))
+}
+
+/// The plan as the table printed on stdout.
+pub fn table(p: &Plan) -> String {
+    let mut s = String::new();
+    let f = p.failures.len();
+    s += &format!(
+        "plan: {}: {} seed(s) from {}, {} calibrated, {} failed; {} stations, {} distances, {} balls ({} check)\n",
+        p.config,
+        p.seeds.len(),
+        p.seeds[0],
+        p.calibrated,
+        f,
+        p.stations.len(),
+        p.distances,
+        p.balls,
+        p.check_balls
+    );
+    for x in &p.failures {
+        s += &format!("  failed: seed {}: {}\n", x.seed, x.error);
+    }
+    s += &format!(
+        "\n{:<12} {:>12} {:>22} {:>7}\n",
+        "", "predicted σ", "Monte Carlo RMS error", "ratio"
+    );
+    for c in p.extrinsic.iter().chain(&p.ball_centres) {
+        let prec = if c.name.contains("deg") { 4 } else { 3 };
+        s += &format!(
+            "{:<12} {:>12} {:>22} {:>7}\n",
+            c.name,
+            format!("{:.prec$}", c.predicted_sigma),
+            opt(c.monte_carlo_rms_error, prec),
+            opt(c.ratio, 2)
+        );
+    }
+    s += &format!(
+        "\ncheck balls: expected mean error {} mm (from the predicted covariances); the simulations gave {} mm (sd {} over {} seeds)\n",
+        opt(p.expected_check_error_mm, 2),
+        opt(p.mean_check_error_mm, 2),
+        opt(p.sd_check_error_mm, 2),
+        p.calibrated
+    );
+    let st = (p.extrinsic[..3]
+        .iter()
+        .map(|c| c.predicted_sigma.powi(2))
+        .sum::<f64>())
+    .sqrt();
+    let sr = (p.extrinsic[3..]
+        .iter()
+        .map(|c| c.predicted_sigma.powi(2))
+        .sum::<f64>())
+    .sqrt();
+    s += &format!(
+        "this field should give about {} mm at the check balls (extrinsic σ {st:.2} mm, {sr:.3}°)\n",
+        opt(p.expected_check_error_mm.or(p.mean_check_error_mm), 1)
+    );
+    if !p.sensitivity.is_empty() {
+        s += &format!(
+            "\nremove each and see (seed {}): σ without it / σ with it\n{:<24} {:>11} {:>9} {:>13} {:>12}\n",
+            p.sensitivity_seeds
+                .iter()
+                .map(|x| x.to_string())
+                .collect::<Vec<_>>()
+                .join(", "),
+            "removed",
+            "translation",
+            "rotation",
+            "ball centres",
+            "check error"
+        );
+        for x in &p.sensitivity {
+            match &x.failed {
+                Some(e) => s += &format!("{:<24} breaks the calibration: {e}\n", x.removed),
+                None => {
+                    s += &format!(
+                        "{:<24} {:>11} {:>9} {:>13} {:>12}\n",
+                        x.removed,
+                        opt(x.translation_sigma_growth, 3),
+                        opt(x.rotation_sigma_growth, 3),
+                        opt(x.ball_sigma_growth, 3),
+                        opt(x.check_error_growth, 3)
+                    )
+                }
+            }
+        }
+    }
+    s
+}

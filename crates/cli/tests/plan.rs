@@ -1,0 +1,190 @@
+//! `pingcal plan` (issue 18's planner), run as a user runs it, on a small field (five
+//! convergent stations, half the rendering's supersampling, a 0.35° servo step: about 11 s
+//! for two seeds on two cores): the table and `plan.json` hold every number, removing a
+//! station or a distance makes the ball centres' σ grow (and never shrinks the extrinsic's
+//! beyond its σ0's own wobble), two runs give the same bytes, and bad input is refused in
+//! one line naming the file or option.
+
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+/// The small field, as a `simulation.toml` gives it.
+const SMALL: &str = "\
+[stations]
+convergent = 5
+
+[render]
+supersampling = 2
+
+[lrf]
+servo_step_deg = 0.3515625
+";
+
+fn dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("pingcal-plan-test-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// Runs the binary in `cwd`: (success, stdout, stderr).
+fn run(cwd: &Path, args: &[&str]) -> (bool, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_pingcal"))
+        .args(args)
+        .current_dir(cwd)
+        .output()
+        .expect("run pingcal");
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+fn num(v: &Value) -> f64 {
+    v.as_f64().unwrap_or_else(|| panic!("not a number: {v}"))
+}
+
+#[test]
+fn plan_predicts_ranks_removals_and_repeats_itself() {
+    let d = dir("small");
+    std::fs::write(d.join("small.toml"), SMALL).unwrap();
+    let args = [
+        "plan",
+        "--config",
+        "small.toml",
+        "--seeds",
+        "2",
+        "--quiet",
+        "--out",
+    ];
+    let (ok, stdout, stderr) = run(&d, &[&args[..], &["p1.json"]].concat());
+    assert!(ok, "plan failed\nstdout: {stdout}\nstderr: {stderr}");
+    for want in [
+        "2 seed(s) from 1, 2 calibrated, 0 failed; 6 stations, 5 distances, 16 balls (5 check)",
+        "predicted σ",
+        "Monte Carlo RMS error",
+        "tx mm",
+        "κ deg",
+        "ball X mm",
+        "check balls: expected mean error",
+        "this field should give about",
+        "remove each and see (seed 1)",
+        "station S03",
+        "plan: wrote p1.json",
+    ] {
+        assert!(stdout.contains(want), "no {want:?} in\n{stdout}");
+    }
+    let p: Value = serde_json::from_str(&std::fs::read_to_string(d.join("p1.json")).unwrap())
+        .expect("plan.json is JSON");
+    assert_eq!(p["calibrated"], 2);
+    assert_eq!(p["failures"].as_array().unwrap().len(), 0);
+    let ext = p["extrinsic"].as_array().unwrap();
+    assert_eq!(ext.len(), 6);
+    for c in ext.iter().chain(p["ball_centres"].as_array().unwrap()) {
+        let (s, m) = (num(&c["predicted_sigma"]), num(&c["monte_carlo_rms_error"]));
+        assert!(s > 0.0 && s.is_finite() && m > 0.0 && m.is_finite(), "{c}");
+        assert!((num(&c["ratio"]) - m / s).abs() < 1e-12, "{c}");
+    }
+    // a 5-station field's σ: about a millimetre, not a micrometre nor a metre
+    assert!(
+        (0.2..10.0).contains(&num(&ext[0]["predicted_sigma"])),
+        "{}",
+        ext[0]
+    );
+    let e = num(&p["expected_check_error_mm"]);
+    assert!((0.5..20.0).contains(&e), "expected check error {e}");
+    assert_eq!(p["runs"].as_array().unwrap().len(), 2);
+
+    // remove each and see: 5 stations besides the main one and 5 distances, none breaks it
+    let sens = p["sensitivity"].as_array().unwrap();
+    assert_eq!(sens.len(), 10, "{sens:?}");
+    let mut station_growth = Vec::new();
+    for s in sens {
+        assert!(s["failed"].is_null(), "{s}");
+        let ball = num(&s["ball_sigma_growth"]);
+        let t = num(&s["translation_sigma_growth"]);
+        // less data can only widen the ball centres' σ (σ0 is estimated, so allow nothing
+        // below 1); the extrinsic's σ is dominated by the LRF side and may move by σ0's
+        // estimate only
+        assert!(
+            ball > 1.0,
+            "removing {} shrank the balls' σ: {s}",
+            s["removed"]
+        );
+        assert!(
+            t > 0.98,
+            "removing {} shrank the extrinsic's σ: {s}",
+            s["removed"]
+        );
+        if s["removed"].as_str().unwrap().starts_with("station") {
+            station_growth.push(ball);
+        }
+    }
+    assert_eq!(station_growth.len(), 5);
+    // ranked: the translation's growth does not increase down the list
+    let t: Vec<f64> = sens
+        .iter()
+        .map(|s| num(&s["translation_sigma_growth"]))
+        .collect();
+    assert!(t.windows(2).all(|w| w[0] >= w[1]), "not ranked: {t:?}");
+    // some station is worth more than a tenth of the ball centres' σ
+    let max_station = station_growth.iter().cloned().fold(0.0, f64::max);
+    assert!(max_station > 1.1, "{station_growth:?}");
+
+    // the same input gives the same plan.json
+    let (ok, stdout2, stderr2) = run(&d, &[&args[..], &["p2.json"]].concat());
+    assert!(
+        ok,
+        "second plan failed\nstdout: {stdout2}\nstderr: {stderr2}"
+    );
+    assert_eq!(
+        std::fs::read(d.join("p1.json")).unwrap(),
+        std::fs::read(d.join("p2.json")).unwrap(),
+        "two runs of the same plan differ"
+    );
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
+fn bad_plans_are_refused_in_one_line() {
+    let d = dir("bad");
+    // zero seeds
+    let (ok, _, err) = run(&d, &["plan", "--seeds", "0"]);
+    assert!(
+        !ok && err.contains("--seeds 0: expected at least 1"),
+        "{err}"
+    );
+    // a configuration with an error: one line naming the file; an earlier plan.json stays
+    std::fs::write(d.join("bad.toml"), "[stations]\nconvergant = 5\n").unwrap();
+    std::fs::write(d.join("plan.json"), "earlier").unwrap();
+    let (ok, _, err) = run(&d, &["plan", "--config", "bad.toml", "--out", "plan.json"]);
+    assert!(!ok, "{err}");
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    assert!(
+        err.starts_with("pingcal: error: bad.toml: ") && err.contains("convergant"),
+        "{err}"
+    );
+    assert_eq!(
+        std::fs::read_to_string(d.join("plan.json")).unwrap(),
+        "earlier"
+    );
+    // no station but the main one: a diagnosis before any simulation
+    std::fs::write(d.join("alone.toml"), "[stations]\nconvergent = 0\n").unwrap();
+    let (ok, _, err) = run(&d, &["plan", "--config", "alone.toml"]);
+    assert!(!ok, "{err}");
+    assert!(
+        err.contains("alone.toml: stations.convergent = 0")
+            && err.contains("only the main station"),
+        "{err}"
+    );
+    // --write-config writes a configuration the simulator reads back, and never replaces a file
+    let (ok, out, err) = run(&d, &["plan", "--write-config", "simulation.toml"]);
+    assert!(ok, "{out}{err}");
+    let text = std::fs::read_to_string(d.join("simulation.toml")).unwrap();
+    assert!(text.contains("convergent = 10"), "{text}");
+    let (ok, _, err) = run(&d, &["plan", "--write-config", "simulation.toml"]);
+    assert!(!ok && err.contains("already exists"), "{err}");
+    std::fs::remove_dir_all(&d).unwrap();
+}
