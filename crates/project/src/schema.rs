@@ -324,7 +324,8 @@ pub struct ProjectBag {
     pub files: Vec<String>,
     /// The `sensor_msgs/LaserScan` topic.
     pub scan_topic: String,
-    /// The servo topic (`sensor_msgs/JointState` with `servo_joint`, else numeric `std_msgs`).
+    /// The servo topic (`sensor_msgs/JointState` with `servo_joint`, `tf2_msgs/TFMessage`
+    /// with `servo_tf_child`, else numeric `std_msgs`).
     pub servo_topic: String,
     /// The servo's joint name in the JointState messages.
     #[serde(default)]
@@ -335,6 +336,12 @@ pub struct ProjectBag {
     /// Numeric servo topic: degrees at value 0 (default 0).
     #[serde(default)]
     pub servo_offset: Option<f64>,
+    /// `tf2_msgs/TFMessage` servo topic: the child frame that turns with the servo.
+    #[serde(default)]
+    pub servo_tf_child: Option<String>,
+    /// tf servo topic: the servo axis in the parent frame (default `[0, 1, 0]`).
+    #[serde(default)]
+    pub servo_axis: Option<[f64; 3]>,
 }
 
 impl ProjectLrf {

@@ -404,7 +404,27 @@ fn an_lrf_bag_section_is_read_and_checked() {
     };
     let e = check(&|q| q.lrf.bag.as_mut().unwrap().servo_scale = Some(0.088));
     assert!(
-        e.contains("[lrf.bag] servo_joint and servo_scale/servo_offset: give one"),
+        e.contains("[lrf.bag] servo_joint, servo_scale/servo_offset and servo_tf_child: give one"),
+        "{e}"
+    );
+    let e = check(&|q| q.lrf.bag.as_mut().unwrap().servo_tf_child = Some("servo_link".into()));
+    assert!(e.contains("servo_tf_child: give one"), "{e}");
+    let e = check(&|q| q.lrf.bag.as_mut().unwrap().servo_axis = Some([0.0, 1.0, 0.0]));
+    assert!(e.contains("servo_axis: only for a tf servo topic"), "{e}");
+    let tf = |axis: [f64; 3]| {
+        move |q: &mut ProjectFile| {
+            let b = q.lrf.bag.as_mut().unwrap();
+            b.servo_joint = None;
+            b.servo_tf_child = Some("servo_link".into());
+            b.servo_axis = Some(axis);
+        }
+    };
+    let mut q = p.clone();
+    tf([0.0, 2.0, 0.0])(&mut q);
+    q.validate("p.toml").unwrap();
+    let e = check(&tf([0.0, 0.0, 0.0]));
+    assert!(
+        e.contains("servo_axis = [0.0, 0.0, 0.0]: expected three finite numbers"),
         "{e}"
     );
     let e = check(&|q| q.lrf.bag.as_mut().unwrap().files.clear());

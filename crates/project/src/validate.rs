@@ -288,8 +288,25 @@ fn validate_bag(b: &ProjectBag) -> Result<(), String> {
         return Err("[lrf.bag] scan_topic and servo_topic must name topics".into());
     }
     let numeric = b.servo_scale.is_some() || b.servo_offset.is_some();
-    if b.servo_joint.is_some() && numeric {
-        return Err("[lrf.bag] servo_joint and servo_scale/servo_offset: give one, the joint of a JointState topic or the scale and offset of a numeric one".into());
+    let tf = b.servo_tf_child.is_some();
+    if [b.servo_joint.is_some(), numeric, tf]
+        .iter()
+        .filter(|x| **x)
+        .count()
+        > 1
+    {
+        return Err("[lrf.bag] servo_joint, servo_scale/servo_offset and servo_tf_child: give one, the joint of a JointState topic, the scale and offset of a numeric one or the child frame of a tf topic".into());
+    }
+    if b.servo_axis.is_some() && !tf {
+        return Err("[lrf.bag] servo_axis: only for a tf servo topic (with servo_tf_child)".into());
+    }
+    if let Some(a) = b.servo_axis {
+        let norm = a.iter().map(|v| v * v).sum::<f64>().sqrt();
+        if !(norm.is_finite() && norm > 0.0) {
+            return Err(format!(
+                "[lrf.bag] servo_axis = {a:?}: expected three finite numbers, not all 0"
+            ));
+        }
     }
     let scale = b.servo_scale.unwrap_or(1.0);
     let offset = b.servo_offset.unwrap_or(0.0);

@@ -62,9 +62,17 @@ fn bag_scans(
             bags.push(pingcal_rosbag::Bag::open(&f).map_err(err)?);
         }
     }
-    let source = match &bag.servo_joint {
-        Some(j) => ServoSource::Joint(j.clone()),
-        None => ServoSource::Numeric {
+    let source = match (&bag.servo_joint, &bag.servo_tf_child) {
+        (Some(j), _) => ServoSource::Joint(j.clone()),
+        (None, Some(child)) => {
+            let a = bag.servo_axis.unwrap_or([0.0, 1.0, 0.0]);
+            let n = a.iter().map(|v| v * v).sum::<f64>().sqrt();
+            ServoSource::Tf {
+                child: child.clone(),
+                axis: a.map(|v| v / n),
+            }
+        }
+        (None, None) => ServoSource::Numeric {
             scale: bag.servo_scale.unwrap_or(1.0),
             offset: bag.servo_offset.unwrap_or(0.0),
         },
@@ -193,4 +201,95 @@ pub fn lrf_spheres(project: &Project, opts: &Options, rep: &Reporter) -> Result<
         mount,
         noise,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A project reading the rosbags-written fixture `name` of `crates/rosbag/tests/data`.
+    fn project_with_bag(name: &str, bag: ProjectBag) -> Project {
+        let readme = include_str!("../../../../README.md");
+        let at = readme.find("## The project file").unwrap();
+        let start = readme[at..].find("```toml\n").unwrap() + at + 8;
+        let len = readme[start..].find("```").unwrap();
+        let mut file =
+            pingcal_project::ProjectFile::parse(&readme[start..start + len], "x.toml").unwrap();
+        file.lrf.bag = Some(bag);
+        let data = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../rosbag/tests/data");
+        Project {
+            path: "x.toml".into(),
+            dir: ".".into(),
+            file,
+            image_paths: Vec::new(),
+            scan_paths: Vec::new(),
+            layout: None,
+            bag_paths: vec![data.join(name)],
+        }
+    }
+
+    fn bag(servo_topic: &str) -> ProjectBag {
+        ProjectBag {
+            files: vec!["fixture".into()],
+            scan_topic: "/scan".into(),
+            servo_topic: servo_topic.into(),
+            servo_joint: None,
+            servo_scale: None,
+            servo_offset: None,
+            servo_tf_child: None,
+            servo_axis: None,
+        }
+    }
+
+    /// `[lrf.bag]` with the servo from tf (the fixture's `servo_link` turns about y as the
+    /// joint does) gives the JointState's scans; a geometry change keeps every scan.
+    #[test]
+    fn a_project_bag_reads_the_servo_from_tf_and_keeps_each_geometry() {
+        let rep = Reporter::silent();
+        let joint = project_with_bag(
+            "ros1.bag",
+            ProjectBag {
+                servo_joint: Some("servo".into()),
+                ..bag("/joint_states")
+            },
+        );
+        let tf = project_with_bag(
+            "ros1.bag",
+            ProjectBag {
+                servo_tf_child: Some("servo_link".into()),
+                servo_axis: Some([0.0, 2.0, 0.0]),
+                ..bag("/tf")
+            },
+        );
+        let (a, b) = (
+            bag_scans(&joint, joint.file.lrf.bag.as_ref().unwrap(), &rep).unwrap(),
+            bag_scans(&tf, tf.file.lrf.bag.as_ref().unwrap(), &rep).unwrap(),
+        );
+        assert_eq!((a.len(), b.len()), (1, 1));
+        assert_eq!(a[0].0, b[0].0);
+        assert_eq!(a[0].1.len(), 5);
+        for (x, y) in a[0].1.iter().zip(&b[0].1) {
+            assert_eq!(x.ranges_mm, y.ranges_mm);
+            assert!(
+                (x.servo_deg - y.servo_deg).abs() < 1e-6,
+                "{} {}",
+                x.servo_deg,
+                y.servo_deg
+            );
+        }
+        let g = project_with_bag(
+            "geometry.bag",
+            ProjectBag {
+                servo_joint: Some("servo".into()),
+                ..bag("/joint_states")
+            },
+        );
+        let runs = bag_scans(&g, g.file.lrf.bag.as_ref().unwrap(), &rep).unwrap();
+        let sizes: Vec<(usize, usize)> = runs
+            .iter()
+            .map(|(_, l)| (l.len(), l[0].ranges_mm.len()))
+            .collect();
+        assert_eq!(sizes, [(2, 10), (1, 11), (1, 10), (1, 10)]);
+        assert_eq!(runs[3].0.angle_min_deg, -5.0);
+    }
 }

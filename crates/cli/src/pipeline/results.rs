@@ -730,8 +730,6 @@ mod tests {
         }
     }
 
-    /// `bundle.rig` is left → right whichever camera is the main one (the adjustment's rig
-    /// goes from the main camera's side to the other), in both frames.
     /// The inverse's update Jacobian against central differences of `plus` and `inverse`.
     #[test]
     fn the_inverse_rigs_jacobian_matches_central_differences() {
@@ -767,6 +765,8 @@ mod tests {
         }
     }
 
+    /// `bundle.rig` is left → right whichever camera is the main one (the adjustment's rig
+    /// goes from the main camera's side to the other), in both frames.
     #[test]
     fn the_rig_is_left_to_right_whichever_camera_is_main() {
         let r = pingcal_geometry::from_opk_deg([0.3, -0.25, 0.1]);
