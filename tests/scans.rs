@@ -29,6 +29,23 @@ fn pingcal(args: &[&str]) -> (bool, String, String) {
     (o.status.success(), text(&o.stdout), text(&o.stderr))
 }
 
+/// `pingcal scans BAG --scan-topic /scan --servo-topic /joint_states --servo-joint servo
+/// --out OUT`.
+fn scans_by_joint(bag: &Path, out: &Path) -> (bool, String, String) {
+    pingcal(&[
+        "scans",
+        bag.to_str().unwrap(),
+        "--scan-topic",
+        "/scan",
+        "--servo-topic",
+        "/joint_states",
+        "--servo-joint",
+        "servo",
+        "--out",
+        out.to_str().unwrap(),
+    ])
+}
+
 fn read(p: &Path) -> (ScanHeader, Vec<ScanLine>) {
     let r = open_scan_file(p).unwrap();
     let h = r.header();
@@ -178,18 +195,7 @@ fn a_ros2_bag_folder_reads_its_storage_files() {
     .unwrap();
     let out = tmp("bagdir.csv");
     let _ = std::fs::remove_file(&out);
-    let (ok, stdout, stderr) = pingcal(&[
-        "scans",
-        dir.to_str().unwrap(),
-        "--scan-topic",
-        "/scan",
-        "--servo-topic",
-        "/joint_states",
-        "--servo-joint",
-        "servo",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let (ok, stdout, stderr) = scans_by_joint(&dir, &out);
     assert!(ok, "{stderr}");
     assert!(
         stdout.starts_with("scans: 5 scans of 682 beams from 1 bag(s)"),
@@ -209,24 +215,16 @@ fn a_ros2_bag_folder_reads_its_storage_files() {
 /// their own, every range and servo angle as recorded.
 #[test]
 fn a_changed_beam_geometry_keeps_every_scan_in_a_file_per_geometry() {
-    let out = tmp("geometry.csv");
-    let more = [tmp("geometry.g2.csv"), tmp("geometry.g3.csv")];
+    // a folder of its own: the other tests look for .partial files in theirs
+    let dir = tmp("geometry");
+    std::fs::create_dir_all(&dir).unwrap();
+    let out = dir.join("geometry.csv");
+    let more = [dir.join("geometry.g2.csv"), dir.join("geometry.g3.csv")];
     for p in std::iter::once(&out).chain(&more) {
         let _ = std::fs::remove_file(p);
     }
     let b = data("geometry.bag");
-    let (ok, stdout, stderr) = pingcal(&[
-        "scans",
-        b.to_str().unwrap(),
-        "--scan-topic",
-        "/scan",
-        "--servo-topic",
-        "/joint_states",
-        "--servo-joint",
-        "servo",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let (ok, stdout, stderr) = scans_by_joint(&b, &out);
     assert!(ok, "{stderr}");
     assert!(stdout.starts_with("scans: 3 scans of 10 beams"), "{stdout}");
     assert!(
@@ -261,8 +259,7 @@ fn a_changed_beam_geometry_keeps_every_scan_in_a_file_per_geometry() {
             );
         }
     }
-    let dir = out.parent().unwrap();
-    let partial = std::fs::read_dir(dir)
+    let partial = std::fs::read_dir(&dir)
         .unwrap()
         .filter_map(Result::ok)
         .any(|e| e.file_name().to_string_lossy().ends_with(".partial"));

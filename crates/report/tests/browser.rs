@@ -1,6 +1,8 @@
 //! Renders the sample report in headless Chromium (scripts/check-report.sh) and checks the
 //! screenshot is a real page and that Chromium's DOM holds every section. Skips, with a printed reason, where /usr/bin/chromium is absent.
 
+mod common;
+
 use std::path::Path;
 use std::process::Command;
 
@@ -57,29 +59,7 @@ fn sample_report_renders_in_chromium() {
         .output()
         .expect("run chromium --dump-dom");
     let dom = String::from_utf8_lossy(&dom.stdout);
-    for id in [
-        "verdict",
-        "summary",
-        "extrinsic",
-        "extrinsic_precision",
-        "checks",
-        "images",
-        "histogram",
-        "coverage",
-        "network",
-        "exterior",
-        "points",
-        "distances",
-        "rig",
-        "cloud",
-        "intrinsics",
-        "distortion",
-        "opencv",
-        "mount",
-        "rejected",
-        "warnings",
-        "steps",
-    ] {
+    for id in std::iter::once("verdict").chain(common::IDS) {
         assert!(
             dom.contains(&format!("id=\"{id}\"")),
             "section {id} missing from Chromium's DOM ({} bytes)",

@@ -4,28 +4,8 @@
 use pingcal_report::sample::sample_report;
 use pingcal_report::*;
 
-const IDS: [&str; 20] = [
-    "summary",
-    "extrinsic",
-    "extrinsic_precision",
-    "checks",
-    "images",
-    "histogram",
-    "coverage",
-    "network",
-    "exterior",
-    "points",
-    "distances",
-    "rig",
-    "cloud",
-    "intrinsics",
-    "distortion",
-    "opencv",
-    "mount",
-    "rejected",
-    "warnings",
-    "steps",
-];
+mod common;
+use common::IDS;
 
 /// Parses the document as XML (it is written to be well-formed) and returns it for checks.
 fn parse(html: &str) -> roxmltree::Document<'_> {
