@@ -5,12 +5,13 @@
 use crate::cloud::{Cloud, MountModel};
 use crate::error::{LrfError, Result};
 
-/// Reads one file into a cloud: `.ply` (ascii or binary), `.xyz`/`.txt`/`.pts` (text
+/// Reads one file into a cloud: `.ply` (ascii or binary), `.pcd` ([`crate::pcd`]), `.xyz`/`.txt`/`.pts` (text
 /// columns) or, for anything else, the `pingcal-scan` CSV.
 pub fn read_cloud_file(path: &std::path::Path, mount: &MountModel) -> Result<Cloud> {
     match file_kind(path) {
         CloudFileKind::Ply => crate::ply::read_ply_file(path),
         CloudFileKind::Xyz => crate::xyz::read_xyz_file(path),
+        CloudFileKind::Pcd => crate::pcd::read_pcd_file(path),
         CloudFileKind::Scans => {
             let reader = crate::scan::open_scan_file(path)?;
             let header = reader.header();
@@ -24,6 +25,8 @@ pub fn read_cloud_file(path: &std::path::Path, mount: &MountModel) -> Result<Clo
 pub enum CloudFileKind {
     /// `.ply`.
     Ply,
+    /// `.pcd` (ascii, binary or binary_compressed).
+    Pcd,
     /// `.xyz`, `.txt`, `.pts`.
     Xyz,
     /// Anything else: `pingcal-scan` CSV.
@@ -39,6 +42,7 @@ pub fn file_kind(path: &std::path::Path) -> CloudFileKind {
         .to_ascii_lowercase();
     match ext.as_str() {
         "ply" => CloudFileKind::Ply,
+        "pcd" => CloudFileKind::Pcd,
         "xyz" | "txt" | "pts" => CloudFileKind::Xyz,
         _ => CloudFileKind::Scans,
     }
