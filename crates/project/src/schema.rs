@@ -280,13 +280,17 @@ pub struct ProjectLrf {
     pub model: String,
     /// Station where it scanned (the main station).
     pub station: String,
-    /// Scan files (`pingcal-scan` CSV, or PLY / XYZ clouds), relative to project.toml
+    /// Scan files (`pingcal-scan` CSV, or PLY / PCD / XYZ clouds), relative to project.toml
     /// (may be empty when `[lrf.bag]` names bags).
     #[serde(default)]
     pub scans: Vec<String>,
     /// ROS bags to read the scans from, besides `scans` (`[lrf.bag]`).
     #[serde(default)]
     pub bag: Option<ProjectBag>,
+    /// Unit of the coordinates of the cloud files among `scans` (PLY, PCD, XYZ): `"mm"`
+    /// (absent: the default) or `"m"`. Scan files are always mm.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cloud_unit: Option<String>,
     /// Maximum range (mm).
     pub max_range_mm: f64,
     /// Datasheet accuracy under 1 m (± mm, taken as 3σ).

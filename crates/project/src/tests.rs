@@ -407,6 +407,11 @@ fn an_lrf_bag_section_is_read_and_checked() {
         e.contains("[lrf.bag] servo_joint and servo_scale/servo_offset: give one"),
         "{e}"
     );
+    let e = check(&|q| q.lrf.cloud_unit = Some("cm".into()));
+    assert!(
+        e.contains("[lrf] cloud_unit = \"cm\": expected \"m\" or \"mm\""),
+        "{e}"
+    );
     let e = check(&|q| q.lrf.bag.as_mut().unwrap().files.clear());
     assert!(e.contains("[lrf.bag] files: no bag"), "{e}");
     let e = check(&|q| {

@@ -307,6 +307,13 @@ fn validate_lrf(l: &ProjectLrf, main_station: &str) -> Result<(), String> {
         Some(b) => validate_bag(b)?,
         None => {}
     }
+    if let Some(u) = &l.cloud_unit {
+        if u != "m" && u != "mm" {
+            return Err(format!(
+                "[lrf] cloud_unit = \"{u}\": expected \"m\" or \"mm\""
+            ));
+        }
+    }
     if l.station != main_station {
         return Err(format!(
             "[lrf] station = \"{}\" but main_station = \"{main_station}\": the LRF scans from the main station",

@@ -417,6 +417,7 @@ pub fn project_of(sim: &Simulation) -> ProjectFile {
             station: main.id.clone(),
             scans: vec![format!("scans/{}.csv", main.id)],
             bag: None,
+            cloud_unit: None,
             max_range_mm: cfg.lrf.max_range_mm,
             accuracy_near_mm: cfg.lrf.accuracy_near_mm,
             accuracy_far_fraction: cfg.lrf.accuracy_far_fraction,

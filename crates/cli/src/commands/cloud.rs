@@ -10,14 +10,14 @@
 use super::CmdResult;
 use pingcal_lrf::ball_finder::{find_balls, FinderOptions};
 use pingcal_lrf::cloud::{Cloud, MountModel};
-use pingcal_lrf::cloud_file::read_cloud_file;
+use pingcal_lrf::cloud_file::{extent_mm, read_cloud_file_in, CloudUnit};
 use std::path::PathBuf;
 
 /// Arguments of `pingcal cloud`.
 #[derive(clap::Args)]
 #[command(allow_negative_numbers = true)]
 pub struct Args {
-    /// Scan files (`pingcal-scan` CSV), or PLY / XYZ clouds.
+    /// Scan files (`pingcal-scan` CSV), or PLY / PCD / XYZ clouds.
     #[arg(required = true)]
     pub scans: Vec<PathBuf>,
     /// Write the cloud with the fitted spheres as binary PLY.
@@ -29,6 +29,10 @@ pub struct Args {
     /// Write the ball centres with their σ's (`id x y z sx sy sz`, mm).
     #[arg(long)]
     pub balls: Option<PathBuf>,
+    /// Unit of the cloud files' coordinates (PLY, PCD, XYZ): `mm` (the default, as before)
+    /// or `m` (what PCL, ROS and most scanners write). Scan files are always mm.
+    #[arg(long, default_value = "mm")]
+    pub unit: CloudUnit,
     /// Seed of the RANSAC choices.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -97,7 +101,20 @@ pub fn run(args: Args) -> CmdResult {
     }
     let mut cloud = Cloud::default();
     for f in &args.scans {
-        cloud.extend(read_cloud_file(f, &mount)?);
+        let (c, warnings) = read_cloud_file_in(f, &mount, args.unit)?;
+        for w in warnings {
+            eprintln!("pingcal: warning: {w}");
+        }
+        cloud.extend(c);
+    }
+    let extent = extent_mm(&cloud);
+    if args.diameter_mm > extent {
+        let names: Vec<String> = args.scans.iter().map(|f| f.display().to_string()).collect();
+        eprintln!(
+            "pingcal: warning: {}: --diameter-mm {} is larger than the cloud ({extent:.3} mm across): no ball can be found (wrong --unit?)",
+            names.join(", "),
+            args.diameter_mm
+        );
     }
     let opt = FinderOptions {
         diameter_mm: args.diameter_mm,

@@ -11,7 +11,7 @@
 use super::{Options, PipelineError, Reporter, Result};
 use pingcal_lrf::ball_finder::{find_balls, FindResult, FinderOptions};
 use pingcal_lrf::cloud::{Cloud, MountModel};
-use pingcal_lrf::cloud_file::{file_kind, non_empty, read_cloud_file, CloudFileKind};
+use pingcal_lrf::cloud_file::{file_kind, non_empty, read_cloud_file_in, CloudFileKind, CloudUnit};
 use pingcal_lrf::scan::{open_scan_file, ScanHeader, ScanLine};
 use pingcal_lrf::sensor::RangeNoise;
 use pingcal_project::{Project, ProjectBag};
@@ -122,7 +122,15 @@ pub fn lrf_spheres(project: &Project, opts: &Options, rep: &Reporter) -> Result<
                 scans = Some((header, lines));
             }
         } else {
-            cloud.extend(read_cloud_file(path, &mount).map_err(err)?);
+            let unit = match l.cloud_unit.as_deref() {
+                Some("m") => CloudUnit::M,
+                _ => CloudUnit::Mm,
+            };
+            let (c, warnings) = read_cloud_file_in(path, &mount, unit).map_err(err)?;
+            for w in warnings {
+                rep.log(format!("warning: {w}"));
+            }
+            cloud.extend(c);
         }
         pb.advance(1);
     }
