@@ -107,3 +107,58 @@ fn a_diameter_of_zero_or_negative_is_refused() {
         );
     }
 }
+
+/// Issue 15: `--balls` through a symlink writes the file behind it, the link stays a link;
+/// `/dev/stdout` and a FIFO are written straight, with no temporary file left.
+#[cfg(unix)]
+#[test]
+fn outputs_go_through_symlinks_and_into_devices() {
+    let f = pcd("cloud_ascii.pcd");
+    let f = f.to_str().unwrap();
+    let d = tmp("links");
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(d.join("a")).unwrap();
+    std::fs::create_dir_all(d.join("b")).unwrap();
+    std::fs::write(d.join("b/balls.txt"), "old").unwrap();
+    std::os::unix::fs::symlink("../b/balls.txt", d.join("a/balls.txt")).unwrap();
+    let link = d.join("a/balls.txt");
+    let (ok, _, err) = run(&["cloud", f, "--unit", "m", "--balls", link.to_str().unwrap()]);
+    assert!(ok, "{err}");
+    assert!(std::fs::symlink_metadata(&link)
+        .unwrap()
+        .file_type()
+        .is_symlink());
+    let text = std::fs::read_to_string(d.join("b/balls.txt")).unwrap();
+    assert!(text.starts_with("# pingcal cloud: ball centres"), "{text}");
+    let names = |dir: &Path| -> Vec<String> {
+        let mut v: Vec<String> = std::fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().into_string().unwrap())
+            .collect();
+        v.sort();
+        v
+    };
+    assert_eq!(names(&d.join("a")), ["balls.txt"]);
+    assert_eq!(names(&d.join("b")), ["balls.txt"]);
+
+    let (ok, out, err) = run(&["cloud", f, "--unit", "m", "--balls", "/dev/stdout"]);
+    assert!(ok, "{err}");
+    assert!(out.starts_with("# pingcal cloud: ball centres"), "{out}");
+
+    let fifo = d.join("b/fifo");
+    assert!(Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .unwrap()
+        .success());
+    let reader = {
+        let fifo = fifo.clone();
+        std::thread::spawn(move || std::fs::read_to_string(fifo).unwrap())
+    };
+    let (ok, _, err) = run(&["cloud", f, "--unit", "m", "--balls", fifo.to_str().unwrap()]);
+    assert!(ok, "{err}");
+    let got = reader.join().unwrap();
+    assert!(got.starts_with("# pingcal cloud: ball centres"), "{got}");
+    assert_eq!(names(&d.join("b")), ["balls.txt", "fifo"]);
+    let _ = std::fs::remove_dir_all(&d);
+}

@@ -185,16 +185,24 @@ pub fn run(args: Args) -> CmdResult {
         servo: servo.clone(),
         source: source(&args)?,
     };
-    let tmp = super::partial_path(out)?;
+    // Through symlinks, the file behind them is replaced; a device or FIFO is written straight.
+    let (tmp, target) = match super::write_target(out)? {
+        super::WriteTarget::Direct(p) => (p, None),
+        super::WriteTarget::Replace(t) => (super::partial_path(&t)?, Some(t)),
+    };
     let result = write_scans(&bags, &topics, &tmp, out);
     let [n, beams, before, after] = match result {
         Ok(r) => r,
         Err(e) => {
-            let _ = std::fs::remove_file(&tmp);
+            if target.is_some() {
+                let _ = std::fs::remove_file(&tmp);
+            }
             return Err(e);
         }
     };
-    std::fs::rename(&tmp, out).map_err(|e| format!("{}: cannot write: {e}", out.display()))?;
+    if let Some(t) = &target {
+        std::fs::rename(&tmp, t).map_err(|e| format!("{}: cannot write: {e}", out.display()))?;
+    }
     for (k, what) in [
         (before, "before the first servo message"),
         (after, "after the last servo message"),
