@@ -297,6 +297,13 @@ pub struct ProjectLrf {
     pub accuracy_near_mm: f64,
     /// Datasheet accuracy beyond 1 m (± fraction of range, taken as 3σ).
     pub accuracy_far_fraction: f64,
+    /// Named range-noise profile (`"URG-04LX"`, `"UTM-30LX"`, `"UST-10LX"`, `"VLP-16"`)
+    /// instead of the `accuracy_*` keys' profile.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub noise: Option<String>,
+    /// Linear range-noise profile σ = a + b·r (`[a_mm, b]`) instead of the `accuracy_*` keys'.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub noise_sigma_mm: Option<[f64; 2]>,
     /// Offset of the scanner centre from the servo shaft in the rotating frame (mm).
     #[serde(default)]
     pub mount_offset_mm: [f64; 3],

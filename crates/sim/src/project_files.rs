@@ -418,6 +418,8 @@ pub fn project_of(sim: &Simulation) -> ProjectFile {
             scans: vec![format!("scans/{}.csv", main.id)],
             bag: None,
             cloud_unit: None,
+            noise: None,
+            noise_sigma_mm: None,
             max_range_mm: cfg.lrf.max_range_mm,
             accuracy_near_mm: cfg.lrf.accuracy_near_mm,
             accuracy_far_fraction: cfg.lrf.accuracy_far_fraction,

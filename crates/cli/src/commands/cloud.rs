@@ -11,6 +11,7 @@ use super::CmdResult;
 use pingcal_lrf::ball_finder::{find_balls, FinderOptions};
 use pingcal_lrf::cloud::{Cloud, MountModel};
 use pingcal_lrf::cloud_file::{extent_mm, read_cloud_file_in, CloudUnit};
+use pingcal_lrf::RangeNoise;
 use std::path::PathBuf;
 
 /// Arguments of `pingcal cloud`.
@@ -33,6 +34,13 @@ pub struct Args {
     /// or `m` (what PCL, ROS and most scanners write). Scan files are always mm.
     #[arg(long, default_value = "mm")]
     pub unit: CloudUnit,
+    /// Range-noise profile of the sensor (σ of each range, which weighs the sphere fits
+    /// and their σ0): URG-04LX (the default, as before), UTM-30LX, UST-10LX or VLP-16.
+    #[arg(long, conflicts_with = "noise_sigma")]
+    pub noise: Option<String>,
+    /// A linear range-noise profile σ = A + B·r (`A,B`: A in mm, B per mm of range).
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub noise_sigma: Option<Vec<f64>>,
     /// Seed of the RANSAC choices.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -94,6 +102,18 @@ pub fn run(args: Args) -> CmdResult {
         servo_zero_deg: args.servo_zero_deg,
         ..MountModel::default()
     };
+    let noise = match (&args.noise, &args.noise_sigma) {
+        (Some(n), _) => RangeNoise::named(n).map_err(|e| format!("--noise: {e}"))?,
+        (None, Some(v)) if v.len() == 2 => {
+            RangeNoise::linear(v[0], v[1]).map_err(|e| format!("--noise-sigma: {e}"))?
+        }
+        (None, Some(v)) => {
+            return Err(
+                format!("--noise-sigma: expected two numbers A,B, found {}", v.len()).into(),
+            )
+        }
+        (None, None) => RangeNoise::urg_04lx(),
+    };
     for (option, file) in [("--out", &args.out), ("--balls", &args.balls)] {
         if let Some(f) = file {
             super::preflight::check_out_file(option, f)?;
@@ -117,6 +137,7 @@ pub fn run(args: Args) -> CmdResult {
         );
     }
     let opt = FinderOptions {
+        noise,
         diameter_mm: args.diameter_mm,
         seed: args.seed,
         ..Default::default()

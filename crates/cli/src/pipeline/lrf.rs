@@ -143,7 +143,16 @@ pub fn lrf_spheres(project: &Project, opts: &Options, rep: &Reporter) -> Result<
             scans = Some((header, lines));
         }
     }
-    let noise = RangeNoise::from_datasheet(l.accuracy_near_mm, l.accuracy_far_fraction, 3.0);
+    let noise = match (&l.noise, l.noise_sigma_mm) {
+        (Some(n), _) => {
+            RangeNoise::named(n).map_err(|e| PipelineError::new(format!("[lrf] noise: {e}")))?
+        }
+        (None, Some([a, b])) => RangeNoise::linear(a, b)
+            .map_err(|e| PipelineError::new(format!("[lrf] noise_sigma_mm: {e}")))?,
+        (None, None) => {
+            RangeNoise::from_datasheet(l.accuracy_near_mm, l.accuracy_far_fraction, 3.0)
+        }
+    };
     let found = find_balls(
         &cloud,
         &FinderOptions {
