@@ -356,11 +356,11 @@ fn with_stereo_pair(
     Ok((problem, known))
 }
 
-/// The layout's targets that the adjusted `scene` places more than [`LAYOUT_GATE`] σ from
+/// The layout's targets that the adjusted `scene` places more than `LAYOUT_GATE` σ from
 /// their layout coordinates once the similarity transform from the layout into the scene is
 /// fitted to the others (the worst one left out and the transform fitted again, while it
 /// exceeds the gate): one warning each (a wrong id or coordinate in the layout), and one for
-/// a scale that differs from the distances' by more than [`LAYOUT_SCALE_TOLERANCE`].
+/// a scale that differs from the distances' by more than `LAYOUT_SCALE_TOLERANCE`.
 pub fn layout_warnings(project: &Project, scene: &Scene) -> Vec<String> {
     let (Some(layout), Some(file)) = (&project.layout, &project.file.targets.layout) else {
         return Vec::new();
