@@ -12,7 +12,7 @@
 //! Modules, in pipeline order:
 //! - [`scan`]: the `pingcal-scan` CSV format, streaming reader and writer.
 //! - [`sensor`]: the LRF as a sensor: beam geometry (eq. 2 plus the mount model), the range
-//!   noise profile (URG-04LX), and the forward model a simulator needs (rays, readings).
+//!   noise profiles (URG-04LX by default, UTM-30LX, UST-10LX, VLP-16, σ = a + b·r), and the forward model a simulator needs (rays, readings).
 //! - [`cloud`]: scans to a 3D cloud through the sensor's beam geometry.
 //! - [`cloud_file`]: [`cloud_file::read_cloud_file`] reads scans, PLY, PCD or XYZ into a cloud.
 //! - [`ply`], [`xyz`], [`pcd`]: PLY (ascii/binary), text and PCD (ascii, binary,
