@@ -367,3 +367,41 @@ fn targets_are_written_as_pdf_or_svg_pages_by_the_extension() {
     let run = w.run(&["targets", "--dot-radius-mm", "30", "--out", s(&big)]);
     fails(&run, &["does not fit on an A4 page"]);
 }
+
+/// Issue 15 (Build): `--noise` names a sensor's range-noise profile. The default is the
+/// URG-04LX as before: `--noise URG-04LX` gives the same bytes (cloud.ply, balls, stdout) as
+/// no option; an unknown name lists the known ones; `--noise-sigma A,B` needs two numbers.
+#[test]
+fn noise_profiles_default_to_the_urg_and_unknown_names_list_the_known() {
+    let w = Work::new("noise_profiles");
+    let p = w.project("project");
+    let scan = p.join("scans/S00.csv");
+    let outputs = |tag: &str, extra: &[&str]| {
+        let (ply, balls) = (
+            w.dir.join(format!("{tag}.ply")),
+            w.dir.join(format!("{tag}.txt")),
+        );
+        let mut args = vec!["cloud", s(&scan), "--out", s(&ply), "--balls", s(&balls)];
+        args.extend(extra);
+        let run = w.run(&args);
+        assert!(run.success(), "{}", ctx(&run));
+        let stdout = run.stdout.replace(s(&ply), "OUT");
+        (fs::read(&ply).unwrap(), fs::read(&balls).unwrap(), stdout)
+    };
+    let default = outputs("default", &[]);
+    let urg = outputs("urg", &["--noise", "URG-04LX"]);
+    assert!(default == urg, "the default is not the URG-04LX profile");
+    let utm = outputs("utm", &["--noise", "utm-30lx"]);
+    assert!(utm.2.contains("ball(s)"), "{}", utm.2);
+    let lin = outputs("lin", &["--noise-sigma", "10,0.001"]);
+    assert!(lin.2.contains("ball(s)"), "{}", lin.2);
+    let run = w.run(&["cloud", s(&scan), "--noise", "LMS-111"]);
+    fails(&run, &["--noise: unknown noise profile \"LMS-111\" (known: URG-04LX, UTM-30LX, UST-10LX, VLP-16)"]);
+    let run = w.run(&["cloud", s(&scan), "--noise-sigma", "1"]);
+    fails(&run, &["--noise-sigma: expected two numbers A,B, found 1"]);
+    let run = w.run(&["cloud", s(&scan), "--noise-sigma", "0,0.01"]);
+    fails(
+        &run,
+        &["--noise-sigma: noise σ = a + b·r", "expected a > 0"],
+    );
+}

@@ -157,12 +157,9 @@ fn a_failed_run_keeps_the_earlier_file_and_an_input_is_never_the_output() {
         "{stderr}"
     );
     assert_eq!(std::fs::read_to_string(&out).unwrap(), "earlier\n");
-    let left: Vec<_> = std::fs::read_dir(out.parent().unwrap())
-        .unwrap()
-        .filter_map(|e| e.ok())
-        .filter(|e| e.file_name().to_string_lossy().ends_with(".partial"))
-        .collect();
-    assert!(left.is_empty(), "{left:?}");
+    // its own temporary file is gone (the folder is shared with tests running beside it)
+    let partial = out.with_file_name(".kept.csv.partial");
+    assert!(!partial.exists(), "{partial:?} left");
     // the bag given as --out is refused before it is touched
     let copy = tmp("copy.bag");
     std::fs::copy(&b, &copy).unwrap();
@@ -264,4 +261,40 @@ fn a_changed_beam_geometry_keeps_every_scan_in_a_file_per_geometry() {
         .filter_map(Result::ok)
         .any(|e| e.file_name().to_string_lossy().ends_with(".partial"));
     assert!(!partial, "a .partial file was left in {dir:?}");
+}
+
+/// `--out` through a symlink replaces the file behind it (the link stays a link), and
+/// `/dev/stdout` is written straight, as the other commands' outputs are.
+#[test]
+fn out_goes_through_a_symlink_and_into_a_device() {
+    let dir = tmp("symlinked");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(dir.join("a")).unwrap();
+    std::fs::create_dir_all(dir.join("b")).unwrap();
+    std::fs::write(dir.join("b/real.csv"), "earlier\n").unwrap();
+    let link = dir.join("a/scans.csv");
+    std::os::unix::fs::symlink("../b/real.csv", &link).unwrap();
+    let (ok, _, stderr) = scans_by_joint(&data("ros1.bag"), &link);
+    assert!(ok, "{stderr}");
+    assert!(std::fs::symlink_metadata(&link)
+        .unwrap()
+        .file_type()
+        .is_symlink());
+    let (_, lines) = read(&dir.join("b/real.csv"));
+    assert_eq!(lines.len(), 5);
+    for sub in ["a", "b"] {
+        let left: Vec<_> = std::fs::read_dir(dir.join(sub))
+            .unwrap()
+            .filter_map(Result::ok)
+            .filter(|e| e.file_name().to_string_lossy().ends_with(".partial"))
+            .collect();
+        assert!(left.is_empty(), "{left:?}");
+    }
+    let (ok, stdout, stderr) = scans_by_joint(&data("ros1.bag"), Path::new("/dev/stdout"));
+    assert!(ok, "{stderr}");
+    assert!(
+        stdout.starts_with("# pingcal-scan v2\n"),
+        "{}",
+        &stdout[..80.min(stdout.len())]
+    );
 }

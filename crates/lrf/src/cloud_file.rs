@@ -5,12 +5,13 @@
 use crate::cloud::{Cloud, MountModel};
 use crate::error::{LrfError, Result};
 
-/// Reads one file into a cloud: `.ply` (ascii or binary), `.xyz`/`.txt`/`.pts` (text
+/// Reads one file into a cloud: `.ply` (ascii or binary), `.pcd` ([`crate::pcd`]), `.xyz`/`.txt`/`.pts` (text
 /// columns) or, for anything else, the `pingcal-scan` CSV.
 pub fn read_cloud_file(path: &std::path::Path, mount: &MountModel) -> Result<Cloud> {
     match file_kind(path) {
         CloudFileKind::Ply => crate::ply::read_ply_file(path),
         CloudFileKind::Xyz => crate::xyz::read_xyz_file(path),
+        CloudFileKind::Pcd => crate::pcd::read_pcd_file(path),
         CloudFileKind::Scans => {
             let reader = crate::scan::open_scan_file(path)?;
             let header = reader.header();
@@ -24,6 +25,8 @@ pub fn read_cloud_file(path: &std::path::Path, mount: &MountModel) -> Result<Clo
 pub enum CloudFileKind {
     /// `.ply`.
     Ply,
+    /// `.pcd` (ascii, binary or binary_compressed).
+    Pcd,
     /// `.xyz`, `.txt`, `.pts`.
     Xyz,
     /// Anything else: `pingcal-scan` CSV.
@@ -39,6 +42,7 @@ pub fn file_kind(path: &std::path::Path) -> CloudFileKind {
         .to_ascii_lowercase();
     match ext.as_str() {
         "ply" => CloudFileKind::Ply,
+        "pcd" => CloudFileKind::Pcd,
         "xyz" | "txt" | "pts" => CloudFileKind::Xyz,
         _ => CloudFileKind::Scans,
     }
@@ -53,4 +57,136 @@ pub fn non_empty(c: Cloud, path: &std::path::Path) -> Result<Cloud> {
         });
     }
     Ok(c)
+}
+
+/// The unit of a cloud file's coordinates (PLY, PCD, XYZ). Scan files are always mm.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum CloudUnit {
+    /// Millimetres: the default, as pingcal always read clouds.
+    #[default]
+    Mm,
+    /// Metres (what PCL, ROS and most scanners write).
+    M,
+}
+
+impl CloudUnit {
+    /// Millimetres per unit.
+    pub fn to_mm(self) -> f64 {
+        match self {
+            CloudUnit::Mm => 1.0,
+            CloudUnit::M => 1000.0,
+        }
+    }
+    /// The unit's name, as parsed.
+    pub fn name(self) -> &'static str {
+        match self {
+            CloudUnit::Mm => "mm",
+            CloudUnit::M => "m",
+        }
+    }
+}
+
+impl std::str::FromStr for CloudUnit {
+    type Err = String;
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        match s {
+            "mm" => Ok(CloudUnit::Mm),
+            "m" => Ok(CloudUnit::M),
+            _ => Err(format!("unknown unit {s:?} (expected m or mm)")),
+        }
+    }
+}
+
+/// A cloud below this extent (bounding-box diagonal) read as mm is probably metres.
+pub const SMALL_EXTENT_MM: f64 = 50.0;
+/// A cloud above this extent read as metres is probably mm (10 km).
+pub const LARGE_EXTENT_MM: f64 = 1e7;
+
+/// The diagonal of the cloud's bounding box, mm (0 for an empty cloud).
+pub fn extent_mm(c: &Cloud) -> f64 {
+    let Some(first) = c.points.first() else {
+        return 0.0;
+    };
+    let (mut lo, mut hi) = (*first, *first);
+    for p in &c.points {
+        lo = lo.inf(p);
+        hi = hi.sup(p);
+    }
+    (hi - lo).norm()
+}
+
+/// [`read_cloud_file`] with the unit of a cloud file's coordinates (ignored for scan files,
+/// always mm), converted to mm; with the warnings for the caller to show: a cloud whose
+/// extent says the unit is probably wrong. Coordinates beyond ±1e7 mm after the conversion
+/// are refused.
+pub fn read_cloud_file_in(
+    path: &std::path::Path,
+    mount: &MountModel,
+    unit: CloudUnit,
+) -> Result<(Cloud, Vec<String>)> {
+    let kind = file_kind(path);
+    let mut c = read_cloud_file(path, mount)?;
+    let mut warnings = Vec::new();
+    if kind == CloudFileKind::Scans {
+        return Ok((c, warnings));
+    }
+    let k = unit.to_mm();
+    if k != 1.0 {
+        for p in &mut c.points {
+            *p *= k;
+        }
+        if let Some(o) = &mut c.origins {
+            for p in o {
+                *p *= k;
+            }
+        }
+    }
+    let max = crate::xyz::MAX_COORDINATE_MM;
+    if let Some(i) = c.points.iter().position(|p| p.amax() > max) {
+        return Err(LrfError::Invalid(format!(
+            "{}: point {} is beyond ±{max:e} mm (10 km) in {}",
+            path.display(),
+            i + 1,
+            unit.name()
+        )));
+    }
+    let e = extent_mm(&c);
+    if unit == CloudUnit::Mm && e < SMALL_EXTENT_MM {
+        warnings.push(format!(
+            "{}: the cloud is {e:.3} mm across, read as mm: probably metres (--unit m, or [lrf] cloud_unit = \"m\")",
+            path.display()
+        ));
+    } else if unit == CloudUnit::M && e > LARGE_EXTENT_MM {
+        warnings.push(format!(
+            "{}: the cloud is {:.1} km across, read as metres: probably mm (--unit mm)",
+            path.display(),
+            e / 1e6
+        ));
+    }
+    Ok((c, warnings))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn units_parse_and_a_metre_cloud_read_as_mm_warns() {
+        assert_eq!("m".parse::<CloudUnit>(), Ok(CloudUnit::M));
+        assert!("cm"
+            .parse::<CloudUnit>()
+            .unwrap_err()
+            .contains("expected m or mm"));
+        let p = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("tests/data/pcd/cloud_binary.pcd");
+        let (c, w) = read_cloud_file_in(&p, &MountModel::default(), CloudUnit::Mm).unwrap();
+        assert_eq!(w.len(), 1);
+        assert!(
+            w[0].contains("cloud_binary.pcd: the cloud is") && w[0].contains("probably metres"),
+            "{w:?}"
+        );
+        let (m, w) = read_cloud_file_in(&p, &MountModel::default(), CloudUnit::M).unwrap();
+        assert!(w.is_empty(), "{w:?}");
+        assert!((m.points[0] - c.points[0] * 1000.0).norm() < 1e-9);
+    }
 }

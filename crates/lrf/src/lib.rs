@@ -12,10 +12,11 @@
 //! Modules, in pipeline order:
 //! - [`scan`]: the `pingcal-scan` CSV format, streaming reader and writer.
 //! - [`sensor`]: the LRF as a sensor: beam geometry (eq. 2 plus the mount model), the range
-//!   noise profile (URG-04LX), and the forward model a simulator needs (rays, readings).
+//!   noise profiles (URG-04LX by default, UTM-30LX, UST-10LX, VLP-16, σ = a + b·r), and the forward model a simulator needs (rays, readings).
 //! - [`cloud`]: scans to a 3D cloud through the sensor's beam geometry.
-//! - [`cloud_file`]: [`cloud_file::read_cloud_file`] reads scans, PLY or XYZ into a cloud.
-//! - [`ply`], [`xyz`]: PLY (ascii/binary) and text clouds; labelled point files.
+//! - [`cloud_file`]: [`cloud_file::read_cloud_file`] reads scans, PLY, PCD or XYZ into a cloud.
+//! - [`ply`], [`xyz`], [`pcd`]: PLY (ascii/binary), text and PCD (ascii, binary,
+//!   binary_compressed through [`lzf`]) clouds; labelled point files.
 //! - [`sphere_fit`]: along-ray fixed-radius fit, orthogonal and free-radius fits, covariances.
 //! - [`ball_finder`]: planes removed, clusters, RANSAC with radius bounds, along-ray fit,
 //!   mixed-pixel rejection; balls with too few points are reported, not used.
@@ -37,6 +38,8 @@ pub mod corner;
 pub mod corner_baseline;
 pub mod correspondence;
 pub mod error;
+pub mod lzf;
+pub mod pcd;
 pub mod ply;
 pub mod registration;
 pub mod scan;

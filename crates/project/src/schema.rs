@@ -280,19 +280,30 @@ pub struct ProjectLrf {
     pub model: String,
     /// Station where it scanned (the main station).
     pub station: String,
-    /// Scan files (`pingcal-scan` CSV, or PLY / XYZ clouds), relative to project.toml
+    /// Scan files (`pingcal-scan` CSV, or PLY / PCD / XYZ clouds), relative to project.toml
     /// (may be empty when `[lrf.bag]` names bags).
     #[serde(default)]
     pub scans: Vec<String>,
     /// ROS bags to read the scans from, besides `scans` (`[lrf.bag]`).
     #[serde(default)]
     pub bag: Option<ProjectBag>,
+    /// Unit of the coordinates of the cloud files among `scans` (PLY, PCD, XYZ): `"mm"`
+    /// (absent: the default) or `"m"`. Scan files are always mm.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cloud_unit: Option<String>,
     /// Maximum range (mm).
     pub max_range_mm: f64,
     /// Datasheet accuracy under 1 m (± mm, taken as 3σ).
     pub accuracy_near_mm: f64,
     /// Datasheet accuracy beyond 1 m (± fraction of range, taken as 3σ).
     pub accuracy_far_fraction: f64,
+    /// Named range-noise profile (`"URG-04LX"`, `"UTM-30LX"`, `"UST-10LX"`, `"VLP-16"`)
+    /// instead of the `accuracy_*` keys' profile.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub noise: Option<String>,
+    /// Linear range-noise profile σ = a + b·r (`[a_mm, b]`) instead of the `accuracy_*` keys'.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub noise_sigma_mm: Option<[f64; 2]>,
     /// Offset of the scanner centre from the servo shaft in the rotating frame (mm).
     #[serde(default)]
     pub mount_offset_mm: [f64; 3],

@@ -427,6 +427,24 @@ fn an_lrf_bag_section_is_read_and_checked() {
         e.contains("servo_axis = [0.0, 0.0, 0.0]: expected three finite numbers"),
         "{e}"
     );
+    let e = check(&|q| {
+        q.lrf.noise = Some("UTM-30LX".into());
+        q.lrf.noise_sigma_mm = Some([10.0, 0.0])
+    });
+    assert!(
+        e.contains("[lrf] noise and noise_sigma_mm: give one"),
+        "{e}"
+    );
+    let e = check(&|q| q.lrf.noise_sigma_mm = Some([-1.0, 0.0]));
+    assert!(
+        e.contains("[lrf] noise_sigma_mm = [-1, 0]: expected a > 0 mm"),
+        "{e}"
+    );
+    let e = check(&|q| q.lrf.cloud_unit = Some("cm".into()));
+    assert!(
+        e.contains("[lrf] cloud_unit = \"cm\": expected \"m\" or \"mm\""),
+        "{e}"
+    );
     let e = check(&|q| q.lrf.bag.as_mut().unwrap().files.clear());
     assert!(e.contains("[lrf.bag] files: no bag"), "{e}");
     let e = check(&|q| {

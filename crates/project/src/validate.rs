@@ -324,6 +324,23 @@ fn validate_lrf(l: &ProjectLrf, main_station: &str) -> Result<(), String> {
         Some(b) => validate_bag(b)?,
         None => {}
     }
+    if l.noise.is_some() && l.noise_sigma_mm.is_some() {
+        return Err("[lrf] noise and noise_sigma_mm: give one, a named profile or [a, b]".into());
+    }
+    if let Some([a, b]) = l.noise_sigma_mm {
+        if !(a > 0.0 && a.is_finite() && b >= 0.0 && b.is_finite()) {
+            return Err(format!(
+                "[lrf] noise_sigma_mm = [{a}, {b}]: expected a > 0 mm and b >= 0"
+            ));
+        }
+    }
+    if let Some(u) = &l.cloud_unit {
+        if u != "m" && u != "mm" {
+            return Err(format!(
+                "[lrf] cloud_unit = \"{u}\": expected \"m\" or \"mm\""
+            ));
+        }
+    }
     if l.station != main_station {
         return Err(format!(
             "[lrf] station = \"{}\" but main_station = \"{main_station}\": the LRF scans from the main station",

@@ -222,6 +222,12 @@ pub fn write_outputs(dir: &Path, outcome: &Outcome) -> CmdResult {
     files.push((dir.join("cloud.ply"), &outcome.cloud_ply));
     files.push((dir.join("report.html"), html.as_bytes()));
     files.push((dir.join("results.json"), json.as_bytes()));
+    // Through symlinks, the file behind them is replaced and the link stays a link.
+    for (path, _) in &mut files {
+        if let super::WriteTarget::Replace(t) = super::write_target(path)? {
+            *path = t;
+        }
+    }
     for (k, (path, bytes)) in files.iter().enumerate() {
         if let Err(e) = write_partial(path, bytes) {
             for (p, _) in &files[..=k] {

@@ -10,14 +10,15 @@
 use super::CmdResult;
 use pingcal_lrf::ball_finder::{find_balls, FinderOptions};
 use pingcal_lrf::cloud::{Cloud, MountModel};
-use pingcal_lrf::cloud_file::read_cloud_file;
+use pingcal_lrf::cloud_file::{extent_mm, read_cloud_file_in, CloudUnit};
+use pingcal_lrf::RangeNoise;
 use std::path::PathBuf;
 
 /// Arguments of `pingcal cloud`.
 #[derive(clap::Args)]
 #[command(allow_negative_numbers = true)]
 pub struct Args {
-    /// Scan files (`pingcal-scan` CSV), or PLY / XYZ clouds.
+    /// Scan files (`pingcal-scan` CSV), or PLY / PCD / XYZ clouds.
     #[arg(required = true)]
     pub scans: Vec<PathBuf>,
     /// Write the cloud with the fitted spheres as binary PLY.
@@ -29,6 +30,17 @@ pub struct Args {
     /// Write the ball centres with their σ's (`id x y z sx sy sz`, mm).
     #[arg(long)]
     pub balls: Option<PathBuf>,
+    /// Unit of the cloud files' coordinates (PLY, PCD, XYZ): `mm` (the default, as before)
+    /// or `m` (what PCL, ROS and most scanners write). Scan files are always mm.
+    #[arg(long, default_value = "mm")]
+    pub unit: CloudUnit,
+    /// Range-noise profile of the sensor (σ of each range, which weighs the sphere fits
+    /// and their σ0): URG-04LX (the default, as before), UTM-30LX, UST-10LX or VLP-16.
+    #[arg(long, conflicts_with = "noise_sigma")]
+    pub noise: Option<String>,
+    /// A linear range-noise profile σ = A + B·r (`A,B`: A in mm, B per mm of range).
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub noise_sigma: Option<Vec<f64>>,
     /// Seed of the RANSAC choices.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -90,6 +102,18 @@ pub fn run(args: Args) -> CmdResult {
         servo_zero_deg: args.servo_zero_deg,
         ..MountModel::default()
     };
+    let noise = match (&args.noise, &args.noise_sigma) {
+        (Some(n), _) => RangeNoise::named(n).map_err(|e| format!("--noise: {e}"))?,
+        (None, Some(v)) if v.len() == 2 => {
+            RangeNoise::linear(v[0], v[1]).map_err(|e| format!("--noise-sigma: {e}"))?
+        }
+        (None, Some(v)) => {
+            return Err(
+                format!("--noise-sigma: expected two numbers A,B, found {}", v.len()).into(),
+            )
+        }
+        (None, None) => RangeNoise::urg_04lx(),
+    };
     for (option, file) in [("--out", &args.out), ("--balls", &args.balls)] {
         if let Some(f) = file {
             super::preflight::check_out_file(option, f)?;
@@ -97,9 +121,23 @@ pub fn run(args: Args) -> CmdResult {
     }
     let mut cloud = Cloud::default();
     for f in &args.scans {
-        cloud.extend(read_cloud_file(f, &mount)?);
+        let (c, warnings) = read_cloud_file_in(f, &mount, args.unit)?;
+        for w in warnings {
+            eprintln!("pingcal: warning: {w}");
+        }
+        cloud.extend(c);
+    }
+    let extent = extent_mm(&cloud);
+    if args.diameter_mm > extent {
+        let names: Vec<String> = args.scans.iter().map(|f| f.display().to_string()).collect();
+        eprintln!(
+            "pingcal: warning: {}: --diameter-mm {} is larger than the cloud ({extent:.3} mm across): no ball can be found (wrong --unit?)",
+            names.join(", "),
+            args.diameter_mm
+        );
     }
     let opt = FinderOptions {
+        noise,
         diameter_mm: args.diameter_mm,
         seed: args.seed,
         ..Default::default()

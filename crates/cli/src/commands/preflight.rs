@@ -53,7 +53,13 @@ pub fn check_out_file(option: &str, path: &Path) -> Result<(), String> {
             path.display()
         ));
     }
-    let dir = path
+    // Through symlinks the temporary file goes beside the file behind them; a device or
+    // FIFO (`/dev/stdout`) is written straight, with nothing to check.
+    let target = match super::write_target(path).map_err(|e| format!("{option} {e}"))? {
+        super::WriteTarget::Direct(_) => return Ok(()),
+        super::WriteTarget::Replace(t) => t,
+    };
+    let dir = target
         .parent()
         .filter(|p| !p.as_os_str().is_empty())
         .unwrap_or(Path::new("."));

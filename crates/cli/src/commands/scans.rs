@@ -137,8 +137,13 @@ fn geometry_path(out: &Path, k: usize) -> PathBuf {
 struct GeometryFile {
     header: ScanHeader,
     beams: usize,
+    /// The path named on the output.
     path: PathBuf,
+    /// The file written: a temporary one, or a device or FIFO written straight.
     tmp: PathBuf,
+    /// What `tmp` is renamed onto once complete (the file behind any symlink); None when
+    /// written straight.
+    target: Option<PathBuf>,
     scans: u64,
     writer: ScanWriter<std::io::BufWriter<std::fs::File>>,
 }
@@ -151,7 +156,14 @@ impl GeometryFile {
         extra: &str,
     ) -> Result<Self, String> {
         super::preflight::check_out_file("--out", &path)?;
-        let tmp = super::partial_path(&path).map_err(|e| e.to_string())?;
+        // through symlinks the file behind them is replaced; a device or FIFO is written
+        // straight
+        let (tmp, target) = match super::write_target(&path).map_err(|e| e.to_string())? {
+            super::WriteTarget::Direct(p) => (p, None),
+            super::WriteTarget::Replace(t) => {
+                (super::partial_path(&t).map_err(|e| e.to_string())?, Some(t))
+            }
+        };
         let cannot = |e: std::io::Error| format!("{}: cannot write: {e}", path.display());
         let file = std::fs::File::create(&tmp).map_err(cannot)?;
         let w = std::io::BufWriter::with_capacity(1 << 16, file);
@@ -161,17 +173,29 @@ impl GeometryFile {
             beams,
             path,
             tmp,
+            target,
             scans: 0,
             writer,
         })
     }
 
-    fn finish(self) -> Result<(PathBuf, PathBuf), String> {
+    /// Completes the file; gives (temporary file, its target) when it is to be renamed.
+    fn finish(self) -> Result<Option<(PathBuf, PathBuf)>, String> {
         let cannot = |e: std::io::Error| format!("{}: cannot write: {e}", self.path.display());
         let w = self.writer.finish().map_err(cannot)?;
         let file = w.into_inner().map_err(|e| cannot(e.into_error()))?;
-        file.sync_all().map_err(cannot)?;
-        Ok((self.tmp, self.path))
+        match self.target {
+            Some(t) => {
+                file.sync_all().map_err(cannot)?;
+                Ok(Some((self.tmp, t)))
+            }
+            None => Ok(None),
+        }
+    }
+
+    /// The temporary file to remove on a failure (none when written straight).
+    fn partial(&self) -> Option<&Path> {
+        self.target.as_ref().map(|_| self.tmp.as_path())
     }
 }
 
@@ -229,8 +253,8 @@ fn write_scans(bags: &[Bag], topics: &Topics, out: &Path) -> Result<Written, sup
             })
     });
     let remove = |files: &[GeometryFile]| {
-        for f in files {
-            let _ = std::fs::remove_file(&f.tmp);
+        for p in files.iter().filter_map(GeometryFile::partial) {
+            let _ = std::fs::remove_file(p);
         }
     };
     let done = match result {
@@ -252,10 +276,13 @@ fn write_scans(bags: &[Bag], topics: &Topics, out: &Path) -> Result<Written, sup
         .map(|f| (f.path.clone(), f.scans, f.beams, f.header.angle_min_deg))
         .collect();
     let mut finished = Vec::new();
-    let tmps: Vec<PathBuf> = files.iter().map(|f| f.tmp.clone()).collect();
+    let tmps: Vec<PathBuf> = files
+        .iter()
+        .filter_map(|f| f.partial().map(Path::to_path_buf))
+        .collect();
     for f in files {
         match f.finish() {
-            Ok(pair) => finished.push(pair),
+            Ok(pair) => finished.extend(pair),
             Err(e) => {
                 for t in &tmps {
                     let _ = std::fs::remove_file(t);
@@ -264,9 +291,9 @@ fn write_scans(bags: &[Bag], topics: &Topics, out: &Path) -> Result<Written, sup
             }
         }
     }
-    for (tmp, path) in finished {
-        std::fs::rename(&tmp, &path)
-            .map_err(|e| format!("{}: cannot write: {e}", path.display()))?;
+    for (tmp, target) in finished {
+        std::fs::rename(&tmp, &target)
+            .map_err(|e| format!("{}: cannot write: {e}", target.display()))?;
     }
     Ok(Written {
         files: summary,

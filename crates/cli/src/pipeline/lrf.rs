@@ -11,7 +11,7 @@
 use super::{Options, PipelineError, Reporter, Result};
 use pingcal_lrf::ball_finder::{find_balls, FindResult, FinderOptions};
 use pingcal_lrf::cloud::{Cloud, MountModel};
-use pingcal_lrf::cloud_file::{file_kind, non_empty, read_cloud_file, CloudFileKind};
+use pingcal_lrf::cloud_file::{file_kind, non_empty, read_cloud_file_in, CloudFileKind, CloudUnit};
 use pingcal_lrf::scan::{open_scan_file, ScanHeader, ScanLine};
 use pingcal_lrf::sensor::RangeNoise;
 use pingcal_project::{Project, ProjectBag};
@@ -140,7 +140,15 @@ pub fn lrf_spheres(project: &Project, opts: &Options, rep: &Reporter) -> Result<
                 scans = Some((header, lines));
             }
         } else {
-            cloud.extend(read_cloud_file(path, &mount).map_err(err)?);
+            let unit = match l.cloud_unit.as_deref() {
+                Some("m") => CloudUnit::M,
+                _ => CloudUnit::Mm,
+            };
+            let (c, warnings) = read_cloud_file_in(path, &mount, unit).map_err(err)?;
+            for w in warnings {
+                rep.log(format!("warning: {w}"));
+            }
+            cloud.extend(c);
         }
         pb.advance(1);
     }
@@ -155,7 +163,16 @@ pub fn lrf_spheres(project: &Project, opts: &Options, rep: &Reporter) -> Result<
             }
         }
     }
-    let noise = RangeNoise::from_datasheet(l.accuracy_near_mm, l.accuracy_far_fraction, 3.0);
+    let noise = match (&l.noise, l.noise_sigma_mm) {
+        (Some(n), _) => {
+            RangeNoise::named(n).map_err(|e| PipelineError::new(format!("[lrf] noise: {e}")))?
+        }
+        (None, Some([a, b])) => RangeNoise::linear(a, b)
+            .map_err(|e| PipelineError::new(format!("[lrf] noise_sigma_mm: {e}")))?,
+        (None, None) => {
+            RangeNoise::from_datasheet(l.accuracy_near_mm, l.accuracy_far_fraction, 3.0)
+        }
+    };
     let found = find_balls(
         &cloud,
         &FinderOptions {
