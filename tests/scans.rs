@@ -75,6 +75,8 @@ fn every_bag_becomes_the_scan_file_it_was_made_from() {
         "ros2.db3",
         "ros2.mcap",
         "ros2_be.mcap",
+        "ros2_zstd.mcap",
+        "ros2_lz4.mcap",
     ] {
         for s in &servo {
             let out = tmp(&format!("{bag}.csv"));

@@ -243,6 +243,27 @@ def write_ros2(path, header, scans, plugin, little_endian=True):
     shutil.rmtree(tmp)
 
 
+def write_mcap_compressed(path, header, scans, compression):
+    """The messages of ros2.mcap through another independent writer, the `mcap` package's,
+    with zstd or lz4 chunks (rosbag2's MCAP writer compresses its chunks with zstd)."""
+    from mcap.writer import CompressionType, Writer as McapWriter
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    msgs = messages(ts, header, scans, False)
+    kind = {'zstd': CompressionType.ZSTD, 'lz4': CompressionType.LZ4}[compression]
+    with open(path, 'wb') as stream:
+        w = McapWriter(stream, compression=kind, chunk_size=4096)
+        w.start(profile='ros2', library='pingcal fixtures')
+        channels = {}
+        for topic, ty in TYPES.items():
+            text, _ = ts.generate_msgdef(ty, ros_version=2)
+            schema = w.register_schema(name=ty, encoding='ros2msg', data=text.encode())
+            channels[topic] = w.register_channel(topic=topic, message_encoding='cdr', schema_id=schema)
+        for k, (topic, ns, msg, ty) in enumerate(msgs):
+            w.add_message(channels[topic], log_time=ns, data=bytes(ts.serialize_cdr(msg, ty)),
+                          publish_time=ns, sequence=k)
+        w.finish()
+
+
 def main(src, out_dir):
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -254,6 +275,8 @@ def main(src, out_dir):
     write_ros2(out / 'ros2.db3', header, scans, StoragePlugin.SQLITE3)
     write_ros2(out / 'ros2.mcap', header, scans, StoragePlugin.MCAP)
     write_ros2(out / 'ros2_be.mcap', header, scans, StoragePlugin.MCAP, little_endian=False)
+    write_mcap_compressed(out / 'ros2_zstd.mcap', header, scans, 'zstd')
+    write_mcap_compressed(out / 'ros2_lz4.mcap', header, scans, 'lz4')
     sweep(out, header, scans[:2])
     geometry(out)
     total = 0
@@ -288,5 +311,9 @@ if __name__ == '__main__':
         project(sys.argv[2])
     elif sys.argv[1] == '--geometry':
         geometry(Path(sys.argv[2]))
+    elif sys.argv[1] == '--compressed':  # SRC OUT_DIR: only the compressed MCAP files
+        h, sc = read_csv(sys.argv[2])
+        for c in ('zstd', 'lz4'):
+            write_mcap_compressed(Path(sys.argv[3]) / f'ros2_{c}.mcap', h, sc, c)
     else:
         main(*sys.argv[1:3])

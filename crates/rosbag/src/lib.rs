@@ -1,5 +1,5 @@
 //! Streaming readers of ROS bags for pingcal's LRF input: ROS 1 bags (format 2.0, chunks
-//! uncompressed, bz2 or lz4), ROS 2 MCAP files and ROS 2 sqlite3 `.db3` bags, with exact
+//! uncompressed, bz2 or lz4), ROS 2 MCAP files (chunks uncompressed, zstd or lz4) and ROS 2 sqlite3 `.db3` bags, with exact
 //! decoders of the messages a rotating 2D range finder publishes ([`msgs`]) and the
 //! assembly of its scans with the servo angle interpolated at each beam's time
 //! ([`assemble`]).

@@ -1,5 +1,6 @@
-//! The ROS 2 storage formats: MCAP (through the `mcap` crate, over a memory map) and
-//! sqlite3 `.db3` (through `rusqlite`, one row at a time).
+//! The ROS 2 storage formats: MCAP (the `mcap` crate's record reader over a memory map,
+//! chunks uncompressed or decompressed here with a bound: zstd through `ruzstd`, lz4 through
+//! `lz4_flex`) and sqlite3 `.db3` (through `rusqlite`, one row at a time).
 
 use crate::error::{Result, RosbagError};
 use crate::msgs::normalize_type;
@@ -23,47 +24,109 @@ fn mcap_err(file: &str, e: mcap::McapError) -> RosbagError {
     RosbagError::format(file, format!("MCAP: {e}"))
 }
 
-fn mcap_message(
-    file: &str,
-    m: &mcap::Message,
-    want: &dyn Fn(&str) -> bool,
-    f: &mut dyn FnMut(&RawMessage) -> Result<()>,
-) -> Result<()> {
-    let topic = m.channel.topic.as_str();
-    if !want(topic) {
-        return Ok(());
+/// Chunks that say they hold more than this many bytes uncompressed (1 GiB) are refused as
+/// corrupt, before anything is allocated for them (as the ROS 1 reader's chunks are).
+const MAX_CHUNK_BYTES: u64 = 1 << 30;
+
+/// The schemas and channels of an MCAP file met so far, in the data section or in its
+/// chunks, and what each record means for the caller.
+#[derive(Default)]
+struct McapChannels {
+    /// Schema id → message type (normalized).
+    schemas: std::collections::HashMap<u16, String>,
+    /// Channel id → (topic, message type, message encoding).
+    channels: std::collections::HashMap<u16, (String, String, String)>,
+}
+
+impl McapChannels {
+    /// Takes in one record: a schema or a channel is remembered, a message of a wanted
+    /// topic is handed to `f`.
+    fn take(
+        &mut self,
+        file: &str,
+        record: &mcap::records::Record,
+        want: &dyn Fn(&str) -> bool,
+        f: &mut dyn FnMut(&RawMessage) -> Result<()>,
+    ) -> Result<()> {
+        use mcap::records::Record;
+        match record {
+            Record::Schema { header, .. } => {
+                self.schemas.insert(header.id, normalize_type(&header.name));
+            }
+            Record::Channel(c) => {
+                let ty = self.schemas.get(&c.schema_id).cloned().unwrap_or_default();
+                self.channels
+                    .insert(c.id, (c.topic.clone(), ty, c.message_encoding.clone()));
+            }
+            Record::Message { header, data } => {
+                let Some((topic, ty, enc)) = self.channels.get(&header.channel_id) else {
+                    return Err(RosbagError::format(
+                        file,
+                        format!(
+                            "MCAP: message {} on channel {}, which no channel record before it defines",
+                            header.sequence, header.channel_id
+                        ),
+                    ));
+                };
+                if want(topic) {
+                    f(&RawMessage {
+                        topic,
+                        msg_type: ty,
+                        time_ns: i64::try_from(header.log_time).unwrap_or(i64::MAX),
+                        data,
+                        encoding: encoding(file, topic, enc)?,
+                    })?;
+                }
+            }
+            _ => {}
+        }
+        Ok(())
     }
-    let ty = m
-        .channel
-        .schema
-        .as_ref()
-        .map_or(String::new(), |s| normalize_type(&s.name));
-    f(&RawMessage {
-        topic,
-        msg_type: &ty,
-        time_ns: i64::try_from(m.log_time).unwrap_or(i64::MAX),
-        data: &m.data,
-        encoding: encoding(file, topic, &m.channel.message_encoding)?,
-    })
 }
 
-/// The chunk indexes of an MCAP summary in file order, when every one points inside the
-/// file (the `mcap` crate slices the file with them unchecked).
-fn chunk_indexes(summary: &mcap::Summary, len: usize) -> Option<Vec<mcap::records::ChunkIndex>> {
-    let mut idx = summary.chunk_indexes.clone();
-    idx.sort_by_key(|c| c.chunk_start_offset);
-    let fits = |c: &mcap::records::ChunkIndex| {
-        c.chunk_length >= 9
-            && c.chunk_start_offset
-                .checked_add(c.chunk_length)
-                .is_some_and(|e| e <= len as u64)
+/// A chunk's records, decompressed (zstd, lz4) into exactly the `uncompressed_size` its
+/// header gives, which is bounded by [`MAX_CHUNK_BYTES`] before anything is allocated.
+fn decompress_chunk(file: &str, compression: &str, data: &[u8], size: u64) -> Result<Vec<u8>> {
+    use std::io::Read;
+    let err = |msg: String| RosbagError::format(file, format!("MCAP: {msg}"));
+    if size > MAX_CHUNK_BYTES {
+        return Err(err(format!(
+            "a {compression} chunk says it holds {size} bytes uncompressed, more than the {MAX_CHUNK_BYTES} pingcal accepts: the file is corrupt"
+        )));
+    }
+    let mut out = Vec::with_capacity(size as usize);
+    let read = match compression {
+        "zstd" => ruzstd::decoding::StreamingDecoder::new(data)
+            .map_err(|e| err(format!("a zstd chunk cannot be decompressed: {e}")))?
+            .take(size + 1)
+            .read_to_end(&mut out),
+        "lz4" => lz4_flex::frame::FrameDecoder::new(data)
+            .take(size + 1)
+            .read_to_end(&mut out),
+        other => {
+            return Err(err(format!(
+                "chunk compression {other:?}: pingcal reads uncompressed, zstd and lz4 chunks"
+            )))
+        }
     };
-    (!idx.is_empty() && idx.iter().all(fits)).then_some(idx)
+    read.map_err(|e| err(format!("a {compression} chunk cannot be decompressed: {e}")))?;
+    if out.len() as u64 != size {
+        return Err(err(format!(
+            "a {compression} chunk gives {}{} bytes, its header says {size}",
+            if out.len() as u64 > size {
+                "more than "
+            } else {
+                ""
+            },
+            out.len().min(size as usize)
+        )));
+    }
+    Ok(out)
 }
 
-/// Streams the messages of an MCAP file, calling `f` for those whose topic `want`s: chunk
-/// by chunk through the summary's index when the file has one (handing each chunk's pages
-/// back with `release` once read), else through the data section in order.
+/// Streams the messages of an MCAP file in file order, calling `f` for those whose topic
+/// `want`s. Chunks are read one at a time (uncompressed, or decompressed here: zstd, lz4,
+/// with their CRC checked) and each chunk's pages are handed back with `release` once read.
 pub fn mcap_messages(
     file: &str,
     buf: &[u8],
@@ -71,19 +134,35 @@ pub fn mcap_messages(
     want: &dyn Fn(&str) -> bool,
     f: &mut dyn FnMut(&RawMessage) -> Result<()>,
 ) -> Result<()> {
-    let summary = mcap::Summary::read(buf).ok().flatten();
-    if let Some((s, idx)) = summary.and_then(|s| chunk_indexes(&s, buf.len()).map(|i| (s, i))) {
-        for c in &idx {
-            for m in s.stream_chunk(buf, c).map_err(|e| mcap_err(file, e))? {
-                mcap_message(file, &m.map_err(|e| mcap_err(file, e))?, want, f)?;
+    use mcap::records::Record;
+    let mut channels = McapChannels::default();
+    for record in mcap::read::LinearReader::new(buf).map_err(|e| mcap_err(file, e))? {
+        let record = record.map_err(|e| mcap_err(file, e))?;
+        let Record::Chunk { header, data } = &record else {
+            channels.take(file, &record, want, f)?;
+            continue;
+        };
+        let plain;
+        let (h, body): (mcap::records::ChunkHeader, &[u8]) = match header.compression.as_str() {
+            "" => (header.clone(), data),
+            c => {
+                plain = decompress_chunk(file, c, data, header.uncompressed_size)?;
+                let h = mcap::records::ChunkHeader {
+                    compression: String::new(),
+                    compressed_size: plain.len() as u64,
+                    ..header.clone()
+                };
+                (h, &plain)
             }
-            release((c.chunk_start_offset + c.chunk_length) as usize);
+        };
+        for r in mcap::read::ChunkReader::new(h, body).map_err(|e| mcap_err(file, e))? {
+            channels.take(file, &r.map_err(|e| mcap_err(file, e))?, want, f)?;
         }
-        return Ok(());
-    }
-    let stream = mcap::MessageStream::new(buf).map_err(|e| mcap_err(file, e))?;
-    for m in stream {
-        mcap_message(file, &m.map_err(|e| mcap_err(file, e))?, want, f)?;
+        // the chunk's bytes lie in the map: its end is where the pages read so far end
+        let end = (data.as_ptr() as usize)
+            .saturating_sub(buf.as_ptr() as usize)
+            .saturating_add(data.len());
+        release(end.min(buf.len()));
     }
     Ok(())
 }
@@ -230,4 +309,37 @@ pub fn db3_messages(
         })?;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod chunk_tests {
+    use super::decompress_chunk;
+
+    /// A chunk's declared size bounds what is allocated and must be what it gives.
+    #[test]
+    fn a_compressed_chunk_gives_exactly_its_declared_size_or_an_error() {
+        let text = b"pingcal ".repeat(100);
+        let mut lz4 = lz4_flex::frame::FrameEncoder::new(Vec::new());
+        std::io::Write::write_all(&mut lz4, &text).unwrap();
+        let lz4 = lz4.finish().unwrap();
+        assert_eq!(decompress_chunk("f.mcap", "lz4", &lz4, 800).unwrap(), text);
+        for (size, want) in [
+            (1u64 << 40, "more than the 1073741824 pingcal accepts"),
+            (799, "gives more than 799 bytes, its header says 799"),
+            (801, "gives 800 bytes, its header says 801"),
+        ] {
+            let e = decompress_chunk("f.mcap", "lz4", &lz4, size)
+                .unwrap_err()
+                .to_string();
+            assert!(e.starts_with("f.mcap: ") && e.contains(want), "{e}");
+        }
+        let e = decompress_chunk("f.mcap", "zstd", &lz4, 800)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("a zstd chunk cannot be decompressed"), "{e}");
+        let e = decompress_chunk("f.mcap", "brotli", &lz4, 800)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("chunk compression \"brotli\""), "{e}");
+    }
 }

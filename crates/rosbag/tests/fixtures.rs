@@ -9,13 +9,15 @@ use pingcal_rosbag::assemble::{assemble, servo_series, Assembled, ServoSource, T
 use pingcal_rosbag::{Bag, RosbagError};
 use std::path::{Path, PathBuf};
 
-const BAGS: [&str; 6] = [
+const BAGS: [&str; 8] = [
     "ros1.bag",
     "ros1_bz2.bag",
     "ros1_lz4.bag",
     "ros2.db3",
     "ros2.mcap",
     "ros2_be.mcap",
+    "ros2_zstd.mcap",
+    "ros2_lz4.mcap",
 ];
 
 fn data(name: &str) -> PathBuf {
