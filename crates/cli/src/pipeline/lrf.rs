@@ -226,23 +226,10 @@ mod tests {
 
     /// A project reading the rosbags-written fixture `name` of `crates/rosbag/tests/data`.
     fn project_with_bag(name: &str, bag: ProjectBag) -> Project {
-        let readme = include_str!("../../../../README.md");
-        let at = readme.find("## The project file").unwrap();
-        let start = readme[at..].find("```toml\n").unwrap() + at + 8;
-        let len = readme[start..].find("```").unwrap();
-        let mut file =
-            pingcal_project::ProjectFile::parse(&readme[start..start + len], "x.toml").unwrap();
+        let mut file = crate::pipeline::test_support::readme_project_file();
         file.lrf.bag = Some(bag);
         let data = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../rosbag/tests/data");
-        Project {
-            path: "x.toml".into(),
-            dir: ".".into(),
-            file,
-            image_paths: Vec::new(),
-            scan_paths: Vec::new(),
-            layout: None,
-            bag_paths: vec![data.join(name)],
-        }
+        crate::pipeline::test_support::project(file, vec![data.join(name)])
     }
 
     fn bag(servo_topic: &str) -> ProjectBag {

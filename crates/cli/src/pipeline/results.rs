@@ -712,22 +712,9 @@ mod tests {
 
     /// The README's example project (two cameras, `[stereo]` left and right).
     fn example_project(main_camera: &str) -> Project {
-        let readme = include_str!("../../../../README.md");
-        let at = readme.find("## The project file").unwrap();
-        let start = readme[at..].find("```toml\n").unwrap() + at + 8;
-        let len = readme[start..].find("```").unwrap();
-        let mut file =
-            pingcal_project::ProjectFile::parse(&readme[start..start + len], "x.toml").unwrap();
+        let mut file = crate::pipeline::test_support::readme_project_file();
         file.main_camera = main_camera.into();
-        Project {
-            path: "x.toml".into(),
-            dir: ".".into(),
-            file,
-            image_paths: Vec::new(),
-            scan_paths: Vec::new(),
-            layout: None,
-            bag_paths: Vec::new(),
-        }
+        crate::pipeline::test_support::project(file, Vec::new())
     }
 
     /// The inverse's update Jacobian against central differences of `plus` and `inverse`.
