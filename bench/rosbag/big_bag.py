@@ -3,7 +3,10 @@ the simulated project's whole sweep (SIM_DIR/scans/S00.csv) repeated until the b
 SIZE_MB, each repetition 1,000 s after the one before, as /scan (sensor_msgs/LaserScan) and
 /joint_states (two messages per scan, the servo standing still while it scans).
 
-    python big_bag.py SIM_DIR OUT.bag|OUT.mcap SIZE_MB
+    python big_bag.py SIM_DIR OUT.bag|OUT.mcap|OUT.zstd.mcap SIZE_MB
+
+OUT.zstd.mcap is written by the `mcap` package's writer with zstd chunks (as rosbag2's MCAP
+writer does by default); SIZE_MB then counts the messages' bytes before compression.
 """
 import math
 import shutil
@@ -36,10 +39,39 @@ def hdr(ns, k, frame):
 
 # one repetition's serialized messages, then the same bytes re-stamped is not possible for
 # the header stamps, so each repetition is serialized again (the writer's own cost)
+zstd = out.name.endswith(".zstd.mcap")
+
+
+class ZstdMcap:
+    """The rosbags writer's calls used below, on the `mcap` package's zstd writer."""
+
+    def __init__(self, path):
+        from mcap.writer import CompressionType, Writer as McapWriter
+        self.f = open(path, "wb")
+        self.w = McapWriter(self.f, compression=CompressionType.ZSTD)
+        self.w.start(profile="ros2", library="pingcal bench")
+        self.seq = 0
+
+    def add_connection(self, topic, ty, typestore):
+        text, _ = typestore.generate_msgdef(ty, ros_version=2)
+        schema = self.w.register_schema(name=ty, encoding="ros2msg", data=text.encode())
+        return self.w.register_channel(topic=topic, message_encoding="cdr", schema_id=schema)
+
+    def write(self, conn, ns, data):
+        self.w.add_message(conn, log_time=ns, data=bytes(data), publish_time=ns, sequence=self.seq)
+        self.seq += 1
+
+    def close(self):
+        self.w.finish()
+        self.f.close()
+
+
 if ros1:
     out.unlink(missing_ok=True)
     w = Writer1(out)
     w.open()
+elif zstd:
+    w = ZstdMcap(out)
 else:
     tmp = out.with_suffix(".dir")
     shutil.rmtree(tmp, ignore_errors=True)
@@ -68,7 +100,7 @@ while written < size_mb * 1e6:
             written += len(b)
     rep += 1
 w.close()
-if not ros1:
+if not ros1 and not zstd:
     (stored,) = [p for p in tmp.iterdir() if p.suffix == ".mcap"]
     shutil.move(stored, out)
     shutil.rmtree(tmp)

@@ -1,17 +1,20 @@
 #!/usr/bin/env bash
-# Issue 16's streaming benchmark: `pingcal scans` on ROS 1 and MCAP bags of SIZE_MB (default
-# 1,100 MB) written by the independent `rosbags` writer; prints MB/s (bag bytes over wall
-# time, from a warm page cache) and peak RSS (GNU time), for --list and for a full decode to
-# a scan file.   bash bench/rosbag/run.sh [SIZE_MB]      (from the repository root)
-# Installs rosbags in target/rosbags-venv. Writes target/rosbag-big/ (several GB: removed
-# at the end unless KEEP=1).
+# Issue 16's streaming benchmark: `pingcal scans` on bags of SIZE_MB (default 1,100 MB)
+# written by independent writers: ROS 1 and uncompressed MCAP by `rosbags`, zstd-chunked
+# MCAP (rosbag2's MCAP default) by the `mcap` package. Prints MB/s (the bag file's bytes
+# over wall time, from a warm page cache) and peak RSS for: reading and decoding every scan
+# (the read_bag example: the reader alone), --list, and a full conversion to a scan file
+# (reading plus writing ~0.9 GB of CSV).
+#   bash bench/rosbag/run.sh [SIZE_MB]      (from the repository root; EXTS="bag mcap zstd.mcap")
+# Installs the writers in target/rosbags-venv. Writes target/rosbag-big/ (several GB:
+# removed at the end unless KEEP=1).
 set -euo pipefail
 root="$(cd "$(dirname "$0")/../.." && pwd)"
 cd "$root"
 size="${1:-1100}"
 venv=target/rosbags-venv
-if [ ! -x "$venv/bin/python" ] || ! "$venv/bin/python" -c 'import rosbags, numpy' 2>/dev/null; then
-    python3 -m venv "$venv" && "$venv/bin/pip" install -q 'rosbags==0.11.9' numpy
+if [ ! -x "$venv/bin/python" ] || ! "$venv/bin/python" -c 'import rosbags, numpy, mcap, zstandard' 2>/dev/null; then
+    python3 -m venv "$venv" && "$venv/bin/pip" install -q 'rosbags==0.11.9' numpy 'mcap==1.6.0' 'zstandard==0.25.0'
 fi
 bin="${PINGCAL:-target/release/pingcal}"
 cargo build --release -q -p pingcal && cargo build --release -q -p pingcal-rosbag --example read_bag
@@ -19,7 +22,7 @@ big=target/rosbag-big
 mkdir -p "$big"
 [ -f "$big/sim/scans/S00.csv" ] || "$bin" simulate --out "$big/sim" --seed 7 >/dev/null
 printf '| bag | size MB | command | wall s | MB/s | peak RSS MB |\n|---|---|---|---|---|---|\n' >"$big/table.md"
-for ext in bag mcap; do
+for ext in ${EXTS:-bag mcap zstd.mcap}; do
     f="$big/big.$ext"
     [ -f "$f" ] || "$venv/bin/python" bench/rosbag/big_bag.py "$big/sim" "$f" "$size"
     mb=$(python3 -c "import os; print(os.path.getsize('$f') / 1e6)")

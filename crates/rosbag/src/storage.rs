@@ -39,6 +39,49 @@ struct McapChannels {
 }
 
 impl McapChannels {
+    /// The channels of a summary.
+    fn from_summary(s: &mcap::Summary) -> Self {
+        let mut me = Self::default();
+        for c in s.channels.values() {
+            let ty = c
+                .schema
+                .as_ref()
+                .map_or(String::new(), |s| normalize_type(&s.name));
+            me.channels
+                .insert(c.id, (c.topic.clone(), ty, c.message_encoding.clone()));
+        }
+        me
+    }
+
+    /// The records of one chunk (uncompressed, or decompressed by [`decompress_chunk`]),
+    /// through [`McapChannels::take`].
+    fn chunk(
+        &mut self,
+        file: &str,
+        header: &mcap::records::ChunkHeader,
+        data: &[u8],
+        want: &dyn Fn(&str) -> bool,
+        f: &mut dyn FnMut(&RawMessage) -> Result<()>,
+    ) -> Result<()> {
+        let plain;
+        let (h, body): (mcap::records::ChunkHeader, &[u8]) = match header.compression.as_str() {
+            "" => (header.clone(), data),
+            c => {
+                plain = decompress_chunk(file, c, data, header.uncompressed_size)?;
+                let h = mcap::records::ChunkHeader {
+                    compression: String::new(),
+                    compressed_size: plain.len() as u64,
+                    ..header.clone()
+                };
+                (h, &plain)
+            }
+        };
+        for r in mcap::read::ChunkReader::new(h, body).map_err(|e| mcap_err(file, e))? {
+            self.take(file, &r.map_err(|e| mcap_err(file, e))?, want, f)?;
+        }
+        Ok(())
+    }
+
     /// Takes in one record: a schema or a channel is remembered, a message of a wanted
     /// topic is handed to `f`.
     fn take(
@@ -124,9 +167,24 @@ fn decompress_chunk(file: &str, compression: &str, data: &[u8], size: u64) -> Re
     Ok(out)
 }
 
+/// The chunk indexes of an MCAP summary in file order, when every one points inside the
+/// file.
+fn chunk_indexes(summary: &mcap::Summary, len: usize) -> Option<Vec<mcap::records::ChunkIndex>> {
+    let mut idx = summary.chunk_indexes.clone();
+    idx.sort_by_key(|c| c.chunk_start_offset);
+    let fits = |c: &mcap::records::ChunkIndex| {
+        c.chunk_length >= 9
+            && c.chunk_start_offset
+                .checked_add(c.chunk_length)
+                .is_some_and(|e| e <= len as u64)
+    };
+    (!idx.is_empty() && idx.iter().all(fits)).then_some(idx)
+}
+
 /// Streams the messages of an MCAP file in file order, calling `f` for those whose topic
-/// `want`s. Chunks are read one at a time (uncompressed, or decompressed here: zstd, lz4,
-/// with their CRC checked) and each chunk's pages are handed back with `release` once read.
+/// `want`s. With a summary, chunk by chunk through its index, straight from the map, each
+/// chunk's pages handed back with `release` once read; else the records in order. A chunk
+/// is uncompressed or decompressed here (zstd, lz4) and its records' CRC checked.
 pub fn mcap_messages(
     file: &str,
     buf: &[u8],
@@ -135,34 +193,34 @@ pub fn mcap_messages(
     f: &mut dyn FnMut(&RawMessage) -> Result<()>,
 ) -> Result<()> {
     use mcap::records::Record;
+    let summary = mcap::Summary::read(buf).ok().flatten();
+    if let Some((s, idx)) = summary.and_then(|s| chunk_indexes(&s, buf.len()).map(|i| (s, i))) {
+        let mut channels = McapChannels::from_summary(&s);
+        for c in &idx {
+            let (start, end) = (
+                c.chunk_start_offset as usize,
+                (c.chunk_start_offset + c.chunk_length) as usize,
+            );
+            // a record is its opcode (1 byte), its length (8) and its body
+            let record = mcap::parse_record(mcap::records::op::CHUNK, &buf[start + 9..end])
+                .map_err(|e| mcap_err(file, e))?;
+            let Record::Chunk { header, data } = record else {
+                return Err(RosbagError::format(
+                    file,
+                    format!("MCAP: the summary's chunk at byte {start} is not a chunk"),
+                ));
+            };
+            channels.chunk(file, &header, &data, want, f)?;
+            release(end);
+        }
+        return Ok(());
+    }
     let mut channels = McapChannels::default();
     for record in mcap::read::LinearReader::new(buf).map_err(|e| mcap_err(file, e))? {
-        let record = record.map_err(|e| mcap_err(file, e))?;
-        let Record::Chunk { header, data } = &record else {
-            channels.take(file, &record, want, f)?;
-            continue;
-        };
-        let plain;
-        let (h, body): (mcap::records::ChunkHeader, &[u8]) = match header.compression.as_str() {
-            "" => (header.clone(), data),
-            c => {
-                plain = decompress_chunk(file, c, data, header.uncompressed_size)?;
-                let h = mcap::records::ChunkHeader {
-                    compression: String::new(),
-                    compressed_size: plain.len() as u64,
-                    ..header.clone()
-                };
-                (h, &plain)
-            }
-        };
-        for r in mcap::read::ChunkReader::new(h, body).map_err(|e| mcap_err(file, e))? {
-            channels.take(file, &r.map_err(|e| mcap_err(file, e))?, want, f)?;
+        match record.map_err(|e| mcap_err(file, e))? {
+            Record::Chunk { header, data } => channels.chunk(file, &header, &data, want, f)?,
+            other => channels.take(file, &other, want, f)?,
         }
-        // the chunk's bytes lie in the map: its end is where the pages read so far end
-        let end = (data.as_ptr() as usize)
-            .saturating_sub(buf.as_ptr() as usize)
-            .saturating_add(data.len());
-        release(end.min(buf.len()));
     }
     Ok(())
 }
