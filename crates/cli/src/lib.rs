@@ -5,3 +5,5 @@
 
 pub mod commands;
 pub mod pipeline;
+#[cfg(test)]
+mod test_support;

@@ -226,10 +226,10 @@ mod tests {
 
     /// A project reading the rosbags-written fixture `name` of `crates/rosbag/tests/data`.
     fn project_with_bag(name: &str, bag: ProjectBag) -> Project {
-        let mut file = crate::pipeline::test_support::readme_project_file();
+        let mut file = crate::test_support::readme_project_file();
         file.lrf.bag = Some(bag);
         let data = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../rosbag/tests/data");
-        crate::pipeline::test_support::project(file, vec![data.join(name)])
+        crate::test_support::project(file, vec![data.join(name)])
     }
 
     fn bag(servo_topic: &str) -> ProjectBag {

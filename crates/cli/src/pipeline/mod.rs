@@ -40,8 +40,6 @@ pub mod rectify;
 pub mod report;
 pub mod results;
 pub mod scene;
-#[cfg(test)]
-mod test_support;
 pub mod verdict;
 
 use pingcal_project::Project;

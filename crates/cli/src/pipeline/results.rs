@@ -712,9 +712,9 @@ mod tests {
 
     /// The README's example project (two cameras, `[stereo]` left and right).
     fn example_project(main_camera: &str) -> Project {
-        let mut file = crate::pipeline::test_support::readme_project_file();
+        let mut file = crate::test_support::readme_project_file();
         file.main_camera = main_camera.into();
-        crate::pipeline::test_support::project(file, Vec::new())
+        crate::test_support::project(file, Vec::new())
     }
 
     /// The inverse's update Jacobian against central differences of `plus` and `inverse`.

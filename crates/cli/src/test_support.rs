@@ -1,11 +1,11 @@
-//! What the pipeline's unit tests share: a project from the README's example project file
+//! What the library's unit tests share (the pipeline's among them): a project from the README's example project file
 //! (so the example is also checked to parse), with no images or scan files behind it.
 
 use pingcal_project::{Project, ProjectFile};
 
 /// The README's example `project.toml`, parsed.
 pub fn readme_project_file() -> ProjectFile {
-    let readme = include_str!("../../../../README.md");
+    let readme = include_str!("../../../README.md");
     let at = readme.find("## The project file").unwrap();
     let start = readme[at..].find("```toml\n").unwrap() + at + 8;
     let len = readme[start..].find("```").unwrap();
