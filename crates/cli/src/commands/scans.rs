@@ -252,18 +252,18 @@ fn write_scans(bags: &[Bag], topics: &Topics, out: &Path) -> Result<Written, sup
                 msg: format!("cannot write: {e}"),
             })
     });
-    let remove = |files: &[GeometryFile]| {
-        for p in files.iter().filter_map(GeometryFile::partial) {
+    // every temporary file, removed on any failure from here on
+    let partials: Vec<PathBuf> = files
+        .iter()
+        .filter_map(|f| f.partial().map(Path::to_path_buf))
+        .collect();
+    let cleanup = |e: super::CmdError| {
+        for p in &partials {
             let _ = std::fs::remove_file(p);
         }
+        e
     };
-    let done = match result {
-        Ok(d) => d,
-        Err(e) => {
-            remove(&files);
-            return Err(e.into());
-        }
-    };
+    let done = result.map_err(|e| cleanup(e.into()))?;
     if files.is_empty() {
         return Err(format!(
             "{}: topic {}: no scan lies within the servo messages ({} before the first, {} after the last)",
@@ -276,24 +276,12 @@ fn write_scans(bags: &[Bag], topics: &Topics, out: &Path) -> Result<Written, sup
         .map(|f| (f.path.clone(), f.scans, f.beams, f.header.angle_min_deg))
         .collect();
     let mut finished = Vec::new();
-    let tmps: Vec<PathBuf> = files
-        .iter()
-        .filter_map(|f| f.partial().map(Path::to_path_buf))
-        .collect();
     for f in files {
-        match f.finish() {
-            Ok(pair) => finished.extend(pair),
-            Err(e) => {
-                for t in &tmps {
-                    let _ = std::fs::remove_file(t);
-                }
-                return Err(e.into());
-            }
-        }
+        finished.extend(f.finish().map_err(|e| cleanup(e.into()))?);
     }
     for (tmp, target) in finished {
         std::fs::rename(&tmp, &target)
-            .map_err(|e| format!("{}: cannot write: {e}", target.display()))?;
+            .map_err(|e| cleanup(format!("{}: cannot write: {e}", target.display()).into()))?;
     }
     Ok(Written {
         files: summary,

@@ -140,9 +140,11 @@ pub fn lrf_spheres(project: &Project, opts: &Options, rep: &Reporter) -> Result<
                 scans = Some((header, lines));
             }
         } else {
-            let unit = match l.cloud_unit.as_deref() {
-                Some("m") => CloudUnit::M,
-                _ => CloudUnit::Mm,
+            let unit: CloudUnit = match l.cloud_unit.as_deref() {
+                Some(u) => u
+                    .parse()
+                    .map_err(|e| PipelineError::new(format!("[lrf] cloud_unit: {e}")))?,
+                None => CloudUnit::default(),
             };
             let (c, warnings) = read_cloud_file_in(path, &mount, unit).map_err(err)?;
             for w in warnings {
