@@ -57,6 +57,22 @@ pub struct FinderOptions {
     pub max_sigma0: f64,
     /// A centre whose largest standard deviation exceeds this (mm) is not determined by its rays.
     pub max_centre_sigma_mm: f64,
+    /// A wall is a plane whose second principal spread (σ of its points across the plane's
+    /// shorter side) is at least this (mm) *and* larger than the ball's radius, which no
+    /// visible cap of a ball can be.
+    pub min_wall_spread_mm: f64,
+    /// A sphere is rejected when more than this fraction of the beams that must meet it (those
+    /// inside its incidence and footprint gate) pass through it instead (range beyond its
+    /// surface by more than `outlier_k` σ), beyond a few stray beams ([`STRAY_THROUGH`]).
+    pub max_through_fraction: f64,
+    /// A sphere is rejected when fewer than this fraction of its cluster's points lie on it.
+    pub min_cluster_fraction: f64,
+    /// Accepted difference between the free-radius fit and the nominal radius beyond its
+    /// 3σ, as a fraction of the nominal radius (the tolerance of the ball's making).
+    pub radius_tolerance: f64,
+    /// A sphere is rejected when its inliers, seen from the sensor, cover fewer than this
+    /// many of the 8 sectors around its centre (see [`Ball::coverage`]).
+    pub min_sectors: usize,
     /// Seed of every random choice.
     pub seed: u64,
 }
@@ -78,6 +94,11 @@ impl Default for FinderOptions {
             min_inliers: 6,
             max_sigma0: 2.5,
             max_centre_sigma_mm: 10.0,
+            min_wall_spread_mm: 250.0,
+            max_through_fraction: 0.05,
+            min_cluster_fraction: 0.3,
+            radius_tolerance: 0.05,
+            min_sectors: 6,
             seed: 1,
         }
     }
@@ -100,7 +121,34 @@ pub struct Ball {
     pub sigma0: f64,
     /// Range of the centre from the origin, mm.
     pub range_mm: f64,
+    /// What else the cloud says about this sphere (the acceptance tests' figures).
+    pub support: Support,
 }
+
+/// The evidence for a sphere beyond its own fit: every beam of the cloud (walls included)
+/// that should have met it, and a free-radius fit of its inliers.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Support {
+    /// Beams meeting the sphere within [`THROUGH_MAX_INCIDENCE_DEG`] (and clear of the rim by
+    /// their footprint) whose range is on its surface (within `outlier_k` σ).
+    pub on_surface: usize,
+    /// Beams inside that cone whose range is beyond the surface by more than `outlier_k` σ:
+    /// they passed through where the sphere is said to be, which a solid ball forbids.
+    pub through: usize,
+    /// Fraction of the cluster's points used by the fit.
+    pub cluster_fraction: f64,
+    /// Radius of a free-radius fit of the inliers, mm…
+    pub free_radius_mm: f64,
+    /// …and its σ (a-priori σ scaled by the fit's σ₀ when that is above 1), mm.
+    pub sigma_free_radius_mm: f64,
+    /// Of 8 equal sectors around the centre, as seen along the mean beam, how many hold an
+    /// inlier at least R/4 off the centre line: 8 for a well covered ball, few for a patch
+    /// of something else that happens to curve like it.
+    pub coverage: usize,
+}
+
+/// Beams through a sphere that are tolerated whatever its support (grazing noise tails).
+pub const STRAY_THROUGH: usize = 3;
 
 /// A candidate that was not accepted as a ball.
 #[derive(Debug, Clone, PartialEq)]
@@ -165,6 +213,10 @@ impl Estimator for WallSamples<'_> {
     }
 }
 
+/// Of a wall's points within the plane gate, at least this fraction lie within 1 σ of it
+/// (0.69 for Gaussian range noise at a 2.5 σ gate, 0.4 for points spread evenly).
+const WALL_CORE_FRACTION: f64 = 0.55;
+
 /// Removes large planes; returns the planes and a mask of the points kept.
 fn remove_planes(
     cloud: &Cloud,
@@ -182,8 +234,8 @@ fn remove_planes(
         (0..sub_n).map(|_| rng.random_range(0..n)).collect()
     };
     let min_count = (opt.plane_min_fraction * sub_n as f64).max(30.0) as usize;
-    for _ in 0..opt.max_planes {
-        if sample.len() < min_count {
+    for _ in 0..3 * opt.max_planes {
+        if planes.len() >= opt.max_planes || sample.len() < min_count {
             break;
         }
         let walls = WallSamples {
@@ -210,12 +262,29 @@ fn remove_planes(
         let Some(plane) = Plane::fit(&inl) else {
             break;
         };
-        if plane.spreads()[1] < 2.0 * opt.diameter_mm {
-            break; // not a wall: too small
-        }
         let (n2, d2) = (plane.normal, plane.offset);
+        let off = |i: usize| (n2.dot(&cloud.points[i]) - d2).abs() >= opt.plane_k_sigma * sigma[i];
+        // a wall's points scatter about it as its range noise does (Gaussian: of those
+        // within k σ, P(|z|<1)/P(|z|<k) = 0.69 at k = 2.5); a plane laid through clutter has
+        // them spread evenly over its gate (1/k = 0.4)
+        let z: Vec<f64> = best
+            .inliers
+            .iter()
+            .map(|&k| (n2.dot(&cloud.points[sample[k]]) - d2).abs() / sigma[sample[k]])
+            .collect();
+        let gated = z.iter().filter(|&&v| v <= opt.plane_k_sigma).count().max(1);
+        let core = z.iter().filter(|&&v| v <= 1.0).count();
+        let wall_like = core as f64 / gated as f64 >= WALL_CORE_FRACTION;
+        if !wall_like || plane.spreads()[1] < opt.min_wall_spread_mm.max(0.5 * opt.diameter_mm) {
+            // not a wall (a table top, a box side, a person's back…): its points stay in
+            // the cloud, but the search for walls goes on without them
+            let drop: std::collections::HashSet<usize> =
+                best.inliers.iter().map(|&k| sample[k]).collect();
+            sample.retain(|i| !drop.contains(i));
+            continue;
+        }
         planes.push((n2, d2));
-        sample.retain(|&i| (n2.dot(&cloud.points[i]) - d2).abs() >= opt.plane_k_sigma * sigma[i]);
+        sample.retain(|&i| off(i));
     }
     keep.par_iter_mut().enumerate().for_each(|(i, k)| {
         let p = cloud.points[i];
@@ -410,18 +479,36 @@ fn examine(
         Ok(f) if (f.centre - mean).norm() > opt.diameter_mm * 2.0 => {
             reject(f.centre, "fit left its cluster".into())
         }
-        // a real ball stands clear in front of every wall (seen from the sensor); a "sphere"
-        // whose back is within one range σ of a wall, or behind it, is a fit to the wall's
-        // noise tail (the points just beyond the plane gate)
+        // a solid ball cannot stand inside a wall (it may rest on the floor: touching is
+        // allowed, to the plane's noise and the ball's making)…
         Ok(f)
             if planes.iter().any(|(n, d)| {
                 let side = if *d > 0.0 { -1.0 } else { 1.0 }; // sensor side of n·x = d
-                side * (n.dot(&f.centre) - d) < radius + opt.noise.sigma(f.centre.norm())
+                let slack = 3.0 * opt.noise.sigma(f.centre.norm()) + opt.radius_tolerance * radius;
+                side * (n.dot(&f.centre) - d) < radius - slack
+                    && plane_is_there(cloud, (n, *d), &f.centre, radius, opt)
+            }) =>
+        {
+            reject(f.centre, "sphere cuts a wall plane".into())
+        }
+        // …and a "sphere" whose points hug a removed wall is a fit to the wall's noise tail
+        // (the points just beyond the plane gate: 96 % of the Gaussian tail beyond k σ lies
+        // within k + 1 σ), not a ball in front of it
+        Ok(f)
+            if planes.iter().any(|(n, d)| {
+                let near = f
+                    .used
+                    .iter()
+                    .filter(|&&k| {
+                        (n.dot(&pts[k]) - d).abs() <= (opt.plane_k_sigma + 1.0) * rays[k].sigma
+                    })
+                    .count();
+                2 * near > f.used.len()
             }) =>
         {
             reject(
                 f.centre,
-                "sphere cuts a wall plane or stands within 1σ of it".into(),
+                "its points are the noise tail of a removed wall".into(),
             )
         }
         Ok(f) if f.cov.symmetric_eigenvalues().max().sqrt() > opt.max_centre_sigma_mm => reject(
@@ -432,16 +519,179 @@ fn examine(
                 f.cov.symmetric_eigenvalues().max().sqrt()
             ),
         ),
-        Ok(f) => Outcome::Ball(Ball {
-            range_mm: f.centre.norm(),
-            centre: f.centre,
-            cov: f.cov,
-            inliers: f.used.iter().map(|&k| cl[k]).collect(),
-            cluster_points: cl.len(),
-            rejected_points: cl.len() - f.used.len(),
-            sigma0: f.sigma0,
-        }),
+        Ok(f) => {
+            let used: Vec<Ray> = f.used.iter().map(|&k| rays[k]).collect();
+            let support = support(cloud, &used, &f, opt, cl.len());
+            match verdict(&support, radius, opt) {
+                Some(reason) => reject(f.centre, reason),
+                None => Outcome::Ball(Ball {
+                    range_mm: f.centre.norm(),
+                    centre: f.centre,
+                    cov: f.cov,
+                    inliers: f.used.iter().map(|&k| cl[k]).collect(),
+                    cluster_points: cl.len(),
+                    rejected_points: cl.len() - f.used.len(),
+                    sigma0: f.sigma0,
+                    support,
+                }),
+            }
+        }
     }
+}
+
+/// True when the removed plane `n·x = d` has points (within its gate, and not on the sphere)
+/// less than a radius from the foot of the sphere's centre on it: a plane is a finite wall,
+/// a table top or a box side, and a sphere beside one does not cut it.
+fn plane_is_there(
+    cloud: &Cloud,
+    (n, d): (&Vector3<f64>, f64),
+    c: &Vector3<f64>,
+    radius: f64,
+    opt: &FinderOptions,
+) -> bool {
+    let foot = c - n * (n.dot(c) - d);
+    (0..cloud.len())
+        .filter(|&i| {
+            let p = cloud.points[i];
+            let sigma = point_sigma(cloud, &opt.noise, i);
+            (p - foot).norm_squared() <= radius * radius
+                && (n.dot(&p) - d).abs() <= opt.plane_k_sigma * sigma
+                // the sphere's own points where the plane slices it are no wall
+                && ((p - c).norm() - radius).abs() > opt.fit.outlier_k * sigma
+        })
+        .nth(2)
+        .is_some()
+}
+
+/// Beams meeting a sphere at more than this incidence are left out of the test for beams
+/// through it: near the rim the footprint spreads over the surface and, on real lidars
+/// (the VLP-16 frames of `spherecalib-vlp16`), returns ranges up to 110 mm behind the
+/// surface at 60–70°; inside 50° a real ball leaves at most 2 of 72–349 beams through, a
+/// fit to a chair or a wall corner 9–38.
+pub const THROUGH_MAX_INCIDENCE_DEG: f64 = 50.0;
+
+/// Where a beam stands to a sphere (centre `c` with a largest σ `sigma_c`, radius
+/// `radius`): `None` when it meets the sphere at more than [`THROUGH_MAX_INCIDENCE_DEG`], or
+/// within its footprint or 3 `sigma_c` of the rim (a small ball's rim is where its centre's
+/// uncertainty puts it), else its range minus the front intersection's, in units of its σ
+/// and the centre's.
+fn gated_residual(
+    ray: &Ray,
+    c: &Vector3<f64>,
+    sigma_c: f64,
+    radius: f64,
+    opt: &FitOptions,
+) -> Option<f64> {
+    let w = c - ray.origin;
+    let b = ray.dir.dot(&w);
+    let h2 = (w.norm_squared() - b * b).max(0.0);
+    let half_width = opt.beam_width_a_mm + opt.beam_width_b * ray.range;
+    let h_max = (radius * THROUGH_MAX_INCIDENCE_DEG.to_radians().sin()).min(radius - half_width)
+        - 3.0 * sigma_c;
+    if b <= 0.0 || h_max <= 0.0 || h2 > h_max * h_max {
+        return None;
+    }
+    let s = (radius * radius - h2).sqrt();
+    Some((ray.range - (b - s)) / ray.sigma.hypot(sigma_c))
+}
+
+/// The evidence of the whole cloud for a fitted sphere (see [`Support`]); `inliers` are the
+/// fit's rays, `cluster_points` the size of the cluster they came from.
+fn support(
+    cloud: &Cloud,
+    inliers: &[Ray],
+    fit: &sphere_fit::SphereFit,
+    opt: &FinderOptions,
+    cluster_points: usize,
+) -> Support {
+    let (c, radius) = (&fit.centre, fit.radius);
+    let sigma_c = (fit.cov_posterior().symmetric_eigenvalues().max().max(0.0))
+        .sqrt()
+        .max(fit.cov.symmetric_eigenvalues().max().max(0.0).sqrt());
+    let k = opt.fit.outlier_k;
+    let (mut on_surface, mut through) = (0, 0);
+    for i in 0..cloud.len() {
+        let o = cloud.origin(i);
+        // cheap rejection: the point and the sphere are on different sides of the origin or far apart
+        let v = cloud.points[i] - o;
+        if v.dot(&(c - o)) <= 0.0 {
+            continue;
+        }
+        let ray = Ray::from_point(o, cloud.points[i], point_sigma(cloud, &opt.noise, i));
+        match gated_residual(&ray, c, sigma_c, radius, &opt.fit) {
+            Some(z) if z.abs() <= k => on_surface += 1,
+            Some(z) if z > k => through += 1,
+            _ => {}
+        }
+    }
+    let (free_radius_mm, sigma_free_radius_mm) =
+        match sphere_fit::free_radius_along_ray(inliers, *c, radius, &opt.fit) {
+            Ok((r, sr, s0)) => (r, sr * s0.max(1.0)),
+            Err(_) => (f64::NAN, f64::INFINITY),
+        };
+    // sectors around the centre line, seen along the mean beam
+    let view = inliers.iter().map(|r| r.dir).sum::<Vector3<f64>>();
+    let view = if view.norm() > 0.0 {
+        view.normalize()
+    } else {
+        Vector3::x()
+    };
+    let e1 = view.cross(&Vector3::z());
+    let e1 = if e1.norm() > 1e-6 {
+        e1.normalize()
+    } else {
+        view.cross(&Vector3::x()).normalize()
+    };
+    let e2 = view.cross(&e1);
+    let mut sectors = [false; 8];
+    for r in inliers {
+        let d = r.point() - c;
+        let (x, y) = (d.dot(&e1), d.dot(&e2));
+        if x.hypot(y) >= radius / 4.0 {
+            let a = y.atan2(x).rem_euclid(std::f64::consts::TAU);
+            sectors[((a / std::f64::consts::TAU * 8.0) as usize).min(7)] = true;
+        }
+    }
+    Support {
+        on_surface,
+        through,
+        cluster_fraction: inliers.len() as f64 / cluster_points.max(1) as f64,
+        free_radius_mm,
+        sigma_free_radius_mm,
+        coverage: sectors.iter().filter(|&&b| b).count(),
+    }
+}
+
+/// Why a fitted sphere is not a ball, or `None` when its support holds.
+fn verdict(s: &Support, radius: f64, opt: &FinderOptions) -> Option<String> {
+    let allowed = STRAY_THROUGH as f64 + opt.max_through_fraction * s.on_surface as f64;
+    if s.through as f64 > allowed {
+        return Some(format!(
+            "{} beams pass through where the sphere would be ({} meet it): not a solid ball",
+            s.through, s.on_surface
+        ));
+    }
+    let dr = (s.free_radius_mm - radius).abs();
+    if !(dr <= 3.0 * s.sigma_free_radius_mm + opt.radius_tolerance * radius) {
+        return Some(format!(
+            "a free-radius fit gives r = {:.1} ± {:.1} mm, not the nominal {:.1} mm",
+            s.free_radius_mm, s.sigma_free_radius_mm, radius
+        ));
+    }
+    if s.cluster_fraction < opt.min_cluster_fraction {
+        return Some(format!(
+            "only {:.0} % of its cluster lies on it (need {:.0} %)",
+            100.0 * s.cluster_fraction,
+            100.0 * opt.min_cluster_fraction
+        ));
+    }
+    if s.coverage < opt.min_sectors {
+        return Some(format!(
+            "its points cover {} of 8 sectors around the centre (need {}): a patch, not a ball",
+            s.coverage, opt.min_sectors
+        ));
+    }
+    None
 }
 
 /// Finds every ball of the given diameter in the cloud.

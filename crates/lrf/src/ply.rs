@@ -480,6 +480,7 @@ mod tests {
             rejected_points: 0,
             sigma0: 1.0,
             range_mm: 1500.0,
+            support: Default::default(),
         };
         let mut out = Vec::new();
         write_cloud_with_spheres(&mut out, &cloud, &[ball.clone(), ball], 19.0, &[]).unwrap();

@@ -180,6 +180,30 @@ pub fn run(args: Args) -> CmdResult {
         super::write_atomic(path, text.as_bytes())?;
     }
     if args.why {
+        for (n, d) in &found.planes {
+            println!(
+                "wall removed: {:.4} x + {:.4} y + {:.4} z = {:.1} mm",
+                n.x, n.y, n.z, d
+            );
+        }
+        for (k, b) in found.balls.iter().enumerate() {
+            let (c, s) = (b.centre, &b.support);
+            println!(
+                "ball L{}: ({:.1}, {:.1}, {:.1}) mm, {} of {} cluster points on it, σ₀ {:.2}; free radius {:.1} ± {:.1} mm; {} beams meet it, {} pass through; {} of 8 sectors covered",
+                k + 1,
+                c.x,
+                c.y,
+                c.z,
+                b.inliers.len(),
+                b.cluster_points,
+                b.sigma0,
+                s.free_radius_mm,
+                s.sigma_free_radius_mm,
+                s.on_surface,
+                s.through,
+                s.coverage
+            );
+        }
         for r in &found.rejected {
             let c = r.centre;
             println!(
