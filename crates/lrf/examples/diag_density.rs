@@ -55,11 +55,16 @@ fn main() {
                 e.dot(&ta)
             );
             print!(
-                "  FOUND err {:6.2} σmax {:5.2} inl {} cl {}",
+                "  FOUND err {:6.2} σmax {:5.2} inl {} cl {} r {:.1}±{:.1} thr {}/{} sect {}",
                 (b.centre - c).norm(),
                 b.cov.symmetric_eigenvalues().max().sqrt(),
                 b.inliers.len(),
-                b.cluster_points
+                b.cluster_points,
+                b.support.free_radius_mm,
+                b.support.sigma_free_radius_mm,
+                b.support.through,
+                b.support.on_surface,
+                b.support.coverage
             );
         }
         for r in rej {
