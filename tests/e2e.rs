@@ -879,10 +879,15 @@ fn verdict_is_ok_on_a_clean_simulation_and_doubtful_with_an_unknown_mount_offset
         v["status"], "doubtful",
         "an unknown 25 mm mount offset: {v}"
     );
+    // A 25 mm offset puts a 38 mm ball's points from the two sides of the sweep apart: the
+    // finder refuses such doubled balls (beams pass through them), and the verdict names the
+    // mount either through the registration's misfit of the balls it kept or through the
+    // balls seen twice.
     let reasons = v["reasons"].to_string();
     assert!(
-        reasons.contains("registration's σ0") && reasons.contains("mount"),
-        "the reasons name the registration's misfit and its likely cause: {reasons}"
+        (reasons.contains("registration's σ0") || reasons.contains("seen twice"))
+            && reasons.contains("mount"),
+        "the reasons name the misfit and its likely cause: {reasons}"
     );
     let report = fs::read_to_string(out.join("report.html")).unwrap();
     assert!(

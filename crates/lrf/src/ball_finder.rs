@@ -145,11 +145,22 @@ pub struct Support {
     pub sigma_free_radius_mm: f64,
     /// Range σ of the sensor at the centre's range, mm.
     pub range_sigma_mm: f64,
+    /// The sectors (bit k: sector k of 8 around the centre, seen along the mean beam) of the
+    /// annulus just outside the rim ([`BESIDE_WIDTH`] radii wide) where at least
+    /// [`BESIDE_MIN_BEAMS`] beams stop at the depth of the ball's front (within R/2 behind
+    /// it): a stem or a hand holding the ball fills one side, the floor under it a half
+    /// ring, a pole or an edge that the "ball" is a piece of two opposite sectors alone.
+    pub beside: u8,
     /// Of 8 equal sectors around the centre, as seen along the mean beam, how many hold an
     /// inlier at least R/4 off the centre line: 8 for a well covered ball, few for a patch
     /// of something else that happens to curve like it.
     pub coverage: usize,
 }
+
+/// The annulus tested for a surface going on beside a ball is this many radii wide.
+pub const BESIDE_WIDTH: f64 = 0.6;
+/// A sector of that annulus is occupied with this many beams at the ball's depth.
+pub const BESIDE_MIN_BEAMS: usize = 2;
 
 /// Significance of the test for beams through a sphere (see [`FinderOptions::through_rate`]).
 pub const THROUGH_SIGNIFICANCE: f64 = 1e-3;
@@ -186,6 +197,10 @@ pub struct Rejected {
     pub cluster_points: usize,
     /// Why it was not used.
     pub reason: String,
+    /// As many beams pass through it as meet it (at least half as many): one ball whose
+    /// points from different sweeps do not coincide — seen twice, as under a wrong mount
+    /// model — rather than clutter.
+    pub seen_twice: bool,
 }
 
 /// What [`find_balls`] found.
@@ -322,7 +337,12 @@ fn remove_planes(
     (planes, keep)
 }
 
-/// Euclidean clusters of the kept points (union-find on a hash grid).
+/// Euclidean clusters of the kept points: connected components of "closer than the link"
+/// (`link[k].max(link[m])` for points k, m), by union-find on a grid of sub-cells whose
+/// diagonal is under the shortest link. All points of a sub-cell are then linked at once,
+/// and two sub-cells are joined at the first pair of their points that links them (none
+/// is looked for when they are already joined, or when their boxes are farther apart than
+/// the longest link): exact, and in a dense cloud far fewer distance tests than pairs.
 /// `scale` shrinks the link distance (used to split a cluster that is too large).
 fn clusters(cloud: &Cloud, idx: &[usize], opt: &FinderOptions, scale: f64) -> Vec<Vec<usize>> {
     if idx.is_empty() {
@@ -332,17 +352,20 @@ fn clusters(cloud: &Cloud, idx: &[usize], opt: &FinderOptions, scale: f64) -> Ve
         .iter()
         .map(|&i| scale * (0.5 * opt.diameter_mm).max(2.5 * point_sigma(cloud, &opt.noise, i)))
         .collect();
-    let cell = link.iter().cloned().fold(0.0, f64::max);
-    let key = |p: &Vector3<f64>| {
+    let max_link = link.iter().cloned().fold(0.0, f64::max);
+    let min_link = link.iter().cloned().fold(f64::INFINITY, f64::min);
+    let side = min_link / 3f64.sqrt() * (1.0 - 1e-9);
+    type Key = (i64, i64, i64);
+    let key = |p: &Vector3<f64>| -> Key {
         (
-            (p.x / cell).floor() as i64,
-            (p.y / cell).floor() as i64,
-            (p.z / cell).floor() as i64,
+            (p.x / side).floor() as i64,
+            (p.y / side).floor() as i64,
+            (p.z / side).floor() as i64,
         )
     };
-    let mut grid: HashMap<(i64, i64, i64), Vec<usize>> = HashMap::new();
+    let mut cells: HashMap<Key, Vec<usize>> = HashMap::new();
     for (k, &i) in idx.iter().enumerate() {
-        grid.entry(key(&cloud.points[i])).or_default().push(k);
+        cells.entry(key(&cloud.points[i])).or_default().push(k);
     }
     let mut parent: Vec<usize> = (0..idx.len()).collect();
     fn root(p: &mut [usize], mut a: usize) -> usize {
@@ -352,19 +375,45 @@ fn clusters(cloud: &Cloud, idx: &[usize], opt: &FinderOptions, scale: f64) -> Ve
         }
         a
     }
-    for (k, &i) in idx.iter().enumerate() {
-        let p = cloud.points[i];
-        let (x, y, z) = key(&p);
-        for dx in -1..=1 {
-            for dy in -1..=1 {
-                for dz in -1..=1 {
-                    if let Some(v) = grid.get(&(x + dx, y + dy, z + dz)) {
-                        for &m in v {
-                            if m > k && (cloud.points[idx[m]] - p).norm() < link[k].max(link[m]) {
-                                let (a, b) = (root(&mut parent, k), root(&mut parent, m));
-                                if a != b {
-                                    parent[a.max(b)] = a.min(b);
-                                }
+    fn join(p: &mut [usize], a: usize, b: usize) {
+        let (ra, rb) = (root(p, a), root(p, b));
+        if ra != rb {
+            p[ra.max(rb)] = ra.min(rb);
+        }
+    }
+    for members in cells.values() {
+        for &m in &members[1..] {
+            join(&mut parent, members[0], m);
+        }
+    }
+    // sub-cells whose boxes can hold a pair within the longest link
+    let reach = (max_link / side).ceil() as i64;
+    let mut keys: Vec<Key> = cells.keys().copied().collect();
+    keys.sort_unstable();
+    for &(x, y, z) in &keys {
+        let a = &cells[&(x, y, z)];
+        for dx in -reach..=reach {
+            for dy in -reach..=reach {
+                for dz in -reach..=reach {
+                    let nk = (x + dx, y + dy, z + dz);
+                    if nk <= (x, y, z) {
+                        continue; // each pair of sub-cells once
+                    }
+                    // the boxes' gap along each axis
+                    let gap = |d: i64| (d.abs() - 1).max(0) as f64 * side;
+                    if gap(dx).powi(2) + gap(dy).powi(2) + gap(dz).powi(2) >= max_link * max_link {
+                        continue;
+                    }
+                    let Some(b) = cells.get(&nk) else { continue };
+                    if root(&mut parent, a[0]) == root(&mut parent, b[0]) {
+                        continue;
+                    }
+                    'pairs: for &k in a {
+                        let p = cloud.points[idx[k]];
+                        for &m in b {
+                            if (cloud.points[idx[m]] - p).norm() < link[k].max(link[m]) {
+                                join(&mut parent, k, m);
+                                break 'pairs;
                             }
                         }
                     }
@@ -487,6 +536,7 @@ fn examine(
             centre,
             cluster_points: cl.len(),
             reason,
+            seen_twice: false,
         })
     };
     match sphere_fit::fit_along_ray(&rays, radius, init, &opt.fit) {
@@ -550,7 +600,14 @@ fn examine(
             let used: Vec<Ray> = f.used.iter().map(|&k| rays[k]).collect();
             let support = support(cloud, &used, &f, opt, cl.len());
             match verdict(&support, radius, opt) {
-                Some(reason) => reject(f.centre, reason),
+                Some(reason) => Outcome::Rejected(Rejected {
+                    centre: f.centre,
+                    cluster_points: cl.len(),
+                    seen_twice: support.through
+                        > through_allowed(support.on_surface + support.through, opt.through_rate)
+                        && 2 * support.through >= support.on_surface,
+                    reason,
+                }),
                 None => Outcome::Ball(Ball {
                     range_mm: f.centre.norm(),
                     centre: f.centre,
@@ -619,7 +676,7 @@ fn gated_residual(
         return None;
     }
     let s = (radius * radius - h2).sqrt();
-    Some((ray.range - (b - s)) / ray.sigma.hypot(sigma_c))
+    Some((ray.range - (b - s)) / (ray.sigma * ray.sigma + sigma_c * sigma_c).sqrt())
 }
 
 /// The evidence of the whole cloud for a fitted sphere (see [`Support`]); `inliers` are the
@@ -636,26 +693,6 @@ fn support(
         .sqrt()
         .max(fit.cov.symmetric_eigenvalues().max().max(0.0).sqrt());
     let k = opt.fit.outlier_k;
-    let (mut on_surface, mut through) = (0, 0);
-    for i in 0..cloud.len() {
-        let o = cloud.origin(i);
-        // cheap rejection: the point and the sphere are on different sides of the origin or far apart
-        let v = cloud.points[i] - o;
-        if v.dot(&(c - o)) <= 0.0 {
-            continue;
-        }
-        let ray = Ray::from_point(o, cloud.points[i], point_sigma(cloud, &opt.noise, i));
-        match gated_residual(&ray, c, sigma_c, radius, &opt.fit) {
-            Some(z) if z.abs() <= k => on_surface += 1,
-            Some(z) if z > k => through += 1,
-            _ => {}
-        }
-    }
-    let (free_radius_mm, sigma_free_radius_mm) =
-        match sphere_fit::free_radius_along_ray(inliers, *c, radius, &opt.fit) {
-            Ok((r, sr, s0)) => (r, sr * s0.max(1.0)),
-            Err(_) => (f64::NAN, f64::INFINITY),
-        };
     // sectors around the centre line, seen along the mean beam
     let view = inliers.iter().map(|r| r.dir).sum::<Vector3<f64>>();
     let view = if view.norm() > 0.0 {
@@ -670,15 +707,69 @@ fn support(
         view.cross(&Vector3::x()).normalize()
     };
     let e2 = view.cross(&e1);
+    let sector = |d: &Vector3<f64>| {
+        let a = d
+            .dot(&e2)
+            .atan2(d.dot(&e1))
+            .rem_euclid(std::f64::consts::TAU);
+        ((a / std::f64::consts::TAU * 8.0) as usize).min(7)
+    };
+    // the annulus starts clear of the rim by the footprint and the centre's uncertainty (at
+    // the farthest range of a beam to it) and is BESIDE_WIDTH radii wide
+    let far = (c.norm() + radius) * (1.0 + 1e-9);
+    let inner_at = |range: f64| {
+        radius + 2.0 * (opt.fit.beam_width_a_mm + opt.fit.beam_width_b * range) + 3.0 * sigma_c
+    };
+    let outer = inner_at(far) + BESIDE_WIDTH * radius;
+    let (mut on_surface, mut through) = (0, 0);
+    let mut beside = [0usize; 8];
+    for i in 0..cloud.len() {
+        let o = cloud.origin(i);
+        // cheap rejection: the beam's line passes the centre farther than the annulus around
+        // the ball (or the ball is behind the origin)
+        let v = cloud.points[i] - o;
+        let w = c - o;
+        let vw = v.dot(&w);
+        let (v2, w2) = (v.norm_squared(), w.norm_squared());
+        if vw <= 0.0 || vw * vw < v2 * (w2 - outer * outer) {
+            continue;
+        }
+        let ray = Ray::from_point(o, cloud.points[i], point_sigma(cloud, &opt.noise, i));
+        match gated_residual(&ray, c, sigma_c, radius, &opt.fit) {
+            Some(z) if z.abs() <= k => on_surface += 1,
+            Some(z) if z > k => through += 1,
+            Some(_) => {}
+            None => {
+                // a beam passing just outside the rim that stops at the ball's depth: the
+                // surface goes on beside the ball
+                let b = ray.dir.dot(&w);
+                let q = o + ray.dir * b - c;
+                let h = q.norm();
+                let front = b - radius; // the depth of a surface the cap would be part of
+                let sd = (ray.sigma * ray.sigma + sigma_c * sigma_c).sqrt();
+                if h > inner_at(ray.range)
+                    && h <= outer
+                    && ray.range >= front - k * sd
+                    && ray.range <= front + (0.5 * radius).max(k * sd)
+                {
+                    beside[sector(&q)] += 1;
+                }
+            }
+        }
+    }
+    let (free_radius_mm, sigma_free_radius_mm) =
+        match sphere_fit::free_radius_along_ray(inliers, *c, radius, &opt.fit) {
+            Ok((r, sr, s0)) => (r, sr * s0.max(1.0)),
+            Err(_) => (f64::NAN, f64::INFINITY),
+        };
     let mut sectors = [false; 8];
     for r in inliers {
         let d = r.point() - c;
-        let (x, y) = (d.dot(&e1), d.dot(&e2));
-        if x.hypot(y) >= radius / 4.0 {
-            let a = y.atan2(x).rem_euclid(std::f64::consts::TAU);
-            sectors[((a / std::f64::consts::TAU * 8.0) as usize).min(7)] = true;
+        if (d - view * d.dot(&view)).norm() >= radius / 4.0 {
+            sectors[sector(&d)] = true;
         }
     }
+    let occupied: Vec<usize> = (0..8).filter(|&s| beside[s] >= BESIDE_MIN_BEAMS).collect();
     Support {
         on_surface,
         through,
@@ -687,6 +778,7 @@ fn support(
         sigma_free_radius_mm,
         range_sigma_mm: opt.noise.sigma(c.norm()).max(0.5),
         coverage: sectors.iter().filter(|&&b| b).count(),
+        beside: occupied.iter().fold(0u8, |m, &s| m | (1 << s)),
     }
 }
 
@@ -694,15 +786,27 @@ fn support(
 fn verdict(s: &Support, radius: f64, opt: &FinderOptions) -> Option<String> {
     if s.through > through_allowed(s.on_surface + s.through, opt.through_rate) {
         return Some(format!(
-            "{} beams pass through where the sphere would be ({} meet it): not a solid ball",
-            s.through, s.on_surface
+            "{} beams pass through where the sphere would be ({} meet it): not a solid ball{}",
+            s.through,
+            s.on_surface,
+            if 2 * s.through >= s.on_surface {
+                " (or one ball seen twice: its points from different sweeps do not coincide, as under a wrong mount model)"
+            } else {
+                ""
+            }
         ));
     }
     // beyond its σ and the ball's making, a radius from points whose range σ is a fair part
-    // of it is biased by the surface's curvature, by O(σ²/R)
+    // of it is biased by the surface's curvature, by O(σ²/R). Where the range σ is over a
+    // quarter of the radius (a ping-pong ball under a URG-04LX) the cap's curvature is
+    // barely above the noise: a fit that fails or runs off (r outside R/3…3R) says the
+    // radius is not determined, not that it is wrong.
     let dr = (s.free_radius_mm - radius).abs();
     let curvature = s.range_sigma_mm.powi(2) / radius;
-    if !(dr <= 3.0 * s.sigma_free_radius_mm + opt.radius_tolerance * radius + curvature) {
+    let ran_off = !(s.free_radius_mm >= radius / 3.0 && s.free_radius_mm <= 3.0 * radius);
+    let testable = !(ran_off && s.range_sigma_mm > radius / 4.0);
+    if testable && !(dr <= 3.0 * s.sigma_free_radius_mm + opt.radius_tolerance * radius + curvature)
+    {
         return Some(format!(
             "a free-radius fit gives r = {:.1} ± {:.1} mm, not the nominal {:.1} mm",
             s.free_radius_mm, s.sigma_free_radius_mm, radius
@@ -713,6 +817,21 @@ fn verdict(s: &Support, radius: f64, opt: &FinderOptions) -> Option<String> {
             "only {:.0} % of its cluster lies on it (need {:.0} %)",
             100.0 * s.cluster_fraction,
             100.0 * opt.min_cluster_fraction
+        ));
+    }
+    // a line through the ball: two opposite sectors occupied, the two across them free (a
+    // floor or a body beside a real ball fills a half ring, or one side)
+    let on = |k: usize| s.beside & (1 << (k % 8)) != 0;
+    if s.beside.count_ones() >= 6 {
+        return Some(format!(
+            "a surface surrounds it at its front's depth (sectors {:08b} of the ring around it): a bump on a surface, not a ball",
+            s.beside
+        ));
+    }
+    if (0..4).any(|a| on(a) && on(a + 4) && !on(a + 2) && !on(a + 6)) {
+        return Some(format!(
+            "a surface runs through it at its front's depth (sectors {:08b} of the ring around it): a piece of a pole or an edge, not a ball",
+            s.beside
         ));
     }
     if s.coverage < opt.min_sectors {

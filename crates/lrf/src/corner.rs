@@ -455,6 +455,7 @@ mod tests {
             planes,
             balls: vec![],
             radius: 19.0,
+            clutter: Vec::new(),
         };
         let lrf = SimulatedLrf {
             footprint: None,

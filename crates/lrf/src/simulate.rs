@@ -66,7 +66,7 @@ impl SimulatedLrf {
     }
 }
 
-/// A scene: planes `n·x = d` (n unit) and balls of one radius, in the LRF frame, mm.
+/// A scene: planes `n·x = d` (n unit), balls of one radius and clutter, in the LRF frame, mm.
 #[derive(Debug, Clone, Default)]
 pub struct Scene {
     /// Planes as (unit normal, offset).
@@ -75,6 +75,103 @@ pub struct Scene {
     pub balls: Vec<Vector3<f64>>,
     /// Ball radius, mm.
     pub radius: f64,
+    /// What else stands in the room (no ball: a finder must not report any of it).
+    pub clutter: Vec<Clutter>,
+}
+
+/// A solid that is not a ball, for clutter in a simulated room (mm, LRF frame).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Clutter {
+    /// An axis-aligned box between two corners.
+    Box {
+        /// Lowest corner.
+        min: Vector3<f64>,
+        /// Highest corner.
+        max: Vector3<f64>,
+    },
+    /// A vertical cylinder (a pole, a chair leg) with its caps.
+    Cylinder {
+        /// Centre of the bottom cap.
+        base: Vector3<f64>,
+        /// Radius.
+        radius: f64,
+        /// Height (along +Z).
+        height: f64,
+    },
+    /// An axis-aligned ellipsoid (a person's body, a bag, an egg-shaped bump).
+    Ellipsoid {
+        /// Centre.
+        centre: Vector3<f64>,
+        /// Semi-axes along X, Y, Z.
+        semi_axes: Vector3<f64>,
+    },
+}
+
+impl Clutter {
+    /// First intersection of the ray `o + t d` (t > 0) with the solid.
+    pub fn hit(&self, o: &Vector3<f64>, d: &Vector3<f64>) -> Option<f64> {
+        match *self {
+            Clutter::Box { min, max } => {
+                let (mut t0, mut t1) = (0.0f64, f64::INFINITY);
+                for k in 0..3 {
+                    if d[k].abs() < 1e-15 {
+                        if o[k] < min[k] || o[k] > max[k] {
+                            return None;
+                        }
+                        continue;
+                    }
+                    let (a, b) = ((min[k] - o[k]) / d[k], (max[k] - o[k]) / d[k]);
+                    t0 = t0.max(a.min(b));
+                    t1 = t1.min(a.max(b));
+                }
+                (t0 <= t1 && t0 > 0.0).then_some(t0)
+            }
+            Clutter::Cylinder {
+                base,
+                radius,
+                height,
+            } => {
+                let w = o - base;
+                let (a, b, c) = (
+                    d.x * d.x + d.y * d.y,
+                    2.0 * (w.x * d.x + w.y * d.y),
+                    w.x * w.x + w.y * w.y - radius * radius,
+                );
+                let mut best = f64::INFINITY;
+                if a > 1e-15 {
+                    let disc = b * b - 4.0 * a * c;
+                    if disc >= 0.0 {
+                        let t = (-b - disc.sqrt()) / (2.0 * a);
+                        let z = w.z + t * d.z;
+                        if t > 0.0 && (0.0..=height).contains(&z) {
+                            best = t;
+                        }
+                    }
+                }
+                if d.z.abs() > 1e-15 {
+                    for zc in [0.0, height] {
+                        let t = (zc - w.z) / d.z;
+                        let (x, y) = (w.x + t * d.x, w.y + t * d.y);
+                        if t > 0.0 && x * x + y * y <= radius * radius {
+                            best = best.min(t);
+                        }
+                    }
+                }
+                best.is_finite().then_some(best)
+            }
+            Clutter::Ellipsoid { centre, semi_axes } => {
+                let w = (o - centre).component_div(&semi_axes);
+                let e = d.component_div(&semi_axes);
+                let (a, b, c) = (e.norm_squared(), 2.0 * w.dot(&e), w.norm_squared() - 1.0);
+                let disc = b * b - 4.0 * a * c;
+                if disc < 0.0 {
+                    return None;
+                }
+                let t = (-b - disc.sqrt()) / (2.0 * a);
+                (t > 0.0).then_some(t)
+            }
+        }
+    }
 }
 
 /// First intersection with a sphere: (range, closest-approach distance h, closest-approach range b).
@@ -113,6 +210,11 @@ impl Scene {
                 continue;
             }
             if let (Some(t), _, _) = sphere_hit(o, d, c, self.radius) {
+                best = best.min(t);
+            }
+        }
+        for c in &self.clutter {
+            if let Some(t) = c.hit(o, d) {
                 best = best.min(t);
             }
         }
@@ -243,7 +345,78 @@ pub fn room_corner_scene<R: Rng>(n_balls: usize, rng: &mut R) -> Scene {
         planes,
         balls,
         radius,
+        clutter: Vec::new(),
     }
+}
+
+/// [`room_corner_scene`] with a furnished room beside the balls, at x 0.9–1.9 m and y < 0
+/// (where the half sweep sees it and no beam to a ball passes): poles of the balls' radius
+/// and larger, boxes, a chair (seat, four legs, back), a standing person (an ellipsoid body
+/// and a head of radius 100 mm) and an egg-shaped bump of a ball's size. None is a ball.
+pub fn cluttered_room_scene<R: Rng>(n_balls: usize, rng: &mut R) -> Scene {
+    let mut scene = room_corner_scene(n_balls, rng);
+    let floor = -600.0;
+    let v = Vector3::new;
+    let mut c = vec![
+        // poles: one of exactly the balls' radius, the classic false ball of a 2D scanner
+        Clutter::Cylinder {
+            base: v(950.0, -350.0, floor),
+            radius: 19.0,
+            height: 1500.0,
+        },
+        Clutter::Cylinder {
+            base: v(1250.0, -450.0, floor),
+            radius: 25.0,
+            height: 1500.0,
+        },
+        Clutter::Cylinder {
+            base: v(1700.0, -300.0, floor),
+            radius: 60.0,
+            height: 1500.0,
+        },
+        // boxes
+        Clutter::Box {
+            min: v(1000.0, -1300.0, floor),
+            max: v(1300.0, -1000.0, floor + 400.0),
+        },
+        Clutter::Box {
+            min: v(1400.0, -1000.0, floor),
+            max: v(2000.0, -600.0, floor + 150.0),
+        },
+        // a person: body and head
+        Clutter::Ellipsoid {
+            centre: v(1500.0, -1500.0, floor + 750.0),
+            semi_axes: v(180.0, 120.0, 750.0),
+        },
+        Clutter::Ellipsoid {
+            centre: v(1500.0, -1500.0, floor + 1600.0),
+            semi_axes: v(100.0, 100.0, 100.0),
+        },
+        // an egg of a ball's size on a box
+        Clutter::Ellipsoid {
+            centre: v(1150.0, -1150.0, floor + 425.0),
+            semi_axes: v(30.0, 30.0, 25.0),
+        },
+    ];
+    // a chair: seat at 450 mm, four legs, a back
+    let (cx, cy) = (1000.0, -700.0);
+    c.push(Clutter::Box {
+        min: v(cx, cy, floor + 420.0),
+        max: v(cx + 450.0, cy + 450.0, floor + 460.0),
+    });
+    for (dx, dy) in [(20.0, 20.0), (430.0, 20.0), (20.0, 430.0), (430.0, 430.0)] {
+        c.push(Clutter::Cylinder {
+            base: v(cx + dx, cy + dy, floor),
+            radius: 12.0,
+            height: 420.0,
+        });
+    }
+    c.push(Clutter::Box {
+        min: v(cx + 420.0, cy, floor + 460.0),
+        max: v(cx + 450.0, cy + 450.0, floor + 900.0),
+    });
+    scene.clutter = c;
+    scene
 }
 
 #[cfg(test)]
@@ -256,6 +429,7 @@ mod tests {
             planes: vec![(Vector3::new(0.0, 1.0, 0.0), 2000.0)],
             balls: vec![Vector3::new(0.0, 1000.0, 0.0)],
             radius: 19.0,
+            clutter: Vec::new(),
         };
         let mut rng = pingcal_geometry::consensus::rng(1);
         let d = Vector3::new(0.0, 1.0, 0.0);
@@ -276,6 +450,7 @@ mod tests {
             planes: vec![(Vector3::new(0.0, 1.0, 0.0), 1200.0)],
             balls: vec![Vector3::new(0.0, 1000.0, 0.0)],
             radius: 19.0,
+            clutter: Vec::new(),
         };
         let noise = SimulatedLrf {
             footprint: SimulatedLrf::default().footprint,

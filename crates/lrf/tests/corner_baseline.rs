@@ -120,6 +120,7 @@ fn field(seed: u64, with_floor: bool) -> Field {
         planes,
         balls: vec![],
         radius: 19.0,
+        clutter: Vec::new(),
     };
     let servo: Vec<f64> = (0..=240).map(|k| -60.0 + 0.5 * k as f64).collect();
     let mut scans = scene.scan(&servo, &SimulatedLrf::default(), &mut rng);

@@ -29,6 +29,7 @@ fn ball_rays(dist: f64, noise: &SimulatedLrf, rng: &mut SeededRng) -> (Vector3<f
         planes: vec![(dir, dist + 150.0)],
         balls: vec![c],
         radius: R,
+        clutter: Vec::new(),
     };
     let step = STEP_DEG.to_radians();
     let half = ((R + 20.0) / dist / step).ceil() as i64;

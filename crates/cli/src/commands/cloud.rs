@@ -189,7 +189,7 @@ pub fn run(args: Args) -> CmdResult {
         for (k, b) in found.balls.iter().enumerate() {
             let (c, s) = (b.centre, &b.support);
             println!(
-                "ball L{}: ({:.1}, {:.1}, {:.1}) mm, {} of {} cluster points on it, σ₀ {:.2}; free radius {:.1} ± {:.1} mm; {} beams meet it, {} pass through; {} of 8 sectors covered",
+                "ball L{}: ({:.1}, {:.1}, {:.1}) mm, {} of {} cluster points on it, σ₀ {:.2}; free radius {:.1} ± {:.1} mm; {} beams meet it, {} pass through; {} of 8 sectors covered; ring beside it at its front's depth {:08b}",
                 k + 1,
                 c.x,
                 c.y,
@@ -201,7 +201,8 @@ pub fn run(args: Args) -> CmdResult {
                 s.sigma_free_radius_mm,
                 s.on_surface,
                 s.through,
-                s.coverage
+                s.coverage,
+                s.beside
             );
         }
         for r in &found.rejected {

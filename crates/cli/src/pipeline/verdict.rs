@@ -43,6 +43,11 @@ const Z_1_MINUS_ALPHA: f64 = 2.326_347_874_040_841;
 /// How optimistic the sphere centres' σ's are known to be: over simulator seeds 1–40 the
 /// RMS of (true error / reported σ) of the sphere method's extrinsic is 1.14 (README,
 /// "Accuracy on the paper-matched simulation"; mixed pixels at a ball's rim). The
+/// This many LRF candidates seen twice (see `pingcal_lrf::ball_finder::Rejected::seen_twice`)
+/// make the verdict doubtful: one may be a ball beside its own reflection or two balls
+/// touching, several are a cloud whose sweeps do not agree.
+const SEEN_TWICE_MIN: usize = 2;
+
 /// registration's σ0 is judged against its χ² bound widened by this factor (and the check
 /// points' χ²/n, a squared statistic, by its square), so that a known
 /// and documented optimism is not reported as a fault of every calibration.
@@ -437,6 +442,18 @@ fn unmatched(st: &Stages) -> Vec<String> {
                 s.baseline_mm
             ));
         }
+    }
+    let twice = st
+        .lrf
+        .found
+        .rejected
+        .iter()
+        .filter(|r| r.seen_twice)
+        .count();
+    if twice >= SEEN_TWICE_MIN {
+        out.push(format!(
+            "{twice} LRF candidate(s) were seen twice (as many beams pass through each as meet it): the points of one ball from different servo angles do not coincide, as under a wrong LRF mount model ([lrf] mount_offset_mm, tilts, servo zero); method = \"all\" estimates the mount"
+        ));
     }
     let extra = st.lrf.found.balls.len().saturating_sub(st.ext.pairs.len());
     if extra > 0 {
