@@ -21,10 +21,12 @@ mod closed_sets;
 mod layout;
 mod parse;
 mod schema;
+pub mod sphere_calib;
 mod validate;
 
 pub use closed_sets::{CameraModel, Method, MountParameter, Parameter, TargetFamily};
 pub use layout::{Layout, LayoutError};
+pub use sphere_calib::{CameraFile, SphereCalibFile, SphereCalibFrame, SphereCalibLidar};
 pub use schema::{
     BallLabel, CameraParams, ProjectBag, ProjectBalls, ProjectCamera, ProjectDistance, ProjectFile,
     ProjectFrames, ProjectImage, ProjectLrf, ProjectStereo, ProjectTargets, PARAMETER_NAMES,
