@@ -26,11 +26,11 @@ mod validate;
 
 pub use closed_sets::{CameraModel, Method, MountParameter, Parameter, TargetFamily};
 pub use layout::{Layout, LayoutError};
-pub use sphere_calib::{CameraFile, SphereCalibFile, SphereCalibFrame, SphereCalibLidar};
 pub use schema::{
     BallLabel, CameraParams, ProjectBag, ProjectBalls, ProjectCamera, ProjectDistance, ProjectFile,
     ProjectFrames, ProjectImage, ProjectLrf, ProjectStereo, ProjectTargets, PARAMETER_NAMES,
 };
+pub use sphere_calib::{CameraFile, SphereCalibFile, SphereCalibFrame, SphereCalibLidar};
 
 use std::path::{Path, PathBuf};
 

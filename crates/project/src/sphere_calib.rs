@@ -137,10 +137,7 @@ impl SphereCalibFile {
         if !matches!(f.lidar.unit.as_str(), "m" | "mm") {
             return Err(invalid(
                 file,
-                format!(
-                    "[lidar] unit = {:?}: expected one of m, mm",
-                    f.lidar.unit
-                ),
+                format!("[lidar] unit = {:?}: expected one of m, mm", f.lidar.unit),
             ));
         }
         if f.lidar.noise.is_some() && f.lidar.noise_sigma_mm.is_some() {
@@ -189,7 +186,10 @@ impl CameraFile {
         if c.width == 0 || c.height == 0 {
             return Err(invalid(
                 file,
-                format!("{} × {} pixels: expected a positive size", c.width, c.height),
+                format!(
+                    "{} × {} pixels: expected a positive size",
+                    c.width, c.height
+                ),
             ));
         }
         if !(c.pixel_size_mm > 0.0 && c.pixel_size_mm.is_finite()) {
@@ -276,8 +276,11 @@ image = "c.png"
             .unwrap_err()
             .to_string();
         assert!(e.starts_with("p.toml: line") && e.contains("image"), "{e}");
-        let cam = "model = \"pinhole\"\nwidth = 1\nheight = 1\npixel_size_mm = 1\n[params]\nc_mm = 1\n";
-        let e = CameraFile::parse(cam, "camera.toml").unwrap_err().to_string();
+        let cam =
+            "model = \"pinhole\"\nwidth = 1\nheight = 1\npixel_size_mm = 1\n[params]\nc_mm = 1\n";
+        let e = CameraFile::parse(cam, "camera.toml")
+            .unwrap_err()
+            .to_string();
         assert!(e.starts_with("camera.toml: line 1: model"), "{e}");
     }
 }
