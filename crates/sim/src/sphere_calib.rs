@@ -75,7 +75,7 @@ impl Default for SphereCalibConfig {
         Self {
             frames: 10,
             sphere_radius_mm: 300.0,
-            range_mm: [1500.0, 9000.0],
+            range_mm: [1000.0, 10_000.0],
             lidar_height_mm: 1100.0,
             wall_mm: 12_000.0,
             azimuth_step_deg: 0.2,
@@ -553,7 +553,7 @@ mod tests {
         assert_eq!(sim.centres_lidar.len(), 10);
         for (k, c) in sim.centres_lidar.iter().enumerate() {
             let range = c.norm();
-            assert!((1500.0..=9000.0).contains(&range), "{range}");
+            assert!((1000.0..=10_000.0).contains(&range), "{range}");
             let (pts, on) = sim.cloud(k);
             assert!(
                 on >= 10,
