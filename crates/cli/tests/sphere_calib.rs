@@ -25,7 +25,12 @@ struct Errors {
 }
 
 impl Errors {
-    fn of(r: &Matrix3<f64>, t: &Vector3<f64>, rt: &Matrix3<f64>, tt: &Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
+    fn of(
+        r: &Matrix3<f64>,
+        t: &Vector3<f64>,
+        rt: &Matrix3<f64>,
+        tt: &Vector3<f64>,
+    ) -> (Vector3<f64>, Vector3<f64>) {
         // R = exp([δθ]×) R_true: δθ about the camera axes, as the registration's covariance
         let d = Rotation3::from_matrix_unchecked(r * rt.transpose()).scaled_axis();
         (t - tt, d)
@@ -43,7 +48,8 @@ impl Errors {
 /// Simulates seed `seed` into a temporary folder, calibrates, compares with the truth:
 /// (pingcal, closed form, frames used).
 fn run_seed(seed: u64) -> (Errors, Errors, usize, Outcome, [Vec<f64>; 2]) {
-    let dir = std::env::temp_dir().join(format!("pingcal-spherecalib-{}-{seed}", std::process::id()));
+    let dir =
+        std::env::temp_dir().join(format!("pingcal-spherecalib-{}-{seed}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     simulate_sphere_calib_into(&dir, &SphereCalibConfig::default(), seed).unwrap();
     let truth = read_sphere_calib_truth(&dir.join("truth.json")).unwrap();
@@ -197,7 +203,11 @@ fn recovers_truth_within_its_sigma() {
     // the far frames (beyond ~8.5 m only one ring crosses the sphere) are rejected by the
     // finder as undetermined: most seeds use 8 or 9 of 10
     assert!(frames >= 28, "only {frames} of 40 frames used");
-    assert!(ours.max_abs_z < 4.0, "an error beyond 4σ: {}", ours.max_abs_z);
+    assert!(
+        ours.max_abs_z < 4.0,
+        "an error beyond 4σ: {}",
+        ours.max_abs_z
+    );
     assert!(
         (0.4..=2.0).contains(&ours.rms_z_all),
         "RMS of the z-scores {:.2}",
