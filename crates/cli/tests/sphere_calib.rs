@@ -227,3 +227,115 @@ fn twenty_seed_comparison() {
     print("pingcal (weighted, cone fit)", &ours);
     print("closed form (Tóth et al., SVD)", &theirs);
 }
+
+/// The command as a user runs it: a frame with two spheres in its cloud and a frame whose
+/// image has no sphere are reported and left out; an earlier results.json is never
+/// replaced without `--overwrite`; bad values are one line naming the file.
+#[test]
+fn the_command_reports_frames_it_leaves_out_and_keeps_earlier_results() {
+    let exe = env!("CARGO_BIN_EXE_pingcal");
+    let dir = std::env::temp_dir().join(format!("pingcal-spherecalib-cli-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let data = dir.join("data");
+    let run = |args: &[&str]| {
+        let o = std::process::Command::new(exe).args(args).output().unwrap();
+        (
+            o.status.success(),
+            String::from_utf8_lossy(&o.stdout).to_string(),
+            String::from_utf8_lossy(&o.stderr).to_string(),
+        )
+    };
+    let d = data.to_str().unwrap();
+    let (ok, out, err) = run(&[
+        "simulate",
+        "--kind",
+        "sphere-calib",
+        "--frames",
+        "6",
+        "--seed",
+        "7",
+        "--out",
+        d,
+    ]);
+    assert!(ok, "{out}{err}");
+    assert!(
+        out.starts_with("simulate: wrote") && out.contains("6 frames"),
+        "{out}"
+    );
+    // frame 2: its cloud and frame 3's together (two spheres); frame 4: a black image
+    let c2 = std::fs::read_to_string(data.join("clouds/F02.xyz")).unwrap();
+    let c3 = std::fs::read_to_string(data.join("clouds/F03.xyz")).unwrap();
+    std::fs::write(data.join("clouds/F02.xyz"), c2 + &c3).unwrap();
+    let black = pingcal_targets::GrayImage {
+        width: 1280,
+        height: 720,
+        data: vec![0.0; 1280 * 720],
+    };
+    pingcal_targets::image_io::to_luma8(&black)
+        .save(data.join("images/F04.png"))
+        .unwrap();
+    let project = data.join("sphere-calib.toml");
+    let p = project.to_str().unwrap();
+    let (ok, out, err) = run(&["sphere-calib", p]);
+    assert!(ok, "{out}{err}");
+    assert!(
+        out.contains("F02    not used:") && out.contains("2 spheres of 600 mm found, one expected"),
+        "{out}"
+    );
+    assert!(
+        out.contains("F04    not used:") && out.contains("F04.png: no bright silhouette"),
+        "{out}"
+    );
+    let last = out.lines().last().unwrap();
+    // the farthest frame (8.5–10 m) may be left out too: one ring on the sphere
+    assert!(
+        last.starts_with("sphere-calib: 4 of 6 frames;")
+            || last.starts_with("sphere-calib: 3 of 6 frames;"),
+        "{last}"
+    );
+    let results = data.join("results/results.json");
+    let first = std::fs::read_to_string(&results).unwrap();
+    let json: serde_json::Value = serde_json::from_str(&first).unwrap();
+    assert_eq!(json["frames"][1]["used"], false);
+    assert!(
+        json["extrinsic"]["sigma_translation_mm"][0]
+            .as_f64()
+            .unwrap()
+            > 0.0
+    );
+    assert!(json["closed_form"]["translation_mm"].is_array());
+    // an earlier results.json is kept
+    let (ok, _, err) = run(&["sphere-calib", p]);
+    assert!(!ok);
+    assert!(
+        err.trim_end().lines().count() == 1 && err.contains("results.json: already exists"),
+        "{err}"
+    );
+    assert_eq!(std::fs::read_to_string(&results).unwrap(), first);
+    let (ok, out, err) = run(&["sphere-calib", p, "--overwrite", "--quiet"]);
+    assert!(ok && out.lines().count() == 1, "{out}{err}");
+    // bad values: one line naming the file
+    let text = std::fs::read_to_string(&project).unwrap();
+    std::fs::write(
+        &project,
+        text.replace("sphere_diameter_mm = 600.0", "sphere_diameter_mm = 0.0"),
+    )
+    .unwrap();
+    let (ok, _, err) = run(&["sphere-calib", p, "--overwrite"]);
+    assert!(!ok);
+    assert_eq!(
+        err.trim_end(),
+        format!("pingcal: error: {p}: sphere_diameter_mm = 0: expected a positive number of mm")
+    );
+    std::fs::write(
+        &project,
+        text.replace("clouds/F05.xyz", "clouds/missing.xyz"),
+    )
+    .unwrap();
+    let (ok, _, err) = run(&["sphere-calib", p, "--overwrite"]);
+    assert!(
+        !ok && err.trim_end().lines().count() == 1 && err.contains("missing.xyz"),
+        "{err}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
