@@ -10,4 +10,9 @@
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 cargo test --release -p pingcal --test sphere_calib twenty_seed_comparison -- --ignored --nocapture 2>&1 \
+    | tee "${TMPDIR:-/tmp}/spherecalib-bench.log" \
     | grep -E '^(seed [0-9]+:|\||frames used|centres of the frames)'
+echo "frames left out, by reason:"
+grep -E '^seed [0-9]+ F[0-9]+ skipped' "${TMPDIR:-/tmp}/spherecalib-bench.log" \
+    | sed -E 's/.*(no sphere of [0-9]+ mm found|spheres of [0-9]+ mm found, one expected|no bright silhouette|round bright silhouettes|no round bright).*/\1/' \
+    | sort | uniq -c

@@ -30,9 +30,9 @@ pub struct Args {
     /// (one large sphere seen by a 16-beam lidar and the camera, for `pingcal sphere-calib`).
     #[arg(long, value_enum, default_value_t = Kind::Field)]
     kind: Kind,
-    /// Number of frames (places of the sphere) of `--kind sphere-calib`.
-    #[arg(long, default_value_t = 10)]
-    frames: usize,
+    /// Number of frames (places of the sphere) of `--kind sphere-calib` (default 10).
+    #[arg(long)]
+    frames: Option<usize>,
 }
 
 /// What `pingcal simulate` writes.
@@ -203,7 +203,7 @@ pub fn run(args: Args) -> CmdResult {
             );
         }
         let cfg = pingcal_sim::sphere_calib::SphereCalibConfig {
-            frames: args.frames,
+            frames: args.frames.unwrap_or(10),
             ..Default::default()
         };
         let s = simulate_sphere_calib_into(&args.out, &cfg, args.seed)?;
@@ -217,6 +217,9 @@ pub fn run(args: Args) -> CmdResult {
             t0.elapsed().as_secs_f64()
         );
         return Ok(());
+    }
+    if args.frames.is_some() {
+        return Err("--frames: only for --kind sphere-calib".into());
     }
     let cfg = match &args.config {
         Some(p) => pingcal_sim::SimConfig::from_toml_file(p)?,

@@ -58,6 +58,8 @@ pub struct Args {
 }
 
 type V3 = Vector3<f64>;
+/// An image point, pixels.
+type Pixel = (f64, f64);
 
 /// The camera of the project: the photogrammetric model with known parameters.
 #[derive(Debug, Clone)]
@@ -105,8 +107,9 @@ pub struct ImageSphere {
     pub centre: V3,
     /// Its covariance, mm².
     pub cov: Matrix3<f64>,
-    /// The published closed form's centre (ellipse of the undistorted edge points, the
-    /// bisector of its major axis' end rays, d = √2·r/√(1 − q₁·q₂)), mm.
+    /// The published closed form's centre (ellipse of the undistorted half-level edge points,
+    /// without the blur correction, the bisector of its major axis' end rays,
+    /// d = √2·r/√(1 − q₁·q₂)), mm.
     pub closed_form: V3,
 }
 
@@ -233,8 +236,9 @@ fn find_silhouette(img: &GrayImage) -> Result<Ellipse, String> {
 /// inward shift of the half level of a uniform disc blurred by a Gaussian of σ_b (κ the
 /// outline's curvature, px⁻¹: 0.01 px at 20 px radius and σ_b = 0.66 px, 4.5 mm of range at
 /// 9 m for a 600 mm sphere). σ_b is the median over the normals of the 25–75 % width of the
-/// edge / 1.349. Returns the points and σ_b.
-pub fn silhouette_edges(img: &GrayImage, e: &Ellipse) -> Option<(Vec<(f64, f64)>, f64)> {
+/// edge / 1.349. Returns the corrected points, the uncorrected ones (the half level itself,
+/// what a plain edge detector gives) and σ_b.
+pub fn silhouette_edges(img: &GrayImage, e: &Ellipse) -> Option<(Vec<Pixel>, Vec<Pixel>, f64)> {
     let perimeter = std::f64::consts::TAU * (e.a * e.b).sqrt();
     let k = (perimeter.round() as usize).clamp(64, 720);
     let (sn, cs) = e.theta.sin_cos();
@@ -304,7 +308,11 @@ pub fn silhouette_edges(img: &GrayImage, e: &Ellipse) -> Option<(Vec<(f64, f64)>
             (p0 + s * nx, p1 + s * ny)
         })
         .collect();
-    Some((pts, sigma_b))
+    let raw = found
+        .iter()
+        .map(|&(p0, p1, nx, ny, s50, _, _)| (p0 + s50 * nx, p1 + s50 * ny))
+        .collect();
+    Some((pts, raw, sigma_b))
 }
 
 /// The sphere's centre in the camera frame from its silhouette in `img`.
@@ -318,7 +326,7 @@ pub fn image_sphere(img: &GrayImage, cam: &Camera, radius_mm: f64) -> Result<Ima
     };
     let refined = refine(img, &seed, &p)
         .map_err(|e| format!("the silhouette at ({:.0}, {:.0}): {e:?}", seed.cx, seed.cy))?;
-    let (pts, sigma_blur_px) = silhouette_edges(img, &refined.ellipse).ok_or_else(|| {
+    let (pts, raw, sigma_blur_px) = silhouette_edges(img, &refined.ellipse).ok_or_else(|| {
         format!(
             "the silhouette at ({:.0}, {:.0}): too few edge points along its outline",
             refined.ellipse.cx, refined.ellipse.cy
@@ -359,7 +367,8 @@ pub fn image_sphere(img: &GrayImage, cam: &Camera, radius_mm: f64) -> Result<Ima
         .collect();
     let (centre, cov, s) =
         fit_cone(&kept, c1, radius_mm).ok_or("the sphere fit to the silhouette diverged")?;
-    let closed_form = closed_form_centre(&pts, cam, radius_mm)
+    // the published method has no blur correction: its ellipse is fitted to the half level
+    let closed_form = closed_form_centre(&raw, cam, radius_mm)
         .ok_or("the closed form has no solution on this silhouette")?;
     Ok(ImageSphere {
         ellipse: refined.ellipse,
