@@ -105,8 +105,11 @@ pub struct ImageSphere {
     pub sigma_blur_px: f64,
     /// Centre, mm (camera frame).
     pub centre: V3,
-    /// Its covariance, mm².
+    /// Its covariance, mm² (the fit's, times the variance inflation of the edge residuals'
+    /// correlation along the outline).
     pub cov: Matrix3<f64>,
+    /// That inflation factor.
+    pub inflation: f64,
     /// The published closed form's centre (ellipse of the undistorted half-level edge points,
     /// without the blur correction, the bisector of its major axis' end rays,
     /// d = √2·r/√(1 − q₁·q₂)), mm.
@@ -165,6 +168,29 @@ fn fit_cone(q: &[V3], c0: V3, r: f64) -> Option<(V3, Matrix3<f64>, f64)> {
     c.iter()
         .all(|v| v.is_finite())
         .then_some((c, cov, s2.sqrt()))
+}
+
+/// The variance inflation of a mean of the correlated series `res` (ordered around the
+/// outline, cyclic): `1 + 2 Σ ρ_l` over lags 1–4, at least 1.
+fn correlation_inflation(res: &[f64]) -> f64 {
+    let n = res.len();
+    if n < 16 {
+        return 1.0;
+    }
+    let m = res.iter().sum::<f64>() / n as f64;
+    let c0 = res.iter().map(|e| (e - m).powi(2)).sum::<f64>();
+    if !(c0 > 0.0) {
+        return 1.0;
+    }
+    let rho: f64 = (1..=4)
+        .map(|l| {
+            (0..n)
+                .map(|i| (res[i] - m) * (res[(i + l) % n] - m))
+                .sum::<f64>()
+                / c0
+        })
+        .sum();
+    (1.0 + 2.0 * rho).max(1.0)
 }
 
 /// The closed form of Tóth et al. (NOTES.md "Projection of a sphere"): an ellipse fitted to
@@ -367,6 +393,11 @@ pub fn image_sphere(img: &GrayImage, cam: &Camera, radius_mm: f64) -> Result<Ima
         .collect();
     let (centre, cov, s) =
         fit_cone(&kept, c1, radius_mm).ok_or("the sphere fit to the silhouette diverged")?;
+    // neighbouring edge points share pixels (the blur, the bilinear samples): their errors
+    // are correlated, so the centre's variance is that of fewer independent points
+    let (res, _) = cone_residuals(&kept, &centre, radius_mm).ok_or("the sphere fit diverged")?;
+    let inflation = correlation_inflation(&res);
+    let cov = cov * inflation;
     // the published method has no blur correction: its ellipse is fitted to the half level
     let closed_form = closed_form_centre(&raw, cam, radius_mm)
         .ok_or("the closed form has no solution on this silhouette")?;
@@ -377,6 +408,7 @@ pub fn image_sphere(img: &GrayImage, cam: &Camera, radius_mm: f64) -> Result<Ima
         sigma_blur_px,
         centre,
         cov,
+        inflation,
         closed_form,
     })
 }
@@ -640,7 +672,7 @@ pub fn results_json(o: &Outcome) -> serde_json::Value {
                 })),
                 "camera": f.image.as_ref().map(|s| serde_json::json!({
                     "centre_mm": v(&s.centre), "sigma_mm": sd(&s.cov),
-                    "edge_points": s.edges, "edge_rms_px": s.rms_px, "edge_blur_sigma_px": s.sigma_blur_px,
+                    "edge_points": s.edges, "edge_rms_px": s.rms_px, "edge_blur_sigma_px": s.sigma_blur_px, "edge_correlation_inflation": s.inflation,
                     "ellipse_px": {"cx": s.ellipse.cx, "cy": s.ellipse.cy, "a": s.ellipse.a, "b": s.ellipse.b, "theta_rad": s.ellipse.theta},
                     "closed_form_centre_mm": v(&s.closed_form),
                 })),
