@@ -813,3 +813,74 @@ pub fn run(args: Args) -> CmdResult {
     );
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The camera of `pingcal simulate` (its distortion is strong: −15 % at the corner).
+    fn camera() -> Camera {
+        Camera {
+            model: PhotogrammetricCamera::new(1280, 720, 0.00375),
+            params: [
+                2.45, 0.012, -0.009, -0.021, 4.0e-4, -2.0e-6, 1.5e-4, -1.0e-4, 1.0e-4, 0.0,
+            ],
+        }
+    }
+
+    /// The exact outline of a sphere: unit rays on its silhouette cone and their pixels.
+    fn outline(cam: &Camera, c: &V3, r: f64, n: usize) -> (Vec<V3>, Vec<Pixel>) {
+        let u = c.normalize();
+        let e1 = u.cross(&V3::z()).normalize();
+        let e2 = u.cross(&e1);
+        let alpha = (r / c.norm()).asin();
+        (0..n)
+            .map(|i| {
+                let phi = std::f64::consts::TAU * i as f64 / n as f64;
+                let q = u * alpha.cos() + (e1 * phi.cos() + e2 * phi.sin()) * alpha.sin();
+                let p = cam.model.project(&cam.params, &q, None, None).unwrap();
+                (q, (p.x, p.y))
+            })
+            .unzip()
+    }
+
+    #[test]
+    fn cone_fit_and_closed_form_recover_an_exact_outline_through_the_distortion() {
+        let cam = camera();
+        let r = 300.0;
+        for c in [
+            V3::new(0.0, 1500.0, 0.0),
+            V3::new(-1400.0, 3000.0, 500.0),
+            V3::new(2500.0, 8000.0, -900.0),
+        ] {
+            let (rays, px) = outline(&cam, &c, r, 180);
+            // the pixel → ray map inverts the projection
+            let back: Vec<V3> = px.iter().map(|&(x, y)| cam.ray(x, y).unwrap()).collect();
+            assert!(back.iter().zip(&rays).all(|(a, b)| (a - b).norm() < 1e-9));
+            let (fit, cov, _) = fit_cone(&back, c * 1.05 + V3::new(30.0, 0.0, -20.0), r).unwrap();
+            assert!((fit - c).norm() < 1e-6 * c.norm(), "{fit} vs {c}");
+            assert!(cov.norm() < 1e-9);
+            let cf = closed_form_centre(&px, &cam, r).unwrap();
+            assert!((cf - c).norm() < 1e-6 * c.norm(), "{cf} vs {c}");
+        }
+    }
+
+    #[test]
+    fn correlated_residuals_inflate_the_variance() {
+        // xorshift64: independent uniform values
+        let mut x: u64 = 0x9E37_79B9_7F4A_7C15;
+        let white: Vec<f64> = (0..400)
+            .map(|_| {
+                x ^= x << 13;
+                x ^= x >> 7;
+                x ^= x << 17;
+                (x >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+            })
+            .collect();
+        assert!(correlation_inflation(&white) < 1.3);
+        let smooth: Vec<f64> = (0..400)
+            .map(|i| (i as f64 * 0.2).sin() + 0.1 * white[i])
+            .collect();
+        assert!(correlation_inflation(&smooth) > 5.0);
+    }
+}
