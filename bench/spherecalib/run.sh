@@ -7,8 +7,10 @@
 # noise profile, the default camera) with `pingcal_sim::sphere_calib`, and runs
 # `pingcal::commands::sphere_calib::calibrate` on the files.
 # Prints one line per seed, then the table. About 1 minute on 2 cores.
+# `bash bench/spherecalib/run.sh 30`: the same with a lidar range σ of 30 mm (constant).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
+if [ $# -ge 1 ]; then export PINGCAL_SPHERECALIB_LIDAR_SIGMA_MM="$1"; fi
 cargo test --release -p pingcal --test sphere_calib twenty_seed_comparison -- --ignored --nocapture 2>&1 \
     | tee "${TMPDIR:-/tmp}/spherecalib-bench.log" \
     | grep -E '^(seed [0-9]+:|\||frames used|centres of the frames)'

@@ -51,7 +51,13 @@ fn run_seed(seed: u64) -> (Errors, Errors, usize, Outcome, [Vec<f64>; 2]) {
     let dir =
         std::env::temp_dir().join(format!("pingcal-spherecalib-{}-{seed}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
-    simulate_sphere_calib_into(&dir, &SphereCalibConfig::default(), seed).unwrap();
+    let mut cfg = SphereCalibConfig::default();
+    // the bench's lidar σ (bench/spherecalib/run.sh SIGMA_MM), default the VLP-16 profile
+    if let Ok(v) = std::env::var("PINGCAL_SPHERECALIB_LIDAR_SIGMA_MM") {
+        cfg.noise = pingcal_lrf::RangeNoise::linear(v.parse().unwrap(), 0.0).unwrap();
+        cfg.noise_name = None;
+    }
+    simulate_sphere_calib_into(&dir, &cfg, seed).unwrap();
     let truth = read_sphere_calib_truth(&dir.join("truth.json")).unwrap();
     let o = calibrate(&dir.join("sphere-calib.toml"), 1).unwrap();
     let tp = truth.extrinsic.to_pose();

@@ -62,8 +62,9 @@ pub struct SphereCalibConfig {
     pub azimuth_step_deg: f64,
     /// Range noise of the lidar.
     pub noise: RangeNoise,
-    /// The noise profile's name as the project file gives it.
-    pub noise_name: String,
+    /// The noise profile's name as the project file gives it; `None`: the project gives
+    /// `noise` as `noise_sigma_mm` (then it must be [`RangeNoise::Linear`]).
+    pub noise_name: Option<String>,
     /// No return beyond this range, mm.
     pub max_range_mm: f64,
     /// Image formation (blur, vignetting, noise, sub-pixel rays).
@@ -80,7 +81,7 @@ impl Default for SphereCalibConfig {
             wall_mm: 12_000.0,
             azimuth_step_deg: 0.2,
             noise: RangeNoise::named("VLP-16").expect("a known profile"),
-            noise_name: "VLP-16".into(),
+            noise_name: Some("VLP-16".into()),
             max_range_mm: 100_000.0,
             render: RenderConfig::default(),
         }
@@ -185,6 +186,11 @@ impl SphereCalibSim {
             file: "sphere-calib simulation".into(),
             what,
         };
+        if cfg.noise_name.is_none() && !matches!(cfg.noise, RangeNoise::Linear { .. }) {
+            return Err(bad(
+                "a range-noise profile without a name must be linear (σ = a + b·r)".into(),
+            ));
+        }
         if cfg.frames < 3 {
             return Err(bad(format!(
                 "frames = {}: at least 3 are needed",
@@ -411,8 +417,11 @@ impl SphereCalibSim {
             sphere_diameter_mm: 2.0 * self.config.sphere_radius_mm,
             lidar: SphereCalibLidar {
                 unit: "m".into(),
-                noise: Some(self.config.noise_name.clone()),
-                noise_sigma_mm: None,
+                noise: self.config.noise_name.clone(),
+                noise_sigma_mm: match (&self.config.noise_name, self.config.noise) {
+                    (None, RangeNoise::Linear { a_mm, b }) => Some([a_mm, b]),
+                    _ => None,
+                },
                 model: Some("16-beam spinning lidar (VLP-16-like), simulated".into()),
             },
             frames: (0..self.config.frames)

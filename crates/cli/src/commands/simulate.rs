@@ -2,7 +2,8 @@
 //! (project.toml, PNG images, pingcal-scan CSV, truth.json) of the paper's test field and
 //! sensors (issue 6, crate `pingcal-sim`).
 //!
-//! `pingcal simulate --kind sphere-calib --out DIR [--seed N] [--frames N]`: a data set for
+//! `pingcal simulate --kind sphere-calib --out DIR [--seed N] [--frames N] [--lidar-sigma-mm S]`:
+//! a data set for
 //! `pingcal sphere-calib` (issue 15, `pingcal_sim::sphere_calib`): a 16-beam lidar's clouds
 //! and the camera's images of one large sphere moved to N places, `sphere-calib.toml`,
 //! `camera.toml` and `truth.json`.
@@ -33,6 +34,10 @@ pub struct Args {
     /// Number of frames (places of the sphere) of `--kind sphere-calib` (default 10).
     #[arg(long)]
     frames: Option<usize>,
+    /// The lidar's range σ of `--kind sphere-calib`, mm (constant over range; default the
+    /// VLP-16 profile, 10 mm).
+    #[arg(long)]
+    lidar_sigma_mm: Option<f64>,
 }
 
 /// What `pingcal simulate` writes.
@@ -202,10 +207,15 @@ pub fn run(args: Args) -> CmdResult {
                     .into(),
             );
         }
-        let cfg = pingcal_sim::sphere_calib::SphereCalibConfig {
+        let mut cfg = pingcal_sim::sphere_calib::SphereCalibConfig {
             frames: args.frames.unwrap_or(10),
             ..Default::default()
         };
+        if let Some(s) = args.lidar_sigma_mm {
+            cfg.noise = pingcal_lrf::RangeNoise::linear(s, 0.0)
+                .map_err(|e| format!("--lidar-sigma-mm: {e}"))?;
+            cfg.noise_name = None;
+        }
         let s = simulate_sphere_calib_into(&args.out, &cfg, args.seed)?;
         println!(
             "simulate: wrote {} ({} frames of a {} mm sphere, {} lidar points; seed {}) in {:.1} s",
@@ -218,8 +228,8 @@ pub fn run(args: Args) -> CmdResult {
         );
         return Ok(());
     }
-    if args.frames.is_some() {
-        return Err("--frames: only for --kind sphere-calib".into());
+    if args.frames.is_some() || args.lidar_sigma_mm.is_some() {
+        return Err("--frames, --lidar-sigma-mm: only for --kind sphere-calib".into());
     }
     let cfg = match &args.config {
         Some(p) => pingcal_sim::SimConfig::from_toml_file(p)?,
