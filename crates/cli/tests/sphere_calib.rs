@@ -268,6 +268,17 @@ fn the_command_reports_frames_it_leaves_out_and_keeps_earlier_results() {
         out.starts_with("simulate: wrote") && out.contains("6 frames"),
         "{out}"
     );
+    // a data set is never written over another
+    let (ok, _, err) = run(&["simulate", "--kind", "sphere-calib", "--out", d]);
+    assert!(
+        !ok && err.contains("already exists and is not an empty folder"),
+        "{err}"
+    );
+    let (ok, _, err) = run(&["simulate", "--out", d, "--frames", "3"]);
+    assert!(
+        !ok && err.contains("--frames, --lidar-sigma-mm: only for --kind sphere-calib"),
+        "{err}"
+    );
     // frame 2: its cloud and frame 3's together (two spheres); frame 4: a black image
     let c2 = std::fs::read_to_string(data.join("clouds/F02.xyz")).unwrap();
     let c3 = std::fs::read_to_string(data.join("clouds/F03.xyz")).unwrap();

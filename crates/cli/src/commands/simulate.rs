@@ -49,13 +49,8 @@ pub enum Kind {
     SphereCalib,
 }
 
-/// Checks that `out` does not exist or is an empty folder, runs `write` on a hidden
-/// temporary folder beside it and renames that onto `out`: an interrupted or failed run
-/// never leaves a partial folder looking complete.
-pub fn write_into_place<T>(
-    out: &std::path::Path,
-    write: impl FnOnce(&std::path::Path) -> Result<T, super::CmdError>,
-) -> Result<T, super::CmdError> {
+/// Fails unless `out` does not exist or is an empty folder.
+fn check_out(out: &std::path::Path) -> Result<(), super::CmdError> {
     if out.exists() {
         let empty = out.is_dir()
             && std::fs::read_dir(out)
@@ -70,6 +65,16 @@ pub fn write_into_place<T>(
             .into());
         }
     }
+    Ok(())
+}
+
+/// Runs `write` on a hidden temporary folder beside `out` and renames that onto `out` (an
+/// empty folder or nothing, [`check_out`]): an interrupted or failed run never leaves a
+/// partial folder looking complete.
+fn into_place<T>(
+    out: &std::path::Path,
+    write: impl FnOnce(&std::path::Path) -> Result<T, super::CmdError>,
+) -> Result<T, super::CmdError> {
     let parent = out
         .parent()
         .filter(|p| !p.as_os_str().is_empty())
@@ -98,7 +103,7 @@ pub fn write_into_place<T>(
     if let Err(e) = std::fs::rename(&tmp, out) {
         let _ = std::fs::remove_dir_all(&tmp);
         return Err(format!(
-            "{}: cannot rename the finished data set into place: {e}",
+            "{}: cannot rename the finished project into place: {e}",
             out.display()
         )
         .into());
@@ -113,8 +118,9 @@ pub fn simulate_sphere_calib_into(
     cfg: &pingcal_sim::sphere_calib::SphereCalibConfig,
     seed: u64,
 ) -> Result<pingcal_sim::sphere_calib::SphereCalibSummary, super::CmdError> {
+    check_out(out)?;
     let sim = pingcal_sim::sphere_calib::SphereCalibSim::new(cfg, seed)?;
-    write_into_place(out, |tmp| {
+    into_place(out, |tmp| {
         pingcal_sim::sphere_calib::write_sphere_calib(&sim, tmp).map_err(Into::into)
     })
 }
@@ -135,20 +141,7 @@ pub fn simulate_into(
     ),
     super::CmdError,
 > {
-    if out.exists() {
-        let empty = out.is_dir()
-            && std::fs::read_dir(out)
-                .map_err(|e| format!("{}: {e}", out.display()))?
-                .next()
-                .is_none();
-        if !empty {
-            return Err(format!(
-                "{}: already exists and is not an empty folder",
-                out.display()
-            )
-            .into());
-        }
-    }
+    check_out(out)?;
     let t0 = std::time::Instant::now();
     let sim = pingcal_sim::Simulation::new(cfg, seed).map_err(|e| match config_file {
         Some(p) if matches!(e, pingcal_sim::SimError::Invalid(_)) => {
@@ -156,40 +149,10 @@ pub fn simulate_into(
         }
         _ => e.to_string(),
     })?;
-    let parent = out
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(std::path::Path::new("."));
-    std::fs::create_dir_all(parent)
-        .map_err(|e| format!("{}: cannot create: {e}", parent.display()))?;
-    let name = out
-        .file_name()
-        .ok_or_else(|| format!("{}: not a folder name", out.display()))?;
-    let tmp = parent.join(format!(
-        ".{}.partial-{}",
-        name.to_string_lossy(),
-        std::process::id()
-    ));
-    let _ = std::fs::remove_dir_all(&tmp);
     let t_scene = t0.elapsed().as_secs_f64();
-    let summary = match pingcal_sim::write_project(&sim, &tmp) {
-        Ok(s) => s,
-        Err(e) => {
-            let _ = std::fs::remove_dir_all(&tmp);
-            return Err(e.into());
-        }
-    };
-    if out.exists() {
-        std::fs::remove_dir(out).map_err(|e| format!("{}: {e}", out.display()))?;
-    }
-    if let Err(e) = std::fs::rename(&tmp, out) {
-        let _ = std::fs::remove_dir_all(&tmp);
-        return Err(format!(
-            "{}: cannot rename the finished project into place: {e}",
-            out.display()
-        )
-        .into());
-    }
+    let summary = into_place(out, |tmp| {
+        pingcal_sim::write_project(&sim, tmp).map_err(Into::into)
+    })?;
     Ok((
         summary,
         sim,
@@ -203,7 +166,7 @@ pub fn run(args: Args) -> CmdResult {
     if args.kind == Kind::SphereCalib {
         if args.config.is_some() {
             return Err(
-                "--config: not used by --kind sphere-calib (its options are --frames and --seed)"
+                "--config: not used by --kind sphere-calib (its options are --frames, --lidar-sigma-mm and --seed)"
                     .into(),
             );
         }
