@@ -42,6 +42,8 @@ enum Command {
     Scans(commands::scans::Args),
     /// 3D conformal transform between two files of labelled points, with check points.
     Register(commands::register::Args),
+    /// Camera against any lidar from one large sphere moved between frames (Tóth et al. 2020).
+    SphereCalib(commands::sphere_calib::Args),
 }
 
 fn main() {
@@ -58,6 +60,7 @@ fn main() {
         Command::Cloud(a) => commands::cloud::run(a),
         Command::Scans(a) => commands::scans::run(a),
         Command::Register(a) => commands::register::run(a),
+        Command::SphereCalib(a) => commands::sphere_calib::run(a),
     };
     if let Err(e) = result {
         eprintln!("pingcal: error: {e}");

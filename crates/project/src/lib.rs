@@ -21,6 +21,7 @@ mod closed_sets;
 mod layout;
 mod parse;
 mod schema;
+pub mod sphere_calib;
 mod validate;
 
 pub use closed_sets::{CameraModel, Method, MountParameter, Parameter, TargetFamily};
@@ -29,6 +30,7 @@ pub use schema::{
     BallLabel, CameraParams, ProjectBag, ProjectBalls, ProjectCamera, ProjectDistance, ProjectFile,
     ProjectFrames, ProjectImage, ProjectLrf, ProjectStereo, ProjectTargets, PARAMETER_NAMES,
 };
+pub use sphere_calib::{CameraFile, SphereCalibFile, SphereCalibFrame, SphereCalibLidar};
 
 use std::path::{Path, PathBuf};
 

@@ -37,7 +37,7 @@ impl ProjectFile {
 }
 
 /// "line N: entry: message", or the message alone when the error has no place.
-fn describe(text: &str, e: &toml::de::Error) -> String {
+pub(crate) fn describe(text: &str, e: &toml::de::Error) -> String {
     let message = one_line(e.message());
     // An empty span at the start is the whole document (a missing top-level key).
     let Some(span) = e

@@ -13,6 +13,7 @@
 //! | [`render`] | images: exact ray casting with supersampling, flash, blur, vignetting, noise |
 //! | [`lrf`] | the Hokuyo URG-04LX on a Dynamixel MX-28T: scans through `pingcal_lrf::sensor` (the calibration's own sensor model), with footprint and servo |
 //! | [`project_files`] | `project.toml`, PNG images, scan CSV, `truth.json` |
+//! | [`sphere_calib`] | a data set for the single-sphere calibration (issue 15): a 16-beam spinning lidar and the camera seeing one large sphere moved to N places, clouds, images, `truth.json` |
 //!
 //! ## Frames (all lengths in mm)
 //! * **World** (test field): origin at the corner's vertex, X along wall 1's floor edge,
@@ -41,6 +42,7 @@ pub mod lrf;
 pub mod project_files;
 pub mod render;
 pub mod scene;
+pub mod sphere_calib;
 pub mod stations;
 
 pub use config::{ConfigError, SimConfig};

@@ -55,6 +55,12 @@ impl RayTable {
         Self { width: w, rays }
     }
 
+    /// The unit ray through the centre of pixel (`u`, `v`), `None` where the distortion
+    /// cannot be inverted.
+    pub fn ray(&self, u: u32, v: u32) -> Option<V3> {
+        self.get(u, v)
+    }
+
     fn get(&self, u: u32, v: u32) -> Option<V3> {
         let r = self.rays[(v * self.width + u) as usize];
         r[0].is_finite()

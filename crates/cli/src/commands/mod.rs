@@ -12,6 +12,7 @@ pub mod progress;
 pub mod register;
 pub mod scans;
 pub mod simulate;
+pub mod sphere_calib;
 pub mod targets;
 
 /// The error every command returns: printed by `main` as one line.

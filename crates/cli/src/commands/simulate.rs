@@ -2,6 +2,12 @@
 //! (project.toml, PNG images, pingcal-scan CSV, truth.json) of the paper's test field and
 //! sensors (issue 6, crate `pingcal-sim`).
 //!
+//! `pingcal simulate --kind sphere-calib --out DIR [--seed N] [--frames N] [--lidar-sigma-mm S]`:
+//! a data set for
+//! `pingcal sphere-calib` (issue 15, `pingcal_sim::sphere_calib`): a 16-beam lidar's clouds
+//! and the camera's images of one large sphere moved to N places, `sphere-calib.toml`,
+//! `camera.toml` and `truth.json`.
+//!
 //! The project is written into a hidden temporary folder beside DIR and renamed to DIR at
 //! the end, so an interrupted run never leaves a partial project looking complete.
 
@@ -21,6 +27,102 @@ pub struct Args {
     /// Simulator configuration (TOML; keys not given keep the paper's defaults).
     #[arg(long)]
     config: Option<PathBuf>,
+    /// What to simulate: `field` (the paper's test field, the default) or `sphere-calib`
+    /// (one large sphere seen by a 16-beam lidar and the camera, for `pingcal sphere-calib`).
+    #[arg(long, value_enum, default_value_t = Kind::Field)]
+    kind: Kind,
+    /// Number of frames (places of the sphere) of `--kind sphere-calib` (default 10).
+    #[arg(long)]
+    frames: Option<usize>,
+    /// The lidar's range σ of `--kind sphere-calib`, mm (constant over range; default the
+    /// VLP-16 profile, 10 mm).
+    #[arg(long)]
+    lidar_sigma_mm: Option<f64>,
+}
+
+/// What `pingcal simulate` writes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Kind {
+    /// The paper's test field: a project for `pingcal calibrate`.
+    Field,
+    /// One large sphere at N places: a data set for `pingcal sphere-calib`.
+    SphereCalib,
+}
+
+/// Fails unless `out` does not exist or is an empty folder.
+fn check_out(out: &std::path::Path) -> Result<(), super::CmdError> {
+    if out.exists() {
+        let empty = out.is_dir()
+            && std::fs::read_dir(out)
+                .map_err(|e| format!("{}: {e}", out.display()))?
+                .next()
+                .is_none();
+        if !empty {
+            return Err(format!(
+                "{}: already exists and is not an empty folder",
+                out.display()
+            )
+            .into());
+        }
+    }
+    Ok(())
+}
+
+/// Runs `write` on a hidden temporary folder beside `out` and renames that onto `out` (an
+/// empty folder or nothing, [`check_out`]): an interrupted or failed run never leaves a
+/// partial folder looking complete.
+fn into_place<T>(
+    out: &std::path::Path,
+    write: impl FnOnce(&std::path::Path) -> Result<T, super::CmdError>,
+) -> Result<T, super::CmdError> {
+    let parent = out
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(std::path::Path::new("."));
+    std::fs::create_dir_all(parent)
+        .map_err(|e| format!("{}: cannot create: {e}", parent.display()))?;
+    let name = out
+        .file_name()
+        .ok_or_else(|| format!("{}: not a folder name", out.display()))?;
+    let tmp = parent.join(format!(
+        ".{}.partial-{}",
+        name.to_string_lossy(),
+        std::process::id()
+    ));
+    let _ = std::fs::remove_dir_all(&tmp);
+    let value = match write(&tmp) {
+        Ok(v) => v,
+        Err(e) => {
+            let _ = std::fs::remove_dir_all(&tmp);
+            return Err(e);
+        }
+    };
+    if out.exists() {
+        std::fs::remove_dir(out).map_err(|e| format!("{}: {e}", out.display()))?;
+    }
+    if let Err(e) = std::fs::rename(&tmp, out) {
+        let _ = std::fs::remove_dir_all(&tmp);
+        return Err(format!(
+            "{}: cannot rename the finished project into place: {e}",
+            out.display()
+        )
+        .into());
+    }
+    Ok(value)
+}
+
+/// Simulates a sphere-calib data set with `cfg` and `seed` into `out` (which must not exist,
+/// or be an empty folder), through a hidden temporary folder renamed at the end.
+pub fn simulate_sphere_calib_into(
+    out: &std::path::Path,
+    cfg: &pingcal_sim::sphere_calib::SphereCalibConfig,
+    seed: u64,
+) -> Result<pingcal_sim::sphere_calib::SphereCalibSummary, super::CmdError> {
+    check_out(out)?;
+    let sim = pingcal_sim::sphere_calib::SphereCalibSim::new(cfg, seed)?;
+    into_place(out, |tmp| {
+        pingcal_sim::sphere_calib::write_sphere_calib(&sim, tmp).map_err(Into::into)
+    })
 }
 
 /// Simulates with `cfg` and `seed` and writes the project into `out` (which must not exist,
@@ -39,20 +141,7 @@ pub fn simulate_into(
     ),
     super::CmdError,
 > {
-    if out.exists() {
-        let empty = out.is_dir()
-            && std::fs::read_dir(out)
-                .map_err(|e| format!("{}: {e}", out.display()))?
-                .next()
-                .is_none();
-        if !empty {
-            return Err(format!(
-                "{}: already exists and is not an empty folder",
-                out.display()
-            )
-            .into());
-        }
-    }
+    check_out(out)?;
     let t0 = std::time::Instant::now();
     let sim = pingcal_sim::Simulation::new(cfg, seed).map_err(|e| match config_file {
         Some(p) if matches!(e, pingcal_sim::SimError::Invalid(_)) => {
@@ -60,40 +149,10 @@ pub fn simulate_into(
         }
         _ => e.to_string(),
     })?;
-    let parent = out
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(std::path::Path::new("."));
-    std::fs::create_dir_all(parent)
-        .map_err(|e| format!("{}: cannot create: {e}", parent.display()))?;
-    let name = out
-        .file_name()
-        .ok_or_else(|| format!("{}: not a folder name", out.display()))?;
-    let tmp = parent.join(format!(
-        ".{}.partial-{}",
-        name.to_string_lossy(),
-        std::process::id()
-    ));
-    let _ = std::fs::remove_dir_all(&tmp);
     let t_scene = t0.elapsed().as_secs_f64();
-    let summary = match pingcal_sim::write_project(&sim, &tmp) {
-        Ok(s) => s,
-        Err(e) => {
-            let _ = std::fs::remove_dir_all(&tmp);
-            return Err(e.into());
-        }
-    };
-    if out.exists() {
-        std::fs::remove_dir(out).map_err(|e| format!("{}: {e}", out.display()))?;
-    }
-    if let Err(e) = std::fs::rename(&tmp, out) {
-        let _ = std::fs::remove_dir_all(&tmp);
-        return Err(format!(
-            "{}: cannot rename the finished project into place: {e}",
-            out.display()
-        )
-        .into());
-    }
+    let summary = into_place(out, |tmp| {
+        pingcal_sim::write_project(&sim, tmp).map_err(Into::into)
+    })?;
     Ok((
         summary,
         sim,
@@ -104,6 +163,37 @@ pub fn simulate_into(
 /// Runs the command.
 pub fn run(args: Args) -> CmdResult {
     let t0 = std::time::Instant::now();
+    if args.kind == Kind::SphereCalib {
+        if args.config.is_some() {
+            return Err(
+                "--config: not used by --kind sphere-calib (its options are --frames, --lidar-sigma-mm and --seed)"
+                    .into(),
+            );
+        }
+        let mut cfg = pingcal_sim::sphere_calib::SphereCalibConfig {
+            frames: args.frames.unwrap_or(10),
+            ..Default::default()
+        };
+        if let Some(s) = args.lidar_sigma_mm {
+            cfg.noise = pingcal_lrf::RangeNoise::linear(s, 0.0)
+                .map_err(|e| format!("--lidar-sigma-mm: {e}"))?;
+            cfg.noise_name = None;
+        }
+        let s = simulate_sphere_calib_into(&args.out, &cfg, args.seed)?;
+        println!(
+            "simulate: wrote {} ({} frames of a {} mm sphere, {} lidar points; seed {}) in {:.1} s",
+            args.out.join("sphere-calib.toml").display(),
+            s.frames,
+            2.0 * cfg.sphere_radius_mm,
+            s.points,
+            args.seed,
+            t0.elapsed().as_secs_f64()
+        );
+        return Ok(());
+    }
+    if args.frames.is_some() || args.lidar_sigma_mm.is_some() {
+        return Err("--frames, --lidar-sigma-mm: only for --kind sphere-calib".into());
+    }
     let cfg = match &args.config {
         Some(p) => pingcal_sim::SimConfig::from_toml_file(p)?,
         None => pingcal_sim::SimConfig::default(),

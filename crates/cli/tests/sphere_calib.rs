@@ -1,0 +1,358 @@
+//! The single-sphere calibration (issue 15) against the simulator's truth: pingcal's
+//! weighted estimate and the published closed form (Tóth, Pusztai & Hajder 2020) on the
+//! same simulated frames.
+//!
+//! * `recovers_truth_within_its_sigma` (fast, 4 seeds): every component of pingcal's
+//!   extrinsic error within 4 σ, and the RMS of the z-scores over seeds and components in
+//!   [0.4, 2.0] (24 z-scores: a 95 % range of a χ²₂₄ RMS for correct σ is about
+//!   [0.7, 1.3]; the wider bounds leave room for the lidar fit's known small optimism).
+//! * `twenty_seed_comparison` (`#[ignore]`, the bench: `bash bench/spherecalib/run.sh`, or
+//!   `cargo test --release -p pingcal --test sphere_calib -- --ignored --nocapture`): the
+//!   table of mean |Δt|, mean ΔR and the ratio of the RMS error to the reported σ for both.
+
+use nalgebra::{Matrix3, Rotation3, Vector3};
+use pingcal::commands::simulate::simulate_sphere_calib_into;
+use pingcal::commands::sphere_calib::{calibrate, Outcome};
+use pingcal_sim::sphere_calib::{read_sphere_calib_truth, SphereCalibConfig};
+
+/// Errors of one estimate against the truth.
+#[derive(Debug, Clone, Copy)]
+struct Errors {
+    dt: Vector3<f64>,
+    dtheta: Vector3<f64>,
+    sigma_t: Vector3<f64>,
+    sigma_theta: Vector3<f64>,
+}
+
+impl Errors {
+    fn of(
+        r: &Matrix3<f64>,
+        t: &Vector3<f64>,
+        rt: &Matrix3<f64>,
+        tt: &Vector3<f64>,
+    ) -> (Vector3<f64>, Vector3<f64>) {
+        // R = exp([δθ]×) R_true: δθ about the camera axes, as the registration's covariance
+        let d = Rotation3::from_matrix_unchecked(r * rt.transpose()).scaled_axis();
+        (t - tt, d)
+    }
+    fn z(&self) -> [f64; 6] {
+        let mut z = [0.0; 6];
+        for k in 0..3 {
+            z[k] = self.dt[k] / self.sigma_t[k];
+            z[k + 3] = self.dtheta[k] / self.sigma_theta[k];
+        }
+        z
+    }
+}
+
+/// Simulates seed `seed` into a temporary folder, calibrates, compares with the truth:
+/// (pingcal, closed form, frames used).
+fn run_seed(seed: u64) -> (Errors, Errors, usize, Outcome, [Vec<f64>; 2]) {
+    let dir =
+        std::env::temp_dir().join(format!("pingcal-spherecalib-{}-{seed}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let mut cfg = SphereCalibConfig::default();
+    // the bench's lidar σ (bench/spherecalib/run.sh SIGMA_MM), default the VLP-16 profile
+    if let Ok(v) = std::env::var("PINGCAL_SPHERECALIB_LIDAR_SIGMA_MM") {
+        cfg.noise = pingcal_lrf::RangeNoise::linear(v.parse().unwrap(), 0.0).unwrap();
+        cfg.noise_name = None;
+    }
+    simulate_sphere_calib_into(&dir, &cfg, seed).unwrap();
+    let truth = read_sphere_calib_truth(&dir.join("truth.json")).unwrap();
+    let o = calibrate(&dir.join("sphere-calib.toml"), 1).unwrap();
+    let tp = truth.extrinsic.to_pose();
+    let reg = &o.evaluation.registration;
+    let (dt, dtheta) = Errors::of(
+        &reg.camera_from_lrf.rotation,
+        &reg.camera_from_lrf.translation,
+        &tp.rotation,
+        &tp.translation,
+    );
+    let ours = Errors {
+        dt,
+        dtheta,
+        sigma_t: reg.sigma_translation_mm,
+        sigma_theta: reg.sigma_rotation_vector_deg.map(f64::to_radians),
+    };
+    let cf = &o.closed_form.registration;
+    let (dt, dtheta) = Errors::of(
+        &cf.camera_from_lrf.rotation,
+        &cf.camera_from_lrf.translation,
+        &tp.rotation,
+        &tp.translation,
+    );
+    let theirs = Errors {
+        dt,
+        dtheta,
+        sigma_t: cf.sigma_translation_mm,
+        sigma_theta: cf.sigma_rotation_vector_deg.map(f64::to_radians),
+    };
+    let used = o.frames.iter().filter(|f| f.skipped.is_none()).count();
+    // per-frame centre errors, for the log, and their z-scores (camera, lidar)
+    let mut zs: [Vec<f64>; 2] = [Vec::new(), Vec::new()];
+    for (f, tf) in o.frames.iter().zip(&truth.frames) {
+        let ct = Vector3::from(tf.centre_camera_mm);
+        let lt = Vector3::from(tf.centre_lidar_mm);
+        if let Some(s) = &f.image {
+            let d = s.centre - ct;
+            let sd = s.cov.diagonal().map(f64::sqrt);
+            if f.skipped.is_none() {
+                zs[0].extend((0..3).map(|k| d[k] / sd[k]));
+            }
+            println!(
+                "seed {seed} {} camera Δ = ({:.2}, {:.2}, {:.2}) σ ({:.2}, {:.2}, {:.2}), closed form Δ = ({:.2}, {:.2}, {:.2}); range {:.0} mm",
+                f.id, d.x, d.y, d.z, sd.x, sd.y, sd.z,
+                (s.closed_form - ct).x, (s.closed_form - ct).y, (s.closed_form - ct).z, ct.norm()
+            );
+        }
+        if let Some((c, cov, n, s0)) = f.lidar {
+            let d = c - lt;
+            let sd = cov.diagonal().map(f64::sqrt);
+            if f.skipped.is_none() {
+                zs[1].extend((0..3).map(|k| d[k] / sd[k]));
+            }
+            println!(
+                "seed {seed} {} lidar  Δ = ({:.2}, {:.2}, {:.2}) σ ({:.2}, {:.2}, {:.2}), {n} rays, σ0 {s0:.2}",
+                f.id, d.x, d.y, d.z, sd.x, sd.y, sd.z
+            );
+        }
+        if let Some(s) = &f.skipped {
+            println!("seed {seed} {} skipped: {s}", f.id);
+        }
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+    (ours, theirs, used, o, zs)
+}
+
+struct Summary {
+    mean_dt: f64,
+    mean_dr_deg: f64,
+    rms_z: [f64; 6],
+    rms_z_all: f64,
+    max_abs_z: f64,
+}
+
+fn summarise(e: &[Errors]) -> Summary {
+    let n = e.len() as f64;
+    let mut rms_z = [0.0; 6];
+    let mut max_abs_z: f64 = 0.0;
+    for x in e {
+        for (k, z) in x.z().iter().enumerate() {
+            rms_z[k] += z * z / n;
+            max_abs_z = max_abs_z.max(z.abs());
+        }
+    }
+    let rms_z_all = (rms_z.iter().sum::<f64>() / 6.0).sqrt();
+    Summary {
+        mean_dt: e.iter().map(|x| x.dt.norm()).sum::<f64>() / n,
+        mean_dr_deg: e.iter().map(|x| x.dtheta.norm().to_degrees()).sum::<f64>() / n,
+        rms_z: rms_z.map(f64::sqrt),
+        rms_z_all,
+        max_abs_z,
+    }
+}
+
+fn rms(v: &[f64]) -> f64 {
+    (v.iter().map(|z| z * z).sum::<f64>() / v.len().max(1) as f64).sqrt()
+}
+
+fn table(seeds: std::ops::RangeInclusive<u64>) -> (Summary, Summary, usize) {
+    let (mut ours, mut theirs, mut frames) = (Vec::new(), Vec::new(), 0);
+    let mut zs: [Vec<f64>; 2] = [Vec::new(), Vec::new()];
+    for seed in seeds {
+        let (a, b, used, _, z) = run_seed(seed);
+        zs[0].extend(&z[0]);
+        zs[1].extend(&z[1]);
+        println!(
+            "seed {seed}: {used} frames; pingcal |Δt| {:.2} mm, ΔR {:.4}°, z {:?}; closed form |Δt| {:.2} mm, ΔR {:.4}°",
+            a.dt.norm(),
+            a.dtheta.norm().to_degrees(),
+            a.z().map(|z| (z * 100.0).round() / 100.0),
+            b.dt.norm(),
+            b.dtheta.norm().to_degrees()
+        );
+        ours.push(a);
+        theirs.push(b);
+        frames += used;
+    }
+    println!(
+        "centres of the frames used: RMS z-score of the camera centres {:.2} ({} components), of the lidar centres {:.2}",
+        rms(&zs[0]),
+        zs[0].len(),
+        rms(&zs[1])
+    );
+    (summarise(&ours), summarise(&theirs), frames)
+}
+
+fn print(name: &str, s: &Summary) {
+    println!(
+        "| {name} | {:.2} | {:.4} | {:.2} {:.2} {:.2} | {:.2} {:.2} {:.2} | {:.2} | {:.1} |",
+        s.mean_dt,
+        s.mean_dr_deg,
+        s.rms_z[0],
+        s.rms_z[1],
+        s.rms_z[2],
+        s.rms_z[3],
+        s.rms_z[4],
+        s.rms_z[5],
+        s.rms_z_all,
+        s.max_abs_z
+    );
+}
+
+#[test]
+fn recovers_truth_within_its_sigma() {
+    let (ours, theirs, frames) = table(1..=4);
+    println!("| method | mean |Δt| mm | mean ΔR ° | RMS z of tx ty tz | RMS z of θx θy θz | RMS z | max |z| |");
+    print("pingcal", &ours);
+    print("closed form", &theirs);
+    // the far frames (beyond ~8.5 m only one ring crosses the sphere) are rejected by the
+    // finder as undetermined: most seeds use 8 or 9 of 10
+    assert!(frames >= 28, "only {frames} of 40 frames used");
+    assert!(
+        ours.max_abs_z < 4.0,
+        "an error beyond 4σ: {}",
+        ours.max_abs_z
+    );
+    assert!(
+        (0.4..=2.0).contains(&ours.rms_z_all),
+        "RMS of the z-scores {:.2}",
+        ours.rms_z_all
+    );
+    assert!(ours.mean_dt < 5.0 && ours.mean_dr_deg < 0.1);
+}
+
+/// The 20-seed comparison of the closing note (bench/spherecalib/run.sh runs it).
+#[test]
+#[ignore]
+fn twenty_seed_comparison() {
+    let (ours, theirs, frames) = table(1..=20);
+    println!("frames used: {frames} of 200");
+    println!("| method | mean |Δt| mm | mean ΔR ° | RMS z of tx ty tz | RMS z of θx θy θz | RMS z | max |z| |");
+    println!("|---|---|---|---|---|---|---|");
+    print("pingcal (weighted, cone fit)", &ours);
+    print("closed form (Tóth et al., SVD)", &theirs);
+}
+
+/// The command as a user runs it: a frame with two spheres in its cloud and a frame whose
+/// image has no sphere are reported and left out; an earlier results.json is never
+/// replaced without `--overwrite`; bad values are one line naming the file.
+#[test]
+fn the_command_reports_frames_it_leaves_out_and_keeps_earlier_results() {
+    let exe = env!("CARGO_BIN_EXE_pingcal");
+    let dir = std::env::temp_dir().join(format!("pingcal-spherecalib-cli-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let data = dir.join("data");
+    let run = |args: &[&str]| {
+        let o = std::process::Command::new(exe).args(args).output().unwrap();
+        (
+            o.status.success(),
+            String::from_utf8_lossy(&o.stdout).to_string(),
+            String::from_utf8_lossy(&o.stderr).to_string(),
+        )
+    };
+    let d = data.to_str().unwrap();
+    let (ok, out, err) = run(&[
+        "simulate",
+        "--kind",
+        "sphere-calib",
+        "--frames",
+        "6",
+        "--seed",
+        "7",
+        "--out",
+        d,
+    ]);
+    assert!(ok, "{out}{err}");
+    assert!(
+        out.starts_with("simulate: wrote") && out.contains("6 frames"),
+        "{out}"
+    );
+    // a data set is never written over another
+    let (ok, _, err) = run(&["simulate", "--kind", "sphere-calib", "--out", d]);
+    assert!(
+        !ok && err.contains("already exists and is not an empty folder"),
+        "{err}"
+    );
+    let (ok, _, err) = run(&["simulate", "--out", d, "--frames", "3"]);
+    assert!(
+        !ok && err.contains("--frames, --lidar-sigma-mm: only for --kind sphere-calib"),
+        "{err}"
+    );
+    // frame 2: its cloud and frame 3's together (two spheres); frame 4: a black image
+    let c2 = std::fs::read_to_string(data.join("clouds/F02.xyz")).unwrap();
+    let c3 = std::fs::read_to_string(data.join("clouds/F03.xyz")).unwrap();
+    std::fs::write(data.join("clouds/F02.xyz"), c2 + &c3).unwrap();
+    let black = pingcal_targets::GrayImage {
+        width: 1280,
+        height: 720,
+        data: vec![0.0; 1280 * 720],
+    };
+    pingcal_targets::image_io::to_luma8(&black)
+        .save(data.join("images/F04.png"))
+        .unwrap();
+    let project = data.join("sphere-calib.toml");
+    let p = project.to_str().unwrap();
+    let (ok, out, err) = run(&["sphere-calib", p]);
+    assert!(ok, "{out}{err}");
+    assert!(
+        out.contains("F02    not used:") && out.contains("2 spheres of 600 mm found, one expected"),
+        "{out}"
+    );
+    assert!(
+        out.contains("F04    not used:") && out.contains("F04.png: no bright silhouette"),
+        "{out}"
+    );
+    let last = out.lines().last().unwrap();
+    // the farthest frame (8.5–10 m) may be left out too: one ring on the sphere
+    assert!(
+        last.starts_with("sphere-calib: 4 of 6 frames;")
+            || last.starts_with("sphere-calib: 3 of 6 frames;"),
+        "{last}"
+    );
+    let results = data.join("results/results.json");
+    let first = std::fs::read_to_string(&results).unwrap();
+    let json: serde_json::Value = serde_json::from_str(&first).unwrap();
+    assert_eq!(json["frames"][1]["used"], false);
+    assert!(
+        json["extrinsic"]["sigma_translation_mm"][0]
+            .as_f64()
+            .unwrap()
+            > 0.0
+    );
+    assert!(json["closed_form"]["translation_mm"].is_array());
+    // an earlier results.json is kept
+    let (ok, _, err) = run(&["sphere-calib", p]);
+    assert!(!ok);
+    assert!(
+        err.trim_end().lines().count() == 1 && err.contains("results.json: already exists"),
+        "{err}"
+    );
+    assert_eq!(std::fs::read_to_string(&results).unwrap(), first);
+    let (ok, out, err) = run(&["sphere-calib", p, "--overwrite", "--quiet"]);
+    assert!(ok && out.lines().count() == 1, "{out}{err}");
+    // bad values: one line naming the file
+    let text = std::fs::read_to_string(&project).unwrap();
+    std::fs::write(
+        &project,
+        text.replace("sphere_diameter_mm = 600.0", "sphere_diameter_mm = 0.0"),
+    )
+    .unwrap();
+    let (ok, _, err) = run(&["sphere-calib", p, "--overwrite"]);
+    assert!(!ok);
+    assert_eq!(
+        err.trim_end(),
+        format!("pingcal: error: {p}: sphere_diameter_mm = 0: expected a positive number of mm")
+    );
+    std::fs::write(
+        &project,
+        text.replace("clouds/F05.xyz", "clouds/missing.xyz"),
+    )
+    .unwrap();
+    let (ok, _, err) = run(&["sphere-calib", p, "--overwrite"]);
+    assert!(
+        !ok && err.trim_end().lines().count() == 1 && err.contains("missing.xyz"),
+        "{err}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -1,0 +1,286 @@
+//! # The files of `pingcal sphere-calib`
+//!
+//! The single-sphere calibration of a camera against any lidar (Tóth, Pusztai & Hajder,
+//! ICRA 2020) has a project file of its own, much smaller than `project.toml`:
+//!
+//! ```toml
+//! version = 1
+//! camera = "camera.toml"        # the camera's known intrinsics (below)
+//! sphere_diameter_mm = 600.0
+//!
+//! [lidar]
+//! unit = "m"                    # the clouds' unit: m | mm
+//! noise = "VLP-16"              # a named range-noise profile, or
+//! # noise_sigma_mm = [10.0, 0.0] # σ = a + b·r (a in mm, b per mm of range)
+//!
+//! [[frames]]
+//! cloud = "clouds/F01.xyz"      # PLY, PCD or XYZ, in the lidar's frame
+//! image = "images/F01.png"
+//! ```
+//!
+//! and the camera file (the photogrammetric model of SPEC.md, parameters as in
+//! `project.toml`'s `[cameras.initial]`):
+//!
+//! ```toml
+//! model = "photogrammetric"
+//! width = 1280
+//! height = 720
+//! pixel_size_mm = 0.00375
+//! [params]
+//! c_mm = 2.45
+//! ```
+//!
+//! Every path is relative to the folder of the file that names it. Errors name the file and
+//! the line, as those of `project.toml` do.
+
+use crate::closed_sets::CameraModel;
+use crate::schema::CameraParams;
+use crate::ProjectError;
+use serde::{Deserialize, Serialize};
+
+/// `sphere-calib.toml`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SphereCalibFile {
+    /// Always 1.
+    pub version: u32,
+    /// Optional name.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub name: Option<String>,
+    /// The camera file ([`CameraFile`]), relative to this file's folder.
+    pub camera: String,
+    /// The sphere's diameter, mm.
+    pub sphere_diameter_mm: f64,
+    /// The lidar.
+    pub lidar: SphereCalibLidar,
+    /// The frames: one cloud and one image of the sphere at one place each.
+    pub frames: Vec<SphereCalibFrame>,
+}
+
+/// `[lidar]` of [`SphereCalibFile`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SphereCalibLidar {
+    /// Unit of the clouds' coordinates: `m` or `mm`.
+    pub unit: String,
+    /// A named range-noise profile (`URG-04LX`, `UTM-30LX`, `UST-10LX`, `VLP-16`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub noise: Option<String>,
+    /// Or a linear profile σ = a + b·r: `[a_mm, b]`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub noise_sigma_mm: Option<[f64; 2]>,
+    /// Optional model name (for the report only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub model: Option<String>,
+}
+
+/// One `[[frames]]` entry.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SphereCalibFrame {
+    /// Optional id (default: `F1`, `F2`, … in file order).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub id: Option<String>,
+    /// The cloud (PLY, PCD or XYZ, lidar frame).
+    pub cloud: String,
+    /// The image.
+    pub image: String,
+}
+
+/// The camera file: a camera with known intrinsics.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CameraFile {
+    /// `photogrammetric`.
+    pub model: CameraModel,
+    /// Width, pixels.
+    pub width: u32,
+    /// Height, pixels.
+    pub height: u32,
+    /// Pixel pitch, mm.
+    pub pixel_size_mm: f64,
+    /// The ten parameters (missing ones 0; `c_mm` required).
+    pub params: CameraParams,
+}
+
+fn syntax(file: &str, text: &str, e: toml::de::Error) -> ProjectError {
+    ProjectError::Syntax {
+        path: file.to_string(),
+        what: crate::parse::describe(text, &e),
+    }
+}
+
+fn invalid(file: &str, what: String) -> ProjectError {
+    ProjectError::Invalid {
+        path: file.to_string(),
+        what,
+    }
+}
+
+impl SphereCalibFile {
+    /// Parses and checks the text of a sphere-calib project; `file` names it in errors.
+    pub fn parse(text: &str, file: &str) -> Result<Self, ProjectError> {
+        let f: SphereCalibFile = toml::from_str(text).map_err(|e| syntax(file, text, e))?;
+        if f.version != 1 {
+            return Err(invalid(
+                file,
+                format!("version = {}: expected 1", f.version),
+            ));
+        }
+        let d = f.sphere_diameter_mm;
+        if !(d > 0.0 && d.is_finite()) {
+            return Err(invalid(
+                file,
+                format!("sphere_diameter_mm = {d}: expected a positive number of mm"),
+            ));
+        }
+        if !matches!(f.lidar.unit.as_str(), "m" | "mm") {
+            return Err(invalid(
+                file,
+                format!("[lidar] unit = {:?}: expected one of m, mm", f.lidar.unit),
+            ));
+        }
+        if f.lidar.noise.is_some() && f.lidar.noise_sigma_mm.is_some() {
+            return Err(invalid(
+                file,
+                "[lidar]: give noise or noise_sigma_mm, not both".into(),
+            ));
+        }
+        if f.frames.len() < 3 {
+            return Err(invalid(
+                file,
+                format!(
+                    "{} [[frames]]: at least 3 are needed for a rotation",
+                    f.frames.len()
+                ),
+            ));
+        }
+        let ids = f.frame_ids();
+        for (k, id) in ids.iter().enumerate() {
+            if ids[..k].contains(id) {
+                return Err(invalid(file, format!("[[frames]] id {id:?} given twice")));
+            }
+        }
+        Ok(f)
+    }
+
+    /// The frames' ids: each one's `id`, or `F1`, `F2`, … by position.
+    pub fn frame_ids(&self) -> Vec<String> {
+        self.frames
+            .iter()
+            .enumerate()
+            .map(|(k, fr)| fr.id.clone().unwrap_or_else(|| format!("F{}", k + 1)))
+            .collect()
+    }
+
+    /// The text of the file.
+    pub fn to_toml_string(&self) -> String {
+        toml::to_string(self).expect("a sphere-calib file always serialises")
+    }
+}
+
+impl CameraFile {
+    /// Parses and checks the text of a camera file; `file` names it in errors.
+    pub fn parse(text: &str, file: &str) -> Result<Self, ProjectError> {
+        let c: CameraFile = toml::from_str(text).map_err(|e| syntax(file, text, e))?;
+        if c.width == 0 || c.height == 0 {
+            return Err(invalid(
+                file,
+                format!(
+                    "{} × {} pixels: expected a positive size",
+                    c.width, c.height
+                ),
+            ));
+        }
+        if !(c.pixel_size_mm > 0.0 && c.pixel_size_mm.is_finite()) {
+            return Err(invalid(
+                file,
+                format!(
+                    "pixel_size_mm = {}: expected a positive number",
+                    c.pixel_size_mm
+                ),
+            ));
+        }
+        if !(c.params.c_mm > 0.0 && c.params.c_mm.is_finite()) {
+            return Err(invalid(
+                file,
+                format!(
+                    "[params] c_mm = {}: expected a positive principal distance",
+                    c.params.c_mm
+                ),
+            ));
+        }
+        if !c.params.to_slice().iter().all(|v| v.is_finite()) {
+            return Err(invalid(file, "[params]: every value must be finite".into()));
+        }
+        Ok(c)
+    }
+
+    /// The text of the file.
+    pub fn to_toml_string(&self) -> String {
+        toml::to_string(self).expect("a camera file always serialises")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const PROJECT: &str = r#"version = 1
+camera = "camera.toml"
+sphere_diameter_mm = 600.0
+
+[lidar]
+unit = "m"
+noise = "VLP-16"
+
+[[frames]]
+cloud = "a.xyz"
+image = "a.png"
+
+[[frames]]
+cloud = "b.xyz"
+image = "b.png"
+
+[[frames]]
+id = "last"
+cloud = "c.xyz"
+image = "c.png"
+"#;
+
+    #[test]
+    fn the_module_example_parses_and_round_trips() {
+        let f = SphereCalibFile::parse(PROJECT, "p.toml").unwrap();
+        assert_eq!(f.frame_ids(), ["F1", "F2", "last"]);
+        assert_eq!(SphereCalibFile::parse(&f.to_toml_string(), "p").unwrap(), f);
+        let cam = "model = \"photogrammetric\"\nwidth = 1280\nheight = 720\npixel_size_mm = 0.00375\n[params]\nc_mm = 2.45\n";
+        let c = CameraFile::parse(cam, "camera.toml").unwrap();
+        assert_eq!(c.params.c_mm, 2.45);
+        assert_eq!(CameraFile::parse(&c.to_toml_string(), "c").unwrap(), c);
+    }
+
+    #[test]
+    fn bad_values_name_the_file_and_entry() {
+        let e = SphereCalibFile::parse(&PROJECT.replace("600.0", "0.0"), "p.toml")
+            .unwrap_err()
+            .to_string();
+        assert_eq!(
+            e,
+            "p.toml: sphere_diameter_mm = 0: expected a positive number of mm"
+        );
+        let e = SphereCalibFile::parse(&PROJECT.replace("\"m\"", "\"cm\""), "p.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("unit = \"cm\": expected one of m, mm"), "{e}");
+        let e = SphereCalibFile::parse(&PROJECT.replace("image = \"a.png\"", ""), "p.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("p.toml: line") && e.contains("image"), "{e}");
+        let cam =
+            "model = \"pinhole\"\nwidth = 1\nheight = 1\npixel_size_mm = 1\n[params]\nc_mm = 1\n";
+        let e = CameraFile::parse(cam, "camera.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("camera.toml: line 1: model"), "{e}");
+    }
+}
