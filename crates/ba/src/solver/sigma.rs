@@ -72,8 +72,9 @@ pub struct Precision {
     pub standardized_residuals: Vec<[f64; 2]>,
     /// Per image observation (problem order): the redundancy numbers of u and v,
     /// `q_vv = 1 − (A Q Aᵀ)_ii` in whitened units (the share of the observation's own error
-    /// that shows in its residual; they add up to the redundancy with those of the
-    /// distances and control coordinates). 0 where the observation has no redundancy.
+    /// that shows in its residual). With those of the distances they add up to the
+    /// redundancy, less the control coordinates' share (not given). 0 where the observation
+    /// has no redundancy.
     #[serde(skip)]
     pub redundancy_numbers: Vec<[f64; 2]>,
     /// Per distance (problem order): its redundancy number.
