@@ -328,3 +328,96 @@ fn a_distance_point_without_rays_is_named_undetermined_not_a_datum_defect() {
         }
     }
 }
+
+/// Variance components: the observations of every other point are three times noisier than
+/// their σ says, those of the others half as noisy as theirs (a pessimistic a-priori σ, as
+/// pingcal's targets have). One σ0 for all (√((¼ + 9)/2)-ish) is wrong for both groups; each
+/// group's own σ0 (its vᵀPv over its share of the redundancy) recovers 0.5 and 3, the
+/// redundancy numbers add up to the redundancy, and after Förstner's re-weighting every
+/// group's σ0 is 1 and the points' σ's match their Monte Carlo errors group by group.
+#[test]
+fn variance_components_recover_each_groups_sigma() {
+    use pingcal_ba::solver::{estimate_variance_components, variance_components};
+    use rand_distr::{Distribution, Normal};
+    let truth = truth();
+    let group_of: Vec<usize> = truth.observations.iter().map(|o| o.point % 2).collect();
+    let names = ["half", "thrice"];
+    let n = Normal::new(0.0, 1.0).unwrap();
+    let runs = 40;
+    let mut s0 = [0.0; 2];
+    // per network and group: the mean z² of the points' coordinates
+    let mut per_network: [Vec<f64>; 2] = [Vec::new(), Vec::new()];
+    for run in 0..runs {
+        let mut p = realisation(&truth, 9000 + run);
+        let mut rng = pingcal_geometry::consensus::rng(19000 + run);
+        for (o, &g) in p.observations.iter_mut().zip(&group_of) {
+            // the realisation's noise is σ; group 0 claims 2σ, group 1 gets 3σ in all
+            if g == 0 {
+                o.sigma *= 2.0;
+            } else {
+                let extra = 8.0f64.sqrt() * o.sigma;
+                o.uv += nalgebra::Vector2::new(n.sample(&mut rng), n.sample(&mut rng)) * extra;
+            }
+        }
+        solve(&mut p, &options(), |_| {}).unwrap();
+        let prec = precision(&p).unwrap();
+        let total: f64 = prec
+            .redundancy_numbers
+            .iter()
+            .map(|r| r[0] + r[1])
+            .sum::<f64>()
+            + prec.distance_redundancy_numbers.iter().sum::<f64>();
+        assert!(
+            (total - prec.redundancy as f64).abs() < 1e-6 * prec.redundancy as f64,
+            "redundancy numbers add up to {total}, redundancy {}",
+            prec.redundancy
+        );
+        let first = variance_components(&p, &prec, &group_of, &names);
+        assert_eq!(first.len(), 2, "{first:?}");
+        let est = estimate_variance_components(&mut p, &options(), &group_of, &names).unwrap();
+        assert!((est.sigma0_a_priori - prec.sigma0).abs() < 1e-9);
+        assert!(
+            (est.precision.sigma0 - 1.0).abs() < 0.01,
+            "{}",
+            est.precision.sigma0
+        );
+        for (g, c) in est.components.iter().enumerate() {
+            assert!(c.reweighted);
+            s0[g] += c.sigma0 / runs as f64;
+        }
+        let (mut z2, mut count) = ([0.0; 2], [0usize; 2]);
+        for (q, pt) in p.points.iter().enumerate() {
+            if pt.fixed {
+                continue;
+            }
+            let sig = est.precision.point_sigma(q).unwrap();
+            for a in 0..3 {
+                z2[q % 2] += ((pt.position[a] - truth.points[q].position[a]) / sig[a]).powi(2);
+                count[q % 2] += 1;
+            }
+        }
+        for g in 0..2 {
+            per_network[g].push(z2[g] / count[g] as f64);
+        }
+    }
+    println!("variance components: {s0:?} (want 0.5, 3)");
+    assert!((s0[0] / 0.5 - 1.0).abs() < 0.02, "{s0:?}");
+    assert!((s0[1] / 3.0 - 1.0).abs() < 0.02, "{s0:?}");
+    // the points of each group: mean z² 1 within 4 standard errors of the mean of the
+    // per-network values (the networks are independent, the points of one are not); one σ0
+    // for both groups would give about 0.06 and 2
+    for (g, v) in per_network.iter().enumerate() {
+        let m = v.iter().sum::<f64>() / v.len() as f64;
+        let var = v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (v.len() - 1) as f64;
+        let tol = 4.0 * (var / v.len() as f64).sqrt();
+        println!(
+            "group {}: mean z² of the points {m:.3} (tolerance ±{tol:.3})",
+            names[g]
+        );
+        assert!(
+            (m - 1.0).abs() < tol,
+            "group {}: mean z² {m} ± {tol}",
+            names[g]
+        );
+    }
+}

@@ -72,6 +72,8 @@ pub(crate) fn precision(
     let point_covariances = (0..problem.points.len())
         .map(|p| point_col(layout, p).map(|c| Matrix3::from_fn(|a, b| s02 * q[(c + a, c + b)])))
         .collect();
+    let (standardized_residuals, redundancy_numbers, distance_redundancy_numbers) =
+        standardized_residuals(layout, &j, &q, &r);
     Ok(Precision {
         sigma0,
         redundancy,
@@ -82,7 +84,9 @@ pub(crate) fn precision(
         poses,
         rig_covariances,
         point_covariances,
-        standardized_residuals: standardized_residuals(layout, &j, &q, &r),
+        standardized_residuals,
+        redundancy_numbers,
+        distance_redundancy_numbers,
     })
 }
 
@@ -233,25 +237,33 @@ fn inner_constraint_cofactors(
 }
 
 /// The standardized residuals of the image observations (in the problem's order):
-/// `r / √q_vv` with `q_vv = 1 − (J Q Jᵀ)_ii`; NaN where q_vv vanishes.
+/// `r / √q_vv` with `q_vv = 1 − (J Q Jᵀ)_ii`; NaN where q_vv vanishes. Beside them the
+/// redundancy numbers `q_vv` of the image observations and of the distances (0 where
+/// there is no redundancy).
 fn standardized_residuals(
     layout: &Layout,
     j: &DMatrix<f64>,
     q: &DMatrix<f64>,
     r: &[f64],
-) -> Vec<[f64; 2]> {
+) -> (Vec<[f64; 2]>, Vec<[f64; 2]>, Vec<f64>) {
     let jq = j * q;
+    let qvv = |row: usize| 1.0 - jq.row(row).dot(&j.row(row));
     let n_img_obs = layout.obs_order.len();
     let mut standardized = vec![[f64::NAN; 2]; n_img_obs];
+    let mut redundancy = vec![[0.0; 2]; n_img_obs];
     for o in 0..n_img_obs {
         let q_index = layout.obs_order[o] as usize;
-        for (a, w) in standardized[q_index].iter_mut().enumerate() {
+        for a in 0..2 {
             let row = 2 * o + a;
-            let qvv = 1.0 - jq.row(row).dot(&j.row(row));
+            let qvv = qvv(row);
             if qvv > 1e-9 {
-                *w = r[row] / qvv.sqrt();
+                standardized[q_index][a] = r[row] / qvv.sqrt();
+                redundancy[q_index][a] = qvv;
             }
         }
     }
-    standardized
+    let distances = (2 * n_img_obs..j.nrows())
+        .map(|row| qvv(row).max(0.0))
+        .collect();
+    (standardized, redundancy, distances)
 }

@@ -19,12 +19,17 @@ mod outliers;
 mod precision;
 mod schur;
 mod sigma;
+mod variance;
 
 pub use free_network::MAX_FREE_NETWORK_UNKNOWNS;
 pub use linear::LinearSolverKind;
 pub use outliers::{adjust_with_snooping, Rejection, SnoopError, SnoopResult};
 pub use precision::{points_covariance, precision};
 pub use sigma::{IntrinsicsPrecision, PoseSigma, Precision, PrecisionError, MAX_DENSE_PRECISION};
+pub use variance::{
+    estimate_variance_components, variance_components, VarianceComponent, VarianceError,
+    VarianceEstimate, MIN_GROUP_REDUNDANCY, VCE_MAX_ROUNDS, VCE_TOLERANCE,
+};
 
 use crate::problem::{Problem, ProblemError};
 use layout::Layout;

@@ -184,6 +184,8 @@ pub fn precision(problem: &Problem) -> Result<Precision, PrecisionError> {
     for (ep, &p) in eliminated.iter().zip(&layout.free_points) {
         point_covariances[p] = Some(ep.q * s02);
     }
+    let (standardized_residuals, redundancy_numbers) =
+        standardized_residuals(&layout, &lin, &q_cc, &eliminated);
 
     Ok(Precision {
         sigma0,
@@ -195,7 +197,9 @@ pub fn precision(problem: &Problem) -> Result<Precision, PrecisionError> {
         poses,
         rig_covariances,
         point_covariances,
-        standardized_residuals: standardized_residuals(&layout, &lin, &q_cc, &eliminated),
+        standardized_residuals,
+        redundancy_numbers,
+        distance_redundancy_numbers: distance_redundancy_numbers(&layout, &lin, &q_cc),
     })
 }
 
@@ -307,26 +311,61 @@ impl EliminatedPoint {
 }
 
 /// The standardized residuals of the image observations (in the problem's order):
-/// `r / √q_vv` with `q_vv = 1 − (A Q Aᵀ)_ii`; NaN where q_vv vanishes.
+/// `r / √q_vv` with `q_vv = 1 − (A Q Aᵀ)_ii`; NaN where q_vv vanishes. Beside them the
+/// redundancy numbers `q_vv` themselves (0 where the observation has no redundancy).
 fn standardized_residuals(
     layout: &Layout,
     lin: &Linearization,
     q_cc: &DMatrix<f64>,
     eliminated: &[EliminatedPoint],
-) -> Vec<[f64; 2]> {
+) -> (Vec<[f64; 2]>, Vec<[f64; 2]>) {
     let mut standardized = vec![[f64::NAN; 2]; layout.obs_order.len()];
+    let mut redundancy = vec![[0.0; 2]; layout.obs_order.len()];
     for o in 0..layout.obs_order.len() {
         let aqa = observation_cofactor(layout, lin, q_cc, eliminated, o);
         let r = lin.r[o];
         let q = layout.obs_order[o] as usize;
-        for (a, w) in standardized[q].iter_mut().enumerate() {
+        for a in 0..2 {
             let qvv = 1.0 - aqa[(a, a)];
             if qvv > 1e-9 {
-                *w = r[a] / qvv.sqrt();
+                standardized[q][a] = r[a] / qvv.sqrt();
+                redundancy[q][a] = qvv;
             }
         }
     }
-    standardized
+    (standardized, redundancy)
+}
+
+/// The redundancy number `1 − g Q gᵀ` of every distance (g its whitened Jacobian row; both
+/// points are in the reduced system, a fixed one has no row).
+fn distance_redundancy_numbers(
+    layout: &Layout,
+    lin: &Linearization,
+    q_cc: &DMatrix<f64>,
+) -> Vec<f64> {
+    lin.dist
+        .iter()
+        .zip(&layout.distance_slots)
+        .map(|((_, g), slots)| {
+            // the Jacobian is +g for the first point and −g for the second
+            let rows: Vec<(usize, f64)> = slots
+                .iter()
+                .zip([1.0, -1.0])
+                .filter_map(|(s, sign)| s.map(|s| (layout.slot_offset(s), sign)))
+                .collect();
+            let mut gqg = 0.0;
+            for &(oa, sa) in &rows {
+                for &(ob, sb) in &rows {
+                    for u in 0..3 {
+                        for v in 0..3 {
+                            gqg += sa * g[u] * q_cc[(oa + u, ob + v)] * sb * g[v];
+                        }
+                    }
+                }
+            }
+            (1.0 - gqg).max(0.0)
+        })
+        .collect()
 }
 
 /// A Q Aᵀ of observation `o` (internal order) in whitened units, with A = [J_c, J_p] and

@@ -70,6 +70,16 @@ pub struct Precision {
     /// for a good observation). NaN where the observation has no redundancy.
     #[serde(skip)]
     pub standardized_residuals: Vec<[f64; 2]>,
+    /// Per image observation (problem order): the redundancy numbers of u and v,
+    /// `q_vv = 1 − (A Q Aᵀ)_ii` in whitened units (the share of the observation's own error
+    /// that shows in its residual). With those of the distances they add up to the
+    /// redundancy, less the control coordinates' share (not given). 0 where the observation
+    /// has no redundancy.
+    #[serde(skip)]
+    pub redundancy_numbers: Vec<[f64; 2]>,
+    /// Per distance (problem order): its redundancy number.
+    #[serde(skip)]
+    pub distance_redundancy_numbers: Vec<f64>,
 }
 
 impl Precision {

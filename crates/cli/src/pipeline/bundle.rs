@@ -16,7 +16,9 @@ use super::adjust::{rig_cameras, Datum, SceneProblem};
 use super::ids::ImageId;
 use super::scene::{image_file, Detections, PointKind, Scene};
 use super::{Options, PipelineError, Reporter, Result};
-use pingcal_ba::solver::{self, Precision, PrecisionError, Rejection, SnoopError};
+use pingcal_ba::solver::{
+    self, Precision, PrecisionError, Rejection, SnoopError, VarianceComponent, VarianceError,
+};
 use pingcal_geometry::Rigid3;
 use pingcal_project::Project;
 
@@ -25,8 +27,11 @@ pub struct Adjusted {
     /// The last problem solved, with its map to the scene (its solution is also in the
     /// [`Scene`]) and the balls' eccentricity corrections.
     pub solved: SceneProblem,
-    /// Precision of the last adjustment.
+    /// Precision of the last adjustment (each group weighted by its variance component).
     pub precision: Precision,
+    /// σ0 of the last adjustment with the a-priori σ's, before the re-weighting: what the
+    /// verdict's χ² test of the image and distance measurements judges.
+    pub sigma0_a_priori: f64,
     /// Image points removed as gross errors.
     pub rejected: Vec<Rejection>,
     /// The stereo rig (left → right camera frame), when there is one.
@@ -35,7 +40,15 @@ pub struct Adjusted {
     pub iterations: usize,
     /// Why each `[[distances]]` entry left out of the adjustment was left out.
     pub unused_distances: Vec<String>,
+    /// The σ0 of each group of observations ([`OBSERVATION_GROUPS`], then the distances)
+    /// relative to its a-priori σ, by which the last adjustment re-weighted it.
+    pub variance_components: Vec<VarianceComponent>,
 }
+
+/// The groups of image observations whose variance components the final adjustment
+/// estimates: the targets' centres (coded and plain, one detector and one σ model) and the
+/// balls' silhouettes corrected for eccentricity (another measurement, with its own σ).
+pub const OBSERVATION_GROUPS: [&str; 2] = ["targets", "balls"];
 
 /// The rig pose (base → member camera frame) from the main station, or the first station
 /// where both cameras are oriented.
@@ -218,21 +231,36 @@ impl Rounds<'_> {
         Ok(())
     }
 
-    /// The final solution, aligned with the scene's measurements, and its precision.
-    fn last(&mut self, scene: &mut Scene) -> Result<(SceneProblem, Precision)> {
+    /// The final solution, aligned with the scene's measurements, and its precision, with
+    /// each group of observations ([`OBSERVATION_GROUPS`], the distances) re-weighted by
+    /// its own variance component ([`pingcal_ba::solver::estimate_variance_components`]):
+    /// one σ0 for all would let the group whose a-priori σ is most pessimistic (the targets)
+    /// scale down the covariance of what another group determines (the balls' centres).
+    fn last(&mut self, scene: &mut Scene) -> Result<(SceneProblem, solver::VarianceEstimate)> {
         let mut sp =
             SceneProblem::build(self.project, self.dets, scene, Datum::MainImage, self.rig);
-        let summary = solver::solve(&mut sp.problem, &self.options, |_| {})
-            .map_err(|e| PipelineError::new(format!("final bundle adjustment: {e}")))?;
-        self.iterations += summary.iterations;
-        sp.write_back(scene);
-        let precision = solver::precision(&sp.problem).map_err(|e| {
-            PipelineError::new(format!(
+        let group_of: Vec<usize> = sp
+            .map
+            .observations
+            .iter()
+            .map(|&(j, _)| usize::from(scene.points[j].kind == PointKind::Ball))
+            .collect();
+        let estimate = solver::estimate_variance_components(
+            &mut sp.problem,
+            &self.options,
+            &group_of,
+            &OBSERVATION_GROUPS,
+        )
+        .map_err(|e| match e {
+            VarianceError::Solve(e) => PipelineError::new(format!("final bundle adjustment: {e}")),
+            VarianceError::Precision(e) => PipelineError::new(format!(
                 "{}: the network's precision cannot be computed: {e}",
                 self.project.path.display()
-            ))
+            )),
         })?;
-        Ok((sp, precision))
+        self.iterations += estimate.iterations;
+        sp.write_back(scene);
+        Ok((sp, estimate))
     }
 }
 
@@ -266,7 +294,13 @@ pub fn final_adjustment(
         rounds.snooping_round(scene, round, rep)?;
         pb.advance(1);
     }
-    let (sp, precision) = rounds.last(scene)?;
+    let (sp, estimate) = rounds.last(scene)?;
+    let solver::VarianceEstimate {
+        components: variance_components,
+        sigma0_a_priori,
+        precision,
+        ..
+    } = estimate;
     pb.finish();
     // a coded target of a distance may have been dropped by data snooping
     let mut unused_distances = unused_distances;
@@ -288,16 +322,36 @@ pub fn final_adjustment(
         scene.points.iter().filter(|p| p.kind == PointKind::Ball).count(),
         sp.problem.observations.len(),
         sp.problem.distances.len(),
-        precision.sigma0,
+        sigma0_a_priori,
         precision.rms_image_px,
         rounds.rejected.len()
+    ));
+    rep.log(format!(
+        "bundle adjustment: variance components (σ0 of each group against its a-priori σ) {}",
+        variance_components
+            .iter()
+            .map(|c| format!(
+                "{} {:.3} (redundancy {:.0}{})",
+                c.group,
+                c.sigma0,
+                c.redundancy,
+                if c.reweighted {
+                    ""
+                } else {
+                    ", not re-weighted"
+                }
+            ))
+            .collect::<Vec<_>>()
+            .join(", ")
     ));
     Ok(Adjusted {
         solved: sp,
         precision,
+        sigma0_a_priori,
         rejected: rounds.rejected,
         rig,
         iterations: rounds.iterations,
         unused_distances,
+        variance_components,
     })
 }

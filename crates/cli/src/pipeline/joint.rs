@@ -10,9 +10,9 @@
 //! **The camera side.** The beams depend on the balls' centres and on nothing else of the
 //! bundle (intrinsics, poses, targets, distances). Eliminating all of those from the normal
 //! equations of one adjustment of images, distances and beams leaves, for the centres,
-//! exactly the bundle's own solution with its joint cofactor matrix
+//! exactly the bundle's own solution with its joint covariance matrix
 //! ([`pingcal_ba::solver::points_covariance`], the correlations between balls included):
-//! so the centres enter as that prior, `Q⁻¹`-weighted, and the extrinsic and mount come out
+//! so the centres enter as that prior, `C⁻¹`-weighted, and the extrinsic and mount come out
 //! as the full joint adjustment would give them, linearized at the bundle's solution (the
 //! image side is not iterated again). The block diagonal (each ball's own 3 × 3) is the
 //! fallback only where the joint matrix is not available (a free network).
@@ -43,6 +43,14 @@
 //! adjustment (mixed pixels at the ball's edge, the stem) are removed and the adjustment run
 //! again, at most [`REJECT_ROUNDS`] times.
 //!
+//! **Weights.** The bundle has re-weighted each of its groups of observations (targets,
+//! ball silhouettes) by its own variance component, so C is the centres' covariance, not a
+//! cofactor matrix to be scaled by one σ0 (which the many, pessimistically weighted targets
+//! would set below 1, shrinking what the beams determine with it). The beams, weighted by
+//! the sensor's σ(r), are re-weighted by their own variance component the same way
+//! (`beam_variance`); the extrinsic's and the mount's covariance is then the inverse normal
+//! matrix itself. `sigma0` stays the a-priori one, which the verdict tests.
+//!
 //! **Check points.** Each check ball's sphere is fitted again to its own beams with the
 //! estimated mount and mapped by the estimated extrinsic; `dx = estimated − reference`, as
 //! the two-step method's table.
@@ -54,7 +62,7 @@ use super::lrf::LrfData;
 use super::scene::{Detections, Scene};
 use super::{PipelineError, Reporter, Result};
 use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
-use pingcal_ba::solver;
+use pingcal_ba::solver::{self, VarianceComponent};
 use pingcal_geometry::{opk_sigma_deg, skew, Rigid3, Sim3};
 use pingcal_lrf::beam::beam_range_residual;
 use pingcal_lrf::cloud::BeamReading;
@@ -122,8 +130,11 @@ pub struct JointOutcome {
     pub beams_rejected: usize,
     /// Beams left out as grazing.
     pub beams_grazing: usize,
-    /// σ0 of the whole adjustment, and its redundancy.
+    /// σ0 of the whole adjustment with the a-priori σ's, and its redundancy.
     pub sigma0: f64,
+    /// The σ0 of the beams against the sensor's σ(r), by which they were re-weighted, and of
+    /// the bundle's ball centres against their covariance.
+    pub variance_components: Vec<VarianceComponent>,
     /// Redundancy.
     pub redundancy: i64,
     /// RMS of the beam residuals (mm).
@@ -376,7 +387,6 @@ fn build(input: &JointInput) -> Result<Built> {
         ))
     })?;
     let radius = 0.5 * project.file.balls.diameter_mm;
-    let s02 = adj.precision.sigma0.max(1e-9).powi(2);
     let (mut balls, mut beams, mut grazing) = (Vec::new(), Vec::new(), 0);
     let mut problem_points = Vec::new();
     for (s, p, _, check) in joint_balls(ext, scene) {
@@ -389,7 +399,7 @@ fn build(input: &JointInput) -> Result<Built> {
         if check {
             continue;
         }
-        if (cov / s02).cholesky().is_none() {
+        if cov.cholesky().is_none() {
             continue;
         }
         problem_points.push(k);
@@ -411,7 +421,7 @@ fn build(input: &JointInput) -> Result<Built> {
         }
         balls.push(BallPrior { point: p, centre });
     }
-    let whiten = ball_whitening(adj, &problem_points, s02).ok_or_else(|| {
+    let whiten = ball_whitening(adj, &problem_points).ok_or_else(|| {
         PipelineError::new(format!(
             "{}: the control balls' joint covariance from the bundle is singular",
             project.path.display()
@@ -426,10 +436,12 @@ fn build(input: &JointInput) -> Result<Built> {
     Ok((balls, whiten, beams, grazing))
 }
 
-/// `L⁻¹` of the joint cofactor matrix `Q = L Lᵀ` of the bundle's points `points`
-/// ([`pingcal_ba::solver::points_covariance`] / σ0²), or of its block diagonal (each point's
-/// own covariance) where the joint one is not available (a free network).
-fn ball_whitening(adj: &Adjusted, points: &[usize], s02: f64) -> Option<DMatrix<f64>> {
+/// `L⁻¹` of the joint covariance matrix `C = L Lᵀ` of the bundle's points `points`
+/// ([`pingcal_ba::solver::points_covariance`], each group of image observations weighted by
+/// its own variance component, so that C is the centres' covariance, not a cofactor to be
+/// scaled by a σ0 that other groups set), or of its block diagonal (each point's own
+/// covariance) where the joint one is not available (a free network).
+fn ball_whitening(adj: &Adjusted, points: &[usize]) -> Option<DMatrix<f64>> {
     let q = solver::points_covariance(&adj.solved.problem, points).unwrap_or_else(|_| {
         let mut q = DMatrix::zeros(3 * points.len(), 3 * points.len());
         for (a, &k) in points.iter().enumerate() {
@@ -439,8 +451,72 @@ fn ball_whitening(adj: &Adjusted, points: &[usize], s02: f64) -> Option<DMatrix<
         }
         q
     });
-    let l = (q / s02).cholesky()?.l();
+    let l = q.cholesky()?.l();
     l.try_inverse()
+}
+
+/// The beams' χ² and share of the redundancy at `st`, `ninv` the inverse normal matrix
+/// there: a beam's redundancy number is `1 − aᵀ N⁻¹ a` (a its whitened row). (The rest of
+/// `beams + 3k − unknowns` is the bundle centres' share, about 0: 3k coordinates for 3k
+/// unknowns.)
+fn beam_chi2(d: &Dense, st: &State, ninv: &DMatrix<f64>) -> (f64, f64) {
+    let n = d.dim();
+    let mut row = vec![0.0; n];
+    let (mut chi2, mut r) = (0.0, 0.0);
+    for b in &d.beams {
+        let (e, _) = d.beam_row(b, st, Some(&mut row[..]));
+        chi2 += e * e;
+        let nz: Vec<usize> = (0..n).filter(|&i| row[i] != 0.0).collect();
+        let mut h = 0.0;
+        for &i in &nz {
+            for &j in &nz {
+                h += row[i] * ninv[(i, j)] * row[j];
+            }
+        }
+        r += 1.0 - h;
+    }
+    (chi2, r)
+}
+
+/// Förstner's variance components of the beams and the bundle's centres (see
+/// [`pingcal_ba::solver::estimate_variance_components`]): the beams, whose σ is the
+/// sensor's datasheet profile, are re-weighted by their own σ0 until it is 1; the centres'
+/// covariance is the bundle's own estimate (its groups already re-weighted there), and
+/// their share of the redundancy here is about 0: nothing to weight by. Returns the solution, its
+/// inverse normal matrix and the beams' component (σ0 against the a-priori σ's).
+fn beam_variance(
+    d: &mut Dense,
+    mut st: State,
+    mut ninv: DMatrix<f64>,
+) -> Result<(State, DMatrix<f64>, Vec<VarianceComponent>)> {
+    let mut factor = 1.0;
+    let component = |n: usize, (chi2, r): (f64, f64), f: f64, rew: bool| VarianceComponent {
+        group: "beams".into(),
+        observations: n,
+        redundancy: r,
+        sigma0: f * (chi2 / r).sqrt(),
+        reweighted: rew,
+    };
+    for round in 0..=solver::VCE_MAX_ROUNDS {
+        let beams = beam_chi2(d, &st, &ninv);
+        let s0 = (beams.0 / beams.1).sqrt();
+        let reweight = beams.1 >= solver::MIN_GROUP_REDUNDANCY && s0.is_finite() && s0 > 0.0;
+        if !reweight || (s0 - 1.0).abs() < solver::VCE_TOLERANCE || round == solver::VCE_MAX_ROUNDS
+        {
+            let comps = vec![component(d.beams.len(), beams, factor, reweight)];
+            return Ok((st, ninv, comps));
+        }
+        factor *= s0;
+        for b in &mut d.beams {
+            b.sigma *= s0;
+        }
+        let (s, nm, _) = d.solve(st)?;
+        st = s;
+        ninv = nm
+            .try_inverse()
+            .ok_or_else(|| PipelineError::new("joint adjustment: the normal matrix is singular"))?;
+    }
+    unreachable!("the last round returns")
 }
 
 /// Holds, one at a time, the asked-for mount parameters that the data cannot determine
@@ -585,11 +661,15 @@ pub fn joint_adjustment(input: &JointInput, rep: &Reporter) -> Result<JointOutco
         }
     }
     let (st, ninv, chi2_lrf, rejected) = final_rounds(&mut d, &start)?;
+    // σ0 with the a-priori σ's of the image points, distances and beams (what the verdict
+    // tests)
     let p = &input.adj.precision;
     let redundancy = p.redundancy + d.beams.len() as i64 - 6 - d.free_coords().len() as i64;
-    let chi2 = p.sigma0 * p.sigma0 * p.redundancy as f64 + chi2_lrf;
+    let chi2 = input.adj.sigma0_a_priori.powi(2) * p.redundancy as f64 + chi2_lrf;
     let sigma0 = (chi2 / redundancy.max(1) as f64).sqrt();
-    let s02 = sigma0 * sigma0;
+    // the covariances with every group weighted by its own variance component
+    let (st, ninv, variance_components) = beam_variance(&mut d, st, ninv)?;
+    let s02 = 1.0;
     let cov = extrinsic_mount_cov(&d, &ninv, s02);
     let mount_model = MountModel::from_params(&st.theta, input.mount0.servo_zero_deg);
     let (lrf_points, cam_points) = ball_points(input, &d, &st, &ninv, s02, &mount_model);
@@ -626,6 +706,7 @@ pub fn joint_adjustment(input: &JointInput, rep: &Reporter) -> Result<JointOutco
         beams_rejected: rejected,
         beams_grazing: grazing,
         sigma0,
+        variance_components,
         redundancy,
         rms_beam_mm,
         check,
@@ -645,6 +726,17 @@ pub fn joint_adjustment(input: &JointInput, rep: &Reporter) -> Result<JointOutco
         "joint: {} beams ({} rejected, {} grazing), sigma0 {:.3}, RMS beam {:.2} mm; mean check error {:.2} mm (sd {:.2}) on {} balls",
         out.beams, out.beams_rejected, out.beams_grazing, out.sigma0, out.rms_beam_mm,
         out.check.mean_mm, out.check.sd_mm, out.check.rows.len()
+    ));
+    rep.log(format!(
+        "joint: variance components {}",
+        out.variance_components
+            .iter()
+            .map(|c| format!(
+                "{} {:.3} (redundancy {:.1})",
+                c.group, c.sigma0, c.redundancy
+            ))
+            .collect::<Vec<_>>()
+            .join(", ")
     ));
     Ok(out)
 }

@@ -549,6 +549,36 @@ fn summary(st: &Stages, results: &Results) -> Vec<(String, String)> {
             ),
         ),
     ];
+    let components = |v: &[pingcal_ba::solver::VarianceComponent]| {
+        v.iter()
+            .map(|c| {
+                format!(
+                    "{} {:.2} (r {:.0}{})",
+                    c.group,
+                    c.sigma0,
+                    c.redundancy,
+                    if c.reweighted { "" } else { ", kept" }
+                )
+            })
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    if !results.bundle.variance_components.is_empty() {
+        summary.push((
+            "bundle σ0 per group (re-weighted by it)".to_string(),
+            components(&results.bundle.variance_components),
+        ));
+    }
+    if let Some(j) = results
+        .methods
+        .iter()
+        .find(|m| !m.variance_components.is_empty())
+    {
+        summary.push((
+            format!("{} σ0 of the LRF beams (re-weighted by it)", j.method),
+            components(&j.variance_components),
+        ));
+    }
     let shifts = &st.adjusted.solved.ball_shifts_px;
     if !shifts.is_empty() {
         let mut s = shifts.clone();

@@ -28,6 +28,7 @@ use super::scene::{image_file, PointKind, Scene};
 use super::verdict::Verdict;
 use super::Stages;
 use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
+use pingcal_ba::solver::VarianceComponent;
 use pingcal_geometry::to_opk;
 use pingcal_geometry::{Rigid3, Sim3};
 use pingcal_lrf::registration::CheckRow;
@@ -89,8 +90,12 @@ pub struct MethodJson {
     pub control_points: Vec<CheckRow>,
     /// Leave-one-out over the control balls (spheres only).
     pub leave_one_out: Vec<CheckRow>,
-    /// σ0 of the registration (spheres only).
+    /// σ0 of the registration (spheres), of the joint adjustment with the a-priori σ's
+    /// (joint).
     pub sigma0: Option<f64>,
+    /// Joint only: the beams' σ0 against the sensor's σ(r) (their variance component), by
+    /// which they were re-weighted before the extrinsic's covariance was taken.
+    pub variance_components: Vec<VarianceComponent>,
     /// Why the method failed.
     pub error: Option<String>,
     /// What it chose and why.
@@ -100,8 +105,13 @@ pub struct MethodJson {
 /// Bundle adjustment summary.
 #[derive(Clone, Debug, Serialize)]
 pub struct BundleJson {
-    /// A-posteriori σ0.
+    /// A-posteriori σ0 with the a-priori σ's of the image points and distances (what the
+    /// verdict tests).
     pub sigma0: f64,
+    /// σ0 of each group of observations (`targets`, `balls`, `distances`) against its
+    /// a-priori σ's: the variance components by which the final adjustment re-weighted each
+    /// group (those with redundancy of at least 30) before its covariances were taken.
+    pub variance_components: Vec<VarianceComponent>,
     /// RMS image residual (px).
     pub rms_image_px: f64,
     /// Oriented images.
@@ -395,6 +405,7 @@ fn failed(method: &str, e: &str) -> MethodJson {
         control_points: Vec::new(),
         leave_one_out: Vec::new(),
         sigma0: None,
+        variance_components: Vec::new(),
         error: Some(e.to_string()),
         notes: Vec::new(),
     }
@@ -414,6 +425,7 @@ fn joint_json(j: &JointOutcome, ext: &Extrinsics) -> MethodJson {
         control_points: j.control.rows.clone(),
         leave_one_out: Vec::new(),
         sigma0: Some(j.sigma0),
+        variance_components: j.variance_components.clone(),
         error: None,
         notes: std::iter::once(format!(
             "{} LRF beams on {} control balls ({} removed as gross errors, {} grazing left out); RMS beam residual {:.2} mm; redundancy {}",
@@ -489,6 +501,7 @@ fn methods(
             control_points: ev.control.rows.clone(),
             leave_one_out: ev.leave_one_out.rows.clone(),
             sigma0: Some(r.sigma0),
+            variance_components: Vec::new(),
             error: None,
             notes: ev
                 .loo_skipped
@@ -513,6 +526,7 @@ fn methods(
                 control_points: Vec::new(),
                 leave_one_out: Vec::new(),
                 sigma0: None,
+                variance_components: Vec::new(),
                 error: None,
                 notes: c.notes.clone(),
             },
@@ -637,7 +651,8 @@ pub fn assemble(st: &Stages, verdict: Verdict, time_s: Vec<(String, f64)>) -> Re
             _ => None,
         },
         bundle: BundleJson {
-            sigma0: adj.precision.sigma0,
+            sigma0: adj.sigma0_a_priori,
+            variance_components: adj.variance_components.clone(),
             rms_image_px: adj.precision.rms_image_px,
             images: adj.solved.problem.images.len(),
             unoriented_images: scene

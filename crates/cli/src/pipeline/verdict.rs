@@ -192,9 +192,15 @@ fn statistical_tests(st: &Stages, test: &mut Test) {
     let p = &st.adjusted.precision;
     if p.redundancy > 0 {
         let r = p.redundancy as f64;
-        test("bundle sigma0", p.sigma0, sigma0_bound(r), &|v, b| {
-            format!("the bundle adjustment's σ0 {v:.3} exceeds {b:.3}: the image points are worse than their σ's say (blur, wrong detections, or a camera model that does not fit)")
-        });
+        // the a-priori σ's are what is judged, not the re-weighted ones (their σ0 is 1)
+        test(
+            "bundle sigma0",
+            st.adjusted.sigma0_a_priori,
+            sigma0_bound(r),
+            &|v, b| {
+                format!("the bundle adjustment's σ0 {v:.3} exceeds {b:.3}: the image points are worse than their σ's say (blur, wrong detections, or a camera model that does not fit)")
+            },
+        );
     }
     if let Some(ev) = &st.ext.spheres {
         registration_tests(ev, st, test);
