@@ -100,7 +100,7 @@ impl Default for FinderOptions {
             through_rate: 0.01,
             min_cluster_fraction: 0.3,
             radius_tolerance: 0.05,
-            min_sectors: 6,
+            min_sectors: 4,
             seed: 1,
         }
     }
@@ -149,7 +149,7 @@ pub struct Support {
     /// annulus just outside the rim ([`BESIDE_WIDTH`] radii wide) where at least
     /// [`BESIDE_MIN_BEAMS`] beams stop at the depth of the ball's front (within R/2 behind
     /// it): a stem or a hand holding the ball fills one side, the floor under it a half
-    /// ring, a pole or an edge that the "ball" is a piece of two opposite sectors alone.
+    /// ring, a pole or an edge that the "ball" is a piece of two opposite sides apart.
     pub beside: u8,
     /// Of 8 equal sectors around the centre, as seen along the mean beam, how many hold an
     /// inlier at least R/4 off the centre line: 8 for a well covered ball, few for a patch
@@ -819,16 +819,21 @@ fn verdict(s: &Support, radius: f64, opt: &FinderOptions) -> Option<String> {
             100.0 * opt.min_cluster_fraction
         ));
     }
-    // a line through the ball: two opposite sectors occupied, the two across them free (a
-    // floor or a body beside a real ball fills a half ring, or one side)
+    // a line through the ball: two sectors 3–4 apart occupied with a free sector on each of
+    // the two arcs between them (a floor or a body beside a real ball fills one unbroken
+    // arc: a half ring, or one side)
     let on = |k: usize| s.beside & (1 << (k % 8)) != 0;
+    let free_between = |a: usize, b: usize| (a + 1..b).any(|k| !on(k));
+    let line = (0..8).any(|a| {
+        (a + 3..=a + 5).any(|b| on(a) && on(b) && free_between(a, b) && free_between(b, a + 8))
+    });
     if s.beside.count_ones() >= 6 {
         return Some(format!(
             "a surface surrounds it at its front's depth (sectors {:08b} of the ring around it): a bump on a surface, not a ball",
             s.beside
         ));
     }
-    if (0..4).any(|a| on(a) && on(a + 4) && !on(a + 2) && !on(a + 6)) {
+    if line {
         return Some(format!(
             "a surface runs through it at its front's depth (sectors {:08b} of the ring around it): a piece of a pole or an edge, not a ball",
             s.beside
