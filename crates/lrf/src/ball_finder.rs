@@ -73,7 +73,7 @@ pub struct FinderOptions {
     /// 3σ, as a fraction of the nominal radius (the tolerance of the ball's making).
     pub radius_tolerance: f64,
     /// A sphere is rejected when its inliers, seen from the sensor, cover fewer than this
-    /// many of the 8 sectors around its centre (see [`Ball::coverage`]).
+    /// many of the 8 sectors around its centre (see [`Support::coverage`]).
     pub min_sectors: usize,
     /// Seed of every random choice.
     pub seed: u64,
