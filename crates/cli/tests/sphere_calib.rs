@@ -276,7 +276,9 @@ fn the_command_reports_frames_it_leaves_out_and_keeps_earlier_results() {
     );
     let (ok, _, err) = run(&["simulate", "--out", d, "--frames", "3"]);
     assert!(
-        !ok && err.contains("--frames, --lidar-sigma-mm: only for --kind sphere-calib"),
+        !ok && err.contains(
+            "--frames, --lidar-sigma-mm, --azimuth-step-deg: only for --kind sphere-calib"
+        ),
         "{err}"
     );
     // frame 2: its cloud and frame 3's together (two spheres); frame 4: a black image
