@@ -206,11 +206,29 @@ fn arr(v: &Vector3<f64>) -> [f64; 3] {
     [v.x, v.y, v.z]
 }
 
-fn io(path: &Path, e: impl std::fmt::Display) -> SimError {
+pub(crate) fn io(path: &Path, e: impl std::fmt::Display) -> SimError {
     SimError::Io {
         path: path.display().to_string(),
         what: e.to_string(),
     }
+}
+
+/// Writes an 8-bit grey image as PNG (fast compression: the simulator's images are many).
+pub(crate) fn write_png(path: &Path, img: &image::GrayImage) -> Result<(), SimError> {
+    let mut bytes = Vec::new();
+    image::codecs::png::PngEncoder::new_with_quality(
+        &mut bytes,
+        image::codecs::png::CompressionType::Fast,
+        image::codecs::png::FilterType::Sub,
+    )
+    .write_image(
+        img.as_raw(),
+        img.width(),
+        img.height(),
+        image::ExtendedColorType::L8,
+    )
+    .map_err(|e| io(path, e))?;
+    std::fs::write(path, bytes).map_err(|e| io(path, e))
 }
 
 /// Image file name of camera `cam` at station `st`.
@@ -461,21 +479,7 @@ pub fn write_project(sim: &Simulation, dir: &Path) -> Result<ProjectSummary, Sim
             sim.seed,
             k as u64,
         );
-        let path = dir.join(image_file(&st.id, &cam.id));
-        let mut bytes = Vec::new();
-        image::codecs::png::PngEncoder::new_with_quality(
-            &mut bytes,
-            image::codecs::png::CompressionType::Fast,
-            image::codecs::png::FilterType::Sub,
-        )
-        .write_image(
-            img.as_raw(),
-            img.width(),
-            img.height(),
-            image::ExtendedColorType::L8,
-        )
-        .map_err(|e| io(&path, e))?;
-        std::fs::write(&path, bytes).map_err(|e| io(&path, e))
+        write_png(&dir.join(image_file(&st.id, &cam.id)), &img)
     })?;
     let main = sim.stations.iter().find(|s| s.main).expect("main station");
     let scan_path = dir.join(format!("scans/{}.csv", main.id));

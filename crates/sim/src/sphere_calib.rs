@@ -24,10 +24,9 @@
 
 use crate::config::RenderConfig;
 use crate::head::{CameraUnit, StereoRig};
-use crate::project_files::PoseJson;
+use crate::project_files::{io, write_png, PoseJson};
 use crate::render::{expose, Radiance, RayTable};
 use crate::{rng_for, SimConfig, SimError};
-use image::ImageEncoder;
 use nalgebra::{Vector2, Vector3};
 use pingcal_ba::camera::CameraModel;
 use pingcal_geometry::{from_opk_deg, Rigid3};
@@ -438,13 +437,6 @@ impl SphereCalibSim {
     }
 }
 
-fn io(path: &Path, e: impl std::fmt::Display) -> SimError {
-    SimError::Io {
-        path: path.display().to_string(),
-        what: e.to_string(),
-    }
-}
-
 /// Renders and writes the data set into `dir` (created if needed): `sphere-calib.toml`,
 /// `camera.toml`, `clouds/F01.xyz` … (metres), `images/F01.png` …, `truth.json`. Callers
 /// that must not leave a partial data set looking complete write into a temporary folder
@@ -478,21 +470,7 @@ pub fn write_sphere_calib(
         let cloud_path = dir.join(&cloud_rel);
         std::fs::write(&cloud_path, text).map_err(|e| io(&cloud_path, e))?;
         let img = sim.image(k, &table);
-        let image_path = dir.join(&image_rel);
-        let mut bytes = Vec::new();
-        image::codecs::png::PngEncoder::new_with_quality(
-            &mut bytes,
-            image::codecs::png::CompressionType::Fast,
-            image::codecs::png::FilterType::Sub,
-        )
-        .write_image(
-            img.as_raw(),
-            img.width(),
-            img.height(),
-            image::ExtendedColorType::L8,
-        )
-        .map_err(|e| io(&image_path, e))?;
-        std::fs::write(&image_path, bytes).map_err(|e| io(&image_path, e))?;
+        write_png(&dir.join(&image_rel), &img)?;
         let c = sim.centres_lidar[k];
         let cc = sim.camera_from_lidar.transform(&c);
         frames.push(SphereFrameTruth {
