@@ -283,6 +283,31 @@ impl Scene {
             .collect()
     }
 
+    /// [`Scene::half_sweep`] as a cloud (URG-04LX beam geometry, eq. 2's mount).
+    pub fn half_sweep_cloud<R: Rng>(
+        &self,
+        n_scans: usize,
+        lrf: &SimulatedLrf,
+        rng: &mut R,
+    ) -> crate::cloud::Cloud {
+        let scans = self.half_sweep(n_scans, lrf, rng);
+        crate::cloud::Cloud::from_scans(
+            &crate::scan::ScanHeader::URG_04LX,
+            scans.into_iter().map(Ok),
+            &crate::cloud::MountModel::default(),
+        )
+        .expect("simulated scans are well formed")
+    }
+
+    /// The ball nearest to `p`: its index and distance (`None` without balls).
+    pub fn nearest_ball(&self, p: &Vector3<f64>) -> Option<(usize, f64)> {
+        self.balls
+            .iter()
+            .enumerate()
+            .map(|(k, c)| (k, (c - p).norm()))
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+    }
+
     /// A half sweep: `n_scans` scans at servo angles −90° + k·180°/`n_scans` (with the
     /// URG-04LX of [`SimulatedLrf::default`]: 682 beams each, eq. 2's mount).
     pub fn half_sweep<R: Rng>(

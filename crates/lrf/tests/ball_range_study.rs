@@ -11,8 +11,6 @@
 
 use nalgebra::Vector3;
 use pingcal_lrf::ball_finder::{find_balls, FinderOptions};
-use pingcal_lrf::cloud::{Cloud, MountModel};
-use pingcal_lrf::scan::ScanHeader;
 use pingcal_lrf::simulate::{Scene, SimulatedLrf};
 use rand::Rng;
 
@@ -39,13 +37,7 @@ fn ball_centre_bias_and_sigma_against_distance() {
                 radius: 19.0,
                 clutter: Vec::new(),
             };
-            let scans = scene.half_sweep(512, &SimulatedLrf::default(), &mut rng);
-            let cloud = Cloud::from_scans(
-                &ScanHeader::URG_04LX,
-                scans.into_iter().map(Ok),
-                &MountModel::default(),
-            )
-            .unwrap();
+            let cloud = scene.half_sweep_cloud(512, &SimulatedLrf::default(), &mut rng);
             let found = find_balls(&cloud, &FinderOptions::default());
             tried += 1;
             let Some(b) = found.balls.iter().find(|b| (b.centre - c).norm() < 38.0) else {

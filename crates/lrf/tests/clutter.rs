@@ -5,8 +5,6 @@
 //! (within a ball's diameter of one), and the balls the bare room gives must all still be found.
 
 use pingcal_lrf::ball_finder::{find_balls, FinderOptions};
-use pingcal_lrf::cloud::{Cloud, MountModel};
-use pingcal_lrf::scan::ScanHeader;
 use pingcal_lrf::simulate::{cluttered_room_scene, SimulatedLrf};
 
 #[test]
@@ -14,13 +12,7 @@ fn no_false_ball_in_a_furnished_room() {
     for seed in [42, 7, 2026] {
         let mut rng = pingcal_geometry::consensus::rng(seed);
         let scene = cluttered_room_scene(16, &mut rng);
-        let scans = scene.half_sweep(512, &SimulatedLrf::default(), &mut rng);
-        let cloud = Cloud::from_scans(
-            &ScanHeader::URG_04LX,
-            scans.into_iter().map(Ok),
-            &MountModel::default(),
-        )
-        .unwrap();
+        let cloud = scene.half_sweep_cloud(512, &SimulatedLrf::default(), &mut rng);
         // the clutter is seen: a good share of the cloud lies on it
         let on_clutter = cloud
             .points
@@ -71,13 +63,7 @@ fn no_false_ball_in_a_furnished_room() {
         // against σ is the business of tests/find_and_register.rs and tests/density.rs)
         let mut hit = vec![false; scene.balls.len()];
         for b in &found.balls {
-            let (k, d) = scene
-                .balls
-                .iter()
-                .enumerate()
-                .map(|(k, c)| (k, (c - b.centre).norm()))
-                .min_by(|a, b| a.1.total_cmp(&b.1))
-                .unwrap();
+            let (k, d) = scene.nearest_ball(&b.centre).unwrap();
             assert!(
                 d < 2.0 * scene.radius,
                 "seed {seed}: a false ball at {:.0?}, {d:.0} mm from the nearest true one",

@@ -7,20 +7,12 @@
 mod common;
 
 use pingcal_lrf::ball_finder::{find_balls, FinderOptions};
-use pingcal_lrf::cloud::{Cloud, MountModel};
-use pingcal_lrf::scan::ScanHeader;
 use pingcal_lrf::simulate::{room_corner_scene, SimulatedLrf};
 
 fn check(n_scans: usize) {
     let mut rng = pingcal_geometry::consensus::rng(42);
     let scene = room_corner_scene(16, &mut rng);
-    let scans = scene.half_sweep(n_scans, &SimulatedLrf::default(), &mut rng);
-    let cloud = Cloud::from_scans(
-        &ScanHeader::URG_04LX,
-        scans.into_iter().map(Ok),
-        &MountModel::default(),
-    )
-    .unwrap();
+    let cloud = scene.half_sweep_cloud(n_scans, &SimulatedLrf::default(), &mut rng);
     let found = find_balls(&cloud, &FinderOptions::default());
     println!("{} points: {} balls", cloud.len(), found.balls.len());
     let hit = common::assert_true_balls(&scene, &found, &format!("{n_scans} scans"));

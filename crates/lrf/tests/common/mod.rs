@@ -11,13 +11,7 @@ use pingcal_lrf::simulate::Scene;
 pub fn assert_true_balls(scene: &Scene, found: &FindResult, what: &str) -> Vec<bool> {
     let mut hit = vec![false; scene.balls.len()];
     for b in &found.balls {
-        let (k, d) = scene
-            .balls
-            .iter()
-            .enumerate()
-            .map(|(k, c)| (k, (c - b.centre).norm()))
-            .min_by(|a, b| a.1.total_cmp(&b.1))
-            .expect("the scene has balls");
+        let (k, d) = scene.nearest_ball(&b.centre).expect("the scene has balls");
         let sd = b.cov.symmetric_eigenvalues().max().sqrt();
         println!(
             "  ball {k}: range {:.0} mm, error {d:.2} mm, σmax {sd:.2}, {} rays",
