@@ -39,7 +39,7 @@ pub struct Args {
     #[arg(long)]
     lidar_sigma_mm: Option<f64>,
     /// The lidar's azimuth step of `--kind sphere-calib`, degrees (default 0.2, a VLP-16 at
-    /// 600 rpm; 0.0576 gives a 100k-point frame).
+    /// 600 rpm; 0.042 gives a frame of about 100k points).
     #[arg(long)]
     azimuth_step_deg: Option<f64>,
 }
