@@ -67,6 +67,10 @@ pub struct FinderOptions {
     /// is improbable (p < [`THROUGH_SIGNIFICANCE`], binomial) under this rate. The eight real
     /// VLP-16 frames show 6 in about 870 (0.7 %).
     pub through_rate: f64,
+    /// Keep a ball seen twice (see [`Support::seen_twice`]) instead of rejecting it: for a
+    /// calibration that estimates the LRF's mount, whose beams will put the two copies
+    /// together (the ball's other tests still apply).
+    pub keep_seen_twice: bool,
     /// A sphere is rejected when fewer than this fraction of its cluster's points lie on it.
     pub min_cluster_fraction: f64,
     /// Accepted difference between the free-radius fit and the nominal radius beyond its
@@ -98,6 +102,7 @@ impl Default for FinderOptions {
             max_centre_sigma_mm: 10.0,
             min_wall_spread_mm: 250.0,
             through_rate: 0.01,
+            keep_seen_twice: false,
             min_cluster_fraction: 0.3,
             radius_tolerance: 0.05,
             min_sectors: 4,
@@ -145,6 +150,9 @@ pub struct Support {
     pub sigma_free_radius_mm: f64,
     /// Range σ of the sensor at the centre's range, mm.
     pub range_sigma_mm: f64,
+    /// Too many beams pass through it, about as many as meet it: one ball whose points
+    /// from different sweeps do not coincide (seen twice), as under a wrong mount model.
+    pub seen_twice: bool,
     /// The sectors (bit k: sector k of 8 around the centre, seen along the mean beam) of the
     /// annulus just outside the rim ([`BESIDE_WIDTH`] radii wide) where at least
     /// [`BESIDE_MIN_BEAMS`] beams stop at the depth of the ball's front (within R/2 behind
@@ -502,6 +510,7 @@ enum Outcome {
 
 fn examine(
     cloud: &Cloud,
+    index: &DirectionIndex,
     cl: &[usize],
     opt: &FinderOptions,
     planes: &[(Vector3<f64>, f64)],
@@ -598,14 +607,12 @@ fn examine(
         ),
         Ok(f) => {
             let used: Vec<Ray> = f.used.iter().map(|&k| rays[k]).collect();
-            let support = support(cloud, &used, &f, opt, cl.len());
+            let support = support(cloud, index, &used, &f, opt, cl.len());
             match verdict(&support, radius, opt) {
                 Some(reason) => Outcome::Rejected(Rejected {
                     centre: f.centre,
                     cluster_points: cl.len(),
-                    seen_twice: support.through
-                        > through_allowed(support.on_surface + support.through, opt.through_rate)
-                        && 2 * support.through >= support.on_surface,
+                    seen_twice: support.seen_twice,
                     reason,
                 }),
                 None => Outcome::Ball(Ball {
@@ -679,10 +686,106 @@ fn gated_residual(
     Some((ray.range - (b - s)) / (ray.sigma * ray.sigma + sigma_c * sigma_c).sqrt())
 }
 
+/// The cloud's points binned by their direction from the frame's origin (azimuth and
+/// elevation, [`DirectionIndex::BIN_RAD`] bins), so that the beams near one sphere are found
+/// without visiting the whole cloud. Beams start at their own origins (a rotating LRF's
+/// scanner is off the servo axis), so a query widens its cone by the largest origin's
+/// distance.
+struct DirectionIndex {
+    /// Point indices sorted by bin…
+    order: Vec<u32>,
+    /// …and each bin's range in `order`, by key.
+    bins: HashMap<(i32, i32), (u32, u32)>,
+    max_origin: f64,
+}
+
+impl DirectionIndex {
+    const BIN_RAD: f64 = 0.5 * std::f64::consts::PI / 180.0;
+
+    fn key(p: &Vector3<f64>) -> (i32, i32) {
+        let az = p.y.atan2(p.x);
+        let el = p.z.atan2(p.x.hypot(p.y));
+        (
+            (az / Self::BIN_RAD).floor() as i32,
+            (el / Self::BIN_RAD).floor() as i32,
+        )
+    }
+
+    fn new(cloud: &Cloud) -> Self {
+        let keys: Vec<(i32, i32)> = cloud.points.par_iter().map(Self::key).collect();
+        let mut order: Vec<u32> = (0..cloud.len() as u32).collect();
+        order.par_sort_unstable_by_key(|&i| keys[i as usize]);
+        let mut bins = HashMap::new();
+        let mut start = 0;
+        for k in 1..=order.len() {
+            if k == order.len() || keys[order[k] as usize] != keys[order[start] as usize] {
+                bins.insert(keys[order[start] as usize], (start as u32, k as u32));
+                start = k;
+            }
+        }
+        let max_origin = (0..cloud.len())
+            .map(|i| cloud.origin(i).norm())
+            .fold(0.0, f64::max);
+        DirectionIndex {
+            order,
+            bins,
+            max_origin,
+        }
+    }
+
+    /// Every point whose beam may pass within `reach` of `c` (a superset: the caller tests
+    /// each exactly).
+    fn near_cone(&self, c: &Vector3<f64>, reach: f64) -> Vec<usize> {
+        let dist = c.norm();
+        let sin_a = (reach + self.max_origin) / dist.max(1e-9);
+        if sin_a >= 0.99 {
+            return self.order.iter().map(|&i| i as usize).collect();
+        }
+        let a = sin_a.asin() + 1.5 * Self::BIN_RAD;
+        let (kaz, kel) = Self::key(c);
+        let el_c = c.z.atan2(c.x.hypot(c.y));
+        let n_el = (a / Self::BIN_RAD).ceil() as i32;
+        let full_turn = (std::f64::consts::TAU / Self::BIN_RAD).ceil() as i32;
+        let mut out = Vec::new();
+        for del in -n_el..=n_el {
+            let el = el_c + del as f64 * Self::BIN_RAD;
+            let cos_el = (el.abs() + Self::BIN_RAD)
+                .min(std::f64::consts::FRAC_PI_2)
+                .cos();
+            let n_az = if cos_el < 1e-3 {
+                full_turn
+            } else {
+                ((a / cos_el / Self::BIN_RAD).ceil() as i32).min(full_turn)
+            };
+            for daz in -n_az..=n_az {
+                // azimuth wraps at ±π
+                let mut az = kaz + daz;
+                let half = full_turn / 2;
+                if az < -half {
+                    az += full_turn;
+                } else if az >= half {
+                    az -= full_turn;
+                }
+                if let Some(&(s, e)) = self.bins.get(&(az, kel + del)) {
+                    out.extend(
+                        self.order[s as usize..e as usize]
+                            .iter()
+                            .map(|&i| i as usize),
+                    );
+                }
+            }
+        }
+        out.sort_unstable();
+        out.dedup();
+        out
+    }
+}
+
 /// The evidence of the whole cloud for a fitted sphere (see [`Support`]); `inliers` are the
 /// fit's rays, `cluster_points` the size of the cluster they came from.
 fn support(
     cloud: &Cloud,
+    index: &DirectionIndex,
     inliers: &[Ray],
     fit: &sphere_fit::SphereFit,
     opt: &FinderOptions,
@@ -723,7 +826,7 @@ fn support(
     let outer = inner_at(far) + BESIDE_WIDTH * radius;
     let (mut on_surface, mut through) = (0, 0);
     let mut beside = [0usize; 8];
-    for i in 0..cloud.len() {
+    for i in index.near_cone(c, outer) {
         let o = cloud.origin(i);
         // cheap rejection: the beam's line passes the centre farther than the annulus around
         // the ball (or the ball is behind the origin)
@@ -777,6 +880,8 @@ fn support(
         free_radius_mm,
         sigma_free_radius_mm,
         range_sigma_mm: opt.noise.sigma(c.norm()).max(0.5),
+        seen_twice: through > through_allowed(on_surface + through, opt.through_rate)
+            && 2 * through >= on_surface,
         coverage: sectors.iter().filter(|&&b| b).count(),
         beside: occupied.iter().fold(0u8, |m, &s| m | (1 << s)),
     }
@@ -784,7 +889,9 @@ fn support(
 
 /// Why a fitted sphere is not a ball, or `None` when its support holds.
 fn verdict(s: &Support, radius: f64, opt: &FinderOptions) -> Option<String> {
-    if s.through > through_allowed(s.on_surface + s.through, opt.through_rate) {
+    if s.through > through_allowed(s.on_surface + s.through, opt.through_rate)
+        && !(opt.keep_seen_twice && s.seen_twice)
+    {
         return Some(format!(
             "{} beams pass through where the sphere would be ({} meet it): not a solid ball{}",
             s.through,
@@ -883,12 +990,14 @@ pub fn find_balls(cloud: &Cloud, opt: &FinderOptions) -> FindResult {
         }
     }
     cands.sort_by_key(|g| g[0]);
+    let index = DirectionIndex::new(cloud);
     let outcomes: Vec<Outcome> = cands
         .par_iter()
         .enumerate()
         .map(|(k, c)| {
             examine(
                 cloud,
+                &index,
                 c,
                 opt,
                 &planes,

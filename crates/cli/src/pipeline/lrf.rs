@@ -181,6 +181,9 @@ pub fn lrf_spheres(project: &Project, opts: &Options, rep: &Reporter) -> Result<
             diameter_mm: project.file.balls.diameter_mm,
             noise,
             seed: opts.seed,
+            // the joint adjustment estimates the mount: a ball that a wrong mount shows
+            // twice is kept for its beams to correct it
+            keep_seen_twice: project.file.method.joint(),
             ..FinderOptions::default()
         },
     );

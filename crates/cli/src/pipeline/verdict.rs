@@ -160,6 +160,21 @@ pub fn judge(st: &Stages) -> Verdict {
         });
     });
     reasons.extend(unmatched(st));
+    let kept_twice = st
+        .lrf
+        .found
+        .balls
+        .iter()
+        .filter(|b| b.support.seen_twice)
+        .count();
+    if kept_twice >= SEEN_TWICE_MIN {
+        let why = format!("{kept_twice} LRF sphere(s) were seen twice (as many beams pass through each as meet it): the cloud's mount model is off, which the joint adjustment estimates");
+        if matches!(st.joint, Some(Ok(_))) {
+            notes.push(why);
+        } else {
+            reasons.push(why);
+        }
+    }
     if let Some(Err(e)) = st.joint {
         reasons.push(format!(
             "the joint adjustment failed ({e}): the two-step result is given"
@@ -458,7 +473,7 @@ fn unmatched(st: &Stages) -> Vec<String> {
         .count();
     if twice >= SEEN_TWICE_MIN {
         out.push(format!(
-            "{twice} LRF candidate(s) were seen twice (as many beams pass through each as meet it): the points of one ball from different servo angles do not coincide, as under a wrong LRF mount model ([lrf] mount_offset_mm, tilts, servo zero); method = \"all\" estimates the mount"
+            "{twice} LRF candidate(s) were seen twice (as many beams pass through each as meet it): the points of one ball from different servo angles do not coincide, as under a wrong LRF mount model ([lrf] mount_offset_mm, tilts, servo zero); method = \"joint\" (the default) or \"all\" estimates it"
         ));
     }
     let extra = st.lrf.found.balls.len().saturating_sub(st.ext.pairs.len());
