@@ -179,7 +179,7 @@ pub fn run(args: Args) -> CmdResult {
             ..Default::default()
         };
         if let Some(a) = args.azimuth_step_deg {
-            if !(a >= 0.01 && a <= 10.0) {
+            if !(0.01..=10.0).contains(&a) {
                 return Err(format!(
                     "--azimuth-step-deg {a}: expected a step between 0.01 and 10 degrees"
                 )
