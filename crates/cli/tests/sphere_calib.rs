@@ -281,10 +281,52 @@ fn the_command_reports_frames_it_leaves_out_and_keeps_earlier_results() {
         ),
         "{err}"
     );
-    // frame 2: its cloud and frame 3's together (two spheres); frame 4: a black image
-    let c2 = std::fs::read_to_string(data.join("clouds/F02.xyz")).unwrap();
-    let c3 = std::fs::read_to_string(data.join("clouds/F03.xyz")).unwrap();
-    std::fs::write(data.join("clouds/F02.xyz"), c2 + &c3).unwrap();
+    // frame 2: a second sphere, frame 3's, put into its cloud as one scan would see both:
+    // frame 3's sphere points added, and frame 2's points in that sphere's shadow removed
+    // (the finder refuses a sphere that beams pass through); frame 4: a black image
+    let truth = read_sphere_calib_truth(&data.join("truth.json")).unwrap();
+    let c3 = Vector3::from(truth.frames[2].centre_lidar_mm);
+    let r = truth.sphere_diameter_mm / 2.0;
+    // (lines that are no point, a header, are kept as they are, as points far away)
+    let points = |file: &str| -> Vec<(String, Vector3<f64>)> {
+        std::fs::read_to_string(data.join(file))
+            .unwrap()
+            .lines()
+            .map(|l| {
+                let v: Vec<f64> = l
+                    .split_whitespace()
+                    .filter_map(|t| t.parse().ok())
+                    .collect();
+                let p = if v.len() >= 3 {
+                    Vector3::new(v[0], v[1], v[2]) * 1000.0
+                } else {
+                    Vector3::repeat(f64::INFINITY)
+                };
+                (l.to_string(), p)
+            })
+            .collect()
+    };
+    let shadowed = |p: &Vector3<f64>| {
+        let d = p.normalize();
+        p.iter().all(|v| v.is_finite())
+            && d.dot(&c3) > 0.0
+            && (c3 - d * d.dot(&c3)).norm() < r
+            && p.norm() > d.dot(&c3) - r
+    };
+    let mut two = String::new();
+    for (line, p) in points("clouds/F02.xyz") {
+        if !shadowed(&p) {
+            two += &line;
+            two.push('\n');
+        }
+    }
+    for (line, p) in points("clouds/F03.xyz") {
+        if p.iter().all(|v| v.is_finite()) && (p - c3).norm() < r + 50.0 {
+            two += &line;
+            two.push('\n');
+        }
+    }
+    std::fs::write(data.join("clouds/F02.xyz"), two).unwrap();
     let black = pingcal_targets::GrayImage {
         width: 1280,
         height: 720,
