@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """Solve a BAL problem with Ceres, through pycolmap's C++ bundle adjuster.
 
-    ceres_bal.py FILE --solver {DENSE_SCHUR,SPARSE_SCHUR} --threads {1,2} [--max-iterations N]
+    ceres_bal.py FILE --solver {DENSE_SCHUR,SPARSE_SCHUR,ITERATIVE_SCHUR} --threads {1,2}
+                 [--preconditioner {SCHUR_JACOBI,CLUSTER_JACOBI}] [--max-iterations N]
 
 Prints one JSON line:
     {"initial_cost", "final_cost", "iterations", "time_s", "wall_solve_s", "solver", "threads", ...}
@@ -136,6 +137,8 @@ def main(argv=None):
     ap.add_argument("--solver", choices=["DENSE_SCHUR", "SPARSE_SCHUR", "ITERATIVE_SCHUR"],
                     default="SPARSE_SCHUR")
     ap.add_argument("--threads", type=int, default=1)
+    ap.add_argument("--preconditioner", choices=["SCHUR_JACOBI", "CLUSTER_JACOBI", "CLUSTER_TRIDIAGONAL"],
+                    default="SCHUR_JACOBI", help="of ITERATIVE_SCHUR")
     ap.add_argument("--max-iterations", type=int, default=100)
     ap.add_argument("--progress", action="store_true", help="print Ceres's per-iteration log to stderr")
     ap.add_argument("--no-check", action="store_true",
@@ -180,7 +183,7 @@ def main(argv=None):
     so.trust_region_strategy_type = pc.TrustRegionStrategyType.LEVENBERG_MARQUARDT
     so.linear_solver_type = getattr(pc.LinearSolverType, a.solver)
     if a.solver == "ITERATIVE_SCHUR":
-        so.preconditioner_type = pc.PreconditionerType.SCHUR_JACOBI
+        so.preconditioner_type = getattr(pc.PreconditionerType, a.preconditioner)
     so.num_threads = a.threads
     so.max_num_iterations = a.max_iterations
     for k, v in TOLERANCES.items():

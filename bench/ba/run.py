@@ -120,16 +120,22 @@ def generate(c, p, a, use_pingcal):
     """Writes the BAL file of size c x p (reused when present); returns (path, generator)."""
     os.makedirs(a.data_dir, exist_ok=True)
     tag = f"c{c}-p{p}-k{a.obs_per_point}-n{a.noise_px:g}-s{a.seed}"
+    if a.visibility != "banded":
+        tag += f"-{a.visibility}"
     if use_pingcal:
         path = os.path.join(a.data_dir, f"pingcal-{tag}.bal")
         if not os.path.exists(path) or a.regen:
             cmd = [PINGCAL, "gen-bal", "--cameras", str(c), "--points", str(p),
                    "--obs-per-point", str(a.obs_per_point), "--noise-px", str(a.noise_px),
                    "--seed", str(a.seed), "--out", path + ".tmp"]
+            if a.visibility != "banded":
+                cmd += ["--visibility", a.visibility]
             r = subprocess.run(cmd, capture_output=True, text=True)
             if r.returncode == 0 and os.path.exists(path + ".tmp"):
                 os.replace(path + ".tmp", path)
                 return path, "pingcal gen-bal"
+            if a.visibility != "banded":
+                raise SystemExit(f"pingcal gen-bal failed ({last_line(r.stderr)}); make_bal.py has no --visibility")
             log(f"pingcal gen-bal failed ({last_line(r.stderr)}); using make_bal.py")
         else:
             return path, "pingcal gen-bal"
@@ -175,12 +181,16 @@ def run_pingcal(path, solver, threads, a, extra):
 
 
 def run_ceres(path, solver, threads, a):
-    cmd = [VPY, os.path.join(HERE, "ceres_bal.py"), path, "--solver", solver,
+    # "ITERATIVE_SCHUR/CLUSTER_JACOBI": the solver and its preconditioner.
+    name, _, precond = solver.partition("/")
+    cmd = [VPY, os.path.join(HERE, "ceres_bal.py"), path, "--solver", name,
            "--threads", str(threads), "--max-iterations", str(MAX_ITER)]
+    if precond:
+        cmd += ["--preconditioner", precond]
     if not a.check:
         cmd.append("--no-check")
     code, out, err, wall, rss = run_child(cmd, threads, a.timeout)
-    save_log(a, f"{os.path.basename(path)}.ceres-{solver}-t{threads}", cmd, out, err)
+    save_log(a, f"{os.path.basename(path)}.ceres-{solver.replace('/', '-')}-t{threads}", cmd, out, err)
     res = {"side": "ceres", "solver": solver, "threads": threads, "wall_s": wall,
            "peak_mib": rss, "exit": code, "cmd": " ".join(map(shlex.quote, cmd))}
     try:
@@ -294,7 +304,11 @@ def main():
     ap.add_argument("--noise-px", type=float, default=0.5)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--threads", default="1,2")
-    ap.add_argument("--solvers", default="DENSE_SCHUR,SPARSE_SCHUR")
+    ap.add_argument("--solvers", default="DENSE_SCHUR,SPARSE_SCHUR,ITERATIVE_SCHUR,ITERATIVE_SCHUR/CLUSTER_JACOBI",
+                    help="Ceres solvers; ITERATIVE_SCHUR takes SCHUR_JACOBI unless /PRECONDITIONER follows")
+    ap.add_argument("--visibility", choices=["banded", "random"], default="banded",
+                    help="which cameras see a point (pingcal gen-bal --visibility): neighbours along a "
+                         "street, or any K of all cameras (a dense camera graph)")
     ap.add_argument("--pingcal-solvers", default="auto",
                     help="comma-separated values of `pingcal ba --solver` (auto, dense, sparse); "
                          "auto passes no --solver")

@@ -1,6 +1,6 @@
 //! Generates a synthetic BAL problem and solves it, printing where the time goes.
 //!
-//! `cargo run --release -p pingcal-ba --example solve_synthetic -- CAMERAS POINTS OBS_PER_POINT THREADS [dense|sparse]`
+//! `cargo run --release -p pingcal-ba --example solve_synthetic -- CAMERAS POINTS OBS_PER_POINT THREADS [dense|sparse|iterative|auto] [banded|random]`
 
 use pingcal_ba::solver::{solve, LinearSolverKind, Options};
 use pingcal_ba::synthetic::SyntheticBal;
@@ -12,11 +12,16 @@ fn main() {
         cameras: num(1, 200),
         points: num(2, 30000),
         obs_per_point: num(3, 6),
+        visibility: match a.get(6).map(String::as_str) {
+            Some("random") => pingcal_ba::synthetic::Visibility::Random,
+            _ => pingcal_ba::synthetic::Visibility::Banded,
+        },
         ..Default::default()
     };
     let kind = match a.get(5).map(String::as_str) {
         Some("dense") => LinearSolverKind::Dense,
         Some("sparse") => LinearSolverKind::Sparse,
+        Some("iterative") => LinearSolverKind::Iterative,
         _ => LinearSolverKind::Auto,
     };
     let mut p = spec.generate().expect("valid sizes").problem;
@@ -40,7 +45,7 @@ fn main() {
         s.evaluation_time_s,
         s.schur_time_s,
         s.linear_solver_time_s,
-        if s.dense { "dense" } else { "sparse" }
+        s.linear_solver.kind
     );
 }
 

@@ -1,8 +1,14 @@
 //! Synthetic BAL problems of any size, for tests and benchmarks.
 //!
-//! The scene is a street: cameras in a row looking sideways at a band of points, so that
-//! each point is seen by a window of neighbouring cameras and the reduced camera system
-//! is sparse (banded), as in real sequences. Measurements are the true projections plus
+//! Two scenes ([`Visibility`]):
+//! - *banded*: a street, cameras in a row looking sideways at a band of points, so that
+//!   each point is seen by a window of neighbouring cameras and the reduced camera system
+//!   is sparse (banded), as in real sequences;
+//! - *random*: cameras all around a ball of points, each looking at its centre, and every
+//!   point seen by K cameras drawn at random among all of them: a dense camera graph, as
+//!   in a photogrammetric network where every image sees most targets.
+//!
+//! Measurements are the true projections plus
 //! Gaussian noise; the initial estimate is the truth perturbed, so that a solver converges
 //! to the least-squares solution near the truth.
 
@@ -31,6 +37,19 @@ pub struct SyntheticBal {
     pub perturbation: f64,
     /// Seed of the random generator.
     pub seed: u64,
+    /// Which cameras see a point.
+    pub visibility: Visibility,
+}
+
+/// Which cameras see a point of a [`SyntheticBal`] problem.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Visibility {
+    /// K of the neighbouring cameras along a street (a banded camera graph).
+    #[default]
+    Banded,
+    /// K cameras drawn at random among all (a dense camera graph).
+    Random,
 }
 
 impl Default for SyntheticBal {
@@ -42,6 +61,7 @@ impl Default for SyntheticBal {
             noise_px: 0.5,
             perturbation: 1.0,
             seed: 1,
+            visibility: Visibility::Banded,
         }
     }
 }
@@ -75,6 +95,10 @@ impl SyntheticBal {
         let n01 = Normal::new(0.0, 1.0).unwrap();
         let spacing = 0.5;
         let model = Arc::new(BalCamera);
+        if self.visibility == Visibility::Random {
+            let (cameras, images, points, observations) = self.random_scene(&mut rng, &model);
+            return Ok(self.perturbed(cameras, images, points, observations, &mut rng));
+        }
         // Camera frame: x = world x, y = world z, z = −world y (looks down −z, i.e. along +y).
         let base = Matrix3::new(1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, -1.0, 0.0);
         let mut cameras = Vec::with_capacity(self.cameras);
@@ -164,6 +188,104 @@ impl SyntheticBal {
             });
             p += 1;
         }
+        Ok(self.perturbed(cameras, images, points, observations, &mut rng))
+    }
+
+    /// Cameras on a sphere of radius 10 around a ball of points of radius 2, each looking
+    /// at the centre with a random roll; every point seen by K cameras drawn at random.
+    #[allow(clippy::type_complexity)]
+    fn random_scene(
+        &self,
+        rng: &mut pingcal_geometry::consensus::SeededRng,
+        model: &Arc<BalCamera>,
+    ) -> (Vec<Camera>, Vec<Image>, Vec<Point>, Vec<Observation>) {
+        let n01 = Normal::new(0.0, 1.0).unwrap();
+        let unit = |rng: &mut pingcal_geometry::consensus::SeededRng| -> Vector3<f64> {
+            loop {
+                let v = Vector3::new(n01.sample(rng), n01.sample(rng), n01.sample(rng));
+                if v.norm() > 1e-3 {
+                    return v.normalize();
+                }
+            }
+        };
+        let mut cameras = Vec::with_capacity(self.cameras);
+        let mut images = Vec::with_capacity(self.cameras);
+        for c in 0..self.cameras {
+            // BAL cameras look down −z: the camera's z axis points from the scene to it.
+            let z = unit(rng);
+            let helper = if z.x.abs() < 0.9 {
+                Vector3::x()
+            } else {
+                Vector3::y()
+            };
+            let x0 = helper.cross(&z).normalize();
+            let roll = rng.random_range(-std::f64::consts::PI..std::f64::consts::PI);
+            let x = x0 * roll.cos() + z.cross(&x0) * roll.sin();
+            let y = z.cross(&x);
+            let r = Matrix3::from_rows(&[x.transpose(), y.transpose(), z.transpose()]);
+            let f = 500.0 * (1.0 + 0.1 * rng.random_range(-1.0..1.0));
+            let k1 = 0.02 * n01.sample(rng);
+            let k2 = 0.002 * n01.sample(rng);
+            cameras.push(Camera::new(
+                format!("cam{c}"),
+                model.clone(),
+                vec![f, k1, k2],
+            ));
+            images.push(Image {
+                name: format!("image{c}"),
+                camera: c,
+                camera_from_object: Rigid3::from_rotation_and_centre(r, z * 10.0),
+                fixed: false,
+            });
+        }
+        let noise = Normal::new(0.0, self.noise_px.max(0.0)).unwrap();
+        let mut points = Vec::with_capacity(self.points);
+        let mut observations = Vec::with_capacity(self.points * self.obs_per_point);
+        let mut chosen: Vec<usize> = Vec::with_capacity(self.obs_per_point);
+        for p in 0..self.points {
+            let x = unit(rng) * (2.0 * rng.random_range(0.0f64..1.0).cbrt());
+            // K distinct cameras by rejection (K ≤ C).
+            chosen.clear();
+            while chosen.len() < self.obs_per_point {
+                let c = rng.random_range(0..self.cameras);
+                if !chosen.contains(&c) {
+                    chosen.push(c);
+                }
+            }
+            chosen.sort_unstable();
+            for &c in &chosen {
+                let xc = images[c].camera_from_object.transform(&x);
+                let uv = model
+                    .project(&cameras[c].params, &xc, None, None)
+                    .expect("in front");
+                let e = Vector2::new(noise.sample(rng), noise.sample(rng));
+                observations.push(Observation {
+                    image: c,
+                    point: p,
+                    uv: uv + e,
+                    sigma: 1.0,
+                });
+            }
+            points.push(Point {
+                name: p.to_string(),
+                position: x,
+                fixed: false,
+            });
+        }
+        (cameras, images, points, observations)
+    }
+
+    /// The problem at the truth, and the same perturbed as [`SyntheticBal::perturbation`]
+    /// says.
+    fn perturbed(
+        &self,
+        cameras: Vec<Camera>,
+        images: Vec<Image>,
+        points: Vec<Point>,
+        observations: Vec<Observation>,
+        rng: &mut pingcal_geometry::consensus::SeededRng,
+    ) -> Synthetic {
+        let n01 = Normal::new(0.0, 1.0).unwrap();
         let truth = Problem {
             cameras,
             images,
@@ -174,30 +296,19 @@ impl SyntheticBal {
         let mut problem = truth.clone();
         let s = self.perturbation;
         for im in &mut problem.images {
-            let dw = Vector3::new(
-                n01.sample(&mut rng),
-                n01.sample(&mut rng),
-                n01.sample(&mut rng),
-            ) * (0.002 * s);
-            let dc = Vector3::new(
-                n01.sample(&mut rng),
-                n01.sample(&mut rng),
-                n01.sample(&mut rng),
-            ) * (0.02 * s);
+            let dw = Vector3::new(n01.sample(rng), n01.sample(rng), n01.sample(rng)) * (0.002 * s);
+            let dc = Vector3::new(n01.sample(rng), n01.sample(rng), n01.sample(rng)) * (0.02 * s);
             let r = exp_so3(&dw) * im.camera_from_object.rotation;
             im.camera_from_object =
                 Rigid3::from_rotation_and_centre(r, im.camera_from_object.centre() + dc);
         }
         for c in &mut problem.cameras {
-            c.params[0] *= 1.0 + 0.005 * s * n01.sample(&mut rng);
+            c.params[0] *= 1.0 + 0.005 * s * n01.sample(rng);
         }
         for pt in &mut problem.points {
-            pt.position += Vector3::new(
-                n01.sample(&mut rng),
-                n01.sample(&mut rng),
-                n01.sample(&mut rng),
-            ) * (0.05 * s);
+            pt.position +=
+                Vector3::new(n01.sample(rng), n01.sample(rng), n01.sample(rng)) * (0.05 * s);
         }
-        Ok(Synthetic { problem, truth })
+        Synthetic { problem, truth }
     }
 }

@@ -3,7 +3,7 @@
 //! paths and of 1 and 2 threads.
 
 use pingcal_ba::solver::{solve, LinearSolverKind, Options, Termination};
-use pingcal_ba::synthetic::SyntheticBal;
+use pingcal_ba::synthetic::{SyntheticBal, Visibility};
 
 fn tight(kind: LinearSolverKind, threads: usize) -> Options {
     Options {
@@ -33,6 +33,7 @@ fn final_cost_is_the_chi_square_of_the_noise() {
         noise_px: sigma,
         perturbation: 1.0,
         seed: 3,
+        ..Default::default()
     };
     let mut p = s.generate().unwrap().problem;
     let summary = solve(&mut p, &tight(LinearSolverKind::Sparse, 2), |_| {}).unwrap();
@@ -66,6 +67,7 @@ fn dense_and_sparse_paths_and_thread_counts_reach_the_same_cost() {
         noise_px: 1.0,
         perturbation: 1.0,
         seed: 9,
+        ..Default::default()
     };
     let base = s.generate().unwrap().problem;
     let mut costs = Vec::new();
@@ -95,6 +97,7 @@ fn a_point_behind_a_camera_is_named() {
         noise_px: 0.0,
         perturbation: 0.0,
         seed: 1,
+        ..Default::default()
     };
     let mut p = s.generate().unwrap().problem;
     // Move point 7 onto the projection plane of its first camera: the BAL model cannot
@@ -114,4 +117,98 @@ fn a_point_behind_a_camera_is_named() {
             o.image
         )
     );
+}
+
+/// The iterative solver (inexact steps, Ceres' forcing rule) reaches the minimum the
+/// factorization reaches, on a banded and on a dense (random-visibility) camera graph.
+#[test]
+fn iterative_solver_reaches_the_factorizations_minimum() {
+    for visibility in [Visibility::Banded, Visibility::Random] {
+        let s = SyntheticBal {
+            cameras: 30,
+            points: 2000,
+            obs_per_point: 5,
+            noise_px: 0.5,
+            perturbation: 1.0,
+            seed: 4,
+            visibility,
+        };
+        let base = s.generate().unwrap().problem;
+        let mut direct = base.clone();
+        let d = solve(&mut direct, &tight(LinearSolverKind::Sparse, 2), |_| {}).unwrap();
+        let mut iterative = base.clone();
+        let i = solve(
+            &mut iterative,
+            &tight(LinearSolverKind::Iterative, 2),
+            |_| {},
+        )
+        .unwrap();
+        assert_eq!(i.linear_solver.kind, LinearSolverKind::Iterative);
+        assert!(i.linear_iterations > 0, "{i:?}");
+        // The cost near the minimum is flat: a step within the forcing rule's relative
+        // model decrease of the exact one changes it by far less than 1e-8 of itself.
+        assert!(
+            (i.final_cost - d.final_cost).abs() <= 1e-8 * d.final_cost,
+            "{visibility:?}: iterative {} vs sparse {} ({} LM iterations, {} CG)",
+            i.final_cost,
+            d.final_cost,
+            i.iterations,
+            i.linear_iterations
+        );
+        // With Ceres' default tolerances too (what `pingcal ba` runs).
+        let mut default = base.clone();
+        let opts = Options {
+            linear_solver: LinearSolverKind::Iterative,
+            ..Options::default()
+        };
+        let i = solve(&mut default, &opts, |_| {}).unwrap();
+        assert!(
+            (i.final_cost - d.final_cost).abs() <= 1e-4 * d.final_cost,
+            "{visibility:?} default tolerances: {} vs {}",
+            i.final_cost,
+            d.final_cost
+        );
+    }
+}
+
+/// A factorization that would not fit in the memory is refused before anything of its
+/// size is allocated, with what it needs; `Auto` takes the iterative solver instead.
+#[test]
+fn a_reduced_system_too_large_for_the_memory_is_refused_or_solved_iteratively() {
+    let s = SyntheticBal {
+        cameras: 60,
+        points: 2000,
+        obs_per_point: 6,
+        visibility: Visibility::Random,
+        ..Default::default()
+    };
+    let base = s.generate().unwrap().problem;
+    for kind in [LinearSolverKind::Dense, LinearSolverKind::Sparse] {
+        let opts = Options {
+            linear_solver: kind,
+            memory_limit_bytes: Some(1e5),
+            ..Options::default()
+        };
+        let err = solve(&mut base.clone(), &opts, |_| {})
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.starts_with(&format!("the {kind} solver needs about "))
+                && err.contains("for a reduced system of 540 unknowns, but 0 MB is available")
+                && err.contains("--solver iterative"),
+            "{err}"
+        );
+    }
+    let opts = Options {
+        memory_limit_bytes: Some(1e5),
+        ..Options::default()
+    };
+    let summary = solve(&mut base.clone(), &opts, |_| {}).unwrap();
+    assert_eq!(summary.linear_solver.kind, LinearSolverKind::Iterative);
+    assert!(
+        summary.linear_solver.reason.contains("memory limit"),
+        "{}",
+        summary.linear_solver.reason
+    );
+    assert!(summary.final_cost < 0.1 * summary.initial_cost);
 }

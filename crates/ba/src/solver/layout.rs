@@ -76,9 +76,11 @@ pub(crate) struct Layout {
     /// inside every scalar column of b.
     pub col_blocks: Vec<Vec<u32>>,
     pub col_row_off: Vec<Vec<usize>>,
-    /// Scalar CSC pattern of the upper triangle.
+    /// Column pointers of the scalar CSC pattern of the upper triangle. Its row indices
+    /// (one `usize` per stored entry, as many as S has values) are built only by the
+    /// factorizations that need them ([`Layout::row_indices`]): the iterative solver never
+    /// forms S.
     pub col_ptr: Vec<usize>,
-    pub row_idx: Vec<usize>,
 }
 
 impl Layout {
@@ -104,7 +106,7 @@ impl Layout {
             &fp_obs,
             &blocks.distance_slots,
         );
-        let (col_ptr, row_idx, col_row_off) = scalar_pattern(&col_blocks, &blocks);
+        let (col_ptr, col_row_off) = scalar_pattern(&col_blocks, &blocks);
         Self {
             block_dim: blocks.dim,
             block_offset: blocks.offset,
@@ -131,8 +133,23 @@ impl Layout {
             col_blocks,
             col_row_off,
             col_ptr,
-            row_idx,
         }
+    }
+
+    /// The row indices of the scalar CSC pattern (rows sorted within each column), in the
+    /// order of S's values.
+    pub fn row_indices(&self) -> Vec<usize> {
+        let mut row_idx = Vec::with_capacity(self.nnz());
+        for (b, rows_of_b) in self.col_blocks.iter().enumerate() {
+            for j in 0..self.block_dim[b] {
+                for &a in rows_of_b {
+                    let a = a as usize;
+                    let rows = if a == b { j + 1 } else { self.block_dim[a] };
+                    row_idx.extend((0..rows).map(|i| self.block_offset[a] + i));
+                }
+            }
+        }
+        row_idx
     }
 
     pub fn num_blocks(&self) -> usize {
@@ -521,16 +538,13 @@ fn block_pattern(
     col_blocks
 }
 
-/// The scalar CSC pattern of S's upper triangle (rows sorted) from its block pattern:
-/// `(col_ptr, row_idx, col_row_off)` as in [`Layout`].
-fn scalar_pattern(
-    col_blocks: &[Vec<u32>],
-    blocks: &Blocks,
-) -> (Vec<usize>, Vec<usize>, Vec<Vec<usize>>) {
-    let (block_dim, block_offset) = (&blocks.dim, &blocks.offset);
+/// The scalar CSC pattern of S's upper triangle from its block pattern, without its row
+/// indices: `(col_ptr, col_row_off)` as in [`Layout`].
+fn scalar_pattern(col_blocks: &[Vec<u32>], blocks: &Blocks) -> (Vec<usize>, Vec<Vec<usize>>) {
+    let block_dim = &blocks.dim;
     let mut col_ptr = Vec::with_capacity(blocks.n_reduced + 1);
-    let mut row_idx = Vec::new();
     let mut col_row_off = Vec::with_capacity(col_blocks.len());
+    let mut nnz = 0;
     col_ptr.push(0);
     for (b, rows_of_b) in col_blocks.iter().enumerate() {
         let mut offs = Vec::with_capacity(rows_of_b.len());
@@ -540,16 +554,15 @@ fn scalar_pattern(
             acc += block_dim[a as usize];
         }
         col_row_off.push(offs);
+        // Every block above the diagonal contributes whole columns; the diagonal block its
+        // upper triangle (column j holds j + 1 of its rows).
+        let above = acc - block_dim[b];
         for j in 0..block_dim[b] {
-            for &a in rows_of_b {
-                let a = a as usize;
-                let rows = if a == b { j + 1 } else { block_dim[a] };
-                row_idx.extend((0..rows).map(|i| block_offset[a] + i));
-            }
-            col_ptr.push(row_idx.len());
+            nnz += above + j + 1;
+            col_ptr.push(nnz);
         }
     }
-    (col_ptr, row_idx, col_row_off)
+    (col_ptr, col_row_off)
 }
 
 #[cfg(test)]
@@ -645,6 +658,12 @@ mod tests {
             assert!(rows.windows(2).all(|w| w[0] < w[1]));
         }
         assert_eq!(l.col_ptr.len(), l.n_reduced + 1);
+        let rows = l.row_indices();
+        assert_eq!(rows.len(), l.nnz());
+        for j in 0..l.n_reduced {
+            let col = &rows[l.col_ptr[j]..l.col_ptr[j + 1]];
+            assert!(col.windows(2).all(|w| w[0] < w[1]) && *col.last().unwrap() == j);
+        }
     }
 
     #[test]

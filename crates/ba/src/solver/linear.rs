@@ -1,8 +1,11 @@
-//! Linear solvers for the reduced camera system: dense Cholesky for small systems, sparse
-//! supernodal/simplicial Cholesky (faer) with the symbolic factorization computed once.
+//! Direct solvers for the reduced camera system: dense Cholesky for small or nearly full
+//! systems, sparse supernodal/simplicial Cholesky (faer) with the symbolic factorization
+//! computed once. The iterative solver is in `iterative`; which one runs is chosen in
+//! `choice`.
 
 use super::layout::Layout;
 use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::linalg::cholesky::llt;
 use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, LltRef, SymbolicCholesky};
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, Mat, MatMut, Par, Side};
@@ -17,6 +20,20 @@ pub enum LinearSolverKind {
     Dense,
     /// Sparse Cholesky of the reduced system.
     Sparse,
+    /// Preconditioned conjugate gradients on the reduced system, which is never formed
+    /// (memory proportional to the observations).
+    Iterative,
+}
+
+impl std::fmt::Display for LinearSolverKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            LinearSolverKind::Auto => "auto",
+            LinearSolverKind::Dense => "dense",
+            LinearSolverKind::Sparse => "sparse",
+            LinearSolverKind::Iterative => "iterative",
+        })
+    }
 }
 
 pub(crate) enum Factorizer {
@@ -24,6 +41,8 @@ pub(crate) enum Factorizer {
         par: Par,
     },
     Sparse {
+        /// The row indices of S's pattern (faer reads them at every factorization).
+        row_idx: Vec<usize>,
         /// Boxed (the variant would otherwise be ~40 times the dense one): it is built once
         /// per adjustment and dereferenced once per factorization, far from any inner loop.
         symbolic: Box<SymbolicCholesky<usize>>,
@@ -34,20 +53,20 @@ pub(crate) enum Factorizer {
 }
 
 impl Factorizer {
-    pub fn new(layout: &Layout, kind: LinearSolverKind, par: Par) -> Result<Self, String> {
+    /// A dense factorization of the reduced system.
+    pub fn dense(par: Par) -> Self {
+        Factorizer::Dense { par }
+    }
+
+    /// A sparse factorization of the reduced system: its fill-reducing ordering and
+    /// symbolic factorization, computed once.
+    pub fn sparse(layout: &Layout, par: Par) -> Result<Self, String> {
         let n = layout.n_reduced;
-        let dense = match kind {
-            LinearSolverKind::Dense => true,
-            LinearSolverKind::Sparse => false,
-            LinearSolverKind::Auto => {
-                n <= 600 || layout.nnz() as f64 >= 0.25 * (n * (n + 1) / 2) as f64
-            }
-        };
-        if dense || n == 0 {
+        if n == 0 {
             return Ok(Factorizer::Dense { par });
         }
-        let sym =
-            SymbolicSparseColMatRef::new_checked(n, n, &layout.col_ptr, None, &layout.row_idx);
+        let row_idx = layout.row_indices();
+        let sym = SymbolicSparseColMatRef::new_checked(n, n, &layout.col_ptr, None, &row_idx);
         // Fill-reducing ordering on the block graph (a few thousand nodes instead of tens of
         // thousands of scalars), expanded to the scalars of each block: cheaper to compute,
         // and it keeps every block's unknowns together, which makes good supernodes.
@@ -66,15 +85,12 @@ impl Factorizer {
             .or(symbolic.solve_in_place_scratch::<f64>(1, par));
         let mem = MemBuffer::new(req);
         Ok(Factorizer::Sparse {
+            row_idx,
             symbolic: Box::new(symbolic),
             l_values,
             mem,
             par,
         })
-    }
-
-    pub fn is_dense(&self) -> bool {
-        matches!(self, Factorizer::Dense { .. })
     }
 
     /// Solves S x = rhs in place. Returns `false` if S is not numerically positive definite.
@@ -85,39 +101,59 @@ impl Factorizer {
         }
         match self {
             Factorizer::Dense { par } => {
+                // The lower triangle of S, factorized in place (one n × n matrix).
                 let mut m = Mat::<f64>::zeros(n, n);
-                for j in 0..n {
-                    let col = layout.col_ptr[j]..layout.col_ptr[j + 1];
-                    for (&i, &v) in layout.row_idx[col.clone()].iter().zip(&values[col]) {
-                        m[(i, j)] = v;
-                        m[(j, i)] = v;
+                let mut col = 0;
+                for (b, rows) in layout.col_blocks.iter().enumerate() {
+                    for j in 0..layout.block_dim[b] {
+                        let mut k = layout.col_ptr[col];
+                        for &a in rows {
+                            let a = a as usize;
+                            let len = if a == b { j + 1 } else { layout.block_dim[a] };
+                            for i in 0..len {
+                                m[(col, layout.block_offset[a] + i)] = values[k];
+                                k += 1;
+                            }
+                        }
+                        col += 1;
                     }
                 }
-                let _ = par;
-                let Ok(llt) = m.llt(Side::Lower) else {
+                let par = *par;
+                let mut mem = MemBuffer::new(llt::factor::cholesky_in_place_scratch::<f64>(
+                    n,
+                    par,
+                    Default::default(),
+                ));
+                if llt::factor::cholesky_in_place(
+                    m.as_mut(),
+                    Default::default(),
+                    par,
+                    MemStack::new(&mut mem),
+                    Default::default(),
+                )
+                .is_err()
+                {
                     return false;
-                };
-                let mut x = Mat::<f64>::from_fn(n, 1, |i, _| rhs[i]);
-                use faer::linalg::solvers::SolveCore;
-                llt.solve_in_place_with_conj(Conj::No, x.as_mut());
-                for i in 0..n {
-                    rhs[i] = x[(i, 0)];
                 }
+                let x = MatMut::from_column_major_slice_mut(rhs, n, 1);
+                llt::solve::solve_in_place_with_conj(
+                    m.as_ref(),
+                    Conj::No,
+                    x,
+                    par,
+                    MemStack::new(&mut mem),
+                );
                 rhs.iter().all(|v| v.is_finite())
             }
             Factorizer::Sparse {
+                row_idx,
                 symbolic,
                 l_values,
                 mem,
                 par,
             } => {
-                let sym = SymbolicSparseColMatRef::new_checked(
-                    n,
-                    n,
-                    &layout.col_ptr,
-                    None,
-                    &layout.row_idx,
-                );
+                let sym =
+                    SymbolicSparseColMatRef::new_checked(n, n, &layout.col_ptr, None, row_idx);
                 let a = SparseColMatRef::new(sym, values);
                 let stack = MemStack::new(mem);
                 let llt = match symbolic.factorize_numeric_llt::<f64>(
@@ -175,4 +211,30 @@ fn block_amd_ordering(layout: &Layout) -> Result<(Vec<usize>, Vec<usize>), Strin
         inv[i] = k;
     }
     Ok((fwd, inv))
+}
+
+/// Stored entries of the Cholesky factor of S's *block* graph under AMD (each a block of
+/// the scalar factor), from its symbolic factorization: what the solver choice scales to
+/// estimate the scalar fill before anything of that size is allocated.
+pub(crate) fn block_factor_entries(layout: &Layout) -> Option<f64> {
+    let nb = layout.num_blocks();
+    if nb == 0 {
+        return Some(0.0);
+    }
+    let mut col_ptr = Vec::with_capacity(nb + 1);
+    let mut row_idx = Vec::new();
+    col_ptr.push(0);
+    for rows in &layout.col_blocks {
+        row_idx.extend(rows.iter().map(|&a| a as usize));
+        col_ptr.push(row_idx.len());
+    }
+    let graph = SymbolicSparseColMatRef::new_checked(nb, nb, &col_ptr, None, &row_idx);
+    let symbolic = factorize_symbolic_cholesky(
+        graph,
+        Side::Upper,
+        faer::sparse::linalg::cholesky::SymmetricOrdering::Amd,
+        Default::default(),
+    )
+    .ok()?;
+    Some(symbolic.len_val() as f64)
 }

@@ -11,8 +11,10 @@
 //! the points (`schur`); factorize the reduced camera system (`linear`) with a
 //! symbolic factorization computed once (`layout`); back-substitute the points.
 
+mod choice;
 mod evaluate;
 mod free_network;
+mod iterative;
 mod layout;
 mod linear;
 mod outliers;
@@ -21,7 +23,9 @@ mod schur;
 mod sigma;
 mod variance;
 
+pub use choice::{available_memory, SolverChoice, TooLarge};
 pub use free_network::MAX_FREE_NETWORK_UNKNOWNS;
+pub use iterative::CgOptions;
 pub use linear::LinearSolverKind;
 pub use outliers::{adjust_with_snooping, Rejection, SnoopError, SnoopResult};
 pub use precision::{points_covariance, precision};
@@ -55,8 +59,14 @@ pub struct Options {
     pub max_trust_region_radius: f64,
     /// Stop when the radius falls below this.
     pub min_trust_region_radius: f64,
-    /// Factorization of the reduced camera system.
+    /// Solver of the reduced camera system (`Auto`: chosen by its structure, see
+    /// [`SolverChoice`]).
     pub linear_solver: LinearSolverKind,
+    /// The conjugate-gradient solve of the iterative solver.
+    pub cg: CgOptions,
+    /// Memory the linear algebra may use, bytes (`None`: 80 % of what the system reports
+    /// available, or no limit where it reports nothing).
+    pub memory_limit_bytes: Option<f64>,
     /// Worker threads (0: all cores).
     pub threads: usize,
 }
@@ -72,6 +82,8 @@ impl Default for Options {
             max_trust_region_radius: 1e16,
             min_trust_region_radius: 1e-32,
             linear_solver: LinearSolverKind::Auto,
+            cg: CgOptions::default(),
+            memory_limit_bytes: None,
             threads: 0,
         }
     }
@@ -130,6 +142,8 @@ pub struct Iteration {
     pub accepted: bool,
     /// Time in the linear solver, seconds.
     pub linear_solver_time_s: f64,
+    /// Conjugate-gradient iterations (0 for a direct solver).
+    pub linear_iterations: usize,
     /// Wall time of the iteration, seconds.
     pub iteration_time_s: f64,
 }
@@ -159,6 +173,10 @@ pub struct Summary {
     pub setup_time_s: f64,
     /// Whether the dense path was used.
     pub dense: bool,
+    /// The solver of the reduced system that ran, and why it was chosen.
+    pub linear_solver: SolverChoice,
+    /// Conjugate-gradient iterations over all steps (0 for a direct solver).
+    pub linear_iterations: usize,
     /// Dimension of the reduced camera system.
     pub reduced_dimension: usize,
     /// Stored entries of its upper triangle.
@@ -176,6 +194,9 @@ pub enum SolveError {
     /// The linear algebra could not be set up.
     #[error("{0}")]
     Setup(String),
+    /// The solver asked for needs more memory than there is.
+    #[error(transparent)]
+    TooLarge(#[from] TooLarge),
 }
 
 /// Adjusts `problem` in place. `on_iteration` is called after every iteration (for logs
@@ -202,6 +223,14 @@ pub fn solve(
         faer::Par::Seq
     };
     pool.install(|| run(problem, options, par, &mut on_iteration))
+}
+
+/// The solver of the reduced system for one adjustment.
+enum Linear {
+    /// A factorization of S, assembled explicitly.
+    Direct(linear::Factorizer),
+    /// Conjugate gradients on S applied implicitly.
+    Iterative(Box<iterative::ImplicitSchur>),
 }
 
 struct Backup {
@@ -252,13 +281,33 @@ fn run(
 ) -> Result<Summary, SolveError> {
     let t0 = Instant::now();
     let layout = Layout::new(problem);
-    let mut factorizer =
-        linear::Factorizer::new(&layout, options.linear_solver, par).map_err(SolveError::Setup)?;
+    let limit = options
+        .memory_limit_bytes
+        .or_else(|| available_memory().map(|m| 0.8 * m));
+    let choice = choice::choose(
+        &layout,
+        options.linear_solver,
+        rayon::current_num_threads(),
+        limit,
+    )?;
+    let mut linear = match choice.kind {
+        LinearSolverKind::Sparse => {
+            Linear::Direct(linear::Factorizer::sparse(&layout, par).map_err(SolveError::Setup)?)
+        }
+        LinearSolverKind::Iterative => Linear::Iterative(Box::new(iterative::ImplicitSchur::new(
+            &layout,
+            rayon::current_num_threads(),
+        ))),
+        _ => Linear::Direct(linear::Factorizer::dense(par)),
+    };
     let setup_time_s = t0.elapsed().as_secs_f64();
     let mut lin = evaluate::Linearization::new(&layout);
     evaluate::linearize(problem, &layout, &mut lin).map_err(|o| not_projectable(problem, o))?;
     let mut schur = schur::Schur::new(&layout);
     schur.prepare(&layout, &lin, problem);
+    if let Linear::Iterative(op) = &mut linear {
+        op.resize_work(schur.chunks.len());
+    }
 
     let initial_cost = lin.cost;
     if !initial_cost.is_finite() {
@@ -274,6 +323,7 @@ fn run(
     let mut linear_time = 0.0;
     let mut eval_time = 0.0;
     let mut schur_time = 0.0;
+    let mut linear_iterations = 0;
     let mut dc = vec![0.0; layout.n_reduced];
     let mut dp = vec![Vector3::zeros(); layout.free_points.len()];
     let mut termination = Termination::MaxIterations;
@@ -295,16 +345,36 @@ fn run(
             trust_region_radius: radius,
             accepted: false,
             linear_solver_time_s: 0.0,
+            linear_iterations: 0,
             iteration_time_s: 0.0,
         };
         // Solve the damped normal equations.
         let ts = Instant::now();
-        let mut solved = schur.assemble(&layout, &lin, problem, 1.0 / radius).is_ok();
+        let lambda = 1.0 / radius;
+        let mut solved = match &mut linear {
+            Linear::Direct(_) => schur.assemble(&layout, &lin, problem, lambda).is_ok(),
+            Linear::Iterative(op) => op
+                .prepare(&mut schur, &layout, &lin, problem, lambda)
+                .is_ok(),
+        };
         schur_time += ts.elapsed().as_secs_f64();
         if solved {
-            dc.copy_from_slice(&schur.rhs);
             let tl = Instant::now();
-            solved = factorizer.solve(&layout, &schur.values, &mut dc);
+            match &mut linear {
+                Linear::Direct(factorizer) => {
+                    dc.copy_from_slice(&schur.rhs);
+                    solved = factorizer.solve(&layout, &schur.values, &mut dc);
+                }
+                Linear::Iterative(op) => {
+                    match op.solve(&schur, &layout, &lin, problem, &options.cg, &mut dc) {
+                        Some(cg) => {
+                            it.linear_iterations = cg.iterations;
+                            linear_iterations += cg.iterations;
+                        }
+                        None => solved = false,
+                    }
+                }
+            }
             it.linear_solver_time_s = tl.elapsed().as_secs_f64();
             linear_time += it.linear_solver_time_s;
         }
@@ -386,7 +456,9 @@ fn run(
         evaluation_time_s: eval_time,
         schur_time_s: schur_time,
         setup_time_s,
-        dense: factorizer.is_dense(),
+        dense: choice.kind == LinearSolverKind::Dense,
+        linear_solver: choice,
+        linear_iterations,
         reduced_dimension: layout.n_reduced,
         reduced_nonzeros: layout.nnz(),
         log,
@@ -757,6 +829,7 @@ mod schur_tests {
             noise_px: 1.0,
             perturbation: 1.0,
             seed: 5,
+            ..Default::default()
         };
         let mut problem = s.generate().unwrap().problem;
         problem.images[0].fixed = true;
@@ -904,8 +977,7 @@ mod schur_tests {
         let lambda = 0.37;
         schur.assemble(&layout, &lin, &problem, lambda).unwrap();
         let mut dc = schur.rhs.clone();
-        let mut fact =
-            linear::Factorizer::new(&layout, LinearSolverKind::Sparse, faer::Par::Seq).unwrap();
+        let mut fact = linear::Factorizer::sparse(&layout, faer::Par::Seq).unwrap();
         assert!(fact.solve(&layout, &schur.values, &mut dc));
         let mut dp = vec![Vector3::zeros(); layout.free_points.len()];
         schur.back_substitute(&layout, &lin, &dc, &mut dp);
@@ -931,12 +1003,103 @@ mod schur_tests {
         assert!(err < 1e-9, "relative difference {err}");
         // And the dense path gives the same.
         let mut dc2 = schur.rhs.clone();
-        let mut dense =
-            linear::Factorizer::new(&layout, LinearSolverKind::Dense, faer::Par::Seq).unwrap();
+        let mut dense = linear::Factorizer::dense(faer::Par::Seq);
         assert!(dense.solve(&layout, &schur.values, &mut dc2));
         assert!(dc
             .iter()
             .zip(&dc2)
             .all(|(a, b)| (a - b).abs() <= 1e-9 * full.amax()));
+    }
+
+    /// The implicit product and the preconditioner of the iterative solver against the
+    /// explicitly assembled S of the same damped step (distances, control points, a rig,
+    /// shared and fixed cameras included), and its solution against the factorization's.
+    #[test]
+    fn implicit_schur_equals_the_assembled_one() {
+        let problem = mixed_problem();
+        let layout = Layout::new(&problem);
+        let mut lin = evaluate::Linearization::new(&layout);
+        evaluate::linearize(&problem, &layout, &mut lin).unwrap();
+        let mut schur = schur::Schur::new(&layout);
+        schur.prepare(&layout, &lin, &problem);
+        let lambda = 0.37;
+        schur.assemble(&layout, &lin, &problem, lambda).unwrap();
+        let n = layout.n_reduced;
+        let rows = layout.row_indices();
+        let mut dense = nalgebra::DMatrix::<f64>::zeros(n, n);
+        for j in 0..n {
+            for k in layout.col_ptr[j]..layout.col_ptr[j + 1] {
+                dense[(rows[k], j)] = schur.values[k];
+                dense[(j, rows[k])] = schur.values[k];
+            }
+        }
+        let rhs_explicit = schur.rhs.clone();
+        let mut op = iterative::ImplicitSchur::new(&layout, schur.chunks.len());
+        op.prepare(&mut schur, &layout, &lin, &problem, lambda)
+            .unwrap();
+        let scale = dense.amax();
+        for (a, b) in schur.rhs.iter().zip(&rhs_explicit) {
+            assert!(
+                (a - b).abs() <= 1e-11 * rhs_explicit.iter().fold(0.0f64, |m, v| m.max(v.abs()))
+            );
+        }
+        let mut rng = crate::camera::jacobian_checks::rng(5);
+        for _ in 0..3 {
+            let x: Vec<f64> = (0..n)
+                .map(|_| crate::camera::jacobian_checks::uniform(&mut rng, -1.0, 1.0))
+                .collect();
+            let mut y = vec![0.0; n];
+            op.apply(&schur, &layout, &lin, &problem, &x, &mut y);
+            let want = &dense * nalgebra::DVector::from_column_slice(&x);
+            for k in 0..n {
+                assert!(
+                    (y[k] - want[k]).abs() <= 1e-11 * scale * n as f64,
+                    "S·x[{k}]: implicit {} explicit {}",
+                    y[k],
+                    want[k]
+                );
+            }
+        }
+        // Preconditioner: each block the inverse of S's diagonal block.
+        for b in 0..layout.num_blocks() {
+            let (o, d) = (layout.block_offset[b], layout.block_dim[b]);
+            let inv = dense
+                .view((o, o), (d, d))
+                .into_owned()
+                .cholesky()
+                .unwrap()
+                .inverse();
+            let mut r = vec![0.0; n];
+            let mut z = vec![0.0; n];
+            r[o] = 1.0;
+            op.precondition_for_test(&layout, &r, &mut z);
+            for i in 0..d {
+                assert!(
+                    (z[o + i] - inv[(i, 0)]).abs() <= 1e-9 * inv.amax(),
+                    "block {b}"
+                );
+            }
+        }
+        // A tight solve equals the factorization's step.
+        let mut direct = schur.rhs.clone();
+        let mut fact = linear::Factorizer::sparse(&layout, faer::Par::Seq).unwrap();
+        assert!(fact.solve(&layout, &schur.values, &mut direct));
+        let tight = CgOptions {
+            eta: 0.0,
+            min_iterations: 0,
+            max_iterations: 10 * n,
+        };
+        let mut x = vec![0.0; n];
+        let cg = op
+            .solve(&schur, &layout, &lin, &problem, &tight, &mut x)
+            .unwrap();
+        let amax = direct.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        for (a, b) in x.iter().zip(&direct) {
+            assert!(
+                (a - b).abs() <= 1e-8 * amax,
+                "{a} vs {b} after {} iterations",
+                cg.iterations
+            );
+        }
     }
 }

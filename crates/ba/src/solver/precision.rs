@@ -232,11 +232,12 @@ fn reduced_system(
     })?;
     let n = layout.n_reduced;
     let mut s = DMatrix::<f64>::zeros(n, n);
+    let row_idx = layout.row_indices();
     for j in 0..n {
-        for k in layout.col_ptr[j]..layout.col_ptr[j + 1] {
-            let i = layout.row_idx[k];
-            s[(i, j)] = schur.values[k];
-            s[(j, i)] = schur.values[k];
+        let col = layout.col_ptr[j]..layout.col_ptr[j + 1];
+        for (&i, &v) in row_idx[col.clone()].iter().zip(&schur.values[col]) {
+            s[(i, j)] = v;
+            s[(j, i)] = v;
         }
     }
     Ok((schur, s))

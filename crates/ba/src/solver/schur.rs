@@ -33,7 +33,7 @@ pub(crate) struct Schur {
     pub rhs: Vec<f64>,
     /// Work split: contiguous ranges of (internal, point-ordered) observations that start
     /// and end on point boundaries, one per worker, each with its own copy of S and b.
-    chunks: Vec<(usize, usize)>,
+    pub chunks: Vec<(usize, usize)>,
     work_values: Vec<Vec<f64>>,
     work_rhs: Vec<Vec<f64>>,
 }
@@ -45,10 +45,12 @@ impl Schur {
             v: vec![Matrix3::zeros(); nfp],
             gp: vec![Vector3::zeros(); nfp],
             vinv: vec![Matrix3::zeros(); nfp],
-            y: vec![0.0; layout.w_len],
+            // S's values and Y are allocated by the first explicit assembly: the iterative
+            // solver needs neither.
+            y: Vec::new(),
             diag_c: vec![0.0; layout.n_reduced],
             gc: vec![0.0; layout.n_reduced],
-            values: vec![0.0; layout.nnz()],
+            values: Vec::new(),
             rhs: vec![0.0; layout.n_reduced],
             chunks: Vec::new(),
             work_values: Vec::new(),
@@ -159,16 +161,9 @@ impl Schur {
         self.gp.iter().fold(a, |m, g| m.max(g.amax()))
     }
 
-    /// Forms S and b for the damping `lambda`. Fails if a damped point block is not
-    /// positive definite (returns the free-point index).
-    pub fn assemble(
-        &mut self,
-        layout: &Layout,
-        lin: &Linearization,
-        problem: &Problem,
-        lambda: f64,
-    ) -> Result<(), usize> {
-        // (V + λD)⁻¹ per point.
+    /// (V + λD)⁻¹ per free point; fails with the free-point index of a block that is not
+    /// positive definite.
+    pub fn invert_points(&mut self, lambda: f64) -> Result<(), usize> {
         self.vinv
             .par_iter_mut()
             .zip(self.v.par_iter())
@@ -181,7 +176,32 @@ impl Schur {
                 }
                 *vi = m.cholesky().ok_or(f)?.inverse();
                 Ok::<(), usize>(())
-            })?;
+            })
+    }
+
+    /// λ·clamp(diag(U)): the damping of the reduced system.
+    pub fn damping(&self, lambda: f64) -> Vec<f64> {
+        (self.diag_c.iter())
+            .map(|d| lambda * d.clamp(MIN_DIAGONAL, MAX_DIAGONAL))
+            .collect()
+    }
+
+    /// Forms S and b for the damping `lambda`. Fails if a damped point block is not
+    /// positive definite (returns the free-point index).
+    pub fn assemble(
+        &mut self,
+        layout: &Layout,
+        lin: &Linearization,
+        problem: &Problem,
+        lambda: f64,
+    ) -> Result<(), usize> {
+        self.invert_points(lambda)?;
+        if self.y.len() != layout.w_len {
+            self.y = vec![0.0; layout.w_len];
+        }
+        if self.values.len() != layout.nnz() {
+            self.values = vec![0.0; layout.nnz()];
+        }
         // Y = W (V + λD)⁻¹ per observation of a free point.
         let y_parts = split_at_offsets(&mut self.y, &layout.obs_w_offset);
         let vinv = &self.vinv;

@@ -33,9 +33,17 @@ pub struct Args {
     /// Worker threads (0: all cores).
     #[arg(long, default_value_t = 0)]
     pub threads: usize,
-    /// Factorization of the reduced camera system.
+    /// Solver of the reduced camera system.
     #[arg(long, value_enum, default_value_t = SolverArg::Auto)]
     pub solver: SolverArg,
+    /// The iterative solver's forcing constant η (Ceres' `eta`): each step's conjugate
+    /// gradients stop when the quadratic model's relative decrease falls below η/i.
+    #[arg(long, default_value_t = 0.1)]
+    pub eta: f64,
+    /// With `--synthetic`: which cameras see a point, `banded` (neighbours along a street)
+    /// or `random` (any 6 of all cameras: a dense camera graph).
+    #[arg(long, value_enum, default_value_t = super::gen_bal::VisibilityArg::Banded)]
+    pub visibility: super::gen_bal::VisibilityArg,
     /// Most Levenberg–Marquardt iterations.
     #[arg(long, default_value_t = 50)]
     pub max_iterations: usize,
@@ -72,12 +80,16 @@ pub struct Args {
 /// Linear solver choice on the command line.
 #[derive(Clone, Copy, clap::ValueEnum)]
 pub enum SolverArg {
-    /// Dense for small reduced systems, sparse otherwise.
+    /// Chosen from the size and fill of the reduced camera system (the choice and its
+    /// reason are printed).
     Auto,
     /// Dense Cholesky of the reduced camera system.
     Dense,
     /// Sparse Cholesky of the reduced camera system.
     Sparse,
+    /// Conjugate gradients on the reduced camera system, never formed (Schur–Jacobi
+    /// preconditioner; memory proportional to the observations).
+    Iterative,
 }
 
 fn parse_loss(s: &str) -> Result<Loss, String> {
@@ -131,6 +143,7 @@ pub fn run(args: Args) -> CmdResult {
                 cameras: c,
                 points: p,
                 obs_per_point: 6.min(c),
+                visibility: args.visibility.into(),
                 ..Default::default()
             };
             (spec.generate()?.problem, format!("synthetic {c}x{p}"))
@@ -150,6 +163,11 @@ pub fn run(args: Args) -> CmdResult {
             SolverArg::Auto => LinearSolverKind::Auto,
             SolverArg::Dense => LinearSolverKind::Dense,
             SolverArg::Sparse => LinearSolverKind::Sparse,
+            SolverArg::Iterative => LinearSolverKind::Iterative,
+        },
+        cg: solver::CgOptions {
+            eta: args.eta,
+            ..Default::default()
         },
         threads: args.threads,
         ..Options::default()
@@ -164,12 +182,12 @@ pub fn run(args: Args) -> CmdResult {
             problem.observations.len(),
             read_s
         );
-        println!("iter      cost      cost_change  |gradient|   |step|    tr_ratio  tr_radius  ls_time  iter_time");
+        println!("iter      cost      cost_change  |gradient|   |step|    tr_ratio  tr_radius  ls_time  iter_time  cg_iter");
     }
     let summary = solver::solve(&mut problem, &options, |it: &Iteration| {
         if !quiet {
             println!(
-                "{:4} {:12.6e} {:11.4e} {:11.4e} {:10.3e} {:9.2e} {:9.2e} {:8.3} {:9.3}{}",
+                "{:4} {:12.6e} {:11.4e} {:11.4e} {:10.3e} {:9.2e} {:9.2e} {:8.3} {:9.3} {:8}{}",
                 it.iteration,
                 it.cost,
                 it.cost_change,
@@ -179,12 +197,17 @@ pub fn run(args: Args) -> CmdResult {
                 it.trust_region_radius,
                 it.linear_solver_time_s,
                 it.iteration_time_s,
+                it.linear_iterations,
                 if it.accepted { "" } else { "  (rejected)" }
             );
         }
     })?;
     let rms = problem.rms_px();
     if !quiet {
+        println!(
+            "linear solver: {} ({})",
+            summary.linear_solver.kind, summary.linear_solver.reason
+        );
         println!(
             "time: setup {:.3} s, evaluation {:.3} s, Schur complement {:.3} s, linear solver {:.3} s, total {:.3} s",
             summary.setup_time_s,
@@ -198,7 +221,7 @@ pub fn run(args: Args) -> CmdResult {
         summary.iterations,
         summary.successful_steps,
         summary.time_s,
-        if summary.dense { "dense" } else { "sparse" },
+        summary.linear_solver.kind,
         summary.reduced_dimension,
         summary.reduced_dimension,
         rms,
@@ -215,7 +238,9 @@ pub fn run(args: Args) -> CmdResult {
             "evaluation_time_s": summary.evaluation_time_s,
             "schur_time_s": summary.schur_time_s,
             "setup_time_s": summary.setup_time_s,
-            "linear_solver": if summary.dense { "dense" } else { "sparse" },
+            "linear_solver": summary.linear_solver.kind,
+            "linear_solver_reason": summary.linear_solver.reason,
+            "linear_iterations": summary.linear_iterations,
             "termination": summary.termination,
             "rms_px": rms,
             "cameras": problem.images.len(),

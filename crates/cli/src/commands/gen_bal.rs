@@ -1,7 +1,7 @@
 //! `pingcal gen-bal`: writes a synthetic BAL problem (for tests and benchmarks).
 
 use super::{write_atomic, CmdResult};
-use pingcal_ba::synthetic::SyntheticBal;
+use pingcal_ba::synthetic::{SyntheticBal, Visibility};
 use std::io::Write;
 use std::path::PathBuf;
 
@@ -27,9 +27,31 @@ pub struct Args {
     /// Random seed.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Which cameras see a point: `banded` (neighbours along a street) or `random` (any
+    /// K of all cameras: a dense camera graph).
+    #[arg(long, value_enum, default_value_t = VisibilityArg::Banded)]
+    pub visibility: VisibilityArg,
     /// Output BAL file (`.bz2` compresses).
     #[arg(long)]
     pub out: PathBuf,
+}
+
+/// The `--visibility` values.
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+pub enum VisibilityArg {
+    /// Neighbouring cameras along a street.
+    Banded,
+    /// Any cameras, drawn at random.
+    Random,
+}
+
+impl From<VisibilityArg> for Visibility {
+    fn from(v: VisibilityArg) -> Self {
+        match v {
+            VisibilityArg::Banded => Visibility::Banded,
+            VisibilityArg::Random => Visibility::Random,
+        }
+    }
 }
 
 /// Runs the command.
@@ -41,6 +63,7 @@ pub fn run(args: Args) -> CmdResult {
         noise_px: args.noise_px,
         perturbation: args.perturbation,
         seed: args.seed,
+        visibility: args.visibility.into(),
     };
     let synthetic = spec.generate()?;
     let mut text = Vec::new();

@@ -1,0 +1,219 @@
+//! Which linear solver runs, chosen from the structure of the reduced camera system before
+//! anything of its size is allocated.
+//!
+//! For each candidate the cost of one Levenberg–Marquardt step and its peak memory are
+//! estimated from the block pattern of S alone:
+//!
+//! | solver | memory (bytes) | work per step (flops) |
+//! |---|---|---|
+//! | dense | `8·nnz·(1 + workers) + 8·n²` | assembly `A` + `n³/3` |
+//! | sparse | `8·nnz·(2 + workers) + 8·nnz(L)` | assembly `A` + `nnz(L)²/n` |
+//! | iterative | none beyond the Jacobians | `k · (Σ_o (4·m_o + 16) + Σ_b d_b²)` |
+//!
+//! with n the dimension of S, nnz its stored upper triangle, workers the threads (each
+//! assembles its own copy of S), `A = Σ_o 4 m_o² + Σ_f 6 (Σ_{o∈f} m_o)²` (m_o the
+//! camera-side columns of observation o), nnz(L) the fill of the Cholesky factor from a
+//! symbolic factorization of the block graph (scaled by the mean block size squared), and
+//! k = 40 conjugate-gradient iterations, d_b the block sizes. The flop rates that turn work
+//! into time (below) were measured on this project's benchmark (`bench/ba`): the scattered
+//! assembly runs far below the factorizations' rate, and the implicit products are
+//! bounded by memory bandwidth.
+//!
+//! `Auto` takes the fastest candidate that fits in the memory limit (by default 80 % of
+//! the memory the system reports available); the iterative solver always fits. An explicit
+//! choice that does not fit is refused with the memory it would need.
+
+use super::layout::Layout;
+use super::linear::LinearSolverKind;
+
+/// Flop rates (per second and thread) that turn the work estimates into time.
+const ASSEMBLY_RATE: f64 = 0.6e9;
+const DENSE_RATE: f64 = 12e9;
+const SPARSE_RATE: f64 = 6e9;
+const IMPLICIT_RATE: f64 = 1.0e9;
+/// Conjugate-gradient iterations assumed per step.
+const CG_ITERATIONS: f64 = 40.0;
+/// Below this dimension the dense factorization is taken without estimating anything else.
+const SMALL: usize = 600;
+
+/// The solver chosen and why.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct SolverChoice {
+    /// Dense, sparse or iterative (never `Auto`).
+    pub kind: LinearSolverKind,
+    /// One line: the estimates that decided it.
+    pub reason: String,
+    /// Estimated peak memory of the linear algebra of the chosen solver, bytes.
+    pub memory_bytes: f64,
+}
+
+/// Why a solver that was asked for cannot run.
+#[derive(Clone, Debug, thiserror::Error)]
+#[error(
+    "the {kind} solver needs about {} of memory for a reduced system of {n} unknowns, \
+     but {} is available: use `--solver iterative` (or `auto`)",
+    gib(*.needs), gib(*.limit)
+)]
+pub struct TooLarge {
+    pub kind: LinearSolverKind,
+    pub n: usize,
+    pub needs: f64,
+    pub limit: f64,
+}
+
+fn gib(bytes: f64) -> String {
+    if bytes >= 1e9 {
+        format!("{:.1} GB", bytes / 1e9)
+    } else {
+        format!("{:.0} MB", bytes / 1e6)
+    }
+}
+
+/// The memory the system reports available (Linux: `MemAvailable`), if it can be read.
+pub fn available_memory() -> Option<f64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024.0)
+}
+
+struct Estimate {
+    memory: f64,
+    seconds: f64,
+}
+
+/// Chooses the solver for `layout`. `requested` other than `Auto` is honoured when it fits
+/// in `memory_limit` (bytes; `None`: no limit known).
+pub fn choose(
+    layout: &Layout,
+    requested: LinearSolverKind,
+    workers: usize,
+    memory_limit: Option<f64>,
+) -> Result<SolverChoice, TooLarge> {
+    let n = layout.n_reduced;
+    let nnz = layout.nnz() as f64;
+    let w = workers.max(1) as f64;
+    let limit = memory_limit.unwrap_or(f64::INFINITY);
+    let fits = |e: &Estimate| e.memory <= limit;
+    let dense = || {
+        let nf = n as f64;
+        Estimate {
+            memory: 8.0 * nnz * (1.0 + w) + 8.0 * nf * nf,
+            seconds: assembly_flops(layout) / (ASSEMBLY_RATE * w)
+                + nf * nf * nf / 3.0 / (DENSE_RATE * w.powf(0.8)),
+        }
+    };
+    let iterative = || Estimate {
+        memory: 8.0 * (layout.n_reduced as f64 * (6.0 + w))
+            + 8.0 * layout.block_dim.iter().map(|d| (d * d) as f64).sum::<f64>(),
+        seconds: CG_ITERATIONS * implicit_flops(layout) / (IMPLICIT_RATE * w),
+    };
+    let too_large = |kind, e: &Estimate| TooLarge {
+        kind,
+        n,
+        needs: e.memory,
+        limit,
+    };
+    let pick = |kind, e: Estimate, reason: String| SolverChoice {
+        kind,
+        reason,
+        memory_bytes: e.memory,
+    };
+    match requested {
+        LinearSolverKind::Dense => {
+            let e = dense();
+            if !fits(&e) {
+                return Err(too_large(LinearSolverKind::Dense, &e));
+            }
+            return Ok(pick(LinearSolverKind::Dense, e, "asked for".into()));
+        }
+        LinearSolverKind::Sparse => {
+            let e = sparse(layout, w);
+            if !fits(&e) {
+                return Err(too_large(LinearSolverKind::Sparse, &e));
+            }
+            return Ok(pick(LinearSolverKind::Sparse, e, "asked for".into()));
+        }
+        LinearSolverKind::Iterative => {
+            return Ok(pick(
+                LinearSolverKind::Iterative,
+                iterative(),
+                "asked for".into(),
+            ));
+        }
+        LinearSolverKind::Auto => {}
+    }
+    let d = dense();
+    if n <= SMALL && fits(&d) {
+        return Ok(pick(
+            LinearSolverKind::Dense,
+            d,
+            format!("{n} unknowns in the reduced system (≤ {SMALL})"),
+        ));
+    }
+    let fill = nnz / ((n * (n + 1) / 2).max(1) as f64);
+    let s = sparse(layout, w);
+    let it = iterative();
+    let summary = format!(
+        "{n} unknowns, S {:.0} % full; estimated per step: dense {:.2} s / {}, sparse {:.2} s / {}, iterative {:.2} s / {}",
+        100.0 * fill,
+        d.seconds,
+        gib(d.memory),
+        s.seconds,
+        gib(s.memory),
+        it.seconds,
+        gib(it.memory)
+    );
+    let mut best = (LinearSolverKind::Iterative, it);
+    for (kind, e) in [(LinearSolverKind::Sparse, s), (LinearSolverKind::Dense, d)] {
+        if fits(&e) && e.seconds < best.1.seconds {
+            best = (kind, e);
+        }
+    }
+    let (kind, e) = best;
+    let reason = if limit.is_finite() {
+        format!("{summary}; memory limit {}", gib(limit))
+    } else {
+        summary
+    };
+    Ok(pick(kind, e, reason))
+}
+
+/// The work of assembling S explicitly: `Σ_o 4 m_o² + Σ_f 6 (Σ_{o∈f} m_o)²`.
+fn assembly_flops(layout: &Layout) -> f64 {
+    let per_obs: f64 = (layout.obs_ncols.iter())
+        .map(|&m| 4.0 * (m as f64) * (m as f64))
+        .sum();
+    let per_point: f64 = (0..layout.free_points.len())
+        .map(|f| {
+            let m: f64 = (layout.point_obs(f).iter())
+                .map(|&o| layout.obs_ncols[o as usize] as f64)
+                .sum();
+            6.0 * m * m
+        })
+        .sum();
+    per_obs + per_point
+}
+
+/// The work of one implicit product S·x.
+fn implicit_flops(layout: &Layout) -> f64 {
+    let per_obs: f64 = (layout.obs_ncols.iter())
+        .map(|&m| 4.0 * m as f64 + 16.0)
+        .sum();
+    per_obs + layout.block_dim.iter().map(|d| (d * d) as f64).sum::<f64>()
+}
+
+/// The sparse factorization's estimate: the fill of L from a symbolic factorization of the
+/// block graph under the same ordering as the numeric one.
+fn sparse(layout: &Layout, w: f64) -> Estimate {
+    let n = layout.n_reduced as f64;
+    let nnz = layout.nnz() as f64;
+    let nb = layout.num_blocks();
+    let mean_d2 = layout.block_dim.iter().map(|d| (d * d) as f64).sum::<f64>() / nb.max(1) as f64;
+    let l_scalar = super::linear::block_factor_entries(layout).map_or(n * n / 2.0, |l| l * mean_d2);
+    Estimate {
+        memory: 8.0 * nnz * (2.0 + w) + 8.0 * l_scalar,
+        seconds: assembly_flops(layout) / (ASSEMBLY_RATE * w)
+            + l_scalar * l_scalar / n.max(1.0) / (SPARSE_RATE * w.powf(0.8)),
+    }
+}
