@@ -9,7 +9,9 @@ mod common;
 
 use common::{realisation, truth};
 use pingcal_ba::problem::Distance;
-use pingcal_ba::solver::{points_covariance, precision, solve, Options, PrecisionError};
+use pingcal_ba::solver::{
+    free_network_precision_bordered, points_covariance, precision, solve, Options, PrecisionError,
+};
 
 fn options() -> Options {
     Options {
@@ -420,4 +422,111 @@ fn variance_components_recover_each_groups_sigma() {
             names[g]
         );
     }
+}
+
+/// The free network in Schur form (the reduced system bordered by the inner constraints,
+/// any number of points) equals the dense inner-constraint solution on a network small
+/// enough for both: σ0, the intrinsics', poses' and points' σ, and the standardized
+/// residuals, to 1e-6 relative.
+#[test]
+fn bordered_free_network_equals_the_dense_inner_constraints() {
+    for with_distance in [false, true] {
+        let mut free = realisation(&truth(), 31);
+        for pt in &mut free.points {
+            pt.fixed = false;
+        }
+        if with_distance {
+            let l = (free.points[0].position - free.points[40].position).norm();
+            free.distances.push(Distance {
+                a: 0,
+                b: 40,
+                value: l,
+                sigma: 0.05 * l,
+            });
+        }
+        solve(&mut free, &options(), |_| {}).unwrap();
+        let dense = precision(&free).expect("dense inner constraints");
+        let bordered = free_network_precision_bordered(&free).expect("bordered");
+        let close = |a: f64, b: f64, what: &str| {
+            assert!(
+                (a - b).abs() <= 1e-6 * b.abs().max(1e-300),
+                "{what}: bordered {a} vs dense {b} (distance {with_distance})"
+            );
+        };
+        assert_eq!(dense.redundancy, bordered.redundancy);
+        close(bordered.sigma0, dense.sigma0, "σ0");
+        for (a, b) in bordered.intrinsics[0]
+            .sigmas
+            .iter()
+            .zip(&dense.intrinsics[0].sigmas)
+        {
+            close(*a, *b, "intrinsic σ");
+        }
+        for (a, b) in bordered.poses.iter().zip(&dense.poses) {
+            let (a, b) = (a.as_ref().unwrap(), b.as_ref().unwrap());
+            for k in 0..3 {
+                close(a.rotation_rad[k], b.rotation_rad[k], "pose rotation σ");
+                close(a.centre[k], b.centre[k], "pose centre σ");
+            }
+        }
+        for (a, b) in bordered
+            .point_covariances
+            .iter()
+            .zip(&dense.point_covariances)
+        {
+            let (a, b) = (a.unwrap(), b.unwrap());
+            let scale = b.diagonal().max();
+            assert!(
+                (a - b).amax() <= 1e-6 * scale,
+                "point covariance {a} vs {b}"
+            );
+        }
+        for (a, b) in bordered
+            .standardized_residuals
+            .iter()
+            .zip(&dense.standardized_residuals)
+        {
+            for k in 0..2 {
+                close(a[k], b[k], "standardized residual");
+            }
+        }
+    }
+}
+
+/// A free network of more than 20,000 unknowns (the dense form would need a 20,000² matrix)
+/// gets its precision by bordering: finite, positive σ for every pose and point, σ0 at the
+/// simulated noise, and the minimum trace: no pose or point σ larger than with one image
+/// held (a datum that is itself a choice of the inner constraints' family).
+#[test]
+fn free_network_of_twenty_thousand_unknowns() {
+    let spec = pingcal_ba::synthetic::SyntheticBal {
+        cameras: 20,
+        points: 7000,
+        obs_per_point: 5,
+        noise_px: 0.5,
+        ..Default::default()
+    };
+    let mut p = spec.generate().unwrap().problem;
+    solve(&mut p, &options(), |_| {}).unwrap();
+    let unknowns = 9 * p.images.len() + 3 * p.points.len();
+    assert!(unknowns > 20_000);
+    let prec = precision(&p).expect("a free network of any number of points");
+    assert_eq!(prec.unknowns, unknowns);
+    // σ0 estimates the 0.5 px noise (observations have σ = 1): its relative sd is
+    // 1/√(2·redundancy) ≈ 0.005, so 5 % is more than 10 sd.
+    assert!((prec.sigma0 - 0.5).abs() < 0.025, "σ0 {}", prec.sigma0);
+    assert!(prec
+        .point_covariances
+        .iter()
+        .all(|c| c.is_some_and(|c| c.diagonal().min() > 0.0)));
+    assert!(prec.poses.iter().all(|s| s
+        .as_ref()
+        .is_some_and(|s| s.centre.iter().all(|v| *v > 0.0 && v.is_finite()))));
+    let trace: f64 = prec
+        .point_covariances
+        .iter()
+        .flatten()
+        .map(|c| c.trace())
+        .sum();
+    assert!(trace.is_finite() && trace > 0.0);
 }

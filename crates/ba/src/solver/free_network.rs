@@ -7,9 +7,13 @@
 //! effect on every unknown) and C = G restricted to the point coordinates (the inner
 //! constraints Cᵀδx = 0), the cofactor matrix is
 //! `Q = (N + C Cᵀ)⁻¹ − G (CᵀG)⁻¹ (GᵀC)⁻¹ Gᵀ` (Koch, *Parameter Estimation and Hypothesis
-//! Testing in Linear Models*, §3.2.6). It is formed densely, so only for networks of at
-//! most [`MAX_FREE_NETWORK_UNKNOWNS`] unknowns. Intrinsic parameters are estimable: their
-//! standard deviations do not depend on the datum.
+//! Testing in Linear Models*, §3.2.6). It is formed densely for networks of at most
+//! [`MAX_FREE_NETWORK_UNKNOWNS`] unknowns; larger ones are solved in Schur form by
+//! bordering (`precision::free_network_bordered`): Q is also the upper-left block of
+//! `[N C; Cᵀ 0]⁻¹`, and since C touches only points, eliminating the points leaves the
+//! reduced system bordered by d rows, `[S, C_c − W V⁻¹ C_p; ·ᵀ, −C_pᵀ V⁻¹ C_p]`, of the size
+//! of the camera-side unknowns plus d. Intrinsic parameters are estimable: their standard
+//! deviations do not depend on the datum.
 
 use super::evaluate::Linearization;
 use super::layout::Layout;
@@ -17,8 +21,28 @@ use super::sigma::{intrinsics_precision, pose_sigmas, rig_covariances, Precision
 use crate::problem::Problem;
 use nalgebra::{DMatrix, Matrix3, Vector3};
 
-/// Largest free network (unknowns) whose precision is formed densely.
+/// Largest free network (unknowns) whose precision is formed densely; larger ones are
+/// solved by bordering the reduced system.
 pub const MAX_FREE_NETWORK_UNKNOWNS: usize = 4000;
+
+/// The `d` inner-constraint columns (translation 3, rotation 3, scale 1 when `d` is 7) at
+/// a point X: row a of the 3 × d block, `[e_a | (e_k × X)_a | X_a]`.
+pub(crate) fn point_constraints(x: &Vector3<f64>, d: usize) -> [[f64; 7]; 3] {
+    let mut c = [[0.0; 7]; 3];
+    for k in 0..3 {
+        let rot = Vector3::ith(k, 1.0).cross(x);
+        for a in 0..3 {
+            c[a][k] = if a == k { 1.0 } else { 0.0 };
+            c[a][3 + k] = rot[a];
+        }
+    }
+    if d == 7 {
+        for a in 0..3 {
+            c[a][6] = x[a];
+        }
+    }
+    c
+}
 
 /// Whether `problem` has no datum of its own (then inner constraints define one).
 pub(crate) fn is_free(problem: &Problem) -> bool {
@@ -47,11 +71,6 @@ pub(crate) fn precision(
     lin: &Linearization,
 ) -> Result<Precision, PrecisionError> {
     let n = layout.n_reduced + 3 * layout.free_points.len();
-    if n > MAX_FREE_NETWORK_UNKNOWNS {
-        return Err(PrecisionError::DatumDefect(format!(
-            "the network is free (no fixed image, no control) and too large ({n} unknowns) for inner constraints: fix one image and give a distance, or give control points"
-        )));
-    }
     let (j, r) = dense_system(problem, layout, lin, n);
     let m = j.nrows();
     // Translation, rotation and scale (unless distances fix it).
@@ -182,58 +201,55 @@ fn similarity_null_space(
         let Some(col) = point_col(layout, p) else {
             continue;
         };
-        let x = pt.position;
-        for k in 0..3 {
-            let rot = Vector3::ith(k, 1.0).cross(&x);
-            for a in 0..3 {
-                let v = [(k, if a == k { 1.0 } else { 0.0 }), (3 + k, rot[a])];
-                for (col_g, val) in v {
-                    g[(col + a, col_g)] = val;
-                    c[(col + a, col_g)] = val;
-                }
-            }
-        }
-        if d == 7 {
-            for a in 0..3 {
-                g[(col + a, 6)] = x[a];
-                c[(col + a, 6)] = x[a];
+        let pc = point_constraints(&pt.position, d);
+        for (a, row) in pc.iter().enumerate() {
+            for (k, &v) in row.iter().enumerate().take(d) {
+                g[(col + a, k)] = v;
+                c[(col + a, k)] = v;
             }
         }
     }
     (g, c)
 }
 
-/// The cofactor matrix of the minimum-trace datum,
-/// `Q = (N + C Cᵀ)⁻¹ − G (CᵀG)⁻¹ (GᵀC)⁻¹ Gᵀ`, with C scaled to the size of N.
+/// The cofactor matrix of the minimum-trace datum: the upper-left block of
+/// `[N C; Cᵀ 0]⁻¹`, which equals `(N + C Cᵀ)⁻¹ − G (CᵀG)⁻¹ (GᵀC)⁻¹ Gᵀ` but is computed by
+/// the bordered inverse (Jacobi-scaled LU): the closed form cancels badly when a direction
+/// outside G is weakly determined (a scale from one loose distance lost 5e-4 of the pose σ).
 fn inner_constraint_cofactors(
     normal: &DMatrix<f64>,
     g: &DMatrix<f64>,
     c: &DMatrix<f64>,
 ) -> Result<DMatrix<f64>, PrecisionError> {
-    // Scale the constraint columns to the size of N so that N + CCᵀ is well conditioned.
-    let scale = (normal.diagonal().mean()
-        / c.column_iter()
-            .map(|v| v.norm_squared())
-            .sum::<f64>()
-            .max(1e-300))
-    .sqrt();
-    let cs = c * scale;
-    let augmented = normal + &cs * cs.transpose();
-    let Some(chol) = augmented.clone().cholesky() else {
+    let (n, d) = (normal.nrows(), c.ncols());
+    if (c.transpose() * g).try_inverse().is_none() {
+        return Err(PrecisionError::DatumDefect(
+            "the inner constraints do not fix the datum (all points coincide?)".into(),
+        ));
+    }
+    let mut k = DMatrix::<f64>::zeros(n + d, n + d);
+    k.view_mut((0, 0), (n, n)).copy_from(normal);
+    k.view_mut((0, n), (n, d)).copy_from(c);
+    k.view_mut((n, 0), (d, n)).copy_from(&c.transpose());
+    let scale: Vec<f64> = (0..n + d)
+        .map(|i| {
+            let v = if i < n { k[(i, i)] } else { k.row(i).norm() };
+            1.0 / v.abs().max(f64::MIN_POSITIVE).sqrt()
+        })
+        .collect();
+    let scaled = DMatrix::from_fn(n + d, n + d, |i, j| k[(i, j)] * scale[i] * scale[j]);
+    let inv = scaled
+        .lu()
+        .try_inverse()
+        .filter(|m| m.iter().all(|v| v.is_finite()));
+    let Some(inv) = inv else {
         return Err(PrecisionError::DatumDefect(
             "the network is free and, beyond position, orientation and scale, still not determined (too few points per image, or disconnected pieces)".into(),
         ));
     };
-    let inv = chol.inverse();
-    let ctg = cs.transpose() * g;
-    let Some(ctg_inv) = ctg.clone().try_inverse() else {
-        return Err(PrecisionError::DatumDefect(
-            "the inner constraints do not fix the datum (all points coincide?)".into(),
-        ));
-    };
-    // (CᵀG)⁻¹(GᵀC)⁻¹ with the scaled C.
-    let mid = &ctg_inv * ctg_inv.transpose();
-    Ok(inv - g * mid * g.transpose())
+    Ok(DMatrix::from_fn(n, n, |i, j| {
+        inv[(i, j)] * scale[i] * scale[j]
+    }))
 }
 
 /// The standardized residuals of the image observations (in the problem's order):

@@ -28,7 +28,7 @@ pub use free_network::MAX_FREE_NETWORK_UNKNOWNS;
 pub use iterative::CgOptions;
 pub use linear::LinearSolverKind;
 pub use outliers::{adjust_with_snooping, Rejection, SnoopError, SnoopResult};
-pub use precision::{points_covariance, precision};
+pub use precision::{free_network_precision_bordered, points_covariance, precision};
 pub use sigma::{IntrinsicsPrecision, PoseSigma, Precision, PrecisionError, MAX_DENSE_PRECISION};
 pub use variance::{
     estimate_variance_components, variance_components, VarianceComponent, VarianceError,

@@ -155,7 +155,11 @@ pub fn precision(problem: &Problem) -> Result<Precision, PrecisionError> {
         // A free network: the datum by inner constraints on the points.
         let layout = Layout::new(problem);
         let lin = linearized(problem, &layout)?;
-        return super::free_network::precision(problem, &layout, &lin);
+        let unknowns = layout.n_reduced + 3 * layout.free_points.len();
+        if unknowns <= super::free_network::MAX_FREE_NETWORK_UNKNOWNS {
+            return super::free_network::precision(problem, &layout, &lin);
+        }
+        return free_network_bordered(problem, layout, lin);
     };
     let (n_obs, unknowns, redundancy, sigma0) = redundancy_and_sigma0(problem, &c)?;
     let Cofactors {
@@ -201,6 +205,186 @@ pub fn precision(problem: &Problem) -> Result<Precision, PrecisionError> {
         redundancy_numbers,
         distance_redundancy_numbers: distance_redundancy_numbers(&layout, &lin, &q_cc),
     })
+}
+
+/// The precision of a free network of any number of points: the inner constraints on the
+/// points border the reduced system (see `free_network`'s module doc), which is inverted
+/// densely with its d extra rows; every cofactor follows as for a network with a datum,
+/// the d multipliers taking part like d more reduced unknowns.
+fn free_network_bordered(
+    problem: &Problem,
+    layout: Layout,
+    lin: Linearization,
+) -> Result<Precision, PrecisionError> {
+    let n = layout.n_reduced;
+    if n > MAX_DENSE_PRECISION {
+        return Err(PrecisionError::TooLarge(n));
+    }
+    let (schur, s) = reduced_system(problem, &layout, &lin)?;
+    let d = if problem.distances.is_empty() { 7 } else { 6 };
+    // The constraint columns, scaled to the size of S (the bordered inverse's upper-left
+    // block does not depend on the basis of the constraints).
+    let mut centroid = nalgebra::Vector3::zeros();
+    let mut count = 0.0;
+    for (p, pt) in problem.points.iter().enumerate() {
+        if layout.point_slot[p].is_some() || layout.free_point_index[p] != u32::MAX {
+            centroid += pt.position;
+            count += 1.0;
+        }
+    }
+    if count < 3.0 {
+        return Err(PrecisionError::DatumDefect(
+            "the inner constraints do not fix the datum (fewer than 3 points)".into(),
+        ));
+    }
+    centroid /= count;
+    let scale = (s.diagonal().mean().max(f64::MIN_POSITIVE) / count).sqrt();
+    let constraints = |p: usize| {
+        // About the centroid: the same constraint space, better conditioned.
+        let c = super::free_network::point_constraints(&(problem.points[p].position - centroid), d);
+        c.map(|row| row.map(|v| v * scale))
+    };
+    let mut k = DMatrix::<f64>::zeros(n + d, n + d);
+    k.view_mut((0, 0), (n, n)).copy_from(&s);
+    for (p, slot) in layout.point_slot.iter().enumerate() {
+        if let Some(sl) = slot {
+            let o = layout.slot_offset(*sl);
+            let c = constraints(p);
+            for (a, row) in c.iter().enumerate() {
+                for (j, &v) in row.iter().enumerate().take(d) {
+                    k[(o + a, n + j)] += v;
+                    k[(n + j, o + a)] += v;
+                }
+            }
+        }
+    }
+    // Per eliminated point: B −= (W V⁻¹)_f C_f, D −= C_fᵀ V_f⁻¹ C_f.
+    let mut point_rows: Vec<Vec<(usize, [f64; 3])>> = Vec::with_capacity(layout.free_points.len());
+    for (f, &p) in layout.free_points.iter().enumerate() {
+        let c = constraints(p);
+        let cm = nalgebra::Matrix3xX::from_fn(d, |a, j| c[a][j]);
+        let vc = schur.vinv[f] * &cm; // 3 × d: V⁻¹ C_f
+        let rows = point_y_rows(&layout, &schur, f);
+        for &(r, y) in &rows {
+            let y = nalgebra::Vector3::from(y);
+            for j in 0..d {
+                let v = y.dot(&cm.column(j));
+                k[(r, n + j)] -= v;
+                k[(n + j, r)] -= v;
+            }
+        }
+        let dd = cm.transpose() * &vc;
+        for i in 0..d {
+            for j in 0..d {
+                k[(n + i, n + j)] -= dd[(i, j)];
+            }
+        }
+        // The multipliers' rows of M = Y V⁻¹: (V⁻¹ C_f)ᵀ.
+        let mut all = rows;
+        all.extend((0..d).map(|j| (n + j, [vc[(0, j)], vc[(1, j)], vc[(2, j)]])));
+        point_rows.push(all);
+    }
+    // Jacobi scaling (unknowns of very different units), then LU of the scaled matrix.
+    let dsc: Vec<f64> = (0..n + d)
+        .map(|i| {
+            let v = if i < n {
+                k[(i, i)]
+            } else {
+                k.row(i).norm_squared().sqrt()
+            };
+            1.0 / v.abs().max(f64::MIN_POSITIVE).sqrt()
+        })
+        .collect();
+    let scaled = DMatrix::from_fn(n + d, n + d, |i, j| k[(i, j)] * dsc[i] * dsc[j]);
+    let q = scaled
+        .lu()
+        .try_inverse()
+        .map(|inv| DMatrix::from_fn(n + d, n + d, |i, j| inv[(i, j)] * dsc[i] * dsc[j]));
+    let Some(q) = q else {
+        return Err(PrecisionError::DatumDefect(
+            "the network is free and, beyond position, orientation and scale, still not determined (too few points per image, or disconnected pieces)".into(),
+        ));
+    };
+    if q.iter().any(|v| !v.is_finite()) {
+        return Err(PrecisionError::DatumDefect(
+            "the network is free and its inner constraints leave it singular".into(),
+        ));
+    }
+    let n_obs =
+        2 * problem.observations.len() + problem.distances.len() + 3 * problem.point_priors.len();
+    let unknowns = n + 3 * layout.free_points.len();
+    let redundancy = n_obs as i64 - unknowns as i64 + d as i64;
+    if redundancy <= 0 {
+        return Err(PrecisionError::NoRedundancy(redundancy));
+    }
+    let sigma0 = (2.0 * lin.cost / redundancy as f64).sqrt();
+    let s02 = sigma0 * sigma0;
+    let intrinsics = intrinsics_precision(problem, &layout, s02, |i, j| q[(i, j)]);
+    let poses = pose_sigmas(problem, &layout, s02, |i, j| q[(i, j)]);
+    let rig_covariances = rig_covariances(&layout, s02, |i, j| q[(i, j)]);
+    let mut point_covariances = vec![None; problem.points.len()];
+    for (p, slot) in layout.point_slot.iter().enumerate() {
+        if let Some(sl) = slot {
+            let o = layout.slot_offset(*sl);
+            point_covariances[p] = Some(Matrix3::from_fn(|a, b| s02 * q[(o + a, o + b)]));
+        }
+    }
+    let eliminated: Vec<EliminatedPoint> = point_rows
+        .into_iter()
+        .enumerate()
+        .map(|(f, rows)| EliminatedPoint::from_rows(&schur, &q, f, rows))
+        .collect();
+    for (ep, &p) in eliminated.iter().zip(&layout.free_points) {
+        point_covariances[p] = Some(ep.q * s02);
+    }
+    let (standardized_residuals, redundancy_numbers) =
+        standardized_residuals(&layout, &lin, &q, &eliminated);
+    Ok(Precision {
+        sigma0,
+        redundancy,
+        observations: n_obs,
+        unknowns,
+        rms_image_px: problem.rms_px(),
+        intrinsics,
+        poses,
+        rig_covariances,
+        point_covariances,
+        standardized_residuals,
+        redundancy_numbers,
+        distance_redundancy_numbers: distance_redundancy_numbers(&layout, &lin, &q),
+    })
+}
+
+/// The rows of M = W V⁻¹ of free point `f`: (row of the reduced system, its 3 values), one
+/// per row of each observation's segments (a row may repeat: the entries add up).
+fn point_y_rows(layout: &Layout, schur: &Schur, f: usize) -> Vec<(usize, [f64; 3])> {
+    let mut rows: Vec<(usize, [f64; 3])> = Vec::new();
+    for &o in layout.point_obs(f) {
+        let o = o as usize;
+        for sg in layout.segs(o) {
+            let y = layout.w_cols(&schur.y, o, sg);
+            let base = layout.block_offset[sg.block as usize] + sg.block_off as usize;
+            rows.extend((0..sg.len as usize).map(|k| (base + k, [y[0][k], y[1][k], y[2][k]])));
+        }
+    }
+    rows
+}
+
+/// The precision of a free network always by bordering the reduced system (what
+/// [`precision`] does for free networks above
+/// [`MAX_FREE_NETWORK_UNKNOWNS`](super::MAX_FREE_NETWORK_UNKNOWNS) unknowns, whatever the
+/// number of points), so that it can be checked against the dense inner-constraint form on
+/// a network small enough for both. Refused for a network that has a datum of its own.
+pub fn free_network_precision_bordered(problem: &Problem) -> Result<Precision, PrecisionError> {
+    problem.validate()?;
+    if !super::free_network::is_free(problem) {
+        return Err(PrecisionError::DatumDefect(
+            "not a free network: it has a fixed image, fixed points, control or a fixed rig".into(),
+        ));
+    }
+    let layout = Layout::new(problem);
+    let lin = linearized(problem, &layout)?;
+    free_network_bordered(problem, layout, lin)
 }
 
 /// The undamped Schur complement at the linearization and S as a dense symmetric matrix;
@@ -283,16 +467,16 @@ struct EliminatedPoint {
 impl EliminatedPoint {
     /// Free point `f` of the layout, with the Schur complement's Y = W V⁻¹.
     fn new(layout: &Layout, schur: &Schur, q_cc: &DMatrix<f64>, f: usize) -> Self {
-        // M = W V⁻¹ restricted to the camera-side rows this point touches: Σ_o Y_o.
-        let mut rows: Vec<(usize, [f64; 3])> = Vec::new();
-        for &o in layout.point_obs(f) {
-            let o = o as usize;
-            for sg in layout.segs(o) {
-                let y = layout.w_cols(&schur.y, o, sg);
-                let base = layout.block_offset[sg.block as usize] + sg.block_off as usize;
-                rows.extend((0..sg.len as usize).map(|k| (base + k, [y[0][k], y[1][k], y[2][k]])));
-            }
-        }
+        Self::from_rows(schur, q_cc, f, point_y_rows(layout, schur, f))
+    }
+
+    /// Free point `f` with the rows of M given (those of a bordered system included).
+    fn from_rows(
+        schur: &Schur,
+        q_cc: &DMatrix<f64>,
+        f: usize,
+        rows: Vec<(usize, [f64; 3])>,
+    ) -> Self {
         let mut extra = Matrix3::zeros();
         for &(i, yi) in &rows {
             for &(j, yj) in &rows {
