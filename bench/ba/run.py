@@ -195,6 +195,7 @@ def run_ceres(path, solver, threads, a):
            "peak_mib": rss, "exit": code, "cmd": " ".join(map(shlex.quote, cmd))}
     try:
         res.update(json.loads(last_line(out, None)))
+        res["solver"] = solver  # with its preconditioner, when one is named
     except ValueError:
         res["error"] = last_line(err) or f"exit {code}"
     return res
