@@ -229,6 +229,11 @@ fn ba_refuses_measurement_options_on_bal_and_absurd_thread_counts() {
         (vec!["--snoop", "3.29"], "--snoop applies"),
         (vec!["--calibrate", "c,xp"], "--calibrate applies"),
         (vec!["--report", s(&report)], "--report applies"),
+        (vec!["--free-network"], "--free-network applies"),
+        (
+            vec!["--min-intersection-angle", "2"],
+            "--min-intersection-angle applies",
+        ),
     ] {
         let mut all = vec!["ba", s(&bal), "--quiet"];
         all.extend(&args);

@@ -70,9 +70,9 @@ pub struct Args {
     #[arg(long)]
     pub free_network: bool,
     /// Smallest largest angle between a point's rays, degrees, for the initial
-    /// intersection to take it (points below are refused and listed).
-    #[arg(long, value_name = "DEG", default_value_t = 2.0)]
-    pub min_intersection_angle: f64,
+    /// intersection to take it (points below are refused and listed); default 2.
+    #[arg(long, value_name = "DEG")]
+    pub min_intersection_angle: Option<f64>,
     /// Reject gross errors by data snooping (standardized residual above this, e.g. 3.29).
     #[arg(long, allow_hyphen_values = true, value_name = "W")]
     pub snoop: Option<f64>,
@@ -253,7 +253,7 @@ fn refuse_measurement_options(args: &Args) -> Result<(), String> {
         ("--free-network", args.free_network),
         (
             "--min-intersection-angle",
-            args.min_intersection_angle != 2.0,
+            args.min_intersection_angle.is_some(),
         ),
     ]
     .iter()
@@ -285,7 +285,9 @@ fn run_measurements(path: &std::path::Path, args: &Args) -> CmdResult {
     use pingcal_ba::initial::intersection::IntersectionOptions;
     use pingcal_ba::io::{dbat, measurements::Measurements};
     use pingcal_ba::report::AdjustmentReport;
-    let min_angle = args.min_intersection_angle;
+    let min_angle = args
+        .min_intersection_angle
+        .unwrap_or(IntersectionOptions::default().min_angle_deg);
     if !(0.0..180.0).contains(&min_angle) {
         return Err(
             format!("--min-intersection-angle {min_angle}: expected degrees in [0, 180)").into(),
