@@ -6,7 +6,8 @@
 //! - an output folder that cannot be written is refused before the pipeline runs;
 //! - negative numbers parse, and `--mount-offset-mm` accepts its shown default;
 //! - `ba` refuses the measurement-file options on BAL input, and every `--threads` a count
-//!   beyond 1024;
+//!   beyond 1024; on DBAT's files it refuses a missing or malformed camera and a datum
+//!   given too little or twice, before solving;
 //! - ids given twice are refused (`register`, `targets`, project.toml's `check`);
 //! - `calibrate`'s cloud.ply reads back as exactly the scan points.
 //!
@@ -228,6 +229,11 @@ fn ba_refuses_measurement_options_on_bal_and_absurd_thread_counts() {
         (vec!["--snoop", "3.29"], "--snoop applies"),
         (vec!["--calibrate", "c,xp"], "--calibrate applies"),
         (vec!["--report", s(&report)], "--report applies"),
+        (vec!["--free-network"], "--free-network applies"),
+        (
+            vec!["--min-intersection-angle", "2"],
+            "--min-intersection-angle applies",
+        ),
     ] {
         let mut all = vec!["ba", s(&bal), "--quiet"];
         all.extend(&args);
@@ -404,4 +410,88 @@ fn noise_profiles_default_to_the_urg_and_unknown_names_list_the_known() {
         &run,
         &["--noise-sigma: noise σ = a + b·r", "expected a > 0"],
     );
+}
+
+/// DBAT's files: the camera is DBAT's XML, named with its line when malformed; without
+/// control the datum is refused as undefined until `--free-network`, and control with
+/// `--free-network` as defined twice; all before any solving. With the shared camcal data,
+/// the free network adjusts.
+#[test]
+fn dbat_files_name_their_camera_and_datum_problems() {
+    let w = Work::new("dbat_datum");
+    let marks = w.dir.join("markpts.txt");
+    let lines: String = (1..=2)
+        .flat_map(|i| {
+            (1..=3).map(move |p| format!("{i}, {p}, {}, {}, 0.1\n", 100 * p + 7 * i, 200 + 50 * p))
+        })
+        .collect();
+    fs::write(&marks, lines).unwrap();
+    let camera = w.dir.join("camera.xml");
+    let xml = "<document dbat_camera_version=\"1.0\">\n<cameras>\n<camera>\n<name>cam</name>\n<sensor>auto,4.8</sensor>\n<image>1600,1200</image>\n<focal>8.5</focal>\n</camera>\n</cameras>\n</document>\n";
+    fs::write(&camera, xml).unwrap();
+    let control = w.dir.join("control.txt");
+    fs::write(&control, "1,a,0,0,0\n2,b,1,0,0\n3,c,0,1,0\n").unwrap();
+    let run = w.run(&["ba", s(&marks), "--dbat", s(&control)]);
+    fails(&run, &["--dbat-camera FILE", s(&marks)]);
+    let run = w.run(&["ba", s(&marks), "--dbat-camera", s(&camera)]);
+    fails(
+        &run,
+        &["the datum is not defined", "free network", s(&marks)],
+    );
+    let run = w.run(&[
+        "ba",
+        s(&marks),
+        "--dbat-camera",
+        s(&camera),
+        "--dbat",
+        s(&control),
+        "--free-network",
+    ]);
+    fails(
+        &run,
+        &["the datum is defined twice", "3 fixed control points"],
+    );
+    let bad = w.dir.join("bad.xml");
+    fs::write(
+        &bad,
+        xml.replace("<focal>8.5</focal>", "<focal>8,5</focal>"),
+    )
+    .unwrap();
+    let run = w.run(&["ba", s(&marks), "--dbat-camera", s(&bad), "--free-network"]);
+    fails(
+        &run,
+        &[&format!(
+            "{}:7: focal '8,5' is not a finite number",
+            s(&bad)
+        )],
+    );
+    let run = w.run(&[
+        "ba",
+        s(&marks),
+        "--dbat-camera",
+        s(&camera),
+        "--free-network",
+        "--min-intersection-angle",
+        "200",
+    ]);
+    fails(&run, &["--min-intersection-angle 200"]);
+
+    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/dbat-camcal");
+    if !data.join("c4040z.xml").exists() {
+        println!(
+            "skipped the real-data run: DBAT's camcal data set not found at {} (shared data absent)",
+            data.display()
+        );
+        return;
+    }
+    let run = w.run(&[
+        "ba",
+        s(&data.join("measurements/markpts.txt")),
+        "--dbat-camera",
+        s(&data.join("c4040z.xml")),
+        "--free-network",
+        "--quiet",
+    ]);
+    assert!(run.success(), "{}", ctx(&run));
+    assert!(run.stdout.contains("redundancy 3720"), "{}", ctx(&run));
 }

@@ -6,7 +6,8 @@
 //! |---|---|
 //! | [`geometry`] | re-exported [`pingcal_geometry`]: [`Rigid3`] (an image's `camera_from_object`, `x_cam = R·X + t`, and its local update), SO(3), the ω φ κ convention |
 //! | [`camera`] | camera models ([`camera::CameraModel`]): photogrammetric (SPEC.md), BAL |
-//! | [`io`] | pingcal's measurement file (JSON) and DBAT's mark-point and control files |
+//! | [`datum`] | the datum diagnosed before solving: control, fixed images, or a free network |
+//! | [`io`] | pingcal's measurement file (JSON) and DBAT's mark-point, control and camera files |
 //! | [`loss`] | robust losses (Huber, Cauchy) |
 //! | [`problem`] | cameras, images, points, observations, distances, control |
 //! | [`solver`] | Schur-complement Levenberg–Marquardt, precision, data snooping |
@@ -16,6 +17,7 @@
 
 pub mod bal;
 pub mod camera;
+pub mod datum;
 pub mod initial;
 pub mod io;
 pub mod loss;

@@ -35,7 +35,7 @@
 //!   of forward ones only to first order.
 
 use pingcal_ba::initial::incremental::{initialise, IncrementalOptions, Step};
-use pingcal_ba::io::dbat::{dbat_principal_point, read_dbat, DbatCamera};
+use pingcal_ba::io::dbat::{dbat_principal_point, read_camera, read_dbat, DbatCamera};
 use pingcal_ba::solver::{solve, Options};
 use std::path::PathBuf;
 
@@ -85,6 +85,21 @@ fn converged() -> Options {
     }
 }
 
+/// DBAT's input camera file of the demo (`c4040z.xml`, sensor width `auto`), read as any
+/// DBAT camera is: it is the camera pingcal has built in for this case.
+fn dbat_camera(dir: &std::path::Path) -> DbatCamera {
+    let camera = read_camera(&dir.join("c4040z.xml")).expect("DBAT's camera file");
+    assert_eq!(camera.name, "Olympus Camedia C4040Z");
+    assert_eq!(
+        camera,
+        DbatCamera {
+            name: camera.name.clone(),
+            ..DbatCamera::c4040z()
+        }
+    );
+    camera
+}
+
 /// DBAT's measurements with the control points of `control_file`, in millimetres, with the
 /// camera self-calibrating what DBAT's camcal demo frees (c, xp, yp, K1–K3, P1, P2 and B1 as
 /// DBAT's aspect; B2, DBAT's skew, fixed); None, with the skip printed, when the shared data
@@ -93,7 +108,7 @@ fn dbat_measurements(control_file: &str) -> Option<pingcal_ba::io::measurements:
     let dir = data_dir();
     let marks = dir.join("measurements/markpts.txt");
     let control = dir.join("reference").join(control_file);
-    if !marks.exists() || !control.exists() {
+    if !marks.exists() || !control.exists() || !dir.join("c4040z.xml").exists() {
         println!(
             "skipped: DBAT's camcal data set not found at {} (shared data absent)",
             dir.display()
@@ -101,7 +116,8 @@ fn dbat_measurements(control_file: &str) -> Option<pingcal_ba::io::measurements:
         return None;
     }
     // DBAT's object unit is the metre; pingcal's is the millimetre.
-    let mut meas = read_dbat(&marks, &control, &DbatCamera::c4040z(), 1000.0).expect("DBAT files");
+    let camera = dbat_camera(&dir);
+    let mut meas = read_dbat(&marks, Some(&control), &camera, 1000.0).expect("DBAT files");
     meas.cameras[0].calibrate = ["c", "xp", "yp", "K1", "K2", "K3", "P1", "P2", "B1"]
         .map(String::from)
         .to_vec();
@@ -118,8 +134,8 @@ fn adjusted(
     DbatCamera,
     usize,
 )> {
-    let camera = DbatCamera::c4040z();
     let meas = dbat_measurements(control_file)?;
+    let camera = dbat_camera(&data_dir());
     let built = meas.to_problem().expect("a valid problem");
     assert!(built.warnings.is_empty(), "{:?}", built.warnings);
     let problem = &built.problem;
@@ -578,4 +594,56 @@ fn dbat_data_round_trip_through_the_measurement_file() {
     assert_eq!(b.problem.observations.len(), 2074);
     assert_eq!(b.problem.point_priors.len(), 4);
     assert_eq!(a.problem.points.len(), b.problem.points.len());
+}
+
+/// Without a control file the datum is diagnosed as undefined until a free network is asked
+/// for; then the same data adjust with the datum by inner constraints: every image
+/// oriented from the measurements alone, 7 fewer unknowns than the 12 the fixed control
+/// took away (redundancy 3725 − 12 + 7), and DBAT's camera constant to 1 µm.
+#[test]
+fn without_control_a_free_network_gives_dbat_camera_constant() {
+    use pingcal_ba::datum::{check, Datum, DatumError};
+    let dir = data_dir();
+    let marks = dir.join("measurements/markpts.txt");
+    if !marks.exists() || !dir.join("c4040z.xml").exists() {
+        println!(
+            "skipped: DBAT's camcal data set not found at {} (shared data absent)",
+            dir.display()
+        );
+        return;
+    }
+    let mut meas = read_dbat(&marks, None, &dbat_camera(&dir), 1000.0).expect("DBAT files");
+    meas.cameras[0].calibrate = ["c", "xp", "yp", "K1", "K2", "K3", "P1", "P2", "B1"]
+        .map(String::from)
+        .to_vec();
+    let built = meas.to_problem().expect("a valid problem");
+    assert!(matches!(
+        check(&built.problem, false),
+        Err(DatumError::TooLittle(_))
+    ));
+    assert_eq!(
+        check(&built.problem, true),
+        Ok(Datum::FreeNetwork {
+            scale_from_distances: false
+        })
+    );
+    let init = initialise(
+        &built.problem,
+        &built.known_points,
+        &built.known_poses,
+        &IncrementalOptions::default(),
+    )
+    .expect("a network from a relative orientation");
+    assert_everything_determined(&init);
+    assert!(init.refused_by_angle.is_empty());
+    let mut problem = init.problem;
+    solve(&mut problem, &converged(), |_| {}).expect("adjusted");
+    let precision = pingcal_ba::solver::precision(&problem).expect("free-network precision");
+    assert_eq!(precision.redundancy, (DBAT_REDUNDANCY - 12 + 7) as i64);
+    let c = problem.cameras[0].params[0];
+    println!(
+        "free network: c {c:.5} mm (DBAT {DBAT_C:.5} with control), sigma0 {:.4}",
+        precision.sigma0
+    );
+    assert!((c - DBAT_C).abs() < 1e-3, "c = {c}");
 }

@@ -1,5 +1,5 @@
 //! Issue 14, "nothing silent": each reader of this crate (BAL, the measurement JSON with
-//! its checks, DBAT's mark-point and control files) gets valid files mutated the ways real
+//! its checks, DBAT's mark-point, control and camera files) gets valid files mutated the ways real
 //! files go wrong — a line duplicated, data appended, the file cut short, a UTF-8
 //! byte-order mark in front, a number made huge — 1,000 cases each. Every mutation is
 //! either refused with an error naming the file, or read with the result the mutated text
@@ -9,12 +9,12 @@
 //! * a duplicated line: refused (a point measured twice, an id given twice, a BAL value
 //!   shifted), except a comment and, in the JSON, a distance (measured twice: a legal
 //!   repeated measurement, read as two distances);
-//! * a cut: refused where the format is closed (JSON, BAL); in DBAT's line files, which
+//! * a cut: refused where the format is closed (JSON, BAL, DBAT's camera XML); in DBAT's line files, which
 //!   have no counts, a prefix of the clean result whose last record may be cut short;
 //! * a huge number (1e300): refused.
 
 use pingcal_ba::bal::{parse_bal, write_bal};
-use pingcal_ba::io::dbat::{parse_control, parse_markpts};
+use pingcal_ba::io::dbat::{parse_camera, parse_control, parse_markpts};
 use pingcal_ba::io::measurements::Measurements;
 use proptest::prelude::*;
 
@@ -201,6 +201,10 @@ const MARKS: &str = "# Mark points\n 1, 2, 1429.1871, 1456.4278, 0.1\n 1, 1001, 
 
 const CONTROL: &str = "# Id,label,X,Y,Z,sxyz\n1001,CP1,0,1,0\n1002,CP2,1,1,0,0.001\n1003,CP3,1,2,0,0.001,0.001,0.002\n";
 
+/// DBAT's camera XML as its `camcaldemo` gives the camera (sensor width `auto`); every line
+/// is different, so that a duplicated line is an element given twice or broken XML.
+const CAMERA: &str = "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<document dbat_camera_version=\"1.0\">\n  <cameras>\n    <camera>\n      <id>1</id>\n      <name>Olympus Camedia C4040Z</name>\n      <unit>mm</unit>\n      <sensor>auto,5.43764</sensor>\n      <image>2272,1704</image>\n      <aspect>1</aspect>\n      <focal>7.5</focal>\n    </camera>\n  </cameras>\n</document>\n";
+
 /// A line format without counts: an accepted cut is a prefix whose last record may be short.
 fn prefix_ok<T: PartialEq + std::fmt::Debug>(
     got: &[T],
@@ -297,6 +301,27 @@ proptest! {
                     prop_assert_eq!(got, clean);
                 }
             },
+        }
+    }
+
+    #[test]
+    fn dbat_camera_files(m in mutation()) {
+        let text = apply(CAMERA, &m);
+        let clean = parse_camera(CAMERA, "camera.xml").unwrap();
+        match parse_camera(&text, "camera.xml") {
+            Err(e) => {
+                let e = e.to_string();
+                refused_well("camera.xml", &m, &e)?;
+                prop_assert!(!e.contains('\n'), "not one line: {}", e);
+            }
+            Ok(got) => {
+                let blank = matches!(&m, Mutation::Append(s) if s.trim().is_empty());
+                prop_assert!(
+                    matches!(m, Mutation::Bom) || blank || whole_after_cut(CAMERA, &m),
+                    "accepted: {:?}", m
+                );
+                prop_assert_eq!(got, clean);
+            }
         }
     }
 }

@@ -24,7 +24,7 @@
 //! Images and points that cannot be oriented are left out of the returned problem and
 //! reported with the reason; nothing is ever set to NaN.
 
-use super::intersection::{intersect, IntersectionOptions, Ray};
+use super::intersection::{intersect, IntersectionError, IntersectionOptions, Ray};
 use super::relative::{relative_orientation_radial, RelativeError, RelativeOptions};
 use super::resection::{resect, similarity_transform, ResectionOptions};
 use crate::problem::{Distance, PointPrior, Problem, ProblemError};
@@ -38,7 +38,9 @@ use std::collections::HashMap;
 pub struct IncrementalOptions {
     /// Resection (threshold, RANSAC).
     pub resection: ResectionOptions,
-    /// Intersection (angle and residual checks).
+    /// Intersection (angle and residual checks): `intersection.min_angle_deg` is the
+    /// smallest largest angle between a point's rays for it to be intersected (default 2°);
+    /// the points it refuses are listed in [`Initialised::refused_by_angle`].
     pub intersection: IntersectionOptions,
     /// Relative orientation of the starting pair (no control).
     pub relative: RelativeOptions,
@@ -242,6 +244,10 @@ pub struct Initialised {
     pub unoriented_images: Vec<(String, String)>,
     /// Points that could not be determined, with the reason.
     pub undetermined_points: Vec<(String, String)>,
+    /// Of those, the points the intersection refused because their rays meet at too small
+    /// an angle (below [`IncrementalOptions::intersection`]'s `min_angle_deg`), with the
+    /// largest angle between two of their rays in degrees, in input order.
+    pub refused_by_angle: Vec<(String, f64)>,
     /// Whether the network is in the frame of the control points (always with control;
     /// without, once three or more of them were intersected). When false, control points
     /// are not held fixed and weighted control is left out of `problem`.
@@ -294,6 +300,9 @@ struct State<'a> {
     by_point: Vec<Vec<usize>>,
     image_reason: Vec<String>,
     point_reason: Vec<String>,
+    /// Per point: the largest angle between its rays (degrees) when its last intersection
+    /// was refused for it.
+    small_angle: Vec<Option<f64>>,
     steps: Vec<Step>,
     /// Whether control coordinates are in the frame (with control) or not (relative start).
     control_frame: bool,
@@ -363,6 +372,7 @@ impl<'a> State<'a> {
                     })
                 })
                 .collect();
+            self.small_angle[j] = None;
             if rays.len() < 2 {
                 self.point_reason[j] = format!(
                     "seen in {} oriented image{} (2 needed)",
@@ -376,7 +386,12 @@ impl<'a> State<'a> {
                     self.points[j] = Some(r.position);
                     count += 1;
                 }
-                Err(e) => self.point_reason[j] = format!("intersection failed: {e}"),
+                Err(e) => {
+                    if let IntersectionError::SmallAngle { angle_deg, .. } = e {
+                        self.small_angle[j] = Some(angle_deg);
+                    }
+                    self.point_reason[j] = format!("intersection failed: {e}");
+                }
             }
         }
         if count > 0 {
@@ -527,6 +542,7 @@ impl<'a> State<'a> {
                 if rays < 2 {
                     self.points[j] = None;
                     self.point_reason[j] = "too few rays left after rejecting gross errors".into();
+                    self.small_angle[j] = None;
                 }
             }
         }
@@ -950,6 +966,7 @@ impl<'a> State<'a> {
             by_point,
             image_reason: vec!["never tried".into(); ni],
             point_reason: vec!["never tried".into(); np],
+            small_angle: vec![None; np],
             steps: Vec::new(),
             control_frame: true,
             known: known.to_vec(),
@@ -1046,6 +1063,10 @@ impl<'a> State<'a> {
             .filter(|&j| self.points[j].is_none())
             .map(|j| (problem.points[j].name.clone(), self.point_reason[j].clone()))
             .collect();
+        let refused_by_angle = (0..problem.points.len())
+            .filter(|&j| self.points[j].is_none())
+            .filter_map(|j| Some((problem.points[j].name.clone(), self.small_angle[j]?)))
+            .collect();
         let rejected_observations = (self.rejected.iter().enumerate())
             .filter_map(|(k, r)| {
                 let o = &problem.observations[k];
@@ -1071,6 +1092,7 @@ impl<'a> State<'a> {
             steps: self.steps,
             unoriented_images,
             undetermined_points,
+            refused_by_angle,
             rejected_observations,
             rejections,
         }
@@ -1550,5 +1572,71 @@ mod tests {
             .iter()
             .all(|p| p.position.iter().all(|v| v.is_finite())));
         assert!(q.validate().is_ok());
+    }
+
+    #[test]
+    fn the_intersection_angle_option_decides_which_points_are_refused_and_names_them() {
+        let (truth, mut p, mut known) = network(1, 0.1);
+        // A point seen only by two neighbouring stations: its rays meet at a few degrees.
+        let x = Vector3::new(700.0, 700.0, 500.0);
+        let j = p.points.len();
+        p.points.push(Point {
+            name: "narrow".into(),
+            position: Vector3::zeros(),
+            fixed: false,
+        });
+        known.push(false);
+        let cam = &truth.cameras[0];
+        for i in [5, 6] {
+            let pose = truth.images[i].camera_from_object;
+            let uv = cam
+                .model
+                .project(&cam.params, &pose.transform(&x), None, None)
+                .unwrap();
+            p.observations.push(Observation {
+                image: i,
+                point: j,
+                uv,
+                sigma: 0.1,
+            });
+        }
+        let c5 = truth.images[5].camera_from_object.centre();
+        let c6 = truth.images[6].camera_from_object.centre();
+        let angle = (c5 - x).angle(&(c6 - x)).to_degrees();
+        assert!(angle > 2.0 && angle < 10.0, "{angle}");
+
+        let default = initialise(&p, &known, &[], &IncrementalOptions::default()).unwrap();
+        assert!(
+            default.refused_by_angle.is_empty(),
+            "{:?}",
+            default.refused_by_angle
+        );
+        assert!(default.point_map[j].is_some());
+
+        let strict = IncrementalOptions {
+            intersection: IntersectionOptions {
+                min_angle_deg: 10.0,
+                ..IntersectionOptions::default()
+            },
+            ..IncrementalOptions::default()
+        };
+        let init = initialise(&p, &known, &[], &strict).unwrap();
+        assert!(init.point_map[j].is_none());
+        let narrow: Vec<&(String, f64)> = init
+            .refused_by_angle
+            .iter()
+            .filter(|(n, _)| n == "narrow")
+            .collect();
+        assert_eq!(narrow.len(), 1, "{:?}", init.refused_by_angle);
+        assert!(
+            (narrow[0].1 - angle).abs() < 0.5,
+            "{} vs {angle}",
+            narrow[0].1
+        );
+        // Every refused point is undetermined, with its angle under the threshold.
+        for (name, a) in &init.refused_by_angle {
+            assert!(*a < 10.0, "{name}: {a}");
+            assert!(init.undetermined_points.iter().any(|(n, _)| n == name));
+        }
     }
 }

@@ -1,8 +1,12 @@
-//! Reader of the text files of DBAT (the Damped Bundle Adjustment Toolbox, Börlin &
-//! Grussenmeyer): mark points (`markpts.txt`) and control points, so that DBAT's published
-//! cases run unchanged.
+//! Reader of the files of DBAT (the Damped Bundle Adjustment Toolbox, Börlin &
+//! Grussenmeyer): mark points (`markpts.txt`), control points and the camera, so that
+//! DBAT's published cases run unchanged.
 //!
 //! # The files
+//! * The camera: DBAT's camera XML (`<document dbat_camera_version="1.0">`, e.g.
+//!   `c4040z.xml`), or the camera written inline in a DBAT script's `<input><cameras>`;
+//!   see [`parse_camera`] for what is read (image size in pixels, sensor size, pixel
+//!   aspect, focal length, unit). DBAT has no column format for cameras.
 //! * Mark points: one measurement per line, `image id, point id, x, y, sxy` (comma and/or
 //!   whitespace separated; `#` starts a comment), x and y in pixels, sxy the standard
 //!   deviation of each coordinate in pixels.
@@ -11,7 +15,7 @@
 //!   (metres in the `camcaldemo` case).
 //!
 //!
-//! A UTF-8 byte-order mark at the start of either file is skipped; numbers beyond ±1e12
+//! A UTF-8 byte-order mark at the start of any of the files is skipped; numbers beyond ±1e12
 //! ([`MAX_MAGNITUDE`]) are refused, and so is a point measured twice in one image.
 //!
 //! # Pixel convention
@@ -111,6 +115,291 @@ impl DbatCamera {
             c_mm: 7.5,
         }
     }
+}
+
+/// The elements DBAT's camera XML knows (`xmltodbatcamstruct.m`); any other is refused
+/// as a likely typo.
+const CAMERA_FIELDS: [&str; 18] = [
+    "id",
+    "name",
+    "unit",
+    "sensor",
+    "image",
+    "aspect",
+    "focal",
+    "model",
+    "nK",
+    "nP",
+    "cc",
+    "pp",
+    "K",
+    "P",
+    "skew",
+    "all",
+    "calibrated",
+    "calibration_info",
+];
+
+/// Largest image side accepted, pixels.
+const MAX_IMAGE_SIDE: u32 = 1_000_000;
+
+/// The camera unit's length in mm (DBAT's `unit`; absent: mm).
+fn unit_mm(unit: &str) -> Option<f64> {
+    match unit {
+        "mm" => Some(1.0),
+        "m" => Some(1000.0),
+        "cm" => Some(10.0),
+        "um" | "µm" | "micron" => Some(0.001),
+        _ => None,
+    }
+}
+
+/// Parses DBAT's camera XML; `file` names it in errors.
+///
+/// The file is either a DBAT camera file (`<document dbat_camera_version="1.0">` with
+/// `<cameras><camera>…</camera></cameras>`, e.g. `c4040z.xml`) or a DBAT script
+/// (`<document dbat_script_version=…>`) whose `<input><cameras>` holds the camera inline,
+/// as `camcaldemo.xml` does. Of a `<camera>`, pingcal reads (as DBAT's
+/// `xmltodbatcamstruct.m` defines them):
+///
+/// * `name` (optional; else `camera ID` or `camera`), `id` (optional integer);
+/// * `unit`: the camera unit, `mm` (the default), `m`, `cm` or `um`;
+/// * `sensor`: `width,height` of the sensor in camera units, the width possibly `auto`
+///   (then width = aspect · height · image width / image height);
+/// * `image`: `width,height` in pixels;
+/// * `aspect`: the pixel aspect ratio (x pitch / y pitch; default 1), used with an `auto`
+///   sensor width;
+/// * `focal`: the nominal focal length, the initial camera constant (DBAT's `cc = focal`,
+///   as its `camcaldemo` sets it before calibrating).
+///
+/// The remaining DBAT elements (`model`, `nK`, `nP`, `cc`, `pp`, `K`, `P`, `skew`, `all`,
+/// `calibrated`, `calibration_info`) are accepted and not read: they are DBAT's lens model,
+/// whose parameters are not pingcal's (see the module doc); what is estimated is chosen by
+/// the caller. Refused, each with the file and line: anything that is not XML, a file
+/// without exactly one camera, an unknown or repeated element, a missing `sensor`, `image`
+/// or `focal`, a value that is not a positive finite number (an integer for `image` and
+/// `id`), a unit not listed above, and non-square pixels (pingcal's pixel is square; its
+/// B1 estimates the affinity).
+pub fn parse_camera(text: &str, file: &str) -> Result<DbatCamera, DbatError> {
+    let text = without_bom(text);
+    let doc = roxmltree::Document::parse(text).map_err(|e| DbatError::Line {
+        file: file.into(),
+        line: e.pos().row as usize,
+        message: format!("not DBAT camera XML: {}", super::printable(&e.to_string())),
+    })?;
+    let line_of = |n: roxmltree::Node| doc.text_pos_at(n.range().start).row as usize;
+    let err = |n: roxmltree::Node, message: String| DbatError::Line {
+        file: file.into(),
+        line: line_of(n),
+        message,
+    };
+    let root = doc.root_element();
+    if root.tag_name().name() != "document" {
+        return Err(err(
+            root,
+            format!(
+                "the root element is <{}>, DBAT's is <document>",
+                super::printable(root.tag_name().name())
+            ),
+        ));
+    }
+    fn child<'a, 'i>(n: roxmltree::Node<'a, 'i>, name: &str) -> Option<roxmltree::Node<'a, 'i>> {
+        n.children()
+            .find(|c| c.is_element() && c.tag_name().name() == name)
+    }
+    let cameras = match (child(root, "cameras"), child(root, "input")) {
+        (Some(c), _) => c,
+        (None, Some(input)) => child(input, "cameras").ok_or_else(|| {
+            err(
+                input,
+                "the DBAT script has no <cameras> in its <input>".into(),
+            )
+        })?,
+        (None, None) => {
+            return Err(err(
+                root,
+                "no <cameras> (neither a DBAT camera file nor a DBAT script)".into(),
+            ))
+        }
+    };
+    if let Some(f) = child(cameras, "file") {
+        return Err(err(
+            f,
+            format!(
+                "the cameras are in the file '{}': give that file",
+                super::printable(f.text().unwrap_or("").trim())
+            ),
+        ));
+    }
+    let all: Vec<roxmltree::Node> = cameras
+        .children()
+        .filter(|c| c.is_element() && c.tag_name().name() == "camera")
+        .collect();
+    let camera = match all.as_slice() {
+        [] => {
+            return Err(DbatError::Empty {
+                file: file.into(),
+                what: "<camera>",
+            })
+        }
+        [one] => *one,
+        [_, second, ..] => {
+            return Err(err(
+                *second,
+                format!(
+                    "{} cameras: pingcal's DBAT reader takes one (DBAT's mark points do not say which camera took an image)",
+                    all.len()
+                ),
+            ))
+        }
+    };
+    let mut fields: BTreeMap<&str, roxmltree::Node> = BTreeMap::new();
+    for e in camera.children().filter(|c| c.is_element()) {
+        let name = e.tag_name().name();
+        if !CAMERA_FIELDS.contains(&name) {
+            return Err(err(
+                e,
+                format!(
+                    "unknown camera element <{}> (DBAT's are {})",
+                    super::printable(name),
+                    CAMERA_FIELDS.join(", ")
+                ),
+            ));
+        }
+        if let Some(first) = fields.insert(name, e) {
+            return Err(err(
+                e,
+                format!(
+                    "<{name}> given twice in one camera (first on line {})",
+                    line_of(first)
+                ),
+            ));
+        }
+    }
+    let value = |name: &str| -> Result<Option<(roxmltree::Node, &str)>, DbatError> {
+        let Some(n) = fields.get(name).copied() else {
+            return Ok(None);
+        };
+        if n.children().any(|c| c.is_element()) {
+            return Err(err(n, format!("<{name}> holds elements, not a value")));
+        }
+        Ok(Some((n, n.text().unwrap_or("").trim())))
+    };
+    let required = |name: &str| -> Result<(roxmltree::Node, &str), DbatError> {
+        value(name)?.ok_or_else(|| err(camera, format!("the camera has no <{name}>")))
+    };
+    let positive = |n: roxmltree::Node, what: &str, s: &str| -> Result<f64, DbatError> {
+        let v = number(file, line_of(n), what, s)?;
+        if !(v > 0.0) {
+            return Err(err(n, format!("{what} {v} must be positive")));
+        }
+        Ok(v)
+    };
+    let pair = |n: roxmltree::Node, name: &str, s: &str| -> Result<[String; 2], DbatError> {
+        let parts: Vec<&str> = s.split(',').map(str::trim).collect();
+        match parts.as_slice() {
+            [a, b] => Ok([a.to_string(), b.to_string()]),
+            _ => Err(err(
+                n,
+                format!(
+                    "<{name}> '{}' is not two comma-separated values (width,height)",
+                    super::printable(s)
+                ),
+            )),
+        }
+    };
+    let side = |n: roxmltree::Node, what: &str, s: &str| -> Result<u32, DbatError> {
+        match s.parse::<u32>() {
+            Ok(v) if (1..=MAX_IMAGE_SIDE).contains(&v) => Ok(v),
+            _ => Err(err(
+                n,
+                format!(
+                    "{what} '{}' is not a whole number of pixels in 1..={MAX_IMAGE_SIDE}",
+                    super::printable(s)
+                ),
+            )),
+        }
+    };
+    if let Some((n, s)) = value("id")? {
+        if s.parse::<u32>().is_err() {
+            return Err(err(
+                n,
+                format!(
+                    "camera <id> '{}' is not a whole number",
+                    super::printable(s)
+                ),
+            ));
+        }
+    }
+    let unit = match value("unit")? {
+        None => 1.0,
+        Some((n, s)) => unit_mm(s).ok_or_else(|| {
+            err(
+                n,
+                format!(
+                    "camera unit '{}' is not one of mm, m, cm, um",
+                    super::printable(s)
+                ),
+            )
+        })?,
+    };
+    let (n_image, s_image) = required("image")?;
+    let [w, h] = pair(n_image, "image", s_image)?;
+    let width = side(n_image, "image width", &w)?;
+    let height = side(n_image, "image height", &h)?;
+    let (n_sensor, s_sensor) = required("sensor")?;
+    let [sw, sh] = pair(n_sensor, "sensor", s_sensor)?;
+    let sensor_h = positive(n_sensor, "sensor height", &sh)? * unit;
+    let pitch_y = sensor_h / height as f64;
+    let aspect = match value("aspect")? {
+        None => None,
+        Some((_, "auto")) => None,
+        Some((n, s)) => Some((n, positive(n, "aspect", s)?)),
+    };
+    let pitch_x = if sw == "auto" {
+        aspect.map_or(1.0, |a| a.1) * pitch_y
+    } else {
+        positive(n_sensor, "sensor width", &sw)? * unit / width as f64
+    };
+    if ((pitch_x - pitch_y) / pitch_y).abs() > 1e-6 {
+        let at = match (sw == "auto", aspect) {
+            (true, Some((n, _))) => n,
+            _ => n_sensor,
+        };
+        return Err(err(
+            at,
+            format!(
+                "non-square pixels ({:.6} × {:.6} µm from sensor '{}' and image '{}'{}): pingcal's pixel is square (its B1 estimates the affinity)",
+                pitch_x * 1000.0,
+                pitch_y * 1000.0,
+                super::printable(s_sensor),
+                super::printable(s_image),
+                match (sw == "auto", aspect) {
+                    (true, Some(a)) => format!(", aspect {}", a.1),
+                    _ => String::new(),
+                },
+            ),
+        ));
+    }
+    let (n_focal, s_focal) = required("focal")?;
+    let c_mm = positive(n_focal, "focal", s_focal)? * unit;
+    let name = match (value("name")?, value("id")?) {
+        (Some((_, s)), _) if !s.is_empty() => s.to_string(),
+        (_, Some((_, id))) => format!("camera {id}"),
+        _ => "camera".to_string(),
+    };
+    Ok(DbatCamera {
+        name,
+        width,
+        height,
+        pixel_size_mm: pitch_y,
+        c_mm,
+    })
+}
+
+/// Reads DBAT's camera XML (see [`parse_camera`]).
+pub fn read_camera(path: &Path) -> Result<DbatCamera, DbatError> {
+    parse_camera(&read(path)?, &path.display().to_string())
 }
 
 /// DBAT's pixel coordinates (corner origin) → pingcal's (centre of the top-left pixel).
@@ -357,15 +646,19 @@ fn read(path: &Path) -> Result<String, DbatError> {
 }
 
 /// Reads DBAT's mark-point and control files into [`Measurements`] (see
-/// [`to_measurements`]).
+/// [`to_measurements`]); without a control file the network has no control (its datum
+/// is then to be given otherwise, e.g. a free network: see [`crate::datum`]).
 pub fn read_dbat(
     markpts: &Path,
-    control: &Path,
+    control: Option<&Path>,
     camera: &DbatCamera,
     object_unit_mm: f64,
 ) -> Result<Measurements, DbatError> {
     let marks = parse_markpts(&read(markpts)?, &markpts.display().to_string())?;
-    let ctrl = parse_control(&read(control)?, &control.display().to_string())?;
+    let ctrl = match control {
+        Some(c) => parse_control(&read(c)?, &c.display().to_string())?,
+        None => Vec::new(),
+    };
     Ok(to_measurements(&marks, &ctrl, camera, object_unit_mm))
 }
 
@@ -473,11 +766,96 @@ mod tests {
         assert!(yp > 0.0);
     }
 
+    /// A DBAT camera file as DBAT's `camcaldemo` gives its input camera: sensor width `auto`.
+    const CAMERA_AUTO: &str = "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<document dbat_camera_version=\"1.0\">\n  <cameras>\n    <camera>\n      <id>1</id>\n      <name>Test camera</name>\n      <unit>mm</unit>\n      <sensor>auto,4.8</sensor>\n      <image>1600,1200</image>\n      <aspect>1</aspect>\n      <focal>8.5</focal>\n      <model>3</model>\n      <nK>3</nK>\n      <K>0,0,0</K>\n    </camera>\n  </cameras>\n</document>\n";
+
+    #[test]
+    fn a_camera_file_with_an_auto_sensor_width() {
+        let c = parse_camera(CAMERA_AUTO, "cam.xml").unwrap();
+        assert_eq!(c.name, "Test camera");
+        assert_eq!((c.width, c.height), (1600, 1200));
+        assert!((c.pixel_size_mm - 0.004).abs() < 1e-15);
+        assert_eq!(c.c_mm, 8.5);
+    }
+
+    #[test]
+    fn a_camera_file_with_both_sensor_sides_in_metres() {
+        let text = "<document dbat_camera_version=\"1.0\"><cameras><camera>\n<id>7</id>\n<unit>m</unit>\n<sensor>0.0064,0.0048</sensor>\n<image>1600,1200</image>\n<focal>0.0085</focal>\n</camera></cameras></document>";
+        let c = parse_camera(text, "cam.xml").unwrap();
+        assert_eq!(c.name, "camera 7");
+        assert!((c.pixel_size_mm - 0.004).abs() < 1e-15);
+        assert!((c.c_mm - 8.5).abs() < 1e-12);
+    }
+
+    #[test]
+    fn the_camera_inline_in_a_dbat_script() {
+        let text = "<document dbat_script_version=\"1.0.0\">\n<input>\n<cameras>\n<camera>\n<name>C4040Z</name>\n<unit>mm</unit>\n<sensor>auto,5.43764</sensor>\n<image>2272,1704</image>\n<aspect>1</aspect>\n<focal>7.5</focal>\n<nK>3</nK>\n<nP>2</nP>\n</camera>\n</cameras>\n</input>\n</document>\n";
+        let c = parse_camera(text, "camcaldemo.xml").unwrap();
+        assert_eq!(
+            c,
+            DbatCamera {
+                name: "C4040Z".into(),
+                ..DbatCamera::c4040z()
+            }
+        );
+        let e = parse_camera(
+            "<document>\n<input>\n<cameras>\n<file>cams/c.xml</file>\n</cameras>\n</input>\n</document>",
+            "s.xml",
+        )
+        .unwrap_err()
+        .to_string();
+        assert_eq!(
+            e,
+            "s.xml:4: the cameras are in the file 'cams/c.xml': give that file"
+        );
+    }
+
+    #[test]
+    fn malformed_camera_files_name_the_file_line_and_value() {
+        let swap = |from: &str, to: &str| {
+            parse_camera(&CAMERA_AUTO.replace(from, to), "cam.xml")
+                .unwrap_err()
+                .to_string()
+        };
+        let cases = [
+            (swap("<focal>8.5</focal>", "<focal>8.5mm</focal>"), "cam.xml:11: focal '8.5mm' is not a finite number"),
+            (swap("<focal>8.5</focal>", "<focal>-8.5</focal>"), "cam.xml:11: focal -8.5 must be positive"),
+            (swap("<image>1600,1200</image>", "<image>1600</image>"), "cam.xml:9: <image> '1600' is not two comma-separated values (width,height)"),
+            (swap("<image>1600,1200</image>", "<image>1600,12.5</image>"), "cam.xml:9: image height '12.5' is not a whole number of pixels in 1..=1000000"),
+            (swap("<sensor>auto,4.8</sensor>", "<sensor>auto,nan</sensor>"), "cam.xml:8: sensor height 'nan' is not a finite number"),
+            (swap("<unit>mm</unit>", "<unit>inch</unit>"), "cam.xml:7: camera unit 'inch' is not one of mm, m, cm, um"),
+            (swap("<aspect>1</aspect>", "<aspect>0.9</aspect>"), "cam.xml:10: non-square pixels (3.600000 × 4.000000 µm from sensor 'auto,4.8' and image '1600,1200', aspect 0.9): pingcal's pixel is square (its B1 estimates the affinity)"),
+            (swap("      <focal>8.5</focal>\n", ""), "cam.xml:4: the camera has no <focal>"),
+            (swap("<nK>3</nK>", "<nK>3</nK><nK>3</nK>"), "cam.xml:13: <nK> given twice in one camera (first on line 13)"),
+            (swap("<id>1</id>", "<id>one</id>"), "cam.xml:5: camera <id> 'one' is not a whole number"),
+            (swap("</cameras>", ""), "cam.xml:17: not DBAT camera XML: expected 'cameras' tag, not 'document' at 17:1"),
+        ];
+        for (got, want) in &cases {
+            assert_eq!(got, want);
+            assert!(!got.contains('\n'));
+        }
+        let e = swap("<model>3</model>", "<modle>3</modle>");
+        assert!(
+            e.starts_with("cam.xml:12: unknown camera element <modle>"),
+            "{e}"
+        );
+        let two = CAMERA_AUTO.replace("</cameras>", "<camera><name>b</name></camera></cameras>");
+        let e = parse_camera(&two, "cam.xml").unwrap_err().to_string();
+        assert!(e.starts_with("cam.xml:16: 2 cameras"), "{e}");
+        assert!(matches!(
+            parse_camera("<document><cameras/></document>", "cam.xml"),
+            Err(DbatError::Empty { .. })
+        ));
+        // A byte-order mark is skipped.
+        assert!(parse_camera(&format!("\u{feff}{CAMERA_AUTO}"), "cam.xml").is_ok());
+    }
+
     proptest::proptest! {
         #[test]
         fn arbitrary_text_never_panics(s in "\\PC{0,300}") {
             let _ = parse_markpts(&s, "m.txt");
             let _ = parse_control(&s, "c.txt");
+            let _ = parse_camera(&s, "cam.xml");
         }
 
         #[test]
@@ -485,6 +863,7 @@ mod tests {
             let s = a.join(",");
             let _ = parse_markpts(&s, "m.txt");
             let _ = parse_control(&s, "c.txt");
+            let _ = parse_camera(&s, "cam.xml");
         }
     }
 }

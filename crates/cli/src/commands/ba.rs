@@ -4,10 +4,14 @@
 //!   one-line summary; `--out FILE` writes the JSON of SPEC.md, with cost = ½ Σ r² in
 //!   pixels so that it compares with Ceres.
 //! * pingcal's measurement file (`.json`, see `pingcal_ba::io::measurements`), or DBAT's
-//!   `markpts.txt` with `--dbat CONTROL`: initial values from the measurements alone, a
+//!   `markpts.txt` with its camera (`--dbat-camera FILE`) and control (`--dbat CONTROL`,
+//!   or `--free-network` without control): initial values from the measurements alone, a
 //!   self-calibrating adjustment with distances and control, optional data snooping, and
 //!   the report laid out like Australis's (text on stdout or `--report FILE`; JSON with
-//!   `--out FILE`).
+//!   `--out FILE`). The datum is diagnosed before solving for DBAT's files (too little:
+//!   no control and no free network; too much: control and a free network), and the
+//!   points the initial intersection refuses for their small ray angle
+//!   (`--min-intersection-angle`) are listed.
 
 use super::preflight::{check_out_file, check_threads};
 use super::{write_atomic, CmdResult};
@@ -65,6 +69,18 @@ pub struct Args {
     /// PROBLEM is DBAT's `markpts.txt`; this is DBAT's control file (metres).
     #[arg(long, value_name = "CONTROL")]
     pub dbat: Option<PathBuf>,
+    /// PROBLEM is DBAT's `markpts.txt`; this is its camera: DBAT's camera XML (e.g.
+    /// `c4040z.xml`) or a DBAT script with the camera inline. Needed for DBAT's files.
+    #[arg(long, value_name = "FILE")]
+    pub dbat_camera: Option<PathBuf>,
+    /// The datum by inner constraints on the points (a free network), for a network
+    /// without control (DBAT's files without `--dbat CONTROL`); refused with control.
+    #[arg(long)]
+    pub free_network: bool,
+    /// Smallest largest angle between a point's rays, degrees, for the initial
+    /// intersection to take it (points below are refused and listed); default 2.
+    #[arg(long, value_name = "DEG")]
+    pub min_intersection_angle: Option<f64>,
     /// Reject gross errors by data snooping (standardized residual above this, e.g. 3.29).
     #[arg(long, allow_hyphen_values = true, value_name = "W")]
     pub snoop: Option<f64>,
@@ -117,7 +133,7 @@ pub fn run(args: Args) -> CmdResult {
     let measurements = args
         .problem
         .as_ref()
-        .filter(|path| path.extension().is_some_and(|e| e == "json") || args.dbat.is_some());
+        .filter(|path| path.extension().is_some_and(|e| e == "json") || is_dbat(&args));
     if measurements.is_none() {
         refuse_measurement_options(&args)?;
     }
@@ -259,6 +275,11 @@ fn refuse_measurement_options(args: &Args) -> Result<(), String> {
         ("--snoop", args.snoop.is_some()),
         ("--calibrate", args.calibrate.is_some()),
         ("--report", args.report.is_some()),
+        ("--free-network", args.free_network),
+        (
+            "--min-intersection-angle",
+            args.min_intersection_angle.is_some(),
+        ),
     ]
     .iter()
     .filter(|o| o.1)
@@ -272,29 +293,50 @@ fn refuse_measurement_options(args: &Args) -> Result<(), String> {
         _ => "a synthetic BAL problem".into(),
     };
     Err(format!(
-        "{} {} to measurement files (.json, or markpts.txt with --dbat), not to {problem}",
+        "{} {} to measurement files (.json, or markpts.txt with --dbat-camera), not to {problem}",
         given.join(", "),
         if given.len() == 1 { "applies" } else { "apply" }
     ))
 }
 
+/// Whether PROBLEM is DBAT's mark-point file.
+fn is_dbat(args: &Args) -> bool {
+    args.dbat.is_some() || args.dbat_camera.is_some()
+}
+
 /// A photogrammetric adjustment of pingcal's measurement file or DBAT's files.
 fn run_measurements(path: &std::path::Path, args: &Args) -> CmdResult {
     use pingcal_ba::initial::incremental::{initialise, IncrementalOptions};
+    use pingcal_ba::initial::intersection::IntersectionOptions;
     use pingcal_ba::io::{dbat, measurements::Measurements};
     use pingcal_ba::report::AdjustmentReport;
-    let mut meas = match &args.dbat {
-        Some(control) => {
-            let mut m = dbat::read_dbat(path, control, &dbat::DbatCamera::c4040z(), 1000.0)?;
-            // DBAT's camcal demo self-calibrates these (B1 plays its aspect parameter).
-            for c in &mut m.cameras {
-                c.calibrate = ["c", "xp", "yp", "K1", "K2", "K3", "P1", "P2", "B1"]
-                    .map(String::from)
-                    .to_vec();
-            }
-            m
+    let min_angle = args
+        .min_intersection_angle
+        .unwrap_or(IntersectionOptions::default().min_angle_deg);
+    if !(0.0..180.0).contains(&min_angle) {
+        return Err(
+            format!("--min-intersection-angle {min_angle}: expected degrees in [0, 180)").into(),
+        );
+    }
+    let mut meas = if is_dbat(args) {
+        let Some(camera_file) = &args.dbat_camera else {
+            return Err(format!(
+                "{}: DBAT's mark points need their camera: --dbat-camera FILE (DBAT's camera XML, e.g. c4040z.xml)",
+                path.display()
+            )
+            .into());
+        };
+        let camera = dbat::read_camera(camera_file)?;
+        let mut m = dbat::read_dbat(path, args.dbat.as_deref(), &camera, 1000.0)?;
+        // DBAT's camcal demo self-calibrates these (B1 plays its aspect parameter).
+        for c in &mut m.cameras {
+            c.calibrate = ["c", "xp", "yp", "K1", "K2", "K3", "P1", "P2", "B1"]
+                .map(String::from)
+                .to_vec();
         }
-        None => Measurements::read(path)?,
+        m
+    } else {
+        Measurements::read(path)?
     };
     if let Some(list) = &args.calibrate {
         for c in &mut meas.cameras {
@@ -309,6 +351,12 @@ fn run_measurements(path: &std::path::Path, args: &Args) -> CmdResult {
         let w = pingcal_ba::io::printable(&w.to_string());
         eprintln!("pingcal ba: warning: {}: {w}", path.display());
     }
+    // DBAT's files say nothing of the datum but the control: diagnosed before solving. A
+    // measurement file without one is a free network already; asked for, it is checked.
+    if is_dbat(args) || args.free_network {
+        pingcal_ba::datum::check(&built.problem, args.free_network)
+            .map_err(|e| format!("{}: {e}", path.display()))?;
+    }
     let options = Options {
         max_iterations: args.max_iterations,
         function_tolerance: args.function_tolerance,
@@ -319,6 +367,10 @@ fn run_measurements(path: &std::path::Path, args: &Args) -> CmdResult {
     };
     let init_options = IncrementalOptions {
         bundle: options.clone(),
+        intersection: IntersectionOptions {
+            min_angle_deg: min_angle,
+            ..IntersectionOptions::default()
+        },
         ..IncrementalOptions::default()
     };
     let init = initialise(
@@ -340,6 +392,19 @@ fn run_measurements(path: &std::path::Path, args: &Args) -> CmdResult {
     for (name, why) in &init.undetermined_points {
         let name = pingcal_ba::io::printable(name);
         eprintln!("pingcal ba: warning: point '{name}' not determined: {why}");
+    }
+    if !init.refused_by_angle.is_empty() {
+        let list: Vec<String> = init
+            .refused_by_angle
+            .iter()
+            .map(|(name, a)| format!("{} ({a:.2}°)", pingcal_ba::io::printable(name)))
+            .collect();
+        eprintln!(
+            "pingcal ba: {} point{} refused by the intersection angle (largest ray angle below {min_angle}°): {}",
+            list.len(),
+            if list.len() == 1 { "" } else { "s" },
+            list.join(", ")
+        );
     }
     let mut problem = init.problem;
     if let Some(l) = &args.loss {

@@ -1,0 +1,285 @@
+//! The datum of a network, diagnosed before solving: what fixes its position, orientation
+//! and scale (7 degrees of freedom), and whether that is too little or too much.
+//!
+//! A network's datum comes either from the problem itself — fixed control points, weighted
+//! control (point priors), fixed images, a fixed rig — or, when it has none of these, from
+//! inner constraints on its object points: a *free network* (the solver's minimum-trace
+//! precision, [`crate::solver::precision`]), its scale from distances if any are given.
+//! [`check`] says which, or why neither holds:
+//!
+//! * too little: no control and no free network asked; or control that leaves degrees of
+//!   freedom open (fewer than 3 control points, or all on one line; one fixed image and
+//!   nothing giving the scale);
+//! * too much: a free network asked for a network whose datum is already fixed (inner
+//!   constraints on top of control would distort it).
+
+use crate::problem::Problem;
+use nalgebra::Vector3;
+
+/// How a network's datum is defined.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Datum {
+    /// By the problem: fixed control, weighted control, fixed images or rigs.
+    Given {
+        /// Control points held fixed.
+        fixed_control: usize,
+        /// Control points with a prior (weighted control).
+        weighted_control: usize,
+        /// Images held fixed.
+        fixed_images: usize,
+        /// Rigs held fixed.
+        fixed_rigs: usize,
+    },
+    /// By inner constraints on the object points (a free network).
+    FreeNetwork {
+        /// Whether distances fix the scale (6 free degrees of freedom rather than 7).
+        scale_from_distances: bool,
+    },
+}
+
+/// Why the datum is not well defined.
+#[derive(Clone, Debug, thiserror::Error, PartialEq)]
+pub enum DatumError {
+    /// Nothing, or not enough, fixes the network.
+    #[error("the datum is not defined: {0}")]
+    TooLittle(String),
+    /// A free network asked for a network that is already fixed.
+    #[error("the datum is defined twice: {0}")]
+    TooMuch(String),
+}
+
+/// Whether the points lie on one line (or coincide), relative to their spread.
+fn collinear(points: &[Vector3<f64>]) -> bool {
+    let Some(first) = points.first() else {
+        return true;
+    };
+    let Some(far) = points
+        .iter()
+        .max_by(|a, b| (*a - first).norm().total_cmp(&(*b - first).norm()))
+    else {
+        return true;
+    };
+    let axis = far - first;
+    let len = axis.norm();
+    if !(len > 0.0) {
+        return true;
+    }
+    let d = axis / len;
+    points.iter().all(|p| {
+        let v = p - first;
+        (v - d * v.dot(&d)).norm() <= 1e-6 * len
+    })
+}
+
+fn plural(n: usize, one: &str, many: &str) -> String {
+    format!("{n} {}", if n == 1 { one } else { many })
+}
+
+/// Diagnoses the datum of `problem`; `free_network`: the caller asks for one (datum by
+/// inner constraints). See the module doc.
+pub fn check(problem: &Problem, free_network: bool) -> Result<Datum, DatumError> {
+    let fixed_control: Vec<Vector3<f64>> = problem
+        .points
+        .iter()
+        .filter(|p| p.fixed)
+        .map(|p| p.position)
+        .collect();
+    let weighted: Vec<Vector3<f64>> = problem.point_priors.iter().map(|p| p.position).collect();
+    let fixed_images = problem.images.iter().filter(|i| i.fixed).count();
+    let fixed_rigs = problem.rigs.iter().filter(|r| r.fixed).count();
+    let mut given = Vec::new();
+    if !fixed_control.is_empty() {
+        given.push(plural(
+            fixed_control.len(),
+            "fixed control point",
+            "fixed control points",
+        ));
+    }
+    if !weighted.is_empty() {
+        given.push(plural(
+            weighted.len(),
+            "weighted control point",
+            "weighted control points",
+        ));
+    }
+    if fixed_images > 0 {
+        given.push(plural(fixed_images, "fixed image", "fixed images"));
+    }
+    if fixed_rigs > 0 {
+        given.push(plural(fixed_rigs, "fixed rig", "fixed rigs"));
+    }
+    if free_network {
+        if !given.is_empty() {
+            return Err(DatumError::TooMuch(format!(
+                "a free network (inner constraints) was asked, but {} already fix the network: leave out one or the other",
+                given.join(", ")
+            )));
+        }
+        return Ok(Datum::FreeNetwork {
+            scale_from_distances: !problem.distances.is_empty(),
+        });
+    }
+    if given.is_empty() {
+        return Err(DatumError::TooLittle(
+            "no control point, no fixed image and no free network asked: nothing fixes the network's position, orientation and scale; give control points or ask for a free network".into(),
+        ));
+    }
+    let datum = Datum::Given {
+        fixed_control: fixed_control.len(),
+        weighted_control: weighted.len(),
+        fixed_images,
+        fixed_rigs,
+    };
+    if fixed_rigs > 0 || fixed_images >= 2 {
+        return Ok(datum);
+    }
+    let control: Vec<Vector3<f64>> = fixed_control.iter().chain(&weighted).copied().collect();
+    if fixed_images == 1 {
+        if control.is_empty() && problem.distances.is_empty() {
+            return Err(DatumError::TooLittle(
+                "1 fixed image fixes the position and orientation but not the scale: give a distance or control points, or ask for a free network".into(),
+            ));
+        }
+        return Ok(datum);
+    }
+    if control.len() < 3 {
+        return Err(DatumError::TooLittle(format!(
+            "{} leave the rotation about {} free: 3 not on one line are needed, or ask for a free network",
+            given.join(", "),
+            if control.len() == 1 { "that point" } else { "their line" }
+        )));
+    }
+    if collinear(&control) {
+        return Err(DatumError::TooLittle(format!(
+            "the {} lie on one line, which leaves the rotation about it free: 3 not on one line are needed, or ask for a free network",
+            given.join(", ")
+        )));
+    }
+    Ok(datum)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::problem::{Distance, Image, Point, PointPrior};
+
+    fn points(xyz: &[[f64; 3]], fixed: bool) -> Vec<Point> {
+        xyz.iter()
+            .enumerate()
+            .map(|(k, p)| Point {
+                name: format!("p{k}"),
+                position: Vector3::from(*p),
+                fixed,
+            })
+            .collect()
+    }
+
+    #[test]
+    fn no_control_needs_a_free_network() {
+        let p = Problem {
+            points: points(&[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]], false),
+            ..Problem::default()
+        };
+        let e = check(&p, false).unwrap_err();
+        assert!(matches!(e, DatumError::TooLittle(_)));
+        assert!(e.to_string().contains("free network"), "{e}");
+        assert_eq!(
+            check(&p, true),
+            Ok(Datum::FreeNetwork {
+                scale_from_distances: false
+            })
+        );
+        let with_distance = Problem {
+            distances: vec![Distance {
+                a: 0,
+                b: 1,
+                value: 1.0,
+                sigma: 0.01,
+            }],
+            ..p
+        };
+        assert_eq!(
+            check(&with_distance, true),
+            Ok(Datum::FreeNetwork {
+                scale_from_distances: true
+            })
+        );
+    }
+
+    #[test]
+    fn control_and_a_free_network_is_too_much() {
+        let p = Problem {
+            points: points(&[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], true),
+            ..Problem::default()
+        };
+        assert!(matches!(
+            check(&p, false),
+            Ok(Datum::Given {
+                fixed_control: 3,
+                ..
+            })
+        ));
+        let e = check(&p, true).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "the datum is defined twice: a free network (inner constraints) was asked, but 3 fixed control points already fix the network: leave out one or the other"
+        );
+    }
+
+    #[test]
+    fn too_few_or_collinear_control_is_too_little() {
+        let two = Problem {
+            points: points(&[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]], true),
+            ..Problem::default()
+        };
+        assert!(check(&two, false)
+            .unwrap_err()
+            .to_string()
+            .contains("2 fixed control points leave the rotation about their line free"));
+        let line = Problem {
+            points: points(&[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0]], true),
+            ..Problem::default()
+        };
+        assert!(check(&line, false)
+            .unwrap_err()
+            .to_string()
+            .contains("on one line"));
+        // Two fixed and one weighted point off their line fix it.
+        let mut mixed = two.clone();
+        mixed.points.extend(points(&[[0.0, 1.0, 0.0]], false));
+        mixed.point_priors.push(PointPrior {
+            point: 2,
+            position: Vector3::new(0.0, 1.0, 0.0),
+            sigma: Vector3::repeat(0.1),
+        });
+        assert!(check(&mixed, false).is_ok());
+    }
+
+    #[test]
+    fn one_fixed_image_needs_a_scale() {
+        let p = Problem {
+            images: vec![Image {
+                name: "main".into(),
+                camera: 0,
+                camera_from_object: Default::default(),
+                fixed: true,
+            }],
+            points: points(&[[0.0, 0.0, 5.0], [1.0, 0.0, 5.0]], false),
+            ..Problem::default()
+        };
+        assert!(check(&p, false)
+            .unwrap_err()
+            .to_string()
+            .contains("not the scale"));
+        let scaled = Problem {
+            distances: vec![Distance {
+                a: 0,
+                b: 1,
+                value: 1.0,
+                sigma: 0.01,
+            }],
+            ..p
+        };
+        assert!(check(&scaled, false).is_ok());
+    }
+}
