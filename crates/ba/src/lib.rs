@@ -5,7 +5,7 @@
 //! | module | what it holds |
 //! |---|---|
 //! | [`geometry`] | re-exported [`pingcal_geometry`]: [`Rigid3`] (an image's `camera_from_object`, `x_cam = R·X + t`, and its local update), SO(3), the ω φ κ convention |
-//! | [`camera`] | camera models ([`camera::CameraModel`]): photogrammetric (SPEC.md), BAL |
+//! | [`camera`] | camera models ([`camera::CameraModel`]): photogrammetric (SPEC.md, forward Brown with affinity B1, B2), Brown backward (DBAT / PhotoModeler / Australis correction form), OpenCV (rational, tangential, thin prism), Kannala–Brandt fisheye, BAL; [`camera::check_jacobians`] for a new model |
 //! | [`io`] | pingcal's measurement file (JSON) and DBAT's mark-point and control files |
 //! | [`loss`] | robust losses (Huber, Cauchy) |
 //! | [`problem`] | cameras, images, points, observations, distances, control |
