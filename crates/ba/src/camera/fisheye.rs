@@ -42,17 +42,9 @@ pub const FISHEYE_PARAMS: [&str; 8] = ["fx", "fy", "cx", "cy", "k1", "k2", "k3",
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct FisheyeCamera;
 
-/// θ/sin θ, accurate at θ = 0.
-fn theta_over_sin(t: f64) -> f64 {
-    if t < 1e-4 {
-        1.0 + t * t / 6.0
-    } else {
-        t / t.sin()
-    }
-}
-
-/// S(θ) = (sin θ cos θ − θ)/θ³ = (sin 2θ − 2θ)/(2θ³), by its series below 0.1.
-fn s_of_theta(t: f64) -> f64 {
+/// S(θ) = (sin θ cos θ − θ)/θ³ = (sin 2θ − 2θ)/(2θ³), by its series below 0.1; `sc` is
+/// sin θ cos θ.
+fn s_of_theta(t: f64, sc: f64) -> f64 {
     if t < 0.1 {
         // (sin x − x)/2 with x = 2θ: Σ_{n≥1} (−1)ⁿ x^{2n+1}/(2·(2n+1)!), divided by θ³.
         let t2 = t * t;
@@ -60,7 +52,7 @@ fn s_of_theta(t: f64) -> f64 {
             + t2 * (2.0 / 15.0
                 + t2 * (-4.0 / 315.0 + t2 * (2.0 / 2835.0 + t2 * (-4.0 / 155_925.0))))
     } else {
-        (t.sin() * t.cos() - t) / (t * t * t)
+        (sc - t) / (t * t * t)
     }
 }
 
@@ -99,19 +91,24 @@ impl CameraModel for FisheyeCamera {
             return None;
         }
         let t = rho.atan2(y);
-        let tos = theta_over_sin(t); // θ/sin θ
-        let t_over_rho = tos / l; // θ/ρ
+        // θ/ρ by a division where ρ > 0 (θ/ρ → 1/Y on the axis): sin θ from θ would lose
+        // digits near the rear pole, where θ ≈ π carries an absolute rounding of ε·π.
+        let t_over_rho = if rho > 0.0 { t / rho } else { 1.0 / l };
+        let tos = t_over_rho * l; // θ/sin θ
         let (pp, dp) = Self::poly(params, t);
         let g = pp * t_over_rho; // θd/ρ
         let (xp, yp) = (g * x, -g * z);
         let uv = Vector2::new(fx * xp + cx, fy * yp + cy);
         if let Some(jp) = jac_point {
+            // sin θ cos θ/θ = (ρ/L)(Y/L)/θ.
+            let (sin_t, cos_t) = (rho / l, y / l);
             let sc_over_t = if t < 1e-4 {
                 1.0 - 2.0 * t * t / 3.0
             } else {
-                t.sin() * t.cos() / t
+                sin_t * cos_t / t
             };
-            let h = (pp * s_of_theta(t) + 2.0 * dp * sc_over_t) * tos * tos * tos / (l * l * l);
+            let s = s_of_theta(t, sin_t * cos_t);
+            let h = (pp * s + 2.0 * dp * sc_over_t) * tos * tos * tos / (l * l * l);
             let dtd = pp + 2.0 * t * t * dp; // dθd/dθ
             let gy = -dtd / (l * l);
             let gx = x * h;
@@ -230,6 +227,19 @@ mod tests {
             let p = random_params(&mut r);
             worst = worst.max(check(&FisheyeCamera, &p, &point(&mut r, t), 1e-6));
         }
+        // Far behind the image plane, up to 178° off axis.
+        for t in [2.0, 2.5, 3.0, 3.1] {
+            let p = random_params(&mut r);
+            worst = worst.max(check(&FisheyeCamera, &p, &point(&mut r, t), 1e-6));
+        }
+        // And at 179.9°.
+        let p = random_params(&mut r);
+        worst = worst.max(check(
+            &FisheyeCamera,
+            &p,
+            &point(&mut r, std::f64::consts::PI - 1.6e-3),
+            1e-6,
+        ));
         println!("fisheye: worst relative Jacobian error {worst:.2e}");
     }
 
