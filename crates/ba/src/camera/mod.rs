@@ -29,16 +29,17 @@
 //! ```
 //!
 //! Exact conversions between models, where the two forms coincide, are in
-//! [`opencv_from_photogrammetric`] and [`photogrammetric_from_opencv`]; see the
-//! [`opencv`](OpenCvCamera) module doc for which conversions are exact and which are not.
+//! [`opencv_from_photogrammetric`] and [`photogrammetric_from_opencv`]; the module
+//! [`opencv`] lists which conversions are exact and which are not. The modules
+//! [`opencv`], [`fisheye`] and [`brown_backward`] state each model's mathematics.
 //!
 //! Pixel convention everywhere in pingcal: origin at the centre of the top-left pixel,
 //! u to the right, v down.
 
 mod bal;
-mod brown_backward;
-mod fisheye;
-mod opencv;
+pub mod brown_backward;
+pub mod fisheye;
+pub mod opencv;
 mod photogrammetric;
 
 pub use bal::BalCamera;
