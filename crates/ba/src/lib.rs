@@ -5,12 +5,12 @@
 //! | module | what it holds |
 //! |---|---|
 //! | [`geometry`] | re-exported [`pingcal_geometry`]: [`Rigid3`] (an image's `camera_from_object`, `x_cam = R·X + t`, and its local update), SO(3), the ω φ κ convention |
-//! | [`camera`] | camera models ([`camera::CameraModel`]): photogrammetric (SPEC.md), BAL |
+//! | [`camera`] | camera models ([`camera::CameraModel`]): photogrammetric (SPEC.md, forward Brown with affinity B1, B2), Brown backward (DBAT / PhotoModeler / Australis correction form), OpenCV (rational, tangential, thin prism), Kannala–Brandt fisheye, BAL; [`camera::check_jacobians`] for a new model |
 //! | [`datum`] | the datum diagnosed before solving: control, fixed images, or a free network |
 //! | [`io`] | pingcal's measurement file (JSON) and DBAT's mark-point, control and camera files |
 //! | [`loss`] | robust losses (Huber, Cauchy) |
 //! | [`problem`] | cameras, images, points, observations, distances, control |
-//! | [`solver`] | Schur-complement Levenberg–Marquardt, precision, data snooping |
+//! | [`solver`] | Schur-complement Levenberg–Marquardt with a dense, sparse or iterative (PCG) reduced-system solver chosen by structure; precision (free networks of any number of points by bordering), data snooping, variance components |
 //! | [`report`] | the adjustment report (Australis layout) as text and JSON |
 //! | [`bal`] | BAL problem files; [`synthetic`]: generated BAL problems |
 //! | [`initial`] | initial values: resection, relative orientation, intersection, incremental network |

@@ -79,7 +79,7 @@ impl PhotogrammetricCamera {
     }
 
     /// The distortion Δ at the ideal point (x̄, ȳ) and its 2×2 Jacobian ∂(x̄+Δx, ȳ+Δy)/∂(x̄, ȳ).
-    fn distort(p: &[f64], xb: f64, yb: f64) -> (Vector2<f64>, Matrix2<f64>) {
+    pub(crate) fn distort(p: &[f64], xb: f64, yb: f64) -> (Vector2<f64>, Matrix2<f64>) {
         let (k1, k2, k3, p1, p2, b1, b2) = (p[3], p[4], p[5], p[6], p[7], p[8], p[9]);
         let r2 = xb * xb + yb * yb;
         let radial = r2 * (k1 + r2 * (k2 + r2 * k3));

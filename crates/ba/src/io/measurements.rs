@@ -40,10 +40,21 @@
 //!
 //! * `format` is optional on reading; the writer always writes it. A UTF-8 byte-order mark
 //!   at the start is skipped. Numbers beyond ±[`MAX_MAGNITUDE`] (1e12) are refused.
-//! * `model`: only `"photogrammetric"` (the model of SPEC.md, [`PhotogrammetricCamera`]).
-//!   `intrinsics` holds any of `c, xp, yp, K1, K2, K3, P1, P2, B1, B2` (missing ones are 0;
-//!   `c` is required) and `calibrate` lists the ones adjusted (self-calibration); the others
-//!   are held fixed. An empty or missing `calibrate` holds the camera fixed.
+//! * `model` (default `"photogrammetric"`) and the names its `intrinsics` may hold (missing
+//!   ones are 0):
+//!
+//!   | model | type | intrinsics | required |
+//!   |---|---|---|---|
+//!   | `photogrammetric` | [`PhotogrammetricCamera`] | `c, xp, yp, K1, K2, K3, P1, P2, B1, B2` | `c` |
+//!   | `brown_backward` | [`BrownBackwardCamera`] | the same names | `c` |
+//!   | `opencv` | [`OpenCvCamera`] | `fx, fy, cx, cy, k1, k2, p1, p2, k3, k4, k5, k6, s1, s2, s3, s4` | `fx, fy, cx, cy` |
+//!   | `fisheye` | [`FisheyeCamera`] | `fx, fy, cx, cy, k1, k2, k3, k4` | `fx, fy, cx, cy` |
+//!
+//!   `calibrate` lists the ones adjusted (self-calibration); the others are held fixed. An
+//!   empty or missing `calibrate` holds the camera fixed. `width`, `height` and
+//!   `pixel_size_mm` are required for every model (the pixel models use them only to
+//!   describe the sensor). A name the model does not have is refused with the list of its
+//!   names.
 //! * `pose` (optional): the projection centre in object space and the angles ω, φ, κ in
 //!   degrees with R = R_ω R_φ R_κ ([`pingcal_geometry::from_opk`]), the object → camera
 //!   rotation. An image without a pose gets one from [`crate::initial`]. `fixed: true`
@@ -66,7 +77,10 @@
 //! Points and images without known coordinates or poses are left at zero / identity and
 //! are flagged in [`Built::known_points`] / [`Built::known_poses`] for the initialiser.
 
-use crate::camera::{PhotogrammetricCamera, PHOTOGRAMMETRIC_PARAMS};
+use crate::camera::{
+    BrownBackwardCamera, CameraModel, FisheyeCamera, OpenCvCamera, PhotogrammetricCamera,
+    PHOTOGRAMMETRIC_PARAMS,
+};
 use crate::problem::{Camera, Image, Observation, Point, PointPrior, Problem};
 use nalgebra::{Vector2, Vector3};
 use pingcal_geometry::Rigid3;
@@ -109,7 +123,7 @@ pub struct Measurements {
 pub struct CameraSpec {
     /// Name, referred to by images.
     pub name: String,
-    /// Camera model; only `photogrammetric`.
+    /// Camera model: `photogrammetric` (default), `brown_backward`, `opencv`, `fisheye`.
     #[serde(default = "default_model")]
     pub model: String,
     /// Image width, pixels.
@@ -234,12 +248,18 @@ pub enum MeasurementError {
         message: String,
     },
     /// An unsupported camera model.
-    #[error("camera '{camera}': unknown model '{model}' (expected 'photogrammetric')")]
+    #[error("camera '{camera}': unknown model '{model}' (expected one of photogrammetric, brown_backward, opencv, fisheye)")]
     UnknownModel { camera: String, model: String },
     /// An intrinsic name that the model does not have.
-    #[error("camera '{camera}': unknown intrinsic parameter '{name}' (expected one of c, xp, yp, K1, K2, K3, P1, P2, B1, B2)")]
-    UnknownParameter { camera: String, name: String },
-    /// A camera without `c`, or with a bad size or pixel pitch.
+    #[error("camera '{camera}': unknown intrinsic parameter '{name}' for model {model} (expected one of {expected})")]
+    UnknownParameter {
+        camera: String,
+        name: String,
+        model: String,
+        expected: String,
+    },
+    /// A camera without a required intrinsic (`c`; `fx, fy, cx, cy`), or with a bad size
+    /// or pixel pitch.
     #[error("camera '{camera}': {message}")]
     BadCamera { camera: String, message: String },
     /// Two items with the same name.
@@ -369,14 +389,22 @@ fn finite(what: impl FnOnce() -> String, v: f64) -> Result<(), MeasurementError>
 }
 
 impl CameraSpec {
-    /// The model and the ten parameter values with their fixed flags.
+    /// The model and its parameter values with their fixed flags (see the module doc for
+    /// the models, their intrinsics and the required ones).
     pub fn build(&self) -> Result<Camera, MeasurementError> {
-        if self.model != "photogrammetric" {
-            return Err(MeasurementError::UnknownModel {
-                camera: self.name.clone(),
-                model: self.model.clone(),
-            });
-        }
+        let (w, h, ps) = (self.width, self.height, self.pixel_size_mm);
+        let (model, required): (Arc<dyn CameraModel>, &[&str]) = match self.model.as_str() {
+            "photogrammetric" => (Arc::new(PhotogrammetricCamera::new(w, h, ps)), &["c"]),
+            "brown_backward" => (Arc::new(BrownBackwardCamera::new(w, h, ps)), &["c"]),
+            "opencv" => (Arc::new(OpenCvCamera), &["fx", "fy", "cx", "cy"]),
+            "fisheye" => (Arc::new(FisheyeCamera), &["fx", "fy", "cx", "cy"]),
+            _ => {
+                return Err(MeasurementError::UnknownModel {
+                    camera: self.name.clone(),
+                    model: self.model.clone(),
+                })
+            }
+        };
         let bad = |message: String| MeasurementError::BadCamera {
             camera: self.name.clone(),
             message,
@@ -391,32 +419,43 @@ impl CameraSpec {
             || format!("camera '{}': pixel_size_mm", self.name),
             self.pixel_size_mm,
         )?;
-        let index = |name: &str| PHOTOGRAMMETRIC_PARAMS.iter().position(|p| *p == name);
-        let mut params = [0.0; 10];
+        let names = model.parameter_names();
+        let index = |name: &str| {
+            names.iter().position(|p| *p == name).ok_or_else(|| {
+                MeasurementError::UnknownParameter {
+                    camera: self.name.clone(),
+                    name: name.to_string(),
+                    model: self.model.clone(),
+                    expected: names.join(", "),
+                }
+            })
+        };
+        let mut params = vec![0.0; names.len()];
         for (name, v) in &self.intrinsics {
-            let k = index(name).ok_or_else(|| MeasurementError::UnknownParameter {
-                camera: self.name.clone(),
-                name: name.clone(),
-            })?;
+            let k = index(name)?;
             finite(|| format!("camera '{}': intrinsic {name}", self.name), *v)?;
             params[k] = *v;
         }
-        if !self.intrinsics.contains_key("c") {
-            return Err(bad(
-                "the camera constant 'c' is required in intrinsics".into()
-            ));
+        for name in required {
+            if !self.intrinsics.contains_key(*name) {
+                return Err(bad(format!(
+                    "the intrinsic '{name}' is required for model {}",
+                    self.model
+                )));
+            }
         }
-        positive(|| format!("camera '{}': c", self.name), params[0])?;
-        let mut fixed = vec![true; 10];
+        // The focal lengths (c; fx, fy) must be positive.
+        for name in ["c", "fx", "fy"].iter().filter(|n| required.contains(n)) {
+            positive(
+                || format!("camera '{}': {name}", self.name),
+                params[index(name)?],
+            )?;
+        }
+        let mut fixed = vec![true; names.len()];
         for name in &self.calibrate {
-            let k = index(name).ok_or_else(|| MeasurementError::UnknownParameter {
-                camera: self.name.clone(),
-                name: name.clone(),
-            })?;
-            fixed[k] = false;
+            fixed[index(name)?] = false;
         }
-        let model = PhotogrammetricCamera::new(self.width, self.height, self.pixel_size_mm);
-        let mut cam = Camera::new(self.name.clone(), Arc::new(model), params.to_vec());
+        let mut cam = Camera::new(self.name.clone(), model, params);
         cam.fixed = fixed;
         Ok(cam)
     }
@@ -740,7 +779,7 @@ impl Measurements {
         let mut out = self.clone();
         for c in &mut out.cameras {
             if let Some(pc) = problem.cameras.iter().find(|pc| pc.name == c.name) {
-                for (name, v) in PHOTOGRAMMETRIC_PARAMS.iter().zip(&pc.params) {
+                for (name, v) in pc.model.parameter_names().iter().zip(&pc.params) {
                     if *v != 0.0 || c.intrinsics.contains_key(*name) {
                         c.intrinsics.insert(name.to_string(), *v);
                     }
@@ -1022,6 +1061,77 @@ mod tests {
         let mut m = Measurements::parse(EXAMPLE, "example.json").unwrap();
         f(&mut m);
         m.to_problem()
+    }
+
+    /// Each model name builds its model with the intrinsics by name; a name the model does
+    /// not have, a missing required one and an unknown model are one-line errors naming the
+    /// file, the camera and the value.
+    #[test]
+    fn every_camera_model_is_chosen_by_name() {
+        let set = |m: &mut Measurements, model: &str, values: &[(&str, f64)], free: &[&str]| {
+            let c = &mut m.cameras[0];
+            c.model = model.into();
+            c.intrinsics = values.iter().map(|(n, v)| (n.to_string(), *v)).collect();
+            c.calibrate = free.iter().map(|n| n.to_string()).collect();
+        };
+        let pix = [("fx", 650.0), ("fy", 651.0), ("cx", 639.5), ("cy", 359.5)];
+        for (model, n) in [("opencv", 16), ("fisheye", 8)] {
+            let mut values = pix.to_vec();
+            values.push(("k2", 0.01));
+            let b = edit(|m| set(m, model, &values, &["fx", "k2"])).unwrap();
+            let cam = &b.problem.cameras[0];
+            assert_eq!(cam.model.name(), model);
+            assert_eq!(cam.params.len(), n);
+            assert_eq!(&cam.params[..4], &[650.0, 651.0, 639.5, 359.5]);
+            let k2 = cam.model.parameter_names().iter().position(|p| *p == "k2");
+            assert_eq!(cam.params[k2.unwrap()], 0.01);
+            assert_eq!(cam.free_indices(), vec![0, k2.unwrap()]);
+        }
+        let b = edit(|m| set(m, "brown_backward", &[("c", 2.45), ("K1", 0.02)], &["c"])).unwrap();
+        let cam = &b.problem.cameras[0];
+        assert_eq!(cam.model.name(), "brown_backward");
+        assert_eq!(cam.params[..4], [2.45, 0.0, 0.0, 0.02]);
+        assert_eq!(cam.model.pixel_size_mm(), Some(0.00375));
+
+        let e = edit(|m| {
+            set(
+                m,
+                "fisheye",
+                &[pix[0], pix[1], pix[2], pix[3], ("k5", 0.1)],
+                &[],
+            )
+        })
+        .unwrap_err()
+        .in_file("m.json")
+        .to_string();
+        assert_eq!(
+            e,
+            "m.json: camera 'left': unknown intrinsic parameter 'k5' for model fisheye \
+             (expected one of fx, fy, cx, cy, k1, k2, k3, k4)"
+        );
+        let e = edit(|m| set(m, "opencv", &pix[..3], &[])).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "camera 'left': the intrinsic 'cy' is required for model opencv"
+        );
+        let e = edit(|m| set(m, "opencv", &pix, &["K1"])).unwrap_err();
+        assert!(
+            matches!(e, MeasurementError::UnknownParameter { .. }),
+            "{e}"
+        );
+        let mut neg = pix;
+        neg[1].1 = -1.0;
+        let e = edit(|m| set(m, "opencv", &neg, &[])).unwrap_err();
+        assert!(matches!(e, MeasurementError::BadValue { .. }), "{e}");
+        let e = edit(|m| set(m, "kannala", &pix, &[]))
+            .unwrap_err()
+            .in_file("m.json")
+            .to_string();
+        assert!(
+            e.starts_with("m.json: camera 'left': unknown model 'kannala'"),
+            "{e}"
+        );
+        assert!(!e.contains('\n'));
     }
 
     #[test]
