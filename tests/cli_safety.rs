@@ -243,6 +243,10 @@ fn ba_refuses_measurement_options_on_bal_and_absurd_thread_counts() {
     assert!(!report.exists(), "a report for a refused run");
     let run = w.run(&["ba", s(&bal), "--threads", "100000"]);
     fails(&run, &["--threads 100000", "0 (all cores) to 1024"]);
+    for eta in ["0", "1.5", "NaN"] {
+        let run = w.run(&["ba", s(&bal), "--solver", "iterative", "--eta", eta]);
+        fails(&run, &[&format!("--eta {eta}"), "strictly between 0 and 1"]);
+    }
     let p = w.project("project");
     let toml = p.join("project.toml");
     let run = w.run(&["calibrate", s(&toml), "--threads", "100000", "--quiet"]);

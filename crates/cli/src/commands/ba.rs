@@ -130,6 +130,14 @@ fn parse_loss(s: &str) -> Result<Loss, String> {
 /// Runs the command.
 pub fn run(args: Args) -> CmdResult {
     check_threads(args.threads)?;
+    // Written as `!(ok)` so that NaN is refused with the rest.
+    if !(args.eta > 0.0 && args.eta < 1.0) {
+        return Err(format!(
+            "--eta {}: expected a forcing constant strictly between 0 and 1 (Ceres uses 0.1)",
+            args.eta
+        )
+        .into());
+    }
     let measurements = args
         .problem
         .as_ref()
