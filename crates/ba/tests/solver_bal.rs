@@ -212,3 +212,49 @@ fn a_reduced_system_too_large_for_the_memory_is_refused_or_solved_iteratively() 
     );
     assert!(summary.final_cost < 0.1 * summary.initial_cost);
 }
+
+/// When `Auto` took the iterative solver and a step needs more conjugate-gradient
+/// iterations than `switch_after` (here 3, with a forcing constant of 1e-6), it moves to
+/// the factorization for the rest of the adjustment, says so, and reaches the same minimum.
+#[test]
+fn auto_moves_to_the_factorization_when_the_conjugate_gradients_struggle() {
+    let s = SyntheticBal {
+        cameras: 80,
+        points: 3000,
+        obs_per_point: 6,
+        visibility: Visibility::Random,
+        ..Default::default()
+    };
+    let base = s.generate().unwrap().problem;
+    let mut plain = base.clone();
+    let chosen = solve(&mut plain, &Options::default(), |_| {}).unwrap();
+    assert_eq!(
+        chosen.linear_solver.kind,
+        LinearSolverKind::Iterative,
+        "{}",
+        chosen.linear_solver.reason
+    );
+    let fallback = chosen.linear_solver.fallback.expect("a factorization fits");
+    let mut struggling = base.clone();
+    let opts = Options {
+        cg: pingcal_ba::solver::CgOptions {
+            eta: 1e-6,
+            switch_after: 3,
+            ..Default::default()
+        },
+        ..Options::default()
+    };
+    let moved = solve(&mut struggling, &opts, |_| {}).unwrap();
+    assert_eq!(moved.linear_solver.kind, fallback);
+    assert!(
+        moved
+            .linear_solver
+            .reason
+            .contains(&format!("moved to {fallback} at step 1")),
+        "{}",
+        moved.linear_solver.reason
+    );
+    let mut direct = base.clone();
+    let d = solve(&mut direct, &tight(fallback, 2), |_| {}).unwrap();
+    assert!((moved.final_cost - d.final_cost).abs() <= 1e-4 * d.final_cost);
+}

@@ -19,9 +19,17 @@
 //! assembly runs far below the factorizations' rate, and the implicit products are
 //! bounded by memory bandwidth.
 //!
-//! `Auto` takes the fastest candidate that fits in the memory limit (by default 80 % of
-//! the memory the system reports available); the iterative solver always fits. An explicit
-//! choice that does not fit is refused with the memory it would need.
+//! `Auto` takes a factorization that fits in the memory limit (by default 80 % of the
+//! memory the system reports available) unless the iterative solver's estimate is faster
+//! by a margin: how many conjugate-gradient iterations a step needs depends on the
+//! conditioning, which no block pattern tells exactly — but a camera graph in which most
+//! cameras share points (S at least a quarter full) is well connected and needs tens (the
+//! margin is [`ITERATIVE_MARGIN_CONNECTED`]), a long street of cameras hundreds
+//! ([`ITERATIVE_MARGIN`]). The iterative solver always fits. When
+//! `Auto` took it and a step needs more than `CgOptions::switch_after` iterations, the
+//! solver moves to the factorization for the rest of the adjustment (the `fallback`), and
+//! says so in the summary. An explicit choice that does not fit is refused with the memory
+//! it would need.
 
 use super::layout::Layout;
 use super::linear::LinearSolverKind;
@@ -35,6 +43,13 @@ const IMPLICIT_RATE: f64 = 1.0e9;
 const CG_ITERATIONS: f64 = 40.0;
 /// Below this dimension the dense factorization is taken without estimating anything else.
 const SMALL: usize = 600;
+/// How much faster the iterative estimate must be than the best factorization's for `Auto`
+/// to take it on a sparse camera graph: the 40 iterations assumed per step can be off by
+/// 10× there.
+pub const ITERATIVE_MARGIN: f64 = 4.0;
+/// The same margin on a well-connected camera graph (S at least 25 % full), where the
+/// 40 iterations were measured to hold (`bench/ba`, random visibility).
+pub const ITERATIVE_MARGIN_CONNECTED: f64 = 1.5;
 
 /// The solver chosen and why.
 #[derive(Clone, Debug, serde::Serialize)]
@@ -45,6 +60,9 @@ pub struct SolverChoice {
     pub reason: String,
     /// Estimated peak memory of the linear algebra of the chosen solver, bytes.
     pub memory_bytes: f64,
+    /// When `Auto` took the iterative solver: the factorization it moves to if the
+    /// conjugate gradients need too many iterations (`None`: none fits in memory).
+    pub fallback: Option<LinearSolverKind>,
 }
 
 /// Why a solver that was asked for cannot run.
@@ -118,6 +136,7 @@ pub fn choose(
         kind,
         reason,
         memory_bytes: e.memory,
+        fallback: None,
     };
     match requested {
         LinearSolverKind::Dense => {
@@ -164,19 +183,40 @@ pub fn choose(
         it.seconds,
         gib(it.memory)
     );
-    let mut best = (LinearSolverKind::Iterative, it);
-    for (kind, e) in [(LinearSolverKind::Sparse, s), (LinearSolverKind::Dense, d)] {
-        if fits(&e) && e.seconds < best.1.seconds {
-            best = (kind, e);
-        }
-    }
-    let (kind, e) = best;
-    let reason = if limit.is_finite() {
-        format!("{summary}; memory limit {}", gib(limit))
+    let direct = [(LinearSolverKind::Sparse, s), (LinearSolverKind::Dense, d)]
+        .into_iter()
+        .filter(|(_, e)| fits(e))
+        .min_by(|a, b| a.1.seconds.total_cmp(&b.1.seconds));
+    let margin = if fill >= 0.25 {
+        ITERATIVE_MARGIN_CONNECTED
     } else {
-        summary
+        ITERATIVE_MARGIN
     };
-    Ok(pick(kind, e, reason))
+    let limit_note = if limit.is_finite() {
+        format!("; memory limit {}", gib(limit))
+    } else {
+        String::new()
+    };
+    Ok(match direct {
+        Some((kind, e)) if e.seconds <= margin * it.seconds => {
+            pick(kind, e, format!("{summary}{limit_note}"))
+        }
+        direct => {
+            let fallback = direct.map(|(kind, _)| kind);
+            let note = match fallback {
+                Some(k) => format!("; {k} if a step needs too many CG iterations"),
+                None => "; no factorization fits in memory".into(),
+            };
+            SolverChoice {
+                fallback,
+                ..pick(
+                    LinearSolverKind::Iterative,
+                    it,
+                    format!("{summary}{limit_note}{note}"),
+                )
+            }
+        }
+    })
 }
 
 /// The work of assembling S explicitly: `Σ_o 4 m_o² + Σ_f 6 (Σ_{o∈f} m_o)²`.

@@ -41,6 +41,9 @@ pub struct CgOptions {
     pub min_iterations: usize,
     /// Most iterations (Ceres' `max_linear_solver_iterations`).
     pub max_iterations: usize,
+    /// When the solver was chosen by `Auto` and a factorization fits in memory: a step that
+    /// needs more iterations than this moves the adjustment to the factorization.
+    pub switch_after: usize,
 }
 
 impl Default for CgOptions {
@@ -49,6 +52,7 @@ impl Default for CgOptions {
             eta: 0.1,
             min_iterations: 0,
             max_iterations: 500,
+            switch_after: 150,
         }
     }
 }

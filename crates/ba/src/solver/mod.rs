@@ -284,7 +284,7 @@ fn run(
     let limit = options
         .memory_limit_bytes
         .or_else(|| available_memory().map(|m| 0.8 * m));
-    let choice = choice::choose(
+    let mut choice = choice::choose(
         &layout,
         options.linear_solver,
         rayon::current_num_threads(),
@@ -373,6 +373,24 @@ fn run(
                         }
                         None => solved = false,
                     }
+                }
+            }
+            // Too many CG iterations for what `Auto` estimated: the factorization from
+            // the next step on (this step's inexact solution is still a descent step).
+            if let (Linear::Iterative(_), Some(kind)) = (&linear, choice.fallback) {
+                if it.linear_iterations > options.cg.switch_after {
+                    linear = Linear::Direct(match kind {
+                        LinearSolverKind::Sparse => {
+                            linear::Factorizer::sparse(&layout, par).map_err(SolveError::Setup)?
+                        }
+                        _ => linear::Factorizer::dense(par),
+                    });
+                    choice.reason = format!(
+                        "{}; moved to {kind} at step {iteration}: the conjugate gradients needed {} iterations",
+                        choice.reason, it.linear_iterations
+                    );
+                    choice.kind = kind;
+                    choice.fallback = None;
                 }
             }
             it.linear_solver_time_s = tl.elapsed().as_secs_f64();
