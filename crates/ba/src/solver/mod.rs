@@ -1104,8 +1104,8 @@ mod schur_tests {
         assert!(fact.solve(&layout, &schur.values, &mut direct));
         let tight = CgOptions {
             eta: 0.0,
-            min_iterations: 0,
             max_iterations: 10 * n,
+            ..CgOptions::default()
         };
         let mut x = vec![0.0; n];
         let cg = op
