@@ -231,25 +231,29 @@ fn inner_constraint_cofactors(
     k.view_mut((0, 0), (n, n)).copy_from(normal);
     k.view_mut((0, n), (n, d)).copy_from(c);
     k.view_mut((n, 0), (d, n)).copy_from(&c.transpose());
-    let scale: Vec<f64> = (0..n + d)
+    let Some(inv) = bordered_inverse(&k, n) else {
+        return Err(PrecisionError::DatumDefect(
+            "the network is free and, beyond position, orientation and scale, still not determined (too few points per image, or disconnected pieces)".into(),
+        ));
+    };
+    Ok(inv.view((0, 0), (n, n)).into_owned())
+}
+
+/// The inverse of a bordered matrix `[A B; Bᵀ D]` (A the first `n` rows and columns):
+/// Jacobi-scaled (A's diagonal, the border rows' norms: unknowns of very different units
+/// meet here), LU-factorized and unscaled; `None` if it is singular or not finite.
+pub(crate) fn bordered_inverse(k: &DMatrix<f64>, n: usize) -> Option<DMatrix<f64>> {
+    let m = k.nrows();
+    let scale: Vec<f64> = (0..m)
         .map(|i| {
             let v = if i < n { k[(i, i)] } else { k.row(i).norm() };
             1.0 / v.abs().max(f64::MIN_POSITIVE).sqrt()
         })
         .collect();
-    let scaled = DMatrix::from_fn(n + d, n + d, |i, j| k[(i, j)] * scale[i] * scale[j]);
-    let inv = scaled
-        .lu()
-        .try_inverse()
-        .filter(|m| m.iter().all(|v| v.is_finite()));
-    let Some(inv) = inv else {
-        return Err(PrecisionError::DatumDefect(
-            "the network is free and, beyond position, orientation and scale, still not determined (too few points per image, or disconnected pieces)".into(),
-        ));
-    };
-    Ok(DMatrix::from_fn(n, n, |i, j| {
-        inv[(i, j)] * scale[i] * scale[j]
-    }))
+    let scaled = DMatrix::from_fn(m, m, |i, j| k[(i, j)] * scale[i] * scale[j]);
+    let inv = scaled.lu().try_inverse()?;
+    let inv = DMatrix::from_fn(m, m, |i, j| inv[(i, j)] * scale[i] * scale[j]);
+    inv.iter().all(|v| v.is_finite()).then_some(inv)
 }
 
 /// The standardized residuals of the image observations (in the problem's order):

@@ -176,13 +176,8 @@ impl ImplicitSchur {
                 acc.clear();
                 acc.resize(n, 0.0);
                 let mut z: Vec<Vector2<f64>> = Vec::new();
-                let mut start = lo;
-                while start < hi {
-                    let point = layout.obs_point[start];
-                    let mut end = start + 1;
-                    while end < hi && layout.obs_point[end] == point {
-                        end += 1;
-                    }
+                for (point, run) in layout.point_runs(lo..hi) {
+                    let (start, end) = (run.start, run.end);
                     z.clear();
                     z.extend((start..end).map(|o| jc_times(layout, jc, o, x)));
                     let f = layout.free_point_index[point as usize];
@@ -199,7 +194,6 @@ impl ImplicitSchur {
                     for (o, zo) in (start..end).zip(&z) {
                         add_jc_transpose(layout, jc, o, *zo, acc);
                     }
-                    start = end;
                 }
             });
         y.fill(0.0);
@@ -254,17 +248,11 @@ impl ImplicitSchur {
                 // Per point run: Σ_o W_o restricted to each block it touches (dim × 3).
                 let mut touched: Vec<(u32, usize)> = Vec::new();
                 let mut wsum: Vec<f64> = Vec::new();
-                let mut start = lo;
-                while start < hi {
-                    let point = layout.obs_point[start];
-                    let mut end = start + 1;
-                    while end < hi && layout.obs_point[end] == point {
-                        end += 1;
-                    }
+                for (point, run) in layout.point_runs(lo..hi) {
                     let f = layout.free_point_index[point as usize];
                     touched.clear();
                     wsum.clear();
-                    for o in start..end {
+                    for o in run {
                         let segs = layout.segs(o);
                         for s2 in segs {
                             let b = s2.block as usize;
@@ -319,7 +307,6 @@ impl ImplicitSchur {
                             }
                         }
                     }
-                    start = end;
                 }
                 blocks
             })

@@ -161,6 +161,28 @@ impl Layout {
         &s[..*n as usize]
     }
 
+    /// The runs of consecutive observations of one point inside `obs` (internal order, which
+    /// groups each point's observations): `(point, its observations)`.
+    pub fn point_runs(
+        &self,
+        obs: std::ops::Range<usize>,
+    ) -> impl Iterator<Item = (u32, std::ops::Range<usize>)> + '_ {
+        let mut start = obs.start;
+        std::iter::from_fn(move || {
+            if start >= obs.end {
+                return None;
+            }
+            let point = self.obs_point[start];
+            let mut end = start + 1;
+            while end < obs.end && self.obs_point[end] == point {
+                end += 1;
+            }
+            let run = start..end;
+            start = end;
+            Some((point, run))
+        })
+    }
+
     pub fn point_obs(&self, f: usize) -> &[u32] {
         &self.fp_obs[self.fp_obs_ptr[f]..self.fp_obs_ptr[f + 1]]
     }

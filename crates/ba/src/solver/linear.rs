@@ -180,13 +180,7 @@ impl Factorizer {
 /// AMD on the block graph of S, expanded to scalar indices (forward and inverse).
 fn block_amd_ordering(layout: &Layout) -> Result<(Vec<usize>, Vec<usize>), String> {
     let nb = layout.num_blocks();
-    let mut col_ptr = Vec::with_capacity(nb + 1);
-    let mut row_idx = Vec::new();
-    col_ptr.push(0);
-    for rows in &layout.col_blocks {
-        row_idx.extend(rows.iter().map(|&a| a as usize));
-        col_ptr.push(row_idx.len());
-    }
+    let (col_ptr, row_idx) = block_graph(layout);
     let graph = SymbolicSparseColMatRef::new_checked(nb, nb, &col_ptr, None, &row_idx);
     let (mut perm, mut perm_inv) = (vec![0usize; nb], vec![0usize; nb]);
     let mut mem = MemBuffer::new(faer::sparse::linalg::amd::order_scratch::<usize>(
@@ -221,13 +215,7 @@ pub(crate) fn block_factor_entries(layout: &Layout) -> Option<f64> {
     if nb == 0 {
         return Some(0.0);
     }
-    let mut col_ptr = Vec::with_capacity(nb + 1);
-    let mut row_idx = Vec::new();
-    col_ptr.push(0);
-    for rows in &layout.col_blocks {
-        row_idx.extend(rows.iter().map(|&a| a as usize));
-        col_ptr.push(row_idx.len());
-    }
+    let (col_ptr, row_idx) = block_graph(layout);
     let graph = SymbolicSparseColMatRef::new_checked(nb, nb, &col_ptr, None, &row_idx);
     let symbolic = factorize_symbolic_cholesky(
         graph,
@@ -237,4 +225,16 @@ pub(crate) fn block_factor_entries(layout: &Layout) -> Option<f64> {
     )
     .ok()?;
     Some(symbolic.len_val() as f64)
+}
+
+/// The upper triangle of S's block graph as CSC (column pointers, row blocks).
+fn block_graph(layout: &Layout) -> (Vec<usize>, Vec<usize>) {
+    let mut col_ptr = Vec::with_capacity(layout.num_blocks() + 1);
+    let mut row_idx = Vec::new();
+    col_ptr.push(0);
+    for rows in &layout.col_blocks {
+        row_idx.extend(rows.iter().map(|&a| a as usize));
+        col_ptr.push(row_idx.len());
+    }
+    (col_ptr, row_idx)
 }

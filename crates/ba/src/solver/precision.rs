@@ -161,50 +161,19 @@ pub fn precision(problem: &Problem) -> Result<Precision, PrecisionError> {
         }
         return free_network_bordered(problem, layout, lin);
     };
-    let (n_obs, unknowns, redundancy, sigma0) = redundancy_and_sigma0(problem, &c)?;
-    let Cofactors {
-        layout,
-        lin,
-        schur,
-        q_cc,
-    } = c;
-    let s02 = sigma0 * sigma0;
-
-    let intrinsics = intrinsics_precision(problem, &layout, s02, |i, j| q_cc[(i, j)]);
-    let poses = pose_sigmas(problem, &layout, s02, |i, j| q_cc[(i, j)]);
-    let rig_covariances = rig_covariances(&layout, s02, |i, j| q_cc[(i, j)]);
-
-    // Points: those in the reduced system from Q_cc, the eliminated ones from theirs.
-    let mut point_covariances = vec![None; problem.points.len()];
-    for (p, slot) in layout.point_slot.iter().enumerate() {
-        if let Some(sl) = slot {
-            let o = layout.slot_offset(*sl);
-            point_covariances[p] = Some(Matrix3::from_fn(|a, b| s02 * q_cc[(o + a, o + b)]));
-        }
-    }
-    let eliminated: Vec<EliminatedPoint> = (0..layout.free_points.len())
-        .map(|f| EliminatedPoint::new(&layout, &schur, &q_cc, f))
+    let (n_obs, unknowns, redundancy, _) = redundancy_and_sigma0(problem, &c)?;
+    let eliminated: Vec<EliminatedPoint> = (0..c.layout.free_points.len())
+        .map(|f| EliminatedPoint::new(&c.layout, &c.schur, &c.q_cc, f))
         .collect();
-    for (ep, &p) in eliminated.iter().zip(&layout.free_points) {
-        point_covariances[p] = Some(ep.q * s02);
-    }
-    let (standardized_residuals, redundancy_numbers) =
-        standardized_residuals(&layout, &lin, &q_cc, &eliminated);
-
-    Ok(Precision {
-        sigma0,
-        redundancy,
-        observations: n_obs,
-        unknowns,
-        rms_image_px: problem.rms_px(),
-        intrinsics,
-        poses,
-        rig_covariances,
-        point_covariances,
-        standardized_residuals,
-        redundancy_numbers,
-        distance_redundancy_numbers: distance_redundancy_numbers(&layout, &lin, &q_cc),
-    })
+    let counts = (n_obs, unknowns, redundancy);
+    Ok(assemble(
+        problem,
+        &c.layout,
+        &c.lin,
+        &c.q_cc,
+        &eliminated,
+        counts,
+    ))
 }
 
 /// The precision of a free network of any number of points: the inner constraints on the
@@ -284,32 +253,11 @@ fn free_network_bordered(
         all.extend((0..d).map(|j| (n + j, [vc[(0, j)], vc[(1, j)], vc[(2, j)]])));
         point_rows.push(all);
     }
-    // Jacobi scaling (unknowns of very different units), then LU of the scaled matrix.
-    let dsc: Vec<f64> = (0..n + d)
-        .map(|i| {
-            let v = if i < n {
-                k[(i, i)]
-            } else {
-                k.row(i).norm_squared().sqrt()
-            };
-            1.0 / v.abs().max(f64::MIN_POSITIVE).sqrt()
-        })
-        .collect();
-    let scaled = DMatrix::from_fn(n + d, n + d, |i, j| k[(i, j)] * dsc[i] * dsc[j]);
-    let q = scaled
-        .lu()
-        .try_inverse()
-        .map(|inv| DMatrix::from_fn(n + d, n + d, |i, j| inv[(i, j)] * dsc[i] * dsc[j]));
-    let Some(q) = q else {
+    let Some(q) = super::free_network::bordered_inverse(&k, n) else {
         return Err(PrecisionError::DatumDefect(
             "the network is free and, beyond position, orientation and scale, still not determined (too few points per image, or disconnected pieces)".into(),
         ));
     };
-    if q.iter().any(|v| !v.is_finite()) {
-        return Err(PrecisionError::DatumDefect(
-            "the network is free and its inner constraints leave it singular".into(),
-        ));
-    }
     let n_obs =
         2 * problem.observations.len() + problem.distances.len() + 3 * problem.point_priors.len();
     let unknowns = n + 3 * layout.free_points.len();
@@ -317,11 +265,28 @@ fn free_network_bordered(
     if redundancy <= 0 {
         return Err(PrecisionError::NoRedundancy(redundancy));
     }
+    let eliminated: Vec<EliminatedPoint> = point_rows
+        .into_iter()
+        .enumerate()
+        .map(|(f, rows)| EliminatedPoint::from_rows(&schur, &q, f, rows))
+        .collect();
+    let counts = (n_obs, unknowns, redundancy);
+    Ok(assemble(problem, &layout, &lin, &q, &eliminated, counts))
+}
+
+/// The precision from the cofactors: `q` those of the reduced unknowns (possibly bordered
+/// by more rows, which take part only through the eliminated points' rows), `eliminated`
+/// the eliminated points', and `(observations, unknowns, redundancy)`.
+fn assemble(
+    problem: &Problem,
+    layout: &Layout,
+    lin: &Linearization,
+    q: &DMatrix<f64>,
+    eliminated: &[EliminatedPoint],
+    (n_obs, unknowns, redundancy): (usize, usize, i64),
+) -> Precision {
     let sigma0 = (2.0 * lin.cost / redundancy as f64).sqrt();
     let s02 = sigma0 * sigma0;
-    let intrinsics = intrinsics_precision(problem, &layout, s02, |i, j| q[(i, j)]);
-    let poses = pose_sigmas(problem, &layout, s02, |i, j| q[(i, j)]);
-    let rig_covariances = rig_covariances(&layout, s02, |i, j| q[(i, j)]);
     let mut point_covariances = vec![None; problem.points.len()];
     for (p, slot) in layout.point_slot.iter().enumerate() {
         if let Some(sl) = slot {
@@ -329,30 +294,25 @@ fn free_network_bordered(
             point_covariances[p] = Some(Matrix3::from_fn(|a, b| s02 * q[(o + a, o + b)]));
         }
     }
-    let eliminated: Vec<EliminatedPoint> = point_rows
-        .into_iter()
-        .enumerate()
-        .map(|(f, rows)| EliminatedPoint::from_rows(&schur, &q, f, rows))
-        .collect();
     for (ep, &p) in eliminated.iter().zip(&layout.free_points) {
         point_covariances[p] = Some(ep.q * s02);
     }
     let (standardized_residuals, redundancy_numbers) =
-        standardized_residuals(&layout, &lin, &q, &eliminated);
-    Ok(Precision {
+        standardized_residuals(layout, lin, q, eliminated);
+    Precision {
         sigma0,
         redundancy,
         observations: n_obs,
         unknowns,
         rms_image_px: problem.rms_px(),
-        intrinsics,
-        poses,
-        rig_covariances,
+        intrinsics: intrinsics_precision(problem, layout, s02, |i, j| q[(i, j)]),
+        poses: pose_sigmas(problem, layout, s02, |i, j| q[(i, j)]),
+        rig_covariances: rig_covariances(layout, s02, |i, j| q[(i, j)]),
         point_covariances,
         standardized_residuals,
         redundancy_numbers,
-        distance_redundancy_numbers: distance_redundancy_numbers(&layout, &lin, &q),
-    })
+        distance_redundancy_numbers: distance_redundancy_numbers(layout, lin, q),
+    }
 }
 
 /// The rows of M = W V⁻¹ of free point `f`: (row of the reduced system, its 3 values), one

@@ -344,13 +344,8 @@ fn accumulate_range(
     vals: &mut [f64],
     rhs: &mut [f64],
 ) {
-    let (mut start, hi) = (obs.start, obs.end);
-    while start < hi {
-        let point = layout.obs_point[start];
-        let mut end = start + 1;
-        while end < hi && layout.obs_point[end] == point {
-            end += 1;
-        }
+    for (point, run) in layout.point_runs(obs) {
+        let (start, end) = (run.start, run.end);
         let f = layout.free_point_index[point as usize];
         for o2 in start..end {
             for s2 in layout.segs(o2) {
@@ -386,7 +381,6 @@ fn accumulate_range(
                 }
             }
         }
-        start = end;
     }
 }
 
