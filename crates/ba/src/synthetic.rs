@@ -12,7 +12,7 @@
 //! Gaussian noise; the initial estimate is the truth perturbed, so that a solver converges
 //! to the least-squares solution near the truth.
 
-use crate::camera::{BalCamera, CameraModel};
+use crate::camera::BalCamera;
 use crate::problem::{Camera, Image, Observation, Point, Problem};
 use nalgebra::{Matrix3, Vector2, Vector3};
 use pingcal_geometry::exp_so3;
@@ -168,24 +168,16 @@ impl SyntheticBal {
                 chosen.push(pool[k]);
             }
             chosen.sort_unstable();
-            for &c in &chosen {
-                let xc = images[c].camera_from_object.transform(&x);
-                let uv = model
-                    .project(&cameras[c].params, &xc, None, None)
-                    .expect("in front");
-                let e = Vector2::new(noise.sample(&mut rng), noise.sample(&mut rng));
-                observations.push(Observation {
-                    image: c,
-                    point: p,
-                    uv: uv + e,
-                    sigma: 1.0,
-                });
-            }
-            points.push(Point {
-                name: p.to_string(),
-                position: x,
-                fixed: false,
-            });
+            let seen = (&images[..], &cameras[..], &chosen[..]);
+            observe(
+                seen,
+                &x,
+                p,
+                &noise,
+                &mut rng,
+                &mut points,
+                &mut observations,
+            );
             p += 1;
         }
         Ok(self.perturbed(cameras, images, points, observations, &mut rng))
@@ -253,24 +245,8 @@ impl SyntheticBal {
                 }
             }
             chosen.sort_unstable();
-            for &c in &chosen {
-                let xc = images[c].camera_from_object.transform(&x);
-                let uv = model
-                    .project(&cameras[c].params, &xc, None, None)
-                    .expect("in front");
-                let e = Vector2::new(noise.sample(rng), noise.sample(rng));
-                observations.push(Observation {
-                    image: c,
-                    point: p,
-                    uv: uv + e,
-                    sigma: 1.0,
-                });
-            }
-            points.push(Point {
-                name: p.to_string(),
-                position: x,
-                fixed: false,
-            });
+            let seen = (&images[..], &cameras[..], &chosen[..]);
+            observe(seen, &x, p, &noise, rng, &mut points, &mut observations);
         }
         (cameras, images, points, observations)
     }
@@ -311,4 +287,36 @@ impl SyntheticBal {
         }
         Synthetic { problem, truth }
     }
+}
+
+/// Point `p` at `x` and its observations in the `chosen` (image, camera) pairs of
+/// `(images, cameras, chosen)`: the true projections plus noise (two draws per image, u
+/// then v).
+fn observe(
+    (images, cameras, chosen): (&[Image], &[Camera], &[usize]),
+    x: &Vector3<f64>,
+    p: usize,
+    noise: &Normal<f64>,
+    rng: &mut pingcal_geometry::consensus::SeededRng,
+    points: &mut Vec<Point>,
+    observations: &mut Vec<Observation>,
+) {
+    for &c in chosen {
+        let xc = images[c].camera_from_object.transform(x);
+        let uv = (cameras[c].model)
+            .project(&cameras[c].params, &xc, None, None)
+            .expect("in front");
+        let e = Vector2::new(noise.sample(rng), noise.sample(rng));
+        observations.push(Observation {
+            image: c,
+            point: p,
+            uv: uv + e,
+            sigma: 1.0,
+        });
+    }
+    points.push(Point {
+        name: p.to_string(),
+        position: *x,
+        fixed: false,
+    });
 }

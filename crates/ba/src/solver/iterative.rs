@@ -65,7 +65,8 @@ pub(crate) struct ImplicitSchur {
     /// starting at `precond_offset[b]`.
     precond: Vec<f64>,
     precond_offset: Vec<usize>,
-    /// One accumulator of the size of the reduced system per worker.
+    /// One accumulator of the size of the reduced system per chunk of the Schur
+    /// complement's work split (sized by `prepare`).
     work: Vec<Vec<f64>>,
 }
 
@@ -78,7 +79,7 @@ pub(crate) struct CgSummary {
 }
 
 impl ImplicitSchur {
-    pub fn new(layout: &Layout, chunks: usize) -> Self {
+    pub fn new(layout: &Layout) -> Self {
         let mut precond_offset = Vec::with_capacity(layout.num_blocks() + 1);
         let mut acc = 0;
         for &d in &layout.block_dim {
@@ -90,13 +91,8 @@ impl ImplicitSchur {
             damping: vec![0.0; layout.n_reduced],
             precond: vec![0.0; acc],
             precond_offset,
-            work: vec![Vec::new(); chunks],
+            work: Vec::new(),
         }
-    }
-
-    /// One work accumulator per chunk of the Schur complement's work split.
-    pub fn resize_work(&mut self, chunks: usize) {
-        self.work = vec![Vec::new(); chunks];
     }
 
     /// Prepares the step for damping `lambda`: (V + λD)⁻¹ of every point, the right-hand
@@ -111,6 +107,7 @@ impl ImplicitSchur {
         lambda: f64,
     ) -> Result<(), usize> {
         schur.invert_points(lambda)?;
+        self.work.resize_with(schur.chunks.len(), Vec::new);
         self.damping = schur.damping(lambda);
         // b = −g_c + Σ_f W_f (V_f + λD_f)⁻¹ g_p,f = −g_c + Σ_o J_c,oᵀ J_p,o s_f.
         let s: Vec<Vector3<f64>> = (schur.vinv.par_iter().zip(&schur.gp))

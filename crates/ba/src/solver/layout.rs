@@ -136,19 +136,29 @@ impl Layout {
         }
     }
 
+    /// The (row, column) of every stored entry of S's upper triangle, in the order of its
+    /// values (columns in turn, rows sorted within each).
+    pub fn entries(&self) -> impl Iterator<Item = (usize, usize)> + '_ {
+        self.col_blocks
+            .iter()
+            .enumerate()
+            .flat_map(move |(b, rows_of_b)| {
+                (0..self.block_dim[b]).flat_map(move |j| {
+                    let col = self.block_offset[b] + j;
+                    rows_of_b.iter().flat_map(move |&a| {
+                        let a = a as usize;
+                        let rows = if a == b { j + 1 } else { self.block_dim[a] };
+                        (0..rows).map(move |i| (self.block_offset[a] + i, col))
+                    })
+                })
+            })
+    }
+
     /// The row indices of the scalar CSC pattern (rows sorted within each column), in the
     /// order of S's values.
     pub fn row_indices(&self) -> Vec<usize> {
         let mut row_idx = Vec::with_capacity(self.nnz());
-        for (b, rows_of_b) in self.col_blocks.iter().enumerate() {
-            for j in 0..self.block_dim[b] {
-                for &a in rows_of_b {
-                    let a = a as usize;
-                    let rows = if a == b { j + 1 } else { self.block_dim[a] };
-                    row_idx.extend((0..rows).map(|i| self.block_offset[a] + i));
-                }
-            }
-        }
+        row_idx.extend(self.entries().map(|(row, _)| row));
         row_idx
     }
 

@@ -103,20 +103,8 @@ impl Factorizer {
             Factorizer::Dense { par } => {
                 // The lower triangle of S, factorized in place (one n × n matrix).
                 let mut m = Mat::<f64>::zeros(n, n);
-                let mut col = 0;
-                for (b, rows) in layout.col_blocks.iter().enumerate() {
-                    for j in 0..layout.block_dim[b] {
-                        let mut k = layout.col_ptr[col];
-                        for &a in rows {
-                            let a = a as usize;
-                            let len = if a == b { j + 1 } else { layout.block_dim[a] };
-                            for i in 0..len {
-                                m[(col, layout.block_offset[a] + i)] = values[k];
-                                k += 1;
-                            }
-                        }
-                        col += 1;
-                    }
+                for ((row, col), &v) in layout.entries().zip(values) {
+                    m[(col, row)] = v;
                 }
                 let par = *par;
                 let mut mem = MemBuffer::new(llt::factor::cholesky_in_place_scratch::<f64>(

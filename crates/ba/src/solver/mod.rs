@@ -233,6 +233,18 @@ enum Linear {
     Iterative(Box<iterative::ImplicitSchur>),
 }
 
+impl Linear {
+    /// The sparse factorization for `Sparse`, the dense one otherwise.
+    fn direct(kind: LinearSolverKind, layout: &Layout, par: faer::Par) -> Result<Self, SolveError> {
+        Ok(Linear::Direct(match kind {
+            LinearSolverKind::Sparse => {
+                linear::Factorizer::sparse(layout, par).map_err(SolveError::Setup)?
+            }
+            _ => linear::Factorizer::dense(par),
+        }))
+    }
+}
+
 struct Backup {
     rigs: Vec<pingcal_geometry::Rigid3>,
     poses: Vec<pingcal_geometry::Rigid3>,
@@ -291,23 +303,16 @@ fn run(
         limit,
     )?;
     let mut linear = match choice.kind {
-        LinearSolverKind::Sparse => {
-            Linear::Direct(linear::Factorizer::sparse(&layout, par).map_err(SolveError::Setup)?)
+        LinearSolverKind::Iterative => {
+            Linear::Iterative(Box::new(iterative::ImplicitSchur::new(&layout)))
         }
-        LinearSolverKind::Iterative => Linear::Iterative(Box::new(iterative::ImplicitSchur::new(
-            &layout,
-            rayon::current_num_threads(),
-        ))),
-        _ => Linear::Direct(linear::Factorizer::dense(par)),
+        kind => Linear::direct(kind, &layout, par)?,
     };
     let setup_time_s = t0.elapsed().as_secs_f64();
     let mut lin = evaluate::Linearization::new(&layout);
     evaluate::linearize(problem, &layout, &mut lin).map_err(|o| not_projectable(problem, o))?;
     let mut schur = schur::Schur::new(&layout);
     schur.prepare(&layout, &lin, problem);
-    if let Linear::Iterative(op) = &mut linear {
-        op.resize_work(schur.chunks.len());
-    }
 
     let initial_cost = lin.cost;
     if !initial_cost.is_finite() {
@@ -379,12 +384,7 @@ fn run(
             // the next step on (this step's inexact solution is still a descent step).
             if let (Linear::Iterative(_), Some(kind)) = (&linear, choice.fallback) {
                 if it.linear_iterations > options.cg.switch_after {
-                    linear = Linear::Direct(match kind {
-                        LinearSolverKind::Sparse => {
-                            linear::Factorizer::sparse(&layout, par).map_err(SolveError::Setup)?
-                        }
-                        _ => linear::Factorizer::dense(par),
-                    });
+                    linear = Linear::direct(kind, &layout, par)?;
                     choice.reason = format!(
                         "{}; moved to {kind} at step {iteration}: the conjugate gradients needed {} iterations",
                         choice.reason, it.linear_iterations
@@ -984,16 +984,26 @@ mod schur_tests {
         );
     }
 
+    /// The layout, linearization and explicitly assembled Schur complement of `problem`
+    /// at its estimate, for the damping `lambda`.
+    fn assembled(
+        problem: &Problem,
+        lambda: f64,
+    ) -> (Layout, evaluate::Linearization, schur::Schur) {
+        let layout = Layout::new(problem);
+        let mut lin = evaluate::Linearization::new(&layout);
+        evaluate::linearize(problem, &layout, &mut lin).unwrap();
+        let mut schur = schur::Schur::new(&layout);
+        schur.prepare(&layout, &lin, problem);
+        schur.assemble(&layout, &lin, problem, lambda).unwrap();
+        (layout, lin, schur)
+    }
+
     #[test]
     fn schur_step_equals_full_normal_equations_step() {
         let problem = mixed_problem();
-        let layout = Layout::new(&problem);
-        let mut lin = evaluate::Linearization::new(&layout);
-        evaluate::linearize(&problem, &layout, &mut lin).unwrap();
-        let mut schur = schur::Schur::new(&layout);
-        schur.prepare(&layout, &lin, &problem);
         let lambda = 0.37;
-        schur.assemble(&layout, &lin, &problem, lambda).unwrap();
+        let (layout, lin, schur) = assembled(&problem, lambda);
         let mut dc = schur.rhs.clone();
         let mut fact = linear::Factorizer::sparse(&layout, faer::Par::Seq).unwrap();
         assert!(fact.solve(&layout, &schur.values, &mut dc));
@@ -1035,13 +1045,8 @@ mod schur_tests {
     #[test]
     fn implicit_schur_equals_the_assembled_one() {
         let problem = mixed_problem();
-        let layout = Layout::new(&problem);
-        let mut lin = evaluate::Linearization::new(&layout);
-        evaluate::linearize(&problem, &layout, &mut lin).unwrap();
-        let mut schur = schur::Schur::new(&layout);
-        schur.prepare(&layout, &lin, &problem);
         let lambda = 0.37;
-        schur.assemble(&layout, &lin, &problem, lambda).unwrap();
+        let (layout, lin, mut schur) = assembled(&problem, lambda);
         let n = layout.n_reduced;
         let rows = layout.row_indices();
         let mut dense = nalgebra::DMatrix::<f64>::zeros(n, n);
@@ -1052,7 +1057,7 @@ mod schur_tests {
             }
         }
         let rhs_explicit = schur.rhs.clone();
-        let mut op = iterative::ImplicitSchur::new(&layout, schur.chunks.len());
+        let mut op = iterative::ImplicitSchur::new(&layout);
         op.prepare(&mut schur, &layout, &lin, &problem, lambda)
             .unwrap();
         let scale = dense.amax();

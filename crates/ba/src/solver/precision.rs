@@ -376,13 +376,9 @@ fn reduced_system(
     })?;
     let n = layout.n_reduced;
     let mut s = DMatrix::<f64>::zeros(n, n);
-    let row_idx = layout.row_indices();
-    for j in 0..n {
-        let col = layout.col_ptr[j]..layout.col_ptr[j + 1];
-        for (&i, &v) in row_idx[col.clone()].iter().zip(&schur.values[col]) {
-            s[(i, j)] = v;
-            s[(j, i)] = v;
-        }
+    for ((i, j), &v) in layout.entries().zip(&schur.values) {
+        s[(i, j)] = v;
+        s[(j, i)] = v;
     }
     Ok((schur, s))
 }
