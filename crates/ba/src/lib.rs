@@ -9,7 +9,8 @@
 //! | [`datum`] | the datum diagnosed before solving: control, fixed images, or a free network |
 //! | [`io`] | pingcal's measurement file (JSON) and DBAT's mark-point, control and camera files |
 //! | [`loss`] | robust losses (Huber, Cauchy) |
-//! | [`problem`] | cameras, images, points, observations, distances, control |
+//! | [`problem`] | cameras, images, points, observations, distances, control, the problem's own parameter blocks |
+//! | [`residual`] | every observation beside the image points, on one trait ([`Residual`]: its whitened residual, its blocks, its analytic Jacobian): distances, control points, weighted pose priors, and kinds defined outside the crate (pingcal-lrf's laser beams) with their own parameter blocks (an extrinsic, a mount); [`residual::check_residual_jacobians`] for a new kind |
 //! | [`solver`] | Schur-complement Levenberg–Marquardt with a dense, sparse or iterative (PCG) reduced-system solver chosen by structure; precision (free networks of any number of points by bordering), data snooping, variance components |
 //! | [`report`] | the adjustment report (Australis layout) as text and JSON |
 //! | [`bal`] | BAL problem files; [`synthetic`]: generated BAL problems |
@@ -99,6 +100,7 @@ pub mod io;
 pub mod loss;
 pub mod problem;
 pub mod report;
+pub mod residual;
 pub mod solver;
 pub mod synthetic;
 
@@ -109,4 +111,7 @@ pub use pingcal_geometry::{Rigid3, Sim3};
 
 pub use camera::{CameraModel, PhotogrammetricCamera};
 pub use problem::{Camera, Distance, Image, Observation, Point, PointPrior, Problem};
+pub use residual::{
+    Block, ParameterBlock, ParameterValue, PosePrior, Residual, ResidualBlock, Value,
+};
 pub use solver::{precision, solve, Options};

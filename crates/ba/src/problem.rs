@@ -6,6 +6,7 @@
 
 use crate::camera::CameraModel;
 use crate::loss::Loss;
+use crate::residual::{Block, ParameterBlock, ParameterValue, Residual, ResidualBlock};
 use nalgebra::{Vector2, Vector3};
 use pingcal_geometry::Rigid3;
 use std::sync::Arc;
@@ -156,6 +157,12 @@ pub struct Problem {
     pub point_priors: Vec<PointPrior>,
     /// Camera rigs (relative orientation constraints between images of one station).
     pub rigs: Vec<Rig>,
+    /// Parameter blocks of the problem's own (an extrinsic, a sensor's mount), on which
+    /// [`Problem::residuals`] may depend.
+    pub parameters: Vec<ParameterBlock>,
+    /// Observations of further kinds ([`crate::residual`]): weighted pose priors, or a kind
+    /// defined outside this crate.
+    pub residuals: Vec<ResidualBlock>,
 }
 
 /// Why a problem cannot be adjusted as given.
@@ -365,7 +372,101 @@ impl Problem {
                 )));
             }
         }
+        self.validate_residuals(&member_of)
+    }
+
+    /// Checks the parameter blocks and that every residual's blocks exist (a pose not a rig
+    /// member's) and are listed once.
+    fn validate_residuals(&self, member_of: &[bool]) -> Result<(), ProblemError> {
+        for pb in &self.parameters {
+            let finite = match &pb.value {
+                ParameterValue::Vector(v) => v.iter().all(|x| x.is_finite()),
+                ParameterValue::Pose(p) => (p.rotation.iter())
+                    .chain(p.translation.iter())
+                    .all(|x| x.is_finite()),
+            };
+            if !finite {
+                return Err(ProblemError::NotFinite {
+                    what: format!("parameter block '{}'", pb.name),
+                });
+            }
+            if pb.fixed.len() != pb.tangent_dim() {
+                return Err(ProblemError::BadConstraint(format!(
+                    "parameter block '{}' has {} fixed flags for {} parameters",
+                    pb.name,
+                    pb.fixed.len(),
+                    pb.tangent_dim()
+                )));
+            }
+        }
+        let mut used = vec![false; self.parameters.len()];
+        for (k, rb) in self.residuals.iter().enumerate() {
+            let what = || format!("residual {k} ({})", rb.residual.group());
+            let blocks = rb.residual.blocks();
+            if rb.residual.dim() == 0 || blocks.is_empty() {
+                return Err(ProblemError::BadConstraint(format!(
+                    "{} has no components or no blocks",
+                    what()
+                )));
+            }
+            if !(rb.sigma_scale > 0.0 && rb.sigma_scale.is_finite()) {
+                return Err(ProblemError::BadConstraint(format!(
+                    "{}: σ factor {} must be positive and finite",
+                    what(),
+                    rb.sigma_scale
+                )));
+            }
+            for (i, b) in blocks.iter().enumerate() {
+                if blocks[..i].contains(b) {
+                    return Err(ProblemError::BadConstraint(format!(
+                        "{} lists {b:?} twice",
+                        what()
+                    )));
+                }
+                let (exists, count) = match *b {
+                    Block::Point(p) => (p < self.points.len(), self.points.len()),
+                    Block::Pose(i) => (i < self.images.len(), self.images.len()),
+                    Block::Parameter(q) => (q < self.parameters.len(), self.parameters.len()),
+                };
+                if !exists {
+                    return Err(ProblemError::BadConstraint(format!(
+                        "{} refers to {b:?}, but there are only {count}",
+                        what()
+                    )));
+                }
+                if let Block::Parameter(q) = *b {
+                    used[q] = true;
+                }
+                if let Block::Pose(i) = *b {
+                    if member_of[i] {
+                        return Err(ProblemError::BadConstraint(format!(
+                            "{} is on the pose of rig member '{}', which follows its base image: put it on the base image",
+                            what(),
+                            self.images[i].name
+                        )));
+                    }
+                }
+            }
+        }
+        if let Some(pb) = (self.parameters.iter().zip(&used))
+            .find(|(pb, used)| !**used && pb.fixed.iter().any(|f| !f))
+            .map(|(pb, _)| pb)
+        {
+            return Err(ProblemError::BadConstraint(format!(
+                "parameter block '{}' is free but no residual depends on it: hold it or remove it",
+                pb.name
+            )));
+        }
         Ok(())
+    }
+
+    /// Every observation beside the image points, as the solver sees it: the distances, the
+    /// control points, then [`Problem::residuals`], each with its σ factor.
+    pub fn constraints(&self) -> impl Iterator<Item = (&dyn Residual, f64)> + '_ {
+        let distances = self.distances.iter().map(|d| (d as &dyn Residual, 1.0));
+        let priors = self.point_priors.iter().map(|p| (p as &dyn Residual, 1.0));
+        let rest = (self.residuals.iter()).map(|r| (&*r.residual, r.sigma_scale));
+        distances.chain(priors).chain(rest)
     }
 
     /// Sets every rig member's pose to `member_from_base ∘ base pose`.

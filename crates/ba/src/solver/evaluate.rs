@@ -1,12 +1,16 @@
-//! Residuals and Jacobians of the image observations at the current estimate.
+//! Residuals and Jacobians of the image observations and the constraints at the current
+//! estimate.
 //!
-//! Residuals are whitened (divided by the observation's σ) and robustified (scaled by
-//! √ρ′), so that the solver sees an ordinary least-squares problem ½ Σ |r|² whose value at
-//! the current estimate is the true robust cost ½ Σ ρ(|r/σ|²).
+//! Image residuals are whitened (divided by the observation's σ) and robustified (scaled
+//! by √ρ′), so that the solver sees an ordinary least-squares problem ½ Σ |r|² whose value
+//! at the current estimate is the true robust cost ½ Σ ρ(|r/σ|²). The constraints
+//! ([`Problem::constraints`]) whiten their own residuals; the solver divides them by their
+//! σ factor.
 
-use super::layout::Layout;
-use crate::problem::Problem;
-use nalgebra::{Matrix2x3, Vector2, Vector3};
+use super::layout::{BlockCols, Layout};
+use crate::problem::{Problem, ProblemError};
+use crate::residual::{block_values, Residual};
+use nalgebra::{DMatrix, Matrix2x3, Vector2};
 use pingcal_geometry::skew;
 use rayon::prelude::*;
 
@@ -21,11 +25,48 @@ pub(crate) struct Linearization {
     /// W = J_cᵀ J_p per observation (ncols × 3), stored as its three columns, each
     /// `ncols` long.
     pub w: Vec<f64>,
-    /// Per distance: whitened residual and its Jacobian with respect to the first point
-    /// (the second point's is its negative).
-    pub dist: Vec<(f64, Vector3<f64>)>,
-    /// ½ Σ ρ + ½ Σ distance² + ½ Σ control².
+    /// Per constraint, in the order of [`Problem::constraints`].
+    pub constraints: Vec<ConstraintLin>,
+    /// ½ Σ ρ + ½ Σ |constraint|².
     pub cost: f64,
+}
+
+/// One constraint's whitened residual and its Jacobian restricted to the free columns of
+/// each of its blocks (`dim × cols.len()`, in the order of the layout's
+/// [`BlockCols`]).
+pub(crate) struct ConstraintLin {
+    pub r: Vec<f64>,
+    pub j: Vec<DMatrix<f64>>,
+}
+
+impl ConstraintLin {
+    /// J δ for the update `delta_of(block) → the block's free columns' step`.
+    pub fn apply(
+        &self,
+        cols: &[BlockCols],
+        mut delta_of: impl FnMut(&BlockCols) -> Vec<f64>,
+    ) -> Vec<f64> {
+        let mut out = vec![0.0; self.r.len()];
+        for (j, bc) in self.j.iter().zip(cols) {
+            if bc.cols.is_empty() {
+                continue;
+            }
+            let d = delta_of(bc);
+            for (row, o) in out.iter_mut().enumerate() {
+                *o += (0..d.len()).map(|c| j[(row, c)] * d[c]).sum::<f64>();
+            }
+        }
+        out
+    }
+}
+
+/// Where the problem is not defined at the current estimate.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Undefined {
+    /// An image observation (problem index) whose point does not project.
+    Observation(usize),
+    /// A constraint (index in [`Problem::constraints`]) whose residual is not defined.
+    Constraint(usize),
 }
 
 impl Linearization {
@@ -36,7 +77,7 @@ impl Linearization {
             jc: vec![0.0; layout.jc_len],
             jp: vec![Matrix2x3::zeros(); n],
             w: vec![0.0; layout.w_len],
-            dist: Vec::new(),
+            constraints: Vec::new(),
             cost: 0.0,
         }
     }
@@ -61,43 +102,90 @@ pub(crate) fn split_at_offsets<'a, T>(mut buf: &'a mut [T], offsets: &[usize]) -
     out
 }
 
-/// The robust cost ½ Σ ρ(|r/σ|²) at the current estimate, or the index of the first
-/// observation that does not project.
-pub(crate) fn cost(problem: &Problem) -> Result<f64, usize> {
+impl Undefined {
+    /// What it means, by name.
+    pub fn describe(self, problem: &Problem) -> ProblemError {
+        match self {
+            Undefined::Observation(o) => {
+                let ob = &problem.observations[o];
+                ProblemError::NotProjectable {
+                    point: problem.points[ob.point].name.clone(),
+                    image: problem.images[ob.image].name.clone(),
+                }
+            }
+            Undefined::Constraint(k) => {
+                let group = (problem.constraints().nth(k)).map_or("?", |(r, _)| r.group());
+                ProblemError::BadConstraint(format!(
+                    "constraint {k} ({group}) is not defined at the current estimate"
+                ))
+            }
+        }
+    }
+}
+
+/// The robust cost ½ Σ ρ(|r/σ|²) + ½ Σ |constraint|² at the current estimate, or where it
+/// is not defined.
+pub(crate) fn cost(problem: &Problem) -> Result<f64, Undefined> {
     problem
         .observations
         .par_iter()
         .enumerate()
         .with_min_len(256)
         .map(|(i, o)| {
-            let r = problem.residual(o).ok_or(i)? / o.sigma;
-            Ok::<f64, usize>(0.5 * problem.loss.evaluate(r.norm_squared()).0)
+            let r = problem.residual(o).ok_or(Undefined::Observation(i))? / o.sigma;
+            Ok::<f64, Undefined>(0.5 * problem.loss.evaluate(r.norm_squared()).0)
         })
         .try_reduce(|| 0.0, |a, b| Ok(a + b))
-        .map(|c| c + constraint_cost(problem))
+        .and_then(|c| Ok(c + constraint_cost(problem)?))
 }
 
-/// ½ Σ of the whitened distance and control-point residuals.
-pub(crate) fn constraint_cost(problem: &Problem) -> f64 {
+/// ½ Σ of the whitened constraint residuals (each divided by its σ factor).
+pub(crate) fn constraint_cost(problem: &Problem) -> Result<f64, Undefined> {
     let mut c = 0.0;
-    for d in &problem.distances {
-        let l = (problem.points[d.a].position - problem.points[d.b].position).norm();
-        c += 0.5 * ((l - d.value) / d.sigma).powi(2);
+    for (k, (residual, scale)) in problem.constraints().enumerate() {
+        let r =
+            constraint_residual(problem, residual, scale, None).ok_or(Undefined::Constraint(k))?;
+        c += 0.5 * r.r.iter().map(|v| v * v).sum::<f64>();
     }
-    for pr in &problem.point_priors {
-        let r = (problem.points[pr.point].position - pr.position).component_div(&pr.sigma);
-        c += 0.5 * r.norm_squared();
-    }
-    c
+    Ok(c)
 }
 
-/// Fills `lin` at the current estimate. Returns the (problem) index of an observation that
-/// does not project, if any.
+/// One constraint's whitened residual divided by `scale`, and with `cols` given its Jacobian
+/// restricted to those free columns; None where it is not defined.
+pub(crate) fn constraint_residual(
+    problem: &Problem,
+    residual: &dyn Residual,
+    scale: f64,
+    cols: Option<&[BlockCols]>,
+) -> Option<ConstraintLin> {
+    let blocks = residual.blocks();
+    let values = block_values(problem, &blocks)?;
+    let m = residual.dim();
+    let mut r = vec![0.0; m];
+    let Some(cols) = cols else {
+        residual.evaluate(&values, &mut r, None).then_some(())?;
+        r.iter_mut().for_each(|v| *v /= scale);
+        return Some(ConstraintLin { r, j: Vec::new() });
+    };
+    let mut full: Vec<DMatrix<f64>> = (values.iter())
+        .map(|v| DMatrix::zeros(m, v.tangent_dim()))
+        .collect();
+    residual
+        .evaluate(&values, &mut r, Some(&mut full))
+        .then_some(())?;
+    r.iter_mut().for_each(|v| *v /= scale);
+    let j = (full.iter().zip(cols))
+        .map(|(f, bc)| DMatrix::from_fn(m, bc.cols.len(), |row, c| f[(row, bc.cols[c])] / scale))
+        .collect();
+    Some(ConstraintLin { r, j })
+}
+
+/// Fills `lin` at the current estimate, or says where the problem is not defined.
 pub(crate) fn linearize(
     problem: &Problem,
     layout: &Layout,
     lin: &mut Linearization,
-) -> Result<(), usize> {
+) -> Result<(), Undefined> {
     let jc_parts = split_at_offsets(&mut lin.jc, &layout.obs_jc_offset);
     let w_parts = split_at_offsets(&mut lin.w, &layout.obs_w_offset);
     let cost = lin
@@ -128,7 +216,7 @@ pub(crate) fn linearize(
             let uv = cam
                 .model
                 .project(&cam.params, &xc, Some(&mut dxc), Some(ji))
-                .ok_or(layout.obs_order[i] as usize)?;
+                .ok_or(Undefined::Observation(layout.obs_order[i] as usize))?;
             let res = (uv - o.uv) / o.sigma;
             let (rho, rho1) = problem.loss.evaluate(res.norm_squared());
             let scale = rho1.sqrt() / o.sigma;
@@ -197,16 +285,20 @@ pub(crate) fn linearize(
                     *wk = x * a + y * b;
                 }
             }
-            Ok::<f64, usize>(0.5 * rho)
+            Ok::<f64, Undefined>(0.5 * rho)
         })
         .try_reduce(|| 0.0, |a, b| Ok(a + b))?;
-    lin.dist.clear();
-    for d in &problem.distances {
-        let v = problem.points[d.a].position - problem.points[d.b].position;
-        let l = v.norm();
-        let u = if l > 0.0 { v / l } else { Vector3::zeros() };
-        lin.dist.push(((l - d.value) / d.sigma, u / d.sigma));
-    }
-    lin.cost = cost + constraint_cost(problem);
+    lin.constraints = (problem
+        .constraints()
+        .zip(&layout.constraint_cols)
+        .enumerate())
+    .map(|(k, ((residual, scale), cols))| {
+        constraint_residual(problem, residual, scale, Some(cols)).ok_or(Undefined::Constraint(k))
+    })
+    .collect::<Result<_, _>>()?;
+    let constraints: f64 = (lin.constraints.iter())
+        .map(|c| 0.5 * c.r.iter().map(|v| v * v).sum::<f64>())
+        .sum();
+    lin.cost = cost + constraints;
     Ok(())
 }

@@ -17,7 +17,11 @@
 
 use super::evaluate::Linearization;
 use super::layout::Layout;
-use super::sigma::{intrinsics_precision, pose_sigmas, rig_covariances, Precision, PrecisionError};
+use super::layout::Place;
+use super::sigma::{
+    intrinsics_precision, parameters_covariance, pose_sigmas, rig_covariances, Precision,
+    PrecisionError,
+};
 use crate::problem::Problem;
 use nalgebra::{DMatrix, Matrix3, Vector3};
 
@@ -49,6 +53,7 @@ pub(crate) fn is_free(problem: &Problem) -> bool {
     problem.images.iter().all(|i| !i.fixed)
         && problem.points.iter().all(|p| !p.fixed)
         && problem.point_priors.is_empty()
+        && problem.residuals.is_empty()
         && problem.rigs.iter().all(|r| !r.fixed)
 }
 
@@ -91,8 +96,12 @@ pub(crate) fn precision(
     let point_covariances = (0..problem.points.len())
         .map(|p| point_col(layout, p).map(|c| Matrix3::from_fn(|a, b| s02 * q[(c + a, c + b)])))
         .collect();
-    let (standardized_residuals, redundancy_numbers, distance_redundancy_numbers) =
-        standardized_residuals(layout, &j, &q, &r);
+    let (standardized_residuals, redundancy_numbers, constraint_q) =
+        standardized_residuals(layout, lin, &j, &q, &r);
+    let (distance_redundancy_numbers, residual_redundancy_numbers, residual_standardized) =
+        super::precision::split_constraint_redundancy(problem, lin, constraint_q);
+    let (parameters_covariance, parameter_offsets) =
+        parameters_covariance(problem, layout, s02, |i, j| q[(i, j)]);
     Ok(Precision {
         sigma0,
         redundancy,
@@ -106,11 +115,16 @@ pub(crate) fn precision(
         standardized_residuals,
         redundancy_numbers,
         distance_redundancy_numbers,
+        residual_redundancy_numbers,
+        residual_standardized,
+        parameters_covariance,
+        parameter_offsets,
     })
 }
 
 /// The whitened Jacobian (dense, `n` columns: reduced unknowns, then eliminated points)
-/// and residuals: two rows per image observation in internal order, then one per distance.
+/// and residuals: two rows per image observation in internal order, then the constraints'
+/// rows.
 fn dense_system(
     problem: &Problem,
     layout: &Layout,
@@ -119,7 +133,7 @@ fn dense_system(
 ) -> (DMatrix<f64>, Vec<f64>) {
     let nc = layout.n_reduced;
     let n_img_obs = problem.observations.len();
-    let m = 2 * n_img_obs + problem.distances.len();
+    let m = 2 * n_img_obs + lin.constraints.iter().map(|c| c.r.len()).sum::<usize>();
     let mut j = DMatrix::<f64>::zeros(m, n);
     let mut r = vec![0.0; m];
     for o in 0..n_img_obs {
@@ -142,17 +156,22 @@ fn dense_system(
             }
         }
     }
-    for (k, d) in problem.distances.iter().enumerate() {
-        let (rd, ja) = lin.dist[k];
-        let row = 2 * n_img_obs + k;
-        r[row] = rd;
-        for (p, sign) in [(d.a, 1.0), (d.b, -1.0)] {
-            if let Some(c) = point_col(layout, p) {
-                for a in 0..3 {
-                    j[(row, c + a)] = sign * ja[a];
+    let mut row = 2 * n_img_obs;
+    for (cols, c) in layout.constraint_cols.iter().zip(&lin.constraints) {
+        for (i, ri) in c.r.iter().enumerate() {
+            r[row + i] = *ri;
+            for (bc, jb) in cols.iter().zip(&c.j) {
+                let col = match bc.place {
+                    Place::Reduced(s) => layout.slot_offset(s),
+                    Place::Eliminated(f) => nc + 3 * f as usize,
+                    Place::Fixed => continue,
+                };
+                for a in 0..jb.ncols() {
+                    j[(row + i, col + a)] = jb[(i, a)];
                 }
             }
         }
+        row += c.r.len();
     }
     (j, r)
 }
@@ -256,16 +275,21 @@ pub(crate) fn bordered_inverse(k: &DMatrix<f64>, n: usize) -> Option<DMatrix<f64
     inv.iter().all(|v| v.is_finite()).then_some(inv)
 }
 
+/// The image observations' standardized residuals and redundancy numbers, and each
+/// constraint's redundancy numbers (see [`standardized_residuals`]).
+type Snooping = (Vec<[f64; 2]>, Vec<[f64; 2]>, Vec<Vec<f64>>);
+
 /// The standardized residuals of the image observations (in the problem's order):
 /// `r / √q_vv` with `q_vv = 1 − (J Q Jᵀ)_ii`; NaN where q_vv vanishes. Beside them the
-/// redundancy numbers `q_vv` of the image observations and of the distances (0 where
-/// there is no redundancy).
+/// redundancy numbers `q_vv` of the image observations and, per constraint, of its rows (0
+/// where there is no redundancy).
 fn standardized_residuals(
     layout: &Layout,
+    lin: &Linearization,
     j: &DMatrix<f64>,
     q: &DMatrix<f64>,
     r: &[f64],
-) -> (Vec<[f64; 2]>, Vec<[f64; 2]>, Vec<f64>) {
+) -> Snooping {
     let jq = j * q;
     let qvv = |row: usize| 1.0 - jq.row(row).dot(&j.row(row));
     let n_img_obs = layout.obs_order.len();
@@ -282,8 +306,13 @@ fn standardized_residuals(
             }
         }
     }
-    let distances = (2 * n_img_obs..j.nrows())
-        .map(|row| qvv(row).max(0.0))
+    let mut row = 2 * n_img_obs;
+    let constraints = (lin.constraints.iter())
+        .map(|c| {
+            let q: Vec<f64> = (row..row + c.r.len()).map(|i| qvv(i).max(0.0)).collect();
+            row += c.r.len();
+            q
+        })
         .collect();
-    (standardized, redundancy, distances)
+    (standardized, redundancy, constraints)
 }

@@ -28,7 +28,6 @@
 use super::evaluate::{split_at_offsets, Linearization};
 use super::layout::Layout;
 use super::schur::Schur;
-use crate::problem::Problem;
 use nalgebra::{DMatrix, Vector2, Vector3};
 use rayon::prelude::*;
 
@@ -103,7 +102,6 @@ impl ImplicitSchur {
         schur: &mut Schur,
         layout: &Layout,
         lin: &Linearization,
-        problem: &Problem,
         lambda: f64,
     ) -> Result<(), usize> {
         schur.invert_points(lambda)?;
@@ -126,7 +124,7 @@ impl ImplicitSchur {
             *bk -= g;
         }
         schur.rhs.copy_from_slice(&b);
-        self.build_preconditioner(schur, layout, lin, problem);
+        self.build_preconditioner(schur, layout, lin);
         Ok(())
     }
 
@@ -159,7 +157,6 @@ impl ImplicitSchur {
         schur: &Schur,
         layout: &Layout,
         lin: &Linearization,
-        problem: &Problem,
         x: &[f64],
         y: &mut [f64],
     ) {
@@ -198,43 +195,12 @@ impl ImplicitSchur {
         for ((yk, xk), d) in y.iter_mut().zip(x).zip(&self.damping) {
             *yk += d * xk;
         }
-        // Distances between points of the reduced system and their control.
-        for (k, sl) in layout.distance_slots.iter().enumerate() {
-            let ja = lin.dist[k].1;
-            let part = |s: Option<super::layout::Slot>| {
-                s.map_or(0.0, |s| {
-                    let o = layout.slot_offset(s);
-                    ja.dot(&Vector3::new(x[o], x[o + 1], x[o + 2]))
-                })
-            };
-            let jd = part(sl[0]) - part(sl[1]);
-            for (slot, sign) in [(sl[0], 1.0), (sl[1], -1.0)] {
-                if let Some(s) = slot {
-                    let o = layout.slot_offset(s);
-                    for i in 0..3 {
-                        y[o + i] += sign * ja[i] * jd;
-                    }
-                }
-            }
-        }
-        for pr in &problem.point_priors {
-            if let Some(s) = layout.point_slot[pr.point] {
-                let o = layout.slot_offset(s);
-                for i in 0..3 {
-                    y[o + i] += x[o + i] / (pr.sigma[i] * pr.sigma[i]);
-                }
-            }
-        }
+        // The constraints between blocks of the reduced system.
+        super::constraints::add_product(layout, lin, x, y);
     }
 
     /// The diagonal blocks of S, inverted.
-    fn build_preconditioner(
-        &mut self,
-        schur: &Schur,
-        layout: &Layout,
-        lin: &Linearization,
-        problem: &Problem,
-    ) {
+    fn build_preconditioner(&mut self, schur: &Schur, layout: &Layout, lin: &Linearization) {
         let offsets = &self.precond_offset;
         let total = *offsets.last().unwrap();
         let parts: Vec<Vec<f64>> = schur
@@ -319,27 +285,7 @@ impl ImplicitSchur {
                 diag(b, i, self.damping[off + i], &mut self.precond);
             }
         }
-        for (k, sl) in layout.distance_slots.iter().enumerate() {
-            let ja = lin.dist[k].1;
-            for s in sl.iter().flatten() {
-                let b = s.block as usize;
-                let d = layout.block_dim[b];
-                let o = s.off as usize;
-                for j in 0..3 {
-                    for i in 0..3 {
-                        self.precond[offsets[b] + (o + j) * d + o + i] += ja[i] * ja[j];
-                    }
-                }
-            }
-        }
-        for pr in &problem.point_priors {
-            if let Some(s) = layout.point_slot[pr.point] {
-                for i in 0..3 {
-                    let w = 1.0 / (pr.sigma[i] * pr.sigma[i]);
-                    diag(s.block as usize, s.off as usize + i, w, &mut self.precond);
-                }
-            }
-        }
+        super::constraints::add_to_diagonal_blocks(layout, lin, offsets, &mut self.precond);
         // Invert each block; one that is not positive definite (possible only through
         // rounding) falls back to its diagonal.
         let blocks = split_at_offsets(&mut self.precond, &offsets[..offsets.len() - 1]);
@@ -384,7 +330,6 @@ impl ImplicitSchur {
         schur: &Schur,
         layout: &Layout,
         lin: &Linearization,
-        problem: &Problem,
         options: &CgOptions,
         x: &mut [f64],
     ) -> Option<CgSummary> {
@@ -407,7 +352,7 @@ impl ImplicitSchur {
             relative_residual: 1.0,
         };
         for i in 1..=options.max_iterations {
-            self.apply(schur, layout, lin, problem, &p, &mut q);
+            self.apply(schur, layout, lin, &p, &mut q);
             let pq = dot(&p, &q);
             if !(pq > 0.0) {
                 // Not positive definite along p (or not finite).

@@ -13,6 +13,7 @@
 //! computed once and reused at every iteration.
 
 use crate::problem::{Observation, Problem};
+use crate::residual::Block;
 
 /// One contiguous run of an observation's camera-side Jacobian columns that lands in one
 /// block.
@@ -35,6 +36,26 @@ pub(crate) struct Slot {
     pub off: u16,
 }
 
+/// Where the free columns of one block of a [`crate::residual::Residual`] go.
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum Place {
+    /// Rows of the reduced system from this slot on, one per free column.
+    Reduced(Slot),
+    /// A point eliminated by the Schur complement (its free index): the residual touches
+    /// nothing else, so it adds to that point's V block.
+    Eliminated(u32),
+    /// Held fixed: no columns.
+    Fixed,
+}
+
+/// One block of a constraint residual: its place and the columns of its local update that
+/// are free (in the order of the reduced system's rows).
+#[derive(Clone, Debug)]
+pub(crate) struct BlockCols {
+    pub place: Place,
+    pub cols: Vec<usize>,
+}
+
 pub(crate) struct Layout {
     pub block_dim: Vec<usize>,
     pub block_offset: Vec<usize>,
@@ -49,8 +70,12 @@ pub(crate) struct Layout {
     pub image_rig: Vec<Option<(usize, usize)>>,
     /// Rigs with a free relative pose.
     pub rig_slot: Vec<Option<Slot>>,
-    /// Per distance: the blocks of its two points (if they are in the reduced system).
-    pub distance_slots: Vec<[Option<Slot>; 2]>,
+    /// The problem's own parameter blocks with a free component, and those components.
+    pub parameter_slot: Vec<Option<Slot>>,
+    pub parameter_free: Vec<Vec<usize>>,
+    /// Per constraint ([`Problem::constraints`], in its order): where each of its blocks'
+    /// free columns go.
+    pub constraint_cols: Vec<Vec<BlockCols>>,
     pub camera_free: Vec<Vec<usize>>,
     /// Per observation: number of camera-side Jacobian columns, offset into the flat
     /// Jacobian buffer (2 values per column), and its segments (at most 2).
@@ -99,12 +124,23 @@ impl Layout {
             number_free_points(problem, &blocks.point_slot, &observations);
         let (fp_obs_ptr, fp_obs) =
             point_observations(&free_point_index, free_points.len(), &observations);
+        let constraint_cols = blocks.constraint_columns(problem, &free_point_index);
+        let coupled: Vec<Vec<u32>> = (constraint_cols.iter())
+            .map(|cols| {
+                (cols.iter())
+                    .filter_map(|c| match c.place {
+                        Place::Reduced(s) => Some(s.block),
+                        _ => None,
+                    })
+                    .collect()
+            })
+            .collect();
         let col_blocks = block_pattern(
             blocks.dim.len(),
             &columns.segs,
             &fp_obs_ptr,
             &fp_obs,
-            &blocks.distance_slots,
+            &coupled,
         );
         let (col_ptr, col_row_off) = scalar_pattern(&col_blocks, &blocks);
         Self {
@@ -116,7 +152,9 @@ impl Layout {
             point_slot: blocks.point_slot,
             image_rig: blocks.image_rig,
             rig_slot: blocks.rig_slot,
-            distance_slots: blocks.distance_slots,
+            parameter_slot: blocks.parameter_slot,
+            parameter_free: blocks.parameter_free,
+            constraint_cols,
             camera_free: blocks.camera_free,
             obs_ncols: columns.ncols,
             obs_jc_offset: columns.jc_offset,
@@ -221,23 +259,6 @@ impl Layout {
         self.block_offset[s.block as usize] + s.off as usize
     }
 
-    /// The step of point `p`: from the reduced system, from back-substitution, or zero.
-    pub fn point_delta(
-        &self,
-        p: usize,
-        dc: &[f64],
-        dp: &[nalgebra::Vector3<f64>],
-    ) -> nalgebra::Vector3<f64> {
-        if let Some(s) = self.point_slot[p] {
-            let o = self.slot_offset(s);
-            nalgebra::Vector3::new(dc[o], dc[o + 1], dc[o + 2])
-        } else if self.free_point_index[p] != u32::MAX {
-            dp[self.free_point_index[p] as usize]
-        } else {
-            nalgebra::Vector3::zeros()
-        }
-    }
-
     /// Adds `m` (rows of slot `a`, columns of slot `b`) to S's upper triangle, transposing
     /// when block a comes after block b. `values` is the full value array.
     pub fn add_to_s(&self, values: &mut [f64], a: Slot, b: Slot, m: &nalgebra::DMatrix<f64>) {
@@ -281,7 +302,8 @@ struct Blocks {
     point_slot: Vec<Option<Slot>>,
     image_rig: Vec<Option<(usize, usize)>>,
     rig_slot: Vec<Option<Slot>>,
-    distance_slots: Vec<[Option<Slot>; 2]>,
+    parameter_slot: Vec<Option<Slot>>,
+    parameter_free: Vec<Vec<usize>>,
     camera_free: Vec<Vec<usize>>,
 }
 
@@ -298,8 +320,9 @@ struct ObsColumns {
 
 impl Blocks {
     /// Numbers the blocks: images with a free pose (with their camera's intrinsics when
-    /// no other image uses it), then the other free cameras, the free rigs, and the free
-    /// points joined by a distance.
+    /// no other image uses it), then the other free cameras, the free rigs, the problem's
+    /// parameter blocks with a free component, and the free points that a constraint couples
+    /// to anything else (joined by a distance, touched by a residual with other blocks).
     fn assign(problem: &Problem) -> Self {
         let camera_free: Vec<Vec<usize>> =
             problem.cameras.iter().map(|c| c.free_indices()).collect();
@@ -338,17 +361,28 @@ impl Blocks {
         let rig_slot: Vec<Option<Slot>> = (problem.rigs.iter())
             .map(|rig| (!rig.fixed && !rig.members.is_empty()).then(|| new_block(6)))
             .collect();
+        let parameter_free: Vec<Vec<usize>> = problem
+            .parameters
+            .iter()
+            .map(|p| p.free_indices())
+            .collect();
+        let parameter_slot: Vec<Option<Slot>> = (parameter_free.iter())
+            .map(|free| (!free.is_empty()).then(|| new_block(free.len())))
+            .collect();
         let mut point_slot = vec![None; problem.points.len()];
-        for d in &problem.distances {
-            for p in [d.a, d.b] {
-                if !problem.points[p].fixed && point_slot[p].is_none() {
-                    point_slot[p] = Some(new_block(3));
+        for (residual, _) in problem.constraints() {
+            let blocks = residual.blocks();
+            if let [Block::Point(_)] = blocks[..] {
+                continue;
+            }
+            for b in blocks {
+                if let Block::Point(p) = b {
+                    if !problem.points[p].fixed && point_slot[p].is_none() {
+                        point_slot[p] = Some(new_block(3));
+                    }
                 }
             }
         }
-        let distance_slots = (problem.distances.iter())
-            .map(|d| [point_slot[d.a], point_slot[d.b]])
-            .collect();
         let mut offset = Vec::with_capacity(dim.len());
         let mut n_reduced = 0;
         for &d in &dim {
@@ -364,9 +398,60 @@ impl Blocks {
             point_slot,
             image_rig,
             rig_slot,
-            distance_slots,
+            parameter_slot,
+            parameter_free,
             camera_free,
         }
+    }
+
+    /// Per constraint of `problem`, where each of its blocks' free columns go.
+    fn constraint_columns(
+        &self,
+        problem: &Problem,
+        free_point_index: &[u32],
+    ) -> Vec<Vec<BlockCols>> {
+        (problem.constraints())
+            .map(|(residual, _)| {
+                (residual.blocks().into_iter())
+                    .map(|b| match b {
+                        Block::Point(p) => match (self.point_slot[p], free_point_index[p]) {
+                            (Some(s), _) => BlockCols {
+                                place: Place::Reduced(s),
+                                cols: vec![0, 1, 2],
+                            },
+                            (None, f) if f != u32::MAX => BlockCols {
+                                place: Place::Eliminated(f),
+                                cols: vec![0, 1, 2],
+                            },
+                            _ => BlockCols {
+                                place: Place::Fixed,
+                                cols: Vec::new(),
+                            },
+                        },
+                        Block::Pose(i) => match self.image_slot[i] {
+                            Some(s) => BlockCols {
+                                place: Place::Reduced(s),
+                                cols: (0..6).collect(),
+                            },
+                            None => BlockCols {
+                                place: Place::Fixed,
+                                cols: Vec::new(),
+                            },
+                        },
+                        Block::Parameter(k) => match self.parameter_slot[k] {
+                            Some(s) => BlockCols {
+                                place: Place::Reduced(s),
+                                cols: self.parameter_free[k].clone(),
+                            },
+                            None => BlockCols {
+                                place: Place::Fixed,
+                                cols: Vec::new(),
+                            },
+                        },
+                    })
+                    .collect()
+            })
+            .collect()
     }
 
     /// The segments and Jacobian buffer offsets of `observations` (in internal order).
@@ -526,7 +611,7 @@ fn block_pattern(
     obs_segs: &[([Seg; 4], u8)],
     fp_obs_ptr: &[usize],
     fp_obs: &[u32],
-    distance_slots: &[[Option<Slot>; 2]],
+    coupled: &[Vec<u32>],
 ) -> Vec<Vec<u32>> {
     let mut pairs: Vec<(u32, u32)> = Vec::new(); // (col, row) with row ≤ col
     let push_set = |blocks: &mut Vec<u32>, pairs: &mut Vec<(u32, u32)>| {
@@ -552,11 +637,10 @@ fn block_pattern(
         }
         push_set(&mut scratch, &mut pairs);
     }
-    for sl in distance_slots {
-        if let [Some(a), Some(b)] = sl {
-            let (a, b) = (a.block.min(b.block), a.block.max(b.block));
-            pairs.push((b, a));
-        }
+    for blocks in coupled {
+        scratch.clear();
+        scratch.extend_from_slice(blocks);
+        push_set(&mut scratch, &mut pairs);
     }
     for b in 0..nb as u32 {
         pairs.push((b, b));
@@ -665,14 +749,12 @@ mod tests {
         assert_eq!(l.image_rig[8], Some((0, 6)));
         assert!(l.rig_slot[0].is_some() && l.rig_slot[1].is_none());
         // Distance points are in the reduced system, shared ones once.
-        assert_eq!(
-            l.distance_slots[0][0].unwrap().block,
-            l.point_slot[10].unwrap().block
-        );
-        assert_eq!(
-            l.distance_slots[1][0].unwrap().block,
-            l.point_slot[10].unwrap().block
-        );
+        let first_block = |k: usize| match l.constraint_cols[k][0].place {
+            Place::Reduced(s) => s.block,
+            other => panic!("distance {k}'s first point is {other:?}"),
+        };
+        assert_eq!(first_block(0), l.point_slot[10].unwrap().block);
+        assert_eq!(first_block(1), l.point_slot[10].unwrap().block);
         assert!(l.point_slot[200].is_some() && l.point_slot[18].is_some());
         // Free points: neither fixed nor in the reduced system; the unobserved one last.
         let last = p.points.len() - 1;

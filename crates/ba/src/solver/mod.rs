@@ -12,6 +12,7 @@
 //! symbolic factorization computed once (`layout`); back-substitute the points.
 
 mod choice;
+mod constraints;
 mod evaluate;
 mod free_network;
 mod iterative;
@@ -250,6 +251,7 @@ struct Backup {
     poses: Vec<pingcal_geometry::Rigid3>,
     intrinsics: Vec<Vec<f64>>,
     points: Vec<Vector3<f64>>,
+    parameters: Vec<crate::residual::ParameterValue>,
 }
 
 impl Backup {
@@ -259,6 +261,7 @@ impl Backup {
             poses: p.images.iter().map(|i| i.camera_from_object).collect(),
             intrinsics: p.cameras.iter().map(|c| c.params.clone()).collect(),
             points: p.points.iter().map(|x| x.position).collect(),
+            parameters: p.parameters.iter().map(|b| b.value.clone()).collect(),
         }
     }
     fn restore(&self, p: &mut Problem) {
@@ -274,15 +277,14 @@ impl Backup {
         for (x, v) in p.points.iter_mut().zip(&self.points) {
             x.position = *v;
         }
+        for (b, v) in p.parameters.iter_mut().zip(&self.parameters) {
+            b.value.clone_from(v);
+        }
     }
 }
 
-fn not_projectable(problem: &Problem, o: usize) -> SolveError {
-    let ob = &problem.observations[o];
-    SolveError::Problem(ProblemError::NotProjectable {
-        point: problem.points[ob.point].name.clone(),
-        image: problem.images[ob.image].name.clone(),
-    })
+fn not_projectable(problem: &Problem, u: evaluate::Undefined) -> SolveError {
+    SolveError::Problem(u.describe(problem))
 }
 
 fn run(
@@ -312,7 +314,7 @@ fn run(
     let mut lin = evaluate::Linearization::new(&layout);
     evaluate::linearize(problem, &layout, &mut lin).map_err(|o| not_projectable(problem, o))?;
     let mut schur = schur::Schur::new(&layout);
-    schur.prepare(&layout, &lin, problem);
+    schur.prepare(&layout, &lin);
 
     let initial_cost = lin.cost;
     if !initial_cost.is_finite() {
@@ -357,10 +359,8 @@ fn run(
         let ts = Instant::now();
         let lambda = 1.0 / radius;
         let mut solved = match &mut linear {
-            Linear::Direct(_) => schur.assemble(&layout, &lin, problem, lambda).is_ok(),
-            Linear::Iterative(op) => op
-                .prepare(&mut schur, &layout, &lin, problem, lambda)
-                .is_ok(),
+            Linear::Direct(_) => schur.assemble(&layout, &lin, lambda).is_ok(),
+            Linear::Iterative(op) => op.prepare(&mut schur, &layout, &lin, lambda).is_ok(),
         };
         schur_time += ts.elapsed().as_secs_f64();
         if solved {
@@ -371,7 +371,7 @@ fn run(
                     solved = factorizer.solve(&layout, &schur.values, &mut dc);
                 }
                 Linear::Iterative(op) => {
-                    match op.solve(&schur, &layout, &lin, problem, &options.cg, &mut dc) {
+                    match op.solve(&schur, &layout, &lin, &options.cg, &mut dc) {
                         Some(cg) => {
                             it.linear_iterations = cg.iterations;
                             linear_iterations += cg.iterations;
@@ -413,7 +413,7 @@ fn run(
                 break;
             }
             let predicted = predicted_decrease(&layout, &lin, &dc, &dp)
-                + constraint_decrease(problem, &layout, &lin, &dc, &dp);
+                + constraints::decrease(&layout, &lin, &dc, &dp);
             let backup = Backup::take(problem);
             apply_step(problem, &layout, &dc, &dp);
             let te = Instant::now();
@@ -434,7 +434,7 @@ fn run(
                     decrease_factor = 2.0;
                     evaluate::linearize(problem, &layout, &mut lin)
                         .map_err(|o| not_projectable(problem, o))?;
-                    schur.prepare(&layout, &lin, problem);
+                    schur.prepare(&layout, &lin);
                     if converged {
                         termination = Termination::FunctionTolerance;
                         it.iteration_time_s = ti.elapsed().as_secs_f64();
@@ -496,6 +496,14 @@ fn parameter_norm(p: &Problem) -> f64 {
     for x in &p.points {
         s += x.position.norm_squared();
     }
+    for pb in &p.parameters {
+        s += match &pb.value {
+            crate::residual::ParameterValue::Vector(v) => v.iter().map(|x| x * x).sum::<f64>(),
+            crate::residual::ParameterValue::Pose(q) => {
+                log_so3(&q.rotation).norm_squared() + q.translation.norm_squared()
+            }
+        };
+    }
     s.sqrt()
 }
 
@@ -528,30 +536,6 @@ fn predicted_decrease(
         .sum()
 }
 
-/// The linear model's decrease for the distance and control-point residuals.
-fn constraint_decrease(
-    problem: &Problem,
-    layout: &Layout,
-    lin: &evaluate::Linearization,
-    dc: &[f64],
-    dp: &[Vector3<f64>],
-) -> f64 {
-    let mut dec = 0.0;
-    for (k, d) in problem.distances.iter().enumerate() {
-        let (r, ja) = lin.dist[k];
-        let jd = ja.dot(&(layout.point_delta(d.a, dc, dp) - layout.point_delta(d.b, dc, dp)));
-        dec += -r * jd - 0.5 * jd * jd;
-    }
-    for pr in &problem.point_priors {
-        let r = (problem.points[pr.point].position - pr.position).component_div(&pr.sigma);
-        let jd = layout
-            .point_delta(pr.point, dc, dp)
-            .component_div(&pr.sigma);
-        dec += -r.dot(&jd) - 0.5 * jd.norm_squared();
-    }
-    dec
-}
-
 fn apply_step(problem: &mut Problem, layout: &Layout, dc: &[f64], dp: &[Vector3<f64>]) {
     for (p, slot) in layout.point_slot.iter().enumerate() {
         if let Some(s) = slot {
@@ -581,6 +565,17 @@ fn apply_step(problem: &mut Problem, layout: &Layout, dc: &[f64], dp: &[Vector3<
     }
     for (f, &p) in layout.free_points.iter().enumerate() {
         problem.points[p].position += dp[f];
+    }
+    for (k, slot) in layout.parameter_slot.iter().enumerate() {
+        if let Some(s) = slot {
+            let o = layout.slot_offset(*s);
+            let pb = &mut problem.parameters[k];
+            let mut delta = vec![0.0; pb.tangent_dim()];
+            for (i, &c) in layout.parameter_free[k].iter().enumerate() {
+                delta[c] = dc[o + i];
+            }
+            pb.plus(&delta);
+        }
     }
     problem.sync_rigs();
 }
@@ -702,7 +697,7 @@ mod tests {
         let mut lin = evaluate::Linearization::new(&layout);
         evaluate::linearize(&problem, &layout, &mut lin).unwrap();
         let mut schur = schur::Schur::new(&layout);
-        schur.prepare(&layout, &lin, &problem);
+        schur.prepare(&layout, &lin);
         let (nc, np) = (layout.n_reduced, layout.free_points.len());
         let cost0 = evaluate::cost(&problem).unwrap();
         assert!((cost0 - lin.cost).abs() <= 1e-12 * cost0);
@@ -920,8 +915,11 @@ mod schur_tests {
         let extra = 1 + 3 * problem.point_priors.len();
         let mut j = j.resize_vertically(m + extra, 0.0);
         let mut r = r.resize_vertically(m + extra, 0.0);
-        let (rd, ja) = lin.dist[0];
-        r[m] = rd;
+        // The distance, written out here: (|X_a − X_b| − value)/σ, ∂/∂X_a = uᵀ/σ.
+        let d = problem.distances[0];
+        let v = problem.points[d.a].position - problem.points[d.b].position;
+        r[m] = (v.norm() - d.value) / d.sigma;
+        let ja = v.normalize() / d.sigma;
         for k in 0..3 {
             j[(m, col_of(7) + k)] = ja[k];
             j[(m, col_of(9) + k)] = -ja[k];
@@ -994,8 +992,8 @@ mod schur_tests {
         let mut lin = evaluate::Linearization::new(&layout);
         evaluate::linearize(problem, &layout, &mut lin).unwrap();
         let mut schur = schur::Schur::new(&layout);
-        schur.prepare(&layout, &lin, problem);
-        schur.assemble(&layout, &lin, problem, lambda).unwrap();
+        schur.prepare(&layout, &lin);
+        schur.assemble(&layout, &lin, lambda).unwrap();
         (layout, lin, schur)
     }
 
@@ -1058,8 +1056,7 @@ mod schur_tests {
         }
         let rhs_explicit = schur.rhs.clone();
         let mut op = iterative::ImplicitSchur::new(&layout);
-        op.prepare(&mut schur, &layout, &lin, &problem, lambda)
-            .unwrap();
+        op.prepare(&mut schur, &layout, &lin, lambda).unwrap();
         let scale = dense.amax();
         for (a, b) in schur.rhs.iter().zip(&rhs_explicit) {
             assert!(
@@ -1072,7 +1069,7 @@ mod schur_tests {
                 .map(|_| crate::camera::jacobian_checks::uniform(&mut rng, -1.0, 1.0))
                 .collect();
             let mut y = vec![0.0; n];
-            op.apply(&schur, &layout, &lin, &problem, &x, &mut y);
+            op.apply(&schur, &layout, &lin, &x, &mut y);
             let want = &dense * nalgebra::DVector::from_column_slice(&x);
             for k in 0..n {
                 assert!(
@@ -1113,9 +1110,7 @@ mod schur_tests {
             ..CgOptions::default()
         };
         let mut x = vec![0.0; n];
-        let cg = op
-            .solve(&schur, &layout, &lin, &problem, &tight, &mut x)
-            .unwrap();
+        let cg = op.solve(&schur, &layout, &lin, &tight, &mut x).unwrap();
         let amax = direct.iter().fold(0.0f64, |m, v| m.max(v.abs()));
         for (a, b) in x.iter().zip(&direct) {
             assert!(

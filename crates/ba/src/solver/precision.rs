@@ -16,10 +16,10 @@ use super::evaluate::{linearize, Linearization};
 use super::layout::Layout;
 use super::schur::Schur;
 use super::sigma::{
-    intrinsics_precision, pose_sigmas, rig_covariances, Precision, PrecisionError,
-    MAX_DENSE_PRECISION,
+    intrinsics_precision, parameters_covariance, pose_sigmas, rig_covariances, Precision,
+    PrecisionError, MAX_DENSE_PRECISION,
 };
-use crate::problem::{Problem, ProblemError};
+use crate::problem::Problem;
 use nalgebra::{DMatrix, Matrix2, Matrix2x3, Matrix3};
 
 /// What both [`precision`] and [`points_covariance`] start from: the linearization at the
@@ -35,13 +35,7 @@ struct Cofactors {
 /// named.
 fn linearized(problem: &Problem, layout: &Layout) -> Result<Linearization, PrecisionError> {
     let mut lin = Linearization::new(layout);
-    linearize(problem, layout, &mut lin).map_err(|o| {
-        let ob = &problem.observations[o];
-        ProblemError::NotProjectable {
-            point: problem.points[ob.point].name.clone(),
-            image: problem.images[ob.image].name.clone(),
-        }
-    })?;
+    linearize(problem, layout, &mut lin).map_err(|u| u.describe(problem))?;
     Ok(lin)
 }
 
@@ -67,13 +61,18 @@ fn cofactors(problem: &Problem) -> Result<Option<Cofactors>, PrecisionError> {
     }
 }
 
+/// The number of scalar observations: two per image point, and every constraint's
+/// components.
+pub(crate) fn observation_count(problem: &Problem) -> usize {
+    2 * problem.observations.len() + problem.constraints().map(|(r, _)| r.dim()).sum::<usize>()
+}
+
 /// Observations minus unknowns, and σ0 (`σ0² = 2·cost / redundancy`).
 fn redundancy_and_sigma0(
     problem: &Problem,
     c: &Cofactors,
 ) -> Result<(usize, usize, i64, f64), PrecisionError> {
-    let n_obs =
-        2 * problem.observations.len() + problem.distances.len() + 3 * problem.point_priors.len();
+    let n_obs = observation_count(problem);
     let unknowns = c.layout.n_reduced + 3 * c.layout.free_points.len();
     let redundancy = n_obs as i64 - unknowns as i64;
     if redundancy <= 0 {
@@ -258,8 +257,7 @@ fn free_network_bordered(
             "the network is free and, beyond position, orientation and scale, still not determined (too few points per image, or disconnected pieces)".into(),
         ));
     };
-    let n_obs =
-        2 * problem.observations.len() + problem.distances.len() + 3 * problem.point_priors.len();
+    let n_obs = observation_count(problem);
     let unknowns = n + 3 * layout.free_points.len();
     let redundancy = n_obs as i64 - unknowns as i64 + d as i64;
     if redundancy <= 0 {
@@ -299,6 +297,19 @@ fn assemble(
     }
     let (standardized_residuals, redundancy_numbers) =
         standardized_residuals(layout, lin, q, eliminated);
+    let constraint_q: Vec<Vec<f64>> = (0..lin.constraints.len())
+        .map(|k| {
+            let aqa =
+                super::constraints::cofactor_diagonal(layout, &lin.constraints[k], k, q, |f| {
+                    eliminated[f].q
+                });
+            aqa.iter().map(|v| (1.0 - v).max(0.0)).collect()
+        })
+        .collect();
+    let (distance_redundancy_numbers, residual_redundancy_numbers, residual_standardized) =
+        split_constraint_redundancy(problem, lin, constraint_q);
+    let (parameters_covariance, parameter_offsets) =
+        parameters_covariance(problem, layout, s02, |i, j| q[(i, j)]);
     Precision {
         sigma0,
         redundancy,
@@ -311,8 +322,37 @@ fn assemble(
         point_covariances,
         standardized_residuals,
         redundancy_numbers,
-        distance_redundancy_numbers: distance_redundancy_numbers(layout, lin, q),
+        distance_redundancy_numbers,
+        residual_redundancy_numbers,
+        residual_standardized,
+        parameters_covariance,
+        parameter_offsets,
     }
+}
+
+/// From every constraint's redundancy numbers (in the order of [`Problem::constraints`]):
+/// the distances' (one each), and the redundancy numbers and standardized residuals of
+/// [`Problem::residuals`] (the control points' are not given).
+pub(crate) fn split_constraint_redundancy(
+    problem: &Problem,
+    lin: &Linearization,
+    mut q: Vec<Vec<f64>>,
+) -> (Vec<f64>, Vec<Vec<f64>>, Vec<Vec<f64>>) {
+    let first_residual = problem.distances.len() + problem.point_priors.len();
+    let residuals = q.split_off(first_residual);
+    let distances = q
+        .iter()
+        .take(problem.distances.len())
+        .map(|v| v[0])
+        .collect();
+    let standardized = (residuals.iter().zip(&lin.constraints[first_residual..]))
+        .map(|(qv, c)| {
+            (qv.iter().zip(&c.r))
+                .map(|(&q, &r)| if q > 1e-9 { r / q.sqrt() } else { f64::NAN })
+                .collect()
+        })
+        .collect();
+    (distances, residuals, standardized)
 }
 
 /// The rows of M = W V⁻¹ of free point `f`: (row of the reduced system, its 3 values), one
@@ -355,7 +395,7 @@ fn reduced_system(
     lin: &Linearization,
 ) -> Result<(Schur, DMatrix<f64>), PrecisionError> {
     let mut schur = Schur::new(layout);
-    schur.prepare(layout, lin, problem);
+    schur.prepare(layout, lin);
     // Eliminated points must be determined on their own.
     for (f, v) in schur.v.iter().enumerate() {
         let scale = v.diagonal().max().max(f64::MIN_POSITIVE);
@@ -371,7 +411,7 @@ fn reduced_system(
             problem.points[p].name.clone(),
         ));
     }
-    schur.assemble(layout, lin, problem, 0.0).map_err(|f| {
+    schur.assemble(layout, lin, 0.0).map_err(|f| {
         PrecisionError::PointUndetermined(problem.points[layout.free_points[f]].name.clone())
     })?;
     let n = layout.n_reduced;
@@ -475,38 +515,6 @@ fn standardized_residuals(
         }
     }
     (standardized, redundancy)
-}
-
-/// The redundancy number `1 − g Q gᵀ` of every distance (g its whitened Jacobian row; both
-/// points are in the reduced system, a fixed one has no row).
-fn distance_redundancy_numbers(
-    layout: &Layout,
-    lin: &Linearization,
-    q_cc: &DMatrix<f64>,
-) -> Vec<f64> {
-    lin.dist
-        .iter()
-        .zip(&layout.distance_slots)
-        .map(|((_, g), slots)| {
-            // the Jacobian is +g for the first point and −g for the second
-            let rows: Vec<(usize, f64)> = slots
-                .iter()
-                .zip([1.0, -1.0])
-                .filter_map(|(s, sign)| s.map(|s| (layout.slot_offset(s), sign)))
-                .collect();
-            let mut gqg = 0.0;
-            for &(oa, sa) in &rows {
-                for &(ob, sb) in &rows {
-                    for u in 0..3 {
-                        for v in 0..3 {
-                            gqg += sa * g[u] * q_cc[(oa + u, ob + v)] * sb * g[v];
-                        }
-                    }
-                }
-            }
-            (1.0 - gqg).max(0.0)
-        })
-        .collect()
 }
 
 /// A Q Aᵀ of observation `o` (internal order) in whitened units, with A = [J_c, J_p] and

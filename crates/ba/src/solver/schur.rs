@@ -10,7 +10,6 @@
 
 use super::evaluate::{split_at_offsets, Linearization};
 use super::layout::{Layout, Seg};
-use crate::problem::Problem;
 use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
 
@@ -79,7 +78,7 @@ impl Schur {
     }
 
     /// Computes what depends on the linearization only: V, g_p, diag(U), g_c.
-    pub fn prepare(&mut self, layout: &Layout, lin: &Linearization, problem: &Problem) {
+    pub fn prepare(&mut self, layout: &Layout, lin: &Linearization) {
         self.v
             .par_iter_mut()
             .zip(self.gp.par_iter_mut())
@@ -123,36 +122,15 @@ impl Schur {
             self.diag_c.iter_mut().zip(&d).for_each(|(a, b)| *a += b);
             self.gc.iter_mut().zip(&g).for_each(|(a, b)| *a += b);
         }
-        // Distances (between points of the reduced system) and control points.
-        for (k, sl) in layout.distance_slots.iter().enumerate() {
-            let (r, ja) = lin.dist[k];
-            for (slot, sign) in [(sl[0], 1.0), (sl[1], -1.0)] {
-                if let Some(s) = slot {
-                    let o = layout.slot_offset(s);
-                    for i in 0..3 {
-                        self.diag_c[o + i] += ja[i] * ja[i];
-                        self.gc[o + i] += sign * ja[i] * r;
-                    }
-                }
-            }
-        }
-        for pr in &problem.point_priors {
-            let w = pr.sigma.map(|s| 1.0 / (s * s));
-            let g = (problem.points[pr.point].position - pr.position).component_mul(&w);
-            if let Some(s) = layout.point_slot[pr.point] {
-                let o = layout.slot_offset(s);
-                for i in 0..3 {
-                    self.diag_c[o + i] += w[i];
-                    self.gc[o + i] += g[i];
-                }
-            } else if layout.free_point_index[pr.point] != u32::MAX {
-                let f = layout.free_point_index[pr.point] as usize;
-                for i in 0..3 {
-                    self.v[f][(i, i)] += w[i];
-                }
-                self.gp[f] += g;
-            }
-        }
+        // Distances, control points and the other constraints.
+        super::constraints::add_gradient(
+            layout,
+            lin,
+            &mut self.diag_c,
+            &mut self.gc,
+            &mut self.v,
+            &mut self.gp,
+        );
     }
 
     /// Max-norm of the full gradient Jᵀr.
@@ -192,7 +170,6 @@ impl Schur {
         &mut self,
         layout: &Layout,
         lin: &Linearization,
-        problem: &Problem,
         lambda: f64,
     ) -> Result<(), usize> {
         self.invert_points(lambda)?;
@@ -261,32 +238,8 @@ impl Schur {
         for (k, r) in self.rhs.iter_mut().enumerate() {
             *r = -self.gc[k] + self.work_rhs.iter().map(|w| w[k]).sum::<f64>();
         }
-        // Distances and control points of reduced-system points go straight into S.
-        for (k, sl) in layout.distance_slots.iter().enumerate() {
-            let ja = lin.dist[k].1;
-            let jj = nalgebra::DMatrix::from_fn(3, 3, |i, j| ja[i] * ja[j]);
-            if let Some(a) = sl[0] {
-                layout.add_to_s(&mut self.values, a, a, &jj);
-            }
-            if let Some(b) = sl[1] {
-                layout.add_to_s(&mut self.values, b, b, &jj);
-            }
-            if let [Some(a), Some(b)] = *sl {
-                layout.add_to_s(&mut self.values, a, b, &(-jj));
-            }
-        }
-        for pr in &problem.point_priors {
-            if let Some(s) = layout.point_slot[pr.point] {
-                let w = nalgebra::DMatrix::from_fn(3, 3, |i, j| {
-                    if i == j {
-                        1.0 / (pr.sigma[i] * pr.sigma[i])
-                    } else {
-                        0.0
-                    }
-                });
-                layout.add_to_s(&mut self.values, s, s, &w);
-            }
-        }
+        // The constraints' blocks in the reduced system go straight into S.
+        super::constraints::add_to_s(layout, lin, &mut self.values);
         for b in 0..layout.num_blocks() {
             let off_b = layout.block_offset[b];
             let roff = *layout.col_row_off[b].last().unwrap();

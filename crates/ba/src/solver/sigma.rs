@@ -80,9 +80,37 @@ pub struct Precision {
     /// Per distance (problem order): its redundancy number.
     #[serde(skip)]
     pub distance_redundancy_numbers: Vec<f64>,
+    /// Per residual of [`Problem::residuals`]: the redundancy numbers of its components.
+    #[serde(skip)]
+    pub residual_redundancy_numbers: Vec<Vec<f64>>,
+    /// Per residual of [`Problem::residuals`]: its standardized residuals `r / √q_vv`
+    /// (whitened, divided by its σ factor; NaN where the component has no redundancy).
+    #[serde(skip)]
+    pub residual_standardized: Vec<Vec<f64>>,
+    /// The joint covariance (σ0²-scaled) of the local updates of all of
+    /// [`Problem::parameters`], block after block (offsets in `parameter_offsets`), zero
+    /// rows and columns for held components.
+    #[serde(skip)]
+    pub parameters_covariance: DMatrix<f64>,
+    /// Where each parameter block's rows start in `parameters_covariance` (one more entry
+    /// than blocks).
+    #[serde(skip)]
+    pub parameter_offsets: Vec<usize>,
 }
 
 impl Precision {
+    /// The covariance of parameter block `a`'s update with block `b`'s.
+    pub fn parameter_covariance(&self, a: usize, b: usize) -> DMatrix<f64> {
+        let (oa, ob) = (self.parameter_offsets[a], self.parameter_offsets[b]);
+        let (na, nb) = (
+            self.parameter_offsets[a + 1] - oa,
+            self.parameter_offsets[b + 1] - ob,
+        );
+        self.parameters_covariance
+            .view((oa, ob), (na, nb))
+            .into_owned()
+    }
+
     /// Standard deviations of a point's coordinates.
     pub fn point_sigma(&self, p: usize) -> Option<Vector3<f64>> {
         self.point_covariances[p]
@@ -160,6 +188,38 @@ pub(crate) fn intrinsics_precision(
 /// `[−Rᵀ[t]×, −Rᵀ]`.
 /// Each rig's `(δω, δt)` covariance ([`Precision::rig_covariances`]) from the cofactors `q`
 /// of the reduced system.
+/// The joint covariance of the parameter blocks' updates and the blocks' offsets in it
+/// ([`Precision::parameters_covariance`]).
+pub(crate) fn parameters_covariance(
+    problem: &Problem,
+    layout: &Layout,
+    s02: f64,
+    q: impl Fn(usize, usize) -> f64,
+) -> (DMatrix<f64>, Vec<usize>) {
+    let mut offsets = vec![0];
+    for pb in &problem.parameters {
+        offsets.push(offsets.last().unwrap() + pb.tangent_dim());
+    }
+    // (row in the covariance, row in the reduced system) of every free component
+    let mut rows = Vec::new();
+    for (k, slot) in layout.parameter_slot.iter().enumerate() {
+        if let Some(s) = slot {
+            let o = layout.slot_offset(*s);
+            for (i, &c) in layout.parameter_free[k].iter().enumerate() {
+                rows.push((offsets[k] + c, o + i));
+            }
+        }
+    }
+    let n = *offsets.last().unwrap();
+    let mut cov = DMatrix::zeros(n, n);
+    for &(a, qa) in &rows {
+        for &(b, qb) in &rows {
+            cov[(a, b)] = s02 * q(qa, qb);
+        }
+    }
+    (cov, offsets)
+}
+
 pub(crate) fn rig_covariances(
     layout: &Layout,
     s02: f64,

@@ -49,7 +49,8 @@ pub struct VarianceComponent {
 
 /// The groups' σ0 at the current estimate and weights: image observation `o` is in group
 /// `group_of[o]` (named `names[group_of[o]]`); the distances, if any, are one more group
-/// named `distances`. Control-point priors are in none.
+/// named `distances`, and the residuals of [`Problem::residuals`] one group per
+/// [`crate::residual::Residual::group`] name. Control-point priors are in none.
 pub fn variance_components(
     problem: &Problem,
     precision: &Precision,
@@ -57,7 +58,9 @@ pub fn variance_components(
     names: &[&str],
 ) -> Vec<VarianceComponent> {
     let k = names.len();
-    let (mut vpv, mut red, mut n) = (vec![0.0; k + 1], vec![0.0; k + 1], vec![0usize; k + 1]);
+    let extra = residual_groups(problem);
+    let groups = k + 1 + extra.len();
+    let (mut vpv, mut red, mut n) = (vec![0.0; groups], vec![0.0; groups], vec![0usize; groups]);
     for (o, ob) in problem.observations.iter().enumerate() {
         let g = group_of[o];
         if let Some(r) = problem.residual(ob) {
@@ -76,10 +79,27 @@ pub fn variance_components(
         red[k] += r;
         n[k] += 1;
     }
+    for (rb, q) in problem
+        .residuals
+        .iter()
+        .zip(&precision.residual_redundancy_numbers)
+    {
+        let g = k
+            + 1
+            + extra
+                .iter()
+                .position(|e| e == rb.residual.group())
+                .unwrap_or(0);
+        let r = super::evaluate::constraint_residual(problem, &*rb.residual, rb.sigma_scale, None);
+        vpv[g] += r.map_or(0.0, |r| r.r.iter().map(|v| v * v).sum());
+        red[g] += q.iter().sum::<f64>();
+        n[g] += q.len();
+    }
     names
         .iter()
         .copied()
         .chain(std::iter::once("distances"))
+        .chain(extra.iter().map(String::as_str))
         .enumerate()
         .filter(|&(g, _)| n[g] > 0)
         .map(|(g, name)| VarianceComponent {
@@ -94,6 +114,18 @@ pub fn variance_components(
             reweighted: red[g] >= MIN_GROUP_REDUNDANCY,
         })
         .collect()
+}
+
+/// The distinct group names of [`Problem::residuals`], in the order they first appear.
+fn residual_groups(problem: &Problem) -> Vec<String> {
+    let mut out: Vec<String> = Vec::new();
+    for rb in &problem.residuals {
+        let g = rb.residual.group();
+        if !out.iter().any(|e| e == g) {
+            out.push(g.to_string());
+        }
+    }
+    out
 }
 
 /// Why the variance components could not be estimated.
@@ -122,7 +154,7 @@ pub struct VarianceEstimate {
 }
 
 /// Adjusts `problem` with Förstner's re-weighting of its groups (see the module doc): the
-/// image observations by `group_of` (names `names`), the distances as one group. The σ's of
+/// image observations by `group_of` (names `names`), the distances as one group, the residuals by their group name. The σ's of
 /// the re-weighted groups' observations in `problem` end multiplied by their group's σ0, so
 /// that the returned precision (σ0-scaled, its σ0 then about 1) has each group weighted by
 /// its own estimate.
@@ -183,6 +215,9 @@ pub fn estimate_variance_components(
         let fd = factor("distances");
         for d in &mut problem.distances {
             d.sigma *= fd;
+        }
+        for rb in &mut problem.residuals {
+            rb.sigma_scale *= factor(rb.residual.group());
         }
     }
     // not converged in VCE_MAX_ROUNDS: the last weights, adjusted once more
