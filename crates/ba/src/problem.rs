@@ -6,7 +6,8 @@
 
 use crate::camera::CameraModel;
 use crate::loss::Loss;
-use crate::residual::{Block, ParameterBlock, ParameterValue, Residual, ResidualBlock};
+use crate::residual::{Block, ParameterBlock, ParameterValue, Residual, ResidualBlock, Value};
+use nalgebra::DMatrix;
 use nalgebra::{Vector2, Vector3};
 use pingcal_geometry::Rigid3;
 use std::sync::Arc;
@@ -508,5 +509,73 @@ impl Problem {
         } else {
             (s / n as f64).sqrt()
         }
+    }
+}
+
+impl Residual for Distance {
+    fn dim(&self) -> usize {
+        1
+    }
+    fn blocks(&self) -> Vec<Block> {
+        vec![Block::Point(self.a), Block::Point(self.b)]
+    }
+    /// `(|X_a − X_b| − value) / σ`; ∂/∂X_a = uᵀ/σ (u the unit vector from b to a), ∂/∂X_b its
+    /// negative.
+    fn evaluate(
+        &self,
+        values: &[Value],
+        residual: &mut [f64],
+        jacobians: Option<&mut [DMatrix<f64>]>,
+    ) -> bool {
+        let (Some(a), Some(b)) = (values[0].point(), values[1].point()) else {
+            return false;
+        };
+        let v = a - b;
+        let l = v.norm();
+        residual[0] = (l - self.value) / self.sigma;
+        if let Some(j) = jacobians {
+            let u = if l > 0.0 { v / l } else { Vector3::zeros() };
+            let g = u / self.sigma;
+            for k in 0..3 {
+                j[0][(0, k)] = g[k];
+                j[1][(0, k)] = -g[k];
+            }
+        }
+        true
+    }
+    fn group(&self) -> &str {
+        "distances"
+    }
+}
+
+impl Residual for PointPrior {
+    fn dim(&self) -> usize {
+        3
+    }
+    fn blocks(&self) -> Vec<Block> {
+        vec![Block::Point(self.point)]
+    }
+    /// `(X − position) / σ` per axis.
+    fn evaluate(
+        &self,
+        values: &[Value],
+        residual: &mut [f64],
+        jacobians: Option<&mut [DMatrix<f64>]>,
+    ) -> bool {
+        let Some(x) = values[0].point() else {
+            return false;
+        };
+        for k in 0..3 {
+            residual[k] = (x[k] - self.position[k]) / self.sigma[k];
+        }
+        if let Some(j) = jacobians {
+            for k in 0..3 {
+                j[0][(k, k)] = 1.0 / self.sigma[k];
+            }
+        }
+        true
+    }
+    fn group(&self) -> &str {
+        "control"
     }
 }

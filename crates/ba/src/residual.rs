@@ -27,7 +27,6 @@
 //! A new kind is checked with [`check_residual_jacobians`] (central differences through the
 //! same updates the solver applies).
 
-use crate::problem::{Distance, PointPrior, Problem};
 use nalgebra::{DMatrix, Vector3};
 use pingcal_geometry::{exp_so3, log_so3, skew, Rigid3};
 use std::sync::Arc;
@@ -205,74 +204,6 @@ impl ParameterBlock {
     }
 }
 
-impl Residual for Distance {
-    fn dim(&self) -> usize {
-        1
-    }
-    fn blocks(&self) -> Vec<Block> {
-        vec![Block::Point(self.a), Block::Point(self.b)]
-    }
-    /// `(|X_a − X_b| − value) / σ`; ∂/∂X_a = uᵀ/σ (u the unit vector from b to a), ∂/∂X_b its
-    /// negative.
-    fn evaluate(
-        &self,
-        values: &[Value],
-        residual: &mut [f64],
-        jacobians: Option<&mut [DMatrix<f64>]>,
-    ) -> bool {
-        let (Some(a), Some(b)) = (values[0].point(), values[1].point()) else {
-            return false;
-        };
-        let v = a - b;
-        let l = v.norm();
-        residual[0] = (l - self.value) / self.sigma;
-        if let Some(j) = jacobians {
-            let u = if l > 0.0 { v / l } else { Vector3::zeros() };
-            let g = u / self.sigma;
-            for k in 0..3 {
-                j[0][(0, k)] = g[k];
-                j[1][(0, k)] = -g[k];
-            }
-        }
-        true
-    }
-    fn group(&self) -> &str {
-        "distances"
-    }
-}
-
-impl Residual for PointPrior {
-    fn dim(&self) -> usize {
-        3
-    }
-    fn blocks(&self) -> Vec<Block> {
-        vec![Block::Point(self.point)]
-    }
-    /// `(X − position) / σ` per axis.
-    fn evaluate(
-        &self,
-        values: &[Value],
-        residual: &mut [f64],
-        jacobians: Option<&mut [DMatrix<f64>]>,
-    ) -> bool {
-        let Some(x) = values[0].point() else {
-            return false;
-        };
-        for k in 0..3 {
-            residual[k] = (x[k] - self.position[k]) / self.sigma[k];
-        }
-        if let Some(j) = jacobians {
-            for k in 0..3 {
-                j[0][(k, k)] = 1.0 / self.sigma[k];
-            }
-        }
-        true
-    }
-    fn group(&self) -> &str {
-        "control"
-    }
-}
-
 /// A weighted prior on an image's pose (a GNSS/INS position and attitude, or a pose from an
 /// earlier adjustment): `r = (log(R R₀ᵀ) / σ_ω, (C − C₀) / σ_C)` with `C = −Rᵀt` the projection
 /// centre, so that the position is the centre's and the attitude the rotation's. σ_ω in
@@ -336,6 +267,58 @@ impl Residual for PosePrior {
     }
 }
 
+/// A weighted prior on some components of a vector parameter block (a weak prior that makes
+/// the normal equations regular while estimability is tested, or a calibrated value with
+/// its σ): `r_i = (v[c_i] − value_i) / σ_i` for each listed component `c_i`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ParameterPrior {
+    /// Index into [`Problem::parameters`] (a [`ParameterValue::Vector`]).
+    pub parameter: usize,
+    /// The components it constrains.
+    pub components: Vec<usize>,
+    /// Their prior values.
+    pub value: Vec<f64>,
+    /// Their σ's.
+    pub sigma: Vec<f64>,
+}
+
+impl Residual for ParameterPrior {
+    fn dim(&self) -> usize {
+        self.components.len()
+    }
+    fn blocks(&self) -> Vec<Block> {
+        vec![Block::Parameter(self.parameter)]
+    }
+    fn evaluate(
+        &self,
+        values: &[Value],
+        residual: &mut [f64],
+        jacobians: Option<&mut [DMatrix<f64>]>,
+    ) -> bool {
+        let Some(v) = values[0].vector() else {
+            return false;
+        };
+        if self.components.iter().any(|&c| c >= v.len())
+            || self.value.len() != self.components.len()
+            || self.sigma.len() != self.components.len()
+        {
+            return false;
+        }
+        for (i, &c) in self.components.iter().enumerate() {
+            residual[i] = (v[c] - self.value[i]) / self.sigma[i];
+        }
+        if let Some(j) = jacobians {
+            for (i, &c) in self.components.iter().enumerate() {
+                j[0][(i, c)] = 1.0 / self.sigma[i];
+            }
+        }
+        true
+    }
+    fn group(&self) -> &str {
+        "parameter priors"
+    }
+}
+
 /// `J_l⁻¹(φ) = I − ½[φ]× + (1/θ² − (1 + cos θ)/(2θ sin θ)) [φ]×²`, θ = |φ| (series below 1e-5).
 pub fn left_jacobian_inverse(phi: &Vector3<f64>) -> nalgebra::Matrix3<f64> {
     let theta = phi.norm();
@@ -346,21 +329,6 @@ pub fn left_jacobian_inverse(phi: &Vector3<f64>) -> nalgebra::Matrix3<f64> {
         1.0 / (theta * theta) - (1.0 + theta.cos()) / (2.0 * theta * theta.sin())
     };
     nalgebra::Matrix3::identity() - 0.5 * k + c * k * k
-}
-
-/// The values of `blocks` in `problem` (None for an index out of range).
-pub(crate) fn block_values<'a>(problem: &'a Problem, blocks: &[Block]) -> Option<Vec<Value<'a>>> {
-    blocks
-        .iter()
-        .map(|b| match *b {
-            Block::Point(p) => problem.points.get(p).map(|x| Value::Point(&x.position)),
-            Block::Pose(i) => problem
-                .images
-                .get(i)
-                .map(|im| Value::Pose(&im.camera_from_object)),
-            Block::Parameter(k) => problem.parameters.get(k).map(|pb| pb.as_value()),
-        })
-        .collect()
 }
 
 /// The worst relative difference between `residual`'s analytic Jacobian at `values` and
@@ -425,6 +393,7 @@ fn perturbed(p: &Rigid3, d: &[f64]) -> Rigid3 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::problem::{Distance, PointPrior};
     use pingcal_geometry::from_opk_deg;
 
     #[test]
@@ -461,5 +430,14 @@ mod tests {
         };
         let e = check_residual_jacobians(&pp, &[Value::Pose(&pose)], 1e-5);
         assert!(e.unwrap() < 1e-6, "pose prior {e:?}");
+        let prior = ParameterPrior {
+            parameter: 0,
+            components: vec![2, 0],
+            value: vec![1.0, -3.0],
+            sigma: vec![0.5, 2.0],
+        };
+        let v = [0.3, 0.2, 1.7];
+        let e = check_residual_jacobians(&prior, &[Value::Vector(&v)], 1e-6);
+        assert!(e.unwrap() < 1e-6, "parameter prior {e:?}");
     }
 }

@@ -120,6 +120,119 @@ pub fn beam_range_residual(
     }
 }
 
+/// One beam on a ball as an observation of a bundle adjustment
+/// ([`pingcal_ba::Residual`]): the ball's centre `X` in the photogrammetric frame (a point of
+/// the bundle), the extrinsic `camera_from_lrf` (a pose parameter block, left-perturbed like
+/// the image poses) and the mount θ (a vector parameter block in [`MountModel::to_params`]
+/// order). With `c = camera_from_lrf⁻¹ · X = Rᵀ (X − t)` and `e` of [`beam_range_residual`],
+/// the residual is `e / σ`. With `g = R ∂e/∂c` and `v = X − t`: `∂e/∂X = gᵀ`;
+/// `c(δ) = Rᵀ exp(−[δω]×)(v − δt)` gives `∂e/∂δω = ([v]×ᵀ g)ᵀ` and `∂e/∂δt = −gᵀ`;
+/// and `∂e/∂θ` as [`BeamResidual::d_mount`]. Each divided by σ.
+#[derive(Clone, Debug)]
+pub struct BeamOnBall {
+    /// The reading.
+    pub reading: BeamReading,
+    /// The balls' radius (mm).
+    pub radius: f64,
+    /// The sensor's σ of this range (mm).
+    pub sigma: f64,
+    /// The servo's zero of the LRF frame (degrees; not an unknown).
+    pub servo_zero_deg: f64,
+    /// The ball: a point of the problem.
+    pub ball: usize,
+    /// The extrinsic: a pose parameter block of the problem.
+    pub extrinsic: usize,
+    /// The mount: a vector parameter block of 8.
+    pub mount: usize,
+}
+
+impl BeamOnBall {
+    /// `e` (mm, not whitened), the residual's parts and `g = R ∂e/∂c`, at these values.
+    fn at(
+        &self,
+        x: &Vector3<f64>,
+        pose: &pingcal_geometry::Rigid3,
+        theta: &[f64],
+    ) -> Option<(BeamResidual, Vector3<f64>, Vector3<f64>)> {
+        let th: [f64; 8] = theta.try_into().ok()?;
+        let mount = MountModel::from_params(&th, self.servo_zero_deg);
+        let v = x - pose.translation;
+        let c = pose.rotation.transpose() * v;
+        let r = beam_range_residual(&self.reading, &mount, &c, self.radius);
+        let g = pose.rotation * Vector3::from(r.d_centre);
+        r.e.is_finite().then_some((r, g, v))
+    }
+
+    /// `e` (reported − predicted range, mm) at these values; None where undefined.
+    pub fn range_error(
+        &self,
+        x: &Vector3<f64>,
+        pose: &pingcal_geometry::Rigid3,
+        theta: &[f64],
+    ) -> Option<f64> {
+        self.at(x, pose, theta).map(|(r, _, _)| r.e)
+    }
+
+    /// Whether the beam grazes the ball at these values (see [`GRAZING_KAPPA`]).
+    pub fn grazing(
+        &self,
+        x: &Vector3<f64>,
+        pose: &pingcal_geometry::Rigid3,
+        theta: &[f64],
+    ) -> bool {
+        self.at(x, pose, theta).is_none_or(|(r, _, _)| r.grazing)
+    }
+}
+
+impl pingcal_ba::Residual for BeamOnBall {
+    fn dim(&self) -> usize {
+        1
+    }
+
+    fn blocks(&self) -> Vec<pingcal_ba::Block> {
+        use pingcal_ba::Block;
+        vec![
+            Block::Point(self.ball),
+            Block::Parameter(self.extrinsic),
+            Block::Parameter(self.mount),
+        ]
+    }
+
+    fn evaluate(
+        &self,
+        values: &[pingcal_ba::Value],
+        residual: &mut [f64],
+        jacobians: Option<&mut [nalgebra::DMatrix<f64>]>,
+    ) -> bool {
+        let (Some(x), Some(pose), Some(theta)) =
+            (values[0].point(), values[1].pose(), values[2].vector())
+        else {
+            return false;
+        };
+        let Some((r, g, v)) = self.at(x, pose, theta) else {
+            return false;
+        };
+        let s = self.sigma;
+        residual[0] = r.e / s;
+        if let Some(j) = jacobians {
+            let jw = pingcal_geometry::skew(&v).transpose() * g;
+            for k in 0..3 {
+                j[0][(0, k)] = g[k] / s;
+                j[1][(0, k)] = jw[k] / s;
+                j[1][(0, 3 + k)] = -g[k] / s;
+            }
+            for k in 0..8 {
+                j[2][(0, k)] = r.d_mount[k] / s;
+            }
+        }
+        true
+    }
+
+    fn group(&self) -> &str {
+        "beams"
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -207,6 +320,53 @@ mod tests {
             }
         }
         assert!(checked > 100, "{checked}");
+    }
+
+    /// The bundle-adjustment form of a beam (ball centre in the camera frame, the extrinsic
+    /// and the mount as blocks) against central differences through the solver's updates.
+    #[test]
+    fn the_beam_as_a_bundle_residual_has_the_jacobian_of_central_differences() {
+        use pingcal_ba::{residual::check_residual_jacobians, Value};
+        let mut g = rng(11);
+        let mut checked = 0;
+        for _ in 0..100 {
+            let (reading, mount, c) = random_case(&mut g);
+            if beam_range_residual(&reading, &mount, &c, 20.0).grazing {
+                continue;
+            }
+            let camera_from_lrf = pingcal_geometry::Rigid3::new(
+                pingcal_geometry::from_opk_deg([
+                    g.random_range(-180.0..180.0),
+                    g.random_range(-80.0..80.0),
+                    g.random_range(-180.0..180.0),
+                ]),
+                Vector3::new(
+                    g.random_range(-300.0..300.0),
+                    g.random_range(-300.0..300.0),
+                    g.random_range(-300.0..300.0),
+                ),
+            );
+            let x = camera_from_lrf.transform(&c);
+            let beam = BeamOnBall {
+                reading,
+                radius: 20.0,
+                sigma: 10.0,
+                servo_zero_deg: mount.servo_zero_deg,
+                ball: 0,
+                extrinsic: 0,
+                mount: 1,
+            };
+            let th = mount.to_params();
+            let values = [
+                Value::Point(&x),
+                Value::Pose(&camera_from_lrf),
+                Value::Vector(&th),
+            ];
+            let worst = check_residual_jacobians(&beam, &values, 1e-6).expect("defined");
+            assert!(worst < 1e-6, "worst relative difference {worst:e}");
+            checked += 1;
+        }
+        assert!(checked > 50, "{checked}");
     }
 
     /// An exact reading of a sphere, made through the same mount, has no residual; through

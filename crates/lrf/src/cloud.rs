@@ -95,6 +95,24 @@ impl Cloud {
         }
     }
 
+    /// The same beams through another mount (an estimated one): each reading's point and
+    /// ray origin again. None for a cloud without readings (PLY, PCD, XYZ files).
+    pub fn through(&self, mount: &MountModel) -> Option<Cloud> {
+        let readings = self.readings.as_ref()?;
+        let (points, origins) = readings
+            .iter()
+            .map(|r| {
+                let pose = mount.scanner_at(r.servo_deg);
+                (pose.point(r.range_mm, r.alpha_rad), pose.origin())
+            })
+            .unzip();
+        Some(Cloud {
+            points,
+            origins: Some(origins),
+            readings: Some(readings.clone()),
+        })
+    }
+
     /// Builds a cloud from a stream of scans.
     pub fn from_scans<I>(header: &ScanHeader, scans: I, mount: &MountModel) -> Result<Cloud>
     where

@@ -9,7 +9,7 @@
 
 use super::layout::{BlockCols, Layout};
 use crate::problem::{Problem, ProblemError};
-use crate::residual::{block_values, Residual};
+use crate::residual::{Block, Residual, Value};
 use nalgebra::{DMatrix, Matrix2x3, Vector2};
 use pingcal_geometry::skew;
 use rayon::prelude::*;
@@ -301,4 +301,19 @@ pub(crate) fn linearize(
         .sum();
     lin.cost = cost + constraints;
     Ok(())
+}
+
+/// The values of `blocks` in `problem` (None for an index out of range).
+fn block_values<'a>(problem: &'a Problem, blocks: &[Block]) -> Option<Vec<Value<'a>>> {
+    blocks
+        .iter()
+        .map(|b| match *b {
+            Block::Point(p) => problem.points.get(p).map(|x| Value::Point(&x.position)),
+            Block::Pose(i) => problem
+                .images
+                .get(i)
+                .map(|im| Value::Pose(&im.camera_from_object)),
+            Block::Parameter(k) => problem.parameters.get(k).map(|pb| pb.as_value()),
+        })
+        .collect()
 }

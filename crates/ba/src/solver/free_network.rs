@@ -99,7 +99,7 @@ pub(crate) fn precision(
     let (standardized_residuals, redundancy_numbers, constraint_q) =
         standardized_residuals(layout, lin, &j, &q, &r);
     let (distance_redundancy_numbers, residual_redundancy_numbers, residual_standardized) =
-        super::precision::split_constraint_redundancy(problem, lin, constraint_q);
+        super::sigma::split_constraint_redundancy(problem, lin, constraint_q);
     let (parameters_covariance, parameter_offsets) =
         parameters_covariance(problem, layout, s02, |i, j| q[(i, j)]);
     Ok(Precision {

@@ -307,7 +307,7 @@ fn assemble(
         })
         .collect();
     let (distance_redundancy_numbers, residual_redundancy_numbers, residual_standardized) =
-        split_constraint_redundancy(problem, lin, constraint_q);
+        super::sigma::split_constraint_redundancy(problem, lin, constraint_q);
     let (parameters_covariance, parameter_offsets) =
         parameters_covariance(problem, layout, s02, |i, j| q[(i, j)]);
     Precision {
@@ -328,31 +328,6 @@ fn assemble(
         parameters_covariance,
         parameter_offsets,
     }
-}
-
-/// From every constraint's redundancy numbers (in the order of [`Problem::constraints`]):
-/// the distances' (one each), and the redundancy numbers and standardized residuals of
-/// [`Problem::residuals`] (the control points' are not given).
-pub(crate) fn split_constraint_redundancy(
-    problem: &Problem,
-    lin: &Linearization,
-    mut q: Vec<Vec<f64>>,
-) -> (Vec<f64>, Vec<Vec<f64>>, Vec<Vec<f64>>) {
-    let first_residual = problem.distances.len() + problem.point_priors.len();
-    let residuals = q.split_off(first_residual);
-    let distances = q
-        .iter()
-        .take(problem.distances.len())
-        .map(|v| v[0])
-        .collect();
-    let standardized = (residuals.iter().zip(&lin.constraints[first_residual..]))
-        .map(|(qv, c)| {
-            (qv.iter().zip(&c.r))
-                .map(|(&q, &r)| if q > 1e-9 { r / q.sqrt() } else { f64::NAN })
-                .collect()
-        })
-        .collect();
-    (distances, residuals, standardized)
 }
 
 /// The rows of M = W V⁻¹ of free point `f`: (row of the reduced system, its 3 values), one

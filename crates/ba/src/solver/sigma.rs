@@ -7,6 +7,7 @@
 //! fixed (minimal or more constraints), and [`free_network`](super::free_network) for a free
 //! network (inner constraints). Both stand on this module, which uses neither.
 
+use super::evaluate::Linearization;
 use super::layout::Layout;
 use crate::problem::{Problem, ProblemError};
 use nalgebra::{DMatrix, Matrix3, Matrix6, Vector3};
@@ -264,4 +265,29 @@ pub(crate) fn pose_sigmas(
             })
         })
         .collect()
+}
+
+/// From every constraint's redundancy numbers (in the order of [`Problem::constraints`]):
+/// the distances' (one each), and the redundancy numbers and standardized residuals of
+/// [`Problem::residuals`] (the control points' are not given).
+pub(crate) fn split_constraint_redundancy(
+    problem: &Problem,
+    lin: &Linearization,
+    mut q: Vec<Vec<f64>>,
+) -> (Vec<f64>, Vec<Vec<f64>>, Vec<Vec<f64>>) {
+    let first_residual = problem.distances.len() + problem.point_priors.len();
+    let residuals = q.split_off(first_residual);
+    let distances = q
+        .iter()
+        .take(problem.distances.len())
+        .map(|v| v[0])
+        .collect();
+    let standardized = (residuals.iter().zip(&lin.constraints[first_residual..]))
+        .map(|(qv, c)| {
+            (qv.iter().zip(&c.r))
+                .map(|(&q, &r)| if q > 1e-9 { r / q.sqrt() } else { f64::NAN })
+                .collect()
+        })
+        .collect();
+    (distances, residuals, standardized)
 }
