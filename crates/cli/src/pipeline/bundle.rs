@@ -159,14 +159,17 @@ fn unusable_distances(project: &Project, scene: &Scene) -> Result<Vec<String>> {
         }
     }
     if warnings.len() == f.distances.len() {
+        // targets unidentified in the oriented images: a principal distance no lens has
+        // (a value in µm or in pixels) is the likeliest cause, and is named
         return Err(PipelineError::new(format!(
-            "{}: no distance is left to fix the scale of the network: {}",
+            "{}: no distance is left to fix the scale of the network: {}{}",
             project.path.display(),
             if warnings.is_empty() {
                 "the project has no [[distances]]".to_string()
             } else {
                 warnings.join("; ")
-            }
+            },
+            super::matching::implausible_principal_distance(project).unwrap_or_default()
         )));
     }
     Ok(warnings)

@@ -275,17 +275,50 @@ pub fn extrinsics(
     opts: &Options,
     rep: &Reporter,
 ) -> Result<Extrinsics> {
+    let method = project.file.method;
+    run_methods(
+        project,
+        (scene, adj, lrf, dets),
+        opts,
+        rep,
+        method.spheres(),
+        method.corner(),
+    )
+}
+
+/// The matching and the sphere method only (no corner baseline): the joint adjustment's
+/// start when it looks at the LRF again through its estimated mount.
+pub fn spheres_only(
+    project: &Project,
+    scene: &Scene,
+    adj: &Adjusted,
+    lrf: &LrfData,
+    dets: &Detections,
+    opts: &Options,
+    rep: &Reporter,
+) -> Result<Extrinsics> {
+    run_methods(project, (scene, adj, lrf, dets), opts, rep, true, false)
+}
+
+/// The matching, then the sphere method and the corner baseline where asked.
+fn run_methods(
+    project: &Project,
+    (scene, adj, lrf, dets): (&Scene, &Adjusted, &LrfData, &Detections),
+    opts: &Options,
+    rep: &Reporter,
+    with_spheres: bool,
+    with_corner: bool,
+) -> Result<Extrinsics> {
     let f = &project.file;
-    let method = f.method;
     let cam_balls = camera_balls(scene, adj);
     let m = match_spheres(project, scene, lrf, &cam_balls, rep)?;
     let check_ids = check_balls(&f.balls.check, &m, rep);
-    let spheres = if method.spheres() {
+    let spheres = if with_spheres {
         Some(sphere_method(project, &m, &check_ids, rep)?)
     } else {
         None
     };
-    let corner = if method.corner() {
+    let corner = if with_corner {
         let r = corner_method(project, scene, lrf, dets, opts, &m, &check_ids);
         match &r {
             Ok(c) => rep.log(format!(
@@ -295,7 +328,7 @@ pub fn extrinsics(
                 c.check.rows.len()
             )),
             Err(e) => {
-                if !method.spheres() {
+                if !with_spheres {
                     return Err(PipelineError::new(format!("corner baseline: {e}")));
                 }
                 rep.log(format!("corner baseline failed: {e}"));

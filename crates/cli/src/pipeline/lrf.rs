@@ -175,6 +175,42 @@ pub fn lrf_spheres(project: &Project, opts: &Options, rep: &Reporter) -> Result<
             RangeNoise::from_datasheet(l.accuracy_near_mm, l.accuracy_far_fraction, 3.0)
         }
     };
+    pb.finish();
+    Ok(spheres_in(project, cloud, scans, mount, noise, opts, rep))
+}
+
+/// The spheres of `lrf`'s beams seen through another mount (the joint adjustment's
+/// estimate): the cloud made again from the readings, and the balls found in it. None for a
+/// cloud without readings.
+pub fn through_mount(
+    project: &Project,
+    lrf: &LrfData,
+    mount: MountModel,
+    opts: &Options,
+    rep: &Reporter,
+) -> Option<LrfData> {
+    let cloud = lrf.cloud.through(&mount)?;
+    Some(spheres_in(
+        project,
+        cloud,
+        lrf.scans.clone(),
+        mount,
+        lrf.noise,
+        opts,
+        rep,
+    ))
+}
+
+/// The balls found in `cloud` (made through `mount`), logged.
+fn spheres_in(
+    project: &Project,
+    cloud: Cloud,
+    scans: Option<(ScanHeader, Vec<ScanLine>)>,
+    mount: MountModel,
+    noise: RangeNoise,
+    opts: &Options,
+    rep: &Reporter,
+) -> LrfData {
     let found = find_balls(
         &cloud,
         &FinderOptions {
@@ -187,7 +223,6 @@ pub fn lrf_spheres(project: &Project, opts: &Options, rep: &Reporter) -> Result<
             ..FinderOptions::default()
         },
     );
-    pb.finish();
     let mut s0: Vec<f64> = found.balls.iter().map(|b| b.sigma0).collect();
     s0.sort_by(|a, b| a.total_cmp(b));
     let mut inl: Vec<usize> = found.balls.iter().map(|b| b.inliers.len()).collect();
@@ -216,13 +251,13 @@ pub fn lrf_spheres(project: &Project, opts: &Options, rep: &Reporter) -> Result<
             r.cluster_points, r.centre.x, r.centre.y, r.centre.z, r.reason
         ));
     }
-    Ok(LrfData {
+    LrfData {
         cloud,
         found,
         scans,
         mount,
         noise,
-    })
+    }
 }
 
 #[cfg(test)]

@@ -738,7 +738,7 @@ fn factor(x: f64) -> String {
 
 /// The first camera whose initial principal distance is under 0.1 or over 20 sensor
 /// widths (a 600 mm lens on a 36 mm sensor is 17), as an error clause.
-fn implausible_principal_distance(project: &Project) -> Option<String> {
+pub(super) fn implausible_principal_distance(project: &Project) -> Option<String> {
     project.file.cameras.iter().enumerate().find_map(|(k, c)| {
         let width = c.width as f64 * c.pixel_size_mm;
         let rel = c.initial.c_mm / width;

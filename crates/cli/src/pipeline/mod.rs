@@ -123,7 +123,7 @@ pub fn calibrate(project: &Project, opts: &Options, rep: &Reporter) -> Result<Ou
     timing.push(("extrinsic".into(), t.elapsed().as_secs_f64()));
     let t = std::time::Instant::now();
     let joint = if project.file.method.joint() {
-        let r = run_joint(project, &dets, &scene, &adjusted, &lrf, &ext, rep);
+        let r = run_joint(project, (&dets, &scene, &adjusted), &lrf, &ext, opts, rep);
         if let Err(e) = &r {
             rep.log(format!("joint adjustment failed: {e}"));
         }
@@ -189,30 +189,86 @@ pub struct Stages<'a> {
     pub joint: &'a Option<std::result::Result<joint::JointOutcome, String>>,
 }
 
+/// Passes of the joint adjustment that look at the LRF again through the mount the pass
+/// before estimated, at most.
+pub const JOINT_REFINEMENTS: usize = 3;
+
 /// Step 7 from the outcomes of the steps before it: the sphere method's extrinsic is the
 /// start, the project's mount the start of the mount.
+///
+/// When the joint adjustment finds the mount significantly off its start (an estimate more
+/// than 3σ from it), or the cloud it saw shows a mount error (a fifth or more of the beams
+/// judged grazing, balls seen twice, spheres that match no ball), the cloud the spheres were
+/// found in was distorted by it: a ball seen twice, a ball missed, grazing judged at a wrong
+/// centre. So the cloud is made again from the readings through the estimated mount, its
+/// spheres found and matched again, and the joint adjustment run again from its own
+/// estimate (grazing judged there; its priors still at the project's mount), until a pass
+/// needs neither or after [`JOINT_REFINEMENTS`] such
+/// passes. The two-step method's results stay
+/// those of the project's mount: they are the paper's method as the user gave it.
 fn run_joint(
     project: &Project,
-    dets: &scene::Detections,
-    scene: &scene::Scene,
-    adjusted: &bundle::Adjusted,
+    (dets, scene, adjusted): (&scene::Detections, &scene::Scene, &bundle::Adjusted),
     lrf: &lrf::LrfData,
     ext: &extrinsic::Extrinsics,
+    opts: &Options,
     rep: &Reporter,
 ) -> std::result::Result<joint::JointOutcome, String> {
     let Some(ev) = &ext.spheres else {
         return Err("it starts from the sphere method, which did not run".into());
     };
-    let input = joint::JointInput {
-        project,
-        dets,
-        scene,
-        adj: adjusted,
-        lrf,
-        ext,
-        start: ev.registration.camera_from_lrf.rigid(),
-        mount0: lrf.mount,
-        noise: lrf.noise,
+    let pass = |lrf: &lrf::LrfData,
+                ext: &extrinsic::Extrinsics,
+                start: pingcal_geometry::Rigid3,
+                pass: usize| {
+        let input = joint::JointInput {
+            project,
+            dets,
+            scene,
+            adj: adjusted,
+            lrf,
+            ext,
+            start,
+            mount0: lrf.mount,
+            prior: lrf::mount_of(project),
+            pass,
+            noise: lrf.noise,
+        };
+        joint::joint_adjustment(&input, rep).map_err(|e| e.0)
     };
-    joint::joint_adjustment(&input, rep).map_err(|e| e.0)
+    let mut out = pass(lrf, ext, ev.registration.camera_from_lrf.rigid(), 1)?;
+    let mut start_mount = lrf.mount;
+    for k in 1..=JOINT_REFINEMENTS {
+        let why = match out.distorted_cloud() {
+            Some(why) => why,
+            None if out.moved_mount(&start_mount, 3.0) => {
+                "the mount is off its start by more than 3σ".to_string()
+            }
+            None => break,
+        };
+        rep.log(format!(
+            "joint: {why}: the LRF spheres again through the estimated mount (pass {})",
+            k + 1
+        ));
+        let Some(lrf2) = lrf::through_mount(project, lrf, out.mount_model, opts, rep) else {
+            break;
+        };
+        let again = extrinsic::spheres_only(project, scene, adjusted, &lrf2, dets, opts, rep)
+            .map_err(|e| e.0)
+            .and_then(|ext2| pass(&lrf2, &ext2, out.camera_from_lrf, k + 1));
+        match again {
+            Ok(o) => {
+                start_mount = lrf2.mount;
+                out = o;
+            }
+            Err(e) => {
+                rep.log(format!(
+                    "joint: pass {} failed ({e}): the pass before stands",
+                    k + 1
+                ));
+                break;
+            }
+        }
+    }
+    Ok(out)
 }

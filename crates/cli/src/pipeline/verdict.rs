@@ -160,13 +160,12 @@ pub fn judge(st: &Stages) -> Verdict {
         });
     });
     reasons.extend(unmatched(st));
-    let kept_twice = st
-        .lrf
-        .found
-        .balls
-        .iter()
-        .filter(|b| b.support.seen_twice)
-        .count();
+    let kept_twice = match st.joint {
+        Some(Ok(j)) => j.lrf_view.seen_twice_kept,
+        _ => (st.lrf.found.balls.iter())
+            .filter(|b| b.support.seen_twice)
+            .count(),
+    };
     if kept_twice >= SEEN_TWICE_MIN {
         let why = format!("{kept_twice} LRF sphere(s) were seen twice (as many beams pass through each as meet it): the cloud's mount model is off, which the joint adjustment estimates");
         if matches!(st.joint, Some(Ok(_))) {
@@ -442,12 +441,18 @@ fn correlation_test(st: &Stages, test: &mut Test) {
 /// Check balls the project names that were not judged, and spheres matched to no ball.
 fn unmatched(st: &Stages) -> Vec<String> {
     let mut out = Vec::new();
-    let judged: Vec<&str> = st
-        .ext
-        .spheres
-        .iter()
-        .flat_map(|e| e.check.rows.iter().map(|r| r.id.as_str()))
-        .collect();
+    // the joint adjustment's own view of the LRF when its result is the one given (it may
+    // have looked at the cloud again through its estimated mount)
+    let joint = match st.joint {
+        Some(Ok(j)) => Some(j),
+        _ => None,
+    };
+    let judged: Vec<&str> = match joint {
+        Some(j) => j.check.rows.iter().map(|r| r.id.as_str()).collect(),
+        None => (st.ext.spheres.iter())
+            .flat_map(|e| e.check.rows.iter().map(|r| r.id.as_str()))
+            .collect(),
+    };
     for id in &st.project.file.balls.check {
         if st.ext.spheres.is_some() && !judged.contains(&id.as_str()) {
             out.push(format!(
@@ -464,19 +469,26 @@ fn unmatched(st: &Stages) -> Vec<String> {
             ));
         }
     }
-    let twice = st
-        .lrf
-        .found
-        .rejected
-        .iter()
-        .filter(|r| r.seen_twice)
-        .count();
+    let twice = joint.map_or_else(
+        || {
+            st.lrf
+                .found
+                .rejected
+                .iter()
+                .filter(|r| r.seen_twice)
+                .count()
+        },
+        |j| j.lrf_view.seen_twice_rejected,
+    );
     if twice >= SEEN_TWICE_MIN {
         out.push(format!(
             "{twice} LRF candidate(s) were seen twice (as many beams pass through each as meet it): the points of one ball from different servo angles do not coincide, as under a wrong LRF mount model ([lrf] mount_offset_mm, tilts, servo zero); method = \"joint\" (the default) or \"all\" estimates it"
         ));
     }
-    let extra = st.lrf.found.balls.len().saturating_sub(st.ext.pairs.len());
+    let extra = joint.map_or_else(
+        || st.lrf.found.balls.len().saturating_sub(st.ext.pairs.len()),
+        |j| j.lrf_view.spheres.saturating_sub(j.lrf_view.matched),
+    );
     if extra > 0 {
         out.push(format!(
             "{extra} sphere(s) found in the LRF cloud match no ball of the photogrammetric model (spurious spheres, or balls the images did not measure)"
