@@ -34,12 +34,12 @@ use std::sync::Arc;
 /// A parameter block a [`Residual`] depends on.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Block {
-    /// Object point (index into [`Problem::points`]).
+    /// Object point (index into [`Problem::points`](crate::problem::Problem::points)).
     Point(usize),
-    /// An image's exterior orientation (index into [`Problem::images`]); not a rig member's,
+    /// An image's exterior orientation (index into [`Problem::images`](crate::problem::Problem::images)); not a rig member's,
     /// whose pose follows its base image.
     Pose(usize),
-    /// One of the problem's own parameter blocks (index into [`Problem::parameters`]).
+    /// One of the problem's own parameter blocks (index into [`Problem::parameters`](crate::problem::Problem::parameters)).
     Parameter(usize),
 }
 
@@ -211,7 +211,7 @@ impl ParameterBlock {
 /// σ leaves that component free.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PosePrior {
-    /// Index into [`Problem::images`].
+    /// Index into [`Problem::images`](crate::problem::Problem::images).
     pub image: usize,
     /// The prior `camera_from_object`.
     pub camera_from_object: Rigid3,
@@ -272,7 +272,7 @@ impl Residual for PosePrior {
 /// its σ): `r_i = (v[c_i] − value_i) / σ_i` for each listed component `c_i`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ParameterPrior {
-    /// Index into [`Problem::parameters`] (a [`ParameterValue::Vector`]).
+    /// Index into [`Problem::parameters`](crate::problem::Problem::parameters) (a [`ParameterValue::Vector`]).
     pub parameter: usize,
     /// The components it constrains.
     pub components: Vec<usize>,
