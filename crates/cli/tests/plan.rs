@@ -106,15 +106,17 @@ fn plan_predicts_ranks_removals_and_repeats_itself() {
         let ball = num(&s["ball_sigma_growth"]);
         let t = num(&s["translation_sigma_growth"]);
         // less data can only widen the ball centres' σ (σ0 is estimated, so allow nothing
-        // below 1); the extrinsic's σ is dominated by the LRF side and may move by σ0's
-        // estimate only
+        // below 1); the extrinsic's σ is dominated by the LRF side and may move by the
+        // variance components' estimates only, which the joint adjustment makes for every
+        // group: the balls' (redundancy about 500) has a relative standard error of
+        // 1/√(2·500) ≈ 3 %, so allow 3 of those
         assert!(
             ball > 1.0,
             "removing {} shrank the balls' σ: {s}",
             s["removed"]
         );
         assert!(
-            t > 0.98,
+            t > 0.9,
             "removing {} shrank the extrinsic's σ: {s}",
             s["removed"]
         );
