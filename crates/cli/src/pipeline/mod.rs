@@ -203,9 +203,8 @@ pub const JOINT_REFINEMENTS: usize = 3;
 /// centre. So the cloud is made again from the readings through the estimated mount, its
 /// spheres found and matched again, and the joint adjustment run again from its own
 /// estimate (grazing judged there; its priors still at the project's mount), until a pass
-/// needs neither or after [`JOINT_REFINEMENTS`] such
-/// passes. The two-step method's results stay
-/// those of the project's mount: they are the paper's method as the user gave it.
+/// needs neither or after [`JOINT_REFINEMENTS`] such passes. The two-step method's results
+/// stay those of the project's mount: they are the paper's method as the user gave it.
 fn run_joint(
     project: &Project,
     (dets, scene, adjusted): (&scene::Detections, &scene::Scene, &bundle::Adjusted),
