@@ -224,6 +224,20 @@ pub struct FindResult {
     pub clusters: usize,
 }
 
+impl FindResult {
+    /// Candidates rejected because as many beams pass through them as meet them
+    /// ([`Rejected::seen_twice`]).
+    pub fn seen_twice_rejected(&self) -> usize {
+        self.rejected.iter().filter(|r| r.seen_twice).count()
+    }
+
+    /// Accepted balls that were seen twice ([`Support::seen_twice`], kept under
+    /// [`FinderOptions::keep_seen_twice`]).
+    pub fn seen_twice_kept(&self) -> usize {
+        self.balls.iter().filter(|b| b.support.seen_twice).count()
+    }
+}
+
 fn point_sigma(cloud: &Cloud, noise: &RangeNoise, i: usize) -> f64 {
     noise
         .sigma((cloud.points[i] - cloud.origin(i)).norm())

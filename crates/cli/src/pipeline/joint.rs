@@ -29,11 +29,13 @@
 //! extrinsic's translation along Y: the LRF frame is *defined* with its origin on the servo
 //! axis at the scan plane and its zero at the project's `servo_zero_deg`, so neither is an
 //! unknown. What else the sweep and the field can determine is found from the data
-//! (`estimability`): the adjustment is first run with a weak prior on each asked-for mount
-//! parameter (σ of [`PRIOR_SIGMA`], [`pingcal_ba::ParameterPrior`]); a parameter whose σ
-//! after it is more than [`MAX_PRIOR_SHARE`] of its prior (the data add nothing), or that is
-//! correlated with another unknown at |ρ| > [`MAX_CORRELATION`], is held at its initial value
-//! and named.
+//! (`estimability`): the adjustment is first run with every asked-for mount parameter
+//! estimated under its plausible prior (below); at its solution the cofactors with a weak
+//! prior (σ of [`PRIOR_SIGMA`], [`pingcal_ba::ParameterPrior`]) in place of the plausible one
+//! decide: a parameter whose σ is more than [`MAX_PRIOR_SHARE`] of that prior (the data add
+//! nothing), or that is correlated with another unknown at |ρ| > [`MAX_CORRELATION`], is held
+//! at its start value (the project's, or the estimate of the pass before) and named, one at
+//! a time, and the adjustment is run again without it.
 //!
 //! **A real rig's a-priori knowledge.** Every other parameter is estimated, with a prior of
 //! the plausible size of such an error ([`PLAUSIBLE`], e.g. ±20 mm for a scanner offset) at
@@ -299,10 +301,12 @@ impl Joint {
         Ok((joint, grazing))
     }
 
-    /// The problem with the mount's components `free` estimated, every beam, and a prior
-    /// of σ `prior[k]` on each free component k (at the project's value).
-    fn problem(&self, free: &[bool; 8], prior: &[f64; 8]) -> Problem {
-        let mut p = self.base.clone();
+    /// The problem with the mount's components `free` estimated (the others held at their
+    /// values in `start`), every beam, and a prior of σ `prior[k]` on each free component k
+    /// (at the project's value), its unknowns starting at those of `start` (the bundle's
+    /// solution and the pass's start, or an earlier solution).
+    fn problem_from(&self, start: &Problem, free: &[bool; 8], prior: &[f64; 8]) -> Problem {
+        let mut p = start.clone();
         p.parameters[MOUNT].fixed = free.iter().map(|f| !f).collect();
         p.residuals = (self.beams.iter().cloned())
             .map(ResidualBlock::new)
@@ -358,11 +362,20 @@ fn beam_errors(joint: &Joint, p: &Problem) -> Vec<f64> {
 }
 
 /// Holds, one at a time, the asked-for mount parameters that the data cannot determine
-/// (see the module doc), naming each with its reason.
-fn estimability(joint: &Joint, free: &mut [bool; 8], held: &mut [Option<String>; 8]) -> Result<()> {
+/// (see the module doc), naming each with its reason; judged on the cofactors at the
+/// solution `at` (no new adjustment: the precision with the weak priors in place of the
+/// plausible ones). Returns whether it held any.
+fn estimability(
+    joint: &Joint,
+    at: &Problem,
+    free: &mut [bool; 8],
+    held: &mut [Option<String>; 8],
+) -> Result<bool> {
+    let mut any = false;
     while free.iter().any(|&f| f) {
-        let mut p = joint.problem(free, &PRIOR_SIGMA);
-        let prec = joint.solve(&mut p)?;
+        let p = joint.problem_from(at, free, &PRIOR_SIGMA);
+        let prec = solver::precision(&p)
+            .map_err(|e| PipelineError::new(format!("joint adjustment: {e}")))?;
         // the cofactors of (extrinsic, mount): the covariance with σ0 = 1
         let cov = &prec.parameters_covariance / prec.sigma0.powi(2).max(f64::MIN_POSITIVE);
         let worst = (0..8)
@@ -370,6 +383,7 @@ fn estimability(joint: &Joint, free: &mut [bool; 8], held: &mut [Option<String>;
             .filter_map(|k| not_estimable(k, &cov, free).map(|(rank, why)| (rank, k, why)))
             .max_by(|a, b| a.0.total_cmp(&b.0));
         let Some((_, k, why)) = worst else { break };
+        any = true;
         free[k] = false;
         held[k] = Some(if joint.sweep_deg < FULL_TURN_DEG {
             format!(
@@ -380,7 +394,7 @@ fn estimability(joint: &Joint, free: &mut [bool; 8], held: &mut [Option<String>;
             why
         });
     }
-    Ok(())
+    Ok(any)
 }
 
 /// The adjustment with the plausible-range prior, removing gross beam errors (see the
@@ -389,7 +403,7 @@ fn estimability(joint: &Joint, free: &mut [bool; 8], held: &mut [Option<String>;
 fn final_rounds(joint: &mut Joint, free: &[bool; 8]) -> Result<(Problem, Precision, usize)> {
     let mut rejected = 0;
     for round in 0..=REJECT_ROUNDS {
-        let mut p = joint.problem(free, &PLAUSIBLE);
+        let mut p = joint.problem_from(&joint.base, free, &PLAUSIBLE);
         let prec = joint.solve(&mut p)?;
         // the beams' σ0 from their own redundancy (at least 1), and Baarda's w per beam
         let e = beam_errors(joint, &p);
@@ -469,14 +483,23 @@ pub fn joint_adjustment(input: &JointInput, rep: &Reporter) -> Result<JointOutco
         }
     }
     let (mut joint, grazing) = Joint::build(input)?;
-    estimability(&joint, &mut free, &mut held)?;
+    // every asked-for parameter under its plausible prior, then held where the data do
+    // not determine it, and adjusted again without it
+    let (p, prec, mut rejected) = final_rounds(&mut joint, &free)?;
     pb.advance(1);
+    let any_held = estimability(&joint, &p, &mut free, &mut held)?;
     for (k, why) in held.iter().enumerate() {
         if let (Some(why), true) = (why, asked[k]) {
             rep.log(format!("  joint: {} held: {why}", MOUNT_PARAM_NAMES[k]));
         }
     }
-    let (p, prec, rejected) = final_rounds(&mut joint, &free)?;
+    let (p, prec) = if any_held {
+        let (p, prec, more) = final_rounds(&mut joint, &free)?;
+        rejected += more;
+        (p, prec)
+    } else {
+        (p, prec)
+    };
     pb.advance(1);
     // σ0 with the a-priori σ's of the image points, distances and beams (what the verdict
     // tests): the bundle's χ² and the beams' at the joint solution
@@ -557,12 +580,8 @@ pub fn joint_adjustment(input: &JointInput, rep: &Reporter) -> Result<JointOutco
             pass: input.pass,
             spheres: input.lrf.found.balls.len(),
             matched: input.ext.pairs.len(),
-            seen_twice_rejected: (input.lrf.found.rejected.iter())
-                .filter(|r| r.seen_twice)
-                .count(),
-            seen_twice_kept: (input.lrf.found.balls.iter())
-                .filter(|b| b.support.seen_twice)
-                .count(),
+            seen_twice_rejected: input.lrf.found.seen_twice_rejected(),
+            seen_twice_kept: input.lrf.found.seen_twice_kept(),
         },
     };
     rep.log(format!(

@@ -162,9 +162,7 @@ pub fn judge(st: &Stages) -> Verdict {
     reasons.extend(unmatched(st));
     let kept_twice = match st.joint {
         Some(Ok(j)) => j.lrf_view.seen_twice_kept,
-        _ => (st.lrf.found.balls.iter())
-            .filter(|b| b.support.seen_twice)
-            .count(),
+        _ => st.lrf.found.seen_twice_kept(),
     };
     if kept_twice >= SEEN_TWICE_MIN {
         let why = format!("{kept_twice} LRF sphere(s) were seen twice (as many beams pass through each as meet it): the cloud's mount model is off, which the joint adjustment estimates");
@@ -470,14 +468,7 @@ fn unmatched(st: &Stages) -> Vec<String> {
         }
     }
     let twice = joint.map_or_else(
-        || {
-            st.lrf
-                .found
-                .rejected
-                .iter()
-                .filter(|r| r.seen_twice)
-                .count()
-        },
+        || st.lrf.found.seen_twice_rejected(),
         |j| j.lrf_view.seen_twice_rejected,
     );
     if twice >= SEEN_TWICE_MIN {
