@@ -562,7 +562,23 @@ fn examine(
             seen_twice: false,
         })
     };
-    match sphere_fit::fit_along_ray(&rays, radius, init, &opt.fit) {
+    // a consensus start a centimetre off can lose the ball in the first passes of the fit
+    // (a cluster with clutter beside the ball): then the orthogonal fit's start is tried
+    let fitted = match sphere_fit::fit_along_ray(&rays, radius, init, &opt.fit) {
+        Ok(f) if f.used.len() >= opt.min_inliers => Ok(f),
+        first if init.is_some() => {
+            match (
+                first,
+                sphere_fit::fit_along_ray(&rays, radius, None, &opt.fit),
+            ) {
+                (Ok(a), Ok(b)) if b.used.len() <= a.used.len() => Ok(a),
+                (_, Ok(b)) => Ok(b),
+                (first, Err(_)) => first,
+            }
+        }
+        first => first,
+    };
+    match fitted {
         Err(e) => reject(init.unwrap_or(mean), format!("no sphere fit: {e}")),
         Ok(f) if f.used.len() < opt.min_inliers => reject(
             f.centre,

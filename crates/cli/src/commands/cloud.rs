@@ -188,8 +188,22 @@ pub fn run(args: Args) -> CmdResult {
         }
         for (k, b) in found.balls.iter().enumerate() {
             let (c, s) = (b.centre, &b.support);
+            // the free fit fails or runs off where the range noise is a fair part of the
+            // radius (see `ball_finder`): the radius is then not determined by the cap
+            let nominal = args.diameter_mm / 2.0;
+            let free_radius = if s.free_radius_mm.is_finite()
+                && s.sigma_free_radius_mm.is_finite()
+                && (nominal / 3.0..=3.0 * nominal).contains(&s.free_radius_mm)
+            {
+                format!("{:.1} ± {:.1} mm", s.free_radius_mm, s.sigma_free_radius_mm)
+            } else {
+                format!(
+                    "not determined (range σ {:.1} mm against a {nominal:.1} mm radius)",
+                    s.range_sigma_mm
+                )
+            };
             println!(
-                "ball L{}: ({:.1}, {:.1}, {:.1}) mm, {} of {} cluster points on it, σ₀ {:.2}; free radius {:.1} ± {:.1} mm; {} beams meet it, {} pass through; {} of 8 sectors covered; ring beside it at its front's depth {:08b}",
+                "ball L{}: ({:.1}, {:.1}, {:.1}) mm, {} of {} cluster points on it, σ₀ {:.2}; free radius {free_radius}; {} beams meet it, {} pass through; {} of 8 sectors covered; ring beside it at its front's depth {:08b}",
                 k + 1,
                 c.x,
                 c.y,
@@ -197,8 +211,6 @@ pub fn run(args: Args) -> CmdResult {
                 b.inliers.len(),
                 b.cluster_points,
                 b.sigma0,
-                s.free_radius_mm,
-                s.sigma_free_radius_mm,
                 s.on_surface,
                 s.through,
                 s.coverage,
