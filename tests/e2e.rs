@@ -160,6 +160,10 @@ fn calibrate_simulated_project() {
         &truth["extrinsic"]["translation_mm"],
         "truth.extrinsic.translation_mm",
     );
+    // in the frame the calibration defines: origin on the servo axis at the scan plane
+    // (`pingcal_sim::Truth::extrinsic_as_calibrated`)
+    let offset_y = truth["lrf_mount"]["offset_mm"][1].as_f64().unwrap_or(0.0);
+    let true_t: [f64; 3] = std::array::from_fn(|k| true_t[k] + true_rot[k][1] * offset_y);
     // Each component within 5σ + 0.5 mm: if the reported σ is honest, a 5σ deviation of a
     // normal error happens about once in 1.7 million, so this does not fail by chance; the
     // 0.5 mm floor covers the error of the photogrammetric frame itself (datum of the main

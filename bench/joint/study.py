@@ -7,7 +7,7 @@
 For each seed: `pingcal simulate` with the true mount and range errors as `[lrf]` keys
 (`random`: offsets ±20 mm per axis, tilts ±1°, servo scale ±0.5 %, range offset ±25 mm,
 drawn from Python's Mersenne Twister seeded by 1000 + seed; `realistic`: offset (3, −2, 8)
-mm, tilts 0.3° and −0.2°, range offset +12 mm; `none`), and any extra `[lrf]` lines, `pingcal calibrate`, then per method (joint, spheres, corner): the mean check-point
+mm, tilts 0.3° and −0.2°, range offset +12 mm, the simulator's default; `none`: `mount_errors = false`), and any extra `[lrf]` lines, `pingcal calibrate`, then per method (joint, spheres, corner): the mean check-point
 error, |Δt|, ΔR, the extrinsic's error over its σ per component (t x y z, ω φ κ), and for
 the joint method each mount parameter's (estimate − truth)/σ. Prints one table per study and
 writes the rows as JSON (--json).
@@ -71,7 +71,9 @@ def run_seed(args, seed):
             f.write(f"servo_scale = {g.uniform(-0.005, 0.005):.6f}\n")
             f.write(f"range_offset_mm = {g.uniform(-25, 25):.2f}\n")
         elif args.mount_errors == "realistic":
-            f.write("mount_offset_mm = [3.0, -2.0, 8.0]\nmount_tilt_x_deg = 0.3\nmount_tilt_z_deg = -0.2\nrange_offset_mm = 12.0\n")
+            pass  # the simulator's default: offset (3, −2, 8) mm, tilts 0.3° and −0.2°, range offset +12 mm
+        else:
+            f.write("mount_errors = false\n")
         for line in args.extra:
             f.write(line + "\n")
     sim = os.path.join(work, "sim")

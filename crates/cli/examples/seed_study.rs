@@ -81,7 +81,7 @@ fn main() {
                 continue;
             }
         };
-        let tp = truth.extrinsic.to_pose();
+        let tp = truth.extrinsic_as_calibrated().to_pose();
         let mut line = format!("{seed:>4}");
         let mut row = |m: &pipeline::results::MethodJson| -> Option<(f64, f64, f64, [f64; 6])> {
             let e = m.extrinsic.as_ref()?;

@@ -426,6 +426,14 @@ pub struct LrfConfig {
     pub extrinsic_opk_deg: [f64; 3],
     /// Extrinsic translation t.
     pub extrinsic_t_mm: [f64; 3],
+    /// The scanner is mounted as a real one is (true, the default): off its servo axis by
+    /// `mount_offset_mm`, its scan plane tilted, its servo angle scaled and its ranges offset
+    /// and scaled by the keys below, whose defaults are a realistic rig's (offset (3, −2, 8)
+    /// mm, tilts 0.3° and −0.2°, range offset +12 mm; published rotating-LRF calibrations
+    /// find offsets of up to ±15 mm and tilts of tenths of a degree). False: the ideal rig
+    /// of the paper's eq. 2, every one of them zero (a key set to anything else is then
+    /// refused).
+    pub mount_errors: bool,
     /// Offset of the 2D scanner's centre from the servo shaft, in the rotating frame
     /// (eq. 2 assumes zero; a real gimbal is never perfect).
     pub mount_offset_mm: [f64; 3],
@@ -442,6 +450,17 @@ pub struct LrfConfig {
     /// Switch range and servo noise off (for tests).
     pub noise: bool,
 }
+
+/// The default mount and range errors of the simulated scanner ([`LrfConfig::mount_errors`]).
+pub const REALISTIC_MOUNT: MountModel = MountModel {
+    offset_mm: [3.0, -2.0, 8.0],
+    tilt_x_deg: 0.3,
+    tilt_z_deg: -0.2,
+    servo_zero_deg: 0.0,
+    servo_scale: 0.0,
+    range_offset_mm: 12.0,
+    range_scale: 0.0,
+};
 
 impl Default for LrfConfig {
     fn default() -> Self {
@@ -469,12 +488,13 @@ impl Default for LrfConfig {
             // Paper Table 2: the LRF frame is close to the camera frame, offset by ~(70, 10, 90) mm.
             extrinsic_opk_deg: [0.8, -1.2, 0.6],
             extrinsic_t_mm: [72.0, 12.0, 91.0],
-            mount_offset_mm: [0.0, 0.0, 0.0],
-            mount_tilt_x_deg: 0.0,
-            mount_tilt_z_deg: 0.0,
-            servo_scale: 0.0,
-            range_offset_mm: 0.0,
-            range_scale: 0.0,
+            mount_errors: true,
+            mount_offset_mm: REALISTIC_MOUNT.offset_mm,
+            mount_tilt_x_deg: REALISTIC_MOUNT.tilt_x_deg,
+            mount_tilt_z_deg: REALISTIC_MOUNT.tilt_z_deg,
+            servo_scale: REALISTIC_MOUNT.servo_scale,
+            range_offset_mm: REALISTIC_MOUNT.range_offset_mm,
+            range_scale: REALISTIC_MOUNT.range_scale,
             noise: true,
         }
     }
@@ -496,6 +516,9 @@ impl LrfConfig {
     /// the project file the simulator writes leaves it at zero, as a user who does not know
     /// it would).
     pub fn mount(&self) -> MountModel {
+        if !self.mount_errors {
+            return MountModel::default();
+        }
         MountModel {
             offset_mm: self.mount_offset_mm,
             tilt_x_deg: self.mount_tilt_x_deg,
@@ -997,6 +1020,39 @@ fn validate_lrf_servo(l: &LrfConfig) -> Result<(), ConfigError> {
     }
     finite3("lrf.extrinsic_opk_deg", l.extrinsic_opk_deg)?;
     finite3("lrf.extrinsic_t_mm", l.extrinsic_t_mm)?;
+    if !l.mount_errors {
+        let d = REALISTIC_MOUNT;
+        for (key, v, default) in [
+            (
+                "lrf.mount_offset_mm[0]",
+                l.mount_offset_mm[0],
+                d.offset_mm[0],
+            ),
+            (
+                "lrf.mount_offset_mm[1]",
+                l.mount_offset_mm[1],
+                d.offset_mm[1],
+            ),
+            (
+                "lrf.mount_offset_mm[2]",
+                l.mount_offset_mm[2],
+                d.offset_mm[2],
+            ),
+            ("lrf.mount_tilt_x_deg", l.mount_tilt_x_deg, d.tilt_x_deg),
+            ("lrf.mount_tilt_z_deg", l.mount_tilt_z_deg, d.tilt_z_deg),
+            ("lrf.servo_scale", l.servo_scale, d.servo_scale),
+            ("lrf.range_offset_mm", l.range_offset_mm, d.range_offset_mm),
+            ("lrf.range_scale", l.range_scale, d.range_scale),
+        ] {
+            if v != default && v != 0.0 {
+                return Err(ConfigError::new(
+                    key,
+                    v,
+                    "lrf.mount_errors = false makes every mount and range error zero: remove this key, or set mount_errors = true",
+                ));
+            }
+        }
+    }
     finite3("lrf.mount_offset_mm", l.mount_offset_mm)?;
     for (k, v) in l.mount_offset_mm.iter().enumerate() {
         if v.abs() > 100.0 {

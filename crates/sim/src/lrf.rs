@@ -110,7 +110,7 @@ fn culling_caps(scene_lrf: &Scene, cfg: &LrfConfig) -> Vec<Cap> {
             0.5 * b.stem_length + b.radius + b.stem_radius,
         ));
     }
-    let slack = V3::from(cfg.mount_offset_mm).norm() + 1.0;
+    let slack = V3::from(cfg.mount().offset_mm).norm() + 1.0;
     let half_beam = 0.5 * cfg.beam_width_deg.to_radians();
     bounds
         .iter()

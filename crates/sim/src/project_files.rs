@@ -187,6 +187,21 @@ pub struct Truth {
     pub surfaces: Vec<TruthSurface>,
 }
 
+impl Truth {
+    /// The true extrinsic in the LRF frame a calibration defines: origin on the servo axis
+    /// at the scan plane (`pingcal::pipeline::joint`), i.e. the truth's frame moved along the
+    /// servo axis (Y) by the mount's `offset_y`, which no calibration can tell from the
+    /// extrinsic's ty: `t' = t + R·(0, offset_y, 0)`. Compare estimates with this one.
+    pub fn extrinsic_as_calibrated(&self) -> PoseJson {
+        let mut e = self.extrinsic;
+        let oy = self.lrf_mount.offset_mm[1];
+        for k in 0..3 {
+            e.translation_mm[k] += e.rotation[k][1] * oy;
+        }
+        e
+    }
+}
+
 /// What was written.
 #[derive(Debug, Clone)]
 pub struct ProjectSummary {
@@ -272,7 +287,7 @@ pub fn truth_of(sim: &Simulation) -> Truth {
         extrinsic: PoseJson::from_pose(&ext),
         world_to_photogrammetric: PoseJson::from_pose(&w2p),
         world_to_lrf: PoseJson::from_pose(&w2l),
-        lrf_mount_offset_mm: sim.config.lrf.mount_offset_mm,
+        lrf_mount_offset_mm: sim.config.lrf.mount().offset_mm,
         lrf_mount: sim.config.lrf.mount(),
         cameras: sim
             .rig

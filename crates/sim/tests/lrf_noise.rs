@@ -50,6 +50,8 @@ fn ranges_on_a_flat_wall_have_the_datasheet_mean_and_spread() {
         servo_start_deg: -40.0,
         servo_end_deg: 40.0,
         servo_step_deg: 1.0,
+        // the ideal mount: these tests compare the readings with the scene's geometry
+        mount_errors: false,
         ..LrfConfig::default()
     };
     let scans = simulate_scans(&scene, &cfg, 42);
@@ -112,6 +114,8 @@ fn dark_surfaces_give_no_return_and_servo_angles_are_encoder_steps() {
         servo_start_deg: -5.0,
         servo_end_deg: 5.0,
         servo_step_deg: 1.0,
+        // the ideal mount: these tests compare the readings with the scene's geometry
+        mount_errors: false,
         ..LrfConfig::default()
     };
     let scans = simulate_scans(&scene, &cfg, 1);
@@ -157,6 +161,8 @@ fn a_continuous_sweep_reads_back_with_each_beam_at_its_own_servo_angle() {
         servo_step_deg: 5.0, // 50°/s: 3.3° of travel over a scan's 682 beams
         continuous_sweep: true,
         noise: false,
+        // the ideal mount: these tests compare the readings with the scene's geometry
+        mount_errors: false,
         ..LrfConfig::default()
     };
     let scans = simulate_scans(&scene, &cfg, 7);

@@ -80,7 +80,7 @@ pub fn run(args: Args) -> CmdResult {
 }
 
 fn print_table(r: &pipeline::results::Results, truth: &pingcal_sim::Truth) {
-    let te: PoseJson = truth.extrinsic;
+    let te: PoseJson = truth.extrinsic_as_calibrated();
     let true_t = te.to_pose();
     println!();
     println!("Table 4 — check points (mm); dx = estimated − reference (photogrammetric)");
@@ -155,7 +155,7 @@ fn print_table(r: &pipeline::results::Results, truth: &pingcal_sim::Truth) {
     }
     println!("{mean}");
     println!();
-    println!("Extrinsic (p_camera = R p_lrf + t) against the truth");
+    println!("Extrinsic (p_camera = R p_lrf + t) against the truth (the LRF frame's origin on the servo axis at the scan plane, as a calibration defines it)");
     println!(
         "{:<9} {:>26} {:>22} {:>9} {:>26} {:>9} {:>14}",
         "", "t (mm)", "σ t (mm)", "|Δt| mm", "ω φ κ (°)", "ΔR (°)", "σ ω φ κ (°)"

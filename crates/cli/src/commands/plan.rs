@@ -247,7 +247,7 @@ fn judge_run(seed: u64, o: &Outcome, truth: &pingcal_sim::Truth) -> Result<SeedR
     let (Some(st), Some(sr)) = (e.sigma_translation_mm, e.sigma_rotation_deg) else {
         return Err("the calibration reported no σ for its extrinsic".into());
     };
-    let te = &truth.extrinsic;
+    let te = &truth.extrinsic_as_calibrated();
     let error_translation_mm = std::array::from_fn(|k| e.translation_mm[k] - te.translation_mm[k]);
     let error_rotation_deg = std::array::from_fn(|k| angle_diff(e.opk_deg[k], te.opk_deg[k]));
     let (mut s2, mut e2, mut n) = ([0.0; 3], [0.0; 3], 0usize);
