@@ -228,6 +228,7 @@ pub fn parse_bal<R: BufRead>(reader: R, path: &str) -> Result<Problem, BalError>
             name: p.to_string(),
             position: Vector3::new(x, y, z),
             fixed: false,
+            fixed_axes: [false; 3],
         });
     }
     t.expect_end(&format!(

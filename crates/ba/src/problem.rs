@@ -69,8 +69,46 @@ pub struct Point {
     pub name: String,
     /// Object-space coordinates.
     pub position: Vector3<f64>,
-    /// Held fixed (e.g. a fixed control point).
+    /// Held fixed (e.g. a fixed control point): all three coordinates.
     pub fixed: bool,
+    /// Coordinates held one by one, `[X, Y, Z]` (e.g. only the height of a levelled point,
+    /// or single coordinates of a minimal datum); `fixed` holds all three whatever these
+    /// say. A held coordinate is not an unknown: its step is exactly 0, its σ is 0.
+    pub fixed_axes: [bool; 3],
+}
+
+impl Point {
+    /// A point with every coordinate free.
+    pub fn new(name: impl Into<String>, position: Vector3<f64>) -> Self {
+        Self {
+            name: name.into(),
+            position,
+            fixed: false,
+            fixed_axes: [false; 3],
+        }
+    }
+
+    /// Per coordinate (X, Y, Z): held, by `fixed` or by `fixed_axes`.
+    pub fn held(&self) -> [bool; 3] {
+        std::array::from_fn(|k| self.fixed || self.fixed_axes[k])
+    }
+
+    /// All three coordinates held: the point is no unknown at all.
+    pub fn is_held(&self) -> bool {
+        self.held().iter().all(|h| *h)
+    }
+
+    /// Some coordinates held and some free.
+    pub fn is_partly_held(&self) -> bool {
+        let h = self.held();
+        h.iter().any(|x| *x) && !h.iter().all(|x| *x)
+    }
+
+    /// Indices (0 = X, 1 = Y, 2 = Z) of the free coordinates, in order.
+    pub fn free_axes(&self) -> Vec<usize> {
+        let h = self.held();
+        (0..3).filter(|&k| !h[k]).collect()
+    }
 }
 
 /// An image measurement of a point, with its standard deviation in pixels.

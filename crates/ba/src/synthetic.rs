@@ -318,5 +318,6 @@ fn observe(
         name: p.to_string(),
         position: *x,
         fixed: false,
+        fixed_axes: [false; 3],
     });
 }

@@ -431,6 +431,9 @@ impl<'a> State<'a> {
                 pt.position = x;
                 // Control points are held only when the frame is the control frame.
                 pt.fixed = pt.fixed && self.control_frame && self.known[j];
+                if !self.control_frame {
+                    pt.fixed_axes = [false; 3];
+                }
                 sub.points.push(pt);
             }
         }
@@ -1209,6 +1212,7 @@ mod tests {
                 name: format!("T{k}"),
                 position: p,
                 fixed: false,
+                fixed_axes: [false; 3],
             });
         }
         let target = Vector3::new(700.0, 700.0, 500.0);
@@ -1546,6 +1550,7 @@ mod tests {
                 name: format!("L{k}"),
                 position: Vector3::zeros(),
                 fixed: false,
+                fixed_axes: [false; 3],
             });
             p.observations.push(Observation {
                 image: 12,
@@ -1584,6 +1589,7 @@ mod tests {
             name: "narrow".into(),
             position: Vector3::zeros(),
             fixed: false,
+            fixed_axes: [false; 3],
         });
         known.push(false);
         let cam = &truth.cameras[0];

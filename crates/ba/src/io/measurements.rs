@@ -617,6 +617,7 @@ impl Builder {
             name: name.to_string(),
             position: Vector3::zeros(),
             fixed: false,
+            fixed_axes: [false; 3],
         });
         self.problem.points.len() - 1
     }

@@ -270,11 +270,10 @@ pub(crate) fn linearize(
                     col += 1;
                 }
             }
-            if layout.point_slot[o.point].is_some() {
-                for k in 0..3 {
-                    j0[col + k] = jp[(0, k)];
-                    j1[col + k] = jp[(1, k)];
-                }
+            // A point in the reduced system: the columns of its free coordinates only.
+            for (k, &axis) in layout.point_axes[o.point].iter().enumerate() {
+                j0[col + k] = jp[(0, axis)];
+                j1[col + k] = jp[(1, axis)];
             }
             for m in 0..3 {
                 let (a, b) = (jp[(0, m)], jp[(1, m)]);

@@ -5,7 +5,10 @@
 //! used by a single image with a free pose are folded into that image's block (the BAL
 //! case: one 9-parameter block per image), which keeps the reduced system's blocks few and
 //! dense. Free points are eliminated by the Schur complement; fixed points only add to the
-//! camera blocks.
+//! camera blocks. A point with some coordinates held ([`crate::problem::Point::fixed_axes`])
+//! joins the reduced system with a block of its free coordinates only: the held columns of
+//! its Jacobian are not unknowns at all, so their step is exactly 0 in every solver path,
+//! and their cofactors are 0.
 //!
 //! The reduced matrix S is stored as the upper triangle of a scalar CSC matrix whose
 //! pattern (block column b holds the blocks a ≤ b that share an observation or a point
@@ -64,8 +67,12 @@ pub(crate) struct Layout {
     pub image_slot: Vec<Option<Slot>>,
     pub camera_slot: Vec<Option<Slot>>,
     /// Free points kept in the reduced system (those joined by a measured distance, which
-    /// couples two points and so cannot be eliminated point by point).
+    /// couples two points and so cannot be eliminated point by point, and those with some
+    /// coordinates held).
     pub point_slot: Vec<Option<Slot>>,
+    /// Per point in the reduced system: its free coordinates (0 = X, 1 = Y, 2 = Z), one per
+    /// row of its slot in order; empty for the other points.
+    pub point_axes: Vec<Vec<usize>>,
     /// Rig member images: (rig, base image). Their pose has no block of its own.
     pub image_rig: Vec<Option<(usize, usize)>>,
     /// Rigs with a free relative pose.
@@ -150,6 +157,7 @@ impl Layout {
             image_slot: blocks.image_slot,
             camera_slot: blocks.camera_slot,
             point_slot: blocks.point_slot,
+            point_axes: blocks.point_axes,
             image_rig: blocks.image_rig,
             rig_slot: blocks.rig_slot,
             parameter_slot: blocks.parameter_slot,
@@ -253,6 +261,13 @@ impl Layout {
         std::array::from_fn(|m| &w[base + m * nc..base + m * nc + len])
     }
 
+    /// The free coordinates of point `p` in the reduced system and their rows:
+    /// `(axis, row)`; none for a point not in it.
+    pub fn point_rows(&self, p: usize) -> impl Iterator<Item = (usize, usize)> + '_ {
+        let o = self.point_slot[p].map_or(0, |s| self.slot_offset(s));
+        (self.point_axes[p].iter().enumerate()).map(move |(k, &axis)| (axis, o + k))
+    }
+
     /// Scalar offset of a slot in the reduced system.
     #[inline]
     pub fn slot_offset(&self, s: Slot) -> usize {
@@ -300,6 +315,7 @@ struct Blocks {
     image_slot: Vec<Option<Slot>>,
     camera_slot: Vec<Option<Slot>>,
     point_slot: Vec<Option<Slot>>,
+    point_axes: Vec<Vec<usize>>,
     image_rig: Vec<Option<(usize, usize)>>,
     rig_slot: Vec<Option<Slot>>,
     parameter_slot: Vec<Option<Slot>>,
@@ -321,8 +337,9 @@ struct ObsColumns {
 impl Blocks {
     /// Numbers the blocks: images with a free pose (with their camera's intrinsics when
     /// no other image uses it), then the other free cameras, the free rigs, the problem's
-    /// parameter blocks with a free component, and the free points that a constraint couples
-    /// to anything else (joined by a distance, touched by a residual with other blocks).
+    /// parameter blocks with a free component, the free points that a constraint couples
+    /// to anything else (joined by a distance, touched by a residual with other blocks),
+    /// and the points with some coordinates held (a block of their free coordinates).
     fn assign(problem: &Problem) -> Self {
         let camera_free: Vec<Vec<usize>> =
             problem.cameras.iter().map(|c| c.free_indices()).collect();
@@ -370,6 +387,14 @@ impl Blocks {
             .map(|free| (!free.is_empty()).then(|| new_block(free.len())))
             .collect();
         let mut point_slot = vec![None; problem.points.len()];
+        let mut point_axes = vec![Vec::new(); problem.points.len()];
+        let mut add_point = |p: usize, point_slot: &mut Vec<Option<Slot>>| {
+            let pt = &problem.points[p];
+            if !pt.is_held() && point_slot[p].is_none() {
+                point_axes[p] = pt.free_axes();
+                point_slot[p] = Some(new_block(point_axes[p].len()));
+            }
+        };
         for (residual, _) in problem.constraints() {
             let blocks = residual.blocks();
             if let [Block::Point(_)] = blocks[..] {
@@ -377,10 +402,13 @@ impl Blocks {
             }
             for b in blocks {
                 if let Block::Point(p) = b {
-                    if !problem.points[p].fixed && point_slot[p].is_none() {
-                        point_slot[p] = Some(new_block(3));
-                    }
+                    add_point(p, &mut point_slot);
                 }
+            }
+        }
+        for (p, pt) in problem.points.iter().enumerate() {
+            if pt.is_partly_held() {
+                add_point(p, &mut point_slot);
             }
         }
         let mut offset = Vec::with_capacity(dim.len());
@@ -396,6 +424,7 @@ impl Blocks {
             image_slot,
             camera_slot,
             point_slot,
+            point_axes,
             image_rig,
             rig_slot,
             parameter_slot,
@@ -417,7 +446,7 @@ impl Blocks {
                         Block::Point(p) => match (self.point_slot[p], free_point_index[p]) {
                             (Some(s), _) => BlockCols {
                                 place: Place::Reduced(s),
-                                cols: vec![0, 1, 2],
+                                cols: self.point_axes[p].clone(),
                             },
                             (None, f) if f != u32::MAX => BlockCols {
                                 place: Place::Eliminated(f),
@@ -516,7 +545,7 @@ impl Blocks {
             push(s, self.camera_free[camera].len() as u16);
         }
         if let Some(s) = self.point_slot[o.point] {
-            push(s, 3);
+            push(s, self.point_axes[o.point].len() as u16);
         }
         (segs, ns, ncols)
     }
@@ -552,7 +581,7 @@ fn internal_order(problem: &Problem, blocks: &Blocks) -> Vec<u32> {
     obs_order
 }
 
-/// The free points eliminated by the Schur complement (not fixed, not in the reduced
+/// The free points eliminated by the Schur complement (not held, not in the reduced
 /// system), numbered in the internal observation order (so that per-point data is read
 /// sequentially too), then those nobody observes: `(free index per point or u32::MAX,
 /// point per free index)`.
@@ -565,7 +594,10 @@ fn number_free_points(
     let mut free_points = Vec::new();
     let observed = observations.iter().map(|o| o.point);
     for p in observed.chain(0..problem.points.len()) {
-        if !problem.points[p].fixed && point_slot[p].is_none() && free_point_index[p] == u32::MAX {
+        if !problem.points[p].is_held()
+            && point_slot[p].is_none()
+            && free_point_index[p] == u32::MAX
+        {
             free_point_index[p] = free_points.len() as u32;
             free_points.push(p);
         }

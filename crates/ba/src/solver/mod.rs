@@ -537,10 +537,10 @@ fn predicted_decrease(
 }
 
 fn apply_step(problem: &mut Problem, layout: &Layout, dc: &[f64], dp: &[Vector3<f64>]) {
-    for (p, slot) in layout.point_slot.iter().enumerate() {
-        if let Some(s) = slot {
-            let o = layout.slot_offset(*s);
-            problem.points[p].position += Vector3::new(dc[o], dc[o + 1], dc[o + 2]);
+    for p in 0..layout.point_slot.len() {
+        // Only the free coordinates move: a held one keeps its value exactly.
+        for (axis, row) in layout.point_rows(p) {
+            problem.points[p].position[axis] += dc[row];
         }
     }
     for (r, slot) in layout.rig_slot.iter().enumerate() {
@@ -622,6 +622,7 @@ mod tests {
                     -0.3 + 0.1 * k as f64,
                 ),
                 fixed: k == 5,
+                fixed_axes: [false; 3],
             })
             .collect();
         let mut observations = Vec::new();

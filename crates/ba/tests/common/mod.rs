@@ -78,6 +78,7 @@ pub fn truth() -> Problem {
             name: format!("P{p}"),
             position: *x,
             fixed: false,
+            fixed_axes: [false; 3],
         })
         .collect();
     // Datum: four well-spread control points held fixed.

@@ -209,6 +209,7 @@ impl SceneProblem {
                 name: p.name.clone(),
                 position: p.position,
                 fixed: false,
+                fixed_axes: [false; 3],
             });
             for d in obs {
                 let c = scene.camera_of[d.image];
