@@ -16,7 +16,7 @@
 //! Coordinates held one by one ([`crate::problem::Point::fixed_axes`]) are counted by the
 //! similarity they fix. With the network moved by `X ↦ X + t + ω × (X − c) + s (X − c)`
 //! (c the centroid of what is held, 7 parameters `(t, ω, s)`), each held coordinate a of a
-//! point X is one linear equation `t_a + (ω × (X − c))_a + s (X − c)_a = 0` on them; a
+//! point X (or of an image's projection centre) is one linear equation `t_a + (ω × (X − c))_a + s (X − c)_a = 0` on them; a
 //! fully fixed or weighted control point gives three, a fixed image six (its centre, and
 //! `ω = 0` for its orientation), a distance or a fixed rig one (`s = 0`). The datum is
 //! defined when these equations have rank 7: e.g. X, Y, Z of one point, X, Y, Z of another
@@ -40,7 +40,8 @@ pub enum Datum {
         fixed_images: usize,
         /// Rigs held fixed.
         fixed_rigs: usize,
-        /// Single coordinates held of points that are not held whole.
+        /// Single coordinates held: of points that are not held whole, and of the
+        /// projection centres of images that are not fixed.
         held_coordinates: usize,
     },
     /// By inner constraints on the object points (a free network).
@@ -124,14 +125,22 @@ pub fn check(problem: &Problem, free_network: bool) -> Result<Datum, DatumError>
     let partly: Vec<usize> = (0..problem.points.len())
         .filter(|&p| problem.points[p].is_partly_held())
         .collect();
+    let centres: Vec<usize> = (0..problem.images.len())
+        .filter(|&i| problem.images[i].is_centre_held())
+        .collect();
     let held_coordinates: usize = (partly.iter())
         .map(|&p| 3 - problem.points[p].free_axes().len())
+        .chain(
+            centres
+                .iter()
+                .map(|&i| 3 - problem.images[i].free_centre_axes().len()),
+        )
         .sum();
     if held_coordinates > 0 {
         given.push(format!(
             "{} ({})",
             plural(held_coordinates, "held coordinate", "held coordinates"),
-            held_list(problem, &partly)
+            held_list(problem, &partly, &centres)
         ));
     }
     if free_network {
@@ -197,19 +206,26 @@ pub fn check(problem: &Problem, free_network: bool) -> Result<Datum, DatumError>
     Ok(datum)
 }
 
-/// The held coordinates of the partly held points `partly`, by name: `Z of 'P3', X, Y of
-/// 'P7'` (the first 6 points, then how many more).
-fn held_list(problem: &Problem, partly: &[usize]) -> String {
-    let mut parts: Vec<String> = (partly.iter().take(6))
-        .map(|&p| {
-            let pt = &problem.points[p];
-            let h = pt.held();
-            let axes: Vec<&str> = (0..3).filter(|&a| h[a]).map(|a| AXES[a]).collect();
-            format!("{} of '{}'", axes.join(", "), pt.name)
-        })
-        .collect();
-    if partly.len() > 6 {
-        parts.push(format!("{} more points", partly.len() - 6));
+/// The held coordinates of the partly held points `partly` and of the image centres
+/// `centres`, by name: `Z of 'P3'; X, Y of 'P7'; X, Y, Z of the centre of 'S00'` (the first
+/// 6, then how many more).
+fn held_list(problem: &Problem, partly: &[usize], centres: &[usize]) -> String {
+    let axes = |h: [bool; 3]| -> String {
+        let names: Vec<&str> = (0..3).filter(|&a| h[a]).map(|a| AXES[a]).collect();
+        names.join(", ")
+    };
+    let points = partly.iter().map(|&p| {
+        let pt = &problem.points[p];
+        format!("{} of '{}'", axes(pt.held()), pt.name)
+    });
+    let images = centres.iter().map(|&i| {
+        let im = &problem.images[i];
+        format!("{} of the centre of '{}'", axes(im.fixed_centre), im.name)
+    });
+    let all: Vec<String> = points.chain(images).collect();
+    let mut parts: Vec<String> = all.iter().take(6).cloned().collect();
+    if all.len() > 6 {
+        parts.push(format!("{} more", all.len() - 6));
     }
     parts.join("; ")
 }
@@ -242,6 +258,12 @@ fn open_motions(problem: &Problem) -> Vec<nalgebra::SVector<f64, 7>> {
         .map(|i| i.camera_from_object.centre())
         .collect();
     held.extend(fixed_images.iter().map(|c| (*c, [true; 3])));
+    // A held centre coordinate moves with the network as a point's does.
+    held.extend(
+        (problem.images.iter())
+            .filter(|i| i.is_centre_held())
+            .map(|i| (i.camera_from_object.centre(), i.fixed_centre)),
+    );
     let n = held.len().max(1) as f64;
     let c = held.iter().map(|(x, _)| x).sum::<Vector3<f64>>() / n;
     let spread = (held
@@ -407,6 +429,7 @@ mod tests {
                 camera: 0,
                 camera_from_object: Default::default(),
                 fixed: true,
+                fixed_centre: [false; 3],
             }],
             points: points(&[[0.0, 0.0, 5.0], [1.0, 0.0, 5.0]], false),
             ..Problem::default()

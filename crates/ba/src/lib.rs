@@ -60,6 +60,7 @@
 //!         camera: 0,
 //!         camera_from_object: *pose, // here the truth; in practice from `initial`
 //!         fixed: false,
+//!         fixed_centre: [false; 3],
 //!     });
 //! }
 //! for (p, x) in targets.iter().enumerate() {

@@ -60,6 +60,24 @@ pub struct Image {
     pub camera_from_object: Rigid3,
     /// Pose held fixed.
     pub fixed: bool,
+    /// Coordinates of the projection centre `C = −Rᵀt` held one by one, `[X, Y, Z]` (the
+    /// rotation stays free); `fixed` holds the whole pose whatever these say. Such an image
+    /// is adjusted in the unknowns `(δω, δC)` — `R ← exp([δω]×) R`, `C ← C + δC`,
+    /// `t = −R C` — of which the held coordinates of δC are not unknowns at all. Not for a
+    /// rig member (its pose follows its base image).
+    pub fixed_centre: [bool; 3],
+}
+
+impl Image {
+    /// Some centre coordinates held (and the pose not fixed as a whole).
+    pub fn is_centre_held(&self) -> bool {
+        !self.fixed && self.fixed_centre.iter().any(|h| *h)
+    }
+
+    /// Indices (0 = X, 1 = Y, 2 = Z) of the free centre coordinates, in order.
+    pub fn free_centre_axes(&self) -> Vec<usize> {
+        (0..3).filter(|&k| !self.fixed_centre[k]).collect()
+    }
 }
 
 /// An object point.
@@ -385,6 +403,14 @@ impl Problem {
                 }
                 member_of[m.image] = true;
             }
+        }
+        if let Some(i) = (0..self.images.len())
+            .find(|&i| member_of[i] && self.images[i].fixed_centre.iter().any(|h| *h))
+        {
+            return Err(ProblemError::BadConstraint(format!(
+                "image '{}' holds centre coordinates but is a rig member, whose pose follows its base image: hold the base image's centre",
+                self.images[i].name
+            )));
         }
         for rig in &self.rigs {
             if let Some(m) = rig.members.iter().find(|m| member_of[m.base]) {

@@ -337,3 +337,122 @@ fn every_solver_reaches_the_same_minimum() {
         }
     }
 }
+
+/// Poses: X, Y, Z of the projection centres of S00 and S07 and Z of P70 are a minimal datum
+/// (no point held whole, no fixed image). It solves with the held centre coordinates in
+/// place to rounding (the pose is stored as (R, t), the centre recomputed), gives the point
+/// datum's network up to a similarity and the same intrinsics' σ, a held centre coordinate
+/// has σ 0, the datum check counts the centre coordinates, and the dense, sparse and
+/// iterative solvers agree, also with a pose prior on an image whose centre is held (the
+/// residual's Jacobian taken to the unknowns (δω, δC)).
+#[test]
+fn held_centre_coordinates_are_an_exact_datum() {
+    let t = truth();
+    let centred = |seed: u64, prior: bool| {
+        let mut p = network(Some(seed), &[(70, [false, false, true])]);
+        for (i, axes) in [
+            (0usize, [true; 3]),
+            (7, [true; 3]),
+            (3, [false, false, true]),
+        ] {
+            if i == 3 && !prior {
+                continue;
+            }
+            let pose = p.images[i].camera_from_object;
+            let mut c = pose.centre();
+            let ct = t.images[i].camera_from_object.centre();
+            for a in (0..3).filter(|&a| axes[a]) {
+                c[a] = ct[a];
+            }
+            p.images[i].camera_from_object =
+                pingcal_geometry::Rigid3::from_rotation_and_centre(pose.rotation, c);
+            p.images[i].fixed_centre = axes;
+        }
+        if prior {
+            p.residuals
+                .push(pingcal_ba::ResidualBlock::new(pingcal_ba::PosePrior {
+                    image: 7,
+                    camera_from_object: t.images[7].camera_from_object,
+                    sigma_rotation: Vector3::repeat(1e-3),
+                    sigma_centre: Vector3::repeat(f64::INFINITY),
+                }));
+        }
+        p
+    };
+    let mut p = centred(13, false);
+    assert_eq!(
+        check(&p, false),
+        Ok(Datum::Given {
+            fixed_control: 0,
+            weighted_control: 0,
+            fixed_images: 0,
+            fixed_rigs: 0,
+            held_coordinates: 7,
+        })
+    );
+    let mut six = p.clone();
+    six.points[70].fixed_axes = [false; 3];
+    assert!(check(&six, false)
+        .unwrap_err()
+        .to_string()
+        .contains("6 held coordinates (X, Y, Z of the centre of 'S00'; X, Y, Z of the centre of 'S07') leave 1 degree of freedom"));
+    let start = p.clone();
+    solve(&mut p, &options(LinearSolverKind::Sparse), |_| {}).unwrap();
+    let mut drift: f64 = 0.0;
+    for i in [0usize, 7] {
+        let (c0, c1) = (
+            start.images[i].camera_from_object.centre(),
+            p.images[i].camera_from_object.centre(),
+        );
+        drift = drift.max((c0 - c1).amax());
+    }
+    println!("largest drift of a held centre coordinate: {drift:.2e} mm");
+    assert!(drift < 1e-9, "{drift}");
+    assert_held(&start, &p);
+    let mut a = network(Some(13), &DATUM_A);
+    solve(&mut a, &options(LinearSolverKind::Sparse), |_| {}).unwrap();
+    let misfit = similarity_misfit(&positions(&a), &positions(&p));
+    println!("centre datum vs point datum: similarity misfit {misfit:.2e} of the spread");
+    assert!(misfit < 1e-6, "{misfit}");
+    let (pp, pa) = (precision(&p).unwrap(), precision(&a).unwrap());
+    let s = pp.poses[0].as_ref().unwrap();
+    assert_eq!(s.centre, [0.0; 3]);
+    assert!(s.rotation_rad.iter().all(|v| *v > 0.0));
+    assert!(pp.poses[1]
+        .as_ref()
+        .unwrap()
+        .centre
+        .iter()
+        .all(|v| *v > 0.0));
+    assert_eq!(pp.redundancy, pa.redundancy);
+    let worst = (pp.intrinsics[0].sigmas.iter().zip(&pa.intrinsics[0].sigmas))
+        .map(|(x, y)| relative(*x, *y))
+        .fold(0.0, f64::max);
+    println!("intrinsics σ, centre vs point datum: largest relative difference {worst:.2e}");
+    assert!(worst < 1e-6, "{worst}");
+    // Every solver, with a partly held centre and a prior on a held-centre image.
+    let base = centred(17, true);
+    let mut results = Vec::new();
+    for kind in [
+        LinearSolverKind::Dense,
+        LinearSolverKind::Sparse,
+        LinearSolverKind::Iterative,
+    ] {
+        let mut q = base.clone();
+        let s = solve(&mut q, &options(kind), |_| {}).unwrap();
+        let dz = (q.images[3].camera_from_object.centre().z
+            - base.images[3].camera_from_object.centre().z)
+            .abs();
+        assert!(dz < 1e-9, "{kind}: held Z of S03 moved by {dz}");
+        results.push((kind, s.final_cost, q));
+    }
+    let (_, cost0, q0) = &results[0];
+    for (kind, cost, q) in &results[1..] {
+        assert!(relative(*cost, *cost0) < 1e-9, "{kind}: {cost} vs {cost0}");
+        let worst = (q.points.iter().zip(&q0.points))
+            .map(|(a, b)| (a.position - b.position).norm())
+            .fold(0.0, f64::max);
+        println!("{kind} (held centres): largest point difference to dense {worst:.2e} mm");
+        assert!(worst < 3e-3, "{kind}: {worst}");
+    }
+}

@@ -37,6 +37,7 @@ fn stereo_truth() -> (Problem, Rigid3) {
             camera: 1,
             camera_from_object: pose,
             fixed: false,
+            fixed_centre: [false; 3],
         });
         members.push(RigMember {
             image: n_left + i,

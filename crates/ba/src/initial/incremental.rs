@@ -420,6 +420,9 @@ impl<'a> State<'a> {
                 image_map[i] = Some(sub.images.len());
                 let mut im = im.clone();
                 im.camera_from_object = pose;
+                if !self.control_frame {
+                    im.fixed_centre = [false; 3];
+                }
                 sub.images.push(im);
             }
         }
@@ -1229,6 +1232,7 @@ mod tests {
                 camera: 0,
                 camera_from_object: look_at(centre, target, rng.random_range(-0.3..0.3)),
                 fixed: false,
+                fixed_centre: [false; 3],
             });
         }
         let n = Normal::new(0.0, noise_px).unwrap();
@@ -1544,6 +1548,7 @@ mod tests {
             camera: 0,
             camera_from_object: Rigid3::identity(),
             fixed: false,
+            fixed_centre: [false; 3],
         });
         for k in 0..2 {
             p.points.push(Point {

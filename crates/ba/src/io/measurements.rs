@@ -596,6 +596,7 @@ impl Builder {
                 camera,
                 camera_from_object: im.pose.map(|p| p.to_pose()).unwrap_or_default(),
                 fixed: im.fixed,
+                fixed_centre: [false; 3],
             });
         }
         if let Some(k) = used_cameras.iter().position(|u| !u) {

@@ -50,7 +50,10 @@ pub(crate) fn point_constraints(x: &Vector3<f64>, d: usize) -> [[f64; 7]; 3] {
 
 /// Whether `problem` has no datum of its own (then inner constraints define one).
 pub(crate) fn is_free(problem: &Problem) -> bool {
-    problem.images.iter().all(|i| !i.fixed)
+    problem
+        .images
+        .iter()
+        .all(|i| !i.fixed && !i.is_centre_held())
         && problem.points.iter().all(|p| !p.held().iter().any(|h| *h))
         && problem.point_priors.is_empty()
         && problem.residuals.is_empty()

@@ -8,7 +8,9 @@
 //! camera blocks. A point with some coordinates held ([`crate::problem::Point::fixed_axes`])
 //! joins the reduced system with a block of its free coordinates only: the held columns of
 //! its Jacobian are not unknowns at all, so their step is exactly 0 in every solver path,
-//! and their cofactors are 0.
+//! and their cofactors are 0. Likewise an image with some centre coordinates held
+//! ([`crate::problem::Image::fixed_centre`]) has a pose block `(δω, δC)` of the rotation
+//! and its free centre coordinates (3 + 0..3 columns) instead of `(δω, δt)`.
 //!
 //! The reduced matrix S is stored as the upper triangle of a scalar CSC matrix whose
 //! pattern (block column b holds the blocks a ≤ b that share an observation or a point
@@ -65,6 +67,9 @@ pub(crate) struct Layout {
     /// Dimension of the reduced system.
     pub n_reduced: usize,
     pub image_slot: Vec<Option<Slot>>,
+    /// Per image with a pose block: `None` for the unknowns `(δω, δt)`, or the free centre
+    /// coordinates of `(δω, δC)` when some are held (see the module doc).
+    pub image_centre_axes: Vec<Option<Vec<usize>>>,
     pub camera_slot: Vec<Option<Slot>>,
     /// Free points kept in the reduced system (those joined by a measured distance, which
     /// couples two points and so cannot be eliminated point by point, and those with some
@@ -155,6 +160,7 @@ impl Layout {
             block_offset: blocks.offset,
             n_reduced: blocks.n_reduced,
             image_slot: blocks.image_slot,
+            image_centre_axes: blocks.image_centre_axes,
             camera_slot: blocks.camera_slot,
             point_slot: blocks.point_slot,
             point_axes: blocks.point_axes,
@@ -261,6 +267,11 @@ impl Layout {
         std::array::from_fn(|m| &w[base + m * nc..base + m * nc + len])
     }
 
+    /// Columns of image `i`'s pose block: 6, or 3 + its free centre coordinates.
+    pub fn pose_dim(&self, i: usize) -> usize {
+        pose_dim(&self.image_centre_axes[i])
+    }
+
     /// The free coordinates of point `p` in the reduced system and their rows:
     /// `(axis, row)`; none for a point not in it.
     pub fn point_rows(&self, p: usize) -> impl Iterator<Item = (usize, usize)> + '_ {
@@ -313,6 +324,7 @@ struct Blocks {
     offset: Vec<usize>,
     n_reduced: usize,
     image_slot: Vec<Option<Slot>>,
+    image_centre_axes: Vec<Option<Vec<usize>>>,
     camera_slot: Vec<Option<Slot>>,
     point_slot: Vec<Option<Slot>>,
     point_axes: Vec<Vec<usize>>,
@@ -357,17 +369,25 @@ impl Blocks {
             }
         };
         let mut image_slot = vec![None; problem.images.len()];
+        let mut image_centre_axes = vec![None; problem.images.len()];
         let mut camera_slot = vec![None; problem.cameras.len()];
         for (i, im) in problem.images.iter().enumerate() {
             if im.fixed || image_rig[i].is_some() {
                 continue;
             }
+            if im.is_centre_held() {
+                image_centre_axes[i] = Some(im.free_centre_axes());
+            }
+            let pd = pose_dim(&image_centre_axes[i]);
             let c = im.camera;
             let own_camera = images_of_camera[c] == 1 && !camera_free[c].is_empty();
-            let slot = new_block(6 + if own_camera { camera_free[c].len() } else { 0 });
+            let slot = new_block(pd + if own_camera { camera_free[c].len() } else { 0 });
             image_slot[i] = Some(slot);
             if own_camera {
-                camera_slot[c] = Some(Slot { off: 6, ..slot });
+                camera_slot[c] = Some(Slot {
+                    off: pd as u16,
+                    ..slot
+                });
             }
         }
         for (c, free) in camera_free.iter().enumerate() {
@@ -422,6 +442,7 @@ impl Blocks {
             offset,
             n_reduced,
             image_slot,
+            image_centre_axes,
             camera_slot,
             point_slot,
             point_axes,
@@ -458,9 +479,16 @@ impl Blocks {
                             },
                         },
                         Block::Pose(i) => match self.image_slot[i] {
+                            // (δω, δC): the residual's Jacobian is taken to these columns
+                            // by `evaluate::constraint_residual`.
                             Some(s) => BlockCols {
                                 place: Place::Reduced(s),
-                                cols: (0..6).collect(),
+                                cols: match &self.image_centre_axes[i] {
+                                    None => (0..6).collect(),
+                                    Some(axes) => {
+                                        (0..3).chain(axes.iter().map(|a| 3 + a)).collect()
+                                    }
+                                },
                             },
                             None => BlockCols {
                                 place: Place::Fixed,
@@ -535,7 +563,7 @@ impl Blocks {
             None => (o.image, None),
         };
         if let Some(s) = self.image_slot[pose_image] {
-            push(s, 6);
+            push(s, pose_dim(&self.image_centre_axes[pose_image]) as u16);
         }
         if let Some(s) = rig {
             push(s, 6);
@@ -549,6 +577,12 @@ impl Blocks {
         }
         (segs, ns, ncols)
     }
+}
+
+/// Columns of a pose block: 6 for `(δω, δt)`, 3 + the free centre coordinates for
+/// `(δω, δC)`.
+fn pose_dim(centre_axes: &Option<Vec<usize>>) -> usize {
+    centre_axes.as_ref().map_or(6, |axes| 3 + axes.len())
 }
 
 /// Per image: `(rig, base image)` when it is a rig member (its pose has no block).

@@ -357,7 +357,7 @@ pub fn free_network_precision_bordered(problem: &Problem) -> Result<Precision, P
     problem.validate()?;
     if !super::free_network::is_free(problem) {
         return Err(PrecisionError::DatumDefect(
-            "not a free network: it has a fixed image, fixed points, control or a fixed rig".into(),
+            "not a free network: it has a fixed image, fixed points, control, held coordinates or a fixed rig".into(),
         ));
     }
     let layout = Layout::new(problem);
@@ -604,7 +604,7 @@ fn describe_unknown(i: usize, problem: &Problem, layout: &Layout) -> String {
     for (im, slot) in layout.image_slot.iter().enumerate() {
         if let Some(s) = slot {
             let o = layout.slot_offset(*s);
-            if (o..o + 6).contains(&i) {
+            if (o..o + layout.pose_dim(im)).contains(&i) {
                 return format!("the pose of image '{}'", problem.images[im].name);
             }
         }

@@ -185,6 +185,7 @@ impl SceneProblem {
                     camera: scene.camera_of[i].0,
                     camera_from_object: pose,
                     fixed: datum == Datum::MainImage && i == main,
+                    fixed_centre: [false; 3],
                 });
             }
         }
