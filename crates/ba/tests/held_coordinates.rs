@@ -10,10 +10,12 @@
 mod common;
 
 use common::{realisation, truth};
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::{DMatrix, Matrix3, Vector3};
 use pingcal_ba::datum::{check, Datum, DatumError};
 use pingcal_ba::problem::{Distance, PointPrior, Problem};
 use pingcal_ba::solver::{precision, solve, LinearSolverKind, Options, PrecisionError};
+use pingcal_ba::{Block, PosePrior, Residual, ResidualBlock, Value};
+use pingcal_geometry::Rigid3;
 
 fn options(kind: LinearSolverKind) -> Options {
     Options {
@@ -454,5 +456,300 @@ fn held_centre_coordinates_are_an_exact_datum() {
             .fold(0.0, f64::max);
         println!("{kind} (held centres): largest point difference to dense {worst:.2e} mm");
         assert!(worst < 3e-3, "{kind}: {worst}");
+    }
+}
+
+/// A point measured in an image's camera frame (a total station or scanner set up at the
+/// station): `r = (R X + t − m) / σ`, one residual on a point block and a pose block.
+#[derive(Debug)]
+struct PointInCamera {
+    point: usize,
+    image: usize,
+    measured: Vector3<f64>,
+    sigma: f64,
+}
+
+impl Residual for PointInCamera {
+    fn dim(&self) -> usize {
+        3
+    }
+    fn blocks(&self) -> Vec<Block> {
+        vec![Block::Point(self.point), Block::Pose(self.image)]
+    }
+    fn evaluate(&self, v: &[Value], r: &mut [f64], j: Option<&mut [DMatrix<f64>]>) -> bool {
+        let (Some(x), Some(pose)) = (v[0].point(), v[1].pose()) else {
+            return false;
+        };
+        let rx = pose.rotation * x;
+        let f = rx + pose.translation;
+        for k in 0..3 {
+            r[k] = (f[k] - self.measured[k]) / self.sigma;
+        }
+        if let Some(j) = j {
+            // ∂/∂X = R, ∂/∂δω = −[R X]×, ∂/∂δt = I.
+            let jw = -pingcal_geometry::skew(&rx);
+            for a in 0..3 {
+                for b in 0..3 {
+                    j[0][(a, b)] = pose.rotation[(a, b)] / self.sigma;
+                    j[1][(a, b)] = jw[(a, b)] / self.sigma;
+                }
+                j[1][(a, 3 + a)] = 1.0 / self.sigma;
+            }
+        }
+        true
+    }
+    fn group(&self) -> &str {
+        "in camera"
+    }
+}
+
+/// One measured coordinate of a point (a levelled height): `r = (X_axis − m) / σ`, a
+/// residual whose only block is a point.
+#[derive(Debug)]
+struct Coordinate {
+    point: usize,
+    axis: usize,
+    measured: f64,
+    sigma: f64,
+}
+
+impl Residual for Coordinate {
+    fn dim(&self) -> usize {
+        1
+    }
+    fn blocks(&self) -> Vec<Block> {
+        vec![Block::Point(self.point)]
+    }
+    fn evaluate(&self, v: &[Value], r: &mut [f64], j: Option<&mut [DMatrix<f64>]>) -> bool {
+        let Some(x) = v[0].point() else {
+            return false;
+        };
+        r[0] = (x[self.axis] - self.measured) / self.sigma;
+        if let Some(j) = j {
+            j[0][(0, self.axis)] = 1.0 / self.sigma;
+        }
+        true
+    }
+    fn group(&self) -> &str {
+        "coordinates"
+    }
+}
+
+/// σ of a coordinate held by a stiff prior instead (mm), and of one left free by it.
+const STIFF: f64 = 1e-5;
+const LOOSE: f64 = 1e7;
+
+/// A measurement of `x` disturbed by `seed` (σ `sigma` per coordinate).
+fn disturbed(x: Vector3<f64>, sigma: f64, seed: u64) -> Vector3<f64> {
+    let mut rng = pingcal_geometry::consensus::rng(seed);
+    let n = rand_distr::Normal::new(0.0, sigma).unwrap();
+    x + Vector3::from_fn(|_, _| rand_distr::Distribution::sample(&n, &mut rng))
+}
+
+/// The largest difference of the point coordinates and projection centres of `a` and `b`
+/// (mm).
+fn largest_difference(a: &Problem, b: &Problem) -> f64 {
+    let points = (a.points.iter().zip(&b.points)).map(|(x, y)| (x.position - y.position).amax());
+    let centres = (a.images.iter().zip(&b.images))
+        .map(|(x, y)| (x.camera_from_object.centre() - y.camera_from_object.centre()).amax());
+    points.chain(centres).fold(0.0, f64::max)
+}
+
+/// (e) Generic residuals (a point in a camera frame: a point block and a pose block; one
+/// measured coordinate: a point block alone) on partly held points give the minimum of the
+/// same problem with those coordinates held by a stiff prior instead: the residuals'
+/// Jacobians reach exactly the free coordinates' columns, in every solver path; the held
+/// coordinates do not move at all.
+#[test]
+fn generic_residuals_on_partly_held_points_agree_with_a_stiff_prior() {
+    let t = truth();
+    let mut held = network(Some(23), &DATUM_A);
+    // Point 33: X held; point 70 (Z held by DATUM_A) and 33 measured from stations 3 and 9,
+    // Y of 33 and Z of 70 (held: a constant residual) measured as coordinates.
+    held.points[33].fixed_axes = [true, false, false];
+    held.points[33].position.x = t.points[33].position.x;
+    for (k, &(point, image)) in [(33usize, 3usize), (70, 9), (33, 9), (21, 4)]
+        .iter()
+        .enumerate()
+    {
+        let x = t.images[image]
+            .camera_from_object
+            .transform(&t.points[point].position);
+        held.residuals.push(ResidualBlock::new(PointInCamera {
+            point,
+            image,
+            measured: disturbed(x, 0.3, 100 + k as u64),
+            sigma: 0.3,
+        }));
+    }
+    for (k, &(point, axis)) in [(33usize, 1usize), (70, 2), (33, 0)].iter().enumerate() {
+        held.residuals.push(ResidualBlock::new(Coordinate {
+            point,
+            axis,
+            measured: t.points[point].position[axis] + 0.4 * (k as f64 - 1.0),
+            sigma: 0.5,
+        }));
+    }
+    // The same problem with the partly held coordinates held by stiff priors instead.
+    let mut stiff = held.clone();
+    for p in [33usize, 70] {
+        let pt = &mut stiff.points[p];
+        let h = pt.held();
+        pt.fixed_axes = [false; 3];
+        stiff.point_priors.push(PointPrior {
+            point: p,
+            position: pt.position,
+            sigma: Vector3::from_fn(|a, _| if h[a] { STIFF } else { LOOSE }),
+        });
+    }
+    let mut reference = stiff.clone();
+    let sr = solve(&mut reference, &options(LinearSolverKind::Dense), |_| {}).unwrap();
+    for kind in [
+        LinearSolverKind::Dense,
+        LinearSolverKind::Sparse,
+        LinearSolverKind::Iterative,
+    ] {
+        let mut p = held.clone();
+        let s = solve(&mut p, &options(kind), |_| {}).unwrap();
+        assert_held(&held, &p);
+        let worst = largest_difference(&p, &reference);
+        println!("{kind}: largest difference to the stiff priors' minimum {worst:.2e} mm");
+        assert!(worst < 1e-4, "{kind}: {worst} mm");
+        // The stiff priors add (almost) nothing at the minimum.
+        assert!(
+            relative(s.final_cost, sr.final_cost) < 1e-6,
+            "{kind}: {} vs {}",
+            s.final_cost,
+            sr.final_cost
+        );
+    }
+    // Without the generic residuals the minimum is a different one: they do take part.
+    let mut bare = held.clone();
+    bare.residuals.clear();
+    solve(&mut bare, &options(LinearSolverKind::Sparse), |_| {}).unwrap();
+    assert!(largest_difference(&bare, &reference) > 1e-2);
+    let pr = precision(&reference).unwrap();
+    let mut p = held.clone();
+    solve(&mut p, &options(LinearSolverKind::Sparse), |_| {}).unwrap();
+    let pp = precision(&p).unwrap();
+    let c = pp.point_covariances[33].unwrap();
+    assert!(c.row(0).iter().chain(c.column(0).iter()).all(|v| *v == 0.0));
+    // In units of σ0: the priors count as observations, so the redundancies differ.
+    let cr = pr.point_covariances[33].unwrap();
+    for a in 1..3 {
+        let (s, sr) = (c[(a, a)].sqrt() / pp.sigma0, cr[(a, a)].sqrt() / pr.sigma0);
+        assert!(relative(s, sr) < 1e-4, "σ of axis {a} of P33: {s} vs {sr}");
+    }
+}
+
+/// (f) An image with a held centre coordinate carries a pose prior on all six components
+/// and a generic residual on its pose (and on a partly held point): the minimum is the one
+/// of the same problem with that coordinate held by a stiff pose prior instead, in every
+/// solver path, so the residuals' Jacobians are taken correctly to the unknowns (δω, δC)
+/// (the prior's centre rows included).
+#[test]
+fn pose_residuals_on_an_image_with_a_held_centre_agree_with_a_stiff_prior() {
+    let t = truth();
+    let mut held = network(Some(29), &DATUM_A);
+    let (image, axes) = (3usize, [false, true, true]);
+    let pose = held.images[image].camera_from_object;
+    let mut c = pose.centre();
+    let ct = t.images[image].camera_from_object.centre();
+    for a in (0..3).filter(|&a| axes[a]) {
+        c[a] = ct[a];
+    }
+    held.images[image].camera_from_object = Rigid3::from_rotation_and_centre(pose.rotation, c);
+    held.images[image].fixed_centre = axes;
+    held.residuals.push(ResidualBlock::new(PosePrior {
+        image,
+        camera_from_object: Rigid3::from_rotation_and_centre(
+            t.images[image].camera_from_object.rotation,
+            disturbed(ct, 4.0, 7),
+        ),
+        sigma_rotation: Vector3::repeat(2e-3),
+        sigma_centre: Vector3::repeat(3.0),
+    }));
+    for (k, point) in [33usize, 70, 21].into_iter().enumerate() {
+        let x = t.images[image]
+            .camera_from_object
+            .transform(&t.points[point].position);
+        held.residuals.push(ResidualBlock::new(PointInCamera {
+            point,
+            image,
+            measured: disturbed(x, 0.5, 200 + k as u64),
+            sigma: 0.5,
+        }));
+    }
+    let mut stiff = held.clone();
+    stiff.images[image].fixed_centre = [false; 3];
+    stiff.residuals.push(ResidualBlock::new(PosePrior {
+        image,
+        camera_from_object: held.images[image].camera_from_object,
+        sigma_rotation: Vector3::repeat(f64::INFINITY),
+        sigma_centre: Vector3::from_fn(|a, _| if axes[a] { STIFF } else { f64::INFINITY }),
+    }));
+    let mut reference = stiff.clone();
+    let sr = solve(&mut reference, &options(LinearSolverKind::Dense), |_| {}).unwrap();
+    for kind in [
+        LinearSolverKind::Dense,
+        LinearSolverKind::Sparse,
+        LinearSolverKind::Iterative,
+    ] {
+        let mut p = held.clone();
+        let s = solve(&mut p, &options(kind), |_| {}).unwrap();
+        assert_held(&held, &p);
+        let (c0, c1) = (
+            held.images[image].camera_from_object.centre(),
+            p.images[image].camera_from_object.centre(),
+        );
+        for a in (0..3).filter(|&a| axes[a]) {
+            assert!(
+                (c0[a] - c1[a]).abs() < 1e-9,
+                "{kind}: held centre {a} moved"
+            );
+        }
+        let worst = largest_difference(&p, &reference);
+        println!("{kind}: largest difference to the stiff prior's minimum {worst:.2e} mm");
+        assert!(worst < 1e-4, "{kind}: {worst} mm");
+        assert!(
+            relative(s.final_cost, sr.final_cost) < 1e-6,
+            "{kind}: {} vs {}",
+            s.final_cost,
+            sr.final_cost
+        );
+        let dw = pingcal_geometry::log_so3(
+            &(p.images[image].camera_from_object.rotation
+                * reference.images[image]
+                    .camera_from_object
+                    .rotation
+                    .transpose()),
+        )
+        .norm();
+        assert!(dw < 1e-8, "{kind}: rotation differs by {dw} rad");
+    }
+    let pp = precision(&{
+        let mut p = held.clone();
+        solve(&mut p, &options(LinearSolverKind::Sparse), |_| {}).unwrap();
+        p
+    })
+    .unwrap();
+    let pr = precision(&reference).unwrap();
+    let (s, sr) = (
+        pp.poses[image].as_ref().unwrap(),
+        pr.poses[image].as_ref().unwrap(),
+    );
+    assert_eq!((s.centre[1], s.centre[2]), (0.0, 0.0));
+    // In units of σ0: the priors count as observations, so the redundancies differ.
+    let (k, kr) = (1.0 / pp.sigma0, 1.0 / pr.sigma0);
+    let x = (s.centre[0] * k, sr.centre[0] * kr);
+    assert!(relative(x.0, x.1) < 1e-4, "centre X σ {} vs {}", x.0, x.1);
+    for a in 0..3 {
+        let w = (s.rotation_rad[a] * k, sr.rotation_rad[a] * kr);
+        assert!(
+            relative(w.0, w.1) < 1e-4,
+            "rotation σ {a}: {} vs {}",
+            w.0,
+            w.1
+        );
     }
 }
