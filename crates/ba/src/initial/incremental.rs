@@ -422,6 +422,13 @@ impl<'a> State<'a> {
                 im.camera_from_object = pose;
                 if !self.control_frame {
                     im.fixed_centre = [false; 3];
+                } else if im.is_centre_held() {
+                    // A held centre coordinate keeps its given value, not the estimate's.
+                    let (mut c, given) = (pose.centre(), p.images[i].camera_from_object.centre());
+                    for a in (0..3).filter(|&a| im.fixed_centre[a]) {
+                        c[a] = given[a];
+                    }
+                    im.camera_from_object = Rigid3::from_rotation_and_centre(pose.rotation, c);
                 }
                 sub.images.push(im);
             }
@@ -436,6 +443,12 @@ impl<'a> State<'a> {
                 pt.fixed = pt.fixed && self.control_frame && self.known[j];
                 if !self.control_frame {
                     pt.fixed_axes = [false; 3];
+                } else {
+                    // A held coordinate keeps its given value, not the estimate's (which
+                    // is an intersection for a point that is not known as a whole).
+                    for a in (0..3).filter(|&a| pt.fixed_axes[a]) {
+                        pt.position[a] = p.points[j].position[a];
+                    }
                 }
                 sub.points.push(pt);
             }
@@ -648,7 +661,16 @@ impl<'a> State<'a> {
         }
         // Without control the datum is the first oriented image (scale from the distances,
         // if any, otherwise left to the damping).
-        let control_datum = sub.points.iter().any(|p| p.fixed) || sub.point_priors.len() >= 3;
+        // Single held coordinates (point or centre) count when they define a datum
+        // themselves; fixing the first image on top would distort the network.
+        let held_datum = (sub
+            .points
+            .iter()
+            .any(|p| !p.fixed && p.held().iter().any(|h| *h))
+            || sub.images.iter().any(|i| i.is_centre_held()))
+            && crate::datum::check(&sub, false).is_ok();
+        let control_datum =
+            sub.points.iter().any(|p| p.fixed) || sub.point_priors.len() >= 3 || held_datum;
         if !control_datum {
             if let Some(first) = sub.images.first_mut() {
                 first.fixed = true;
@@ -1455,6 +1477,32 @@ mod tests {
             assert_eq!(q.points[k].position, truth.points[j].position);
             assert!(q.points[k].fixed);
         }
+    }
+
+    /// In the control frame a held single coordinate keeps its given value: Z of a point
+    /// that is otherwise intersected and X of an image's centre that is otherwise resected
+    /// are not replaced by the estimates, and stay held.
+    #[test]
+    fn held_single_coordinates_keep_their_given_values() {
+        let (truth, mut p, known) = network(2, 0.1);
+        let z = truth.points[10].position.z;
+        p.points[10].position.z = z;
+        p.points[10].fixed_axes = [false, false, true];
+        let c = truth.images[2].camera_from_object.centre();
+        p.images[2].camera_from_object =
+            Rigid3::from_rotation_and_centre(nalgebra::Matrix3::identity(), c);
+        p.images[2].fixed_centre = [true, false, false];
+        let init = initialise(&p, &known, &[], &IncrementalOptions::default()).unwrap();
+        assert!(init.in_control_frame);
+        let q = &init.problem;
+        let pt = &q.points[init.point_map[10].unwrap()];
+        assert_eq!(pt.position.z.to_bits(), z.to_bits());
+        assert_eq!(pt.fixed_axes, [false, false, true]);
+        assert!((pt.position - truth.points[10].position).norm() < 20.0);
+        let im = &q.images[init.image_map[2].unwrap()];
+        assert!((im.camera_from_object.centre().x - c.x).abs() < 1e-9);
+        assert_eq!(im.fixed_centre, [true, false, false]);
+        assert!((im.camera_from_object.centre() - c).norm() < 20.0);
     }
 
     #[test]
