@@ -217,6 +217,7 @@ pub fn parse_bal<R: BufRead>(reader: R, path: &str) -> Result<Problem, BalError>
                 translation: Vector3::new(v[3], v[4], v[5]),
             },
             fixed: false,
+            fixed_centre: [false; 3],
         });
     }
     let mut points = Vec::with_capacity(npts.min(1 << 24));
@@ -228,6 +229,7 @@ pub fn parse_bal<R: BufRead>(reader: R, path: &str) -> Result<Problem, BalError>
             name: p.to_string(),
             position: Vector3::new(x, y, z),
             fixed: false,
+            fixed_axes: [false; 3],
         });
     }
     t.expect_end(&format!(

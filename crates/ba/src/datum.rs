@@ -12,6 +12,17 @@
 //!   nothing giving the scale);
 //! * too much: a free network asked for a network whose datum is already fixed (inner
 //!   constraints on top of control would distort it).
+//!
+//! Coordinates held one by one ([`crate::problem::Point::fixed_axes`]) are counted by the
+//! similarity they fix. With the network moved by `X ↦ X + t + ω × (X − c) + s (X − c)`
+//! (c the centroid of what is held, 7 parameters `(t, ω, s)`), each held coordinate a of a
+//! point X (or of an image's projection centre) is one linear equation `t_a + (ω × (X − c))_a + s (X − c)_a = 0` on them; a
+//! fully fixed or weighted control point gives three, a fixed image six (its centre, and
+//! `ω = 0` for its orientation), a distance or a fixed rig one (`s = 0`). The datum is
+//! defined when these equations have rank 7: e.g. X, Y, Z of one point, X, Y, Z of another
+//! and Z of a third (a *minimal* datum), unless the third lies in the vertical plane through
+//! the first two (a rotation about their line then moves it horizontally only). A rank below
+//! 7 is too little, and the open motions are named.
 
 use crate::problem::Problem;
 use nalgebra::Vector3;
@@ -29,6 +40,9 @@ pub enum Datum {
         fixed_images: usize,
         /// Rigs held fixed.
         fixed_rigs: usize,
+        /// Single coordinates held: of points that are not held whole, and of the
+        /// projection centres of images that are not fixed.
+        held_coordinates: usize,
     },
     /// By inner constraints on the object points (a free network).
     FreeNetwork {
@@ -81,7 +95,7 @@ pub fn check(problem: &Problem, free_network: bool) -> Result<Datum, DatumError>
     let fixed_control: Vec<Vector3<f64>> = problem
         .points
         .iter()
-        .filter(|p| p.fixed)
+        .filter(|p| p.is_held())
         .map(|p| p.position)
         .collect();
     let weighted: Vec<Vector3<f64>> = problem.point_priors.iter().map(|p| p.position).collect();
@@ -108,6 +122,27 @@ pub fn check(problem: &Problem, free_network: bool) -> Result<Datum, DatumError>
     if fixed_rigs > 0 {
         given.push(plural(fixed_rigs, "fixed rig", "fixed rigs"));
     }
+    let partly: Vec<usize> = (0..problem.points.len())
+        .filter(|&p| problem.points[p].is_partly_held())
+        .collect();
+    let centres: Vec<usize> = (0..problem.images.len())
+        .filter(|&i| problem.images[i].is_centre_held())
+        .collect();
+    let held_coordinates: usize = (partly.iter())
+        .map(|&p| 3 - problem.points[p].free_axes().len())
+        .chain(
+            centres
+                .iter()
+                .map(|&i| 3 - problem.images[i].free_centre_axes().len()),
+        )
+        .sum();
+    if held_coordinates > 0 {
+        given.push(format!(
+            "{} ({})",
+            plural(held_coordinates, "held coordinate", "held coordinates"),
+            held_list(problem, &partly, &centres)
+        ));
+    }
     if free_network {
         if !given.is_empty() {
             return Err(DatumError::TooMuch(format!(
@@ -129,7 +164,20 @@ pub fn check(problem: &Problem, free_network: bool) -> Result<Datum, DatumError>
         weighted_control: weighted.len(),
         fixed_images,
         fixed_rigs,
+        held_coordinates,
     };
+    if held_coordinates > 0 {
+        let open = open_motions(problem);
+        if open.is_empty() {
+            return Ok(datum);
+        }
+        return Err(DatumError::TooLittle(format!(
+            "{} leave {} of the network's position, orientation and scale open ({}): 7 independent held coordinates are needed, e.g. X, Y, Z of one point, X, Y, Z of another and one coordinate of a third off their line, or ask for a free network",
+            given.join(", "),
+            plural(open.len(), "degree of freedom", "degrees of freedom"),
+            describe_open(&open)
+        )));
+    }
     if fixed_rigs > 0 || fixed_images >= 2 {
         return Ok(datum);
     }
@@ -158,6 +206,123 @@ pub fn check(problem: &Problem, free_network: bool) -> Result<Datum, DatumError>
     Ok(datum)
 }
 
+/// The held coordinates of the partly held points `partly` and of the image centres
+/// `centres`, by name: `Z of 'P3'; X, Y of 'P7'; X, Y, Z of the centre of 'S00'` (the first
+/// 6, then how many more).
+fn held_list(problem: &Problem, partly: &[usize], centres: &[usize]) -> String {
+    let axes = |h: [bool; 3]| -> String {
+        let names: Vec<&str> = (0..3).filter(|&a| h[a]).map(|a| AXES[a]).collect();
+        names.join(", ")
+    };
+    let points = partly.iter().map(|&p| {
+        let pt = &problem.points[p];
+        format!("{} of '{}'", axes(pt.held()), pt.name)
+    });
+    let images = centres.iter().map(|&i| {
+        let im = &problem.images[i];
+        format!("{} of the centre of '{}'", axes(im.fixed_centre), im.name)
+    });
+    let all: Vec<String> = points.chain(images).collect();
+    let mut parts: Vec<String> = all.iter().take(6).cloned().collect();
+    if all.len() > 6 {
+        parts.push(format!("{} more", all.len() - 6));
+    }
+    parts.join("; ")
+}
+
+const AXES: [&str; 3] = ["X", "Y", "Z"];
+
+/// The 7 motions of a similarity, in the order of the parameters `(t, ω, s)`.
+const MOTIONS: [&str; 7] = [
+    "translation along X",
+    "translation along Y",
+    "translation along Z",
+    "rotation about X",
+    "rotation about Y",
+    "rotation about Z",
+    "scale",
+];
+
+/// A basis of the similarity motions `(t, ω, s)` (see the module doc; ω and s in units of
+/// the spread of what is held) that nothing in `problem` fixes: empty when the datum is
+/// defined.
+fn open_motions(problem: &Problem) -> Vec<nalgebra::SVector<f64, 7>> {
+    // What is held as points: (position, held axes).
+    let mut held: Vec<(Vector3<f64>, [bool; 3])> = (problem.points.iter())
+        .filter(|p| p.held().iter().any(|h| *h))
+        .map(|p| (p.position, p.held()))
+        .collect();
+    held.extend((problem.point_priors.iter()).map(|c| (c.position, [true; 3])));
+    let fixed_images: Vec<Vector3<f64>> = (problem.images.iter())
+        .filter(|i| i.fixed)
+        .map(|i| i.camera_from_object.centre())
+        .collect();
+    held.extend(fixed_images.iter().map(|c| (*c, [true; 3])));
+    // A held centre coordinate moves with the network as a point's does.
+    held.extend(
+        (problem.images.iter())
+            .filter(|i| i.is_centre_held())
+            .map(|i| (i.camera_from_object.centre(), i.fixed_centre)),
+    );
+    let n = held.len().max(1) as f64;
+    let c = held.iter().map(|(x, _)| x).sum::<Vector3<f64>>() / n;
+    let spread = (held
+        .iter()
+        .map(|(x, _)| (x - c).norm_squared())
+        .sum::<f64>()
+        / n)
+        .sqrt();
+    let spread = if spread > 0.0 { spread } else { 1.0 };
+    let mut rows: Vec<[f64; 7]> = Vec::new();
+    for (x, axes) in &held {
+        let x = (x - c) / spread;
+        for a in (0..3).filter(|&a| axes[a]) {
+            let mut row = [0.0; 7];
+            row[a] = 1.0;
+            for k in 0..3 {
+                row[3 + k] = Vector3::ith(k, 1.0).cross(&x)[a];
+            }
+            row[6] = x[a];
+            rows.push(row);
+        }
+    }
+    for _ in &fixed_images {
+        for k in 0..3 {
+            let mut row = [0.0; 7];
+            row[3 + k] = 1.0;
+            rows.push(row);
+        }
+    }
+    let fixed_rigs = problem.rigs.iter().filter(|r| r.fixed).count();
+    if !problem.distances.is_empty() || fixed_rigs > 0 {
+        let mut row = [0.0; 7];
+        row[6] = 1.0;
+        rows.push(row);
+    }
+    // The null space of the equations, from the eigenvectors of AᵀA.
+    let mut ata = nalgebra::SMatrix::<f64, 7, 7>::zeros();
+    for r in &rows {
+        let v = nalgebra::SVector::<f64, 7>::from_column_slice(r);
+        ata += v * v.transpose();
+    }
+    let eig = ata.symmetric_eigen();
+    let max = eig.eigenvalues.max().max(1.0);
+    (0..7)
+        .filter(|&k| eig.eigenvalues[k] < 1e-12 * max)
+        .map(|k| eig.eigenvectors.column(k).into_owned())
+        .collect()
+}
+
+/// The motions of [`MOTIONS`] that take part in the open ones (a share of at least 10 %
+/// of a unit motion in their span).
+fn describe_open(open: &[nalgebra::SVector<f64, 7>]) -> String {
+    let involved: Vec<&str> = (0..7)
+        .filter(|&j| open.iter().map(|v| v[j] * v[j]).sum::<f64>() >= 0.1)
+        .map(|j| MOTIONS[j])
+        .collect();
+    involved.join(", ")
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -170,6 +335,7 @@ mod tests {
                 name: format!("p{k}"),
                 position: Vector3::from(*p),
                 fixed,
+                fixed_axes: [false; 3],
             })
             .collect()
     }
@@ -263,6 +429,7 @@ mod tests {
                 camera: 0,
                 camera_from_object: Default::default(),
                 fixed: true,
+                fixed_centre: [false; 3],
             }],
             points: points(&[[0.0, 0.0, 5.0], [1.0, 0.0, 5.0]], false),
             ..Problem::default()

@@ -60,10 +60,11 @@
 //!         camera: 0,
 //!         camera_from_object: *pose, // here the truth; in practice from `initial`
 //!         fixed: false,
+//!         fixed_centre: [false; 3],
 //!     });
 //! }
 //! for (p, x) in targets.iter().enumerate() {
-//!     problem.points.push(Point { name: format!("T{p}"), position: *x, fixed: false });
+//!     problem.points.push(Point { name: format!("T{p}"), position: *x, fixed: false, fixed_axes: [false; 3] });
 //!     for (i, pose) in poses.iter().enumerate() {
 //!         if let Some(uv) = model.project(&truth, &pose.transform(x), None, None) {
 //!             if uv.x > 0.0 && uv.x < 1279.0 && uv.y > 0.0 && uv.y < 719.0 {

@@ -60,6 +60,24 @@ pub struct Image {
     pub camera_from_object: Rigid3,
     /// Pose held fixed.
     pub fixed: bool,
+    /// Coordinates of the projection centre `C = −Rᵀt` held one by one, `[X, Y, Z]` (the
+    /// rotation stays free); `fixed` holds the whole pose whatever these say. Such an image
+    /// is adjusted in the unknowns `(δω, δC)` — `R ← exp([δω]×) R`, `C ← C + δC`,
+    /// `t = −R C` — of which the held coordinates of δC are not unknowns at all. Not for a
+    /// rig member (its pose follows its base image).
+    pub fixed_centre: [bool; 3],
+}
+
+impl Image {
+    /// Some centre coordinates held (and the pose not fixed as a whole).
+    pub fn is_centre_held(&self) -> bool {
+        !self.fixed && self.fixed_centre.iter().any(|h| *h)
+    }
+
+    /// Indices (0 = X, 1 = Y, 2 = Z) of the free centre coordinates, in order.
+    pub fn free_centre_axes(&self) -> Vec<usize> {
+        (0..3).filter(|&k| !self.fixed_centre[k]).collect()
+    }
 }
 
 /// An object point.
@@ -69,8 +87,46 @@ pub struct Point {
     pub name: String,
     /// Object-space coordinates.
     pub position: Vector3<f64>,
-    /// Held fixed (e.g. a fixed control point).
+    /// Held fixed (e.g. a fixed control point): all three coordinates.
     pub fixed: bool,
+    /// Coordinates held one by one, `[X, Y, Z]` (e.g. only the height of a levelled point,
+    /// or single coordinates of a minimal datum); `fixed` holds all three whatever these
+    /// say. A held coordinate is not an unknown: its step is exactly 0, its σ is 0.
+    pub fixed_axes: [bool; 3],
+}
+
+impl Point {
+    /// A point with every coordinate free.
+    pub fn new(name: impl Into<String>, position: Vector3<f64>) -> Self {
+        Self {
+            name: name.into(),
+            position,
+            fixed: false,
+            fixed_axes: [false; 3],
+        }
+    }
+
+    /// Per coordinate (X, Y, Z): held, by `fixed` or by `fixed_axes`.
+    pub fn held(&self) -> [bool; 3] {
+        std::array::from_fn(|k| self.fixed || self.fixed_axes[k])
+    }
+
+    /// All three coordinates held: the point is no unknown at all.
+    pub fn is_held(&self) -> bool {
+        self.held().iter().all(|h| *h)
+    }
+
+    /// Some coordinates held and some free.
+    pub fn is_partly_held(&self) -> bool {
+        let h = self.held();
+        h.iter().any(|x| *x) && !h.iter().all(|x| *x)
+    }
+
+    /// Indices (0 = X, 1 = Y, 2 = Z) of the free coordinates, in order.
+    pub fn free_axes(&self) -> Vec<usize> {
+        let h = self.held();
+        (0..3).filter(|&k| !h[k]).collect()
+    }
 }
 
 /// An image measurement of a point, with its standard deviation in pixels.
@@ -347,6 +403,14 @@ impl Problem {
                 }
                 member_of[m.image] = true;
             }
+        }
+        if let Some(i) = (0..self.images.len())
+            .find(|&i| member_of[i] && self.images[i].fixed_centre.iter().any(|h| *h))
+        {
+            return Err(ProblemError::BadConstraint(format!(
+                "image '{}' holds centre coordinates but is a rig member, whose pose follows its base image: hold the base image's centre",
+                self.images[i].name
+            )));
         }
         for rig in &self.rigs {
             if let Some(m) = rig.members.iter().find(|m| member_of[m.base]) {

@@ -125,6 +125,7 @@ impl SyntheticBal {
                 camera: c,
                 camera_from_object: Rigid3::from_rotation_and_centre(r, centre),
                 fixed: false,
+                fixed_centre: [false; 3],
             });
         }
         let length = (self.cameras - 1) as f64 * spacing;
@@ -228,6 +229,7 @@ impl SyntheticBal {
                 camera: c,
                 camera_from_object: Rigid3::from_rotation_and_centre(r, z * 10.0),
                 fixed: false,
+                fixed_centre: [false; 3],
             });
         }
         let noise = Normal::new(0.0, self.noise_px.max(0.0)).unwrap();
@@ -318,5 +320,6 @@ fn observe(
         name: p.to_string(),
         position: *x,
         fixed: false,
+        fixed_axes: [false; 3],
     });
 }

@@ -10,6 +10,7 @@ use common::{truth, SIGMA_PX};
 use nalgebra::{Vector2, Vector3};
 use pingcal_ba::problem::{Camera, Image, Observation, Problem, Rig, RigMember};
 use pingcal_ba::solver::{precision, solve, Options};
+use pingcal_ba::{PosePrior, ResidualBlock};
 use pingcal_geometry::Rigid3;
 use pingcal_geometry::{exp_so3, log_so3};
 use rand_distr::{Distribution, Normal};
@@ -37,6 +38,7 @@ fn stereo_truth() -> (Problem, Rigid3) {
             camera: 1,
             camera_from_object: pose,
             fixed: false,
+            fixed_centre: [false; 3],
         });
         members.push(RigMember {
             image: n_left + i,
@@ -142,4 +144,79 @@ fn stereo_rig_is_recovered_without_bias() {
             "component {k}: sd {sd}"
         );
     }
+}
+
+/// A rig's base image with held centre coordinates: its members' observations reach the
+/// unknowns (δω, δC) of the base, so the minimum is that of the same problem with those
+/// coordinates held by a stiff pose prior instead; held centre coordinates on a member
+/// (whose pose follows its base) are refused with a reason.
+#[test]
+fn a_rig_base_with_held_centre_coordinates_agrees_with_a_stiff_prior() {
+    let (t, _) = stereo_truth();
+    let mut rng = pingcal_geometry::consensus::rng(77);
+    let n = Normal::new(0.0, 1.0).unwrap();
+    let mut held = t.clone();
+    for o in &mut held.observations {
+        o.uv += Vector2::new(n.sample(&mut rng), n.sample(&mut rng)) * SIGMA_PX;
+    }
+    for im in held.images.iter_mut().take(14) {
+        let c = im.camera_from_object.centre()
+            + Vector3::new(n.sample(&mut rng), n.sample(&mut rng), n.sample(&mut rng)) * 20.0;
+        im.camera_from_object = Rigid3::from_rotation_and_centre(im.camera_from_object.rotation, c);
+    }
+    let (base, axes) = (3usize, [true, true, false]);
+    let pose = held.images[base].camera_from_object;
+    let mut c = pose.centre();
+    let ct = t.images[base].camera_from_object.centre();
+    for a in (0..3).filter(|&a| axes[a]) {
+        c[a] = ct[a] + 0.7; // held a little off the truth, so that it matters
+    }
+    held.images[base].camera_from_object = Rigid3::from_rotation_and_centre(pose.rotation, c);
+    held.images[base].fixed_centre = axes;
+    let mut stiff = held.clone();
+    stiff.images[base].fixed_centre = [false; 3];
+    stiff.residuals.push(ResidualBlock::new(PosePrior {
+        image: base,
+        camera_from_object: held.images[base].camera_from_object,
+        sigma_rotation: Vector3::repeat(f64::INFINITY),
+        sigma_centre: Vector3::from_fn(|a, _| if axes[a] { 1e-5 } else { f64::INFINITY }),
+    }));
+    let opts = Options {
+        function_tolerance: 1e-14,
+        gradient_tolerance: 1e-14,
+        parameter_tolerance: 1e-14,
+        max_iterations: 200,
+        threads: 1,
+        ..Options::default()
+    };
+    let mut reference = stiff.clone();
+    solve(&mut reference, &opts, |_| {}).unwrap();
+    let mut p = held.clone();
+    solve(&mut p, &opts, |_| {}).unwrap();
+    let (c0, c1) = (c, p.images[base].camera_from_object.centre());
+    for a in (0..3).filter(|&a| axes[a]) {
+        assert!((c0[a] - c1[a]).abs() < 1e-9, "held centre {a} moved");
+    }
+    let worst = (p.images.iter().zip(&reference.images))
+        .map(|(x, y)| (x.camera_from_object.centre() - y.camera_from_object.centre()).amax())
+        .chain(
+            (p.points.iter().zip(&reference.points)).map(|(x, y)| (x.position - y.position).amax()),
+        )
+        .fold(0.0, f64::max);
+    println!("rig base with held centre vs stiff prior: largest difference {worst:.2e} mm");
+    assert!(worst < 1e-4, "{worst} mm");
+    let (r, rr) = (
+        &p.rigs[0].member_from_base,
+        &reference.rigs[0].member_from_base,
+    );
+    assert!((r.centre() - rr.centre()).amax() < 1e-6);
+    assert_eq!(
+        precision(&p).unwrap().poses[base].as_ref().unwrap().centre[0],
+        0.0
+    );
+    // On a member: refused.
+    let mut member = t.clone();
+    member.images[17].fixed_centre = [false, false, true];
+    let e = solve(&mut member, &opts, |_| {}).unwrap_err().to_string();
+    assert!(e.contains("rig member") && e.contains("base image"), "{e}");
 }

@@ -420,6 +420,16 @@ impl<'a> State<'a> {
                 image_map[i] = Some(sub.images.len());
                 let mut im = im.clone();
                 im.camera_from_object = pose;
+                if !self.control_frame {
+                    im.fixed_centre = [false; 3];
+                } else if im.is_centre_held() {
+                    // A held centre coordinate keeps its given value, not the estimate's.
+                    let (mut c, given) = (pose.centre(), p.images[i].camera_from_object.centre());
+                    for a in (0..3).filter(|&a| im.fixed_centre[a]) {
+                        c[a] = given[a];
+                    }
+                    im.camera_from_object = Rigid3::from_rotation_and_centre(pose.rotation, c);
+                }
                 sub.images.push(im);
             }
         }
@@ -431,6 +441,15 @@ impl<'a> State<'a> {
                 pt.position = x;
                 // Control points are held only when the frame is the control frame.
                 pt.fixed = pt.fixed && self.control_frame && self.known[j];
+                if !self.control_frame {
+                    pt.fixed_axes = [false; 3];
+                } else {
+                    // A held coordinate keeps its given value, not the estimate's (which
+                    // is an intersection for a point that is not known as a whole).
+                    for a in (0..3).filter(|&a| pt.fixed_axes[a]) {
+                        pt.position[a] = p.points[j].position[a];
+                    }
+                }
                 sub.points.push(pt);
             }
         }
@@ -642,7 +661,16 @@ impl<'a> State<'a> {
         }
         // Without control the datum is the first oriented image (scale from the distances,
         // if any, otherwise left to the damping).
-        let control_datum = sub.points.iter().any(|p| p.fixed) || sub.point_priors.len() >= 3;
+        // Single held coordinates (point or centre) count when they define a datum
+        // themselves; fixing the first image on top would distort the network.
+        let held_datum = (sub
+            .points
+            .iter()
+            .any(|p| !p.fixed && p.held().iter().any(|h| *h))
+            || sub.images.iter().any(|i| i.is_centre_held()))
+            && crate::datum::check(&sub, false).is_ok();
+        let control_datum =
+            sub.points.iter().any(|p| p.fixed) || sub.point_priors.len() >= 3 || held_datum;
         if !control_datum {
             if let Some(first) = sub.images.first_mut() {
                 first.fixed = true;
@@ -1209,6 +1237,7 @@ mod tests {
                 name: format!("T{k}"),
                 position: p,
                 fixed: false,
+                fixed_axes: [false; 3],
             });
         }
         let target = Vector3::new(700.0, 700.0, 500.0);
@@ -1225,6 +1254,7 @@ mod tests {
                 camera: 0,
                 camera_from_object: look_at(centre, target, rng.random_range(-0.3..0.3)),
                 fixed: false,
+                fixed_centre: [false; 3],
             });
         }
         let n = Normal::new(0.0, noise_px).unwrap();
@@ -1449,6 +1479,32 @@ mod tests {
         }
     }
 
+    /// In the control frame a held single coordinate keeps its given value: Z of a point
+    /// that is otherwise intersected and X of an image's centre that is otherwise resected
+    /// are not replaced by the estimates, and stay held.
+    #[test]
+    fn held_single_coordinates_keep_their_given_values() {
+        let (truth, mut p, known) = network(2, 0.1);
+        let z = truth.points[10].position.z;
+        p.points[10].position.z = z;
+        p.points[10].fixed_axes = [false, false, true];
+        let c = truth.images[2].camera_from_object.centre();
+        p.images[2].camera_from_object =
+            Rigid3::from_rotation_and_centre(nalgebra::Matrix3::identity(), c);
+        p.images[2].fixed_centre = [true, false, false];
+        let init = initialise(&p, &known, &[], &IncrementalOptions::default()).unwrap();
+        assert!(init.in_control_frame);
+        let q = &init.problem;
+        let pt = &q.points[init.point_map[10].unwrap()];
+        assert_eq!(pt.position.z.to_bits(), z.to_bits());
+        assert_eq!(pt.fixed_axes, [false, false, true]);
+        assert!((pt.position - truth.points[10].position).norm() < 20.0);
+        let im = &q.images[init.image_map[2].unwrap()];
+        assert!((im.camera_from_object.centre().x - c.x).abs() < 1e-9);
+        assert_eq!(im.fixed_centre, [true, false, false]);
+        assert!((im.camera_from_object.centre() - c).norm() < 20.0);
+    }
+
     #[test]
     fn gross_errors_are_rejected_and_reported() {
         let (truth, mut p, known) = network(5, 0.1);
@@ -1540,12 +1596,14 @@ mod tests {
             camera: 0,
             camera_from_object: Rigid3::identity(),
             fixed: false,
+            fixed_centre: [false; 3],
         });
         for k in 0..2 {
             p.points.push(Point {
                 name: format!("L{k}"),
                 position: Vector3::zeros(),
                 fixed: false,
+                fixed_axes: [false; 3],
             });
             p.observations.push(Observation {
                 image: 12,
@@ -1584,6 +1642,7 @@ mod tests {
             name: "narrow".into(),
             position: Vector3::zeros(),
             fixed: false,
+            fixed_axes: [false; 3],
         });
         known.push(false);
         let cam = &truth.cameras[0];

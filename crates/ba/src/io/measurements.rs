@@ -596,6 +596,7 @@ impl Builder {
                 camera,
                 camera_from_object: im.pose.map(|p| p.to_pose()).unwrap_or_default(),
                 fixed: im.fixed,
+                fixed_centre: [false; 3],
             });
         }
         if let Some(k) = used_cameras.iter().position(|u| !u) {
@@ -617,6 +618,7 @@ impl Builder {
             name: name.to_string(),
             position: Vector3::zeros(),
             fixed: false,
+            fixed_axes: [false; 3],
         });
         self.problem.points.len() - 1
     }

@@ -173,11 +173,57 @@ pub(crate) fn constraint_residual(
     residual
         .evaluate(&values, &mut r, Some(&mut full))
         .then_some(())?;
+    for (f, b) in full.iter_mut().zip(&blocks) {
+        if let crate::residual::Block::Pose(i) = *b {
+            if let Some(t) = centre_tangent(problem, i) {
+                *f = &*f * DMatrix::from_column_slice(6, 6, t.as_slice());
+            }
+        }
+    }
     r.iter_mut().for_each(|v| *v /= scale);
     let j = (full.iter().zip(cols))
         .map(|(f, bc)| DMatrix::from_fn(m, bc.cols.len(), |row, c| f[(row, bc.cols[c])] / scale))
         .collect();
     Some(ConstraintLin { r, j })
+}
+
+/// Writes the pose columns `(δω, δC_free)` of one observation (`jw` the 2 × 3 rotation part,
+/// `jc` the 2 × 3 centre part of which only the columns `axes` are unknowns); returns the
+/// number of columns written.
+fn write_centred(
+    j0: &mut [f64],
+    j1: &mut [f64],
+    jw: &nalgebra::Matrix2x3<f64>,
+    jc: &nalgebra::Matrix2x3<f64>,
+    axes: &[usize],
+) -> usize {
+    for k in 0..3 {
+        j0[k] = jw[(0, k)];
+        j1[k] = jw[(1, k)];
+    }
+    for (k, &a) in axes.iter().enumerate() {
+        j0[3 + k] = jc[(0, a)];
+        j1[3 + k] = jc[(1, a)];
+    }
+    3 + axes.len()
+}
+
+/// The 6 × 6 map `T` from the unknowns `(δω, δC)` of an image with held centre coordinates
+/// to the left update `(δω, δt)` of its pose: `t = −R C` gives, to first order,
+/// `δt = −[t]× δω − R δC`, so `T = [I 0; −[t]× −R]` and a Jacobian `J` with respect to
+/// `(δω, δt)` is `J T` with respect to `(δω, δC)`. `None` for an image adjusted in
+/// `(δω, δt)`.
+pub(crate) fn centre_tangent(problem: &Problem, image: usize) -> Option<nalgebra::Matrix6<f64>> {
+    let im = &problem.images[image];
+    if !im.is_centre_held() {
+        return None;
+    }
+    let p = &im.camera_from_object;
+    let mut t = nalgebra::Matrix6::identity();
+    t.fixed_view_mut::<3, 3>(3, 0)
+        .copy_from(&(-skew(&p.translation)));
+    t.fixed_view_mut::<3, 3>(3, 3).copy_from(&(-p.rotation));
+    Some(t)
 }
 
 /// Fills `lin` at the current estimate, or says where the problem is not defined.
@@ -233,14 +279,25 @@ pub(crate) fn linearize(
                 let b = &problem.images[base].camera_from_object;
                 if layout.image_slot[base].is_some() {
                     let jr = dxc * rig.rotation;
-                    let jw = -(jr * skew(&(b.rotation * x)));
-                    for k in 0..3 {
-                        j0[k] = jw[(0, k)];
-                        j1[k] = jw[(1, k)];
-                        j0[3 + k] = jr[(0, k)];
-                        j1[3 + k] = jr[(1, k)];
+                    match &layout.image_centre_axes[base] {
+                        None => {
+                            let jw = -(jr * skew(&(b.rotation * x)));
+                            for k in 0..3 {
+                                j0[k] = jw[(0, k)];
+                                j1[k] = jw[(1, k)];
+                                j0[3 + k] = jr[(0, k)];
+                                j1[3 + k] = jr[(1, k)];
+                            }
+                            col = 6;
+                        }
+                        // With (δω_b, δC_b): R_b X + t_b = R_b (X − C_b), so
+                        // ∂/∂δω_b = −R_r [R_b X + t_b]×, ∂/∂δC_b = −R_r R_b.
+                        Some(axes) => {
+                            let jw = -(jr * skew(&b.transform(x)));
+                            let jc = -(jr * b.rotation);
+                            col = write_centred(j0, j1, &jw, &jc, axes);
+                        }
                     }
-                    col = 6;
                 }
                 if layout.rig_slot[r].is_some() {
                     let jw = -(dxc * skew(&(xc - rig.translation)));
@@ -253,15 +310,25 @@ pub(crate) fn linearize(
                     col += 6;
                 }
             } else if layout.image_slot[o.image].is_some() {
-                // ∂xc/∂δω = −[R X]×, ∂xc/∂δt = I.
-                let jw = -(dxc * skew(&rx));
-                for k in 0..3 {
-                    j0[k] = jw[(0, k)];
-                    j1[k] = jw[(1, k)];
-                    j0[3 + k] = dxc[(0, k)];
-                    j1[3 + k] = dxc[(1, k)];
+                match &layout.image_centre_axes[o.image] {
+                    None => {
+                        // ∂xc/∂δω = −[R X]×, ∂xc/∂δt = I.
+                        let jw = -(dxc * skew(&rx));
+                        for k in 0..3 {
+                            j0[k] = jw[(0, k)];
+                            j1[k] = jw[(1, k)];
+                            j0[3 + k] = dxc[(0, k)];
+                            j1[3 + k] = dxc[(1, k)];
+                        }
+                        col = 6;
+                    }
+                    // With (δω, δC): xc = R (X − C), ∂xc/∂δω = −[xc]×, ∂xc/∂δC = −R.
+                    Some(axes) => {
+                        let jw = -(dxc * skew(&xc));
+                        let jc = -(dxc * im.camera_from_object.rotation);
+                        col = write_centred(j0, j1, &jw, &jc, axes);
+                    }
                 }
-                col = 6;
             }
             if layout.camera_slot[im.camera].is_some() {
                 for &k in &layout.camera_free[im.camera] {
@@ -270,11 +337,10 @@ pub(crate) fn linearize(
                     col += 1;
                 }
             }
-            if layout.point_slot[o.point].is_some() {
-                for k in 0..3 {
-                    j0[col + k] = jp[(0, k)];
-                    j1[col + k] = jp[(1, k)];
-                }
+            // A point in the reduced system: the columns of its free coordinates only.
+            for (k, &axis) in layout.point_axes[o.point].iter().enumerate() {
+                j0[col + k] = jp[(0, axis)];
+                j1[col + k] = jp[(1, axis)];
             }
             for m in 0..3 {
                 let (a, b) = (jp[(0, m)], jp[(1, m)]);

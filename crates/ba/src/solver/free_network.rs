@@ -1,6 +1,6 @@
 //! Precision of a free network: the datum by inner constraints on the object points
-//! (the minimum-trace solution), for networks with no fixed image, no control point and
-//! no fixed rig, whose normal matrix is singular by the 7 degrees of freedom of a
+//! (the minimum-trace solution), for networks with no fixed image, no control point, no
+//! held coordinate and no fixed rig, whose normal matrix is singular by the 7 degrees of freedom of a
 //! similarity transform (6 when distances fix the scale).
 //!
 //! With N = JᵀJ the normal matrix, G (n × d) a basis of its null space (the similarity's
@@ -50,8 +50,11 @@ pub(crate) fn point_constraints(x: &Vector3<f64>, d: usize) -> [[f64; 7]; 3] {
 
 /// Whether `problem` has no datum of its own (then inner constraints define one).
 pub(crate) fn is_free(problem: &Problem) -> bool {
-    problem.images.iter().all(|i| !i.fixed)
-        && problem.points.iter().all(|p| !p.fixed)
+    problem
+        .images
+        .iter()
+        .all(|i| !i.fixed && !i.is_centre_held())
+        && problem.points.iter().all(|p| !p.held().iter().any(|h| *h))
         && problem.point_priors.is_empty()
         && problem.residuals.is_empty()
         && problem.rigs.iter().all(|r| !r.fixed)

@@ -5,7 +5,12 @@
 //! used by a single image with a free pose are folded into that image's block (the BAL
 //! case: one 9-parameter block per image), which keeps the reduced system's blocks few and
 //! dense. Free points are eliminated by the Schur complement; fixed points only add to the
-//! camera blocks.
+//! camera blocks. A point with some coordinates held ([`crate::problem::Point::fixed_axes`])
+//! joins the reduced system with a block of its free coordinates only: the held columns of
+//! its Jacobian are not unknowns at all, so their step is exactly 0 in every solver path,
+//! and their cofactors are 0. Likewise an image with some centre coordinates held
+//! ([`crate::problem::Image::fixed_centre`]) has a pose block `(δω, δC)` of the rotation
+//! and its free centre coordinates (3 + 0..3 columns) instead of `(δω, δt)`.
 //!
 //! The reduced matrix S is stored as the upper triangle of a scalar CSC matrix whose
 //! pattern (block column b holds the blocks a ≤ b that share an observation or a point
@@ -62,10 +67,17 @@ pub(crate) struct Layout {
     /// Dimension of the reduced system.
     pub n_reduced: usize,
     pub image_slot: Vec<Option<Slot>>,
+    /// Per image with a pose block: `None` for the unknowns `(δω, δt)`, or the free centre
+    /// coordinates of `(δω, δC)` when some are held (see the module doc).
+    pub image_centre_axes: Vec<Option<Vec<usize>>>,
     pub camera_slot: Vec<Option<Slot>>,
     /// Free points kept in the reduced system (those joined by a measured distance, which
-    /// couples two points and so cannot be eliminated point by point).
+    /// couples two points and so cannot be eliminated point by point, and those with some
+    /// coordinates held).
     pub point_slot: Vec<Option<Slot>>,
+    /// Per point in the reduced system: its free coordinates (0 = X, 1 = Y, 2 = Z), one per
+    /// row of its slot in order; empty for the other points.
+    pub point_axes: Vec<Vec<usize>>,
     /// Rig member images: (rig, base image). Their pose has no block of its own.
     pub image_rig: Vec<Option<(usize, usize)>>,
     /// Rigs with a free relative pose.
@@ -148,8 +160,10 @@ impl Layout {
             block_offset: blocks.offset,
             n_reduced: blocks.n_reduced,
             image_slot: blocks.image_slot,
+            image_centre_axes: blocks.image_centre_axes,
             camera_slot: blocks.camera_slot,
             point_slot: blocks.point_slot,
+            point_axes: blocks.point_axes,
             image_rig: blocks.image_rig,
             rig_slot: blocks.rig_slot,
             parameter_slot: blocks.parameter_slot,
@@ -253,6 +267,18 @@ impl Layout {
         std::array::from_fn(|m| &w[base + m * nc..base + m * nc + len])
     }
 
+    /// Columns of image `i`'s pose block: 6, or 3 + its free centre coordinates.
+    pub fn pose_dim(&self, i: usize) -> usize {
+        pose_dim(&self.image_centre_axes[i])
+    }
+
+    /// The free coordinates of point `p` in the reduced system and their rows:
+    /// `(axis, row)`; none for a point not in it.
+    pub fn point_rows(&self, p: usize) -> impl Iterator<Item = (usize, usize)> + '_ {
+        let o = self.point_slot[p].map_or(0, |s| self.slot_offset(s));
+        (self.point_axes[p].iter().enumerate()).map(move |(k, &axis)| (axis, o + k))
+    }
+
     /// Scalar offset of a slot in the reduced system.
     #[inline]
     pub fn slot_offset(&self, s: Slot) -> usize {
@@ -298,8 +324,10 @@ struct Blocks {
     offset: Vec<usize>,
     n_reduced: usize,
     image_slot: Vec<Option<Slot>>,
+    image_centre_axes: Vec<Option<Vec<usize>>>,
     camera_slot: Vec<Option<Slot>>,
     point_slot: Vec<Option<Slot>>,
+    point_axes: Vec<Vec<usize>>,
     image_rig: Vec<Option<(usize, usize)>>,
     rig_slot: Vec<Option<Slot>>,
     parameter_slot: Vec<Option<Slot>>,
@@ -321,8 +349,9 @@ struct ObsColumns {
 impl Blocks {
     /// Numbers the blocks: images with a free pose (with their camera's intrinsics when
     /// no other image uses it), then the other free cameras, the free rigs, the problem's
-    /// parameter blocks with a free component, and the free points that a constraint couples
-    /// to anything else (joined by a distance, touched by a residual with other blocks).
+    /// parameter blocks with a free component, the free points that a constraint couples
+    /// to anything else (joined by a distance, touched by a residual with other blocks),
+    /// and the points with some coordinates held (a block of their free coordinates).
     fn assign(problem: &Problem) -> Self {
         let camera_free: Vec<Vec<usize>> =
             problem.cameras.iter().map(|c| c.free_indices()).collect();
@@ -340,17 +369,25 @@ impl Blocks {
             }
         };
         let mut image_slot = vec![None; problem.images.len()];
+        let mut image_centre_axes = vec![None; problem.images.len()];
         let mut camera_slot = vec![None; problem.cameras.len()];
         for (i, im) in problem.images.iter().enumerate() {
             if im.fixed || image_rig[i].is_some() {
                 continue;
             }
+            if im.is_centre_held() {
+                image_centre_axes[i] = Some(im.free_centre_axes());
+            }
+            let pd = pose_dim(&image_centre_axes[i]);
             let c = im.camera;
             let own_camera = images_of_camera[c] == 1 && !camera_free[c].is_empty();
-            let slot = new_block(6 + if own_camera { camera_free[c].len() } else { 0 });
+            let slot = new_block(pd + if own_camera { camera_free[c].len() } else { 0 });
             image_slot[i] = Some(slot);
             if own_camera {
-                camera_slot[c] = Some(Slot { off: 6, ..slot });
+                camera_slot[c] = Some(Slot {
+                    off: pd as u16,
+                    ..slot
+                });
             }
         }
         for (c, free) in camera_free.iter().enumerate() {
@@ -370,6 +407,14 @@ impl Blocks {
             .map(|free| (!free.is_empty()).then(|| new_block(free.len())))
             .collect();
         let mut point_slot = vec![None; problem.points.len()];
+        let mut point_axes = vec![Vec::new(); problem.points.len()];
+        let mut add_point = |p: usize, point_slot: &mut Vec<Option<Slot>>| {
+            let pt = &problem.points[p];
+            if !pt.is_held() && point_slot[p].is_none() {
+                point_axes[p] = pt.free_axes();
+                point_slot[p] = Some(new_block(point_axes[p].len()));
+            }
+        };
         for (residual, _) in problem.constraints() {
             let blocks = residual.blocks();
             if let [Block::Point(_)] = blocks[..] {
@@ -377,10 +422,13 @@ impl Blocks {
             }
             for b in blocks {
                 if let Block::Point(p) = b {
-                    if !problem.points[p].fixed && point_slot[p].is_none() {
-                        point_slot[p] = Some(new_block(3));
-                    }
+                    add_point(p, &mut point_slot);
                 }
+            }
+        }
+        for (p, pt) in problem.points.iter().enumerate() {
+            if pt.is_partly_held() {
+                add_point(p, &mut point_slot);
             }
         }
         let mut offset = Vec::with_capacity(dim.len());
@@ -394,8 +442,10 @@ impl Blocks {
             offset,
             n_reduced,
             image_slot,
+            image_centre_axes,
             camera_slot,
             point_slot,
+            point_axes,
             image_rig,
             rig_slot,
             parameter_slot,
@@ -417,7 +467,7 @@ impl Blocks {
                         Block::Point(p) => match (self.point_slot[p], free_point_index[p]) {
                             (Some(s), _) => BlockCols {
                                 place: Place::Reduced(s),
-                                cols: vec![0, 1, 2],
+                                cols: self.point_axes[p].clone(),
                             },
                             (None, f) if f != u32::MAX => BlockCols {
                                 place: Place::Eliminated(f),
@@ -429,9 +479,16 @@ impl Blocks {
                             },
                         },
                         Block::Pose(i) => match self.image_slot[i] {
+                            // (δω, δC): the residual's Jacobian is taken to these columns
+                            // by `evaluate::constraint_residual`.
                             Some(s) => BlockCols {
                                 place: Place::Reduced(s),
-                                cols: (0..6).collect(),
+                                cols: match &self.image_centre_axes[i] {
+                                    None => (0..6).collect(),
+                                    Some(axes) => {
+                                        (0..3).chain(axes.iter().map(|a| 3 + a)).collect()
+                                    }
+                                },
                             },
                             None => BlockCols {
                                 place: Place::Fixed,
@@ -506,7 +563,7 @@ impl Blocks {
             None => (o.image, None),
         };
         if let Some(s) = self.image_slot[pose_image] {
-            push(s, 6);
+            push(s, pose_dim(&self.image_centre_axes[pose_image]) as u16);
         }
         if let Some(s) = rig {
             push(s, 6);
@@ -516,10 +573,16 @@ impl Blocks {
             push(s, self.camera_free[camera].len() as u16);
         }
         if let Some(s) = self.point_slot[o.point] {
-            push(s, 3);
+            push(s, self.point_axes[o.point].len() as u16);
         }
         (segs, ns, ncols)
     }
+}
+
+/// Columns of a pose block: 6 for `(δω, δt)`, 3 + the free centre coordinates for
+/// `(δω, δC)`.
+fn pose_dim(centre_axes: &Option<Vec<usize>>) -> usize {
+    centre_axes.as_ref().map_or(6, |axes| 3 + axes.len())
 }
 
 /// Per image: `(rig, base image)` when it is a rig member (its pose has no block).
@@ -552,7 +615,7 @@ fn internal_order(problem: &Problem, blocks: &Blocks) -> Vec<u32> {
     obs_order
 }
 
-/// The free points eliminated by the Schur complement (not fixed, not in the reduced
+/// The free points eliminated by the Schur complement (not held, not in the reduced
 /// system), numbered in the internal observation order (so that per-point data is read
 /// sequentially too), then those nobody observes: `(free index per point or u32::MAX,
 /// point per free index)`.
@@ -565,7 +628,10 @@ fn number_free_points(
     let mut free_points = Vec::new();
     let observed = observations.iter().map(|o| o.point);
     for p in observed.chain(0..problem.points.len()) {
-        if !problem.points[p].fixed && point_slot[p].is_none() && free_point_index[p] == u32::MAX {
+        if !problem.points[p].is_held()
+            && point_slot[p].is_none()
+            && free_point_index[p] == u32::MAX
+        {
             free_point_index[p] = free_points.len() as u32;
             free_points.push(p);
         }

@@ -537,10 +537,10 @@ fn predicted_decrease(
 }
 
 fn apply_step(problem: &mut Problem, layout: &Layout, dc: &[f64], dp: &[Vector3<f64>]) {
-    for (p, slot) in layout.point_slot.iter().enumerate() {
-        if let Some(s) = slot {
-            let o = layout.slot_offset(*s);
-            problem.points[p].position += Vector3::new(dc[o], dc[o + 1], dc[o + 2]);
+    for p in 0..layout.point_slot.len() {
+        // Only the free coordinates move: a held one keeps its value exactly.
+        for (axis, row) in layout.point_rows(p) {
+            problem.points[p].position[axis] += dc[row];
         }
     }
     for (r, slot) in layout.rig_slot.iter().enumerate() {
@@ -552,7 +552,20 @@ fn apply_step(problem: &mut Problem, layout: &Layout, dc: &[f64], dp: &[Vector3<
     for (i, im) in problem.images.iter_mut().enumerate() {
         if let Some(s) = layout.image_slot[i] {
             let o = layout.block_offset[s.block as usize] + s.off as usize;
-            im.camera_from_object = im.camera_from_object.plus(&dc[o..o + 6]);
+            im.camera_from_object = match &layout.image_centre_axes[i] {
+                None => im.camera_from_object.plus(&dc[o..o + 6]),
+                // (δω, δC): R ← exp([δω]×) R, C ← C + δC on the free coordinates only.
+                Some(axes) => {
+                    let pose = &im.camera_from_object;
+                    let mut centre = pose.centre();
+                    for (k, &a) in axes.iter().enumerate() {
+                        centre[a] += dc[o + 3 + k];
+                    }
+                    let w = &dc[o..o + 3];
+                    let rotation = pose.plus(&[w[0], w[1], w[2], 0.0, 0.0, 0.0]).rotation;
+                    pingcal_geometry::Rigid3::from_rotation_and_centre(rotation, centre)
+                }
+            };
         }
     }
     for (c, cam) in problem.cameras.iter_mut().enumerate() {
@@ -611,6 +624,7 @@ mod tests {
                     Vector3::new(0.3 * k as f64, -2.0, 0.1),
                 ),
                 fixed: false,
+                fixed_centre: [false; 3],
             });
         }
         let points: Vec<Point> = (0..6)
@@ -622,6 +636,7 @@ mod tests {
                     -0.3 + 0.1 * k as f64,
                 ),
                 fixed: k == 5,
+                fixed_axes: [false; 3],
             })
             .collect();
         let mut observations = Vec::new();

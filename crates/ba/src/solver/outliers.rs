@@ -94,7 +94,7 @@ pub fn adjust_with_snooping(
                 let rays: Vec<usize> = (0..problem.observations.len())
                     .filter(|&k| problem.observations[k].point == ob.point)
                     .collect();
-                if rays.len() == 1 && !problem.points[ob.point].fixed {
+                if rays.len() == 1 && !problem.points[ob.point].held().iter().any(|h| *h) {
                     let last = problem.observations.remove(rays[0]);
                     rejected.push(Rejection {
                         image: problem.images[last.image].name.clone(),

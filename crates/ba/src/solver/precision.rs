@@ -88,10 +88,10 @@ fn redundancy_and_sigma0(
 
 /// The joint covariance `σ0² Q` of the coordinates of `points` (problem indices), a 3k × 3k
 /// matrix in their order, the correlations between the points included (a fixed point has
-/// zero rows).
+/// zero rows, and so has a held coordinate).
 ///
-/// A point in the reduced system moves as `δp = E δc` (E selects its rows of the camera-side
-/// update δc); a point eliminated by the Schur complement as `δp = V⁻¹ b_p − Mᵀ δc` with
+/// A point in the reduced system moves as `δp = E δc` (E selects the rows of its free
+/// coordinates in the camera-side update δc, a held coordinate has none); a point eliminated by the Schur complement as `δp = V⁻¹ b_p − Mᵀ δc` with
 /// `M = W V⁻¹`. So `Q_pq = A_p Q_cc A_qᵀ` with `A_p = E` or `−Mᵀ`, plus `V_p⁻¹` on the diagonal
 /// block of an eliminated point (which is [`Precision::point_covariances`]' `Q_pp`).
 /// Not available for a free network (an error says so).
@@ -108,10 +108,10 @@ pub fn points_covariance(
     let rows: Vec<PointRows> = points
         .iter()
         .map(|&p| {
-            if let Some(sl) = c.layout.point_slot[p] {
-                let o = c.layout.slot_offset(sl);
+            if c.layout.point_slot[p].is_some() {
                 let unit = |a: usize| std::array::from_fn(|b| f64::from(u8::from(a == b)));
-                ((0..3).map(|a| (o + a, unit(a))).collect(), None)
+                let rows = c.layout.point_rows(p).map(|(a, row)| (row, unit(a)));
+                (rows.collect(), None)
             } else {
                 match c.layout.free_point_index[p] {
                     u32::MAX => (Vec::new(), None),
@@ -214,15 +214,12 @@ fn free_network_bordered(
     };
     let mut k = DMatrix::<f64>::zeros(n + d, n + d);
     k.view_mut((0, 0), (n, n)).copy_from(&s);
-    for (p, slot) in layout.point_slot.iter().enumerate() {
-        if let Some(sl) = slot {
-            let o = layout.slot_offset(*sl);
-            let c = constraints(p);
-            for (a, row) in c.iter().enumerate() {
-                for (j, &v) in row.iter().enumerate().take(d) {
-                    k[(o + a, n + j)] += v;
-                    k[(n + j, o + a)] += v;
-                }
+    for p in 0..layout.point_slot.len() {
+        let c = constraints(p);
+        for (a, row) in layout.point_rows(p) {
+            for (j, &v) in c[a].iter().enumerate().take(d) {
+                k[(row, n + j)] += v;
+                k[(n + j, row)] += v;
             }
         }
     }
@@ -287,9 +284,15 @@ fn assemble(
     let s02 = sigma0 * sigma0;
     let mut point_covariances = vec![None; problem.points.len()];
     for (p, slot) in layout.point_slot.iter().enumerate() {
-        if let Some(sl) = slot {
-            let o = layout.slot_offset(*sl);
-            point_covariances[p] = Some(Matrix3::from_fn(|a, b| s02 * q[(o + a, o + b)]));
+        if slot.is_some() {
+            // A held coordinate's rows and columns are 0.
+            let mut cov = Matrix3::zeros();
+            for (a, i) in layout.point_rows(p) {
+                for (b, j) in layout.point_rows(p) {
+                    cov[(a, b)] = s02 * q[(i, j)];
+                }
+            }
+            point_covariances[p] = Some(cov);
         }
     }
     for (ep, &p) in eliminated.iter().zip(&layout.free_points) {
@@ -354,7 +357,7 @@ pub fn free_network_precision_bordered(problem: &Problem) -> Result<Precision, P
     problem.validate()?;
     if !super::free_network::is_free(problem) {
         return Err(PrecisionError::DatumDefect(
-            "not a free network: it has a fixed image, fixed points, control or a fixed rig".into(),
+            "not a free network: it has a fixed image, fixed points, control, held coordinates or a fixed rig".into(),
         ));
     }
     let layout = Layout::new(problem);
@@ -402,7 +405,8 @@ fn reduced_system(
 /// determine, as an eliminated point must be: a distance gives one equation, so a point whose
 /// rays data snooping has taken away would otherwise show as a datum defect of two degrees of
 /// freedom in that point instead of as the undetermined point it is. A point with a prior is
-/// determined by it.
+/// determined by it; one with held coordinates needs its rays to determine only the free
+/// ones (the normal matrix of its rays restricted to them).
 fn undetermined_distance_point(
     problem: &Problem,
     layout: &Layout,
@@ -420,8 +424,10 @@ fn undetermined_distance_point(
         if layout.point_slot[p].is_none() || with_prior.contains(&p) {
             return false;
         }
-        let scale = v[p].diagonal().max();
-        !(scale > 0.0 && v[p].symmetric_eigenvalues().min() > 1e-10 * scale)
+        let axes = &layout.point_axes[p];
+        let vf = DMatrix::from_fn(axes.len(), axes.len(), |a, b| v[p][(axes[a], axes[b])]);
+        let scale = vf.diagonal().max();
+        !(scale > 0.0 && vf.symmetric_eigenvalues().min() > 1e-10 * scale)
     })
 }
 
@@ -571,7 +577,9 @@ fn invert_or_diagnose(
         return Ok(DMatrix::from_fn(n, n, |i, j| inv[(i, j)] * d[i] * d[j]));
     }
     let fixed_images = problem.images.iter().filter(|i| i.fixed).count();
-    let fixed_points = problem.points.iter().filter(|p| p.fixed).count();
+    let fixed_points = (problem.points.iter())
+        .filter(|p| p.held().iter().any(|h| *h))
+        .count();
     let what = match (null.len(), fixed_images, fixed_points + problem.point_priors.len(), problem.distances.len()) {
         (1, 1.., 0, 0) => "the scale is free: measure a distance between two points or give control points".to_string(),
         (7, 0, 0, 0) => "position, orientation and scale are free (7 degrees of freedom): fix one image and measure a distance, or give at least 3 control points".to_string(),
@@ -596,7 +604,7 @@ fn describe_unknown(i: usize, problem: &Problem, layout: &Layout) -> String {
     for (im, slot) in layout.image_slot.iter().enumerate() {
         if let Some(s) = slot {
             let o = layout.slot_offset(*s);
-            if (o..o + 6).contains(&i) {
+            if (o..o + layout.pose_dim(im)).contains(&i) {
                 return format!("the pose of image '{}'", problem.images[im].name);
             }
         }
@@ -611,12 +619,13 @@ fn describe_unknown(i: usize, problem: &Problem, layout: &Layout) -> String {
             }
         }
     }
-    for (p, slot) in layout.point_slot.iter().enumerate() {
-        if let Some(s) = slot {
-            let o = layout.slot_offset(*s);
-            if (o..o + 3).contains(&i) {
-                return format!("point '{}'", problem.points[p].name);
+    for p in 0..layout.point_slot.len() {
+        if let Some((axis, _)) = layout.point_rows(p).find(|&(_, row)| row == i) {
+            let name = &problem.points[p].name;
+            if layout.point_axes[p].len() == 3 {
+                return format!("point '{name}'");
             }
+            return format!("coordinate {} of point '{name}'", ["X", "Y", "Z"][axis]);
         }
     }
     format!("unknown {i}")

@@ -248,6 +248,17 @@ pub(crate) fn pose_sigmas(
         .enumerate()
         .map(|(i, im)| {
             let o = layout.slot_offset(layout.image_slot[i]?);
+            if let Some(axes) = &layout.image_centre_axes[i] {
+                // (δω, δC): the centre's σ directly, 0 for a held coordinate.
+                let mut centre = [0.0; 3];
+                for (k, &a) in axes.iter().enumerate() {
+                    centre[a] = (s02 * q(o + 3 + k, o + 3 + k)).max(0.0).sqrt();
+                }
+                return Some(PoseSigma {
+                    rotation_rad: std::array::from_fn(|a| (s02 * q(o + a, o + a)).max(0.0).sqrt()),
+                    centre,
+                });
+            }
             let qq = DMatrix::from_fn(6, 6, |a, b| s02 * q(o + a, o + b));
             let rt = im.camera_from_object.rotation.transpose();
             let jw = -(rt * pingcal_geometry::skew(&im.camera_from_object.translation));

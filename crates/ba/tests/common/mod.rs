@@ -53,6 +53,7 @@ pub fn truth() -> Problem {
             camera: 0,
             camera_from_object: look_at(centre, target, roll),
             fixed: false,
+            fixed_centre: [false; 3],
         });
     }
     let mut observations = Vec::new();
@@ -78,6 +79,7 @@ pub fn truth() -> Problem {
             name: format!("P{p}"),
             position: *x,
             fixed: false,
+            fixed_axes: [false; 3],
         })
         .collect();
     // Datum: four well-spread control points held fixed.

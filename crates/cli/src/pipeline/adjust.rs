@@ -185,6 +185,7 @@ impl SceneProblem {
                     camera: scene.camera_of[i].0,
                     camera_from_object: pose,
                     fixed: datum == Datum::MainImage && i == main,
+                    fixed_centre: [false; 3],
                 });
             }
         }
@@ -209,6 +210,7 @@ impl SceneProblem {
                 name: p.name.clone(),
                 position: p.position,
                 fixed: false,
+                fixed_axes: [false; 3],
             });
             for d in obs {
                 let c = scene.camera_of[d.image];
