@@ -120,6 +120,7 @@ fn main() {
         targets: &targets,
         main_image: &image,
         seed,
+        rough_camera_from_lrf: nalgebra::Matrix3::identity(),
     };
     let t0 = std::time::Instant::now();
     let r = fan_baseline(&input).unwrap();

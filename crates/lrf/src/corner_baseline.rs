@@ -23,11 +23,12 @@
 //! 3. **LRF pose in the corner** from one scan, as Fan does: every scan line is tried
 //!    ([`scan_lines`] with inlier tolerance 3σ of the ranges, then [`lrf_pose_in_corner`]);
 //!    a scan is usable when its three lines have ≥ [`MIN_LINE_INLIERS`] points each and the
-//!    corner P3P succeeds. **Assumption (the rough prior the method needs):** the LRF and the
-//!    camera are roughly aligned on the rig (`R_cam←lrf ≈ I`, within some 30°: the prior only
-//!    picks which line is on which face and the sign of each edge distance, choices that are
-//!    ≥ 60° apart), so the prior corner←LRF rotation is the corner←camera rotation of the
-//!    DLT. Scans whose pose disagrees with the others (rotation > 30° from the prior, or
+//!    corner P3P succeeds. **Assumption (the rough prior the method needs):** a rough
+//!    camera←LRF rotation is known (within some 30°: the prior only picks which line is on
+//!    which face and the sign of each edge distance, choices that are ≥ 60° apart;
+//!    [`BaselineInput::rough_camera_from_lrf`], the identity in Fan's setting where the LRF
+//!    and the camera look the same way), so the prior corner←LRF rotation is the
+//!    corner←camera rotation of the DLT composed with it. Scans whose pose disagrees with the others (rotation > 30° from the prior, or
 //!    position farther than `max(50 mm, 5 × median deviation)` from the median position of
 //!    the usable scans: a spurious line) are dropped; among the rest the scan used is the one
 //!    whose LRF position is predicted most precise ([`pose_uncertainty`]: the line-fit noise
@@ -89,6 +90,10 @@ pub struct BaselineInput<'a> {
     pub main_image: &'a [(String, Vector2<f64>)],
     /// Seed of the RANSAC searches (the result is deterministic for a seed).
     pub seed: u64,
+    /// A rough camera←LRF rotation (within some 30°), the prior that picks which scan line
+    /// is on which face: the identity when the LRF and the camera look the same way (Fan's
+    /// assumption), or e.g. the rotation of the matched balls for a rig whose LRF is turned.
+    pub rough_camera_from_lrf: Matrix3<f64>,
 }
 
 /// The baseline's answer and its intermediate poses.
@@ -300,8 +305,8 @@ pub fn fan_baseline(input: &BaselineInput) -> Result<BaselineResult> {
     // ---- 2. camera pose by DLT ----
     let camera_from_dlt = camera_by_dlt(input, &pts, &corner, &mut notes)?;
     // ---- 3. LRF pose in the corner from one scan ----
-    // rough prior: LRF axes ≈ camera axes, so corner←LRF ≈ corner←camera
-    let prior: Matrix3<f64> = camera_from_dlt.rotation.transpose();
+    // rough prior: corner←LRF ≈ corner←camera · the rough camera←LRF
+    let prior: Matrix3<f64> = camera_from_dlt.rotation.transpose() * input.rough_camera_from_lrf;
     let scan = corner_from_lrf_by_one_scan(input, &prior, &mut notes)?;
     // ---- 4. composition: T_cam←lrf = T_cam←corner · T_corner←lrf ----
     let camera_from_lrf = camera_from_dlt.compose(&scan.corner_from_lrf);

@@ -40,6 +40,7 @@ impl Field {
             targets: &self.targets,
             main_image: &self.image,
             seed,
+            rough_camera_from_lrf: nalgebra::Matrix3::identity(),
         }
     }
 }
@@ -260,6 +261,7 @@ fn no_usable_scan_and_bad_input_are_errors() {
         targets: &f.targets,
         main_image: &f.image,
         seed: 4,
+        rough_camera_from_lrf: nalgebra::Matrix3::identity(),
     };
     let e = fan_baseline(&input).unwrap_err().to_string();
     assert!(e.contains("no scan line shows three corner faces"), "{e}");

@@ -386,6 +386,17 @@ fn corner_method(
             }
         }
     }
+    // the rough camera←LRF rotation the baseline's prior needs: that of the matched control
+    // balls (the LRF need not look the way the camera does), or the identity (Fan's setting)
+    let control = |set: &[PointObs]| -> Vec<Vector3<f64>> {
+        set.iter()
+            .filter(|p| !check_ids.contains(&p.id))
+            .map(|p| p.xyz)
+            .collect()
+    };
+    let rough =
+        pingcal_lrf::registration::umeyama(&control(lrf_points), &control(cam_points), None, false)
+            .map_or_else(|_| Matrix3::identity(), |s| s.rotation);
     let l = &project.file.lrf;
     let input = BaselineInput {
         header,
@@ -395,6 +406,7 @@ fn corner_method(
         targets: &targets,
         main_image: &main_image,
         seed: opts.seed,
+        rough_camera_from_lrf: rough,
     };
     let res = fan_baseline(&input).map_err(|e| e.to_string())?;
     let ids: Vec<&String> = if check_ids.is_empty() {
