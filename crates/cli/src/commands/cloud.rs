@@ -65,6 +65,17 @@ pub struct Args {
     /// Mount model: servo reading at which the scan plane is the LRF frame's X–Y plane.
     #[arg(long, allow_hyphen_values = true, default_value_t = 0.0)]
     pub servo_zero_deg: f64,
+    /// Mount model: scale error of the servo angle (β = servo · (1 + s)), as `lrf_mount`'s
+    /// `servo_scale` in results.json.
+    #[arg(long, allow_hyphen_values = true, default_value_t = 0.0)]
+    pub servo_scale: f64,
+    /// Range model: the sensor reports `true · (1 + range_scale) + range_offset` (mm), as
+    /// `lrf_mount`'s `range_offset` in results.json.
+    #[arg(long, allow_hyphen_values = true, default_value_t = 0.0)]
+    pub range_offset_mm: f64,
+    /// Range model: the range scale error (see `--range-offset-mm`).
+    #[arg(long, allow_hyphen_values = true, default_value_t = 0.0)]
+    pub range_scale: f64,
 }
 
 /// Runs the command.
@@ -91,16 +102,28 @@ pub fn run(args: Args) -> CmdResult {
         args.tilt_x_deg,
         args.tilt_z_deg,
         args.servo_zero_deg,
+        args.servo_scale,
+        args.range_offset_mm,
+        args.range_scale,
     ];
     if values.iter().any(|v| !v.is_finite()) {
-        return Err("mount model: --mount-offset-mm, --tilt-x-deg, --tilt-z-deg and --servo-zero-deg must be finite numbers".into());
+        return Err("mount model: --mount-offset-mm, --tilt-x-deg, --tilt-z-deg, --servo-zero-deg, --servo-scale, --range-offset-mm and --range-scale must be finite numbers".into());
+    }
+    if !(args.servo_scale.abs() < 0.5 && args.range_scale.abs() < 0.5) {
+        return Err(format!(
+            "mount model: --servo-scale {} / --range-scale {}: expected a scale error, a small fraction (e.g. 0.003), not a factor",
+            args.servo_scale, args.range_scale
+        )
+        .into());
     }
     let mount = MountModel {
         offset_mm: [m[0], m[1], m[2]],
         tilt_x_deg: args.tilt_x_deg,
         tilt_z_deg: args.tilt_z_deg,
         servo_zero_deg: args.servo_zero_deg,
-        ..MountModel::default()
+        servo_scale: args.servo_scale,
+        range_offset_mm: args.range_offset_mm,
+        range_scale: args.range_scale,
     };
     let noise = match (&args.noise, &args.noise_sigma) {
         (Some(n), _) => RangeNoise::named(n).map_err(|e| format!("--noise: {e}"))?,

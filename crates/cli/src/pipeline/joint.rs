@@ -180,6 +180,11 @@ pub struct LrfView {
     pub seen_twice_rejected: usize,
     /// Spheres kept although seen twice.
     pub seen_twice_kept: usize,
+    /// Balls of the photogrammetric model matched to no sphere while a rejected LRF
+    /// candidate lies within a ball's diameter of where this pass's extrinsic puts them:
+    /// a ball the cloud's residual mount error spoilt (beams through it, a fit lost), which
+    /// a cloud through a better mount may give back.
+    pub rejected_at_unmatched: usize,
 }
 
 /// The balls of the joint adjustment: (LRF sphere, scene point, name, is a check ball).
@@ -582,6 +587,7 @@ pub fn joint_adjustment(input: &JointInput, rep: &Reporter) -> Result<JointOutco
             matched: input.ext.pairs.len(),
             seen_twice_rejected: input.lrf.found.seen_twice_rejected(),
             seen_twice_kept: input.lrf.found.seen_twice_kept(),
+            rejected_at_unmatched: rejected_at_unmatched(input, &ext),
         },
     };
     rep.log(format!(
@@ -601,6 +607,22 @@ pub fn joint_adjustment(input: &JointInput, rep: &Reporter) -> Result<JointOutco
             .join(", ")
     ));
     Ok(out)
+}
+
+/// How many balls of the model have no sphere but a rejected candidate near where
+/// `camera_from_lrf` puts them (see [`LrfView::rejected_at_unmatched`]).
+fn rejected_at_unmatched(input: &JointInput, camera_from_lrf: &Rigid3) -> usize {
+    let lrf_from_camera = camera_from_lrf.inverse();
+    let near = input.project.file.balls.diameter_mm;
+    (input.scene.points.iter_enumerated())
+        .filter(|&(k, p)| {
+            p.kind == PointKind::Ball && !input.ext.pairs.iter().any(|&(_, q)| q == k)
+        })
+        .filter(|(_, p)| {
+            let at = lrf_from_camera.transform(&p.position);
+            (input.lrf.found.rejected.iter()).any(|r| (r.centre - at).norm() < near)
+        })
+        .count()
 }
 
 impl JointOutcome {
@@ -626,6 +648,11 @@ impl JointOutcome {
             ))
         } else if twice >= 2 {
             Some(format!("{twice} LRF candidates were seen twice"))
+        } else if v.rejected_at_unmatched > 0 {
+            Some(format!(
+                "{} ball(s) of the model were rejected in the cloud where the estimate puts them",
+                v.rejected_at_unmatched
+            ))
         } else if v.spheres > v.matched {
             Some(format!(
                 "{} of {} spheres match no ball",
