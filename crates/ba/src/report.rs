@@ -169,7 +169,9 @@ impl AdjustmentReport {
             points: problem.points.len(),
             image_observations: problem.observations.len(),
             distances: problem.distances.len(),
-            control_points: problem.points.iter().filter(|p| p.fixed).count()
+            control_points: (problem.points.iter())
+                .filter(|p| p.held().iter().any(|&h| h))
+                .count()
                 + problem.point_priors.len(),
             redundancy: precision.redundancy,
             sigma0: precision.sigma0,

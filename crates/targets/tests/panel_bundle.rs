@@ -181,6 +181,7 @@ fn panel_3d_rms_after_self_calibrating_bundle_and_similarity() {
                 xyz: *p,
                 sigma_mm: Some([PRIOR_SIGMA_MM; 3]),
                 fixed: false,
+                fixed_axes: None,
             })
             .collect(),
     };

@@ -633,6 +633,7 @@ pub fn to_measurements(
                 xyz: c.xyz.map(|v| v * object_unit_mm),
                 sigma_mm: c.sigma.map(|s| s.map(|v| v * object_unit_mm)),
                 fixed: c.sigma.is_none(),
+                fixed_axes: None,
             })
             .collect(),
     }

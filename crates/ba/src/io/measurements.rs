@@ -62,8 +62,10 @@
 //! * `image_points`: `sigma_px` is the standard deviation of each coordinate.
 //! * `distances`: measured distance `mm` between the points `a` and `b`, with σ `sigma_mm`.
 //! * `control_points`: `fixed: true` holds the point at `xyz`; `sigma_mm` (per axis) makes
-//!   it a weighted control point; with neither, `xyz` is only an approximate coordinate
-//!   (an initial value for resection) and the point is free.
+//!   it a weighted control point; `fixed_axes` (e.g. `"Z"`, `"XY"`) holds only those
+//!   coordinates at `xyz` exactly (the others free, or weighted by their `sigma_mm`); with
+//!   none of these, `xyz` is only an approximate coordinate (an initial value for
+//!   resection) and the point is free.
 //!
 //! # Conversion to a [`Problem`]
 //!
@@ -231,6 +233,28 @@ pub struct ControlPoint {
     /// Held fixed.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub fixed: bool,
+    /// Coordinates held one by one, as letters: `"Z"` (a levelled point's height), `"XY"`…
+    /// ([`crate::problem::Point::fixed_axes`]); the others stay free.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fixed_axes: Option<String>,
+}
+
+/// The held axes of `fixed_axes` (letters X, Y, Z, each at most once; case ignored), or
+/// None when the text is not such a set.
+fn parse_axes(text: &str) -> Option<[bool; 3]> {
+    let mut held = [false; 3];
+    for c in text.chars() {
+        let k = match c.to_ascii_uppercase() {
+            'X' => 0,
+            'Y' => 1,
+            'Z' => 2,
+            _ => return None,
+        };
+        if std::mem::replace(&mut held[k], true) {
+            return None;
+        }
+    }
+    Some(held)
 }
 
 /// What is wrong with a measurement file. Each names the item concerned.
@@ -289,6 +313,9 @@ pub enum MeasurementError {
     /// A fixed image without a pose.
     #[error("image '{image}' is fixed but has no pose")]
     FixedWithoutPose { image: String },
+    /// `fixed_axes` that is not a set of the letters X, Y, Z.
+    #[error("control point '{point}': fixed_axes \"{value}\" is not a set of the axes X, Y, Z (expected e.g. \"Z\" or \"XY\", each letter once)")]
+    BadFixedAxes { point: String, value: String },
     /// A NaN, infinite or non-positive value where a positive finite one is required.
     #[error("{what}: {value} is not a valid value ({expected})")]
     BadValue {
@@ -681,9 +708,17 @@ impl Builder {
                     positive(|| format!("control point '{}': sigma_mm", cp.id), v)?;
                 }
             }
+            let axes = match &cp.fixed_axes {
+                None => [false; 3],
+                Some(text) => parse_axes(text).ok_or_else(|| MeasurementError::BadFixedAxes {
+                    point: cp.id.clone(),
+                    value: text.clone(),
+                })?,
+            };
             let k = self.point(&cp.id);
             self.problem.points[k].position = Vector3::from(cp.xyz);
             self.problem.points[k].fixed = cp.fixed;
+            self.problem.points[k].fixed_axes = axes;
         }
         let mut known_points = vec![false; self.problem.points.len()];
         for cp in control_points {
@@ -919,6 +954,23 @@ mod tests {
         let e = Measurements::parse("{\"cameras\": [}", "broken.json").unwrap_err();
         let text = e.to_string();
         assert_eq!(e.in_file("other.json").to_string(), text);
+    }
+
+    #[test]
+    fn fixed_axes_hold_single_coordinates_and_bad_ones_are_refused() {
+        let b = edit(|m| m.control_points[2].fixed_axes = Some("xZ".into())).unwrap();
+        let p19 = &b.problem.points[b.point_index["19"]];
+        assert_eq!(p19.fixed_axes, [true, false, true]);
+        assert!(!p19.fixed && p19.is_partly_held());
+        for bad in ["W", "ZZ", "X Y", "1"] {
+            let e = edit(|m| m.control_points[2].fixed_axes = Some(bad.into()))
+                .unwrap_err()
+                .to_string();
+            assert!(
+                e.contains("control point '19'") && e.contains(&format!("\"{bad}\"")),
+                "{bad}: {e}"
+            );
+        }
     }
 
     #[test]
