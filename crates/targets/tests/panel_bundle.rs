@@ -149,6 +149,7 @@ fn panel_3d_rms_after_self_calibrating_bundle_and_similarity() {
             camera: "d5600".into(),
             pose: None,
             fixed: false,
+            fixed_centre_axes: None,
         });
     }
     println!(

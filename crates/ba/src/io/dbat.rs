@@ -595,6 +595,7 @@ pub fn to_measurements(
                 camera: camera.name.clone(),
                 pose: None,
                 fixed: false,
+                fixed_centre_axes: None,
             });
         }
     }

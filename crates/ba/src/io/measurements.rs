@@ -58,7 +58,9 @@
 //! * `pose` (optional): the projection centre in object space and the angles ω, φ, κ in
 //!   degrees with R = R_ω R_φ R_κ ([`pingcal_geometry::from_opk`]), the object → camera
 //!   rotation. An image without a pose gets one from [`crate::initial`]. `fixed: true`
-//!   (default false) holds the pose (datum (a) of issue 3: the main station).
+//!   (default false) holds the pose (datum (a) of issue 3: the main station);
+//!   `fixed_centre_axes` (e.g. `"XYZ"`, `"Z"`) holds only those coordinates of the pose's
+//!   centre (a GNSS-surveyed camera station), the rotation staying free.
 //! * `image_points`: `sigma_px` is the standard deviation of each coordinate.
 //! * `distances`: measured distance `mm` between the points `a` and `b`, with σ `sigma_mm`.
 //! * `control_points`: `fixed: true` holds the point at `xyz`; `sigma_mm` (per axis) makes
@@ -187,6 +189,12 @@ pub struct ImageSpec {
     /// Pose held fixed (needs `pose`).
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub fixed: bool,
+    /// Coordinates of the projection centre held one by one at the pose's `centre`, as
+    /// letters (`"XYZ"` for a centre surveyed by GNSS, `"Z"` for a known height; needs
+    /// `pose`); the rotation and the other coordinates stay free
+    /// ([`crate::problem::Image::fixed_centre`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fixed_centre_axes: Option<String>,
 }
 
 /// One image measurement.
@@ -257,6 +265,18 @@ fn parse_axes(text: &str) -> Option<[bool; 3]> {
     Some(held)
 }
 
+/// The axes held by an optional `fixed_axes`-style text ([`parse_axes`]), or the error
+/// naming `what` (the item and its key).
+fn held_axes(text: Option<&str>, what: impl Fn() -> String) -> Result<[bool; 3], MeasurementError> {
+    match text {
+        None => Ok([false; 3]),
+        Some(t) => parse_axes(t).ok_or_else(|| MeasurementError::BadFixedAxes {
+            what: what(),
+            value: t.to_string(),
+        }),
+    }
+}
+
 /// What is wrong with a measurement file. Each names the item concerned.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum MeasurementError {
@@ -313,9 +333,15 @@ pub enum MeasurementError {
     /// A fixed image without a pose.
     #[error("image '{image}' is fixed but has no pose")]
     FixedWithoutPose { image: String },
-    /// `fixed_axes` that is not a set of the letters X, Y, Z.
-    #[error("control point '{point}': fixed_axes \"{value}\" is not a set of the axes X, Y, Z (expected e.g. \"Z\" or \"XY\", each letter once)")]
-    BadFixedAxes { point: String, value: String },
+    /// `fixed_axes` (of a control point) or `fixed_centre_axes` (of an image) that is not a
+    /// set of the letters X, Y, Z; `what` names the item and the key.
+    #[error("{what} \"{value}\" is not a set of the axes X, Y, Z (expected e.g. \"Z\" or \"XY\", each letter once)")]
+    BadFixedAxes { what: String, value: String },
+    /// Held centre coordinates without a pose to hold them at.
+    #[error(
+        "image '{image}' has fixed_centre_axes but no pose (its centre gives the held coordinates)"
+    )]
+    HeldCentreWithoutPose { image: String },
     /// A NaN, infinite or non-positive value where a positive finite one is required.
     #[error("{what}: {value} is not a valid value ({expected})")]
     BadValue {
@@ -612,6 +638,14 @@ impl Builder {
                     image: im.name.clone(),
                 });
             }
+            if im.fixed_centre_axes.is_some() && im.pose.is_none() {
+                return Err(MeasurementError::HeldCentreWithoutPose {
+                    image: im.name.clone(),
+                });
+            }
+            let fixed_centre = held_axes(im.fixed_centre_axes.as_deref(), || {
+                format!("image '{}': fixed_centre_axes", im.name)
+            })?;
             if let Some(p) = &im.pose {
                 for v in p.centre.iter().chain(&p.omega_phi_kappa_deg) {
                     finite(|| format!("pose of image '{}'", im.name), *v)?;
@@ -623,7 +657,7 @@ impl Builder {
                 camera,
                 camera_from_object: im.pose.map(|p| p.to_pose()).unwrap_or_default(),
                 fixed: im.fixed,
-                fixed_centre: [false; 3],
+                fixed_centre,
             });
         }
         if let Some(k) = used_cameras.iter().position(|u| !u) {
@@ -708,13 +742,9 @@ impl Builder {
                     positive(|| format!("control point '{}': sigma_mm", cp.id), v)?;
                 }
             }
-            let axes = match &cp.fixed_axes {
-                None => [false; 3],
-                Some(text) => parse_axes(text).ok_or_else(|| MeasurementError::BadFixedAxes {
-                    point: cp.id.clone(),
-                    value: text.clone(),
-                })?,
-            };
+            let axes = held_axes(cp.fixed_axes.as_deref(), || {
+                format!("control point '{}': fixed_axes", cp.id)
+            })?;
             let k = self.point(&cp.id);
             self.problem.points[k].position = Vector3::from(cp.xyz);
             self.problem.points[k].fixed = cp.fixed;
@@ -970,6 +1000,31 @@ mod tests {
                 e.contains("control point '19'") && e.contains(&format!("\"{bad}\"")),
                 "{bad}: {e}"
             );
+        }
+    }
+
+    #[test]
+    fn an_image_holds_single_centre_coordinates_only_with_a_pose() {
+        let b = edit(|m| m.images[0].fixed_centre_axes = Some("Zx".into())).unwrap();
+        let im = &b.problem.images[0];
+        assert_eq!(im.fixed_centre, [true, false, true]);
+        let e = edit(|m| m.images[1].fixed_centre_axes = Some("Y".into()))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("image 'st02'") && e.contains("no pose"), "{e}");
+        for bad in ["XX", "centre", ""] {
+            let e = edit(|m| m.images[0].fixed_centre_axes = Some(bad.into()));
+            match bad {
+                // an empty set holds nothing: allowed, the same as no key
+                "" => assert_eq!(e.unwrap().problem.images[0].fixed_centre, [false; 3]),
+                _ => {
+                    let e = e.unwrap_err().to_string();
+                    assert!(
+                        e.contains("fixed_centre_axes") && e.contains(bad),
+                        "{bad}: {e}"
+                    );
+                }
+            }
         }
     }
 
