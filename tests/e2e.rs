@@ -307,6 +307,26 @@ fn missing_image() {
     w.calibrate_fails(&p, &["S03_left.png"]);
 }
 
+/// An intersection angle that leaves the network without targets: the images it could not
+/// orient say why, naming the key (issue 17).
+#[test]
+fn an_intersection_angle_that_refuses_every_target_is_named() {
+    let w = Work::new("intersection_angle");
+    let p = w.project("project");
+    let toml = p.join("project.toml");
+    let mut text = fs::read_to_string(&toml).unwrap();
+    text.push_str("\n[network]\nmin_intersection_angle_deg = 89.0\n");
+    fs::write(&toml, text).unwrap();
+    w.calibrate_fails(
+        &p,
+        &[
+            "left out of the network",
+            "under 89°",
+            "min_intersection_angle_deg",
+        ],
+    );
+}
+
 /// A missing scan: named.
 #[test]
 fn missing_scan() {

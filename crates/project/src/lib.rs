@@ -28,7 +28,8 @@ pub use closed_sets::{CameraModel, Method, MountParameter, Parameter, TargetFami
 pub use layout::{Layout, LayoutError};
 pub use schema::{
     BallLabel, CameraParams, ProjectBag, ProjectBalls, ProjectCamera, ProjectDistance, ProjectFile,
-    ProjectFrames, ProjectImage, ProjectLrf, ProjectStereo, ProjectTargets, PARAMETER_NAMES,
+    ProjectFrames, ProjectImage, ProjectLrf, ProjectNetwork, ProjectStereo, ProjectTargets,
+    PARAMETER_NAMES,
 };
 pub use sphere_calib::{CameraFile, SphereCalibFile, SphereCalibFrame, SphereCalibLidar};
 

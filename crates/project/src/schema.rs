@@ -48,6 +48,40 @@ pub struct ProjectFile {
     /// Names of the frames in the ROS outputs (optional).
     #[serde(default, skip_serializing_if = "ProjectFrames::is_default")]
     pub frames: ProjectFrames,
+    /// How the photogrammetric network is started (optional).
+    #[serde(default, skip_serializing_if = "ProjectNetwork::is_default")]
+    pub network: ProjectNetwork,
+}
+
+/// `[network]`: the start of the photogrammetric network.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ProjectNetwork {
+    /// The smallest largest angle between a coded target's rays (degrees) for the initial
+    /// intersection to take it; the targets below are left out and listed in the log.
+    /// Default 2: a target seen from almost one direction has a depth σ of about
+    /// σ_ray / sin(angle), 30 times its lateral σ at 2°.
+    #[serde(default = "default_min_intersection_angle")]
+    pub min_intersection_angle_deg: f64,
+}
+
+impl Default for ProjectNetwork {
+    fn default() -> Self {
+        ProjectNetwork {
+            min_intersection_angle_deg: default_min_intersection_angle(),
+        }
+    }
+}
+
+impl ProjectNetwork {
+    /// Whether every key has its default (the table is then not written).
+    pub fn is_default(&self) -> bool {
+        *self == ProjectNetwork::default()
+    }
+}
+
+fn default_min_intersection_angle() -> f64 {
+    2.0
 }
 
 /// `[frames]`: the tf frame ids (and URDF link names) that `calibrate` writes into `ros/`.

@@ -87,6 +87,28 @@ fn frame_names_default_and_are_checked() {
     assert_eq!(ProjectFile::parse(&q.to_toml_string(), "again").unwrap(), q);
 }
 
+/// Issue 17: `[network] min_intersection_angle_deg` defaults to 2°, is refused outside
+/// [0°, 90°) by name, and survives a round trip when set.
+#[test]
+fn the_intersection_angle_defaults_and_is_checked() {
+    let p = ProjectFile::parse(&readme_example(), "example.toml").unwrap();
+    assert_eq!(p.network.min_intersection_angle_deg, 2.0);
+    for bad in [-1.0, 90.0, f64::NAN] {
+        let e = err_of(|p| p.network.min_intersection_angle_deg = bad);
+        assert!(
+            e.contains("[network] min_intersection_angle_deg"),
+            "{bad}: {e}"
+        );
+    }
+    let mut q = p.clone();
+    q.network.min_intersection_angle_deg = 5.0;
+    q.validate("q.toml").unwrap();
+    let text = q.to_toml_string();
+    assert!(text.contains("[network]"), "{text}");
+    assert_eq!(ProjectFile::parse(&text, "again").unwrap(), q);
+    assert!(!p.to_toml_string().contains("[network]"));
+}
+
 /// Issue 14: values that were accepted although absurd (and then not used).
 #[test]
 fn absurd_sensor_values_are_named() {

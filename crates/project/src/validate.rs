@@ -9,7 +9,7 @@
 
 use crate::schema::{
     ProjectBag, ProjectBalls, ProjectCamera, ProjectDistance, ProjectFile, ProjectFrames,
-    ProjectImage, ProjectLrf, ProjectStereo, ProjectTargets,
+    ProjectImage, ProjectLrf, ProjectNetwork, ProjectStereo, ProjectTargets,
 };
 use crate::ProjectError;
 use std::collections::{BTreeMap, BTreeSet};
@@ -53,8 +53,21 @@ impl ProjectFile {
         validate_main_station(&self.main_station, &self.main_camera, &stations)?;
         validate_distances(&self.distances)?;
         validate_lrf(&self.lrf, &self.main_station)?;
-        validate_frames(&self.frames)
+        validate_frames(&self.frames)?;
+        validate_network(&self.network)
     }
+}
+
+/// `[network]`: an angle in [0°, 90°) (a limit of 90° or more would leave out the targets
+/// of any usual network).
+fn validate_network(n: &ProjectNetwork) -> Result<(), String> {
+    let a = n.min_intersection_angle_deg;
+    if !(0.0..90.0).contains(&a) {
+        return Err(format!(
+            "[network] min_intersection_angle_deg = {a}: expected degrees in [0, 90)"
+        ));
+    }
+    Ok(())
 }
 
 /// `[frames]`: two distinct tf frame ids of letters, digits and `_ - . /`, not starting

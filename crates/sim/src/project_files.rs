@@ -464,6 +464,7 @@ pub fn project_of(sim: &Simulation) -> ProjectFile {
             self_calibrate: None,
         },
         frames: ProjectFrames::default(),
+        network: Default::default(),
     }
 }
 

@@ -54,7 +54,7 @@ pub fn initial_network(
             if list.is_empty() { "none".into() } else { list.join(", ") }
         )));
     }
-    let options = IncrementalOptions {
+    let mut options = IncrementalOptions {
         bundle: solver::Options {
             max_iterations: 50,
             threads: opts.threads,
@@ -62,6 +62,8 @@ pub fn initial_network(
         },
         ..IncrementalOptions::default()
     };
+    let min_angle = f.network.min_intersection_angle_deg;
+    options.intersection.min_angle_deg = min_angle;
     let pb = rep.task("orienting images", 1);
     let (start_used, init, scene, failed) = first_start(project, &sp, start, opts.start, &options)?;
     pb.finish();
@@ -69,6 +71,20 @@ pub fn initial_network(
         rep.log(format!("  {s}"));
     }
     let mut scene = scene;
+    if !init.refused_by_angle.is_empty() {
+        let list: Vec<String> = (init.refused_by_angle.iter())
+            .map(|(name, a)| format!("{name} ({a:.2}°)"))
+            .collect();
+        let why = format!(
+            "{} coded target(s) left out of the network: their rays meet at under {min_angle}° ([network] min_intersection_angle_deg)",
+            list.len()
+        );
+        rep.log(format!("  {why}: {}", list.join(", ")));
+        // an image left unoriented may be so for want of those targets
+        for (_, reason) in &mut scene.unoriented {
+            reason.push_str(&format!("; {why}"));
+        }
+    }
     scene.start = start_used.describe().into();
     scene.warnings = failed;
     for w in &scene.warnings {
