@@ -13,6 +13,7 @@
 
 mod choice;
 mod constraints;
+mod estimability;
 mod evaluate;
 mod free_network;
 mod iterative;
@@ -25,6 +26,7 @@ mod sigma;
 mod variance;
 
 pub use choice::{available_memory, SolverChoice, TooLarge};
+pub use estimability::{check_intrinsics, Estimability, NULL_EIGENVALUE};
 pub use free_network::MAX_FREE_NETWORK_UNKNOWNS;
 pub use iterative::CgOptions;
 pub use linear::LinearSolverKind;

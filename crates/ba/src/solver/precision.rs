@@ -33,7 +33,10 @@ struct Cofactors {
 
 /// The linearization of `problem` at its estimate; an observation that does not project is
 /// named.
-fn linearized(problem: &Problem, layout: &Layout) -> Result<Linearization, PrecisionError> {
+pub(super) fn linearized(
+    problem: &Problem,
+    layout: &Layout,
+) -> Result<Linearization, PrecisionError> {
     let mut lin = Linearization::new(layout);
     linearize(problem, layout, &mut lin).map_err(|u| u.describe(problem))?;
     Ok(lin)
@@ -367,7 +370,7 @@ pub fn free_network_precision_bordered(problem: &Problem) -> Result<Precision, P
 
 /// The undamped Schur complement at the linearization and S as a dense symmetric matrix;
 /// refused when an eliminated point is not determined by its own observations.
-fn reduced_system(
+pub(super) fn reduced_system(
     problem: &Problem,
     layout: &Layout,
     lin: &Linearization,
@@ -551,7 +554,7 @@ fn observation_cofactor(
 
 /// S⁻¹, or a diagnosis of S's null space: how many degrees of freedom the datum leaves
 /// open, and which unknowns they involve.
-fn invert_or_diagnose(
+pub(super) fn invert_or_diagnose(
     s: &DMatrix<f64>,
     problem: &Problem,
     layout: &Layout,

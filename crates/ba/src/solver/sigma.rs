@@ -128,6 +128,10 @@ pub enum PrecisionError {
     /// The datum is not defined: S is singular.
     #[error("the network has a datum defect: {0}")]
     DatumDefect(String),
+    /// A combination of camera-model parameters that the network does not determine
+    /// ([`super::estimability::check_intrinsics`]).
+    #[error("{0}")]
+    NotDeterminable(String),
     /// A point's position is not determined by its observations.
     #[error("point '{0}' is not determined: it needs rays from at least two images with an angle between them")]
     PointUndetermined(String),

@@ -415,6 +415,17 @@ fn run_measurements(path: &std::path::Path, args: &Args) -> CmdResult {
         );
     }
     let mut problem = init.problem;
+    // a camera-model parameter the network cannot determine: named before the adjustment
+    match solver::check_intrinsics(&problem) {
+        Err(e @ solver::PrecisionError::NotDeterminable(_)) => {
+            return Err(format!("{}: {e}", path.display()).into());
+        }
+        Ok(solver::Estimability::NotChecked(n)) if !args.quiet => println!(
+            "  the intrinsics' estimability is judged after the adjustment ({n} reduced unknowns: too many to judge before)"
+        ),
+        // any other defect is named by the adjustment's precision
+        _ => {}
+    }
     if let Some(l) = &args.loss {
         problem.loss = parse_loss(l)?;
     }

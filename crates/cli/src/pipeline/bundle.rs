@@ -194,6 +194,17 @@ impl Rounds<'_> {
             let mut sp =
                 SceneProblem::build(self.project, self.dets, scene, Datum::MainImage, self.rig);
             let max_rej = sp.problem.observations.len() / 20;
+            if round == 0 {
+                // a camera parameter the network cannot determine: named before solving
+                if let Err(e @ PrecisionError::NotDeterminable(_)) =
+                    solver::check_intrinsics(&sp.problem)
+                {
+                    return Err(PipelineError::new(format!(
+                        "{}: final bundle adjustment: {e} (the project's [[cameras]] free = [...])",
+                        self.project.path.display()
+                    )));
+                }
+            }
             match solver::adjust_with_snooping(
                 &mut sp.problem,
                 &self.options,
