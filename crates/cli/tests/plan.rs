@@ -61,6 +61,7 @@ fn plan_predicts_ranks_removals_and_repeats_itself() {
     ];
     let (ok, stdout, stderr) = run(&d, &[&args[..], &["p1.json"]].concat());
     assert!(ok, "plan failed\nstdout: {stdout}\nstderr: {stderr}");
+    assert!(!stdout.contains("with honest σ's"), "{stdout}");
     for want in [
         "2 seed(s) from 1, 2 calibrated, 0 failed; 6 stations, 5 distances, 16 balls (5 check)",
         "predicted σ",
@@ -86,6 +87,8 @@ fn plan_predicts_ranks_removals_and_repeats_itself() {
         let (s, m) = (num(&c["predicted_sigma"]), num(&c["monte_carlo_rms_error"]));
         assert!(s > 0.0 && s.is_finite() && m > 0.0 && m.is_finite(), "{c}");
         assert!((num(&c["ratio"]) - m / s).abs() < 1e-12, "{c}");
+        // 2 seeds are too few for the honest band
+        assert!(c["consistent_with_honest_sigma"].is_null(), "{c}");
     }
     // a 5-station field's σ: about a millimetre, not a micrometre nor a metre
     assert!(

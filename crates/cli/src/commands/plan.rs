@@ -127,6 +127,23 @@ pub struct Component {
     pub monte_carlo_rms_error: Option<f64>,
     /// Monte Carlo / predicted.
     pub ratio: Option<f64>,
+    /// Whether the ratio lies in the band an honest σ gives with this many seeds
+    /// ([`honest_ratio_band`], 95 %); None with fewer than 2 seeds.
+    pub consistent_with_honest_sigma: Option<bool>,
+}
+
+/// The central 95 % of the ratio (RMS true error / RMS predicted σ) over `n` seeds when the
+/// predicted σ's are exact: `√(χ²ₙ(p) / n)` at p = 0.025 and 0.975
+/// ([`crate::pipeline::verdict::chi2_quantile`]). With 20 seeds it is 0.69–1.31: a 20-seed
+/// ratio alone cannot tell an honest σ from one 20 % off. None below 5 seeds (too few to
+/// judge, and the approximation of χ² too coarse).
+pub fn honest_ratio_band(n: usize) -> Option<[f64; 2]> {
+    if n < 5 {
+        return None;
+    }
+    let n = n as f64;
+    let q = |z: f64| (crate::pipeline::verdict::chi2_quantile(n, z) / n).sqrt();
+    Some([q(-1.959964), q(1.959964)])
 }
 
 /// One removal's effect, paired with the plan on the same seeds.
@@ -334,11 +351,14 @@ fn component(
 ) -> Component {
     let predicted_sigma = rms_of(runs, sigma);
     let mc = (runs.len() >= 2).then(|| rms_of(runs, err));
+    let ratio = mc.map(|m| m / predicted_sigma);
+    let band = honest_ratio_band(runs.len());
     Component {
         name: name.into(),
         predicted_sigma,
         monte_carlo_rms_error: mc,
-        ratio: mc.map(|m| m / predicted_sigma),
+        ratio,
+        consistent_with_honest_sigma: ratio.zip(band).map(|(r, [lo, hi])| (lo..=hi).contains(&r)),
     }
 }
 
@@ -689,11 +709,21 @@ pub fn table(p: &Plan) -> String {
     for c in p.extrinsic.iter().chain(&p.ball_centres) {
         let prec = if c.name.contains("deg") { 4 } else { 3 };
         s += &format!(
-            "{:<12} {:>12} {:>22} {:>7}\n",
+            "{:<12} {:>12} {:>22} {:>7}{}\n",
             c.name,
             format!("{:.prec$}", c.predicted_sigma),
             opt(c.monte_carlo_rms_error, prec),
-            opt(c.ratio, 2)
+            opt(c.ratio, 2),
+            match c.consistent_with_honest_sigma {
+                Some(false) => "  outside the honest band",
+                _ => "",
+            }
+        );
+    }
+    if let Some([lo, hi]) = honest_ratio_band(p.calibrated) {
+        s += &format!(
+            "(with honest σ's the ratio over {} seeds lies in {lo:.2}–{hi:.2}, 95 %; more seeds narrow it)\n",
+            p.calibrated
         );
     }
     s += &format!(
@@ -748,4 +778,36 @@ pub fn table(p: &Plan) -> String {
         }
     }
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::honest_ratio_band;
+
+    /// Against the exact χ² quantiles (n = 5, 10, 20, 60: 0.8312/12.833, 3.2470/20.483,
+    /// 9.5908/34.170, 40.482/83.298), to 2.5 % at n = 5 and 1 % from n = 10.
+    #[test]
+    fn the_honest_band_matches_the_chi_square_quantiles() {
+        for (n, lo, hi) in [
+            (5usize, 0.831_21, 12.832_5),
+            (10, 3.247_0, 20.483_2),
+            (20, 9.590_8, 34.169_6),
+            (60, 40.481_7, 83.297_7),
+        ] {
+            let [a, b] = honest_ratio_band(n).unwrap();
+            let exact = [(lo / n as f64).sqrt(), (hi / n as f64).sqrt()];
+            let tol = if n < 10 { 0.025 } else { 0.01 };
+            assert!(
+                (a / exact[0] - 1.0).abs() < tol,
+                "n {n}: {a} against {}",
+                exact[0]
+            );
+            assert!(
+                (b / exact[1] - 1.0).abs() < tol,
+                "n {n}: {b} against {}",
+                exact[1]
+            );
+        }
+        assert!(honest_ratio_band(4).is_none());
+    }
 }

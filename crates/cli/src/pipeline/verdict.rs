@@ -117,10 +117,16 @@ pub struct Verdict {
     pub alpha: f64,
 }
 
-/// The `1 − ALPHA` quantile of χ² with `k` degrees of freedom (Wilson–Hilferty).
-pub fn chi2_upper(k: f64) -> f64 {
+/// The quantile of χ² with `k` degrees of freedom at the standard normal quantile `z`
+/// (Wilson–Hilferty: `k (1 − a + z √a)³`, a = 2/(9k); within 1 % from k = 10 at z = ±1.96).
+pub fn chi2_quantile(k: f64, z: f64) -> f64 {
     let a = 2.0 / (9.0 * k);
-    k * (1.0 - a + Z_1_MINUS_ALPHA * a.sqrt()).powi(3)
+    k * (1.0 - a + z * a.sqrt()).max(0.0).powi(3)
+}
+
+/// The `1 − ALPHA` quantile of χ² with `k` degrees of freedom.
+pub fn chi2_upper(k: f64) -> f64 {
+    chi2_quantile(k, Z_1_MINUS_ALPHA)
 }
 
 /// The bound of a σ0 with `dof` degrees of freedom at level [`ALPHA`]: `√(χ²₁₋α(dof) / dof)`.
