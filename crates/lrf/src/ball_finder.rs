@@ -165,6 +165,17 @@ pub struct Support {
     pub coverage: usize,
 }
 
+impl Support {
+    /// Whether the free-radius fit determined a radius for a ball of nominal `radius`: it
+    /// neither failed nor ran off (outside R/3…3R), as it does where the range σ is a fair
+    /// part of the radius and the cap's curvature is barely above the noise.
+    pub fn free_radius_determined(&self, radius: f64) -> bool {
+        self.free_radius_mm.is_finite()
+            && self.sigma_free_radius_mm.is_finite()
+            && (radius / 3.0..=3.0 * radius).contains(&self.free_radius_mm)
+    }
+}
+
 /// The annulus tested for a surface going on beside a ball is this many radii wide.
 pub const BESIDE_WIDTH: f64 = 0.6;
 /// A sector of that annulus is occupied with this many beams at the ball's depth.
@@ -940,8 +951,7 @@ fn verdict(s: &Support, radius: f64, opt: &FinderOptions) -> Option<String> {
     // radius is not determined, not that it is wrong.
     let dr = (s.free_radius_mm - radius).abs();
     let curvature = s.range_sigma_mm.powi(2) / radius;
-    let ran_off = !(s.free_radius_mm >= radius / 3.0 && s.free_radius_mm <= 3.0 * radius);
-    let testable = !(ran_off && s.range_sigma_mm > radius / 4.0);
+    let testable = s.free_radius_determined(radius) || s.range_sigma_mm <= radius / 4.0;
     if testable && !(dr <= 3.0 * s.sigma_free_radius_mm + opt.radius_tolerance * radius + curvature)
     {
         return Some(format!(

@@ -214,10 +214,7 @@ pub fn run(args: Args) -> CmdResult {
             // the free fit fails or runs off where the range noise is a fair part of the
             // radius (see `ball_finder`): the radius is then not determined by the cap
             let nominal = args.diameter_mm / 2.0;
-            let free_radius = if s.free_radius_mm.is_finite()
-                && s.sigma_free_radius_mm.is_finite()
-                && (nominal / 3.0..=3.0 * nominal).contains(&s.free_radius_mm)
-            {
+            let free_radius = if s.free_radius_determined(nominal) {
                 format!("{:.1} ± {:.1} mm", s.free_radius_mm, s.sigma_free_radius_mm)
             } else {
                 format!(
