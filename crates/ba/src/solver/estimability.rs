@@ -25,7 +25,7 @@
 
 use super::layout::Layout;
 use super::precision::{invert_or_diagnose, linearized, reduced_system};
-use super::sigma::{PrecisionError, MAX_DENSE_PRECISION};
+use super::sigma::PrecisionError;
 use crate::datum::{check, Datum};
 use crate::problem::Problem;
 use nalgebra::DMatrix;
@@ -36,6 +36,10 @@ use nalgebra::DMatrix;
 /// correlated at 0.9999 would give about 1e-4.
 pub const NULL_EIGENVALUE: f64 = 1e-9;
 
+/// The largest reduced system judged before solving: its dense Cholesky (n³/3 flops, about
+/// a second at this size) must stay small against the adjustment it precedes.
+pub const MAX_CHECK_UNKNOWNS: usize = 1500;
+
 /// A component of a null vector above this share of its largest one names a parameter.
 const NAMED_SHARE: f64 = 0.1;
 
@@ -45,7 +49,8 @@ pub enum Estimability {
     /// Every free intrinsic is determined (to first order at the start values).
     Determined,
     /// The reduced system is too large for the dense test (more than
-    /// [`MAX_DENSE_PRECISION`] unknowns): not judged before solving.
+    /// [`MAX_CHECK_UNKNOWNS`] unknowns): not judged before solving (the precision after the
+    /// adjustment names a defect).
     NotChecked(usize),
 }
 
@@ -69,7 +74,7 @@ pub fn check_intrinsics(problem: &Problem) -> Result<Estimability, PrecisionErro
     if intrinsic_rows.is_empty() {
         return Ok(Estimability::Determined);
     }
-    if n > MAX_DENSE_PRECISION {
+    if n > MAX_CHECK_UNKNOWNS {
         return Ok(Estimability::NotChecked(n));
     }
     let lin = linearized(problem, &layout)?;

@@ -26,7 +26,7 @@ mod sigma;
 mod variance;
 
 pub use choice::{available_memory, SolverChoice, TooLarge};
-pub use estimability::{check_intrinsics, Estimability, NULL_EIGENVALUE};
+pub use estimability::{check_intrinsics, Estimability, MAX_CHECK_UNKNOWNS, NULL_EIGENVALUE};
 pub use free_network::MAX_FREE_NETWORK_UNKNOWNS;
 pub use iterative::CgOptions;
 pub use linear::LinearSolverKind;
