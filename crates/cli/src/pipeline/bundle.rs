@@ -200,7 +200,7 @@ impl Rounds<'_> {
                     solver::check_intrinsics(&sp.problem)
                 {
                     return Err(PipelineError::new(format!(
-                        "{}: final bundle adjustment: {e} (the project's [[cameras]] free = [...])",
+                        "{}: final bundle adjustment: {e} (the calibrated parameters are each [[cameras]] entry's free list)",
                         self.project.path.display()
                     )));
                 }
