@@ -499,3 +499,109 @@ fn dbat_files_name_their_camera_and_datum_problems() {
     assert!(run.success(), "{}", ctx(&run));
     assert!(run.stdout.contains("redundancy 3720"), "{}", ctx(&run));
 }
+
+/// Issue 17: `pingcal ba` names a camera parameter the network cannot determine before it
+/// adjusts. Two images of a plane taken with the same orientation give a plane's two
+/// constraints on the interior orientation once only, so c, xp and yp are not determined
+/// together; a third image rolled 90° and turned determines them.
+#[test]
+fn ba_names_an_undeterminable_interior_orientation_before_solving() {
+    use pingcal_ba::camera::{CameraModel, PhotogrammetricCamera};
+    use pingcal_ba::io::measurements::{
+        CameraSpec, ControlPoint, ImagePoint, ImageSpec, Measurements, PoseSpec,
+    };
+    use pingcal_geometry::Rigid3;
+    let w = Work::new("ba_undeterminable");
+    let model = PhotogrammetricCamera::new(1280, 720, 0.00375);
+    let params = [2.45, 0.01, -0.01, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0];
+    // a wall tilted 30° against the images, a grid of 8 × 5 points held as control
+    let points: Vec<nalgebra::Vector3<f64>> = (0..40)
+        .map(|k| {
+            let (i, j) = ((k % 8) as f64 - 3.5, (k / 8) as f64 - 2.0);
+            nalgebra::Vector3::new(180.0 * i, 2500.0 + 0.58 * 180.0 * i, 150.0 * j)
+        })
+        .collect();
+    let write = |poses: &[Rigid3], name: &str| {
+        let mut image_points = Vec::new();
+        let mut images = Vec::new();
+        for (k, pose) in poses.iter().enumerate() {
+            let image = format!("im{k}");
+            for (j, x) in points.iter().enumerate() {
+                let uv = model
+                    .project(&params, &pose.transform(x), None, None)
+                    .expect("in front");
+                if (0.0..1280.0).contains(&uv.x) && (0.0..720.0).contains(&uv.y) {
+                    image_points.push(ImagePoint {
+                        image: image.clone(),
+                        point: format!("P{j}"),
+                        x: uv.x,
+                        y: uv.y,
+                        sigma_px: 0.1,
+                    });
+                }
+            }
+            images.push(ImageSpec {
+                name: image,
+                camera: "cam".into(),
+                pose: Some(PoseSpec::from_pose(pose)),
+                fixed: false,
+                fixed_centre_axes: None,
+            });
+        }
+        let names = ["c", "xp", "yp"];
+        let m = Measurements {
+            format: Some("pingcal-measurements v1".into()),
+            cameras: vec![CameraSpec {
+                name: "cam".into(),
+                model: "photogrammetric".into(),
+                width: 1280,
+                height: 720,
+                pixel_size_mm: 0.00375,
+                intrinsics: [("c", params[0]), ("xp", params[1]), ("yp", params[2])]
+                    .into_iter()
+                    .map(|(n, v)| (n.to_string(), v))
+                    .collect(),
+                calibrate: names.iter().map(|n| n.to_string()).collect(),
+            }],
+            images,
+            image_points,
+            distances: Vec::new(),
+            control_points: (0..points.len())
+                .map(|j| ControlPoint {
+                    id: format!("P{j}"),
+                    xyz: points[j].into(),
+                    sigma_mm: None,
+                    fixed: true,
+                    fixed_axes: None,
+                })
+                .collect(),
+        };
+        let path = w.dir.join(name);
+        m.write(&path).unwrap();
+        path
+    };
+    let look = |c: [f64; 3], roll: f64| {
+        let c = nalgebra::Vector3::from(c);
+        Rigid3::looking_at(c, c + nalgebra::Vector3::new(0.0, 2500.0, 0.0), roll)
+    };
+    // the same orientation, moved sideways and up
+    let parallel = [look([0.0, 0.0, 0.0], 0.0), look([300.0, 0.0, 200.0], 0.0)];
+    let file = write(&parallel, "parallel.json");
+    let run = w.run(&["ba", s(&file), "--quiet"]);
+    fails(
+        &run,
+        &[
+            s(&file),
+            "of camera 'cam' (2 images) cannot be determined by this network",
+        ],
+    );
+    // a third image, rolled 90° and looking at the wall from the side: determined
+    let third = Rigid3::looking_at(
+        nalgebra::Vector3::new(-900.0, 300.0, 300.0),
+        nalgebra::Vector3::new(0.0, 2500.0, 0.0),
+        std::f64::consts::FRAC_PI_2,
+    );
+    let file = write(&[parallel[0], parallel[1], third], "rolled.json");
+    let run = w.run(&["ba", s(&file), "--quiet"]);
+    assert!(run.success(), "{}", ctx(&run));
+}
