@@ -472,7 +472,7 @@ fn drop_ring_pieces(project: &Project, scene: &mut Scene, rep: &Reporter) -> usi
 }
 
 /// Step 3: the plain points whose blobs are nearer the ball diameter than the target dot
-/// diameter become balls, once the pieces of code rings are dropped ([`drop_ring_pieces`]).
+/// diameter become balls, once the pieces of code rings are dropped (`drop_ring_pieces`).
 /// Returns them.
 pub fn classify_balls(
     project: &Project,
