@@ -23,6 +23,7 @@
 //! components): what is left is on the LRF side (some balls' sphere centres are off by more
 //! than their σ in every seed, an error of the fit that the beams' scatter does not show).
 
+use pingcal::pipeline::verdict::chi2_quantile;
 use serde_json::Value;
 use std::path::PathBuf;
 use std::process::Command;
@@ -42,12 +43,6 @@ servo_step_deg = 0.3515625
 
 /// Standard normal quantile of 0.995 (two-sided α = 1 %).
 const Z: f64 = 2.575_829_303_549;
-
-/// χ² quantile by Wilson–Hilferty (within 1 % from 20 degrees of freedom on, 3 % at 10): `k (1 − 2/(9k) + z √(2/(9k)))³`.
-fn chi2_quantile(k: f64, z: f64) -> f64 {
-    let a = 2.0 / (9.0 * k);
-    k * (1.0 - a + z * a.sqrt()).powi(3)
-}
 
 /// The interval of the RMS of `n` standard normal values that holds with probability 99 %.
 fn rms_bounds(n: usize) -> (f64, f64) {

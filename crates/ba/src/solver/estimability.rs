@@ -24,7 +24,7 @@
 //! on the datum chosen.
 
 use super::layout::Layout;
-use super::precision::{invert_or_diagnose, linearized, reduced_system};
+use super::precision::{invert_or_diagnose, jacobi_scale, linearized, reduced_system};
 use super::sigma::PrecisionError;
 use crate::datum::{check, Datum};
 use crate::problem::Problem;
@@ -79,9 +79,7 @@ pub fn check_intrinsics(problem: &Problem) -> Result<Estimability, PrecisionErro
     }
     let lin = linearized(problem, &layout)?;
     let (_, s) = reduced_system(problem, &layout, &lin)?;
-    let d: Vec<f64> = (0..n)
-        .map(|i| 1.0 / s[(i, i)].max(f64::MIN_POSITIVE).sqrt())
-        .collect();
+    let d = jacobi_scale(&s);
     let scaled = |i: usize, j: usize| s[(i, j)] * d[i] * d[j];
     let c: Vec<usize> = intrinsic_rows.iter().map(|r| r.row).collect();
     let r: Vec<usize> = (0..n).filter(|i| !c.contains(i)).collect();

@@ -552,6 +552,15 @@ fn observation_cofactor(
     aqa
 }
 
+/// The Jacobi scale `1/√S_ii` of each unknown (a zero diagonal taken as the smallest
+/// positive number): `d_i S_ij d_j` has a unit diagonal, so that rank tests do not depend on
+/// units.
+pub(super) fn jacobi_scale(s: &DMatrix<f64>) -> Vec<f64> {
+    (0..s.nrows())
+        .map(|i| 1.0 / s[(i, i)].max(f64::MIN_POSITIVE).sqrt())
+        .collect()
+}
+
 /// S⁻¹, or a diagnosis of S's null space: how many degrees of freedom the datum leaves
 /// open, and which unknowns they involve.
 pub(super) fn invert_or_diagnose(
@@ -564,9 +573,7 @@ pub(super) fn invert_or_diagnose(
         return Ok(DMatrix::zeros(0, 0));
     }
     // Jacobi scaling so that the rank test does not depend on units.
-    let d: Vec<f64> = (0..n)
-        .map(|i| 1.0 / s[(i, i)].max(f64::MIN_POSITIVE).sqrt())
-        .collect();
+    let d = jacobi_scale(s);
     let scaled = DMatrix::from_fn(n, n, |i, j| s[(i, j)] * d[i] * d[j]);
     let eig = scaled.clone().symmetric_eigen();
     let max = eig.eigenvalues.max();

@@ -440,8 +440,8 @@ pub fn blob_diameter_mm(dets: &Detections, scene: &Scene, p: &ScenePoint) -> Opt
 /// radius, `ring_outer` dot radii) are removed and logged: nothing else can be printed there,
 /// and a ball that near would hide the target, so such a point is a piece of that ring read
 /// as a blob in a few images (in the simulation, 11 and 16 mm from coded targets 342 and 29,
-/// large enough to pass for balls). Returns how many were removed.
-fn drop_ring_pieces(project: &Project, scene: &mut Scene, rep: &Reporter) -> usize {
+/// large enough to pass for balls).
+fn drop_ring_pieces(project: &Project, scene: &mut Scene, rep: &Reporter) {
     let t = &project.file.targets;
     let reach = t.ring_outer * t.dot_radius_mm;
     let coded: Vec<(u32, Vector3<f64>)> = (scene.points.iter())
@@ -468,7 +468,6 @@ fn drop_ring_pieces(project: &Project, scene: &mut Scene, rep: &Reporter) -> usi
             p.obs.len()
         ));
     }
-    pieces.len()
 }
 
 /// Step 3: the plain points whose blobs are nearer the ball diameter than the target dot
