@@ -11,7 +11,7 @@
 //! | [`loss`] | robust losses (Huber, Cauchy) |
 //! | [`problem`] | cameras, images, points, observations, distances, control, the problem's own parameter blocks |
 //! | [`residual`] | every observation beside the image points, on one trait ([`Residual`]: its whitened residual, its blocks, its analytic Jacobian): distances, control points, weighted pose priors, and kinds defined outside the crate (pingcal-lrf's laser beams) with their own parameter blocks (an extrinsic, a mount); [`residual::check_residual_jacobians`] for a new kind |
-//! | [`solver`] | Schur-complement Levenberg–Marquardt with a dense, sparse or iterative (PCG) reduced-system solver chosen by structure; precision (free networks of any number of points by bordering), data snooping, variance components |
+//! | [`solver`] | Schur-complement Levenberg–Marquardt with a dense, sparse or iterative (PCG) reduced-system solver chosen by structure; precision at any size (a sparse selected inversion of the reduced system; free networks by inner constraints through an S-transformation), data snooping, variance components |
 //! | [`report`] | the adjustment report (Australis layout) as text and JSON |
 //! | [`bal`] | BAL problem files; [`synthetic`]: generated BAL problems |
 //! | [`initial`] | initial values: resection, relative orientation, intersection, incremental network |

@@ -156,7 +156,7 @@ pub(crate) fn cofactor_diagonal(
     layout: &Layout,
     c: &ConstraintLin,
     k: usize,
-    q: &DMatrix<f64>,
+    q: &dyn super::selected_inverse::CofactorLookup,
     q_point: impl Fn(usize) -> Matrix3<f64>,
 ) -> Vec<f64> {
     let cols = &layout.constraint_cols[k];
@@ -167,7 +167,7 @@ pub(crate) fn cofactor_diagonal(
                 let cell = |a: usize, b: usize| -> f64 {
                     match (bca.place, bcb.place) {
                         (Place::Reduced(sa), Place::Reduced(sb)) => {
-                            q[(layout.slot_offset(sa) + a, layout.slot_offset(sb) + b)]
+                            q.at(layout.slot_offset(sa) + a, layout.slot_offset(sb) + b)
                         }
                         (Place::Eliminated(fa), Place::Eliminated(fb)) if fa == fb => {
                             q_point(fa as usize)[(a, b)]

@@ -104,8 +104,9 @@ pub(crate) fn precision(
     let (distance_redundancy_numbers, residual_redundancy_numbers, residual_standardized) =
         super::sigma::split_constraint_redundancy(problem, lin, constraint_q);
     let (parameters_covariance, parameter_offsets) =
-        parameters_covariance(problem, layout, s02, |i, j| q[(i, j)]);
+        parameters_covariance(problem, layout, s02, &q);
     Ok(Precision {
+        cofactors: super::precision::DENSE_INNER,
         sigma0,
         redundancy,
         observations: m,
@@ -220,7 +221,7 @@ fn similarity_null_space(
         }
     }
     for (p, pt) in problem.points.iter().enumerate() {
-        let Some(col) = point_col(layout, p) else {
+        let Some(col) = point_col(layout, p).filter(|&c| c < n) else {
             continue;
         };
         let pc = point_constraints(&pt.position, d);
@@ -232,6 +233,12 @@ fn similarity_null_space(
         }
     }
     (g, c)
+}
+
+/// The null space of the reduced system S of a free network: [`similarity_null_space`]'s
+/// rows of the reduced unknowns (n_reduced × d).
+pub(crate) fn reduced_null_space(problem: &Problem, layout: &Layout, d: usize) -> DMatrix<f64> {
+    similarity_null_space(problem, layout, layout.n_reduced, d).0
 }
 
 /// The cofactor matrix of the minimum-trace datum: the upper-left block of

@@ -166,7 +166,7 @@ impl Factorizer {
 }
 
 /// AMD on the block graph of S, expanded to scalar indices (forward and inverse).
-fn block_amd_ordering(layout: &Layout) -> Result<(Vec<usize>, Vec<usize>), String> {
+pub(super) fn block_amd_ordering(layout: &Layout) -> Result<(Vec<usize>, Vec<usize>), String> {
     let nb = layout.num_blocks();
     let (col_ptr, row_idx) = block_graph(layout);
     let graph = SymbolicSparseColMatRef::new_checked(nb, nb, &col_ptr, None, &row_idx);

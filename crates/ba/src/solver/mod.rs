@@ -22,6 +22,7 @@ mod linear;
 mod outliers;
 mod precision;
 mod schur;
+mod selected_inverse;
 mod sigma;
 mod variance;
 
@@ -31,7 +32,11 @@ pub use free_network::MAX_FREE_NETWORK_UNKNOWNS;
 pub use iterative::CgOptions;
 pub use linear::LinearSolverKind;
 pub use outliers::{adjust_with_snooping, Rejection, SnoopError, SnoopResult};
-pub use precision::{free_network_precision_bordered, points_covariance, precision};
+pub use precision::{
+    free_network_precision_bordered, points_covariance, points_covariance_with, precision,
+    precision_with, CofactorMethod,
+};
+pub use selected_inverse::MAX_SELECTED_WORK;
 pub use sigma::{IntrinsicsPrecision, PoseSigma, Precision, PrecisionError, MAX_DENSE_PRECISION};
 pub use variance::{
     estimate_variance_components, variance_components, VarianceComponent, VarianceError,

@@ -9,12 +9,23 @@
 //! that see the point. Covariances are `σ0² · Q`, σ0 the a-posteriori standard deviation
 //! of unit weight, `σ0² = 2·cost / redundancy` (cost = ½ Σ of the whitened residuals).
 //!
+//! Only the entries of S⁻¹ between unknowns that share an observation, a point or a
+//! constraint are needed, all inside the pattern of S's sparse Cholesky factor: they come
+//! from a selected inversion of that factor (`selected_inverse`), at about the cost of the
+//! factorization on a sparse camera graph and with memory proportional to the factor; the
+//! dense inverse (up to [`MAX_DENSE_PRECISION`] reduced unknowns) serves to count and name a
+//! datum defect, and for a camera graph too dense for the sparse factor ([`CofactorMethod`]).
+//!
 //! A network whose datum is not fully defined (free position, orientation or scale) has a
-//! singular S: this is diagnosed and named, never solved.
+//! singular S: this is diagnosed and named, never solved. A free network (no datum at all)
+//! gets the minimum-trace datum of inner constraints on its points: the reduced system
+//! bordered by them, whose inverse is formed densely or, at any size, from a minimal
+//! datum's selected inverse by an S-transformation ([`Transformed`]).
 
 use super::evaluate::{linearize, Linearization};
 use super::layout::Layout;
 use super::schur::Schur;
+use super::selected_inverse::{CofactorLookup, SelectedError, SelectedInverse};
 use super::sigma::{
     intrinsics_precision, parameters_covariance, pose_sigmas, rig_covariances, Precision,
     PrecisionError, MAX_DENSE_PRECISION,
@@ -22,13 +33,38 @@ use super::sigma::{
 use crate::problem::Problem;
 use nalgebra::{DMatrix, Matrix2, Matrix2x3, Matrix3};
 
+/// How the cofactors of the reduced unknowns are computed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CofactorMethod {
+    /// Sparse; dense (up to [`MAX_DENSE_PRECISION`] reduced unknowns) to count and name a
+    /// datum defect, or for a camera graph too dense for the sparse factor.
+    Auto,
+    /// S⁻¹ formed densely (refused above [`MAX_DENSE_PRECISION`] reduced unknowns). A free
+    /// network: the dense inner-constraint solution up to
+    /// [`MAX_FREE_NETWORK_UNKNOWNS`](super::MAX_FREE_NETWORK_UNKNOWNS) unknowns, the
+    /// bordered reduced system above.
+    Dense,
+    /// The entries of S⁻¹ on the pattern of its sparse Cholesky factor (a selected
+    /// inversion); a free network by the S-transformation of a minimal datum's cofactors.
+    Sparse,
+}
+
+/// [`Precision::cofactors`] of each form.
+const DENSE: &str = "dense inverse";
+const SELECTED: &str = "selected inversion";
+const BORDERED_DENSE: &str = "inner constraints: dense inverse of the bordered reduced system";
+const TRANSFORMED: &str = "inner constraints: S-transformation of a selected inversion";
+pub(super) const DENSE_INNER: &str = "inner constraints: dense normal matrix";
+
 /// What both [`precision`] and [`points_covariance`] start from: the linearization at the
 /// estimate, the undamped Schur complement and `Q_cc = S⁻¹`.
 struct Cofactors {
     layout: Layout,
     lin: Linearization,
     schur: Schur,
-    q_cc: DMatrix<f64>,
+    q_cc: Box<dyn CofactorLookup>,
+    /// How q_cc was had ([`Precision::cofactors`]).
+    how: &'static str,
 }
 
 /// The linearization of `problem` at its estimate; an observation that does not project is
@@ -43,25 +79,94 @@ pub(super) fn linearized(
 }
 
 /// The cofactors of `problem`; `Ok(None)` for a free network (inner constraints needed).
-fn cofactors(problem: &Problem) -> Result<Option<Cofactors>, PrecisionError> {
+fn cofactors(
+    problem: &Problem,
+    method: CofactorMethod,
+) -> Result<Option<Cofactors>, PrecisionError> {
     problem.validate()?;
     let layout = Layout::new(problem);
     let n = layout.n_reduced;
-    if n > MAX_DENSE_PRECISION {
-        return Err(PrecisionError::TooLarge(n));
+    if method != CofactorMethod::Dense && super::free_network::is_free(problem) {
+        // S is singular by the similarity: the free network's own forms.
+        return Ok(None);
+    }
+    if method == CofactorMethod::Dense && n > MAX_DENSE_PRECISION {
+        return Err(PrecisionError::TooLarge(format!(
+            "the reduced camera system has {n} unknowns; its inverse is formed densely for at most {MAX_DENSE_PRECISION}"
+        )));
     }
     let lin = linearized(problem, &layout)?;
-    let (schur, s) = reduced_system(problem, &layout, &lin)?;
-    match invert_or_diagnose(&s, problem, &layout) {
-        Ok(q_cc) => Ok(Some(Cofactors {
-            layout,
-            lin,
-            schur,
-            q_cc,
-        })),
-        Err(PrecisionError::DatumDefect(_)) if super::free_network::is_free(problem) => Ok(None),
-        Err(e) => Err(e),
-    }
+    let schur = reduced_schur(problem, &layout, &lin)?;
+    let dense = |schur: &Schur| -> Result<Option<Box<dyn CofactorLookup>>, PrecisionError> {
+        match invert_or_diagnose(&dense_s(&layout, schur), problem, &layout) {
+            Ok(q) => Ok(Some(Box::new(q))),
+            Err(PrecisionError::DatumDefect(_)) if super::free_network::is_free(problem) => {
+                Ok(None)
+            }
+            Err(e) => Err(e),
+        }
+    };
+    let (q_cc, how): (Box<dyn CofactorLookup>, _) = if method == CofactorMethod::Dense {
+        match dense(&schur)? {
+            Some(q) => (q, DENSE),
+            None => return Ok(None),
+        }
+    } else {
+        let held = vec![false; n];
+        match selected(&layout, &schur.values, &held, problem) {
+            Ok(q) => (Box::new(q), SELECTED),
+            // A defect is counted and named by the dense eigenvectors where they can be
+            // had; a camera graph too dense for the sparse factor is inverted densely.
+            Err(PrecisionError::DatumDefect(_) | PrecisionError::TooLarge(_))
+                if method == CofactorMethod::Auto && n <= MAX_DENSE_PRECISION =>
+            {
+                match dense(&schur)? {
+                    Some(q) => (q, DENSE),
+                    None => return Ok(None),
+                }
+            }
+            Err(e) => return Err(e),
+        }
+    };
+    Ok(Some(Cofactors {
+        layout,
+        lin,
+        schur,
+        q_cc,
+        how,
+    }))
+}
+
+/// The selected inverse of S (`values` in the layout's order) with `held` unknowns, its
+/// failures named.
+pub(super) fn selected(
+    layout: &Layout,
+    values: &[f64],
+    held: &[bool],
+    problem: &Problem,
+) -> Result<SelectedInverse, PrecisionError> {
+    let limit = super::available_memory().map(|m| 0.8 * m);
+    let n = layout.n_reduced;
+    SelectedInverse::new(layout, values, held, limit, faer::Par::Seq).map_err(|e| match e {
+        SelectedError::NotPositive(i) => PrecisionError::DatumDefect(format!(
+            "the observations and the datum do not determine {} (the reduced system of {n} unknowns is singular there; the open degrees of freedom are counted for at most {MAX_DENSE_PRECISION})",
+            describe_unknown(i, problem, layout)
+        )),
+        SelectedError::TooLarge {
+            bytes,
+            work,
+            factor_entries,
+        } => PrecisionError::TooLarge(format!(
+            "the reduced camera system has {n} unknowns and its sparse factor {factor_entries} entries: the precision would need {:.1} GiB and about {work:.1e} operations (at most {:.1} GiB{} and {:.0e}); a camera graph this dense is inverted densely only up to {MAX_DENSE_PRECISION} unknowns",
+            bytes / 1073741824.0,
+            limit.unwrap_or(f64::INFINITY) / 1073741824.0,
+            if limit.is_some() { " available" } else { "" },
+            super::MAX_SELECTED_WORK
+        )),
+        SelectedError::Internal(e) => PrecisionError::TooLarge(format!(
+            "the sparse factorization of the reduced camera system ({n} unknowns) failed: {e}"
+        )),
+    })
 }
 
 /// The number of scalar observations: two per image point, and every constraint's
@@ -102,7 +207,17 @@ pub fn points_covariance(
     problem: &Problem,
     points: &[usize],
 ) -> Result<DMatrix<f64>, PrecisionError> {
-    let c = cofactors(problem)?.ok_or_else(|| {
+    points_covariance_with(problem, points, CofactorMethod::Auto)
+}
+
+/// [`points_covariance`] with the cofactors computed by `method` (a pair of points outside
+/// the factor's pattern costs one solve per row).
+pub fn points_covariance_with(
+    problem: &Problem,
+    points: &[usize],
+    method: CofactorMethod,
+) -> Result<DMatrix<f64>, PrecisionError> {
+    let c = cofactors(problem, method)?.ok_or_else(|| {
         PrecisionError::DatumDefect("a free network: joint point covariances need a datum".into())
     })?;
     let (_, _, _, sigma0) = redundancy_and_sigma0(problem, &c)?;
@@ -119,7 +234,7 @@ pub fn points_covariance(
                 match c.layout.free_point_index[p] {
                     u32::MAX => (Vec::new(), None),
                     f => {
-                        let ep = EliminatedPoint::new(&c.layout, &c.schur, &c.q_cc, f as usize);
+                        let ep = EliminatedPoint::new(&c.layout, &c.schur, &*c.q_cc, f as usize);
                         let neg = ep.rows.iter().map(|&(r, y)| (r, y.map(|v| -v))).collect();
                         (neg, Some(c.schur.vinv[f as usize]))
                     }
@@ -129,13 +244,22 @@ pub fn points_covariance(
         .collect();
     let k = points.len();
     let s02 = sigma0 * sigma0;
+    // Q_cc on every row the points touch (far-apart points: outside S's pattern).
+    let mut all: Vec<usize> = rows
+        .iter()
+        .flat_map(|(r, _)| r.iter().map(|&(i, _)| i))
+        .collect();
+    all.sort_unstable();
+    all.dedup();
+    let sub = c.q_cc.restricted(&all);
+    let at = |i: usize| all.binary_search(&i).expect("a row of the points");
     let mut q = DMatrix::<f64>::zeros(3 * k, 3 * k);
     for (a, (ra, va)) in rows.iter().enumerate() {
         for (b, (rb, _)) in rows.iter().enumerate().skip(a) {
             let mut block = Matrix3::<f64>::zeros();
             for &(i, yi) in ra {
                 for &(j, yj) in rb {
-                    let qij = c.q_cc[(i, j)];
+                    let qij = sub[(at(i), at(j))];
                     block += Matrix3::from_fn(|u, v| yi[u] * qij * yj[v]);
                 }
             }
@@ -153,109 +277,89 @@ pub fn points_covariance(
 
 /// Computes the precision of `problem` at its current (adjusted) estimate.
 pub fn precision(problem: &Problem) -> Result<Precision, PrecisionError> {
-    let Some(c) = cofactors(problem)? else {
+    precision_with(problem, CofactorMethod::Auto)
+}
+
+/// [`precision`] with the cofactors computed by `method` (all methods give the same
+/// figures where more than one can be used; the tests compare them).
+pub fn precision_with(
+    problem: &Problem,
+    method: CofactorMethod,
+) -> Result<Precision, PrecisionError> {
+    let Some(c) = cofactors(problem, method)? else {
         // A free network: the datum by inner constraints on the points.
         let layout = Layout::new(problem);
         let lin = linearized(problem, &layout)?;
         let unknowns = layout.n_reduced + 3 * layout.free_points.len();
-        if unknowns <= super::free_network::MAX_FREE_NETWORK_UNKNOWNS {
+        if method == CofactorMethod::Dense
+            && unknowns <= super::free_network::MAX_FREE_NETWORK_UNKNOWNS
+        {
             return super::free_network::precision(problem, &layout, &lin);
         }
-        return free_network_bordered(problem, layout, lin);
+        let dense = method == CofactorMethod::Dense;
+        return match free_network_bordered(problem, &layout, &lin, dense) {
+            Err(PrecisionError::TooLarge(_))
+                if method == CofactorMethod::Auto && layout.n_reduced <= MAX_DENSE_PRECISION =>
+            {
+                free_network_bordered(problem, &layout, &lin, true)
+            }
+            r => r,
+        };
     };
     let (n_obs, unknowns, redundancy, _) = redundancy_and_sigma0(problem, &c)?;
     let eliminated: Vec<EliminatedPoint> = (0..c.layout.free_points.len())
-        .map(|f| EliminatedPoint::new(&c.layout, &c.schur, &c.q_cc, f))
+        .map(|f| EliminatedPoint::new(&c.layout, &c.schur, &*c.q_cc, f))
         .collect();
     let counts = (n_obs, unknowns, redundancy);
     Ok(assemble(
         problem,
         &c.layout,
         &c.lin,
-        &c.q_cc,
+        &*c.q_cc,
         &eliminated,
         counts,
+        c.how,
     ))
 }
 
 /// The precision of a free network of any number of points: the inner constraints on the
-/// points border the reduced system (see `free_network`'s module doc), which is inverted
-/// densely with its d extra rows; every cofactor follows as for a network with a datum,
-/// the d multipliers taking part like d more reduced unknowns.
+/// points border the reduced system (see `free_network`'s module doc); every cofactor
+/// follows as for a network with a datum, the d multipliers taking part like d more reduced
+/// unknowns. `dense`: the bordered system is inverted densely; otherwise its inverse is
+/// had from a minimal datum's selected inverse by an S-transformation ([`Transformed`]).
 fn free_network_bordered(
     problem: &Problem,
-    layout: Layout,
-    lin: Linearization,
+    layout: &Layout,
+    lin: &Linearization,
+    dense: bool,
 ) -> Result<Precision, PrecisionError> {
     let n = layout.n_reduced;
-    if n > MAX_DENSE_PRECISION {
-        return Err(PrecisionError::TooLarge(n));
+    if dense && n > MAX_DENSE_PRECISION {
+        return Err(PrecisionError::TooLarge(format!(
+            "the reduced camera system has {n} unknowns; its bordered inverse is formed densely for at most {MAX_DENSE_PRECISION}"
+        )));
     }
-    let (schur, s) = reduced_system(problem, &layout, &lin)?;
+    let schur = reduced_schur(problem, layout, lin)?;
     let d = if problem.distances.is_empty() { 7 } else { 6 };
-    // The constraint columns, scaled to the size of S (the bordered inverse's upper-left
-    // block does not depend on the basis of the constraints).
-    let mut centroid = nalgebra::Vector3::zeros();
-    let mut count = 0.0;
-    for (p, pt) in problem.points.iter().enumerate() {
-        if layout.point_slot[p].is_some() || layout.free_point_index[p] != u32::MAX {
-            centroid += pt.position;
-            count += 1.0;
-        }
-    }
-    if count < 3.0 {
-        return Err(PrecisionError::DatumDefect(
-            "the inner constraints do not fix the datum (fewer than 3 points)".into(),
-        ));
-    }
-    centroid /= count;
-    let scale = (s.diagonal().mean().max(f64::MIN_POSITIVE) / count).sqrt();
-    let constraints = |p: usize| {
-        // About the centroid: the same constraint space, better conditioned.
-        let c = super::free_network::point_constraints(&(problem.points[p].position - centroid), d);
-        c.map(|row| row.map(|v| v * scale))
-    };
-    let mut k = DMatrix::<f64>::zeros(n + d, n + d);
-    k.view_mut((0, 0), (n, n)).copy_from(&s);
-    for p in 0..layout.point_slot.len() {
-        let c = constraints(p);
-        for (a, row) in layout.point_rows(p) {
-            for (j, &v) in c[a].iter().enumerate().take(d) {
-                k[(row, n + j)] += v;
-                k[(n + j, row)] += v;
-            }
-        }
-    }
-    // Per eliminated point: B −= (W V⁻¹)_f C_f, D −= C_fᵀ V_f⁻¹ C_f.
-    let mut point_rows: Vec<Vec<(usize, [f64; 3])>> = Vec::with_capacity(layout.free_points.len());
-    for (f, &p) in layout.free_points.iter().enumerate() {
-        let c = constraints(p);
-        let cm = nalgebra::Matrix3xX::from_fn(d, |a, j| c[a][j]);
-        let vc = schur.vinv[f] * &cm; // 3 × d: V⁻¹ C_f
-        let rows = point_y_rows(&layout, &schur, f);
-        for &(r, y) in &rows {
-            let y = nalgebra::Vector3::from(y);
-            for j in 0..d {
-                let v = y.dot(&cm.column(j));
-                k[(r, n + j)] -= v;
-                k[(n + j, r)] -= v;
-            }
-        }
-        let dd = cm.transpose() * &vc;
-        for i in 0..d {
-            for j in 0..d {
-                k[(n + i, n + j)] -= dd[(i, j)];
-            }
-        }
-        // The multipliers' rows of M = Y V⁻¹: (V⁻¹ C_f)ᵀ.
-        let mut all = rows;
-        all.extend((0..d).map(|j| (n + j, [vc[(0, j)], vc[(1, j)], vc[(2, j)]])));
-        point_rows.push(all);
-    }
-    let Some(q) = super::free_network::bordered_inverse(&k, n) else {
-        return Err(PrecisionError::DatumDefect(
-            "the network is free and, beyond position, orientation and scale, still not determined (too few points per image, or disconnected pieces)".into(),
-        ));
+    let diag_mean = (0..n)
+        .map(|c| schur.values[layout.col_ptr[c + 1] - 1])
+        .sum::<f64>()
+        / n.max(1) as f64;
+    let border = Border::new(problem, layout, &schur, d, diag_mean)?;
+    let (q, how): (Box<dyn CofactorLookup>, _) = if dense {
+        let mut k = DMatrix::<f64>::zeros(n + d, n + d);
+        k.view_mut((0, 0), (n, n))
+            .copy_from(&dense_s(layout, &schur));
+        k.view_mut((0, n), (n, d)).copy_from(&border.b);
+        k.view_mut((n, 0), (d, n)).copy_from(&border.b.transpose());
+        k.view_mut((n, n), (d, d)).copy_from(&border.d);
+        let Some(q) = super::free_network::bordered_inverse(&k, n) else {
+            return Err(still_free());
+        };
+        (Box::new(q), BORDERED_DENSE)
+    } else {
+        let t = Transformed::new(problem, layout, &schur, &border, d)?;
+        (Box::new(t), TRANSFORMED)
     };
     let n_obs = observation_count(problem);
     let unknowns = n + 3 * layout.free_points.len();
@@ -263,13 +367,256 @@ fn free_network_bordered(
     if redundancy <= 0 {
         return Err(PrecisionError::NoRedundancy(redundancy));
     }
-    let eliminated: Vec<EliminatedPoint> = point_rows
+    let eliminated: Vec<EliminatedPoint> = border
+        .point_rows
         .into_iter()
         .enumerate()
-        .map(|(f, rows)| EliminatedPoint::from_rows(&schur, &q, f, rows))
+        .map(|(f, rows)| EliminatedPoint::from_rows(&schur, &*q, f, rows))
         .collect();
     let counts = (n_obs, unknowns, redundancy);
-    Ok(assemble(problem, &layout, &lin, &q, &eliminated, counts))
+    Ok(assemble(
+        problem,
+        layout,
+        lin,
+        &*q,
+        &eliminated,
+        counts,
+        how,
+    ))
+}
+
+fn still_free() -> PrecisionError {
+    PrecisionError::DatumDefect(
+        "the network is free and, beyond position, orientation and scale, still not determined (too few points per image, or disconnected pieces)".into(),
+    )
+}
+
+/// The border of a free network's reduced system `[S B; Bᵀ D]`: with C the inner
+/// constraints (about the points' centroid, scaled to the size of S; the bordered inverse's
+/// upper-left block does not depend on their basis), `B = C_c − W V⁻¹ C_p` and
+/// `D = −C_pᵀ V⁻¹ C_p`; and each eliminated point's rows of M = W V⁻¹ with the d rows of
+/// the multipliers, `(V⁻¹ C_f)ᵀ`, appended.
+struct Border {
+    b: DMatrix<f64>,
+    d: DMatrix<f64>,
+    point_rows: Vec<Vec<(usize, [f64; 3])>>,
+}
+
+impl Border {
+    fn new(
+        problem: &Problem,
+        layout: &Layout,
+        schur: &Schur,
+        d: usize,
+        diag_mean: f64,
+    ) -> Result<Self, PrecisionError> {
+        let n = layout.n_reduced;
+        let mut centroid = nalgebra::Vector3::zeros();
+        let mut count = 0.0;
+        for (p, pt) in problem.points.iter().enumerate() {
+            if layout.point_slot[p].is_some() || layout.free_point_index[p] != u32::MAX {
+                centroid += pt.position;
+                count += 1.0;
+            }
+        }
+        if count < 3.0 {
+            return Err(PrecisionError::DatumDefect(
+                "the inner constraints do not fix the datum (fewer than 3 points)".into(),
+            ));
+        }
+        centroid /= count;
+        let scale = (diag_mean.max(f64::MIN_POSITIVE) / count).sqrt();
+        let constraints = |p: usize| {
+            // About the centroid: the same constraint space, better conditioned.
+            let c =
+                super::free_network::point_constraints(&(problem.points[p].position - centroid), d);
+            c.map(|row| row.map(|v| v * scale))
+        };
+        let mut b = DMatrix::<f64>::zeros(n, d);
+        let mut dd = DMatrix::<f64>::zeros(d, d);
+        for p in 0..layout.point_slot.len() {
+            let c = constraints(p);
+            for (a, row) in layout.point_rows(p) {
+                for (j, &v) in c[a].iter().enumerate().take(d) {
+                    b[(row, j)] += v;
+                }
+            }
+        }
+        // Per eliminated point: B −= (W V⁻¹)_f C_f, D −= C_fᵀ V_f⁻¹ C_f.
+        let mut point_rows = Vec::with_capacity(layout.free_points.len());
+        for (f, &p) in layout.free_points.iter().enumerate() {
+            let c = constraints(p);
+            let cm = nalgebra::Matrix3xX::from_fn(d, |a, j| c[a][j]);
+            let vc = schur.vinv[f] * &cm; // 3 × d: V⁻¹ C_f
+            let rows = point_y_rows(layout, schur, f);
+            for &(r, y) in &rows {
+                let y = nalgebra::Vector3::from(y);
+                for j in 0..d {
+                    b[(r, j)] -= y.dot(&cm.column(j));
+                }
+            }
+            dd -= cm.transpose() * &vc;
+            // The multipliers' rows of M = Y V⁻¹: (V⁻¹ C_f)ᵀ.
+            let mut all = rows;
+            all.extend((0..d).map(|j| (n + j, [vc[(0, j)], vc[(1, j)], vc[(2, j)]])));
+            point_rows.push(all);
+        }
+        Ok(Self {
+            b,
+            d: dd,
+            point_rows,
+        })
+    }
+}
+
+/// The inverse of a free network's bordered system `K = [S B; Bᵀ D]` from the selected
+/// inverse `Q₀` of S under a minimal datum (d held unknowns), without forming K.
+///
+/// With `G` (n × d) the null space of S (the similarity's effect on the reduced unknowns)
+/// and `A = (GᵀB)⁻¹`, the blocks of `K⁻¹ = [Q R; Rᵀ E]` are `E = 0`, `R = G Aᵀ` and
+/// `Q = Πᵀ Q₀ Π − R D Rᵀ` with `Π = I − B A Gᵀ` (from `S Q + B Rᵀ = I`, `S R + B E = 0`,
+/// `Bᵀ Q + D Rᵀ = 0` and `S Q₀ Π = Π`, which holds because Π maps into the range of S):
+/// Baarda's S-transformation of `Q₀` to the inner-constraint datum. Entry by entry, with
+/// `aᵢ = A gᵢ` and `uᵢ` the rows of `U = Q₀ B` (d solves with the factor):
+///
+/// ```text
+///   Q_ij = Q₀_ij − aᵢ·uⱼ − uᵢ·aⱼ + aᵢᵀ (BᵀU − D) aⱼ,    R_ik = (aᵢ)_k
+/// ```
+struct Transformed {
+    base: SelectedInverse,
+    n: usize,
+    /// Per reduced unknown: aᵢ, uᵢ and aᵢᵀ(BᵀU − D) (d ≤ 7 entries each, zero beyond).
+    a: Vec<[f64; 7]>,
+    u: Vec<[f64; 7]>,
+    ae: Vec<[f64; 7]>,
+}
+
+impl Transformed {
+    fn new(
+        problem: &Problem,
+        layout: &Layout,
+        schur: &Schur,
+        border: &Border,
+        d: usize,
+    ) -> Result<Self, PrecisionError> {
+        let n = layout.n_reduced;
+        let g = super::free_network::reduced_null_space(problem, layout, d);
+        let diag = |c: usize| schur.values[layout.col_ptr[c + 1] - 1];
+        let held = minimal_datum(&g, diag).ok_or_else(|| {
+            PrecisionError::DatumDefect(
+                "the inner constraints do not fix the datum (the cameras do not move under a similarity?)".into(),
+            )
+        })?;
+        let mut is_held = vec![false; n];
+        for &h in &held {
+            is_held[h] = true;
+        }
+        let base = selected(layout, &schur.values, &is_held, problem).map_err(|e| match e {
+            PrecisionError::DatumDefect(_) => still_free(),
+            e => e,
+        })?;
+        let mut u = border.b.clone();
+        for mut col in u.column_iter_mut() {
+            let mut x: Vec<f64> = col.iter().copied().collect();
+            base.solve_in_place(&mut x);
+            col.copy_from_slice(&x);
+        }
+        let Some(amat) = (g.transpose() * &border.b).try_inverse() else {
+            return Err(PrecisionError::DatumDefect(
+                "the inner constraints do not fix the datum (all points coincide?)".into(),
+            ));
+        };
+        let a = &g * amat.transpose(); // row i: (A gᵢ)ᵀ
+        let e = border.b.transpose() * &u - &border.d;
+        let ae = &a * &e;
+        if !(a
+            .iter()
+            .chain(u.iter())
+            .chain(e.iter())
+            .all(|v| v.is_finite()))
+        {
+            return Err(still_free());
+        }
+        let rows = |m: &DMatrix<f64>| -> Vec<[f64; 7]> {
+            (0..n)
+                .map(|i| std::array::from_fn(|k| if k < d { m[(i, k)] } else { 0.0 }))
+                .collect()
+        };
+        Ok(Self {
+            base,
+            n,
+            a: rows(&a),
+            u: rows(&u),
+            ae: rows(&ae),
+        })
+    }
+
+    /// `Q_ij − Q₀_ij`.
+    #[inline]
+    fn correction(&self, i: usize, j: usize) -> f64 {
+        let (ai, aj, ui, uj, ei) = (&self.a[i], &self.a[j], &self.u[i], &self.u[j], &self.ae[i]);
+        (0..7)
+            .map(|k| -ai[k] * uj[k] - ui[k] * aj[k] + ei[k] * aj[k])
+            .sum()
+    }
+}
+
+impl CofactorLookup for Transformed {
+    fn at(&self, i: usize, j: usize) -> f64 {
+        match (i < self.n, j < self.n) {
+            (true, true) => self.base.at(i, j) + self.correction(i, j),
+            (true, false) => self.a[i][j - self.n],
+            (false, true) => self.a[j][i - self.n],
+            (false, false) => 0.0,
+        }
+    }
+
+    fn restricted(&self, rows: &[usize]) -> DMatrix<f64> {
+        let inner: Vec<usize> = rows.iter().copied().filter(|&r| r < self.n).collect();
+        let sub = self.base.restricted(&inner);
+        let mut k = 0;
+        let place: Vec<Option<usize>> = rows
+            .iter()
+            .map(|&r| {
+                (r < self.n).then(|| {
+                    k += 1;
+                    k - 1
+                })
+            })
+            .collect();
+        DMatrix::from_fn(rows.len(), rows.len(), |x, y| match (place[x], place[y]) {
+            (Some(a), Some(b)) => sub[(a, b)] + self.correction(rows[x], rows[y]),
+            _ => self.at(rows[x], rows[y]),
+        })
+    }
+}
+
+/// d reduced unknowns whose holding removes the null space G (rows of G scaled by √S_ii,
+/// as the Jacobi-scaled system sees them): pivoted Gram–Schmidt on the rows, the largest
+/// remaining row at each step. `None` when G has rank below d.
+fn minimal_datum(g: &DMatrix<f64>, diag: impl Fn(usize) -> f64) -> Option<Vec<usize>> {
+    let (n, d) = g.shape();
+    let mut r = DMatrix::from_fn(n, d, |i, k| g[(i, k)] * diag(i).max(0.0).sqrt());
+    let first = (0..n).map(|i| r.row(i).norm()).fold(0.0, f64::max);
+    let mut held = Vec::with_capacity(d);
+    for _ in 0..d {
+        let (best, norm) = (0..n)
+            .filter(|i| !held.contains(i))
+            .map(|i| (i, r.row(i).norm()))
+            .max_by(|a, b| a.1.total_cmp(&b.1))?;
+        if !(norm > 1e-8 * first) {
+            return None;
+        }
+        let q = r.row(best).transpose() / norm;
+        for i in 0..n {
+            let c = r.row(i).dot(&q.transpose());
+            for k in 0..d {
+                r[(i, k)] -= c * q[k];
+            }
+        }
+        held.push(best);
+    }
+    Some(held)
 }
 
 /// The precision from the cofactors: `q` those of the reduced unknowns (possibly bordered
@@ -279,9 +626,10 @@ fn assemble(
     problem: &Problem,
     layout: &Layout,
     lin: &Linearization,
-    q: &DMatrix<f64>,
+    q: &dyn CofactorLookup,
     eliminated: &[EliminatedPoint],
     (n_obs, unknowns, redundancy): (usize, usize, i64),
+    cofactors: &'static str,
 ) -> Precision {
     let sigma0 = (2.0 * lin.cost / redundancy as f64).sqrt();
     let s02 = sigma0 * sigma0;
@@ -292,7 +640,7 @@ fn assemble(
             let mut cov = Matrix3::zeros();
             for (a, i) in layout.point_rows(p) {
                 for (b, j) in layout.point_rows(p) {
-                    cov[(a, b)] = s02 * q[(i, j)];
+                    cov[(a, b)] = s02 * q.at(i, j);
                 }
             }
             point_covariances[p] = Some(cov);
@@ -314,17 +662,17 @@ fn assemble(
         .collect();
     let (distance_redundancy_numbers, residual_redundancy_numbers, residual_standardized) =
         super::sigma::split_constraint_redundancy(problem, lin, constraint_q);
-    let (parameters_covariance, parameter_offsets) =
-        parameters_covariance(problem, layout, s02, |i, j| q[(i, j)]);
+    let (parameters_covariance, parameter_offsets) = parameters_covariance(problem, layout, s02, q);
     Precision {
+        cofactors,
         sigma0,
         redundancy,
         observations: n_obs,
         unknowns,
         rms_image_px: problem.rms_px(),
-        intrinsics: intrinsics_precision(problem, layout, s02, |i, j| q[(i, j)]),
-        poses: pose_sigmas(problem, layout, s02, |i, j| q[(i, j)]),
-        rig_covariances: rig_covariances(layout, s02, |i, j| q[(i, j)]),
+        intrinsics: intrinsics_precision(problem, layout, s02, |i, j| q.at(i, j)),
+        poses: pose_sigmas(problem, layout, s02, |i, j| q.at(i, j)),
+        rig_covariances: rig_covariances(layout, s02, |i, j| q.at(i, j)),
         point_covariances,
         standardized_residuals,
         redundancy_numbers,
@@ -365,7 +713,7 @@ pub fn free_network_precision_bordered(problem: &Problem) -> Result<Precision, P
     }
     let layout = Layout::new(problem);
     let lin = linearized(problem, &layout)?;
-    free_network_bordered(problem, layout, lin)
+    free_network_bordered(problem, &layout, &lin, true)
 }
 
 /// The undamped Schur complement at the linearization and S as a dense symmetric matrix;
@@ -375,6 +723,18 @@ pub(super) fn reduced_system(
     layout: &Layout,
     lin: &Linearization,
 ) -> Result<(Schur, DMatrix<f64>), PrecisionError> {
+    let schur = reduced_schur(problem, layout, lin)?;
+    let s = dense_s(layout, &schur);
+    Ok((schur, s))
+}
+
+/// The undamped Schur complement at the linearization (S in its sparse values); refused
+/// when an eliminated point is not determined by its own observations.
+pub(super) fn reduced_schur(
+    problem: &Problem,
+    layout: &Layout,
+    lin: &Linearization,
+) -> Result<Schur, PrecisionError> {
     let mut schur = Schur::new(layout);
     schur.prepare(layout, lin);
     // Eliminated points must be determined on their own.
@@ -395,13 +755,18 @@ pub(super) fn reduced_system(
     schur.assemble(layout, lin, 0.0).map_err(|f| {
         PrecisionError::PointUndetermined(problem.points[layout.free_points[f]].name.clone())
     })?;
+    Ok(schur)
+}
+
+/// S as a dense symmetric matrix.
+fn dense_s(layout: &Layout, schur: &Schur) -> DMatrix<f64> {
     let n = layout.n_reduced;
     let mut s = DMatrix::<f64>::zeros(n, n);
     for ((i, j), &v) in layout.entries().zip(&schur.values) {
         s[(i, j)] = v;
         s[(j, i)] = v;
     }
-    Ok((schur, s))
+    s
 }
 
 /// The first point of a distance (a point kept in the reduced system) that its own rays do not
@@ -437,8 +802,8 @@ fn undetermined_distance_point(
 /// A point eliminated by the Schur complement: M = W V⁻¹ restricted to the camera-side
 /// rows it touches, and its cofactor matrix `Q_pp = V⁻¹ + Mᵀ Q_cc M`.
 struct EliminatedPoint {
-    /// (row of the reduced system, the 3 values of M in that row), one per row of each
-    /// observation's segments (a row may repeat: the entries add up).
+    /// (row of the reduced system, the 3 values of M in that row), sorted by row, each row
+    /// once (the entries of the observations' segments added up).
     rows: Vec<(usize, [f64; 3])>,
     /// Q_pp.
     q: Matrix3<f64>,
@@ -446,21 +811,35 @@ struct EliminatedPoint {
 
 impl EliminatedPoint {
     /// Free point `f` of the layout, with the Schur complement's Y = W V⁻¹.
-    fn new(layout: &Layout, schur: &Schur, q_cc: &DMatrix<f64>, f: usize) -> Self {
+    fn new(layout: &Layout, schur: &Schur, q_cc: &dyn CofactorLookup, f: usize) -> Self {
         Self::from_rows(schur, q_cc, f, point_y_rows(layout, schur, f))
     }
 
     /// Free point `f` with the rows of M given (those of a bordered system included).
     fn from_rows(
         schur: &Schur,
-        q_cc: &DMatrix<f64>,
+        q_cc: &dyn CofactorLookup,
         f: usize,
         rows: Vec<(usize, [f64; 3])>,
     ) -> Self {
+        // The distinct rows (repeated ones add up), and Q_cc on them.
+        let mut merged = rows;
+        merged.sort_unstable_by_key(|r| r.0);
+        merged.dedup_by(|b, a| {
+            let same = a.0 == b.0;
+            if same {
+                for k in 0..3 {
+                    a.1[k] += b.1[k];
+                }
+            }
+            same
+        });
+        let index: Vec<usize> = merged.iter().map(|r| r.0).collect();
+        let sub = q_cc.restricted(&index);
         let mut extra = Matrix3::zeros();
-        for &(i, yi) in &rows {
-            for &(j, yj) in &rows {
-                let q = q_cc[(i, j)];
+        for (x, &(_, yi)) in merged.iter().enumerate() {
+            for (y, &(_, yj)) in merged.iter().enumerate() {
+                let q = sub[(x, y)];
                 for a in 0..3 {
                     for b in 0..3 {
                         extra[(a, b)] += yi[a] * q * yj[b];
@@ -469,7 +848,7 @@ impl EliminatedPoint {
             }
         }
         Self {
-            rows,
+            rows: merged,
             q: schur.vinv[f] + extra,
         }
     }
@@ -481,13 +860,12 @@ impl EliminatedPoint {
 fn standardized_residuals(
     layout: &Layout,
     lin: &Linearization,
-    q_cc: &DMatrix<f64>,
+    q_cc: &dyn CofactorLookup,
     eliminated: &[EliminatedPoint],
 ) -> (Vec<[f64; 2]>, Vec<[f64; 2]>) {
     let mut standardized = vec![[f64::NAN; 2]; layout.obs_order.len()];
     let mut redundancy = vec![[0.0; 2]; layout.obs_order.len()];
-    for o in 0..layout.obs_order.len() {
-        let aqa = observation_cofactor(layout, lin, q_cc, eliminated, o);
+    let mut put = |o: usize, aqa: Matrix2<f64>| {
         let r = lin.r[o];
         let q = layout.obs_order[o] as usize;
         for a in 0..2 {
@@ -497,20 +875,39 @@ fn standardized_residuals(
                 redundancy[q][a] = qvv;
             }
         }
+    };
+    // An eliminated point's observations: Q_cc on its rows (which hold every observation's
+    // camera-side columns, in the same order) gathered once.
+    for (f, point) in eliminated.iter().enumerate() {
+        let index: Vec<usize> = point.rows.iter().map(|r| r.0).collect();
+        let sub = q_cc.restricted(&index);
+        for &o in layout.point_obs(f) {
+            let o = o as usize;
+            put(
+                o,
+                observation_cofactor(layout, lin, &sub, &index, Some(point), o),
+            );
+        }
+    }
+    for o in 0..layout.obs_order.len() {
+        if layout.free_point_index[layout.obs_point[o] as usize] == u32::MAX {
+            let mut index: Vec<usize> = observation_columns(layout, lin, o)
+                .iter()
+                .map(|c| c.0)
+                .collect();
+            index.sort_unstable();
+            index.dedup();
+            let sub = q_cc.restricted(&index);
+            put(o, observation_cofactor(layout, lin, &sub, &index, None, o));
+        }
     }
     (standardized, redundancy)
 }
 
-/// A Q Aᵀ of observation `o` (internal order) in whitened units, with A = [J_c, J_p] and
-/// Q_cp = −Q_cc M for an eliminated point.
-fn observation_cofactor(
-    layout: &Layout,
-    lin: &Linearization,
-    q_cc: &DMatrix<f64>,
-    eliminated: &[EliminatedPoint],
-    o: usize,
-) -> Matrix2<f64> {
-    let mut cols: Vec<(usize, [f64; 2])> = Vec::new();
+/// Observation `o`'s camera-side columns: (row of the reduced system, its two Jacobian
+/// entries).
+fn observation_columns(layout: &Layout, lin: &Linearization, o: usize) -> Vec<(usize, [f64; 2])> {
+    let mut cols = Vec::new();
     for sg in layout.segs(o) {
         let (j0, j1) = layout.jc_rows(&lin.jc, o, sg);
         let base = layout.block_offset[sg.block as usize] + sg.block_off as usize;
@@ -518,10 +915,35 @@ fn observation_cofactor(
             cols.push((base + k, [j0[k], j1[k]]));
         }
     }
+    cols
+}
+
+/// A Q Aᵀ of observation `o` (internal order) in whitened units, with A = [J_c, J_p] and
+/// Q_cp = −Q_cc M for an eliminated `point` (its own). `sub` is Q_cc on the sorted rows
+/// `index`, which hold the observation's columns and are the point's rows when it has one.
+fn observation_cofactor(
+    layout: &Layout,
+    lin: &Linearization,
+    sub: &DMatrix<f64>,
+    index: &[usize],
+    point: Option<&EliminatedPoint>,
+    o: usize,
+) -> Matrix2<f64> {
+    let cols: Vec<(usize, [f64; 2])> = observation_columns(layout, lin, o)
+        .into_iter()
+        .map(|(i, j)| {
+            (
+                index
+                    .binary_search(&i)
+                    .expect("a column of the observation"),
+                j,
+            )
+        })
+        .collect();
     let mut aqa = Matrix2::<f64>::zeros();
     for &(i, ji) in &cols {
         for &(j, jj) in &cols {
-            let q = q_cc[(i, j)];
+            let q = sub[(i, j)];
             for a in 0..2 {
                 for b in 0..2 {
                     aqa[(a, b)] += ji[a] * q * jj[b];
@@ -529,16 +951,14 @@ fn observation_cofactor(
             }
         }
     }
-    let f = layout.free_point_index[layout.obs_point[o] as usize];
-    if f != u32::MAX {
-        let point = &eliminated[f as usize];
+    if let Some(point) = point {
         let jp = lin.jp[o];
         aqa += jp * point.q * jp.transpose();
         // Cross term: J_c Q_cp J_pᵀ with Q_cp = −Q_cc M.
         let mut jc_qcp = Matrix2x3::<f64>::zeros();
         for &(i, ji) in &cols {
-            for &(r, y) in &point.rows {
-                let q = q_cc[(i, r)];
+            for (t, &(_, y)) in point.rows.iter().enumerate() {
+                let q = sub[(i, t)];
                 for a in 0..2 {
                     for b in 0..3 {
                         jc_qcp[(a, b)] -= ji[a] * q * y[b];

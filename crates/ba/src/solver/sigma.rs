@@ -9,10 +9,13 @@
 
 use super::evaluate::Linearization;
 use super::layout::Layout;
+use super::selected_inverse::CofactorLookup;
 use crate::problem::{Problem, ProblemError};
 use nalgebra::{DMatrix, Matrix3, Matrix6, Vector3};
 
-/// Largest reduced camera system whose inverse is formed densely.
+/// Largest reduced camera system whose inverse is formed densely (and whose datum defect
+/// is counted and named by its eigenvectors); larger ones get the entries of S⁻¹ they
+/// need by a sparse selected inversion.
 pub const MAX_DENSE_PRECISION: usize = 6000;
 
 /// Standard deviations and correlations of one camera's free intrinsics.
@@ -44,6 +47,9 @@ pub struct PoseSigma {
 /// The precision of a network.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct Precision {
+    /// How the cofactors were computed: "dense inverse", "selected inversion", or for a
+    /// free network "inner constraints: …" with the form.
+    pub cofactors: &'static str,
     /// A-posteriori standard deviation of unit weight.
     pub sigma0: f64,
     /// Observations minus unknowns (image coordinates, distances, control coordinates).
@@ -135,9 +141,9 @@ pub enum PrecisionError {
     /// A point's position is not determined by its observations.
     #[error("point '{0}' is not determined: it needs rays from at least two images with an angle between them")]
     PointUndetermined(String),
-    /// The reduced system is too large to invert densely.
-    #[error("the reduced camera system has {0} unknowns; precision is computed for at most {MAX_DENSE_PRECISION}")]
-    TooLarge(usize),
+    /// The reduced system is too large for the precision (what it would need is said).
+    #[error("{0}")]
+    TooLarge(String),
     /// More unknowns than observations.
     #[error("redundancy {0} is not positive: more unknowns than observations")]
     NoRedundancy(i64),
@@ -199,7 +205,7 @@ pub(crate) fn parameters_covariance(
     problem: &Problem,
     layout: &Layout,
     s02: f64,
-    q: impl Fn(usize, usize) -> f64,
+    q: &dyn CofactorLookup,
 ) -> (DMatrix<f64>, Vec<usize>) {
     let mut offsets = vec![0];
     for pb in &problem.parameters {
@@ -216,10 +222,12 @@ pub(crate) fn parameters_covariance(
         }
     }
     let n = *offsets.last().unwrap();
+    let reduced: Vec<usize> = rows.iter().map(|&(_, r)| r).collect();
+    let sub = q.restricted(&reduced);
     let mut cov = DMatrix::zeros(n, n);
-    for &(a, qa) in &rows {
-        for &(b, qb) in &rows {
-            cov[(a, b)] = s02 * q(qa, qb);
+    for (x, &(a, _)) in rows.iter().enumerate() {
+        for (y, &(b, _)) in rows.iter().enumerate() {
+            cov[(a, b)] = s02 * sub[(x, y)];
         }
     }
     (cov, offsets)
