@@ -95,3 +95,43 @@ fn the_defect_named_before_solving_is_the_one_the_precision_finds_after() {
         other => panic!("the precision found no defect: {other:?}"),
     }
 }
+
+/// Above the dense test's size (a street of 300 images of one shared BAL camera: 1,803
+/// reduced unknowns) the check runs with the sparse factor: the shared camera is
+/// determined; a second camera given to one image that keeps only 4 of its points (8
+/// observations for its 6 pose and 3 camera unknowns; the pose alone is determined) is
+/// named, both before solving.
+#[test]
+fn a_large_network_is_judged_with_the_sparse_factor() {
+    use pingcal_ba::solver::MAX_CHECK_UNKNOWNS;
+    let spec = pingcal_ba::synthetic::SyntheticBal {
+        cameras: 300,
+        points: 6000,
+        ..Default::default()
+    };
+    let mut p = spec.generate().unwrap().problem;
+    p.cameras.truncate(1);
+    p.cameras[0].name = "street".into();
+    for im in &mut p.images {
+        im.camera = 0;
+    }
+    let n = 6 * p.images.len() + p.cameras[0].params.len();
+    assert!(n > MAX_CHECK_UNKNOWNS);
+    assert_eq!(check_intrinsics(&p).unwrap(), Estimability::Determined);
+    let mut spare = p.cameras[0].clone();
+    spare.name = "spare".into();
+    p.cameras.push(spare);
+    let lone = 150;
+    p.images[lone].camera = 1;
+    let mut kept = 0;
+    p.observations.retain(|o| {
+        if o.image != lone {
+            return true;
+        }
+        kept += 1;
+        kept <= 4
+    });
+    let why = not_determinable(&p);
+    assert!(why.contains("'spare'"), "{why}");
+    assert!(!why.contains("'street'"), "{why}");
+}

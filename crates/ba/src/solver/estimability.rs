@@ -24,7 +24,9 @@
 //! on the datum chosen.
 
 use super::layout::Layout;
-use super::precision::{invert_or_diagnose, jacobi_scale, linearized, reduced_system};
+use super::precision::{
+    invert_or_diagnose, jacobi_scale, linearized, reduced_schur, reduced_system, selected,
+};
 use super::sigma::PrecisionError;
 use crate::datum::{check, Datum};
 use crate::problem::Problem;
@@ -36,9 +38,14 @@ use nalgebra::DMatrix;
 /// correlated at 0.9999 would give about 1e-4.
 pub const NULL_EIGENVALUE: f64 = 1e-9;
 
-/// The largest reduced system judged before solving: its dense Cholesky (n³/3 flops, about
-/// a second at this size) must stay small against the adjustment it precedes.
+/// The largest reduced system judged densely before solving (its dense Cholesky, n³/3
+/// flops, is about a second at this size); larger ones are judged with S's sparse factor,
+/// one solve per free intrinsic, unless the factor is too large
+/// ([`Estimability::NotChecked`]).
 pub const MAX_CHECK_UNKNOWNS: usize = 1500;
+
+/// Most free intrinsics judged with the sparse factor (one solve each, and T's n·k² terms).
+const MAX_SPARSE_CHECK_INTRINSICS: usize = 300;
 
 /// A component of a null vector above this share of its largest one names a parameter.
 const NAMED_SHARE: f64 = 0.1;
@@ -48,9 +55,11 @@ const NAMED_SHARE: f64 = 0.1;
 pub enum Estimability {
     /// Every free intrinsic is determined (to first order at the start values).
     Determined,
-    /// The reduced system is too large for the dense test (more than
-    /// [`MAX_CHECK_UNKNOWNS`] unknowns): not judged before solving (the precision after the
-    /// adjustment names a defect).
+    /// The reduced system (this many unknowns) is too large for the test: its sparse factor
+    /// would exceed the memory or the work limit of the selected inversion
+    /// ([`MAX_SELECTED_WORK`](super::MAX_SELECTED_WORK)), or it has more than 300 free
+    /// intrinsics. Not judged before solving (the precision after the adjustment names a
+    /// defect).
     NotChecked(usize),
 }
 
@@ -74,26 +83,26 @@ pub fn check_intrinsics(problem: &Problem) -> Result<Estimability, PrecisionErro
     if intrinsic_rows.is_empty() {
         return Ok(Estimability::Determined);
     }
-    if n > MAX_CHECK_UNKNOWNS {
-        return Ok(Estimability::NotChecked(n));
-    }
     let lin = linearized(problem, &layout)?;
-    let (_, s) = reduced_system(problem, &layout, &lin)?;
-    let d = jacobi_scale(&s);
-    let scaled = |i: usize, j: usize| s[(i, j)] * d[i] * d[j];
     let c: Vec<usize> = intrinsic_rows.iter().map(|r| r.row).collect();
-    let r: Vec<usize> = (0..n).filter(|i| !c.contains(i)).collect();
-    let s_rr = DMatrix::from_fn(r.len(), r.len(), |a, b| scaled(r[a], r[b]));
-    let s_rc = DMatrix::from_fn(r.len(), c.len(), |a, b| scaled(r[a], c[b]));
-    let s_cc = DMatrix::from_fn(c.len(), c.len(), |a, b| scaled(c[a], c[b]));
-    let t = if r.is_empty() {
-        s_cc
-    } else {
-        let Some(chol) = s_rr.cholesky() else {
+    let t = if n <= MAX_CHECK_UNKNOWNS {
+        let (_, s) = reduced_system(problem, &layout, &lin)?;
+        match dense_complement(&s, &c) {
+            Some(t) => t,
             // the poses themselves are not determined: name what is free
-            return invert_or_diagnose(&s, problem, &layout).map(|_| Estimability::Determined);
-        };
-        &s_cc - s_rc.transpose() * chol.solve(&s_rc)
+            None => {
+                return invert_or_diagnose(&s, problem, &layout).map(|_| Estimability::Determined)
+            }
+        }
+    } else if c.len() > MAX_SPARSE_CHECK_INTRINSICS {
+        return Ok(Estimability::NotChecked(n));
+    } else {
+        let schur = reduced_schur(problem, &layout, &lin)?;
+        match sparse_complement(problem, &layout, &schur.values, &c) {
+            Ok(t) => t,
+            Err(PrecisionError::TooLarge(_)) => return Ok(Estimability::NotChecked(n)),
+            Err(e) => return Err(e),
+        }
     };
     let eig = t.symmetric_eigen();
     let Some(k) = (0..c.len()).min_by(|&a, &b| eig.eigenvalues[a].total_cmp(&eig.eigenvalues[b]))
@@ -110,6 +119,76 @@ pub fn check_intrinsics(problem: &Problem) -> Result<Estimability, PrecisionErro
         .map(|(_, row)| row)
         .collect();
     Err(PrecisionError::NotDeterminable(describe(problem, &named)))
+}
+
+/// T of the Jacobi-scaled dense S on the intrinsics' rows `c`; `None` when S_rr is not
+/// positive definite.
+fn dense_complement(s: &DMatrix<f64>, c: &[usize]) -> Option<DMatrix<f64>> {
+    let n = s.nrows();
+    let d = jacobi_scale(s);
+    let scaled = |i: usize, j: usize| s[(i, j)] * d[i] * d[j];
+    let r: Vec<usize> = (0..n).filter(|i| !c.contains(i)).collect();
+    let s_cc = DMatrix::from_fn(c.len(), c.len(), |a, b| scaled(c[a], c[b]));
+    if r.is_empty() {
+        return Some(s_cc);
+    }
+    let s_rr = DMatrix::from_fn(r.len(), r.len(), |a, b| scaled(r[a], r[b]));
+    let s_rc = DMatrix::from_fn(r.len(), c.len(), |a, b| scaled(r[a], c[b]));
+    let chol = s_rr.cholesky()?;
+    Some(&s_cc - s_rc.transpose() * chol.solve(&s_rc))
+}
+
+/// T from the sparse S (its upper triangle `values` in the layout's order): S_rr factorized
+/// sparsely (the intrinsics held out), one solve per intrinsic, then Jacobi-scaled as the
+/// dense form. A pose-side defect is named as the precision names it; a factor too large
+/// is [`PrecisionError::TooLarge`].
+fn sparse_complement(
+    problem: &Problem,
+    layout: &Layout,
+    values: &[f64],
+    c: &[usize],
+) -> Result<DMatrix<f64>, PrecisionError> {
+    let n = layout.n_reduced;
+    let mut held = vec![false; n];
+    let mut index = vec![usize::MAX; n];
+    for (a, &row) in c.iter().enumerate() {
+        held[row] = true;
+        index[row] = a;
+    }
+    let s_rr = selected(layout, values, &held, problem)?;
+    // S's columns of the intrinsics (both triangles), and its diagonal.
+    let mut cols = vec![vec![0.0; n]; c.len()];
+    let mut diag = vec![0.0; n];
+    for ((i, j), &v) in layout.entries().zip(values) {
+        if i == j {
+            diag[i] = v;
+        }
+        if index[j] != usize::MAX {
+            cols[index[j]][i] = v;
+        }
+        if i != j && index[i] != usize::MAX {
+            cols[index[i]][j] = v;
+        }
+    }
+    let d: Vec<f64> = diag
+        .iter()
+        .map(|v| 1.0 / v.max(f64::MIN_POSITIVE).sqrt())
+        .collect();
+    let solved: Vec<Vec<f64>> = cols
+        .iter()
+        .map(|col| {
+            let mut x = col.clone();
+            s_rr.solve_in_place(&mut x); // the intrinsics' rows are ignored and come back 0
+            x
+        })
+        .collect();
+    Ok(DMatrix::from_fn(c.len(), c.len(), |a, b| {
+        let coupling: f64 = (0..n)
+            .filter(|&i| !held[i])
+            .map(|i| cols[a][i] * solved[b][i])
+            .sum();
+        (cols[b][c[a]] - coupling) * d[c[a]] * d[c[b]]
+    }))
 }
 
 /// One free intrinsic's row of the reduced system.
@@ -195,4 +274,35 @@ fn with_minimal_datum(problem: &Problem) -> Problem {
         }
     }
     p
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The sparse form of T (one solve per intrinsic with S_rr's factor) equals the dense
+    /// one, on a street of BAL cameras (each its own f, k1, k2) with a minimal datum.
+    #[test]
+    fn sparse_complement_equals_the_dense() {
+        let spec = crate::synthetic::SyntheticBal {
+            cameras: 30,
+            points: 1500,
+            ..Default::default()
+        };
+        let problem = with_minimal_datum(&spec.generate().unwrap().problem);
+        let layout = Layout::new(&problem);
+        let lin = linearized(&problem, &layout).unwrap();
+        let c: Vec<usize> = intrinsic_rows(&problem, &layout)
+            .iter()
+            .map(|r| r.row)
+            .collect();
+        assert_eq!(c.len(), 90);
+        let (schur, s) = reduced_system(&problem, &layout, &lin).unwrap();
+        let dense = dense_complement(&s, &c).unwrap();
+        let sparse = sparse_complement(&problem, &layout, &schur.values, &c).unwrap();
+        let diff = (&dense - &sparse).amax();
+        // T's diagonal is at most 1 (Jacobi scaling): rounding of two factorizations.
+        assert!(diff < 1e-9, "largest difference {diff}");
+        assert!(dense.diagonal().min() > 1e-3, "a non-trivial T");
+    }
 }
