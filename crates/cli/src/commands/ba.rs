@@ -77,6 +77,11 @@ pub struct Args {
     /// without control (DBAT's files without `--dbat CONTROL`); refused with control.
     #[arg(long)]
     pub free_network: bool,
+    /// BAL problems: also compute the precision of the adjusted network (a free network,
+    /// its datum by inner constraints on the points): σ0 and every camera's and point's σ,
+    /// dense up to 6,000 reduced unknowns and by a sparse selected inversion above.
+    #[arg(long)]
+    pub precision: bool,
     /// Smallest largest angle between a point's rays, degrees, for the initial
     /// intersection to take it (points below are refused and listed); default 2.
     #[arg(long, value_name = "DEG")]
@@ -151,6 +156,13 @@ pub fn run(args: Args) -> CmdResult {
         }
     }
     if let Some(path) = measurements {
+        if args.precision {
+            return Err(format!(
+                "--precision is for BAL problems: the precision of {} is always computed",
+                path.display()
+            )
+            .into());
+        }
         return run_measurements(path, &args);
     }
     let t_read = Instant::now();
@@ -251,8 +263,12 @@ pub fn run(args: Args) -> CmdResult {
         rms,
         summary.termination
     );
+    // A precision that cannot be had is said after the adjustment's results are written.
+    let precision = args
+        .precision
+        .then(|| bal_precision(&problem, &source, quiet));
     if let Some(out) = &args.out {
-        let json = serde_json::json!({
+        let mut json = serde_json::json!({
             "initial_cost": summary.initial_cost,
             "final_cost": summary.final_cost,
             "iterations": summary.iterations,
@@ -272,9 +288,71 @@ pub fn run(args: Args) -> CmdResult {
             "observations": problem.observations.len(),
             "threads": args.threads,
         });
+        match &precision {
+            Some(Ok(p)) => json["precision"] = serde_json::to_value(p)?,
+            Some(Err(e)) => json["precision_error"] = e.clone().into(),
+            None => {}
+        }
         write_atomic(out, serde_json::to_string_pretty(&json)?.as_bytes())?;
     }
-    Ok(())
+    match precision {
+        Some(Err(e)) => Err(e.into()),
+        _ => Ok(()),
+    }
+}
+
+/// What `--precision` reports of a BAL problem.
+#[derive(serde::Serialize)]
+struct BalPrecision {
+    sigma0: f64,
+    redundancy: i64,
+    /// How the cofactors were computed ([`solver::Precision::cofactors`]).
+    method: &'static str,
+    time_s: f64,
+    /// Medians over the cameras and the points of the largest of their three σ's.
+    median_camera_centre_sigma: f64,
+    median_point_sigma: f64,
+}
+
+fn bal_precision(
+    problem: &pingcal_ba::problem::Problem,
+    source: &str,
+    quiet: bool,
+) -> Result<BalPrecision, String> {
+    let t = Instant::now();
+    let prec = solver::precision(problem)
+        .map_err(|e| format!("{source}: no precision: {e} (the adjustment itself is done)"))?;
+    let time_s = t.elapsed().as_secs_f64();
+    let median = |mut v: Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
+    };
+    let centre = median(
+        (prec.poses.iter().flatten())
+            .map(|s| s.centre.iter().copied().fold(0.0, f64::max))
+            .collect(),
+    );
+    let point = median(
+        (0..problem.points.len())
+            .filter_map(|p| prec.point_sigma(p))
+            .map(|s| s.max())
+            .collect(),
+    );
+    let out = BalPrecision {
+        sigma0: prec.sigma0,
+        redundancy: prec.redundancy,
+        method: prec.cofactors,
+        time_s,
+        median_camera_centre_sigma: centre,
+        median_point_sigma: point,
+    };
+    if !quiet {
+        println!(
+            "precision ({}): sigma0 {:.4}, redundancy {}, median camera-centre sigma {:.3e}, median point sigma {:.3e}, in {:.2} s",
+            out.method, out.sigma0, out.redundancy, centre, point, time_s
+        );
+    }
+    Ok(out)
 }
 
 /// Refuses the options of measurement files on a BAL problem, which would ignore them.
