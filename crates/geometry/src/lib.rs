@@ -11,6 +11,7 @@
 //! | [`dlt`] | Hartley normalisation and the normalised-DLT homography |
 //! | [`plane`] | the least-squares plane of a point set |
 //! | [`consensus`] | robust estimation: an [`Estimator`] trait, MSAC / RANSAC with local optimisation, seeded ChaCha streams |
+//! | [`stats`] | the χ² quantile every σ0 bound and honest-σ band uses |
 //!
 //! ## Why a crate of its own, below `ba`
 //!
@@ -40,6 +41,7 @@ pub mod opk;
 pub mod plane;
 pub mod rigid;
 pub mod so3;
+pub mod stats;
 pub mod umeyama;
 
 pub use consensus::{Consensus, ConsensusOptions, Estimator, RefitRule, Sampling, Scoring};

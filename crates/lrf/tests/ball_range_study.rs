@@ -14,10 +14,7 @@ use pingcal_lrf::ball_finder::{find_balls, FinderOptions};
 use pingcal_lrf::simulate::{Scene, SimulatedLrf};
 use rand::Rng;
 
-fn chi2_quantile(k: f64, z: f64) -> f64 {
-    let a = 2.0 / (9.0 * k);
-    k * (1.0 - a + z * a.sqrt()).powi(3)
-}
+use pingcal_geometry::stats::chi2_quantile;
 
 #[test]
 fn ball_centre_bias_and_sigma_against_distance() {

@@ -18,11 +18,7 @@ use pingcal_lrf::cloud::Cloud;
 use pingcal_lrf::RangeNoise;
 use pingcal_sim::sphere_calib::{SphereCalibConfig, SphereCalibSim};
 
-/// χ² quantile by Wilson–Hilferty (z: the normal quantile).
-fn chi2_quantile(k: f64, z: f64) -> f64 {
-    let a = 2.0 / (9.0 * k);
-    k * (1.0 - a + z * a.sqrt()).powi(3)
-}
+use pingcal_geometry::stats::chi2_quantile;
 
 struct Row {
     range_m: f64,

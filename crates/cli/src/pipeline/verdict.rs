@@ -117,12 +117,7 @@ pub struct Verdict {
     pub alpha: f64,
 }
 
-/// The quantile of χ² with `k` degrees of freedom at the standard normal quantile `z`
-/// (Wilson–Hilferty: `k (1 − a + z √a)³`, a = 2/(9k); within 1 % from k = 10 at z = ±1.96).
-pub fn chi2_quantile(k: f64, z: f64) -> f64 {
-    let a = 2.0 / (9.0 * k);
-    k * (1.0 - a + z * a.sqrt()).max(0.0).powi(3)
-}
+pub use pingcal_geometry::stats::chi2_quantile;
 
 /// The `1 − ALPHA` quantile of χ² with `k` degrees of freedom.
 pub fn chi2_upper(k: f64) -> f64 {
