@@ -113,11 +113,12 @@ pub fn choose(
     let w = workers.max(1) as f64;
     let limit = memory_limit.unwrap_or(f64::INFINITY);
     let fits = |e: &Estimate| e.memory <= limit;
+    let assembly = assembly_flops(layout);
     let dense = || {
         let nf = n as f64;
         Estimate {
             memory: 8.0 * nnz * (1.0 + w) + 8.0 * nf * nf,
-            seconds: assembly_flops(layout) / (ASSEMBLY_RATE * w)
+            seconds: assembly / (ASSEMBLY_RATE * w)
                 + nf * nf * nf / 3.0 / (DENSE_RATE * w.powf(0.8)),
         }
     };
@@ -147,7 +148,7 @@ pub fn choose(
             return Ok(pick(LinearSolverKind::Dense, e, "asked for".into()));
         }
         LinearSolverKind::Sparse => {
-            let e = sparse(layout, w);
+            let e = sparse(layout, w, assembly);
             if !fits(&e) {
                 return Err(too_large(LinearSolverKind::Sparse, &e));
             }
@@ -171,7 +172,7 @@ pub fn choose(
         ));
     }
     let fill = nnz / ((n * (n + 1) / 2).max(1) as f64);
-    let s = sparse(layout, w);
+    let s = sparse(layout, w, assembly);
     let it = iterative();
     let summary = format!(
         "{n} unknowns, S {:.0} % full; estimated per step: dense {:.2} s / {}, sparse {:.2} s / {}, iterative {:.2} s / {}",
@@ -245,7 +246,7 @@ fn implicit_flops(layout: &Layout) -> f64 {
 
 /// The sparse factorization's estimate: the fill of L from a symbolic factorization of the
 /// block graph under the same ordering as the numeric one.
-fn sparse(layout: &Layout, w: f64) -> Estimate {
+fn sparse(layout: &Layout, w: f64, assembly: f64) -> Estimate {
     let n = layout.n_reduced as f64;
     let nnz = layout.nnz() as f64;
     let nb = layout.num_blocks();
@@ -253,7 +254,7 @@ fn sparse(layout: &Layout, w: f64) -> Estimate {
     let l_scalar = super::linear::block_factor_entries(layout).map_or(n * n / 2.0, |l| l * mean_d2);
     Estimate {
         memory: 8.0 * nnz * (2.0 + w) + 8.0 * l_scalar,
-        seconds: assembly_flops(layout) / (ASSEMBLY_RATE * w)
+        seconds: assembly / (ASSEMBLY_RATE * w)
             + l_scalar * l_scalar / n.max(1.0) / (SPARSE_RATE * w.powf(0.8)),
     }
 }
