@@ -605,3 +605,41 @@ fn ba_names_an_undeterminable_interior_orientation_before_solving() {
     let run = w.run(&["ba", s(&file), "--quiet"]);
     assert!(run.success(), "{}", ctx(&run));
 }
+
+/// `pingcal ba --precision` on a BAL problem writes the free network's σ0 (at the simulated
+/// 0.5 px noise) and σ's into its JSON; with a measurement file, whose precision is always
+/// computed, the option is refused by name.
+#[test]
+fn ba_precision_of_a_bal_problem() {
+    let w = Work::new("ba_precision");
+    let out = w.dir.join("out.json");
+    let run = w.run(&[
+        "ba",
+        "--synthetic",
+        "30x1500",
+        "--precision",
+        "--quiet",
+        "--out",
+        s(&out),
+    ]);
+    assert!(run.success(), "{}", ctx(&run));
+    let json = read_json(&out);
+    let p = &json["precision"];
+    // σ0's relative sd is 1/√(2·redundancy) ≈ 0.004 (redundancy ≈ 13,000): 5 % is 12 sd.
+    let sigma0 = p["sigma0"].as_f64().expect("sigma0");
+    assert!((sigma0 - 0.5).abs() < 0.025, "σ0 {sigma0}");
+    assert!(p["median_point_sigma"].as_f64().is_some_and(|v| v > 0.0));
+    assert!(p["method"]
+        .as_str()
+        .is_some_and(|m| m.contains("inner constraints")));
+
+    let project = w.dir.join("m.json");
+    fs::write(&project, "{}").unwrap();
+    let refused = w.run(&["ba", s(&project), "--precision"]);
+    assert!(!refused.success());
+    assert!(
+        refused.stderr.contains("--precision is for BAL problems"),
+        "{}",
+        ctx(&refused)
+    );
+}
