@@ -26,6 +26,7 @@
 use super::layout::Layout;
 use super::precision::{
     invert_or_diagnose, jacobi_scale, linearized, reduced_schur, reduced_system, selected,
+    selected_fits,
 };
 use super::sigma::PrecisionError;
 use crate::datum::{check, Datum};
@@ -97,6 +98,9 @@ pub fn check_intrinsics(problem: &Problem) -> Result<Estimability, PrecisionErro
     } else if c.len() > MAX_SPARSE_CHECK_INTRINSICS {
         return Ok(Estimability::NotChecked(n));
     } else {
+        if selected_fits(&layout, problem).is_err() {
+            return Ok(Estimability::NotChecked(n));
+        }
         let schur = reduced_schur(problem, &layout, &lin)?;
         match sparse_complement(problem, &layout, &schur.values, &c) {
             Ok(t) => t,

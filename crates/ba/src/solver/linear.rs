@@ -215,6 +215,54 @@ pub(crate) fn block_factor_entries(layout: &Layout) -> Option<f64> {
     Some(symbolic.len_val() as f64)
 }
 
+/// The scalar entries of S's Cholesky factor and the selected inversion's work
+/// `Σⱼ |column j|²`, exactly as the block ordering's scalar factor has them (S's blocks are
+/// dense, so its pattern is the block factor's, expanded), from a symbolic factorization of
+/// the block graph alone: nothing of the scalar size is allocated.
+pub(crate) fn block_factor_columns(layout: &Layout) -> Option<(f64, f64)> {
+    use faer::sparse::linalg::cholesky::{CholeskySymbolicParams, SymbolicCholeskyRaw};
+    let nb = layout.num_blocks();
+    if nb == 0 {
+        return Some((0.0, 0.0));
+    }
+    let (col_ptr, row_idx) = block_graph(layout);
+    let graph = SymbolicSparseColMatRef::new_checked(nb, nb, &col_ptr, None, &row_idx);
+    let params = CholeskySymbolicParams {
+        supernodal_flop_ratio_threshold:
+            faer::sparse::linalg::SupernodalThreshold::FORCE_SIMPLICIAL,
+        ..Default::default()
+    };
+    let symbolic = factorize_symbolic_cholesky(
+        graph,
+        Side::Upper,
+        faer::sparse::linalg::cholesky::SymmetricOrdering::Amd,
+        params,
+    )
+    .ok()?;
+    let SymbolicCholeskyRaw::Simplicial(l) = symbolic.raw() else {
+        return None;
+    };
+    let fwd: Vec<usize> = match symbolic.perm() {
+        Some(p) => p.arrays().0.to_vec(),
+        None => (0..nb).collect(),
+    };
+    let dim = |k: usize| layout.block_dim[fwd[k]];
+    let (cp, ri) = (l.col_ptr(), l.row_idx());
+    let (mut entries, mut work) = (0.0, 0.0);
+    for b in 0..nb {
+        let below: usize = (ri[cp[b]..cp[b + 1]].iter())
+            .filter(|&&a| a != b)
+            .map(|&a| dim(a))
+            .sum();
+        for k in 0..dim(b) {
+            let c = (below + dim(b) - k) as f64;
+            entries += c;
+            work += c * c;
+        }
+    }
+    Some((entries, work))
+}
+
 /// The upper triangle of S's block graph as CSC (column pointers, row blocks).
 fn block_graph(layout: &Layout) -> (Vec<usize>, Vec<usize>) {
     let mut col_ptr = Vec::with_capacity(layout.num_blocks() + 1);

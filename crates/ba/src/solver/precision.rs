@@ -95,6 +95,20 @@ fn cofactors(
             "the reduced camera system has {n} unknowns; its inverse is formed densely for at most {MAX_DENSE_PRECISION}"
         )));
     }
+    // A factor too large for the selected inversion is refused before S is assembled (Auto:
+    // the dense inverse instead, where it can be had).
+    let fits = match method {
+        CofactorMethod::Dense => true,
+        CofactorMethod::Sparse => {
+            selected_fits(&layout, problem)?;
+            true
+        }
+        CofactorMethod::Auto => match selected_fits(&layout, problem) {
+            Ok(()) => true,
+            Err(_) if n <= MAX_DENSE_PRECISION => false,
+            Err(e) => return Err(e),
+        },
+    };
     let lin = linearized(problem, &layout)?;
     let schur = reduced_schur(problem, &layout, &lin)?;
     let dense = |schur: &Schur| -> Result<Option<Box<dyn CofactorLookup>>, PrecisionError> {
@@ -106,7 +120,7 @@ fn cofactors(
             Err(e) => Err(e),
         }
     };
-    let (q_cc, how): (Box<dyn CofactorLookup>, _) = if method == CofactorMethod::Dense {
+    let (q_cc, how): (Box<dyn CofactorLookup>, _) = if method == CofactorMethod::Dense || !fits {
         match dense(&schur)? {
             Some(q) => (q, DENSE),
             None => return Ok(None),
@@ -145,9 +159,32 @@ pub(super) fn selected(
     held: &[bool],
     problem: &Problem,
 ) -> Result<SelectedInverse, PrecisionError> {
-    let limit = super::available_memory().map(|m| 0.8 * m);
+    let limit = memory_limit();
+    SelectedInverse::new(layout, values, held, limit, faer::Par::Seq)
+        .map_err(|e| selected_error(e, layout, problem, limit))
+}
+
+/// 80 % of the memory the system reports available.
+fn memory_limit() -> Option<f64> {
+    super::available_memory().map(|m| 0.8 * m)
+}
+
+/// [`selected_inverse::precheck`](super::selected_inverse::precheck) with its refusal named:
+/// called before S is assembled.
+pub(super) fn selected_fits(layout: &Layout, problem: &Problem) -> Result<(), PrecisionError> {
+    let limit = memory_limit();
+    super::selected_inverse::precheck(layout, limit)
+        .map_err(|e| selected_error(e, layout, problem, limit))
+}
+
+fn selected_error(
+    e: SelectedError,
+    layout: &Layout,
+    problem: &Problem,
+    limit: Option<f64>,
+) -> PrecisionError {
     let n = layout.n_reduced;
-    SelectedInverse::new(layout, values, held, limit, faer::Par::Seq).map_err(|e| match e {
+    match e {
         SelectedError::NotPositive(i) => PrecisionError::DatumDefect(format!(
             "the observations and the datum do not determine {} (the reduced system of {n} unknowns is singular there; the open degrees of freedom are counted for at most {MAX_DENSE_PRECISION})",
             describe_unknown(i, problem, layout)
@@ -157,7 +194,7 @@ pub(super) fn selected(
             work,
             factor_entries,
         } => PrecisionError::TooLarge(format!(
-            "the reduced camera system has {n} unknowns and its sparse factor {factor_entries} entries: the precision would need {:.1} GiB and about {work:.1e} operations (at most {:.1} GiB{} and {:.0e}); a camera graph this dense is inverted densely only up to {MAX_DENSE_PRECISION} unknowns",
+            "the reduced camera system has {n} unknowns and its sparse factor about {factor_entries} entries: the precision would need {:.1} GiB and about {work:.1e} operations (at most {:.1} GiB{} and {:.0e}); a camera graph this dense is inverted densely only up to {MAX_DENSE_PRECISION} unknowns",
             bytes / 1073741824.0,
             limit.unwrap_or(f64::INFINITY) / 1073741824.0,
             if limit.is_some() { " available" } else { "" },
@@ -166,7 +203,7 @@ pub(super) fn selected(
         SelectedError::Internal(e) => PrecisionError::TooLarge(format!(
             "the sparse factorization of the reduced camera system ({n} unknowns) failed: {e}"
         )),
-    })
+    }
 }
 
 /// The number of scalar observations: two per image point, and every constraint's
@@ -338,6 +375,9 @@ fn free_network_bordered(
         return Err(PrecisionError::TooLarge(format!(
             "the reduced camera system has {n} unknowns; its bordered inverse is formed densely for at most {MAX_DENSE_PRECISION}"
         )));
+    }
+    if !dense {
+        selected_fits(layout, problem)?;
     }
     let schur = reduced_schur(problem, layout, lin)?;
     let d = if problem.distances.is_empty() { 7 } else { 6 };

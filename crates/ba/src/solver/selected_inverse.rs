@@ -84,6 +84,25 @@ pub(crate) enum SelectedError {
     Internal(String),
 }
 
+/// The selected inversion's refusal judged from the block pattern alone, before S is
+/// assembled: the factor's entries and the work `Σⱼ |column j|²` from a symbolic
+/// factorization of the block graph ([`block_factor_columns`](super::linear::block_factor_columns)),
+/// its memory as [`SelectedInverse::new`] counts it plus S's values.
+pub(crate) fn precheck(layout: &Layout, memory_limit: Option<f64>) -> Result<(), SelectedError> {
+    let Some((entries, work)) = super::linear::block_factor_columns(layout) else {
+        return Ok(());
+    };
+    let bytes = 32.0 * entries + 32.0 * layout.nnz() as f64;
+    if work > MAX_SELECTED_WORK || memory_limit.is_some_and(|m| bytes > m) {
+        return Err(SelectedError::TooLarge {
+            bytes,
+            work,
+            factor_entries: entries as usize,
+        });
+    }
+    Ok(())
+}
+
 /// S⁻¹ on the pattern of S, and the factor to compute any other entry.
 pub(crate) struct SelectedInverse {
     n: usize,
@@ -158,8 +177,9 @@ impl SelectedInverse {
                 c * c
             })
             .sum();
-        // L, Z on L's pattern, its row indices, and S's scaled copy, row indices and Z.
-        let bytes = 24.0 * factor_entries as f64 + 24.0 * values.len() as f64;
+        // L, Z on L's pattern, its row indices (faer's and ours), and S's scaled copy, row
+        // indices and Z.
+        let bytes = 32.0 * factor_entries as f64 + 24.0 * values.len() as f64;
         if work > MAX_SELECTED_WORK || memory_limit.is_some_and(|m| bytes > m) {
             return Err(SelectedError::TooLarge {
                 bytes,
@@ -434,6 +454,47 @@ impl From<String> for SelectedError {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The block pattern's figures are the scalar factor's, on a banded and on a dense
+    /// camera graph.
+    #[test]
+    fn the_block_estimate_is_the_scalar_factor() {
+        use crate::synthetic::{SyntheticBal, Visibility};
+        for visibility in [Visibility::Banded, Visibility::Random] {
+            let spec = SyntheticBal {
+                cameras: 40,
+                points: 2000,
+                visibility,
+                ..Default::default()
+            };
+            let problem = spec.generate().unwrap().problem;
+            let layout = Layout::new(&problem);
+            let n = layout.n_reduced;
+            let row_idx = layout.row_indices();
+            let sym = SymbolicSparseColMatRef::new_checked(n, n, &layout.col_ptr, None, &row_idx);
+            let (fwd, inv) = super::super::linear::block_amd_ordering(&layout).unwrap();
+            let perm = faer::perm::PermRef::new_checked(&fwd, &inv, n);
+            let params = CholeskySymbolicParams {
+                supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SIMPLICIAL,
+                ..Default::default()
+            };
+            let symbolic = factorize_symbolic_cholesky(
+                sym,
+                Side::Upper,
+                SymmetricOrdering::Custom(perm),
+                params,
+            )
+            .unwrap();
+            let SymbolicCholeskyRaw::Simplicial(l) = symbolic.raw() else {
+                panic!("simplicial")
+            };
+            let cp = l.col_ptr();
+            let lens = (0..n).map(|j| (cp[j + 1] - cp[j]) as f64);
+            let (entries, work) = lens.fold((0.0, 0.0), |(e, w), c| (e + c, w + c * c));
+            let (be, bw) = super::super::linear::block_factor_columns(&layout).unwrap();
+            assert_eq!((be, bw), (entries, work), "{visibility:?}");
+        }
+    }
 
     /// Takahashi's Z equals the dense inverse on the factor's pattern, for a random sparse
     /// positive definite matrix with fill.
