@@ -9,10 +9,7 @@ mod common;
 
 use common::{realisation, truth};
 use pingcal_ba::problem::Distance;
-use pingcal_ba::solver::{
-    free_network_precision_bordered, points_covariance, precision, precision_with, solve,
-    CofactorMethod, Options, PrecisionError,
-};
+use pingcal_ba::solver::{points_covariance, precision, solve, Options, PrecisionError};
 
 fn options() -> Options {
     Options {
@@ -422,75 +419,6 @@ fn variance_components_recover_each_groups_sigma() {
             "group {}: mean z² {m} ± {tol}",
             names[g]
         );
-    }
-}
-
-/// The free network in Schur form (the reduced system bordered by the inner constraints,
-/// any number of points) equals the dense inner-constraint solution on a network small
-/// enough for both: σ0, the intrinsics', poses' and points' σ, and the standardized
-/// residuals, to 1e-6 relative.
-#[test]
-fn bordered_free_network_equals_the_dense_inner_constraints() {
-    for with_distance in [false, true] {
-        let mut free = realisation(&truth(), 31);
-        for pt in &mut free.points {
-            pt.fixed = false;
-        }
-        if with_distance {
-            let l = (free.points[0].position - free.points[40].position).norm();
-            free.distances.push(Distance {
-                a: 0,
-                b: 40,
-                value: l,
-                sigma: 0.05 * l,
-            });
-        }
-        solve(&mut free, &options(), |_| {}).unwrap();
-        let dense = precision_with(&free, CofactorMethod::Dense).expect("dense inner constraints");
-        let bordered = free_network_precision_bordered(&free).expect("bordered");
-        let close = |a: f64, b: f64, what: &str| {
-            assert!(
-                (a - b).abs() <= 1e-6 * b.abs().max(1e-300),
-                "{what}: bordered {a} vs dense {b} (distance {with_distance})"
-            );
-        };
-        assert_eq!(dense.redundancy, bordered.redundancy);
-        close(bordered.sigma0, dense.sigma0, "σ0");
-        for (a, b) in bordered.intrinsics[0]
-            .sigmas
-            .iter()
-            .zip(&dense.intrinsics[0].sigmas)
-        {
-            close(*a, *b, "intrinsic σ");
-        }
-        for (a, b) in bordered.poses.iter().zip(&dense.poses) {
-            let (a, b) = (a.as_ref().unwrap(), b.as_ref().unwrap());
-            for k in 0..3 {
-                close(a.rotation_rad[k], b.rotation_rad[k], "pose rotation σ");
-                close(a.centre[k], b.centre[k], "pose centre σ");
-            }
-        }
-        for (a, b) in bordered
-            .point_covariances
-            .iter()
-            .zip(&dense.point_covariances)
-        {
-            let (a, b) = (a.unwrap(), b.unwrap());
-            let scale = b.diagonal().max();
-            assert!(
-                (a - b).amax() <= 1e-6 * scale,
-                "point covariance {a} vs {b}"
-            );
-        }
-        for (a, b) in bordered
-            .standardized_residuals
-            .iter()
-            .zip(&dense.standardized_residuals)
-        {
-            for k in 0..2 {
-                close(a[k], b[k], "standardized residual");
-            }
-        }
     }
 }
 

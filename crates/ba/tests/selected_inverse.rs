@@ -12,8 +12,8 @@ mod common;
 use common::{realisation, truth};
 use pingcal_ba::problem::{Distance, Problem};
 use pingcal_ba::solver::{
-    points_covariance_with, precision, precision_with, solve, CofactorMethod, Options, Precision,
-    PrecisionError, MAX_DENSE_PRECISION,
+    free_network_precision_bordered, points_covariance_with, precision, precision_with, solve,
+    CofactorMethod, Options, Precision, PrecisionError, MAX_DENSE_PRECISION,
 };
 
 const REL: f64 = 1e-6;
@@ -120,7 +120,8 @@ fn with_distance(mut p: Problem, a: usize, b: usize) -> Problem {
 
 /// A self-calibration network with a datum (four control points) and a measured distance
 /// (two points kept in the reduced system, a constraint's cofactors): the selected inverse
-/// gives every figure of the dense inverse.
+/// and the dense Cholesky inverse (Auto's form for a camera graph too dense for the sparse
+/// factor) give every figure of the dense eigen-inverse.
 #[test]
 fn selected_inversion_equals_the_dense_inverse() {
     let mut p = with_distance(realisation(&truth(), 5), 3, 50);
@@ -128,6 +129,9 @@ fn selected_inversion_equals_the_dense_inverse() {
     let dense = precision_with(&p, CofactorMethod::Dense).expect("dense");
     let sparse = precision_with(&p, CofactorMethod::Sparse).expect("sparse");
     same_precision(&sparse, &dense);
+    let cholesky = precision_with(&p, CofactorMethod::DenseCholesky).expect("dense Cholesky");
+    same_precision(&cholesky, &dense);
+    assert_eq!(cholesky.cofactors, "dense Cholesky inverse");
 }
 
 /// A street of `cameras` BAL cameras (each point seen by 5 neighbours: a banded camera
@@ -159,6 +163,9 @@ fn selected_inversion_of_a_street_equals_the_dense_inverse() {
     let dense = precision_with(&p, CofactorMethod::Dense).expect("dense");
     let sparse = precision_with(&p, CofactorMethod::Sparse).expect("sparse");
     same_precision(&sparse, &dense);
+    let cholesky = precision_with(&p, CofactorMethod::DenseCholesky).expect("dense Cholesky");
+    same_precision(&cholesky, &dense);
+    assert_eq!(cholesky.cofactors, "dense Cholesky inverse");
 }
 
 /// The joint covariance of points at both ends of the street (no image sees two of them:
@@ -179,11 +186,12 @@ fn joint_covariance_of_far_points_equals_the_dense() {
     eprintln!("largest relative difference: {:.1e}", WORST.get());
 }
 
-/// Free networks (no datum; with and without a distance fixing the scale): the
-/// S-transformation of the selected inverse under a minimal datum equals the dense
-/// inner-constraint solution (formed from the whole normal matrix, not from S).
+/// Free networks (no datum; with and without a distance fixing the scale): the reduced
+/// system bordered by the inner constraints and inverted densely, and the S-transformation
+/// of the selected inverse under a minimal datum, both equal the dense inner-constraint
+/// solution (formed from the whole normal matrix, not from S).
 #[test]
-fn s_transformation_equals_the_dense_inner_constraints() {
+fn schur_forms_of_a_free_network_equal_the_dense_inner_constraints() {
     for distance in [false, true] {
         let mut free = realisation(&truth(), 31);
         for pt in &mut free.points {
@@ -194,8 +202,12 @@ fn s_transformation_equals_the_dense_inner_constraints() {
         }
         solve(&mut free, &options(), |_| {}).unwrap();
         let dense = precision_with(&free, CofactorMethod::Dense).expect("dense inner constraints");
+        let bordered = free_network_precision_bordered(&free).expect("bordered");
+        same_precision(&bordered, &dense);
         let sparse = precision_with(&free, CofactorMethod::Sparse).expect("S-transformation");
         same_precision(&sparse, &dense);
+        let cholesky = precision_with(&free, CofactorMethod::DenseCholesky).expect("dense base");
+        same_precision(&cholesky, &dense);
     }
 }
 

@@ -28,6 +28,7 @@ use super::precision::{
     invert_or_diagnose, jacobi_scale, linearized, reduced_schur, reduced_system, selected,
     selected_fits,
 };
+use super::selected_inverse::Factored;
 use super::sigma::PrecisionError;
 use crate::datum::{check, Datum};
 use crate::problem::Problem;

@@ -106,7 +106,7 @@ pub(crate) fn precision(
     let (parameters_covariance, parameter_offsets) =
         parameters_covariance(problem, layout, s02, &q);
     Ok(Precision {
-        cofactors: super::precision::DENSE_INNER,
+        cofactors: super::sigma::DENSE_INNER,
         sigma0,
         redundancy,
         observations: m,

@@ -12,9 +12,13 @@
 //! Only the entries of S⁻¹ between unknowns that share an observation, a point or a
 //! constraint are needed, all inside the pattern of S's sparse Cholesky factor: they come
 //! from a selected inversion of that factor (`selected_inverse`), at about the cost of the
-//! factorization on a sparse camera graph and with memory proportional to the factor; the
-//! dense inverse (up to [`MAX_DENSE_PRECISION`] reduced unknowns) serves to count and name a
-//! datum defect, and for a camera graph too dense for the sparse factor ([`CofactorMethod`]).
+//! factorization on a sparse camera graph and with memory proportional to the factor. A
+//! camera graph so dense that the factor is nearly full is inverted whole from a dense
+//! Cholesky factorization instead (blocked and parallel: faster there, 3 n² values); the
+//! choice is made from the block pattern before S is assembled, and a system too large for
+//! both is refused with what each would need. The eigenvectors of the dense S (up to
+//! [`MAX_DENSE_PRECISION`] reduced unknowns) count and name a datum defect
+//! ([`CofactorMethod`]).
 //!
 //! A network whose datum is not fully defined (free position, orientation or scale) has a
 //! singular S: this is diagnosed and named, never solved. A free network (no datum at all)
@@ -25,10 +29,13 @@
 use super::evaluate::{linearize, Linearization};
 use super::layout::Layout;
 use super::schur::Schur;
-use super::selected_inverse::{CofactorLookup, SelectedError, SelectedInverse};
+use super::selected_inverse::{
+    CofactorLookup, DenseInverse, Factored, SelectedError, SelectedInverse,
+};
 use super::sigma::{
     intrinsics_precision, parameters_covariance, pose_sigmas, rig_covariances, Precision,
-    PrecisionError, MAX_DENSE_PRECISION,
+    PrecisionError, BORDERED_DENSE, DENSE, DENSE_CHOLESKY, MAX_DENSE_PRECISION, SELECTED,
+    TRANSFORMED, TRANSFORMED_DENSE,
 };
 use crate::problem::Problem;
 use nalgebra::{DMatrix, Matrix2, Matrix2x3, Matrix3};
@@ -36,8 +43,9 @@ use nalgebra::{DMatrix, Matrix2, Matrix2x3, Matrix3};
 /// How the cofactors of the reduced unknowns are computed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum CofactorMethod {
-    /// Sparse; dense (up to [`MAX_DENSE_PRECISION`] reduced unknowns) to count and name a
-    /// datum defect, or for a camera graph too dense for the sparse factor.
+    /// Sparse; a camera graph too dense for the sparse factor by the dense Cholesky inverse;
+    /// a datum defect counted and named by the dense eigenvectors (up to
+    /// [`MAX_DENSE_PRECISION`] reduced unknowns).
     Auto,
     /// S⁻¹ formed densely (refused above [`MAX_DENSE_PRECISION`] reduced unknowns). A free
     /// network: the dense inner-constraint solution up to
@@ -47,14 +55,11 @@ pub enum CofactorMethod {
     /// The entries of S⁻¹ on the pattern of its sparse Cholesky factor (a selected
     /// inversion); a free network by the S-transformation of a minimal datum's cofactors.
     Sparse,
+    /// S⁻¹ whole from a dense Cholesky factorization (faer, parallel; 3 n² values), as Auto
+    /// does for a camera graph too dense for the sparse factor; a free network by the
+    /// S-transformation.
+    DenseCholesky,
 }
-
-/// [`Precision::cofactors`] of each form.
-const DENSE: &str = "dense inverse";
-const SELECTED: &str = "selected inversion";
-const BORDERED_DENSE: &str = "inner constraints: dense inverse of the bordered reduced system";
-const TRANSFORMED: &str = "inner constraints: S-transformation of a selected inversion";
-pub(super) const DENSE_INNER: &str = "inner constraints: dense normal matrix";
 
 /// What both [`precision`] and [`points_covariance`] start from: the linearization at the
 /// estimate, the undamped Schur complement and `Q_cc = S⁻¹`.
@@ -95,19 +100,10 @@ fn cofactors(
             "the reduced camera system has {n} unknowns; its inverse is formed densely for at most {MAX_DENSE_PRECISION}"
         )));
     }
-    // A factor too large for the selected inversion is refused before S is assembled (Auto:
-    // the dense inverse instead, where it can be had).
-    let fits = match method {
-        CofactorMethod::Dense => true,
-        CofactorMethod::Sparse => {
-            selected_fits(&layout, problem)?;
-            true
-        }
-        CofactorMethod::Auto => match selected_fits(&layout, problem) {
-            Ok(()) => true,
-            Err(_) if n <= MAX_DENSE_PRECISION => false,
-            Err(e) => return Err(e),
-        },
+    // The form is chosen, and one too large refused, before S is assembled.
+    let route = match method {
+        CofactorMethod::Dense => None,
+        _ => Some(route(&layout, problem, method)?),
     };
     let lin = linearized(problem, &layout)?;
     let schur = reduced_schur(problem, &layout, &lin)?;
@@ -120,26 +116,27 @@ fn cofactors(
             Err(e) => Err(e),
         }
     };
-    let (q_cc, how): (Box<dyn CofactorLookup>, _) = if method == CofactorMethod::Dense || !fits {
-        match dense(&schur)? {
+    let (q_cc, how): (Box<dyn CofactorLookup>, _) = match route {
+        None => match dense(&schur)? {
             Some(q) => (q, DENSE),
             None => return Ok(None),
-        }
-    } else {
-        let held = vec![false; n];
-        match selected(&layout, &schur.values, &held, problem) {
-            Ok(q) => (Box::new(q), SELECTED),
-            // A defect is counted and named by the dense eigenvectors where they can be
-            // had; a camera graph too dense for the sparse factor is inverted densely.
-            Err(PrecisionError::DatumDefect(_) | PrecisionError::TooLarge(_))
-                if method == CofactorMethod::Auto && n <= MAX_DENSE_PRECISION =>
-            {
-                match dense(&schur)? {
-                    Some(q) => (q, DENSE),
-                    None => return Ok(None),
+        },
+        Some(route) => {
+            let held = vec![false; n];
+            match factored(route, &layout, &schur.values, &held, problem) {
+                Ok(q) => (into_lookup(q), route.name()),
+                // A defect is counted and named by the dense eigenvectors where they can be
+                // had.
+                Err(PrecisionError::DatumDefect(_))
+                    if method == CofactorMethod::Auto && n <= MAX_DENSE_PRECISION =>
+                {
+                    match dense(&schur)? {
+                        Some(q) => (q, DENSE),
+                        None => return Ok(None),
+                    }
                 }
+                Err(e) => return Err(e),
             }
-            Err(e) => return Err(e),
         }
     };
     Ok(Some(Cofactors {
@@ -149,6 +146,106 @@ fn cofactors(
         q_cc,
         how,
     }))
+}
+
+/// The form of S⁻¹ under a datum: a selected inversion of the sparse factor, or the whole
+/// inverse from a dense Cholesky factorization.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Route {
+    Selected,
+    DenseCholesky,
+}
+
+impl Route {
+    fn name(self) -> &'static str {
+        match self {
+            Route::Selected => SELECTED,
+            Route::DenseCholesky => DENSE_CHOLESKY,
+        }
+    }
+}
+
+/// The form `method` asks for (Auto: the selected inversion where its factor fits, else the
+/// dense Cholesky inverse where that fits in memory), judged before S is assembled; refused
+/// with the figures of both when neither can be had.
+fn route(
+    layout: &Layout,
+    problem: &Problem,
+    method: CofactorMethod,
+) -> Result<Route, PrecisionError> {
+    let dense_fits = || {
+        let bytes = DenseInverse::bytes(layout.n_reduced) + 16.0 * layout.nnz() as f64;
+        match memory_limit() {
+            Some(m) if bytes > m => Err(format!(
+                "the dense inverse would need {:.1} GiB of the {:.1} GiB available",
+                bytes / 1073741824.0,
+                m / 1073741824.0
+            )),
+            _ => Ok(()),
+        }
+    };
+    match method {
+        CofactorMethod::Sparse => selected_fits(layout, problem).map(|_| Route::Selected),
+        CofactorMethod::DenseCholesky => dense_fits()
+            .map(|()| Route::DenseCholesky)
+            .map_err(PrecisionError::TooLarge),
+        _ => match (selected_fits(layout, problem), dense_fits()) {
+            (Ok(work), Ok(())) => {
+                // Both fit: the faster, by the work of each.
+                let n = layout.n_reduced as f64;
+                Ok(if work > DENSE_ABOVE_WORK_SHARE * n * n * n {
+                    Route::DenseCholesky
+                } else {
+                    Route::Selected
+                })
+            }
+            (Ok(_), Err(_)) => Ok(Route::Selected),
+            (Err(PrecisionError::TooLarge(_)), Ok(())) => Ok(Route::DenseCholesky),
+            (Err(PrecisionError::TooLarge(why)), Err(dense)) => {
+                Err(PrecisionError::TooLarge(format!("{why}; {dense}")))
+            }
+            (Err(e), _) => Err(e),
+        },
+    }
+}
+
+/// A selected inversion's step (`Σⱼ |column j|²`, scattered reads) against a dense
+/// Cholesky inverse's (n³ in all, blocked and parallel): measured on 2 cores, 5.2e10 steps
+/// in 92 s (random 600-camera graph) against 13,500³ in about 80 s, a step costs about 60
+/// dense ones: the dense inverse is taken when the selected work exceeds n³/60.
+const DENSE_ABOVE_WORK_SHARE: f64 = 1.0 / 60.0;
+
+/// S⁻¹ under `held` by `route`, its failures named.
+fn factored(
+    route: Route,
+    layout: &Layout,
+    values: &[f64],
+    held: &[bool],
+    problem: &Problem,
+) -> Result<Box<dyn Factored>, PrecisionError> {
+    Ok(match route {
+        Route::Selected => Box::new(selected(layout, values, held, problem)?),
+        Route::DenseCholesky => {
+            let limit = memory_limit();
+            let q = DenseInverse::new(layout, values, held, limit, faer::Par::rayon(0))
+                .map_err(|e| selected_error(e, layout, problem, limit))?;
+            Box::new(q)
+        }
+    })
+}
+
+/// A factored form used only for its entries.
+fn into_lookup(q: Box<dyn Factored>) -> Box<dyn CofactorLookup> {
+    struct Lookup(Box<dyn Factored>);
+    impl CofactorLookup for Lookup {
+        fn at(&self, i: usize, j: usize) -> f64 {
+            self.0.at(i, j)
+        }
+        fn restricted(&self, rows: &[usize]) -> DMatrix<f64> {
+            self.0.restricted(rows)
+        }
+    }
+    Box::new(Lookup(q))
 }
 
 /// The selected inverse of S (`values` in the layout's order) with `held` unknowns, its
@@ -171,7 +268,8 @@ fn memory_limit() -> Option<f64> {
 
 /// [`selected_inverse::precheck`](super::selected_inverse::precheck) with its refusal named:
 /// called before S is assembled.
-pub(super) fn selected_fits(layout: &Layout, problem: &Problem) -> Result<(), PrecisionError> {
+/// `Ok(work)`: the selected inversion's work `Σⱼ |column j|²`.
+pub(super) fn selected_fits(layout: &Layout, problem: &Problem) -> Result<f64, PrecisionError> {
     let limit = memory_limit();
     super::selected_inverse::precheck(layout, limit)
         .map_err(|e| selected_error(e, layout, problem, limit))
@@ -334,14 +432,7 @@ pub fn precision_with(
             return super::free_network::precision(problem, &layout, &lin);
         }
         let dense = method == CofactorMethod::Dense;
-        return match free_network_bordered(problem, &layout, &lin, dense) {
-            Err(PrecisionError::TooLarge(_))
-                if method == CofactorMethod::Auto && layout.n_reduced <= MAX_DENSE_PRECISION =>
-            {
-                free_network_bordered(problem, &layout, &lin, true)
-            }
-            r => r,
-        };
+        return free_network_bordered(problem, &layout, &lin, dense, method);
     };
     let (n_obs, unknowns, redundancy, _) = redundancy_and_sigma0(problem, &c)?;
     let eliminated: Vec<EliminatedPoint> = (0..c.layout.free_points.len())
@@ -369,6 +460,7 @@ fn free_network_bordered(
     layout: &Layout,
     lin: &Linearization,
     dense: bool,
+    method: CofactorMethod,
 ) -> Result<Precision, PrecisionError> {
     let n = layout.n_reduced;
     if dense && n > MAX_DENSE_PRECISION {
@@ -376,9 +468,10 @@ fn free_network_bordered(
             "the reduced camera system has {n} unknowns; its bordered inverse is formed densely for at most {MAX_DENSE_PRECISION}"
         )));
     }
-    if !dense {
-        selected_fits(layout, problem)?;
-    }
+    let route = match dense {
+        true => None,
+        false => Some(route(layout, problem, method)?),
+    };
     let schur = reduced_schur(problem, layout, lin)?;
     let d = if problem.distances.is_empty() { 7 } else { 6 };
     let diag_mean = (0..n)
@@ -398,8 +491,13 @@ fn free_network_bordered(
         };
         (Box::new(q), BORDERED_DENSE)
     } else {
-        let t = Transformed::new(problem, layout, &schur, &border, d)?;
-        (Box::new(t), TRANSFORMED)
+        let route = route.expect("a route unless dense");
+        let t = Transformed::new(problem, layout, &schur, &border, d, route)?;
+        let how = match route {
+            Route::Selected => TRANSFORMED,
+            Route::DenseCholesky => TRANSFORMED_DENSE,
+        };
+        (Box::new(t), how)
     };
     let n_obs = observation_count(problem);
     let unknowns = n + 3 * layout.free_points.len();
@@ -523,7 +621,7 @@ impl Border {
 ///   Q_ij = Q₀_ij − aᵢ·uⱼ − uᵢ·aⱼ + aᵢᵀ (BᵀU − D) aⱼ,    R_ik = (aᵢ)_k
 /// ```
 struct Transformed {
-    base: SelectedInverse,
+    base: Box<dyn Factored>,
     n: usize,
     /// Per reduced unknown: aᵢ, uᵢ and aᵢᵀ(BᵀU − D) (d ≤ 7 entries each, zero beyond).
     a: Vec<[f64; 7]>,
@@ -538,6 +636,7 @@ impl Transformed {
         schur: &Schur,
         border: &Border,
         d: usize,
+        route: Route,
     ) -> Result<Self, PrecisionError> {
         let n = layout.n_reduced;
         let g = super::free_network::reduced_null_space(problem, layout, d);
@@ -551,10 +650,11 @@ impl Transformed {
         for &h in &held {
             is_held[h] = true;
         }
-        let base = selected(layout, &schur.values, &is_held, problem).map_err(|e| match e {
-            PrecisionError::DatumDefect(_) => still_free(),
-            e => e,
-        })?;
+        let base =
+            factored(route, layout, &schur.values, &is_held, problem).map_err(|e| match e {
+                PrecisionError::DatumDefect(_) => still_free(),
+                e => e,
+            })?;
         let mut u = border.b.clone();
         for mut col in u.column_iter_mut() {
             let mut x: Vec<f64> = col.iter().copied().collect();
@@ -753,7 +853,7 @@ pub fn free_network_precision_bordered(problem: &Problem) -> Result<Precision, P
     }
     let layout = Layout::new(problem);
     let lin = linearized(problem, &layout)?;
-    free_network_bordered(problem, &layout, &lin, true)
+    free_network_bordered(problem, &layout, &lin, true, CofactorMethod::Dense)
 }
 
 /// The undamped Schur complement at the linearization and S as a dense symmetric matrix;

@@ -59,6 +59,12 @@ pub(crate) trait CofactorLookup {
     }
 }
 
+/// A cofactor matrix of S under held unknowns that can also apply itself: `x ← S⁻¹ x`.
+pub(crate) trait Factored: CofactorLookup {
+    /// `x ← S⁻¹ x` (held unknowns' entries ignored, and 0 on return).
+    fn solve_in_place(&self, x: &mut [f64]);
+}
+
 impl CofactorLookup for DMatrix<f64> {
     #[inline]
     fn at(&self, i: usize, j: usize) -> f64 {
@@ -88,9 +94,9 @@ pub(crate) enum SelectedError {
 /// assembled: the factor's entries and the work `Σⱼ |column j|²` from a symbolic
 /// factorization of the block graph ([`block_factor_columns`](super::linear::block_factor_columns)),
 /// its memory as [`SelectedInverse::new`] counts it plus S's values.
-pub(crate) fn precheck(layout: &Layout, memory_limit: Option<f64>) -> Result<(), SelectedError> {
+pub(crate) fn precheck(layout: &Layout, memory_limit: Option<f64>) -> Result<f64, SelectedError> {
     let Some((entries, work)) = super::linear::block_factor_columns(layout) else {
-        return Ok(());
+        return Ok(0.0);
     };
     let bytes = 32.0 * entries + 32.0 * layout.nnz() as f64;
     if work > MAX_SELECTED_WORK || memory_limit.is_some_and(|m| bytes > m) {
@@ -100,7 +106,7 @@ pub(crate) fn precheck(layout: &Layout, memory_limit: Option<f64>) -> Result<(),
             factor_entries: entries as usize,
         });
     }
-    Ok(())
+    Ok(work)
 }
 
 /// S⁻¹ on the pattern of S, and the factor to compute any other entry.
@@ -269,7 +275,7 @@ impl SelectedInverse {
     }
 
     /// `x ← S⁻¹ x` (the held unknowns' entries of x are ignored and come back 0).
-    pub fn solve_in_place(&self, x: &mut [f64]) {
+    fn solve_with_factor(&self, x: &mut [f64]) {
         let n = self.n;
         let mut y: Vec<f64> = (0..n)
             .map(|k| {
@@ -312,7 +318,7 @@ impl SelectedInverse {
     pub fn column(&self, j: usize) -> Vec<f64> {
         let mut e = vec![0.0; self.n];
         e[j] = 1.0;
-        self.solve_in_place(&mut e);
+        self.solve_with_factor(&mut e);
         e
     }
 }
@@ -392,6 +398,131 @@ impl SelectedInverse {
             }
         }
         Some(out)
+    }
+}
+
+impl Factored for SelectedInverse {
+    fn solve_in_place(&self, x: &mut [f64]) {
+        self.solve_with_factor(x);
+    }
+}
+
+/// S⁻¹ formed whole from a dense Cholesky factorization (faer, parallel): for a camera graph
+/// whose sparse factor is too full for the selected inversion (its n³/3 scattered
+/// operations against the dense factorization's blocked ones). Needs 3 n² values (S, the
+/// inverse of L, S⁻¹), estimated before anything is allocated.
+pub(crate) struct DenseInverse {
+    /// The lower triangle of S⁻¹ (unscaled; held rows and columns 0).
+    inv: faer::Mat<f64>,
+    held: Vec<bool>,
+}
+
+impl DenseInverse {
+    /// Bytes [`DenseInverse::new`] needs for `n` unknowns.
+    pub fn bytes(n: usize) -> f64 {
+        24.0 * (n as f64) * (n as f64)
+    }
+
+    /// S⁻¹ of the layout's S (`values`) with the unknowns `held` replaced by identity rows.
+    pub fn new(
+        layout: &Layout,
+        values: &[f64],
+        held: &[bool],
+        memory_limit: Option<f64>,
+        par: Par,
+    ) -> Result<Self, SelectedError> {
+        use faer::linalg::cholesky::llt;
+        let n = layout.n_reduced;
+        let bytes = Self::bytes(n);
+        if memory_limit.is_some_and(|m| bytes > m) {
+            return Err(SelectedError::TooLarge {
+                bytes,
+                work: (n as f64).powi(3),
+                factor_entries: n * (n + 1) / 2,
+            });
+        }
+        let diag = |c: usize| values[layout.col_ptr[c + 1] - 1];
+        let scale: Vec<f64> = (0..n)
+            .map(|c| {
+                if held[c] {
+                    1.0
+                } else {
+                    1.0 / diag(c).max(f64::MIN_POSITIVE).sqrt()
+                }
+            })
+            .collect();
+        let mut m = faer::Mat::<f64>::zeros(n, n);
+        for ((i, j), &v) in layout.entries().zip(values) {
+            // upper (i ≤ j) stored as the lower (j, i)
+            m[(j, i)] = match (held[i] || held[j], i == j) {
+                (true, true) => 1.0,
+                (true, false) => 0.0,
+                (false, _) => v * scale[i] * scale[j],
+            };
+        }
+        let mut mem = MemBuffer::new(
+            llt::factor::cholesky_in_place_scratch::<f64>(n, par, Default::default())
+                .or(llt::inverse::inverse_scratch::<f64>(n, par)),
+        );
+        if let Err(faer::linalg::cholesky::llt::factor::LltError::NonPositivePivot { index }) =
+            llt::factor::cholesky_in_place(
+                m.as_mut(),
+                Default::default(),
+                par,
+                MemStack::new(&mut mem),
+                Default::default(),
+            )
+        {
+            return Err(SelectedError::NotPositive(index));
+        }
+        if let Some(j) = (0..n).find(|&j| !(m[(j, j)] * m[(j, j)] >= MIN_PIVOT)) {
+            return Err(SelectedError::NotPositive(j));
+        }
+        let mut inv = faer::Mat::<f64>::zeros(n, n);
+        llt::inverse::inverse(inv.as_mut(), m.as_ref(), par, MemStack::new(&mut mem));
+        drop(m);
+        for j in 0..n {
+            for i in j..n {
+                inv[(i, j)] = if held[i] || held[j] {
+                    0.0
+                } else {
+                    inv[(i, j)] * scale[i] * scale[j]
+                };
+            }
+        }
+        Ok(Self {
+            inv,
+            held: held.to_vec(),
+        })
+    }
+}
+
+impl CofactorLookup for DenseInverse {
+    #[inline]
+    fn at(&self, i: usize, j: usize) -> f64 {
+        if self.held[i] || self.held[j] {
+            return 0.0;
+        }
+        self.inv[(i.max(j), i.min(j))]
+    }
+}
+
+impl Factored for DenseInverse {
+    fn solve_in_place(&self, x: &mut [f64]) {
+        let n = x.len();
+        let b: Vec<f64> = (0..n)
+            .map(|i| if self.held[i] { 0.0 } else { x[i] })
+            .collect();
+        x.fill(0.0);
+        for j in 0..n {
+            for i in j..n {
+                let q = self.inv[(i, j)];
+                x[i] += q * b[j];
+                if i != j {
+                    x[j] += q * b[i];
+                }
+            }
+        }
     }
 }
 

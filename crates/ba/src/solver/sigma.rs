@@ -13,10 +13,22 @@ use super::selected_inverse::CofactorLookup;
 use crate::problem::{Problem, ProblemError};
 use nalgebra::{DMatrix, Matrix3, Matrix6, Vector3};
 
-/// Largest reduced camera system whose inverse is formed densely (and whose datum defect
-/// is counted and named by its eigenvectors); larger ones get the entries of S⁻¹ they
-/// need by a sparse selected inversion.
+/// Largest reduced camera system whose datum defect is counted and named by the
+/// eigenvectors of the dense S, and that [`CofactorMethod::Dense`](super::CofactorMethod)
+/// inverts; the precision itself has no size limit but memory and work
+/// ([`CofactorMethod::Auto`](super::CofactorMethod)).
 pub const MAX_DENSE_PRECISION: usize = 6000;
+
+/// [`Precision::cofactors`] of each form.
+pub(crate) const DENSE: &str = "dense inverse";
+pub(crate) const SELECTED: &str = "selected inversion";
+pub(crate) const DENSE_CHOLESKY: &str = "dense Cholesky inverse";
+pub(crate) const BORDERED_DENSE: &str =
+    "inner constraints: dense inverse of the bordered reduced system";
+pub(crate) const TRANSFORMED: &str = "inner constraints: S-transformation of a selected inversion";
+pub(crate) const TRANSFORMED_DENSE: &str =
+    "inner constraints: S-transformation of a dense Cholesky inverse";
+pub(crate) const DENSE_INNER: &str = "inner constraints: dense normal matrix";
 
 /// Standard deviations and correlations of one camera's free intrinsics.
 #[derive(Clone, Debug, serde::Serialize)]
