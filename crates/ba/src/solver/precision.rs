@@ -124,7 +124,7 @@ fn cofactors(
         Some(route) => {
             let held = vec![false; n];
             match factored(route, &layout, &schur.values, &held, problem) {
-                Ok(q) => (into_lookup(q), route.name()),
+                Ok(q) => (q as Box<dyn CofactorLookup>, route.name()),
                 // A defect is counted and named by the dense eigenvectors where they can be
                 // had.
                 Err(PrecisionError::DatumDefect(_))
@@ -232,20 +232,6 @@ fn factored(
             Box::new(q)
         }
     })
-}
-
-/// A factored form used only for its entries.
-fn into_lookup(q: Box<dyn Factored>) -> Box<dyn CofactorLookup> {
-    struct Lookup(Box<dyn Factored>);
-    impl CofactorLookup for Lookup {
-        fn at(&self, i: usize, j: usize) -> f64 {
-            self.0.at(i, j)
-        }
-        fn restricted(&self, rows: &[usize]) -> DMatrix<f64> {
-            self.0.restricted(rows)
-        }
-    }
-    Box::new(Lookup(q))
 }
 
 /// The selected inverse of S (`values` in the layout's order) with `held` unknowns, its
