@@ -118,6 +118,21 @@ fn with_distance(mut p: Problem, a: usize, b: usize) -> Problem {
     p
 }
 
+/// The selected inversion and the dense Cholesky inverse of a network with a datum give
+/// every figure of the dense eigen-inverse.
+fn every_form_equals_the_dense_inverse(p: &Problem) {
+    let dense = precision_with(p, CofactorMethod::Dense).expect("dense");
+    for (method, name) in [
+        (CofactorMethod::Sparse, "selected inversion"),
+        (CofactorMethod::DenseCholesky, "dense Cholesky inverse"),
+    ] {
+        let other = precision_with(p, method).unwrap_or_else(|e| panic!("{method:?}: {e}"));
+        same_precision(&other, &dense);
+        assert_eq!(other.cofactors, name);
+    }
+    assert_eq!(dense.cofactors, "dense inverse");
+}
+
 /// A self-calibration network with a datum (four control points) and a measured distance
 /// (two points kept in the reduced system, a constraint's cofactors): the selected inverse
 /// and the dense Cholesky inverse (Auto's form for a camera graph too dense for the sparse
@@ -126,12 +141,7 @@ fn with_distance(mut p: Problem, a: usize, b: usize) -> Problem {
 fn selected_inversion_equals_the_dense_inverse() {
     let mut p = with_distance(realisation(&truth(), 5), 3, 50);
     solve(&mut p, &options(), |_| {}).unwrap();
-    let dense = precision_with(&p, CofactorMethod::Dense).expect("dense");
-    let sparse = precision_with(&p, CofactorMethod::Sparse).expect("sparse");
-    same_precision(&sparse, &dense);
-    let cholesky = precision_with(&p, CofactorMethod::DenseCholesky).expect("dense Cholesky");
-    same_precision(&cholesky, &dense);
-    assert_eq!(cholesky.cofactors, "dense Cholesky inverse");
+    every_form_equals_the_dense_inverse(&p);
 }
 
 /// A street of `cameras` BAL cameras (each point seen by 5 neighbours: a banded camera
@@ -160,12 +170,7 @@ fn street(cameras: usize, points: usize) -> Problem {
 #[test]
 fn selected_inversion_of_a_street_equals_the_dense_inverse() {
     let p = street(60, 3000);
-    let dense = precision_with(&p, CofactorMethod::Dense).expect("dense");
-    let sparse = precision_with(&p, CofactorMethod::Sparse).expect("sparse");
-    same_precision(&sparse, &dense);
-    let cholesky = precision_with(&p, CofactorMethod::DenseCholesky).expect("dense Cholesky");
-    same_precision(&cholesky, &dense);
-    assert_eq!(cholesky.cofactors, "dense Cholesky inverse");
+    every_form_equals_the_dense_inverse(&p);
 }
 
 /// The joint covariance of points at both ends of the street (no image sees two of them:

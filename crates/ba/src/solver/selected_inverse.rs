@@ -90,6 +90,30 @@ pub(crate) enum SelectedError {
     Internal(String),
 }
 
+/// D's diagonal, 1/√S_ii from S's values in the layout's order (1 for a held unknown).
+fn jacobi_scale(layout: &Layout, values: &[f64], held: &[bool]) -> Vec<f64> {
+    (0..layout.n_reduced)
+        .map(|c| match held[c] {
+            true => 1.0,
+            false => {
+                1.0 / values[layout.col_ptr[c + 1] - 1]
+                    .max(f64::MIN_POSITIVE)
+                    .sqrt()
+            }
+        })
+        .collect()
+}
+
+/// Entry (i, j) of D S D with the held unknowns' rows and columns those of the identity.
+#[inline]
+fn scaled_entry(i: usize, j: usize, v: f64, scale: &[f64], held: &[bool]) -> f64 {
+    match (held[i] || held[j], i == j) {
+        (true, true) => 1.0,
+        (true, false) => 0.0,
+        (false, _) => v * scale[i] * scale[j],
+    }
+}
+
 /// The selected inversion's refusal judged from the block pattern alone, before S is
 /// assembled: the factor's entries and the work `Σⱼ |column j|²` from a symbolic
 /// factorization of the block graph ([`block_factor_columns`](super::linear::block_factor_columns)),
@@ -144,22 +168,9 @@ impl SelectedInverse {
         par: Par,
     ) -> Result<Self, SelectedError> {
         let n = layout.n_reduced;
-        let diag = |c: usize| values[layout.col_ptr[c + 1] - 1];
-        let scale: Vec<f64> = (0..n)
-            .map(|c| {
-                if held[c] {
-                    1.0
-                } else {
-                    1.0 / diag(c).max(f64::MIN_POSITIVE).sqrt()
-                }
-            })
-            .collect();
+        let scale = jacobi_scale(layout, values, held);
         let scaled: Vec<f64> = (layout.entries().zip(values))
-            .map(|((i, j), &v)| match (held[i] || held[j], i == j) {
-                (true, true) => 1.0,
-                (true, false) => 0.0,
-                (false, _) => v * scale[i] * scale[j],
-            })
+            .map(|((i, j), &v)| scaled_entry(i, j, v, &scale, held))
             .collect();
         let row_idx = layout.row_indices();
         let sym = SymbolicSparseColMatRef::new_checked(n, n, &layout.col_ptr, None, &row_idx);
@@ -441,24 +452,11 @@ impl DenseInverse {
                 factor_entries: n * (n + 1) / 2,
             });
         }
-        let diag = |c: usize| values[layout.col_ptr[c + 1] - 1];
-        let scale: Vec<f64> = (0..n)
-            .map(|c| {
-                if held[c] {
-                    1.0
-                } else {
-                    1.0 / diag(c).max(f64::MIN_POSITIVE).sqrt()
-                }
-            })
-            .collect();
+        let scale = jacobi_scale(layout, values, held);
         let mut m = faer::Mat::<f64>::zeros(n, n);
         for ((i, j), &v) in layout.entries().zip(values) {
             // upper (i ≤ j) stored as the lower (j, i)
-            m[(j, i)] = match (held[i] || held[j], i == j) {
-                (true, true) => 1.0,
-                (true, false) => 0.0,
-                (false, _) => v * scale[i] * scale[j],
-            };
+            m[(j, i)] = scaled_entry(i, j, v, &scale, held);
         }
         let mut mem = MemBuffer::new(
             llt::factor::cholesky_in_place_scratch::<f64>(n, par, Default::default())
