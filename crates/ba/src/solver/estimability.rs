@@ -161,13 +161,9 @@ fn sparse_complement(
         index[row] = a;
     }
     let s_rr = selected(layout, values, &held, problem)?;
-    // S's columns of the intrinsics (both triangles), and its diagonal.
+    // S's columns of the intrinsics (both triangles).
     let mut cols = vec![vec![0.0; n]; c.len()];
-    let mut diag = vec![0.0; n];
     for ((i, j), &v) in layout.entries().zip(values) {
-        if i == j {
-            diag[i] = v;
-        }
         if index[j] != usize::MAX {
             cols[index[j]][i] = v;
         }
@@ -175,10 +171,7 @@ fn sparse_complement(
             cols[index[i]][j] = v;
         }
     }
-    let d: Vec<f64> = diag
-        .iter()
-        .map(|v| 1.0 / v.max(f64::MIN_POSITIVE).sqrt())
-        .collect();
+    let d = super::selected_inverse::jacobi_scale(layout, values, &vec![false; n]);
     let solved: Vec<Vec<f64>> = cols
         .iter()
         .map(|col| {

@@ -311,6 +311,13 @@ impl Layout {
         }
     }
 
+    /// S_cc from S's values (in the order of [`Layout::entries`]): the last entry of column
+    /// c, whose rows are sorted.
+    #[inline]
+    pub fn diagonal(&self, values: &[f64], c: usize) -> f64 {
+        values[self.col_ptr[c + 1] - 1]
+    }
+
     /// Number of stored entries of the upper triangle of S.
     pub fn nnz(&self) -> usize {
         *self.col_ptr.last().unwrap()

@@ -417,8 +417,7 @@ pub fn precision_with(
         {
             return super::free_network::precision(problem, &layout, &lin);
         }
-        let dense = method == CofactorMethod::Dense;
-        return free_network_bordered(problem, &layout, &lin, dense, method);
+        return free_network_bordered(problem, &layout, &lin, method);
     };
     let (n_obs, unknowns, redundancy, _) = redundancy_and_sigma0(problem, &c)?;
     let eliminated: Vec<EliminatedPoint> = (0..c.layout.free_points.len())
@@ -439,16 +438,17 @@ pub fn precision_with(
 /// The precision of a free network of any number of points: the inner constraints on the
 /// points border the reduced system (see `free_network`'s module doc); every cofactor
 /// follows as for a network with a datum, the d multipliers taking part like d more reduced
-/// unknowns. `dense`: the bordered system is inverted densely; otherwise its inverse is
-/// had from a minimal datum's selected inverse by an S-transformation ([`Transformed`]).
+/// unknowns. [`CofactorMethod::Dense`]: the bordered system is inverted densely; otherwise its
+/// inverse is had from a minimal datum's inverse (selected or dense Cholesky) by an
+/// S-transformation ([`Transformed`]).
 fn free_network_bordered(
     problem: &Problem,
     layout: &Layout,
     lin: &Linearization,
-    dense: bool,
     method: CofactorMethod,
 ) -> Result<Precision, PrecisionError> {
     let n = layout.n_reduced;
+    let dense = method == CofactorMethod::Dense;
     if dense && n > MAX_DENSE_PRECISION {
         return Err(PrecisionError::TooLarge(format!(
             "the reduced camera system has {n} unknowns; its bordered inverse is formed densely for at most {MAX_DENSE_PRECISION}"
@@ -461,7 +461,7 @@ fn free_network_bordered(
     let schur = reduced_schur(problem, layout, lin)?;
     let d = if problem.distances.is_empty() { 7 } else { 6 };
     let diag_mean = (0..n)
-        .map(|c| schur.values[layout.col_ptr[c + 1] - 1])
+        .map(|c| layout.diagonal(&schur.values, c))
         .sum::<f64>()
         / n.max(1) as f64;
     let border = Border::new(problem, layout, &schur, d, diag_mean)?;
@@ -626,7 +626,7 @@ impl Transformed {
     ) -> Result<Self, PrecisionError> {
         let n = layout.n_reduced;
         let g = super::free_network::reduced_null_space(problem, layout, d);
-        let diag = |c: usize| schur.values[layout.col_ptr[c + 1] - 1];
+        let diag = |c: usize| layout.diagonal(&schur.values, c);
         let held = minimal_datum(&g, diag).ok_or_else(|| {
             PrecisionError::DatumDefect(
                 "the inner constraints do not fix the datum (the cameras do not move under a similarity?)".into(),
@@ -839,7 +839,7 @@ pub fn free_network_precision_bordered(problem: &Problem) -> Result<Precision, P
     }
     let layout = Layout::new(problem);
     let lin = linearized(problem, &layout)?;
-    free_network_bordered(problem, &layout, &lin, true, CofactorMethod::Dense)
+    free_network_bordered(problem, &layout, &lin, CofactorMethod::Dense)
 }
 
 /// The undamped Schur complement at the linearization and S as a dense symmetric matrix;

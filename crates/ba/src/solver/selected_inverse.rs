@@ -91,15 +91,11 @@ pub(crate) enum SelectedError {
 }
 
 /// D's diagonal, 1/√S_ii from S's values in the layout's order (1 for a held unknown).
-fn jacobi_scale(layout: &Layout, values: &[f64], held: &[bool]) -> Vec<f64> {
+pub(crate) fn jacobi_scale(layout: &Layout, values: &[f64], held: &[bool]) -> Vec<f64> {
     (0..layout.n_reduced)
         .map(|c| match held[c] {
             true => 1.0,
-            false => {
-                1.0 / values[layout.col_ptr[c + 1] - 1]
-                    .max(f64::MIN_POSITIVE)
-                    .sqrt()
-            }
+            false => 1.0 / layout.diagonal(values, c).max(f64::MIN_POSITIVE).sqrt(),
         })
         .collect()
 }
