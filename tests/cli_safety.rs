@@ -247,6 +247,13 @@ fn ba_refuses_measurement_options_on_bal_and_absurd_thread_counts() {
         let run = w.run(&["ba", s(&bal), "--solver", "iterative", "--eta", eta]);
         fails(&run, &[&format!("--eta {eta}"), "strictly between 0 and 1"]);
     }
+    for dim in ["0", "5000"] {
+        let run = w.run(&["ba", s(&bal), "--cluster-max-dim", dim]);
+        fails(
+            &run,
+            &[&format!("--cluster-max-dim {dim}"), "1 to 4096 unknowns"],
+        );
+    }
     let p = w.project("project");
     let toml = p.join("project.toml");
     let run = w.run(&["calibrate", s(&toml), "--threads", "100000", "--quiet"]);
@@ -642,4 +649,36 @@ fn ba_precision_of_a_bal_problem() {
         "{}",
         ctx(&refused)
     );
+}
+
+/// The iterative solver on a street says how it clustered the images for its
+/// preconditioner, in the log and in the JSON; `--preconditioner schur-jacobi` has none.
+#[test]
+fn ba_iterative_says_how_it_clustered_the_images() {
+    let w = Work::new("ba_clusters");
+    let out = w.dir.join("out.json");
+    let args = ["ba", "--synthetic", "60x3000", "--solver", "iterative"];
+    let run = w.run(&[&args[..], &["--cluster-max-dim", "90", "--out", s(&out)]].concat());
+    assert!(run.success(), "{}", ctx(&run));
+    assert!(
+        run.stdout.contains("preconditioner: cluster-Jacobi, "),
+        "{}",
+        ctx(&run)
+    );
+    let json = read_json(&out);
+    let clusters = json["clusters"]["clusters"].as_u64().expect("clusters");
+    // 60 images of 9 unknowns, at most 10 per cluster.
+    assert!((6..30).contains(&clusters), "{}", json["clusters"]);
+    assert!(json["clusters"]["largest_dim"]
+        .as_u64()
+        .is_some_and(|d| d <= 90));
+    let run = w.run(
+        &[
+            &args[..],
+            &["--preconditioner", "schur-jacobi", "--out", s(&out)],
+        ]
+        .concat(),
+    );
+    assert!(run.success(), "{}", ctx(&run));
+    assert!(read_json(&out)["clusters"].is_null());
 }

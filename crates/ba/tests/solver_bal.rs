@@ -2,7 +2,9 @@
 //! cost follows the χ² distribution of the image noise; agreement of the dense and sparse
 //! paths and of 1 and 2 threads.
 
-use pingcal_ba::solver::{solve, LinearSolverKind, Options, Termination};
+use pingcal_ba::solver::{
+    solve, CgOptions, LinearSolverKind, Options, Preconditioner, Termination,
+};
 use pingcal_ba::synthetic::{SyntheticBal, Visibility};
 
 fn tight(kind: LinearSolverKind, threads: usize) -> Options {
@@ -119,11 +121,19 @@ fn a_point_behind_a_camera_is_named() {
     );
 }
 
-/// The iterative solver (inexact steps, Ceres' forcing rule) reaches the minimum the
-/// factorization reaches, on a banded and on a dense (random-visibility) camera graph.
+/// The iterative solver (inexact steps, Ceres' forcing rule), with either preconditioner,
+/// reaches the minimum the factorization reaches, on a banded and on a dense
+/// (random-visibility) camera graph.
 #[test]
 fn iterative_solver_reaches_the_factorizations_minimum() {
-    for visibility in [Visibility::Banded, Visibility::Random] {
+    let preconditioners = [
+        Preconditioner::SchurJacobi,
+        Preconditioner::ClusterJacobi { max_dim: 90 },
+    ];
+    for (visibility, preconditioner) in [Visibility::Banded, Visibility::Random]
+        .into_iter()
+        .flat_map(|v| preconditioners.map(|p| (v, p)))
+    {
         let s = SyntheticBal {
             cameras: 30,
             points: 2000,
@@ -136,10 +146,17 @@ fn iterative_solver_reaches_the_factorizations_minimum() {
         let base = s.generate().unwrap().problem;
         let mut direct = base.clone();
         let d = solve(&mut direct, &tight(LinearSolverKind::Sparse, 2), |_| {}).unwrap();
+        let cg = CgOptions {
+            preconditioner,
+            ..CgOptions::default()
+        };
         let mut iterative = base.clone();
         let i = solve(
             &mut iterative,
-            &tight(LinearSolverKind::Iterative, 2),
+            &Options {
+                cg,
+                ..tight(LinearSolverKind::Iterative, 2)
+            },
             |_| {},
         )
         .unwrap();
@@ -149,7 +166,7 @@ fn iterative_solver_reaches_the_factorizations_minimum() {
         // model decrease of the exact one changes it by far less than 1e-8 of itself.
         assert!(
             (i.final_cost - d.final_cost).abs() <= 1e-8 * d.final_cost,
-            "{visibility:?}: iterative {} vs sparse {} ({} LM iterations, {} CG)",
+            "{visibility:?}, {preconditioner:?}: iterative {} vs sparse {} ({} LM iterations, {} CG)",
             i.final_cost,
             d.final_cost,
             i.iterations,
@@ -159,16 +176,96 @@ fn iterative_solver_reaches_the_factorizations_minimum() {
         let mut default = base.clone();
         let opts = Options {
             linear_solver: LinearSolverKind::Iterative,
+            cg,
             ..Options::default()
         };
         let i = solve(&mut default, &opts, |_| {}).unwrap();
         assert!(
             (i.final_cost - d.final_cost).abs() <= 1e-4 * d.final_cost,
-            "{visibility:?} default tolerances: {} vs {}",
+            "{visibility:?}, {preconditioner:?} default tolerances: {} vs {}",
             i.final_cost,
             d.final_cost
         );
     }
+}
+
+/// Cluster-Jacobi along a street: the images are cut into runs of neighbours, none larger
+/// than asked, and the conjugate gradients need far fewer iterations than with
+/// Schur–Jacobi for the same minimum; clusters too large for the memory are not used. On
+/// a dense random camera graph no two images are
+/// similar enough: every image stays alone and the adjustment is Schur–Jacobi's, to the
+/// last bit.
+#[test]
+fn cluster_jacobi_clusters_a_street_and_leaves_a_random_graph_alone() {
+    let run = |visibility, preconditioner, memory_limit_bytes| {
+        let s = SyntheticBal {
+            cameras: 120,
+            points: 12000,
+            obs_per_point: 6,
+            visibility,
+            ..Default::default()
+        };
+        let mut p = s.generate().unwrap().problem;
+        let opts = Options {
+            linear_solver: LinearSolverKind::Iterative,
+            function_tolerance: 1e-10,
+            cg: CgOptions {
+                preconditioner,
+                ..CgOptions::default()
+            },
+            threads: 2,
+            memory_limit_bytes,
+            ..Options::default()
+        };
+        solve(&mut p, &opts, |_| {}).unwrap()
+    };
+    let cluster = Preconditioner::ClusterJacobi { max_dim: 180 };
+    let sj = run(Visibility::Banded, Preconditioner::SchurJacobi, None);
+    let cj = run(Visibility::Banded, cluster, None);
+    assert!(sj.clusters.is_none());
+    let stats = cj.clusters.expect("cluster statistics");
+    assert_eq!(stats.blocks, 120);
+    assert!(stats.largest_dim <= 180, "{stats:?}");
+    // 120 images of 9 unknowns in clusters of at most 20: at least 6, and single linkage
+    // leaves few fragments.
+    assert!((6..=12).contains(&stats.clusters), "{stats:?}");
+    assert!(stats.captured > 0.5, "{stats:?}");
+    assert!(
+        (cj.final_cost - sj.final_cost).abs() <= 1e-8 * sj.final_cost,
+        "{} vs {}",
+        cj.final_cost,
+        sj.final_cost
+    );
+    println!(
+        "street of 120 images: {} clusters (largest {} unknowns, {:.0} % of the similarity); CG iterations cluster-Jacobi {}, Schur–Jacobi {}",
+        stats.clusters,
+        stats.largest_dim,
+        100.0 * stats.captured,
+        cj.linear_iterations,
+        sj.linear_iterations
+    );
+    // Iteration counts are deterministic for a given problem; the bound leaves room for a
+    // change of the forcing rule's rounding.
+    assert!(
+        (cj.linear_iterations as f64) < 0.6 * sj.linear_iterations as f64,
+        "cluster-Jacobi {} CG iterations, Schur–Jacobi {}",
+        cj.linear_iterations,
+        sj.linear_iterations
+    );
+    // Clusters whose matrices do not fit in the memory: Schur–Jacobi, said in the summary.
+    // (120 blocks of 81 values and their 3 copies fit in 1 MB; 8 clusters of 180² do not.)
+    let small = run(Visibility::Banded, cluster, Some(1e6));
+    let stats = small.clusters.expect("cluster statistics");
+    assert!(stats.too_large_bytes > 1e6, "{stats:?}");
+    assert_eq!(small.final_cost.to_bits(), sj.final_cost.to_bits());
+    assert_eq!(small.linear_iterations, sj.linear_iterations);
+    let sj = run(Visibility::Random, Preconditioner::SchurJacobi, None);
+    let cj = run(Visibility::Random, cluster, None);
+    let stats = cj.clusters.expect("cluster statistics");
+    assert_eq!(stats.clusters, stats.blocks, "{stats:?}");
+    assert_eq!(stats.captured, 0.0);
+    assert_eq!(cj.final_cost.to_bits(), sj.final_cost.to_bits());
+    assert_eq!(cj.linear_iterations, sj.linear_iterations);
 }
 
 /// A factorization that would not fit in the memory is refused before anything of its

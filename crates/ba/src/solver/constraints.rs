@@ -9,6 +9,7 @@
 //! `J_pᵀ J_p` to that point's V (and `J_pᵀ r` to g_p); every other constraint has all of its
 //! blocks in the reduced system and adds `J_aᵀ J_b` to S for every pair of its blocks.
 
+use super::clusters::Clusters;
 use super::evaluate::{ConstraintLin, Linearization};
 use super::layout::{BlockCols, Layout, Place, Slot};
 use nalgebra::{DMatrix, Matrix3, Vector3};
@@ -100,22 +101,30 @@ pub(crate) fn add_product(layout: &Layout, lin: &Linearization, x: &[f64], y: &m
     }
 }
 
-/// Adds every constraint's `J_aᵀ J_a` to the diagonal blocks of S stored column-major from
-/// `offsets[block]` (the block-Jacobi preconditioner).
-pub(crate) fn add_to_diagonal_blocks(
+/// Adds every constraint's `J_aᵀ J_b`, for its blocks a and b in one cluster, to the
+/// clusters' matrices (column-major from `clusters.offset[c]`: the preconditioner).
+pub(crate) fn add_to_cluster_blocks(
     layout: &Layout,
     lin: &Linearization,
-    offsets: &[usize],
-    blocks: &mut [f64],
+    clusters: &Clusters,
+    matrices: &mut [f64],
 ) {
     for k in 0..lin.constraints.len() {
-        for (s, j) in reduced(lin, layout, k) {
-            let b = s.block as usize;
-            let d = layout.block_dim[b];
-            let o = s.off as usize;
-            for c in 0..j.ncols() {
-                for r in 0..j.ncols() {
-                    blocks[offsets[b] + (o + c) * d + o + r] += j.column(r).dot(&j.column(c));
+        let blocks: Vec<(Slot, &DMatrix<f64>)> = reduced(lin, layout, k).collect();
+        for &(sa, ja) in &blocks {
+            for &(sb, jb) in blocks
+                .iter()
+                .filter(|b| clusters.together(sa.block, b.0.block))
+            {
+                let c = clusters.of_block[sa.block as usize] as usize;
+                let d = clusters.dim[c];
+                let row0 = clusters.local[sa.block as usize] + sa.off as usize;
+                let col0 = clusters.local[sb.block as usize] + sb.off as usize;
+                for j in 0..jb.ncols() {
+                    for i in 0..ja.ncols() {
+                        matrices[clusters.offset[c] + (col0 + j) * d + row0 + i] +=
+                            ja.column(i).dot(&jb.column(j));
+                    }
                 }
             }
         }

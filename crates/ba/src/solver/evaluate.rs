@@ -126,7 +126,7 @@ impl Undefined {
 /// The robust cost ½ Σ ρ(|r/σ|²) + ½ Σ |constraint|² at the current estimate, or where it
 /// is not defined.
 pub(crate) fn cost(problem: &Problem) -> Result<f64, Undefined> {
-    problem
+    let terms = problem
         .observations
         .par_iter()
         .enumerate()
@@ -134,9 +134,25 @@ pub(crate) fn cost(problem: &Problem) -> Result<f64, Undefined> {
         .map(|(i, o)| {
             let r = problem.residual(o).ok_or(Undefined::Observation(i))? / o.sigma;
             Ok::<f64, Undefined>(0.5 * problem.loss.evaluate(r.norm_squared()).0)
-        })
-        .try_reduce(|| 0.0, |a, b| Ok(a + b))
-        .and_then(|c| Ok(c + constraint_cost(problem)?))
+        });
+    Ok(ordered_sum(terms)? + constraint_cost(problem)?)
+}
+
+/// Observations summed serially in each chunk of this many, then the chunks in turn.
+const SUM_CHUNK: usize = 1024;
+
+/// Σ of `terms` in an order fixed by the terms alone (chunks of [`SUM_CHUNK`], then the
+/// chunks in turn), so the same problem gives the same bits on every run and with any
+/// number of threads: rayon's `sum` and `reduce` add in the order its work stealing
+/// happened to split the work. The first undefined term is returned.
+fn ordered_sum(
+    terms: impl IndexedParallelIterator<Item = Result<f64, Undefined>>,
+) -> Result<f64, Undefined> {
+    terms
+        .fold_chunks(SUM_CHUNK, || Ok(0.0), |acc, t| Ok(acc? + t?))
+        .collect::<Vec<_>>()
+        .into_iter()
+        .try_fold(0.0, |sum, chunk| Ok(sum + chunk?))
 }
 
 /// ½ Σ of the whitened constraint residuals (each divided by its σ factor).
@@ -352,8 +368,8 @@ pub(crate) fn linearize(
                 }
             }
             Ok::<f64, Undefined>(0.5 * rho)
-        })
-        .try_reduce(|| 0.0, |a, b| Ok(a + b))?;
+        });
+    let cost = ordered_sum(cost)?;
     lin.constraints = (problem
         .constraints()
         .zip(&layout.constraint_cols)

@@ -14,9 +14,11 @@
 //! allocated. This is Ceres' `ITERATIVE_SCHUR` with `use_explicit_schur_complement =
 //! false`.
 //!
-//! The preconditioner is Schur–Jacobi: the exact diagonal blocks of S (one per image,
-//! camera, rig or distance point), each `U_bb + λD_b − Σ_f W_fb (V_f + λD_f)⁻¹ W_fbᵀ`,
-//! inverted once per step.
+//! The preconditioner is S's exact block diagonal over clusters of blocks
+//! ([`super::clusters`]), each `U_ab + λD_a δ_ab − Σ_f W_fa (V_f + λD_f)⁻¹ W_fbᵀ` for the
+//! blocks a, b of one cluster, inverted once per step. With one block per cluster (one per
+//! image, camera, rig or distance point) it is Schur–Jacobi; with clusters of images that
+//! see the same points, cluster-Jacobi ([`Preconditioner`]).
 //!
 //! The iteration stops by Ceres' inexact-Newton rule (Nash and Sofer's "Q test"): with the
 //! quadratic model `Q(x) = ½xᵀSx − bᵀx`, it stops at iteration i when
@@ -25,11 +27,27 @@
 //! problem (points are back-substituted exactly), and the trust region judges it by the
 //! cost it achieves, as for an exact one.
 
+use super::clusters::{ClusterStats, Clusters};
 use super::evaluate::{split_at_offsets, Linearization};
 use super::layout::Layout;
 use super::schur::Schur;
-use nalgebra::{DMatrix, Vector2, Vector3};
+use nalgebra::{Vector2, Vector3};
 use rayon::prelude::*;
+
+/// Below this many stored values the preconditioner is applied on one thread.
+const PARALLEL_PRECONDITION: usize = 1 << 16;
+
+/// The preconditioner of the conjugate gradients.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Preconditioner {
+    /// S's diagonal blocks, one per image, camera, rig or reduced point (Ceres'
+    /// `SCHUR_JACOBI`).
+    SchurJacobi,
+    /// S's block diagonal over clusters of blocks that see the same points, none of more
+    /// than `max_dim` unknowns ([`super::clusters`]; Ceres' `CLUSTER_JACOBI`).
+    ClusterJacobi { max_dim: usize },
+}
 
 /// The options of the conjugate-gradient solve.
 #[derive(Clone, Copy, Debug)]
@@ -43,6 +61,9 @@ pub struct CgOptions {
     /// When the solver was chosen by `Auto` and a factorization fits in memory: a step that
     /// needs more iterations than this moves the adjustment to the factorization.
     pub switch_after: usize,
+    /// The preconditioner (cluster-Jacobi by default, which is Schur–Jacobi where no two
+    /// images see enough of the same points).
+    pub preconditioner: Preconditioner,
 }
 
 impl Default for CgOptions {
@@ -52,6 +73,9 @@ impl Default for CgOptions {
             min_iterations: 0,
             max_iterations: 500,
             switch_after: 150,
+            preconditioner: Preconditioner::ClusterJacobi {
+                max_dim: super::clusters::DEFAULT_MAX_DIM,
+            },
         }
     }
 }
@@ -60,10 +84,14 @@ impl Default for CgOptions {
 pub(crate) struct ImplicitSchur {
     /// λ·clamp(diag(U)).
     damping: Vec<f64>,
-    /// Per block b: the inverse of its diagonal block of S, column-major `dim × dim`,
-    /// starting at `precond_offset[b]`.
+    /// The clusters of blocks whose part of S the preconditioner keeps (one block each:
+    /// Schur–Jacobi).
+    clusters: Clusters,
+    /// What the clustering did (`None`: Schur–Jacobi asked for).
+    pub cluster_stats: Option<ClusterStats>,
+    /// Per cluster c: the inverse of S restricted to its blocks, column-major
+    /// `dim × dim`, starting at `clusters.offset[c]`.
     precond: Vec<f64>,
-    precond_offset: Vec<usize>,
     /// One accumulator of the size of the reduced system per chunk of the Schur
     /// complement's work split (sized by `prepare`).
     work: Vec<Vec<f64>>,
@@ -78,18 +106,36 @@ pub(crate) struct CgSummary {
 }
 
 impl ImplicitSchur {
-    pub fn new(layout: &Layout) -> Self {
-        let mut precond_offset = Vec::with_capacity(layout.num_blocks() + 1);
-        let mut acc = 0;
-        for &d in &layout.block_dim {
-            precond_offset.push(acc);
-            acc += d * d;
-        }
-        precond_offset.push(acc);
+    /// The operator for `layout` with `preconditioner`. Cluster-Jacobi clusters whose
+    /// matrices (one copy per worker and their sum) would not fit in `memory_limit` bytes
+    /// are not used: the preconditioner is then Schur–Jacobi, and the statistics say why.
+    pub fn new(
+        layout: &Layout,
+        preconditioner: Preconditioner,
+        workers: usize,
+        memory_limit: Option<f64>,
+    ) -> Self {
+        let bytes = |c: &Clusters| 8.0 * c.storage() as f64 * (1 + workers.max(1)) as f64;
+        let (clusters, cluster_stats) = match preconditioner {
+            Preconditioner::SchurJacobi => (Clusters::singletons(layout), None),
+            Preconditioner::ClusterJacobi { max_dim } => {
+                let (c, mut stats) = Clusters::by_visibility(layout, max_dim);
+                let singletons = Clusters::singletons(layout);
+                let limit = memory_limit.unwrap_or(f64::INFINITY);
+                if bytes(&c) > limit && c.blocks.len() < singletons.blocks.len() {
+                    stats.too_large_bytes = bytes(&c);
+                    (singletons, Some(stats))
+                } else {
+                    (c, Some(stats))
+                }
+            }
+        };
         Self {
             damping: vec![0.0; layout.n_reduced],
-            precond: vec![0.0; acc],
-            precond_offset,
+            // Allocated by the first step, after the caller has judged its size.
+            precond: Vec::new(),
+            clusters,
+            cluster_stats,
             work: Vec::new(),
         }
     }
@@ -199,15 +245,14 @@ impl ImplicitSchur {
         super::constraints::add_product(layout, lin, x, y);
     }
 
-    /// The diagonal blocks of S, inverted.
+    /// S's block diagonal over the clusters, each block inverted.
     fn build_preconditioner(&mut self, schur: &Schur, layout: &Layout, lin: &Linearization) {
-        let offsets = &self.precond_offset;
-        let total = *offsets.last().unwrap();
+        let cl = &self.clusters;
         let parts: Vec<Vec<f64>> = schur
             .chunks
             .par_iter()
             .map(|&(lo, hi)| {
-                let mut blocks = vec![0.0; total];
+                let mut blocks = vec![0.0; cl.storage()];
                 // Per point run: Σ_o W_o restricted to each block it touches (dim × 3).
                 let mut touched: Vec<(u32, usize)> = Vec::new();
                 let mut wsum: Vec<f64> = Vec::new();
@@ -219,21 +264,25 @@ impl ImplicitSchur {
                         let segs = layout.segs(o);
                         for s2 in segs {
                             let b = s2.block as usize;
-                            let d = layout.block_dim[b];
-                            let blk = &mut blocks[offsets[b]..offsets[b] + d * d];
+                            let c = cl.of_block[b] as usize;
+                            let dc = cl.dim[c];
+                            let m = &mut blocks[cl.offset[c]..cl.offset[c] + dc * dc];
+                            let col0 = cl.local[b] + s2.block_off as usize;
                             let (a0, a1) = layout.jc_rows(&lin.jc, o, s2);
-                            for s1 in segs.iter().filter(|s1| s1.block == s2.block) {
+                            for s1 in segs.iter().filter(|s1| cl.together(s1.block, s2.block)) {
+                                let row0 = cl.local[s1.block as usize] + s1.block_off as usize;
                                 let (l0, l1) = layout.jc_rows(&lin.jc, o, s1);
                                 for (j, (&c0, &c1)) in a0.iter().zip(a1).enumerate() {
-                                    let col = &mut blk[(s2.block_off as usize + j) * d..];
-                                    for (i, (&r0, &r1)) in l0.iter().zip(l1).enumerate() {
-                                        col[s1.block_off as usize + i] += r0 * c0 + r1 * c1;
+                                    let col = &mut m[(col0 + j) * dc + row0..];
+                                    for (v, (&r0, &r1)) in col.iter_mut().zip(l0.iter().zip(l1)) {
+                                        *v += r0 * c0 + r1 * c1;
                                     }
                                 }
                             }
                             if f == u32::MAX {
                                 continue;
                             }
+                            let d = layout.block_dim[b];
                             let at = match touched.iter().find(|t| t.0 == s2.block) {
                                 Some(t) => t.1,
                                 None => {
@@ -253,19 +302,28 @@ impl ImplicitSchur {
                     }
                     if f != u32::MAX {
                         let vi = &schur.vinv[f as usize];
-                        for &(b, at) in &touched {
-                            let b = b as usize;
-                            let d = layout.block_dim[b];
-                            let ws = &wsum[at..at + 3 * d];
-                            let blk = &mut blocks[offsets[b]..offsets[b] + d * d];
-                            // B −= Ws (V + λD)⁻¹ Wsᵀ, Ws column m at ws[m d ..].
-                            for j in 0..d {
-                                let c: [f64; 3] = std::array::from_fn(|m| {
-                                    (0..3).map(|q| vi[(m, q)] * ws[q * d + j]).sum()
-                                });
-                                let col = &mut blk[j * d..(j + 1) * d];
-                                for (i, v) in col.iter_mut().enumerate() {
-                                    *v -= ws[i] * c[0] + ws[d + i] * c[1] + ws[2 * d + i] * c[2];
+                        for &(b2, at2) in &touched {
+                            let (b2u, d2) = (b2 as usize, layout.block_dim[b2 as usize]);
+                            let c = cl.of_block[b2u] as usize;
+                            let dc = cl.dim[c];
+                            let ws2 = &wsum[at2..at2 + 3 * d2];
+                            let col0 = cl.local[b2u];
+                            for &(b1, at1) in touched.iter().filter(|t| cl.together(t.0, b2)) {
+                                let d1 = layout.block_dim[b1 as usize];
+                                let ws1 = &wsum[at1..at1 + 3 * d1];
+                                let row0 = cl.local[b1 as usize];
+                                let m = &mut blocks[cl.offset[c]..cl.offset[c] + dc * dc];
+                                // M[b1, b2] −= Ws₁ (V + λD)⁻¹ Ws₂ᵀ, Ws column k at ws[k d ..].
+                                for j in 0..d2 {
+                                    let t: [f64; 3] = std::array::from_fn(|k| {
+                                        (0..3).map(|q| vi[(k, q)] * ws2[q * d2 + j]).sum()
+                                    });
+                                    let col = &mut m[(col0 + j) * dc + row0..][..d1];
+                                    for (i, v) in col.iter_mut().enumerate() {
+                                        *v -= ws1[i] * t[0]
+                                            + ws1[d1 + i] * t[1]
+                                            + ws1[2 * d1 + i] * t[2];
+                                    }
                                 }
                             }
                         }
@@ -274,48 +332,81 @@ impl ImplicitSchur {
                 blocks
             })
             .collect();
-        self.precond.fill(0.0);
+        self.precond.clear();
+        self.precond.resize(cl.storage(), 0.0);
         sum_into(&parts, &mut self.precond);
-        let diag = |b: usize, i: usize, v: f64, p: &mut [f64]| {
-            let d = layout.block_dim[b];
-            p[offsets[b] + i * d + i] += v;
-        };
         for (b, &off) in layout.block_offset.iter().enumerate() {
+            let c = cl.of_block[b] as usize;
+            let (dc, base) = (cl.dim[c], cl.offset[c] + cl.local[b] * (cl.dim[c] + 1));
             for i in 0..layout.block_dim[b] {
-                diag(b, i, self.damping[off + i], &mut self.precond);
+                self.precond[base + i * (dc + 1)] += self.damping[off + i];
             }
         }
-        super::constraints::add_to_diagonal_blocks(layout, lin, offsets, &mut self.precond);
-        // Invert each block; one that is not positive definite (possible only through
-        // rounding) falls back to its diagonal.
-        let blocks = split_at_offsets(&mut self.precond, &offsets[..offsets.len() - 1]);
-        blocks.into_par_iter().for_each(|blk| {
-            let d = (blk.len() as f64).sqrt().round() as usize;
-            let m = DMatrix::from_column_slice(d, d, blk);
-            match m.clone().cholesky() {
-                Some(c) => blk.copy_from_slice(c.inverse().as_slice()),
-                None => {
-                    for j in 0..d {
-                        for i in 0..d {
-                            let v = m[(i, i)];
-                            blk[j * d + i] = if i == j && v > 0.0 { 1.0 / v } else { 0.0 };
-                        }
-                    }
-                }
-            }
-        });
+        super::constraints::add_to_cluster_blocks(layout, lin, cl, &mut self.precond);
+        // Invert each cluster's matrix; one that is not positive definite (possible only
+        // through rounding) falls back to its diagonal. A few large clusters get the
+        // threads within each inversion, many small ones one thread each.
+        let blocks = split_at_offsets(&mut self.precond, &cl.offset[..cl.offset.len() - 1]);
+        let par = if cl.blocks.len() < rayon::current_num_threads() {
+            faer::Par::rayon(0)
+        } else {
+            faer::Par::Seq
+        };
+        blocks.into_par_iter().for_each(|blk| invert_spd(blk, par));
     }
 
-    /// z = M⁻¹ r.
+    /// z = M⁻¹ r, cluster by cluster (gathering each cluster's blocks' rows). Each M⁻¹
+    /// is symmetric, so its row i is read as its column i, contiguously.
     fn precondition(&self, layout: &Layout, r: &[f64], z: &mut [f64]) {
-        for (b, &off) in layout.block_offset.iter().enumerate() {
-            let d = layout.block_dim[b];
-            let m = &self.precond[self.precond_offset[b]..self.precond_offset[b] + d * d];
-            let rb = &r[off..off + d];
-            for (i, zi) in z[off..off + d].iter_mut().enumerate() {
-                *zi = (0..d).map(|j| m[j * d + i] * rb[j]).sum();
+        let cl = &self.clusters;
+        let one = |c: usize, rc: &mut Vec<f64>, zc: &mut Vec<f64>| {
+            let d = cl.dim[c];
+            let m = &self.precond[cl.offset[c]..cl.offset[c] + d * d];
+            rc.clear();
+            for &b in &cl.blocks[c] {
+                let (off, db) = (
+                    layout.block_offset[b as usize],
+                    layout.block_dim[b as usize],
+                );
+                rc.extend_from_slice(&r[off..off + db]);
+            }
+            zc.clear();
+            zc.extend(m.chunks_exact(d).map(|row| dot(row, rc)));
+        };
+        let scatter = |c: usize, zc: &[f64], z: &mut [f64]| {
+            for &b in &cl.blocks[c] {
+                let (off, db) = (
+                    layout.block_offset[b as usize],
+                    layout.block_dim[b as usize],
+                );
+                let row0 = cl.local[b as usize];
+                z[off..off + db].copy_from_slice(&zc[row0..row0 + db]);
+            }
+        };
+        if cl.storage() < PARALLEL_PRECONDITION {
+            let (mut rc, mut zc) = (Vec::new(), Vec::new());
+            for c in 0..cl.blocks.len() {
+                one(c, &mut rc, &mut zc);
+                scatter(c, &zc, z);
+            }
+        } else {
+            let parts: Vec<Vec<f64>> = (0..cl.blocks.len())
+                .into_par_iter()
+                .map_init(Vec::new, |rc, c| {
+                    let mut zc = Vec::new();
+                    one(c, rc, &mut zc);
+                    zc
+                })
+                .collect();
+            for (c, zc) in parts.iter().enumerate() {
+                scatter(c, zc, z);
             }
         }
+    }
+
+    #[cfg(test)]
+    pub fn clusters_for_test(&self) -> &Clusters {
+        &self.clusters
     }
 
     #[cfg(test)]
@@ -386,6 +477,47 @@ impl ImplicitSchur {
             }
         }
         x.iter().all(|v| v.is_finite()).then_some(summary)
+    }
+}
+
+/// Replaces the column-major symmetric `d × d` matrix `m` (its lower triangle is read) by
+/// its inverse, both triangles, through faer's blocked Cholesky factorization. A matrix
+/// that is not numerically positive definite is replaced by the inverse of its diagonal
+/// (zero where the diagonal is not positive).
+fn invert_spd(m: &mut [f64], par: faer::Par) {
+    use faer::dyn_stack::{MemBuffer, MemStack};
+    use faer::linalg::cholesky::llt;
+    let d = (m.len() as f64).sqrt().round() as usize;
+    let diagonal: Vec<f64> = (0..d).map(|i| m[i * d + i]).collect();
+    let mut mem = MemBuffer::new(
+        llt::factor::cholesky_in_place_scratch::<f64>(d, par, Default::default())
+            .or(llt::inverse::inverse_scratch::<f64>(d, par)),
+    );
+    let mut a = faer::MatMut::from_column_major_slice_mut(m, d, d);
+    let factored = llt::factor::cholesky_in_place(
+        a.as_mut(),
+        Default::default(),
+        par,
+        MemStack::new(&mut mem),
+        Default::default(),
+    )
+    .is_ok();
+    if factored {
+        let mut inv = faer::Mat::<f64>::zeros(d, d);
+        llt::inverse::inverse(inv.as_mut(), a.as_ref(), par, MemStack::new(&mut mem));
+        for j in 0..d {
+            for i in j..d {
+                let v = inv[(i, j)];
+                m[j * d + i] = v;
+                m[i * d + j] = v;
+            }
+        }
+    }
+    if !factored || !m.iter().all(|v| v.is_finite()) {
+        m.fill(0.0);
+        for (i, v) in diagonal.into_iter().enumerate() {
+            m[i * d + i] = if v > 0.0 { 1.0 / v } else { 0.0 };
+        }
     }
 }
 

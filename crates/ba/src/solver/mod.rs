@@ -12,6 +12,7 @@
 //! symbolic factorization computed once (`layout`); back-substitute the points.
 
 mod choice;
+mod clusters;
 mod constraints;
 mod estimability;
 mod evaluate;
@@ -27,9 +28,10 @@ mod sigma;
 mod variance;
 
 pub use choice::{available_memory, SolverChoice, TooLarge};
+pub use clusters::{ClusterStats, DEFAULT_MAX_DIM as DEFAULT_CLUSTER_DIM};
 pub use estimability::{check_intrinsics, Estimability, MAX_CHECK_UNKNOWNS, NULL_EIGENVALUE};
 pub use free_network::MAX_FREE_NETWORK_UNKNOWNS;
-pub use iterative::CgOptions;
+pub use iterative::{CgOptions, Preconditioner};
 pub use linear::LinearSolverKind;
 pub use outliers::{adjust_with_snooping, Rejection, SnoopError, SnoopResult};
 pub use precision::{
@@ -185,6 +187,9 @@ pub struct Summary {
     pub linear_solver: SolverChoice,
     /// Conjugate-gradient iterations over all steps (0 for a direct solver).
     pub linear_iterations: usize,
+    /// The clusters of the cluster-Jacobi preconditioner, when the conjugate gradients ran
+    /// with it.
+    pub clusters: Option<ClusterStats>,
     /// Dimension of the reduced camera system.
     pub reduced_dimension: usize,
     /// Stored entries of its upper triangle.
@@ -312,10 +317,17 @@ fn run(
         limit,
     )?;
     let mut linear = match choice.kind {
-        LinearSolverKind::Iterative => {
-            Linear::Iterative(Box::new(iterative::ImplicitSchur::new(&layout)))
-        }
+        LinearSolverKind::Iterative => Linear::Iterative(Box::new(iterative::ImplicitSchur::new(
+            &layout,
+            options.cg.preconditioner,
+            rayon::current_num_threads(),
+            limit,
+        ))),
         kind => Linear::direct(kind, &layout, par)?,
+    };
+    let clusters = match &linear {
+        Linear::Iterative(op) => op.cluster_stats,
+        Linear::Direct(_) => None,
     };
     let setup_time_s = t0.elapsed().as_secs_f64();
     let mut lin = evaluate::Linearization::new(&layout);
@@ -484,6 +496,7 @@ fn run(
         dense: choice.kind == LinearSolverKind::Dense,
         linear_solver: choice,
         linear_iterations,
+        clusters,
         reduced_dimension: layout.n_reduced,
         reduced_nonzeros: layout.nnz(),
         log,
@@ -1066,7 +1079,7 @@ mod schur_tests {
     fn implicit_schur_equals_the_assembled_one() {
         let problem = mixed_problem();
         let lambda = 0.37;
-        let (layout, lin, mut schur) = assembled(&problem, lambda);
+        let (layout, lin, schur) = assembled(&problem, lambda);
         let n = layout.n_reduced;
         let rows = layout.row_indices();
         let mut dense = nalgebra::DMatrix::<f64>::zeros(n, n);
@@ -1077,10 +1090,89 @@ mod schur_tests {
             }
         }
         let rhs_explicit = schur.rhs.clone();
-        let mut op = iterative::ImplicitSchur::new(&layout);
-        op.prepare(&mut schur, &layout, &lin, lambda).unwrap();
+        let preconditioners = [
+            Preconditioner::SchurJacobi,
+            // Small enough to leave several clusters, large enough to merge blocks.
+            Preconditioner::ClusterJacobi { max_dim: 30 },
+        ];
+        for preconditioner in preconditioners {
+            let (_, _, mut schur) = assembled(&problem, lambda);
+            let mut op = iterative::ImplicitSchur::new(&layout, preconditioner, 1, None);
+            op.prepare(&mut schur, &layout, &lin, lambda).unwrap();
+            check_implicit(&layout, &lin, &schur, &mut op, &dense, &rhs_explicit);
+            let clusters = op.clusters_for_test();
+            let merged = clusters.blocks.iter().filter(|m| m.len() > 1).count();
+            match preconditioner {
+                Preconditioner::SchurJacobi => assert_eq!(merged, 0),
+                Preconditioner::ClusterJacobi { max_dim } => {
+                    assert!(merged >= 1, "no cluster of several blocks");
+                    assert!(clusters.dim.iter().all(|&d| d <= max_dim));
+                }
+            }
+            // Preconditioner: each cluster the inverse of S restricted to its blocks.
+            for (c, members) in clusters.blocks.iter().enumerate() {
+                let idx: Vec<usize> = (members.iter())
+                    .flat_map(|&b| {
+                        let (o, d) = (
+                            layout.block_offset[b as usize],
+                            layout.block_dim[b as usize],
+                        );
+                        o..o + d
+                    })
+                    .collect();
+                let d = idx.len();
+                assert_eq!(d, clusters.dim[c]);
+                let sub = nalgebra::DMatrix::from_fn(d, d, |i, j| dense[(idx[i], idx[j])]);
+                let inv = sub.cholesky().unwrap().inverse();
+                for (j, &col) in idx.iter().enumerate() {
+                    let mut r = vec![0.0; n];
+                    let mut z = vec![0.0; n];
+                    r[col] = 1.0;
+                    op.precondition_for_test(&layout, &r, &mut z);
+                    for (i, &row) in idx.iter().enumerate() {
+                        assert!(
+                            (z[row] - inv[(i, j)]).abs() <= 1e-9 * inv.amax(),
+                            "{preconditioner:?}: cluster {c}, ({i}, {j})"
+                        );
+                    }
+                    let outside = (0..n).filter(|k| !idx.contains(k)).map(|k| z[k].abs());
+                    assert_eq!(outside.fold(0.0, f64::max), 0.0);
+                }
+            }
+            // A tight solve equals the factorization's step.
+            let mut direct = schur.rhs.clone();
+            let mut fact = linear::Factorizer::sparse(&layout, faer::Par::Seq).unwrap();
+            assert!(fact.solve(&layout, &schur.values, &mut direct));
+            let tight = CgOptions {
+                eta: 0.0,
+                max_iterations: 10 * n,
+                ..CgOptions::default()
+            };
+            let mut x = vec![0.0; n];
+            let cg = op.solve(&schur, &layout, &lin, &tight, &mut x).unwrap();
+            let amax = direct.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            for (a, b) in x.iter().zip(&direct) {
+                assert!(
+                    (a - b).abs() <= 1e-8 * amax,
+                    "{preconditioner:?}: {a} vs {b} after {} iterations",
+                    cg.iterations
+                );
+            }
+        }
+    }
+
+    /// The right-hand side and the implicit product of `op` against the assembled S.
+    fn check_implicit(
+        layout: &Layout,
+        lin: &evaluate::Linearization,
+        schur: &schur::Schur,
+        op: &mut iterative::ImplicitSchur,
+        dense: &nalgebra::DMatrix<f64>,
+        rhs_explicit: &[f64],
+    ) {
+        let n = layout.n_reduced;
         let scale = dense.amax();
-        for (a, b) in schur.rhs.iter().zip(&rhs_explicit) {
+        for (a, b) in schur.rhs.iter().zip(rhs_explicit) {
             assert!(
                 (a - b).abs() <= 1e-11 * rhs_explicit.iter().fold(0.0f64, |m, v| m.max(v.abs()))
             );
@@ -1091,8 +1183,8 @@ mod schur_tests {
                 .map(|_| crate::camera::jacobian_checks::uniform(&mut rng, -1.0, 1.0))
                 .collect();
             let mut y = vec![0.0; n];
-            op.apply(&schur, &layout, &lin, &x, &mut y);
-            let want = &dense * nalgebra::DVector::from_column_slice(&x);
+            op.apply(schur, layout, lin, &x, &mut y);
+            let want = dense * nalgebra::DVector::from_column_slice(&x);
             for k in 0..n {
                 assert!(
                     (y[k] - want[k]).abs() <= 1e-11 * scale * n as f64,
@@ -1101,45 +1193,6 @@ mod schur_tests {
                     want[k]
                 );
             }
-        }
-        // Preconditioner: each block the inverse of S's diagonal block.
-        for b in 0..layout.num_blocks() {
-            let (o, d) = (layout.block_offset[b], layout.block_dim[b]);
-            let inv = dense
-                .view((o, o), (d, d))
-                .into_owned()
-                .cholesky()
-                .unwrap()
-                .inverse();
-            let mut r = vec![0.0; n];
-            let mut z = vec![0.0; n];
-            r[o] = 1.0;
-            op.precondition_for_test(&layout, &r, &mut z);
-            for i in 0..d {
-                assert!(
-                    (z[o + i] - inv[(i, 0)]).abs() <= 1e-9 * inv.amax(),
-                    "block {b}"
-                );
-            }
-        }
-        // A tight solve equals the factorization's step.
-        let mut direct = schur.rhs.clone();
-        let mut fact = linear::Factorizer::sparse(&layout, faer::Par::Seq).unwrap();
-        assert!(fact.solve(&layout, &schur.values, &mut direct));
-        let tight = CgOptions {
-            eta: 0.0,
-            max_iterations: 10 * n,
-            ..CgOptions::default()
-        };
-        let mut x = vec![0.0; n];
-        let cg = op.solve(&schur, &layout, &lin, &tight, &mut x).unwrap();
-        let amax = direct.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-        for (a, b) in x.iter().zip(&direct) {
-            assert!(
-                (a - b).abs() <= 1e-8 * amax,
-                "{a} vs {b} after {} iterations",
-                cg.iterations
-            );
         }
     }
 }

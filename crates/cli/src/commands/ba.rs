@@ -44,6 +44,13 @@ pub struct Args {
     /// gradients stop when the quadratic model's relative decrease falls below η/i.
     #[arg(long, default_value_t = 0.1)]
     pub eta: f64,
+    /// The iterative solver's preconditioner.
+    #[arg(long, value_enum, default_value_t = PreconditionerArg::ClusterJacobi)]
+    pub preconditioner: PreconditionerArg,
+    /// With `--preconditioner cluster-jacobi`: the largest cluster, in unknowns (9 per BAL
+    /// camera).
+    #[arg(long, default_value_t = solver::DEFAULT_CLUSTER_DIM)]
+    pub cluster_max_dim: usize,
     /// With `--synthetic`: which cameras see a point, `banded` (neighbours along a street)
     /// or `random` (any 6 of all cameras: a dense camera graph).
     #[arg(long, value_enum, default_value_t = super::gen_bal::VisibilityArg::Banded)]
@@ -108,9 +115,24 @@ pub enum SolverArg {
     Dense,
     /// Sparse Cholesky of the reduced camera system.
     Sparse,
-    /// Conjugate gradients on the reduced camera system, never formed (Schur–Jacobi
-    /// preconditioner; memory proportional to the observations).
+    /// Conjugate gradients on the reduced camera system, never formed (memory
+    /// proportional to the observations; see `--preconditioner`).
     Iterative,
+}
+
+/// The largest cluster `--cluster-max-dim` takes: its inverse is a dense matrix, inverted
+/// at every step (4096 unknowns: 134 MB and 2·10¹⁰ operations).
+const MAX_CLUSTER_DIM: usize = 4096;
+
+/// Preconditioner of the iterative solver on the command line.
+#[derive(Clone, Copy, clap::ValueEnum)]
+pub enum PreconditionerArg {
+    /// S's diagonal blocks, one per image or camera (Ceres' SCHUR_JACOBI).
+    SchurJacobi,
+    /// S's block diagonal over clusters of images that see the same points (Ceres'
+    /// CLUSTER_JACOBI); the clusters are printed. Where no two images see enough of the
+    /// same points (a dense, random camera graph) every image is its own cluster: Schur–Jacobi.
+    ClusterJacobi,
 }
 
 fn parse_loss(s: &str) -> Result<Loss, String> {
@@ -135,6 +157,13 @@ fn parse_loss(s: &str) -> Result<Loss, String> {
 /// Runs the command.
 pub fn run(args: Args) -> CmdResult {
     check_threads(args.threads)?;
+    if !(1..=MAX_CLUSTER_DIM).contains(&args.cluster_max_dim) {
+        return Err(format!(
+            "--cluster-max-dim {}: expected 1 to {MAX_CLUSTER_DIM} unknowns per cluster",
+            args.cluster_max_dim
+        )
+        .into());
+    }
     // Written as `!(ok)` so that NaN is refused with the rest.
     if !(args.eta > 0.0 && args.eta < 1.0) {
         return Err(format!(
@@ -203,6 +232,12 @@ pub fn run(args: Args) -> CmdResult {
         },
         cg: solver::CgOptions {
             eta: args.eta,
+            preconditioner: match args.preconditioner {
+                PreconditionerArg::SchurJacobi => solver::Preconditioner::SchurJacobi,
+                PreconditionerArg::ClusterJacobi => solver::Preconditioner::ClusterJacobi {
+                    max_dim: args.cluster_max_dim,
+                },
+            },
             ..Default::default()
         },
         threads: args.threads,
@@ -244,6 +279,26 @@ pub fn run(args: Args) -> CmdResult {
             "linear solver: {} ({})",
             summary.linear_solver.kind, summary.linear_solver.reason
         );
+        if let Some(c) = summary.clusters.filter(|c| c.too_large_bytes > 0.0) {
+            println!(
+                "preconditioner: Schur–Jacobi: the {} clusters' matrices would need {:.1} GB, more than the memory limit (try a smaller --cluster-max-dim)",
+                c.clusters,
+                c.too_large_bytes / 1e9
+            );
+        } else if let Some(c) = summary.clusters.filter(|c| c.clusters == c.blocks) {
+            println!(
+                "preconditioner: cluster-Jacobi found no images similar enough to merge: Schur–Jacobi ({} blocks)",
+                c.blocks
+            );
+        } else if let Some(c) = &summary.clusters {
+            println!(
+                "preconditioner: cluster-Jacobi, {} clusters of {} blocks (largest {} unknowns), holding {:.0} % of the blocks' similarity",
+                c.clusters,
+                c.blocks,
+                c.largest_dim,
+                100.0 * c.captured
+            );
+        }
         println!(
             "time: setup {:.3} s, evaluation {:.3} s, Schur complement {:.3} s, linear solver {:.3} s, total {:.3} s",
             summary.setup_time_s,
@@ -281,6 +336,7 @@ pub fn run(args: Args) -> CmdResult {
             "linear_solver": summary.linear_solver.kind,
             "linear_solver_reason": summary.linear_solver.reason,
             "linear_iterations": summary.linear_iterations,
+            "clusters": summary.clusters,
             "termination": summary.termination,
             "rms_px": rms,
             "cameras": problem.images.len(),
