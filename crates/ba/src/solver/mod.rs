@@ -12,7 +12,7 @@
 //! symbolic factorization computed once (`layout`); back-substitute the points.
 
 mod choice;
-mod clusters;
+pub mod clusters;
 mod constraints;
 mod estimability;
 mod evaluate;
