@@ -162,11 +162,15 @@ def run_pingcal(path, solver, threads, a, extra):
     with tempfile.TemporaryDirectory() as td:
         outj = os.path.join(td, "out.json")
         cmd = [PINGCAL, "ba", path, "--out", outj, "--threads", str(threads)]
-        if solver != "auto":
-            cmd += ["--solver", solver]
+        # "iterative/schur-jacobi": the solver and its preconditioner.
+        name, _, precond = solver.partition("/")
+        if name != "auto":
+            cmd += ["--solver", name]
+        if precond:
+            cmd += ["--preconditioner", precond]
         cmd += extra
         code, out, err, wall, rss = run_child(cmd, threads, a.timeout)
-        save_log(a, f"{os.path.basename(path)}.pingcal-{solver}-t{threads}", cmd, out, err)
+        save_log(a, f"{os.path.basename(path)}.pingcal-{solver.replace('/', '-')}-t{threads}", cmd, out, err)
         res = {"side": "pingcal", "solver": "pingcal " + solver,
                "threads": threads, "wall_s": wall,
                "peak_mib": rss, "exit": code, "cmd": " ".join(map(shlex.quote, cmd))}
@@ -311,8 +315,9 @@ def main():
                     help="which cameras see a point (pingcal gen-bal --visibility): neighbours along a "
                          "street, or any K of all cameras (a dense camera graph)")
     ap.add_argument("--pingcal-solvers", default="auto",
-                    help="comma-separated values of `pingcal ba --solver` (auto, dense, sparse); "
-                         "auto passes no --solver")
+                    help="comma-separated values of `pingcal ba --solver` (auto, dense, sparse, "
+                         "iterative), each optionally /PRECONDITIONER (iterative/schur-jacobi, "
+                         "iterative/cluster-jacobi); auto passes no --solver")
     ap.add_argument("--dense-max-cameras", type=int, default=300,
                     help="skip DENSE_SCHUR (and a forced pingcal dense) above this many cameras: "
                          "the dense 9C x 9C Cholesky costs ~3 s per iteration at 600 cameras and "

@@ -118,6 +118,9 @@ pub(crate) struct Layout {
     /// factorizations that need them ([`Layout::row_indices`]): the iterative solver never
     /// forms S.
     pub col_ptr: Vec<usize>,
+    /// The fill-reducing ordering of the block graph (forward, inverse), computed by the
+    /// first solver path that needs it (`linear::block_amd`).
+    pub block_order: std::sync::OnceLock<Result<(Vec<usize>, Vec<usize>), String>>,
 }
 
 impl Layout {
@@ -185,6 +188,7 @@ impl Layout {
             col_blocks,
             col_row_off,
             col_ptr,
+            block_order: std::sync::OnceLock::new(),
         }
     }
 

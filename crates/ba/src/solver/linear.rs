@@ -165,27 +165,60 @@ impl Factorizer {
     }
 }
 
-/// AMD on the block graph of S, expanded to scalar indices (forward and inverse).
-pub(super) fn block_amd_ordering(layout: &Layout) -> Result<(Vec<usize>, Vec<usize>), String> {
+/// AMD on the block graph of S (forward and inverse block permutations), computed once per
+/// layout: the solver choice, the sparse factorization and the selected inversion all use
+/// this one ordering.
+fn block_amd(layout: &Layout) -> Result<&(Vec<usize>, Vec<usize>), String> {
+    layout
+        .block_order
+        .get_or_init(|| {
+            let nb = layout.num_blocks();
+            let (col_ptr, row_idx) = block_graph(layout);
+            let graph = SymbolicSparseColMatRef::new_checked(nb, nb, &col_ptr, None, &row_idx);
+            let (mut perm, mut perm_inv) = (vec![0usize; nb], vec![0usize; nb]);
+            let mut mem = MemBuffer::new(faer::sparse::linalg::amd::order_scratch::<usize>(
+                nb,
+                row_idx.len(),
+            ));
+            faer::sparse::linalg::amd::order(
+                &mut perm,
+                &mut perm_inv,
+                graph,
+                Default::default(),
+                MemStack::new(&mut mem),
+            )
+            .map_err(|e| format!("block ordering failed: {e:?}"))?;
+            Ok((perm, perm_inv))
+        })
+        .as_ref()
+        .map_err(Clone::clone)
+}
+
+/// The symbolic Cholesky factorization of S's block graph under [`block_amd`].
+fn block_symbolic(
+    layout: &Layout,
+    params: faer::sparse::linalg::cholesky::CholeskySymbolicParams<'_>,
+) -> Option<SymbolicCholesky<usize>> {
     let nb = layout.num_blocks();
+    let (fwd, inv) = block_amd(layout).ok()?;
     let (col_ptr, row_idx) = block_graph(layout);
     let graph = SymbolicSparseColMatRef::new_checked(nb, nb, &col_ptr, None, &row_idx);
-    let (mut perm, mut perm_inv) = (vec![0usize; nb], vec![0usize; nb]);
-    let mut mem = MemBuffer::new(faer::sparse::linalg::amd::order_scratch::<usize>(
-        nb,
-        row_idx.len(),
-    ));
-    faer::sparse::linalg::amd::order(
-        &mut perm,
-        &mut perm_inv,
+    let perm = faer::perm::PermRef::new_checked(fwd, inv, nb);
+    factorize_symbolic_cholesky(
         graph,
-        Default::default(),
-        MemStack::new(&mut mem),
+        Side::Upper,
+        faer::sparse::linalg::cholesky::SymmetricOrdering::Custom(perm),
+        params,
     )
-    .map_err(|e| format!("block ordering failed: {e:?}"))?;
+    .ok()
+}
+
+/// [`block_amd`] expanded to scalar indices (forward and inverse).
+pub(super) fn block_amd_ordering(layout: &Layout) -> Result<(Vec<usize>, Vec<usize>), String> {
+    let (perm, _) = block_amd(layout)?;
     let n = layout.n_reduced;
     let mut fwd = Vec::with_capacity(n);
-    for &b in &perm {
+    for &b in perm {
         fwd.extend(layout.block_offset[b]..layout.block_offset[b] + layout.block_dim[b]);
     }
     let mut inv = vec![0usize; n];
@@ -203,16 +236,7 @@ pub(crate) fn block_factor_entries(layout: &Layout) -> Option<f64> {
     if nb == 0 {
         return Some(0.0);
     }
-    let (col_ptr, row_idx) = block_graph(layout);
-    let graph = SymbolicSparseColMatRef::new_checked(nb, nb, &col_ptr, None, &row_idx);
-    let symbolic = factorize_symbolic_cholesky(
-        graph,
-        Side::Upper,
-        faer::sparse::linalg::cholesky::SymmetricOrdering::Amd,
-        Default::default(),
-    )
-    .ok()?;
-    Some(symbolic.len_val() as f64)
+    Some(block_symbolic(layout, Default::default())?.len_val() as f64)
 }
 
 /// The scalar entries of S's Cholesky factor and the selected inversion's work
@@ -225,20 +249,12 @@ pub(crate) fn block_factor_columns(layout: &Layout) -> Option<(f64, f64)> {
     if nb == 0 {
         return Some((0.0, 0.0));
     }
-    let (col_ptr, row_idx) = block_graph(layout);
-    let graph = SymbolicSparseColMatRef::new_checked(nb, nb, &col_ptr, None, &row_idx);
     let params = CholeskySymbolicParams {
         supernodal_flop_ratio_threshold:
             faer::sparse::linalg::SupernodalThreshold::FORCE_SIMPLICIAL,
         ..Default::default()
     };
-    let symbolic = factorize_symbolic_cholesky(
-        graph,
-        Side::Upper,
-        faer::sparse::linalg::cholesky::SymmetricOrdering::Amd,
-        params,
-    )
-    .ok()?;
+    let symbolic = block_symbolic(layout, params)?;
     let SymbolicCholeskyRaw::Simplicial(l) = symbolic.raw() else {
         return None;
     };
