@@ -61,6 +61,9 @@ pub(crate) struct BlockCols {
     pub cols: Vec<usize>,
 }
 
+/// A permutation of the blocks and its inverse.
+pub(crate) type BlockPermutation = (Vec<usize>, Vec<usize>);
+
 pub(crate) struct Layout {
     pub block_dim: Vec<usize>,
     pub block_offset: Vec<usize>,
@@ -120,7 +123,7 @@ pub(crate) struct Layout {
     pub col_ptr: Vec<usize>,
     /// The fill-reducing ordering of the block graph (forward, inverse), computed by the
     /// first solver path that needs it (`linear::block_amd`).
-    pub block_order: std::sync::OnceLock<Result<(Vec<usize>, Vec<usize>), String>>,
+    pub block_order: std::sync::OnceLock<Result<BlockPermutation, String>>,
 }
 
 impl Layout {
