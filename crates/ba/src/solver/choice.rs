@@ -10,6 +10,11 @@
 //! | sparse | `8·nnz·(2 + workers) + 8·nnz(L)` | assembly `A` + `nnz(L)²/n` |
 //! | iterative | none beyond the Jacobians | `k · (Σ_o (4·m_o + 16) + Σ_b d_b²)` |
 //!
+//! (The iterative solver's cluster-Jacobi preconditioner adds `8·Σ_c d_c²·(1 + workers)`
+//! bytes for its clusters c, at most `8·n·max_dim·(1 + workers)`; clusters that do not fit
+//! in the memory limit are not used, and the preconditioner is then Schur–Jacobi, whose
+//! blocks the table counts.)
+//!
 //! with n the dimension of S, nnz its stored upper triangle, workers the threads (each
 //! assembles its own copy of S), `A = Σ_o 4 m_o² + Σ_f 6 (Σ_{o∈f} m_o)²` (m_o the
 //! camera-side columns of observation o), nnz(L) the fill of the Cholesky factor from a
