@@ -120,11 +120,10 @@ impl ImplicitSchur {
             Preconditioner::SchurJacobi => (Clusters::singletons(layout), None),
             Preconditioner::ClusterJacobi { max_dim } => {
                 let (c, mut stats) = Clusters::by_visibility(layout, max_dim);
-                let singletons = Clusters::singletons(layout);
                 let limit = memory_limit.unwrap_or(f64::INFINITY);
-                if bytes(&c) > limit && c.blocks.len() < singletons.blocks.len() {
+                if bytes(&c) > limit && c.blocks.len() < layout.num_blocks() {
                     stats.too_large_bytes = bytes(&c);
-                    (singletons, Some(stats))
+                    (Clusters::singletons(layout), Some(stats))
                 } else {
                     (c, Some(stats))
                 }
@@ -485,26 +484,12 @@ impl ImplicitSchur {
 /// that is not numerically positive definite is replaced by the inverse of its diagonal
 /// (zero where the diagonal is not positive).
 fn invert_spd(m: &mut [f64], par: faer::Par) {
-    use faer::dyn_stack::{MemBuffer, MemStack};
-    use faer::linalg::cholesky::llt;
     let d = (m.len() as f64).sqrt().round() as usize;
     let diagonal: Vec<f64> = (0..d).map(|i| m[i * d + i]).collect();
-    let mut mem = MemBuffer::new(
-        llt::factor::cholesky_in_place_scratch::<f64>(d, par, Default::default())
-            .or(llt::inverse::inverse_scratch::<f64>(d, par)),
-    );
-    let mut a = faer::MatMut::from_column_major_slice_mut(m, d, d);
-    let factored = llt::factor::cholesky_in_place(
-        a.as_mut(),
-        Default::default(),
-        par,
-        MemStack::new(&mut mem),
-        Default::default(),
-    )
-    .is_ok();
-    if factored {
-        let mut inv = faer::Mat::<f64>::zeros(d, d);
-        llt::inverse::inverse(inv.as_mut(), a.as_ref(), par, MemStack::new(&mut mem));
+    let inverse =
+        super::linear::cholesky_inverse(faer::MatMut::from_column_major_slice_mut(m, d, d), par);
+    let factored = inverse.is_ok();
+    if let Ok(inv) = inverse {
         for j in 0..d {
             for i in j..d {
                 let v = inv[(i, j)];

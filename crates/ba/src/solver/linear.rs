@@ -165,6 +165,29 @@ impl Factorizer {
     }
 }
 
+/// The inverse of the symmetric positive definite `a` (its lower triangle is read), from
+/// faer's blocked Cholesky factorization `a = L Lᵀ`, which overwrites `a` with L. The
+/// inverse's lower triangle is filled. Fails with the column whose pivot was not positive.
+pub(super) fn cholesky_inverse(mut a: MatMut<'_, f64>, par: Par) -> Result<Mat<f64>, usize> {
+    let n = a.nrows();
+    let mut mem = MemBuffer::new(
+        llt::factor::cholesky_in_place_scratch::<f64>(n, par, Default::default())
+            .or(llt::inverse::inverse_scratch::<f64>(n, par)),
+    );
+    if let Err(llt::factor::LltError::NonPositivePivot { index }) = llt::factor::cholesky_in_place(
+        a.as_mut(),
+        Default::default(),
+        par,
+        MemStack::new(&mut mem),
+        Default::default(),
+    ) {
+        return Err(index);
+    }
+    let mut inv = Mat::<f64>::zeros(n, n);
+    llt::inverse::inverse(inv.as_mut(), a.as_ref(), par, MemStack::new(&mut mem));
+    Ok(inv)
+}
+
 /// AMD on the block graph of S (forward and inverse block permutations), computed once per
 /// layout: the solver choice, the sparse factorization and the selected inversion all use
 /// this one ordering.

@@ -438,7 +438,6 @@ impl DenseInverse {
         memory_limit: Option<f64>,
         par: Par,
     ) -> Result<Self, SelectedError> {
-        use faer::linalg::cholesky::llt;
         let n = layout.n_reduced;
         let bytes = Self::bytes(n);
         if memory_limit.is_some_and(|m| bytes > m) {
@@ -454,26 +453,12 @@ impl DenseInverse {
             // upper (i ≤ j) stored as the lower (j, i)
             m[(j, i)] = scaled_entry(i, j, v, &scale, held);
         }
-        let mut mem = MemBuffer::new(
-            llt::factor::cholesky_in_place_scratch::<f64>(n, par, Default::default())
-                .or(llt::inverse::inverse_scratch::<f64>(n, par)),
-        );
-        if let Err(faer::linalg::cholesky::llt::factor::LltError::NonPositivePivot { index }) =
-            llt::factor::cholesky_in_place(
-                m.as_mut(),
-                Default::default(),
-                par,
-                MemStack::new(&mut mem),
-                Default::default(),
-            )
-        {
-            return Err(SelectedError::NotPositive(index));
-        }
+        // m becomes L; a pivot below MIN_PIVOT is as good as not positive.
+        let mut inv =
+            super::linear::cholesky_inverse(m.as_mut(), par).map_err(SelectedError::NotPositive)?;
         if let Some(j) = (0..n).find(|&j| !(m[(j, j)] * m[(j, j)] >= MIN_PIVOT)) {
             return Err(SelectedError::NotPositive(j));
         }
-        let mut inv = faer::Mat::<f64>::zeros(n, n);
-        llt::inverse::inverse(inv.as_mut(), m.as_ref(), par, MemStack::new(&mut mem));
         drop(m);
         for j in 0..n {
             for i in j..n {
