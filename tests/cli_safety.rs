@@ -672,6 +672,15 @@ fn ba_iterative_says_how_it_clustered_the_images() {
     assert!(json["clusters"]["largest_dim"]
         .as_u64()
         .is_some_and(|d| d <= 90));
+    // How S is applied: chosen (a street with clusters: explicit), in the log and the JSON.
+    assert!(
+        run.stdout.contains(
+            "Schur product: explicit (estimated per step (products and their set-up): implicit "
+        ),
+        "{}",
+        ctx(&run)
+    );
+    assert_eq!(json["schur_product"]["product"], "explicit");
     let run = w.run(
         &[
             &args[..],
@@ -681,4 +690,25 @@ fn ba_iterative_says_how_it_clustered_the_images() {
     );
     assert!(run.success(), "{}", ctx(&run));
     assert!(read_json(&out)["clusters"].is_null());
+    // Or asked for.
+    let run = w.run(
+        &[
+            &args[..],
+            &["--schur-product", "implicit", "--out", s(&out)],
+        ]
+        .concat(),
+    );
+    assert!(run.success(), "{}", ctx(&run));
+    let json = read_json(&out);
+    assert_eq!(json["schur_product"]["product"], "implicit");
+    assert!(json["schur_product"]["reason"]
+        .as_str()
+        .is_some_and(|r| r.starts_with("asked for; estimated per step (products")));
+    let refused = w.run(&[&args[..], &["--schur-product", "sideways"]].concat());
+    assert!(!refused.success());
+    assert!(
+        refused.stderr.contains("'sideways'") && refused.stderr.contains("--schur-product"),
+        "{}",
+        ctx(&refused)
+    );
 }

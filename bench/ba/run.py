@@ -162,12 +162,13 @@ def run_pingcal(path, solver, threads, a, extra):
     with tempfile.TemporaryDirectory() as td:
         outj = os.path.join(td, "out.json")
         cmd = [PINGCAL, "ba", path, "--out", outj, "--threads", str(threads)]
-        # "iterative/schur-jacobi": the solver and its preconditioner.
-        name, _, precond = solver.partition("/")
+        # "iterative/schur-jacobi/explicit": the solver, then its preconditioner and its
+        # Schur product (implicit, explicit), each optional.
+        name, *options = solver.split("/")
         if name != "auto":
             cmd += ["--solver", name]
-        if precond:
-            cmd += ["--preconditioner", precond]
+        for o in options:
+            cmd += ["--schur-product" if o in ("implicit", "explicit") else "--preconditioner", o]
         cmd += extra
         code, out, err, wall, rss = run_child(cmd, threads, a.timeout)
         save_log(a, f"{os.path.basename(path)}.pingcal-{solver.replace('/', '-')}-t{threads}", cmd, out, err)
@@ -316,8 +317,9 @@ def main():
                          "street, or any K of all cameras (a dense camera graph)")
     ap.add_argument("--pingcal-solvers", default="auto",
                     help="comma-separated values of `pingcal ba --solver` (auto, dense, sparse, "
-                         "iterative), each optionally /PRECONDITIONER (iterative/schur-jacobi, "
-                         "iterative/cluster-jacobi); auto passes no --solver")
+                         "iterative), each optionally followed by /PRECONDITIONER and /PRODUCT "
+                         "(iterative/schur-jacobi, iterative/cluster-jacobi/explicit, "
+                         "iterative/implicit); auto passes no --solver")
     ap.add_argument("--dense-max-cameras", type=int, default=300,
                     help="skip DENSE_SCHUR (and a forced pingcal dense) above this many cameras: "
                          "the dense 9C x 9C Cholesky costs ~3 s per iteration at 600 cameras and "

@@ -3,7 +3,7 @@
 //! paths and of 1 and 2 threads.
 
 use pingcal_ba::solver::{
-    solve, CgOptions, LinearSolverKind, Options, Preconditioner, Termination,
+    solve, CgOptions, LinearSolverKind, Options, Preconditioner, SchurProduct, Termination,
 };
 use pingcal_ba::synthetic::{SyntheticBal, Visibility};
 
@@ -130,9 +130,11 @@ fn iterative_solver_reaches_the_factorizations_minimum() {
         Preconditioner::SchurJacobi,
         Preconditioner::ClusterJacobi { max_dim: 90 },
     ];
-    for (visibility, preconditioner) in [Visibility::Banded, Visibility::Random]
+    let products = [SchurProduct::Implicit, SchurProduct::Explicit];
+    for (visibility, preconditioner, product) in [Visibility::Banded, Visibility::Random]
         .into_iter()
         .flat_map(|v| preconditioners.map(|p| (v, p)))
+        .flat_map(|(v, p)| products.map(|q| (v, p, q)))
     {
         let s = SyntheticBal {
             cameras: 30,
@@ -148,6 +150,7 @@ fn iterative_solver_reaches_the_factorizations_minimum() {
         let d = solve(&mut direct, &tight(LinearSolverKind::Sparse, 2), |_| {}).unwrap();
         let cg = CgOptions {
             preconditioner,
+            product,
             ..CgOptions::default()
         };
         let mut iterative = base.clone();
@@ -161,12 +164,13 @@ fn iterative_solver_reaches_the_factorizations_minimum() {
         )
         .unwrap();
         assert_eq!(i.linear_solver.kind, LinearSolverKind::Iterative);
+        assert_eq!(i.schur_product.as_ref().map(|p| p.product), Some(product));
         assert!(i.linear_iterations > 0, "{i:?}");
         // The cost near the minimum is flat: a step within the forcing rule's relative
         // model decrease of the exact one changes it by far less than 1e-8 of itself.
         assert!(
             (i.final_cost - d.final_cost).abs() <= 1e-8 * d.final_cost,
-            "{visibility:?}, {preconditioner:?}: iterative {} vs sparse {} ({} LM iterations, {} CG)",
+            "{visibility:?}, {preconditioner:?}, {product}: iterative {} vs sparse {} ({} LM iterations, {} CG)",
             i.final_cost,
             d.final_cost,
             i.iterations,
@@ -182,7 +186,7 @@ fn iterative_solver_reaches_the_factorizations_minimum() {
         let i = solve(&mut default, &opts, |_| {}).unwrap();
         assert!(
             (i.final_cost - d.final_cost).abs() <= 1e-4 * d.final_cost,
-            "{visibility:?}, {preconditioner:?} default tolerances: {} vs {}",
+            "{visibility:?}, {preconditioner:?}, {product}, default tolerances: {} vs {}",
             i.final_cost,
             d.final_cost
         );
@@ -211,6 +215,8 @@ fn cluster_jacobi_clusters_a_street_and_leaves_a_random_graph_alone() {
             function_tolerance: 1e-10,
             cg: CgOptions {
                 preconditioner,
+                // The preconditioner is built from the observations, whatever the memory.
+                product: SchurProduct::Implicit,
                 ..CgOptions::default()
             },
             threads: 2,
@@ -266,6 +272,80 @@ fn cluster_jacobi_clusters_a_street_and_leaves_a_random_graph_alone() {
     assert_eq!(stats.captured, 0.0);
     assert_eq!(cj.final_cost.to_bits(), sj.final_cost.to_bits());
     assert_eq!(cj.linear_iterations, sj.linear_iterations);
+}
+
+/// The conjugate gradients multiply by S explicitly along a street (few neighbours per
+/// image: a sparse S, and clusters that would cost the assembly's work anyway) and
+/// implicitly on a dense random camera graph (a dense S), by default; both forms take the
+/// same iterations to the same minimum. An explicit product that does not fit in the memory
+/// is refused by name, and `Auto` then keeps the implicit one.
+#[test]
+fn the_schur_product_is_explicit_along_a_street_and_implicit_on_a_dense_graph() {
+    let run = |visibility, product, memory_limit_bytes| {
+        let s = SyntheticBal {
+            cameras: 120,
+            points: 12000,
+            obs_per_point: 6,
+            visibility,
+            ..Default::default()
+        };
+        let mut p = s.generate().unwrap().problem;
+        let opts = Options {
+            linear_solver: LinearSolverKind::Iterative,
+            function_tolerance: 1e-10,
+            cg: CgOptions {
+                product,
+                ..CgOptions::default()
+            },
+            threads: 2,
+            memory_limit_bytes,
+            ..Options::default()
+        };
+        solve(&mut p, &opts, |_| {})
+    };
+    let product = |s: &pingcal_ba::solver::Summary| s.schur_product.as_ref().unwrap().product;
+    let street = run(Visibility::Banded, SchurProduct::Auto, None).unwrap();
+    assert_eq!(
+        product(&street),
+        SchurProduct::Explicit,
+        "{:?}",
+        street.schur_product
+    );
+    let implicit = run(Visibility::Banded, SchurProduct::Implicit, None).unwrap();
+    assert!(
+        (street.final_cost - implicit.final_cost).abs() <= 1e-10 * implicit.final_cost,
+        "explicit {} vs implicit {}",
+        street.final_cost,
+        implicit.final_cost
+    );
+    // The same operator in another order of sums: the forcing rule stops at the same
+    // iteration but for a rounding tie now and then.
+    let (a, b) = (street.linear_iterations, implicit.linear_iterations);
+    assert!(
+        a.abs_diff(b) * 100 <= b,
+        "CG iterations explicit {a}, implicit {b}"
+    );
+    let dense = run(Visibility::Random, SchurProduct::Auto, None).unwrap();
+    assert_eq!(
+        product(&dense),
+        SchurProduct::Implicit,
+        "{:?}",
+        dense.schur_product
+    );
+    // S of 120 images along a street needs ~1 MB to assemble.
+    let err = run(Visibility::Banded, SchurProduct::Explicit, Some(1e5))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.starts_with("the explicit Schur product needs about ")
+            && err.contains("1080 unknowns")
+            && err.contains("--schur-product implicit"),
+        "{err}"
+    );
+    let kept = run(Visibility::Banded, SchurProduct::Auto, Some(1e5)).unwrap();
+    let choice = kept.schur_product.unwrap();
+    assert_eq!(choice.product, SchurProduct::Implicit);
+    assert!(choice.reason.contains("does not fit"), "{}", choice.reason);
 }
 
 /// A factorization that would not fit in the memory is refused before anything of its

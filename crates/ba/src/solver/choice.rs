@@ -35,7 +35,25 @@
 //! solver moves to the factorization for the rest of the adjustment (the `fallback`), and
 //! says so in the summary. An explicit choice that does not fit is refused with the memory
 //! it would need.
+//!
+//! The iterative solver then applies S implicitly or explicitly ([`SchurProduct`]), judged
+//! once its preconditioner's clusters are known ([`schur_product`]), by what differs
+//! between the two in a step of k iterations (the preconditioner's inversion and
+//! application are the same in both):
+//!
+//! | product | memory (bytes) | work per step (flops) | rate |
+//! |---|---|---|---|
+//! | implicit | none beyond the Jacobians | `P + k · Σ_o (4·m_o + 16)` | P at `BUILD_RATE`, products at `IMPLICIT_PRODUCT_RATE` |
+//! | explicit | `8·nnz·(1 + workers) + 8·Σ_o 3 m_o` | `A + k · 4·nnz` | A at `BUILD_RATE`, products at `EXPLICIT_PRODUCT_RATE` |
+//!
+//! with P the work of the preconditioner's cluster matrices built from the observations,
+//! `Σ_o 4 Σ_c m_oc² + Σ_f 6 Σ_c m_fc²` (m_oc, m_fc the columns of observation o, of point f's
+//! observations, in cluster c): A with only the pairs inside a cluster. On a street the
+//! clusters hold most pairs, P ≈ A, and the explicit product (a few neighbours per image)
+//! wins; on a dense camera graph P ≪ A and S is dense, and the implicit one wins.
 
+use super::clusters::Clusters;
+use super::iterative::SchurProduct;
 use super::layout::Layout;
 use super::linear::LinearSolverKind;
 
@@ -44,6 +62,16 @@ const ASSEMBLY_RATE: f64 = 0.6e9;
 const DENSE_RATE: f64 = 12e9;
 const SPARSE_RATE: f64 = 6e9;
 const IMPLICIT_RATE: f64 = 1.0e9;
+/// The rates of the choice between the implicit and the explicit product (per second and
+/// thread), measured with this code on `pingcal ba --synthetic 200x30000` (banded and
+/// random visibility, one thread): the assembly of S and the building of the cluster
+/// matrices ran at 3–6 Gflop/s, the implicit product at 1.9–2.3, the explicit one at 3.7
+/// (on a dense S; less on a street's short columns, where it is cheap anyway). They are
+/// above the rates of the factorizations' estimates, which were measured on earlier code
+/// and with which the margins above were set; here only their ratios matter.
+const BUILD_RATE: f64 = 3.0e9;
+const IMPLICIT_PRODUCT_RATE: f64 = 2.0e9;
+const EXPLICIT_PRODUCT_RATE: f64 = 3.0e9;
 /// Conjugate-gradient iterations assumed per step.
 const CG_ITERATIONS: f64 = 40.0;
 /// Below this dimension the dense factorization is taken without estimating anything else.
@@ -73,12 +101,15 @@ pub struct SolverChoice {
 /// Why a solver that was asked for cannot run.
 #[derive(Clone, Debug, thiserror::Error)]
 #[error(
-    "the {kind} solver needs about {} of memory for a reduced system of {n} unknowns, \
-     but {} is available: use `--solver iterative` (or `auto`)",
+    "the {what} needs about {} of memory for a reduced system of {n} unknowns, \
+     but {} is available: {advice}",
     gib(*.needs), gib(*.limit)
 )]
 pub struct TooLarge {
-    pub kind: LinearSolverKind,
+    /// What was asked for, e.g. "dense solver".
+    pub what: String,
+    /// What to ask for instead.
+    pub advice: &'static str,
     pub n: usize,
     pub needs: f64,
     pub limit: f64,
@@ -133,7 +164,8 @@ pub fn choose(
         seconds: CG_ITERATIONS * implicit_flops(layout) / (IMPLICIT_RATE * w),
     };
     let too_large = |kind, e: &Estimate| TooLarge {
-        kind,
+        what: format!("{kind} solver"),
+        advice: "use `--solver iterative` (or `auto`)",
         n,
         needs: e.memory,
         limit,
@@ -239,6 +271,100 @@ fn assembly_flops(layout: &Layout) -> f64 {
         })
         .sum();
     per_obs + per_point
+}
+
+/// The work of building the clusters' matrices from the observations (the module doc's
+/// P): the assembly's, counting only the pairs of columns inside one cluster.
+fn cluster_flops(layout: &Layout, clusters: &Clusters) -> f64 {
+    // Columns per cluster of one group of segments, as (cluster, columns) pairs.
+    fn add(acc: &mut Vec<(u32, f64)>, c: u32, m: f64) {
+        match acc.iter_mut().find(|e| e.0 == c) {
+            Some(e) => e.1 += m,
+            None => acc.push((c, m)),
+        }
+    }
+    let squares = |acc: &[(u32, f64)]| acc.iter().map(|e| e.1 * e.1).sum::<f64>();
+    let (mut obs, mut point) = (Vec::new(), Vec::new());
+    let mut total = 0.0;
+    for f in 0..layout.free_points.len() {
+        point.clear();
+        for &o in layout.point_obs(f) {
+            obs.clear();
+            for s in layout.segs(o as usize) {
+                let c = clusters.of_block[s.block as usize];
+                add(&mut obs, c, s.len as f64);
+                add(&mut point, c, s.len as f64);
+            }
+            total += 4.0 * squares(&obs);
+        }
+        total += 6.0 * squares(&point);
+    }
+    total
+}
+
+/// How the iterative solver applies S, and why.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct ProductChoice {
+    /// Implicit or explicit (never `Auto`).
+    pub product: SchurProduct,
+    /// One line: the estimates that decided it.
+    pub reason: String,
+}
+
+/// The iterative solver's product for `layout` with the preconditioner's `clusters`: the
+/// one `requested`, or under `Auto` the cheaper by the module doc's estimates among those
+/// that fit in `memory_limit` (the implicit one always does). An explicit product asked for
+/// that does not fit is refused with the memory it would need.
+pub fn schur_product(
+    layout: &Layout,
+    clusters: &Clusters,
+    requested: SchurProduct,
+    workers: usize,
+    memory_limit: Option<f64>,
+) -> Result<ProductChoice, TooLarge> {
+    let w = workers.max(1) as f64;
+    let nnz = layout.nnz() as f64;
+    let per_obs: f64 = (layout.obs_ncols.iter())
+        .map(|&m| 4.0 * m as f64 + 16.0)
+        .sum();
+    let implicit = cluster_flops(layout, clusters) / (BUILD_RATE * w)
+        + CG_ITERATIONS * per_obs / (IMPLICIT_PRODUCT_RATE * w);
+    let explicit = assembly_flops(layout) / (BUILD_RATE * w)
+        + CG_ITERATIONS * 4.0 * nnz / (EXPLICIT_PRODUCT_RATE * w);
+    let memory = 8.0 * nnz * (1.0 + w) + 8.0 * layout.w_len as f64;
+    let limit = memory_limit.unwrap_or(f64::INFINITY);
+    let estimates = format!(
+        "estimated per step (products and their set-up): implicit {implicit:.2} s, explicit {explicit:.2} s / {}",
+        gib(memory)
+    );
+    let product = match requested {
+        SchurProduct::Explicit if memory > limit => {
+            return Err(TooLarge {
+                what: "explicit Schur product".into(),
+                advice: "use `--schur-product implicit` (or `auto`)",
+                n: layout.n_reduced,
+                needs: memory,
+                limit,
+            })
+        }
+        SchurProduct::Auto if explicit < implicit && memory <= limit => SchurProduct::Explicit,
+        SchurProduct::Auto => SchurProduct::Implicit,
+        asked => asked,
+    };
+    let why = if requested == SchurProduct::Auto {
+        ""
+    } else {
+        "asked for; "
+    };
+    let fit = if requested == SchurProduct::Auto && memory > limit {
+        "; the explicit one does not fit in memory"
+    } else {
+        ""
+    };
+    Ok(ProductChoice {
+        product,
+        reason: format!("{why}{estimates}{fit}"),
+    })
 }
 
 /// The work of one implicit product S·x.

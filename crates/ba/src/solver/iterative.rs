@@ -10,9 +10,18 @@
 //! ```
 //!
 //! one pass over the observations, grouped by point (the solver's internal order), with
-//! work and memory proportional to the observations: nothing of the size of S is ever
+//! work and memory proportional to the observations: nothing of the size of S is
 //! allocated. This is Ceres' `ITERATIVE_SCHUR` with `use_explicit_schur_complement =
 //! false`.
+//!
+//! Where S is sparse, a product with S itself is cheaper: `4·nnz(S)` flops against about
+//! `4·m_o + 16` per observation o with m_o camera-side columns, once S is assembled (by the
+//! same code as the factorizations', once per step). On a street of cameras S has a few
+//! neighbours per image and the explicit product is several times cheaper; on a dense camera
+//! graph S is a large dense matrix and the implicit one wins. [`SchurProduct`] chooses
+//! (by default from the estimates in `choice`), as Ceres' `use_explicit_schur_complement =
+//! true` does by hand. With S formed, the preconditioner's cluster matrices are copied from
+//! it.
 //!
 //! The preconditioner is S's exact block diagonal over clusters of blocks
 //! ([`super::clusters`]), each `U_ab + λD_a δ_ab − Σ_f W_fa (V_f + λD_f)⁻¹ W_fbᵀ` for the
@@ -27,6 +36,7 @@
 //! problem (points are back-substituted exactly), and the trust region judges it by the
 //! cost it achieves, as for an exact one.
 
+use super::choice::{schur_product, ProductChoice, TooLarge};
 use super::clusters::{ClusterStats, Clusters};
 use super::evaluate::{split_at_offsets, Linearization};
 use super::layout::Layout;
@@ -49,6 +59,30 @@ pub enum Preconditioner {
     ClusterJacobi { max_dim: usize },
 }
 
+/// How the conjugate gradients multiply by S.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SchurProduct {
+    /// The cheaper of the two by the estimates of the block pattern, among those that fit in
+    /// memory.
+    Auto,
+    /// One pass over the observations per product; S is never formed.
+    Implicit,
+    /// S is assembled once per step (its upper triangle, `8·nnz·(1 + workers)` bytes while
+    /// assembling) and multiplied as a sparse matrix.
+    Explicit,
+}
+
+impl std::fmt::Display for SchurProduct {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            SchurProduct::Auto => "auto",
+            SchurProduct::Implicit => "implicit",
+            SchurProduct::Explicit => "explicit",
+        })
+    }
+}
+
 /// The options of the conjugate-gradient solve.
 #[derive(Clone, Copy, Debug)]
 pub struct CgOptions {
@@ -64,6 +98,8 @@ pub struct CgOptions {
     /// The preconditioner (cluster-Jacobi by default, which is Schur–Jacobi where no two
     /// images see enough of the same points).
     pub preconditioner: Preconditioner,
+    /// How S is applied (by default the cheaper form).
+    pub product: SchurProduct,
 }
 
 impl Default for CgOptions {
@@ -76,12 +112,21 @@ impl Default for CgOptions {
             preconditioner: Preconditioner::ClusterJacobi {
                 max_dim: super::clusters::DEFAULT_MAX_DIM,
             },
+            product: SchurProduct::Auto,
         }
     }
 }
 
-/// The implicit reduced system of one Levenberg–Marquardt step and its preconditioner.
-pub(crate) struct ImplicitSchur {
+/// The reduced system of one Levenberg–Marquardt step as an operator, applied implicitly
+/// or explicitly, and its preconditioner.
+pub(crate) struct SchurOperator {
+    /// S is assembled each step and multiplied as a matrix ([`SchurProduct::Explicit`]).
+    explicit: bool,
+    /// The product and why.
+    pub product: ProductChoice,
+    /// With `explicit`: ranges of block columns of S, one per worker, of about equal
+    /// numbers of stored values.
+    column_chunks: Vec<(usize, usize)>,
     /// λ·clamp(diag(U)).
     damping: Vec<f64>,
     /// The clusters of blocks whose part of S the preconditioner keeps (one block each:
@@ -92,8 +137,8 @@ pub(crate) struct ImplicitSchur {
     /// Per cluster c: the inverse of S restricted to its blocks, column-major
     /// `dim × dim`, starting at `clusters.offset[c]`.
     precond: Vec<f64>,
-    /// One accumulator of the size of the reduced system per chunk of the Schur
-    /// complement's work split (sized by `prepare`).
+    /// One accumulator of the size of the reduced system per chunk of the work split
+    /// (the Schur complement's observations, or `column_chunks`; sized by `prepare`).
     work: Vec<Vec<f64>>,
 }
 
@@ -105,16 +150,19 @@ pub(crate) struct CgSummary {
     pub relative_residual: f64,
 }
 
-impl ImplicitSchur {
-    /// The operator for `layout` with `preconditioner`. Cluster-Jacobi clusters whose
-    /// matrices (one copy per worker and their sum) would not fit in `memory_limit` bytes
-    /// are not used: the preconditioner is then Schur–Jacobi, and the statistics say why.
+impl SchurOperator {
+    /// The operator for `layout` with `preconditioner` and `product` (under `Auto` chosen
+    /// by `choice::schur_product` once the clusters are known). Cluster-Jacobi clusters
+    /// whose matrices (one copy per worker and their sum) would not fit in `memory_limit`
+    /// bytes are not used: the preconditioner is then Schur–Jacobi, and the statistics say
+    /// why. Fails when the explicit product is asked for and S does not fit.
     pub fn new(
         layout: &Layout,
         preconditioner: Preconditioner,
+        product: SchurProduct,
         workers: usize,
         memory_limit: Option<f64>,
-    ) -> Self {
+    ) -> Result<Self, TooLarge> {
         let bytes = |c: &Clusters| 8.0 * c.storage() as f64 * (1 + workers.max(1)) as f64;
         let (clusters, cluster_stats) = match preconditioner {
             Preconditioner::SchurJacobi => (Clusters::singletons(layout), None),
@@ -129,14 +177,23 @@ impl ImplicitSchur {
                 }
             }
         };
-        Self {
+        let product = schur_product(layout, &clusters, product, workers, memory_limit)?;
+        let explicit = product.product == SchurProduct::Explicit;
+        Ok(Self {
+            explicit,
+            product,
+            column_chunks: if explicit {
+                column_chunks(layout, workers.max(1))
+            } else {
+                Vec::new()
+            },
             damping: vec![0.0; layout.n_reduced],
             // Allocated by the first step, after the caller has judged its size.
             precond: Vec::new(),
             clusters,
             cluster_stats,
             work: Vec::new(),
-        }
+        })
     }
 
     /// Prepares the step for damping `lambda`: (V + λD)⁻¹ of every point, the right-hand
@@ -149,6 +206,12 @@ impl ImplicitSchur {
         lin: &Linearization,
         lambda: f64,
     ) -> Result<(), usize> {
+        if self.explicit {
+            schur.assemble(layout, lin, lambda)?;
+            self.work.resize_with(self.column_chunks.len(), Vec::new);
+            self.preconditioner_from_s(layout, &schur.values);
+            return Ok(());
+        }
         schur.invert_points(lambda)?;
         self.work.resize_with(schur.chunks.len(), Vec::new);
         self.damping = schur.damping(lambda);
@@ -205,6 +268,10 @@ impl ImplicitSchur {
         x: &[f64],
         y: &mut [f64],
     ) {
+        if self.explicit {
+            self.apply_explicit(layout, &schur.values, x, y);
+            return;
+        }
         let n = layout.n_reduced;
         let jc = &lin.jc;
         schur
@@ -242,6 +309,73 @@ impl ImplicitSchur {
         }
         // The constraints between blocks of the reduced system.
         super::constraints::add_product(layout, lin, x, y);
+    }
+
+    /// y = S x with S's assembled upper triangle (`values`, in the layout's order), both
+    /// triangles applied: each worker takes a range of block columns, gathering
+    /// `y_c = Σ_r S_rc x_r` and scattering `y_r += S_rc x_c` (r < c) into its own
+    /// accumulator.
+    fn apply_explicit(&mut self, layout: &Layout, values: &[f64], x: &[f64], y: &mut [f64]) {
+        let n = layout.n_reduced;
+        self.column_chunks
+            .par_iter()
+            .zip(self.work.par_iter_mut())
+            .for_each(|(&(lo, hi), acc)| {
+                acc.clear();
+                acc.resize(n, 0.0);
+                for b in lo..hi {
+                    let (rows_of_b, row_off) = (&layout.col_blocks[b], &layout.col_row_off[b]);
+                    for j in 0..layout.block_dim[b] {
+                        let c = layout.block_offset[b] + j;
+                        let (ptr, xc) = (layout.col_ptr[c], x[c]);
+                        // The diagonal, the last value of the column.
+                        let mut yc = values[layout.col_ptr[c + 1] - 1] * xc;
+                        for (&a, &off) in rows_of_b.iter().zip(row_off) {
+                            let a = a as usize;
+                            // Strictly above the diagonal: block a's rows, or the first j
+                            // rows of the diagonal block.
+                            let len = if a == b { j } else { layout.block_dim[a] };
+                            let r0 = layout.block_offset[a];
+                            let v = &values[ptr + off..ptr + off + len];
+                            yc += dot(v, &x[r0..r0 + len]);
+                            axpy(xc, v, &mut acc[r0..r0 + len]);
+                        }
+                        acc[c] += yc;
+                    }
+                }
+            });
+        y.fill(0.0);
+        sum_into(&self.work, y);
+    }
+
+    /// The preconditioner from the assembled S (damping and constraints included): each
+    /// cluster's matrix copied from S's values, then inverted.
+    fn preconditioner_from_s(&mut self, layout: &Layout, values: &[f64]) {
+        let cl = &self.clusters;
+        self.precond.clear();
+        self.precond.resize(cl.storage(), 0.0);
+        let matrices = split_at_offsets(&mut self.precond, &cl.offset[..cl.offset.len() - 1]);
+        let par = inversion_par(cl);
+        matrices.into_par_iter().enumerate().for_each(|(c, m)| {
+            let dc = cl.dim[c];
+            for &b in &cl.blocks[c] {
+                let b = b as usize;
+                let rows_of_b = layout.col_blocks[b].iter().zip(&layout.col_row_off[b]);
+                for (&a, &off) in rows_of_b.filter(|(&a, _)| cl.together(a, b as u32)) {
+                    let a = a as usize;
+                    let (row0, col0) = (cl.local[a], cl.local[b]);
+                    for j in 0..layout.block_dim[b] {
+                        let ptr = layout.col_ptr[layout.block_offset[b] + j] + off;
+                        let rows = if a == b { j + 1 } else { layout.block_dim[a] };
+                        for (i, &v) in values[ptr..ptr + rows].iter().enumerate() {
+                            m[(col0 + j) * dc + row0 + i] = v;
+                            m[(row0 + i) * dc + col0 + j] = v;
+                        }
+                    }
+                }
+            }
+            invert_spd(m, par);
+        });
     }
 
     /// S's block diagonal over the clusters, each block inverted.
@@ -346,11 +480,7 @@ impl ImplicitSchur {
         // through rounding) falls back to its diagonal. A few large clusters get the
         // threads within each inversion, many small ones one thread each.
         let blocks = split_at_offsets(&mut self.precond, &cl.offset[..cl.offset.len() - 1]);
-        let par = if cl.blocks.len() < rayon::current_num_threads() {
-            faer::Par::rayon(0)
-        } else {
-            faer::Par::Seq
-        };
+        let par = inversion_par(cl);
         blocks.into_par_iter().for_each(|blk| invert_spd(blk, par));
     }
 
@@ -477,6 +607,33 @@ impl ImplicitSchur {
         }
         x.iter().all(|v| v.is_finite()).then_some(summary)
     }
+}
+
+/// The threads within each cluster's inversion: all of them for fewer clusters than
+/// threads, one otherwise (the clusters then run side by side).
+fn inversion_par(cl: &Clusters) -> faer::Par {
+    if cl.blocks.len() < rayon::current_num_threads() {
+        faer::Par::rayon(0)
+    } else {
+        faer::Par::Seq
+    }
+}
+
+/// Ranges of block columns of S with about `1/workers` of its stored values each.
+fn column_chunks(layout: &Layout, workers: usize) -> Vec<(usize, usize)> {
+    let nnz = layout.nnz();
+    let mut bounds = vec![0];
+    let mut next = 1;
+    for b in 0..layout.num_blocks() {
+        let end = layout.col_ptr[layout.block_offset[b] + layout.block_dim[b]];
+        if next < workers && end * workers >= next * nnz {
+            bounds.push(b + 1);
+            next += 1;
+        }
+    }
+    bounds.push(layout.num_blocks());
+    bounds.dedup();
+    bounds.windows(2).map(|w| (w[0], w[1])).collect()
 }
 
 /// Replaces the column-major symmetric `d × d` matrix `m` (its lower triangle is read) by

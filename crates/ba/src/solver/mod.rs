@@ -27,11 +27,11 @@ mod selected_inverse;
 mod sigma;
 mod variance;
 
-pub use choice::{available_memory, SolverChoice, TooLarge};
+pub use choice::{available_memory, ProductChoice, SolverChoice, TooLarge};
 pub use clusters::{ClusterStats, DEFAULT_MAX_DIM as DEFAULT_CLUSTER_DIM};
 pub use estimability::{check_intrinsics, Estimability, MAX_CHECK_UNKNOWNS, NULL_EIGENVALUE};
 pub use free_network::MAX_FREE_NETWORK_UNKNOWNS;
-pub use iterative::{CgOptions, Preconditioner};
+pub use iterative::{CgOptions, Preconditioner, SchurProduct};
 pub use linear::LinearSolverKind;
 pub use outliers::{adjust_with_snooping, Rejection, SnoopError, SnoopResult};
 pub use precision::{
@@ -190,6 +190,9 @@ pub struct Summary {
     /// The clusters of the cluster-Jacobi preconditioner, when the conjugate gradients ran
     /// with it.
     pub clusters: Option<ClusterStats>,
+    /// How the conjugate gradients applied S, when they ran (from the start: a move to a
+    /// factorization is in `linear_solver`).
+    pub schur_product: Option<ProductChoice>,
     /// Dimension of the reduced camera system.
     pub reduced_dimension: usize,
     /// Stored entries of its upper triangle.
@@ -243,7 +246,7 @@ enum Linear {
     /// A factorization of S, assembled explicitly.
     Direct(linear::Factorizer),
     /// Conjugate gradients on S applied implicitly.
-    Iterative(Box<iterative::ImplicitSchur>),
+    Iterative(Box<iterative::SchurOperator>),
 }
 
 impl Linear {
@@ -317,17 +320,18 @@ fn run(
         limit,
     )?;
     let mut linear = match choice.kind {
-        LinearSolverKind::Iterative => Linear::Iterative(Box::new(iterative::ImplicitSchur::new(
+        LinearSolverKind::Iterative => Linear::Iterative(Box::new(iterative::SchurOperator::new(
             &layout,
             options.cg.preconditioner,
+            options.cg.product,
             rayon::current_num_threads(),
             limit,
-        ))),
+        )?)),
         kind => Linear::direct(kind, &layout, par)?,
     };
-    let clusters = match &linear {
-        Linear::Iterative(op) => op.cluster_stats,
-        Linear::Direct(_) => None,
+    let (clusters, schur_product) = match &linear {
+        Linear::Iterative(op) => (op.cluster_stats, Some(op.product.clone())),
+        Linear::Direct(_) => (None, None),
     };
     let setup_time_s = t0.elapsed().as_secs_f64();
     let mut lin = evaluate::Linearization::new(&layout);
@@ -497,6 +501,7 @@ fn run(
         linear_solver: choice,
         linear_iterations,
         clusters,
+        schur_product,
         reduced_dimension: layout.n_reduced,
         reduced_nonzeros: layout.nnz(),
         log,
@@ -1072,9 +1077,10 @@ mod schur_tests {
             .all(|(a, b)| (a - b).abs() <= 1e-9 * full.amax()));
     }
 
-    /// The implicit product and the preconditioner of the iterative solver against the
-    /// explicitly assembled S of the same damped step (distances, control points, a rig,
-    /// shared and fixed cameras included), and its solution against the factorization's.
+    /// The products (implicit, and explicit split over three workers' column ranges) and
+    /// the preconditioners of the iterative solver against the assembled S of the same
+    /// damped step (distances, control points, a rig, shared and fixed cameras included),
+    /// and its solution against the factorization's.
     #[test]
     fn implicit_schur_equals_the_assembled_one() {
         let problem = mixed_problem();
@@ -1095,9 +1101,18 @@ mod schur_tests {
             // Small enough to leave several clusters, large enough to merge blocks.
             Preconditioner::ClusterJacobi { max_dim: 30 },
         ];
-        for preconditioner in preconditioners {
+        let forms = [false, true]
+            .into_iter()
+            .flat_map(|e| preconditioners.map(|p| (e, p)));
+        for (explicit, preconditioner) in forms {
             let (_, _, mut schur) = assembled(&problem, lambda);
-            let mut op = iterative::ImplicitSchur::new(&layout, preconditioner, 1, None);
+            let (product, workers) = match explicit {
+                true => (SchurProduct::Explicit, 3),
+                false => (SchurProduct::Implicit, 1),
+            };
+            let mut op =
+                iterative::SchurOperator::new(&layout, preconditioner, product, workers, None)
+                    .unwrap();
             op.prepare(&mut schur, &layout, &lin, lambda).unwrap();
             check_implicit(&layout, &lin, &schur, &mut op, &dense, &rhs_explicit);
             let clusters = op.clusters_for_test();
@@ -1132,7 +1147,7 @@ mod schur_tests {
                     for (i, &row) in idx.iter().enumerate() {
                         assert!(
                             (z[row] - inv[(i, j)]).abs() <= 1e-9 * inv.amax(),
-                            "{preconditioner:?}: cluster {c}, ({i}, {j})"
+                            "{preconditioner:?}, explicit {explicit}: cluster {c}, ({i}, {j})"
                         );
                     }
                     let outside = (0..n).filter(|k| !idx.contains(k)).map(|k| z[k].abs());
@@ -1154,7 +1169,7 @@ mod schur_tests {
             for (a, b) in x.iter().zip(&direct) {
                 assert!(
                     (a - b).abs() <= 1e-8 * amax,
-                    "{preconditioner:?}: {a} vs {b} after {} iterations",
+                    "{preconditioner:?}, explicit {explicit}: {a} vs {b} after {} iterations",
                     cg.iterations
                 );
             }
@@ -1166,7 +1181,7 @@ mod schur_tests {
         layout: &Layout,
         lin: &evaluate::Linearization,
         schur: &schur::Schur,
-        op: &mut iterative::ImplicitSchur,
+        op: &mut iterative::SchurOperator,
         dense: &nalgebra::DMatrix<f64>,
         rhs_explicit: &[f64],
     ) {

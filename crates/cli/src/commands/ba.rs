@@ -51,6 +51,11 @@ pub struct Args {
     /// camera).
     #[arg(long, default_value_t = solver::DEFAULT_CLUSTER_DIM)]
     pub cluster_max_dim: usize,
+    /// How the iterative solver multiplies by the reduced camera system: `implicit` (never
+    /// formed), `explicit` (assembled each step, a sparse product) or `auto` (the cheaper
+    /// by the block pattern; printed with the solver).
+    #[arg(long, value_enum, default_value_t = SchurProductArg::Auto)]
+    pub schur_product: SchurProductArg,
     /// With `--synthetic`: which cameras see a point, `banded` (neighbours along a street)
     /// or `random` (any 6 of all cameras: a dense camera graph).
     #[arg(long, value_enum, default_value_t = super::gen_bal::VisibilityArg::Banded)]
@@ -115,9 +120,22 @@ pub enum SolverArg {
     Dense,
     /// Sparse Cholesky of the reduced camera system.
     Sparse,
-    /// Conjugate gradients on the reduced camera system, never formed (memory
-    /// proportional to the observations; see `--preconditioner`).
+    /// Conjugate gradients on the reduced camera system (see `--preconditioner` and
+    /// `--schur-product`).
     Iterative,
+}
+
+/// How the iterative solver applies the reduced camera system, on the command line.
+#[derive(Clone, Copy, clap::ValueEnum)]
+pub enum SchurProductArg {
+    /// The cheaper form by the estimates of the block pattern.
+    Auto,
+    /// Never formed: one pass over the observations per product (memory proportional to
+    /// the observations).
+    Implicit,
+    /// Assembled at every step and multiplied as a sparse matrix (cheaper where each image
+    /// shares points with few others, as along a street).
+    Explicit,
 }
 
 /// The largest cluster `--cluster-max-dim` takes: its inverse is a dense matrix, inverted
@@ -238,6 +256,11 @@ pub fn run(args: Args) -> CmdResult {
                     max_dim: args.cluster_max_dim,
                 },
             },
+            product: match args.schur_product {
+                SchurProductArg::Auto => solver::SchurProduct::Auto,
+                SchurProductArg::Implicit => solver::SchurProduct::Implicit,
+                SchurProductArg::Explicit => solver::SchurProduct::Explicit,
+            },
             ..Default::default()
         },
         threads: args.threads,
@@ -279,6 +302,9 @@ pub fn run(args: Args) -> CmdResult {
             "linear solver: {} ({})",
             summary.linear_solver.kind, summary.linear_solver.reason
         );
+        if let Some(p) = &summary.schur_product {
+            println!("Schur product: {} ({})", p.product, p.reason);
+        }
         if let Some(c) = summary.clusters.filter(|c| c.too_large_bytes > 0.0) {
             println!(
                 "preconditioner: Schur–Jacobi: the {} clusters' matrices would need {:.1} GB, more than the memory limit (try a smaller --cluster-max-dim)",
@@ -335,6 +361,9 @@ pub fn run(args: Args) -> CmdResult {
             "setup_time_s": summary.setup_time_s,
             "linear_solver": summary.linear_solver.kind,
             "linear_solver_reason": summary.linear_solver.reason,
+            "schur_product": summary.schur_product,
+            "reduced_dimension": summary.reduced_dimension,
+            "reduced_nonzeros": summary.reduced_nonzeros,
             "linear_iterations": summary.linear_iterations,
             "clusters": summary.clusters,
             "termination": summary.termination,
