@@ -1103,7 +1103,7 @@ fn observation_cofactor(
 /// units.
 pub(super) fn jacobi_scale(s: &DMatrix<f64>) -> Vec<f64> {
     (0..s.nrows())
-        .map(|i| 1.0 / s[(i, i)].max(f64::MIN_POSITIVE).sqrt())
+        .map(|i| super::selected_inverse::jacobi_factor(s[(i, i)]))
         .collect()
 }
 

@@ -95,9 +95,16 @@ pub(crate) fn jacobi_scale(layout: &Layout, values: &[f64], held: &[bool]) -> Ve
     (0..layout.n_reduced)
         .map(|c| match held[c] {
             true => 1.0,
-            false => 1.0 / layout.diagonal(values, c).max(f64::MIN_POSITIVE).sqrt(),
+            false => jacobi_factor(layout.diagonal(values, c)),
         })
         .collect()
+}
+
+/// `1/√S_cc`, the Jacobi scale of one unknown of diagonal `s_cc` (a diagonal that is not
+/// positive is taken as the smallest positive number).
+#[inline]
+pub(crate) fn jacobi_factor(s_cc: f64) -> f64 {
+    1.0 / s_cc.max(f64::MIN_POSITIVE).sqrt()
 }
 
 /// Entry (i, j) of D S D with the held unknowns' rows and columns those of the identity.
