@@ -53,7 +53,6 @@
 //! wins; on a dense camera graph P ≪ A and S is dense, and the implicit one wins.
 
 use super::clusters::Clusters;
-use super::iterative::SchurProduct;
 use super::layout::Layout;
 use super::linear::LinearSolverKind;
 
@@ -300,6 +299,30 @@ fn cluster_flops(layout: &Layout, clusters: &Clusters) -> f64 {
         total += 6.0 * squares(&point);
     }
     total
+}
+
+/// How the conjugate gradients multiply by S.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SchurProduct {
+    /// The cheaper of the two by the estimates of the block pattern, among those that fit in
+    /// memory.
+    Auto,
+    /// One pass over the observations per product; S is never formed.
+    Implicit,
+    /// S is assembled once per step (its upper triangle, `8·nnz·(1 + workers)` bytes while
+    /// assembling) and multiplied as a sparse matrix.
+    Explicit,
+}
+
+impl std::fmt::Display for SchurProduct {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            SchurProduct::Auto => "auto",
+            SchurProduct::Implicit => "implicit",
+            SchurProduct::Explicit => "explicit",
+        })
+    }
 }
 
 /// How the iterative solver applies S, and why.

@@ -36,7 +36,7 @@
 //! problem (points are back-substituted exactly), and the trust region judges it by the
 //! cost it achieves, as for an exact one.
 
-use super::choice::{schur_product, ProductChoice, TooLarge};
+use super::choice::{schur_product, ProductChoice, SchurProduct, TooLarge};
 use super::clusters::{ClusterStats, Clusters};
 use super::evaluate::{split_at_offsets, Linearization};
 use super::layout::Layout;
@@ -57,30 +57,6 @@ pub enum Preconditioner {
     /// S's block diagonal over clusters of blocks that see the same points, none of more
     /// than `max_dim` unknowns ([`super::clusters`]; Ceres' `CLUSTER_JACOBI`).
     ClusterJacobi { max_dim: usize },
-}
-
-/// How the conjugate gradients multiply by S.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum SchurProduct {
-    /// The cheaper of the two by the estimates of the block pattern, among those that fit in
-    /// memory.
-    Auto,
-    /// One pass over the observations per product; S is never formed.
-    Implicit,
-    /// S is assembled once per step (its upper triangle, `8·nnz·(1 + workers)` bytes while
-    /// assembling) and multiplied as a sparse matrix.
-    Explicit,
-}
-
-impl std::fmt::Display for SchurProduct {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(match self {
-            SchurProduct::Auto => "auto",
-            SchurProduct::Implicit => "implicit",
-            SchurProduct::Explicit => "explicit",
-        })
-    }
 }
 
 /// The options of the conjugate-gradient solve.

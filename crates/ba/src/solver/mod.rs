@@ -27,11 +27,11 @@ mod selected_inverse;
 mod sigma;
 mod variance;
 
-pub use choice::{available_memory, ProductChoice, SolverChoice, TooLarge};
+pub use choice::{available_memory, ProductChoice, SchurProduct, SolverChoice, TooLarge};
 pub use clusters::{ClusterStats, DEFAULT_MAX_DIM as DEFAULT_CLUSTER_DIM};
 pub use estimability::{check_intrinsics, Estimability, MAX_CHECK_UNKNOWNS, NULL_EIGENVALUE};
 pub use free_network::MAX_FREE_NETWORK_UNKNOWNS;
-pub use iterative::{CgOptions, Preconditioner, SchurProduct};
+pub use iterative::{CgOptions, Preconditioner};
 pub use linear::LinearSolverKind;
 pub use outliers::{adjust_with_snooping, Rejection, SnoopError, SnoopResult};
 pub use precision::{

@@ -175,6 +175,16 @@ fn unusable_distances(project: &Project, scene: &Scene) -> Result<Vec<String>> {
     Ok(warnings)
 }
 
+/// The final adjustment's failure `e`, with a principal distance that no lens has named
+/// beside it: such a value (in µm, in pixels) makes a network whose failures, a point
+/// behind a camera or no convergence, would otherwise hide their cause.
+fn failed(project: &Project, e: impl std::fmt::Display) -> PipelineError {
+    PipelineError::new(format!(
+        "final bundle adjustment: {e}{}",
+        super::matching::implausible_principal_distance(project).unwrap_or_default()
+    ))
+}
+
 /// The state of the final adjustment between its rounds.
 struct Rounds<'a> {
     project: &'a Project,
@@ -219,9 +229,7 @@ impl Rounds<'_> {
                         "  point {name} dropped: after data snooping its rays no longer determine it"
                     ));
                 }
-                Err(e) => {
-                    return Err(PipelineError::new(format!("final bundle adjustment: {e}")));
-                }
+                Err(e) => return Err(failed(self.project, e)),
             }
         };
         self.iterations += r.summary.iterations;
@@ -266,7 +274,7 @@ impl Rounds<'_> {
             &OBSERVATION_GROUPS,
         )
         .map_err(|e| match e {
-            VarianceError::Solve(e) => PipelineError::new(format!("final bundle adjustment: {e}")),
+            VarianceError::Solve(e) => failed(self.project, e),
             VarianceError::Precision(e) => PipelineError::new(format!(
                 "{}: the network's precision cannot be computed: {e}",
                 self.project.path.display()
