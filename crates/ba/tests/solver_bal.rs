@@ -202,28 +202,13 @@ fn iterative_solver_reaches_the_factorizations_minimum() {
 #[test]
 fn cluster_jacobi_clusters_a_street_and_leaves_a_random_graph_alone() {
     let run = |visibility, preconditioner, memory_limit_bytes| {
-        let s = SyntheticBal {
-            cameras: 120,
-            points: 12000,
-            obs_per_point: 6,
-            visibility,
-            ..Default::default()
+        let cg = CgOptions {
+            preconditioner,
+            // The preconditioner is built from the observations, whatever the memory.
+            product: SchurProduct::Implicit,
+            ..CgOptions::default()
         };
-        let mut p = s.generate().unwrap().problem;
-        let opts = Options {
-            linear_solver: LinearSolverKind::Iterative,
-            function_tolerance: 1e-10,
-            cg: CgOptions {
-                preconditioner,
-                // The preconditioner is built from the observations, whatever the memory.
-                product: SchurProduct::Implicit,
-                ..CgOptions::default()
-            },
-            threads: 2,
-            memory_limit_bytes,
-            ..Options::default()
-        };
-        solve(&mut p, &opts, |_| {}).unwrap()
+        iterative_on_120_images(visibility, cg, memory_limit_bytes).unwrap()
     };
     let cluster = Preconditioner::ClusterJacobi { max_dim: 180 };
     let sj = run(Visibility::Banded, Preconditioner::SchurJacobi, None);
@@ -282,26 +267,11 @@ fn cluster_jacobi_clusters_a_street_and_leaves_a_random_graph_alone() {
 #[test]
 fn the_schur_product_is_explicit_along_a_street_and_implicit_on_a_dense_graph() {
     let run = |visibility, product, memory_limit_bytes| {
-        let s = SyntheticBal {
-            cameras: 120,
-            points: 12000,
-            obs_per_point: 6,
-            visibility,
-            ..Default::default()
+        let cg = CgOptions {
+            product,
+            ..CgOptions::default()
         };
-        let mut p = s.generate().unwrap().problem;
-        let opts = Options {
-            linear_solver: LinearSolverKind::Iterative,
-            function_tolerance: 1e-10,
-            cg: CgOptions {
-                product,
-                ..CgOptions::default()
-            },
-            threads: 2,
-            memory_limit_bytes,
-            ..Options::default()
-        };
-        solve(&mut p, &opts, |_| {})
+        iterative_on_120_images(visibility, cg, memory_limit_bytes)
     };
     let product = |s: &pingcal_ba::solver::Summary| s.schur_product.as_ref().unwrap().product;
     let street = run(Visibility::Banded, SchurProduct::Auto, None).unwrap();
@@ -346,6 +316,32 @@ fn the_schur_product_is_explicit_along_a_street_and_implicit_on_a_dense_graph() 
     let choice = kept.schur_product.unwrap();
     assert_eq!(choice.product, SchurProduct::Implicit);
     assert!(choice.reason.contains("does not fit"), "{}", choice.reason);
+}
+
+/// The iterative solver with `cg` on 120 images and 12,000 points (a street or a dense
+/// random graph), 2 threads, function tolerance 1e-10.
+fn iterative_on_120_images(
+    visibility: Visibility,
+    cg: CgOptions,
+    memory_limit_bytes: Option<f64>,
+) -> Result<pingcal_ba::solver::Summary, pingcal_ba::solver::SolveError> {
+    let s = SyntheticBal {
+        cameras: 120,
+        points: 12000,
+        obs_per_point: 6,
+        visibility,
+        ..Default::default()
+    };
+    let mut p = s.generate().unwrap().problem;
+    let opts = Options {
+        linear_solver: LinearSolverKind::Iterative,
+        function_tolerance: 1e-10,
+        cg,
+        threads: 2,
+        memory_limit_bytes,
+        ..Options::default()
+    };
+    solve(&mut p, &opts, |_| {})
 }
 
 /// A factorization that would not fit in the memory is refused before anything of its
