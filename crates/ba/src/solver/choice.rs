@@ -8,7 +8,7 @@
 //! |---|---|---|
 //! | dense | `8·nnz·(1 + workers) + 8·n²` | assembly `A` + `n³/3` |
 //! | sparse | `8·nnz·(2 + workers) + 8·nnz(L)` | assembly `A` + `nnz(L)²/n` |
-//! | iterative | none beyond the Jacobians | `k · (Σ_o (4·m_o + 16) + Σ_b d_b²)` |
+//! | iterative (its implicit product) | none beyond the Jacobians | `k · (Σ_o (4·m_o + 16) + Σ_b d_b²)` |
 //!
 //! (The iterative solver's cluster-Jacobi preconditioner adds `8·Σ_c d_c²·(1 + workers)`
 //! bytes for its clusters c, at most `8·n·max_dim·(1 + workers)`; clusters that do not fit
