@@ -619,8 +619,11 @@ fn column_chunks(layout: &Layout, workers: usize) -> Vec<(usize, usize)> {
 fn invert_spd(m: &mut [f64], par: faer::Par) {
     let d = (m.len() as f64).sqrt().round() as usize;
     let diagonal: Vec<f64> = (0..d).map(|i| m[i * d + i]).collect();
-    let inverse =
-        super::linear::cholesky_inverse(faer::MatMut::from_column_major_slice_mut(m, d, d), par);
+    let inverse = super::linear::cholesky_inverse(
+        faer::MatMut::from_column_major_slice_mut(m, d, d),
+        par,
+        0.0,
+    );
     let factored = inverse.is_ok();
     if let Ok(inv) = inverse {
         for j in 0..d {

@@ -167,8 +167,13 @@ impl Factorizer {
 
 /// The inverse of the symmetric positive definite `a` (its lower triangle is read), from
 /// faer's blocked Cholesky factorization `a = L Lᵀ`, which overwrites `a` with L. The
-/// inverse's lower triangle is filled. Fails with the column whose pivot was not positive.
-pub(super) fn cholesky_inverse(mut a: MatMut<'_, f64>, par: Par) -> Result<Mat<f64>, usize> {
+/// inverse's lower triangle is filled. Fails with the first column whose pivot `L_jj²` was
+/// not positive or is below `min_pivot` (then before the inverse's work is done).
+pub(super) fn cholesky_inverse(
+    mut a: MatMut<'_, f64>,
+    par: Par,
+    min_pivot: f64,
+) -> Result<Mat<f64>, usize> {
     let n = a.nrows();
     let mut mem = MemBuffer::new(
         llt::factor::cholesky_in_place_scratch::<f64>(n, par, Default::default())
@@ -182,6 +187,9 @@ pub(super) fn cholesky_inverse(mut a: MatMut<'_, f64>, par: Par) -> Result<Mat<f
         Default::default(),
     ) {
         return Err(index);
+    }
+    if let Some(j) = (0..n).find(|&j| !(a[(j, j)] * a[(j, j)] >= min_pivot)) {
+        return Err(j);
     }
     let mut inv = Mat::<f64>::zeros(n, n);
     llt::inverse::inverse(inv.as_mut(), a.as_ref(), par, MemStack::new(&mut mem));

@@ -461,11 +461,8 @@ impl DenseInverse {
             m[(j, i)] = scaled_entry(i, j, v, &scale, held);
         }
         // m becomes L; a pivot below MIN_PIVOT is as good as not positive.
-        let mut inv =
-            super::linear::cholesky_inverse(m.as_mut(), par).map_err(SelectedError::NotPositive)?;
-        if let Some(j) = (0..n).find(|&j| !(m[(j, j)] * m[(j, j)] >= MIN_PIVOT)) {
-            return Err(SelectedError::NotPositive(j));
-        }
+        let mut inv = super::linear::cholesky_inverse(m.as_mut(), par, MIN_PIVOT)
+            .map_err(SelectedError::NotPositive)?;
         drop(m);
         for j in 0..n {
             for i in j..n {
