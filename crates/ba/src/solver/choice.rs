@@ -258,41 +258,35 @@ pub fn choose(
 
 /// The work of assembling S explicitly: `Σ_o 4 m_o² + Σ_f 6 (Σ_{o∈f} m_o)²`.
 fn assembly_flops(layout: &Layout) -> f64 {
-    let per_obs: f64 = (layout.obs_ncols.iter())
-        .map(|&m| 4.0 * (m as f64) * (m as f64))
-        .sum();
-    let per_point: f64 = (0..layout.free_points.len())
-        .map(|f| {
-            let m: f64 = (layout.point_obs(f).iter())
-                .map(|&o| layout.obs_ncols[o as usize] as f64)
-                .sum();
-            6.0 * m * m
-        })
-        .sum();
-    per_obs + per_point
+    pair_flops(layout, |_| 0)
 }
 
-/// The work of building the clusters' matrices from the observations (the module doc's
-/// P): the assembly's, counting only the pairs of columns inside one cluster.
-fn cluster_flops(layout: &Layout, clusters: &Clusters) -> f64 {
-    // Columns per cluster of one group of segments, as (cluster, columns) pairs.
-    fn add(acc: &mut Vec<(u32, f64)>, c: u32, m: f64) {
-        match acc.iter_mut().find(|e| e.0 == c) {
+/// The work of forming S's entries from the observations over the pairs of columns whose
+/// blocks `group` puts together: `Σ_o 4 Σ_g m_og² + Σ_f 6 Σ_g m_fg²`, with m_og the columns
+/// of observation o in group g and m_fg those of free point f's observations. One group is
+/// the whole assembly A; the preconditioner's clusters give its build P (the module doc).
+fn pair_flops(layout: &Layout, group: impl Fn(usize) -> u32) -> f64 {
+    // Columns per group of one set of segments, as (group, columns) pairs.
+    fn add(acc: &mut Vec<(u32, f64)>, g: u32, m: f64) {
+        match acc.iter_mut().find(|e| e.0 == g) {
             Some(e) => e.1 += m,
-            None => acc.push((c, m)),
+            None => acc.push((g, m)),
         }
     }
     let squares = |acc: &[(u32, f64)]| acc.iter().map(|e| e.1 * e.1).sum::<f64>();
     let (mut obs, mut point) = (Vec::new(), Vec::new());
     let mut total = 0.0;
-    for f in 0..layout.free_points.len() {
+    for (p, run) in layout.point_runs(0..layout.obs_point.len()) {
+        let free = layout.free_point_index[p as usize] != u32::MAX;
         point.clear();
-        for &o in layout.point_obs(f) {
+        for o in run {
             obs.clear();
-            for s in layout.segs(o as usize) {
-                let c = clusters.of_block[s.block as usize];
-                add(&mut obs, c, s.len as f64);
-                add(&mut point, c, s.len as f64);
+            for s in layout.segs(o) {
+                let g = group(s.block as usize);
+                add(&mut obs, g, s.len as f64);
+                if free {
+                    add(&mut point, g, s.len as f64);
+                }
             }
             total += 4.0 * squares(&obs);
         }
@@ -350,7 +344,7 @@ pub fn schur_product(
     let per_obs: f64 = (layout.obs_ncols.iter())
         .map(|&m| 4.0 * m as f64 + 16.0)
         .sum();
-    let implicit = cluster_flops(layout, clusters) / (BUILD_RATE * w)
+    let implicit = pair_flops(layout, |b| clusters.of_block[b]) / (BUILD_RATE * w)
         + CG_ITERATIONS * per_obs / (IMPLICIT_PRODUCT_RATE * w);
     let explicit = assembly_flops(layout) / (BUILD_RATE * w)
         + CG_ITERATIONS * 4.0 * nnz / (EXPLICIT_PRODUCT_RATE * w);
