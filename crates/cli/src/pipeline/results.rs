@@ -246,6 +246,10 @@ pub struct Results {
     /// run or failed).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub lrf_mount: Option<Vec<MountJson>>,
+    /// The whole LRF model (mount and range) that `cloud.ply`, `balls[].lrf_mm`, the check
+    /// tables and every export use: the joint adjustment's estimate when its result is the
+    /// one given, else the project's (`pingcal cloud --lrf-model results.json` reads it).
+    pub lrf_model: LrfModelJson,
     /// The bundle adjustment.
     pub bundle: BundleJson,
     /// Intrinsics.
@@ -438,6 +442,32 @@ fn joint_json(j: &JointOutcome, ext: &Extrinsics) -> MethodJson {
         ))
         .chain(j.notes.iter().cloned())
         .collect(),
+    }
+}
+
+/// The LRF model of `results.json`'s `lrf_model`.
+#[derive(Clone, Debug, Serialize)]
+pub struct LrfModelJson {
+    /// `joint adjustment` (estimated) or `project` (the project file's `[lrf]` mount).
+    pub source: String,
+    /// The model: `p = R_β (R_x(tilt_x) R_z(tilt_z) (r cos α, r sin α, 0) + offset)`,
+    /// `β = (servo − servo_zero)(1 + servo_scale)`, `reported = r (1 + range_scale) +
+    /// range_offset` (docs/lrf.md).
+    #[serde(flatten)]
+    pub model: pingcal_lrf::MountModel,
+}
+
+/// The LRF model the outputs use (see [`Results::lrf_model`]).
+pub fn lrf_model_of(st: &Stages) -> LrfModelJson {
+    match st.joint {
+        Some(Ok(j)) => LrfModelJson {
+            source: "joint adjustment".into(),
+            model: j.mount_model,
+        },
+        _ => LrfModelJson {
+            source: "project".into(),
+            model: st.lrf.mount,
+        },
     }
 }
 
@@ -650,6 +680,7 @@ pub fn assemble(st: &Stages, verdict: Verdict, time_s: Vec<(String, f64)>) -> Re
             Some(Ok(j)) => Some(mount_json(j)),
             _ => None,
         },
+        lrf_model: lrf_model_of(st),
         bundle: BundleJson {
             sigma0: adj.sigma0_a_priori,
             variance_components: adj.variance_components.clone(),
