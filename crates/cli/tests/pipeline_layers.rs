@@ -10,7 +10,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 /// The modules of `pipeline/`, lowest first (`mod.rs`, the root that runs them, is apart).
-const ORDER: [&str; 17] = [
+const ORDER: [&str; 18] = [
     "ids",
     "progress",
     "scene",
@@ -22,6 +22,7 @@ const ORDER: [&str; 17] = [
     "lrf",
     "extrinsic",
     "joint",
+    "final_lrf",
     "verdict",
     "conventions",
     "results",

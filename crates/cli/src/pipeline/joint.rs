@@ -159,6 +159,10 @@ pub struct JointOutcome {
     pub lrf_points: Vec<PointObs>,
     /// The camera side of every matched ball, from the joint adjustment.
     pub cam_points: Vec<PointObs>,
+    /// Every ball of the scene: its centre and covariance in the photogrammetric frame from
+    /// the joint adjustment (a control ball's LRF beams join its image rays; a check ball
+    /// has its image rays only).
+    pub ball_centres: Vec<(PointId, PointObs)>,
     /// Held parameters and other choices, one line each.
     pub notes: Vec<String>,
     /// The LRF as the pass that gave this outcome saw it (through its start mount).
@@ -473,6 +477,23 @@ fn ball_points(
     (lrf_points, cam_points)
 }
 
+/// Every ball of the scene with its centre and covariance at the solution `p`.
+fn ball_centres(input: &JointInput, p: &Problem, prec: &Precision) -> Vec<(PointId, PointObs)> {
+    (input.scene.points.iter_enumerated())
+        .filter(|(_, q)| q.kind == PointKind::Ball)
+        .filter_map(|(j, q)| {
+            let k = input.adj.solved.map.point(j)?;
+            let cov = prec.point_covariances[k]?;
+            let obs = PointObs {
+                id: q.name.clone(),
+                xyz: p.points[k].position,
+                cov,
+            };
+            Some((j, obs))
+        })
+        .collect()
+}
+
 /// The joint adjustment (see the module doc).
 pub fn joint_adjustment(input: &JointInput, rep: &Reporter) -> Result<JointOutcome> {
     let pb = rep.task("joint adjustment", 3);
@@ -532,6 +553,7 @@ pub fn joint_adjustment(input: &JointInput, rep: &Reporter) -> Result<JointOutco
     let cov = prec.parameters_covariance.clone();
     let mount_model = MountModel::from_params(&theta, input.mount0.servo_zero_deg);
     let (lrf_points, cam_points) = ball_points(input, &p, &prec, &mount_model);
+    let ball_centres = ball_centres(input, &p, &prec);
     let sim = Sim3::new(1.0, ext.rotation, ext.translation);
     let pick = |set: &[PointObs], check: bool| -> Vec<PointObs> {
         set.iter()
@@ -568,6 +590,7 @@ pub fn joint_adjustment(input: &JointInput, rep: &Reporter) -> Result<JointOutco
         control,
         lrf_points,
         cam_points,
+        ball_centres,
         notes: (input.pass > 1)
             .then(|| format!(
                 "pass {}: the LRF cloud made again from its readings through the mount the pass before estimated, its spheres found and matched again ({} of {} spheres matched)",
@@ -766,7 +789,7 @@ fn mount_estimate(
 /// the beam-range residuals from `start`, grazing beams left out), with its covariance
 /// (scaled by σ0² when σ0 > 1). None when fewer than four beams are left or the normal
 /// matrix is singular.
-fn refit_sphere(
+pub fn refit_sphere(
     readings: &[BeamReading],
     mount: &MountModel,
     radius: f64,

@@ -9,7 +9,8 @@
 //! | 5 | [`lrf`] | the LRF cloud from the scans and the spheres fitted to the balls |
 //! | 6 | [`extrinsic`] | spheres ↔ balls by distance invariants, the 3D conformal transform with σ, control / check / leave-one-out tables; the Fan et al. 2019 corner baseline |
 //! | 7 | [`joint`] | the joint adjustment: image points, distances and the LRF beams on the balls together, the extrinsic and the LRF's mount and range errors among the unknowns, what the data cannot determine held and named |
-//! | 7a | [`verdict`] | whether to trust the calibration: `ok`, `doubtful` or `failed`, by statistical tests of every adjustment and of the check points |
+//! | 7b | [`final_lrf`] | the LRF as the calibration's own model sees it: the cloud made again through the joint adjustment's estimated mount and range model, its spheres found and matched by the estimated extrinsic, the check tables from them; every output's LRF side uses it |
+//! | 7c | [`verdict`] | whether to trust the calibration: `ok`, `doubtful` or `failed`, by statistical tests of every adjustment and of the check points |
 //! | 8 | [`conventions`], [`results`], then [`report`] | `results.json` (SPEC.md; its `conventions` block names every frame and transform) and `cloud.ply`, then the data of `report.html` |
 //! | 9 | [`rectify`], [`exports`] | the same numbers for ROS (tf commands, launch files, URDF joint), OpenCV (FileStorage YAML, stereo rectification as `stereoRectify` gives it) and Kalibr (camchain) |
 //!
@@ -30,6 +31,7 @@ pub mod conventions;
 pub mod detect;
 pub mod exports;
 pub mod extrinsic;
+pub mod final_lrf;
 pub mod ids;
 pub mod joint;
 pub mod lrf;
@@ -122,7 +124,7 @@ pub fn calibrate(project: &Project, opts: &Options, rep: &Reporter) -> Result<Ou
     let ext = extrinsic::extrinsics(project, &scene, &adjusted, &lrf, &dets, opts, rep)?;
     timing.push(("extrinsic".into(), t.elapsed().as_secs_f64()));
     let t = std::time::Instant::now();
-    let joint = if project.file.method.joint() {
+    let mut joint = if project.file.method.joint() {
         let r = run_joint(project, (&dets, &scene, &adjusted), &lrf, &ext, opts, rep);
         if let Err(e) = &r {
             rep.log(format!("joint adjustment failed: {e}"));
@@ -131,6 +133,20 @@ pub fn calibrate(project: &Project, opts: &Options, rep: &Reporter) -> Result<Ou
         Some(r)
     } else {
         None
+    };
+    let remade = match &mut joint {
+        Some(Ok(j)) => {
+            let t = std::time::Instant::now();
+            let check = &project.file.balls.check;
+            let r = final_lrf::through_estimate(project, &lrf, &scene, check, j, opts, rep);
+            timing.push(("LRF through the estimate".into(), t.elapsed().as_secs_f64()));
+            r
+        }
+        _ => None,
+    };
+    let (lrf_out, pairs_out) = match &remade {
+        Some(r) => (&r.lrf, &r.pairs[..]),
+        None => (&lrf, &ext.pairs[..]),
     };
     let line = timing
         .iter()
@@ -146,6 +162,8 @@ pub fn calibrate(project: &Project, opts: &Options, rep: &Reporter) -> Result<Ou
         lrf: &lrf,
         ext: &ext,
         joint: &joint,
+        lrf_out,
+        pairs_out,
     };
     let verdict = verdict::judge(&stages);
     let expected_check_error_mm = verdict::expected_check_error_mm(&stages);
@@ -160,7 +178,7 @@ pub fn calibrate(project: &Project, opts: &Options, rep: &Reporter) -> Result<Ou
     ));
     let results = results::assemble(&stages, verdict, timing);
     let report = report::build(&stages, &results, rep);
-    let cloud_ply = results::cloud_ply(&lrf, 0.5 * project.file.balls.diameter_mm);
+    let cloud_ply = results::cloud_ply(lrf_out, 0.5 * project.file.balls.diameter_mm);
     let exports = exports::exports(&results);
     Ok(Outcome {
         results,
@@ -187,6 +205,11 @@ pub struct Stages<'a> {
     pub ext: &'a extrinsic::Extrinsics,
     /// Step 7 (None when the method does not ask for it), or why it failed.
     pub joint: &'a Option<std::result::Result<joint::JointOutcome, String>>,
+    /// The LRF side every output uses (step 7b): the cloud through the joint adjustment's
+    /// estimated model when its result is the one given, else [`Self::lrf`].
+    pub lrf_out: &'a lrf::LrfData,
+    /// The spheres of [`Self::lrf_out`] matched to balls of the scene.
+    pub pairs_out: &'a [(ids::SphereId, ids::PointId)],
 }
 
 /// Passes of the joint adjustment that look at the LRF again through the mount the pass

@@ -269,8 +269,7 @@ fn network(st: &Stages) -> rp::Network {
 
 /// The name of the ball LRF sphere `k` was matched to, if any.
 fn matched_ball(st: &Stages, k: SphereId) -> Option<String> {
-    st.ext
-        .pairs
+    st.pairs_out
         .iter()
         .find(|(l, _)| *l == k)
         .map(|(_, j)| st.scene.points[*j].name.clone())
@@ -278,7 +277,7 @@ fn matched_ball(st: &Stages, k: SphereId) -> Option<String> {
 
 /// The LRF cloud (subsampled to at most [`MAX_CLOUD_POINTS`]) and its spheres.
 fn cloud(st: &Stages) -> rp::Cloud {
-    let lrf = st.lrf;
+    let lrf = st.lrf_out;
     let n = lrf.cloud.points.len();
     let step = n.div_ceil(MAX_CLOUD_POINTS).max(1);
     let points = lrf
@@ -429,7 +428,7 @@ fn intrinsics(st: &Stages, results: &Results) -> Vec<rp::Intrinsics> {
 
 /// What was left out and why: image points, LRF clusters, unmatched LRF spheres.
 fn rejections(st: &Stages) -> Vec<rp::Rejection> {
-    let (adj, lrf) = (st.adjusted, st.lrf);
+    let (adj, lrf) = (st.adjusted, st.lrf_out);
     let mut rejected: Vec<rp::Rejection> = adj
         .rejected
         .iter()
@@ -465,7 +464,7 @@ fn rejections(st: &Stages) -> Vec<rp::Rejection> {
         });
     }
     for (k, b) in lrf.found.balls.iter().enumerate() {
-        if !st.ext.pairs.iter().any(|(l, _)| *l == SphereId(k)) {
+        if !st.pairs_out.iter().any(|(l, _)| *l == SphereId(k)) {
             rejected.push(rp::Rejection {
                 what: format!(
                     "LRF sphere L{} at ({:.0}, {:.0}, {:.0}) mm",
@@ -544,8 +543,8 @@ fn summary(st: &Stages, results: &Results) -> Vec<(String, String)> {
             format!(
                 "{} / {} / {}",
                 balls,
-                st.lrf.found.balls.len(),
-                st.ext.pairs.len()
+                st.lrf_out.found.balls.len(),
+                st.pairs_out.len()
             ),
         ),
     ];

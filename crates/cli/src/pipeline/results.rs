@@ -31,7 +31,7 @@ use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
 use pingcal_ba::solver::VarianceComponent;
 use pingcal_geometry::to_opk;
 use pingcal_geometry::{Rigid3, Sim3};
-use pingcal_lrf::registration::CheckRow;
+use pingcal_lrf::registration::{CheckRow, PointObs};
 use pingcal_project::{CameraParams, Project};
 use serde::Serialize;
 
@@ -206,18 +206,33 @@ pub struct BallJson {
     pub id: String,
     /// Check ball.
     pub check: bool,
-    /// Centre in the photogrammetric frame (mm).
+    /// Centre in the photogrammetric frame (mm), from the adjustment whose result is given:
+    /// the joint adjustment's (a control ball's LRF beams join its image rays, a check
+    /// ball has its image rays only), else the bundle adjustment's.
     pub photogrammetric_mm: [f64; 3],
     /// Its σ (mm).
     pub photogrammetric_sigma_mm: [f64; 3],
-    /// Its covariance (mm², row-major), from the bundle adjustment.
+    /// Its covariance (mm², row-major), from the same adjustment.
     pub photogrammetric_cov_mm2: [[f64; 3]; 3],
-    /// Centre of the matched LRF sphere (mm), if any.
+    /// Centre of the matched LRF sphere in the LRF frame (mm), through `lrf_model` (the
+    /// sphere refitted to its beams through the estimated model when the joint adjustment's
+    /// result is given), if any.
     pub lrf_mm: Option<[f64; 3]>,
     /// Its σ (mm).
     pub lrf_sigma_mm: Option<[f64; 3]>,
     /// Its covariance (mm², row-major), from the sphere fit.
     pub lrf_cov_mm2: Option<[[f64; 3]; 3]>,
+    /// `R · lrf_mm + t − photogrammetric_mm` with the extrinsic of `results.json` (mm): for
+    /// a check ball its check error, for a control ball its residual.
+    pub residual_mm: Option<[f64; 3]>,
+    /// σ of `residual_mm` as predicted by both centres' and the extrinsic's covariances
+    /// (mm; for a control ball, which helped estimate the extrinsic, an upper bound).
+    pub residual_sigma_mm: Option<[f64; 3]>,
+    /// The two-step method's sphere centre, through the project's mount (mm): not in the
+    /// frame of the extrinsic given when `lrf_model` is the joint adjustment's. Absent when it
+    /// is `lrf_mm`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub lrf_project_mount_mm: Option<[f64; 3]>,
     /// Images measuring the ball.
     pub rays: usize,
 }
@@ -625,6 +640,85 @@ fn sigma3(m: &Option<Matrix3<f64>>) -> [f64; 3] {
     }
 }
 
+/// Where `balls[]` takes each side from: the joint adjustment's centres and LRF spheres
+/// (through its estimated model) when its result is the one given, else the bundle's and the
+/// two-step method's; and the extrinsic (with its covariance) that maps one onto the other.
+struct BallSides<'a> {
+    /// The project's check balls.
+    check: &'a [String],
+    joint: Option<&'a JointOutcome>,
+    lrf: &'a [PointObs],
+    extrinsic: Option<(Sim3, &'a nalgebra::DMatrix<f64>)>,
+}
+
+impl<'a> BallSides<'a> {
+    fn of(st: &'a Stages) -> Self {
+        match st.joint {
+            Some(Ok(j)) => Self {
+                check: &st.project.file.balls.check,
+                joint: Some(j),
+                lrf: &j.lrf_points,
+                extrinsic: Some((
+                    Sim3::new(1.0, j.camera_from_lrf.rotation, j.camera_from_lrf.translation),
+                    &j.extrinsic_cov,
+                )),
+            },
+            _ => Self {
+                check: &st.project.file.balls.check,
+                joint: None,
+                lrf: &st.ext.lrf_points,
+                extrinsic: (st.ext.spheres.as_ref())
+                    .map(|ev| (ev.registration.camera_from_lrf, &ev.registration.cov)),
+            },
+        }
+    }
+
+    /// Ball `j` (`p` in the scene, `bundle` its bundle centre) in both frames.
+    fn ball(
+        &self,
+        j: super::ids::PointId,
+        p: &super::scene::ScenePoint,
+        bundle: Option<PointObs>,
+        ext: &Extrinsics,
+    ) -> BallJson {
+        let cam = match self.joint {
+            Some(jo) => (jo.ball_centres.iter())
+                .find(|(q, _)| *q == j)
+                .map(|(_, c)| c.clone())
+                .or(bundle),
+            None => bundle,
+        };
+        let l = self.lrf.iter().find(|l| l.id == p.name);
+        let residual = match (l, &cam, &self.extrinsic) {
+            (Some(l), Some(c), Some((t, tcov))) => {
+                let d = t.transform(&l.xyz) - c.xyz;
+                let cov = super::verdict::predicted_covariance(t, tcov, l, c);
+                Some(([d.x, d.y, d.z], sigma3(&Some(cov))))
+            }
+            _ => None,
+        };
+        let first = (self.joint.is_some())
+            .then(|| ext.lrf_points.iter().find(|l| l.id == p.name))
+            .flatten();
+        let v3 = |v: &Vector3<f64>| [v.x, v.y, v.z];
+        let position = cam.as_ref().map_or(p.position, |c| c.xyz);
+        BallJson {
+            id: p.name.clone(),
+            check: self.check.contains(&p.name),
+            photogrammetric_mm: v3(&position),
+            photogrammetric_sigma_mm: sigma3(&cam.as_ref().map(|c| c.cov)),
+            photogrammetric_cov_mm2: cam.as_ref().map_or([[f64::NAN; 3]; 3], |c| mat(&c.cov)),
+            lrf_mm: l.map(|l| v3(&l.xyz)),
+            lrf_sigma_mm: l.map(|l| sigma3(&Some(l.cov))),
+            lrf_cov_mm2: l.map(|l| mat(&l.cov)),
+            residual_mm: residual.map(|r| r.0),
+            residual_sigma_mm: residual.map(|r| r.1),
+            lrf_project_mount_mm: first.map(|f| v3(&f.xyz)),
+            rays: p.obs.len(),
+        }
+    }
+}
+
 /// `results.json` from what the steps produced.
 pub fn assemble(st: &Stages, verdict: Verdict, time_s: Vec<(String, f64)>) -> Results {
     let (project, scene, adj, ext) = (st.project, st.scene, st.adjusted, st.ext);
@@ -636,6 +730,7 @@ pub fn assemble(st: &Stages, verdict: Verdict, time_s: Vec<(String, f64)>) -> Re
         .expect("the pipeline fails unless one method succeeded");
     let mut balls = Vec::new();
     let mut targets = Vec::new();
+    let side = BallSides::of(st);
     for (j, p) in scene.points.iter_enumerated() {
         let Some(k) = adj.solved.map.point(j) else {
             continue;
@@ -643,20 +738,12 @@ pub fn assemble(st: &Stages, verdict: Verdict, time_s: Vec<(String, f64)>) -> Re
         let sig = sigma3(&adj.precision.point_covariances[k]);
         let xyz = [p.position.x, p.position.y, p.position.z];
         if p.kind == PointKind::Ball {
-            let l = ext.lrf_points.iter().find(|l| l.id == p.name);
-            balls.push(BallJson {
+            let bundle = adj.precision.point_covariances[k].map(|cov| PointObs {
                 id: p.name.clone(),
-                check: ext.check_ids.contains(&p.name),
-                photogrammetric_mm: xyz,
-                photogrammetric_sigma_mm: sig,
-                photogrammetric_cov_mm2: adj.precision.point_covariances[k]
-                    .map(|c| mat(&c))
-                    .unwrap_or([[f64::NAN; 3]; 3]),
-                lrf_mm: l.map(|l| [l.xyz.x, l.xyz.y, l.xyz.z]),
-                lrf_sigma_mm: l.map(|l| sigma3(&Some(l.cov))),
-                lrf_cov_mm2: l.map(|l| mat(&l.cov)),
-                rays: p.obs.len(),
+                xyz: p.position,
+                cov,
             });
+            balls.push(side.ball(j, p, bundle, ext));
         } else {
             targets.push((p.name.clone(), p.kind.as_str().to_string(), xyz, sig));
         }

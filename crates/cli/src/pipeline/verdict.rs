@@ -371,7 +371,7 @@ pub fn expected_check_error_mm(st: &Stages) -> Option<f64> {
 /// Covariance of `R p + t − q` for one ball: both sides' and the transform's (covariance
 /// `tcov` of (δθ, t) or (δθ, t, s)), to first order (`∂/∂δθ = −[R p]×`, `∂/∂t = I`,
 /// `∂/∂s = R p`).
-fn predicted_covariance(t: &Sim3, tcov: &DMatrix<f64>, l: &PointObs, c: &PointObs) -> Matrix3<f64> {
+pub fn predicted_covariance(t: &Sim3, tcov: &DMatrix<f64>, l: &PointObs, c: &PointObs) -> Matrix3<f64> {
     let rp = t.rotation * l.xyz * t.scale;
     let mut cov = c.cov + t.rotation * l.cov * t.rotation.transpose() * (t.scale * t.scale);
     let n = tcov.nrows();
@@ -391,7 +391,7 @@ fn predicted_covariance(t: &Sim3, tcov: &DMatrix<f64>, l: &PointObs, c: &PointOb
 /// The pooled σ0 of the sphere fits against the noise profile.
 fn sphere_fit_test(st: &Stages, test: &mut Test) {
     let (mut s, mut f) = (0.0, 0.0);
-    for b in &st.lrf.found.balls {
+    for b in &st.lrf_out.found.balls {
         let dof = b.inliers.len() as f64 - 3.0;
         if dof > 0.0 && b.sigma0.is_finite() {
             s += b.sigma0 * b.sigma0 * dof;

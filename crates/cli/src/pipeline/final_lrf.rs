@@ -1,0 +1,142 @@
+//! Step 7b: the LRF as the calibration's own model sees it. Once the joint adjustment has
+//! estimated the LRF's mount and range model, every output that shows the LRF side —
+//! `cloud.ply`, `results.json`'s `balls[].lrf_mm`, the check and control tables, the
+//! report's cloud and the overlays — must use that model: the extrinsic it gives is valid
+//! only with it. (Under the project's nominal mount a ball's centre lands 15–22 mm from
+//! where the extrinsic puts it, and a ball whose two half-sweeps do not coincide is not
+//! found at all.)
+//!
+//! So the cloud is made again from its readings through the estimated model
+//! ([`super::lrf::through_mount`]), its spheres are found, and each is matched to the ball
+//! of the photogrammetric model nearest to where the estimated extrinsic puts it:
+//! `d = |T · c_lrf − X_ball| ≤ r` (the ball's radius), one sphere per ball, nearest pairs
+//! first. With the model estimated, a sphere of the right ball is within a few millimetres
+//! of it, and another ball is at least a diameter away, so the rule is unambiguous. Each
+//! matched ball's sphere is fitted again to its own beams through the model
+//! ([`super::joint::refit_sphere`]), which gives its centre and covariance; the camera side
+//! is the joint adjustment's centre. The check table (the project's check balls) and the
+//! control table are computed from these, and they replace the joint pass's own.
+//!
+//! Without a joint adjustment (it did not run, or failed) the outputs use the cloud of the
+//! project's mount, the two-step method's view.
+
+use super::ids::{PointId, SphereId};
+use super::joint::{refit_sphere, JointOutcome, LrfView};
+use super::lrf::{self, LrfData};
+use super::scene::Scene;
+use super::{Options, Reporter};
+use pingcal_geometry::Sim3;
+use pingcal_lrf::cloud::BeamReading;
+use pingcal_lrf::registration::{check_table, PointObs};
+use pingcal_project::Project;
+
+/// The LRF through the estimated model: the cloud and its spheres, and which ball each
+/// sphere is.
+pub struct Remade {
+    /// The cloud and its spheres.
+    pub lrf: LrfData,
+    /// Spheres of [`Self::lrf`] matched to balls of the scene.
+    pub pairs: Vec<(SphereId, PointId)>,
+}
+
+/// The balls of `scene` matched one to one to the spheres of `lrf` that `camera_from_lrf`
+/// puts within `radius` of them, nearest pairs first.
+fn match_spheres(
+    lrf: &LrfData,
+    centres: &[(PointId, PointObs)],
+    camera_from_lrf: &pingcal_geometry::Rigid3,
+    radius: f64,
+) -> Vec<(SphereId, PointId)> {
+    let mut candidates: Vec<(f64, usize, usize)> = Vec::new();
+    for (s, ball) in lrf.found.balls.iter().enumerate() {
+        let at = camera_from_lrf.transform(&ball.centre);
+        for (k, (_, c)) in centres.iter().enumerate() {
+            let d = (at - c.xyz).norm();
+            if d <= radius {
+                candidates.push((d, s, k));
+            }
+        }
+    }
+    candidates.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
+    let (mut sphere_used, mut ball_used) =
+        (vec![false; lrf.found.balls.len()], vec![false; centres.len()]);
+    let mut pairs = Vec::new();
+    for (_, s, k) in candidates {
+        if !sphere_used[s] && !ball_used[k] {
+            sphere_used[s] = true;
+            ball_used[k] = true;
+            pairs.push((SphereId(s), centres[k].0));
+        }
+    }
+    pairs.sort_by_key(|&(s, _)| s.0);
+    pairs
+}
+
+/// The LRF through the joint adjustment's estimated model (see the module doc); `j`'s check
+/// and control tables, ball points and LRF view are replaced by those of this cloud. None
+/// (and `j` untouched) when the cloud has no readings to make again.
+pub fn through_estimate(
+    project: &Project,
+    first: &LrfData,
+    scene: &Scene,
+    check_ids: &[String],
+    j: &mut JointOutcome,
+    opts: &Options,
+    rep: &Reporter,
+) -> Option<Remade> {
+    let lrf = lrf::through_mount(project, first, j.mount_model, opts, rep)?;
+    let readings = lrf.cloud.readings.as_ref()?;
+    let radius = 0.5 * project.file.balls.diameter_mm;
+    let pairs = match_spheres(&lrf, &j.ball_centres, &j.camera_from_lrf, radius);
+    let (mut lrf_points, mut cam_points) = (Vec::new(), Vec::new());
+    for &(s, p) in &pairs {
+        let ball = &lrf.found.balls[s.0];
+        let rs: Vec<BeamReading> = ball.inliers.iter().map(|&i| readings[i]).collect();
+        let Some((c, cov)) = refit_sphere(&rs, &j.mount_model, radius, &ball.centre, &lrf.noise)
+        else {
+            continue;
+        };
+        let Some((_, cam)) = j.ball_centres.iter().find(|(q, _)| *q == p) else {
+            continue;
+        };
+        lrf_points.push(PointObs {
+            id: scene.points[p].name.clone(),
+            xyz: c,
+            cov,
+        });
+        cam_points.push(cam.clone());
+    }
+    let t = Sim3::new(1.0, j.camera_from_lrf.rotation, j.camera_from_lrf.translation);
+    let pick = |set: &[PointObs], check: bool| -> Vec<PointObs> {
+        (set.iter())
+            .filter(|p| check_ids.contains(&p.id) == check)
+            .cloned()
+            .collect()
+    };
+    j.check = check_table(&t, &pick(&lrf_points, true), &pick(&cam_points, true));
+    j.control = check_table(&t, &pick(&lrf_points, false), &pick(&cam_points, false));
+    j.lrf_points = lrf_points;
+    j.cam_points = cam_points;
+    j.lrf_view = LrfView {
+        pass: j.lrf_view.pass,
+        spheres: lrf.found.balls.len(),
+        matched: pairs.len(),
+        seen_twice_rejected: lrf.found.seen_twice_rejected(),
+        seen_twice_kept: lrf.found.seen_twice_kept(),
+        rejected_at_unmatched: 0,
+    };
+    let balls = j.ball_centres.len();
+    j.notes.push(format!(
+        "the outputs' LRF side (cloud.ply, balls[].lrf_mm, the check and control tables) is the cloud made again through the estimated model: {} spheres found, {} of {balls} balls matched (within the ball's radius of where the extrinsic puts them), each refitted to its own beams",
+        lrf.found.balls.len(),
+        pairs.len()
+    ));
+    rep.log(format!(
+        "LRF through the estimated model: {} spheres, {} of {balls} balls matched; mean check error {:.2} mm on {} balls",
+        lrf.found.balls.len(),
+        pairs.len(),
+        j.check.mean_mm,
+        j.check.rows.len()
+    ));
+    Some(Remade { lrf, pairs })
+}
