@@ -11,7 +11,7 @@ mod common;
 use common::{read_json, replace_once, Work, OUTPUTS};
 use serde_json::Value;
 use std::fs;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// A path argument.
 fn s(p: &Path) -> &str {
@@ -226,6 +226,8 @@ fn calibrate_simulated_project() {
         );
     }
 
+    one_lrf_model(&w, &p, &out, &r);
+
     // --- bundle ---
     let b = &r["bundle"];
     let sigma0 = num(&b["sigma0"], "bundle.sigma0");
@@ -299,6 +301,128 @@ fn calibrate_simulated_project() {
 }
 
 /// A missing image: named.
+/// χ² with 3 degrees of freedom at 1 − 0.0027 (the probability of a normal deviate beyond
+/// 3σ): a ball's `Σ (dᵢ/σᵢ)²` above it is a 3σ event.
+const CHI2_3_AT_3_SIGMA: f64 = 14.16;
+
+/// Issue 33's "one truth": after the joint adjustment every ball has an LRF centre through
+/// the estimated model (`lrf_model`), `R · lrf_mm + t` lands on the camera-side centre
+/// within 3σ of the predicted error and 6 mm, the check rows are those residuals, and
+/// `pingcal cloud --lrf-model results.json` on the project's scans gives the same cloud and
+/// the same spheres.
+fn one_lrf_model(w: &Work, p: &Path, out: &Path, r: &Value) {
+    let lrf_centres = balls_on_their_lrf_centres(r, f64::INFINITY);
+    let balls = r["balls"].as_array().expect("results.balls");
+    let html = fs::read_to_string(out.join("report.html")).expect("report.html");
+    let n = balls.len();
+    assert!(
+        html.contains(&format!("{n} / {n} / {n}")),
+        "the report's summary does not count {n} balls, {n} LRF centres and {n} matched"
+    );
+    cloud_of_the_lrf_model(w, p, out, &lrf_centres);
+}
+
+/// Every ball of `r` has an LRF centre through the joint adjustment's model, its
+/// `residual_mm` is `R · lrf_mm + t − photogrammetric_mm`, within 3σ of its predicted σ and
+/// at most `max_mm`, and a check ball's check row is that residual. Returns the LRF centres.
+fn balls_on_their_lrf_centres(r: &Value, max_mm: f64) -> Vec<[f64; 3]> {
+    assert_eq!(
+        r["lrf_model"]["source"], "joint adjustment",
+        "{}",
+        r["lrf_model"]
+    );
+    let rot = mat3(&r["extrinsic"]["rotation"], "extrinsic.rotation");
+    let t = vec3(
+        &r["extrinsic"]["translation_mm"],
+        "extrinsic.translation_mm",
+    );
+    let balls = r["balls"].as_array().expect("results.balls");
+    let mut lrf_centres = Vec::new();
+    for b in balls {
+        let id = b["id"].as_str().expect("ball id");
+        let l = vec3(&b["lrf_mm"], &format!("{id}.lrf_mm (every ball has one)"));
+        let c = vec3(&b["photogrammetric_mm"], "photogrammetric_mm");
+        let (res, sig) = (
+            vec3(&b["residual_mm"], "residual_mm"),
+            vec3(&b["residual_sigma_mm"], "residual_sigma_mm"),
+        );
+        let d: [f64; 3] =
+            std::array::from_fn(|i| (0..3).map(|k| rot[i][k] * l[k]).sum::<f64>() + t[i] - c[i]);
+        let chi2: f64 = (0..3).map(|i| (d[i] / sig[i]).powi(2)).sum();
+        let norm = d.iter().map(|v| v * v).sum::<f64>().sqrt();
+        eprintln!("{id}: |R l + t − c| = {norm:.2} mm, Σ(d/σ)² = {chi2:.2}");
+        close3(
+            d,
+            res,
+            1e-9,
+            &format!("{id}: residual_mm against R · lrf_mm + t − c"),
+        );
+        assert!(
+            chi2 < CHI2_3_AT_3_SIGMA && norm <= max_mm,
+            "{id}: R · lrf_mm + t is {norm:.2} mm from the camera-side centre, Σ(d/σ)² = {chi2:.2} (σ {sig:?})"
+        );
+        if let Some(row) = (r["check_points"].as_array().unwrap().iter()).find(|c| c["id"] == id) {
+            let dx = ["dx_mm", "dy_mm", "dz_mm"].map(|k| num(&row[k], k));
+            close3(dx, d, 1e-9, &format!("{id}: the check row against balls[]"));
+        }
+        lrf_centres.push(l);
+    }
+    lrf_centres
+}
+
+/// `pingcal cloud --lrf-model results.json` on the project's scans gives `cloud.ply`'s
+/// points and spheres at `lrf_centres`.
+fn cloud_of_the_lrf_model(w: &Work, p: &Path, out: &Path, lrf_centres: &[[f64; 3]]) {
+    let scans: Vec<PathBuf> = fs::read_dir(p.join("scans"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|f| f.extension().is_some_and(|x| x == "csv"))
+        .collect();
+    assert_eq!(scans.len(), 1, "the simulated project has one scan file");
+    let (ply, centres) = (w.dir.join("again.ply"), w.dir.join("again.txt"));
+    let run = w.run(&[
+        "cloud",
+        s(&scans[0]),
+        "--lrf-model",
+        s(&out.join("results.json")),
+        "--out",
+        s(&ply),
+        "--balls",
+        s(&centres),
+    ]);
+    assert!(run.success(), "pingcal cloud --lrf-model: {}", run.stderr);
+    let vertices = |f: &Path| {
+        let b = fs::read(f).unwrap();
+        let end = b.windows(11).position(|w| w == b"end_header\n").unwrap() + 11;
+        b[end..].to_vec()
+    };
+    assert!(
+        vertices(&ply) == vertices(&out.join("cloud.ply")),
+        "cloud.ply is not the cloud of its own lrf_model"
+    );
+    let again: Vec<[f64; 3]> = (fs::read_to_string(&centres).unwrap().lines())
+        .filter(|l| !l.starts_with('#'))
+        .map(|l| {
+            let v: Vec<f64> = l
+                .split_whitespace()
+                .skip(1)
+                .map(|x| x.parse().unwrap())
+                .collect();
+            [v[0], v[1], v[2]]
+        })
+        .collect();
+    for l in lrf_centres {
+        let nearest = (again.iter())
+            .map(|a| (0..3).map(|k| (a[k] - l[k]).powi(2)).sum::<f64>().sqrt())
+            .fold(f64::INFINITY, f64::min);
+        // the centres file has three decimals: a rounding of at most 0.0005 mm per axis
+        assert!(
+            nearest < 0.001,
+            "lrf_mm {l:?}: nearest sphere of `pingcal cloud --lrf-model` at {nearest} mm"
+        );
+    }
+}
+
 #[test]
 fn missing_image() {
     let w = Work::new("missing_image");
@@ -720,6 +844,8 @@ fn one_angle_convention_everywhere_and_the_same_bytes_for_the_same_input() {
     let run = w.run(&["demo", "--out", s(&demo), "--quiet"]);
     assert!(run.success(), "demo failed: {}", run.stderr);
     let dr = read_json(&demo.join("results").join("results.json"));
+    // issue 33: on the demo every ball's two centres agree within 3σ and 6 mm
+    balls_on_their_lrf_centres(&dr, 6.0);
     for m in dr["methods"].as_array().expect("methods") {
         let Some(name) = m["method"].as_str() else {
             continue;

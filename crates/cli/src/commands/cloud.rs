@@ -1,5 +1,5 @@
 //! `pingcal cloud SCAN... [--out FILE.ply] [--diameter-mm 38] [--balls FILE] [--mount-offset-mm
-//! x,y,z] [--tilt-x-deg a] [--tilt-z-deg b] [--servo-zero-deg c]`: the LRF cloud (paper eq. 2,
+//! x,y,z] [--tilt-x-deg a] [--tilt-z-deg b] [--servo-zero-deg c] | --lrf-model results.json]`: the LRF cloud (paper eq. 2,
 //! with the mount model of `pingcal_lrf::cloud`) from scan files (or PLY/XYZ clouds), the
 //! balls found and fitted in it.
 //! The PLY holds the cloud in grey with each ball's inlier points in one colour per ball,
@@ -76,6 +76,45 @@ pub struct Args {
     /// Range model: the range scale error (see `--range-offset-mm`).
     #[arg(long, allow_hyphen_values = true, default_value_t = 0.0)]
     pub range_scale: f64,
+    /// The whole LRF model (mount and range) of a calibration: its `results.json` (the
+    /// `lrf_model` block: the joint adjustment's estimate, or the project's mount), so that
+    /// any later scan gets the cloud the calibration's extrinsic is valid for.
+    #[arg(long, conflicts_with_all = ["mount_offset_mm", "tilt_x_deg", "tilt_z_deg", "servo_zero_deg", "servo_scale", "range_offset_mm", "range_scale"])]
+    pub lrf_model: Option<PathBuf>,
+}
+
+/// The `lrf_model` block of a calibration's `results.json` at `path` (or a file that is
+/// that block alone), or a one-line error naming the file and what is missing.
+pub fn read_lrf_model(path: &std::path::Path) -> Result<MountModel, String> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
+    let v: serde_json::Value =
+        serde_json::from_str(&text).map_err(|e| format!("{}: not JSON ({e})", path.display()))?;
+    let block = v.get("lrf_model").unwrap_or(&v);
+    if block.get("offset_mm").is_none() {
+        return Err(format!(
+            "{}: no `lrf_model` block (offset_mm, tilt_x_deg, …): expected the results.json of `pingcal calibrate`",
+            path.display()
+        ));
+    }
+    let m: MountModel = serde_json::from_value(block.clone())
+        .map_err(|e| format!("{}: lrf_model: {e}", path.display()))?;
+    let values = m.to_params();
+    if !(values.iter().all(|v| v.is_finite()) && m.servo_zero_deg.is_finite()) {
+        return Err(format!(
+            "{}: lrf_model: every value must be a finite number",
+            path.display()
+        ));
+    }
+    if !(m.servo_scale.abs() < 0.5 && m.range_scale.abs() < 0.5) {
+        return Err(format!(
+            "{}: lrf_model: servo_scale {} / range_scale {}: expected scale errors, small fractions",
+            path.display(),
+            m.servo_scale,
+            m.range_scale
+        ));
+    }
+    Ok(m)
 }
 
 /// Runs the command.
@@ -116,14 +155,17 @@ pub fn run(args: Args) -> CmdResult {
         )
         .into());
     }
-    let mount = MountModel {
-        offset_mm: [m[0], m[1], m[2]],
-        tilt_x_deg: args.tilt_x_deg,
-        tilt_z_deg: args.tilt_z_deg,
-        servo_zero_deg: args.servo_zero_deg,
-        servo_scale: args.servo_scale,
-        range_offset_mm: args.range_offset_mm,
-        range_scale: args.range_scale,
+    let mount = match &args.lrf_model {
+        Some(path) => read_lrf_model(path)?,
+        None => MountModel {
+            offset_mm: [m[0], m[1], m[2]],
+            tilt_x_deg: args.tilt_x_deg,
+            tilt_z_deg: args.tilt_z_deg,
+            servo_zero_deg: args.servo_zero_deg,
+            servo_scale: args.servo_scale,
+            range_offset_mm: args.range_offset_mm,
+            range_scale: args.range_scale,
+        },
     };
     let noise = match (&args.noise, &args.noise_sigma) {
         (Some(n), _) => RangeNoise::named(n).map_err(|e| format!("--noise: {e}"))?,

@@ -11,22 +11,22 @@
 //! of the photogrammetric model nearest to where the estimated extrinsic puts it:
 //! `d = |T · c_lrf − X_ball| ≤ r` (the ball's radius), one sphere per ball, nearest pairs
 //! first. With the model estimated, a sphere of the right ball is within a few millimetres
-//! of it, and another ball is at least a diameter away, so the rule is unambiguous. Each
-//! matched ball's sphere is fitted again to its own beams through the model
-//! ([`super::joint::refit_sphere`]), which gives its centre and covariance; the camera side
-//! is the joint adjustment's centre. The check table (the project's check balls) and the
+//! of it, and another ball is at least a diameter away, so the rule is unambiguous. A
+//! matched ball's LRF side is its sphere as found in that cloud (the fit
+//! [`pingcal_lrf::ball_finder`] makes, with its covariance), the very sphere `cloud.ply`
+//! carries and `pingcal cloud --lrf-model results.json` finds again; its camera side is the
+//! joint adjustment's centre. The check table (the project's check balls) and the
 //! control table are computed from these, and they replace the joint pass's own.
 //!
 //! Without a joint adjustment (it did not run, or failed) the outputs use the cloud of the
 //! project's mount, the two-step method's view.
 
 use super::ids::{PointId, SphereId};
-use super::joint::{refit_sphere, JointOutcome, LrfView};
+use super::joint::{JointOutcome, LrfView};
 use super::lrf::{self, LrfData};
 use super::scene::Scene;
 use super::{Options, Reporter};
 use pingcal_geometry::Sim3;
-use pingcal_lrf::cloud::BeamReading;
 use pingcal_lrf::registration::{check_table, PointObs};
 use pingcal_project::Project;
 
@@ -58,8 +58,10 @@ fn match_spheres(
         }
     }
     candidates.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
-    let (mut sphere_used, mut ball_used) =
-        (vec![false; lrf.found.balls.len()], vec![false; centres.len()]);
+    let (mut sphere_used, mut ball_used) = (
+        vec![false; lrf.found.balls.len()],
+        vec![false; centres.len()],
+    );
     let mut pairs = Vec::new();
     for (_, s, k) in candidates {
         if !sphere_used[s] && !ball_used[k] {
@@ -85,28 +87,26 @@ pub fn through_estimate(
     rep: &Reporter,
 ) -> Option<Remade> {
     let lrf = lrf::through_mount(project, first, j.mount_model, opts, rep)?;
-    let readings = lrf.cloud.readings.as_ref()?;
     let radius = 0.5 * project.file.balls.diameter_mm;
     let pairs = match_spheres(&lrf, &j.ball_centres, &j.camera_from_lrf, radius);
     let (mut lrf_points, mut cam_points) = (Vec::new(), Vec::new());
     for &(s, p) in &pairs {
         let ball = &lrf.found.balls[s.0];
-        let rs: Vec<BeamReading> = ball.inliers.iter().map(|&i| readings[i]).collect();
-        let Some((c, cov)) = refit_sphere(&rs, &j.mount_model, radius, &ball.centre, &lrf.noise)
-        else {
-            continue;
-        };
         let Some((_, cam)) = j.ball_centres.iter().find(|(q, _)| *q == p) else {
             continue;
         };
         lrf_points.push(PointObs {
             id: scene.points[p].name.clone(),
-            xyz: c,
-            cov,
+            xyz: ball.centre,
+            cov: ball.cov,
         });
         cam_points.push(cam.clone());
     }
-    let t = Sim3::new(1.0, j.camera_from_lrf.rotation, j.camera_from_lrf.translation);
+    let t = Sim3::new(
+        1.0,
+        j.camera_from_lrf.rotation,
+        j.camera_from_lrf.translation,
+    );
     let pick = |set: &[PointObs], check: bool| -> Vec<PointObs> {
         (set.iter())
             .filter(|p| check_ids.contains(&p.id) == check)
@@ -127,7 +127,7 @@ pub fn through_estimate(
     };
     let balls = j.ball_centres.len();
     j.notes.push(format!(
-        "the outputs' LRF side (cloud.ply, balls[].lrf_mm, the check and control tables) is the cloud made again through the estimated model: {} spheres found, {} of {balls} balls matched (within the ball's radius of where the extrinsic puts them), each refitted to its own beams",
+        "the outputs' LRF side (cloud.ply, balls[].lrf_mm, the check and control tables) is the cloud made again through the estimated model: {} spheres found, {} of {balls} balls matched (within the ball's radius of where the extrinsic puts them)",
         lrf.found.balls.len(),
         pairs.len()
     ));

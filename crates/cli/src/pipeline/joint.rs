@@ -789,7 +789,7 @@ fn mount_estimate(
 /// the beam-range residuals from `start`, grazing beams left out), with its covariance
 /// (scaled by σ0² when σ0 > 1). None when fewer than four beams are left or the normal
 /// matrix is singular.
-pub fn refit_sphere(
+fn refit_sphere(
     readings: &[BeamReading],
     mount: &MountModel,
     radius: f64,

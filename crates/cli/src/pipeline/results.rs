@@ -214,9 +214,8 @@ pub struct BallJson {
     pub photogrammetric_sigma_mm: [f64; 3],
     /// Its covariance (mm², row-major), from the same adjustment.
     pub photogrammetric_cov_mm2: [[f64; 3]; 3],
-    /// Centre of the matched LRF sphere in the LRF frame (mm), through `lrf_model` (the
-    /// sphere refitted to its beams through the estimated model when the joint adjustment's
-    /// result is given), if any.
+    /// Centre of the matched LRF sphere in the LRF frame (mm), if any: the sphere of
+    /// `cloud.ply`, found in the cloud made through `lrf_model`.
     pub lrf_mm: Option<[f64; 3]>,
     /// Its σ (mm).
     pub lrf_sigma_mm: Option<[f64; 3]>,
@@ -659,7 +658,11 @@ impl<'a> BallSides<'a> {
                 joint: Some(j),
                 lrf: &j.lrf_points,
                 extrinsic: Some((
-                    Sim3::new(1.0, j.camera_from_lrf.rotation, j.camera_from_lrf.translation),
+                    Sim3::new(
+                        1.0,
+                        j.camera_from_lrf.rotation,
+                        j.camera_from_lrf.translation,
+                    ),
                     &j.extrinsic_cov,
                 )),
             },

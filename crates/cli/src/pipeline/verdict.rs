@@ -371,7 +371,12 @@ pub fn expected_check_error_mm(st: &Stages) -> Option<f64> {
 /// Covariance of `R p + t − q` for one ball: both sides' and the transform's (covariance
 /// `tcov` of (δθ, t) or (δθ, t, s)), to first order (`∂/∂δθ = −[R p]×`, `∂/∂t = I`,
 /// `∂/∂s = R p`).
-pub fn predicted_covariance(t: &Sim3, tcov: &DMatrix<f64>, l: &PointObs, c: &PointObs) -> Matrix3<f64> {
+pub fn predicted_covariance(
+    t: &Sim3,
+    tcov: &DMatrix<f64>,
+    l: &PointObs,
+    c: &PointObs,
+) -> Matrix3<f64> {
     let rp = t.rotation * l.xyz * t.scale;
     let mut cov = c.cov + t.rotation * l.cov * t.rotation.transpose() * (t.scale * t.scale);
     let n = tcov.nrows();
