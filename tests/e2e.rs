@@ -227,6 +227,7 @@ fn calibrate_simulated_project() {
     }
 
     one_lrf_model(&w, &p, &out, &r);
+    overlays_put_the_balls_on_their_images(&p, &out, &r);
 
     // --- bundle ---
     let b = &r["bundle"];
@@ -300,7 +301,6 @@ fn calibrate_simulated_project() {
     }
 }
 
-/// A missing image: named.
 /// χ² with 3 degrees of freedom at 1 − 0.0027 (the probability of a normal deviate beyond
 /// 3σ): a ball's `Σ (dᵢ/σᵢ)²` above it is a 3σ event.
 const CHI2_3_AT_3_SIGMA: f64 = 14.16;
@@ -421,6 +421,114 @@ fn cloud_of_the_lrf_model(w: &Work, p: &Path, out: &Path, lrf_centres: &[[f64; 3
             "lrf_mm {l:?}: nearest sphere of `pingcal cloud --lrf-model` at {nearest} mm"
         );
     }
+}
+
+/// The LRF drawn on the images: `overlays/` holds one PNG per image at the image's size,
+/// the report shows them, and on the main image every ball with an LRF centre has its
+/// LRF points (drawn in the ball colour) inside the silhouette where the camera sees it:
+/// the ball's photogrammetric centre projected with the main camera's OpenCV model, of
+/// radius `f · r / depth` (plus 2 px for the discs' size and the extrinsic's error).
+fn overlays_put_the_balls_on_their_images(p: &Path, out: &Path, r: &Value) {
+    let images = fs::read_dir(p.join("images")).expect("images/").count();
+    let dir = out.join("overlays");
+    let drawn: Vec<PathBuf> = fs::read_dir(&dir)
+        .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
+        .map(|e| e.unwrap().path())
+        .collect();
+    assert_eq!(drawn.len(), images, "one overlay per image");
+    let html = fs::read_to_string(out.join("report.html")).expect("report.html");
+    assert_eq!(
+        html.matches("<img src=\"data:image/png;base64,").count(),
+        images
+    );
+    let cam = r["cameras"]
+        .as_array()
+        .and_then(|c| {
+            c.iter()
+                .find(|c| c["id"] == r["conventions"]["main_camera"])
+        })
+        .expect("the main camera in results.cameras");
+    let o = &cam["opencv"];
+    let k = ["fx", "fy", "cx", "cy"].map(|n| num(&o[n], n));
+    let d: Vec<f64> = (0..5).map(|i| num(&o["dist"][i], "dist")).collect();
+    let stem = format!("{}_{}", station_of_main(p), cam["id"].as_str().unwrap());
+    let png = fs::read(dir.join(format!("{stem}.png"))).expect("the main image's overlay");
+    let mut dec = png::Decoder::new(std::io::Cursor::new(png))
+        .read_info()
+        .unwrap();
+    let mut px = vec![0; dec.output_buffer_size().unwrap()];
+    let info = dec.next_frame(&mut px).unwrap();
+    let (w, h) = (info.width as i64, info.height as i64);
+    assert_eq!(
+        [w, h],
+        [
+            o["image_width"].as_i64().unwrap(),
+            o["image_height"].as_i64().unwrap()
+        ]
+    );
+    let magenta = |x: i64, y: i64| {
+        let i = 3 * (y * w + x) as usize;
+        (0..w).contains(&x)
+            && (0..h).contains(&y)
+            && px[i..i + 3] == pingcal_report::overlay::BALL_RGB
+    };
+    let radius = 0.5 * project_number(p, "diameter_mm");
+    let mut checked = 0;
+    for b in r["balls"].as_array().unwrap() {
+        if b["lrf_mm"].is_null() {
+            continue;
+        }
+        let [x, y, z] = vec3(&b["photogrammetric_mm"], "photogrammetric_mm");
+        let (xn, yn) = (x / y, -z / y);
+        let r2 = xn * xn + yn * yn;
+        let rad = 1.0 + d[0] * r2 + d[1] * r2 * r2 + d[4] * r2 * r2 * r2;
+        let xd = xn * rad + 2.0 * d[2] * xn * yn + d[3] * (r2 + 2.0 * xn * xn);
+        let yd = yn * rad + d[2] * (r2 + 2.0 * yn * yn) + 2.0 * d[3] * xn * yn;
+        let (u, v) = (k[0] * xd + k[2], k[1] * yd + k[3]);
+        let rim = k[0] * radius / y + 2.0;
+        if u < rim || v < rim || u > (w as f64) - rim || v > (h as f64) - rim {
+            continue;
+        }
+        let n = (-(rim as i64)..=rim as i64)
+            .flat_map(|dy| (-(rim as i64)..=rim as i64).map(move |dx| (dx, dy)))
+            .filter(|&(dx, dy)| ((dx * dx + dy * dy) as f64) <= rim * rim)
+            .filter(|&(dx, dy)| magenta(u.round() as i64 + dx, v.round() as i64 + dy))
+            .count();
+        assert!(
+            n >= 5,
+            "ball {}: {n} LRF pixels within {rim:.1} px of its image ({u:.1}, {v:.1})",
+            b["id"]
+        );
+        checked += 1;
+    }
+    assert!(
+        checked >= 3,
+        "only {checked} balls with LRF centres in the main image"
+    );
+}
+
+/// The number of the first `key = number` line of project `p`'s project.toml.
+fn project_number(p: &Path, key: &str) -> f64 {
+    let text = fs::read_to_string(p.join("project.toml")).unwrap();
+    let line = text
+        .lines()
+        .find(|l| l.trim_start().starts_with(&format!("{key} =")))
+        .unwrap_or_else(|| panic!("no {key} in project.toml"));
+    let v = line.split('=').nth(1).unwrap().split('#').next().unwrap();
+    v.trim().parse().unwrap_or_else(|e| panic!("{line}: {e}"))
+}
+
+/// The main station of project `p` (its `main_station = "…"` line).
+fn station_of_main(p: &Path) -> String {
+    let text = fs::read_to_string(p.join("project.toml")).unwrap();
+    let line = text
+        .lines()
+        .find(|l| l.trim_start().starts_with("main_station"))
+        .expect("main_station in project.toml");
+    line.split('"')
+        .nth(1)
+        .expect("a quoted station")
+        .to_string()
 }
 
 #[test]

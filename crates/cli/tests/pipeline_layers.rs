@@ -10,7 +10,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 /// The modules of `pipeline/`, lowest first (`mod.rs`, the root that runs them, is apart).
-const ORDER: [&str; 18] = [
+const ORDER: [&str; 19] = [
     "ids",
     "progress",
     "scene",
@@ -27,6 +27,7 @@ const ORDER: [&str; 18] = [
     "conventions",
     "results",
     "report",
+    "overlays",
     "rectify",
     "exports",
 ];

@@ -4,21 +4,32 @@
 //! single HTML5 document with inline SVG plots: no JavaScript, no network access, no external
 //! fonts or style sheets, so the file can be mailed, archived or opened offline as it is.
 //!
-//! Sections, in order (each with an `id` anchor listed in the table of contents):
+//! Sections, in order (each with an `id` anchor listed in the table of contents; the
+//! verdict, when there is one, comes before them all):
 //!
-//! | id | what it shows |
-//! |---|---|
-//! | `summary` | title, generator, key → value summary lines |
-//! | `extrinsic` | per method: R, t (mm), ω φ κ (deg) with σ, or why the method failed |
-//! | `checks` | the paper's Figure 7: check-point error per ball and method, mean lines, tables |
-//! | `images` | image residual plots (magnified vectors, rejected points as red ×), RMS table |
-//! | `network` | cameras and points in plan (X–Y) and elevation (X–Z), σ ellipses magnified |
-//! | `cloud` | the LRF cloud in X–Y and X–Z with the fitted spheres at true scale |
-//! | `intrinsics` | per camera: parameters, σ, free/fixed, high correlations |
-//! | `lrf_mount` | the joint adjustment's LRF mount and range parameters: value, σ, why any was held, the largest correlation with the extrinsic |
-//! | `rejected` | what was rejected and why |
-//! | `warnings` | warnings of the pipeline |
-//! | `steps` | the pipeline log (collapsible) |
+//! | id | heading | what it shows |
+//! |---|---|---|
+//! | `summary` | Summary | key → value summary lines |
+//! | `extrinsic` | Extrinsic calibration | per method: R, t (mm), ω φ κ (deg) with σ, or why the method failed |
+//! | `extrinsic_precision` | Extrinsic precision | σ of t and of the rotation per method as bars, the correlations of (θ, t) |
+//! | `checks` | Check points | the paper's Figure 7: check-point error per ball and method, mean lines, tables |
+//! | `images` | Image residuals | per image, magnified residual vectors (rejected points as red ×), RMS table |
+//! | `histogram` | Residual histogram | the image residual components with the normal density of their RMS |
+//! | `coverage` | Image coverage | per image, where its accepted points fell and how many cells of a 5 × 5 grid they hit |
+//! | `network` | Network | cameras and points in plan (X–Y) and elevation (X–Z), σ ellipses magnified |
+//! | `exterior` | Exterior orientation | per image: projection centre, ω φ κ, their σ |
+//! | `points` | Point precision | σX σY σZ of every point, their RMS, and the relative precision |
+//! | `distances` | Distances | measured and adjusted distances, the residual and its ratio to the a-priori σ |
+//! | `rig` | Stereo rig | the rig's relative orientation with σ |
+//! | `cloud` | LRF cloud | the LRF cloud in X–Y and X–Z with the fitted spheres at true scale |
+//! | `overlays` | LRF on the images | the LRF's points drawn on the photographs ([`overlay`]) |
+//! | `intrinsics` | Intrinsics | per camera: parameters, σ, free/fixed, high correlations |
+//! | `distortion` | Distortion profile | the radial distortion profile Δr(r) of every camera, to its sensor corner |
+//! | `opencv` | OpenCV parameters | every camera in OpenCV's pinhole model with (k1, k2, p1, p2, k3) |
+//! | `mount` | LRF mount and range | the joint adjustment's LRF mount and range parameters: value, σ, why any was held, the largest correlation with the extrinsic |
+//! | `rejected` | Rejected | what was rejected and why |
+//! | `warnings` | Warnings | warnings of the pipeline |
+//! | `steps` | Pipeline steps | the pipeline log (collapsible) |
 //!
 //! Every user string is HTML-escaped ([`escape`]); non-finite numbers print as "—" and never
 //! reach an SVG coordinate; the output is deterministic (no timestamps, no hash-map order).
@@ -34,6 +45,8 @@ use serde::{Deserialize, Serialize};
 
 mod charts;
 mod fmt;
+pub mod overlay;
+mod overlay_section;
 mod plot;
 mod render;
 pub mod sample;
@@ -41,6 +54,7 @@ mod section;
 mod tables;
 
 pub use fmt::escape;
+pub use overlay::{base64, Overlay};
 
 /// Everything the report shows. Empty vectors render as "none" sections, never as errors.
 #[derive(Debug, Clone, Default, Serialize, Deserialize)]
@@ -83,6 +97,9 @@ pub struct ReportData {
     /// The stereo rig's relative orientation (None: no rig).
     #[serde(default)]
     pub rig: Option<RigOrientation>,
+    /// The LRF's points drawn on the images ([`overlay`]), the main station's first.
+    #[serde(default)]
+    pub overlays: Vec<Overlay>,
 }
 
 /// Exterior orientation of one image.

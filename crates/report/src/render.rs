@@ -123,6 +123,7 @@ pub(crate) fn document(d: &ReportData) -> String {
     tables::distances(&mut o, d);
     tables::rig(&mut o, d);
     cloud(&mut o, d);
+    crate::overlay_section::overlays(&mut o, d);
     intrinsics(&mut o, d);
     charts::distortion(&mut o, d);
     tables::opencv(&mut o, d);
@@ -139,6 +140,7 @@ fn toc(o: &mut String, d: &ReportData) {
     for (id, title) in SECTIONS {
         let count = match id {
             "images" => Some(d.images.len()),
+            "overlays" => Some(d.overlays.len()),
             "rejected" => Some(d.rejected.len()),
             "warnings" => Some(d.warnings.len()),
             "steps" => Some(d.steps.len()),

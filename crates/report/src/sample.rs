@@ -3,6 +3,7 @@
 //! LRF cloud ray-cast on the corner with its 16 spheres, and the two extrinsic methods with
 //! 5 check balls each. Deterministic (own small PRNG); nothing here is a real measurement.
 
+use crate::overlay::{render_png, GreyImage, Overlay, OverlayOptions, OverlayPoint, PointKind};
 use crate::{
     CameraStation, CheckRow, Cloud, ImagePoint, ImageResiduals, Intrinsics, MethodResult, MountRow,
     Network, NetworkPoint, Rejection, ReportData, Sphere,
@@ -569,6 +570,10 @@ pub fn sample_report(cloud_points: usize) -> ReportData {
     let spheres = fitted_spheres(&balls, &mut rng);
     let methods = methods(&mut rng);
     let rejected = rejections(&imgs);
+    let cams_for_overlay: Vec<CameraStation> = cams.iter().take(2).cloned().collect();
+    let balls_for_overlay: Vec<(String, V3)> =
+        balls.iter().map(|b| (b.label.clone(), b.xyz)).collect();
+    let cloud_for_overlay = cloud_pts.clone();
     let counts = Counts {
         images: imgs.len(),
         targets: pts.len() - balls.len(),
@@ -613,6 +618,7 @@ pub fn sample_report(cloud_points: usize) -> ReportData {
         ],
         exterior: ext,
         distances: distances(&mut rng),
+        overlays: sample_overlays(&cams_for_overlay, &balls_for_overlay, &cloud_for_overlay),
         rig: Some(crate::RigOrientation {
             left: "left".into(),
             right: "right".into(),
@@ -623,6 +629,76 @@ pub fn sample_report(cloud_points: usize) -> ReportData {
             sigma_rotation_deg: Some([0.011, 0.004, 0.009]),
         }),
     }
+}
+
+/// The main station's two images as an overlay would draw them: a synthetic photograph
+/// (a vertical gradient, each ball a dark disc) and the cloud projected with the sample's
+/// extrinsic, the points within 1.3 radii of a ball as that ball's.
+fn sample_overlays(
+    cams: &[CameraStation],
+    balls: &[(String, V3)],
+    cloud: &[[f32; 3]],
+) -> Vec<Overlay> {
+    let (cx, cy) = (W as f64 / 2.0, H as f64 / 2.0);
+    let r = lrf_rotation();
+    let project = |cam: &CameraStation, x: V3| {
+        let q = mat_vec(&cam.rotation, sub(x, cam.centre));
+        (q[1] > 300.0).then(|| (cx + F_PX * q[0] / q[1], cy - F_PX * q[2] / q[1], q[1]))
+    };
+    cams.iter()
+        .enumerate()
+        .map(|(k, cam)| {
+            let mut img = GreyImage {
+                width: W,
+                height: H,
+                pixels: (0..W * H).map(|i| (90 + (i / W) * 100 / H) as u8).collect(),
+            };
+            for (_, b) in balls {
+                if let Some((u, v, depth)) = project(cam, *b) {
+                    let rad = F_PX * BALL_R / depth;
+                    for (i, px) in img.pixels.iter_mut().enumerate() {
+                        let (x, y) = ((i as u32 % W) as f64, (i as u32 / W) as f64);
+                        if (x - u).hypot(y - v) <= rad {
+                            *px = 40;
+                        }
+                    }
+                }
+            }
+            let points: Vec<OverlayPoint> = cloud
+                .iter()
+                .filter_map(|p| {
+                    let lrf = [f64::from(p[0]), f64::from(p[1]), f64::from(p[2])];
+                    let world = add(mat_vec(&r, lrf), LRF_T);
+                    let (x, y, _) = project(cam, world)?;
+                    let ball = balls.iter().find(|(_, b)| {
+                        let d = sub(world, *b);
+                        dot(d, d).sqrt() < 1.3 * BALL_R
+                    });
+                    let kind = match ball {
+                        Some((label, _)) => PointKind::Ball {
+                            label: label.clone(),
+                        },
+                        None => PointKind::Range {
+                            range_mm: dot(lrf, lrf).sqrt(),
+                        },
+                    };
+                    Some(OverlayPoint { x, y, kind })
+                })
+                .collect();
+            let opts = OverlayOptions {
+                max_width: Some(if k == 0 { 960 } else { 400 }),
+                small_file: true,
+                ..OverlayOptions::default()
+            };
+            let drawn = render_png(&img, &points, &opts);
+            let what = if cam.main {
+                "main station, left camera"
+            } else {
+                "main station, right camera"
+            };
+            Overlay::of(&format!("{}.png", cam.name), what, k == 0, &drawn)
+        })
+        .collect()
 }
 
 /// The spheres fitted in the LRF cloud, one per ball (in the LRF frame, with noise), all

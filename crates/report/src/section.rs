@@ -7,7 +7,7 @@ use std::cmp::Ordering;
 use std::fmt::Write;
 
 /// Section ids and headings, in document order.
-pub(crate) const SECTIONS: [(&str, &str); 20] = [
+pub(crate) const SECTIONS: [(&str, &str); 21] = [
     ("summary", "Summary"),
     ("extrinsic", "Extrinsic calibration"),
     ("extrinsic_precision", "Extrinsic precision"),
@@ -21,6 +21,7 @@ pub(crate) const SECTIONS: [(&str, &str); 20] = [
     ("distances", "Distances"),
     ("rig", "Stereo rig"),
     ("cloud", "LRF cloud"),
+    ("overlays", "LRF on the images"),
     ("intrinsics", "Intrinsics"),
     ("distortion", "Distortion profile"),
     ("opencv", "OpenCV parameters"),

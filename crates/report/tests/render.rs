@@ -202,9 +202,17 @@ fn user_strings_are_escaped() {
             right: s(),
             ..Default::default()
         }),
+        overlays: vec![Overlay {
+            name: s(),
+            caption: s(),
+            png_base64: s(),
+            range_mm: [f64::NAN, f64::INFINITY],
+            ..Default::default()
+        }],
     };
     let html = render_html(&data);
     assert!(!html.contains("<script"), "raw markup leaked");
+    assert!(!html.contains("NaN") && !html.contains("inf–"));
     assert!(!html.contains(r#""x""#));
     assert!(html.contains("&lt;script&gt;alert(&quot;x&quot; &amp; &#39;y&#39;)&lt;/script&gt;"));
     assert!(
@@ -250,7 +258,11 @@ fn non_finite_numbers_print_as_dash_and_keep_svg_valid() {
     assert!(html.contains("—"));
     let doc = parse(&html);
     for n in doc.descendants().filter(|n| n.is_element()) {
-        for a in n.attributes() {
+        // (a PNG's base64 may spell "nan" or "inf" by chance)
+        for a in n
+            .attributes()
+            .filter(|a| !a.value().starts_with("data:image/png;base64,"))
+        {
             let v = a.value().to_ascii_lowercase();
             assert!(
                 !v.contains("nan") && !v.contains("inf"),
@@ -327,6 +339,7 @@ fn empty_data_renders_every_section() {
         "no image residuals",
         "no network",
         "no LRF cloud",
+        "no LRF points drawn on the images",
         "no intrinsics",
         "nothing rejected",
         "no warnings",
@@ -388,4 +401,252 @@ fn size_bound_22_images_of_120_points_and_30k_cloud() {
     );
     assert!(html.len() < 3_000_000, "{} bytes", html.len());
     parse(&html);
+}
+
+// ---- Overlays: the LRF's points drawn on the images -----------------------------------
+
+use pingcal_report::overlay::{
+    render_png, GreyImage, OverlayOptions, OverlayPoint, PointKind, BALL_RGB,
+};
+
+/// Decodes an RGB PNG: (width, height, pixels).
+fn decode_rgb(png_bytes: &[u8]) -> (u32, u32, Vec<u8>) {
+    let mut dec = png::Decoder::new(std::io::Cursor::new(png_bytes))
+        .read_info()
+        .expect("a PNG");
+    let mut buf = vec![0; dec.output_buffer_size().expect("its size")];
+    let info = dec.next_frame(&mut buf).expect("its pixels");
+    assert_eq!(info.color_type, png::ColorType::Rgb);
+    buf.truncate(info.buffer_size());
+    (info.width, info.height, buf)
+}
+
+fn rgb_at(px: &[u8], w: u32, x: u32, y: u32) -> [u8; 3] {
+    let k = 3 * (y * w + x) as usize;
+    [px[k], px[k + 1], px[k + 2]]
+}
+
+/// A flat grey image of `w × h` at value `g`.
+fn flat(w: u32, h: u32, g: u8) -> GreyImage {
+    GreyImage {
+        width: w,
+        height: h,
+        pixels: vec![g; (w * h) as usize],
+    }
+}
+
+fn ball(x: f64, y: f64) -> OverlayPoint {
+    OverlayPoint {
+        x,
+        y,
+        kind: PointKind::Ball { label: "B7".into() },
+    }
+}
+
+#[test]
+fn a_ball_point_is_drawn_where_it_is_and_nothing_else_changes() {
+    let img = flat(200, 100, 100);
+    let opts = OverlayOptions {
+        radius_px: Some(2.0),
+        labels: false,
+        ..OverlayOptions::default()
+    };
+    let r = render_png(&img, &[ball(50.0, 30.0)], &opts);
+    let (w, h, px) = decode_rgb(&r.png);
+    assert_eq!((w, h, r.width, r.height), (200, 100, 200, 100));
+    assert_eq!((r.ball_points, r.range_points, r.outside), (1, 0, 0));
+    // the disc of radius 2 px: its centre and a pixel 2 px off are the ball's colour
+    assert_eq!(rgb_at(&px, w, 50, 30), BALL_RGB);
+    assert_eq!(rgb_at(&px, w, 52, 30), BALL_RGB);
+    // the background: 40 + 0.6 · 100 = 100 everywhere else (no colour bar without ranges)
+    let dimmed = [100, 100, 100];
+    assert_eq!(rgb_at(&px, w, 53, 30), dimmed);
+    let coloured = (0..w * h)
+        .filter(|&i| rgb_at(&px, w, i % w, i / w) != dimmed)
+        .count();
+    assert_eq!(coloured, 13, "the disc of radius 2 has 13 pixel centres");
+}
+
+#[test]
+fn points_outside_the_image_are_counted_not_drawn() {
+    let img = flat(64, 48, 0);
+    let pts = [
+        ball(-0.6, 10.0),
+        ball(10.0, 47.6),
+        ball(f64::NAN, 3.0),
+        ball(63.5, 47.5),
+        OverlayPoint {
+            x: 1e300,
+            y: -1e300,
+            kind: PointKind::Range { range_mm: 5.0 },
+        },
+    ];
+    let r = render_png(&img, &pts, &OverlayOptions::default());
+    assert_eq!((r.ball_points, r.range_points, r.outside), (1, 0, 4));
+    let (w, _, px) = decode_rgb(&r.png);
+    assert_eq!(
+        rgb_at(&px, w, 63, 47),
+        BALL_RGB,
+        "the corner pixel's edge is inside"
+    );
+}
+
+#[test]
+fn downscaling_keeps_the_aspect_and_the_point_positions() {
+    let img = flat(1000, 600, 200);
+    let opts = OverlayOptions {
+        max_width: Some(250),
+        radius_px: Some(1.0),
+        labels: false,
+        ..OverlayOptions::default()
+    };
+    // source pixel 401.5 → output (401.5 + 0.5) / 4 − 0.5 = 100
+    let r = render_png(&img, &[ball(401.5, 201.5)], &opts);
+    let (w, h, px) = decode_rgb(&r.png);
+    assert_eq!((w, h), (250, 150));
+    assert_eq!(rgb_at(&px, w, 100, 50), BALL_RGB);
+    assert_eq!(rgb_at(&px, w, 102, 50), [160, 160, 160]);
+    // never enlarged
+    let small = render_png(&flat(100, 50, 0), &[], &opts);
+    assert_eq!((small.width, small.height), (100, 50));
+}
+
+#[test]
+fn range_points_follow_the_colour_map_and_near_ones_are_on_top() {
+    let img = flat(300, 200, 0);
+    let range = |x: f64, r: f64| OverlayPoint {
+        x,
+        y: 20.0,
+        kind: PointKind::Range { range_mm: r },
+    };
+    let opts = OverlayOptions {
+        radius_px: Some(3.0),
+        range_mm: Some((1000.0, 3000.0)),
+        labels: false,
+        ..OverlayOptions::default()
+    };
+    // a far point and a near one at the same pixel, the near one listed first
+    let r = render_png(
+        &img,
+        &[
+            range(100.0, 1000.0),
+            range(100.0, 3000.0),
+            range(200.0, 2000.0),
+        ],
+        &opts,
+    );
+    let (w, _, px) = decode_rgb(&r.png);
+    assert_eq!(r.range_mm, (1000.0, 3000.0));
+    assert_eq!(
+        rgb_at(&px, w, 100, 20),
+        pingcal_report::overlay::range_colour(0.0)
+    );
+    assert_eq!(
+        rgb_at(&px, w, 200, 20),
+        pingcal_report::overlay::range_colour(0.5)
+    );
+    // the colour bar runs from turbo(0) to turbo(1) in the bottom-right corner
+    let bar_row: Vec<[u8; 3]> = (0..w).map(|x| rgb_at(&px, w, x, 200 - 13 - 3)).collect();
+    assert!(bar_row.contains(&pingcal_report::overlay::range_colour(0.0)));
+    assert!(bar_row.contains(&pingcal_report::overlay::range_colour(1.0)));
+}
+
+#[test]
+fn the_same_input_gives_the_same_bytes_and_a_wrong_buffer_no_panic() {
+    let img = flat(120, 80, 90);
+    let pts = [ball(10.0, 10.0), ball(12.0, 11.0)];
+    let a = render_png(&img, &pts, &OverlayOptions::default());
+    let b = render_png(&img, &pts, &OverlayOptions::default());
+    assert_eq!(a.png, b.png);
+    let broken = GreyImage {
+        width: 10,
+        height: 10,
+        pixels: vec![1, 2, 3],
+    };
+    let r = render_png(&broken, &pts, &OverlayOptions::default());
+    assert_eq!(decode_rgb(&r.png).0, 10);
+}
+
+/// Standard base64 back to bytes (padding allowed).
+fn unbase64(s: &str) -> Vec<u8> {
+    let val = |c: u8| match c {
+        b'A'..=b'Z' => c - b'A',
+        b'a'..=b'z' => c - b'a' + 26,
+        b'0'..=b'9' => c - b'0' + 52,
+        b'+' => 62,
+        b'/' => 63,
+        _ => panic!("not base64: {c}"),
+    };
+    let mut out = Vec::new();
+    for chunk in s.as_bytes().chunks(4) {
+        let digits: Vec<u8> = chunk
+            .iter()
+            .filter(|&&c| c != b'=')
+            .map(|&c| val(c))
+            .collect();
+        let n =
+            digits.iter().fold(0u32, |n, &d| (n << 6) | u32::from(d)) << (6 * (4 - digits.len()));
+        out.extend_from_slice(&n.to_be_bytes()[1..digits.len()]);
+    }
+    out
+}
+
+#[test]
+fn the_sample_report_shows_its_overlays_as_pngs_that_decode() {
+    let data = sample_report(5_000);
+    assert_eq!(data.overlays.len(), 2);
+    assert!(data.overlays[0].main && !data.overlays[1].main);
+    assert!(data
+        .overlays
+        .iter()
+        .all(|v| v.ball_points > 0 && v.range_points > 0));
+    let html = render_html(&data);
+    let doc = parse(&html);
+    let imgs: Vec<_> = doc
+        .descendants()
+        .filter(|n| n.tag_name().name() == "img")
+        .collect();
+    assert_eq!(imgs.len(), 2);
+    for (img, v) in imgs.iter().zip(&data.overlays) {
+        let src = img.attribute("src").expect("src");
+        let b64 = src
+            .strip_prefix("data:image/png;base64,")
+            .expect("a data URI");
+        let (w, h, _) = decode_rgb(&unbase64(b64));
+        assert_eq!((w, h), (v.width, v.height));
+        assert_eq!(img.attribute("width"), Some(w.to_string().as_str()));
+    }
+    assert_eq!(
+        (data.overlays[0].width, data.overlays[0].height),
+        (960, 540)
+    );
+}
+
+#[test]
+fn a_dense_cloud_is_thinned_evenly_and_ball_points_never() {
+    let img = flat(120, 60, 50);
+    let mut pts: Vec<OverlayPoint> = (0..10_000)
+        .map(|k| OverlayPoint {
+            x: (k % 120) as f64,
+            y: (k / 120 % 60) as f64,
+            kind: PointKind::Range {
+                range_mm: 1000.0 + k as f64,
+            },
+        })
+        .collect();
+    pts.extend((0..500).map(|k| ball((k % 100) as f64, 30.0)));
+    let r = render_png(&img, &pts, &OverlayOptions::default());
+    // 120 · 60 / 60 = 120 range points at most; every ball point
+    assert_eq!(r.ball_points, 500);
+    assert!(
+        r.range_points <= 120 && r.range_points >= 100,
+        "{}",
+        r.range_points
+    );
+    assert_eq!(r.range_points + r.range_points_skipped, 10_000);
+    let given = OverlayOptions {
+        max_range_points: Some(20_000),
+        ..OverlayOptions::default()
+    };
+    assert_eq!(render_png(&img, &pts, &given).range_points, 10_000);
 }

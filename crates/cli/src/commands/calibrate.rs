@@ -219,6 +219,9 @@ pub fn write_outputs(dir: &Path, outcome: &Outcome) -> CmdResult {
         .iter()
         .map(|(rel, text)| (dir.join(rel), text.as_bytes()))
         .collect();
+    for (rel, bytes) in &outcome.overlays {
+        files.push((dir.join(rel), bytes.as_slice()));
+    }
     files.push((dir.join("cloud.ply"), &outcome.cloud_ply));
     files.push((dir.join("report.html"), html.as_bytes()));
     files.push((dir.join("results.json"), json.as_bytes()));

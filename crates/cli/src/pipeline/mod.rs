@@ -37,6 +37,7 @@ pub mod joint;
 pub mod lrf;
 pub mod matching;
 pub mod network;
+pub mod overlays;
 pub mod progress;
 pub mod rectify;
 pub mod report;
@@ -101,6 +102,9 @@ pub struct Outcome {
     /// ([`verdict::expected_check_error_mm`]; not in `results.json`): what `pingcal plan`
     /// averages.
     pub expected_check_error_mm: Option<f64>,
+    /// The LRF drawn on the images ([`overlays`]): `overlays/<image>.png` below the output
+    /// folder, and its bytes.
+    pub overlays: Vec<(String, Vec<u8>)>,
 }
 
 /// Runs the whole calibration of `project`.
@@ -176,8 +180,13 @@ pub fn calibrate(project: &Project, opts: &Options, rep: &Reporter) -> Result<Ou
             format!(" ({})", verdict.reasons.join("; "))
         }
     ));
+    let t = std::time::Instant::now();
+    let drawn = overlays::draw(&stages, rep);
+    let secs = t.elapsed().as_secs_f64();
+    rep.log(format!("time: overlays {secs:.2} s"));
+    timing.push(("overlays".into(), secs));
     let results = results::assemble(&stages, verdict, timing);
-    let report = report::build(&stages, &results, rep);
+    let report = report::build(&stages, &results, drawn.report, rep);
     let cloud_ply = results::cloud_ply(lrf_out, 0.5 * project.file.balls.diameter_mm);
     let exports = exports::exports(&results);
     Ok(Outcome {
@@ -186,6 +195,7 @@ pub fn calibrate(project: &Project, opts: &Options, rep: &Reporter) -> Result<Ou
         cloud_ply,
         exports,
         expected_check_error_mm,
+        overlays: drawn.files,
     })
 }
 

@@ -29,10 +29,17 @@ fn check_rows(rows: &[pingcal_lrf::registration::CheckRow], role: &str) -> Vec<r
         .collect()
 }
 
-/// Builds the report data.
-pub fn build(st: &Stages, results: &Results, rep: &Reporter) -> rp::ReportData {
+/// Builds the report data, with the LRF drawn on the images (`overlays`, made by the
+/// pipeline's `overlays` step).
+pub fn build(
+    st: &Stages,
+    results: &Results,
+    overlays: Vec<rp::Overlay>,
+    rep: &Reporter,
+) -> rp::ReportData {
     let f = &st.project.file;
     rp::ReportData {
+        overlays,
         title: format!("pingcal calibration — {}", f.name),
         generator: results.generator.clone(),
         verdict: Some(rp::Verdict {

@@ -1,7 +1,7 @@
 //! What the report tests share: the sections every report has, in document order.
 
 /// The section ids, in document order.
-pub const IDS: [&str; 20] = [
+pub const IDS: [&str; 21] = [
     "summary",
     "extrinsic",
     "extrinsic_precision",
@@ -15,6 +15,7 @@ pub const IDS: [&str; 20] = [
     "distances",
     "rig",
     "cloud",
+    "overlays",
     "intrinsics",
     "distortion",
     "opencv",
