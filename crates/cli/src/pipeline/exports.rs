@@ -483,7 +483,15 @@ impl LrfChainNames {
 }
 
 /// One `<joint>` of a URDF (`extra`: its axis, mimic, … lines).
-fn urdf_joint(name: &str, kind: &str, parent: &str, child: &str, xyz: &str, rpy: &str, extra: &str) -> String {
+fn urdf_joint(
+    name: &str,
+    kind: &str,
+    parent: &str,
+    child: &str,
+    xyz: &str,
+    rpy: &str,
+    extra: &str,
+) -> String {
     format!(
         "  <joint name=\"{name}\" type=\"{kind}\">\n    <parent link=\"{parent}\"/>\n    <child link=\"{child}\"/>\n    <origin xyz=\"{xyz}\" rpy=\"{rpy}\"/>\n{extra}  </joint>\n"
     )
@@ -526,7 +534,13 @@ fn mimic_offset(m: &MountModel) -> f64 {
 /// joint: xyz = offset in m, rpy of `R_x(tilt_x) R_z(tilt_z)`) to the 2D scanner's frame.
 /// Composed, `lrf_from_scanner(q) · (r cos α, r sin α, 0) = R_β (R_x R_z (r cos α, r sin α,
 /// 0) + offset)`: the model of `m` but for the range correction, which the comment states.
-pub fn lrf_model_urdf(e: &ExtrinsicJson, m: &MountModel, source: &str, parent: &str, child: &str) -> String {
+pub fn lrf_model_urdf(
+    e: &ExtrinsicJson,
+    m: &MountModel,
+    source: &str,
+    parent: &str,
+    child: &str,
+) -> String {
     let tf = Tf::of(e, parent, child);
     let n = LrfChainNames::of(child);
     let axis = format!("    <axis xyz=\"{}\"/>\n", SERVO_AXIS.map(num).join(" "));
@@ -547,8 +561,24 @@ pub fn lrf_model_urdf(e: &ExtrinsicJson, m: &MountModel, source: &str, parent: &
             &tf.rpy.map(num).join(" "),
             "",
         ),
-        urdf_joint(&n.servo_joint, "continuous", child, &n.raw_link, zero, zero, &axis),
-        urdf_joint(&n.correction_joint, "continuous", &n.raw_link, &n.turning_link, zero, zero, &mimic),
+        urdf_joint(
+            &n.servo_joint,
+            "continuous",
+            child,
+            &n.raw_link,
+            zero,
+            zero,
+            &axis,
+        ),
+        urdf_joint(
+            &n.correction_joint,
+            "continuous",
+            &n.raw_link,
+            &n.turning_link,
+            zero,
+            zero,
+            &mimic,
+        ),
         urdf_joint(
             &n.mount_joint,
             "fixed",
@@ -581,16 +611,31 @@ fn lrf_model_ros2_launch(what: &str) -> String {
 }
 
 /// The LRF model's files of `ros/`: the URDF ([`lrf_model_urdf`]) and its launch files.
-pub fn lrf_model_files(e: &ExtrinsicJson, m: &MountModel, source: &str, parent: &str, child: &str) -> Vec<OutputFile> {
+pub fn lrf_model_files(
+    e: &ExtrinsicJson,
+    m: &MountModel,
+    source: &str,
+    parent: &str,
+    child: &str,
+) -> Vec<OutputFile> {
     let what = format!(
         "the LRF's whole model (lrf_model.urdf beside this file, see its comment) through robot_state_publisher: '{parent}' -> '{child}' -> '{}';\n# the servo's sensor_msgs/JointState on /joint_states drives its joint '{}' (written by pingcal calibrate)",
         LrfChainNames::of(child).scanner_link,
         LrfChainNames::of(child).servo_joint
     );
     vec![
-        ("ros/lrf_model.urdf".into(), lrf_model_urdf(e, m, source, parent, child)),
-        ("ros/lrf_model_ros1.launch".into(), lrf_model_ros1_launch(&what.replace("\n#", "\n    "))),
-        ("ros/lrf_model_ros2.launch.py".into(), lrf_model_ros2_launch(&what)),
+        (
+            "ros/lrf_model.urdf".into(),
+            lrf_model_urdf(e, m, source, parent, child),
+        ),
+        (
+            "ros/lrf_model_ros1.launch".into(),
+            lrf_model_ros1_launch(&what.replace("\n#", "\n    ")),
+        ),
+        (
+            "ros/lrf_model_ros2.launch.py".into(),
+            lrf_model_ros2_launch(&what),
+        ),
     ]
 }
 
@@ -775,7 +820,13 @@ pub fn ros_camera_info(c: &CameraJson, rect: &RosRectification, loss: &ExportLos
 }
 
 /// One camera of the camchain (its lines after `camN:`), with the radtan refit of `loss`.
-fn kalibr_camera(out: &mut String, n: usize, c: &CameraJson, loss: &ExportLoss, overlaps: &[usize]) {
+fn kalibr_camera(
+    out: &mut String,
+    n: usize,
+    c: &CameraJson,
+    loss: &ExportLoss,
+    overlaps: &[usize],
+) {
     let o = &c.opencv;
     let k = &loss.kalibr;
     let (nu, nv) = loss.grid;
@@ -845,7 +896,13 @@ pub fn exports(r: &Results) -> Vec<OutputFile> {
     let conv = &r.conventions;
     let (cam, lrf) = (&conv.tf_camera_frame, &conv.tf_lrf_frame);
     let mut out = ros_files(&r.extrinsic, cam, lrf);
-    out.extend(lrf_model_files(&r.extrinsic, &r.lrf_model.model, &r.lrf_model.source, cam, lrf));
+    out.extend(lrf_model_files(
+        &r.extrinsic,
+        &r.lrf_model.model,
+        &r.lrf_model.source,
+        cam,
+        lrf,
+    ));
     let losses: Vec<ExportLoss> = r.cameras.iter().map(export_loss).collect();
     let order = chain(r);
     let stereo = match (&r.bundle.rig, order.as_slice()) {
@@ -854,20 +911,27 @@ pub fn exports(r: &Results) -> Vec<OutputFile> {
     };
     for (i, (c, loss)) in r.cameras.iter().zip(&losses).enumerate() {
         let stem = file_stem(&c.id);
-        out.push((format!("opencv/camera_{stem}.yaml"), opencv_camera_yaml(c, loss)));
+        out.push((
+            format!("opencv/camera_{stem}.yaml"),
+            opencv_camera_yaml(c, loss),
+        ));
         let rect = match &stereo {
             Some((a, _, s)) if *a == i => RosRectification::stereo(s, 1),
             Some((_, b, s)) if *b == i => RosRectification::stereo(s, 2),
             _ => RosRectification::mono(c),
         };
-        out.push((format!("ros/camera_info_{stem}.yaml"), ros_camera_info(c, &rect, loss)));
+        out.push((
+            format!("ros/camera_info_{stem}.yaml"),
+            ros_camera_info(c, &rect, loss),
+        ));
     }
     if let (Some(rig), &[a, b]) = (&r.bundle.rig, order.as_slice()) {
         if let Some(y) = opencv_stereo_yaml(&r.cameras[a], &r.cameras[b], rig) {
             out.push(("opencv/stereo.yaml".into(), y));
         }
     }
-    let cams: Vec<(&CameraJson, &ExportLoss)> = order.iter().map(|&i| (&r.cameras[i], &losses[i])).collect();
+    let cams: Vec<(&CameraJson, &ExportLoss)> =
+        order.iter().map(|&i| (&r.cameras[i], &losses[i])).collect();
     out.push((
         "kalibr/camchain.yaml".into(),
         kalibr_camchain(&cams, r.bundle.rig.as_ref()),
@@ -988,9 +1052,16 @@ mod tests {
     }
 
     fn camera_json(id: &str, c_mm: f64) -> CameraJson {
-        let p = [
-            c_mm, 0.012, -0.009, -0.021, 0.0004, -2e-6, 0.00015, -0.0001, 0.0, 0.0,
-        ];
+        camera_with(
+            id,
+            [
+                c_mm, 0.012, -0.009, -0.021, 0.0004, -2e-6, 0.00015, -0.0001, 0.0, 0.0,
+            ],
+        )
+    }
+
+    /// A 1280 × 720 camera of 3.75 µm pixels with pingcal's parameters `p`.
+    fn camera_with(id: &str, p: [f64; 10]) -> CameraJson {
         CameraJson {
             id: id.into(),
             params: CameraParams::from_slice(&p),
@@ -1016,7 +1087,7 @@ mod tests {
     #[test]
     fn opencv_camera_yaml_has_opencvs_layout() {
         let c = camera_json("left", 2.45);
-        let y = opencv_camera_yaml(&c);
+        let y = opencv_camera_yaml(&c, &export_loss(&c));
         assert!(y.starts_with("%YAML:1.0\n---\n"));
         let o = &c.opencv;
         assert_eq!(
@@ -1035,7 +1106,8 @@ mod tests {
         let t = Vector3::new(-120.0, -0.12, 0.83);
         let rig = rig_json(&Rigid3::new(r, t), "left", "right");
         let (a, b) = (camera_json("left", 2.45), camera_json("right", 2.452));
-        let chain = kalibr_camchain(&[&a, &b], Some(&rig));
+        let (la, lb) = (export_loss(&a), export_loss(&b));
+        let chain = kalibr_camchain(&[(&a, &la), (&b, &lb)], Some(&rig));
         let rows: Vec<Vec<f64>> = chain
             .lines()
             .filter(|l| l.starts_with("  - ["))
@@ -1052,5 +1124,324 @@ mod tests {
         let tc = Vector3::from_row_slice(&cv_data(&y, "T"));
         assert!((rc * c * p_left + tc - c * (r * p_left + t)).norm() < 1e-12);
         assert!(chain.contains("cam0:\n") && chain.contains("distortion_model: radtan"));
+    }
+
+    /// The numbers after `key: [` on the line of `key` (YAML flow sequence).
+    fn flow(text: &str, key: &str) -> Vec<f64> {
+        let s = &text[text.find(&format!("{key}: [")).unwrap() + key.len() + 3..];
+        floats(&s[..s.find(']').unwrap()].split(", ").collect::<Vec<_>>())
+    }
+
+    /// camera_info's `data` of matrix `name` (camera_calibration_parsers' layout).
+    fn ros_data(yaml: &str, name: &str, rows: usize, cols: usize) -> Vec<f64> {
+        let s = &yaml[yaml.find(&format!("\n{name}:\n")).unwrap()..];
+        assert!(
+            s.contains(&format!(":\n  rows: {rows}\n  cols: {cols}\n  data: [")),
+            "{name}"
+        );
+        flow(s, "  data")
+    }
+
+    /// With neither K3 nor B1, B2, OpenCV's model is pingcal's and the radtan fit finds
+    /// OpenCV's k1 k2 p1 p2 again (the loss is the rays' Newton precision).
+    #[test]
+    fn the_loss_is_nil_when_nothing_is_dropped() {
+        let c = camera_with(
+            "a",
+            [
+                2.45, 0.012, -0.009, -0.021, 0.0004, 0.0, 0.00015, -0.0001, 0.0, 0.0,
+            ],
+        );
+        let l = export_loss(&c);
+        assert_eq!(l.grid, (161, 91));
+        assert_eq!(l.missed, 0);
+        assert!(l.opencv.max_px < 1e-6, "{:?}", l.opencv);
+        assert!(l.kalibr.loss.max_px < 1e-6, "{:?}", l.kalibr);
+        assert!(!l.kalibr.intrinsics_refit);
+        for (got, want) in l.kalibr.coeffs.iter().zip(&c.opencv.dist) {
+            assert!(
+                (got - want).abs() < 1e-9 * (1.0 + want.abs()),
+                "{got} {want}"
+            );
+        }
+    }
+
+    /// With K3, B1 and B2 the losses are real: the refit is a least-squares minimum (any
+    /// coefficient moved raises the RMS), beats dropping K3, and the file states the loss
+    /// of the numbers it writes.
+    #[test]
+    fn the_radtan_refit_is_the_least_squares_one_and_states_its_loss() {
+        let c = camera_with(
+            "wide",
+            [
+                2.45, 0.012, -0.009, -0.021, 0.0004, -2e-5, 0.00015, -0.0001, 2e-4, -1e-4,
+            ],
+        );
+        let l = export_loss(&c);
+        let g = grid_rays(&c);
+        let o = &c.opencv;
+        let k = l.kalibr.intrinsics;
+        let d = |cf: [f64; 4]| [cf[0], cf[1], cf[2], cf[3], 0.0];
+        let dropped = Loss::of(
+            &g,
+            &[o.fx, o.fy, o.cx, o.cy],
+            &d([o.dist[0], o.dist[1], o.dist[2], o.dist[3]]),
+        );
+        assert!(
+            l.kalibr.loss.max_px < dropped.max_px,
+            "{:?} vs {dropped:?}",
+            l.kalibr.loss
+        );
+        assert!(l.opencv.max_px > 0.05 && l.kalibr.loss.max_px > NOTED_LOSS_PX);
+        assert_eq!(Loss::of(&g, &k, &d(l.kalibr.coeffs)), l.kalibr.loss);
+        for j in 0..4 {
+            for h in [-1.0, 1.0] {
+                let mut cf = l.kalibr.coeffs;
+                cf[j] += h * 1e-4 * (cf[j].abs() + 1e-6);
+                assert!(
+                    Loss::of(&g, &k, &d(cf)).rms_px > l.kalibr.loss.rms_px,
+                    "{j} {h}"
+                );
+            }
+        }
+        let chain = kalibr_camchain(&[(&c, &l)], None);
+        assert_eq!(flow(&chain, "distortion_coeffs"), l.kalibr.coeffs);
+        assert_eq!(flow(&chain, "intrinsics"), k);
+        let words = format!(
+            "largest {:.4} px, RMS {:.4} px (more than",
+            l.kalibr.loss.max_px, l.kalibr.loss.rms_px
+        );
+        assert!(chain.contains(&words), "{chain}");
+        let yaml = opencv_camera_yaml(&c, &l);
+        assert!(
+            yaml.contains(&format!("largest {:.4} px", l.opencv.max_px)),
+            "{yaml}"
+        );
+    }
+
+    /// camera_info reads back with K, D as the OpenCV YAML and R, P of a camera alone; for
+    /// a stereo pair R2, P2 of the rectification with P2's Tx = −fx'·B in metres.
+    #[test]
+    fn camera_info_has_the_parsers_layout_and_the_rectification() {
+        let c = camera_json("left", 2.45);
+        let l = export_loss(&c);
+        let y = ros_camera_info(&c, &RosRectification::mono(&c), &l);
+        let o = &c.opencv;
+        let k = [o.fx, 0.0, o.cx, 0.0, o.fy, o.cy, 0.0, 0.0, 1.0];
+        assert!(y.contains("\nimage_width: 1280\nimage_height: 720\ncamera_name: \"left\"\n"));
+        assert!(y.contains("\ndistortion_model: plumb_bob\n"));
+        assert_eq!(ros_data(&y, "camera_matrix", 3, 3), k);
+        assert_eq!(ros_data(&y, "distortion_coefficients", 1, 5), o.dist);
+        assert_eq!(
+            ros_data(&y, "rectification_matrix", 3, 3),
+            flat(&Matrix3::<f64>::identity())
+        );
+        let p = ros_data(&y, "projection_matrix", 3, 4);
+        assert_eq!(
+            p,
+            [k[0], 0.0, k[2], 0.0, 0.0, k[4], k[5], 0.0, 0.0, 0.0, 1.0, 0.0]
+        );
+        let rig = rig_json(
+            &Rigid3::new(
+                from_opk_deg([0.3, -0.25, 0.1]),
+                Vector3::new(-120.0, -0.12, 0.83),
+            ),
+            "left",
+            "right",
+        );
+        let b = camera_json("right", 2.452);
+        let s = stereo_of(&c, &b, &rig).unwrap();
+        let y2 = ros_camera_info(&b, &RosRectification::stereo(&s, 2), &export_loss(&b));
+        assert_eq!(ros_data(&y2, "rectification_matrix", 3, 3), flat(&s.r2));
+        let p2 = ros_data(&y2, "projection_matrix", 3, 4);
+        let baseline_m = Vector3::from(rig.opencv.translation_mm).norm() / 1000.0;
+        assert!(
+            (p2[3] / p2[0] + baseline_m).abs() < 1e-12,
+            "{} vs {baseline_m}",
+            p2[3] / p2[0]
+        );
+        assert_eq!(p2[..3], flat(&s.p2)[..3]);
+    }
+
+    /// A `<joint>` of a URDF: type, parent, child, origin (xyz, rpy), axis and mimic
+    /// (joint, multiplier, offset).
+    struct Joint {
+        kind: String,
+        parent: String,
+        child: String,
+        xyz: Vector3<f64>,
+        rpy: [f64; 3],
+        axis: Option<Vector3<f64>>,
+        mimic: Option<(String, f64, f64)>,
+    }
+
+    fn attr(tag: &str, key: &str) -> String {
+        let s = &tag[tag.find(&format!(" {key}=\"")).unwrap() + key.len() + 3..];
+        s[..s.find('"').unwrap()].to_string()
+    }
+
+    fn v3(s: &str) -> Vector3<f64> {
+        Vector3::from_vec(floats(&s.split(' ').collect::<Vec<_>>()))
+    }
+
+    fn joints(urdf: &str) -> Vec<Joint> {
+        let tag = |j: &str, t: &str| {
+            j.find(&format!("<{t} "))
+                .map(|i| j[i..].split('>').next().unwrap().to_string())
+        };
+        urdf.split("<joint ")
+            .skip(1)
+            .map(|j| {
+                let j = &format!(" {}", &j[..j.find("</joint>").unwrap()]);
+                let origin = tag(j, "origin").unwrap();
+                Joint {
+                    kind: attr(j, "type"),
+                    parent: attr(&tag(j, "parent").unwrap(), "link"),
+                    child: attr(&tag(j, "child").unwrap(), "link"),
+                    xyz: v3(&attr(&origin, "xyz")),
+                    rpy: v3(&attr(&origin, "rpy")).into(),
+                    axis: tag(j, "axis").map(|a| v3(&attr(&a, "xyz"))),
+                    mimic: tag(j, "mimic").map(|m| {
+                        (
+                            attr(&m, "joint"),
+                            attr(&m, "multiplier").parse().unwrap(),
+                            attr(&m, "offset").parse().unwrap(),
+                        )
+                    }),
+                }
+            })
+            .collect()
+    }
+
+    /// A mount far from zero (every term of the model matters).
+    fn mount() -> MountModel {
+        MountModel {
+            offset_mm: [12.5, -3.25, 40.0],
+            tilt_x_deg: 1.7,
+            tilt_z_deg: -2.3,
+            servo_zero_deg: 4.5,
+            servo_scale: 0.012,
+            range_offset_mm: 6.5,
+            range_scale: -0.004,
+        }
+    }
+
+    /// `parent_from_child` of the chain from `from` down to `to`, the joint `name` at
+    /// position `q` (its mimics follow it), URDF's `origin · Rot(axis, position)`; mm.
+    fn compose(
+        js: &[Joint],
+        names: &LrfChainNames,
+        from: &str,
+        to: &str,
+        q: f64,
+    ) -> (Matrix3<f64>, Vector3<f64>) {
+        let (mut r, mut t) = (Matrix3::identity(), Vector3::zeros());
+        let mut link = from.to_string();
+        while link != to {
+            let j = js.iter().find(|j| j.parent == link).unwrap();
+            let [a, b, c] = j.rpy;
+            let o = Rotation3::from_euler_angles(a, b, c).into_inner();
+            let pos = match (&j.mimic, j.kind.as_str()) {
+                (Some((m, mul, off)), _) => {
+                    assert_eq!(m, &names.servo_joint);
+                    mul * q + off
+                }
+                (None, "continuous") => q,
+                (None, kind) => {
+                    assert_eq!(kind, "fixed");
+                    0.0
+                }
+            };
+            let turn = j.axis.map_or(Matrix3::identity(), |ax| {
+                Rotation3::from_axis_angle(&nalgebra::Unit::new_normalize(ax), pos).into_inner()
+            });
+            t += r * (j.xyz * 1000.0);
+            r = r * o * turn;
+            link = j.child.clone();
+        }
+        (r, t)
+    }
+
+    /// The URDF's chain from the LRF frame down to the scanner, composed at the raw servo
+    /// reading (rad), maps each beam (at the corrected range the comment states) where
+    /// `MountModel::beam` does, to 1e-9 mm; the camera frame is the extrinsic's parent.
+    #[test]
+    fn lrf_model_urdf_composes_to_the_mount_model() {
+        let (_, _, e) = extrinsic();
+        let m = mount();
+        let urdf = lrf_model_urdf(&e, &m, "joint adjustment", "cam", "laser");
+        let js = joints(&urdf);
+        let n = LrfChainNames::of("laser");
+        assert_eq!(js.len(), 4);
+        assert_eq!(
+            (js[0].parent.as_str(), js[0].child.as_str()),
+            ("cam", "laser")
+        );
+        assert!(urdf.contains(&format!("range_offset = {} mm", num(m.range_offset_mm))));
+        assert!(urdf.contains(&format!("range_scale = {}", num(m.range_scale))));
+        let mut worst: f64 = 0.0;
+        for servo_deg in [-60.0, -7.25, 0.0, 4.5, 33.0, 95.0] {
+            let (r, t) = compose(
+                &js,
+                &n,
+                "laser",
+                &n.scanner_link,
+                f64::to_radians(servo_deg),
+            );
+            for (reported, alpha_deg) in [
+                (800.0, -120.0),
+                (2345.0, -10.5),
+                (1500.0, 0.0),
+                (4000.0, 77.0),
+            ] {
+                let want = m.beam(reported, alpha_deg, servo_deg).0;
+                let (s, c) = f64::to_radians(alpha_deg).sin_cos();
+                let range = m.true_range(reported);
+                let got = r * Vector3::new(range * c, range * s, 0.0) + t;
+                worst = worst.max((got - want).norm());
+            }
+        }
+        assert!(worst < 1e-9, "{worst} mm");
+        let flipped = urdf.replace(
+            "<axis xyz=\"0.0 -1.0 0.0\"/>",
+            "<axis xyz=\"0.0 1.0 0.0\"/>",
+        );
+        let (r, t) = compose(&joints(&flipped), &n, "laser", &n.scanner_link, 0.6);
+        let want = m.beam(1500.0, 10.0, 0.6f64.to_degrees()).0;
+        let (s, c) = 10f64.to_radians().sin_cos();
+        let rr = m.true_range(1500.0);
+        assert!((r * Vector3::new(rr * c, rr * s, 0.0) + t - want).norm() > 100.0);
+    }
+
+    /// The mimic's multiplier and offset and the mount's numbers read back exactly, and the
+    /// launch files load `lrf_model.urdf` into robot_state_publisher.
+    #[test]
+    fn lrf_model_numbers_read_back_exactly() {
+        let (_, _, e) = extrinsic();
+        let m = mount();
+        let files = lrf_model_files(&e, &m, "spheres", "cam", "laser");
+        let urdf = file(&files, "lrf_model.urdf");
+        let js = joints(urdf);
+        let (_, mul, off) = js[2].mimic.clone().unwrap();
+        assert_eq!(mul, m.servo_scale);
+        assert_eq!(off, -m.servo_zero_deg.to_radians() * (1.0 + m.servo_scale));
+        assert_eq!(js[3].xyz, Vector3::from(m.offset_mm) / 1000.0);
+        let [a, b, c] = js[3].rpy;
+        let back = Rotation3::from_euler_angles(a, b, c).into_inner();
+        assert!((back - mount_tilt(&m)).norm() < 1e-15);
+        assert_eq!(
+            js[0].xyz,
+            Vector3::from(e.opencv.translation_mm.map(|v| v / 1000.0))
+        );
+        let ros1 = file(&files, "lrf_model_ros1.launch");
+        assert!(
+            ros1.contains("textfile=\"$(dirname)/lrf_model.urdf\"")
+                && ros1.contains("pkg=\"robot_state_publisher\"")
+        );
+        let ros2 = file(&files, "lrf_model_ros2.launch.py");
+        assert!(
+            ros2.contains("\"lrf_model.urdf\"")
+                && ros2.contains("executable=\"robot_state_publisher\"")
+        );
     }
 }
