@@ -5,11 +5,21 @@
 //!   LRF frame (child, `[frames] lrf`), `p_camera = R_cv p_lrf + t_cv` in metres, as the
 //!   `static_transform_publisher` command of ROS 1 (`x y z qx qy qz qw frame child`) and of
 //!   ROS 2 (`--x … --qw … --frame-id … --child-frame-id …`), a launch file for each (ROS 1
-//!   XML, ROS 2 Python) and a URDF fixed joint (origin xyz in m, rpy in rad);
+//!   XML, ROS 2 Python) and a URDF fixed joint (origin xyz in m, rpy in rad); each camera's
+//!   `camera_info_<id>.yaml` ([`ros_camera_info`]); the LRF's whole model as a URDF with
+//!   the servo, its zero and scale (a mimic joint) and the mount, and its
+//!   `robot_state_publisher` launch files ([`lrf_model_urdf`], [`lrf_model_files`]);
 //! - `opencv/`: a FileStorage YAML per camera (K, distortion k1 k2 p1 p2 k3, image size)
 //!   (`camera_<id>.yaml`) and, for a stereo pair, `stereo.yaml` (R, T in mm, E, F and the rectification of
 //!   [`super::rectify`]);
-//! - `kalibr/camchain.yaml`: Kalibr's camchain (pinhole-radtan; `T_cn_cnm1` in metres).
+//! - `kalibr/camchain.yaml`: Kalibr's camchain (pinhole-radtan refitted to pingcal's model,
+//!   [`export_loss`]; `T_cn_cnm1` in metres).
+//!
+//! No file loses anything silently: each camera file's comment states what its model drops
+//! of pingcal's (K1 K2 K3 P1 P2 B1 B2) and the largest and RMS distance in px, over a grid of
+//! the whole image, between the pixels and their rays through pingcal's model projected by
+//! the file's model ([`export_loss`]); the URDF's comment states the range correction tf
+//! cannot apply.
 //!
 //! Numbers are written with Rust's shortest round-trip form (every digit needed to read
 //! back the same f64), always with a decimal point so that every YAML reader takes them for
