@@ -1,9 +1,11 @@
-//! The outputs for other ecosystems (issue 16), checked by each ecosystem's own code:
-//! OpenCV (`cv2.projectPoints` with `opencv/camera_*.yaml` against pingcal's projection,
-//! `cv2.stereoRectify` against `opencv/stereo.yaml`), SciPy's `spatial.transform` (the
-//! quaternions, 4×4 matrices and ω φ κ of `results.json`), the ROS tools' argument orders
-//! (commands and launch files parsed as they parse them), a URDF parser (`urdf_parser_py`)
-//! and PyYAML (Kalibr's camchain).
+//! The outputs for other ecosystems (issues 16 and 33), checked by each ecosystem's own
+//! code: OpenCV (`cv2.projectPoints` with `opencv/camera_*.yaml` against pingcal's
+//! projection, `cv2.stereoRectify` against `opencv/stereo.yaml`), SciPy's
+//! `spatial.transform` (the quaternions, 4×4 matrices and ω φ κ of `results.json`), the ROS
+//! tools' argument orders (commands and launch files parsed as they parse them), a URDF
+//! parser (`urdf_parser_py`), PyYAML with `cv2.projectPoints` over a grid of the whole image
+//! (Kalibr's camchain and ROS's camera_info, within the loss each file states), and
+//! yourdfpy's forward kinematics of `ros/lrf_model.urdf` against `cloud.ply`.
 //!
 //! The checks are `tests/ecosystem/check.py`, run in the virtual environment that
 //! `bash tests/ecosystem/setup.sh` makes under `target/ecosystem-venv`; without it each test
@@ -19,6 +21,7 @@
 mod common;
 
 use nalgebra::{Matrix3, Vector3};
+use pingcal::pipeline::exports::grid_pixels;
 use pingcal_ba::camera::{CameraModel, PhotogrammetricCamera};
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
@@ -39,7 +42,7 @@ fn python(test: &str) -> Option<PathBuf> {
         return Some(py);
     }
     eprintln!(
-        "{test}: skipped: no {} (run `bash tests/ecosystem/setup.sh` to install OpenCV, SciPy, PyYAML and urdf_parser_py there)",
+        "{test}: skipped: no {} (run `bash tests/ecosystem/setup.sh` to install OpenCV, SciPy, PyYAML, urdf_parser_py and yourdfpy there)",
         py.display()
     );
     None
@@ -90,10 +93,41 @@ fn camera(project: &pingcal_project::Project, c: &Value) -> (PhotogrammetricCame
     )
 }
 
+/// The rays of pingcal's model through the grid of the exported files' loss figures (every
+/// pixel 8 px apart, corners included: `exports::grid_pixels`), as OpenCV's normalised
+/// coordinates (x, y, 1) of the camera's optical frame, and pingcal's own projection of
+/// them, px. Each ray is the pixel's ideal point (x̄, c, ȳ) of the photogrammetric frame,
+/// undistorted by Newton's method; the projection goes forward through the whole model
+/// (K1 K2 K3 P1 P2 B1 B2) and so checks the undistortion (to 1e-6 px). A pixel pingcal cannot
+/// undistort is left out, as the files' figures leave it out.
+fn grid(cam: &PhotogrammetricCamera, p: &[f64]) -> (Vec<[f64; 3]>, Vec<[f64; 2]>) {
+    let (mut rays, mut px) = (Vec::new(), Vec::new());
+    for uv in grid_pixels(cam.width, cam.height) {
+        let Some(ideal) = cam.undistort_sensor(p, &cam.pixel_to_sensor(&uv)) else {
+            continue;
+        };
+        let x = Vector3::new(ideal.x, p[0], ideal.y);
+        let back = cam.project(p, &x, None, None).expect("in front");
+        assert!(
+            (back - uv).norm() < 1e-6,
+            "{uv:?}: pingcal projects its ray to {back:?}"
+        );
+        rays.push([x.x / x.y, -x.z / x.y, 1.0]);
+        px.push([back.x, back.y]);
+    }
+    (rays, px)
+}
+
 /// `probe.json`: for each camera, points of the LRF frame spread over its image at 0.8 to
 /// 6 m, and pingcal's projection of them (through the extrinsic, and the rig for the right
-/// camera).
+/// camera); and the camera's [`grid`].
 fn probe(out: &Path) -> PathBuf {
+    static PROBE: OnceLock<PathBuf> = OnceLock::new();
+    PROBE.get_or_init(|| write_probe(out)).clone()
+}
+
+/// Writes [`probe`]'s file (once per test binary: the tests run in parallel).
+fn write_probe(out: &Path) -> PathBuf {
     let r = common::read_json(&out.join("results.json"));
     let project = pingcal_project::Project::load(&out.join("../project.toml")).unwrap();
     let (rot, t) = (
@@ -124,19 +158,28 @@ fn probe(out: &Path) -> PathBuf {
             }
         }
         let (w, h) = (cam.width, cam.height);
-        cams.push(
-            json!({"id": c["id"], "width": w, "height": h, "lrf_points_mm": lrf, "pingcal_px": px}),
-        );
+        let (rays, grid_px) = grid(&cam, &p);
+        cams.push(json!({
+            "id": c["id"], "width": w, "height": h, "lrf_points_mm": lrf, "pingcal_px": px,
+            "grid_rays_cv": rays, "grid_pingcal_px": grid_px,
+        }));
     }
     let path = out.join("../probe.json");
     std::fs::write(&path, json!({ "cameras": cams }).to_string()).unwrap();
     path
 }
 
-/// Runs `check.py CHECK OUT [EXTRA]`; prints its figures; fails the test when it fails.
+/// Runs `check.py CHECK OUT [EXTRA]` on the test project; prints its figures; fails the
+/// test when it fails.
 fn check(test: &str, name: &str, extra: Option<&Path>) {
+    if python(test).is_some() {
+        check_in(test, name, calibrated(), extra);
+    }
+}
+
+/// Runs `check.py CHECK OUT [EXTRA]` on output folder `out`.
+fn check_in(test: &str, name: &str, out: &Path, extra: Option<&Path>) {
     let Some(py) = python(test) else { return };
-    let out = calibrated();
     let mut cmd = Command::new(py);
     cmd.arg(workspace().join("tests/ecosystem/check.py"))
         .arg(name)
@@ -190,18 +233,135 @@ fn urdf_joint_composes_back_to_the_extrinsic() {
     check("urdf", "urdf", None);
 }
 
-/// Kalibr's camchain, read by PyYAML, has the cameras' intrinsics and the rig.
+/// Kalibr's camchain, read by PyYAML: its radtan refit (cv2.projectPoints with k3 = 0,
+/// Kalibr's pinhole-radtan) puts pingcal's rays over the whole image within the loss its
+/// comment states (0.05 px or that, and the stated loss equal to the measured one to
+/// 1e-3 px), and T_cn_cnm1 is the rig.
 #[test]
 fn kalibr_camchain_reads_back() {
-    check("kalibr", "kalibr", None);
+    if python("kalibr").is_some() {
+        let p = probe(calibrated());
+        check("kalibr", "kalibr", Some(&p));
+    }
 }
 
-/// The project's `[frames]` names reach every ROS file (checked without Python).
+/// `ros/camera_info_<id>.yaml`, read as camera_calibration_parsers lays it out: K and D
+/// through cv2.projectPoints over the whole image against pingcal's projection, within the
+/// loss its comment states; R and P the stereo rectification's (Tx = −fx'·B, B in m).
+#[test]
+fn camera_info_projects_where_pingcal_does() {
+    if python("camera_info").is_some() {
+        let p = probe(calibrated());
+        check("camera_info", "camera_info", Some(&p));
+    }
+}
+
+/// `ros/lrf_model.urdf` through yourdfpy's forward kinematics (mimic joint included), at
+/// each scan line's servo reading and with the range correction its comment states, puts
+/// every beam of the scan file where `cloud.ply` has it (0.01 mm), on the joint project
+/// (`lrf_model` the joint adjustment's: every mount and range parameter estimated).
+#[test]
+fn lrf_model_urdf_rebuilds_cloud_ply_joint() {
+    if python("lrf_model_joint").is_none() {
+        return;
+    }
+    let out = calibrated();
+    let r = common::read_json(&out.join("results.json"));
+    assert_eq!(
+        r["lrf_model"]["source"], "joint adjustment",
+        "the joint adjustment did not run"
+    );
+    check_in(
+        "lrf_model_joint",
+        "lrf_model",
+        out,
+        Some(&out.join("../project.toml")),
+    );
+}
+
+/// The mount written into the `method = "spheres"` copy: offset, tilts and servo zero all
+/// non-zero (the project has no servo scale or range keys; the joint test covers those).
+const SPHERES_MOUNT: &str = "mount_offset_mm = [3.5, -2.0, 8.25]\nmount_tilt_x_deg = 0.3\nmount_tilt_z_deg = -0.2\nservo_zero_deg = 1.75\n";
+
+/// The same on a copy of the test project with `method = "spheres"` and a non-zero mount
+/// in `[lrf]`, so `lrf_model` is the project's mount.
+#[test]
+fn lrf_model_urdf_rebuilds_cloud_ply_spheres() {
+    if python("lrf_model_spheres").is_none() {
+        return;
+    }
+    let dir = common::root().join("ecosystem-spheres");
+    common::copy_dir(common::pristine(), &dir);
+    let toml = dir.join("project.toml");
+    let mut text = std::fs::read_to_string(&toml).expect("project.toml");
+    for key in [
+        "method",
+        "mount_offset_mm",
+        "mount_tilt_x_deg",
+        "mount_tilt_z_deg",
+        "servo_zero_deg",
+    ] {
+        let n = text
+            .lines()
+            .filter(|l| l.starts_with(&format!("{key} =")))
+            .count();
+        assert!(n <= 1, "{key} given {n} times");
+        text = text
+            .lines()
+            .filter(|l| !l.starts_with(&format!("{key} =")))
+            .collect::<Vec<_>>()
+            .join("\n");
+    }
+    let text = text.replacen("\n[", "\nmethod = \"spheres\"\n\n[", 1);
+    let text = text.replacen("\n[lrf]\n", &format!("\n[lrf]\n{SPHERES_MOUNT}"), 1);
+    std::fs::write(&toml, text + "\n" + FRAMES).expect("write project.toml");
+    let out = dir.join("out");
+    let args = [
+        "calibrate",
+        toml.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+    ];
+    let run = common::run(&args, &dir);
+    assert!(run.success(), "calibrate failed: {}", run.stderr);
+    let r = common::read_json(&out.join("results.json"));
+    let m = &r["lrf_model"];
+    assert_eq!(m["source"], "project");
+    assert_eq!(
+        (m["servo_zero_deg"].as_f64(), m["tilt_x_deg"].as_f64()),
+        (Some(1.75), Some(0.3))
+    );
+    check_in("lrf_model_spheres", "lrf_model", &out, Some(&toml));
+}
+
+/// The project's `[frames]` names reach every ROS file of a tf (checked without Python);
+/// `camera_info` has no frame (its camera_name is the camera's id).
 #[test]
 fn frame_names_come_from_the_project() {
     let ros = calibrated().join("ros");
     for f in std::fs::read_dir(&ros).unwrap() {
-        let text = std::fs::read_to_string(f.unwrap().path()).unwrap();
-        assert!(text.contains("cam_left_optical") && text.contains("hokuyo_servo"));
+        let path = f.unwrap().path();
+        let text = std::fs::read_to_string(&path).unwrap();
+        let name = path.file_name().unwrap().to_string_lossy().into_owned();
+        if name.starts_with("camera_info_") {
+            assert!(!text.contains("cam_left_optical"), "{name}");
+            continue;
+        }
+        assert!(
+            text.contains("cam_left_optical") && text.contains("hokuyo_servo"),
+            "{name}"
+        );
+    }
+    for n in [
+        "lrf_model.urdf",
+        "lrf_model_ros1.launch",
+        "lrf_model_ros2.launch.py",
+    ] {
+        let text = std::fs::read_to_string(ros.join(n)).unwrap();
+        assert!(
+            text.contains("hokuyo_servo_scanner") && text.contains("hokuyo_servo_servo"),
+            "{n}"
+        );
     }
 }

@@ -1,16 +1,20 @@
 """Checks pingcal's outputs for other ecosystems with each ecosystem's own code.
 
-    python check.py CHECK RESULTS_DIR [PROBE_JSON]
+    python check.py CHECK RESULTS_DIR [PROBE_JSON | PROJECT_TOML]
 
-CHECK is one of opencv, stereo, transforms, ros, urdf, kalibr. RESULTS_DIR holds
-results.json and ros/, opencv/, kalibr/ as `pingcal calibrate` wrote them; PROBE_JSON (for
-opencv) holds 3D points in the LRF frame and pingcal's own projection of them. Every
+CHECK is one of opencv, stereo, transforms, ros, urdf, kalibr, camera_info, lrf_model.
+RESULTS_DIR holds results.json and ros/, opencv/, kalibr/ as `pingcal calibrate` wrote
+them; the third argument is, for opencv, kalibr and camera_info, PROBE_JSON (3D points in
+the LRF frame and pingcal's own projection of them; the rays of pingcal's model through a
+grid of every image, 8 px apart as the exported files' loss figures, and pingcal's own
+projection of them), for lrf_model the project.toml whose `[lrf] scans` made cloud.ply. Every
 expected value is rebuilt here from results.json's photogrammetric numbers (R, t, opk_deg)
 and SPEC.md's axes, not from the converted blocks. Prints one line `CHECK: name=max_error
 ...` and exits 1 when a bound is exceeded.
 """
 
 import json
+import re
 import shlex
 import sys
 import types
@@ -223,31 +227,208 @@ def check_urdf(d):
     bound("urdf_composed_back_m", np.abs(back - want).max() / 1000.0, 1e-9)
 
 
-def check_kalibr(d):
-    """camchain.yaml read back with PyYAML: the intrinsics against results.json's OpenCV
-    model, T_cn_cnm1 against the rig moved into OpenCV frames and metres here."""
+def stated_losses(text):
+    """The (largest, RMS) losses in px an exported file's comments state, in order."""
+    return [(float(a), float(b)) for a, b in re.findall(r"largest ([0-9.]+) px, RMS ([0-9.]+) px", text)]
+
+
+def grid_of(probe, cid):
+    """The probe's grid of camera `cid`: rays (OpenCV normalised, z = 1) of pingcal's
+    model through every grid pixel, and pingcal's own projection of them (px)."""
+    cam = next(c for c in json.loads(Path(probe).read_text())["cameras"] if c["id"] == cid)
+    return np.array(cam["grid_rays_cv"], dtype=np.float64), np.array(cam["grid_pingcal_px"])
+
+
+def loss_against(rays, want_px, k, dist):
+    """cv2.projectPoints of the rays with K and D against pingcal's pixels: (largest, RMS)."""
+    import cv2
+
+    uv, _ = cv2.projectPoints(rays, np.zeros(3), np.zeros(3), k, np.asarray(dist, dtype=np.float64))
+    e = np.linalg.norm(uv.reshape(-1, 2) - want_px, axis=1)
+    return e.max(), np.sqrt((e * e).mean())
+
+
+def within_stated(name, measured, stated):
+    """The measured loss against the stated one: equal to 1e-3 px (the file rounds to 1e-4),
+    and within 0.05 px or the stated loss."""
+    (mx, rms), (smx, srms) = measured, stated
+    bound(f"{name}_max_px", mx, max(0.05, smx + 1e-3))
+    bound(f"{name}_stated_max_minus_measured_px", abs(mx - smx), 1e-3)
+    bound(f"{name}_stated_rms_minus_measured_px", abs(rms - srms), 1e-3)
+
+
+def check_kalibr(d, probe):
+    """camchain.yaml read back with PyYAML: the radtan model (cv2.projectPoints with k3 = 0,
+    Kalibr's pinhole-radtan) over the whole image against pingcal's projection, within
+    the loss each camera's comment states (measured here to 1e-3 px); T_cn_cnm1 against
+    the rig moved into OpenCV frames and metres here."""
     import yaml
 
     r = results(d)
-    chain = yaml.safe_load((d / "kalibr" / "camchain.yaml").read_text())
+    text = (d / "kalibr" / "camchain.yaml").read_text()
+    chain = yaml.safe_load(text)
+    stated = stated_losses(text)
     rig = r["bundle"]["rig"]
     ids = [rig["left"], rig["right"]] if rig else [r["conventions"]["main_camera"]]
     assert sorted(chain) == [f"cam{n}" for n in range(len(ids))], sorted(chain)
+    assert len(stated) == len(ids), stated
     for n, cid in enumerate(ids):
         cam = chain[f"cam{n}"]
         o = next(c["opencv"] for c in r["cameras"] if c["id"] == cid)
         assert cam["camera_model"] == "pinhole" and cam["distortion_model"] == "radtan"
         assert cam["resolution"] == [o["image_width"], o["image_height"]]
         assert all(isinstance(v, float) for v in cam["intrinsics"] + cam["distortion_coeffs"])
-        want = [o["fx"], o["fy"], o["cx"], o["cy"]]
-        bound(f"kalibr_cam{n}_intrinsics", np.abs(np.array(cam["intrinsics"]) - want).max(), 0.0)
-        bound(f"kalibr_cam{n}_dist", np.abs(np.array(cam["distortion_coeffs"]) - o["dist"][:4]).max(), 0.0)
+        fx, fy, cx, cy = cam["intrinsics"]
+        k = np.array([[fx, 0, cx], [0, fy, cy], [0, 0, 1.0]])
+        rays, px = grid_of(probe, cid)
+        within_stated(f"kalibr_cam{n}", loss_against(rays, px, k, cam["distortion_coeffs"] + [0.0]), stated[n])
     if rig:
         t = np.array(chain["cam1"]["T_cn_cnm1"])
         want = np.eye(4)
         want[:3, :3] = C @ np.array(rig["rotation"]) @ C.T
         want[:3, 3] = C @ np.array(rig["translation_mm"]) / 1000.0
         bound("kalibr_T_cn_cnm1", np.abs(t - want).max(), 1e-12)
+
+
+def ros_matrix(info, name, rows, cols):
+    """A camera_info matrix as camera_calibration_parsers reads it ({rows, cols, data})."""
+    m = info[name]
+    assert (m["rows"], m["cols"]) == (rows, cols) and len(m["data"]) == rows * cols, (name, m)
+    return np.array(m["data"], dtype=np.float64).reshape(rows, cols)
+
+
+def check_camera_info(d, probe):
+    """Each ros/camera_info_<id>.yaml read with PyYAML in camera_calibration_parsers'
+    layout: K, D through cv2.projectPoints over the whole image against pingcal's
+    projection, within the loss its comment states; R, P those of opencv/stereo.yaml's
+    rectification (P's last column in m, Tx = -fx' B) for a rig, else I and [K | 0]."""
+    import yaml
+
+    r = results(d)
+    rig = r["bundle"]["rig"]
+    st = cv_camera(d / "opencv" / "stereo.yaml") if rig else None
+    for c in r["cameras"]:
+        cid = c["id"]
+        text = (d / "ros" / f"camera_info_{cid}.yaml").read_text()
+        info = yaml.safe_load(text)
+        o = c["opencv"]
+        assert (info["image_width"], info["image_height"]) == (o["image_width"], o["image_height"])
+        assert info["camera_name"] == cid and info["distortion_model"] == "plumb_bob", info
+        k = ros_matrix(info, "camera_matrix", 3, 3)
+        dist = ros_matrix(info, "distortion_coefficients", 1, 5).ravel()
+        rect, proj = ros_matrix(info, "rectification_matrix", 3, 3), ros_matrix(info, "projection_matrix", 3, 4)
+        bound(f"camera_info_{cid}_K", np.abs(k - [[o["fx"], 0, o["cx"]], [0, o["fy"], o["cy"]], [0, 0, 1]]).max(), 0.0)
+        rays, px = grid_of(probe, cid)
+        (stated,) = stated_losses(text)
+        within_stated(f"camera_info_{cid}", loss_against(rays, px, k, dist), stated)
+        if rig:
+            n = 1 if cid == rig["left"] else 2
+            p_cv = st.getNode(f"P{n}").mat()
+            bound(f"camera_info_{cid}_R", np.abs(rect - st.getNode(f"R{n}").mat()).max(), 0.0)
+            bound(f"camera_info_{cid}_P_px", np.abs(proj[:, :3] - p_cv[:, :3]).max(), 0.0)
+            bound(f"camera_info_{cid}_P_Tx_m", np.abs(proj[:, 3] - p_cv[:, 3] / 1000.0).max(), 1e-15)
+            baseline_m = np.linalg.norm(rig["translation_mm"]) / 1000.0
+            want_tx = 0.0 if n == 1 else -proj[0, 0] * baseline_m
+            bound(f"camera_info_{cid}_Tx_vs_baseline_m", abs(proj[0, 3] - want_tx), 1e-9)
+        else:
+            bound(f"camera_info_{cid}_R", np.abs(rect - np.eye(3)).max(), 0.0)
+            bound(f"camera_info_{cid}_P", np.abs(proj - np.hstack([k, np.zeros((3, 1))])).max(), 0.0)
+
+
+def scan_beams(path):
+    """A pingcal-scan CSV (v1 or v2) as crates/lrf/src/scan.rs reads it: per valid beam
+    (range >= 20 mm, in file order) its servo angle (deg; v2: linear over the scan's beams
+    from servo_deg to servo_end_deg), beam angle alpha (deg) and reported range (mm)."""
+    keys, servo, alpha, rng = {}, [], [], []
+    sweep = None
+    for line in Path(path).read_text(encoding="utf-8-sig").splitlines():
+        t = line.strip()
+        if not t:
+            continue
+        if t.startswith("#"):
+            rest = t[1:].strip()
+            if rest.startswith("pingcal-scan"):
+                sweep = rest.split()[1] == "v2"
+            elif "=" in rest:
+                a, b = rest.split("=", 1)
+                keys[a.strip()] = b.strip()
+            continue
+        if t.startswith("stamp_s"):
+            continue
+        f = [v for v in t.split(",") if v.strip() != ""]
+        first = float(f[1])
+        last = float(f[2]) if sweep else first
+        ranges = np.array([float(v) for v in f[3 if sweep else 2 :]]) * {"mm": 1.0, "cm": 10.0, "m": 1000.0}[keys.get("range_unit", "mm")]
+        i = np.arange(len(ranges))
+        ok = ranges >= 20.0
+        at = first + (last - first) * i / max(len(ranges) - 1, 1) if last != first else np.full(len(ranges), first)
+        servo.append(at[ok])
+        alpha.append(float(keys["angle_min_deg"]) + i[ok] * float(keys["angle_increment_deg"]))
+        rng.append(ranges[ok])
+    return np.concatenate(servo), np.concatenate(alpha), np.concatenate(rng)
+
+
+def ply_vertices(path):
+    """cloud.ply's vertex element (binary little-endian, float x y z then uchar r g b), mm."""
+    data = Path(path).read_bytes()
+    end = data.index(b"end_header\n") + len(b"end_header\n")
+    head = data[:end].decode().splitlines()
+    assert "format binary_little_endian 1.0" in head, head[:3]
+    n = int(next(h for h in head if h.startswith("element vertex")).split()[2])
+    props = []
+    for h in head[head.index(f"element vertex {n}") + 1 :]:
+        if not h.startswith("property"):
+            break
+        props.append(h.split()[2])
+    assert props == ["x", "y", "z", "red", "green", "blue"], props
+    rec = np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("rgb", "u1", 3)])
+    v = np.frombuffer(data, dtype=rec, count=n, offset=end)
+    return np.stack([v["x"], v["y"], v["z"]], axis=1).astype(np.float64)
+
+
+def urdf_comment_number(text, key):
+    m = re.search(rf"{key} = (-?[0-9.]+(?:e-?[0-9]+)?) mm" if key == "range_offset" else rf"{key} = (-?[0-9.]+(?:e-?[0-9]+)?):", text)
+    assert m, f"lrf_model.urdf states no {key}"
+    return float(m.group(1))
+
+
+def check_lrf_model(d, project):
+    """ros/lrf_model.urdf loaded with yourdfpy (which applies its mimic joint): the servo
+    joint set to each scan line's servo reading (rad), the scanner -> LRF frame transform of
+    its forward kinematics applied to every valid beam at the range its comment corrects,
+    against cloud.ply's vertices (the same beams in the same order) within 0.01 mm."""
+    import tomllib
+
+    import yourdfpy
+
+    r = results(d)
+    lrf = r["conventions"]["tf_lrf_frame"]
+    text = (d / "ros" / "lrf_model.urdf").read_text()
+    robot = yourdfpy.URDF.load(str(d / "ros" / "lrf_model.urdf"), load_meshes=False, build_collision_scene_graph=False)
+    assert robot.actuated_joint_names == [f"{lrf}_servo"], robot.actuated_joint_names
+    assert robot.base_link == r["conventions"]["tf_camera_frame"], robot.base_link
+    ro, rs = urdf_comment_number(text, "range_offset"), urdf_comment_number(text, "range_scale")
+    m = r["lrf_model"]
+    bound("urdf_range_correction_vs_lrf_model", max(abs(ro - m["range_offset_mm"]), abs(rs - m["range_scale"])), 0.0)
+    proj = Path(project)
+    scans = tomllib.loads(proj.read_text())["lrf"]["scans"]
+    beams = [scan_beams(proj.parent / s) for s in scans]
+    servo, alpha, reported = (np.concatenate(x) for x in zip(*beams))
+    cloud = ply_vertices(d / "cloud.ply")
+    assert len(cloud) == len(servo), (len(cloud), len(servo))
+    true_range = (reported - ro) / (1.0 + rs)
+    local = np.stack([true_range * np.cos(np.radians(alpha)), true_range * np.sin(np.radians(alpha)), np.zeros_like(alpha)], axis=1)
+    angles, inverse = np.unique(servo, return_inverse=True)
+    tfs = np.empty((len(angles), 4, 4))
+    for k, a in enumerate(angles):
+        robot.update_cfg({f"{lrf}_servo": float(np.radians(a))})
+        tfs[k] = robot.get_transform(frame_to=f"{lrf}_scanner", frame_from=lrf)
+    got = np.einsum("nij,nj->ni", tfs[inverse, :3, :3], local) + tfs[inverse, :3, 3] * 1000.0
+    bound(f"urdf_vs_cloud_ply_mm[{m['source']}]", np.linalg.norm(got - cloud, axis=1).max(), 0.01)
+    figures.append(f"beams={len(cloud)} servo_angles={len(angles)}")
+    off = np.array(m["offset_mm"])
+    figures.append(f"mount_offset_mm={np.round(off, 3).tolist()} tilts_deg=({m['tilt_x_deg']:.4g},{m['tilt_z_deg']:.4g}) "
+                   f"servo_zero_deg={m['servo_zero_deg']:.4g} servo_scale={m['servo_scale']:.3g} range_offset_mm={ro:.4g} range_scale={rs:.3g}")
 
 
 def main():
@@ -258,7 +439,9 @@ def main():
         "transforms": lambda: check_transforms(d),
         "ros": lambda: check_ros(d),
         "urdf": lambda: check_urdf(d),
-        "kalibr": lambda: check_kalibr(d),
+        "kalibr": lambda: check_kalibr(d, sys.argv[3]),
+        "camera_info": lambda: check_camera_info(d, sys.argv[3]),
+        "lrf_model": lambda: check_lrf_model(d, sys.argv[3]),
     }
     checks[check]()
     print(f"{check}: " + " ".join(figures))

@@ -5,19 +5,32 @@
 //!   LRF frame (child, `[frames] lrf`), `p_camera = R_cv p_lrf + t_cv` in metres, as the
 //!   `static_transform_publisher` command of ROS 1 (`x y z qx qy qz qw frame child`) and of
 //!   ROS 2 (`--x … --qw … --frame-id … --child-frame-id …`), a launch file for each (ROS 1
-//!   XML, ROS 2 Python) and a URDF fixed joint (origin xyz in m, rpy in rad);
+//!   XML, ROS 2 Python) and a URDF fixed joint (origin xyz in m, rpy in rad); each camera's
+//!   `camera_info_<id>.yaml` ([`ros_camera_info`]); the LRF's whole model as a URDF with
+//!   the servo, its zero and scale (a mimic joint) and the mount, and its
+//!   `robot_state_publisher` launch files ([`lrf_model_urdf`], [`lrf_model_files`]);
 //! - `opencv/`: a FileStorage YAML per camera (K, distortion k1 k2 p1 p2 k3, image size)
 //!   (`camera_<id>.yaml`) and, for a stereo pair, `stereo.yaml` (R, T in mm, E, F and the rectification of
 //!   [`super::rectify`]);
-//! - `kalibr/camchain.yaml`: Kalibr's camchain (pinhole-radtan; `T_cn_cnm1` in metres).
+//! - `kalibr/camchain.yaml`: Kalibr's camchain (pinhole-radtan refitted to pingcal's model,
+//!   [`export_loss`]; `T_cn_cnm1` in metres).
+//!
+//! No file loses anything silently: each camera file's comment states what its model drops
+//! of pingcal's (K1 K2 K3 P1 P2 B1 B2) and the largest and RMS distance in px, over a grid of
+//! the whole image, between the pixels and their rays through pingcal's model projected by
+//! the file's model ([`export_loss`]); the URDF's comment states the range correction tf
+//! cannot apply.
 //!
 //! Numbers are written with Rust's shortest round-trip form (every digit needed to read
 //! back the same f64), always with a decimal point so that every YAML reader takes them for
 //! floats.
 
-use super::rectify::{stereo_cv, CvCamera};
+use super::rectify::{stereo_cv, CvCamera, StereoCv};
 use super::results::{CameraJson, ExtrinsicJson, Results, RigJson};
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::{DMatrix, DVector, Matrix3, Matrix3x4, Vector2, Vector3};
+use pingcal_ba::camera::PhotogrammetricCamera;
+use pingcal_lrf::MountModel;
+use serde::Serialize;
 use std::fmt::Write;
 
 /// One output file: its path below the output folder, and its text.
@@ -35,6 +48,261 @@ pub fn num(x: f64) -> String {
 
 fn nums(xs: &[f64]) -> String {
     xs.iter().map(|&x| num(x)).collect::<Vec<_>>().join(", ")
+}
+
+// ---- What each exported camera model loses against pingcal's -------------------------
+
+/// The loss grid's largest spacing between pixels, px.
+pub const GRID_STEP_PX: f64 = 8.0;
+
+/// A loss beyond this many pixels anywhere on the image is said so in the file.
+pub const NOTED_LOSS_PX: f64 = 0.05;
+
+/// The loss grid of a `width × height` image: `n_u × n_v` pixels evenly spaced from 0 to
+/// W − 1 and from 0 to H − 1 (the corners and edges included), `n = ⌈(W − 1)/8⌉ + 1`, so
+/// no two neighbours are more than [`GRID_STEP_PX`] apart.
+pub fn loss_grid(width: u32, height: u32) -> (usize, usize) {
+    let n = |len: u32| (f64::from(len.max(1) - 1) / GRID_STEP_PX).ceil() as usize + 1;
+    (n(width), n(height))
+}
+
+/// The pixels of [`loss_grid`], row by row (v outer, u inner).
+pub fn grid_pixels(width: u32, height: u32) -> Vec<Vector2<f64>> {
+    let (nu, nv) = loss_grid(width, height);
+    let at = |i: usize, n: usize, len: u32| {
+        if n < 2 {
+            0.0
+        } else {
+            i as f64 * f64::from(len - 1) / (n - 1) as f64
+        }
+    };
+    (0..nv)
+        .flat_map(|j| (0..nu).map(move |i| Vector2::new(at(i, nu, width), at(j, nv, height))))
+        .collect()
+}
+
+/// pingcal's camera of `c` and its ten parameters. The pixel pitch is `c / fy` (fy is
+/// `c / pitch`, [`super::results::opencv_of`]).
+pub fn photogrammetric_camera(c: &CameraJson) -> (PhotogrammetricCamera, [f64; 10]) {
+    let o = &c.opencv;
+    let pitch = c.params.c_mm / o.fy;
+    let cam = PhotogrammetricCamera::new(o.image_width, o.image_height, pitch);
+    (cam, c.params.to_slice())
+}
+
+/// The ray of each grid pixel through pingcal's whole model, as OpenCV's normalised image
+/// coordinates `(x, y) = (X/Y, −Z/Y)` of the photogrammetric camera frame: the ideal point
+/// (x̄, ȳ) of the undistorted pixel divided by c, y turned down. Pixels whose distortion
+/// pingcal's model cannot invert are left out and counted.
+#[derive(Clone, Debug)]
+pub struct GridRays {
+    /// The grid's counts (n_u, n_v).
+    pub grid: (usize, usize),
+    /// The pixels that have a ray, px.
+    pub pixels: Vec<Vector2<f64>>,
+    /// Their rays, normalised image coordinates (z = 1) of OpenCV's camera frame.
+    pub rays: Vec<Vector2<f64>>,
+    /// Grid pixels without a ray.
+    pub missed: usize,
+}
+
+/// [`GridRays`] of camera `c`.
+pub fn grid_rays(c: &CameraJson) -> GridRays {
+    let (cam, p) = photogrammetric_camera(c);
+    let (w, h) = (c.opencv.image_width, c.opencv.image_height);
+    let mut out = GridRays {
+        grid: loss_grid(w, h),
+        pixels: Vec::new(),
+        rays: Vec::new(),
+        missed: 0,
+    };
+    for uv in grid_pixels(w, h) {
+        match cam.undistort_sensor(&p, &cam.pixel_to_sensor(&uv)) {
+            Some(ideal) => {
+                out.pixels.push(uv);
+                out.rays.push(Vector2::new(ideal.x / p[0], -ideal.y / p[0]));
+            }
+            None => out.missed += 1,
+        }
+    }
+    out
+}
+
+/// OpenCV's projection (also Kalibr's pinhole-radtan, with k3 = 0) of the normalised point
+/// `x`: `x_d = x (1 + k1 r² + k2 r⁴ + k3 r⁶) + 2 p1 x y + p2 (r² + 2x²)`, `y_d = y (…) +
+/// p1 (r² + 2y²) + 2 p2 x y`, `u = fx x_d + cx`, `v = fy y_d + cy`.
+pub fn radtan_project(k: &[f64; 4], d: &[f64; 5], x: &Vector2<f64>) -> Vector2<f64> {
+    let [fx, fy, cx, cy] = *k;
+    let [k1, k2, p1, p2, k3] = *d;
+    let r2 = x.norm_squared();
+    let rad = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3));
+    let xd = x.x * rad + 2.0 * p1 * x.x * x.y + p2 * (r2 + 2.0 * x.x * x.x);
+    let yd = x.y * rad + p1 * (r2 + 2.0 * x.y * x.y) + 2.0 * p2 * x.x * x.y;
+    Vector2::new(fx * xd + cx, fy * yd + cy)
+}
+
+/// How far an exported model puts the grid's rays from their pixels, px.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Loss {
+    /// The largest distance.
+    pub max_px: f64,
+    /// The root mean square distance.
+    pub rms_px: f64,
+}
+
+impl Loss {
+    /// The loss of intrinsics `k` and distortion `d` over `g`.
+    pub fn of(g: &GridRays, k: &[f64; 4], d: &[f64; 5]) -> Loss {
+        let (mut max, mut sum) = (0.0f64, 0.0);
+        for (uv, x) in g.pixels.iter().zip(&g.rays) {
+            let e = (radtan_project(k, d, x) - uv).norm();
+            max = max.max(e);
+            sum += e * e;
+        }
+        Loss {
+            max_px: max,
+            rms_px: (sum / g.pixels.len().max(1) as f64).sqrt(),
+        }
+    }
+
+    /// `largest 0.123 px, RMS 0.045 px`, and a warning beyond [`NOTED_LOSS_PX`].
+    fn words(&self) -> String {
+        let note = if self.max_px > NOTED_LOSS_PX {
+            format!(" (more than {NOTED_LOSS_PX} px: use pingcal's model where this matters)")
+        } else {
+            String::new()
+        };
+        format!(
+            "largest {:.4} px, RMS {:.4} px{note}",
+            self.max_px, self.rms_px
+        )
+    }
+}
+
+/// Kalibr's pinhole-radtan camera fitted to pingcal's model.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct RadtanFit {
+    /// fx, fy, cx, cy (px).
+    pub intrinsics: [f64; 4],
+    /// k1, k2, r1 (= OpenCV's p1), r2 (= p2).
+    pub coeffs: [f64; 4],
+    /// Whether fx, fy, cx, cy were refitted too (else they are OpenCV's).
+    pub intrinsics_refit: bool,
+    /// Its loss over the grid.
+    pub loss: Loss,
+}
+
+/// What the exported models of one camera lose against pingcal's, over [`loss_grid`].
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ExportLoss {
+    /// The grid's counts (n_u, n_v).
+    pub grid: (usize, usize),
+    /// Grid pixels pingcal's model could not undistort (left out of the figures).
+    pub missed: usize,
+    /// OpenCV's five coefficients (`opencv/`, `ros/camera_info_*.yaml`): B2 dropped, B1
+    /// only to first order (in fx).
+    pub opencv: Loss,
+    /// Kalibr's radtan refit (`kalibr/camchain.yaml`).
+    pub kalibr: RadtanFit,
+}
+
+/// The rows of the least-squares system of the radtan fit at intrinsics `k` and
+/// coefficients `c`, in pixels: the residual `projection − pixel` of every grid pixel (u
+/// then v) and its derivatives by (k1, k2, p1, p2), then by (fx, fy, cx, cy) when `all`.
+fn radtan_system(
+    g: &GridRays,
+    k: &[f64; 4],
+    c: &[f64; 4],
+    all: bool,
+) -> (DMatrix<f64>, DVector<f64>) {
+    let cols = if all { 8 } else { 4 };
+    let n = g.pixels.len();
+    let mut a = DMatrix::zeros(2 * n, cols);
+    let mut b = DVector::zeros(2 * n);
+    let d = [c[0], c[1], c[2], c[3], 0.0];
+    for (i, (uv, x)) in g.pixels.iter().zip(&g.rays).enumerate() {
+        let (px, py) = (x.x, x.y);
+        let r2 = px * px + py * py;
+        let e = radtan_project(k, &d, x) - uv;
+        let du = [px * r2, px * r2 * r2, 2.0 * px * py, r2 + 2.0 * px * px];
+        let dv = [py * r2, py * r2 * r2, r2 + 2.0 * py * py, 2.0 * px * py];
+        for j in 0..4 {
+            a[(2 * i, j)] = k[0] * du[j];
+            a[(2 * i + 1, j)] = k[1] * dv[j];
+        }
+        if all {
+            a[(2 * i, 4)] = (e.x + uv.x - k[2]) / k[0];
+            a[(2 * i + 1, 5)] = (e.y + uv.y - k[3]) / k[1];
+            a[(2 * i, 6)] = 1.0;
+            a[(2 * i + 1, 7)] = 1.0;
+        }
+        b[2 * i] = e.x;
+        b[2 * i + 1] = e.y;
+    }
+    (a, b)
+}
+
+/// The least-squares step `a δ ≈ −b` (SVD; `None` for a rank-deficient system).
+fn step(a: DMatrix<f64>, b: &DVector<f64>) -> Option<DVector<f64>> {
+    let svd = a.svd(true, true);
+    let top = svd.singular_values.max();
+    if !(top > 0.0) || svd.singular_values.min() < 1e-12 * top {
+        return None;
+    }
+    svd.solve(&(-b), 0.0).ok()
+}
+
+/// The radtan coefficients (k1, k2, p1, p2) and, when `all`, the intrinsics that minimise
+/// Σ‖projection − pixel‖² over the grid: for fixed intrinsics the projection is linear in
+/// the coefficients, so the first step from zero is the solution; with the intrinsics,
+/// Gauss–Newton from there (the projection is bilinear in the two sets).
+fn fit_radtan(g: &GridRays, k0: &[f64; 4], all: bool) -> Option<([f64; 4], [f64; 4])> {
+    let (mut k, mut c) = (*k0, [0.0; 4]);
+    for _ in 0..if all { 20 } else { 1 } {
+        let (a, b) = radtan_system(g, &k, &c, all);
+        let s = step(a, &b)?;
+        for j in 0..4 {
+            c[j] += s[j];
+            if all {
+                k[j] += s[4 + j];
+            }
+        }
+        if all && s.rows(4, 4).iter().all(|v| v.abs() < 1e-12) {
+            break;
+        }
+    }
+    Some((k, c))
+}
+
+/// What camera `c`'s exported models lose against pingcal's over the image
+/// ([`ExportLoss`]). The radtan fit moves fx, fy, cx, cy too only when that lowers the
+/// largest loss by a hundredth of a pixel or more (else they stay OpenCV's, those of the
+/// other files).
+pub fn export_loss(c: &CameraJson) -> ExportLoss {
+    let g = grid_rays(c);
+    let o = &c.opencv;
+    let k = [o.fx, o.fy, o.cx, o.cy];
+    let opencv = Loss::of(&g, &k, &o.dist);
+    let radtan = |k: [f64; 4], coeffs: [f64; 4], refit: bool| RadtanFit {
+        intrinsics: k,
+        coeffs,
+        intrinsics_refit: refit,
+        loss: Loss::of(&g, &k, &[coeffs[0], coeffs[1], coeffs[2], coeffs[3], 0.0]),
+    };
+    let dropped = radtan(k, [o.dist[0], o.dist[1], o.dist[2], o.dist[3]], false);
+    let fixed = fit_radtan(&g, &k, false).map(|(k, cf)| radtan(k, cf, false));
+    let free = fit_radtan(&g, &k, true).map(|(k, cf)| radtan(k, cf, true));
+    let kalibr = match (fixed, free) {
+        (Some(a), Some(b)) if b.loss.max_px <= a.loss.max_px - 0.01 => b,
+        (Some(a), _) => a,
+        _ => dropped,
+    };
+    ExportLoss {
+        grid: g.grid,
+        missed: g.missed,
+        opencv,
+        kalibr,
+    }
 }
 
 fn matrix3(m: &[[f64; 3]; 3]) -> Matrix3<f64> {
@@ -179,6 +447,208 @@ pub fn ros_files(e: &ExtrinsicJson, parent: &str, child: &str) -> Vec<OutputFile
     ]
 }
 
+// ---- The LRF's whole model for ROS ----------------------------------------------------
+
+/// The servo axis of the URDF: `R_β` is a rotation about +Y by −β, i.e. about −Y by β.
+pub const SERVO_AXIS: [f64; 3] = [0.0, -1.0, 0.0];
+
+/// `R_x(tilt_x) · R_z(tilt_z)` of the mount (docs/lrf.md).
+pub fn mount_tilt(m: &MountModel) -> Matrix3<f64> {
+    let (sx, cx) = m.tilt_x_deg.to_radians().sin_cos();
+    let (sz, cz) = m.tilt_z_deg.to_radians().sin_cos();
+    let rx = Matrix3::new(1.0, 0.0, 0.0, 0.0, cx, -sx, 0.0, sx, cx);
+    let rz = Matrix3::new(cz, -sz, 0.0, sz, cz, 0.0, 0.0, 0.0, 1.0);
+    rx * rz
+}
+
+/// The names of the URDF's frames and joints below the LRF frame `lrf`.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct LrfChainNames {
+    /// The continuous joint the servo's `sensor_msgs/JointState` drives (`<lrf>_servo`).
+    pub servo_joint: String,
+    /// The mimic joint that adds the servo's zero and scale (`<lrf>_servo_correction`).
+    pub correction_joint: String,
+    /// The fixed joint of the mount (`<lrf>_mount`).
+    pub mount_joint: String,
+    /// The frame turned by the raw servo reading (`<lrf>_servo_raw`).
+    pub raw_link: String,
+    /// The frame turned by β, the turning frame of docs/lrf.md (`<lrf>_turning`).
+    pub turning_link: String,
+    /// The 2D scanner's frame, a LaserScan's `frame_id` (`<lrf>_scanner`).
+    pub scanner_link: String,
+}
+
+impl LrfChainNames {
+    /// The names below LRF frame `lrf`.
+    pub fn of(lrf: &str) -> Self {
+        LrfChainNames {
+            servo_joint: format!("{lrf}_servo"),
+            correction_joint: format!("{lrf}_servo_correction"),
+            mount_joint: format!("{lrf}_mount"),
+            raw_link: format!("{lrf}_servo_raw"),
+            turning_link: format!("{lrf}_turning"),
+            scanner_link: format!("{lrf}_scanner"),
+        }
+    }
+}
+
+/// One `<joint>` of a URDF (`extra`: its axis, mimic, … lines).
+fn urdf_joint(
+    name: &str,
+    kind: &str,
+    parent: &str,
+    child: &str,
+    xyz: &str,
+    rpy: &str,
+    extra: &str,
+) -> String {
+    format!(
+        "  <joint name=\"{name}\" type=\"{kind}\">\n    <parent link=\"{parent}\"/>\n    <child link=\"{child}\"/>\n    <origin xyz=\"{xyz}\" rpy=\"{rpy}\"/>\n{extra}  </joint>\n"
+    )
+}
+
+/// The comment of [`lrf_model_urdf`]: the model, the chain, and the range correction tf
+/// cannot apply.
+fn lrf_model_comment(tf: &Tf, m: &MountModel, source: &str, n: &LrfChainNames) -> String {
+    format!(
+        "<!-- The LRF's whole model, results.json's lrf_model (source: {source}), written by pingcal calibrate:\n     p_lrf = R_beta (R_x(tilt_x) R_z(tilt_z) (r cos(alpha), r sin(alpha), 0) + offset), beta = (servo - servo_zero) (1 + servo_scale),\n     R_beta = [[cos beta, 0, -sin beta], [0, 1, 0], [sin beta, 0, cos beta]] (about -Y by beta); the LRF frame '{lrf}' is pingcal's (that of cloud.ply).\n     Chain: '{cam}' -> fixed joint (the extrinsic, as laser_joint.urdf) -> '{lrf}' -> '{sj}' (continuous about -Y; its position is the servo's raw\n     reading in rad, as the servo's sensor_msgs/JointState gives it: name the joint as your servo driver does, or rename it here) -> '{raw}' ->\n     '{cj}' (mimic: multiplier = servo_scale = {scale}, offset = -servo_zero (1 + servo_scale) = {off} rad, servo_zero = {zero} deg, so the two add to beta)\n     -> '{turn}' -> '{mj}' (fixed: xyz = offset = {ox} m, rpy of R_x(tilt_x) R_z(tilt_z), tilt_x = {tx} deg, tilt_z = {tz} deg) -> '{scan}',\n     the frame_id your LaserScan messages must carry (angle alpha about its z from its x axis).\n     Not in tf: the range correction r = (reported - range_offset) / (1 + range_scale) with range_offset = {ro} mm ({rom} m) and\n     range_scale = {rs}: apply it to every range before use (tf moves frames; it cannot change a range). Every other part of the model is in this file.\n     Run it with lrf_model_ros1.launch or lrf_model_ros2.launch.py (robot_state_publisher); it publishes the extrinsic too, so do not run\n     static_transform_*.launch beside it. -->\n",
+        lrf = tf.child,
+        cam = tf.parent,
+        sj = n.servo_joint,
+        raw = n.raw_link,
+        cj = n.correction_joint,
+        scale = num(m.servo_scale),
+        off = num(mimic_offset(m)),
+        zero = num(m.servo_zero_deg),
+        turn = n.turning_link,
+        mj = n.mount_joint,
+        ox = m.offset_mm.map(|v| num(v / 1000.0)).join(" "),
+        tx = num(m.tilt_x_deg),
+        tz = num(m.tilt_z_deg),
+        scan = n.scanner_link,
+        ro = num(m.range_offset_mm),
+        rom = num(m.range_offset_mm / 1000.0),
+        rs = num(m.range_scale),
+    )
+}
+
+/// The mimic joint's offset, rad: `−servo_zero · (1 + servo_scale)`.
+fn mimic_offset(m: &MountModel) -> f64 {
+    -m.servo_zero_deg.to_radians() * (1.0 + m.servo_scale)
+}
+
+/// `ros/lrf_model.urdf`: the camera frame `parent`, the extrinsic `e` to the LRF frame
+/// `child`, then the servo (a continuous joint about [`SERVO_AXIS`] at the raw reading, a
+/// mimic joint adding `multiplier · q + offset` with multiplier = servo_scale and offset =
+/// −servo_zero·(1 + servo_scale), so that the two angles add to β), then the mount (a fixed
+/// joint: xyz = offset in m, rpy of `R_x(tilt_x) R_z(tilt_z)`) to the 2D scanner's frame.
+/// Composed, `lrf_from_scanner(q) · (r cos α, r sin α, 0) = R_β (R_x R_z (r cos α, r sin α,
+/// 0) + offset)`: the model of `m` but for the range correction, which the comment states.
+pub fn lrf_model_urdf(
+    e: &ExtrinsicJson,
+    m: &MountModel,
+    source: &str,
+    parent: &str,
+    child: &str,
+) -> String {
+    let tf = Tf::of(e, parent, child);
+    let n = LrfChainNames::of(child);
+    let axis = format!("    <axis xyz=\"{}\"/>\n", SERVO_AXIS.map(num).join(" "));
+    let zero = "0.0 0.0 0.0";
+    let mimic = format!(
+        "{axis}    <mimic joint=\"{}\" multiplier=\"{}\" offset=\"{}\"/>\n",
+        n.servo_joint,
+        num(m.servo_scale),
+        num(mimic_offset(m))
+    );
+    let joints = [
+        urdf_joint(
+            &(tf.node_name().trim_start_matches("pingcal_").to_string() + "_joint"),
+            "fixed",
+            parent,
+            child,
+            &tf.t.map(num).join(" "),
+            &tf.rpy.map(num).join(" "),
+            "",
+        ),
+        urdf_joint(
+            &n.servo_joint,
+            "continuous",
+            child,
+            &n.raw_link,
+            zero,
+            zero,
+            &axis,
+        ),
+        urdf_joint(
+            &n.correction_joint,
+            "continuous",
+            &n.raw_link,
+            &n.turning_link,
+            zero,
+            zero,
+            &mimic,
+        ),
+        urdf_joint(
+            &n.mount_joint,
+            "fixed",
+            &n.turning_link,
+            &n.scanner_link,
+            &m.offset_mm.map(|v| num(v / 1000.0)).join(" "),
+            &rpy(&mount_tilt(m)).map(num).join(" "),
+            "",
+        ),
+    ];
+    let links: String = [parent, child, &n.raw_link, &n.turning_link, &n.scanner_link]
+        .iter()
+        .map(|l| format!("  <link name=\"{l}\"/>\n"))
+        .collect();
+    format!(
+        "<?xml version=\"1.0\"?>\n{}<robot name=\"pingcal_lrf_model\">\n{links}{}</robot>\n",
+        lrf_model_comment(&tf, m, source, &n),
+        joints.concat()
+    )
+}
+
+/// `ros/lrf_model_ros1.launch`: `robot_state_publisher` with `lrf_model.urdf` beside it.
+fn lrf_model_ros1_launch(what: &str) -> String {
+    format!("<launch>\n  <!-- ROS 1: {what} -->\n  <param name=\"robot_description\" textfile=\"$(dirname)/lrf_model.urdf\" />\n  <node pkg=\"robot_state_publisher\" type=\"robot_state_publisher\" name=\"pingcal_lrf_model_state_publisher\" />\n</launch>\n")
+}
+
+/// `ros/lrf_model_ros2.launch.py`: `robot_state_publisher` with `lrf_model.urdf` beside it.
+fn lrf_model_ros2_launch(what: &str) -> String {
+    format!("# ROS 2 launch file: {what}\nimport os\n\nfrom launch import LaunchDescription\nfrom launch_ros.actions import Node\n\n\ndef generate_launch_description():\n    urdf = os.path.join(os.path.dirname(os.path.abspath(__file__)), \"lrf_model.urdf\")\n    with open(urdf, encoding=\"utf-8\") as f:\n        description = f.read()\n    return LaunchDescription([\n        Node(\n            package=\"robot_state_publisher\",\n            executable=\"robot_state_publisher\",\n            name=\"pingcal_lrf_model_state_publisher\",\n            parameters=[{{\"robot_description\": description}}],\n        ),\n    ])\n")
+}
+
+/// The LRF model's files of `ros/`: the URDF ([`lrf_model_urdf`]) and its launch files.
+pub fn lrf_model_files(
+    e: &ExtrinsicJson,
+    m: &MountModel,
+    source: &str,
+    parent: &str,
+    child: &str,
+) -> Vec<OutputFile> {
+    let what = format!(
+        "the LRF's whole model (lrf_model.urdf beside this file, see its comment) through robot_state_publisher: '{parent}' -> '{child}' -> '{}';\n# the servo's sensor_msgs/JointState on /joint_states drives its joint '{}' (written by pingcal calibrate)",
+        LrfChainNames::of(child).scanner_link,
+        LrfChainNames::of(child).servo_joint
+    );
+    vec![
+        (
+            "ros/lrf_model.urdf".into(),
+            lrf_model_urdf(e, m, source, parent, child),
+        ),
+        (
+            "ros/lrf_model_ros1.launch".into(),
+            lrf_model_ros1_launch(&what.replace("\n#", "\n    ")),
+        ),
+        (
+            "ros/lrf_model_ros2.launch.py".into(),
+            lrf_model_ros2_launch(&what),
+        ),
+    ]
+}
+
 /// An `!!opencv-matrix` node of FileStorage YAML (row-major `data`).
 fn cv_matrix(out: &mut String, name: &str, rows: usize, cols: usize, data: &[f64]) {
     let _ = writeln!(
@@ -209,13 +679,34 @@ fn file_stem(id: &str) -> String {
     )
 }
 
-/// `opencv/camera_<id>.yaml`: one camera in OpenCV's model (`results.json`'s `cameras[].opencv`).
-pub fn opencv_camera_yaml(c: &CameraJson) -> String {
+/// What OpenCV's five coefficients drop of camera `c` and what that costs over the image
+/// (the comment of the OpenCV YAML and of `camera_info`).
+fn opencv_drops(c: &CameraJson, loss: &ExportLoss) -> String {
+    let (nu, nv) = loss.grid;
+    format!(
+        "B2 = {} dropped (no shear in OpenCV's model) and B1 = {} kept to first order only (in fx); over a {nu} x {nv} grid of the whole image the rays of pingcal's model land {} from their pixels{}",
+        num(c.params.b2),
+        num(c.params.b1),
+        loss.opencv.words(),
+        missed_words(loss)
+    )
+}
+
+fn missed_words(loss: &ExportLoss) -> String {
+    match loss.missed {
+        0 => String::new(),
+        n => format!(" ({n} grid pixels left out: pingcal's model cannot undistort them)"),
+    }
+}
+
+/// `opencv/camera_<id>.yaml`: one camera in OpenCV's model (`results.json`'s
+/// `cameras[].opencv`), with what that model loses ([`export_loss`]) in its comment.
+pub fn opencv_camera_yaml(c: &CameraJson, loss: &ExportLoss) -> String {
     let o = &c.opencv;
     let mut s = format!(
-        "%YAML:1.0\n---\n# camera '{}' in OpenCV's pinhole model with radial-tangential distortion (k1, k2, p1, p2, k3); written by pingcal calibrate; B2 = {} dropped (OpenCV has no shear)\ncamera_name: \"{}\"\ncamera_model: \"pinhole\"\ndistortion_model: \"plumb_bob\"\nimage_width: {}\nimage_height: {}\n",
+        "%YAML:1.0\n---\n# camera '{}' in OpenCV's pinhole model with radial-tangential distortion (k1, k2, p1, p2, k3); written by pingcal calibrate\n# {}\ncamera_name: \"{}\"\ncamera_model: \"pinhole\"\ndistortion_model: \"plumb_bob\"\nimage_width: {}\nimage_height: {}\n",
         c.id,
-        num(o.opencv_dropped_b2),
+        opencv_drops(c, loss),
         c.id,
         o.image_width,
         o.image_height
@@ -231,13 +722,22 @@ fn flat<const R: usize, const C: usize>(m: &nalgebra::SMatrix<f64, R, C>) -> Vec
         .collect()
 }
 
+/// OpenCV's stereo geometry of the rig (left = camera 1, right = camera 2), or `None` for
+/// a degenerate pair.
+fn stereo_of(left: &CameraJson, right: &CameraJson, rig: &RigJson) -> Option<StereoCv> {
+    let r = matrix3(&rig.opencv.rotation);
+    let t = Vector3::from(rig.opencv.translation_mm);
+    let size = (left.opencv.image_width, left.opencv.image_height);
+    stereo_cv(&cv_camera(left), &cv_camera(right), size, &r, &t)
+}
+
 /// `opencv/stereo.yaml` for the rig (left = camera 1, right = camera 2), or `None` for a
 /// degenerate pair.
 pub fn opencv_stereo_yaml(left: &CameraJson, right: &CameraJson, rig: &RigJson) -> Option<String> {
+    let s = stereo_of(left, right, rig)?;
     let r = matrix3(&rig.opencv.rotation);
     let t = Vector3::from(rig.opencv.translation_mm);
     let (w, h) = (left.opencv.image_width, left.opencv.image_height);
-    let s = stereo_cv(&cv_camera(left), &cv_camera(right), (w, h), &r, &t)?;
     let mut out = format!(
         "%YAML:1.0\n---\n# stereo pair: camera 1 = '{}' (left), camera 2 = '{}' (right); p_2 = R p_1 + T in OpenCV camera frames, T in mm; R1 R2 P1 P2 Q as cv2.stereoRectify gives them (CALIB_ZERO_DISPARITY, alpha -1); written by pingcal calibrate\nleft_camera: \"{}\"\nright_camera: \"{}\"\ntranslation_unit: \"mm\"\nimage_width: {w}\nimage_height: {h}\n",
         left.id, right.id, left.id, right.id
@@ -258,31 +758,118 @@ pub fn opencv_stereo_yaml(left: &CameraJson, right: &CameraJson, rig: &RigJson) 
     Some(out)
 }
 
-/// One camera of the camchain (its lines after `camN:`).
-fn kalibr_camera(out: &mut String, n: usize, c: &CameraJson, overlaps: &[usize]) {
-    let o = &c.opencv;
+/// A `{rows, cols, data}` matrix as `camera_calibration_parsers` writes it (row-major).
+fn ros_matrix(out: &mut String, name: &str, rows: usize, cols: usize, data: &[f64]) {
     let _ = writeln!(
         out,
-        "  # camera '{}'; k3 = {} and B2 = {} dropped (radtan has k1 k2 r1 r2)",
+        "{name}:\n  rows: {rows}\n  cols: {cols}\n  data: [{}]",
+        nums(data)
+    );
+}
+
+/// A camera's rectification in `camera_info`: R and P (P's last column in m).
+#[derive(Clone, Debug, PartialEq)]
+pub struct RosRectification {
+    /// The rectifying rotation R.
+    pub r: Matrix3<f64>,
+    /// The projection P of the rectified image; `P[0][3] = Tx = −fx'·B` (B the baseline,
+    /// m) for the right camera of a horizontal pair, 0 for the left.
+    pub p: Matrix3x4<f64>,
+    /// What R and P are, for the comment.
+    pub what: String,
+}
+
+impl RosRectification {
+    /// A camera alone: R = I, P = [K | 0].
+    pub fn mono(c: &CameraJson) -> Self {
+        let k = Matrix3::from_row_slice(&k_data(c));
+        RosRectification {
+            r: Matrix3::identity(),
+            p: Matrix3x4::from_fn(|i, j| if j < 3 { k[(i, j)] } else { 0.0 }),
+            what: "R = I and P = [K | 0] (a camera alone)".into(),
+        }
+    }
+
+    /// Camera `n` (1 left, 2 right) of a stereo pair: R1, P1 or R2, P2 of `s` (OpenCV's,
+    /// as ROS's stereo calibrator writes them), P's last column from mm to m.
+    pub fn stereo(s: &StereoCv, n: usize) -> Self {
+        let (r, p) = if n == 1 { (s.r1, s.p1) } else { (s.r2, s.p2) };
+        let mut p = p;
+        for i in 0..3 {
+            p[(i, 3)] /= 1000.0;
+        }
+        RosRectification {
+            r,
+            p,
+            what: format!("R{n} and P{n} of opencv/stereo.yaml's rectification (P's last column Tx = -fx' B with the baseline B in m, as ROS's stereo calibrator and image_geometry take it)"),
+        }
+    }
+}
+
+/// `ros/camera_info_<id>.yaml`: camera `c` in the YAML that ROS's
+/// `camera_calibration_parsers` reads and writes (`camera_info_manager`'s
+/// `camera_info_url`), K and D as the OpenCV YAML, R and P of `rect`.
+pub fn ros_camera_info(c: &CameraJson, rect: &RosRectification, loss: &ExportLoss) -> String {
+    let o = &c.opencv;
+    let mut s = format!(
+        "# ROS camera_info of camera '{}' (camera_calibration_parsers' YAML, as camera_info_manager reads it), written by pingcal calibrate:\n# K and D (plumb_bob: k1 k2 p1 p2 k3) as opencv/camera_{}.yaml; {}\n# {}\nimage_width: {}\nimage_height: {}\ncamera_name: {:?}\n",
         c.id,
-        num(o.dist[4]),
-        num(o.opencv_dropped_b2)
+        file_stem(&c.id),
+        rect.what,
+        opencv_drops(c, loss),
+        o.image_width,
+        o.image_height,
+        c.id
+    );
+    ros_matrix(&mut s, "camera_matrix", 3, 3, &k_data(c));
+    let _ = writeln!(s, "distortion_model: plumb_bob");
+    ros_matrix(&mut s, "distortion_coefficients", 1, 5, &o.dist);
+    ros_matrix(&mut s, "rectification_matrix", 3, 3, &flat(&rect.r));
+    ros_matrix(&mut s, "projection_matrix", 3, 4, &flat(&rect.p));
+    s
+}
+
+/// One camera of the camchain (its lines after `camN:`), with the radtan refit of `loss`.
+fn kalibr_camera(
+    out: &mut String,
+    n: usize,
+    c: &CameraJson,
+    loss: &ExportLoss,
+    overlaps: &[usize],
+) {
+    let o = &c.opencv;
+    let k = &loss.kalibr;
+    let (nu, nv) = loss.grid;
+    let intrinsics = if k.intrinsics_refit {
+        "fx fy cx cy refitted too (so they differ from opencv/'s)"
+    } else {
+        "fx fy cx cy as opencv/'s"
+    };
+    let _ = writeln!(
+        out,
+        "  # camera '{}': radtan (k1 k2 r1 r2) refitted to pingcal's whole model (K1 K2 K3 P1 P2 B1 B2; K3 = {}, B1 = {}, B2 = {}) by least squares in px\n  # over a {nu} x {nv} grid of the whole image, {intrinsics}; loss: {}{}",
+        c.id,
+        num(c.params.k3),
+        num(c.params.b1),
+        num(c.params.b2),
+        k.loss.words(),
+        missed_words(loss)
     );
     let lists = overlaps.iter().map(|k| k.to_string()).collect::<Vec<_>>();
     let _ = writeln!(out, "  cam_overlaps: [{}]", lists.join(", "));
     let _ = writeln!(out, "  camera_model: pinhole");
-    let _ = writeln!(out, "  distortion_coeffs: [{}]", nums(&o.dist[..4]));
+    let _ = writeln!(out, "  distortion_coeffs: [{}]", nums(&k.coeffs));
     let _ = writeln!(out, "  distortion_model: radtan");
-    let _ = writeln!(out, "  intrinsics: [{}]", nums(&[o.fx, o.fy, o.cx, o.cy]));
+    let _ = writeln!(out, "  intrinsics: [{}]", nums(&k.intrinsics));
     let _ = writeln!(out, "  resolution: [{}, {}]", o.image_width, o.image_height);
     let _ = writeln!(out, "  rostopic: /cam{n}/image_raw");
 }
 
-/// `kalibr/camchain.yaml`: `cams` in order (cam0, cam1), and for a rig cam1's `T_cn_cnm1`
-/// (`p_cam1 = T p_cam0`, OpenCV frames, metres).
-pub fn kalibr_camchain(cams: &[&CameraJson], rig: Option<&RigJson>) -> String {
+/// `kalibr/camchain.yaml`: `cams` in order (cam0, cam1), each with its [`export_loss`], and
+/// for a rig cam1's `T_cn_cnm1` (`p_cam1 = T p_cam0`, OpenCV frames, metres).
+pub fn kalibr_camchain(cams: &[(&CameraJson, &ExportLoss)], rig: Option<&RigJson>) -> String {
     let mut out = String::from("# Kalibr camchain written by pingcal calibrate; the rostopics are placeholders: set them to your image topics\n");
-    for (n, c) in cams.iter().enumerate() {
+    for (n, (c, loss)) in cams.iter().enumerate() {
         let _ = writeln!(out, "cam{n}:");
         if n > 0 {
             if let Some(r) = rig {
@@ -296,14 +883,15 @@ pub fn kalibr_camchain(cams: &[&CameraJson], rig: Option<&RigJson>) -> String {
             }
         }
         let overlaps: Vec<usize> = (0..cams.len()).filter(|&k| k != n).collect();
-        kalibr_camera(&mut out, n, c, &overlaps);
+        kalibr_camera(&mut out, n, c, loss, &overlaps);
     }
     out
 }
 
-/// The cameras in Kalibr's order: left and right of the rig, else the main camera alone.
-fn chain(r: &Results) -> Vec<&CameraJson> {
-    let find = |id: &str| r.cameras.iter().find(|c| c.id == id);
+/// The indices (into `r.cameras`) of the cameras in Kalibr's order: left and right of the
+/// rig, else the main camera alone.
+fn chain(r: &Results) -> Vec<usize> {
+    let find = |id: &str| r.cameras.iter().position(|c| c.id == id);
     match &r.bundle.rig {
         Some(rig) => [&rig.left, &rig.right]
             .iter()
@@ -316,19 +904,44 @@ fn chain(r: &Results) -> Vec<&CameraJson> {
 /// Every file of `ros/`, `opencv/` and `kalibr/` for `r`.
 pub fn exports(r: &Results) -> Vec<OutputFile> {
     let conv = &r.conventions;
-    let mut out = ros_files(&r.extrinsic, &conv.tf_camera_frame, &conv.tf_lrf_frame);
-    for c in &r.cameras {
+    let (cam, lrf) = (&conv.tf_camera_frame, &conv.tf_lrf_frame);
+    let mut out = ros_files(&r.extrinsic, cam, lrf);
+    out.extend(lrf_model_files(
+        &r.extrinsic,
+        &r.lrf_model.model,
+        &r.lrf_model.source,
+        cam,
+        lrf,
+    ));
+    let losses: Vec<ExportLoss> = r.cameras.iter().map(export_loss).collect();
+    let order = chain(r);
+    let stereo = match (&r.bundle.rig, order.as_slice()) {
+        (Some(rig), &[a, b]) => stereo_of(&r.cameras[a], &r.cameras[b], rig).map(|s| (a, b, s)),
+        _ => None,
+    };
+    for (i, (c, loss)) in r.cameras.iter().zip(&losses).enumerate() {
+        let stem = file_stem(&c.id);
         out.push((
-            format!("opencv/camera_{}.yaml", file_stem(&c.id)),
-            opencv_camera_yaml(c),
+            format!("opencv/camera_{stem}.yaml"),
+            opencv_camera_yaml(c, loss),
+        ));
+        let rect = match &stereo {
+            Some((a, _, s)) if *a == i => RosRectification::stereo(s, 1),
+            Some((_, b, s)) if *b == i => RosRectification::stereo(s, 2),
+            _ => RosRectification::mono(c),
+        };
+        out.push((
+            format!("ros/camera_info_{stem}.yaml"),
+            ros_camera_info(c, &rect, loss),
         ));
     }
-    let cams = chain(r);
-    if let (Some(rig), [left, right]) = (&r.bundle.rig, cams.as_slice()) {
-        if let Some(y) = opencv_stereo_yaml(left, right, rig) {
+    if let (Some(rig), &[a, b]) = (&r.bundle.rig, order.as_slice()) {
+        if let Some(y) = opencv_stereo_yaml(&r.cameras[a], &r.cameras[b], rig) {
             out.push(("opencv/stereo.yaml".into(), y));
         }
     }
+    let cams: Vec<(&CameraJson, &ExportLoss)> =
+        order.iter().map(|&i| (&r.cameras[i], &losses[i])).collect();
     out.push((
         "kalibr/camchain.yaml".into(),
         kalibr_camchain(&cams, r.bundle.rig.as_ref()),
@@ -449,9 +1062,16 @@ mod tests {
     }
 
     fn camera_json(id: &str, c_mm: f64) -> CameraJson {
-        let p = [
-            c_mm, 0.012, -0.009, -0.021, 0.0004, -2e-6, 0.00015, -0.0001, 0.0, 0.0,
-        ];
+        camera_with(
+            id,
+            [
+                c_mm, 0.012, -0.009, -0.021, 0.0004, -2e-6, 0.00015, -0.0001, 0.0, 0.0,
+            ],
+        )
+    }
+
+    /// A 1280 × 720 camera of 3.75 µm pixels with pingcal's parameters `p`.
+    fn camera_with(id: &str, p: [f64; 10]) -> CameraJson {
         CameraJson {
             id: id.into(),
             params: CameraParams::from_slice(&p),
@@ -477,7 +1097,7 @@ mod tests {
     #[test]
     fn opencv_camera_yaml_has_opencvs_layout() {
         let c = camera_json("left", 2.45);
-        let y = opencv_camera_yaml(&c);
+        let y = opencv_camera_yaml(&c, &export_loss(&c));
         assert!(y.starts_with("%YAML:1.0\n---\n"));
         let o = &c.opencv;
         assert_eq!(
@@ -496,7 +1116,8 @@ mod tests {
         let t = Vector3::new(-120.0, -0.12, 0.83);
         let rig = rig_json(&Rigid3::new(r, t), "left", "right");
         let (a, b) = (camera_json("left", 2.45), camera_json("right", 2.452));
-        let chain = kalibr_camchain(&[&a, &b], Some(&rig));
+        let (la, lb) = (export_loss(&a), export_loss(&b));
+        let chain = kalibr_camchain(&[(&a, &la), (&b, &lb)], Some(&rig));
         let rows: Vec<Vec<f64>> = chain
             .lines()
             .filter(|l| l.starts_with("  - ["))
@@ -513,5 +1134,324 @@ mod tests {
         let tc = Vector3::from_row_slice(&cv_data(&y, "T"));
         assert!((rc * c * p_left + tc - c * (r * p_left + t)).norm() < 1e-12);
         assert!(chain.contains("cam0:\n") && chain.contains("distortion_model: radtan"));
+    }
+
+    /// The numbers after `key: [` on the line of `key` (YAML flow sequence).
+    fn flow(text: &str, key: &str) -> Vec<f64> {
+        let s = &text[text.find(&format!("{key}: [")).unwrap() + key.len() + 3..];
+        floats(&s[..s.find(']').unwrap()].split(", ").collect::<Vec<_>>())
+    }
+
+    /// camera_info's `data` of matrix `name` (camera_calibration_parsers' layout).
+    fn ros_data(yaml: &str, name: &str, rows: usize, cols: usize) -> Vec<f64> {
+        let s = &yaml[yaml.find(&format!("\n{name}:\n")).unwrap()..];
+        assert!(
+            s.contains(&format!(":\n  rows: {rows}\n  cols: {cols}\n  data: [")),
+            "{name}"
+        );
+        flow(s, "  data")
+    }
+
+    /// With neither K3 nor B1, B2, OpenCV's model is pingcal's and the radtan fit finds
+    /// OpenCV's k1 k2 p1 p2 again (the loss is the rays' Newton precision).
+    #[test]
+    fn the_loss_is_nil_when_nothing_is_dropped() {
+        let c = camera_with(
+            "a",
+            [
+                2.45, 0.012, -0.009, -0.021, 0.0004, 0.0, 0.00015, -0.0001, 0.0, 0.0,
+            ],
+        );
+        let l = export_loss(&c);
+        assert_eq!(l.grid, (161, 91));
+        assert_eq!(l.missed, 0);
+        assert!(l.opencv.max_px < 1e-6, "{:?}", l.opencv);
+        assert!(l.kalibr.loss.max_px < 1e-6, "{:?}", l.kalibr);
+        assert!(!l.kalibr.intrinsics_refit);
+        for (got, want) in l.kalibr.coeffs.iter().zip(&c.opencv.dist) {
+            assert!(
+                (got - want).abs() < 1e-9 * (1.0 + want.abs()),
+                "{got} {want}"
+            );
+        }
+    }
+
+    /// With K3, B1 and B2 the losses are real: the refit is a least-squares minimum (any
+    /// coefficient moved raises the RMS), beats dropping K3, and the file states the loss
+    /// of the numbers it writes.
+    #[test]
+    fn the_radtan_refit_is_the_least_squares_one_and_states_its_loss() {
+        let c = camera_with(
+            "wide",
+            [
+                2.45, 0.012, -0.009, -0.021, 0.0004, -2e-5, 0.00015, -0.0001, 2e-4, -1e-4,
+            ],
+        );
+        let l = export_loss(&c);
+        let g = grid_rays(&c);
+        let o = &c.opencv;
+        let k = l.kalibr.intrinsics;
+        let d = |cf: [f64; 4]| [cf[0], cf[1], cf[2], cf[3], 0.0];
+        let dropped = Loss::of(
+            &g,
+            &[o.fx, o.fy, o.cx, o.cy],
+            &d([o.dist[0], o.dist[1], o.dist[2], o.dist[3]]),
+        );
+        assert!(
+            l.kalibr.loss.max_px < dropped.max_px,
+            "{:?} vs {dropped:?}",
+            l.kalibr.loss
+        );
+        assert!(l.opencv.max_px > 0.05 && l.kalibr.loss.max_px > NOTED_LOSS_PX);
+        assert_eq!(Loss::of(&g, &k, &d(l.kalibr.coeffs)), l.kalibr.loss);
+        for j in 0..4 {
+            for h in [-1.0, 1.0] {
+                let mut cf = l.kalibr.coeffs;
+                cf[j] += h * 1e-4 * (cf[j].abs() + 1e-6);
+                assert!(
+                    Loss::of(&g, &k, &d(cf)).rms_px > l.kalibr.loss.rms_px,
+                    "{j} {h}"
+                );
+            }
+        }
+        let chain = kalibr_camchain(&[(&c, &l)], None);
+        assert_eq!(flow(&chain, "distortion_coeffs"), l.kalibr.coeffs);
+        assert_eq!(flow(&chain, "intrinsics"), k);
+        let words = format!(
+            "largest {:.4} px, RMS {:.4} px (more than",
+            l.kalibr.loss.max_px, l.kalibr.loss.rms_px
+        );
+        assert!(chain.contains(&words), "{chain}");
+        let yaml = opencv_camera_yaml(&c, &l);
+        assert!(
+            yaml.contains(&format!("largest {:.4} px", l.opencv.max_px)),
+            "{yaml}"
+        );
+    }
+
+    /// camera_info reads back with K, D as the OpenCV YAML and R, P of a camera alone; for
+    /// a stereo pair R2, P2 of the rectification with P2's Tx = −fx'·B in metres.
+    #[test]
+    fn camera_info_has_the_parsers_layout_and_the_rectification() {
+        let c = camera_json("left", 2.45);
+        let l = export_loss(&c);
+        let y = ros_camera_info(&c, &RosRectification::mono(&c), &l);
+        let o = &c.opencv;
+        let k = [o.fx, 0.0, o.cx, 0.0, o.fy, o.cy, 0.0, 0.0, 1.0];
+        assert!(y.contains("\nimage_width: 1280\nimage_height: 720\ncamera_name: \"left\"\n"));
+        assert!(y.contains("\ndistortion_model: plumb_bob\n"));
+        assert_eq!(ros_data(&y, "camera_matrix", 3, 3), k);
+        assert_eq!(ros_data(&y, "distortion_coefficients", 1, 5), o.dist);
+        assert_eq!(
+            ros_data(&y, "rectification_matrix", 3, 3),
+            flat(&Matrix3::<f64>::identity())
+        );
+        let p = ros_data(&y, "projection_matrix", 3, 4);
+        assert_eq!(
+            p,
+            [k[0], 0.0, k[2], 0.0, 0.0, k[4], k[5], 0.0, 0.0, 0.0, 1.0, 0.0]
+        );
+        let rig = rig_json(
+            &Rigid3::new(
+                from_opk_deg([0.3, -0.25, 0.1]),
+                Vector3::new(-120.0, -0.12, 0.83),
+            ),
+            "left",
+            "right",
+        );
+        let b = camera_json("right", 2.452);
+        let s = stereo_of(&c, &b, &rig).unwrap();
+        let y2 = ros_camera_info(&b, &RosRectification::stereo(&s, 2), &export_loss(&b));
+        assert_eq!(ros_data(&y2, "rectification_matrix", 3, 3), flat(&s.r2));
+        let p2 = ros_data(&y2, "projection_matrix", 3, 4);
+        let baseline_m = Vector3::from(rig.opencv.translation_mm).norm() / 1000.0;
+        assert!(
+            (p2[3] / p2[0] + baseline_m).abs() < 1e-12,
+            "{} vs {baseline_m}",
+            p2[3] / p2[0]
+        );
+        assert_eq!(p2[..3], flat(&s.p2)[..3]);
+    }
+
+    /// A `<joint>` of a URDF: type, parent, child, origin (xyz, rpy), axis and mimic
+    /// (joint, multiplier, offset).
+    struct Joint {
+        kind: String,
+        parent: String,
+        child: String,
+        xyz: Vector3<f64>,
+        rpy: [f64; 3],
+        axis: Option<Vector3<f64>>,
+        mimic: Option<(String, f64, f64)>,
+    }
+
+    fn attr(tag: &str, key: &str) -> String {
+        let s = &tag[tag.find(&format!(" {key}=\"")).unwrap() + key.len() + 3..];
+        s[..s.find('"').unwrap()].to_string()
+    }
+
+    fn v3(s: &str) -> Vector3<f64> {
+        Vector3::from_vec(floats(&s.split(' ').collect::<Vec<_>>()))
+    }
+
+    fn joints(urdf: &str) -> Vec<Joint> {
+        let tag = |j: &str, t: &str| {
+            j.find(&format!("<{t} "))
+                .map(|i| j[i..].split('>').next().unwrap().to_string())
+        };
+        urdf.split("<joint ")
+            .skip(1)
+            .map(|j| {
+                let j = &format!(" {}", &j[..j.find("</joint>").unwrap()]);
+                let origin = tag(j, "origin").unwrap();
+                Joint {
+                    kind: attr(j, "type"),
+                    parent: attr(&tag(j, "parent").unwrap(), "link"),
+                    child: attr(&tag(j, "child").unwrap(), "link"),
+                    xyz: v3(&attr(&origin, "xyz")),
+                    rpy: v3(&attr(&origin, "rpy")).into(),
+                    axis: tag(j, "axis").map(|a| v3(&attr(&a, "xyz"))),
+                    mimic: tag(j, "mimic").map(|m| {
+                        (
+                            attr(&m, "joint"),
+                            attr(&m, "multiplier").parse().unwrap(),
+                            attr(&m, "offset").parse().unwrap(),
+                        )
+                    }),
+                }
+            })
+            .collect()
+    }
+
+    /// A mount far from zero (every term of the model matters).
+    fn mount() -> MountModel {
+        MountModel {
+            offset_mm: [12.5, -3.25, 40.0],
+            tilt_x_deg: 1.7,
+            tilt_z_deg: -2.3,
+            servo_zero_deg: 4.5,
+            servo_scale: 0.012,
+            range_offset_mm: 6.5,
+            range_scale: -0.004,
+        }
+    }
+
+    /// `parent_from_child` of the chain from `from` down to `to`, the joint `name` at
+    /// position `q` (its mimics follow it), URDF's `origin · Rot(axis, position)`; mm.
+    fn compose(
+        js: &[Joint],
+        names: &LrfChainNames,
+        from: &str,
+        to: &str,
+        q: f64,
+    ) -> (Matrix3<f64>, Vector3<f64>) {
+        let (mut r, mut t) = (Matrix3::identity(), Vector3::zeros());
+        let mut link = from.to_string();
+        while link != to {
+            let j = js.iter().find(|j| j.parent == link).unwrap();
+            let [a, b, c] = j.rpy;
+            let o = Rotation3::from_euler_angles(a, b, c).into_inner();
+            let pos = match (&j.mimic, j.kind.as_str()) {
+                (Some((m, mul, off)), _) => {
+                    assert_eq!(m, &names.servo_joint);
+                    mul * q + off
+                }
+                (None, "continuous") => q,
+                (None, kind) => {
+                    assert_eq!(kind, "fixed");
+                    0.0
+                }
+            };
+            let turn = j.axis.map_or(Matrix3::identity(), |ax| {
+                Rotation3::from_axis_angle(&nalgebra::Unit::new_normalize(ax), pos).into_inner()
+            });
+            t += r * (j.xyz * 1000.0);
+            r = r * o * turn;
+            link = j.child.clone();
+        }
+        (r, t)
+    }
+
+    /// The URDF's chain from the LRF frame down to the scanner, composed at the raw servo
+    /// reading (rad), maps each beam (at the corrected range the comment states) where
+    /// `MountModel::beam` does, to 1e-9 mm; the camera frame is the extrinsic's parent.
+    #[test]
+    fn lrf_model_urdf_composes_to_the_mount_model() {
+        let (_, _, e) = extrinsic();
+        let m = mount();
+        let urdf = lrf_model_urdf(&e, &m, "joint adjustment", "cam", "laser");
+        let js = joints(&urdf);
+        let n = LrfChainNames::of("laser");
+        assert_eq!(js.len(), 4);
+        assert_eq!(
+            (js[0].parent.as_str(), js[0].child.as_str()),
+            ("cam", "laser")
+        );
+        assert!(urdf.contains(&format!("range_offset = {} mm", num(m.range_offset_mm))));
+        assert!(urdf.contains(&format!("range_scale = {}", num(m.range_scale))));
+        let mut worst: f64 = 0.0;
+        for servo_deg in [-60.0, -7.25, 0.0, 4.5, 33.0, 95.0] {
+            let (r, t) = compose(
+                &js,
+                &n,
+                "laser",
+                &n.scanner_link,
+                f64::to_radians(servo_deg),
+            );
+            for (reported, alpha_deg) in [
+                (800.0, -120.0),
+                (2345.0, -10.5),
+                (1500.0, 0.0),
+                (4000.0, 77.0),
+            ] {
+                let want = m.beam(reported, alpha_deg, servo_deg).0;
+                let (s, c) = f64::to_radians(alpha_deg).sin_cos();
+                let range = m.true_range(reported);
+                let got = r * Vector3::new(range * c, range * s, 0.0) + t;
+                worst = worst.max((got - want).norm());
+            }
+        }
+        assert!(worst < 1e-9, "{worst} mm");
+        let flipped = urdf.replace(
+            "<axis xyz=\"0.0 -1.0 0.0\"/>",
+            "<axis xyz=\"0.0 1.0 0.0\"/>",
+        );
+        let (r, t) = compose(&joints(&flipped), &n, "laser", &n.scanner_link, 0.6);
+        let want = m.beam(1500.0, 10.0, 0.6f64.to_degrees()).0;
+        let (s, c) = 10f64.to_radians().sin_cos();
+        let rr = m.true_range(1500.0);
+        assert!((r * Vector3::new(rr * c, rr * s, 0.0) + t - want).norm() > 100.0);
+    }
+
+    /// The mimic's multiplier and offset and the mount's numbers read back exactly, and the
+    /// launch files load `lrf_model.urdf` into robot_state_publisher.
+    #[test]
+    fn lrf_model_numbers_read_back_exactly() {
+        let (_, _, e) = extrinsic();
+        let m = mount();
+        let files = lrf_model_files(&e, &m, "spheres", "cam", "laser");
+        let urdf = file(&files, "lrf_model.urdf");
+        let js = joints(urdf);
+        let (_, mul, off) = js[2].mimic.clone().unwrap();
+        assert_eq!(mul, m.servo_scale);
+        assert_eq!(off, -m.servo_zero_deg.to_radians() * (1.0 + m.servo_scale));
+        assert_eq!(js[3].xyz, Vector3::from(m.offset_mm) / 1000.0);
+        let [a, b, c] = js[3].rpy;
+        let back = Rotation3::from_euler_angles(a, b, c).into_inner();
+        assert!((back - mount_tilt(&m)).norm() < 1e-15);
+        assert_eq!(
+            js[0].xyz,
+            Vector3::from(e.opencv.translation_mm.map(|v| v / 1000.0))
+        );
+        let ros1 = file(&files, "lrf_model_ros1.launch");
+        assert!(
+            ros1.contains("textfile=\"$(dirname)/lrf_model.urdf\"")
+                && ros1.contains("pkg=\"robot_state_publisher\"")
+        );
+        let ros2 = file(&files, "lrf_model_ros2.launch.py");
+        assert!(
+            ros2.contains("\"lrf_model.urdf\"")
+                && ros2.contains("executable=\"robot_state_publisher\"")
+        );
     }
 }
