@@ -293,8 +293,8 @@ fn ids_given_twice_are_refused() {
 }
 
 /// Item 7: calibrate's cloud.ply held 400 drawn points per sphere among the scan points;
-/// now `pingcal cloud results/cloud.ply` reads back exactly the scan's points (and finds
-/// the same balls).
+/// now `pingcal cloud results/cloud.ply` reads back exactly the scan's points through the
+/// calibration's LRF model (and finds the same balls).
 #[test]
 fn cloud_ply_reads_back_as_exactly_the_scan_points() {
     let w = Work::new("cloud_ply_round_trip");
@@ -308,8 +308,15 @@ fn cloud_ply_reads_back_as_exactly_the_scan_points() {
         "--quiet",
     ]);
     assert!(run.success(), "{}", ctx(&run));
-    // the simulated project uses eq. 2's mount (no offset, no tilt), as `pingcal cloud`
-    let scan = w.run(&["cloud", s(&p.join("scans/S00.csv"))]);
+    // cloud.ply is made through the calibration's LRF model (results.json's lrf_model),
+    // which `pingcal cloud --lrf-model` applies to the same scan
+    let model = out.join("results.json");
+    let scan = w.run(&[
+        "cloud",
+        s(&p.join("scans/S00.csv")),
+        "--lrf-model",
+        s(&model),
+    ]);
     let back = w.run(&["cloud", s(&out.join("cloud.ply"))]);
     assert!(
         scan.success() && back.success(),

@@ -228,6 +228,7 @@ fn calibrate_simulated_project() {
 
     one_lrf_model(&w, &p, &out, &r);
     overlays_put_the_balls_on_their_images(&p, &out, &r);
+    export_losses_are_the_same_in_the_files_and_the_report(&out);
 
     // --- bundle ---
     let b = &r["bundle"];
@@ -516,6 +517,58 @@ fn project_number(p: &Path, key: &str) -> f64 {
         .unwrap_or_else(|| panic!("no {key} in project.toml"));
     let v = line.split('=').nth(1).unwrap().split('#').next().unwrap();
     v.trim().parse().unwrap_or_else(|e| panic!("{line}: {e}"))
+}
+
+/// The losses the export files state (`largest X px, RMS Y px` in their comments) are the
+/// report's (to its 3 decimals): Kalibr's camchain (cam0, cam1 in order) and each camera's
+/// camera_info.
+fn export_losses_are_the_same_in_the_files_and_the_report(out: &Path) {
+    // the report rounds to 3 decimals, the files to 4: half of each, and a hair for the
+    // binary representation of the decimals
+    const ROUNDED: f64 = 0.0005 + 0.00005 + 1e-12;
+    let stated = |text: &str| -> Vec<(f64, f64)> {
+        text.match_indices("largest ")
+            .map(|(k, _)| {
+                let mut w = text[k..].split_whitespace();
+                let max: f64 = w.nth(1).unwrap().parse().unwrap();
+                let rms: f64 = w.nth(2).unwrap().parse().unwrap();
+                (max, rms)
+            })
+            .collect()
+    };
+    let html = fs::read_to_string(out.join("report.html")).unwrap();
+    let row = |cam: &str, files: &str| -> (f64, f64) {
+        let key = format!("<td class=\"l\">{cam}</td><td class=\"l\">{files}</td>");
+        let at = html
+            .find(&key)
+            .unwrap_or_else(|| panic!("no loss row {key}"));
+        let cells: Vec<f64> = html[at..]
+            .split("</tr>")
+            .next()
+            .unwrap()
+            .split("<td>")
+            .skip(1)
+            .map(|c| c.trim_end_matches("</td>").parse().unwrap())
+            .collect();
+        (cells[0], cells[1])
+    };
+    let kalibr = stated(&fs::read_to_string(out.join("kalibr/camchain.yaml")).unwrap());
+    assert_eq!(kalibr.len(), 2, "{kalibr:?}");
+    for (cam, (max, rms)) in ["left", "right"].iter().zip(&kalibr) {
+        let (rmax, rrms) = row(cam, "kalibr/camchain.yaml");
+        assert!(
+            (rmax - max).abs() <= ROUNDED && (rrms - rms).abs() <= ROUNDED,
+            "{cam}: camchain states {max} / {rms} px, the report {rmax} / {rrms}"
+        );
+        let info = fs::read_to_string(out.join(format!("ros/camera_info_{cam}.yaml"))).unwrap();
+        let (max, rms) = stated(&info)[0];
+        let files = format!("opencv/camera_{cam}.yaml, ros/camera_info_{cam}.yaml");
+        let (rmax, rrms) = row(cam, &files);
+        assert!(
+            (rmax - max).abs() <= ROUNDED && (rrms - rms).abs() <= ROUNDED,
+            "{cam}: camera_info states {max} / {rms} px, the report {rmax} / {rrms}"
+        );
+    }
 }
 
 /// The main station of project `p` (its `main_station = "…"` line).

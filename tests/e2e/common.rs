@@ -246,7 +246,7 @@ pub fn run(args: &[&str], dir: &Path) -> Run {
 }
 
 /// The outputs of a calibration of the simulated (stereo) project, `results.json` first.
-pub const OUTPUTS: [&str; 12] = [
+pub const OUTPUTS: [&str; 18] = [
     "results.json",
     "report.html",
     "cloud.ply",
@@ -255,10 +255,16 @@ pub const OUTPUTS: [&str; 12] = [
     "ros/static_transform_ros1.launch",
     "ros/static_transform_ros2.launch.py",
     "ros/laser_joint.urdf",
+    "ros/camera_info_left.yaml",
+    "ros/camera_info_right.yaml",
+    "ros/lrf_model.urdf",
+    "ros/lrf_model_ros1.launch",
+    "ros/lrf_model_ros2.launch.py",
     "opencv/camera_left.yaml",
     "opencv/camera_right.yaml",
     "opencv/stereo.yaml",
     "kalibr/camchain.yaml",
+    "overlays/S00_left.png",
 ];
 
 /// Checks a run that must fail cleanly: non-zero exit, exactly one stderr line starting

@@ -97,6 +97,10 @@ pub struct ReportData {
     /// The stereo rig's relative orientation (None: no rig).
     #[serde(default)]
     pub rig: Option<RigOrientation>,
+    /// What each export's camera model loses against pingcal's, per camera and file
+    /// (shown in the `opencv` section).
+    #[serde(default)]
+    pub export_losses: Vec<ExportLossRow>,
     /// The LRF's points drawn on the images ([`overlay`]), the main station's first.
     #[serde(default)]
     pub overlays: Vec<Overlay>,
@@ -367,6 +371,22 @@ pub struct OpenCvParams {
     pub width: u32,
     /// Image height, px.
     pub height: u32,
+}
+
+/// How far an exported camera model puts pingcal's rays from their pixels, over a grid of
+/// the whole image.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+pub struct ExportLossRow {
+    /// Camera name.
+    pub camera: String,
+    /// The files that carry the model (`opencv/…, ros/camera_info_…`).
+    pub files: String,
+    /// The model as written (`plumb_bob: k1 k2 p1 p2 k3`, `radtan refit`, …).
+    pub model: String,
+    /// The largest distance, px.
+    pub max_px: f64,
+    /// The root mean square distance, px.
+    pub rms_px: f64,
 }
 
 /// One parameter of the LRF's mount and range model from the joint adjustment.

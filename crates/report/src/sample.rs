@@ -618,6 +618,27 @@ pub fn sample_report(cloud_points: usize) -> ReportData {
         ],
         exterior: ext,
         distances: distances(&mut rng),
+        export_losses: ["left", "right"]
+            .iter()
+            .flat_map(|c| {
+                [
+                    crate::ExportLossRow {
+                        camera: c.to_string(),
+                        files: format!("opencv/camera_{c}.yaml, ros/camera_info_{c}.yaml"),
+                        model: "plumb_bob (k1 k2 p1 p2 k3): B2 dropped, B1 to first order".into(),
+                        max_px: 0.017,
+                        rms_px: 0.0045,
+                    },
+                    crate::ExportLossRow {
+                        camera: c.to_string(),
+                        files: "kalibr/camchain.yaml".into(),
+                        model: "pinhole-radtan (k1 k2 r1 r2) refitted: K3, B1, B2 dropped".into(),
+                        max_px: 0.31,
+                        rms_px: 0.021,
+                    },
+                ]
+            })
+            .collect(),
         overlays: sample_overlays(&cams_for_overlay, &balls_for_overlay, &cloud_for_overlay),
         rig: Some(crate::RigOrientation {
             left: "left".into(),

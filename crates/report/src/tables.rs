@@ -208,5 +208,35 @@ pub(crate) fn opencv(o: &mut String, d: &ReportData) {
         }
         o.push_str("</tr>\n");
     }
-    o.push_str("</table>\n</section>\n");
+    o.push_str("</table>\n");
+    export_losses(o, d);
+    o.push_str("</section>\n");
+}
+
+/// A loss beyond this many pixels is highlighted.
+const NOTED_LOSS_PX: f64 = 0.05;
+
+/// What each export's model loses against pingcal's over the whole image.
+fn export_losses(o: &mut String, d: &ReportData) {
+    if d.export_losses.is_empty() {
+        return;
+    }
+    let _ = writeln!(o, "<table>\n<caption>What each export loses against pingcal's model: the distance between a pixel and the projection of pingcal's ray of it through the exported model, over a grid of the whole image (rows over {NOTED_LOSS_PX} px highlighted: use pingcal's model where that matters)</caption>\n<tr><th class=\"l\">camera</th><th class=\"l\">files</th><th class=\"l\">model</th><th>largest (px)</th><th>RMS (px)</th></tr>");
+    for r in &d.export_losses {
+        let hi = if r.max_px > NOTED_LOSS_PX {
+            " class=\"hi\""
+        } else {
+            ""
+        };
+        let _ = writeln!(
+            o,
+            "<tr{hi}><td class=\"l\">{}</td><td class=\"l\">{}</td><td class=\"l\">{}</td><td>{}</td><td>{}</td></tr>",
+            escape(&r.camera),
+            escape(&r.files),
+            escape(&r.model),
+            num(r.max_px, 3),
+            num(r.rms_px, 3)
+        );
+    }
+    o.push_str("</table>\n");
 }

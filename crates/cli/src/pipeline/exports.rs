@@ -902,7 +902,7 @@ fn chain(r: &Results) -> Vec<usize> {
 }
 
 /// Every file of `ros/`, `opencv/` and `kalibr/` for `r`.
-pub fn exports(r: &Results) -> Vec<OutputFile> {
+pub fn exports(r: &Results, losses: &[ExportLoss]) -> Vec<OutputFile> {
     let conv = &r.conventions;
     let (cam, lrf) = (&conv.tf_camera_frame, &conv.tf_lrf_frame);
     let mut out = ros_files(&r.extrinsic, cam, lrf);
@@ -913,13 +913,12 @@ pub fn exports(r: &Results) -> Vec<OutputFile> {
         cam,
         lrf,
     ));
-    let losses: Vec<ExportLoss> = r.cameras.iter().map(export_loss).collect();
     let order = chain(r);
     let stereo = match (&r.bundle.rig, order.as_slice()) {
         (Some(rig), &[a, b]) => stereo_of(&r.cameras[a], &r.cameras[b], rig).map(|s| (a, b, s)),
         _ => None,
     };
-    for (i, (c, loss)) in r.cameras.iter().zip(&losses).enumerate() {
+    for (i, (c, loss)) in r.cameras.iter().zip(losses).enumerate() {
         let stem = file_stem(&c.id);
         out.push((
             format!("opencv/camera_{stem}.yaml"),
@@ -947,6 +946,38 @@ pub fn exports(r: &Results) -> Vec<OutputFile> {
         kalibr_camchain(&cams, r.bundle.rig.as_ref()),
     ));
     out
+}
+
+/// The report's table of what each camera's exports lose ([`export_loss`] of each camera
+/// of `r`, in `losses`).
+pub fn report_rows(r: &Results, losses: &[ExportLoss]) -> Vec<pingcal_report::ExportLossRow> {
+    let mut rows = Vec::new();
+    for (c, loss) in r.cameras.iter().zip(losses) {
+        let stem = file_stem(&c.id);
+        rows.push(pingcal_report::ExportLossRow {
+            camera: c.id.clone(),
+            files: format!("opencv/camera_{stem}.yaml, ros/camera_info_{stem}.yaml"),
+            model: "plumb_bob (k1 k2 p1 p2 k3): B2 dropped, B1 to first order".into(),
+            max_px: loss.opencv.max_px,
+            rms_px: loss.opencv.rms_px,
+        });
+        let k = &loss.kalibr;
+        rows.push(pingcal_report::ExportLossRow {
+            camera: c.id.clone(),
+            files: "kalibr/camchain.yaml".into(),
+            model: format!(
+                "pinhole-radtan (k1 k2 r1 r2) refitted{}: K3, B1, B2 dropped",
+                if k.intrinsics_refit {
+                    " with fx fy cx cy"
+                } else {
+                    ""
+                }
+            ),
+            max_px: k.loss.max_px,
+            rms_px: k.loss.rms_px,
+        });
+    }
+    rows
 }
 
 #[cfg(test)]

@@ -186,9 +186,11 @@ pub fn calibrate(project: &Project, opts: &Options, rep: &Reporter) -> Result<Ou
     rep.log(format!("time: overlays {secs:.2} s"));
     timing.push(("overlays".into(), secs));
     let results = results::assemble(&stages, verdict, timing);
-    let report = report::build(&stages, &results, drawn.report, rep);
+    let losses: Vec<_> = results.cameras.iter().map(exports::export_loss).collect();
+    let loss_rows = exports::report_rows(&results, &losses);
+    let report = report::build(&stages, &results, drawn.report, loss_rows, rep);
     let cloud_ply = results::cloud_ply(lrf_out, 0.5 * project.file.balls.diameter_mm);
-    let exports = exports::exports(&results);
+    let exports = exports::exports(&results, &losses);
     Ok(Outcome {
         results,
         report,

@@ -30,16 +30,19 @@ fn check_rows(rows: &[pingcal_lrf::registration::CheckRow], role: &str) -> Vec<r
 }
 
 /// Builds the report data, with the LRF drawn on the images (`overlays`, made by the
-/// pipeline's `overlays` step).
+/// pipeline's `overlays` step) and what each export loses (`export_losses`, the `exports`
+/// step's).
 pub fn build(
     st: &Stages,
     results: &Results,
     overlays: Vec<rp::Overlay>,
+    export_losses: Vec<rp::ExportLossRow>,
     rep: &Reporter,
 ) -> rp::ReportData {
     let f = &st.project.file;
     rp::ReportData {
         overlays,
+        export_losses,
         title: format!("pingcal calibration — {}", f.name),
         generator: results.generator.clone(),
         verdict: Some(rp::Verdict {
