@@ -918,16 +918,33 @@ fn one_angle_convention_everywhere_and_the_same_bytes_for_the_same_input() {
     let p = w.project("project");
     let toml = p.join("project.toml");
     let (out1, out2) = (w.dir.join("out1"), w.dir.join("out2"));
+    // an earlier run's overlay of an image this project does not have, and a user's note
+    fs::create_dir_all(out2.join("overlays")).unwrap();
+    fs::write(out2.join("overlays/S99_gone.png"), b"an earlier run's").unwrap();
+    fs::write(out2.join("overlays/notes.txt"), b"mine").unwrap();
     for out in [&out1, &out2] {
         let run = w.run(&["calibrate", s(&toml), "--out", s(out), "--quiet"]);
         assert!(run.success(), "calibrate failed: {}", run.stderr);
     }
-    for f in ["results.json", "cloud.ply"] {
+    for f in [
+        "results.json",
+        "cloud.ply",
+        "overlays/S00_left.png",
+        "overlays/S05_right.png",
+    ] {
         assert!(
             fs::read(out1.join(f)).unwrap() == fs::read(out2.join(f)).unwrap(),
             "{f} differs between two runs of the same project and seed"
         );
     }
+    assert!(
+        !out2.join("overlays/S99_gone.png").exists(),
+        "an earlier run's overlay passes for this run's"
+    );
+    assert!(
+        out2.join("overlays/notes.txt").exists(),
+        "a user's file was removed"
+    );
 
     // results.json: opk_deg is the documented convention's angles of `rotation`, for every
     // method; the report shows the same numbers.

@@ -243,7 +243,28 @@ pub fn write_outputs(dir: &Path, outcome: &Outcome) -> CmdResult {
         std::fs::rename(partial(path), path)
             .map_err(|e| format!("{}: cannot write: {e}", path.display()))?;
     }
+    remove_stale_overlays(dir, outcome);
     Ok(())
+}
+
+/// Removes the PNGs of `dir/overlays/` that this run did not write: those of images an
+/// earlier run had and this one has not, which would otherwise pass for this run's.
+fn remove_stale_overlays(dir: &Path, outcome: &Outcome) {
+    let ours: std::collections::BTreeSet<PathBuf> = outcome
+        .overlays
+        .iter()
+        .map(|(rel, _)| dir.join(rel))
+        .collect();
+    let Ok(entries) = std::fs::read_dir(dir.join("overlays")) else {
+        return;
+    };
+    for e in entries.flatten() {
+        let path = e.path();
+        let is_png = path.extension().is_some_and(|x| x == "png");
+        if is_png && e.file_type().is_ok_and(|t| t.is_file()) && !ours.contains(&path) {
+            let _ = std::fs::remove_file(&path);
+        }
+    }
 }
 
 /// Loads and calibrates one project.
