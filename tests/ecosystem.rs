@@ -196,14 +196,20 @@ fn check_in(test: &str, name: &str, out: &Path, extra: Option<&Path>) {
     assert!(o.status.success(), "check.py {name} failed:\n{so}\n{se}");
 }
 
+/// Check `name` of check.py with the probe of pingcal's own projection, where the
+/// ecosystem's Python is there (else skipped with the reason [`python`] prints).
+fn check_probed(name: &str) {
+    if python(name).is_some() {
+        let p = probe(calibrated());
+        check(name, name, Some(&p));
+    }
+}
+
 /// `cv2.projectPoints` with each camera's YAML and the OpenCV extrinsic (and rig) of
 /// `results.json` puts the LRF points where pingcal's own model does, within 0.02 px.
 #[test]
 fn opencv_projects_the_lrf_points_where_pingcal_does() {
-    if python("opencv").is_some() {
-        let p = probe(calibrated());
-        check("opencv", "opencv", Some(&p));
-    }
+    check_probed("opencv");
 }
 
 /// `cv2.stereoRectify` on `stereo.yaml`'s cameras gives its R1, R2, P1, P2, Q; E and F
@@ -239,10 +245,7 @@ fn urdf_joint_composes_back_to_the_extrinsic() {
 /// 1e-3 px), and T_cn_cnm1 is the rig.
 #[test]
 fn kalibr_camchain_reads_back() {
-    if python("kalibr").is_some() {
-        let p = probe(calibrated());
-        check("kalibr", "kalibr", Some(&p));
-    }
+    check_probed("kalibr");
 }
 
 /// `ros/camera_info_<id>.yaml`, read as camera_calibration_parsers lays it out: K and D
@@ -250,10 +253,7 @@ fn kalibr_camchain_reads_back() {
 /// loss its comment states; R and P the stereo rectification's (Tx = −fx'·B, B in m).
 #[test]
 fn camera_info_projects_where_pingcal_does() {
-    if python("camera_info").is_some() {
-        let p = probe(calibrated());
-        check("camera_info", "camera_info", Some(&p));
-    }
+    check_probed("camera_info");
 }
 
 /// `ros/lrf_model.urdf` through yourdfpy's forward kinematics (mimic joint included), at
