@@ -127,6 +127,59 @@ fn a_failed_rerun_keeps_the_earlier_results() {
         .filter(|n| n.starts_with('.'))
         .collect();
     assert!(left.is_empty(), "temporary files left: {left:?}");
+    one_writer_and_a_killed_runs_leftovers(&w, &p, &out, &before);
+}
+
+/// Issue 39: a second writer into a folder whose lock a live process holds is refused,
+/// named, and the results stay byte for byte; a killed run's lock, hidden new folder and
+/// `.partial` file are taken over and cleared by the next run, whose results are complete
+/// and swapped in as one folder (a new inode: not written file by file).
+fn one_writer_and_a_killed_runs_leftovers(w: &Work, p: &Path, out: &Path, before: &[Vec<u8>]) {
+    common::copy_dir(&common::pristine().join("images"), &p.join("images"));
+    let toml = p.join("project.toml");
+    let args = ["calibrate", s(&toml), "--out", s(out), "--quiet"];
+    let lock = out.with_file_name(".out.pingcal-lock");
+    let mut holder = std::process::Command::new("sleep")
+        .arg("600")
+        .spawn()
+        .unwrap();
+    fs::write(&lock, holder.id().to_string()).unwrap();
+    let refused = w.run(&args);
+    let _ = holder.kill();
+    let _ = holder.wait();
+    fails(
+        &refused,
+        &["another pingcal", &format!("process {}", holder.id())],
+    );
+    for (f, bytes) in OUTPUTS.iter().zip(before) {
+        assert!(
+            fs::read(out.join(f)).unwrap() == *bytes,
+            "{f} changed by a refused run"
+        );
+    }
+    // the holder is gone: its lock is stale, like a killed run's, with its leftovers
+    let new = out.with_file_name(format!(".out.pingcal-new-{}", holder.id()));
+    fs::create_dir_all(new.join("ros")).unwrap();
+    fs::write(new.join("results.json"), b"{\"half\":").unwrap();
+    fs::write(out.join(".results.json.partial"), b"{").unwrap();
+    use std::os::unix::fs::MetadataExt;
+    let inode = fs::metadata(out).unwrap().ino();
+    let again = w.run(&args);
+    assert!(again.success(), "{}", ctx(&again));
+    assert!(
+        !lock.exists() && !new.exists(),
+        "a killed run's lock or folder is left"
+    );
+    assert!(!out.join(".results.json.partial").exists());
+    assert_ne!(
+        fs::metadata(out).unwrap().ino(),
+        inode,
+        "not swapped in as one folder"
+    );
+    for f in OUTPUTS {
+        assert!(out.join(f).is_file(), "{f} missing after the swap");
+    }
+    read_json(&out.join("results.json"));
 }
 
 /// Item 3: `--out a_file` and `--out /proc/x` failed only after the whole pipeline; now

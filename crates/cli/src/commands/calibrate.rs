@@ -7,11 +7,12 @@
 //! after the project's folder, made distinct by [`out_dirs`] when two would collide).
 //! Several projects run in parallel. Before any work the output folders are created and
 //! probed ([`super::preflight`]). Nothing is written for a project that fails, and the
-//! outputs of an earlier run in DIR stay as they were until a run succeeds; then all the
-//! files are swapped in together, `results.json` last.
+//! outputs of an earlier run in DIR stay as they were until a run succeeds; then the whole
+//! set is swapped in at once ([`super::result_set`]).
 
 use super::preflight::{check_out_dir, check_threads};
 use super::progress::reporter;
+use super::result_set;
 use super::CmdResult;
 use crate::pipeline::network::Start;
 use crate::pipeline::{self, Outcome, Reporter};
@@ -205,26 +206,34 @@ fn write_partial(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
 }
 
 /// Writes the outputs of a calibration into `dir`, all or none: `ros/`, `opencv/` and
-/// `kalibr/` ([`crate::pipeline::exports`]), `cloud.ply`, `report.html` and `results.json`.
-/// Each is written to a temporary file beside its final name, and only when all are written
-/// are they renamed into place (`results.json` last, its presence means the run finished).
-/// A run that fails before or while writing leaves the outputs of an earlier run as they
-/// were.
+/// `kalibr/` ([`crate::pipeline::exports`]), `overlays/`, `cloud.ply`, `report.html` and
+/// `results.json`, as one set ([`super::result_set`]): written beside the folder and
+/// swapped in with one exchange of names, so that the folder is always either the earlier
+/// set or the new one, under the folder's lock (a second writer is refused). A folder that
+/// also holds other files is written file by file instead: each to a temporary file
+/// beside its final name, all renamed into place once all are written (`results.json`
+/// last, its presence means the run finished). A run that fails before or while writing
+/// leaves the outputs of an earlier run as they were.
 pub fn write_outputs(dir: &Path, outcome: &Outcome) -> CmdResult {
     std::fs::create_dir_all(dir).map_err(|e| format!("{}: cannot create: {e}", dir.display()))?;
+    let _lock = result_set::FolderLock::take(dir)?;
     let json = serde_json::to_string_pretty(&outcome.results)? + "\n";
     let html = pingcal_report::render_html(&outcome.report);
-    let mut files: Vec<(PathBuf, &[u8])> = outcome
+    let mut set: Vec<result_set::SetFile> = outcome
         .exports
         .iter()
-        .map(|(rel, text)| (dir.join(rel), text.as_bytes()))
+        .map(|(rel, text)| (PathBuf::from(rel), text.as_bytes()))
         .collect();
     for (rel, bytes) in &outcome.overlays {
-        files.push((dir.join(rel), bytes.as_slice()));
+        set.push((PathBuf::from(rel), bytes.as_slice()));
     }
-    files.push((dir.join("cloud.ply"), &outcome.cloud_ply));
-    files.push((dir.join("report.html"), html.as_bytes()));
-    files.push((dir.join("results.json"), json.as_bytes()));
+    set.push(("cloud.ply".into(), &outcome.cloud_ply));
+    set.push(("report.html".into(), html.as_bytes()));
+    set.push(("results.json".into(), json.as_bytes()));
+    if result_set::swap_in(dir, &set)? {
+        return Ok(());
+    }
+    let mut files: Vec<(PathBuf, &[u8])> = set.iter().map(|(rel, b)| (dir.join(rel), *b)).collect();
     // Through symlinks, the file behind them is replaced and the link stays a link.
     for (path, _) in &mut files {
         if let super::WriteTarget::Replace(t) = super::write_target(path)? {

@@ -10,6 +10,7 @@ pub mod plan;
 pub mod preflight;
 pub mod progress;
 pub mod register;
+pub mod result_set;
 pub mod scans;
 pub mod simulate;
 pub mod sphere_calib;
