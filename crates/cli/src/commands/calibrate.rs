@@ -544,9 +544,10 @@ fn finish(done: &[Done], accept_doubtful: bool) -> CmdResult {
                 parts.push(format!("{doubtful} doubtful"));
             }
             let message = format!(
-                "verdict: {} of {} project(s){}",
+                "verdict: {} of {} project{}{}",
                 parts.join(", "),
                 done.len(),
+                if done.len() == 1 { "" } else { "s" },
                 match worst {
                     Fate::Doubtful => "; --accept-doubtful exits 0 on doubtful",
                     _ => "",
@@ -577,6 +578,29 @@ fn kept_note(e: String, dir: &Path) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The worst project decides (not calibrated > failed > doubtful > ok), and
+    /// `--accept-doubtful` changes only a doubtful worst.
+    #[test]
+    fn the_worst_fate_gives_the_exit_code() {
+        use Fate::*;
+        let worst = |fates: &[Fate]| fates.iter().copied().max().expect("a project");
+        for (fates, code, accepted) in [
+            (&[Ok, Ok][..], 0, 0),
+            (&[Ok, Doubtful, Ok][..], 3, 0),
+            (&[Doubtful, Failed, Ok][..], 4, 4),
+            (&[Failed, Error, Doubtful][..], 1, 1),
+            (&[Error][..], 1, 1),
+        ] {
+            assert_eq!(worst(fates).exit_code(false), code, "{fates:?}");
+            assert_eq!(worst(fates).exit_code(true), accepted, "{fates:?}");
+        }
+        assert_eq!(Fate::of(Status::Doubtful), Doubtful);
+        assert_eq!(
+            [Ok, Doubtful, Failed, Error].map(Fate::as_str),
+            ["ok", "doubtful", "failed", "error"]
+        );
+    }
 
     /// A fresh temporary folder holding the given (empty) files.
     fn tree(name: &str, files: &[&str]) -> PathBuf {
