@@ -1,5 +1,11 @@
-//! `pingcal calibrate PROJECT.toml... [--out DIR] [--quiet] [--json] [--seed N]`: the whole
-//! pipeline ([`crate::pipeline`]) on one or many projects.
+//! `pingcal calibrate PROJECT.toml... [--out DIR] [--quiet] [--json] [--accept-doubtful]
+//! [--seed N]`: the whole pipeline ([`crate::pipeline`]) on one or many projects.
+//!
+//! Each project ends with a line on stdout, in the order given: the summary, starting with
+//! the verdict, or with `--json` a JSON object ([`json_line`]) whose `verdict` is that of
+//! `results.json` (`ok`, `doubtful`, `failed`) or `error` when the project could not be
+//! calibrated. The exit code is the worst project's ([`Fate`]): 0 ok, [`EXIT_DOUBTFUL`],
+//! [`EXIT_FAILED`], [`EXIT_ERROR`] (docs/batch.md).
 //!
 //! Writes `results.json`, `report.html`, `cloud.ply` and the folders `ros/`, `opencv/` and
 //! `kalibr/` ([`crate::pipeline::exports`]) into DIR (default: `results/` beside
