@@ -1,7 +1,9 @@
 //! `pingcal`: calibrate a camera (mono or stereo) against a rotating 2D laser range finder.
 //!
 //! Each subcommand lives in its own file under `commands/`; this file only parses the
-//! command line and turns errors into a one-line message and a non-zero exit code.
+//! command line and turns errors into a one-line message and a non-zero exit code: 1 for
+//! an error, 2 for a usage error (clap's own), and the codes a command chooses through
+//! [`commands::Exit`] (`calibrate`: 3 doubtful, 4 failed verdict).
 
 use clap::{Parser, Subcommand};
 
@@ -63,6 +65,13 @@ fn main() {
         Command::SphereCalib(a) => commands::sphere_calib::run(a),
     };
     if let Err(e) = result {
+        // `calibrate`'s verdicts end with codes of their own (3 doubtful, 4 failed)
+        if let Some(x) = e.downcast_ref::<commands::Exit>() {
+            if !x.message.is_empty() {
+                eprintln!("pingcal: {}", x.message);
+            }
+            std::process::exit(x.code);
+        }
         eprintln!("pingcal: error: {e}");
         std::process::exit(1);
     }

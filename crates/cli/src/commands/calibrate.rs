@@ -1,5 +1,11 @@
-//! `pingcal calibrate PROJECT.toml... [--out DIR] [--quiet] [--json] [--seed N]`: the whole
-//! pipeline ([`crate::pipeline`]) on one or many projects.
+//! `pingcal calibrate PROJECT.toml... [--out DIR] [--quiet] [--json] [--accept-doubtful]
+//! [--seed N]`: the whole pipeline ([`crate::pipeline`]) on one or many projects.
+//!
+//! Each project ends with a line on stdout, in the order given: the summary, starting with
+//! the verdict, or with `--json` a JSON object ([`json_line`]) whose `verdict` is that of
+//! `results.json` (`ok`, `doubtful`, `failed`) or `error` when the project could not be
+//! calibrated. The exit code is the worst project's ([`Fate`]): 0 ok, [`EXIT_DOUBTFUL`],
+//! [`EXIT_FAILED`], [`EXIT_ERROR`] (docs/batch.md).
 //!
 //! Writes `results.json`, `report.html`, `cloud.ply` and the folders `ros/`, `opencv/` and
 //! `kalibr/` ([`crate::pipeline::exports`]) into DIR (default: `results/` beside
@@ -13,17 +19,35 @@
 use super::preflight::{check_out_dir, check_threads};
 use super::progress::reporter;
 use super::result_set;
-use super::CmdResult;
+use super::{CmdResult, Exit};
 use crate::pipeline::network::Start;
+use crate::pipeline::verdict::Status;
 use crate::pipeline::{self, Outcome, Reporter};
 use indicatif::MultiProgress;
 use pingcal_project::Project;
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 
+/// Exit code of a run whose worst project has a `doubtful` verdict.
+pub const EXIT_DOUBTFUL: i32 = 3;
+/// Exit code of a run whose worst project has a `failed` verdict (results written, not to be
+/// trusted).
+pub const EXIT_FAILED: i32 = 4;
+/// Exit code of a run with a project that could not be calibrated (no results).
+pub const EXIT_ERROR: i32 = 1;
+
+/// The exit codes, as `pingcal calibrate --help` prints them after the options.
+const EXIT_CODES_HELP: &str = "\
+Exit codes (with several projects the worst one decides, 1 > 4 > 3 > 0):
+  0  every project's verdict is ok (or doubtful, with --accept-doubtful)
+  3  at least one verdict is doubtful: results written, read the reasons
+  4  at least one verdict is failed: results written, not to be trusted
+  1  at least one project could not be calibrated (bad input, pipeline error): no results
+  2  usage error (an unknown option, a missing argument)";
+
 /// Arguments of `pingcal calibrate`.
 #[derive(clap::Args)]
-#[command(allow_negative_numbers = true)]
+#[command(allow_negative_numbers = true, after_help = EXIT_CODES_HELP)]
 pub struct Args {
     /// Project files (project.toml); several run in parallel.
     #[arg(required = true)]
@@ -31,12 +55,17 @@ pub struct Args {
     /// Output folder (one project) or parent of one folder per project (several).
     #[arg(long)]
     pub out: Option<PathBuf>,
-    /// No progress bars and no step log; only the summary line (and errors).
+    /// No progress bars and no step log; the summary line, and on stderr the warnings, the
+    /// verdict's reasons and the errors, still print.
     #[arg(long)]
     pub quiet: bool,
-    /// Print one JSON object per project on stdout instead of the summary line.
+    /// Print one JSON object per project on stdout (in the order given) instead of the
+    /// summary line: `verdict`, `reasons`, `out`, ... (docs/batch.md).
     #[arg(long)]
     pub json: bool,
+    /// Exit 0, not 3, when the worst verdict is `doubtful`.
+    #[arg(long)]
+    pub accept_doubtful: bool,
     /// Seed of every random choice.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -286,7 +315,65 @@ pub fn calibrate_one(
     pipeline::calibrate(&project, opts, rep).map_err(|e| e.to_string())
 }
 
-/// The one-line summary of a finished project.
+/// What became of one project of a run, from best to worst (the order of the exit codes:
+/// the worst project of a batch decides).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Fate {
+    /// Calibrated, verdict `ok`.
+    Ok,
+    /// Calibrated, verdict `doubtful`.
+    Doubtful,
+    /// Calibrated, verdict `failed`: results written, not to be trusted.
+    Failed,
+    /// Not calibrated (bad input, pipeline error): no results.
+    Error,
+}
+
+impl Fate {
+    /// The fate of a calibration with verdict `status`.
+    pub fn of(status: Status) -> Self {
+        match status {
+            Status::Ok => Fate::Ok,
+            Status::Doubtful => Fate::Doubtful,
+            Status::Failed => Fate::Failed,
+        }
+    }
+
+    /// The `verdict` of the JSON line: `ok`, `doubtful`, `failed` or `error`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Fate::Ok => "ok",
+            Fate::Doubtful => "doubtful",
+            Fate::Failed => "failed",
+            Fate::Error => "error",
+        }
+    }
+
+    /// The exit code of a run whose worst project has this fate.
+    pub fn exit_code(self, accept_doubtful: bool) -> i32 {
+        match self {
+            Fate::Ok => 0,
+            Fate::Doubtful if accept_doubtful => 0,
+            Fate::Doubtful => EXIT_DOUBTFUL,
+            Fate::Failed => EXIT_FAILED,
+            Fate::Error => EXIT_ERROR,
+        }
+    }
+}
+
+/// One project's end: its fate, its stdout line (summary or JSON) and its stderr lines.
+struct Done {
+    fate: Fate,
+    /// The summary or JSON line (none for a project that errored without `--json`).
+    line: Option<String>,
+    /// Why it could not be calibrated (fate [`Fate::Error`]).
+    error: Option<String>,
+    /// What stderr must carry when the step log was not shown: the warnings and the
+    /// verdict's reasons, each starting with the project's path.
+    stderr: Vec<String>,
+}
+
+/// The one-line summary of a finished project: its verdict first.
 pub fn summary_line(path: &Path, dir: &Path, o: &Outcome, secs: f64) -> String {
     let r = &o.results;
     let mut methods = Vec::new();
@@ -307,8 +394,16 @@ pub fn summary_line(path: &Path, dir: &Path, o: &Outcome, secs: f64) -> String {
             _ => {}
         }
     }
+    let verdict = match r.verdict.reasons.len() {
+        0 => r.verdict.status.as_str().to_string(),
+        n => format!(
+            "{} ({n} reason{} in results.json)",
+            r.verdict.status.as_str(),
+            if n == 1 { "" } else { "s" }
+        ),
+    };
     format!(
-        "calibrate: {}: sigma0 {:.3}, RMS {:.3} px, {} images; mean check error: {}; t = ({:.1}, {:.1}, {:.1}) mm; wrote {} in {:.1} s",
+        "calibrate: {}: verdict {verdict}; sigma0 {:.3}, RMS {:.3} px, {} images; mean check error: {}; t = ({:.1}, {:.1}, {:.1}) mm; wrote {} in {:.1} s",
         path.display(),
         r.bundle.sigma0,
         r.bundle.rms_image_px,
@@ -320,6 +415,98 @@ pub fn summary_line(path: &Path, dir: &Path, o: &Outcome, secs: f64) -> String {
         dir.display(),
         secs
     )
+}
+
+/// The JSON line of a calibrated project (docs/batch.md): `ok` and `results_written` say
+/// that the run completed and wrote its results, `verdict` whether to trust them.
+pub fn json_line(path: &Path, dir: &Path, o: &Outcome, secs: f64) -> String {
+    let r = &o.results;
+    serde_json::json!({
+        "project": path.display().to_string(),
+        "verdict": r.verdict.status.as_str(),
+        "reasons": r.verdict.reasons,
+        "ok": true,
+        "results_written": true,
+        "out": dir.display().to_string(),
+        "mean_check_error_mm": r.mean_check_error_mm,
+        "methods": r.methods.iter().map(|m| serde_json::json!({
+            "method": m.method,
+            "mean_check_error_mm": m.mean_check_error_mm,
+            "error": m.error,
+        })).collect::<Vec<_>>(),
+        "translation_mm": r.extrinsic.translation_mm,
+        "sigma_translation_mm": r.extrinsic.sigma_translation_mm,
+        "sigma0": r.bundle.sigma0,
+        "time_s": secs,
+    })
+    .to_string()
+}
+
+/// The JSON line of a project that could not be calibrated: `verdict` `error`, the message
+/// in `error` (and as the one reason), nothing written into `out`.
+fn error_json_line(path: &Path, dir: &Path, e: &str, secs: f64) -> String {
+    serde_json::json!({
+        "project": path.display().to_string(),
+        "verdict": Fate::Error.as_str(),
+        "reasons": [e],
+        "error": e,
+        "ok": false,
+        "results_written": false,
+        "out": dir.display().to_string(),
+        "time_s": secs,
+    })
+    .to_string()
+}
+
+/// Calibrates one project of the run into `dir` and says how it ended. `shown`: the step log
+/// (with its warnings and verdict line) went to stderr already.
+fn calibrate_project(
+    path: &Path,
+    dir: &Path,
+    args: &Args,
+    opts: &pipeline::Options,
+    rep: &Reporter,
+    shown: bool,
+) -> Done {
+    let t0 = std::time::Instant::now();
+    let r = calibrate_one(path, opts, rep).and_then(|o| {
+        write_outputs(dir, &o)
+            .map(|()| o)
+            .map_err(|e| e.to_string())
+    });
+    let secs = t0.elapsed().as_secs_f64();
+    let o = match r {
+        Ok(o) => o,
+        Err(e) => {
+            let e = kept_note(e, dir);
+            return Done {
+                fate: Fate::Error,
+                line: args.json.then(|| error_json_line(path, dir, &e, secs)),
+                error: Some(e),
+                stderr: Vec::new(),
+            };
+        }
+    };
+    let v = &o.results.verdict;
+    let mut stderr = Vec::new();
+    if !shown {
+        let name = path.display();
+        for w in rep.lines().iter().filter(|l| l.starts_with("warning: ")) {
+            stderr.push(format!("{name}: {w}"));
+        }
+        for why in &v.reasons {
+            stderr.push(format!("{name}: {}: {why}", v.status.as_str()));
+        }
+    }
+    Done {
+        fate: Fate::of(v.status),
+        line: Some(match args.json {
+            true => json_line(path, dir, &o, secs),
+            false => summary_line(path, dir, &o, secs),
+        }),
+        error: None,
+        stderr,
+    }
 }
 
 /// Runs the command.
@@ -337,70 +524,76 @@ pub fn run(args: Args) -> CmdResult {
         start: args.start,
         ..pipeline::Options::default()
     };
-    let results: Vec<(PathBuf, Result<String, String>)> = args
+    let done: Vec<Done> = args
         .projects
         .par_iter()
         .zip(&dirs)
         .map(|(path, dir)| {
-            let t0 = std::time::Instant::now();
-            let prefix = if several {
-                format!("[{}] ", path.display())
-            } else {
-                String::new()
+            let prefix = match several {
+                true => format!("[{}] ", path.display()),
+                false => String::new(),
             };
             let rep = reporter(multi.as_ref(), prefix);
-            let r = calibrate_one(path, &opts, &rep)
-                .and_then(|o| {
-                    write_outputs(dir, &o).map_err(|e| e.to_string())?;
-                    let secs = t0.elapsed().as_secs_f64();
-                    Ok(if args.json {
-                        serde_json::json!({
-                            "project": path.display().to_string(),
-                            "ok": true,
-                            "out": dir.display().to_string(),
-                            "mean_check_error_mm": o.results.mean_check_error_mm,
-                            "methods": o.results.methods.iter().map(|m| serde_json::json!({
-                                "method": m.method,
-                                "mean_check_error_mm": m.mean_check_error_mm,
-                                "error": m.error,
-                            })).collect::<Vec<_>>(),
-                            "translation_mm": o.results.extrinsic.translation_mm,
-                            "sigma_translation_mm": o.results.extrinsic.sigma_translation_mm,
-                            "sigma0": o.results.bundle.sigma0,
-                            "time_s": secs,
-                        })
-                        .to_string()
-                    } else {
-                        summary_line(path, dir, &o, secs)
-                    })
-                })
-                .map_err(|e| kept_note(e, dir));
-            (path.clone(), r)
+            calibrate_project(path, dir, &args, &opts, &rep, multi.is_some())
         })
         .collect();
-    let mut failed = Vec::new();
-    for (path, r) in &results {
-        match r {
-            Ok(line) => println!("{line}"),
-            Err(e) => {
-                if args.json {
-                    println!(
-                        "{}",
-                        serde_json::json!({"project": path.display().to_string(), "ok": false, "error": e})
-                    );
-                }
-                failed.push(e.clone());
-            }
+    finish(&done, args.accept_doubtful)
+}
+
+/// Prints every project's line (stdout) and its stderr lines, in the order given, and ends
+/// the run with the exit code of the worst project.
+fn finish(done: &[Done], accept_doubtful: bool) -> CmdResult {
+    let mut errors = Vec::new();
+    for d in done {
+        if let Some(line) = &d.line {
+            println!("{line}");
         }
+        for l in &d.stderr {
+            eprintln!("pingcal: {l}");
+        }
+        errors.extend(d.error.clone());
     }
-    match failed.len() {
-        0 => Ok(()),
-        1 if !several => Err(failed.remove(0).into()),
-        n => {
-            for e in &failed {
+    let worst = done.iter().map(|d| d.fate).max().unwrap_or(Fate::Ok);
+    let count = |f: Fate| done.iter().filter(|d| d.fate == f).count();
+    match worst {
+        Fate::Error if done.len() == 1 => Err(errors.remove(0).into()),
+        Fate::Error => {
+            for e in &errors {
                 eprintln!("pingcal: error: {e}");
             }
-            Err(format!("{n} of {} projects failed", results.len()).into())
+            Err(format!(
+                "{} of {} projects could not be calibrated",
+                errors.len(),
+                done.len()
+            )
+            .into())
+        }
+        Fate::Ok => Ok(()),
+        _ if worst.exit_code(accept_doubtful) == 0 => Ok(()),
+        _ => {
+            let (failed, doubtful) = (count(Fate::Failed), count(Fate::Doubtful));
+            let mut parts = Vec::new();
+            if failed > 0 {
+                parts.push(format!("{failed} failed"));
+            }
+            if doubtful > 0 {
+                parts.push(format!("{doubtful} doubtful"));
+            }
+            let message = format!(
+                "verdict: {} of {} project{}{}",
+                parts.join(", "),
+                done.len(),
+                if done.len() == 1 { "" } else { "s" },
+                match worst {
+                    Fate::Doubtful => "; --accept-doubtful exits 0 on doubtful",
+                    _ => "",
+                }
+            );
+            Err(Exit {
+                code: worst.exit_code(accept_doubtful),
+                message,
+            }
+            .into())
         }
     }
 }
@@ -421,6 +614,29 @@ fn kept_note(e: String, dir: &Path) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The worst project decides (not calibrated > failed > doubtful > ok), and
+    /// `--accept-doubtful` changes only a doubtful worst.
+    #[test]
+    fn the_worst_fate_gives_the_exit_code() {
+        use Fate::*;
+        let worst = |fates: &[Fate]| fates.iter().copied().max().expect("a project");
+        for (fates, code, accepted) in [
+            (&[Ok, Ok][..], 0, 0),
+            (&[Ok, Doubtful, Ok][..], 3, 0),
+            (&[Doubtful, Failed, Ok][..], 4, 4),
+            (&[Failed, Error, Doubtful][..], 1, 1),
+            (&[Error][..], 1, 1),
+        ] {
+            assert_eq!(worst(fates).exit_code(false), code, "{fates:?}");
+            assert_eq!(worst(fates).exit_code(true), accepted, "{fates:?}");
+        }
+        assert_eq!(Fate::of(Status::Doubtful), Doubtful);
+        assert_eq!(
+            [Ok, Doubtful, Failed, Error].map(Fate::as_str),
+            ["ok", "doubtful", "failed", "error"]
+        );
+    }
 
     /// A fresh temporary folder holding the given (empty) files.
     fn tree(name: &str, files: &[&str]) -> PathBuf {

@@ -21,6 +21,25 @@ pub type CmdError = Box<dyn std::error::Error + Send + Sync>;
 /// The result every command returns.
 pub type CmdResult = Result<(), CmdError>;
 
+/// A command's end with an exit code of its own (not the 1 of every other error): `main`
+/// prints `pingcal: MESSAGE` (nothing when the message is empty) and exits with `code`.
+/// `pingcal calibrate` ends so when its verdict is doubtful (3) or failed (4).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Exit {
+    /// The process's exit code.
+    pub code: i32,
+    /// One line for stderr (empty: none).
+    pub message: String,
+}
+
+impl std::fmt::Display for Exit {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{} (exit {})", self.message, self.code)
+    }
+}
+
+impl std::error::Error for Exit {}
+
 /// Writes `bytes` to `path` atomically (temporary file in the same folder, then rename),
 /// so that an interrupted run never leaves a partial output file looking complete.
 ///
