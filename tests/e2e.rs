@@ -1163,7 +1163,11 @@ fn verdict_is_ok_on_a_clean_simulation_and_doubtful_with_an_unknown_mount_offset
         s(&out_b),
         "--quiet",
     ]);
-    assert!(run.success(), "calibrate failed: {}", run.stderr);
+    assert!(
+        run.calibrated(&out_b.join("results.json")),
+        "calibrate failed: {}",
+        run.stderr
+    );
     let v = read_json(&out_b.join("results.json"))["verdict"].clone();
     assert_eq!(v["status"], "doubtful", "a wrong baseline_mm: {v}");
     assert!(
@@ -1197,7 +1201,11 @@ fn verdict_is_ok_on_a_clean_simulation_and_doubtful_with_an_unknown_mount_offset
             "--seed",
             "3",
         ]);
-        assert!(run.success(), "calibrate failed: {}", run.stderr);
+        assert!(
+            run.calibrated(&out.join("results.json")),
+            "calibrate failed: {}",
+            run.stderr
+        );
     };
     let out = w.dir.join("out-offset");
     calibrate(&out);

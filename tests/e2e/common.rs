@@ -204,6 +204,29 @@ impl Run {
     pub fn success(&self) -> bool {
         self.code == Some(0)
     }
+
+    /// A calibration that wrote its results, whatever its verdict: the exit code is the
+    /// verdict's (0 ok, 3 doubtful, 4 failed; docs/batch.md). Checked against `results`'
+    /// `verdict.status`.
+    pub fn calibrated(&self, results: &Path) -> bool {
+        let Some(expected) = (match self.code {
+            Some(0) => Some("ok"),
+            Some(3) => Some("doubtful"),
+            Some(4) => Some("failed"),
+            _ => None,
+        }) else {
+            return false;
+        };
+        let status = read_json(results)["verdict"]["status"].clone();
+        assert_eq!(
+            status,
+            expected,
+            "exit code {:?} against the verdict in {}",
+            self.code,
+            results.display()
+        );
+        true
+    }
 }
 
 /// Runs `pingcal ARGS`; stdout and stderr go to files in `dir` (no pipe to fill up), and a

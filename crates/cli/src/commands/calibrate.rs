@@ -242,10 +242,11 @@ fn write_partial(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
 /// also holds other files is written file by file instead: each to a temporary file
 /// beside its final name, all renamed into place once all are written (`results.json`
 /// last, its presence means the run finished). A run that fails before or while writing
-/// leaves the outputs of an earlier run as they were.
-pub fn write_outputs(dir: &Path, outcome: &Outcome) -> CmdResult {
+/// leaves the outputs of an earlier run as they were. `lock`: the folder's, taken before
+/// the run began (a second run into it is refused before any work).
+pub fn write_outputs(lock: &result_set::FolderLock, outcome: &Outcome) -> CmdResult {
+    let dir = lock.dir();
     std::fs::create_dir_all(dir).map_err(|e| format!("{}: cannot create: {e}", dir.display()))?;
-    let _lock = result_set::FolderLock::take(dir)?;
     let json = serde_json::to_string_pretty(&outcome.results)? + "\n";
     let html = pingcal_report::render_html(&outcome.report);
     let mut set: Vec<result_set::SetFile> = outcome
@@ -462,15 +463,16 @@ fn error_json_line(path: &Path, dir: &Path, e: &str, secs: f64) -> String {
 /// (with its warnings and verdict line) went to stderr already.
 fn calibrate_project(
     path: &Path,
-    dir: &Path,
+    lock: &result_set::FolderLock,
     args: &Args,
     opts: &pipeline::Options,
     rep: &Reporter,
     shown: bool,
 ) -> Done {
     let t0 = std::time::Instant::now();
+    let dir = lock.dir();
     let r = calibrate_one(path, opts, rep).and_then(|o| {
-        write_outputs(dir, &o)
+        write_outputs(lock, &o)
             .map(|()| o)
             .map_err(|e| e.to_string())
     });
@@ -517,6 +519,9 @@ pub fn run(args: Args) -> CmdResult {
     for d in &dirs {
         check_out_dir(d)?;
     }
+    let locks = (dirs.iter())
+        .map(|d| result_set::FolderLock::take(d))
+        .collect::<Result<Vec<_>, _>>()?;
     let multi = (!args.quiet && !args.json).then(MultiProgress::new);
     let opts = pipeline::Options {
         seed: args.seed,
@@ -527,14 +532,14 @@ pub fn run(args: Args) -> CmdResult {
     let done: Vec<Done> = args
         .projects
         .par_iter()
-        .zip(&dirs)
-        .map(|(path, dir)| {
+        .zip(&locks)
+        .map(|(path, lock)| {
             let prefix = match several {
                 true => format!("[{}] ", path.display()),
                 false => String::new(),
             };
             let rep = reporter(multi.as_ref(), prefix);
-            calibrate_project(path, dir, &args, &opts, &rep, multi.is_some())
+            calibrate_project(path, lock, &args, &opts, &rep, multi.is_some())
         })
         .collect();
     finish(&done, args.accept_doubtful)

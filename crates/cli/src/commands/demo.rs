@@ -65,9 +65,12 @@ pub fn run(args: Args) -> CmdResult {
         ..pipeline::Options::default()
     };
     let project = out.join("project.toml");
-    let outcome = calibrate_one(&project, &opts, &rep)?;
     let results_dir = out.join("results");
-    write_outputs(&results_dir, &outcome)?;
+    std::fs::create_dir_all(&results_dir)
+        .map_err(|e| format!("{}: cannot create: {e}", results_dir.display()))?;
+    let lock = super::result_set::FolderLock::take(&results_dir)?;
+    let outcome = calibrate_one(&project, &opts, &rep)?;
+    write_outputs(&lock, &outcome)?;
     let truth = pingcal_sim::read_truth(&out.join("truth.json"))?;
     let t_all = t0.elapsed().as_secs_f64();
     print_table(&outcome.results, &truth);

@@ -51,17 +51,24 @@ pub fn real_dir(dir: &Path) -> PathBuf {
     fs::canonicalize(dir).unwrap_or_else(|_| dir.to_path_buf())
 }
 
-/// The lock of an output folder, held for a whole run; released when dropped.
+/// The lock of an output folder, held for a whole run; released when dropped. Writing a
+/// result set takes one ([`crate::commands::calibrate::write_outputs`]), so a set is never
+/// written into a folder another run holds.
 #[derive(Debug)]
 pub struct FolderLock {
     path: PathBuf,
+    dir: PathBuf,
 }
 
 impl FolderLock {
     /// Takes the lock of output folder `dir`, or says which process holds it. A stale lock
     /// (its process gone) is taken over and the killed run's leftovers removed.
-    pub fn take(dir: &Path) -> Result<FolderLock, String> {
-        let dir = real_dir(dir);
+    pub fn take(given: &Path) -> Result<FolderLock, String> {
+        if let Some(parent) = given.parent().filter(|p| !p.as_os_str().is_empty()) {
+            fs::create_dir_all(parent)
+                .map_err(|e| format!("{}: cannot create: {e}", parent.display()))?;
+        }
+        let dir = real_dir(given);
         let path = sibling(&dir, "pingcal-lock");
         for _ in 0..2 {
             match fs::OpenOptions::new()
@@ -72,7 +79,10 @@ impl FolderLock {
                 Ok(mut f) => {
                     let _ = write!(f, "{}", std::process::id());
                     remove_leftovers(&dir);
-                    return Ok(FolderLock { path });
+                    return Ok(FolderLock {
+                        path,
+                        dir: given.to_path_buf(),
+                    });
                 }
                 Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
                     let pid = fs::read_to_string(&path)
@@ -101,6 +111,13 @@ impl FolderLock {
             dir.display(),
             path.display()
         ))
+    }
+}
+
+impl FolderLock {
+    /// The output folder it locks, as the user named it.
+    pub fn dir(&self) -> &Path {
+        &self.dir
     }
 }
 
@@ -145,8 +162,29 @@ fn remove_leftovers(dir: &Path) {
     }
 }
 
+/// Whether `name`, a file in pingcal's folder `folder` (one of [`FOLDERS`]), is of a kind
+/// pingcal writes there: an image's overlay (`overlays/*.png`), or an export's name
+/// (`ros/`, `opencv/`, `kalibr/`, [`crate::pipeline::exports`]). Anything else there is a
+/// user's file.
+fn written_by_pingcal(folder: &str, name: &str) -> bool {
+    match folder {
+        "overlays" => name.ends_with(".png"),
+        "ros" => {
+            name.starts_with("camera_info_") && name.ends_with(".yaml")
+                || name.ends_with(".urdf")
+                || name.ends_with(".launch")
+                || name.ends_with(".launch.py")
+                || name.ends_with("_static_transform_publisher.sh")
+        }
+        "opencv" => name.ends_with(".yaml"),
+        "kalibr" => name == "camchain.yaml",
+        _ => false,
+    }
+}
+
 /// Whether `dir` holds only what pingcal writes there: [`FILES`] as regular files and
-/// [`FOLDERS`] holding regular files, no symlinks.
+/// [`FOLDERS`] holding regular files of the kinds pingcal writes there
+/// ([`written_by_pingcal`]), no symlinks.
 fn only_ours(dir: &Path) -> bool {
     let Ok(entries) = fs::read_dir(dir) else {
         return false;
@@ -162,9 +200,10 @@ fn only_ours(dir: &Path) -> bool {
         FOLDERS.contains(&name.as_str())
             && t.is_dir()
             && fs::read_dir(e.path()).is_ok_and(|inner| {
-                inner
-                    .flatten()
-                    .all(|f| f.file_type().is_ok_and(|t| t.is_file()))
+                inner.flatten().all(|f| {
+                    f.file_type().is_ok_and(|t| t.is_file())
+                        && written_by_pingcal(&name, &f.file_name().to_string_lossy())
+                })
             })
     })
 }
@@ -261,5 +300,34 @@ pub fn swap_in(dir: &Path, files: &[SetFile]) -> Result<bool, String> {
             let _ = fs::remove_dir_all(&new);
             Ok(false)
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_users_file_among_the_outputs_stops_the_swap() {
+        let root = std::env::temp_dir().join(format!("pingcal-result-set-{}", std::process::id()));
+        let dir = root.join("out");
+        let _ = fs::remove_dir_all(&root);
+        for (rel, mine) in [
+            ("results.json", false),
+            ("overlays/S00_left.png", false),
+            ("ros/camera_info_left.yaml", false),
+            ("ros/lrf_model_ros2.launch.py", false),
+            ("kalibr/camchain.yaml", false),
+            ("overlays/notes.txt", true),
+            ("ros/my_robot.xacro", true),
+            ("kalibr/imu.yaml", true),
+        ] {
+            write_file(&dir.join(rel), b"x").unwrap();
+            assert_eq!(only_ours(&dir), !mine, "{rel}");
+            if mine {
+                fs::remove_file(dir.join(rel)).unwrap();
+            }
+        }
+        let _ = fs::remove_dir_all(&root);
     }
 }
