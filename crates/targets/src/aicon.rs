@@ -41,6 +41,7 @@
 //! rendered targets (`tests/synthetic.rs`) this reads 3.5–4 px dots through 1.2 px of blur,
 //! where the thresholds read almost none, with no wrong number.
 
+use crate::confidence::{ReadMargins, ReadMethod};
 use crate::ellipse::Ellipse;
 use crate::image_io::GrayImage;
 
@@ -129,16 +130,16 @@ pub struct RingReader {
 /// the number, the code at its smallest rotation, the index of ε and Σ (x̃ − mean)² of the
 /// blurred pattern x̃ = M_ε x (M_ε: (1 − 2ε) on the diagonal, ε to each neighbour).
 #[derive(Clone, Debug, Default)]
-struct Patterns {
-    meta: Vec<(u32, u32, u32, usize, f32)>,
+pub(crate) struct Patterns {
+    pub(crate) meta: Vec<(u32, u32, u32, usize, f32)>,
 }
 
 /// The spills ε of the blurred-ring model (a sector's share of each neighbour).
-const SPILLS: [f32; 4] = [0.0, 0.06, 0.12, 0.18];
+pub(crate) const SPILLS: [f32; 4] = [0.0, 0.06, 0.12, 0.18];
 
 /// Σ (x̃ − mean)² of the bright sectors `mask` (n of them, bit k = sector k) blurred by the
 /// spill `eps`: x̃_k = (1 − 2ε) x_k + ε (x_{k−1} + x_{k+1}).
-fn blurred_sxx(mask: u32, n: usize, eps: f32) -> f32 {
+pub(crate) fn blurred_sxx(mask: u32, n: usize, eps: f32) -> f32 {
     let x = |k: usize| ((mask >> k) & 1) as f32;
     let mut xs = [0.0f32; 32];
     for (k, v) in xs[..n].iter_mut().enumerate() {
@@ -187,19 +188,14 @@ impl Patterns {
 impl RingReader {
     /// The radius (dot radii) of the dark gap between dot and ring where it is tested: 1.6
     /// for AICON's ring from 2.
-    fn gap_radius(&self) -> f64 {
+    pub(crate) fn gap_radius(&self) -> f64 {
         1.0 + 0.6 * (self.geometry.0 - 1.0)
     }
 
     /// The blurred-ring model's patterns, made at the first call.
-    fn patterns(&self) -> &Patterns {
-        self.patterns
-            .get_or_init(|| Patterns::new(&self.table, self.clockwise, self.bright_is_one))
-    }
-
-    /// Whether the bright sectors `mask` (bit k = sector k in reading order) are a code of the
-    /// table at some rotation.
-    fn is_code_mask(&self, mask: u32) -> bool {
+    /// The number whose code, at some rotation, has the bright sectors `mask` (bit k = sector
+    /// k in reading order), if any.
+    pub(crate) fn number_of_mask(&self, mask: u32) -> Option<u32> {
         let n = self.table.bits as usize;
         let mut code = 0u32;
         for k in 0..n {
@@ -208,7 +204,19 @@ impl RingReader {
                 code |= 1 << pos;
             }
         }
-        self.table.id(min_rotation(code, n as u32)).is_some()
+        self.table.id(min_rotation(code, n as u32))
+    }
+
+    /// The blurred-ring model's patterns, made at the first call.
+    pub(crate) fn patterns(&self) -> &Patterns {
+        self.patterns
+            .get_or_init(|| Patterns::new(&self.table, self.clockwise, self.bright_is_one))
+    }
+
+    /// Whether the bright sectors `mask` (bit k = sector k in reading order) are a code of the
+    /// table at some rotation.
+    fn is_code_mask(&self, mask: u32) -> bool {
+        self.number_of_mask(mask).is_some()
     }
 
     /// The reader for AICON targets with `bits` sectors, with the conventions established on
@@ -246,9 +254,48 @@ pub enum RingRead {
     /// A ring is there but it could not be read reliably, or the code is not in the table.
     Unreadable { reason: &'static str },
     /// A code read with confidence: the code at its smallest rotation, the number, and the
-    /// smallest sector margin (fraction of the contrast).
-    Code { code: u32, id: u32, margin: f32 },
+    /// margins that decided it ([`crate::confidence`]; its confidence is at least 1).
+    Code {
+        code: u32,
+        id: u32,
+        margins: ReadMargins,
+    },
+    /// A code was read but a margin is under its bound ([`crate::confidence`]): no number is
+    /// given; the code, number and margins say what was refused.
+    Doubtful {
+        code: u32,
+        id: u32,
+        margins: ReadMargins,
+    },
 }
+
+/// A ring read to a number, before its margins are assessed ([`crate::confidence::assess`]).
+#[derive(Clone, Debug)]
+pub(crate) struct Reading {
+    /// Which reading gave it.
+    pub method: ReadMethod,
+    /// The code at its smallest rotation, and its number.
+    pub code: u32,
+    pub id: u32,
+    /// The bright sectors of the code read (bit k = sector k in reading order).
+    pub mask: u32,
+    /// The sector means, brightness − the dot's mid level, sector k in reading order (the
+    /// first `n`).
+    pub y: [f32; 24],
+    /// Where sector 0 starts, in samples of [`SAMPLES_PER_SECTOR`] a sector from angle 0 of
+    /// the dot's unit frame.
+    pub phi: usize,
+    /// The ring's brightness − the dot's mid level at `n` × [`SAMPLES_PER_SECTOR`] angles
+    /// from angle 0 of the dot's unit frame (the first `n` × 16), averaged over the band's
+    /// radii.
+    pub profile: [f32; 24 * SAMPLES_PER_SECTOR],
+    /// The ring's radius over the printed ring's (1 for the thresholds' reading; ρ over the
+    /// ring's middle radius for the model's).
+    pub scale: f64,
+}
+
+/// Samples per sector around the ring (both readings).
+pub(crate) const SAMPLES_PER_SECTOR: usize = 16;
 
 /// Whether more than the fraction `limit` of `samples_per_turn` angles at unit-frame radius
 /// `rho` are brighter than `mid` (the count stops as soon as it exceeds the limit).
@@ -276,7 +323,9 @@ fn bright_over(
 
 /// Reads the code ring around a dot whose edge ellipse is `dot`, inner (dot) level `fg` and
 /// dark surround `bg`: by sector thresholds first, and by the blurred-ring model
-/// (`read_by_model`, see the module doc) when the thresholds cannot read a ring that is there.
+/// (`read_by_model`, see the module doc) when the thresholds cannot read a ring that is there;
+/// then the margins of the read ([`crate::confidence::assess`]) decide whether its number is
+/// given ([`RingRead::Code`]) or refused ([`RingRead::Doubtful`]).
 pub fn read_ring(
     img: &GrayImage,
     dot: &Ellipse,
@@ -284,11 +333,20 @@ pub fn read_ring(
     bg: f32,
     reader: &RingReader,
 ) -> RingRead {
-    match read_by_thresholds(img, dot, fg, bg, reader) {
-        RingRead::Unreadable { reason } => {
-            read_by_model(img, dot, fg, bg, reader).unwrap_or(RingRead::Unreadable { reason })
-        }
-        r => r,
+    let reading = match read_by_thresholds(img, dot, fg, bg, reader) {
+        Ok(r) => r,
+        Err(RingRead::Unreadable { reason }) => match read_by_model(img, dot, fg, bg, reader) {
+            Some(r) => r,
+            None => return RingRead::Unreadable { reason },
+        },
+        Err(other) => return other,
+    };
+    let margins = crate::confidence::assess(img, dot, fg, bg, reader, &reading);
+    let (code, id) = (reading.code, reading.id);
+    if margins.confidence >= 1.0 {
+        RingRead::Code { code, id, margins }
+    } else {
+        RingRead::Doubtful { code, id, margins }
     }
 }
 
@@ -299,20 +357,20 @@ fn read_by_thresholds(
     fg: f32,
     bg: f32,
     reader: &RingReader,
-) -> RingRead {
+) -> Result<Reading, RingRead> {
     let n = reader.table.bits as usize;
-    const S: usize = 16;
+    const S: usize = SAMPLES_PER_SECTOR;
     let m = n * S;
     let contrast = fg - bg;
     if contrast <= 0.0 {
-        return RingRead::NoRing;
+        return Err(RingRead::NoRing);
     }
     let mid = bg + 0.5 * contrast;
     let outer = dot.scaled(reader.ring.1 + 0.9);
     if !img.inside(outer.cx - outer.a, outer.cy - outer.a, 1.0)
         || !img.inside(outer.cx + outer.a, outer.cy + outer.a, 1.0)
     {
-        return RingRead::NoRing;
+        return Err(RingRead::NoRing);
     }
     let radii: [f64; 5] =
         std::array::from_fn(|i| reader.ring.0 + (reader.ring.1 - reader.ring.0) * i as f64 / 4.0);
@@ -334,22 +392,22 @@ fn read_by_thresholds(
     // of the band, and no ring when none of them is bright.
     let r_mid = 0.5 * (reader.ring.0 + reader.ring.1);
     if !bright_over(img, dot, r_mid, mid, m / 4, 0.0) {
-        return RingRead::NoRing;
+        return Err(RingRead::NoRing);
     }
     for (j, vj) in v.iter_mut().enumerate() {
         *vj = ring_at(j);
     }
     let bright = v.iter().filter(|&&x| x > 0.0).count() as f64 / m as f64;
     if bright < 0.05 {
-        return RingRead::NoRing;
+        return Err(RingRead::NoRing);
     }
     // The gap between dot and ring and the band outside the ring must be dark.
     if bright_over(img, dot, reader.gap_radius(), mid, 180, 0.1)
         || bright_over(img, dot, reader.ring.1 + 0.55, mid, 180, 0.15)
     {
-        return RingRead::Unreadable {
+        return Err(RingRead::Unreadable {
             reason: "surround of the ring is not dark",
-        };
+        });
     }
     // Sector phase. `v` is extended by one sector (wrapped round) so that the sums below need
     // no modulo.
@@ -373,16 +431,19 @@ fn read_by_thresholds(
     let (q0, q1) = (S / 5, S - S / 5); // central 60 %
     let mut code = 0u32;
     let mut margin = f32::INFINITY;
+    let (mut y, mut mask) = ([0.0f32; 24], 0u32);
     for k in 0..n {
         let samples = &v[phi + k * S + q0..phi + k * S + q1];
         let mean = samples.iter().sum::<f32>() / samples.len() as f32;
         let is_bright = mean > 0.0;
         if samples.iter().any(|&s| (s > 0.0) != is_bright) {
-            return RingRead::Unreadable {
+            return Err(RingRead::Unreadable {
                 reason: "a sector is not uniform",
-            };
+            });
         }
         margin = margin.min(mean.abs() / contrast);
+        y[k] = mean;
+        mask |= u32::from(is_bright) << k;
         let bit = is_bright == reader.bright_is_one;
         let pos = if reader.clockwise { k } else { n - 1 - k };
         if bit {
@@ -390,16 +451,25 @@ fn read_by_thresholds(
         }
     }
     if margin < reader.min_margin {
-        return RingRead::Unreadable {
+        return Err(RingRead::Unreadable {
             reason: "a sector is too close to the mid level",
-        };
+        });
     }
     let code = min_rotation(code, n as u32);
     match reader.table.id(code) {
-        Some(id) => RingRead::Code { code, id, margin },
-        None => RingRead::Unreadable {
+        Some(id) => Ok(Reading {
+            method: ReadMethod::Thresholds,
+            code,
+            id,
+            mask,
+            y,
+            phi,
+            profile: std::array::from_fn(|j| if j < m { v[j] } else { 0.0 }),
+            scale: 1.0,
+        }),
+        None => Err(RingRead::Unreadable {
             reason: "code not in the table",
-        },
+        }),
     }
 }
 
@@ -418,6 +488,7 @@ fn circle_samples(img: &GrayImage, dot: &Ellipse, rho: f64, mid: f32, out: &mut 
 #[derive(Clone, Copy)]
 struct Fit {
     ssr: f32,
+    mask: u32,
     id: u32,
     code: u32,
     beta: f32,
@@ -470,6 +541,7 @@ fn fit_codes(y: &[f32], reader: &RingReader) -> (Option<Fit>, Option<Fit>) {
         }
         let fit = Fit {
             ssr,
+            mask,
             id,
             code,
             beta,
@@ -490,7 +562,7 @@ fn fit_codes(y: &[f32], reader: &RingReader) -> (Option<Fit>, Option<Fit>) {
 /// The acceptance limits of a model fit (`read_by_model`, (4)): β over the dot's contrast,
 /// the largest spill ε, the largest RMS residual over β.
 const BETA_RANGE: (f32, f32) = (0.8, 1.4);
-const EPS_MAX: f32 = 0.12;
+pub(crate) const EPS_MAX: f32 = 0.12;
 const RMS_MAX: f32 = 0.06;
 
 /// Whether any code could pass the fit tests of `read_by_model` (4) on the sector means `y`
@@ -573,8 +645,8 @@ fn read_by_model(
     fg: f32,
     bg: f32,
     reader: &RingReader,
-) -> Option<RingRead> {
-    const S: usize = 16;
+) -> Option<Reading> {
+    const S: usize = SAMPLES_PER_SECTOR;
     let n = reader.table.bits as usize;
     let m = n * S;
     let contrast = fg - bg;
@@ -636,12 +708,24 @@ fn read_by_model(
     if span < 0.5 * contrast || !may_accept(y, contrast, reader) {
         return None;
     }
-    fit_and_accept(y, contrast, reader)
+    let best = fit_and_accept(y, contrast, reader)?;
+    let mut ys = [0.0f32; 24];
+    ys[..n].copy_from_slice(y);
+    Some(Reading {
+        method: ReadMethod::Model,
+        code: best.code,
+        id: best.id,
+        mask: best.mask,
+        y: ys,
+        phi,
+        profile: std::array::from_fn(|j| if j < m { v[j] } else { 0.0 }),
+        scale: rho / mid_radius,
+    })
 }
 
 /// Steps (3) and (4) of `read_by_model`: the fit of every code to the sector means `y` and
 /// the test of the best one.
-fn fit_and_accept(y: &[f32], contrast: f32, reader: &RingReader) -> Option<RingRead> {
+fn fit_and_accept(y: &[f32], contrast: f32, reader: &RingReader) -> Option<Fit> {
     let n = y.len();
     let (Some(best), other) = fit_codes(y, reader) else {
         return None;
@@ -652,11 +736,7 @@ fn fit_and_accept(y: &[f32], contrast: f32, reader: &RingReader) -> Option<RingR
         && (best.ssr / n as f32).sqrt() <= RMS_MAX * best.beta
         && other.is_none_or(|o| o.ssr >= 10.0 * best.ssr)
         && gap >= 2.0 * (0.25 * best.beta).powi(2);
-    ok.then(|| RingRead::Code {
-        code: best.code,
-        id: best.id,
-        margin: (0.5 * gap).sqrt().min(best.beta) / contrast,
-    })
+    ok.then_some(best)
 }
 
 #[cfg(test)]

@@ -45,13 +45,24 @@ pub struct Candidate {
     pub area: usize,
 }
 
-fn shape_ok(b: &Blob, w: usize, h: usize, p: &CandidateParams) -> Option<Ellipse> {
+/// Why a component failed the shape tests.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BlobRefusal {
+    /// It touches the image border.
+    AtBorder,
+    /// Its fill ratio or axis ratio is not an ellipse's.
+    NotElliptic,
+    /// It passed the shape tests but its diameter is under the smallest accepted.
+    TooSmall,
+}
+
+fn shape_ok(b: &Blob, w: usize, h: usize, p: &CandidateParams) -> Result<Ellipse, BlobRefusal> {
     if b.touches_border(w, h) {
-        return None;
+        return Err(BlobRefusal::AtBorder);
     }
-    let e = b.moment_ellipse()?;
+    let e = b.moment_ellipse().ok_or(BlobRefusal::NotElliptic)?;
     if e.b / e.a < p.min_axis_ratio {
-        return None;
+        return Err(BlobRefusal::NotElliptic);
     }
     // Small blobs are ragged by quantisation: relax the fill test below ~10 px diameter.
     let d = 2.0 * e.radius();
@@ -63,32 +74,129 @@ fn shape_ok(b: &Blob, w: usize, h: usize, p: &CandidateParams) -> Option<Ellipse
     // `b.fill_ratio()` without computing the moment ellipse again.
     let fill = b.area as f64 / (std::f64::consts::PI * e.a * e.b);
     if fill < min_fill || fill > 1.15 {
-        return None;
+        return Err(BlobRefusal::NotElliptic);
     }
-    Some(e)
+    Ok(e)
+}
+
+/// A blob seen at `min_repeat` or more levels of which no candidate came: its moment ellipse
+/// (the middle level's; at the border, of the part inside the image) and why.
+#[derive(Clone, Debug)]
+pub struct RefusedBlob {
+    pub seed: Ellipse,
+    pub repeats: usize,
+    pub why: BlobRefusal,
 }
 
 /// All candidates of an image, sorted by position (row-major of their centres).
 pub fn find_candidates(img: &GrayImage, p: &CandidateParams) -> Vec<Candidate> {
+    find_candidates_and_refusals(img, p, false).0
+}
+
+/// [`find_candidates`], and, when `refusals` is set, the stable blobs that failed the shape
+/// tests or the smallest diameter (each group of them seen at `min_repeat` levels or more,
+/// grouped as the candidates are; sorted by position).
+pub fn find_candidates_and_refusals(
+    img: &GrayImage,
+    p: &CandidateParams,
+    refusals: bool,
+) -> (Vec<Candidate>, Vec<RefusedBlob>) {
     let levels = threshold_levels(img, p.levels);
     let min_area = (std::f64::consts::PI * (p.min_diameter_px / 2.0).powi(2) * 0.7)
         .floor()
         .max(3.0) as usize;
     let max_area = (std::f64::consts::PI * (p.max_diameter_px / 2.0).powi(2) * 1.3).ceil() as usize;
     let (w, h) = (img.width, img.height);
+    let mut refused_members: Vec<(Ellipse, BlobRefusal)> = Vec::new();
     let per_level: Vec<Vec<(Ellipse, usize)>> =
         components_at_levels(img, &levels, min_area, max_area)
             .into_iter()
             .map(|blobs| {
                 blobs
                     .iter()
-                    .filter_map(|b| shape_ok(b, w, h, p).map(|e| (e, b.area)))
+                    .filter_map(|b| match shape_ok(b, w, h, p) {
+                        Ok(e) => Some((e, b.area)),
+                        Err(why) => {
+                            if refusals {
+                                let (cx, cy) = b.centroid();
+                                let r = 0.5
+                                    * ((b.x_max - b.x_min + 1).max(b.y_max - b.y_min + 1)) as f64;
+                                let e = b.moment_ellipse().unwrap_or(Ellipse {
+                                    cx,
+                                    cy,
+                                    a: r,
+                                    b: r,
+                                    theta: 0.0,
+                                });
+                                refused_members.push((e, why));
+                            }
+                            None
+                        }
+                    })
                     .collect()
             })
             .collect();
-    // Group across levels: same centre within half the smaller radius.
-    struct Group {
-        members: Vec<(Ellipse, usize)>,
+    let groups = group_by_centre(per_level.into_iter().flatten(), w, h);
+    let mut out: Vec<Candidate> = Vec::new();
+    let mut refused: Vec<RefusedBlob> = Vec::new();
+    for g in groups.into_iter().filter(|g| g.len() >= p.min_repeat) {
+        // Levels ascend, so members go from the largest to the smallest component; take
+        // the middle one as the representative.
+        let (seed, area) = g[g.len() / 2];
+        let d = 2.0 * seed.radius();
+        if d >= p.min_diameter_px && d <= p.max_diameter_px {
+            out.push(Candidate {
+                seed,
+                repeats: g.len(),
+                area,
+            });
+        } else if refusals && d < p.min_diameter_px {
+            refused.push(RefusedBlob {
+                seed,
+                repeats: g.len(),
+                why: BlobRefusal::TooSmall,
+            });
+        }
+    }
+    if refusals {
+        for g in group_by_centre(refused_members.into_iter(), w, h)
+            .into_iter()
+            .filter(|g| g.len() >= p.min_repeat)
+        {
+            let (seed, _) = g[g.len() / 2];
+            let why = if g.iter().any(|m| m.1 == BlobRefusal::AtBorder) {
+                BlobRefusal::AtBorder
+            } else {
+                BlobRefusal::NotElliptic
+            };
+            refused.push(RefusedBlob {
+                seed,
+                repeats: g.len(),
+                why,
+            });
+        }
+    }
+    let by_position = |a: &Ellipse, b: &Ellipse| {
+        (a.cy, a.cx)
+            .partial_cmp(&(b.cy, b.cx))
+            .unwrap_or(std::cmp::Ordering::Equal)
+    };
+    out.sort_by(|a, b| by_position(&a.seed, &b.seed));
+    refused.sort_by(|a, b| by_position(&a.seed, &b.seed));
+    (out, refused)
+}
+
+/// Groups ellipses (with a payload) across levels, in the order given: an ellipse joins the
+/// first group (in order of creation) whose first member's centre is within half the smaller
+/// radius (at least 1 px) of its own, else starts a group. Returns the groups in order of
+/// creation, each with its members in order.
+fn group_by_centre<T: Copy>(
+    items: impl Iterator<Item = (Ellipse, T)>,
+    w: usize,
+    h: usize,
+) -> Vec<Vec<(Ellipse, T)>> {
+    struct Group<T> {
+        members: Vec<(Ellipse, T)>,
         cx: f64,
         cy: f64,
         r: f64,
@@ -97,7 +205,8 @@ pub fn find_candidates(img: &GrayImage, p: &CandidateParams) -> Vec<Candidate> {
     }
     // The groups by grid cell of 16 px, in order of creation: a list from `head` through
     // `Group::next` to `tail` per cell. A component's centre is inside the image, so its cell
-    // is one of the grid's (the clamp is never active).
+    // is one of the grid's (the clamp is only active for the centre of a refused component
+    // cut by the border, which may lie outside).
     const NONE: u32 = u32::MAX;
     let cell = 16.0;
     let (gw, gh) = (w.div_ceil(16).max(1) as i64, h.div_ceil(16).max(1) as i64);
@@ -107,73 +216,46 @@ pub fn find_candidates(img: &GrayImage, p: &CandidateParams) -> Vec<Candidate> {
         let (i, j) = ((x / cell).floor() as i64, (y / cell).floor() as i64);
         (i.clamp(0, gw - 1), j.clamp(0, gh - 1))
     };
-    let mut groups: Vec<Group> = Vec::new();
-    for lvl in per_level {
-        for (e, area) in lvl {
-            let key = cell_of(e.cx, e.cy);
-            let mut hit = None;
-            'search: for dx in -1..=1 {
-                for dy in -1..=1 {
-                    let (i, j) = (key.0 + dx, key.1 + dy);
-                    if i < 0 || j < 0 || i >= gw || j >= gh {
-                        continue;
-                    }
-                    let mut gi = head[(j * gw + i) as usize];
-                    while gi != NONE {
-                        let g = &groups[gi as usize];
-                        let d = ((g.cx - e.cx).powi(2) + (g.cy - e.cy).powi(2)).sqrt();
-                        if d <= (0.5 * g.r.min(e.radius())).max(1.0) {
-                            hit = Some(gi as usize);
-                            break 'search;
-                        }
-                        gi = g.next;
-                    }
+    let mut groups: Vec<Group<T>> = Vec::new();
+    for (e, payload) in items {
+        let key = cell_of(e.cx, e.cy);
+        let mut hit = None;
+        'search: for dx in -1..=1 {
+            for dy in -1..=1 {
+                let (i, j) = (key.0 + dx, key.1 + dy);
+                if i < 0 || j < 0 || i >= gw || j >= gh {
+                    continue;
                 }
-            }
-            match hit {
-                Some(gi) => groups[gi].members.push((e, area)),
-                None => {
-                    let (c, gi) = ((key.1 * gw + key.0) as usize, groups.len() as u32);
-                    match tail[c] {
-                        NONE => head[c] = gi,
-                        t => groups[t as usize].next = gi,
+                let mut gi = head[(j * gw + i) as usize];
+                while gi != NONE {
+                    let g = &groups[gi as usize];
+                    let d = ((g.cx - e.cx).powi(2) + (g.cy - e.cy).powi(2)).sqrt();
+                    if d <= (0.5 * g.r.min(e.radius())).max(1.0) {
+                        hit = Some(gi as usize);
+                        break 'search;
                     }
-                    tail[c] = gi;
-                    groups.push(Group {
-                        members: vec![(e, area)],
-                        cx: e.cx,
-                        cy: e.cy,
-                        r: e.radius(),
-                        next: NONE,
-                    });
+                    gi = g.next;
                 }
             }
         }
+        match hit {
+            Some(gi) => groups[gi].members.push((e, payload)),
+            None => {
+                let (c, gi) = ((key.1 * gw + key.0) as usize, groups.len() as u32);
+                match tail[c] {
+                    NONE => head[c] = gi,
+                    t => groups[t as usize].next = gi,
+                }
+                tail[c] = gi;
+                groups.push(Group {
+                    members: vec![(e, payload)],
+                    cx: e.cx,
+                    cy: e.cy,
+                    r: e.radius(),
+                    next: NONE,
+                });
+            }
+        }
     }
-    let mut out: Vec<Candidate> = groups
-        .into_iter()
-        .filter(|g| g.members.len() >= p.min_repeat)
-        .map(|g| {
-            // Levels ascend, so members go from the largest to the smallest component; take
-            // the middle one as the representative.
-            let (seed, area) = g.members[g.members.len() / 2];
-            let d = 2.0 * seed.radius();
-            (
-                Candidate {
-                    seed,
-                    repeats: g.members.len(),
-                    area,
-                },
-                d,
-            )
-        })
-        .filter(|(_, d)| *d >= p.min_diameter_px && *d <= p.max_diameter_px)
-        .map(|(c, _)| c)
-        .collect();
-    out.sort_by(|a, b| {
-        (a.seed.cy, a.seed.cx)
-            .partial_cmp(&(b.seed.cy, b.seed.cx))
-            .unwrap_or(std::cmp::Ordering::Equal)
-    });
-    out
+    groups.into_iter().map(|g| g.members).collect()
 }

@@ -70,6 +70,8 @@ pub struct Refined {
     /// Edge points used, and the RMS of their residuals (pixels).
     pub n_edges: usize,
     pub rms_edge: f64,
+    /// The share of the samples inside the seed outline at the saturation level.
+    pub saturated: f64,
 }
 
 /// Which of the two refinement rounds [`edge_points`] serves.
@@ -269,6 +271,7 @@ pub fn refine(img: &GrayImage, seed: &Ellipse, p: &CentreParams) -> Result<Refin
         bg,
         n_edges: n_in,
         rms_edge: rms,
+        saturated: sat,
     })
 }
 

@@ -1,10 +1,13 @@
-//! The top-level detector: candidates → sub-pixel centres → code rings → kinds and IDs.
+//! The top-level detector: candidates → sub-pixel centres → code rings → kinds and IDs, and
+//! the candidates refused, each with its reason ([`crate::refusal`]).
 
 use crate::aicon::{read_ring, RingRead, RingReader};
-use crate::candidates::{find_candidates, CandidateParams};
-use crate::centre::{refine, CentreParams, Refined};
+use crate::candidates::{find_candidates_and_refusals, BlobRefusal, CandidateParams, RefusedBlob};
+use crate::centre::{refine, CentreParams, Refined, Reject};
+use crate::confidence::ReadMargins;
 use crate::ellipse::{Ellipse, Frame};
 use crate::image_io::{load_image, GrayImage};
+use crate::refusal::{Refusal, RefusalReason, GLYPH_INK, GLYPH_PAPER, GLYPH_RADIUS, GLYPH_STROKE};
 use crate::TargetError;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -31,7 +34,7 @@ pub struct Target {
     /// Centre (the edge-ellipse centre).
     pub x: f64,
     pub y: f64,
-    /// Estimated σ of the centre, pixels.
+    /// Estimated σ of the centre, pixels (three times the edge fit's for a saturated target).
     pub sigma_px: f64,
     /// The edge ellipse.
     pub ellipse: Ellipse,
@@ -40,6 +43,11 @@ pub struct Target {
     pub sigma_centroid_px: f64,
     /// Foreground − background grey contrast (image in [0, 1]).
     pub contrast: f32,
+    /// The margins of the read that gave `id` ([`crate::confidence`]).
+    pub read: Option<ReadMargins>,
+    /// Measured although saturated (only when [`DetectParams::measure_saturated`] asks): its
+    /// σ is tripled.
+    pub saturated: bool,
 }
 
 /// How balls are told from targets.
@@ -64,6 +72,10 @@ pub struct DetectParams {
     /// The printed code ring, inner and outer radius in dot radii (AICON: 2 and 3).
     pub ring: (f64, f64),
     pub balls: BallMode,
+    /// Measure targets with more than `centre.max_saturated_fraction` of their samples
+    /// saturated instead of refusing them: they are flagged ([`Target::saturated`]) and their
+    /// σ is tripled (a ninth of the weight), as their edges may be biased outward.
+    pub measure_saturated: bool,
 }
 
 impl Default for DetectParams {
@@ -77,6 +89,7 @@ impl Default for DetectParams {
                 ratio: 2.5,
                 min_px: 12.0,
             },
+            measure_saturated: false,
         }
     }
 }
@@ -87,6 +100,8 @@ pub struct ImageDetections {
     pub width: usize,
     pub height: usize,
     pub targets: Vec<Target>,
+    /// The candidates refused, with their reasons ([`crate::refusal`]), in position order.
+    pub refused: Vec<Refusal>,
 }
 
 /// A detector with its code tables built once (reuse it for many images).
@@ -94,6 +109,31 @@ pub struct ImageDetections {
 pub struct Detector {
     pub params: DetectParams,
     pub readers: Vec<RingReader>,
+}
+
+/// The σ of a saturated target measured on request is its fit's times this.
+pub const SATURATED_SIGMA_FACTOR: f64 = 3.0;
+
+/// A coded read whose centre σ is more than this many times the median σ of the image's
+/// coded reads (and over [`SIGMA_FLOOR_PX`]) is refused: its dot is not the clean ellipse
+/// the others are (partly covered, merged with something), so its ring is doubted too.
+pub const SIGMA_RATIO_MAX: f64 = 5.0;
+/// Centre σ under which no read is refused for its σ (pixels).
+pub const SIGMA_FLOOR_PX: f64 = 0.05;
+
+/// A measured candidate: its refinement and its share of saturated samples.
+struct Measured {
+    r: Refined,
+    saturated: f64,
+}
+
+/// What the code rings said of a measured candidate: its kind (coded when a ring was seen),
+/// the number given and its margins, or the refusal of the number.
+struct RingOutcome {
+    coded: bool,
+    id: Option<u32>,
+    margins: Option<ReadMargins>,
+    refusal: Option<Refusal>,
 }
 
 impl Detector {
@@ -110,124 +150,24 @@ impl Detector {
     /// Detects targets in an image.
     pub fn detect(&self, img: &GrayImage) -> ImageDetections {
         let p = &self.params;
-        let cands = find_candidates(img, &p.candidates);
-        let mut refined: Vec<Refined> = cands
+        let (cands, blobs) = find_candidates_and_refusals(img, &p.candidates, true);
+        let mut refused: Vec<Refusal> = blobs.iter().map(|b| self.blob_refusal(img, b)).collect();
+        let measured: Vec<Result<Measured, Refusal>> = cands
             .par_iter()
-            .filter_map(|c| refine(img, &c.seed, &p.centre).ok())
+            .map(|c| self.measure(img, &c.seed))
             .collect();
-        // Different candidates can converge on one target: keep the first of any pair closer
-        // than half the smaller radius.
-        refined.sort_by(|a, b| {
-            (a.ellipse.cy, a.ellipse.cx)
-                .partial_cmp(&(b.ellipse.cy, b.ellipse.cx))
-                .unwrap_or(std::cmp::Ordering::Equal)
-        });
-        let mut keep: Vec<Refined> = Vec::with_capacity(refined.len());
-        for r in refined {
-            let dup = keep.iter().rev().take(64).any(|k| {
-                let d = ((k.ellipse.cx - r.ellipse.cx).powi(2)
-                    + (k.ellipse.cy - r.ellipse.cy).powi(2))
-                .sqrt();
-                d < 0.5 * k.ellipse.radius().min(r.ellipse.radius())
-            });
-            if !dup {
-                keep.push(r);
+        let mut ok: Vec<Measured> = Vec::with_capacity(measured.len());
+        for m in measured {
+            match m {
+                Ok(m) => ok.push(m),
+                Err(r) => refused.push(r),
             }
         }
-        // Code rings.
-        let reads: Vec<(Option<TargetKind>, Option<u32>)> = keep
-            .par_iter()
-            .map(|r| {
-                let mut found: Option<u32> = None;
-                let mut ring = false;
-                let mut conflict = false;
-                for reader in &self.readers {
-                    match read_ring(img, &r.ellipse, r.fg, r.bg, reader) {
-                        RingRead::Code { id, .. } => {
-                            ring = true;
-                            if found.is_some_and(|f| f != id) {
-                                conflict = true;
-                            }
-                            found = Some(id);
-                        }
-                        RingRead::Unreadable { reason } => {
-                            if reason != "surround of the ring is not dark" {
-                                ring = true;
-                            }
-                        }
-                        RingRead::NoRing => {}
-                    }
-                }
-                if conflict {
-                    found = None;
-                }
-                if ring {
-                    (Some(TargetKind::Coded), found)
-                } else {
-                    (None, None)
-                }
-            })
-            .collect();
-        // Blobs inside the ring zone of a coded target are its ring segments: drop them
-        // (first around decoded targets, then around the unidentified ones that remain).
-        // (The distance test skips the rings further away than 3.6 major semi-axes.)
-        let in_ring_of = |r: &Refined, rings: &[(&Ellipse, Frame)]| {
-            let (x, y) = (r.ellipse.cx, r.ellipse.cy);
-            rings.iter().any(|(c, f)| {
-                let reach = 3.6 * c.a;
-                if (x - c.cx).abs() >= reach || (y - c.cy).abs() >= reach {
-                    return false;
-                }
-                let (u, v) = f.unmap(x, y);
-                let d2 = u * u + v * v;
-                d2 > 0.25 && d2 < 3.6 * 3.6
-            })
-        };
-        let decoded: Vec<(&Ellipse, Frame)> = keep
-            .iter()
-            .zip(&reads)
-            .filter(|(_, r)| r.1.is_some())
-            .map(|(k, _)| (&k.ellipse, k.ellipse.frame()))
-            .collect();
-        let survivors: Vec<usize> = (0..keep.len())
-            .filter(|&i| reads[i].1.is_some() || !in_ring_of(&keep[i], &decoded))
-            .collect();
-        let unread: Vec<(&Ellipse, Frame)> = survivors
-            .iter()
-            .filter(|&&i| reads[i].0 == Some(TargetKind::Coded) && reads[i].1.is_none())
-            .map(|&i| (&keep[i].ellipse, keep[i].ellipse.frame()))
-            .collect();
-        let mut targets = Vec::new();
-        for &i in &survivors {
-            let (r, (kind, id)) = (&keep[i], &reads[i]);
-            if kind.is_none() && in_ring_of(r, &unread) {
-                continue;
-            }
-            targets.push(Target {
-                kind: kind.unwrap_or(TargetKind::Plain),
-                id: *id,
-                x: r.ellipse.cx,
-                y: r.ellipse.cy,
-                sigma_px: r.sigma_ellipse,
-                ellipse: r.ellipse,
-                centroid: [r.centroid.0, r.centroid.1],
-                sigma_centroid_px: r.sigma_centroid,
-                contrast: r.fg - r.bg,
-            });
-        }
-        // Two targets must not carry the same ID: if they do, neither keeps it.
-        let mut ids: Vec<u32> = targets.iter().filter_map(|t| t.id).collect();
-        ids.sort_unstable();
-        let dups: Vec<u32> = ids
-            .windows(2)
-            .filter(|w| w[0] == w[1])
-            .map(|w| w[0])
-            .collect();
-        for t in &mut targets {
-            if t.id.is_some_and(|i| dups.contains(&i)) {
-                t.id = None;
-            }
-        }
+        let keep = without_duplicates(ok);
+        let rings: Vec<RingOutcome> = keep.par_iter().map(|m| self.read_rings(img, m)).collect();
+        let (mut targets, saturated_rings) = self.targets_of(img, &keep, rings, &mut refused);
+        refuse_doubtful_sigma(&mut targets, &mut refused);
+        refuse_numbers_read_twice(&mut targets, &mut refused);
         classify_balls(&mut targets, &p.balls);
         targets.sort_by(|a, b| {
             let ka = (
@@ -248,12 +188,465 @@ impl Detector {
                     .unwrap_or(std::cmp::Ordering::Equal),
             )
         });
+        let refused = without_pieces(refused, &targets, &saturated_rings);
         ImageDetections {
             width: img.width,
             height: img.height,
             targets,
+            refused,
         }
     }
+
+    /// The refusal of a blob that failed the shape tests (a text glyph when it is one).
+    fn blob_refusal(&self, img: &GrayImage, b: &RefusedBlob) -> Refusal {
+        let (reason, detail) = match b.why {
+            BlobRefusal::AtBorder => (RefusalReason::AtBorder, "touches the image border"),
+            BlobRefusal::TooSmall => (RefusalReason::TooSmall, "under the smallest diameter"),
+            BlobRefusal::NotElliptic => (
+                RefusalReason::NotElliptic,
+                "its fill or axis ratio is not an ellipse's",
+            ),
+        };
+        // the blob's level: the median of its centre and four points 0.4 radii out
+        let p = &self.params.centre;
+        let fr = b.seed.frame();
+        let mut v = [(0.0, 0.0), (0.4, 0.0), (-0.4, 0.0), (0.0, 0.4), (0.0, -0.4)].map(|(u, w)| {
+            let (x, y) = fr.map(u, w);
+            img.sample(x, y)
+        });
+        v.sort_by(|a, b| a.total_cmp(b));
+        let saturated = v.iter().filter(|&&x| x >= p.saturation).count() as f64 / 5.0;
+        if reason != RefusalReason::AtBorder
+            && self.is_glyph(img, &b.seed, v[2], saturated > p.max_saturated_fraction)
+        {
+            return glyph_refusal(b.seed);
+        }
+        Refusal::new(
+            reason,
+            b.seed,
+            format!("{detail} ({:.1} px across)", 2.0 * b.seed.radius()),
+        )
+    }
+
+    /// Whether the blob outlined by `seed` is the inside of a printed glyph (see
+    /// [`crate::refusal`]): on the circle of [`GLYPH_RADIUS`] radii, more than half the samples
+    /// (a quarter when the stroke is ink) are at least half way from the darkest sample of the
+    /// circle at 1.3 radii (the stroke) to the blob's middle; and either the blob is
+    /// `saturated` (in a flat render the paper and the inside of the letters both are), or the
+    /// paper on the circle (the upper eighth of its bright samples) is the blob's own level to within [`GLYPH_PAPER`] of the stroke's
+    /// contrast (the paper around a letter is the paper inside it) and the stroke is ink, as
+    /// dark as [`GLYPH_INK`] of the paper or darker, or (with more than half the circle bright)
+    /// at least [`GLYPH_STROKE`] radii wide (the median over 32 rays of where the profile
+    /// climbs back to the half-way level).
+    fn is_glyph(&self, img: &GrayImage, seed: &Ellipse, fg: f32, saturated: bool) -> bool {
+        const K: usize = 32;
+        let outer = seed.scaled(GLYPH_RADIUS + 0.1);
+        if !img.inside(outer.cx - outer.a, outer.cy - outer.a, 1.0)
+            || !img.inside(outer.cx + outer.a, outer.cy + outer.a, 1.0)
+        {
+            return false;
+        }
+        let fr = seed.frame();
+        let trig = crate::ellipse::unit_circle(K);
+        let at = |rho: f64, (c, s): (f64, f64)| {
+            let (x, y) = fr.map(rho * c, rho * s);
+            img.sample_inside(x, y)
+        };
+        let stroke = trig.iter().fold(f32::INFINITY, |m, &t| m.min(at(1.3, t)));
+        if !(fg - stroke > self.params.centre.min_contrast) {
+            return false;
+        }
+        let level = stroke + 0.5 * (fg - stroke);
+        let mut v = [0.0f32; K];
+        for (vk, &t) in v.iter_mut().zip(trig.iter()) {
+            *vk = at(GLYPH_RADIUS, t);
+        }
+        // A letter's stem or tail beside its bowl ('b', 'g', 'e' at 300 dpi) hides up to
+        // three quarters of the circle: with an ink stroke, a quarter of it bright will do.
+        let bright = v.iter().filter(|&&x| x >= level).count();
+        let ink = stroke <= GLYPH_INK * fg;
+        if bright * 2 <= K && !(ink && bright * 4 > K) {
+            return false;
+        }
+        if saturated {
+            return true;
+        }
+        v.sort_by(|a, b| a.total_cmp(b));
+        // the paper: the upper eighth of the circle's bright samples (the circle crosses the
+        // anti-aliased edges of the neighbouring letters)
+        let paper = v[K - 1 - bright / 8];
+        if (paper - fg).abs() > GLYPH_PAPER * (fg - stroke) {
+            return false;
+        }
+        if ink {
+            return true;
+        }
+        if bright * 2 <= K {
+            return false;
+        }
+        // where the stroke ends on each ray, in steps of 0.025 radii from 1.15 out
+        let mut ends = [f64::INFINITY; K];
+        for (e, &t) in ends.iter_mut().zip(trig.iter()) {
+            *e = (0..=24)
+                .map(|i| 1.15 + 0.025 * i as f64)
+                .find(|&r| at(r, t) >= level)
+                .unwrap_or(f64::INFINITY);
+        }
+        ends.sort_by(|a, b| a.total_cmp(b));
+        ends[K / 2] >= GLYPH_STROKE
+    }
+
+    /// The sub-pixel measurement of a candidate, or why it was refused. Saturated candidates
+    /// are measured too (the caller refuses them, after their rings have told where their
+    /// pieces are, unless asked to keep them).
+    fn measure(&self, img: &GrayImage, seed: &Ellipse) -> Result<Measured, Refusal> {
+        let p = &self.params;
+        let centre = CentreParams {
+            max_saturated_fraction: 1.0,
+            ..p.centre.clone()
+        };
+        match refine(img, seed, &centre) {
+            Ok(r) => Ok(Measured {
+                saturated: r.saturated,
+                r,
+            }),
+            Err(e) => {
+                let (reason, detail) = match e {
+                    Reject::Saturated => (RefusalReason::Saturated, "saturated"),
+                    Reject::Clipped => (
+                        RefusalReason::AtBorder,
+                        "the window its edge is looked for in leaves the image",
+                    ),
+                    Reject::LowContrast => (
+                        RefusalReason::LowContrast,
+                        "less than the smallest contrast brighter than its surround",
+                    ),
+                    Reject::FewEdges => (RefusalReason::NotElliptic, "too few edge points"),
+                    Reject::BadFit => (
+                        RefusalReason::NotElliptic,
+                        "its edge points do not fit an ellipse",
+                    ),
+                };
+                Err(Refusal::new(reason, *seed, detail))
+            }
+        }
+    }
+
+    /// Reads the code rings of a measured candidate with every reader.
+    fn read_rings(&self, img: &GrayImage, m: &Measured) -> RingOutcome {
+        let r = &m.r;
+        let mut out = RingOutcome {
+            coded: false,
+            id: None,
+            margins: None,
+            refusal: None,
+        };
+        let mut conflict = false;
+        for reader in &self.readers {
+            match read_ring(img, &r.ellipse, r.fg, r.bg, reader) {
+                RingRead::Code { id, margins, .. } => {
+                    out.coded = true;
+                    if out.id.is_some_and(|f| f != id) {
+                        conflict = true;
+                    }
+                    out.id = Some(id);
+                    out.margins = Some(margins);
+                }
+                RingRead::Doubtful { id, margins, .. } => {
+                    out.coded = true;
+                    let mut refusal = Refusal::new(
+                        RefusalReason::RingUnreadable,
+                        r.ellipse,
+                        format!(
+                            "read as {id} but refused: confidence {:.2} (sector {:.2}, code {:.2}, levels {:.3}, ring fit {:.3} dot radii)",
+                            margins.confidence, margins.sector, margins.code, margins.levels, margins.ring_fit
+                        ),
+                    );
+                    refusal.refused_read = Some((id, margins));
+                    out.refusal.get_or_insert(refusal);
+                }
+                RingRead::Unreadable { reason } => {
+                    if reason != "surround of the ring is not dark" {
+                        out.coded = true;
+                        out.refusal.get_or_insert(Refusal::new(
+                            RefusalReason::RingUnreadable,
+                            r.ellipse,
+                            reason,
+                        ));
+                    }
+                }
+                RingRead::NoRing => {}
+            }
+        }
+        if conflict {
+            out.refusal = Some(Refusal::new(
+                RefusalReason::RingUnreadable,
+                r.ellipse,
+                "the readers of two bit counts read different numbers",
+            ));
+            (out.id, out.margins) = (None, None);
+        }
+        if out.id.is_some() {
+            out.refusal = None;
+        }
+        out
+    }
+
+    /// The targets of the measured candidates: the pieces of code rings dropped (blobs inside
+    /// the ring zone of a coded target, first around decoded targets, then around the
+    /// unidentified ones that remain; the distance test skips rings further away than 3.6 major
+    /// semi-axes), text glyphs and saturated ones (unless asked to measure them) moved to
+    /// `refused`. Returns
+    /// the targets and the outlines of the saturated coded targets refused.
+    fn targets_of(
+        &self,
+        img: &GrayImage,
+        keep: &[Measured],
+        rings: Vec<RingOutcome>,
+        refused: &mut Vec<Refusal>,
+    ) -> (Vec<Target>, Vec<Ellipse>) {
+        let p = &self.params;
+        let frames = |f: &dyn Fn(usize) -> bool| -> Vec<(Ellipse, Frame)> {
+            (0..keep.len())
+                .filter(|&i| f(i))
+                .map(|i| (keep[i].r.ellipse, keep[i].r.ellipse.frame()))
+                .collect()
+        };
+        let decoded = frames(&|i| rings[i].id.is_some());
+        let survivors: Vec<usize> = (0..keep.len())
+            .filter(|&i| rings[i].id.is_some() || !in_ring_of(&keep[i].r.ellipse, &decoded))
+            .collect();
+        let unread = frames(&|i| survivors.contains(&i) && rings[i].coded && rings[i].id.is_none());
+        let (mut targets, mut saturated_rings) = (Vec::new(), Vec::new());
+        for (i, ring) in rings.into_iter().enumerate() {
+            let (m, r) = (&keep[i], &keep[i].r);
+            if !survivors.contains(&i) || (!ring.coded && in_ring_of(&r.ellipse, &unread)) {
+                continue;
+            }
+            let saturated = m.saturated > p.centre.max_saturated_fraction;
+            if !ring.coded && self.is_glyph(img, &r.ellipse, r.fg, saturated) {
+                refused.push(glyph_refusal(r.ellipse));
+                continue;
+            }
+            if saturated && !p.measure_saturated {
+                let mut s = Refusal::new(
+                    RefusalReason::Saturated,
+                    r.ellipse,
+                    format!(
+                        "{:.0} % of its samples are saturated ({}): expose darker",
+                        100.0 * m.saturated,
+                        match (ring.coded, ring.id) {
+                            (true, Some(id)) => format!("a coded target, its ring reads {id}"),
+                            (true, None) => "a coded target".into(),
+                            (false, _) => "a plain target".into(),
+                        }
+                    ),
+                );
+                s.saturated_share = Some(m.saturated);
+                refused.push(s);
+                if ring.coded {
+                    saturated_rings.push(r.ellipse);
+                }
+                continue;
+            }
+            refused.extend(ring.refusal);
+            let factor = if saturated {
+                SATURATED_SIGMA_FACTOR
+            } else {
+                1.0
+            };
+            targets.push(Target {
+                kind: if ring.coded {
+                    TargetKind::Coded
+                } else {
+                    TargetKind::Plain
+                },
+                id: ring.id,
+                x: r.ellipse.cx,
+                y: r.ellipse.cy,
+                sigma_px: factor * r.sigma_ellipse,
+                ellipse: r.ellipse,
+                centroid: [r.centroid.0, r.centroid.1],
+                sigma_centroid_px: factor * r.sigma_centroid,
+                contrast: r.fg - r.bg,
+                read: ring.margins,
+                saturated,
+            });
+        }
+        (targets, saturated_rings)
+    }
+}
+
+/// The refusal of a text glyph outlined by `e`.
+fn glyph_refusal(e: Ellipse) -> Refusal {
+    Refusal::new(
+        RefusalReason::TextGlyph,
+        e,
+        format!(
+            "bright paper beyond a thin dark stroke ({:.1} px across)",
+            2.0 * e.radius()
+        ),
+    )
+}
+
+/// Whether the centre of `e` lies in the ring zone of one of `rings` (between 0.5 and 3.6 of
+/// its radii in its unit frame).
+fn in_ring_of(e: &Ellipse, rings: &[(Ellipse, Frame)]) -> bool {
+    let (x, y) = (e.cx, e.cy);
+    rings.iter().any(|(c, f)| {
+        let reach = 3.6 * c.a;
+        if (x - c.cx).abs() >= reach || (y - c.cy).abs() >= reach {
+            return false;
+        }
+        let (u, v) = f.unmap(x, y);
+        let d2 = u * u + v * v;
+        d2 > 0.25 && d2 < 3.6 * 3.6
+    })
+}
+
+/// Different candidates can converge on one target: keep the first (in position order) of any
+/// pair closer than half the smaller radius.
+fn without_duplicates(mut measured: Vec<Measured>) -> Vec<Measured> {
+    measured.sort_by(|a, b| {
+        (a.r.ellipse.cy, a.r.ellipse.cx)
+            .partial_cmp(&(b.r.ellipse.cy, b.r.ellipse.cx))
+            .unwrap_or(std::cmp::Ordering::Equal)
+    });
+    let mut keep: Vec<Measured> = Vec::with_capacity(measured.len());
+    for m in measured {
+        let r = &m.r.ellipse;
+        let dup = keep.iter().rev().take(64).any(|k| {
+            let k = &k.r.ellipse;
+            let d = ((k.cx - r.cx).powi(2) + (k.cy - r.cy).powi(2)).sqrt();
+            d < 0.5 * k.radius().min(r.radius())
+        });
+        if !dup {
+            keep.push(m);
+        }
+    }
+    keep
+}
+
+/// Coded reads whose centre σ is over [`SIGMA_RATIO_MAX`] times the median of the image's
+/// coded reads (and over [`SIGMA_FLOOR_PX`]) lose their number, with a refusal.
+fn refuse_doubtful_sigma(targets: &mut [Target], refused: &mut Vec<Refusal>) {
+    let mut s: Vec<f64> = targets
+        .iter()
+        .filter(|t| t.id.is_some())
+        .map(|t| t.sigma_px)
+        .collect();
+    if s.len() < 3 {
+        return;
+    }
+    s.sort_by(|a, b| a.total_cmp(b));
+    let median = s[s.len() / 2];
+    for t in targets.iter_mut().filter(|t| t.id.is_some()) {
+        if t.sigma_px > SIGMA_FLOOR_PX && t.sigma_px > SIGMA_RATIO_MAX * median {
+            let mut r = Refusal::new(
+                RefusalReason::RingUnreadable,
+                t.ellipse,
+                format!(
+                    "read as {} but refused: centre σ {:.3} px, {:.0} times the image's median {:.3} px",
+                    t.id.unwrap_or(0),
+                    t.sigma_px,
+                    t.sigma_px / median,
+                    median
+                ),
+            );
+            r.refused_read = t.id.zip(t.read);
+            refused.push(r);
+            (t.id, t.read) = (None, None);
+        }
+    }
+}
+
+/// Two targets must not carry the same number: if they do, neither keeps it.
+fn refuse_numbers_read_twice(targets: &mut [Target], refused: &mut Vec<Refusal>) {
+    let mut ids: Vec<u32> = targets.iter().filter_map(|t| t.id).collect();
+    ids.sort_unstable();
+    let dups: Vec<u32> = ids
+        .windows(2)
+        .filter(|w| w[0] == w[1])
+        .map(|w| w[0])
+        .collect();
+    for t in targets.iter_mut() {
+        if let Some(id) = t.id.filter(|i| dups.contains(i)) {
+            let mut r = Refusal::new(
+                RefusalReason::NumberReadTwice,
+                t.ellipse,
+                format!("{id} is read at two or more targets of the image"),
+            );
+            r.refused_read = t.id.zip(t.read);
+            refused.push(r);
+            (t.id, t.read) = (None, None);
+        }
+    }
+}
+
+/// The refusals that are not pieces of a target: a refusal of the blob itself on a target
+/// (within 1.5 of its radii), or any in the ring zone of a coded target or of a saturated coded
+/// target refused (`saturated_rings`), is a piece of it; of refusals at one spot (within half
+/// the smaller radius), the first is kept. Sorted by position.
+fn without_pieces(
+    refused: Vec<Refusal>,
+    targets: &[Target],
+    saturated_rings: &[Ellipse],
+) -> Vec<Refusal> {
+    let coded: Vec<(Ellipse, Frame)> = targets
+        .iter()
+        .filter(|t| t.kind == TargetKind::Coded)
+        .map(|t| t.ellipse)
+        .chain(saturated_rings.iter().copied())
+        .map(|e| (e, e.frame()))
+        .collect();
+    let frames: Vec<(Ellipse, Frame)> = targets
+        .iter()
+        .map(|t| (t.ellipse, t.ellipse.frame()))
+        .collect();
+    let on_target = |e: &Ellipse| {
+        frames.iter().any(|(t, f)| {
+            let reach = 1.5 * t.a;
+            if (e.cx - t.cx).abs() >= reach || (e.cy - t.cy).abs() >= reach {
+                return false;
+            }
+            let (u, v) = f.unmap(e.cx, e.cy);
+            u * u + v * v < 1.5 * 1.5
+        })
+    };
+    let of_the_target_itself = |r: &Refusal| {
+        matches!(
+            r.reason,
+            RefusalReason::RingUnreadable | RefusalReason::NumberReadTwice
+        )
+    };
+    let mut kept: Vec<Refusal> = refused
+        .into_iter()
+        .filter(|r| {
+            let piece = if of_the_target_itself(r) {
+                false
+            } else {
+                on_target(&r.ellipse) || in_ring_of(&r.ellipse, &coded)
+            };
+            !piece
+        })
+        .collect();
+    kept.sort_by(|a, b| {
+        (a.ellipse.cy, a.ellipse.cx)
+            .partial_cmp(&(b.ellipse.cy, b.ellipse.cx))
+            .unwrap_or(std::cmp::Ordering::Equal)
+    });
+    let mut out: Vec<Refusal> = Vec::with_capacity(kept.len());
+    for r in kept {
+        let e = &r.ellipse;
+        let dup = out.iter().rev().take(64).any(|k| {
+            let k = &k.ellipse;
+            (k.cx - e.cx).hypot(k.cy - e.cy) < 0.5 * k.radius().min(e.radius())
+        });
+        if !dup {
+            out.push(r);
+        }
+    }
+    out
 }
 
 fn classify_balls(targets: &mut [Target], mode: &BallMode) {

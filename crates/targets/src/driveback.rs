@@ -77,6 +77,8 @@ mod tests {
             centroid: [x, y],
             sigma_centroid_px: 0.01,
             contrast: 0.5,
+            read: None,
+            saturated: false,
         }
     }
 

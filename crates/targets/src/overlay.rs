@@ -12,6 +12,7 @@ pub const CYAN: [u8; 3] = [0, 220, 255];
 pub const MAGENTA: [u8; 3] = [255, 60, 255];
 pub const RED: [u8; 3] = [255, 40, 40];
 pub const YELLOW: [u8; 3] = [255, 230, 0];
+pub const ORANGE: [u8; 3] = [255, 140, 0];
 
 /// An RGB canvas over a grey image, with integer scale-up for legibility of small images.
 pub struct Overlay {
@@ -32,6 +33,18 @@ const DIGITS: [[u8; 5]; 11] = [
     [7, 5, 7, 5, 7],
     [7, 5, 7, 1, 7],
     [7, 1, 3, 0, 2],
+];
+
+/// 3×5 bitmap letters (as [`DIGITS`]): those that mark refusal reasons on the overlay.
+pub const LETTERS: [(char, [u8; 5]); 8] = [
+    ('B', [6, 5, 6, 5, 6]),
+    ('C', [7, 4, 4, 4, 7]),
+    ('D', [6, 5, 5, 5, 6]),
+    ('E', [7, 4, 6, 4, 7]),
+    ('M', [5, 7, 7, 5, 5]),
+    ('R', [6, 5, 6, 5, 5]),
+    ('S', [7, 4, 7, 1, 7]),
+    ('T', [7, 2, 2, 2, 2]),
 ];
 
 impl Overlay {
@@ -88,12 +101,25 @@ impl Overlay {
     /// Writes a number (or '?' when `None`) with its top-left corner at (x, y), `size` pixels
     /// per font dot.
     pub fn number(&mut self, x: f64, y: f64, n: Option<u64>, size: u32, c: [u8; 3]) {
-        let digits: Vec<usize> = match n {
-            Some(n) => n.to_string().bytes().map(|b| (b - b'0') as usize).collect(),
-            None => vec![10],
-        };
-        for (k, d) in digits.iter().enumerate() {
-            for (row, bits) in DIGITS[*d].iter().enumerate() {
+        let text = n.map_or("?".to_string(), |n| n.to_string());
+        self.text(x, y, &text, size, c);
+    }
+
+    /// Writes `text` (digits, '?' and the letters of [`LETTERS`]; any other character is
+    /// drawn as '?') with its top-left corner at (x, y), `size` pixels per font dot.
+    pub fn text(&mut self, x: f64, y: f64, text: &str, size: u32, c: [u8; 3]) {
+        let glyphs: Vec<[u8; 5]> = text
+            .chars()
+            .map(|ch| match ch {
+                '0'..='9' => DIGITS[ch as usize - '0' as usize],
+                _ => LETTERS
+                    .iter()
+                    .find(|(l, _)| *l == ch)
+                    .map_or(DIGITS[10], |(_, g)| *g),
+            })
+            .collect();
+        for (k, glyph) in glyphs.iter().enumerate() {
+            for (row, bits) in glyph.iter().enumerate() {
                 for col in 0..3 {
                     if bits & (4 >> col) != 0 {
                         for sy in 0..size {
@@ -145,6 +171,31 @@ pub fn draw_detections(img: &GrayImage, det: &crate::detect::ImageDetections) ->
                 c,
             );
         }
+    }
+    ov
+}
+
+/// [`draw_detections`], and the refused candidates in orange: each one's outline and the
+/// letter of its reason ([`crate::refusal::RefusalReason::letter`]: S saturated, E not
+/// elliptic, M too small, B at the border, T text glyph, C low contrast, R ring unreadable, D
+/// number read twice) beside it.
+pub fn draw_detections_and_refusals(
+    img: &GrayImage,
+    det: &crate::detect::ImageDetections,
+) -> Overlay {
+    let mut ov = draw_detections(img, det);
+    let size = ((img.width.max(img.height) as f64 / 1000.0).round() as u32).max(1) * 2;
+    for r in &det.refused {
+        let e = &r.ellipse;
+        ov.ellipse(e, ORANGE);
+        let mut s = [0u8; 4];
+        ov.text(
+            e.cx + e.a * 1.2,
+            e.cy + e.a * 1.2,
+            r.reason.letter().encode_utf8(&mut s),
+            size,
+            ORANGE,
+        );
     }
     ov
 }

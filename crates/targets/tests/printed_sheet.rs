@@ -6,6 +6,7 @@
 
 use pingcal_targets::detect::BallMode;
 use pingcal_targets::image_io::load_image;
+use pingcal_targets::refusal::RefusalReason;
 use pingcal_targets::sheet::{layout, to_pdf, Page, PageSize, Shape, SheetSpec, SCALE_BAR_MM};
 use pingcal_targets::{DetectParams, Detector, TargetKind};
 use std::collections::BTreeSet;
@@ -21,13 +22,19 @@ fn px(mm: f64) -> f64 {
 /// The pages of `pdf` rendered at 300 dpi in grey, or None (with the reason printed) when
 /// pdftoppm cannot run.
 fn render(pdf: &[u8], name: &str) -> Option<Vec<PathBuf>> {
+    render_at(pdf, name, DPI)
+}
+
+/// The pages of `pdf` rendered at `dpi` in grey, or None (with the reason printed) when
+/// pdftoppm cannot run.
+fn render_at(pdf: &[u8], name: &str, dpi: f64) -> Option<Vec<PathBuf>> {
     let dir = std::env::temp_dir().join(format!("pingcal-sheet-{}-{name}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     let file = dir.join("sheet.pdf");
     std::fs::write(&file, pdf).unwrap();
     let run = Command::new("pdftoppm")
-        .args(["-r", &DPI.to_string(), "-gray", "-png"])
+        .args(["-r", &dpi.to_string(), "-gray", "-png"])
         .arg(&file)
         .arg(dir.join("page"))
         .output();
@@ -135,7 +142,28 @@ fn a_printed_sheet_reads_back_to_its_numbers_and_its_scale_bar_is_100_mm() {
                 ),
             }
         }
-        // no number read anywhere else on the page
+        // no number read anywhere else on the page, and no plain target (the header, the
+        // numbers and the scale bar's text are not targets)
+        let plain_found = found.iter().filter(|t| t.kind == TargetKind::Plain).count();
+        let plain_printed = dots(page, spec.dot_radius_mm)
+            .iter()
+            .filter(|d| !d.2)
+            .count();
+        assert_eq!(
+            plain_found,
+            plain_printed,
+            "{}: plain targets found where none is printed: {:?}",
+            f.display(),
+            found
+                .iter()
+                .filter(|t| t.kind == TargetKind::Plain)
+                .map(|t| (
+                    t.x.round(),
+                    t.y.round(),
+                    (2.0 * t.ellipse.radius() * 10.0).round() / 10.0
+                ))
+                .collect::<Vec<_>>()
+        );
         let coded_found = found.iter().filter(|t| t.kind == TargetKind::Coded).count();
         let coded_printed = dots(page, spec.dot_radius_mm)
             .iter()
@@ -172,4 +200,104 @@ fn dots(page: &Page, r: f64) -> Vec<(f64, f64, bool)> {
         }
     }
     out
+}
+
+/// A sheet rendered flat, as a scan or a screenshot of the print looks (issue 38): white paper
+/// and white dots both at full scale, at 150 and 300 dpi. As the detector is, every dot is
+/// refused as saturated, and says so (each one listed, with all of its samples saturated); the
+/// insides of the text's letters are refused as text glyphs, never taken for plain targets.
+/// Asked to measure saturated targets, it reads every number printed and finds every plain
+/// target, and nothing else.
+#[test]
+fn a_flat_render_of_a_sheet_is_refused_as_saturated_or_read_when_asked() {
+    let ids: Vec<u32> = (0..30).map(|k| 3 + k * 17).collect();
+    let spec = SheetSpec {
+        bits: 14,
+        ids: ids.clone(),
+        plain: 8,
+        dot_radius_mm: 4.0,
+        ring: (2.0, 3.0),
+        page: PageSize::A4,
+    };
+    let pages = layout(&spec).unwrap();
+    let pdf = to_pdf(&pages, spec.page);
+    let refuse = Detector::new(DetectParams {
+        balls: BallMode::Off,
+        ..DetectParams::default()
+    })
+    .unwrap();
+    let measure = Detector::new(DetectParams {
+        balls: BallMode::Off,
+        measure_saturated: true,
+        ..DetectParams::default()
+    })
+    .unwrap();
+    for dpi in [150.0, 300.0] {
+        let Some(files) = render_at(&pdf, &format!("flat{dpi}"), dpi) else {
+            return;
+        };
+        let (mut read, mut plain, mut saturated, mut glyphs) = (BTreeSet::new(), 0, 0, 0);
+        for (f, page) in files.iter().zip(&pages) {
+            let img = load_image(f).unwrap();
+            let printed = dots(page, spec.dot_radius_mm);
+            let at_dot = |x: f64, y: f64| {
+                printed.iter().any(|&(cx, cy, _)| {
+                    (px_at(cx, dpi) - 0.5 - x).hypot(px_at(cy, dpi) - 0.5 - y) < 1.0
+                })
+            };
+            // as it is: nothing measured, every dot refused as saturated (and said so)
+            let d = refuse.detect(&img);
+            assert!(
+                d.targets.is_empty(),
+                "{}: {} targets",
+                f.display(),
+                d.targets.len()
+            );
+            for r in &d.refused {
+                match r.reason {
+                    RefusalReason::Saturated => {
+                        assert!(at_dot(r.ellipse.cx, r.ellipse.cy), "{}: {r:?}", f.display());
+                        assert_eq!(r.saturated_share, Some(1.0), "{r:?}");
+                        saturated += 1;
+                    }
+                    RefusalReason::TextGlyph => glyphs += 1,
+                    _ => assert!(!at_dot(r.ellipse.cx, r.ellipse.cy), "{r:?}"),
+                }
+            }
+            // asked to measure them: every dot, with its number, and nothing else
+            let d = measure.detect(&img);
+            for t in &d.targets {
+                assert!(t.saturated && at_dot(t.x, t.y), "{}: {t:?}", f.display());
+                match (t.kind, t.id) {
+                    (TargetKind::Coded, Some(id)) => {
+                        assert!(ids.contains(&id) && read.insert(id), "{id}");
+                    }
+                    (TargetKind::Plain, None) => plain += 1,
+                    other => panic!("{}: {other:?} at ({:.1}, {:.1})", f.display(), t.x, t.y),
+                }
+            }
+        }
+        eprintln!(
+            "{dpi} dpi: {saturated} dots refused as saturated, {glyphs} text glyphs; measured when asked: {} of {} numbers, {plain} of {} plain",
+            read.len(),
+            ids.len(),
+            spec.plain
+        );
+        assert_eq!(
+            saturated,
+            ids.len() + spec.plain,
+            "{dpi} dpi: every dot refused"
+        );
+        assert!(glyphs > 0, "{dpi} dpi: the header's letters were not seen");
+        assert_eq!(
+            read.len(),
+            ids.len(),
+            "{dpi} dpi: every number read: {read:?}"
+        );
+        assert_eq!(plain, spec.plain, "{dpi} dpi: every plain target");
+    }
+}
+
+fn px_at(mm: f64, dpi: f64) -> f64 {
+    mm * dpi / 25.4
 }

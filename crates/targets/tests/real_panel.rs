@@ -195,6 +195,46 @@ fn real_panel_ids_are_all_right() {
     println!(
         "total: decoded {tot_dec}, wrong {tot_wrong}, plain matching reference {tot_plain_match}"
     );
+    // The weakest margins of the reads (pingcal_targets::confidence), beside their bounds.
+    use pingcal_targets::confidence as c;
+    let reads: Vec<c::ReadMargins> = results
+        .iter()
+        .flat_map(|d| &d.targets)
+        .filter_map(|t| t.id.and(t.read))
+        .collect();
+    assert_eq!(
+        reads.len(),
+        tot_dec,
+        "every number given carries its margins"
+    );
+    let lo = |f: fn(&c::ReadMargins) -> f32| reads.iter().map(f).fold(f32::INFINITY, f32::min);
+    let hi = |f: fn(&c::ReadMargins) -> f32| reads.iter().map(f).fold(0.0, f32::max);
+    println!(
+        "weakest margins: sector {:.3} (bound {}), code {:.3} ({}), levels {:.3} ({}), profile {:.3} ({}), surround {:.3} ({}), ring fit {:.3} ({}) dot radii; confidence {:.2}",
+        lo(|m| m.sector),
+        c::MIN_SECTOR,
+        lo(|m| m.code),
+        c::MIN_CODE,
+        hi(|m| m.levels),
+        c::MAX_LEVELS,
+        hi(|m| m.profile),
+        c::MAX_PROFILE,
+        hi(|m| m.surround),
+        c::MAX_SURROUND,
+        hi(|m| m.ring_fit),
+        c::MAX_RING_FIT,
+        lo(|m| m.confidence)
+    );
+    assert!(
+        lo(|m| m.confidence) >= 1.0,
+        "a number given under its bounds"
+    );
+    let refused: usize = results
+        .iter()
+        .flat_map(|d| &d.refused)
+        .filter(|r| r.refused_read.is_some())
+        .count();
+    println!("reads refused by their margins or σ: {refused}");
     assert_eq!(tot_wrong, 0, "wrong IDs");
     // Regression floors, well under what this detector reaches (see the table in the report).
     assert!(

@@ -640,3 +640,89 @@ fn a_ring_of_another_size_is_read_when_the_project_gives_it() {
         "AICON's ring reads as many ({read_aicon}): the test does not see the ring"
     );
 }
+
+mod stress;
+
+/// The false-read stress test of issue 38: scenes made to tempt the ring decoder (rings
+/// partly covered, targets overlapping, rings half in shadow, printed text, checkerboards, all
+/// at once; `tests/stress`), over many seeds. The table (scenes, numbers read, wrong per
+/// thousand reads, per temptation) is printed with `-- --nocapture`;
+/// `PINGCAL_STRESS_SEEDS=600` runs more seeds than the default 300, and
+/// `PINGCAL_STRESS_DIR=DIR` writes the overlay of every scene with a wrong read there:
+///
+/// `PINGCAL_STRESS_SEEDS=600 cargo test -p pingcal-targets --release --test synthetic
+/// false_read_stress -- --nocapture`
+///
+/// No number may be read in the printed text or on the checkerboards. A ring partly covered by
+/// something as dark as the target's own black (another target's square, a black bar) can hide
+/// whole bright sectors and leave another number's pattern, clean to every margin of
+/// `pingcal_targets::confidence`: those reads are wrong in the image itself, and only the
+/// network can find them (the pipeline's named blunders). On the default 300 scenes the
+/// decoder before issue 38 read 37 wrong in 893 reads (41.4 per thousand), this one 30 in 833
+/// (36.0); on 600, 70 in 1,797 (39.0) and 53 in 1,658 (32.0). The test holds it under 40 per
+/// thousand, under the decoder before.
+#[test]
+fn false_read_stress() {
+    use rayon::prelude::*;
+    let seeds: u64 = std::env::var("PINGCAL_STRESS_SEEDS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(300);
+    let dir = std::env::var("PINGCAL_STRESS_DIR").ok();
+    let det = Detector::new(DetectParams {
+        balls: BallMode::Off,
+        ..DetectParams::default()
+    })
+    .unwrap();
+    let runs: Vec<(&str, usize, usize, Vec<String>)> = (0..seeds)
+        .into_par_iter()
+        .map(|seed| {
+            let s = stress::scene(38_000 + seed);
+            let found = det.detect(&s.image);
+            let (read, wrong) = stress::score(&s, &found);
+            if let (Some(dir), false) = (&dir, wrong.is_empty()) {
+                let ov = pingcal_targets::overlay::draw_detections_and_refusals(&s.image, &found);
+                ov.save(&std::path::Path::new(dir).join(format!("stress-{seed}.png")))
+                    .unwrap();
+            }
+            (s.kind, s.targets.len(), read, wrong)
+        })
+        .collect();
+    println!(
+        "| temptation | scenes | targets drawn | numbers read | wrong | wrong per 1000 reads |"
+    );
+    println!("|---|---|---|---|---|---|");
+    let mut all_wrong = Vec::new();
+    let (mut tot_read, mut tot_drawn) = (0, 0);
+    for kind in stress::KINDS {
+        let rs: Vec<_> = runs.iter().filter(|r| r.0 == kind).collect();
+        let drawn: usize = rs.iter().map(|r| r.1).sum();
+        let read: usize = rs.iter().map(|r| r.2).sum();
+        let wrong: Vec<String> = rs.iter().flat_map(|r| r.3.clone()).collect();
+        println!(
+            "| {kind} | {} | {drawn} | {read} | {} | {:.1} |",
+            rs.len(),
+            wrong.len(),
+            1000.0 * wrong.len() as f64 / read.max(1) as f64
+        );
+        if kind == "printed text" || kind == "checkerboard" {
+            assert!(wrong.is_empty(), "{kind}: {wrong:?}");
+        }
+        tot_read += read;
+        tot_drawn += drawn;
+        all_wrong.extend(wrong);
+    }
+    let rate = 1000.0 * all_wrong.len() as f64 / tot_read.max(1) as f64;
+    println!(
+        "| all | {seeds} | {tot_drawn} | {tot_read} | {} | {rate:.1} |",
+        all_wrong.len()
+    );
+    for w in &all_wrong {
+        println!("WRONG: {w}");
+    }
+    assert!(
+        tot_read * 2 > tot_drawn,
+        "only {tot_read} of {tot_drawn} targets read"
+    );
+    assert!(rate < 40.0, "{rate:.1} wrong per 1000 reads: {all_wrong:?}");
+}
