@@ -367,6 +367,8 @@ accuracy_far_fraction = 0.03
             centroid: [x, 40.0],
             sigma_centroid_px: 0.05,
             contrast: 0.5,
+            read: None,
+            saturated: false,
         }
     }
 

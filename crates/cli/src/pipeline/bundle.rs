@@ -14,7 +14,7 @@
 
 use super::adjust::{rig_cameras, Datum, SceneProblem};
 use super::ids::ImageId;
-use super::scene::{image_file, Detections, PointKind, Scene};
+use super::scene::{coded_blunder, image_file, Detections, PointKind, Scene};
 use super::{Options, PipelineError, Reporter, Result};
 use pingcal_ba::solver::{
     self, Precision, PrecisionError, Rejection, SnoopError, VarianceComponent, VarianceError,
@@ -79,6 +79,30 @@ fn remove_rejected(project: &Project, scene: &mut Scene, rejected: &[Rejection])
         };
         for p in scene.points.iter_mut().filter(|p| p.name == r.point) {
             p.obs.retain(|d| d.image != ImageId(i));
+        }
+    }
+}
+
+/// Names the blunders among the image points data snooping `rejected`: a coded measurement
+/// that the adjusted `scene` puts beyond the reach of its own ring ([`coded_blunder`]).
+fn name_blunders(project: &Project, dets: &Detections, scene: &mut Scene, rejected: &[Rejection]) {
+    for r in rejected {
+        let Some(i) = project.file.images.iter().position(|im| im.file == r.image) else {
+            continue;
+        };
+        let Some(p) = scene.points.iter().find(|p| p.name == r.point) else {
+            continue;
+        };
+        let (PointKind::Coded(n), Some(&d)) = (p.kind, p.obs.iter().find(|d| d.image == ImageId(i)))
+        else {
+            continue;
+        };
+        let Some(uv) = scene.project_into(ImageId(i), &p.position) else {
+            continue;
+        };
+        let off = (uv.x - r.uv[0]).hypot(uv.y - r.uv[1]);
+        if let Some(b) = coded_blunder(project, dets, d, n, off, "final bundle") {
+            scene.add_blunder(b);
         }
     }
 }
@@ -240,6 +264,9 @@ impl Rounds<'_> {
             .first()
             .map(|r| r.member_from_base)
             .or(self.rig);
+        let before = scene.blunders.len();
+        name_blunders(self.project, self.dets, scene, &r.rejected);
+        super::network::log_blunders(self.project, self.dets, scene, before, rep);
         remove_rejected(self.project, scene, &r.rejected);
         rep.log(format!(
             "  bundle round {}: {} iterations, sigma0 {:.3}, RMS {:.3} px, {} image points rejected",

@@ -11,6 +11,7 @@ use super::scene::{Detections, ImageDetections};
 use super::{PipelineError, Reporter, Result};
 use pingcal_project::Project;
 use pingcal_targets::detect::BallMode;
+use pingcal_targets::refusal::{counts, Refusal};
 use pingcal_targets::{load_image, DetectParams, Detector, TargetKind};
 use rayon::prelude::*;
 
@@ -26,7 +27,7 @@ pub fn detect_all(project: &Project, rep: &Reporter) -> Result<Detections> {
     })
     .map_err(|e| PipelineError::new(format!("{}: [targets] {e}", project.path.display())))?;
     let pb = rep.task("detecting targets", project.image_paths.len() as u64);
-    let out: Vec<Result<ImageDetections>> = project
+    let out: Vec<Result<(ImageDetections, Vec<Refusal>)>> = project
         .image_paths
         .par_iter()
         .zip(&f.images)
@@ -60,16 +61,19 @@ pub fn detect_all(project: &Project, rep: &Reporter) -> Result<Detections> {
                 })
                 .collect();
             pb.advance(1);
-            Ok(ImageDetections {
+            let dets = ImageDetections {
                 width: d.width,
                 height: d.height,
                 targets: d.targets.into(),
                 ball_fits,
-            })
+            };
+            Ok((dets, d.refused))
         })
         .collect();
     pb.finish();
-    let dets: Detections = out.into_iter().collect::<Result<_>>()?;
+    let (dets, refused): (Vec<ImageDetections>, Vec<Vec<Refusal>>) =
+        out.into_iter().collect::<Result<Vec<_>>>()?.into_iter().unzip();
+    let dets: Detections = dets.into();
     let (mut coded, mut ids, mut plain) = (0, 0, 0);
     for d in &dets {
         for t in &d.targets {
@@ -82,9 +86,14 @@ pub fn detect_all(project: &Project, rep: &Reporter) -> Result<Detections> {
             }
         }
     }
+    let refused: Vec<String> = counts(refused.iter().flatten())
+        .iter()
+        .map(|(r, n)| format!("{n} {}", r.name()))
+        .collect();
     rep.log(format!(
-        "detected in {} images: {coded} coded targets ({ids} numbers read), {plain} round blobs (plain targets or balls)",
-        dets.len()
+        "detected in {} images: {coded} coded targets ({ids} numbers read), {plain} round blobs (plain targets or balls); candidates refused: {} (`pingcal detect --why` lists them)",
+        dets.len(),
+        if refused.is_empty() { "none".into() } else { refused.join(", ") }
     ));
     Ok(dets)
 }

@@ -23,7 +23,8 @@
 use super::adjust::{Datum, SceneProblem};
 use super::ids::{DetIdx, DetectionId, IdVec, ImageId, PointId};
 use super::scene::{
-    image_file, main_image, DetectionSet, Detections, PointKind, Scene, ScenePoint,
+    coded_blunder, image_file, main_image, CodedBlunder, DetectionSet, Detections, PointKind,
+    Scene, ScenePoint,
 };
 use super::{Options, PipelineError, Reporter, Result};
 use nalgebra::{Vector2, Vector3};
@@ -84,6 +85,16 @@ pub fn driveback(dets: &Detections, scene: &mut Scene, tol_px: f64) -> usize {
             let j = which[pi];
             if let (Some(read), PointKind::Coded(id)) = (dets.target(d).id, scene.points[j].kind) {
                 if read != id {
+                    // the detection is where target `id` is, and reads another number
+                    let t = dets.target(d);
+                    let off = (predicted[pi].x - t.x).hypot(predicted[pi].y - t.y);
+                    scene.add_blunder(CodedBlunder {
+                        det: d,
+                        number: read,
+                        stage: "driveback",
+                        why: format!("where target {id} is ({off:.1} px from its projection)"),
+                    });
+                    used.insert(d);
                     continue;
                 }
             }
@@ -619,8 +630,9 @@ fn names_by_label(
 }
 
 /// A quick adjustment of the scene as it stands (no rig, no snooping); measurements more
-/// than `3 ·` [`TOL_PX`] from their point afterwards are dropped, and points left with
-/// fewer than two.
+/// than `3 ·` [`TOL_PX`] from their point afterwards are dropped (a coded one beyond the reach
+/// of its own ring as a named blunder, [`coded_blunder`]), and points left with fewer than
+/// two.
 pub fn refine(
     project: &Project,
     dets: &Detections,
@@ -637,16 +649,22 @@ pub fn refine(
         .map_err(|e| PipelineError::new(format!("bundle adjustment during matching: {e}")))?;
     sp.write_back(scene);
     let limit = 3.0 * TOL_PX;
-    let mut drop: Vec<(PointId, DetectionId)> = Vec::new();
+    let mut drop: Vec<(PointId, DetectionId, f64)> = Vec::new();
     for (o, ob) in sp.problem.observations.iter().enumerate() {
         if let Some(r) = sp.problem.residual(ob) {
             if r.norm() > limit {
-                drop.push(sp.map.observations[o]);
+                let (j, d) = sp.map.observations[o];
+                drop.push((j, d, r.norm()));
             }
         }
     }
-    for (j, d) in drop {
+    for (j, d, off) in drop {
         scene.points[j].obs.retain(|&o| o != d);
+        if let PointKind::Coded(n) = scene.points[j].kind {
+            if let Some(b) = coded_blunder(project, dets, d, n, off, "matching") {
+                scene.add_blunder(b);
+            }
+        }
     }
     scene.points.retain(|p| p.obs.len() >= 2);
     Ok(())
@@ -669,6 +687,7 @@ pub fn add_points(
     rep: &Reporter,
 ) -> Result<()> {
     let pb = rep.task("matching targets", 3);
+    let blunders_before = scene.blunders.len();
     let (a1, n1) = round(dets, scene);
     pb.advance(1);
     refine(project, dets, scene, opts)?;
@@ -682,6 +701,13 @@ pub fn add_points(
         a1 + a2 + a3,
         n1 + n2
     ));
+    let removed = super::network::coincident_coded(project, scene);
+    if removed > 0 {
+        rep.log(format!(
+            "  {removed} coded point(s) removed: another coded point lies within its code ring"
+        ));
+    }
+    super::network::log_blunders(project, dets, scene, blunders_before, rep);
     let balls = classify_balls(project, dets, scene, rep)?;
     name_balls(project, scene, &balls, rep);
     Ok(())

@@ -9,8 +9,10 @@
 //! projection centre, X right, Y forward, Z up).
 
 use super::adjust::{rig_cameras, Datum, SceneProblem};
-use super::ids::{DetectionId, IdVec, ImageId};
-use super::scene::{image_file, main_image, Detections, PointKind, Scene, ScenePoint};
+use super::ids::{DetectionId, IdVec, ImageId, PointId};
+use super::scene::{
+    coded_blunder, image_file, main_image, Detections, PointKind, Scene, ScenePoint,
+};
 use super::{Options, PipelineError, Reporter, Result};
 use nalgebra::{Matrix3, Vector3};
 use pingcal_ba::initial::incremental::{initialise, IncrementalOptions, Initialised};
@@ -65,12 +67,20 @@ pub fn initial_network(
     let min_angle = f.network.min_intersection_angle_deg;
     options.intersection.min_angle_deg = min_angle;
     let pb = rep.task("orienting images", 1);
-    let (start_used, init, scene, failed) = first_start(project, &sp, start, opts.start, &options)?;
+    let (start_used, init, scene, failed) =
+        first_start(project, dets, &sp, start, opts.start, &options)?;
     pb.finish();
     for s in &init.steps {
         rep.log(format!("  {s}"));
     }
     let mut scene = scene;
+    let removed = coincident_coded(project, &mut scene);
+    if removed > 0 {
+        rep.log(format!(
+            "  {removed} coded point(s) removed: another coded point lies within its code ring"
+        ));
+    }
+    log_blunders(project, dets, &scene, 0, rep);
     if !init.refused_by_angle.is_empty() {
         let list: Vec<String> = (init.refused_by_angle.iter())
             .map(|(name, a)| format!("{name} ({a:.2}°)"))
@@ -168,6 +178,7 @@ fn starts_to_try(project: &Project, asked: Start) -> Result<Vec<Start>> {
 /// the project could add.
 fn first_start(
     project: &Project,
+    dets: &Detections,
     sp: &SceneProblem,
     start: Scene,
     asked: Start,
@@ -177,7 +188,7 @@ fn first_start(
     let mut best: Option<(Start, Initialised, Scene)> = None;
     for s in starts_to_try(project, asked)? {
         let tried = try_start(s, project, sp, options).and_then(|init| {
-            into_main_frame(project, start.clone(), sp, &init)
+            into_main_frame(project, dets, start.clone(), sp, &init)
                 .map(|scene| (init, scene))
                 .map_err(|e| e.0)
         });
@@ -477,9 +488,11 @@ fn starting_scene(project: &Project, seen: &BTreeMap<u32, Vec<DetectionId>>) -> 
 
 /// The initialiser's solution as a scene in the main image's frame: its oriented images, its
 /// determined points without the measurements it rejected (two or more left), the
-/// intrinsics, and why the other images were not oriented.
+/// intrinsics, and why the other images were not oriented. A coded measurement rejected
+/// beyond the reach of its own ring is a named blunder ([`coded_blunder`]).
 fn into_main_frame(
     project: &Project,
+    dets: &Detections,
     start: Scene,
     sp: &SceneProblem,
     init: &Initialised,
@@ -508,20 +521,26 @@ fn into_main_frame(
     for p in poses.iter_mut().flatten() {
         *p = p.compose(&to_main);
     }
-    let rejected: Vec<(&str, &str)> = init
-        .rejected_observations
-        .iter()
-        .map(|(i, p, _)| (i.as_str(), p.as_str()))
-        .collect();
+    let rejected = |d: &DetectionId, name: &str| {
+        let file = image_file(project, d.image);
+        (init.rejected_observations.iter())
+            .find(|(i, p, _)| i == file && p == name)
+            .map(|r| r.2)
+    };
     let mut points = IdVec::new();
+    let mut blunders = Vec::new();
     for (k, &j) in sp.map.points.iter().enumerate() {
+        let p = &scene.points[j];
+        for (d, off) in p.obs.iter().filter_map(|d| Some((*d, rejected(d, &p.name)?))) {
+            if let PointKind::Coded(n) = p.kind {
+                blunders.extend(coded_blunder(project, dets, d, n, off, "network start"));
+            }
+        }
         let Some(m) = init.point_map[k] else { continue };
-        let mut p = scene.points[j].clone();
+        let mut p = p.clone();
         p.position = main_pose.transform(&init.problem.points[m].position);
-        p.obs.retain(|d| {
-            poses[d.image].is_some()
-                && !rejected.contains(&(image_file(project, d.image), p.name.as_str()))
-        });
+        p.obs
+            .retain(|d| poses[d.image].is_some() && rejected(d, &p.name).is_none());
         if p.obs.len() >= 2 {
             points.push(p);
         }
@@ -544,5 +563,83 @@ fn into_main_frame(
         .collect();
     scene.poses = poses;
     scene.points = points;
+    for b in blunders {
+        scene.add_blunder(b);
+    }
     Ok(scene)
+}
+
+/// Logs the named blunders of `scene` from the `from`-th on: one line each.
+pub fn log_blunders(
+    project: &Project,
+    dets: &Detections,
+    scene: &Scene,
+    from: usize,
+    rep: &Reporter,
+) {
+    for b in scene.blunders.iter().skip(from) {
+        let t = dets.target(b.det);
+        rep.log(format!(
+            "  blunder ({}): coded number {} read in {} at ({:.1}, {:.1}) px is {}: removed",
+            b.stage,
+            b.number,
+            image_file(project, b.det.image),
+            t.x,
+            t.y,
+            b.why
+        ));
+    }
+}
+
+/// Two coded points closer than the reach of a code ring (`ring_outer` dot radii) are one
+/// target read as two numbers: the measurements of the one with fewer are named blunders
+/// (misreads of the other's number) and it is removed; with as many, both go. Returns how
+/// many points were removed.
+pub fn coincident_coded(project: &Project, scene: &mut Scene) -> usize {
+    let t = &project.file.targets;
+    let reach = t.ring_outer * t.dot_radius_mm;
+    let coded: Vec<(PointId, u32)> = (scene.points.ids())
+        .filter_map(|j| match scene.points[j].kind {
+            PointKind::Coded(n) => Some((j, n)),
+            _ => None,
+        })
+        .collect();
+    let mut gone: BTreeSet<PointId> = BTreeSet::new();
+    let mut blunders = Vec::new();
+    for (a, &(ja, na)) in coded.iter().enumerate() {
+        for &(jb, nb) in &coded[a + 1..] {
+            let (pa, pb) = (&scene.points[ja], &scene.points[jb]);
+            let d = (pa.position - pb.position).norm();
+            if d >= reach {
+                continue;
+            }
+            let (la, lb) = (pa.obs.len(), pb.obs.len());
+            for (j, n, other, p) in [(ja, na, nb, pa), (jb, nb, na, pb)] {
+                let fewer = if j == ja { la <= lb } else { lb <= la };
+                if !fewer {
+                    continue;
+                }
+                gone.insert(j);
+                for &o in &p.obs {
+                    blunders.push(super::scene::CodedBlunder {
+                        det: o,
+                        number: n,
+                        stage: "coincident numbers",
+                        why: format!(
+                            "where target {other} is: the points of {n} and {other} are {d:.1} mm apart, less than a code ring ({reach:.1} mm), and {other} is read in {} images, {n} in {}",
+                            if n == na { lb } else { la },
+                            p.obs.len()
+                        ),
+                    });
+                }
+            }
+        }
+    }
+    for b in blunders {
+        scene.add_blunder(b);
+    }
+    for &j in gone.iter().rev() {
+        scene.points.remove(j);
+    }
+    gone.len()
 }

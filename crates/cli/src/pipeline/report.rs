@@ -436,17 +436,39 @@ fn intrinsics(st: &Stages, results: &Results) -> Vec<rp::Intrinsics> {
         .collect()
 }
 
-/// What was left out and why: image points, LRF clusters, unmatched LRF spheres.
+/// What was left out and why: coded numbers named blunders, image points, LRF clusters,
+/// unmatched LRF spheres.
 fn rejections(st: &Stages) -> Vec<rp::Rejection> {
     let (adj, lrf) = (st.adjusted, st.lrf_out);
-    let mut rejected: Vec<rp::Rejection> = adj
-        .rejected
-        .iter()
-        .map(|r| rp::Rejection {
-            what: format!("image point {} in {}", r.point, r.image),
-            why: r.reason.clone(),
+    let blunders: Vec<(String, String)> = (st.scene.blunders.iter())
+        .map(|b| {
+            (
+                image_file(st.project, b.det.image).to_string(),
+                b.number.to_string(),
+            )
         })
         .collect();
+    let mut rejected: Vec<rp::Rejection> = (st.scene.blunders.iter())
+        .zip(&blunders)
+        .map(|(b, (image, number))| {
+            let t = st.dets.target(b.det);
+            rp::Rejection {
+                what: format!(
+                    "coded number {number} read in {image} at ({:.1}, {:.1}) px",
+                    t.x, t.y
+                ),
+                why: format!("a named blunder ({}): {}; removed", b.stage, b.why),
+            }
+        })
+        .collect();
+    rejected.extend(
+        (adj.rejected.iter())
+            .filter(|r| !blunders.contains(&(r.image.clone(), r.point.clone())))
+            .map(|r| rp::Rejection {
+                what: format!("image point {} in {}", r.point, r.image),
+                why: r.reason.clone(),
+            }),
+    );
     let small = lrf
         .found
         .rejected

@@ -132,8 +132,28 @@ pub struct BundleJson {
     pub redundancy: i64,
     /// Image points rejected by data snooping.
     pub rejected: usize,
+    /// Coded numbers read where the network puts no such target (named blunders), removed.
+    pub coded_blunders: Vec<CodedBlunderJson>,
     /// Stereo rig, left → right camera frame.
     pub rig: Option<RigJson>,
+}
+
+/// A coded number named a blunder: read in `image` at (`x`, `y`) px where the network puts no
+/// target of that number, found at `stage`, and why.
+#[derive(Clone, Debug, Serialize)]
+pub struct CodedBlunderJson {
+    /// The image file.
+    pub image: String,
+    /// The number read.
+    pub number: u32,
+    /// Where it was read (px).
+    pub x: f64,
+    pub y: f64,
+    /// The step that found it (`network start`, `coincident numbers`, `driveback`,
+    /// `matching`, `final bundle`).
+    pub stage: String,
+    /// Why, with the figures.
+    pub why: String,
 }
 
 /// The stereo rig.
@@ -788,6 +808,19 @@ pub fn assemble(st: &Stages, verdict: Verdict, time_s: Vec<(String, f64)>) -> Re
             iterations: adj.iterations,
             redundancy: adj.precision.redundancy,
             rejected: adj.rejected.len(),
+            coded_blunders: (scene.blunders.iter())
+                .map(|b| {
+                    let t = st.dets.target(b.det);
+                    CodedBlunderJson {
+                        image: image_file(project, b.det.image).to_string(),
+                        number: b.number,
+                        x: t.x,
+                        y: t.y,
+                        stage: b.stage.to_string(),
+                        why: b.why.clone(),
+                    }
+                })
+                .collect(),
             rig,
         },
         cameras: scene

@@ -139,6 +139,50 @@ pub struct Scene {
     /// Doubts the steps raised that the report must show (a start that failed before the
     /// one that worked, a layout point the images place elsewhere).
     pub warnings: Vec<String>,
+    /// Coded numbers read where the network puts no such target (named blunders): their
+    /// detections are used by no point.
+    pub blunders: Vec<CodedBlunder>,
+}
+
+/// The named blunder of coded detection `d`, which read number `n`, when it lies `off_px` from
+/// where the network puts target `n` in its image and that is beyond the reach of the
+/// detection's own code ring (`ring_outer` times its dot's major semi-axis): no centring
+/// error puts a target outside its own ring, so the number is not that target's. None when it
+/// is within reach (a poor centre, not a wrong number).
+pub fn coded_blunder(
+    project: &Project,
+    dets: &Detections,
+    d: DetectionId,
+    n: u32,
+    off_px: f64,
+    stage: &'static str,
+) -> Option<CodedBlunder> {
+    let t = dets.target(d);
+    let reach = project.file.targets.ring_outer * t.ellipse.a;
+    (off_px > reach).then(|| CodedBlunder {
+        det: d,
+        number: n,
+        stage,
+        why: format!(
+            "{off_px:.1} px from where the network puts target {n}, beyond its code ring ({reach:.1} px)"
+        ),
+    })
+}
+
+/// A coded number read where the network says that target is not: a misread number (or a
+/// target that moved between the images). The detection is removed from its point and used by
+/// none, and the blunder is logged and reported (report.html's rejections, results.json's
+/// `bundle.coded_blunders`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct CodedBlunder {
+    /// The detection.
+    pub det: DetectionId,
+    /// The number it read.
+    pub number: u32,
+    /// The step that found it.
+    pub stage: &'static str,
+    /// Why, with the figures (how far from where the network puts the target).
+    pub why: String,
 }
 
 impl Scene {
@@ -174,10 +218,11 @@ impl Scene {
             unoriented: Vec::new(),
             start: String::new(),
             warnings: Vec::new(),
+            blunders: Vec::new(),
         }
     }
 
-    /// Detections already used by a point.
+    /// Detections already used by a point, or named a blunder (no point may use them).
     pub fn used(&self, dets: &Detections) -> DetectionSet {
         let mut used = DetectionSet::empty(dets);
         for p in &self.points {
@@ -185,7 +230,23 @@ impl Scene {
                 used.insert(d);
             }
         }
+        for b in &self.blunders {
+            used.insert(b.det);
+        }
         used
+    }
+
+    /// Names `b` a blunder (once per detection): its detection leaves every point. Returns
+    /// whether it is new.
+    pub fn add_blunder(&mut self, b: CodedBlunder) -> bool {
+        if self.blunders.iter().any(|x| x.det == b.det) {
+            return false;
+        }
+        for p in self.points.iter_mut() {
+            p.obs.retain(|&d| d != b.det);
+        }
+        self.blunders.push(b);
+        true
     }
 
     /// The oriented images, in project order.
