@@ -21,8 +21,8 @@
 mod common;
 
 use nalgebra::{Matrix3, Vector3};
-use pingcal::pipeline::exports::grid_pixels;
 use pingcal_ba::camera::{CameraModel, PhotogrammetricCamera};
+use pingcal_pipeline::exports::grid_pixels;
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
 use std::process::Command;

@@ -64,6 +64,20 @@ impl PoseJson {
             translation: Vector3::from(self.translation_mm),
         }
     }
+
+    /// How far this transform puts `x` from `y` (mm): `|rotation · x + translation − y|`, the
+    /// check error it gives on a pair of measured centres.
+    pub fn misfit_mm(&self, x: [f64; 3], y: [f64; 3]) -> f64 {
+        (self.to_pose().transform(&Vector3::from(x)) - Vector3::from(y)).norm()
+    }
+
+    /// The angle of the rotation between this transform's rotation and `rotation` (row-major),
+    /// degrees.
+    pub fn angle_to_deg(&self, rotation: &[[f64; 3]; 3]) -> f64 {
+        let other = Matrix3::from_row_slice(&rotation.concat());
+        pingcal_geometry::rotation_angle(&(other * self.to_pose().rotation.transpose()))
+            .to_degrees()
+    }
 }
 
 /// True intrinsics of one camera (names as in results.json).
@@ -189,7 +203,7 @@ pub struct Truth {
 
 impl Truth {
     /// The true extrinsic in the LRF frame a calibration defines: origin on the servo axis
-    /// at the scan plane (`pingcal::pipeline::joint`), i.e. the truth's frame moved along the
+    /// at the scan plane (`pingcal_pipeline::joint`), i.e. the truth's frame moved along the
     /// servo axis (Y) by the mount's `offset_y`, which no calibration can tell from the
     /// extrinsic's ty: `t' = t + R·(0, offset_y, 0)`. Compare estimates with this one.
     pub fn extrinsic_as_calibrated(&self) -> PoseJson {

@@ -1,16 +1,17 @@
 //! The pipeline's modules form a sequence: each may use only the modules before it.
 //!
 //! The shared modules (ids, progress, scene, adjust) come first, then the steps in the
-//! order they run. This test reads `src/pipeline/*.rs`, collects every `super::X` and
-//! `crate::pipeline::X` path outside comments, and fails when a module uses a later one, when
+//! order they run. This test reads `src/*.rs`, collects every `super::X` and
+//! `crate::X` path outside comments, and fails when a module uses a later one, when
 //! the modules' uses form a cycle, when a module is missing from [`ORDER`], or when the
 //! library prints or draws (`println!`, `eprintln!`, indicatif): that is the binary's side.
 
 use std::collections::BTreeMap;
 use std::path::Path;
 
-/// The modules of `pipeline/`, lowest first (`mod.rs`, the root that runs them, is apart).
-const ORDER: [&str; 19] = [
+/// The modules of the pipeline crate, lowest first (`lib.rs`, the root that runs them, is
+/// apart; `test_support.rs` serves the unit tests).
+const ORDER: [&str; 20] = [
     "ids",
     "progress",
     "scene",
@@ -30,6 +31,7 @@ const ORDER: [&str; 19] = [
     "overlays",
     "rectify",
     "exports",
+    "sphere_calib",
 ];
 
 /// The text of `src` without its `//` comments (doc comments included).
@@ -47,12 +49,12 @@ fn ident(s: &str) -> &str {
     &s[..end]
 }
 
-/// The first segments named after `super::` or `crate::pipeline::` in `src` (braced groups
+/// The first segments named after `super::` or `crate::` in `src` (braced groups
 /// `use super::{a, b::c}` give `a` and `b`).
 fn used_modules(src: &str) -> Vec<String> {
     let code = strip_comments(src);
     let mut out = Vec::new();
-    for prefix in ["super::", "crate::pipeline::"] {
+    for prefix in ["super::", "crate::"] {
         let mut rest = code.as_str();
         while let Some(k) = rest.find(prefix) {
             rest = &rest[k + prefix.len()..];
@@ -133,9 +135,9 @@ fn find_cycle(g: &BTreeMap<String, Vec<String>>) -> Option<Vec<String>> {
 }
 
 fn pipeline_files() -> BTreeMap<String, String> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("src/pipeline");
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
     let mut files = BTreeMap::new();
-    for e in std::fs::read_dir(&dir).expect("src/pipeline") {
+    for e in std::fs::read_dir(&dir).expect("src") {
         let path = e.expect("entry").path();
         if path.extension().is_some_and(|x| x == "rs") {
             let name = path
@@ -143,6 +145,9 @@ fn pipeline_files() -> BTreeMap<String, String> {
                 .expect("name")
                 .to_string_lossy()
                 .into_owned();
+            if name == "test_support" {
+                continue;
+            }
             let src = std::fs::read_to_string(&path).expect("readable source");
             files.insert(name, src);
         }
@@ -153,31 +158,29 @@ fn pipeline_files() -> BTreeMap<String, String> {
 #[test]
 fn pipeline_modules_only_use_earlier_ones() {
     let mut files = pipeline_files();
-    let root = files.remove("mod").expect("src/pipeline/mod.rs");
+    let root = files.remove("lib").expect("src/lib.rs");
     for m in files.keys() {
         assert!(
             ORDER.contains(&m.as_str()),
-            "src/pipeline/{m}.rs is not in ORDER of this test: put it where it belongs"
+            "src/{m}.rs is not in ORDER of this test: put it where it belongs"
         );
     }
     for m in ORDER {
         assert!(
             root.contains(&format!("pub mod {m};")),
-            "{m} of ORDER is not a module of src/pipeline/mod.rs"
+            "{m} of ORDER is not a module of src/lib.rs"
         );
     }
     let g = graph(&files);
     if let Some(c) = find_cycle(&g) {
-        panic!("module cycle in src/pipeline: {}", c.join(" → "));
+        panic!("module cycle in the pipeline: {}", c.join(" → "));
     }
     let pos = |m: &str| ORDER.iter().position(|o| *o == m).expect("in ORDER");
     let mut wrong = Vec::new();
     for (m, uses) in &g {
         for u in uses {
             if pos(u) > pos(m) {
-                wrong.push(format!(
-                    "src/pipeline/{m}.rs uses {u}, which comes after it"
-                ));
+                wrong.push(format!("src/{m}.rs uses {u}, which comes after it"));
             }
         }
     }
@@ -191,7 +194,7 @@ fn the_pipeline_neither_prints_nor_draws() {
         for word in ["indicatif", "println!", "print!", "eprint!", "dbg!"] {
             assert!(
                 !code.contains(word),
-                "src/pipeline/{m}.rs uses {word}: the library reports through pipeline::Progress"
+                "src/{m}.rs uses {word}: the library reports through pipeline::Progress"
             );
         }
     }
@@ -199,7 +202,7 @@ fn the_pipeline_neither_prints_nor_draws() {
 
 #[test]
 fn the_parser_sees_uses_and_cycles() {
-    let src = "use super::{a, b::{X, Y}, Options};\n// use super::c;\nfn f() { super::d::g(); crate::pipeline::e::h(); }";
+    let src = "use super::{a, b::{X, Y}, Options};\n// use super::c;\nfn f() { super::d::g(); crate::e::h(); }";
     assert_eq!(used_modules(src), vec!["a", "b", "Options", "d", "e"]);
     let files: BTreeMap<String, String> = [
         ("a", "use super::b::X;"),

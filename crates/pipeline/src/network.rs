@@ -108,7 +108,7 @@ pub fn initial_network(
 }
 
 /// How the initial network may start (`pingcal calibrate --start`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum Start {
     /// Every start the project allows, in the order below, until one works.
     #[default]

@@ -43,6 +43,9 @@ pub mod rectify;
 pub mod report;
 pub mod results;
 pub mod scene;
+pub mod sphere_calib;
+#[cfg(test)]
+mod test_support;
 pub mod verdict;
 
 use pingcal_project::Project;

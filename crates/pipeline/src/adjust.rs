@@ -304,8 +304,8 @@ impl SceneProblem {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::pipeline::ids::DetIdx;
-    use crate::pipeline::scene::{ImageDetections, ScenePoint};
+    use crate::ids::DetIdx;
+    use crate::scene::{ImageDetections, ScenePoint};
     use nalgebra::Vector3;
     use pingcal_project::ProjectFile;
     use pingcal_targets::ellipse::Ellipse;
@@ -455,6 +455,6 @@ accuracy_far_fraction = 0.03
             Vector3::new(1.0, 2.0, 3.0)
         );
         assert!(scene.poses[ImageId(2)].is_none());
-        assert_eq!(scene.intrinsics[crate::pipeline::ids::CameraId(0)][0], 5.5);
+        assert_eq!(scene.intrinsics[crate::ids::CameraId(0)][0], 5.5);
     }
 }
