@@ -14,7 +14,7 @@
 use nalgebra::{Matrix3, Vector3};
 use pingcal_geometry::rotation_angle;
 use pingcal_geometry::to_opk_deg;
-use pingcal_pipeline::{self, Reporter};
+use pingcal_pipeline::{self as pipeline, Reporter};
 
 fn mean_sd(v: &[f64]) -> (f64, f64) {
     let n = v.len() as f64;
