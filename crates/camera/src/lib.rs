@@ -41,9 +41,11 @@ mod bal;
 pub mod brown_backward;
 pub mod double_sphere;
 pub mod fisheye;
+pub mod forms;
 mod kind;
 pub mod opencv;
 mod photogrammetric;
+pub mod refit;
 
 pub use bal::BalCamera;
 pub use brown_backward::{BrownBackwardCamera, BROWN_BACKWARD_PARAMS};

@@ -22,9 +22,9 @@ use serde::{Deserialize, Serialize};
 use std::path::Path;
 
 pub use pingcal_project::{
-    BallLabel, CameraModel, CameraParams, Method, Parameter, ProjectBalls, ProjectCamera,
-    ProjectDistance, ProjectFile, ProjectFrames, ProjectImage, ProjectLrf, ProjectStereo,
-    ProjectTargets, TargetFamily,
+    BallLabel, CameraModel, CameraParams, Intrinsics, Method, Parameter, ProjectBalls,
+    ProjectCamera, ProjectDistance, ProjectFile, ProjectFrames, ProjectImage, ProjectLrf,
+    ProjectStereo, ProjectTargets, TargetFamily,
 };
 
 /// A rigid transform as written in JSON: `y = rotation · x + translation_mm`.
@@ -428,8 +428,8 @@ pub fn project_of(sim: &Simulation) -> ProjectFile {
                 width: c.model.width,
                 height: c.model.height,
                 pixel_size_mm: c.model.pixel_size_mm,
-                initial: CameraParams::from_slice(&initial),
-                free: Parameter::ALL.to_vec(),
+                initial: Intrinsics::photogrammetric(initial).to_table(),
+                free: Parameter::of(CameraModel::Photogrammetric),
             })
             .collect(),
         stereo: Some(ProjectStereo {
@@ -566,12 +566,13 @@ pub fn read_project(path: &Path) -> Result<ProjectFile, SimError> {
 #[cfg(test)]
 mod tests {
     /// A simulated project frees every parameter, and the pipeline fixes a camera's
-    /// parameters by `Parameter::index`: the project's order is the bundle adjuster's.
+    /// parameters by `Parameter::index_in`: the project's order is the bundle adjuster's.
     #[test]
     fn the_free_parameters_are_in_the_bundle_adjusters_order() {
-        assert_eq!(
-            super::Parameter::NAMES,
-            pingcal_ba::camera::PHOTOGRAMMETRIC_PARAMS
-        );
+        let names: Vec<&str> = super::Parameter::of(super::CameraModel::Photogrammetric)
+            .iter()
+            .map(|p| p.as_str())
+            .collect();
+        assert_eq!(names, pingcal_ba::camera::PHOTOGRAMMETRIC_PARAMS);
     }
 }
