@@ -578,8 +578,8 @@ fn stereo_of(left: &Form, right: &Form, size: (u32, u32), rig: &RigJson) -> Opti
     stereo_cv(&cv_camera(left)?, &cv_camera(right)?, size, &r, &t)
 }
 
-/// `opencv/stereo.yaml` for the rig (left = camera 1, right = camera 2), or `None` where
-/// [`stereo_of`] is.
+/// `opencv/stereo.yaml` for the rig (left = camera 1, right = camera 2), or `None` for a
+/// degenerate pair or fisheye cameras.
 pub fn opencv_stereo_yaml(
     (left, lf): (&CameraJson, &Form),
     (right, rf): (&CameraJson, &Form),
