@@ -6,8 +6,8 @@
 //! | ROS `camera_info` | `plumb_bob`, `rational_polynomial` or `equidistant` | as OpenCV's, but a thin prism is fitted away (rational_polynomial) |
 //! | Kalibr camchain | `pinhole` + `radtan` (k1 k2 r1 r2), `pinhole` + `equidistant` (k1–k4), `ds` | radtan fitted for the pinhole models, equidistant exact for kannala-brandt, ds exact for double-sphere |
 //!
-//! Every form is a model of this crate ([`OpenCvCamera`], [`FisheyeCamera`],
-//! [`DoubleSphereCamera`]) with parameters, so its loss against the source is measured the
+//! Every form is a model of this crate ([`super::OpenCvCamera`], [`super::FisheyeCamera`],
+//! [`super::DoubleSphereCamera`]) with parameters, so its loss against the source is measured the
 //! same way for all ([`super::refit::GridRays::loss`]); a fitted form is the least-squares
 //! one over the grid ([`super::refit::refit`]).
 
