@@ -122,6 +122,36 @@ impl ModelKind {
     }
 }
 
+impl ModelKind {
+    /// The parameters a network separates, as functions of the model's own, for judging
+    /// their correlations: for the double sphere the image scales on the axis fx/(1 + ξ),
+    /// fy/(1 + ξ) in place of fx, fy (ξ and the focal lengths move together: a change of ξ
+    /// is mostly a change of scale), for the others the parameters themselves. Over the
+    /// parameters named `names` (a subset of the model's, with `values` all of the
+    /// model's), the Jacobian ∂new/∂old, row-major `names.len()` × `names.len()`.
+    pub fn separable_jacobian(self, values: &[f64], names: &[&str]) -> Vec<Vec<f64>> {
+        let n = names.len();
+        let mut j: Vec<Vec<f64>> = (0..n)
+            .map(|a| (0..n).map(|b| f64::from(u8::from(a == b))).collect())
+            .collect();
+        if self != ModelKind::DoubleSphere {
+            return j;
+        }
+        let at = |name: &str| names.iter().position(|n| *n == name);
+        let Some(k_xi) = at("xi") else {
+            return j;
+        };
+        let xi = values[4];
+        for (name, idx) in [("fx", 0), ("fy", 1)] {
+            if let Some(k) = at(name) {
+                j[k][k] = 1.0 / (1.0 + xi);
+                j[k][k_xi] = -values[idx] / ((1.0 + xi) * (1.0 + xi));
+            }
+        }
+        j
+    }
+}
+
 impl std::fmt::Display for ModelKind {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(self.name())

@@ -413,7 +413,9 @@ pub fn new_points(dets: &Detections, scene: &mut Scene, kind: TargetKind) -> usi
     added
 }
 
-/// Median size (mm) of a point's blobs: semi-major axis × depth / principal distance, × 2.
+/// Median size (mm) of a point's blobs: the angle between the rays through the two ends of
+/// the blob's major axis (through the camera's model, so that a fisheye's compression
+/// toward the edge is undone) times the point's distance.
 pub fn blob_diameter_mm(dets: &Detections, scene: &Scene, p: &ScenePoint) -> Option<f64> {
     let mut d: Vec<f64> = p
         .obs
@@ -421,10 +423,16 @@ pub fn blob_diameter_mm(dets: &Detections, scene: &Scene, p: &ScenePoint) -> Opt
         .filter_map(|&o| {
             let pose = scene.poses[o.image]?;
             let c = scene.camera_of[o.image];
-            let depth = pose.transform(&p.position).y;
-            let f_px = scene.cameras[c].focal_px(&scene.intrinsics[c]);
-            let a = dets.target(o).ellipse.a;
-            (depth > 0.0).then(|| 2.0 * a * depth / f_px)
+            let (cam, params) = (&scene.cameras[c], &scene.intrinsics[c]);
+            let xc = pose.transform(&p.position);
+            let e = dets.target(o).ellipse;
+            let half = Vector2::new(e.theta.cos(), e.theta.sin()) * e.a;
+            let centre = Vector2::new(e.cx, e.cy);
+            let q1 = cam.unproject(params, &(centre + half))?;
+            let q2 = cam.unproject(params, &(centre - half))?;
+            let angle = q1.angle(&q2);
+            cam.project(params, &xc)
+                .map(|_| 2.0 * xc.norm() * (0.5 * angle).tan())
         })
         .collect();
     if d.is_empty() {
