@@ -95,6 +95,7 @@
 
 pub mod bal;
 pub mod datum;
+pub mod diagnostics;
 pub mod initial;
 pub mod io;
 pub mod loss;
