@@ -100,6 +100,12 @@ fn every_bag_becomes_the_scan_file_it_was_made_from() {
             let text = std::fs::read_to_string(&out).unwrap();
             assert!(text.starts_with("# pingcal-scan v2\n"), "{bag}");
             let (got_h, got) = read(&out);
+            // the bag's time_increment is kept (the CSV made the bags has none)
+            assert_eq!(got_h.time_increment_s, Some(0.1 / 1024.0), "{bag}");
+            let got_h = ScanHeader {
+                time_increment_s: None,
+                ..got_h
+            };
             assert_eq!(got_h, h, "{bag}");
             assert_eq!(got.len(), want.len(), "{bag}");
             for (g, w) in got.iter().zip(&want) {
@@ -126,10 +132,16 @@ fn list_prints_topics_types_and_counts() {
         .skip(1)
         .map(|l| l.split_whitespace().collect())
         .collect();
-    assert_eq!(rows[2], ["/scan", "sensor_msgs/LaserScan", "5"], "{stdout}");
+    assert_eq!(rows[3], ["/scan", "sensor_msgs/LaserScan", "5"], "{stdout}");
     assert_eq!(
         rows[1],
         ["/joint_states", "sensor_msgs/JointState", "10"],
+        "{stdout}"
+    );
+    // the joints of a JointState topic and the frames of a tf topic are named
+    assert_eq!(rows[2], ["joints:", "pan,", "servo"], "{stdout}");
+    assert!(
+        stdout.contains("\n    frames: laser_base→servo_link\n"),
         "{stdout}"
     );
     assert_eq!(stdout.lines().last(), Some("scans: 5 topic(s) in 1 bag(s)"));

@@ -5,7 +5,7 @@
 
 use pingcal_lrf::cloud::{Cloud, MountModel};
 use pingcal_lrf::scan::{open_scan_file, ScanHeader, ScanLine};
-use pingcal_rosbag::assemble::{assemble, servo_series, Assembled, ServoSource, Topics};
+use pingcal_rosbag::assemble::{read_scans, Assembled, ServoMotion, ServoSource, Topics};
 use pingcal_rosbag::{Bag, RosbagError};
 use std::path::{Path, PathBuf};
 
@@ -59,14 +59,17 @@ fn tf() -> Topics {
 type Scans = (Option<ScanHeader>, Vec<ScanLine>, Assembled);
 
 fn read(paths: &[PathBuf], topics: &Topics) -> Result<Scans, RosbagError> {
+    read_as(paths, topics, ServoMotion::Auto)
+}
+
+fn read_as(paths: &[PathBuf], topics: &Topics, motion: ServoMotion) -> Result<Scans, RosbagError> {
     let bags = paths
         .iter()
         .map(|p| Bag::open(p))
         .collect::<Result<Vec<_>, _>>()?;
-    let series = servo_series(&bags, topics)?;
     let mut header = None;
     let mut lines = Vec::new();
-    let done = assemble(&bags, topics, &series, &mut |h, l| {
+    let done = read_scans(&bags, topics, motion, &mut |h, l| {
         header = Some(*h);
         lines.push(l);
         Ok(())
@@ -92,14 +95,22 @@ fn every_format_gives_the_csv_scans_and_cloud() {
     for name in BAGS {
         for topics in [joint("servo"), ticks(), tf()] {
             let (got_h, got, done) = read(&[data(name)], &topics).unwrap();
+            let got_h = got_h.map(|g| ScanHeader {
+                time_increment_s: None,
+                ..g
+            });
             assert_eq!(got_h, Some(h), "{name}");
             assert_eq!(
-                done,
-                Assembled {
-                    scans: want.len() as u64,
-                    ..Default::default()
-                }
+                (done.scans, done.before_servo, done.after_servo),
+                (want.len() as u64, 0, 0),
+                "{name}"
             );
+            assert_eq!(done.motion, ServoMotion::StopAndGo, "{name}: {}", done.motion_reason);
+            // every no-return of the CSV is an inf, a NaN or a 0 in the bag, in turn
+            let zeros = want.iter().flat_map(|l| &l.ranges_mm).filter(|r| **r == 0.0).count();
+            let m = done.masked;
+            assert_eq!((m.total(), m.below_min, m.above_max), (zeros as u64, 0, 0), "{name}");
+            assert!(m.inf > 0 && m.nan > 0 && m.zero > 0, "{name}: {m:?}");
             assert_eq!(got.len(), want.len(), "{name}");
             for (g, w) in got.iter().zip(&want) {
                 // the CSV's 3-decimal stamps around 1.7e9 s are f64 values 2.4e-7 s apart
@@ -139,7 +150,8 @@ fn a_continuous_sweep_gives_each_beam_its_time_s_servo_angle() {
     let h = r.header();
     let want: Vec<ScanLine> = r.map(Result::unwrap).collect();
     let (got_h, got, done) = read(&[data("sweep.mcap")], &joint("servo")).unwrap();
-    assert_eq!((got_h, done.scans), (Some(h), 2));
+    assert_eq!((got_h.map(|g| g.angle_min_deg), done.scans), (Some(h.angle_min_deg), 2));
+    assert_eq!(done.motion, ServoMotion::Continuous, "{}", done.motion_reason);
     for (g, w) in got.iter().zip(&want) {
         assert!(
             (g.servo_deg - w.servo_deg).abs() < 1e-9,
@@ -232,7 +244,7 @@ fn missing_and_mistyped_topics_name_the_file_and_topic() {
         let e = error(&p, &t);
         assert!(e.ends_with("topic /empty: no messages on the topic"), "{e}");
         let e = error(&p, &joint("tilt"));
-        assert!(e.contains("topic /joint_states: no joint named \"tilt\" in its 0 JointState messages (10 messages)"), "{e}");
+        assert!(e.contains("topic /joint_states: no joint named \"tilt\" in its 10 JointState messages (joints there: \"pan\", \"servo\")"), "{e}");
     }
 }
 

@@ -544,6 +544,7 @@ impl LrfConfig {
                 angle_min_deg: self.angle_min_deg,
                 angle_increment_deg: self.angle_increment_deg,
                 mm_per_unit: 1.0,
+                time_increment_s: self.continuous_sweep.then_some(self.beam_time_s),
             },
             beams: self.beams,
             mount: self.mount(),
