@@ -312,3 +312,140 @@ fn out_goes_through_a_symlink_and_into_a_device() {
         &stdout[..80.min(stdout.len())]
     );
 }
+
+/// Issue 37: a bag as drivers write it (`drivers.db3`: empty scans, NaN/±inf/0 and
+/// out-of-range ranges, changing beam counts, intensities, a repeated and a backward
+/// stamp; `make_fixtures.py --drivers`): converted with every count named, the
+/// intensities in a v3 file; a wrong joint lists the joints there are.
+#[test]
+fn a_drivers_bag_is_converted_with_the_counts_named() {
+    let dir = tmp("drivers");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let out = dir.join("drivers.csv");
+    let b = data("drivers.db3");
+    let args = |joint: &'static str| {
+        vec![
+            "scans".to_string(),
+            b.to_str().unwrap().into(),
+            "--scan-topic".into(),
+            "/scan".into(),
+            "--servo-topic".into(),
+            "/joint_states".into(),
+            "--servo-joint".into(),
+            joint.into(),
+            "--out".into(),
+            out.to_str().unwrap().into(),
+        ]
+    };
+    let run = |a: Vec<String>| pingcal(&a.iter().map(String::as_str).collect::<Vec<_>>());
+    let (ok, stdout, stderr) = run(args("tilt"));
+    assert!(ok, "{stderr}");
+    for want in [
+        "2 empty, 0 duplicate(s), 82 ranges masked",
+        "scans: servo motion: stop-and-go (one servo message 10.0 ms before each scan",
+        "scans: 82 range(s) read as no return: 15 0, 13 NaN, 27 ±inf, 14 under range_min, 13 over range_max",
+        "scans: intensities kept for 21 scan(s)",
+    ] {
+        assert!(stdout.contains(want), "{want}: {stdout}");
+    }
+    for want in [
+        "warning: topic /scan: 2 empty scan(s) (no beams) skipped",
+        "warning: topic /scan: 1 scan(s) with the stamp of the scan before them (kept)",
+        "warning: topic /scan: 1 scan(s) stamped earlier than the scan before them dropped",
+    ] {
+        assert!(stderr.contains(want), "{want}: {stderr}");
+    }
+    let text = std::fs::read_to_string(&out).unwrap();
+    assert!(text.starts_with("# pingcal-scan v3\n"), "{text}");
+    assert!(text.contains("# time_increment_s=0.0005\n"), "{text}");
+    let (_, lines) = read(&out);
+    assert!(lines
+        .iter()
+        .all(|l| l.intensities.len() == l.ranges_mm.len()));
+    let (ok, _, stderr) = run(args("servo"));
+    assert!(!ok);
+    assert!(
+        stderr.contains("no joint named \"servo\" in its 24 JointState messages (joints there: \"pan\", \"tilt\")"),
+        "{stderr}"
+    );
+    // every message stored twice: 8 scans, not 16
+    let (ok, stdout, stderr) = pingcal(&[
+        "scans",
+        data("dup.db3").to_str().unwrap(),
+        "--scan-topic",
+        "/scan",
+        "--servo-topic",
+        "/servo_int",
+        "--servo-scale",
+        "0.087890625",
+        "--servo-offset",
+        "-180",
+        "--out",
+        dir.join("dup.csv").to_str().unwrap(),
+    ]);
+    assert!(ok, "{stderr}");
+    let scans: u64 = stdout
+        .lines()
+        .filter_map(|l| l.strip_prefix("scans: "))
+        .filter_map(|l| {
+            l.split_once(" scans of ")
+                .map(|(n, _)| n.parse::<u64>().unwrap())
+        })
+        .sum();
+    assert_eq!(scans, 8, "{stdout}");
+    assert!(stdout.contains("8 duplicate(s)"), "{stdout}");
+    assert!(
+        stderr.contains("8 scan message(s) stored twice read once"),
+        "{stderr}"
+    );
+}
+
+/// `--servo-motion` overrides `auto`: interpolating a stop-and-go bag moves every angle.
+#[test]
+fn servo_motion_is_said_and_can_be_given() {
+    let out = tmp("stopgo.csv");
+    let b = data("stopgo_50ms.mcap");
+    let mut args = vec![
+        "scans",
+        b.to_str().unwrap(),
+        "--scan-topic",
+        "/scan",
+        "--servo-topic",
+        "/joint_states",
+        "--servo-joint",
+        "servo",
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    let (ok, stdout, stderr) = pingcal(&args);
+    assert!(ok, "{stderr}");
+    assert!(
+        stdout.contains("servo motion: stop-and-go (one servo message 50.0 ms before each scan"),
+        "{stdout}"
+    );
+    let (_, held) = read(&out);
+    args.extend(["--servo-motion", "continuous"]);
+    let (ok, stdout, stderr) = pingcal(&args);
+    assert!(ok, "{stderr}");
+    assert!(
+        stdout.contains("servo motion: continuous (as asked)"),
+        "{stdout}"
+    );
+    let (_, moved) = read(&out);
+    // the last scan has no servo message after it to interpolate to
+    assert_eq!(moved.len() + 1, held.len());
+    for (a, b) in moved.iter().zip(&held) {
+        assert!(
+            (a.servo_deg - b.servo_deg - 0.087890625).abs() < 1e-6,
+            "{} {}",
+            a.servo_deg,
+            b.servo_deg
+        );
+    }
+    let (ok, _, stderr) = pingcal(&[&args[..10], &["--servo-motion", "jerky"]].concat());
+    assert!(
+        !ok && stderr.contains("expected auto, stop-and-go or continuous"),
+        "{stderr}"
+    );
+}

@@ -275,18 +275,19 @@ impl<R: BufRead> ScanReader<R> {
             if let Some(rest) = t.strip_prefix('#') {
                 let rest = rest.trim();
                 if let Some(v) = rest.strip_prefix("pingcal-scan v") {
-                    version = Some(match v.trim() {
-                        "1" => 1,
-                        "2" => 2,
-                        "3" => 3,
-                        v => {
-                            return Err(LrfError::parse(
+                    version =
+                        Some(match v.trim() {
+                            "1" => 1,
+                            "2" => 2,
+                            "3" => 3,
+                            v => return Err(LrfError::parse(
                                 file,
                                 line_no,
-                                format!("pingcal-scan version {v:?}: this pingcal reads v1, v2 and v3"),
-                            ))
-                        }
-                    });
+                                format!(
+                                    "pingcal-scan version {v:?}: this pingcal reads v1, v2 and v3"
+                                ),
+                            )),
+                        });
                     continue;
                 }
                 if let Some((k, v)) = rest.split_once('=') {
@@ -1019,7 +1020,10 @@ mod tests {
         write_scans(&mut out, &header, &scans).unwrap();
         let text = String::from_utf8(out).unwrap();
         assert!(text.starts_with("# pingcal-scan v3\n"), "{text}");
-        assert!(text.contains("# time_increment_s=0.00009765625\n"), "{text}");
+        assert!(
+            text.contains("# time_increment_s=0.00009765625\n"),
+            "{text}"
+        );
         assert!(
             text.contains("stamp_s,servo_deg,servo_end_deg,r0,r1,r2,i0,i1,i2\n0.100,10.000000,10.000000,1000,0,2500,812,0,47.25\n"),
             "{text}"
@@ -1035,17 +1039,33 @@ mod tests {
         assert!(v[0].intensities.is_empty());
         // intensity columns need v3, as many as the ranges, and numbers
         let e = read_all(&text.replace("v3", "v2")).unwrap_err().to_string();
-        assert!(e.contains("intensity columns (i0, ...) need `# pingcal-scan v3`"), "{e}");
+        assert!(
+            e.contains("intensity columns (i0, ...) need `# pingcal-scan v3`"),
+            "{e}"
+        );
         let e = read_all(&text.replace(",i2", "")).unwrap_err().to_string();
         assert!(e.contains("with 3 ranges and 2 intensities"), "{e}");
-        let e = read_all(&text.replace(",47.25", ",x")).unwrap_err().to_string();
-        assert!(e.contains("intensity i2: expected a number, found \"x\""), "{e}");
-        let e = read_all(&text.replace(",47.25", "")).unwrap_err().to_string();
-        assert!(e.contains("expected 3 ranges and 3 intensities, found 5 values"), "{e}");
+        let e = read_all(&text.replace(",47.25", ",x"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("intensity i2: expected a number, found \"x\""),
+            "{e}"
+        );
+        let e = read_all(&text.replace(",47.25", ""))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("expected 3 ranges and 3 intensities, found 5 values"),
+            "{e}"
+        );
         let e = read_all(&text.replace("time_increment_s=0.0", "time_increment_s=-0.0"))
             .unwrap_err()
             .to_string();
-        assert!(e.contains("time_increment_s: -0.00009765625 is negative"), "{e}");
+        assert!(
+            e.contains("time_increment_s: -0.00009765625 is negative"),
+            "{e}"
+        );
         // a v3 writer needs the intensities
         let mut w = ScanWriter::new_v3(Vec::new(), &header, 3, &[]).unwrap();
         assert!(w.write_scan(0.0, 1.0, [1000.0, 0.0, 1.0]).is_err());

@@ -36,8 +36,8 @@
 //! A scan's `line` is its 1-based message number on the scan topic (in its bag).
 
 use crate::error::{Result, RosbagError};
-use crate::msgs::{self, JointState};
 pub use crate::motion::{ServoMotion, ServoSeries};
+use crate::msgs::{self, JointState};
 use crate::{Bag, RawMessage};
 use pingcal_lrf::scan::{ScanHeader, ScanLine, MIN_VALID_RANGE_MM};
 
@@ -478,12 +478,16 @@ pub fn names_on_topic(bag: &Bag, topic: &str, msg_type: &str) -> Result<Vec<Stri
     let mut index = 0u64;
     let read = bag.for_each(&[topic], &mut |m| {
         if m.msg_type == msgs::JOINT_STATE {
-            let js = JointState::decode(m.data, m.encoding)
-                .map_err(|e| decode_err(bag, m, index, e))?;
+            let js =
+                JointState::decode(m.data, m.encoding).map_err(|e| decode_err(bag, m, index, e))?;
             names.extend(js.name);
         } else if m.msg_type == msgs::TF_MESSAGE {
-            let tf = msgs::decode_tf(m.data, m.encoding).map_err(|e| decode_err(bag, m, index, e))?;
-            names.extend(tf.into_iter().map(|t| format!("{}→{}", t.frame_id, t.child_frame_id)));
+            let tf =
+                msgs::decode_tf(m.data, m.encoding).map_err(|e| decode_err(bag, m, index, e))?;
+            names.extend(
+                tf.into_iter()
+                    .map(|t| format!("{}→{}", t.frame_id, t.child_frame_id)),
+            );
         }
         index += 1;
         if index >= MAX_MESSAGES {

@@ -14,9 +14,9 @@
 //! 1. From the servo's first move to its 16th, a *rest* is two consecutive messages with the
 //!    same angle (within 1e-6°). At least one rest for every four moves: stop-and-go (the
 //!    servo publishes while it stands; a continuous sweep has almost none).
-//! 2. Otherwise, when every scan of that stretch has exactly one servo message since the
-//!    scan before it, at a lead that varies by less than a fifth of the scan period:
-//!    stop-and-go (one message per step, sent when the servo has stopped,
+//! 2. Otherwise, when four scans in five of that stretch have exactly one servo message
+//!    since the scan before them, at a lead that varies by less than a fifth of the scan
+//!    period: stop-and-go (one message per step, sent when the servo has stopped,
 //!    in step with the scans).
 //! 3. Otherwise: continuous (the angle changes at every message, at a rate of its own).
 //!
@@ -209,19 +209,23 @@ pub fn classify(
     }
     decision(
         ServoMotion::Continuous,
-        format!("the servo angle changes at {moves} messages of {} in a row (a ramp)", moves + rests),
+        format!(
+            "the servo angle changes at {moves} messages of {} in a row (a ramp)",
+            moves + rests
+        ),
     )
 }
 
-/// The median lead of the servo message before each scan when every scan stamped within
-/// `window` has exactly one servo message since the scan before it, at a steady lead
-/// (module doc, rule 2).
+/// The median lead of the servo message before each scan when the scans stamped within
+/// `window` (and the one after it) have, four times in five at least, exactly one servo
+/// message since the scan before them, at a steady lead (module doc, rule 2; a scan that
+/// repeats a stamp or a message lost now and then do not hide the pattern).
 fn locked(t: &[i64], window: (i64, i64), scans: &[i64]) -> Option<i64> {
-    let inside: Vec<i64> = scans
-        .iter()
-        .copied()
-        .filter(|&s| s >= window.0 && s <= window.1)
-        .collect();
+    let mut inside: Vec<i64> = scans.iter().copied().filter(|&s| s >= window.0).collect();
+    inside.sort_unstable();
+    inside.dedup();
+    let after = inside.partition_point(|&s| s <= window.1);
+    inside.truncate((after + 1).min(inside.len()));
     if inside.len() < 4 {
         return None;
     }
@@ -229,21 +233,25 @@ fn locked(t: &[i64], window: (i64, i64), scans: &[i64]) -> Option<i64> {
     let mut periods = Vec::new();
     for w in inside.windows(2) {
         let (a, b) = (w[0], w[1]);
+        periods.push(b - a);
         let from = t.partition_point(|&x| x <= a);
         let to = t.partition_point(|&x| x <= b);
-        if to - from != 1 {
-            return None;
+        if to - from == 1 {
+            leads.push(b - t[to - 1]);
         }
-        leads.push(b - t[to - 1]);
-        periods.push(b - a);
+    }
+    if leads.len() * 5 < periods.len() * 4 {
+        return None;
     }
     periods.sort_unstable();
     let period = periods[periods.len() / 2];
-    let (lo, hi) = (*leads.iter().min()?, *leads.iter().max()?);
+    leads.sort_unstable();
+    // the spread of the middle 80 % of the leads
+    let cut = leads.len() / 10;
+    let (lo, hi) = (leads[cut], leads[leads.len() - 1 - cut]);
     if period <= 0 || (hi - lo) * 5 > period {
         return None;
     }
-    leads.sort_unstable();
     Some(leads[leads.len() / 2])
 }
 

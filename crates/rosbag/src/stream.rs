@@ -2,8 +2,8 @@
 //! servo series is known past them, then get their servo angle and go to the caller.
 
 use crate::assemble::{
-    angle_deg, decode_err, expect_type, no_messages, no_servo_samples, range_mm_counted,
-    seconds, servo_samples, servo_types, Assembled, ServoNames, Topics, MAX_PENDING_SCANS,
+    angle_deg, decode_err, expect_type, no_messages, no_servo_samples, range_mm_counted, seconds,
+    servo_samples, servo_types, Assembled, ServoNames, Topics, MAX_PENDING_SCANS,
 };
 use crate::error::{Result, RosbagError};
 use crate::motion::{classify, Decision, Inserted, ServoMotion, ServoSeries, SLACK_NS};
@@ -89,6 +89,15 @@ struct Stream<'a> {
     done: Assembled,
     /// The one-pass read gave up (too many scans waiting).
     overflow: bool,
+    /// Scans that may wait ([`MAX_PENDING_SCANS`]).
+    cap: usize,
+    /// The first of two passes: the servo series and the scans' stamps only.
+    stamps_only: bool,
+    /// How long after the last servo message a stop-and-go scan still holds its angle, ns
+    /// (the median servo interval, once the series is complete).
+    hold_limit: Option<i64>,
+    /// The series' length at which [`classify`] is tried again.
+    next_classify: usize,
 }
 
 impl<'a> Stream<'a> {
@@ -117,6 +126,10 @@ impl<'a> Stream<'a> {
             skip: 0,
             done: Assembled::default(),
             overflow: false,
+            cap: MAX_PENDING_SCANS,
+            stamps_only: false,
+            hold_limit: None,
+            next_classify: 2,
         }
     }
 
@@ -176,7 +189,15 @@ impl<'a> Stream<'a> {
             return Ok(());
         }
         let s = LaserScan::decode(m.data, m.encoding).map_err(|e| decode_err(bag, m, index, e))?;
-        let at = |e: String| RosbagError::topic(bag.name(), m.topic, format!("message {index}: {e}"));
+        if self.decision.is_none() {
+            // every scan's stamp, empty or out of order too, tells how the servo keeps time
+            self.scan_stamps.push(s.stamp_ns);
+        }
+        if self.stamps_only {
+            return Ok(());
+        }
+        let at =
+            |e: String| RosbagError::topic(bag.name(), m.topic, format!("message {index}: {e}"));
         let Some(g) = self.geometry(&s).map_err(at)? else {
             return Ok(());
         };
@@ -202,9 +223,6 @@ impl<'a> Stream<'a> {
         } else {
             Vec::new()
         };
-        if self.decision.is_none() {
-            self.scan_stamps.push(s.stamp_ns);
-        }
         self.pending.push_back(Pending {
             stamp_ns: s.stamp_ns,
             end_off_ns: (g.n - 1) as f64 * f64::from(s.time_increment) * 1e9,
@@ -228,12 +246,18 @@ impl<'a> Stream<'a> {
         end: bool,
         f: &mut dyn FnMut(&ScanHeader, ScanLine) -> Result<()>,
     ) -> Result<()> {
-        let forced = self.servo_complete && self.pending.len() > MAX_PENDING_SCANS;
-        if !end && !forced && self.pending.len() > MAX_PENDING_SCANS {
+        let forced = self.servo_complete && self.pending.len() > self.cap;
+        if !end && !forced && self.pending.len() > self.cap {
             self.overflow = true;
             return Err(RosbagError::Stopped);
         }
-        if self.decision.is_none() && !self.series.times_ns.is_empty() {
+        let samples = self.series.times_ns.len();
+        // classify again only when the series has doubled (or at the end): the work stays
+        // linear in the data whatever the servo does
+        if self.decision.is_none()
+            && samples > 0
+            && (end || forced || samples >= self.next_classify)
+        {
             let until = if self.servo_complete {
                 self.scan_until
             } else {
@@ -243,16 +267,23 @@ impl<'a> Stream<'a> {
             if self.decision.is_some() {
                 self.scan_stamps = Vec::new();
             }
+            self.next_classify = samples * 2;
         }
         let Some(motion) = self.decision.as_ref().map(|d| d.motion) else {
             return Ok(());
         };
-        let hold_limit = if end { self.series.median_interval_ns() } else { 0 };
+        let hold_limit = if end || self.servo_complete {
+            // the series is complete: its median interval, once
+            *self
+                .hold_limit
+                .get_or_insert_with(|| self.series.median_interval_ns())
+        } else {
+            0
+        };
         while let Some(p) = self.pending.front() {
             let last_beam = p.stamp_ns.saturating_add(p.end_off_ns.ceil() as i64);
-            let known = end
-                || self.servo_complete
-                || self.servo_until > last_beam.saturating_add(SLACK_NS);
+            let known =
+                end || self.servo_complete || self.servo_until > last_beam.saturating_add(SLACK_NS);
             if !known {
                 break;
             }
@@ -282,9 +313,7 @@ impl<'a> Stream<'a> {
             return None;
         }
         let got = match motion {
-            ServoMotion::Continuous => s
-                .at(p.stamp_ns, 0.0)
-                .zip(s.at(p.stamp_ns, p.end_off_ns)),
+            ServoMotion::Continuous => s.at(p.stamp_ns, 0.0).zip(s.at(p.stamp_ns, p.end_off_ns)),
             _ if p.stamp_ns > last && p.stamp_ns - last > hold_limit => None,
             _ => s.hold(p.stamp_ns).map(|d| (d, d)),
         };
@@ -338,20 +367,48 @@ pub fn read(
     motion: ServoMotion,
     f: &mut dyn FnMut(&ScanHeader, ScanLine) -> Result<()>,
 ) -> Result<Assembled> {
+    read_with_cap(bags, topics, motion, MAX_PENDING_SCANS, f)
+}
+
+/// [`read`] with at most `cap` scans waiting before it falls back to two passes.
+fn read_with_cap(
+    bags: &[Bag],
+    topics: &Topics,
+    motion: ServoMotion,
+    cap: usize,
+    f: &mut dyn FnMut(&ScanHeader, ScanLine) -> Result<()>,
+) -> Result<Assembled> {
     let mut st = Stream::new(topics, motion);
+    st.cap = cap;
     st.done.passes = 1;
     match st.pass(bags, f) {
         Err(RosbagError::Stopped) if st.overflow => {
-            // two passes: the servo series first, then the scans; the scans already given
-            // are not given again
+            // two passes: the servo series and the scans' stamps first, then the scans;
+            // the scans already given are not given again
             let given = st.done.scans;
-            let decision = st.decision.take();
+            let mut first = Stream::new(topics, motion);
+            first.stamps_only = true;
+            first.pass(bags, &mut |_, _| Ok(()))?;
+            if first.series.times_ns.is_empty() {
+                return Err(no_servo_samples(
+                    bags,
+                    topics,
+                    first.servo_messages,
+                    &first.names,
+                ));
+            }
+            let decision = first
+                .decision
+                .take()
+                .or_else(|| classify(&first.series, &first.scan_stamps, i64::MAX, true));
             st = Stream::new(topics, motion);
+            st.cap = cap;
             st.done.passes = 2;
             st.skip = given;
-            st.series = crate::assemble::servo_series(bags, topics)?;
+            st.done.duplicate_servo = first.done.duplicate_servo;
+            st.series = first.series;
             st.servo_complete = true;
-            st.decision = st.decision.or(decision);
+            st.decision = decision;
             st.pass(bags, f)?;
         }
         other => other?,
@@ -375,4 +432,63 @@ pub fn read(
     st.done.motion = d.motion;
     st.done.motion_reason = d.reason;
     Ok(st.done)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::assemble::ServoSource;
+
+    fn read_all(name: &str, motion: ServoMotion, cap: usize) -> (Vec<ScanLine>, Assembled) {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("tests/data")
+            .join(name);
+        let bags = [Bag::open(&path).unwrap()];
+        let topics = Topics {
+            scan: "/scan".into(),
+            servo: "/joint_states".into(),
+            source: ServoSource::Joint("servo".into()),
+        };
+        let mut lines = Vec::new();
+        let done = read_with_cap(&bags, &topics, motion, cap, &mut |_, l| {
+            lines.push(l);
+            Ok(())
+        })
+        .unwrap();
+        (lines, done)
+    }
+
+    /// When too many scans wait for the servo, the bags are read again in two passes and
+    /// give the same scans, each once.
+    #[test]
+    fn the_two_pass_fallback_gives_the_same_scans_once() {
+        for (name, motion) in [
+            ("sweep_cont.mcap", ServoMotion::Auto),
+            ("stopgo_10ms.mcap", ServoMotion::Auto),
+            ("stopgo_50ms.mcap", ServoMotion::StopAndGo),
+        ] {
+            let (one, a) = read_all(name, motion, MAX_PENDING_SCANS);
+            let (two, b) = read_all(name, motion, 2);
+            assert_eq!((a.passes, b.passes), (1, 2), "{name}");
+            assert_eq!(one.len(), two.len(), "{name}");
+            for (x, y) in one.iter().zip(&two) {
+                assert_eq!(x, y, "{name}");
+            }
+            assert_eq!((a.scans, a.motion), (b.scans, b.motion), "{name}");
+        }
+    }
+
+    #[test]
+    fn identity_tells_messages_apart_by_every_byte() {
+        let a: Vec<u8> = (0..=255u8).collect();
+        let mut seen = HashSet::new();
+        assert!(seen.insert(identity(&a)));
+        for i in 0..a.len() {
+            let mut b = a.clone();
+            b[i] ^= 1;
+            assert!(seen.insert(identity(&b)), "byte {i}");
+        }
+        assert!(seen.insert(identity(&a[..255])));
+        assert!(!seen.insert(identity(&a)));
+    }
 }
