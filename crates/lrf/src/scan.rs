@@ -275,19 +275,20 @@ impl<R: BufRead> ScanReader<R> {
             if let Some(rest) = t.strip_prefix('#') {
                 let rest = rest.trim();
                 if let Some(v) = rest.strip_prefix("pingcal-scan v") {
-                    version =
-                        Some(match v.trim() {
-                            "1" => 1,
-                            "2" => 2,
-                            "3" => 3,
-                            v => return Err(LrfError::parse(
+                    version = Some(match v.trim() {
+                        "1" => 1,
+                        "2" => 2,
+                        "3" => 3,
+                        v => {
+                            return Err(LrfError::parse(
                                 file,
                                 line_no,
                                 format!(
                                     "pingcal-scan version {v:?}: this pingcal reads v1, v2 and v3"
                                 ),
-                            )),
-                        });
+                            ))
+                        }
+                    });
                     continue;
                 }
                 if let Some((k, v)) = rest.split_once('=') {
