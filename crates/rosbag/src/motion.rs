@@ -126,9 +126,28 @@ impl ServoSeries {
         (k > 0).then(|| self.deg[k - 1])
     }
 
-    /// The median time between consecutive samples, ns (0 with fewer than two).
+    /// Forgets the samples no scan stamped at or after `t_ns` needs (all but the last one at
+    /// or before it), keeping the last [`KEPT_SAMPLES`] at least; the work is done when it
+    /// frees half the series or more (linear in the data overall).
+    pub fn forget_before(&mut self, t_ns: i64) {
+        let k = self.times_ns.partition_point(|&s| s <= t_ns);
+        let cut = k
+            .saturating_sub(1)
+            .min(self.times_ns.len().saturating_sub(KEPT_SAMPLES));
+        if cut > 0 && cut * 2 >= self.times_ns.len() {
+            self.times_ns.drain(..cut);
+            self.deg.drain(..cut);
+        }
+    }
+
+    /// The median time between consecutive samples among the last [`KEPT_SAMPLES`], ns (0
+    /// with fewer than two).
     pub fn median_interval_ns(&self) -> i64 {
-        let mut d: Vec<i64> = self.times_ns.windows(2).map(|w| w[1] - w[0]).collect();
+        let from = self.times_ns.len().saturating_sub(KEPT_SAMPLES);
+        let mut d: Vec<i64> = self.times_ns[from..]
+            .windows(2)
+            .map(|w| w[1] - w[0])
+            .collect();
         if d.is_empty() {
             return 0;
         }
@@ -145,6 +164,9 @@ pub struct Decision {
     /// Why, in words.
     pub reason: String,
 }
+
+/// Samples [`ServoSeries::forget_before`] always keeps.
+pub const KEPT_SAMPLES: usize = 64;
 
 /// Two consecutive servo angles closer than this (degrees) are a rest.
 pub const REST_DEG: f64 = 1e-6;

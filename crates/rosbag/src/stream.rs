@@ -12,6 +12,10 @@ use crate::{Bag, RawMessage};
 use pingcal_lrf::scan::{ScanHeader, ScanLine};
 use std::collections::{HashSet, VecDeque};
 
+/// Scan messages a copy is looked for among (a message stored twice is stored next to
+/// itself, or nearly: a bag read twice is told by its stamps going back instead).
+const DUPLICATE_WINDOW: usize = 4_096;
+
 /// The beam geometry of a scan, as the message gives it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Geometry {
@@ -80,7 +84,9 @@ struct Stream<'a> {
     pending: VecDeque<Pending>,
     geometry: Option<Geometry>,
     last_stamp: Option<i64>,
+    /// The identities of the last [`DUPLICATE_WINDOW`] scan messages, and their order.
     seen: HashSet<u128>,
+    seen_order: VecDeque<u128>,
     servo_messages: u64,
     names: ServoNames,
     samples: Vec<(i64, f64)>,
@@ -120,6 +126,7 @@ impl<'a> Stream<'a> {
             geometry: None,
             last_stamp: None,
             seen: HashSet::new(),
+            seen_order: VecDeque::new(),
             servo_messages: 0,
             names: ServoNames::default(),
             samples: Vec::new(),
@@ -184,9 +191,16 @@ impl<'a> Stream<'a> {
 
     fn scan(&mut self, bag: &Bag, m: &RawMessage, index: u64) -> Result<()> {
         expect_type(bag, m, &[msgs::LASER_SCAN])?;
-        if !self.seen.insert(identity(m.data)) {
+        let id = identity(m.data);
+        if !self.seen.insert(id) {
             self.done.duplicate_scans += 1;
             return Ok(());
+        }
+        self.seen_order.push_back(id);
+        if self.seen_order.len() > DUPLICATE_WINDOW {
+            if let Some(old) = self.seen_order.pop_front() {
+                self.seen.remove(&old);
+            }
         }
         let s = LaserScan::decode(m.data, m.encoding).map_err(|e| decode_err(bag, m, index, e))?;
         if self.decision.is_none() {
@@ -290,6 +304,10 @@ impl<'a> Stream<'a> {
             let Some(mut p) = self.pending.pop_front() else {
                 break;
             };
+            if !self.servo_complete {
+                // no scan to come is stamped before this one (those are dropped)
+                self.series.forget_before(p.stamp_ns);
+            }
             if let Some((start, stop)) = self.angles(motion, &p, hold_limit) {
                 p.line.servo_deg = start;
                 p.line.servo_end_deg = Some(stop);
