@@ -449,3 +449,133 @@ fn servo_motion_is_said_and_can_be_given() {
         "{stderr}"
     );
 }
+
+/// The `rosbags` venv's Python (`tests/rosbag/make_fixtures.sh` makes it), or `None` after
+/// printing why the test is skipped.
+fn rosbags_python(test: &str) -> Option<PathBuf> {
+    let py = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../target/rosbags-venv/bin/python");
+    let ok = py.is_file()
+        && Command::new(&py)
+            .args(["-c", "import rosbags, numpy, PIL"])
+            .status()
+            .is_ok_and(|s| s.success());
+    if !ok {
+        println!(
+            "{test}: skipped: no {} with rosbags, numpy and pillow (bash tests/rosbag/make_fixtures.sh makes it)",
+            py.display()
+        );
+    }
+    ok.then_some(py)
+}
+
+/// Issue 37: `pingcal frames` on a bag of PointCloud2 and Image / CompressedImage messages
+/// written by `rosbags` from a simulated sphere calibration (`make_frames_bag.py`: each
+/// frame still for three messages, then carried on for two) finds the ten still moments,
+/// pairs cloud and image, and writes a project that `pingcal sphere-calib` runs as it is,
+/// with the result of the frames written directly.
+#[test]
+fn frames_from_a_bag_make_a_project_sphere_calib_runs() {
+    let Some(py) = rosbags_python("frames_from_a_bag_make_a_project_sphere_calib_runs") else {
+        return;
+    };
+    let dir = tmp("frames");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let sim = dir.join("sim");
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let (ok, _, stderr) = pingcal(&[
+        "simulate",
+        "--kind",
+        "sphere-calib",
+        "--out",
+        &s(&sim),
+        "--seed",
+        "1",
+    ]);
+    assert!(ok, "{stderr}");
+    let (ok, _, stderr) = pingcal(&["sphere-calib", &s(&sim.join("sphere-calib.toml"))]);
+    assert!(ok, "{stderr}");
+    let direct: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(sim.join("results/results.json")).unwrap())
+            .unwrap();
+    let writer =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/rosbag/make_frames_bag.py");
+    for kind in ["raw", "compressed"] {
+        let bag = dir.join(format!("{kind}.mcap"));
+        let o = Command::new(&py)
+            .args([s(&writer), s(&sim), s(&bag), kind.into()])
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let out = dir.join(format!("out-{kind}"));
+        let (ok, stdout, stderr) = pingcal(&[
+            "frames",
+            &s(&bag),
+            "--cloud-topic",
+            "/points",
+            "--image-topic",
+            "/image",
+            "--camera",
+            &s(&sim.join("camera.toml")),
+            "--sphere-diameter-mm",
+            "600",
+            "--out",
+            &s(&out),
+        ]);
+        assert!(ok, "{stderr}");
+        assert!(
+            stdout.starts_with("frames: 10 frames from 50 clouds and 50 images (10 still moment(s) of the clouds, 10 of the images)"),
+            "{stdout}"
+        );
+        // each frame's cloud is one of its still clouds, every point kept, with its
+        // intensity and ring
+        let listing: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(bag.with_extension("json")).unwrap())
+                .unwrap();
+        for (k, f) in listing.as_array().unwrap().iter().enumerate() {
+            let text =
+                std::fs::read_to_string(out.join(format!("clouds/F{:02}.xyz", k + 1))).unwrap();
+            let head = text.lines().next().unwrap();
+            assert!(head.starts_with("# x y z intensity ring, metres"), "{head}");
+            let stamp: i64 = head
+                .rsplit("stamp ")
+                .next()
+                .unwrap()
+                .trim_end_matches(" ns)")
+                .parse()
+                .unwrap();
+            let still: Vec<i64> = f["still_ns"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|v| v.as_i64().unwrap())
+                .collect();
+            assert!(
+                still.contains(&stamp),
+                "F{}: {stamp} not in {still:?}",
+                k + 1
+            );
+            assert_eq!(
+                text.lines().count() - 1,
+                f["points"].as_u64().unwrap() as usize
+            );
+            // a raw image written as PNG; a compressed one as the PNG it is
+            assert!(out.join(format!("images/F{:02}.png", k + 1)).is_file());
+        }
+        let (ok, stdout, stderr) = pingcal(&["sphere-calib", &s(&out.join("sphere-calib.toml"))]);
+        assert!(ok, "{kind}: {stderr}");
+        assert!(stdout.contains("sphere-calib: 9 of 10 frames"), "{stdout}");
+        let got: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(out.join("results/results.json")).unwrap(),
+        )
+        .unwrap();
+        // the bag's clouds carry 3 mm of noise more: the same extrinsic within a few σ
+        for i in 0..3 {
+            let (a, b) = (
+                got["extrinsic"]["translation_mm"][i].as_f64().unwrap(),
+                direct["extrinsic"]["translation_mm"][i].as_f64().unwrap(),
+            );
+            assert!((a - b).abs() < 5.0, "{kind}: t[{i}] {a} against {b}");
+        }
+    }
+}

@@ -12,6 +12,7 @@
 
 pub mod assemble;
 pub mod error;
+pub mod frames;
 mod mmap;
 pub mod motion;
 pub mod msgs;

@@ -70,7 +70,8 @@ pub struct Args {
     pub out: Option<PathBuf>,
 }
 
-fn open_bags(paths: &[PathBuf]) -> Result<Vec<Bag>, super::CmdError> {
+/// The bags the paths name (files, or a ROS 2 bag folder's storage files), opened.
+pub(crate) fn open_bags(paths: &[PathBuf]) -> Result<Vec<Bag>, super::CmdError> {
     let mut bags = Vec::new();
     for p in paths {
         for f in bag_files(p)? {
