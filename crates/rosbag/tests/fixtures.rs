@@ -504,7 +504,7 @@ mod drivers {
             .collect();
         for lead in [0.010, 0.050] {
             let bag = data(&format!("stopgo_{}ms.mcap", (lead * 1000.0) as u32));
-            let (_, got, done) = read(&[bag.clone()], &joint("servo")).unwrap();
+            let (_, got, done) = read(std::slice::from_ref(&bag), &joint("servo")).unwrap();
             assert_eq!(
                 done.motion,
                 ServoMotion::StopAndGo,
