@@ -37,6 +37,8 @@
 
 use crate::error::{Result, RosbagError};
 pub use crate::motion::{ServoMotion, ServoSeries};
+
+mod stream;
 use crate::msgs::{self, JointState};
 use crate::{Bag, RawMessage};
 use pingcal_lrf::scan::{ScanHeader, ScanLine, MIN_VALID_RANGE_MM};
@@ -463,7 +465,7 @@ pub fn read_scans(
     motion: ServoMotion,
     f: &mut dyn FnMut(&ScanHeader, ScanLine) -> Result<()>,
 ) -> Result<Assembled> {
-    crate::stream::read(bags, topics, motion, f)
+    stream::read(bags, topics, motion, f)
 }
 
 /// The names the messages of a servo-like topic hold (at most its first 1,000 messages

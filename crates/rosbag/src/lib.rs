@@ -18,7 +18,6 @@ pub mod motion;
 pub mod msgs;
 mod ros1;
 mod storage;
-mod stream;
 pub mod wire;
 
 pub use error::{Result, RosbagError};

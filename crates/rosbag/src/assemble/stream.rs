@@ -1,7 +1,7 @@
 //! The one-pass reading of [`crate::assemble::read_scans`]: scans wait in a queue until the
 //! servo series is known past them, then get their servo angle and go to the caller.
 
-use crate::assemble::{
+use super::{
     angle_deg, decode_err, expect_type, no_messages, no_servo_samples, range_mm_counted, seconds,
     servo_samples, servo_types, Assembled, ServoNames, Topics, MAX_PENDING_SCANS,
 };
