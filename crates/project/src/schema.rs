@@ -433,6 +433,11 @@ pub struct ProjectBag {
     /// tf servo topic: the servo axis in the parent frame (default `[0, 1, 0]`).
     #[serde(default)]
     pub servo_axis: Option<[f64; 3]>,
+    /// How the servo moves: `"auto"` (absent: told from the servo series), `"stop-and-go"`
+    /// (the last angle before each scan is held) or `"continuous"` (interpolated at each
+    /// beam's time).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub servo_motion: Option<String>,
 }
 
 impl ProjectLrf {

@@ -553,6 +553,16 @@ fn an_lrf_bag_section_is_read_and_checked() {
         b.servo_scale = Some(0.0);
     });
     assert!(e.contains("the scale not 0"), "{e}");
+    let mut q = p.clone();
+    q.lrf.bag.as_mut().unwrap().servo_motion = Some("stop-and-go".into());
+    q.validate("p.toml").unwrap();
+    let again = ProjectFile::parse(&q.to_toml_string(), "again").unwrap();
+    assert_eq!(again, q);
+    let e = check(&|q| q.lrf.bag.as_mut().unwrap().servo_motion = Some("jerky".into()));
+    assert!(
+        e.contains("[lrf.bag] servo_motion = \"jerky\": expected \"auto\", \"stop-and-go\" or \"continuous\""),
+        "{e}"
+    );
     let t = text.replace("servo_joint = ", "servo_jiont = ");
     assert!(ProjectFile::parse(&t, "p.toml").is_err());
 }

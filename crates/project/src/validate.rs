@@ -357,6 +357,13 @@ fn validate_bag(b: &ProjectBag) -> Result<(), String> {
             ));
         }
     }
+    if let Some(m) = &b.servo_motion {
+        if !["auto", "stop-and-go", "continuous"].contains(&m.as_str()) {
+            return Err(format!(
+                "[lrf.bag] servo_motion = {m:?}: expected \"auto\", \"stop-and-go\" or \"continuous\""
+            ));
+        }
+    }
     let scale = b.servo_scale.unwrap_or(1.0);
     let offset = b.servo_offset.unwrap_or(0.0);
     if !(scale.is_finite() && scale != 0.0 && offset.is_finite()) {

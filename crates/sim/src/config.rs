@@ -500,6 +500,17 @@ pub struct LrfConfig {
     /// each scan's first and last beam. False: stop-and-go (the servo stands still during
     /// each scan).
     pub continuous_sweep: bool,
+    /// Time offset between the servo's stamps and the scanner's, seconds (default 0): the
+    /// servo's stamp of an instant is this much later than the scanner's, so a reader that
+    /// interpolates the servo's angles at a beam's time gets the angle the servo had this
+    /// much earlier. Only a continuous sweep shows it (a stop-and-go servo stands still
+    /// while the scanner sweeps): each beam's servo angle in the scan file is off by
+    /// −speed · offset. Estimating it needs the sweep to change speed or direction
+    /// (`servo_passes = 2`).
+    pub servo_time_offset_s: f64,
+    /// Passes of the servo over `servo_start_deg`…`servo_end_deg` (default 1), alternately
+    /// forward and back: scans of pass 2 go from the end back to the start.
+    pub servo_passes: usize,
     /// Extrinsic, `p_camera = R·p_lrf + t` with the main left camera: rotation ω, φ, κ.
     pub extrinsic_opk_deg: [f64; 3],
     /// Extrinsic translation t.
@@ -563,6 +574,8 @@ impl Default for LrfConfig {
             scan_period_s: 0.1,
             beam_time_s: 0.1 / 1024.0,
             continuous_sweep: false,
+            servo_time_offset_s: 0.0,
+            servo_passes: 1,
             // Paper Table 2: the LRF frame is close to the camera frame, offset by ~(70, 10, 90) mm.
             extrinsic_opk_deg: [0.8, -1.2, 0.6],
             extrinsic_t_mm: [72.0, 12.0, 91.0],
@@ -622,6 +635,7 @@ impl LrfConfig {
                 angle_min_deg: self.angle_min_deg,
                 angle_increment_deg: self.angle_increment_deg,
                 mm_per_unit: 1.0,
+                time_increment_s: self.continuous_sweep.then_some(self.beam_time_s),
             },
             beams: self.beams,
             mount: self.mount(),
@@ -1093,6 +1107,27 @@ fn validate_lrf_servo(l: &LrfConfig) -> Result<(), ConfigError> {
     pos("lrf.servo_resolution_deg", l.servo_resolution_deg)?;
     nonneg("lrf.servo_sigma_deg", l.servo_sigma_deg)?;
     pos("lrf.scan_period_s", l.scan_period_s)?;
+    if !l.servo_time_offset_s.is_finite() || l.servo_time_offset_s.abs() > 1.0 {
+        return Err(ConfigError::new(
+            "lrf.servo_time_offset_s",
+            l.servo_time_offset_s,
+            "expected a finite offset of at most ±1 s",
+        ));
+    }
+    if l.servo_time_offset_s != 0.0 && !l.continuous_sweep {
+        return Err(ConfigError::new(
+            "lrf.servo_time_offset_s",
+            l.servo_time_offset_s,
+            "only a continuous sweep shows it: set lrf.continuous_sweep = true",
+        ));
+    }
+    if !(1..=16).contains(&l.servo_passes) {
+        return Err(ConfigError::new(
+            "lrf.servo_passes",
+            l.servo_passes,
+            "expected 1 to 16 passes",
+        ));
+    }
     pos("lrf.beam_time_s", l.beam_time_s)?;
     if l.beam_time_s * l.beams.saturating_sub(1) as f64 > l.scan_period_s {
         return Err(ConfigError::new(

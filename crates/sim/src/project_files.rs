@@ -186,6 +186,10 @@ pub struct TruthSurface {
     pub size_mm: [f64; 2],
 }
 
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
+}
+
 /// `truth.json`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Truth {
@@ -207,6 +211,10 @@ pub struct Truth {
     /// scale); the project file leaves it at zero.
     #[serde(default)]
     pub lrf_mount: pingcal_lrf::MountModel,
+    /// The servo's time offset against the scanner (`[lrf] servo_time_offset_s`), seconds;
+    /// written only when not 0.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub lrf_servo_time_offset_s: f64,
     /// True intrinsics.
     pub cameras: Vec<TruthCamera>,
     /// Left camera frame → right camera frame.
@@ -325,6 +333,7 @@ pub fn truth_of(sim: &Simulation) -> Truth {
         world_to_lrf: PoseJson::from_pose(&w2l),
         lrf_mount_offset_mm: sim.config.lrf.mount().offset_mm,
         lrf_mount: sim.config.lrf.mount(),
+        lrf_servo_time_offset_s: sim.config.lrf.servo_time_offset_s,
         cameras: sim
             .rig
             .cameras
