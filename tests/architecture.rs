@@ -4,9 +4,12 @@
 //!   share a parent refer to each other (through `crate::…`, `super::…`, `self::…` paths)
 //!   without a cycle — so each module can be read after the ones it uses;
 //! - the crates depend on each other one way: the libraries never on the binary's crate,
-//!   `geometry` on no other pingcal crate, `ba` only on `geometry`, the LRF, target and
+//!   `geometry` and `camera` on no other pingcal crate, `ba` only on those two, the LRF, target and
 //!   project crates never on the simulator, and the bag reader (`rosbag`) only on `lrf`
 //!   (and what it builds on);
+//! - the binary's crate holds no mathematics: no linear algebra of its own (no nalgebra or
+//!   faer in its `[dependencies]`, no solve, decomposition or inverse called in its
+//!   sources); fits, estimators and transforms live in the library they belong to;
 //! - libraries never print: no `println!`/`eprintln!` outside the binary's `commands` and
 //!   `main.rs` (tests, examples and doc comments aside).
 //!
@@ -324,13 +327,23 @@ fn crates_depend_one_way() {
         .collect();
     let allowed: &[(&str, &[&str])] = &[
         ("geometry", &[]),
-        ("ba", &["geometry"]),
-        ("targets", &["geometry", "ba"]),
-        ("lrf", &["geometry", "ba"]),
-        ("project", &["geometry", "ba"]),
-        ("report", &["geometry", "ba"]),
-        ("sim", &["geometry", "ba", "targets", "lrf", "project"]),
-        ("rosbag", &["geometry", "ba", "lrf"]),
+        ("camera", &[]),
+        ("ba", &["geometry", "camera"]),
+        ("targets", &["geometry", "camera", "ba"]),
+        ("lrf", &["geometry", "camera", "ba"]),
+        ("project", &["geometry", "camera", "ba"]),
+        ("report", &["geometry", "camera", "ba"]),
+        (
+            "sim",
+            &["geometry", "camera", "ba", "targets", "lrf", "project"],
+        ),
+        ("rosbag", &["geometry", "camera", "ba", "lrf"]),
+        (
+            "pipeline",
+            &[
+                "geometry", "camera", "ba", "targets", "lrf", "project", "report", "rosbag",
+            ],
+        ),
     ];
     for (krate, ok) in allowed {
         let Some(d) = deps.get(*krate) else { continue };
@@ -375,6 +388,51 @@ fn libraries_never_print() {
     assert!(
         found.is_empty(),
         "library code prints:\n{}",
+        found.join("\n")
+    );
+}
+
+/// Calls that solve, decompose or invert: numeric routines, which belong in a library.
+const NUMERIC_CALLS: [&str; 12] = [
+    ".cholesky(",
+    ".svd(",
+    ".lu(",
+    ".qr(",
+    ".symmetric_eigen(",
+    ".try_inverse(",
+    ".pseudo_inverse(",
+    ".solve(",
+    ".solve_mut(",
+    ".full_piv_lu(",
+    "faer::",
+    "nalgebra::",
+];
+
+#[test]
+fn the_binary_holds_no_numeric_routines() {
+    let cli = workspace().join("crates/cli");
+    let deps = std::fs::read_to_string(cli.join("Cargo.toml")).unwrap();
+    let deps = deps.split("[dependencies]").nth(1).unwrap_or("");
+    let deps = deps.split("\n[").next().unwrap_or("");
+    for krate in ["nalgebra", "faer"] {
+        assert!(
+            !deps.lines().any(|l| l.trim_start().starts_with(krate)),
+            "crates/cli depends on {krate}: its mathematics belongs in a library crate"
+        );
+    }
+    let mut files = Vec::new();
+    modules(&cli.join("src"), &[], &mut files);
+    let mut found = Vec::new();
+    for (_, path) in files {
+        for (i, line) in code(&path).lines().enumerate() {
+            if let Some(call) = NUMERIC_CALLS.iter().find(|c| line.contains(*c)) {
+                found.push(format!("{}:{}: {call}", path.display(), i + 1));
+            }
+        }
+    }
+    assert!(
+        found.is_empty(),
+        "numeric routines in the binary's crate (move them to the library they belong to):\n{}",
         found.join("\n")
     );
 }

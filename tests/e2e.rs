@@ -627,7 +627,7 @@ fn image_of_the_wrong_size() {
     let w = Work::new("image_of_the_wrong_size");
     let p = w.project("project");
     fs::write(p.join("images/S02_right.png"), common::gray_png(640, 480)).unwrap();
-    // the detect step prints sizes as W×H (crates/cli/src/pipeline/detect.rs)
+    // the detect step prints sizes as W×H (crates/pipeline/src/detect.rs)
     w.calibrate_fails(&p, &["S02_right.png", "640×480", "1280×720"]);
 }
 

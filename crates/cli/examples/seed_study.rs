@@ -12,9 +12,9 @@
 //! normalised errors (≈ 1 when the reported σ is honest) and the fraction within 2σ.
 
 use nalgebra::{Matrix3, Vector3};
-use pingcal::pipeline::{self, Reporter};
 use pingcal_geometry::rotation_angle;
 use pingcal_geometry::to_opk_deg;
+use pingcal_pipeline::{self as pipeline, Reporter};
 
 fn mean_sd(v: &[f64]) -> (f64, f64) {
     let n = v.len() as f64;

@@ -1,9 +1,6 @@
-//! The `pingcal` command line and the calibration pipeline.
-//!
-//! - [`pipeline`]: the whole calibration of a project, one file per step, in order.
-//! - [`commands`]: one file per subcommand (`Args` and `run`); `main.rs` only dispatches.
+//! The `pingcal` command line: one file per subcommand in [`commands`] (`Args`, then `run`:
+//! check the input, call the libraries, print); `main.rs` only dispatches. The calibration
+//! itself is the library `pingcal_pipeline`; the binary adds argument parsing, progress
+//! bars, printing and the writing of result folders.
 
 pub mod commands;
-pub mod pipeline;
-#[cfg(test)]
-mod test_support;

@@ -23,7 +23,7 @@
 //! components): what is left is on the LRF side (some balls' sphere centres are off by more
 //! than their σ in every seed, an error of the fit that the beams' scatter does not show).
 
-use pingcal::pipeline::verdict::chi2_quantile;
+use pingcal_pipeline::verdict::chi2_quantile;
 use serde_json::Value;
 use std::path::PathBuf;
 use std::process::Command;

@@ -12,7 +12,7 @@
 
 use nalgebra::{Matrix3, Rotation3, Vector3};
 use pingcal::commands::simulate::simulate_sphere_calib_into;
-use pingcal::commands::sphere_calib::{calibrate, Outcome};
+use pingcal_pipeline::sphere_calib::{calibrate, Outcome};
 use pingcal_sim::sphere_calib::{read_sphere_calib_truth, SphereCalibConfig};
 
 /// Errors of one estimate against the truth.

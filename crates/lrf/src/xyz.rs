@@ -109,6 +109,19 @@ pub struct LabelledPoint {
     pub sigma: Option<Vector3<f64>>,
 }
 
+impl LabelledPoint {
+    /// As an observation for a registration: its σ's on the diagonal of the covariance, or
+    /// 1 mm where the file gives none (the registration then scales the weights by σ₀²).
+    pub fn to_obs(&self) -> crate::registration::PointObs {
+        let s = self.sigma.unwrap_or(Vector3::new(1.0, 1.0, 1.0));
+        crate::registration::PointObs {
+            id: self.id.clone(),
+            xyz: self.xyz,
+            cov: nalgebra::Matrix3::from_diagonal(&s.component_mul(&s)),
+        }
+    }
+}
+
 /// Reads labelled points: `id x y z` or `id x y z sx sy sz` per line. Ids must be unique.
 pub fn read_labelled<R: BufRead>(input: R, file: &str) -> Result<Vec<LabelledPoint>> {
     let mut out: Vec<LabelledPoint> = Vec::new();

@@ -1,5 +1,5 @@
 //! `pingcal calibrate PROJECT.toml... [--out DIR] [--quiet] [--json] [--accept-doubtful]
-//! [--seed N]`: the whole pipeline ([`crate::pipeline`]) on one or many projects.
+//! [--seed N]`: the whole pipeline ([`pingcal_pipeline`]) on one or many projects.
 //!
 //! Each project ends with a line on stdout, in the order given: the summary, starting with
 //! the verdict, or with `--json` a JSON object ([`json_line`]) whose `verdict` is that of
@@ -8,7 +8,7 @@
 //! [`EXIT_FAILED`], [`EXIT_ERROR`] (docs/batch.md).
 //!
 //! Writes `results.json`, `report.html`, `cloud.ply` and the folders `ros/`, `opencv/` and
-//! `kalibr/` ([`crate::pipeline::exports`]) into DIR (default: `results/` beside
+//! `kalibr/` ([`pingcal_pipeline::exports`]) into DIR (default: `results/` beside
 //! the project file; with several projects and `--out`, one sub-folder per project, named
 //! after the project's folder, made distinct by [`out_dirs`] when two would collide).
 //! Several projects run in parallel. Before any work the output folders are created and
@@ -20,10 +20,10 @@ use super::preflight::{check_out_dir, check_threads};
 use super::progress::reporter;
 use super::result_set;
 use super::{CmdResult, Exit};
-use crate::pipeline::network::Start;
-use crate::pipeline::verdict::Status;
-use crate::pipeline::{self, Outcome, Reporter};
 use indicatif::MultiProgress;
+use pingcal_pipeline::network::Start;
+use pingcal_pipeline::verdict::Status;
+use pingcal_pipeline::{self as pipeline, Outcome, Reporter};
 use pingcal_project::Project;
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
@@ -75,8 +75,32 @@ pub struct Args {
     /// How the initial network starts: `auto` tries the layout's resection (when
     /// `[targets] layout` is given), the relative orientation, then the stereo head's nominal
     /// pose, until one works.
-    #[arg(long, value_enum, default_value_t = Start::Auto)]
-    pub start: Start,
+    #[arg(long, value_enum, default_value_t = StartArg::Auto)]
+    pub start: StartArg,
+}
+
+/// `--start`: [`Start`] as the command line names it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum StartArg {
+    /// Every start the project allows, until one works.
+    Auto,
+    /// Every image resected from the coded targets' layout (`[targets] layout`).
+    Layout,
+    /// The relative orientation of the best-conditioned image pair.
+    Relative,
+    /// One station's stereo pair at the head's nominal pose.
+    Stereo,
+}
+
+impl From<StartArg> for Start {
+    fn from(a: StartArg) -> Start {
+        match a {
+            StartArg::Auto => Start::Auto,
+            StartArg::Layout => Start::Layout,
+            StartArg::Relative => Start::Relative,
+            StartArg::Stereo => Start::Stereo,
+        }
+    }
 }
 
 /// Where the outputs of a project run alone go: `out`, or `results/` beside its file (see
@@ -211,7 +235,7 @@ fn below_common_parent(folder: &Path, all: &[&PathBuf]) -> String {
 }
 
 /// The files a calibration writes into its output folder (besides those of `ros/`,
-/// `opencv/` and `kalibr/`, [`crate::pipeline::exports`]).
+/// `opencv/` and `kalibr/`, [`pingcal_pipeline::exports`]).
 pub const OUTPUTS: [&str; 3] = ["results.json", "report.html", "cloud.ply"];
 
 /// `path`'s temporary name while it is written: `.NAME.partial` beside it.
@@ -235,7 +259,7 @@ fn write_partial(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
 }
 
 /// Writes the outputs of a calibration into `dir`, all or none: `ros/`, `opencv/` and
-/// `kalibr/` ([`crate::pipeline::exports`]), `overlays/`, `cloud.ply`, `report.html` and
+/// `kalibr/` ([`pingcal_pipeline::exports`]), `overlays/`, `cloud.ply`, `report.html` and
 /// `results.json`, as one set ([`super::result_set`]): written beside the folder and
 /// swapped in with one exchange of names, so that the folder is always either the earlier
 /// set or the new one, under the folder's lock (a second writer is refused). A folder that
@@ -526,7 +550,7 @@ pub fn run(args: Args) -> CmdResult {
     let opts = pipeline::Options {
         seed: args.seed,
         threads: args.threads,
-        start: args.start,
+        start: args.start.into(),
         ..pipeline::Options::default()
     };
     let done: Vec<Done> = args

@@ -8,10 +8,8 @@
 use super::calibrate::{calibrate_one, write_outputs};
 use super::progress::reporter;
 use super::CmdResult;
-use crate::pipeline;
 use indicatif::MultiProgress;
-use nalgebra::{Matrix3, Vector3};
-use pingcal_geometry::rotation_angle;
+use pingcal_pipeline as pipeline;
 use pingcal_sim::project_files::PoseJson;
 use std::path::PathBuf;
 
@@ -84,7 +82,6 @@ pub fn run(args: Args) -> CmdResult {
 
 fn print_table(r: &pipeline::results::Results, truth: &pingcal_sim::Truth) {
     let te: PoseJson = truth.extrinsic_as_calibrated();
-    let true_t = te.to_pose();
     println!();
     println!("Table 4 — check points (mm); dx = estimated − reference (photogrammetric)");
     let mut header = format!("{:<6}", "ball");
@@ -130,7 +127,7 @@ fn print_table(r: &pipeline::results::Results, truth: &pingcal_sim::Truth) {
         let b = r.balls.iter().find(|b| &b.id == id);
         match b.and_then(|b| b.lrf_mm.map(|l| (l, b.photogrammetric_mm))) {
             Some((l, p)) => {
-                let e = (true_t.transform(&Vector3::from(l)) - Vector3::from(p)).norm();
+                let e = te.misfit_mm(l, p);
                 floor.push(e);
                 line += &format!(" | {e:>14.2}");
             }
@@ -186,8 +183,7 @@ fn print_table(r: &pipeline::results::Results, truth: &pingcal_sim::Truth) {
         };
         let t = e.translation_mm;
         let dt = ((t[0] - tt[0]).powi(2) + (t[1] - tt[1]).powi(2) + (t[2] - tt[2]).powi(2)).sqrt();
-        let r_est = Matrix3::from_row_slice(&e.rotation.concat());
-        let dr = rotation_angle(&(r_est * true_t.rotation.transpose())).to_degrees();
+        let dr = te.angle_to_deg(&e.rotation);
         let st = e
             .sigma_translation_mm
             .map(|s| format!("({:.2}, {:.2}, {:.2})", s[0], s[1], s[2]))

@@ -3,7 +3,7 @@
 //! (the simulator's configuration: room, targets, balls, distances, stations, camera, LRF;
 //! the paper's field when no file is given) is simulated with `N` seeds and each simulation
 //! is calibrated by the whole pipeline ([`super::simulate::simulate_into`], then
-//! [`crate::pipeline::calibrate`], in a temporary folder removed at the end).
+//! [`pingcal_pipeline::calibrate`], in a temporary folder removed at the end).
 //!
 //! It prints, and writes into `plan.json`:
 //! - the **predicted σ** of the extrinsic (tx, ty, tz in mm, ω, φ, κ in degrees) and of the
@@ -12,7 +12,7 @@
 //! - beside them the **Monte Carlo** RMS of the true errors over the seeds (the simulator
 //!   knows the truth), and their ratio: about 1 when the σ's are honest;
 //! - the **check error to expect**: the mean of `E|dᵢ|` from each check ball's predicted
-//!   covariance ([`crate::pipeline::verdict::expected_check_error_mm`]), beside the mean
+//!   covariance ([`pingcal_pipeline::verdict::expected_check_error_mm`]), beside the mean
 //!   check error the simulations gave;
 //! - **what matters most**: each non-main station and each measured distance removed in
 //!   turn from the same simulated data (the first `--sensitivity-seeds` seeds, the same for
@@ -25,8 +25,8 @@
 use super::preflight::{check_out_file, check_threads};
 use super::progress::reporter;
 use super::CmdResult;
-use crate::pipeline::{self, Outcome, Reporter};
 use indicatif::MultiProgress;
+use pingcal_pipeline::{self as pipeline, Outcome, Reporter};
 use pingcal_project::Project;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -134,7 +134,7 @@ pub struct Component {
 
 /// The central 95 % of the ratio (RMS true error / RMS predicted σ) over `n` seeds when the
 /// predicted σ's are exact: `√(χ²ₙ(p) / n)` at p = 0.025 and 0.975
-/// ([`crate::pipeline::verdict::chi2_quantile`]). With 20 seeds it is 0.69–1.31: a 20-seed
+/// ([`pingcal_pipeline::verdict::chi2_quantile`]). With 20 seeds it is 0.69–1.31: a 20-seed
 /// ratio alone cannot tell an honest σ from one 20 % off. None below 5 seeds (too few to
 /// judge, and the approximation of χ² too coarse).
 pub fn honest_ratio_band(n: usize) -> Option<[f64; 2]> {
@@ -142,7 +142,7 @@ pub fn honest_ratio_band(n: usize) -> Option<[f64; 2]> {
         return None;
     }
     let n = n as f64;
-    let q = |z: f64| (crate::pipeline::verdict::chi2_quantile(n, z) / n).sqrt();
+    let q = |z: f64| (pingcal_pipeline::verdict::chi2_quantile(n, z) / n).sqrt();
     Some([q(-1.959964), q(1.959964)])
 }
 

@@ -5,8 +5,8 @@
 //! with its project), each log line is printed above the bars, or straight to stderr when
 //! the bars are hidden (no terminal).
 
-use crate::pipeline::{Progress, Reporter, Task};
 use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
+use pingcal_pipeline::{Progress, Reporter, Task};
 
 /// Bars and lines of one project on a shared [`MultiProgress`].
 pub struct Bars {

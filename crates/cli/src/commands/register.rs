@@ -29,19 +29,7 @@ pub struct Args {
 }
 
 fn to_obs(points: &[LabelledPoint]) -> Vec<PointObs> {
-    points
-        .iter()
-        .map(|p| {
-            let s = p
-                .sigma
-                .unwrap_or(pingcal_lrf::nalgebra::Vector3::new(1.0, 1.0, 1.0));
-            PointObs {
-                id: p.id.clone(),
-                xyz: p.xyz,
-                cov: pingcal_lrf::nalgebra::Matrix3::from_diagonal(&s.component_mul(&s)),
-            }
-        })
-        .collect()
+    points.iter().map(LabelledPoint::to_obs).collect()
 }
 
 /// Runs the command.

@@ -164,7 +164,7 @@ fn remove_leftovers(dir: &Path) {
 
 /// Whether `name`, a file in pingcal's folder `folder` (one of [`FOLDERS`]), is of a kind
 /// pingcal writes there: an image's overlay (`overlays/*.png`), or an export's name
-/// (`ros/`, `opencv/`, `kalibr/`, [`crate::pipeline::exports`]). Anything else there is a
+/// (`ros/`, `opencv/`, `kalibr/`, [`pingcal_pipeline::exports`]). Anything else there is a
 /// user's file.
 fn written_by_pingcal(folder: &str, name: &str) -> bool {
     match folder {

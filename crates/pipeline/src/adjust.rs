@@ -1,0 +1,455 @@
+//! The scene as a bundle-adjustment problem, and back: written once, used by every step that
+//! adjusts (the initial network, the adjustments between matching rounds, the final one).
+//!
+//! [`SceneProblem::build`] turns the scene's oriented images, its points of two or more rays
+//! there, the measured distances between its coded targets and, when asked, the stereo rig
+//! into a [`pingcal_ba::problem::Problem`]; its [`ProblemMap`] says which scene image,
+//! point and detection each image, point and observation of the problem is.
+//! [`SceneProblem::write_back`] copies a solution into the scene.
+//!
+//! Each measurement is the detected centre with the σ of [`target_sigma`], except for a
+//! ball: the centre of a ball's silhouette is not the image of its centre, so it is
+//! corrected by the cone fit of [`pingcal_targets::ball`] with the scene's intrinsics.
+
+use super::ids::{DetectionId, IdVec, ImageId, PointId};
+use super::scene::{
+    main_image, target_sigma, Detections, PointKind, Scene, SceneCamera, SIGMA_FACTOR,
+};
+use nalgebra::Vector2;
+use pingcal_ba::problem::{Camera, Distance, Image, Observation, Point, Problem, Rig, RigMember};
+use pingcal_geometry::Rigid3;
+use pingcal_project::Project;
+use pingcal_targets::ball::{sphere_centre_from_ellipse, FnCamera};
+
+/// Smallest σ of a ball's corrected centre (px): the limb of a shaded sphere is softer
+/// than a target's edge.
+pub const MIN_BALL_SIGMA_PX: f64 = 0.05;
+
+/// What holds the network in place.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Datum {
+    /// Nothing: the caller chooses (the incremental initialiser fixes its first image).
+    Free,
+    /// The main image is held fixed (its camera frame is the photogrammetric frame).
+    MainImage,
+}
+
+/// Which scene object each part of a [`Problem`] is.
+#[derive(Clone, Debug, Default)]
+pub struct ProblemMap {
+    /// Problem image → scene image.
+    pub images: Vec<ImageId>,
+    /// Problem point → scene point.
+    pub points: Vec<PointId>,
+    /// Problem observation → (scene point, detection).
+    pub observations: Vec<(PointId, DetectionId)>,
+    /// Scene image → problem image.
+    image_slot: IdVec<ImageId, Option<usize>>,
+    /// Scene point → problem point (None: fewer than two rays in oriented images).
+    point_slot: IdVec<PointId, Option<usize>>,
+}
+
+impl ProblemMap {
+    /// The problem image of scene image `i`.
+    pub fn image(&self, i: ImageId) -> Option<usize> {
+        self.image_slot[i]
+    }
+
+    /// The problem point of scene point `j`.
+    pub fn point(&self, j: PointId) -> Option<usize> {
+        self.point_slot[j]
+    }
+}
+
+/// A problem built from a scene, with its map back to the scene.
+#[derive(Clone, Debug)]
+pub struct SceneProblem {
+    /// The problem.
+    pub problem: Problem,
+    /// Where its parts come from.
+    pub map: ProblemMap,
+    /// Eccentricity corrections of the ball measurements (px), in observation order.
+    pub ball_shifts_px: Vec<f64>,
+}
+
+/// The cameras of the project as bundle-adjustment cameras (free parameters as the project
+/// says), with `params` as their values.
+pub fn ba_cameras(project: &Project, params: &[Vec<f64>]) -> Vec<Camera> {
+    project
+        .file
+        .cameras
+        .iter()
+        .zip(params)
+        .map(|(c, p)| {
+            let mut cam = Camera::new(c.id.clone(), SceneCamera::of(c).model, p.clone());
+            cam.fixed = c.free_flags().iter().map(|free| !free).collect();
+            cam
+        })
+        .collect()
+}
+
+/// The stereo head's cameras as (base, member): the base is the main camera's side.
+pub fn rig_cameras(project: &Project) -> Option<(&str, &str)> {
+    let f = &project.file;
+    let st = f.stereo.as_ref()?;
+    Some(if f.main_camera == st.right {
+        (&st.right, &st.left)
+    } else {
+        (&st.left, &st.right)
+    })
+}
+
+/// The measurement of detection `d` for point kind `kind`: the detected centre, or for a
+/// ball the image of the sphere's centre; with its σ and the correction applied.
+fn measurement(
+    dets: &Detections,
+    d: DetectionId,
+    kind: PointKind,
+    cam: &SceneCamera,
+    params: &[f64],
+    radius: f64,
+) -> (Vector2<f64>, f64, f64) {
+    let t = dets.target(d);
+    let raw = Vector2::new(t.x, t.y);
+    if kind != PointKind::Ball {
+        return (raw, target_sigma(t), 0.0);
+    }
+    let (e, s) = dets[d.image].ball_fits[d.det].unwrap_or((t.ellipse, t.sigma_px));
+    let rays = FnCamera(
+        |x: f64, y: f64| {
+            cam.unproject(params, &Vector2::new(x, y))
+                .map(|r| [r.x, r.y, r.z])
+        },
+        |r: [f64; 3]| {
+            cam.project(params, &nalgebra::Vector3::from(r))
+                .map(|p| [p.x, p.y])
+        },
+    );
+    let sigma = (SIGMA_FACTOR * s).max(MIN_BALL_SIGMA_PX);
+    match sphere_centre_from_ellipse(&e, &rays, Some(radius)) {
+        Some(c) => {
+            let p = Vector2::new(c.x, c.y);
+            (p, sigma, (p - Vector2::new(e.cx, e.cy)).norm())
+        }
+        None => (Vector2::new(e.cx, e.cy), sigma, 0.0),
+    }
+}
+
+impl SceneProblem {
+    /// The problem of the scene's current state. `rig`: the stereo rig pose to use (None: no
+    /// rig constraint). Distances whose targets are missing are left out.
+    pub fn build(
+        project: &Project,
+        dets: &Detections,
+        scene: &Scene,
+        datum: Datum,
+        rig: Option<Rigid3>,
+    ) -> Self {
+        let mut sp = SceneProblem {
+            problem: Problem {
+                cameras: ba_cameras(project, scene.intrinsics.as_slice()),
+                ..Problem::default()
+            },
+            map: ProblemMap {
+                image_slot: scene.poses.iter().map(|_| None).collect(),
+                point_slot: scene.points.iter().map(|_| None).collect(),
+                ..ProblemMap::default()
+            },
+            ball_shifts_px: Vec::new(),
+        };
+        sp.add_images(project, scene, datum);
+        sp.add_points(project, dets, scene);
+        sp.add_distances(project, scene);
+        if let Some(rig_pose) = rig {
+            sp.add_rig(project, rig_pose);
+        }
+        sp
+    }
+
+    fn add_images(&mut self, project: &Project, scene: &Scene, datum: Datum) {
+        let main = main_image(project);
+        for (i, im) in project.file.images.iter().enumerate() {
+            let i = ImageId(i);
+            if let Some(pose) = scene.poses[i] {
+                self.map.image_slot[i] = Some(self.problem.images.len());
+                self.map.images.push(i);
+                self.problem.images.push(Image {
+                    name: im.file.clone(),
+                    camera: scene.camera_of[i].0,
+                    camera_from_object: pose,
+                    fixed: datum == Datum::MainImage && i == main,
+                    fixed_centre: [false; 3],
+                });
+            }
+        }
+    }
+
+    fn add_points(&mut self, project: &Project, dets: &Detections, scene: &Scene) {
+        let radius = 0.5 * project.file.balls.diameter_mm;
+        for (j, p) in scene.points.iter_enumerated() {
+            let obs: Vec<DetectionId> = p
+                .obs
+                .iter()
+                .copied()
+                .filter(|d| self.map.image_slot[d.image].is_some())
+                .collect();
+            if obs.len() < 2 {
+                continue;
+            }
+            let pj = self.problem.points.len();
+            self.map.point_slot[j] = Some(pj);
+            self.map.points.push(j);
+            self.problem.points.push(Point {
+                name: p.name.clone(),
+                position: p.position,
+                fixed: false,
+                fixed_axes: [false; 3],
+            });
+            for d in obs {
+                let c = scene.camera_of[d.image];
+                let (uv, sigma, shift) = measurement(
+                    dets,
+                    d,
+                    p.kind,
+                    &scene.cameras[c],
+                    &scene.intrinsics[c],
+                    radius,
+                );
+                if p.kind == PointKind::Ball {
+                    self.ball_shifts_px.push(shift);
+                }
+                self.problem.observations.push(Observation {
+                    image: self.map.image_slot[d.image].expect("filtered"),
+                    point: pj,
+                    uv,
+                    sigma,
+                });
+                self.map.observations.push((j, d));
+            }
+        }
+    }
+
+    fn add_distances(&mut self, project: &Project, scene: &Scene) {
+        for d in &project.file.distances {
+            let find = |n: u32| scene.coded(n).and_then(|j| self.map.point_slot[j]);
+            if let (Some(a), Some(b)) = (find(d.from), find(d.to)) {
+                self.problem.distances.push(Distance {
+                    a,
+                    b,
+                    value: d.distance_mm,
+                    sigma: d.sigma_mm,
+                });
+            }
+        }
+    }
+
+    /// The stereo rig: the member image of every station follows its base image.
+    fn add_rig(&mut self, project: &Project, rig_pose: Rigid3) {
+        let Some((base_cam, member_cam)) = rig_cameras(project) else {
+            return;
+        };
+        let f = &project.file;
+        let mut members = Vec::new();
+        for (i, im) in f.images.iter().enumerate() {
+            if im.camera != *member_cam {
+                continue;
+            }
+            let base = f
+                .images
+                .iter()
+                .position(|b| b.station == im.station && b.camera == *base_cam);
+            let slot = |i: usize| self.map.image_slot[ImageId(i)];
+            if let (Some(mi), Some(bi)) = (slot(i), base.and_then(slot)) {
+                members.push(RigMember {
+                    image: mi,
+                    base: bi,
+                });
+            }
+        }
+        if !members.is_empty() {
+            self.problem.rigs.push(Rig {
+                name: "stereo".into(),
+                member_from_base: rig_pose,
+                fixed: false,
+                members,
+            });
+            self.problem.sync_rigs();
+        }
+    }
+
+    /// Copies the solution into the scene: poses, point positions, intrinsics.
+    pub fn write_back(&self, scene: &mut Scene) {
+        for (k, &i) in self.map.images.iter().enumerate() {
+            scene.poses[i] = Some(self.problem.images[k].camera_from_object);
+        }
+        for (k, &j) in self.map.points.iter().enumerate() {
+            scene.points[j].position = self.problem.points[k].position;
+        }
+        scene.intrinsics = self
+            .problem
+            .cameras
+            .iter()
+            .map(|c| c.params.clone())
+            .collect();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::ids::DetIdx;
+    use crate::scene::{ImageDetections, ScenePoint};
+    use nalgebra::Vector3;
+    use pingcal_project::ProjectFile;
+    use pingcal_targets::ellipse::Ellipse;
+    use pingcal_targets::{Target, TargetKind};
+
+    const PROJECT: &str = r#"
+version = 1
+name = "three images"
+method = "spheres"
+main_station = "S1"
+main_camera = "cam"
+[targets]
+family = "aicon14"
+dot_radius_mm = 5.0
+[balls]
+diameter_mm = 38.0
+[[cameras]]
+id = "cam"
+model = "photogrammetric"
+width = 100
+height = 80
+pixel_size_mm = 0.01
+free = ["c"]
+initial = { c_mm = 5.0 }
+[[images]]
+file = "a.png"
+camera = "cam"
+station = "S0"
+[[images]]
+file = "b.png"
+camera = "cam"
+station = "S1"
+[[images]]
+file = "c.png"
+camera = "cam"
+station = "S2"
+[[distances]]
+from = 1
+to = 2
+distance_mm = 100.0
+sigma_mm = 0.1
+[lrf]
+model = "urg"
+station = "S1"
+scans = ["scan.csv"]
+max_range_mm = 4000.0
+accuracy_near_mm = 30.0
+accuracy_far_fraction = 0.03
+"#;
+
+    fn target(x: f64, id: u32) -> Target {
+        Target {
+            kind: TargetKind::Coded,
+            id: Some(id),
+            x,
+            y: 40.0,
+            sigma_px: 0.05,
+            ellipse: Ellipse::circle(x, 40.0, 3.0),
+            centroid: [x, 40.0],
+            sigma_centroid_px: 0.05,
+            contrast: 0.5,
+            read: None,
+            saturated: false,
+        }
+    }
+
+    /// Images a and b oriented, c not; points 1 and 2 seen in all three, point 3 in a and
+    /// c only (one ray in an oriented image).
+    fn fixture() -> (Project, Detections, Scene) {
+        let file = ProjectFile::parse(PROJECT, "project.toml").expect("valid project");
+        let project = Project {
+            path: "project.toml".into(),
+            dir: ".".into(),
+            image_paths: Vec::new(),
+            scan_paths: Vec::new(),
+            layout: None,
+            bag_paths: Vec::new(),
+            file,
+        };
+        let det = || ImageDetections {
+            width: 100,
+            height: 80,
+            targets: vec![target(30.0, 1), target(50.0, 2), target(70.0, 3)].into(),
+            ball_fits: vec![None; 3].into(),
+        };
+        let dets: Detections = vec![det(), det(), det()].into();
+        let mut scene = Scene::new(&project);
+        scene.poses[ImageId(0)] = Some(Rigid3::identity());
+        scene.poses[ImageId(1)] = Some(Rigid3::identity());
+        let d = |i, k| DetectionId::new(ImageId(i), DetIdx(k));
+        for (n, obs) in [
+            (1, vec![d(0, 0), d(1, 0), d(2, 0)]),
+            (2, vec![d(0, 1), d(1, 1), d(2, 1)]),
+            (3, vec![d(0, 2), d(2, 2)]),
+        ] {
+            scene.points.push(ScenePoint {
+                name: n.to_string(),
+                kind: PointKind::Coded(n),
+                position: Vector3::new(n as f64, 1000.0, 0.0),
+                obs,
+            });
+        }
+        (project, dets, scene)
+    }
+
+    #[test]
+    fn the_map_names_the_scene_objects_of_the_problem() {
+        let (project, dets, scene) = fixture();
+        let sp = SceneProblem::build(&project, &dets, &scene, Datum::MainImage, None);
+        assert_eq!(sp.map.images, vec![ImageId(0), ImageId(1)]);
+        assert_eq!(sp.map.image(ImageId(2)), None);
+        assert_eq!(sp.map.points, vec![PointId(0), PointId(1)]);
+        assert_eq!(sp.map.point(PointId(2)), None, "one ray in oriented images");
+        assert_eq!(sp.problem.observations.len(), 4);
+        for (ob, (j, d)) in sp.problem.observations.iter().zip(&sp.map.observations) {
+            assert_eq!(sp.map.images[ob.image], d.image);
+            assert_eq!(sp.map.points[ob.point], *j);
+            assert_eq!(ob.uv.x, dets.target(*d).x);
+        }
+        assert_eq!(sp.problem.distances.len(), 1);
+        let fixed: Vec<bool> = sp.problem.images.iter().map(|im| im.fixed).collect();
+        assert_eq!(
+            fixed,
+            vec![false, true],
+            "the main image (station S1) is the datum"
+        );
+        let free = SceneProblem::build(&project, &dets, &scene, Datum::Free, None);
+        assert!(free.problem.images.iter().all(|im| !im.fixed));
+    }
+
+    #[test]
+    fn write_back_moves_the_scene_to_the_solution() {
+        let (project, dets, mut scene) = fixture();
+        let mut sp = SceneProblem::build(&project, &dets, &scene, Datum::MainImage, None);
+        sp.problem.points[1].position = Vector3::new(7.0, 8.0, 9.0);
+        sp.problem.images[0].camera_from_object.translation = Vector3::new(1.0, 2.0, 3.0);
+        sp.problem.cameras[0].params[0] = 5.5;
+        sp.write_back(&mut scene);
+        assert_eq!(
+            scene.points[PointId(1)].position,
+            Vector3::new(7.0, 8.0, 9.0)
+        );
+        assert_eq!(
+            scene.points[PointId(2)].position,
+            Vector3::new(3.0, 1000.0, 0.0)
+        );
+        assert_eq!(
+            scene.poses[ImageId(0)].expect("oriented").translation,
+            Vector3::new(1.0, 2.0, 3.0)
+        );
+        assert!(scene.poses[ImageId(2)].is_none());
+        assert_eq!(scene.intrinsics[crate::ids::CameraId(0)][0], 5.5);
+    }
+}

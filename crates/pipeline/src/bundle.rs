@@ -1,0 +1,411 @@
+//! Step 4: the final self-calibrating bundle adjustment.
+//!
+//! - Datum: the main image is held fixed (its camera frame is the photogrammetric frame);
+//!   the measured distances (observation equations with their σ) give the scale.
+//! - Intrinsics: the parameters each camera frees in the project, shared by its images.
+//! - Stereo head: with `[stereo]`, the right image of every station follows its left image
+//!   through one rig pose, adjusted with everything else.
+//! - Balls: the centre of a ball's silhouette is not the image of its centre; each ball
+//!   measurement is corrected by the cone fit of [`pingcal_targets::ball`] with the current
+//!   intrinsics ([`super::adjust`]), and the adjustment is run twice so that the correction
+//!   uses calibrated intrinsics.
+//! - Gross errors: data snooping (Baarda's w, Pope's τ when σ0 > 1) removes one image point
+//!   at a time ([`pingcal_ba::solver::adjust_with_snooping`]).
+
+use super::adjust::{rig_cameras, Datum, SceneProblem};
+use super::ids::ImageId;
+use super::scene::{coded_blunder, image_file, Detections, PointKind, Scene};
+use super::{Options, PipelineError, Reporter, Result};
+use pingcal_ba::solver::{
+    self, Precision, PrecisionError, Rejection, SnoopError, VarianceComponent, VarianceError,
+};
+use pingcal_geometry::Rigid3;
+use pingcal_project::Project;
+
+/// The adjusted network.
+pub struct Adjusted {
+    /// The last problem solved, with its map to the scene (its solution is also in the
+    /// [`Scene`]) and the balls' eccentricity corrections.
+    pub solved: SceneProblem,
+    /// Precision of the last adjustment (each group weighted by its variance component).
+    pub precision: Precision,
+    /// σ0 of the last adjustment with the a-priori σ's, before the re-weighting: what the
+    /// verdict's χ² test of the image and distance measurements judges.
+    pub sigma0_a_priori: f64,
+    /// Image points removed as gross errors.
+    pub rejected: Vec<Rejection>,
+    /// The stereo rig (left → right camera frame), when there is one.
+    pub rig: Option<Rigid3>,
+    /// Iterations of all final adjustments.
+    pub iterations: usize,
+    /// Why each `[[distances]]` entry left out of the adjustment was left out.
+    pub unused_distances: Vec<String>,
+    /// The σ0 of each group of observations ([`OBSERVATION_GROUPS`], then the distances)
+    /// relative to its a-priori σ, by which the last adjustment re-weighted it.
+    pub variance_components: Vec<VarianceComponent>,
+    /// A camera whose image residuals grow toward the edge along the radius
+    /// (`verdict::lens_doubt`, set by the pipeline after this step): its model cannot hold
+    /// the lens.
+    pub lens_doubt: Option<String>,
+}
+
+/// The groups of image observations whose variance components the final adjustment
+/// estimates: the targets' centres (coded and plain, one detector and one σ model) and the
+/// balls' silhouettes corrected for eccentricity (another measurement, with its own σ).
+pub const OBSERVATION_GROUPS: [&str; 2] = ["targets", "balls"];
+
+/// The rig pose (base → member camera frame) from the main station, or the first station
+/// where both cameras are oriented.
+fn initial_rig(project: &Project, scene: &Scene) -> Option<Rigid3> {
+    let f = &project.file;
+    let (base_cam, member_cam) = rig_cameras(project)?;
+    let mut stations: Vec<&str> = vec![f.main_station.as_str()];
+    stations.extend(f.images.iter().map(|im| im.station.as_str()));
+    for s in stations {
+        let pose_of = |cam: &str| {
+            f.images
+                .iter()
+                .position(|im| im.station == s && im.camera == cam)
+                .and_then(|i| scene.poses[ImageId(i)])
+        };
+        if let (Some(b), Some(m)) = (pose_of(base_cam), pose_of(member_cam)) {
+            return Some(m.compose(&b.inverse()));
+        }
+    }
+    None
+}
+
+/// Removes rejected measurements from the scene (a point has one measurement per image).
+fn remove_rejected(project: &Project, scene: &mut Scene, rejected: &[Rejection]) {
+    for r in rejected {
+        let Some(i) = project.file.images.iter().position(|im| im.file == r.image) else {
+            continue;
+        };
+        for p in scene.points.iter_mut().filter(|p| p.name == r.point) {
+            p.obs.retain(|d| d.image != ImageId(i));
+        }
+    }
+}
+
+/// Names the blunders among the image points data snooping `rejected`: a coded measurement
+/// that the adjusted `scene` puts beyond the reach of its own ring ([`coded_blunder`]).
+fn name_blunders(project: &Project, dets: &Detections, scene: &mut Scene, rejected: &[Rejection]) {
+    for r in rejected {
+        let Some(i) = project.file.images.iter().position(|im| im.file == r.image) else {
+            continue;
+        };
+        let Some(p) = scene.points.iter().find(|p| p.name == r.point) else {
+            continue;
+        };
+        let (PointKind::Coded(n), Some(&d)) = (p.kind, p.obs.iter().find(|d| d.image == ImageId(i)))
+        else {
+            continue;
+        };
+        let Some(uv) = scene.project_into(ImageId(i), &p.position) else {
+            continue;
+        };
+        let off = (uv.x - r.uv[0]).hypot(uv.y - r.uv[1]);
+        if let Some(b) = coded_blunder(project, dets, d, n, off, "final bundle") {
+            scene.add_blunder(b);
+        }
+    }
+}
+
+/// Removes from the scene a point whose position the network does not determine and returns its
+/// measurements as rejections. This happens when data snooping has taken the rays of a point
+/// down to one, and then that one too (`pingcal_ba::solver::adjust_with_snooping` drops a lone
+/// ray but keeps the point, which the precision then finds undetermined), or when its rays are
+/// nearly parallel. A coded target that a distance refers to goes too, unless no distance would
+/// be left to fix the scale: that is an error naming it.
+fn drop_undetermined(
+    project: &Project,
+    dets: &Detections,
+    scene: &mut Scene,
+    name: &str,
+) -> Result<Vec<Rejection>> {
+    let Some(j) = scene.points.position(|p| p.name == name) else {
+        return Err(PipelineError::new(format!(
+            "final bundle adjustment: point '{name}' is not determined by its rays"
+        )));
+    };
+    let p = scene.points.remove(j);
+    if let PointKind::Coded(n) = p.kind {
+        let f = &project.file;
+        let left = f
+            .distances
+            .iter()
+            .any(|d| measured(scene, d.from) && measured(scene, d.to));
+        if f.distances.iter().any(|d| d.from == n || d.to == n) && !left {
+            return Err(PipelineError::new(format!(
+                "{}: coded target {n} of the distances is not determined by its rays after data snooping, and no other distance is left to fix the scale: it needs more images in which it is measured well",
+                project.path.display()
+            )));
+        }
+    }
+    Ok(p.obs
+        .iter()
+        .map(|&d| {
+            let t = dets.target(d);
+            Rejection {
+                image: image_file(project, d.image).to_string(),
+                point: name.to_string(),
+                uv: [t.x, t.y],
+                w: [f64::NAN; 2],
+                reason: "data snooping left the point too few rays to determine it: the point is dropped".into(),
+            }
+        })
+        .collect())
+}
+
+/// Whether coded target `n` is a point of two or more rays in the scene.
+fn measured(scene: &Scene, n: u32) -> bool {
+    scene
+        .points
+        .iter()
+        .any(|p| p.kind == PointKind::Coded(n) && p.obs.len() >= 2)
+}
+
+/// The distances that cannot take part in the adjustment, one warning each (naming the entry
+/// and its target not identified in two or more oriented images); an error when none is left
+/// to fix the scale (the project has no control points, so the distances are the only scale).
+fn unusable_distances(project: &Project, scene: &Scene) -> Result<Vec<String>> {
+    let f = &project.file;
+    let mut warnings = Vec::new();
+    for (k, d) in f.distances.iter().enumerate() {
+        let missing: Vec<String> = [d.from, d.to]
+            .into_iter()
+            .filter(|&n| !measured(scene, n))
+            .map(|n| n.to_string())
+            .collect();
+        if !missing.is_empty() {
+            warnings.push(format!(
+                "distances[{k}] ({} – {}) not used: coded target {} was not identified in two or more oriented images",
+                d.from,
+                d.to,
+                missing.join(" and ")
+            ));
+        }
+    }
+    if warnings.len() == f.distances.len() {
+        // targets unidentified in the oriented images: a principal distance no lens has
+        // (a value in µm or in pixels) is the likeliest cause, and is named
+        return Err(PipelineError::new(format!(
+            "{}: no distance is left to fix the scale of the network: {}{}",
+            project.path.display(),
+            if warnings.is_empty() {
+                "the project has no [[distances]]".to_string()
+            } else {
+                warnings.join("; ")
+            },
+            super::matching::implausible_principal_distance(project).unwrap_or_default()
+        )));
+    }
+    Ok(warnings)
+}
+
+/// The final adjustment's failure `e`, with a principal distance that no lens has named
+/// beside it: such a value (in µm, in pixels) makes a network whose failures, a point
+/// behind a camera or no convergence, would otherwise hide their cause.
+fn failed(project: &Project, e: impl std::fmt::Display) -> PipelineError {
+    PipelineError::new(format!(
+        "final bundle adjustment: {e}{}",
+        super::matching::implausible_principal_distance(project).unwrap_or_default()
+    ))
+}
+
+/// The state of the final adjustment between its rounds.
+struct Rounds<'a> {
+    project: &'a Project,
+    dets: &'a Detections,
+    options: solver::Options,
+    snoop_critical: f64,
+    rig: Option<Rigid3>,
+    rejected: Vec<Rejection>,
+    iterations: usize,
+}
+
+impl Rounds<'_> {
+    /// One adjustment with data snooping; the solution goes into the scene and the rejected
+    /// image points out of it. A point left undetermined is dropped and the round run again.
+    fn snooping_round(&mut self, scene: &mut Scene, round: usize, rep: &Reporter) -> Result<()> {
+        let (sp, r) = loop {
+            let mut sp =
+                SceneProblem::build(self.project, self.dets, scene, Datum::MainImage, self.rig);
+            let max_rej = sp.problem.observations.len() / 20;
+            if round == 0 {
+                // a camera parameter the network cannot determine: named before solving
+                if let Err(e @ PrecisionError::NotDeterminable(_)) =
+                    solver::check_intrinsics(&sp.problem)
+                {
+                    return Err(PipelineError::new(format!(
+                        "{}: final bundle adjustment: {e} (the calibrated parameters are each [[cameras]] entry's free list)",
+                        self.project.path.display()
+                    )));
+                }
+            }
+            match solver::adjust_with_snooping(
+                &mut sp.problem,
+                &self.options,
+                self.snoop_critical,
+                max_rej,
+            ) {
+                Ok(r) => break (sp, r),
+                Err(SnoopError::Precision(PrecisionError::PointUndetermined(name))) => {
+                    self.rejected
+                        .extend(drop_undetermined(self.project, self.dets, scene, &name)?);
+                    rep.log(format!(
+                        "  point {name} dropped: after data snooping its rays no longer determine it"
+                    ));
+                }
+                Err(e) => return Err(failed(self.project, e)),
+            }
+        };
+        self.iterations += r.summary.iterations;
+        sp.write_back(scene);
+        self.rig = sp
+            .problem
+            .rigs
+            .first()
+            .map(|r| r.member_from_base)
+            .or(self.rig);
+        let before = scene.blunders.len();
+        name_blunders(self.project, self.dets, scene, &r.rejected);
+        super::network::log_blunders(self.project, self.dets, scene, before, rep);
+        remove_rejected(self.project, scene, &r.rejected);
+        rep.log(format!(
+            "  bundle round {}: {} iterations, sigma0 {:.3}, RMS {:.3} px, {} image points rejected",
+            round + 1,
+            r.summary.iterations,
+            r.precision.sigma0,
+            r.precision.rms_image_px,
+            r.rejected.len()
+        ));
+        self.rejected.extend(r.rejected);
+        Ok(())
+    }
+
+    /// The final solution, aligned with the scene's measurements, and its precision, with
+    /// each group of observations ([`OBSERVATION_GROUPS`], the distances) re-weighted by
+    /// its own variance component ([`pingcal_ba::solver::estimate_variance_components`]):
+    /// one σ0 for all would let the group whose a-priori σ is most pessimistic (the targets)
+    /// scale down the covariance of what another group determines (the balls' centres).
+    fn last(&mut self, scene: &mut Scene) -> Result<(SceneProblem, solver::VarianceEstimate)> {
+        let mut sp =
+            SceneProblem::build(self.project, self.dets, scene, Datum::MainImage, self.rig);
+        let group_of: Vec<usize> = sp
+            .map
+            .observations
+            .iter()
+            .map(|&(j, _)| usize::from(scene.points[j].kind == PointKind::Ball))
+            .collect();
+        let estimate = solver::estimate_variance_components(
+            &mut sp.problem,
+            &self.options,
+            &group_of,
+            &OBSERVATION_GROUPS,
+        )
+        .map_err(|e| match e {
+            VarianceError::Solve(e) => failed(self.project, e),
+            VarianceError::Precision(e) => PipelineError::new(format!(
+                "{}: the network's precision cannot be computed: {e}",
+                self.project.path.display()
+            )),
+        })?;
+        self.iterations += estimate.iterations;
+        sp.write_back(scene);
+        Ok((sp, estimate))
+    }
+}
+
+/// The final adjustment (see the module doc).
+pub fn final_adjustment(
+    project: &Project,
+    dets: &Detections,
+    scene: &mut Scene,
+    opts: &Options,
+    rep: &Reporter,
+) -> Result<Adjusted> {
+    let unused_distances = unusable_distances(project, scene)?;
+    for w in &unused_distances {
+        rep.log(format!("warning: {w}"));
+    }
+    let mut rounds = Rounds {
+        project,
+        dets,
+        options: solver::Options {
+            max_iterations: 100,
+            threads: opts.threads,
+            ..solver::Options::default()
+        },
+        snoop_critical: opts.snoop_critical,
+        rig: initial_rig(project, scene),
+        rejected: Vec::new(),
+        iterations: 0,
+    };
+    let pb = rep.task("bundle adjustment", 3);
+    for round in 0..2 {
+        rounds.snooping_round(scene, round, rep)?;
+        pb.advance(1);
+    }
+    let (sp, estimate) = rounds.last(scene)?;
+    let solver::VarianceEstimate {
+        components: variance_components,
+        sigma0_a_priori,
+        precision,
+        ..
+    } = estimate;
+    pb.finish();
+    // a coded target of a distance may have been dropped by data snooping
+    let mut unused_distances = unused_distances;
+    for w in unusable_distances(project, scene)? {
+        if !unused_distances.contains(&w) {
+            rep.log(format!("warning: {w}"));
+            unused_distances.push(w);
+        }
+    }
+    for w in super::network::layout_warnings(project, scene) {
+        rep.log(format!("warning: {w}"));
+        scene.warnings.push(w);
+    }
+    let rig = sp.problem.rigs.first().map(|r| r.member_from_base);
+    rep.log(format!(
+        "bundle adjustment: {} images, {} points ({} balls), {} image points, {} distances; sigma0 {:.3}, RMS {:.3} px, {} rejected",
+        sp.problem.images.len(),
+        sp.problem.points.len(),
+        scene.points.iter().filter(|p| p.kind == PointKind::Ball).count(),
+        sp.problem.observations.len(),
+        sp.problem.distances.len(),
+        sigma0_a_priori,
+        precision.rms_image_px,
+        rounds.rejected.len()
+    ));
+    rep.log(format!(
+        "bundle adjustment: variance components (σ0 of each group against its a-priori σ) {}",
+        variance_components
+            .iter()
+            .map(|c| format!(
+                "{} {:.3} (redundancy {:.0}{})",
+                c.group,
+                c.sigma0,
+                c.redundancy,
+                if c.reweighted {
+                    ""
+                } else {
+                    ", not re-weighted"
+                }
+            ))
+            .collect::<Vec<_>>()
+            .join(", ")
+    ));
+    Ok(Adjusted {
+        solved: sp,
+        precision,
+        sigma0_a_priori,
+        rejected: rounds.rejected,
+        rig,
+        iterations: rounds.iterations,
+        unused_distances,
+        variance_components,
+        lens_doubt: None,
+    })
+}

@@ -1,0 +1,427 @@
+//! Step 6: the extrinsic, by the paper's sphere method and by the Fan et al. 2019 baseline.
+//!
+//! **Spheres.** The LRF spheres and the photogrammetric balls are matched without labels
+//! ([`pingcal_lrf::correspondence::match_balls`]: distances between balls are the same in
+//! both frames); the 3D conformal transform `p_camera = R · p_lrf + t` is estimated on the
+//! control balls (all matched balls not listed as check balls) by weighted least squares with
+//! the covariances of both sides ([`pingcal_lrf::registration::evaluate`]; σ's scaled by the
+//! registration's a-posteriori σ0²) and judged on the
+//! check balls (dx = estimated − reference, as the paper's Table 4) and by leave-one-out.
+//!
+//! **Corner.** [`pingcal_lrf::corner_baseline::fan_baseline`]: the LRF pose in the room
+//! corner from one scan's three lines, the camera pose by DLT on the main image, composed.
+//! It uses no ball; it is judged on the same check balls (all matched balls when there are
+//! no check balls).
+
+use super::bundle::Adjusted;
+use super::ids::{PointId, SphereId};
+use super::lrf::LrfData;
+use super::scene::{main_image, Detections, PointKind, Scene};
+use super::{Options, PipelineError, Reporter, Result};
+use nalgebra::{Matrix3, Vector2, Vector3};
+use pingcal_geometry::Sim3;
+use pingcal_lrf::corner_baseline::{fan_baseline, BaselineInput};
+use pingcal_lrf::correspondence::{match_balls, MatchOptions};
+use pingcal_lrf::registration::{
+    check_table, evaluate, CheckTable, Evaluation, PointObs, RegistrationOptions,
+};
+use pingcal_project::Project;
+
+/// The corner baseline's outcome.
+pub struct CornerOutcome {
+    /// LRF → camera.
+    pub camera_from_lrf: Sim3,
+    /// Its check table.
+    pub check: CheckTable,
+    /// What the baseline chose and why.
+    pub notes: Vec<String>,
+}
+
+/// Both methods.
+pub struct Extrinsics {
+    /// Matched pairs: (LRF sphere, scene point of the ball).
+    pub pairs: Vec<(SphereId, PointId)>,
+    /// RMS of the matching (mm).
+    pub match_rms_mm: f64,
+    /// LRF spheres, labelled with their matched ball ids.
+    pub lrf_points: Vec<PointObs>,
+    /// Camera balls, labelled.
+    pub cam_points: Vec<PointObs>,
+    /// The sphere method (None when not asked).
+    pub spheres: Option<Evaluation>,
+    /// The corner baseline (None when not asked), or why it failed.
+    pub corner: Option<std::result::Result<CornerOutcome, String>>,
+    /// Check balls used.
+    pub check_ids: Vec<String>,
+}
+
+/// The balls of the scene with their positions and covariances from the bundle adjustment.
+type CameraBalls = Vec<(PointId, Vector3<f64>, Matrix3<f64>)>;
+
+/// The balls of the scene that the bundle adjustment determined.
+fn camera_balls(scene: &Scene, adj: &Adjusted) -> CameraBalls {
+    let mut cam_balls = Vec::new();
+    for (j, p) in scene.points.iter_enumerated() {
+        if p.kind != PointKind::Ball {
+            continue;
+        }
+        let Some(k) = adj.solved.map.point(j) else {
+            continue;
+        };
+        let cov = adj.precision.point_covariances[k].unwrap_or(Matrix3::identity());
+        cam_balls.push((j, p.position, cov));
+    }
+    cam_balls
+}
+
+/// The LRF spheres matched to the camera balls, by ball name.
+struct Matched {
+    pairs: Vec<(SphereId, PointId)>,
+    rms_mm: f64,
+    lrf_points: Vec<PointObs>,
+    cam_points: Vec<PointObs>,
+}
+
+/// Range offsets tried by [`match_tolerating_range_offset`], mm: a URG's offset reaches
+/// centimetres, and the joint adjustment estimates it once the balls are matched.
+const RANGE_OFFSETS_TRIED_MM: [f64; 9] = [0.0, -8.0, 8.0, -16.0, 16.0, -24.0, 24.0, -32.0, 32.0];
+
+/// [`match_balls`] on the LRF centres as fitted, and, when that leaves balls unmatched, on
+/// the centres corrected for each range offset δ of [`RANGE_OFFSETS_TRIED_MM`]: every beam
+/// of a scanner whose ranges are δ too long puts a fixed-radius sphere's centre δ farther
+/// along its line of sight, `c' = c − δ c/|c|`, which changes the distances between balls by
+/// up to 2δ sin(θ/2) and can defeat the distance invariants. The offset that matches the
+/// most balls (then the lowest RMS) wins; the pairs are what is kept, the centres stay as
+/// fitted.
+fn match_tolerating_range_offset(
+    lrf: &[Vector3<f64>],
+    cam: &[Vector3<f64>],
+    rep: &Reporter,
+) -> std::result::Result<pingcal_lrf::correspondence::Matching, pingcal_lrf::LrfError> {
+    let first = match_balls(lrf, cam, &MatchOptions::default());
+    let all = lrf.len().min(cam.len());
+    if first.as_ref().is_ok_and(|m| m.pairs.len() == all) {
+        return first;
+    }
+    let mut best: Option<(f64, pingcal_lrf::correspondence::Matching)> = None;
+    for &delta in &RANGE_OFFSETS_TRIED_MM[1..] {
+        let moved: Vec<Vector3<f64>> = lrf.iter().map(|c| c - c.normalize() * delta).collect();
+        let Ok(m) = match_balls(&moved, cam, &MatchOptions::default()) else {
+            continue;
+        };
+        let better = best
+            .as_ref()
+            .is_none_or(|(_, b)| (m.pairs.len(), -m.rms_mm) > (b.pairs.len(), -b.rms_mm));
+        if better {
+            best = Some((delta, m));
+        }
+    }
+    match (first, best) {
+        (Ok(f), Some((d, b))) if b.pairs.len() > f.pairs.len() => {
+            rep.log(format!("  correspondence: {} balls matched with the LRF centres corrected for a range offset of {d:+.0} mm (against {} as fitted)", b.pairs.len(), f.pairs.len()));
+            Ok(b)
+        }
+        (Err(_), Some((d, b))) => {
+            rep.log(format!("  correspondence: matched only with the LRF centres corrected for a range offset of {d:+.0} mm: the joint adjustment estimates it"));
+            Ok(b)
+        }
+        (first, _) => first,
+    }
+}
+
+/// Matches the LRF spheres to the camera balls; fewer than three pairs is an error.
+fn match_spheres(
+    project: &Project,
+    scene: &Scene,
+    lrf: &LrfData,
+    cam_balls: &CameraBalls,
+    rep: &Reporter,
+) -> Result<Matched> {
+    let f = &project.file;
+    let lrf_centres: Vec<Vector3<f64>> = lrf.found.balls.iter().map(|b| b.centre).collect();
+    let cam_centres: Vec<Vector3<f64>> = cam_balls.iter().map(|b| b.1).collect();
+    let too_few = |n: usize| {
+        PipelineError::new(format!(
+            "{}: only {n} balls were found by both sensors (LRF: {} spheres in {}; photographs: {} balls); at least 3 are needed for the extrinsic",
+            project.path.display(),
+            lrf_centres.len(),
+            f.lrf.scans.join(", "),
+            cam_centres.len()
+        ))
+    };
+    let matching = match_tolerating_range_offset(&lrf_centres, &cam_centres, rep).map_err(|e| {
+        if lrf_centres.len() < 3 || cam_centres.len() < 3 {
+            too_few(lrf_centres.len().min(cam_centres.len()))
+        } else {
+            PipelineError::new(format!(
+                "{}: the LRF spheres cannot be matched to the balls of the photographs: {e}",
+                project.path.display()
+            ))
+        }
+    })?;
+    if matching.pairs.len() < 3 {
+        return Err(too_few(matching.pairs.len()));
+    }
+    let mut pairs: Vec<(SphereId, PointId)> = matching
+        .pairs
+        .iter()
+        .map(|&(l, c)| (SphereId(l), cam_balls[c].0))
+        .collect();
+    pairs.sort_by(|a, b| scene.points[a.1].name.cmp(&scene.points[b.1].name));
+    let mut lrf_points = Vec::new();
+    let mut cam_points = Vec::new();
+    for &(l, j) in &pairs {
+        let name = scene.points[j].name.clone();
+        let b = &lrf.found.balls[l.0];
+        lrf_points.push(PointObs {
+            id: name.clone(),
+            xyz: b.centre,
+            cov: b.cov,
+        });
+        let cb = cam_balls.iter().find(|c| c.0 == j).expect("matched ball");
+        cam_points.push(PointObs {
+            id: name,
+            xyz: cb.1,
+            cov: cb.2,
+        });
+    }
+    rep.log(format!(
+        "correspondence: {} of {} LRF spheres matched to {} photogrammetric balls, RMS {:.1} mm",
+        pairs.len(),
+        lrf_centres.len(),
+        cam_centres.len(),
+        matching.rms_mm
+    ));
+    Ok(Matched {
+        pairs,
+        rms_mm: matching.rms_mm,
+        lrf_points,
+        cam_points,
+    })
+}
+
+/// The check balls of the project (`check`) that both sensors found (the others are logged).
+fn check_balls(check: &[String], m: &Matched, rep: &Reporter) -> Vec<String> {
+    let matched: Vec<String> = m.cam_points.iter().map(|p| p.id.clone()).collect();
+    let mut check_ids = Vec::new();
+    for c in check {
+        if matched.contains(c) {
+            check_ids.push(c.clone());
+        } else {
+            rep.log(format!(
+                "  check ball {c} was not found by both sensors: it cannot be judged"
+            ));
+        }
+    }
+    check_ids
+}
+
+/// The sphere method: the registration on the control balls, judged on the check balls
+/// (or by leave-one-out without them).
+fn sphere_method(
+    project: &Project,
+    m: &Matched,
+    check_ids: &[String],
+    rep: &Reporter,
+) -> Result<Evaluation> {
+    let matched = m.cam_points.len();
+    let control = matched - check_ids.len();
+    if control < 3 {
+        return Err(PipelineError::new(format!(
+            "{}: only {control} control balls are left after taking the check balls ({}) out of the {} matched; at least 3 are needed",
+            project.path.display(),
+            check_ids.join(", "),
+            matched
+        )));
+    }
+    // σ's scaled by the registration's own σ0²: the sphere-fit covariances are nominal
+    // (they treat every beam as independent, while one scan line's points share its
+    // servo angle error), and 11 control balls give 27 degrees of freedom to estimate σ0
+    let ev = evaluate(
+        &m.lrf_points,
+        &m.cam_points,
+        &[],
+        check_ids,
+        &RegistrationOptions {
+            posterior: true,
+            ..RegistrationOptions::default()
+        },
+    )
+    .map_err(|e| PipelineError::new(format!("sphere registration: {e}")))?;
+    let table = if ev.check.rows.is_empty() {
+        &ev.leave_one_out
+    } else {
+        &ev.check
+    };
+    rep.log(format!(
+        "spheres: extrinsic from {} control balls, mean check error {:.2} mm (sd {:.2}) on {} balls{}",
+        ev.control.rows.len(),
+        table.mean_mm,
+        table.sd_mm,
+        table.rows.len(),
+        if ev.check.rows.is_empty() { " (leave-one-out)" } else { "" }
+    ));
+    Ok(ev)
+}
+
+/// Runs the methods the project asks for.
+pub fn extrinsics(
+    project: &Project,
+    scene: &Scene,
+    adj: &Adjusted,
+    lrf: &LrfData,
+    dets: &Detections,
+    opts: &Options,
+    rep: &Reporter,
+) -> Result<Extrinsics> {
+    let method = project.file.method;
+    run_methods(
+        project,
+        (scene, adj, lrf, dets),
+        opts,
+        rep,
+        method.spheres(),
+        method.corner(),
+    )
+}
+
+/// The matching and the sphere method only (no corner baseline): the joint adjustment's
+/// start when it looks at the LRF again through its estimated mount.
+pub fn spheres_only(
+    project: &Project,
+    scene: &Scene,
+    adj: &Adjusted,
+    lrf: &LrfData,
+    dets: &Detections,
+    opts: &Options,
+    rep: &Reporter,
+) -> Result<Extrinsics> {
+    run_methods(project, (scene, adj, lrf, dets), opts, rep, true, false)
+}
+
+/// The matching, then the sphere method and the corner baseline where asked.
+fn run_methods(
+    project: &Project,
+    (scene, adj, lrf, dets): (&Scene, &Adjusted, &LrfData, &Detections),
+    opts: &Options,
+    rep: &Reporter,
+    with_spheres: bool,
+    with_corner: bool,
+) -> Result<Extrinsics> {
+    let f = &project.file;
+    let cam_balls = camera_balls(scene, adj);
+    let m = match_spheres(project, scene, lrf, &cam_balls, rep)?;
+    let check_ids = check_balls(&f.balls.check, &m, rep);
+    let spheres = if with_spheres {
+        Some(sphere_method(project, &m, &check_ids, rep)?)
+    } else {
+        None
+    };
+    let corner = if with_corner {
+        let r = corner_method(project, scene, lrf, dets, opts, &m, &check_ids);
+        match &r {
+            Ok(c) => rep.log(format!(
+                "corner baseline: mean check error {:.2} mm (sd {:.2}) on {} balls",
+                c.check.mean_mm,
+                c.check.sd_mm,
+                c.check.rows.len()
+            )),
+            Err(e) => {
+                if !with_spheres {
+                    return Err(PipelineError::new(format!("corner baseline: {e}")));
+                }
+                rep.log(format!("corner baseline failed: {e}"));
+            }
+        }
+        Some(r)
+    } else {
+        None
+    };
+    Ok(Extrinsics {
+        pairs: m.pairs,
+        match_rms_mm: m.rms_mm,
+        lrf_points: m.lrf_points,
+        cam_points: m.cam_points,
+        spheres,
+        corner,
+        check_ids,
+    })
+}
+
+fn corner_method(
+    project: &Project,
+    scene: &Scene,
+    lrf: &LrfData,
+    dets: &Detections,
+    opts: &Options,
+    m: &Matched,
+    check_ids: &[String],
+) -> std::result::Result<CornerOutcome, String> {
+    let (lrf_points, cam_points) = (&m.lrf_points, &m.cam_points);
+    let Some((header, scans)) = &lrf.scans else {
+        return Err("it needs the scan lines (a pingcal-scan CSV), not a point cloud".into());
+    };
+    let main = main_image(project);
+    let c = scene.camera_of[main];
+    let targets: Vec<(String, Vector3<f64>)> = scene
+        .points
+        .iter()
+        .filter(|p| p.kind != PointKind::Ball)
+        .map(|p| (p.name.clone(), p.position))
+        .collect();
+    let mut main_image = Vec::new();
+    for p in scene.points.iter().filter(|p| p.kind != PointKind::Ball) {
+        for &d in &p.obs {
+            if d.image != main {
+                continue;
+            }
+            let t = dets.target(d);
+            if let Some(r) =
+                scene.cameras[c].unproject(&scene.intrinsics[c], &Vector2::new(t.x, t.y))
+            {
+                if r.y > 0.0 {
+                    main_image.push((p.name.clone(), Vector2::new(r.x / r.y, r.z / r.y)));
+                }
+            }
+        }
+    }
+    // the rough camera←LRF rotation the baseline's prior needs: that of the matched control
+    // balls (the LRF need not look the way the camera does), or the identity (Fan's setting)
+    let control = |set: &[PointObs]| -> Vec<Vector3<f64>> {
+        set.iter()
+            .filter(|p| !check_ids.contains(&p.id))
+            .map(|p| p.xyz)
+            .collect()
+    };
+    let rough =
+        pingcal_lrf::registration::umeyama(&control(lrf_points), &control(cam_points), None, false)
+            .map_or_else(|_| Matrix3::identity(), |s| s.rotation);
+    let l = &project.file.lrf;
+    let input = BaselineInput {
+        header,
+        scans,
+        mount: &lrf.mount,
+        range_sigma_mm: l.accuracy_near_mm / 3.0,
+        targets: &targets,
+        main_image: &main_image,
+        seed: opts.seed,
+        rough_camera_from_lrf: rough,
+    };
+    let res = fan_baseline(&input).map_err(|e| e.to_string())?;
+    let ids: Vec<&String> = if check_ids.is_empty() {
+        cam_points.iter().map(|p| &p.id).collect()
+    } else {
+        check_ids.iter().collect()
+    };
+    let pick = |set: &[PointObs]| -> Vec<PointObs> {
+        ids.iter()
+            .filter_map(|id| set.iter().find(|p| &p.id == *id).cloned())
+            .collect()
+    };
+    let check = check_table(&res.camera_from_lrf, &pick(lrf_points), &pick(cam_points));
+    Ok(CornerOutcome {
+        camera_from_lrf: res.camera_from_lrf,
+        check,
+        notes: res.notes,
+    })
+}

@@ -1,0 +1,645 @@
+//! Step 2: the initial network from the coded targets alone.
+//!
+//! Every coded target read in two or more images becomes a point; the incremental
+//! initialiser of `pingcal-ba` ([`pingcal_ba::initial::incremental`]) starts from the best
+//! relatively oriented image pair, resects and intersects the rest with bundle adjustments
+//! between rounds (self-calibrating once three images are oriented), rejects gross errors
+//! and scales the network by the measured distances. The result is moved into the
+//! photogrammetric frame of SPEC.md: the main image's camera frame (origin at its
+//! projection centre, X right, Y forward, Z up).
+
+use super::adjust::{rig_cameras, Datum, SceneProblem};
+use super::ids::{DetectionId, IdVec, ImageId, PointId};
+use super::scene::{
+    coded_blunder, image_file, main_image, Detections, PointKind, Scene, ScenePoint,
+};
+use super::{Options, PipelineError, Reporter, Result};
+use nalgebra::{Matrix3, Vector3};
+use pingcal_ba::initial::incremental::{initialise, IncrementalOptions, Initialised};
+use pingcal_ba::problem::{PointPrior, Problem};
+use pingcal_ba::solver;
+use pingcal_geometry::rigid::Sim3;
+use pingcal_geometry::umeyama::umeyama;
+use pingcal_geometry::Rigid3;
+use pingcal_project::Project;
+use pingcal_targets::TargetKind;
+use std::collections::{BTreeMap, BTreeSet};
+
+/// The initial network, in the photogrammetric frame, scaled by the distances.
+pub fn initial_network(
+    project: &Project,
+    dets: &Detections,
+    opts: &Options,
+    rep: &Reporter,
+) -> Result<Scene> {
+    let f = &project.file;
+    let seen = coded_tracks(dets);
+    if seen.len() < 5 {
+        return Err(PipelineError::new(format!(
+            "{}: only {} coded targets were read in two or more images; at least 5 are needed to orient the images (are the targets {} and large enough in the images?)",
+            project.path.display(),
+            seen.len(),
+            f.targets.family
+        )));
+    }
+    let start = starting_scene(project, &seen);
+    let sp = SceneProblem::build(project, dets, &start, Datum::Free, None);
+    if sp.problem.distances.is_empty() {
+        let list: Vec<String> = f
+            .distances
+            .iter()
+            .map(|d| format!("{}–{}", d.from, d.to))
+            .collect();
+        return Err(PipelineError::new(format!(
+            "{}: no measured distance joins two coded targets read in two or more images ([[distances]]: {}); the scale of the network is undefined",
+            project.path.display(),
+            if list.is_empty() { "none".into() } else { list.join(", ") }
+        )));
+    }
+    let mut options = IncrementalOptions {
+        bundle: solver::Options {
+            max_iterations: 50,
+            threads: opts.threads,
+            ..solver::Options::default()
+        },
+        ..IncrementalOptions::default()
+    };
+    let min_angle = f.network.min_intersection_angle_deg;
+    options.intersection.min_angle_deg = min_angle;
+    let pb = rep.task("orienting images", 1);
+    let (start_used, init, scene, failed) =
+        first_start(project, dets, &sp, start, opts.start, &options)?;
+    pb.finish();
+    for s in &init.steps {
+        rep.log(format!("  {s}"));
+    }
+    let mut scene = scene;
+    let removed = coincident_coded(project, &mut scene);
+    if removed > 0 {
+        rep.log(format!(
+            "  {removed} coded point(s) removed: another coded point lies within its code ring"
+        ));
+    }
+    log_blunders(project, dets, &scene, 0, rep);
+    if !init.refused_by_angle.is_empty() {
+        let list: Vec<String> = (init.refused_by_angle.iter())
+            .map(|(name, a)| format!("{name} ({a:.2}°)"))
+            .collect();
+        let why = format!(
+            "{} coded target(s) left out of the network: their rays meet at under {min_angle}° ([network] min_intersection_angle_deg)",
+            list.len()
+        );
+        rep.log(format!("  {why}: {}", list.join(", ")));
+        // an image left unoriented may be so for want of those targets
+        for (_, reason) in &mut scene.unoriented {
+            reason.push_str(&format!("; {why}"));
+        }
+    }
+    scene.start = start_used.describe().into();
+    scene.warnings = failed;
+    for w in &scene.warnings {
+        rep.log(format!("warning: {w}"));
+    }
+    for (i, why) in &scene.unoriented {
+        rep.log(format!(
+            "  image {} not oriented: {why}",
+            image_file(project, *i)
+        ));
+    }
+    rep.log(format!(
+        "initial network from {}: {} of {} images oriented, {} coded targets, RMS {:.3} px",
+        scene.start,
+        scene.oriented().len(),
+        scene.poses.len(),
+        scene.points.len(),
+        init.problem.rms_px()
+    ));
+    Ok(scene)
+}
+
+/// How the initial network may start (`pingcal calibrate --start`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Start {
+    /// Every start the project allows, in the order below, until one works.
+    #[default]
+    Auto,
+    /// Every image resected from the coded targets' approximate coordinates
+    /// (`[targets] layout`), the layout held only as loosely as `layout_sigma_mm` says.
+    Layout,
+    /// The relative orientation of the best-conditioned image pair, its rays corrected for
+    /// a radial distortion when the nominal intrinsics leave too few consistent points.
+    Relative,
+    /// One station's stereo pair at the head's nominal pose: the cameras parallel, the
+    /// right one `[stereo] baseline_mm` to the right of the left one.
+    Stereo,
+}
+
+impl Start {
+    /// For the log, the warnings and results.json.
+    pub fn describe(self) -> &'static str {
+        match self {
+            Start::Auto => "the first start that works",
+            Start::Layout => "resection from the layout",
+            Start::Relative => "relative orientation",
+            Start::Stereo => "the stereo head's nominal pose",
+        }
+    }
+}
+
+/// The starts to try for `asked`, in order: in `auto`, the layout's when the project names
+/// one, the relative orientation, then the stereo head's when there is one.
+fn starts_to_try(project: &Project, asked: Start) -> Result<Vec<Start>> {
+    let layout = project.layout.is_some();
+    let stereo = project.file.stereo.is_some();
+    let refuse = |what: &str| {
+        Err(PipelineError::new(format!(
+            "{}: --start {what}",
+            project.path.display()
+        )))
+    };
+    match asked {
+        Start::Auto => Ok([Start::Layout, Start::Relative, Start::Stereo]
+            .into_iter()
+            .filter(|s| match s {
+                Start::Layout => layout,
+                Start::Stereo => stereo,
+                _ => true,
+            })
+            .collect()),
+        Start::Layout if !layout => refuse("layout: the project names no [targets] layout"),
+        Start::Stereo if !stereo => refuse("stereo: the project has no [stereo] head"),
+        s => Ok(vec![s]),
+    }
+}
+
+/// The first start of [`starts_to_try`] that orients every image (else the one that orients
+/// the most): which one, the initialiser's solution and the scene in the main image's frame,
+/// and one warning for each start that failed. When none works, the error gives each one's reason and what
+/// the project could add.
+fn first_start(
+    project: &Project,
+    dets: &Detections,
+    sp: &SceneProblem,
+    start: Scene,
+    asked: Start,
+    options: &IncrementalOptions,
+) -> Result<(Start, Initialised, Scene, Vec<String>)> {
+    let mut failed = Vec::new();
+    let mut best: Option<(Start, Initialised, Scene)> = None;
+    for s in starts_to_try(project, asked)? {
+        let tried = try_start(s, project, sp, options).and_then(|init| {
+            into_main_frame(project, dets, start.clone(), sp, &init)
+                .map(|scene| (init, scene))
+                .map_err(|e| e.0)
+        });
+        match tried {
+            // a start that leaves images out is kept only until one orients more
+            Ok((init, scene)) => {
+                if best
+                    .as_ref()
+                    .is_none_or(|b| scene.oriented().len() > b.2.oriented().len())
+                {
+                    best = Some((s, init, scene));
+                }
+                if best.as_ref().is_some_and(|b| b.2.unoriented.is_empty()) {
+                    break;
+                }
+            }
+            Err(e) => failed.push(format!("{} failed ({e})", s.describe())),
+        }
+    }
+    if let Some((s, init, scene)) = best {
+        let warnings = failed
+            .iter()
+            .map(|f| format!("the network started from {}: {f}", s.describe()))
+            .collect();
+        return Ok((s, init, scene, warnings));
+    }
+    let mut missing = Vec::new();
+    if project.layout.is_none() {
+        missing.push("name the coded targets' approximate coordinates in [targets] layout");
+    }
+    if project.file.stereo.is_none() {
+        missing.push("describe the stereo head in [stereo] (its nominal baseline starts it)");
+    }
+    Err(PipelineError::new(format!(
+        "{}: initial orientation: {}{}",
+        project.path.display(),
+        failed.join("; "),
+        if missing.is_empty() || asked != Start::Auto {
+            String::new()
+        } else {
+            format!("; to start otherwise, {}", missing.join(", or "))
+        }
+    )))
+}
+
+/// One start of the initialiser on the coded targets' problem `sp`.
+fn try_start(
+    s: Start,
+    project: &Project,
+    sp: &SceneProblem,
+    options: &IncrementalOptions,
+) -> std::result::Result<Initialised, String> {
+    let run = |problem: &Problem, points: &[bool], poses: &[bool]| {
+        initialise(problem, points, poses, options).map_err(|e| e.to_string())
+    };
+    match s {
+        Start::Auto | Start::Relative => run(&sp.problem, &[], &[]),
+        Start::Layout => {
+            let (problem, known) = with_layout(project, sp)?;
+            run(&problem, &known, &[])
+        }
+        Start::Stereo => {
+            // the stations whose pairs share the most targets, until one orients every image
+            let mut best: Option<Initialised> = None;
+            let mut first_error = None;
+            for (base, member) in stereo_pairs(project, sp)?
+                .into_iter()
+                .take(STEREO_PAIRS_TRIED)
+            {
+                let (problem, known) = with_stereo_pair(project, sp, base, member)?;
+                match run(&problem, &[], &known) {
+                    Ok(init) => {
+                        let n = |i: &Initialised| i.image_map.iter().flatten().count();
+                        if best.as_ref().is_none_or(|b| n(&init) > n(b)) {
+                            best = Some(init);
+                        }
+                        if best
+                            .as_ref()
+                            .is_some_and(|b| b.unoriented_images.is_empty())
+                        {
+                            break;
+                        }
+                    }
+                    Err(e) => {
+                        first_error.get_or_insert(e);
+                    }
+                }
+            }
+            best.ok_or_else(|| first_error.unwrap_or_default())
+        }
+    }
+}
+
+/// The most stations whose stereo pair [`Start::Stereo`] tries.
+const STEREO_PAIRS_TRIED: usize = 3;
+
+/// The fewest points a start may orient from: layout targets read in two images, or coded
+/// targets common to a stereo pair (an image needs four to be resected).
+const MIN_START_POINTS: usize = 4;
+
+/// `sp`'s problem with the layout's targets at their layout coordinates, each held by a
+/// prior of `layout_sigma_mm`; and which points are known.
+fn with_layout(
+    project: &Project,
+    sp: &SceneProblem,
+) -> std::result::Result<(Problem, Vec<bool>), String> {
+    let layout = project.layout.as_ref().ok_or("no [targets] layout")?;
+    let sigma = project.file.targets.layout_sigma_mm;
+    let mut problem = sp.problem.clone();
+    let mut known = vec![false; problem.points.len()];
+    for (k, pt) in problem.points.iter_mut().enumerate() {
+        let Some(xyz) = pt.name.parse().ok().and_then(|id| layout.points.get(&id)) else {
+            continue;
+        };
+        pt.position = Vector3::from(*xyz);
+        known[k] = true;
+        problem.point_priors.push(PointPrior {
+            point: k,
+            position: pt.position,
+            sigma: Vector3::repeat(sigma),
+        });
+    }
+    let n = known.iter().filter(|k| **k).count();
+    if n < MIN_START_POINTS {
+        return Err(format!(
+            "{n} of the {} coded targets read in two or more images are in the layout, {MIN_START_POINTS} or more are needed",
+            known.len()
+        ));
+    }
+    Ok((problem, known))
+}
+
+/// The stations' stereo pairs (base and member problem images) that share four or more
+/// coded targets, those sharing the most first.
+fn stereo_pairs(
+    project: &Project,
+    sp: &SceneProblem,
+) -> std::result::Result<Vec<(usize, usize)>, String> {
+    let f = &project.file;
+    let (base_cam, member_cam) = rig_cameras(project).ok_or("no [stereo] head")?;
+    let slot = |station: &str, cam: &str| {
+        f.images
+            .iter()
+            .position(|im| im.station == station && im.camera == cam)
+            .and_then(|i| sp.map.image(ImageId(i)))
+    };
+    let seen = |i: usize| -> BTreeSet<usize> {
+        sp.problem
+            .observations
+            .iter()
+            .filter(|o| o.image == i)
+            .map(|o| o.point)
+            .collect()
+    };
+    let stations: BTreeSet<&str> = f.images.iter().map(|im| im.station.as_str()).collect();
+    let mut pairs: Vec<(usize, usize, usize)> = stations
+        .iter()
+        .filter_map(|st| Some((slot(st, base_cam)?, slot(st, member_cam)?)))
+        .map(|(a, b)| (seen(a).intersection(&seen(b)).count(), a, b))
+        .filter(|(n, _, _)| *n >= MIN_START_POINTS)
+        .collect();
+    if pairs.is_empty() {
+        return Err("no station's stereo pair shares 4 or more coded targets".into());
+    }
+    pairs.sort_by_key(|(n, a, _)| (std::cmp::Reverse(*n), *a));
+    Ok(pairs.into_iter().map(|(_, a, b)| (a, b)).collect())
+}
+
+/// `sp`'s problem with the stereo pair's `base` and `member` images at the head's nominal
+/// pose (base at the origin, member offset by the baseline along X, no rotation between
+/// them); and which poses are known.
+fn with_stereo_pair(
+    project: &Project,
+    sp: &SceneProblem,
+    base: usize,
+    member: usize,
+) -> std::result::Result<(Problem, Vec<bool>), String> {
+    let stereo = project.file.stereo.as_ref().ok_or("no [stereo] head")?;
+    let (base_cam, _) = rig_cameras(project).ok_or("no [stereo] head")?;
+    // The right camera's centre in the left camera's frame is (baseline, 0, 0).
+    let sign = if base_cam == stereo.left { 1.0 } else { -1.0 };
+    let member_from_base = Rigid3::from_rotation_and_centre(
+        Matrix3::identity(),
+        Vector3::new(sign * stereo.baseline_mm, 0.0, 0.0),
+    );
+    let mut problem = sp.problem.clone();
+    problem.images[base].camera_from_object = Rigid3::identity();
+    problem.images[member].camera_from_object = member_from_base;
+    let mut known = vec![false; problem.images.len()];
+    known[base] = true;
+    known[member] = true;
+    Ok((problem, known))
+}
+
+/// The layout's targets that the adjusted `scene` places more than `LAYOUT_GATE` σ from
+/// their layout coordinates once the similarity transform from the layout into the scene is
+/// fitted to the others (the worst one left out and the transform fitted again, while it
+/// exceeds the gate): one warning each (a wrong id or coordinate in the layout), and one for
+/// a scale that differs from the distances' by more than `LAYOUT_SCALE_TOLERANCE`.
+pub fn layout_warnings(project: &Project, scene: &Scene) -> Vec<String> {
+    let (Some(layout), Some(file)) = (&project.layout, &project.file.targets.layout) else {
+        return Vec::new();
+    };
+    let sigma = project.file.targets.layout_sigma_mm;
+    let mut pairs: Vec<(u32, Vector3<f64>, Vector3<f64>)> = scene
+        .points
+        .iter()
+        .filter_map(|p| match p.kind {
+            PointKind::Coded(id) => layout
+                .points
+                .get(&id)
+                .map(|xyz| (id, Vector3::from(*xyz), p.position)),
+            _ => None,
+        })
+        .collect();
+    let fit = |pairs: &[(u32, Vector3<f64>, Vector3<f64>)]| {
+        let (src, dst): (Vec<_>, Vec<_>) = pairs.iter().map(|(_, a, b)| (*a, *b)).unzip();
+        umeyama(&src, &dst, None, true).ok()
+    };
+    // the distance (mm, layout scale) of a pair from where a fit puts it
+    let off = |t: &Sim3, (_, a, b): &(u32, Vector3<f64>, Vector3<f64>)| {
+        (t.transform(a) - b).norm() / t.scale
+    };
+    let mut out = Vec::new();
+    while let Some(all) = fit(&pairs) {
+        let worst =
+            (0..pairs.len()).max_by(|&a, &b| off(&all, &pairs[a]).total_cmp(&off(&all, &pairs[b])));
+        // the worst point against the transform of the others
+        let suspect = worst
+            .filter(|_| pairs.len() > MIN_START_POINTS)
+            .and_then(|k| {
+                let mut others = pairs.clone();
+                let p = others.remove(k);
+                let d = off(&fit(&others)?, &p);
+                (d > LAYOUT_GATE * sigma).then_some((k, d))
+            });
+        let Some((k, d)) = suspect else {
+            if (all.scale - 1.0).abs() > LAYOUT_SCALE_TOLERANCE {
+                out.push(format!(
+                    "{file}: the layout's scale is {:.4} times the distances': is it in mm?",
+                    1.0 / all.scale
+                ));
+            }
+            break;
+        };
+        out.push(format!(
+            "{file}: target {} is {d:.0} mm from where the images put it (layout_sigma_mm = {sigma}): a wrong id or coordinate?",
+            pairs[k].0
+        ));
+        pairs.remove(k);
+    }
+    out
+}
+
+/// How far the layout's scale may be from the distances' before it is doubted (a tape
+/// measure over a room is good to a few parts in a thousand).
+const LAYOUT_SCALE_TOLERANCE: f64 = 0.02;
+
+/// The distance, in layout σ, beyond which a layout point is doubted: the 99.9 % quantile
+/// of a χ distribution with 3 degrees of freedom (√16.27).
+const LAYOUT_GATE: f64 = 4.03;
+
+/// Every coded number read in two or more images, with its detections.
+fn coded_tracks(dets: &Detections) -> BTreeMap<u32, Vec<DetectionId>> {
+    let mut seen: BTreeMap<u32, Vec<DetectionId>> = BTreeMap::new();
+    for (i, d) in dets.iter_enumerated() {
+        for (k, t) in d.targets.iter_enumerated() {
+            if let (TargetKind::Coded, Some(id)) = (t.kind, t.id) {
+                seen.entry(id).or_default().push(DetectionId::new(i, k));
+            }
+        }
+    }
+    seen.retain(|_, v| v.len() >= 2);
+    seen
+}
+
+/// The scene the initialiser starts from: one point per coded number, every image taken
+/// (the initialiser ignores the starting poses and positions), no datum.
+fn starting_scene(project: &Project, seen: &BTreeMap<u32, Vec<DetectionId>>) -> Scene {
+    let mut scene = Scene::new(project);
+    scene.poses = scene
+        .poses
+        .iter()
+        .map(|_| Some(Rigid3::identity()))
+        .collect();
+    scene.points = seen
+        .iter()
+        .map(|(id, obs)| ScenePoint {
+            name: id.to_string(),
+            kind: PointKind::Coded(*id),
+            position: Vector3::zeros(),
+            obs: obs.clone(),
+        })
+        .collect();
+    scene
+}
+
+/// The initialiser's solution as a scene in the main image's frame: its oriented images, its
+/// determined points without the measurements it rejected (two or more left), the
+/// intrinsics, and why the other images were not oriented. A coded measurement rejected
+/// beyond the reach of its own ring is a named blunder ([`coded_blunder`]).
+fn into_main_frame(
+    project: &Project,
+    dets: &Detections,
+    start: Scene,
+    sp: &SceneProblem,
+    init: &Initialised,
+) -> Result<Scene> {
+    let f = &project.file;
+    let mut scene = start;
+    let mut poses: IdVec<ImageId, Option<Rigid3>> = scene.poses.iter().map(|_| None).collect();
+    for (k, &i) in sp.map.images.iter().enumerate() {
+        poses[i] = init.image_map[k].map(|m| init.problem.images[m].camera_from_object);
+    }
+    let main = main_image(project);
+    let Some(main_pose) = poses[main] else {
+        let why = init
+            .unoriented_images
+            .iter()
+            .find(|(n, _)| n == image_file(project, main))
+            .map(|(_, w)| w.clone())
+            .unwrap_or_else(|| "unknown".into());
+        return Err(PipelineError::new(format!(
+            "{}: the main image could not be oriented: {why}",
+            image_file(project, main)
+        )));
+    };
+    // into the main image's frame: X' = R X + t; image poses P' = P ∘ M⁻¹
+    let to_main = main_pose.inverse();
+    for p in poses.iter_mut().flatten() {
+        *p = p.compose(&to_main);
+    }
+    let rejected = |d: &DetectionId, name: &str| {
+        let file = image_file(project, d.image);
+        (init.rejected_observations.iter())
+            .find(|(i, p, _)| i == file && p == name)
+            .map(|r| r.2)
+    };
+    let mut points = IdVec::new();
+    let mut blunders = Vec::new();
+    for (k, &j) in sp.map.points.iter().enumerate() {
+        let p = &scene.points[j];
+        for (d, off) in p.obs.iter().filter_map(|d| Some((*d, rejected(d, &p.name)?))) {
+            if let PointKind::Coded(n) = p.kind {
+                blunders.extend(coded_blunder(project, dets, d, n, off, "network start"));
+            }
+        }
+        let Some(m) = init.point_map[k] else { continue };
+        let mut p = p.clone();
+        p.position = main_pose.transform(&init.problem.points[m].position);
+        p.obs
+            .retain(|d| poses[d.image].is_some() && rejected(d, &p.name).is_none());
+        if p.obs.len() >= 2 {
+            points.push(p);
+        }
+    }
+    scene.unoriented = init
+        .unoriented_images
+        .iter()
+        .filter_map(|(name, why)| {
+            f.images
+                .iter()
+                .position(|im| im.file == *name)
+                .map(|i| (ImageId(i), why.clone()))
+        })
+        .collect();
+    scene.intrinsics = init
+        .problem
+        .cameras
+        .iter()
+        .map(|c| c.params.clone())
+        .collect();
+    scene.poses = poses;
+    scene.points = points;
+    for b in blunders {
+        scene.add_blunder(b);
+    }
+    Ok(scene)
+}
+
+/// Logs the named blunders of `scene` from the `from`-th on: one line each.
+pub fn log_blunders(
+    project: &Project,
+    dets: &Detections,
+    scene: &Scene,
+    from: usize,
+    rep: &Reporter,
+) {
+    for b in scene.blunders.iter().skip(from) {
+        let t = dets.target(b.det);
+        rep.log(format!(
+            "  blunder ({}): coded number {} read in {} at ({:.1}, {:.1}) px is {}: removed",
+            b.stage,
+            b.number,
+            image_file(project, b.det.image),
+            t.x,
+            t.y,
+            b.why
+        ));
+    }
+}
+
+/// Two coded points closer than the reach of a code ring (`ring_outer` dot radii) are one
+/// target read as two numbers: the measurements of the one with fewer are named blunders
+/// (misreads of the other's number) and it is removed; with as many, both go. Returns how
+/// many points were removed.
+pub fn coincident_coded(project: &Project, scene: &mut Scene) -> usize {
+    let t = &project.file.targets;
+    let reach = t.ring_outer * t.dot_radius_mm;
+    let coded: Vec<(PointId, u32)> = (scene.points.ids())
+        .filter_map(|j| match scene.points[j].kind {
+            PointKind::Coded(n) => Some((j, n)),
+            _ => None,
+        })
+        .collect();
+    let mut gone: BTreeSet<PointId> = BTreeSet::new();
+    let mut blunders = Vec::new();
+    for (a, &(ja, na)) in coded.iter().enumerate() {
+        for &(jb, nb) in &coded[a + 1..] {
+            let (pa, pb) = (&scene.points[ja], &scene.points[jb]);
+            let d = (pa.position - pb.position).norm();
+            if d >= reach {
+                continue;
+            }
+            let (la, lb) = (pa.obs.len(), pb.obs.len());
+            for (j, n, other, p) in [(ja, na, nb, pa), (jb, nb, na, pb)] {
+                let fewer = if j == ja { la <= lb } else { lb <= la };
+                if !fewer {
+                    continue;
+                }
+                gone.insert(j);
+                for &o in &p.obs {
+                    blunders.push(super::scene::CodedBlunder {
+                        det: o,
+                        number: n,
+                        stage: "coincident numbers",
+                        why: format!(
+                            "where target {other} is: the points of {n} and {other} are {d:.1} mm apart, less than a code ring ({reach:.1} mm), and {other} is read in {} images, {n} in {}",
+                            if n == na { lb } else { la },
+                            p.obs.len()
+                        ),
+                    });
+                }
+            }
+        }
+    }
+    for b in blunders {
+        scene.add_blunder(b);
+    }
+    for &j in gone.iter().rev() {
+        scene.points.remove(j);
+    }
+    gone.len()
+}

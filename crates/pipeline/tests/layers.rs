@@ -1,0 +1,219 @@
+//! The pipeline's modules form a sequence: each may use only the modules before it.
+//!
+//! The shared modules (ids, progress, scene, adjust) come first, then the steps in the
+//! order they run. This test reads `src/*.rs`, collects every `super::X` and
+//! `crate::X` path outside comments, and fails when a module uses a later one, when
+//! the modules' uses form a cycle, when a module is missing from [`ORDER`], or when the
+//! library prints or draws (`println!`, `eprintln!`, indicatif): that is the binary's side.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// The modules of the pipeline crate, lowest first (`lib.rs`, the root that runs them, is
+/// apart; `test_support.rs` serves the unit tests).
+const ORDER: [&str; 20] = [
+    "ids",
+    "progress",
+    "scene",
+    "adjust",
+    "detect",
+    "network",
+    "matching",
+    "bundle",
+    "lrf",
+    "extrinsic",
+    "joint",
+    "final_lrf",
+    "verdict",
+    "conventions",
+    "results",
+    "report",
+    "overlays",
+    "rectify",
+    "exports",
+    "sphere_calib",
+];
+
+/// The text of `src` without its `//` comments (doc comments included).
+fn strip_comments(src: &str) -> String {
+    src.lines()
+        .map(|l| l.find("//").map_or(l, |k| &l[..k]))
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+fn ident(s: &str) -> &str {
+    let end = s
+        .find(|c: char| !(c.is_ascii_alphanumeric() || c == '_'))
+        .unwrap_or(s.len());
+    &s[..end]
+}
+
+/// The first segments named after `super::` or `crate::` in `src` (braced groups
+/// `use super::{a, b::c}` give `a` and `b`).
+fn used_modules(src: &str) -> Vec<String> {
+    let code = strip_comments(src);
+    let mut out = Vec::new();
+    for prefix in ["super::", "crate::"] {
+        let mut rest = code.as_str();
+        while let Some(k) = rest.find(prefix) {
+            rest = &rest[k + prefix.len()..];
+            let t = rest.trim_start();
+            if let Some(group) = t.strip_prefix('{') {
+                let mut depth = 0;
+                let mut start = true;
+                for (i, c) in group.char_indices() {
+                    match c {
+                        '{' => depth += 1,
+                        '}' if depth == 0 => break,
+                        '}' => depth -= 1,
+                        ',' if depth == 0 => start = true,
+                        c if start && (c.is_ascii_alphanumeric() || c == '_') => {
+                            out.push(ident(&group[i..]).to_string());
+                            start = false;
+                        }
+                        c if !c.is_whitespace() => start = false,
+                        _ => {}
+                    }
+                }
+            } else {
+                out.push(ident(t).to_string());
+            }
+        }
+    }
+    out
+}
+
+/// Module → the sibling modules it uses.
+fn graph(files: &BTreeMap<String, String>) -> BTreeMap<String, Vec<String>> {
+    files
+        .iter()
+        .map(|(m, src)| {
+            let mut uses: Vec<String> = used_modules(src)
+                .into_iter()
+                .filter(|u| u != m && files.contains_key(u))
+                .collect();
+            uses.sort();
+            uses.dedup();
+            (m.clone(), uses)
+        })
+        .collect()
+}
+
+/// A cycle of the graph, if there is one.
+fn find_cycle(g: &BTreeMap<String, Vec<String>>) -> Option<Vec<String>> {
+    fn visit(
+        m: &str,
+        g: &BTreeMap<String, Vec<String>>,
+        state: &mut BTreeMap<String, u8>,
+        path: &mut Vec<String>,
+    ) -> Option<Vec<String>> {
+        match state.get(m) {
+            Some(2) => return None,
+            Some(1) => {
+                let k = path.iter().position(|p| p == m).expect("on the path");
+                let mut cycle = path[k..].to_vec();
+                cycle.push(m.to_string());
+                return Some(cycle);
+            }
+            _ => {}
+        }
+        state.insert(m.to_string(), 1);
+        path.push(m.to_string());
+        for u in g.get(m).into_iter().flatten() {
+            if let Some(c) = visit(u, g, state, path) {
+                return Some(c);
+            }
+        }
+        path.pop();
+        state.insert(m.to_string(), 2);
+        None
+    }
+    let mut state = BTreeMap::new();
+    g.keys()
+        .find_map(|m| visit(m, g, &mut state, &mut Vec::new()))
+}
+
+fn pipeline_files() -> BTreeMap<String, String> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+    let mut files = BTreeMap::new();
+    for e in std::fs::read_dir(&dir).expect("src") {
+        let path = e.expect("entry").path();
+        if path.extension().is_some_and(|x| x == "rs") {
+            let name = path
+                .file_stem()
+                .expect("name")
+                .to_string_lossy()
+                .into_owned();
+            if name == "test_support" {
+                continue;
+            }
+            let src = std::fs::read_to_string(&path).expect("readable source");
+            files.insert(name, src);
+        }
+    }
+    files
+}
+
+#[test]
+fn pipeline_modules_only_use_earlier_ones() {
+    let mut files = pipeline_files();
+    let root = files.remove("lib").expect("src/lib.rs");
+    for m in files.keys() {
+        assert!(
+            ORDER.contains(&m.as_str()),
+            "src/{m}.rs is not in ORDER of this test: put it where it belongs"
+        );
+    }
+    for m in ORDER {
+        assert!(
+            root.contains(&format!("pub mod {m};")),
+            "{m} of ORDER is not a module of src/lib.rs"
+        );
+    }
+    let g = graph(&files);
+    if let Some(c) = find_cycle(&g) {
+        panic!("module cycle in the pipeline: {}", c.join(" → "));
+    }
+    let pos = |m: &str| ORDER.iter().position(|o| *o == m).expect("in ORDER");
+    let mut wrong = Vec::new();
+    for (m, uses) in &g {
+        for u in uses {
+            if pos(u) > pos(m) {
+                wrong.push(format!("src/{m}.rs uses {u}, which comes after it"));
+            }
+        }
+    }
+    assert!(wrong.is_empty(), "{}", wrong.join("\n"));
+}
+
+#[test]
+fn the_pipeline_neither_prints_nor_draws() {
+    for (m, src) in pipeline_files() {
+        let code = strip_comments(&src);
+        for word in ["indicatif", "println!", "print!", "eprint!", "dbg!"] {
+            assert!(
+                !code.contains(word),
+                "src/{m}.rs uses {word}: the library reports through pipeline::Progress"
+            );
+        }
+    }
+}
+
+#[test]
+fn the_parser_sees_uses_and_cycles() {
+    let src = "use super::{a, b::{X, Y}, Options};\n// use super::c;\nfn f() { super::d::g(); crate::e::h(); }";
+    assert_eq!(used_modules(src), vec!["a", "b", "Options", "d", "e"]);
+    let files: BTreeMap<String, String> = [
+        ("a", "use super::b::X;"),
+        ("b", "use super::{c, Result};"),
+        ("c", "fn f() { super::a::g() }"),
+    ]
+    .iter()
+    .map(|(m, s)| (m.to_string(), s.to_string()))
+    .collect();
+    assert_eq!(
+        find_cycle(&graph(&files)),
+        Some(vec!["a".into(), "b".into(), "c".into(), "a".into()])
+    );
+}
