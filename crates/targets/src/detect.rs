@@ -163,7 +163,7 @@ impl Detector {
                 Err(r) => refused.push(r),
             }
         }
-        let keep = without_duplicates(ok);
+        let keep = without_duplicates(ok, p.centre.max_saturated_fraction);
         let rings: Vec<RingOutcome> = keep.par_iter().map(|m| self.read_rings(img, m)).collect();
         let (mut targets, saturated_rings) = self.targets_of(img, &keep, rings, &mut refused);
         refuse_doubtful_sigma(&mut targets, &mut refused);
@@ -505,25 +505,45 @@ fn in_ring_of(e: &Ellipse, rings: &[(Ellipse, Frame)]) -> bool {
 }
 
 /// Different candidates can converge on one target: keep the first (in position order) of any
-/// pair closer than half the smaller radius.
-fn without_duplicates(mut measured: Vec<Measured>) -> Vec<Measured> {
-    measured.sort_by(|a, b| {
+/// pair closer than half the smaller radius. The candidates with more than `max_saturated` of
+/// their samples saturated come after all the others (a target's clean measurement is never
+/// displaced by a saturated one of it), then all are put in position order.
+fn without_duplicates(measured: Vec<Measured>, max_saturated: f64) -> Vec<Measured> {
+    let by_position = |a: &Measured, b: &Measured| {
         (a.r.ellipse.cy, a.r.ellipse.cx)
             .partial_cmp(&(b.r.ellipse.cy, b.r.ellipse.cx))
             .unwrap_or(std::cmp::Ordering::Equal)
-    });
-    let mut keep: Vec<Measured> = Vec::with_capacity(measured.len());
-    for m in measured {
+    };
+    let close = |k: &Ellipse, r: &Ellipse| {
+        let d = ((k.cx - r.cx).powi(2) + (k.cy - r.cy).powi(2)).sqrt();
+        d < 0.5 * k.radius().min(r.radius())
+    };
+    let (mut clean, mut saturated): (Vec<Measured>, Vec<Measured>) = measured
+        .into_iter()
+        .partition(|m| m.saturated <= max_saturated);
+    clean.sort_by(by_position);
+    saturated.sort_by(by_position);
+    let mut keep: Vec<Measured> = Vec::with_capacity(clean.len() + saturated.len());
+    for m in clean {
         let r = &m.r.ellipse;
-        let dup = keep.iter().rev().take(64).any(|k| {
-            let k = &k.r.ellipse;
-            let d = ((k.cx - r.cx).powi(2) + (k.cy - r.cy).powi(2)).sqrt();
-            d < 0.5 * k.radius().min(r.radius())
-        });
+        if !keep.iter().rev().take(64).any(|k| close(&k.r.ellipse, r)) {
+            keep.push(m);
+        }
+    }
+    // the saturated ones against every kept one: the clean ones are not in their order
+    let n_clean = keep.len();
+    let reach = |k: &Ellipse, r: &Ellipse| (k.cy - r.cy).abs() < k.a.max(r.a);
+    for m in saturated {
+        let r = &m.r.ellipse;
+        let dup = keep[..n_clean]
+            .iter()
+            .chain(keep[n_clean..].iter().rev().take(64))
+            .any(|k| reach(&k.r.ellipse, r) && close(&k.r.ellipse, r));
         if !dup {
             keep.push(m);
         }
     }
+    keep.sort_by(by_position);
     keep
 }
 
