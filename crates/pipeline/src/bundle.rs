@@ -97,7 +97,8 @@ fn name_blunders(project: &Project, dets: &Detections, scene: &mut Scene, reject
         let Some(p) = scene.points.iter().find(|p| p.name == r.point) else {
             continue;
         };
-        let (PointKind::Coded(n), Some(&d)) = (p.kind, p.obs.iter().find(|d| d.image == ImageId(i)))
+        let (PointKind::Coded(n), Some(&d)) =
+            (p.kind, p.obs.iter().find(|d| d.image == ImageId(i)))
         else {
             continue;
         };

@@ -71,8 +71,11 @@ pub fn detect_all(project: &Project, rep: &Reporter) -> Result<Detections> {
         })
         .collect();
     pb.finish();
-    let (dets, refused): (Vec<ImageDetections>, Vec<Vec<Refusal>>) =
-        out.into_iter().collect::<Result<Vec<_>>>()?.into_iter().unzip();
+    let (dets, refused): (Vec<ImageDetections>, Vec<Vec<Refusal>>) = out
+        .into_iter()
+        .collect::<Result<Vec<_>>>()?
+        .into_iter()
+        .unzip();
     let dets: Detections = dets.into();
     let (mut coded, mut ids, mut plain) = (0, 0, 0);
     for d in &dets {

@@ -531,7 +531,11 @@ fn into_main_frame(
     let mut blunders = Vec::new();
     for (k, &j) in sp.map.points.iter().enumerate() {
         let p = &scene.points[j];
-        for (d, off) in p.obs.iter().filter_map(|d| Some((*d, rejected(d, &p.name)?))) {
+        for (d, off) in p
+            .obs
+            .iter()
+            .filter_map(|d| Some((*d, rejected(d, &p.name)?)))
+        {
             if let PointKind::Coded(n) = p.kind {
                 blunders.extend(coded_blunder(project, dets, d, n, off, "network start"));
             }

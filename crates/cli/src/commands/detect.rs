@@ -93,10 +93,45 @@ pub fn run(args: Args) -> CmdResult {
         print!("{}", why(&args.images, &detections));
     }
     println!("{}", summary(&args, &detections));
+    for (path, d) in args.images.iter().zip(&detections) {
+        if let Some(w) = nothing_found(path, d) {
+            eprintln!("{w}");
+        }
+    }
     if let Some(w) = saturated_warning(&detections) {
         eprintln!("{w}");
     }
     Ok(())
+}
+
+/// For an image in which no target was found, the warning that says why, on one line:
+/// `warning: FILE: no targets: ` then the candidates refused by reason, the most frequent
+/// first, with the advice of the first; or that no candidate was seen at all.
+fn nothing_found(path: &std::path::Path, d: &ImageDetections) -> Option<String> {
+    if !d.targets.is_empty() {
+        return None;
+    }
+    let mut by_reason = counts(&d.refused);
+    by_reason.sort_by(|a, b| b.1.cmp(&a.1));
+    let why = match by_reason.first() {
+        None => {
+            "no candidate: no bright blob stands out of its surround at two or more \
+                 threshold levels (targets too small, too faint, out of focus, or not in the image)"
+                .to_string()
+        }
+        Some((first, _)) => {
+            let list: Vec<String> = by_reason
+                .iter()
+                .map(|(r, n)| format!("{n} {}", r.name()))
+                .collect();
+            format!(
+                "every candidate refused: {} ({})",
+                list.join(", "),
+                first.advice()
+            )
+        }
+    };
+    Some(format!("warning: {}: no targets: {why}", path.display()))
 }
 
 /// The JSON of the detections: per image its file, size, targets (a coded read with its
@@ -303,8 +338,28 @@ mod tests {
         );
         let w = saturated_warning(std::slice::from_ref(&d)).unwrap();
         assert!(w.contains("2 target(s) refused as saturated") && w.contains("expose darker"));
+        let line = nothing_found(std::path::Path::new("a.png"), &d).unwrap();
+        assert_eq!(
+            line,
+            format!(
+                "warning: a.png: no targets: every candidate refused: 2 saturated, 1 text glyph ({})",
+                RefusalReason::Saturated.advice()
+            )
+        );
+        let none = ImageDetections {
+            refused: Vec::new(),
+            ..d.clone()
+        };
+        let line = nothing_found(std::path::Path::new("a.png"), &none).unwrap();
+        assert!(
+            line.starts_with("warning: a.png: no targets: no candidate: "),
+            "{line}"
+        );
         let why = why(&args.images, std::slice::from_ref(&d));
-        assert!(why.contains("a.png: (10.0, 20.0) 6.0 px across: text glyph: detail"), "{why}");
+        assert!(
+            why.contains("a.png: (10.0, 20.0) 6.0 px across: text glyph: detail"),
+            "{why}"
+        );
         assert!(why.contains("2 saturated: expose darker"), "{why}");
     }
 }
