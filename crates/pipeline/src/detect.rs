@@ -11,7 +11,7 @@ use super::scene::{Detections, ImageDetections};
 use super::{PipelineError, Reporter, Result};
 use pingcal_project::Project;
 use pingcal_targets::detect::BallMode;
-use pingcal_targets::refusal::{counts, Refusal};
+use pingcal_targets::refusal::{counts, why_nothing, Refusal};
 use pingcal_targets::{load_image, DetectParams, Detector, TargetKind};
 use rayon::prelude::*;
 
@@ -87,6 +87,15 @@ pub fn detect_all(project: &Project, rep: &Reporter) -> Result<Detections> {
                 }
                 _ => plain += 1,
             }
+        }
+    }
+    for (k, d) in dets.iter().enumerate() {
+        if d.targets.is_empty() {
+            rep.log(format!(
+                "  {}: no targets: {}",
+                f.images[k].file,
+                why_nothing(&refused[k])
+            ));
         }
     }
     let refused: Vec<String> = counts(refused.iter().flatten())

@@ -174,3 +174,30 @@ pub fn counts<'a>(refusals: impl IntoIterator<Item = &'a Refusal>) -> Vec<(Refus
         .map(|(r, c)| (*r, c))
         .collect()
 }
+
+/// Why an image gave no target, on one line: the candidates refused by reason, the most
+/// frequent first but text glyphs last (they are not targets), with the advice of the first
+/// (`every candidate refused: 38 saturated, 96 text glyph (expose darker …)`), or that there
+/// was no candidate at all.
+pub fn why_nothing(refusals: &[Refusal]) -> String {
+    let mut by_reason = counts(refusals);
+    by_reason.sort_by_key(|&(r, n)| (r == RefusalReason::TextGlyph, std::cmp::Reverse(n)));
+    match by_reason.first() {
+        None => {
+            "no candidate: no bright blob stands out of its surround at two or more \
+                 threshold levels (targets too small, too faint, out of focus, or not in the image)"
+                .to_string()
+        }
+        Some((first, _)) => {
+            let list: Vec<String> = by_reason
+                .iter()
+                .map(|(r, n)| format!("{n} {}", r.name()))
+                .collect();
+            format!(
+                "every candidate refused: {} ({})",
+                list.join(", "),
+                first.advice()
+            )
+        }
+    }
+}

@@ -105,33 +105,15 @@ pub fn run(args: Args) -> CmdResult {
 }
 
 /// For an image in which no target was found, the warning that says why, on one line:
-/// `warning: FILE: no targets: ` then the candidates refused by reason, the most frequent
-/// first, with the advice of the first; or that no candidate was seen at all.
+/// `warning: FILE: no targets: ` and [`pingcal_targets::refusal::why_nothing`].
 fn nothing_found(path: &std::path::Path, d: &ImageDetections) -> Option<String> {
-    if !d.targets.is_empty() {
-        return None;
-    }
-    let mut by_reason = counts(&d.refused);
-    by_reason.sort_by(|a, b| b.1.cmp(&a.1));
-    let why = match by_reason.first() {
-        None => {
-            "no candidate: no bright blob stands out of its surround at two or more \
-                 threshold levels (targets too small, too faint, out of focus, or not in the image)"
-                .to_string()
-        }
-        Some((first, _)) => {
-            let list: Vec<String> = by_reason
-                .iter()
-                .map(|(r, n)| format!("{n} {}", r.name()))
-                .collect();
-            format!(
-                "every candidate refused: {} ({})",
-                list.join(", "),
-                first.advice()
-            )
-        }
-    };
-    Some(format!("warning: {}: no targets: {why}", path.display()))
+    d.targets.is_empty().then(|| {
+        format!(
+            "warning: {}: no targets: {}",
+            path.display(),
+            pingcal_targets::refusal::why_nothing(&d.refused)
+        )
+    })
 }
 
 /// The JSON of the detections: per image its file, size, targets (a coded read with its
