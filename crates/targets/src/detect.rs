@@ -152,7 +152,7 @@ impl Detector {
         let p = &self.params;
         let (cands, blobs) = find_candidates_and_refusals(img, &p.candidates, true);
         let mut refused: Vec<Refusal> = blobs.iter().map(|b| self.blob_refusal(img, b)).collect();
-        let measured: Vec<Result<Measured, Refusal>> = cands
+        let measured: Vec<Result<Measured, Box<Refusal>>> = cands
             .par_iter()
             .map(|c| self.measure(img, &c.seed))
             .collect();
@@ -160,7 +160,7 @@ impl Detector {
         for m in measured {
             match m {
                 Ok(m) => ok.push(m),
-                Err(r) => refused.push(r),
+                Err(r) => refused.push(*r),
             }
         }
         let keep = without_duplicates(ok, p.centre.max_saturated_fraction);
@@ -299,7 +299,7 @@ impl Detector {
     /// The sub-pixel measurement of a candidate, or why it was refused. Saturated candidates
     /// are measured too (the caller refuses them, after their rings have told where their
     /// pieces are, unless asked to keep them).
-    fn measure(&self, img: &GrayImage, seed: &Ellipse) -> Result<Measured, Refusal> {
+    fn measure(&self, img: &GrayImage, seed: &Ellipse) -> Result<Measured, Box<Refusal>> {
         let p = &self.params;
         let centre = CentreParams {
             max_saturated_fraction: 1.0,
@@ -327,7 +327,7 @@ impl Detector {
                         "its edge points do not fit an ellipse",
                     ),
                 };
-                Err(Refusal::new(reason, *seed, detail))
+                Err(Box::new(Refusal::new(reason, *seed, detail)))
             }
         }
     }
