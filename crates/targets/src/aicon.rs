@@ -324,8 +324,8 @@ fn bright_over(
 /// Reads the code ring around a dot whose edge ellipse is `dot`, inner (dot) level `fg` and
 /// dark surround `bg`: by sector thresholds first, and by the blurred-ring model
 /// (`read_by_model`, see the module doc) when the thresholds cannot read a ring that is there;
-/// then the margins of the read ([`crate::confidence::assess`]) decide whether its number is
-/// given ([`RingRead::Code`]) or refused ([`RingRead::Doubtful`]).
+/// then the margins of the read ([`crate::confidence`]) decide whether its number is given
+/// ([`RingRead::Code`]) or refused ([`RingRead::Doubtful`]).
 pub fn read_ring(
     img: &GrayImage,
     dot: &Ellipse,

@@ -35,7 +35,7 @@ const DIGITS: [[u8; 5]; 11] = [
     [7, 1, 3, 0, 2],
 ];
 
-/// 3×5 bitmap letters (as [`DIGITS`]): those that mark refusal reasons on the overlay.
+/// 3×5 bitmap letters (as the digits): those that mark refusal reasons on the overlay.
 pub const LETTERS: [(char, [u8; 5]); 8] = [
     ('B', [6, 5, 6, 5, 6]),
     ('C', [7, 4, 4, 4, 7]),
