@@ -41,7 +41,9 @@
 //! rendered targets (`tests/synthetic.rs`) this reads 3.5–4 px dots through 1.2 px of blur,
 //! where the thresholds read almost none, with no wrong number.
 
-use crate::confidence::{ReadMargins, ReadMethod};
+pub mod confidence;
+
+use self::confidence::{ReadMargins, ReadMethod};
 use crate::ellipse::Ellipse;
 use crate::image_io::GrayImage;
 
@@ -254,13 +256,13 @@ pub enum RingRead {
     /// A ring is there but it could not be read reliably, or the code is not in the table.
     Unreadable { reason: &'static str },
     /// A code read with confidence: the code at its smallest rotation, the number, and the
-    /// margins that decided it ([`crate::confidence`]; its confidence is at least 1).
+    /// margins that decided it ([`confidence`]; its confidence is at least 1).
     Code {
         code: u32,
         id: u32,
         margins: ReadMargins,
     },
-    /// A code was read but a margin is under its bound ([`crate::confidence`]): no number is
+    /// A code was read but a margin is under its bound ([`confidence`]): no number is
     /// given; the code, number and margins say what was refused.
     Doubtful {
         code: u32,
@@ -269,7 +271,7 @@ pub enum RingRead {
     },
 }
 
-/// A ring read to a number, before its margins are assessed ([`crate::confidence::assess`]).
+/// A ring read to a number, before its margins are assessed (`confidence::assess`).
 #[derive(Clone, Debug)]
 pub(crate) struct Reading {
     /// Which reading gave it.
@@ -324,7 +326,7 @@ fn bright_over(
 /// Reads the code ring around a dot whose edge ellipse is `dot`, inner (dot) level `fg` and
 /// dark surround `bg`: by sector thresholds first, and by the blurred-ring model
 /// (`read_by_model`, see the module doc) when the thresholds cannot read a ring that is there;
-/// then the margins of the read ([`crate::confidence`]) decide whether its number is given
+/// then the margins of the read ([`confidence`]) decide whether its number is given
 /// ([`RingRead::Code`]) or refused ([`RingRead::Doubtful`]).
 pub fn read_ring(
     img: &GrayImage,
@@ -341,7 +343,7 @@ pub fn read_ring(
         },
         Err(other) => return other,
     };
-    let margins = crate::confidence::assess(img, dot, fg, bg, reader, &reading);
+    let margins = confidence::assess(img, dot, fg, bg, reader, &reading);
     let (code, id) = (reading.code, reading.id);
     if margins.confidence >= 1.0 {
         RingRead::Code { code, id, margins }

@@ -43,7 +43,6 @@ pub mod ball;
 pub mod blobs;
 pub mod candidates;
 pub mod centre;
-pub mod confidence;
 pub mod detect;
 pub mod driveback;
 pub mod ellipse;
@@ -57,6 +56,8 @@ pub mod refusal;
 pub mod sheet;
 pub mod threshold;
 pub mod tiff_strips;
+
+pub use aicon::confidence;
 
 pub use detect::{
     detect_file, detect_files, detect_image, DetectParams, Detector, ImageDetections, Target,
