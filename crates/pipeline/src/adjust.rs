@@ -452,4 +452,49 @@ accuracy_far_fraction = 0.03
         assert!(scene.poses[ImageId(2)].is_none());
         assert_eq!(scene.intrinsics[crate::ids::CameraId(0)][0], 5.5);
     }
+
+    /// A coded measurement farther from where the network puts its number than its own code
+    /// ring reaches (3 dot radii: 9 px for these 3 px dots) is a named blunder, nearer it is a
+    /// poor centre; a blunder leaves every point and is used by none, once.
+    #[test]
+    fn a_coded_read_beyond_its_ring_is_a_named_blunder_removed_once() {
+        let (project, dets, mut scene) = fixture();
+        let d = DetectionId::new(ImageId(1), DetIdx(0));
+        assert!(crate::scene::coded_blunder(&project, &dets, d, 1, 8.9, "test").is_none());
+        let b = crate::scene::coded_blunder(&project, &dets, d, 1, 9.1, "test").expect("a blunder");
+        assert_eq!((b.det, b.number, b.stage), (d, 1, "test"));
+        assert!(
+            b.why.contains("9.1 px") && b.why.contains("(9.0 px)"),
+            "{}",
+            b.why
+        );
+        assert!(scene.add_blunder(b.clone()));
+        assert!(!scene.add_blunder(b), "named once");
+        assert!(scene.points.iter().all(|p| !p.obs.contains(&d)));
+        assert_eq!(scene.points[PointId(0)].obs.len(), 2);
+        assert!(scene.used(&dets).contains(d), "no point may take it again");
+    }
+
+    /// Two coded points closer than a code ring (3 × 5 mm) are one target read as two numbers:
+    /// the one read in fewer images goes, its measurements named blunders; a point farther
+    /// away stays.
+    #[test]
+    fn two_numbers_on_one_target_remove_the_one_read_less() {
+        let (project, _, mut scene) = fixture();
+        scene.points[PointId(0)].position = Vector3::new(0.0, 1000.0, 0.0);
+        scene.points[PointId(1)].position = Vector3::new(-15.1, 1000.0, 0.0);
+        scene.points[PointId(2)].position = Vector3::new(14.9, 1000.0, 0.0);
+        let removed = crate::network::coincident_coded(&project, &mut scene);
+        assert_eq!(removed, 1);
+        let names: Vec<&str> = scene.points.iter().map(|p| p.name.as_str()).collect();
+        assert_eq!(
+            names,
+            ["1", "2"],
+            "3 (two images) is within 15 mm of 1 (three)"
+        );
+        assert_eq!(scene.blunders.len(), 2, "both of 3's measurements");
+        assert!(scene.blunders.iter().all(|b| b.number == 3
+            && b.stage == "coincident numbers"
+            && b.why.contains("target 1")));
+    }
 }
