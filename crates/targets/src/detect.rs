@@ -723,3 +723,64 @@ pub fn detect_files<P: AsRef<std::path::Path> + Sync>(
         .map(|p| detect_file(p.as_ref(), detector))
         .collect()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn coded(x: f64, id: u32, sigma_px: f64) -> Target {
+        Target {
+            kind: TargetKind::Coded,
+            id: Some(id),
+            x,
+            y: 50.0,
+            sigma_px,
+            ellipse: Ellipse::circle(x, 50.0, 4.0),
+            centroid: [x, 50.0],
+            sigma_centroid_px: sigma_px,
+            contrast: 0.5,
+            read: None,
+            saturated: false,
+        }
+    }
+
+    /// The false read of issue 38: a number whose centre σ (0.078 px) is ten times the
+    /// image's others' loses it, with a refusal that names it; a σ under the floor never does.
+    #[test]
+    fn a_read_with_a_centre_sigma_far_above_the_others_is_refused() {
+        let mut targets: Vec<Target> = (0..6).map(|k| coded(20.0 * k as f64, k, 0.008)).collect();
+        targets.push(coded(200.0, 40, 0.078));
+        targets.push(coded(220.0, 41, 0.039));
+        let mut refused = Vec::new();
+        refuse_doubtful_sigma(&mut targets, &mut refused);
+        let ids: Vec<Option<u32>> = targets.iter().map(|t| t.id).collect();
+        assert_eq!(ids[6], None, "0.078 px, 9.75 times the median");
+        assert_eq!(ids[7], Some(41), "0.039 px is under the 0.05 px floor");
+        assert!(ids[..6].iter().all(Option::is_some));
+        assert_eq!(refused.len(), 1);
+        assert_eq!(refused[0].reason, RefusalReason::RingUnreadable);
+        assert!(
+            refused[0].detail.starts_with("read as 40 but refused"),
+            "{}",
+            refused[0].detail
+        );
+    }
+
+    /// A number read at two targets of one image is kept by neither.
+    #[test]
+    fn a_number_read_twice_is_kept_by_neither() {
+        let mut targets = vec![
+            coded(10.0, 7, 0.01),
+            coded(40.0, 7, 0.01),
+            coded(70.0, 8, 0.01),
+        ];
+        let mut refused = Vec::new();
+        refuse_numbers_read_twice(&mut targets, &mut refused);
+        let ids: Vec<Option<u32>> = targets.iter().map(|t| t.id).collect();
+        assert_eq!(ids, [None, None, Some(8)]);
+        assert_eq!(refused.len(), 2);
+        assert!(refused
+            .iter()
+            .all(|r| r.reason == RefusalReason::NumberReadTwice));
+    }
+}

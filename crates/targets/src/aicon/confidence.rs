@@ -465,3 +465,32 @@ fn ring_fit(
     }
     (ss / (2 * edges.len()) as f64).sqrt() as f32
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The blur's spill is undone exactly: sector means made by the ring model α + β (M_ε x)
+    /// from a pattern x give back x, at every spill the model knows, and the fit finds α, β.
+    #[test]
+    fn the_sector_values_undo_the_blur_of_the_ring_model() {
+        let n = 14;
+        let mask: u32 = 0b10_1100_1110_0100;
+        let x = |k: usize| ((mask >> (k % n)) & 1) as f32;
+        for eps in SPILLS.into_iter().filter(|&e| e <= EPS_MAX) {
+            let (alpha, beta) = (-0.3f32, 0.7f32);
+            let y: Vec<f32> = (0..n)
+                .map(|k| {
+                    alpha + beta * ((1.0 - 2.0 * eps) * x(k) + eps * (x(k + n - 1) + x(k + 1)))
+                })
+                .collect();
+            let fit = fit_levels(&y, mask);
+            assert!((fit.alpha - alpha).abs() < 1e-5 && (fit.beta - beta).abs() < 1e-5);
+            assert_eq!(fit.eps, eps);
+            let v = sector_values(&y, &fit);
+            for k in 0..n {
+                assert!((v[k] - x(k)).abs() < 1e-4, "ε {eps}, sector {k}: {}", v[k]);
+            }
+        }
+    }
+}
