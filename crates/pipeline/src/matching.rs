@@ -706,7 +706,7 @@ pub fn add_points(
         a1 + a2 + a3,
         n1 + n2
     ));
-    let removed = super::network::coincident_coded(project, scene);
+    let removed = super::network::coincident_coded(project, dets, scene);
     if removed > 0 {
         rep.log(format!(
             "  {removed} coded point(s) removed: another coded point lies within its code ring"

@@ -74,7 +74,7 @@ pub fn initial_network(
         rep.log(format!("  {s}"));
     }
     let mut scene = scene;
-    let removed = coincident_coded(project, &mut scene);
+    let removed = coincident_coded(project, dets, &mut scene);
     if removed > 0 {
         rep.log(format!(
             "  {removed} coded point(s) removed: another coded point lies within its code ring"
@@ -595,26 +595,35 @@ pub fn log_blunders(
     }
 }
 
-/// Two coded points closer than the reach of a code ring (`ring_outer` dot radii) are one
-/// target read as two numbers: the measurements of the one with fewer are named blunders
-/// (misreads of the other's number) and it is removed; with as many, both go. Returns how
-/// many points were removed.
-pub fn coincident_coded(project: &Project, scene: &mut Scene) -> usize {
-    let t = &project.file.targets;
-    let reach = t.ring_outer * t.dot_radius_mm;
+/// Two coded points that the oriented images put on one target are one target read as two
+/// numbers: each projects, in an image where the other is measured, within the reach of that
+/// measurement's code ring (`ring_outer` times its dot's major semi-axis, in pixels, so that a
+/// network of any scale is judged alike). The measurements of the one read in fewer images are
+/// named blunders (misreads of the other's number) and it is removed; with as many, both go.
+/// Returns how many points were removed.
+pub fn coincident_coded(project: &Project, dets: &Detections, scene: &mut Scene) -> usize {
+    let ring = project.file.targets.ring_outer;
     let coded: Vec<(PointId, u32)> = (scene.points.ids())
         .filter_map(|j| match scene.points[j].kind {
             PointKind::Coded(n) => Some((j, n)),
             _ => None,
         })
         .collect();
+    // whether `q` projects within the ring's reach of a measurement of `p`
+    let near = |p: &ScenePoint, q: &ScenePoint| {
+        p.obs.iter().any(|&d| {
+            let t = dets.target(d);
+            scene
+                .project_into(d.image, &q.position)
+                .is_some_and(|uv| (uv.x - t.x).hypot(uv.y - t.y) < ring * t.ellipse.a)
+        })
+    };
     let mut gone: BTreeSet<PointId> = BTreeSet::new();
     let mut blunders = Vec::new();
     for (a, &(ja, na)) in coded.iter().enumerate() {
         for &(jb, nb) in &coded[a + 1..] {
             let (pa, pb) = (&scene.points[ja], &scene.points[jb]);
-            let d = (pa.position - pb.position).norm();
-            if d >= reach {
+            if !(near(pa, pb) && near(pb, pa)) {
                 continue;
             }
             let (la, lb) = (pa.obs.len(), pb.obs.len());
@@ -630,7 +639,7 @@ pub fn coincident_coded(project: &Project, scene: &mut Scene) -> usize {
                         number: n,
                         stage: "coincident numbers",
                         why: format!(
-                            "where target {other} is: the points of {n} and {other} are {d:.1} mm apart, less than a code ring ({reach:.1} mm), and {other} is read in {} images, {n} in {}",
+                            "where target {other} is: the images put {n} and {other} within a code ring of each other, and {other} is read in {} images, {n} in {}",
                             if n == na { lb } else { la },
                             p.obs.len()
                         ),
