@@ -656,3 +656,62 @@ pub fn coincident_coded(project: &Project, dets: &Detections, scene: &mut Scene)
     }
     gone.len()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::adjust::tests::{fixture, target};
+    use crate::scene::ImageDetections;
+    use pingcal_targets::ellipse::Ellipse;
+
+    /// Two coded points that the images put within a code ring of each other (3 dot radii: 9
+    /// px for these 3 px dots) are one target read as two numbers: the one read in fewer images
+    /// goes, its measurements named blunders; a point 20 px away stays.
+    #[test]
+    fn two_numbers_on_one_target_remove_the_one_read_less() {
+        let (project, _, mut scene) = fixture();
+        let in_view = |x: &Vector3<f64>| {
+            scene
+                .project_into(ImageId(0), x)
+                .is_some_and(|uv| uv.x > 10.0 && uv.x < 90.0 && uv.y > 10.0 && uv.y < 70.0)
+        };
+        let ahead = [
+            Vector3::new(0.0, 0.0, 1000.0),
+            Vector3::new(0.0, 1000.0, 0.0),
+        ]
+        .into_iter()
+        .find(in_view)
+        .expect("a point ahead of the camera");
+        // 500 px principal distance at 1000 mm: 0.5 px a mm across
+        let side = Vector3::new(1.0, 0.0, 0.0);
+        scene.points[PointId(0)].position = ahead;
+        scene.points[PointId(1)].position = ahead - 40.0 * side;
+        scene.points[PointId(2)].position = ahead + 10.0 * side;
+        let at = |i: usize, k: usize| {
+            let uv = scene
+                .project_into(ImageId(i.min(1)), &scene.points[PointId(k)].position)
+                .unwrap();
+            let mut t = target(uv.x, k as u32 + 1);
+            t.y = uv.y;
+            t.ellipse = Ellipse::circle(uv.x, uv.y, 3.0);
+            t
+        };
+        let dets: Detections = (0..3)
+            .map(|i| ImageDetections {
+                width: 100,
+                height: 80,
+                targets: (0..3).map(|k| at(i, k)).collect::<Vec<_>>().into(),
+                ball_fits: vec![None; 3].into(),
+            })
+            .collect::<Vec<_>>()
+            .into();
+        let removed = coincident_coded(&project, &dets, &mut scene);
+        assert_eq!(removed, 1);
+        let names: Vec<&str> = scene.points.iter().map(|p| p.name.as_str()).collect();
+        assert_eq!(names, ["1", "2"], "3 (two images) is 5 px from 1 (three)");
+        assert_eq!(scene.blunders.len(), 2, "both of 3's measurements");
+        assert!(scene.blunders.iter().all(|b| b.number == 3
+            && b.stage == "coincident numbers"
+            && b.why.contains("target 1")));
+    }
+}

@@ -488,8 +488,8 @@ mod tests {
             assert!((fit.alpha - alpha).abs() < 1e-5 && (fit.beta - beta).abs() < 1e-5);
             assert_eq!(fit.eps, eps);
             let v = sector_values(&y, &fit);
-            for k in 0..n {
-                assert!((v[k] - x(k)).abs() < 1e-4, "ε {eps}, sector {k}: {}", v[k]);
+            for (k, vk) in v[..n].iter().enumerate() {
+                assert!((vk - x(k)).abs() < 1e-4, "ε {eps}, sector {k}: {vk}");
             }
         }
     }
