@@ -18,6 +18,7 @@
 //! - [`ply`], [`xyz`], [`pcd`]: PLY (ascii/binary), text and PCD (ascii, binary,
 //!   binary_compressed through [`lzf`]) clouds; labelled point files.
 //! - [`sphere_fit`]: along-ray fixed-radius fit, orthogonal and free-radius fits, covariances.
+//! - [`clustering`]: Euclidean clusters with a link per point, in time bounded by the points.
 //! - [`ball_finder`]: planes removed, clusters, RANSAC with radius bounds, along-ray fit,
 //!   mixed-pixel rejection; balls with too few points are reported, not used.
 //! - [`registration`]: Horn/Umeyama closed form, weighted least squares with the covariances of
@@ -34,6 +35,7 @@ pub mod ball_finder;
 pub mod beam;
 pub mod cloud;
 pub mod cloud_file;
+pub mod clustering;
 pub mod corner;
 pub mod corner_baseline;
 pub mod correspondence;
