@@ -226,6 +226,20 @@ pub enum RangeNoise {
 /// σ 13.3 mm; VLP-16 ±30 mm "typical" → σ 10 mm.
 pub const NOISE_PROFILES: [&str; 4] = ["URG-04LX", "UTM-30LX", "UST-10LX", "VLP-16"];
 
+/// The longest range each sensor of [`NOISE_PROFILES`] reports, mm, in the same order (the
+/// datasheets' detection limit, beyond the guaranteed range): URG-04LX 5.6 m, UTM-30LX
+/// 60 m, UST-10LX 30 m, VLP-16 100 m.
+pub const PROFILE_MAX_RANGE_MM: [f64; 4] = [5600.0, 60_000.0, 30_000.0, 100_000.0];
+
+/// The longest range of the sensor of a named profile ([`PROFILE_MAX_RANGE_MM`]); `None`
+/// for an unknown name.
+pub fn profile_max_range_mm(name: &str) -> Option<f64> {
+    let key = |s: &str| s.to_ascii_uppercase().replace(['-', '_'], "");
+    let k = key(name);
+    let i = NOISE_PROFILES.iter().position(|n| key(n) == k)?;
+    Some(PROFILE_MAX_RANGE_MM[i])
+}
+
 impl Default for RangeNoise {
     fn default() -> Self {
         RangeNoise::urg_04lx()

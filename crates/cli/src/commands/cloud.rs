@@ -10,7 +10,8 @@
 use super::CmdResult;
 use pingcal_lrf::ball_finder::{find_balls, FinderOptions};
 use pingcal_lrf::cloud::{Cloud, MountModel};
-use pingcal_lrf::cloud_file::{extent_mm, read_cloud_file_in, CloudUnit};
+use pingcal_lrf::cloud_file::{extent_mm, file_kind, read_cloud_file_in, CloudFileKind, CloudUnit};
+use pingcal_lrf::sensor::{profile_max_range_mm, PROFILE_MAX_RANGE_MM};
 use pingcal_lrf::RangeNoise;
 use std::path::PathBuf;
 
@@ -41,6 +42,12 @@ pub struct Args {
     /// A linear range-noise profile σ = A + B·r (`A,B`: A in mm, B per mm of range).
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
     pub noise_sigma: Option<Vec<f64>>,
+    /// The sensor's longest range, mm: ranges beyond it are masked as no return and counted
+    /// in a warning. By default the named profile's sensor's for scan files (URG-04LX:
+    /// 5600; UTM-30LX 60000, UST-10LX 30000, VLP-16 100000) and none for clouds (PLY, PCD,
+    /// XYZ) or with `--noise-sigma`; given, it applies to every file.
+    #[arg(long)]
+    pub max_range_mm: Option<f64>,
     /// Seed of the RANSAC choices.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -184,11 +191,33 @@ pub fn run(args: Args) -> CmdResult {
             super::preflight::check_out_file(option, f)?;
         }
     }
+    if let Some(m) = args.max_range_mm {
+        if !(m > 0.0) {
+            return Err(
+                format!("--max-range-mm: expected a positive range in mm, found {m}").into(),
+            );
+        }
+    }
+    let profile_max = match (&args.noise, &args.noise_sigma) {
+        (Some(n), _) => profile_max_range_mm(n),
+        (None, Some(_)) => None,
+        (None, None) => Some(PROFILE_MAX_RANGE_MM[0]),
+    };
     let mut cloud = Cloud::default();
     for f in &args.scans {
-        let (c, warnings) = read_cloud_file_in(f, &mount, args.unit)?;
+        let (mut c, warnings) = read_cloud_file_in(f, &mount, args.unit)?;
         for w in warnings {
             eprintln!("pingcal: warning: {w}");
+        }
+        let scans = file_kind(f) == CloudFileKind::Scans;
+        if let Some(max) = args.max_range_mm.or(profile_max.filter(|_| scans)) {
+            let n = c.mask_beyond(max);
+            if n > 0 {
+                eprintln!(
+                    "pingcal: warning: {}: {n} range(s) beyond the sensor's {max} mm masked as no return (--max-range-mm to change)",
+                    f.display()
+                );
+            }
         }
         cloud.extend(c);
     }
