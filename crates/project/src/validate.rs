@@ -11,7 +11,7 @@ use crate::schema::{
     ProjectBag, ProjectBalls, ProjectCamera, ProjectDistance, ProjectFile, ProjectFrames,
     ProjectImage, ProjectLrf, ProjectNetwork, ProjectStereo, ProjectTargets,
 };
-use crate::ProjectError;
+use crate::{MountParameter, ProjectError};
 use std::collections::{BTreeMap, BTreeSet};
 
 /// Camera ids of `[[cameras]]`.
@@ -127,6 +127,12 @@ fn validate_balls(b: &ProjectBalls) -> Result<(), String> {
     }
     let mut seen = BTreeSet::new();
     for l in &b.labels {
+        if l.id.trim().is_empty() {
+            return Err(format!(
+                "[balls] labels: an id is empty (at x = {}, y = {}): expected the ball's name, e.g. \"B1\"",
+                l.x, l.y
+            ));
+        }
         if !seen.insert(l.id.as_str()) {
             return Err(format!("[balls] labels: id '{}' appears twice", l.id));
         }
@@ -190,7 +196,81 @@ fn validate_camera(c: &ProjectCamera) -> Result<(), String> {
     if c.initial.to_slice().iter().any(|v| !v.is_finite()) {
         return Err("an initial parameter is not finite".into());
     }
+    plausible_initial(c)
+}
+
+/// The initial values of a camera that some lens could have: a principal distance under
+/// [`MAX_C_PER_DIAGONAL`] sensor diagonals, the principal point on the sensor, a distortion
+/// that moves the sensor's corner by less than its distance from the centre, and an
+/// affinity and shear under [`MAX_AFFINITY`]. Each bound is named in the error.
+fn plausible_initial(c: &ProjectCamera) -> Result<(), String> {
+    let p = &c.initial;
+    let (w, h) = (
+        c.width as f64 * c.pixel_size_mm,
+        c.height as f64 * c.pixel_size_mm,
+    );
+    let diag = w.hypot(h);
+    if !(p.c_mm <= MAX_C_PER_DIAGONAL * diag) {
+        return Err(format!(
+            "initial c_mm = {}: more than {MAX_C_PER_DIAGONAL} times the sensor's diagonal ({diag:.3} mm)",
+            short(p.c_mm)
+        ));
+    }
+    if !(p.xp_mm.abs() <= w / 2.0 && p.yp_mm.abs() <= h / 2.0) {
+        return Err(format!(
+            "initial xp_mm = {}, yp_mm = {}: the principal point must lie on the sensor (±{:.3}, ±{:.3} mm)",
+            short(p.xp_mm),
+            short(p.yp_mm),
+            w / 2.0,
+            h / 2.0
+        ));
+    }
+    // the displacement at the corner, r = half the diagonal, bounded term by term
+    let r = diag / 2.0;
+    let terms = [
+        ("k1", p.k1, r.powi(3)),
+        ("k2", p.k2, r.powi(5)),
+        ("k3", p.k3, r.powi(7)),
+        ("p1", p.p1, 3.0 * r * r),
+        ("p2", p.p2, 3.0 * r * r),
+    ];
+    let shift: f64 = terms.iter().map(|(_, k, f)| k.abs() * f).sum();
+    if !(shift < r) {
+        let (name, k, _) = terms
+            .iter()
+            .max_by(|a, b| (a.1.abs() * a.2).total_cmp(&(b.1.abs() * b.2)))
+            .expect("five terms");
+        return Err(format!(
+            "initial {name} = {}: the distortion would move the sensor's corner by {} mm, more than its {r:.3} mm from the centre (K in mm⁻², mm⁻⁴, mm⁻⁶; P in mm⁻¹)",
+            short(*k),
+            short(shift)
+        ));
+    }
+    for (name, b) in [("b1", p.b1), ("b2", p.b2)] {
+        if !(b.abs() <= MAX_AFFINITY) {
+            return Err(format!(
+                "initial {name} = {}: an affinity or shear beyond ±{MAX_AFFINITY}",
+                short(b)
+            ));
+        }
+    }
     Ok(())
+}
+
+/// A principal distance beyond this many sensor diagonals is no lens (a 600 mm lens on a
+/// 43 mm full-frame diagonal is 14).
+const MAX_C_PER_DIAGONAL: f64 = 100.0;
+
+/// The largest affinity or shear (B1, B2) of a camera's initial values.
+const MAX_AFFINITY: f64 = 0.5;
+
+/// `v` as written for a message: plainly, or in e-notation when it is huge or tiny.
+fn short(v: f64) -> String {
+    if v != 0.0 && !(1e-4..1e9).contains(&v.abs()) {
+        format!("{v:e}")
+    } else {
+        format!("{v}")
+    }
 }
 
 /// `[stereo]`: two different cameras of `[[cameras]]`.
@@ -377,6 +457,18 @@ fn validate_lrf(l: &ProjectLrf, main_station: &str) -> Result<(), String> {
         return Err(format!(
             "[lrf] servo_resolution_deg = {}: expected the servo encoder's step in degrees, over 0 and at most 10",
             l.servo_resolution_deg
+        ));
+    }
+    if let Some(p) = (l.self_calibrate.iter().flatten()).find(|p| **p == MountParameter::OffsetY) {
+        let estimable: Vec<&str> = MountParameter::ALL
+            .iter()
+            .filter(|q| **q != MountParameter::OffsetY)
+            .map(|q| q.as_str())
+            .collect();
+        return Err(format!(
+            "[lrf] self_calibrate: \"{}\" is the LRF frame's origin along the servo axis, one with the extrinsic's translation: it is never estimated (estimable: {})",
+            p.as_str(),
+            estimable.join(", ")
         ));
     }
     if l.mount_offset_mm.iter().any(|v| !v.is_finite())

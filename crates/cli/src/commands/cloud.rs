@@ -106,21 +106,16 @@ pub fn read_lrf_model(path: &std::path::Path) -> Result<MountModel, String> {
     }
     let m: MountModel = serde_json::from_value(block.clone())
         .map_err(|e| format!("{}: lrf_model: {e}", path.display()))?;
-    let values = m.to_params();
-    if !(values.iter().all(|v| v.is_finite()) && m.servo_zero_deg.is_finite()) {
-        return Err(format!(
-            "{}: lrf_model: every value must be a finite number",
-            path.display()
-        ));
-    }
-    if !(m.servo_scale.abs() < 0.5 && m.range_scale.abs() < 0.5) {
-        return Err(format!(
-            "{}: lrf_model: servo_scale {} / range_scale {}: expected scale errors, small fractions",
-            path.display(),
-            m.servo_scale,
-            m.range_scale
-        ));
-    }
+    m.check([
+        "offset_mm",
+        "tilt_x_deg",
+        "tilt_z_deg",
+        "servo_zero_deg",
+        "servo_scale",
+        "range_offset_mm",
+        "range_scale",
+    ])
+    .map_err(|e| format!("{}: lrf_model: {e}", path.display()))?;
     Ok(m)
 }
 
@@ -174,6 +169,15 @@ pub fn run(args: Args) -> CmdResult {
             range_scale: args.range_scale,
         },
     };
+    mount.check([
+        "--mount-offset-mm",
+        "--tilt-x-deg",
+        "--tilt-z-deg",
+        "--servo-zero-deg",
+        "--servo-scale",
+        "--range-offset-mm",
+        "--range-scale",
+    ])?;
     let noise = match (&args.noise, &args.noise_sigma) {
         (Some(n), _) => RangeNoise::named(n).map_err(|e| format!("--noise: {e}"))?,
         (None, Some(v)) if v.len() == 2 => {

@@ -44,6 +44,23 @@ fn beyond(max_range_mm: f64) -> String {
     format!("beyond the sensor's [lrf] max_range_mm = {max_range_mm}")
 }
 
+/// Refuses a mount of `[lrf]` beyond the bounds of any mount ([`MountModel::check`]), before
+/// any work: a value such as 1e308 would otherwise run the whole pipeline into an unrelated
+/// failure.
+pub fn check_mount(project: &Project) -> Result<()> {
+    mount_of(project)
+        .check([
+            "mount_offset_mm",
+            "mount_tilt_x_deg",
+            "mount_tilt_z_deg",
+            "servo_zero_deg",
+            "servo_scale",
+            "range_offset_mm",
+            "range_scale",
+        ])
+        .map_err(|e| PipelineError::new(format!("{}: [lrf] {e}", project.path.display())))
+}
+
 /// The mount model of the project.
 pub fn mount_of(project: &Project) -> MountModel {
     let l = &project.file.lrf;
