@@ -344,7 +344,7 @@ fn ascii_record(line: &str, el: &Element, out: &mut Vec<f64>) -> std::result::Re
             Prop::Scalar(_) => out.push(number(name)?),
             Prop::List(..) => {
                 let n = number(name)?;
-                if !(n >= 0.0 && n <= MAX_LIST && n.fract() == 0.0) {
+                if !((0.0..=MAX_LIST).contains(&n) && n.fract() == 0.0) {
                     return Err(format!("{name}: list length {n} is not a count"));
                 }
                 for _ in 0..n as usize {
@@ -383,7 +383,7 @@ fn binary_record<R: Read>(
             Prop::Scalar(s) => out.push(read(s, input)?),
             Prop::List(c, t) => {
                 let n = read(c, input)?;
-                if !(n >= 0.0 && n <= MAX_LIST) {
+                if !(0.0..=MAX_LIST).contains(&n) {
                     return Err(Some(format!("{name}: list length {n} is not a count")));
                 }
                 let bytes = n as u64 * t.size() as u64;
