@@ -1677,3 +1677,61 @@ fn headers_that_disagree_with_their_data_are_refused() {
         fails(&run, &[s(&f), &needle]);
     }
 }
+
+/// Issue 39: `pingcal cloud` on a real VLP-16 frame of a 600 mm sphere with the default
+/// 38 mm diameter finds nothing of 38 mm, and says that a sphere of about 600 mm is evident,
+/// where the 600 mm run finds it (the time: bench/bounded).
+#[test]
+fn a_sphere_of_another_size_is_named_when_the_nominal_finds_nothing() {
+    let frame = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/data/spherecalib-vlp16/scans/L1_S1.xyz");
+    if !frame.exists() {
+        println!("skipped: {} is absent", frame.display());
+        return;
+    }
+    let w = Work::new("evident_sphere");
+    let args = ["cloud", s(&frame), "--unit", "m", "--noise", "VLP-16"];
+    let run = w.run(&args);
+    warns(
+        &run,
+        &[
+            "no ball of 38 mm found",
+            "spheres of another size are evident: ",
+        ],
+    );
+    let line = run.stderr.lines().find(|l| l.contains("evident")).unwrap();
+    let first = line.split("evident: ").nth(1).unwrap();
+    let d: f64 = first.split(" mm").next().unwrap().parse().unwrap();
+    assert!((d - 600.0).abs() <= 0.1 * 600.0, "{line}");
+    let at: Vec<f64> = first
+        .split("at (")
+        .nth(1)
+        .unwrap()
+        .split(')')
+        .next()
+        .unwrap()
+        .split(", ")
+        .map(|v| v.parse().unwrap())
+        .collect();
+    let mut full = args.to_vec();
+    full.extend(["--diameter-mm", "600", "--why"]);
+    let run = w.run(&full);
+    let ball = run
+        .stdout
+        .lines()
+        .find(|l| l.starts_with("ball L1: ("))
+        .expect("the 600 mm ball");
+    let c: Vec<f64> = ball["ball L1: (".len()..]
+        .split(')')
+        .next()
+        .unwrap()
+        .split(", ")
+        .map(|v| v.parse().unwrap())
+        .collect();
+    let dist = (0..3).map(|k| (c[k] - at[k]).powi(2)).sum::<f64>().sqrt();
+    // the free size's fixed-radius fit against the nominal's: within their radii's difference
+    assert!(
+        dist <= (d / 2.0 - 300.0).abs() + 10.0,
+        "{line} against {ball}"
+    );
+}

@@ -241,6 +241,32 @@ pub fn run(args: Args) -> CmdResult {
         ..Default::default()
     };
     let found = find_balls(&cloud, &opt);
+    if found.balls.is_empty() {
+        let evident = pingcal_lrf::sphere_size::evident_spheres(&cloud, &opt);
+        if let Some(best) = evident.first() {
+            let all: Vec<String> = evident
+                .iter()
+                .map(|e| {
+                    let b = &e.found.balls[0];
+                    format!(
+                        "{:.0} mm ({} ball(s), the first at ({:.0}, {:.0}, {:.0}) mm on {} rays)",
+                        e.diameter_mm,
+                        e.found.balls.len(),
+                        b.centre.x,
+                        b.centre.y,
+                        b.centre.z,
+                        b.inliers.len()
+                    )
+                })
+                .collect();
+            eprintln!(
+                "pingcal: warning: no ball of {} mm found, but spheres of another size are evident: {}: --diameter-mm {:.0}?",
+                args.diameter_mm,
+                all.join("; "),
+                best.diameter_mm
+            );
+        }
+    }
     if let Some(out) = &args.out {
         let comments = vec![format!(
             "pingcal cloud: {} points, {} balls of {} mm",
