@@ -517,6 +517,21 @@ fn implausible_values_are_refused_with_the_bound() {
     let mut p = ProjectFile::parse(&readme_example(), "example.toml").unwrap();
     p.cameras[0].initial.k1 = -0.02;
     p.validate("p.toml").unwrap();
+    let e = err_of(|p| p.targets.dot_radius_mm = 1e300);
+    assert!(
+        e.contains("[targets] dot_radius_mm = 1e300: beyond the bound of 1e6 mm"),
+        "{e}"
+    );
+    let e = err_of(|p| p.distances[0].distance_mm = 2e6);
+    assert!(
+        e.contains("distance_mm = 2000000: beyond the bound of 1e6 mm"),
+        "{e}"
+    );
+    let e = err_of(|p| p.lrf.accuracy_far_fraction = 3.0);
+    assert!(
+        e.contains("[lrf] accuracy_far_fraction = 3: beyond the bound of 1e0"),
+        "{e}"
+    );
     let e = err_of(|p| p.balls.labels[0].id = String::new());
     assert!(e.contains("[balls] labels: an id is empty"), "{e}");
     let e = err_of(|p| p.lrf.self_calibrate = Some(vec![MountParameter::OffsetY]));

@@ -113,7 +113,19 @@ fn validate_targets(t: &ProjectTargets) -> Result<(), String> {
             t.layout_sigma_mm
         ));
     }
-    Ok(())
+    at_most(
+        "[targets] dot_radius_mm",
+        t.dot_radius_mm,
+        MAX_LENGTH_MM,
+        " mm",
+    )?;
+    at_most("[targets] ring_outer", t.ring_outer, 1000.0, " dot radii")?;
+    at_most(
+        "[targets] layout_sigma_mm",
+        t.layout_sigma_mm,
+        MAX_LENGTH_MM,
+        " mm",
+    )
 }
 
 /// `[balls]`: a positive diameter, labels with unique ids and finite positions, check balls
@@ -125,6 +137,7 @@ fn validate_balls(b: &ProjectBalls) -> Result<(), String> {
             b.diameter_mm
         ));
     }
+    at_most("[balls] diameter_mm", b.diameter_mm, MAX_LENGTH_MM, " mm")?;
     let mut seen = BTreeSet::new();
     for l in &b.labels {
         if l.id.trim().is_empty() {
@@ -139,6 +152,9 @@ fn validate_balls(b: &ProjectBalls) -> Result<(), String> {
         if !(l.x.is_finite() && l.y.is_finite()) {
             return Err(format!("[balls] labels: '{}' has no finite position", l.id));
         }
+        let label = format!("[balls] labels: '{}' x", l.id);
+        at_most(&label, l.x.abs(), MAX_PIXELS, " px")?;
+        at_most(&label.replace("' x", "' y"), l.y.abs(), MAX_PIXELS, " px")?;
     }
     let mut checks = BTreeSet::new();
     if let Some(c) = b.check.iter().find(|c| !checks.insert(c.as_str())) {
@@ -175,9 +191,9 @@ fn validate_cameras(cameras: &[ProjectCamera]) -> Result<CameraIds<'_>, String> 
 /// One camera: an image size, a pixel pitch in mm, a positive principal distance and finite
 /// initial values.
 fn validate_camera(c: &ProjectCamera) -> Result<(), String> {
-    if c.width < 16 || c.height < 16 {
+    if c.width < 16 || c.height < 16 || f64::from(c.width.max(c.height)) > MAX_PIXELS {
         return Err(format!(
-            "{}×{} pixels is not an image size",
+            "{}×{} pixels is not an image size (16 to {MAX_PIXELS:e} a side)",
             c.width, c.height
         ));
     }
@@ -257,6 +273,26 @@ fn plausible_initial(c: &ProjectCamera) -> Result<(), String> {
     Ok(())
 }
 
+/// The longest length a project may give, mm (1 km): a target, a ball, a distance, a
+/// baseline, an LRF range or σ beyond it is no part of a calibration field (a value in the
+/// wrong unit, or a corrupt one).
+const MAX_LENGTH_MM: f64 = 1e6;
+
+/// The largest image side and pixel coordinate a project may give.
+const MAX_PIXELS: f64 = 1e5;
+
+/// Refuses `value` of `key` above `max`, naming the bound (`unit` after the numbers).
+fn at_most(key: &str, value: f64, max: f64, unit: &str) -> Result<(), String> {
+    if value <= max {
+        Ok(())
+    } else {
+        Err(format!(
+            "{key} = {}: beyond the bound of {max:e}{unit} (a value in the wrong unit?)",
+            short(value)
+        ))
+    }
+}
+
 /// A principal distance beyond this many sensor diagonals is no lens (a 600 mm lens on a
 /// 43 mm full-frame diagonal is 14).
 const MAX_C_PER_DIAGONAL: f64 = 100.0;
@@ -289,6 +325,7 @@ fn validate_stereo(s: &ProjectStereo, cameras: &CameraIds) -> Result<(), String>
             s.baseline_mm
         ));
     }
+    at_most("[stereo] baseline_mm", s.baseline_mm, MAX_LENGTH_MM, " mm")?;
     Ok(())
 }
 
@@ -362,6 +399,13 @@ fn validate_distances(distances: &[ProjectDistance]) -> Result<(), String> {
                 d.sigma_mm
             ));
         }
+        at_most(
+            &format!("{at}: distance_mm"),
+            d.distance_mm,
+            MAX_LENGTH_MM,
+            " mm",
+        )?;
+        at_most(&format!("{at}: sigma_mm"), d.sigma_mm, MAX_LENGTH_MM, " mm")?;
     }
     Ok(())
 }
@@ -426,6 +470,8 @@ fn validate_lrf(l: &ProjectLrf, main_station: &str) -> Result<(), String> {
                 "[lrf] noise_sigma_mm = [{a}, {b}]: expected a > 0 mm and b >= 0"
             ));
         }
+        at_most("[lrf] noise_sigma_mm a", a, MAX_LENGTH_MM, " mm")?;
+        at_most("[lrf] noise_sigma_mm b", b, 1.0, " (of the range)")?;
     }
     if let Some(u) = &l.cloud_unit {
         if u != "m" && u != "mm" {
@@ -447,6 +493,19 @@ fn validate_lrf(l: &ProjectLrf, main_station: &str) -> Result<(), String> {
                 .into(),
         );
     }
+    at_most("[lrf] max_range_mm", l.max_range_mm, MAX_LENGTH_MM, " mm")?;
+    at_most(
+        "[lrf] accuracy_near_mm",
+        l.accuracy_near_mm,
+        MAX_LENGTH_MM,
+        " mm",
+    )?;
+    at_most(
+        "[lrf] accuracy_far_fraction",
+        l.accuracy_far_fraction,
+        1.0,
+        "",
+    )?;
     if !(l.max_range_mm >= MIN_MAX_RANGE_MM) {
         return Err(format!(
             "[lrf] max_range_mm = {}: expected the sensor's maximum range in mm (at least {MIN_MAX_RANGE_MM}; a value in metres?)",

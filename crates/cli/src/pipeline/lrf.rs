@@ -18,7 +18,7 @@ use pingcal_lrf::cloud_file::{
 };
 use pingcal_lrf::scan::{mask_lines_beyond, open_scan_file, ScanHeader, ScanLine};
 use pingcal_lrf::sensor::RangeNoise;
-use pingcal_project::{Project, ProjectBag};
+use pingcal_project::{Project, ProjectBag, ProjectLrf};
 use pingcal_rosbag::assemble::{assemble, servo_series, ServoSource, Topics};
 
 /// Rejected clusters smaller than this are counted, not listed one by one (a 38 mm ball
@@ -48,7 +48,13 @@ fn beyond(max_range_mm: f64) -> String {
 /// any work: a value such as 1e308 would otherwise run the whole pipeline into an unrelated
 /// failure.
 pub fn check_mount(project: &Project) -> Result<()> {
-    mount_of(project)
+    check_lrf_mount(&project.file.lrf)
+        .map_err(|e| PipelineError::new(format!("{}: {e}", project.path.display())))
+}
+
+/// [`check_mount`] of an `[lrf]` table: the error names the entry, not the file.
+pub fn check_lrf_mount(l: &ProjectLrf) -> std::result::Result<(), String> {
+    mount_of_lrf(l)
         .check([
             "mount_offset_mm",
             "mount_tilt_x_deg",
@@ -58,12 +64,16 @@ pub fn check_mount(project: &Project) -> Result<()> {
             "range_offset_mm",
             "range_scale",
         ])
-        .map_err(|e| PipelineError::new(format!("{}: [lrf] {e}", project.path.display())))
+        .map_err(|e| format!("[lrf] {e}"))
 }
 
 /// The mount model of the project.
 pub fn mount_of(project: &Project) -> MountModel {
-    let l = &project.file.lrf;
+    mount_of_lrf(&project.file.lrf)
+}
+
+/// The mount model of an `[lrf]` table.
+fn mount_of_lrf(l: &ProjectLrf) -> MountModel {
     MountModel {
         offset_mm: l.mount_offset_mm,
         tilt_x_deg: l.mount_tilt_x_deg,
