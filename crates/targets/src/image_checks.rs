@@ -7,7 +7,7 @@
 //! naming what disagrees, and refuse an image too large to hold before anything is
 //! allocated, naming its size:
 //!
-//! - **size**: at most [`MAX_SIDE`] pixels a side and [`MAX_PIXELS`] pixels (the grey `f32`
+//! - **size**: at most 40000 pixels a side and [`MAX_PIXELS`] pixels (the grey `f32`
 //!   copy of [`GrayImage`](crate::GrayImage) within the decoders' 1 GiB);
 //! - **PNG**: the IDAT chunks inflate to exactly the bytes the IHDR's size, depth, colour type
 //!   and interlacing take (inflated as they stream by, 96 kB of memory, stopping as soon as
@@ -26,7 +26,7 @@ use std::io::Read;
 /// The most pixels an image may have: its grey `f32` copy within the decoders' limit.
 pub const MAX_PIXELS: u64 = MAX_ALLOC / 4;
 
-/// Refuses a `width` × `height` image beyond [`MAX_SIDE`] or [`MAX_PIXELS`], naming its size.
+/// Refuses a `width` × `height` image beyond 40000 pixels a side or [`MAX_PIXELS`], naming its size.
 pub fn check_size(width: u64, height: u64) -> Result<(), String> {
     let pixels = width.saturating_mul(height);
     if width > u64::from(MAX_SIDE) || height > u64::from(MAX_SIDE) || pixels > MAX_PIXELS {
