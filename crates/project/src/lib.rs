@@ -17,13 +17,17 @@
 //! The README's section "The project file" has a complete, commented example; the tests
 //! of this crate parse and validate that very text, so it cannot drift.
 
+#[macro_use]
 mod closed_sets;
+pub mod camera_file;
 mod layout;
 mod parse;
 mod schema;
 pub mod sphere_calib;
 mod validate;
+pub mod yaml;
 
+pub use camera_file::{CameraFile, CameraFileModel, CameraFormat, Intrinsics};
 pub use closed_sets::{CameraModel, Method, MountParameter, Parameter, TargetFamily};
 pub use layout::{Layout, LayoutError};
 pub use schema::{
@@ -31,7 +35,7 @@ pub use schema::{
     ProjectFrames, ProjectImage, ProjectLrf, ProjectNetwork, ProjectStereo, ProjectTargets,
     PARAMETER_NAMES,
 };
-pub use sphere_calib::{CameraFile, SphereCalibFile, SphereCalibFrame, SphereCalibLidar};
+pub use sphere_calib::{SphereCalibFile, SphereCalibFrame, SphereCalibLidar};
 
 use std::path::{Path, PathBuf};
 

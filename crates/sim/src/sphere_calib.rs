@@ -393,13 +393,12 @@ impl SphereCalibSim {
 
     /// The camera file of the data set (the true intrinsics).
     pub fn camera_file(&self) -> CameraFile {
-        CameraFile {
-            model: pingcal_project::CameraModel::Photogrammetric,
-            width: self.camera.model.width,
-            height: self.camera.model.height,
-            pixel_size_mm: self.camera.model.pixel_size_mm,
-            params: pingcal_project::CameraParams::from_slice(&self.camera.params),
-        }
+        CameraFile::photogrammetric(
+            self.camera.model.width,
+            self.camera.model.height,
+            self.camera.model.pixel_size_mm,
+            pingcal_project::CameraParams::from_slice(&self.camera.params),
+        )
     }
 
     fn frame_files(k: usize) -> (String, String, String) {
@@ -413,6 +412,7 @@ impl SphereCalibSim {
             version: 1,
             name: Some(format!("simulated sphere calibration, seed {}", self.seed)),
             camera: "camera.toml".into(),
+            camera_entry: None,
             sphere_diameter_mm: 2.0 * self.config.sphere_radius_mm,
             lidar: SphereCalibLidar {
                 unit: "m".into(),
