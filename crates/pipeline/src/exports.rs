@@ -28,7 +28,7 @@
 use super::rectify::{stereo_cv, CvCamera, StereoCv};
 use super::results::{CameraJson, ExtrinsicJson, Results, RigJson};
 use nalgebra::{DMatrix, DVector, Matrix3, Matrix3x4, Vector2, Vector3};
-use pingcal_ba::camera::PhotogrammetricCamera;
+use pingcal_ba::camera::{CameraModel, PhotogrammetricCamera};
 use pingcal_lrf::MountModel;
 use serde::Serialize;
 use std::fmt::Write;
@@ -121,6 +121,29 @@ pub fn grid_rays(c: &CameraJson) -> GridRays {
             Some(ideal) => {
                 out.pixels.push(uv);
                 out.rays.push(Vector2::new(ideal.x / p[0], -ideal.y / p[0]));
+            }
+            None => out.missed += 1,
+        }
+    }
+    out
+}
+
+/// [`GridRays`] of any camera model (`model` with `params`, a `width × height` image): each
+/// grid pixel's ray by the model's own `unproject`, as OpenCV's normalised image
+/// coordinates `(X/Y, −Z/Y)`; pixels it cannot unproject, or whose ray is not in front, are
+/// left out and counted.
+pub fn grid_rays_of(model: &dyn CameraModel, params: &[f64], width: u32, height: u32) -> GridRays {
+    let mut out = GridRays {
+        grid: loss_grid(width, height),
+        pixels: Vec::new(),
+        rays: Vec::new(),
+        missed: 0,
+    };
+    for uv in grid_pixels(width, height) {
+        match model.unproject(params, &uv).filter(|r| r.y > 0.0) {
+            Some(r) => {
+                out.pixels.push(uv);
+                out.rays.push(Vector2::new(r.x / r.y, -r.z / r.y));
             }
             None => out.missed += 1,
         }
@@ -279,19 +302,24 @@ fn fit_radtan(g: &GridRays, k0: &[f64; 4], all: bool) -> Option<([f64; 4], [f64;
 /// largest loss by a hundredth of a pixel or more (else they stay OpenCV's, those of the
 /// other files).
 pub fn export_loss(c: &CameraJson) -> ExportLoss {
-    let g = grid_rays(c);
+    export_loss_over(c, &grid_rays(c))
+}
+
+/// [`export_loss`] over the rays `g` of the camera's whole model (for a camera given in
+/// another model than pingcal's photogrammetric one, [`grid_rays_of`]).
+pub fn export_loss_over(c: &CameraJson, g: &GridRays) -> ExportLoss {
     let o = &c.opencv;
     let k = [o.fx, o.fy, o.cx, o.cy];
-    let opencv = Loss::of(&g, &k, &o.dist);
+    let opencv = Loss::of(g, &k, &o.dist);
     let radtan = |k: [f64; 4], coeffs: [f64; 4], refit: bool| RadtanFit {
         intrinsics: k,
         coeffs,
         intrinsics_refit: refit,
-        loss: Loss::of(&g, &k, &[coeffs[0], coeffs[1], coeffs[2], coeffs[3], 0.0]),
+        loss: Loss::of(g, &k, &[coeffs[0], coeffs[1], coeffs[2], coeffs[3], 0.0]),
     };
     let dropped = radtan(k, [o.dist[0], o.dist[1], o.dist[2], o.dist[3]], false);
-    let fixed = fit_radtan(&g, &k, false).map(|(k, cf)| radtan(k, cf, false));
-    let free = fit_radtan(&g, &k, true).map(|(k, cf)| radtan(k, cf, true));
+    let fixed = fit_radtan(g, &k, false).map(|(k, cf)| radtan(k, cf, false));
+    let free = fit_radtan(g, &k, true).map(|(k, cf)| radtan(k, cf, true));
     let kalibr = match (fixed, free) {
         (Some(a), Some(b)) if b.loss.max_px <= a.loss.max_px - 0.01 => b,
         (Some(a), _) => a,

@@ -94,6 +94,42 @@ fn main() {
             }
         }
         for f in &fits {
+            if std::env::var("SILHOUETTE_DEBUG").is_ok() && f.radius_px > 100.0 {
+                // mean radial offset of the edge points from the fitted outline, per 30° sector
+                let mut sec = [(0.0f64, 0usize); 12];
+                for &(x, y) in &f.edges {
+                    let (dx, dy) = (x - f.image_centre.0, y - f.image_centre.1);
+                    let a = dy.atan2(dx).to_degrees().rem_euclid(360.0);
+                    let k = (a / 30.0) as usize % 12;
+                    let rr = dx.hypot(dy);
+                    // the outline's radius in that direction
+                    let ro = f
+                        .outline
+                        .iter()
+                        .map(|o| (o.0 - f.image_centre.0, o.1 - f.image_centre.1))
+                        .min_by(|p, q| {
+                            let ap = (p.1.atan2(p.0) - dy.atan2(dx)).sin().abs();
+                            let aq = (q.1.atan2(q.0) - dy.atan2(dx)).sin().abs();
+                            ap.total_cmp(&aq)
+                        })
+                        .map_or(0.0, |o| o.0.hypot(o.1));
+                    sec[k].0 += rr - ro;
+                    sec[k].1 += 1;
+                }
+                println!(
+                    "  radial offsets by sector (0° = right, 90° = down): {}",
+                    sec.iter()
+                        .enumerate()
+                        .map(|(k, (s, n))| format!(
+                            "{}°:{:+.2}({})",
+                            k * 30,
+                            s / (*n).max(1) as f64,
+                            n
+                        ))
+                        .collect::<Vec<_>>()
+                        .join(" ")
+                );
+            }
             println!(
                 "  fit: image centre ({:.2}, {:.2}), r {:.2} px, centre ({:.1}, {:.1}, {:.1}) mm ± ({:.1}, {:.1}, {:.1}), coverage {:.2}, visible {:.2}, rms {:.3} px, blur {:.2} px, {} edges, {} rejected",
                 f.image_centre.0,
@@ -119,6 +155,20 @@ fn main() {
                 .map_or("image".into(), |s| s.to_string_lossy().into_owned());
             let out = std::path::Path::new(dir).join(format!("{name}_silhouette.png"));
             let d = drawing(&img, &cands, &fits);
+            if let Ok(z) = std::env::var("SILHOUETTE_ZOOM") {
+                // x,y,size: that square of the drawing, enlarged 4 times
+                let v: Vec<u32> = z.split(',').filter_map(|t| t.parse().ok()).collect();
+                if v.len() == 3 {
+                    let crop = image::imageops::crop_imm(&d, v[0], v[1], v[2], v[2]).to_image();
+                    let big = image::imageops::resize(
+                        &crop,
+                        4 * v[2],
+                        4 * v[2],
+                        image::imageops::FilterType::Nearest,
+                    );
+                    let _ = big.save(std::path::Path::new(dir).join(format!("{name}_zoom.png")));
+                }
+            }
             d.save(&out)
                 .unwrap_or_else(|e| eprintln!("{}: {e}", out.display()));
             // each fit's neighbourhood at full resolution

@@ -269,8 +269,6 @@ fn write_partial(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
 /// leaves the outputs of an earlier run as they were. `lock`: the folder's, taken before
 /// the run began (a second run into it is refused before any work).
 pub fn write_outputs(lock: &result_set::FolderLock, outcome: &Outcome) -> CmdResult {
-    let dir = lock.dir();
-    std::fs::create_dir_all(dir).map_err(|e| format!("{}: cannot create: {e}", dir.display()))?;
     let json = serde_json::to_string_pretty(&outcome.results)? + "\n";
     let html = pingcal_report::render_html(&outcome.report);
     let mut set: Vec<result_set::SetFile> = outcome
@@ -284,7 +282,16 @@ pub fn write_outputs(lock: &result_set::FolderLock, outcome: &Outcome) -> CmdRes
     set.push(("cloud.ply".into(), &outcome.cloud_ply));
     set.push(("report.html".into(), html.as_bytes()));
     set.push(("results.json".into(), json.as_bytes()));
-    if result_set::swap_in(dir, &set)? {
+    write_set(lock, &set)
+}
+
+/// Writes the result set `set` (paths below the output folder, `results.json` last) into
+/// the folder of `lock`, all or none, as [`write_outputs`] says; PNGs of `overlays/` that
+/// the set does not hold are removed (an earlier run's, which would pass for this one's).
+pub fn write_set(lock: &result_set::FolderLock, set: &[result_set::SetFile]) -> CmdResult {
+    let dir = lock.dir();
+    std::fs::create_dir_all(dir).map_err(|e| format!("{}: cannot create: {e}", dir.display()))?;
+    if result_set::swap_in(dir, set)? {
         return Ok(());
     }
     let mut files: Vec<(PathBuf, &[u8])> = set.iter().map(|(rel, b)| (dir.join(rel), *b)).collect();
@@ -306,18 +313,15 @@ pub fn write_outputs(lock: &result_set::FolderLock, outcome: &Outcome) -> CmdRes
         std::fs::rename(partial(path), path)
             .map_err(|e| format!("{}: cannot write: {e}", path.display()))?;
     }
-    remove_stale_overlays(dir, outcome);
+    remove_stale_overlays(dir, set);
     Ok(())
 }
 
-/// Removes the PNGs of `dir/overlays/` that this run did not write: those of images an
+/// Removes the PNGs of `dir/overlays/` that `set` does not hold: those of images an
 /// earlier run had and this one has not, which would otherwise pass for this run's.
-fn remove_stale_overlays(dir: &Path, outcome: &Outcome) {
-    let ours: std::collections::BTreeSet<PathBuf> = outcome
-        .overlays
-        .iter()
-        .map(|(rel, _)| dir.join(rel))
-        .collect();
+fn remove_stale_overlays(dir: &Path, set: &[result_set::SetFile]) {
+    let ours: std::collections::BTreeSet<PathBuf> =
+        set.iter().map(|(rel, _)| dir.join(rel)).collect();
     let Ok(entries) = std::fs::read_dir(dir.join("overlays")) else {
         return;
     };
