@@ -11,9 +11,12 @@
 //! maps wins (fewer summed squared misses break ties). Then the transform is refitted on
 //! those pairs and every frame's choice made again, twice.
 //!
-//! The tolerance of a frame is [`TOL_MM`] + [`TOL_FRACTION`] of the camera centre's range: a
-//! consensus needs to tell the ball from something else, not measure it, and a sphere whose
-//! diameter is off by a few per cent puts every camera centre that far along its ray.
+//! The tolerance of a frame is [`TOL_MM`] + [`TOL_FRACTION`] of the range of the camera centre
+//! the transform predicts (at most [`TOL_MAX_MM`]): a consensus needs to tell the ball from
+//! something else, not measure it, and a sphere whose diameter is off by a few per cent puts
+//! every camera centre that far along its ray. Hypotheses come from the best
+//! [`MAX_CANDIDATES`] silhouettes of each frame (by edge points used); every silhouette
+//! counts in the scores.
 //!
 //! A frame with no silhouette within the tolerance, or with two (two balls where one was
 //! expected), is not chosen, and says so ([`Pick`]); the caller searches again there, at the
@@ -32,6 +35,9 @@ type V3 = Vector3<f64>;
 pub const TOL_MM: f64 = 100.0;
 /// The part of the tolerance that grows with the range.
 pub const TOL_FRACTION: f64 = 0.05;
+/// The largest tolerance, mm (a silhouette far away has no wider one: a brick's outline at
+/// 100 m is not nearly the ball at 6 m).
+pub const TOL_MAX_MM: f64 = 600.0;
 /// Silhouettes per frame taken into the hypotheses (by decreasing coverage).
 pub const MAX_CANDIDATES: usize = 4;
 /// Triples of frames tried, at most.
@@ -39,9 +45,10 @@ pub const MAX_TRIPLES: usize = 3000;
 /// A triple whose lidar centres are within this of one line (mm) gives no rotation.
 const MIN_HEIGHT_MM: f64 = 150.0;
 
-/// The tolerance of a camera centre `c` (mm).
+/// The tolerance of a camera centre `c` (mm): [`TOL_MM`] + [`TOL_FRACTION`] of its range,
+/// at most [`TOL_MAX_MM`].
 pub fn tolerance(c: &V3) -> f64 {
-    TOL_MM + TOL_FRACTION * c.norm()
+    (TOL_MM + TOL_FRACTION * c.norm()).min(TOL_MAX_MM)
 }
 
 /// One frame's choice.
@@ -77,7 +84,7 @@ fn picks(t: &Sim3, lidar: &[Option<V3>], cams: &[Vec<V3>]) -> Vec<Pick> {
             };
             let p = t.transform(l);
             let near: Vec<usize> = (0..cs.len())
-                .filter(|&k| (cs[k] - p).norm() <= tolerance(&cs[k]))
+                .filter(|&k| (cs[k] - p).norm() <= tolerance(&p))
                 .collect();
             match near.as_slice() {
                 [k] => Pick::Chosen(*k),
@@ -100,8 +107,7 @@ fn score(t: &Sim3, lidar: &[Option<V3>], cams: &[Vec<V3>]) -> (usize, f64) {
         let p = t.transform(l);
         let best = cs
             .iter()
-            .take(MAX_CANDIDATES)
-            .map(|c| ((c - p).norm() / tolerance(c)).min(1.0))
+            .map(|c| ((c - p).norm() / tolerance(&p)).min(1.0))
             .min_by(|a, b| a.total_cmp(b));
         if let Some(b) = best {
             n += usize::from(b < 1.0);

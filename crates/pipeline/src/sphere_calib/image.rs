@@ -112,20 +112,61 @@ pub fn candidates(img: &ColourImage, cam: &Camera, r: f64) -> Vec<ImageSphere> {
         .collect()
 }
 
-/// The silhouette near a predicted centre `c` (camera frame, mm) whose uncertainty is
-/// `tol_mm`: the fit started there, searching as far either side of the outline as that
-/// uncertainty reaches in the image (at least 4 px, at most a third of the outline's
-/// radius); `None` when it finds no accepted silhouette.
+/// The silhouettes near a predicted centre `c` (camera frame, mm) whose σ is about
+/// `sigma_mm`, by decreasing coverage: fits started at the prediction (searching first 3 px
+/// plus four times that σ in the image either side of the outline, at most a third of its
+/// radius) and at every circle of the predicted size the Hough transform finds within half
+/// the outline's radius of the predicted place (a partly hidden outline can lead the first
+/// astray). Only accepted fits are returned.
 pub fn at_prediction(
     img: &ColourImage,
     cam: &Camera,
     r: f64,
     c: &V3,
-    tol_mm: f64,
-) -> Option<ImageSphere> {
+    sigma_mm: f64,
+) -> Vec<ImageSphere> {
+    let Some((centre, rho)) = predicted_circle(cam, c, r) else {
+        return Vec::new();
+    };
     let d = c.norm();
-    let radius_px = (r / d).asin() * cam.f_px();
-    let reach = (tol_mm / d * cam.f_px()).min(radius_px / 3.0).max(4.0);
-    let f = refine::refine(img, cam, r, *c, reach)?;
-    silhouette::accepted(&f, &options(cam, r)).then(|| image_sphere(f, cam, r))
+    let reach = (3.0 + 4.0 * sigma_mm / d * cam.f_px())
+        .min(rho / 3.0)
+        .max(3.0);
+    let mut starts = vec![(*c, reach)];
+    let opts = SilhouetteOptions {
+        radius_px: (0.7 * rho, 1.3 * rho),
+        window: Some((centre.0, centre.1, (0.5 * rho).max(10.0))),
+        ..options(cam, r)
+    };
+    for (k, s) in silhouette::candidates(img, &opts) {
+        if let Some(c0) = silhouette::centre_of_circle(&k, cam, r) {
+            starts.push((c0, silhouette::start_width(&k, s)));
+        }
+    }
+    let mut fits: Vec<ImageSphere> = starts
+        .into_iter()
+        .filter_map(|(c0, w0)| refine::refine(img, cam, r, c0, w0))
+        .filter(|f| silhouette::accepted(f, &options(cam, r)))
+        .map(|f| image_sphere(f, cam, r))
+        .collect();
+    fits.sort_by(|a, b| b.coverage.total_cmp(&a.coverage));
+    fits
+}
+
+/// The image of the sphere of radius `r` at `c`: its centre's pixel and the outline's mean
+/// distance from it (px), through the camera model.
+fn predicted_circle(cam: &Camera, c: &V3, r: f64) -> Option<(Pixel, f64)> {
+    let centre = cam.project(c)?;
+    let pts: Vec<Pixel> = silhouette::cone::cone_rays(c, r, 36)?
+        .iter()
+        .filter_map(|q| cam.project(q))
+        .collect();
+    (pts.len() >= 12).then(|| {
+        let rho = pts
+            .iter()
+            .map(|p| (p.0 - centre.0).hypot(p.1 - centre.1))
+            .sum::<f64>()
+            / pts.len() as f64;
+        (centre, rho)
+    })
 }

@@ -250,7 +250,6 @@ pub fn calibrate(project: &Path, seed: u64) -> Result<Outcome, String> {
 mod tests {
     use super::*;
     use nalgebra::Vector3;
-    use pingcal_ba::camera::CameraModel;
 
     /// The camera of `pingcal simulate` (its distortion is strong: −15 % at the corner).
     fn camera() -> Camera {

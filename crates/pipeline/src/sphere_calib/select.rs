@@ -13,6 +13,10 @@ use rayon::prelude::*;
 
 type V3 = Vector3<f64>;
 
+/// The part of a prediction's σ the consensus transform adds, mm (a transform from three or
+/// more frames whose centres agree within a few mm).
+pub const PREDICTION_SIGMA_MM: f64 = 5.0;
+
 /// Where in the image a silhouette is, for messages.
 fn at(s: &ImageSphere) -> String {
     format!("({:.0}, {:.0}) px", s.image_centre.0, s.image_centre.1)
@@ -57,11 +61,19 @@ pub fn choose(frames: &mut [Frame], cam: &Camera, radius: f64, seed: u64) -> Opt
             f.skipped.is_none() && !matches!(c.picks[*i], Pick::Chosen(_) | Pick::NoLidar)
         })
         .map(|(i, f)| {
-            let p = t.transform(&f.lidar.as_ref().expect("a lidar sphere").centre);
+            let l = f.lidar.as_ref().expect("a lidar sphere");
+            let p = t.transform(&l.centre);
+            // the prediction's σ: the lidar centre's, and as much again for the transform
+            let sigma = 2.0 * l.cov.trace().max(0.0).sqrt() + PREDICTION_SIGMA_MM;
             let found = pingcal_targets::load_colour(&f.image_path)
-                .ok()
-                .and_then(|img| at_prediction(&img, cam, radius, &p, tolerance(&p)));
-            (i, found.filter(|s| (s.centre - p).norm() <= tolerance(&p)))
+                .map(|img| at_prediction(&img, cam, radius, &p, sigma))
+                .unwrap_or_default();
+            // the nearest of those within the tolerance
+            let near = found
+                .into_iter()
+                .filter(|s| (s.centre - p).norm() <= tolerance(&p))
+                .min_by(|a, b| (a.centre - p).norm().total_cmp(&(b.centre - p).norm()));
+            (i, near)
         })
         .collect();
     for (i, f) in frames.iter_mut().enumerate() {
