@@ -2,7 +2,9 @@
 //!
 //! Four forms are read, each directly (docs/sphere-calib.md, docs/formats.md):
 //!
-//! * **`camera.toml`**, one of three models:
+//! * **`camera.toml`**, any of pingcal's camera models (`project.toml`'s `model` words, with
+//!   the keys of [`crate::intrinsics`]; `fisheye` is read as `kannala-brandt`, OpenCV's
+//!   `cv::fisheye`):
 //!   ```toml
 //!   model = "photogrammetric"      # SPEC.md's model, parameters as project.toml's [cameras.initial]
 //!   width = 1280
@@ -12,7 +14,7 @@
 //!   c_mm = 2.45                    # the others (xp_mm … b2) default to 0
 //!   ```
 //!   ```toml
-//!   model = "opencv"               # OpenCV's pinhole: K and k1 k2 p1 p2 k3 (k4 k5 k6 of the rational model)
+//!   model = "opencv"               # OpenCV's pinhole: K and k1 k2 p1 p2 k3 (k4 k5 k6 s1 … s4 of the rational and thin-prism models)
 //!   width = 1280
 //!   height = 1024
 //!   [params]
@@ -23,7 +25,10 @@
 //!   k1 = -0.1                      # the coefficients default to 0
 //!   ```
 //!   ```toml
-//!   model = "fisheye"              # OpenCV's cv::fisheye (Kannala–Brandt): fx fy cx cy k1 k2 k3 k4
+//!   model = "kannala-brandt"       # or "fisheye": OpenCV's cv::fisheye, fx fy cx cy k1 k2 k3 k4
+//!   ```
+//!   ```toml
+//!   model = "double-sphere"        # Usenko et al.: fx fy cx cy xi alpha
 //!   ```
 //! * **a ROS `camera_info` YAML** (`camera_calibration_parsers`' file: `image_width`,
 //!   `image_height`, `camera_matrix`, `distortion_model` plumb_bob, rational_polynomial or
@@ -31,56 +36,24 @@
 //!   keys (what `pingcal calibrate` writes in `opencv/`);
 //! * **a Kalibr camchain** entry (`camN:` with `camera_model: pinhole`, `intrinsics: [fu, fv,
 //!   pu, pv]`, `distortion_model` radtan, equidistant or none, `distortion_coeffs`,
-//!   `resolution`); with several cameras in the file the project names the entry.
+//!   `resolution`; or `camera_model: ds`, `intrinsics: [xi, alpha, fu, fv, pu, pv]`); with
+//!   several cameras in the file the project names the entry.
+//!
+//! Whatever the form, the camera is one of pingcal's models with its parameters
+//! ([`Intrinsics`], the type `project.toml` and `results.json` use), so the image side and
+//! the exports go through the same camera code as `pingcal calibrate`.
 //!
 //! [`CameraFile::read`] tells the forms apart by the file's extension (`.toml`, `.yaml` /
 //! `.yml`) and, for any other name, by its content; a file in none of them is refused in one
 //! line that lists what is read. Every error names the file and, where there is one, the
 //! line.
 
+use crate::closed_sets::CameraModel;
+use crate::intrinsics::{keys, Intrinsics, KeyedValues};
 use crate::schema::CameraParams;
 use crate::yaml::{self, Yaml};
 use crate::ProjectError;
 use serde::{Deserialize, Serialize};
-
-closed_set! {
-    /// The model of a `camera.toml` (`model`).
-    pub enum CameraFileModel {
-        /// SPEC.md's ten-parameter model.
-        Photogrammetric = "photogrammetric",
-        /// OpenCV's pinhole with radial-tangential (and rational) distortion.
-        Opencv = "opencv",
-        /// OpenCV's fisheye (Kannala–Brandt, equidistant).
-        Fisheye = "fisheye",
-    }
-}
-
-/// A camera's intrinsics in one of the models pingcal images through.
-#[derive(Debug, Clone, PartialEq)]
-pub enum Intrinsics {
-    /// SPEC.md's photogrammetric model.
-    Photogrammetric {
-        /// Pixel pitch, mm.
-        pixel_size_mm: f64,
-        /// The ten parameters.
-        params: CameraParams,
-    },
-    /// OpenCV's pinhole, px: `fx fy cx cy`, and `k1 k2 p1 p2 k3 k4 k5 k6` (OpenCV's
-    /// `distCoeffs` order; the rational k4–k6 are 0 for plumb_bob).
-    OpenCv {
-        /// fx, fy, cx, cy.
-        k: [f64; 4],
-        /// k1 k2 p1 p2 k3 k4 k5 k6.
-        dist: [f64; 8],
-    },
-    /// OpenCV's fisheye, px: `fx fy cx cy`, and `k1 k2 k3 k4`.
-    Fisheye {
-        /// fx, fy, cx, cy.
-        k: [f64; 4],
-        /// k1 … k4.
-        dist: [f64; 4],
-    },
-}
 
 /// The form a camera file was read in.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -102,6 +75,9 @@ pub struct CameraFile {
     pub width: u32,
     /// Height, px.
     pub height: u32,
+    /// Pixel pitch, mm: the file's for the photogrammetric models; the models in pixels
+    /// ignore it ([`NOMINAL_PIXEL_MM`]).
+    pub pixel_size_mm: f64,
     /// The model and its parameters.
     pub intrinsics: Intrinsics,
     /// The form it was read in.
@@ -110,75 +86,25 @@ pub struct CameraFile {
     pub name: Option<String>,
 }
 
-/// `camera.toml` of the photogrammetric model, as read.
+/// The pixel pitch given to a camera in a model that works in pixels (which ignores it), mm.
+pub const NOMINAL_PIXEL_MM: f64 = 0.001;
+
+/// `camera.toml`, as read.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
-struct PhotogrammetricToml {
-    model: CameraFileModel,
+struct CameraToml {
+    model: CameraModel,
     width: u32,
     height: u32,
-    pixel_size_mm: f64,
-    params: CameraParams,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pixel_size_mm: Option<f64>,
+    params: KeyedValues,
 }
 
-/// `[params]` of the OpenCV model.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct OpenCvParams {
-    fx: f64,
-    fy: f64,
-    cx: f64,
-    cy: f64,
-    #[serde(default)]
-    k1: f64,
-    #[serde(default)]
-    k2: f64,
-    #[serde(default)]
-    p1: f64,
-    #[serde(default)]
-    p2: f64,
-    #[serde(default)]
-    k3: f64,
-    #[serde(default)]
-    k4: f64,
-    #[serde(default)]
-    k5: f64,
-    #[serde(default)]
-    k6: f64,
-}
-
-/// `[params]` of the fisheye model.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct FisheyeParams {
-    fx: f64,
-    fy: f64,
-    cx: f64,
-    cy: f64,
-    #[serde(default)]
-    k1: f64,
-    #[serde(default)]
-    k2: f64,
-    #[serde(default)]
-    k3: f64,
-    #[serde(default)]
-    k4: f64,
-}
-
-/// `camera.toml` of the OpenCV or fisheye model, as read.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct PixelToml<P> {
-    model: CameraFileModel,
-    width: u32,
-    height: u32,
-    params: P,
-}
-
-/// Only the model, to choose the schema.
+/// Only the model's word (`fisheye` is read as `kannala-brandt`).
 #[derive(Deserialize)]
-struct ModelOnly {
-    model: CameraFileModel,
+struct ModelWord {
+    model: Option<String>,
 }
 
 fn syntax(file: &str, text: &str, e: toml::de::Error) -> ProjectError {
@@ -196,7 +122,16 @@ fn invalid(file: &str, what: String) -> ProjectError {
 }
 
 /// What a file in no form pingcal reads is told.
-pub const FORMATS: &str = "a camera.toml (model = \"photogrammetric\", \"opencv\" or \"fisheye\"), a ROS camera_info or OpenCV YAML, or a Kalibr camchain YAML (docs/sphere-calib.md)";
+pub const FORMATS: &str = "a camera.toml (model = \"photogrammetric\", \"brown-backward\", \"opencv\", \"kannala-brandt\" (or \"fisheye\") or \"double-sphere\"), a ROS camera_info or OpenCV YAML, or a Kalibr camchain YAML (docs/sphere-calib.md)";
+
+/// A model in pixels from its `fx fy cx cy` and then its other values in its key order
+/// (missing ones 0).
+fn pixel_model(model: CameraModel, k: [f64; 4], rest: &[f64]) -> Intrinsics {
+    let mut values = vec![0.0; keys(model).len()];
+    values[..4].copy_from_slice(&k);
+    values[4..4 + rest.len()].copy_from_slice(rest);
+    Intrinsics { model, values }
+}
 
 impl CameraFile {
     /// A photogrammetric camera.
@@ -209,21 +144,10 @@ impl CameraFile {
         CameraFile {
             width,
             height,
-            intrinsics: Intrinsics::Photogrammetric {
-                pixel_size_mm,
-                params,
-            },
+            pixel_size_mm,
+            intrinsics: Intrinsics::photogrammetric(params.to_slice()),
             format: CameraFormat::Toml,
             name: None,
-        }
-    }
-
-    /// The model's name as `camera.toml` spells it.
-    pub fn model(&self) -> CameraFileModel {
-        match self.intrinsics {
-            Intrinsics::Photogrammetric { .. } => CameraFileModel::Photogrammetric,
-            Intrinsics::OpenCv { .. } => CameraFileModel::Opencv,
-            Intrinsics::Fisheye { .. } => CameraFileModel::Fisheye,
         }
     }
 
@@ -254,47 +178,57 @@ impl CameraFile {
 
     /// Parses and checks the text of a `camera.toml`; `file` names it in errors.
     pub fn parse(text: &str, file: &str) -> Result<Self, ProjectError> {
-        let model = toml::from_str::<ModelOnly>(text)
+        let word = toml::from_str::<ModelWord>(text)
             .map_err(|e| syntax(file, text, e))?
             .model;
-        let c = match model {
-            CameraFileModel::Photogrammetric => {
-                let t: PhotogrammetricToml =
-                    toml::from_str(text).map_err(|e| syntax(file, text, e))?;
-                CameraFile::photogrammetric(t.width, t.height, t.pixel_size_mm, t.params)
-            }
-            CameraFileModel::Opencv => {
-                let t: PixelToml<OpenCvParams> =
-                    toml::from_str(text).map_err(|e| syntax(file, text, e))?;
-                let p = t.params;
-                CameraFile {
-                    width: t.width,
-                    height: t.height,
-                    intrinsics: Intrinsics::OpenCv {
-                        k: [p.fx, p.fy, p.cx, p.cy],
-                        dist: [p.k1, p.k2, p.p1, p.p2, p.k3, p.k4, p.k5, p.k6],
-                    },
-                    format: CameraFormat::Toml,
-                    name: None,
-                }
-            }
-            CameraFileModel::Fisheye => {
-                let t: PixelToml<FisheyeParams> =
-                    toml::from_str(text).map_err(|e| syntax(file, text, e))?;
-                let p = t.params;
-                CameraFile {
-                    width: t.width,
-                    height: t.height,
-                    intrinsics: Intrinsics::Fisheye {
-                        k: [p.fx, p.fy, p.cx, p.cy],
-                        dist: [p.k1, p.k2, p.k3, p.k4],
-                    },
-                    format: CameraFormat::Toml,
-                    name: None,
-                }
-            }
+        let t: CameraToml = if word.as_deref() == Some("fisheye") {
+            let kb = text.replacen("\"fisheye\"", "\"kannala-brandt\"", 1);
+            toml::from_str(&kb).map_err(|e| syntax(file, text, e))?
+        } else {
+            toml::from_str(text).map_err(|e| syntax(file, text, e))?
         };
-        c.check(file)
+        if let Some(e) = Intrinsics::unknown_key(t.model, &t.params) {
+            return Err(invalid(file, format!("[params] {e}")));
+        }
+        let photogrammetric = t.model.kind().in_mm();
+        let required: &[&str] = if photogrammetric {
+            &["c_mm"]
+        } else {
+            &["fx", "fy", "cx", "cy"]
+        };
+        if let Some(k) = required.iter().find(|k| t.params.get(k).is_none()) {
+            return Err(invalid(
+                file,
+                format!(
+                    "[params] {k} missing: model '{}' needs {} (the others default to 0)",
+                    t.model,
+                    required.join(", ")
+                ),
+            ));
+        }
+        let pixel_size_mm = match (photogrammetric, t.pixel_size_mm) {
+            (true, Some(p)) => p,
+            (true, None) => {
+                return Err(invalid(
+                    file,
+                    format!(
+                        "pixel_size_mm missing: model '{}' needs the pixel pitch in mm",
+                        t.model
+                    ),
+                ))
+            }
+            (false, p) => p.unwrap_or(NOMINAL_PIXEL_MM),
+        };
+        let zeros = vec![0.0; keys(t.model).len()];
+        CameraFile {
+            width: t.width,
+            height: t.height,
+            pixel_size_mm,
+            intrinsics: Intrinsics::from_table(t.model, &t.params, &zeros),
+            format: CameraFormat::Toml,
+            name: None,
+        }
+        .check(file)
     }
 
     /// Reads a ROS `camera_info`, OpenCV FileStorage or Kalibr camchain YAML.
@@ -333,7 +267,8 @@ impl CameraFile {
         from_camchain(y.get(name).expect("a key of the map"), name, file)?.check(file)
     }
 
-    /// The checks every form shares: a positive size and finite, positive focal lengths.
+    /// The checks every form shares: a positive size, a positive focal length (and pixel
+    /// pitch), finite values.
     fn check(self, file: &str) -> Result<Self, ProjectError> {
         if self.width == 0 || self.height == 0 {
             return Err(invalid(
@@ -344,85 +279,49 @@ impl CameraFile {
                 ),
             ));
         }
-        match &self.intrinsics {
-            Intrinsics::Photogrammetric {
-                pixel_size_mm,
-                params,
-            } => {
-                if !(*pixel_size_mm > 0.0 && pixel_size_mm.is_finite()) {
-                    return Err(invalid(
-                        file,
-                        format!("pixel_size_mm = {pixel_size_mm}: expected a positive number"),
-                    ));
-                }
-                if !(params.c_mm > 0.0 && params.c_mm.is_finite()) {
-                    return Err(invalid(
-                        file,
-                        format!(
-                            "[params] c_mm = {}: expected a positive principal distance",
-                            params.c_mm
-                        ),
-                    ));
-                }
-                if !params.to_slice().iter().all(|v| v.is_finite()) {
-                    return Err(invalid(file, "[params]: every value must be finite".into()));
-                }
+        let i = &self.intrinsics;
+        if i.model.kind().in_mm() {
+            let p = self.pixel_size_mm;
+            if !(p > 0.0 && p.is_finite()) {
+                return Err(invalid(
+                    file,
+                    format!("pixel_size_mm = {p}: expected a positive number"),
+                ));
             }
-            Intrinsics::OpenCv { k, dist } => check_pixel_model(file, k, dist)?,
-            Intrinsics::Fisheye { k, dist } => check_pixel_model(file, k, dist)?,
+            let c = i.values[0];
+            if !(c > 0.0 && c.is_finite()) {
+                return Err(invalid(
+                    file,
+                    format!("[params] c_mm = {c}: expected a positive principal distance"),
+                ));
+            }
+        } else {
+            check_pixel_model(
+                file,
+                &[i.values[0], i.values[1], i.values[2], i.values[3]],
+                &i.values[4..],
+            )?;
+        }
+        if !i.values.iter().all(|v| v.is_finite()) {
+            return Err(invalid(file, "[params]: every value must be finite".into()));
         }
         Ok(self)
     }
 
     /// The text of a `camera.toml` holding this camera.
     pub fn to_toml_string(&self) -> String {
-        let (w, h) = (self.width, self.height);
-        match &self.intrinsics {
-            Intrinsics::Photogrammetric {
-                pixel_size_mm,
-                params,
-            } => toml::to_string(&PhotogrammetricToml {
-                model: CameraFileModel::Photogrammetric,
-                width: w,
-                height: h,
-                pixel_size_mm: *pixel_size_mm,
-                params: *params,
-            }),
-            Intrinsics::OpenCv { k, dist } => toml::to_string(&PixelToml {
-                model: CameraFileModel::Opencv,
-                width: w,
-                height: h,
-                params: OpenCvParams {
-                    fx: k[0],
-                    fy: k[1],
-                    cx: k[2],
-                    cy: k[3],
-                    k1: dist[0],
-                    k2: dist[1],
-                    p1: dist[2],
-                    p2: dist[3],
-                    k3: dist[4],
-                    k4: dist[5],
-                    k5: dist[6],
-                    k6: dist[7],
-                },
-            }),
-            Intrinsics::Fisheye { k, dist } => toml::to_string(&PixelToml {
-                model: CameraFileModel::Fisheye,
-                width: w,
-                height: h,
-                params: FisheyeParams {
-                    fx: k[0],
-                    fy: k[1],
-                    cx: k[2],
-                    cy: k[3],
-                    k1: dist[0],
-                    k2: dist[1],
-                    k3: dist[2],
-                    k4: dist[3],
-                },
-            }),
-        }
+        toml::to_string(&CameraToml {
+            model: self.intrinsics.model,
+            width: self.width,
+            height: self.height,
+            pixel_size_mm: self
+                .intrinsics
+                .model
+                .kind()
+                .in_mm()
+                .then_some(self.pixel_size_mm),
+            params: self.intrinsics.to_table(),
+        })
         .expect("a camera file always serialises")
     }
 }
@@ -522,17 +421,13 @@ fn from_camera_info(y: &Yaml, text: &str, file: &str) -> Result<CameraFile, Proj
             if d.len() > most {
                 return Err(invalid(file, format!("{line}distortion_model {model}: {} coefficients, at most {most}", d.len())));
             }
-            let mut dist = [0.0; 8];
-            dist[..d.len()].copy_from_slice(&d);
-            Intrinsics::OpenCv { k, dist }
+            pixel_model(CameraModel::OpenCv, k, &d)
         }
         "equidistant" | "fisheye" => {
             if d.len() > 4 {
                 return Err(invalid(file, format!("{line}distortion_model {model}: {} coefficients, expected 4", d.len())));
             }
-            let mut dist = [0.0; 4];
-            dist[..d.len()].copy_from_slice(&d);
-            Intrinsics::Fisheye { k, dist }
+            pixel_model(CameraModel::KannalaBrandt, k, &d)
         }
         other => {
             return Err(invalid(file, format!("{line}distortion_model {other:?}: expected plumb_bob, rational_polynomial or equidistant")))
@@ -541,6 +436,7 @@ fn from_camera_info(y: &Yaml, text: &str, file: &str) -> Result<CameraFile, Proj
     Ok(CameraFile {
         width: size(w, "image_width", file)?,
         height: size(h, "image_height", file)?,
+        pixel_size_mm: NOMINAL_PIXEL_MM,
         intrinsics,
         format: if text.trim_start().starts_with("%YAML") {
             CameraFormat::OpenCvYaml
@@ -569,9 +465,41 @@ fn from_camchain(c: &Yaml, name: &str, file: &str) -> Result<CameraFile, Project
         .get("camera_model")
         .and_then(Yaml::str)
         .unwrap_or("pinhole");
-    if model != "pinhole" {
+    if model != "pinhole" && model != "ds" {
         return Err(bad(format!(
-            "camera_model {model:?}: only pinhole is read (with radtan, equidistant or none)"
+            "camera_model {model:?}: expected pinhole (with radtan, equidistant or none) or ds"
+        )));
+    }
+    let res = c
+        .get("resolution")
+        .and_then(Yaml::nums)
+        .filter(|v| v.len() == 2)
+        .ok_or_else(|| bad("resolution: expected [width, height]".into()))?;
+    let (width, height) = (
+        size(res[0], "resolution", file)?,
+        size(res[1], "resolution", file)?,
+    );
+    let entry = |intrinsics| CameraFile {
+        width,
+        height,
+        pixel_size_mm: NOMINAL_PIXEL_MM,
+        intrinsics,
+        format: CameraFormat::KalibrCamchain(name.to_string()),
+        name: Some(name.to_string()),
+    };
+    if model == "ds" {
+        // Kalibr's double sphere: [xi, alpha, fu, fv, pu, pv]
+        let v = c
+            .get("intrinsics")
+            .and_then(Yaml::nums)
+            .filter(|v| v.len() == 6)
+            .ok_or_else(|| {
+                bad("intrinsics: expected [xi, alpha, fu, fv, pu, pv] (camera_model ds)".into())
+            })?;
+        return Ok(entry(pixel_model(
+            CameraModel::DoubleSphere,
+            [v[2], v[3], v[4], v[5]],
+            &v[..2],
         )));
     }
     let k = c
@@ -579,11 +507,6 @@ fn from_camchain(c: &Yaml, name: &str, file: &str) -> Result<CameraFile, Project
         .and_then(Yaml::nums)
         .filter(|v| v.len() == 4)
         .ok_or_else(|| bad("intrinsics: expected [fu, fv, pu, pv]".into()))?;
-    let res = c
-        .get("resolution")
-        .and_then(Yaml::nums)
-        .filter(|v| v.len() == 2)
-        .ok_or_else(|| bad("resolution: expected [width, height]".into()))?;
     let d = match c.get("distortion_coeffs") {
         Some(v) => v
             .nums()
@@ -603,9 +526,7 @@ fn from_camchain(c: &Yaml, name: &str, file: &str) -> Result<CameraFile, Project
                     d.len()
                 )));
             }
-            let mut dist = [0.0; 8];
-            dist[..d.len()].copy_from_slice(&d);
-            Intrinsics::OpenCv { k, dist }
+            pixel_model(CameraModel::OpenCv, k, &d)
         }
         "equidistant" => {
             if d.len() > 4 {
@@ -614,9 +535,7 @@ fn from_camchain(c: &Yaml, name: &str, file: &str) -> Result<CameraFile, Project
                     d.len()
                 )));
             }
-            let mut dist = [0.0; 4];
-            dist[..d.len()].copy_from_slice(&d);
-            Intrinsics::Fisheye { k, dist }
+            pixel_model(CameraModel::KannalaBrandt, k, &d)
         }
         other => {
             return Err(bad(format!(
@@ -624,13 +543,7 @@ fn from_camchain(c: &Yaml, name: &str, file: &str) -> Result<CameraFile, Project
             )))
         }
     };
-    Ok(CameraFile {
-        width: size(res[0], "resolution", file)?,
-        height: size(res[1], "resolution", file)?,
-        intrinsics,
-        format: CameraFormat::KalibrCamchain(name.to_string()),
-        name: Some(name.to_string()),
-    })
+    Ok(entry(intrinsics))
 }
 
 #[cfg(test)]
@@ -658,7 +571,37 @@ mod tests {
         assert_eq!(CameraFile::parse(&a.to_toml_string(), "c").unwrap(), a);
         let fish = "model = \"fisheye\"\nwidth = 640\nheight = 480\n[params]\nfx = 300.0\nfy = 300.0\ncx = 320.0\ncy = 240.0\nk1 = 0.01\n";
         let f = CameraFile::read(fish, "fish.toml", None).unwrap();
+        assert_eq!(f.intrinsics.model, CameraModel::KannalaBrandt);
         assert_eq!(CameraFile::parse(&f.to_toml_string(), "c").unwrap(), f);
+        // Kalibr's double sphere: [xi, alpha, fu, fv, pu, pv] into pingcal's key order
+        let ds = "cam0:\n  camera_model: ds\n  intrinsics: [-0.2, 0.6, 350.0, 351.0, 640.0, 400.0]\n  distortion_model: none\n  resolution: [1280, 800]\n";
+        let g = CameraFile::read(ds, "camchain.yaml", None).unwrap();
+        assert_eq!(g.intrinsics.model, CameraModel::DoubleSphere);
+        assert_eq!(g.intrinsics.values, [350.0, 351.0, 640.0, 400.0, -0.2, 0.6]);
+        let ds_toml = "model = \"double-sphere\"\nwidth = 1280\nheight = 800\n[params]\nfx = 350.0\nfy = 351.0\ncx = 640.0\ncy = 400.0\nxi = -0.2\nalpha = 0.6\n";
+        assert_eq!(
+            CameraFile::read(ds_toml, "c.toml", None)
+                .unwrap()
+                .intrinsics,
+            g.intrinsics
+        );
+        // a key the model does not have, a focal length missing
+        let e = CameraFile::read("model = \"opencv\"\nwidth = 2\nheight = 2\n[params]\nfx = 1.0\nfy = 1.0\ncx = 1.0\ncy = 1.0\nc_mm = 3.0\n", "c.toml", None).unwrap_err().to_string();
+        assert!(
+            e.contains("'c_mm' is not a parameter of model 'opencv'"),
+            "{e}"
+        );
+        let e = CameraFile::read(
+            "model = \"opencv\"\nwidth = 2\nheight = 2\n[params]\nfx = 1.0\n",
+            "c.toml",
+            None,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("[params] fy missing: model 'opencv' needs fx, fy, cx, cy"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -20,6 +20,7 @@
 #[macro_use]
 mod closed_sets;
 pub mod camera_file;
+pub mod intrinsics;
 mod layout;
 mod parse;
 mod schema;
@@ -27,8 +28,9 @@ pub mod sphere_calib;
 mod validate;
 pub mod yaml;
 
-pub use camera_file::{CameraFile, CameraFileModel, CameraFormat, Intrinsics};
+pub use camera_file::{CameraFile, CameraFormat};
 pub use closed_sets::{CameraModel, Method, MountParameter, Parameter, TargetFamily};
+pub use intrinsics::{Intrinsics, KeyedValues};
 pub use layout::{Layout, LayoutError};
 pub use schema::{
     BallLabel, CameraParams, ProjectBag, ProjectBalls, ProjectCamera, ProjectDistance, ProjectFile,

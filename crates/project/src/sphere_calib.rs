@@ -190,7 +190,8 @@ image = "c.png"
         let cam = "model = \"photogrammetric\"\nwidth = 1280\nheight = 720\npixel_size_mm = 0.00375\n[params]\nc_mm = 2.45\n";
         let c = crate::CameraFile::parse(cam, "camera.toml").unwrap();
         assert!(
-            matches!(c.intrinsics, crate::Intrinsics::Photogrammetric { params, .. } if params.c_mm == 2.45)
+            c.intrinsics.model == crate::CameraModel::Photogrammetric
+                && c.intrinsics.values[0] == 2.45
         );
         assert_eq!(
             crate::CameraFile::parse(&c.to_toml_string(), "c").unwrap(),

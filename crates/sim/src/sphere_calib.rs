@@ -519,7 +519,11 @@ impl SphereCalibSim {
             self.camera.model.width,
             self.camera.model.height,
             self.camera.model.pixel_size_mm,
-            pingcal_project::CameraParams::from_slice(&self.camera.params),
+            pingcal_project::CameraParams::from_slice(
+                self.camera.params[..]
+                    .try_into()
+                    .expect("the sphere-calib simulation's camera is photogrammetric"),
+            ),
         )
     }
 

@@ -5,9 +5,10 @@
 //! Z up), so distortion is exact whatever the model.
 
 use nalgebra::{Vector2, Vector3};
-use pingcal_ba::camera::{CameraModel, FisheyeCamera, OpenCvCamera, PhotogrammetricCamera};
-use pingcal_project::{CameraFile, Intrinsics};
+use pingcal_ba::camera::CameraModel;
+use pingcal_project::CameraFile;
 use pingcal_targets::ball::CameraRays;
+use std::sync::Arc;
 
 type V3 = Vector3<f64>;
 
@@ -15,7 +16,7 @@ type V3 = Vector3<f64>;
 #[derive(Debug)]
 pub struct Camera {
     /// The model.
-    pub model: Box<dyn CameraModel>,
+    pub model: Arc<dyn CameraModel>,
     /// Its parameters, in the model's order.
     pub params: Vec<f64>,
     /// Image width, px.
@@ -27,35 +28,16 @@ pub struct Camera {
 }
 
 impl Camera {
-    /// From a camera file.
+    /// From a camera file: the model the project file's `model` word names, built as
+    /// `pingcal calibrate` builds it.
     pub fn from_file(c: &CameraFile) -> Self {
-        let (model, params): (Box<dyn CameraModel>, Vec<f64>) = match &c.intrinsics {
-            Intrinsics::Photogrammetric {
-                pixel_size_mm,
-                params,
-            } => (
-                Box::new(PhotogrammetricCamera::new(
-                    c.width,
-                    c.height,
-                    *pixel_size_mm,
-                )),
-                params.to_slice().to_vec(),
-            ),
-            Intrinsics::OpenCv { k, dist } => {
-                let mut p = vec![0.0; 16];
-                p[..4].copy_from_slice(k);
-                p[4..12].copy_from_slice(dist);
-                (Box::new(OpenCvCamera), p)
-            }
-            Intrinsics::Fisheye { k, dist } => {
-                let mut p = k.to_vec();
-                p.extend_from_slice(dist);
-                (Box::new(FisheyeCamera), p)
-            }
-        };
         Camera {
-            model,
-            params,
+            model: c
+                .intrinsics
+                .model
+                .kind()
+                .model(c.width, c.height, c.pixel_size_mm),
+            params: c.intrinsics.values.clone(),
             width: c.width,
             height: c.height,
             file: c.clone(),
@@ -108,13 +90,15 @@ mod tests {
 
     #[test]
     fn every_model_maps_pixels_to_rays_and_back() {
-        let photo = "model = \"photogrammetric\"\nwidth = 1280\nheight = 720\npixel_size_mm = 0.00375\n[params]\nc_mm = 2.45\nk1 = -0.021\n";
+        let photo = "model = \"photogrammetric\"\nwidth = 1280\nheight = 720\npixel_size_mm = 0.00375\n[params]\nc_mm = 2.45\nk1 = -0.021\nk2 = 4.0e-4\n";
         let cv = "model = \"opencv\"\nwidth = 1280\nheight = 1024\n[params]\nfx = 4548.4\nfy = 4544.4\ncx = 703.2\ncy = 609.2\nk1 = -0.1\np1 = 0.001\n";
         let fish = "model = \"fisheye\"\nwidth = 640\nheight = 480\n[params]\nfx = 300.0\nfy = 301.0\ncx = 320.0\ncy = 240.0\nk1 = 0.01\n";
         for text in [photo, cv, fish] {
             let cam = Camera::from_file(&CameraFile::parse(text, "c.toml").unwrap());
             for (x, y) in [(10.0, 20.0), (300.0, 200.0), (600.0, 400.0)] {
-                let r = cam.ray(x, y).unwrap();
+                let r = cam
+                    .ray(x, y)
+                    .unwrap_or_else(|| panic!("{text}: no ray at ({x}, {y})"));
                 let (u, v) = cam.project(&(r * 3000.0)).unwrap();
                 assert!(
                     (u - x).abs() < 1e-6 && (v - y).abs() < 1e-6,

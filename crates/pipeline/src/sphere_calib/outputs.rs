@@ -15,11 +15,11 @@ use super::json::sd;
 use super::{Frame, Outcome};
 use crate::conventions::ConventionsJson;
 use crate::exports::{
-    export_loss, export_loss_over, grid_rays_of, kalibr_camchain, opencv_camera_yaml,
-    ros_camera_info, ros_files, ExportLoss, OutputFile, RosRectification,
+    export_loss, kalibr_camchain, opencv_camera_yaml, ros_camera_info, ros_files, ExportLoss,
+    OutputFile, RosRectification,
 };
-use crate::results::{extrinsic_json, opencv_of, CameraJson, ExtrinsicJson, OpenCvJson};
-use pingcal_project::{CameraParams, Intrinsics};
+use crate::results::{extrinsic_json, opencv_of, CameraJson, ExtrinsicJson};
+use pingcal_project::CameraModel;
 use pingcal_report as rp;
 use pingcal_report::overlay::{render_png, GreyImage, OverlayOptions, OverlayPoint, PointKind};
 use rayon::prelude::*;
@@ -93,88 +93,38 @@ pub fn extrinsic(o: &Outcome) -> ExtrinsicJson {
     )
 }
 
-/// The camera as calibrate's exports take it, and what they lose against its own model.
-/// A photogrammetric camera is converted as calibrate converts it; a camera given in
-/// OpenCV's model keeps its numbers (k4–k6 of the rational model dropped); a fisheye gets
-/// the radial-tangential coefficients fitted to it. The photogrammetric parameters the
-/// files' comments quote are then the equivalent of the pixel model on a nominal 1 µm
-/// pixel.
-pub fn camera_export(cam: &Camera) -> (CameraJson, ExportLoss) {
-    let (w, h) = (cam.width, cam.height);
-    let json = |params: CameraParams, opencv: OpenCvJson| CameraJson {
+/// The camera as calibrate's exports take it (its own model and parameters, in
+/// `results.json`'s form), and what each ecosystem's file of it holds and loses
+/// ([`export_loss`]); `None` when the model gives no ray on the image.
+pub fn camera_export(cam: &Camera) -> Option<(CameraJson, ExportLoss)> {
+    let i = &cam.file.intrinsics;
+    let c = CameraJson {
         id: CAMERA_ID.into(),
-        params,
+        model_name: (i.model != CameraModel::Photogrammetric).then(|| i.model.as_str()),
+        params: i.clone(),
         sigma: BTreeMap::new(),
         high_correlations: Vec::new(),
-        opencv,
+        opencv: opencv_of(i, cam.width, cam.height, cam.file.pixel_size_mm),
+        pixel_size_mm: cam.file.pixel_size_mm,
     };
-    if let Intrinsics::Photogrammetric {
-        pixel_size_mm,
-        params,
-    } = &cam.file.intrinsics
-    {
-        let c = json(*params, opencv_of(&params.to_slice(), w, h, *pixel_size_mm));
-        let loss = export_loss(&c);
-        return (c, loss);
-    }
-    let p = &cam.params;
-    let (fx, fy, cx, cy) = (p[0], p[1], p[2], p[3]);
-    let ps = 0.001;
-    let c_mm = fy * ps;
-    let mut params = CameraParams::from_slice(&[
-        c_mm,
-        (cx - (f64::from(w) - 1.0) / 2.0) * ps,
-        -(cy - (f64::from(h) - 1.0) / 2.0) * ps,
-        0.0,
-        0.0,
-        0.0,
-        0.0,
-        0.0,
-        fx / fy - 1.0,
-        0.0,
-    ]);
-    let mut dist = [0.0; 5];
-    if let Intrinsics::OpenCv { dist: d, .. } = &cam.file.intrinsics {
-        dist = [d[0], d[1], d[2], d[3], d[4]];
-        params.k1 = d[0] / c_mm.powi(2);
-        params.k2 = d[1] / c_mm.powi(4);
-        params.k3 = d[4] / c_mm.powi(6);
-        params.p1 = d[3] / c_mm;
-        params.p2 = -d[2] / c_mm;
-    }
-    let opencv = OpenCvJson {
-        fx,
-        fy,
-        cx,
-        cy,
-        dist,
-        opencv_dropped_b2: 0.0,
-        image_width: w,
-        image_height: h,
-    };
-    let g = grid_rays_of(cam.model.as_ref(), &cam.params, w, h);
-    let mut c = json(params, opencv);
-    let mut loss = export_loss_over(&c, &g);
-    if matches!(cam.file.intrinsics, Intrinsics::Fisheye { .. }) {
-        // OpenCV's five coefficients cannot hold a fisheye: those of the radtan fit
-        let k = loss.kalibr.coeffs;
-        c.opencv.dist = [k[0], k[1], k[2], k[3], 0.0];
-        loss = export_loss_over(&c, &g);
-    }
-    (c, loss)
+    let loss = export_loss(&c)?;
+    Some((c, loss))
 }
 
-/// Every file of `ros/`, `opencv/` and `kalibr/` of a run.
+/// Every file of `ros/`, `opencv/` and `kalibr/` of a run (the camera's files only when its
+/// model gives rays on the image).
 pub fn exports(o: &Outcome) -> Vec<OutputFile> {
-    let (c, loss) = camera_export(&o.camera);
     let mut out = ros_files(&extrinsic(o), TF_CAMERA, TF_LIDAR);
+    let Some((c, loss)) = camera_export(&o.camera) else {
+        return out;
+    };
     out.push((
         format!("opencv/camera_{CAMERA_ID}.yaml"),
         opencv_camera_yaml(&c, &loss),
     ));
     out.push((
         format!("ros/camera_info_{CAMERA_ID}.yaml"),
-        ros_camera_info(&c, &RosRectification::mono(&c), &loss),
+        ros_camera_info(&c, &RosRectification::mono(&loss.ros), &loss),
     ));
     out.push((
         "kalibr/camchain.yaml".into(),
