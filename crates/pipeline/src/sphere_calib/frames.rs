@@ -146,13 +146,19 @@ pub fn read_frame(
 ) -> Result<Frame, String> {
     let cloud_path = dir.join(cloud);
     let image_path = dir.join(image);
+    // errors name the frame and say what to do
     let (points, warnings) = read_cloud_file_in(&cloud_path, &MountModel::default(), s.unit)
-        .map_err(|e| e.to_string())?;
-    let img = pingcal_targets::load_colour(&image_path).map_err(|e| e.to_string())?;
+        .map_err(|e| {
+            format!(
+                "{e} (frame {id}'s cloud: give its points, or take the frame out of the project)"
+            )
+        })?;
+    let img = pingcal_targets::load_colour(&image_path)
+        .map_err(|e| format!("{e} (frame {id}'s photograph)"))?;
     let (cw, ch) = (s.cam.width as usize, s.cam.height as usize);
     if (img.width(), img.height()) != (cw, ch) {
         return Err(format!(
-            "{}: {} × {} pixels, but the camera {} is {cw} × {ch}: give the camera file of the camera that took these images",
+            "{}: {} × {} pixels, but the camera {} is {cw} × {ch} (frame {id}): give the camera file of the camera that took these images",
             image_path.display(),
             img.width(),
             img.height(),
