@@ -80,29 +80,6 @@ pub fn fit_cone(q: &[V3], c0: V3, r: f64) -> Option<(V3, Matrix3<f64>, f64)> {
     Some((c, cov, s2.sqrt()))
 }
 
-/// [`fit_cone`] with weights `w` (relative: scaled to mean 1), the covariance
-/// `s² (JᵀWJ)⁻¹` with `s² = Σ wᵢ eᵢ² / (n − 3)`, and the normal matrix's inverse
-/// `(JᵀWJ)⁻¹` (for [`fit_cone`]'s callers that propagate more than the residuals' scatter).
-#[allow(clippy::type_complexity)]
-pub fn fit_cone_weighted(
-    q: &[V3],
-    w: &[f64],
-    c0: V3,
-    r: f64,
-) -> Option<(V3, Matrix3<f64>, f64, Matrix3<f64>)> {
-    let mean = w.iter().sum::<f64>() / w.len().max(1) as f64;
-    if !(mean > 0.0) {
-        return None;
-    }
-    let w: Vec<f64> = w.iter().map(|x| x / mean).collect();
-    let (c, n) = gauss_newton(q, Some(&w), c0, r)?;
-    let (res, _) = cone_residuals(q, &c, r)?;
-    let dof = res.len().checked_sub(3).filter(|&d| d > 0)?;
-    let s2 = res.iter().zip(&w).map(|(e, wi)| wi * e * e).sum::<f64>() / dof as f64;
-    let ni = n.try_inverse()?;
-    Some((c, ni * s2, s2.sqrt(), ni))
-}
-
 /// A robust fit's result.
 #[derive(Clone, Debug)]
 pub struct RobustCone {
@@ -116,92 +93,51 @@ pub struct RobustCone {
     pub sigma: f64,
 }
 
-/// The centre of the sphere of radius `r` whose silhouette cone passes through three unit
-/// rays: the circle through their tips on the unit sphere is the cone's base, its plane's
-/// normal the axis and its distance from the origin cos α; `None` for rays on one great
-/// circle or a cone wider than a hemisphere.
-pub fn cone_through(q: [&V3; 3], r: f64) -> Option<V3> {
-    let n = (q[1] - q[0]).cross(&(q[2] - q[0]));
-    let nn = n.norm();
-    if !(nn > 1e-12) {
-        return None;
-    }
-    let mut w = n / nn;
-    let mut cos = w.dot(q[0]);
-    if cos < 0.0 {
-        (w, cos) = (-w, -cos);
-    }
-    let sin = (1.0 - cos * cos).max(0.0).sqrt();
-    (cos > 0.0 && sin > 1e-9).then(|| w * (r / sin))
+/// The median of `v` (which it reorders).
+fn median(v: &mut [f64]) -> f64 {
+    let mid = v.len() / 2;
+    *v.select_nth_unstable_by(mid, |a, b| a.total_cmp(b)).1
 }
 
-/// The number of samples of [`consensus_start`].
-pub const CONSENSUS_SAMPLES: usize = 300;
-
-/// MSAC over minimal samples (three rays, [`cone_through`]) with threshold `tau`: the
-/// centre that most rays fit within `tau` (the least `Σ min(e², τ²)`), from
-/// [`CONSENSUS_SAMPLES`] samples of a generator with a fixed seed (the same rays give the
-/// same start); `start` competes too. What a poor start cannot find by descent: the outline
-/// half of whose edge points are a stand's or a shadow's.
-fn consensus_start(q: &[V3], r: f64, tau: f64, start: V3) -> Option<V3> {
-    use rand::Rng;
-    let cost = |c: &V3| -> Option<f64> {
-        let (res, _) = cone_residuals(q, c, r)?;
-        Some(res.iter().map(|e| (e * e).min(tau * tau)).sum())
-    };
-    let mut best = (cost(&start).unwrap_or(f64::INFINITY), start);
-    let mut g = pingcal_geometry::consensus::rng(0x5EED_C0DE);
-    let n = q.len();
-    for _ in 0..CONSENSUS_SAMPLES {
-        // three rays from the three thirds of the list (spread around the outline)
-        let k = [0, 1, 2].map(|t| (t * n / 3 + g.random_range(0..n / 3)).min(n - 1));
-        let Some(c) = cone_through([&q[k[0]], &q[k[1]], &q[k[2]]], r) else {
-            continue;
-        };
-        if let Some(v) = cost(&c).filter(|v| *v < best.0) {
-            best = (v, c);
+/// Least trimmed squares by concentration steps (Rousseeuw & Van Driessen): from `c0`, the
+/// least squares of the half of the rays with the smallest residuals, repeated until that
+/// half stops changing (at most 20 times). Half the outline may be wrong (a stand, a
+/// shadow, an edge behind), however far off, and the start may be poor.
+fn trimmed(q: &[V3], c0: V3, r: f64) -> Option<V3> {
+    let h = q.len().div_ceil(2).max(6);
+    let (mut c, _) = gauss_newton(q, None, c0, r)?;
+    let mut last: Vec<usize> = Vec::new();
+    for _ in 0..20 {
+        let (res, _) = cone_residuals(q, &c, r)?;
+        let mut idx: Vec<usize> = (0..q.len()).collect();
+        idx.sort_by(|&a, &b| res[a].abs().total_cmp(&res[b].abs()).then(a.cmp(&b)));
+        idx.truncate(h);
+        idx.sort_unstable();
+        if idx == last {
+            break;
         }
+        let sub: Vec<V3> = idx.iter().map(|&i| q[i]).collect();
+        c = gauss_newton(&sub, None, c, r)?.0;
+        last = idx;
     }
-    best.0.is_finite().then_some(best.1)
+    Some(c)
 }
 
-/// How far a real ball's outline departs from a sphere's, as a fraction of its radius: the
-/// robust fit's core is at least this wide ([`robust_fit`]).
-pub const SHAPE_TOLERANCE: f64 = 0.005;
-
-/// The robust fit: the consensus of minimal samples ([`consensus_start`], threshold
-/// `τ = 3 floor +` [`SHAPE_TOLERANCE`] × the cone's half-angle), then iteratively reweighted least squares with Tukey's biweight
-/// (c = 4.685 σ) whose scale σ is grown from the consensus' core: 1.4826 × the median
-/// absolute residual of the rays within `max(3σ, τ)` of the cone (at least `floor / 3`),
-/// until σ and the centre settle (at most 30 rounds). A scale from all the residuals would
-/// be the outliers' once they are more than half (a stand and a shadow hiding the lower
-/// half of the outline, a partly visible one); this one is the outline's, be its spread a
-/// tenth of a pixel or, on a real ball that is not quite a sphere, more. Inliers: within
-/// `max(3σ, floor)`. `floor`: the smallest residual scale worth telling apart (radians,
-/// e.g. a quarter pixel's angle). The rays are taken in their order around the outline.
+/// The robust fit: [`trimmed`] from `c0`, then iteratively reweighted least squares with
+/// Tukey's biweight (c = 4.685 σ, σ = 1.4826 · the median absolute residual, at least
+/// `floor / 3`) until σ settles; inliers within `max(3σ, floor)`. `floor`: the smallest
+/// residual scale worth telling apart (radians, e.g. a quarter pixel's angle).
 pub fn robust_fit(q: &[V3], c0: V3, r: f64, floor: f64) -> Option<RobustCone> {
     if q.len() < 6 {
         return None;
     }
-    // the core's least width: three floors, and half a per cent of the outline's radius (a
-    // real ball's outline departs from a sphere's by about that)
-    let tau = 3.0 * floor + SHAPE_TOLERANCE * (r / c0.norm().max(r * 1.0001)).asin();
-    let mut c = consensus_start(q, r, tau, c0).unwrap_or(c0);
-    let mut sigma = floor;
+    let mut c = trimmed(q, c0, r)?;
+    let mut sigma = f64::INFINITY;
     let mut w = vec![1.0; q.len()];
-    let scale = |res: &[f64], sigma: f64| -> Option<f64> {
-        let lim = (3.0 * sigma).max(tau);
-        let mut core: Vec<f64> = res.iter().map(|e| e.abs()).filter(|e| *e <= lim).collect();
-        if core.len() < 6 {
-            return None;
-        }
-        let mid = core.len() / 2;
-        let med = *core.select_nth_unstable_by(mid, |a, b| a.total_cmp(b)).1;
-        Some((1.4826 * med).max(floor / 3.0))
-    };
-    for _ in 0..30 {
+    for _ in 0..12 {
         let (res, _) = cone_residuals(q, &c, r)?;
-        let s = scale(&res, sigma)?;
+        let mut abs: Vec<f64> = res.iter().map(|e| e.abs()).collect();
+        let s = (1.4826 * median(&mut abs)).max(floor / 3.0);
         let k = 4.685 * s;
         for (wi, e) in w.iter_mut().zip(&res) {
             let u = e / k;
@@ -211,15 +147,21 @@ pub fn robust_fit(q: &[V3], c0: V3, r: f64, floor: f64) -> Option<RobustCone> {
                 0.0
             };
         }
+        if w.iter().filter(|&&x| x > 0.0).count() < 6 {
+            return None;
+        }
         let (cn, _) = gauss_newton(q, Some(&w), c, r)?;
-        let settled = (s - sigma).abs() < 1e-3 * s && (cn - c).norm() < 1e-7 * cn.norm();
-        (c, sigma) = (cn, s);
+        let moved = (cn - c).norm();
+        c = cn;
+        let settled = (s - sigma).abs() < 0.01 * s && moved < 1e-7 * c.norm();
+        sigma = s;
         if settled {
             break;
         }
     }
     let (res, _) = cone_residuals(q, &c, r)?;
-    let sigma = scale(&res, sigma)?;
+    let mut abs: Vec<f64> = res.iter().map(|e| e.abs()).collect();
+    let sigma = (1.4826 * median(&mut abs)).max(floor / 3.0);
     let lim = (3.0 * sigma).max(floor);
     let inlier = res.iter().map(|e| e.abs() <= lim).collect();
     Some(RobustCone {
@@ -324,15 +266,6 @@ mod tests {
         // the plain least squares is pulled away
         let (ls, _, _) = fit_cone(&q, c, r).unwrap();
         assert!((ls - c).norm() > 10.0);
-    }
-
-    #[test]
-    fn three_rays_on_a_cone_give_its_sphere() {
-        let c = V3::new(-700.0, 4000.0, 900.0);
-        let q = cone_rays(&c, 300.0, 7).unwrap();
-        let got = cone_through([&q[0], &q[2], &q[5]], 300.0).unwrap();
-        assert!((got - c).norm() < 1e-6 * c.norm(), "{got}");
-        assert!(cone_through([&q[0], &q[0], &q[5]], 300.0).is_none());
     }
 
     #[test]

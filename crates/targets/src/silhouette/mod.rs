@@ -159,7 +159,7 @@ pub fn centre_of_circle(c: &Circle, cam: &dyn CameraRays, r: f64) -> Option<Vect
 }
 
 /// The silhouettes of spheres of radius `opts.radius` in `img` (see the module doc), by
-/// decreasing number of edge points used.
+/// decreasing coverage.
 pub fn find_silhouettes(
     img: &ColourImage,
     cam: &dyn CameraRays,
@@ -178,13 +178,7 @@ pub fn find_silhouettes(
             fits.push(f);
         }
     }
-    // the most evidence first: edge points used (a large outline well covered)
-    fits.sort_by(|a, b| {
-        b.edges
-            .len()
-            .cmp(&a.edges.len())
-            .then(b.coverage.total_cmp(&a.coverage))
-    });
+    fits.sort_by(|a, b| b.coverage.total_cmp(&a.coverage));
     let mut kept: Vec<Fit> = Vec::new();
     for f in fits {
         let same = kept.iter().any(|k| {

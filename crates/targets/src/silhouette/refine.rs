@@ -8,9 +8,7 @@
 //! (each sample the mean of three, ±1 px along the outline, weights ¼ ½ ¼); its derivative
 //! by central differences 1 px apart; the colour derivative `g(s) = √Σ_c (∂I_c/∂s)²`,
 //! sign-free (a ball brighter than the bricks above and darker than the floor below has one
-//! outline). The edge is the local maximum of `g` within the search that is largest once
-//! weighed by `exp(−s²/2(0.6 w)²)` (s its distance from the outline, w the search's
-//! half-width: a near edge is preferred to a far one of about the same strength), located to a fraction of a
+//! outline). The edge is the largest `g` within the search, located to a fraction of a
 //! sample by the vertex of the parabola through `ln g` at the three samples about it (exact
 //! for a Gaussian-blurred step), and the edge's blur `σ_b` from that parabola's curvature.
 //! A place whose search leaves the image is not visible; one whose largest `g` is at the
@@ -20,9 +18,7 @@
 //! curvature), as its half level does; every edge point is moved outward by that
 //! ([`Fit::raw_edges`] keeps them unmoved), with σ_b the median over the outline.
 
-use super::cone::{
-    cone_rays, cone_residuals, correlation_inflation, fit_cone_weighted, robust_fit,
-};
+use super::cone::{cone_rays, cone_residuals, correlation_inflation, fit_cone, robust_fit};
 use super::edges::ColourImage;
 use crate::ball::CameraRays;
 use nalgebra::{Matrix3, Vector3};
@@ -35,8 +31,7 @@ pub struct Fit {
     /// The sphere's centre in the camera frame of the [`CameraRays`], in the radius' unit.
     pub centre: V3,
     /// Its covariance: the fit's `s² (JᵀJ)⁻¹` over the inliers, times
-    /// [`Fit::inflation`], plus that of an error common to all edge points
-    /// ([`EDGE_BIAS_PX`]).
+    /// [`Fit::inflation`].
     pub cov: Matrix3<f64>,
     /// The image of the centre's direction, px.
     pub image_centre: (f64, f64),
@@ -154,18 +149,11 @@ fn search(img: &ColourImage, pl: &Place, w: f64) -> Result<(f64, f64, f64), bool
     for v in &mut g {
         *v = v.sqrt();
     }
-    // the local maximum of g that is strongest once weighed by a Gaussian prior on its
-    // distance from the outline (σ = 0.6 w): near edges are preferred to far ones a little
-    let (mut best, mut jb, mut score) = (0.0, 0usize, 0.0);
-    let sp = 0.6 * w;
-    for j in 1..n - 1 {
+    let (mut best, mut jb) = (0.0, 0usize);
+    for (j, &v) in g.iter().enumerate().take(n - 1).skip(1) {
         let s = (j as i64 - m) as f64 * STEP;
-        let v = g[j];
-        if s.abs() <= w && v >= g[j - 1] && v >= g[j + 1] {
-            let sc = v * (-0.5 * (s / sp).powi(2)).exp();
-            if sc > score {
-                (best, jb, score) = (v, j, sc);
-            }
+        if s.abs() <= w && v > best {
+            (best, jb) = (v, j);
         }
     }
     if jb <= 1 || jb >= n - 2 || !(best > 0.0) {
@@ -276,65 +264,14 @@ pub fn refine(img: &ColourImage, cam: &dyn CameraRays, r: f64, c0: V3, w0: f64) 
     finish(img, cam, r, c, last?)
 }
 
-/// The σ of an error common to every edge point of an outline, px: what the shading of a
-/// real sphere does to where its edge is found (the derivative of a blurred step is pushed
-/// towards the side whose brightness changes faster; on the simulator's shaded sphere the
-/// outline's mean radius errs by about 0.03 px, `bash bench/spherecalib/run.sh cluttered`).
-/// Such an error, constant or varying slowly along the outline (the shading differs from
-/// the lit side to the dark one), moves the centre as offsets of the residuals do
-/// ([`bias_covariance`]): little for a whole outline, much in the direction a part of one
-/// leaves open.
-pub const EDGE_BIAS_PX: f64 = 0.03;
-
-/// The covariance of the centre from unknown offsets of the residuals (rows `jac`, weights
-/// `w`, at angles `phi` around the outline) that vary slowly along the outline: three
-/// modes, 1, cos φ and sin φ, each of σ `sigma` (radians): `σ² Σ_m N⁻¹JᵀWm mᵀWJ N⁻¹` with
-/// `N⁻¹ = ni`, the weighted normal matrix's inverse. For a whole outline the first moves
-/// the centre along the line of sight and the others across it; for a part of one all
-/// three reach into the direction the arc leaves open.
-fn bias_covariance(
-    jac: &[V3],
-    w: &[f64],
-    phi: &[f64],
-    ni: &Matrix3<f64>,
-    sigma: f64,
-) -> Matrix3<f64> {
-    let mut g = [V3::zeros(); 3];
-    for ((j, p), wi) in jac.iter().zip(phi).zip(w) {
-        let (s, c) = p.sin_cos();
-        g[0] += j * *wi;
-        g[1] += j * (wi * c);
-        g[2] += j * (wi * s);
-    }
-    let mut cov = Matrix3::zeros();
-    for gm in g {
-        let d = ni * gm;
-        cov += d * d.transpose();
-    }
-    cov * (sigma * sigma)
-}
-
-/// One edge point of the last round: its place around the outline, the blur-corrected and
-/// the plain point (px), and its strength `g`.
-struct EdgePoint {
-    place: usize,
-    point: (f64, f64),
-    raw: (f64, f64),
-    g: f64,
-}
-
-/// The last round's edge points at `k` places of the outline of (`c`, `r`), each moved
-/// outward by `σ_b²κ/2` (σ_b the median over the outline), with σ_b and the fraction of the
-/// outline visible.
-fn final_edges(
-    img: &ColourImage,
-    cam: &dyn CameraRays,
-    r: f64,
-    c: &V3,
-    w: f64,
-    k: usize,
-) -> Option<(Vec<EdgePoint>, f64, f64)> {
-    let (pls, _) = places(cam, c, r, k)?;
+/// The last round at full density: edge points at one place per pixel of outline (up to
+/// 720), the blur correction, the robust fit, and the least squares on its inliers.
+fn finish(img: &ColourImage, cam: &dyn CameraRays, r: f64, c: V3, w: f64) -> Option<Fit> {
+    let centre_px = cam.ray_to_pixel([c.x, c.y, c.z])?;
+    let px = pixel_angle(cam, (centre_px[0], centre_px[1]))?;
+    let radius_px = (r / c.norm()).asin() / px;
+    let k = ((std::f64::consts::TAU * radius_px).round() as usize).clamp(64, 720);
+    let (pls, _) = places(cam, &c, r, k)?;
     let (found, visible) = find_edges(img, &pls, w);
     let mut vars: Vec<f64> = found.iter().flatten().map(|e| e.3).collect();
     if vars.len() < 12 {
@@ -342,61 +279,32 @@ fn final_edges(
     }
     let mid = vars.len() / 2;
     let var_b = *vars.select_nth_unstable_by(mid, |a, b| a.total_cmp(b)).1;
-    let pts = found
-        .iter()
-        .zip(&pls)
-        .enumerate()
-        .filter_map(|(i, (e, pl))| {
-            let (e, pl) = (e.as_ref()?, pl.as_ref()?);
-            let s = 0.5 * var_b * e.4;
-            Some(EdgePoint {
-                place: i,
-                point: (e.0 + s * pl.n.0, e.1 + s * pl.n.1),
-                raw: (e.0, e.1),
-                g: e.2,
-            })
-        })
-        .collect();
-    Some((pts, var_b.sqrt(), visible))
-}
-
-/// The last round at full density: edge points at one place per pixel of outline (up to
-/// 720), the blur correction, the robust fit, and the least squares on its inliers, each
-/// weighted by its strength squared (the σ of an edge's place, from the image's noise or
-/// from shading beside it, goes as one over its contrast).
-fn finish(img: &ColourImage, cam: &dyn CameraRays, r: f64, c: V3, w: f64) -> Option<Fit> {
-    let centre_px = cam.ray_to_pixel([c.x, c.y, c.z])?;
-    let px = pixel_angle(cam, (centre_px[0], centre_px[1]))?;
-    let radius_px = (r / c.norm()).asin() / px;
-    let k = ((std::f64::consts::TAU * radius_px).round() as usize).clamp(64, 720);
-    let (pts, sigma_blur_px, visible) = final_edges(img, cam, r, &c, w, k)?;
+    // (place index, corrected point, raw point)
+    let mut pts = Vec::new();
+    for (i, (e, pl)) in found.iter().zip(&pls).enumerate() {
+        let (Some(e), Some(pl)) = (e, pl) else {
+            continue;
+        };
+        let s = 0.5 * var_b * e.4;
+        pts.push((i, (e.0 + s * pl.n.0, e.1 + s * pl.n.1), (e.0, e.1)));
+    }
     let rays: Vec<V3> = pts
         .iter()
-        .filter_map(|p| ray(cam, p.point.0, p.point.1))
+        .filter_map(|p| ray(cam, p.1 .0, p.1 .1))
         .collect();
     if rays.len() != pts.len() {
         return None;
     }
     let rob = robust_fit(&rays, c, r, 0.25 * px)?;
-    let used: Vec<(&EdgePoint, &V3)> = pts
+    let inl: Vec<V3> = rays
         .iter()
-        .zip(&rays)
         .zip(&rob.inlier)
         .filter(|(_, &b)| b)
-        .map(|(p, _)| p)
+        .map(|(q, _)| *q)
         .collect();
-    let inl: Vec<V3> = used.iter().map(|(_, q)| **q).collect();
-    let wts: Vec<f64> = used.iter().map(|(p, _)| p.g * p.g).collect();
-    let (centre, cov, s, ni) = fit_cone_weighted(&inl, &wts, rob.centre, r)?;
-    let (res, jac) = cone_residuals(&inl, &centre, r)?;
+    let (centre, cov, s) = fit_cone(&inl, rob.centre, r)?;
+    let (res, _) = cone_residuals(&inl, &centre, r)?;
     let inflation = correlation_inflation(&res);
-    let mean_w = wts.iter().sum::<f64>() / wts.len() as f64;
-    let wn: Vec<f64> = wts.iter().map(|x| x / mean_w).collect();
-    let phi: Vec<f64> = used
-        .iter()
-        .map(|(p, _)| std::f64::consts::TAU * p.place as f64 / k as f64)
-        .collect();
-    let cov = cov * inflation + bias_covariance(&jac, &wn, &phi, &ni, EDGE_BIAS_PX * px);
     let image_centre = cam.ray_to_pixel([centre.x, centre.y, centre.z])?;
     let outline: Vec<(f64, f64)> = cone_rays(&centre, r, 180)?
         .iter()
@@ -407,25 +315,28 @@ fn finish(img: &ColourImage, cam: &dyn CameraRays, r: f64, c: V3, w: f64) -> Opt
         .map(|p| (p.0 - image_centre[0]).hypot(p.1 - image_centre[1]))
         .sum::<f64>()
         / outline.len().max(1) as f64;
-    let mut rejected = Vec::new();
+    let (mut edges, mut raw_edges, mut rejected) = (Vec::new(), Vec::new(), Vec::new());
     for (p, ok) in pts.iter().zip(&rob.inlier) {
-        if !ok {
-            rejected.push(p.raw);
+        if *ok {
+            edges.push(p.1);
+            raw_edges.push(p.2);
+        } else {
+            rejected.push(p.2);
         }
     }
     Some(Fit {
         centre,
-        cov,
+        cov: cov * inflation,
         image_centre: (image_centre[0], image_centre[1]),
         radius_px,
         outline,
-        coverage: used.len() as f64 / k as f64,
-        edges: used.iter().map(|(p, _)| p.point).collect(),
-        raw_edges: used.iter().map(|(p, _)| p.raw).collect(),
+        coverage: edges.len() as f64 / k as f64,
+        edges,
+        raw_edges,
         rejected,
         visible,
         rms_px: s / px,
-        sigma_blur_px,
+        sigma_blur_px: var_b.sqrt(),
         inflation,
     })
 }
