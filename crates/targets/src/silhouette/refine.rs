@@ -66,13 +66,11 @@ struct Place {
     kappa: f64,
 }
 
+/// The places of an outline and the image of the sphere's centre, px.
+type Outline = (Vec<Option<Place>>, (f64, f64));
+
 /// The outline of the sphere (`c`, `r`) at `k` places (`None` where a ray does not image).
-fn places(
-    cam: &dyn CameraRays,
-    c: &V3,
-    r: f64,
-    k: usize,
-) -> Option<(Vec<Option<Place>>, (f64, f64))> {
+fn places(cam: &dyn CameraRays, c: &V3, r: f64, k: usize) -> Option<Outline> {
     let rays = cone_rays(c, r, k)?;
     let centre = cam.ray_to_pixel([c.x, c.y, c.z])?;
     let pts: Vec<Option<(f64, f64)>> = rays
@@ -180,11 +178,14 @@ fn search(img: &ColourImage, pl: &Place, w: f64) -> Result<(f64, f64, f64), bool
 
 /// Edge points of one round: per place, `Some((x, y, g, σ_b², κ))`, and the fraction of
 /// places visible.
-type Found = (Vec<Option<(f64, f64, f64, f64, f64)>>, f64);
+type Found = (Vec<Option<Edge>>, f64);
+
+/// An edge point: x, y (px), its strength g, the blur σ_b² and the outline's curvature κ.
+type Edge = (f64, f64, f64, f64, f64);
 
 fn find_edges(img: &ColourImage, pls: &[Option<Place>], w: f64) -> Found {
     let mut visible = 0usize;
-    let mut out: Vec<Option<(f64, f64, f64, f64, f64)>> = pls
+    let mut out: Vec<Option<Edge>> = pls
         .iter()
         .map(|pl| {
             let pl = pl.as_ref()?;
