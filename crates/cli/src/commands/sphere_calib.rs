@@ -4,12 +4,12 @@
 //!
 //! Writes `results.json`, `report.html`, `overlays/`, `ros/`, `opencv/` and `kalibr/` into DIR
 //! (default `results/` beside the project) as calibrate writes its set: all or none, swapped
-//! in at once under the folder's lock ([`super::calibrate::write_set`]). An existing
+//! in at once under the folder's lock ([`super::result_set::write_set`]). An existing
 //! `results.json` is never replaced unless `--overwrite` is given: without it the run stops
 //! before any work.
 
-use super::calibrate::write_set;
 use super::preflight::check_out_dir;
+use super::result_set::write_set;
 use super::result_set::{FolderLock, SetFile};
 use super::CmdResult;
 use pingcal_pipeline::sphere_calib::{calibrate, outputs::outputs, results_json, sd, Outcome};
