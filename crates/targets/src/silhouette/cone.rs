@@ -123,7 +123,7 @@ fn trimmed(q: &[V3], c0: V3, r: f64) -> Option<V3> {
     Some(c)
 }
 
-/// The robust fit: [`trimmed`] from `c0`, then iteratively reweighted least squares with
+/// The robust fit: least trimmed squares (concentration steps) from `c0`, then iteratively reweighted least squares with
 /// Tukey's biweight (c = 4.685 σ, σ = 1.4826 · the median absolute residual, at least
 /// `floor / 3`) until σ settles; inliers within `max(3σ, floor)`. `floor`: the smallest
 /// residual scale worth telling apart (radians, e.g. a quarter pixel's angle).
