@@ -7,7 +7,7 @@
 //! control/check table and leave-one-out), matches the balls of both frames without labels,
 //! and implements the Fan et al. 2019 room-corner baseline the paper compares against.
 //!
-//! Units are millimetres; frames are those of SPEC.md (`p_camera = R · p_lrf + t`).
+//! Units are millimetres; frames are those of docs/formats.md (`p_camera = R · p_lrf + t`).
 //!
 //! Modules, in pipeline order:
 //! - [`scan`]: the `pingcal-scan` CSV format, streaming reader and writer.
@@ -18,8 +18,11 @@
 //! - [`ply`], [`xyz`], [`pcd`]: PLY (ascii/binary), text and PCD (ascii, binary,
 //!   binary_compressed through [`lzf`]) clouds; labelled point files.
 //! - [`sphere_fit`]: along-ray fixed-radius fit, orthogonal and free-radius fits, covariances.
+//! - [`clustering`]: Euclidean clusters with a link per point, in time bounded by the points.
 //! - [`ball_finder`]: planes removed, clusters, RANSAC with radius bounds, along-ray fit,
 //!   mixed-pixel rejection; balls with too few points are reported, not used.
+//! - [`sphere_size`]: when nothing of the nominal size is found, a sphere of another size the
+//!   cloud shows, if any.
 //! - [`registration`]: Horn/Umeyama closed form, weighted least squares with the covariances of
 //!   both sides (optional scale), σ of R and t, control/check table, leave-one-out.
 //! - [`correspondence`]: automatic ball matching by pairwise-distance invariants, RANSAC over triples.
@@ -34,6 +37,7 @@ pub mod ball_finder;
 pub mod beam;
 pub mod cloud;
 pub mod cloud_file;
+pub mod clustering;
 pub mod corner;
 pub mod corner_baseline;
 pub mod correspondence;
@@ -46,6 +50,7 @@ pub mod scan;
 pub mod sensor;
 pub mod simulate;
 pub mod sphere_fit;
+pub mod sphere_size;
 pub mod xyz;
 
 pub use cloud::Cloud;

@@ -17,14 +17,18 @@
 //! The README's section "The project file" has a complete, commented example; the tests
 //! of this crate parse and validate that very text, so it cannot drift.
 
+#[macro_use]
 mod closed_sets;
+pub mod camera_file;
 pub mod intrinsics;
 mod layout;
 mod parse;
 mod schema;
 pub mod sphere_calib;
 mod validate;
+pub mod yaml;
 
+pub use camera_file::{CameraFile, CameraFormat};
 pub use closed_sets::{CameraModel, Method, MountParameter, Parameter, TargetFamily};
 pub use intrinsics::{Intrinsics, KeyedValues};
 pub use layout::{Layout, LayoutError};
@@ -33,7 +37,7 @@ pub use schema::{
     ProjectFrames, ProjectImage, ProjectLrf, ProjectNetwork, ProjectStereo, ProjectTargets,
     PARAMETER_NAMES,
 };
-pub use sphere_calib::{CameraFile, SphereCalibFile, SphereCalibFrame, SphereCalibLidar};
+pub use sphere_calib::{SphereCalibFile, SphereCalibFrame, SphereCalibLidar};
 
 use std::path::{Path, PathBuf};
 
@@ -85,6 +89,27 @@ fn read_small(path: &Path, what: &str) -> Result<String, ProjectError> {
         )));
     }
     std::fs::read_to_string(path).map_err(|e| io(e.to_string()))
+}
+
+/// Refuses a file named twice, under any spelling (`images/./a.png`, `../p/images/a.png`, a
+/// symbolic link): the paths are compared as [`std::fs::canonicalize`] resolves them.
+/// `names[k]` names `paths[k]` in the error; `file` is the project file.
+fn once_each(paths: &[PathBuf], names: &[String], file: &str) -> Result<(), ProjectError> {
+    let mut seen: std::collections::HashMap<PathBuf, usize> = Default::default();
+    for (k, p) in paths.iter().enumerate() {
+        let canon = std::fs::canonicalize(p).unwrap_or_else(|_| p.clone());
+        if let Some(&first) = seen.get(&canon) {
+            return Err(ProjectError::Invalid {
+                path: file.to_string(),
+                what: format!(
+                    "{} is the same file as {}: each file is listed once",
+                    names[k], names[first]
+                ),
+            });
+        }
+        seen.insert(canon, k);
+    }
+    Ok(())
 }
 
 /// A project file read, checked, with its paths resolved.
@@ -147,6 +172,14 @@ impl Project {
             .enumerate()
             .map(|(k, s)| resolve(s, format!("[lrf] scans[{k}] \"{s}\"")))
             .collect::<Result<Vec<_>, _>>()?;
+        let images: Vec<String> = (file.images.iter().enumerate())
+            .map(|(k, im)| format!("images[{k}] file \"{}\"", im.file))
+            .collect();
+        once_each(&image_paths, &images, &name)?;
+        let scans: Vec<String> = (file.lrf.scans.iter().enumerate())
+            .map(|(k, s)| format!("[lrf] scans[{k}] \"{s}\""))
+            .collect();
+        once_each(&scan_paths, &scans, &name)?;
         let layout = match &file.targets.layout {
             None => None,
             Some(rel) => {
@@ -167,6 +200,10 @@ impl Project {
             .enumerate()
             .map(|(k, s)| resolve_as(s, format!("[lrf.bag] files[{k}] \"{s}\""), Path::exists))
             .collect::<Result<Vec<_>, _>>()?;
+        let bag_names: Vec<String> = (bags.iter().enumerate())
+            .map(|(k, s)| format!("[lrf.bag] files[{k}] \"{s}\""))
+            .collect();
+        once_each(&bag_paths, &bag_names, &name)?;
         Ok(Project {
             path: path.to_path_buf(),
             dir,

@@ -9,6 +9,11 @@
 //! "Premature end of buffer" and fills the missing blocks with grey, so a JPEG is first
 //! walked marker by marker ([`jpeg_truncation`]) and refused when it ends before its
 //! end-of-image marker.
+//!
+//! Before any decoder runs, [`image_checks`](crate::image_checks) holds the header against
+//! the data (a PNG's IHDR against its inflated IDAT, a JPEG's SOF against its coded data, a
+//! TIFF's strip offsets against its header) and refuses an image too large to hold, naming
+//! its size.
 
 pub use crate::raster::GrayImage;
 use crate::raster::{lut_u16, lut_u8, zeroed_f32, NotDecoded, MAX_ALLOC, MAX_SIDE};
@@ -18,6 +23,10 @@ use std::path::Path;
 /// Decodes an encoded image (format guessed from the bytes) to grey `f32`.
 /// `name` is used in error messages.
 pub fn decode_image(bytes: &[u8], name: &str) -> Result<GrayImage, TargetError> {
+    crate::image_checks::check_bytes(bytes).map_err(|what| TargetError::Image {
+        file: name.to_string(),
+        what,
+    })?;
     // Grey strip TIFFs (the usual photogrammetric images) go the fast way; anything it does not
     // handle, or finds damaged, goes on to the general decoder, which has the last word.
     if let Ok(img) = crate::tiff_strips::decode_grey_strips(bytes) {
@@ -166,6 +175,14 @@ fn convert_with<T: Copy + Into<usize> + Sync>(src: &[T], lut: &[f32]) -> Vec<f32
 /// Loads an image file to grey `f32`.
 pub fn load_image(path: &Path) -> Result<GrayImage, TargetError> {
     let name = path.display().to_string();
+    let refused = |what: String| TargetError::Image {
+        file: name.clone(),
+        what,
+    };
+    if let Ok(f) = std::fs::File::open(path) {
+        crate::image_checks::check_png(std::io::BufReader::with_capacity(1 << 16, f))
+            .map_err(refused)?;
+    }
     // A PNG is decoded as it is read (see `png_rows`); if that path does not take it, the file
     // is read again and goes the general way (which then skips the PNG fast path).
     let png_tried = match load_grey_png(path) {
@@ -183,6 +200,7 @@ pub fn load_image(path: &Path) -> Result<GrayImage, TargetError> {
     if png_tried {
         decode_general(&bytes, &name, false)
     } else {
+        crate::image_checks::check_bytes(&bytes).map_err(refused)?;
         decode_image(&bytes, &name)
     }
 }
@@ -200,6 +218,66 @@ fn load_grey_png(path: &Path) -> Option<Result<GrayImage, NotDecoded>> {
     Some(crate::png_rows::decode_grey_png_from(
         std::io::BufReader::with_capacity(1 << 16, file),
     ))
+}
+
+/// Loads an image file as its channels: one for a grey image (as [`load_image`] gives it),
+/// red, green and blue for a colour one (alpha dropped), each `f32` in [0, 1]. Errors as
+/// [`load_image`]'s, naming the file.
+pub fn load_colour(path: &Path) -> Result<crate::silhouette::ColourImage, TargetError> {
+    use crate::silhouette::ColourImage;
+    let name = path.display().to_string();
+    let bytes = std::fs::read(path).map_err(|e| TargetError::Image {
+        file: name.clone(),
+        what: match e.kind() {
+            std::io::ErrorKind::NotFound => "no such file".to_string(),
+            _ => format!("cannot read: {e}"),
+        },
+    })?;
+    let bad = |what: String| TargetError::Image {
+        file: name.clone(),
+        what,
+    };
+    let colour = image::ImageReader::new(std::io::Cursor::new(&bytes))
+        .with_guessed_format()
+        .ok()
+        .and_then(|r| r.into_decoder().ok())
+        .map(|d| {
+            use image::ImageDecoder;
+            !matches!(
+                d.color_type(),
+                image::ColorType::L8
+                    | image::ColorType::L16
+                    | image::ColorType::La8
+                    | image::ColorType::La16
+            )
+        })
+        .unwrap_or(false);
+    if !colour {
+        return decode_image(&bytes, &name).map(ColourImage::grey);
+    }
+    // the general decoder's checks (truncation, limits, a guarded decoder) first
+    let grey = decode_general(&bytes, &name, false)?;
+    let mut reader = image::ImageReader::new(std::io::Cursor::new(&bytes))
+        .with_guessed_format()
+        .map_err(|e| bad(format!("cannot read: {e}")))?;
+    let mut limits = image::Limits::default();
+    limits.max_image_width = Some(MAX_SIDE);
+    limits.max_image_height = Some(MAX_SIDE);
+    limits.max_alloc = Some(MAX_ALLOC);
+    reader.limits(limits);
+    let decoded = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| reader.decode()))
+        .map_err(|_| bad("corrupt image (decoder failed)".into()))?
+        .map_err(|e| bad(format!("corrupt or unsupported image: {e}")))?;
+    let rgb = decoded.to_rgb32f();
+    let (w, h) = (grey.width, grey.height);
+    let mut planes = vec![GrayImage::new(w, h, 0.0); 3];
+    for (i, px) in rgb.pixels().enumerate() {
+        for (c, plane) in planes.iter_mut().enumerate() {
+            let v = px.0[c];
+            plane.data[i] = if v.is_finite() { v } else { 0.0 };
+        }
+    }
+    Ok(ColourImage { planes })
 }
 
 /// Converts to an 8-bit `image` buffer (for overlays and debugging).

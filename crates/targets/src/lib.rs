@@ -24,7 +24,7 @@
 //! - [`overlay::draw_detections`]: debug overlay PNG.
 //!
 //! ## Modules, in pipeline order
-//! - [`image_io`]: loading and conversion; [`tiff_strips`]: its fast path for grey strip TIFFs.
+//! - [`image_io`]: loading and conversion, after [`image_checks`] (header against data, size); [`tiff_strips`]: its fast path for grey strip TIFFs.
 //!   [`png_rows`]: its fast path for grey PNGs.
 //! - [`threshold`]: the threshold ladder and per-target local levels (hot spots, vignetting).
 //! - [`blobs`]: connected components with moments.
@@ -34,6 +34,8 @@
 //! - [`aicon`]: code tables (generated), ring sampling after affine rectification, bit
 //!   reading, minimum rotation, lookup, refusals.
 //! - [`ball`]: sphere silhouettes and the eccentricity correction.
+//! - [`silhouette`]: a sphere of known radius in a real photograph: edges from the colour
+//!   gradient, candidate circles, the robust fit of its silhouette cone to the visible outline.
 //! - [`detect`]: the top-level detector.
 //! - [`driveback`]: identification by projection.
 //! - [`homography`], [`printable`], [`overlay`].
@@ -47,6 +49,7 @@ pub mod detect;
 pub mod driveback;
 pub mod ellipse;
 pub mod homography;
+pub mod image_checks;
 pub mod image_io;
 pub mod overlay;
 pub mod png_rows;
@@ -54,6 +57,7 @@ pub mod printable;
 pub mod raster;
 pub mod refusal;
 pub mod sheet;
+pub mod silhouette;
 pub mod threshold;
 pub mod tiff_strips;
 
@@ -63,7 +67,7 @@ pub use detect::{
     detect_file, detect_files, detect_image, DetectParams, Detector, ImageDetections, Target,
     TargetKind,
 };
-pub use image_io::{decode_image, load_image, GrayImage};
+pub use image_io::{decode_image, load_colour, load_image, GrayImage};
 
 /// Errors of this crate. Each names the file (where there is one) and what is wrong.
 #[derive(Debug, thiserror::Error)]
