@@ -145,7 +145,7 @@ const PERSPECTIVE_FOV_DEG: f64 = 115.0;
 /// ([`pingcal_ba::diagnostics::RadialProfile::grows_radially`]), or whose gross errors
 /// gather toward the edge ([`pingcal_ba::diagnostics::RadialProfile::rejections_grow`]);
 /// five rings of the image's half-diagonal. A perspective model whose σ0 fails on a lens
-/// wider than [`PERSPECTIVE_FOV_DEG`] is named first.
+/// wider than `PERSPECTIVE_FOV_DEG` is named first.
 pub fn lens_doubt(project: &Project, adjusted: &Adjusted) -> Option<String> {
     let dof = adjusted.precision.redundancy as f64;
     let sigma0_fails = dof > 0.0 && adjusted.sigma0_a_priori > sigma0_bound(dof);
