@@ -190,3 +190,35 @@ mod tests {
         assert!((m.points[0] - c.points[0] * 1000.0).norm() < 1e-9);
     }
 }
+
+/// The `lrf_model` block of a file (the `results.json` of `pingcal calibrate`, the
+/// `mount.json` of `pingcal lrf-mount`, or a file that is that block alone): the whole
+/// mount and range model, checked (finite values, scale errors that are small fractions).
+/// An error names the file and what is missing.
+pub fn read_lrf_model(path: &std::path::Path) -> Result<crate::sensor::MountModel> {
+    let file = path.display().to_string();
+    let text = std::fs::read_to_string(path).map_err(|e| LrfError::io(&file, e))?;
+    let invalid = |msg: String| LrfError::Invalid(format!("{file}: {msg}"));
+    let v: serde_json::Value =
+        serde_json::from_str(&text).map_err(|e| invalid(format!("not JSON ({e})")))?;
+    let block = v.get("lrf_model").unwrap_or(&v);
+    if block.get("offset_mm").is_none() {
+        return Err(invalid(
+            "no `lrf_model` block (offset_mm, tilt_x_deg, …): expected the results.json of `pingcal calibrate` or the mount.json of `pingcal lrf-mount`".into(),
+        ));
+    }
+    let m: crate::sensor::MountModel =
+        serde_json::from_value(block.clone()).map_err(|e| invalid(format!("lrf_model: {e}")))?;
+    if !(m.to_params().iter().all(|v| v.is_finite()) && m.servo_zero_deg.is_finite()) {
+        return Err(invalid(
+            "lrf_model: every value must be a finite number".into(),
+        ));
+    }
+    if !(m.servo_scale.abs() < 0.5 && m.range_scale.abs() < 0.5) {
+        return Err(invalid(format!(
+            "lrf_model: servo_scale {} / range_scale {}: expected scale errors, small fractions",
+            m.servo_scale, m.range_scale
+        )));
+    }
+    Ok(m)
+}

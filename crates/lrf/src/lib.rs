@@ -20,6 +20,8 @@
 //! - [`sphere_fit`]: along-ray fixed-radius fit, orthogonal and free-radius fits, covariances.
 //! - [`ball_finder`]: planes removed, clusters, RANSAC with radius bounds, along-ray fit,
 //!   mixed-pixel rejection; balls with too few points are reported, not used.
+//! - [`room`]: the mount self-calibrated from the room's planes (walls, floor, ceiling seen
+//!   from both half-sweeps), and the beam-on-plane observation the joint adjustment adds.
 //! - [`registration`]: Horn/Umeyama closed form, weighted least squares with the covariances of
 //!   both sides (optional scale), σ of R and t, control/check table, leave-one-out.
 //! - [`correspondence`]: automatic ball matching by pairwise-distance invariants, RANSAC over triples.
@@ -42,6 +44,7 @@ pub mod lzf;
 pub mod pcd;
 pub mod ply;
 pub mod registration;
+pub mod room;
 pub mod scan;
 pub mod sensor;
 pub mod simulate;
