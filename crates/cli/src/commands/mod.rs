@@ -6,6 +6,7 @@ pub mod cloud;
 pub mod demo;
 pub mod detect;
 pub mod gen_bal;
+pub mod lrf_mount;
 pub mod plan;
 pub mod preflight;
 pub mod progress;
