@@ -12,6 +12,7 @@ use super::{Options, PipelineError, Reporter, Result};
 use pingcal_lrf::ball_finder::{find_balls, FindResult, FinderOptions};
 use pingcal_lrf::cloud::{Cloud, MountModel};
 use pingcal_lrf::cloud_file::{file_kind, non_empty, read_cloud_file_in, CloudFileKind, CloudUnit};
+use pingcal_lrf::room::{mount_from_room, RoomMount, RoomOptions};
 use pingcal_lrf::scan::{open_scan_file, ScanHeader, ScanLine};
 use pingcal_lrf::sensor::RangeNoise;
 use pingcal_project::{Project, ProjectBag};
@@ -177,6 +178,68 @@ pub fn lrf_spheres(project: &Project, opts: &Options, rep: &Reporter) -> Result<
     };
     pb.finish();
     Ok(spheres_in(project, cloud, scans, mount, noise, opts, rep))
+}
+
+/// The LRF's mount from the room's planes ([`pingcal_lrf::room`]): the walls the ball finder
+/// removed from `lrf`'s cloud, seen from both half-sweeps, fitted so that each is one
+/// plane, starting from the project's mount; the parameters the project asks for, those the
+/// room does not determine held and named. None (and the reason in the log) when the
+/// project turns it off (`[lrf] room_planes = false`), asks for no mount parameter, the
+/// cloud has no readings, or the room determines none of them.
+pub fn room_mount(project: &Project, lrf: &LrfData, rep: &Reporter) -> Option<RoomMount> {
+    let l = &project.file.lrf;
+    if l.room_planes == Some(false) || lrf.cloud.readings.is_none() {
+        return None;
+    }
+    let mut estimate = [false; 8];
+    for p in l.self_calibrated() {
+        estimate[p.index()] = true;
+    }
+    if !estimate.iter().any(|&e| e) {
+        return None;
+    }
+    let opts = RoomOptions {
+        noise: lrf.noise,
+        estimate,
+        ..RoomOptions::default()
+    };
+    match mount_from_room(&lrf.cloud, &lrf.found.planes, &lrf.mount, &opts) {
+        Ok(r) => {
+            rep.log(format!("LRF mount from the room: {}", describe_room(&r)));
+            r.parameters.iter().any(|p| p.sigma.is_some()).then_some(r)
+        }
+        Err(e) => {
+            rep.log(format!("LRF mount from the room: not found ({e})"));
+            None
+        }
+    }
+}
+
+/// One line: the planes, the fit, every parameter with its σ or why it is held.
+pub fn describe_room(r: &RoomMount) -> String {
+    let params: Vec<String> = r
+        .parameters
+        .iter()
+        .map(|p| {
+            let u = match p.name {
+                "tilt_x" | "tilt_z" => "°",
+                "servo_scale" | "range_scale" => "",
+                _ => " mm",
+            };
+            match p.sigma {
+                Some(s) => format!("{} {:.4} ± {:.4}{u}", p.name, p.value, s),
+                None => format!("{} held", p.name),
+            }
+        })
+        .collect();
+    format!(
+        "{} planes, {} beams ({} rejected), sigma0 {:.3}; {}",
+        r.planes.len(),
+        r.beams,
+        r.rejected,
+        r.sigma0,
+        params.join(", ")
+    )
 }
 
 /// The spheres of `lrf`'s beams seen through another mount (the joint adjustment's

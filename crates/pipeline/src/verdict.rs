@@ -173,16 +173,28 @@ pub fn judge(st: &Stages) -> Verdict {
             reasons.push(why);
         }
     }
-    if let Some(Err(e)) = st.joint {
-        reasons.push(format!(
+    let mut failed = false;
+    match st.joint {
+        Some(Err(e)) if e.not_converged => {
+            failed = true;
+            reasons.insert(0, format!("{e}; results.json's extrinsic is the two-step method's, given as the fallback, not as a calibration"));
+        }
+        Some(Err(e)) => reasons.push(format!(
             "the joint adjustment failed ({e}): the two-step result is given"
-        ));
+        )),
+        Some(Ok(j)) => {
+            reasons.extend(j.convergence.doubt());
+            notes.extend(j.hold_mount.clone());
+        }
+        None => {}
     }
     let status = if st.ext.spheres.is_none() {
         reasons.insert(
             0,
             "the sphere method gave no extrinsic (only the corner baseline did)".into(),
         );
+        Status::Failed
+    } else if failed {
         Status::Failed
     } else if reasons.is_empty() {
         Status::Ok
