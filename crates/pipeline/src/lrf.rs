@@ -11,7 +11,9 @@
 use super::{Options, PipelineError, Reporter, Result};
 use pingcal_lrf::ball_finder::{find_balls, FindResult, FinderOptions};
 use pingcal_lrf::cloud::{Cloud, MountModel};
-use pingcal_lrf::cloud_file::{file_kind, non_empty, read_cloud_file_in, CloudFileKind, CloudUnit};
+use pingcal_lrf::cloud_file::{
+    file_kind, non_empty, read_cloud_file_in, read_lrf_model, CloudFileKind, CloudUnit,
+};
 use pingcal_lrf::room::{mount_from_room, RoomMount, RoomOptions};
 use pingcal_lrf::scan::{open_scan_file, ScanHeader, ScanLine};
 use pingcal_lrf::sensor::RangeNoise;
@@ -36,16 +38,21 @@ pub struct LrfData {
     pub noise: RangeNoise,
 }
 
-/// The mount model of the project.
-pub fn mount_of(project: &Project) -> MountModel {
+/// The mount model of the project: its `[lrf] lrf_model` file's, or its `mount_*` and
+/// `servo_zero_deg` keys'.
+pub fn mount_of(project: &Project) -> Result<MountModel> {
+    if let Some(path) = &project.lrf_model_path {
+        return read_lrf_model(path)
+            .map_err(|e| PipelineError::new(format!("{}: [lrf] lrf_model: {e}", project.path.display())));
+    }
     let l = &project.file.lrf;
-    MountModel {
+    Ok(MountModel {
         offset_mm: l.mount_offset_mm,
         tilt_x_deg: l.mount_tilt_x_deg,
         tilt_z_deg: l.mount_tilt_z_deg,
         servo_zero_deg: l.servo_zero_deg,
         ..MountModel::default()
-    }
+    })
 }
 
 /// The scans of the `[lrf.bag]` bags, with the servo interpolated at each beam's time, in
@@ -119,7 +126,7 @@ fn bag_scans(
 /// Reads the scans and finds the spheres.
 pub fn lrf_spheres(project: &Project, opts: &Options, rep: &Reporter) -> Result<LrfData> {
     let l = &project.file.lrf;
-    let mount = mount_of(project);
+    let mount = mount_of(project)?;
     let pb = rep.task("LRF cloud and spheres", project.scan_paths.len() as u64 + 1);
     let mut cloud = Cloud::default();
     let mut scans = None;

@@ -102,6 +102,8 @@ pub struct Project {
     pub layout: Option<Layout>,
     /// `[lrf.bag]` files (bag files or ROS 2 bag folders), resolved.
     pub bag_paths: Vec<PathBuf>,
+    /// `[lrf] lrf_model`, resolved.
+    pub lrf_model_path: Option<PathBuf>,
 }
 
 impl Project {
@@ -165,6 +167,10 @@ impl Project {
             .enumerate()
             .map(|(k, s)| resolve_as(s, format!("[lrf.bag] files[{k}] \"{s}\""), Path::exists))
             .collect::<Result<Vec<_>, _>>()?;
+        let lrf_model_path = match &file.lrf.lrf_model {
+            Some(rel) => Some(resolve(rel, format!("[lrf] lrf_model \"{rel}\""))?),
+            None => None,
+        };
         Ok(Project {
             path: path.to_path_buf(),
             dir,
@@ -173,6 +179,7 @@ impl Project {
             scan_paths,
             layout,
             bag_paths,
+            lrf_model_path,
         })
     }
 
