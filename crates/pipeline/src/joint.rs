@@ -678,9 +678,10 @@ fn ball_centres(input: &JointInput, p: &Problem, prec: &Precision) -> Vec<(Point
 pub const SECOND_START_Z: f64 = 3.0;
 
 /// Two solutions are the same minimum when no extrinsic or mount unknown differs by more
-/// than this share of its σ (the solver's tolerances leave far less; a beam that grazes its
-/// ball at one solution and not at the other moves them by a few hundredths of a σ).
-pub const SAME_MINIMUM_Z: f64 = 0.25;
+/// than this share of its σ: within the result's own uncertainty. (The solver's tolerances
+/// leave far less; a beam that grazes its ball at one solution and not at the other makes a
+/// kink in the cost, and two nearby minima a few tenths of a σ apart, which that σ covers.)
+pub const SAME_MINIMUM_Z: f64 = 1.0;
 
 /// How the final adjustment converged, and whether a second start reached its minimum.
 #[derive(Clone, Debug, Default)]

@@ -247,6 +247,8 @@ const Z_MODEL: (f64, f64) = (1.644_853_626_951_472, 1.959_963_984_540_054);
 /// What every start of the joint adjustment shares.
 struct JointRun<'a> {
     project: &'a Project,
+    /// The project's mount (step 5's), where the priors sit.
+    prior: MountModel,
     dets: &'a scene::Detections,
     scene: &'a scene::Scene,
     adjusted: &'a bundle::Adjusted,
@@ -276,7 +278,7 @@ impl JointRun<'_> {
             ext,
             start,
             mount0: lrf.mount,
-            prior: lrf::mount_of(self.project),
+            prior: self.prior,
             pass,
             noise: lrf.noise,
             planes,
@@ -470,6 +472,7 @@ fn run_joint(
     };
     let run = JointRun {
         project,
+        prior: lrf.mount,
         dets,
         scene,
         adjusted,
@@ -559,8 +562,7 @@ fn simpler_if_insignificant(
     lrf: &lrf::LrfData,
     ext: &extrinsic::Extrinsics,
 ) -> joint::JointOutcome {
-    let prior = lrf::mount_of(run.project);
-    let Some(why) = insignificant_mount(&out, &prior) else {
+    let Some(why) = insignificant_mount(&out, &run.prior) else {
         return out;
     };
     run.rep.log(format!("joint: {why}"));
