@@ -147,14 +147,15 @@ fn print_estimate(r: &RoomMount) {
     for (k, p) in r.planes.iter().enumerate() {
         let n = p.normal;
         println!(
-            "plane {}: {:.4} x + {:.4} y + {:.4} z = {:.1} mm, {} beams, RMS {:.1} mm",
+            "plane {}: {:.4} x + {:.4} y + {:.4} z = {:.1} mm, {} beams, RMS {:.1} mm, bent by up to {:.1} mm",
             k + 1,
             n.x,
             n.y,
             n.z,
             p.offset_mm,
             p.beams,
-            p.rms_mm
+            p.rms_mm,
+            p.bend_mm
         );
     }
 }
@@ -182,6 +183,7 @@ fn estimate_json(r: &RoomMount, scans: &[String]) -> serde_json::Value {
                 "offset_mm": p.offset_mm,
                 "beams": p.beams,
                 "rms_mm": p.rms_mm,
+                "bend_mm": p.bend_mm,
             })
         })
         .collect();
