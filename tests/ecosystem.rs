@@ -322,9 +322,17 @@ fn lrf_model_urdf_rebuilds_cloud_ply_spheres() {
         "--out",
         out.to_str().unwrap(),
         "--quiet",
+        // The mount written is not the simulator's, so the registration is rightly doubtful
+        // (exit 3); what is checked here is that the files agree with each other, not the fit.
+        "--accept-doubtful",
     ];
     let run = common::run(&args, &dir);
     assert!(run.success(), "calibrate failed: {}", run.stderr);
+    assert!(
+        run.stderr.contains("doubtful"),
+        "a mount that is not the truth passed as ok: {}",
+        run.stderr
+    );
     let r = common::read_json(&out.join("results.json"));
     let m = &r["lrf_model"];
     assert_eq!(m["source"], "project");

@@ -100,6 +100,12 @@ fn every_bag_becomes_the_scan_file_it_was_made_from() {
             let text = std::fs::read_to_string(&out).unwrap();
             assert!(text.starts_with("# pingcal-scan v2\n"), "{bag}");
             let (got_h, got) = read(&out);
+            // the bag's time_increment is kept (the CSV made the bags has none)
+            assert_eq!(got_h.time_increment_s, Some(0.1 / 1024.0), "{bag}");
+            let got_h = ScanHeader {
+                time_increment_s: None,
+                ..got_h
+            };
             assert_eq!(got_h, h, "{bag}");
             assert_eq!(got.len(), want.len(), "{bag}");
             for (g, w) in got.iter().zip(&want) {
@@ -126,10 +132,16 @@ fn list_prints_topics_types_and_counts() {
         .skip(1)
         .map(|l| l.split_whitespace().collect())
         .collect();
-    assert_eq!(rows[2], ["/scan", "sensor_msgs/LaserScan", "5"], "{stdout}");
+    assert_eq!(rows[3], ["/scan", "sensor_msgs/LaserScan", "5"], "{stdout}");
     assert_eq!(
         rows[1],
         ["/joint_states", "sensor_msgs/JointState", "10"],
+        "{stdout}"
+    );
+    // the joints of a JointState topic and the frames of a tf topic are named
+    assert_eq!(rows[2], ["joints:", "pan,", "servo"], "{stdout}");
+    assert!(
+        stdout.contains("\n    frames: laser_base→servo_link\n"),
         "{stdout}"
     );
     assert_eq!(stdout.lines().last(), Some("scans: 5 topic(s) in 1 bag(s)"));
@@ -299,4 +311,271 @@ fn out_goes_through_a_symlink_and_into_a_device() {
         "{}",
         &stdout[..80.min(stdout.len())]
     );
+}
+
+/// Issue 37: a bag as drivers write it (`drivers.db3`: empty scans, NaN/±inf/0 and
+/// out-of-range ranges, changing beam counts, intensities, a repeated and a backward
+/// stamp; `make_fixtures.py --drivers`): converted with every count named, the
+/// intensities in a v3 file; a wrong joint lists the joints there are.
+#[test]
+fn a_drivers_bag_is_converted_with_the_counts_named() {
+    let dir = tmp("drivers");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let out = dir.join("drivers.csv");
+    let b = data("drivers.db3");
+    let args = |joint: &'static str| {
+        vec![
+            "scans".to_string(),
+            b.to_str().unwrap().into(),
+            "--scan-topic".into(),
+            "/scan".into(),
+            "--servo-topic".into(),
+            "/joint_states".into(),
+            "--servo-joint".into(),
+            joint.into(),
+            "--out".into(),
+            out.to_str().unwrap().into(),
+        ]
+    };
+    let run = |a: Vec<String>| pingcal(&a.iter().map(String::as_str).collect::<Vec<_>>());
+    let (ok, stdout, stderr) = run(args("tilt"));
+    assert!(ok, "{stderr}");
+    for want in [
+        "2 empty, 0 duplicate(s), 82 ranges masked",
+        "scans: servo motion: stop-and-go (one servo message 10.0 ms before each scan",
+        "scans: 82 range(s) read as no return: 15 0, 13 NaN, 27 ±inf, 14 under range_min, 13 over range_max",
+        "scans: intensities kept for 21 scan(s)",
+    ] {
+        assert!(stdout.contains(want), "{want}: {stdout}");
+    }
+    for want in [
+        "warning: topic /scan: 2 empty scan(s) (no beams) skipped",
+        "warning: topic /scan: 1 scan(s) with the stamp of the scan before them (kept)",
+        "warning: topic /scan: 1 scan(s) stamped earlier than the scan before them dropped",
+    ] {
+        assert!(stderr.contains(want), "{want}: {stderr}");
+    }
+    let text = std::fs::read_to_string(&out).unwrap();
+    assert!(text.starts_with("# pingcal-scan v3\n"), "{text}");
+    assert!(text.contains("# time_increment_s=0.0005\n"), "{text}");
+    let (_, lines) = read(&out);
+    assert!(lines
+        .iter()
+        .all(|l| l.intensities.len() == l.ranges_mm.len()));
+    let (ok, _, stderr) = run(args("servo"));
+    assert!(!ok);
+    assert!(
+        stderr.contains("no joint named \"servo\" in its 24 JointState messages (joints there: \"pan\", \"tilt\")"),
+        "{stderr}"
+    );
+    // every message stored twice: 8 scans, not 16
+    let (ok, stdout, stderr) = pingcal(&[
+        "scans",
+        data("dup.db3").to_str().unwrap(),
+        "--scan-topic",
+        "/scan",
+        "--servo-topic",
+        "/servo_int",
+        "--servo-scale",
+        "0.087890625",
+        "--servo-offset",
+        "-180",
+        "--out",
+        dir.join("dup.csv").to_str().unwrap(),
+    ]);
+    assert!(ok, "{stderr}");
+    let scans: u64 = stdout
+        .lines()
+        .filter_map(|l| l.strip_prefix("scans: "))
+        .filter_map(|l| {
+            l.split_once(" scans of ")
+                .map(|(n, _)| n.parse::<u64>().unwrap())
+        })
+        .sum();
+    assert_eq!(scans, 8, "{stdout}");
+    assert!(stdout.contains("8 duplicate(s)"), "{stdout}");
+    assert!(
+        stderr.contains("8 scan message(s) stored twice read once"),
+        "{stderr}"
+    );
+}
+
+/// `--servo-motion` overrides `auto`: interpolating a stop-and-go bag moves every angle.
+#[test]
+fn servo_motion_is_said_and_can_be_given() {
+    let out = tmp("stopgo.csv");
+    let b = data("stopgo_50ms.mcap");
+    let mut args = vec![
+        "scans",
+        b.to_str().unwrap(),
+        "--scan-topic",
+        "/scan",
+        "--servo-topic",
+        "/joint_states",
+        "--servo-joint",
+        "servo",
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    let (ok, stdout, stderr) = pingcal(&args);
+    assert!(ok, "{stderr}");
+    assert!(
+        stdout.contains("servo motion: stop-and-go (one servo message 50.0 ms before each scan"),
+        "{stdout}"
+    );
+    let (_, held) = read(&out);
+    args.extend(["--servo-motion", "continuous"]);
+    let (ok, stdout, stderr) = pingcal(&args);
+    assert!(ok, "{stderr}");
+    assert!(
+        stdout.contains("servo motion: continuous (as asked)"),
+        "{stdout}"
+    );
+    let (_, moved) = read(&out);
+    // the last scan has no servo message after it to interpolate to
+    assert_eq!(moved.len() + 1, held.len());
+    for (a, b) in moved.iter().zip(&held) {
+        assert!(
+            (a.servo_deg - b.servo_deg - 0.087890625).abs() < 1e-6,
+            "{} {}",
+            a.servo_deg,
+            b.servo_deg
+        );
+    }
+    let (ok, _, stderr) = pingcal(&[&args[..10], &["--servo-motion", "jerky"]].concat());
+    assert!(
+        !ok && stderr.contains("expected auto, stop-and-go or continuous"),
+        "{stderr}"
+    );
+}
+
+/// The `rosbags` venv's Python (`tests/rosbag/make_fixtures.sh` makes it), or `None` after
+/// printing why the test is skipped.
+fn rosbags_python(test: &str) -> Option<PathBuf> {
+    let py = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../target/rosbags-venv/bin/python");
+    let ok = py.is_file()
+        && Command::new(&py)
+            .args(["-c", "import rosbags, numpy, PIL"])
+            .status()
+            .is_ok_and(|s| s.success());
+    if !ok {
+        println!(
+            "{test}: skipped: no {} with rosbags, numpy and pillow (bash tests/rosbag/make_fixtures.sh makes it)",
+            py.display()
+        );
+    }
+    ok.then_some(py)
+}
+
+/// Issue 37: `pingcal frames` on a bag of PointCloud2 and Image / CompressedImage messages
+/// written by `rosbags` from a simulated sphere calibration (`make_frames_bag.py`: each
+/// frame still for three messages, then carried on for two) finds the ten still moments,
+/// pairs cloud and image, and writes a project that `pingcal sphere-calib` runs as it is,
+/// with the result of the frames written directly.
+#[test]
+fn frames_from_a_bag_make_a_project_sphere_calib_runs() {
+    let Some(py) = rosbags_python("frames_from_a_bag_make_a_project_sphere_calib_runs") else {
+        return;
+    };
+    let dir = tmp("frames");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let sim = dir.join("sim");
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let (ok, _, stderr) = pingcal(&[
+        "simulate",
+        "--kind",
+        "sphere-calib",
+        "--out",
+        &s(&sim),
+        "--seed",
+        "1",
+    ]);
+    assert!(ok, "{stderr}");
+    let (ok, _, stderr) = pingcal(&["sphere-calib", &s(&sim.join("sphere-calib.toml"))]);
+    assert!(ok, "{stderr}");
+    let direct: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(sim.join("results/results.json")).unwrap())
+            .unwrap();
+    let writer =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/rosbag/make_frames_bag.py");
+    for kind in ["raw", "compressed"] {
+        let bag = dir.join(format!("{kind}.mcap"));
+        let o = Command::new(&py)
+            .args([s(&writer), s(&sim), s(&bag), kind.into()])
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let out = dir.join(format!("out-{kind}"));
+        let (ok, stdout, stderr) = pingcal(&[
+            "frames",
+            &s(&bag),
+            "--cloud-topic",
+            "/points",
+            "--image-topic",
+            "/image",
+            "--camera",
+            &s(&sim.join("camera.toml")),
+            "--sphere-diameter-mm",
+            "600",
+            "--out",
+            &s(&out),
+        ]);
+        assert!(ok, "{stderr}");
+        assert!(
+            stdout.starts_with("frames: 10 frames from 50 clouds and 50 images (10 still moment(s) of the clouds, 10 of the images)"),
+            "{stdout}"
+        );
+        // each frame's cloud is one of its still clouds, every point kept, with its
+        // intensity and ring
+        let listing: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(bag.with_extension("json")).unwrap())
+                .unwrap();
+        for (k, f) in listing.as_array().unwrap().iter().enumerate() {
+            let text =
+                std::fs::read_to_string(out.join(format!("clouds/F{:02}.xyz", k + 1))).unwrap();
+            let head = text.lines().next().unwrap();
+            assert!(head.starts_with("# x y z intensity ring, metres"), "{head}");
+            let stamp: i64 = head
+                .rsplit("stamp ")
+                .next()
+                .unwrap()
+                .trim_end_matches(" ns)")
+                .parse()
+                .unwrap();
+            let still: Vec<i64> = f["still_ns"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|v| v.as_i64().unwrap())
+                .collect();
+            assert!(
+                still.contains(&stamp),
+                "F{}: {stamp} not in {still:?}",
+                k + 1
+            );
+            assert_eq!(
+                text.lines().count() - 1,
+                f["points"].as_u64().unwrap() as usize
+            );
+            // a raw image written as PNG; a compressed one as the PNG it is
+            assert!(out.join(format!("images/F{:02}.png", k + 1)).is_file());
+        }
+        let (ok, stdout, stderr) = pingcal(&["sphere-calib", &s(&out.join("sphere-calib.toml"))]);
+        assert!(ok, "{kind}: {stderr}");
+        assert!(stdout.contains("sphere-calib: 9 of 10 frames"), "{stdout}");
+        let got: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(out.join("results/results.json")).unwrap(),
+        )
+        .unwrap();
+        // the bag's clouds carry 3 mm of noise more: the same extrinsic within a few σ
+        for i in 0..3 {
+            let (a, b) = (
+                got["extrinsic"]["translation_mm"][i].as_f64().unwrap(),
+                direct["extrinsic"]["translation_mm"][i].as_f64().unwrap(),
+            );
+            assert!((a - b).abs() < 5.0, "{kind}: t[{i}] {a} against {b}");
+        }
+    }
 }

@@ -6,6 +6,10 @@
 # (the read_bag example: the reader alone), --list, and a full conversion to a scan file
 # (reading plus writing ~0.9 GB of CSV).
 #   bash bench/rosbag/run.sh [SIZE_MB]      (from the repository root; EXTS="bag mcap zstd.mcap")
+# ZSTD_C=1 also times the reader built with the C zstd (feature pingcal-rosbag/zstd-c).
+# SIZE_MB counts the messages' bytes; for a zstd MCAP of about 1 GB on disk give 3750.
+# Wall times need an otherwise idle machine: the reader decompresses on one thread while it
+# decodes on another (2 cores); the table's user+sys CPU seconds do not depend on the load.
 # Installs the writers in target/rosbags-venv. Writes target/rosbag-big/ (several GB:
 # removed at the end unless KEEP=1).
 set -euo pipefail
@@ -16,8 +20,14 @@ venv=target/rosbags-venv
 if [ ! -x "$venv/bin/python" ] || ! "$venv/bin/python" -c 'import rosbags, numpy, mcap, zstandard' 2>/dev/null; then
     python3 -m venv "$venv" && "$venv/bin/pip" install -q 'rosbags==0.11.9' numpy 'mcap==1.6.0' 'zstandard==0.25.0'
 fi
-bin="${PINGCAL:-target/release/pingcal}"
-cargo build --release -q -p pingcal && cargo build --release -q -p pingcal-rosbag --example read_bag
+bin="${PINGCAL:-${CARGO_TARGET_DIR:-target}/release/pingcal}"
+tdir="${CARGO_TARGET_DIR:-target}"
+cargo build --release -q -p pingcal
+if [ "${ZSTD_C:-0}" = 1 ]; then
+    cargo build --release -q -p pingcal-rosbag --example read_bag --features zstd-c
+    cp "$tdir/release/examples/read_bag" "$tdir/release/examples/read_bag_zstd_c"
+fi
+cargo build --release -q -p pingcal-rosbag --example read_bag
 big=target/rosbag-big
 mkdir -p "$big"
 [ -f "$big/sim/scans/S00.csv" ] || "$bin" simulate --out "$big/sim" --seed 7 >/dev/null
@@ -27,7 +37,10 @@ for ext in ${EXTS:-bag mcap zstd.mcap}; do
     [ -f "$f" ] || "$venv/bin/python" bench/rosbag/big_bag.py "$big/sim" "$f" "$size"
     mb=$(python3 -c "import os; print(os.path.getsize('$f') / 1e6)")
     cat "$f" >/dev/null # warm the page cache
-    "${READ_BAG:-target/release/examples/read_bag}" "$f" /scan /joint_states servo | tee "$big/read.txt"
+    "${READ_BAG:-$tdir/release/examples/read_bag}" "$f" /scan /joint_states servo | tee "$big/read.txt"
+    if [ "${ZSTD_C:-0}" = 1 ]; then
+        /usr/bin/time -f "%e s wall, %U s user, %S s sys, %M KB peak" "$tdir/release/examples/read_bag_zstd_c" "$f" /scan /joint_states servo
+    fi
     python3 - "$big/read.txt" "$ext" "$mb" >>"$big/table.md" <<'PY'
 import re, sys
 t = open(sys.argv[1]).read()

@@ -25,6 +25,24 @@ scans. /tf (tf2_msgs/TFMessage) turns child frame `servo_link` about y by the se
 sweep.mcap and sweep.csv: a continuous sweep, the servo turning at 30°/s while it scans,
 JointState at 50 Hz; the CSV (v2) gives each scan's servo angle at its first and its last
 beam (stamp + 681 * time_increment), from the same ramp.
+
+Issue 37, scans as drivers publish them (`--drivers OUT_DIR`, also part of the default run):
+
+- drivers.bag (ROS 1) and drivers.db3 (ROS 2): 24 scans of 10 to 13 beams (the count
+  changes between scans), two of them empty (0 beams, angle_increment inf, as RPLIDAR
+  drivers publish), ranges NaN, +inf, -inf, 0, under range_min and over range_max among
+  the valid ones, intensities on every scan, one scan repeating the stamp of the one before
+  and one stamped before it; the servo stop-and-go, its message 10 ms before each scan, as
+  /joint_states (joints `pan`, `tilt`), /servo_int (std_msgs/Int32 ticks: degrees =
+  ticks * 0.087890625 - 180) and /tf (`laser_base` -> `servo_link` about y);
+  drivers.json: what pingcal must make of them (every scan kept, its servo angle, the
+  float32 ranges, the counts).
+- dup.db3: 8 scans (drivers' first nine but the empty one) and their servo messages, every
+  message stored twice.
+- stopgo_10ms.mcap, stopgo_50ms.mcap: a stop-and-go servo stepping 2 encoder ticks per
+  scan, one JointState message 10 ms (50 ms) before each scan; stopgo.json: its rest angles.
+- sweep_cont.mcap: 24 scans while the servo turns at 30 deg/s from -10 deg, JointState at
+  50 Hz (a continuous sweep).
 """
 
 import math
@@ -213,6 +231,196 @@ def geometry(out):
     w.close()
 
 
+DRIVER_SCANS = 24
+EMPTY = (3, 11)
+REPEATED, BACKWARD = 7, 15  # scan 7 has scan 6's stamp; scan 15 is stamped 50 ms before 14
+TICK = 0.087890625
+RANGE_MIN, RANGE_MAX = 0.15, 12.0
+
+
+def driver_scans():
+    """(stamp_ns, servo message time, servo deg, ticks, n, ranges f32, intensities f32)."""
+    out = []
+    for k in range(DRIVER_SCANS):
+        t = T0_NS + k * 100_000_000
+        ticks = 1707 + 3 * k  # -29.970703125 deg and up
+        deg = ticks * TICK - 180.0
+        stamp = t
+        if k == REPEATED:
+            stamp = out[-1][0]
+        if k == BACKWARD:
+            stamp = out[-1][0] - 50_000_000
+        n = 0 if k in EMPTY else 10 + k % 4
+        r = [(1000.0 + 10.0 * k + 7.3 * i) / 1000.0 for i in range(n)]
+        specials = [math.nan, math.inf, -math.inf, 0.0, 0.01, 13.0]
+        for j, v in enumerate(specials):
+            i = (k + 2 * j) % max(n, 1)
+            if n and (k + j) % 3 != 0:
+                r[i] = v
+        out.append((stamp, t - 10_000_000, deg, ticks, n, np.array(r, dtype=np.float32),
+                    np.array([47.0 + i + 0.25 * k for i in range(n)], dtype=np.float32)))
+    return out
+
+
+def masked_reason(v):
+    if math.isnan(v):
+        return 'nan'
+    if math.isinf(v):
+        return 'inf'
+    if v == 0.0:
+        return 'zero'
+    if v < np.float32(RANGE_MIN):
+        return 'below_min'
+    if v > np.float32(RANGE_MAX):
+        return 'above_max'
+    return None
+
+
+def driver_messages(ts, ros1, scans):
+    T = ts.types
+    if 'tf2_msgs/msg/TFMessage' not in T:
+        ts.register(get_types_from_msg('geometry_msgs/TransformStamped[] transforms',
+                                       'tf2_msgs/msg/TFMessage'))
+        T = ts.types
+    def hdr(ns, k, frame):
+        st = T['builtin_interfaces/msg/Time'](sec=ns // 10**9, nanosec=ns % 10**9)
+        H = T['std_msgs/msg/Header']
+        return H(seq=k, stamp=st, frame_id=frame) if ros1 else H(stamp=st, frame_id=frame)
+    msgs = []
+    for k, (stamp, ts_servo, deg, ticks, n, r, inten) in enumerate(scans):
+        a0 = -math.pi / 2
+        inc = math.inf if n == 0 else math.radians(1.0)
+        scan = T['sensor_msgs/msg/LaserScan'](
+            header=hdr(stamp, k, 'laser'), angle_min=0.0 if n == 0 else a0,
+            angle_max=0.0 if n == 0 else a0 + (n - 1) * inc, angle_increment=inc,
+            time_increment=0.0005, scan_time=0.1, range_min=RANGE_MIN, range_max=RANGE_MAX,
+            ranges=r, intensities=inten)
+        js = T['sensor_msgs/msg/JointState'](
+            header=hdr(ts_servo, k, ''), name=['pan', 'tilt'],
+            position=np.array([0.5, math.radians(deg)]), velocity=np.zeros(0), effort=np.zeros(0))
+        h = math.radians(deg) / 2
+        tf = T['geometry_msgs/msg/TransformStamped'](
+            header=hdr(ts_servo, k, 'laser_base'), child_frame_id='servo_link',
+            transform=T['geometry_msgs/msg/Transform'](
+                translation=T['geometry_msgs/msg/Vector3'](x=0.0, y=0.0, z=0.05),
+                rotation=T['geometry_msgs/msg/Quaternion'](x=0.0, y=math.sin(h), z=0.0, w=math.cos(h))))
+        msgs += [('/joint_states', ts_servo, js, 'sensor_msgs/msg/JointState'),
+                 ('/servo_int', ts_servo, T['std_msgs/msg/Int32'](data=ticks), 'std_msgs/msg/Int32'),
+                 ('/tf', ts_servo, T['tf2_msgs/msg/TFMessage'](transforms=[tf]), 'tf2_msgs/msg/TFMessage'),
+                 # the bag's record time is the arrival: in order even when the stamp is not
+                 ('/scan', T0_NS + k * 100_000_000, scan, 'sensor_msgs/msg/LaserScan')]
+    msgs.sort(key=lambda m: m[1])
+    return msgs
+
+
+DRIVER_TYPES = {'/scan': 'sensor_msgs/msg/LaserScan', '/joint_states': 'sensor_msgs/msg/JointState',
+                '/servo_int': 'std_msgs/msg/Int32', '/tf': 'tf2_msgs/msg/TFMessage'}
+
+
+def write_bag(path, msgs, ros1, ts, storage=None, twice=False):
+    path = Path(path)
+    if ros1:
+        path.unlink(missing_ok=True)
+        w = Writer1(path)
+        w.open()
+        ser = ts.serialize_ros1
+    else:
+        tmp = path.with_suffix('.dir')
+        shutil.rmtree(tmp, ignore_errors=True)
+        w = Writer2(tmp, version=9, storage_plugin=storage)
+        w.open()
+        ser = ts.serialize_cdr
+    topics = sorted({m[0] for m in msgs})
+    conns = {t: w.add_connection(t, DRIVER_TYPES.get(t) or TYPES[t], typestore=ts) for t in topics}
+    for topic, ns, msg, ty in msgs:
+        for _ in range(2 if twice else 1):
+            w.write(conns[topic], ns, ser(msg, ty))
+    w.close()
+    if not ros1:
+        (stored,) = [p for p in tmp.iterdir() if p.suffix in ('.db3', '.mcap')]
+        shutil.move(stored, path)
+        shutil.rmtree(tmp)
+
+
+def drivers(out):
+    import json
+    out = Path(out)
+    scans = driver_scans()
+    ts1 = get_typestore(Stores.ROS1_NOETIC)
+    write_bag(out / 'drivers.bag', driver_messages(ts1, True, scans), True, ts1)
+    ts2 = get_typestore(Stores.ROS2_HUMBLE)
+    write_bag(out / 'drivers.db3', driver_messages(ts2, False, scans), False, ts2, StoragePlugin.SQLITE3)
+    write_bag(out / 'dup.db3', driver_messages(ts2, False, [x for k, x in enumerate(scans[:9]) if k not in EMPTY]), False, ts2, StoragePlugin.SQLITE3,
+              twice=True)
+    # what pingcal must make of drivers.*: the servo's last message at or before each stamp
+    servo = sorted((s[1], s[2]) for s in scans)
+    want, counts, last = [], {'zero': 0, 'nan': 0, 'inf': 0, 'below_min': 0, 'above_max': 0}, None
+    repeated = backward = empty = 0
+    for k, (stamp, _, _, _, n, r, inten) in enumerate(scans):
+        if n == 0:
+            empty += 1
+            continue
+        if last is not None and stamp < last:
+            backward += 1
+            continue
+        repeated += last == stamp
+        last = stamp
+        deg = [d for t, d in servo if t <= stamp][-1]
+        ranges = []
+        for v in r.tolist():
+            why = masked_reason(v)
+            if why:
+                counts[why] += 1
+            ranges.append(None if why else v)
+        want.append({'message': k, 'stamp_ns': stamp, 'servo_deg': deg, 'ranges_m': ranges,
+                     'intensities': inten.tolist()})
+    (out / 'drivers.json').write_text(json.dumps(
+        {'scans': want, 'empty': empty, 'masked': counts, 'repeated': repeated,
+         'backward': backward}, indent=1) + '\n')
+    stopgo(out, ts2)
+
+
+def stopgo(out, ts):
+    """stopgo_{10,50}ms.mcap, stopgo.json, sweep_cont.mcap."""
+    import json
+    T = ts.types
+    hdr = lambda ns, f: T['std_msgs/msg/Header'](
+        stamp=T['builtin_interfaces/msg/Time'](sec=ns // 10**9, nanosec=ns % 10**9), frame_id=f)
+    n = 20
+    inc = math.radians(1.0)
+    def scan(t, k):
+        r = np.array([(1500.0 + 5.0 * k + i) / 1000.0 for i in range(n)], dtype=np.float32)
+        return T['sensor_msgs/msg/LaserScan'](
+            header=hdr(t, 'laser'), angle_min=-math.pi / 4, angle_max=-math.pi / 4 + (n - 1) * inc,
+            angle_increment=inc, time_increment=0.0025, scan_time=0.1, range_min=0.02, range_max=30.0,
+            ranges=r, intensities=np.zeros(0, dtype=np.float32))
+    def js(t, deg):
+        return T['sensor_msgs/msg/JointState'](header=hdr(t, ''), name=['servo'],
+                                               position=np.array([math.radians(deg)]),
+                                               velocity=np.zeros(0), effort=np.zeros(0))
+    rest = [-20.0 + 2 * TICK * k for k in range(DRIVER_SCANS)]
+    for lead_ms in (10, 50):
+        msgs = []
+        for k in range(DRIVER_SCANS):
+            t = T0_NS + k * 100_000_000
+            msgs.append(('/joint_states', t - lead_ms * 1_000_000, js(t - lead_ms * 1_000_000, rest[k]),
+                         'sensor_msgs/msg/JointState'))
+            msgs.append(('/scan', t, scan(t, k), 'sensor_msgs/msg/LaserScan'))
+        msgs.sort(key=lambda m: m[1])
+        write_bag(out / f'stopgo_{lead_ms}ms.mcap', msgs, False, ts, StoragePlugin.MCAP)
+    (out / 'stopgo.json').write_text(json.dumps({'rest_deg': rest, 'period_s': 0.1}) + '\n')
+    msgs = []
+    ramp = lambda ns: -10.0 + 30.0 * (ns - T0_NS) * 1e-9
+    for k in range(0, 130):  # 2.6 s at 50 Hz
+        t = T0_NS + k * 20_000_000
+        msgs.append(('/joint_states', t, js(t, ramp(t)), 'sensor_msgs/msg/JointState'))
+    for k in range(DRIVER_SCANS):
+        t = T0_NS + 5_000_000 + k * 100_000_000
+        msgs.append(('/scan', t, scan(t, k), 'sensor_msgs/msg/LaserScan'))
+    msgs.sort(key=lambda m: m[1])
+    write_bag(out / 'sweep_cont.mcap', msgs, False, ts, StoragePlugin.MCAP)
+
+
 def write_ros1(path, header, scans, compression):
     ts = get_typestore(Stores.ROS1_NOETIC)
     msgs = messages(ts, header, scans, True)
@@ -279,6 +487,7 @@ def main(src, out_dir):
     write_mcap_compressed(out / 'ros2_lz4.mcap', header, scans, 'lz4')
     sweep(out, header, scans[:2])
     geometry(out)
+    drivers(out)
     total = 0
     for p in sorted(out.iterdir()):
         total += p.stat().st_size
@@ -309,6 +518,8 @@ def project(sim_dir):
 if __name__ == '__main__':
     if sys.argv[1] == '--project':
         project(sys.argv[2])
+    elif sys.argv[1] == '--drivers':
+        drivers(Path(sys.argv[2]))
     elif sys.argv[1] == '--geometry':
         geometry(Path(sys.argv[2]))
     elif sys.argv[1] == '--compressed':  # SRC OUT_DIR: only the compressed MCAP files

@@ -7,11 +7,9 @@ set -euo pipefail
 root="$(cd "$(dirname "$0")/../.." && pwd)"
 cd "$root"
 venv=target/rosbags-venv
-if [ ! -x "$venv/bin/python" ] || ! "$venv/bin/python" -c 'import rosbags, numpy, mcap, zstandard, lz4' 2>/dev/null; then
-    if ! { python3 -m venv "$venv" && "$venv/bin/pip" install -q 'rosbags==0.11.9' numpy 'mcap==1.6.0' 'zstandard==0.25.0' 'lz4==4.4.5'; }; then
-        echo "skipped: the rosbags package could not be installed in $venv"
-        exit 0
-    fi
+if ! bash tests/rosbag/setup.sh; then
+    echo "skipped: the rosbags package could not be installed in $venv"
+    exit 0
 fi
 cargo build --release -q -p pingcal
 sim=target/rosbag-sim

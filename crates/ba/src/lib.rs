@@ -94,8 +94,8 @@
 //! ```
 
 pub mod bal;
-pub mod camera;
 pub mod datum;
+pub mod diagnostics;
 pub mod initial;
 pub mod io;
 pub mod loss;
@@ -105,6 +105,8 @@ pub mod residual;
 pub mod solver;
 pub mod synthetic;
 
+/// The camera models ([`pingcal_camera`]), re-exported: the adjuster takes any of them.
+pub use pingcal_camera as camera;
 /// The geometry foundation ([`Rigid3`], SO(3), ω φ κ, Umeyama, consensus), re-exported so
 /// that a user of the adjuster needs one dependency.
 pub use pingcal_geometry as geometry;

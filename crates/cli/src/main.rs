@@ -44,6 +44,8 @@ enum Command {
     LrfMount(commands::lrf_mount::Args),
     /// Read the LRF's scans from ROS 1 / ROS 2 bags into a pingcal-scan CSV, or list a bag's topics.
     Scans(commands::scans::Args),
+    /// Frames for sphere-calib from a bag's PointCloud2 and Image / CompressedImage topics.
+    Frames(commands::frames::Args),
     /// 3D conformal transform between two files of labelled points, with check points.
     Register(commands::register::Args),
     /// Camera against any lidar from one large sphere moved between frames (Tóth et al. 2020).
@@ -64,6 +66,7 @@ fn main() {
         Command::Cloud(a) => commands::cloud::run(a),
         Command::LrfMount(a) => commands::lrf_mount::run(a),
         Command::Scans(a) => commands::scans::run(a),
+        Command::Frames(a) => commands::frames::run(a),
         Command::Register(a) => commands::register::run(a),
         Command::SphereCalib(a) => commands::sphere_calib::run(a),
     };

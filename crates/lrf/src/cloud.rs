@@ -160,6 +160,7 @@ mod tests {
             angle_min_deg: -10.0,
             angle_increment_deg: 10.0,
             mm_per_unit: 1.0,
+            time_increment_s: None,
         };
         let s = ScanLine {
             line: 1,
@@ -167,6 +168,7 @@ mod tests {
             servo_deg: 0.0,
             servo_end_deg: None,
             ranges_mm: vec![1000.0, 0.0, 1000.0],
+            intensities: vec![],
         };
         let c = Cloud::from_scans(&h, vec![Ok(s)], &MountModel::default()).unwrap();
         assert_eq!(c.len(), 2);
@@ -179,6 +181,7 @@ mod tests {
             angle_min_deg: 0.0,
             angle_increment_deg: 0.0001,
             mm_per_unit: 1.0,
+            time_increment_s: None,
         };
         let s = ScanLine {
             line: 1,
@@ -186,6 +189,7 @@ mod tests {
             servo_deg: 0.0,
             servo_end_deg: Some(90.0),
             ranges_mm: vec![1000.0, 1000.0, 1000.0],
+            intensities: vec![],
         };
         let mount = MountModel::default();
         let c = Cloud::from_scans(&h, vec![Ok(s.clone())], &mount).unwrap();
@@ -196,6 +200,7 @@ mod tests {
                 servo_deg: s.servo_deg_at(i),
                 servo_end_deg: None,
                 ranges_mm: (0..3).map(|k| if k == i { 1000.0 } else { 0.0 }).collect(),
+                intensities: vec![],
                 ..s.clone()
             };
             let q = Cloud::from_scans(&h, vec![Ok(one)], &mount).unwrap().points[0];

@@ -49,6 +49,28 @@
 //! stamp_s,servo_deg,servo_end_deg,r0,r1,r2,...
 //! 0.000,-45.056,-44.956,1532,1530,0,...
 //! ```
+//!
+//! **Version 3: intensities.** A scanner that reports an intensity per beam (most ROS
+//! drivers fill `LaserScan.intensities`) keeps it: `# pingcal-scan v3` is v2 with, after
+//! the n ranges, n intensity columns `i0,...,i(n-1)` in the scanner's own unit (the shortest
+//! decimal of its `float32`). The version changes so that an older pingcal refuses the file
+//! instead of reading the intensities as ranges. A v3 file without intensity columns is
+//! read as v2. v1 and v2 files are read unchanged.
+//!
+//! **Beam timing.** The optional header key `# time_increment_s=` (written from a bag's
+//! `LaserScan.time_increment`, and by the simulator for a continuous sweep) gives the time
+//! between two beams of a scan: beam i was measured at `stamp_s + i · time_increment_s`.
+//! Earlier readers ignore the key.
+//!
+//! ```text
+//! # pingcal-scan v3
+//! # angle_min_deg=-119.53125
+//! # angle_increment_deg=0.3515625
+//! # range_unit=mm
+//! # time_increment_s=0.00009765625
+//! stamp_s,servo_deg,servo_end_deg,r0,r1,r2,...,i0,i1,i2,...
+//! 0.000,-45.056,-44.956,1532,1530,0,...,812,790,0,...
+//! ```
 
 use crate::error::{LrfError, Result};
 use std::io::{BufRead, Write};
@@ -68,6 +90,9 @@ pub struct ScanHeader {
     pub angle_increment_deg: f64,
     /// Millimetres per range unit of the file (1 for `mm`, 10 for `cm`, 1000 for `m`).
     pub mm_per_unit: f64,
+    /// Time between two beams of a scan, seconds (`# time_increment_s=`), when known.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub time_increment_s: Option<f64>,
 }
 
 impl ScanHeader {
@@ -76,6 +101,7 @@ impl ScanHeader {
         angle_min_deg: -119.53125,
         angle_increment_deg: 0.3515625,
         mm_per_unit: 1.0,
+        time_increment_s: None,
     };
 
     /// Beam angle α of beam `i`, in degrees.
@@ -98,6 +124,9 @@ pub struct ScanLine {
     pub servo_end_deg: Option<f64>,
     /// Ranges in mm; `0.0` where the beam had no return.
     pub ranges_mm: Vec<f64>,
+    /// One intensity per beam in the scanner's unit (`pingcal-scan` v3), or empty when the
+    /// scanner gave none.
+    pub intensities: Vec<f32>,
 }
 
 impl ScanLine {
@@ -130,6 +159,8 @@ pub struct ScanReader<R: BufRead> {
     n_beams: Option<usize>,
     /// `pingcal-scan` v2: a `servo_end_deg` column.
     sweep: bool,
+    /// `pingcal-scan` v3 with intensity columns.
+    intensities: bool,
     line_no: usize,
     pending: Option<(usize, String)>,
     buf: Vec<u8>,
@@ -159,6 +190,53 @@ fn read_line<R: BufRead>(
     Ok(Some(s.trim_end_matches(['\n', '\r']).to_string()))
 }
 
+/// The column line's beams and whether it has intensity columns: `stamp_s,servo_deg`, then
+/// `servo_end_deg` when `sweep` (v2, v3), the ranges `r0..`, and in v3 (`v3`) optionally as
+/// many intensities `i0..`.
+fn column_line(cols: &[&str], sweep: bool, v3: bool) -> std::result::Result<(usize, bool), String> {
+    let fixed = if sweep { 3 } else { 2 };
+    let ok = cols.len() > fixed && cols[1] == "servo_deg" && (cols[2] == "servo_end_deg") == sweep;
+    if !ok {
+        return Err(if sweep {
+            "a v2 column line: expected `stamp_s,servo_deg,servo_end_deg,r0,r1,...`".into()
+        } else {
+            "column line: expected `stamp_s,servo_deg,r0,r1,...` (a servo_end_deg column needs `# pingcal-scan v2`)".into()
+        });
+    }
+    let beams = &cols[fixed..];
+    let Some(first_i) = beams.iter().position(|c| *c == "i0") else {
+        return Ok((beams.len(), false));
+    };
+    if !v3 {
+        return Err("intensity columns (i0, ...) need `# pingcal-scan v3`".into());
+    }
+    if first_i * 2 != beams.len() {
+        return Err(format!(
+            "a v3 column line with {first_i} ranges and {} intensities: expected as many of each",
+            beams.len() - first_i
+        ));
+    }
+    Ok((first_i, true))
+}
+
+fn parse_intensities(file: &str, line: usize, fields: &[&str]) -> Result<Vec<f32>> {
+    fields
+        .iter()
+        .enumerate()
+        .map(|(i, f)| {
+            let t = f.trim();
+            match t.parse::<f32>() {
+                Ok(v) if v.is_finite() => Ok(v),
+                _ => Err(LrfError::parse(
+                    file,
+                    line,
+                    format!("intensity i{i}: expected a number, found {t:?}"),
+                )),
+            }
+        })
+        .collect()
+}
+
 fn parse_f64(file: &str, line: usize, what: &str, s: &str) -> Result<f64> {
     let t = s.trim();
     match t.parse::<f64>() {
@@ -182,6 +260,8 @@ impl<R: BufRead> ScanReader<R> {
         let mut n_beams = None;
         let mut version = None;
         let mut sweep = false;
+        let mut intensities = false;
+        let mut time_increment_s = None;
         let mut pending = None;
         loop {
             line_no += 1;
@@ -198,11 +278,14 @@ impl<R: BufRead> ScanReader<R> {
                     version = Some(match v.trim() {
                         "1" => 1,
                         "2" => 2,
+                        "3" => 3,
                         v => {
                             return Err(LrfError::parse(
                                 file,
                                 line_no,
-                                format!("pingcal-scan version {v:?}: this pingcal reads v1 and v2"),
+                                format!(
+                                    "pingcal-scan version {v:?}: this pingcal reads v1, v2 and v3"
+                                ),
                             ))
                         }
                     });
@@ -222,6 +305,17 @@ impl<R: BufRead> ScanReader<R> {
                                 ));
                             }
                             increment = Some(inc)
+                        }
+                        "time_increment_s" => {
+                            let ti = parse_f64(file, line_no, k, v)?;
+                            if ti < 0.0 {
+                                return Err(LrfError::parse(
+                                    file,
+                                    line_no,
+                                    format!("time_increment_s: {ti} is negative"),
+                                ));
+                            }
+                            time_increment_s = Some(ti)
                         }
                         "range_unit" => {
                             mm_per_unit = match v {
@@ -244,23 +338,14 @@ impl<R: BufRead> ScanReader<R> {
             }
             if t.starts_with("stamp_s") {
                 let cols: Vec<&str> = t.split(',').map(str::trim).collect();
-                sweep = version == Some(2);
-                let fixed = if sweep { 3 } else { 2 };
-                let ok = cols.len() > fixed
-                    && cols[1] == "servo_deg"
-                    && (cols[2] == "servo_end_deg") == sweep;
-                if !ok {
-                    let expected = if sweep {
-                        "a v2 column line: expected `stamp_s,servo_deg,servo_end_deg,r0,r1,...`"
-                    } else {
-                        "column line: expected `stamp_s,servo_deg,r0,r1,...` (a servo_end_deg column needs `# pingcal-scan v2`)"
-                    };
-                    return Err(LrfError::parse(file, line_no, expected));
-                }
-                n_beams = Some(cols.len() - fixed);
+                sweep = version.is_some_and(|v| v >= 2);
+                let (n, with_i) = column_line(&cols, sweep, version == Some(3))
+                    .map_err(|e| LrfError::parse(file, line_no, e))?;
+                n_beams = Some(n);
+                intensities = with_i;
                 continue;
             }
-            if version == Some(2) && n_beams.is_none() {
+            if version.is_some_and(|v| v >= 2) && n_beams.is_none() {
                 return Err(LrfError::parse(
                     file,
                     line_no,
@@ -289,9 +374,11 @@ impl<R: BufRead> ScanReader<R> {
                 angle_min_deg,
                 angle_increment_deg,
                 mm_per_unit,
+                time_increment_s,
             },
             n_beams,
             sweep,
+            intensities,
             line_no,
             pending,
             buf,
@@ -350,7 +437,25 @@ impl<R: BufRead> ScanReader<R> {
             }
         }
         let mut ranges_mm = Vec::with_capacity(self.n_beams.unwrap_or(0));
-        for (i, f) in fields.enumerate() {
+        let mut intensities = Vec::new();
+        let rest: Vec<&str> = fields.collect();
+        let mut range_fields = &rest[..];
+        if self.intensities {
+            let n = self.n_beams.unwrap_or(0);
+            if rest.len() != 2 * n {
+                return Err(LrfError::parse(
+                    file,
+                    line_no,
+                    format!(
+                        "expected {n} ranges and {n} intensities, found {} values",
+                        rest.len()
+                    ),
+                ));
+            }
+            intensities = parse_intensities(file, line_no, &rest[n..])?;
+            range_fields = &rest[..n];
+        }
+        for (i, f) in range_fields.iter().enumerate() {
             let v = parse_f64(file, line_no, &format!("range r{i}"), f)?;
             if v < 0.0 {
                 return Err(LrfError::parse(
@@ -395,6 +500,7 @@ impl<R: BufRead> ScanReader<R> {
             servo_deg,
             servo_end_deg,
             ranges_mm,
+            intensities,
         })
     }
 
@@ -482,6 +588,8 @@ pub fn open_scan_file(
 pub struct ScanWriter<W: Write> {
     out: W,
     sweep: bool,
+    /// v3: intensity columns after the ranges.
+    intensities: Option<usize>,
 }
 
 impl<W: Write> ScanWriter<W> {
@@ -493,7 +601,7 @@ impl<W: Write> ScanWriter<W> {
         n_beams: usize,
         extra: &[&str],
     ) -> std::io::Result<Self> {
-        Self::with_version(out, header, n_beams, extra, false)
+        Self::with_version(out, header, n_beams, extra, 1)
     }
 
     /// Writes a v2 header (a `servo_end_deg` column: continuous sweeps), otherwise as
@@ -504,7 +612,18 @@ impl<W: Write> ScanWriter<W> {
         n_beams: usize,
         extra: &[&str],
     ) -> std::io::Result<Self> {
-        Self::with_version(out, header, n_beams, extra, true)
+        Self::with_version(out, header, n_beams, extra, 2)
+    }
+
+    /// Writes a v3 header (v2 with `n_beams` intensity columns after the ranges); every scan
+    /// written must then carry its intensities.
+    pub fn new_v3(
+        out: W,
+        header: &ScanHeader,
+        n_beams: usize,
+        extra: &[&str],
+    ) -> std::io::Result<Self> {
+        Self::with_version(out, header, n_beams, extra, 3)
     }
 
     fn with_version(
@@ -512,24 +631,37 @@ impl<W: Write> ScanWriter<W> {
         header: &ScanHeader,
         n_beams: usize,
         extra: &[&str],
-        sweep: bool,
+        version: u8,
     ) -> std::io::Result<Self> {
-        writeln!(out, "# pingcal-scan v{}", if sweep { 2 } else { 1 })?;
+        writeln!(out, "# pingcal-scan v{version}")?;
         writeln!(out, "# angle_min_deg={}", header.angle_min_deg)?;
         writeln!(out, "# angle_increment_deg={}", header.angle_increment_deg)?;
         writeln!(out, "# range_unit=mm")?;
+        if let Some(ti) = header.time_increment_s {
+            writeln!(out, "# time_increment_s={ti}")?;
+        }
         for line in extra {
             writeln!(out, "# {line}")?;
         }
         write!(out, "stamp_s,servo_deg")?;
+        let sweep = version >= 2;
         if sweep {
             write!(out, ",servo_end_deg")?;
         }
         for i in 0..n_beams {
             write!(out, ",r{i}")?;
         }
+        if version == 3 {
+            for i in 0..n_beams {
+                write!(out, ",i{i}")?;
+            }
+        }
         writeln!(out)?;
-        Ok(ScanWriter { out, sweep })
+        Ok(ScanWriter {
+            out,
+            sweep,
+            intensities: (version == 3).then_some(n_beams),
+        })
     }
 
     /// Writes one scan taken with the servo at `servo_deg`: its time stamp (s), servo
@@ -571,19 +703,55 @@ impl<W: Write> ScanWriter<W> {
         }
         // whole millimetres through itoa: formatting through `write!` was most of the time
         // of `pingcal scans` on a 1 GB bag (bench/rosbag)
+        if self.intensities.is_some() {
+            return Err(std::io::Error::new(
+                std::io::ErrorKind::InvalidInput,
+                "a pingcal-scan v3 writer needs each scan's intensities (write_line)",
+            ));
+        }
+        self.write_ranges(ranges_mm)?;
+        writeln!(self.out)
+    }
+
+    fn write_ranges<I>(&mut self, ranges_mm: I) -> std::io::Result<()>
+    where
+        I: IntoIterator,
+        I::Item: Into<f64>,
+    {
         let mut digits = itoa::Buffer::new();
         for r in ranges_mm {
             self.out.write_all(b",")?;
             self.out
                 .write_all(digits.format(r.into().round() as i64).as_bytes())?;
         }
-        writeln!(self.out)
+        Ok(())
     }
 
-    /// Writes one scan line (its `servo_end_deg`, when given, needs a v2 writer).
+    /// Writes one scan line (its `servo_end_deg`, when given, needs a v2 writer; a v3
+    /// writer writes its intensities, which must be one per beam).
     pub fn write_line(&mut self, s: &ScanLine) -> std::io::Result<()> {
         let end = s.servo_end_deg.unwrap_or(s.servo_deg);
-        self.write_sweep_scan(s.stamp_s, s.servo_deg, end, s.ranges_mm.iter().copied())
+        let Some(n) = self.intensities else {
+            return self.write_sweep_scan(s.stamp_s, s.servo_deg, end, s.ranges_mm.iter().copied());
+        };
+        if s.intensities.len() != n || s.ranges_mm.len() != n {
+            return Err(std::io::Error::new(
+                std::io::ErrorKind::InvalidInput,
+                format!(
+                    "a pingcal-scan v3 line needs {n} ranges and {n} intensities, not {} and {}",
+                    s.ranges_mm.len(),
+                    s.intensities.len()
+                ),
+            ));
+        }
+        write!(self.out, "{:.3},{:.6},{end:.6}", s.stamp_s, s.servo_deg)?;
+        self.write_ranges(s.ranges_mm.iter().copied())?;
+        for v in &s.intensities {
+            // non-finite intensities are not written (the reader refuses them): 0
+            let v = if v.is_finite() { *v } else { 0.0 };
+            write!(self.out, ",{v}")?;
+        }
+        writeln!(self.out)
     }
 
     /// The underlying writer (flushed).
@@ -593,11 +761,13 @@ impl<W: Write> ScanWriter<W> {
     }
 }
 
-/// Writes scans through [`ScanWriter`], without extra header lines: v1, or v2 when a scan
-/// has a `servo_end_deg`.
+/// Writes scans through [`ScanWriter`], without extra header lines: v1, v2 when a scan
+/// has a `servo_end_deg`, v3 when the first has intensities.
 pub fn write_scans<W: Write>(w: W, header: &ScanHeader, scans: &[ScanLine]) -> std::io::Result<()> {
     let n = scans.first().map_or(0, |s| s.ranges_mm.len());
-    let mut out = if scans.iter().any(|s| s.servo_end_deg.is_some()) {
+    let mut out = if scans.first().is_some_and(|s| !s.intensities.is_empty()) {
+        ScanWriter::new_v3(w, header, n, &[])?
+    } else if scans.iter().any(|s| s.servo_end_deg.is_some()) {
         ScanWriter::new_v2(w, header, n, &[])?
     } else {
         ScanWriter::new(w, header, n, &[])?
@@ -744,6 +914,7 @@ mod tests {
                 servo_deg: 1.5,
                 servo_end_deg: None,
                 ranges_mm: vec![1000.0, 0.0, 2500.0],
+                intensities: vec![],
             },
             ScanLine {
                 line: 0,
@@ -751,6 +922,7 @@ mod tests {
                 servo_deg: 1.6,
                 servo_end_deg: None,
                 ranges_mm: vec![1001.0, 30.0, 0.0],
+                intensities: vec![],
             },
         ];
         let mut out = Vec::new();
@@ -791,6 +963,7 @@ mod tests {
             servo_deg: 10.0,
             servo_end_deg: Some(12.0),
             ranges_mm: vec![1000.0, 0.0, 2500.0],
+            intensities: vec![],
         }];
         let mut out = Vec::new();
         write_scans(&mut out, &ScanHeader::URG_04LX, &scans).unwrap();
@@ -818,15 +991,84 @@ mod tests {
             e.starts_with("t.csv:6: a v2 column line: expected `stamp_s,servo_deg,servo_end_deg"),
             "{e}"
         );
-        let e = read_all(&GOOD.replace("v1", "v3")).unwrap_err().to_string();
+        let e = read_all(&GOOD.replace("v1", "v4")).unwrap_err().to_string();
         assert_eq!(
             e,
-            "t.csv:1: pingcal-scan version \"3\": this pingcal reads v1 and v2"
+            "t.csv:1: pingcal-scan version \"4\": this pingcal reads v1, v2 and v3"
         );
         let t = GOOD.replace("servo_deg,r0", "servo_deg,servo_end_deg,r0");
         let e = read_all(&t).unwrap_err().to_string();
         assert!(e.contains("needs `# pingcal-scan v2`"), "{e}");
         let mut w = ScanWriter::new(Vec::new(), &ScanHeader::URG_04LX, 1, &[]).unwrap();
         assert!(w.write_sweep_scan(0.0, 1.0, 2.0, [1000.0]).is_err());
+    }
+
+    #[test]
+    fn v3_keeps_intensities_and_the_beam_time_and_round_trips() {
+        let header = ScanHeader {
+            time_increment_s: Some(0.1 / 1024.0),
+            ..ScanHeader::URG_04LX
+        };
+        let scans = vec![ScanLine {
+            line: 0,
+            stamp_s: 0.1,
+            servo_deg: 10.0,
+            servo_end_deg: Some(10.0),
+            ranges_mm: vec![1000.0, 0.0, 2500.0],
+            intensities: vec![812.0, 0.0, 47.25],
+        }];
+        let mut out = Vec::new();
+        write_scans(&mut out, &header, &scans).unwrap();
+        let text = String::from_utf8(out).unwrap();
+        assert!(text.starts_with("# pingcal-scan v3\n"), "{text}");
+        assert!(
+            text.contains("# time_increment_s=0.00009765625\n"),
+            "{text}"
+        );
+        assert!(
+            text.contains("stamp_s,servo_deg,servo_end_deg,r0,r1,r2,i0,i1,i2\n0.100,10.000000,10.000000,1000,0,2500,812,0,47.25\n"),
+            "{text}"
+        );
+        let (h, v) = read_all(&text).unwrap();
+        assert_eq!(h, header);
+        assert_eq!(v[0].ranges_mm, scans[0].ranges_mm);
+        assert_eq!(v[0].intensities, scans[0].intensities);
+        // a v3 file without intensity columns reads as v2; v1 and v2 have none
+        let (_, v) = read_all(&text.replace(",i0,i1,i2", "").replace(",812,0,47.25", "")).unwrap();
+        assert!(v[0].intensities.is_empty());
+        let (_, v) = read_all(GOOD).unwrap();
+        assert!(v[0].intensities.is_empty());
+        // intensity columns need v3, as many as the ranges, and numbers
+        let e = read_all(&text.replace("v3", "v2")).unwrap_err().to_string();
+        assert!(
+            e.contains("intensity columns (i0, ...) need `# pingcal-scan v3`"),
+            "{e}"
+        );
+        let e = read_all(&text.replace(",i2", "")).unwrap_err().to_string();
+        assert!(e.contains("with 3 ranges and 2 intensities"), "{e}");
+        let e = read_all(&text.replace(",47.25", ",x"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("intensity i2: expected a number, found \"x\""),
+            "{e}"
+        );
+        let e = read_all(&text.replace(",47.25", ""))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("expected 3 ranges and 3 intensities, found 5 values"),
+            "{e}"
+        );
+        let e = read_all(&text.replace("time_increment_s=0.0", "time_increment_s=-0.0"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("time_increment_s: -0.00009765625 is negative"),
+            "{e}"
+        );
+        // a v3 writer needs the intensities
+        let mut w = ScanWriter::new_v3(Vec::new(), &header, 3, &[]).unwrap();
+        assert!(w.write_scan(0.0, 1.0, [1000.0, 0.0, 1.0]).is_err());
     }
 }

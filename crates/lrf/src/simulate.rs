@@ -278,6 +278,7 @@ impl Scene {
                     servo_deg: b,
                     servo_end_deg: None,
                     ranges_mm,
+                    intensities: vec![],
                 }
             })
             .collect()

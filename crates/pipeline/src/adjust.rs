@@ -12,14 +12,14 @@
 //! corrected by the cone fit of [`pingcal_targets::ball`] with the scene's intrinsics.
 
 use super::ids::{DetectionId, IdVec, ImageId, PointId};
-use super::scene::{main_image, target_sigma, Detections, PointKind, Scene, SIGMA_FACTOR};
+use super::scene::{
+    main_image, target_sigma, Detections, PointKind, Scene, SceneCamera, SIGMA_FACTOR,
+};
 use nalgebra::Vector2;
-use pingcal_ba::camera::{CameraModel, PhotogrammetricCamera};
 use pingcal_ba::problem::{Camera, Distance, Image, Observation, Point, Problem, Rig, RigMember};
 use pingcal_geometry::Rigid3;
-use pingcal_project::{Parameter, Project};
+use pingcal_project::Project;
 use pingcal_targets::ball::{sphere_centre_from_ellipse, FnCamera};
-use std::sync::Arc;
 
 /// Smallest σ of a ball's corrected centre (px): the limb of a shaded sphere is softer
 /// than a target's edge.
@@ -81,15 +81,8 @@ pub fn ba_cameras(project: &Project, params: &[Vec<f64>]) -> Vec<Camera> {
         .iter()
         .zip(params)
         .map(|(c, p)| {
-            let model = Arc::new(PhotogrammetricCamera::new(
-                c.width,
-                c.height,
-                c.pixel_size_mm,
-            ));
-            let mut cam = Camera::new(c.id.clone(), model, p.clone());
-            for p in Parameter::ALL {
-                cam.fixed[p.index()] = !c.free.contains(&p);
-            }
+            let mut cam = Camera::new(c.id.clone(), SceneCamera::of(c).model, p.clone());
+            cam.fixed = c.free_flags().iter().map(|free| !free).collect();
             cam
         })
         .collect()
@@ -112,7 +105,7 @@ fn measurement(
     dets: &Detections,
     d: DetectionId,
     kind: PointKind,
-    cam: &PhotogrammetricCamera,
+    cam: &SceneCamera,
     params: &[f64],
     radius: f64,
 ) -> (Vector2<f64>, f64, f64) {
@@ -128,7 +121,7 @@ fn measurement(
                 .map(|r| [r.x, r.y, r.z])
         },
         |r: [f64; 3]| {
-            cam.project(params, &nalgebra::Vector3::from(r), None, None)
+            cam.project(params, &nalgebra::Vector3::from(r))
                 .map(|p| [p.x, p.y])
         },
     );

@@ -43,6 +43,10 @@ pub struct Adjusted {
     /// The σ0 of each group of observations ([`OBSERVATION_GROUPS`], then the distances)
     /// relative to its a-priori σ, by which the last adjustment re-weighted it.
     pub variance_components: Vec<VarianceComponent>,
+    /// A camera whose image residuals grow toward the edge along the radius
+    /// (`verdict::lens_doubt`, set by the pipeline after this step): its model cannot hold
+    /// the lens.
+    pub lens_doubt: Option<String>,
 }
 
 /// The groups of image observations whose variance components the final adjustment
@@ -375,5 +379,6 @@ pub fn final_adjustment(
         iterations: rounds.iterations,
         unused_distances,
         variance_components,
+        lens_doubt: None,
     })
 }

@@ -27,10 +27,9 @@
 
 use super::rectify::{stereo_cv, CvCamera, StereoCv};
 use super::results::{CameraJson, ExtrinsicJson, Results, RigJson};
-use nalgebra::{DMatrix, DVector, Matrix3, Matrix3x4, Vector2, Vector3};
-use pingcal_ba::camera::PhotogrammetricCamera;
+use nalgebra::{Matrix3, Matrix3x4, Vector3};
 use pingcal_lrf::MountModel;
-use serde::Serialize;
+
 use std::fmt::Write;
 
 /// One output file: its path below the output folder, and its text.
@@ -52,257 +51,104 @@ fn nums(xs: &[f64]) -> String {
 
 // ---- What each exported camera model loses against pingcal's -------------------------
 
-/// The loss grid's largest spacing between pixels, px.
-pub const GRID_STEP_PX: f64 = 8.0;
+pub use pingcal_ba::camera::forms::Form;
+pub use pingcal_ba::camera::refit::{grid_pixels, loss_grid, Loss, GRID_STEP_PX};
 
 /// A loss beyond this many pixels anywhere on the image is said so in the file.
 pub const NOTED_LOSS_PX: f64 = 0.05;
 
-/// The loss grid of a `width × height` image: `n_u × n_v` pixels evenly spaced from 0 to
-/// W − 1 and from 0 to H − 1 (the corners and edges included), `n = ⌈(W − 1)/8⌉ + 1`, so
-/// no two neighbours are more than [`GRID_STEP_PX`] apart.
-pub fn loss_grid(width: u32, height: u32) -> (usize, usize) {
-    let n = |len: u32| (f64::from(len.max(1) - 1) / GRID_STEP_PX).ceil() as usize + 1;
-    (n(width), n(height))
-}
-
-/// The pixels of [`loss_grid`], row by row (v outer, u inner).
-pub fn grid_pixels(width: u32, height: u32) -> Vec<Vector2<f64>> {
-    let (nu, nv) = loss_grid(width, height);
-    let at = |i: usize, n: usize, len: u32| {
-        if n < 2 {
-            0.0
-        } else {
-            i as f64 * f64::from(len - 1) / (n - 1) as f64
-        }
+/// `largest 0.123 px, RMS 0.045 px`, and a warning beyond [`NOTED_LOSS_PX`].
+fn loss_words(loss: &Loss) -> String {
+    let note = if loss.max_px > NOTED_LOSS_PX {
+        format!(" (more than {NOTED_LOSS_PX} px: use pingcal's model where this matters)")
+    } else {
+        String::new()
     };
-    (0..nv)
-        .flat_map(|j| (0..nu).map(move |i| Vector2::new(at(i, nu, width), at(j, nv, height))))
-        .collect()
+    format!(
+        "largest {:.4} px, RMS {:.4} px{note}",
+        loss.max_px, loss.rms_px
+    )
 }
 
-/// pingcal's camera of `c` and its ten parameters. The pixel pitch is `c / fy` (fy is
-/// `c / pitch`, [`super::results::opencv_of`]).
-pub fn photogrammetric_camera(c: &CameraJson) -> (PhotogrammetricCamera, [f64; 10]) {
-    let o = &c.opencv;
-    let pitch = c.params.c_mm / o.fy;
-    let cam = PhotogrammetricCamera::new(o.image_width, o.image_height, pitch);
-    (cam, c.params.to_slice())
-}
-
-/// The ray of each grid pixel through pingcal's whole model, as OpenCV's normalised image
-/// coordinates `(x, y) = (X/Y, −Z/Y)` of the photogrammetric camera frame: the ideal point
-/// (x̄, ȳ) of the undistorted pixel divided by c, y turned down. Pixels whose distortion
-/// pingcal's model cannot invert are left out and counted.
-#[derive(Clone, Debug)]
-pub struct GridRays {
-    /// The grid's counts (n_u, n_v).
-    pub grid: (usize, usize),
-    /// The pixels that have a ray, px.
-    pub pixels: Vec<Vector2<f64>>,
-    /// Their rays, normalised image coordinates (z = 1) of OpenCV's camera frame.
-    pub rays: Vec<Vector2<f64>>,
-    /// Grid pixels without a ray.
-    pub missed: usize,
-}
-
-/// [`GridRays`] of camera `c`.
-pub fn grid_rays(c: &CameraJson) -> GridRays {
-    let (cam, p) = photogrammetric_camera(c);
-    let (w, h) = (c.opencv.image_width, c.opencv.image_height);
-    let mut out = GridRays {
-        grid: loss_grid(w, h),
-        pixels: Vec::new(),
-        rays: Vec::new(),
-        missed: 0,
-    };
-    for uv in grid_pixels(w, h) {
-        match cam.undistort_sensor(&p, &cam.pixel_to_sensor(&uv)) {
-            Some(ideal) => {
-                out.pixels.push(uv);
-                out.rays.push(Vector2::new(ideal.x / p[0], -ideal.y / p[0]));
-            }
-            None => out.missed += 1,
-        }
-    }
-    out
-}
-
-/// OpenCV's projection (also Kalibr's pinhole-radtan, with k3 = 0) of the normalised point
-/// `x`: `x_d = x (1 + k1 r² + k2 r⁴ + k3 r⁶) + 2 p1 x y + p2 (r² + 2x²)`, `y_d = y (…) +
-/// p1 (r² + 2y²) + 2 p2 x y`, `u = fx x_d + cx`, `v = fy y_d + cy`.
-pub fn radtan_project(k: &[f64; 4], d: &[f64; 5], x: &Vector2<f64>) -> Vector2<f64> {
-    let [fx, fy, cx, cy] = *k;
-    let [k1, k2, p1, p2, k3] = *d;
-    let r2 = x.norm_squared();
-    let rad = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3));
-    let xd = x.x * rad + 2.0 * p1 * x.x * x.y + p2 * (r2 + 2.0 * x.x * x.x);
-    let yd = x.y * rad + p1 * (r2 + 2.0 * x.y * x.y) + 2.0 * p2 * x.x * x.y;
-    Vector2::new(fx * xd + cx, fy * yd + cy)
-}
-
-/// How far an exported model puts the grid's rays from their pixels, px.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
-pub struct Loss {
-    /// The largest distance.
-    pub max_px: f64,
-    /// The root mean square distance.
-    pub rms_px: f64,
-}
-
-impl Loss {
-    /// The loss of intrinsics `k` and distortion `d` over `g`.
-    pub fn of(g: &GridRays, k: &[f64; 4], d: &[f64; 5]) -> Loss {
-        let (mut max, mut sum) = (0.0f64, 0.0);
-        for (uv, x) in g.pixels.iter().zip(&g.rays) {
-            let e = (radtan_project(k, d, x) - uv).norm();
-            max = max.max(e);
-            sum += e * e;
-        }
-        Loss {
-            max_px: max,
-            rms_px: (sum / g.pixels.len().max(1) as f64).sqrt(),
-        }
-    }
-
-    /// `largest 0.123 px, RMS 0.045 px`, and a warning beyond [`NOTED_LOSS_PX`].
-    fn words(&self) -> String {
-        let note = if self.max_px > NOTED_LOSS_PX {
-            format!(" (more than {NOTED_LOSS_PX} px: use pingcal's model where this matters)")
-        } else {
-            String::new()
-        };
-        format!(
-            "largest {:.4} px, RMS {:.4} px{note}",
-            self.max_px, self.rms_px
-        )
-    }
-}
-
-/// Kalibr's pinhole-radtan camera fitted to pingcal's model.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
-pub struct RadtanFit {
-    /// fx, fy, cx, cy (px).
-    pub intrinsics: [f64; 4],
-    /// k1, k2, r1 (= OpenCV's p1), r2 (= p2).
-    pub coeffs: [f64; 4],
-    /// Whether fx, fy, cx, cy were refitted too (else they are OpenCV's).
-    pub intrinsics_refit: bool,
-    /// Its loss over the grid.
-    pub loss: Loss,
-}
-
-/// What the exported models of one camera lose against pingcal's, over [`loss_grid`].
-#[derive(Clone, Debug, PartialEq, Serialize)]
+/// What the exported models of one camera hold and lose against pingcal's, over
+/// [`loss_grid`] ([`pingcal_ba::camera::forms`]).
+#[derive(Clone, Debug, PartialEq)]
 pub struct ExportLoss {
     /// The grid's counts (n_u, n_v).
     pub grid: (usize, usize),
-    /// Grid pixels pingcal's model could not undistort (left out of the figures).
+    /// Grid pixels pingcal's model gives no ray (left out of the figures).
     pub missed: usize,
-    /// OpenCV's five coefficients (`opencv/`, `ros/camera_info_*.yaml`): B2 dropped, B1
-    /// only to first order (in fx).
-    pub opencv: Loss,
-    /// Kalibr's radtan refit (`kalibr/camchain.yaml`).
-    pub kalibr: RadtanFit,
+    /// OpenCV's model (`opencv/`, `results.json`'s `cameras[].opencv`).
+    pub opencv: Form,
+    /// ROS's `camera_info` model (`ros/camera_info_*.yaml`).
+    pub ros: Form,
+    /// Kalibr's model (`kalibr/camchain.yaml`).
+    pub kalibr: Form,
 }
 
-/// The rows of the least-squares system of the radtan fit at intrinsics `k` and
-/// coefficients `c`, in pixels: the residual `projection − pixel` of every grid pixel (u
-/// then v) and its derivatives by (k1, k2, p1, p2), then by (fx, fy, cx, cy) when `all`.
-fn radtan_system(
-    g: &GridRays,
-    k: &[f64; 4],
-    c: &[f64; 4],
-    all: bool,
-) -> (DMatrix<f64>, DVector<f64>) {
-    let cols = if all { 8 } else { 4 };
-    let n = g.pixels.len();
-    let mut a = DMatrix::zeros(2 * n, cols);
-    let mut b = DVector::zeros(2 * n);
-    let d = [c[0], c[1], c[2], c[3], 0.0];
-    for (i, (uv, x)) in g.pixels.iter().zip(&g.rays).enumerate() {
-        let (px, py) = (x.x, x.y);
-        let r2 = px * px + py * py;
-        let e = radtan_project(k, &d, x) - uv;
-        let du = [px * r2, px * r2 * r2, 2.0 * px * py, r2 + 2.0 * px * px];
-        let dv = [py * r2, py * r2 * r2, r2 + 2.0 * py * py, 2.0 * px * py];
-        for j in 0..4 {
-            a[(2 * i, j)] = k[0] * du[j];
-            a[(2 * i + 1, j)] = k[1] * dv[j];
-        }
-        if all {
-            a[(2 * i, 4)] = (e.x + uv.x - k[2]) / k[0];
-            a[(2 * i + 1, 5)] = (e.y + uv.y - k[3]) / k[1];
-            a[(2 * i, 6)] = 1.0;
-            a[(2 * i + 1, 7)] = 1.0;
-        }
-        b[2 * i] = e.x;
-        b[2 * i + 1] = e.y;
-    }
-    (a, b)
+/// What camera `c`'s exported models hold and lose against pingcal's over the image
+/// ([`ExportLoss`]). `None` when pingcal's model gives no ray anywhere on the grid.
+pub fn export_loss(c: &CameraJson) -> Option<ExportLoss> {
+    use pingcal_ba::camera::forms::{form, Ecosystem, Source};
+    use pingcal_ba::camera::refit::GridRays;
+    let (w, h) = (c.opencv.image_width, c.opencv.image_height);
+    let model = c.model();
+    let grid = GridRays::of(model.as_ref(), &c.params.values, &grid_pixels(w, h));
+    let src = Source {
+        kind: c.params.model.kind(),
+        params: &c.params.values,
+        width: w,
+        height: h,
+        pixel_size_mm: c.pixel_size_mm,
+        grid: &grid,
+    };
+    Some(ExportLoss {
+        grid: loss_grid(w, h),
+        missed: grid.missed,
+        opencv: form(&src, Ecosystem::OpenCv)?,
+        ros: form(&src, Ecosystem::Ros)?,
+        kalibr: form(&src, Ecosystem::Kalibr)?,
+    })
 }
 
-/// The least-squares step `a δ ≈ −b` (SVD; `None` for a rank-deficient system).
-fn step(a: DMatrix<f64>, b: &DVector<f64>) -> Option<DVector<f64>> {
-    let svd = a.svd(true, true);
-    let top = svd.singular_values.max();
-    if !(top > 0.0) || svd.singular_values.min() < 1e-12 * top {
-        return None;
-    }
-    svd.solve(&(-b), 0.0).ok()
-}
-
-/// The radtan coefficients (k1, k2, p1, p2) and, when `all`, the intrinsics that minimise
-/// Σ‖projection − pixel‖² over the grid: for fixed intrinsics the projection is linear in
-/// the coefficients, so the first step from zero is the solution; with the intrinsics,
-/// Gauss–Newton from there (the projection is bilinear in the two sets).
-fn fit_radtan(g: &GridRays, k0: &[f64; 4], all: bool) -> Option<([f64; 4], [f64; 4])> {
-    let (mut k, mut c) = (*k0, [0.0; 4]);
-    for _ in 0..if all { 20 } else { 1 } {
-        let (a, b) = radtan_system(g, &k, &c, all);
-        let s = step(a, &b)?;
-        for j in 0..4 {
-            c[j] += s[j];
-            if all {
-                k[j] += s[4 + j];
+/// What form `f` of camera `c` drops of pingcal's model, in words (the files' comments and
+/// the report).
+fn drops(c: &CameraJson, f: &Form) -> String {
+    let model = c.params.model;
+    let v = |k: &str| num(c.params.get(k).unwrap_or(0.0));
+    match (model.kind(), f.fitted) {
+        (pingcal_ba::camera::ModelKind::Photogrammetric, false) => format!(
+            "B2 = {} dropped (no shear in OpenCV's model) and B1 = {} kept to first order only (in fx)",
+            v("b2"),
+            v("b1")
+        ),
+        (_, false) => format!("pingcal's {model} model as it is"),
+        (_, true) => format!(
+            "{} {} fitted to pingcal's {model} model ({}) by least squares in px{}",
+            f.camera_model,
+            f.distortion_model,
+            c.params.keys().join(" "),
+            if f.intrinsics_fitted {
+                ", fx fy cx cy fitted too"
+            } else {
+                ""
             }
-        }
-        if all && s.rows(4, 4).iter().all(|v| v.abs() < 1e-12) {
-            break;
-        }
+        ),
     }
-    Some((k, c))
 }
 
-/// What camera `c`'s exported models lose against pingcal's over the image
-/// ([`ExportLoss`]). The radtan fit moves fx, fy, cx, cy too only when that lowers the
-/// largest loss by a hundredth of a pixel or more (else they stay OpenCV's, those of the
-/// other files).
-pub fn export_loss(c: &CameraJson) -> ExportLoss {
-    let g = grid_rays(c);
-    let o = &c.opencv;
-    let k = [o.fx, o.fy, o.cx, o.cy];
-    let opencv = Loss::of(&g, &k, &o.dist);
-    let radtan = |k: [f64; 4], coeffs: [f64; 4], refit: bool| RadtanFit {
-        intrinsics: k,
-        coeffs,
-        intrinsics_refit: refit,
-        loss: Loss::of(&g, &k, &[coeffs[0], coeffs[1], coeffs[2], coeffs[3], 0.0]),
+/// The comment line of a camera file: what it drops and what that costs over the image.
+fn loss_comment(c: &CameraJson, f: &Form, loss: &ExportLoss) -> String {
+    let (nu, nv) = loss.grid;
+    let missed = match loss.missed {
+        0 => String::new(),
+        n => format!(" ({n} grid pixels left out: pingcal's model gives them no ray)"),
     };
-    let dropped = radtan(k, [o.dist[0], o.dist[1], o.dist[2], o.dist[3]], false);
-    let fixed = fit_radtan(&g, &k, false).map(|(k, cf)| radtan(k, cf, false));
-    let free = fit_radtan(&g, &k, true).map(|(k, cf)| radtan(k, cf, true));
-    let kalibr = match (fixed, free) {
-        (Some(a), Some(b)) if b.loss.max_px <= a.loss.max_px - 0.01 => b,
-        (Some(a), _) => a,
-        _ => dropped,
-    };
-    ExportLoss {
-        grid: g.grid,
-        missed: g.missed,
-        opencv,
-        kalibr,
-    }
+    format!(
+        "{}; over a {nu} x {nv} grid of the whole image the rays of pingcal's model land {} from their pixels{missed}",
+        drops(c, f),
+        loss_words(&f.loss)
+    )
 }
 
 fn matrix3(m: &[[f64; 3]; 3]) -> Matrix3<f64> {
@@ -658,17 +504,19 @@ fn cv_matrix(out: &mut String, name: &str, rows: usize, cols: usize, data: &[f64
     );
 }
 
-fn cv_camera(c: &CameraJson) -> CvCamera {
-    let o = &c.opencv;
-    CvCamera {
-        k: [o.fx, o.fy, o.cx, o.cy],
-        dist: o.dist,
+/// The OpenCV pinhole camera of a form, for the stereo geometry (`None` for a fisheye).
+fn cv_camera(f: &Form) -> Option<CvCamera> {
+    if f.camera_model != "pinhole" || f.kind != pingcal_ba::camera::ModelKind::OpenCv {
+        return None;
     }
+    let mut dist = [0.0; 12];
+    dist.copy_from_slice(&f.params[4..16]);
+    Some(CvCamera { k: f.k(), dist })
 }
 
-fn k_data(c: &CameraJson) -> [f64; 9] {
-    let o = &c.opencv;
-    [o.fx, 0.0, o.cx, 0.0, o.fy, o.cy, 0.0, 0.0, 1.0]
+fn k_data(f: &Form) -> [f64; 9] {
+    let [fx, fy, cx, cy] = f.k();
+    [fx, 0.0, cx, 0.0, fy, cy, 0.0, 0.0, 1.0]
 }
 
 /// A file name made of the camera id (letters, digits, `_ - .`; anything else becomes `_`).
@@ -679,40 +527,39 @@ fn file_stem(id: &str) -> String {
     )
 }
 
-/// What OpenCV's five coefficients drop of camera `c` and what that costs over the image
-/// (the comment of the OpenCV YAML and of `camera_info`).
-fn opencv_drops(c: &CameraJson, loss: &ExportLoss) -> String {
-    let (nu, nv) = loss.grid;
-    format!(
-        "B2 = {} dropped (no shear in OpenCV's model) and B1 = {} kept to first order only (in fx); over a {nu} x {nv} grid of the whole image the rays of pingcal's model land {} from their pixels{}",
-        num(c.params.b2),
-        num(c.params.b1),
-        loss.opencv.words(),
-        missed_words(loss)
-    )
-}
-
-fn missed_words(loss: &ExportLoss) -> String {
-    match loss.missed {
-        0 => String::new(),
-        n => format!(" ({n} grid pixels left out: pingcal's model cannot undistort them)"),
-    }
-}
-
 /// `opencv/camera_<id>.yaml`: one camera in OpenCV's model (`results.json`'s
-/// `cameras[].opencv`), with what that model loses ([`export_loss`]) in its comment.
+/// `cameras[].opencv`: pinhole with 5, 8 or 12 coefficients, or `cv::fisheye`), with what
+/// that model loses ([`export_loss`]) in its comment.
 pub fn opencv_camera_yaml(c: &CameraJson, loss: &ExportLoss) -> String {
-    let o = &c.opencv;
+    let f = &loss.opencv;
+    let what = match f.camera_model {
+        "fisheye" => "OpenCV's fisheye model (cv::fisheye, k1 k2 k3 k4)".to_string(),
+        _ => format!(
+            "OpenCV's pinhole model with {} distortion ({})",
+            f.distortion_model,
+            ["k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6", "s1", "s2", "s3", "s4"]
+                [..f.coeffs.len()]
+                .join(", ")
+        ),
+    };
     let mut s = format!(
-        "%YAML:1.0\n---\n# camera '{}' in OpenCV's pinhole model with radial-tangential distortion (k1, k2, p1, p2, k3); written by pingcal calibrate\n# {}\ncamera_name: \"{}\"\ncamera_model: \"pinhole\"\ndistortion_model: \"plumb_bob\"\nimage_width: {}\nimage_height: {}\n",
+        "%YAML:1.0\n---\n# camera '{}' in {what}; written by pingcal calibrate\n# {}\ncamera_name: \"{}\"\ncamera_model: \"{}\"\ndistortion_model: \"{}\"\nimage_width: {}\nimage_height: {}\n",
         c.id,
-        opencv_drops(c, loss),
+        loss_comment(c, f, loss),
         c.id,
-        o.image_width,
-        o.image_height
+        f.camera_model,
+        f.distortion_model,
+        c.opencv.image_width,
+        c.opencv.image_height
     );
-    cv_matrix(&mut s, "camera_matrix", 3, 3, &k_data(c));
-    cv_matrix(&mut s, "distortion_coefficients", 1, 5, &o.dist);
+    cv_matrix(&mut s, "camera_matrix", 3, 3, &k_data(f));
+    cv_matrix(
+        &mut s,
+        "distortion_coefficients",
+        1,
+        f.coeffs.len(),
+        &f.coeffs,
+    );
     s
 }
 
@@ -723,29 +570,33 @@ fn flat<const R: usize, const C: usize>(m: &nalgebra::SMatrix<f64, R, C>) -> Vec
 }
 
 /// OpenCV's stereo geometry of the rig (left = camera 1, right = camera 2), or `None` for
-/// a degenerate pair.
-fn stereo_of(left: &CameraJson, right: &CameraJson, rig: &RigJson) -> Option<StereoCv> {
+/// a degenerate pair or fisheye cameras (whose rectification `cv::fisheye` computes
+/// otherwise; pingcal does not write it).
+fn stereo_of(left: &Form, right: &Form, size: (u32, u32), rig: &RigJson) -> Option<StereoCv> {
     let r = matrix3(&rig.opencv.rotation);
     let t = Vector3::from(rig.opencv.translation_mm);
-    let size = (left.opencv.image_width, left.opencv.image_height);
-    stereo_cv(&cv_camera(left), &cv_camera(right), size, &r, &t)
+    stereo_cv(&cv_camera(left)?, &cv_camera(right)?, size, &r, &t)
 }
 
 /// `opencv/stereo.yaml` for the rig (left = camera 1, right = camera 2), or `None` for a
-/// degenerate pair.
-pub fn opencv_stereo_yaml(left: &CameraJson, right: &CameraJson, rig: &RigJson) -> Option<String> {
-    let s = stereo_of(left, right, rig)?;
+/// degenerate pair or fisheye cameras.
+pub fn opencv_stereo_yaml(
+    (left, lf): (&CameraJson, &Form),
+    (right, rf): (&CameraJson, &Form),
+    rig: &RigJson,
+) -> Option<String> {
+    let (w, h) = (left.opencv.image_width, left.opencv.image_height);
+    let s = stereo_of(lf, rf, (w, h), rig)?;
     let r = matrix3(&rig.opencv.rotation);
     let t = Vector3::from(rig.opencv.translation_mm);
-    let (w, h) = (left.opencv.image_width, left.opencv.image_height);
     let mut out = format!(
         "%YAML:1.0\n---\n# stereo pair: camera 1 = '{}' (left), camera 2 = '{}' (right); p_2 = R p_1 + T in OpenCV camera frames, T in mm; R1 R2 P1 P2 Q as cv2.stereoRectify gives them (CALIB_ZERO_DISPARITY, alpha -1); written by pingcal calibrate\nleft_camera: \"{}\"\nright_camera: \"{}\"\ntranslation_unit: \"mm\"\nimage_width: {w}\nimage_height: {h}\n",
         left.id, right.id, left.id, right.id
     );
-    cv_matrix(&mut out, "K1", 3, 3, &k_data(left));
-    cv_matrix(&mut out, "D1", 1, 5, &left.opencv.dist);
-    cv_matrix(&mut out, "K2", 3, 3, &k_data(right));
-    cv_matrix(&mut out, "D2", 1, 5, &right.opencv.dist);
+    cv_matrix(&mut out, "K1", 3, 3, &k_data(lf));
+    cv_matrix(&mut out, "D1", 1, lf.coeffs.len(), &lf.coeffs);
+    cv_matrix(&mut out, "K2", 3, 3, &k_data(rf));
+    cv_matrix(&mut out, "D2", 1, rf.coeffs.len(), &rf.coeffs);
     cv_matrix(&mut out, "R", 3, 3, &flat(&r));
     cv_matrix(&mut out, "T", 3, 1, t.as_slice());
     cv_matrix(&mut out, "E", 3, 3, &flat(&s.e));
@@ -780,9 +631,9 @@ pub struct RosRectification {
 }
 
 impl RosRectification {
-    /// A camera alone: R = I, P = [K | 0].
-    pub fn mono(c: &CameraJson) -> Self {
-        let k = Matrix3::from_row_slice(&k_data(c));
+    /// A camera alone: R = I, P = [K | 0] (K of form `f`).
+    pub fn mono(f: &Form) -> Self {
+        let k = Matrix3::from_row_slice(&k_data(f));
         RosRectification {
             r: Matrix3::identity(),
             p: Matrix3x4::from_fn(|i, j| if j < 3 { k[(i, j)] } else { 0.0 }),
@@ -808,28 +659,45 @@ impl RosRectification {
 
 /// `ros/camera_info_<id>.yaml`: camera `c` in the YAML that ROS's
 /// `camera_calibration_parsers` reads and writes (`camera_info_manager`'s
-/// `camera_info_url`), K and D as the OpenCV YAML, R and P of `rect`.
+/// `camera_info_url`), K and D of its ROS form (`plumb_bob`, `rational_polynomial` or
+/// `equidistant`), R and P of `rect`.
 pub fn ros_camera_info(c: &CameraJson, rect: &RosRectification, loss: &ExportLoss) -> String {
-    let o = &c.opencv;
+    let f = &loss.ros;
+    let same = if f == &loss.opencv {
+        format!("K and D as opencv/camera_{}.yaml", file_stem(&c.id))
+    } else {
+        "K and D fitted for ROS (its distortion models do not hold OpenCV's)".to_string()
+    };
     let mut s = format!(
-        "# ROS camera_info of camera '{}' (camera_calibration_parsers' YAML, as camera_info_manager reads it), written by pingcal calibrate:\n# K and D (plumb_bob: k1 k2 p1 p2 k3) as opencv/camera_{}.yaml; {}\n# {}\nimage_width: {}\nimage_height: {}\ncamera_name: {:?}\n",
+        "# ROS camera_info of camera '{}' (camera_calibration_parsers' YAML, as camera_info_manager reads it), written by pingcal calibrate:\n# {same} ({}: {}); {}\n# {}\nimage_width: {}\nimage_height: {}\ncamera_name: {:?}\n",
         c.id,
-        file_stem(&c.id),
+        f.distortion_model,
+        match f.distortion_model {
+            "equidistant" => "k1 k2 k3 k4",
+            "rational_polynomial" => "k1 k2 p1 p2 k3 k4 k5 k6",
+            _ => "k1 k2 p1 p2 k3",
+        },
         rect.what,
-        opencv_drops(c, loss),
-        o.image_width,
-        o.image_height,
+        loss_comment(c, f, loss),
+        c.opencv.image_width,
+        c.opencv.image_height,
         c.id
     );
-    ros_matrix(&mut s, "camera_matrix", 3, 3, &k_data(c));
-    let _ = writeln!(s, "distortion_model: plumb_bob");
-    ros_matrix(&mut s, "distortion_coefficients", 1, 5, &o.dist);
+    ros_matrix(&mut s, "camera_matrix", 3, 3, &k_data(f));
+    let _ = writeln!(s, "distortion_model: {}", f.distortion_model);
+    ros_matrix(
+        &mut s,
+        "distortion_coefficients",
+        1,
+        f.coeffs.len(),
+        &f.coeffs,
+    );
     ros_matrix(&mut s, "rectification_matrix", 3, 3, &flat(&rect.r));
     ros_matrix(&mut s, "projection_matrix", 3, 4, &flat(&rect.p));
     s
 }
 
-/// One camera of the camchain (its lines after `camN:`), with the radtan refit of `loss`.
+/// One camera of the camchain (its lines after `camN:`), in its Kalibr form of `loss`.
 fn kalibr_camera(
     out: &mut String,
     n: usize,
@@ -837,31 +705,36 @@ fn kalibr_camera(
     loss: &ExportLoss,
     overlaps: &[usize],
 ) {
-    let o = &c.opencv;
     let k = &loss.kalibr;
-    let (nu, nv) = loss.grid;
-    let intrinsics = if k.intrinsics_refit {
-        "fx fy cx cy refitted too (so they differ from opencv/'s)"
-    } else {
-        "fx fy cx cy as opencv/'s"
+    let (intrinsics, model) = match k.camera_model {
+        // Kalibr's ds: [xi, alpha, fu, fv, pu, pv]
+        "ds" => {
+            let p = &k.params;
+            (vec![p[4], p[5], p[0], p[1], p[2], p[3]], "ds")
+        }
+        _ => (k.k().to_vec(), "pinhole"),
+    };
+    let same_k = match (k.fitted, k.intrinsics_fitted) {
+        (true, false) => " (fx fy cx cy as opencv/'s)",
+        _ => "",
     };
     let _ = writeln!(
         out,
-        "  # camera '{}': radtan (k1 k2 r1 r2) refitted to pingcal's whole model (K1 K2 K3 P1 P2 B1 B2; K3 = {}, B1 = {}, B2 = {}) by least squares in px\n  # over a {nu} x {nv} grid of the whole image, {intrinsics}; loss: {}{}",
+        "  # camera '{}': {}{same_k}",
         c.id,
-        num(c.params.k3),
-        num(c.params.b1),
-        num(c.params.b2),
-        k.loss.words(),
-        missed_words(loss)
+        loss_comment(c, k, loss)
     );
     let lists = overlaps.iter().map(|k| k.to_string()).collect::<Vec<_>>();
     let _ = writeln!(out, "  cam_overlaps: [{}]", lists.join(", "));
-    let _ = writeln!(out, "  camera_model: pinhole");
+    let _ = writeln!(out, "  camera_model: {model}");
     let _ = writeln!(out, "  distortion_coeffs: [{}]", nums(&k.coeffs));
-    let _ = writeln!(out, "  distortion_model: radtan");
-    let _ = writeln!(out, "  intrinsics: [{}]", nums(&k.intrinsics));
-    let _ = writeln!(out, "  resolution: [{}, {}]", o.image_width, o.image_height);
+    let _ = writeln!(out, "  distortion_model: {}", k.distortion_model);
+    let _ = writeln!(out, "  intrinsics: [{}]", nums(&intrinsics));
+    let _ = writeln!(
+        out,
+        "  resolution: [{}, {}]",
+        c.opencv.image_width, c.opencv.image_height
+    );
     let _ = writeln!(out, "  rostopic: /cam{n}/image_raw");
 }
 
@@ -901,8 +774,9 @@ fn chain(r: &Results) -> Vec<usize> {
     }
 }
 
-/// Every file of `ros/`, `opencv/` and `kalibr/` for `r`.
-pub fn exports(r: &Results, losses: &[ExportLoss]) -> Vec<OutputFile> {
+/// Every file of `ros/`, `opencv/` and `kalibr/` for `r` (a camera whose `losses` entry is
+/// `None` has no camera files).
+pub fn exports(r: &Results, losses: &[Option<ExportLoss>]) -> Vec<OutputFile> {
     let conv = &r.conventions;
     let (cam, lrf) = (&conv.tf_camera_frame, &conv.tf_lrf_frame);
     let mut out = ros_files(&r.extrinsic, cam, lrf);
@@ -914,11 +788,20 @@ pub fn exports(r: &Results, losses: &[ExportLoss]) -> Vec<OutputFile> {
         lrf,
     ));
     let order = chain(r);
-    let stereo = match (&r.bundle.rig, order.as_slice()) {
-        (Some(rig), &[a, b]) => stereo_of(&r.cameras[a], &r.cameras[b], rig).map(|s| (a, b, s)),
+    let pair = match (&r.bundle.rig, order.as_slice()) {
+        (Some(rig), &[a, b]) => match (&losses[a], &losses[b]) {
+            (Some(la), Some(lb)) => Some((rig, a, b, la, lb)),
+            _ => None,
+        },
         _ => None,
     };
+    let stereo = pair.and_then(|(rig, a, b, la, lb)| {
+        let c = &r.cameras[a];
+        let size = (c.opencv.image_width, c.opencv.image_height);
+        stereo_of(&la.opencv, &lb.opencv, size, rig).map(|s| (a, b, s))
+    });
     for (i, (c, loss)) in r.cameras.iter().zip(losses).enumerate() {
+        let Some(loss) = loss else { continue };
         let stem = file_stem(&c.id);
         out.push((
             format!("opencv/camera_{stem}.yaml"),
@@ -927,20 +810,27 @@ pub fn exports(r: &Results, losses: &[ExportLoss]) -> Vec<OutputFile> {
         let rect = match &stereo {
             Some((a, _, s)) if *a == i => RosRectification::stereo(s, 1),
             Some((_, b, s)) if *b == i => RosRectification::stereo(s, 2),
-            _ => RosRectification::mono(c),
+            _ => RosRectification::mono(&loss.ros),
         };
         out.push((
             format!("ros/camera_info_{stem}.yaml"),
             ros_camera_info(c, &rect, loss),
         ));
     }
-    if let (Some(rig), &[a, b]) = (&r.bundle.rig, order.as_slice()) {
-        if let Some(y) = opencv_stereo_yaml(&r.cameras[a], &r.cameras[b], rig) {
+    if let Some((rig, a, b, la, lb)) = pair {
+        let y = opencv_stereo_yaml(
+            (&r.cameras[a], &la.opencv),
+            (&r.cameras[b], &lb.opencv),
+            rig,
+        );
+        if let Some(y) = y {
             out.push(("opencv/stereo.yaml".into(), y));
         }
     }
-    let cams: Vec<(&CameraJson, &ExportLoss)> =
-        order.iter().map(|&i| (&r.cameras[i], &losses[i])).collect();
+    let cams: Vec<(&CameraJson, &ExportLoss)> = order
+        .iter()
+        .filter_map(|&i| losses[i].as_ref().map(|l| (&r.cameras[i], l)))
+        .collect();
     out.push((
         "kalibr/camchain.yaml".into(),
         kalibr_camchain(&cams, r.bundle.rig.as_ref()),
@@ -950,32 +840,31 @@ pub fn exports(r: &Results, losses: &[ExportLoss]) -> Vec<OutputFile> {
 
 /// The report's table of what each camera's exports lose ([`export_loss`] of each camera
 /// of `r`, in `losses`).
-pub fn report_rows(r: &Results, losses: &[ExportLoss]) -> Vec<pingcal_report::ExportLossRow> {
+pub fn report_rows(
+    r: &Results,
+    losses: &[Option<ExportLoss>],
+) -> Vec<pingcal_report::ExportLossRow> {
     let mut rows = Vec::new();
     for (c, loss) in r.cameras.iter().zip(losses) {
+        let Some(loss) = loss else { continue };
         let stem = file_stem(&c.id);
-        rows.push(pingcal_report::ExportLossRow {
+        let row = |files: String, f: &Form| pingcal_report::ExportLossRow {
             camera: c.id.clone(),
-            files: format!("opencv/camera_{stem}.yaml, ros/camera_info_{stem}.yaml"),
-            model: "plumb_bob (k1 k2 p1 p2 k3): B2 dropped, B1 to first order".into(),
-            max_px: loss.opencv.max_px,
-            rms_px: loss.opencv.rms_px,
-        });
-        let k = &loss.kalibr;
-        rows.push(pingcal_report::ExportLossRow {
-            camera: c.id.clone(),
-            files: "kalibr/camchain.yaml".into(),
-            model: format!(
-                "pinhole-radtan (k1 k2 r1 r2) refitted{}: K3, B1, B2 dropped",
-                if k.intrinsics_refit {
-                    " with fx fy cx cy"
-                } else {
-                    ""
-                }
-            ),
-            max_px: k.loss.max_px,
-            rms_px: k.loss.rms_px,
-        });
+            files,
+            model: format!("{} {}: {}", f.camera_model, f.distortion_model, drops(c, f)),
+            max_px: f.loss.max_px,
+            rms_px: f.loss.rms_px,
+        };
+        if loss.ros == loss.opencv {
+            rows.push(row(
+                format!("opencv/camera_{stem}.yaml, ros/camera_info_{stem}.yaml"),
+                &loss.opencv,
+            ));
+        } else {
+            rows.push(row(format!("opencv/camera_{stem}.yaml"), &loss.opencv));
+            rows.push(row(format!("ros/camera_info_{stem}.yaml"), &loss.ros));
+        }
+        rows.push(row("kalibr/camchain.yaml".into(), &loss.kalibr));
     }
     rows
 }
@@ -986,7 +875,7 @@ mod tests {
     use super::*;
     use nalgebra::{Quaternion, Rotation3, UnitQuaternion};
     use pingcal_geometry::{from_opk_deg, Rigid3, Sim3};
-    use pingcal_project::CameraParams;
+    use pingcal_project::{CameraModel, Intrinsics};
 
     /// A rotation far from the identity (the LRF looks sideways), and t in mm.
     fn extrinsic() -> (Matrix3<f64>, Vector3<f64>, ExtrinsicJson) {
@@ -1103,13 +992,25 @@ mod tests {
 
     /// A 1280 × 720 camera of 3.75 µm pixels with pingcal's parameters `p`.
     fn camera_with(id: &str, p: [f64; 10]) -> CameraJson {
+        model_camera(id, Intrinsics::photogrammetric(p))
+    }
+
+    /// A 1280 × 720 camera of 3.75 µm pixels of any model.
+    fn model_camera(id: &str, params: Intrinsics) -> CameraJson {
         CameraJson {
             id: id.into(),
-            params: CameraParams::from_slice(&p),
+            model_name: (params.model != CameraModel::Photogrammetric)
+                .then(|| params.model.as_str()),
+            opencv: opencv_of(&params, 1280, 720, 0.00375),
+            params,
             sigma: Default::default(),
             high_correlations: Vec::new(),
-            opencv: opencv_of(&p, 1280, 720, 0.00375),
+            pixel_size_mm: 0.00375,
         }
+    }
+
+    fn losses(c: &CameraJson) -> ExportLoss {
+        export_loss(c).expect("the camera exports")
     }
 
     /// The `data` of matrix `name` in a FileStorage YAML.
@@ -1128,7 +1029,7 @@ mod tests {
     #[test]
     fn opencv_camera_yaml_has_opencvs_layout() {
         let c = camera_json("left", 2.45);
-        let y = opencv_camera_yaml(&c, &export_loss(&c));
+        let y = opencv_camera_yaml(&c, &losses(&c));
         assert!(y.starts_with("%YAML:1.0\n---\n"));
         let o = &c.opencv;
         assert_eq!(
@@ -1147,7 +1048,7 @@ mod tests {
         let t = Vector3::new(-120.0, -0.12, 0.83);
         let rig = rig_json(&Rigid3::new(r, t), "left", "right");
         let (a, b) = (camera_json("left", 2.45), camera_json("right", 2.452));
-        let (la, lb) = (export_loss(&a), export_loss(&b));
+        let (la, lb) = (losses(&a), losses(&b));
         let chain = kalibr_camchain(&[(&a, &la), (&b, &lb)], Some(&rig));
         let rows: Vec<Vec<f64>> = chain
             .lines()
@@ -1160,7 +1061,7 @@ mod tests {
         let want = c * (r * p_left + t) / 1000.0;
         let got = m * (c * p_left / 1000.0).push(1.0);
         assert!((got.xyz() - want).norm() < 1e-15, "{got:?} vs {want:?}");
-        let y = opencv_stereo_yaml(&a, &b, &rig).unwrap();
+        let y = opencv_stereo_yaml((&a, &la.opencv), (&b, &lb.opencv), &rig).unwrap();
         let rc = Matrix3::from_row_slice(&cv_data(&y, "R"));
         let tc = Vector3::from_row_slice(&cv_data(&y, "T"));
         assert!((rc * c * p_left + tc - c * (r * p_left + t)).norm() < 1e-12);
@@ -1193,12 +1094,12 @@ mod tests {
                 2.45, 0.012, -0.009, -0.021, 0.0004, 0.0, 0.00015, -0.0001, 0.0, 0.0,
             ],
         );
-        let l = export_loss(&c);
+        let l = losses(&c);
         assert_eq!(l.grid, (161, 91));
         assert_eq!(l.missed, 0);
-        assert!(l.opencv.max_px < 1e-6, "{:?}", l.opencv);
+        assert!(l.opencv.loss.max_px < 1e-6, "{:?}", l.opencv);
         assert!(l.kalibr.loss.max_px < 1e-6, "{:?}", l.kalibr);
-        assert!(!l.kalibr.intrinsics_refit);
+        assert!(!l.kalibr.intrinsics_fitted);
         for (got, want) in l.kalibr.coeffs.iter().zip(&c.opencv.dist) {
             assert!(
                 (got - want).abs() < 1e-9 * (1.0 + want.abs()),
@@ -1212,35 +1113,45 @@ mod tests {
     /// of the numbers it writes.
     #[test]
     fn the_radtan_refit_is_the_least_squares_one_and_states_its_loss() {
+        use pingcal_ba::camera::refit::GridRays;
+        use pingcal_ba::camera::OpenCvCamera;
         let c = camera_with(
             "wide",
             [
                 2.45, 0.012, -0.009, -0.021, 0.0004, -2e-5, 0.00015, -0.0001, 2e-4, -1e-4,
             ],
         );
-        let l = export_loss(&c);
-        let g = grid_rays(&c);
-        let o = &c.opencv;
-        let k = l.kalibr.intrinsics;
-        let d = |cf: [f64; 4]| [cf[0], cf[1], cf[2], cf[3], 0.0];
-        let dropped = Loss::of(
-            &g,
-            &[o.fx, o.fy, o.cx, o.cy],
-            &d([o.dist[0], o.dist[1], o.dist[2], o.dist[3]]),
+        let l = losses(&c);
+        let g = GridRays::of(
+            c.model().as_ref(),
+            &c.params.values,
+            &grid_pixels(1280, 720),
         );
+        let o = &c.opencv;
+        let k = l.kalibr.k();
+        let p = |k: [f64; 4], cf: &[f64]| {
+            let mut p = vec![0.0; 16];
+            p[..4].copy_from_slice(&k);
+            p[4..8].copy_from_slice(&cf[..4]);
+            p
+        };
+        let dropped = g.loss(&OpenCvCamera, &p([o.fx, o.fy, o.cx, o.cy], &o.dist));
         assert!(
             l.kalibr.loss.max_px < dropped.max_px,
             "{:?} vs {dropped:?}",
             l.kalibr.loss
         );
-        assert!(l.opencv.max_px > 0.05 && l.kalibr.loss.max_px > NOTED_LOSS_PX);
-        assert_eq!(Loss::of(&g, &k, &d(l.kalibr.coeffs)), l.kalibr.loss);
+        assert!(l.opencv.loss.max_px > 0.05 && l.kalibr.loss.max_px > NOTED_LOSS_PX);
+        assert_eq!(
+            g.loss(&OpenCvCamera, &p(k, &l.kalibr.coeffs)),
+            l.kalibr.loss
+        );
         for j in 0..4 {
             for h in [-1.0, 1.0] {
-                let mut cf = l.kalibr.coeffs;
+                let mut cf = l.kalibr.coeffs.clone();
                 cf[j] += h * 1e-4 * (cf[j].abs() + 1e-6);
                 assert!(
-                    Loss::of(&g, &k, &d(cf)).rms_px > l.kalibr.loss.rms_px,
+                    g.loss(&OpenCvCamera, &p(k, &cf)).rms_px > l.kalibr.loss.rms_px,
                     "{j} {h}"
                 );
             }
@@ -1255,8 +1166,71 @@ mod tests {
         assert!(chain.contains(&words), "{chain}");
         let yaml = opencv_camera_yaml(&c, &l);
         assert!(
-            yaml.contains(&format!("largest {:.4} px", l.opencv.max_px)),
+            yaml.contains(&format!("largest {:.4} px", l.opencv.loss.max_px)),
             "{yaml}"
+        );
+    }
+
+    /// Issue 35: a Kannala–Brandt camera is OpenCV's fisheye, ROS's equidistant and Kalibr's
+    /// pinhole-equi, each exactly; a double sphere is Kalibr's ds exactly and a fitted
+    /// fisheye elsewhere, with the loss stated.
+    #[test]
+    fn wide_angle_and_fisheye_cameras_export_in_each_ecosystems_model() {
+        let kb = model_camera(
+            "kb",
+            Intrinsics::new(
+                CameraModel::KannalaBrandt,
+                vec![386.0, 386.5, 641.0, 359.0, 0.02, -0.005, 0.001, -1e-4],
+            )
+            .unwrap(),
+        );
+        let l = losses(&kb);
+        assert_eq!(kb.opencv.distortion_model, "fisheye");
+        assert_eq!(kb.opencv.dist, [0.02, -0.005, 0.001, -1e-4]);
+        for f in [&l.opencv, &l.ros, &l.kalibr] {
+            assert!(!f.fitted && f.loss.max_px < 1e-9, "{f:?}");
+        }
+        let y = opencv_camera_yaml(&kb, &l);
+        assert!(
+            y.contains("camera_model: \"fisheye\"\ndistortion_model: \"fisheye\""),
+            "{y}"
+        );
+        assert_eq!(cv_data(&y, "distortion_coefficients"), kb.opencv.dist);
+        let info = ros_camera_info(&kb, &RosRectification::mono(&l.ros), &l);
+        assert!(info.contains("\ndistortion_model: equidistant\n"), "{info}");
+        assert_eq!(
+            ros_data(&info, "distortion_coefficients", 1, 4),
+            kb.opencv.dist
+        );
+        let chain = kalibr_camchain(&[(&kb, &l)], None);
+        assert!(
+            chain.contains("camera_model: pinhole\n")
+                && chain.contains("distortion_model: equidistant\n")
+        );
+        assert_eq!(flow(&chain, "intrinsics"), [386.0, 386.5, 641.0, 359.0]);
+
+        let ds = model_camera(
+            "ds",
+            Intrinsics::new(
+                CameraModel::DoubleSphere,
+                vec![310.0, 310.4, 641.0, 359.0, -0.2, 0.58],
+            )
+            .unwrap(),
+        );
+        let l = losses(&ds);
+        assert!(!l.kalibr.fitted && l.kalibr.loss.max_px < 1e-9);
+        let chain = kalibr_camchain(&[(&ds, &l)], None);
+        assert!(chain.contains("camera_model: ds\n") && chain.contains("distortion_model: none\n"));
+        assert_eq!(
+            flow(&chain, "intrinsics"),
+            [-0.2, 0.58, 310.0, 310.4, 641.0, 359.0]
+        );
+        assert!(l.opencv.fitted && l.opencv.loss.max_px > 0.0);
+        let y = opencv_camera_yaml(&ds, &l);
+        assert!(
+            y.contains(&format!("largest {:.4} px", l.opencv.loss.max_px))
+                && y.contains("fitted to pingcal's double-sphere model"),
+            "{y}"
         );
     }
 
@@ -1265,8 +1239,8 @@ mod tests {
     #[test]
     fn camera_info_has_the_parsers_layout_and_the_rectification() {
         let c = camera_json("left", 2.45);
-        let l = export_loss(&c);
-        let y = ros_camera_info(&c, &RosRectification::mono(&c), &l);
+        let l = losses(&c);
+        let y = ros_camera_info(&c, &RosRectification::mono(&l.ros), &l);
         let o = &c.opencv;
         let k = [o.fx, 0.0, o.cx, 0.0, o.fy, o.cy, 0.0, 0.0, 1.0];
         assert!(y.contains("\nimage_width: 1280\nimage_height: 720\ncamera_name: \"left\"\n"));
@@ -1291,8 +1265,9 @@ mod tests {
             "right",
         );
         let b = camera_json("right", 2.452);
-        let s = stereo_of(&c, &b, &rig).unwrap();
-        let y2 = ros_camera_info(&b, &RosRectification::stereo(&s, 2), &export_loss(&b));
+        let (la, lb) = (losses(&c), losses(&b));
+        let s = stereo_of(&la.opencv, &lb.opencv, (1280, 720), &rig).unwrap();
+        let y2 = ros_camera_info(&b, &RosRectification::stereo(&s, 2), &lb);
         assert_eq!(ros_data(&y2, "rectification_matrix", 3, 3), flat(&s.r2));
         let p2 = ros_data(&y2, "projection_matrix", 3, 4);
         let baseline_m = Vector3::from(rig.opencv.translation_mm).norm() / 1000.0;

@@ -19,7 +19,6 @@ use super::lrf::LrfData;
 use super::scene::{main_image, Detections, PointKind, Scene};
 use super::{Options, PipelineError, Reporter, Result};
 use nalgebra::{Matrix3, Vector2, Vector3};
-use pingcal_ba::camera::CameraModel;
 use pingcal_geometry::Sim3;
 use pingcal_lrf::corner_baseline::{fan_baseline, BaselineInput};
 use pingcal_lrf::correspondence::{match_balls, MatchOptions};

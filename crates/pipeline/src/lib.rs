@@ -123,13 +123,25 @@ pub fn calibrate(project: &Project, opts: &Options, rep: &Reporter) -> Result<Ou
     matching::add_points(project, &dets, &mut scene, opts, rep)?;
     timing.push(("matching".into(), t.elapsed().as_secs_f64()));
     let t = std::time::Instant::now();
-    let adjusted = bundle::final_adjustment(project, &dets, &mut scene, opts, rep)?;
+    let mut adjusted = bundle::final_adjustment(project, &dets, &mut scene, opts, rep)?;
+    adjusted.lens_doubt = verdict::lens_doubt(project, &adjusted);
+    if let Some(w) = &adjusted.lens_doubt {
+        rep.log(format!("warning: {w}"));
+        scene.warnings.push(w.clone());
+    }
     timing.push(("bundle adjustment".into(), t.elapsed().as_secs_f64()));
+    // A step after the bundle that fails while the camera model cannot hold the lens most
+    // likely fails because of it: the error says so.
+    let blame_lens = |e: PipelineError| match &adjusted.lens_doubt {
+        Some(d) => PipelineError(format!("{e}; but first: {d}")),
+        None => e,
+    };
     let t = std::time::Instant::now();
-    let lrf = lrf::lrf_spheres(project, opts, rep)?;
+    let lrf = lrf::lrf_spheres(project, opts, rep).map_err(blame_lens)?;
     timing.push(("LRF spheres".into(), t.elapsed().as_secs_f64()));
     let t = std::time::Instant::now();
-    let ext = extrinsic::extrinsics(project, &scene, &adjusted, &lrf, &dets, opts, rep)?;
+    let ext = extrinsic::extrinsics(project, &scene, &adjusted, &lrf, &dets, opts, rep)
+        .map_err(blame_lens)?;
     timing.push(("extrinsic".into(), t.elapsed().as_secs_f64()));
     let t = std::time::Instant::now();
     let mut joint = if project.file.method.joint() {

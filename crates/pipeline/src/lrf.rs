@@ -18,7 +18,7 @@ use pingcal_lrf::room::{mount_from_room, RoomMount, RoomOptions};
 use pingcal_lrf::scan::{open_scan_file, ScanHeader, ScanLine};
 use pingcal_lrf::sensor::RangeNoise;
 use pingcal_project::{Project, ProjectBag};
-use pingcal_rosbag::assemble::{assemble, servo_series, ServoSource, Topics};
+use pingcal_rosbag::assemble::{read_scans, ServoMotion, ServoSource, Topics};
 
 /// Rejected clusters smaller than this are counted, not listed one by one (a 38 mm ball
 /// at 1.5 m gives well over 100 points in a slow sweep).
@@ -55,9 +55,10 @@ pub fn mount_of(project: &Project) -> Result<MountModel> {
     })
 }
 
-/// The scans of the `[lrf.bag]` bags, with the servo interpolated at each beam's time, in
-/// runs of one beam geometry (a driver may change it between messages: each scan keeps
-/// its own); the scans outside the servo messages are skipped with a warning in the log.
+/// The scans of the `[lrf.bag]` bags, with the servo held or interpolated as `servo_motion`
+/// says (absent: told from the data), in runs of one beam geometry (a driver may change it
+/// between messages: each scan keeps its own); what was skipped or masked, and the motion
+/// used, are in the log.
 fn bag_scans(
     project: &Project,
     bag: &ProjectBag,
@@ -90,9 +91,10 @@ fn bag_scans(
         servo: bag.servo_topic.clone(),
         source,
     };
-    let series = servo_series(&bags, &topics).map_err(err)?;
+    let motion = ServoMotion::parse(bag.servo_motion.as_deref().unwrap_or("auto"))
+        .map_err(|e| PipelineError::new(format!("[lrf.bag] {e}")))?;
     let mut runs: Vec<(ScanHeader, Vec<ScanLine>)> = Vec::new();
-    let done = assemble(&bags, &topics, &series, &mut |h, l| {
+    let done = read_scans(&bags, &topics, motion, &mut |h, l| {
         match runs.last_mut() {
             Some((last, lines)) if last == h && lines[0].ranges_mm.len() == l.ranges_mm.len() => {
                 lines.push(l)
@@ -102,17 +104,8 @@ fn bag_scans(
         Ok(())
     })
     .map_err(err)?;
-    if done.geometry_changes > 0 {
-        rep.log(format!(
-            "[lrf.bag] topic {}: the beam geometry changes {} time(s) between scans; each scan is read with its own",
-            topics.scan, done.geometry_changes
-        ));
-    }
-    if done.before_servo + done.after_servo > 0 {
-        rep.log(format!(
-            "warning: [lrf.bag] topic {}: {} scan(s) before the first and {} after the last servo message skipped",
-            topics.scan, done.before_servo, done.after_servo
-        ));
+    for note in done.notes() {
+        rep.log(format!("[lrf.bag] topic {}: {note}", topics.scan));
     }
     if runs.is_empty() {
         return Err(PipelineError::new(format!(
@@ -352,6 +345,7 @@ mod tests {
             servo_offset: None,
             servo_tf_child: None,
             servo_axis: None,
+            servo_motion: None,
         }
     }
 

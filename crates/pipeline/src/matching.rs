@@ -23,11 +23,10 @@
 use super::adjust::{Datum, SceneProblem};
 use super::ids::{DetIdx, DetectionId, IdVec, ImageId, PointId};
 use super::scene::{
-    image_file, main_image, DetectionSet, Detections, PointKind, Scene, ScenePoint,
+    image_file, main_image, DetectionSet, Detections, PointKind, Scene, SceneCamera, ScenePoint,
 };
 use super::{Options, PipelineError, Reporter, Result};
 use nalgebra::{Vector2, Vector3};
-use pingcal_ba::camera::CameraModel;
 use pingcal_ba::initial::intersection::{intersect, IntersectionOptions, Ray};
 use pingcal_ba::solver;
 use pingcal_project::Project;
@@ -142,7 +141,7 @@ impl<'a> Blobs<'a> {
         let f_px = scene
             .camera_of
             .iter()
-            .map(|&c| scene.intrinsics[c][0] / scene.cameras[c].pixel_size_mm)
+            .map(|&c| scene.cameras[c].focal_px(&scene.intrinsics[c]))
             .collect();
         Blobs {
             dets,
@@ -342,7 +341,7 @@ fn grow(
             let t = blobs.dets.target(d);
             Ray {
                 camera_from_object: scene.poses[d.image].expect("oriented"),
-                model: &scene.cameras[c],
+                model: scene.cameras[c].model.as_ref(),
                 params: &scene.intrinsics[c],
                 uv: Vector2::new(t.x, t.y),
             }
@@ -414,7 +413,9 @@ pub fn new_points(dets: &Detections, scene: &mut Scene, kind: TargetKind) -> usi
     added
 }
 
-/// Median size (mm) of a point's blobs: semi-major axis × depth / principal distance, × 2.
+/// Median size (mm) of a point's blobs: the angle between the rays through the two ends of
+/// the blob's major axis (through the camera's model, so that a fisheye's compression
+/// toward the edge is undone) times the point's distance.
 pub fn blob_diameter_mm(dets: &Detections, scene: &Scene, p: &ScenePoint) -> Option<f64> {
     let mut d: Vec<f64> = p
         .obs
@@ -422,11 +423,16 @@ pub fn blob_diameter_mm(dets: &Detections, scene: &Scene, p: &ScenePoint) -> Opt
         .filter_map(|&o| {
             let pose = scene.poses[o.image]?;
             let c = scene.camera_of[o.image];
-            let depth = pose.transform(&p.position).y;
-            let px = scene.cameras[c].pixel_size_mm;
-            let cc = scene.intrinsics[c][0];
-            let a = dets.target(o).ellipse.a;
-            (depth > 0.0).then(|| 2.0 * a * px * depth / cc)
+            let (cam, params) = (&scene.cameras[c], &scene.intrinsics[c]);
+            let xc = pose.transform(&p.position);
+            let e = dets.target(o).ellipse;
+            let half = Vector2::new(e.theta.cos(), e.theta.sin()) * e.a;
+            let centre = Vector2::new(e.cx, e.cy);
+            let q1 = cam.unproject(params, &(centre + half))?;
+            let q2 = cam.unproject(params, &(centre - half))?;
+            let angle = q1.angle(&q2);
+            cam.project(params, &xc)
+                .map(|_| 2.0 * xc.norm() * (0.5 * angle).tan())
         })
         .collect();
     if d.is_empty() {
@@ -528,7 +534,7 @@ pub fn name_balls(project: &Project, scene: &mut Scene, balls: &[PointId], rep: 
         .iter()
         .map(|&j| {
             let xc = pose.transform(&scene.points[j].position);
-            scene.cameras[mc].project(&scene.intrinsics[mc], &xc, None, None)
+            scene.cameras[mc].project(&scene.intrinsics[mc], &xc)
         })
         .collect();
     let names = if project.file.balls.labels.is_empty() {
@@ -586,8 +592,7 @@ fn names_by_label(
             .min_by(|a, b| a.1.total_cmp(&b.1));
         let Some((k, d)) = best else { continue };
         let depth = pose.transform(&scene.points[balls[k]].position).y;
-        let r_px =
-            0.5 * ball_d * scene.intrinsics[mc][0] / (depth * scene.cameras[mc].pixel_size_mm);
+        let r_px = 0.5 * ball_d * scene.cameras[mc].focal_px(&scene.intrinsics[mc]) / depth;
         if d <= (3.0 * r_px).max(10.0) {
             names[k] = Some(l.id.clone());
         } else {
@@ -772,20 +777,28 @@ fn factor(x: f64) -> String {
     }
 }
 
-/// The first camera whose initial principal distance is under 0.1 or over 20 sensor
-/// widths (a 600 mm lens on a 36 mm sensor is 17), as an error clause.
+/// The first camera whose initial focal length is under 0.1 or over 20 sensor widths (a
+/// 600 mm lens on a 36 mm sensor is 17), as an error clause.
 pub(super) fn implausible_principal_distance(project: &Project) -> Option<String> {
     project.file.cameras.iter().enumerate().find_map(|(k, c)| {
-        let width = c.width as f64 * c.pixel_size_mm;
-        let rel = c.initial.c_mm / width;
-        (!(0.1..=20.0).contains(&rel)).then(|| {
-            format!(
-                ": cameras[{k}] c_mm = {} is {} sensor widths ({} px of {} mm = {width:.3} mm): is it in mm?",
-                c.initial.c_mm,
+        let focal_px = SceneCamera::of(c).focal_px(&c.intrinsics().values);
+        let rel = focal_px / c.width as f64;
+        (!(0.1..=20.0).contains(&rel)).then(|| match c.model.kind().in_mm() {
+            true => {
+                let width = c.width as f64 * c.pixel_size_mm;
+                format!(
+                    ": cameras[{k}] c_mm = {} is {} sensor widths ({} px of {} mm = {width:.3} mm): is it in mm?",
+                    focal_px * c.pixel_size_mm,
+                    factor(rel),
+                    c.width,
+                    c.pixel_size_mm
+                )
+            }
+            false => format!(
+                ": cameras[{k}] fx, fy = {focal_px} px is {} image widths ({} px): is it in pixels?",
                 factor(rel),
-                c.width,
-                c.pixel_size_mm
-            )
+                c.width
+            ),
         })
     })
 }

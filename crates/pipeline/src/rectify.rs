@@ -14,13 +14,14 @@
 use nalgebra::{Matrix3, Matrix3x4, Matrix4, Vector3};
 use pingcal_geometry::{exp_so3, log_so3, skew};
 
-/// A pinhole camera with OpenCV's five distortion coefficients.
+/// A pinhole camera with OpenCV's distortion coefficients.
 #[derive(Clone, Copy, Debug)]
 pub struct CvCamera {
     /// fx, fy, cx, cy (px).
     pub k: [f64; 4],
-    /// k1, k2, p1, p2, k3.
-    pub dist: [f64; 5],
+    /// k1, k2, p1, p2, k3, k4, k5, k6, s1, s2, s3, s4 (OpenCV's order; zeros beyond the
+    /// model's).
+    pub dist: [f64; 12],
 }
 
 impl CvCamera {
@@ -31,20 +32,21 @@ impl CvCamera {
     }
 
     /// `cv::undistortPoints` of one pixel without R and P: normalised coordinates after
-    /// OpenCV's five fixed-point iterations.
+    /// OpenCV's five fixed-point iterations (its rational and thin-prism terms included).
     fn undistort(&self, u: f64, v: f64) -> (f64, f64) {
         let [fx, fy, cx, cy] = self.k;
-        let [k1, k2, p1, p2, k3] = self.dist;
+        let [k1, k2, p1, p2, k3, k4, k5, k6, s1, s2, s3, s4] = self.dist;
         let (x0, y0) = ((u - cx) / fx, (v - cy) / fy);
         let (mut x, mut y) = (x0, y0);
         for _ in 0..5 {
             let r2 = x * x + y * y;
-            let icdist = 1.0 / (1.0 + ((k3 * r2 + k2) * r2 + k1) * r2);
+            let icdist =
+                (1.0 + ((k6 * r2 + k5) * r2 + k4) * r2) / (1.0 + ((k3 * r2 + k2) * r2 + k1) * r2);
             if icdist < 0.0 {
                 return (x0, y0);
             }
-            let dx = 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x);
-            let dy = p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y;
+            let dx = 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x) + s1 * r2 + s2 * r2 * r2;
+            let dy = p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y + s3 * r2 + s4 * r2 * r2;
             x = (x0 - dx) * icdist;
             y = (y0 - dy) * icdist;
         }
@@ -195,7 +197,9 @@ mod tests {
     fn camera(fx: f64, cx: f64) -> CvCamera {
         CvCamera {
             k: [fx, fx * 1.001, cx, 361.0],
-            dist: [-0.12, 0.015, 2.5e-4, 3.6e-4, -4.7e-4],
+            dist: [
+                -0.12, 0.015, 2.5e-4, 3.6e-4, -4.7e-4, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
+            ],
         }
     }
 

@@ -5,7 +5,7 @@
 use super::ids::{ImageId, SphereId};
 use super::lrf::MIN_REPORTED_CLUSTER;
 use super::results::Results;
-use super::scene::{image_file, main_image, PointKind};
+use super::scene::{image_file, main_image, PointKind, SceneCamera};
 use super::{Reporter, Stages};
 use pingcal_report as rp;
 
@@ -394,6 +394,47 @@ fn methods(st: &Stages, results: &Results) -> Vec<rp::MethodResult> {
     methods
 }
 
+/// The units of model `m`'s parameters, in its slice order.
+fn units(m: pingcal_project::CameraModel) -> Vec<String> {
+    let names = m.kind().parameter_names();
+    if m.kind().in_mm() {
+        return UNITS.iter().map(|s| s.to_string()).collect();
+    }
+    names
+        .iter()
+        .map(|n| match *n {
+            "fx" | "fy" | "cx" | "cy" => "px",
+            _ => "",
+        })
+        .map(String::from)
+        .collect()
+}
+
+/// The lens curve of camera `cam` at `values` (models without K1–K3): radius (px) and
+/// angle off the axis (°) of the rays along the image's longest half-diagonal from the
+/// principal point, as far as the model gives rays; and its focal length (px).
+fn lens_curve(cam: &SceneCamera, values: &[f64]) -> Option<(Vec<(f64, f64)>, f64)> {
+    let pp = cam.model.principal_point_px(values);
+    let corners = [
+        (0.0, 0.0),
+        (cam.width as f64 - 1.0, 0.0),
+        (0.0, cam.height as f64 - 1.0),
+        (cam.width as f64 - 1.0, cam.height as f64 - 1.0),
+    ];
+    let far = corners
+        .iter()
+        .map(|&(x, y)| nalgebra::Vector2::new(x, y))
+        .max_by(|a, b| (a - pp).norm().total_cmp(&(b - pp).norm()))?;
+    let pts: Vec<(f64, f64)> = (0..=100)
+        .map_while(|i| {
+            let uv = pp + (far - pp) * (i as f64 / 100.0);
+            let ray = cam.unproject(values, &uv)?;
+            Some(((uv - pp).norm(), ray.y.clamp(-1.0, 1.0).acos().to_degrees()))
+        })
+        .collect();
+    Some((pts, cam.focal_px(values)))
+}
+
 /// Each camera's parameters with their units, σ, free flags and high correlations.
 fn intrinsics(st: &Stages, results: &Results) -> Vec<rp::Intrinsics> {
     let f = &st.project.file;
@@ -404,33 +445,34 @@ fn intrinsics(st: &Stages, results: &Results) -> Vec<rp::Intrinsics> {
         .enumerate()
         .map(|(c, (cj, values))| {
             let cam = &f.cameras[c];
+            let names = cam.model.kind().parameter_names();
+            let photogrammetric = cam.model.kind().in_mm();
             rp::Intrinsics {
                 camera: cj.id.clone(),
-                names: pingcal_project::PARAMETER_NAMES
-                    .iter()
-                    .map(|s| s.to_string())
-                    .collect(),
-                units: UNITS.iter().map(|s| s.to_string()).collect(),
+                names: names.iter().map(|s| s.to_string()).collect(),
+                units: units(cam.model),
                 values: values.clone(),
-                sigmas: pingcal_project::PARAMETER_NAMES
+                sigmas: names
                     .iter()
                     .map(|n| cj.sigma.get(*n).copied().unwrap_or(f64::NAN))
                     .collect(),
-                free: pingcal_project::Parameter::ALL
-                    .iter()
-                    .map(|p| cam.free.contains(p))
-                    .collect(),
+                free: cam.free_flags(),
                 high_correlations: cj.high_correlations.clone(),
-                r_max_mm: r_max_mm(st, c, values),
+                r_max_mm: photogrammetric.then(|| r_max_mm(st, c, values)).flatten(),
                 opencv: Some(rp::OpenCvParams {
                     fx: cj.opencv.fx,
                     fy: cj.opencv.fy,
                     cx: cj.opencv.cx,
                     cy: cj.opencv.cy,
-                    dist: cj.opencv.dist,
+                    dist: cj.opencv.dist.clone(),
+                    distortion_model: cj.opencv.distortion_model.into(),
                     width: cj.opencv.image_width,
                     height: cj.opencv.image_height,
                 }),
+                model: cam.model.as_str().into(),
+                lens_curve: (!photogrammetric)
+                    .then(|| lens_curve(&st.scene.cameras[crate::ids::CameraId(c)], values))
+                    .flatten(),
             }
         })
         .collect()

@@ -28,11 +28,14 @@ use super::scene::{image_file, PointKind, Scene};
 use super::verdict::Verdict;
 use super::Stages;
 use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
+use pingcal_ba::camera::forms::{form, opencv_of_photogrammetric, Ecosystem, Source};
+use pingcal_ba::camera::refit::{grid_pixels, GridRays};
+use pingcal_ba::camera::ModelKind;
 use pingcal_ba::solver::VarianceComponent;
 use pingcal_geometry::to_opk;
 use pingcal_geometry::{Rigid3, Sim3};
 use pingcal_lrf::registration::{CheckRow, PointObs};
-use pingcal_project::{CameraParams, Project};
+use pingcal_project::{CameraModel, Intrinsics, Project};
 use serde::Serialize;
 
 /// The extrinsic as `results.json` writes it.
@@ -167,15 +170,33 @@ pub struct RigJson {
 pub struct CameraJson {
     /// Camera id.
     pub id: String,
-    /// The ten parameters (`c_mm`, `xp_mm`, `yp_mm`, `k1` … `b2`, SPEC.md units).
+    /// The camera model, absent for the photogrammetric model (the default).
+    #[serde(rename = "model", skip_serializing_if = "Option::is_none")]
+    pub model_name: Option<&'static str>,
+    /// The model's parameters by their keys (`c_mm`, `xp_mm`, …, `b2` for the
+    /// photogrammetric model; `fx`, `fy`, `cx`, `cy`, … for the others; docs/formats.md).
     #[serde(flatten)]
-    pub params: CameraParams,
+    pub params: Intrinsics,
     /// σ of each parameter, by name (free parameters only; fixed ones are absent).
     pub sigma: std::collections::BTreeMap<String, f64>,
     /// Pairs of parameters correlated beyond 0.9.
     pub high_correlations: Vec<(String, String, f64)>,
     /// The same camera in OpenCV's model (pixels; see the module doc).
     pub opencv: OpenCvJson,
+    /// Pixel pitch (mm), as the project gives it.
+    #[serde(skip)]
+    pub pixel_size_mm: f64,
+}
+
+impl CameraJson {
+    /// The camera's model, built for its sensor.
+    pub fn model(&self) -> std::sync::Arc<dyn pingcal_ba::camera::CameraModel> {
+        self.params.model.kind().model(
+            self.opencv.image_width,
+            self.opencv.image_height,
+            self.pixel_size_mm,
+        )
+    }
 }
 
 /// OpenCV intrinsics.
@@ -189,14 +210,23 @@ pub struct OpenCvJson {
     pub cx: f64,
     /// cy (px).
     pub cy: f64,
-    /// k1, k2, p1, p2, k3.
-    pub dist: [f64; 5],
-    /// B2, which OpenCV cannot hold.
-    pub opencv_dropped_b2: f64,
+    /// The distortion coefficients: k1, k2, p1, p2, k3 (then k4, k5, k6, and s1–s4 where
+    /// the model needs them), or k1–k4 of OpenCV's `fisheye`.
+    pub dist: Vec<f64>,
+    /// `rational_polynomial`, `thin_prism` or `fisheye` (absent: `plumb_bob`).
+    #[serde(skip_serializing_if = "is_plumb_bob")]
+    pub distortion_model: &'static str,
+    /// B2, which OpenCV cannot hold (the photogrammetric model only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub opencv_dropped_b2: Option<f64>,
     /// Image width (px).
     pub image_width: u32,
     /// Image height (px).
     pub image_height: u32,
+}
+
+fn is_plumb_bob(s: &&'static str) -> bool {
+    *s == "plumb_bob"
 }
 
 /// A ball in both frames.
@@ -580,22 +610,43 @@ fn methods(
     out
 }
 
-/// The photogrammetric parameters `p` (slice order) in OpenCV's model (see the module doc).
-pub fn opencv_of(p: &[f64], width: u32, height: u32, pixel_mm: f64) -> OpenCvJson {
-    let cc = p[0];
+/// Camera `params` of a `width × height` sensor of pitch `pixel_mm` in OpenCV's model
+/// ([`pingcal_ba::camera::forms`]: the photogrammetric model in closed form, B1 to first
+/// order and B2 dropped; the OpenCV and Kannala–Brandt models as they are; the others
+/// fitted over the image).
+pub fn opencv_of(params: &Intrinsics, width: u32, height: u32, pixel_mm: f64) -> OpenCvJson {
+    let kind = params.model.kind();
+    let p = &params.values;
+    let (k, dist, name) = if kind == ModelKind::Photogrammetric {
+        let (k, d) = opencv_of_photogrammetric(p, width, height, pixel_mm);
+        (k, d.to_vec(), "plumb_bob")
+    } else {
+        let model = kind.model(width, height, pixel_mm);
+        let grid = GridRays::of(model.as_ref(), p, &grid_pixels(width, height));
+        let src = Source {
+            kind,
+            params: p,
+            width,
+            height,
+            pixel_size_mm: pixel_mm,
+            grid: &grid,
+        };
+        match form(&src, Ecosystem::OpenCv) {
+            Some(f) => (f.k(), f.coeffs.clone(), f.distortion_model),
+            None => {
+                let (f, c) = (model.focal_px(p), model.principal_point_px(p));
+                ([f, f, c.x, c.y], vec![0.0; 5], "plumb_bob")
+            }
+        }
+    };
     OpenCvJson {
-        fx: cc * (1.0 + p[8]) / pixel_mm,
-        fy: cc / pixel_mm,
-        cx: (width as f64 - 1.0) / 2.0 + p[1] / pixel_mm,
-        cy: (height as f64 - 1.0) / 2.0 - p[2] / pixel_mm,
-        dist: [
-            p[3] * cc * cc,
-            p[4] * cc.powi(4),
-            -p[7] * cc,
-            p[6] * cc,
-            p[5] * cc.powi(6),
-        ],
-        opencv_dropped_b2: p[9],
+        fx: k[0],
+        fy: k[1],
+        cx: k[2],
+        cy: k[3],
+        dist,
+        distortion_model: name,
+        opencv_dropped_b2: (kind == ModelKind::Photogrammetric).then(|| p[9]),
         image_width: width,
         image_height: height,
     }
@@ -622,13 +673,15 @@ fn camera_json(project: &Project, scene: &Scene, adj: &Adjusted, c: CameraId) ->
             .cloned()
             .collect();
     }
-    let ps = cam.pixel_size_mm;
+    let params = Intrinsics::new(cam.model, p.clone()).expect("the model's parameters");
     CameraJson {
         id: cam.id.clone(),
-        params: CameraParams::from_slice(p.as_slice().try_into().expect("ten parameters")),
+        model_name: (cam.model != CameraModel::Photogrammetric).then(|| cam.model.as_str()),
         sigma,
         high_correlations: high,
-        opencv: opencv_of(p, cam.width, cam.height, ps),
+        opencv: opencv_of(&params, cam.width, cam.height, cam.pixel_size_mm),
+        params,
+        pixel_size_mm: cam.pixel_size_mm,
     }
 }
 
@@ -839,7 +892,9 @@ mod tests {
     fn opencv_project(o: &OpenCvJson, p: &Vector3<f64>) -> [f64; 2] {
         let (x, y) = (p.x / p.z, p.y / p.z);
         let r2 = x * x + y * y;
-        let [k1, k2, p1, p2, k3] = o.dist;
+        let [k1, k2, p1, p2, k3] = o.dist[..] else {
+            panic!("five coefficients: {:?}", o.dist)
+        };
         let rad = 1.0 + k1 * r2 + k2 * r2 * r2 + k3 * r2 * r2 * r2;
         let xd = x * rad + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x);
         let yd = y * rad + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y;
@@ -945,7 +1000,7 @@ mod tests {
         let p = [
             2.45, 0.012, -0.009, -0.021, 0.0004, -2e-6, 0.00015, -0.0001, 0.0, 0.0,
         ];
-        let o = opencv_of(&p, 1280, 720, 0.00375);
+        let o = opencv_of(&Intrinsics::photogrammetric(p), 1280, 720, 0.00375);
         let mut worst: f64 = 0.0;
         for i in 0..15 {
             for j in 0..9 {

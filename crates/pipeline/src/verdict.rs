@@ -29,11 +29,14 @@
 //! 0.5 % of the exact value for k ≥ 3 at p = 0.99 (checked in the tests against tabulated
 //! values).
 
+use super::bundle::Adjusted;
 use super::joint::JointOutcome;
 use super::Stages;
 use nalgebra::{DMatrix, Matrix3, Vector3};
+use pingcal_ba::solver::IntrinsicsPrecision;
 use pingcal_geometry::{skew, Sim3};
 use pingcal_lrf::registration::{CheckRow, Evaluation, PointObs};
+use pingcal_project::Project;
 use serde::Serialize;
 
 /// The level of every test: the probability that it flags a calibration whose models hold.
@@ -129,6 +132,63 @@ fn sigma0_bound(dof: f64) -> f64 {
     (chi2_upper(dof) / dof).sqrt()
 }
 
+/// A camera whose model cannot hold its lens, in words with the models to try: the first
+/// camera of the bundle's final problem whose image residuals grow toward the edge along the
+/// radius while the bundle's σ0 fails its χ² test
+/// ([`pingcal_ba::diagnostics::RadialProfile::grows_radially`]), or whose gross errors
+/// gather toward the edge ([`pingcal_ba::diagnostics::RadialProfile::rejections_grow`]);
+/// five rings of the image's half-diagonal.
+pub fn lens_doubt(project: &Project, adjusted: &Adjusted) -> Option<String> {
+    let dof = adjusted.precision.redundancy as f64;
+    let sigma0_fails = dof > 0.0 && adjusted.sigma0_a_priori > sigma0_bound(dof);
+    let f = &project.file;
+    let problem = &adjusted.solved.problem;
+    f.cameras.iter().enumerate().find_map(|(k, c)| {
+        let rejected: Vec<nalgebra::Vector2<f64>> = (adjusted.rejected.iter())
+            .filter(|r| f.images.iter().any(|im| im.file == r.image && im.camera == c.id))
+            .map(|r| nalgebra::Vector2::from(r.uv))
+            .collect();
+        let profile = pingcal_ba::diagnostics::radial_profile(
+            problem,
+            k,
+            (c.width, c.height),
+            5,
+            &rejected,
+        );
+        let what = match (profile.grows_radially(), profile.rejections_grow()) {
+            (Some((inner, outer)), _) if sigma0_fails => format!(
+                "the image residuals grow toward the edge along the radius (RMS {:.3} px within {:.0} % of the image's half-diagonal, {:.3} px beyond {:.0} %, across the radius {:.3} px there)",
+                inner.radial_px,
+                100.0 * inner.to,
+                outer.radial_px,
+                100.0 * outer.from,
+                outer.tangential_px
+            ),
+            (_, Some((inner, outer))) => format!(
+                "data snooping removed {} of the {} image points beyond {:.0} % of the image's half-diagonal and {} of the {} within {:.0} %",
+                outer.rejected,
+                outer.n + outer.rejected,
+                100.0 * outer.from,
+                inner.rejected,
+                inner.n + inner.rejected,
+                100.0 * inner.to
+            ),
+            _ => return None,
+        };
+        let others: Vec<String> = ["kannala-brandt", "double-sphere", "opencv"]
+            .iter()
+            .filter(|m| **m != c.model.as_str())
+            .map(|m| format!("\"{m}\""))
+            .collect();
+        Some(format!(
+            "camera '{}': {what}: the lens bends more than model '{}' can hold; give the camera the model of its lens ([[cameras]] model = {}: a fisheye, the first two; a wide-angle lens, the last)",
+            c.id,
+            c.model,
+            others.join(", ")
+        ))
+    })
+}
+
 /// The bound of the check balls' `χ²/n` (n = 3k coordinates) at level [`ALPHA`], widened by
 /// the sphere centres' documented optimism: a check ball's LRF side is a sphere fit.
 fn check_points_bound(n: f64) -> f64 {
@@ -161,6 +221,7 @@ pub fn judge(st: &Stages) -> Verdict {
         });
     });
     reasons.extend(unmatched(st));
+    reasons.extend(st.adjusted.lens_doubt.clone());
     let kept_twice = match st.joint {
         Some(Ok(j)) => j.lrf_view.seen_twice_kept,
         _ => st.lrf.found.seen_twice_kept(),
@@ -427,11 +488,62 @@ fn sphere_fit_test(st: &Stages, test: &mut Test) {
     }
 }
 
-/// The largest correlation between two self-calibrated intrinsics.
+/// The correlation matrix of camera `ip`'s self-calibrated intrinsics in the parameters
+/// the network separates ([`pingcal_ba::camera::ModelKind::separable_jacobian`]: the double
+/// sphere's scales on the axis in place of its fx, fy), by linear propagation of their
+/// covariance.
+fn separable_correlation(st: &Stages, ip: &IntrinsicsPrecision) -> Vec<Vec<f64>> {
+    let Some(cam) = st.project.file.cameras.iter().find(|c| c.id == ip.camera) else {
+        return ip.correlation.clone();
+    };
+    let kind = cam.model.kind();
+    if kind != pingcal_ba::camera::ModelKind::DoubleSphere {
+        return ip.correlation.clone();
+    }
+    let names: Vec<&str> = ip.names.iter().map(String::as_str).collect();
+    let values = cam.model.kind().parameter_names().iter().map(|n| {
+        // the adjusted values of the free parameters, the start of the held ones
+        names
+            .iter()
+            .position(|x| x == n)
+            .map_or(0.0, |k| ip.values[k])
+    });
+    let values: Vec<f64> = values.collect();
+    let j = kind.separable_jacobian(&values, &names);
+    let n = names.len();
+    let cov = |a: usize, b: usize| ip.correlation[a][b] * ip.sigmas[a] * ip.sigmas[b];
+    let c2: Vec<Vec<f64>> = (0..n)
+        .map(|a| {
+            (0..n)
+                .map(|b| {
+                    let mut s = 0.0;
+                    for (k, jak) in j[a].iter().enumerate() {
+                        for (l, jbl) in j[b].iter().enumerate() {
+                            if *jak != 0.0 && *jbl != 0.0 {
+                                s += jak * cov(k, l) * jbl;
+                            }
+                        }
+                    }
+                    s
+                })
+                .collect()
+        })
+        .collect();
+    (0..n)
+        .map(|a| {
+            (0..n)
+                .map(|b| c2[a][b] / (c2[a][a] * c2[b][b]).sqrt())
+                .collect()
+        })
+        .collect()
+}
+
+/// The largest correlation between two self-calibrated intrinsics (in the parameters the
+/// network separates, [`separable_correlation`]).
 fn correlation_test(st: &Stages, test: &mut Test) {
     let mut worst: Option<(f64, String)> = None;
     for ip in &st.adjusted.precision.intrinsics {
-        for (i, row) in ip.correlation.iter().enumerate() {
+        for (i, row) in separable_correlation(st, ip).iter().enumerate() {
             for (j, r) in row.iter().enumerate().skip(i + 1) {
                 if r.is_finite() && worst.as_ref().is_none_or(|w| r.abs() > w.0) {
                     worst = Some((

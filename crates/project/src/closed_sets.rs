@@ -172,16 +172,38 @@ impl TargetFamily {
 }
 
 closed_set! {
-    /// A camera's model (`[[cameras]] model`).
+    /// A camera's model (`[[cameras]] model`); each is a [`pingcal_camera::ModelKind`].
     pub enum CameraModel {
-        /// The ten-parameter model of SPEC.md (c, xp, yp, K1-K3, P1, P2, B1, B2).
+        /// The ten-parameter photogrammetric model (c, xp, yp, K1-K3, P1, P2, B1, B2; mm).
         Photogrammetric = "photogrammetric",
+        /// The same ten parameters as a correction of the measured point (DBAT).
+        BrownBackward = "brown-backward",
+        /// OpenCV's pinhole with the rational model (fx fy cx cy k1 k2 p1 p2 k3-k6 s1-s4; px).
+        OpenCv = "opencv",
+        /// Kannala-Brandt, equidistant (fx fy cx cy k1-k4; px).
+        KannalaBrandt = "kannala-brandt",
+        /// The double sphere (fx fy cx cy xi alpha; px).
+        DoubleSphere = "double-sphere",
+    }
+}
+
+impl CameraModel {
+    /// The camera crate's kind of this model.
+    pub fn kind(self) -> pingcal_camera::ModelKind {
+        match self {
+            CameraModel::Photogrammetric => pingcal_camera::ModelKind::Photogrammetric,
+            CameraModel::BrownBackward => pingcal_camera::ModelKind::BrownBackward,
+            CameraModel::OpenCv => pingcal_camera::ModelKind::OpenCv,
+            CameraModel::KannalaBrandt => pingcal_camera::ModelKind::KannalaBrandt,
+            CameraModel::DoubleSphere => pingcal_camera::ModelKind::DoubleSphere,
+        }
     }
 }
 
 closed_set! {
-    /// One of the ten photogrammetric parameters, as named in a camera's `free` list; the
-    /// order of `ALL` is the order of [`crate::CameraParams::to_slice`].
+    /// A camera parameter as named in a camera's `free` list: those of every model (each
+    /// model's own are checked after reading, [`Parameter::index_in`]). The photogrammetric
+    /// models' come first, in their slice order.
     pub enum Parameter {
         /// Principal distance.
         C = "c",
@@ -203,13 +225,64 @@ closed_set! {
         B1 = "B1",
         /// Shear.
         B2 = "B2",
+        /// Focal length in x (px).
+        Fx = "fx",
+        /// Focal length in y (px).
+        Fy = "fy",
+        /// Principal point x (px).
+        Cx = "cx",
+        /// Principal point y (px).
+        Cy = "cy",
+        /// First radial coefficient (OpenCV, Kannala-Brandt).
+        LowerK1 = "k1",
+        /// Second radial coefficient.
+        LowerK2 = "k2",
+        /// Third radial coefficient.
+        LowerK3 = "k3",
+        /// Fourth radial coefficient (OpenCV's first denominator term; Kannala-Brandt's k4).
+        LowerK4 = "k4",
+        /// OpenCV's second denominator term.
+        LowerK5 = "k5",
+        /// OpenCV's third denominator term.
+        LowerK6 = "k6",
+        /// OpenCV's first tangential coefficient.
+        LowerP1 = "p1",
+        /// OpenCV's second tangential coefficient.
+        LowerP2 = "p2",
+        /// OpenCV's thin prism s1.
+        S1 = "s1",
+        /// OpenCV's thin prism s2.
+        S2 = "s2",
+        /// OpenCV's thin prism s3.
+        S3 = "s3",
+        /// OpenCV's thin prism s4.
+        S4 = "s4",
+        /// The double sphere's ξ.
+        Xi = "xi",
+        /// The double sphere's α.
+        Alpha = "alpha",
     }
 }
 
 impl Parameter {
-    /// Its position in [`crate::CameraParams::to_slice`] (and in `ALL`).
-    pub fn index(self) -> usize {
-        self as usize
+    /// Its position in the parameter slice of `model`, if it is one of its parameters.
+    pub fn index_in(self, model: CameraModel) -> Option<usize> {
+        let name = self.as_str();
+        model
+            .kind()
+            .parameter_names()
+            .iter()
+            .position(|n| *n == name)
+    }
+
+    /// The parameters of `model`, in its slice order.
+    pub fn of(model: CameraModel) -> Vec<Parameter> {
+        model
+            .kind()
+            .parameter_names()
+            .iter()
+            .map(|n| Parameter::from_word(n).expect("every model's names are parameters"))
+            .collect()
     }
 }
 

@@ -18,6 +18,7 @@
 //! of this crate parse and validate that very text, so it cannot drift.
 
 mod closed_sets;
+pub mod intrinsics;
 mod layout;
 mod parse;
 mod schema;
@@ -25,6 +26,7 @@ pub mod sphere_calib;
 mod validate;
 
 pub use closed_sets::{CameraModel, Method, MountParameter, Parameter, TargetFamily};
+pub use intrinsics::{Intrinsics, KeyedValues};
 pub use layout::{Layout, LayoutError};
 pub use schema::{
     BallLabel, CameraParams, ProjectBag, ProjectBalls, ProjectCamera, ProjectDistance, ProjectFile,

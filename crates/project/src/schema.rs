@@ -7,11 +7,11 @@
 //! `default` attributes below and nothing else.
 
 use crate::closed_sets::{CameraModel, Method, MountParameter, Parameter, TargetFamily};
+use crate::intrinsics::{Intrinsics, KeyedValues};
 use serde::{Deserialize, Serialize};
 
-/// Names of the ten photogrammetric parameters, in the order of [`CameraParams::to_slice`]
-/// (the spellings of [`Parameter`]).
-pub const PARAMETER_NAMES: [&str; 10] = Parameter::NAMES;
+/// Names of the ten photogrammetric parameters, in the order of [`CameraParams::to_slice`].
+pub const PARAMETER_NAMES: [&str; 10] = pingcal_camera::PHOTOGRAMMETRIC_PARAMS;
 
 /// `project.toml`, version 1.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -193,7 +193,8 @@ pub struct BallLabel {
 pub struct ProjectCamera {
     /// Camera id used by images.
     pub id: String,
-    /// `photogrammetric` (SPEC.md).
+    /// The camera model (`photogrammetric`, the default, `opencv`, `kannala-brandt`, …).
+    #[serde(default = "photogrammetric")]
     pub model: CameraModel,
     /// Width in pixels.
     pub width: u32,
@@ -201,10 +202,55 @@ pub struct ProjectCamera {
     pub height: u32,
     /// Pixel pitch (mm).
     pub pixel_size_mm: f64,
-    /// Initial values (camera manual).
-    pub initial: CameraParams,
-    /// Which parameters to self-calibrate (`c`, `xp`, … as in [`PARAMETER_NAMES`]).
+    /// Initial values (the camera's data sheet or an earlier calibration), with the keys of
+    /// the model ([`crate::intrinsics`]); missing ones from [`ProjectCamera::nominal`].
+    pub initial: KeyedValues,
+    /// Which parameters to self-calibrate (the model's parameter names: `c`, `xp`, `K1` …
+    /// for the photogrammetric model, `fx`, `cx`, `k1` … for the others).
     pub free: Vec<Parameter>,
+}
+
+fn photogrammetric() -> CameraModel {
+    CameraModel::Photogrammetric
+}
+
+impl ProjectCamera {
+    /// The start of the parameters a project does not give: no distortion, the principal
+    /// point at the image centre, the focal length the project gives (`c_mm` or `fx`, `fy`),
+    /// for the double sphere ξ = −0.2, α = ½ ([`pingcal_camera::ModelKind::nominal`]).
+    pub fn nominal(&self) -> Vec<f64> {
+        let kind = self.model.kind();
+        let focal_px = match self.model {
+            CameraModel::Photogrammetric | CameraModel::BrownBackward => {
+                self.initial.get("c_mm").unwrap_or(0.0) / self.pixel_size_mm
+            }
+            _ => {
+                let (fx, fy) = (self.initial.get("fx"), self.initial.get("fy"));
+                let f = fx.or(fy).unwrap_or(0.0);
+                0.5 * (fx.unwrap_or(f) + fy.unwrap_or(f))
+            }
+        };
+        let mut p = kind.nominal(focal_px, self.width, self.height, self.pixel_size_mm);
+        if self.model == CameraModel::DoubleSphere {
+            // `nominal` scales fx, fy by 1 + ξ; the project's own fx, fy are taken as given
+            p[0] = focal_px;
+            p[1] = focal_px;
+        }
+        p
+    }
+
+    /// The initial values of every parameter of the model, in its slice order.
+    pub fn intrinsics(&self) -> Intrinsics {
+        Intrinsics::from_table(self.model, &self.initial, &self.nominal())
+    }
+
+    /// For each parameter of the model, in its slice order, whether it is self-calibrated.
+    pub fn free_flags(&self) -> Vec<bool> {
+        Parameter::of(self.model)
+            .iter()
+            .map(|p| self.free.contains(p))
+            .collect()
+    }
 }
 
 /// The ten photogrammetric parameters, named as in results.json. Missing ones are 0.
@@ -396,6 +442,11 @@ pub struct ProjectBag {
     /// tf servo topic: the servo axis in the parent frame (default `[0, 1, 0]`).
     #[serde(default)]
     pub servo_axis: Option<[f64; 3]>,
+    /// How the servo moves: `"auto"` (absent: told from the servo series), `"stop-and-go"`
+    /// (the last angle before each scan is held) or `"continuous"` (interpolated at each
+    /// beam's time).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub servo_motion: Option<String>,
 }
 
 impl ProjectLrf {

@@ -28,7 +28,7 @@ fn the_documented_example_is_valid() {
     assert_eq!(p.method, Method::Both);
     assert_eq!(p.targets.family, TargetFamily::Aicon14);
     assert_eq!(p.cameras[0].model, CameraModel::Photogrammetric);
-    assert_eq!(p.cameras[0].free, Parameter::ALL);
+    assert_eq!(p.cameras[0].free, Parameter::ALL[..10]);
     assert_eq!(p.cameras[1].free, Parameter::ALL[..8]);
     // round trip
     let again = ProjectFile::parse(&p.to_toml_string(), "again").unwrap();
@@ -88,6 +88,65 @@ fn lrf_model_file_and_mount_keys_are_not_both_given() {
         e.contains("lrf_model = \"mount.json\" and the mount_* / servo_zero_deg keys both"),
         "{e}"
     );
+}
+
+/// Issue 35: each camera model takes its own keys and parameter names; another model's are
+/// refused with the model's list, and the focal length is required.
+#[test]
+fn each_camera_model_takes_its_own_parameters() {
+    let fisheye = |p: &mut ProjectFile| {
+        let c = &mut p.cameras[0];
+        c.model = CameraModel::KannalaBrandt;
+        c.initial = KeyedValues(vec![("fx".into(), 300.0), ("fy".into(), 301.0)]);
+        c.free = Parameter::of(CameraModel::KannalaBrandt);
+    };
+    let mut p = ProjectFile::parse(&readme_example(), "example.toml").unwrap();
+    fisheye(&mut p);
+    p.validate("example.toml").unwrap();
+    let c = &p.cameras[0];
+    let i = c.intrinsics();
+    let centre = [0.5 * (c.width as f64 - 1.0), 0.5 * (c.height as f64 - 1.0)];
+    assert_eq!(
+        i.values,
+        [300.0, 301.0, centre[0], centre[1], 0.0, 0.0, 0.0, 0.0]
+    );
+    assert_eq!(c.free_flags(), vec![true; 8]);
+    let again = ProjectFile::parse(&p.to_toml_string(), "again").unwrap();
+    assert_eq!(again, p, "a fisheye camera round-trips through the file");
+    let e = err_of(|p| {
+        fisheye(p);
+        p.cameras[0].free.push(Parameter::K1);
+    });
+    assert!(
+        e.contains("free: 'K1' is not a parameter of model 'kannala-brandt' (its parameters: fx, fy, cx, cy, k1, k2, k3, k4)"),
+        "{e}"
+    );
+    let e = err_of(|p| {
+        fisheye(p);
+        p.cameras[0].initial.0.push(("c_mm".into(), 2.45));
+    });
+    assert!(
+        e.contains("initial: 'c_mm' is not a parameter of model 'kannala-brandt'"),
+        "{e}"
+    );
+    let e = err_of(|p| {
+        fisheye(p);
+        p.cameras[0].initial.0.remove(1);
+    });
+    assert!(
+        e.contains("initial: no fy: model 'kannala-brandt' needs its focal length"),
+        "{e}"
+    );
+    let e = err_of(|p| {
+        p.cameras[0].model = CameraModel::DoubleSphere;
+        p.cameras[0].initial = KeyedValues(vec![
+            ("fx".into(), 300.0),
+            ("fy".into(), 300.0),
+            ("alpha".into(), 1.2),
+        ]);
+        p.cameras[0].free.clear();
+    });
+    assert!(e.contains("initial alpha = 1.2"), "{e}");
 }
 
 /// Issue 16: `[frames]` defaults to `camera_optical` and `laser`; a name that cannot go
@@ -212,13 +271,13 @@ fn an_unknown_camera_model_is_refused_at_parse_time() {
     let (e, line) = parse_err_of("model = \"photogrammetric\"", "model = \"pinhole\"");
     assert_eq!(
         e,
-        format!("project.toml: line {line}: model = \"pinhole\": expected photogrammetric")
+        format!("project.toml: line {line}: model = \"pinhole\": expected one of photogrammetric, brown-backward, opencv, kannala-brandt, double-sphere")
     );
 }
 
 #[test]
 fn an_unknown_free_parameter_is_refused_at_parse_time() {
-    let all = "c, xp, yp, K1, K2, K3, P1, P2, B1, B2";
+    let all = "c, xp, yp, K1, K2, K3, P1, P2, B1, B2, fx, fy, cx, cy, k1, k2, k3, k4, k5, k6, p1, p2, s1, s2, s3, s4, xi, alpha";
     let (e, line) = parse_err_of("free = [\"c\", ", "free = [\"K9\", \"c\", ");
     assert_eq!(
         e,
@@ -337,14 +396,25 @@ fn the_closed_sets_spell_as_the_file() {
         assert_eq!(p.index(), k);
     }
     assert_eq!(TargetFamily::NAMES, ["aicon14", "aicon12"]);
-    assert_eq!(CameraModel::NAMES, ["photogrammetric"]);
+    assert_eq!(
+        CameraModel::NAMES,
+        pingcal_camera::ModelKind::NAMES,
+        "the project's models are the camera crate's"
+    );
+    for m in CameraModel::ALL {
+        assert_eq!(m.kind().name(), m.as_str());
+        for (k, p) in Parameter::of(m).iter().enumerate() {
+            assert_eq!(p.index_in(m), Some(k), "{m} {p}");
+        }
+    }
     assert_eq!(
         PARAMETER_NAMES,
         ["c", "xp", "yp", "K1", "K2", "K3", "P1", "P2", "B1", "B2"]
     );
-    for (k, p) in Parameter::ALL.iter().enumerate() {
-        assert_eq!(p.index(), k);
-    }
+    assert_eq!(
+        Parameter::of(CameraModel::Photogrammetric),
+        Parameter::ALL[..10]
+    );
     for f in TargetFamily::ALL {
         assert_eq!(TargetFamily::from_code_bits(f.code_bits()), Some(f));
         assert_eq!(f.as_str(), format!("aicon{}", f.code_bits()));
@@ -508,6 +578,16 @@ fn an_lrf_bag_section_is_read_and_checked() {
         b.servo_scale = Some(0.0);
     });
     assert!(e.contains("the scale not 0"), "{e}");
+    let mut q = p.clone();
+    q.lrf.bag.as_mut().unwrap().servo_motion = Some("stop-and-go".into());
+    q.validate("p.toml").unwrap();
+    let again = ProjectFile::parse(&q.to_toml_string(), "again").unwrap();
+    assert_eq!(again, q);
+    let e = check(&|q| q.lrf.bag.as_mut().unwrap().servo_motion = Some("jerky".into()));
+    assert!(
+        e.contains("[lrf.bag] servo_motion = \"jerky\": expected \"auto\", \"stop-and-go\" or \"continuous\""),
+        "{e}"
+    );
     let t = text.replace("servo_joint = ", "servo_jiont = ");
     assert!(ProjectFile::parse(&t, "p.toml").is_err());
 }

@@ -7,6 +7,8 @@
 //! entry and its value. The closed sets (`method`, `family`, `model`, `free`) are refused
 //! earlier, while reading (see `closed_sets.rs`).
 
+use crate::closed_sets::CameraModel;
+use crate::intrinsics::Intrinsics;
 use crate::schema::{
     ProjectBag, ProjectBalls, ProjectCamera, ProjectDistance, ProjectFile, ProjectFrames,
     ProjectImage, ProjectLrf, ProjectNetwork, ProjectStereo, ProjectTargets,
@@ -181,14 +183,48 @@ fn validate_camera(c: &ProjectCamera) -> Result<(), String> {
             c.pixel_size_mm
         ));
     }
-    if !(c.initial.c_mm > 0.0 && c.initial.c_mm.is_finite()) {
+    if let Some(e) = Intrinsics::unknown_key(c.model, &c.initial) {
+        return Err(format!("initial: {e}"));
+    }
+    if let Some((k, v)) = c.initial.0.iter().find(|(_, v)| !v.is_finite()) {
+        return Err(format!("initial {k} = {v}: not a finite number"));
+    }
+    let focal: &[&str] = match c.model {
+        CameraModel::Photogrammetric | CameraModel::BrownBackward => &["c_mm"],
+        _ => &["fx", "fy"],
+    };
+    for k in focal {
+        match c.initial.get(k) {
+            Some(v) if v > 0.0 => {}
+            Some(v) => {
+                return Err(format!(
+                    "initial {k} = {v}: expected a positive focal length ({})",
+                    if *k == "c_mm" { "mm" } else { "pixels" }
+                ))
+            }
+            None => {
+                return Err(format!(
+                    "initial: no {k}: model '{}' needs its focal length ({})",
+                    c.model,
+                    focal.join(", ")
+                ))
+            }
+        }
+    }
+    if let Some(p) = c.free.iter().find(|p| p.index_in(c.model).is_none()) {
         return Err(format!(
-            "initial c_mm = {}: expected a positive principal distance",
-            c.initial.c_mm
+            "free: '{p}' is not a parameter of model '{}' (its parameters: {})",
+            c.model,
+            c.model.kind().parameter_names().join(", ")
         ));
     }
-    if c.initial.to_slice().iter().any(|v| !v.is_finite()) {
-        return Err("an initial parameter is not finite".into());
+    if c.model == CameraModel::DoubleSphere {
+        let alpha = c.intrinsics().values[5];
+        if !(0.0..1.0).contains(&alpha) {
+            return Err(format!(
+                "initial alpha = {alpha}: the double sphere's α lies in [0, 1)"
+            ));
+        }
     }
     Ok(())
 }
@@ -318,6 +354,13 @@ fn validate_bag(b: &ProjectBag) -> Result<(), String> {
         if !(norm.is_finite() && norm > 0.0) {
             return Err(format!(
                 "[lrf.bag] servo_axis = {a:?}: expected three finite numbers, not all 0"
+            ));
+        }
+    }
+    if let Some(m) = &b.servo_motion {
+        if !["auto", "stop-and-go", "continuous"].contains(&m.as_str()) {
+            return Err(format!(
+                "[lrf.bag] servo_motion = {m:?}: expected \"auto\", \"stop-and-go\" or \"continuous\""
             ));
         }
     }

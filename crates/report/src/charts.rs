@@ -360,8 +360,14 @@ fn delta_r_um(k: [f64; 3], r: f64) -> f64 {
     1000.0 * r * r2 * (k[0] + r2 * (k[1] + r2 * k[2]))
 }
 
-/// K1 K2 K3 of a camera and its largest radius, when it has both.
+/// K1 K2 K3 of a camera of a photogrammetric model and its largest radius, when it has both.
 fn radial(cam: &Intrinsics) -> Option<([f64; 3], f64)> {
+    if !matches!(
+        cam.model.as_str(),
+        "" | "photogrammetric" | "brown-backward"
+    ) {
+        return None;
+    }
     let get = |n: &str| {
         cam.names
             .iter()
@@ -377,19 +383,125 @@ fn radial(cam: &Intrinsics) -> Option<([f64; 3], f64)> {
     k.iter().all(|v| v.is_finite()).then_some((k, r))
 }
 
-/// The radial distortion profile Δr(r) of every camera, to its sensor corner.
+/// The lens curves of the cameras that have one: the angle off the optical axis against
+/// the radius in the image, beside the pinhole's (f tan θ) and the equidistant lens's (f θ)
+/// of the same focal length.
+/// A camera's name, its lens curve's points and its focal length (px).
+type LensCurve<'a> = (&'a str, &'a Vec<(f64, f64)>, f64);
+
+fn lens_curves(o: &mut String, d: &ReportData) -> bool {
+    let cams: Vec<LensCurve> = d
+        .intrinsics
+        .iter()
+        .filter_map(|c| {
+            let (pts, f) = c.lens_curve.as_ref()?;
+            (pts.len() > 1 && *f > 0.0).then_some((c.camera.as_str(), pts, *f))
+        })
+        .collect();
+    if cams.is_empty() {
+        return false;
+    }
+    let rmax = cams
+        .iter()
+        .flat_map(|c| c.1.iter().map(|p| p.0))
+        .fold(0.0, f64::max);
+    let tmax = cams
+        .iter()
+        .flat_map(|c| c.1.iter().map(|p| p.1))
+        .fold(0.0, f64::max);
+    let f = frame(
+        [0.0, nice_range(0.0, rmax)[1]],
+        nice_range(0.0, tmax.max(10.0)),
+        560.0,
+        260.0,
+    );
+    let (w, h) = f.svg_size();
+    o.push_str("<figure>\n");
+    svg_open(o, w, h, "lens curve");
+    axes(
+        o,
+        &f,
+        "r (px): radius from the principal point in the image",
+        "θ (°) off the optical axis",
+    );
+    let path = |pts: &[(f64, f64)]| -> String {
+        pts.iter()
+            .enumerate()
+            .map(|(i, p)| {
+                format!(
+                    "{}{} {}",
+                    if i == 0 { "M" } else { "L" },
+                    c(f.px(p.0)),
+                    c(f.py(p.1))
+                )
+            })
+            .collect()
+    };
+    for (k, (_, pts, fl)) in cams.iter().enumerate() {
+        let colour = COLOURS[k % COLOURS.len()];
+        let r_end = pts.last().map_or(0.0, |p| p.0);
+        let refs: [Vec<(f64, f64)>; 2] = [
+            (0..=50)
+                .map(|i| {
+                    let r = r_end * i as f64 / 50.0;
+                    (r, (r / fl).atan().to_degrees())
+                })
+                .collect(),
+            (0..=50)
+                .map(|i| {
+                    let r = r_end * i as f64 / 50.0;
+                    (r, (r / fl).to_degrees())
+                })
+                .filter(|p| p.1 <= f.y1)
+                .collect(),
+        ];
+        for (r, dash) in refs.iter().zip(["6 4", "2 3"]) {
+            let _ = write!(
+                o,
+                r##"<path d="{}" fill="none" stroke="{colour}" stroke-width="1" stroke-dasharray="{dash}"/>"##,
+                path(r)
+            );
+        }
+        let _ = write!(
+            o,
+            r##"<path d="{}" fill="none" stroke="{colour}" stroke-width="2"/>"##,
+            path(pts)
+        );
+    }
+    o.push_str("</svg>\n<figcaption>");
+    for (k, (name, pts, fl)) in cams.iter().enumerate() {
+        let end = pts.last().copied().unwrap_or_default();
+        let _ = write!(
+            o,
+            r#"<span class="sw bar" style="background:{}"></span>{}: θ = {}° at r = {} px (f = {} px) "#,
+            COLOURS[k % COLOURS.len()],
+            escape(name),
+            num(end.1, 1),
+            num(end.0, 0),
+            num(*fl, 1)
+        );
+    }
+    o.push_str("</figcaption>\n</figure>\n<p class=\"note\">Solid: the camera model's angle θ of the ray through each radius r along the image's longest half-diagonal; dashed: a pinhole of the same focal length (r = f tan θ); dotted: an equidistant lens (r = f θ). A wide-angle lens lies between the two; a fisheye near or beyond the dotted line.</p>\n");
+    true
+}
+
+/// The radial distortion profile Δr(r) of every camera, to its sensor corner; the lens
+/// curve of cameras whose model has no K1–K3.
 pub(crate) fn distortion(o: &mut String, d: &ReportData) {
     h2(o, "distortion");
+    let curves = lens_curves(o, d);
     let cams: Vec<(&str, [f64; 3], f64)> = d
         .intrinsics
         .iter()
         .filter_map(|c| radial(c).map(|(k, r)| (c.camera.as_str(), k, r)))
         .collect();
     if cams.is_empty() {
-        none(
-            o,
-            "no radial distortion profile (K1 or the sensor size unknown)",
-        );
+        if !curves {
+            none(
+                o,
+                "no radial distortion profile (K1 or the sensor size unknown)",
+            );
+        }
         o.push_str("</section>\n");
         return;
     }

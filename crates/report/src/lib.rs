@@ -352,9 +352,18 @@ pub struct Intrinsics {
     /// The same camera in OpenCV's pinhole model (None: not converted).
     #[serde(default)]
     pub opencv: Option<OpenCvParams>,
+    /// The camera model's name (`photogrammetric`, `kannala-brandt`, …).
+    #[serde(default)]
+    pub model: String,
+    /// The lens's mapping for models without K1–K3: (radius from the principal point in
+    /// px, angle of the ray off the optical axis in degrees) along the image's longest
+    /// half-diagonal, and the focal length in px (the distortion section draws it against
+    /// the pinhole's and the equidistant lens's).
+    #[serde(default)]
+    pub lens_curve: Option<(Vec<(f64, f64)>, f64)>,
 }
 
-/// A camera in OpenCV's model: the camera matrix and (k1, k2, p1, p2, k3).
+/// A camera in OpenCV's model: the camera matrix and its distortion coefficients.
 #[derive(Debug, Clone, Default, Serialize, Deserialize)]
 pub struct OpenCvParams {
     /// fx, px.
@@ -365,8 +374,12 @@ pub struct OpenCvParams {
     pub cx: f64,
     /// cy, px.
     pub cy: f64,
-    /// k1, k2, p1, p2, k3.
-    pub dist: [f64; 5],
+    /// The distortion coefficients in OpenCV's order (k1, k2, p1, p2, k3, then k4–k6 and
+    /// s1–s4 where the model has them; k1–k4 for the fisheye model).
+    pub dist: Vec<f64>,
+    /// `plumb_bob`, `rational_polynomial`, `thin_prism` or `fisheye`.
+    #[serde(default)]
+    pub distortion_model: String,
     /// Image width, px.
     pub width: u32,
     /// Image height, px.

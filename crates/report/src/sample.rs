@@ -515,10 +515,13 @@ fn intrinsics(side: &str, rng: &mut Rng) -> Intrinsics {
             fy: values[0] / 0.00375,
             cx: 639.5 + values[1] / 0.00375,
             cy: 359.5 - values[2] / 0.00375,
-            dist: [-0.175, 0.161, 7.8e-4, 5.2e-4, 0.0],
+            dist: vec![-0.175, 0.161, 7.8e-4, 5.2e-4, 0.0],
+            distortion_model: "plumb_bob".into(),
             width: 1280,
             height: 720,
         }),
+        model: "photogrammetric".into(),
+        lens_curve: None,
     }
 }
 

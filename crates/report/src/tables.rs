@@ -190,22 +190,22 @@ pub(crate) fn opencv(o: &mut String, d: &ReportData) {
         o.push_str("</section>\n");
         return;
     }
-    o.push_str("<p class=\"note\">OpenCV's camera frame (x right, y down, z forward) and pixel convention (the centre of the top-left pixel is (0, 0)); fx fy cx cy in px; <code>distCoeffs = (k1, k2, p1, p2, k3)</code>, as in <code>opencv/</code>'s files.</p>\n<table>\n<tr><th class=\"l\">camera</th><th>width</th><th>height</th><th>fx (px)</th><th>fy (px)</th><th>cx (px)</th><th>cy (px)</th><th>k1</th><th>k2</th><th>p1</th><th>p2</th><th>k3</th></tr>\n");
+    o.push_str("<p class=\"note\">OpenCV's camera frame (x right, y down, z forward) and pixel convention (the centre of the top-left pixel is (0, 0)); fx fy cx cy in px; the distortion coefficients <code>distCoeffs</code> in OpenCV's order for each camera's model, as in <code>opencv/</code>'s files.</p>\n<table>\n<tr><th class=\"l\">camera</th><th>width</th><th>height</th><th>fx (px)</th><th>fy (px)</th><th>cx (px)</th><th>cy (px)</th><th class=\"l\">model</th><th class=\"l\">distCoeffs</th></tr>\n");
     for (name, cv) in cams {
         let _ = write!(
             o,
-            "<tr><td class=\"l\">{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td>",
+            "<tr><td class=\"l\">{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td class=\"l\">{}</td>",
             escape(name),
             cv.width,
             cv.height,
             num(cv.fx, PX),
             num(cv.fy, PX),
             num(cv.cx, PX),
-            num(cv.cy, PX)
+            num(cv.cy, PX),
+            escape(&cv.distortion_model)
         );
-        for k in cv.dist {
-            let _ = write!(o, "<td>{}</td>", sig(k));
-        }
+        let dist: Vec<String> = cv.dist.iter().map(|k| sig(*k)).collect();
+        let _ = write!(o, "<td class=\"l\">({})</td>", dist.join(", "));
         o.push_str("</tr>\n");
     }
     o.push_str("</table>\n");

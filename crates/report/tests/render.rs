@@ -62,7 +62,7 @@ fn sample_is_well_formed_with_all_sections_in_order() {
         "σ rotation about the right camera's X, Y, Z (°)",
         "at the corner (r = ",
         "/25 cells",
-        "distCoeffs = (k1, k2, p1, p2, k3)",
+        "<td class=\"l\">plumb_bob</td><td class=\"l\">(",
         "What each export loses against pingcal's model",
         "<tr class=\"hi\"><td class=\"l\">left</td><td class=\"l\">kalibr/camchain.yaml</td>",
     ] {
@@ -197,6 +197,8 @@ fn user_strings_are_escaped() {
             high_correlations: vec![(s(), s(), 0.95)],
             r_max_mm: Some(3.0),
             opencv: Some(Default::default()),
+            model: s(),
+            lens_curve: Some((vec![(0.0, 0.0), (100.0, 30.0)], 200.0)),
         }],
         rejected: vec![Rejection {
             what: s(),
@@ -675,4 +677,51 @@ fn a_dense_cloud_is_thinned_evenly_and_ball_points_never() {
         ..OverlayOptions::default()
     };
     assert_eq!(render_png(&img, &pts, &given).range_points, 10_000);
+}
+
+/// Issue 35: a camera whose model has no K1–K3 gets its lens curve (θ against r, beside the
+/// pinhole's and the equidistant lens's) in the distortion section; a photogrammetric one
+/// its Δr profile; an OpenCV camera's k1 is not taken for K1.
+#[test]
+fn the_distortion_section_draws_each_models_lens() {
+    let mut d = sample_report(1000);
+    let mut fisheye = d.intrinsics[0].clone();
+    fisheye.camera = "fisheye".into();
+    fisheye.model = "kannala-brandt".into();
+    fisheye.names = vec![
+        "fx".into(),
+        "fy".into(),
+        "cx".into(),
+        "cy".into(),
+        "k1".into(),
+    ];
+    fisheye.values = vec![300.0, 300.0, 640.0, 360.0, 0.05];
+    fisheye.r_max_mm = Some(3.0);
+    let pts: Vec<(f64, f64)> = (0..=10)
+        .map(|i| (70.0 * i as f64, 9.5 * i as f64))
+        .collect();
+    fisheye.lens_curve = Some((pts, 300.0));
+    d.intrinsics.push(fisheye);
+    let html = pingcal_report::render_html(&d);
+    let section = &html[html
+        .find("id=\"distortion\"")
+        .expect("a distortion section")..];
+    let section = &section[..section.find("</section>").unwrap()];
+    assert!(section.contains("lens curve"), "no lens curve drawn");
+    assert!(
+        section.contains("fisheye: θ = 95.0° at r = 700 px (f = 300.0 px)"),
+        "{section}"
+    );
+    assert!(
+        section.contains("radial distortion profile"),
+        "the photogrammetric camera's profile"
+    );
+    assert_eq!(
+        section.matches("µm at the corner").count(),
+        d.intrinsics
+            .iter()
+            .filter(|c| c.model != "kannala-brandt")
+            .count(),
+        "the fisheye's k1 is not drawn as a photogrammetric K1"
+    );
 }

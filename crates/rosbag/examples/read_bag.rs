@@ -1,10 +1,10 @@
 //! The streaming benchmark's reader (bench/rosbag/run.sh): reads a bag's servo series and
-//! every LaserScan, decoded and assembled exactly as `pingcal scans` does, without writing
-//! anything, and prints the bag's bytes over the wall time and the peak resident memory.
+//! every LaserScan in one pass, decoded and assembled exactly as `pingcal scans` does (servo
+//! motion `auto`), without writing anything, and prints the bag's bytes over the wall time and the peak resident memory.
 //!
 //! `cargo run --release -p pingcal-rosbag --example read_bag -- BAG SCAN_TOPIC SERVO_TOPIC JOINT`
 
-use pingcal_rosbag::assemble::{assemble, servo_series, ServoSource, Topics};
+use pingcal_rosbag::assemble::{read_scans, ServoMotion, ServoSource, Topics};
 use pingcal_rosbag::{bag_files, Bag};
 
 fn peak_rss_mib() -> Option<f64> {
@@ -31,10 +31,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         servo: servo.clone(),
         source: ServoSource::Joint(joint.clone()),
     };
-    let series = servo_series(&bags, &topics)?;
-    let t_servo = t0.elapsed().as_secs_f64();
     let (mut beams, mut sum) = (0u64, 0f64);
-    let done = assemble(&bags, &topics, &series, &mut |_, line| {
+    let done = read_scans(&bags, &topics, ServoMotion::Auto, &mut |_, line| {
         beams += line.ranges_mm.len() as u64;
         sum += line.ranges_mm.iter().sum::<f64>() + line.servo_deg;
         Ok(())
@@ -42,8 +40,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let t = t0.elapsed().as_secs_f64();
     let mb = bytes as f64 / 1e6;
     println!(
-        "{path}: {mb:.0} MB, {} scans, {beams} beams (checksum {sum:.6e}): {t:.2} s ({t_servo:.2} s servo pass), {:.0} MB/s, peak RSS {:.1} MiB",
+        "{path}: {mb:.0} MB, {} scans, {beams} beams (checksum {sum:.6e}), servo {}, {} pass(es): {t:.2} s ({t:.2} s read), {:.0} MB/s, peak RSS {:.1} MiB",
         done.scans,
+        done.motion.name(),
+        done.passes,
         mb / t,
         peak_rss_mib().unwrap_or(f64::NAN)
     );

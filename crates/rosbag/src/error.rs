@@ -56,6 +56,10 @@ pub enum RosbagError {
         /// The field and the offset.
         msg: String,
     },
+    /// A reader stopped early by its caller (never shown to a user: the caller that stops
+    /// a read handles it).
+    #[error("reading stopped by the caller")]
+    Stopped,
     /// A topic's messages do not make scans (none at all, joint absent, beams changing, ...).
     #[error("{file}: topic {topic}: {msg}")]
     Topic {

@@ -1,8 +1,9 @@
 //! Streaming readers of ROS bags for pingcal's LRF input: ROS 1 bags (format 2.0, chunks
 //! uncompressed, bz2 or lz4), ROS 2 MCAP files (chunks uncompressed, zstd or lz4) and ROS 2 sqlite3 `.db3` bags, with exact
 //! decoders of the messages a rotating 2D range finder publishes ([`msgs`]) and the
-//! assembly of its scans with the servo angle interpolated at each beam's time
-//! ([`assemble`]).
+//! assembly of its scans, as drivers publish them, with the servo angle held (stop-and-go)
+//! or interpolated at each beam's time (continuous), in one pass ([`assemble`],
+//! [`motion`]).
 //!
 //! A bag is never loaded whole: ROS 1 bags and MCAP files are memory-mapped and read in
 //! file order, one chunk decompressed at a time; `.db3` bags are read one row at a time.
@@ -11,7 +12,9 @@
 
 pub mod assemble;
 pub mod error;
+pub mod frames;
 mod mmap;
+pub mod motion;
 pub mod msgs;
 mod ros1;
 mod storage;

@@ -1,6 +1,8 @@
 //! The messages pingcal reads, decoded field by field from either wire format
 //! ([`crate::wire`]): `sensor_msgs/LaserScan`, `sensor_msgs/JointState`, the numeric
-//! `std_msgs` (Float32, Float64, Int32, UInt16) and `tf2_msgs/TFMessage`.
+//! `std_msgs` (Float32, Float64, Int32, UInt16), `tf2_msgs/TFMessage`, and for
+//! `pingcal frames` `sensor_msgs/PointCloud2`, `sensor_msgs/Image` and
+//! `sensor_msgs/CompressedImage`.
 
 use crate::wire::{Encoding, Wire, WireError};
 
@@ -10,6 +12,12 @@ pub const LASER_SCAN: &str = "sensor_msgs/LaserScan";
 pub const JOINT_STATE: &str = "sensor_msgs/JointState";
 /// `tf2_msgs/TFMessage`.
 pub const TF_MESSAGE: &str = "tf2_msgs/TFMessage";
+/// `sensor_msgs/PointCloud2`.
+pub const POINT_CLOUD2: &str = "sensor_msgs/PointCloud2";
+/// `sensor_msgs/Image`.
+pub const IMAGE: &str = "sensor_msgs/Image";
+/// `sensor_msgs/CompressedImage`.
+pub const COMPRESSED_IMAGE: &str = "sensor_msgs/CompressedImage";
 /// The numeric `std_msgs` types a servo angle may come in.
 pub const NUMERIC: [&str; 4] = [
     "std_msgs/Float32",
@@ -160,6 +168,188 @@ pub fn decode_tf(data: &[u8], enc: Encoding) -> Result<Vec<Transform>, WireError
 pub fn twist_deg(q: [f64; 4], axis: [f64; 3]) -> f64 {
     let p = q[0] * axis[0] + q[1] * axis[1] + q[2] * axis[2];
     2.0 * p.atan2(q[3]).to_degrees()
+}
+
+/// One point of a [`PointCloud2`]: x, y, z (the message's unit, metres), and its
+/// intensity and ring when the message has those fields.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CloudPoint {
+    /// x, y, z.
+    pub xyz: [f64; 3],
+    /// `intensity`, when present.
+    pub intensity: Option<f64>,
+    /// `ring`, when present.
+    pub ring: Option<f64>,
+}
+
+/// `sensor_msgs/PointCloud2`: its stamp, frame and points (points with a non-finite
+/// coordinate, an organized cloud's "no return", are left out).
+#[derive(Debug, Clone, PartialEq)]
+pub struct PointCloud2 {
+    /// `header.stamp`, ns.
+    pub stamp_ns: i64,
+    /// `header.frame_id`.
+    pub frame_id: String,
+    /// The points.
+    pub points: Vec<CloudPoint>,
+    /// Whether the message had `intensity` and `ring` fields.
+    pub has_intensity: bool,
+    /// See `has_intensity`.
+    pub has_ring: bool,
+}
+
+/// A `PointField` datatype's reader: (size in bytes, value from the bytes).
+fn field_value(datatype: u8, b: &[u8], big: bool) -> Option<f64> {
+    let a = |n: usize| -> Option<Vec<u8>> {
+        let mut v = b.get(..n)?.to_vec();
+        if big {
+            v.reverse();
+        }
+        Some(v)
+    };
+    Some(match datatype {
+        1 => f64::from(b.first().copied()? as i8),
+        2 => f64::from(*b.first()?),
+        3 => f64::from(i16::from_le_bytes(a(2)?.try_into().ok()?)),
+        4 => f64::from(u16::from_le_bytes(a(2)?.try_into().ok()?)),
+        5 => f64::from(i32::from_le_bytes(a(4)?.try_into().ok()?)),
+        6 => f64::from(u32::from_le_bytes(a(4)?.try_into().ok()?)),
+        7 => f64::from(f32::from_le_bytes(a(4)?.try_into().ok()?)),
+        8 => f64::from_le_bytes(a(8)?.try_into().ok()?),
+        _ => return None,
+    })
+}
+
+impl PointCloud2 {
+    /// Decodes one message: the fields `x`, `y`, `z` (any numeric type) and, where present,
+    /// `intensity` and `ring`.
+    pub fn decode(data: &[u8], enc: Encoding) -> Result<Self, WireError> {
+        let mut w = Wire::new(data, enc)?;
+        let (stamp_ns, frame_id) = w.header()?;
+        let height = w.u32("height")? as usize;
+        let width = w.u32("width")? as usize;
+        let nf = w.len("fields", 9)?;
+        let mut fields = Vec::with_capacity(nf);
+        for _ in 0..nf {
+            let name = w.string("fields.name")?;
+            let offset = w.u32("fields.offset")? as usize;
+            let datatype = w.u8("fields.datatype")?;
+            let _count = w.u32("fields.count")?;
+            fields.push((name, offset, datatype));
+        }
+        let big = w.u8("is_bigendian")? != 0;
+        let point_step = w.u32("point_step")? as usize;
+        let row_step = w.u32("row_step")? as usize;
+        let bytes = w.u8_seq("data")?;
+        let find = |n: &str| fields.iter().find(|f| f.0 == n).map(|f| (f.1, f.2));
+        let (Some(x), Some(y), Some(z)) = (find("x"), find("y"), find("z")) else {
+            return Err("PointCloud2 without the fields x, y and z".into());
+        };
+        let (fi, fr) = (find("intensity"), find("ring"));
+        if point_step == 0 || width.saturating_mul(point_step) > row_step {
+            return Err(format!(
+                "{width} points of {point_step} bytes in a row of {row_step}: expected a point_step > 0 that fits"
+            ));
+        }
+        if height.saturating_mul(row_step) > bytes.len() {
+            return Err(format!(
+                "{height} rows of {row_step} bytes, the data has {}",
+                bytes.len()
+            ));
+        }
+        let mut points = Vec::with_capacity(height * width);
+        for r in 0..height {
+            for c in 0..width {
+                let at = r * row_step + c * point_step;
+                let p = bytes
+                    .get(at..at + point_step)
+                    .ok_or("a point beyond the data")?;
+                let get =
+                    |(off, ty): (usize, u8)| p.get(off..).and_then(|b| field_value(ty, b, big));
+                let (Some(px), Some(py), Some(pz)) = (get(x), get(y), get(z)) else {
+                    return Err(format!(
+                        "point {} of row {r}: a field beyond its {point_step} bytes",
+                        c
+                    ));
+                };
+                if !(px.is_finite() && py.is_finite() && pz.is_finite()) {
+                    continue;
+                }
+                points.push(CloudPoint {
+                    xyz: [px, py, pz],
+                    intensity: fi.and_then(get),
+                    ring: fr.and_then(get),
+                });
+            }
+        }
+        Ok(PointCloud2 {
+            stamp_ns,
+            frame_id,
+            points,
+            has_intensity: fi.is_some(),
+            has_ring: fr.is_some(),
+        })
+    }
+}
+
+/// `sensor_msgs/Image`, its pixels borrowed from the message.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Image<'a> {
+    /// `header.stamp`, ns.
+    pub stamp_ns: i64,
+    /// Rows.
+    pub height: u32,
+    /// Columns.
+    pub width: u32,
+    /// `mono8`, `rgb8`, `bgr8`, `rgba8`, `bgra8`, `mono16`, ...
+    pub encoding: String,
+    /// 16-bit pixels are big-endian.
+    pub big_endian: bool,
+    /// Bytes per row.
+    pub step: u32,
+    /// The pixels.
+    pub data: &'a [u8],
+}
+
+impl<'a> Image<'a> {
+    /// Decodes one message.
+    pub fn decode(data: &'a [u8], enc: Encoding) -> Result<Self, WireError> {
+        let mut w = Wire::new(data, enc)?;
+        let (stamp_ns, _) = w.header()?;
+        Ok(Image {
+            stamp_ns,
+            height: w.u32("height")?,
+            width: w.u32("width")?,
+            encoding: w.string("encoding")?,
+            big_endian: w.u8("is_bigendian")? != 0,
+            step: w.u32("step")?,
+            data: w.u8_seq("data")?,
+        })
+    }
+}
+
+/// `sensor_msgs/CompressedImage`: a JPEG or PNG file's bytes, borrowed from the message.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CompressedImage<'a> {
+    /// `header.stamp`, ns.
+    pub stamp_ns: i64,
+    /// `format` (`jpeg`, `png`, or image_transport's `rgb8; jpeg compressed bgr8`).
+    pub format: String,
+    /// The file's bytes.
+    pub data: &'a [u8],
+}
+
+impl<'a> CompressedImage<'a> {
+    /// Decodes one message.
+    pub fn decode(data: &'a [u8], enc: Encoding) -> Result<Self, WireError> {
+        let mut w = Wire::new(data, enc)?;
+        let (stamp_ns, _) = w.header()?;
+        Ok(CompressedImage {
+            stamp_ns,
+            format: w.string("format")?,
+            data: w.u8_seq("data")?,
+        })
+    }
 }
 
 #[cfg(test)]

@@ -63,19 +63,19 @@ impl McapChannels {
         want: &dyn Fn(&str) -> bool,
         f: &mut dyn FnMut(&RawMessage) -> Result<()>,
     ) -> Result<()> {
-        let plain;
-        let (h, body): (mcap::records::ChunkHeader, &[u8]) = match header.compression.as_str() {
-            "" => (header.clone(), data),
-            c => {
-                plain = decompress_chunk(file, c, data, header.uncompressed_size)?;
-                let h = mcap::records::ChunkHeader {
-                    compression: String::new(),
-                    compressed_size: plain.len() as u64,
-                    ..header.clone()
-                };
-                (h, &plain)
-            }
-        };
+        let (h, body) = plain_chunk(file, header, data)?;
+        self.records(file, h, &body, want, f)
+    }
+
+    /// The records of an uncompressed chunk, through [`McapChannels::take`].
+    fn records(
+        &mut self,
+        file: &str,
+        h: mcap::records::ChunkHeader,
+        body: &[u8],
+        want: &dyn Fn(&str) -> bool,
+        f: &mut dyn FnMut(&RawMessage) -> Result<()>,
+    ) -> Result<()> {
         for r in mcap::read::ChunkReader::new(h, body).map_err(|e| mcap_err(file, e))? {
             self.take(file, &r.map_err(|e| mcap_err(file, e))?, want, f)?;
         }
@@ -127,6 +127,25 @@ impl McapChannels {
     }
 }
 
+/// A chunk as uncompressed records: its header saying so, and its bytes (borrowed when
+/// stored uncompressed).
+fn plain_chunk<'a>(
+    file: &str,
+    header: &mcap::records::ChunkHeader,
+    data: &'a [u8],
+) -> Result<(mcap::records::ChunkHeader, std::borrow::Cow<'a, [u8]>)> {
+    if header.compression.is_empty() {
+        return Ok((header.clone(), std::borrow::Cow::Borrowed(data)));
+    }
+    let plain = decompress_chunk(file, &header.compression, data, header.uncompressed_size)?;
+    let h = mcap::records::ChunkHeader {
+        compression: String::new(),
+        compressed_size: plain.len() as u64,
+        ..header.clone()
+    };
+    Ok((h, std::borrow::Cow::Owned(plain)))
+}
+
 /// A chunk's records, decompressed (zstd, lz4) into exactly the `uncompressed_size` its
 /// header gives, which is bounded by [`MAX_CHUNK_BYTES`] before anything is allocated.
 fn decompress_chunk(file: &str, compression: &str, data: &[u8], size: u64) -> Result<Vec<u8>> {
@@ -139,10 +158,8 @@ fn decompress_chunk(file: &str, compression: &str, data: &[u8], size: u64) -> Re
     }
     let mut out = Vec::with_capacity(size as usize);
     let read = match compression {
-        "zstd" => ruzstd::decoding::StreamingDecoder::new(data)
-            .map_err(|e| err(format!("a zstd chunk cannot be decompressed: {e}")))?
-            .take(size + 1)
-            .read_to_end(&mut out),
+        "zstd" => zstd_chunk(data, size, &mut out)
+            .map_err(|e| err(format!("a zstd chunk cannot be decompressed: {e}")))?,
         "lz4" => lz4_flex::frame::FrameDecoder::new(data)
             .take(size + 1)
             .read_to_end(&mut out),
@@ -165,6 +182,59 @@ fn decompress_chunk(file: &str, compression: &str, data: &[u8], size: u64) -> Re
         )));
     }
     Ok(out)
+}
+
+/// A zstd chunk decompressed into `out` (capacity `size`) by the pure-Rust `ruzstd`, with
+/// one decoder per thread kept from chunk to chunk (its window buffers are not allocated and
+/// faulted in again for every chunk). The output has room for one byte more than declared,
+/// so that a chunk giving more is told.
+#[cfg(not(feature = "zstd-c"))]
+fn zstd_chunk(
+    data: &[u8],
+    size: u64,
+    out: &mut Vec<u8>,
+) -> std::result::Result<std::io::Result<usize>, String> {
+    use ruzstd::decoding::{errors::FrameDecoderError, FrameDecoder};
+    thread_local! {
+        static DECODER: std::cell::RefCell<FrameDecoder> = std::cell::RefCell::new(FrameDecoder::new());
+    }
+    out.resize(size as usize + 1, 0);
+    let got = DECODER.with(|d| d.borrow_mut().decode_all(data, &mut out[..]));
+    match got {
+        Ok(n) => {
+            out.truncate(n);
+            Ok(Ok(n))
+        }
+        // more than the room left: more than declared
+        Err(FrameDecoderError::TargetTooSmall) => Ok(Ok(out.len())),
+        Err(e) => {
+            out.clear();
+            Err(e.to_string())
+        }
+    }
+}
+
+/// A zstd chunk decompressed into `out` (capacity `size`) by the reference C library
+/// (feature `zstd-c`): one call, bounded by the buffer; a chunk that would give more than
+/// its header says fails for want of room, which the caller reports as a size mismatch.
+#[cfg(feature = "zstd-c")]
+fn zstd_chunk(
+    data: &[u8],
+    size: u64,
+    out: &mut Vec<u8>,
+) -> std::result::Result<std::io::Result<usize>, String> {
+    // one byte more than declared, so that a longer chunk is told as such
+    out.reserve_exact(size as usize + 1);
+    match zstd_safe::decompress(out, data) {
+        Ok(n) => Ok(Ok(n)),
+        Err(code)
+            if zstd_safe::get_error_name(code).contains("Destination buffer is too small") =>
+        {
+            out.resize(size as usize + 1, 0);
+            Ok(Ok(out.len()))
+        }
+        Err(code) => Err(zstd_safe::get_error_name(code).to_string()),
+    }
 }
 
 /// The chunk indexes of an MCAP summary in file order, when every one points inside the
@@ -196,24 +266,7 @@ pub fn mcap_messages(
     let summary = mcap::Summary::read(buf).ok().flatten();
     if let Some((s, idx)) = summary.and_then(|s| chunk_indexes(&s, buf.len()).map(|i| (s, i))) {
         let mut channels = McapChannels::from_summary(&s);
-        for c in &idx {
-            let (start, end) = (
-                c.chunk_start_offset as usize,
-                (c.chunk_start_offset + c.chunk_length) as usize,
-            );
-            // a record is its opcode (1 byte), its length (8) and its body
-            let record = mcap::parse_record(mcap::records::op::CHUNK, &buf[start + 9..end])
-                .map_err(|e| mcap_err(file, e))?;
-            let Record::Chunk { header, data } = record else {
-                return Err(RosbagError::format(
-                    file,
-                    format!("MCAP: the summary's chunk at byte {start} is not a chunk"),
-                ));
-            };
-            channels.chunk(file, &header, &data, want, f)?;
-            release(end);
-        }
-        return Ok(());
+        return indexed_chunks(file, buf, &idx, &mut channels, release, want, f);
     }
     let mut channels = McapChannels::default();
     for record in mcap::read::LinearReader::new(buf).map_err(|e| mcap_err(file, e))? {
@@ -224,6 +277,87 @@ pub fn mcap_messages(
     }
     Ok(())
 }
+
+/// One chunk of the summary's index, parsed and made plain (decompressed).
+fn indexed_chunk<'a>(
+    file: &str,
+    buf: &'a [u8],
+    c: &mcap::records::ChunkIndex,
+) -> Result<(
+    mcap::records::ChunkHeader,
+    std::borrow::Cow<'a, [u8]>,
+    usize,
+)> {
+    use mcap::records::Record;
+    let (start, end) = (
+        c.chunk_start_offset as usize,
+        (c.chunk_start_offset + c.chunk_length) as usize,
+    );
+    // a record is its opcode (1 byte), its length (8) and its body
+    let record = mcap::parse_record(mcap::records::op::CHUNK, &buf[start + 9..end])
+        .map_err(|e| mcap_err(file, e))?;
+    let Record::Chunk { header, data } = record else {
+        return Err(RosbagError::format(
+            file,
+            format!("MCAP: the summary's chunk at byte {start} is not a chunk"),
+        ));
+    };
+    let data: &'a [u8] = match data {
+        std::borrow::Cow::Borrowed(d) => d,
+        // the crate hands the map's bytes back borrowed; should it not, decompress a copy
+        std::borrow::Cow::Owned(d) => {
+            let (h, body) = plain_chunk(file, &header, &d)?;
+            return Ok((h, std::borrow::Cow::Owned(body.into_owned()), end));
+        }
+    };
+    let (h, body) = plain_chunk(file, &header, data)?;
+    Ok((h, body, end))
+}
+
+/// The chunks of an MCAP file through its index, in file order: each decompressed on a
+/// thread of its own while the one before is decoded (at most [`CHUNKS_AHEAD`] waiting, so
+/// memory stays a few chunks whatever the file), its pages handed back with `release` once
+/// read.
+fn indexed_chunks(
+    file: &str,
+    buf: &[u8],
+    idx: &[mcap::records::ChunkIndex],
+    channels: &mut McapChannels,
+    release: &dyn Fn(usize),
+    want: &dyn Fn(&str) -> bool,
+    f: &mut dyn FnMut(&RawMessage) -> Result<()>,
+) -> Result<()> {
+    if idx.len() < 2 || idx.iter().all(|c| c.compression.is_empty()) {
+        for c in idx {
+            let (h, body, end) = indexed_chunk(file, buf, c)?;
+            channels.records(file, h, &body, want, f)?;
+            release(end);
+        }
+        return Ok(());
+    }
+    std::thread::scope(|scope| {
+        let (tx, rx) = std::sync::mpsc::sync_channel(CHUNKS_AHEAD);
+        scope.spawn(move || {
+            for c in idx {
+                let chunk = indexed_chunk(file, buf, c);
+                let failed = chunk.is_err();
+                // the reader stopped (an error, or its caller is done): stop too
+                if tx.send(chunk).is_err() || failed {
+                    break;
+                }
+            }
+        });
+        for chunk in rx {
+            let (h, body, end) = chunk?;
+            channels.records(file, h, &body, want, f)?;
+            release(end);
+        }
+        Ok(())
+    })
+}
+
+/// Decompressed chunks that may wait for the reader (module doc of [`indexed_chunks`]).
+const CHUNKS_AHEAD: usize = 2;
 
 /// The topics of an MCAP file: from its summary when it has one (channels without messages
 /// included), else by reading it through.

@@ -139,10 +139,37 @@ impl<'a> Wire<'a> {
         String::from_utf8(s.to_vec()).map_err(|_| format!("{what}: not UTF-8"))
     }
 
-    /// A `float32[]`.
+    /// A `uint8`.
+    pub fn u8(&mut self, what: &str) -> Result<u8, WireError> {
+        self.bytes::<1>(what).map(|b| b[0])
+    }
+
+    /// A `uint8[]`, borrowed from the message.
+    pub fn u8_seq(&mut self, what: &str) -> Result<&'a [u8], WireError> {
+        let n = self.len(what, 1)?;
+        self.take(n, what)
+    }
+
+    /// A `float32[]` (read as one slice: a scan's ranges are most of a bag).
     pub fn f32_seq(&mut self, what: &str) -> Result<Vec<f32>, WireError> {
         let n = self.len(what, 4)?;
-        (0..n).map(|_| self.f32(what)).collect()
+        if n == 0 {
+            return Ok(Vec::new());
+        }
+        self.align(4);
+        let raw = self.take(n * 4, what)?;
+        let big = self.big_endian;
+        Ok(raw
+            .chunks_exact(4)
+            .map(|b| {
+                let b = [b[0], b[1], b[2], b[3]];
+                if big {
+                    f32::from_be_bytes(b)
+                } else {
+                    f32::from_le_bytes(b)
+                }
+            })
+            .collect())
     }
 
     /// A `float64[]`.

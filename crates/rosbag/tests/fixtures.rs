@@ -5,7 +5,7 @@
 
 use pingcal_lrf::cloud::{Cloud, MountModel};
 use pingcal_lrf::scan::{open_scan_file, ScanHeader, ScanLine};
-use pingcal_rosbag::assemble::{assemble, servo_series, Assembled, ServoSource, Topics};
+use pingcal_rosbag::assemble::{read_scans, Assembled, ServoMotion, ServoSource, Topics};
 use pingcal_rosbag::{Bag, RosbagError};
 use std::path::{Path, PathBuf};
 
@@ -59,14 +59,17 @@ fn tf() -> Topics {
 type Scans = (Option<ScanHeader>, Vec<ScanLine>, Assembled);
 
 fn read(paths: &[PathBuf], topics: &Topics) -> Result<Scans, RosbagError> {
+    read_as(paths, topics, ServoMotion::Auto)
+}
+
+fn read_as(paths: &[PathBuf], topics: &Topics, motion: ServoMotion) -> Result<Scans, RosbagError> {
     let bags = paths
         .iter()
         .map(|p| Bag::open(p))
         .collect::<Result<Vec<_>, _>>()?;
-    let series = servo_series(&bags, topics)?;
     let mut header = None;
     let mut lines = Vec::new();
-    let done = assemble(&bags, topics, &series, &mut |h, l| {
+    let done = read_scans(&bags, topics, motion, &mut |h, l| {
         header = Some(*h);
         lines.push(l);
         Ok(())
@@ -92,14 +95,35 @@ fn every_format_gives_the_csv_scans_and_cloud() {
     for name in BAGS {
         for topics in [joint("servo"), ticks(), tf()] {
             let (got_h, got, done) = read(&[data(name)], &topics).unwrap();
+            let got_h = got_h.map(|g| ScanHeader {
+                time_increment_s: None,
+                ..g
+            });
             assert_eq!(got_h, Some(h), "{name}");
             assert_eq!(
-                done,
-                Assembled {
-                    scans: want.len() as u64,
-                    ..Default::default()
-                }
+                (done.scans, done.before_servo, done.after_servo),
+                (want.len() as u64, 0, 0),
+                "{name}"
             );
+            assert_eq!(
+                done.motion,
+                ServoMotion::StopAndGo,
+                "{name}: {}",
+                done.motion_reason
+            );
+            // every no-return of the CSV is an inf, a NaN or a 0 in the bag, in turn
+            let zeros = want
+                .iter()
+                .flat_map(|l| &l.ranges_mm)
+                .filter(|r| **r == 0.0)
+                .count();
+            let m = done.masked;
+            assert_eq!(
+                (m.total(), m.below_min, m.above_max),
+                (zeros as u64, 0, 0),
+                "{name}"
+            );
+            assert!(m.inf > 0 && m.nan > 0 && m.zero > 0, "{name}: {m:?}");
             assert_eq!(got.len(), want.len(), "{name}");
             for (g, w) in got.iter().zip(&want) {
                 // the CSV's 3-decimal stamps around 1.7e9 s are f64 values 2.4e-7 s apart
@@ -139,7 +163,16 @@ fn a_continuous_sweep_gives_each_beam_its_time_s_servo_angle() {
     let h = r.header();
     let want: Vec<ScanLine> = r.map(Result::unwrap).collect();
     let (got_h, got, done) = read(&[data("sweep.mcap")], &joint("servo")).unwrap();
-    assert_eq!((got_h, done.scans), (Some(h), 2));
+    assert_eq!(
+        (got_h.map(|g| g.angle_min_deg), done.scans),
+        (Some(h.angle_min_deg), 2)
+    );
+    assert_eq!(
+        done.motion,
+        ServoMotion::Continuous,
+        "{}",
+        done.motion_reason
+    );
     for (g, w) in got.iter().zip(&want) {
         assert!(
             (g.servo_deg - w.servo_deg).abs() < 1e-9,
@@ -232,7 +265,7 @@ fn missing_and_mistyped_topics_name_the_file_and_topic() {
         let e = error(&p, &t);
         assert!(e.ends_with("topic /empty: no messages on the topic"), "{e}");
         let e = error(&p, &joint("tilt"));
-        assert!(e.contains("topic /joint_states: no joint named \"tilt\" in its 0 JointState messages (10 messages)"), "{e}");
+        assert!(e.contains("topic /joint_states: no joint named \"tilt\" in its 10 JointState messages (joints there: \"pan\", \"servo\")"), "{e}");
     }
 }
 
@@ -307,6 +340,215 @@ mod never_panic {
                 }
             });
             exercise(&p);
+        }
+    }
+}
+
+/// Issue 37: bags as drivers write them (`drivers.bag`, `drivers.db3`, written by `rosbags`
+/// with `make_fixtures.py --drivers`; `drivers.json` says what they hold).
+mod drivers {
+    use super::*;
+    use pingcal_rosbag::assemble::Masked;
+    use serde_json::Value;
+
+    const TICK: f64 = 0.087890625;
+
+    fn json(name: &str) -> Value {
+        serde_json::from_str(&std::fs::read_to_string(data(name)).unwrap()).unwrap()
+    }
+
+    fn servos() -> [(Topics, f64); 3] {
+        let topics = |servo: &str, source| Topics {
+            scan: "/scan".into(),
+            servo: servo.into(),
+            source,
+        };
+        [
+            (
+                topics("/joint_states", ServoSource::Joint("tilt".into())),
+                0.0,
+            ),
+            (
+                topics(
+                    "/servo_int",
+                    ServoSource::Numeric {
+                        scale: TICK,
+                        offset: -180.0,
+                    },
+                ),
+                0.0,
+            ),
+            (
+                topics(
+                    "/tf",
+                    ServoSource::Tf {
+                        child: "servo_link".into(),
+                        axis: [0.0, 1.0, 0.0],
+                    },
+                ),
+                1e-9,
+            ),
+        ]
+    }
+
+    /// Empty scans, NaN/±inf/0/out-of-range ranges, changing beam counts, intensities, a
+    /// repeated and a backward stamp, the servo from a JointState, an Int32 and tf: every
+    /// count named, every other scan and range equal to the source (ranges to 0.01 mm,
+    /// servo angles exactly, the tf's through its quaternion to 1e-9°).
+    #[test]
+    fn driver_bags_give_every_scan_with_the_counts_named() {
+        let want = json("drivers.json");
+        let scans = want["scans"].as_array().unwrap();
+        let c = &want["masked"];
+        let masked = Masked {
+            zero: c["zero"].as_u64().unwrap(),
+            nan: c["nan"].as_u64().unwrap(),
+            inf: c["inf"].as_u64().unwrap(),
+            below_min: c["below_min"].as_u64().unwrap(),
+            above_max: c["above_max"].as_u64().unwrap(),
+            under_20mm: 0,
+        };
+        for bag in ["drivers.bag", "drivers.db3"] {
+            for (topics, tol) in servos() {
+                let (_, got, done) = read(&[data(bag)], &topics).unwrap();
+                let what = format!("{bag} {}", topics.servo);
+                assert_eq!(
+                    done.motion,
+                    ServoMotion::StopAndGo,
+                    "{what}: {}",
+                    done.motion_reason
+                );
+                assert_eq!(done.scans, scans.len() as u64, "{what}");
+                assert_eq!(done.empty_scans, want["empty"].as_u64().unwrap(), "{what}");
+                assert_eq!(done.masked, masked, "{what}");
+                assert_eq!(
+                    (done.repeated_stamps, done.backward_stamps),
+                    (
+                        want["repeated"].as_u64().unwrap(),
+                        want["backward"].as_u64().unwrap()
+                    ),
+                    "{what}"
+                );
+                assert_eq!(done.with_intensities, scans.len() as u64, "{what}");
+                assert!(
+                    done.geometry_changes >= 15,
+                    "{what}: {}",
+                    done.geometry_changes
+                );
+                assert_eq!((done.before_servo, done.after_servo), (0, 0), "{what}");
+                for (g, w) in got.iter().zip(scans) {
+                    let k = w["message"].as_u64().unwrap();
+                    assert_eq!(g.line as u64, k + 1, "{what}");
+                    assert_eq!(
+                        (g.stamp_s * 1e9).round() as i64 / 1000,
+                        w["stamp_ns"].as_i64().unwrap() / 1000,
+                        "{what} scan {k}"
+                    );
+                    let deg = w["servo_deg"].as_f64().unwrap();
+                    assert!(
+                        (g.servo_deg - deg).abs() <= tol && g.servo_end_deg == Some(g.servo_deg),
+                        "{what} scan {k}: {} {deg}",
+                        g.servo_deg
+                    );
+                    let r = w["ranges_m"].as_array().unwrap();
+                    assert_eq!(g.ranges_mm.len(), r.len(), "{what} scan {k}");
+                    for (mm, m) in g.ranges_mm.iter().zip(r) {
+                        match m.as_f64() {
+                            None => assert_eq!(*mm, 0.0, "{what} scan {k}"),
+                            Some(m) => assert!(
+                                (mm - m * 1000.0).abs() <= 0.01,
+                                "{what} scan {k}: {mm} {m}"
+                            ),
+                        }
+                    }
+                    let i: Vec<f32> = w["intensities"]
+                        .as_array()
+                        .unwrap()
+                        .iter()
+                        .map(|v| v.as_f64().unwrap() as f32)
+                        .collect();
+                    assert_eq!(g.intensities, i, "{what} scan {k}");
+                }
+            }
+        }
+    }
+
+    /// `dup.db3`: 8 scans and their servo messages, every message stored twice.
+    #[test]
+    fn a_bag_with_every_message_stored_twice_gives_each_scan_once() {
+        for (topics, _) in servos() {
+            let (_, got, done) = read(&[data("dup.db3")], &topics).unwrap();
+            assert_eq!((got.len(), done.scans), (8, 8), "{}", topics.servo);
+            assert_eq!(done.duplicate_scans, 8, "{}", topics.servo);
+            assert_eq!(done.duplicate_servo, 8, "{}", topics.servo);
+            assert_eq!(
+                done.motion,
+                ServoMotion::StopAndGo,
+                "{}",
+                done.motion_reason
+            );
+        }
+    }
+
+    /// A stop-and-go servo whose message comes 10 ms or 50 ms before each scan: `auto`
+    /// picks stop-and-go and every scan has the servo's rest angle exactly; interpolating
+    /// instead (`continuous`) would move it by step · lead / period.
+    #[test]
+    fn stop_and_go_holds_the_rest_angle_whatever_the_lead() {
+        let want = json("stopgo.json");
+        let rest: Vec<f64> = want["rest_deg"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_f64().unwrap())
+            .collect();
+        for lead in [0.010, 0.050] {
+            let bag = data(&format!("stopgo_{}ms.mcap", (lead * 1000.0) as u32));
+            let (_, got, done) = read(std::slice::from_ref(&bag), &joint("servo")).unwrap();
+            assert_eq!(
+                done.motion,
+                ServoMotion::StopAndGo,
+                "{lead}: {}",
+                done.motion_reason
+            );
+            assert!(
+                done.motion_reason.contains("before each scan"),
+                "{}",
+                done.motion_reason
+            );
+            let angles: Vec<f64> = got.iter().map(|l| l.servo_deg).collect();
+            assert_eq!(angles, rest, "{lead}");
+            let (_, interp, _) = read_as(&[bag], &joint("servo"), ServoMotion::Continuous).unwrap();
+            let step = 2.0 * TICK;
+            for (l, r) in interp.iter().zip(&rest) {
+                let moved = l.servo_deg - r;
+                assert!((moved - step * lead / 0.1).abs() < 1e-9, "{lead}: {moved}");
+            }
+        }
+    }
+
+    /// A continuous sweep (30°/s, JointState at 50 Hz): `auto` picks continuous, and each
+    /// scan's first and last beam get the ramp's angle at their own time.
+    #[test]
+    fn a_continuous_sweep_is_told_and_interpolated_at_each_beam_s_time() {
+        let (h, got, done) = read(&[data("sweep_cont.mcap")], &joint("servo")).unwrap();
+        assert_eq!(
+            done.motion,
+            ServoMotion::Continuous,
+            "{}",
+            done.motion_reason
+        );
+        assert_eq!(done.scans, 24);
+        let ti = h.unwrap().time_increment_s.unwrap();
+        assert_eq!(ti, 0.0025);
+        for (k, l) in got.iter().enumerate() {
+            let t = 0.005 + 0.1 * k as f64;
+            let ramp = |t: f64| -10.0 + 30.0 * t;
+            assert!((l.servo_deg - ramp(t)).abs() < 1e-9, "{k}: {}", l.servo_deg);
+            let end = l.servo_end_deg.unwrap();
+            // the message's time_increment is the float32 nearest 2.5 ms
+            let ti32 = f64::from(0.0025f32);
+            assert!((end - ramp(t + 19.0 * ti32)).abs() < 1e-9, "{k}: {end}");
         }
     }
 }

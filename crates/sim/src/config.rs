@@ -7,6 +7,7 @@
 
 use pingcal_lrf::scan::ScanHeader;
 use pingcal_lrf::sensor::{LrfSensor, MountModel, RangeNoise};
+use pingcal_project::CameraModel;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -227,18 +228,25 @@ impl Default for DistanceConfig {
     }
 }
 
-/// Intrinsics of one camera in the SPEC.md photogrammetric model.
+/// Intrinsics of one camera, in its model's slice order.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Intrinsics {
-    /// `[c, xp, yp, K1, K2, K3, P1, P2, B1, B2]` (mm, mm⁻², mm⁻⁴, mm⁻⁶, mm⁻¹, unitless).
-    pub params: [f64; 10],
+    /// The parameters of `[camera] model` in its order: for the photogrammetric model
+    /// `[c, xp, yp, K1, K2, K3, P1, P2, B1, B2]` (mm, mm⁻², mm⁻⁴, mm⁻⁶, mm⁻¹, unitless);
+    /// `opencv` `[fx, fy, cx, cy, k1, k2, p1, p2, k3, k4, k5, k6, s1, s2, s3, s4]`,
+    /// `kannala-brandt` `[fx, fy, cx, cy, k1, k2, k3, k4]`, `double-sphere` `[fx, fy, cx,
+    /// cy, xi, alpha]` (px).
+    pub params: Vec<f64>,
 }
 
 /// The stereo head (MYNT EYE D1000-like).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct CameraConfig {
+    /// The camera model (`photogrammetric`, the default; `opencv`, `kannala-brandt`,
+    /// `double-sphere`: [`CameraConfig::for_model`] gives each a lens).
+    pub model: CameraModel,
     /// Image width in pixels.
     pub width: u32,
     /// Image height in pixels.
@@ -253,30 +261,100 @@ pub struct CameraConfig {
     pub right_offset_mm: [f64; 3],
     /// Rotation of the right camera relative to the left (ω, φ, κ), degrees.
     pub right_opk_deg: [f64; 3],
-    /// Nominal focal length written as the initial value in project.toml.
+    /// Nominal focal length written as the initial value in project.toml (mm; for the
+    /// models in pixels, fx = fy = this over the pixel pitch).
     pub nominal_c_mm: f64,
 }
 
 impl Default for CameraConfig {
     fn default() -> Self {
         Self {
+            model: CameraModel::Photogrammetric,
             width: 1280,
             height: 720,
             pixel_size_mm: 0.00375,
             // Barrel distortion of a ~90° lens: K1 r² ≈ −15 % at the image corner (r = 2.75 mm).
             left: Intrinsics {
-                params: [
+                params: vec![
                     2.45, 0.012, -0.009, -0.021, 4.0e-4, -2.0e-6, 1.5e-4, -1.0e-4, 1.0e-4, 0.0,
                 ],
             },
             right: Intrinsics {
-                params: [
+                params: vec![
                     2.452, -0.010, 0.007, -0.020, 3.6e-4, -1.0e-6, -1.2e-4, 0.8e-4, -0.5e-4, 0.0,
                 ],
             },
             right_offset_mm: [120.0, 0.4, -0.3],
             right_opk_deg: [0.15, -0.25, 0.1],
             nominal_c_mm: 2.45,
+        }
+    }
+}
+
+impl CameraConfig {
+    /// The head with lenses of `model` on the default sensor (1280 × 720, 3.75 µm):
+    ///
+    /// | model | lens | left camera |
+    /// |---|---|---|
+    /// | `photogrammetric` | the MYNT EYE D1000's ~90° lens | the default |
+    /// | `opencv` | a 120° (horizontal) wide-angle lens, rational radial model | fx 611, k1 0.05, k4 0.3 |
+    /// | `kannala-brandt` | a 190° fisheye | fx 374, k1 0.02, k2 −0.005, k3 0.001, k4 −1e-4 |
+    /// | `double-sphere` | a 190° fisheye | fx 317, ξ −0.2, α 0.59 |
+    ///
+    /// The right camera's lens differs from the left's by a few tenths of a percent, as two
+    /// lenses of one make do.
+    pub fn for_model(model: CameraModel) -> Self {
+        let base = CameraConfig::default();
+        let (left, right): (Vec<f64>, Vec<f64>) = match model {
+            CameraModel::Photogrammetric => return base,
+            CameraModel::BrownBackward => (
+                vec![
+                    2.45, 0.012, -0.009, 0.021, -3.0e-4, 1.0e-6, -1.5e-4, 1.0e-4, 1.0e-4, 0.0,
+                ],
+                vec![
+                    2.452, -0.010, 0.007, 0.020, -2.7e-4, 0.5e-6, 1.2e-4, -0.8e-4, -0.5e-4, 0.0,
+                ],
+            ),
+            CameraModel::OpenCv => (
+                vec![
+                    611.0, 611.3, 641.2, 358.9, 0.05, 0.0, 1.5e-4, -1.0e-4, 0.0, 0.3, 0.0, 0.0,
+                    0.0, 0.0, 0.0, 0.0,
+                ],
+                vec![
+                    611.8, 611.6, 637.9, 361.4, 0.048, 0.0, -1.2e-4, 0.8e-4, 0.0, 0.297, 0.0, 0.0,
+                    0.0, 0.0, 0.0, 0.0,
+                ],
+            ),
+            CameraModel::KannalaBrandt => (
+                vec![374.0, 374.2, 641.2, 358.9, 0.02, -0.005, 0.001, -1.0e-4],
+                vec![374.6, 374.5, 637.9, 361.4, 0.019, -0.0048, 0.0009, -0.9e-4],
+            ),
+            CameraModel::DoubleSphere => (
+                vec![317.0, 317.2, 641.2, 358.9, -0.2, 0.59],
+                vec![317.5, 317.4, 637.9, 361.4, -0.198, 0.591],
+            ),
+        };
+        let f_px = 0.5 * (left[0] + left[1]);
+        let nominal_c_mm = match model.kind().in_mm() {
+            true => base.nominal_c_mm,
+            false => {
+                (f_px
+                    / (1.0
+                        + if model == CameraModel::DoubleSphere {
+                            left[4]
+                        } else {
+                            0.0
+                        }))
+                .round()
+                    * base.pixel_size_mm
+            }
+        };
+        CameraConfig {
+            model,
+            left: Intrinsics { params: left },
+            right: Intrinsics { params: right },
+            nominal_c_mm,
+            ..base
         }
     }
 }
@@ -422,6 +500,17 @@ pub struct LrfConfig {
     /// each scan's first and last beam. False: stop-and-go (the servo stands still during
     /// each scan).
     pub continuous_sweep: bool,
+    /// Time offset between the servo's stamps and the scanner's, seconds (default 0): the
+    /// servo's stamp of an instant is this much later than the scanner's, so a reader that
+    /// interpolates the servo's angles at a beam's time gets the angle the servo had this
+    /// much earlier. Only a continuous sweep shows it (a stop-and-go servo stands still
+    /// while the scanner sweeps): each beam's servo angle in the scan file is off by
+    /// −speed · offset. Estimating it needs the sweep to change speed or direction
+    /// (`servo_passes = 2`).
+    pub servo_time_offset_s: f64,
+    /// Passes of the servo over `servo_start_deg`…`servo_end_deg` (default 1), alternately
+    /// forward and back: scans of pass 2 go from the end back to the start.
+    pub servo_passes: usize,
     /// Extrinsic, `p_camera = R·p_lrf + t` with the main left camera: rotation ω, φ, κ.
     pub extrinsic_opk_deg: [f64; 3],
     /// Extrinsic translation t.
@@ -485,6 +574,8 @@ impl Default for LrfConfig {
             scan_period_s: 0.1,
             beam_time_s: 0.1 / 1024.0,
             continuous_sweep: false,
+            servo_time_offset_s: 0.0,
+            servo_passes: 1,
             // Paper Table 2: the LRF frame is close to the camera frame, offset by ~(70, 10, 90) mm.
             extrinsic_opk_deg: [0.8, -1.2, 0.6],
             extrinsic_t_mm: [72.0, 12.0, 91.0],
@@ -544,6 +635,7 @@ impl LrfConfig {
                 angle_min_deg: self.angle_min_deg,
                 angle_increment_deg: self.angle_increment_deg,
                 mm_per_unit: 1.0,
+                time_increment_s: self.continuous_sweep.then_some(self.beam_time_s),
             },
             beams: self.beams,
             mount: self.mount(),
@@ -560,6 +652,22 @@ impl LrfConfig {
 }
 
 impl SimConfig {
+    /// This field seen through lenses of `model` ([`CameraConfig::for_model`]), with the
+    /// targets' dots (rounded to 0.5 mm) and the balls (to 1 mm) grown by the ratio of the
+    /// default lens's focal length to the new one's, as a user of a wider lens prints
+    /// larger targets and takes larger balls so that they keep the size in pixels the
+    /// detector, the decoder and the ball's silhouette need.
+    pub fn with_camera_model(mut self, model: CameraModel) -> Self {
+        let old_f = self.camera.nominal_c_mm;
+        self.camera = CameraConfig::for_model(model);
+        let ratio = old_f / self.camera.nominal_c_mm;
+        if ratio > 1.0 {
+            self.targets.dot_radius_mm = (2.0 * self.targets.dot_radius_mm * ratio).round() / 2.0;
+            self.balls.diameter_mm = (self.balls.diameter_mm * ratio).round();
+        }
+        self
+    }
+
     /// Reads a TOML file (only the keys it gives override the defaults) and validates it.
     pub fn from_toml_file(path: &Path) -> Result<Self, crate::SimError> {
         let text = std::fs::read_to_string(path).map_err(|e| crate::SimError::Io {
@@ -871,7 +979,19 @@ fn validate_camera(c: &CameraConfig) -> Result<(), ConfigError> {
     }
     pos("camera.pixel_size_mm", c.pixel_size_mm)?;
     pos("camera.nominal_c_mm", c.nominal_c_mm)?;
+    let n = c.model.kind().parameter_names().len();
     for (name, i) in [("left", &c.left), ("right", &c.right)] {
+        if i.params.len() != n {
+            return Err(ConfigError::new(
+                format!("camera.{name}.params"),
+                format!("{} numbers", i.params.len()),
+                format!(
+                    "must be the {n} parameters of model '{}' ({})",
+                    c.model,
+                    c.model.kind().parameter_names().join(", ")
+                ),
+            ));
+        }
         if !i.params.iter().all(|v| v.is_finite()) {
             return Err(ConfigError::new(
                 format!("camera.{name}.params"),
@@ -879,7 +999,7 @@ fn validate_camera(c: &CameraConfig) -> Result<(), ConfigError> {
                 "must be finite numbers",
             ));
         }
-        pos(&format!("camera.{name}.params[0] (c)"), i.params[0])?;
+        pos(&format!("camera.{name}.params[0] (c or fx)"), i.params[0])?;
     }
     finite3("camera.right_offset_mm", c.right_offset_mm)?;
     finite3("camera.right_opk_deg", c.right_opk_deg)?;
@@ -987,6 +1107,27 @@ fn validate_lrf_servo(l: &LrfConfig) -> Result<(), ConfigError> {
     pos("lrf.servo_resolution_deg", l.servo_resolution_deg)?;
     nonneg("lrf.servo_sigma_deg", l.servo_sigma_deg)?;
     pos("lrf.scan_period_s", l.scan_period_s)?;
+    if !l.servo_time_offset_s.is_finite() || l.servo_time_offset_s.abs() > 1.0 {
+        return Err(ConfigError::new(
+            "lrf.servo_time_offset_s",
+            l.servo_time_offset_s,
+            "expected a finite offset of at most ±1 s",
+        ));
+    }
+    if l.servo_time_offset_s != 0.0 && !l.continuous_sweep {
+        return Err(ConfigError::new(
+            "lrf.servo_time_offset_s",
+            l.servo_time_offset_s,
+            "only a continuous sweep shows it: set lrf.continuous_sweep = true",
+        ));
+    }
+    if !(1..=16).contains(&l.servo_passes) {
+        return Err(ConfigError::new(
+            "lrf.servo_passes",
+            l.servo_passes,
+            "expected 1 to 16 passes",
+        ));
+    }
     pos("lrf.beam_time_s", l.beam_time_s)?;
     if l.beam_time_s * l.beams.saturating_sub(1) as f64 > l.scan_period_s {
         return Err(ConfigError::new(

@@ -7,33 +7,107 @@
 
 use crate::config::{SimConfig, StationConfig};
 use nalgebra::{Matrix3, Vector3};
-use pingcal_ba::camera::PhotogrammetricCamera;
+use pingcal_ba::camera::{CameraModel, ModelKind, PhotogrammetricCamera};
 use pingcal_geometry::from_opk;
 use pingcal_geometry::Rigid3;
+use std::sync::Arc;
 
 type V3 = Vector3<f64>;
+
+/// A simulated camera's model and sensor: a [`CameraModel`] of any [`ModelKind`] that also
+/// knows its image size.
+#[derive(Debug, Clone)]
+pub struct SimCamera {
+    /// The model's kind.
+    pub kind: ModelKind,
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// Pixel pitch (mm).
+    pub pixel_size_mm: f64,
+    model: Arc<dyn CameraModel>,
+}
+
+impl SimCamera {
+    /// A camera of model `kind` on a `width × height` sensor of pitch `pixel_size_mm`.
+    pub fn new(kind: ModelKind, width: u32, height: u32, pixel_size_mm: f64) -> Self {
+        Self {
+            kind,
+            width,
+            height,
+            pixel_size_mm,
+            model: kind.model(width, height, pixel_size_mm),
+        }
+    }
+
+    /// The photogrammetric model of this sensor (for the photogrammetric camera's own
+    /// field-of-view test).
+    fn photogrammetric(&self) -> PhotogrammetricCamera {
+        PhotogrammetricCamera::new(self.width, self.height, self.pixel_size_mm)
+    }
+}
+
+impl CameraModel for SimCamera {
+    fn name(&self) -> &'static str {
+        self.model.name()
+    }
+
+    fn parameter_names(&self) -> &'static [&'static str] {
+        self.model.parameter_names()
+    }
+
+    fn project(
+        &self,
+        params: &[f64],
+        xc: &V3,
+        jac_point: Option<&mut nalgebra::Matrix2x3<f64>>,
+        jac_params: Option<&mut [f64]>,
+    ) -> Option<nalgebra::Vector2<f64>> {
+        self.model.project(params, xc, jac_point, jac_params)
+    }
+
+    fn unproject(&self, params: &[f64], uv: &nalgebra::Vector2<f64>) -> Option<V3> {
+        self.model.unproject(params, uv)
+    }
+
+    fn pixel_size_mm(&self) -> Option<f64> {
+        Some(self.pixel_size_mm)
+    }
+
+    fn focal_px(&self, params: &[f64]) -> f64 {
+        self.model.focal_px(params)
+    }
+
+    fn principal_point_px(&self, params: &[f64]) -> nalgebra::Vector2<f64> {
+        self.model.principal_point_px(params)
+    }
+}
 
 /// One camera of the head: its model and true parameters.
 #[derive(Debug, Clone)]
 pub struct CameraUnit {
     /// `left` or `right`.
     pub id: String,
-    /// Sensor geometry.
-    pub model: PhotogrammetricCamera,
-    /// True `[c, xp, yp, K1, K2, K3, P1, P2, B1, B2]`.
-    pub params: [f64; 10],
+    /// The model and its sensor.
+    pub model: SimCamera,
+    /// True parameters, in the model's slice order (the photogrammetric model's
+    /// `[c, xp, yp, K1, K2, K3, P1, P2, B1, B2]`).
+    pub params: Vec<f64>,
 }
 
 impl CameraUnit {
     /// Largest ideal (undistorted) image radius, in mm from the principal point, over the
-    /// image border. Points whose ideal radius exceeds it are outside the image even when
-    /// the distortion polynomial (which folds back far outside the field of view) maps
-    /// them inside.
+    /// image border (the photogrammetric model; 0 for the others, which
+    /// [`Self::project_in_view`] judges by their unprojection). Points whose ideal radius
+    /// exceeds it are outside the image even when the distortion polynomial (which folds
+    /// back far outside the field of view) maps them inside.
     pub fn max_ideal_radius_mm(&self) -> f64 {
-        let (w, h) = (
-            self.model.width as f64 - 1.0,
-            self.model.height as f64 - 1.0,
-        );
+        if self.model.kind != ModelKind::Photogrammetric {
+            return 0.0;
+        }
+        let cam = self.model.photogrammetric();
+        let (w, h) = (cam.width as f64 - 1.0, cam.height as f64 - 1.0);
         let mut r: f64 = 0.0;
         for (u, v) in [
             (0.0, 0.0),
@@ -45,17 +119,25 @@ impl CameraUnit {
             (0.0, 0.5 * h),
             (w, 0.5 * h),
         ] {
-            let xy = self.model.pixel_to_sensor(&nalgebra::Vector2::new(u, v));
-            if let Some(q) = self.model.undistort_sensor(&self.params, &xy) {
+            let xy = cam.pixel_to_sensor(&nalgebra::Vector2::new(u, v));
+            if let Some(q) = cam.undistort_sensor(&self.params, &xy) {
                 r = r.max(q.norm());
             }
         }
         r
     }
 
-    /// Projects a camera-frame point if it is really in the field of view (in front, and
-    /// within the ideal radius of the image border, see [`Self::max_ideal_radius_mm`]).
+    /// Projects a camera-frame point if it is really in the field of view. The
+    /// photogrammetric model: in front, and within the ideal radius of the image border
+    /// (see [`Self::max_ideal_radius_mm`]). The others (which see beside and behind the
+    /// lens plane): the model projects it, and the pixel's own ray is the point's (no fold
+    /// of the distortion brings it there).
     pub fn project_in_view(&self, xc: &V3, r_max: f64) -> Option<nalgebra::Vector2<f64>> {
+        if self.model.kind != ModelKind::Photogrammetric {
+            let uv = self.model.project(&self.params, xc, None, None)?;
+            let ray = self.model.unproject(&self.params, &uv)?;
+            return ((ray - xc.normalize()).norm() < 1e-6).then_some(uv);
+        }
         if xc.y <= 0.0 {
             return None;
         }
@@ -67,7 +149,6 @@ impl CameraUnit {
         if (x * x + z * z).sqrt() > r_max {
             return None;
         }
-        use pingcal_ba::camera::CameraModel;
         self.model.project(&self.params, xc, None, None)
     }
 }
@@ -85,7 +166,7 @@ impl StereoRig {
     /// The head from the configuration.
     pub fn from_config(cfg: &SimConfig) -> Self {
         let c = &cfg.camera;
-        let model = PhotogrammetricCamera::new(c.width, c.height, c.pixel_size_mm);
+        let model = SimCamera::new(c.model.kind(), c.width, c.height, c.pixel_size_mm);
         let o = c.right_opk_deg;
         // Right camera orientation relative to left: x_right = R_rel (x_left − C_right).
         let r_rel = from_opk(o[0].to_radians(), o[1].to_radians(), o[2].to_radians());
@@ -94,13 +175,13 @@ impl StereoRig {
             cameras: [
                 CameraUnit {
                     id: "left".into(),
-                    model,
-                    params: c.left.params,
+                    model: model.clone(),
+                    params: c.left.params.clone(),
                 },
                 CameraUnit {
                     id: "right".into(),
                     model,
-                    params: c.right.params,
+                    params: c.right.params.clone(),
                 },
             ],
             right_from_left: left_to_right,

@@ -17,7 +17,11 @@
 //!   N(0, `servo_sigma_deg`), the reported angle the true one quantised to the encoder's
 //!   0.088°;
 //! * a mount offset: the scanner centre off the shaft by `mount_offset_mm` in the rotating
-//!   frame (eq. 2 assumes zero; the default is zero).
+//!   frame (eq. 2 assumes zero; the default is zero);
+//! * the servo's timing: stop-and-go (the default) or a continuous sweep, over
+//!   `servo_passes` passes alternately forward and back, with the servo's stamps late by
+//!   `servo_time_offset_s` against the scanner's (each beam's servo angle in the file is
+//!   then the one the servo had that much earlier).
 //!
 //! The sensor itself (beam geometry with the mount, the range-noise profile, what a reading
 //! is) is `pingcal_lrf::sensor`, the model the calibration uses; [`LrfConfig::sensor`] maps
@@ -74,15 +78,33 @@ pub fn world_to_lrf(main_left: &Rigid3, cfg: &LrfConfig) -> Rigid3 {
 /// (`scene.transformed(&world_to_lrf(..))`). Scans are independent (one random stream
 /// each), computed in parallel, identical for the same seed.
 pub fn simulate_scans(scene_lrf: &Scene, cfg: &LrfConfig, seed: u64) -> Vec<Scan> {
-    let nscans = ((cfg.servo_end_deg - cfg.servo_start_deg) / cfg.servo_step_deg + 1e-9).floor()
-        as usize
-        + 1;
+    let nscans = scans_per_pass(cfg) * cfg.servo_passes.max(1);
     let sensor = cfg.sensor();
     let caps = culling_caps(scene_lrf, cfg);
     (0..nscans)
         .into_par_iter()
         .map(|k| simulate_scan(scene_lrf, cfg, &sensor, &caps, seed, k))
         .collect()
+}
+
+/// The scans of one pass of the servo from `servo_start_deg` to `servo_end_deg`.
+fn scans_per_pass(cfg: &LrfConfig) -> usize {
+    ((cfg.servo_end_deg - cfg.servo_start_deg) / cfg.servo_step_deg + 1e-9).floor() as usize + 1
+}
+
+/// Scan `k`'s commanded servo angle and the direction the servo turns (+1 forward, −1 on
+/// the passes back).
+fn commanded_deg(cfg: &LrfConfig, k: usize) -> (f64, f64) {
+    let n = scans_per_pass(cfg);
+    let (pass, i) = (k / n, k % n);
+    if pass % 2 == 0 {
+        (cfg.servo_start_deg + i as f64 * cfg.servo_step_deg, 1.0)
+    } else {
+        (
+            cfg.servo_start_deg + (n - 1 - i) as f64 * cfg.servo_step_deg,
+            -1.0,
+        )
+    }
 }
 
 /// An object's bounding cone seen from the LRF, widened by the beam footprint and the
@@ -141,16 +163,19 @@ fn simulate_scan(
     k: usize,
 ) -> Scan {
     let mut rng = rng_for(seed, "lrf-scan", k as u64);
-    let commanded = cfg.servo_start_deg + k as f64 * cfg.servo_step_deg;
+    let (commanded, direction) = commanded_deg(cfg, k);
     let err: f64 = if cfg.noise && cfg.servo_sigma_deg > 0.0 {
         cfg.servo_sigma_deg * rng.sample::<f64, _>(StandardNormal)
     } else {
         0.0
     };
     let true_deg = commanded + err;
-    let reported = (true_deg / cfg.servo_resolution_deg).round() * cfg.servo_resolution_deg;
     // in a continuous sweep, the servo's advance from the first beam to beam i
-    let speed = cfg.servo_step_deg / cfg.scan_period_s;
+    let speed = direction * cfg.servo_step_deg / cfg.scan_period_s;
+    // the servo's stamps are late by servo_time_offset_s: at a beam's time a reader
+    // interpolates the angle the servo had that much earlier (0 unless continuous)
+    let lag = speed * cfg.servo_time_offset_s;
+    let reported = ((true_deg - lag) / cfg.servo_resolution_deg).round() * cfg.servo_resolution_deg;
     let advance = |i: usize| {
         if cfg.continuous_sweep {
             speed * cfg.beam_time_s * i as f64

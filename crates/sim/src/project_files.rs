@@ -22,9 +22,9 @@ use serde::{Deserialize, Serialize};
 use std::path::Path;
 
 pub use pingcal_project::{
-    BallLabel, CameraModel, CameraParams, Method, Parameter, ProjectBalls, ProjectCamera,
-    ProjectDistance, ProjectFile, ProjectFrames, ProjectImage, ProjectLrf, ProjectStereo,
-    ProjectTargets, TargetFamily,
+    BallLabel, CameraModel, Intrinsics, KeyedValues, Method, Parameter, ProjectBalls,
+    ProjectCamera, ProjectDistance, ProjectFile, ProjectFrames, ProjectImage, ProjectLrf,
+    ProjectStereo, ProjectTargets, TargetFamily,
 };
 
 /// A rigid transform as written in JSON: `y = rotation · x + translation_mm`.
@@ -85,15 +85,37 @@ impl PoseJson {
 pub struct TruthCamera {
     /// `left` / `right`.
     pub id: String,
+    /// The camera model (absent: photogrammetric).
+    #[serde(
+        default = "photogrammetric",
+        skip_serializing_if = "is_photogrammetric"
+    )]
+    pub model: CameraModel,
     /// Width in pixels.
     pub width: u32,
     /// Height in pixels.
     pub height: u32,
     /// Pixel pitch (mm).
     pub pixel_size_mm: f64,
-    /// The ten parameters.
+    /// The model's parameters by their keys (as results.json's cameras).
     #[serde(flatten)]
-    pub params: CameraParams,
+    pub params: KeyedValues,
+}
+
+fn photogrammetric() -> CameraModel {
+    CameraModel::Photogrammetric
+}
+
+fn is_photogrammetric(m: &CameraModel) -> bool {
+    *m == CameraModel::Photogrammetric
+}
+
+impl TruthCamera {
+    /// The true parameters, in the model's slice order (a key the file lacks is 0).
+    pub fn intrinsics(&self) -> Intrinsics {
+        let zeros = vec![0.0; self.model.kind().parameter_names().len()];
+        Intrinsics::from_table(self.model, &self.params, &zeros)
+    }
 }
 
 /// True pose of one image.
@@ -164,6 +186,10 @@ pub struct TruthSurface {
     pub size_mm: [f64; 2],
 }
 
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
+}
+
 /// `truth.json`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Truth {
@@ -185,6 +211,10 @@ pub struct Truth {
     /// scale); the project file leaves it at zero.
     #[serde(default)]
     pub lrf_mount: pingcal_lrf::MountModel,
+    /// The servo's time offset against the scanner (`[lrf] servo_time_offset_s`), seconds;
+    /// written only when not 0.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub lrf_servo_time_offset_s: f64,
     /// True intrinsics.
     pub cameras: Vec<TruthCamera>,
     /// Left camera frame → right camera frame.
@@ -303,16 +333,20 @@ pub fn truth_of(sim: &Simulation) -> Truth {
         world_to_lrf: PoseJson::from_pose(&w2l),
         lrf_mount_offset_mm: sim.config.lrf.mount().offset_mm,
         lrf_mount: sim.config.lrf.mount(),
+        lrf_servo_time_offset_s: sim.config.lrf.servo_time_offset_s,
         cameras: sim
             .rig
             .cameras
             .iter()
             .map(|c| TruthCamera {
                 id: c.id.clone(),
+                model: sim.config.camera.model,
                 width: c.model.width,
                 height: c.model.height,
                 pixel_size_mm: c.model.pixel_size_mm,
-                params: CameraParams::from_slice(&c.params),
+                params: Intrinsics::new(sim.config.camera.model, c.params.clone())
+                    .expect("validated parameter count")
+                    .to_table(),
             })
             .collect(),
         left_to_right: PoseJson::from_pose(&sim.rig.right_from_left),
@@ -387,12 +421,45 @@ fn ball_labels(sim: &Simulation) -> Vec<BallLabel> {
         .collect()
 }
 
+/// The start a user of the simulated head would write into the project file: the nominal
+/// focal length (`[camera] nominal_c_mm`), the principal point at the image centre, no
+/// distortion (the double sphere's nominal ξ, α); and the parameters to self-calibrate:
+/// all, but for the OpenCV model those its lens does not have (k2, k3, k5, k6 and the thin
+/// prism, held at 0 as a user holds the terms a lens does not need).
+fn initial_and_free(cfg: &crate::config::CameraConfig) -> (Intrinsics, Vec<Parameter>) {
+    let model = cfg.model;
+    let values = match model {
+        CameraModel::Photogrammetric | CameraModel::BrownBackward => {
+            let mut v = vec![0.0; 10];
+            v[0] = cfg.nominal_c_mm;
+            v
+        }
+        _ => model.kind().nominal(
+            cfg.nominal_c_mm / cfg.pixel_size_mm,
+            cfg.width,
+            cfg.height,
+            cfg.pixel_size_mm,
+        ),
+    };
+    let held: &[&str] = match model {
+        CameraModel::OpenCv => &["k2", "k3", "k5", "k6", "s1", "s2", "s3", "s4"],
+        _ => &[],
+    };
+    let free = Parameter::of(model)
+        .into_iter()
+        .filter(|p| !held.contains(&p.as_str()))
+        .collect();
+    (
+        Intrinsics::new(model, values).expect("the model's count"),
+        free,
+    )
+}
+
 /// The project file of a simulation.
 pub fn project_of(sim: &Simulation) -> ProjectFile {
     let cfg = &sim.config;
     let main = sim.stations.iter().find(|s| s.main).expect("main station");
-    let mut initial = [0.0; 10];
-    initial[0] = cfg.camera.nominal_c_mm;
+    let (initial, free) = initial_and_free(&cfg.camera);
     ProjectFile {
         version: 1,
         name: format!("simulated test field (seed {})", sim.seed),
@@ -424,12 +491,12 @@ pub fn project_of(sim: &Simulation) -> ProjectFile {
             .iter()
             .map(|c| ProjectCamera {
                 id: c.id.clone(),
-                model: CameraModel::Photogrammetric,
+                model: cfg.camera.model,
                 width: c.model.width,
                 height: c.model.height,
                 pixel_size_mm: c.model.pixel_size_mm,
-                initial: CameraParams::from_slice(&initial),
-                free: Parameter::ALL.to_vec(),
+                initial: initial.to_table(),
+                free: free.clone(),
             })
             .collect(),
         stereo: Some(ProjectStereo {
@@ -568,12 +635,13 @@ pub fn read_project(path: &Path) -> Result<ProjectFile, SimError> {
 #[cfg(test)]
 mod tests {
     /// A simulated project frees every parameter, and the pipeline fixes a camera's
-    /// parameters by `Parameter::index`: the project's order is the bundle adjuster's.
+    /// parameters by `Parameter::index_in`: the project's order is the bundle adjuster's.
     #[test]
     fn the_free_parameters_are_in_the_bundle_adjusters_order() {
-        assert_eq!(
-            super::Parameter::NAMES,
-            pingcal_ba::camera::PHOTOGRAMMETRIC_PARAMS
-        );
+        let names: Vec<&str> = super::Parameter::of(super::CameraModel::Photogrammetric)
+            .iter()
+            .map(|p| p.as_str())
+            .collect();
+        assert_eq!(names, pingcal_ba::camera::PHOTOGRAMMETRIC_PARAMS);
     }
 }

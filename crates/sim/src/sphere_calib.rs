@@ -398,7 +398,11 @@ impl SphereCalibSim {
             width: self.camera.model.width,
             height: self.camera.model.height,
             pixel_size_mm: self.camera.model.pixel_size_mm,
-            params: pingcal_project::CameraParams::from_slice(&self.camera.params),
+            params: pingcal_project::CameraParams::from_slice(
+                self.camera.params[..]
+                    .try_into()
+                    .expect("the sphere-calib simulation's camera is photogrammetric"),
+            ),
         }
     }
 

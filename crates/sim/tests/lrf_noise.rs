@@ -12,7 +12,7 @@
 //! ≲ 0.4 mm at α = 10° (≈ 0.01 σ there), inside the tolerance and accounted for in it.
 
 use nalgebra::Vector3;
-use pingcal_sim::config::LrfConfig;
+use pingcal_sim::config::{LrfConfig, SimConfig};
 use pingcal_sim::lrf::simulate_scans;
 use pingcal_sim::scene::{Scene, Surface};
 
@@ -196,5 +196,84 @@ fn a_continuous_sweep_reads_back_with_each_beam_at_its_own_servo_angle() {
     assert!(
         worst_v1 > 10.0 * worst_v2,
         "the per-scan angle is not worse: {worst_v1} vs {worst_v2}"
+    );
+}
+
+/// Issue 37: `servo_passes = 2` sweeps forward then back, and `servo_time_offset_s` makes
+/// each scan's servo angle in the file the one the servo had that much earlier: off by
+/// −speed · offset, with the sign of the direction; the ranges do not change.
+#[test]
+fn the_servo_time_offset_shifts_the_reported_angle_against_the_direction_of_the_sweep() {
+    let scene = flat_wall(0.5);
+    let base = LrfConfig {
+        servo_start_deg: -10.0,
+        servo_end_deg: 10.0,
+        servo_step_deg: 1.0,
+        continuous_sweep: true,
+        servo_passes: 2,
+        servo_resolution_deg: 1e-6,
+        noise: false,
+        mount_errors: false,
+        ..LrfConfig::default()
+    };
+    let valid = |lrf: &LrfConfig| {
+        SimConfig {
+            lrf: lrf.clone(),
+            ..SimConfig::default()
+        }
+        .validate()
+    };
+    valid(&base).unwrap();
+    let late = LrfConfig {
+        servo_time_offset_s: 0.02,
+        ..base.clone()
+    };
+    valid(&late).unwrap();
+    let (a, b) = (
+        simulate_scans(&scene, &base, 3),
+        simulate_scans(&scene, &late, 3),
+    );
+    assert_eq!((a.len(), b.len()), (42, 42));
+    let speed = 1.0 / 0.1; // degrees per second
+    for (k, (x, y)) in a.iter().zip(&b).enumerate() {
+        let direction = if k < 21 { 1.0 } else { -1.0 };
+        let shift = y.servo_deg - x.servo_deg;
+        assert!(
+            (shift + direction * speed * 0.02).abs() < 2e-6,
+            "scan {k}: {shift}"
+        );
+        let (ex, ey) = (x.servo_end_deg.unwrap(), y.servo_end_deg.unwrap());
+        assert!((ey - ex - shift).abs() < 1e-9, "scan {k}");
+        assert!(
+            (ex - x.servo_deg) * direction > 0.0,
+            "scan {k} turns the wrong way"
+        );
+        assert_eq!(x.ranges_mm, y.ranges_mm, "scan {k}");
+        assert_eq!(x.true_servo_deg, y.true_servo_deg, "scan {k}");
+    }
+    // the second pass comes back over the first pass's angles
+    assert!(
+        (a[21].true_servo_deg - 10.0).abs() < 1e-9 && (a[41].true_servo_deg + 10.0).abs() < 1e-9
+    );
+    // an offset only a continuous sweep shows, and passes within reason
+    let e = valid(&LrfConfig {
+        continuous_sweep: false,
+        ..late.clone()
+    })
+    .unwrap_err()
+    .to_string();
+    assert!(
+        e.contains("lrf.servo_time_offset_s = 0.02: only a continuous sweep shows it"),
+        "{e}"
+    );
+    let e = valid(&LrfConfig {
+        servo_passes: 0,
+        ..base.clone()
+    })
+    .unwrap_err()
+    .to_string();
+    assert!(
+        e.contains("lrf.servo_passes = 0: expected 1 to 16 passes"),
+        "{e}"
     );
 }

@@ -1192,10 +1192,10 @@ mod schur_tests {
                 (a - b).abs() <= 1e-11 * rhs_explicit.iter().fold(0.0f64, |m, v| m.max(v.abs()))
             );
         }
-        let mut rng = crate::camera::jacobian_checks::rng(5);
+        let mut rng = pingcal_geometry::consensus::rng(5);
         for _ in 0..3 {
             let x: Vec<f64> = (0..n)
-                .map(|_| crate::camera::jacobian_checks::uniform(&mut rng, -1.0, 1.0))
+                .map(|_| rand::Rng::random_range(&mut rng, -1.0..1.0))
                 .collect();
             let mut y = vec![0.0; n];
             op.apply(schur, layout, lin, &x, &mut y);

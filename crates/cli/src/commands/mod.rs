@@ -5,6 +5,7 @@ pub mod calibrate;
 pub mod cloud;
 pub mod demo;
 pub mod detect;
+pub mod frames;
 pub mod gen_bal;
 pub mod lrf_mount;
 pub mod plan;

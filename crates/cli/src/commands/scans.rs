@@ -1,9 +1,13 @@
 //! `pingcal scans BAG... --scan-topic T --servo-topic T [--servo-joint NAME | --servo-scale S
-//! --servo-offset O | --servo-tf-child F --servo-axis x,y,z] --out scans.csv`: the LRF's
-//! scans read from ROS 1 bags and ROS 2 bags (MCAP, sqlite3, or a bag folder), the servo
-//! angle interpolated at each beam's time, written as `pingcal-scan` v2 CSV (one servo
-//! angle at the first and one at the last beam of each scan). `pingcal scans BAG... --list`
-//! prints each bag's topics, types and message counts.
+//! --servo-offset O | --servo-tf-child F --servo-axis x,y,z] [--servo-motion auto|stop-and-go|continuous]
+//! --out scans.csv`: the LRF's scans read from ROS 1 bags and ROS 2 bags (MCAP, sqlite3, or
+//! a bag folder) in one pass, as drivers publish them (empty scans, no-return ranges,
+//! messages stored twice, stamps that repeat or go back: counted in the summary), the servo
+//! angle held (stop-and-go) or interpolated at each beam's time (continuous), written as
+//! `pingcal-scan` v2 CSV (one servo angle at the first and one at the last beam of each
+//! scan), v3 when the scans carry intensities. `pingcal scans BAG... --list` prints each
+//! bag's topics, types and message counts, and the joints of JointState topics and the
+//! frames of tf topics.
 //!
 //! A driver may change the beam geometry (count, first angle, step) between messages: no
 //! scan is dropped or resampled for it; the scans of the first geometry go to `--out`, those
@@ -15,7 +19,7 @@
 
 use super::CmdResult;
 use pingcal_lrf::scan::{ScanHeader, ScanWriter};
-use pingcal_rosbag::assemble::{assemble, servo_series, ServoSource, Topics};
+use pingcal_rosbag::assemble::{names_on_topic, read_scans, ServoMotion, ServoSource, Topics};
 use pingcal_rosbag::{bag_files, Bag};
 use std::path::{Path, PathBuf};
 
@@ -56,12 +60,18 @@ pub struct Args {
         default_value = "0,1,0"
     )]
     pub servo_axis: Vec<f64>,
+    /// How the servo moves: `stop-and-go` holds its last angle before each scan,
+    /// `continuous` interpolates it at each beam's time, `auto` tells them apart from the
+    /// servo messages and says which it used.
+    #[arg(long, default_value = "auto", value_parser = ServoMotion::parse)]
+    pub servo_motion: ServoMotion,
     /// The scan file to write (`pingcal-scan` v2 CSV).
     #[arg(long, required_unless_present = "list")]
     pub out: Option<PathBuf>,
 }
 
-fn open_bags(paths: &[PathBuf]) -> Result<Vec<Bag>, super::CmdError> {
+/// The bags the paths name (files, or a ROS 2 bag folder's storage files), opened.
+pub(crate) fn open_bags(paths: &[PathBuf]) -> Result<Vec<Bag>, super::CmdError> {
     let mut bags = Vec::new();
     for p in paths {
         for f in bag_files(p)? {
@@ -77,6 +87,15 @@ fn list(bags: &[Bag]) -> CmdResult {
         println!("{} ({:?})", bag.name(), bag.format());
         for t in bag.topics()? {
             println!("  {:<32} {:<28} {}", t.name, t.msg_type, t.count);
+            let names = names_on_topic(bag, &t.name, &t.msg_type)?;
+            if !names.is_empty() {
+                let what = if t.msg_type.ends_with("JointState") {
+                    "joints"
+                } else {
+                    "frames"
+                };
+                println!("    {what}: {}", names.join(", "));
+            }
             n += 1;
         }
     }
@@ -137,6 +156,8 @@ fn geometry_path(out: &Path, k: usize) -> PathBuf {
 struct GeometryFile {
     header: ScanHeader,
     beams: usize,
+    /// v3: the scans carry intensities.
+    intensities: bool,
     /// The path named on the output.
     path: PathBuf,
     /// The file written: a temporary one, or a device or FIFO written straight.
@@ -152,6 +173,7 @@ impl GeometryFile {
     fn create(
         header: &ScanHeader,
         beams: usize,
+        intensities: bool,
         path: PathBuf,
         extra: &str,
     ) -> Result<Self, String> {
@@ -167,10 +189,16 @@ impl GeometryFile {
         let cannot = |e: std::io::Error| format!("{}: cannot write: {e}", path.display());
         let file = std::fs::File::create(&tmp).map_err(cannot)?;
         let w = std::io::BufWriter::with_capacity(1 << 16, file);
-        let writer = ScanWriter::new_v2(w, header, beams, &[extra]).map_err(cannot)?;
+        let writer = if intensities {
+            ScanWriter::new_v3(w, header, beams, &[extra])
+        } else {
+            ScanWriter::new_v2(w, header, beams, &[extra])
+        }
+        .map_err(cannot)?;
         Ok(Self {
             header: *header,
             beams,
+            intensities,
             path,
             tmp,
             target,
@@ -199,20 +227,23 @@ impl GeometryFile {
     }
 }
 
-/// What [`write_scans`] wrote: per file its path, scans, beams and first angle, and the
-/// scans skipped before and after the servo messages.
+/// What [`write_scans`] wrote: per file its path, scans, beams and first angle, and what
+/// the reading met.
 struct Written {
     files: Vec<(PathBuf, u64, usize, f64)>,
-    before: u64,
-    after: u64,
+    done: pingcal_rosbag::assemble::Assembled,
 }
 
 /// Writes the scans of `bags` to `out`'s temporary file, and the scans of every further beam
 /// geometry (a driver may change it between messages) to a file of its own
 /// ([`geometry_path`]); renames them all once every one is complete, and removes them on a
 /// failure.
-fn write_scans(bags: &[Bag], topics: &Topics, out: &Path) -> Result<Written, super::CmdError> {
-    let series = servo_series(bags, topics)?;
+fn write_scans(
+    bags: &[Bag],
+    topics: &Topics,
+    motion: ServoMotion,
+    out: &Path,
+) -> Result<Written, super::CmdError> {
     let names: Vec<&str> = bags.iter().map(Bag::name).collect();
     let extra = format!(
         "source=pingcal scans {} (scans {}, servo {})",
@@ -221,11 +252,12 @@ fn write_scans(bags: &[Bag], topics: &Topics, out: &Path) -> Result<Written, sup
         topics.servo
     );
     let mut files: Vec<GeometryFile> = Vec::new();
-    let result = assemble(bags, topics, &series, &mut |h, line| {
+    let result = read_scans(bags, topics, motion, &mut |h, line| {
         let beams = line.ranges_mm.len();
+        let with_i = !line.intensities.is_empty();
         let k = match files
             .iter()
-            .position(|f| f.header == *h && f.beams == beams)
+            .position(|f| f.header == *h && f.beams == beams && f.intensities == with_i)
         {
             Some(k) => k,
             None => {
@@ -233,7 +265,7 @@ fn write_scans(bags: &[Bag], topics: &Topics, out: &Path) -> Result<Written, sup
                     0 => out.to_path_buf(),
                     n => geometry_path(out, n + 1),
                 };
-                let f = GeometryFile::create(h, beams, path, &extra).map_err(|msg| {
+                let f = GeometryFile::create(h, beams, with_i, path, &extra).map_err(|msg| {
                     pingcal_rosbag::RosbagError::Io {
                         file: out.display().to_string(),
                         msg,
@@ -266,8 +298,8 @@ fn write_scans(bags: &[Bag], topics: &Topics, out: &Path) -> Result<Written, sup
     let done = result.map_err(|e| cleanup(e.into()))?;
     if files.is_empty() {
         return Err(format!(
-            "{}: topic {}: no scan lies within the servo messages ({} before the first, {} after the last)",
-            names.join(", "), topics.scan, done.before_servo, done.after_servo
+            "{}: topic {}: no scan lies within the servo messages ({} before the first, {} after the last, {} empty)",
+            names.join(", "), topics.scan, done.before_servo, done.after_servo, done.empty_scans
         )
         .into());
     }
@@ -285,8 +317,7 @@ fn write_scans(bags: &[Bag], topics: &Topics, out: &Path) -> Result<Written, sup
     }
     Ok(Written {
         files: summary,
-        before: done.before_servo,
-        after: done.after_servo,
+        done,
     })
 }
 
@@ -307,29 +338,29 @@ pub fn run(args: Args) -> CmdResult {
         servo: servo.clone(),
         source: source(&args)?,
     };
-    let Written {
-        files,
-        before,
-        after,
-    } = write_scans(&bags, &topics, out)?;
-    for (k, what) in [
-        (before, "before the first servo message"),
-        (after, "after the last servo message"),
-    ] {
-        if k > 0 {
-            eprintln!("pingcal: warning: topic {scan}: {k} scan(s) {what} skipped (no servo angle to interpolate)");
-        }
-    }
+    let Written { files, done } = write_scans(&bags, &topics, args.servo_motion, out)?;
     let Some((first, more)) = files.split_first() else {
         return Err(format!("topic {scan}: no scan written").into());
     };
     println!(
-        "scans: {} scans of {} beams from {} bag(s), servo from {servo} → {} (pingcal-scan v2); {before} skipped before the servo messages, {after} after",
+        "scans: {} scans of {} beams from {} bag(s), servo from {servo} → {} (pingcal-scan v{}); {} skipped before the servo messages, {} after, {} empty, {} duplicate(s), {} ranges masked",
         first.1,
         first.2,
         bags.len(),
-        first.0.display()
+        first.0.display(),
+        if done.with_intensities > 0 { 3 } else { 2 },
+        done.before_servo,
+        done.after_servo,
+        done.empty_scans,
+        done.duplicate_scans,
+        done.masked.total()
     );
+    for note in done.notes() {
+        match note.strip_prefix("warning: ") {
+            Some(w) => eprintln!("pingcal: warning: topic {scan}: {w}"),
+            None => println!("scans: {note}"),
+        }
+    }
     if !more.is_empty() {
         eprintln!(
             "pingcal: warning: topic {scan}: the beam geometry changes between scans; the scans of each other geometry are in a file of their own (list them all in [lrf] scans):"

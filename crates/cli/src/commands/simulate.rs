@@ -42,6 +42,12 @@ pub struct Args {
     /// 600 rpm; 0.042 gives a frame of about 100k points).
     #[arg(long)]
     azimuth_step_deg: Option<f64>,
+    /// The stereo head's lenses: `photogrammetric` (the default MYNT-like ~90° lens),
+    /// `opencv` (a 120° wide-angle lens, rational model), `kannala-brandt` or
+    /// `double-sphere` (190° fisheyes); replaces `[camera]` of `--config` with that lens's
+    /// defaults and grows the target dots as much as the lens is wider (docs/simulate.md).
+    #[arg(long)]
+    camera_model: Option<String>,
 }
 
 /// What `pingcal simulate` writes.
@@ -209,10 +215,19 @@ pub fn run(args: Args) -> CmdResult {
             "--frames, --lidar-sigma-mm, --azimuth-step-deg: only for --kind sphere-calib".into(),
         );
     }
-    let cfg = match &args.config {
+    let mut cfg = match &args.config {
         Some(p) => pingcal_sim::SimConfig::from_toml_file(p)?,
         None => pingcal_sim::SimConfig::default(),
     };
+    if let Some(m) = &args.camera_model {
+        let model = pingcal_project::CameraModel::from_word(m).ok_or_else(|| {
+            format!(
+                "--camera-model {m}: expected one of {}",
+                pingcal_project::CameraModel::NAMES.join(", ")
+            )
+        })?;
+        cfg = cfg.with_camera_model(model);
+    }
     let out = &args.out;
     let (summary, sim, _) = simulate_into(out, &cfg, args.seed, args.config.as_deref())?;
     println!(

@@ -26,7 +26,7 @@
 //! denominator of R is not positive are refused.
 //!
 //! Terms a calibration does not use are held at zero by the user: set them to 0 in the
-//! parameter slice and mark them in [`crate::problem::Camera::fixed`] (the five-term model
+//! parameter slice and mark them in pingcal-ba's `problem::Camera::fixed` (the five-term model
 //! `k1, k2, p1, p2, k3` of OpenCV's default is [`OpenCvCamera::five_term_fixed`]).
 //!
 //! # Conversions
@@ -111,6 +111,14 @@ impl CameraModel for OpenCvCamera {
         &OPENCV_PARAMS
     }
 
+    fn focal_px(&self, params: &[f64]) -> f64 {
+        0.5 * (params[0] + params[1])
+    }
+
+    fn principal_point_px(&self, params: &[f64]) -> Vector2<f64> {
+        Vector2::new(params[2], params[3])
+    }
+
     fn project(
         &self,
         params: &[f64],
@@ -193,18 +201,33 @@ impl CameraModel for OpenCvCamera {
             return None;
         }
         let target = Vector2::new((uv.x - cx) / fx, (uv.y - cy) / fy);
+        // Newton on d(q) = target from q = target, each step halved until the misfit
+        // shrinks: the rational model of a wide lens bends far from the axis, where a full
+        // step can overshoot into a region the iteration never leaves.
         let mut q = target;
-        for _ in 0..50 {
-            let (d, j, _) = Self::distort(params, q.x, q.y)?;
+        let (mut d, mut j, _) = Self::distort(params, q.x, q.y)?;
+        for _ in 0..100 {
+            let miss = (d - target).norm();
             let step = j.try_inverse()? * (d - target);
-            q -= step;
-            if !q.iter().all(|v| v.is_finite()) {
-                return None;
-            }
-            if step.norm() < 1e-15 * (1.0 + q.norm()) {
-                let (d, _, _) = Self::distort(params, q.x, q.y)?;
-                return ((d - target).norm() < 1e-12 * (1.0 + target.norm()))
+            // converged: the step is at rounding, or the misfit is (an ill-conditioned
+            // Jacobian far off axis leaves steps of a few ε·|q| that never shrink)
+            if !(step.norm() >= 1e-15 * (1.0 + q.norm())) || miss < 4.0 * f64::EPSILON {
+                return (miss < 1e-12 * (1.0 + target.norm()) && step.norm().is_finite())
                     .then(|| Vector3::new(q.x, 1.0, -q.y).normalize());
+            }
+            let mut t = 1.0;
+            loop {
+                let trial = q - step * t;
+                if let Some((dt, jt, _)) = Self::distort(params, trial.x, trial.y) {
+                    if (dt - target).norm() < miss || t < 1e-3 {
+                        (q, d, j) = (trial, dt, jt);
+                        break;
+                    }
+                }
+                t *= 0.5;
+                if t < 1e-3 {
+                    return None;
+                }
             }
         }
         None

@@ -6,7 +6,8 @@
 //! | photogrammetric (SPEC.md, forward Brown + affinity B1, B2) | [`PhotogrammetricCamera`] | c, xp, yp, K1–K3, P1, P2, B1, B2 (mm) |
 //! | Brown backward (DBAT, PhotoModeler, Australis: a correction of the measured point) | [`BrownBackwardCamera`] | c, xp, yp, K1–K3, P1, P2, B1, B2 (mm) |
 //! | OpenCV (rational radial, tangential, thin prism) | [`OpenCvCamera`] | fx, fy, cx, cy, k1, k2, p1, p2, k3–k6, s1–s4 (px) |
-//! | Kannala–Brandt fisheye (OpenCV's `cv::fisheye`) | [`FisheyeCamera`] | fx, fy, cx, cy, k1–k4 (px) |
+//! | Kannala–Brandt fisheye (OpenCV's `cv::fisheye`, Kalibr's `pinhole-equi`) | [`FisheyeCamera`] | fx, fy, cx, cy, k1–k4 (px) |
+//! | double sphere (Usenko et al. 2018, Kalibr's `ds`): lenses beyond 180° | [`DoubleSphereCamera`] | fx, fy, cx, cy, ξ, α (px) |
 //! | BAL benchmark | [`BalCamera`] | f, k1, k2 |
 //!
 //! Every model but BAL works in the camera frame of SPEC.md: X to image right, **Y along
@@ -20,7 +21,7 @@
 //!
 //! ```
 //! use nalgebra::Vector3;
-//! use pingcal_ba::camera::{check_jacobians, OpenCvCamera};
+//! use pingcal_camera::{check_jacobians, OpenCvCamera};
 //! let params = [650.0, 651.0, 640.0, 360.0, -0.1, 0.01, 1e-4, -2e-4, 0.0,
 //!               0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0];
 //! let worst = check_jacobians(&OpenCvCamera, &params, &Vector3::new(0.3, 2.0, -0.4), 1e-6)
@@ -38,13 +39,19 @@
 
 mod bal;
 pub mod brown_backward;
+pub mod double_sphere;
 pub mod fisheye;
+pub mod forms;
+mod kind;
 pub mod opencv;
 mod photogrammetric;
+pub mod refit;
 
 pub use bal::BalCamera;
 pub use brown_backward::{BrownBackwardCamera, BROWN_BACKWARD_PARAMS};
+pub use double_sphere::{DoubleSphereCamera, DOUBLE_SPHERE_PARAMS};
 pub use fisheye::{FisheyeCamera, FISHEYE_PARAMS};
+pub use kind::ModelKind;
 pub use opencv::{
     opencv_from_photogrammetric, photogrammetric_from_opencv, ConversionError, OpenCvCamera,
     OPENCV_PARAMS,
@@ -88,6 +95,14 @@ pub trait CameraModel: Send + Sync + std::fmt::Debug {
     fn pixel_size_mm(&self) -> Option<f64> {
         None
     }
+
+    /// The image scale at the principal point, pixels per unit of tan(angle off axis): the
+    /// focal length in pixels (the mean of fx and fy; c over the pixel pitch). What sizes
+    /// and search windows are judged by.
+    fn focal_px(&self, params: &[f64]) -> f64;
+
+    /// The principal point, pixels.
+    fn principal_point_px(&self, params: &[f64]) -> Vector2<f64>;
 }
 
 /// A disagreement found by [`check_jacobians`].
@@ -257,5 +272,100 @@ pub(crate) mod jacobian_checks {
 
     pub fn uniform(r: &mut pingcal_geometry::consensus::SeededRng, lo: f64, hi: f64) -> f64 {
         r.random_range(lo..hi)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::sync::Arc;
+
+    /// A wide-angle or fisheye lens of each kind on a 1280 × 800 sensor of 3 µm pixels.
+    fn lenses() -> Vec<(Arc<dyn CameraModel>, Vec<f64>)> {
+        let k = |m: ModelKind| m.model(1280, 800, 0.003);
+        vec![
+            (
+                k(ModelKind::Photogrammetric),
+                vec![
+                    1.9, 0.01, -0.02, -0.04, 1.2e-3, -2e-5, 2e-4, -1e-4, 1e-4, 0.0,
+                ],
+            ),
+            (
+                k(ModelKind::BrownBackward),
+                vec![1.9, 0.01, -0.02, 0.03, -5e-4, 1e-5, 2e-4, -1e-4, 1e-4, 0.0],
+            ),
+            (
+                k(ModelKind::OpenCv),
+                vec![
+                    380.0, 381.0, 641.0, 399.0, -0.1, 0.02, 1e-4, -2e-4, 0.001, 0.3, 0.01, 0.002,
+                    0.0, 0.0, 0.0, 0.0,
+                ],
+            ),
+            (
+                k(ModelKind::KannalaBrandt),
+                vec![360.0, 361.0, 641.0, 399.0, 0.02, -0.005, 0.001, -2e-4],
+            ),
+            (
+                k(ModelKind::DoubleSphere),
+                vec![350.0, 351.0, 641.0, 399.0, -0.2, 0.58],
+            ),
+        ]
+    }
+
+    /// Every pixel of a 64 × 40 grid over the whole image: unprojected, projected back to
+    /// within 1e-9 px; every direction unprojected from a pixel is one the model projects.
+    #[test]
+    fn every_model_round_trips_over_the_whole_image() {
+        for (m, p) in lenses() {
+            let mut worst: f64 = 0.0;
+            for i in 0..=64 {
+                for j in 0..=40 {
+                    let uv = Vector2::new(1279.0 * i as f64 / 64.0, 799.0 * j as f64 / 40.0);
+                    let ray = m
+                        .unproject(&p, &uv)
+                        .unwrap_or_else(|| panic!("{}: {uv:?} does not unproject", m.name()));
+                    assert!((ray.norm() - 1.0).abs() < 1e-12);
+                    let back = m.project(&p, &(ray * 3.0), None, None).unwrap();
+                    worst = worst.max((back - uv).norm());
+                }
+            }
+            assert!(worst < 1e-9, "{}: worst round trip {worst:e} px", m.name());
+        }
+    }
+
+    #[test]
+    fn the_principal_point_is_where_the_axis_projects_and_the_focal_length_its_scale() {
+        for (m, p) in lenses() {
+            let pp = m.principal_point_px(&p);
+            let axis = m
+                .project(&p, &Vector3::new(0.0, 1.0, 0.0), None, None)
+                .unwrap();
+            assert!((axis - pp).norm() < 1e-9, "{}: {axis:?} {pp:?}", m.name());
+            // d(u, v)/d(tan θ) on the axis, averaged over x and z.
+            let mut jp = Matrix2x3::zeros();
+            m.project(&p, &Vector3::new(0.0, 1.0, 0.0), Some(&mut jp), None);
+            let scale = 0.5 * (jp[(0, 0)].abs() + jp[(1, 2)].abs());
+            let f = m.focal_px(&p);
+            // the affinity B1 of the photogrammetric models scales x only
+            assert!((scale - f).abs() < 1e-3 * f, "{}: {scale} {f}", m.name());
+        }
+    }
+
+    #[test]
+    fn kinds_name_their_models() {
+        for (k, name) in ModelKind::ALL.iter().zip(ModelKind::NAMES) {
+            assert_eq!(k.name(), name);
+            assert_eq!(ModelKind::from_name(name), Some(*k));
+            let m = k.model(640, 480, 0.005);
+            assert_eq!(m.parameter_names(), k.parameter_names());
+            let ideal = k.nominal(500.0, 640, 480, 0.005);
+            assert!((m.focal_px(&ideal) - 500.0).abs() < 1e-9, "{k}");
+            let pp = m.principal_point_px(&ideal);
+            assert!(
+                (pp - Vector2::new(319.5, 239.5)).norm() < 1e-9,
+                "{k}: {pp:?}"
+            );
+        }
+        assert_eq!(ModelKind::from_name("fisheye"), None);
     }
 }

@@ -202,6 +202,14 @@ impl CameraModel for PhotogrammetricCamera {
         Some(self.pixel_size_mm)
     }
 
+    fn focal_px(&self, params: &[f64]) -> f64 {
+        params[0] / self.pixel_size_mm
+    }
+
+    fn principal_point_px(&self, params: &[f64]) -> Vector2<f64> {
+        self.sensor_to_pixel(&Vector2::new(params[1], params[2]))
+    }
+
     fn unproject(&self, params: &[f64], uv: &Vector2<f64>) -> Option<Vector3<f64>> {
         let q = self.undistort_sensor(params, &self.pixel_to_sensor(uv))?;
         let c = params[0];

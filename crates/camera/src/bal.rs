@@ -25,6 +25,15 @@ impl CameraModel for BalCamera {
         &NAMES
     }
 
+    fn focal_px(&self, params: &[f64]) -> f64 {
+        params[0]
+    }
+
+    /// BAL's image origin is the principal point.
+    fn principal_point_px(&self, _params: &[f64]) -> Vector2<f64> {
+        Vector2::zeros()
+    }
+
     fn project(
         &self,
         params: &[f64],

@@ -76,6 +76,14 @@ impl CameraModel for FisheyeCamera {
         &FISHEYE_PARAMS
     }
 
+    fn focal_px(&self, params: &[f64]) -> f64 {
+        0.5 * (params[0] + params[1])
+    }
+
+    fn principal_point_px(&self, params: &[f64]) -> Vector2<f64> {
+        Vector2::new(params[2], params[3])
+    }
+
     fn project(
         &self,
         params: &[f64],
