@@ -42,8 +42,9 @@ pub struct LrfData {
 /// `servo_zero_deg` keys'.
 pub fn mount_of(project: &Project) -> Result<MountModel> {
     if let Some(path) = &project.lrf_model_path {
-        return read_lrf_model(path)
-            .map_err(|e| PipelineError::new(format!("{}: [lrf] lrf_model: {e}", project.path.display())));
+        return read_lrf_model(path).map_err(|e| {
+            PipelineError::new(format!("{}: [lrf] lrf_model: {e}", project.path.display()))
+        });
     }
     let l = &project.file.lrf;
     Ok(MountModel {
