@@ -89,6 +89,19 @@ fn plural(n: usize, one: &str, many: &str) -> String {
     format!("{n} {}", if n == 1 { one } else { many })
 }
 
+/// Whether anything of `problem` itself fixes its datum: a control point (fixed or
+/// weighted), a fixed image or rig, or a held coordinate. Without any, the network is a free
+/// one, and only distances give it a scale.
+pub fn has_datum(problem: &Problem) -> bool {
+    problem
+        .points
+        .iter()
+        .any(|p| p.is_held() || p.is_partly_held())
+        || !problem.point_priors.is_empty()
+        || problem.images.iter().any(|i| i.fixed || i.is_centre_held())
+        || problem.rigs.iter().any(|r| r.fixed)
+}
+
 /// Diagnoses the datum of `problem`; `free_network`: the caller asks for one (datum by
 /// inner constraints). See the module doc.
 pub fn check(problem: &Problem, free_network: bool) -> Result<Datum, DatumError> {
@@ -370,6 +383,20 @@ mod tests {
                 scale_from_distances: true
             })
         );
+    }
+
+    #[test]
+    fn a_datum_is_had_from_control_or_a_fixed_image_not_from_free_points() {
+        let free = Problem {
+            points: points(&[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]], false),
+            ..Problem::default()
+        };
+        assert!(!has_datum(&free));
+        let control = Problem {
+            points: points(&[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]], true),
+            ..Problem::default()
+        };
+        assert!(has_datum(&control));
     }
 
     #[test]

@@ -378,97 +378,19 @@ fn remove_planes(
 }
 
 /// Euclidean clusters of the kept points: connected components of "closer than the link"
-/// (`link[k].max(link[m])` for points k, m), by union-find on a grid of sub-cells whose
-/// diagonal is under the shortest link. All points of a sub-cell are then linked at once,
-/// and two sub-cells are joined at the first pair of their points that links them (none
-/// is looked for when they are already joined, or when their boxes are farther apart than
-/// the longest link): exact, and in a dense cloud far fewer distance tests than pairs.
-/// `scale` shrinks the link distance (used to split a cluster that is too large).
+/// (`max(D/2, 2.5 σ(range))` for each point, the longer of a pair's two), found by
+/// [`crate::clustering::link_components`] in time bounded by the points, whatever their
+/// coordinates. `scale` shrinks the link distance (used to split a cluster that is too large).
 fn clusters(cloud: &Cloud, idx: &[usize], opt: &FinderOptions, scale: f64) -> Vec<Vec<usize>> {
-    if idx.is_empty() {
-        return Vec::new();
-    }
+    let points: Vec<Vector3<f64>> = idx.iter().map(|&i| cloud.points[i]).collect();
     let link: Vec<f64> = idx
         .iter()
         .map(|&i| scale * (0.5 * opt.diameter_mm).max(2.5 * point_sigma(cloud, &opt.noise, i)))
         .collect();
-    let max_link = link.iter().cloned().fold(0.0, f64::max);
-    let min_link = link.iter().cloned().fold(f64::INFINITY, f64::min);
-    let side = min_link / 3f64.sqrt() * (1.0 - 1e-9);
-    type Key = (i64, i64, i64);
-    let key = |p: &Vector3<f64>| -> Key {
-        (
-            (p.x / side).floor() as i64,
-            (p.y / side).floor() as i64,
-            (p.z / side).floor() as i64,
-        )
-    };
-    let mut cells: HashMap<Key, Vec<usize>> = HashMap::new();
-    for (k, &i) in idx.iter().enumerate() {
-        cells.entry(key(&cloud.points[i])).or_default().push(k);
-    }
-    let mut parent: Vec<usize> = (0..idx.len()).collect();
-    fn root(p: &mut [usize], mut a: usize) -> usize {
-        while p[a] != a {
-            p[a] = p[p[a]];
-            a = p[a];
-        }
-        a
-    }
-    fn join(p: &mut [usize], a: usize, b: usize) {
-        let (ra, rb) = (root(p, a), root(p, b));
-        if ra != rb {
-            p[ra.max(rb)] = ra.min(rb);
-        }
-    }
-    for members in cells.values() {
-        for &m in &members[1..] {
-            join(&mut parent, members[0], m);
-        }
-    }
-    // sub-cells whose boxes can hold a pair within the longest link
-    let reach = (max_link / side).ceil() as i64;
-    let mut keys: Vec<Key> = cells.keys().copied().collect();
-    keys.sort_unstable();
-    for &(x, y, z) in &keys {
-        let a = &cells[&(x, y, z)];
-        for dx in -reach..=reach {
-            for dy in -reach..=reach {
-                for dz in -reach..=reach {
-                    let nk = (x + dx, y + dy, z + dz);
-                    if nk <= (x, y, z) {
-                        continue; // each pair of sub-cells once
-                    }
-                    // the boxes' gap along each axis
-                    let gap = |d: i64| (d.abs() - 1).max(0) as f64 * side;
-                    if gap(dx).powi(2) + gap(dy).powi(2) + gap(dz).powi(2) >= max_link * max_link {
-                        continue;
-                    }
-                    let Some(b) = cells.get(&nk) else { continue };
-                    if root(&mut parent, a[0]) == root(&mut parent, b[0]) {
-                        continue;
-                    }
-                    'pairs: for &k in a {
-                        let p = cloud.points[idx[k]];
-                        for &m in b {
-                            if (cloud.points[idx[m]] - p).norm() < link[k].max(link[m]) {
-                                join(&mut parent, k, m);
-                                break 'pairs;
-                            }
-                        }
-                    }
-                }
-            }
-        }
-    }
-    let mut groups: HashMap<usize, Vec<usize>> = HashMap::new();
-    for (k, &i) in idx.iter().enumerate() {
-        let r = root(&mut parent, k);
-        groups.entry(r).or_default().push(i);
-    }
-    let mut out: Vec<Vec<usize>> = groups.into_values().collect();
-    out.sort_by_key(|g| g[0]);
-    out
+    crate::clustering::link_components(&points, &link)
+        .into_iter()
+        .map(|g| g.into_iter().map(|k| idx[k]).collect())
+        .collect()
 }
 
 /// Each split of a too-large cluster shortens the link by this factor…

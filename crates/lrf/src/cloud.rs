@@ -125,6 +125,36 @@ impl Cloud {
         Ok(c)
     }
 
+    /// Removes every point whose range (the reading's, or the distance from its ray's
+    /// origin for a cloud without readings) is beyond `max_range_mm`, the sensor's maximum;
+    /// how many were removed.
+    pub fn mask_beyond(&mut self, max_range_mm: f64) -> usize {
+        let keep: Vec<bool> = (0..self.len())
+            .map(|i| {
+                let r = match &self.readings {
+                    Some(rs) => rs[i].range_mm,
+                    None => (self.points[i] - self.origin(i)).norm(),
+                };
+                r <= max_range_mm
+            })
+            .collect();
+        let removed = keep.iter().filter(|k| !**k).count();
+        if removed > 0 {
+            let mut k = keep.iter();
+            self.points
+                .retain(|_| *k.next().expect("one flag per point"));
+            if let Some(o) = &mut self.origins {
+                let mut k = keep.iter();
+                o.retain(|_| *k.next().expect("one flag per point"));
+            }
+            if let Some(r) = &mut self.readings {
+                let mut k = keep.iter();
+                r.retain(|_| *k.next().expect("one flag per point"));
+            }
+        }
+        removed
+    }
+
     /// Appends another cloud.
     pub fn extend(&mut self, other: Cloud) {
         self.readings = match (self.readings.take(), other.readings) {
@@ -173,6 +203,38 @@ mod tests {
         let c = Cloud::from_scans(&h, vec![Ok(s)], &MountModel::default()).unwrap();
         assert_eq!(c.len(), 2);
         assert!((c.points[1].y - 1000.0 * 10f64.to_radians().sin()).abs() < 1e-9);
+    }
+
+    #[test]
+    fn points_beyond_the_maximum_range_are_removed_with_their_origins_and_readings() {
+        let h = ScanHeader {
+            angle_min_deg: -10.0,
+            angle_increment_deg: 10.0,
+            mm_per_unit: 1.0,
+            time_increment_s: None,
+        };
+        let s = ScanLine {
+            line: 1,
+            stamp_s: 0.0,
+            servo_deg: 30.0,
+            servo_end_deg: None,
+            ranges_mm: vec![1000.0, 9000.0, 2000.0],
+            intensities: Vec::new(),
+        };
+        let mount = MountModel {
+            offset_mm: [5.0, 0.0, 0.0],
+            ..MountModel::default()
+        };
+        let mut c = Cloud::from_scans(&h, vec![Ok(s)], &mount).unwrap();
+        let (p0, p2) = (c.points[0], c.points[2]);
+        assert_eq!(c.mask_beyond(5600.0), 1);
+        assert_eq!(c.points, vec![p0, p2]);
+        assert_eq!(c.origins.as_ref().unwrap().len(), 2);
+        let r: Vec<f64> = c.readings.unwrap().iter().map(|r| r.range_mm).collect();
+        assert_eq!(r, vec![1000.0, 2000.0]);
+        let mut p = Cloud::from_points(vec![Vector3::new(3000.0, 4000.0, 0.0), Vector3::x()]);
+        assert_eq!(p.mask_beyond(4999.0), 1);
+        assert_eq!(p.points, vec![Vector3::x()]);
     }
 
     #[test]

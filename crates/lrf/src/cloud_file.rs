@@ -4,20 +4,53 @@
 
 use crate::cloud::{Cloud, MountModel};
 use crate::error::{LrfError, Result};
+use crate::scan::Masked;
 
 /// Reads one file into a cloud: `.ply` (ascii or binary), `.pcd` ([`crate::pcd`]), `.xyz`/`.txt`/`.pts` (text
 /// columns) or, for anything else, the `pingcal-scan` CSV.
 pub fn read_cloud_file(path: &std::path::Path, mount: &MountModel) -> Result<Cloud> {
+    read_cloud_file_masked(path, mount).map(|(c, _)| c)
+}
+
+/// [`read_cloud_file`], with the ranges of a scan file masked for being beyond any range
+/// finder ([`crate::scan::ScanReader::masked`]).
+fn read_cloud_file_masked(path: &std::path::Path, mount: &MountModel) -> Result<(Cloud, Masked)> {
+    let none = Masked::default();
     match file_kind(path) {
-        CloudFileKind::Ply => crate::ply::read_ply_file(path),
-        CloudFileKind::Xyz => crate::xyz::read_xyz_file(path),
-        CloudFileKind::Pcd => crate::pcd::read_pcd_file(path),
+        CloudFileKind::Ply => Ok((crate::ply::read_ply_file(path)?, none)),
+        CloudFileKind::Xyz => Ok((crate::xyz::read_xyz_file(path)?, none)),
+        CloudFileKind::Pcd => Ok((crate::pcd::read_pcd_file(path)?, none)),
         CloudFileKind::Scans => {
-            let reader = crate::scan::open_scan_file(path)?;
+            let mut reader = crate::scan::open_scan_file(path)?;
             let header = reader.header();
-            non_empty(Cloud::from_scans(&header, reader, mount)?, path)
+            let c = Cloud::from_scans(&header, reader.by_ref(), mount)?;
+            let masked = reader.masked();
+            if c.is_empty() && masked.count > 0 {
+                return Err(LrfError::Empty {
+                    file: path.display().to_string(),
+                    msg: format!(
+                        "no valid ranges in any scan: {}",
+                        masked.describe(&format!("beyond {:e} mm", crate::scan::MAX_RANGE_MM))
+                    ),
+                });
+            }
+            Ok((non_empty(c, path)?, masked))
         }
     }
+}
+
+/// The warning for ranges of `path` masked for being beyond any range finder, if any.
+pub fn masked_warning(path: &std::path::Path, masked: &Masked) -> Option<String> {
+    (masked.count > 0).then(|| {
+        format!(
+            "{}: {}",
+            path.display(),
+            masked.describe(&format!(
+                "beyond {:e} mm (no range finder reaches that: a corrupt value?)",
+                crate::scan::MAX_RANGE_MM
+            ))
+        )
+    })
 }
 
 /// What [`read_cloud_file`] reads a file as, by its extension.
@@ -125,9 +158,10 @@ pub fn read_cloud_file_in(
     unit: CloudUnit,
 ) -> Result<(Cloud, Vec<String>)> {
     let kind = file_kind(path);
-    let mut c = read_cloud_file(path, mount)?;
+    let (mut c, masked) = read_cloud_file_masked(path, mount)?;
     let mut warnings = Vec::new();
     if kind == CloudFileKind::Scans {
+        warnings.extend(masked_warning(path, &masked));
         return Ok((c, warnings));
     }
     let k = unit.to_mm();
@@ -166,6 +200,37 @@ pub fn read_cloud_file_in(
     Ok((c, warnings))
 }
 
+/// The `lrf_model` block of a file (the `results.json` of `pingcal calibrate`, the
+/// `mount.json` of `pingcal lrf-mount`, or a file that is that block alone): the whole
+/// mount and range model, checked (finite values, scale errors that are small fractions).
+/// An error names the file and what is missing.
+pub fn read_lrf_model(path: &std::path::Path) -> Result<crate::sensor::MountModel> {
+    let file = path.display().to_string();
+    let text = std::fs::read_to_string(path).map_err(|e| LrfError::io(&file, e))?;
+    let invalid = |msg: String| LrfError::Invalid(format!("{file}: {msg}"));
+    let v: serde_json::Value =
+        serde_json::from_str(&text).map_err(|e| invalid(format!("not JSON ({e})")))?;
+    let block = v.get("lrf_model").unwrap_or(&v);
+    if block.get("offset_mm").is_none() {
+        return Err(invalid(
+            "no `lrf_model` block (offset_mm, tilt_x_deg, …): expected the results.json of `pingcal calibrate` or the mount.json of `pingcal lrf-mount`".into(),
+        ));
+    }
+    let m: crate::sensor::MountModel =
+        serde_json::from_value(block.clone()).map_err(|e| invalid(format!("lrf_model: {e}")))?;
+    m.check([
+        "offset_mm",
+        "tilt_x_deg",
+        "tilt_z_deg",
+        "servo_zero_deg",
+        "servo_scale",
+        "range_offset_mm",
+        "range_scale",
+    ])
+    .map_err(|e| invalid(format!("lrf_model: {e}")))?;
+    Ok(m)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -189,36 +254,4 @@ mod tests {
         assert!(w.is_empty(), "{w:?}");
         assert!((m.points[0] - c.points[0] * 1000.0).norm() < 1e-9);
     }
-}
-
-/// The `lrf_model` block of a file (the `results.json` of `pingcal calibrate`, the
-/// `mount.json` of `pingcal lrf-mount`, or a file that is that block alone): the whole
-/// mount and range model, checked (finite values, scale errors that are small fractions).
-/// An error names the file and what is missing.
-pub fn read_lrf_model(path: &std::path::Path) -> Result<crate::sensor::MountModel> {
-    let file = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|e| LrfError::io(&file, e))?;
-    let invalid = |msg: String| LrfError::Invalid(format!("{file}: {msg}"));
-    let v: serde_json::Value =
-        serde_json::from_str(&text).map_err(|e| invalid(format!("not JSON ({e})")))?;
-    let block = v.get("lrf_model").unwrap_or(&v);
-    if block.get("offset_mm").is_none() {
-        return Err(invalid(
-            "no `lrf_model` block (offset_mm, tilt_x_deg, …): expected the results.json of `pingcal calibrate` or the mount.json of `pingcal lrf-mount`".into(),
-        ));
-    }
-    let m: crate::sensor::MountModel =
-        serde_json::from_value(block.clone()).map_err(|e| invalid(format!("lrf_model: {e}")))?;
-    if !(m.to_params().iter().all(|v| v.is_finite()) && m.servo_zero_deg.is_finite()) {
-        return Err(invalid(
-            "lrf_model: every value must be a finite number".into(),
-        ));
-    }
-    if !(m.servo_scale.abs() < 0.5 && m.range_scale.abs() < 0.5) {
-        return Err(invalid(format!(
-            "lrf_model: servo_scale {} / range_scale {}: expected scale errors, small fractions",
-            m.servo_scale, m.range_scale
-        )));
-    }
-    Ok(m)
 }

@@ -18,8 +18,11 @@
 //! - [`ply`], [`xyz`], [`pcd`]: PLY (ascii/binary), text and PCD (ascii, binary,
 //!   binary_compressed through [`lzf`]) clouds; labelled point files.
 //! - [`sphere_fit`]: along-ray fixed-radius fit, orthogonal and free-radius fits, covariances.
+//! - [`clustering`]: Euclidean clusters with a link per point, in time bounded by the points.
 //! - [`ball_finder`]: planes removed, clusters, RANSAC with radius bounds, along-ray fit,
 //!   mixed-pixel rejection; balls with too few points are reported, not used.
+//! - [`sphere_size`]: when nothing of the nominal size is found, a sphere of another size the
+//!   cloud shows, if any.
 //! - [`room`]: the mount self-calibrated from the room's planes (walls, floor, ceiling seen
 //!   from both half-sweeps), and the beam-on-plane observation the joint adjustment adds.
 //! - [`registration`]: Horn/Umeyama closed form, weighted least squares with the covariances of
@@ -36,6 +39,7 @@ pub mod ball_finder;
 pub mod beam;
 pub mod cloud;
 pub mod cloud_file;
+pub mod clustering;
 pub mod corner;
 pub mod corner_baseline;
 pub mod correspondence;
@@ -49,6 +53,7 @@ pub mod scan;
 pub mod sensor;
 pub mod simulate;
 pub mod sphere_fit;
+pub mod sphere_size;
 pub mod xyz;
 
 pub use cloud::Cloud;

@@ -216,6 +216,15 @@ pub fn read_pcd(bytes: &[u8], file: &str) -> Result<Cloud> {
                 format!("no field {n:?} among FIELDS {}", names.join(" ")),
             )
         })?;
+        if fields[i].count != 1 {
+            return Err(hdr(
+                cl,
+                format!(
+                    "COUNT: field {n:?} has count {}: a coordinate is one number per point",
+                    fields[i].count
+                ),
+            ));
+        }
         if fields[i].kind != 'F' {
             return Err(hdr(
                 tl,
@@ -465,6 +474,16 @@ mod tests {
         let t = "# c\nVERSION .7\nFIELDS x y z n\nSIZE 4 4 4 4\nTYPE F F F F\nCOUNT 1 1 1 3\nWIDTH 2\nHEIGHT 1\nPOINTS 2\nDATA ascii\n1 2 3 0 0 0\nnan nan nan 1 1 1\n";
         let c = read_pcd(t.as_bytes(), "a.pcd").unwrap();
         assert_eq!(c.points, vec![Vector3::new(1.0, 2.0, 3.0)]);
+    }
+
+    #[test]
+    fn a_coordinate_with_a_count_is_refused() {
+        let t = "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 2\nWIDTH 1\nDATA ascii\n1 2 3 4\n";
+        let e = read_pcd(t.as_bytes(), "z.pcd").unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "z.pcd:5: COUNT: field \"z\" has count 2: a coordinate is one number per point"
+        );
     }
 
     #[test]

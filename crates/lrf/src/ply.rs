@@ -79,35 +79,25 @@ impl Scalar {
     }
 }
 
+/// A property of an element: one number, or a list (its count's type, its items' type).
+#[derive(Clone, Copy, Debug)]
+enum Prop {
+    Scalar(Scalar),
+    List(Scalar, Scalar),
+}
+
 struct Element {
     name: String,
     count: usize,
-    /// (name, type); `None` type marks a list property.
-    props: Vec<(String, Option<Scalar>)>,
+    props: Vec<(String, Prop)>,
 }
 
-/// Reads a PLY cloud (the vertex positions).
+/// Reads a PLY cloud (the vertex positions). Every element the header declares is read
+/// (a list's length from its count), so a header that disagrees with its data — faces
+/// declared and absent, a property missing from a line, data left over — is refused.
 pub fn read_ply<R: BufRead>(mut input: R, file: &str) -> Result<Cloud> {
-    let mut buf = Vec::new();
     let mut line_no = 0;
-    let mut next_line = |input: &mut R, line_no: &mut usize| -> Result<String> {
-        buf.clear();
-        *line_no += 1;
-        let n = input
-            .read_until(b'\n', &mut buf)
-            .map_err(|e| LrfError::io(file, e))?;
-        if n == 0 {
-            return Err(LrfError::parse(
-                file,
-                *line_no,
-                "end of file inside the PLY header (no `end_header`)",
-            ));
-        }
-        let s = std::str::from_utf8(&buf)
-            .map_err(|_| LrfError::parse(file, *line_no, "header is not text"))?;
-        Ok(LrfError::without_bom(*line_no, s).trim().to_string())
-    };
-    let first = next_line(&mut input, &mut line_no).map_err(|e| match e {
+    let first = next_line(&mut input, file, &mut line_no).map_err(|e| match e {
         LrfError::Parse { .. } => LrfError::Empty {
             file: file.into(),
             msg: "empty file (expected `ply`)".into(),
@@ -117,10 +107,153 @@ pub fn read_ply<R: BufRead>(mut input: R, file: &str) -> Result<Cloud> {
     if first != "ply" {
         return Err(LrfError::parse(file, 1, "expected `ply` as the first line"));
     }
+    let (format, elements) = read_header(&mut input, file, &mut line_no)?;
+    let Some(vi) = elements.iter().position(|e| e.name == "vertex") else {
+        return Err(LrfError::parse(
+            file,
+            line_no,
+            "header has no `element vertex`",
+        ));
+    };
+    let vertex = &elements[vi];
+    let find = |n: &str| vertex.props.iter().position(|(p, _)| p == n);
+    let (Some(ix), Some(iy), Some(iz)) = (find("x"), find("y"), find("z")) else {
+        return Err(LrfError::parse(
+            file,
+            line_no,
+            "vertex element lacks an x, y or z property",
+        ));
+    };
+    for (i, n) in [(ix, "x"), (iy, "y"), (iz, "z")] {
+        if let Prop::List(..) = vertex.props[i].1 {
+            return Err(LrfError::parse(
+                file,
+                line_no,
+                format!("vertex property {n} is a list: expected one number per vertex"),
+            ));
+        }
+    }
+    let mut pts = Vec::with_capacity(vertex.count.min(1 << 24));
+    let mut record = Vec::new();
+    for (e, el) in elements.iter().enumerate() {
+        for k in 0..el.count {
+            match format {
+                Format::Ascii => {
+                    let l = next_line(&mut input, file, &mut line_no)
+                        .map_err(|_| LrfError::parse(file, line_no, ends_after(k, el)))?;
+                    ascii_record(&l, el, &mut record)
+                        .map_err(|m| LrfError::parse(file, line_no, m))?;
+                }
+                f => {
+                    binary_record(&mut input, el, f == Format::BinBe, &mut record).map_err(|m| {
+                        match m {
+                            None => LrfError::parse(
+                                file,
+                                k + 1,
+                                format!(
+                                    "binary {} {} of {}: file ends early",
+                                    el.name,
+                                    k + 1,
+                                    el.count
+                                ),
+                            ),
+                            Some(m) => LrfError::parse(
+                                file,
+                                k + 1,
+                                format!("binary {} {}: {m}", el.name, k + 1),
+                            ),
+                        }
+                    })?
+                }
+            }
+            if e == vi {
+                let p = Vector3::new(record[ix], record[iy], record[iz]);
+                if let Some(a) = (0..3).find(|&a| !(p[a].abs() <= MAX_COORDINATE_MM)) {
+                    let n = ["x", "y", "z"][a];
+                    let at = if format == Format::Ascii {
+                        line_no
+                    } else {
+                        k + 1
+                    };
+                    return Err(LrfError::parse(
+                        file,
+                        at,
+                        if p[a].is_finite() {
+                            format!(
+                                "{n}: {:e} mm is beyond ±{MAX_COORDINATE_MM:e} mm (10 km)",
+                                p[a]
+                            )
+                        } else {
+                            format!("{n}: not a finite number within ±{MAX_COORDINATE_MM:e} mm")
+                        },
+                    ));
+                }
+                pts.push(p);
+            }
+        }
+    }
+    let last = elements.last().expect("the vertex element at least");
+    if format == Format::Ascii {
+        // Nothing but blank lines may follow the last element.
+        let mut rest = String::new();
+        loop {
+            rest.clear();
+            line_no += 1;
+            let n = input
+                .read_line(&mut rest)
+                .map_err(|e| LrfError::io(file, e))?;
+            if n == 0 {
+                break;
+            }
+            if !rest.trim().is_empty() {
+                return Err(trailing(file, line_no, last));
+            }
+        }
+    } else {
+        let mut one = [0u8; 1];
+        if input.read(&mut one).map_err(|e| LrfError::io(file, e))? > 0 {
+            return Err(trailing(file, last.count + 1, last));
+        }
+    }
+    if pts.is_empty() {
+        return Err(LrfError::Empty {
+            file: file.into(),
+            msg: "no vertices".into(),
+        });
+    }
+    Ok(Cloud::from_points(pts))
+}
+
+/// The next line of the header or an ascii body, trimmed (a byte-order mark before `ply`
+/// skipped); an error at the end of the file.
+fn next_line<R: BufRead>(input: &mut R, file: &str, line_no: &mut usize) -> Result<String> {
+    let mut buf = Vec::new();
+    *line_no += 1;
+    let n = input
+        .read_until(b'\n', &mut buf)
+        .map_err(|e| LrfError::io(file, e))?;
+    if n == 0 {
+        return Err(LrfError::parse(
+            file,
+            *line_no,
+            "end of file inside the PLY header (no `end_header`)",
+        ));
+    }
+    let s = std::str::from_utf8(&buf).map_err(|_| LrfError::parse(file, *line_no, "not text"))?;
+    Ok(LrfError::without_bom(*line_no, s).trim().to_string())
+}
+
+/// The header after `ply`: the format and the elements.
+fn read_header<R: BufRead>(
+    input: &mut R,
+    file: &str,
+    line_no: &mut usize,
+) -> Result<(Format, Vec<Element>)> {
     let mut format = None;
     let mut elements: Vec<Element> = Vec::new();
     loop {
-        let l = next_line(&mut input, &mut line_no)?;
+        let l = next_line(input, file, line_no)?;
+        let line_no = *line_no;
         let w: Vec<&str> = l.split_whitespace().collect();
         match w.first().copied() {
             None | Some("comment") | Some("obj_info") => {}
@@ -148,191 +281,139 @@ pub fn read_ply<R: BufRead>(mut input: R, file: &str) -> Result<Cloud> {
                 let Some(el) = elements.last_mut() else {
                     return Err(LrfError::parse(file, line_no, "property before any element"));
                 };
-                if w.get(1) == Some(&"list") {
-                    el.props.push((w.get(4).unwrap_or(&"").to_string(), None));
+                let ty = |i: usize| w.get(i).and_then(|t| Scalar::parse(t));
+                let prop = if w.get(1) == Some(&"list") {
+                    match (ty(2), ty(3), w.get(4), w.len()) {
+                        (Some(c), Some(t), Some(name), 5) => (name.to_string(), Prop::List(c, t)),
+                        _ => return Err(LrfError::parse(file, line_no, "expected `property list COUNT_TYPE ITEM_TYPE NAME`")),
+                    }
                 } else {
-                    let (Some(t), Some(name)) = (w.get(1).and_then(|t| Scalar::parse(t)), w.get(2)) else {
-                        return Err(LrfError::parse(file, line_no, "expected `property TYPE NAME`"));
-                    };
-                    el.props.push((name.to_string(), Some(t)));
-                }
+                    match (ty(1), w.get(2), w.len()) {
+                        (Some(t), Some(name), 3) => (name.to_string(), Prop::Scalar(t)),
+                        _ => return Err(LrfError::parse(file, line_no, "expected `property TYPE NAME`")),
+                    }
+                };
+                el.props.push(prop);
             }
             Some("end_header") => break,
             Some(other) => return Err(LrfError::parse(file, line_no, format!("unknown header keyword {other:?}"))),
         }
     }
     let format =
-        format.ok_or_else(|| LrfError::parse(file, line_no, "header has no `format` line"))?;
-    let Some(vi) = elements.iter().position(|e| e.name == "vertex") else {
+        format.ok_or_else(|| LrfError::parse(file, *line_no, "header has no `format` line"))?;
+    if let Some(e) = elements.iter().find(|e| e.props.is_empty() && e.count > 0) {
         return Err(LrfError::parse(
             file,
-            line_no,
-            "header has no `element vertex`",
+            *line_no,
+            format!(
+                "element {} declares {} records and no property",
+                e.name, e.count
+            ),
         ));
+    }
+    Ok((format, elements))
+}
+
+/// "file ends after k of N vertices" (or whatever the element holds).
+fn ends_after(k: usize, el: &Element) -> String {
+    let what = match el.name.as_str() {
+        "vertex" => "vertices".to_string(),
+        "face" => "faces".to_string(),
+        n => format!("`{n}` elements"),
     };
-    let vertex = &elements[vi];
-    let find = |n: &str| vertex.props.iter().position(|(p, _)| p == n);
-    let (Some(ix), Some(iy), Some(iz)) = (find("x"), find("y"), find("z")) else {
-        return Err(LrfError::parse(
-            file,
-            line_no,
-            "vertex element lacks an x, y or z property",
-        ));
+    format!("file ends after {k} of {} {what}", el.count)
+}
+
+/// The longest list a PLY element may hold (a face of a million corners is none).
+const MAX_LIST: f64 = 1e6;
+
+/// The values of one ascii line of `el` into `out` (one per property, NaN for a list),
+/// or what is wrong: a value missing or left over, a non-number, a list count that is not one.
+fn ascii_record(line: &str, el: &Element, out: &mut Vec<f64>) -> std::result::Result<(), String> {
+    out.clear();
+    let mut w = line.split_whitespace();
+    let mut number = |what: &str| -> std::result::Result<f64, String> {
+        let t = w
+            .next()
+            .ok_or_else(|| format!("{} {what}: missing (the line ends early)", el.name))?;
+        t.parse::<f64>()
+            .map_err(|_| format!("{what}: expected a number, found {t:?}"))
     };
-    let skip_before: usize = elements[..vi].iter().map(|e| e.count).sum();
-    let mut pts = Vec::with_capacity(vertex.count.min(1 << 24));
-    if format == Format::Ascii {
-        if elements[..vi].iter().any(|e| e.count > 0) {
-            // skip the lines of the elements written before the vertices
-            for _ in 0..skip_before {
-                next_line(&mut input, &mut line_no).map_err(|_| {
-                    LrfError::parse(file, line_no, "file ends before the vertex list")
-                })?;
-            }
-        }
-        for k in 0..vertex.count {
-            let l = next_line(&mut input, &mut line_no).map_err(|_| {
-                LrfError::parse(
-                    file,
-                    line_no,
-                    format!("file ends after {k} of {} vertices", vertex.count),
-                )
-            })?;
-            let w: Vec<&str> = l.split_whitespace().collect();
-            if w.len() < vertex.props.len() {
-                return Err(LrfError::parse(
-                    file,
-                    line_no,
-                    format!("expected {} values, found {}", vertex.props.len(), w.len()),
-                ));
-            }
-            let g = |i: usize, n: &str| -> Result<f64> {
-                match w[i].parse::<f64>() {
-                    Ok(v) if v.abs() <= MAX_COORDINATE_MM => Ok(v),
-                    Ok(v) if v.is_finite() => Err(LrfError::parse(
-                        file,
-                        line_no,
-                        format!("{n}: {v:e} mm is beyond ±{MAX_COORDINATE_MM:e} mm (10 km)"),
-                    )),
-                    _ => Err(LrfError::parse(
-                        file,
-                        line_no,
-                        format!("{n}: expected a number, found {:?}", w[i]),
-                    )),
+    for (name, p) in &el.props {
+        match p {
+            Prop::Scalar(_) => out.push(number(name)?),
+            Prop::List(..) => {
+                let n = number(name)?;
+                if !((0.0..=MAX_LIST).contains(&n) && n.fract() == 0.0) {
+                    return Err(format!("{name}: list length {n} is not a count"));
                 }
-            };
-            pts.push(Vector3::new(g(ix, "x")?, g(iy, "y")?, g(iz, "z")?));
-        }
-        if vi + 1 == elements.len() {
-            // Nothing but blank lines may follow the last element.
-            let mut rest = String::new();
-            loop {
-                rest.clear();
-                line_no += 1;
-                let n = input
-                    .read_line(&mut rest)
-                    .map_err(|e| LrfError::io(file, e))?;
-                if n == 0 {
-                    break;
+                for _ in 0..n as usize {
+                    number(name)?;
                 }
-                if !rest.trim().is_empty() {
-                    return Err(trailing(file, line_no, vertex.count));
-                }
-            }
-        }
-    } else {
-        let be = format == Format::BinBe;
-        for e in &elements[..vi] {
-            if e.props.iter().any(|p| p.1.is_none()) && e.count > 0 {
-                return Err(LrfError::parse(
-                    file,
-                    line_no,
-                    format!(
-                        "binary element {:?} with a list before the vertices is not supported",
-                        e.name
-                    ),
-                ));
-            }
-            let rec: usize = e.props.iter().map(|p| p.1.map_or(0, |s| s.size())).sum();
-            let bytes = (rec as u64).saturating_mul(e.count as u64);
-            let skipped = std::io::copy(&mut (&mut input).take(bytes), &mut std::io::sink())
-                .map_err(|ev| LrfError::io(file, ev))?;
-            if skipped != bytes {
-                return Err(LrfError::parse(
-                    file,
-                    line_no,
-                    "file ends before the vertex list",
-                ));
-            }
-        }
-        if vertex.props.iter().any(|p| p.1.is_none()) {
-            return Err(LrfError::parse(
-                file,
-                line_no,
-                "binary vertex element with a list property is not supported",
-            ));
-        }
-        let offs: Vec<(usize, Scalar)> = vertex
-            .props
-            .iter()
-            .scan(0usize, |o, p| {
-                let s = p.1.unwrap_or(Scalar::U8);
-                let r = (*o, s);
-                *o += s.size();
-                Some(r)
-            })
-            .collect();
-        let rec: usize = offs.iter().map(|o| o.1.size()).sum();
-        let mut r = vec![0u8; rec];
-        for k in 0..vertex.count {
-            input.read_exact(&mut r).map_err(|_| {
-                LrfError::parse(
-                    file,
-                    k + 1,
-                    format!(
-                        "binary vertex {} of {}: file ends early",
-                        k + 1,
-                        vertex.count
-                    ),
-                )
-            })?;
-            let v = |i: usize| offs[i].1.decode(&r[offs[i].0..], be);
-            let p = Vector3::new(v(ix), v(iy), v(iz));
-            if !p.iter().all(|c| c.abs() <= MAX_COORDINATE_MM) {
-                return Err(LrfError::parse(
-                    file,
-                    k + 1,
-                    format!(
-                        "binary vertex {}: not a finite number within ±{MAX_COORDINATE_MM:e} mm",
-                        k + 1
-                    ),
-                ));
-            }
-            pts.push(p);
-        }
-        if vi + 1 == elements.len() {
-            let mut one = [0u8; 1];
-            if input.read(&mut one).map_err(|e| LrfError::io(file, e))? > 0 {
-                return Err(trailing(file, vertex.count + 1, vertex.count));
+                out.push(f64::NAN);
             }
         }
     }
-    if pts.is_empty() {
-        return Err(LrfError::Empty {
-            file: file.into(),
-            msg: "no vertices".into(),
-        });
+    if let Some(t) = w.next() {
+        return Err(format!(
+            "{} has {} properties, the line has more values ({t:?}): a header that disagrees with its data?",
+            el.name,
+            el.props.len()
+        ));
     }
-    Ok(Cloud::from_points(pts))
+    Ok(())
+}
+
+/// The values of one binary record of `el` into `out` (as [`ascii_record`]); `Err(None)`
+/// when the file ends inside it.
+fn binary_record<R: Read>(
+    input: &mut R,
+    el: &Element,
+    be: bool,
+    out: &mut Vec<f64>,
+) -> std::result::Result<(), Option<String>> {
+    out.clear();
+    let mut b = [0u8; 8];
+    let mut read = |s: Scalar, input: &mut R| -> std::result::Result<f64, Option<String>> {
+        input.read_exact(&mut b[..s.size()]).map_err(|_| None)?;
+        Ok(s.decode(&b, be))
+    };
+    for (name, p) in &el.props {
+        match *p {
+            Prop::Scalar(s) => out.push(read(s, input)?),
+            Prop::List(c, t) => {
+                let n = read(c, input)?;
+                if !(0.0..=MAX_LIST).contains(&n) {
+                    return Err(Some(format!("{name}: list length {n} is not a count")));
+                }
+                let bytes = n as u64 * t.size() as u64;
+                let skipped = std::io::copy(&mut input.take(bytes), &mut std::io::sink())
+                    .map_err(|_| None)?;
+                if skipped != bytes {
+                    return Err(None);
+                }
+                out.push(f64::NAN);
+            }
+        }
+    }
+    Ok(())
 }
 
 /// The error for data after the last element the header declares (a duplicated or extra
 /// line shifts the vertices, so the cloud read would be wrong).
-fn trailing(file: &str, line: usize, count: usize) -> LrfError {
+fn trailing(file: &str, line: usize, last: &Element) -> LrfError {
+    let what = match last.name.as_str() {
+        "vertex" => "vertices".to_string(),
+        "face" => "faces".to_string(),
+        n => format!("`{n}` elements"),
+    };
     LrfError::parse(
         file,
         line,
-        format!("trailing data after the {count} vertices the header declares: a duplicated or extra line?"),
+        format!(
+            "trailing data after the {} {what} the header declares: a duplicated or extra line?",
+            last.count
+        ),
     )
 }
 
@@ -499,6 +580,65 @@ mod tests {
             19.0,
             "the radius"
         );
+    }
+
+    /// Issue 39: a header that disagrees with its data is refused, whatever element it
+    /// concerns.
+    #[test]
+    fn a_header_that_disagrees_with_its_data_is_refused() {
+        let head = "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\n";
+        let faces =
+            "element face 100\nproperty list uchar int vertex_indices\nend_header\n1 2 3\n4 5 6\n";
+        let e = read_ply(format!("{head}{faces}").as_bytes(), "f.ply")
+            .unwrap_err()
+            .to_string();
+        assert_eq!(e, "f.ply:12: file ends after 0 of 100 faces");
+        let one = format!("{head}{}3 0 1 1\n", faces.replace("face 100", "face 1"));
+        assert_eq!(read_ply(one.as_bytes(), "f.ply").unwrap().len(), 2);
+        let e = read_ply(format!("{one}3 0 1 1\n").as_bytes(), "f.ply")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("f.ply:13: trailing data after the 1 faces"),
+            "{e}"
+        );
+        let e = read_ply(one.replace("3 0 1 1", "3 0 1").as_bytes(), "f.ply")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("face vertex_indices: missing"), "{e}");
+        let z_list = "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty list uchar float z\nend_header\n1 2 1 3\n";
+        let e = read_ply(z_list.as_bytes(), "z.ply")
+            .unwrap_err()
+            .to_string();
+        assert_eq!(
+            e,
+            "z.ply:7: vertex property z is a list: expected one number per vertex"
+        );
+        let extra = format!("{head}end_header\n1 2 3 4\n5 6 7\n");
+        let e = read_ply(extra.as_bytes(), "x.ply").unwrap_err().to_string();
+        assert!(
+            e.starts_with("x.ply:8: vertex has 3 properties, the line has more values"),
+            "{e}"
+        );
+        let empty = "ply\nformat binary_little_endian 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\nelement nothing 1000000000000000000\nend_header\n";
+        let e = read_ply(empty.as_bytes(), "n.ply").unwrap_err().to_string();
+        assert!(
+            e.contains("element nothing declares 1000000000000000000 records and no property"),
+            "{e}"
+        );
+        // binary faces declared and absent
+        let mut b = b"ply\nformat binary_little_endian 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\nelement face 100\nproperty list uchar int vertex_indices\nend_header\n".to_vec();
+        for v in [1.0f32, 2.0, 3.0] {
+            b.extend_from_slice(&v.to_le_bytes());
+        }
+        let e = read_ply(&b[..], "b.ply").unwrap_err().to_string();
+        assert!(e.contains("binary face 1 of 100: file ends early"), "{e}");
+        b.push(3);
+        for i in [0i32, 0, 0] {
+            b.extend_from_slice(&i.to_le_bytes());
+        }
+        let e = read_ply(&b[..], "b.ply").unwrap_err().to_string();
+        assert!(e.contains("binary face 2 of 100: file ends early"), "{e}");
     }
 
     #[test]

@@ -317,11 +317,11 @@ fn plane_residual(
         d_plane[3 + j] = -gain * basis[j] / s;
     }
     let mut d_mount = [0.0; 8];
-    for k in 0..6 {
+    for (k, dm) in d_mount.iter_mut().enumerate().take(6) {
         let (dob, dub) = (b.d_origin[k], b.d_dir[k]);
         let dt0 = -(n.dot(&dob) + t0 * n.dot(&dub)) / s;
         let dh = dob + dub * t0 + b.dir * dt0;
-        d_mount[k] = -gain * d_tau(dt0, dh, n.dot(&dub));
+        *dm = -gain * d_tau(dt0, dh, n.dot(&dub));
     }
     d_mount[6] = -1.0;
     d_mount[7] = -tau;
@@ -735,8 +735,8 @@ fn normal_equations(
         }
     }
     for (k, v) in planes.values.iter().enumerate() {
-        for j in 3..PLANE_UNKNOWNS {
-            prior(8 + PLANE_UNKNOWNS * k + j, v[j], FLATNESS_MM);
+        for (j, &vj) in v.iter().enumerate().take(PLANE_UNKNOWNS).skip(3) {
+            prior(8 + PLANE_UNKNOWNS * k + j, vj, FLATNESS_MM);
         }
     }
     for j in (0..8).filter(|&j| !f.free[j]) {

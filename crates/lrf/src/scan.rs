@@ -14,14 +14,20 @@
 //! error codes, and 0) mean "no return" and are stored as `0.0`.
 //!
 //! A range above [`MAX_RANGE_MM`] (1 km; the URG-04LX reaches 5.6 m, long-range 2D
-//! scanners some 100 m) is refused, naming the file and line. It is not treated as a
-//! glitch to skip: a range finder reports a failed beam as an error code or as 0, never as
-//! 1e300, so such a number means the line was corrupted or written with the wrong unit, and
-//! the other ranges of that line cannot be trusted either. Skipping it silently would also
-//! let it through into the cloud (an infinite PLY vertex) and the plane and ball search (a
-//! point far away that made one file take 140× longer and changed what was found).
-//! A time stamp beyond ±1e12 s or a servo angle beyond ±1e6° is refused likewise. A
-//! UTF-8 byte-order mark at the start is skipped.
+//! scanners some 100 m) is beyond any range finder: it is masked as no return and counted
+//! ([`ScanReader::masked`]), and the caller warns with the count and the first line. One
+//! such glitch in a long log leaves the other ranges of the sweep usable; masking it keeps
+//! it out of the cloud (an infinite PLY vertex) and out of the plane and ball search, and
+//! the warning keeps it from passing unseen. Ranges beyond the sensor's own maximum (a
+//! project's `[lrf] max_range_mm`) are masked likewise by the caller
+//! ([`ScanLine::mask_beyond`]). A non-number, an infinite or a negative range is refused,
+//! naming the file and line, as is a time stamp beyond ±1e12 s or a servo angle beyond
+//! ±1e6°. A UTF-8 byte-order mark at the start is skipped.
+//!
+//! **Beam geometry.** `angle_min_deg` must lie within ±360° and the beams must span at
+//! most one turn (`|angle_increment_deg| · (beams − 1) ≤ 360°`): a header beyond that (an
+//! increment of 1e308, or of 360° per beam) describes no scanner, and the file is refused
+//! naming the header line, before any point is made.
 //!
 //! **Time stamps.** Scans must come in time order: a `stamp_s` earlier than the previous
 //! scan's is refused, naming both lines (the file was concatenated or sorted by something
@@ -78,8 +84,12 @@ use std::io::{BufRead, Write};
 /// Ranges under this many millimetres are URG error codes: no return.
 pub const MIN_VALID_RANGE_MM: f64 = 20.0;
 
-/// Ranges above this many millimetres (1 km) are beyond any 2D range finder: refused.
+/// Ranges above this many millimetres (1 km) are beyond any 2D range finder: masked as no
+/// return and counted ([`ScanReader::masked`]).
 pub const MAX_RANGE_MM: f64 = 1e6;
+
+/// The beams of a scan span at most this many degrees (one turn).
+pub const MAX_SPAN_DEG: f64 = 360.0;
 
 /// The header of a scan file: the beam geometry shared by all lines.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -146,6 +156,62 @@ impl ScanLine {
     pub fn is_sweep(&self) -> bool {
         self.servo_end_deg.is_some_and(|e| e != self.servo_deg)
     }
+
+    /// Masks (sets to no return) every range beyond `max_range_mm`, the sensor's maximum;
+    /// how many were masked.
+    pub fn mask_beyond(&mut self, max_range_mm: f64) -> usize {
+        let mut n = 0;
+        for r in &mut self.ranges_mm {
+            if *r > max_range_mm {
+                *r = 0.0;
+                n += 1;
+            }
+        }
+        n
+    }
+}
+
+/// Ranges masked while reading or building a cloud: how many, and the first file line that
+/// had one (0 when not read from a file).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Masked {
+    /// Ranges masked.
+    pub count: usize,
+    /// The first line with one.
+    pub first_line: Option<usize>,
+}
+
+impl Masked {
+    /// Counts `n` ranges masked on `line`.
+    pub fn add(&mut self, n: usize, line: usize) {
+        if n > 0 {
+            self.count += n;
+            self.first_line.get_or_insert(line);
+        }
+    }
+
+    /// "N range(s) … (first on line L)", for a warning: `what` says beyond what.
+    pub fn describe(&self, what: &str) -> String {
+        format!(
+            "{} range{} {what} masked as no return{}",
+            self.count,
+            if self.count == 1 { "" } else { "s" },
+            match self.first_line {
+                Some(l) if l > 0 => format!(" (first on line {l})"),
+                _ => String::new(),
+            }
+        )
+    }
+}
+
+/// Masks the ranges of `lines` beyond `max_range_mm` ([`ScanLine::mask_beyond`]).
+pub fn mask_lines_beyond(lines: &mut [ScanLine], max_range_mm: f64) -> Masked {
+    let mut m = Masked::default();
+    for l in lines {
+        let n = l.mask_beyond(max_range_mm);
+        m.add(n, l.line);
+    }
+    m
 }
 
 /// A streaming reader of a `pingcal-scan` CSV file.
@@ -169,6 +235,8 @@ pub struct ScanReader<R: BufRead> {
     /// (duplicated records; one buffer reused for every line).
     previous: Option<(usize, f64)>,
     previous_text: String,
+    /// Ranges beyond [`MAX_RANGE_MM`] masked so far.
+    masked: Masked,
 }
 
 fn read_line<R: BufRead>(
@@ -237,6 +305,15 @@ fn parse_intensities(file: &str, line: usize, fields: &[&str]) -> Result<Vec<f32
         .collect()
 }
 
+/// `v` as written for a message: plainly, or in e-notation when it is huge or tiny.
+pub fn short(v: f64) -> String {
+    if v != 0.0 && !(1e-4..1e9).contains(&v.abs()) {
+        format!("{v:e}")
+    } else {
+        format!("{v}")
+    }
+}
+
 fn parse_f64(file: &str, line: usize, what: &str, s: &str) -> Result<f64> {
     let t = s.trim();
     match t.parse::<f64>() {
@@ -263,6 +340,7 @@ impl<R: BufRead> ScanReader<R> {
         let mut intensities = false;
         let mut time_increment_s = None;
         let mut pending = None;
+        let mut columns_line = 0;
         loop {
             line_no += 1;
             let Some(line) = read_line(&mut input, &mut buf, file, line_no)? else {
@@ -294,7 +372,20 @@ impl<R: BufRead> ScanReader<R> {
                 if let Some((k, v)) = rest.split_once('=') {
                     let (k, v) = (k.trim(), v.trim());
                     match k {
-                        "angle_min_deg" => angle_min = Some(parse_f64(file, line_no, k, v)?),
+                        "angle_min_deg" => {
+                            let a = parse_f64(file, line_no, k, v)?;
+                            if !(a.abs() <= MAX_SPAN_DEG) {
+                                return Err(LrfError::parse(
+                                    file,
+                                    line_no,
+                                    format!(
+                                        "angle_min_deg = {}: expected an angle within ±{MAX_SPAN_DEG}°",
+                                        short(a)
+                                    ),
+                                ));
+                            }
+                            angle_min = Some(a)
+                        }
                         "angle_increment_deg" => {
                             let inc = parse_f64(file, line_no, k, v)?;
                             if inc == 0.0 {
@@ -343,6 +434,7 @@ impl<R: BufRead> ScanReader<R> {
                     .map_err(|e| LrfError::parse(file, line_no, e))?;
                 n_beams = Some(n);
                 intensities = with_i;
+                columns_line = line_no;
                 continue;
             }
             if version.is_some_and(|v| v >= 2) && n_beams.is_none() {
@@ -367,7 +459,7 @@ impl<R: BufRead> ScanReader<R> {
         }
         let angle_min_deg = angle_min.ok_or_else(|| missing("angle_min_deg"))?;
         let angle_increment_deg = increment.ok_or_else(|| missing("angle_increment_deg"))?;
-        Ok(ScanReader {
+        let reader = ScanReader {
             input,
             file: file.to_string(),
             header: ScanHeader {
@@ -385,7 +477,12 @@ impl<R: BufRead> ScanReader<R> {
             failed: false,
             previous: None,
             previous_text: String::new(),
-        })
+            masked: Masked::default(),
+        };
+        if let Some(n) = n_beams {
+            reader.check_span(n, columns_line)?;
+        }
+        Ok(reader)
     }
 
     /// The beam geometry.
@@ -396,6 +493,28 @@ impl<R: BufRead> ScanReader<R> {
     /// Number of beams per scan, once known (column line or first scan).
     pub fn n_beams(&self) -> Option<usize> {
         self.n_beams
+    }
+
+    /// The ranges beyond [`MAX_RANGE_MM`] masked in the scans read so far.
+    pub fn masked(&self) -> Masked {
+        self.masked
+    }
+
+    /// Refuses beams that span more than a turn, once their number is known.
+    fn check_span(&self, n_beams: usize, line_no: usize) -> Result<()> {
+        let span = self.header.angle_increment_deg.abs() * n_beams.saturating_sub(1) as f64;
+        if !(span <= MAX_SPAN_DEG) {
+            return Err(LrfError::parse(
+                &self.file,
+                line_no,
+                format!(
+                    "angle_increment_deg = {} over {n_beams} beams spans {}°: the beams of a scan span at most {MAX_SPAN_DEG}° (a wrong header?)",
+                    short(self.header.angle_increment_deg),
+                    short(span)
+                ),
+            ));
+        }
+        Ok(())
     }
 
     fn parse_scan(&mut self, line_no: usize, line: &str) -> Result<ScanLine> {
@@ -437,6 +556,7 @@ impl<R: BufRead> ScanReader<R> {
             }
         }
         let mut ranges_mm = Vec::with_capacity(self.n_beams.unwrap_or(0));
+        let mut masked = 0;
         let mut intensities = Vec::new();
         let rest: Vec<&str> = fields.collect();
         let mut range_fields = &rest[..];
@@ -466,13 +586,9 @@ impl<R: BufRead> ScanReader<R> {
             }
             let mm = v * self.header.mm_per_unit;
             if mm > MAX_RANGE_MM {
-                return Err(LrfError::parse(
-                    file,
-                    line_no,
-                    format!(
-                        "range r{i}: {mm:e} mm is beyond any range finder (at most {MAX_RANGE_MM:e} mm): a corrupt line or a wrong range_unit?"
-                    ),
-                ));
+                masked += 1;
+                ranges_mm.push(0.0);
+                continue;
             }
             ranges_mm.push(if mm < MIN_VALID_RANGE_MM { 0.0 } else { mm });
         }
@@ -491,9 +607,13 @@ impl<R: BufRead> ScanReader<R> {
                     format!("expected {n} ranges, found {}", ranges_mm.len()),
                 ))
             }
-            None => self.n_beams = Some(ranges_mm.len()),
+            None => {
+                self.check_span(ranges_mm.len(), line_no)?;
+                self.n_beams = Some(ranges_mm.len())
+            }
             _ => {}
         }
+        self.masked.add(masked, line_no);
         Ok(ScanLine {
             line: line_no,
             stamp_s,
@@ -858,12 +978,21 @@ mod tests {
     }
 
     #[test]
-    fn ranges_beyond_any_sensor_are_refused_with_the_line() {
+    fn ranges_beyond_any_sensor_are_masked_and_counted_with_the_line() {
         let t = GOOD.replace("1531,7,1529", "1531,1e300,1529");
-        let e = read_all(&t).unwrap_err().to_string();
+        let mut r = ScanReader::new(t.as_bytes(), "t.csv").unwrap();
+        let v = r.by_ref().collect::<Result<Vec<_>>>().unwrap();
+        assert_eq!(v[1].ranges_mm, vec![1531.0, 0.0, 1529.0]);
         assert_eq!(
-            e,
-            "t.csv:8: range r1: 1e300 mm is beyond any range finder (at most 1e6 mm): a corrupt line or a wrong range_unit?"
+            r.masked(),
+            Masked {
+                count: 1,
+                first_line: Some(8)
+            }
+        );
+        assert_eq!(
+            r.masked().describe("beyond 1e6 mm"),
+            "1 range beyond 1e6 mm masked as no return (first on line 8)"
         );
         let t = GOOD.replace("1531,7,1529", "1531,inf,1529");
         let e = read_all(&t).unwrap_err().to_string();
@@ -871,10 +1000,40 @@ mod tests {
         // 1 km exactly is still a range.
         let t = GOOD.replace("1531,7,1529", "1531,1000000,1529");
         assert_eq!(read_all(&t).unwrap().1[1].ranges_mm[1], 1e6);
+        // the sensor's own maximum, by the caller
+        let (_, mut v) = read_all(GOOD).unwrap();
+        let m = mask_lines_beyond(&mut v, 1530.0);
+        assert_eq!((m.count, m.first_line), (2, Some(7)));
+        assert_eq!(v[0].ranges_mm, vec![0.0, 1530.0, 0.0]);
     }
 
     #[test]
-    fn the_bad_inputs_with_huge_ranges_are_refused() {
+    fn beams_spanning_more_than_a_turn_are_refused_at_the_header() {
+        for (inc, line) in [("1e308", 6), ("360", 6), ("0.6", 6)] {
+            let t = GOOD.replace("0.3515625", inc);
+            // three beams: 1e308 and 360 span more than a turn, 0.6 does not
+            match read_all(&t) {
+                Ok(_) => assert_eq!(inc, "0.6"),
+                Err(e) => {
+                    let e = e.to_string();
+                    assert!(
+                        e.starts_with(&format!("t.csv:{line}: angle_increment_deg = "))
+                            && e.contains("at most 360°"),
+                        "{e}"
+                    );
+                }
+            }
+        }
+        let t = GOOD.replace("-119.53125", "1e308");
+        let e = read_all(&t).unwrap_err().to_string();
+        assert!(
+            e.contains("angle_min_deg = 1e308: expected an angle within ±360°"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn the_bad_inputs_with_huge_ranges_are_masked() {
         let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
             .join("../../../shared/data/bad-inputs");
         for (name, line) in [
@@ -886,13 +1045,13 @@ mod tests {
                 println!("skipped: {} is absent", path.display());
                 continue;
             }
-            let r = open_scan_file(&path).unwrap();
-            let e = r.collect::<Result<Vec<_>>>().unwrap_err().to_string();
-            assert!(
-                e.contains(&format!("{name}:{line}: range r"))
-                    && e.contains("beyond any range finder"),
-                "{e}"
-            );
+            let mut r = open_scan_file(&path).unwrap();
+            let v = r.by_ref().collect::<Result<Vec<_>>>().unwrap();
+            assert!(v
+                .iter()
+                .flat_map(|l| &l.ranges_mm)
+                .all(|&x| x <= MAX_RANGE_MM));
+            assert_eq!(r.masked().first_line, Some(line), "{name}");
         }
     }
 

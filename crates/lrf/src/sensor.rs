@@ -26,7 +26,7 @@
 //! millimetres as the sensor reports them, and no return when the true range is beyond the
 //! maximum or the reading outside `[min_range, max_range]`.
 
-use crate::scan::{ScanHeader, MIN_VALID_RANGE_MM};
+use crate::scan::{short, ScanHeader, MIN_VALID_RANGE_MM};
 use nalgebra::{Matrix3, Vector3};
 use rand::Rng;
 use rand_distr::StandardNormal;
@@ -53,6 +53,10 @@ pub struct MountModel {
     pub range_scale: f64,
 }
 
+/// The largest mount offset (and range offset) [`MountModel::check`] takes, mm: a scanner
+/// a metre off its servo's axis is no mount.
+pub const MAX_MOUNT_OFFSET_MM: f64 = 1000.0;
+
 /// The names of [`MountModel::to_params`], as `[lrf] self_calibrate` spells them.
 pub const MOUNT_PARAM_NAMES: [&str; 8] = [
     "offset_x",
@@ -78,6 +82,79 @@ impl MountModel {
         let rx = Matrix3::new(1.0, 0.0, 0.0, 0.0, cx, -sx, 0.0, sx, cx);
         let rz = Matrix3::new(cz, -sz, 0.0, sz, cz, 0.0, 0.0, 0.0, 1.0);
         rx * rz
+    }
+
+    /// Refuses a mount no rotating LRF has, naming the value and the bound: an offset or a
+    /// range offset beyond ±[`MAX_MOUNT_OFFSET_MM`], a tilt beyond ±90° (a plane tilted
+    /// further is the same plane turned over), a servo zero beyond ±360°, a scale error of
+    /// 0.5 or more, or any value not finite. `names` spells the values as the caller's user
+    /// wrote them: offset, tilt x, tilt z, servo zero, servo scale, range offset, range scale.
+    pub fn check(&self, names: [&str; 7]) -> Result<(), String> {
+        let o = self.offset_mm;
+        let offset = format!("[{}, {}, {}]", short(o[0]), short(o[1]), short(o[2]));
+        let worst = o.iter().fold(
+            0.0f64,
+            |m, v| if v.is_nan() { f64::NAN } else { m.max(v.abs()) },
+        );
+        let values = [
+            (names[0], worst, offset, MAX_MOUNT_OFFSET_MM, " mm"),
+            (
+                names[1],
+                self.tilt_x_deg.abs(),
+                short(self.tilt_x_deg),
+                90.0,
+                "°",
+            ),
+            (
+                names[2],
+                self.tilt_z_deg.abs(),
+                short(self.tilt_z_deg),
+                90.0,
+                "°",
+            ),
+            (
+                names[3],
+                self.servo_zero_deg.abs(),
+                short(self.servo_zero_deg),
+                360.0,
+                "°",
+            ),
+            (
+                names[4],
+                self.servo_scale.abs(),
+                short(self.servo_scale),
+                0.5,
+                "",
+            ),
+            (
+                names[5],
+                self.range_offset_mm.abs(),
+                short(self.range_offset_mm),
+                MAX_MOUNT_OFFSET_MM,
+                " mm",
+            ),
+            (
+                names[6],
+                self.range_scale.abs(),
+                short(self.range_scale),
+                0.5,
+                "",
+            ),
+        ];
+        for (name, size, shown, bound, unit) in values {
+            // a scale error of 0.5 is already a factor, not an error
+            let within = if bound == 0.5 {
+                size < bound
+            } else {
+                size <= bound
+            };
+            if !within {
+                return Err(format!(
+                    "{name} = {shown}: beyond the bound of a mount, ±{bound}{unit}"
+                ));
+            }
+        }
+        Ok(())
     }
 
     /// True when the model is eq. 2 exactly (every ray starts at the origin).
@@ -225,6 +302,20 @@ pub enum RangeNoise {
 /// UTM-30LX ±30 mm to 10 m, ±50 mm to 30 m → σ 10 mm, 16.7 mm; UST-10LX ±40 mm →
 /// σ 13.3 mm; VLP-16 ±30 mm "typical" → σ 10 mm.
 pub const NOISE_PROFILES: [&str; 4] = ["URG-04LX", "UTM-30LX", "UST-10LX", "VLP-16"];
+
+/// The longest range each sensor of [`NOISE_PROFILES`] reports, mm, in the same order (the
+/// datasheets' detection limit, beyond the guaranteed range): URG-04LX 5.6 m, UTM-30LX
+/// 60 m, UST-10LX 30 m, VLP-16 100 m.
+pub const PROFILE_MAX_RANGE_MM: [f64; 4] = [5600.0, 60_000.0, 30_000.0, 100_000.0];
+
+/// The longest range of the sensor of a named profile ([`PROFILE_MAX_RANGE_MM`]); `None`
+/// for an unknown name.
+pub fn profile_max_range_mm(name: &str) -> Option<f64> {
+    let key = |s: &str| s.to_ascii_uppercase().replace(['-', '_'], "");
+    let k = key(name);
+    let i = NOISE_PROFILES.iter().position(|n| key(n) == k)?;
+    Some(PROFILE_MAX_RANGE_MM[i])
+}
 
 impl Default for RangeNoise {
     fn default() -> Self {
@@ -399,6 +490,43 @@ impl LrfSensor {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_mount_beyond_any_mounts_bounds_is_refused_with_the_bound() {
+        let names = [
+            "offset",
+            "tilt x",
+            "tilt z",
+            "zero",
+            "servo scale",
+            "range offset",
+            "range scale",
+        ];
+        let ok = MountModel {
+            offset_mm: [-1.5, 0.0, 2.0],
+            tilt_x_deg: 1.0,
+            servo_zero_deg: -180.0,
+            range_scale: 0.003,
+            ..MountModel::default()
+        };
+        assert_eq!(ok.check(names), Ok(()));
+        let bad = |edit: fn(&mut MountModel)| {
+            let mut m = ok;
+            edit(&mut m);
+            m.check(names).unwrap_err()
+        };
+        assert_eq!(
+            bad(|m| m.offset_mm[0] = 1e308),
+            "offset = [1e308, 0, 2]: beyond the bound of a mount, ±1000 mm"
+        );
+        assert_eq!(
+            bad(|m| m.tilt_x_deg = 1e308),
+            "tilt x = 1e308: beyond the bound of a mount, ±90°"
+        );
+        assert!(bad(|m| m.offset_mm[2] = f64::NAN).starts_with("offset = [-1.5, 0, NaN]"));
+        assert!(bad(|m| m.servo_scale = 0.5).starts_with("servo scale = 0.5: beyond"));
+        assert!(bad(|m| m.servo_zero_deg = 400.0).contains("±360°"));
+    }
 
     #[test]
     fn eq2_exactly_with_default_mount() {

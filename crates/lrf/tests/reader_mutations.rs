@@ -10,7 +10,8 @@
 //!   refuse the repeated id; PLY, whose header counts the vertices, refuses the extra line);
 //! * a cut of a format without counts: a prefix of the clean result whose last item may be
 //!   cut short (PLY refuses any cut);
-//! * a huge number (1e300) or a non-number: refused.
+//! * a huge number (1e300) or a non-number: refused; in a scan's range, masked as no
+//!   return and counted (issue 39).
 
 use pingcal_lrf::scan::{ScanLine, ScanReader};
 use pingcal_lrf::xyz::{read_labelled, read_xyz, LabelledPoint};
@@ -137,8 +138,17 @@ fn judge<T: PartialEq + std::fmt::Debug + Clone>(
 const SCAN: &str = "# pingcal-scan v1\n# angle_min_deg=-119.53125\n# angle_increment_deg=0.3515625\n# range_unit=mm\nstamp_s,servo_deg,r0,r1,r2\n0.000,-45.056,1532,1530,0\n0.100,-44.9,1531,7,1529\n0.200,-44.8,1500,1501,1502\n";
 
 fn read_scan(text: &str) -> Result<Vec<ScanLine>, String> {
-    let r = ScanReader::new(text.as_bytes(), "s.csv").map_err(|e| e.to_string())?;
-    r.collect::<Result<Vec<_>, _>>().map_err(|e| e.to_string())
+    read_scan_masked(text).map(|(v, _)| v)
+}
+
+/// The scans and how many ranges were masked for being beyond any range finder.
+fn read_scan_masked(text: &str) -> Result<(Vec<ScanLine>, usize), String> {
+    let mut r = ScanReader::new(text.as_bytes(), "s.csv").map_err(|e| e.to_string())?;
+    let v = r
+        .by_ref()
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(|e| e.to_string())?;
+    Ok((v, r.masked().count))
 }
 
 /// Scans compared without their line numbers (a duplicated line moves the later ones).
@@ -165,6 +175,18 @@ proptest! {
     fn scan_csv(m in mutation()) {
         let text = apply(SCAN, &m, |l| !l.starts_with('#') && !l.starts_with("stamp"), &[',']);
         let clean = scan_values(read_scan(SCAN).unwrap());
+        // a range of 1e300 is masked as no return and counted (issue 39), never silently:
+        // the scans read are the clean ones with that range 0, and the count is 1
+        if let (Mutation::Huge(_), Ok((v, masked))) = (&m, read_scan_masked(&text)) {
+            prop_assert_eq!(masked, 1, "a 1e300 range was read without being counted");
+            let got = scan_values(v);
+            let differ: Vec<(usize, usize)> = (0..clean.len())
+                .flat_map(|i| (0..clean[i].2.len()).map(move |j| (i, j)))
+                .filter(|&(i, j)| got[i].2[j] != clean[i].2[j])
+                .collect();
+            prop_assert!(differ.len() <= 1 && differ.iter().all(|&(i, j)| got[i].2[j] == 0.0), "{:?}", got);
+            return Ok(());
+        }
         let got = read_scan(&text).map(scan_values);
         let dup = |k: usize| {
             let lines: Vec<&str> = SCAN.lines().collect();

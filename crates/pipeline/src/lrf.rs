@@ -6,18 +6,21 @@
 //! the URG noise model from the datasheet accuracies (taken as 3σ). Scan files are read once:
 //! their lines make the cloud and are kept for the corner baseline. The bags of
 //! `[lrf.bag]` are read as `pingcal scans` reads them ([`pingcal_rosbag::assemble`]), and
-//! their scans join the cloud in the same way.
+//! their scans join the cloud in the same way. Ranges beyond the sensor's `[lrf]
+//! max_range_mm` (and a scan file's ranges beyond any range finder) are masked as no return
+//! and counted in a warning naming the file and the first line.
 
 use super::{Options, PipelineError, Reporter, Result};
 use pingcal_lrf::ball_finder::{find_balls, FindResult, FinderOptions};
 use pingcal_lrf::cloud::{Cloud, MountModel};
 use pingcal_lrf::cloud_file::{
-    file_kind, non_empty, read_cloud_file_in, read_lrf_model, CloudFileKind, CloudUnit,
+    file_kind, masked_warning, non_empty, read_cloud_file_in, read_lrf_model, CloudFileKind,
+    CloudUnit,
 };
 use pingcal_lrf::room::{mount_from_room, RoomMount, RoomOptions};
-use pingcal_lrf::scan::{open_scan_file, ScanHeader, ScanLine};
+use pingcal_lrf::scan::{mask_lines_beyond, open_scan_file, ScanHeader, ScanLine};
 use pingcal_lrf::sensor::RangeNoise;
-use pingcal_project::{Project, ProjectBag};
+use pingcal_project::{Project, ProjectBag, ProjectLrf};
 use pingcal_rosbag::assemble::{read_scans, ServoMotion, ServoSource, Topics};
 
 /// Rejected clusters smaller than this are counted, not listed one by one (a 38 mm ball
@@ -38,6 +41,34 @@ pub struct LrfData {
     pub noise: RangeNoise,
 }
 
+/// "beyond the sensor's max_range_mm = …", for the warnings of masked ranges.
+fn beyond(max_range_mm: f64) -> String {
+    format!("beyond the sensor's [lrf] max_range_mm = {max_range_mm}")
+}
+
+/// Refuses a mount of `[lrf]` beyond the bounds of any mount ([`MountModel::check`]), before
+/// any work: a value such as 1e308 would otherwise run the whole pipeline into an unrelated
+/// failure.
+pub fn check_mount(project: &Project) -> Result<()> {
+    check_lrf_mount(&project.file.lrf)
+        .map_err(|e| PipelineError::new(format!("{}: {e}", project.path.display())))
+}
+
+/// [`check_mount`] of an `[lrf]` table: the error names the entry, not the file.
+pub fn check_lrf_mount(l: &ProjectLrf) -> std::result::Result<(), String> {
+    mount_of_lrf(l)
+        .check([
+            "mount_offset_mm",
+            "mount_tilt_x_deg",
+            "mount_tilt_z_deg",
+            "servo_zero_deg",
+            "servo_scale",
+            "range_offset_mm",
+            "range_scale",
+        ])
+        .map_err(|e| format!("[lrf] {e}"))
+}
+
 /// The mount model of the project: its `[lrf] lrf_model` file's, or its `mount_*` and
 /// `servo_zero_deg` keys'.
 pub fn mount_of(project: &Project) -> Result<MountModel> {
@@ -46,14 +77,18 @@ pub fn mount_of(project: &Project) -> Result<MountModel> {
             PipelineError::new(format!("{}: [lrf] lrf_model: {e}", project.path.display()))
         });
     }
-    let l = &project.file.lrf;
-    Ok(MountModel {
+    Ok(mount_of_lrf(&project.file.lrf))
+}
+
+/// The mount model of an `[lrf]` table.
+fn mount_of_lrf(l: &ProjectLrf) -> MountModel {
+    MountModel {
         offset_mm: l.mount_offset_mm,
         tilt_x_deg: l.mount_tilt_x_deg,
         tilt_z_deg: l.mount_tilt_z_deg,
         servo_zero_deg: l.servo_zero_deg,
         ..MountModel::default()
-    })
+    }
 }
 
 /// The scans of the `[lrf.bag]` bags, with the servo held or interpolated as `servo_motion`
@@ -128,11 +163,23 @@ pub fn lrf_spheres(project: &Project, opts: &Options, rep: &Reporter) -> Result<
         let err = |e: pingcal_lrf::LrfError| PipelineError::new(e.to_string());
         if file_kind(path) == CloudFileKind::Scans {
             // read once: the lines make the cloud and are kept for the corner baseline
-            let reader = open_scan_file(path).map_err(err)?;
+            let mut reader = open_scan_file(path).map_err(err)?;
             let header = reader.header();
-            let lines = reader
+            let mut lines = reader
+                .by_ref()
                 .collect::<std::result::Result<Vec<_>, _>>()
                 .map_err(err)?;
+            if let Some(w) = masked_warning(path, &reader.masked()) {
+                rep.log(format!("warning: {w}"));
+            }
+            let masked = mask_lines_beyond(&mut lines, l.max_range_mm);
+            if masked.count > 0 {
+                rep.log(format!(
+                    "warning: {}: {}",
+                    path.display(),
+                    masked.describe(&beyond(l.max_range_mm))
+                ));
+            }
             let mut c = Cloud::default();
             for line in &lines {
                 c.push_scan(&header, line, &mount);
@@ -148,16 +195,33 @@ pub fn lrf_spheres(project: &Project, opts: &Options, rep: &Reporter) -> Result<
                     .map_err(|e| PipelineError::new(format!("[lrf] cloud_unit: {e}")))?,
                 None => CloudUnit::default(),
             };
-            let (c, warnings) = read_cloud_file_in(path, &mount, unit).map_err(err)?;
+            let (mut c, warnings) = read_cloud_file_in(path, &mount, unit).map_err(err)?;
             for w in warnings {
                 rep.log(format!("warning: {w}"));
+            }
+            let n = c.mask_beyond(l.max_range_mm);
+            if n > 0 {
+                rep.log(format!(
+                    "warning: {}: {n} point(s) {} masked",
+                    path.display(),
+                    beyond(l.max_range_mm)
+                ));
             }
             cloud.extend(c);
         }
         pb.advance(1);
     }
     if let Some(bag) = &l.bag {
-        for (header, lines) in bag_scans(project, bag, rep)? {
+        for (header, mut lines) in bag_scans(project, bag, rep)? {
+            let masked = mask_lines_beyond(&mut lines, l.max_range_mm);
+            if masked.count > 0 {
+                rep.log(format!(
+                    "warning: [lrf.bag] topic {}: {} ranges {} masked as no return",
+                    bag.scan_topic,
+                    masked.count,
+                    beyond(l.max_range_mm)
+                ));
+            }
             for line in &lines {
                 cloud.push_scan(&header, line, &mount);
             }

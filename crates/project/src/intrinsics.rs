@@ -40,6 +40,14 @@ impl KeyedValues {
     pub fn get(&self, key: &str) -> Option<f64> {
         self.0.iter().find(|(k, _)| k == key).map(|(_, v)| *v)
     }
+
+    /// Sets `key` to `value`, appending it when the table has no such key.
+    pub fn set(&mut self, key: &str, value: f64) {
+        match self.0.iter_mut().find(|(k, _)| k == key) {
+            Some((_, v)) => *v = value,
+            None => self.0.push((key.to_string(), value)),
+        }
+    }
 }
 
 impl Serialize for KeyedValues {

@@ -87,6 +87,27 @@ fn read_small(path: &Path, what: &str) -> Result<String, ProjectError> {
     std::fs::read_to_string(path).map_err(|e| io(e.to_string()))
 }
 
+/// Refuses a file named twice, under any spelling (`images/./a.png`, `../p/images/a.png`, a
+/// symbolic link): the paths are compared as [`std::fs::canonicalize`] resolves them.
+/// `names[k]` names `paths[k]` in the error; `file` is the project file.
+fn once_each(paths: &[PathBuf], names: &[String], file: &str) -> Result<(), ProjectError> {
+    let mut seen: std::collections::HashMap<PathBuf, usize> = Default::default();
+    for (k, p) in paths.iter().enumerate() {
+        let canon = std::fs::canonicalize(p).unwrap_or_else(|_| p.clone());
+        if let Some(&first) = seen.get(&canon) {
+            return Err(ProjectError::Invalid {
+                path: file.to_string(),
+                what: format!(
+                    "{} is the same file as {}: each file is listed once",
+                    names[k], names[first]
+                ),
+            });
+        }
+        seen.insert(canon, k);
+    }
+    Ok(())
+}
+
 /// A project file read, checked, with its paths resolved.
 #[derive(Debug, Clone)]
 pub struct Project {
@@ -149,6 +170,14 @@ impl Project {
             .enumerate()
             .map(|(k, s)| resolve(s, format!("[lrf] scans[{k}] \"{s}\"")))
             .collect::<Result<Vec<_>, _>>()?;
+        let images: Vec<String> = (file.images.iter().enumerate())
+            .map(|(k, im)| format!("images[{k}] file \"{}\"", im.file))
+            .collect();
+        once_each(&image_paths, &images, &name)?;
+        let scans: Vec<String> = (file.lrf.scans.iter().enumerate())
+            .map(|(k, s)| format!("[lrf] scans[{k}] \"{s}\""))
+            .collect();
+        once_each(&scan_paths, &scans, &name)?;
         let layout = match &file.targets.layout {
             None => None,
             Some(rel) => {
@@ -169,6 +198,10 @@ impl Project {
             .enumerate()
             .map(|(k, s)| resolve_as(s, format!("[lrf.bag] files[{k}] \"{s}\""), Path::exists))
             .collect::<Result<Vec<_>, _>>()?;
+        let bag_names: Vec<String> = (bags.iter().enumerate())
+            .map(|(k, s)| format!("[lrf.bag] files[{k}] \"{s}\""))
+            .collect();
+        once_each(&bag_paths, &bag_names, &name)?;
         let lrf_model_path = match &file.lrf.lrf_model {
             Some(rel) => Some(resolve(rel, format!("[lrf] lrf_model \"{rel}\""))?),
             None => None,

@@ -591,3 +591,133 @@ fn an_lrf_bag_section_is_read_and_checked() {
     let t = text.replace("servo_joint = ", "servo_jiont = ");
     assert!(ProjectFile::parse(&t, "p.toml").is_err());
 }
+
+/// Issue 39: values no camera, ball or mount can have are refused with the bound named, and
+/// a mount parameter that is never estimated is refused in `self_calibrate`.
+#[test]
+fn implausible_values_are_refused_with_the_bound() {
+    let e = err_of(|p| p.cameras[0].initial.set("k1", 1e308));
+    assert!(
+        e.contains("cameras[0] (id 'left'): initial k1 = 1e308: the distortion would move the sensor's corner by"),
+        "{e}"
+    );
+    let e = err_of(|p| p.cameras[0].initial.set("p2", -1e3));
+    assert!(e.contains("initial p2 = -1000"), "{e}");
+    let e = err_of(|p| p.cameras[0].initial.set("c_mm", 1e6));
+    assert!(
+        e.contains("initial c_mm = 1000000: more than 100 times"),
+        "{e}"
+    );
+    let e = err_of(|p| p.cameras[1].initial.set("xp_mm", 3.0));
+    assert!(
+        e.contains("the principal point must lie on the sensor"),
+        "{e}"
+    );
+    let e = err_of(|p| p.cameras[0].initial.set("b2", 2.0));
+    assert!(
+        e.contains("initial b2 = 2: an affinity or shear beyond ±0.5"),
+        "{e}"
+    );
+    // a model in pixels is bounded in pixels
+    let pixels = |fx: f64, cx: f64| {
+        move |p: &mut ProjectFile| {
+            let c = &mut p.cameras[0];
+            c.model = CameraModel::OpenCv;
+            c.free = Parameter::of(CameraModel::OpenCv);
+            c.initial = KeyedValues(vec![
+                ("fx".into(), fx),
+                ("fy".into(), 611.0),
+                ("cx".into(), cx),
+                ("cy".into(), 360.0),
+            ]);
+        }
+    };
+    let e = err_of(pixels(611.0, -5.0));
+    assert!(
+        e.contains("initial cx = -5, cy = 360: the principal point must lie on the image (0 to 1280, 0 to 720 px)"),
+        "{e}"
+    );
+    let e = err_of(pixels(1e9, 640.0));
+    assert!(
+        e.contains("initial fx = 1e9: more than 100 times the image's diagonal"),
+        "{e}"
+    );
+    let mut p = ProjectFile::parse(&readme_example(), "example.toml").unwrap();
+    pixels(611.0, 640.0)(&mut p);
+    p.validate("p.toml").unwrap();
+    // a strong but real wide-angle distortion passes (15 % at the corner)
+    let mut p = ProjectFile::parse(&readme_example(), "example.toml").unwrap();
+    p.cameras[0].initial.set("k1", -0.02);
+    p.validate("p.toml").unwrap();
+    let e = err_of(|p| p.targets.dot_radius_mm = 1e300);
+    assert!(
+        e.contains("[targets] dot_radius_mm = 1e300: beyond the bound of 1e6 mm"),
+        "{e}"
+    );
+    let e = err_of(|p| p.distances[0].distance_mm = 2e6);
+    assert!(
+        e.contains("distance_mm = 2000000: beyond the bound of 1e6 mm"),
+        "{e}"
+    );
+    let e = err_of(|p| p.lrf.accuracy_far_fraction = 3.0);
+    assert!(
+        e.contains("[lrf] accuracy_far_fraction = 3: beyond the bound of 1e0"),
+        "{e}"
+    );
+    let e = err_of(|p| p.balls.labels[0].id = String::new());
+    assert!(e.contains("[balls] labels: an id is empty"), "{e}");
+    let e = err_of(|p| p.lrf.self_calibrate = Some(vec![MountParameter::OffsetY]));
+    assert!(
+        e.contains("[lrf] self_calibrate: \"offset_y\" is the LRF frame's origin")
+            && e.contains("estimable: offset_x, offset_z, tilt_x"),
+        "{e}"
+    );
+    let mut p = ProjectFile::parse(&readme_example(), "example.toml").unwrap();
+    p.lrf.self_calibrate = Some(vec![MountParameter::OffsetX, MountParameter::TiltZ]);
+    p.validate("p.toml").unwrap();
+}
+
+/// Issue 39: one image or scan listed twice under two spellings is refused by the files'
+/// canonical paths (the project's own check compares the text only).
+#[test]
+fn a_file_listed_twice_under_two_spellings_is_refused() {
+    let dir = std::env::temp_dir().join(format!("pingcal-project-twice-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(dir.join("images")).unwrap();
+    std::fs::create_dir_all(dir.join("scans")).unwrap();
+    let base = ProjectFile::parse(&readme_example(), "example.toml").unwrap();
+    for im in &base.images {
+        std::fs::write(dir.join(&im.file), b"").unwrap();
+    }
+    for s in &base.lrf.scans {
+        std::fs::write(dir.join(s), b"").unwrap();
+    }
+    let toml = dir.join("project.toml");
+    let load = |p: &ProjectFile| {
+        std::fs::write(&toml, p.to_toml_string()).unwrap();
+        Project::load(&toml)
+    };
+    load(&base).unwrap();
+    let mut p = base.clone();
+    let first = p.images[0].file.clone();
+    let (d, f) = first.rsplit_once('/').unwrap();
+    p.images[1].file = format!("{d}/./{f}");
+    let e = load(&p).unwrap_err().to_string();
+    assert!(
+        e.contains(&format!(
+            "images[1] file \"{d}/./{f}\" is the same file as images[0] file \"{first}\""
+        )),
+        "{e}"
+    );
+    let mut p = base.clone();
+    let s = p.lrf.scans[0].clone();
+    p.lrf.scans.push(s.clone());
+    let e = load(&p).unwrap_err().to_string();
+    assert!(
+        e.contains(&format!(
+            "[lrf] scans[1] \"{s}\" is the same file as [lrf] scans[0] \"{s}\""
+        )),
+        "{e}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

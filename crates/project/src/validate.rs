@@ -13,7 +13,7 @@ use crate::schema::{
     ProjectBag, ProjectBalls, ProjectCamera, ProjectDistance, ProjectFile, ProjectFrames,
     ProjectImage, ProjectLrf, ProjectNetwork, ProjectStereo, ProjectTargets,
 };
-use crate::ProjectError;
+use crate::{MountParameter, ProjectError};
 use std::collections::{BTreeMap, BTreeSet};
 
 /// Camera ids of `[[cameras]]`.
@@ -115,7 +115,19 @@ fn validate_targets(t: &ProjectTargets) -> Result<(), String> {
             t.layout_sigma_mm
         ));
     }
-    Ok(())
+    at_most(
+        "[targets] dot_radius_mm",
+        t.dot_radius_mm,
+        MAX_LENGTH_MM,
+        " mm",
+    )?;
+    at_most("[targets] ring_outer", t.ring_outer, 1000.0, " dot radii")?;
+    at_most(
+        "[targets] layout_sigma_mm",
+        t.layout_sigma_mm,
+        MAX_LENGTH_MM,
+        " mm",
+    )
 }
 
 /// `[balls]`: a positive diameter, labels with unique ids and finite positions, check balls
@@ -127,14 +139,24 @@ fn validate_balls(b: &ProjectBalls) -> Result<(), String> {
             b.diameter_mm
         ));
     }
+    at_most("[balls] diameter_mm", b.diameter_mm, MAX_LENGTH_MM, " mm")?;
     let mut seen = BTreeSet::new();
     for l in &b.labels {
+        if l.id.trim().is_empty() {
+            return Err(format!(
+                "[balls] labels: an id is empty (at x = {}, y = {}): expected the ball's name, e.g. \"B1\"",
+                l.x, l.y
+            ));
+        }
         if !seen.insert(l.id.as_str()) {
             return Err(format!("[balls] labels: id '{}' appears twice", l.id));
         }
         if !(l.x.is_finite() && l.y.is_finite()) {
             return Err(format!("[balls] labels: '{}' has no finite position", l.id));
         }
+        let label = format!("[balls] labels: '{}' x", l.id);
+        at_most(&label, l.x.abs(), MAX_PIXELS, " px")?;
+        at_most(&label.replace("' x", "' y"), l.y.abs(), MAX_PIXELS, " px")?;
     }
     let mut checks = BTreeSet::new();
     if let Some(c) = b.check.iter().find(|c| !checks.insert(c.as_str())) {
@@ -171,9 +193,9 @@ fn validate_cameras(cameras: &[ProjectCamera]) -> Result<CameraIds<'_>, String> 
 /// One camera: an image size, a pixel pitch in mm, a positive principal distance and finite
 /// initial values.
 fn validate_camera(c: &ProjectCamera) -> Result<(), String> {
-    if c.width < 16 || c.height < 16 {
+    if c.width < 16 || c.height < 16 || f64::from(c.width.max(c.height)) > MAX_PIXELS {
         return Err(format!(
-            "{}×{} pixels is not an image size",
+            "{}×{} pixels is not an image size (16 to {MAX_PIXELS:e} a side)",
             c.width, c.height
         ));
     }
@@ -226,7 +248,159 @@ fn validate_camera(c: &ProjectCamera) -> Result<(), String> {
             ));
         }
     }
+    plausible_initial(c)
+}
+
+/// The initial values of a camera that some lens could have: a principal distance under
+/// [`MAX_C_PER_DIAGONAL`] sensor diagonals, the principal point on the sensor, a distortion
+/// that moves the sensor's corner by less than its distance from the centre, and an
+/// affinity and shear under [`MAX_AFFINITY`]. Each bound is named in the error.
+fn plausible_initial(c: &ProjectCamera) -> Result<(), String> {
+    let v = c.intrinsics().values;
+    if !c.model.kind().in_mm() {
+        return plausible_initial_px(c, &v);
+    }
+    let p = Photogrammetric::of(&v);
+    let (w, h) = (
+        c.width as f64 * c.pixel_size_mm,
+        c.height as f64 * c.pixel_size_mm,
+    );
+    let diag = w.hypot(h);
+    if !(p.c_mm <= MAX_C_PER_DIAGONAL * diag) {
+        return Err(format!(
+            "initial c_mm = {}: more than {MAX_C_PER_DIAGONAL} times the sensor's diagonal ({diag:.3} mm)",
+            short(p.c_mm)
+        ));
+    }
+    if !(p.xp_mm.abs() <= w / 2.0 && p.yp_mm.abs() <= h / 2.0) {
+        return Err(format!(
+            "initial xp_mm = {}, yp_mm = {}: the principal point must lie on the sensor (±{:.3}, ±{:.3} mm)",
+            short(p.xp_mm),
+            short(p.yp_mm),
+            w / 2.0,
+            h / 2.0
+        ));
+    }
+    // the displacement at the corner, r = half the diagonal, bounded term by term
+    let r = diag / 2.0;
+    let terms = [
+        ("k1", p.k1, r.powi(3)),
+        ("k2", p.k2, r.powi(5)),
+        ("k3", p.k3, r.powi(7)),
+        ("p1", p.p1, 3.0 * r * r),
+        ("p2", p.p2, 3.0 * r * r),
+    ];
+    let shift: f64 = terms.iter().map(|(_, k, f)| k.abs() * f).sum();
+    if !(shift < r) {
+        let (name, k, _) = terms
+            .iter()
+            .max_by(|a, b| (a.1.abs() * a.2).total_cmp(&(b.1.abs() * b.2)))
+            .expect("five terms");
+        return Err(format!(
+            "initial {name} = {}: the distortion would move the sensor's corner by {} mm, more than its {r:.3} mm from the centre (K in mm⁻², mm⁻⁴, mm⁻⁶; P in mm⁻¹)",
+            short(*k),
+            short(shift)
+        ));
+    }
+    for (name, b) in [("b1", p.b1), ("b2", p.b2)] {
+        if !(b.abs() <= MAX_AFFINITY) {
+            return Err(format!(
+                "initial {name} = {}: an affinity or shear beyond ±{MAX_AFFINITY}",
+                short(b)
+            ));
+        }
+    }
     Ok(())
+}
+
+/// The ten photogrammetric parameters by name, from the model's slice order.
+struct Photogrammetric {
+    c_mm: f64,
+    xp_mm: f64,
+    yp_mm: f64,
+    k1: f64,
+    k2: f64,
+    k3: f64,
+    p1: f64,
+    p2: f64,
+    b1: f64,
+    b2: f64,
+}
+
+impl Photogrammetric {
+    fn of(v: &[f64]) -> Self {
+        Photogrammetric {
+            c_mm: v[0],
+            xp_mm: v[1],
+            yp_mm: v[2],
+            k1: v[3],
+            k2: v[4],
+            k3: v[5],
+            p1: v[6],
+            p2: v[7],
+            b1: v[8],
+            b2: v[9],
+        }
+    }
+}
+
+/// A model in pixels (`fx, fy, cx, cy, …`): focal lengths under [`MAX_C_PER_DIAGONAL`]
+/// image diagonals and the principal point on the image.
+fn plausible_initial_px(c: &ProjectCamera, v: &[f64]) -> Result<(), String> {
+    let (w, h) = (f64::from(c.width), f64::from(c.height));
+    let diag = w.hypot(h);
+    for (name, f) in [("fx", v[0]), ("fy", v[1])] {
+        if !(f <= MAX_C_PER_DIAGONAL * diag) {
+            return Err(format!(
+                "initial {name} = {}: more than {MAX_C_PER_DIAGONAL} times the image's diagonal ({diag:.0} px)",
+                short(f)
+            ));
+        }
+    }
+    if !((0.0..=w).contains(&v[2]) && (0.0..=h).contains(&v[3])) {
+        return Err(format!(
+            "initial cx = {}, cy = {}: the principal point must lie on the image (0 to {w}, 0 to {h} px)",
+            short(v[2]),
+            short(v[3])
+        ));
+    }
+    Ok(())
+}
+
+/// The longest length a project may give, mm (1 km): a target, a ball, a distance, a
+/// baseline, an LRF range or σ beyond it is no part of a calibration field (a value in the
+/// wrong unit, or a corrupt one).
+const MAX_LENGTH_MM: f64 = 1e6;
+
+/// The largest image side and pixel coordinate a project may give.
+const MAX_PIXELS: f64 = 1e5;
+
+/// Refuses `value` of `key` above `max`, naming the bound (`unit` after the numbers).
+fn at_most(key: &str, value: f64, max: f64, unit: &str) -> Result<(), String> {
+    if value <= max {
+        Ok(())
+    } else {
+        Err(format!(
+            "{key} = {}: beyond the bound of {max:e}{unit} (a value in the wrong unit?)",
+            short(value)
+        ))
+    }
+}
+
+/// A principal distance beyond this many sensor diagonals is no lens (a 600 mm lens on a
+/// 43 mm full-frame diagonal is 14).
+const MAX_C_PER_DIAGONAL: f64 = 100.0;
+
+/// The largest affinity or shear (B1, B2) of a camera's initial values.
+const MAX_AFFINITY: f64 = 0.5;
+
+/// `v` as written for a message: plainly, or in e-notation when it is huge or tiny.
+fn short(v: f64) -> String {
+    if v != 0.0 && !(1e-4..1e9).contains(&v.abs()) {
+        format!("{v:e}")
+    } else {
+        format!("{v}")
+    }
 }
 
 /// `[stereo]`: two different cameras of `[[cameras]]`.
@@ -245,6 +419,7 @@ fn validate_stereo(s: &ProjectStereo, cameras: &CameraIds) -> Result<(), String>
             s.baseline_mm
         ));
     }
+    at_most("[stereo] baseline_mm", s.baseline_mm, MAX_LENGTH_MM, " mm")?;
     Ok(())
 }
 
@@ -318,6 +493,13 @@ fn validate_distances(distances: &[ProjectDistance]) -> Result<(), String> {
                 d.sigma_mm
             ));
         }
+        at_most(
+            &format!("{at}: distance_mm"),
+            d.distance_mm,
+            MAX_LENGTH_MM,
+            " mm",
+        )?;
+        at_most(&format!("{at}: sigma_mm"), d.sigma_mm, MAX_LENGTH_MM, " mm")?;
     }
     Ok(())
 }
@@ -389,6 +571,8 @@ fn validate_lrf(l: &ProjectLrf, main_station: &str) -> Result<(), String> {
                 "[lrf] noise_sigma_mm = [{a}, {b}]: expected a > 0 mm and b >= 0"
             ));
         }
+        at_most("[lrf] noise_sigma_mm a", a, MAX_LENGTH_MM, " mm")?;
+        at_most("[lrf] noise_sigma_mm b", b, 1.0, " (of the range)")?;
     }
     if let Some(u) = &l.cloud_unit {
         if u != "m" && u != "mm" {
@@ -410,6 +594,19 @@ fn validate_lrf(l: &ProjectLrf, main_station: &str) -> Result<(), String> {
                 .into(),
         );
     }
+    at_most("[lrf] max_range_mm", l.max_range_mm, MAX_LENGTH_MM, " mm")?;
+    at_most(
+        "[lrf] accuracy_near_mm",
+        l.accuracy_near_mm,
+        MAX_LENGTH_MM,
+        " mm",
+    )?;
+    at_most(
+        "[lrf] accuracy_far_fraction",
+        l.accuracy_far_fraction,
+        1.0,
+        "",
+    )?;
     if !(l.max_range_mm >= MIN_MAX_RANGE_MM) {
         return Err(format!(
             "[lrf] max_range_mm = {}: expected the sensor's maximum range in mm (at least {MIN_MAX_RANGE_MM}; a value in metres?)",
@@ -420,6 +617,18 @@ fn validate_lrf(l: &ProjectLrf, main_station: &str) -> Result<(), String> {
         return Err(format!(
             "[lrf] servo_resolution_deg = {}: expected the servo encoder's step in degrees, over 0 and at most 10",
             l.servo_resolution_deg
+        ));
+    }
+    if let Some(p) = (l.self_calibrate.iter().flatten()).find(|p| **p == MountParameter::OffsetY) {
+        let estimable: Vec<&str> = MountParameter::ALL
+            .iter()
+            .filter(|q| **q != MountParameter::OffsetY)
+            .map(|q| q.as_str())
+            .collect();
+        return Err(format!(
+            "[lrf] self_calibrate: \"{}\" is the LRF frame's origin along the servo axis, one with the extrinsic's translation: it is never estimated (estimable: {})",
+            p.as_str(),
+            estimable.join(", ")
         ));
     }
     if l.mount_offset_mm.iter().any(|v| !v.is_finite())

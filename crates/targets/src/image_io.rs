@@ -9,6 +9,11 @@
 //! "Premature end of buffer" and fills the missing blocks with grey, so a JPEG is first
 //! walked marker by marker ([`jpeg_truncation`]) and refused when it ends before its
 //! end-of-image marker.
+//!
+//! Before any decoder runs, [`image_checks`](crate::image_checks) holds the header against
+//! the data (a PNG's IHDR against its inflated IDAT, a JPEG's SOF against its coded data, a
+//! TIFF's strip offsets against its header) and refuses an image too large to hold, naming
+//! its size.
 
 pub use crate::raster::GrayImage;
 use crate::raster::{lut_u16, lut_u8, zeroed_f32, NotDecoded, MAX_ALLOC, MAX_SIDE};
@@ -18,6 +23,10 @@ use std::path::Path;
 /// Decodes an encoded image (format guessed from the bytes) to grey `f32`.
 /// `name` is used in error messages.
 pub fn decode_image(bytes: &[u8], name: &str) -> Result<GrayImage, TargetError> {
+    crate::image_checks::check_bytes(bytes).map_err(|what| TargetError::Image {
+        file: name.to_string(),
+        what,
+    })?;
     // Grey strip TIFFs (the usual photogrammetric images) go the fast way; anything it does not
     // handle, or finds damaged, goes on to the general decoder, which has the last word.
     if let Ok(img) = crate::tiff_strips::decode_grey_strips(bytes) {
@@ -166,6 +175,14 @@ fn convert_with<T: Copy + Into<usize> + Sync>(src: &[T], lut: &[f32]) -> Vec<f32
 /// Loads an image file to grey `f32`.
 pub fn load_image(path: &Path) -> Result<GrayImage, TargetError> {
     let name = path.display().to_string();
+    let refused = |what: String| TargetError::Image {
+        file: name.clone(),
+        what,
+    };
+    if let Ok(f) = std::fs::File::open(path) {
+        crate::image_checks::check_png(std::io::BufReader::with_capacity(1 << 16, f))
+            .map_err(refused)?;
+    }
     // A PNG is decoded as it is read (see `png_rows`); if that path does not take it, the file
     // is read again and goes the general way (which then skips the PNG fast path).
     let png_tried = match load_grey_png(path) {
@@ -183,6 +200,7 @@ pub fn load_image(path: &Path) -> Result<GrayImage, TargetError> {
     if png_tried {
         decode_general(&bytes, &name, false)
     } else {
+        crate::image_checks::check_bytes(&bytes).map_err(refused)?;
         decode_image(&bytes, &name)
     }
 }

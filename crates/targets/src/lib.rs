@@ -24,7 +24,7 @@
 //! - [`overlay::draw_detections`]: debug overlay PNG.
 //!
 //! ## Modules, in pipeline order
-//! - [`image_io`]: loading and conversion; [`tiff_strips`]: its fast path for grey strip TIFFs.
+//! - [`image_io`]: loading and conversion, after [`image_checks`] (header against data, size); [`tiff_strips`]: its fast path for grey strip TIFFs.
 //!   [`png_rows`]: its fast path for grey PNGs.
 //! - [`threshold`]: the threshold ladder and per-target local levels (hot spots, vignetting).
 //! - [`blobs`]: connected components with moments.
@@ -47,6 +47,7 @@ pub mod detect;
 pub mod driveback;
 pub mod ellipse;
 pub mod homography;
+pub mod image_checks;
 pub mod image_io;
 pub mod overlay;
 pub mod png_rows;

@@ -86,6 +86,8 @@ pub struct DbatControl {
     pub xyz: [f64; 3],
     /// Standard deviations per axis (weighted control), `None` for fixed control.
     pub sigma: Option<[f64; 3]>,
+    /// 1-based line of the control file.
+    pub line: usize,
 }
 
 /// The camera of a DBAT project as pingcal needs it.
@@ -564,6 +566,7 @@ pub fn parse_control(text: &str, file: &str) -> Result<Vec<DbatControl>, DbatErr
             label: f[1].into(),
             xyz,
             sigma,
+            line,
         });
     }
     if out.is_empty() {
@@ -658,10 +661,45 @@ pub fn read_dbat(
 ) -> Result<Measurements, DbatError> {
     let marks = parse_markpts(&read(markpts)?, &markpts.display().to_string())?;
     let ctrl = match control {
-        Some(c) => parse_control(&read(c)?, &c.display().to_string())?,
+        Some(c) => {
+            let ctrl = parse_control(&read(c)?, &c.display().to_string())?;
+            check_control_magnitudes(&ctrl, &c.display().to_string(), object_unit_mm)?;
+            ctrl
+        }
         None => Vec::new(),
     };
     Ok(to_measurements(&marks, &ctrl, camera, object_unit_mm))
+}
+
+/// Refuses a control coordinate or σ that would be beyond the measurement format's
+/// ±[`MAX_MAGNITUDE`] mm once scaled by `object_unit_mm`, naming the control file, its line
+/// and the value as written there (the scaled one would be blamed on the mark points).
+fn check_control_magnitudes(
+    control: &[DbatControl],
+    file: &str,
+    object_unit_mm: f64,
+) -> Result<(), DbatError> {
+    let bound = MAX_MAGNITUDE / object_unit_mm;
+    for c in control {
+        let sigma = c.sigma.unwrap_or_default();
+        let values = ["X", "Y", "Z"]
+            .into_iter()
+            .zip(c.xyz)
+            .chain(["sx", "sy", "sz"].into_iter().zip(sigma));
+        for (what, v) in values {
+            if !(v.abs() <= bound) {
+                return Err(DbatError::Line {
+                    file: file.into(),
+                    line: c.line,
+                    message: format!(
+                        "control point '{}': {what} = {v} is beyond ±{bound:e} in the file's unit ({object_unit_mm} mm each: ±{MAX_MAGNITUDE:e} mm)",
+                        super::printable(&c.id)
+                    ),
+                });
+            }
+        }
+    }
+    Ok(())
 }
 
 #[cfg(test)]
@@ -727,6 +765,32 @@ mod tests {
             parse_markpts("# nothing\n", "m.txt"),
             Err(DbatError::Empty { .. })
         ));
+    }
+
+    #[test]
+    fn a_control_value_beyond_the_format_names_the_control_file_and_line_unscaled() {
+        let dir = std::env::temp_dir().join(format!("pingcal-dbat-ctrl-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let (m, c) = (dir.join("markpts.txt"), dir.join("control.txt"));
+        std::fs::write(&m, MARKS).unwrap();
+        std::fs::write(
+            &c,
+            "# Id,label,X,Y,Z\n1001,CP1,0,1,0\n1002,CP2,1,1,-2147483648\n",
+        )
+        .unwrap();
+        let e = read_dbat(&m, Some(&c), &DbatCamera::c4040z(), 1000.0)
+            .unwrap_err()
+            .to_string();
+        assert_eq!(
+            e,
+            format!(
+                "{}:3: control point '1002': Z = -2147483648 is beyond ±1e9 in the file's unit (1000 mm each: ±1e12 mm)",
+                c.display()
+            )
+        );
+        // in the file's own unit (mm) the same value is within the bound
+        assert!(read_dbat(&m, Some(&c), &DbatCamera::c4040z(), 1.0).is_ok());
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     #[test]

@@ -528,6 +528,23 @@ fn run_measurements(path: &std::path::Path, args: &Args) -> CmdResult {
         pingcal_ba::datum::check(&built.problem, args.free_network)
             .map_err(|e| format!("{}: {e}", path.display()))?;
     }
+    // a measurement file that fixes nothing is adjusted as a free network: without a
+    // distance its scale is arbitrary, which is a datum left undefined unless asked for
+    let no_scale =
+        !pingcal_ba::datum::has_datum(&built.problem) && built.problem.distances.is_empty();
+    if no_scale && !args.free_network {
+        return Err(format!(
+            "{}: the datum is not defined: no control point, no fixed image and no distance, so the network's scale is free (the result would be at an arbitrary scale): fix an image (\"fixed\": true, with its pose) and give a distance, give control points, or ask for --free-network",
+            path.display()
+        )
+        .into());
+    }
+    if no_scale {
+        eprintln!(
+            "pingcal ba: warning: {}: a free network without distances: its scale is arbitrary",
+            path.display()
+        );
+    }
     let options = Options {
         max_iterations: args.max_iterations,
         function_tolerance: args.function_tolerance,

@@ -238,39 +238,15 @@ fn below_common_parent(folder: &Path, all: &[&PathBuf]) -> String {
 /// `opencv/` and `kalibr/`, [`pingcal_pipeline::exports`]).
 pub const OUTPUTS: [&str; 3] = ["results.json", "report.html", "cloud.ply"];
 
-/// `path`'s temporary name while it is written: `.NAME.partial` beside it.
-fn partial(path: &Path) -> PathBuf {
-    let name = path.file_name().unwrap_or_default().to_string_lossy();
-    path.with_file_name(format!(".{name}.partial"))
-}
-
-/// Writes `bytes` to `partial(path)` (its folder created), executable when it is a script.
-fn write_partial(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
-    if let Some(parent) = path.parent() {
-        std::fs::create_dir_all(parent)?;
-    }
-    std::fs::write(partial(path), bytes)?;
-    #[cfg(unix)]
-    if path.extension().is_some_and(|x| x == "sh") {
-        use std::os::unix::fs::PermissionsExt;
-        std::fs::set_permissions(partial(path), std::fs::Permissions::from_mode(0o755))?;
-    }
-    Ok(())
-}
-
 /// Writes the outputs of a calibration into `dir`, all or none: `ros/`, `opencv/` and
 /// `kalibr/` ([`pingcal_pipeline::exports`]), `overlays/`, `cloud.ply`, `report.html` and
-/// `results.json`, as one set ([`super::result_set`]): written beside the folder and
+/// `results.json`, as one set ([`result_set::write_set`]): written beside the folder and
 /// swapped in with one exchange of names, so that the folder is always either the earlier
-/// set or the new one, under the folder's lock (a second writer is refused). A folder that
-/// also holds other files is written file by file instead: each to a temporary file
-/// beside its final name, all renamed into place once all are written (`results.json`
-/// last, its presence means the run finished). A run that fails before or while writing
-/// leaves the outputs of an earlier run as they were. `lock`: the folder's, taken before
-/// the run began (a second run into it is refused before any work).
+/// set or the new one, under the folder's lock (a second writer is refused). A run that
+/// fails before or while writing leaves the outputs of an earlier run as they were. `lock`:
+/// the folder's, taken before the run began (a second run into it is refused before any
+/// work).
 pub fn write_outputs(lock: &result_set::FolderLock, outcome: &Outcome) -> CmdResult {
-    let dir = lock.dir();
-    std::fs::create_dir_all(dir).map_err(|e| format!("{}: cannot create: {e}", dir.display()))?;
     let json = serde_json::to_string_pretty(&outcome.results)? + "\n";
     let html = pingcal_report::render_html(&outcome.report);
     let mut set: Vec<result_set::SetFile> = outcome
@@ -284,50 +260,7 @@ pub fn write_outputs(lock: &result_set::FolderLock, outcome: &Outcome) -> CmdRes
     set.push(("cloud.ply".into(), &outcome.cloud_ply));
     set.push(("report.html".into(), html.as_bytes()));
     set.push(("results.json".into(), json.as_bytes()));
-    if result_set::swap_in(dir, &set)? {
-        return Ok(());
-    }
-    let mut files: Vec<(PathBuf, &[u8])> = set.iter().map(|(rel, b)| (dir.join(rel), *b)).collect();
-    // Through symlinks, the file behind them is replaced and the link stays a link.
-    for (path, _) in &mut files {
-        if let super::WriteTarget::Replace(t) = super::write_target(path)? {
-            *path = t;
-        }
-    }
-    for (k, (path, bytes)) in files.iter().enumerate() {
-        if let Err(e) = write_partial(path, bytes) {
-            for (p, _) in &files[..=k] {
-                let _ = std::fs::remove_file(partial(p));
-            }
-            return Err(format!("{}: cannot write: {e}", path.display()).into());
-        }
-    }
-    for (path, _) in &files {
-        std::fs::rename(partial(path), path)
-            .map_err(|e| format!("{}: cannot write: {e}", path.display()))?;
-    }
-    remove_stale_overlays(dir, outcome);
-    Ok(())
-}
-
-/// Removes the PNGs of `dir/overlays/` that this run did not write: those of images an
-/// earlier run had and this one has not, which would otherwise pass for this run's.
-fn remove_stale_overlays(dir: &Path, outcome: &Outcome) {
-    let ours: std::collections::BTreeSet<PathBuf> = outcome
-        .overlays
-        .iter()
-        .map(|(rel, _)| dir.join(rel))
-        .collect();
-    let Ok(entries) = std::fs::read_dir(dir.join("overlays")) else {
-        return;
-    };
-    for e in entries.flatten() {
-        let path = e.path();
-        let is_png = path.extension().is_some_and(|x| x == "png");
-        if is_png && e.file_type().is_ok_and(|t| t.is_file()) && !ours.contains(&path) {
-            let _ = std::fs::remove_file(&path);
-        }
-    }
+    Ok(result_set::write_set(lock, &set)?)
 }
 
 /// Loads and calibrates one project.
@@ -483,6 +416,14 @@ fn error_json_line(path: &Path, dir: &Path, e: &str, secs: f64) -> String {
     .to_string()
 }
 
+/// The warnings of the step log of the project at `path`, each naming it, for stderr.
+fn warnings(path: &Path, rep: &Reporter) -> Vec<String> {
+    (rep.lines().iter())
+        .filter(|l| l.starts_with("warning: "))
+        .map(|w| format!("{}: {w}", path.display()))
+        .collect()
+}
+
 /// Calibrates one project of the run into `dir` and says how it ended. `shown`: the step log
 /// (with its warnings and verdict line) went to stderr already.
 fn calibrate_project(
@@ -509,7 +450,12 @@ fn calibrate_project(
                 fate: Fate::Error,
                 line: args.json.then(|| error_json_line(path, dir, &e, secs)),
                 error: Some(e),
-                stderr: Vec::new(),
+                // the warnings logged before the failure (ranges masked, files beside the
+                // project's) often say why: a quiet run shows them too
+                stderr: match shown {
+                    true => Vec::new(),
+                    false => warnings(path, rep),
+                },
             };
         }
     };
@@ -517,9 +463,7 @@ fn calibrate_project(
     let mut stderr = Vec::new();
     if !shown {
         let name = path.display();
-        for w in rep.lines().iter().filter(|l| l.starts_with("warning: ")) {
-            stderr.push(format!("{name}: {w}"));
-        }
+        stderr.extend(warnings(path, rep));
         for why in &v.reasons {
             stderr.push(format!("{name}: {}: {why}", v.status.as_str()));
         }

@@ -10,7 +10,10 @@
 use super::CmdResult;
 use pingcal_lrf::ball_finder::{find_balls, FinderOptions};
 use pingcal_lrf::cloud::{Cloud, MountModel};
-use pingcal_lrf::cloud_file::{extent_mm, read_cloud_file_in, read_lrf_model, CloudUnit};
+use pingcal_lrf::cloud_file::{
+    extent_mm, file_kind, read_cloud_file_in, read_lrf_model, CloudFileKind, CloudUnit,
+};
+use pingcal_lrf::sensor::{profile_max_range_mm, PROFILE_MAX_RANGE_MM};
 use pingcal_lrf::RangeNoise;
 use std::path::PathBuf;
 
@@ -41,6 +44,12 @@ pub struct Args {
     /// A linear range-noise profile σ = A + B·r (`A,B`: A in mm, B per mm of range).
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
     pub noise_sigma: Option<Vec<f64>>,
+    /// The sensor's longest range, mm: ranges beyond it are masked as no return and counted
+    /// in a warning. By default the named profile's sensor's for scan files (URG-04LX:
+    /// 5600; UTM-30LX 60000, UST-10LX 30000, VLP-16 100000) and none for clouds (PLY, PCD,
+    /// XYZ) or with `--noise-sigma`; given, it applies to every file.
+    #[arg(long)]
+    pub max_range_mm: Option<f64>,
     /// Seed of the RANSAC choices.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -134,6 +143,15 @@ pub fn run(args: Args) -> CmdResult {
             range_scale: args.range_scale,
         },
     };
+    mount.check([
+        "--mount-offset-mm",
+        "--tilt-x-deg",
+        "--tilt-z-deg",
+        "--servo-zero-deg",
+        "--servo-scale",
+        "--range-offset-mm",
+        "--range-scale",
+    ])?;
     let noise = match (&args.noise, &args.noise_sigma) {
         (Some(n), _) => RangeNoise::named(n).map_err(|e| format!("--noise: {e}"))?,
         (None, Some(v)) if v.len() == 2 => {
@@ -151,11 +169,33 @@ pub fn run(args: Args) -> CmdResult {
             super::preflight::check_out_file(option, f)?;
         }
     }
+    if let Some(m) = args.max_range_mm {
+        if !(m > 0.0) {
+            return Err(
+                format!("--max-range-mm: expected a positive range in mm, found {m}").into(),
+            );
+        }
+    }
+    let profile_max = match (&args.noise, &args.noise_sigma) {
+        (Some(n), _) => profile_max_range_mm(n),
+        (None, Some(_)) => None,
+        (None, None) => Some(PROFILE_MAX_RANGE_MM[0]),
+    };
     let mut cloud = Cloud::default();
     for f in &args.scans {
-        let (c, warnings) = read_cloud_file_in(f, &mount, args.unit)?;
+        let (mut c, warnings) = read_cloud_file_in(f, &mount, args.unit)?;
         for w in warnings {
             eprintln!("pingcal: warning: {w}");
+        }
+        let scans = file_kind(f) == CloudFileKind::Scans;
+        if let Some(max) = args.max_range_mm.or(profile_max.filter(|_| scans)) {
+            let n = c.mask_beyond(max);
+            if n > 0 {
+                eprintln!(
+                    "pingcal: warning: {}: {n} range(s) beyond the sensor's {max} mm masked as no return (--max-range-mm to change)",
+                    f.display()
+                );
+            }
         }
         cloud.extend(c);
     }
@@ -175,6 +215,32 @@ pub fn run(args: Args) -> CmdResult {
         ..Default::default()
     };
     let found = find_balls(&cloud, &opt);
+    if found.balls.is_empty() {
+        let evident = pingcal_lrf::sphere_size::evident_spheres(&cloud, &opt);
+        if let Some(best) = evident.first() {
+            let all: Vec<String> = evident
+                .iter()
+                .map(|e| {
+                    let b = &e.found.balls[0];
+                    format!(
+                        "{:.0} mm ({} ball(s), the first at ({:.0}, {:.0}, {:.0}) mm on {} rays)",
+                        e.diameter_mm,
+                        e.found.balls.len(),
+                        b.centre.x,
+                        b.centre.y,
+                        b.centre.z,
+                        b.inliers.len()
+                    )
+                })
+                .collect();
+            eprintln!(
+                "pingcal: warning: no ball of {} mm found, but spheres of another size are evident: {}: --diameter-mm {:.0}?",
+                args.diameter_mm,
+                all.join("; "),
+                best.diameter_mm
+            );
+        }
+    }
     if let Some(out) = &args.out {
         let comments = vec![format!(
             "pingcal cloud: {} points, {} balls of {} mm",

@@ -44,7 +44,10 @@ pub fn run(args: Args) -> CmdResult {
         }
     };
     let multi = (!args.quiet).then(MultiProgress::new);
-    let rep = reporter(multi.as_ref(), "");
+    let rep = match &multi {
+        Some(m) => reporter(Some(m), ""),
+        None => super::progress::quiet_reporter(""),
+    };
     rep.log(format!(
         "demo: simulating the paper's test field (seed {}) into {}",
         args.seed,

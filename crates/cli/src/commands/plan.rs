@@ -65,6 +65,11 @@ pub struct Args {
     /// stop: a `simulation.toml` to edit into your plan. An existing file is not replaced.
     #[arg(long)]
     pub write_config: Option<PathBuf>,
+    /// The head's lenses, as `pingcal simulate --camera-model`: `opencv` (120° wide angle),
+    /// `kannala-brandt` or `double-sphere` (190° fisheyes); replaces `[camera]` of
+    /// `--config` with that lens's defaults (docs/formats.md, "Camera models").
+    #[arg(long)]
+    pub camera_model: Option<String>,
 }
 
 /// What one removal takes out of the project.
@@ -384,6 +389,7 @@ pub fn run(args: Args) -> CmdResult {
         Some(p) => pingcal_sim::SimConfig::from_toml_file(p)?,
         None => pingcal_sim::SimConfig::default(),
     };
+    let cfg = super::simulate::with_camera_model(cfg, args.camera_model.as_deref())?;
     if let Some(path) = &args.write_config {
         check_out_file("--write-config", path)?;
         if path.exists() {

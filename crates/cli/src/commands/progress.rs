@@ -66,3 +66,35 @@ pub fn reporter(multi: Option<&MultiProgress>, prefix: impl Into<String>) -> Rep
         None => Reporter::silent(),
     }
 }
+
+/// The step log of a quiet run: only its warnings, each on stderr as it comes (`--quiet`
+/// hides the progress, never a warning).
+struct WarningsOnly {
+    prefix: String,
+}
+
+struct NoBar;
+
+impl Task for NoBar {
+    fn advance(&self, _: u64) {}
+    fn finish(&self) {}
+}
+
+impl Progress for WarningsOnly {
+    fn line(&self, line: &str) {
+        if line.starts_with("warning: ") {
+            eprintln!("pingcal: {}{line}", self.prefix);
+        }
+    }
+
+    fn task(&self, _: &str, _: u64) -> Box<dyn Task> {
+        Box::new(NoBar)
+    }
+}
+
+/// A reporter for a quiet run: no bars, no log, but every warning on stderr.
+pub fn quiet_reporter(prefix: impl Into<String>) -> Reporter {
+    Reporter::new(Box::new(WarningsOnly {
+        prefix: prefix.into(),
+    }))
+}

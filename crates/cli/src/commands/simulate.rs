@@ -45,9 +45,25 @@ pub struct Args {
     /// The stereo head's lenses: `photogrammetric` (the default MYNT-like ~90° lens),
     /// `opencv` (a 120° wide-angle lens, rational model), `kannala-brandt` or
     /// `double-sphere` (190° fisheyes); replaces `[camera]` of `--config` with that lens's
-    /// defaults and grows the target dots as much as the lens is wider (docs/simulate.md).
+    /// defaults and grows the target dots as much as the lens is wider (docs/formats.md,
+    /// "Camera models").
     #[arg(long)]
     camera_model: Option<String>,
+}
+
+/// `cfg` seen through the lenses `--camera-model` names (unchanged without it).
+pub fn with_camera_model(
+    cfg: pingcal_sim::SimConfig,
+    name: Option<&str>,
+) -> Result<pingcal_sim::SimConfig, String> {
+    let Some(m) = name else { return Ok(cfg) };
+    let model = pingcal_project::CameraModel::from_word(m).ok_or_else(|| {
+        format!(
+            "--camera-model {m}: expected one of {}",
+            pingcal_project::CameraModel::NAMES.join(", ")
+        )
+    })?;
+    Ok(cfg.with_camera_model(model))
 }
 
 /// What `pingcal simulate` writes.
@@ -219,15 +235,7 @@ pub fn run(args: Args) -> CmdResult {
         Some(p) => pingcal_sim::SimConfig::from_toml_file(p)?,
         None => pingcal_sim::SimConfig::default(),
     };
-    if let Some(m) = &args.camera_model {
-        let model = pingcal_project::CameraModel::from_word(m).ok_or_else(|| {
-            format!(
-                "--camera-model {m}: expected one of {}",
-                pingcal_project::CameraModel::NAMES.join(", ")
-            )
-        })?;
-        cfg = cfg.with_camera_model(model);
-    }
+    cfg = with_camera_model(cfg, args.camera_model.as_deref())?;
     let out = &args.out;
     let (summary, sim, _) = simulate_into(out, &cfg, args.seed, args.config.as_deref())?;
     println!(
