@@ -21,12 +21,12 @@
 mod common;
 
 use nalgebra::{Matrix3, Vector3};
-use pingcal_ba::camera::{CameraModel, PhotogrammetricCamera};
+use pingcal_ba::camera::CameraModel;
 use pingcal_pipeline::exports::grid_pixels;
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
 use std::process::Command;
-use std::sync::OnceLock;
+use std::sync::{Arc, OnceLock};
 
 /// The frame names written into the test project.
 const FRAMES: &str = "\n[frames]\ncamera = \"cam_left_optical\"\nlrf = \"hokuyo_servo\"\n";
@@ -79,40 +79,43 @@ fn vec3(v: &Value) -> Vector3<f64> {
     Vector3::from_fn(|i, _| v[i].as_f64().expect("a number"))
 }
 
-/// pingcal's photogrammetric camera `c` of `results.json`, with its parameters.
-fn camera(project: &pingcal_project::Project, c: &Value) -> (PhotogrammetricCamera, Vec<f64>) {
+/// pingcal's camera `c` of `results.json` in its project model, with its parameters.
+fn camera(
+    project: &pingcal_project::Project,
+    c: &Value,
+) -> (Arc<dyn CameraModel>, Vec<f64>, u32, u32) {
     let id = c["id"].as_str().unwrap();
     let pc = project.file.cameras.iter().find(|p| p.id == id).unwrap();
-    let names = [
-        "c_mm", "xp_mm", "yp_mm", "k1", "k2", "k3", "p1", "p2", "b1", "b2",
-    ];
-    let p = names.iter().map(|n| c[*n].as_f64().unwrap()).collect();
+    let keys = pingcal_project::intrinsics::keys(pc.model);
+    let p = keys.iter().map(|n| c[*n].as_f64().unwrap()).collect();
     (
-        PhotogrammetricCamera::new(pc.width, pc.height, pc.pixel_size_mm),
+        pc.model.kind().model(pc.width, pc.height, pc.pixel_size_mm),
         p,
+        pc.width,
+        pc.height,
     )
 }
 
 /// The rays of pingcal's model through the grid of the exported files' loss figures (every
-/// pixel 8 px apart, corners included: `exports::grid_pixels`), as OpenCV's normalised
-/// coordinates (x, y, 1) of the camera's optical frame, and pingcal's own projection of
-/// them, px. Each ray is the pixel's ideal point (x̄, c, ȳ) of the photogrammetric frame,
-/// undistorted by Newton's method; the projection goes forward through the whole model
-/// (K1 K2 K3 P1 P2 B1 B2) and so checks the undistortion (to 1e-6 px). A pixel pingcal cannot
-/// undistort is left out, as the files' figures leave it out.
-fn grid(cam: &PhotogrammetricCamera, p: &[f64]) -> (Vec<[f64; 3]>, Vec<[f64; 2]>) {
+/// pixel 8 px apart, corners included: `exports::grid_pixels`), as directions (x, y, z) of
+/// OpenCV's optical frame (x right, y down, z along the axis; a fisheye's rays may point
+/// sideways or behind, z ≤ 0), and pingcal's own projection of them, px. Each ray is the
+/// pixel unprojected through the model; the projection goes forward through the whole model
+/// and so checks the unprojection (to 1e-6 px). A pixel pingcal cannot unproject is left
+/// out, as the files' figures leave it out.
+fn grid(cam: &dyn CameraModel, p: &[f64], w: u32, h: u32) -> (Vec<[f64; 3]>, Vec<[f64; 2]>) {
     let (mut rays, mut px) = (Vec::new(), Vec::new());
-    for uv in grid_pixels(cam.width, cam.height) {
-        let Some(ideal) = cam.undistort_sensor(p, &cam.pixel_to_sensor(&uv)) else {
+    for uv in grid_pixels(w, h) {
+        let Some(x) = cam.unproject(p, &uv) else {
             continue;
         };
-        let x = Vector3::new(ideal.x, p[0], ideal.y);
         let back = cam.project(p, &x, None, None).expect("in front");
         assert!(
             (back - uv).norm() < 1e-6,
             "{uv:?}: pingcal projects its ray to {back:?}"
         );
-        rays.push([x.x / x.y, -x.z / x.y, 1.0]);
+        let x = x / x.norm();
+        rays.push([x.x, -x.z, x.y]);
         px.push([back.x, back.y]);
     }
     (rays, px)
@@ -123,13 +126,15 @@ fn grid(cam: &PhotogrammetricCamera, p: &[f64]) -> (Vec<[f64; 3]>, Vec<[f64; 2]>
 /// camera); and the camera's [`grid`].
 fn probe(out: &Path) -> PathBuf {
     static PROBE: OnceLock<PathBuf> = OnceLock::new();
-    PROBE.get_or_init(|| write_probe(out)).clone()
+    PROBE
+        .get_or_init(|| write_probe(out, &out.join("../project.toml")))
+        .clone()
 }
 
 /// Writes [`probe`]'s file (once per test binary: the tests run in parallel).
-fn write_probe(out: &Path) -> PathBuf {
+fn write_probe(out: &Path, project: &Path) -> PathBuf {
     let r = common::read_json(&out.join("results.json"));
-    let project = pingcal_project::Project::load(&out.join("../project.toml")).unwrap();
+    let project = pingcal_project::Project::load(project).unwrap();
     let (rot, t) = (
         mat3(&r["extrinsic"]["rotation"]),
         vec3(&r["extrinsic"]["translation_mm"]),
@@ -138,7 +143,7 @@ fn write_probe(out: &Path) -> PathBuf {
     let rig = &r["bundle"]["rig"];
     let mut cams = Vec::new();
     for c in r["cameras"].as_array().unwrap() {
-        let (cam, p) = camera(&project, c);
+        let (cam, p, w, h) = camera(&project, c);
         let (mut lrf, mut px) = (Vec::new(), Vec::new());
         for i in 0..9 {
             for j in 0..7 {
@@ -157,14 +162,13 @@ fn write_probe(out: &Path) -> PathBuf {
                 }
             }
         }
-        let (w, h) = (cam.width, cam.height);
-        let (rays, grid_px) = grid(&cam, &p);
+        let (rays, grid_px) = grid(cam.as_ref(), &p, w, h);
         cams.push(json!({
             "id": c["id"], "width": w, "height": h, "lrf_points_mm": lrf, "pingcal_px": px,
             "grid_rays_cv": rays, "grid_pingcal_px": grid_px,
         }));
     }
-    let path = out.join("../probe.json");
+    let path = out.with_extension("probe.json");
     std::fs::write(&path, json!({ "cameras": cams }).to_string()).unwrap();
     path
 }
@@ -372,4 +376,159 @@ fn frame_names_come_from_the_project() {
             "{n}"
         );
     }
+}
+
+/// The simulated field through a fisheye (`pingcal simulate --camera-model M`), simulated
+/// once per test binary per model.
+fn fisheye_set(model: &'static str) -> PathBuf {
+    static SETS: std::sync::Mutex<Vec<(&'static str, PathBuf)>> = std::sync::Mutex::new(Vec::new());
+    let mut sets = SETS.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some((_, d)) = sets.iter().find(|(m, _)| *m == model) {
+        return d.clone();
+    }
+    let dir = common::root().join(format!("ecosystem-{model}"));
+    let log = common::root().join(format!("ecosystem-{model}-log"));
+    std::fs::create_dir_all(&log).expect("log folder");
+    let seed = common::SEED.to_string();
+    let args = [
+        "simulate",
+        "--out",
+        dir.to_str().unwrap(),
+        "--seed",
+        &seed,
+        "--camera-model",
+        model,
+    ];
+    let run = common::run(&args, &log);
+    assert!(
+        run.success(),
+        "simulate --camera-model {model} failed: {}",
+        run.stderr
+    );
+    sets.push((model, dir.clone()));
+    dir
+}
+
+/// The fisheye set calibrated with its own model: the verdict is ok (exit 0).
+fn fisheye_calibrated(model: &'static str) -> PathBuf {
+    let dir = fisheye_set(model);
+    // outside the simulated folder, which another test copies
+    let out = common::root().join(format!("ecosystem-{model}-out"));
+    let toml = dir.join("project.toml");
+    let args = [
+        "calibrate",
+        toml.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+    ];
+    let run = common::run(&args, &dir);
+    assert!(
+        run.success(),
+        "calibrate ({model}) failed or was doubtful: {}",
+        run.stderr
+    );
+    out
+}
+
+/// A fisheye's files read back by each ecosystem's code over the whole image: OpenCV's YAML
+/// (`cv::fisheye`) with `cv2.fisheye.projectPoints` (the LRF points and the grid), ROS's
+/// `camera_info` (equidistant) likewise, and Kalibr's camchain (pinhole-equidistant for the
+/// Kannala–Brandt model, exact; `ds` for the double sphere, exact, projected by the paper's
+/// formula written in check.py), each within the loss its comment states.
+fn fisheye_exports_read_back(model: &'static str, kalibr_model: &str) {
+    let test = format!("fisheye_exports_{model}");
+    if python(&test).is_none() {
+        return;
+    }
+    let out = fisheye_calibrated(model);
+    let r = common::read_json(&out.join("results.json"));
+    assert_eq!(r["verdict"]["status"], "ok", "{}", r["verdict"]);
+    for c in r["cameras"].as_array().unwrap() {
+        assert_eq!(c["model"], model);
+        assert_eq!(
+            c["opencv"]["distortion_model"], "fisheye",
+            "{}",
+            c["opencv"]
+        );
+    }
+    let chain = std::fs::read_to_string(out.join("kalibr/camchain.yaml")).unwrap();
+    assert!(
+        chain.contains(&format!("camera_model: {kalibr_model}\n")),
+        "{chain}"
+    );
+    let probe = write_probe(&out, &fisheye_set(model).join("project.toml"));
+    for name in ["opencv", "camera_info", "kalibr"] {
+        check_in(&test, name, &out, Some(&probe));
+    }
+}
+
+#[test]
+fn fisheye_exports_read_back_kannala_brandt() {
+    fisheye_exports_read_back("kannala-brandt", "pinhole");
+}
+
+#[test]
+fn fisheye_exports_read_back_double_sphere() {
+    fisheye_exports_read_back("double-sphere", "ds");
+}
+
+/// The fisheye's images given as the photogrammetric model (the lens a wrong model
+/// cannot describe): the run stops or is doubtful, and says the camera model is the likely
+/// cause, naming the model given — never an ok verdict, never an LRF error alone.
+#[test]
+fn a_fisheye_given_the_photogrammetric_model_is_named() {
+    let src = fisheye_set("kannala-brandt");
+    let dir = common::root().join("ecosystem-fisheye-as-photogrammetric");
+    common::copy_dir(&src, &dir);
+    let toml = dir.join("project.toml");
+    let text = std::fs::read_to_string(&toml).unwrap();
+    let mut out = String::new();
+    let mut skip = false;
+    for line in text.lines() {
+        if line.starts_with('[') {
+            skip = false;
+        }
+        if skip || line.starts_with("free = [\"fx\"") {
+            continue;
+        }
+        match line {
+            "model = \"kannala-brandt\"" => {
+                out.push_str("model = \"photogrammetric\"\n");
+                out.push_str(
+                    "free = [\"c\", \"xp\", \"yp\", \"K1\", \"K2\", \"K3\", \"P1\", \"P2\"]\n",
+                );
+            }
+            "[cameras.initial]" => {
+                // fx 374 px of 3.75 µm pixels
+                out.push_str("[cameras.initial]\nc_mm = 1.4025\n");
+                skip = true;
+            }
+            _ => {
+                out.push_str(line);
+                out.push('\n');
+            }
+        }
+    }
+    std::fs::write(&toml, out).unwrap();
+    let res = dir.join("out");
+    let args = [
+        "calibrate",
+        toml.to_str().unwrap(),
+        "--out",
+        res.to_str().unwrap(),
+    ];
+    let run = common::run(&args, &dir);
+    assert!(
+        !run.success(),
+        "a fisheye adjusted as photogrammetric passed: {}",
+        run.stderr
+    );
+    assert!(
+        run.stderr
+            .contains("more than model 'photogrammetric' can hold")
+            && run.stderr.contains("model = \"kannala-brandt\""),
+        "the message does not name the camera model: {}",
+        run.stderr
+    );
 }

@@ -5,7 +5,7 @@
 //! | module | what it holds |
 //! |---|---|
 //! | [`geometry`] | re-exported [`pingcal_geometry`]: [`Rigid3`] (an image's `camera_from_object`, `x_cam = R·X + t`, and its local update), SO(3), the ω φ κ convention |
-//! | [`camera`] | camera models ([`camera::CameraModel`]): photogrammetric (SPEC.md, forward Brown with affinity B1, B2), Brown backward (DBAT / PhotoModeler / Australis correction form), OpenCV (rational, tangential, thin prism), Kannala–Brandt fisheye, BAL; [`camera::check_jacobians`] for a new model |
+//! | [`camera`] | camera models ([`camera::CameraModel`]): photogrammetric (docs/formats.md, forward Brown with affinity B1, B2), Brown backward (DBAT / PhotoModeler / Australis correction form), OpenCV (rational, tangential, thin prism), Kannala–Brandt fisheye, BAL; [`camera::check_jacobians`] for a new model |
 //! | [`datum`] | the datum diagnosed before solving: control, fixed images, or a free network |
 //! | [`io`] | pingcal's measurement file (JSON) and DBAT's mark-point, control and camera files |
 //! | [`loss`] | robust losses (Huber, Cauchy) |

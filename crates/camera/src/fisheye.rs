@@ -2,7 +2,7 @@
 //! α), in pixels: an equidistant projection with an odd polynomial in the angle off axis.
 //!
 //! # Frames and units
-//! Camera frame of SPEC.md (X right, **Y along the optical axis**, Z up); OpenCV's frame is
+//! Camera frame of docs/formats.md (X right, **Y along the optical axis**, Z up); OpenCV's frame is
 //! `x_cv = X`, `y_cv = −Z`, `z_cv = Y` (see [`super::OpenCvCamera`]). Pixels: integer
 //! coordinates at pixel centres, (0, 0) the centre of the top-left pixel, u right, v down —
 //! OpenCV's convention and pingcal's, so (cx, cy) are OpenCV's numbers unchanged.

@@ -3,14 +3,14 @@
 //!
 //! | model | type | parameters |
 //! |---|---|---|
-//! | photogrammetric (SPEC.md, forward Brown + affinity B1, B2) | [`PhotogrammetricCamera`] | c, xp, yp, K1–K3, P1, P2, B1, B2 (mm) |
+//! | photogrammetric (docs/formats.md, forward Brown + affinity B1, B2) | [`PhotogrammetricCamera`] | c, xp, yp, K1–K3, P1, P2, B1, B2 (mm) |
 //! | Brown backward (DBAT, PhotoModeler, Australis: a correction of the measured point) | [`BrownBackwardCamera`] | c, xp, yp, K1–K3, P1, P2, B1, B2 (mm) |
 //! | OpenCV (rational radial, tangential, thin prism) | [`OpenCvCamera`] | fx, fy, cx, cy, k1, k2, p1, p2, k3–k6, s1–s4 (px) |
 //! | Kannala–Brandt fisheye (OpenCV's `cv::fisheye`, Kalibr's `pinhole-equi`) | [`FisheyeCamera`] | fx, fy, cx, cy, k1–k4 (px) |
 //! | double sphere (Usenko et al. 2018, Kalibr's `ds`): lenses beyond 180° | [`DoubleSphereCamera`] | fx, fy, cx, cy, ξ, α (px) |
 //! | BAL benchmark | [`BalCamera`] | f, k1, k2 |
 //!
-//! Every model but BAL works in the camera frame of SPEC.md: X to image right, **Y along
+//! Every model but BAL works in the camera frame of docs/formats.md: X to image right, **Y along
 //! the optical axis**, Z to image up, so that models are interchangeable in one network
 //! and with the initialisers. An affinity (differential scale) and shear are B1, B2 in
 //! the two photogrammetric models and fx ≠ fy in the OpenCV and fisheye models.

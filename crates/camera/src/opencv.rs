@@ -2,7 +2,7 @@
 //! rational radial, tangential (decentering) and thin-prism distortion, in pixels.
 //!
 //! # Frames and units
-//! * Camera frame: pingcal's (SPEC.md), X right, **Y along the optical axis**, Z up. OpenCV's
+//! * Camera frame: pingcal's (docs/formats.md), X right, **Y along the optical axis**, Z up. OpenCV's
 //!   camera frame (x right, y down, z forward) is `x_cv = X`, `y_cv = −Z`, `z_cv = Y`; an
 //!   OpenCV pose `x_cv = R·X + t` becomes pingcal's `camera_from_object` by the rows
 //!   `(R₀, R₂, −R₁)` and `(t₀, t₂, −t₁)`. A point images only if Y > 0.
@@ -30,7 +30,7 @@
 //! `k1, k2, p1, p2, k3` of OpenCV's default is [`OpenCvCamera::five_term_fixed`]).
 //!
 //! # Conversions
-//! * Photogrammetric (SPEC.md, forward) with B1 = B2 = 0 ↔ OpenCV with fx = fy, k4…k6 =
+//! * Photogrammetric (docs/formats.md, forward) with B1 = B2 = 0 ↔ OpenCV with fx = fy, k4…k6 =
 //!   s1…s4 = 0: **exact** both ways ([`opencv_from_photogrammetric`],
 //!   [`photogrammetric_from_opencv`]). With ps the pixel pitch, (W, H) the image size:
 //!   `fx = fy = c/ps`, `cx = (W−1)/2 + xp/ps`, `cy = (H−1)/2 − yp/ps`, `k1 = K1 c²`,

@@ -1,4 +1,4 @@
-//! The photogrammetric camera model of SPEC.md (Australis / Fraser 1997 parameter set),
+//! The photogrammetric camera model of docs/formats.md (Australis / Fraser 1997 parameter set),
 //! with distortion applied **forward**, to the ideal image point.
 //!
 //! # Frames and units

@@ -28,7 +28,7 @@
 //! A transform is named `a_from_b`: it maps coordinates in frame `b` to coordinates in frame
 //! `a`, `x_a = a_from_b · x_b`. Composition reads right to left, so names chain:
 //! `camera_from_lrf = camera_from_object.compose(&object_from_lrf)`. The frames of pingcal
-//! are those of SPEC.md: *object* (the photogrammetric frame of the test field), *camera*
+//! are those of docs/formats.md: *object* (the photogrammetric frame of the test field), *camera*
 //! (X right, Y along the optical axis, Z up), *lrf* (paper eq. 2: Y along the servo shaft).
 //! The extrinsic of the calibration is `camera_from_lrf`; an image's exterior orientation is
 //! `camera_from_object`.

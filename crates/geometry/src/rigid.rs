@@ -8,7 +8,7 @@
 //! An image's exterior orientation is a `Rigid3` `camera_from_object`; its projection
 //! centre in object space is [`Rigid3::centre`] `C = −Rᵀ t`. Which camera axis is the
 //! optical axis is the camera model's business (BAL looks down −z; the photogrammetric
-//! model of SPEC.md looks along +Y).
+//! model of docs/formats.md looks along +Y).
 
 use crate::opk::to_opk_deg;
 use crate::so3::{exp_so3, orthonormalize};
@@ -57,7 +57,7 @@ impl Rigid3 {
 
     /// The `camera_from_object` of a camera at `centre` whose optical axis points at
     /// `target`, rolled by `roll` (radians, positive turns the image's right towards its
-    /// up) about that axis, in the camera frame of SPEC.md (X right, Y along the optical
+    /// up) about that axis, in the camera frame of docs/formats.md (X right, Y along the optical
     /// axis, Z up): with `roll = 0` the image's up is the object's +Z (or +Y when looking
     /// straight up or down). The rows of the rotation are the camera's axes in object
     /// space.

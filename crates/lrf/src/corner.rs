@@ -16,7 +16,7 @@
 //!    normalised image points, then Gauss–Newton resection.
 //! 5. [`Sim3::compose`]: `T_cam←lrf = T_cam←world · T_world←corner · T_corner←lrf`.
 //!
-//! Camera convention (SPEC.md): X right, Y forward, Z up; normalised image coordinates are
+//! Camera convention (docs/formats.md): X right, Y forward, Z up; normalised image coordinates are
 //! `(X/Y, Z/Y)` (x right, y up).
 
 use crate::cloud::MountModel;

@@ -7,7 +7,7 @@
 //! control/check table and leave-one-out), matches the balls of both frames without labels,
 //! and implements the Fan et al. 2019 room-corner baseline the paper compares against.
 //!
-//! Units are millimetres; frames are those of SPEC.md (`p_camera = R · p_lrf + t`).
+//! Units are millimetres; frames are those of docs/formats.md (`p_camera = R · p_lrf + t`).
 //!
 //! Modules, in pipeline order:
 //! - [`scan`]: the `pingcal-scan` CSV format, streaming reader and writer.

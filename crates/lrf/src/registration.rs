@@ -515,7 +515,7 @@ pub fn evaluate(
 
 impl Evaluation {
     /// The `extrinsic`, `check_points` and `mean_check_error_mm` keys of `results.json`
-    /// (SPEC.md), plus `sd_check_error_mm`, `control_points`, `leave_one_out` and `sigma0`.
+    /// (docs/formats.md), plus `sd_check_error_mm`, `control_points`, `leave_one_out` and `sigma0`.
     /// When there are no check points, `check_points` holds the leave-one-out rows.
     pub fn to_json(&self) -> serde_json::Value {
         let r = &self.registration;

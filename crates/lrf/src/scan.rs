@@ -1,4 +1,4 @@
-//! The `pingcal-scan` CSV format (SPEC.md): one 2D scan per line, with the servo angle.
+//! The `pingcal-scan` CSV format (docs/lrf.md): one 2D scan per line, with the servo angle.
 //!
 //! ```text
 //! # pingcal-scan v1
@@ -422,7 +422,7 @@ impl<R: BufRead> ScanReader<R> {
                                 }
                             }
                         }
-                        _ => {} // unknown keys are ignored (SPEC.md)
+                        _ => {} // unknown keys are ignored (docs/lrf.md)
                     }
                 }
                 continue;

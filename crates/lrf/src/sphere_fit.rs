@@ -3,7 +3,7 @@
 //! * [`fit_along_ray`]: the fixed-radius fit that minimises the range error along each beam
 //!   (Franaszek, Cheok & Witzgall, "directional" error). Range noise is along the ray, so this
 //!   is the maximum-likelihood fit for an LRF; the orthogonal and algebraic fits are biased
-//!   towards the sensor on a small ball (NOTES.md table).
+//!   towards the sensor on a small ball (docs/method.md).
 //! * [`fit_orthogonal`]: fixed-radius fit of the orthogonal distances `|p − c| − R`.
 //! * [`fit_free_radius`]: orthogonal fit with the radius free (what a generic tool does).
 //! * [`fit_algebraic`]: the linear (Kåsa) fit, used to start the others.

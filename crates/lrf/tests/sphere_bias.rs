@@ -166,7 +166,7 @@ fn bias_and_sigma_table() {
         }
         if dist == 500.0 {
             // where mixed pixels are rare the orthogonal fit shows its pull towards the sensor
-            // (NOTES.md); 20 standard errors away from zero, so this cannot pass by chance
+            // (docs/method.md); 20 standard errors away from zero, so this cannot pass by chance
             assert!(
                 orth.bias() < -1.5,
                 "orthogonal fit bias {:.3}: expected clearly negative",

@@ -641,6 +641,15 @@ impl RosRectification {
         }
     }
 
+    /// A camera of a stereo pair that OpenCV's `stereoRectify` cannot take (a fisheye
+    /// form): R = I, P = [K | 0], and the comment says why.
+    pub fn pair_unrectified(f: &Form) -> Self {
+        RosRectification {
+            what: "R = I and P = [K | 0]: no stereo rectification is written for this pair (OpenCV's stereoRectify takes pinhole cameras; the rig is in results.json and kalibr/camchain.yaml)".into(),
+            ..RosRectification::mono(f)
+        }
+    }
+
     /// Camera `n` (1 left, 2 right) of a stereo pair: R1, P1 or R2, P2 of `s` (OpenCV's,
     /// as ROS's stereo calibrator writes them), P's last column from mm to m.
     pub fn stereo(s: &StereoCv, n: usize) -> Self {
@@ -663,7 +672,7 @@ impl RosRectification {
 /// `equidistant`), R and P of `rect`.
 pub fn ros_camera_info(c: &CameraJson, rect: &RosRectification, loss: &ExportLoss) -> String {
     let f = &loss.ros;
-    let same = if f == &loss.opencv {
+    let same = if f.kind == loss.opencv.kind && f.params == loss.opencv.params {
         format!("K and D as opencv/camera_{}.yaml", file_stem(&c.id))
     } else {
         "K and D fitted for ROS (its distortion models do not hold OpenCV's)".to_string()
@@ -810,6 +819,9 @@ pub fn exports(r: &Results, losses: &[Option<ExportLoss>]) -> Vec<OutputFile> {
         let rect = match &stereo {
             Some((a, _, s)) if *a == i => RosRectification::stereo(s, 1),
             Some((_, b, s)) if *b == i => RosRectification::stereo(s, 2),
+            _ if pair.is_some_and(|(_, a, b, _, _)| a == i || b == i) => {
+                RosRectification::pair_unrectified(&loss.ros)
+            }
             _ => RosRectification::mono(&loss.ros),
         };
         out.push((

@@ -128,7 +128,7 @@ pub fn chi2_upper(k: f64) -> f64 {
 }
 
 /// The bound of a σ0 with `dof` degrees of freedom at level [`ALPHA`]: `√(χ²₁₋α(dof) / dof)`.
-fn sigma0_bound(dof: f64) -> f64 {
+pub(crate) fn sigma0_bound(dof: f64) -> f64 {
     (chi2_upper(dof) / dof).sqrt()
 }
 
@@ -191,7 +191,7 @@ pub fn lens_doubt(project: &Project, adjusted: &Adjusted) -> Option<String> {
 
 /// The bound of the check balls' `χ²/n` (n = 3k coordinates) at level [`ALPHA`], widened by
 /// the sphere centres' documented optimism: a check ball's LRF side is a sphere fit.
-fn check_points_bound(n: f64) -> f64 {
+pub(crate) fn check_points_bound(n: f64) -> f64 {
     chi2_upper(n) / n * CENTRE_SIGMA_OPTIMISM * CENTRE_SIGMA_OPTIMISM
 }
 
@@ -370,7 +370,7 @@ fn find<'a>(pts: &'a [PointObs], id: &str) -> Option<&'a PointObs> {
 
 /// `Σ dᵢᵀ Σᵢ⁻¹ dᵢ / 3k` over the `k` rows whose ball is in both point lists (and whose
 /// predicted covariance inverts), with `3k`; None when no row counts.
-fn mean_check_chi2(
+pub(crate) fn mean_check_chi2(
     rows: &[CheckRow],
     (lrf, cam): (&[PointObs], &[PointObs]),
     t: &Sim3,

@@ -17,14 +17,18 @@
 //! The README's section "The project file" has a complete, commented example; the tests
 //! of this crate parse and validate that very text, so it cannot drift.
 
+#[macro_use]
 mod closed_sets;
+pub mod camera_file;
 pub mod intrinsics;
 mod layout;
 mod parse;
 mod schema;
 pub mod sphere_calib;
 mod validate;
+pub mod yaml;
 
+pub use camera_file::{CameraFile, CameraFormat};
 pub use closed_sets::{CameraModel, Method, MountParameter, Parameter, TargetFamily};
 pub use intrinsics::{Intrinsics, KeyedValues};
 pub use layout::{Layout, LayoutError};
@@ -33,7 +37,7 @@ pub use schema::{
     ProjectFrames, ProjectImage, ProjectLrf, ProjectNetwork, ProjectStereo, ProjectTargets,
     PARAMETER_NAMES,
 };
-pub use sphere_calib::{CameraFile, SphereCalibFile, SphereCalibFrame, SphereCalibLidar};
+pub use sphere_calib::{SphereCalibFile, SphereCalibFrame, SphereCalibLidar};
 
 use std::path::{Path, PathBuf};
 

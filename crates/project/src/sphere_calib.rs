@@ -18,23 +18,13 @@
 //! image = "images/F01.png"
 //! ```
 //!
-//! and the camera file (the photogrammetric model of SPEC.md, parameters as in
-//! `project.toml`'s `[cameras.initial]`):
-//!
-//! ```toml
-//! model = "photogrammetric"
-//! width = 1280
-//! height = 720
-//! pixel_size_mm = 0.00375
-//! [params]
-//! c_mm = 2.45
-//! ```
+//! and the camera file ([`crate::camera_file`]: a `camera.toml` of the photogrammetric,
+//! OpenCV or fisheye model, a ROS `camera_info` or OpenCV YAML, or a Kalibr camchain, whose
+//! entry `camera_entry` names when it holds several cameras).
 //!
 //! Every path is relative to the folder of the file that names it. Errors name the file and
 //! the line, as those of `project.toml` do.
 
-use crate::closed_sets::CameraModel;
-use crate::schema::CameraParams;
 use crate::ProjectError;
 use serde::{Deserialize, Serialize};
 
@@ -47,8 +37,11 @@ pub struct SphereCalibFile {
     /// Optional name.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub name: Option<String>,
-    /// The camera file ([`CameraFile`]), relative to this file's folder.
+    /// The camera file ([`crate::CameraFile`]), relative to this file's folder.
     pub camera: String,
+    /// The entry of a Kalibr camchain to take (`cam0`, `cam1`, …) when it holds several.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub camera_entry: Option<String>,
     /// The sphere's diameter, mm.
     pub sphere_diameter_mm: f64,
     /// The lidar.
@@ -85,22 +78,6 @@ pub struct SphereCalibFrame {
     pub cloud: String,
     /// The image.
     pub image: String,
-}
-
-/// The camera file: a camera with known intrinsics.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct CameraFile {
-    /// `photogrammetric`.
-    pub model: CameraModel,
-    /// Width, pixels.
-    pub width: u32,
-    /// Height, pixels.
-    pub height: u32,
-    /// Pixel pitch, mm.
-    pub pixel_size_mm: f64,
-    /// The ten parameters (missing ones 0; `c_mm` required).
-    pub params: CameraParams,
 }
 
 fn syntax(file: &str, text: &str, e: toml::de::Error) -> ProjectError {
@@ -179,49 +156,6 @@ impl SphereCalibFile {
     }
 }
 
-impl CameraFile {
-    /// Parses and checks the text of a camera file; `file` names it in errors.
-    pub fn parse(text: &str, file: &str) -> Result<Self, ProjectError> {
-        let c: CameraFile = toml::from_str(text).map_err(|e| syntax(file, text, e))?;
-        if c.width == 0 || c.height == 0 {
-            return Err(invalid(
-                file,
-                format!(
-                    "{} × {} pixels: expected a positive size",
-                    c.width, c.height
-                ),
-            ));
-        }
-        if !(c.pixel_size_mm > 0.0 && c.pixel_size_mm.is_finite()) {
-            return Err(invalid(
-                file,
-                format!(
-                    "pixel_size_mm = {}: expected a positive number",
-                    c.pixel_size_mm
-                ),
-            ));
-        }
-        if !(c.params.c_mm > 0.0 && c.params.c_mm.is_finite()) {
-            return Err(invalid(
-                file,
-                format!(
-                    "[params] c_mm = {}: expected a positive principal distance",
-                    c.params.c_mm
-                ),
-            ));
-        }
-        if !c.params.to_slice().iter().all(|v| v.is_finite()) {
-            return Err(invalid(file, "[params]: every value must be finite".into()));
-        }
-        Ok(c)
-    }
-
-    /// The text of the file.
-    pub fn to_toml_string(&self) -> String {
-        toml::to_string(self).expect("a camera file always serialises")
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -254,9 +188,15 @@ image = "c.png"
         assert_eq!(f.frame_ids(), ["F1", "F2", "last"]);
         assert_eq!(SphereCalibFile::parse(&f.to_toml_string(), "p").unwrap(), f);
         let cam = "model = \"photogrammetric\"\nwidth = 1280\nheight = 720\npixel_size_mm = 0.00375\n[params]\nc_mm = 2.45\n";
-        let c = CameraFile::parse(cam, "camera.toml").unwrap();
-        assert_eq!(c.params.c_mm, 2.45);
-        assert_eq!(CameraFile::parse(&c.to_toml_string(), "c").unwrap(), c);
+        let c = crate::CameraFile::parse(cam, "camera.toml").unwrap();
+        assert!(
+            c.intrinsics.model == crate::CameraModel::Photogrammetric
+                && c.intrinsics.values[0] == 2.45
+        );
+        assert_eq!(
+            crate::CameraFile::parse(&c.to_toml_string(), "c").unwrap(),
+            c
+        );
     }
 
     #[test]
@@ -276,11 +216,5 @@ image = "c.png"
             .unwrap_err()
             .to_string();
         assert!(e.starts_with("p.toml: line") && e.contains("image"), "{e}");
-        let cam =
-            "model = \"pinhole\"\nwidth = 1\nheight = 1\npixel_size_mm = 1\n[params]\nc_mm = 1\n";
-        let e = CameraFile::parse(cam, "camera.toml")
-            .unwrap_err()
-            .to_string();
-        assert!(e.starts_with("camera.toml: line 1: model"), "{e}");
     }
 }

@@ -36,6 +36,9 @@
 //! The document is also well-formed XML (void elements are self-closed, only the five XML
 //! entities are used), which the tests check.
 //!
+//! [`render_sphere_calib_html`] renders the report of `pingcal sphere-calib` from a
+//! [`SphereCalibReport`]: the same page with that method's sections ([`sphere_calib`]).
+//!
 //! [`sample::sample_report`] builds a realistic synthetic [`ReportData`] for demos and tests;
 //! `cargo run -p pingcal-report --example sample_report -- OUT.html` writes it, and
 //! `crates/report/scripts/check-report.sh OUT.html OUT.png` screenshots it with headless
@@ -51,10 +54,12 @@ mod plot;
 mod render;
 pub mod sample;
 mod section;
+pub mod sphere_calib;
 mod tables;
 
 pub use fmt::escape;
 pub use overlay::{base64, Overlay};
+pub use sphere_calib::{render_sphere_calib_html, SphereCalibReport, SphereFrameRow};
 
 /// Everything the report shows. Empty vectors render as "none" sections, never as errors.
 #[derive(Debug, Clone, Default, Serialize, Deserialize)]

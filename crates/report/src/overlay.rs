@@ -12,7 +12,8 @@
 //! at most one range point per [`PIXELS_PER_POINT`] output pixels (an even stride through
 //! them, so a dense cloud does not hide the photograph), and the points of each ball
 //! last, all of them, in [`BALL_RGB`] (magenta, a colour the turbo map does
-//! not have) with the ball's label beside them.
+//! not have) with the ball's label beside them. Marks ([`PointKind::Mark`]: a fitted
+//! outline, edge points, a projected centre) go over everything, in their own colours.
 //!
 //! **Pixel coordinates** are those of the bundle adjustment: x right, y down, (0, 0) the
 //! centre of the top-left pixel, so the image covers `[−½, W − ½] × [−½, H − ½]`. Points
@@ -52,6 +53,16 @@ pub enum PointKind {
     Range {
         /// Its range from the LRF, mm.
         range_mm: f64,
+    },
+    /// A mark drawn over the points in a colour of its own (a fitted outline, an edge point,
+    /// a projected centre), not counted among them.
+    Mark {
+        /// Its colour.
+        rgb: [u8; 3],
+        /// Its radius in output pixels (at least 0.5: one pixel).
+        size_px: f64,
+        /// A plus-shaped cross (arms of `size_px`, two pixels wide) instead of a disc.
+        cross: bool,
     },
 }
 
@@ -412,6 +423,7 @@ pub fn render_png(img: &GreyImage, points: &[OverlayPoint], opts: &OverlayOption
     let mut outside = 0;
     let mut range: Vec<(f64, f64, f64)> = Vec::new();
     let mut balls: Vec<(&str, f64, f64)> = Vec::new();
+    let mut marks: Vec<(f64, f64, [u8; 3], f64, bool)> = Vec::new();
     for p in points {
         if !inside(p) {
             outside += 1;
@@ -421,6 +433,11 @@ pub fn render_png(img: &GreyImage, points: &[OverlayPoint], opts: &OverlayOption
         match &p.kind {
             PointKind::Range { range_mm } => range.push((*range_mm, x, y)),
             PointKind::Ball { label } => balls.push((label, x, y)),
+            PointKind::Mark {
+                rgb,
+                size_px,
+                cross,
+            } => marks.push((x, y, *rgb, size_px.clamp(0.5, 50.0), *cross)),
         }
     }
     let budget = opts
@@ -454,6 +471,18 @@ pub fn render_png(img: &GreyImage, points: &[OverlayPoint], opts: &OverlayOption
     }
     for &(_, x, y) in &balls {
         cv.disc(x, y, r, BALL_RGB);
+    }
+    for &(x, y, c, size, cross) in &marks {
+        if cross {
+            let a = size.round() as i64;
+            let (cx, cy) = (x.round() as i64, y.round() as i64);
+            cv.rect(cx - a, cy - 1, 2 * a + 1, 3, [0, 0, 0]);
+            cv.rect(cx - 1, cy - a, 3, 2 * a + 1, [0, 0, 0]);
+            cv.rect(cx - a, cy, 2 * a + 1, 1, c);
+            cv.rect(cx, cy - a, 1, 2 * a + 1, c);
+        } else {
+            cv.disc(x, y, size, c);
+        }
     }
     let scale = if h >= 600 { 2 } else { 1 };
     if opts.labels {

@@ -8,7 +8,7 @@ use crate::{Overlay, ReportData};
 use std::fmt::Write;
 
 /// One overlay as a figure: the PNG as a `data:` URI, its caption and counts.
-fn figure(o: &mut String, v: &Overlay) {
+pub(crate) fn figure(o: &mut String, v: &Overlay) {
     let _ = writeln!(
         o,
         "<figure><img src=\"data:image/png;base64,{}\" width=\"{}\" height=\"{}\" alt=\"LRF points on {}\" style=\"max-width:100%;height:auto\"/>",

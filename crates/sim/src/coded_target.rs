@@ -1,4 +1,4 @@
-//! Drawing AICON / Schneider ring codes (SPEC.md "Coded targets").
+//! Drawing AICON / Schneider ring codes (docs/method.md, "AICON coded targets").
 //!
 //! The code tables themselves (which N-bit values are codes, and which number each one
 //! has) are [`pingcal_targets::aicon::CodeTable`]: the simulator draws exactly the codes the

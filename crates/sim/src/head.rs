@@ -3,7 +3,7 @@
 //! scene (which places the targets where the main image sees them) and the station plan.
 //!
 //! Poses are world → camera (`x_cam = R·X + t`, [`Rigid3`]), camera frame X right, Y forward
-//! (optical axis), Z up (SPEC.md).
+//! (optical axis), Z up (docs/formats.md).
 
 use crate::config::{SimConfig, StationConfig};
 use nalgebra::{Matrix3, Vector3};

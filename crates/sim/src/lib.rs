@@ -14,6 +14,7 @@
 //! | [`lrf`] | the Hokuyo URG-04LX on a Dynamixel MX-28T: scans through `pingcal_lrf::sensor` (the calibration's own sensor model), with footprint and servo |
 //! | [`project_files`] | `project.toml`, PNG images, scan CSV, `truth.json` |
 //! | [`sphere_calib`] | a data set for the single-sphere calibration (issue 15): a 16-beam spinning lidar and the camera seeing one large sphere moved to N places, clouds, images, `truth.json` |
+//! | [`sphere_clutter`] | its harder scene (issue 36): a shaded sphere with a highlight on a stand, bricks, tiles and bright round plates, frames cut by the border |
 //!
 //! ## Frames (all lengths in mm)
 //! * **World** (test field): origin at the corner's vertex, X along wall 1's floor edge,
@@ -43,6 +44,7 @@ pub mod project_files;
 pub mod render;
 pub mod scene;
 pub mod sphere_calib;
+pub mod sphere_clutter;
 pub mod stations;
 
 pub use config::{ConfigError, SimConfig};

@@ -1,6 +1,6 @@
 //! The rotating 2D LRF: a Hokuyo URG-04LX turned by a Dynamixel MX-28T servo.
 //!
-//! LRF frame (SPEC.md, paper eq. 2): origin at the scanner centre, Y along the servo shaft,
+//! LRF frame (docs/formats.md, paper eq. 2): origin at the scanner centre, Y along the servo shaft,
 //! X along the beam α = 0 at β = 0; a beam (α, β) of range r is at
 //! `x = r cos α cos β, y = r sin α, z = r cos α sin β`, i.e. `M(β)·r(cos α, sin α, 0)` with
 //! `M(β)` the rotation about Y taking X to (cos β, 0, sin β).

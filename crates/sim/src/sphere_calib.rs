@@ -26,6 +26,7 @@ use crate::config::RenderConfig;
 use crate::head::{CameraUnit, StereoRig};
 use crate::project_files::{io, write_png, PoseJson};
 use crate::render::{expose, Radiance, RayTable};
+use crate::sphere_clutter::{self as clutter, Clutter};
 use crate::{rng_for, SimConfig, SimError};
 use nalgebra::{Vector2, Vector3};
 use pingcal_ba::camera::CameraModel;
@@ -68,6 +69,34 @@ pub struct SphereCalibConfig {
     pub max_range_mm: f64,
     /// Image formation (blur, vignetting, noise, sub-pixel rays).
     pub render: RenderConfig,
+    /// The scene: the clean one (a uniformly bright sphere, a plain room) or the harder one
+    /// of real photographs ([`crate::sphere_clutter`]).
+    pub scene: SphereScene,
+}
+
+/// Which scene the sphere is photographed in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum SphereScene {
+    /// A uniformly bright floating sphere in a room of a plain floor and wall.
+    #[default]
+    Clean,
+    /// A shaded sphere with a highlight on a stand, a wall of bricks and a tiled floor with
+    /// bright round plates, a window and a floor marking; every fourth frame puts the sphere
+    /// across the image's border. [`SphereCalibConfig::cluttered`] sets it with ranges of
+    /// 1.5–7 m (beyond, two or three rings of the lidar meet the sphere and the stand's seat
+    /// beside them pulls the lidar's centre by centimetres).
+    Cluttered,
+}
+
+impl SphereCalibConfig {
+    /// The harder scene ([`SphereScene::Cluttered`]) with ranges of 1.5–7 m.
+    pub fn cluttered() -> Self {
+        Self {
+            scene: SphereScene::Cluttered,
+            range_mm: [1500.0, 7000.0],
+            ..Self::default()
+        }
+    }
 }
 
 impl Default for SphereCalibConfig {
@@ -83,6 +112,7 @@ impl Default for SphereCalibConfig {
             noise_name: Some("VLP-16".into()),
             max_range_mm: 100_000.0,
             render: RenderConfig::default(),
+            scene: SphereScene::Clean,
         }
     }
 }
@@ -102,6 +132,13 @@ pub struct SphereFrameTruth {
     pub centre_camera_mm: [f64; 3],
     /// Points of the cloud on the sphere.
     pub sphere_points: usize,
+    /// The fraction of the sphere's outline inside the image.
+    #[serde(default = "one")]
+    pub visible_fraction: f64,
+}
+
+fn one() -> f64 {
+    1.0
 }
 
 /// `truth.json` of a sphere-calib data set.
@@ -136,6 +173,8 @@ pub struct SphereCalibSim {
     pub camera_from_lidar: Rigid3,
     /// Sphere centres in the lidar frame, mm.
     pub centres_lidar: Vec<V3>,
+    /// The harder scene's clutter (`None` for the clean scene).
+    pub clutter: Option<Clutter>,
 }
 
 /// What was written.
@@ -159,11 +198,21 @@ fn hit_sphere(o: &V3, d: &V3, c: &V3, r: f64) -> Option<f64> {
     (t > 1e-6).then_some(t)
 }
 
-/// What a ray hits first, and where: 0 sphere, 1 floor, 2 wall.
+/// What a ray hits first, and where: 0 sphere, 1 floor, 2 wall, 3 the stand's seat, 4 its
+/// pole (the last two in the cluttered scene only).
 fn cast(sim: &SphereCalibSim, frame: usize, o: &V3, d: &V3) -> Option<(usize, f64)> {
     let cfg = &sim.config;
     let c = sim.centres_lidar[frame];
     let mut best: Option<(usize, f64)> = hit_sphere(o, d, &c, cfg.sphere_radius_mm).map(|t| (0, t));
+    if sim.clutter.is_some() {
+        if let Some((t, part)) =
+            clutter::hit_stand(o, d, &c, cfg.sphere_radius_mm, -cfg.lidar_height_mm)
+        {
+            if best.is_none_or(|(_, b)| t < b) {
+                best = Some((if part == clutter::Part::Seat { 3 } else { 4 }, t));
+            }
+        }
+    }
     let mut consider = |kind: usize, t: f64| {
         if t > 1e-6 && best.is_none_or(|(_, b)| t < b) {
             best = Some((kind, t));
@@ -176,6 +225,93 @@ fn cast(sim: &SphereCalibSim, frame: usize, o: &V3, d: &V3) -> Option<(usize, f6
         consider(2, (cfg.wall_mm - o.x) / d.x);
     }
     best
+}
+
+/// The outline of a sphere of radius `r` at `xc` (camera frame), scaled by `k`, at `n` angles.
+fn outline_points(xc: &V3, r: f64, k: f64, n: usize) -> impl Iterator<Item = V3> + '_ {
+    let axis = xc.normalize();
+    let e1 = axis.cross(&V3::z()).normalize();
+    let e2 = axis.cross(&e1);
+    (0..n).map(move |i| {
+        let a = std::f64::consts::TAU * i as f64 / n as f64;
+        xc + (e1 * a.cos() + e2 * a.sin()) * r * k
+    })
+}
+
+/// The fraction of the outline of a sphere of radius `r` at `xc` (camera frame) that images
+/// inside the camera's image (72 points of the silhouette).
+pub fn visible_fraction(camera: &CameraUnit, xc: &V3, r: f64) -> f64 {
+    let d = xc.norm();
+    let (w, h) = (camera.model.width as f64, camera.model.height as f64);
+    // points of the silhouette cone at the sphere's distance: the tangent circle
+    let k = (1.0 - (r / d).powi(2)).max(0.0).sqrt();
+    let ctr = xc * (1.0 - (r / d).powi(2));
+    let inside = outline_points(&ctr, r, k, 72)
+        .filter(|p| {
+            camera
+                .model
+                .project(&camera.params, p, None, None)
+                .is_some_and(|uv| uv.x >= 0.0 && uv.y >= 0.0 && uv.x <= w - 1.0 && uv.y <= h - 1.0)
+        })
+        .count();
+    inside as f64 / 72.0
+}
+
+/// A place for frame `k`'s sphere: ranges stratified over the frames, a direction drawn
+/// until the sphere is in both fields of view — wholly in the image with the edge search's
+/// margin, or, when `cut`, across the image's border (its centre's image inside, 0.35 to
+/// 0.85 of its outline in the image); every point of the outline within the distortion's
+/// range either way.
+fn place(
+    cfg: &SphereCalibConfig,
+    camera: &CameraUnit,
+    camera_from_lidar: &Rigid3,
+    seed: u64,
+    k: usize,
+    cut: bool,
+) -> Option<V3> {
+    let r_max = camera.max_ideal_radius_mm() * 0.98;
+    let (w, h) = (camera.model.width as f64, camera.model.height as f64);
+    let f_px = camera.params[0] / camera.model.pixel_size_mm;
+    let r = cfg.sphere_radius_mm;
+    let mut rng = rng_for(seed, "sphere-calib-place", k as u64);
+    for _ in 0..10_000 {
+        let u: f64 = rng.random();
+        let range = cfg.range_mm[0]
+            + (cfg.range_mm[1] - cfg.range_mm[0]) * (k as f64 + u) / cfg.frames as f64;
+        // across the border: the image's left and right edges are 44° off its axis (the
+        // lidar sees 15° up and down only)
+        let (a, e): (f64, f64) = if cut { (55.0, 10.0) } else { (40.0, 10.0) };
+        let az = rng.random_range(-a..a).to_radians();
+        let el = rng.random_range(-e..e).to_radians();
+        let c = V3::new(el.cos() * az.cos(), el.cos() * az.sin(), el.sin()) * range;
+        if c.z - r < -cfg.lidar_height_mm + 50.0 || c.x + r > cfg.wall_mm - 100.0 {
+            continue;
+        }
+        let xc = camera_from_lidar.transform(&c);
+        let Some(uv) = camera.project_in_view(&xc, r_max) else {
+            continue;
+        };
+        let inside = if cut {
+            let v = visible_fraction(camera, &xc, r);
+            uv.x >= 0.0
+                && uv.y >= 0.0
+                && uv.x <= w - 1.0
+                && uv.y <= h - 1.0
+                && (0.35..=0.85).contains(&v)
+        } else {
+            // the silhouette's radius in pixels, with the edge search's margin (1.35 ×)
+            let rho = f_px * (r / (xc.norm() - r).max(1.0)) * 1.35 + 6.0;
+            uv.x - rho >= 0.0 && uv.x + rho <= w - 1.0 && uv.y - rho >= 0.0 && uv.y + rho <= h - 1.0
+        };
+        // and every point of the outline must image (inside the distortion's range)
+        if inside
+            && outline_points(&xc, r, 1.3, 24).all(|p| camera.project_in_view(&p, r_max).is_some())
+        {
+            return Some(c);
+        }
+    }
+    None
 }
 
 impl SphereCalibSim {
@@ -220,52 +356,10 @@ impl SphereCalibSim {
             -90.0 + rng.random_range(-20.0..20.0),
         );
         let camera_from_lidar = Rigid3::from_rotation_and_centre(tilt * base, centre_in_lidar);
-        let r_max = camera.max_ideal_radius_mm() * 0.98;
-        let (w, h) = (camera.model.width as f64, camera.model.height as f64);
-        let f_px = camera.params[0] / camera.model.pixel_size_mm;
-        let r = cfg.sphere_radius_mm;
         let mut centres = Vec::with_capacity(cfg.frames);
         for k in 0..cfg.frames {
-            let mut rng = rng_for(seed, "sphere-calib-place", k as u64);
-            let mut placed = None;
-            for _ in 0..10_000 {
-                let u: f64 = rng.random();
-                let range = cfg.range_mm[0]
-                    + (cfg.range_mm[1] - cfg.range_mm[0]) * (k as f64 + u) / cfg.frames as f64;
-                let az = rng.random_range(-40.0f64..40.0).to_radians();
-                let el = rng.random_range(-10.0f64..10.0).to_radians();
-                let c = V3::new(el.cos() * az.cos(), el.cos() * az.sin(), el.sin()) * range;
-                if c.z - r < -cfg.lidar_height_mm + 50.0 || c.x + r > cfg.wall_mm - 100.0 {
-                    continue;
-                }
-                let xc = camera_from_lidar.transform(&c);
-                let Some(uv) = camera.project_in_view(&xc, r_max) else {
-                    continue;
-                };
-                // the silhouette's radius in pixels, with the edge search's margin (1.35 ×)
-                let rho = f_px * (r / (xc.norm() - r).max(1.0)) * 1.35 + 6.0;
-                if uv.x - rho < 0.0
-                    || uv.x + rho > w - 1.0
-                    || uv.y - rho < 0.0
-                    || uv.y + rho > h - 1.0
-                {
-                    continue;
-                }
-                // and every point of the outline must image (inside the distortion's range)
-                let axis = xc.normalize();
-                let e1 = axis.cross(&V3::z()).normalize();
-                let e2 = axis.cross(&e1);
-                let ok = (0..24).all(|i| {
-                    let a = std::f64::consts::TAU * i as f64 / 24.0;
-                    let p = xc + (e1 * a.cos() + e2 * a.sin()) * r * 1.3;
-                    camera.project_in_view(&p, r_max).is_some()
-                });
-                if ok {
-                    placed = Some(c);
-                    break;
-                }
-            }
-            let c = placed.ok_or_else(|| {
+            let cut = cfg.scene == SphereScene::Cluttered && k % 4 == 3;
+            let c = place(cfg, &camera, &camera_from_lidar, seed, k, cut).ok_or_else(|| {
                 bad(format!(
                     "frame {}: no place for the sphere in both fields of view",
                     k + 1
@@ -273,12 +367,21 @@ impl SphereCalibSim {
             })?;
             centres.push(c);
         }
+        let clutter = (cfg.scene == SphereScene::Cluttered).then(|| {
+            Clutter::new(
+                seed,
+                cfg.wall_mm,
+                -cfg.lidar_height_mm,
+                cfg.sphere_radius_mm,
+            )
+        });
         Ok(Self {
             config: cfg.clone(),
             seed,
             camera,
             camera_from_lidar,
             centres_lidar: centres,
+            clutter,
         })
     }
 
@@ -320,6 +423,9 @@ impl SphereCalibSim {
     }
 
     fn radiance_of(&self, k: usize, o: &V3, d: &V3) -> f64 {
+        if let Some(cl) = &self.clutter {
+            return self.cluttered_radiance(cl, k, o, d);
+        }
         match cast(self, k, o, d) {
             None => 0.05,
             Some((0, _)) => 0.78,
@@ -335,6 +441,22 @@ impl SphereCalibSim {
                 let light = V3::new(-0.3, 0.2, 1.0).normalize();
                 let tex = 1.0 + 0.04 * (p.x * 7e-4).sin() * (p.y * 9e-4 + p.z * 5e-4).cos();
                 albedo * (0.35 + 0.55 * normal.dot(&light).max(0.0)) * tex
+            }
+        }
+    }
+
+    /// The radiance of the harder scene ([`crate::sphere_clutter`]) along `o + t·d`.
+    fn cluttered_radiance(&self, cl: &Clutter, k: usize, o: &V3, d: &V3) -> f64 {
+        let c = self.centres_lidar[k];
+        let light = V3::from(clutter::LIGHT).normalize();
+        match cast(self, k, o, d) {
+            None => 0.05,
+            Some((0, t)) => clutter::sphere_radiance(&(o + d * t), &c, o),
+            Some((3, _)) => clutter::stand_radiance(clutter::Part::Seat),
+            Some((4, _)) => clutter::stand_radiance(clutter::Part::Pole),
+            Some((1, t)) => clutter::floor_radiance(cl, &(o + d * t), 0.35 + 0.55 * light.z),
+            Some((_, t)) => {
+                clutter::wall_radiance(cl, &(o + d * t), 0.35 + 0.55 * (-light.x).max(0.0))
             }
         }
     }
@@ -393,17 +515,16 @@ impl SphereCalibSim {
 
     /// The camera file of the data set (the true intrinsics).
     pub fn camera_file(&self) -> CameraFile {
-        CameraFile {
-            model: pingcal_project::CameraModel::Photogrammetric,
-            width: self.camera.model.width,
-            height: self.camera.model.height,
-            pixel_size_mm: self.camera.model.pixel_size_mm,
-            params: pingcal_project::CameraParams::from_slice(
+        CameraFile::photogrammetric(
+            self.camera.model.width,
+            self.camera.model.height,
+            self.camera.model.pixel_size_mm,
+            pingcal_project::CameraParams::from_slice(
                 self.camera.params[..]
                     .try_into()
                     .expect("the sphere-calib simulation's camera is photogrammetric"),
             ),
-        }
+        )
     }
 
     fn frame_files(k: usize) -> (String, String, String) {
@@ -417,6 +538,7 @@ impl SphereCalibSim {
             version: 1,
             name: Some(format!("simulated sphere calibration, seed {}", self.seed)),
             camera: "camera.toml".into(),
+            camera_entry: None,
             sphere_diameter_mm: 2.0 * self.config.sphere_radius_mm,
             lidar: SphereCalibLidar {
                 unit: "m".into(),
@@ -484,6 +606,7 @@ pub fn write_sphere_calib(
             centre_lidar_mm: [c.x, c.y, c.z],
             centre_camera_mm: [cc.x, cc.y, cc.z],
             sphere_points: on,
+            visible_fraction: visible_fraction(&sim.camera, &cc, sim.config.sphere_radius_mm),
         });
     }
     let camera_path = dir.join("camera.toml");

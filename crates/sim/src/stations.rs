@@ -3,7 +3,7 @@
 //! 90° rolls, as a photogrammetrist would plan it for self-calibration.
 //!
 //! Poses are world → camera (`x_cam = R·X + t`, [`Rigid3`]), camera frame X right, Y forward
-//! (optical axis), Z up (SPEC.md).
+//! (optical axis), Z up (docs/formats.md).
 
 use crate::config::{ConfigError, SimConfig};
 pub use crate::head::{look_at_rotation, main_left_pose, CameraUnit, StereoRig};

@@ -103,7 +103,7 @@ fn same_seed_gives_identical_files_and_another_seed_does_not() {
             assert!((p - b.photogrammetric_mm[i]).abs() < 1e-6, "{}", b.id);
         }
     }
-    // The scan file follows SPEC.md.
+    // The scan file follows docs/formats.md.
     let csv = std::fs::read_to_string(a.join(&project.lrf.scans[0])).unwrap();
     assert!(csv.starts_with("# pingcal-scan v1\n"));
     let rows: Vec<&str> = csv.lines().filter(|l| !l.starts_with('#')).collect();

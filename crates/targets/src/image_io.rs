@@ -220,6 +220,66 @@ fn load_grey_png(path: &Path) -> Option<Result<GrayImage, NotDecoded>> {
     ))
 }
 
+/// Loads an image file as its channels: one for a grey image (as [`load_image`] gives it),
+/// red, green and blue for a colour one (alpha dropped), each `f32` in [0, 1]. Errors as
+/// [`load_image`]'s, naming the file.
+pub fn load_colour(path: &Path) -> Result<crate::silhouette::ColourImage, TargetError> {
+    use crate::silhouette::ColourImage;
+    let name = path.display().to_string();
+    let bytes = std::fs::read(path).map_err(|e| TargetError::Image {
+        file: name.clone(),
+        what: match e.kind() {
+            std::io::ErrorKind::NotFound => "no such file".to_string(),
+            _ => format!("cannot read: {e}"),
+        },
+    })?;
+    let bad = |what: String| TargetError::Image {
+        file: name.clone(),
+        what,
+    };
+    let colour = image::ImageReader::new(std::io::Cursor::new(&bytes))
+        .with_guessed_format()
+        .ok()
+        .and_then(|r| r.into_decoder().ok())
+        .map(|d| {
+            use image::ImageDecoder;
+            !matches!(
+                d.color_type(),
+                image::ColorType::L8
+                    | image::ColorType::L16
+                    | image::ColorType::La8
+                    | image::ColorType::La16
+            )
+        })
+        .unwrap_or(false);
+    if !colour {
+        return decode_image(&bytes, &name).map(ColourImage::grey);
+    }
+    // the general decoder's checks (truncation, limits, a guarded decoder) first
+    let grey = decode_general(&bytes, &name, false)?;
+    let mut reader = image::ImageReader::new(std::io::Cursor::new(&bytes))
+        .with_guessed_format()
+        .map_err(|e| bad(format!("cannot read: {e}")))?;
+    let mut limits = image::Limits::default();
+    limits.max_image_width = Some(MAX_SIDE);
+    limits.max_image_height = Some(MAX_SIDE);
+    limits.max_alloc = Some(MAX_ALLOC);
+    reader.limits(limits);
+    let decoded = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| reader.decode()))
+        .map_err(|_| bad("corrupt image (decoder failed)".into()))?
+        .map_err(|e| bad(format!("corrupt or unsupported image: {e}")))?;
+    let rgb = decoded.to_rgb32f();
+    let (w, h) = (grey.width, grey.height);
+    let mut planes = vec![GrayImage::new(w, h, 0.0); 3];
+    for (i, px) in rgb.pixels().enumerate() {
+        for (c, plane) in planes.iter_mut().enumerate() {
+            let v = px.0[c];
+            plane.data[i] = if v.is_finite() { v } else { 0.0 };
+        }
+    }
+    Ok(ColourImage { planes })
+}
+
 /// Converts to an 8-bit `image` buffer (for overlays and debugging).
 pub fn to_luma8(img: &GrayImage) -> image::GrayImage {
     let raw: Vec<u8> = img

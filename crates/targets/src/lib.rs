@@ -34,6 +34,8 @@
 //! - [`aicon`]: code tables (generated), ring sampling after affine rectification, bit
 //!   reading, minimum rotation, lookup, refusals.
 //! - [`ball`]: sphere silhouettes and the eccentricity correction.
+//! - [`silhouette`]: a sphere of known radius in a real photograph: edges from the colour
+//!   gradient, candidate circles, the robust fit of its silhouette cone to the visible outline.
 //! - [`detect`]: the top-level detector.
 //! - [`driveback`]: identification by projection.
 //! - [`homography`], [`printable`], [`overlay`].
@@ -54,6 +56,7 @@ pub mod png_rows;
 pub mod printable;
 pub mod raster;
 pub mod sheet;
+pub mod silhouette;
 pub mod threshold;
 pub mod tiff_strips;
 
@@ -61,7 +64,7 @@ pub use detect::{
     detect_file, detect_files, detect_image, DetectParams, Detector, ImageDetections, Target,
     TargetKind,
 };
-pub use image_io::{decode_image, load_image, GrayImage};
+pub use image_io::{decode_image, load_colour, load_image, GrayImage};
 
 /// Errors of this crate. Each names the file (where there is one) and what is wrong.
 #[derive(Debug, thiserror::Error)]

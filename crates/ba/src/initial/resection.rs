@@ -9,7 +9,7 @@
 //! few points, otherwise seeded random triples) picks the best pose, which is then refined
 //! by Levenberg–Marquardt on the reprojection errors of its inliers.
 //!
-//! Rays come from [`CameraModel::unproject`]: in the camera frame of SPEC.md (X right,
+//! Rays come from [`CameraModel::unproject`]: in the camera frame of docs/formats.md (X right,
 //! Y forward, Z up); nothing here depends on which axis is the optical axis, except the
 //! requirement that points be in front of the camera (the model's `project` says so).
 

@@ -1,7 +1,7 @@
 //! `pingcal ba PROBLEM`: a bundle adjustment on its own.
 //!
 //! * A BAL file (plain or `.bz2`): prints a per-iteration log (as Ceres does) and a
-//!   one-line summary; `--out FILE` writes the JSON of SPEC.md, with cost = ½ Σ r² in
+//!   one-line summary; `--out FILE` writes the JSON of docs/formats.md, with cost = ½ Σ r² in
 //!   pixels so that it compares with Ceres.
 //! * pingcal's measurement file (`.json`, see `pingcal_ba::io::measurements`), or DBAT's
 //!   `markpts.txt` with its camera (`--dbat-camera FILE`) and control (`--dbat CONTROL`,

@@ -34,7 +34,7 @@ pub struct Args {
     /// The `sensor_msgs/Image` or `sensor_msgs/CompressedImage` topic (the camera).
     #[arg(long)]
     pub image_topic: String,
-    /// The camera's intrinsics (`camera.toml`, as `pingcal sphere-calib` reads it).
+    /// The camera's intrinsics, in any form `pingcal sphere-calib` reads (written as `camera.toml`).
     #[arg(long)]
     pub camera: PathBuf,
     /// The sphere's diameter, mm.
@@ -294,7 +294,12 @@ pub fn run(args: Args) -> CmdResult {
     let cam_name = args.camera.display().to_string();
     let cam_text = std::fs::read_to_string(&args.camera)
         .map_err(|e| format!("{cam_name}: cannot read: {e}"))?;
-    CameraFile::parse(&cam_text, &cam_name)?;
+    // any form sphere-calib reads; written as camera.toml
+    let camera = CameraFile::read(&cam_text, &cam_name, None)?;
+    let cam_text = match camera.format {
+        pingcal_project::CameraFormat::Toml => cam_text,
+        _ => camera.to_toml_string(),
+    };
     let bags = super::scans::open_bags(&args.bags)?;
     let (clouds, images) = measure(&bags, &args)?;
     if clouds.stamps.is_empty() || images.stamps.is_empty() {
@@ -336,6 +341,7 @@ pub fn run(args: Args) -> CmdResult {
         version: 1,
         name: Some(format!("frames of {}", bag_names(&args.bags))),
         camera: "camera.toml".into(),
+        camera_entry: None,
         sphere_diameter_mm: args.sphere_diameter_mm,
         lidar: SphereCalibLidar {
             unit: "m".into(),

@@ -1,5 +1,5 @@
 //! `pingcal register LRF_POINTS CAMERA_POINTS [--control ID,..] [--check ID,..] [--out FILE]`:
-//! the 3D conformal transform alone, with the check-point table (SPEC.md).
+//! the 3D conformal transform alone, with the check-point table (docs/formats.md).
 
 use super::preflight::{check_out_file, check_unique};
 use super::CmdResult;

@@ -2,7 +2,7 @@
 //! (project.toml, PNG images, pingcal-scan CSV, truth.json) of the paper's test field and
 //! sensors (issue 6, crate `pingcal-sim`).
 //!
-//! `pingcal simulate --kind sphere-calib --out DIR [--seed N] [--frames N] [--lidar-sigma-mm S] [--azimuth-step-deg A]`:
+//! `pingcal simulate --kind sphere-calib --out DIR [--seed N] [--frames N] [--lidar-sigma-mm S] [--azimuth-step-deg A] [--scene clean|cluttered]`:
 //! a data set for
 //! `pingcal sphere-calib` (issue 15, `pingcal_sim::sphere_calib`): a 16-beam lidar's clouds
 //! and the camera's images of one large sphere moved to N places, `sphere-calib.toml`,
@@ -42,6 +42,11 @@ pub struct Args {
     /// 600 rpm; 0.042 gives a frame of about 100k points).
     #[arg(long)]
     azimuth_step_deg: Option<f64>,
+    /// The scene of `--kind sphere-calib`: `clean` (a uniformly bright floating sphere in a
+    /// plain room, the default) or `cluttered` (a shaded sphere with a highlight on a stand,
+    /// bricks, tiles, bright round plates, every fourth frame across the image's border).
+    #[arg(long, value_enum)]
+    scene: Option<Scene>,
     /// The stereo head's lenses: `photogrammetric` (the default MYNT-like ~90° lens),
     /// `opencv` (a 120° wide-angle lens, rational model), `kannala-brandt` or
     /// `double-sphere` (190° fisheyes); replaces `[camera]` of `--config` with that lens's
@@ -49,6 +54,15 @@ pub struct Args {
     /// "Camera models").
     #[arg(long)]
     camera_model: Option<String>,
+}
+
+/// The scene of `--kind sphere-calib`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Scene {
+    /// A uniformly bright floating sphere in a plain room.
+    Clean,
+    /// What real photographs show (`pingcal_sim::sphere_clutter`).
+    Cluttered,
 }
 
 /// `cfg` seen through the lenses `--camera-model` names (unchanged without it).
@@ -192,13 +206,17 @@ pub fn run(args: Args) -> CmdResult {
     if args.kind == Kind::SphereCalib {
         if args.config.is_some() {
             return Err(
-                "--config: not used by --kind sphere-calib (its options are --frames, --lidar-sigma-mm, --azimuth-step-deg and --seed)"
+                "--config: not used by --kind sphere-calib (its options are --frames, --lidar-sigma-mm, --azimuth-step-deg, --scene and --seed)"
                     .into(),
             );
         }
+        let base = match args.scene {
+            Some(Scene::Cluttered) => pingcal_sim::sphere_calib::SphereCalibConfig::cluttered(),
+            _ => pingcal_sim::sphere_calib::SphereCalibConfig::default(),
+        };
         let mut cfg = pingcal_sim::sphere_calib::SphereCalibConfig {
             frames: args.frames.unwrap_or(10),
-            ..Default::default()
+            ..base
         };
         if let Some(a) = args.azimuth_step_deg {
             if !(0.01..=10.0).contains(&a) {
@@ -226,9 +244,14 @@ pub fn run(args: Args) -> CmdResult {
         );
         return Ok(());
     }
-    if args.frames.is_some() || args.lidar_sigma_mm.is_some() || args.azimuth_step_deg.is_some() {
+    if args.frames.is_some()
+        || args.lidar_sigma_mm.is_some()
+        || args.azimuth_step_deg.is_some()
+        || args.scene.is_some()
+    {
         return Err(
-            "--frames, --lidar-sigma-mm, --azimuth-step-deg: only for --kind sphere-calib".into(),
+            "--frames, --lidar-sigma-mm, --azimuth-step-deg, --scene: only for --kind sphere-calib"
+                .into(),
         );
     }
     let mut cfg = match &args.config {

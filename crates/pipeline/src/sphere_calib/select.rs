@@ -1,0 +1,128 @@
+//! The choice of each frame's silhouette: the consensus over the frames
+//! ([`super::consensus`]), then, where it found none (or two), a search at the place its
+//! transform predicts ([`super::image::at_prediction`]); a frame whose choice stays open is
+//! left out, named, never guessed.
+
+use super::camera::Camera;
+use super::consensus::{consensus, tolerance, Pick};
+use super::frames::Frame;
+use super::image::{at_prediction, ImageSphere};
+use nalgebra::Vector3;
+use pingcal_geometry::Sim3;
+use rayon::prelude::*;
+
+type V3 = Vector3<f64>;
+
+/// The part of a prediction's σ the consensus transform adds, mm (a transform from three or
+/// more frames whose centres agree within a few mm).
+pub const PREDICTION_SIGMA_MM: f64 = 5.0;
+
+/// Where in the image a silhouette is, for messages.
+fn at(s: &ImageSphere) -> String {
+    format!("({:.0}, {:.0}) px", s.image_centre.0, s.image_centre.1)
+}
+
+/// Chooses every frame's silhouette (sets `image`, `chosen_by`, or `skipped`); returns the
+/// consensus transform, if there is one.
+pub fn choose(frames: &mut [Frame], cam: &Camera, radius: f64, seed: u64) -> Option<Sim3> {
+    let lidar: Vec<Option<V3>> = frames
+        .iter()
+        .map(|f| {
+            f.lidar
+                .as_ref()
+                .filter(|_| f.skipped.is_none())
+                .map(|l| l.centre)
+        })
+        .collect();
+    let cams: Vec<Vec<V3>> = frames
+        .iter()
+        .map(|f| f.candidates.iter().map(|c| c.centre).collect())
+        .collect();
+    let Some(c) = consensus(&lidar, &cams, seed) else {
+        for f in frames.iter_mut().filter(|f| f.skipped.is_none()) {
+            let why = match f.candidates.len() {
+                0 => format!("{}: no sphere silhouette found", f.image_path.display()),
+                n => format!(
+                    "{}: {n} sphere silhouette{} found, but too few frames agree on one rigid transform with the lidar to choose",
+                    f.image_path.display(),
+                    if n == 1 { "" } else { "s" }
+                ),
+            };
+            f.skip(why);
+        }
+        return None;
+    };
+    let t = c.camera_from_lidar;
+    // frames whose choice is open are searched again where `t` puts the lidar's sphere
+    let again: Vec<(usize, Option<ImageSphere>)> = frames
+        .par_iter()
+        .enumerate()
+        .filter(|(i, f)| {
+            f.skipped.is_none() && !matches!(c.picks[*i], Pick::Chosen(_) | Pick::NoLidar)
+        })
+        .map(|(i, f)| {
+            let l = f.lidar.as_ref().expect("a lidar sphere");
+            let p = t.transform(&l.centre);
+            // the prediction's σ: the lidar centre's, and as much again for the transform
+            let sigma = 2.0 * l.cov.trace().max(0.0).sqrt() + PREDICTION_SIGMA_MM;
+            let found = pingcal_targets::load_colour(&f.image_path)
+                .map(|img| at_prediction(&img, cam, radius, &p, sigma))
+                .unwrap_or_default();
+            // the nearest of those within the tolerance
+            let near = found
+                .into_iter()
+                .filter(|s| (s.centre - p).norm() <= tolerance(&p))
+                .min_by(|a, b| (a.centre - p).norm().total_cmp(&(b.centre - p).norm()));
+            (i, near)
+        })
+        .collect();
+    for (i, f) in frames.iter_mut().enumerate() {
+        if f.skipped.is_some() {
+            continue;
+        }
+        match &c.picks[i] {
+            Pick::Chosen(k) => {
+                f.image = Some(f.candidates[*k].clone());
+                f.chosen_by = Some("consensus");
+                let others = f.candidates.len() - 1;
+                if others > 0 {
+                    f.warnings.push(format!(
+                        "{}: {others} other round outline{} than the ball's, which the lidar tells apart",
+                        f.image_path.display(),
+                        if others == 1 { "" } else { "s" }
+                    ));
+                }
+            }
+            Pick::NoLidar => {}
+            pick => {
+                let again = again
+                    .iter()
+                    .find(|(j, _)| *j == i)
+                    .and_then(|(_, s)| s.clone());
+                match (pick, again) {
+                    (Pick::Ambiguous(ks), _) => f.skip(format!(
+                        "{}: {} silhouettes where the lidar's sphere is, at {}: which one is the ball is not known (take the other ball out of the scene)",
+                        f.image_path.display(),
+                        ks.len(),
+                        ks.iter().map(|&k| at(&f.candidates[k])).collect::<Vec<_>>().join(" and ")
+                    )),
+                    (_, Some(s)) => {
+                        f.image = Some(s);
+                        f.chosen_by = Some("predicted");
+                    }
+                    (Pick::Missing(near), None) => {
+                        let p = t.transform(&f.lidar.as_ref().expect("a lidar sphere").centre);
+                        let where_ = cam.project(&p).map_or("outside the image".into(), |(x, y)| format!("at ({x:.0}, {y:.0}) px"));
+                        f.skip(format!(
+                            "{}: no sphere silhouette where the lidar's sphere is ({where_}){}",
+                            f.image_path.display(),
+                            near.map_or(String::new(), |d| format!("; the nearest silhouette is {d:.0} mm from it"))
+                        ))
+                    }
+                    _ => {}
+                }
+            }
+        }
+    }
+    Some(t)
+}
