@@ -137,7 +137,7 @@ pub(crate) fn sigma0_bound(dof: f64) -> f64 {
 /// for which a perspective model with polynomial distortion is taken to hold; beyond it, and
 /// with a failing σ0, the lens is named as the likely cause (a 120° wide-angle lens of the
 /// simulator sees about 100° undistorted, its 190° fisheye about 126°).
-const PERSPECTIVE_FOV_DEG: f64 = 115.0;
+pub const PERSPECTIVE_FOV_DEG: f64 = 115.0;
 
 /// A camera whose model cannot hold its lens, in words with the models to try: the first
 /// camera of the bundle's final problem whose image residuals grow toward the edge along the
