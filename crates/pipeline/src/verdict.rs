@@ -33,6 +33,7 @@ use super::bundle::Adjusted;
 use super::joint::JointOutcome;
 use super::Stages;
 use nalgebra::{DMatrix, Matrix3, Vector3};
+use pingcal_ba::camera::ModelKind;
 use pingcal_ba::solver::IntrinsicsPrecision;
 use pingcal_geometry::{skew, Sim3};
 use pingcal_lrf::registration::{CheckRow, Evaluation, PointObs};
@@ -132,12 +133,19 @@ pub(crate) fn sigma0_bound(dof: f64) -> f64 {
     (chi2_upper(dof) / dof).sqrt()
 }
 
+/// The widest diagonal field of view (undistorted, 2·atan(half-diagonal / focal length))
+/// for which a perspective model with polynomial distortion is taken to hold; beyond it, and
+/// with a failing σ0, the lens is named as the likely cause (a 120° wide-angle lens of the
+/// simulator sees about 100° undistorted, its 190° fisheye about 126°).
+pub const PERSPECTIVE_FOV_DEG: f64 = 115.0;
+
 /// A camera whose model cannot hold its lens, in words with the models to try: the first
 /// camera of the bundle's final problem whose image residuals grow toward the edge along the
 /// radius while the bundle's σ0 fails its χ² test
 /// ([`pingcal_ba::diagnostics::RadialProfile::grows_radially`]), or whose gross errors
 /// gather toward the edge ([`pingcal_ba::diagnostics::RadialProfile::rejections_grow`]);
-/// five rings of the image's half-diagonal.
+/// five rings of the image's half-diagonal. A perspective model whose σ0 fails on a lens
+/// wider than [`PERSPECTIVE_FOV_DEG`] is named first.
 pub fn lens_doubt(project: &Project, adjusted: &Adjusted) -> Option<String> {
     let dof = adjusted.precision.redundancy as f64;
     let sigma0_fails = dof > 0.0 && adjusted.sigma0_a_priori > sigma0_bound(dof);
@@ -155,7 +163,18 @@ pub fn lens_doubt(project: &Project, adjusted: &Adjusted) -> Option<String> {
             5,
             &rejected,
         );
+        let cam = &problem.cameras[k];
+        let fov_deg = 2.0
+            * (0.5 * f64::from(c.width).hypot(f64::from(c.height))
+                / cam.model.focal_px(&cam.params))
+            .atan()
+            .to_degrees();
+        let perspective = !matches!(c.model.kind(), ModelKind::KannalaBrandt | ModelKind::DoubleSphere);
         let what = match (profile.grows_radially(), profile.rejections_grow()) {
+            _ if sigma0_fails && perspective && fov_deg > PERSPECTIVE_FOV_DEG => format!(
+                "the adjustment fails (σ0 {:.1}) and the lens sees {fov_deg:.0}° across the image's diagonal even before its distortion, beyond the {PERSPECTIVE_FOV_DEG:.0}° a perspective model with polynomial distortion holds",
+                adjusted.sigma0_a_priori
+            ),
             (Some((inner, outer)), _) if sigma0_fails => format!(
                 "the image residuals grow toward the edge along the radius (RMS {:.3} px within {:.0} % of the image's half-diagonal, {:.3} px beyond {:.0} %, across the radius {:.3} px there)",
                 inner.radial_px,
@@ -221,7 +240,9 @@ pub fn judge(st: &Stages) -> Verdict {
         });
     });
     reasons.extend(unmatched(st));
-    reasons.extend(st.adjusted.lens_doubt.clone());
+    if let Some(d) = &st.adjusted.lens_doubt {
+        reasons.insert(0, d.clone());
+    }
     let kept_twice = match st.joint {
         Some(Ok(j)) => j.lrf_view.seen_twice_kept,
         _ => st.lrf.found.seen_twice_kept(),
