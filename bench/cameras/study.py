@@ -47,8 +47,12 @@ def one(binary, work, model, seed):
     zt = max(abs(x) / s for x, s in zip(dt, e["sigma_translation_mm"]))
     cam, tcam = r["cameras"][0], t["cameras"][0]
     zi, worst = 0.0, ""
-    for k, s in cam.get("sigma", {}).items():
-        if k in tcam and s > 0:
+    # the photogrammetric model's σ's are keyed by the parameter names (c, xp, K1, ...),
+    # its values by the file keys (c_mm, xp_mm, k1, ...)
+    value_key = {"c": "c_mm", "xp": "xp_mm", "yp": "yp_mm"}
+    for name, s in cam.get("sigma", {}).items():
+        k = value_key.get(name, name if name in cam else name.lower())
+        if k in tcam and k in cam and s > 0:
             z = abs(cam[k] - tcam[k]) / s
             if z > zi:
                 zi, worst = z, k

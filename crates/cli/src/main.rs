@@ -40,6 +40,8 @@ enum Command {
     GenBal(commands::gen_bal::Args),
     /// Build the LRF cloud from scans and fit the spheres.
     Cloud(commands::cloud::Args),
+    /// The rotating LRF's mount and range errors from the room it scanned (no camera, no balls).
+    LrfMount(commands::lrf_mount::Args),
     /// Read the LRF's scans from ROS 1 / ROS 2 bags into a pingcal-scan CSV, or list a bag's topics.
     Scans(commands::scans::Args),
     /// Frames for sphere-calib from a bag's PointCloud2 and Image / CompressedImage topics.
@@ -62,6 +64,7 @@ fn main() {
         Command::Ba(a) => commands::ba::run(a),
         Command::GenBal(a) => commands::gen_bal::run(a),
         Command::Cloud(a) => commands::cloud::run(a),
+        Command::LrfMount(a) => commands::lrf_mount::run(a),
         Command::Scans(a) => commands::scans::run(a),
         Command::Frames(a) => commands::frames::run(a),
         Command::Register(a) => commands::register::run(a),

@@ -292,6 +292,13 @@ impl Estimator for WallSamples<'_> {
 /// (0.69 for Gaussian range noise at a 2.5 σ gate, 0.4 for points spread evenly).
 const WALL_CORE_FRACTION: f64 = 0.55;
 
+/// The large planes of `cloud` (walls, floor, ceiling) as step 1 of [`find_balls`] finds
+/// them with the same options and seed: unit normal and offset, `n·x = d`.
+pub fn find_walls(cloud: &Cloud, opt: &FinderOptions) -> Vec<(Vector3<f64>, f64)> {
+    let mut rng = pingcal_geometry::consensus::rng(opt.seed);
+    remove_planes(cloud, opt, &mut rng).0
+}
+
 /// Removes large planes; returns the planes and a mask of the points kept.
 fn remove_planes(
     cloud: &Cloud,

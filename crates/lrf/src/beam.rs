@@ -43,12 +43,13 @@ pub struct BeamResidual {
 }
 
 /// Derivative of [`servo_rotation`] with respect to β.
-fn servo_rotation_dot(beta: f64) -> Matrix3<f64> {
+pub(crate) fn servo_rotation_dot(beta: f64) -> Matrix3<f64> {
     let (s, c) = beta.sin_cos();
     Matrix3::new(-s, 0.0, -c, 0.0, 0.0, 0.0, c, 0.0, -s)
 }
 
-fn rot_x(a: f64) -> (Matrix3<f64>, Matrix3<f64>) {
+/// The rotation about X by `a` (radians) and its derivative.
+pub(crate) fn rot_x(a: f64) -> (Matrix3<f64>, Matrix3<f64>) {
     let (s, c) = a.sin_cos();
     (
         Matrix3::new(1.0, 0.0, 0.0, 0.0, c, -s, 0.0, s, c),
@@ -56,7 +57,8 @@ fn rot_x(a: f64) -> (Matrix3<f64>, Matrix3<f64>) {
     )
 }
 
-fn rot_z(a: f64) -> (Matrix3<f64>, Matrix3<f64>) {
+/// The rotation about Z by `a` (radians) and its derivative.
+pub(crate) fn rot_z(a: f64) -> (Matrix3<f64>, Matrix3<f64>) {
     let (s, c) = a.sin_cos();
     (
         Matrix3::new(c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0),

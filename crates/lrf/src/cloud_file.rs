@@ -200,6 +200,37 @@ pub fn read_cloud_file_in(
     Ok((c, warnings))
 }
 
+/// The `lrf_model` block of a file (the `results.json` of `pingcal calibrate`, the
+/// `mount.json` of `pingcal lrf-mount`, or a file that is that block alone): the whole
+/// mount and range model, checked (finite values, scale errors that are small fractions).
+/// An error names the file and what is missing.
+pub fn read_lrf_model(path: &std::path::Path) -> Result<crate::sensor::MountModel> {
+    let file = path.display().to_string();
+    let text = std::fs::read_to_string(path).map_err(|e| LrfError::io(&file, e))?;
+    let invalid = |msg: String| LrfError::Invalid(format!("{file}: {msg}"));
+    let v: serde_json::Value =
+        serde_json::from_str(&text).map_err(|e| invalid(format!("not JSON ({e})")))?;
+    let block = v.get("lrf_model").unwrap_or(&v);
+    if block.get("offset_mm").is_none() {
+        return Err(invalid(
+            "no `lrf_model` block (offset_mm, tilt_x_deg, …): expected the results.json of `pingcal calibrate` or the mount.json of `pingcal lrf-mount`".into(),
+        ));
+    }
+    let m: crate::sensor::MountModel =
+        serde_json::from_value(block.clone()).map_err(|e| invalid(format!("lrf_model: {e}")))?;
+    m.check([
+        "offset_mm",
+        "tilt_x_deg",
+        "tilt_z_deg",
+        "servo_zero_deg",
+        "servo_scale",
+        "range_offset_mm",
+        "range_scale",
+    ])
+    .map_err(|e| invalid(format!("lrf_model: {e}")))?;
+    Ok(m)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

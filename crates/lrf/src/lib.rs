@@ -23,6 +23,8 @@
 //!   mixed-pixel rejection; balls with too few points are reported, not used.
 //! - [`sphere_size`]: when nothing of the nominal size is found, a sphere of another size the
 //!   cloud shows, if any.
+//! - [`room`]: the mount self-calibrated from the room's planes (walls, floor, ceiling seen
+//!   from both half-sweeps), and the beam-on-plane observation the joint adjustment adds.
 //! - [`registration`]: Horn/Umeyama closed form, weighted least squares with the covariances of
 //!   both sides (optional scale), σ of R and t, control/check table, leave-one-out.
 //! - [`correspondence`]: automatic ball matching by pairwise-distance invariants, RANSAC over triples.
@@ -46,6 +48,7 @@ pub mod lzf;
 pub mod pcd;
 pub mod ply;
 pub mod registration;
+pub mod room;
 pub mod scan;
 pub mod sensor;
 pub mod simulate;

@@ -376,6 +376,7 @@ accuracy_far_fraction = 0.03
             scan_paths: Vec::new(),
             layout: None,
             bag_paths: Vec::new(),
+            lrf_model_path: None,
             file,
         };
         let det = || ImageDetections {

@@ -299,6 +299,106 @@ pub fn spheres_only(
     run_methods(project, (scene, adj, lrf, dets), opts, rep, true, false)
 }
 
+/// The spheres of `lrf` matched one to one to the balls `balls` (scene point, centre in the
+/// photogrammetric frame) that `camera_from_lrf` puts within `radius` of them, nearest pairs
+/// first: with the extrinsic and the LRF's model near the truth, a sphere of the right ball
+/// is within a few millimetres of it and another ball at least a diameter away, so the rule
+/// is unambiguous.
+pub fn match_by_extrinsic(
+    lrf: &LrfData,
+    balls: &[(PointId, Vector3<f64>)],
+    camera_from_lrf: &pingcal_geometry::Rigid3,
+    radius: f64,
+) -> Vec<(SphereId, PointId)> {
+    let mut candidates: Vec<(f64, usize, usize)> = Vec::new();
+    for (s, ball) in lrf.found.balls.iter().enumerate() {
+        let at = camera_from_lrf.transform(&ball.centre);
+        for (k, (_, c)) in balls.iter().enumerate() {
+            let d = (at - c).norm();
+            if d <= radius {
+                candidates.push((d, s, k));
+            }
+        }
+    }
+    candidates.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
+    let (mut sphere_used, mut ball_used) =
+        (vec![false; lrf.found.balls.len()], vec![false; balls.len()]);
+    let mut pairs = Vec::new();
+    for (_, s, k) in candidates {
+        if !sphere_used[s] && !ball_used[k] {
+            sphere_used[s] = true;
+            ball_used[k] = true;
+            pairs.push((SphereId(s), balls[k].0));
+        }
+    }
+    pairs.sort_by_key(|&(s, _)| s.0);
+    pairs
+}
+
+/// The spheres of `lrf` matched to the balls of the bundle by [`match_by_extrinsic`] with
+/// `camera_from_lrf` (no sphere method, no corner baseline): how the joint adjustment's
+/// later passes re-decide which sphere is which ball as its estimate improves. An error
+/// when fewer than three match.
+pub fn spheres_by_extrinsic(
+    project: &Project,
+    scene: &Scene,
+    adj: &Adjusted,
+    lrf: &LrfData,
+    camera_from_lrf: &pingcal_geometry::Rigid3,
+    rep: &Reporter,
+) -> Result<Extrinsics> {
+    let cam_balls = camera_balls(scene, adj);
+    let centres: Vec<(PointId, Vector3<f64>)> = cam_balls.iter().map(|b| (b.0, b.1)).collect();
+    let radius = 0.5 * project.file.balls.diameter_mm;
+    let mut pairs = match_by_extrinsic(lrf, &centres, camera_from_lrf, radius);
+    if pairs.len() < 3 {
+        return Err(PipelineError::new(format!(
+            "only {} LRF spheres lie within a ball's radius of where the estimated extrinsic puts a ball",
+            pairs.len()
+        )));
+    }
+    pairs.sort_by(|a, b| scene.points[a.1].name.cmp(&scene.points[b.1].name));
+    let (mut lrf_points, mut cam_points, mut ss) = (Vec::new(), Vec::new(), 0.0);
+    for &(l, j) in &pairs {
+        let name = scene.points[j].name.clone();
+        let b = &lrf.found.balls[l.0];
+        let cb = cam_balls.iter().find(|c| c.0 == j).expect("matched ball");
+        ss += (camera_from_lrf.transform(&b.centre) - cb.1).norm_squared();
+        lrf_points.push(PointObs {
+            id: name.clone(),
+            xyz: b.centre,
+            cov: b.cov,
+        });
+        cam_points.push(PointObs {
+            id: name,
+            xyz: cb.1,
+            cov: cb.2,
+        });
+    }
+    let m = Matched {
+        rms_mm: (ss / pairs.len() as f64).sqrt(),
+        pairs,
+        lrf_points,
+        cam_points,
+    };
+    rep.log(format!(
+        "correspondence by the estimated extrinsic: {} of {} LRF spheres within a ball's radius of a ball, RMS {:.1} mm",
+        m.pairs.len(),
+        lrf.found.balls.len(),
+        m.rms_mm
+    ));
+    let check_ids = check_balls(&project.file.balls.check, &m, rep);
+    Ok(Extrinsics {
+        pairs: m.pairs,
+        match_rms_mm: m.rms_mm,
+        lrf_points: m.lrf_points,
+        cam_points: m.cam_points,
+        spheres: None,
+        corner: None,
+        check_ids,
+    })
+}
+
 /// The matching, then the sphere method and the corner baseline where asked.
 fn run_methods(
     project: &Project,

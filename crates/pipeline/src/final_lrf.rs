@@ -21,6 +21,7 @@
 //! Without a joint adjustment (it did not run, or failed) the outputs use the cloud of the
 //! project's mount, the two-step method's view.
 
+use super::extrinsic::match_by_extrinsic;
 use super::ids::{PointId, SphereId};
 use super::joint::{JointOutcome, LrfView};
 use super::lrf::{self, LrfData};
@@ -39,41 +40,6 @@ pub struct Remade {
     pub pairs: Vec<(SphereId, PointId)>,
 }
 
-/// The balls of `scene` matched one to one to the spheres of `lrf` that `camera_from_lrf`
-/// puts within `radius` of them, nearest pairs first.
-fn match_spheres(
-    lrf: &LrfData,
-    centres: &[(PointId, PointObs)],
-    camera_from_lrf: &pingcal_geometry::Rigid3,
-    radius: f64,
-) -> Vec<(SphereId, PointId)> {
-    let mut candidates: Vec<(f64, usize, usize)> = Vec::new();
-    for (s, ball) in lrf.found.balls.iter().enumerate() {
-        let at = camera_from_lrf.transform(&ball.centre);
-        for (k, (_, c)) in centres.iter().enumerate() {
-            let d = (at - c.xyz).norm();
-            if d <= radius {
-                candidates.push((d, s, k));
-            }
-        }
-    }
-    candidates.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
-    let (mut sphere_used, mut ball_used) = (
-        vec![false; lrf.found.balls.len()],
-        vec![false; centres.len()],
-    );
-    let mut pairs = Vec::new();
-    for (_, s, k) in candidates {
-        if !sphere_used[s] && !ball_used[k] {
-            sphere_used[s] = true;
-            ball_used[k] = true;
-            pairs.push((SphereId(s), centres[k].0));
-        }
-    }
-    pairs.sort_by_key(|&(s, _)| s.0);
-    pairs
-}
-
 /// The LRF through the joint adjustment's estimated model (see the module doc); `j`'s check
 /// and control tables, ball points and LRF view are replaced by those of this cloud. None
 /// (and `j` untouched) when the cloud has no readings to make again.
@@ -88,7 +54,9 @@ pub fn through_estimate(
 ) -> Option<Remade> {
     let lrf = lrf::through_mount(project, first, j.mount_model, opts, rep)?;
     let radius = 0.5 * project.file.balls.diameter_mm;
-    let pairs = match_spheres(&lrf, &j.ball_centres, &j.camera_from_lrf, radius);
+    let centres: Vec<(PointId, nalgebra::Vector3<f64>)> =
+        j.ball_centres.iter().map(|(p, o)| (*p, o.xyz)).collect();
+    let pairs = match_by_extrinsic(&lrf, &centres, &j.camera_from_lrf, radius);
     let (mut lrf_points, mut cam_points) = (Vec::new(), Vec::new());
     for &(s, p) in &pairs {
         let ball = &lrf.found.balls[s.0];

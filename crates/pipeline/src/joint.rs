@@ -75,6 +75,7 @@ use pingcal_geometry::{opk_sigma_deg, Rigid3, Sim3};
 use pingcal_lrf::beam::{beam_range_residual, BeamOnBall};
 use pingcal_lrf::cloud::BeamReading;
 use pingcal_lrf::registration::{check_table, CheckTable, PointObs};
+use pingcal_lrf::room::{self, BeamOnPlane, Gate, PlaneFrame, RoomOptions};
 use pingcal_lrf::sensor::{MountModel, RangeNoise, MOUNT_PARAM_NAMES};
 use pingcal_project::Project;
 
@@ -104,6 +105,38 @@ pub const BEAM_REJECT: f64 = 3.29;
 
 /// Rounds of beam rejection.
 pub const REJECT_ROUNDS: usize = 3;
+
+/// The room's planes give the joint adjustment at most this many beams each (taken evenly
+/// in scan order): enough that the planes fix the mount parameters they can to a fraction
+/// of a millimetre, few enough that the adjustment's time stays that of the balls.
+pub const PLANE_BEAMS: usize = 2000;
+
+/// Why the joint adjustment gave no result.
+#[derive(Clone, Debug)]
+pub struct JointError {
+    /// One line.
+    pub message: String,
+    /// It did not converge from any start (its results were absurd for the field): the
+    /// calibration failed, which the verdict says; else an error that leaves the two-step
+    /// result standing as a doubtful one.
+    pub not_converged: bool,
+}
+
+impl JointError {
+    /// An error that leaves the two-step result standing.
+    pub fn other(message: impl Into<String>) -> Self {
+        Self {
+            message: message.into(),
+            not_converged: false,
+        }
+    }
+}
+
+impl std::fmt::Display for JointError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.message)
+    }
+}
 
 /// One mount parameter's outcome.
 #[derive(Clone, Debug)]
@@ -136,6 +169,9 @@ pub struct JointOutcome {
     pub mount: Vec<MountEstimate>,
     /// The estimated mount model.
     pub mount_model: MountModel,
+    /// Covariance of the mount parameters ([`MountModel::to_params`] units: mm, rad, 1;
+    /// zero rows for held ones).
+    pub mount_cov: DMatrix<f64>,
     /// Beams used, and removed as gross errors or as grazing.
     pub beams: usize,
     /// Beams removed as gross errors.
@@ -167,6 +203,19 @@ pub struct JointOutcome {
     pub notes: Vec<String>,
     /// The LRF as the pass that gave this outcome saw it (through its start mount).
     pub lrf_view: LrfView,
+    /// Beams on the room's planes used, and removed as gross errors.
+    pub plane_beams: usize,
+    /// Beams on the room's planes removed as gross errors.
+    pub plane_beams_rejected: usize,
+    /// RMS of the plane beams' residuals (mm).
+    pub rms_plane_mm: f64,
+    /// The room's planes as estimated (unit normal, offset; LRF frame): where the next pass
+    /// looks for their beams.
+    pub planes: Vec<(Vector3<f64>, f64)>,
+    /// How the adjustment converged and whether a second start agreed.
+    pub convergence: Convergence,
+    /// Why every mount parameter was held (the simpler model chosen), if it was.
+    pub hold_mount: Option<String>,
 }
 
 /// What the LRF step gave the joint adjustment's pass: the spheres found in the cloud
@@ -223,6 +272,10 @@ const MOUNT: usize = 1;
 struct Joint {
     base: Problem,
     beams: Vec<BeamOnBall>,
+    /// Beams on the room's planes (their planes are the parameter blocks from 2 on).
+    planes: Vec<BeamOnPlane>,
+    /// What the solver did in the last adjustment of [`final_rounds`].
+    last: Option<solver::Summary>,
     /// Per image observation of `base`, its group ([`OBSERVATION_GROUPS`]).
     group_of: Vec<usize>,
     /// The project's mount: where the priors are centred.
@@ -289,6 +342,7 @@ impl Joint {
                 project.path.display()
             )));
         }
+        let planes = plane_beams(input, readings, &mut base);
         let group_of = (adj.solved.map.observations.iter())
             .map(|&(j, _)| usize::from(scene.points[j].kind == PointKind::Ball))
             .collect();
@@ -302,6 +356,8 @@ impl Joint {
         let joint = Self {
             base,
             beams,
+            planes,
+            last: None,
             group_of,
             prior_theta: input.prior.to_params(),
             sweep_deg,
@@ -319,6 +375,11 @@ impl Joint {
         p.parameters[MOUNT].fixed = free.iter().map(|f| !f).collect();
         p.residuals = (self.beams.iter().cloned())
             .map(ResidualBlock::new)
+            .chain(self.planes.iter().cloned().map(ResidualBlock::new))
+            .chain(
+                self.plane_blocks()
+                    .map(|k| ResidualBlock::new(room::flatness_prior(k))),
+            )
             .collect();
         let components: Vec<usize> = (0..8).filter(|&k| free[k]).collect();
         if !components.is_empty() {
@@ -340,12 +401,97 @@ impl Joint {
             .sum()
     }
 
-    /// Adjusts `p` and returns its precision.
-    fn solve(&self, p: &mut Problem) -> Result<Precision> {
-        solver::solve(p, &self.options, |_| {})
-            .map_err(|e| PipelineError::new(format!("joint adjustment: {e}")))?;
-        solver::precision(p).map_err(|e| PipelineError::new(format!("joint adjustment: {e}")))
+    /// The parameter blocks of the planes, in order.
+    fn plane_blocks(&self) -> impl Iterator<Item = usize> + '_ {
+        let mut seen: Vec<usize> = self.planes.iter().map(|b| b.plane).collect();
+        seen.sort_unstable();
+        seen.dedup();
+        seen.into_iter()
     }
+
+    /// Adjusts `p` and returns its precision and what the solver did.
+    fn solve(&self, p: &mut Problem) -> Result<(Precision, solver::Summary)> {
+        let summary = solver::solve(p, &self.options, |_| {})
+            .map_err(|e| PipelineError::new(format!("joint adjustment: {e}")))?;
+        let prec = solver::precision(p)
+            .map_err(|e| PipelineError::new(format!("joint adjustment: {e}")))?;
+        Ok((prec, summary))
+    }
+}
+
+/// The beams on the room's planes of `input` (see [`JointInput::planes`]), each plane a
+/// parameter block `(a, b, d)` appended to `base`; none when no mount parameter is asked for
+/// (the planes then fix nothing).
+fn plane_beams(
+    input: &JointInput,
+    readings: &[BeamReading],
+    base: &mut Problem,
+) -> Vec<BeamOnPlane> {
+    if input.planes.is_empty()
+        || input.hold_mount.is_some()
+        || !asked(input.project).iter().any(|&a| a)
+    {
+        return Vec::new();
+    }
+    let opts = RoomOptions {
+        noise: input.noise,
+        max_beams_per_plane: PLANE_BEAMS,
+        ..RoomOptions::default()
+    };
+    let mut obs = room::associate(
+        readings,
+        &input.mount0,
+        input.planes,
+        input.plane_gate,
+        &opts,
+    );
+    let planes = room::drop_thin_planes(&mut obs, input.planes);
+    let frames = PlaneFrame::of_beams(readings, &obs, &input.mount0, &planes);
+    let first = base.parameters.len();
+    for (k, (_, d)) in planes.iter().enumerate() {
+        let mut v = vec![0.0; room::PLANE_UNKNOWNS];
+        v[2] = *d;
+        base.parameters
+            .push(ParameterBlock::vector(format!("plane {}", k + 1), v));
+    }
+    obs.iter()
+        .map(|o| BeamOnPlane {
+            reading: readings[o.reading],
+            sigma: o.sigma,
+            servo_zero_deg: input.mount0.servo_zero_deg,
+            frame: frames[o.plane],
+            plane: first + o.plane,
+            mount: MOUNT,
+        })
+        .collect()
+}
+
+/// Each plane beam's `n·p − d` (mm) at the solution of `p` (NaN where undefined).
+fn plane_errors(joint: &Joint, p: &Problem) -> Vec<f64> {
+    let (_, theta) = solution(p);
+    (joint.planes.iter())
+        .map(|b| {
+            let ParameterValue::Vector(v) = &p.parameters[b.plane].value else {
+                return f64::NAN;
+            };
+            b.error(v, &theta).unwrap_or(f64::NAN)
+        })
+        .collect()
+}
+
+/// The planes of a solved joint problem (unit normal, offset), in block order.
+fn solved_planes(joint: &Joint, p: &Problem) -> Vec<(Vector3<f64>, f64)> {
+    let mut out: Vec<(usize, (Vector3<f64>, f64))> = Vec::new();
+    for b in &joint.planes {
+        if out.iter().any(|(k, _)| *k == b.plane) {
+            continue;
+        }
+        if let ParameterValue::Vector(v) = &p.parameters[b.plane].value {
+            out.push((b.plane, (b.frame.normal_at(v[0], v[1]).0, v[2])));
+        }
+    }
+    out.sort_by_key(|(k, _)| *k);
+    out.into_iter().map(|(_, p)| p).collect()
 }
 
 /// The extrinsic and the mount of a solved joint problem.
@@ -406,33 +552,62 @@ fn estimability(
     Ok(any)
 }
 
+/// Which observations of one group are kept after an adjustment: those whose
+/// standardised residual `w` over the group's σ0 (from its own redundancy, at least 1) is at
+/// most [`BEAM_REJECT`]. `e` and `sigma` are the residuals (mm) and their σ's, `w` and `q`
+/// the group's standardised residuals and redundancy numbers.
+fn keep_flags(e: &[f64], sigma: &[f64], w: &[Vec<f64>], q: &[Vec<f64>]) -> Vec<bool> {
+    let vv: f64 = e.iter().zip(sigma).map(|(e, s)| (e / s).powi(2)).sum();
+    let r: f64 = q.iter().map(|q| q[0]).sum();
+    let s0 = (vv / r.max(1.0)).sqrt().max(1.0);
+    w.iter().map(|w| !(w[0].abs() / s0 > BEAM_REJECT)).collect()
+}
+
+/// Beams removed as gross errors: on balls, on planes.
+#[derive(Clone, Copy, Debug, Default)]
+struct Rejected {
+    balls: usize,
+    planes: usize,
+}
+
 /// The adjustment with the plausible-range prior, removing gross beam errors (see the
-/// module doc).
+/// module doc) of the balls' and the planes' beams, each group judged by its own σ0.
 /// Returns the solved problem, its precision and the beams removed.
-fn final_rounds(joint: &mut Joint, free: &[bool; 8]) -> Result<(Problem, Precision, usize)> {
-    let mut rejected = 0;
+fn final_rounds(joint: &mut Joint, free: &[bool; 8]) -> Result<(Problem, Precision, Rejected)> {
+    let mut rejected = Rejected::default();
     for round in 0..=REJECT_ROUNDS {
         let mut p = joint.problem_from(&joint.base, free, &PLAUSIBLE);
-        let prec = joint.solve(&mut p)?;
-        // the beams' σ0 from their own redundancy (at least 1), and Baarda's w per beam
-        let e = beam_errors(joint, &p);
-        let vv: f64 = (e.iter().zip(&joint.beams))
-            .map(|(e, b)| (e / b.sigma).powi(2))
-            .sum();
-        let r: f64 = prec.residual_redundancy_numbers.iter().map(|q| q[0]).sum();
-        let s0 = (vv / r.max(1.0)).sqrt().max(1.0);
-        let keep: Vec<bool> = (prec.residual_standardized.iter())
-            .map(|w| !(w[0].abs() / s0 > BEAM_REJECT))
-            .collect();
-        let bad = keep.iter().filter(|k| !**k).count();
-        if round == REJECT_ROUNDS || bad == 0 {
+        let (prec, summary) = joint.solve(&mut p)?;
+        joint.last = Some(summary);
+        let (nb, np) = (joint.beams.len(), joint.planes.len());
+        let (w, q) = (
+            &prec.residual_standardized,
+            &prec.residual_redundancy_numbers,
+        );
+        let sb: Vec<f64> = joint.beams.iter().map(|b| b.sigma).collect();
+        let sp: Vec<f64> = joint.planes.iter().map(|b| b.sigma).collect();
+        let keep_b = keep_flags(&beam_errors(joint, &p), &sb, &w[..nb], &q[..nb]);
+        let keep_p = keep_flags(
+            &plane_errors(joint, &p),
+            &sp,
+            &w[nb..nb + np],
+            &q[nb..nb + np],
+        );
+        let bad_b = keep_b.iter().filter(|k| !**k).count();
+        let bad_p = keep_p.iter().filter(|k| !**k).count();
+        if round == REJECT_ROUNDS || bad_b + bad_p == 0 {
             return Ok((p, prec, rejected));
         }
-        let mut it = keep.iter();
+        let mut it = keep_b.iter();
         joint
             .beams
             .retain(|_| *it.next().expect("one flag per beam"));
-        rejected += bad;
+        let mut it = keep_p.iter();
+        joint
+            .planes
+            .retain(|_| *it.next().expect("one flag per plane beam"));
+        rejected.balls += bad_b;
+        rejected.planes += bad_p;
     }
     unreachable!("the last round returns")
 }
@@ -494,20 +669,194 @@ fn ball_centres(input: &JointInput, p: &Problem, prec: &Precision) -> Vec<(Point
         .collect()
 }
 
-/// The joint adjustment (see the module doc).
-pub fn joint_adjustment(input: &JointInput, rep: &Reporter) -> Result<JointOutcome> {
-    let pb = rep.task("joint adjustment", 3);
+/// How far the second start moves the solution: every extrinsic and free mount unknown by
+/// this many of its σ's (random signs). Far enough that a solver that stopped short would
+/// stop elsewhere; near enough that the beams on the balls stay those of the solution (a
+/// start a ball's radius off leaves beams beside the ball, clamped, and their own small
+/// minimum: [`pingcal_lrf::beam::GRAZING_KAPPA`]). A start far off is what the starts of
+/// the pipeline try (the room's mount, the project's) and the absurdity test judges.
+pub const SECOND_START_Z: f64 = 3.0;
+
+/// Two solutions are the same minimum when no extrinsic or mount unknown differs by more
+/// than this share of its σ: within the result's own uncertainty. (The solver's tolerances
+/// leave far less; a beam that grazes its ball at one solution and not at the other makes a
+/// kink in the cost, and two nearby minima a few tenths of a σ apart, which that σ covers.)
+pub const SAME_MINIMUM_Z: f64 = 1.0;
+
+/// How the final adjustment converged, and whether a second start reached its minimum.
+#[derive(Clone, Debug, Default)]
+pub struct Convergence {
+    /// Why the solver stopped (its gradient, step or cost-change test), in words.
+    pub termination: String,
+    /// Whether that is convergence (not the iteration limit or a trust region that shrank).
+    pub converged: bool,
+    /// Iterations of that adjustment.
+    pub iterations: usize,
+    /// The gradient's largest component at the solution (whitened units).
+    pub gradient_max_norm: f64,
+    /// ½χ² of the solution and of the second start's (whitened units).
+    pub cost: (f64, f64),
+    /// The largest difference between the two solutions' extrinsic and mount unknowns, in
+    /// σ's of the first.
+    pub max_difference_z: f64,
+    /// Whether the second start reached the same minimum ([`SAME_MINIMUM_Z`]).
+    pub same_minimum: bool,
+    /// The second start found a lower minimum, which is the one given.
+    pub second_lower: bool,
+}
+
+impl Convergence {
+    /// One line for logs and notes.
+    pub fn describe(&self) -> String {
+        format!(
+            "{} after {} iterations (largest gradient component {:.2e}); a second start from the solution moved by {} σ in every extrinsic and mount unknown reached {} (χ²/2 {:.3} against {:.3}, largest difference {:.3} σ)",
+            self.termination,
+            self.iterations,
+            self.gradient_max_norm,
+            SECOND_START_Z,
+            if self.same_minimum {
+                "the same minimum"
+            } else if self.second_lower {
+                "a lower minimum, which is given"
+            } else {
+                "another, higher minimum"
+            },
+            self.cost.0,
+            self.cost.1,
+            self.max_difference_z
+        )
+    }
+
+    /// Why the result is doubtful, if it is: no convergence, or another minimum.
+    pub fn doubt(&self) -> Option<String> {
+        if !self.converged {
+            Some(format!(
+                "the joint adjustment did not converge ({})",
+                self.termination
+            ))
+        } else if !self.same_minimum {
+            Some(format!(
+                "a second start of the joint adjustment from a perturbed solution reached {} (χ²/2 {:.3} against {:.3}, unknowns {:.1} σ apart): the minimum is not unique within the start's error",
+                if self.second_lower { "a lower minimum, which is given" } else { "another minimum" },
+                self.cost.0,
+                self.cost.1,
+                self.max_difference_z
+            ))
+        } else {
+            None
+        }
+    }
+}
+
+/// The second start (see [`SECOND_START_Z`]) and what it found; `better` is the solution to
+/// give: the first one polished, or the second's when it found a lower minimum.
+struct SecondStart {
+    summary: Convergence,
+    better: Option<Problem>,
+}
+
+/// Starts the solved joint problem `p` (precision `prec`, free mount components `free`)
+/// again from a perturbed solution and compares the minimum it reaches.
+fn second_start(
+    joint: &Joint,
+    p: &Problem,
+    prec: &Precision,
+    free: &[bool; 8],
+    seed: u64,
+) -> Result<SecondStart> {
+    use rand::Rng;
+    let mut g = pingcal_geometry::consensus::rng(seed ^ 0x5ec0_57a7);
+    let cov = &prec.parameters_covariance;
+    let mut step = |k: usize| {
+        let sign = if g.random_bool(0.5) { 1.0 } else { -1.0 };
+        sign * SECOND_START_Z * cov[(k, k)].max(0.0).sqrt()
+    };
+    let ext_delta: Vec<f64> = (0..6).map(&mut step).collect();
+    let delta: Vec<f64> = (0..8)
+        .map(|k| if free[k] { step(6 + k) } else { 0.0 })
+        .collect();
+    let mut q = p.clone();
+    q.parameters[EXTRINSIC].plus(&ext_delta);
+    q.parameters[MOUNT].plus(&delta);
+    // both solved to the solver's tightest tolerances: the first solution is polished (it
+    // was near), the second started afresh
+    let tight = solver::Options {
+        function_tolerance: 1e-12,
+        parameter_tolerance: 1e-12,
+        max_iterations: 200,
+        ..joint.options.clone()
+    };
+    let solve = |p: &mut Problem| {
+        solver::solve(p, &tight, |_| {})
+            .map_err(|e| PipelineError::new(format!("joint adjustment: {e}")))
+    };
+    let summary2 = solve(&mut q)?;
+    let mut p1 = p.clone();
+    let summary1 = solve(&mut p1)?;
+    let p = &p1;
+    let last = joint.last.as_ref();
+    let (cost1, cost2) = (summary1.final_cost, summary2.final_cost);
+    // the unknowns' differences in σ's of the first solution
+    let (e1, t1) = solution(p);
+    let (e2, t2) = solution(&q);
+    let dr = pingcal_geometry::log_so3(&(e2.rotation * e1.rotation.transpose()));
+    let dt = e2.translation - e1.translation;
+    let mut z: f64 = 0.0;
+    for k in 0..6 {
+        let d = if k < 3 { dr[k] } else { dt[k - 3] };
+        z = z.max(d.abs() / cov[(k, k)].max(1e-30).sqrt());
+    }
+    for k in (0..8).filter(|&k| free[k]) {
+        z = z.max((t2[k] - t1[k]).abs() / cov[(6 + k, 6 + k)].max(1e-30).sqrt());
+    }
+    let same = z <= SAME_MINIMUM_Z;
+    let lower = !same && cost2 < cost1;
+    let summary = Convergence {
+        termination: summary1.termination.to_string(),
+        converged: !matches!(
+            summary1.termination,
+            solver::Termination::MaxIterations | solver::Termination::TrustRegionTooSmall
+        ),
+        iterations: last.map_or(0, |s| s.iterations) + summary1.iterations,
+        gradient_max_norm: (summary1.log.last()).map_or(f64::NAN, |i| i.gradient_max_norm),
+        cost: (cost1, cost2),
+        max_difference_z: z,
+        same_minimum: same,
+        second_lower: lower,
+    };
+    Ok(SecondStart {
+        summary,
+        better: Some(if lower { q } else { p1 }),
+    })
+}
+
+/// The free mount parameters of `input` and why each other one is held.
+fn free_set(input: &JointInput) -> ([bool; 8], [Option<String>; 8]) {
     let asked = asked(input.project);
     let mut held: [Option<String>; 8] = Default::default();
     let mut free = asked;
     free[1] = false;
     held[1] = Some("it is the LRF frame's origin along the servo axis (the extrinsic's ty absorbs it): defined, not estimated".into());
     for k in 0..8 {
-        if held[k].is_none() && !free[k] {
+        if held[k].is_some() {
+            continue;
+        }
+        if !free[k] {
             held[k] =
                 Some("not asked for in [lrf] self_calibrate: held at the project's value".into());
+        } else if let Some(why) = input.hold_mount {
+            free[k] = false;
+            held[k] = Some(why.to_string());
         }
     }
+    (free, held)
+}
+
+/// The joint adjustment (see the module doc).
+pub fn joint_adjustment(input: &JointInput, rep: &Reporter) -> Result<JointOutcome> {
+    let pb = rep.task("joint adjustment", 3);
+    let asked = asked(input.project);
+    let (mut free, mut held) = free_set(input);
     let (mut joint, grazing) = Joint::build(input)?;
     // every asked-for parameter under its plausible prior, then held where the data do
     // not determine it, and adjusted again without it
@@ -521,23 +870,50 @@ pub fn joint_adjustment(input: &JointInput, rep: &Reporter) -> Result<JointOutco
     }
     let (p, prec) = if any_held {
         let (p, prec, more) = final_rounds(&mut joint, &free)?;
-        rejected += more;
+        rejected.balls += more.balls;
+        rejected.planes += more.planes;
         (p, prec)
     } else {
         (p, prec)
     };
+    let second = second_start(&joint, &p, &prec, &free, input.seed)?;
+    let p = match &second.better {
+        Some(q) => q.clone(),
+        None => p,
+    };
     pb.advance(1);
+    let out = finish(
+        input,
+        &joint,
+        p,
+        (&free, &held),
+        (grazing, rejected),
+        second,
+        rep,
+    )?;
+    pb.finish();
+    Ok(out)
+}
+
+/// The outcome of the solved joint problem `p` (see the module doc): σ0 with the a-priori
+/// σ's, the covariances with every group weighted by its own variance component, the
+/// check and control tables.
+fn finish(
+    input: &JointInput,
+    joint: &Joint,
+    p: Problem,
+    (free, held): (&[bool; 8], &[Option<String>; 8]),
+    (grazing, rejected): (usize, Rejected),
+    second: SecondStart,
+    rep: &Reporter,
+) -> Result<JointOutcome> {
     // σ0 with the a-priori σ's of the image points, distances and beams (what the verdict
     // tests): the bundle's χ² and the beams' at the joint solution
-    let chi2_beams: f64 = (beam_errors(&joint, &p).iter().zip(&joint.beams))
-        .map(|(e, b)| (e / b.sigma).powi(2))
-        .sum();
+    let chi2_lrf = joint_chi2_lrf(joint, &p);
     let bundle = &input.adj.precision;
     let chi2 = input.adj.sigma0_a_priori.powi(2) * bundle.redundancy as f64
-        + chi2_beams
-        + joint.prior_chi2(&free, &solution(&p).1);
-    let redundancy = prec.redundancy;
-    let sigma0 = (chi2 / redundancy.max(1) as f64).sqrt();
+        + chi2_lrf
+        + joint.prior_chi2(free, &solution(&p).1);
     // the covariances with every group weighted by its own variance component
     let mut p = p;
     let estimate = solver::estimate_variance_components(
@@ -548,7 +924,8 @@ pub fn joint_adjustment(input: &JointInput, rep: &Reporter) -> Result<JointOutco
     )
     .map_err(|e| PipelineError::new(format!("joint adjustment: {e}")))?;
     let prec = estimate.precision;
-    let variance_components = estimate.components;
+    let redundancy = prec.redundancy;
+    let sigma0 = (chi2 / redundancy.max(1) as f64).sqrt();
     let (ext, theta) = solution(&p);
     let cov = prec.parameters_covariance.clone();
     let mount_model = MountModel::from_params(&theta, input.mount0.servo_zero_deg);
@@ -565,45 +942,40 @@ pub fn joint_adjustment(input: &JointInput, rep: &Reporter) -> Result<JointOutco
     let control = check_table(&sim, &pick(&lrf_points, false), &pick(&cam_points, false));
     let ecov = cov.view((0, 0), (6, 6)).into_owned();
     let rot_cov = Matrix3::from_fn(|a, b| ecov[(a, b)]);
-    let rms_beam_mm = {
-        let e = beam_errors(&joint, &p);
-        (e.iter().map(|e| e * e).sum::<f64>() / e.len().max(1) as f64).sqrt()
-    };
-    pb.finish();
+    let rms = |e: Vec<f64>| (e.iter().map(|e| e * e).sum::<f64>() / e.len().max(1) as f64).sqrt();
+    let planes = solved_planes(joint, &p);
     let out = JointOutcome {
         camera_from_lrf: ext,
         sigma_translation_mm: [3, 4, 5].map(|k| ecov[(k, k)].max(0.0).sqrt()),
         sigma_opk_deg: opk_sigma_deg(&ext.rotation, &rot_cov),
         extrinsic_cov: ecov,
         mount: (0..8)
-            .map(|k| mount_estimate(k, &theta, &cov, &held))
+            .map(|k| mount_estimate(k, &theta, &cov, held))
             .collect(),
         mount_model,
+        mount_cov: DMatrix::from_fn(8, 8, |a, b| {
+            if free[a] && free[b] {
+                cov[(6 + a, 6 + b)]
+            } else {
+                0.0
+            }
+        }),
         beams: joint.beams.len(),
-        beams_rejected: rejected,
+        beams_rejected: rejected.balls,
         beams_grazing: grazing,
+        plane_beams: joint.planes.len(),
+        plane_beams_rejected: rejected.planes,
+        rms_plane_mm: rms(plane_errors(joint, &p)),
         sigma0,
-        variance_components,
+        variance_components: estimate.components,
         redundancy,
-        rms_beam_mm,
+        rms_beam_mm: rms(beam_errors(joint, &p)),
         check,
         control,
         lrf_points,
         cam_points,
         ball_centres,
-        notes: (input.pass > 1)
-            .then(|| format!(
-                "pass {}: the LRF cloud made again from its readings through the mount the pass before estimated, its spheres found and matched again ({} of {} spheres matched)",
-                input.pass,
-                input.ext.pairs.len(),
-                input.lrf.found.balls.len()
-            ))
-            .into_iter()
-            .chain(held.iter().enumerate().filter_map(|(k, h)| {
-                h.as_ref()
-                    .map(|h| format!("{} held: {h}", MOUNT_PARAM_NAMES[k]))
-            }))
-            .collect(),
+        notes: outcome_notes(input, held, planes.len(), joint.planes.len()),
         lrf_view: LrfView {
             pass: input.pass,
             spheres: input.lrf.found.balls.len(),
@@ -612,10 +984,56 @@ pub fn joint_adjustment(input: &JointInput, rep: &Reporter) -> Result<JointOutco
             seen_twice_kept: input.lrf.found.seen_twice_kept(),
             rejected_at_unmatched: rejected_at_unmatched(input, &ext),
         },
+        planes,
+        convergence: second.summary,
+        hold_mount: input.hold_mount.map(String::from),
     };
+    log_outcome(&out, rep);
+    Ok(out)
+}
+
+/// χ² of the LRF's beams (on the balls and on the planes) with the sensor's σ's at the
+/// solution of `p`.
+fn joint_chi2_lrf(joint: &Joint, p: &Problem) -> f64 {
+    let balls: f64 = (beam_errors(joint, p).iter().zip(&joint.beams))
+        .map(|(e, b)| (e / b.sigma).powi(2))
+        .sum();
+    let planes: f64 = (plane_errors(joint, p).iter().zip(&joint.planes))
+        .map(|(e, b)| (e / b.sigma).powi(2))
+        .sum();
+    balls + planes
+}
+
+/// The notes of an outcome: the pass, the planes, the parameters held.
+fn outcome_notes(
+    input: &JointInput,
+    held: &[Option<String>; 8],
+    planes: usize,
+    plane_beams: usize,
+) -> Vec<String> {
+    let pass = (input.pass > 1).then(|| format!(
+        "pass {}: the LRF cloud made again from its readings through the mount the pass before estimated, its spheres found and matched again ({} of {} spheres matched)",
+        input.pass,
+        input.ext.pairs.len(),
+        input.lrf.found.balls.len()
+    ));
+    let room = (planes > 0).then(|| format!(
+        "the room's planes constrain the mount: {plane_beams} beams on {planes} planes (walls, floor, ceiling seen from both half-sweeps), each plane an unknown"
+    ));
+    pass.into_iter()
+        .chain(room)
+        .chain(held.iter().enumerate().filter_map(|(k, h)| {
+            h.as_ref()
+                .map(|h| format!("{} held: {h}", MOUNT_PARAM_NAMES[k]))
+        }))
+        .collect()
+}
+
+fn log_outcome(out: &JointOutcome, rep: &Reporter) {
     rep.log(format!(
-        "joint: {} beams ({} rejected, {} grazing), sigma0 {:.3}, RMS beam {:.2} mm; mean check error {:.2} mm (sd {:.2}) on {} balls",
-        out.beams, out.beams_rejected, out.beams_grazing, out.sigma0, out.rms_beam_mm,
+        "joint: {} beams ({} rejected, {} grazing), {} beams on {} planes ({} rejected, RMS {:.2} mm), sigma0 {:.3}, RMS beam {:.2} mm; mean check error {:.2} mm (sd {:.2}) on {} balls",
+        out.beams, out.beams_rejected, out.beams_grazing, out.plane_beams, out.planes.len(),
+        out.plane_beams_rejected, out.rms_plane_mm, out.sigma0, out.rms_beam_mm,
         out.check.mean_mm, out.check.sd_mm, out.check.rows.len()
     ));
     rep.log(format!(
@@ -629,7 +1047,10 @@ pub fn joint_adjustment(input: &JointInput, rep: &Reporter) -> Result<JointOutco
             .collect::<Vec<_>>()
             .join(", ")
     ));
-    Ok(out)
+    rep.log(format!(
+        "joint: convergence: {}",
+        out.convergence.describe()
+    ));
 }
 
 /// How many balls of the model have no sphere but a rejected candidate near where
@@ -765,6 +1186,17 @@ pub struct JointInput<'a> {
     pub pass: usize,
     /// The range noise profile.
     pub noise: RangeNoise,
+    /// The room's planes (unit normal, offset; LRF frame) near where `mount0` puts them:
+    /// their beams join the adjustment as observations of the mount, each plane an unknown
+    /// (empty: none).
+    pub planes: &'a [(Vector3<f64>, f64)],
+    /// The gate that finds the planes' beams ([`pingcal_lrf::room::associate`]).
+    pub plane_gate: Gate,
+    /// Hold every mount parameter at the project's value, for this reason (the simpler
+    /// model); None: estimate what the project asks for.
+    pub hold_mount: Option<&'a str>,
+    /// Seed of the second start's perturbation.
+    pub seed: u64,
 }
 
 fn mount_estimate(

@@ -14,8 +14,10 @@ use super::{Options, PipelineError, Reporter, Result};
 use pingcal_lrf::ball_finder::{find_balls, FindResult, FinderOptions};
 use pingcal_lrf::cloud::{Cloud, MountModel};
 use pingcal_lrf::cloud_file::{
-    file_kind, masked_warning, non_empty, read_cloud_file_in, CloudFileKind, CloudUnit,
+    file_kind, masked_warning, non_empty, read_cloud_file_in, read_lrf_model, CloudFileKind,
+    CloudUnit,
 };
+use pingcal_lrf::room::{mount_from_room, RoomMount, RoomOptions};
 use pingcal_lrf::scan::{mask_lines_beyond, open_scan_file, ScanHeader, ScanLine};
 use pingcal_lrf::sensor::RangeNoise;
 use pingcal_project::{Project, ProjectBag, ProjectLrf};
@@ -67,9 +69,15 @@ pub fn check_lrf_mount(l: &ProjectLrf) -> std::result::Result<(), String> {
         .map_err(|e| format!("[lrf] {e}"))
 }
 
-/// The mount model of the project.
-pub fn mount_of(project: &Project) -> MountModel {
-    mount_of_lrf(&project.file.lrf)
+/// The mount model of the project: its `[lrf] lrf_model` file's, or its `mount_*` and
+/// `servo_zero_deg` keys'.
+pub fn mount_of(project: &Project) -> Result<MountModel> {
+    if let Some(path) = &project.lrf_model_path {
+        return read_lrf_model(path).map_err(|e| {
+            PipelineError::new(format!("{}: [lrf] lrf_model: {e}", project.path.display()))
+        });
+    }
+    Ok(mount_of_lrf(&project.file.lrf))
 }
 
 /// The mount model of an `[lrf]` table.
@@ -147,7 +155,7 @@ fn bag_scans(
 /// Reads the scans and finds the spheres.
 pub fn lrf_spheres(project: &Project, opts: &Options, rep: &Reporter) -> Result<LrfData> {
     let l = &project.file.lrf;
-    let mount = mount_of(project);
+    let mount = mount_of(project)?;
     let pb = rep.task("LRF cloud and spheres", project.scan_paths.len() as u64 + 1);
     let mut cloud = Cloud::default();
     let mut scans = None;
@@ -235,6 +243,68 @@ pub fn lrf_spheres(project: &Project, opts: &Options, rep: &Reporter) -> Result<
     };
     pb.finish();
     Ok(spheres_in(project, cloud, scans, mount, noise, opts, rep))
+}
+
+/// The LRF's mount from the room's planes ([`pingcal_lrf::room`]): the walls the ball finder
+/// removed from `lrf`'s cloud, seen from both half-sweeps, fitted so that each is one
+/// plane, starting from the project's mount; the parameters the project asks for, those the
+/// room does not determine held and named. None (and the reason in the log) when the
+/// project turns it off (`[lrf] room_planes = false`), asks for no mount parameter, the
+/// cloud has no readings, or the room determines none of them.
+pub fn room_mount(project: &Project, lrf: &LrfData, rep: &Reporter) -> Option<RoomMount> {
+    let l = &project.file.lrf;
+    if l.room_planes == Some(false) || lrf.cloud.readings.is_none() {
+        return None;
+    }
+    let mut estimate = [false; 8];
+    for p in l.self_calibrated() {
+        estimate[p.index()] = true;
+    }
+    if !estimate.iter().any(|&e| e) {
+        return None;
+    }
+    let opts = RoomOptions {
+        noise: lrf.noise,
+        estimate,
+        ..RoomOptions::default()
+    };
+    match mount_from_room(&lrf.cloud, &lrf.found.planes, &lrf.mount, &opts) {
+        Ok(r) => {
+            rep.log(format!("LRF mount from the room: {}", describe_room(&r)));
+            r.parameters.iter().any(|p| p.sigma.is_some()).then_some(r)
+        }
+        Err(e) => {
+            rep.log(format!("LRF mount from the room: not found ({e})"));
+            None
+        }
+    }
+}
+
+/// One line: the planes, the fit, every parameter with its σ or why it is held.
+pub fn describe_room(r: &RoomMount) -> String {
+    let params: Vec<String> = r
+        .parameters
+        .iter()
+        .map(|p| {
+            let u = match p.name {
+                "tilt_x" | "tilt_z" => "°",
+                "servo_scale" | "range_scale" => "",
+                _ => " mm",
+            };
+            match p.sigma {
+                Some(s) => format!("{} {:.4} ± {:.4}{u}", p.name, p.value, s),
+                None => format!("{} held", p.name),
+            }
+        })
+        .collect();
+    format!(
+        "{} planes, {} beams ({} rejected), sigma0 {:.3}; {}",
+        r.planes.len(),
+        r.beams,
+        r.rejected,
+        r.sigma0,
+        params.join(", ")
+    )
 }
 
 /// The spheres of `lrf`'s beams seen through another mount (the joint adjustment's

@@ -566,12 +566,12 @@ fn mount_json(j: &JointOutcome) -> Vec<MountJson> {
 
 fn methods(
     ext: &Extrinsics,
-    joint: &Option<std::result::Result<JointOutcome, String>>,
+    joint: &Option<std::result::Result<JointOutcome, super::joint::JointError>>,
 ) -> Vec<MethodJson> {
     let mut out = Vec::new();
     match joint {
         Some(Ok(j)) => out.push(joint_json(j, ext)),
-        Some(Err(e)) => out.push(failed("joint", e)),
+        Some(Err(e)) => out.push(failed("joint", &e.message)),
         None => {}
     }
     if let Some(ev) = &ext.spheres {

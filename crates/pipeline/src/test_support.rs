@@ -22,5 +22,6 @@ pub fn project(file: ProjectFile, bag_paths: Vec<std::path::PathBuf>) -> Project
         scan_paths: Vec::new(),
         layout: None,
         bag_paths,
+        lrf_model_path: None,
     }
 }

@@ -137,7 +137,7 @@ pub(crate) fn sigma0_bound(dof: f64) -> f64 {
 /// for which a perspective model with polynomial distortion is taken to hold; beyond it, and
 /// with a failing σ0, the lens is named as the likely cause (a 120° wide-angle lens of the
 /// simulator sees about 100° undistorted, its 190° fisheye about 126°).
-const PERSPECTIVE_FOV_DEG: f64 = 115.0;
+pub const PERSPECTIVE_FOV_DEG: f64 = 115.0;
 
 /// A camera whose model cannot hold its lens, in words with the models to try: the first
 /// camera of the bundle's final problem whose image residuals grow toward the edge along the
@@ -255,16 +255,28 @@ pub fn judge(st: &Stages) -> Verdict {
             reasons.push(why);
         }
     }
-    if let Some(Err(e)) = st.joint {
-        reasons.push(format!(
+    let mut failed = false;
+    match st.joint {
+        Some(Err(e)) if e.not_converged => {
+            failed = true;
+            reasons.insert(0, format!("{e}; results.json's extrinsic is the two-step method's, given as the fallback, not as a calibration"));
+        }
+        Some(Err(e)) => reasons.push(format!(
             "the joint adjustment failed ({e}): the two-step result is given"
-        ));
+        )),
+        Some(Ok(j)) => {
+            reasons.extend(j.convergence.doubt());
+            notes.extend(j.hold_mount.clone());
+        }
+        None => {}
     }
     let status = if st.ext.spheres.is_none() {
         reasons.insert(
             0,
             "the sphere method gave no extrinsic (only the corner baseline did)".into(),
         );
+        Status::Failed
+    } else if failed {
         Status::Failed
     } else if reasons.is_empty() {
         Status::Ok

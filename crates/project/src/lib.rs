@@ -129,6 +129,8 @@ pub struct Project {
     pub layout: Option<Layout>,
     /// `[lrf.bag]` files (bag files or ROS 2 bag folders), resolved.
     pub bag_paths: Vec<PathBuf>,
+    /// `[lrf] lrf_model`, resolved.
+    pub lrf_model_path: Option<PathBuf>,
 }
 
 impl Project {
@@ -204,6 +206,10 @@ impl Project {
             .map(|(k, s)| format!("[lrf.bag] files[{k}] \"{s}\""))
             .collect();
         once_each(&bag_paths, &bag_names, &name)?;
+        let lrf_model_path = match &file.lrf.lrf_model {
+            Some(rel) => Some(resolve(rel, format!("[lrf] lrf_model \"{rel}\""))?),
+            None => None,
+        };
         Ok(Project {
             path: path.to_path_buf(),
             dir,
@@ -212,6 +218,7 @@ impl Project {
             scan_paths,
             layout,
             bag_paths,
+            lrf_model_path,
         })
     }
 

@@ -404,6 +404,15 @@ pub struct ProjectLrf {
     /// axis and is never estimated.
     #[serde(default)]
     pub self_calibrate: Option<Vec<MountParameter>>,
+    /// The whole LRF model (mount and range) from a file, relative to project.toml: the
+    /// `mount.json` of `pingcal lrf-mount` or a calibration's `results.json` (their
+    /// `lrf_model` block), instead of the `mount_*` and `servo_zero_deg` keys.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lrf_model: Option<String>,
+    /// Use the room's planes (walls, floor, ceiling seen from both half-sweeps) to find the
+    /// mount before the balls and as constraints of the joint adjustment (absent: true).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub room_planes: Option<bool>,
 }
 
 /// `[lrf.bag]`: ROS 1 / ROS 2 bags holding the LRF's scans and the servo angle (as

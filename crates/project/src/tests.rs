@@ -65,6 +65,31 @@ fn invalid_values_are_named() {
     );
 }
 
+/// Issue 37: `[lrf] lrf_model` gives the whole mount from a file; with the `mount_*` keys
+/// too the mount would be given twice, which is refused naming both.
+#[test]
+fn lrf_model_file_and_mount_keys_are_not_both_given() {
+    let p = ProjectFile::parse(&readme_example(), "example.toml").unwrap();
+    assert_eq!(p.lrf.lrf_model, None);
+    let mut q = p.clone();
+    q.lrf.lrf_model = Some("mount.json".into());
+    q.lrf.mount_offset_mm = [0.0; 3];
+    q.lrf.mount_tilt_x_deg = 0.0;
+    q.lrf.mount_tilt_z_deg = 0.0;
+    q.lrf.servo_zero_deg = 0.0;
+    q.validate("p.toml").unwrap();
+    let again = ProjectFile::parse(&q.to_toml_string(), "again").unwrap();
+    assert_eq!(again.lrf.lrf_model.as_deref(), Some("mount.json"));
+    let e = err_of(|p| {
+        p.lrf.lrf_model = Some("mount.json".into());
+        p.lrf.mount_tilt_x_deg = 0.3;
+    });
+    assert!(
+        e.contains("lrf_model = \"mount.json\" and the mount_* / servo_zero_deg keys both"),
+        "{e}"
+    );
+}
+
 /// Issue 35: each camera model takes its own keys and parameter names; another model's are
 /// refused with the model's list, and the focal length is required.
 #[test]

@@ -638,5 +638,14 @@ fn validate_lrf(l: &ProjectLrf, main_station: &str) -> Result<(), String> {
     {
         return Err("[lrf] a mount value is not finite".into());
     }
+    let mount_keys = l.mount_offset_mm != [0.0; 3]
+        || l.mount_tilt_x_deg != 0.0
+        || l.mount_tilt_z_deg != 0.0
+        || l.servo_zero_deg != 0.0;
+    if let (Some(file), true) = (&l.lrf_model, mount_keys) {
+        return Err(format!(
+            "[lrf] lrf_model = \"{file}\" and the mount_* / servo_zero_deg keys both give the mount: keep one"
+        ));
+    }
     Ok(())
 }

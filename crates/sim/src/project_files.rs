@@ -543,6 +543,8 @@ pub fn project_of(sim: &Simulation) -> ProjectFile {
             servo_zero_deg: 0.0,
             servo_resolution_deg: cfg.lrf.servo_resolution_deg,
             self_calibrate: None,
+            lrf_model: None,
+            room_planes: None,
         },
         frames: ProjectFrames::default(),
         network: Default::default(),

@@ -10,7 +10,9 @@
 use super::CmdResult;
 use pingcal_lrf::ball_finder::{find_balls, FinderOptions};
 use pingcal_lrf::cloud::{Cloud, MountModel};
-use pingcal_lrf::cloud_file::{extent_mm, file_kind, read_cloud_file_in, CloudFileKind, CloudUnit};
+use pingcal_lrf::cloud_file::{
+    extent_mm, file_kind, read_cloud_file_in, read_lrf_model, CloudFileKind, CloudUnit,
+};
 use pingcal_lrf::sensor::{profile_max_range_mm, PROFILE_MAX_RANGE_MM};
 use pingcal_lrf::RangeNoise;
 use std::path::PathBuf;
@@ -84,39 +86,11 @@ pub struct Args {
     #[arg(long, allow_hyphen_values = true, default_value_t = 0.0)]
     pub range_scale: f64,
     /// The whole LRF model (mount and range) of a calibration: its `results.json` (the
-    /// `lrf_model` block: the joint adjustment's estimate, or the project's mount), so that
-    /// any later scan gets the cloud the calibration's extrinsic is valid for.
+    /// `lrf_model` block: the joint adjustment's estimate, or the project's mount), or the
+    /// `mount.json` of `pingcal lrf-mount`, so that any later scan gets the cloud the
+    /// calibration's extrinsic is valid for.
     #[arg(long, conflicts_with_all = ["mount_offset_mm", "tilt_x_deg", "tilt_z_deg", "servo_zero_deg", "servo_scale", "range_offset_mm", "range_scale"])]
     pub lrf_model: Option<PathBuf>,
-}
-
-/// The `lrf_model` block of a calibration's `results.json` at `path` (or a file that is
-/// that block alone), or a one-line error naming the file and what is missing.
-pub fn read_lrf_model(path: &std::path::Path) -> Result<MountModel, String> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
-    let v: serde_json::Value =
-        serde_json::from_str(&text).map_err(|e| format!("{}: not JSON ({e})", path.display()))?;
-    let block = v.get("lrf_model").unwrap_or(&v);
-    if block.get("offset_mm").is_none() {
-        return Err(format!(
-            "{}: no `lrf_model` block (offset_mm, tilt_x_deg, …): expected the results.json of `pingcal calibrate`",
-            path.display()
-        ));
-    }
-    let m: MountModel = serde_json::from_value(block.clone())
-        .map_err(|e| format!("{}: lrf_model: {e}", path.display()))?;
-    m.check([
-        "offset_mm",
-        "tilt_x_deg",
-        "tilt_z_deg",
-        "servo_zero_deg",
-        "servo_scale",
-        "range_offset_mm",
-        "range_scale",
-    ])
-    .map_err(|e| format!("{}: lrf_model: {e}", path.display()))?;
-    Ok(m)
 }
 
 /// Runs the command.

@@ -7,6 +7,7 @@ pub mod demo;
 pub mod detect;
 pub mod frames;
 pub mod gen_bal;
+pub mod lrf_mount;
 pub mod plan;
 pub mod preflight;
 pub mod progress;
