@@ -223,8 +223,8 @@ fn load_grey_png(path: &Path) -> Option<Result<GrayImage, NotDecoded>> {
 /// Loads an image file as its channels: one for a grey image (as [`load_image`] gives it),
 /// red, green and blue for a colour one (alpha dropped), each `f32` in [0, 1]. Errors as
 /// [`load_image`]'s, naming the file.
-pub fn load_colour(path: &Path) -> Result<crate::silhouette::ColourImage, TargetError> {
-    use crate::silhouette::ColourImage;
+pub fn load_colour(path: &Path) -> Result<crate::raster::ColourImage, TargetError> {
+    use crate::raster::ColourImage;
     let name = path.display().to_string();
     let bytes = std::fs::read(path).map_err(|e| TargetError::Image {
         file: name.clone(),

@@ -190,3 +190,41 @@ impl std::fmt::Display for NotDecoded {
         }
     }
 }
+
+/// The channels of one image, each a [`GrayImage`] of the same size (1 for grey, 3 for
+/// colour).
+#[derive(Clone, Debug)]
+pub struct ColourImage {
+    /// The channels, each `width × height`.
+    pub planes: Vec<GrayImage>,
+}
+
+impl ColourImage {
+    /// A grey image as one channel.
+    pub fn grey(img: GrayImage) -> Self {
+        ColourImage { planes: vec![img] }
+    }
+
+    /// Width, px.
+    pub fn width(&self) -> usize {
+        self.planes.first().map_or(0, |p| p.width)
+    }
+
+    /// Height, px.
+    pub fn height(&self) -> usize {
+        self.planes.first().map_or(0, |p| p.height)
+    }
+
+    /// The mean of the channels.
+    pub fn luminance(&self) -> GrayImage {
+        let (w, h) = (self.width(), self.height());
+        let mut out = GrayImage::new(w, h, 0.0);
+        let k = 1.0 / self.planes.len().max(1) as f32;
+        for p in &self.planes {
+            for (o, v) in out.data.iter_mut().zip(&p.data) {
+                *o += v * k;
+            }
+        }
+        out
+    }
+}

@@ -1,6 +1,6 @@
 //! `results.json` of `pingcal sphere-calib`.
 
-use super::Outcome;
+use super::{sd, Outcome};
 use nalgebra::{Matrix3, Vector3};
 
 type V3 = Vector3<f64>;
@@ -8,11 +8,6 @@ type V3 = Vector3<f64>;
 /// The coordinates of `x`.
 pub fn v(x: &V3) -> [f64; 3] {
     [x.x, x.y, x.z]
-}
-
-/// The standard deviations on the diagonal of covariance `c`.
-pub fn sd(c: &Matrix3<f64>) -> [f64; 3] {
-    [0, 1, 2].map(|k| c[(k, k)].max(0.0).sqrt())
 }
 
 /// `results.json` of a run.

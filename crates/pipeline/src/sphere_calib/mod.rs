@@ -36,10 +36,10 @@ pub mod verdict;
 pub use camera::Camera;
 pub use frames::{Frame, LidarSphere};
 pub use image::{closed_form_centre, ImageSphere};
-pub use json::{results_json, sd, v};
+pub use json::{results_json, v};
 
 use frames::{read_frame, Setup};
-use nalgebra::Vector3;
+use nalgebra::{Matrix3, Vector3};
 use pingcal_lrf::cloud_file::CloudUnit;
 use pingcal_lrf::registration::{self, PointObs, RegistrationOptions};
 use pingcal_lrf::RangeNoise;
@@ -244,6 +244,11 @@ pub fn calibrate(project: &Path, seed: u64) -> Result<Outcome, String> {
         diameter_mm: l.file.sphere_diameter_mm,
         verdict,
     })
+}
+
+/// The standard deviations on the diagonal of covariance `c`.
+pub fn sd(c: &Matrix3<f64>) -> [f64; 3] {
+    [0, 1, 2].map(|k| c[(k, k)].max(0.0).sqrt())
 }
 
 #[cfg(test)]

@@ -11,7 +11,7 @@
 //! The `conventions` block of `results.json` says which frame is which ([`conventions`]).
 
 use super::camera::Camera;
-use super::json::sd;
+use super::sd;
 use super::{Frame, Outcome};
 use crate::conventions::ConventionsJson;
 use crate::exports::{
