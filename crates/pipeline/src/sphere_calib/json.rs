@@ -1,7 +1,7 @@
 //! `results.json` of `pingcal sphere-calib`.
 
 use super::{sd, Outcome};
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::Vector3;
 
 type V3 = Vector3<f64>;
 
