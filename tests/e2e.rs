@@ -1256,7 +1256,7 @@ fn a_unit_mistake_is_named_when_no_ball_is_found() {
         (
             "c_um",
             |t| t.replace("c_mm = 2.45\n", "c_mm = 2450.0\n"),
-            &["c_mm = 2450", "sensor widths", "in mm?"],
+            &["c_mm = 2450", "the sensor's diagonal", "in mm?"],
         ),
         // the distances in metres
         (
@@ -1264,10 +1264,10 @@ fn a_unit_mistake_is_named_when_no_ball_is_found() {
             |t| metres(t),
             &["scale", "distances", "in mm"],
         ),
-        // a ball of 1e9 mm
+        // a ball of 100 m (1e9 mm is refused up front, beyond any length a project gives)
         (
             "huge_ball",
-            |t| t.replace("diameter_mm = 38.0", "diameter_mm = 1e9"),
+            |t| t.replace("diameter_mm = 38.0", "diameter_mm = 1e5"),
             &["largest", "plain blobs", "diameter_mm"],
         ),
         // only the main stereo pair

@@ -306,8 +306,16 @@ pub fn assert_clean_failure(run: &Run, out: &Path, needles: &[&str]) -> String {
         !run.stderr.contains("panicked") && !run.stdout.contains("panicked"),
         "pingcal panicked: {ctx}"
     );
-    let err = run.stderr.trim();
-    assert_eq!(err.lines().count(), 1, "expected one line on stderr: {ctx}");
+    // warnings about earlier steps may come first; the error is one line, the last
+    let lines: Vec<&str> = (run.stderr.trim().lines())
+        .filter(|l| !(l.starts_with("pingcal: ") && l.contains(": warning: ")))
+        .collect();
+    assert_eq!(lines.len(), 1, "expected one error line on stderr: {ctx}");
+    let err = lines[0];
+    assert!(
+        run.stderr.trim().ends_with(err),
+        "the error line must be the last: {ctx}"
+    );
     assert!(
         err.starts_with("pingcal: error: "),
         "the error line must start with `pingcal: error: `: {ctx}"

@@ -268,7 +268,7 @@ fn plausible_initial(c: &ProjectCamera) -> Result<(), String> {
     let diag = w.hypot(h);
     if !(p.c_mm <= MAX_C_PER_DIAGONAL * diag) {
         return Err(format!(
-            "initial c_mm = {}: more than {MAX_C_PER_DIAGONAL} times the sensor's diagonal ({diag:.3} mm)",
+            "initial c_mm = {}: more than {MAX_C_PER_DIAGONAL} times the sensor's diagonal ({diag:.3} mm): is it in mm?",
             short(p.c_mm)
         ));
     }
