@@ -564,7 +564,8 @@ fn frames_from_a_bag_make_a_project_sphere_calib_runs() {
         }
         let (ok, stdout, stderr) = pingcal(&["sphere-calib", &s(&out.join("sphere-calib.toml"))]);
         assert!(ok, "{kind}: {stderr}");
-        assert!(stdout.contains("sphere-calib: 9 of 10 frames"), "{stdout}");
+        // the verdict (ok or doubtful) is sphere-calib's own business; the frames are ours
+        assert!(stdout.contains(" 9 of 10 frames; t = "), "{stdout}");
         let got: serde_json::Value = serde_json::from_str(
             &std::fs::read_to_string(out.join("results/results.json")).unwrap(),
         )

@@ -14,7 +14,7 @@
 //! * a huge number (1e300): refused.
 
 use pingcal_ba::bal::{parse_bal, write_bal};
-use pingcal_ba::io::dbat::{parse_camera, parse_control, parse_markpts};
+use pingcal_ba::io::dbat::{parse_camera, parse_control, parse_markpts, DbatControl};
 use pingcal_ba::io::measurements::Measurements;
 use proptest::prelude::*;
 
@@ -298,7 +298,11 @@ proptest! {
                     let comment = duplicated_line(CONTROL, &m).starts_with('#');
                     let blank = matches!(&m, Mutation::Append(s) if s.trim().is_empty());
                     prop_assert!(matches!(m, Mutation::Bom) || comment || blank, "accepted: {:?}", m);
-                    prop_assert_eq!(got, clean);
+                    // a duplicated comment moves the lines after it: the values must not move
+                    let values = |v: Vec<DbatControl>| -> Vec<DbatControl> {
+                        v.into_iter().map(|c| DbatControl { line: 0, ..c }).collect()
+                    };
+                    prop_assert_eq!(values(got), values(clean));
                 }
             },
         }
