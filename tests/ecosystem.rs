@@ -58,17 +58,22 @@ fn calibrated() -> &'static Path {
         let text = std::fs::read_to_string(&toml).expect("project.toml");
         std::fs::write(&toml, text + FRAMES).expect("write project.toml");
         let out = dir.join("out");
-        let args = [
-            "calibrate",
-            toml.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-            "--quiet",
-        ];
-        let run = common::run(&args, &dir);
+        let run = calibrate(&toml, &out, &["--quiet"]);
         assert!(run.success(), "calibrate failed: {}", run.stderr);
         out
     })
+}
+
+/// `pingcal calibrate TOML --out OUT` with `flags` after them, run in the project's folder.
+fn calibrate(toml: &Path, out: &Path, flags: &[&str]) -> common::Run {
+    let mut args = vec![
+        "calibrate",
+        toml.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    args.extend_from_slice(flags);
+    common::run(&args, toml.parent().expect("the project's folder"))
 }
 
 fn mat3(v: &Value) -> Matrix3<f64> {
@@ -320,17 +325,9 @@ fn lrf_model_urdf_rebuilds_cloud_ply_spheres() {
     let text = text.replacen("\n[lrf]\n", &format!("\n[lrf]\n{SPHERES_MOUNT}"), 1);
     std::fs::write(&toml, text + "\n" + FRAMES).expect("write project.toml");
     let out = dir.join("out");
-    let args = [
-        "calibrate",
-        toml.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--quiet",
-        // The mount written is not the simulator's, so the registration is rightly doubtful
-        // (exit 3); what is checked here is that the files agree with each other, not the fit.
-        "--accept-doubtful",
-    ];
-    let run = common::run(&args, &dir);
+    // The mount written is not the simulator's, so the registration is rightly doubtful
+    // (exit 3); what is checked here is that the files agree with each other, not the fit.
+    let run = calibrate(&toml, &out, &["--quiet", "--accept-doubtful"]);
     assert!(run.success(), "calibrate failed: {}", run.stderr);
     assert!(
         run.stderr.contains("doubtful"),
@@ -415,14 +412,7 @@ fn fisheye_calibrated(model: &'static str) -> PathBuf {
     // outside the simulated folder, which another test copies
     let out = common::root().join(format!("ecosystem-{model}-out"));
     let toml = dir.join("project.toml");
-    let args = [
-        "calibrate",
-        toml.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--quiet",
-    ];
-    let run = common::run(&args, &dir);
+    let run = calibrate(&toml, &out, &["--quiet"]);
     assert!(
         run.success(),
         "calibrate ({model}) failed or was doubtful: {}",
@@ -514,14 +504,7 @@ fn a_fisheye_given_the_photogrammetric_model_is_named() {
     let out = out.replacen("\n[", "\nmethod = \"spheres\"\n\n[", 1);
     std::fs::write(&toml, out).unwrap();
     let res = dir.join("out");
-    let args = [
-        "calibrate",
-        toml.to_str().unwrap(),
-        "--out",
-        res.to_str().unwrap(),
-        "--json",
-    ];
-    let run = common::run(&args, &dir);
+    let run = calibrate(&toml, &res, &["--json"]);
     assert_eq!(run.code, Some(3), "not doubtful: {}", run.stderr);
     let r = common::read_json(&res.join("results.json"));
     let first = r["verdict"]["reasons"][0]
