@@ -13,15 +13,9 @@
 //!
 //! Every test works on its own copy of the simulated project (`tests/e2e/common.rs`).
 
-#[path = "e2e/common.rs"]
-#[allow(
-    dead_code,
-    reason = "the helpers are shared with e2e.rs; this binary uses a part of them"
-)]
-mod common;
+use crate::common;
 
-#[path = "fuzz/mod.rs"]
-mod fuzz;
+use crate::fuzz;
 
 use common::{assert_clean_failure, read_json, Run, Work, OUTPUTS};
 use serde_json::Value;
@@ -1742,7 +1736,7 @@ fn a_sphere_of_another_size_is_named_when_the_nominal_finds_nothing() {
 /// Issue 39's fuzz harness (`tests/fuzz/`): every reader's valid input mutated, each case
 /// under a time limit; no panic, no hang, no silent acceptance, every refusal naming the
 /// file. The short form runs here; `PINGCAL_FUZZ_CASES=3000 cargo test --release -p pingcal
-/// --test cli_safety fuzz -- --nocapture` is the long one (`PINGCAL_FUZZ_SEED` another
+/// --test cli cli_safety::fuzz -- --nocapture` is the long one (`PINGCAL_FUZZ_SEED` another
 /// sequence).
 #[test]
 fn fuzz_the_readers() {

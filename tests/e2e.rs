@@ -5,8 +5,7 @@
 //! `pingcal simulate --seed 3` runs once per test binary ([`common::pristine`]); every test
 //! works on its own copy under `$TMP/pingcal-e2e-<pid>/<test>`, removed when it passes.
 
-#[path = "e2e/common.rs"]
-mod common;
+use crate::common;
 
 use common::{read_json, replace_once, Work, OUTPUTS};
 use serde_json::Value;

@@ -13,12 +13,7 @@
 //! with `[frames]` renamed (so that the names are seen to come from the project),
 //! calibrated once per test binary.
 
-#[path = "e2e/common.rs"]
-#[allow(
-    dead_code,
-    reason = "the helpers are shared with e2e.rs; this binary uses a part of them"
-)]
-mod common;
+use crate::common;
 
 use nalgebra::{Matrix3, Vector3};
 use pingcal_ba::camera::CameraModel;

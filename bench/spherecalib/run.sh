@@ -16,12 +16,12 @@
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 if [ "${1:-}" = cluttered ]; then
-  cargo test --release -p pingcal --test sphere_calib cluttered_ten_seed_study -- --ignored --nocapture 2>&1 \
+  cargo test --release -p pingcal --test cli sphere_calib::cluttered_ten_seed_study -- --ignored --nocapture 2>&1 \
       | tee "${TMPDIR:-/tmp}/spherecalib-cluttered.log" | grep -E '^cluttered'
   exit 0
 fi
 if [ $# -ge 1 ]; then export PINGCAL_SPHERECALIB_LIDAR_SIGMA_MM="$1"; fi
-cargo test --release -p pingcal --test sphere_calib twenty_seed_comparison -- --ignored --nocapture 2>&1 \
+cargo test --release -p pingcal --test cli sphere_calib::twenty_seed_comparison -- --ignored --nocapture 2>&1 \
     | tee "${TMPDIR:-/tmp}/spherecalib-bench.log" \
     | grep -E '^(seed [0-9]+:|\||frames used|centres of the frames)'
 echo "frames left out, by reason:"

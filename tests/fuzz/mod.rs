@@ -15,7 +15,7 @@
 //! for panics and hangs only. A scan is also made into a cloud and its balls searched, so
 //! that a value that blows up the search's time is a hang.
 //!
-//! The short form (in CI: `cargo test --release -p pingcal --test cli_safety fuzz`) runs
+//! The short form (in CI: `cargo test --release -p pingcal --test cli cli_safety::fuzz`) runs
 //! [`SHORT_CASES`] cases per reader; `PINGCAL_FUZZ_CASES=3000` runs that many (minutes), and
 //! `PINGCAL_FUZZ_SEED` another sequence. The table is printed with `--nocapture`.
 

@@ -13,7 +13,7 @@
 //!   `tests/recovery.rs`): the truth lies within 3σ of the estimates;
 //! * the mean χ² of the image residuals matches the redundancy (5 sd).
 
-mod common;
+use crate::common;
 
 use common::{realisation, truth, SIGMA_PX};
 use nalgebra::Vector3;

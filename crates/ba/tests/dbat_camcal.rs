@@ -3,7 +3,7 @@
 //! points, 4 fixed control points at the sheet's corners), started from no exterior
 //! orientation at all, reproduces DBAT's published self-calibration.
 //!
-//! Run with `cargo test -p pingcal-ba --release --test dbat_camcal -- --nocapture` to see
+//! Run with `cargo test -p pingcal-ba --release --test ba dbat_camcal:: -- --nocapture` to see
 //! the DBAT vs pingcal table.
 //!
 //! # Comparing the two

@@ -2,7 +2,7 @@
 //! solving ([`pingcal_ba::solver::check_intrinsics`]), and a network that determines them
 //! is not refused.
 
-mod common;
+use crate::common;
 
 use pingcal_ba::problem::Problem;
 use pingcal_ba::solver::{

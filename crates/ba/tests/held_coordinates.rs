@@ -7,7 +7,7 @@
 //! datum diagnosis counts held coordinates (too little names the open motion, too much the
 //! held coordinates); and every linear solver reaches the same minimum.
 
-mod common;
+use crate::common;
 
 use common::{realisation, truth};
 use nalgebra::{DMatrix, Matrix3, Vector3};

@@ -5,7 +5,7 @@
 //! Also: a distance between two targets holds to its σ, and a network whose scale is not
 //! defined is reported as a datum defect.
 
-mod common;
+use crate::common;
 
 use common::{realisation, truth};
 use pingcal_ba::problem::Distance;

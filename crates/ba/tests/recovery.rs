@@ -7,7 +7,7 @@
 //! estimates of every intrinsic parameter and point coordinate (with the rate that a
 //! normal distribution allows), with no significant bias.
 
-mod common;
+use crate::common;
 
 use common::{realisation, truth, SIGMA_PX};
 use pingcal_ba::solver::{solve, Options};

@@ -4,7 +4,7 @@
 //! parameter blocks of the problem; the image points, the scanner's points and the pose
 //! priors are adjusted together.
 
-mod common;
+use crate::common;
 
 use nalgebra::{DMatrix, Vector3};
 use pingcal_ba::residual::check_residual_jacobians;

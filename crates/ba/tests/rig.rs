@@ -4,7 +4,7 @@
 //! reported covariance ([`pingcal_ba::solver::Precision::rig_covariances`]) is honest, and an
 //! image not tied to the rig keeps its own pose.
 
-mod common;
+use crate::common;
 
 use common::{truth, SIGMA_PX};
 use nalgebra::{Vector2, Vector3};

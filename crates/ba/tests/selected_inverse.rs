@@ -7,7 +7,7 @@
 //! rounding only, which the Jacobi-scaled systems here (condition below ~1e8) keep under
 //! ~1e-8 relative. 1e-6 relative (the figure) leaves a margin of 100.
 
-mod common;
+use crate::common;
 
 use common::{realisation, truth};
 use pingcal_ba::problem::{Distance, Problem};

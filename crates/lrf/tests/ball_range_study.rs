@@ -3,7 +3,7 @@
 //! how often it is found, its bias (radial, along the view, and lateral), and the reported
 //! σ against the Monte Carlo spread of the errors, per axis of the view frame.
 //!
-//! `cargo test --release -p pingcal-lrf --test ball_range_study -- --nocapture`.
+//! `cargo test --release -p pingcal-lrf --test lrf ball_range_study:: -- --nocapture`.
 //!
 //! The ball hangs 150 mm in front of a wall (the plane behind it, facing the sensor), in a
 //! random direction of the half sweep. Tolerance of the σ ratio from statistics: the 99 %

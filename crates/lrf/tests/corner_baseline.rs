@@ -181,7 +181,7 @@ fn run(seed: u64) -> (f64, f64, f64) {
 }
 
 // Tolerances, from the noise: `sixty_seeds` (ignored; `cargo test -p pingcal-lrf --release
-// --test corner_baseline -- --ignored --nocapture`) ran seeds 0–59 once with these noise
+// --test lrf corner_baseline:: -- --ignored --nocapture`) ran seeds 0–59 once with these noise
 // levels (ranges: URG model, σ = 10 mm under 1 m, 1 % beyond; image 0.3 px; targets 0.3 mm),
 // with the scan chosen by the smallest predicted LRF position σ:
 //   translation error: mean 8.3 mm, sd 5.4, max 27.5  → mean + 4 sd = 30.0 mm

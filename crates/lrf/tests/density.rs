@@ -4,7 +4,7 @@
 //! of a wall into one wall-sized cluster, which was dropped as too large (9 balls at 240k,
 //! 8 at 1M, 6 at 2M). Too-large clusters are now split with a shorter link.
 
-mod common;
+use crate::common;
 
 use pingcal_lrf::ball_finder::{find_balls, FinderOptions};
 use pingcal_lrf::simulate::{room_corner_scene, SimulatedLrf};

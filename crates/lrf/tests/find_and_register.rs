@@ -2,7 +2,7 @@
 //! back, balls found automatically, matched to "camera" balls without labels, registered
 //! with the paper's control/check split.
 
-mod common;
+use crate::common;
 
 use nalgebra::Vector3;
 use pingcal_lrf::ball_finder::{find_balls, FinderOptions};

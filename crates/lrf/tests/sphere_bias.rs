@@ -2,7 +2,7 @@
 //! data (σ = 10 mm under 1 m, 1 % beyond; mm quantisation; mixed pixels against a wall
 //! 150 mm behind the ball centre; 0.3515625° beam and servo steps with a random phase).
 //!
-//! Print the table: `cargo test -p pingcal-lrf --release --test sphere_bias -- --nocapture`
+//! Print the table: `cargo test -p pingcal-lrf --release --test lrf sphere_bias:: -- --nocapture`
 //!
 //! Tolerances. With N = 300 trials and a per-trial sd of about 2 mm at 1 m, the standard
 //! error of the mean is 2/√300 ≈ 0.12 mm, so the goal |bias| < 0.5 mm leaves four standard

@@ -1,7 +1,7 @@
 //! Renders the sample report in headless Chromium (scripts/check-report.sh) and checks the
 //! screenshot is a real page and that Chromium's DOM holds every section. Skips, with a printed reason, where /usr/bin/chromium is absent.
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 use std::process::Command;

@@ -4,7 +4,7 @@
 use pingcal_report::sample::sample_report;
 use pingcal_report::*;
 
-mod common;
+use crate::common;
 use common::IDS;
 
 /// Parses the document as XML (it is written to be well-formed) and returns it for checks.

@@ -30,7 +30,7 @@
 //! counter-clockwise as seen, LSB first, bright = 1) agrees with the detector's: zero wrong
 //! IDs, and every ring large enough to read is read.
 //!
-//! Run `cargo test -p pingcal-sim --release --test detect_rendered -- --nocapture` for the
+//! Run `cargo test -p pingcal-sim --release --test sim detect_rendered:: -- --nocapture` for the
 //! table.
 
 use nalgebra::{Vector2, Vector3};

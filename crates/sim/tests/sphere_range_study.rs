@@ -4,7 +4,7 @@
 //! bias (radial, i.e. along the view, and lateral), and the reported σ against the Monte
 //! Carlo spread of the errors, per axis of the view frame.
 //!
-//! `cargo test --release -p pingcal-sim --test sphere_range_study -- --nocapture` (fast: 8
+//! `cargo test --release -p pingcal-sim --test sim sphere_range_study:: -- --nocapture` (fast: 8
 //! seeds × 3 frames per distance); the 20-seed table of the closing note:
 //! `… -- --ignored --nocapture`.
 //!

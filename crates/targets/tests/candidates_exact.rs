@@ -5,9 +5,9 @@
 //! same candidates, bit for bit, on the 20 real panel photographs and the 24 MP synthetic image
 //! of the benchmark (each part skipped, with the reason printed, when its data is absent).
 //!
-//! Run `cargo test -p pingcal-targets --release --test candidates_exact -- --nocapture`.
+//! Run `cargo test -p pingcal-targets --release --test targets candidates_exact:: -- --nocapture`.
 
-mod panel;
+use crate::panel;
 
 use pingcal_targets::blobs::{components_at_levels, components_at_levels_banded, Blob};
 use pingcal_targets::candidates::{find_candidates, Candidate, CandidateParams};

@@ -20,9 +20,9 @@
 //! * Then a 7-parameter similarity (Umeyama) of all adjusted points onto the reference and
 //!   the RMS / max of the 3D differences, separately for coded and plain targets.
 //!
-//! Run `cargo test -p pingcal-targets --release --test panel_bundle -- --nocapture`.
+//! Run `cargo test -p pingcal-targets --release --test targets panel_bundle:: -- --nocapture`.
 
-mod panel;
+use crate::panel;
 
 use nalgebra::Vector3;
 use panel::panel;

@@ -5,7 +5,7 @@
 //! the `image` crate refuses. `load_image` (which streams PNG files) agrees with
 //! `decode_image`, errors included.
 
-mod decode_reference;
+use crate::decode_reference;
 
 use decode_reference::{reference, same_bits};
 use pingcal_targets::png_rows::{decode_grey_png, SIGNATURE};

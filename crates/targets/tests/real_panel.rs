@@ -14,9 +14,9 @@
 //! * Plain targets: a detection is counted as found when it lies within `BOUND_PX` of a
 //!   projected reference plain target.
 //!
-//! Run `cargo test -p pingcal-targets --release --test real_panel -- --nocapture` for the table.
+//! Run `cargo test -p pingcal-targets --release --test targets real_panel:: -- --nocapture` for the table.
 
-mod panel;
+use crate::panel;
 
 use panel::panel;
 use pingcal_targets::homography::ransac_homography;

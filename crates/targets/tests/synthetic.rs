@@ -2,7 +2,7 @@
 //! intensity-weighted centroid (sizes 6–60 px, tilt up to 70°, blur, noise), and the ping-pong
 //! ball centre with and without the eccentricity correction.
 //!
-//! Run `cargo test -p pingcal-targets --release --test synthetic -- --nocapture` for the tables.
+//! Run `cargo test -p pingcal-targets --release --test targets synthetic:: -- --nocapture` for the tables.
 
 use pingcal_geometry::consensus::SeededRng;
 use pingcal_targets::ball::{sphere_centre_from_ellipse, Pinhole};
@@ -641,6 +641,7 @@ fn a_ring_of_another_size_is_read_when_the_project_gives_it() {
     );
 }
 
+#[path = "stress/mod.rs"]
 mod stress;
 
 /// The false-read stress test of issue 38: scenes made to tempt the ring decoder (rings
@@ -650,7 +651,7 @@ mod stress;
 /// `PINGCAL_STRESS_SEEDS=600` runs more seeds than the default 300, and
 /// `PINGCAL_STRESS_DIR=DIR` writes the overlay of every scene with a wrong read there:
 ///
-/// `PINGCAL_STRESS_SEEDS=600 cargo test -p pingcal-targets --release --test synthetic
+/// `PINGCAL_STRESS_SEEDS=600 cargo test -p pingcal-targets --release --test targets synthetic::
 /// false_read_stress -- --nocapture`
 ///
 /// No number may be read in the printed text or on the checkerboards. A ring partly covered by

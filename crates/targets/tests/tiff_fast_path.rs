@@ -3,8 +3,8 @@
 //! every layout it handles; damaged files never make it panic, and it never accepts a file the
 //! `image` crate refuses.
 
-mod decode_reference;
-mod panel;
+use crate::decode_reference;
+use crate::panel;
 
 use decode_reference::{reference, same_bits};
 use pingcal_targets::tiff_strips::{decode_grey_strips, NotDecoded};

@@ -7,7 +7,7 @@
 //!   [0.4, 2.0] (24 z-scores: a 95 % range of a χ²₂₄ RMS for correct σ is about
 //!   [0.7, 1.3]; the wider bounds leave room for the lidar fit's known small optimism).
 //! * `twenty_seed_comparison` (`#[ignore]`, the bench: `bash bench/spherecalib/run.sh`, or
-//!   `cargo test --release -p pingcal --test sphere_calib -- --ignored --nocapture`): the
+//!   `cargo test --release -p pingcal --test cli sphere_calib:: -- --ignored --nocapture`): the
 //!   table of mean |Δt|, mean ΔR and the ratio of the RMS error to the reported σ for both.
 
 use nalgebra::{Matrix3, Rotation3, Vector3};

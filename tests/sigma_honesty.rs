@@ -17,7 +17,7 @@
 //! (seed 5 of which finds no ball in two images and is left out), α = 1 %.
 //! `paper_field_20_seeds` (ignored: about 6 minutes on two idle cores) is issue 18's own
 //! measurement, `bash bench/plan/run.sh 20` as a test:
-//! `cargo test --release -p pingcal --test sigma_honesty -- --ignored`. It does not pass yet:
+//! `cargo test --release -p pingcal --test cli sigma_honesty:: -- --ignored`. It does not pass yet:
 //! per component it does (tx 1.11, ty 1.17, tz 1.30, ω 1.36, φ 1.03, κ 1.10 against
 //! [0.61, 1.41]), pooled it gives 1.185 against [0.79, 1.17] (1.40 before the variance
 //! components): what is left is on the LRF side (some balls' sphere centres are off by more
@@ -203,7 +203,7 @@ fn fast() {
 }
 
 #[test]
-#[ignore = "about 6 minutes on two idle cores: cargo test --release -p pingcal --test sigma_honesty -- --ignored"]
+#[ignore = "about 6 minutes on two idle cores: cargo test --release -p pingcal --test cli sigma_honesty:: -- --ignored"]
 fn paper_field_20_seeds() {
     let seeds = 20;
     check(&plan("paper", None, seeds), seeds);
