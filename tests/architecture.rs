@@ -344,6 +344,13 @@ fn crates_depend_one_way() {
                 "geometry", "camera", "ba", "targets", "lrf", "project", "report", "rosbag",
             ],
         ),
+        (
+            "plan",
+            &[
+                "geometry", "camera", "ba", "targets", "lrf", "project", "report", "rosbag", "sim",
+                "pipeline",
+            ],
+        ),
     ];
     for (krate, ok) in allowed {
         let Some(d) = deps.get(*krate) else { continue };

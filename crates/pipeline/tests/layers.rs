@@ -11,7 +11,7 @@ use std::path::Path;
 
 /// The modules of the pipeline crate, lowest first (`lib.rs`, the root that runs them, is
 /// apart; `test_support.rs` serves the unit tests).
-const ORDER: [&str; 20] = [
+const ORDER: [&str; 21] = [
     "ids",
     "progress",
     "scene",
@@ -32,6 +32,7 @@ const ORDER: [&str; 20] = [
     "rectify",
     "exports",
     "sphere_calib",
+    "result_set",
 ];
 
 /// The text of `src` without its `//` comments (doc comments included).
