@@ -24,8 +24,10 @@
 
 use pingcal_pipeline::{self as pipeline, Outcome, Reporter};
 use pingcal_project::Project;
+use pingcal_sim::project_files::PoseJson;
 use rayon::prelude::*;
 use serde::Serialize;
+use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 /// Why a plan could not be made: one line.
@@ -767,6 +769,162 @@ pub fn table(p: &Plan) -> String {
                 }
             }
         }
+    }
+    s
+}
+
+/// The demo's tables (the paper's Table 4 of check points for every method, with the
+/// check errors the true extrinsic gives on the same measured centres; each method's
+/// extrinsic against the truth; the bundle and the verdict), as `pingcal demo` prints them.
+/// The truth's extrinsic is the one a calibration defines
+/// ([`pingcal_sim::Truth::extrinsic_as_calibrated`]).
+pub fn against_truth(r: &pipeline::results::Results, truth: &pingcal_sim::Truth) -> String {
+    let mut s = String::new();
+    let te: PoseJson = truth.extrinsic_as_calibrated();
+    s.push('\n');
+    let _ = writeln!(
+        s,
+        "Table 4 — check points (mm); dx = estimated − reference (photogrammetric)"
+    );
+    let mut header = format!("{:<6}", "ball");
+    for m in &r.methods {
+        header += &format!(
+            " | {:^29}",
+            match m.method.as_str() {
+                "joint" => "joint (mount self-calibrated)",
+                "spheres" => "spheres (paper's two steps)",
+                _ => "corner (Fan et al. 2019)",
+            }
+        );
+    }
+    header += " | true extrinsic";
+    let _ = writeln!(s, "{header}");
+    let mut sub = format!("{:<6}", "");
+    for _ in &r.methods {
+        sub += &format!(" | {:>7}{:>7}{:>7}{:>8}", "dx", "dy", "dz", "error");
+    }
+    sub += &format!(" | {:>14}", "error");
+    let _ = writeln!(s, "{sub}");
+    let ids: Vec<String> = r
+        .methods
+        .iter()
+        .find(|m| !m.check_points.is_empty())
+        .map(|m| m.check_points.iter().map(|c| c.id.clone()).collect())
+        .unwrap_or_default();
+    let mut floor = Vec::new();
+    for id in &ids {
+        let mut line = format!("{id:<6}");
+        for m in &r.methods {
+            match m.check_points.iter().find(|c| &c.id == id) {
+                Some(c) => {
+                    line += &format!(
+                        " | {:>7.2}{:>7.2}{:>7.2}{:>8.2}",
+                        c.dx_mm, c.dy_mm, c.dz_mm, c.error_mm
+                    )
+                }
+                None => line += &format!(" | {:>29}", "—"),
+            }
+        }
+        // the check error the true extrinsic gives on the same measured centres
+        let b = r.balls.iter().find(|b| &b.id == id);
+        match b.and_then(|b| b.lrf_mm.map(|l| (l, b.photogrammetric_mm))) {
+            Some((l, p)) => {
+                let e = te.misfit_mm(l, p);
+                floor.push(e);
+                line += &format!(" | {e:>14.2}");
+            }
+            None => line += &format!(" | {:>14}", "—"),
+        }
+        let _ = writeln!(s, "{line}");
+    }
+    let mut mean = format!("{:<6}", "mean");
+    for m in &r.methods {
+        match (m.mean_check_error_mm, m.sd_check_error_mm) {
+            (Some(e), Some(s)) => mean += &format!(" | {:>21}{:>8.2}", format!("(sd {s:.2})"), e),
+            _ => {
+                mean += &format!(
+                    " | {:>29}",
+                    m.error.as_deref().map(|_| "failed").unwrap_or("—")
+                )
+            }
+        }
+    }
+    if !floor.is_empty() {
+        mean += &format!(
+            " | {:>14.2}",
+            floor.iter().sum::<f64>() / floor.len() as f64
+        );
+    }
+    let _ = writeln!(s, "{mean}");
+    s.push('\n');
+    let _ = writeln!(s, "Extrinsic (p_camera = R p_lrf + t) against the truth (the LRF frame's origin on the servo axis at the scan plane, as a calibration defines it)");
+    let _ = writeln!(
+        s,
+        "{:<9} {:>26} {:>22} {:>9} {:>26} {:>9} {:>14}",
+        "", "t (mm)", "σ t (mm)", "|Δt| mm", "ω φ κ (°)", "ΔR (°)", "σ ω φ κ (°)"
+    );
+    let tt = te.translation_mm;
+    let _ = writeln!(
+        s,
+        "{:<9} {:>26} {:>22} {:>9} {:>26}",
+        "truth",
+        format!("({:.1}, {:.1}, {:.1})", tt[0], tt[1], tt[2]),
+        "",
+        "",
+        format!(
+            "({:.3}, {:.3}, {:.3})",
+            te.opk_deg[0], te.opk_deg[1], te.opk_deg[2]
+        )
+    );
+    for m in &r.methods {
+        let Some(e) = &m.extrinsic else {
+            let _ = writeln!(
+                s,
+                "{:<9} failed: {}",
+                m.method,
+                m.error.as_deref().unwrap_or("")
+            );
+            continue;
+        };
+        let t = e.translation_mm;
+        let dt = ((t[0] - tt[0]).powi(2) + (t[1] - tt[1]).powi(2) + (t[2] - tt[2]).powi(2)).sqrt();
+        let dr = te.angle_to_deg(&e.rotation);
+        let st = e
+            .sigma_translation_mm
+            .map(|s| format!("({:.2}, {:.2}, {:.2})", s[0], s[1], s[2]))
+            .unwrap_or_else(|| "—".into());
+        let sr = e
+            .sigma_rotation_deg
+            .map(|s| format!("({:.3}, {:.3}, {:.3})", s[0], s[1], s[2]))
+            .unwrap_or_else(|| "—".into());
+        let _ = writeln!(
+            s,
+            "{:<9} {:>26} {:>22} {:>9.2} {:>26} {:>9.3} {:>14}",
+            m.method,
+            format!("({:.1}, {:.1}, {:.1})", t[0], t[1], t[2]),
+            st,
+            dt,
+            format!(
+                "({:.3}, {:.3}, {:.3})",
+                e.opk_deg[0], e.opk_deg[1], e.opk_deg[2]
+            ),
+            dr,
+            sr
+        );
+    }
+    let b = &r.bundle;
+    let _ = writeln!(
+        s,
+        "bundle: sigma0 {:.3}, RMS {:.3} px, {} images, {} points, {} image points ({} rejected)",
+        b.sigma0, b.rms_image_px, b.images, b.points, b.observations, b.rejected
+    );
+    let v = &r.verdict;
+    let _ = writeln!(s, "verdict: {}", v.status.as_str());
+    for reason in &v.reasons {
+        let _ = writeln!(s, "  - {reason}");
+    }
+    for note in &v.notes {
+        let _ = writeln!(s, "  note: {note}");
     }
     s
 }
