@@ -15,6 +15,7 @@
 //! | [`report`] | the adjustment report (Australis layout) as text and JSON |
 //! | [`bal`] | BAL problem files; [`synthetic`]: generated BAL problems |
 //! | [`initial`] | initial values: resection, relative orientation, intersection, incremental network |
+//! | [`workflow`] | a measurement file adjusted end to end (datum, start, estimability, adjustment with snooping, precision, report), as `pingcal ba` runs it |
 //!
 //! # A small network, end to end
 //!
@@ -104,6 +105,7 @@ pub mod report;
 pub mod residual;
 pub mod solver;
 pub mod synthetic;
+pub mod workflow;
 
 /// The camera models ([`pingcal_camera`]), re-exported: the adjuster takes any of them.
 pub use pingcal_camera as camera;

@@ -213,59 +213,12 @@ pub fn run(args: Args) -> CmdResult {
         return run_measurements(path, &args);
     }
     let t_read = Instant::now();
-    let (mut problem, source) = match (&args.problem, &args.synthetic) {
-        (Some(path), _) => (pingcal_ba::bal::read_bal(path)?, path.display().to_string()),
-        (None, Some(size)) => {
-            let (c, p) = size
-                .split_once('x')
-                .and_then(|(c, p)| Some((c.parse::<usize>().ok()?, p.parse::<usize>().ok()?)))
-                .ok_or_else(|| {
-                    format!("--synthetic '{size}': expected CAMERASxPOINTS, e.g. 200x30000")
-                })?;
-            let spec = pingcal_ba::synthetic::SyntheticBal {
-                cameras: c,
-                points: p,
-                obs_per_point: 6.min(c),
-                visibility: args.visibility.into(),
-                ..Default::default()
-            };
-            (spec.generate()?.problem, format!("synthetic {c}x{p}"))
-        }
-        (None, None) => return Err("give a BAL file or --synthetic CAMERASxPOINTS".into()),
-    };
+    let (mut problem, source) = read_bal_problem(&args)?;
     if let Some(l) = &args.loss {
         problem.loss = parse_loss(l)?;
     }
     let read_s = t_read.elapsed().as_secs_f64();
-    let options = Options {
-        max_iterations: args.max_iterations,
-        function_tolerance: args.function_tolerance,
-        gradient_tolerance: args.gradient_tolerance,
-        parameter_tolerance: args.parameter_tolerance,
-        linear_solver: match args.solver {
-            SolverArg::Auto => LinearSolverKind::Auto,
-            SolverArg::Dense => LinearSolverKind::Dense,
-            SolverArg::Sparse => LinearSolverKind::Sparse,
-            SolverArg::Iterative => LinearSolverKind::Iterative,
-        },
-        cg: solver::CgOptions {
-            eta: args.eta,
-            preconditioner: match args.preconditioner {
-                PreconditionerArg::SchurJacobi => solver::Preconditioner::SchurJacobi,
-                PreconditionerArg::ClusterJacobi => solver::Preconditioner::ClusterJacobi {
-                    max_dim: args.cluster_max_dim,
-                },
-            },
-            product: match args.schur_product {
-                SchurProductArg::Auto => solver::SchurProduct::Auto,
-                SchurProductArg::Implicit => solver::SchurProduct::Implicit,
-                SchurProductArg::Explicit => solver::SchurProduct::Explicit,
-            },
-            ..Default::default()
-        },
-        threads: args.threads,
-        ..Options::default()
-    };
+    let options = bal_options(&args);
     let quiet = args.quiet;
     if !quiet {
         println!(
@@ -298,38 +251,7 @@ pub fn run(args: Args) -> CmdResult {
     })?;
     let rms = problem.rms_px();
     if !quiet {
-        println!(
-            "linear solver: {} ({})",
-            summary.linear_solver.kind, summary.linear_solver.reason
-        );
-        if let Some(p) = &summary.schur_product {
-            println!("Schur product: {} ({})", p.product, p.reason);
-        }
-        if let Some(c) = summary.clusters.filter(|c| c.too_large_bytes > 0.0) {
-            println!(
-                "preconditioner: Schur–Jacobi: the {} clusters' matrices would need {:.1} GB, more than the memory limit (try a smaller --cluster-max-dim)",
-                c.clusters,
-                c.too_large_bytes / 1e9
-            );
-        } else if let Some(c) = summary.clusters.filter(|c| c.clusters == c.blocks) {
-            println!(
-                "preconditioner: cluster-Jacobi found no images similar enough to merge: Schur–Jacobi ({} blocks)",
-                c.blocks
-            );
-        } else if let Some(c) = &summary.clusters {
-            println!(
-                "preconditioner: cluster-Jacobi, {} clusters of {} blocks (largest {} unknowns), holding {:.0} % of the blocks' similarity",
-                c.clusters,
-                c.blocks,
-                c.largest_dim,
-                100.0 * c.captured
-            );
-        }
-        println!(
-            "time: setup {:.3} s, evaluation {:.3} s, Schur complement {:.3} s, linear solver {:.3} s, total {:.3} s",
-            summary.setup_time_s,
-            summary.evaluation_time_s, summary.schur_time_s, summary.linear_solver_time_s, summary.time_s
-        );
+        print_solver_details(&summary);
     }
     println!(
         "pingcal ba: cost {:.6e} -> {:.6e} in {} iterations ({} accepted), {:.3} s ({} linear solver, reduced system {} x {}), RMS {:.4} px; {}",
@@ -349,36 +271,7 @@ pub fn run(args: Args) -> CmdResult {
         .precision
         .then(|| bal_precision(&problem, &source, quiet));
     if let Some(out) = &args.out {
-        let mut json = serde_json::json!({
-            "initial_cost": summary.initial_cost,
-            "final_cost": summary.final_cost,
-            "iterations": summary.iterations,
-            "successful_steps": summary.successful_steps,
-            "time_s": summary.time_s,
-            "linear_solver_time_s": summary.linear_solver_time_s,
-            "evaluation_time_s": summary.evaluation_time_s,
-            "schur_time_s": summary.schur_time_s,
-            "setup_time_s": summary.setup_time_s,
-            "linear_solver": summary.linear_solver.kind,
-            "linear_solver_reason": summary.linear_solver.reason,
-            "schur_product": summary.schur_product,
-            "reduced_dimension": summary.reduced_dimension,
-            "reduced_nonzeros": summary.reduced_nonzeros,
-            "linear_iterations": summary.linear_iterations,
-            "clusters": summary.clusters,
-            "termination": summary.termination,
-            "rms_px": rms,
-            "cameras": problem.images.len(),
-            "points": problem.points.len(),
-            "observations": problem.observations.len(),
-            "threads": args.threads,
-        });
-        match &precision {
-            Some(Ok(p)) => json["precision"] = serde_json::to_value(p)?,
-            Some(Err(e)) => json["precision_error"] = e.clone().into(),
-            None => {}
-        }
-        write_atomic(out, serde_json::to_string_pretty(&json)?.as_bytes())?;
+        write_bal_json(out, &problem, &summary, &precision, args.threads)?;
     }
     match precision {
         Some(Err(e)) => Err(e.into()),
@@ -386,55 +279,160 @@ pub fn run(args: Args) -> CmdResult {
     }
 }
 
-/// What `--precision` reports of a BAL problem.
-#[derive(serde::Serialize)]
-struct BalPrecision {
-    sigma0: f64,
-    redundancy: i64,
-    /// How the cofactors were computed ([`solver::Precision::cofactors`]).
-    method: &'static str,
-    time_s: f64,
-    /// Medians over the cameras and the points of the largest of their three σ's.
-    median_camera_centre_sigma: f64,
-    median_point_sigma: f64,
+/// The BAL problem: PROBLEM read, or generated by `--synthetic CAMERASxPOINTS`; with its
+/// name for the messages.
+fn read_bal_problem(
+    args: &Args,
+) -> Result<(pingcal_ba::problem::Problem, String), super::CmdError> {
+    Ok(match (&args.problem, &args.synthetic) {
+        (Some(path), _) => (pingcal_ba::bal::read_bal(path)?, path.display().to_string()),
+        (None, Some(size)) => {
+            let (c, p) = size
+                .split_once('x')
+                .and_then(|(c, p)| Some((c.parse::<usize>().ok()?, p.parse::<usize>().ok()?)))
+                .ok_or_else(|| {
+                    format!("--synthetic '{size}': expected CAMERASxPOINTS, e.g. 200x30000")
+                })?;
+            let spec = pingcal_ba::synthetic::SyntheticBal {
+                cameras: c,
+                points: p,
+                obs_per_point: 6.min(c),
+                visibility: args.visibility.into(),
+                ..Default::default()
+            };
+            (spec.generate()?.problem, format!("synthetic {c}x{p}"))
+        }
+        (None, None) => return Err("give a BAL file or --synthetic CAMERASxPOINTS".into()),
+    })
 }
 
+/// The solver's options of a BAL problem, from the command line.
+fn bal_options(args: &Args) -> Options {
+    Options {
+        max_iterations: args.max_iterations,
+        function_tolerance: args.function_tolerance,
+        gradient_tolerance: args.gradient_tolerance,
+        parameter_tolerance: args.parameter_tolerance,
+        linear_solver: match args.solver {
+            SolverArg::Auto => LinearSolverKind::Auto,
+            SolverArg::Dense => LinearSolverKind::Dense,
+            SolverArg::Sparse => LinearSolverKind::Sparse,
+            SolverArg::Iterative => LinearSolverKind::Iterative,
+        },
+        cg: solver::CgOptions {
+            eta: args.eta,
+            preconditioner: match args.preconditioner {
+                PreconditionerArg::SchurJacobi => solver::Preconditioner::SchurJacobi,
+                PreconditionerArg::ClusterJacobi => solver::Preconditioner::ClusterJacobi {
+                    max_dim: args.cluster_max_dim,
+                },
+            },
+            product: match args.schur_product {
+                SchurProductArg::Auto => solver::SchurProduct::Auto,
+                SchurProductArg::Implicit => solver::SchurProduct::Implicit,
+                SchurProductArg::Explicit => solver::SchurProduct::Explicit,
+            },
+            ..Default::default()
+        },
+        threads: args.threads,
+        ..Options::default()
+    }
+}
+
+/// `--out` of a BAL problem: the summary, the sizes and the precision (or why none).
+fn write_bal_json(
+    out: &std::path::Path,
+    problem: &pingcal_ba::problem::Problem,
+    summary: &solver::Summary,
+    precision: &Option<Result<pingcal_ba::workflow::PrecisionSummary, String>>,
+    threads: usize,
+) -> CmdResult {
+    let mut json = serde_json::json!({
+        "initial_cost": summary.initial_cost,
+        "final_cost": summary.final_cost,
+        "iterations": summary.iterations,
+        "successful_steps": summary.successful_steps,
+        "time_s": summary.time_s,
+        "linear_solver_time_s": summary.linear_solver_time_s,
+        "evaluation_time_s": summary.evaluation_time_s,
+        "schur_time_s": summary.schur_time_s,
+        "setup_time_s": summary.setup_time_s,
+        "linear_solver": summary.linear_solver.kind,
+        "linear_solver_reason": summary.linear_solver.reason,
+        "schur_product": summary.schur_product,
+        "reduced_dimension": summary.reduced_dimension,
+        "reduced_nonzeros": summary.reduced_nonzeros,
+        "linear_iterations": summary.linear_iterations,
+        "clusters": summary.clusters,
+        "termination": summary.termination,
+        "rms_px": problem.rms_px(),
+        "cameras": problem.images.len(),
+        "points": problem.points.len(),
+        "observations": problem.observations.len(),
+        "threads": threads,
+    });
+    match &precision {
+        Some(Ok(p)) => json["precision"] = serde_json::to_value(p)?,
+        Some(Err(e)) => json["precision_error"] = e.clone().into(),
+        None => {}
+    }
+    write_atomic(out, serde_json::to_string_pretty(&json)?.as_bytes())?;
+    Ok(())
+}
+
+/// The linear solver, the Schur product, the preconditioner's clusters and the times.
+fn print_solver_details(summary: &solver::Summary) {
+    println!(
+        "linear solver: {} ({})",
+        summary.linear_solver.kind, summary.linear_solver.reason
+    );
+    if let Some(p) = &summary.schur_product {
+        println!("Schur product: {} ({})", p.product, p.reason);
+    }
+    if let Some(c) = summary.clusters.filter(|c| c.too_large_bytes > 0.0) {
+        println!(
+            "preconditioner: Schur–Jacobi: the {} clusters' matrices would need {:.1} GB, more than the memory limit (try a smaller --cluster-max-dim)",
+            c.clusters,
+            c.too_large_bytes / 1e9
+        );
+    } else if let Some(c) = summary.clusters.filter(|c| c.clusters == c.blocks) {
+        println!(
+            "preconditioner: cluster-Jacobi found no images similar enough to merge: Schur–Jacobi ({} blocks)",
+            c.blocks
+        );
+    } else if let Some(c) = &summary.clusters {
+        println!(
+            "preconditioner: cluster-Jacobi, {} clusters of {} blocks (largest {} unknowns), holding {:.0} % of the blocks' similarity",
+            c.clusters,
+            c.blocks,
+            c.largest_dim,
+            100.0 * c.captured
+        );
+    }
+    println!(
+        "time: setup {:.3} s, evaluation {:.3} s, Schur complement {:.3} s, linear solver {:.3} s, total {:.3} s",
+        summary.setup_time_s,
+        summary.evaluation_time_s, summary.schur_time_s, summary.linear_solver_time_s, summary.time_s
+    );
+}
+
+/// `--precision` of a BAL problem ([`pingcal_ba::workflow::precision_summary`]), printed
+/// unless quiet.
 fn bal_precision(
     problem: &pingcal_ba::problem::Problem,
     source: &str,
     quiet: bool,
-) -> Result<BalPrecision, String> {
-    let t = Instant::now();
-    let prec = solver::precision(problem)
-        .map_err(|e| format!("{source}: no precision: {e} (the adjustment itself is done)"))?;
-    let time_s = t.elapsed().as_secs_f64();
-    let median = |mut v: Vec<f64>| {
-        v.sort_by(f64::total_cmp);
-        v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
-    };
-    let centre = median(
-        (prec.poses.iter().flatten())
-            .map(|s| s.centre.iter().copied().fold(0.0, f64::max))
-            .collect(),
-    );
-    let point = median(
-        (0..problem.points.len())
-            .filter_map(|p| prec.point_sigma(p))
-            .map(|s| s.max())
-            .collect(),
-    );
-    let out = BalPrecision {
-        sigma0: prec.sigma0,
-        redundancy: prec.redundancy,
-        method: prec.cofactors,
-        time_s,
-        median_camera_centre_sigma: centre,
-        median_point_sigma: point,
-    };
+) -> Result<pingcal_ba::workflow::PrecisionSummary, String> {
+    let out = pingcal_ba::workflow::precision_summary(problem, source)?;
     if !quiet {
         println!(
             "precision ({}): sigma0 {:.4}, redundancy {}, median camera-centre sigma {:.3e}, median point sigma {:.3e}, in {:.2} s",
-            out.method, out.sigma0, out.redundancy, centre, point, time_s
+            out.method,
+            out.sigma0,
+            out.redundancy,
+            out.median_camera_centre_sigma,
+            out.median_point_sigma,
+            out.time_s
         );
     }
     Ok(out)
@@ -475,12 +473,11 @@ fn is_dbat(args: &Args) -> bool {
     args.dbat.is_some() || args.dbat_camera.is_some()
 }
 
-/// A photogrammetric adjustment of pingcal's measurement file or DBAT's files.
+/// A photogrammetric adjustment of pingcal's measurement file or DBAT's files
+/// ([`pingcal_ba::workflow::adjust`]).
 fn run_measurements(path: &std::path::Path, args: &Args) -> CmdResult {
-    use pingcal_ba::initial::incremental::{initialise, IncrementalOptions};
     use pingcal_ba::initial::intersection::IntersectionOptions;
-    use pingcal_ba::io::{dbat, measurements::Measurements};
-    use pingcal_ba::report::AdjustmentReport;
+    use pingcal_ba::io::printable;
     let min_angle = args
         .min_intersection_angle
         .unwrap_or(IntersectionOptions::default().min_angle_deg);
@@ -489,6 +486,73 @@ fn run_measurements(path: &std::path::Path, args: &Args) -> CmdResult {
             format!("--min-intersection-angle {min_angle}: expected degrees in [0, 180)").into(),
         );
     }
+    let meas = read_measurements(path, args)?;
+    // DBAT's control file is checked by its reader; what is left concerns the marks.
+    let built = meas
+        .to_problem()
+        .map_err(|e| e.in_file(&path.display().to_string()))?;
+    for w in &built.warnings {
+        let w = printable(&w.to_string());
+        eprintln!("pingcal ba: warning: {}: {w}", path.display());
+    }
+    let options = pingcal_ba::workflow::AdjustOptions {
+        solver: Options {
+            max_iterations: args.max_iterations,
+            function_tolerance: args.function_tolerance,
+            gradient_tolerance: args.gradient_tolerance,
+            parameter_tolerance: args.parameter_tolerance,
+            threads: args.threads,
+            ..Options::default()
+        },
+        min_intersection_angle_deg: min_angle,
+        snoop: args.snoop,
+        loss: args.loss.as_deref().map(parse_loss).transpose()?,
+        free_network: args.free_network,
+        // DBAT's files say nothing of the datum but the control: diagnosed before solving
+        check_datum: is_dbat(args),
+    };
+    let a = pingcal_ba::workflow::adjust(&built, &path.display().to_string(), &options)?;
+    if a.arbitrary_scale {
+        eprintln!(
+            "pingcal ba: warning: {}: a free network without distances: its scale is arbitrary",
+            path.display()
+        );
+    }
+    print_start(&a, min_angle, args.quiet);
+    match &args.report {
+        Some(file) => write_atomic(file, a.report.to_text().as_bytes())?,
+        None if !args.quiet => print!("{}", a.report.to_text()),
+        None => {}
+    }
+    if let Some(out) = &args.out {
+        let mut json = serde_json::to_value(&a.report)?;
+        json["initial_cost"] = a.summary.initial_cost.into();
+        json["final_cost"] = a.summary.final_cost.into();
+        json["time_s"] = a.summary.time_s.into();
+        json["rms_px"] = a.precision.rms_image_px.into();
+        write_atomic(out, serde_json::to_string_pretty(&json)?.as_bytes())?;
+    }
+    println!(
+        "pingcal ba: {} images, {} points, {} observations; sigma0 {:.4}, RMS {:.4} px, redundancy {}, {} rejected; {}",
+        a.problem.images.len(),
+        a.problem.points.len(),
+        a.problem.observations.len(),
+        a.precision.sigma0,
+        a.precision.rms_image_px,
+        a.precision.redundancy,
+        a.rejected.len(),
+        a.summary.termination
+    );
+    Ok(())
+}
+
+/// PROBLEM read as pingcal's measurement file, or as DBAT's mark points with its camera
+/// (and control); `--calibrate` replaces every camera's list of freed parameters.
+fn read_measurements(
+    path: &std::path::Path,
+    args: &Args,
+) -> Result<pingcal_ba::io::measurements::Measurements, super::CmdError> {
+    use pingcal_ba::io::dbat;
     let mut meas = if is_dbat(args) {
         let Some(camera_file) = &args.dbat_camera else {
             return Err(format!(
@@ -507,85 +571,42 @@ fn run_measurements(path: &std::path::Path, args: &Args) -> CmdResult {
         }
         m
     } else {
-        Measurements::read(path)?
+        pingcal_ba::io::measurements::Measurements::read(path)?
     };
     if let Some(list) = &args.calibrate {
         for c in &mut meas.cameras {
             c.calibrate = list.clone();
         }
     }
-    // DBAT's control file is checked by its reader; what is left concerns the marks.
-    let built = meas
-        .to_problem()
-        .map_err(|e| e.in_file(&path.display().to_string()))?;
-    for w in &built.warnings {
-        let w = pingcal_ba::io::printable(&w.to_string());
-        eprintln!("pingcal ba: warning: {}: {w}", path.display());
-    }
-    // DBAT's files say nothing of the datum but the control: diagnosed before solving. A
-    // measurement file without one is a free network already; asked for, it is checked.
-    if is_dbat(args) || args.free_network {
-        pingcal_ba::datum::check(&built.problem, args.free_network)
-            .map_err(|e| format!("{}: {e}", path.display()))?;
-    }
-    // a measurement file that fixes nothing is adjusted as a free network: without a
-    // distance its scale is arbitrary, which is a datum left undefined unless asked for
-    let no_scale =
-        !pingcal_ba::datum::has_datum(&built.problem) && built.problem.distances.is_empty();
-    if no_scale && !args.free_network {
-        return Err(format!(
-            "{}: the datum is not defined: no control point, no fixed image and no distance, so the network's scale is free (the result would be at an arbitrary scale): fix an image (\"fixed\": true, with its pose) and give a distance, give control points, or ask for --free-network",
-            path.display()
-        )
-        .into());
-    }
-    if no_scale {
-        eprintln!(
-            "pingcal ba: warning: {}: a free network without distances: its scale is arbitrary",
-            path.display()
-        );
-    }
-    let options = Options {
-        max_iterations: args.max_iterations,
-        function_tolerance: args.function_tolerance,
-        gradient_tolerance: args.gradient_tolerance,
-        parameter_tolerance: args.parameter_tolerance,
-        threads: args.threads,
-        ..Options::default()
-    };
-    let init_options = IncrementalOptions {
-        bundle: options.clone(),
-        intersection: IntersectionOptions {
-            min_angle_deg: min_angle,
-            ..IntersectionOptions::default()
-        },
-        ..IncrementalOptions::default()
-    };
-    let init = initialise(
-        &built.problem,
-        &built.known_points,
-        &built.known_poses,
-        &init_options,
-    )
-    .map_err(|e| format!("{}: no initial values: {e}", path.display()))?;
-    if !args.quiet {
-        for s in &init.steps {
+    Ok(meas)
+}
+
+/// What the start-up did and could not do: its steps on stdout (unless quiet), the images
+/// and points it left out on stderr.
+fn print_start(a: &pingcal_ba::workflow::Adjusted, min_angle: f64, quiet: bool) {
+    use pingcal_ba::io::printable;
+    if !quiet {
+        for s in &a.steps {
             println!("  {s}");
         }
     }
-    for (name, why) in &init.unoriented_images {
-        let name = pingcal_ba::io::printable(name);
-        eprintln!("pingcal ba: warning: image '{name}' not oriented: {why}");
+    for (name, why) in &a.unoriented_images {
+        eprintln!(
+            "pingcal ba: warning: image '{}' not oriented: {why}",
+            printable(name)
+        );
     }
-    for (name, why) in &init.undetermined_points {
-        let name = pingcal_ba::io::printable(name);
-        eprintln!("pingcal ba: warning: point '{name}' not determined: {why}");
+    for (name, why) in &a.undetermined_points {
+        eprintln!(
+            "pingcal ba: warning: point '{}' not determined: {why}",
+            printable(name)
+        );
     }
-    if !init.refused_by_angle.is_empty() {
-        let list: Vec<String> = init
+    if !a.refused_by_angle.is_empty() {
+        let list: Vec<String> = a
             .refused_by_angle
             .iter()
-            .map(|(name, a)| format!("{} ({a:.2}°)", pingcal_ba::io::printable(name)))
+            .map(|(name, angle)| format!("{} ({angle:.2}°)", printable(name)))
             .collect();
         eprintln!(
             "pingcal ba: {} point{} refused by the intersection angle (largest ray angle below {min_angle}°): {}",
@@ -594,66 +615,9 @@ fn run_measurements(path: &std::path::Path, args: &Args) -> CmdResult {
             list.join(", ")
         );
     }
-    let mut problem = init.problem;
-    // a camera-model parameter the network cannot determine: named before the adjustment
-    match solver::check_intrinsics(&problem) {
-        Err(e @ solver::PrecisionError::NotDeterminable(_)) => {
-            return Err(format!("{}: {e}", path.display()).into());
-        }
-        Ok(solver::Estimability::NotChecked(n)) if !args.quiet => println!(
+    if let (Some(n), false) = (a.estimability_not_checked, quiet) {
+        println!(
             "  the intrinsics' estimability is judged after the adjustment ({n} reduced unknowns: too many to judge before)"
-        ),
-        // any other defect is named by the adjustment's precision
-        _ => {}
+        );
     }
-    if let Some(l) = &args.loss {
-        problem.loss = parse_loss(l)?;
-    }
-    let initial: Vec<Vec<f64>> = meas_initial_intrinsics(&built.problem);
-    // The start-up bundles' rejections are reported with the adjustment's own.
-    let mut rejected = init.rejections;
-    let (summary, precision) = match args.snoop {
-        Some(w) => {
-            let max_rejections = problem.observations.len() / 10;
-            let r = solver::adjust_with_snooping(&mut problem, &options, w, max_rejections)?;
-            rejected.extend(r.rejected);
-            (r.summary, r.precision)
-        }
-        None => {
-            let summary = solver::solve(&mut problem, &options, |_| {})?;
-            let precision = solver::precision(&problem)?;
-            (summary, precision)
-        }
-    };
-    let report = AdjustmentReport::new(&problem, &initial, &summary, &precision, &rejected);
-    match &args.report {
-        Some(file) => write_atomic(file, report.to_text().as_bytes())?,
-        None if !args.quiet => print!("{}", report.to_text()),
-        None => {}
-    }
-    if let Some(out) = &args.out {
-        let mut json = serde_json::to_value(&report)?;
-        json["initial_cost"] = summary.initial_cost.into();
-        json["final_cost"] = summary.final_cost.into();
-        json["time_s"] = summary.time_s.into();
-        json["rms_px"] = precision.rms_image_px.into();
-        write_atomic(out, serde_json::to_string_pretty(&json)?.as_bytes())?;
-    }
-    println!(
-        "pingcal ba: {} images, {} points, {} observations; sigma0 {:.4}, RMS {:.4} px, redundancy {}, {} rejected; {}",
-        problem.images.len(),
-        problem.points.len(),
-        problem.observations.len(),
-        precision.sigma0,
-        precision.rms_image_px,
-        precision.redundancy,
-        rejected.len(),
-        summary.termination
-    );
-    Ok(())
-}
-
-/// The intrinsics as given in the file, before any adjustment.
-fn meas_initial_intrinsics(p: &pingcal_ba::problem::Problem) -> Vec<Vec<f64>> {
-    p.cameras.iter().map(|c| c.params.clone()).collect()
 }

@@ -1,0 +1,190 @@
+//! A measurement file adjusted end to end, as `pingcal ba` runs it: the datum diagnosed,
+//! initial values found (resection, relative orientation, intersection: [`initialise`]),
+//! the intrinsics' estimability judged before solving, the self-calibrating adjustment
+//! (with data snooping when asked), its precision and the [`AdjustmentReport`].
+//!
+//! Every failure is one line that names the file (`source`) and what was expected; what
+//! the start-up could not do (images not oriented, points not determined or refused by
+//! their intersection angle) and the rejections are returned for the caller to tell.
+
+use crate::datum;
+use crate::initial::incremental::{initialise, IncrementalOptions, Step};
+use crate::initial::intersection::IntersectionOptions;
+use crate::io::measurements::Built;
+use crate::loss::Loss;
+use crate::problem::Problem;
+use crate::report::AdjustmentReport;
+use crate::solver::{self, Options, Precision, Rejection, Summary};
+
+/// How to adjust a measurement file.
+#[derive(Clone, Debug)]
+pub struct AdjustOptions {
+    /// The solver's options (iterations, tolerances, threads).
+    pub solver: Options,
+    /// The smallest angle (degrees) between two rays of a point the intersection accepts.
+    pub min_intersection_angle_deg: f64,
+    /// Data snooping's critical value of the standardized residuals (None: no snooping).
+    pub snoop: Option<f64>,
+    /// A robust loss replacing the file's.
+    pub loss: Option<Loss>,
+    /// Adjust as a free network (inner constraints) where the file fixes no datum.
+    pub free_network: bool,
+    /// Diagnose the datum before solving (always for a free network).
+    pub check_datum: bool,
+}
+
+/// A measurement file's adjustment and what its start-up could not do.
+pub struct Adjusted {
+    /// What the start-up did, in order.
+    pub steps: Vec<Step>,
+    /// Images the start-up could not orient, with the reason.
+    pub unoriented_images: Vec<(String, String)>,
+    /// Points the start-up could not determine, with the reason.
+    pub undetermined_points: Vec<(String, String)>,
+    /// Of those, the points refused by the intersection angle, with their largest angle.
+    pub refused_by_angle: Vec<(String, f64)>,
+    /// The intrinsics' estimability was not judged before the adjustment (a reduced system
+    /// of this many unknowns is too large for the test); the precision names any defect.
+    pub estimability_not_checked: Option<usize>,
+    /// A free network without distances: its scale is arbitrary.
+    pub arbitrary_scale: bool,
+    /// The adjusted problem.
+    pub problem: Problem,
+    /// The last adjustment's summary.
+    pub summary: Summary,
+    /// Its precision.
+    pub precision: Precision,
+    /// Image points rejected by the start-up's bundles and by data snooping.
+    pub rejected: Vec<Rejection>,
+    /// The adjustment report.
+    pub report: AdjustmentReport,
+}
+
+/// Adjusts `built` (read from `source`, named in every error) with `options`.
+pub fn adjust(built: &Built, source: &str, options: &AdjustOptions) -> Result<Adjusted, String> {
+    if options.check_datum || options.free_network {
+        datum::check(&built.problem, options.free_network).map_err(|e| format!("{source}: {e}"))?;
+    }
+    // A file that fixes nothing is adjusted as a free network: without a distance its scale
+    // is arbitrary, which is a datum left undefined unless asked for.
+    let arbitrary_scale = !datum::has_datum(&built.problem) && built.problem.distances.is_empty();
+    if arbitrary_scale && !options.free_network {
+        return Err(format!(
+            "{source}: the datum is not defined: no control point, no fixed image and no distance, so the network's scale is free (the result would be at an arbitrary scale): fix an image (\"fixed\": true, with its pose) and give a distance, give control points, or ask for --free-network"
+        ));
+    }
+    let init_options = IncrementalOptions {
+        bundle: options.solver.clone(),
+        intersection: IntersectionOptions {
+            min_angle_deg: options.min_intersection_angle_deg,
+            ..IntersectionOptions::default()
+        },
+        ..IncrementalOptions::default()
+    };
+    let init = initialise(
+        &built.problem,
+        &built.known_points,
+        &built.known_poses,
+        &init_options,
+    )
+    .map_err(|e| format!("{source}: no initial values: {e}"))?;
+    let mut problem = init.problem;
+    // a camera-model parameter the network cannot determine: named before the adjustment
+    let estimability_not_checked = match solver::check_intrinsics(&problem) {
+        Err(e @ solver::PrecisionError::NotDeterminable(_)) => {
+            return Err(format!("{source}: {e}"));
+        }
+        Ok(solver::Estimability::NotChecked(n)) => Some(n),
+        // any other defect is named by the adjustment's precision
+        _ => None,
+    };
+    if let Some(l) = options.loss {
+        problem.loss = l;
+    }
+    let initial: Vec<Vec<f64>> = built
+        .problem
+        .cameras
+        .iter()
+        .map(|c| c.params.clone())
+        .collect();
+    // The start-up bundles' rejections are reported with the adjustment's own.
+    let mut rejected = init.rejections;
+    let (summary, precision) = match options.snoop {
+        Some(w) => {
+            let max_rejections = problem.observations.len() / 10;
+            let r = solver::adjust_with_snooping(&mut problem, &options.solver, w, max_rejections)
+                .map_err(|e| e.to_string())?;
+            rejected.extend(r.rejected);
+            (r.summary, r.precision)
+        }
+        None => {
+            let summary =
+                solver::solve(&mut problem, &options.solver, |_| {}).map_err(|e| e.to_string())?;
+            let precision = solver::precision(&problem).map_err(|e| e.to_string())?;
+            (summary, precision)
+        }
+    };
+    let report = AdjustmentReport::new(&problem, &initial, &summary, &precision, &rejected);
+    Ok(Adjusted {
+        steps: init.steps,
+        unoriented_images: init.unoriented_images,
+        undetermined_points: init.undetermined_points,
+        refused_by_angle: init.refused_by_angle,
+        estimability_not_checked,
+        arbitrary_scale,
+        problem,
+        summary,
+        precision,
+        rejected,
+        report,
+    })
+}
+
+/// What `--precision` reports of a BAL problem: σ0, the redundancy, and the medians over
+/// the cameras and the points of the largest of their three σ's.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct PrecisionSummary {
+    /// σ0.
+    pub sigma0: f64,
+    /// Observations minus unknowns.
+    pub redundancy: i64,
+    /// How the cofactors were computed ([`Precision::cofactors`]).
+    pub method: &'static str,
+    /// Seconds the precision took.
+    pub time_s: f64,
+    /// Median over the cameras of the largest σ of the projection centre.
+    pub median_camera_centre_sigma: f64,
+    /// Median over the points of the largest σ of the coordinates.
+    pub median_point_sigma: f64,
+}
+
+/// The precision of an adjusted problem (read from `source`), summarised.
+pub fn precision_summary(problem: &Problem, source: &str) -> Result<PrecisionSummary, String> {
+    let t = std::time::Instant::now();
+    let prec = solver::precision(problem)
+        .map_err(|e| format!("{source}: no precision: {e} (the adjustment itself is done)"))?;
+    let time_s = t.elapsed().as_secs_f64();
+    let median = |mut v: Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
+    };
+    let centre = median(
+        (prec.poses.iter().flatten())
+            .map(|s| s.centre.iter().copied().fold(0.0, f64::max))
+            .collect(),
+    );
+    let point = median(
+        (0..problem.points.len())
+            .filter_map(|p| prec.point_sigma(p))
+            .map(|s| s.max())
+            .collect(),
+    );
+    Ok(PrecisionSummary {
+        sigma0: prec.sigma0,
+        redundancy: prec.redundancy,
+        method: prec.cofactors,
+        time_s,
+        median_camera_centre_sigma: centre,
+        median_point_sigma: point,
+    })
+}
