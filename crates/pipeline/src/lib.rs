@@ -13,7 +13,7 @@
 //! | 7c | [`verdict`] | whether to trust the calibration: `ok`, `doubtful` or `failed`, by statistical tests of every adjustment and of the check points |
 //! | 8 | [`conventions`], [`results`], then [`report`] | `results.json` (SPEC.md; its `conventions` block names every frame and transform) and `cloud.ply`, then the data of `report.html` |
 //! | 9 | [`rectify`], [`exports`] | the same numbers for ROS (tf commands, launch files, URDF joint), OpenCV (FileStorage YAML, stereo rectification as `stereoRectify` gives it) and Kalibr (camchain) |
-//! | 10 | [`result_set`] | the output folder: the whole set written beside it and switched in at once under the folder's lock, so a folder never holds a mix of two runs and a user's own files stay |
+//! | 10 | [`out_folders`], [`result_set`] | where each project of a run writes (distinct folders for a batch); the output folder: the whole set written beside it and switched in at once under the folder's lock, so a folder never holds a mix of two runs and a user's own files stay |
 //!
 //! Below the steps lie the modules they share, lowest first: [`ids`] (typed ids and the
 //! vector they index), [`progress`] (the [`Reporter`] and the [`Progress`] trait through
@@ -38,6 +38,7 @@ pub mod joint;
 pub mod lrf;
 pub mod matching;
 pub mod network;
+pub mod out_folders;
 pub mod overlays;
 pub mod progress;
 pub mod rectify;

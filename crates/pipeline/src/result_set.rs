@@ -465,6 +465,31 @@ pub fn swap_in(dir: &Path, files: &[SetFile]) -> Result<bool, String> {
     }
 }
 
+/// Writes the outputs of a calibration into `dir`, all or none: `ros/`, `opencv/` and
+/// `kalibr/` ([`pingcal_pipeline::exports`]), `overlays/`, `cloud.ply`, `report.html` and
+/// `results.json`, as one set ([`write_set`]): written beside the folder and
+/// swapped in with one exchange of names, so that the folder is always either the earlier
+/// set or the new one, under the folder's lock (a second writer is refused). A run that
+/// fails before or while writing leaves the outputs of an earlier run as they were. `lock`:
+/// the folder's, taken before the run began (a second run into it is refused before any
+/// work).
+pub fn write_outcome(lock: &FolderLock, outcome: &crate::Outcome) -> Result<(), String> {
+    let json = serde_json::to_string_pretty(&outcome.results).map_err(|e| e.to_string())? + "\n";
+    let html = pingcal_report::render_html(&outcome.report);
+    let mut set: Vec<SetFile> = outcome
+        .exports
+        .iter()
+        .map(|(rel, text)| (PathBuf::from(rel), text.as_bytes()))
+        .collect();
+    for (rel, bytes) in &outcome.overlays {
+        set.push((PathBuf::from(rel), bytes.as_slice()));
+    }
+    set.push(("cloud.ply".into(), &outcome.cloud_ply));
+    set.push(("report.html".into(), html.as_bytes()));
+    set.push(("results.json".into(), json.as_bytes()));
+    write_set(lock, &set)
+}
+
 /// Writes `bytes` to `path` atomically (temporary file in the same folder, then rename),
 /// so that an interrupted run never leaves a partial output file looking complete.
 ///

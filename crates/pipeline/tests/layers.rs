@@ -11,7 +11,7 @@ use std::path::Path;
 
 /// The modules of the pipeline crate, lowest first (`lib.rs`, the root that runs them, is
 /// apart; `test_support.rs` serves the unit tests).
-const ORDER: [&str; 21] = [
+const ORDER: [&str; 22] = [
     "ids",
     "progress",
     "scene",
@@ -32,6 +32,7 @@ const ORDER: [&str; 21] = [
     "rectify",
     "exports",
     "sphere_calib",
+    "out_folders",
     "result_set",
 ];
 

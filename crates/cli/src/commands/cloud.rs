@@ -131,6 +131,85 @@ pub fn run(args: Args) -> CmdResult {
         )
         .into());
     }
+    let mount = mount_of(&args)?;
+    let noise = noise_of(&args)?;
+    for (option, file) in [("--out", &args.out), ("--balls", &args.balls)] {
+        if let Some(f) = file {
+            super::preflight::check_out_file(option, f)?;
+        }
+    }
+    if let Some(m) = args.max_range_mm {
+        if !(m > 0.0) {
+            return Err(
+                format!("--max-range-mm: expected a positive range in mm, found {m}").into(),
+            );
+        }
+    }
+    let profile_max = match (&args.noise, &args.noise_sigma) {
+        (Some(n), _) => profile_max_range_mm(n),
+        (None, Some(_)) => None,
+        (None, None) => Some(PROFILE_MAX_RANGE_MM[0]),
+    };
+    let cloud = read_clouds(&args, &mount, profile_max)?;
+    let extent = extent_mm(&cloud);
+    if args.diameter_mm > extent {
+        let names: Vec<String> = args.scans.iter().map(|f| f.display().to_string()).collect();
+        eprintln!(
+            "pingcal: warning: {}: --diameter-mm {} is larger than the cloud ({extent:.3} mm across): no ball can be found (wrong --unit?)",
+            names.join(", "),
+            args.diameter_mm
+        );
+    }
+    let opt = FinderOptions {
+        noise,
+        diameter_mm: args.diameter_mm,
+        seed: args.seed,
+        ..Default::default()
+    };
+    let found = find_balls(&cloud, &opt);
+    if found.balls.is_empty() {
+        warn_other_sizes(&cloud, &opt);
+    }
+    if let Some(out) = &args.out {
+        let comments = vec![format!(
+            "pingcal cloud: {} points, {} balls of {} mm",
+            cloud.len(),
+            found.balls.len(),
+            args.diameter_mm
+        )];
+        let mut bytes = Vec::new();
+        pingcal_lrf::ply::write_cloud_with_spheres(
+            &mut bytes,
+            &cloud,
+            &found.balls,
+            args.diameter_mm / 2.0,
+            &comments,
+        )?;
+        super::write_atomic(out, &bytes)?;
+    }
+    if let Some(path) = &args.balls {
+        let text = centres_text(&found.balls);
+        super::write_atomic(path, text.as_bytes())?;
+    }
+    if args.why {
+        print_why(&found, args.diameter_mm);
+    }
+    println!(
+        "cloud: {} points from {} file(s), {} plane(s), {} ball(s) of {} mm, {} candidate(s) not used{}",
+        cloud.len(),
+        args.scans.len(),
+        found.planes.len(),
+        found.balls.len(),
+        args.diameter_mm,
+        found.rejected.len(),
+        args.out.as_ref().map_or(String::new(), |o| format!(" → {}", o.display()))
+    );
+    Ok(())
+}
+
+/// The LRF's mount model: `--lrf-model`'s file, or the options.
+fn mount_of(args: &Args) -> Result<MountModel, super::CmdError> {
+    let m = &args.mount_offset_mm;
     let mount = match &args.lrf_model {
         Some(path) => read_lrf_model(path)?,
         None => MountModel {
@@ -152,7 +231,12 @@ pub fn run(args: Args) -> CmdResult {
         "--range-offset-mm",
         "--range-scale",
     ])?;
-    let noise = match (&args.noise, &args.noise_sigma) {
+    Ok(mount)
+}
+
+/// The range noise: `--noise`'s profile, `--noise-sigma A,B`, or the URG-04LX's.
+fn noise_of(args: &Args) -> Result<RangeNoise, super::CmdError> {
+    Ok(match (&args.noise, &args.noise_sigma) {
         (Some(n), _) => RangeNoise::named(n).map_err(|e| format!("--noise: {e}"))?,
         (None, Some(v)) if v.len() == 2 => {
             RangeNoise::linear(v[0], v[1]).map_err(|e| format!("--noise-sigma: {e}"))?
@@ -163,27 +247,19 @@ pub fn run(args: Args) -> CmdResult {
             )
         }
         (None, None) => RangeNoise::urg_04lx(),
-    };
-    for (option, file) in [("--out", &args.out), ("--balls", &args.balls)] {
-        if let Some(f) = file {
-            super::preflight::check_out_file(option, f)?;
-        }
-    }
-    if let Some(m) = args.max_range_mm {
-        if !(m > 0.0) {
-            return Err(
-                format!("--max-range-mm: expected a positive range in mm, found {m}").into(),
-            );
-        }
-    }
-    let profile_max = match (&args.noise, &args.noise_sigma) {
-        (Some(n), _) => profile_max_range_mm(n),
-        (None, Some(_)) => None,
-        (None, None) => Some(PROFILE_MAX_RANGE_MM[0]),
-    };
+    })
+}
+
+/// Every `--scans` file read through `mount` into one cloud; ranges beyond the sensor's
+/// reach masked (`--max-range-mm`, or the noise profile's for scan files), with warnings.
+fn read_clouds(
+    args: &Args,
+    mount: &MountModel,
+    profile_max: Option<f64>,
+) -> Result<Cloud, super::CmdError> {
     let mut cloud = Cloud::default();
     for f in &args.scans {
-        let (mut c, warnings) = read_cloud_file_in(f, &mount, args.unit)?;
+        let (mut c, warnings) = read_cloud_file_in(f, mount, args.unit)?;
         for w in warnings {
             eprintln!("pingcal: warning: {w}");
         }
@@ -199,136 +275,99 @@ pub fn run(args: Args) -> CmdResult {
         }
         cloud.extend(c);
     }
-    let extent = extent_mm(&cloud);
-    if args.diameter_mm > extent {
-        let names: Vec<String> = args.scans.iter().map(|f| f.display().to_string()).collect();
+    Ok(cloud)
+}
+
+/// No ball of the given size: the sizes of the spheres evident in the cloud, if any.
+fn warn_other_sizes(cloud: &Cloud, opt: &FinderOptions) {
+    let evident = pingcal_lrf::sphere_size::evident_spheres(cloud, opt);
+    if let Some(best) = evident.first() {
+        let all: Vec<String> = evident
+            .iter()
+            .map(|e| {
+                let b = &e.found.balls[0];
+                format!(
+                    "{:.0} mm ({} ball(s), the first at ({:.0}, {:.0}, {:.0}) mm on {} rays)",
+                    e.diameter_mm,
+                    e.found.balls.len(),
+                    b.centre.x,
+                    b.centre.y,
+                    b.centre.z,
+                    b.inliers.len()
+                )
+            })
+            .collect();
         eprintln!(
-            "pingcal: warning: {}: --diameter-mm {} is larger than the cloud ({extent:.3} mm across): no ball can be found (wrong --unit?)",
-            names.join(", "),
-            args.diameter_mm
+            "pingcal: warning: no ball of {} mm found, but spheres of another size are evident: {}: --diameter-mm {:.0}?",
+            opt.diameter_mm,
+            all.join("; "),
+            best.diameter_mm
         );
     }
-    let opt = FinderOptions {
-        noise,
-        diameter_mm: args.diameter_mm,
-        seed: args.seed,
-        ..Default::default()
-    };
-    let found = find_balls(&cloud, &opt);
-    if found.balls.is_empty() {
-        let evident = pingcal_lrf::sphere_size::evident_spheres(&cloud, &opt);
-        if let Some(best) = evident.first() {
-            let all: Vec<String> = evident
-                .iter()
-                .map(|e| {
-                    let b = &e.found.balls[0];
-                    format!(
-                        "{:.0} mm ({} ball(s), the first at ({:.0}, {:.0}, {:.0}) mm on {} rays)",
-                        e.diameter_mm,
-                        e.found.balls.len(),
-                        b.centre.x,
-                        b.centre.y,
-                        b.centre.z,
-                        b.inliers.len()
-                    )
-                })
-                .collect();
-            eprintln!(
-                "pingcal: warning: no ball of {} mm found, but spheres of another size are evident: {}: --diameter-mm {:.0}?",
-                args.diameter_mm,
-                all.join("; "),
-                best.diameter_mm
-            );
-        }
+}
+
+/// `--balls`: the centres in the LRF frame (mm) with their σ's, one line per ball.
+fn centres_text(balls: &[pingcal_lrf::ball_finder::Ball]) -> String {
+    let mut text =
+        String::from("# pingcal cloud: ball centres in the LRF frame, mm: id x y z sx sy sz\n");
+    for (k, b) in balls.iter().enumerate() {
+        let c = b.centre;
+        let s = b.cov.diagonal().map(|v| v.max(0.0).sqrt());
+        text += &format!(
+            "L{} {:.3} {:.3} {:.3} {:.3} {:.3} {:.3}\n",
+            k + 1,
+            c.x,
+            c.y,
+            c.z,
+            s.x,
+            s.y,
+            s.z
+        );
     }
-    if let Some(out) = &args.out {
-        let comments = vec![format!(
-            "pingcal cloud: {} points, {} balls of {} mm",
-            cloud.len(),
-            found.balls.len(),
-            args.diameter_mm
-        )];
-        let mut bytes = Vec::new();
-        pingcal_lrf::ply::write_cloud_with_spheres(
-            &mut bytes,
-            &cloud,
-            &found.balls,
-            args.diameter_mm / 2.0,
-            &comments,
-        )?;
-        super::write_atomic(out, &bytes)?;
+    text
+}
+
+/// `--why`: the walls removed, every ball's support and every candidate not used.
+fn print_why(found: &pingcal_lrf::ball_finder::FindResult, diameter_mm: f64) {
+    for (n, d) in &found.planes {
+        println!(
+            "wall removed: {:.4} x + {:.4} y + {:.4} z = {:.1} mm",
+            n.x, n.y, n.z, d
+        );
     }
-    if let Some(path) = &args.balls {
-        let mut text =
-            String::from("# pingcal cloud: ball centres in the LRF frame, mm: id x y z sx sy sz\n");
-        for (k, b) in found.balls.iter().enumerate() {
-            let c = b.centre;
-            let s = b.cov.diagonal().map(|v| v.max(0.0).sqrt());
-            text += &format!(
-                "L{} {:.3} {:.3} {:.3} {:.3} {:.3} {:.3}\n",
-                k + 1,
-                c.x,
-                c.y,
-                c.z,
-                s.x,
-                s.y,
-                s.z
-            );
-        }
-        super::write_atomic(path, text.as_bytes())?;
+    for (k, b) in found.balls.iter().enumerate() {
+        let (c, s) = (b.centre, &b.support);
+        // the free fit fails or runs off where the range noise is a fair part of the
+        // radius (see `ball_finder`): the radius is then not determined by the cap
+        let nominal = diameter_mm / 2.0;
+        let free_radius = if s.free_radius_determined(nominal) {
+            format!("{:.1} ± {:.1} mm", s.free_radius_mm, s.sigma_free_radius_mm)
+        } else {
+            format!(
+                "not determined (range σ {:.1} mm against a {nominal:.1} mm radius)",
+                s.range_sigma_mm
+            )
+        };
+        println!(
+            "ball L{}: ({:.1}, {:.1}, {:.1}) mm, {} of {} cluster points on it, σ₀ {:.2}; free radius {free_radius}; {} beams meet it, {} pass through; {} of 8 sectors covered; ring beside it at its front's depth {:08b}",
+            k + 1,
+            c.x,
+            c.y,
+            c.z,
+            b.inliers.len(),
+            b.cluster_points,
+            b.sigma0,
+            s.on_surface,
+            s.through,
+            s.coverage,
+            s.beside
+        );
     }
-    if args.why {
-        for (n, d) in &found.planes {
-            println!(
-                "wall removed: {:.4} x + {:.4} y + {:.4} z = {:.1} mm",
-                n.x, n.y, n.z, d
-            );
-        }
-        for (k, b) in found.balls.iter().enumerate() {
-            let (c, s) = (b.centre, &b.support);
-            // the free fit fails or runs off where the range noise is a fair part of the
-            // radius (see `ball_finder`): the radius is then not determined by the cap
-            let nominal = args.diameter_mm / 2.0;
-            let free_radius = if s.free_radius_determined(nominal) {
-                format!("{:.1} ± {:.1} mm", s.free_radius_mm, s.sigma_free_radius_mm)
-            } else {
-                format!(
-                    "not determined (range σ {:.1} mm against a {nominal:.1} mm radius)",
-                    s.range_sigma_mm
-                )
-            };
-            println!(
-                "ball L{}: ({:.1}, {:.1}, {:.1}) mm, {} of {} cluster points on it, σ₀ {:.2}; free radius {free_radius}; {} beams meet it, {} pass through; {} of 8 sectors covered; ring beside it at its front's depth {:08b}",
-                k + 1,
-                c.x,
-                c.y,
-                c.z,
-                b.inliers.len(),
-                b.cluster_points,
-                b.sigma0,
-                s.on_surface,
-                s.through,
-                s.coverage,
-                s.beside
-            );
-        }
-        for r in &found.rejected {
-            let c = r.centre;
-            println!(
-                "not used: ({:.1}, {:.1}, {:.1}) mm, {} points: {}",
-                c.x, c.y, c.z, r.cluster_points, r.reason
-            );
-        }
+    for r in &found.rejected {
+        let c = r.centre;
+        println!(
+            "not used: ({:.1}, {:.1}, {:.1}) mm, {} points: {}",
+            c.x, c.y, c.z, r.cluster_points, r.reason
+        );
     }
-    println!(
-        "cloud: {} points from {} file(s), {} plane(s), {} ball(s) of {} mm, {} candidate(s) not used{}",
-        cloud.len(),
-        args.scans.len(),
-        found.planes.len(),
-        found.balls.len(),
-        args.diameter_mm,
-        found.rejected.len(),
-        args.out.as_ref().map_or(String::new(), |o| format!(" → {}", o.display()))
-    );
-    Ok(())
 }
