@@ -123,87 +123,6 @@ fn measure(bags: &[Bag], args: &Args) -> Result<(Track, Track), RosbagError> {
     Ok((clouds, images))
 }
 
-/// The text of a cloud file: a comment naming the columns, then one point per line.
-fn cloud_text(c: &PointCloud2, topic: &str) -> String {
-    use std::fmt::Write;
-    let mut cols = String::from("x y z");
-    if c.has_intensity {
-        cols.push_str(" intensity");
-    }
-    if c.has_ring {
-        cols.push_str(" ring");
-    }
-    let mut out = format!(
-        "# {cols}, metres, frame {:?} (pingcal frames, topic {topic}, stamp {} ns)\n",
-        c.frame_id, c.stamp_ns
-    );
-    for p in &c.points {
-        let [x, y, z] = p.xyz;
-        // the message's float32 values, as their shortest decimals
-        let _ = write!(out, "{} {} {}", x as f32, y as f32, z as f32);
-        for v in [p.intensity, p.ring].into_iter().flatten() {
-            let _ = write!(out, " {v}");
-        }
-        out.push('\n');
-    }
-    out
-}
-
-/// An image message as a file: its extension and bytes (raw images as PNG).
-fn image_file(m: &RawMessage) -> Result<(&'static str, Vec<u8>), String> {
-    if m.msg_type == msgs::COMPRESSED_IMAGE {
-        let img = CompressedImage::decode(m.data, m.encoding)?;
-        let ext = match image::guess_format(img.data) {
-            Ok(image::ImageFormat::Png) => "png",
-            Ok(image::ImageFormat::Jpeg) => "jpg",
-            _ => return Err(format!("format {:?}: expected a JPEG or a PNG", img.format)),
-        };
-        return Ok((ext, img.data.to_vec()));
-    }
-    let img = Image::decode(m.data, m.encoding)?;
-    let t = image_thumb(&img)?; // checks the encoding and the size
-    drop(t);
-    let (w, h, step) = (img.width, img.height, img.step as usize);
-    let rows = |bpp: usize| -> Vec<u8> {
-        (0..h as usize)
-            .flat_map(|y| {
-                img.data[y * step..y * step + w as usize * bpp]
-                    .iter()
-                    .copied()
-            })
-            .collect()
-    };
-    let mut png = Vec::new();
-    let enc = image::codecs::png::PngEncoder::new(&mut png);
-    use image::ImageEncoder;
-    let done = match img.encoding.as_str() {
-        "mono8" | "8UC1" => enc.write_image(&rows(1), w, h, image::ExtendedColorType::L8),
-        "rgb8" | "8UC3" => enc.write_image(&rows(3), w, h, image::ExtendedColorType::Rgb8),
-        "rgba8" | "8UC4" => enc.write_image(&rows(4), w, h, image::ExtendedColorType::Rgba8),
-        "bgr8" | "bgra8" => {
-            let bpp = if img.encoding == "bgr8" { 3 } else { 4 };
-            let mut px = rows(bpp);
-            px.chunks_exact_mut(bpp).for_each(|p| p.swap(0, 2));
-            let ty = if bpp == 3 {
-                image::ExtendedColorType::Rgb8
-            } else {
-                image::ExtendedColorType::Rgba8
-            };
-            enc.write_image(&px, w, h, ty)
-        }
-        _ => {
-            // mono16: big-endian samples, as PNG stores them
-            let mut px = rows(2);
-            if !img.big_endian {
-                px.chunks_exact_mut(2).for_each(|p| p.swap(0, 1));
-            }
-            enc.write_image(&px, w, h, image::ExtendedColorType::L16)
-        }
-    };
-    done.map_err(|e| format!("cannot encode as PNG: {e}"))?;
-    Ok(("png", png))
-}
-
 /// Second pass: the chosen clouds and images, written as frame files; the frames' entries.
 fn write_frames(
     bags: &[Bag],
@@ -241,7 +160,7 @@ fn write_frames(
                 match cloud_of.get(&c.stamp_ns) {
                     Some(&k) if clouds[k].is_none() => write(
                         format!("clouds/{}.xyz", id(k)),
-                        cloud_text(&c, m.topic).as_bytes(),
+                        pingcal_rosbag::frames::cloud_text(&c, m.topic).as_bytes(),
                     )
                     .map(|f| clouds[k] = Some(f)),
                     _ => Ok(()),
@@ -250,7 +169,8 @@ fn write_frames(
                 let (stamp, _) = thumb(m).map_err(|e| decode_err(bag, m, e))?;
                 match image_of.get(&stamp) {
                     Some(&k) if images[k].is_none() => {
-                        let (ext, bytes) = image_file(m).map_err(|e| decode_err(bag, m, e))?;
+                        let (ext, bytes) = pingcal_rosbag::frames::image_file(m)
+                            .map_err(|e| decode_err(bag, m, e))?;
                         write(format!("images/{}.{ext}", id(k)), &bytes)
                             .map(|f| images[k] = Some(f))
                     }
