@@ -366,7 +366,61 @@ fn crates_depend_one_way() {
             !d.contains("cli"),
             "crates/{krate} depends on the binary's crate"
         );
+        assert!(
+            krate == "cli" || allowed.iter().any(|(k, _)| k == krate),
+            "crates/{krate} is not in this test's list of allowed dependencies: put it in its layer"
+        );
     }
+}
+
+/// Every text file under `dir` (sources, docs, manifests), skipping build output.
+fn text_files(dir: &Path, out: &mut Vec<PathBuf>) {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for e in entries.flatten() {
+        let p = e.path();
+        if p.is_dir() {
+            if p.file_name().is_some_and(|n| n != "target") {
+                text_files(&p, out);
+            }
+        } else if p
+            .extension()
+            .is_some_and(|x| ["rs", "md", "toml", "py", "sh"].contains(&&*x.to_string_lossy()))
+        {
+            out.push(p);
+        }
+    }
+}
+
+/// The repository stands alone: no source, test or doc sends a reader to the design notes
+/// that are not in it (the method, frames, units and formats are in docs/).
+#[test]
+fn no_file_points_outside_the_repository() {
+    let mut files = Vec::new();
+    for d in ["crates", "docs", "tests", "bench"] {
+        text_files(&workspace().join(d), &mut files);
+    }
+    text_files(&workspace().join("README.md"), &mut files);
+    files.push(workspace().join("README.md"));
+    let this = Path::new(file!()).file_name().unwrap().to_owned();
+    let notes = ["SPEC", "NOTES"].map(|n| format!("{n}.md"));
+    let mut found = Vec::new();
+    for f in files {
+        if f.file_name() == Some(&this) {
+            continue;
+        }
+        let text = std::fs::read_to_string(&f).unwrap_or_default();
+        for (k, line) in text.lines().enumerate() {
+            if notes.iter().any(|n| line.contains(n.as_str())) {
+                found.push(format!("{}:{}", f.display(), k + 1));
+            }
+        }
+    }
+    assert!(
+        found.is_empty(),
+        "references to notes outside the repository (put what users need into docs/): {found:?}"
+    );
 }
 
 #[test]

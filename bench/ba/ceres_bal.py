@@ -9,7 +9,7 @@ Prints one JSON line:
 with time_s = Ceres's own Summary::total_time_in_seconds (preprocessing + minimizer +
 postprocessing) and wall_solve_s = wall time of the solve() call around it.
 
-How the BAL model is mapped onto COLMAP (see /work/shared/NOTES.md):
+How the BAL model is mapped onto COLMAP:
   * one RADIAL camera (f, cx, cy, k1, k2) per image, cx = cy = 0 held fixed (SubsetManifold),
     f, k1, k2 optimized: COLMAP's RADIAL is u·f·(1 + k1 r² + k2 r⁴) + c, the BAL model exactly;
   * BAL looks down −z, COLMAP down +z: with F = diag(1, −1, −1), R' = F·R, t' = F·t and the

@@ -49,7 +49,7 @@ fn frames(project: &Project) -> BTreeMap<String, String> {
             f.frames.camera
         )),
         ("lrf", format!(
-            "the LRF frame of cloud.ply and lrf_mm (SPEC.md): origin at the 2D LRF's centre, Y along the servo shaft, X along the beam at alpha = 0 when beta = 0; mm; the tf frame '{}'",
+            "the LRF frame of cloud.ply and lrf_mm (docs/formats.md): origin at the 2D LRF's centre, Y along the servo shaft, X along the beam at alpha = 0 when beta = 0; mm; the tf frame '{}'",
             f.frames.lrf
         )),
     ];

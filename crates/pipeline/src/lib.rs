@@ -11,7 +11,7 @@
 //! | 7 | [`joint`] | the joint adjustment: image points, distances and the LRF beams on the balls together, the extrinsic and the LRF's mount and range errors among the unknowns, what the data cannot determine held and named |
 //! | 7b | [`final_lrf`] | the LRF as the calibration's own model sees it: the cloud made again through the joint adjustment's estimated mount and range model, its spheres found and matched by the estimated extrinsic, the check tables from them; every output's LRF side uses it |
 //! | 7c | [`verdict`] | whether to trust the calibration: `ok`, `doubtful` or `failed`, by statistical tests of every adjustment and of the check points |
-//! | 8 | [`conventions`], [`results`], then [`report`] | `results.json` (SPEC.md; its `conventions` block names every frame and transform) and `cloud.ply`, then the data of `report.html` |
+//! | 8 | [`conventions`], [`results`], then [`report`] | `results.json` (docs/formats.md; its `conventions` block names every frame and transform) and `cloud.ply`, then the data of `report.html` |
 //! | 9 | [`rectify`], [`exports`] | the same numbers for ROS (tf commands, launch files, URDF joint), OpenCV (FileStorage YAML, stereo rectification as `stereoRectify` gives it) and Kalibr (camchain) |
 //! | 10 | [`out_folders`], [`result_set`] | where each project of a run writes (distinct folders for a batch); the output folder: the whole set written beside it and switched in at once under the folder's lock, so a folder never holds a mix of two runs and a user's own files stay |
 //!

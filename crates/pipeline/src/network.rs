@@ -5,7 +5,7 @@
 //! relatively oriented image pair, resects and intersects the rest with bundle adjustments
 //! between rounds (self-calibrating once three images are oriented), rejects gross errors
 //! and scales the network by the measured distances. The result is moved into the
-//! photogrammetric frame of SPEC.md: the main image's camera frame (origin at its
+//! photogrammetric frame (docs/formats.md, "Frames"): the main image's camera frame (origin at its
 //! projection centre, X right, Y forward, Z up).
 
 use super::adjust::{rig_cameras, Datum, SceneProblem};

@@ -1,11 +1,11 @@
-//! Step 7: `results.json` (the keys of SPEC.md and more) and `cloud.ply`; [`super::report`]
+//! Step 7: `results.json` (the keys docs/formats.md lists) and `cloud.ply`; [`super::report`]
 //! builds the report data from them.
 //!
 //! `extrinsic`, `check_points` and `mean_check_error_mm` are the joint adjustment's when it
 //! ran and succeeded, else the sphere method's, else the corner baseline's; `methods` holds
 //! every method side by side, and `lrf_mount` the joint adjustment's mount and range
 //! parameters with their σ, why any was held, and their correlations with the extrinsic. Every estimate has
-//! its standard deviation. Camera parameters are in the units of SPEC.md (mm, mm⁻², …) and
+//! its standard deviation. Camera parameters are in the units of docs/formats.md (mm, mm⁻², …) and
 //! also converted to OpenCV's (fx, fy, cx, cy, k1, k2, p1, p2, k3): `k1 = K1 c²`,
 //! `k2 = K2 c⁴`, `k3 = K3 c⁶`, `p1 = −P2 c`, `p2 = P1 c` (OpenCV's y axis points down),
 //! `fx = c (1 + B1) / pixel`, `fy = c / pixel`, `cx = (W − 1)/2 + xp / pixel`,
@@ -337,7 +337,7 @@ fn mat(r: &Matrix3<f64>) -> [[f64; 3]; 3] {
 }
 
 /// C, from the photogrammetric camera frame (X right, Y forward, Z up) to OpenCV's (x
-/// right, y down, z forward): `p_cv = C · p = (X, −Z, Y)` (SPEC.md).
+/// right, y down, z forward): `p_cv = C · p = (X, −Z, Y)` (docs/formats.md, "Frames").
 pub fn cv_from_photogrammetric() -> Matrix3<f64> {
     Matrix3::new(1.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 1.0, 0.0)
 }
@@ -1026,7 +1026,7 @@ mod tests {
     }
 
     /// Without B1 and B2 the conversion is exact: both models put every point on the same
-    /// pixel (p_cv = (X, −Z, Y) from the photogrammetric camera frame, SPEC.md).
+    /// pixel (p_cv = (X, −Z, Y) from the photogrammetric camera frame, docs/formats.md).
     #[test]
     fn opencv_conversion_projects_identically() {
         let cam = PhotogrammetricCamera::new(1280, 720, 0.00375);

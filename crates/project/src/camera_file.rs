@@ -6,7 +6,7 @@
 //!   the keys of [`crate::intrinsics`]; `fisheye` is read as `kannala-brandt`, OpenCV's
 //!   `cv::fisheye`):
 //!   ```toml
-//!   model = "photogrammetric"      # SPEC.md's model, parameters as project.toml's [cameras.initial]
+//!   model = "photogrammetric"      # docs/formats.md's model, parameters as project.toml's [cameras.initial]
 //!   width = 1280
 //!   height = 720
 //!   pixel_size_mm = 0.00375

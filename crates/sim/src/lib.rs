@@ -20,7 +20,7 @@
 //! * **World** (test field): origin at the corner's vertex, X along wall 1's floor edge,
 //!   Y along wall 2's floor edge, Z up; the room is x, y, z > 0. The planes are tilted by a
 //!   few tenths of a degree and bulged by a few mm, so they are not exactly these axes.
-//! * **Camera** (SPEC.md): origin at the projection centre, X image right, Y optical axis,
+//! * **Camera** (docs/formats.md): origin at the projection centre, X image right, Y optical axis,
 //!   Z image up. Poses are world → camera, `x_cam = R·X + t`.
 //! * **Photogrammetric**: the main station's left camera frame (the paper's origin).
 //! * **LRF** (paper eq. 2): origin at the scanner centre, Y along the servo shaft.

@@ -3,7 +3,7 @@
 //! ```text
 //! project.toml        what the pipeline needs (cameras, images, targets, balls, distances, LRF)
 //! images/S00_left.png one 8-bit PNG per camera per station (S00 is the main station)
-//! scans/S00.csv       the servo sweep as `pingcal-scan` v1 CSV (SPEC.md)
+//! scans/S00.csv       the servo sweep as `pingcal-scan` v1 CSV (docs/formats.md)
 //! truth.json          the ground truth (see [`Truth`])
 //! simulation.toml     the full simulator configuration used (re-run with --config)
 //! ```
@@ -325,7 +325,7 @@ pub fn truth_of(sim: &Simulation) -> Truth {
             "LRF frame: paper eq. 2, x = r cos(a) cos(b), y = r sin(a), z = r cos(a) sin(b), Y = servo shaft".into(),
             "extrinsic: p_camera = rotation * p_lrf + translation_mm (as results.json)".into(),
             "poses: y = rotation * x + translation_mm from the named frame to the camera".into(),
-            "intrinsics: SPEC.md photogrammetric model, distortion applied forward; pixels from the centre of the top-left pixel, v down".into(),
+            "intrinsics: the photogrammetric model of docs/formats.md, distortion applied forward; pixels from the centre of the top-left pixel, v down".into(),
             "world: origin at the room corner, X along wall1, Y along wall2, Z up".into(),
         ],
         extrinsic: PoseJson::from_pose(&ext),

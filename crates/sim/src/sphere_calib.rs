@@ -613,7 +613,7 @@ pub fn write_sphere_calib(
     std::fs::write(
         &camera_path,
         format!(
-            "# the simulated camera's true intrinsics (photogrammetric model, SPEC.md)\n{}",
+            "# the simulated camera's true intrinsics (photogrammetric model, docs/formats.md)\n{}",
             sim.camera_file().to_toml_string()
         ),
     )

@@ -1,6 +1,6 @@
 //! Ping-pong balls: the silhouette of a sphere is an ellipse whose centre is **not** the
 //! projection of the sphere's centre (it is pushed outward, away from the principal point, by
-//! about r²/(Z² − r²) of the off-axis distance; NOTES.md, Luhmann 2014, Matsuoka & Maruyama
+//! about r²/(Z² − r²) of the off-axis distance; docs/method.md "A ball in an image", Luhmann 2014, Matsuoka & Maruyama
 //! 2016). The correction needs the camera's interior orientation, which lives in another crate
 //! and is known only after calibration, so it is exposed as a function of the camera's two maps
 //! (pixel → ray and ray → pixel), through the small trait [`CameraRays`] (closures work too,
@@ -142,7 +142,7 @@ pub fn sphere_centre_from_ellipse(
     sphere_centre_from_outline(&pts, cam, radius)
 }
 
-/// The closed form of NOTES.md: the bisector of the rays through the two ends of the major
+/// The closed form (docs/method.md, "A ball in an image"): the bisector of the rays through the two ends of the major
 /// axis (exact for an undistorted camera).
 pub fn sphere_centre_major_axis(
     e: &Ellipse,
@@ -182,7 +182,7 @@ pub fn fit_ball_silhouette(img: &GrayImage, seed: &Ellipse) -> Result<Refined, R
 mod tests {
     use super::*;
 
-    /// Exact silhouette from NOTES.md formulas; both recoveries must give the true projection.
+    /// Exact silhouette from the formulas of docs/method.md; both recoveries must give the true projection.
     #[test]
     fn exact_silhouette_recovers_projected_centre() {
         let cam = Pinhole {

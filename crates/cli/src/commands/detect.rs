@@ -1,5 +1,5 @@
 //! `pingcal detect IMAGE... [--out FILE] [--debug DIR] [--why] [--saturated]`: targets (coded,
-//! plain) and balls found in images, as the JSON of SPEC.md (pixel origin at the centre of the
+//! plain) and balls found in images, as the JSON of docs/formats.md (pixel origin at the centre of the
 //! top-left pixel, x to the right, y down), and the candidates refused by reason.
 //!
 //! The summary line counts the targets and, after `refused:`, the candidates refused by reason

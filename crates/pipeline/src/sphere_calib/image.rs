@@ -53,7 +53,7 @@ pub struct ImageSphere {
     pub rejected: Vec<Pixel>,
 }
 
-/// The closed form of Tóth et al. (NOTES.md "Projection of a sphere"): an ellipse fitted to
+/// The closed form of Tóth et al. (docs/method.md, "A ball in an image"): an ellipse fitted to
 /// the undistorted edge points, the two ends of its major axis as unit rays q₁, q₂,
 /// w = normalize(q₁ + q₂), d = √2·r/√(1 − q₁·q₂), C = d·w. Camera frame of `cam`.
 pub fn closed_form_centre(edges: &[Pixel], cam: &Camera, r: f64) -> Option<V3> {
