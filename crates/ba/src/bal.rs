@@ -26,14 +26,20 @@ pub enum BalError {
     /// The file could not be opened or read.
     #[error("{path}: {source}")]
     Io {
+        /// The file's path as given.
         path: String,
+        /// The underlying error (opening, reading or decompressing).
         source: std::io::Error,
     },
     /// The content is not a valid BAL problem.
     #[error("{path}:{line}: {message}")]
     Parse {
+        /// The file's path as given.
         path: String,
+        /// 1-based line of the (decompressed) text; for a file that ends early, its last
+        /// line.
         line: usize,
+        /// What was found and what was expected.
         message: String,
     },
 }

@@ -66,25 +66,40 @@ pub struct PointReport {
 /// The whole report.
 #[derive(Clone, Debug, Serialize)]
 pub struct AdjustmentReport {
-    /// Images, points, image observations, distances, control points.
+    /// Images in the adjustment.
     pub images: usize,
+    /// Object points in the adjustment.
     pub points: usize,
+    /// Image points (observations of a point in an image), each two coordinates.
     pub image_observations: usize,
+    /// Measured distances between object points.
     pub distances: usize,
+    /// Control points: points with one or more coordinates held, plus weighted control
+    /// points.
     pub control_points: usize,
     /// Observations − unknowns.
     pub redundancy: i64,
     /// A-posteriori σ of unit weight.
     pub sigma0: f64,
-    /// RMS image residual in pixels, and in µm where the pixel size is known.
+    /// RMS image residual in pixels.
     pub rms_image_px: f64,
+    /// The same in µm on the sensor, with the pixel pitch of the first camera whose model
+    /// knows it (None: no camera does, as with the OpenCV and fisheye models).
     pub rms_image_um: Option<f64>,
-    /// Iterations and why the solver stopped.
+    /// Iterations of the solver.
     pub iterations: usize,
+    /// Why the solver stopped, in words (e.g. `converged: gradient below the gradient
+    /// tolerance`).
     pub termination: String,
+    /// Per camera, its parameters, in the problem's order.
     pub cameras: Vec<CameraReport>,
+    /// Per image, its exterior orientation, in the problem's order.
     pub exterior: Vec<ImageReport>,
+    /// Per object point, its coordinates and precision, in the problem's order.
     pub object_points: Vec<PointReport>,
+    /// Observations left out as gross errors, in the order they were left out: what the
+    /// caller passed to [`AdjustmentReport::new`] (in [`crate::workflow`], the initialiser's
+    /// start-up rejections, then data snooping's).
     pub rejected: Vec<Rejection>,
 }
 

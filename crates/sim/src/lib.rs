@@ -1,3 +1,4 @@
+#![warn(missing_docs)]
 //! # pingcal-sim: simulator of the paper's test field and sensors
 //!
 //! Room corner with targets and ping-pong balls, a stereo camera and a rotating LRF,

@@ -301,15 +301,34 @@ pub struct Distance {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum HitKind {
     /// A wall or the floor, at surface coordinates (u, v).
-    Surface { index: usize, u: f64, v: f64 },
+    Surface {
+        /// Index in [`Scene::surfaces`] (wall1, wall2, floor).
+        index: usize,
+        /// mm along the surface's first edge `a` from its corner.
+        u: f64,
+        /// mm along its second edge `b`.
+        v: f64,
+    },
     /// Retro-reflective material of a target.
-    Retro { target: usize },
+    Retro {
+        /// Index in [`Scene::targets`] (not the target number).
+        target: usize,
+    },
     /// The black print of a target.
-    Black { target: usize },
+    Black {
+        /// Index in [`Scene::targets`] (not the target number).
+        target: usize,
+    },
     /// A ball.
-    Ball { ball: usize },
+    Ball {
+        /// Index in [`Scene::balls`] (not the ball number).
+        ball: usize,
+    },
     /// A ball's stem.
-    Stem { ball: usize },
+    Stem {
+        /// Index in [`Scene::balls`] of the ball it carries.
+        ball: usize,
+    },
 }
 
 /// A ray hit: distance along the (unit) ray, kind, unit normal at the hit (towards the ray).

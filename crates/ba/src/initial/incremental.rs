@@ -108,50 +108,95 @@ impl Default for IncrementalOptions {
 pub enum Step {
     /// An image resected from `points` points of which `inliers` agree.
     Resected {
+        /// The image's name.
         image: String,
+        /// Oriented points (control or intersected) the image sees.
         points: usize,
+        /// Those within the resection's threshold at the refined pose.
         inliers: usize,
+        /// RMS reprojection error of the inliers, pixels per coordinate.
         rms_px: f64,
     },
     /// The starting pair of a network without control.
     RelativePair {
+        /// The first image's name: placed at the origin with the identity rotation.
         first: String,
+        /// The second image's name: placed at a unit distance from the first.
         second: String,
+        /// Common points consistent with the pair's epipolar geometry and in front of both
+        /// images.
         inliers: usize,
+        /// Median angle between the two rays of those points, degrees (the strength of the
+        /// baseline).
         median_angle_deg: f64,
         /// The radial correction of the rays estimated with it (fraction of the radius at
         /// the outermost ray; 0: none).
         radial_correction: f64,
     },
     /// Points intersected in this round.
-    Intersected { points: usize },
+    Intersected {
+        /// Points newly intersected.
+        points: usize,
+    },
     /// A bundle adjustment of what is oriented so far.
     Bundle {
+        /// Images oriented so far, all in the adjustment.
         images: usize,
+        /// Points determined so far (intersected or control), all in the adjustment.
         points: usize,
+        /// Iterations the solver took.
         iterations: usize,
+        /// RMS reprojection residual after it, pixels per coordinate.
         rms_px: f64,
+        /// Whether the problem's free intrinsics were adjusted (from
+        /// [`IncrementalOptions::calibrate_from_images`] oriented images on) or held.
         calibrating: bool,
     },
     /// Observations rejected as gross errors after a bundle adjustment.
     Rejected {
+        /// Observations rejected in this round.
         observations: usize,
+        /// The residual above which they were, pixels: the larger of
+        /// [`IncrementalOptions::reject_sigmas`] robust σ and
+        /// [`IncrementalOptions::reject_min_px`].
         threshold_px: f64,
     },
     /// Rejected observations given back: their residuals, adjusted without them, are under
     /// the threshold that rejected them.
     Readmitted {
+        /// Observations given back.
         observations: usize,
+        /// The threshold of the last rejection, pixels.
         threshold_px: f64,
     },
     /// A bundle adjustment that failed (its result is discarded).
-    BundleFailed { message: String },
+    BundleFailed {
+        /// The solver's error, or `non-finite estimate`.
+        message: String,
+    },
     /// A relative network scaled so that its measured distances hold.
-    ScaledByDistances { distances: usize, scale: f64 },
+    ScaledByDistances {
+        /// Measured distances whose two points were determined.
+        distances: usize,
+        /// The factor applied to the points and the projection centres: the median of
+        /// measured / network length.
+        scale: f64,
+    },
     /// The network moved into the control frame by a similarity transform.
-    ToControlFrame { points: usize, scale: f64, rms: f64 },
+    ToControlFrame {
+        /// Control points intersected, on which the transform was fitted.
+        points: usize,
+        /// The transform's scale (control frame length / network length).
+        scale: f64,
+        /// RMS distance between the transformed points and their given coordinates, in the
+        /// control frame's unit (mm).
+        rms: f64,
+    },
     /// The network moved rigidly so that the one image of given pose has it.
-    ToGivenPose { image: String },
+    ToGivenPose {
+        /// The image's name.
+        image: String,
+    },
 }
 
 impl std::fmt::Display for Step {

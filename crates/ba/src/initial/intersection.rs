@@ -57,16 +57,32 @@ pub struct Intersection {
 pub enum IntersectionError {
     /// Fewer than two rays (that could be back-projected).
     #[error("intersection needs at least 2 rays, got {got}")]
-    TooFewRays { got: usize },
+    TooFewRays {
+        /// Rays whose pixel could be back-projected (the intersection also fails when any
+        /// one of them cannot be).
+        got: usize,
+    },
     /// The rays are nearly parallel.
     #[error("the rays meet at {angle_deg:.3}°, below the {min_deg}° needed")]
-    SmallAngle { angle_deg: f64, min_deg: f64 },
+    SmallAngle {
+        /// Largest angle between two of the rays, degrees.
+        angle_deg: f64,
+        /// The smallest accepted ([`IntersectionOptions::min_angle_deg`]), degrees.
+        min_deg: f64,
+    },
     /// The point is behind one of the cameras.
     #[error("the intersection lies behind camera {ray}")]
-    BehindCamera { ray: usize },
+    BehindCamera {
+        /// 0-based index of that ray in the rays given.
+        ray: usize,
+    },
     /// The rays do not meet well.
     #[error("the rays miss each other: RMS reprojection error {rms_px:.2} px")]
-    LargeResidual { rms_px: f64 },
+    LargeResidual {
+        /// RMS reprojection error of the intersected point, pixels per coordinate (above
+        /// [`IntersectionOptions::max_rms_px`]).
+        rms_px: f64,
+    },
 }
 
 /// Residual (pixels) of `x` in one ray and its Jacobian with respect to `x`

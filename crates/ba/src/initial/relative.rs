@@ -78,12 +78,18 @@ pub struct Relative {
 pub enum RelativeError {
     /// Fewer than 8 correspondences.
     #[error("relative orientation needs at least 8 corresponding rays, got {got}")]
-    TooFewPoints { got: usize },
+    TooFewPoints {
+        /// Correspondences given (the shorter of the two ray lists).
+        got: usize,
+    },
     /// No consistent essential matrix.
     #[error("no essential matrix with at least {needed} inliers (best {best} of {count}); a flat scene or a pure rotation?")]
     NoConsensus {
+        /// Fewest inliers accepted ([`RelativeOptions::min_inliers`], at least 8).
         needed: usize,
+        /// Inliers of the best orientation found (0: no sample gave one).
         best: usize,
+        /// Correspondences given.
         count: usize,
     },
 }

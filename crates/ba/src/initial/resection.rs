@@ -60,16 +60,26 @@ pub struct Resection {
 pub enum ResectionError {
     /// Fewer than 4 usable points.
     #[error("resection needs at least 4 points of known coordinates, got {got}")]
-    TooFewPoints { got: usize },
+    TooFewPoints {
+        /// Points whose pixel back-projects and whose coordinates are finite.
+        got: usize,
+    },
     /// The object points are (nearly) on one line: the pose is not determined.
     #[error("the {count} object points are nearly collinear: the pose is not determined")]
-    Collinear { count: usize },
+    Collinear {
+        /// Usable points (pixel back-projects, coordinates finite).
+        count: usize,
+    },
     /// No sample gave a pose with enough inliers.
     #[error("no pose found with at least {needed} inliers (best: {best} of {count} points within {threshold_px} px)")]
     NoConsensus {
+        /// Fewest inliers accepted ([`ResectionOptions::min_inliers`], at least 4).
         needed: usize,
+        /// Inliers of the best pose found (0: no sample gave a pose).
         best: usize,
+        /// Usable points (pixel back-projects, coordinates finite).
         count: usize,
+        /// The inlier threshold on the reprojection error, pixels.
         threshold_px: f64,
     },
 }

@@ -282,80 +282,144 @@ fn held_axes(text: Option<&str>, what: impl Fn() -> String) -> Result<[bool; 3],
 pub enum MeasurementError {
     /// The file could not be read or written.
     #[error("{file}: {message}")]
-    Io { file: String, message: String },
+    Io {
+        /// The file's path as given.
+        file: String,
+        /// The operating system's reason.
+        message: String,
+    },
     /// The JSON is malformed or does not match the format.
     #[error("{file}:{line}:{column}: {message}")]
     Syntax {
+        /// The file's name as given to [`Measurements::parse`].
         file: String,
+        /// 1-based line of the JSON text where the parser stopped.
         line: usize,
+        /// 1-based column in that line.
         column: usize,
+        /// The parser's message (control characters escaped).
         message: String,
     },
     /// An unsupported camera model.
     #[error("camera '{camera}': unknown model '{model}' (expected one of photogrammetric, brown_backward, opencv, fisheye)")]
-    UnknownModel { camera: String, model: String },
+    UnknownModel {
+        /// The camera's name.
+        camera: String,
+        /// The `model` given.
+        model: String,
+    },
     /// An intrinsic name that the model does not have.
     #[error("camera '{camera}': unknown intrinsic parameter '{name}' for model {model} (expected one of {expected})")]
     UnknownParameter {
+        /// The camera's name.
         camera: String,
+        /// The intrinsic's name, from `intrinsics` or `calibrate`.
         name: String,
+        /// The camera's `model`.
         model: String,
+        /// The model's parameter names, comma separated.
         expected: String,
     },
     /// A camera without a required intrinsic (`c`; `fx, fy, cx, cy`), or with a bad size
     /// or pixel pitch.
     #[error("camera '{camera}': {message}")]
-    BadCamera { camera: String, message: String },
+    BadCamera {
+        /// The camera's name.
+        camera: String,
+        /// What is missing or wrong.
+        message: String,
+    },
     /// Two items with the same name.
     #[error("duplicate {what} '{name}'")]
-    Duplicate { what: &'static str, name: String },
+    Duplicate {
+        /// The kind of item: `"camera"`, `"image"` or `"control point"`.
+        what: &'static str,
+        /// The name given twice.
+        name: String,
+    },
     /// An image of an unknown camera.
     #[error("image '{image}' refers to unknown camera '{camera}'")]
-    UnknownCamera { image: String, camera: String },
+    UnknownCamera {
+        /// The image's name.
+        image: String,
+        /// The camera name it gives.
+        camera: String,
+    },
     /// A camera that took no image.
     #[error("camera '{camera}' has no images")]
-    CameraWithoutImages { camera: String },
+    CameraWithoutImages {
+        /// The camera's name.
+        camera: String,
+    },
     /// An image point of an unknown image.
     #[error("image point {index} (point '{point}') refers to unknown image '{image}'")]
     UnknownImage {
+        /// 0-based position of the image point in `image_points`.
         index: usize,
+        /// The image name it gives.
         image: String,
+        /// The point's name.
         point: String,
     },
     /// A distance between points that are nowhere else.
     #[error("distance {index} ('{a}'–'{b}') refers to unknown point '{point}' (not measured in any image nor a control point)")]
     UnknownDistancePoint {
+        /// 0-based position of the distance in `distances`.
         index: usize,
+        /// The distance's first point, as given.
         a: String,
+        /// The distance's second point, as given.
         b: String,
+        /// The one of the two that is unknown.
         point: String,
     },
     /// A fixed image without a pose.
     #[error("image '{image}' is fixed but has no pose")]
-    FixedWithoutPose { image: String },
+    FixedWithoutPose {
+        /// The image's name.
+        image: String,
+    },
     /// `fixed_axes` (of a control point) or `fixed_centre_axes` (of an image) that is not a
     /// set of the letters X, Y, Z; `what` names the item and the key.
     #[error("{what} \"{value}\" is not a set of the axes X, Y, Z (expected e.g. \"Z\" or \"XY\", each letter once)")]
-    BadFixedAxes { what: String, value: String },
+    BadFixedAxes {
+        /// The item and the key, e.g. `control point '17': fixed_axes`.
+        what: String,
+        /// The text given.
+        value: String,
+    },
     /// Held centre coordinates without a pose to hold them at.
     #[error(
         "image '{image}' has fixed_centre_axes but no pose (its centre gives the held coordinates)"
     )]
-    HeldCentreWithoutPose { image: String },
+    HeldCentreWithoutPose {
+        /// The image's name.
+        image: String,
+    },
     /// A NaN, infinite or non-positive value where a positive finite one is required.
     #[error("{what}: {value} is not a valid value ({expected})")]
     BadValue {
+        /// The item and the key holding the value, e.g. `camera 'left': pixel_size_mm`.
         what: String,
+        /// The value found, in the file's units (mm, pixels, degrees).
         value: f64,
+        /// What the value must be.
         expected: &'static str,
     },
     /// The same point measured twice in one image.
     #[error("point '{point}' is measured twice in image '{image}'")]
-    DuplicateObservation { image: String, point: String },
+    DuplicateObservation {
+        /// The image's name.
+        image: String,
+        /// The point's name.
+        point: String,
+    },
     /// Any of the above, in the file named (control characters of echoed values escaped).
     #[error("{file}: {}", super::printable(&.source.to_string()))]
     InFile {
+        /// The file's name as given to [`MeasurementError::in_file`].
         file: String,
+        /// The error found in it.
         source: Box<MeasurementError>,
     },
 }
@@ -379,9 +443,17 @@ impl MeasurementError {
 #[derive(Clone, Debug, PartialEq)]
 pub enum Warning {
     /// An image with fewer than 3 points cannot be oriented.
-    FewPoints { image: String, count: usize },
+    FewPoints {
+        /// The image's name.
+        image: String,
+        /// Its number of image points.
+        count: usize,
+    },
     /// A point measured in one image only, and not control: it adds nothing.
-    SingleRay { point: String },
+    SingleRay {
+        /// The point's name.
+        point: String,
+    },
 }
 
 impl std::fmt::Display for Warning {

@@ -109,8 +109,11 @@ pub struct TooLarge {
     pub what: String,
     /// What to ask for instead.
     pub advice: &'static str,
+    /// Unknowns of the reduced camera system (the dimension of S).
     pub n: usize,
+    /// Estimated peak memory of what was asked for, bytes.
     pub needs: f64,
+    /// The memory limit it exceeds, bytes.
     pub limit: f64,
 }
 

@@ -56,7 +56,10 @@ pub enum Preconditioner {
     SchurJacobi,
     /// S's block diagonal over clusters of blocks that see the same points, none of more
     /// than `max_dim` unknowns ([`super::clusters`]; Ceres' `CLUSTER_JACOBI`).
-    ClusterJacobi { max_dim: usize },
+    ClusterJacobi {
+        /// The most unknowns of one cluster (default [`super::clusters::DEFAULT_MAX_DIM`]).
+        max_dim: usize,
+    },
 }
 
 /// The options of the conjugate-gradient solve.
