@@ -85,8 +85,8 @@ fn main() {
     let header: ScanHeader = rd.header();
     let scans: Vec<ScanLine> = rd.by_ref().map(|s| s.unwrap()).collect();
     let ext = pose(&truth["extrinsic"]); // p_cam = T p_lrf
-    let w2p = pose(&truth["world_to_photogrammetric"]); // p_photo = T p_world
-    let w2l = pose(&truth["world_to_lrf"]); // p_lrf = T p_world
+    let w2p = pose(&truth["photogrammetric_from_world"]); // p_photo = T p_world
+    let w2l = pose(&truth["lrf_from_world"]); // p_lrf = T p_world
     let lrf_in_world = w2l.inverse();
     let mut targets = Vec::new();
     let mut image = Vec::new();

@@ -127,10 +127,13 @@ pub struct TruthImage {
     pub camera: String,
     /// Station id.
     pub station: String,
-    /// Photogrammetric frame → this camera.
-    pub photogrammetric_to_camera: PoseJson,
-    /// World → this camera.
-    pub world_to_camera: PoseJson,
+    /// `camera_from_photogrammetric` (`x_cam = T · x_p`); read also under its old name
+    /// `photogrammetric_to_camera`.
+    #[serde(alias = "photogrammetric_to_camera")]
+    pub camera_from_photogrammetric: PoseJson,
+    /// `camera_from_world`; read also under its old name `world_to_camera`.
+    #[serde(alias = "world_to_camera")]
+    pub camera_from_world: PoseJson,
     /// Projection centre in the photogrammetric frame (mm).
     pub centre_photogrammetric_mm: [f64; 3],
 }
@@ -201,10 +204,12 @@ pub struct Truth {
     pub conventions: Vec<String>,
     /// The extrinsic, `p_camera = R·p_lrf + t` (results.json convention).
     pub extrinsic: PoseJson,
-    /// World → photogrammetric frame.
-    pub world_to_photogrammetric: PoseJson,
-    /// World → LRF frame.
-    pub world_to_lrf: PoseJson,
+    /// `photogrammetric_from_world`; read also under its old name `world_to_photogrammetric`.
+    #[serde(alias = "world_to_photogrammetric")]
+    pub photogrammetric_from_world: PoseJson,
+    /// `lrf_from_world`; read also under its old name `world_to_lrf`.
+    #[serde(alias = "world_to_lrf")]
+    pub lrf_from_world: PoseJson,
     /// LRF mount offset (rotating frame), mm.
     pub lrf_mount_offset_mm: [f64; 3],
     /// The LRF's true mount and range model (offset, tilts, servo scale, range offset and
@@ -217,8 +222,10 @@ pub struct Truth {
     pub lrf_servo_time_offset_s: f64,
     /// True intrinsics.
     pub cameras: Vec<TruthCamera>,
-    /// Left camera frame → right camera frame.
-    pub left_to_right: PoseJson,
+    /// The stereo rig, `right_from_left` (`x_right = T · x_left`); read also under its old
+    /// name `left_to_right`.
+    #[serde(alias = "left_to_right")]
+    pub right_from_left: PoseJson,
     /// Image poses.
     pub images: Vec<TruthImage>,
     /// Targets.
@@ -297,7 +304,7 @@ fn image_file(st: &str, cam: &str) -> String {
 
 /// The ground truth of a simulation.
 pub fn truth_of(sim: &Simulation) -> Truth {
-    let w2p = sim.world_to_photogrammetric();
+    let w2p = sim.photogrammetric_from_world();
     let w2l = sim.lrf_from_world;
     let ext = crate::lrf::extrinsic(&sim.config.lrf);
     let mut images = Vec::new();
@@ -309,8 +316,8 @@ pub fn truth_of(sim: &Simulation) -> Truth {
                 file: image_file(&st.id, &cam.id),
                 camera: cam.id.clone(),
                 station: st.id.clone(),
-                photogrammetric_to_camera: PoseJson::from_pose(&p2c),
-                world_to_camera: PoseJson::from_pose(&w2c),
+                camera_from_photogrammetric: PoseJson::from_pose(&p2c),
+                camera_from_world: PoseJson::from_pose(&w2c),
                 centre_photogrammetric_mm: arr(&p2c.centre()),
             });
         }
@@ -329,8 +336,8 @@ pub fn truth_of(sim: &Simulation) -> Truth {
             "world: origin at the room corner, X along wall1, Y along wall2, Z up".into(),
         ],
         extrinsic: PoseJson::from_pose(&ext),
-        world_to_photogrammetric: PoseJson::from_pose(&w2p),
-        world_to_lrf: PoseJson::from_pose(&w2l),
+        photogrammetric_from_world: PoseJson::from_pose(&w2p),
+        lrf_from_world: PoseJson::from_pose(&w2l),
         lrf_mount_offset_mm: sim.config.lrf.mount().offset_mm,
         lrf_mount: sim.config.lrf.mount(),
         lrf_servo_time_offset_s: sim.config.lrf.servo_time_offset_s,
@@ -349,7 +356,7 @@ pub fn truth_of(sim: &Simulation) -> Truth {
                     .to_table(),
             })
             .collect(),
-        left_to_right: PoseJson::from_pose(&sim.rig.right_from_left),
+        right_from_left: PoseJson::from_pose(&sim.rig.right_from_left),
         images,
         targets: sim
             .scene
