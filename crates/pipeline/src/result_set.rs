@@ -466,7 +466,7 @@ pub fn swap_in(dir: &Path, files: &[SetFile]) -> Result<bool, String> {
 }
 
 /// Writes the outputs of a calibration into `dir`, all or none: `ros/`, `opencv/` and
-/// `kalibr/` ([`pingcal_pipeline::exports`]), `overlays/`, `cloud.ply`, `report.html` and
+/// `kalibr/` ([`crate::exports`]), `overlays/`, `cloud.ply`, `report.html` and
 /// `results.json`, as one set ([`write_set`]): written beside the folder and
 /// swapped in with one exchange of names, so that the folder is always either the earlier
 /// set or the new one, under the folder's lock (a second writer is refused). A run that
