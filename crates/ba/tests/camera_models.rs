@@ -15,14 +15,14 @@
 
 use crate::common;
 
-use common::{realisation, truth, SIGMA_PX};
+use common::{observe, realisation, to_convergence, truth, SIGMA_PX};
 use nalgebra::Vector3;
 use pingcal_ba::camera::{
     opencv_from_photogrammetric, BrownBackwardCamera, CameraModel, DoubleSphereCamera,
     FisheyeCamera, OpenCvCamera, PhotogrammetricCamera,
 };
-use pingcal_ba::problem::{Camera, Image, Observation, Point, Problem};
-use pingcal_ba::solver::{precision, solve, Options};
+use pingcal_ba::problem::{Camera, Image, Point, Problem};
+use pingcal_ba::solver::{precision, solve};
 use std::sync::Arc;
 
 const RUNS: u64 = 50;
@@ -31,38 +31,19 @@ const RUNS: u64 = 50;
 /// intrinsics held.
 fn network(model: Arc<dyn CameraModel>, params: Vec<f64>, fixed: Vec<bool>) -> Problem {
     let mut p = truth();
-    let mut cam = Camera::new("cam", model.clone(), params.clone());
+    let mut cam = Camera::new("cam", model, params);
     cam.fixed = fixed;
     p.cameras = vec![cam];
     p.observations.clear();
-    for (i, im) in p.images.iter().enumerate() {
-        for (q, pt) in p.points.iter().enumerate() {
-            let xc = im.camera_from_object.transform(&pt.position);
-            if let Some(uv) = model.project(&params, &xc, None, None) {
-                if uv.x > 5.0 && uv.x < 1274.0 && uv.y > 5.0 && uv.y < 714.0 {
-                    p.observations.push(Observation {
-                        image: i,
-                        point: q,
-                        uv,
-                        sigma: SIGMA_PX,
-                    });
-                }
-            }
-        }
-    }
+    let n = p.images.len();
+    observe(&mut p, 0..n);
     p
 }
 
 fn recovers_truth(truth: &Problem, approx: &[f64], seed0: u64) {
     let cam = &truth.cameras[0];
     let name = cam.model.name();
-    let options = Options {
-        function_tolerance: 1e-12,
-        parameter_tolerance: 1e-12,
-        max_iterations: 200,
-        threads: 1,
-        ..Options::default()
-    };
+    let options = to_convergence();
     let free = cam.free_indices();
     let free_points = truth.points.iter().filter(|x| !x.fixed).count();
     let n_unknowns = 6 * truth.images.len() + free.len() + 3 * free_points;
@@ -168,7 +149,7 @@ fn room_network(model: Arc<dyn CameraModel>, params: Vec<f64>) -> Problem {
         }
     }
     let mut p = Problem {
-        cameras: vec![Camera::new("cam", model.clone(), params.clone())],
+        cameras: vec![Camera::new("cam", model, params)],
         ..Problem::default()
     };
     for (q, x) in points.iter().enumerate() {
@@ -196,21 +177,8 @@ fn room_network(model: Arc<dyn CameraModel>, params: Vec<f64>) -> Problem {
             fixed_centre: [false; 3],
         });
     }
-    for (i, im) in p.images.iter().enumerate() {
-        for (q, pt) in p.points.iter().enumerate() {
-            let xc = im.camera_from_object.transform(&pt.position);
-            if let Some(uv) = model.project(&params, &xc, None, None) {
-                if uv.x > 5.0 && uv.x < 1274.0 && uv.y > 5.0 && uv.y < 714.0 {
-                    p.observations.push(Observation {
-                        image: i,
-                        point: q,
-                        uv,
-                        sigma: SIGMA_PX,
-                    });
-                }
-            }
-        }
-    }
+    let n = p.images.len();
+    observe(&mut p, 0..n);
     p
 }
 

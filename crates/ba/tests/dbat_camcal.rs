@@ -85,6 +85,23 @@ fn converged() -> Options {
     }
 }
 
+/// The initialiser's options for DBAT's approximate camera, which has no distortion while
+/// the lens has up to 116 px: a generous resection threshold for the first poses (4
+/// control points each) and a generous intersection residual.
+fn for_the_approximate_camera() -> IncrementalOptions {
+    IncrementalOptions {
+        resection: pingcal_ba::initial::resection::ResectionOptions {
+            threshold_px: 60.0,
+            ..Default::default()
+        },
+        intersection: pingcal_ba::initial::intersection::IntersectionOptions {
+            min_angle_deg: 2.0,
+            max_rms_px: 30.0,
+        },
+        ..IncrementalOptions::default()
+    }
+}
+
 /// DBAT's input camera file of the demo (`c4040z.xml`, sensor width `auto`), read as any
 /// DBAT camera is: it is the camera pingcal has built in for this case.
 fn dbat_camera(dir: &std::path::Path) -> DbatCamera {
@@ -144,19 +161,7 @@ fn adjusted(
 
     // No exterior orientation, no object points: only the 4 control points are known.
     let t0 = std::time::Instant::now();
-    let options = IncrementalOptions {
-        // The approximate camera has no distortion while the lens has up to 116 px: a
-        // generous resection threshold for the first poses (4 control points each).
-        resection: pingcal_ba::initial::resection::ResectionOptions {
-            threshold_px: 60.0,
-            ..Default::default()
-        },
-        intersection: pingcal_ba::initial::intersection::IntersectionOptions {
-            min_angle_deg: 2.0,
-            max_rms_px: 30.0,
-        },
-        ..IncrementalOptions::default()
-    };
+    let options = for_the_approximate_camera();
     let init = initialise(problem, &built.known_points, &built.known_poses, &options)
         .expect("initial values");
     println!("initialiser ({:.2} s):", t0.elapsed().as_secs_f64());
@@ -539,15 +544,7 @@ fn from_a_relative_orientation_of_a_flat_sheet() {
             threshold_rad: 0.01,
             ..Default::default()
         },
-        resection: pingcal_ba::initial::resection::ResectionOptions {
-            threshold_px: 60.0,
-            ..Default::default()
-        },
-        intersection: pingcal_ba::initial::intersection::IntersectionOptions {
-            min_angle_deg: 2.0,
-            max_rms_px: 30.0,
-        },
-        ..IncrementalOptions::default()
+        ..for_the_approximate_camera()
     };
     let init = initialise(
         &built.problem,

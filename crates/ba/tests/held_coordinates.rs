@@ -17,6 +17,13 @@ use pingcal_ba::solver::{precision, solve, LinearSolverKind, Options, PrecisionE
 use pingcal_ba::{Block, PosePrior, Residual, ResidualBlock, Value};
 use pingcal_geometry::Rigid3;
 
+/// Every linear solver path of the adjustment.
+const SOLVERS: [LinearSolverKind; 3] = [
+    LinearSolverKind::Dense,
+    LinearSolverKind::Sparse,
+    LinearSolverKind::Iterative,
+];
+
 fn options(kind: LinearSolverKind) -> Options {
     Options {
         function_tolerance: 1e-14,
@@ -311,11 +318,7 @@ fn every_solver_reaches_the_same_minimum() {
         sigma: Vector3::new(2.0, 2.0, 2.0),
     });
     let mut results = Vec::new();
-    for kind in [
-        LinearSolverKind::Dense,
-        LinearSolverKind::Sparse,
-        LinearSolverKind::Iterative,
-    ] {
+    for kind in SOLVERS {
         let mut p = base.clone();
         let s = solve(&mut p, &options(kind), |_| {}).unwrap();
         assert_eq!(s.linear_solver.kind, kind);
@@ -435,11 +438,7 @@ fn held_centre_coordinates_are_an_exact_datum() {
     // Every solver, with a partly held centre and a prior on a held-centre image.
     let base = centred(17, true);
     let mut results = Vec::new();
-    for kind in [
-        LinearSolverKind::Dense,
-        LinearSolverKind::Sparse,
-        LinearSolverKind::Iterative,
-    ] {
+    for kind in SOLVERS {
         let mut q = base.clone();
         let s = solve(&mut q, &options(kind), |_| {}).unwrap();
         let dz = (q.images[3].camera_from_object.centre().z
@@ -537,6 +536,22 @@ impl Residual for Coordinate {
 
 /// σ of a coordinate held by a stiff prior instead (mm), and of one left free by it.
 const STIFF: f64 = 1e-5;
+impl PointInCamera {
+    /// The true `point` of `truth` in the camera frame of `image`, measured with noise σ
+    /// `sigma` per coordinate drawn from `seed`.
+    fn simulated(truth: &Problem, point: usize, image: usize, sigma: f64, seed: u64) -> Self {
+        let x = truth.images[image]
+            .camera_from_object
+            .transform(&truth.points[point].position);
+        PointInCamera {
+            point,
+            image,
+            measured: disturbed(x, sigma, seed),
+            sigma,
+        }
+    }
+}
+
 const LOOSE: f64 = 1e7;
 
 /// A measurement of `x` disturbed by `seed` (σ `sigma` per coordinate).
@@ -553,6 +568,24 @@ fn largest_difference(a: &Problem, b: &Problem) -> f64 {
     let centres = (a.images.iter().zip(&b.images))
         .map(|(x, y)| (x.camera_from_object.centre() - y.camera_from_object.centre()).amax());
     points.chain(centres).fold(0.0, f64::max)
+}
+
+/// The minimum `(p, cost)` that solver `kind` reached is the `reference` minimum of the
+/// same problem with the held coordinates held by stiff priors instead: every point and
+/// projection centre within 1e-4 mm, and the same cost to 1e-6 (the stiff priors add
+/// (almost) nothing at the minimum).
+fn assert_at_stiff_minimum(
+    kind: LinearSolverKind,
+    (p, cost): (&Problem, f64),
+    (reference, reference_cost): (&Problem, f64),
+) {
+    let worst = largest_difference(p, reference);
+    println!("{kind}: largest difference to the stiff priors' minimum {worst:.2e} mm");
+    assert!(worst < 1e-4, "{kind}: {worst} mm");
+    assert!(
+        relative(cost, reference_cost) < 1e-6,
+        "{kind}: cost {cost} vs {reference_cost}"
+    );
 }
 
 /// (e) Generic residuals (a point in a camera frame: a point block and a pose block; one
@@ -572,15 +605,8 @@ fn generic_residuals_on_partly_held_points_agree_with_a_stiff_prior() {
         .iter()
         .enumerate()
     {
-        let x = t.images[image]
-            .camera_from_object
-            .transform(&t.points[point].position);
-        held.residuals.push(ResidualBlock::new(PointInCamera {
-            point,
-            image,
-            measured: disturbed(x, 0.3, 100 + k as u64),
-            sigma: 0.3,
-        }));
+        let measured = PointInCamera::simulated(&t, point, image, 0.3, 100 + k as u64);
+        held.residuals.push(ResidualBlock::new(measured));
     }
     for (k, &(point, axis)) in [(33usize, 1usize), (70, 2), (33, 0)].iter().enumerate() {
         held.residuals.push(ResidualBlock::new(Coordinate {
@@ -604,24 +630,11 @@ fn generic_residuals_on_partly_held_points_agree_with_a_stiff_prior() {
     }
     let mut reference = stiff.clone();
     let sr = solve(&mut reference, &options(LinearSolverKind::Dense), |_| {}).unwrap();
-    for kind in [
-        LinearSolverKind::Dense,
-        LinearSolverKind::Sparse,
-        LinearSolverKind::Iterative,
-    ] {
+    for kind in SOLVERS {
         let mut p = held.clone();
         let s = solve(&mut p, &options(kind), |_| {}).unwrap();
         assert_held(&held, &p);
-        let worst = largest_difference(&p, &reference);
-        println!("{kind}: largest difference to the stiff priors' minimum {worst:.2e} mm");
-        assert!(worst < 1e-4, "{kind}: {worst} mm");
-        // The stiff priors add (almost) nothing at the minimum.
-        assert!(
-            relative(s.final_cost, sr.final_cost) < 1e-6,
-            "{kind}: {} vs {}",
-            s.final_cost,
-            sr.final_cost
-        );
+        assert_at_stiff_minimum(kind, (&p, s.final_cost), (&reference, sr.final_cost));
     }
     // Without the generic residuals the minimum is a different one: they do take part.
     let mut bare = held.clone();
@@ -670,15 +683,8 @@ fn pose_residuals_on_an_image_with_a_held_centre_agree_with_a_stiff_prior() {
         sigma_centre: Vector3::repeat(3.0),
     }));
     for (k, point) in [33usize, 70, 21].into_iter().enumerate() {
-        let x = t.images[image]
-            .camera_from_object
-            .transform(&t.points[point].position);
-        held.residuals.push(ResidualBlock::new(PointInCamera {
-            point,
-            image,
-            measured: disturbed(x, 0.5, 200 + k as u64),
-            sigma: 0.5,
-        }));
+        let measured = PointInCamera::simulated(&t, point, image, 0.5, 200 + k as u64);
+        held.residuals.push(ResidualBlock::new(measured));
     }
     let mut stiff = held.clone();
     stiff.images[image].fixed_centre = [false; 3];
@@ -690,11 +696,7 @@ fn pose_residuals_on_an_image_with_a_held_centre_agree_with_a_stiff_prior() {
     }));
     let mut reference = stiff.clone();
     let sr = solve(&mut reference, &options(LinearSolverKind::Dense), |_| {}).unwrap();
-    for kind in [
-        LinearSolverKind::Dense,
-        LinearSolverKind::Sparse,
-        LinearSolverKind::Iterative,
-    ] {
+    for kind in SOLVERS {
         let mut p = held.clone();
         let s = solve(&mut p, &options(kind), |_| {}).unwrap();
         assert_held(&held, &p);
@@ -708,15 +710,7 @@ fn pose_residuals_on_an_image_with_a_held_centre_agree_with_a_stiff_prior() {
                 "{kind}: held centre {a} moved"
             );
         }
-        let worst = largest_difference(&p, &reference);
-        println!("{kind}: largest difference to the stiff prior's minimum {worst:.2e} mm");
-        assert!(worst < 1e-4, "{kind}: {worst} mm");
-        assert!(
-            relative(s.final_cost, sr.final_cost) < 1e-6,
-            "{kind}: {} vs {}",
-            s.final_cost,
-            sr.final_cost
-        );
+        assert_at_stiff_minimum(kind, (&p, s.final_cost), (&reference, sr.final_cost));
         let dw = pingcal_geometry::log_so3(
             &(p.images[image].camera_from_object.rotation
                 * reference.images[image]

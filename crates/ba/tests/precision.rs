@@ -7,19 +7,9 @@
 
 use crate::common;
 
-use common::{realisation, truth};
+use common::{adjusted_free_network, realisation, to_convergence, truth};
 use pingcal_ba::problem::Distance;
-use pingcal_ba::solver::{points_covariance, precision, solve, Options, PrecisionError};
-
-fn options() -> Options {
-    Options {
-        function_tolerance: 1e-12,
-        parameter_tolerance: 1e-12,
-        max_iterations: 200,
-        threads: 1,
-        ..Options::default()
-    }
-}
+use pingcal_ba::solver::{points_covariance, precision, solve, PrecisionError};
 
 #[test]
 fn reported_sigmas_match_the_monte_carlo_errors() {
@@ -30,7 +20,7 @@ fn reported_sigmas_match_the_monte_carlo_errors() {
     let (mut inside, mut total) = (0usize, 0usize);
     for run in 0..runs {
         let mut p = realisation(&truth, 5000 + run);
-        solve(&mut p, &options(), |_| {}).unwrap();
+        solve(&mut p, &to_convergence(), |_| {}).unwrap();
         let prec = precision(&p).unwrap();
         let intr = &prec.intrinsics[0];
         assert_eq!(intr.names.len(), 10);
@@ -89,7 +79,7 @@ fn joint_point_covariance_matches_the_monte_carlo_errors() {
     let (mut with_cross, mut without_cross) = (Vec::new(), Vec::new());
     for run in 0..runs {
         let mut p = realisation(&truth, 7000 + run);
-        solve(&mut p, &options(), |_| {}).unwrap();
+        solve(&mut p, &to_convergence(), |_| {}).unwrap();
         let prec = precision(&p).unwrap();
         let free: Vec<usize> = (0..p.points.len())
             .filter(|&q| !p.points[q].fixed)
@@ -175,7 +165,7 @@ fn distances_fix_the_scale_and_their_absence_is_a_named_datum_defect() {
         value: d2,
         sigma: 0.1,
     });
-    solve(&mut p, &options(), |_| {}).unwrap();
+    solve(&mut p, &to_convergence(), |_| {}).unwrap();
     let prec = precision(&p).unwrap();
     for d in &p.distances {
         let l = (p.points[d.a].position - p.points[d.b].position).norm();
@@ -214,7 +204,8 @@ fn data_snooping_finds_gross_errors_and_only_them() {
         ));
     }
     let n0 = p.observations.len();
-    let result = pingcal_ba::solver::adjust_with_snooping(&mut p, &options(), 3.29, 20).unwrap();
+    let result =
+        pingcal_ba::solver::adjust_with_snooping(&mut p, &to_convergence(), 3.29, 20).unwrap();
     let removed: Vec<(String, String)> = result
         .rejected
         .iter()
@@ -248,7 +239,7 @@ fn free_network_by_inner_constraints() {
     for pt in &mut free.points {
         pt.fixed = false;
     }
-    solve(&mut free, &options(), |_| {}).unwrap();
+    solve(&mut free, &to_convergence(), |_| {}).unwrap();
     let inner = precision(&free).expect("inner constraints define the datum");
 
     let mut minimal = free.clone();
@@ -309,7 +300,7 @@ fn a_distance_point_without_rays_is_named_undetermined_not_a_datum_defect() {
             sigma: 0.1,
         });
     }
-    solve(&mut p, &options(), |_| {}).unwrap();
+    solve(&mut p, &to_convergence(), |_| {}).unwrap();
     let name = p.points[40].name.clone();
     for keep in [1, 0] {
         let mut q = p.clone();
@@ -359,7 +350,7 @@ fn variance_components_recover_each_groups_sigma() {
                 o.uv += nalgebra::Vector2::new(n.sample(&mut rng), n.sample(&mut rng)) * extra;
             }
         }
-        solve(&mut p, &options(), |_| {}).unwrap();
+        solve(&mut p, &to_convergence(), |_| {}).unwrap();
         let prec = precision(&p).unwrap();
         let total: f64 = prec
             .redundancy_numbers
@@ -374,7 +365,8 @@ fn variance_components_recover_each_groups_sigma() {
         );
         let first = variance_components(&p, &prec, &group_of, &names);
         assert_eq!(first.len(), 2, "{first:?}");
-        let est = estimate_variance_components(&mut p, &options(), &group_of, &names).unwrap();
+        let est =
+            estimate_variance_components(&mut p, &to_convergence(), &group_of, &names).unwrap();
         assert!((est.sigma0_a_priori - prec.sigma0).abs() < 1e-9);
         assert!(
             (est.precision.sigma0 - 1.0).abs() < 0.01,
@@ -428,15 +420,7 @@ fn variance_components_recover_each_groups_sigma() {
 /// held (a datum that is itself a choice of the inner constraints' family).
 #[test]
 fn free_network_of_twenty_thousand_unknowns() {
-    let spec = pingcal_ba::synthetic::SyntheticBal {
-        cameras: 20,
-        points: 7000,
-        obs_per_point: 5,
-        noise_px: 0.5,
-        ..Default::default()
-    };
-    let mut p = spec.generate().unwrap().problem;
-    solve(&mut p, &options(), |_| {}).unwrap();
+    let p = adjusted_free_network(20, 7000, &to_convergence());
     let unknowns = 9 * p.images.len() + 3 * p.points.len();
     assert!(unknowns > 20_000);
     let prec = precision(&p).expect("a free network of any number of points");

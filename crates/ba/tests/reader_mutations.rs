@@ -12,143 +12,29 @@
 //! * a cut: refused where the format is closed (JSON, BAL, DBAT's camera XML); in DBAT's line files, which
 //!   have no counts, a prefix of the clean result whose last record may be cut short;
 //! * a huge number (1e300): refused.
+//!
+//! The mutations, applying them and the checks every reader shares are
+//! `pingcal_testkit::mutations` (pingcal-lrf's readers use the same harness).
 
 use pingcal_ba::bal::{parse_bal, write_bal};
 use pingcal_ba::io::dbat::{parse_camera, parse_control, parse_markpts, DbatControl};
 use pingcal_ba::io::measurements::Measurements;
+use pingcal_testkit::mutations::{
+    apply, duplicated_line, mutation, prefix_ok, refused_well, whole_after_cut, Mutation, Numbers,
+};
 use proptest::prelude::*;
 
-/// One way a file goes wrong.
-#[derive(Clone, Debug)]
-enum Mutation {
-    /// Line `k` (modulo the line count) written twice.
-    Duplicate(usize),
-    /// `text` appended after the last line.
-    Append(String),
-    /// The file cut after `k` bytes (modulo its length).
-    Cut(usize),
-    /// A UTF-8 byte-order mark in front.
-    Bom,
-    /// The `k`-th number of the file (modulo their count) replaced by `1e300`.
-    Huge(usize),
-}
+/// The lines appended to every file: blank lines (legal), and a pair, a word, a closing
+/// brace and a lone number that a reader might take for data.
+const APPENDED: [&str; 5] = ["\n \n", "1 2\n", "abc\n", "}\n", "7\n"];
 
-fn mutation() -> impl Strategy<Value = Mutation> {
-    prop_oneof![
-        any::<usize>().prop_map(Mutation::Duplicate),
-        prop_oneof![
-            Just("\n \n".to_string()),
-            Just("1 2\n".to_string()),
-            Just("abc\n".to_string()),
-            Just("}\n".to_string()),
-            Just("7\n".to_string()),
-            "[a-z][a-z0-9.;]{0,11}".prop_map(|s| s + "\n"),
-        ]
-        .prop_map(Mutation::Append),
-        any::<usize>().prop_map(Mutation::Cut),
-        Just(Mutation::Bom),
-        any::<usize>().prop_map(Mutation::Huge),
-    ]
-}
-
-/// The number tokens of `text`: (start, end) byte ranges of maximal runs of `[0-9.eE+-]`
-/// that parse as numbers and are not inside a `"string"`.
-fn numbers(text: &str) -> Vec<(usize, usize)> {
-    let b = text.as_bytes();
-    let (mut out, mut i, mut in_str) = (Vec::new(), 0, false);
-    while i < b.len() {
-        if b[i] == b'"' {
-            in_str = !in_str;
-            i += 1;
-            continue;
-        }
-        let num = |c: u8| c.is_ascii_digit() || b".eE+-".contains(&c);
-        if !in_str && num(b[i]) && (i == 0 || !b[i - 1].is_ascii_alphanumeric()) {
-            let s = i;
-            while i < b.len() && num(b[i]) {
-                i += 1;
-            }
-            if text[s..i].parse::<f64>().is_ok() {
-                out.push((s, i));
-            }
-        } else {
-            i += 1;
-        }
-    }
-    out
-}
-
-/// `text` mutated by `m`; for [`Mutation::Huge`] in a line file, `value_columns` is the
-/// first comma-separated column that holds values (the ones before are ids).
-fn apply_lines(text: &str, m: &Mutation, value_columns: usize) -> String {
-    let Mutation::Huge(k) = m else {
-        return apply(text, m);
-    };
-    let mut lines: Vec<String> = text.lines().map(String::from).collect();
-    let spots: Vec<(usize, usize)> = lines
-        .iter()
-        .enumerate()
-        .filter(|(_, l)| !l.starts_with('#'))
-        .flat_map(|(i, l)| (value_columns..l.split(',').count()).map(move |j| (i, j)))
-        .collect();
-    let (i, j) = spots[k % spots.len()];
-    let cols: Vec<String> = lines[i]
-        .split(',')
-        .enumerate()
-        .map(|(n, t)| {
-            if n == j {
-                "1e300".into()
-            } else {
-                t.to_string()
-            }
-        })
-        .collect();
-    lines[i] = cols.join(",");
-    lines.join("\n") + "\n"
-}
-
-fn apply(text: &str, m: &Mutation) -> String {
-    let lines: Vec<&str> = text.lines().collect();
-    match m {
-        Mutation::Duplicate(k) => {
-            let k = k % lines.len();
-            let mut v = lines.clone();
-            v.insert(k, lines[k]);
-            v.join("\n") + "\n"
-        }
-        Mutation::Append(s) => format!("{text}{s}"),
-        Mutation::Cut(k) => text[..k % text.len()].to_string(),
-        Mutation::Bom => format!("\u{feff}{text}"),
-        Mutation::Huge(k) => {
-            let spots = numbers(text);
-            let (s, e) = spots[k % spots.len()];
-            format!("{}1e300{}", &text[..s], &text[e..])
-        }
-    }
-}
-
-/// The duplicated line of `text` for mutation `m`.
-fn duplicated_line<'a>(text: &'a str, m: &Mutation) -> &'a str {
-    match m {
-        Mutation::Duplicate(k) => {
-            let lines: Vec<&str> = text.lines().collect();
-            lines[k % lines.len()]
-        }
-        _ => "",
-    }
-}
-
-/// A refusal names the file and is never for a byte-order mark.
-fn refused_well(file: &str, m: &Mutation, e: &str) -> std::result::Result<(), TestCaseError> {
-    prop_assert!(e.starts_with(file), "error does not name {}: {}", file, e);
-    prop_assert!(!matches!(m, Mutation::Bom), "BOM refused: {}", e);
-    Ok(())
-}
-
-/// Whether the cut `k` of `text` leaves all its data (only trailing whitespace cut).
-fn whole_after_cut(text: &str, m: &Mutation) -> bool {
-    matches!(m, Mutation::Cut(k) if k % text.len() >= text.trim_end().len())
-}
+/// The numbers of DBAT's line files: the fields after the two ids, in the lines that are
+/// not comments.
+const DBAT_VALUES: Numbers = Numbers::Fields {
+    data_line: |l| !l.starts_with('#'),
+    separators: &[','],
+    first: 2,
+};
 
 const BAL: &str = "2 2 3\n0 0 1.0 2.0\n1 0 -1.0 0.5\n1 1 3.0 -2.0\n\
     0.1\n0.2\n0.3\n1\n2\n3\n500\n0.01\n0.001\n\
@@ -205,32 +91,17 @@ const CONTROL: &str = "# Id,label,X,Y,Z,sxyz\n1001,CP1,0,1,0\n1002,CP2,1,1,0,0.0
 /// is different, so that a duplicated line is an element given twice or broken XML.
 const CAMERA: &str = "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<document dbat_camera_version=\"1.0\">\n  <cameras>\n    <camera>\n      <id>1</id>\n      <name>Olympus Camedia C4040Z</name>\n      <unit>mm</unit>\n      <sensor>auto,5.43764</sensor>\n      <image>2272,1704</image>\n      <aspect>1</aspect>\n      <focal>7.5</focal>\n    </camera>\n  </cameras>\n</document>\n";
 
-/// A line format without counts: an accepted cut is a prefix whose last record may be short.
-fn prefix_ok<T: PartialEq + std::fmt::Debug>(
-    got: &[T],
-    clean: &[T],
-) -> std::result::Result<(), TestCaseError> {
-    prop_assert!(got.len() <= clean.len());
-    let n = got.len().saturating_sub(1);
-    prop_assert_eq!(
-        &got[..n],
-        &clean[..n],
-        "a cut changed more than the last record"
-    );
-    Ok(())
-}
-
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(1000))]
 
     #[test]
-    fn bal_files(m in mutation()) {
-        let text = apply(BAL, &m);
+    fn bal_files(m in mutation(APPENDED)) {
+        let text = apply(BAL, &m, &Numbers::Tokens);
         let clean = bal(BAL).unwrap();
         match bal(&text) {
             Err(e) => refused_well("f.bal", &m, &e)?,
             Ok(got) => {
-                let blank = matches!(&m, Mutation::Append(s) if s.trim().is_empty());
+                let blank = m.appends_blank();
                 // A cut inside the last value leaves a shorter number: the one cut BAL
                 // cannot tell.
                 let last_value = matches!(m, Mutation::Cut(k) if k % BAL.len() > BAL.len() - 4);
@@ -246,14 +117,14 @@ proptest! {
     }
 
     #[test]
-    fn measurement_json(m in mutation()) {
-        let text = apply(JSON, &m);
+    fn measurement_json(m in mutation(APPENDED)) {
+        let text = apply(JSON, &m, &Numbers::Tokens);
         let clean = measurements(JSON).unwrap();
         match measurements(&text) {
             Err(e) => refused_well("m.json", &m, &e)?,
             Ok(got) => {
                 let line = duplicated_line(JSON, &m);
-                let blank = matches!(&m, Mutation::Append(s) if s.trim().is_empty());
+                let blank = m.appends_blank();
                 if line.contains("\"mm\":") {
                     // A distance measured twice: read as two.
                     prop_assert_eq!(got.distances.len(), clean.distances.len() + 1);
@@ -269,8 +140,8 @@ proptest! {
     }
 
     #[test]
-    fn dbat_mark_points(m in mutation()) {
-        let text = apply_lines(MARKS, &m, 2);
+    fn dbat_mark_points(m in mutation(APPENDED)) {
+        let text = apply(MARKS, &m, &DBAT_VALUES);
         let clean = parse_markpts(MARKS, "markpts.txt").unwrap();
         match parse_markpts(&text, "markpts.txt") {
             Err(e) => refused_well("markpts.txt", &m, &e.to_string())?,
@@ -278,7 +149,7 @@ proptest! {
                 Mutation::Cut(_) => prefix_ok(&got, &clean)?,
                 _ => {
                     let comment = duplicated_line(MARKS, &m).starts_with('#');
-                    let blank = matches!(&m, Mutation::Append(s) if s.trim().is_empty());
+                    let blank = m.appends_blank();
                     prop_assert!(matches!(m, Mutation::Bom) || comment || blank, "accepted: {:?}", m);
                     prop_assert_eq!(got, clean);
                 }
@@ -287,8 +158,8 @@ proptest! {
     }
 
     #[test]
-    fn dbat_control_points(m in mutation()) {
-        let text = apply_lines(CONTROL, &m, 2);
+    fn dbat_control_points(m in mutation(APPENDED)) {
+        let text = apply(CONTROL, &m, &DBAT_VALUES);
         let clean = parse_control(CONTROL, "control.txt").unwrap();
         match parse_control(&text, "control.txt") {
             Err(e) => refused_well("control.txt", &m, &e.to_string())?,
@@ -296,7 +167,7 @@ proptest! {
                 Mutation::Cut(_) => prefix_ok(&got, &clean)?,
                 _ => {
                     let comment = duplicated_line(CONTROL, &m).starts_with('#');
-                    let blank = matches!(&m, Mutation::Append(s) if s.trim().is_empty());
+                    let blank = m.appends_blank();
                     prop_assert!(matches!(m, Mutation::Bom) || comment || blank, "accepted: {:?}", m);
                     // a duplicated comment moves the lines after it: the values must not move
                     let values = |v: Vec<DbatControl>| -> Vec<DbatControl> {
@@ -309,8 +180,8 @@ proptest! {
     }
 
     #[test]
-    fn dbat_camera_files(m in mutation()) {
-        let text = apply(CAMERA, &m);
+    fn dbat_camera_files(m in mutation(APPENDED)) {
+        let text = apply(CAMERA, &m, &Numbers::Tokens);
         let clean = parse_camera(CAMERA, "camera.xml").unwrap();
         match parse_camera(&text, "camera.xml") {
             Err(e) => {
@@ -319,7 +190,7 @@ proptest! {
                 prop_assert!(!e.contains('\n'), "not one line: {}", e);
             }
             Ok(got) => {
-                let blank = matches!(&m, Mutation::Append(s) if s.trim().is_empty());
+                let blank = m.appends_blank();
                 prop_assert!(
                     matches!(m, Mutation::Bom) || blank || whole_after_cut(CAMERA, &m),
                     "accepted: {:?}", m

@@ -9,8 +9,8 @@
 
 use crate::common;
 
-use common::{realisation, truth, SIGMA_PX};
-use pingcal_ba::solver::{solve, Options};
+use common::{realisation, to_convergence, truth, SIGMA_PX};
+use pingcal_ba::solver::solve;
 
 #[test]
 fn monte_carlo_recovers_truth_within_its_spread() {
@@ -24,13 +24,7 @@ fn monte_carlo_recovers_truth_within_its_spread() {
         .filter(|&p| !truth.points[p].fixed)
         .collect();
     let runs = 40;
-    let options = Options {
-        function_tolerance: 1e-12,
-        parameter_tolerance: 1e-12,
-        max_iterations: 200,
-        threads: 1,
-        ..Options::default()
-    };
+    let options = to_convergence();
     let n_unknowns = 6 * truth.images.len() + 10 + 3 * free_points.len();
     let redundancy = (2 * truth.observations.len() - n_unknowns) as f64;
     // Estimates minus truth, per run: 10 intrinsics then the free point coordinates.

@@ -6,9 +6,9 @@
 
 use crate::common;
 
-use common::{truth, SIGMA_PX};
+use common::{observe, to_convergence, truth, SIGMA_PX};
 use nalgebra::{Vector2, Vector3};
-use pingcal_ba::problem::{Camera, Image, Observation, Problem, Rig, RigMember};
+use pingcal_ba::problem::{Camera, Image, Problem, Rig, RigMember};
 use pingcal_ba::solver::{precision, solve, Options};
 use pingcal_ba::{PosePrior, ResidualBlock};
 use pingcal_geometry::Rigid3;
@@ -45,23 +45,9 @@ fn stereo_truth() -> (Problem, Rigid3) {
             base: i,
         });
     }
-    let model = p.cameras[1].model.clone();
-    let params = p.cameras[1].params.clone();
-    for i in n_left..p.images.len() {
-        for (q, pt) in p.points.iter().enumerate() {
-            let xc = p.images[i].camera_from_object.transform(&pt.position);
-            if let Some(uv) = model.project(&params, &xc, None, None) {
-                if uv.x > 5.0 && uv.x < 1274.0 && uv.y > 5.0 && uv.y < 714.0 {
-                    p.observations.push(Observation {
-                        image: i,
-                        point: q,
-                        uv,
-                        sigma: SIGMA_PX,
-                    });
-                }
-            }
-        }
-    }
+    // The right images see through the right camera.
+    let n = p.images.len();
+    observe(&mut p, n_left..n);
     p.rigs.push(Rig {
         name: "stereo".into(),
         member_from_base: rig,
@@ -96,14 +82,7 @@ fn stereo_rig_is_recovered_without_bias() {
             im.camera_from_object =
                 Rigid3::from_rotation_and_centre(im.camera_from_object.rotation, c);
         }
-        let opts = Options {
-            function_tolerance: 1e-12,
-            parameter_tolerance: 1e-12,
-            max_iterations: 200,
-            threads: 1,
-            ..Options::default()
-        };
-        solve(&mut p, &opts, |_| {}).unwrap();
+        solve(&mut p, &to_convergence(), |_| {}).unwrap();
         let r = &p.rigs[0].member_from_base;
         let dc = r.centre() - rig_true.centre();
         let dw = log_so3(&(r.rotation * rig_true.rotation.transpose()));

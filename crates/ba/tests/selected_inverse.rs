@@ -9,7 +9,7 @@
 
 use crate::common;
 
-use common::{realisation, truth};
+use common::{adjusted_free_network, realisation, to_convergence, truth};
 use pingcal_ba::problem::{Distance, Problem};
 use pingcal_ba::solver::{
     free_network_precision_bordered, points_covariance_with, precision, precision_with, solve,
@@ -17,16 +17,6 @@ use pingcal_ba::solver::{
 };
 
 const REL: f64 = 1e-6;
-
-fn options() -> Options {
-    Options {
-        function_tolerance: 1e-12,
-        parameter_tolerance: 1e-12,
-        max_iterations: 200,
-        threads: 1,
-        ..Options::default()
-    }
-}
 
 thread_local! {
     /// The largest relative difference met by [`close`] (printed with `--nocapture`).
@@ -140,7 +130,7 @@ fn every_form_equals_the_dense_inverse(p: &Problem) {
 #[test]
 fn selected_inversion_equals_the_dense_inverse() {
     let mut p = with_distance(realisation(&truth(), 5), 3, 50);
-    solve(&mut p, &options(), |_| {}).unwrap();
+    solve(&mut p, &to_convergence(), |_| {}).unwrap();
     every_form_equals_the_dense_inverse(&p);
 }
 
@@ -148,20 +138,12 @@ fn selected_inversion_equals_the_dense_inverse() {
 /// graph, whose factor is sparse) with a minimal datum: the first image fixed and one
 /// coordinate of the last point held.
 fn street(cameras: usize, points: usize) -> Problem {
-    let spec = pingcal_ba::synthetic::SyntheticBal {
-        cameras,
-        points,
-        obs_per_point: 5,
-        noise_px: 0.5,
-        ..Default::default()
-    };
-    let mut p = spec.generate().unwrap().problem;
-    solve(&mut p, &options(), |_| {}).unwrap();
+    let mut p = adjusted_free_network(cameras, points, &to_convergence());
     p.images[0].fixed = true;
     let far = p.points.len() - 1;
     let d = p.points[far].position - p.images[0].camera_from_object.centre();
     p.points[far].fixed_axes[d.iamax()] = true;
-    solve(&mut p, &options(), |_| {}).unwrap();
+    solve(&mut p, &to_convergence(), |_| {}).unwrap();
     p
 }
 
@@ -205,7 +187,7 @@ fn schur_forms_of_a_free_network_equal_the_dense_inner_constraints() {
         if distance {
             free = with_distance(free, 0, 40);
         }
-        solve(&mut free, &options(), |_| {}).unwrap();
+        solve(&mut free, &to_convergence(), |_| {}).unwrap();
         let dense = precision_with(&free, CofactorMethod::Dense).expect("dense inner constraints");
         let bordered = free_network_precision_bordered(&free).expect("bordered");
         same_precision(&bordered, &dense);
@@ -228,7 +210,7 @@ fn the_sparse_path_names_a_datum_defect() {
     p.images[0].fixed = true;
     // The adjustment of a network with a free scale may stop anywhere along it; the
     // precision is what is tested.
-    let _ = solve(&mut p, &options(), |_| {});
+    let _ = solve(&mut p, &to_convergence(), |_| {});
     let err = precision_with(&p, CofactorMethod::Sparse).unwrap_err();
     assert!(matches!(err, PrecisionError::DatumDefect(_)), "{err}");
     assert!(err.to_string().contains("do not determine"), "{err}");
@@ -239,15 +221,7 @@ fn the_sparse_path_names_a_datum_defect() {
 /// σ for every pose and point.
 #[test]
 fn free_network_above_the_dense_limit() {
-    let spec = pingcal_ba::synthetic::SyntheticBal {
-        cameras: 800,
-        points: 20_000,
-        obs_per_point: 5,
-        noise_px: 0.5,
-        ..Default::default()
-    };
-    let mut p = spec.generate().unwrap().problem;
-    solve(&mut p, &Options::default(), |_| {}).unwrap();
+    let p = adjusted_free_network(800, 20_000, &Options::default());
     let reduced = 9 * p.images.len();
     assert!(reduced > MAX_DENSE_PRECISION);
     let dense = precision_with(&p, CofactorMethod::Dense).unwrap_err();

@@ -178,27 +178,23 @@ fn setup() -> (
     (cam, rc, pixels)
 }
 
+/// Where the camera images `x` (camera frame, mm; in front of the camera).
+fn projected(cam: &pingcal_sim::stations::CameraUnit, x: &V3) -> Vector2<f64> {
+    cam.model.project(&cam.params, x, None, None).unwrap()
+}
+
 #[test]
 fn small_dots_render_where_the_true_camera_projects_their_centres() {
     let (cam, rc, pixels) = setup();
     let scene = wall_scene(&cam, &pixels, 4.5);
     let mut worst: f64 = 0.0;
     for t in &scene.targets {
-        let proj = cam
-            .model
-            .project(&cam.params, &t.centre, None, None)
-            .unwrap();
-        let edge = cam
-            .model
-            .project(&cam.params, &(t.centre + t.t1 * t.dot_radius), None, None)
-            .unwrap();
-        let radius_px = (edge - proj).norm().max(
-            (cam.model
-                .project(&cam.params, &(t.centre + t.t2 * t.dot_radius), None, None)
-                .unwrap()
-                - proj)
-                .norm(),
-        );
+        let proj = projected(&cam, &t.centre);
+        // The farther of the dot's edges along its two axes.
+        let radius_px = [t.t1, t.t2]
+            .iter()
+            .map(|d| (projected(&cam, &(t.centre + d * t.dot_radius)) - proj).norm())
+            .fold(0.0, f64::max);
         let m = measured_centroid(&scene, &cam, &rc, proj, radius_px);
         let err = (m - proj).norm();
         println!("target at ({:7.1}, {:6.1}) radius {radius_px:.2} px: |centroid - projected centre| = {err:.4} px", proj.x, proj.y);
@@ -214,16 +210,13 @@ fn large_dots_render_with_the_centroid_the_forward_model_predicts() {
     let scene = wall_scene(&cam, &pixels, 9.0);
     let mut worst: f64 = 0.0;
     for t in &scene.targets {
-        let proj = cam
-            .model
-            .project(&cam.params, &t.centre, None, None)
-            .unwrap();
+        let proj = projected(&cam, &t.centre);
         let expected = expected_centroid(&cam, t);
         let radius_px = (0..8)
             .map(|k| {
                 let a = k as f64 * std::f64::consts::FRAC_PI_4;
                 let p = t.centre + (t.t1 * a.cos() + t.t2 * a.sin()) * t.dot_radius;
-                (cam.model.project(&cam.params, &p, None, None).unwrap() - proj).norm()
+                (projected(&cam, &p) - proj).norm()
             })
             .fold(0.0, f64::max);
         let m = measured_centroid(&scene, &cam, &rc, proj, radius_px);

@@ -4,8 +4,9 @@
 #![allow(dead_code)]
 
 use nalgebra::{Vector2, Vector3};
-use pingcal_ba::camera::{CameraModel, PhotogrammetricCamera};
+use pingcal_ba::camera::PhotogrammetricCamera;
 use pingcal_ba::problem::{Camera, Image, Observation, Point, Problem};
+use pingcal_ba::solver::Options;
 use pingcal_geometry::exp_so3;
 use pingcal_geometry::Rigid3;
 use rand_distr::{Distribution, Normal};
@@ -23,7 +24,7 @@ pub fn truth() -> Problem {
     let params = vec![
         2.45, 0.012, -0.008, -0.021, 4.0e-4, -1.0e-5, 1.5e-4, -1.0e-4, 2.0e-4, -1.0e-4,
     ];
-    let camera = Camera::new("left", model.clone(), params.clone());
+    let camera = Camera::new("left", model, params);
     let mut points = Vec::new();
     for i in 0..6 {
         for j in 0..5 {
@@ -56,22 +57,6 @@ pub fn truth() -> Problem {
             fixed_centre: [false; 3],
         });
     }
-    let mut observations = Vec::new();
-    for (i, im) in images.iter().enumerate() {
-        for (p, x) in points.iter().enumerate() {
-            let xc = im.camera_from_object.transform(x);
-            if let Some(uv) = model.project(&params, &xc, None, None) {
-                if uv.x > 5.0 && uv.x < 1274.0 && uv.y > 5.0 && uv.y < 714.0 {
-                    observations.push(Observation {
-                        image: i,
-                        point: p,
-                        uv,
-                        sigma: SIGMA_PX,
-                    });
-                }
-            }
-        }
-    }
     let mut pts: Vec<Point> = points
         .iter()
         .enumerate()
@@ -86,12 +71,49 @@ pub fn truth() -> Problem {
     for &p in &[0usize, 12, 40, 70] {
         pts[p].fixed = true;
     }
-    Problem {
+    let mut p = Problem {
         cameras: vec![camera],
         images,
         points: pts,
-        observations,
         ..Default::default()
+    };
+    let n = p.images.len();
+    observe(&mut p, 0..n);
+    p
+}
+
+/// Observes, exactly (σ [`SIGMA_PX`]), every point that each of `images` (indices into
+/// `p.images`) sees through its own camera's model inside a 5 px margin of the 1280 × 720
+/// sensor; appended in image then point order.
+pub fn observe(p: &mut Problem, images: std::ops::Range<usize>) {
+    for i in images {
+        let im = &p.images[i];
+        let cam = &p.cameras[im.camera];
+        for (q, pt) in p.points.iter().enumerate() {
+            let xc = im.camera_from_object.transform(&pt.position);
+            if let Some(uv) = cam.model.project(&cam.params, &xc, None, None) {
+                if uv.x > 5.0 && uv.x < 1274.0 && uv.y > 5.0 && uv.y < 714.0 {
+                    p.observations.push(Observation {
+                        image: i,
+                        point: q,
+                        uv,
+                        sigma: SIGMA_PX,
+                    });
+                }
+            }
+        }
+    }
+}
+
+/// Solver options that run an adjustment to convergence (function and parameter
+/// tolerances 1e-12, at most 200 iterations) on one thread, the same result every run.
+pub fn to_convergence() -> Options {
+    Options {
+        function_tolerance: 1e-12,
+        parameter_tolerance: 1e-12,
+        max_iterations: 200,
+        threads: 1,
+        ..Options::default()
     }
 }
 
@@ -119,5 +141,20 @@ pub fn realisation(truth: &Problem, seed: u64) -> Problem {
     let c = &mut p.cameras[0].params;
     c[0] = 2.4;
     c[1..].iter_mut().for_each(|v| *v = 0.0);
+    p
+}
+
+/// A synthetic free network (BAL cameras of 9 unknowns, `points` points seen 5 times each,
+/// observations of σ = 1 with 0.5 px noise), adjusted with `options`.
+pub fn adjusted_free_network(cameras: usize, points: usize, options: &Options) -> Problem {
+    let spec = pingcal_ba::synthetic::SyntheticBal {
+        cameras,
+        points,
+        obs_per_point: 5,
+        noise_px: 0.5,
+        ..Default::default()
+    };
+    let mut p = spec.generate().unwrap().problem;
+    pingcal_ba::solver::solve(&mut p, options, |_| {}).unwrap();
     p
 }
