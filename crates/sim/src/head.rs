@@ -170,7 +170,7 @@ impl StereoRig {
         let o = c.right_opk_deg;
         // Right camera orientation relative to left: x_right = R_rel (x_left − C_right).
         let r_rel = from_opk(o[0].to_radians(), o[1].to_radians(), o[2].to_radians());
-        let left_to_right = Rigid3::from_rotation_and_centre(r_rel, V3::from(c.right_offset_mm));
+        let right_from_left = Rigid3::from_rotation_and_centre(r_rel, V3::from(c.right_offset_mm));
         Self {
             cameras: [
                 CameraUnit {
@@ -184,7 +184,7 @@ impl StereoRig {
                     params: c.right.params.clone(),
                 },
             ],
-            right_from_left: left_to_right,
+            right_from_left,
         }
     }
 }

@@ -127,21 +127,22 @@ impl Simulation {
             .find(|s| s.main)
             .expect("main station")
             .left_from_world;
-        let world_to_lrf = lrf::world_to_lrf(&main, &cfg.lrf);
-        let scans = lrf::simulate_scans(&scene.transformed(&world_to_lrf), &cfg.lrf, seed);
+        let lrf_from_world = lrf::lrf_from_world(&main, &cfg.lrf);
+        let scans = lrf::simulate_scans(&scene.transformed(&lrf_from_world), &cfg.lrf, seed);
         Ok(Self {
             config: cfg.clone(),
             seed,
             scene,
             rig,
             stations,
-            lrf_from_world: world_to_lrf,
+            lrf_from_world,
             scans,
         })
     }
 
-    /// World → photogrammetric frame (the main station's left camera).
-    pub fn world_to_photogrammetric(&self) -> Rigid3 {
+    /// `photogrammetric_from_world`: world → photogrammetric frame (the main station's left
+    /// camera, whose `left_from_world` it is).
+    pub fn photogrammetric_from_world(&self) -> Rigid3 {
         self.stations
             .iter()
             .find(|s| s.main)

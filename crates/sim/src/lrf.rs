@@ -69,13 +69,14 @@ pub fn extrinsic(cfg: &LrfConfig) -> Rigid3 {
     }
 }
 
-/// World → LRF frame, given the main left camera's pose (world → camera).
-pub fn world_to_lrf(main_left: &Rigid3, cfg: &LrfConfig) -> Rigid3 {
-    extrinsic(cfg).inverse().compose(main_left)
+/// `lrf_from_world`, given the main left camera's `left_from_world`:
+/// `lrf_from_left · left_from_world`.
+pub fn lrf_from_world(left_from_world: &Rigid3, cfg: &LrfConfig) -> Rigid3 {
+    extrinsic(cfg).inverse().compose(left_from_world)
 }
 
 /// Simulates the whole servo sweep; `scene_lrf` must already be in the LRF frame
-/// (`scene.transformed(&world_to_lrf(..))`). Scans are independent (one random stream
+/// (`scene.transformed(&lrf_from_world(..))`). Scans are independent (one random stream
 /// each), computed in parallel, identical for the same seed.
 pub fn simulate_scans(scene_lrf: &Scene, cfg: &LrfConfig, seed: u64) -> Vec<Scan> {
     let nscans = scans_per_pass(cfg) * cfg.servo_passes.max(1);
