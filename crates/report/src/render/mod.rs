@@ -4,23 +4,23 @@
 //!
 //! | section | module |
 //! |---|---|
-//! | Summary | [`summary`] |
-//! | Extrinsic calibration | [`extrinsic`] |
+//! | Summary | [`summary`](mod@summary) |
+//! | Extrinsic calibration | [`extrinsic`](mod@extrinsic) |
 //! | Extrinsic precision | [`crate::charts`] |
-//! | Check points | [`checks`] |
-//! | Image residuals | [`images`] |
+//! | Check points | [`checks`](mod@checks) |
+//! | Image residuals | [`images`](mod@images) |
 //! | Residual histogram, Image coverage | [`crate::charts`] |
-//! | Network | [`network`] |
+//! | Network | [`network`](mod@network) |
 //! | Exterior orientation, Point precision, Distances, Stereo rig | [`crate::tables`] |
-//! | LRF cloud | [`cloud`] |
+//! | LRF cloud | [`cloud`](mod@cloud) |
 //! | LRF on the images | [`crate::overlay_section`] |
-//! | Intrinsics | [`intrinsics`] |
+//! | Intrinsics | [`intrinsics`](mod@intrinsics) |
 //! | Distortion profile | [`crate::charts`] |
 //! | OpenCV parameters | [`crate::tables`] |
-//! | LRF mount and range | [`mount`] |
-//! | Rejected | [`rejected`] |
-//! | Warnings | [`warnings`] |
-//! | Pipeline steps | [`steps`] |
+//! | LRF mount and range | [`mount`](mod@mount) |
+//! | Rejected | [`rejected`](mod@rejected) |
+//! | Warnings | [`warnings`](mod@warnings) |
+//! | Pipeline steps | [`steps`](mod@steps) |
 //!
 //! [`legend`] holds what the plots share (colours, legends, axis names).
 
