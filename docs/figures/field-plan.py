@@ -43,8 +43,9 @@ for b in truth["balls"]:
 for im in truth["images"]:
     if im["camera"] != "left":
         continue
-    r = im["camera_from_world"]["rotation"]
-    t = im["camera_from_world"]["translation_mm"]
+    pose = im.get("camera_from_world") or im["world_to_camera"]  # the old key, before
+    r = pose["rotation"]
+    t = pose["translation_mm"]
     c = [-sum(r[k][i] * t[k] for k in range(3)) for i in range(3)]  # centre = -R^T t
     fwd = r[1]  # the camera's Y (optical axis) in the world
     px, py = xy(c)

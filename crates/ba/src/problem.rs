@@ -290,6 +290,16 @@ impl Problem {
         if !self.loss.is_valid() {
             return Err(ProblemError::BadLoss);
         }
+        self.validate_unknowns()?;
+        self.validate_observations()?;
+        self.validate_distances()?;
+        let member_of = self.validate_rigs()?;
+        self.validate_point_priors()?;
+        self.validate_residuals(&member_of)
+    }
+
+    /// Every camera's parameter count, every image's camera, the values finite.
+    fn validate_unknowns(&self) -> Result<(), ProblemError> {
         for c in &self.cameras {
             let expected = c.model.num_params();
             if c.params.len() != expected || c.fixed.len() != expected {
@@ -333,6 +343,11 @@ impl Problem {
                 });
             }
         }
+        Ok(())
+    }
+
+    /// Every observation's image and point exist, its σ positive, its values finite.
+    fn validate_observations(&self) -> Result<(), ProblemError> {
         for (index, o) in self.observations.iter().enumerate() {
             if o.image >= self.images.len() {
                 return Err(ProblemError::UnknownImage {
@@ -360,6 +375,11 @@ impl Problem {
                 });
             }
         }
+        Ok(())
+    }
+
+    /// Every distance joins two different points with a positive value and σ.
+    fn validate_distances(&self) -> Result<(), ProblemError> {
         let np = self.points.len();
         for (k, d) in self.distances.iter().enumerate() {
             for p in [d.a, d.b] {
@@ -384,6 +404,12 @@ impl Problem {
                 )));
             }
         }
+        Ok(())
+    }
+
+    /// The rigs' members and bases: existing images, each a member once, no base a member,
+    /// no member holding its centre; which images are members.
+    fn validate_rigs(&self) -> Result<Vec<bool>, ProblemError> {
         let mut member_of = vec![false; self.images.len()];
         for rig in &self.rigs {
             for m in &rig.members {
@@ -420,6 +446,12 @@ impl Problem {
                 )));
             }
         }
+        Ok(member_of)
+    }
+
+    /// Every control point's point exists, its coordinates finite and σ positive.
+    fn validate_point_priors(&self) -> Result<(), ProblemError> {
+        let np = self.points.len();
         for (k, c) in self.point_priors.iter().enumerate() {
             if c.point >= np {
                 return Err(ProblemError::UnknownPointIn {
@@ -437,7 +469,7 @@ impl Problem {
                 )));
             }
         }
-        self.validate_residuals(&member_of)
+        Ok(())
     }
 
     /// Checks the parameter blocks and that every residual's blocks exist (a pose not a rig

@@ -502,14 +502,51 @@ fn examine(
             seen_twice: false,
         })
     };
+    let f = match fit_cluster(&rays, radius, init, opt) {
+        Err(e) => return reject(init.unwrap_or(mean), format!("no sphere fit: {e}")),
+        Ok(f) => f,
+    };
+    let cluster = (rays.as_slice(), pts.as_slice(), mean);
+    if let Some(reason) = refusal(cloud, &f, cluster, planes, opt) {
+        return reject(f.centre, reason);
+    }
+    let used: Vec<Ray> = f.used.iter().map(|&k| rays[k]).collect();
+    let support = support(cloud, index, &used, &f, opt, cl.len());
+    match verdict(&support, radius, opt) {
+        Some(reason) => Outcome::Rejected(Rejected {
+            centre: f.centre,
+            cluster_points: cl.len(),
+            seen_twice: support.seen_twice,
+            reason,
+        }),
+        None => Outcome::Ball(Ball {
+            range_mm: f.centre.norm(),
+            centre: f.centre,
+            cov: f.cov,
+            inliers: f.used.iter().map(|&k| cl[k]).collect(),
+            cluster_points: cl.len(),
+            rejected_points: cl.len() - f.used.len(),
+            sigma0: f.sigma0,
+            support,
+        }),
+    }
+}
+
+/// The along-ray sphere fit of a cluster's rays from the consensus start `init`.
+fn fit_cluster(
+    rays: &[Ray],
+    radius: f64,
+    init: Option<Vector3<f64>>,
+    opt: &FinderOptions,
+) -> crate::error::Result<sphere_fit::SphereFit> {
     // a consensus start a centimetre off can lose the ball in the first passes of the fit
     // (a cluster with clutter beside the ball): then the orthogonal fit's start is tried
-    let fitted = match sphere_fit::fit_along_ray(&rays, radius, init, &opt.fit) {
+    match sphere_fit::fit_along_ray(rays, radius, init, &opt.fit) {
         Ok(f) if f.used.len() >= opt.min_inliers => Ok(f),
         first if init.is_some() => {
             match (
                 first,
-                sphere_fit::fit_along_ray(&rays, radius, None, &opt.fit),
+                sphere_fit::fit_along_ray(rays, radius, None, &opt.fit),
             ) {
                 (Ok(a), Ok(b)) if b.used.len() <= a.used.len() => Ok(a),
                 (_, Ok(b)) => Ok(b),
@@ -517,87 +554,67 @@ fn examine(
             }
         }
         first => first,
-    };
-    match fitted {
-        Err(e) => reject(init.unwrap_or(mean), format!("no sphere fit: {e}")),
-        Ok(f) if f.used.len() < opt.min_inliers => reject(
-            f.centre,
-            format!(
-                "too few points on the ball after mixed-pixel rejection: {} (need {})",
-                f.used.len(),
-                opt.min_inliers
-            ),
-        ),
-        Ok(f) if f.sigma0 > opt.max_sigma0 => reject(
-            f.centre,
-            format!("not a {} mm sphere: σ₀ = {:.2}", opt.diameter_mm, f.sigma0),
-        ),
-        Ok(f) if (f.centre - mean).norm() > opt.diameter_mm * 2.0 => {
-            reject(f.centre, "fit left its cluster".into())
-        }
-        // a solid ball cannot stand inside a wall (it may rest on the floor: touching is
-        // allowed, to the plane's noise and the ball's making)…
-        Ok(f)
-            if planes.iter().any(|(n, d)| {
-                let side = if *d > 0.0 { -1.0 } else { 1.0 }; // sensor side of n·x = d
-                let slack = 3.0 * opt.noise.sigma(f.centre.norm()) + opt.radius_tolerance * radius;
-                side * (n.dot(&f.centre) - d) < radius - slack
-                    && plane_is_there(cloud, (n, *d), &f.centre, radius, opt)
-            }) =>
-        {
-            reject(f.centre, "sphere cuts a wall plane".into())
-        }
-        // …and a "sphere" whose points hug a removed wall is a fit to the wall's noise tail
-        // (the points just beyond the plane gate: 96 % of the Gaussian tail beyond k σ lies
-        // within k + 1 σ), not a ball in front of it
-        Ok(f)
-            if planes.iter().any(|(n, d)| {
-                let near = f
-                    .used
-                    .iter()
-                    .filter(|&&k| {
-                        (n.dot(&pts[k]) - d).abs() <= (opt.plane_k_sigma + 1.0) * rays[k].sigma
-                    })
-                    .count();
-                2 * near > f.used.len()
-            }) =>
-        {
-            reject(
-                f.centre,
-                "its points are the noise tail of a removed wall".into(),
-            )
-        }
-        Ok(f) if f.cov.symmetric_eigenvalues().max().sqrt() > opt.max_centre_sigma_mm => reject(
-            f.centre,
-            format!(
-                "centre not determined by its {} rays: σ = {:.1} mm",
-                f.used.len(),
-                f.cov.symmetric_eigenvalues().max().sqrt()
-            ),
-        ),
-        Ok(f) => {
-            let used: Vec<Ray> = f.used.iter().map(|&k| rays[k]).collect();
-            let support = support(cloud, index, &used, &f, opt, cl.len());
-            match verdict(&support, radius, opt) {
-                Some(reason) => Outcome::Rejected(Rejected {
-                    centre: f.centre,
-                    cluster_points: cl.len(),
-                    seen_twice: support.seen_twice,
-                    reason,
-                }),
-                None => Outcome::Ball(Ball {
-                    range_mm: f.centre.norm(),
-                    centre: f.centre,
-                    cov: f.cov,
-                    inliers: f.used.iter().map(|&k| cl[k]).collect(),
-                    cluster_points: cl.len(),
-                    rejected_points: cl.len() - f.used.len(),
-                    sigma0: f.sigma0,
-                    support,
-                }),
-            }
-        }
     }
+}
+
+/// Why fit `f` of a cluster (its rays, their points and their mean) is not a ball: too few
+/// points, not a sphere of the diameter, off its cluster, cutting a wall, on a wall's noise
+/// tail, or its centre not determined; `None` when it may be one.
+fn refusal(
+    cloud: &Cloud,
+    f: &sphere_fit::SphereFit,
+    (rays, pts, mean): (&[Ray], &[Vector3<f64>], Vector3<f64>),
+    planes: &[(Vector3<f64>, f64)],
+    opt: &FinderOptions,
+) -> Option<String> {
+    let radius = opt.diameter_mm / 2.0;
+    if f.used.len() < opt.min_inliers {
+        return Some(format!(
+            "too few points on the ball after mixed-pixel rejection: {} (need {})",
+            f.used.len(),
+            opt.min_inliers
+        ));
+    }
+    if f.sigma0 > opt.max_sigma0 {
+        return Some(format!(
+            "not a {} mm sphere: σ₀ = {:.2}",
+            opt.diameter_mm, f.sigma0
+        ));
+    }
+    if (f.centre - mean).norm() > opt.diameter_mm * 2.0 {
+        return Some("fit left its cluster".into());
+    }
+    // a solid ball cannot stand inside a wall (it may rest on the floor: touching is
+    // allowed, to the plane's noise and the ball's making)…
+    if planes.iter().any(|(n, d)| {
+        let side = if *d > 0.0 { -1.0 } else { 1.0 }; // sensor side of n·x = d
+        let slack = 3.0 * opt.noise.sigma(f.centre.norm()) + opt.radius_tolerance * radius;
+        side * (n.dot(&f.centre) - d) < radius - slack
+            && plane_is_there(cloud, (n, *d), &f.centre, radius, opt)
+    }) {
+        return Some("sphere cuts a wall plane".into());
+    }
+    // …and a "sphere" whose points hug a removed wall is a fit to the wall's noise tail
+    // (the points just beyond the plane gate: 96 % of the Gaussian tail beyond k σ lies
+    // within k + 1 σ), not a ball in front of it
+    if planes.iter().any(|(n, d)| {
+        let near = f
+            .used
+            .iter()
+            .filter(|&&k| (n.dot(&pts[k]) - d).abs() <= (opt.plane_k_sigma + 1.0) * rays[k].sigma)
+            .count();
+        2 * near > f.used.len()
+    }) {
+        return Some("its points are the noise tail of a removed wall".into());
+    }
+    if f.cov.symmetric_eigenvalues().max().sqrt() > opt.max_centre_sigma_mm {
+        return Some(format!(
+            "centre not determined by its {} rays: σ = {:.1} mm",
+            f.used.len(),
+            f.cov.symmetric_eigenvalues().max().sqrt()
+        ));
+    }
+    None
 }
 
 /// True when the removed plane `n·x = d` has points (within its gate, and not on the sphere)

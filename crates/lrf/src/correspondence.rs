@@ -94,6 +94,58 @@ pub fn match_balls(
             ids: format!("{} LRF spheres, {} camera balls", lrf.len(), cam.len()),
         });
     }
+    let (best, rival) = candidates(lrf, cam, opt);
+    let tol = opt.tol_mm;
+    let Some((pairs, _)) = best else {
+        return Err(LrfError::Degenerate(format!(
+            "no three of the {} LRF spheres match three of the {} camera balls in their distances (within {tol} mm): are they the same balls, and are the LRF's range unit and mount right?",
+            lrf.len(),
+            cam.len()
+        )));
+    };
+    if pairs.len() < 3 {
+        return Err(LrfError::TooFewPoints {
+            needed: 3,
+            got: pairs.len(),
+            ids: "common balls found by distance matching".into(),
+        });
+    }
+    // refine on all pairs, and assign again
+    let fit = |pairs: &[(usize, usize)]| {
+        let (s, d): (Vec<_>, Vec<_>) = pairs.iter().map(|&(i, j)| (lrf[i], cam[j])).unzip();
+        umeyama(&s, &d, None, false)
+    };
+    let t = fit(&pairs)?;
+    let (pairs, _) = assign(&t, lrf, cam, tol);
+    let t = fit(&pairs)?;
+    let (pairs, rms) = assign(&t, lrf, cam, tol);
+    check_not_ambiguous(rival, &pairs, rms, (lrf, cam), tol)?;
+    if pairs.len() < 3 {
+        return Err(LrfError::TooFewPoints {
+            needed: 3,
+            got: pairs.len(),
+            ids: "common balls found by distance matching".into(),
+        });
+    }
+    let camera_from_lrf = fit(&pairs)?;
+    Ok(Matching {
+        pairs,
+        camera_from_lrf,
+        rms_mm: rms,
+    })
+}
+
+/// A matching (LRF index, camera index) and its RMS, mm.
+type Candidate = (Vec<(usize, usize)>, f64);
+
+/// The best matching and the best different one: every triple of LRF spheres whose sides
+/// match a camera triple's within the tolerance gives a transform, and the assignment it
+/// makes of all the balls is scored by count, then RMS.
+fn candidates(
+    lrf: &[Vector3<f64>],
+    cam: &[Vector3<f64>],
+    opt: &MatchOptions,
+) -> (Option<Candidate>, Option<Candidate>) {
     let dist = |v: &[Vector3<f64>]| -> Vec<Vec<f64>> {
         v.iter()
             .map(|a| v.iter().map(|b| (a - b).norm()).collect())
@@ -103,8 +155,8 @@ pub fn match_balls(
     let (nl, nc) = (lrf.len(), cam.len());
     let tol = opt.tol_mm;
     // best and best different matching
-    let mut best: Option<(Vec<(usize, usize)>, f64)> = None;
-    let mut rival: Option<(Vec<(usize, usize)>, f64)> = None;
+    let mut best: Option<Candidate> = None;
+    let mut rival: Option<Candidate> = None;
     for i in 0..nl {
         for j in i + 1..nl {
             if dl[i][j] < opt.min_side_mm {
@@ -136,7 +188,7 @@ pub fn match_balls(
                                 continue;
                             };
                             let (pairs, rms) = assign(&t, lrf, cam, tol);
-                            let better = |o: &Option<(Vec<(usize, usize)>, f64)>| {
+                            let better = |o: &Option<Candidate>| {
                                 o.as_ref().is_none_or(|(p, r)| {
                                     pairs.len() > p.len() || (pairs.len() == p.len() && rms < *r)
                                 })
@@ -156,29 +208,22 @@ pub fn match_balls(
             }
         }
     }
-    let Some((pairs, _)) = best else {
-        return Err(LrfError::Degenerate(format!(
-            "no three of the {} LRF spheres match three of the {} camera balls in their distances (within {tol} mm): are they the same balls, and are the LRF's range unit and mount right?",
-            lrf.len(),
-            cam.len()
-        )));
-    };
-    if pairs.len() < 3 {
-        return Err(LrfError::TooFewPoints {
-            needed: 3,
-            got: pairs.len(),
-            ids: "common balls found by distance matching".into(),
-        });
-    }
-    // refine on all pairs, and assign again
+    (best, rival)
+}
+
+/// Refuses the matching `pairs` (RMS `rms`) when the best different matching of as many
+/// balls, `rival`, fits about as well: which ball is which is then not known.
+fn check_not_ambiguous(
+    rival: Option<Candidate>,
+    pairs: &[(usize, usize)],
+    rms: f64,
+    (lrf, cam): (&[Vector3<f64>], &[Vector3<f64>]),
+    tol: f64,
+) -> Result<()> {
     let fit = |pairs: &[(usize, usize)]| {
         let (s, d): (Vec<_>, Vec<_>) = pairs.iter().map(|&(i, j)| (lrf[i], cam[j])).unzip();
         umeyama(&s, &d, None, false)
     };
-    let t = fit(&pairs)?;
-    let (pairs, _) = assign(&t, lrf, cam, tol);
-    let t = fit(&pairs)?;
-    let (pairs, rms) = assign(&t, lrf, cam, tol);
     if let Some((rp, _)) = rival {
         if rp.len() == pairs.len() && rp != pairs {
             let (rt, rrms) = match fit(&rp) {
@@ -189,7 +234,7 @@ pub fn match_balls(
                 Err(_) => (None, f64::INFINITY),
             };
             if rt.is_some() && rrms < 2.0 * rms.max(0.1 * tol) {
-                let (median, largest) = distance_disagreement(&pairs, lrf, cam);
+                let (median, largest) = distance_disagreement(pairs, lrf, cam);
                 return Err(LrfError::Degenerate(format!(
                     "ball correspondence is ambiguous: of {} LRF spheres and {} camera balls, two different matchings of {} fit equally well (RMS {rms:.1} and {rrms:.1} mm); \
                      the matched balls' distances differ between the two frames by a median {median:.1} mm (largest {largest:.1} mm; {tol} mm is accepted): {}",
@@ -201,19 +246,7 @@ pub fn match_balls(
             }
         }
     }
-    if pairs.len() < 3 {
-        return Err(LrfError::TooFewPoints {
-            needed: 3,
-            got: pairs.len(),
-            ids: "common balls found by distance matching".into(),
-        });
-    }
-    let camera_from_lrf = fit(&pairs)?;
-    Ok(Matching {
-        pairs,
-        camera_from_lrf,
-        rms_mm: rms,
-    })
+    Ok(())
 }
 
 /// The median and the largest |‖lᵢ − lⱼ‖ − ‖cᵢ − cⱼ‖| over the pairs of matched balls: how

@@ -43,6 +43,37 @@ struct Field {
     count: usize,
 }
 
+/// What the header's lines said, before they are checked against each other; SIZE, TYPE
+/// and COUNT keep their line number for the messages.
+#[derive(Default)]
+struct HeaderLines {
+    names: Option<Vec<String>>,
+    sizes: Option<(usize, Vec<usize>)>,
+    types: Option<(usize, Vec<char>)>,
+    counts: Option<(usize, Vec<usize>)>,
+    width: Option<usize>,
+    height: Option<usize>,
+    points: Option<usize>,
+}
+
+/// The checked header: the fields, where `x`, `y`, `z` are, the record's layout, the number
+/// of points, the encoding and where its data start.
+struct Header {
+    fields: Vec<Field>,
+    xyz: [usize; 3],
+    /// Byte offset of each field in a record.
+    offsets: Vec<usize>,
+    /// Bytes per record.
+    stride: usize,
+    /// Numbers per record (an ASCII line's length).
+    tokens: usize,
+    n: usize,
+    data: Data,
+    data_line: usize,
+    /// Byte offset of the data, after the `DATA` line.
+    body_start: usize,
+}
+
 /// Reads a PCD cloud held in memory; values are in the file's unit.
 pub fn read_pcd(bytes: &[u8], file: &str) -> Result<Cloud> {
     if bytes.is_empty() {
@@ -51,15 +82,51 @@ pub fn read_pcd(bytes: &[u8], file: &str) -> Result<Cloud> {
             msg: "empty file (expected a PCD header)".into(),
         });
     }
+    let h = parse_header(bytes, file)?;
+    let body = &bytes[h.body_start..];
+    let mut out = Points {
+        file,
+        pts: Vec::new(),
+    };
+    match h.data {
+        Data::Ascii => decode_ascii(body, &h, file, &mut out)?,
+        Data::Binary => decode_binary(body, &h, file, &mut out)?,
+        Data::Compressed => decode_compressed(body, &h, file, &mut out)?,
+    }
+    Ok(Cloud::from_points(out.pts))
+}
+
+/// Reads the header up to its `DATA` line and checks it: fields, coordinates, record
+/// layout, point count.
+fn parse_header(bytes: &[u8], file: &str) -> Result<Header> {
+    let (lines, data, data_line, body_start) = read_header_lines(bytes, file)?;
+    let (fields, tl, cl) = lines.fields(data_line, file)?;
+    let xyz = [
+        coordinate(&fields, "x", data_line, tl, cl, file)?,
+        coordinate(&fields, "y", data_line, tl, cl, file)?,
+        coordinate(&fields, "z", data_line, tl, cl, file)?,
+    ];
+    let (offsets, stride, tokens) = record_layout(&fields, cl, file)?;
+    let n = lines.point_count(data_line, file)?;
+    Ok(Header {
+        fields,
+        xyz,
+        offsets,
+        stride,
+        tokens,
+        n,
+        data,
+        data_line,
+        body_start,
+    })
+}
+
+/// The header's lines up to `DATA`: what they said, the encoding, the `DATA` line's number
+/// and the byte offset after it.
+fn read_header_lines(bytes: &[u8], file: &str) -> Result<(HeaderLines, Data, usize, usize)> {
     let mut pos = 0;
     let mut line_no = 0;
-    let mut names: Option<Vec<String>> = None;
-    let mut sizes: Option<(usize, Vec<usize>)> = None;
-    let mut types: Option<(usize, Vec<char>)> = None;
-    let mut counts: Option<(usize, Vec<usize>)> = None;
-    let (mut width, mut height, mut points) = (None, None, None);
-    let data;
-    let data_line;
+    let mut lines = HeaderLines::default();
     loop {
         if pos >= bytes.len() {
             return Err(LrfError::parse(
@@ -81,7 +148,21 @@ pub fn read_pcd(bytes: &[u8], file: &str) -> Result<Cloud> {
         let s = s.split('#').next().unwrap_or("").trim();
         let w: Vec<&str> = s.split_whitespace().collect();
         let Some(&key) = w.first() else { continue };
-        let args = &w[1..];
+        if let Some(data) = lines.keyword(key, &w[1..], line_no, file)? {
+            return Ok((lines, data, line_no, pos));
+        }
+    }
+}
+
+impl HeaderLines {
+    /// Records one `KEY values` line; the encoding when it is the closing `DATA` line.
+    fn keyword(
+        &mut self,
+        key: &str,
+        args: &[&str],
+        line_no: usize,
+        file: &str,
+    ) -> Result<Option<Data>> {
         let bad = |what: &str| LrfError::parse(file, line_no, format!("{key}: expected {what}"));
         let uints = |what: &str| -> Result<Vec<usize>> {
             let v: Option<Vec<usize>> = args.iter().map(|a| a.parse().ok()).collect();
@@ -107,9 +188,9 @@ pub fn read_pcd(bytes: &[u8], file: &str) -> Result<Cloud> {
                 if args.is_empty() {
                     return Err(bad("field names"));
                 }
-                names = Some(args.iter().map(|a| a.to_string()).collect());
+                self.names = Some(args.iter().map(|a| a.to_string()).collect());
             }
-            "SIZE" => sizes = Some((line_no, uints("sizes in bytes (1, 2, 4 or 8)")?)),
+            "SIZE" => self.sizes = Some((line_no, uints("sizes in bytes (1, 2, 4 or 8)")?)),
             "TYPE" => {
                 let v: Option<Vec<char>> = args
                     .iter()
@@ -121,40 +202,22 @@ pub fn read_pcd(bytes: &[u8], file: &str) -> Result<Cloud> {
                     })
                     .collect();
                 match v {
-                    Some(v) if !v.is_empty() => types = Some((line_no, v)),
+                    Some(v) if !v.is_empty() => self.types = Some((line_no, v)),
                     _ => return Err(bad("types F, I or U")),
                 }
             }
-            "COUNT" => counts = Some((line_no, uints("counts (positive integers)")?)),
-            "WIDTH" => width = Some(one("one integer")?),
-            "HEIGHT" => height = Some(one("one integer")?),
-            "POINTS" => points = Some(one("one integer")?),
-            "VIEWPOINT" => {
-                let v: Option<Vec<f64>> = args.iter().map(|a| a.parse().ok()).collect();
-                let Some(v) = v.filter(|v| v.len() == 7) else {
-                    return Err(bad("seven numbers tx ty tz qw qx qy qz"));
-                };
-                let identity = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0];
-                if v.iter().zip(identity).any(|(a, b)| (a - b).abs() > 1e-12) {
-                    return Err(LrfError::parse(
-                        file,
-                        line_no,
-                        format!(
-                            "VIEWPOINT {}: only the identity `0 0 0 1 0 0 0` is supported (pingcal does not move the points; write them in the sensor's frame)",
-                            args.join(" ")
-                        ),
-                    ));
-                }
-            }
+            "COUNT" => self.counts = Some((line_no, uints("counts (positive integers)")?)),
+            "WIDTH" => self.width = Some(one("one integer")?),
+            "HEIGHT" => self.height = Some(one("one integer")?),
+            "POINTS" => self.points = Some(one("one integer")?),
+            "VIEWPOINT" => check_viewpoint(args, line_no, file, bad)?,
             "DATA" => {
-                data = match args.first().map(|a| a.to_ascii_lowercase()).as_deref() {
-                    Some("ascii") => Data::Ascii,
-                    Some("binary") => Data::Binary,
-                    Some("binary_compressed") => Data::Compressed,
-                    _ => return Err(bad("ascii, binary or binary_compressed")),
+                return match args.first().map(|a| a.to_ascii_lowercase()).as_deref() {
+                    Some("ascii") => Ok(Some(Data::Ascii)),
+                    Some("binary") => Ok(Some(Data::Binary)),
+                    Some("binary_compressed") => Ok(Some(Data::Compressed)),
+                    _ => Err(bad("ascii, binary or binary_compressed")),
                 };
-                data_line = line_no;
-                break;
             }
             _ => {
                 return Err(LrfError::parse(
@@ -164,273 +227,357 @@ pub fn read_pcd(bytes: &[u8], file: &str) -> Result<Cloud> {
                 ))
             }
         }
+        Ok(None)
     }
-    let hdr = |line: usize, msg: String| LrfError::parse(file, line, msg);
-    let names = names.ok_or_else(|| hdr(data_line, "header has no FIELDS line".into()))?;
-    let nf = names.len();
-    let (sl, sizes) = sizes.ok_or_else(|| hdr(data_line, "header has no SIZE line".into()))?;
-    let (tl, types) = types.ok_or_else(|| hdr(data_line, "header has no TYPE line".into()))?;
-    let (cl, counts) = counts.unwrap_or((data_line, vec![1; nf]));
-    for (line, what, n) in [
-        (sl, "SIZE", sizes.len()),
-        (tl, "TYPE", types.len()),
-        (cl, "COUNT", counts.len()),
-    ] {
-        if n != nf {
-            return Err(hdr(
-                line,
-                format!("{what}: expected {nf} values (one per field), found {n}"),
-            ));
+
+    /// The fields of FIELDS, SIZE, TYPE and COUNT (default 1 each), checked against each
+    /// other; with the line numbers of TYPE and COUNT for later messages.
+    fn fields(&self, data_line: usize, file: &str) -> Result<(Vec<Field>, usize, usize)> {
+        let hdr = |line: usize, msg: String| LrfError::parse(file, line, msg);
+        let names = self
+            .names
+            .clone()
+            .ok_or_else(|| hdr(data_line, "header has no FIELDS line".into()))?;
+        let nf = names.len();
+        let (sl, sizes) = self
+            .sizes
+            .clone()
+            .ok_or_else(|| hdr(data_line, "header has no SIZE line".into()))?;
+        let (tl, types) = self
+            .types
+            .clone()
+            .ok_or_else(|| hdr(data_line, "header has no TYPE line".into()))?;
+        let (cl, counts) = self.counts.clone().unwrap_or((data_line, vec![1; nf]));
+        for (line, what, n) in [
+            (sl, "SIZE", sizes.len()),
+            (tl, "TYPE", types.len()),
+            (cl, "COUNT", counts.len()),
+        ] {
+            if n != nf {
+                return Err(hdr(
+                    line,
+                    format!("{what}: expected {nf} values (one per field), found {n}"),
+                ));
+            }
         }
+        let mut fields = Vec::with_capacity(nf);
+        for k in 0..nf {
+            let (size, kind, count) = (sizes[k], types[k], counts[k]);
+            let ok = match kind {
+                'F' => matches!(size, 4 | 8),
+                _ => matches!(size, 1 | 2 | 4 | 8),
+            };
+            if !ok {
+                return Err(hdr(
+                    sl,
+                    format!(
+                        "SIZE: field {:?} of TYPE {kind} has size {size} (expected 1, 2, 4 or 8; 4 or 8 for F)",
+                        names[k]
+                    ),
+                ));
+            }
+            if count == 0 {
+                return Err(hdr(cl, format!("COUNT: field {:?} has count 0", names[k])));
+            }
+            fields.push(Field {
+                name: names[k].clone(),
+                size,
+                kind,
+                count,
+            });
+        }
+        Ok((fields, tl, cl))
     }
-    let mut fields = Vec::with_capacity(nf);
-    for k in 0..nf {
-        let (size, kind, count) = (sizes[k], types[k], counts[k]);
-        let ok = match kind {
-            'F' => matches!(size, 4 | 8),
-            _ => matches!(size, 1 | 2 | 4 | 8),
-        };
-        if !ok {
-            return Err(hdr(
-                sl,
-                format!(
-                    "SIZE: field {:?} of TYPE {kind} has size {size} (expected 1, 2, 4 or 8; 4 or 8 for F)",
-                    names[k]
-                ),
-            ));
-        }
-        if count == 0 {
-            return Err(hdr(cl, format!("COUNT: field {:?} has count 0", names[k])));
-        }
-        fields.push(Field {
-            name: names[k].clone(),
-            size,
-            kind,
-            count,
-        });
+
+    /// POINTS, or WIDTH × HEIGHT (HEIGHT default 1), checked against each other.
+    fn point_count(&self, data_line: usize, file: &str) -> Result<usize> {
+        let hdr = |msg: String| LrfError::parse(file, data_line, msg);
+        Ok(match (self.points, self.width, self.height) {
+            (Some(p), w, h) => {
+                let w = w.unwrap_or(p);
+                let h = h.unwrap_or(1);
+                if w.checked_mul(h) != Some(p) {
+                    return Err(hdr(format!("POINTS {p} is not WIDTH × HEIGHT = {w} × {h}")));
+                }
+                p
+            }
+            (None, Some(w), h) => w
+                .checked_mul(h.unwrap_or(1))
+                .ok_or_else(|| hdr("WIDTH × HEIGHT overflows".into()))?,
+            (None, None, _) => return Err(hdr("header has no POINTS nor WIDTH line".into())),
+        })
     }
-    let find = |n: &str| -> Result<usize> {
-        let i = fields.iter().position(|f| f.name == n).ok_or_else(|| {
-            hdr(
-                data_line,
-                format!("no field {n:?} among FIELDS {}", names.join(" ")),
-            )
-        })?;
-        if fields[i].count != 1 {
-            return Err(hdr(
-                cl,
-                format!(
-                    "COUNT: field {n:?} has count {}: a coordinate is one number per point",
-                    fields[i].count
-                ),
-            ));
-        }
-        if fields[i].kind != 'F' {
-            return Err(hdr(
-                tl,
-                format!(
-                    "TYPE: field {n:?} must be F (4 or 8 bytes), found {}",
-                    fields[i].kind
-                ),
-            ));
-        }
-        Ok(i)
+}
+
+/// Refuses a `VIEWPOINT` other than the identity (see the module's doc).
+fn check_viewpoint(
+    args: &[&str],
+    line_no: usize,
+    file: &str,
+    bad: impl Fn(&str) -> LrfError,
+) -> Result<()> {
+    let v: Option<Vec<f64>> = args.iter().map(|a| a.parse().ok()).collect();
+    let Some(v) = v.filter(|v| v.len() == 7) else {
+        return Err(bad("seven numbers tx ty tz qw qx qy qz"));
     };
-    let xyz = [find("x")?, find("y")?, find("z")?];
-    // The byte offset of each field in a record, and the record size, checked.
-    let mut offsets = Vec::with_capacity(nf);
+    let identity = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0];
+    if v.iter().zip(identity).any(|(a, b)| (a - b).abs() > 1e-12) {
+        return Err(LrfError::parse(
+            file,
+            line_no,
+            format!(
+                "VIEWPOINT {}: only the identity `0 0 0 1 0 0 0` is supported (pingcal does not move the points; write them in the sensor's frame)",
+                args.join(" ")
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// The index of coordinate field `name`: present, one number per point, a float.
+fn coordinate(
+    fields: &[Field],
+    name: &str,
+    data_line: usize,
+    tl: usize,
+    cl: usize,
+    file: &str,
+) -> Result<usize> {
+    let hdr = |line: usize, msg: String| LrfError::parse(file, line, msg);
+    let i = fields.iter().position(|f| f.name == name).ok_or_else(|| {
+        let names: Vec<&str> = fields.iter().map(|f| f.name.as_str()).collect();
+        hdr(
+            data_line,
+            format!("no field {name:?} among FIELDS {}", names.join(" ")),
+        )
+    })?;
+    if fields[i].count != 1 {
+        return Err(hdr(
+            cl,
+            format!(
+                "COUNT: field {name:?} has count {}: a coordinate is one number per point",
+                fields[i].count
+            ),
+        ));
+    }
+    if fields[i].kind != 'F' {
+        return Err(hdr(
+            tl,
+            format!(
+                "TYPE: field {name:?} must be F (4 or 8 bytes), found {}",
+                fields[i].kind
+            ),
+        ));
+    }
+    Ok(i)
+}
+
+/// The byte offset of each field in a record, the record size and the numbers per record,
+/// checked for overflow.
+fn record_layout(fields: &[Field], cl: usize, file: &str) -> Result<(Vec<usize>, usize, usize)> {
+    let hdr = |msg: &str| LrfError::parse(file, cl, msg);
+    let mut offsets = Vec::with_capacity(fields.len());
     let mut stride: usize = 0;
     let mut tokens: usize = 0;
-    for f in &fields {
+    for f in fields {
         offsets.push(stride);
         stride = f
             .size
             .checked_mul(f.count)
             .and_then(|b| stride.checked_add(b))
-            .ok_or_else(|| hdr(cl, "COUNT: the record size overflows".into()))?;
+            .ok_or_else(|| hdr("COUNT: the record size overflows"))?;
         tokens = tokens
             .checked_add(f.count)
-            .ok_or_else(|| hdr(cl, "COUNT: too many values per point".into()))?;
+            .ok_or_else(|| hdr("COUNT: too many values per point"))?;
     }
-    let n = match (points, width, height) {
-        (Some(p), w, h) => {
-            let w = w.unwrap_or(p);
-            let h = h.unwrap_or(1);
-            if w.checked_mul(h) != Some(p) {
-                return Err(hdr(
-                    data_line,
-                    format!("POINTS {p} is not WIDTH × HEIGHT = {w} × {h}"),
-                ));
-            }
-            p
-        }
-        (None, Some(w), h) => w
-            .checked_mul(h.unwrap_or(1))
-            .ok_or_else(|| hdr(data_line, "WIDTH × HEIGHT overflows".into()))?,
-        (None, None, _) => {
-            return Err(hdr(data_line, "header has no POINTS nor WIDTH line".into()))
-        }
-    };
-    let body = &bytes[pos..];
-    let mut pts = Vec::new();
-    let mut push = |rec: usize, p: [f64; 3]| -> Result<()> {
+    Ok((offsets, stride, tokens))
+}
+
+impl Header {
+    /// The error for data shorter than the header's `n` points of `stride` bytes (`need`).
+    fn too_short(&self, body: &[u8], need: &str, file: &str) -> LrfError {
+        LrfError::parse(
+            file,
+            self.data_line,
+            format!(
+                "the header says {} points of {} bytes ({need}), the file holds {} bytes after the header",
+                self.n,
+                self.stride,
+                body.len()
+            ),
+        )
+    }
+}
+
+/// The points read so far.
+struct Points<'a> {
+    file: &'a str,
+    pts: Vec<Vector3<f64>>,
+}
+
+impl Points<'_> {
+    /// Keeps point `p` of record (or line) `rec`: dropped when a coordinate is NaN, refused
+    /// beyond [`MAX_COORDINATE`].
+    fn push(&mut self, rec: usize, p: [f64; 3]) -> Result<()> {
         if p.iter().any(|v| v.is_nan()) {
             return Ok(());
         }
         if let Some(v) = p.iter().find(|v| v.abs() > MAX_COORDINATE) {
             return Err(LrfError::parse(
-                file,
+                self.file,
                 rec,
                 format!("coordinate {v:e} is beyond ±{MAX_COORDINATE:e} (or not finite)"),
             ));
         }
-        pts.push(Vector3::new(p[0], p[1], p[2]));
+        self.pts.push(Vector3::new(p[0], p[1], p[2]));
         Ok(())
-    };
-    let too_short = |need: &str| {
-        LrfError::parse(
+    }
+}
+
+/// `DATA ascii`: one line of `tokens` numbers per point; blank lines and comments skipped.
+fn decode_ascii(body: &[u8], h: &Header, file: &str, out: &mut Points) -> Result<()> {
+    let (n, tokens, data_line) = (h.n, h.tokens, h.data_line);
+    // Each point takes at least one line of `tokens` numbers: 2·tokens bytes.
+    if n > 0 && n > body.len() / tokens.max(1) / 2 + 1 {
+        return Err(LrfError::parse(
             file,
             data_line,
             format!(
-                "the header says {n} points of {stride} bytes ({need}), the file holds {} bytes after the header",
+                "the header says {n} points, the file holds only {} bytes after the header",
                 body.len()
             ),
-        )
-    };
-    match data {
-        Data::Ascii => {
-            // Each point takes at least one line of `tokens` numbers: 2·tokens bytes.
-            if n > 0 && n > body.len() / tokens.max(1) / 2 + 1 {
-                return Err(LrfError::parse(
-                    file,
-                    data_line,
-                    format!(
-                        "the header says {n} points, the file holds only {} bytes after the header",
-                        body.len()
-                    ),
-                ));
-            }
-            let mut rec = 0;
-            let mut l = data_line;
-            for line in body.split(|&b| b == b'\n') {
-                l += 1;
-                let s = std::str::from_utf8(line)
-                    .map_err(|_| LrfError::parse(file, l, "not UTF-8 text"))?;
-                let s = s.split('#').next().unwrap_or("").trim();
-                if s.is_empty() {
-                    continue;
-                }
-                if rec == n {
-                    return Err(LrfError::parse(
-                        file,
-                        l,
-                        format!("more data lines than the header's {n} points"),
-                    ));
-                }
-                let w: Vec<&str> = s.split_whitespace().collect();
-                if w.len() != tokens {
-                    return Err(LrfError::parse(
-                        file,
-                        l,
-                        format!("expected {tokens} values, found {}", w.len()),
-                    ));
-                }
-                let mut p = [0.0; 3];
-                for (j, &fi) in xyz.iter().enumerate() {
-                    let t: usize = fields[..fi].iter().map(|f| f.count).sum();
-                    p[j] = w[t].parse::<f64>().map_err(|_| {
-                        LrfError::parse(
-                            file,
-                            l,
-                            format!("{}: expected a number, found {:?}", fields[fi].name, w[t]),
-                        )
-                    })?;
-                }
-                push(l, p)?;
-                rec += 1;
-            }
-            if rec != n {
-                return Err(LrfError::parse(
+        ));
+    }
+    let mut rec = 0;
+    let mut l = data_line;
+    for line in body.split(|&b| b == b'\n') {
+        l += 1;
+        let s =
+            std::str::from_utf8(line).map_err(|_| LrfError::parse(file, l, "not UTF-8 text"))?;
+        let s = s.split('#').next().unwrap_or("").trim();
+        if s.is_empty() {
+            continue;
+        }
+        if rec == n {
+            return Err(LrfError::parse(
+                file,
+                l,
+                format!("more data lines than the header's {n} points"),
+            ));
+        }
+        let w: Vec<&str> = s.split_whitespace().collect();
+        if w.len() != tokens {
+            return Err(LrfError::parse(
+                file,
+                l,
+                format!("expected {tokens} values, found {}", w.len()),
+            ));
+        }
+        let mut p = [0.0; 3];
+        for (j, &fi) in h.xyz.iter().enumerate() {
+            let t: usize = h.fields[..fi].iter().map(|f| f.count).sum();
+            p[j] = w[t].parse::<f64>().map_err(|_| {
+                LrfError::parse(
                     file,
                     l,
-                    format!("file ends after {rec} of {n} points"),
-                ));
-            }
+                    format!("{}: expected a number, found {:?}", h.fields[fi].name, w[t]),
+                )
+            })?;
         }
-        Data::Binary => {
-            let total = n
-                .checked_mul(stride)
-                .ok_or_else(|| too_short("more than memory can hold"))?;
-            if body.len() < total {
-                return Err(too_short(&format!("{total} bytes")));
-            }
-            if body.len() > total {
-                return Err(LrfError::parse(
-                    file,
-                    data_line,
-                    format!(
-                        "{} bytes after the {n} points of the header",
-                        body.len() - total
-                    ),
-                ));
-            }
-            for rec in 0..n {
-                let r = &body[rec * stride..(rec + 1) * stride];
-                let mut p = [0.0; 3];
-                for (j, &fi) in xyz.iter().enumerate() {
-                    p[j] = float(&r[offsets[fi]..], fields[fi].size);
-                }
-                push(rec + 1, p)?;
-            }
-        }
-        Data::Compressed => {
-            let total = n
-                .checked_mul(stride)
-                .ok_or_else(|| too_short("more than memory can hold"))?;
-            let (Some(cs), Some(us)) = (u32_at(body, 0), u32_at(body, 4)) else {
-                return Err(LrfError::parse(
-                    file,
-                    data_line,
-                    "binary_compressed data lacks its two sizes",
-                ));
-            };
-            let (cs, us) = (cs as usize, us as usize);
-            if us != total {
-                return Err(LrfError::parse(
-                    file,
-                    data_line,
-                    format!("uncompressed size {us} bytes, the header's {n} points of {stride} bytes make {total}"),
-                ));
-            }
-            if cs != body.len() - 8 {
-                return Err(LrfError::parse(
-                    file,
-                    data_line,
-                    format!(
-                        "compressed size {cs} bytes, the file holds {} after the header",
-                        body.len() - 8
-                    ),
-                ));
-            }
-            if total > cs.saturating_mul(crate::lzf::MAX_RATIO) {
-                return Err(too_short(&format!(
-                    "{total} bytes, more than {cs} compressed bytes can hold"
-                )));
-            }
-            let raw = crate::lzf::decompress(&body[8..], total)
-                .map_err(|e| LrfError::parse(file, data_line, e))?;
-            for rec in 0..n {
-                let mut p = [0.0; 3];
-                for (j, &fi) in xyz.iter().enumerate() {
-                    let f = &fields[fi];
-                    let at = offsets[fi] * n + rec * f.size * f.count;
-                    p[j] = float(&raw[at..], f.size);
-                }
-                push(rec + 1, p)?;
-            }
-        }
+        out.push(l, p)?;
+        rec += 1;
     }
-    Ok(Cloud::from_points(pts))
+    if rec != n {
+        return Err(LrfError::parse(
+            file,
+            l,
+            format!("file ends after {rec} of {n} points"),
+        ));
+    }
+    Ok(())
+}
+
+/// `DATA binary`: `n` little-endian records of `stride` bytes, nothing after.
+fn decode_binary(body: &[u8], h: &Header, file: &str, out: &mut Points) -> Result<()> {
+    let (n, stride) = (h.n, h.stride);
+    let total = n
+        .checked_mul(stride)
+        .ok_or_else(|| h.too_short(body, "more than memory can hold", file))?;
+    if body.len() < total {
+        return Err(h.too_short(body, &format!("{total} bytes"), file));
+    }
+    if body.len() > total {
+        return Err(LrfError::parse(
+            file,
+            h.data_line,
+            format!(
+                "{} bytes after the {n} points of the header",
+                body.len() - total
+            ),
+        ));
+    }
+    for rec in 0..n {
+        let r = &body[rec * stride..(rec + 1) * stride];
+        let mut p = [0.0; 3];
+        for (j, &fi) in h.xyz.iter().enumerate() {
+            p[j] = float(&r[h.offsets[fi]..], h.fields[fi].size);
+        }
+        out.push(rec + 1, p)?;
+    }
+    Ok(())
+}
+
+/// `DATA binary_compressed`: the two sizes, then LZF data that decompress to the fields one
+/// after the other.
+fn decode_compressed(body: &[u8], h: &Header, file: &str, out: &mut Points) -> Result<()> {
+    let (n, stride, data_line) = (h.n, h.stride, h.data_line);
+    let total = n
+        .checked_mul(stride)
+        .ok_or_else(|| h.too_short(body, "more than memory can hold", file))?;
+    let (Some(cs), Some(us)) = (u32_at(body, 0), u32_at(body, 4)) else {
+        return Err(LrfError::parse(
+            file,
+            data_line,
+            "binary_compressed data lacks its two sizes",
+        ));
+    };
+    let (cs, us) = (cs as usize, us as usize);
+    if us != total {
+        return Err(LrfError::parse(
+            file,
+            data_line,
+            format!("uncompressed size {us} bytes, the header's {n} points of {stride} bytes make {total}"),
+        ));
+    }
+    if cs != body.len() - 8 {
+        return Err(LrfError::parse(
+            file,
+            data_line,
+            format!(
+                "compressed size {cs} bytes, the file holds {} after the header",
+                body.len() - 8
+            ),
+        ));
+    }
+    if total > cs.saturating_mul(crate::lzf::MAX_RATIO) {
+        return Err(h.too_short(
+            body,
+            &format!("{total} bytes, more than {cs} compressed bytes can hold"),
+            file,
+        ));
+    }
+    let raw = crate::lzf::decompress(&body[8..], total)
+        .map_err(|e| LrfError::parse(file, data_line, e))?;
+    for rec in 0..n {
+        let mut p = [0.0; 3];
+        for (j, &fi) in h.xyz.iter().enumerate() {
+            let f = &h.fields[fi];
+            let at = h.offsets[fi] * n + rec * f.size * f.count;
+            p[j] = float(&raw[at..], f.size);
+        }
+        out.push(rec + 1, p)?;
+    }
+    Ok(())
 }
 
 fn u32_at(b: &[u8], at: usize) -> Option<u32> {

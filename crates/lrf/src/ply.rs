@@ -108,6 +108,26 @@ pub fn read_ply<R: BufRead>(mut input: R, file: &str) -> Result<Cloud> {
         return Err(LrfError::parse(file, 1, "expected `ply` as the first line"));
     }
     let (format, elements) = read_header(&mut input, file, &mut line_no)?;
+    let (vi, xyz) = vertex_coordinates(&elements, file, line_no)?;
+    let pts = read_body(&mut input, format, &elements, (vi, xyz), file, &mut line_no)?;
+    let last = elements.last().expect("the vertex element at least");
+    check_nothing_after(&mut input, format, last, file, &mut line_no)?;
+    if pts.is_empty() {
+        return Err(LrfError::Empty {
+            file: file.into(),
+            msg: "no vertices".into(),
+        });
+    }
+    Ok(Cloud::from_points(pts))
+}
+
+/// The index of the `vertex` element and of its `x`, `y`, `z` properties (numbers, not
+/// lists).
+fn vertex_coordinates(
+    elements: &[Element],
+    file: &str,
+    line_no: usize,
+) -> Result<(usize, [usize; 3])> {
     let Some(vi) = elements.iter().position(|e| e.name == "vertex") else {
         return Err(LrfError::parse(
             file,
@@ -133,72 +153,110 @@ pub fn read_ply<R: BufRead>(mut input: R, file: &str) -> Result<Cloud> {
             ));
         }
     }
-    let mut pts = Vec::with_capacity(vertex.count.min(1 << 24));
+    Ok((vi, [ix, iy, iz]))
+}
+
+/// Every record of every element in the header's order, keeping the vertices' positions
+/// (`vertex`: the vertex element's index and its `x`, `y`, `z` properties').
+fn read_body<R: BufRead>(
+    input: &mut R,
+    format: Format,
+    elements: &[Element],
+    vertex: (usize, [usize; 3]),
+    file: &str,
+    line_no: &mut usize,
+) -> Result<Vec<Vector3<f64>>> {
+    let (vi, [ix, iy, iz]) = vertex;
+    let mut pts = Vec::with_capacity(elements[vi].count.min(1 << 24));
     let mut record = Vec::new();
     for (e, el) in elements.iter().enumerate() {
         for k in 0..el.count {
-            match format {
-                Format::Ascii => {
-                    let l = next_line(&mut input, file, &mut line_no)
-                        .map_err(|_| LrfError::parse(file, line_no, ends_after(k, el)))?;
-                    ascii_record(&l, el, &mut record)
-                        .map_err(|m| LrfError::parse(file, line_no, m))?;
-                }
-                f => {
-                    binary_record(&mut input, el, f == Format::BinBe, &mut record).map_err(|m| {
-                        match m {
-                            None => LrfError::parse(
-                                file,
-                                k + 1,
-                                format!(
-                                    "binary {} {} of {}: file ends early",
-                                    el.name,
-                                    k + 1,
-                                    el.count
-                                ),
-                            ),
-                            Some(m) => LrfError::parse(
-                                file,
-                                k + 1,
-                                format!("binary {} {}: {m}", el.name, k + 1),
-                            ),
-                        }
-                    })?
-                }
-            }
+            read_record(input, format, el, k, &mut record, file, line_no)?;
             if e == vi {
                 let p = Vector3::new(record[ix], record[iy], record[iz]);
-                if let Some(a) = (0..3).find(|&a| !(p[a].abs() <= MAX_COORDINATE_MM)) {
-                    let n = ["x", "y", "z"][a];
-                    let at = if format == Format::Ascii {
-                        line_no
-                    } else {
-                        k + 1
-                    };
-                    return Err(LrfError::parse(
-                        file,
-                        at,
-                        if p[a].is_finite() {
-                            format!(
-                                "{n}: {:e} mm is beyond ±{MAX_COORDINATE_MM:e} mm (10 km)",
-                                p[a]
-                            )
-                        } else {
-                            format!("{n}: not a finite number within ±{MAX_COORDINATE_MM:e} mm")
-                        },
-                    ));
-                }
+                let at = if format == Format::Ascii {
+                    *line_no
+                } else {
+                    k + 1
+                };
+                check_position(&p, file, at)?;
                 pts.push(p);
             }
         }
     }
-    let last = elements.last().expect("the vertex element at least");
+    Ok(pts)
+}
+
+/// Record `k` of element `el` into `record`, in the file's format; errors name the line
+/// (ascii) or the record (binary).
+fn read_record<R: BufRead>(
+    input: &mut R,
+    format: Format,
+    el: &Element,
+    k: usize,
+    record: &mut Vec<f64>,
+    file: &str,
+    line_no: &mut usize,
+) -> Result<()> {
+    match format {
+        Format::Ascii => {
+            let l = next_line(input, file, line_no)
+                .map_err(|_| LrfError::parse(file, *line_no, ends_after(k, el)))?;
+            ascii_record(&l, el, record).map_err(|m| LrfError::parse(file, *line_no, m))?;
+        }
+        f => binary_record(input, el, f == Format::BinBe, record).map_err(|m| match m {
+            None => LrfError::parse(
+                file,
+                k + 1,
+                format!(
+                    "binary {} {} of {}: file ends early",
+                    el.name,
+                    k + 1,
+                    el.count
+                ),
+            ),
+            Some(m) => LrfError::parse(file, k + 1, format!("binary {} {}: {m}", el.name, k + 1)),
+        })?,
+    }
+    Ok(())
+}
+
+/// Refuses a vertex with a coordinate beyond ±[`MAX_COORDINATE_MM`] or not finite; `at`
+/// is its line (ascii) or record (binary).
+fn check_position(p: &Vector3<f64>, file: &str, at: usize) -> Result<()> {
+    if let Some(a) = (0..3).find(|&a| !(p[a].abs() <= MAX_COORDINATE_MM)) {
+        let n = ["x", "y", "z"][a];
+        return Err(LrfError::parse(
+            file,
+            at,
+            if p[a].is_finite() {
+                format!(
+                    "{n}: {:e} mm is beyond ±{MAX_COORDINATE_MM:e} mm (10 km)",
+                    p[a]
+                )
+            } else {
+                format!("{n}: not a finite number within ±{MAX_COORDINATE_MM:e} mm")
+            },
+        ));
+    }
+    Ok(())
+}
+
+/// Refuses data after the `last` element: an ascii file may end in blank lines only, a
+/// binary one not a byte more.
+fn check_nothing_after<R: BufRead>(
+    input: &mut R,
+    format: Format,
+    last: &Element,
+    file: &str,
+    line_no: &mut usize,
+) -> Result<()> {
     if format == Format::Ascii {
         // Nothing but blank lines may follow the last element.
         let mut rest = String::new();
         loop {
             rest.clear();
-            line_no += 1;
+            *line_no += 1;
             let n = input
                 .read_line(&mut rest)
                 .map_err(|e| LrfError::io(file, e))?;
@@ -206,7 +264,7 @@ pub fn read_ply<R: BufRead>(mut input: R, file: &str) -> Result<Cloud> {
                 break;
             }
             if !rest.trim().is_empty() {
-                return Err(trailing(file, line_no, last));
+                return Err(trailing(file, *line_no, last));
             }
         }
     } else {
@@ -215,13 +273,7 @@ pub fn read_ply<R: BufRead>(mut input: R, file: &str) -> Result<Cloud> {
             return Err(trailing(file, last.count + 1, last));
         }
     }
-    if pts.is_empty() {
-        return Err(LrfError::Empty {
-            file: file.into(),
-            msg: "no vertices".into(),
-        });
-    }
-    Ok(Cloud::from_points(pts))
+    Ok(())
 }
 
 /// The next line of the header or an ascii body, trimmed (a byte-order mark before `ply`

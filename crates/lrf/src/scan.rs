@@ -326,21 +326,136 @@ fn parse_f64(file: &str, line: usize, what: &str, s: &str) -> Result<f64> {
     }
 }
 
+/// What the header's lines said so far.
+struct HeaderSoFar {
+    angle_min: Option<f64>,
+    increment: Option<f64>,
+    mm_per_unit: f64,
+    n_beams: Option<usize>,
+    version: Option<u32>,
+    sweep: bool,
+    intensities: bool,
+    time_increment_s: Option<f64>,
+    /// The line of the column line (`stamp_s,…`), 0 before it.
+    columns_line: usize,
+}
+
+impl HeaderSoFar {
+    fn new() -> Self {
+        HeaderSoFar {
+            angle_min: None,
+            increment: None,
+            mm_per_unit: 1.0,
+            n_beams: None,
+            version: None,
+            sweep: false,
+            intensities: false,
+            time_increment_s: None,
+            columns_line: 0,
+        }
+    }
+
+    /// A `# …` line: the version line, a `key=value` line, or a comment.
+    fn comment(&mut self, rest: &str, line_no: usize, file: &str) -> Result<()> {
+        if let Some(v) = rest.strip_prefix("pingcal-scan v") {
+            self.version = Some(match v.trim() {
+                "1" => 1,
+                "2" => 2,
+                "3" => 3,
+                v => {
+                    return Err(LrfError::parse(
+                        file,
+                        line_no,
+                        format!("pingcal-scan version {v:?}: this pingcal reads v1, v2 and v3"),
+                    ))
+                }
+            });
+            return Ok(());
+        }
+        if let Some((k, v)) = rest.split_once('=') {
+            self.key_value(k.trim(), v.trim(), line_no, file)?;
+        }
+        Ok(())
+    }
+
+    /// A `# key=value` line of the header; unknown keys are ignored.
+    fn key_value(&mut self, k: &str, v: &str, line_no: usize, file: &str) -> Result<()> {
+        match k {
+            "angle_min_deg" => {
+                let a = parse_f64(file, line_no, k, v)?;
+                if !(a.abs() <= MAX_SPAN_DEG) {
+                    return Err(LrfError::parse(
+                        file,
+                        line_no,
+                        format!(
+                            "angle_min_deg = {}: expected an angle within ±{MAX_SPAN_DEG}°",
+                            short(a)
+                        ),
+                    ));
+                }
+                self.angle_min = Some(a)
+            }
+            "angle_increment_deg" => {
+                let inc = parse_f64(file, line_no, k, v)?;
+                if inc == 0.0 {
+                    return Err(LrfError::parse(
+                        file,
+                        line_no,
+                        "angle_increment_deg must not be 0",
+                    ));
+                }
+                self.increment = Some(inc)
+            }
+            "time_increment_s" => {
+                let ti = parse_f64(file, line_no, k, v)?;
+                if ti < 0.0 {
+                    return Err(LrfError::parse(
+                        file,
+                        line_no,
+                        format!("time_increment_s: {ti} is negative"),
+                    ));
+                }
+                self.time_increment_s = Some(ti)
+            }
+            "range_unit" => {
+                self.mm_per_unit = match v {
+                    "mm" => 1.0,
+                    "cm" => 10.0,
+                    "m" => 1000.0,
+                    _ => {
+                        return Err(LrfError::parse(
+                            file,
+                            line_no,
+                            format!("range_unit: expected mm, cm or m, found {v:?}"),
+                        ))
+                    }
+                }
+            }
+            _ => {} // unknown keys are ignored (docs/lrf.md)
+        }
+        Ok(())
+    }
+
+    /// The column line `stamp_s,…`: the number of beams, sweeps and intensities.
+    fn columns(&mut self, t: &str, line_no: usize, file: &str) -> Result<()> {
+        let cols: Vec<&str> = t.split(',').map(str::trim).collect();
+        self.sweep = self.version.is_some_and(|v| v >= 2);
+        let (n, with_i) = column_line(&cols, self.sweep, self.version == Some(3))
+            .map_err(|e| LrfError::parse(file, line_no, e))?;
+        self.n_beams = Some(n);
+        self.intensities = with_i;
+        self.columns_line = line_no;
+        Ok(())
+    }
+}
+
 impl<R: BufRead> ScanReader<R> {
     /// Reads the header. `file` is the name used in error messages.
     pub fn new(mut input: R, file: &str) -> Result<Self> {
         let mut buf = Vec::new();
         let mut line_no = 0;
-        let mut angle_min = None;
-        let mut increment = None;
-        let mut mm_per_unit = 1.0;
-        let mut n_beams = None;
-        let mut version = None;
-        let mut sweep = false;
-        let mut intensities = false;
-        let mut time_increment_s = None;
+        let mut h = HeaderSoFar::new();
         let mut pending = None;
-        let mut columns_line = 0;
         loop {
             line_no += 1;
             let Some(line) = read_line(&mut input, &mut buf, file, line_no)? else {
@@ -351,93 +466,14 @@ impl<R: BufRead> ScanReader<R> {
                 continue;
             }
             if let Some(rest) = t.strip_prefix('#') {
-                let rest = rest.trim();
-                if let Some(v) = rest.strip_prefix("pingcal-scan v") {
-                    version = Some(match v.trim() {
-                        "1" => 1,
-                        "2" => 2,
-                        "3" => 3,
-                        v => {
-                            return Err(LrfError::parse(
-                                file,
-                                line_no,
-                                format!(
-                                    "pingcal-scan version {v:?}: this pingcal reads v1, v2 and v3"
-                                ),
-                            ))
-                        }
-                    });
-                    continue;
-                }
-                if let Some((k, v)) = rest.split_once('=') {
-                    let (k, v) = (k.trim(), v.trim());
-                    match k {
-                        "angle_min_deg" => {
-                            let a = parse_f64(file, line_no, k, v)?;
-                            if !(a.abs() <= MAX_SPAN_DEG) {
-                                return Err(LrfError::parse(
-                                    file,
-                                    line_no,
-                                    format!(
-                                        "angle_min_deg = {}: expected an angle within ±{MAX_SPAN_DEG}°",
-                                        short(a)
-                                    ),
-                                ));
-                            }
-                            angle_min = Some(a)
-                        }
-                        "angle_increment_deg" => {
-                            let inc = parse_f64(file, line_no, k, v)?;
-                            if inc == 0.0 {
-                                return Err(LrfError::parse(
-                                    file,
-                                    line_no,
-                                    "angle_increment_deg must not be 0",
-                                ));
-                            }
-                            increment = Some(inc)
-                        }
-                        "time_increment_s" => {
-                            let ti = parse_f64(file, line_no, k, v)?;
-                            if ti < 0.0 {
-                                return Err(LrfError::parse(
-                                    file,
-                                    line_no,
-                                    format!("time_increment_s: {ti} is negative"),
-                                ));
-                            }
-                            time_increment_s = Some(ti)
-                        }
-                        "range_unit" => {
-                            mm_per_unit = match v {
-                                "mm" => 1.0,
-                                "cm" => 10.0,
-                                "m" => 1000.0,
-                                _ => {
-                                    return Err(LrfError::parse(
-                                        file,
-                                        line_no,
-                                        format!("range_unit: expected mm, cm or m, found {v:?}"),
-                                    ))
-                                }
-                            }
-                        }
-                        _ => {} // unknown keys are ignored (docs/lrf.md)
-                    }
-                }
+                h.comment(rest.trim(), line_no, file)?;
                 continue;
             }
             if t.starts_with("stamp_s") {
-                let cols: Vec<&str> = t.split(',').map(str::trim).collect();
-                sweep = version.is_some_and(|v| v >= 2);
-                let (n, with_i) = column_line(&cols, sweep, version == Some(3))
-                    .map_err(|e| LrfError::parse(file, line_no, e))?;
-                n_beams = Some(n);
-                intensities = with_i;
-                columns_line = line_no;
+                h.columns(t, line_no, file)?;
                 continue;
             }
-            if version.is_some_and(|v| v >= 2) && n_beams.is_none() {
+            if h.version.is_some_and(|v| v >= 2) && h.n_beams.is_none() {
                 return Err(LrfError::parse(
                     file,
                     line_no,
@@ -447,6 +483,17 @@ impl<R: BufRead> ScanReader<R> {
             pending = Some((line_no, line));
             break;
         }
+        let HeaderSoFar {
+            angle_min,
+            increment,
+            mm_per_unit,
+            n_beams,
+            version: _,
+            sweep,
+            intensities,
+            time_increment_s,
+            columns_line,
+        } = h;
         let missing = |key: &str| LrfError::Empty {
             file: file.to_string(),
             msg: format!("header has no `# {key}=` line"),

@@ -623,11 +623,32 @@ fn fit_orth(
         });
     }
     let pts: Vec<Vector3<f64>> = rays.iter().map(|r| r.point()).collect();
-    let (mut c, mut rad) = match init {
+    let (c, rad) = orth_start(rays, &pts, radius, init);
+    let (c, rad, used) = orth_passes(rays, &pts, radius, (c, rad), opt)?;
+    if used.len() < n_par {
+        return Err(LrfError::TooFewPoints {
+            needed: n_par,
+            got: used.len(),
+            ids: "points left after outlier rejection".into(),
+        });
+    }
+    let est = orth_estimate(rays, &pts, (c, rad), used, n_par)?;
+    finish(rays, est, n_par)
+}
+
+/// The start of an orthogonal fit: `init`, else the centre from the rays for a fixed
+/// radius, else the algebraic fit (or a 19 mm ball's centre when it fails).
+fn orth_start(
+    rays: &[Ray],
+    pts: &[Vector3<f64>],
+    radius: Option<f64>,
+    init: Option<(Vector3<f64>, f64)>,
+) -> (Vector3<f64>, f64) {
+    let (c, mut rad) = match init {
         Some(i) => i,
         None => match radius {
             Some(r) => (initial_centre(rays, r), r),
-            None => fit_algebraic(&pts).unwrap_or_else(|_| {
+            None => fit_algebraic(pts).unwrap_or_else(|_| {
                 let r0 = 19.0;
                 (initial_centre(rays, r0), r0)
             }),
@@ -636,6 +657,19 @@ fn fit_orth(
     if let Some(r) = radius {
         rad = r;
     }
+    (c, rad)
+}
+
+/// Up to 8 passes of the fit on the points within `k·σ` of the last pass's sphere, until
+/// they no longer change: the centre, the radius and the points used.
+fn orth_passes(
+    rays: &[Ray],
+    pts: &[Vector3<f64>],
+    radius: Option<f64>,
+    (mut c, mut rad): (Vector3<f64>, f64),
+    opt: &FitOptions,
+) -> Result<(Vector3<f64>, f64, Vec<usize>)> {
+    let n_par = if radius.is_some() { 3 } else { 4 };
     let mut used: Vec<usize> = (0..rays.len()).collect();
     for _pass in 0..8 {
         if used.len() < n_par {
@@ -681,13 +715,18 @@ fn fit_orth(
         }
         used = new_used;
     }
-    if used.len() < n_par {
-        return Err(LrfError::TooFewPoints {
-            needed: n_par,
-            got: used.len(),
-            ids: "points left after outlier rejection".into(),
-        });
-    }
+    Ok((c, rad, used))
+}
+
+/// The estimate from the points `used`: the centre's covariance (and the radius's σ for a
+/// free radius) from the normal matrix, the residuals.
+fn orth_estimate(
+    rays: &[Ray],
+    pts: &[Vector3<f64>],
+    (c, rad): (Vector3<f64>, f64),
+    used: Vec<usize>,
+    n_par: usize,
+) -> Result<Estimate> {
     let mut n = DMatrix::<f64>::zeros(n_par, n_par);
     let mut res = Vec::with_capacity(used.len());
     for &i in &used {
@@ -732,7 +771,7 @@ fn fit_orth(
         used,
         residuals: res,
     };
-    finish(rays, est, n_par)
+    Ok(est)
 }
 
 /// Fixed-radius orthogonal-distance fit.

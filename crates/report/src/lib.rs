@@ -7,29 +7,32 @@
 //! Sections, in order (each with an `id` anchor listed in the table of contents; the
 //! verdict, when there is one, comes before them all):
 //!
-//! | id | heading | what it shows |
-//! |---|---|---|
-//! | `summary` | Summary | key → value summary lines |
-//! | `extrinsic` | Extrinsic calibration | per method: R, t (mm), ω φ κ (deg) with σ, or why the method failed |
-//! | `extrinsic_precision` | Extrinsic precision | σ of t and of the rotation per method as bars, the correlations of (θ, t) |
-//! | `checks` | Check points | the paper's Figure 7: check-point error per ball and method, mean lines, tables |
-//! | `images` | Image residuals | per image, magnified residual vectors (rejected points as red ×), RMS table |
-//! | `histogram` | Residual histogram | the image residual components with the normal density of their RMS |
-//! | `coverage` | Image coverage | per image, where its accepted points fell and how many cells of a 5 × 5 grid they hit |
-//! | `network` | Network | cameras and points in plan (X–Y) and elevation (X–Z), σ ellipses magnified |
-//! | `exterior` | Exterior orientation | per image: projection centre, ω φ κ, their σ |
-//! | `points` | Point precision | σX σY σZ of every point, their RMS, and the relative precision |
-//! | `distances` | Distances | measured and adjusted distances, the residual and its ratio to the a-priori σ |
-//! | `rig` | Stereo rig | the rig's relative orientation with σ |
-//! | `cloud` | LRF cloud | the LRF cloud in X–Y and X–Z with the fitted spheres at true scale |
-//! | `overlays` | LRF on the images | the LRF's points drawn on the photographs ([`overlay`]) |
-//! | `intrinsics` | Intrinsics | per camera: parameters, σ, free/fixed, high correlations |
-//! | `distortion` | Distortion profile | the radial distortion profile Δr(r) of every camera, to its sensor corner |
-//! | `opencv` | OpenCV parameters | every camera in OpenCV's pinhole model with (k1, k2, p1, p2, k3) |
-//! | `mount` | LRF mount and range | the joint adjustment's LRF mount and range parameters: value, σ, why any was held, the largest correlation with the extrinsic |
-//! | `rejected` | Rejected | what was rejected and why |
-//! | `warnings` | Warnings | warnings of the pipeline |
-//! | `steps` | Pipeline steps | the pipeline log (collapsible) |
+//! | id | heading | what it shows | drawn in |
+//! |---|---|---|---|
+//! | `summary` | Summary | key → value summary lines | `render/summary.rs` |
+//! | `extrinsic` | Extrinsic calibration | per method: R, t (mm), ω φ κ (deg) with σ, or why the method failed | `render/extrinsic.rs` |
+//! | `extrinsic_precision` | Extrinsic precision | σ of t and of the rotation per method as bars, the correlations of (θ, t) | `charts.rs` |
+//! | `checks` | Check points | the paper's Figure 7: check-point error per ball and method, mean lines, tables | `render/checks.rs` |
+//! | `images` | Image residuals | per image, magnified residual vectors (rejected points as red ×), RMS table | `render/images.rs` |
+//! | `histogram` | Residual histogram | the image residual components with the normal density of their RMS | `charts.rs` |
+//! | `coverage` | Image coverage | per image, where its accepted points fell and how many cells of a 5 × 5 grid they hit | `charts.rs` |
+//! | `network` | Network | cameras and points in plan (X–Y) and elevation (X–Z), σ ellipses magnified | `render/network.rs` |
+//! | `exterior` | Exterior orientation | per image: projection centre, ω φ κ, their σ | `tables.rs` |
+//! | `points` | Point precision | σX σY σZ of every point, their RMS, and the relative precision | `tables.rs` |
+//! | `distances` | Distances | measured and adjusted distances, the residual and its ratio to the a-priori σ | `tables.rs` |
+//! | `rig` | Stereo rig | the rig's relative orientation with σ | `tables.rs` |
+//! | `cloud` | LRF cloud | the LRF cloud in X–Y and X–Z with the fitted spheres at true scale | `render/cloud.rs` |
+//! | `overlays` | LRF on the images | the LRF's points drawn on the photographs ([`overlay`]) | `overlay_section.rs` |
+//! | `intrinsics` | Intrinsics | per camera: parameters, σ, free/fixed, high correlations | `render/intrinsics.rs` |
+//! | `distortion` | Distortion profile | the radial distortion profile Δr(r) of every camera, to its sensor corner | `charts.rs` |
+//! | `opencv` | OpenCV parameters | every camera in OpenCV's pinhole model with (k1, k2, p1, p2, k3) | `tables.rs` |
+//! | `mount` | LRF mount and range | the joint adjustment's LRF mount and range parameters: value, σ, why any was held, the largest correlation with the extrinsic | `render/mount.rs` |
+//! | `rejected` | Rejected | what was rejected and why | `render/rejected.rs` |
+//! | `warnings` | Warnings | warnings of the pipeline | `render/warnings.rs` |
+//! | `steps` | Pipeline steps | the pipeline log (collapsible) | `render/steps.rs` |
+//!
+//! The document's head, the verdict and the table of contents are `render/mod.rs`; each
+//! section's module says in its doc what the section shows.
 //!
 //! Every user string is HTML-escaped ([`escape`]); non-finite numbers print as "—" and never
 //! reach an SVG coordinate; the output is deterministic (no timestamps, no hash-map order).

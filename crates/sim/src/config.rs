@@ -1101,7 +1101,7 @@ fn validate_lrf_ranges(l: &LrfConfig) -> Result<(), ConfigError> {
     Ok(())
 }
 
-/// `[lrf]`: the servo sweep, the extrinsic and the mount.
+/// `[lrf]`: the servo sweep (then the extrinsic and the mount).
 fn validate_lrf_servo(l: &LrfConfig) -> Result<(), ConfigError> {
     pos("lrf.servo_step_deg", l.servo_step_deg)?;
     pos("lrf.servo_resolution_deg", l.servo_resolution_deg)?;
@@ -1159,6 +1159,12 @@ fn validate_lrf_servo(l: &LrfConfig) -> Result<(), ConfigError> {
             "more than 100000 scans",
         ));
     }
+    validate_lrf_mount(l)
+}
+
+/// `[lrf]`: the extrinsic, and the mount and range errors (zero unless `mount_errors`,
+/// within the bounds of a mount error).
+fn validate_lrf_mount(l: &LrfConfig) -> Result<(), ConfigError> {
     finite3("lrf.extrinsic_opk_deg", l.extrinsic_opk_deg)?;
     finite3("lrf.extrinsic_t_mm", l.extrinsic_t_mm)?;
     if !l.mount_errors {

@@ -1,4 +1,3 @@
-#![warn(missing_docs)]
 //! # pingcal-sim: simulator of the paper's test field and sensors
 //!
 //! Room corner with targets and ping-pong balls, a stereo camera and a rotating LRF,
@@ -141,8 +140,8 @@ impl Simulation {
         })
     }
 
-    /// `photogrammetric_from_world`: the photogrammetric frame is the main station's left
-    /// camera (`x_p = T · x_world`).
+    /// `photogrammetric_from_world`: world → photogrammetric frame (the main station's left
+    /// camera, whose `left_from_world` it is).
     pub fn photogrammetric_from_world(&self) -> Rigid3 {
         self.stations
             .iter()

@@ -69,9 +69,10 @@ pub fn extrinsic(cfg: &LrfConfig) -> Rigid3 {
     }
 }
 
-/// `lrf_from_world`, given the main left camera's `camera_from_world`.
-pub fn lrf_from_world(main_left: &Rigid3, cfg: &LrfConfig) -> Rigid3 {
-    extrinsic(cfg).inverse().compose(main_left)
+/// `lrf_from_world`, given the main left camera's `left_from_world`:
+/// `lrf_from_left · left_from_world`.
+pub fn lrf_from_world(left_from_world: &Rigid3, cfg: &LrfConfig) -> Rigid3 {
+    extrinsic(cfg).inverse().compose(left_from_world)
 }
 
 /// Simulates the whole servo sweep; `scene_lrf` must already be in the LRF frame

@@ -127,11 +127,11 @@ pub struct TruthImage {
     pub camera: String,
     /// Station id.
     pub station: String,
-    /// `camera_from_photogrammetric` (`x_cam = T · x_p`); read also under its old name
-    /// `photogrammetric_to_camera`.
+    /// `camera_from_photogrammetric`: photogrammetric frame → this camera (read also as
+    /// `photogrammetric_to_camera`, its name before).
     #[serde(alias = "photogrammetric_to_camera")]
     pub camera_from_photogrammetric: PoseJson,
-    /// `camera_from_world`; read also under its old name `world_to_camera`.
+    /// `camera_from_world`: world → this camera (read also as `world_to_camera`).
     #[serde(alias = "world_to_camera")]
     pub camera_from_world: PoseJson,
     /// Projection centre in the photogrammetric frame (mm).
@@ -204,10 +204,11 @@ pub struct Truth {
     pub conventions: Vec<String>,
     /// The extrinsic, `p_camera = R·p_lrf + t` (results.json convention).
     pub extrinsic: PoseJson,
-    /// `photogrammetric_from_world`; read also under its old name `world_to_photogrammetric`.
+    /// `photogrammetric_from_world`: world → photogrammetric frame (read also as
+    /// `world_to_photogrammetric`, its name before).
     #[serde(alias = "world_to_photogrammetric")]
     pub photogrammetric_from_world: PoseJson,
-    /// `lrf_from_world`; read also under its old name `world_to_lrf`.
+    /// `lrf_from_world`: world → LRF frame (read also as `world_to_lrf`).
     #[serde(alias = "world_to_lrf")]
     pub lrf_from_world: PoseJson,
     /// LRF mount offset (rotating frame), mm.
@@ -222,8 +223,8 @@ pub struct Truth {
     pub lrf_servo_time_offset_s: f64,
     /// True intrinsics.
     pub cameras: Vec<TruthCamera>,
-    /// The stereo rig, `right_from_left` (`x_right = T · x_left`); read also under its old
-    /// name `left_to_right`.
+    /// `right_from_left`: left camera frame → right camera frame (read also as
+    /// `left_to_right`).
     #[serde(alias = "left_to_right")]
     pub right_from_left: PoseJson,
     /// Image poses.
@@ -304,21 +305,22 @@ fn image_file(st: &str, cam: &str) -> String {
 
 /// The ground truth of a simulation.
 pub fn truth_of(sim: &Simulation) -> Truth {
-    let w2p = sim.photogrammetric_from_world();
-    let w2l = sim.lrf_from_world;
+    let photogrammetric_from_world = sim.photogrammetric_from_world();
+    let lrf_from_world = sim.lrf_from_world;
     let ext = crate::lrf::extrinsic(&sim.config.lrf);
     let mut images = Vec::new();
     for st in &sim.stations {
         for (ci, cam) in sim.rig.cameras.iter().enumerate() {
-            let w2c = st.camera_pose(&sim.rig, ci);
-            let p2c = w2c.compose(&w2p.inverse());
+            let camera_from_world = st.camera_pose(&sim.rig, ci);
+            let camera_from_photogrammetric =
+                camera_from_world.compose(&photogrammetric_from_world.inverse());
             images.push(TruthImage {
                 file: image_file(&st.id, &cam.id),
                 camera: cam.id.clone(),
                 station: st.id.clone(),
-                camera_from_photogrammetric: PoseJson::from_pose(&p2c),
-                camera_from_world: PoseJson::from_pose(&w2c),
-                centre_photogrammetric_mm: arr(&p2c.centre()),
+                camera_from_photogrammetric: PoseJson::from_pose(&camera_from_photogrammetric),
+                camera_from_world: PoseJson::from_pose(&camera_from_world),
+                centre_photogrammetric_mm: arr(&camera_from_photogrammetric.centre()),
             });
         }
     }
@@ -336,8 +338,8 @@ pub fn truth_of(sim: &Simulation) -> Truth {
             "world: origin at the room corner, X along wall1, Y along wall2, Z up".into(),
         ],
         extrinsic: PoseJson::from_pose(&ext),
-        photogrammetric_from_world: PoseJson::from_pose(&w2p),
-        lrf_from_world: PoseJson::from_pose(&w2l),
+        photogrammetric_from_world: PoseJson::from_pose(&photogrammetric_from_world),
+        lrf_from_world: PoseJson::from_pose(&lrf_from_world),
         lrf_mount_offset_mm: sim.config.lrf.mount().offset_mm,
         lrf_mount: sim.config.lrf.mount(),
         lrf_servo_time_offset_s: sim.config.lrf.servo_time_offset_s,
@@ -367,10 +369,10 @@ pub fn truth_of(sim: &Simulation) -> Truth {
                 kind: if t.code.is_some() { "coded" } else { "plain" }.into(),
                 code: t.code,
                 surface: sim.scene.surfaces[t.surface].name.clone(),
-                photogrammetric_mm: arr(&w2p.transform(&t.centre)),
-                lrf_mm: arr(&w2l.transform(&t.centre)),
+                photogrammetric_mm: arr(&photogrammetric_from_world.transform(&t.centre)),
+                lrf_mm: arr(&lrf_from_world.transform(&t.centre)),
                 world_mm: arr(&t.centre),
-                normal_photogrammetric: arr(&(w2p.rotation * t.normal)),
+                normal_photogrammetric: arr(&(photogrammetric_from_world.rotation * t.normal)),
             })
             .collect(),
         balls: sim
@@ -381,8 +383,8 @@ pub fn truth_of(sim: &Simulation) -> Truth {
                 id: format!("B{}", b.id),
                 diameter_mm: 2.0 * b.radius,
                 check: checks.contains(&b.id),
-                photogrammetric_mm: arr(&w2p.transform(&b.centre)),
-                lrf_mm: arr(&w2l.transform(&b.centre)),
+                photogrammetric_mm: arr(&photogrammetric_from_world.transform(&b.centre)),
+                lrf_mm: arr(&lrf_from_world.transform(&b.centre)),
                 world_mm: arr(&b.centre),
             })
             .collect(),
@@ -650,5 +652,60 @@ mod tests {
             .map(|p| p.as_str())
             .collect();
         assert_eq!(names, pingcal_ba::camera::PHOTOGRAMMETRIC_PARAMS);
+    }
+
+    /// truth.json's poses are written frame-named (`lrf_from_world`, …), and a file written
+    /// before (`world_to_lrf`, …) still reads, to the same values.
+    #[test]
+    fn truth_keys_are_frame_named_and_the_old_ones_still_read() {
+        let pose = |t: f64| {
+            format!(
+                r#"{{"rotation": [[1,0,0],[0,1,0],[0,0,1]], "translation_mm": [{t},2,3], "opk_deg": [0,0,0]}}"#
+            )
+        };
+        let old = format!(
+            r#"{{"seed": 1, "generator": "g", "conventions": [], "extrinsic": {},
+            "world_to_photogrammetric": {}, "world_to_lrf": {}, "lrf_mount_offset_mm": [0,0,0],
+            "cameras": [], "left_to_right": {},
+            "images": [{{"file": "f", "camera": "c", "station": "s",
+                "photogrammetric_to_camera": {}, "world_to_camera": {},
+                "centre_photogrammetric_mm": [0,0,0]}}],
+            "targets": [], "balls": [], "distances": [], "surfaces": []}}"#,
+            pose(1.0),
+            pose(2.0),
+            pose(3.0),
+            pose(4.0),
+            pose(5.0),
+            pose(6.0)
+        );
+        let t: super::Truth = serde_json::from_str(&old).unwrap();
+        assert_eq!(t.photogrammetric_from_world.translation_mm[0], 2.0);
+        assert_eq!(t.lrf_from_world.translation_mm[0], 3.0);
+        assert_eq!(t.right_from_left.translation_mm[0], 4.0);
+        assert_eq!(
+            t.images[0].camera_from_photogrammetric.translation_mm[0],
+            5.0
+        );
+        assert_eq!(t.images[0].camera_from_world.translation_mm[0], 6.0);
+        let written = serde_json::to_string(&t).unwrap();
+        for key in [
+            "photogrammetric_from_world",
+            "lrf_from_world",
+            "right_from_left",
+            "camera_from_photogrammetric",
+            "camera_from_world",
+        ] {
+            assert!(written.contains(&format!("\"{key}\"")), "{key} not written");
+        }
+        for key in [
+            "world_to_photogrammetric",
+            "world_to_lrf",
+            "left_to_right",
+            "photogrammetric_to_camera",
+            "world_to_camera",
+        ] {
+            assert!(!written.contains(key), "{key} still written");
+        }
+        assert_eq!(serde_json::from_str::<super::Truth>(&written).unwrap(), t);
     }
 }

@@ -189,119 +189,124 @@ pub fn parse_camera(text: &str, file: &str) -> Result<DbatCamera, DbatError> {
         line: e.pos().row as usize,
         message: format!("not DBAT camera XML: {}", super::printable(&e.to_string())),
     })?;
-    let line_of = |n: roxmltree::Node| doc.text_pos_at(n.range().start).row as usize;
-    let err = |n: roxmltree::Node, message: String| DbatError::Line {
-        file: file.into(),
-        line: line_of(n),
-        message,
-    };
-    let root = doc.root_element();
-    if root.tag_name().name() != "document" {
-        return Err(err(
-            root,
-            format!(
-                "the root element is <{}>, DBAT's is <document>",
-                super::printable(root.tag_name().name())
-            ),
-        ));
+    let xml = Xml { doc: &doc, file };
+    let camera = xml.the_camera()?;
+    let fields = CameraFields::read(&xml, camera)?;
+    fields.check_id()?;
+    let unit = fields.unit()?;
+    let (n_image, s_image) = fields.required("image")?;
+    let [w, h] = xml.pair(n_image, "image", s_image)?;
+    let width = xml.side(n_image, "image width", &w)?;
+    let height = xml.side(n_image, "image height", &h)?;
+    let pitch_y = fields.pixel_size(unit, s_image, width, height)?;
+    let (n_focal, s_focal) = fields.required("focal")?;
+    let c_mm = xml.positive(n_focal, "focal", s_focal)? * unit;
+    Ok(DbatCamera {
+        name: fields.name()?,
+        width,
+        height,
+        pixel_size_mm: pitch_y,
+        c_mm,
+    })
+}
+
+/// A DBAT camera XML being read: its tree and its name, for errors that name the line.
+struct Xml<'a, 'i> {
+    doc: &'a roxmltree::Document<'i>,
+    file: &'a str,
+}
+
+/// The first child element of `n` named `name`.
+fn child<'a, 'i>(n: roxmltree::Node<'a, 'i>, name: &str) -> Option<roxmltree::Node<'a, 'i>> {
+    n.children()
+        .find(|c| c.is_element() && c.tag_name().name() == name)
+}
+
+impl<'a, 'i> Xml<'a, 'i> {
+    fn line_of(&self, n: roxmltree::Node) -> usize {
+        self.doc.text_pos_at(n.range().start).row as usize
     }
-    fn child<'a, 'i>(n: roxmltree::Node<'a, 'i>, name: &str) -> Option<roxmltree::Node<'a, 'i>> {
-        n.children()
-            .find(|c| c.is_element() && c.tag_name().name() == name)
+
+    fn err(&self, n: roxmltree::Node, message: String) -> DbatError {
+        DbatError::Line {
+            file: self.file.into(),
+            line: self.line_of(n),
+            message,
+        }
     }
-    let cameras = match (child(root, "cameras"), child(root, "input")) {
-        (Some(c), _) => c,
-        (None, Some(input)) => child(input, "cameras").ok_or_else(|| {
-            err(
-                input,
-                "the DBAT script has no <cameras> in its <input>".into(),
-            )
-        })?,
-        (None, None) => {
-            return Err(err(
+
+    /// The one `<camera>` of a camera file's `<cameras>`, or of a script's
+    /// `<input><cameras>`.
+    fn the_camera(&self) -> Result<roxmltree::Node<'a, 'i>, DbatError> {
+        let root = self.doc.root_element();
+        if root.tag_name().name() != "document" {
+            return Err(self.err(
                 root,
-                "no <cameras> (neither a DBAT camera file nor a DBAT script)".into(),
-            ))
+                format!(
+                    "the root element is <{}>, DBAT's is <document>",
+                    super::printable(root.tag_name().name())
+                ),
+            ));
         }
-    };
-    if let Some(f) = child(cameras, "file") {
-        return Err(err(
-            f,
-            format!(
-                "the cameras are in the file '{}': give that file",
-                super::printable(f.text().unwrap_or("").trim())
-            ),
-        ));
-    }
-    let all: Vec<roxmltree::Node> = cameras
-        .children()
-        .filter(|c| c.is_element() && c.tag_name().name() == "camera")
-        .collect();
-    let camera = match all.as_slice() {
-        [] => {
-            return Err(DbatError::Empty {
-                file: file.into(),
+        let cameras = match (child(root, "cameras"), child(root, "input")) {
+            (Some(c), _) => c,
+            (None, Some(input)) => child(input, "cameras").ok_or_else(|| {
+                self.err(
+                    input,
+                    "the DBAT script has no <cameras> in its <input>".into(),
+                )
+            })?,
+            (None, None) => {
+                return Err(self.err(
+                    root,
+                    "no <cameras> (neither a DBAT camera file nor a DBAT script)".into(),
+                ))
+            }
+        };
+        if let Some(f) = child(cameras, "file") {
+            return Err(self.err(
+                f,
+                format!(
+                    "the cameras are in the file '{}': give that file",
+                    super::printable(f.text().unwrap_or("").trim())
+                ),
+            ));
+        }
+        let all: Vec<roxmltree::Node> = cameras
+            .children()
+            .filter(|c| c.is_element() && c.tag_name().name() == "camera")
+            .collect();
+        match all.as_slice() {
+            [] => Err(DbatError::Empty {
+                file: self.file.into(),
                 what: "<camera>",
-            })
-        }
-        [one] => *one,
-        [_, second, ..] => {
-            return Err(err(
+            }),
+            [one] => Ok(*one),
+            [_, second, ..] => Err(self.err(
                 *second,
                 format!(
                     "{} cameras: pingcal's DBAT reader takes one (DBAT's mark points do not say which camera took an image)",
                     all.len()
                 ),
-            ))
-        }
-    };
-    let mut fields: BTreeMap<&str, roxmltree::Node> = BTreeMap::new();
-    for e in camera.children().filter(|c| c.is_element()) {
-        let name = e.tag_name().name();
-        if !CAMERA_FIELDS.contains(&name) {
-            return Err(err(
-                e,
-                format!(
-                    "unknown camera element <{}> (DBAT's are {})",
-                    super::printable(name),
-                    CAMERA_FIELDS.join(", ")
-                ),
-            ));
-        }
-        if let Some(first) = fields.insert(name, e) {
-            return Err(err(
-                e,
-                format!(
-                    "<{name}> given twice in one camera (first on line {})",
-                    line_of(first)
-                ),
-            ));
+            )),
         }
     }
-    let value = |name: &str| -> Result<Option<(roxmltree::Node, &str)>, DbatError> {
-        let Some(n) = fields.get(name).copied() else {
-            return Ok(None);
-        };
-        if n.children().any(|c| c.is_element()) {
-            return Err(err(n, format!("<{name}> holds elements, not a value")));
-        }
-        Ok(Some((n, n.text().unwrap_or("").trim())))
-    };
-    let required = |name: &str| -> Result<(roxmltree::Node, &str), DbatError> {
-        value(name)?.ok_or_else(|| err(camera, format!("the camera has no <{name}>")))
-    };
-    let positive = |n: roxmltree::Node, what: &str, s: &str| -> Result<f64, DbatError> {
-        let v = number(file, line_of(n), what, s)?;
+
+    /// The number `s` of element `n`, positive.
+    fn positive(&self, n: roxmltree::Node, what: &str, s: &str) -> Result<f64, DbatError> {
+        let v = number(self.file, self.line_of(n), what, s)?;
         if !(v > 0.0) {
-            return Err(err(n, format!("{what} {v} must be positive")));
+            return Err(self.err(n, format!("{what} {v} must be positive")));
         }
         Ok(v)
-    };
-    let pair = |n: roxmltree::Node, name: &str, s: &str| -> Result<[String; 2], DbatError> {
+    }
+
+    /// `width,height` of element `n` (`<name>`), as text.
+    fn pair(&self, n: roxmltree::Node, name: &str, s: &str) -> Result<[String; 2], DbatError> {
         let parts: Vec<&str> = s.split(',').map(str::trim).collect();
         match parts.as_slice() {
             [a, b] => Ok([a.to_string(), b.to_string()]),
-            _ => Err(err(
+            _ => Err(self.err(
                 n,
                 format!(
                     "<{name}> '{}' is not two comma-separated values (width,height)",
@@ -309,11 +314,13 @@ pub fn parse_camera(text: &str, file: &str) -> Result<DbatCamera, DbatError> {
                 ),
             )),
         }
-    };
-    let side = |n: roxmltree::Node, what: &str, s: &str| -> Result<u32, DbatError> {
+    }
+
+    /// An image side `s` of element `n`, in pixels.
+    fn side(&self, n: roxmltree::Node, what: &str, s: &str) -> Result<u32, DbatError> {
         match s.parse::<u32>() {
             Ok(v) if (1..=MAX_IMAGE_SIDE).contains(&v) => Ok(v),
-            _ => Err(err(
+            _ => Err(self.err(
                 n,
                 format!(
                     "{what} '{}' is not a whole number of pixels in 1..={MAX_IMAGE_SIDE}",
@@ -321,82 +328,155 @@ pub fn parse_camera(text: &str, file: &str) -> Result<DbatCamera, DbatError> {
                 ),
             )),
         }
-    };
-    if let Some((n, s)) = value("id")? {
-        if s.parse::<u32>().is_err() {
-            return Err(err(
-                n,
+    }
+}
+
+/// The elements of one `<camera>` by name, each known to DBAT and given once.
+struct CameraFields<'x, 'a, 'i> {
+    xml: &'x Xml<'a, 'i>,
+    camera: roxmltree::Node<'a, 'i>,
+    fields: BTreeMap<&'i str, roxmltree::Node<'a, 'i>>,
+}
+
+impl<'x, 'a, 'i> CameraFields<'x, 'a, 'i> {
+    fn read(xml: &'x Xml<'a, 'i>, camera: roxmltree::Node<'a, 'i>) -> Result<Self, DbatError> {
+        let mut fields: BTreeMap<&str, roxmltree::Node> = BTreeMap::new();
+        for e in camera.children().filter(|c| c.is_element()) {
+            let name = e.tag_name().name();
+            if !CAMERA_FIELDS.contains(&name) {
+                return Err(xml.err(
+                    e,
+                    format!(
+                        "unknown camera element <{}> (DBAT's are {})",
+                        super::printable(name),
+                        CAMERA_FIELDS.join(", ")
+                    ),
+                ));
+            }
+            if let Some(first) = fields.insert(name, e) {
+                return Err(xml.err(
+                    e,
+                    format!(
+                        "<{name}> given twice in one camera (first on line {})",
+                        xml.line_of(first)
+                    ),
+                ));
+            }
+        }
+        Ok(CameraFields {
+            xml,
+            camera,
+            fields,
+        })
+    }
+
+    /// The element `name` and its text, trimmed, if the camera has it.
+    fn value(&self, name: &str) -> Result<Option<(roxmltree::Node<'a, 'i>, &'a str)>, DbatError> {
+        let Some(n) = self.fields.get(name).copied() else {
+            return Ok(None);
+        };
+        if n.children().any(|c| c.is_element()) {
+            return Err(self
+                .xml
+                .err(n, format!("<{name}> holds elements, not a value")));
+        }
+        Ok(Some((n, n.text().unwrap_or("").trim())))
+    }
+
+    fn required(&self, name: &str) -> Result<(roxmltree::Node<'a, 'i>, &'a str), DbatError> {
+        self.value(name)?.ok_or_else(|| {
+            self.xml
+                .err(self.camera, format!("the camera has no <{name}>"))
+        })
+    }
+
+    /// `<id>`, when given, is a whole number.
+    fn check_id(&self) -> Result<(), DbatError> {
+        if let Some((n, s)) = self.value("id")? {
+            if s.parse::<u32>().is_err() {
+                return Err(self.xml.err(
+                    n,
+                    format!(
+                        "camera <id> '{}' is not a whole number",
+                        super::printable(s)
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// Millimetres per camera unit (`<unit>`, default mm).
+    fn unit(&self) -> Result<f64, DbatError> {
+        Ok(match self.value("unit")? {
+            None => 1.0,
+            Some((n, s)) => unit_mm(s).ok_or_else(|| {
+                self.xml.err(
+                    n,
+                    format!(
+                        "camera unit '{}' is not one of mm, m, cm, um",
+                        super::printable(s)
+                    ),
+                )
+            })?,
+        })
+    }
+
+    /// The pixel's size in mm from `<sensor>` (and `<aspect>` for an `auto` width) over the
+    /// image's `width` × `height` (`s_image`, for the message); refused unless square.
+    fn pixel_size(
+        &self,
+        unit: f64,
+        s_image: &str,
+        width: u32,
+        height: u32,
+    ) -> Result<f64, DbatError> {
+        let xml = self.xml;
+        let (n_sensor, s_sensor) = self.required("sensor")?;
+        let [sw, sh] = xml.pair(n_sensor, "sensor", s_sensor)?;
+        let sensor_h = xml.positive(n_sensor, "sensor height", &sh)? * unit;
+        let pitch_y = sensor_h / height as f64;
+        let aspect = match self.value("aspect")? {
+            None => None,
+            Some((_, "auto")) => None,
+            Some((n, s)) => Some((n, xml.positive(n, "aspect", s)?)),
+        };
+        let pitch_x = if sw == "auto" {
+            aspect.map_or(1.0, |a| a.1) * pitch_y
+        } else {
+            xml.positive(n_sensor, "sensor width", &sw)? * unit / width as f64
+        };
+        if ((pitch_x - pitch_y) / pitch_y).abs() > 1e-6 {
+            let at = match (sw == "auto", aspect) {
+                (true, Some((n, _))) => n,
+                _ => n_sensor,
+            };
+            return Err(xml.err(
+                at,
                 format!(
-                    "camera <id> '{}' is not a whole number",
-                    super::printable(s)
+                    "non-square pixels ({:.6} × {:.6} µm from sensor '{}' and image '{}'{}): pingcal's pixel is square (its B1 estimates the affinity)",
+                    pitch_x * 1000.0,
+                    pitch_y * 1000.0,
+                    super::printable(s_sensor),
+                    super::printable(s_image),
+                    match (sw == "auto", aspect) {
+                        (true, Some(a)) => format!(", aspect {}", a.1),
+                        _ => String::new(),
+                    },
                 ),
             ));
         }
+        Ok(pitch_y)
     }
-    let unit = match value("unit")? {
-        None => 1.0,
-        Some((n, s)) => unit_mm(s).ok_or_else(|| {
-            err(
-                n,
-                format!(
-                    "camera unit '{}' is not one of mm, m, cm, um",
-                    super::printable(s)
-                ),
-            )
-        })?,
-    };
-    let (n_image, s_image) = required("image")?;
-    let [w, h] = pair(n_image, "image", s_image)?;
-    let width = side(n_image, "image width", &w)?;
-    let height = side(n_image, "image height", &h)?;
-    let (n_sensor, s_sensor) = required("sensor")?;
-    let [sw, sh] = pair(n_sensor, "sensor", s_sensor)?;
-    let sensor_h = positive(n_sensor, "sensor height", &sh)? * unit;
-    let pitch_y = sensor_h / height as f64;
-    let aspect = match value("aspect")? {
-        None => None,
-        Some((_, "auto")) => None,
-        Some((n, s)) => Some((n, positive(n, "aspect", s)?)),
-    };
-    let pitch_x = if sw == "auto" {
-        aspect.map_or(1.0, |a| a.1) * pitch_y
-    } else {
-        positive(n_sensor, "sensor width", &sw)? * unit / width as f64
-    };
-    if ((pitch_x - pitch_y) / pitch_y).abs() > 1e-6 {
-        let at = match (sw == "auto", aspect) {
-            (true, Some((n, _))) => n,
-            _ => n_sensor,
-        };
-        return Err(err(
-            at,
-            format!(
-                "non-square pixels ({:.6} × {:.6} µm from sensor '{}' and image '{}'{}): pingcal's pixel is square (its B1 estimates the affinity)",
-                pitch_x * 1000.0,
-                pitch_y * 1000.0,
-                super::printable(s_sensor),
-                super::printable(s_image),
-                match (sw == "auto", aspect) {
-                    (true, Some(a)) => format!(", aspect {}", a.1),
-                    _ => String::new(),
-                },
-            ),
-        ));
+
+    /// `<name>`, else `camera <id>`, else `camera`.
+    fn name(&self) -> Result<String, DbatError> {
+        Ok(match (self.value("name")?, self.value("id")?) {
+            (Some((_, s)), _) if !s.is_empty() => s.to_string(),
+            (_, Some((_, id))) => format!("camera {id}"),
+            _ => "camera".to_string(),
+        })
     }
-    let (n_focal, s_focal) = required("focal")?;
-    let c_mm = positive(n_focal, "focal", s_focal)? * unit;
-    let name = match (value("name")?, value("id")?) {
-        (Some((_, s)), _) if !s.is_empty() => s.to_string(),
-        (_, Some((_, id))) => format!("camera {id}"),
-        _ => "camera".to_string(),
-    };
-    Ok(DbatCamera {
-        name,
-        width,
-        height,
-        pixel_size_mm: pitch_y,
-        c_mm,
-    })
 }
 
 /// Reads DBAT's camera XML (see [`parse_camera`]).

@@ -257,118 +257,7 @@ pub(crate) fn linearize(
         .zip(jc_parts.into_par_iter().zip(w_parts.into_par_iter()))
         .enumerate()
         .with_min_len(256)
-        .map(|(i, ((r, jp), (jc, w)))| {
-            let o = &problem.observations[layout.obs_order[i] as usize];
-            let im = &problem.images[o.image];
-            let cam = &problem.cameras[im.camera];
-            let x = &problem.points[o.point].position;
-            let rx = im.camera_from_object.rotation * x;
-            let xc = rx + im.camera_from_object.translation;
-            let mut dxc = Matrix2x3::zeros();
-            let n = cam.params.len();
-            // Intrinsic Jacobian on the stack for the usual models (≤ 16 parameters).
-            let mut small = [0.0f64; 32];
-            let mut large = Vec::new();
-            let ji = if n <= 16 {
-                &mut small[..2 * n]
-            } else {
-                large.resize(2 * n, 0.0);
-                &mut large[..]
-            };
-            let uv = cam
-                .model
-                .project(&cam.params, &xc, Some(&mut dxc), Some(ji))
-                .ok_or(Undefined::Observation(layout.obs_order[i] as usize))?;
-            let res = (uv - o.uv) / o.sigma;
-            let (rho, rho1) = problem.loss.evaluate(res.norm_squared());
-            let scale = rho1.sqrt() / o.sigma;
-            *r = res * rho1.sqrt();
-            let dxc = dxc * scale;
-            *jp = dxc * im.camera_from_object.rotation;
-            let nc = jc.len() / 2;
-            let (j0, j1) = jc.split_at_mut(nc);
-            let mut col = 0;
-            if let Some((r, base)) = layout.image_rig[o.image] {
-                // xc = R_r (R_b X + t_b) + t_r with left updates of both poses:
-                // ∂xc/∂δω_b = −R_r [R_b X]×, ∂xc/∂δt_b = R_r; ∂xc/∂δω_r = −[xc − t_r]×, ∂xc/∂δt_r = I.
-                let rig = &problem.rigs[r].member_from_base;
-                let b = &problem.images[base].camera_from_object;
-                if layout.image_slot[base].is_some() {
-                    let jr = dxc * rig.rotation;
-                    match &layout.image_centre_axes[base] {
-                        None => {
-                            let jw = -(jr * skew(&(b.rotation * x)));
-                            for k in 0..3 {
-                                j0[k] = jw[(0, k)];
-                                j1[k] = jw[(1, k)];
-                                j0[3 + k] = jr[(0, k)];
-                                j1[3 + k] = jr[(1, k)];
-                            }
-                            col = 6;
-                        }
-                        // With (δω_b, δC_b): R_b X + t_b = R_b (X − C_b), so
-                        // ∂/∂δω_b = −R_r [R_b X + t_b]×, ∂/∂δC_b = −R_r R_b.
-                        Some(axes) => {
-                            let jw = -(jr * skew(&b.transform(x)));
-                            let jc = -(jr * b.rotation);
-                            col = write_centred(j0, j1, &jw, &jc, axes);
-                        }
-                    }
-                }
-                if layout.rig_slot[r].is_some() {
-                    let jw = -(dxc * skew(&(xc - rig.translation)));
-                    for k in 0..3 {
-                        j0[col + k] = jw[(0, k)];
-                        j1[col + k] = jw[(1, k)];
-                        j0[col + 3 + k] = dxc[(0, k)];
-                        j1[col + 3 + k] = dxc[(1, k)];
-                    }
-                    col += 6;
-                }
-            } else if layout.image_slot[o.image].is_some() {
-                match &layout.image_centre_axes[o.image] {
-                    None => {
-                        // ∂xc/∂δω = −[R X]×, ∂xc/∂δt = I.
-                        let jw = -(dxc * skew(&rx));
-                        for k in 0..3 {
-                            j0[k] = jw[(0, k)];
-                            j1[k] = jw[(1, k)];
-                            j0[3 + k] = dxc[(0, k)];
-                            j1[3 + k] = dxc[(1, k)];
-                        }
-                        col = 6;
-                    }
-                    // With (δω, δC): xc = R (X − C), ∂xc/∂δω = −[xc]×, ∂xc/∂δC = −R.
-                    Some(axes) => {
-                        let jw = -(dxc * skew(&xc));
-                        let jc = -(dxc * im.camera_from_object.rotation);
-                        col = write_centred(j0, j1, &jw, &jc, axes);
-                    }
-                }
-            }
-            if layout.camera_slot[im.camera].is_some() {
-                for &k in &layout.camera_free[im.camera] {
-                    j0[col] = ji[k] * scale;
-                    j1[col] = ji[n + k] * scale;
-                    col += 1;
-                }
-            }
-            // A point in the reduced system: the columns of its free coordinates only.
-            for (k, &axis) in layout.point_axes[o.point].iter().enumerate() {
-                j0[col + k] = jp[(0, axis)];
-                j1[col + k] = jp[(1, axis)];
-            }
-            for m in 0..3 {
-                let (a, b) = (jp[(0, m)], jp[(1, m)]);
-                for (wk, (x, y)) in w[m * nc..(m + 1) * nc]
-                    .iter_mut()
-                    .zip(j0.iter().zip(j1.iter()))
-                {
-                    *wk = x * a + y * b;
-                }
-            }
-            Ok::<f64, Undefined>(0.5 * rho)
-        });
+        .map(|(i, ((r, jp), (jc, w)))| linearize_observation(problem, layout, i, r, jp, jc, w));
     let cost = ordered_sum(cost)?;
     lin.constraints = (problem
         .constraints()
@@ -383,6 +272,154 @@ pub(crate) fn linearize(
         .sum();
     lin.cost = cost + constraints;
     Ok(())
+}
+
+/// A point projected into an image: the object point `x`, `rx` = R x, `xc` in the camera,
+/// and ∂uv/∂xc scaled by the loss and σ.
+struct Projected<'a> {
+    x: &'a nalgebra::Vector3<f64>,
+    rx: nalgebra::Vector3<f64>,
+    xc: nalgebra::Vector3<f64>,
+    dxc: Matrix2x3<f64>,
+}
+
+/// The `i`-th observation in the layout's order: its weighted residual `r`, its point
+/// Jacobian `jp`, its reduced Jacobian rows `jc` and their products `w` with `jp`; its cost.
+fn linearize_observation(
+    problem: &Problem,
+    layout: &Layout,
+    i: usize,
+    r: &mut Vector2<f64>,
+    jp: &mut Matrix2x3<f64>,
+    jc: &mut [f64],
+    w: &mut [f64],
+) -> Result<f64, Undefined> {
+    let o = &problem.observations[layout.obs_order[i] as usize];
+    let im = &problem.images[o.image];
+    let cam = &problem.cameras[im.camera];
+    let x = &problem.points[o.point].position;
+    let rx = im.camera_from_object.rotation * x;
+    let xc = rx + im.camera_from_object.translation;
+    let mut dxc = Matrix2x3::zeros();
+    let n = cam.params.len();
+    // Intrinsic Jacobian on the stack for the usual models (≤ 16 parameters).
+    let mut small = [0.0f64; 32];
+    let mut large = Vec::new();
+    let ji = if n <= 16 {
+        &mut small[..2 * n]
+    } else {
+        large.resize(2 * n, 0.0);
+        &mut large[..]
+    };
+    let uv = cam
+        .model
+        .project(&cam.params, &xc, Some(&mut dxc), Some(ji))
+        .ok_or(Undefined::Observation(layout.obs_order[i] as usize))?;
+    let res = (uv - o.uv) / o.sigma;
+    let (rho, rho1) = problem.loss.evaluate(res.norm_squared());
+    let scale = rho1.sqrt() / o.sigma;
+    *r = res * rho1.sqrt();
+    let dxc = dxc * scale;
+    *jp = dxc * im.camera_from_object.rotation;
+    let nc = jc.len() / 2;
+    let (j0, j1) = jc.split_at_mut(nc);
+    let projected = Projected { x, rx, xc, dxc };
+    let mut col = pose_columns(problem, layout, o.image, &projected, j0, j1);
+    if layout.camera_slot[im.camera].is_some() {
+        for &k in &layout.camera_free[im.camera] {
+            j0[col] = ji[k] * scale;
+            j1[col] = ji[n + k] * scale;
+            col += 1;
+        }
+    }
+    // A point in the reduced system: the columns of its free coordinates only.
+    for (k, &axis) in layout.point_axes[o.point].iter().enumerate() {
+        j0[col + k] = jp[(0, axis)];
+        j1[col + k] = jp[(1, axis)];
+    }
+    for m in 0..3 {
+        let (a, b) = (jp[(0, m)], jp[(1, m)]);
+        for (wk, (x, y)) in w[m * nc..(m + 1) * nc]
+            .iter_mut()
+            .zip(j0.iter().zip(j1.iter()))
+        {
+            *wk = x * a + y * b;
+        }
+    }
+    Ok(0.5 * rho)
+}
+
+/// The columns of image `image`'s pose (or of its rig's base pose and the rig's
+/// member-from-base) in the Jacobian rows `j0`, `j1`; the number of columns written.
+fn pose_columns(
+    problem: &Problem,
+    layout: &Layout,
+    image: usize,
+    p: &Projected,
+    j0: &mut [f64],
+    j1: &mut [f64],
+) -> usize {
+    let (x, rx, xc, dxc) = (p.x, &p.rx, &p.xc, &p.dxc);
+    let mut col = 0;
+    if let Some((r, base)) = layout.image_rig[image] {
+        // xc = R_r (R_b X + t_b) + t_r with left updates of both poses:
+        // ∂xc/∂δω_b = −R_r [R_b X]×, ∂xc/∂δt_b = R_r; ∂xc/∂δω_r = −[xc − t_r]×, ∂xc/∂δt_r = I.
+        let rig = &problem.rigs[r].member_from_base;
+        let b = &problem.images[base].camera_from_object;
+        if layout.image_slot[base].is_some() {
+            let jr = dxc * rig.rotation;
+            match &layout.image_centre_axes[base] {
+                None => {
+                    let jw = -(jr * skew(&(b.rotation * x)));
+                    for k in 0..3 {
+                        j0[k] = jw[(0, k)];
+                        j1[k] = jw[(1, k)];
+                        j0[3 + k] = jr[(0, k)];
+                        j1[3 + k] = jr[(1, k)];
+                    }
+                    col = 6;
+                }
+                // With (δω_b, δC_b): R_b X + t_b = R_b (X − C_b), so
+                // ∂/∂δω_b = −R_r [R_b X + t_b]×, ∂/∂δC_b = −R_r R_b.
+                Some(axes) => {
+                    let jw = -(jr * skew(&b.transform(x)));
+                    let jc = -(jr * b.rotation);
+                    col = write_centred(j0, j1, &jw, &jc, axes);
+                }
+            }
+        }
+        if layout.rig_slot[r].is_some() {
+            let jw = -(dxc * skew(&(xc - rig.translation)));
+            for k in 0..3 {
+                j0[col + k] = jw[(0, k)];
+                j1[col + k] = jw[(1, k)];
+                j0[col + 3 + k] = dxc[(0, k)];
+                j1[col + 3 + k] = dxc[(1, k)];
+            }
+            col += 6;
+        }
+    } else if layout.image_slot[image].is_some() {
+        match &layout.image_centre_axes[image] {
+            None => {
+                // ∂xc/∂δω = −[R X]×, ∂xc/∂δt = I.
+                let jw = -(dxc * skew(rx));
+                for k in 0..3 {
+                    j0[k] = jw[(0, k)];
+                    j1[k] = jw[(1, k)];
+                    j0[3 + k] = dxc[(0, k)];
+                    j1[3 + k] = dxc[(1, k)];
+                }
+                col = 6;
+            }
+            // With (δω, δC): xc = R (X − C), ∂xc/∂δω = −[xc]×, ∂xc/∂δC = −R.
+            Some(axes) => {
+                let jw = -(dxc * skew(xc));
+                let jc = -(dxc * problem.images[image].camera_from_object.rotation);
+                col = write_centred(j0, j1, &jw, &jc, axes);
+            }
+        }
+    }
+    col
 }
 
 /// The values of `blocks` in `problem` (None for an index out of range).

@@ -302,6 +302,9 @@ fn not_projectable(problem: &Problem, u: evaluate::Undefined) -> SolveError {
     SolveError::Problem(u.describe(problem))
 }
 
+/// The Levenberg–Marquardt minimizer (Ceres's `TrustRegionMinimizer`): takes the steps
+/// [`Strategy`] computes, keeps those that lower the cost, and grows or shrinks the trust
+/// region by how well the linear model predicted the decrease.
 fn run(
     problem: &mut Problem,
     options: &Options,
@@ -310,25 +313,7 @@ fn run(
 ) -> Result<Summary, SolveError> {
     let t0 = Instant::now();
     let layout = Layout::new(problem);
-    let limit = options
-        .memory_limit_bytes
-        .or_else(|| available_memory().map(|m| 0.8 * m));
-    let mut choice = choice::choose(
-        &layout,
-        options.linear_solver,
-        rayon::current_num_threads(),
-        limit,
-    )?;
-    let mut linear = match choice.kind {
-        LinearSolverKind::Iterative => Linear::Iterative(Box::new(iterative::SchurOperator::new(
-            &layout,
-            options.cg.preconditioner,
-            options.cg.product,
-            rayon::current_num_threads(),
-            limit,
-        )?)),
-        kind => Linear::direct(kind, &layout, par)?,
-    };
+    let (linear, choice) = choose_linear(&layout, options, par)?;
     let (clusters, schur_product) = match &linear {
         Linear::Iterative(op) => (op.cluster_stats, Some(op.product.clone())),
         Linear::Direct(_) => (None, None),
@@ -336,8 +321,8 @@ fn run(
     let setup_time_s = t0.elapsed().as_secs_f64();
     let mut lin = evaluate::Linearization::new(&layout);
     evaluate::linearize(problem, &layout, &mut lin).map_err(|o| not_projectable(problem, o))?;
-    let mut schur = schur::Schur::new(&layout);
-    schur.prepare(&layout, &lin);
+    let mut strategy = Strategy::new(linear, choice, par, &layout);
+    strategy.schur.prepare(&layout, &lin);
 
     let initial_cost = lin.cost;
     if !initial_cost.is_finite() {
@@ -345,167 +330,291 @@ fn run(
             what: "the initial cost".into(),
         }));
     }
-    let mut cost = lin.cost;
-    let mut radius = options.initial_trust_region_radius;
-    let mut decrease_factor = 2.0;
-    let mut log = Vec::new();
-    let mut successful_steps = 0;
-    let mut linear_time = 0.0;
-    let mut eval_time = 0.0;
-    let mut schur_time = 0.0;
-    let mut linear_iterations = 0;
-    let mut dc = vec![0.0; layout.n_reduced];
-    let mut dp = vec![Vector3::zeros(); layout.free_points.len()];
+    let mut m = Minimizer {
+        cost: lin.cost,
+        radius: options.initial_trust_region_radius,
+        decrease_factor: 2.0,
+        successful_steps: 0,
+        eval_time: 0.0,
+        log: Vec::new(),
+    };
     let mut termination = Termination::MaxIterations;
 
     for iteration in 1..=options.max_iterations {
         let ti = Instant::now();
-        let gradient_max_norm = schur.gradient_max_norm();
+        let gradient_max_norm = strategy.schur.gradient_max_norm();
         if gradient_max_norm <= options.gradient_tolerance {
             termination = Termination::GradientTolerance;
             break;
         }
         let mut it = Iteration {
             iteration,
-            cost,
+            cost: m.cost,
             cost_change: 0.0,
             gradient_max_norm,
             step_norm: 0.0,
             relative_decrease: 0.0,
-            trust_region_radius: radius,
+            trust_region_radius: m.radius,
             accepted: false,
             linear_solver_time_s: 0.0,
             linear_iterations: 0,
             iteration_time_s: 0.0,
         };
-        // Solve the damped normal equations.
-        let ts = Instant::now();
-        let lambda = 1.0 / radius;
-        let mut solved = match &mut linear {
-            Linear::Direct(_) => schur.assemble(&layout, &lin, lambda).is_ok(),
-            Linear::Iterative(op) => op.prepare(&mut schur, &layout, &lin, lambda).is_ok(),
-        };
-        schur_time += ts.elapsed().as_secs_f64();
-        if solved {
-            let tl = Instant::now();
-            match &mut linear {
-                Linear::Direct(factorizer) => {
-                    dc.copy_from_slice(&schur.rhs);
-                    solved = factorizer.solve(&layout, &schur.values, &mut dc);
-                }
-                Linear::Iterative(op) => {
-                    match op.solve(&schur, &layout, &lin, &options.cg, &mut dc) {
-                        Some(cg) => {
-                            it.linear_iterations = cg.iterations;
-                            linear_iterations += cg.iterations;
-                        }
-                        None => solved = false,
-                    }
-                }
-            }
-            // Too many CG iterations for what `Auto` estimated: the factorization from
-            // the next step on (this step's inexact solution is still a descent step).
-            if let (Linear::Iterative(_), Some(kind)) = (&linear, choice.fallback) {
-                if it.linear_iterations > options.cg.switch_after {
-                    linear = Linear::direct(kind, &layout, par)?;
-                    choice.reason = format!(
-                        "{}; moved to {kind} at step {iteration}: the conjugate gradients needed {} iterations",
-                        choice.reason, it.linear_iterations
-                    );
-                    choice.kind = kind;
-                    choice.fallback = None;
-                }
-            }
-            it.linear_solver_time_s = tl.elapsed().as_secs_f64();
-            linear_time += it.linear_solver_time_s;
-        }
-        if solved {
-            let ts = Instant::now();
-            schur.back_substitute(&layout, &lin, &dc, &mut dp);
-            schur_time += ts.elapsed().as_secs_f64();
-            let step_norm = (dc.iter().map(|v| v * v).sum::<f64>()
-                + dp.iter().map(|v| v.norm_squared()).sum::<f64>())
-            .sqrt();
-            it.step_norm = step_norm;
-            let x_norm = parameter_norm(problem);
-            if step_norm <= options.parameter_tolerance * (x_norm + options.parameter_tolerance) {
-                termination = Termination::ParameterTolerance;
+        if strategy.compute_step(&layout, &lin, 1.0 / m.radius, options, &mut it)? {
+            let stop = m.try_step(problem, &layout, &mut lin, &mut strategy, options, &mut it)?;
+            if let Some(stop) = stop {
+                termination = stop;
                 it.iteration_time_s = ti.elapsed().as_secs_f64();
                 on_iteration(&it);
-                log.push(it);
+                m.log.push(it);
                 break;
             }
-            let predicted = predicted_decrease(&layout, &lin, &dc, &dp)
-                + constraints::decrease(&layout, &lin, &dc, &dp);
-            let backup = Backup::take(problem);
-            apply_step(problem, &layout, &dc, &dp);
-            let te = Instant::now();
-            let new_cost = evaluate::cost(problem).ok().filter(|c| c.is_finite());
-            eval_time += te.elapsed().as_secs_f64();
-            match new_cost {
-                Some(new_cost) if predicted > 0.0 && (cost - new_cost) / predicted > 1e-3 => {
-                    let rho = (cost - new_cost) / predicted;
-                    it.relative_decrease = rho;
-                    it.cost_change = cost - new_cost;
-                    it.accepted = true;
-                    it.cost = new_cost;
-                    successful_steps += 1;
-                    let converged = (cost - new_cost).abs() <= options.function_tolerance * cost;
-                    cost = new_cost;
-                    radius = (radius / (1.0f64 / 3.0).max(1.0 - (2.0 * rho - 1.0).powi(3)))
-                        .min(options.max_trust_region_radius);
-                    decrease_factor = 2.0;
-                    evaluate::linearize(problem, &layout, &mut lin)
-                        .map_err(|o| not_projectable(problem, o))?;
-                    schur.prepare(&layout, &lin);
-                    if converged {
-                        termination = Termination::FunctionTolerance;
-                        it.iteration_time_s = ti.elapsed().as_secs_f64();
-                        on_iteration(&it);
-                        log.push(it);
-                        break;
-                    }
-                }
-                other => {
-                    it.relative_decrease =
-                        other.map_or(f64::NEG_INFINITY, |c| (cost - c) / predicted);
-                    backup.restore(problem);
-                    radius /= decrease_factor;
-                    decrease_factor *= 2.0;
-                }
-            }
         } else {
-            radius /= decrease_factor;
-            decrease_factor *= 2.0;
+            m.shrink();
         }
         it.iteration_time_s = ti.elapsed().as_secs_f64();
         on_iteration(&it);
-        log.push(it);
-        if radius < options.min_trust_region_radius {
+        m.log.push(it);
+        if m.radius < options.min_trust_region_radius {
             termination = Termination::TrustRegionTooSmall;
             break;
         }
     }
     Ok(Summary {
         initial_cost,
-        final_cost: cost,
-        iterations: log.len(),
-        successful_steps,
+        final_cost: m.cost,
+        iterations: m.log.len(),
+        successful_steps: m.successful_steps,
         termination,
         time_s: t0.elapsed().as_secs_f64(),
-        linear_solver_time_s: linear_time,
-        evaluation_time_s: eval_time,
-        schur_time_s: schur_time,
+        linear_solver_time_s: strategy.linear_time,
+        evaluation_time_s: m.eval_time,
+        schur_time_s: strategy.schur_time,
         setup_time_s,
-        dense: choice.kind == LinearSolverKind::Dense,
-        linear_solver: choice,
-        linear_iterations,
+        dense: strategy.choice.kind == LinearSolverKind::Dense,
+        linear_solver: strategy.choice,
+        linear_iterations: strategy.linear_iterations,
         clusters,
         schur_product,
         reduced_dimension: layout.n_reduced,
         reduced_nonzeros: layout.nnz(),
-        log,
+        log: m.log,
     })
+}
+
+/// The linear solver `options` ask for (or `Auto` picks within the memory limit), set up
+/// for `layout`.
+fn choose_linear(
+    layout: &Layout,
+    options: &Options,
+    par: faer::Par,
+) -> Result<(Linear, SolverChoice), SolveError> {
+    let limit = options
+        .memory_limit_bytes
+        .or_else(|| available_memory().map(|m| 0.8 * m));
+    let choice = choice::choose(
+        layout,
+        options.linear_solver,
+        rayon::current_num_threads(),
+        limit,
+    )?;
+    let linear = match choice.kind {
+        LinearSolverKind::Iterative => Linear::Iterative(Box::new(iterative::SchurOperator::new(
+            layout,
+            options.cg.preconditioner,
+            options.cg.product,
+            rayon::current_num_threads(),
+            limit,
+        )?)),
+        kind => Linear::direct(kind, layout, par)?,
+    };
+    Ok((linear, choice))
+}
+
+/// The minimizer's state between steps.
+struct Minimizer {
+    cost: f64,
+    radius: f64,
+    /// How much the radius shrinks at the next rejected step (doubles at each in a row).
+    decrease_factor: f64,
+    successful_steps: usize,
+    eval_time: f64,
+    log: Vec<Iteration>,
+}
+
+impl Minimizer {
+    /// A rejected (or unsolvable) step: a smaller trust region, and smaller still next time.
+    fn shrink(&mut self) {
+        self.radius /= self.decrease_factor;
+        self.decrease_factor *= 2.0;
+    }
+
+    /// Tries the step `strategy` solved for: kept (and the problem linearized again) when
+    /// the cost falls by at least 1e-3 of the predicted decrease, undone otherwise. The
+    /// termination when the step or the cost's change is below its tolerance.
+    fn try_step(
+        &mut self,
+        problem: &mut Problem,
+        layout: &Layout,
+        lin: &mut evaluate::Linearization,
+        strategy: &mut Strategy,
+        options: &Options,
+        it: &mut Iteration,
+    ) -> Result<Option<Termination>, SolveError> {
+        let (dc, dp) = strategy.back_substitute(layout, lin);
+        let step_norm = (dc.iter().map(|v| v * v).sum::<f64>()
+            + dp.iter().map(|v| v.norm_squared()).sum::<f64>())
+        .sqrt();
+        it.step_norm = step_norm;
+        let x_norm = parameter_norm(problem);
+        if step_norm <= options.parameter_tolerance * (x_norm + options.parameter_tolerance) {
+            return Ok(Some(Termination::ParameterTolerance));
+        }
+        let predicted =
+            predicted_decrease(layout, lin, dc, dp) + constraints::decrease(layout, lin, dc, dp);
+        let backup = Backup::take(problem);
+        apply_step(problem, layout, dc, dp);
+        let te = Instant::now();
+        let new_cost = evaluate::cost(problem).ok().filter(|c| c.is_finite());
+        self.eval_time += te.elapsed().as_secs_f64();
+        let cost = self.cost;
+        match new_cost {
+            Some(new_cost) if predicted > 0.0 && (cost - new_cost) / predicted > 1e-3 => {
+                let rho = (cost - new_cost) / predicted;
+                it.relative_decrease = rho;
+                it.cost_change = cost - new_cost;
+                it.accepted = true;
+                it.cost = new_cost;
+                self.successful_steps += 1;
+                let converged = (cost - new_cost).abs() <= options.function_tolerance * cost;
+                self.cost = new_cost;
+                self.radius = (self.radius / (1.0f64 / 3.0).max(1.0 - (2.0 * rho - 1.0).powi(3)))
+                    .min(options.max_trust_region_radius);
+                self.decrease_factor = 2.0;
+                evaluate::linearize(problem, layout, lin)
+                    .map_err(|o| not_projectable(problem, o))?;
+                strategy.schur.prepare(layout, lin);
+                if converged {
+                    return Ok(Some(Termination::FunctionTolerance));
+                }
+            }
+            other => {
+                it.relative_decrease = other.map_or(f64::NEG_INFINITY, |c| (cost - c) / predicted);
+                backup.restore(problem);
+                self.shrink();
+            }
+        }
+        Ok(None)
+    }
+}
+
+/// The step computation (Ceres's trust-region strategy and linear solver): the damped
+/// normal equations reduced to the Schur complement on the cameras, solved by the chosen
+/// factorization or by conjugate gradients (moving to the factorization when they need
+/// too many iterations), then the points' step by back-substitution.
+struct Strategy {
+    linear: Linear,
+    choice: SolverChoice,
+    par: faer::Par,
+    schur: schur::Schur,
+    /// The step of the reduced (camera-side) unknowns.
+    dc: Vec<f64>,
+    /// The step of the free points.
+    dp: Vec<Vector3<f64>>,
+    schur_time: f64,
+    linear_time: f64,
+    linear_iterations: usize,
+}
+
+impl Strategy {
+    fn new(linear: Linear, choice: SolverChoice, par: faer::Par, layout: &Layout) -> Self {
+        Strategy {
+            linear,
+            choice,
+            par,
+            schur: schur::Schur::new(layout),
+            dc: vec![0.0; layout.n_reduced],
+            dp: vec![Vector3::zeros(); layout.free_points.len()],
+            schur_time: 0.0,
+            linear_time: 0.0,
+            linear_iterations: 0,
+        }
+    }
+
+    /// Solves the normal equations damped by `lambda` for the reduced step; false when
+    /// they cannot be solved (the minimizer then shrinks the trust region).
+    fn compute_step(
+        &mut self,
+        layout: &Layout,
+        lin: &evaluate::Linearization,
+        lambda: f64,
+        options: &Options,
+        it: &mut Iteration,
+    ) -> Result<bool, SolveError> {
+        let ts = Instant::now();
+        let mut solved = match &mut self.linear {
+            Linear::Direct(_) => self.schur.assemble(layout, lin, lambda).is_ok(),
+            Linear::Iterative(op) => op.prepare(&mut self.schur, layout, lin, lambda).is_ok(),
+        };
+        self.schur_time += ts.elapsed().as_secs_f64();
+        if solved {
+            let tl = Instant::now();
+            match &mut self.linear {
+                Linear::Direct(factorizer) => {
+                    self.dc.copy_from_slice(&self.schur.rhs);
+                    solved = factorizer.solve(layout, &self.schur.values, &mut self.dc);
+                }
+                Linear::Iterative(op) => {
+                    match op.solve(&self.schur, layout, lin, &options.cg, &mut self.dc) {
+                        Some(cg) => {
+                            it.linear_iterations = cg.iterations;
+                            self.linear_iterations += cg.iterations;
+                        }
+                        None => solved = false,
+                    }
+                }
+            }
+            self.fall_back_if_slow(layout, options, it)?;
+            it.linear_solver_time_s = tl.elapsed().as_secs_f64();
+            self.linear_time += it.linear_solver_time_s;
+        }
+        Ok(solved)
+    }
+
+    /// Too many CG iterations for what `Auto` estimated: the factorization from the next
+    /// step on (this step's inexact solution is still a descent step).
+    fn fall_back_if_slow(
+        &mut self,
+        layout: &Layout,
+        options: &Options,
+        it: &Iteration,
+    ) -> Result<(), SolveError> {
+        if let (Linear::Iterative(_), Some(kind)) = (&self.linear, self.choice.fallback) {
+            if it.linear_iterations > options.cg.switch_after {
+                self.linear = Linear::direct(kind, layout, self.par)?;
+                self.choice.reason = format!(
+                    "{}; moved to {kind} at step {}: the conjugate gradients needed {} iterations",
+                    self.choice.reason, it.iteration, it.linear_iterations
+                );
+                self.choice.kind = kind;
+                self.choice.fallback = None;
+            }
+        }
+        Ok(())
+    }
+
+    /// The points' step from the reduced one; both steps.
+    fn back_substitute(
+        &mut self,
+        layout: &Layout,
+        lin: &evaluate::Linearization,
+    ) -> (&[f64], &[Vector3<f64>]) {
+        let ts = Instant::now();
+        self.schur
+            .back_substitute(layout, lin, &self.dc, &mut self.dp);
+        self.schur_time += ts.elapsed().as_secs_f64();
+        (&self.dc, &self.dp)
+    }
 }
 
 /// |x|: rotations as angle-axis vectors, translations, intrinsics, points.
