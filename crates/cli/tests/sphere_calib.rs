@@ -471,8 +471,48 @@ fn the_command_reports_frames_it_leaves_out_and_keeps_earlier_results() {
     assert_eq!(std::fs::read_to_string(&results).unwrap(), first);
     let (ok, out, err) = run(&["sphere-calib", p, "--overwrite", "--quiet"]);
     assert!(ok && out.lines().count() == 1, "{out}{err}");
-    // bad values: one line naming the file
     let text = std::fs::read_to_string(&project).unwrap();
+    // a camera constant 3 % off (2.52 mm for 2.45): every camera centre 3 % too far,
+    // doubtful whatever model error the scatter gives; as calibrate, exit 3 with the results
+    // written, 0 with --accept-doubtful
+    let camera = data.join("camera.toml");
+    let camera_text = std::fs::read_to_string(&camera).unwrap();
+    assert!(camera_text.contains("c_mm = 2.45\n"));
+    std::fs::write(
+        &camera,
+        camera_text.replace("c_mm = 2.45\n", "c_mm = 2.52\n"),
+    )
+    .unwrap();
+    let code = |args: &[&str]| {
+        let o = std::process::Command::new(exe).args(args).output().unwrap();
+        (
+            o.status.code(),
+            String::from_utf8_lossy(&o.stderr).to_string(),
+        )
+    };
+    let (c, err) = code(&["sphere-calib", p, "--overwrite", "--quiet"]);
+    assert_eq!(c, Some(3), "{err}");
+    assert!(
+        err.contains("pingcal: doubtful: the registration's σ0")
+            && err
+                .trim_end()
+                .ends_with("pingcal: verdict: doubtful; --accept-doubtful exits 0 on doubtful"),
+        "{err}"
+    );
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&results).unwrap()).unwrap();
+    assert_eq!(json["verdict"]["status"], "doubtful");
+    assert!(json["sigma0_sensors"].as_f64().unwrap() > 10.0);
+    let (c, err) = code(&[
+        "sphere-calib",
+        p,
+        "--overwrite",
+        "--quiet",
+        "--accept-doubtful",
+    ]);
+    assert_eq!(c, Some(0), "{err}");
+    std::fs::write(&camera, camera_text).unwrap();
+    // bad values: one line naming the file
     std::fs::write(
         &project,
         text.replace("sphere_diameter_mm = 600.0", "sphere_diameter_mm = 0.0"),
@@ -586,7 +626,24 @@ fn spherecalib_example_3_finds_the_ball_in_every_photograph() {
             f.id
         );
     }
+    // the centres agree to some 60 mm only (a long lens at 5–7 m: about 30 mm of distance per
+    // pixel of radius; a ball "around 0.3 m" squashed on a stool; a 16-beam lidar): the
+    // sensors' σ's are far too small, so the run is doubtful and the scatter is estimated as
+    // a model error, after which σ0 is 1 and the leave-one-out errors agree with their σ's
+    let m = o.model_error_mm.expect("a model error estimated");
+    assert!(o.sensor_sigma0 > 10.0 && (reg.sigma0 - 1.0).abs() < 1e-3);
+    assert!(m > 20.0 && m < 150.0, "{m}");
+    assert_eq!(
+        o.verdict.status,
+        pingcal_pipeline::verdict::Status::Doubtful
+    );
+    let loo = o.verdict.checks.iter().find(|c| c.name == "leave-one-out");
+    assert!(loo.is_some_and(|c| c.passed), "{:?}", o.verdict.checks);
     let t = reg.camera_from_lrf.translation;
+    println!(
+        "σ0 against the sensors' σ's {:.2}; model error {m:.1} mm",
+        o.sensor_sigma0
+    );
     println!(
         "σ0 {:.2}; t = ({:.1}, {:.1}, {:.1}) ± ({:.1}, {:.1}, {:.1}) mm, ω φ κ σ ({:.3}, {:.3}, {:.3})°; mean leave-one-out error {:.1} mm",
         reg.sigma0,

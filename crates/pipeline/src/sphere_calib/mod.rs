@@ -81,6 +81,14 @@ pub struct Outcome {
     pub diameter_mm: f64,
     /// The verdict.
     pub verdict: crate::verdict::Verdict,
+    /// σ0 of the registration against the sensors' own σ's (the centres' covariances from
+    /// the sphere fit and the silhouette fit); `evaluation`'s σ0 is this one unless a model
+    /// error was estimated.
+    pub sensor_sigma0: f64,
+    /// The scatter of the centres beyond their σ's, mm per coordinate of a frame's
+    /// difference ([`model_error`]): estimated when `sensor_sigma0` fails its test, and then
+    /// in every σ of `evaluation`.
+    pub model_error_mm: Option<f64>,
 }
 
 /// The project, its camera and its lidar's noise and unit.
@@ -229,10 +237,29 @@ pub fn calibrate(project: &Path, seed: u64) -> Result<Outcome, String> {
         ));
     }
     let opt = RegistrationOptions::default();
-    let evaluation = registration::evaluate(&lidar, &camera, &[], &[], &opt)
+    let sensors = registration::evaluate(&lidar, &camera, &[], &[], &opt)
         .map_err(|e| format!("{name}: registration: {e}"))?;
+    let sensor_sigma0 = sensors.registration.sigma0;
+    let model_error_mm = (!verdict::sigma0_passes(&sensors.registration))
+        .then(|| model_error(&lidar, &camera, &opt))
+        .flatten();
+    let (evaluation, camera) = match model_error_mm {
+        Some(m) => {
+            let camera = with_model_error(&camera, m);
+            let ev = registration::evaluate(&lidar, &camera, &[], &[], &opt)
+                .map_err(|e| format!("{name}: registration: {e}"))?;
+            (ev, camera)
+        }
+        None => (sensors, camera),
+    };
     let closed_form = closed_form(&frames, &name)?;
-    let verdict = verdict::judge(&frames, &evaluation, &lidar, &camera);
+    let verdict = verdict::judge(
+        &frames,
+        &evaluation,
+        (&lidar, &camera),
+        sensor_sigma0,
+        model_error_mm,
+    );
     Ok(Outcome {
         name: l.file.name.clone().unwrap_or(name),
         frames,
@@ -243,7 +270,58 @@ pub fn calibrate(project: &Path, seed: u64) -> Result<Outcome, String> {
         camera_path: l.file.camera.clone(),
         diameter_mm: l.file.sphere_diameter_mm,
         verdict,
+        sensor_sigma0,
+        model_error_mm,
     })
+}
+
+/// The camera centres with an isotropic variance `m²` (mm²) added to each covariance: the
+/// frame's two centres' difference gets it whichever side carries it.
+fn with_model_error(cam: &[PointObs], m: f64) -> Vec<PointObs> {
+    cam.iter()
+        .map(|p| PointObs {
+            cov: p.cov + Matrix3::identity() * (m * m),
+            ..p.clone()
+        })
+        .collect()
+}
+
+/// The model error `m` (mm): the isotropic variance `m²` that, added to every frame's
+/// centres, makes the registration's σ0 one — a variance component estimated from the
+/// residuals (the ball not quite a sphere of the stated diameter, each sensor seeing another
+/// part of it, the lidar's beam-to-beam biases, the outline's edge placed by the shading:
+/// what the sensors' own σ's leave out). By bisection, σ0 falling as `m` grows; `None` when
+/// σ0 is already at most one, or the registration refuses the centres first.
+pub fn model_error(lidar: &[PointObs], cam: &[PointObs], opt: &RegistrationOptions) -> Option<f64> {
+    let sigma0 = |m: f64| {
+        registration::register(lidar, &with_model_error(cam, m), opt)
+            .ok()
+            .map(|r| r.sigma0)
+    };
+    if !(sigma0(0.0)? > 1.0) {
+        return None;
+    }
+    // doubling up from 1 mm (a model error as large as the centres' spread makes them
+    // collinear within their σ's, and the registration refuses them)
+    let (mut lo, mut hi) = (0.0_f64, 1.0_f64);
+    while sigma0(hi)? > 1.0 {
+        (lo, hi) = (hi, 2.0 * hi);
+        if hi > 1e5 {
+            return None;
+        }
+    }
+    for _ in 0..60 {
+        let mid = 0.5 * (lo + hi);
+        if sigma0(mid)? > 1.0 {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+        if hi / lo < 1.0 + 1e-6 {
+            break;
+        }
+    }
+    Some(hi)
 }
 
 /// The standard deviations on the diagonal of covariance `c`.

@@ -369,7 +369,13 @@ fn summary(o: &Outcome) -> Vec<(String, String)> {
         ),
         (
             "σ0 of the registration".into(),
-            format!("{:.2} ({} degrees of freedom)", r.sigma0, r.dof),
+            match o.model_error_mm {
+                Some(m) => format!(
+                    "{:.2} against the sensors' σ's; {:.2} with a model error of {m:.1} mm per coordinate estimated from the scatter, included in every σ ({} degrees of freedom)",
+                    o.sensor_sigma0, r.sigma0, r.dof
+                ),
+                None => format!("{:.2} ({} degrees of freedom)", r.sigma0, r.dof),
+            },
         ),
         (
             "mean leave-one-out error".into(),

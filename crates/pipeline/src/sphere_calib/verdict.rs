@@ -16,10 +16,30 @@ use crate::verdict::{
     check_points_bound, mean_check_chi2, sigma0_bound, Check, Status, Verdict, ALPHA,
     CENTRE_SIGMA_OPTIMISM, SPHERE_PROFILE_TOLERANCE,
 };
-use pingcal_lrf::registration::{Evaluation, PointObs};
+use pingcal_lrf::registration::{Evaluation, PointObs, Registration};
 
-/// Judges a run: its frames, its evaluation, the point lists registered.
-pub fn judge(frames: &[Frame], ev: &Evaluation, lidar: &[PointObs], cam: &[PointObs]) -> Verdict {
+/// The bound of the registration's σ0 with `dof` degrees of freedom.
+fn registration_bound(dof: usize) -> f64 {
+    sigma0_bound(dof as f64) * CENTRE_SIGMA_OPTIMISM
+}
+
+/// Whether the registration's σ0 passes its test (no redundancy passes).
+pub fn sigma0_passes(reg: &Registration) -> bool {
+    reg.dof == 0 || reg.sigma0 <= registration_bound(reg.dof)
+}
+
+/// Judges a run: its frames, its evaluation, the point lists registered (lidar, camera: as
+/// `ev` used them), the registration's σ0 against the sensors' own σ's and the model error
+/// estimated when that σ0 failed ([`super::model_error`]). The σ0 test is on the sensors'
+/// σ0 (a model error makes `ev`'s one by construction); the leave-one-out test on `ev`'s σ's,
+/// model error included: whether the σ's stated are honest.
+pub fn judge(
+    frames: &[Frame],
+    ev: &Evaluation,
+    (lidar, cam): (&[PointObs], &[PointObs]),
+    sensor_sigma0: f64,
+    model_error_mm: Option<f64>,
+) -> Verdict {
     let (mut checks, mut reasons, mut notes) = (Vec::new(), Vec::new(), Vec::new());
     let mut test = |name: &str, value: f64, bound: f64, why: String| {
         let passed = value <= bound;
@@ -35,10 +55,12 @@ pub fn judge(frames: &[Frame], ev: &Evaluation, lidar: &[PointObs], cam: &[Point
     };
     let reg = &ev.registration;
     if reg.dof > 0 {
-        let b = sigma0_bound(reg.dof as f64) * CENTRE_SIGMA_OPTIMISM;
-        test("registration sigma0", reg.sigma0, b, format!(
-            "the registration's σ0 {:.2} exceeds {b:.2}: the sphere's centres do not fit one rigid transform within their σ's (a sphere diameter that is not the ball's, a camera model that does not fit, a wrong lidar noise profile, or sensors that moved)",
-            reg.sigma0
+        let b = registration_bound(reg.dof);
+        let scatter = model_error_mm.map_or(String::new(), |m| format!(
+            "; the centres scatter by {m:.1} mm per coordinate beyond their σ's, and the extrinsic's σ's include that"
+        ));
+        test("registration sigma0", sensor_sigma0, b, format!(
+            "the registration's σ0 {sensor_sigma0:.2} exceeds {b:.2}: the sphere's centres do not fit one rigid transform within their σ's (a sphere diameter that is not the ball's, a camera model that does not fit, a wrong lidar noise profile, or sensors that moved){scatter}"
         ));
     }
     if let Some((mean, n)) = mean_check_chi2(
