@@ -301,11 +301,13 @@ fn cluttered_study(seeds: std::ops::RangeInclusive<u64>, frames: usize) -> (usiz
         missed_all += missed.len();
         n += 1;
         println!(
-            "cluttered seed {seed}: {used} of {} frames used; |Δt| {:.2} mm, ΔR {:.4}°, max |z| {max_z:.2}; σ0 {:.2}; half-visible frames left out or not the ball: {missed:?}",
+            "cluttered seed {seed}: {used} of {} frames used; |Δt| {:.2} mm, ΔR {:.4}°, max |z| {max_z:.2}; σ0 {:.2} (model error {}); half-visible frames left out or not the ball: {missed:?}",
             o.frames.len(),
             ours.dt.norm(),
             ours.dtheta.norm().to_degrees(),
-            o.evaluation.registration.sigma0,
+            o.sensor_sigma0,
+            o.model_error_mm
+                .map_or("none".to_string(), |m| format!("{m:.1} mm")),
         );
     }
     println!("cluttered: {within} of {n} seeds within 3σ on every component; {missed_all} frames at least half visible left out or not the ball");
