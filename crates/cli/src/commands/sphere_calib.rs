@@ -148,11 +148,8 @@ pub fn run(args: Args) -> CmdResult {
     let (t, st) = (r.camera_from_lrf.translation, r.sigma_translation_mm);
     let (e, se) = (r.camera_from_lrf.opk_deg(), r.sigma_opk_deg);
     let used = o.frames.iter().filter(|f| f.skipped.is_none()).count();
-    let sigma0 = match o.model_error_mm {
-        Some(m) => format!(
-            "σ0 {:.2} (with a model error of {m:.1} mm, estimated: {:.2})",
-            o.sensor_sigma0, r.sigma0
-        ),
+    let sigma0 = match o.sigma_scale {
+        Some(k) => format!("σ0 {:.2} (every σ scaled by {k:.2})", o.sensor_sigma0),
         None => format!("σ0 {:.2}", r.sigma0),
     };
     println!(

@@ -82,13 +82,13 @@ pub struct Outcome {
     /// The verdict.
     pub verdict: crate::verdict::Verdict,
     /// σ0 of the registration against the sensors' own σ's (the centres' covariances from
-    /// the sphere fit and the silhouette fit); `evaluation`'s σ0 is this one unless a model
-    /// error was estimated.
+    /// the sphere fit and the silhouette fit); `evaluation`'s σ0 is this one unless the σ's
+    /// were scaled.
     pub sensor_sigma0: f64,
-    /// The scatter of the centres beyond their σ's, mm per coordinate of a frame's
-    /// difference ([`model_error`]): estimated when `sensor_sigma0` fails its test, and then
-    /// in every σ of `evaluation`.
-    pub model_error_mm: Option<f64>,
+    /// The factor every centre's σ was scaled by when `sensor_sigma0` failed its test (the
+    /// variance factor σ0² estimated from the residuals, as its square root: the centres
+    /// scatter this many times more than their σ's say); then in every σ of `evaluation`.
+    pub sigma_scale: Option<f64>,
 }
 
 /// The project, its camera and its lidar's noise and unit.
@@ -240,17 +240,23 @@ pub fn calibrate(project: &Path, seed: u64) -> Result<Outcome, String> {
     let sensors = registration::evaluate(&lidar, &camera, &[], &[], &opt)
         .map_err(|e| format!("{name}: registration: {e}"))?;
     let sensor_sigma0 = sensors.registration.sigma0;
-    let model_error_mm = (!verdict::sigma0_passes(&sensors.registration))
-        .then(|| model_error(&lidar, &camera, &opt))
-        .flatten();
-    let (evaluation, camera) = match model_error_mm {
-        Some(m) => {
-            let camera = with_model_error(&camera, m);
+    // the a-posteriori variance factor when the sensors' σ's fail: the estimate is the same
+    // (the weights only scale), every σ and the leave-one-out test take the data's scatter
+    let sigma_scale = (!verdict::sigma0_passes(&sensors.registration)).then_some(sensor_sigma0);
+    let (evaluation, lidar, camera) = match sigma_scale {
+        Some(k) => {
+            let (lidar, camera) = (scaled(&lidar, k), scaled(&camera, k));
+            // the geometry passed its test on the sensors' σ's: the same points, the same
+            // estimate (the scaled σ's would call an honest spread "collinear")
+            let opt = RegistrationOptions {
+                collinear_tol_mm: Some(0.0),
+                ..opt
+            };
             let ev = registration::evaluate(&lidar, &camera, &[], &[], &opt)
                 .map_err(|e| format!("{name}: registration: {e}"))?;
-            (ev, camera)
+            (ev, lidar, camera)
         }
-        None => (sensors, camera),
+        None => (sensors, lidar, camera),
     };
     let closed_form = closed_form(&frames, &name)?;
     let verdict = verdict::judge(
@@ -258,7 +264,7 @@ pub fn calibrate(project: &Path, seed: u64) -> Result<Outcome, String> {
         &evaluation,
         (&lidar, &camera),
         sensor_sigma0,
-        model_error_mm,
+        sigma_scale,
     );
     Ok(Outcome {
         name: l.file.name.clone().unwrap_or(name),
@@ -271,57 +277,19 @@ pub fn calibrate(project: &Path, seed: u64) -> Result<Outcome, String> {
         diameter_mm: l.file.sphere_diameter_mm,
         verdict,
         sensor_sigma0,
-        model_error_mm,
+        sigma_scale,
     })
 }
 
-/// The camera centres with an isotropic variance `m²` (mm²) added to each covariance: the
-/// frame's two centres' difference gets it whichever side carries it.
-fn with_model_error(cam: &[PointObs], m: f64) -> Vec<PointObs> {
-    cam.iter()
+/// The centres with every σ times `k`.
+fn scaled(points: &[PointObs], k: f64) -> Vec<PointObs> {
+    points
+        .iter()
         .map(|p| PointObs {
-            cov: p.cov + Matrix3::identity() * (m * m),
+            cov: p.cov * (k * k),
             ..p.clone()
         })
         .collect()
-}
-
-/// The model error `m` (mm): the isotropic variance `m²` that, added to every frame's
-/// centres, makes the registration's σ0 one — a variance component estimated from the
-/// residuals (the ball not quite a sphere of the stated diameter, each sensor seeing another
-/// part of it, the lidar's beam-to-beam biases, the outline's edge placed by the shading:
-/// what the sensors' own σ's leave out). By bisection, σ0 falling as `m` grows; `None` when
-/// σ0 is already at most one, or the registration refuses the centres first.
-pub fn model_error(lidar: &[PointObs], cam: &[PointObs], opt: &RegistrationOptions) -> Option<f64> {
-    let sigma0 = |m: f64| {
-        registration::register(lidar, &with_model_error(cam, m), opt)
-            .ok()
-            .map(|r| r.sigma0)
-    };
-    if !(sigma0(0.0)? > 1.0) {
-        return None;
-    }
-    // doubling up from 1 mm (a model error as large as the centres' spread makes them
-    // collinear within their σ's, and the registration refuses them)
-    let (mut lo, mut hi) = (0.0_f64, 1.0_f64);
-    while sigma0(hi)? > 1.0 {
-        (lo, hi) = (hi, 2.0 * hi);
-        if hi > 1e5 {
-            return None;
-        }
-    }
-    for _ in 0..60 {
-        let mid = 0.5 * (lo + hi);
-        if sigma0(mid)? > 1.0 {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
-        if hi / lo < 1.0 + 1e-6 {
-            break;
-        }
-    }
-    Some(hi)
 }
 
 /// The standard deviations on the diagonal of covariance `c`.

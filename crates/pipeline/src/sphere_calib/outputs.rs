@@ -369,10 +369,10 @@ fn summary(o: &Outcome) -> Vec<(String, String)> {
         ),
         (
             "σ0 of the registration".into(),
-            match o.model_error_mm {
-                Some(m) => format!(
-                    "{:.2} against the sensors' σ's; {:.2} with a model error of {m:.1} mm per coordinate estimated from the scatter, included in every σ ({} degrees of freedom)",
-                    o.sensor_sigma0, r.sigma0, r.dof
+            match o.sigma_scale {
+                Some(k) => format!(
+                    "{:.2} against the sensors' σ's; every σ scaled by {k:.2}, the scatter of the centres ({} degrees of freedom)",
+                    o.sensor_sigma0, r.dof
                 ),
                 None => format!("{:.2} ({} degrees of freedom)", r.sigma0, r.dof),
             },

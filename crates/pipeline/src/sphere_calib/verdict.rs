@@ -29,16 +29,16 @@ pub fn sigma0_passes(reg: &Registration) -> bool {
 }
 
 /// Judges a run: its frames, its evaluation, the point lists registered (lidar, camera: as
-/// `ev` used them), the registration's σ0 against the sensors' own σ's and the model error
-/// estimated when that σ0 failed ([`super::model_error`]). The σ0 test is on the sensors'
-/// σ0 (a model error makes `ev`'s one by construction); the leave-one-out test on `ev`'s σ's,
-/// model error included: whether the σ's stated are honest.
+/// `ev` used them), the registration's σ0 against the sensors' own σ's and the factor all
+/// σ's were scaled by when that σ0 failed ([`super::Outcome::sigma_scale`]). The σ0 test is
+/// on the sensors' σ0 (the scaling makes `ev`'s one by construction); the leave-one-out test
+/// on `ev`'s σ's, scaled: whether the σ's stated are honest.
 pub fn judge(
     frames: &[Frame],
     ev: &Evaluation,
     (lidar, cam): (&[PointObs], &[PointObs]),
     sensor_sigma0: f64,
-    model_error_mm: Option<f64>,
+    sigma_scale: Option<f64>,
 ) -> Verdict {
     let (mut checks, mut reasons, mut notes) = (Vec::new(), Vec::new(), Vec::new());
     let mut test = |name: &str, value: f64, bound: f64, why: String| {
@@ -56,8 +56,8 @@ pub fn judge(
     let reg = &ev.registration;
     if reg.dof > 0 {
         let b = registration_bound(reg.dof);
-        let scatter = model_error_mm.map_or(String::new(), |m| format!(
-            "; the centres scatter by {m:.1} mm per coordinate beyond their σ's, and the extrinsic's σ's include that"
+        let scatter = sigma_scale.map_or(String::new(), |k| format!(
+            "; the centres scatter {k:.1}× more than their σ's say, and every σ of the result is scaled by that"
         ));
         test("registration sigma0", sensor_sigma0, b, format!(
             "the registration's σ0 {sensor_sigma0:.2} exceeds {b:.2}: the sphere's centres do not fit one rigid transform within their σ's (a sphere diameter that is not the ball's, a camera model that does not fit, a wrong lidar noise profile, or sensors that moved){scatter}"
