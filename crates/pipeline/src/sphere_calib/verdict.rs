@@ -7,6 +7,10 @@
 //! | leave-one-out | `Σ dᵢᵀ Σᵢ⁻¹ dᵢ / 3n` of the frames' leave-one-out errors against their predicted covariances | `χ²₁₋α(3n) / 3n` × [`CENTRE_SIGMA_OPTIMISM`]² |
 //! | sphere fits sigma0 | the lidar sphere fits' pooled σ0 | `max(√(χ²₁₋α(f) / f), ` [`SPHERE_PROFILE_TOLERANCE`]`)` |
 //!
+//! The registration's σ0 is tested against the sensors' own σ's; when it fails, every σ is
+//! scaled by it (`super::Outcome::sigma_scale`) and the leave-one-out test is on the scaled
+//! σ's: whether the σ's the result states are honest.
+//!
 //! A failed test makes it `doubtful`, with the reason. Frames left out are listed as notes
 //! (each with why); more than half of the frames left out makes it `doubtful` too: what is
 //! left may not be the ball.
