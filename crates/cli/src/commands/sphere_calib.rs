@@ -7,16 +7,30 @@
 //! in at once under the folder's lock ([`super::result_set::write_set`]). An existing
 //! `results.json` is never replaced unless `--overwrite` is given: without it the run stops
 //! before any work.
+//!
+//! Exit codes as `pingcal calibrate`'s: 0 when the verdict is ok, 3
+//! ([`super::calibrate::EXIT_DOUBTFUL`]) when it is doubtful (results written; read the
+//! reasons), unless `--accept-doubtful`; 1 on an error (no results).
 
 use super::preflight::check_out_dir;
 use super::result_set::write_set;
 use super::result_set::{FolderLock, SetFile};
-use super::CmdResult;
+use super::{CmdResult, Exit};
 use pingcal_pipeline::sphere_calib::{calibrate, outputs::outputs, results_json, sd, Outcome};
+use pingcal_pipeline::verdict::Status;
 use std::path::{Path, PathBuf};
+
+/// The exit codes, as `pingcal sphere-calib --help` prints them after the options.
+const EXIT_CODES_HELP: &str = "\
+Exit codes:
+  0  the verdict is ok (or doubtful, with --accept-doubtful)
+  3  the verdict is doubtful: results written, read the reasons
+  1  the project could not be calibrated (bad input): no results
+  2  usage error (an unknown option, a missing argument)";
 
 /// Arguments of `pingcal sphere-calib`.
 #[derive(clap::Args)]
+#[command(after_help = EXIT_CODES_HELP)]
 pub struct Args {
     /// The sphere-calib project file (docs/sphere-calib.md).
     pub project: PathBuf,
@@ -33,6 +47,9 @@ pub struct Args {
     /// Only the one-line summary.
     #[arg(long)]
     pub quiet: bool,
+    /// Exit 0 on a doubtful verdict (default: 3, as `pingcal calibrate`).
+    #[arg(long)]
+    pub accept_doubtful: bool,
 }
 
 /// The output folder of a run.
@@ -131,17 +148,27 @@ pub fn run(args: Args) -> CmdResult {
     let (t, st) = (r.camera_from_lrf.translation, r.sigma_translation_mm);
     let (e, se) = (r.camera_from_lrf.opk_deg(), r.sigma_opk_deg);
     let used = o.frames.iter().filter(|f| f.skipped.is_none()).count();
+    let sigma0 = match o.sigma_scale {
+        Some(k) => format!("σ0 {:.2} (every σ scaled by {k:.2})", o.sensor_sigma0),
+        None => format!("σ0 {:.2}", r.sigma0),
+    };
     println!(
-        "sphere-calib: {}: {} of {} frames; t = ({:.1}, {:.1}, {:.1}) ± ({:.1}, {:.1}, {:.1}) mm, ω φ κ = ({:.3}, {:.3}, {:.3}) ± ({:.3}, {:.3}, {:.3})°; σ0 {:.2}; mean leave-one-out error {:.1} mm; wrote {} in {:.1} s",
+        "sphere-calib: {}: {} of {} frames; t = ({:.1}, {:.1}, {:.1}) ± ({:.1}, {:.1}, {:.1}) mm, ω φ κ = ({:.3}, {:.3}, {:.3}) ± ({:.3}, {:.3}, {:.3})°; {sigma0}; mean leave-one-out error {:.1} mm; wrote {} in {:.1} s",
         v.status.as_str(),
         used,
         o.frames.len(),
         t.x, t.y, t.z, st.x, st.y, st.z,
         e[0], e[1], e[2], se.x, se.y, se.z,
-        r.sigma0,
         o.evaluation.leave_one_out.mean_mm,
         dir.display(),
         t0.elapsed().as_secs_f64()
     );
+    if v.status == Status::Doubtful && !args.accept_doubtful {
+        return Err(Exit {
+            code: super::calibrate::EXIT_DOUBTFUL,
+            message: "verdict: doubtful; --accept-doubtful exits 0 on doubtful".into(),
+        }
+        .into());
+    }
     Ok(())
 }

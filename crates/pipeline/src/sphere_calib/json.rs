@@ -76,6 +76,8 @@ pub fn results_json(o: &Outcome) -> serde_json::Value {
         }),
     );
     obj.insert("method".into(), "sphere-calib".into());
+    obj.insert("sigma0_sensors".into(), serde_json::json!(o.sensor_sigma0));
+    obj.insert("sigma_scale".into(), serde_json::json!(o.sigma_scale));
     obj.insert(
         "noise".into(),
         serde_json::to_value(o.noise).unwrap_or_default(),

@@ -81,6 +81,14 @@ pub struct Outcome {
     pub diameter_mm: f64,
     /// The verdict.
     pub verdict: crate::verdict::Verdict,
+    /// σ0 of the registration against the sensors' own σ's (the centres' covariances from
+    /// the sphere fit and the silhouette fit); `evaluation`'s σ0 is this one unless the σ's
+    /// were scaled.
+    pub sensor_sigma0: f64,
+    /// The factor every centre's σ was scaled by when `sensor_sigma0` failed its test (the
+    /// variance factor σ0² estimated from the residuals, as its square root: the centres
+    /// scatter this many times more than their σ's say); then in every σ of `evaluation`.
+    pub sigma_scale: Option<f64>,
 }
 
 /// The project, its camera and its lidar's noise and unit.
@@ -229,10 +237,35 @@ pub fn calibrate(project: &Path, seed: u64) -> Result<Outcome, String> {
         ));
     }
     let opt = RegistrationOptions::default();
-    let evaluation = registration::evaluate(&lidar, &camera, &[], &[], &opt)
+    let sensors = registration::evaluate(&lidar, &camera, &[], &[], &opt)
         .map_err(|e| format!("{name}: registration: {e}"))?;
+    let sensor_sigma0 = sensors.registration.sigma0;
+    // the a-posteriori variance factor when the sensors' σ's fail: the estimate is the same
+    // (the weights only scale), every σ and the leave-one-out test take the data's scatter
+    let sigma_scale = (!verdict::sigma0_passes(&sensors.registration)).then_some(sensor_sigma0);
+    let (evaluation, lidar, camera) = match sigma_scale {
+        Some(k) => {
+            let (lidar, camera) = (scaled(&lidar, k), scaled(&camera, k));
+            // the geometry passed its test on the sensors' σ's: the same points, the same
+            // estimate (the scaled σ's would call an honest spread "collinear")
+            let opt = RegistrationOptions {
+                collinear_tol_mm: Some(0.0),
+                ..opt
+            };
+            let ev = registration::evaluate(&lidar, &camera, &[], &[], &opt)
+                .map_err(|e| format!("{name}: registration: {e}"))?;
+            (ev, lidar, camera)
+        }
+        None => (sensors, lidar, camera),
+    };
     let closed_form = closed_form(&frames, &name)?;
-    let verdict = verdict::judge(&frames, &evaluation, &lidar, &camera);
+    let verdict = verdict::judge(
+        &frames,
+        &evaluation,
+        (&lidar, &camera),
+        sensor_sigma0,
+        sigma_scale,
+    );
     Ok(Outcome {
         name: l.file.name.clone().unwrap_or(name),
         frames,
@@ -243,7 +276,20 @@ pub fn calibrate(project: &Path, seed: u64) -> Result<Outcome, String> {
         camera_path: l.file.camera.clone(),
         diameter_mm: l.file.sphere_diameter_mm,
         verdict,
+        sensor_sigma0,
+        sigma_scale,
     })
+}
+
+/// The centres with every σ times `k`.
+fn scaled(points: &[PointObs], k: f64) -> Vec<PointObs> {
+    points
+        .iter()
+        .map(|p| PointObs {
+            cov: p.cov * (k * k),
+            ..p.clone()
+        })
+        .collect()
 }
 
 /// The standard deviations on the diagonal of covariance `c`.

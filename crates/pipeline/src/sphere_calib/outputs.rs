@@ -369,7 +369,13 @@ fn summary(o: &Outcome) -> Vec<(String, String)> {
         ),
         (
             "σ0 of the registration".into(),
-            format!("{:.2} ({} degrees of freedom)", r.sigma0, r.dof),
+            match o.sigma_scale {
+                Some(k) => format!(
+                    "{:.2} against the sensors' σ's; every σ scaled by {k:.2}, the scatter of the centres ({} degrees of freedom)",
+                    o.sensor_sigma0, r.dof
+                ),
+                None => format!("{:.2} ({} degrees of freedom)", r.sigma0, r.dof),
+            },
         ),
         (
             "mean leave-one-out error".into(),

@@ -7,6 +7,10 @@
 //! | leave-one-out | `Σ dᵢᵀ Σᵢ⁻¹ dᵢ / 3n` of the frames' leave-one-out errors against their predicted covariances | `χ²₁₋α(3n) / 3n` × [`CENTRE_SIGMA_OPTIMISM`]² |
 //! | sphere fits sigma0 | the lidar sphere fits' pooled σ0 | `max(√(χ²₁₋α(f) / f), ` [`SPHERE_PROFILE_TOLERANCE`]`)` |
 //!
+//! The registration's σ0 is tested against the sensors' own σ's; when it fails, every σ is
+//! scaled by it (`super::Outcome::sigma_scale`) and the leave-one-out test is on the scaled
+//! σ's: whether the σ's the result states are honest.
+//!
 //! A failed test makes it `doubtful`, with the reason. Frames left out are listed as notes
 //! (each with why); more than half of the frames left out makes it `doubtful` too: what is
 //! left may not be the ball.
@@ -16,10 +20,30 @@ use crate::verdict::{
     check_points_bound, mean_check_chi2, sigma0_bound, Check, Status, Verdict, ALPHA,
     CENTRE_SIGMA_OPTIMISM, SPHERE_PROFILE_TOLERANCE,
 };
-use pingcal_lrf::registration::{Evaluation, PointObs};
+use pingcal_lrf::registration::{Evaluation, PointObs, Registration};
 
-/// Judges a run: its frames, its evaluation, the point lists registered.
-pub fn judge(frames: &[Frame], ev: &Evaluation, lidar: &[PointObs], cam: &[PointObs]) -> Verdict {
+/// The bound of the registration's σ0 with `dof` degrees of freedom.
+fn registration_bound(dof: usize) -> f64 {
+    sigma0_bound(dof as f64) * CENTRE_SIGMA_OPTIMISM
+}
+
+/// Whether the registration's σ0 passes its test (no redundancy passes).
+pub fn sigma0_passes(reg: &Registration) -> bool {
+    reg.dof == 0 || reg.sigma0 <= registration_bound(reg.dof)
+}
+
+/// Judges a run: its frames, its evaluation, the point lists registered (lidar, camera: as
+/// `ev` used them), the registration's σ0 against the sensors' own σ's and the factor all
+/// σ's were scaled by when that σ0 failed ([`super::Outcome::sigma_scale`]). The σ0 test is
+/// on the sensors' σ0 (the scaling makes `ev`'s one by construction); the leave-one-out test
+/// on `ev`'s σ's, scaled: whether the σ's stated are honest.
+pub fn judge(
+    frames: &[Frame],
+    ev: &Evaluation,
+    (lidar, cam): (&[PointObs], &[PointObs]),
+    sensor_sigma0: f64,
+    sigma_scale: Option<f64>,
+) -> Verdict {
     let (mut checks, mut reasons, mut notes) = (Vec::new(), Vec::new(), Vec::new());
     let mut test = |name: &str, value: f64, bound: f64, why: String| {
         let passed = value <= bound;
@@ -35,10 +59,12 @@ pub fn judge(frames: &[Frame], ev: &Evaluation, lidar: &[PointObs], cam: &[Point
     };
     let reg = &ev.registration;
     if reg.dof > 0 {
-        let b = sigma0_bound(reg.dof as f64) * CENTRE_SIGMA_OPTIMISM;
-        test("registration sigma0", reg.sigma0, b, format!(
-            "the registration's σ0 {:.2} exceeds {b:.2}: the sphere's centres do not fit one rigid transform within their σ's (a sphere diameter that is not the ball's, a camera model that does not fit, a wrong lidar noise profile, or sensors that moved)",
-            reg.sigma0
+        let b = registration_bound(reg.dof);
+        let scatter = sigma_scale.map_or(String::new(), |k| format!(
+            "; the centres scatter {k:.1}× more than their σ's say, and every σ of the result is scaled by that"
+        ));
+        test("registration sigma0", sensor_sigma0, b, format!(
+            "the registration's σ0 {sensor_sigma0:.2} exceeds {b:.2}: the sphere's centres do not fit one rigid transform within their σ's (a sphere diameter that is not the ball's, a camera model that does not fit, a wrong lidar noise profile, or sensors that moved){scatter}"
         ));
     }
     if let Some((mean, n)) = mean_check_chi2(
