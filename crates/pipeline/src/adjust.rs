@@ -9,17 +9,19 @@
 //!
 //! Each measurement is the detected centre with the σ of [`target_sigma`], except for a
 //! ball: the centre of a ball's silhouette is not the image of its centre, so it is
-//! corrected by the cone fit of [`pingcal_targets::ball`] with the scene's intrinsics.
+//! corrected by the cone fit of [`pingcal_targets::ball`] with the scene's intrinsics (for
+//! the wide-angle and fisheye models, the cone fitted to the silhouette's edge points).
 
 use super::ids::{DetectionId, IdVec, ImageId, PointId};
 use super::scene::{
     main_image, target_sigma, Detections, PointKind, Scene, SceneCamera, SIGMA_FACTOR,
 };
-use nalgebra::Vector2;
+use nalgebra::{Matrix2x3, Vector2};
 use pingcal_ba::problem::{Camera, Distance, Image, Observation, Point, Problem, Rig, RigMember};
 use pingcal_geometry::Rigid3;
 use pingcal_project::Project;
-use pingcal_targets::ball::{sphere_centre_from_ellipse, FnCamera};
+use pingcal_targets::ball::{sphere_centre_from_ellipse, CameraRays, FnCamera};
+use pingcal_targets::silhouette::sphere_centre_from_edges;
 
 /// Smallest σ of a ball's corrected centre (px): the limb of a shaded sphere is softer
 /// than a target's edge.
@@ -114,7 +116,8 @@ fn measurement(
     if kind != PointKind::Ball {
         return (raw, target_sigma(t), 0.0);
     }
-    let (e, s) = dets[d.image].ball_fits[d.det].unwrap_or((t.ellipse, t.sigma_px));
+    let fit = dets[d.image].ball_fits[d.det].as_ref();
+    let (e, s) = fit.map_or((t.ellipse, t.sigma_px), |f| (f.ellipse, f.sigma_px));
     let rays = FnCamera(
         |x: f64, y: f64| {
             cam.unproject(params, &Vector2::new(x, y))
@@ -125,14 +128,46 @@ fn measurement(
                 .map(|p| [p.x, p.y])
         },
     );
+    let centre = Vector2::new(e.cx, e.cy);
+    if let Some((p, sigma)) =
+        fit.and_then(|f| centre_from_edges(&f.edges, &rays, cam, params, radius))
+    {
+        return (p, sigma, (p - centre).norm());
+    }
     let sigma = (SIGMA_FACTOR * s).max(MIN_BALL_SIGMA_PX);
     match sphere_centre_from_ellipse(&e, &rays, Some(radius)) {
         Some(c) => {
             let p = Vector2::new(c.x, c.y);
-            (p, sigma, (p - Vector2::new(e.cx, e.cy)).norm())
+            (p, sigma, (p - centre).norm())
         }
-        None => (Vector2::new(e.cx, e.cy), sigma, 0.0),
+        None => (centre, sigma, 0.0),
     }
+}
+
+/// The image of a ball's centre and its σ (px) from the silhouette's edge points (kept for
+/// the wide-angle and fisheye models, [`super::scene::silhouette_is_ellipse`]): the
+/// cone fitted to their rays ([`sphere_centre_from_edges`]), its centre projected, the
+/// covariance carried through the projection's Jacobian, σ the RMS of the two axes times
+/// [`SIGMA_FACTOR`] as every image point's. None without edge points or when the fit fails.
+fn centre_from_edges(
+    edges: &[(f64, f64)],
+    rays: &dyn CameraRays,
+    cam: &SceneCamera,
+    params: &[f64],
+    radius: f64,
+) -> Option<(Vector2<f64>, f64)> {
+    if edges.is_empty() {
+        return None;
+    }
+    let floor = 0.25 / cam.focal_px(params);
+    let fit = sphere_centre_from_edges(edges, rays, radius, floor)?;
+    let mut jac = Matrix2x3::zeros();
+    let p = cam
+        .model
+        .project(params, &fit.centre, Some(&mut jac), None)?;
+    let cov = jac * fit.cov * jac.transpose();
+    let sigma = (SIGMA_FACTOR * (0.5 * cov.trace()).sqrt()).max(MIN_BALL_SIGMA_PX);
+    sigma.is_finite().then_some((p, sigma))
 }
 
 impl SceneProblem {

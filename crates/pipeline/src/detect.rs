@@ -7,12 +7,13 @@
 //! ([`pingcal_targets::ball::fit_ball_silhouette`]), so that no image needs to be kept in
 //! memory for the eccentricity correction of the balls.
 
-use super::scene::{Detections, ImageDetections};
+use super::scene::{silhouette_is_ellipse, BallFit, Detections, ImageDetections};
 use super::{PipelineError, Reporter, Result};
 use pingcal_project::Project;
 use pingcal_targets::detect::BallMode;
+use pingcal_targets::ellipse::Ellipse;
 use pingcal_targets::refusal::{counts, why_nothing, Refusal};
-use pingcal_targets::{load_image, DetectParams, Detector, TargetKind};
+use pingcal_targets::{load_image, DetectParams, Detector, GrayImage, TargetKind};
 use rayon::prelude::*;
 
 /// Detects every image of the project; an image of the wrong size for its camera is an error.
@@ -50,14 +51,14 @@ pub fn detect_all(project: &Project, rep: &Reporter) -> Result<Detections> {
                 )));
             }
             let d = detector.detect(&img);
+            let keep_edges = !silhouette_is_ellipse(cam.model.kind());
             let ball_fits = d
                 .targets
                 .iter()
                 .map(|t| {
                     (t.kind == TargetKind::Plain && t.ellipse.radius() >= 2.0)
-                        .then(|| pingcal_targets::ball::fit_ball_silhouette(&img, &t.ellipse).ok())
+                        .then(|| ball_fit(&img, &t.ellipse, keep_edges))
                         .flatten()
-                        .map(|r| (r.ellipse, r.sigma_ellipse))
                 })
                 .collect();
             pb.advance(1);
@@ -108,4 +109,22 @@ pub fn detect_all(project: &Project, rep: &Reporter) -> Result<Detections> {
         if refused.is_empty() { "none".into() } else { refused.join(", ") }
     ));
     Ok(dets)
+}
+
+/// The ball fit of a plain blob outlined by `seed`, with its edge points when `keep_edges` (none
+/// when they cannot be found: the ellipse stands for the outline then). None when the
+/// silhouette cannot be fitted.
+fn ball_fit(img: &GrayImage, seed: &Ellipse, keep_edges: bool) -> Option<BallFit> {
+    use pingcal_targets::ball::{ball_silhouette_edges, fit_ball_silhouette};
+    let fit = fit_ball_silhouette(img, seed).ok()?;
+    let edges = if keep_edges {
+        ball_silhouette_edges(img, &fit).unwrap_or_default()
+    } else {
+        Vec::new()
+    };
+    Some(BallFit {
+        ellipse: fit.ellipse,
+        sigma_px: fit.sigma_ellipse,
+        edges,
+    })
 }

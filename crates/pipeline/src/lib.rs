@@ -270,6 +270,24 @@ struct JointRun<'a> {
     adjusted: &'a bundle::Adjusted,
     opts: &'a Options,
     rep: &'a Reporter,
+    /// Passes after the first that look at the LRF again, at most: [`JOINT_REFINEMENTS`],
+    /// or none while the camera's model cannot hold its lens ([`refinements`]).
+    refinements: usize,
+}
+
+/// The refinement passes the joint adjustment may take ([`JointRun::passes`]):
+/// [`JOINT_REFINEMENTS`], or none when the bundle found that the camera's model cannot
+/// hold the lens (`adjusted.lens_doubt`). The passes re-decide which LRF sphere is which
+/// ball through a better mount; with ball centres off by the lens' unmodelled bending
+/// (tens of σ) no pass can settle that, each one only redoes the cloud and the adjustment
+/// (four passes from each of two starts), and the verdict is doubtful for the lens
+/// whatever they give. So the work stops after one pass from each start.
+fn refinements(adjusted: &bundle::Adjusted) -> usize {
+    if adjusted.lens_doubt.is_some() {
+        0
+    } else {
+        JOINT_REFINEMENTS
+    }
 }
 
 impl JointRun<'_> {
@@ -317,7 +335,7 @@ impl JointRun<'_> {
     /// the estimated extrinsic puts within a ball's radius of it (one to one, nearest first;
     /// [`extrinsic::match_by_extrinsic`]), the beams on the balls and the planes re-decided
     /// there, and the joint adjustment run again from its own estimate, until a pass needs
-    /// none of it or after [`JOINT_REFINEMENTS`] such passes.
+    /// none of it or after [`Self::refinements`] such passes.
     fn passes(
         &self,
         lrf: &lrf::LrfData,
@@ -328,7 +346,7 @@ impl JointRun<'_> {
     ) -> std::result::Result<joint::JointOutcome, String> {
         let mut out = self.pass(lrf, ext, start, 1, planes, plane_gate, None)?;
         let mut start_mount = lrf.mount;
-        for k in 1..=JOINT_REFINEMENTS {
+        for k in 1..=self.refinements {
             let why = match out.distorted_cloud() {
                 Some(why) => why,
                 None if out.moved_mount(&start_mount, 3.0) => {
@@ -494,7 +512,11 @@ fn run_joint(
         adjusted,
         opts,
         rep,
+        refinements: refinements(adjusted),
     };
+    if run.refinements == 0 {
+        rep.log("joint: the camera's model cannot hold the lens (the warning above): one pass from each start, without the LRF looked at again through the estimated mount");
+    }
     let diameter = project.file.balls.diameter_mm;
     let room = lrf::room_mount(project, lrf, rep);
     let planes: Vec<(nalgebra::Vector3<f64>, f64)> = (room.iter())

@@ -13,7 +13,7 @@
 
 use super::ids::{CameraId, DetIdx, DetectionId, IdVec, ImageId, PointId};
 use nalgebra::{Vector2, Vector3};
-use pingcal_ba::camera::CameraModel;
+use pingcal_ba::camera::{CameraModel, ModelKind};
 use pingcal_geometry::Rigid3;
 use pingcal_project::Project;
 use pingcal_project::ProjectCamera;
@@ -47,8 +47,33 @@ pub struct ImageDetections {
     pub height: usize,
     /// Targets: coded (with or without a number) and plain (targets or balls).
     pub targets: IdVec<DetIdx, Target>,
-    /// For each target: the silhouette refitted as a ball (plain blobs only), with its σ.
-    pub ball_fits: IdVec<DetIdx, Option<(Ellipse, f64)>>,
+    /// For each target: the silhouette refitted as a ball (plain blobs only).
+    pub ball_fits: IdVec<DetIdx, Option<BallFit>>,
+}
+
+/// A plain blob's silhouette refitted as a ball ([`pingcal_targets::ball`]).
+#[derive(Clone, Debug)]
+pub struct BallFit {
+    /// The ellipse fitted to the silhouette's edge points.
+    pub ellipse: Ellipse,
+    /// σ of the ellipse's centre (px).
+    pub sigma_px: f64,
+    /// The sub-pixel edge points, in order around the outline: kept only for a camera whose
+    /// balls are fitted to them ([`silhouette_is_ellipse`] false), empty otherwise.
+    pub edges: Vec<(f64, f64)>,
+}
+
+/// Whether a ball's centre through a lens of model `kind` is taken from its silhouette's
+/// fitted ellipse (the cone through 72 of its points), rather than from the cone fitted to
+/// the edge points themselves. The photogrammetric (Brown) models keep the ellipse: their
+/// results stay as they were. Through the wide-angle and fisheye models (OpenCV rational,
+/// Kannala–Brandt, double sphere) the outline is no ellipse; the edge points are kept and
+/// fitted in ray space ([`pingcal_targets::silhouette::sphere_centre_from_edges`]): exact
+/// whatever the outline's shape, robust to edge points of a stem or a neighbouring target,
+/// and with a covariance of its own per ball. (The ellipse's cone is not biased by the
+/// shape either: within 2·10⁻⁴ px of the exact centre on exact fisheye outlines.)
+pub fn silhouette_is_ellipse(kind: ModelKind) -> bool {
+    matches!(kind, ModelKind::Photogrammetric | ModelKind::BrownBackward)
 }
 
 /// The detections of every project image.

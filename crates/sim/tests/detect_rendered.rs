@@ -645,3 +645,117 @@ fn ball_eccentricity_correction_on_close_balls() {
         "the correction must remove most of the error"
     );
 }
+
+/// The ball centres of the default field seen through the 190° Kannala–Brandt lens of
+/// `pingcal simulate --camera-model kannala-brandt`, measured as the pipeline measures
+/// them: the ellipse's cone ([`sphere_centre_from_ellipse`]) and the cone fitted to the
+/// edge points ([`sphere_centre_from_edges`]), each against the true image of the centre,
+/// and the edge fit's error against its own σ (its covariance through the projection).
+/// `-- --nocapture` prints the table.
+#[test]
+fn ball_centres_through_a_fisheye_lens() {
+    use pingcal_targets::ball::ball_silhouette_edges;
+    use pingcal_targets::silhouette::sphere_centre_from_edges;
+    let mut cfg =
+        SimConfig::default().with_camera_model(pingcal_project::CameraModel::KannalaBrandt);
+    cfg.stations.convergent = 2;
+    cfg.lrf.servo_step_deg = 10.0;
+    let sim = Simulation::new(&cfg, 7).expect("simulation");
+    let mut p = DetectParams::default();
+    p.candidates.min_diameter_px = 3.0;
+    p.balls = pingcal_targets::detect::BallMode::Off;
+    let detector = Detector::new(p).unwrap();
+    let tables: Vec<RayTable> = sim.rig.cameras.iter().map(RayTable::new).collect();
+    let (mut by_ellipse, mut by_edges, mut norm) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut k, mut visible, mut detected) = (0u64, 0usize, 0usize);
+    println!("image      ball  r px   off-axis°  ellipse err  edges err   σ edges");
+    for st in &sim.stations {
+        for (ci, cam) in sim.rig.cameras.iter().enumerate() {
+            let pose: Rigid3 = st.camera_pose(&sim.rig, ci);
+            let img8 = render_image(
+                &sim.scene,
+                cam,
+                &pose,
+                &sim.config.render,
+                Some(&tables[ci]),
+                sim.seed,
+                k,
+            );
+            k += 1;
+            let img = to_gray(&img8);
+            let det = detector.detect(&img);
+            let sc = sim.scene.transformed(&pose);
+            let rays = rays_of(cam);
+            let f = cam.model.focal_px(&cam.params);
+            for i in 0..sc.balls.len() {
+                let Some(truth) = ball_visible(&sc, cam, 0.0, i) else {
+                    continue;
+                };
+                visible += 1;
+                let Some(t) = det
+                    .targets
+                    .iter()
+                    .find(|t| (Vector2::new(t.x, t.y) - truth).norm() < 0.3 * t.ellipse.radius())
+                else {
+                    continue;
+                };
+                detected += 1;
+                let Ok(fit) = fit_ball_silhouette(&img, &t.ellipse) else {
+                    continue;
+                };
+                let r = sc.balls[i].radius;
+                let c = sphere_centre_from_ellipse(&fit.ellipse, &rays, Some(r)).unwrap();
+                let edges = ball_silhouette_edges(&img, &fit).unwrap();
+                let cone = sphere_centre_from_edges(&edges, &rays, r, 0.25 / f).unwrap();
+                let mut jac = nalgebra::Matrix2x3::zeros();
+                let uv = cam
+                    .model
+                    .project(&cam.params, &cone.centre, Some(&mut jac), None)
+                    .unwrap();
+                let cov = jac * cone.cov * jac.transpose();
+                let sigma = (0.5 * cov.trace()).sqrt();
+                let e1 = (Vector2::new(c.x, c.y) - truth).norm();
+                let e2 = (uv - truth).norm();
+                let off = sc.balls[i].centre.normalize().y.acos().to_degrees();
+                println!(
+                    "{:<9} {:>4} {:>6.1} {:>9.0} {:>12.3} {:>10.3} {:>9.3}",
+                    format!("{}-{}", st.id, cam.id),
+                    i,
+                    fit.ellipse.radius(),
+                    off,
+                    e1,
+                    e2,
+                    sigma
+                );
+                by_ellipse.push(e1);
+                by_edges.push(e2);
+                norm.push(e2 / sigma / std::f64::consts::SQRT_2);
+            }
+        }
+    }
+    println!(
+        "{} balls: error by the ellipse rms {:.3} px, by the edges rms {:.3} px; rms(error per axis / σ) {:.2}",
+        by_edges.len(),
+        rms(&by_ellipse),
+        rms(&by_edges),
+        rms(&norm)
+    );
+    // Measured: 64 of the 80 balls visible in full detected (the others, far off the axis,
+    // are refused by the detector: not this test's subject), all 64 fitted; by the edges
+    // rms 0.114 px, by the ellipse 0.138 px (two balls whose ellipse fit kept clutter: 0.46
+    // and 0.41 px, 0.04 and 0.07 px by the edges); the rest is clutter touching the outline
+    // (stems, neighbouring targets: up to 0.37 px either way), so the edge fit's own σ (edge
+    // noise, ~0.02 px) is about a third of the error per axis. Bounds: every detected ball
+    // fitted but a tenth, rms ≤ 0.2 px (under 2× the measured; a wrong frame or model in
+    // the fit is pixels off), and no worse than the ellipse's.
+    assert!(
+        by_edges.len() * 10 >= detected * 9,
+        "fitted {} of {detected} detected ({visible} visible)",
+        by_edges.len()
+    );
+    assert!(rms(&by_edges) <= 0.2, "ball centres by the edges");
+    assert!(
+        rms(&by_edges) <= rms(&by_ellipse) + 0.01,
+        "the edges do worse than the ellipse"
+    );
+}

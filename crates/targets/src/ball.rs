@@ -18,7 +18,7 @@
 //! on the sphere is then symmetric about the camera–centre line, so any iso-intensity outline
 //! (including the mid-level edge the detector finds) is a circle about the same axis.
 
-use crate::centre::{refine, CentreParams, Refined, Reject};
+use crate::centre::{edge_points, refine, CentreParams, Refined, Reject, Round};
 use crate::ellipse::Ellipse;
 use crate::image_io::GrayImage;
 
@@ -166,16 +166,29 @@ pub fn sphere_centre_major_axis(
     })
 }
 
-/// Fits a ball's silhouette from a rough outline `seed` (e.g. a detected target of kind
-/// `ball`): sub-pixel edge points at the mid level and a robust ellipse fit.
-pub fn fit_ball_silhouette(img: &GrayImage, seed: &Ellipse) -> Result<Refined, Reject> {
-    // Balls are not retro-reflective: lower contrast, and a shaded limb; widen the tolerances.
-    let p = CentreParams {
+/// The refinement settings of a ball: balls are not retro-reflective (lower contrast) and
+/// their limb is shaded, so the tolerances are wider than a target's.
+fn ball_params() -> CentreParams {
+    CentreParams {
         min_contrast: 0.02,
         max_rms: (0.5, 0.04),
         ..CentreParams::default()
-    };
-    refine(img, seed, &p)
+    }
+}
+
+/// Fits a ball's silhouette from a rough outline `seed` (e.g. a detected target of kind
+/// `ball`): sub-pixel edge points at the mid level and a robust ellipse fit.
+pub fn fit_ball_silhouette(img: &GrayImage, seed: &Ellipse) -> Result<Refined, Reject> {
+    refine(img, seed, &ball_params())
+}
+
+/// The sub-pixel edge points of a ball's silhouette fitted by [`fit_ball_silhouette`],
+/// found as in the fit's final round around its ellipse (one per pixel of perimeter, in
+/// order around the outline), for [`crate::silhouette::sphere_centre_from_edges`]: the cone
+/// fitted to them in ray space, whatever shape the lens gives the outline.
+pub fn ball_silhouette_edges(img: &GrayImage, fit: &Refined) -> Result<Vec<(f64, f64)>, Reject> {
+    let (edges, _) = edge_points(img, &fit.ellipse, fit.fg, &ball_params(), Round::Final)?;
+    Ok(edges)
 }
 
 #[cfg(test)]
