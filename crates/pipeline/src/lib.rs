@@ -493,7 +493,7 @@ fn run_joint(
         rep,
     };
     let diameter = project.file.balls.diameter_mm;
-    let room = lrf::room_mount(project, lrf, rep);
+    let room = lrf::room_mount(project, lrf, opts.seed, rep);
     let planes: Vec<(nalgebra::Vector3<f64>, f64)> = (room.iter())
         .flat_map(|r| r.planes.iter().map(|p| (p.normal, p.offset_mm)))
         .collect();
