@@ -449,6 +449,38 @@ fn absurd(out: &joint::JointOutcome, diameter_mm: f64) -> Option<String> {
     None
 }
 
+/// Whether the simpler model's extrinsic `simple` moved from the full model's `full` by
+/// more than the simpler model may, and why. Holding parameters the balls determine poorly
+/// (a range scale of 0.2 % is within 1.3 σ) can still move the extrinsic by millimetres
+/// (that scale times the balls' range), which the simpler model's σ's do not contain. The
+/// rule is the mean squared error's: the simpler estimate is the better one while its bias²
+/// is at most the variance it saves, `Var_full − Var_simple`; its bias is estimated by the
+/// difference `d` of the two (of variance `Var_full − Var_simple` when it has none), so the
+/// simpler model is kept when `d² ≤ 2 (Var_full − Var_simple)` in each of the extrinsic's
+/// six components (rotation δθ = log(R_simple R_fullᵀ), translation).
+fn simpler_moved(full: &joint::JointOutcome, simple: &joint::JointOutcome) -> Option<String> {
+    let (f, s) = (&full.camera_from_lrf, &simple.camera_from_lrf);
+    let dth = pingcal_geometry::log_so3(&(s.rotation * f.rotation.transpose()));
+    let dt = s.translation - f.translation;
+    let d = [dth.x, dth.y, dth.z, dt.x, dt.y, dt.z];
+    const NAMES: [&str; 6] = ["rotation x", "rotation y", "rotation z", "tx", "ty", "tz"];
+    (0..6).find_map(|k| {
+        let saved = full.extrinsic_cov[(k, k)] - simple.extrinsic_cov[(k, k)];
+        let bound = (2.0 * saved.max(0.0)).sqrt();
+        (!(d[k].abs() <= bound)).then(|| {
+            let (v, b, u) = if k < 3 {
+                (d[k].to_degrees(), bound.to_degrees(), "°")
+            } else {
+                (d[k], bound, " mm")
+            };
+            format!(
+                "holding the mount moves the extrinsic's {} by {v:.3}{u}, more than the {b:.3}{u} the simpler model's smaller variance allows (bias² ≤ the variance saved)",
+                NAMES[k]
+            )
+        })
+    })
+}
+
 /// Whether the estimated mount and range parameters of `out` are insignificant against
 /// the project's mount `prior` (see [`MODEL_ALPHA`]): the Wald test of all of them together,
 /// `W = δᵀ Σ⁻¹ δ` against `χ²₁₋α(k)`, and each alone, `|δ_k/σ_k|` against `z₁₋α/₂`. Some(the
@@ -518,7 +550,7 @@ fn run_joint(
         rep.log("joint: the camera's model cannot hold the lens (the warning above): one pass from each start, without the LRF looked at again through the estimated mount");
     }
     let diameter = project.file.balls.diameter_mm;
-    let room = lrf::room_mount(project, lrf, rep);
+    let room = lrf::room_mount(project, lrf, opts.seed, rep);
     let planes: Vec<(nalgebra::Vector3<f64>, f64)> = (room.iter())
         .flat_map(|r| r.planes.iter().map(|p| (p.normal, p.offset_mm)))
         .collect();
@@ -606,7 +638,19 @@ fn simpler_if_insignificant(
     run.rep.log(format!("joint: {why}"));
     let gate = pingcal_lrf::room::Gate::First(FIRST_PLANE_GATE_MM);
     match run.pass(lrf, ext, out.camera_from_lrf, 1, &[], gate, Some(&why)) {
-        Ok(s) if absurd(&s, run.project.file.balls.diameter_mm).is_none() => s,
+        Ok(s) if absurd(&s, run.project.file.balls.diameter_mm).is_none() => {
+            match simpler_moved(&out, &s) {
+                None => s,
+                Some(moved) => {
+                    let note =
+                        format!("the simpler model was refused: {moved}: the full model stands");
+                    run.rep.log(format!("joint: {note}"));
+                    let mut out = out;
+                    out.notes.push(note);
+                    out
+                }
+            }
+        }
         Ok(_) | Err(_) => {
             run.rep
                 .log("joint: the simpler model gave no usable result: the full model stands");

@@ -11,13 +11,13 @@
 //! and counted in a warning naming the file and the first line.
 
 use super::{Options, PipelineError, Reporter, Result};
-use pingcal_lrf::ball_finder::{find_balls, FindResult, FinderOptions};
+use pingcal_lrf::ball_finder::{find_balls, find_walls, FindResult, FinderOptions};
 use pingcal_lrf::cloud::{Cloud, MountModel};
 use pingcal_lrf::cloud_file::{
     file_kind, masked_warning, non_empty, read_cloud_file_in, read_lrf_model, CloudFileKind,
     CloudUnit,
 };
-use pingcal_lrf::room::{mount_from_room, RoomMount, RoomOptions};
+use pingcal_lrf::room::{mount_from_room_refinding, RoomMount, RoomOptions};
 use pingcal_lrf::scan::{mask_lines_beyond, open_scan_file, ScanHeader, ScanLine};
 use pingcal_lrf::sensor::RangeNoise;
 use pingcal_project::{Project, ProjectBag, ProjectLrf};
@@ -251,7 +251,12 @@ pub fn lrf_spheres(project: &Project, opts: &Options, rep: &Reporter) -> Result<
 /// room does not determine held and named. None (and the reason in the log) when the
 /// project turns it off (`[lrf] room_planes = false`), asks for no mount parameter, the
 /// cloud has no readings, or the room determines none of them.
-pub fn room_mount(project: &Project, lrf: &LrfData, rep: &Reporter) -> Option<RoomMount> {
+pub fn room_mount(
+    project: &Project,
+    lrf: &LrfData,
+    seed: u64,
+    rep: &Reporter,
+) -> Option<RoomMount> {
     let l = &project.file.lrf;
     if l.room_planes == Some(false) || lrf.cloud.readings.is_none() {
         return None;
@@ -268,7 +273,14 @@ pub fn room_mount(project: &Project, lrf: &LrfData, rep: &Reporter) -> Option<Ro
         estimate,
         ..RoomOptions::default()
     };
-    match mount_from_room(&lrf.cloud, &lrf.found.planes, &lrf.mount, &opts) {
+    let finder = FinderOptions {
+        diameter_mm: project.file.balls.diameter_mm,
+        noise: lrf.noise,
+        seed,
+        ..FinderOptions::default()
+    };
+    let find = |c: &Cloud| find_walls(c, &finder);
+    match mount_from_room_refinding(&lrf.cloud, &lrf.found.planes, &lrf.mount, &opts, find) {
         Ok(r) => {
             rep.log(format!("LRF mount from the room: {}", describe_room(&r)));
             r.parameters.iter().any(|p| p.sigma.is_some()).then_some(r)
@@ -298,8 +310,16 @@ pub fn describe_room(r: &RoomMount) -> String {
         })
         .collect();
     format!(
-        "{} planes, {} beams ({} rejected), sigma0 {:.3}; {}",
+        "{} planes{}, {} beams ({} rejected), sigma0 {:.3}; {}",
         r.planes.len(),
+        if r.wall_searches > 1 {
+            format!(
+                " (found again through the estimate, search {})",
+                r.wall_searches
+            )
+        } else {
+            String::new()
+        },
         r.beams,
         r.rejected,
         r.sigma0,

@@ -10,7 +10,7 @@ use super::CmdResult;
 use pingcal_lrf::ball_finder::{find_walls, FinderOptions};
 use pingcal_lrf::cloud::{Cloud, MountModel};
 use pingcal_lrf::cloud_file::{read_cloud_file_in, read_lrf_model, CloudUnit};
-use pingcal_lrf::room::{mount_from_room, RoomMount, RoomOptions};
+use pingcal_lrf::room::{mount_from_room_refinding, RoomMount, RoomOptions};
 use pingcal_lrf::RangeNoise;
 use std::path::PathBuf;
 
@@ -80,20 +80,18 @@ pub fn run(args: Args) -> CmdResult {
         }
         cloud.extend(c);
     }
-    let walls = find_walls(
-        &cloud,
-        &FinderOptions {
-            noise,
-            seed: args.seed,
-            ..FinderOptions::default()
-        },
-    );
+    let finder = FinderOptions {
+        noise,
+        seed: args.seed,
+        ..FinderOptions::default()
+    };
+    let walls = find_walls(&cloud, &finder);
     let opts = RoomOptions {
         noise,
         ..RoomOptions::default()
     };
     let names: Vec<String> = args.scans.iter().map(|p| p.display().to_string()).collect();
-    let r = mount_from_room(&cloud, &walls, &start, &opts)
+    let r = mount_from_room_refinding(&cloud, &walls, &start, &opts, |c| find_walls(c, &finder))
         .map_err(|e| format!("{}: {e}", names.join(", ")))?;
     print_estimate(&r);
     if let Some(out) = &args.out {
@@ -143,6 +141,12 @@ fn print_estimate(r: &RoomMount) {
                 why.as_deref().unwrap_or("")
             ),
         }
+    }
+    if r.wall_searches > 1 {
+        println!(
+            "the walls were found again through the estimate ({} searches): the start's cloud showed fewer",
+            r.wall_searches
+        );
     }
     for (k, p) in r.planes.iter().enumerate() {
         let n = p.normal;
@@ -199,5 +203,6 @@ fn estimate_json(r: &RoomMount, scans: &[String]) -> serde_json::Value {
         "redundancy": r.redundancy,
         "beams": r.beams,
         "beams_rejected": r.rejected,
+        "wall_searches": r.wall_searches,
     })
 }
