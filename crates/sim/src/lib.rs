@@ -40,6 +40,7 @@ pub mod coded_target;
 pub mod config;
 pub mod head;
 pub mod lrf;
+pub mod place;
 pub mod project_files;
 pub mod render;
 pub mod scene;

@@ -54,7 +54,7 @@ pub fn run(args: Args) -> CmdResult {
     ));
     let cfg = pingcal_sim::SimConfig::default();
     let (summary, _, [t_scene, t_write]) =
-        super::simulate::simulate_into(&out, &cfg, args.seed, None)?;
+        pingcal_sim::place::simulate_into(&out, &cfg, args.seed, None)?;
     let t_sim = t0.elapsed().as_secs_f64();
     rep.log(format!(
         "demo: {} images, {} LRF scans, {} targets ({} coded), {} balls simulated in {t_sim:.1} s (scene and LRF sweep {t_scene:.1} s, rendering and writing {t_write:.1} s)",

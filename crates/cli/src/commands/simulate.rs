@@ -89,117 +89,6 @@ pub enum Kind {
     SphereCalib,
 }
 
-/// Fails unless `out` does not exist or is an empty folder.
-fn check_out(out: &std::path::Path) -> Result<(), super::CmdError> {
-    if out.exists() {
-        let empty = out.is_dir()
-            && std::fs::read_dir(out)
-                .map_err(|e| format!("{}: {e}", out.display()))?
-                .next()
-                .is_none();
-        if !empty {
-            return Err(format!(
-                "{}: already exists and is not an empty folder",
-                out.display()
-            )
-            .into());
-        }
-    }
-    Ok(())
-}
-
-/// Runs `write` on a hidden temporary folder beside `out` and renames that onto `out` (an
-/// empty folder or nothing, [`check_out`]): an interrupted or failed run never leaves a
-/// partial folder looking complete.
-fn into_place<T>(
-    out: &std::path::Path,
-    write: impl FnOnce(&std::path::Path) -> Result<T, super::CmdError>,
-) -> Result<T, super::CmdError> {
-    let parent = out
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(std::path::Path::new("."));
-    std::fs::create_dir_all(parent)
-        .map_err(|e| format!("{}: cannot create: {e}", parent.display()))?;
-    let name = out
-        .file_name()
-        .ok_or_else(|| format!("{}: not a folder name", out.display()))?;
-    let tmp = parent.join(format!(
-        ".{}.partial-{}",
-        name.to_string_lossy(),
-        std::process::id()
-    ));
-    let _ = std::fs::remove_dir_all(&tmp);
-    let value = match write(&tmp) {
-        Ok(v) => v,
-        Err(e) => {
-            let _ = std::fs::remove_dir_all(&tmp);
-            return Err(e);
-        }
-    };
-    if out.exists() {
-        std::fs::remove_dir(out).map_err(|e| format!("{}: {e}", out.display()))?;
-    }
-    if let Err(e) = std::fs::rename(&tmp, out) {
-        let _ = std::fs::remove_dir_all(&tmp);
-        return Err(format!(
-            "{}: cannot rename the finished project into place: {e}",
-            out.display()
-        )
-        .into());
-    }
-    Ok(value)
-}
-
-/// Simulates a sphere-calib data set with `cfg` and `seed` into `out` (which must not exist,
-/// or be an empty folder), through a hidden temporary folder renamed at the end.
-pub fn simulate_sphere_calib_into(
-    out: &std::path::Path,
-    cfg: &pingcal_sim::sphere_calib::SphereCalibConfig,
-    seed: u64,
-) -> Result<pingcal_sim::sphere_calib::SphereCalibSummary, super::CmdError> {
-    check_out(out)?;
-    let sim = pingcal_sim::sphere_calib::SphereCalibSim::new(cfg, seed)?;
-    into_place(out, |tmp| {
-        pingcal_sim::sphere_calib::write_sphere_calib(&sim, tmp).map_err(Into::into)
-    })
-}
-
-/// Simulates with `cfg` and `seed` and writes the project into `out` (which must not exist,
-/// or be an empty folder), through a hidden temporary folder renamed at the end. Also
-/// returns the seconds spent on the scene and LRF sweep, and on rendering and writing.
-pub fn simulate_into(
-    out: &std::path::Path,
-    cfg: &pingcal_sim::SimConfig,
-    seed: u64,
-    config_file: Option<&std::path::Path>,
-) -> Result<
-    (
-        pingcal_sim::ProjectSummary,
-        pingcal_sim::Simulation,
-        [f64; 2],
-    ),
-    super::CmdError,
-> {
-    check_out(out)?;
-    let t0 = std::time::Instant::now();
-    let sim = pingcal_sim::Simulation::new(cfg, seed).map_err(|e| match config_file {
-        Some(p) if matches!(e, pingcal_sim::SimError::Invalid(_)) => {
-            format!("{}: {e}", p.display())
-        }
-        _ => e.to_string(),
-    })?;
-    let t_scene = t0.elapsed().as_secs_f64();
-    let summary = into_place(out, |tmp| {
-        pingcal_sim::write_project(&sim, tmp).map_err(Into::into)
-    })?;
-    Ok((
-        summary,
-        sim,
-        [t_scene, t0.elapsed().as_secs_f64() - t_scene],
-    ))
-}
-
 /// Runs the command.
 pub fn run(args: Args) -> CmdResult {
     let t0 = std::time::Instant::now();
@@ -232,7 +121,7 @@ pub fn run(args: Args) -> CmdResult {
                 .map_err(|e| format!("--lidar-sigma-mm: {e}"))?;
             cfg.noise_name = None;
         }
-        let s = simulate_sphere_calib_into(&args.out, &cfg, args.seed)?;
+        let s = pingcal_sim::place::simulate_sphere_calib_into(&args.out, &cfg, args.seed)?;
         println!(
             "simulate: wrote {} ({} frames of a {} mm sphere, {} lidar points; seed {}) in {:.1} s",
             args.out.join("sphere-calib.toml").display(),
@@ -260,7 +149,8 @@ pub fn run(args: Args) -> CmdResult {
     };
     cfg = with_camera_model(cfg, args.camera_model.as_deref())?;
     let out = &args.out;
-    let (summary, sim, _) = simulate_into(out, &cfg, args.seed, args.config.as_deref())?;
+    let (summary, sim, _) =
+        pingcal_sim::place::simulate_into(out, &cfg, args.seed, args.config.as_deref())?;
     println!(
         "simulate: wrote {} ({} images, {} LRF scans, {} targets of which {} coded, {} balls, {} distances; seed {}) in {:.1} s",
         out.join("project.toml").display(),
