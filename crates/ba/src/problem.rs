@@ -231,54 +231,88 @@ pub enum ProblemError {
     /// An observation refers to an image that does not exist.
     #[error("observation {index} refers to image {image}, but there are only {count} images")]
     UnknownImage {
+        /// The observation: 0-based index into [`Problem::observations`].
         index: usize,
+        /// The image it names: 0-based index into [`Problem::images`].
         image: usize,
+        /// How many images the problem has.
         count: usize,
     },
     /// An observation refers to a point that does not exist.
     #[error("observation {index} refers to point {point}, but there are only {count} points")]
     UnknownPoint {
+        /// The observation: 0-based index into [`Problem::observations`].
         index: usize,
+        /// The point it names: 0-based index into [`Problem::points`].
         point: usize,
+        /// How many points the problem has.
         count: usize,
     },
     /// An image refers to a camera that does not exist.
     #[error("image '{name}' refers to camera {camera}, but there are only {count} cameras")]
     UnknownCamera {
+        /// The image's [`Image::name`].
         name: String,
+        /// The camera it names: 0-based index into [`Problem::cameras`].
         camera: usize,
+        /// How many cameras the problem has.
         count: usize,
     },
     /// A camera's parameter count does not match its model.
     #[error("camera '{name}' has {got} parameters, its model '{model}' takes {expected}")]
     ParameterCount {
+        /// The camera's [`Camera::name`].
         name: String,
+        /// The model's name ([`CameraModel::name`]).
         model: &'static str,
+        /// Length of [`Camera::params`] (also reported when only [`Camera::fixed`] has the
+        /// wrong length).
         got: usize,
+        /// The number of parameters the model takes ([`CameraModel::num_params`]).
         expected: usize,
     },
     /// A value is NaN or infinite.
     #[error("{what} is not a finite number")]
-    NotFinite { what: String },
+    NotFinite {
+        /// Which value, in words (e.g. "the pose of image 'IMG_0001.JPG'").
+        what: String,
+    },
     /// An observation's σ is not positive.
     #[error("observation {index} has σ = {sigma}, expected a positive number")]
-    BadSigma { index: usize, sigma: f64 },
+    BadSigma {
+        /// The observation: 0-based index into [`Problem::observations`].
+        index: usize,
+        /// Its [`Observation::sigma`], pixels.
+        sigma: f64,
+    },
     /// The loss scale is not positive.
     #[error("the robust loss scale must be positive and finite")]
     BadLoss,
     /// A distance or control point refers to a point that does not exist.
     #[error("{what} refers to point {point}, but there are only {count} points")]
     UnknownPointIn {
+        /// The distance or control point, in words (e.g. "distance 2", "control point 0",
+        /// numbered from 0 in [`Problem::distances`] / [`Problem::point_priors`]).
         what: String,
+        /// The point it names: 0-based index into [`Problem::points`].
         point: usize,
+        /// How many points the problem has.
         count: usize,
     },
     /// A distance or control observation is unusable.
     #[error("{0}")]
-    BadConstraint(String),
+    BadConstraint(
+        /// What is wrong, naming the distance, control point, rig or observation concerned.
+        String,
+    ),
     /// A point is not imaged by the camera model at the current estimate.
     #[error("point '{point}' cannot be projected into image '{image}' (behind the camera?)")]
-    NotProjectable { point: String, image: String },
+    NotProjectable {
+        /// The point's [`Point::name`].
+        point: String,
+        /// The image's [`Image::name`].
+        image: String,
+    },
 }
 
 impl Problem {

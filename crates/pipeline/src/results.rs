@@ -149,8 +149,9 @@ pub struct CodedBlunderJson {
     pub image: String,
     /// The number read.
     pub number: u32,
-    /// Where it was read (px).
+    /// Where it was read: x, px to the right of the centre of the top-left pixel.
     pub x: f64,
+    /// Where it was read: y, px down from the centre of the top-left pixel.
     pub y: f64,
     /// The step that found it (`network start`, `coincident numbers`, `driveback`,
     /// `matching`, `final bundle`).

@@ -68,7 +68,10 @@ pub fn reverse_bits(v: u32, n: u32) -> u32 {
 /// The table of ring codes of one bit count: `codes[k-1]` is the code of target number k.
 #[derive(Clone, Debug)]
 pub struct CodeTable {
+    /// Number of ring sectors, one bit each (AICON: 12 or 14).
     pub bits: u32,
+    /// The codes, each at its smallest rotation, in increasing order; the code of target
+    /// number k (1-based) is at index k − 1.
     pub codes: Vec<u32>,
 }
 
@@ -108,6 +111,7 @@ impl CodeTable {
 /// How a ring is read.
 #[derive(Clone, Debug)]
 pub struct RingReader {
+    /// The codes a ring may carry, and so the bit count read.
     pub table: CodeTable,
     /// The printed ring, inner and outer radius in dot radii (AICON: 2 and 3).
     pub geometry: (f64, f64),
@@ -254,19 +258,29 @@ pub enum RingRead {
     /// No code ring around this dot (the band is essentially all dark).
     NoRing,
     /// A ring is there but it could not be read reliably, or the code is not in the table.
-    Unreadable { reason: &'static str },
+    Unreadable {
+        /// Why, in words (e.g. "a sector is not uniform", "code not in the table").
+        reason: &'static str,
+    },
     /// A code read with confidence: the code at its smallest rotation, the number, and the
     /// margins that decided it ([`confidence`]; its confidence is at least 1).
     Code {
+        /// The ring's bits ([`RingReader::clockwise`] gives their order), at their smallest
+        /// rotation.
         code: u32,
+        /// The target number, 1-based ([`CodeTable::id`]).
         id: u32,
+        /// How clearly the sectors and the code were read.
         margins: ReadMargins,
     },
     /// A code was read but a margin is under its bound ([`confidence`]): no number is
     /// given; the code, number and margins say what was refused.
     Doubtful {
+        /// The ring's bits as read, at their smallest rotation.
         code: u32,
+        /// The target number that code would give, 1-based; not given to the target.
         id: u32,
+        /// The margins, of which at least one is under its bound.
         margins: ReadMargins,
     },
 }

@@ -50,8 +50,11 @@ where
 /// An ideal pinhole camera (x right, y down, z forward), for tests and as an example.
 #[derive(Clone, Copy, Debug)]
 pub struct Pinhole {
+    /// Focal length, px.
     pub f: f64,
+    /// Principal point x, px (the crate's pixel convention).
     pub cx: f64,
+    /// Principal point y, px.
     pub cy: f64,
 }
 
@@ -73,8 +76,10 @@ impl CameraRays for Pinhole {
 /// The sphere's centre recovered from its outline.
 #[derive(Clone, Copy, Debug)]
 pub struct SphereCentre {
-    /// Image of the sphere's centre (pixels).
+    /// Image of the sphere's centre: x, px (the projection of its centre, not the centre of
+    /// the outline).
     pub x: f64,
+    /// Image of the sphere's centre: y, px.
     pub y: f64,
     /// Unit direction to the centre (camera frame of the [`CameraRays`]).
     pub axis: [f64; 3],

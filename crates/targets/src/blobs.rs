@@ -20,10 +20,15 @@ use crate::image_io::GrayImage;
 /// Statistics of one connected component. Coordinates are pixel centres (x right, y down).
 #[derive(Clone, Debug)]
 pub struct Blob {
+    /// Number of pixels in the component.
     pub area: usize,
+    /// Leftmost column, inclusive, px.
     pub x_min: usize,
+    /// Rightmost column, inclusive, px.
     pub x_max: usize,
+    /// Top row, inclusive, px.
     pub y_min: usize,
+    /// Bottom row, inclusive, px.
     pub y_max: usize,
     sx: f64,
     sy: f64,

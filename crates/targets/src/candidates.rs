@@ -10,8 +10,11 @@ use crate::threshold::threshold_levels;
 /// Settings of the candidate search.
 #[derive(Clone, Debug)]
 pub struct CandidateParams {
-    /// Accepted blob diameters (pixels, of the equivalent disc).
+    /// Smallest accepted blob diameter (pixels, of the equivalent disc); a stable blob under
+    /// it is refused as too small.
     pub min_diameter_px: f64,
+    /// Largest accepted blob diameter (pixels, of the equivalent disc); a larger blob is
+    /// dropped without a refusal.
     pub max_diameter_px: f64,
     /// Number of threshold levels.
     pub levels: usize,
@@ -40,8 +43,12 @@ impl Default for CandidateParams {
 /// was seen at.
 #[derive(Clone, Debug)]
 pub struct Candidate {
+    /// The moment ellipse of the representative component (the middle one of the levels it
+    /// was seen at), px.
     pub seed: Ellipse,
+    /// At how many threshold levels it was seen.
     pub repeats: usize,
+    /// The representative component's area, pixels.
     pub area: usize,
 }
 
@@ -83,8 +90,12 @@ fn shape_ok(b: &Blob, w: usize, h: usize, p: &CandidateParams) -> Result<Ellipse
 /// (the middle level's; at the border, of the part inside the image) and why.
 #[derive(Clone, Debug)]
 pub struct RefusedBlob {
+    /// Its outline, px: the moment ellipse of the middle level's component (at the border,
+    /// of the part inside the image).
     pub seed: Ellipse,
+    /// At how many threshold levels it was seen.
     pub repeats: usize,
+    /// Which test it failed.
     pub why: BlobRefusal,
 }
 

@@ -64,11 +64,13 @@ pub struct Refined {
     pub centroid: (f64, f64),
     /// σ of the centroid, pixels (from the image noise).
     pub sigma_centroid: f64,
-    /// Foreground and (mean) background levels.
+    /// Foreground level: the target's brightness, in the image's [0, 1] grey scale.
     pub fg: f32,
+    /// Background level: the mean over the edge rays of the dark surround, same scale.
     pub bg: f32,
-    /// Edge points used, and the RMS of their residuals (pixels).
+    /// Number of edge points the ellipse fit kept (its inliers).
     pub n_edges: usize,
+    /// RMS of those edge points' residuals to the ellipse, pixels.
     pub rms_edge: f64,
     /// The share of the samples inside the seed outline at the saturation level.
     pub saturated: f64,

@@ -10,8 +10,12 @@ use crate::detect::{Target, TargetKind};
 pub struct Predicted {
     /// The point's label in the model (e.g. `1001` or `B7`).
     pub label: String,
+    /// The kind of target the point is, which decides the detections it may take
+    /// ([`takes`]).
     pub kind: TargetKind,
+    /// Where the point projects: x, px (the crate's pixel convention).
     pub x: f64,
+    /// Where the point projects: y, px, down.
     pub y: f64,
 }
 

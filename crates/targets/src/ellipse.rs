@@ -9,10 +9,16 @@ use serde::Serialize;
 /// the major axis from the x axis towards the y axis (radians).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct Ellipse {
+    /// Centre x, px.
     pub cx: f64,
+    /// Centre y, px, down.
     pub cy: f64,
+    /// Semi-major axis, px.
     pub a: f64,
+    /// Semi-minor axis, px (`b <= a`).
     pub b: f64,
+    /// Angle of the major axis from the x axis towards the y axis, radians (clockwise on
+    /// screen, y being down).
     pub theta: f64,
 }
 

@@ -33,6 +33,7 @@ pub fn fit_homography(src: &[[f64; 2]], dst: &[[f64; 2]]) -> Option<Homography> 
 /// Result of [`ransac_homography`].
 #[derive(Clone, Debug)]
 pub struct RansacHomography {
+    /// The homography `dst ~ H · src`, refitted to its inliers.
     pub h: Homography,
     /// Per correspondence: within `threshold` of the final model.
     pub inliers: Vec<bool>,

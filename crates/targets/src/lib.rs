@@ -72,8 +72,19 @@ pub use image_io::{decode_image, load_colour, load_image, GrayImage};
 /// Errors of this crate. Each names the file (where there is one) and what is wrong.
 #[derive(Debug, thiserror::Error)]
 pub enum TargetError {
+    /// An image file that cannot be read, decoded or written.
     #[error("{file}: {what}")]
-    Image { file: String, what: String },
+    Image {
+        /// The file's path or name, as given.
+        file: String,
+        /// What is wrong (e.g. "empty file", "cannot write: …").
+        what: String,
+    },
+    /// A value given to the library that it cannot use (a code table size, an ID list, a
+    /// page size, …).
     #[error("{0}")]
-    Invalid(String),
+    Invalid(
+        /// The value and what was expected, as one sentence.
+        String,
+    ),
 }

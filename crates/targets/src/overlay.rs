@@ -6,16 +6,23 @@ use crate::image_io::GrayImage;
 use crate::TargetError;
 use image::{Rgb, RgbImage};
 
-/// Colours used for the target kinds.
+/// Colour (RGB) of a coded target with its number.
 pub const GREEN: [u8; 3] = [40, 255, 40];
+/// Colour (RGB) of a plain target.
 pub const CYAN: [u8; 3] = [0, 220, 255];
+/// Colour (RGB) of a ball.
 pub const MAGENTA: [u8; 3] = [255, 60, 255];
+/// Colour (RGB) of the cross at each target's centre.
 pub const RED: [u8; 3] = [255, 40, 40];
+/// Colour (RGB) of a coded target without a number (drawn with '?').
 pub const YELLOW: [u8; 3] = [255, 230, 0];
+/// Colour (RGB) of a refused candidate and the letter of its reason.
 pub const ORANGE: [u8; 3] = [255, 140, 0];
 
 /// An RGB canvas over a grey image, with integer scale-up for legibility of small images.
 pub struct Overlay {
+    /// The picture so far: the grey image (levels stretched so that the 99.9th percentile is
+    /// white, square-root tone) with what has been drawn on it, one pixel per image pixel.
     pub img: RgbImage,
     scale: f64,
 }

@@ -7,8 +7,12 @@
 /// A grey image, row-major, values nominally in [0, 1] (1 = white).
 #[derive(Clone, Debug)]
 pub struct GrayImage {
+    /// Width, pixels (columns).
     pub width: usize,
+    /// Height, pixels (rows).
     pub height: usize,
+    /// The `width · height` values, row after row from the top: pixel (x, y) is at
+    /// `y · width + x`.
     pub data: Vec<f32>,
 }
 

@@ -56,13 +56,26 @@ pub const GLYPH_PAPER: f32 = 0.12;
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum RefusalReason {
+    /// The blob touches the image border, or the window its edge is looked for in leaves the
+    /// image.
     AtBorder,
+    /// Its outline is not an ellipse (fill or axis ratio, too few edge points, or edge points
+    /// no ellipse fits: partly covered, merged, ragged).
     NotElliptic,
+    /// An elliptic blob under the smallest diameter measured, 5 px.
     TooSmall,
+    /// The inside of a printed letter or digit (the glyph test of the module doc).
     TextGlyph,
+    /// More than a fifth of the samples inside the blob at the saturation level; the share is
+    /// in [`Refusal::saturated_share`].
     Saturated,
+    /// Less than 0.03 of full scale brighter than its surround.
     LowContrast,
+    /// A coded target whose ring was seen but whose number was not given (unreadable, a
+    /// margin under its bound, or a σ far above the other targets'); the target is kept
+    /// without a number, and a number read and refused is in [`Refusal::refused_read`].
     RingUnreadable,
+    /// Two targets of the image read the same number; neither keeps it.
     NumberReadTwice,
 }
 
@@ -134,7 +147,10 @@ impl RefusalReason {
 /// the blob's moment ellipse), and the figures of its reason.
 #[derive(Clone, Debug, Serialize)]
 pub struct Refusal {
+    /// Why it was refused.
     pub reason: RefusalReason,
+    /// Its outline in the image, px: the fitted ellipse where there is one, else the blob's
+    /// moment ellipse.
     pub ellipse: Ellipse,
     /// Saturated: the share of the samples inside the blob at the saturation level.
     #[serde(skip_serializing_if = "Option::is_none")]

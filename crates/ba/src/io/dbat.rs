@@ -47,17 +47,30 @@ use std::path::Path;
 pub enum DbatError {
     /// The file could not be read.
     #[error("{file}: {message}")]
-    Io { file: String, message: String },
+    Io {
+        /// The path, as given.
+        file: String,
+        /// The operating system's reason.
+        message: String,
+    },
     /// A line that is not a valid record.
     #[error("{file}:{line}: {message}")]
     Line {
+        /// The file name, as given to the parser.
         file: String,
+        /// The line, 1-based.
         line: usize,
+        /// What is wrong with the record and what was expected.
         message: String,
     },
     /// A file without any record.
     #[error("{file}: no {what} found")]
-    Empty { file: String, what: &'static str },
+    Empty {
+        /// The file name, as given to the parser.
+        file: String,
+        /// What was looked for (`mark points`, `control points`, `<camera>`).
+        what: &'static str,
+    },
 }
 
 /// One DBAT mark point (pixels, DBAT's corner origin).
