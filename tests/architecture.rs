@@ -500,3 +500,118 @@ fn the_binary_holds_no_numeric_routines() {
         found.join("\n")
     );
 }
+
+/// The longest a function of library or binary code may be: a reader holds it in their head.
+const MAX_FUNCTION_LINES: usize = 120;
+
+/// The name of the function whose signature starts on `line`, if one does.
+fn fn_name(line: &str) -> Option<&str> {
+    let mut rest = line.trim_start();
+    for prefix in [
+        "pub(crate) ",
+        "pub(super) ",
+        "pub ",
+        "const ",
+        "async ",
+        "unsafe ",
+    ] {
+        rest = rest.strip_prefix(prefix).unwrap_or(rest);
+    }
+    let rest = rest.strip_prefix("fn ")?;
+    let end = rest.find(|c: char| !is_ident(c))?;
+    (end > 0).then(|| &rest[..end])
+}
+
+/// The change of brace depth along `line`, outside string and character literals; `in_str`
+/// carries an open string literal to the next line.
+fn brace_change(line: &str, in_str: &mut bool) -> (i64, bool) {
+    let (mut depth, mut opened) = (0, false);
+    let c: Vec<char> = line.chars().collect();
+    let mut i = 0;
+    while i < c.len() {
+        if *in_str {
+            match c[i] {
+                '\\' => i += 1,
+                '"' => *in_str = false,
+                _ => {}
+            }
+        } else {
+            match c[i] {
+                '"' => *in_str = true,
+                // a character literal ('{', '\'', '\n'); a lifetime has no closing quote
+                '\'' if c.get(i + 2) == Some(&'\'') => i += 2,
+                '\'' if c.get(i + 1) == Some(&'\\') && c.get(i + 3) == Some(&'\'') => i += 3,
+                '{' => {
+                    depth += 1;
+                    opened = true;
+                }
+                '}' => depth -= 1,
+                _ => {}
+            }
+        }
+        i += 1;
+    }
+    (depth, opened)
+}
+
+/// The functions in `text` (code as [`code`] gives it) longer than `max` lines: name, first
+/// line (1-based) and length.
+fn long_functions(text: &str, max: usize) -> Vec<(String, usize, usize)> {
+    let lines: Vec<&str> = text.lines().collect();
+    let mut out = Vec::new();
+    for (i, line) in lines.iter().enumerate() {
+        let Some(name) = fn_name(line) else { continue };
+        let (mut depth, mut started, mut in_str) = (0i64, false, false);
+        for (j, l) in lines.iter().enumerate().skip(i) {
+            let (d, opened) = brace_change(l, &mut in_str);
+            depth += d;
+            started |= opened;
+            if !started && l.trim_end().ends_with(';') {
+                break; // a declaration without a body
+            }
+            if started && depth <= 0 {
+                if j + 1 - i > max {
+                    out.push((name.to_string(), i + 1, j + 1 - i));
+                }
+                break;
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn the_length_check_counts_a_function_to_its_closing_brace() {
+    let text = "pub fn a() {\n    let s = \"}\";\n    let c = '{';\n}\nfn b();\nfn c<'a>(x: &'a str) {\n    if x.is_empty() {\n    }\n}\n";
+    assert!(long_functions(text, 4).is_empty());
+    assert_eq!(
+        long_functions(text, 3),
+        vec![("a".to_string(), 1, 4), ("c".to_string(), 6, 4)]
+    );
+}
+
+/// No function of library or binary code (tests aside) is longer than
+/// [`MAX_FUNCTION_LINES`]: a long body is split into steps with names.
+#[test]
+fn no_function_outside_tests_is_too_long() {
+    let mut found = Vec::new();
+    for (name, dir) in crates() {
+        let mut files = Vec::new();
+        for sub in ["src", "examples", "benches"] {
+            if dir.join(sub).is_dir() {
+                modules(&dir.join(sub), &[], &mut files);
+            }
+        }
+        for (_, path) in files {
+            let rel = path.strip_prefix(&dir).unwrap().display().to_string();
+            for (f, line, n) in long_functions(&code(&path), MAX_FUNCTION_LINES) {
+                found.push(format!("crates/{name}/{rel}:{line}: {f} has {n} lines"));
+            }
+        }
+    }
+    assert!(
+        found.is_empty(),
+        "functions over {MAX_FUNCTION_LINES} lines (split them into named steps):\n{}",
+        found.join("\n")
+    );
+}

@@ -11,8 +11,8 @@
 //!   table of mean |Δt|, mean ΔR and the ratio of the RMS error to the reported σ for both.
 
 use nalgebra::{Matrix3, Rotation3, Vector3};
-use pingcal_sim::place::simulate_sphere_calib_into;
 use pingcal_pipeline::sphere_calib::{calibrate, Outcome};
+use pingcal_sim::place::simulate_sphere_calib_into;
 use pingcal_sim::sphere_calib::{read_sphere_calib_truth, SphereCalibConfig};
 
 /// Errors of one estimate against the truth.

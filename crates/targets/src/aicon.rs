@@ -366,6 +366,28 @@ pub fn read_ring(
     }
 }
 
+/// The sector phase (0..[`SAMPLES_PER_SECTOR`]) at which the `n` sectors of the ring
+/// profile `v` (extended by one sector, wrapped round) are most uniform: the offset that
+/// maximises the sum over the sectors of |their summed samples|.
+fn sector_phase(v: &[f32], n: usize) -> usize {
+    const S: usize = SAMPLES_PER_SECTOR;
+    let mut best = (f32::NEG_INFINITY, 0usize);
+    for phi in 0..S {
+        let mut score = 0.0f32;
+        for k in 0..n {
+            let mut s = 0.0f32;
+            for &x in &v[phi + k * S..phi + k * S + S] {
+                s += x;
+            }
+            score += s.abs();
+        }
+        if score > best.0 {
+            best = (score, phi);
+        }
+    }
+    best.1
+}
+
 /// The sharp-image reading of the module doc: sector thresholds.
 fn read_by_thresholds(
     img: &GrayImage,
@@ -429,21 +451,7 @@ fn read_by_thresholds(
     // no modulo.
     vbuf.copy_within(..S, m);
     let v = &vbuf[..m + S];
-    let mut best = (f32::NEG_INFINITY, 0usize);
-    for phi in 0..S {
-        let mut score = 0.0f32;
-        for k in 0..n {
-            let mut s = 0.0f32;
-            for &x in &v[phi + k * S..phi + k * S + S] {
-                s += x;
-            }
-            score += s.abs();
-        }
-        if score > best.0 {
-            best = (score, phi);
-        }
-    }
-    let phi = best.1;
+    let phi = sector_phase(v, n);
     let (q0, q1) = (S / 5, S - S / 5); // central 60 %
     let mut code = 0u32;
     let mut margin = f32::INFINITY;
