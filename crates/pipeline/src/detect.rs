@@ -8,7 +8,7 @@
 //! memory for the eccentricity correction of the balls.
 
 use super::scene::{silhouette_is_ellipse, BallFit, Detections, ImageDetections};
-use super::{PipelineError, Reporter, Result};
+use super::{Options, PipelineError, Reporter, Result};
 use pingcal_project::Project;
 use pingcal_targets::detect::BallMode;
 use pingcal_targets::ellipse::Ellipse;
@@ -16,17 +16,24 @@ use pingcal_targets::refusal::{counts, why_nothing, Refusal};
 use pingcal_targets::{load_image, DetectParams, Detector, GrayImage, TargetKind};
 use rayon::prelude::*;
 
-/// Detects every image of the project; an image of the wrong size for its camera is an error.
-pub fn detect_all(project: &Project, rep: &Reporter) -> Result<Detections> {
-    let f = &project.file;
-    let bits = f.targets.family.code_bits();
-    let detector = Detector::new(DetectParams {
-        code_bits: vec![bits],
-        ring: (f.targets.ring_inner, f.targets.ring_outer),
+/// The detector of `project`: its code family and ring, balls told later, saturated targets
+/// measured when `[targets] measure_saturated` or `opts.measure_saturated` asks.
+pub fn detector(project: &Project, opts: &Options) -> Result<Detector> {
+    let t = &project.file.targets;
+    Detector::new(DetectParams {
+        code_bits: vec![t.family.code_bits()],
+        ring: (t.ring_inner, t.ring_outer),
         balls: BallMode::Off,
+        measure_saturated: t.measure_saturated || opts.measure_saturated,
         ..DetectParams::default()
     })
-    .map_err(|e| PipelineError::new(format!("{}: [targets] {e}", project.path.display())))?;
+    .map_err(|e| PipelineError::new(format!("{}: [targets] {e}", project.path.display())))
+}
+
+/// Detects every image of the project; an image of the wrong size for its camera is an error.
+pub fn detect_all(project: &Project, opts: &Options, rep: &Reporter) -> Result<Detections> {
+    let f = &project.file;
+    let detector = detector(project, opts)?;
     let pb = rep.task("detecting targets", project.image_paths.len() as u64);
     let out: Vec<Result<(ImageDetections, Vec<Refusal>)>> = project
         .image_paths
@@ -78,9 +85,10 @@ pub fn detect_all(project: &Project, rep: &Reporter) -> Result<Detections> {
         .into_iter()
         .unzip();
     let dets: Detections = dets.into();
-    let (mut coded, mut ids, mut plain) = (0, 0, 0);
+    let (mut coded, mut ids, mut plain, mut saturated) = (0, 0, 0, 0);
     for d in &dets {
         for t in &d.targets {
+            saturated += usize::from(t.saturated);
             match t.kind {
                 TargetKind::Coded => {
                     coded += 1;
@@ -104,8 +112,13 @@ pub fn detect_all(project: &Project, rep: &Reporter) -> Result<Detections> {
         .map(|(r, n)| format!("{n} {}", r.name()))
         .collect();
     rep.log(format!(
-        "detected in {} images: {coded} coded targets ({ids} numbers read), {plain} round blobs (plain targets or balls); candidates refused: {} (`pingcal detect --why` lists them)",
+        "detected in {} images: {coded} coded targets ({ids} numbers read), {plain} round blobs (plain targets or balls){}; candidates refused: {} (`pingcal detect --why` lists them)",
         dets.len(),
+        if saturated > 0 {
+            format!(", {saturated} of them measured although saturated (σ tripled)")
+        } else {
+            String::new()
+        },
         if refused.is_empty() { "none".into() } else { refused.join(", ") }
     ));
     Ok(dets)
@@ -127,4 +140,106 @@ fn ball_fit(img: &GrayImage, seed: &Ellipse, keep_edges: bool) -> Option<BallFit
         sigma_px: fit.sigma_ellipse,
         edges,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use pingcal_targets::printable::target_is_white;
+    use pingcal_targets::GrayImage;
+
+    /// A flat render of coded target 7 (dot radius 9 px, centre (70, 80)) on a grey ground, its
+    /// white at full scale.
+    fn saturated_target() -> (GrayImage, u32) {
+        let table = pingcal_targets::aicon::CodeTable::generate(14).unwrap();
+        let (id, n, rad) = (7, 200usize, 9.0);
+        let mut img = GrayImage::new(n, n, 0.35);
+        for y in 0..n {
+            for x in 0..n {
+                let mut acc = 0.0;
+                for s in 0..9 {
+                    let u = (x as f64 - 70.0 + ((s % 3) as f64 - 1.0) / 3.0) / rad;
+                    let v = (y as f64 - 80.0 + ((s / 3) as f64 - 1.0) / 3.0) / rad;
+                    let code = table.code(id).unwrap();
+                    acc += match (
+                        u.abs() <= 4.0 && v.abs() <= 4.0,
+                        target_is_white(code, 14, u, v),
+                    ) {
+                        (false, _) => 0.35,
+                        (true, true) => 1.0,
+                        (true, false) => 0.05,
+                    };
+                }
+                img.data[y * n + x] = 1.2 * acc / 9.0;
+            }
+        }
+        // a lens's blur ([1 2 1] / 4 four times each way) and a little noise, clipped at full
+        // scale as a sensor's (the white 20 % over it)
+        for _ in 0..4 {
+            let d = img.data.clone();
+            for y in 1..n - 1 {
+                for x in 1..n - 1 {
+                    let at = |dx: usize, dy: usize| d[(y + dy - 1) * n + x + dx - 1];
+                    img.data[y * n + x] = (4.0 * at(1, 1)
+                        + 2.0 * (at(0, 1) + at(2, 1) + at(1, 0) + at(1, 2))
+                        + at(0, 0)
+                        + at(2, 0)
+                        + at(0, 2)
+                        + at(2, 2))
+                        / 16.0;
+                }
+            }
+        }
+        for (k, v) in img.data.iter_mut().enumerate() {
+            let noise = 0.004 * ((k * 7919 % 13) as f32 - 6.0) / 6.0;
+            *v = (*v + noise).min(1.0);
+        }
+        (img, id)
+    }
+
+    /// A saturated target is refused, named so, unless `[targets] measure_saturated` or the
+    /// option (`pingcal calibrate --saturated`) asks: then it is measured, its number read,
+    /// flagged, with three times the σ of its fit.
+    #[test]
+    fn measure_saturated_changes_what_is_measured() {
+        let (img, id) = saturated_target();
+        let file = crate::test_support::readme_project_file();
+        assert!(!file.targets.measure_saturated, "off by default");
+        let refusing = crate::test_support::project(file.clone(), Vec::new());
+        let d = detector(&refusing, &Options::default())
+            .unwrap()
+            .detect(&img);
+        assert!(d.targets.iter().all(|t| t.id.is_none()), "{:?}", d.targets);
+        assert!(
+            d.refused
+                .iter()
+                .any(|r| r.reason == pingcal_targets::refusal::RefusalReason::Saturated),
+            "{:?} {:?}",
+            d.targets,
+            d.refused
+        );
+        let mut asking = file;
+        asking.targets.measure_saturated = true;
+        let by_project = crate::test_support::project(asking, Vec::new());
+        let by_option = Options {
+            measure_saturated: true,
+            ..Options::default()
+        };
+        for d in [
+            detector(&by_project, &Options::default())
+                .unwrap()
+                .detect(&img),
+            detector(&refusing, &by_option).unwrap().detect(&img),
+        ] {
+            let t = d.targets.iter().find(|t| t.id.is_some()).expect("measured");
+            assert_eq!(t.id, Some(id));
+            assert!(t.saturated);
+            assert!(
+                (t.x - 70.0).abs() < 0.2 && (t.y - 80.0).abs() < 0.2,
+                "{} {}",
+                t.x,
+                t.y
+            );
+        }
+    }
 }

@@ -81,6 +81,9 @@ pub struct Options {
     pub snoop_critical: f64,
     /// How the initial network starts.
     pub start: network::Start,
+    /// Measure saturated targets (flagged, σ tripled) instead of refusing them, whatever
+    /// `[targets] measure_saturated` says (`pingcal calibrate --saturated`).
+    pub measure_saturated: bool,
 }
 
 impl Default for Options {
@@ -90,6 +93,7 @@ impl Default for Options {
             threads: 0,
             snoop_critical: 3.29,
             start: network::Start::Auto,
+            measure_saturated: false,
         }
     }
 }
@@ -118,7 +122,7 @@ pub struct Outcome {
 pub fn calibrate(project: &Project, opts: &Options, rep: &Reporter) -> Result<Outcome> {
     lrf::check_mount(project)?;
     let t0 = std::time::Instant::now();
-    let dets = detect::detect_all(project, rep)?;
+    let dets = detect::detect_all(project, opts, rep)?;
     let mut timing = vec![("detection".to_string(), t0.elapsed().as_secs_f64())];
     let t = std::time::Instant::now();
     let mut scene = network::initial_network(project, &dets, opts, rep)?;

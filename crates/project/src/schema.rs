@@ -145,6 +145,12 @@ pub struct ProjectTargets {
     /// the start uses the layout, the adjustment does not.
     #[serde(default = "default_layout_sigma")]
     pub layout_sigma_mm: f64,
+    /// Measure the targets with more than a fifth of their samples saturated instead of
+    /// refusing them: flagged, with three times their σ, so they weigh a ninth in the
+    /// adjustment (a flat scan or render of a target sheet, whose white is at full scale by
+    /// nature). `pingcal calibrate --saturated` does the same for one run.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub measure_saturated: bool,
 }
 
 fn default_layout_sigma() -> f64 {

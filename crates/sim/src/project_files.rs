@@ -483,6 +483,7 @@ pub fn project_of(sim: &Simulation) -> ProjectFile {
             ring_outer: cfg.targets.ring_outer,
             layout: None,
             layout_sigma_mm: 20.0,
+            measure_saturated: false,
         },
         balls: ProjectBalls {
             diameter_mm: cfg.balls.diameter_mm,

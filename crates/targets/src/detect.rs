@@ -167,6 +167,7 @@ impl Detector {
         let rings: Vec<RingOutcome> = keep.par_iter().map(|m| self.read_rings(img, m)).collect();
         let (mut targets, saturated_rings) = self.targets_of(img, &keep, rings, &mut refused);
         refuse_doubtful_sigma(&mut targets, &mut refused);
+        refuse_overlapping_rings(&mut targets, &mut refused, p.ring.1);
         refuse_numbers_read_twice(&mut targets, &mut refused);
         classify_balls(&mut targets, &p.balls);
         targets.sort_by(|a, b| {
@@ -580,6 +581,65 @@ fn refuse_doubtful_sigma(targets: &mut [Target], refused: &mut Vec<Refusal>) {
     }
 }
 
+/// Two code rings overlap when `outer / D_a + outer / D_b` exceeds this (see
+/// [`refuse_overlapping_rings`]): the real panel's closest pairs, printed with their rings
+/// nearly touching, reach 1.015 in perspective.
+pub const RING_OVERLAP_MAX: f64 = 1.05;
+
+/// Coded reads whose ring overlaps the ring of another read ring (a number given, or read and
+/// refused) lose their number, with a refusal: one target lies over the other (two printed
+/// targets overlapping), and the one beneath can show another number's pattern, clean to every
+/// margin. With D_a the other centre's distance in this dot's unit frame and D_b this centre's
+/// in the other's, the other dot's radius is about D_a / D_b of this one's, and the rings'
+/// outer circles (`outer` dot radii each) meet when outer / D_a + outer / D_b > 1; a read is
+/// refused over [`RING_OVERLAP_MAX`]. Both of the pair are refused (which one is on top is not
+/// known).
+fn refuse_overlapping_rings(targets: &mut [Target], refused: &mut Vec<Refusal>, outer: f64) {
+    let rings: Vec<Ellipse> = targets
+        .iter()
+        .filter(|t| t.id.is_some())
+        .map(|t| t.ellipse)
+        .chain(
+            refused
+                .iter()
+                .filter(|r| r.refused_read.is_some())
+                .map(|r| r.ellipse),
+        )
+        .collect();
+    for t in targets.iter_mut().filter(|t| t.id.is_some()) {
+        let fr = t.ellipse.frame();
+        let reach = 8.0 * outer * t.ellipse.a;
+        let worst = rings
+            .iter()
+            .filter(|e| (e.cx - t.x).abs() < reach && (e.cy - t.y).abs() < reach)
+            .filter(|e| (e.cx - t.x).hypot(e.cy - t.y) > 0.5 * t.ellipse.b.min(e.b))
+            .map(|e| {
+                let (u, v) = fr.unmap(e.cx, e.cy);
+                let (p, q) = e.frame().unmap(t.x, t.y);
+                (outer / u.hypot(v) + outer / p.hypot(q), e)
+            })
+            .fold(None::<(f64, &Ellipse)>, |b, c| match b {
+                Some(b) if b.0 >= c.0 => Some(b),
+                _ => Some(c),
+            });
+        if let Some((s, e)) = worst.filter(|w| w.0 > RING_OVERLAP_MAX) {
+            let mut r = Refusal::new(
+                RefusalReason::RingUnreadable,
+                t.ellipse,
+                format!(
+                    "read as {} but refused: its ring overlaps the ring of the target at ({:.1}, {:.1}) (overlap {s:.2} > {RING_OVERLAP_MAX}): one covers the other",
+                    t.id.unwrap_or(0),
+                    e.cx,
+                    e.cy
+                ),
+            );
+            r.refused_read = t.id.zip(t.read);
+            refused.push(r);
+            (t.id, t.read) = (None, None);
+        }
+    }
+}
+
 /// Two targets must not carry the same number: if they do, neither keeps it.
 fn refuse_numbers_read_twice(targets: &mut [Target], refused: &mut Vec<Refusal>) {
     let mut ids: Vec<u32> = targets.iter().filter_map(|t| t.id).collect();
@@ -763,6 +823,54 @@ mod tests {
             refused[0].detail.starts_with("read as 40 but refused"),
             "{}",
             refused[0].detail
+        );
+    }
+
+    /// Two reads whose rings overlap (dots 5.5 radii apart: 3/5.5 + 3/5.5 = 1.09) both lose
+    /// their number; dots 7 radii apart (0.86: the rings 1 dot radius apart) keep theirs, and so
+    /// does a read beside a plain dot (no ring); a ring read and refused counts as a ring.
+    #[test]
+    fn reads_whose_rings_overlap_are_refused() {
+        let mut targets = vec![
+            coded(0.0, 1, 0.01),
+            coded(22.0, 2, 0.01),
+            coded(100.0, 3, 0.01),
+            coded(128.0, 4, 0.01),
+            coded(200.0, 5, 0.01),
+            Target {
+                kind: TargetKind::Plain,
+                id: None,
+                ..coded(216.0, 0, 0.01)
+            },
+            coded(300.0, 6, 0.01),
+        ];
+        let mut beside = Refusal::new(
+            RefusalReason::RingUnreadable,
+            Ellipse::circle(320.0, 50.0, 4.0),
+            "read as 9 but refused",
+        );
+        let margins = ReadMargins {
+            method: crate::confidence::ReadMethod::Thresholds,
+            sector: 0.1,
+            hamming: 2,
+            code: 1.0,
+            levels: 0.0,
+            profile: 0.0,
+            surround: 0.0,
+            ring_fit: 0.0,
+            fragment: 0.0,
+            confidence: 0.5,
+        };
+        beside.refused_read = Some((9, margins));
+        let mut refused = vec![beside];
+        refuse_overlapping_rings(&mut targets, &mut refused, 3.0);
+        let ids: Vec<Option<u32>> = targets.iter().map(|t| t.id).collect();
+        assert_eq!(ids, [None, None, Some(3), Some(4), Some(5), None, None]);
+        assert_eq!(refused.len(), 4);
+        assert!(
+            refused[1].detail.contains("overlaps the ring"),
+            "{}",
+            refused[1].detail
         );
     }
 

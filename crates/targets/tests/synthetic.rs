@@ -659,9 +659,12 @@ mod stress;
 /// whole bright sectors and leave another number's pattern, clean to every margin of
 /// `pingcal_targets::confidence`: those reads are wrong in the image itself, and only the
 /// network can find them (the pipeline's named blunders). On the default 300 scenes the
-/// decoder before issue 38 read 37 wrong in 893 reads (41.4 per thousand), this one 30 in 833
-/// (36.0); on 600, 70 in 1,797 (39.0) and 53 in 1,658 (32.0). The test holds it under 40 per
-/// thousand, under the decoder before.
+/// decoder before issue 38 read 37 wrong in 893 reads (41.4 per thousand), its first margins
+/// 30 in 833 (36.0); on 600, 70 in 1,797 (39.0) and 53 in 1,658 (32.0). The `fragment` margin
+/// and the refusal of reads whose ring overlaps another ring (`pingcal_targets::detect::
+/// RING_OVERLAP_MAX`) bring the 300 to 27 in 820 (32.9), the 600 to 39 in 1,624 (24.0). The rest are clean in the image: a
+/// printed target beneath another whose rings do not meet (the real panel's rings come as
+/// close), a dark bar over dark sectors. The test holds the rate under 35 per thousand.
 #[test]
 fn false_read_stress() {
     use rayon::prelude::*;
@@ -725,5 +728,5 @@ fn false_read_stress() {
         tot_read * 2 > tot_drawn,
         "only {tot_read} of {tot_drawn} targets read"
     );
-    assert!(rate < 40.0, "{rate:.1} wrong per 1000 reads: {all_wrong:?}");
+    assert!(rate < 35.0, "{rate:.1} wrong per 1000 reads: {all_wrong:?}");
 }

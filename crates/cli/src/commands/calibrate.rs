@@ -77,6 +77,10 @@ pub struct Args {
     /// pose, until one works.
     #[arg(long, value_enum, default_value_t = StartArg::Auto)]
     pub start: StartArg,
+    /// Measure saturated targets instead of refusing them (a flat render or scan of a target
+    /// sheet): flagged, with three times their σ; as `[targets] measure_saturated = true`.
+    #[arg(long)]
+    pub saturated: bool,
 }
 
 /// `--start`: [`Start`] as the command line names it.
@@ -347,6 +351,7 @@ pub fn run(args: Args) -> CmdResult {
         seed: args.seed,
         threads: args.threads,
         start: args.start.into(),
+        measure_saturated: args.saturated,
         ..pipeline::Options::default()
     };
     let done: Vec<Done> = args
