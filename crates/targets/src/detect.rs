@@ -29,17 +29,22 @@ pub enum TargetKind {
 /// right, y down.
 #[derive(Clone, Debug, Serialize)]
 pub struct Target {
+    /// Coded, plain or ball.
     pub kind: TargetKind,
+    /// The coded target's number (1-based, as printed), when its ring was read and trusted.
     pub id: Option<u32>,
-    /// Centre (the edge-ellipse centre).
+    /// Centre, x (the edge-ellipse centre), pixels.
     pub x: f64,
+    /// Centre, y (the edge-ellipse centre), pixels.
     pub y: f64,
     /// Estimated σ of the centre, pixels (three times the edge fit's for a saturated target).
     pub sigma_px: f64,
     /// The edge ellipse.
     pub ellipse: Ellipse,
-    /// Intensity-weighted centroid and its σ.
+    /// Intensity-weighted centroid (x, y), pixels: a second centre estimate beside the edge
+    /// ellipse's.
     pub centroid: [f64; 2],
+    /// Estimated σ of the centroid, pixels.
     pub sigma_centroid_px: f64,
     /// Foreground − background grey contrast (image in [0, 1]).
     pub contrast: f32,
@@ -57,20 +62,33 @@ pub enum BallMode {
     Off,
     /// A plain blob whose diameter is at least `ratio` × the median diameter of the image's
     /// targets (and at least `min_px`) is a ball (38 mm balls vs ≤ 10 mm targets).
-    Auto { ratio: f64, min_px: f64 },
+    Auto {
+        /// Smallest ball diameter over the median target diameter.
+        ratio: f64,
+        /// Smallest ball diameter, pixels.
+        min_px: f64,
+    },
     /// Blobs with diameters in this range (pixels) are balls.
-    Diameter { min_px: f64, max_px: f64 },
+    Diameter {
+        /// Smallest ball diameter, pixels.
+        min_px: f64,
+        /// Largest ball diameter, pixels.
+        max_px: f64,
+    },
 }
 
 /// Settings of [`detect_image`].
 #[derive(Clone, Debug)]
 pub struct DetectParams {
+    /// How blobs become candidates (thresholds, sizes, shapes).
     pub candidates: CandidateParams,
+    /// How a candidate's centre is measured (edge ellipse, saturation limit).
     pub centre: CentreParams,
     /// Ring-code bit counts to try (AICON: 14, or 12).
     pub code_bits: Vec<u32>,
     /// The printed code ring, inner and outer radius in dot radii (AICON: 2 and 3).
     pub ring: (f64, f64),
+    /// How balls are told from targets.
     pub balls: BallMode,
     /// Measure targets with more than `centre.max_saturated_fraction` of their samples
     /// saturated instead of refusing them: they are flagged ([`Target::saturated`]) and their
@@ -97,8 +115,11 @@ impl Default for DetectParams {
 /// The detections of one image.
 #[derive(Clone, Debug, Serialize)]
 pub struct ImageDetections {
+    /// Image width, pixels.
     pub width: usize,
+    /// Image height, pixels.
     pub height: usize,
+    /// The targets (and balls) found, in position order.
     pub targets: Vec<Target>,
     /// The candidates refused, with their reasons ([`crate::refusal`]), in position order.
     pub refused: Vec<Refusal>,
@@ -107,7 +128,9 @@ pub struct ImageDetections {
 /// A detector with its code tables built once (reuse it for many images).
 #[derive(Clone, Debug)]
 pub struct Detector {
+    /// The settings it detects with.
     pub params: DetectParams,
+    /// One ring reader per code bit count of `params.code_bits`, tables built.
     pub readers: Vec<RingReader>,
 }
 

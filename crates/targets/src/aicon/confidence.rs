@@ -98,15 +98,34 @@ pub enum ReadMethod {
 /// The margins that decided a coded read, and its confidence (see the module doc).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct ReadMargins {
+    /// How the ring was read: sharp thresholds or the blurred-ring model.
     pub method: ReadMethod,
+    /// The weakest sector's distance from the decision level ½, on the side read, on either
+    /// half of the band (fraction of the ring's contrast; at least [`MIN_SECTOR`]).
     pub sector: f32,
+    /// Sectors that differ between the pattern read and the nearest other number's, at any
+    /// rotation.
     pub hamming: u32,
+    /// Σ |x̂ₖ − ½| over the sectors that differ from the nearest other number's pattern: how
+    /// far, in all, the sectors would have to move to read it (at least [`MIN_CODE`]).
     pub code: f32,
+    /// The largest |x̂ₖ − xₖ|: how far a sector lies from the two clean levels (fraction of
+    /// the ring's contrast; at most [`MAX_LEVELS`]).
     pub levels: f32,
+    /// The deepest break of the ring's angular profile on the wrong side of its mid level,
+    /// away from the polarity changes (fraction of the ring's contrast; at most
+    /// [`MAX_PROFILE`]).
     pub profile: f32,
+    /// How unevenly dark the ring's surround is: 90th percentile over median on the gap and
+    /// outer circles (fraction of the dot's contrast; at most [`MAX_SURROUND`]).
     pub surround: f32,
+    /// RMS distance of the ring's found edges from the printed ring's circles scaled by one
+    /// factor, in dot radii (at most [`MAX_RING_FIT`]).
     pub ring_fit: f32,
+    /// As `profile`, on each of five radii across the band on its own (at most
+    /// [`MAX_FRAGMENT`]).
     pub fragment: f32,
+    /// The weakest margin over its bound: 1 or more gives the number, under 1 refuses it.
     pub confidence: f32,
 }
 
