@@ -605,7 +605,7 @@ fn refuse_doubtful_sigma(targets: &mut [Target], refused: &mut Vec<Refusal>) {
 }
 
 /// Two code rings overlap when `outer / D_a + outer / D_b` exceeds this (see
-/// [`refuse_overlapping_rings`]): the real panel's closest pairs, printed with their rings
+/// `refuse_overlapping_rings`): the real panel's closest pairs, printed with their rings
 /// nearly touching, reach 1.015 in perspective.
 pub const RING_OVERLAP_MAX: f64 = 1.05;
 
