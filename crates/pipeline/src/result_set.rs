@@ -716,7 +716,7 @@ mod tests {
                         .arg(&exe)
                         .args([
                             "--exact",
-                            "commands::result_set::tests::one_write_for_the_kill_test",
+                            "result_set::tests::one_write_for_the_kill_test",
                             "--ignored",
                             "--test-threads=1",
                         ])
