@@ -9,8 +9,8 @@ use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-/// The small field, as a `simulation.toml` gives it.
-const SMALL: &str = "\
+/// The small field, as a `simulation.toml` gives it (also sigma_honesty's).
+pub(crate) const SMALL: &str = "\
 [stations]
 convergent = 5
 

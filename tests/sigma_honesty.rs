@@ -28,18 +28,9 @@ use serde_json::Value;
 use std::path::PathBuf;
 use std::process::Command;
 
-/// The small field of tests/plan.rs: five convergent stations, half the supersampling, a
-/// 0.35° servo step.
-const SMALL: &str = "\
-[stations]
-convergent = 5
-
-[render]
-supersampling = 2
-
-[lrf]
-servo_step_deg = 0.3515625
-";
+// The small field of tests/plan.rs: five convergent stations, half the supersampling, a
+// 0.35° servo step.
+use crate::plan::SMALL;
 
 /// Standard normal quantile of 0.995 (two-sided α = 1 %).
 const Z: f64 = 2.575_829_303_549;

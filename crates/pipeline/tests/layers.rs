@@ -192,7 +192,9 @@ fn pipeline_modules_only_use_earlier_ones() {
 #[test]
 fn the_pipeline_neither_prints_nor_draws() {
     for (m, src) in pipeline_files() {
-        let code = strip_comments(&src);
+        // library code: the test module at the end of a file may print (a skip's reason)
+        let library = src.split("\n#[cfg(test)]").next().unwrap_or_default();
+        let code = strip_comments(library);
         for word in ["indicatif", "println!", "print!", "eprint!", "dbg!"] {
             assert!(
                 !code.contains(word),
