@@ -16,7 +16,12 @@ const UNITS: [&str; 10] = [
     "mm", "mm", "mm", "mm⁻²", "mm⁻⁴", "mm⁻⁶", "mm⁻¹", "mm⁻¹", "", "",
 ];
 
-fn check_rows(rows: &[pingcal_lrf::registration::CheckRow], role: &str) -> Vec<rp::CheckRow> {
+/// The report's rows of a check table (`role`: `check`, `control` or `loo`), as the
+/// registration computed them; calibrate's and sphere-calib's reports share it.
+pub(crate) fn check_rows(
+    rows: &[pingcal_lrf::registration::CheckRow],
+    role: &str,
+) -> Vec<rp::CheckRow> {
     rows.iter()
         .map(|r| rp::CheckRow {
             id: r.id.clone(),

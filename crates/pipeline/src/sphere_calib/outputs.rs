@@ -18,6 +18,7 @@ use crate::exports::{
     export_loss, kalibr_camchain, opencv_camera_yaml, ros_camera_info, ros_files, ExportLoss,
     OutputFile, RosRectification,
 };
+use crate::report::check_rows;
 use crate::results::{extrinsic_json, opencv_of, CameraJson, ExtrinsicJson};
 use pingcal_project::CameraModel;
 use pingcal_report as rp;
@@ -271,19 +272,6 @@ fn file_stem(id: &str) -> String {
         |c: char| !(c.is_ascii_alphanumeric() || "_-.".contains(c)),
         "_",
     )
-}
-
-fn check_rows(rows: &[pingcal_lrf::registration::CheckRow], role: &str) -> Vec<rp::CheckRow> {
-    rows.iter()
-        .map(|r| rp::CheckRow {
-            id: r.id.clone(),
-            dx_mm: r.dx_mm,
-            dy_mm: r.dy_mm,
-            dz_mm: r.dz_mm,
-            error_mm: r.error_mm,
-            role: role.into(),
-        })
-        .collect()
 }
 
 fn method(
