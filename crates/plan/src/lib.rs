@@ -427,20 +427,29 @@ pub fn study(spec: &PlanSpec, rep: &Reporter) -> Result<Plan, PlanError> {
     let balls = first.truth.balls.len();
     let check_balls = first.truth.balls.iter().filter(|b| b.check).count();
     drop(root); // the simulations are no longer needed
-    let mut plan = summarize(runs);
-    plan.config = spec
-        .config_file
-        .as_ref()
-        .map_or_else(|| "default".into(), |p| p.display().to_string());
-    plan.seeds = spec.seeds.clone();
-    plan.stations = station_ids;
-    plan.distances = distances;
-    plan.balls = balls;
-    plan.check_balls = check_balls;
-    plan.failures = failures;
-    plan.sensitivity_seeds = sensitivity_seeds;
-    plan.sensitivity = sensitivity;
-    Ok(plan)
+    let summary = summarize(&runs);
+    Ok(Plan {
+        generator: format!("pingcal plan {}", env!("CARGO_PKG_VERSION")),
+        config: spec
+            .config_file
+            .as_ref()
+            .map_or_else(|| "default".into(), |p| p.display().to_string()),
+        seeds: spec.seeds.clone(),
+        stations: station_ids,
+        distances,
+        balls,
+        check_balls,
+        calibrated: runs.len(),
+        failures,
+        extrinsic: summary.extrinsic,
+        ball_centres: summary.ball_centres,
+        expected_check_error_mm: summary.expected_check_error_mm,
+        mean_check_error_mm: summary.mean_check_error_mm,
+        sd_check_error_mm: summary.sd_check_error_mm,
+        sensitivity_seeds,
+        sensitivity,
+        runs,
+    })
 }
 
 /// Every seed of `spec` simulated into `root` and calibrated, in parallel; the folders of
@@ -609,9 +618,17 @@ fn calibrate_without(
     }
 }
 
-/// The plan's numbers from the calibrations that could be judged (the fields that
-/// describe the field and the removals are left empty for [`study`] to fill).
-fn summarize(runs: Vec<SeedRun>) -> Plan {
+/// The plan's numbers over the calibrations that could be judged.
+struct Summary {
+    extrinsic: Vec<Component>,
+    ball_centres: Vec<Component>,
+    expected_check_error_mm: Option<f64>,
+    mean_check_error_mm: Option<f64>,
+    sd_check_error_mm: Option<f64>,
+}
+
+/// The predicted σ's beside the Monte Carlo errors, and the check errors, over `runs`.
+fn summarize(runs: &[SeedRun]) -> Summary {
     let ok: Vec<&SeedRun> = runs.iter().collect();
     let names = ["tx mm", "ty mm", "tz mm", "ω deg", "φ deg", "κ deg"];
     let extrinsic: Vec<Component> = (0..6)
@@ -651,24 +668,12 @@ fn summarize(runs: Vec<SeedRun>) -> Plan {
     let sd_check = mean_check.filter(|_| checks.len() > 1).map(|m| {
         (checks.iter().map(|c| (c - m).powi(2)).sum::<f64>() / (checks.len() - 1) as f64).sqrt()
     });
-    Plan {
-        generator: format!("pingcal plan {}", env!("CARGO_PKG_VERSION")),
-        config: String::new(),
-        seeds: Vec::new(),
-        stations: Vec::new(),
-        distances: 0,
-        balls: 0,
-        check_balls: 0,
-        calibrated: runs.len(),
-        failures: Vec::new(),
+    Summary {
         extrinsic,
         ball_centres,
         expected_check_error_mm: mean(&expected),
         mean_check_error_mm: mean_check,
         sd_check_error_mm: sd_check,
-        sensitivity_seeds: Vec::new(),
-        sensitivity: Vec::new(),
-        runs,
     }
 }
 
