@@ -109,9 +109,6 @@ impl From<StartArg> for Start {
 
 pub use pingcal_pipeline::out_folders::{out_dir, out_dirs};
 
-/// The files a calibration writes into its output folder (besides those of `ros/`,
-/// `opencv/` and `kalibr/`, [`pingcal_pipeline::exports`]).
-pub const OUTPUTS: [&str; 3] = ["results.json", "report.html", "cloud.ply"];
 
 /// Writes the outputs of a calibration into its folder, all or none, under the folder's
 /// lock ([`result_set::write_outcome`]).
