@@ -109,7 +109,6 @@ impl From<StartArg> for Start {
 
 pub use pingcal_pipeline::out_folders::{out_dir, out_dirs};
 
-
 /// Writes the outputs of a calibration into its folder, all or none, under the folder's
 /// lock ([`result_set::write_outcome`]).
 pub fn write_outputs(lock: &result_set::FolderLock, outcome: &Outcome) -> CmdResult {
