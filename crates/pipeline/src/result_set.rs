@@ -77,13 +77,8 @@ impl FolderLock {
         let dir = real_dir(given);
         let path = sibling(&dir, "pingcal-lock");
         for _ in 0..2 {
-            match fs::OpenOptions::new()
-                .write(true)
-                .create_new(true)
-                .open(&path)
-            {
-                Ok(mut f) => {
-                    let _ = write!(f, "{}", std::process::id());
+            match create_with_pid(&path) {
+                Ok(()) => {
                     remove_leftovers(&dir);
                     return Ok(FolderLock {
                         path,
@@ -102,8 +97,10 @@ impl FolderLock {
                                 path.display()
                             ))
                         }
-                        // a killed run's lock (or one being written this instant: the
-                        // second attempt decides)
+                        // a lock without a process number, seconds old: one being taken
+                        // this instant where hard links are not supported
+                        None if just_made(&path) => break,
+                        // a killed run's lock: the second attempt takes it
                         _ => {
                             let _ = fs::remove_file(&path);
                         }
@@ -118,6 +115,43 @@ impl FolderLock {
             path.display()
         ))
     }
+}
+
+/// Creates the lock file `path` holding this process's number, or fails with
+/// `AlreadyExists`. The number is written to a private file first and linked in (a hard link
+/// is made whole or not at all), so a second run never reads a lock still empty and takes
+/// it for a killed run's; where the file system has no hard links, the lock is created and
+/// then written.
+fn create_with_pid(path: &Path) -> std::io::Result<()> {
+    static TAKEN: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let pid = std::process::id();
+    let n = TAKEN.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let private = path.with_file_name(format!(
+        "{}-{pid}-{n}",
+        path.file_name().unwrap_or_default().to_string_lossy()
+    ));
+    fs::write(&private, pid.to_string())?;
+    let linked = fs::hard_link(&private, path);
+    let _ = fs::remove_file(&private);
+    match linked {
+        Err(e) if e.kind() != std::io::ErrorKind::AlreadyExists => {
+            let mut f = fs::OpenOptions::new()
+                .write(true)
+                .create_new(true)
+                .open(path)?;
+            write!(f, "{pid}")
+        }
+        other => other,
+    }
+}
+
+/// Whether file `path` was modified in the last five seconds.
+fn just_made(path: &Path) -> bool {
+    fs::metadata(path)
+        .and_then(|m| m.modified())
+        .ok()
+        .and_then(|t| t.elapsed().ok())
+        .is_some_and(|age| age.as_secs_f64() < 5.0)
 }
 
 impl FolderLock {
@@ -145,11 +179,14 @@ fn remove_leftovers(dir: &Path) {
     if let Some(Ok(entries)) = dir.parent().map(fs::read_dir) {
         for e in entries.flatten() {
             let f = e.file_name().to_string_lossy().into_owned();
-            for kind in ["pingcal-new-", "pingcal-old-"] {
+            for kind in ["pingcal-new-", "pingcal-old-", "pingcal-lock-"] {
                 let prefix = format!(".{name}.{kind}");
-                let pid = f.strip_prefix(&prefix).and_then(|p| p.parse::<u32>().ok());
+                let pid = f
+                    .strip_prefix(&prefix)
+                    .and_then(|p| p.split('-').next().and_then(|p| p.parse::<u32>().ok()));
                 if pid.is_some_and(|p| !alive(p)) {
                     let _ = fs::remove_dir_all(e.path());
+                    let _ = fs::remove_file(e.path());
                 }
             }
         }
@@ -767,6 +804,73 @@ mod tests {
         let _ = fs::remove_dir_all(&root);
         println!("kill points tried (with the user's entries, syscalls): {kills:?}");
         assert!(kills.values().sum::<usize>() >= 4, "{kills:?}");
+    }
+
+    /// Sixteen takers of one folder's lock at once: exactly one holds it, every other is
+    /// refused naming the holder's process; none reads a lock still being written as a
+    /// killed run's (the race the end-to-end test of two runs at once met on CI).
+    #[test]
+    fn of_takers_at_once_exactly_one_holds_the_lock() {
+        let base = std::env::temp_dir().join(format!("pingcal-lock-race-{}", std::process::id()));
+        let _ = fs::remove_dir_all(&base);
+        fs::create_dir_all(&base).unwrap();
+        for round in 0..20 {
+            let dir = base.join(format!("out{round}"));
+            let barrier = std::sync::Barrier::new(16);
+            let results: Vec<Result<FolderLock, String>> = std::thread::scope(|s| {
+                let takers: Vec<_> = (0..16)
+                    .map(|_| {
+                        s.spawn(|| {
+                            barrier.wait();
+                            FolderLock::take(&dir)
+                        })
+                    })
+                    .collect();
+                takers.into_iter().map(|t| t.join().unwrap()).collect()
+            });
+            let held = results.iter().filter(|r| r.is_ok()).count();
+            assert_eq!(held, 1, "round {round}: {held} takers hold the lock");
+            for e in results.iter().filter_map(|r| r.as_ref().err()) {
+                assert!(
+                    e.contains(&format!("process {}", std::process::id())),
+                    "round {round}: {e}"
+                );
+            }
+        }
+        let left: Vec<_> = fs::read_dir(&base)
+            .unwrap()
+            .flatten()
+            .map(|e| e.file_name().to_string_lossy().into_owned())
+            .filter(|f| f.contains("pingcal-lock"))
+            .collect();
+        assert!(left.is_empty(), "lock files left: {left:?}");
+        fs::remove_dir_all(&base).unwrap();
+    }
+
+    /// A killed run's lock (a process that is gone) is taken over; a lock file without a
+    /// process number made this instant is one being taken, and is refused.
+    #[test]
+    fn a_killed_runs_lock_is_taken_over_and_one_being_made_is_not() {
+        let base = std::env::temp_dir().join(format!("pingcal-lock-stale-{}", std::process::id()));
+        let _ = fs::remove_dir_all(&base);
+        fs::create_dir_all(&base).unwrap();
+        let dir = base.join("out");
+        let lock = base.join(".out.pingcal-lock");
+        // no Linux process has a number this high (pid_max is at most 2^22)
+        fs::write(&lock, "4294967295").unwrap();
+        fs::write(base.join(".out.pingcal-lock-4294967295-0"), "4294967295").unwrap();
+        let taken = FolderLock::take(&dir).unwrap();
+        assert_eq!(
+            fs::read_to_string(&lock).unwrap(),
+            std::process::id().to_string()
+        );
+        assert!(!base.join(".out.pingcal-lock-4294967295-0").exists());
+        drop(taken);
+        assert!(!lock.exists());
+        fs::write(&lock, "").unwrap();
+        let e = FolderLock::take(&dir).unwrap_err();
+        assert!(e.contains("another run takes it at the same time"), "{e}");
+        fs::remove_dir_all(&base).unwrap();
     }
 
     #[test]
