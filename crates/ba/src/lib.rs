@@ -117,7 +117,7 @@ pub use pingcal_geometry::{Rigid3, Sim3};
 pub use camera::{CameraModel, PhotogrammetricCamera};
 pub use problem::{Camera, Distance, Image, Observation, Point, PointPrior, Problem};
 pub use residual::{
-    Block, ParameterBlock, ParameterPrior, ParameterValue, PosePrior, Residual, ResidualBlock,
-    Value,
+    Block, Jacobians, ParameterBlock, ParameterPrior, ParameterValue, PosePrior, Residual,
+    ResidualBlock, Value,
 };
 pub use solver::{precision, solve, Options};

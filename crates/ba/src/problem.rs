@@ -6,8 +6,9 @@
 
 use crate::camera::CameraModel;
 use crate::loss::Loss;
-use crate::residual::{Block, ParameterBlock, ParameterValue, Residual, ResidualBlock, Value};
-use nalgebra::DMatrix;
+use crate::residual::{
+    Block, Jacobians, ParameterBlock, ParameterValue, Residual, ResidualBlock, Value,
+};
 use nalgebra::{Vector2, Vector3};
 use pingcal_geometry::Rigid3;
 use std::sync::Arc;
@@ -651,12 +652,7 @@ impl Residual for Distance {
     }
     /// `(|X_a − X_b| − value) / σ`; ∂/∂X_a = uᵀ/σ (u the unit vector from b to a), ∂/∂X_b its
     /// negative.
-    fn evaluate(
-        &self,
-        values: &[Value],
-        residual: &mut [f64],
-        jacobians: Option<&mut [DMatrix<f64>]>,
-    ) -> bool {
+    fn evaluate(&self, values: &[Value], residual: &mut [f64], jacobians: Jacobians<'_>) -> bool {
         let (Some(a), Some(b)) = (values[0].point(), values[1].point()) else {
             return false;
         };
@@ -686,12 +682,7 @@ impl Residual for PointPrior {
         vec![Block::Point(self.point)]
     }
     /// `(X − position) / σ` per axis.
-    fn evaluate(
-        &self,
-        values: &[Value],
-        residual: &mut [f64],
-        jacobians: Option<&mut [DMatrix<f64>]>,
-    ) -> bool {
+    fn evaluate(&self, values: &[Value], residual: &mut [f64], jacobians: Jacobians<'_>) -> bool {
         let Some(x) = values[0].point() else {
             return false;
         };

@@ -89,6 +89,12 @@ impl<'a> Value<'a> {
     }
 }
 
+/// The Jacobian blocks a residual fills when asked: one matrix per block of
+/// [`Residual::blocks`], in that order, each `dim × the block's tangent size` (3 for a point,
+/// 6 for a pose as (δω, δt), the parameter's length for a parameter); `None` when only the
+/// residual is wanted.
+pub type Jacobians<'a> = Option<&'a mut [DMatrix<f64>]>;
+
 /// A kind of observation: see the module doc.
 ///
 /// `evaluate` receives the values of [`Residual::blocks`] in their order and writes the
@@ -102,12 +108,7 @@ pub trait Residual: Send + Sync + std::fmt::Debug {
     /// The blocks it depends on, each once.
     fn blocks(&self) -> Vec<Block>;
     /// The whitened residual and, if asked, its Jacobian blocks.
-    fn evaluate(
-        &self,
-        values: &[Value],
-        residual: &mut [f64],
-        jacobians: Option<&mut [DMatrix<f64>]>,
-    ) -> bool;
+    fn evaluate(&self, values: &[Value], residual: &mut [f64], jacobians: Jacobians<'_>) -> bool;
     /// The group whose variance component it shares (e.g. "distances", "beams").
     fn group(&self) -> &str;
 }
@@ -231,12 +232,7 @@ impl Residual for PosePrior {
     /// With the left update `R ← exp([δω]×) R`, `t ← t + δt`:
     /// `∂ log(R R₀ᵀ)/∂δω = J_l⁻¹(φ)` (φ = log(R R₀ᵀ), J_l the left Jacobian of SO(3)), and
     /// `C(δ) = −Rᵀ exp(−[δω]×)(t + δt)` gives `∂C/∂δω = −Rᵀ [t]×` and `∂C/∂δt = −Rᵀ`.
-    fn evaluate(
-        &self,
-        values: &[Value],
-        residual: &mut [f64],
-        jacobians: Option<&mut [DMatrix<f64>]>,
-    ) -> bool {
+    fn evaluate(&self, values: &[Value], residual: &mut [f64], jacobians: Jacobians<'_>) -> bool {
         let Some(pose) = values[0].pose() else {
             return false;
         };
@@ -289,12 +285,7 @@ impl Residual for ParameterPrior {
     fn blocks(&self) -> Vec<Block> {
         vec![Block::Parameter(self.parameter)]
     }
-    fn evaluate(
-        &self,
-        values: &[Value],
-        residual: &mut [f64],
-        jacobians: Option<&mut [DMatrix<f64>]>,
-    ) -> bool {
+    fn evaluate(&self, values: &[Value], residual: &mut [f64], jacobians: Jacobians<'_>) -> bool {
         let Some(v) = values[0].vector() else {
             return false;
         };

@@ -53,7 +53,7 @@ impl Residual for ScannerPoint {
         &self,
         values: &[Value],
         residual: &mut [f64],
-        jacobians: Option<&mut [DMatrix<f64>]>,
+        jacobians: pingcal_ba::Jacobians<'_>,
     ) -> bool {
         let (Some(x), Some(pose), Some(o)) =
             (values[0].point(), values[1].pose(), values[2].vector())

@@ -204,7 +204,7 @@ impl pingcal_ba::Residual for BeamOnBall {
         &self,
         values: &[pingcal_ba::Value],
         residual: &mut [f64],
-        jacobians: Option<&mut [nalgebra::DMatrix<f64>]>,
+        jacobians: pingcal_ba::Jacobians<'_>,
     ) -> bool {
         let (Some(x), Some(pose), Some(theta)) =
             (values[0].point(), values[1].pose(), values[2].vector())

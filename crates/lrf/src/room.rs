@@ -354,7 +354,7 @@ impl pingcal_ba::Residual for BeamOnPlane {
         &self,
         values: &[pingcal_ba::Value],
         residual: &mut [f64],
-        jacobians: Option<&mut [DMatrix<f64>]>,
+        jacobians: pingcal_ba::Jacobians<'_>,
     ) -> bool {
         let (Some(plane), Some(theta)) = (values[0].vector(), values[1].vector()) else {
             return false;
