@@ -419,24 +419,24 @@ mod tests {
         );
     }
 
+    /// Why `p`'s datum is refused (the test fails if it is accepted).
+    fn refusal(p: &Problem) -> String {
+        check(p, false).unwrap_err().to_string()
+    }
+
     #[test]
     fn too_few_or_collinear_control_is_too_little() {
         let two = Problem {
             points: points(&[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]], true),
             ..Problem::default()
         };
-        assert!(check(&two, false)
-            .unwrap_err()
-            .to_string()
+        assert!(refusal(&two)
             .contains("2 fixed control points leave the rotation about their line free"));
         let line = Problem {
             points: points(&[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0]], true),
             ..Problem::default()
         };
-        assert!(check(&line, false)
-            .unwrap_err()
-            .to_string()
-            .contains("on one line"));
+        assert!(refusal(&line).contains("on one line"));
         // Two fixed and one weighted point off their line fix it.
         let mut mixed = two.clone();
         mixed.points.extend(points(&[[0.0, 1.0, 0.0]], false));
@@ -461,10 +461,7 @@ mod tests {
             points: points(&[[0.0, 0.0, 5.0], [1.0, 0.0, 5.0]], false),
             ..Problem::default()
         };
-        assert!(check(&p, false)
-            .unwrap_err()
-            .to_string()
-            .contains("not the scale"));
+        assert!(refusal(&p).contains("not the scale"));
         let scaled = Problem {
             distances: vec![Distance {
                 a: 0,

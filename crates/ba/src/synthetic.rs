@@ -112,21 +112,9 @@ impl SyntheticBal {
                 0.2 * n01.sample(&mut rng),
                 1.5 + 0.1 * n01.sample(&mut rng),
             );
-            let f = 500.0 * (1.0 + 0.1 * rng.random_range(-1.0..1.0));
-            let k1 = 0.02 * n01.sample(&mut rng);
-            let k2 = 0.002 * n01.sample(&mut rng);
-            cameras.push(Camera::new(
-                format!("cam{c}"),
-                model.clone(),
-                vec![f, k1, k2],
-            ));
-            images.push(Image {
-                name: format!("image{c}"),
-                camera: c,
-                camera_from_object: Rigid3::from_rotation_and_centre(r, centre),
-                fixed: false,
-                fixed_centre: [false; 3],
-            });
+            let (camera, image) = camera_and_image(c, &model, &mut rng, (r, centre));
+            cameras.push(camera);
+            images.push(image);
         }
         let length = (self.cameras - 1) as f64 * spacing;
         let window = (self.obs_per_point * 2).max(12).min(self.cameras);
@@ -216,21 +204,9 @@ impl SyntheticBal {
             let x = x0 * roll.cos() + z.cross(&x0) * roll.sin();
             let y = z.cross(&x);
             let r = Matrix3::from_rows(&[x.transpose(), y.transpose(), z.transpose()]);
-            let f = 500.0 * (1.0 + 0.1 * rng.random_range(-1.0..1.0));
-            let k1 = 0.02 * n01.sample(rng);
-            let k2 = 0.002 * n01.sample(rng);
-            cameras.push(Camera::new(
-                format!("cam{c}"),
-                model.clone(),
-                vec![f, k1, k2],
-            ));
-            images.push(Image {
-                name: format!("image{c}"),
-                camera: c,
-                camera_from_object: Rigid3::from_rotation_and_centre(r, z * 10.0),
-                fixed: false,
-                fixed_centre: [false; 3],
-            });
+            let (camera, image) = camera_and_image(c, model, rng, (r, z * 10.0));
+            cameras.push(camera);
+            images.push(image);
         }
         let noise = Normal::new(0.0, self.noise_px.max(0.0)).unwrap();
         let mut points = Vec::with_capacity(self.points);
@@ -289,6 +265,30 @@ impl SyntheticBal {
         }
         Synthetic { problem, truth }
     }
+}
+
+/// Camera `c` (a BAL camera with a focal length within 10 % of 500 px and small random k1,
+/// k2, drawn from `rng` in that order) and its image at rotation `r` and projection centre
+/// `centre`.
+fn camera_and_image(
+    c: usize,
+    model: &Arc<BalCamera>,
+    rng: &mut pingcal_geometry::consensus::SeededRng,
+    (r, centre): (Matrix3<f64>, Vector3<f64>),
+) -> (Camera, Image) {
+    let n01 = Normal::new(0.0, 1.0).unwrap();
+    let f = 500.0 * (1.0 + 0.1 * rng.random_range(-1.0..1.0));
+    let k1 = 0.02 * n01.sample(rng);
+    let k2 = 0.002 * n01.sample(rng);
+    let camera = Camera::new(format!("cam{c}"), model.clone(), vec![f, k1, k2]);
+    let image = Image {
+        name: format!("image{c}"),
+        camera: c,
+        camera_from_object: Rigid3::from_rotation_and_centre(r, centre),
+        fixed: false,
+        fixed_centre: [false; 3],
+    };
+    (camera, image)
 }
 
 /// Point `p` at `x` and its observations in the `chosen` (image, camera) pairs of

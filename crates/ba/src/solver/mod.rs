@@ -852,18 +852,8 @@ mod tests {
         assert!((cost0 - lin.cost).abs() <= 1e-12 * cost0);
         for v in 0..nc + 3 * np {
             let h = 1e-6;
-            let eval = |sign: f64| {
-                let mut dc = vec![0.0; nc];
-                let mut dp = vec![Vector3::zeros(); np];
-                if v < nc {
-                    dc[v] = sign * h;
-                } else {
-                    dp[(v - nc) / 3][(v - nc) % 3] = sign * h;
-                }
-                let mut q = problem.clone();
-                apply_step(&mut q, &layout, &dc, &dp);
-                evaluate::cost(&q).unwrap()
-            };
+            let eval =
+                |sign: f64| evaluate::cost(&stepped(&problem, &layout, v, sign * h)).unwrap();
             let fd = (eval(1.0) - eval(-1.0)) / (2.0 * h);
             let an = if v < nc {
                 schur.gc[v]
@@ -876,6 +866,22 @@ mod tests {
                 "var {v}: gradient {an} fd {fd}"
             );
         }
+    }
+
+    /// `problem` moved by `step` along unknown `v` of `layout` (the reduced unknowns first,
+    /// then the free points' coordinates).
+    fn stepped(problem: &Problem, layout: &Layout, v: usize, step: f64) -> Problem {
+        let (nc, np) = (layout.n_reduced, layout.free_points.len());
+        let mut dc = vec![0.0; nc];
+        let mut dp = vec![Vector3::zeros(); np];
+        if v < nc {
+            dc[v] = step;
+        } else {
+            dp[(v - nc) / 3][(v - nc) % 3] = step;
+        }
+        let mut q = problem.clone();
+        apply_step(&mut q, layout, &dc, &dp);
+        q
     }
 
     /// Whitened residuals, and the robust cost ½ Σ ρ.
@@ -913,21 +919,8 @@ mod tests {
             let nc = layout.n_reduced;
             let np = layout.free_points.len();
             for v in 0..nc + 3 * np {
-                let mut dc = vec![0.0; nc];
-                let mut dp = vec![Vector3::zeros(); np];
                 let h = 1e-6;
-                let mut eval = |sign: f64| {
-                    dc.iter_mut().for_each(|x| *x = 0.0);
-                    dp.iter_mut().for_each(|x| *x = Vector3::zeros());
-                    if v < nc {
-                        dc[v] = sign * h;
-                    } else {
-                        dp[(v - nc) / 3][(v - nc) % 3] = sign * h;
-                    }
-                    let mut q = problem.clone();
-                    apply_step(&mut q, &layout, &dc, &dp);
-                    residuals(&q)
-                };
+                let eval = |sign: f64| residuals(&stepped(&problem, &layout, v, sign * h));
                 let ((plus, cost_plus), (minus, cost_minus)) = (eval(1.0), eval(-1.0));
                 let mut gradient = 0.0;
                 for o in 0..problem.observations.len() {
