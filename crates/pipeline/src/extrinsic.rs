@@ -264,20 +264,21 @@ fn sphere_method(
     Ok(ev)
 }
 
+/// What the extrinsic's methods work on: the scene, its adjustment, the LRF's data and the
+/// image detections.
+pub type Inputs<'a> = (&'a Scene, &'a Adjusted, &'a LrfData, &'a Detections);
+
 /// Runs the methods the project asks for.
 pub fn extrinsics(
     project: &Project,
-    scene: &Scene,
-    adj: &Adjusted,
-    lrf: &LrfData,
-    dets: &Detections,
+    inputs: Inputs<'_>,
     opts: &Options,
     rep: &Reporter,
 ) -> Result<Extrinsics> {
     let method = project.file.method;
     run_methods(
         project,
-        (scene, adj, lrf, dets),
+        inputs,
         opts,
         rep,
         method.spheres(),
@@ -289,14 +290,11 @@ pub fn extrinsics(
 /// start when it looks at the LRF again through its estimated mount.
 pub fn spheres_only(
     project: &Project,
-    scene: &Scene,
-    adj: &Adjusted,
-    lrf: &LrfData,
-    dets: &Detections,
+    inputs: Inputs<'_>,
     opts: &Options,
     rep: &Reporter,
 ) -> Result<Extrinsics> {
-    run_methods(project, (scene, adj, lrf, dets), opts, rep, true, false)
+    run_methods(project, inputs, opts, rep, true, false)
 }
 
 /// The spheres of `lrf` matched one to one to the balls `balls` (scene point, centre in the
@@ -402,7 +400,7 @@ pub fn spheres_by_extrinsic(
 /// The matching, then the sphere method and the corner baseline where asked.
 fn run_methods(
     project: &Project,
-    (scene, adj, lrf, dets): (&Scene, &Adjusted, &LrfData, &Detections),
+    (scene, adj, lrf, dets): Inputs<'_>,
     opts: &Options,
     rep: &Reporter,
     with_spheres: bool,

@@ -148,7 +148,7 @@ pub fn calibrate(project: &Project, opts: &Options, rep: &Reporter) -> Result<Ou
     let lrf = lrf::lrf_spheres(project, opts, rep).map_err(blame_lens)?;
     timing.push(("LRF spheres".into(), t.elapsed().as_secs_f64()));
     let t = std::time::Instant::now();
-    let ext = extrinsic::extrinsics(project, &scene, &adjusted, &lrf, &dets, opts, rep)
+    let ext = extrinsic::extrinsics(project, (&scene, &adjusted, &lrf, &dets), opts, rep)
         .map_err(blame_lens)?;
     timing.push(("extrinsic".into(), t.elapsed().as_secs_f64()));
     let t = std::time::Instant::now();
@@ -570,7 +570,7 @@ fn run_joint(
             .ok_or_else(|| "the cloud has no readings".to_string())
             .and_then(|lrf_r| {
                 let ext_r =
-                    extrinsic::spheres_only(project, scene, adjusted, &lrf_r, dets, opts, rep)
+                    extrinsic::spheres_only(project, (scene, adjusted, &lrf_r, dets), opts, rep)
                         .map_err(|e| e.0)?;
                 let Some(ev_r) = &ext_r.spheres else {
                     return Err("no sphere method on the room's cloud".to_string());

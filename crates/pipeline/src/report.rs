@@ -50,23 +50,7 @@ pub fn build(
         export_losses,
         title: format!("pingcal calibration — {}", f.name),
         generator: results.generator.clone(),
-        verdict: Some(rp::Verdict {
-            status: results.verdict.status.as_str().into(),
-            reasons: results.verdict.reasons.clone(),
-            notes: results.verdict.notes.clone(),
-            checks: results
-                .verdict
-                .checks
-                .iter()
-                .map(|c| rp::VerdictCheck {
-                    name: c.name.clone(),
-                    value: c.value,
-                    bound: c.bound,
-                    passed: c.passed,
-                })
-                .collect(),
-            alpha: results.verdict.alpha,
-        }),
+        verdict: Some(verdict(&results.verdict)),
         summary: summary(st, results),
         steps: rep.lines(),
         images: image_residuals(st),
@@ -576,6 +560,26 @@ fn warnings(st: &Stages, results: &Results) -> Vec<String> {
         }
     }
     warnings
+}
+
+/// The report's box of verdict `v`: its status, reasons, notes and checks.
+pub fn verdict(v: &crate::verdict::Verdict) -> rp::Verdict {
+    rp::Verdict {
+        status: v.status.as_str().into(),
+        reasons: v.reasons.clone(),
+        notes: v.notes.clone(),
+        checks: v
+            .checks
+            .iter()
+            .map(|c| rp::VerdictCheck {
+                name: c.name.clone(),
+                value: c.value,
+                bound: c.bound,
+                passed: c.passed,
+            })
+            .collect(),
+        alpha: v.alpha,
+    }
 }
 
 /// The summary table at the top of the report.

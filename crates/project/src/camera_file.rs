@@ -50,6 +50,7 @@
 
 use crate::closed_sets::CameraModel;
 use crate::intrinsics::{keys, Intrinsics, KeyedValues};
+use crate::parse::{invalid, syntax};
 use crate::schema::CameraParams;
 use crate::yaml::{self, Yaml};
 use crate::ProjectError;
@@ -105,20 +106,6 @@ struct CameraToml {
 #[derive(Deserialize)]
 struct ModelWord {
     model: Option<String>,
-}
-
-fn syntax(file: &str, text: &str, e: toml::de::Error) -> ProjectError {
-    ProjectError::Syntax {
-        path: file.to_string(),
-        what: crate::parse::describe(text, &e),
-    }
-}
-
-fn invalid(file: &str, what: String) -> ProjectError {
-    ProjectError::Invalid {
-        path: file.to_string(),
-        what,
-    }
 }
 
 /// What a file in no form pingcal reads is told.

@@ -36,6 +36,22 @@ impl ProjectFile {
     }
 }
 
+/// The error of file `file` (text `text`) that is not valid TOML or not of its schema.
+pub(crate) fn syntax(file: &str, text: &str, e: toml::de::Error) -> ProjectError {
+    ProjectError::Syntax {
+        path: file.to_string(),
+        what: describe(text, &e),
+    }
+}
+
+/// The error of file `file` whose values are refused, saying `what`.
+pub(crate) fn invalid(file: &str, what: String) -> ProjectError {
+    ProjectError::Invalid {
+        path: file.to_string(),
+        what,
+    }
+}
+
 /// "line N: entry: message", or the message alone when the error has no place.
 pub(crate) fn describe(text: &str, e: &toml::de::Error) -> String {
     let message = one_line(e.message());

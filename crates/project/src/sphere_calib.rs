@@ -25,6 +25,7 @@
 //! Every path is relative to the folder of the file that names it. Errors name the file and
 //! the line, as those of `project.toml` do.
 
+use crate::parse::{invalid, syntax};
 use crate::ProjectError;
 use serde::{Deserialize, Serialize};
 
@@ -78,20 +79,6 @@ pub struct SphereCalibFrame {
     pub cloud: String,
     /// The image.
     pub image: String,
-}
-
-fn syntax(file: &str, text: &str, e: toml::de::Error) -> ProjectError {
-    ProjectError::Syntax {
-        path: file.to_string(),
-        what: crate::parse::describe(text, &e),
-    }
-}
-
-fn invalid(file: &str, what: String) -> ProjectError {
-    ProjectError::Invalid {
-        path: file.to_string(),
-        what,
-    }
 }
 
 impl SphereCalibFile {

@@ -401,27 +401,11 @@ pub fn report(o: &Outcome, overlays: Vec<rp::Overlay>) -> rp::SphereCalibReport 
             &check_rows(&cf.leave_one_out.rows, "loo"),
         ));
     }
-    let v = &o.verdict;
     let names = o.camera.model.parameter_names();
     let data = rp::ReportData {
         title: format!("pingcal sphere-calib — {}", o.name),
         generator: format!("pingcal {}", env!("CARGO_PKG_VERSION")),
-        verdict: Some(rp::Verdict {
-            status: v.status.as_str().into(),
-            reasons: v.reasons.clone(),
-            notes: v.notes.clone(),
-            checks: v
-                .checks
-                .iter()
-                .map(|c| rp::VerdictCheck {
-                    name: c.name.clone(),
-                    value: c.value,
-                    bound: c.bound,
-                    passed: c.passed,
-                })
-                .collect(),
-            alpha: v.alpha,
-        }),
+        verdict: Some(crate::report::verdict(&o.verdict)),
         summary: summary(o),
         methods,
         intrinsics: vec![rp::Intrinsics {
