@@ -32,7 +32,13 @@ fn pingcal(args: &[&str]) -> (bool, String, String) {
 /// `pingcal scans BAG --scan-topic /scan --servo-topic /joint_states --servo-joint servo
 /// --out OUT`.
 fn scans_by_joint(bag: &Path, out: &Path) -> (bool, String, String) {
-    pingcal(&[
+    pingcal(&scans_args(bag, "servo", out))
+}
+
+/// The arguments of `pingcal scans BAG --scan-topic /scan --servo-topic /joint_states
+/// --servo-joint JOINT --out OUT`.
+fn scans_args<'a>(bag: &'a Path, joint: &'a str, out: &'a Path) -> Vec<&'a str> {
+    vec![
         "scans",
         bag.to_str().unwrap(),
         "--scan-topic",
@@ -40,10 +46,10 @@ fn scans_by_joint(bag: &Path, out: &Path) -> (bool, String, String) {
         "--servo-topic",
         "/joint_states",
         "--servo-joint",
-        "servo",
+        joint,
         "--out",
         out.to_str().unwrap(),
-    ])
+    ]
 }
 
 fn read(p: &Path) -> (ScanHeader, Vec<ScanLine>) {
@@ -152,18 +158,7 @@ fn a_failed_run_keeps_the_earlier_file_and_an_input_is_never_the_output() {
     let out = tmp("kept.csv");
     std::fs::write(&out, "earlier\n").unwrap();
     let b = data("ros1.bag");
-    let (ok, _, stderr) = pingcal(&[
-        "scans",
-        b.to_str().unwrap(),
-        "--scan-topic",
-        "/scan",
-        "--servo-topic",
-        "/joint_states",
-        "--servo-joint",
-        "tilt",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let (ok, _, stderr) = pingcal(&scans_args(&b, "tilt", &out));
     assert!(!ok);
     assert_eq!(stderr.lines().count(), 1, "{stderr}");
     assert!(
@@ -324,21 +319,8 @@ fn a_drivers_bag_is_converted_with_the_counts_named() {
     std::fs::create_dir_all(&dir).unwrap();
     let out = dir.join("drivers.csv");
     let b = data("drivers.db3");
-    let args = |joint: &'static str| {
-        vec![
-            "scans".to_string(),
-            b.to_str().unwrap().into(),
-            "--scan-topic".into(),
-            "/scan".into(),
-            "--servo-topic".into(),
-            "/joint_states".into(),
-            "--servo-joint".into(),
-            joint.into(),
-            "--out".into(),
-            out.to_str().unwrap().into(),
-        ]
-    };
-    let run = |a: Vec<String>| pingcal(&a.iter().map(String::as_str).collect::<Vec<_>>());
+    let args = |joint: &'static str| scans_args(&b, joint, &out);
+    let run = |a: Vec<&str>| pingcal(&a);
     let (ok, stdout, stderr) = run(args("tilt"));
     assert!(ok, "{stderr}");
     for want in [
@@ -406,18 +388,7 @@ fn a_drivers_bag_is_converted_with_the_counts_named() {
 fn servo_motion_is_said_and_can_be_given() {
     let out = tmp("stopgo.csv");
     let b = data("stopgo_50ms.mcap");
-    let mut args = vec![
-        "scans",
-        b.to_str().unwrap(),
-        "--scan-topic",
-        "/scan",
-        "--servo-topic",
-        "/joint_states",
-        "--servo-joint",
-        "servo",
-        "--out",
-        out.to_str().unwrap(),
-    ];
+    let mut args = scans_args(&b, "servo", &out);
     let (ok, stdout, stderr) = pingcal(&args);
     assert!(ok, "{stderr}");
     assert!(

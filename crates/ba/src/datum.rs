@@ -369,12 +369,7 @@ mod tests {
             })
         );
         let with_distance = Problem {
-            distances: vec![Distance {
-                a: 0,
-                b: 1,
-                value: 1.0,
-                sigma: 0.01,
-            }],
+            distances: vec![metre()],
             ..p
         };
         assert_eq!(
@@ -417,6 +412,16 @@ mod tests {
             e.to_string(),
             "the datum is defined twice: a free network (inner constraints) was asked, but 3 fixed control points already fix the network: leave out one or the other"
         );
+    }
+
+    /// A distance of 1 ± 0.01 between points 0 and 1.
+    fn metre() -> Distance {
+        Distance {
+            a: 0,
+            b: 1,
+            value: 1.0,
+            sigma: 0.01,
+        }
     }
 
     /// Why `p`'s datum is refused (the test fails if it is accepted).
@@ -463,12 +468,7 @@ mod tests {
         };
         assert!(refusal(&p).contains("not the scale"));
         let scaled = Problem {
-            distances: vec![Distance {
-                a: 0,
-                b: 1,
-                value: 1.0,
-                sigma: 0.01,
-            }],
+            distances: vec![metre()],
             ..p
         };
         assert!(check(&scaled, false).is_ok());

@@ -329,9 +329,7 @@ fn every_solver_reaches_the_same_minimum() {
     let spread = 3000.0;
     for (kind, cost, p) in &results[1..] {
         assert!(relative(*cost, *cost0) < 1e-9, "{kind}: {cost} vs {cost0}");
-        let worst = (p.points.iter().zip(&p0.points))
-            .map(|(a, b)| (a.position - b.position).norm())
-            .fold(0.0, f64::max);
+        let worst = largest_point_difference(p, p0);
         println!("{kind}: largest point difference to dense {worst:.2e} mm");
         assert!(worst < 1e-6 * spread, "{kind}: {worst}");
         for (x, y) in p.cameras[0].params.iter().zip(&p0.cameras[0].params) {
@@ -450,9 +448,7 @@ fn held_centre_coordinates_are_an_exact_datum() {
     let (_, cost0, q0) = &results[0];
     for (kind, cost, q) in &results[1..] {
         assert!(relative(*cost, *cost0) < 1e-9, "{kind}: {cost} vs {cost0}");
-        let worst = (q.points.iter().zip(&q0.points))
-            .map(|(a, b)| (a.position - b.position).norm())
-            .fold(0.0, f64::max);
+        let worst = largest_point_difference(q, q0);
         println!("{kind} (held centres): largest point difference to dense {worst:.2e} mm");
         assert!(worst < 3e-3, "{kind}: {worst}");
     }
@@ -746,4 +742,11 @@ fn pose_residuals_on_an_image_with_a_held_centre_agree_with_a_stiff_prior() {
             w.1
         );
     }
+}
+
+/// The largest distance between a point of `p` and the same point of `p0`.
+fn largest_point_difference(p: &Problem, p0: &Problem) -> f64 {
+    (p.points.iter().zip(&p0.points))
+        .map(|(a, b)| (a.position - b.position).norm())
+        .fold(0.0, f64::max)
 }
