@@ -2,7 +2,7 @@
 //! the image-residual histogram, the image coverage and the radial distortion profile.
 
 use crate::fmt::{c, escape, num, DEG, PX, RATIO, SIGMA_MM};
-use crate::plot::{axes, axes_with, nice_step, svg_open, Frame, MARGIN_LEFT, MARGIN_TOP};
+use crate::plot::{axes_with, nice_step, open_chart, svg_open, Frame, MARGIN_LEFT, MARGIN_TOP};
 use crate::section::{h2, none};
 use crate::{ImageResiduals, Intrinsics, MethodResult, ReportData};
 use std::fmt::Write;
@@ -210,14 +210,14 @@ pub(crate) fn histogram(o: &mut String, d: &ReportData) {
     let outside = v.len() - counts.iter().sum::<usize>();
     let max = *counts.iter().max().unwrap_or(&1) as f64;
     let f = frame([lo, -lo], nice_range(0.0, max), 560.0, 240.0);
-    let (w, h) = f.svg_size();
-    o.push_str("<figure>\n");
-    svg_open(o, w, h, "image residual histogram");
-    axes(
+    open_chart(
         o,
         &f,
-        "residual component (px; image x right and y down together)",
-        "count",
+        "image residual histogram",
+        [
+            "residual component (px; image x right and y down together)",
+            "count",
+        ],
     );
     let mut path = String::new();
     for (k, n) in counts.iter().enumerate().filter(|(_, n)| **n > 0) {
@@ -415,28 +415,16 @@ fn lens_curves(o: &mut String, d: &ReportData) -> bool {
         560.0,
         260.0,
     );
-    let (w, h) = f.svg_size();
-    o.push_str("<figure>\n");
-    svg_open(o, w, h, "lens curve");
-    axes(
+    open_chart(
         o,
         &f,
-        "r (px): radius from the principal point in the image",
-        "θ (°) off the optical axis",
+        "lens curve",
+        [
+            "r (px): radius from the principal point in the image",
+            "θ (°) off the optical axis",
+        ],
     );
-    let path = |pts: &[(f64, f64)]| -> String {
-        pts.iter()
-            .enumerate()
-            .map(|(i, p)| {
-                format!(
-                    "{}{} {}",
-                    if i == 0 { "M" } else { "L" },
-                    c(f.px(p.0)),
-                    c(f.py(p.1))
-                )
-            })
-            .collect()
-    };
+    let path = |pts: &[(f64, f64)]| f.path(pts);
     for (k, (_, pts, fl)) in cams.iter().enumerate() {
         let colour = COLOURS[k % COLOURS.len()];
         let r_end = pts.last().map_or(0.0, |p| p.0);
@@ -527,28 +515,17 @@ pub(crate) fn distortion(o: &mut String, d: &ReportData) {
         560.0,
         260.0,
     );
-    let (w, h) = f.svg_size();
-    o.push_str("<figure>\n");
-    svg_open(o, w, h, "radial distortion profile");
-    axes(
+    open_chart(
         o,
         &f,
-        "r (mm): radial distance from the principal point on the sensor",
-        "Δr (µm)",
+        "radial distortion profile",
+        [
+            "r (mm): radial distance from the principal point on the sensor",
+            "Δr (µm)",
+        ],
     );
     for (k, pts) in samples.iter().enumerate() {
-        let path: String = pts
-            .iter()
-            .enumerate()
-            .map(|(i, p)| {
-                format!(
-                    "{}{} {}",
-                    if i == 0 { "M" } else { "L" },
-                    c(f.px(p.0)),
-                    c(f.py(p.1))
-                )
-            })
-            .collect();
+        let path = f.path(pts);
         let _ = write!(
             o,
             r##"<path d="{path}" fill="none" stroke="{}" stroke-width="2"/>"##,

@@ -93,6 +93,17 @@ pub(crate) const MARGIN_TOP: f64 = 12.0;
 pub(crate) const MARGIN_BOTTOM: f64 = 40.0;
 
 impl Frame {
+    /// The SVG path data (`M x y L x y …`) of the polyline through data points `pts`.
+    pub fn path(&self, pts: &[(f64, f64)]) -> String {
+        pts.iter()
+            .enumerate()
+            .map(|(i, p)| {
+                let m = if i == 0 { "M" } else { "L" };
+                format!("{m}{} {}", c(self.px(p.0)), c(self.py(p.1)))
+            })
+            .collect()
+    }
+
     pub fn px(&self, x: f64) -> f64 {
         self.left + (x - self.x0) / (self.x1 - self.x0) * self.w
     }
@@ -147,6 +158,15 @@ impl Frame {
             h: (y1 - y0) * s,
         }
     }
+}
+
+/// Opens a `<figure>` holding a chart of frame `f`: its `<svg>` (labelled `label`) and its
+/// axes, labelled `[x, y]`.
+pub(crate) fn open_chart(out: &mut String, f: &Frame, label: &str, [x, y]: [&str; 2]) {
+    let (w, h) = f.svg_size();
+    out.push_str("<figure>\n");
+    svg_open(out, w, h, label);
+    axes(out, f, x, y);
 }
 
 /// Opens an `<svg>` element of the given size with an accessible label.
