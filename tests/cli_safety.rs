@@ -48,8 +48,8 @@ fn fails(run: &Run, needles: &[&str]) -> String {
 #[test]
 fn a_batch_writes_each_project_into_its_own_folder() {
     let w = Work::new("batch_distinct");
-    let a = w.project("a/proj");
-    let b = w.project("b/proj");
+    let a = w.quick_project("a/proj");
+    let b = w.quick_project("b/proj");
     let out = w.dir.join("out");
     let run = w.run(&[
         "calibrate",
@@ -99,7 +99,7 @@ fn a_batch_writes_each_project_into_its_own_folder() {
 #[test]
 fn a_failed_rerun_keeps_the_earlier_results() {
     let w = Work::new("failed_rerun");
-    let p = w.project("project");
+    let p = w.quick_project("project");
     let out = w.dir.join("out");
     let toml = p.join("project.toml");
     let args = ["calibrate", s(&toml), "--out", s(&out), "--quiet"];
@@ -132,7 +132,7 @@ fn a_failed_rerun_keeps_the_earlier_results() {
 /// `.partial` file are taken over and cleared by the next run, whose results are complete
 /// and swapped in as one folder (a new inode: not written file by file).
 fn one_writer_and_a_killed_runs_leftovers(w: &Work, p: &Path, out: &Path, before: &[Vec<u8>]) {
-    common::copy_dir(&common::pristine().join("images"), &p.join("images"));
+    common::copy_dir(&common::quick_pristine().join("images"), &p.join("images"));
     let toml = p.join("project.toml");
     let args = ["calibrate", s(&toml), "--out", s(out), "--quiet"];
     let lock = out.with_file_name(".out.pingcal-lock");
@@ -777,7 +777,7 @@ fn ba_iterative_says_how_it_clustered_the_images() {
 #[test]
 fn a_full_disk_leaves_the_earlier_set() {
     let w = Work::new("full_disk");
-    let p = w.project("project");
+    let p = w.quick_project("project");
     let disk = w.dir.join("disk");
     fs::create_dir_all(&disk).unwrap();
     let mount = |size: &str| {
@@ -861,25 +861,25 @@ fn walk(dir: &Path) -> Vec<PathBuf> {
     out
 }
 
-/// Issue 33's four projects, copies of the simulated one: `ok` as it is; `doubtful` with
-/// `method = "spheres"` and a 25 mm scanner offset the project states and the rig does not
-/// have (the paper's two steps cannot absorb it: the registration's σ0 and the check balls
-/// fail their χ² tests); `failed` with `method = "corner"` (the sphere method gives no
-/// extrinsic, `verdict::judge`); `bad` missing an image (not calibrated). Their
+/// Issue 33's four projects, copies of the quick simulated one (`method = "spheres"`, the
+/// mount as stated): `ok` as it is; `doubtful` with a 25 mm scanner offset the project
+/// states and the rig does not have (the paper's two steps cannot absorb it: the
+/// registration's σ0 and the check balls fail their χ² tests); `failed` with
+/// `method = "corner"` (the sphere method gives no extrinsic, `verdict::judge`); `bad`
+/// missing an image (not calibrated). Their
 /// `project.toml` paths, in that order.
 fn verdict_projects(w: &Work) -> [String; 4] {
-    let ok = w.project("ok");
-    let doubtful = w.project("doubtful");
+    let ok = w.quick_project("ok");
+    let doubtful = w.quick_project("doubtful");
     let toml = doubtful.join("project.toml");
-    common::replace_once(&toml, "method = \"all\"", "method = \"spheres\"");
     common::replace_once(
         &toml,
         "mount_offset_mm = [0.0, 0.0, 0.0]",
         "mount_offset_mm = [25.0, 0.0, 0.0]",
     );
-    let failed = w.project("failed");
+    let failed = w.quick_project("failed");
     let toml = failed.join("project.toml");
-    common::replace_once(&toml, "method = \"all\"", "method = \"corner\"");
+    common::replace_once(&toml, "method = \"spheres\"", "method = \"corner\"");
     let [ok, doubtful, failed] =
         [ok, doubtful, failed].map(|p| s(&p.join("project.toml")).to_string());
     [ok, doubtful, failed, bad_project(w)]
@@ -888,7 +888,7 @@ fn verdict_projects(w: &Work) -> [String; 4] {
 /// A copy of the simulated project missing an image: it cannot be calibrated. Its
 /// `project.toml` path.
 fn bad_project(w: &Work) -> String {
-    let bad = w.project("bad");
+    let bad = w.quick_project("bad");
     fs::remove_file(bad.join("images/S03_left.png")).expect("remove an image");
     s(&bad.join("project.toml")).to_string()
 }
@@ -1484,7 +1484,7 @@ fn implausible_project_values_and_files_listed_twice_are_refused_up_front() {
 #[test]
 fn a_far_range_in_a_projects_scan_is_masked_with_a_warning_quiet_or_not() {
     let w = Work::new("far_range_calibrate");
-    let p = w.project("project");
+    let p = w.quick_project("project");
     let scan = p.join("scans/S00.csv");
     let text = fs::read_to_string(&scan).unwrap();
     let mut lines: Vec<String> = text.lines().map(str::to_string).collect();
@@ -1525,7 +1525,7 @@ fn a_far_range_in_a_projects_scan_is_masked_with_a_warning_quiet_or_not() {
 #[test]
 fn two_runs_into_one_folder_at_once_one_is_refused_named() {
     let w = Work::new("two_at_once");
-    let p = w.project("project");
+    let p = w.quick_project("project");
     let out = w.dir.join("out");
     let toml = p.join("project.toml");
     let args = ["calibrate", s(&toml), "--out", s(&out), "--quiet"];

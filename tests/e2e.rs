@@ -776,8 +776,8 @@ fn project_file_syntax_error() {
 #[test]
 fn batch_with_one_bad_project() {
     let w = Work::new("batch_with_one_bad_project");
-    let good = w.project("good");
-    let bad = w.project("bad");
+    let good = w.quick_project("good");
+    let bad = w.quick_project("bad");
     fs::remove_file(bad.join("images/S03_left.png")).unwrap();
     let run = w.run(&[
         "calibrate",

@@ -59,34 +59,58 @@ fn remove_dead_roots(tmp: &Path) {
 /// The pristine simulated project (`pingcal simulate --seed 3`), made on first use.
 pub fn pristine() -> &'static Path {
     static PRISTINE: OnceLock<PathBuf> = OnceLock::new();
-    PRISTINE.get_or_init(|| {
-        let dir = root().join("pristine");
-        let log = root().join("simulate");
-        let t0 = Instant::now();
-        fs::create_dir_all(&log).expect("create the simulate log dir");
-        let run = run(
-            &[
-                "simulate",
-                "--out",
-                dir.to_str().expect("utf-8 temp path"),
-                "--seed",
-                &SEED.to_string(),
-            ],
-            &log,
+    PRISTINE.get_or_init(|| simulate_once("pristine", None))
+}
+
+/// The simulated project of the same seed on a rig whose LRF mount is exactly as the project
+/// states (`[lrf] mount_errors = false`), with `method = "spheres"`: its verdict is ok
+/// without the joint adjustment, at about a third of the pristine project's time. For the
+/// tests of what a run does with its files, folders, exit codes and batches, where the
+/// method does not matter. Made on first use.
+pub fn quick_pristine() -> &'static Path {
+    static QUICK: OnceLock<PathBuf> = OnceLock::new();
+    QUICK.get_or_init(|| {
+        let dir = simulate_once("quick", Some("[lrf]\nmount_errors = false\n"));
+        replace_once(
+            &dir.join("project.toml"),
+            "method = \"all\"",
+            "method = \"spheres\"",
         );
-        assert!(
-            run.success(),
-            "pingcal simulate failed ({:?}):\nstdout: {}\nstderr: {}",
-            run.code,
-            run.stdout,
-            run.stderr
-        );
-        eprintln!("simulate: {:.1} s", t0.elapsed().as_secs_f64());
-        for f in ["project.toml", "truth.json", "scans/S00.csv"] {
-            assert!(dir.join(f).is_file(), "pingcal simulate wrote no {f}");
-        }
         dir
     })
+}
+
+/// `pingcal simulate --seed SEED [--config …] --out root()/NAME`, which must succeed.
+fn simulate_once(name: &str, config: Option<&str>) -> PathBuf {
+    let dir = root().join(name);
+    let log = root().join(format!("simulate-{name}"));
+    let t0 = Instant::now();
+    fs::create_dir_all(&log).expect("create the simulate log dir");
+    let cfg = log.join("config.toml");
+    let mut args = vec![
+        "simulate".to_string(),
+        "--out".into(),
+        dir.to_str().expect("utf-8 temp path").into(),
+        "--seed".into(),
+        SEED.to_string(),
+    ];
+    if let Some(config) = config {
+        fs::write(&cfg, config).expect("write the simulator configuration");
+        args.extend(["--config".into(), cfg.to_str().expect("utf-8").into()]);
+    }
+    let run = run(&args.iter().map(String::as_str).collect::<Vec<_>>(), &log);
+    assert!(
+        run.success(),
+        "pingcal simulate failed ({:?}):\nstdout: {}\nstderr: {}",
+        run.code,
+        run.stdout,
+        run.stderr
+    );
+    eprintln!("simulate {name}: {:.1} s", t0.elapsed().as_secs_f64());
+    for f in ["project.toml", "truth.json", "scans/S00.csv"] {
+        assert!(dir.join(f).is_file(), "pingcal simulate wrote no {f}");
+    }
+    dir
 }
 
 /// Copies the folder `src` into `dst` (created), recursively.
@@ -130,6 +154,14 @@ impl Work {
     pub fn project(&self, sub: &str) -> PathBuf {
         let p = self.dir.join(sub);
         copy_dir(pristine(), &p);
+        p
+    }
+
+    /// A copy of the quick project ([`quick_pristine`]) in `<dir>/<sub>`; returns that
+    /// folder.
+    pub fn quick_project(&self, sub: &str) -> PathBuf {
+        let p = self.dir.join(sub);
+        copy_dir(quick_pristine(), &p);
         p
     }
 
