@@ -348,16 +348,9 @@ fn ids_given_twice_are_refused() {
 #[test]
 fn cloud_ply_reads_back_as_exactly_the_scan_points() {
     let w = Work::new("cloud_ply_round_trip");
-    let p = w.project("project");
-    let out = w.dir.join("out");
-    let run = w.run(&[
-        "calibrate",
-        s(&p.join("project.toml")),
-        "--out",
-        s(&out),
-        "--quiet",
-    ]);
-    assert!(run.success(), "{}", ctx(&run));
+    let common::Calibration {
+        project: p, out, ..
+    } = common::calibration();
     // cloud.ply is made through the calibration's LRF model (results.json's lrf_model),
     // which `pingcal cloud --lrf-model` applies to the same scan
     let model = out.join("results.json");

@@ -58,15 +58,12 @@ fn angle_between_deg(a: &[[f64; 3]; 3], b: &[[f64; 3]; 3]) -> f64 {
 #[test]
 fn calibrate_simulated_project() {
     let w = Work::new("calibrate_simulated_project");
-    let p = w.project("project");
-    let out = w.dir.join("out");
-    let run = w.run(&[
-        "calibrate",
-        s(&p.join("project.toml")),
-        "--out",
-        s(&out),
-        "--json",
-    ]);
+    let common::Calibration {
+        project: p,
+        out,
+        run,
+    } = common::calibration();
+    let (p, out) = (p.as_path(), out.as_path());
     let ctx = format!(
         "exit {:?}\nstdout: {}\nstderr: {}",
         run.code, run.stdout, run.stderr
@@ -84,7 +81,7 @@ fn calibrate_simulated_project() {
     assert_eq!(lines.len(), 1, "--json prints one line per project: {ctx}");
     let summary: Value = serde_json::from_str(lines[0]).expect("the stdout line is JSON");
     assert_eq!(summary["ok"], Value::Bool(true), "{ctx}");
-    assert_eq!(summary["out"].as_str(), Some(s(&out)), "{ctx}");
+    assert_eq!(summary["out"].as_str(), Some(s(out)), "{ctx}");
     for f in OUTPUTS {
         assert!(out.join(f).is_file(), "no {f} in {}", out.display());
     }
@@ -225,9 +222,9 @@ fn calibrate_simulated_project() {
         );
     }
 
-    one_lrf_model(&w, &p, &out, &r);
-    overlays_put_the_balls_on_their_images(&p, &out, &r);
-    export_losses_are_the_same_in_the_files_and_the_report(&out);
+    one_lrf_model(&w, p, out, &r);
+    overlays_put_the_balls_on_their_images(p, out, &r);
+    export_losses_are_the_same_in_the_files_and_the_report(out);
 
     // --- bundle ---
     let b = &r["bundle"];
@@ -284,7 +281,7 @@ fn calibrate_simulated_project() {
             env!("CARGO_MANIFEST_DIR"),
             "/../report/scripts/check-report.sh"
         );
-        let png = out.join("report.png");
+        let png = w.dir.join("report.png");
         let st = std::process::Command::new("bash")
             .arg(script)
             .arg(out.join("report.html"))
@@ -916,15 +913,14 @@ fn one_angle_convention_everywhere_and_the_same_bytes_for_the_same_input() {
     let w = Work::new("one_angle_convention_everywhere");
     let p = w.project("project");
     let toml = p.join("project.toml");
-    let (out1, out2) = (w.dir.join("out1"), w.dir.join("out2"));
+    // the shared calibration of the same project in another folder and process
+    let (out1, out2) = (common::calibration().out.clone(), w.dir.join("out2"));
     // an earlier run's overlay of an image this project does not have, and a user's note
     fs::create_dir_all(out2.join("overlays")).unwrap();
     fs::write(out2.join("overlays/S99_gone.png"), b"an earlier run's").unwrap();
     fs::write(out2.join("overlays/notes.txt"), b"mine").unwrap();
-    for out in [&out1, &out2] {
-        let run = w.run(&["calibrate", s(&toml), "--out", s(out), "--quiet"]);
-        assert!(run.success(), "calibrate failed: {}", run.stderr);
-    }
+    let run = w.run(&["calibrate", s(&toml), "--out", s(&out2), "--quiet"]);
+    assert!(run.success(), "calibrate failed: {}", run.stderr);
     for f in [
         "results.json",
         "cloud.ply",
@@ -1118,16 +1114,7 @@ fn ba_reports_the_start_up_rejections() {
 #[test]
 fn verdict_is_ok_on_a_clean_simulation_and_doubtful_with_an_unknown_mount_offset() {
     let w = Work::new("verdict");
-    let p = w.project("project");
-    let out = w.dir.join("out");
-    let run = w.run(&[
-        "calibrate",
-        s(&p.join("project.toml")),
-        "--out",
-        s(&out),
-        "--quiet",
-    ]);
-    assert!(run.success(), "calibrate failed: {}", run.stderr);
+    let out = &common::calibration().out;
     let r = read_json(&out.join("results.json"));
     assert_eq!(
         r["verdict"]["status"], "ok",
@@ -1142,6 +1129,7 @@ fn verdict_is_ok_on_a_clean_simulation_and_doubtful_with_an_unknown_mount_offset
         "report.html shows no verdict"
     );
     // a stereo baseline entered in centimetres: the adjusted rig says otherwise
+    let p = w.project("project");
     let text = fs::read_to_string(p.join("project.toml")).unwrap();
     let line = text
         .lines()

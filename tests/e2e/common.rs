@@ -113,6 +113,46 @@ fn simulate_once(name: &str, config: Option<&str>) -> PathBuf {
     dir
 }
 
+/// The pristine project's calibration, run once per test binary (`pingcal calibrate
+/// project.toml --out out --json` in `root()/calibrated`): for the tests that only read what
+/// a calibration of the simulated field writes. Its folders must not be written to.
+pub struct Calibration {
+    /// The project's folder (a copy of the pristine one).
+    pub project: PathBuf,
+    /// The output folder.
+    pub out: PathBuf,
+    /// The run.
+    pub run: Run,
+}
+
+/// The shared [`Calibration`], made on first use; it must have succeeded.
+pub fn calibration() -> &'static Calibration {
+    static CALIBRATION: OnceLock<Calibration> = OnceLock::new();
+    CALIBRATION.get_or_init(|| {
+        let dir = root().join("calibrated");
+        let project = dir.join("project");
+        copy_dir(pristine(), &project);
+        let out = dir.join("out");
+        let toml = project.join("project.toml");
+        let args = [
+            "calibrate",
+            toml.to_str().expect("UTF-8 path"),
+            "--out",
+            out.to_str().expect("UTF-8 path"),
+            "--json",
+        ];
+        let run = run(&args, &dir);
+        assert!(
+            run.success(),
+            "the shared calibration failed ({:?}):\nstdout: {}\nstderr: {}",
+            run.code,
+            run.stdout,
+            run.stderr
+        );
+        Calibration { project, out, run }
+    })
+}
+
 /// Copies the folder `src` into `dst` (created), recursively.
 pub fn copy_dir(src: &Path, dst: &Path) {
     fs::create_dir_all(dst).unwrap_or_else(|e| panic!("create {}: {e}", dst.display()));
