@@ -1555,57 +1555,19 @@ fn two_runs_into_one_folder_at_once_one_is_refused_named() {
     assert!(!lock.exists(), "the lock is left");
 }
 
-/// CRC-32 of PNG chunks (ISO 3309), bit by bit.
-fn crc32(bytes: &[u8]) -> u32 {
-    let mut c = !0u32;
-    for &b in bytes {
-        c ^= u32::from(b);
-        for _ in 0..8 {
-            c = if c & 1 != 0 {
-                0xEDB8_8320 ^ (c >> 1)
-            } else {
-                c >> 1
-            };
-        }
-    }
-    !c
-}
-
 /// `png` with its IHDR saying `w` × `h` (the CRC made right again).
 fn png_sized(png: &[u8], w: u32, h: u32) -> Vec<u8> {
     let mut p = png.to_vec();
     p[16..20].copy_from_slice(&w.to_be_bytes());
     p[20..24].copy_from_slice(&h.to_be_bytes());
-    let crc = crc32(&p[12..29]);
+    let crc = common::crc32(&p[12..29]);
     p[29..33].copy_from_slice(&crc.to_be_bytes());
     p
 }
 
 /// An uncompressed grey 64 × 50 TIFF whose one strip starts at byte `strip`.
 fn tiff_with_strip_at(strip: u32) -> Vec<u8> {
-    let mut t = b"II*\0".to_vec();
-    t.extend_from_slice(&8u32.to_le_bytes());
-    let entries: [(u16, u16, u32); 9] = [
-        (256, 3, 64),
-        (257, 3, 50),
-        (258, 3, 8),
-        (259, 3, 1),
-        (262, 3, 1),
-        (273, 4, strip),
-        (277, 3, 1),
-        (278, 3, 50),
-        (279, 4, 3200),
-    ];
-    t.extend_from_slice(&9u16.to_le_bytes());
-    for (tag, ty, v) in entries {
-        t.extend_from_slice(&tag.to_le_bytes());
-        t.extend_from_slice(&ty.to_le_bytes());
-        t.extend_from_slice(&1u32.to_le_bytes());
-        t.extend_from_slice(&v.to_le_bytes());
-    }
-    t.extend_from_slice(&0u32.to_le_bytes());
-    t.extend((0..3200u32).map(|k| (k % 251) as u8));
-    t
+    common::grey_tiff(64, 50, strip, 251)
 }
 
 /// Issue 39, "seen too": cloud and image files whose header disagrees with their data are

@@ -480,6 +480,35 @@ pub fn crc32(data: &[u8]) -> u32 {
     !crc
 }
 
+/// An uncompressed little-endian grey `w` × `h` TIFF: its nine tags, then its one strip at
+/// byte `strip` (the strip's bytes `k mod modulo`; a `strip` other than the tags' end points
+/// past or into them).
+pub fn grey_tiff(w: u32, h: u32, strip: u32, modulo: u32) -> Vec<u8> {
+    let entries: [(u16, u16, u32); 9] = [
+        (256, 3, w),
+        (257, 3, h),
+        (258, 3, 8),
+        (259, 3, 1),
+        (262, 3, 1),
+        (273, 4, strip),
+        (277, 3, 1),
+        (278, 3, h),
+        (279, 4, w * h),
+    ];
+    let mut t = b"II*\0".to_vec();
+    t.extend_from_slice(&8u32.to_le_bytes());
+    t.extend_from_slice(&9u16.to_le_bytes());
+    for (tag, ty, v) in entries {
+        t.extend_from_slice(&tag.to_le_bytes());
+        t.extend_from_slice(&ty.to_le_bytes());
+        t.extend_from_slice(&1u32.to_le_bytes());
+        t.extend_from_slice(&v.to_le_bytes());
+    }
+    t.extend_from_slice(&0u32.to_le_bytes());
+    t.extend((0..w * h).map(|k| (k % modulo) as u8));
+    t
+}
+
 /// Adler-32 (RFC 1950).
 pub fn adler32(data: &[u8]) -> u32 {
     let (mut a, mut b) = (1u32, 0u32);

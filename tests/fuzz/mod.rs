@@ -464,30 +464,7 @@ fn png_seed() -> Vec<u8> {
 }
 
 fn tiff_seed() -> Vec<u8> {
-    let (w, h) = (40u32, 30u32);
-    let entries: [(u16, u16, u32); 9] = [
-        (256, 3, w),
-        (257, 3, h),
-        (258, 3, 8),
-        (259, 3, 1),
-        (262, 3, 1),
-        (273, 4, 8 + 2 + 12 * 9 + 4),
-        (277, 3, 1),
-        (278, 3, h),
-        (279, 4, w * h),
-    ];
-    let mut t = b"II*\0".to_vec();
-    t.extend_from_slice(&8u32.to_le_bytes());
-    t.extend_from_slice(&9u16.to_le_bytes());
-    for (tag, ty, v) in entries {
-        t.extend_from_slice(&tag.to_le_bytes());
-        t.extend_from_slice(&ty.to_le_bytes());
-        t.extend_from_slice(&1u32.to_le_bytes());
-        t.extend_from_slice(&v.to_le_bytes());
-    }
-    t.extend_from_slice(&0u32.to_le_bytes());
-    t.extend((0..w * h).map(|k| (k % 253) as u8));
-    t
+    crate::common::grey_tiff(40, 30, 8 + 2 + 12 * 9 + 4, 253)
 }
 
 /// One way an input goes wrong.
