@@ -118,6 +118,9 @@ pub struct RingReader {
     /// Ring sampling band, in dot radii: the printed ring less a fifth of its width at each
     /// edge (2.2 to 2.8 for AICON's).
     pub ring: (f64, f64),
+    /// The half side of the printed dark square around the ring, in dot radii (AICON's and
+    /// `pingcal targets`': 4, for a ring to 3; a third beyond the ring for other rings).
+    pub square_half: f64,
     /// True: bright sectors are 1s.
     pub bright_is_one: bool,
     /// True: bit i is the i-th sector in the order of increasing image angle (clockwise on
@@ -244,6 +247,7 @@ impl RingReader {
             table: CodeTable::generate(bits)?,
             geometry: (inner, outer),
             ring: (inner + 0.2 * w, outer - 0.2 * w),
+            square_half: outer * 4.0 / 3.0,
             bright_is_one: true,
             clockwise: false,
             min_margin: 0.25,

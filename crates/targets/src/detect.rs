@@ -382,8 +382,8 @@ impl Detector {
                         RefusalReason::RingUnreadable,
                         r.ellipse,
                         format!(
-                            "read as {id} but refused: confidence {:.2} (sector {:.2}, code {:.2}, levels {:.3}, ring fit {:.3} dot radii)",
-                            margins.confidence, margins.sector, margins.code, margins.levels, margins.ring_fit
+                            "read as {id} but refused: confidence {:.2} (sector {:.2}, code {:.2}, levels {:.3}, ring fit {:.3} dot radii, outline {:.3})",
+                            margins.confidence, margins.sector, margins.code, margins.levels, margins.ring_fit, margins.outline
                         ),
                     );
                     refusal.refused_read = Some((id, margins));
@@ -882,6 +882,7 @@ mod tests {
             surround: 0.0,
             ring_fit: 0.0,
             fragment: 0.0,
+            outline: 0.0,
             confidence: 0.5,
         };
         beside.refused_read = Some((9, margins));

@@ -210,7 +210,7 @@ fn real_panel_ids_are_all_right() {
     let lo = |f: fn(&c::ReadMargins) -> f32| reads.iter().map(f).fold(f32::INFINITY, f32::min);
     let hi = |f: fn(&c::ReadMargins) -> f32| reads.iter().map(f).fold(0.0, f32::max);
     println!(
-        "weakest margins: sector {:.3} (bound {}), code {:.3} ({}), levels {:.3} ({}), profile {:.3} ({}), surround {:.3} ({}), ring fit {:.3} ({}) dot radii; confidence {:.2}",
+        "weakest margins: sector {:.3} (bound {}), code {:.3} ({}), levels {:.3} ({}), profile {:.3} ({}), surround {:.3} ({}), ring fit {:.3} ({}) dot radii, outline {:.3} ({}); confidence {:.2}",
         lo(|m| m.sector),
         c::MIN_SECTOR,
         lo(|m| m.code),
@@ -223,6 +223,8 @@ fn real_panel_ids_are_all_right() {
         c::MAX_SURROUND,
         hi(|m| m.ring_fit),
         c::MAX_RING_FIT,
+        hi(|m| m.outline),
+        c::MAX_OUTLINE,
         lo(|m| m.confidence)
     );
     assert!(

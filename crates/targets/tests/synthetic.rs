@@ -662,9 +662,18 @@ mod stress;
 /// decoder before issue 38 read 37 wrong in 893 reads (41.4 per thousand), its first margins
 /// 30 in 833 (36.0); on 600, 70 in 1,797 (39.0) and 53 in 1,658 (32.0). The `fragment` margin
 /// and the refusal of reads whose ring overlaps another ring (`pingcal_targets::detect::
-/// RING_OVERLAP_MAX`) bring the 300 to 27 in 820 (32.9), the 600 to 39 in 1,624 (24.0). The rest are clean in the image: a
-/// printed target beneath another whose rings do not meet (the real panel's rings come as
-/// close), a dark bar over dark sectors. The test holds the rate under 35 per thousand.
+/// RING_OVERLAP_MAX`) bring the 300 to 27 in 820 (32.9), the 600 to 39 in 1,624 (24.0). Most
+/// of those were clean to every margin of the ring: a printed target beneath another, a dark
+/// bar over bright sectors. The `outline` margin (a target on uniform paper whose dark print
+/// reaches beyond its square is refused: the dark thing may lie over its ring) brings the 300
+/// to 4 in 521 (7.7), the 600 to 5 in 1,046 (4.8); the upper of two overlapping targets and
+/// targets touched by a bar or a line of text go with them (the right reads fall from 1,585 to
+/// 1,041 on 600). What is left are rings half in a shadow, whose paper is not uniform. The
+/// test holds the rate under 20 per thousand: with 4 wrong reads expected on the 300 scenes, a
+/// count of 10 or more (19.2 per thousand of 521) has a Poisson probability under 0.3 %, so
+/// a rise past the bound is a change of the decoder, not chance. The targets of the text and
+/// checkerboard scenes are clean (the tempters lie around them): at least 85 % of them must be
+/// read (93 % and 98 % are).
 #[test]
 fn false_read_stress() {
     use rayon::prelude::*;
@@ -683,7 +692,10 @@ fn false_read_stress() {
         .map(|seed| {
             let s = stress::scene(38_000 + seed);
             let found = det.detect(&s.image);
-            let (read, wrong) = stress::score(&s, &found);
+            let (read, mut wrong) = stress::score(&s, &found);
+            for w in &mut wrong {
+                *w = format!("seed {seed}, {w}");
+            }
             if let (Some(dir), false) = (&dir, wrong.is_empty()) {
                 let ov = pingcal_targets::overlay::draw_detections_and_refusals(&s.image, &found);
                 ov.save(&std::path::Path::new(dir).join(format!("stress-{seed}.png")))
@@ -711,6 +723,10 @@ fn false_read_stress() {
         );
         if kind == "printed text" || kind == "checkerboard" {
             assert!(wrong.is_empty(), "{kind}: {wrong:?}");
+            assert!(
+                read * 100 >= drawn * 85,
+                "{kind}: only {read} of {drawn} clean targets read"
+            );
         }
         tot_read += read;
         tot_drawn += drawn;
@@ -725,8 +741,8 @@ fn false_read_stress() {
         println!("WRONG: {w}");
     }
     assert!(
-        tot_read * 2 > tot_drawn,
+        tot_read * 3 > tot_drawn,
         "only {tot_read} of {tot_drawn} targets read"
     );
-    assert!(rate < 35.0, "{rate:.1} wrong per 1000 reads: {all_wrong:?}");
+    assert!(rate < 20.0, "{rate:.1} wrong per 1000 reads: {all_wrong:?}");
 }
