@@ -150,6 +150,8 @@ pub struct ScenePoint {
 /// the project's `model`) and its sensor.
 #[derive(Clone, Debug)]
 pub struct SceneCamera {
+    /// Which model the project names.
+    pub kind: ModelKind,
     /// The model, built for the sensor.
     pub model: Arc<dyn CameraModel>,
     /// Width in pixels.
@@ -164,6 +166,7 @@ impl SceneCamera {
     /// The camera of project camera `c`.
     pub fn of(c: &ProjectCamera) -> Self {
         SceneCamera {
+            kind: c.model.kind(),
             model: c.model.kind().model(c.width, c.height, c.pixel_size_mm),
             width: c.width,
             height: c.height,

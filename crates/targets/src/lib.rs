@@ -34,6 +34,7 @@
 //! - [`aicon`]: code tables (generated), ring sampling after affine rectification, bit
 //!   reading, minimum rotation, lookup, refusals.
 //! - [`ball`]: sphere silhouettes and the eccentricity correction.
+//! - [`dot`]: a flat dot's centre through a strongly non-linear (wide-angle, fisheye) lens.
 //! - [`silhouette`]: a sphere of known radius in a real photograph: edges from the colour
 //!   gradient, candidate circles, the robust fit of its silhouette cone to the visible outline.
 //! - [`detect`]: the top-level detector.
@@ -46,6 +47,7 @@ pub mod blobs;
 pub mod candidates;
 pub mod centre;
 pub mod detect;
+pub mod dot;
 pub mod driveback;
 pub mod ellipse;
 pub mod homography;
