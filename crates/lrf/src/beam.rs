@@ -15,6 +15,15 @@
 //! continuous, its Jacobian is that of the clamped function, and [`BeamResidual::grazing`]
 //! says so, so that callers can leave such beams out (their range is a footprint effect).
 //!
+//! **Beams at the silhouette.** A beam is not a line but a footprint of half-width
+//! `w = a + b·r` ([`crate::sphere_fit::FitOptions::beam_half_width`]); where the ray passes
+//! within `w` of the silhouette (`ρ − h < w`, [`BeamResidual::margin_mm`]), part of the
+//! footprint lies on the background and the reading mixes the two (a mixed pixel: longer
+//! than the sphere's range by a fraction of the gap behind the ball). Such beams are biased
+//! the same way at every ball, by up to a few σ each, so a residual test does not remove
+//! them; [`BeamOnBall::at_silhouette`] names them, and callers leave them out as the sphere
+//! fits do.
+//!
 //! **Jacobians**, with `g_q = ∂r_pred/∂q = d + (q − t d)/√(ρ² − h²)` and
 //! `g_d = ∂r_pred/∂d = q − t q/√(ρ² − h²)` (the second terms vanish when clamped):
 //! `∂e/∂c = −(1 + range_scale) g_q`; for an offset component `∂o = R_β e_j`, for a tilt or
@@ -40,6 +49,8 @@ pub struct BeamResidual {
     pub d_mount: [f64; 8],
     /// The ray grazes (or misses) the sphere: the root was clamped.
     pub grazing: bool,
+    /// How far inside the silhouette the ray passes, `ρ − h` (mm; negative: it misses).
+    pub margin_mm: f64,
 }
 
 /// Derivative of [`servo_rotation`] with respect to β.
@@ -119,6 +130,7 @@ pub fn beam_range_residual(
         d_centre,
         d_mount,
         grazing,
+        margin_mm: radius - h2.sqrt(),
     }
 }
 
@@ -146,6 +158,9 @@ pub struct BeamOnBall {
     pub extrinsic: usize,
     /// The mount: a vector parameter block of 8.
     pub mount: usize,
+    /// Half-width of the beam's footprint at its range (mm): a beam that passes closer than
+    /// this to the silhouette is a mixed pixel ([`BeamOnBall::at_silhouette`]).
+    pub half_width_mm: f64,
 }
 
 impl BeamOnBall {
@@ -183,6 +198,20 @@ impl BeamOnBall {
         theta: &[f64],
     ) -> bool {
         self.at(x, pose, theta).is_none_or(|(r, _, _)| r.grazing)
+    }
+
+    /// Whether the beam's footprint reaches the ball's silhouette at these values (the ray
+    /// passes within `half_width_mm` of it, or misses): its range mixes ball and background.
+    /// Every grazing beam is also at the silhouette when the half-width is at least
+    /// `(1 − √(1 − κ²)) ρ`.
+    pub fn at_silhouette(
+        &self,
+        x: &Vector3<f64>,
+        pose: &pingcal_geometry::Rigid3,
+        theta: &[f64],
+    ) -> bool {
+        self.at(x, pose, theta)
+            .is_none_or(|(r, _, _)| r.grazing || r.margin_mm < self.half_width_mm)
     }
 }
 
@@ -357,6 +386,7 @@ mod tests {
                 ball: 0,
                 extrinsic: 0,
                 mount: 1,
+                half_width_mm: 3.0,
             };
             let th = mount.to_params();
             let values = [
@@ -416,5 +446,73 @@ mod tests {
         assert!(!a.grazing && b.grazing);
         assert!((a.e - b.e).abs() < 1e-6, "{} {}", a.e, b.e);
         assert!(at(30.0).grazing && at(30.0).e.is_finite());
+    }
+
+    /// The beams at a ball's silhouette are the mixed pixels: on noiseless scans of a room
+    /// corner whose balls' edges blend with the background over the beam's footprint
+    /// (`simulate`, the sphere fits' footprint), every beam `at_silhouette` leaves in reads
+    /// the sphere's range exactly, and some that the grazing test alone kept read many mm
+    /// long.
+    #[test]
+    fn the_beams_at_a_silhouette_are_the_mixed_pixels() {
+        use crate::simulate::{room_corner_scene, SimulatedLrf};
+        use crate::sphere_fit::FitOptions;
+        let mut g = rng(11);
+        let scene = room_corner_scene(6, &mut g);
+        let lrf = SimulatedLrf {
+            footprint: SimulatedLrf::default().footprint,
+            ..SimulatedLrf::noiseless()
+        };
+        let lines = scene.half_sweep(400, &lrf, &mut g);
+        let fit = FitOptions::default();
+        let identity = pingcal_geometry::Rigid3::identity();
+        let theta = MountModel::default().to_params();
+        let (mut clear, mut worst_clear, mut worst_kept) = (0, 0.0f64, 0.0f64);
+        for line in &lines {
+            for (i, &range_mm) in line.ranges_mm.iter().enumerate() {
+                if range_mm <= 0.0 {
+                    continue;
+                }
+                let reading = BeamReading {
+                    servo_deg: line.servo_deg,
+                    alpha_rad: lrf.sensor.beam_angle(i),
+                    range_mm,
+                };
+                for c in &scene.balls {
+                    let beam = BeamOnBall {
+                        reading,
+                        radius: scene.radius,
+                        sigma: 10.0,
+                        servo_zero_deg: 0.0,
+                        ball: 0,
+                        extrinsic: 0,
+                        mount: 1,
+                        half_width_mm: fit.beam_half_width(range_mm),
+                    };
+                    let Some(e) = beam.range_error(c, &identity, &theta) else {
+                        continue;
+                    };
+                    // a beam of this ball (not one of another object in front of it)
+                    if e.abs() > 200.0 || beam.grazing(c, &identity, &theta) {
+                        continue;
+                    }
+                    if beam.at_silhouette(c, &identity, &theta) {
+                        worst_kept = worst_kept.max(e.abs());
+                    } else {
+                        clear += 1;
+                        worst_clear = worst_clear.max(e.abs());
+                    }
+                }
+            }
+        }
+        assert!(clear > 100, "{clear} beams on the balls");
+        assert!(
+            worst_clear < 1e-6,
+            "a beam clear of the silhouette is {worst_clear} mm off"
+        );
+        assert!(
+            worst_kept > 5.0,
+            "no mixed pixel the grazing test keeps: {worst_kept} mm"
+        );
     }
 }

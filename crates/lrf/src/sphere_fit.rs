@@ -99,6 +99,14 @@ impl Default for FitOptions {
     }
 }
 
+impl FitOptions {
+    /// Half-width of the beam's footprint at range `r` (mm): `beam_width_a_mm +
+    /// beam_width_b · r`.
+    pub fn beam_half_width(&self, r: f64) -> f64 {
+        self.beam_width_a_mm + self.beam_width_b * r
+    }
+}
+
 /// A fitted sphere.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SphereFit {

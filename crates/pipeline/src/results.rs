@@ -497,11 +497,12 @@ fn joint_json(j: &JointOutcome, ext: &Extrinsics) -> MethodJson {
         variance_components: j.variance_components.clone(),
         error: None,
         notes: std::iter::once(format!(
-            "{} LRF beams on {} control balls ({} removed as gross errors, {} grazing left out); RMS beam residual {:.2} mm; redundancy {}",
+            "{} LRF beams on {} control balls ({} removed as gross errors, {} grazing and {} at a ball's silhouette left out); RMS beam residual {:.2} mm; redundancy {}",
             j.beams,
             j.control.rows.len(),
             j.beams_rejected,
             j.beams_grazing,
+            j.beams_silhouette,
             j.rms_beam_mm,
             j.redundancy
         ))
