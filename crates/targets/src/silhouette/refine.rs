@@ -1,18 +1,29 @@
 //! The silhouette of a sphere of known radius fitted to the edges of the image: from a start
-//! (a centre in the camera frame), its outline projected through the camera, the strongest
-//! colour edge looked for along the outline's normal at every place, and the centre fitted
-//! to those edge points' rays robustly ([`super::cone::robust_fit`]); repeated with the search
+//! (a centre in the camera frame), its outline projected through the camera, colour edges
+//! looked for along the outline's normal at every place, and the centre fitted to those edge
+//! points' rays robustly ([`super::cone::robust_fit_choosing`]); repeated with the search
 //! narrowed to what the residuals allow.
 //!
 //! **Along a normal**: the profile of every channel sampled every ½ px across the outline
 //! (each sample the mean of three, ±1 px along the outline, weights ¼ ½ ¼); its derivative
 //! by central differences 1 px apart; the colour derivative `g(s) = √Σ_c (∂I_c/∂s)²`,
 //! sign-free (a ball brighter than the bricks above and darker than the floor below has one
-//! outline). The edge is the largest `g` within the search, located to a fraction of a
+//! outline). An edge is a maximum of `g` within the search, located to a fraction of a
 //! sample by the vertex of the parabola through `ln g` at the three samples about it (exact
 //! for a Gaussian-blurred step), and the edge's blur `σ_b` from that parabola's curvature.
-//! A place whose search leaves the image is not visible; one whose largest `g` is at the
-//! search's end, or weaker than a quarter of the outline's median, has no edge.
+//! A place whose search leaves the image is not visible; an edge weaker than a quarter of
+//! the outline's median strongest is none (where the ball has no contrast against what is
+//! behind it, nothing of its outline is taken).
+//!
+//! **Two searches** from the start ([`refine`]): one takes at each place the largest `g`
+//! (none when it lies at the search's end); the other keeps the [`CANDIDATES`] strongest
+//! maxima and lets the robust fit take, at each place, the one nearest the current outline
+//! (a multiple-hypothesis estimator). The first fails where a ball's dark lower half is
+//! weaker than the bricks behind it: the strongest edges there are the mortar's, and when
+//! they are half the outline they pull the fit off the ball; the second follows the lit
+//! outline and leaves the dark side's places to the robust weights. Both end in the same
+//! measurement (`finish`: the strongest edge in the narrowed search, no choice), and the
+//! one whose edges fit better is returned.
 //!
 //! **Blur**: the derivative of a blurred disc peaks `σ_b²κ/2` inside its outline (κ its
 //! curvature), as its half level does; every edge point is moved outward by that
@@ -287,7 +298,7 @@ fn candidate_rays(
 /// searching first `w0` px either side of the outline. `None` when fewer than 12 edge points
 /// are found or the fit fails.
 ///
-/// Two searches from the start, each measured by [`finish`]: one following the strongest
+/// Two searches from the start, each measured by `finish`: one following the strongest
 /// edge at each place of the outline, and one choosing among the [`CANDIDATES`] strongest
 /// the edge nearest the outline (a ball whose dark side is weaker than the bricks behind it:
 /// the strongest edges there belong to the bricks, and when they are half the outline they
@@ -301,7 +312,7 @@ pub fn refine(img: &ColourImage, cam: &dyn CameraRays, r: f64, c0: V3, w0: f64) 
     }
 }
 
-/// The rounds of one search (`hypotheses` edges per place), then [`finish`].
+/// The rounds of one search (`hypotheses` edges per place), then `finish`.
 fn search_rounds(
     img: &ColourImage,
     cam: &dyn CameraRays,
