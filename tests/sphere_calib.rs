@@ -321,14 +321,18 @@ fn cluttered_ten_seed_study() {
     cluttered_study(1..=10, 10);
 }
 
-/// One seed of the harder rendering: in every frame whose silhouette is at least half in
-/// the image the ball is chosen, never a plate, the window or the floor marking. (The
-/// ten-seed study, `bash bench/spherecalib/run.sh cluttered`: the extrinsic within 3σ in 9
-/// of 10, the σ's of the five doubtful seeds scaled by their σ0; 3 frames at least half
-/// visible are still left out over 10 seeds; docs/sphere-calib.md.)
+/// Two seeds of the harder rendering: in every frame whose silhouette is at least half in
+/// the image the ball is chosen, never a plate, the window or the floor marking. Seed 4's
+/// F04 and F09 are balls whose dark lower half is against dark bricks (the edge search
+/// following only the strongest edge left them out). (The ten-seed study, `bash
+/// bench/spherecalib/run.sh cluttered`: the extrinsic within 3σ in 9 of 10, the σ's of the
+/// five doubtful seeds scaled by their σ0; no frame at least half visible left out over 10
+/// seeds; docs/sphere-calib.md.)
 #[test]
 fn the_harder_rendering_finds_the_ball_in_clutter() {
     let (_, missed) = cluttered_study(2..=2, 8);
+    assert_eq!(missed, 0);
+    let (_, missed) = cluttered_study(4..=4, 10);
     assert_eq!(missed, 0);
 }
 

@@ -99,16 +99,39 @@ fn median(v: &mut [f64]) -> f64 {
     *v.select_nth_unstable_by(mid, |a, b| a.total_cmp(b)).1
 }
 
+/// Per place the candidate ray nearest the cone of (`c`, `r`) (the smallest absolute
+/// residual; the first of equals) and its index; a place of one candidate is that one.
+fn nearest(places: &[Vec<V3>], c: &V3, r: f64) -> (Vec<V3>, Vec<usize>) {
+    let d = c.norm();
+    let u = c / d;
+    let alpha = (r / d).clamp(-1.0, 1.0).asin();
+    let off = |q: &V3| (q.dot(&u).clamp(-1.0, 1.0).acos() - alpha).abs();
+    places
+        .iter()
+        .map(|cands| {
+            let mut k = 0;
+            for (j, q) in cands.iter().enumerate().skip(1) {
+                if off(q) < off(&cands[k]) {
+                    k = j;
+                }
+            }
+            (cands[k], k)
+        })
+        .unzip()
+}
+
 /// Least trimmed squares by concentration steps (Rousseeuw & Van Driessen): from `c0`, the
-/// least squares of the half of the rays with the smallest residuals, repeated until that
-/// half stops changing (at most 20 times). Half the outline may be wrong (a stand, a
-/// shadow, an edge behind), however far off, and the start may be poor.
-fn trimmed(q: &[V3], c0: V3, r: f64) -> Option<V3> {
-    let h = q.len().div_ceil(2).max(6);
-    let (mut c, _) = gauss_newton(q, None, c0, r)?;
+/// least squares of the half of the places with the smallest residuals (each place's
+/// candidate nearest the cone), repeated until that half stops changing (at most 20 times).
+/// Half the outline may be wrong (a stand, a shadow, an edge behind), however far off, and
+/// the start may be poor.
+fn trimmed(places: &[Vec<V3>], c0: V3, r: f64) -> Option<V3> {
+    let h = places.len().div_ceil(2).max(6);
+    let (mut c, _) = gauss_newton(&nearest(places, &c0, r).0, None, c0, r)?;
     let mut last: Vec<usize> = Vec::new();
     for _ in 0..20 {
-        let (res, _) = cone_residuals(q, &c, r)?;
+        let (q, _) = nearest(places, &c, r);
+        let (res, _) = cone_residuals(&q, &c, r)?;
         let mut idx: Vec<usize> = (0..q.len()).collect();
         idx.sort_by(|&a, &b| res[a].abs().total_cmp(&res[b].abs()).then(a.cmp(&b)));
         idx.truncate(h);
@@ -128,14 +151,31 @@ fn trimmed(q: &[V3], c0: V3, r: f64) -> Option<V3> {
 /// `floor / 3`) until σ settles; inliers within `max(3σ, floor)`. `floor`: the smallest
 /// residual scale worth telling apart (radians, e.g. a quarter pixel's angle).
 pub fn robust_fit(q: &[V3], c0: V3, r: f64, floor: f64) -> Option<RobustCone> {
-    if q.len() < 6 {
+    let places: Vec<Vec<V3>> = q.iter().map(|x| vec![*x]).collect();
+    robust_fit_choosing(&places, c0, r, floor).map(|(f, _)| f)
+}
+
+/// [`robust_fit`] with several candidate rays per place of the outline (the edges found
+/// along one normal, each non-empty): in every step each place takes its candidate nearest
+/// the current cone, and the estimator weighs those (the multiple-hypothesis robust
+/// estimator of Vacchetti, Lepetit & Fua 2004). So the outline's own edge is used wherever
+/// it is among the candidates, even where a stronger edge of the background lies within the
+/// search. Returns the fit (residuals and inliers per place) and each place's candidate.
+pub fn robust_fit_choosing(
+    places: &[Vec<V3>],
+    c0: V3,
+    r: f64,
+    floor: f64,
+) -> Option<(RobustCone, Vec<usize>)> {
+    if places.len() < 6 || places.iter().any(|p| p.is_empty()) {
         return None;
     }
-    let mut c = trimmed(q, c0, r)?;
+    let mut c = trimmed(places, c0, r)?;
     let mut sigma = f64::INFINITY;
-    let mut w = vec![1.0; q.len()];
+    let mut w = vec![1.0; places.len()];
     for _ in 0..12 {
-        let (res, _) = cone_residuals(q, &c, r)?;
+        let (q, _) = nearest(places, &c, r);
+        let (res, _) = cone_residuals(&q, &c, r)?;
         let mut abs: Vec<f64> = res.iter().map(|e| e.abs()).collect();
         let s = (1.4826 * median(&mut abs)).max(floor / 3.0);
         let k = 4.685 * s;
@@ -150,7 +190,7 @@ pub fn robust_fit(q: &[V3], c0: V3, r: f64, floor: f64) -> Option<RobustCone> {
         if w.iter().filter(|&&x| x > 0.0).count() < 6 {
             return None;
         }
-        let (cn, _) = gauss_newton(q, Some(&w), c, r)?;
+        let (cn, _) = gauss_newton(&q, Some(&w), c, r)?;
         let moved = (cn - c).norm();
         c = cn;
         let settled = (s - sigma).abs() < 0.01 * s && moved < 1e-7 * c.norm();
@@ -159,17 +199,21 @@ pub fn robust_fit(q: &[V3], c0: V3, r: f64, floor: f64) -> Option<RobustCone> {
             break;
         }
     }
-    let (res, _) = cone_residuals(q, &c, r)?;
+    let (q, chosen) = nearest(places, &c, r);
+    let (res, _) = cone_residuals(&q, &c, r)?;
     let mut abs: Vec<f64> = res.iter().map(|e| e.abs()).collect();
     let sigma = (1.4826 * median(&mut abs)).max(floor / 3.0);
     let lim = (3.0 * sigma).max(floor);
     let inlier = res.iter().map(|e| e.abs() <= lim).collect();
-    Some(RobustCone {
-        centre: c,
-        residuals: res,
-        inlier,
-        sigma,
-    })
+    Some((
+        RobustCone {
+            centre: c,
+            residuals: res,
+            inlier,
+            sigma,
+        },
+        chosen,
+    ))
 }
 
 /// The variance inflation of a mean of the correlated series `res` (ordered around the

@@ -10,9 +10,10 @@
 //!    gradient axis, the radius at each peak by the edge points around it ([`hough`]).
 //! 3. **The silhouette fit** of each candidate ([`refine`]): the outline of a sphere of the
 //!    known radius projected through the camera's own model ([`CameraRays`], distortion
-//!    exact), the strongest colour edge along its normal at each place, the centre fitted to
-//!    those edge points' rays with a robust weight ([`cone`]), the search narrowed round by
-//!    round. Edge points of a highlight, a stand or a hand are rejected by the fit; places
+//!    exact), colour edges along its normal at each place (the strongest; in a second search
+//!    the nearest of the three strongest, for a dark side weaker than the background behind
+//!    it), the centre fitted to those edge points' rays with a robust weight ([`cone`]), the
+//!    search narrowed round by round. Edge points of a highlight, a stand or a hand are rejected by the fit; places
 //!    outside the image are not searched. The fit says how much of the outline it used
 //!    ([`Fit::coverage`]) and how much was in the image ([`Fit::visible`]); its covariance
 //!    comes from the edge points used, so an outline half hidden gives a larger one.
