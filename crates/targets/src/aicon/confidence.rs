@@ -45,7 +45,7 @@
 //!   the mean over its radii; on one radius it shows.
 //! - `outline`: the share of directions around the target in which its dark print reaches
 //!   beyond its printed square (AICON's and `pingcal targets`': 4 dot radii from the centre),
-//!   when the target lies on uniform paper ([`outline`]; 0 on a dark or textured background).
+//!   when the target lies on uniform paper (`outline`; 0 on a dark or textured background).
 //!   Something as black as the target's own square laid over its ring (another target's
 //!   square, a bar, a shadow) hides whole bright sectors and can leave another number's
 //!   pattern, clean to every margin above; what it cannot hide is itself: where it leaves the
