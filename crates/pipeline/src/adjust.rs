@@ -415,11 +415,9 @@ accuracy_far_fraction = 0.03
         }
     }
 
-    /// Images a and b oriented, c not; points 1 and 2 seen in all three, point 3 in a and
-    /// c only (one ray in an oriented image).
-    pub(crate) fn fixture() -> (Project, Detections, Scene) {
-        let file = ProjectFile::parse(PROJECT, "project.toml").expect("valid project");
-        let project = Project {
+    /// The project of project-file text `text`, with no files behind it.
+    pub(crate) fn project_of(text: &str) -> Project {
+        Project {
             path: "project.toml".into(),
             dir: ".".into(),
             image_paths: Vec::new(),
@@ -427,8 +425,14 @@ accuracy_far_fraction = 0.03
             layout: None,
             bag_paths: Vec::new(),
             lrf_model_path: None,
-            file,
-        };
+            file: ProjectFile::parse(text, "project.toml").expect("valid project"),
+        }
+    }
+
+    /// Images a and b oriented, c not; points 1 and 2 seen in all three, point 3 in a and
+    /// c only (one ray in an oriented image).
+    pub(crate) fn fixture() -> (Project, Detections, Scene) {
+        let project = project_of(PROJECT);
         let det = || ImageDetections {
             width: 100,
             height: 80,
@@ -559,16 +563,7 @@ accuracy_far_fraction = 0.03
              [lrf]\nmodel = \"urg\"\nstation = \"S0\"\nscans = [\"scan.csv\"]\n\
              max_range_mm = 4000.0\naccuracy_near_mm = 30.0\naccuracy_far_fraction = 0.03\n"
         );
-        Project {
-            path: "project.toml".into(),
-            dir: ".".into(),
-            image_paths: Vec::new(),
-            scan_paths: Vec::new(),
-            layout: None,
-            bag_paths: Vec::new(),
-            lrf_model_path: None,
-            file: ProjectFile::parse(&text, "project.toml").expect("valid project"),
-        }
+        project_of(&text)
     }
 
     /// The noise of the test's centres (px). The lens's shift is the same whatever the

@@ -38,7 +38,7 @@ use pingcal_ba::camera::CameraModel;
 use pingcal_geometry::Rigid3;
 use pingcal_sim::render::{render_image, RayTable};
 use pingcal_sim::scene::{HitKind, Scene};
-use pingcal_sim::stations::CameraUnit;
+use pingcal_sim::stations::{CameraUnit, Station};
 use pingcal_sim::{SimConfig, Simulation};
 use pingcal_targets::ball::{
     fit_ball_silhouette, sphere_centre_from_ellipse, CameraRays, FnCamera,
@@ -203,6 +203,32 @@ impl Stats {
     }
 }
 
+/// Every image of `sim` rendered (each camera of each station, in the simulator's order and
+/// noise stream) and handed to `f` with its station, its camera and its pose.
+fn each_rendered(
+    sim: &Simulation,
+    tables: &[RayTable],
+    mut f: impl FnMut(&Station, &CameraUnit, &Rigid3, &GrayImage),
+) {
+    let mut k = 0u64;
+    for st in &sim.stations {
+        for (ci, cam) in sim.rig.cameras.iter().enumerate() {
+            let pose: Rigid3 = st.camera_pose(&sim.rig, ci);
+            let img8 = render_image(
+                &sim.scene,
+                cam,
+                &pose,
+                &sim.config.render,
+                Some(&tables[ci]),
+                sim.seed,
+                k,
+            );
+            k += 1;
+            f(st, cam, &pose, &to_gray(&img8));
+        }
+    }
+}
+
 fn rms(v: &[f64]) -> f64 {
     (v.iter().map(|x| x * x).sum::<f64>() / v.len().max(1) as f64).sqrt()
 }
@@ -275,130 +301,114 @@ fn detector_on_rendered_images_matches_truth() {
         "ball raw",
         "ball corr"
     );
-    let mut k = 0u64;
-    for st in &sim.stations {
-        for (ci, cam) in sim.rig.cameras.iter().enumerate() {
-            let pose: Rigid3 = st.camera_pose(&sim.rig, ci);
-            let img8 = render_image(
-                &sim.scene,
-                cam,
-                &pose,
-                &sim.config.render,
-                Some(&tables[ci]),
-                sim.seed,
-                k,
-            );
-            k += 1;
-            let img = to_gray(&img8);
-            let det = detector.detect(&img);
-            let sc = sim.scene.transformed(&pose);
-            let r_max = cam.max_ideal_radius_mm() * 1.02;
-            let mut s = Stats::default();
-            let view_deg = |i: usize| {
-                let t = &sc.targets[i];
-                (-t.normal.dot(&t.centre.normalize())).acos().to_degrees()
-            };
+    each_rendered(&sim, &tables, |st, cam, pose, img| {
+        let det = detector.detect(img);
+        let sc = sim.scene.transformed(pose);
+        let r_max = cam.max_ideal_radius_mm() * 1.02;
+        let mut s = Stats::default();
+        let view_deg = |i: usize| {
+            let t = &sc.targets[i];
+            (-t.normal.dot(&t.centre.normalize())).acos().to_degrees()
+        };
 
-            // Coded targets: every decoded ID is checked, visible or not.
-            let coded_truth: Vec<(usize, Vector2<f64>)> = (0..sc.targets.len())
-                .filter(|&i| sc.targets[i].code.is_some())
-                .filter_map(|i| target_visible(&sc, cam, r_max, i).map(|p| (i, p)))
-                .collect();
-            for (a, pa) in &coded_truth {
-                for (b, pb) in &coded_truth {
-                    assert!(
-                        a == b || (pa - pb).norm() > 10.0 * ID_BOUND_PX,
-                        "coded targets too close for the ID check"
+        // Coded targets: every decoded ID is checked, visible or not.
+        let coded_truth: Vec<(usize, Vector2<f64>)> = (0..sc.targets.len())
+            .filter(|&i| sc.targets[i].code.is_some())
+            .filter_map(|i| target_visible(&sc, cam, r_max, i).map(|p| (i, p)))
+            .collect();
+        for (a, pa) in &coded_truth {
+            for (b, pb) in &coded_truth {
+                assert!(
+                    a == b || (pa - pb).norm() > 10.0 * ID_BOUND_PX,
+                    "coded targets too close for the ID check"
+                );
+            }
+        }
+        let mut right_ids = Vec::new();
+        for t in det.targets.iter().filter(|t| t.kind == TargetKind::Coded) {
+            let Some(id) = t.id else { continue };
+            let xy = Vector2::new(t.x, t.y);
+            let truth = sc
+                .targets
+                .iter()
+                .find(|tt| tt.id == id && tt.code.is_some())
+                .and_then(|tt| cam.model.project(&cam.params, &tt.centre, None, None))
+                .filter(|p| (p - xy).norm() < ID_BOUND_PX);
+            match truth {
+                Some(p) => {
+                    right_ids.push(id);
+                    s.coded_err.push((p - xy).norm());
+                }
+                None => {
+                    s.coded_wrong += 1;
+                    println!(
+                        "  WRONG ID {id} at ({:.1}, {:.1}) in {}-{}",
+                        t.x, t.y, st.id, cam.id
                     );
                 }
             }
-            let mut right_ids = Vec::new();
-            for t in det.targets.iter().filter(|t| t.kind == TargetKind::Coded) {
-                let Some(id) = t.id else { continue };
-                let xy = Vector2::new(t.x, t.y);
-                let truth = sc
-                    .targets
-                    .iter()
-                    .find(|tt| tt.id == id && tt.code.is_some())
-                    .and_then(|tt| cam.model.project(&cam.params, &tt.centre, None, None))
-                    .filter(|p| (p - xy).norm() < ID_BOUND_PX);
-                match truth {
-                    Some(p) => {
-                        right_ids.push(id);
-                        s.coded_err.push((p - xy).norm());
-                    }
-                    None => {
-                        s.coded_wrong += 1;
-                        println!(
-                            "  WRONG ID {id} at ({:.1}, {:.1}) in {}-{}",
-                            t.x, t.y, st.id, cam.id
-                        );
-                    }
-                }
-            }
-            for (i, _) in &coded_truth {
-                s.coded.push(CodedRec {
-                    dot_px: dot_radius_px(&sc, cam, *i),
-                    view_deg: view_deg(*i),
-                    decoded: right_ids.contains(&sc.targets[*i].id),
-                });
-            }
-
-            // Plain targets.
-            for i in (0..sc.targets.len()).filter(|&i| sc.targets[i].code.is_none()) {
-                let Some(p) = target_visible(&sc, cam, r_max, i) else {
-                    continue;
-                };
-                s.plain_visible += 1;
-                let measurable = view_deg(i) <= PLAIN_MAX_VIEW_DEG;
-                s.plain_measurable += measurable as usize;
-                let best = det
-                    .targets
-                    .iter()
-                    .filter(|t| t.kind == TargetKind::Plain)
-                    .map(|t| (Vector2::new(t.x, t.y) - p, t.sigma_px))
-                    .min_by(|a, b| a.0.norm().total_cmp(&b.0.norm()));
-                if let Some((d, sigma)) = best.filter(|b| b.0.norm() < 1.5) {
-                    s.plain_measurable_found += measurable as usize;
-                    s.plain_err.push(d.norm());
-                    s.plain_norm.push(d.norm() / sigma);
-                    s.plain_sum[0] += d.x;
-                    s.plain_sum[1] += d.y;
-                }
-            }
-
-            // Balls.
-            let rays = rays_of(cam);
-            for i in 0..sc.balls.len() {
-                let Some(p) = ball_visible(&sc, cam, r_max, i) else {
-                    continue;
-                };
-                s.balls_visible += 1;
-                let Some(t) = det
-                    .targets
-                    .iter()
-                    .filter(|t| t.kind == TargetKind::Ball)
-                    .find(|t| (Vector2::new(t.x, t.y) - p).norm() < 0.3 * t.ellipse.radius())
-                else {
-                    continue;
-                };
-                let Ok(fit) = fit_ball_silhouette(&img, &t.ellipse) else {
-                    continue;
-                };
-                let e = fit.ellipse;
-                let Some(c) = sphere_centre_from_ellipse(&e, &rays, Some(sc.balls[i].radius))
-                else {
-                    continue;
-                };
-                s.ball_raw.push((Vector2::new(e.cx, e.cy) - p).norm());
-                s.ball_corr.push((Vector2::new(c.x, c.y) - p).norm());
-                s.ball_shift
-                    .push((Vector2::new(c.x, c.y) - Vector2::new(e.cx, e.cy)).norm());
-            }
-            s.row(&format!("{}-{}", st.id, cam.id));
-            total.add(s);
         }
-    }
+        for (i, _) in &coded_truth {
+            s.coded.push(CodedRec {
+                dot_px: dot_radius_px(&sc, cam, *i),
+                view_deg: view_deg(*i),
+                decoded: right_ids.contains(&sc.targets[*i].id),
+            });
+        }
+
+        // Plain targets.
+        for i in (0..sc.targets.len()).filter(|&i| sc.targets[i].code.is_none()) {
+            let Some(p) = target_visible(&sc, cam, r_max, i) else {
+                continue;
+            };
+            s.plain_visible += 1;
+            let measurable = view_deg(i) <= PLAIN_MAX_VIEW_DEG;
+            s.plain_measurable += measurable as usize;
+            let best = det
+                .targets
+                .iter()
+                .filter(|t| t.kind == TargetKind::Plain)
+                .map(|t| (Vector2::new(t.x, t.y) - p, t.sigma_px))
+                .min_by(|a, b| a.0.norm().total_cmp(&b.0.norm()));
+            if let Some((d, sigma)) = best.filter(|b| b.0.norm() < 1.5) {
+                s.plain_measurable_found += measurable as usize;
+                s.plain_err.push(d.norm());
+                s.plain_norm.push(d.norm() / sigma);
+                s.plain_sum[0] += d.x;
+                s.plain_sum[1] += d.y;
+            }
+        }
+
+        // Balls.
+        let rays = rays_of(cam);
+        for i in 0..sc.balls.len() {
+            let Some(p) = ball_visible(&sc, cam, r_max, i) else {
+                continue;
+            };
+            s.balls_visible += 1;
+            let Some(t) = det
+                .targets
+                .iter()
+                .filter(|t| t.kind == TargetKind::Ball)
+                .find(|t| (Vector2::new(t.x, t.y) - p).norm() < 0.3 * t.ellipse.radius())
+            else {
+                continue;
+            };
+            let Ok(fit) = fit_ball_silhouette(img, &t.ellipse) else {
+                continue;
+            };
+            let e = fit.ellipse;
+            let Some(c) = sphere_centre_from_ellipse(&e, &rays, Some(sc.balls[i].radius)) else {
+                continue;
+            };
+            s.ball_raw.push((Vector2::new(e.cx, e.cy) - p).norm());
+            s.ball_corr.push((Vector2::new(c.x, c.y) - p).norm());
+            s.ball_shift
+                .push((Vector2::new(c.x, c.y) - Vector2::new(e.cx, e.cy)).norm());
+        }
+        s.row(&format!("{}-{}", st.id, cam.id));
+        total.add(s);
+    });
     total.row("all");
 
     // Coded decoding rate by projected dot radius and viewing angle.
@@ -667,72 +677,58 @@ fn ball_centres_through_a_fisheye_lens() {
     let detector = Detector::new(p).unwrap();
     let tables: Vec<RayTable> = sim.rig.cameras.iter().map(RayTable::new).collect();
     let (mut by_ellipse, mut by_edges, mut norm) = (Vec::new(), Vec::new(), Vec::new());
-    let (mut k, mut visible, mut detected) = (0u64, 0usize, 0usize);
+    let (mut visible, mut detected) = (0usize, 0usize);
     println!("image      ball  r px   off-axis°  ellipse err  edges err   σ edges");
-    for st in &sim.stations {
-        for (ci, cam) in sim.rig.cameras.iter().enumerate() {
-            let pose: Rigid3 = st.camera_pose(&sim.rig, ci);
-            let img8 = render_image(
-                &sim.scene,
-                cam,
-                &pose,
-                &sim.config.render,
-                Some(&tables[ci]),
-                sim.seed,
-                k,
+    each_rendered(&sim, &tables, |st, cam, pose, img| {
+        let det = detector.detect(img);
+        let sc = sim.scene.transformed(pose);
+        let rays = rays_of(cam);
+        let f = cam.model.focal_px(&cam.params);
+        for i in 0..sc.balls.len() {
+            let Some(truth) = ball_visible(&sc, cam, 0.0, i) else {
+                continue;
+            };
+            visible += 1;
+            let Some(t) = det
+                .targets
+                .iter()
+                .find(|t| (Vector2::new(t.x, t.y) - truth).norm() < 0.3 * t.ellipse.radius())
+            else {
+                continue;
+            };
+            detected += 1;
+            let Ok(fit) = fit_ball_silhouette(img, &t.ellipse) else {
+                continue;
+            };
+            let r = sc.balls[i].radius;
+            let c = sphere_centre_from_ellipse(&fit.ellipse, &rays, Some(r)).unwrap();
+            let edges = ball_silhouette_edges(img, &fit).unwrap();
+            let cone = sphere_centre_from_edges(&edges, &rays, r, 0.25 / f).unwrap();
+            let mut jac = nalgebra::Matrix2x3::zeros();
+            let uv = cam
+                .model
+                .project(&cam.params, &cone.centre, Some(&mut jac), None)
+                .unwrap();
+            let cov = jac * cone.cov * jac.transpose();
+            let sigma = (0.5 * cov.trace()).sqrt();
+            let e1 = (Vector2::new(c.x, c.y) - truth).norm();
+            let e2 = (uv - truth).norm();
+            let off = sc.balls[i].centre.normalize().y.acos().to_degrees();
+            println!(
+                "{:<9} {:>4} {:>6.1} {:>9.0} {:>12.3} {:>10.3} {:>9.3}",
+                format!("{}-{}", st.id, cam.id),
+                i,
+                fit.ellipse.radius(),
+                off,
+                e1,
+                e2,
+                sigma
             );
-            k += 1;
-            let img = to_gray(&img8);
-            let det = detector.detect(&img);
-            let sc = sim.scene.transformed(&pose);
-            let rays = rays_of(cam);
-            let f = cam.model.focal_px(&cam.params);
-            for i in 0..sc.balls.len() {
-                let Some(truth) = ball_visible(&sc, cam, 0.0, i) else {
-                    continue;
-                };
-                visible += 1;
-                let Some(t) = det
-                    .targets
-                    .iter()
-                    .find(|t| (Vector2::new(t.x, t.y) - truth).norm() < 0.3 * t.ellipse.radius())
-                else {
-                    continue;
-                };
-                detected += 1;
-                let Ok(fit) = fit_ball_silhouette(&img, &t.ellipse) else {
-                    continue;
-                };
-                let r = sc.balls[i].radius;
-                let c = sphere_centre_from_ellipse(&fit.ellipse, &rays, Some(r)).unwrap();
-                let edges = ball_silhouette_edges(&img, &fit).unwrap();
-                let cone = sphere_centre_from_edges(&edges, &rays, r, 0.25 / f).unwrap();
-                let mut jac = nalgebra::Matrix2x3::zeros();
-                let uv = cam
-                    .model
-                    .project(&cam.params, &cone.centre, Some(&mut jac), None)
-                    .unwrap();
-                let cov = jac * cone.cov * jac.transpose();
-                let sigma = (0.5 * cov.trace()).sqrt();
-                let e1 = (Vector2::new(c.x, c.y) - truth).norm();
-                let e2 = (uv - truth).norm();
-                let off = sc.balls[i].centre.normalize().y.acos().to_degrees();
-                println!(
-                    "{:<9} {:>4} {:>6.1} {:>9.0} {:>12.3} {:>10.3} {:>9.3}",
-                    format!("{}-{}", st.id, cam.id),
-                    i,
-                    fit.ellipse.radius(),
-                    off,
-                    e1,
-                    e2,
-                    sigma
-                );
-                by_ellipse.push(e1);
-                by_edges.push(e2);
-                norm.push(e2 / sigma / std::f64::consts::SQRT_2);
-            }
+            by_ellipse.push(e1);
+            by_edges.push(e2);
+            norm.push(e2 / sigma / std::f64::consts::SQRT_2);
         }
-    }
+    });
     println!(
         "{} balls: error by the ellipse rms {:.3} px, by the edges rms {:.3} px; rms(error per axis / σ) {:.2}",
         by_edges.len(),
@@ -780,47 +776,33 @@ fn flat_target_centres_through_a_wide_angle_lens() {
     let tables: Vec<RayTable> = sim.rig.cameras.iter().map(RayTable::new).collect();
     // per ring of 92.5 px of image radius: (radial error as detected, corrected)
     let mut rings: Vec<Vec<(f64, f64)>> = vec![Vec::new(); 8];
-    let mut k = 0u64;
-    for st in &sim.stations {
-        for (ci, cam) in sim.rig.cameras.iter().enumerate() {
-            let pose: Rigid3 = st.camera_pose(&sim.rig, ci);
-            let img8 = render_image(
-                &sim.scene,
-                cam,
-                &pose,
-                &sim.config.render,
-                Some(&tables[ci]),
-                sim.seed,
-                k,
-            );
-            k += 1;
-            let det = detector.detect(&to_gray(&img8));
-            let sc = sim.scene.transformed(&pose);
-            let r_max = cam.max_ideal_radius_mm() * 1.02;
-            let pp = Vector2::new(cam.params[2], cam.params[3]);
-            let rays = rays_of(cam);
-            for i in 0..sc.targets.len() {
-                let Some(truth) = target_visible(&sc, cam, r_max, i) else {
-                    continue;
-                };
-                let Some(t) = det
-                    .targets
-                    .iter()
-                    .find(|t| (Vector2::new(t.x, t.y) - truth).norm() < 1.5)
-                else {
-                    continue;
-                };
-                let c = dot_centre_through_lens(&t.ellipse, &rays).unwrap();
-                let out = (truth - pp).normalize();
-                let r = (truth - pp).norm();
-                let ring = ((r / 92.5) as usize).min(7);
-                rings[ring].push((
-                    (Vector2::new(t.x, t.y) - truth).dot(&out),
-                    (Vector2::new(c[0], c[1]) - truth).dot(&out),
-                ));
-            }
+    each_rendered(&sim, &tables, |_, cam, pose, img| {
+        let det = detector.detect(img);
+        let sc = sim.scene.transformed(pose);
+        let r_max = cam.max_ideal_radius_mm() * 1.02;
+        let pp = Vector2::new(cam.params[2], cam.params[3]);
+        let rays = rays_of(cam);
+        for i in 0..sc.targets.len() {
+            let Some(truth) = target_visible(&sc, cam, r_max, i) else {
+                continue;
+            };
+            let Some(t) = det
+                .targets
+                .iter()
+                .find(|t| (Vector2::new(t.x, t.y) - truth).norm() < 1.5)
+            else {
+                continue;
+            };
+            let c = dot_centre_through_lens(&t.ellipse, &rays).unwrap();
+            let out = (truth - pp).normalize();
+            let r = (truth - pp).norm();
+            let ring = ((r / 92.5) as usize).min(7);
+            rings[ring].push((
+                (Vector2::new(t.x, t.y) - truth).dot(&out),
+                (Vector2::new(c[0], c[1]) - truth).dot(&out),
+            ));
         }
-    }
+    });
     let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
     let sem = |v: &[f64]| {
         let m = mean(v);
