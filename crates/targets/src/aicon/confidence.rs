@@ -415,17 +415,7 @@ fn radial_sectors(
     let m = n * S;
     let mid = bg + 0.5 * (fg - bg);
     // the band the reading sampled, from `lo` to `hi`, cut in an inner and an outer half
-    let (lo, hi) = match reading.method {
-        ReadMethod::Thresholds => reader.ring,
-        ReadMethod::Model => {
-            let (inner, outer) = reader.geometry;
-            let (rho, step) = (
-                reading.scale * 0.5 * (inner + outer),
-                0.15 * (outer - inner),
-            );
-            (rho - step, rho + step)
-        }
-    };
+    let (lo, hi) = band(reader, reading);
     let quarter = 0.25 * (hi - lo);
     let trig = crate::ellipse::unit_circle(m);
     let fr = dot.frame();
