@@ -53,6 +53,15 @@ pub struct BeamResidual {
     pub margin_mm: f64,
 }
 
+impl BeamResidual {
+    /// The beam grazes the sphere or passes within `half_width_mm` (its footprint's
+    /// half-width) of its silhouette: a mixed pixel, left out of sphere fits (as is a beam
+    /// whose margin is not a number).
+    pub fn at_silhouette(&self, half_width_mm: f64) -> bool {
+        self.grazing || !(self.margin_mm >= half_width_mm)
+    }
+}
+
 /// Derivative of [`servo_rotation`] with respect to β.
 pub(crate) fn servo_rotation_dot(beta: f64) -> Matrix3<f64> {
     let (s, c) = beta.sin_cos();
@@ -211,7 +220,7 @@ impl BeamOnBall {
         theta: &[f64],
     ) -> bool {
         self.at(x, pose, theta)
-            .is_none_or(|(r, _, _)| r.grazing || r.margin_mm < self.half_width_mm)
+            .is_none_or(|(r, _, _)| r.at_silhouette(self.half_width_mm))
     }
 }
 

@@ -450,7 +450,7 @@ fn along_ray_passes(
                 let (_, _, s) = along_ray_model(ray, g, radius, s_min);
                 let w = ray.origin - g;
                 let h = (w.norm_squared() - ray.dir.dot(&w).powi(2)).max(0.0).sqrt();
-                let half_width = opt.beam_width_a_mm + opt.beam_width_b * ray.range;
+                let half_width = opt.beam_half_width(ray.range);
                 s >= s_min && h <= radius - half_width && (ray.range - rho).abs() <= k * ray.sigma
             })
             .collect()

@@ -1265,8 +1265,8 @@ fn refit_sphere(
     let chosen = |c: &Vector3<f64>| -> Vec<BeamReading> {
         (readings.iter())
             .filter(|r| {
-                let b = beam_range_residual(r, mount, c, radius);
-                !b.grazing && b.margin_mm >= fit.beam_half_width(r.range_mm)
+                !beam_range_residual(r, mount, c, radius)
+                    .at_silhouette(fit.beam_half_width(r.range_mm))
             })
             .copied()
             .collect()
@@ -1372,8 +1372,8 @@ mod tests {
             let start = c + Vector3::new(0.4, -0.4, 0.4);
             let clear = (readings.iter())
                 .filter(|r| {
-                    let b = beam_range_residual(r, &mount, c, scene.radius);
-                    !b.grazing && b.margin_mm >= FitOptions::default().beam_half_width(r.range_mm)
+                    !beam_range_residual(r, &mount, c, scene.radius)
+                        .at_silhouette(FitOptions::default().beam_half_width(r.range_mm))
                 })
                 .count();
             let Some((fit, _)) = refit_sphere(&readings, &mount, scene.radius, &start, &noise)
