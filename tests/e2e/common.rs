@@ -86,31 +86,40 @@ fn simulate_once(name: &str, config: Option<&str>) -> PathBuf {
     let log = root().join(format!("simulate-{name}"));
     let t0 = Instant::now();
     fs::create_dir_all(&log).expect("create the simulate log dir");
-    let cfg = log.join("config.toml");
-    let mut args = vec![
-        "simulate".to_string(),
-        "--out".into(),
-        dir.to_str().expect("utf-8 temp path").into(),
-        "--seed".into(),
-        SEED.to_string(),
-    ];
-    if let Some(config) = config {
-        fs::write(&cfg, config).expect("write the simulator configuration");
-        args.extend(["--config".into(), cfg.to_str().expect("utf-8").into()]);
-    }
-    let run = run(&args.iter().map(String::as_str).collect::<Vec<_>>(), &log);
-    assert!(
-        run.success(),
-        "pingcal simulate failed ({:?}):\nstdout: {}\nstderr: {}",
-        run.code,
-        run.stdout,
-        run.stderr
-    );
+    simulate_into(&dir, config, &log);
     eprintln!("simulate {name}: {:.1} s", t0.elapsed().as_secs_f64());
     for f in ["project.toml", "truth.json", "scans/S00.csv"] {
         assert!(dir.join(f).is_file(), "pingcal simulate wrote no {f}");
     }
     dir
+}
+
+/// `pingcal simulate --seed SEED [--config <log>/<name>.toml] --out OUT` (NAME: the last part
+/// of OUT) with the simulator configuration `config` (TOML) and the run's output in `log`;
+/// it must succeed.
+fn simulate_into(out: &Path, config: Option<&str>, log: &Path) {
+    let name = out.file_name().expect("a named folder").to_string_lossy();
+    let cfg = log.join(format!("{name}.toml"));
+    let seed = SEED.to_string();
+    let mut args = vec![
+        "simulate",
+        "--out",
+        out.to_str().expect("UTF-8 path"),
+        "--seed",
+        &seed,
+    ];
+    if let Some(config) = config {
+        fs::write(&cfg, config).expect("write the simulator configuration");
+        args.extend(["--config", cfg.to_str().expect("UTF-8 path")]);
+    }
+    let run = run(&args, log);
+    assert!(
+        run.success(),
+        "pingcal simulate {name} failed ({:?}):\nstdout: {}\nstderr: {}",
+        run.code,
+        run.stdout,
+        run.stderr
+    );
 }
 
 /// The pristine project's calibration, run once per test binary (`pingcal calibrate
@@ -224,19 +233,8 @@ impl Work {
     /// `pingcal simulate --seed SEED --config <config> --out <dir>/<name>` with the simulator
     /// configuration `config` (TOML), which must succeed; returns the project's folder.
     pub fn simulate(&self, name: &str, config: &str) -> PathBuf {
-        let cfg = self.dir.join(format!("{name}.toml"));
-        fs::write(&cfg, config).expect("write the simulator configuration");
         let out = self.dir.join(name);
-        let run = self.run(&[
-            "simulate",
-            "--out",
-            out.to_str().expect("UTF-8 path"),
-            "--seed",
-            &SEED.to_string(),
-            "--config",
-            cfg.to_str().expect("UTF-8 path"),
-        ]);
-        assert!(run.success(), "simulate {name} failed: {}", run.stderr);
+        simulate_into(&out, Some(config), &self.dir);
         out
     }
 
