@@ -2,7 +2,8 @@
 """The joint adjustment against the paper's two steps on simulated rigs with mount errors.
 
     python3 bench/joint/study.py --seeds 1-20 --mount-errors random [--extra 'key = value'] \
-        [--section '[render]\\nblur_sigma_px = 1.2'] [--bin target/release/pingcal] [--work /tmp/joint-study]
+        [--section '[render]\\nblur_sigma_px = 1.2'] [--bin target/release/pingcal] [--work /tmp/joint-study] \
+        [--no-timing]
 
 For each seed: `pingcal simulate` with the true mount and range errors as `[lrf]` keys
 (`random`: offsets ±20 mm per axis, tilts ±1°, servo scale ±0.5 %, range offset ±25 mm,
@@ -14,7 +15,8 @@ writes the rows as JSON (--json).
 """
 import argparse, json, math, os, shutil, subprocess, sys
 
-NAMES = ["offset_x", "offset_y", "offset_z", "tilt_x", "tilt_z", "servo_scale", "range_offset", "range_scale"]
+NAMES = ["offset_x", "offset_y", "offset_z", "tilt_x", "tilt_z", "servo_scale", "range_offset", "range_scale",
+         "time_offset_s"]
 
 
 def seeds_of(spec):
@@ -50,6 +52,8 @@ def true_mount(truth):
         "tilt_x": m.get("tilt_x_deg", 0.0), "tilt_z": m.get("tilt_z_deg", 0.0),
         "servo_scale": m.get("servo_scale", 0.0), "range_offset": m.get("range_offset_mm", 0.0),
         "range_scale": m.get("range_scale", 0.0),
+        # the servo's stamps late against the scanner's (a continuous sweep's timing)
+        "time_offset_s": truth.get("lrf_servo_time_offset_s", 0.0),
     }
 
 
@@ -93,6 +97,14 @@ def run_seed(args, seed):
     else:
         subprocess.run([args.bin, "simulate", "--seed", str(seed), "--config", cfg, "--out", sim],
                        check=True, capture_output=True)
+    if args.no_timing:
+        # the scans without the time between beams: no servo rate, so no time offset to
+        # estimate (the calibration as it was before the joint adjustment modelled it)
+        scans = os.path.join(sim, "scans")
+        for name in os.listdir(scans):
+            path = os.path.join(scans, name)
+            lines = open(path).read().splitlines(keepends=True)
+            open(path, "w").write("".join(l for l in lines if not l.startswith("# time_increment_s=")))
     if args.method:
         p = os.path.join(sim, "project.toml")
         text = open(p).read()
@@ -187,6 +199,8 @@ def main():
     ap.add_argument("--method", default="all")
     ap.add_argument("--bin", default="target/release/pingcal")
     ap.add_argument("--work", default="/tmp/joint-study")
+    ap.add_argument("--no-timing", action="store_true",
+                    help="remove '# time_increment_s=' from the scans: the servo time offset is not estimated")
     ap.add_argument("--json")
     ap.add_argument("--sims", help="keep each simulation here and reuse it (same config and seed)")
     args = ap.parse_args()

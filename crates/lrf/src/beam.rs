@@ -30,6 +30,11 @@
 //! the servo scale `∂d` (and `∂o`) through the derivative of the elementary rotation, and
 //! `∂e/∂θ = −(1 + range_scale)(g_d · ∂d − g_q · ∂o)`; `∂e/∂range_offset = −1`,
 //! `∂e/∂range_scale = −r_pred`. Checked against central differences in the tests.
+//!
+//! **Servo timing.** In a continuous sweep the reading's servo angle is taken at
+//! `s + ṡ τ` ([`BeamReading::servo_deg_through`]: `ṡ` the servo's rate at the beam, τ the
+//! servo time offset), so `∂e/∂τ = ṡ ∂e/∂s` with `∂β/∂s = (1 + servo_scale)` (in radians per
+//! degree): the same derivative of `R_β` as the servo scale's, per second.
 
 use crate::cloud::BeamReading;
 use crate::sensor::{servo_rotation, MountModel};
@@ -47,6 +52,9 @@ pub struct BeamResidual {
     pub d_centre: [f64; 3],
     /// `∂e/∂θ` in the order of [`MountModel::to_params`] (tilts per radian).
     pub d_mount: [f64; 8],
+    /// `∂e/∂τ`, τ the servo time offset ([`MountModel::servo_time_offset_s`]; per second):
+    /// the servo rate times `∂e/∂servo`. Zero in a stop-and-go sweep.
+    pub d_time_offset: f64,
     /// The ray grazes (or misses) the sphere: the root was clamped.
     pub grazing: bool,
     /// How far inside the silhouette the ray passes, `ρ − h` (mm; negative: it misses).
@@ -95,8 +103,11 @@ pub fn beam_range_residual(
     radius: f64,
 ) -> BeamResidual {
     let th = mount.to_params();
-    let dbeta_dk = (reading.servo_deg - mount.servo_zero_deg).to_radians();
-    let beta = mount.beta(reading.servo_deg);
+    let servo_deg = reading.servo_deg_through(mount);
+    let dbeta_dk = (servo_deg - mount.servo_zero_deg).to_radians();
+    // ∂β/∂τ: the rate (degrees per second) through β's scale
+    let dbeta_dtau = (reading.servo_rate_deg_s * (1.0 + th[5])).to_radians();
+    let beta = mount.beta(servo_deg);
     let (rb, rb_dot) = (servo_rotation(beta), servo_rotation_dot(beta));
     let (rx, rx_dot) = rot_x(th[3]);
     let (rz, rz_dot) = rot_z(th[4]);
@@ -134,10 +145,15 @@ pub fn beam_range_residual(
     d_mount[5] = along(rb_dot * (rx * (rz * l)) * dbeta_dk, rb_dot * off * dbeta_dk);
     d_mount[6] = -1.0;
     d_mount[7] = -r_pred;
+    let d_time_offset = along(
+        rb_dot * (rx * (rz * l)) * dbeta_dtau,
+        rb_dot * off * dbeta_dtau,
+    );
     BeamResidual {
         e,
         d_centre,
         d_mount,
+        d_time_offset,
         grazing,
         margin_mm: radius - h2.sqrt(),
     }
@@ -167,21 +183,29 @@ pub struct BeamOnBall {
     pub extrinsic: usize,
     /// The mount: a vector parameter block of 8.
     pub mount: usize,
+    /// The servo time offset τ ([`MountModel::servo_time_offset_s`]): a vector parameter
+    /// block of 1, or None where the sweep has none (τ = 0).
+    pub time_offset: Option<usize>,
     /// Half-width of the beam's footprint at its range (mm): a beam that passes closer than
     /// this to the silhouette is a mixed pixel ([`BeamOnBall::at_silhouette`]).
     pub half_width_mm: f64,
 }
 
 impl BeamOnBall {
-    /// `e` (mm, not whitened), the residual's parts and `g = R ∂e/∂c`, at these values.
+    /// `e` (mm, not whitened), the residual's parts and `g = R ∂e/∂c`, at these values
+    /// (`tau`: the servo time offset, seconds).
     fn at(
         &self,
         x: &Vector3<f64>,
         pose: &pingcal_geometry::Rigid3,
         theta: &[f64],
+        tau: f64,
     ) -> Option<(BeamResidual, Vector3<f64>, Vector3<f64>)> {
         let th: [f64; 8] = theta.try_into().ok()?;
-        let mount = MountModel::from_params(&th, self.servo_zero_deg);
+        let mount = MountModel {
+            servo_time_offset_s: tau,
+            ..MountModel::from_params(&th, self.servo_zero_deg)
+        };
         let v = x - pose.translation;
         let c = pose.rotation.transpose() * v;
         let r = beam_range_residual(&self.reading, &mount, &c, self.radius);
@@ -195,8 +219,9 @@ impl BeamOnBall {
         x: &Vector3<f64>,
         pose: &pingcal_geometry::Rigid3,
         theta: &[f64],
+        tau: f64,
     ) -> Option<f64> {
-        self.at(x, pose, theta).map(|(r, _, _)| r.e)
+        self.at(x, pose, theta, tau).map(|(r, _, _)| r.e)
     }
 
     /// Whether the beam grazes the ball at these values (see [`GRAZING_KAPPA`]).
@@ -205,8 +230,10 @@ impl BeamOnBall {
         x: &Vector3<f64>,
         pose: &pingcal_geometry::Rigid3,
         theta: &[f64],
+        tau: f64,
     ) -> bool {
-        self.at(x, pose, theta).is_none_or(|(r, _, _)| r.grazing)
+        self.at(x, pose, theta, tau)
+            .is_none_or(|(r, _, _)| r.grazing)
     }
 
     /// Whether the beam's footprint reaches the ball's silhouette at these values (the ray
@@ -218,8 +245,9 @@ impl BeamOnBall {
         x: &Vector3<f64>,
         pose: &pingcal_geometry::Rigid3,
         theta: &[f64],
+        tau: f64,
     ) -> bool {
-        self.at(x, pose, theta)
+        self.at(x, pose, theta, tau)
             .is_none_or(|(r, _, _)| r.at_silhouette(self.half_width_mm))
     }
 }
@@ -231,11 +259,13 @@ impl pingcal_ba::Residual for BeamOnBall {
 
     fn blocks(&self) -> Vec<pingcal_ba::Block> {
         use pingcal_ba::Block;
-        vec![
+        let mut blocks = vec![
             Block::Point(self.ball),
             Block::Parameter(self.extrinsic),
             Block::Parameter(self.mount),
-        ]
+        ];
+        blocks.extend(self.time_offset.map(Block::Parameter));
+        blocks
     }
 
     fn evaluate(
@@ -249,7 +279,14 @@ impl pingcal_ba::Residual for BeamOnBall {
         else {
             return false;
         };
-        let Some((r, g, v)) = self.at(x, pose, theta) else {
+        let tau = match self.time_offset {
+            Some(_) => match values.get(3).and_then(|v| v.vector()) {
+                Some(&[tau]) => tau,
+                _ => return false,
+            },
+            None => 0.0,
+        };
+        let Some((r, g, v)) = self.at(x, pose, theta, tau) else {
             return false;
         };
         let s = self.sigma;
@@ -263,6 +300,9 @@ impl pingcal_ba::Residual for BeamOnBall {
             }
             for k in 0..8 {
                 j[2][(0, k)] = r.d_mount[k] / s;
+            }
+            if self.time_offset.is_some() {
+                j[3][(0, 0)] = r.d_time_offset / s;
             }
         }
         true
@@ -292,14 +332,16 @@ mod tests {
             servo_scale: g.random_range(-0.005..0.005),
             range_offset_mm: g.random_range(-25.0..25.0),
             range_scale: g.random_range(-0.01..0.01),
+            servo_time_offset_s: g.random_range(-0.05..0.05),
         };
         let reading = BeamReading {
             servo_deg: g.random_range(-80.0..80.0),
             alpha_rad: g.random_range(-1.5f64..1.5),
             range_mm: g.random_range(800.0..2000.0),
+            servo_rate_deg_s: g.random_range(-60.0..60.0),
         };
         // a centre near the beam, inside the non-grazing zone
-        let pose = mount.scanner_at(reading.servo_deg);
+        let pose = mount.scanner_at(reading.servo_deg_through(&mount));
         let dir = pose.direction(reading.alpha_rad, 0.0);
         let side = dir.cross(&Vector3::new(0.3, 1.0, -0.2)).normalize();
         let c = pose.origin() + dir * (reading.range_mm + 5.0) + side * g.random_range(0.0..10.0);
@@ -312,8 +354,17 @@ mod tests {
         (f(-2.0 * h) - 8.0 * f(-h) + 8.0 * f(h) - f(2.0 * h)) / (12.0 * h)
     }
 
-    fn residual_at(reading: &BeamReading, th: &[f64; 8], zero: f64, c: &Vector3<f64>) -> f64 {
-        beam_range_residual(reading, &MountModel::from_params(th, zero), c, 20.0).e
+    fn residual_at(
+        reading: &BeamReading,
+        (th, tau): (&[f64; 8], f64),
+        zero: f64,
+        c: &Vector3<f64>,
+    ) -> f64 {
+        let mount = MountModel {
+            servo_time_offset_s: tau,
+            ..MountModel::from_params(th, zero)
+        };
+        beam_range_residual(reading, &mount, c, 20.0).e
     }
 
     /// Every analytic derivative against central differences (relative 1e-6).
@@ -329,12 +380,12 @@ mod tests {
             }
             checked += 1;
             let th = mount.to_params();
-            let z = mount.servo_zero_deg;
+            let (z, tau) = (mount.servo_zero_deg, mount.servo_time_offset_s);
             for k in 0..3 {
                 let num = five_point(1e-2, |h| {
                     let mut cp = c;
                     cp[k] += h;
-                    residual_at(&reading, &th, z, &cp)
+                    residual_at(&reading, (&th, tau), z, &cp)
                 });
                 assert!(
                     (num - b.d_centre[k]).abs() <= 1e-6 * (1.0 + num.abs()),
@@ -349,7 +400,7 @@ mod tests {
                 let num = five_point(step, |h| {
                     let mut tp = th;
                     tp[k] += h;
-                    residual_at(&reading, &tp, z, &c)
+                    residual_at(&reading, (&tp, tau), z, &c)
                 });
                 let scale = 1.0 + num.abs().max(b.d_mount[k].abs());
                 assert!(
@@ -358,6 +409,14 @@ mod tests {
                     b.d_mount[k]
                 );
             }
+            // the servo time offset: 1e-5 s moves the servo by up to 6e-4° here
+            let num = five_point(1e-5, |h| residual_at(&reading, (&th, tau + h), z, &c));
+            let scale = 1.0 + num.abs().max(b.d_time_offset.abs());
+            assert!(
+                (num - b.d_time_offset).abs() <= 1e-6 * scale,
+                "time offset: {num} vs {}",
+                b.d_time_offset
+            );
         }
         assert!(checked > 100, "{checked}");
     }
@@ -395,13 +454,16 @@ mod tests {
                 ball: 0,
                 extrinsic: 0,
                 mount: 1,
+                time_offset: Some(2),
                 half_width_mm: 3.0,
             };
             let th = mount.to_params();
+            let tau = [mount.servo_time_offset_s];
             let values = [
                 Value::Point(&x),
                 Value::Pose(&camera_from_lrf),
                 Value::Vector(&th),
+                Value::Vector(&tau),
             ];
             let worst = check_residual_jacobians(&beam, &values, 1e-6).expect("defined");
             assert!(worst < 1e-6, "worst relative difference {worst:e}");
@@ -417,7 +479,7 @@ mod tests {
         let mut g = rng(3);
         for _ in 0..50 {
             let (mut reading, mount, c) = random_case(&mut g);
-            let pose = mount.scanner_at(reading.servo_deg);
+            let pose = mount.scanner_at(reading.servo_deg_through(&mount));
             let (o, d) = (pose.origin(), pose.direction(reading.alpha_rad, 0.0));
             let q = c - o;
             let t = d.dot(&q);
@@ -443,11 +505,7 @@ mod tests {
     #[test]
     fn the_clamp_is_continuous() {
         let mount = MountModel::default();
-        let reading = BeamReading {
-            servo_deg: 0.0,
-            alpha_rad: 0.0,
-            range_mm: 1000.0,
-        };
+        let reading = BeamReading::at_rest(0.0, 0.0, 1000.0);
         let h_edge = 20.0 * (1.0 - GRAZING_KAPPA * GRAZING_KAPPA).sqrt();
         let at =
             |h: f64| beam_range_residual(&reading, &mount, &Vector3::new(1000.0, h, 0.0), 20.0);
@@ -482,11 +540,8 @@ mod tests {
                 if range_mm <= 0.0 {
                     continue;
                 }
-                let reading = BeamReading {
-                    servo_deg: line.servo_deg,
-                    alpha_rad: lrf.sensor.beam_angle(i),
-                    range_mm,
-                };
+                let reading =
+                    BeamReading::at_rest(line.servo_deg, lrf.sensor.beam_angle(i), range_mm);
                 for c in &scene.balls {
                     let beam = BeamOnBall {
                         reading,
@@ -496,16 +551,17 @@ mod tests {
                         ball: 0,
                         extrinsic: 0,
                         mount: 1,
+                        time_offset: None,
                         half_width_mm: fit.beam_half_width(range_mm),
                     };
-                    let Some(e) = beam.range_error(c, &identity, &theta) else {
+                    let Some(e) = beam.range_error(c, &identity, &theta, 0.0) else {
                         continue;
                     };
                     // a beam of this ball (not one of another object in front of it)
-                    if e.abs() > 200.0 || beam.grazing(c, &identity, &theta) {
+                    if e.abs() > 200.0 || beam.grazing(c, &identity, &theta, 0.0) {
                         continue;
                     }
-                    if beam.at_silhouette(c, &identity, &theta) {
+                    if beam.at_silhouette(c, &identity, &theta, 0.0) {
                         worst_kept = worst_kept.max(e.abs());
                     } else {
                         clear += 1;

@@ -33,6 +33,51 @@ pub struct BeamReading {
     pub alpha_rad: f64,
     /// Reported range, mm.
     pub range_mm: f64,
+    /// How fast the servo turned at this beam, degrees per second: 0 in a stop-and-go
+    /// sweep, and where the scan file does not give the time between beams
+    /// (`# time_increment_s=`); see [`BeamReading::servo_deg_through`].
+    pub servo_rate_deg_s: f64,
+}
+
+impl BeamReading {
+    /// A beam of a servo at rest.
+    pub fn at_rest(servo_deg: f64, alpha_rad: f64, range_mm: f64) -> Self {
+        BeamReading {
+            servo_deg,
+            alpha_rad,
+            range_mm,
+            servo_rate_deg_s: 0.0,
+        }
+    }
+
+    /// The servo angle at this beam through the mount's servo time offset
+    /// ([`MountModel::servo_time_offset_s`]): the reading plus the rate times the offset
+    /// (the reading is the angle the servo had that much earlier). The reading itself in a
+    /// stop-and-go sweep.
+    pub fn servo_deg_through(&self, mount: &MountModel) -> f64 {
+        let turn = self.servo_rate_deg_s * mount.servo_time_offset_s;
+        // the reading itself, to the bit, where nothing turns it (a −0° stays −0°)
+        if turn == 0.0 {
+            self.servo_deg
+        } else {
+            self.servo_deg + turn
+        }
+    }
+}
+
+/// The servo's rate during a continuous-sweep scan (degrees per second): its advance from
+/// the first beam to the last over the time between them; 0 for a stop-and-go scan or when
+/// the header does not give the time between beams.
+fn servo_rate_deg_s(header: &ScanHeader, scan: &ScanLine) -> f64 {
+    let (Some(end), Some(dt)) = (scan.servo_end_deg, header.time_increment_s) else {
+        return 0.0;
+    };
+    let span_s = dt * scan.ranges_mm.len().saturating_sub(1) as f64;
+    if span_s > 0.0 {
+        (end - scan.servo_deg) / span_s
+    } else {
+        0.0
+    }
 }
 
 impl Cloud {
@@ -71,23 +116,24 @@ impl Cloud {
             self.origins = Some(vec![Vector3::zeros(); self.points.len()]);
         }
         let sweep = scan.is_sweep();
+        let rate = servo_rate_deg_s(header, scan);
         let mut pose = mount.scanner_at(scan.servo_deg);
         for (i, &r) in scan.ranges_mm.iter().enumerate() {
             if r <= 0.0 {
                 continue;
             }
-            let servo_deg = scan.servo_deg_at(i);
+            let reading = BeamReading {
+                servo_deg: scan.servo_deg_at(i),
+                alpha_rad: header.beam_angle_deg(i).to_radians(),
+                range_mm: r,
+                servo_rate_deg_s: rate,
+            };
             if sweep {
-                pose = mount.scanner_at(servo_deg);
+                pose = mount.scanner_at(reading.servo_deg_through(mount));
             }
-            let alpha_rad = header.beam_angle_deg(i).to_radians();
-            self.points.push(pose.point(r, alpha_rad));
+            self.points.push(pose.point(r, reading.alpha_rad));
             if let Some(rs) = self.readings.as_mut() {
-                rs.push(BeamReading {
-                    servo_deg,
-                    alpha_rad,
-                    range_mm: r,
-                });
+                rs.push(reading);
             }
             if let Some(os) = self.origins.as_mut() {
                 os.push(pose.origin());
@@ -102,7 +148,7 @@ impl Cloud {
         let (points, origins) = readings
             .iter()
             .map(|r| {
-                let pose = mount.scanner_at(r.servo_deg);
+                let pose = mount.scanner_at(r.servo_deg_through(mount));
                 (pose.point(r.range_mm, r.alpha_rad), pose.origin())
             })
             .unzip();
@@ -203,6 +249,60 @@ mod tests {
         let c = Cloud::from_scans(&h, vec![Ok(s)], &MountModel::default()).unwrap();
         assert_eq!(c.len(), 2);
         assert!((c.points[1].y - 1000.0 * 10f64.to_radians().sin()).abs() < 1e-9);
+    }
+
+    /// A continuous sweep's beams carry the servo's rate (its advance over the scan's time
+    /// between first and last beam), and a mount's servo time offset turns each by rate ×
+    /// offset, in the cloud made from the scans and in the cloud made again through it.
+    #[test]
+    fn a_servo_time_offset_turns_a_continuous_sweeps_beams_by_the_rate_times_it() {
+        let h = ScanHeader {
+            angle_min_deg: -10.0,
+            angle_increment_deg: 10.0,
+            mm_per_unit: 1.0,
+            time_increment_s: Some(0.01),
+        };
+        let s = ScanLine {
+            line: 1,
+            stamp_s: 0.0,
+            servo_deg: 10.0,
+            servo_end_deg: Some(10.5),
+            ranges_mm: vec![1000.0, 1200.0, 1400.0],
+            intensities: vec![],
+        };
+        let mount = MountModel {
+            offset_mm: [5.0, 1.0, -3.0],
+            servo_time_offset_s: 0.02,
+            ..MountModel::default()
+        };
+        let c = Cloud::from_scans(&h, vec![Ok(s.clone())], &mount).unwrap();
+        let readings = c.readings.as_ref().unwrap();
+        for (i, r) in readings.iter().enumerate() {
+            // 0.5° over the 0.02 s from the first beam to the last: 25°/s, so 0.5° later
+            assert!((r.servo_rate_deg_s - 25.0).abs() < 1e-12, "{r:?}");
+            let turned = s.servo_deg_at(i) + 0.5;
+            let want = mount.scanner_at(turned).point(r.range_mm, r.alpha_rad);
+            assert!((c.points[i] - want).norm() < 1e-9, "beam {i}");
+        }
+        let again = Cloud::from_scans(&h, vec![Ok(s)], &MountModel::default())
+            .unwrap()
+            .through(&mount)
+            .unwrap();
+        for (a, b) in again.points.iter().zip(&c.points) {
+            assert!((a - b).norm() < 1e-9);
+        }
+        // a stop-and-go scan has no rate: the offset changes nothing
+        let rest = ScanLine {
+            line: 2,
+            stamp_s: 0.1,
+            servo_deg: 11.0,
+            servo_end_deg: None,
+            ranges_mm: vec![1000.0],
+            intensities: vec![],
+        };
+        let c = Cloud::from_scans(&h, vec![Ok(rest)], &mount).unwrap();
+        let p0 = mount.scanner_at(11.0).point(1000.0, (-10f64).to_radians());
+        assert!((c.points[0] - p0).norm() < 1e-12);
     }
 
     #[test]

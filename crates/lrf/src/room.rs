@@ -121,6 +121,8 @@ pub struct BeamPoint {
     pub dir: V3,
     /// `∂u/∂θ_k`.
     pub d_dir: [V3; 8],
+    /// `∂o/∂τ` and `∂u/∂τ`, τ the servo time offset (per second; zero at rest).
+    pub d_time_offset: (V3, V3),
     /// The true range `ρ = (r − range_offset)/(1 + range_scale)` (mm).
     pub range: f64,
 }
@@ -128,8 +130,10 @@ pub struct BeamPoint {
 /// The point of `reading` through `mount` with its derivatives (see the module doc).
 pub fn beam_point(reading: &BeamReading, mount: &MountModel) -> BeamPoint {
     let th = mount.to_params();
-    let dbeta_dk = (reading.servo_deg - mount.servo_zero_deg).to_radians();
-    let beta = mount.beta(reading.servo_deg);
+    let servo_deg = reading.servo_deg_through(mount);
+    let dbeta_dk = (servo_deg - mount.servo_zero_deg).to_radians();
+    let dbeta_dtau = (reading.servo_rate_deg_s * (1.0 + th[5])).to_radians();
+    let beta = mount.beta(servo_deg);
     let (rb, rb_dot) = (servo_rotation(beta), servo_rotation_dot(beta));
     let (rx, rx_dot) = rot_x(th[3]);
     let (rz, rz_dot) = rot_z(th[4]);
@@ -159,6 +163,7 @@ pub fn beam_point(reading: &BeamReading, mount: &MountModel) -> BeamPoint {
         d_origin,
         dir,
         d_dir,
+        d_time_offset: (rb_dot * off * dbeta_dtau, rb_dot * t * dbeta_dtau),
         range: rho,
     }
 }
@@ -230,7 +235,9 @@ impl PlaneFrame {
             .iter()
             .map(|o| {
                 let r = &readings[o.reading];
-                mount.scanner_at(r.servo_deg).point(r.range_mm, r.alpha_rad)
+                mount
+                    .scanner_at(r.servo_deg_through(mount))
+                    .point(r.range_mm, r.alpha_rad)
             })
             .collect();
         for (o, p) in obs.iter().zip(&points) {
@@ -280,7 +287,13 @@ pub struct BeamOnPlane {
     pub plane: usize,
     /// The mount: a parameter block of 8.
     pub mount: usize,
+    /// The servo time offset: a parameter block of 1, or None (τ = 0; see
+    /// [`crate::beam::BeamOnBall::time_offset`]).
+    pub time_offset: Option<usize>,
 }
+
+/// A plane beam's residual and its derivatives: `e`, `∂e/∂plane`, `∂e/∂θ`, `∂e/∂τ`.
+type PlaneResidual = (f64, [f64; PLANE_UNKNOWNS], [f64; 8], f64);
 
 /// The residual of `reading` on the plane `plane` (its [`PLANE_UNKNOWNS`] about `frame`)
 /// through the mount `theta` (see the module doc): `e = r − r̂`, with `∂e/∂plane` and
@@ -290,9 +303,12 @@ fn plane_residual(
     servo_zero_deg: f64,
     frame: &PlaneFrame,
     plane: &[f64],
-    theta: &[f64; 8],
-) -> (f64, [f64; PLANE_UNKNOWNS], [f64; 8]) {
-    let mount = MountModel::from_params(theta, servo_zero_deg);
+    (theta, tau): (&[f64; 8], f64),
+) -> PlaneResidual {
+    let mount = MountModel {
+        servo_time_offset_s: tau,
+        ..MountModel::from_params(theta, servo_zero_deg)
+    };
     let b = beam_point(reading, &mount);
     let (n, dn_a, dn_b) = frame.normal_at(plane[0], plane[1]);
     let s = n.dot(&b.dir);
@@ -316,24 +332,32 @@ fn plane_residual(
     for j in 0..3 {
         d_plane[3 + j] = -gain * basis[j] / s;
     }
-    let mut d_mount = [0.0; 8];
-    for (k, dm) in d_mount.iter_mut().enumerate().take(6) {
-        let (dob, dub) = (b.d_origin[k], b.d_dir[k]);
+    // through the ray's origin and direction
+    let d_ray = |dob: V3, dub: V3| {
         let dt0 = -(n.dot(&dob) + t0 * n.dot(&dub)) / s;
         let dh = dob + dub * t0 + b.dir * dt0;
-        *dm = -gain * d_tau(dt0, dh, n.dot(&dub));
+        -gain * d_tau(dt0, dh, n.dot(&dub))
+    };
+    let mut d_mount = [0.0; 8];
+    for (k, dm) in d_mount.iter_mut().enumerate().take(6) {
+        *dm = d_ray(b.d_origin[k], b.d_dir[k]);
     }
     d_mount[6] = -1.0;
     d_mount[7] = -tau;
-    (e, d_plane, d_mount)
+    let d_time_offset = d_ray(b.d_time_offset.0, b.d_time_offset.1);
+    (e, d_plane, d_mount, d_time_offset)
 }
 
 impl BeamOnPlane {
-    /// `e = r − r̂` (mm, not whitened) at these values; None when undefined.
-    pub fn error(&self, plane: &[f64], theta: &[f64]) -> Option<f64> {
+    /// `e = r − r̂` (mm, not whitened) at these values (`tau`: the servo time offset, s);
+    /// None when undefined.
+    pub fn error(&self, plane: &[f64], theta: &[f64], tau: f64) -> Option<f64> {
         let th: [f64; 8] = theta.try_into().ok()?;
         (plane.len() == PLANE_UNKNOWNS)
-            .then(|| plane_residual(&self.reading, self.servo_zero_deg, &self.frame, plane, &th).0)
+            .then(|| {
+                let at = (&th, tau);
+                plane_residual(&self.reading, self.servo_zero_deg, &self.frame, plane, at).0
+            })
             .filter(|e| e.is_finite())
     }
 }
@@ -344,10 +368,12 @@ impl pingcal_ba::Residual for BeamOnPlane {
     }
 
     fn blocks(&self) -> Vec<pingcal_ba::Block> {
-        vec![
+        let mut blocks = vec![
             pingcal_ba::Block::Parameter(self.plane),
             pingcal_ba::Block::Parameter(self.mount),
-        ]
+        ];
+        blocks.extend(self.time_offset.map(pingcal_ba::Block::Parameter));
+        blocks
     }
 
     fn evaluate(
@@ -362,8 +388,20 @@ impl pingcal_ba::Residual for BeamOnPlane {
         let (Ok(th), PLANE_UNKNOWNS) = (<[f64; 8]>::try_from(theta), plane.len()) else {
             return false;
         };
-        let (e, dp, dm) =
-            plane_residual(&self.reading, self.servo_zero_deg, &self.frame, plane, &th);
+        let tau = match self.time_offset {
+            Some(_) => match values.get(2).and_then(|v| v.vector()) {
+                Some(&[tau]) => tau,
+                _ => return false,
+            },
+            None => 0.0,
+        };
+        let (e, dp, dm, dt) = plane_residual(
+            &self.reading,
+            self.servo_zero_deg,
+            &self.frame,
+            plane,
+            (&th, tau),
+        );
         if !e.is_finite() {
             return false;
         }
@@ -375,6 +413,9 @@ impl pingcal_ba::Residual for BeamOnPlane {
             }
             for (k, v) in dm.iter().enumerate() {
                 j[1][(0, k)] = v / s;
+            }
+            if self.time_offset.is_some() {
+                j[2][(0, 0)] = dt / s;
             }
         }
         true
@@ -460,7 +501,7 @@ pub fn associate(
         .par_iter()
         .enumerate()
         .map(|(i, r)| {
-            let pose = mount.scanner_at(r.servo_deg);
+            let pose = mount.scanner_at(r.servo_deg_through(mount));
             let (o, u) = (pose.origin(), pose.direction(r.alpha_rad, 0.0));
             // the range at which the ray meets each plane, and the gate there (its σ at
             // that range: a σ that followed the reading's own noise would bias the fit)
@@ -696,12 +737,13 @@ fn normal_equations(
     let (mut idx, mut jac) = ([0usize; 8 + PLANE_UNKNOWNS], [0.0f64; 8 + PLANE_UNKNOWNS]);
     for (o, &keep) in f.obs.iter().zip(kept) {
         let k = o.plane;
-        let (e, dp, dm) = plane_residual(
+        // the room alone does not estimate the servo's timing (τ = 0)
+        let (e, dp, dm, _) = plane_residual(
             &f.readings[o.reading],
             f.zero,
             &planes.frames[k],
             &planes.values[k],
-            theta,
+            (theta, 0.0),
         );
         errors.push(e);
         if !keep || !e.is_finite() {
@@ -1068,7 +1110,9 @@ fn summarise(
     for ((o, e), _) in obs.iter().zip(&s.errors).zip(&s.kept).filter(|(_, k)| **k) {
         let (frame, v) = (&s.planes.frames[o.plane], &s.planes.values[o.plane]);
         let r = &readings[o.reading];
-        let p = mount.scanner_at(r.servo_deg).point(r.range_mm, r.alpha_rad);
+        let p = mount
+            .scanner_at(r.servo_deg_through(&mount))
+            .point(r.range_mm, r.alpha_rad);
         let (basis, _) = frame.bend_basis(&p);
         let bend: f64 = (0..3).map(|j| v[3 + j] * basis[j]).sum();
         let st = &mut stats[o.plane];
@@ -1129,13 +1173,23 @@ mod tests {
             servo_scale: g.random_range(-0.005..0.005),
             range_offset_mm: g.random_range(-25.0..25.0),
             range_scale: g.random_range(-0.01..0.01),
+            servo_time_offset_s: g.random_range(-0.05..0.05),
         };
         let reading = BeamReading {
             servo_deg: g.random_range(-180.0..180.0),
             alpha_rad: g.random_range(-2.0f64..2.0),
             range_mm: g.random_range(500.0..4000.0),
+            servo_rate_deg_s: g.random_range(-60.0..60.0),
         };
         (reading, mount)
+    }
+
+    /// The mount of parameters `t`, servo zero `z` and servo time offset `tau`.
+    fn with(t: &[f64; 8], z: f64, tau: f64) -> MountModel {
+        MountModel {
+            servo_time_offset_s: tau,
+            ..MountModel::from_params(t, z)
+        }
     }
 
     fn central(h: f64, f: impl Fn(f64) -> f64) -> f64 {
@@ -1151,16 +1205,16 @@ mod tests {
         for _ in 0..100 {
             let (reading, mount) = random_case(&mut g);
             let th = mount.to_params();
-            let z = mount.servo_zero_deg;
+            let (z, tau) = (mount.servo_zero_deg, mount.servo_time_offset_s);
             let bp = beam_point(&reading, &mount);
             // the point is the cloud's
-            let pose = mount.scanner_at(reading.servo_deg);
+            let pose = mount.scanner_at(reading.servo_deg_through(&mount));
             assert!((bp.point - pose.point(reading.range_mm, reading.alpha_rad)).norm() < 1e-9);
             for k in 0..8 {
                 let at = |s: f64| {
                     let mut t = th;
                     t[k] += s;
-                    let b = beam_point(&reading, &MountModel::from_params(&t, z));
+                    let b = beam_point(&reading, &with(&t, z, tau));
                     [b.point, b.origin, b.dir]
                 };
                 let (hi, lo) = (at(steps[k]), at(-steps[k]));
@@ -1175,6 +1229,16 @@ mod tests {
                     );
                 }
             }
+            // the servo time offset (1e-5 s: up to 6e-4° of servo)
+            let at = |s: f64| {
+                let b = beam_point(&reading, &with(&th, z, tau + s));
+                (b.origin, b.dir)
+            };
+            let ((oh, dh), (ol, dl)) = (at(1e-5), at(-1e-5));
+            let (num_o, num_d) = ((oh - ol) / 2e-5, (dh - dl) / 2e-5);
+            let (want_o, want_d) = bp.d_time_offset;
+            assert!((num_o - want_o).norm() <= 1e-6 * (1.0 + num_o.norm()));
+            assert!((num_d - want_d).norm() <= 1e-6 * (1.0 + num_d.norm()));
             let n = V3::new(g.random_range(-1.0..1.0), g.random_range(-1.0..1.0), 0.7).normalize();
             let frame = PlaneFrame::new(n, bp.point + V3::new(300.0, -200.0, 100.0), 900.0);
             let plane = [
@@ -1185,7 +1249,7 @@ mod tests {
                 g.random_range(-3.0..3.0),
                 g.random_range(-3.0..3.0),
             ];
-            let (e, dp, dm) = plane_residual(&reading, z, &frame, &plane, &th);
+            let (e, dp, dm, dt) = plane_residual(&reading, z, &frame, &plane, (&th, tau));
             if !e.is_finite() || n.dot(&bp.dir).abs() < 0.2 {
                 continue;
             }
@@ -1194,7 +1258,7 @@ mod tests {
                 let num = central(h, |s| {
                     let mut p = plane;
                     p[k] += s;
-                    plane_residual(&reading, z, &frame, &p, &th).0
+                    plane_residual(&reading, z, &frame, &p, (&th, tau)).0
                 });
                 assert!(
                     (num - dp[k]).abs() <= 1e-5 * (1.0 + num.abs()),
@@ -1206,7 +1270,7 @@ mod tests {
                 let num = central(steps[k], |s| {
                     let mut t = th;
                     t[k] += s;
-                    plane_residual(&reading, z, &frame, &plane, &t).0
+                    plane_residual(&reading, z, &frame, &plane, (&t, tau)).0
                 });
                 assert!(
                     (num - dm[k]).abs() <= 1e-5 * (1.0 + num.abs()),
@@ -1214,6 +1278,13 @@ mod tests {
                     dm[k]
                 );
             }
+            let num = central(1e-5, |s| {
+                plane_residual(&reading, z, &frame, &plane, (&th, tau + s)).0
+            });
+            assert!(
+                (num - dt).abs() <= 1e-5 * (1.0 + num.abs()),
+                "time offset: {num} vs {dt}"
+            );
         }
     }
 
@@ -1237,10 +1308,16 @@ mod tests {
                 frame: PlaneFrame::new(n, bp.point, 1200.0),
                 plane: 0,
                 mount: 1,
+                time_offset: Some(2),
             };
             let plane = vec![0.05, -0.02, n.dot(&bp.point) + 20.0, 1.5, -2.0, 0.7];
             let th = mount.to_params();
-            let values = [Value::Vector(&plane), Value::Vector(&th)];
+            let tau = [mount.servo_time_offset_s];
+            let values = [
+                Value::Vector(&plane),
+                Value::Vector(&th),
+                Value::Vector(&tau),
+            ];
             let worst = check_residual_jacobians(&r, &values, 1e-6).expect("defined");
             assert!(worst < 1e-5, "worst relative difference {worst:e}");
             checked += 1;
@@ -1329,6 +1406,7 @@ mod tests {
             servo_scale: 0.0,
             range_offset_mm: 20.0,
             range_scale: 0.0,
+            servo_time_offset_s: 0.0,
         };
         let scene = Scene {
             planes: vec![

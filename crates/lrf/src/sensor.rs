@@ -51,6 +51,21 @@ pub struct MountModel {
     /// Range scale error (see `range_offset_mm`).
     #[serde(default)]
     pub range_scale: f64,
+    /// How much later the servo's stamps are than the scanner's, seconds: in a continuous
+    /// sweep a beam's servo reading is the angle the servo had that much earlier, so the
+    /// angle at the beam is `servo + rate · servo_time_offset_s`
+    /// ([`crate::cloud::BeamReading::servo_deg_through`]). No effect on a stop-and-go
+    /// sweep (rate 0). Written only when not zero.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub servo_time_offset_s: f64,
+}
+
+/// The largest servo time offset a mount takes (seconds): a servo a second out of step with
+/// its scanner is no rig.
+pub const MAX_SERVO_TIME_OFFSET_S: f64 = 1.0;
+
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
 }
 
 /// The largest mount offset (and range offset) [`MountModel::check`] takes, mm: a scanner
@@ -154,6 +169,12 @@ impl MountModel {
                 ));
             }
         }
+        if !(self.servo_time_offset_s.abs() <= MAX_SERVO_TIME_OFFSET_S) {
+            return Err(format!(
+                "servo_time_offset_s = {}: beyond the bound of a rig, ±{MAX_SERVO_TIME_OFFSET_S} s",
+                short(self.servo_time_offset_s)
+            ));
+        }
         Ok(())
     }
 
@@ -190,6 +211,7 @@ impl MountModel {
             servo_scale: p[5],
             range_offset_mm: p[6],
             range_scale: p[7],
+            servo_time_offset_s: 0.0,
         }
     }
 
@@ -526,6 +548,11 @@ mod tests {
         assert!(bad(|m| m.offset_mm[2] = f64::NAN).starts_with("offset = [-1.5, 0, NaN]"));
         assert!(bad(|m| m.servo_scale = 0.5).starts_with("servo scale = 0.5: beyond"));
         assert!(bad(|m| m.servo_zero_deg = 400.0).contains("±360°"));
+        assert_eq!(
+            bad(|m| m.servo_time_offset_s = 2.5),
+            "servo_time_offset_s = 2.5: beyond the bound of a rig, ±1 s"
+        );
+        assert!(bad(|m| m.servo_time_offset_s = f64::NAN).starts_with("servo_time_offset_s = NaN"));
     }
 
     #[test]

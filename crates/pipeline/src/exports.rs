@@ -357,7 +357,7 @@ fn urdf_joint(
 /// cannot apply.
 fn lrf_model_comment(tf: &Tf, m: &MountModel, source: &str, n: &LrfChainNames) -> String {
     format!(
-        "<!-- The LRF's whole model, results.json's lrf_model (source: {source}), written by pingcal calibrate:\n     p_lrf = R_beta (R_x(tilt_x) R_z(tilt_z) (r cos(alpha), r sin(alpha), 0) + offset), beta = (servo - servo_zero) (1 + servo_scale),\n     R_beta = [[cos beta, 0, -sin beta], [0, 1, 0], [sin beta, 0, cos beta]] (about -Y by beta); the LRF frame '{lrf}' is pingcal's (that of cloud.ply).\n     Chain: '{cam}' -> fixed joint (the extrinsic, as laser_joint.urdf) -> '{lrf}' -> '{sj}' (continuous about -Y; its position is the servo's raw\n     reading in rad, as the servo's sensor_msgs/JointState gives it: name the joint as your servo driver does, or rename it here) -> '{raw}' ->\n     '{cj}' (mimic: multiplier = servo_scale = {scale}, offset = -servo_zero (1 + servo_scale) = {off} rad, servo_zero = {zero} deg, so the two add to beta)\n     -> '{turn}' -> '{mj}' (fixed: xyz = offset = {ox} m, rpy of R_x(tilt_x) R_z(tilt_z), tilt_x = {tx} deg, tilt_z = {tz} deg) -> '{scan}',\n     the frame_id your LaserScan messages must carry (angle alpha about its z from its x axis).\n     Not in tf: the range correction r = (reported - range_offset) / (1 + range_scale) with range_offset = {ro} mm ({rom} m) and\n     range_scale = {rs}: apply it to every range before use (tf moves frames; it cannot change a range). Every other part of the model is in this file.\n     Run it with lrf_model_ros1.launch or lrf_model_ros2.launch.py (robot_state_publisher); it publishes the extrinsic too, so do not run\n     static_transform_*.launch beside it. -->\n",
+        "<!-- The LRF's whole model, results.json's lrf_model (source: {source}), written by pingcal calibrate:\n     p_lrf = R_beta (R_x(tilt_x) R_z(tilt_z) (r cos(alpha), r sin(alpha), 0) + offset), beta = (servo - servo_zero) (1 + servo_scale),\n     R_beta = [[cos beta, 0, -sin beta], [0, 1, 0], [sin beta, 0, cos beta]] (about -Y by beta); the LRF frame '{lrf}' is pingcal's (that of cloud.ply).\n     Chain: '{cam}' -> fixed joint (the extrinsic, as laser_joint.urdf) -> '{lrf}' -> '{sj}' (continuous about -Y; its position is the servo's raw\n     reading in rad, as the servo's sensor_msgs/JointState gives it: name the joint as your servo driver does, or rename it here) -> '{raw}' ->\n     '{cj}' (mimic: multiplier = servo_scale = {scale}, offset = -servo_zero (1 + servo_scale) = {off} rad, servo_zero = {zero} deg, so the two add to beta)\n     -> '{turn}' -> '{mj}' (fixed: xyz = offset = {ox} m, rpy of R_x(tilt_x) R_z(tilt_z), tilt_x = {tx} deg, tilt_z = {tz} deg) -> '{scan}',\n     the frame_id your LaserScan messages must carry (angle alpha about its z from its x axis).\n     Not in tf: the range correction r = (reported - range_offset) / (1 + range_scale) with range_offset = {ro} mm ({rom} m) and\n     range_scale = {rs}: apply it to every range before use (tf moves frames; it cannot change a range).{timing} Every other part of the model is in this file.\n     Run it with lrf_model_ros1.launch or lrf_model_ros2.launch.py (robot_state_publisher); it publishes the extrinsic too, so do not run\n     static_transform_*.launch beside it. -->\n",
         lrf = tf.child,
         cam = tf.parent,
         sj = n.servo_joint,
@@ -375,6 +375,18 @@ fn lrf_model_comment(tf: &Tf, m: &MountModel, source: &str, n: &LrfChainNames) -
         ro = num(m.range_offset_mm),
         rom = num(m.range_offset_mm / 1000.0),
         rs = num(m.range_scale),
+        timing = timing_note(m),
+    )
+}
+
+/// The servo time offset of `m`, which tf cannot apply either (nothing when it is zero).
+fn timing_note(m: &MountModel) -> String {
+    if m.servo_time_offset_s == 0.0 {
+        return String::new();
+    }
+    format!(
+        "\n     Nor the servo's time offset: its stamps are {t} s later than the scanner's (servo_time_offset_s), so stamp the servo's JointState\n     messages {t} s earlier (or look the servo's tf up at a beam's time + {t} s).",
+        t = num(m.servo_time_offset_s)
     )
 }
 
@@ -1351,6 +1363,7 @@ mod tests {
             servo_scale: 0.012,
             range_offset_mm: 6.5,
             range_scale: -0.004,
+            servo_time_offset_s: 0.0,
         }
     }
 

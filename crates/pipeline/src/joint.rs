@@ -90,6 +90,17 @@ pub const PRIOR_SIGMA: [f64; 8] = [100.0, 100.0, 100.0, 0.2, 0.2, 0.1, 100.0, 0.
 /// range scale ±1 %): the σ of the final adjustment's prior on each estimated parameter.
 pub const PLAUSIBLE: [f64; 8] = [20.0, 20.0, 20.0, 0.01745, 0.01745, 0.005, 25.0, 0.01];
 
+/// σ of the weak prior on the servo time offset while its estimability is tested (s).
+pub const TIME_OFFSET_PRIOR_SIGMA_S: f64 = 10.0;
+
+/// The plausible size of a servo time offset (s): the σ of the final adjustment's prior on
+/// it. Drivers stamp a servo's and a scanner's messages some milliseconds to tens of
+/// milliseconds apart (a USB or serial latency, a scan stamped at its start or its end).
+pub const TIME_OFFSET_PLAUSIBLE_S: f64 = 0.1;
+
+/// The servo time offset's name, as results.json and the notes give it.
+pub const TIME_OFFSET_NAME: &str = "time_offset_s";
+
 /// A parameter whose posterior σ is more than this share of its prior σ is not determined
 /// by the data.
 pub const MAX_PRIOR_SHARE: f64 = 0.2;
@@ -168,7 +179,10 @@ pub struct JointOutcome {
     pub extrinsic_cov: DMatrix<f64>,
     /// The mount parameters in [`MOUNT_PARAM_NAMES`] order.
     pub mount: Vec<MountEstimate>,
-    /// The estimated mount model.
+    /// The servo time offset ([`TIME_OFFSET_NAME`], seconds), where the servo turned during
+    /// the scans (a continuous sweep); None for a stop-and-go sweep.
+    pub time_offset: Option<MountEstimate>,
+    /// The estimated mount model (with the servo time offset).
     pub mount_model: MountModel,
     /// Covariance of the mount parameters ([`MountModel::to_params`] units: mm, rad, 1;
     /// zero rows for held ones).
@@ -295,7 +309,23 @@ struct Joint {
     prior_theta: [f64; 8],
     /// The servo angles the beams span (degrees).
     sweep_deg: f64,
+    /// The servo time offset's parameter block, where the servo turned during the scans
+    /// (a continuous sweep); see [`TimeOffset`].
+    time_offset: Option<TimeOffset>,
     options: solver::Options,
+}
+
+/// The servo time offset τ in the joint problem ([`MountModel::servo_time_offset_s`]).
+#[derive(Clone, Debug)]
+struct TimeOffset {
+    /// Its parameter block (after the planes').
+    block: usize,
+    /// Where its prior is centred: the project's value (s).
+    prior: f64,
+    /// Estimated (else held, and why in `held`).
+    free: bool,
+    /// Why it is held.
+    held: Option<String>,
 }
 
 impl Joint {
@@ -317,6 +347,7 @@ impl Joint {
         })?;
         let radius = 0.5 * project.file.balls.diameter_mm;
         let theta0 = input.mount0.to_params();
+        let tau0 = input.mount0.servo_time_offset_s;
         let mut base = adj.solved.problem.clone();
         base.parameters = vec![
             ParameterBlock::pose("camera_from_lrf", input.start),
@@ -343,11 +374,12 @@ impl Joint {
                     ball: k,
                     extrinsic: EXTRINSIC,
                     mount: MOUNT,
+                    time_offset: None,
                     half_width_mm: fit.beam_half_width(readings[i].range_mm),
                 };
-                if beam.grazing(&centre, &input.start, &theta0) {
+                if beam.grazing(&centre, &input.start, &theta0, tau0) {
                     grazing += 1;
-                } else if beam.at_silhouette(&centre, &input.start, &theta0) {
+                } else if beam.at_silhouette(&centre, &input.start, &theta0, tau0) {
                     silhouette += 1;
                 } else {
                     beams.push(beam);
@@ -360,7 +392,14 @@ impl Joint {
                 project.path.display()
             )));
         }
-        let planes = plane_beams(input, readings, &mut base);
+        let mut planes = plane_beams(input, readings, &mut base);
+        let time_offset = time_offset_block(input, readings, &mut base);
+        if let Some(t) = &time_offset {
+            beams.iter_mut().for_each(|b| b.time_offset = Some(t.block));
+            planes
+                .iter_mut()
+                .for_each(|b| b.time_offset = Some(t.block));
+        }
         let group_of = (adj.solved.map.observations.iter())
             .map(|&(j, _)| usize::from(scene.points[j].kind == PointKind::Ball))
             .collect();
@@ -379,6 +418,7 @@ impl Joint {
             group_of,
             prior_theta: input.prior.to_params(),
             sweep_deg,
+            time_offset,
             options,
         };
         Ok((
@@ -397,6 +437,11 @@ impl Joint {
     fn problem_from(&self, start: &Problem, free: &[bool; 8], prior: &[f64; 8]) -> Problem {
         let mut p = start.clone();
         p.parameters[MOUNT].fixed = free.iter().map(|f| !f).collect();
+        // the servo time offset under the weak prior while the mount's is weak
+        let weak = prior == &PRIOR_SIGMA;
+        if let Some(t) = &self.time_offset {
+            p.parameters[t.block].fixed = vec![!t.free];
+        }
         p.residuals = (self.beams.iter().cloned())
             .map(ResidualBlock::new)
             .chain(self.planes.iter().cloned().map(ResidualBlock::new))
@@ -414,15 +459,40 @@ impl Joint {
                 components,
             }));
         }
+        if let Some(t) = self.time_offset.as_ref().filter(|t| t.free) {
+            p.residuals.push(ResidualBlock::new(ParameterPrior {
+                parameter: t.block,
+                components: vec![0],
+                value: vec![t.prior],
+                sigma: vec![if weak {
+                    TIME_OFFSET_PRIOR_SIGMA_S
+                } else {
+                    TIME_OFFSET_PLAUSIBLE_S
+                }],
+            }));
+        }
         p
     }
 
     /// χ² of the final adjustment's plausible-range prior on the free mount components.
-    fn prior_chi2(&self, free: &[bool; 8], theta: &[f64; 8]) -> f64 {
+    fn prior_chi2(&self, free: &[bool; 8], theta: &[f64; 8], tau: f64) -> f64 {
+        let tau_chi2 = (self.time_offset.as_ref().filter(|t| t.free))
+            .map_or(0.0, |t| ((tau - t.prior) / TIME_OFFSET_PLAUSIBLE_S).powi(2));
         (0..8)
             .filter(|&k| free[k])
             .map(|k| ((theta[k] - self.prior_theta[k]) / PLAUSIBLE[k]).powi(2))
-            .sum()
+            .sum::<f64>()
+            + tau_chi2
+    }
+
+    /// The servo time offset at the solution of `p` (s; 0 without one).
+    fn tau(&self, p: &Problem) -> f64 {
+        self.time_offset
+            .as_ref()
+            .map_or(0.0, |t| match &p.parameters[t.block].value {
+                ParameterValue::Vector(v) => v[0],
+                _ => unreachable!("the time offset is a vector block"),
+            })
     }
 
     /// The parameter blocks of the planes, in order.
@@ -486,19 +556,47 @@ fn plane_beams(
             frame: frames[o.plane],
             plane: first + o.plane,
             mount: MOUNT,
+            time_offset: None,
         })
         .collect()
+}
+
+/// The servo time offset's block of `input`'s joint problem, appended to `base`, where the
+/// servo turned during the scans (a beam with a servo rate: a continuous sweep whose scan
+/// file gives the time between beams); None for a stop-and-go sweep. It starts at the start
+/// mount's value, is estimated while the data determine it ([`estimability`]) under a prior
+/// of [`TIME_OFFSET_PLAUSIBLE_S`] at the project's value, and is held otherwise.
+fn time_offset_block(
+    input: &JointInput,
+    readings: &[BeamReading],
+    base: &mut Problem,
+) -> Option<TimeOffset> {
+    if !readings.iter().any(|r| r.servo_rate_deg_s != 0.0) {
+        return None;
+    }
+    let block = base.parameters.len();
+    base.parameters.push(ParameterBlock::vector(
+        "servo time offset",
+        vec![input.mount0.servo_time_offset_s],
+    ));
+    Some(TimeOffset {
+        block,
+        prior: input.prior.servo_time_offset_s,
+        free: true,
+        held: None,
+    })
 }
 
 /// Each plane beam's `n·p − d` (mm) at the solution of `p` (NaN where undefined).
 fn plane_errors(joint: &Joint, p: &Problem) -> Vec<f64> {
     let (_, theta) = solution(p);
+    let tau = joint.tau(p);
     (joint.planes.iter())
         .map(|b| {
             let ParameterValue::Vector(v) = &p.parameters[b.plane].value else {
                 return f64::NAN;
             };
-            b.error(v, &theta).unwrap_or(f64::NAN)
+            b.error(v, &theta, tau).unwrap_or(f64::NAN)
         })
         .collect()
 }
@@ -532,9 +630,10 @@ fn solution(p: &Problem) -> (Rigid3, [f64; 8]) {
 /// Each beam's `e` (mm) at the solution of `p` (NaN where undefined).
 fn beam_errors(joint: &Joint, p: &Problem) -> Vec<f64> {
     let (ext, theta) = solution(p);
+    let tau = joint.tau(p);
     (joint.beams.iter())
         .map(|b| {
-            b.range_error(&p.points[b.ball].position, &ext, &theta)
+            b.range_error(&p.points[b.ball].position, &ext, &theta, tau)
                 .unwrap_or(f64::NAN)
         })
         .collect()
@@ -545,24 +644,37 @@ fn beam_errors(joint: &Joint, p: &Problem) -> Vec<f64> {
 /// solution `at` (no new adjustment: the precision with the weak priors in place of the
 /// plausible ones). Returns whether it held any.
 fn estimability(
-    joint: &Joint,
+    joint: &mut Joint,
     at: &Problem,
     free: &mut [bool; 8],
     held: &mut [Option<String>; 8],
 ) -> Result<bool> {
     let mut any = false;
-    while free.iter().any(|&f| f) {
+    let tau_free = |j: &Joint| j.time_offset.as_ref().is_some_and(|t| t.free);
+    while free.iter().any(|&f| f) || tau_free(joint) {
         let p = joint.problem_from(at, free, &PRIOR_SIGMA);
         let prec = solver::precision(&p)
             .map_err(|e| PipelineError::new(format!("joint adjustment: {e}")))?;
         // the cofactors of (extrinsic, mount): the covariance with σ0 = 1
         let cov = &prec.parameters_covariance / prec.sigma0.powi(2).max(f64::MIN_POSITIVE);
+        // the servo time offset: the same two tests, on its own row (k = 8)
+        let tau = (joint.time_offset.as_ref().filter(|t| t.free)).and_then(|t| {
+            let i = prec.parameter_offsets[t.block];
+            time_offset_not_estimable(i, &cov, free).map(|(rank, why)| (rank, 8, why))
+        });
         let worst = (0..8)
             .filter(|&k| free[k])
             .filter_map(|k| not_estimable(k, &cov, free).map(|(rank, why)| (rank, k, why)))
+            .chain(tau)
             .max_by(|a, b| a.0.total_cmp(&b.0));
         let Some((_, k, why)) = worst else { break };
         any = true;
+        if k == 8 {
+            let t = joint.time_offset.as_mut().expect("tested above");
+            t.free = false;
+            t.held = Some(why);
+            continue;
+        }
         free[k] = false;
         held[k] = Some(if joint.sweep_deg < FULL_TURN_DEG {
             format!(
@@ -802,9 +914,14 @@ fn second_start(
     let delta: Vec<f64> = (0..8)
         .map(|k| if free[k] { step(6 + k) } else { 0.0 })
         .collect();
+    let tau = joint.time_offset.as_ref().filter(|t| t.free);
+    let tau_delta = tau.map(|t| step(prec.parameter_offsets[t.block]));
     let mut q = p.clone();
     q.parameters[EXTRINSIC].plus(&ext_delta);
     q.parameters[MOUNT].plus(&delta);
+    if let (Some(t), Some(d)) = (tau, tau_delta) {
+        q.parameters[t.block].plus(&[d]);
+    }
     // both solved to the solver's tightest tolerances: the first solution is polished (it
     // was near), the second started afresh
     let tight = solver::Options {
@@ -835,6 +952,10 @@ fn second_start(
     }
     for k in (0..8).filter(|&k| free[k]) {
         z = z.max((t2[k] - t1[k]).abs() / cov[(6 + k, 6 + k)].max(1e-30).sqrt());
+    }
+    if let Some(t) = tau {
+        let i = prec.parameter_offsets[t.block];
+        z = z.max((joint.tau(&q) - joint.tau(p)).abs() / cov[(i, i)].max(1e-30).sqrt());
     }
     let same = z <= SAME_MINIMUM_Z;
     let lower = !same && cost2 < cost1;
@@ -889,11 +1010,14 @@ pub fn joint_adjustment(input: &JointInput, rep: &Reporter) -> Result<JointOutco
     // not determine it, and adjusted again without it
     let (p, prec, mut rejected) = final_rounds(&mut joint, &free)?;
     pb.advance(1);
-    let any_held = estimability(&joint, &p, &mut free, &mut held)?;
+    let any_held = estimability(&mut joint, &p, &mut free, &mut held)?;
     for (k, why) in held.iter().enumerate() {
         if let (Some(why), true) = (why, asked[k]) {
             rep.log(format!("  joint: {} held: {why}", MOUNT_PARAM_NAMES[k]));
         }
+    }
+    if let Some(why) = joint.time_offset.as_ref().and_then(|t| t.held.as_ref()) {
+        rep.log(format!("  joint: the servo time offset held: {why}"));
     }
     let (p, prec) = if any_held {
         let (p, prec, more) = final_rounds(&mut joint, &free)?;
@@ -940,7 +1064,7 @@ fn finish(
     let bundle = &input.adj.precision;
     let chi2 = input.adj.sigma0_a_priori.powi(2) * bundle.redundancy as f64
         + chi2_lrf
-        + joint.prior_chi2(free, &solution(&p).1);
+        + joint.prior_chi2(free, &solution(&p).1, joint.tau(&p));
     // the covariances with every group weighted by its own variance component
     let mut p = p;
     let estimate = solver::estimate_variance_components(
@@ -955,7 +1079,10 @@ fn finish(
     let sigma0 = (chi2 / redundancy.max(1) as f64).sqrt();
     let (ext, theta) = solution(&p);
     let cov = prec.parameters_covariance.clone();
-    let mount_model = MountModel::from_params(&theta, input.mount0.servo_zero_deg);
+    let mount_model = MountModel {
+        servo_time_offset_s: joint.tau(&p),
+        ..MountModel::from_params(&theta, input.mount0.servo_zero_deg)
+    };
     let (lrf_points, cam_points) = ball_points(input, &p, &prec, &mount_model);
     let ball_centres = ball_centres(input, &p, &prec);
     let sim = Sim3::new(1.0, ext.rotation, ext.translation);
@@ -979,6 +1106,8 @@ fn finish(
         mount: (0..8)
             .map(|k| mount_estimate(k, &theta, &cov, held))
             .collect(),
+        time_offset: (joint.time_offset.as_ref())
+            .map(|t| time_offset_estimate(t, joint.tau(&p), &cov, prec.parameter_offsets[t.block])),
         mount_model,
         mount_cov: DMatrix::from_fn(8, 8, |a, b| {
             if free[a] && free[b] {
@@ -1167,26 +1296,58 @@ fn not_estimable(k: usize, cov: &DMatrix<f64>, free: &[bool; 8]) -> Option<(f64,
             to_unit(k, sd), to_unit(k, PRIOR_SIGMA[k]), u = unit(k)
         )));
     }
-    for j in 0..14 {
-        if j == i || (j >= 6 && !free[j - 6]) {
-            continue;
-        }
-        let r = cov[(i, j)] / (cov[(i, i)] * cov[(j, j)]).sqrt();
-        if r.abs() > MAX_CORRELATION {
-            let other = if j < 6 {
-                format!("the extrinsic's {}", ["ω", "φ", "κ", "tx", "ty", "tz"][j])
-            } else {
-                MOUNT_PARAM_NAMES[j - 6].to_string()
-            };
-            return Some((
-                r.abs(),
-                format!(
-                    "it is correlated with {other} at ρ = {r:.4}: the data cannot tell them apart"
-                ),
-            ));
-        }
+    correlated(i, cov, free).map(|(other, r)| {
+        (
+            r.abs(),
+            format!("it is correlated with {other} at ρ = {r:.4}: the data cannot tell them apart"),
+        )
+    })
+}
+
+/// The first unknown among the extrinsic's and the free mount parameters (the cofactors'
+/// first 14 rows) that unknown `i` is correlated with beyond [`MAX_CORRELATION`]: its name
+/// and the correlation.
+fn correlated(i: usize, cov: &DMatrix<f64>, free: &[bool; 8]) -> Option<(String, f64)> {
+    (0..14)
+        .filter(|&j| j != i && (j < 6 || free[j - 6]))
+        .find_map(|j| {
+            let r = cov[(i, j)] / (cov[(i, i)] * cov[(j, j)]).sqrt();
+            (r.abs() > MAX_CORRELATION).then(|| {
+                let other = if j < 6 {
+                    format!("the extrinsic's {}", ["ω", "φ", "κ", "tx", "ty", "tz"][j])
+                } else {
+                    MOUNT_PARAM_NAMES[j - 6].to_string()
+                };
+                (other, r)
+            })
+        })
+}
+
+/// Why the servo time offset (row `i` of the cofactors `cov`: the extrinsic's 6, the
+/// mount's 8, the planes', then its own) cannot be estimated: its σ against the weak prior,
+/// or its correlation with the extrinsic or a free mount parameter. A sweep in one direction
+/// at one speed moves every beam's servo angle by the same rate × τ: one angle about the
+/// servo axis, which the extrinsic's rotation takes; a sweep forward and back (or at
+/// several speeds) tells them apart.
+fn time_offset_not_estimable(
+    i: usize,
+    cov: &DMatrix<f64>,
+    free: &[bool; 8],
+) -> Option<(f64, String)> {
+    const WHY: &str = "a sweep in one direction at one speed turns every beam by the same angle, which the extrinsic's rotation about the servo axis takes; sweep forward and back (or at two speeds) to estimate it";
+    let sd = cov[(i, i)].max(0.0).sqrt();
+    let share = sd / TIME_OFFSET_PRIOR_SIGMA_S;
+    if !(share <= MAX_PRIOR_SHARE) {
+        return Some((1e6 + share, format!(
+            "the data do not determine it (σ {sd:.3} s against a prior of {TIME_OFFSET_PRIOR_SIGMA_S} s): {WHY}"
+        )));
     }
-    None
+    correlated(i, cov, free).map(|(other, r)| {
+        (
+            r.abs(),
+            format!("it is correlated with {other} at ρ = {r:.4}: {WHY}"),
+        )
+    })
 }
 
 /// What the joint adjustment starts from.
@@ -1241,6 +1402,20 @@ fn mount_estimate(
         sigma: estimated.then(|| to_unit(k, cov[(i, i)].max(0.0).sqrt())),
         held: held[k].clone(),
         corr_extrinsic: estimated
+            .then(|| std::array::from_fn(|j| cov[(i, j)] / (cov[(i, i)] * cov[(j, j)]).sqrt())),
+    }
+}
+
+/// The servo time offset's outcome: its value `tau` (s), its σ and its correlations with
+/// the extrinsic from `cov` (its row `i`), or why it was held.
+fn time_offset_estimate(t: &TimeOffset, tau: f64, cov: &DMatrix<f64>, i: usize) -> MountEstimate {
+    MountEstimate {
+        name: TIME_OFFSET_NAME,
+        value: tau,
+        sigma: t.free.then(|| cov[(i, i)].max(0.0).sqrt()),
+        held: t.held.clone(),
+        corr_extrinsic: t
+            .free
             .then(|| std::array::from_fn(|j| cov[(i, j)] / (cov[(i, i)] * cov[(j, j)]).sqrt())),
     }
 }
@@ -1357,10 +1532,8 @@ mod tests {
         for c in &scene.balls {
             let readings: Vec<BeamReading> = (lines.iter())
                 .flat_map(|l| {
-                    (l.ranges_mm.iter().enumerate()).map(|(i, &range_mm)| BeamReading {
-                        servo_deg: l.servo_deg,
-                        alpha_rad: lrf.sensor.beam_angle(i),
-                        range_mm,
+                    (l.ranges_mm.iter().enumerate()).map(|(i, &range_mm)| {
+                        BeamReading::at_rest(l.servo_deg, lrf.sensor.beam_angle(i), range_mm)
                     })
                 })
                 .filter(|r| r.range_mm > 0.0)

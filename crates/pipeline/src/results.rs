@@ -540,9 +540,10 @@ pub fn lrf_model_of(st: &Stages) -> LrfModelJson {
 /// One mount parameter in `results.json`.
 #[derive(Clone, Debug, Serialize)]
 pub struct MountJson {
-    /// `offset_x`, …, `range_scale` (as `[lrf] self_calibrate` spells them).
+    /// `offset_x`, …, `range_scale` (as `[lrf] self_calibrate` spells them), and
+    /// `time_offset_s` for a continuous sweep.
     pub name: String,
-    /// Value: mm for offsets, degrees for tilts, 1 for scales.
+    /// Value: mm for offsets, degrees for tilts, 1 for scales, seconds for the time offset.
     pub value: f64,
     /// Its σ (null when held).
     pub sigma: Option<f64>,
@@ -553,9 +554,9 @@ pub struct MountJson {
     pub correlation_with_extrinsic: Option<[f64; 6]>,
 }
 
+/// The mount parameters, then the servo time offset where the sweep was continuous.
 fn mount_json(j: &JointOutcome) -> Vec<MountJson> {
-    j.mount
-        .iter()
+    (j.mount.iter().chain(&j.time_offset))
         .map(|m| MountJson {
             name: m.name.to_string(),
             value: m.value,

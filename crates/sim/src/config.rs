@@ -549,6 +549,7 @@ pub const REALISTIC_MOUNT: MountModel = MountModel {
     servo_scale: 0.0,
     range_offset_mm: 12.0,
     range_scale: 0.0,
+    servo_time_offset_s: 0.0,
 };
 
 impl Default for LrfConfig {
@@ -618,6 +619,9 @@ impl LrfConfig {
             servo_scale: self.servo_scale,
             range_offset_mm: self.range_offset_mm,
             range_scale: self.range_scale,
+            // the simulator turns its servo itself (`servo_time_offset_s` is in truth.json
+            // on its own)
+            servo_time_offset_s: 0.0,
         }
     }
 

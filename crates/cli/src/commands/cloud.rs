@@ -85,11 +85,16 @@ pub struct Args {
     /// Range model: the range scale error (see `--range-offset-mm`).
     #[arg(long, allow_hyphen_values = true, default_value_t = 0.0)]
     pub range_scale: f64,
+    /// Servo timing: how much later the servo's stamps are than the scanner's (seconds), as
+    /// `lrf_mount`'s `time_offset_s` in results.json; each beam of a continuous sweep is
+    /// turned by the servo's rate times it (no effect on a stop-and-go sweep).
+    #[arg(long, allow_hyphen_values = true, default_value_t = 0.0)]
+    pub servo_time_offset_s: f64,
     /// The whole LRF model (mount and range) of a calibration: its `results.json` (the
     /// `lrf_model` block: the joint adjustment's estimate, or the project's mount), or the
     /// `mount.json` of `pingcal lrf-mount`, so that any later scan gets the cloud the
     /// calibration's extrinsic is valid for.
-    #[arg(long, conflicts_with_all = ["mount_offset_mm", "tilt_x_deg", "tilt_z_deg", "servo_zero_deg", "servo_scale", "range_offset_mm", "range_scale"])]
+    #[arg(long, conflicts_with_all = ["mount_offset_mm", "tilt_x_deg", "tilt_z_deg", "servo_zero_deg", "servo_scale", "range_offset_mm", "range_scale", "servo_time_offset_s"])]
     pub lrf_model: Option<PathBuf>,
 }
 
@@ -120,9 +125,10 @@ pub fn run(args: Args) -> CmdResult {
         args.servo_scale,
         args.range_offset_mm,
         args.range_scale,
+        args.servo_time_offset_s,
     ];
     if values.iter().any(|v| !v.is_finite()) {
-        return Err("mount model: --mount-offset-mm, --tilt-x-deg, --tilt-z-deg, --servo-zero-deg, --servo-scale, --range-offset-mm and --range-scale must be finite numbers".into());
+        return Err("mount model: --mount-offset-mm, --tilt-x-deg, --tilt-z-deg, --servo-zero-deg, --servo-scale, --range-offset-mm, --range-scale and --servo-time-offset-s must be finite numbers".into());
     }
     if !(args.servo_scale.abs() < 0.5 && args.range_scale.abs() < 0.5) {
         return Err(format!(
@@ -220,6 +226,7 @@ fn mount_of(args: &Args) -> Result<MountModel, super::CmdError> {
             servo_scale: args.servo_scale,
             range_offset_mm: args.range_offset_mm,
             range_scale: args.range_scale,
+            servo_time_offset_s: args.servo_time_offset_s,
         },
     };
     mount.check([
