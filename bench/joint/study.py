@@ -97,7 +97,7 @@ def run_seed(args, seed):
     else:
         subprocess.run([args.bin, "simulate", "--seed", str(seed), "--config", cfg, "--out", sim],
                        check=True, capture_output=True)
-    if args.no_timing:
+    if getattr(args, "no_timing", False):
         # the scans without the time between beams: no servo rate, so no time offset to
         # estimate (the calibration as it was before the joint adjustment modelled it)
         scans = os.path.join(sim, "scans")
