@@ -15,7 +15,8 @@
 use super::adjust::{rig_cameras, Datum, SceneProblem};
 use super::ids::ImageId;
 use super::scene::{coded_blunder, image_file, Detections, PointKind, Scene};
-use super::{Options, PipelineError, Reporter, Result};
+use crate::context::{Options, PipelineError, Result};
+use crate::progress::Reporter;
 use pingcal_ba::solver::{
     self, Precision, PrecisionError, Rejection, SnoopError, VarianceComponent, VarianceError,
 };

@@ -8,7 +8,8 @@
 //! memory for the eccentricity correction of the balls.
 
 use super::scene::{silhouette_is_ellipse, BallFit, Detections, ImageDetections};
-use super::{Options, PipelineError, Reporter, Result};
+use crate::context::{Options, PipelineError, Result};
+use crate::progress::Reporter;
 use pingcal_project::Project;
 use pingcal_targets::detect::BallMode;
 use pingcal_targets::ellipse::Ellipse;

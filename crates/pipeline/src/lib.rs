@@ -8,7 +8,7 @@
 //! | 4 | [`bundle`] | the final self-calibrating adjustment: distances, stereo rig, main image as datum, ball centres corrected for the sphere's eccentricity, data snooping, precision |
 //! | 5 | [`lrf`] | the LRF cloud from the scans and the spheres fitted to the balls |
 //! | 6 | [`extrinsic`] | spheres ↔ balls by distance invariants, the 3D conformal transform with σ, control / check / leave-one-out tables; the Fan et al. 2019 corner baseline |
-//! | 7 | [`joint`] | the joint adjustment: image points, distances and the LRF beams on the balls together, the extrinsic and the LRF's mount and range errors among the unknowns, what the data cannot determine held and named |
+//! | 7 | [`joint`], [`joint_starts`] | the joint adjustment: image points, distances and the LRF beams on the balls together, the extrinsic and the LRF's mount, range errors and servo timing among the unknowns, what the data cannot determine held and named; started from the room's mount, else the project's, with passes through each estimate, the simpler model where the mount is insignificant |
 //! | 7b | [`final_lrf`] | the LRF as the calibration's own model sees it: the cloud made again through the joint adjustment's estimated mount and range model, its spheres found and matched by the estimated extrinsic, the check tables from them; every output's LRF side uses it |
 //! | 7c | [`verdict`] | whether to trust the calibration: `ok`, `doubtful` or `failed`, by statistical tests of every adjustment and of the check points |
 //! | 8 | [`conventions`], [`results`], then [`report`] | `results.json` (docs/formats.md; its `conventions` block names every frame and transform) and `cloud.ply`, then the data of `report.html` |
@@ -17,17 +17,22 @@
 //!
 //! Below the steps lie the modules they share, lowest first: [`ids`] (typed ids and the
 //! vector they index), [`progress`] (the [`Reporter`] and the [`Progress`] trait through
-//! which the caller shows the progress: the library never prints), [`scene`] (the
-//! [`scene::Scene`] that the steps pass along and refine, and the helpers they share) and
-//! [`adjust`] (the scene as a bundle-adjustment problem and back, for every step that
-//! adjusts). Each module uses only those before it, shared modules first, then the steps in
-//! their order (`tests/pipeline_layers.rs` checks it).
-//!
+//! which the caller shows the progress: the library never prints), [`context`] (the run's
+//! [`Options`] and its [`PipelineError`]), [`scene`] (the [`scene::Scene`] that the steps
+//! pass along and refine, and the helpers they share) and [`adjust`] (the scene as a
+//! bundle-adjustment problem and back, for every step that adjusts). After step 7,
+//! [`stages`] gathers what the steps produced for those that judge and write it, and
+//! [`outcome`] is what the caller writes. Each module uses only modules before it in
+//! `tests/architecture.rs`'s `PIPELINE_LAYERS` (shared modules first, then the steps in
+//! their order) and no item of this crate root, which only runs the steps
+//! ([`calibrate`]); that test checks it.
+
 //! Every failure is a [`PipelineError`]: one line that names the file, image, target or ball
 //! concerned and what was expected. Nothing is written until every step has succeeded.
 
 pub mod adjust;
 pub mod bundle;
+pub mod context;
 pub mod conventions;
 pub mod detect;
 pub mod exports;
@@ -35,10 +40,12 @@ pub mod extrinsic;
 pub mod final_lrf;
 pub mod ids;
 pub mod joint;
+pub mod joint_starts;
 pub mod lrf;
 pub mod matching;
 pub mod network;
 pub mod out_folders;
+pub mod outcome;
 pub mod overlays;
 pub mod progress;
 pub mod rectify;
@@ -47,76 +54,18 @@ pub mod result_set;
 pub mod results;
 pub mod scene;
 pub mod sphere_calib;
+pub mod stages;
 #[cfg(test)]
 mod test_support;
 pub mod verdict;
 
-use pingcal_lrf::MountModel;
-use pingcal_project::Project;
+pub use context::{Options, PipelineError, Result};
+pub use joint_starts::{FIRST_PLANE_GATE_MM, JOINT_REFINEMENTS, MODEL_ALPHA};
+pub use outcome::Outcome;
 pub use progress::{Progress, Reporter, Task};
+pub use stages::Stages;
 
-/// Why a calibration failed: one line.
-#[derive(Debug, thiserror::Error)]
-#[error("{0}")]
-pub struct PipelineError(pub String);
-
-impl PipelineError {
-    /// An error from a message.
-    pub fn new(msg: impl Into<String>) -> Self {
-        Self(msg.into())
-    }
-}
-
-/// Result of a pipeline step.
-pub type Result<T> = std::result::Result<T, PipelineError>;
-
-/// Settings of a run.
-#[derive(Clone, Debug)]
-pub struct Options {
-    /// Seed of every random choice (RANSAC in the LRF steps).
-    pub seed: u64,
-    /// Worker threads of the bundle adjustments (0: all cores).
-    pub threads: usize,
-    /// Baarda's critical value for data snooping of image points (3.29: α = 0.1 %).
-    pub snoop_critical: f64,
-    /// How the initial network starts.
-    pub start: network::Start,
-    /// Measure saturated targets (flagged, σ tripled) instead of refusing them, whatever
-    /// `[targets] measure_saturated` says (`pingcal calibrate --saturated`).
-    pub measure_saturated: bool,
-}
-
-impl Default for Options {
-    fn default() -> Self {
-        Self {
-            seed: 1,
-            threads: 0,
-            snoop_critical: 3.29,
-            start: network::Start::Auto,
-            measure_saturated: false,
-        }
-    }
-}
-
-/// Everything a calibration produces.
-pub struct Outcome {
-    /// `results.json`.
-    pub results: results::Results,
-    /// The data of `report.html`.
-    pub report: pingcal_report::ReportData,
-    /// `cloud.ply` (the LRF cloud, and the fitted spheres as an element of their own).
-    pub cloud_ply: Vec<u8>,
-    /// The files of `ros/`, `opencv/` and `kalibr/` ([`exports`]): path below the output
-    /// folder, text.
-    pub exports: Vec<exports::OutputFile>,
-    /// The mean check error the reported covariances predict
-    /// ([`verdict::expected_check_error_mm`]; not in `results.json`): what `pingcal plan`
-    /// averages.
-    pub expected_check_error_mm: Option<f64>,
-    /// The LRF drawn on the images ([`overlays`]): `overlays/<image>.png` below the output
-    /// folder, and its bytes.
-    pub overlays: Vec<(String, Vec<u8>)>,
-}
+use pingcal_project::Project;
 
 /// Runs the whole calibration of `project`.
 pub fn calibrate(project: &Project, opts: &Options, rep: &Reporter) -> Result<Outcome> {
@@ -153,7 +102,7 @@ pub fn calibrate(project: &Project, opts: &Options, rep: &Reporter) -> Result<Ou
     timing.push(("extrinsic".into(), t.elapsed().as_secs_f64()));
     let t = std::time::Instant::now();
     let mut joint = if project.file.method.joint() {
-        let r = run_joint(project, (&dets, &scene, &adjusted), &lrf, &ext, opts, rep);
+        let r = joint_starts::run_joint(project, (&dets, &scene, &adjusted), &lrf, &ext, opts, rep);
         if let Err(e) = &r {
             rep.log(format!("joint adjustment failed: {e}"));
         }
@@ -223,442 +172,4 @@ pub fn calibrate(project: &Project, opts: &Options, rep: &Reporter) -> Result<Ou
         expected_check_error_mm,
         overlays: drawn.files,
     })
-}
-
-/// What the steps produced, for the results and the report.
-pub struct Stages<'a> {
-    /// The project.
-    pub project: &'a Project,
-    /// Step 1.
-    pub dets: &'a scene::Detections,
-    /// Steps 2–4 (the final scene).
-    pub scene: &'a scene::Scene,
-    /// Step 4.
-    pub adjusted: &'a bundle::Adjusted,
-    /// Step 5.
-    pub lrf: &'a lrf::LrfData,
-    /// Step 6.
-    pub ext: &'a extrinsic::Extrinsics,
-    /// Step 7 (None when the method does not ask for it), or why it failed.
-    pub joint: &'a Option<std::result::Result<joint::JointOutcome, joint::JointError>>,
-    /// The LRF side every output uses (step 7b): the cloud through the joint adjustment's
-    /// estimated model when its result is the one given, else [`Self::lrf`].
-    pub lrf_out: &'a lrf::LrfData,
-    /// The spheres of [`Self::lrf_out`] matched to balls of the scene.
-    pub pairs_out: &'a [(ids::SphereId, ids::PointId)],
-}
-
-/// Passes of the joint adjustment that look at the LRF again through the mount the pass
-/// before estimated, at most.
-pub const JOINT_REFINEMENTS: usize = 3;
-
-/// The first pass's gate for the planes' beams when it starts from the project's mount
-/// (mm): how far apart a wrong mount may put a wall's two half-sweeps.
-pub const FIRST_PLANE_GATE_MM: f64 = 60.0;
-
-/// The level of the test that chooses the simpler model (every mount and range parameter
-/// at the project's value) when the estimated ones are insignificant.
-pub const MODEL_ALPHA: f64 = 0.05;
-
-/// z of the standard normal at 1 − [`MODEL_ALPHA`] (one-sided, for the χ² quantile) and
-/// at 1 − [`MODEL_ALPHA`]/2 (two-sided, for each parameter alone).
-const Z_MODEL: (f64, f64) = (1.644_853_626_951_472, 1.959_963_984_540_054);
-
-/// What every start of the joint adjustment shares.
-struct JointRun<'a> {
-    project: &'a Project,
-    /// The project's mount (step 5's), where the priors sit.
-    prior: MountModel,
-    dets: &'a scene::Detections,
-    scene: &'a scene::Scene,
-    adjusted: &'a bundle::Adjusted,
-    opts: &'a Options,
-    rep: &'a Reporter,
-    /// Passes after the first that look at the LRF again, at most: [`JOINT_REFINEMENTS`],
-    /// or none while the camera's model cannot hold its lens ([`refinements`]).
-    refinements: usize,
-}
-
-/// The refinement passes the joint adjustment may take ([`JointRun::passes`]):
-/// [`JOINT_REFINEMENTS`], or none when the bundle found that the camera's model cannot
-/// hold the lens (`adjusted.lens_doubt`). The passes re-decide which LRF sphere is which
-/// ball through a better mount; with ball centres off by the lens' unmodelled bending
-/// (tens of σ) no pass can settle that, each one only redoes the cloud and the adjustment
-/// (four passes from each of two starts), and the verdict is doubtful for the lens
-/// whatever they give. So the work stops after one pass from each start.
-fn refinements(adjusted: &bundle::Adjusted) -> usize {
-    if adjusted.lens_doubt.is_some() {
-        0
-    } else {
-        JOINT_REFINEMENTS
-    }
-}
-
-impl JointRun<'_> {
-    /// One pass of the joint adjustment.
-    #[allow(clippy::too_many_arguments)]
-    fn pass(
-        &self,
-        lrf: &lrf::LrfData,
-        ext: &extrinsic::Extrinsics,
-        start: pingcal_geometry::Rigid3,
-        pass: usize,
-        planes: &[(nalgebra::Vector3<f64>, f64)],
-        plane_gate: pingcal_lrf::room::Gate,
-        hold_mount: Option<&str>,
-    ) -> std::result::Result<joint::JointOutcome, String> {
-        let input = joint::JointInput {
-            project: self.project,
-            dets: self.dets,
-            scene: self.scene,
-            adj: self.adjusted,
-            lrf,
-            ext,
-            start,
-            mount0: lrf.mount,
-            prior: self.prior,
-            pass,
-            noise: lrf.noise,
-            planes,
-            plane_gate,
-            hold_mount,
-            seed: self.opts.seed,
-        };
-        joint::joint_adjustment(&input, self.rep).map_err(|e| e.0)
-    }
-
-    /// The passes of the joint adjustment from one start (the cloud `lrf` through the start
-    /// mount, its spheres matched as `ext`, the extrinsic `start`).
-    ///
-    /// When the joint adjustment finds the mount significantly off its start (an estimate
-    /// more than 3σ from it), or the cloud it saw shows a mount error (a fifth or more of
-    /// the beams judged grazing, balls seen twice, spheres that match no ball), the cloud
-    /// the spheres were found in was distorted by it: a ball seen twice, a ball missed,
-    /// grazing judged at a wrong centre. So the cloud is made again from the readings
-    /// through the estimated mount, its spheres found, each sphere re-assigned to the ball
-    /// the estimated extrinsic puts within a ball's radius of it (one to one, nearest first;
-    /// [`extrinsic::match_by_extrinsic`]), the beams on the balls and the planes re-decided
-    /// there, and the joint adjustment run again from its own estimate, until a pass needs
-    /// none of it or after [`Self::refinements`] such passes.
-    fn passes(
-        &self,
-        lrf: &lrf::LrfData,
-        ext: &extrinsic::Extrinsics,
-        start: pingcal_geometry::Rigid3,
-        planes: &[(nalgebra::Vector3<f64>, f64)],
-        plane_gate: pingcal_lrf::room::Gate,
-    ) -> std::result::Result<joint::JointOutcome, String> {
-        let mut out = self.pass(lrf, ext, start, 1, planes, plane_gate, None)?;
-        let mut start_mount = lrf.mount;
-        for k in 1..=self.refinements {
-            let why = match out.distorted_cloud() {
-                Some(why) => why,
-                None if out.moved_mount(&start_mount, 3.0) => {
-                    "the mount is off its start by more than 3σ".to_string()
-                }
-                None => break,
-            };
-            self.rep.log(format!(
-                "joint: {why}: the LRF spheres again through the estimated mount (pass {})",
-                k + 1
-            ));
-            let Some(lrf2) =
-                lrf::through_mount(self.project, lrf, out.mount_model, self.opts, self.rep)
-            else {
-                break;
-            };
-            let gate = pingcal_lrf::room::Gate::Sigma {
-                k: pingcal_lrf::room::GATE_K,
-                sigma0: plane_sigma0(&out),
-                floor_mm: pingcal_lrf::room::RoomOptions::default().gate_floor_mm,
-            };
-            let planes2 = out.planes.clone();
-            let again = extrinsic::spheres_by_extrinsic(
-                self.project,
-                self.scene,
-                self.adjusted,
-                &lrf2,
-                &out.camera_from_lrf,
-                self.rep,
-            )
-            .map_err(|e| e.0)
-            .and_then(|ext2| {
-                let planes = if planes2.is_empty() { planes } else { &planes2 };
-                self.pass(&lrf2, &ext2, out.camera_from_lrf, k + 1, planes, gate, None)
-            });
-            match again {
-                Ok(o) => {
-                    start_mount = lrf2.mount;
-                    out = o;
-                }
-                Err(e) => {
-                    self.rep.log(format!(
-                        "joint: pass {} failed ({e}): the pass before stands",
-                        k + 1
-                    ));
-                    break;
-                }
-            }
-        }
-        Ok(out)
-    }
-}
-
-/// The σ0 of the planes' beams in `out` (1 when there are none).
-fn plane_sigma0(out: &joint::JointOutcome) -> f64 {
-    (out.variance_components.iter())
-        .find(|c| c.group == pingcal_lrf::room::PLANE_GROUP)
-        .map_or(1.0, |c| c.sigma0)
-}
-
-/// Why `out` is absurd for the field, if it is: a mean check (or control) error, a σ of the
-/// translation, or a σ of the rotation at the balls' range larger than the balls
-/// themselves (their diameter): a result no ball can be matched by.
-fn absurd(out: &joint::JointOutcome, diameter_mm: f64) -> Option<String> {
-    let table = if out.check.rows.is_empty() {
-        &out.control
-    } else {
-        &out.check
-    };
-    let what = if out.check.rows.is_empty() {
-        "control"
-    } else {
-        "check"
-    };
-    if !(table.mean_mm <= diameter_mm) {
-        return Some(format!(
-            "its mean {what} error is {:.0} mm, more than a ball's diameter ({diameter_mm} mm)",
-            table.mean_mm
-        ));
-    }
-    let st = out
-        .sigma_translation_mm
-        .iter()
-        .fold(0.0f64, |a, &b| a.max(b));
-    if !(st <= diameter_mm) {
-        return Some(format!(
-            "the σ of its translation is {st:.0} mm, more than a ball's diameter ({diameter_mm} mm)"
-        ));
-    }
-    let range = (out.lrf_points.iter().map(|p| p.xyz.norm()).sum::<f64>()
-        / out.lrf_points.len().max(1) as f64)
-        .max(1000.0);
-    let sr = out.sigma_opk_deg.iter().fold(0.0f64, |a, &b| a.max(b));
-    if !(sr.to_radians() * range <= diameter_mm) {
-        return Some(format!(
-            "the σ of its rotation is {sr:.2}°, {:.0} mm at the balls' range, more than a ball's diameter ({diameter_mm} mm)",
-            sr.to_radians() * range
-        ));
-    }
-    None
-}
-
-/// Whether the simpler model's extrinsic `simple` moved from the full model's `full` by
-/// more than the simpler model may, and why. Holding parameters the balls determine poorly
-/// (a range scale of 0.2 % is within 1.3 σ) can still move the extrinsic by millimetres
-/// (that scale times the balls' range), which the simpler model's σ's do not contain. The
-/// rule is the mean squared error's: the simpler estimate is the better one while its bias²
-/// is at most the variance it saves, `Var_full − Var_simple`; its bias is estimated by the
-/// difference `d` of the two (of variance `Var_full − Var_simple` when it has none), so the
-/// simpler model is kept when `d² ≤ 2 (Var_full − Var_simple)` in each of the extrinsic's
-/// six components (rotation δθ = log(R_simple R_fullᵀ), translation).
-fn simpler_moved(full: &joint::JointOutcome, simple: &joint::JointOutcome) -> Option<String> {
-    let (f, s) = (&full.camera_from_lrf, &simple.camera_from_lrf);
-    let dth = pingcal_geometry::log_so3(&(s.rotation * f.rotation.transpose()));
-    let dt = s.translation - f.translation;
-    let d = [dth.x, dth.y, dth.z, dt.x, dt.y, dt.z];
-    const NAMES: [&str; 6] = ["rotation x", "rotation y", "rotation z", "tx", "ty", "tz"];
-    (0..6).find_map(|k| {
-        let saved = full.extrinsic_cov[(k, k)] - simple.extrinsic_cov[(k, k)];
-        let bound = (2.0 * saved.max(0.0)).sqrt();
-        (!(d[k].abs() <= bound)).then(|| {
-            let (v, b, u) = if k < 3 {
-                (d[k].to_degrees(), bound.to_degrees(), "°")
-            } else {
-                (d[k], bound, " mm")
-            };
-            format!(
-                "holding the mount moves the extrinsic's {} by {v:.3}{u}, more than the {b:.3}{u} the simpler model's smaller variance allows (bias² ≤ the variance saved)",
-                NAMES[k]
-            )
-        })
-    })
-}
-
-/// Whether the estimated mount and range parameters of `out` are insignificant against
-/// the project's mount `prior` (see [`MODEL_ALPHA`]): the Wald test of all of them together,
-/// `W = δᵀ Σ⁻¹ δ` against `χ²₁₋α(k)`, and each alone, `|δ_k/σ_k|` against `z₁₋α/₂`. Some(the
-/// test's words) when both pass.
-fn insignificant_mount(out: &joint::JointOutcome, prior: &MountModel) -> Option<String> {
-    let p0 = prior.to_params();
-    let th = out.mount_model.to_params();
-    let free: Vec<usize> = (0..8).filter(|&k| out.mount[k].sigma.is_some()).collect();
-    if free.is_empty() {
-        return None;
-    }
-    let n = free.len();
-    let d = nalgebra::DVector::from_iterator(n, free.iter().map(|&k| th[k] - p0[k]));
-    let c = nalgebra::DMatrix::from_fn(n, n, |a, b| out.mount_cov[(free[a], free[b])]);
-    let w = d.dot(&(c.clone().try_inverse()? * &d));
-    let bound = pingcal_geometry::stats::chi2_quantile(n as f64, Z_MODEL.0);
-    let zmax = (0..n)
-        .map(|a| d[a].abs() / c[(a, a)].max(1e-300).sqrt())
-        .fold(0.0f64, f64::max);
-    (w <= bound && zmax <= Z_MODEL.1).then(|| format!(
-        "the estimated mount and range parameters are insignificant: Wald χ² {w:.2} ≤ {bound:.2} ({n} parameters, α = {MODEL_ALPHA}) and each within {:.2} σ of the project's value (largest {zmax:.2}): the simpler model, the mount held at the project's",
-        Z_MODEL.1
-    ))
-}
-
-/// Step 7 from the outcomes of the steps before it.
-///
-/// **Starts.** First the mount the room gives ([`lrf::room_mount`]): the cloud through it,
-/// its spheres matched to the balls by the distance invariants, their registration the
-/// extrinsic's start, and the planes' beams found near where the room's estimate put them.
-/// Then, when that start is not available or its result is absurd for the field
-/// ([`absurd`]), the project's mount with the two-step method's extrinsic. Each start runs
-/// its passes ([`JointRun::passes`]). A result that is absurd from every start is no
-/// result: "the joint adjustment did not converge from any start", and the calibration
-/// fails. The priors stay at the project's mount throughout, and the two-step method's
-/// results stay those of the project's mount: they are the paper's method as the user gave
-/// it.
-///
-/// **The simpler model.** When the estimated mount and range parameters are insignificant
-/// ([`insignificant_mount`]), the joint adjustment is run once more with every one held at
-/// the project's value, through the project's mount, and that result is given, with the
-/// test that chose it in its notes.
-fn run_joint(
-    project: &Project,
-    (dets, scene, adjusted): (&scene::Detections, &scene::Scene, &bundle::Adjusted),
-    lrf: &lrf::LrfData,
-    ext: &extrinsic::Extrinsics,
-    opts: &Options,
-    rep: &Reporter,
-) -> std::result::Result<joint::JointOutcome, joint::JointError> {
-    let Some(ev) = &ext.spheres else {
-        return Err(joint::JointError::other(
-            "it starts from the sphere method, which did not run",
-        ));
-    };
-    let run = JointRun {
-        project,
-        prior: lrf.mount,
-        dets,
-        scene,
-        adjusted,
-        opts,
-        rep,
-        refinements: refinements(adjusted),
-    };
-    if run.refinements == 0 {
-        rep.log("joint: the camera's model cannot hold the lens (the warning above): one pass from each start, without the LRF looked at again through the estimated mount");
-    }
-    let diameter = project.file.balls.diameter_mm;
-    let room = lrf::room_mount(project, lrf, opts.seed, rep);
-    let planes: Vec<(nalgebra::Vector3<f64>, f64)> = (room.iter())
-        .flat_map(|r| r.planes.iter().map(|p| (p.normal, p.offset_mm)))
-        .collect();
-    let mut tried: Vec<String> = Vec::new();
-    let mut found = None;
-    if let Some(r) = &room {
-        let gate = pingcal_lrf::room::Gate::Sigma {
-            k: pingcal_lrf::room::GATE_K,
-            sigma0: r.sigma0,
-            floor_mm: pingcal_lrf::room::RoomOptions::default().gate_floor_mm,
-        };
-        let attempt = lrf::through_mount(project, lrf, r.mount, opts, rep)
-            .ok_or_else(|| "the cloud has no readings".to_string())
-            .and_then(|lrf_r| {
-                let ext_r =
-                    extrinsic::spheres_only(project, (scene, adjusted, &lrf_r, dets), opts, rep)
-                        .map_err(|e| e.0)?;
-                let Some(ev_r) = &ext_r.spheres else {
-                    return Err("no sphere method on the room's cloud".to_string());
-                };
-                let start = ev_r.registration.camera_from_lrf.rigid();
-                run.passes(&lrf_r, &ext_r, start, &planes, gate)
-            });
-        match attempt.map(|o| (absurd(&o, diameter), o)) {
-            Ok((None, mut o)) => {
-                o.notes.insert(0, "started from the mount the room's planes gave (the cloud through it, its spheres matched by the distance invariants)".into());
-                found = Some(o);
-            }
-            Ok((Some(why), _)) => tried.push(format!("from the room's mount, {why}")),
-            Err(e) => tried.push(format!("from the room's mount, {e}")),
-        }
-        if !tried.is_empty() {
-            rep.log(format!(
-                "joint: {}: starting again from the project's mount",
-                tried[0]
-            ));
-        }
-    }
-    let out = match found {
-        Some(o) => o,
-        None => {
-            let gate = pingcal_lrf::room::Gate::First(FIRST_PLANE_GATE_MM);
-            let start = ev.registration.camera_from_lrf.rigid();
-            match run.passes(lrf, ext, start, &planes, gate) {
-                Ok(o) => match absurd(&o, diameter) {
-                    None => o,
-                    Some(why) => {
-                        tried.push(format!("from the project's mount, {why}"));
-                        return Err(not_converged(&tried));
-                    }
-                },
-                Err(e) if !tried.is_empty() => {
-                    tried.push(format!("from the project's mount, {e}"));
-                    return Err(not_converged(&tried));
-                }
-                Err(e) => return Err(joint::JointError::other(e)),
-            }
-        }
-    };
-    Ok(simpler_if_insignificant(&run, out, lrf, ext))
-}
-
-/// The error of a joint adjustment absurd from every start in `tried`.
-fn not_converged(tried: &[String]) -> joint::JointError {
-    joint::JointError {
-        message: format!(
-            "the joint adjustment did not converge from any start ({}): more balls, balls seen in both half-sweeps, or more of the room's walls, floor and ceiling in view would help",
-            tried.join("; ")
-        ),
-        not_converged: true,
-    }
-}
-
-/// `out`, or the simpler model's result when `out`'s mount parameters are insignificant
-/// (see [`run_joint`]).
-fn simpler_if_insignificant(
-    run: &JointRun,
-    out: joint::JointOutcome,
-    lrf: &lrf::LrfData,
-    ext: &extrinsic::Extrinsics,
-) -> joint::JointOutcome {
-    let Some(why) = insignificant_mount(&out, &run.prior) else {
-        return out;
-    };
-    run.rep.log(format!("joint: {why}"));
-    let gate = pingcal_lrf::room::Gate::First(FIRST_PLANE_GATE_MM);
-    match run.pass(lrf, ext, out.camera_from_lrf, 1, &[], gate, Some(&why)) {
-        Ok(s) if absurd(&s, run.project.file.balls.diameter_mm).is_none() => {
-            match simpler_moved(&out, &s) {
-                None => s,
-                Some(moved) => {
-                    let note =
-                        format!("the simpler model was refused: {moved}: the full model stands");
-                    run.rep.log(format!("joint: {note}"));
-                    let mut out = out;
-                    out.notes.push(note);
-                    out
-                }
-            }
-        }
-        Ok(_) | Err(_) => {
-            run.rep
-                .log("joint: the simpler model gave no usable result: the full model stands");
-            out
-        }
-    }
 }

@@ -10,7 +10,8 @@
 //! max_range_mm` (and a scan file's ranges beyond any range finder) are masked as no return
 //! and counted in a warning naming the file and the first line.
 
-use super::{Options, PipelineError, Reporter, Result};
+use crate::context::{Options, PipelineError, Result};
+use crate::progress::Reporter;
 use pingcal_lrf::ball_finder::{find_balls, find_walls, FindResult, FinderOptions};
 use pingcal_lrf::cloud::{Cloud, MountModel};
 use pingcal_lrf::cloud_file::{

@@ -26,7 +26,8 @@ use super::scene::{
     coded_blunder, image_file, main_image, CodedBlunder, DetectionSet, Detections, PointKind,
     Scene, SceneCamera, ScenePoint,
 };
-use super::{Options, PipelineError, Reporter, Result};
+use crate::context::{Options, PipelineError, Result};
+use crate::progress::Reporter;
 use nalgebra::{Vector2, Vector3};
 use pingcal_ba::initial::intersection::{intersect, IntersectionOptions, Ray};
 use pingcal_ba::solver;

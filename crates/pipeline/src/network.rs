@@ -13,7 +13,8 @@ use super::ids::{DetectionId, IdVec, ImageId, PointId};
 use super::scene::{
     coded_blunder, image_file, main_image, Detections, PointKind, Scene, ScenePoint,
 };
-use super::{Options, PipelineError, Reporter, Result};
+use crate::context::{Options, PipelineError, Result};
+use crate::progress::Reporter;
 use nalgebra::{Matrix3, Vector3};
 use pingcal_ba::initial::incremental::{initialise, IncrementalOptions, Initialised};
 use pingcal_ba::problem::{PointPrior, Problem};
@@ -117,34 +118,7 @@ pub fn initial_network(
     Ok(scene)
 }
 
-/// How the initial network may start (`pingcal calibrate --start`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
-pub enum Start {
-    /// Every start the project allows, in the order below, until one works.
-    #[default]
-    Auto,
-    /// Every image resected from the coded targets' approximate coordinates
-    /// (`[targets] layout`), the layout held only as loosely as `layout_sigma_mm` says.
-    Layout,
-    /// The relative orientation of the best-conditioned image pair, its rays corrected for
-    /// a radial distortion when the nominal intrinsics leave too few consistent points.
-    Relative,
-    /// One station's stereo pair at the head's nominal pose: the cameras parallel, the
-    /// right one `[stereo] baseline_mm` to the right of the left one.
-    Stereo,
-}
-
-impl Start {
-    /// For the log, the warnings and results.json.
-    pub fn describe(self) -> &'static str {
-        match self {
-            Start::Auto => "the first start that works",
-            Start::Layout => "resection from the layout",
-            Start::Relative => "relative orientation",
-            Start::Stereo => "the stereo head's nominal pose",
-        }
-    }
-}
+pub use crate::context::Start;
 
 /// The starts to try for `asked`, in order: in `auto`, the layout's when the project names
 /// one, the relative orientation, then the stereo head's when there is one.

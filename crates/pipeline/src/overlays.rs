@@ -21,7 +21,8 @@
 
 use super::ids::{ImageId, SphereId};
 use super::scene::{self, Scene};
-use super::{Reporter, Stages};
+use crate::progress::Reporter;
+use crate::stages::Stages;
 use pingcal_geometry::Sim3;
 use pingcal_report::overlay::{render_png, GreyImage, OverlayOptions, OverlayPoint, PointKind};
 use pingcal_report::Overlay;

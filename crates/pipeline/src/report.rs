@@ -6,7 +6,8 @@ use super::ids::{ImageId, SphereId};
 use super::lrf::MIN_REPORTED_CLUSTER;
 use super::results::Results;
 use super::scene::{image_file, main_image, PointKind, SceneCamera};
-use super::{Reporter, Stages};
+use crate::progress::Reporter;
+use crate::stages::Stages;
 use pingcal_report as rp;
 
 /// Most cloud points drawn in the report (an even subsample).

@@ -510,7 +510,7 @@ pub fn swap_in(dir: &Path, files: &[SetFile]) -> Result<bool, String> {
 /// fails before or while writing leaves the outputs of an earlier run as they were. `lock`:
 /// the folder's, taken before the run began (a second run into it is refused before any
 /// work).
-pub fn write_outcome(lock: &FolderLock, outcome: &crate::Outcome) -> Result<(), String> {
+pub fn write_outcome(lock: &FolderLock, outcome: &crate::outcome::Outcome) -> Result<(), String> {
     let json = serde_json::to_string_pretty(&outcome.results).map_err(|e| e.to_string())? + "\n";
     let html = pingcal_report::render_html(&outcome.report);
     let mut set: Vec<SetFile> = outcome

@@ -26,7 +26,7 @@ use super::joint::JointOutcome;
 use super::lrf::LrfData;
 use super::scene::{image_file, PointKind, Scene};
 use super::verdict::Verdict;
-use super::Stages;
+use crate::stages::Stages;
 use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
 use pingcal_ba::camera::forms::{form, opencv_of_photogrammetric, Ecosystem, Source};
 use pingcal_ba::camera::refit::{grid_pixels, GridRays};

@@ -31,7 +31,7 @@
 
 use super::bundle::Adjusted;
 use super::joint::JointOutcome;
-use super::Stages;
+use crate::stages::Stages;
 use nalgebra::{DMatrix, Matrix3, Vector3};
 use pingcal_ba::camera::ModelKind;
 use pingcal_ba::solver::IntrinsicsPrecision;
