@@ -102,18 +102,18 @@ pub fn beam_range_residual(
     centre: &Vector3<f64>,
     radius: f64,
 ) -> BeamResidual {
-    let th = mount.to_params();
+    let [ox, oy, oz, tilt_x, tilt_z, servo_scale, range_offset, range_scale] = mount.to_params();
     let servo_deg = reading.servo_deg_through(mount);
     let dbeta_dk = (servo_deg - mount.servo_zero_deg).to_radians();
     // ∂β/∂τ: the rate (degrees per second) through β's scale
-    let dbeta_dtau = (reading.servo_rate_deg_s * (1.0 + th[5])).to_radians();
+    let dbeta_dtau = (reading.servo_rate_deg_s * (1.0 + servo_scale)).to_radians();
     let beta = mount.beta(servo_deg);
     let (rb, rb_dot) = (servo_rotation(beta), servo_rotation_dot(beta));
-    let (rx, rx_dot) = rot_x(th[3]);
-    let (rz, rz_dot) = rot_z(th[4]);
+    let (rx, rx_dot) = rot_x(tilt_x);
+    let (rz, rz_dot) = rot_z(tilt_z);
     let (sa, ca) = reading.alpha_rad.sin_cos();
     let l = Vector3::new(ca, sa, 0.0);
-    let off = Vector3::new(th[0], th[1], th[2]);
+    let off = Vector3::new(ox, oy, oz);
     let d = rb * (rx * (rz * l));
     let o = rb * off;
     let q = centre - o;
@@ -131,8 +131,8 @@ pub fn beam_range_residual(
     } else {
         (d + perp / root, q - q * (t / root))
     };
-    let gain = 1.0 + th[7];
-    let e = reading.range_mm - (r_pred * gain + th[6]);
+    let gain = 1.0 + range_scale;
+    let e = reading.range_mm - (r_pred * gain + range_offset);
     let d_centre = (-gain * g_q).into();
     let along = |dd: Vector3<f64>, doo: Vector3<f64>| -gain * (g_d.dot(&dd) - g_q.dot(&doo));
     let z = Vector3::zeros();

@@ -63,7 +63,7 @@
 use crate::beam::{rot_x, rot_z, servo_rotation_dot};
 use crate::cloud::{BeamReading, Cloud};
 use crate::error::{LrfError, Result};
-use crate::sensor::{servo_rotation, MountModel, RangeNoise, MOUNT_PARAM_NAMES};
+use crate::sensor::{servo_rotation, MountModel, MountParam, RangeNoise, MOUNT_PARAM_NAMES};
 use nalgebra::{DMatrix, DVector, Vector3};
 use rayon::prelude::*;
 
@@ -129,19 +129,19 @@ pub struct BeamPoint {
 
 /// The point of `reading` through `mount` with its derivatives (see the module doc).
 pub fn beam_point(reading: &BeamReading, mount: &MountModel) -> BeamPoint {
-    let th = mount.to_params();
+    let [ox, oy, oz, tilt_x, tilt_z, servo_scale, range_offset, range_scale] = mount.to_params();
     let servo_deg = reading.servo_deg_through(mount);
     let dbeta_dk = (servo_deg - mount.servo_zero_deg).to_radians();
-    let dbeta_dtau = (reading.servo_rate_deg_s * (1.0 + th[5])).to_radians();
+    let dbeta_dtau = (reading.servo_rate_deg_s * (1.0 + servo_scale)).to_radians();
     let beta = mount.beta(servo_deg);
     let (rb, rb_dot) = (servo_rotation(beta), servo_rotation_dot(beta));
-    let (rx, rx_dot) = rot_x(th[3]);
-    let (rz, rz_dot) = rot_z(th[4]);
+    let (rx, rx_dot) = rot_x(tilt_x);
+    let (rz, rz_dot) = rot_z(tilt_z);
     let (sa, ca) = reading.alpha_rad.sin_cos();
     let l = V3::new(ca, sa, 0.0);
-    let gain = 1.0 + th[7];
-    let rho = (reading.range_mm - th[6]) / gain;
-    let off = V3::new(th[0], th[1], th[2]);
+    let gain = 1.0 + range_scale;
+    let rho = (reading.range_mm - range_offset) / gain;
+    let off = V3::new(ox, oy, oz);
     let t = rx * (rz * l);
     let dir = rb * t;
     let origin = rb * off;
@@ -652,11 +652,7 @@ pub struct RoomMount {
 
 /// The unit of parameter `k` in reports (degrees for the tilts).
 fn to_unit(k: usize, v: f64) -> f64 {
-    if k == 3 || k == 4 {
-        v.to_degrees()
-    } else {
-        v
-    }
+    MountParam::at(k).in_report_unit(v)
 }
 
 /// The planes of an adjustment: each one's frame (fixed while it runs) and unknowns.
@@ -879,11 +875,7 @@ fn adjust(
 fn not_determined(k: usize, q: &DMatrix<f64>, free: &[bool; 8]) -> Option<(f64, String)> {
     let sd = q[(k, k)].max(0.0).sqrt();
     let share = sd / WEAK_PRIOR_SIGMA[k];
-    let u = match k {
-        3 | 4 => "°",
-        0..=2 | 6 => " mm",
-        _ => "",
-    };
+    let u = MountParam::at(k).unit();
     if !(share <= MAX_PRIOR_SHARE) {
         return Some((
             1e6 + share,
@@ -996,9 +988,10 @@ fn mount_from_room_at(
         ));
     }
     let mut free = opts.estimate;
-    free[1] = false;
+    let origin = MountParam::OffsetY.index();
+    free[origin] = false;
     let mut held: [Option<String>; 8] = Default::default();
-    held[1] = Some("it moves the whole cloud along the servo axis, which the planes take up: the LRF frame's origin along it is defined, not estimated".into());
+    held[origin] = Some("it moves the whole cloud along the servo axis, which the planes take up: the LRF frame's origin along it is defined, not estimated".into());
     for k in 0..8 {
         if held[k].is_none() && !free[k] {
             held[k] = Some("not asked for: held at its start".into());

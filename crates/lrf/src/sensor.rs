@@ -72,6 +72,75 @@ fn is_zero(v: &f64) -> bool {
 /// a metre off its servo's axis is no mount.
 pub const MAX_MOUNT_OFFSET_MM: f64 = 1000.0;
 
+/// One parameter of the mount's vector ([`MountModel::to_params`]), in its order: what
+/// indexes the vector, its covariance rows and the free / held flags, where a bare number
+/// would not say which parameter it is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MountParam {
+    /// The scanner's centre off the servo axis along the turning frame's X (mm).
+    OffsetX,
+    /// Along the servo axis (mm): the LRF frame's origin, defined, never estimated.
+    OffsetY,
+    /// Along the turning frame's Z (mm).
+    OffsetZ,
+    /// The scan plane's tilt about X (radians in the vector, degrees in reports).
+    TiltX,
+    /// The scan plane's tilt about Z (radians in the vector, degrees in reports).
+    TiltZ,
+    /// The servo angle's scale error (1).
+    ServoScale,
+    /// The range offset (mm).
+    RangeOffset,
+    /// The range scale error (1).
+    RangeScale,
+}
+
+impl MountParam {
+    /// Every parameter, in the vector's order.
+    pub const ALL: [MountParam; 8] = [
+        MountParam::OffsetX,
+        MountParam::OffsetY,
+        MountParam::OffsetZ,
+        MountParam::TiltX,
+        MountParam::TiltZ,
+        MountParam::ServoScale,
+        MountParam::RangeOffset,
+        MountParam::RangeScale,
+    ];
+
+    /// Its index in the vector.
+    pub fn index(self) -> usize {
+        self as usize
+    }
+
+    /// The parameter at index `k` of the vector (k < 8).
+    pub fn at(k: usize) -> Self {
+        Self::ALL[k]
+    }
+
+    /// Its name, as `[lrf] self_calibrate` and results.json spell it.
+    pub fn name(self) -> &'static str {
+        MOUNT_PARAM_NAMES[self.index()]
+    }
+
+    /// A value of the vector in the unit reports give it (degrees for the tilts).
+    pub fn in_report_unit(self, v: f64) -> f64 {
+        match self {
+            MountParam::TiltX | MountParam::TiltZ => v.to_degrees(),
+            _ => v,
+        }
+    }
+
+    /// The report unit's suffix: " mm", "°" or nothing for a scale.
+    pub fn unit(self) -> &'static str {
+        match self {
+            MountParam::TiltX | MountParam::TiltZ => "°",
+            MountParam::ServoScale | MountParam::RangeScale => "",
+            _ => " mm",
+        }
+    }
+}
+
 /// The names of [`MountModel::to_params`], as `[lrf] self_calibrate` spells them.
 pub const MOUNT_PARAM_NAMES: [&str; 8] = [
     "offset_x",

@@ -77,7 +77,7 @@ use pingcal_lrf::beam::{beam_range_residual, BeamOnBall};
 use pingcal_lrf::cloud::BeamReading;
 use pingcal_lrf::registration::{check_table, CheckTable, PointObs};
 use pingcal_lrf::room::{self, BeamOnPlane, Gate, PlaneFrame, RoomOptions};
-use pingcal_lrf::sensor::{MountModel, RangeNoise, MOUNT_PARAM_NAMES};
+use pingcal_lrf::sensor::{MountModel, MountParam, RangeNoise, MOUNT_PARAM_NAMES};
 use pingcal_lrf::sphere_fit::FitOptions;
 use pingcal_project::Project;
 
@@ -984,8 +984,9 @@ fn free_set(input: &JointInput) -> ([bool; 8], [Option<String>; 8]) {
     let asked = asked(input.project);
     let mut held: [Option<String>; 8] = Default::default();
     let mut free = asked;
-    free[1] = false;
-    held[1] = Some("it is the LRF frame's origin along the servo axis (the extrinsic's ty absorbs it): defined, not estimated".into());
+    let origin = MountParam::OffsetY.index();
+    free[origin] = false;
+    held[origin] = Some("it is the LRF frame's origin along the servo axis (the extrinsic's ty absorbs it): defined, not estimated".into());
     for k in 0..8 {
         if held[k].is_some() {
             continue;
@@ -1269,19 +1270,11 @@ impl JointOutcome {
 
 /// A mount parameter in its reporting unit (degrees for the tilts).
 fn to_unit(k: usize, v: f64) -> f64 {
-    if k == 3 || k == 4 {
-        v.to_degrees()
-    } else {
-        v
-    }
+    MountParam::at(k).in_report_unit(v)
 }
 
 fn unit(k: usize) -> &'static str {
-    match k {
-        0..=2 | 6 => " mm",
-        3 | 4 => "°",
-        _ => "",
-    }
+    MountParam::at(k).unit()
 }
 
 /// Why parameter `k` cannot be estimated, judged on the cofactors `cov` of the extrinsic
@@ -1506,6 +1499,19 @@ mod tests {
     use super::*;
     use pingcal_geometry::consensus::rng;
     use pingcal_lrf::simulate::{room_corner_scene, Footprint, SimulatedLrf};
+
+    /// The project's spelling of a mount parameter (`[lrf] self_calibrate`) and the LRF's
+    /// enum index the same entry of the mount's vector.
+    #[test]
+    fn the_projects_mount_parameters_are_the_vectors_entries() {
+        use pingcal_project::MountParameter;
+        assert_eq!(MountParameter::ALL.len(), MountParam::ALL.len());
+        for (k, p) in MountParameter::ALL.into_iter().enumerate() {
+            assert_eq!(p.index(), k);
+            assert_eq!(MountParam::at(k).index(), k);
+            assert_eq!(MountParam::at(p.index()).name(), p.as_str());
+        }
+    }
 
     /// A check ball's sphere, fitted again to its beams, lands on the ball on noiseless
     /// scans whose balls' edges blend with the background (mixed pixels over the beam's
