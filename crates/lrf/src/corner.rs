@@ -425,7 +425,7 @@ pub fn dlt_resection(world: &[Vector3<f64>], image: &[Vector2<f64>]) -> Result<S
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::simulate::{Scene, SimulatedLrf};
+    use crate::simulate::{LrfScene, SimulatedLrf};
     use pingcal_geometry::from_opk;
 
     #[test]
@@ -451,7 +451,7 @@ mod tests {
                 (n, n.dot(&v))
             })
             .collect();
-        let scene = Scene {
+        let scene = LrfScene {
             planes,
             balls: vec![],
             radius: 19.0,

@@ -1149,7 +1149,7 @@ fn summarise(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::simulate::{Scene, SimulatedLrf};
+    use crate::simulate::{LrfScene, SimulatedLrf};
     use pingcal_geometry::consensus::rng;
     use rand::Rng;
 
@@ -1401,7 +1401,7 @@ mod tests {
             range_scale: 0.0,
             servo_time_offset_s: 0.0,
         };
-        let scene = Scene {
+        let scene = LrfScene {
             planes: vec![
                 (V3::new(1.0, 0.0, 0.0), -1450.0),
                 (V3::new(1.0, 0.0, 0.0), 2100.0),
@@ -1409,7 +1409,7 @@ mod tests {
                 (V3::new(0.0, 0.0, 1.0), -900.0),
                 (V3::new(0.0, 0.0, 1.0), 1600.0),
             ],
-            ..Scene::default()
+            ..LrfScene::default()
         };
         let mut lrf = SimulatedLrf::default();
         lrf.sensor.mount = truth;

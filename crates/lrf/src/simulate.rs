@@ -68,7 +68,7 @@ impl SimulatedLrf {
 
 /// A scene: planes `n·x = d` (n unit), balls of one radius and clutter, in the LRF frame, mm.
 #[derive(Debug, Clone, Default)]
-pub struct Scene {
+pub struct LrfScene {
     /// Planes as (unit normal, offset).
     pub planes: Vec<(Vector3<f64>, f64)>,
     /// Ball centres.
@@ -192,7 +192,7 @@ fn sphere_hit(
     (t, h2.sqrt(), b)
 }
 
-impl Scene {
+impl LrfScene {
     /// Nearest hit along a ray ignoring ball `skip`; `None` when nothing is hit.
     pub fn cast(&self, o: &Vector3<f64>, d: &Vector3<f64>, skip: Option<usize>) -> Option<f64> {
         let mut best = f64::INFINITY;
@@ -284,7 +284,7 @@ impl Scene {
             .collect()
     }
 
-    /// [`Scene::half_sweep`] as a cloud (URG-04LX beam geometry, eq. 2's mount).
+    /// [`LrfScene::half_sweep`] as a cloud (URG-04LX beam geometry, eq. 2's mount).
     pub fn half_sweep_cloud<R: Rng>(
         &self,
         n_scans: usize,
@@ -330,7 +330,7 @@ impl Scene {
 /// 40 mm and 150 mm from every other ball, and where a half sweep (servo −90…90°) sees it.
 /// Wall 1 is the plane x = −450, wall 2 the plane y = 1200 (in front of the sensor: +Y is
 /// the servo shaft, the beam α = 90°), the floor z = −600.
-pub fn room_corner_scene<R: Rng>(n_balls: usize, rng: &mut R) -> Scene {
+pub fn room_corner_scene<R: Rng>(n_balls: usize, rng: &mut R) -> LrfScene {
     let (x0, y0, z0) = (450.0, 1200.0, 600.0);
     let planes = vec![
         (Vector3::new(1.0, 0.0, 0.0), -x0),
@@ -367,7 +367,7 @@ pub fn room_corner_scene<R: Rng>(n_balls: usize, rng: &mut R) -> Scene {
             balls.push(c);
         }
     }
-    Scene {
+    LrfScene {
         planes,
         balls,
         radius,
@@ -379,7 +379,7 @@ pub fn room_corner_scene<R: Rng>(n_balls: usize, rng: &mut R) -> Scene {
 /// (where the half sweep sees it and no beam to a ball passes): poles of the balls' radius
 /// and larger, boxes, a chair (seat, four legs, back), a standing person (an ellipsoid body
 /// and a head of radius 100 mm) and an egg-shaped bump of a ball's size. None is a ball.
-pub fn cluttered_room_scene<R: Rng>(n_balls: usize, rng: &mut R) -> Scene {
+pub fn cluttered_room_scene<R: Rng>(n_balls: usize, rng: &mut R) -> LrfScene {
     let mut scene = room_corner_scene(n_balls, rng);
     let floor = -600.0;
     let v = Vector3::new;
@@ -451,7 +451,7 @@ mod tests {
 
     #[test]
     fn noiseless_scan_hits_the_surfaces() {
-        let scene = Scene {
+        let scene = LrfScene {
             planes: vec![(Vector3::new(0.0, 1.0, 0.0), 2000.0)],
             balls: vec![Vector3::new(0.0, 1000.0, 0.0)],
             radius: 19.0,
@@ -472,7 +472,7 @@ mod tests {
 
     #[test]
     fn mixed_pixel_lies_between_ball_and_wall() {
-        let scene = Scene {
+        let scene = LrfScene {
             planes: vec![(Vector3::new(0.0, 1.0, 0.0), 1200.0)],
             balls: vec![Vector3::new(0.0, 1000.0, 0.0)],
             radius: 19.0,

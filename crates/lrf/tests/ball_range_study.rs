@@ -11,7 +11,7 @@
 
 use nalgebra::Vector3;
 use pingcal_lrf::ball_finder::{find_balls, FinderOptions};
-use pingcal_lrf::simulate::{Scene, SimulatedLrf};
+use pingcal_lrf::simulate::{LrfScene, SimulatedLrf};
 use rand::Rng;
 
 use pingcal_geometry::stats::chi2_quantile;
@@ -28,7 +28,7 @@ fn ball_centre_bias_and_sigma_against_distance() {
             let el: f64 = rng.random_range(-30f64..30.0).to_radians();
             let u = Vector3::new(az.cos() * el.cos(), az.sin() * el.cos(), el.sin());
             let c = u * d;
-            let scene = Scene {
+            let scene = LrfScene {
                 planes: vec![(u, d + 150.0 + 19.0)],
                 balls: vec![c],
                 radius: 19.0,

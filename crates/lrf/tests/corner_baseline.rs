@@ -6,7 +6,7 @@ use pingcal_geometry::{from_opk, Sim3};
 use pingcal_lrf::corner_baseline::{fan_baseline, BaselineInput};
 use pingcal_lrf::nalgebra::{Matrix3, Vector2, Vector3};
 use pingcal_lrf::scan::{ScanHeader, ScanLine};
-use pingcal_lrf::simulate::{Scene, SimulatedLrf};
+use pingcal_lrf::simulate::{LrfScene, SimulatedLrf};
 use pingcal_lrf::MountModel;
 use rand::Rng;
 use rand_distr::{Distribution, Normal};
@@ -117,7 +117,7 @@ fn field(seed: u64, with_floor: bool) -> Field {
             )
         })
         .collect();
-    let scene = Scene {
+    let scene = LrfScene {
         planes,
         balls: vec![],
         radius: 19.0,

@@ -12,7 +12,7 @@
 
 use nalgebra::Vector3;
 use pingcal_geometry::consensus::SeededRng;
-use pingcal_lrf::simulate::{Scene, SimulatedLrf};
+use pingcal_lrf::simulate::{LrfScene, SimulatedLrf};
 use pingcal_lrf::sphere_fit::{self, FitMethod, FitOptions, Ray};
 use rand::Rng;
 
@@ -25,7 +25,7 @@ fn ball_rays(dist: f64, noise: &SimulatedLrf, rng: &mut SeededRng) -> (Vector3<f
     let (a0, b0) = (20f64.to_radians(), 10f64.to_radians());
     let dir = Vector3::new(a0.cos() * b0.cos(), a0.sin(), a0.cos() * b0.sin());
     let c = dir * dist;
-    let scene = Scene {
+    let scene = LrfScene {
         planes: vec![(dir, dist + 150.0)],
         balls: vec![c],
         radius: R,

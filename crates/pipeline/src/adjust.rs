@@ -348,7 +348,7 @@ impl SceneProblem {
 pub(crate) mod tests {
     use super::*;
     use crate::ids::DetIdx;
-    use crate::scene::{ImageDetections, ScenePoint};
+    use crate::scene::{ImageMeasurements, ScenePoint};
     use nalgebra::Vector3;
     use pingcal_project::ProjectFile;
     use pingcal_targets::ellipse::Ellipse;
@@ -433,7 +433,7 @@ accuracy_far_fraction = 0.03
     /// c only (one ray in an oriented image).
     pub(crate) fn fixture() -> (Project, Detections, Scene) {
         let project = project_of(PROJECT);
-        let det = || ImageDetections {
+        let det = || ImageMeasurements {
             width: 100,
             height: 80,
             targets: vec![target(30.0, 1), target(50.0, 2), target(70.0, 3)].into(),
@@ -673,7 +673,7 @@ accuracy_far_fraction = 0.03
                 });
             }
             let n = targets.len();
-            dets.push(ImageDetections {
+            dets.push(ImageMeasurements {
                 width: 1280,
                 height: 720,
                 targets: targets.into(),

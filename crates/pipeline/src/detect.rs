@@ -7,7 +7,7 @@
 //! ([`pingcal_targets::ball::fit_ball_silhouette`]), so that no image needs to be kept in
 //! memory for the eccentricity correction of the balls.
 
-use super::scene::{silhouette_is_ellipse, BallFit, Detections, ImageDetections};
+use super::scene::{silhouette_is_ellipse, BallFit, Detections, ImageMeasurements};
 use crate::context::{Options, PipelineError, Result};
 use crate::progress::Reporter;
 use pingcal_project::Project;
@@ -36,7 +36,7 @@ pub fn detect_all(project: &Project, opts: &Options, rep: &Reporter) -> Result<D
     let f = &project.file;
     let detector = detector(project, opts)?;
     let pb = rep.task("detecting targets", project.image_paths.len() as u64);
-    let out: Vec<Result<(ImageDetections, Vec<Refusal>)>> = project
+    let out: Vec<Result<(ImageMeasurements, Vec<Refusal>)>> = project
         .image_paths
         .par_iter()
         .zip(&f.images)
@@ -70,7 +70,7 @@ pub fn detect_all(project: &Project, opts: &Options, rep: &Reporter) -> Result<D
                 })
                 .collect();
             pb.advance(1);
-            let dets = ImageDetections {
+            let dets = ImageMeasurements {
                 width: d.width,
                 height: d.height,
                 targets: d.targets.into(),
@@ -80,7 +80,7 @@ pub fn detect_all(project: &Project, opts: &Options, rep: &Reporter) -> Result<D
         })
         .collect();
     pb.finish();
-    let (dets, refused): (Vec<ImageDetections>, Vec<Vec<Refusal>>) = out
+    let (dets, refused): (Vec<ImageMeasurements>, Vec<Vec<Refusal>>) = out
         .into_iter()
         .collect::<Result<Vec<_>>>()?
         .into_iter()

@@ -635,7 +635,7 @@ pub fn coincident_coded(project: &Project, dets: &Detections, scene: &mut Scene)
 mod tests {
     use super::*;
     use crate::adjust::tests::{fixture, target};
-    use crate::scene::ImageDetections;
+    use crate::scene::ImageMeasurements;
     use pingcal_targets::ellipse::Ellipse;
 
     /// Two coded points that the images put within a code ring of each other (3 dot radii: 9
@@ -671,7 +671,7 @@ mod tests {
             t
         };
         let dets: Detections = (0..3)
-            .map(|i| ImageDetections {
+            .map(|i| ImageMeasurements {
                 width: 100,
                 height: 80,
                 targets: (0..3).map(|k| at(i, k)).collect::<Vec<_>>().into(),

@@ -276,7 +276,7 @@ fn matched_ball(st: &Stages, k: SphereId) -> Option<String> {
 }
 
 /// The LRF cloud (subsampled to at most [`MAX_CLOUD_POINTS`]) and its spheres.
-fn cloud(st: &Stages) -> rp::Cloud {
+fn cloud(st: &Stages) -> rp::CloudView {
     let lrf = st.lrf_out;
     let n = lrf.cloud.points.len();
     let step = n.div_ceil(MAX_CLOUD_POINTS).max(1);
@@ -305,7 +305,7 @@ fn cloud(st: &Stages) -> rp::Cloud {
             }
         })
         .collect();
-    rp::Cloud { points, spheres }
+    rp::CloudView { points, spheres }
 }
 
 /// The joint adjustment's mount and range parameters.
@@ -564,15 +564,15 @@ fn warnings(st: &Stages, results: &Results) -> Vec<String> {
 }
 
 /// The report's box of verdict `v`: its status, reasons, notes and checks.
-pub fn verdict(v: &crate::verdict::Verdict) -> rp::Verdict {
-    rp::Verdict {
+pub fn verdict(v: &crate::verdict::Verdict) -> rp::VerdictView {
+    rp::VerdictView {
         status: v.status.as_str().into(),
         reasons: v.reasons.clone(),
         notes: v.notes.clone(),
         checks: v
             .checks
             .iter()
-            .map(|c| rp::VerdictCheck {
+            .map(|c| rp::VerdictCheckView {
                 name: c.name.clone(),
                 value: c.value,
                 bound: c.bound,

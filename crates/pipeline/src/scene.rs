@@ -40,7 +40,7 @@ pub fn target_sigma(t: &Target) -> f64 {
 
 /// The measurements of one image.
 #[derive(Clone, Debug)]
-pub struct ImageDetections {
+pub struct ImageMeasurements {
     /// Width (px).
     pub width: usize,
     /// Height (px).
@@ -77,7 +77,7 @@ pub fn silhouette_is_ellipse(kind: ModelKind) -> bool {
 }
 
 /// The detections of every project image.
-pub type Detections = IdVec<ImageId, ImageDetections>;
+pub type Detections = IdVec<ImageId, ImageMeasurements>;
 
 impl Detections {
     /// The target of detection `d`.

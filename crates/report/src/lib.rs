@@ -73,7 +73,7 @@ pub struct ReportData {
     pub generator: String,
     /// The verdict on the calibration, shown first (None: not judged).
     #[serde(default)]
-    pub verdict: Option<Verdict>,
+    pub verdict: Option<VerdictView>,
     /// Key → value lines shown at the top (σ0, RMS, mean check error …), in order.
     pub summary: Vec<(String, String)>,
     /// Pipeline log lines, in order.
@@ -83,7 +83,7 @@ pub struct ReportData {
     /// Camera stations and object points of the photogrammetric network.
     pub network: Network,
     /// The (subsampled) LRF cloud and the spheres fitted in it.
-    pub cloud: Cloud,
+    pub cloud: CloudView,
     /// Extrinsic calibration methods ("spheres", "corner (Fan et al. 2019)" …) and their checks.
     pub methods: Vec<MethodResult>,
     /// Interior orientation per camera.
@@ -169,7 +169,7 @@ pub struct RigOrientation {
 
 /// Whether to trust the calibration: `ok`, `doubtful` or `failed`, why, and the tests.
 #[derive(Debug, Clone, Default, Serialize, Deserialize)]
-pub struct Verdict {
+pub struct VerdictView {
     /// `ok`, `doubtful` or `failed`.
     pub status: String,
     /// Why it is not `ok`, one sentence each.
@@ -179,14 +179,14 @@ pub struct Verdict {
     #[serde(default)]
     pub notes: Vec<String>,
     /// The statistical tests.
-    pub checks: Vec<VerdictCheck>,
+    pub checks: Vec<VerdictCheckView>,
     /// Their level (probability of a false alarm each).
     pub alpha: f64,
 }
 
 /// One statistical test of the verdict.
 #[derive(Debug, Clone, Default, Serialize, Deserialize)]
-pub struct VerdictCheck {
+pub struct VerdictCheckView {
     /// What is tested.
     pub name: String,
     /// The statistic.
@@ -266,7 +266,7 @@ pub struct NetworkPoint {
 
 /// The LRF cloud and its spheres.
 #[derive(Debug, Clone, Default, Serialize, Deserialize)]
-pub struct Cloud {
+pub struct CloudView {
     /// Points in the LRF frame, mm, already subsampled by the caller to ≤ 50k.
     pub points: Vec<[f32; 3]>,
     /// Spheres (balls) fitted in the cloud.

@@ -5,8 +5,8 @@
 
 use crate::overlay::{render_png, GreyImage, Overlay, OverlayOptions, OverlayPoint, PointKind};
 use crate::{
-    CameraStation, CheckRow, Cloud, ImagePoint, ImageResiduals, Intrinsics, MethodResult, MountRow,
-    Network, NetworkPoint, Rejection, ReportData, Sphere,
+    CameraStation, CheckRow, CloudView, ImagePoint, ImageResiduals, Intrinsics, MethodResult,
+    MountRow, Network, NetworkPoint, Rejection, ReportData, Sphere,
 };
 
 type V3 = [f64; 3];
@@ -588,11 +588,11 @@ pub fn sample_report(cloud_points: usize) -> ReportData {
     ReportData {
         title: "pingcal calibration — simulated test field (seed 1)".into(),
         generator: format!("pingcal {}", env!("CARGO_PKG_VERSION")),
-        verdict: Some(crate::Verdict {
+        verdict: Some(crate::VerdictView {
             status: "doubtful".into(),
             reasons: vec!["1 sphere(s) found in the LRF cloud match no ball of the photogrammetric model (spurious spheres, or balls the images did not measure)".into()],
             notes: vec!["the two-step registration's σ0 1.60 exceeds 1.54 (a method whose result is not the one given)".into()],
-            checks: vec![crate::VerdictCheck {
+            checks: vec![crate::VerdictCheckView {
                 name: "registration sigma0".into(),
                 value: 1.07,
                 bound: 1.32,
@@ -607,7 +607,7 @@ pub fn sample_report(cloud_points: usize) -> ReportData {
             cameras: cams,
             points: pts,
         },
-        cloud: Cloud {
+        cloud: CloudView {
             points: cloud_pts,
             spheres,
         },

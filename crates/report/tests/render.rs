@@ -111,11 +111,11 @@ fn user_strings_are_escaped() {
     let data = ReportData {
         title: s(),
         generator: s(),
-        verdict: Some(pingcal_report::Verdict {
+        verdict: Some(pingcal_report::VerdictView {
             status: s(),
             reasons: vec![s()],
             notes: vec![s()],
-            checks: vec![pingcal_report::VerdictCheck {
+            checks: vec![pingcal_report::VerdictCheckView {
                 name: s(),
                 value: f64::NAN,
                 bound: 1.0,
@@ -153,7 +153,7 @@ fn user_strings_are_escaped() {
                 sigma: [0.1; 3],
             }],
         },
-        cloud: Cloud {
+        cloud: CloudView {
             points: vec![[1.0, 2.0, 3.0]],
             spheres: vec![Sphere {
                 label: s(),
@@ -328,7 +328,7 @@ fn non_finite_numbers_print_as_dash_and_keep_svg_valid() {
                 ..Default::default()
             }],
         },
-        cloud: Cloud {
+        cloud: CloudView {
             points: vec![[f32::NAN; 3]],
             spheres: vec![Sphere {
                 centre: [nan; 3],

@@ -706,7 +706,7 @@ impl SimConfig {
 
     /// Checks every value that could make the simulation impossible or meaningless.
     /// Geometric checks that need the built scene (a ball inside a wall, a camera behind a
-    /// wall) are repeated by [`crate::scene::Scene::build`] and [`crate::stations::build_stations`].
+    /// wall) are repeated by [`crate::scene::TestField::build`] and [`crate::stations::build_stations`].
     pub fn validate(&self) -> Result<(), ConfigError> {
         validate_room(&self.room)?;
         validate_target_codes(&self.targets)?;

@@ -50,7 +50,7 @@ pub mod stations;
 
 pub use config::{ConfigError, SimConfig};
 pub use project_files::{read_truth, write_project, ProjectSummary, Truth};
-pub use scene::Scene;
+pub use scene::TestField;
 pub use stations::{Station, StereoRig};
 
 use pingcal_geometry::Rigid3;
@@ -105,7 +105,7 @@ pub struct Simulation {
     /// The seed.
     pub seed: u64,
     /// The test field (world frame).
-    pub scene: Scene,
+    pub scene: TestField,
     /// The stereo head with its true intrinsics.
     pub rig: StereoRig,
     /// The stations, main first.
@@ -120,7 +120,7 @@ impl Simulation {
     /// Builds the scene, stations and LRF scans for `cfg` and `seed`.
     pub fn new(cfg: &SimConfig, seed: u64) -> Result<Self, SimError> {
         cfg.validate()?;
-        let scene = Scene::build(cfg, seed)?;
+        let scene = TestField::build(cfg, seed)?;
         let stations = stations::build_stations(cfg, &scene, seed)?;
         let rig = StereoRig::from_config(cfg);
         let main = stations

@@ -31,7 +31,7 @@
 
 use crate::config::LrfConfig;
 use crate::rng_for;
-use crate::scene::{Object, Scene};
+use crate::scene::{Object, TestField};
 use nalgebra::Vector3;
 use pingcal_geometry::from_opk;
 use pingcal_geometry::Rigid3;
@@ -78,7 +78,7 @@ pub fn lrf_from_world(left_from_world: &Rigid3, cfg: &LrfConfig) -> Rigid3 {
 /// Simulates the whole servo sweep; `scene_lrf` must already be in the LRF frame
 /// (`scene.transformed(&lrf_from_world(..))`). Scans are independent (one random stream
 /// each), computed in parallel, identical for the same seed.
-pub fn simulate_scans(scene_lrf: &Scene, cfg: &LrfConfig, seed: u64) -> Vec<Scan> {
+pub fn simulate_scans(scene_lrf: &TestField, cfg: &LrfConfig, seed: u64) -> Vec<Scan> {
     let nscans = scans_per_pass(cfg) * cfg.servo_passes.max(1);
     let sensor = cfg.sensor();
     let caps = culling_caps(scene_lrf, cfg);
@@ -119,7 +119,7 @@ struct Cap {
 }
 
 /// The culling cones of the scene's targets and balls (with their stems).
-fn culling_caps(scene_lrf: &Scene, cfg: &LrfConfig) -> Vec<Cap> {
+fn culling_caps(scene_lrf: &TestField, cfg: &LrfConfig) -> Vec<Cap> {
     // Bounding spheres of the objects, for angular culling.
     let mut bounds: Vec<(Object, V3, f64)> = Vec::new();
     for (i, t) in scene_lrf.targets.iter().enumerate() {
@@ -156,7 +156,7 @@ fn culling_caps(scene_lrf: &Scene, cfg: &LrfConfig) -> Vec<Cap> {
 /// Scan `k` of the sweep, from its own random stream: the servo's true and reported angle
 /// (one draw when the servo is noisy), then the beams in order.
 fn simulate_scan(
-    scene_lrf: &Scene,
+    scene_lrf: &TestField,
     cfg: &LrfConfig,
     sensor: &LrfSensor,
     caps: &[Cap],
@@ -221,7 +221,7 @@ fn simulate_scan(
 /// surfaces bright enough to return; `None` when none does. `objs` are the objects the beam
 /// may hit.
 fn footprint_range(
-    scene_lrf: &Scene,
+    scene_lrf: &TestField,
     cfg: &LrfConfig,
     pose: &ScannerPose,
     alpha: f64,

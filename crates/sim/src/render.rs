@@ -21,7 +21,7 @@
 
 use crate::config::RenderConfig;
 use crate::rng_for;
-use crate::scene::{HitKind, Object, Scene};
+use crate::scene::{HitKind, Object, TestField};
 use crate::stations::CameraUnit;
 use nalgebra::{Vector2, Vector3};
 use pingcal_ba::camera::CameraModel;
@@ -100,7 +100,7 @@ struct BBox {
 
 /// Projected bounding boxes (pixels, with a margin) of every object in the camera-frame
 /// scene `sc`; `None` for objects that cannot be seen (entirely behind the camera).
-fn object_boxes(sc: &Scene, cam: &CameraUnit) -> Vec<(Object, BBox)> {
+fn object_boxes(sc: &TestField, cam: &CameraUnit) -> Vec<(Object, BBox)> {
     let (w, h) = (cam.model.width as f64, cam.model.height as f64);
     let r_max = cam.max_ideal_radius_mm() * 1.02;
     let full = BBox {
@@ -219,7 +219,7 @@ fn object_boxes(sc: &Scene, cam: &CameraUnit) -> Vec<(Object, BBox)> {
 }
 
 /// Radiance of a camera-frame ray `d` (unit) from the origin, in the camera-frame scene.
-fn shade(sc: &Scene, d: &V3, objs: Option<&[Object]>, rc: &RenderConfig) -> f64 {
+fn shade(sc: &TestField, d: &V3, objs: Option<&[Object]>, rc: &RenderConfig) -> f64 {
     let Some(hit) = sc.cast(&V3::zeros(), d, objs) else {
         return 0.02;
     };
@@ -250,7 +250,7 @@ fn shade(sc: &Scene, d: &V3, objs: Option<&[Object]>, rc: &RenderConfig) -> f64 
 /// `rc.supersampling`² exact rays on pixels near objects. `table` (the camera's
 /// [`RayTable`]) only speeds up the single-ray pixels.
 pub fn render_radiance(
-    scene: &Scene,
+    scene: &TestField,
     cam: &CameraUnit,
     pose: &Rigid3,
     rc: &RenderConfig,
@@ -404,7 +404,7 @@ pub fn expose(
 
 /// A whole 8-bit image of `scene` by `cam` at `pose`.
 pub fn render_image(
-    scene: &Scene,
+    scene: &TestField,
     cam: &CameraUnit,
     pose: &Rigid3,
     rc: &RenderConfig,

@@ -302,7 +302,7 @@ pub struct Distance {
 pub enum HitKind {
     /// A wall or the floor, at surface coordinates (u, v).
     Surface {
-        /// Index in [`Scene::surfaces`] (wall1, wall2, floor).
+        /// Index in [`TestField::surfaces`] (wall1, wall2, floor).
         index: usize,
         /// mm along the surface's first edge `a` from its corner.
         u: f64,
@@ -311,22 +311,22 @@ pub enum HitKind {
     },
     /// Retro-reflective material of a target.
     Retro {
-        /// Index in [`Scene::targets`] (not the target number).
+        /// Index in [`TestField::targets`] (not the target number).
         target: usize,
     },
     /// The black print of a target.
     Black {
-        /// Index in [`Scene::targets`] (not the target number).
+        /// Index in [`TestField::targets`] (not the target number).
         target: usize,
     },
     /// A ball.
     Ball {
-        /// Index in [`Scene::balls`] (not the ball number).
+        /// Index in [`TestField::balls`] (not the ball number).
         ball: usize,
     },
     /// A ball's stem.
     Stem {
-        /// Index in [`Scene::balls`] of the ball it carries.
+        /// Index in [`TestField::balls`] of the ball it carries.
         ball: usize,
     },
 }
@@ -353,7 +353,7 @@ pub enum Object {
 
 /// The whole test field.
 #[derive(Debug, Clone)]
-pub struct Scene {
+pub struct TestField {
     /// wall1, wall2, floor.
     pub surfaces: Vec<Surface>,
     /// All targets.
@@ -418,7 +418,7 @@ fn ray_cylinder(o: &V3, d: &V3, foot: &V3, axis: &V3, len: f64, r: f64, t_min: f
     None
 }
 
-impl Scene {
+impl TestField {
     /// Casts a unit ray from `o` along `d` against the three surfaces and the given objects
     /// (all objects when `objects` is `None`). Targets are stickers: where a target and
     /// its own surface are within 0.5 mm of each other, the target wins.
@@ -570,7 +570,7 @@ impl Scene {
             b.id = i as u32 + 1;
         }
         let distances = choose_distances(cfg, &targets, &mut rng_for(seed, "distances", 0))?;
-        Ok(Scene {
+        Ok(TestField {
             surfaces,
             targets,
             balls,
@@ -582,7 +582,7 @@ impl Scene {
         })
     }
     /// Moves everything by a rigid transform `x' = pose(x)` (e.g. into a camera frame).
-    pub fn transformed(&self, pose: &Rigid3) -> Scene {
+    pub fn transformed(&self, pose: &Rigid3) -> TestField {
         let r = pose.rotation;
         let mut s = self.clone();
         for sf in &mut s.surfaces {
@@ -615,7 +615,7 @@ impl Scene {
     }
 }
 
-/// A place on the field: a surface (index into [`Scene::surfaces`]) and coordinates on it.
+/// A place on the field: a surface (index into [`TestField::surfaces`]) and coordinates on it.
 #[derive(Debug, Clone, Copy)]
 struct Spot {
     surface: usize,

@@ -8,7 +8,7 @@
 use crate::config::{ConfigError, SimConfig};
 pub use crate::head::{look_at_rotation, main_left_pose, CameraUnit, StereoRig};
 use crate::rng_for;
-use crate::scene::{check_inside, Scene};
+use crate::scene::{check_inside, TestField};
 use crate::SimError;
 use nalgebra::Vector3;
 use pingcal_geometry::Rigid3;
@@ -40,7 +40,11 @@ impl Station {
 
 /// All stations: the main one (`S00`) first, then the convergent ones, then the extra ones.
 /// Refuses a camera behind (or closer than `stations.min_wall_clearance_mm` to) a wall.
-pub fn build_stations(cfg: &SimConfig, scene: &Scene, seed: u64) -> Result<Vec<Station>, SimError> {
+pub fn build_stations(
+    cfg: &SimConfig,
+    scene: &TestField,
+    seed: u64,
+) -> Result<Vec<Station>, SimError> {
     let sc = &cfg.stations;
     let mut rng = rng_for(seed, "stations", 0);
     let mut out = vec![Station {

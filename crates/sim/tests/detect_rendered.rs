@@ -37,7 +37,7 @@ use nalgebra::{Vector2, Vector3};
 use pingcal_ba::camera::CameraModel;
 use pingcal_geometry::Rigid3;
 use pingcal_sim::render::{render_image, RayTable};
-use pingcal_sim::scene::{HitKind, Scene};
+use pingcal_sim::scene::{HitKind, TestField};
 use pingcal_sim::stations::{CameraUnit, Station};
 use pingcal_sim::{SimConfig, Simulation};
 use pingcal_targets::ball::{
@@ -85,7 +85,7 @@ fn circle(c: &V3, e1: &V3, e2: &V3, r: f64, n: usize) -> Vec<V3> {
 }
 
 /// Projected centre of target `i` of the camera-frame scene `sc` if it is visible in full.
-fn target_visible(sc: &Scene, cam: &CameraUnit, r_max: f64, i: usize) -> Option<Vector2<f64>> {
+fn target_visible(sc: &TestField, cam: &CameraUnit, r_max: f64, i: usize) -> Option<Vector2<f64>> {
     let t = &sc.targets[i];
     if t.normal.dot(&t.centre) >= 0.0 {
         return None;
@@ -104,7 +104,7 @@ fn target_visible(sc: &Scene, cam: &CameraUnit, r_max: f64, i: usize) -> Option<
 }
 
 /// Projected sphere centre of ball `i` if its whole silhouette is visible.
-fn ball_visible(sc: &Scene, cam: &CameraUnit, r_max: f64, i: usize) -> Option<Vector2<f64>> {
+fn ball_visible(sc: &TestField, cam: &CameraUnit, r_max: f64, i: usize) -> Option<Vector2<f64>> {
     let b = &sc.balls[i];
     let d = b.centre.norm();
     let v = b.centre / d;
@@ -127,7 +127,7 @@ fn ball_visible(sc: &Scene, cam: &CameraUnit, r_max: f64, i: usize) -> Option<Ve
 
 /// Projected radius (pixels) of target `i`'s dot: mean distance of its outline's image from
 /// the centre's image.
-fn dot_radius_px(sc: &Scene, cam: &CameraUnit, i: usize) -> f64 {
+fn dot_radius_px(sc: &TestField, cam: &CameraUnit, i: usize) -> f64 {
     let t = &sc.targets[i];
     let c = cam
         .model
@@ -525,7 +525,7 @@ fn detector_on_rendered_images_matches_truth() {
 /// Balls close to the camera and far off-axis, where the eccentricity of the silhouette is
 /// large: a flat textured wall 1.2 m in front of the camera, nine 38 mm balls on stems at
 /// 450 mm along the rays through a 3 × 3 grid of pixels reaching the image corners.
-fn close_ball_scene(cam: &CameraUnit) -> (Scene, Vec<Vector2<f64>>) {
+fn close_ball_scene(cam: &CameraUnit) -> (TestField, Vec<Vector2<f64>>) {
     use pingcal_sim::scene::{Ball, Surface};
     let wall_y = 1200.0;
     let wall = Surface::new(
@@ -565,7 +565,7 @@ fn close_ball_scene(cam: &CameraUnit) -> (Scene, Vec<Vector2<f64>>) {
             }
         })
         .collect();
-    let scene = Scene {
+    let scene = TestField {
         surfaces: vec![wall],
         targets: vec![],
         balls,

@@ -14,10 +14,10 @@
 use nalgebra::Vector3;
 use pingcal_sim::config::{LrfConfig, SimConfig};
 use pingcal_sim::lrf::simulate_scans;
-use pingcal_sim::scene::{Scene, Surface};
+use pingcal_sim::scene::{Surface, TestField};
 
 /// A single flat wall 14 m × 14 m, 700 mm in front of the LRF, of the given albedo.
-fn flat_wall(albedo: f64) -> Scene {
+fn flat_wall(albedo: f64) -> TestField {
     let wall = Surface::new(
         "wall",
         Vector3::new(-7000.0, 700.0, -7000.0),
@@ -31,7 +31,7 @@ fn flat_wall(albedo: f64) -> Scene {
         0.0,
         0,
     );
-    Scene {
+    TestField {
         surfaces: vec![wall],
         targets: vec![],
         balls: vec![],
@@ -151,7 +151,7 @@ fn a_continuous_sweep_reads_back_with_each_beam_at_its_own_servo_angle() {
         0.0,
         0,
     );
-    let scene = Scene {
+    let scene = TestField {
         surfaces: vec![wall],
         ..flat_wall(0.5)
     };

@@ -27,14 +27,18 @@ use pingcal_ba::camera::CameraModel;
 use pingcal_geometry::Rigid3;
 use pingcal_sim::config::RenderConfig;
 use pingcal_sim::render::render_radiance;
-use pingcal_sim::scene::{Scene, Surface, Target};
+use pingcal_sim::scene::{Surface, Target, TestField};
 use pingcal_sim::{SimConfig, StereoRig};
 
 type V3 = Vector3<f64>;
 
 /// A flat wall 1 m in front of the camera (camera frame = world), with plain targets of
 /// dot radius `r_mm` placed where the rays through `pixels` hit it.
-fn wall_scene(cam: &pingcal_sim::stations::CameraUnit, pixels: &[(f64, f64)], r_mm: f64) -> Scene {
+fn wall_scene(
+    cam: &pingcal_sim::stations::CameraUnit,
+    pixels: &[(f64, f64)],
+    r_mm: f64,
+) -> TestField {
     let wall = Surface::new(
         "wall",
         V3::new(-4000.0, 1000.0, -4000.0),
@@ -76,7 +80,7 @@ fn wall_scene(cam: &pingcal_sim::stations::CameraUnit, pixels: &[(f64, f64)], r_
             }
         })
         .collect();
-    Scene {
+    TestField {
         surfaces: vec![wall],
         targets,
         balls: vec![],
@@ -114,7 +118,7 @@ fn expected_centroid(cam: &pingcal_sim::stations::CameraUnit, t: &Target) -> Vec
 /// Reference measurement: intensity-weighted centroid over the pixels within 1.5 dot
 /// radii (in pixels) of `guess`; the black print around the dot is exactly 0 here.
 fn measured_centroid(
-    scene: &Scene,
+    scene: &TestField,
     cam: &pingcal_sim::stations::CameraUnit,
     rc: &RenderConfig,
     guess: Vector2<f64>,

@@ -3,14 +3,14 @@
 //! planes, 16 balls of 38 mm on stems off the planes, 5 distances between coded targets.
 
 use pingcal_sim::coded_target::{code_table, min_rotation};
-use pingcal_sim::scene::Scene;
+use pingcal_sim::scene::TestField;
 use pingcal_sim::SimConfig;
 
 #[test]
 fn the_field_matches_the_paper() {
     let cfg = SimConfig::default();
     for seed in [1u64, 2, 3] {
-        let s = Scene::build(&cfg, seed).unwrap();
+        let s = TestField::build(&cfg, seed).unwrap();
         // Planes: pairwise angles within max_tilt·√3·2 of 90°, and not all exactly 90°.
         let mut max_dev: f64 = 0.0;
         for i in 0..3 {

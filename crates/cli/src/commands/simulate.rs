@@ -46,7 +46,7 @@ pub struct Args {
     /// plain room, the default) or `cluttered` (a shaded sphere with a highlight on a stand,
     /// bricks, tiles, bright round plates, every fourth frame across the image's border).
     #[arg(long, value_enum)]
-    scene: Option<Scene>,
+    scene: Option<SphereScene>,
     /// The stereo head's lenses: `photogrammetric` (the default MYNT-like ~90° lens),
     /// `opencv` (a 120° wide-angle lens, rational model), `kannala-brandt` or
     /// `double-sphere` (190° fisheyes); replaces `[camera]` of `--config` with that lens's
@@ -58,7 +58,7 @@ pub struct Args {
 
 /// The scene of `--kind sphere-calib`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-pub enum Scene {
+pub enum SphereScene {
     /// A uniformly bright floating sphere in a plain room.
     Clean,
     /// What real photographs show (`pingcal_sim::sphere_clutter`).
@@ -100,7 +100,9 @@ pub fn run(args: Args) -> CmdResult {
             );
         }
         let base = match args.scene {
-            Some(Scene::Cluttered) => pingcal_sim::sphere_calib::SphereCalibConfig::cluttered(),
+            Some(SphereScene::Cluttered) => {
+                pingcal_sim::sphere_calib::SphereCalibConfig::cluttered()
+            }
             _ => pingcal_sim::sphere_calib::SphereCalibConfig::default(),
         };
         let mut cfg = pingcal_sim::sphere_calib::SphereCalibConfig {

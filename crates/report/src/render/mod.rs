@@ -177,7 +177,7 @@ fn toc(o: &mut String, d: &ReportData, sections: &[(&str, &str)]) {
 }
 
 /// The verdict box: status, reasons, and the tests with their bounds.
-fn verdict(o: &mut String, v: &crate::Verdict) {
+fn verdict(o: &mut String, v: &crate::VerdictView) {
     let _ = writeln!(
         o,
         r#"<div class="verdict {s}" id="verdict"><p><b>Verdict: {s}</b></p>"#,
