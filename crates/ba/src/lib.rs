@@ -99,6 +99,7 @@ pub mod datum;
 pub mod diagnostics;
 pub mod initial;
 pub mod io;
+pub mod keys;
 pub mod loss;
 pub mod problem;
 pub mod report;
@@ -115,6 +116,7 @@ pub use pingcal_geometry as geometry;
 pub use pingcal_geometry::{Rigid3, Sim3};
 
 pub use camera::{CameraModel, PhotogrammetricCamera};
+pub use keys::{ImageKey, ParameterKey, PointKey};
 pub use problem::{Camera, Distance, Image, Observation, Point, PointPrior, Problem};
 pub use residual::{
     Block, Jacobians, ParameterBlock, ParameterPrior, ParameterValue, PosePrior, Residual,

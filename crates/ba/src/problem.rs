@@ -5,6 +5,7 @@
 //! [`crate::solver::solve`]; what is held fixed is said here too.
 
 use crate::camera::CameraModel;
+use crate::keys::{ImageKey, ParameterKey, PointKey};
 use crate::loss::Loss;
 use crate::residual::{
     Block, Jacobians, ParameterBlock, ParameterValue, Residual, ResidualBlock, Value,
@@ -551,25 +552,27 @@ impl Problem {
             for (i, b) in blocks.iter().enumerate() {
                 if blocks[..i].contains(b) {
                     return Err(ProblemError::BadConstraint(format!(
-                        "{} lists {b:?} twice",
+                        "{} lists {b} twice",
                         what()
                     )));
                 }
                 let (exists, count) = match *b {
-                    Block::Point(p) => (p < self.points.len(), self.points.len()),
-                    Block::Pose(i) => (i < self.images.len(), self.images.len()),
-                    Block::Parameter(q) => (q < self.parameters.len(), self.parameters.len()),
+                    Block::Point(PointKey(p)) => (p < self.points.len(), self.points.len()),
+                    Block::Pose(ImageKey(i)) => (i < self.images.len(), self.images.len()),
+                    Block::Parameter(ParameterKey(q)) => {
+                        (q < self.parameters.len(), self.parameters.len())
+                    }
                 };
                 if !exists {
                     return Err(ProblemError::BadConstraint(format!(
-                        "{} refers to {b:?}, but there are only {count}",
+                        "{} refers to {b}, but there are only {count}",
                         what()
                     )));
                 }
-                if let Block::Parameter(q) = *b {
+                if let Block::Parameter(ParameterKey(q)) = *b {
                     used[q] = true;
                 }
-                if let Block::Pose(i) = *b {
+                if let Block::Pose(ImageKey(i)) = *b {
                     if member_of[i] {
                         return Err(ProblemError::BadConstraint(format!(
                             "{} is on the pose of rig member '{}', which follows its base image: put it on the base image",
@@ -648,7 +651,10 @@ impl Residual for Distance {
         1
     }
     fn blocks(&self) -> Vec<Block> {
-        vec![Block::Point(self.a), Block::Point(self.b)]
+        vec![
+            Block::Point(PointKey(self.a)),
+            Block::Point(PointKey(self.b)),
+        ]
     }
     /// `(|X_a − X_b| − value) / σ`; ∂/∂X_a = uᵀ/σ (u the unit vector from b to a), ∂/∂X_b its
     /// negative.
@@ -679,7 +685,7 @@ impl Residual for PointPrior {
         3
     }
     fn blocks(&self) -> Vec<Block> {
-        vec![Block::Point(self.point)]
+        vec![Block::Point(PointKey(self.point))]
     }
     /// `(X − position) / σ` per axis.
     fn evaluate(&self, values: &[Value], residual: &mut [f64], jacobians: Jacobians<'_>) -> bool {

@@ -31,16 +31,29 @@ use nalgebra::{DMatrix, Vector3};
 use pingcal_geometry::{exp_so3, log_so3, skew, Rigid3};
 use std::sync::Arc;
 
+pub use crate::keys::{ImageKey, ParameterKey, PointKey};
+
 /// A parameter block a [`Residual`] depends on.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Block {
-    /// Object point (index into [`Problem::points`](crate::problem::Problem::points)).
-    Point(usize),
-    /// An image's exterior orientation (index into [`Problem::images`](crate::problem::Problem::images)); not a rig member's,
-    /// whose pose follows its base image.
-    Pose(usize),
-    /// One of the problem's own parameter blocks (index into [`Problem::parameters`](crate::problem::Problem::parameters)).
-    Parameter(usize),
+    /// Object point.
+    Point(PointKey),
+    /// An image's exterior orientation; not a rig member's, whose pose follows its base
+    /// image.
+    Pose(ImageKey),
+    /// One of the problem's own parameter blocks.
+    Parameter(ParameterKey),
+}
+
+impl std::fmt::Display for Block {
+    /// As error messages name it: `point 12`, `image 3's pose`, `parameter block 1`.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Block::Point(k) => write!(f, "point {}", k.0),
+            Block::Pose(k) => write!(f, "image {}'s pose", k.0),
+            Block::Parameter(k) => write!(f, "parameter block {}", k.0),
+        }
+    }
 }
 
 /// The current value of a [`Block`], as the residual sees it.
@@ -212,8 +225,8 @@ impl ParameterBlock {
 /// σ leaves that component free.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PosePrior {
-    /// Index into [`Problem::images`](crate::problem::Problem::images).
-    pub image: usize,
+    /// The image.
+    pub image: ImageKey,
     /// The prior `camera_from_object`.
     pub camera_from_object: Rigid3,
     /// σ of the rotation vector's components (radians).
@@ -268,8 +281,8 @@ impl Residual for PosePrior {
 /// its σ): `r_i = (v[c_i] − value_i) / σ_i` for each listed component `c_i`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ParameterPrior {
-    /// Index into [`Problem::parameters`](crate::problem::Problem::parameters) (a [`ParameterValue::Vector`]).
-    pub parameter: usize,
+    /// The parameter block (a [`ParameterValue::Vector`]).
+    pub parameter: ParameterKey,
     /// The components it constrains.
     pub components: Vec<usize>,
     /// Their prior values.
@@ -411,7 +424,7 @@ mod tests {
             Vector3::new(0.3, -1.0, 4.0),
         );
         let pp = PosePrior {
-            image: 0,
+            image: ImageKey(0),
             camera_from_object: Rigid3::new(
                 from_opk_deg([10.5, -19.0, 34.0]),
                 Vector3::new(0.25, -1.1, 4.2),
@@ -422,7 +435,7 @@ mod tests {
         let e = check_residual_jacobians(&pp, &[Value::Pose(&pose)], 1e-5);
         assert!(e.unwrap() < 1e-6, "pose prior {e:?}");
         let prior = ParameterPrior {
-            parameter: 0,
+            parameter: ParameterKey(0),
             components: vec![2, 0],
             value: vec![1.0, -3.0],
             sigma: vec![0.5, 2.0],

@@ -14,7 +14,7 @@ use nalgebra::{DMatrix, Matrix3, Vector3};
 use pingcal_ba::datum::{check, Datum, DatumError};
 use pingcal_ba::problem::{Distance, PointPrior, Problem};
 use pingcal_ba::solver::{precision, solve, LinearSolverKind, Options, PrecisionError};
-use pingcal_ba::{Block, PosePrior, Residual, ResidualBlock, Value};
+use pingcal_ba::{Block, ImageKey, PointKey, PosePrior, Residual, ResidualBlock, Value};
 use pingcal_geometry::Rigid3;
 
 /// Every linear solver path of the adjustment.
@@ -374,7 +374,7 @@ fn held_centre_coordinates_are_an_exact_datum() {
         if prior {
             p.residuals
                 .push(pingcal_ba::ResidualBlock::new(pingcal_ba::PosePrior {
-                    image: 7,
+                    image: ImageKey(7),
                     camera_from_object: t.images[7].camera_from_object,
                     sigma_rotation: Vector3::repeat(1e-3),
                     sigma_centre: Vector3::repeat(f64::INFINITY),
@@ -469,7 +469,10 @@ impl Residual for PointInCamera {
         3
     }
     fn blocks(&self) -> Vec<Block> {
-        vec![Block::Point(self.point), Block::Pose(self.image)]
+        vec![
+            Block::Point(PointKey(self.point)),
+            Block::Pose(ImageKey(self.image)),
+        ]
     }
     fn evaluate(&self, v: &[Value], r: &mut [f64], j: Option<&mut [DMatrix<f64>]>) -> bool {
         let (Some(x), Some(pose)) = (v[0].point(), v[1].pose()) else {
@@ -513,7 +516,7 @@ impl Residual for Coordinate {
         1
     }
     fn blocks(&self) -> Vec<Block> {
-        vec![Block::Point(self.point)]
+        vec![Block::Point(PointKey(self.point))]
     }
     fn evaluate(&self, v: &[Value], r: &mut [f64], j: Option<&mut [DMatrix<f64>]>) -> bool {
         let Some(x) = v[0].point() else {
@@ -670,7 +673,7 @@ fn pose_residuals_on_an_image_with_a_held_centre_agree_with_a_stiff_prior() {
     held.images[image].camera_from_object = Rigid3::from_rotation_and_centre(pose.rotation, c);
     held.images[image].fixed_centre = axes;
     held.residuals.push(ResidualBlock::new(PosePrior {
-        image,
+        image: ImageKey(image),
         camera_from_object: Rigid3::from_rotation_and_centre(
             t.images[image].camera_from_object.rotation,
             disturbed(ct, 4.0, 7),
@@ -685,7 +688,7 @@ fn pose_residuals_on_an_image_with_a_held_centre_agree_with_a_stiff_prior() {
     let mut stiff = held.clone();
     stiff.images[image].fixed_centre = [false; 3];
     stiff.residuals.push(ResidualBlock::new(PosePrior {
-        image,
+        image: ImageKey(image),
         camera_from_object: held.images[image].camera_from_object,
         sigma_rotation: Vector3::repeat(f64::INFINITY),
         sigma_centre: Vector3::from_fn(|a, _| if axes[a] { STIFF } else { f64::INFINITY }),

@@ -10,8 +10,8 @@ use nalgebra::{DMatrix, Vector3};
 use pingcal_ba::residual::check_residual_jacobians;
 use pingcal_ba::solver::{estimate_variance_components, LinearSolverKind};
 use pingcal_ba::{
-    precision, solve, Block, Distance, Options, ParameterBlock, ParameterValue, PosePrior, Problem,
-    Residual, ResidualBlock, Rigid3, Value,
+    precision, solve, Block, Distance, ImageKey, Options, ParameterBlock, ParameterKey,
+    ParameterValue, PointKey, PosePrior, Problem, Residual, ResidualBlock, Rigid3, Value,
 };
 use pingcal_geometry::{exp_so3, from_opk_deg, log_so3};
 use rand_distr::{Distribution, Normal};
@@ -44,9 +44,9 @@ impl Residual for ScannerPoint {
     }
     fn blocks(&self) -> Vec<Block> {
         vec![
-            Block::Point(self.point),
-            Block::Parameter(self.pose),
-            Block::Parameter(self.offset),
+            Block::Point(PointKey(self.point)),
+            Block::Parameter(ParameterKey(self.pose)),
+            Block::Parameter(ParameterKey(self.offset)),
         ]
     }
     fn evaluate(
@@ -103,7 +103,10 @@ impl Residual for UserDistance {
         1
     }
     fn blocks(&self) -> Vec<Block> {
-        vec![Block::Point(self.0.a), Block::Point(self.0.b)]
+        vec![
+            Block::Point(PointKey(self.0.a)),
+            Block::Point(PointKey(self.0.b)),
+        ]
     }
     fn evaluate(&self, v: &[Value], r: &mut [f64], j: Option<&mut [DMatrix<f64>]>) -> bool {
         let d = v[0].point().unwrap() - v[1].point().unwrap();
@@ -342,7 +345,7 @@ fn pose_priors_give_the_datum_and_are_met_within_their_sigmas() {
         let prior =
             Rigid3::from_rotation_and_centre(exp_so3(&dw) * pose.rotation, pose.centre() + dc);
         p.residuals.push(ResidualBlock::new(PosePrior {
-            image: i,
+            image: ImageKey(i),
             camera_from_object: prior,
             sigma_rotation: Vector3::repeat(sw),
             sigma_centre: Vector3::repeat(sc),
@@ -411,7 +414,7 @@ fn malformed_residuals_are_refused_by_name() {
     let e = solve(&mut p, &Options::default(), |_| {})
         .unwrap_err()
         .to_string();
-    assert!(e.contains("scanner") && e.contains("Point(10000)"), "{e}");
+    assert!(e.contains("scanner") && e.contains("point 10000"), "{e}");
 
     let mut p = scanner_network(1, SCANNER_SIGMA);
     p.residuals[0].sigma_scale = f64::NAN;

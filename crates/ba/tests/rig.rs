@@ -10,7 +10,7 @@ use common::{observe, to_convergence, truth, SIGMA_PX};
 use nalgebra::{Vector2, Vector3};
 use pingcal_ba::problem::{Camera, Image, Problem, Rig, RigMember};
 use pingcal_ba::solver::{precision, solve, Options};
-use pingcal_ba::{PosePrior, ResidualBlock};
+use pingcal_ba::{ImageKey, PosePrior, ResidualBlock};
 use pingcal_geometry::Rigid3;
 use pingcal_geometry::{exp_so3, log_so3};
 use rand_distr::{Distribution, Normal};
@@ -155,7 +155,7 @@ fn a_rig_base_with_held_centre_coordinates_agrees_with_a_stiff_prior() {
     let mut stiff = held.clone();
     stiff.images[base].fixed_centre = [false; 3];
     stiff.residuals.push(ResidualBlock::new(PosePrior {
-        image: base,
+        image: ImageKey(base),
         camera_from_object: held.images[base].camera_from_object,
         sigma_rotation: Vector3::repeat(f64::INFINITY),
         sigma_centre: Vector3::from_fn(|a, _| if axes[a] { 1e-5 } else { f64::INFINITY }),

@@ -178,14 +178,14 @@ pub struct BeamOnBall {
     /// The servo's zero of the LRF frame (degrees; not an unknown).
     pub servo_zero_deg: f64,
     /// The ball: a point of the problem.
-    pub ball: usize,
+    pub ball: pingcal_ba::PointKey,
     /// The extrinsic: a pose parameter block of the problem.
-    pub extrinsic: usize,
+    pub extrinsic: pingcal_ba::ParameterKey,
     /// The mount: a vector parameter block of 8.
-    pub mount: usize,
+    pub mount: pingcal_ba::ParameterKey,
     /// The servo time offset τ ([`MountModel::servo_time_offset_s`]): a vector parameter
     /// block of 1, or None where the sweep has none (τ = 0).
-    pub time_offset: Option<usize>,
+    pub time_offset: Option<pingcal_ba::ParameterKey>,
     /// Half-width of the beam's footprint at its range (mm): a beam that passes closer than
     /// this to the silhouette is a mixed pixel ([`BeamOnBall::at_silhouette`]).
     pub half_width_mm: f64,
@@ -316,6 +316,7 @@ impl pingcal_ba::Residual for BeamOnBall {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use pingcal_ba::{ParameterKey, PointKey};
     use pingcal_geometry::consensus::rng;
     use rand::Rng;
 
@@ -451,10 +452,10 @@ mod tests {
                 radius: 20.0,
                 sigma: 10.0,
                 servo_zero_deg: mount.servo_zero_deg,
-                ball: 0,
-                extrinsic: 0,
-                mount: 1,
-                time_offset: Some(2),
+                ball: PointKey(0),
+                extrinsic: ParameterKey(0),
+                mount: ParameterKey(1),
+                time_offset: Some(ParameterKey(2)),
                 half_width_mm: 3.0,
             };
             let th = mount.to_params();
@@ -548,9 +549,9 @@ mod tests {
                         radius: scene.radius,
                         sigma: 10.0,
                         servo_zero_deg: 0.0,
-                        ball: 0,
-                        extrinsic: 0,
-                        mount: 1,
+                        ball: PointKey(0),
+                        extrinsic: ParameterKey(0),
+                        mount: ParameterKey(1),
                         time_offset: None,
                         half_width_mm: fit.beam_half_width(range_mm),
                     };

@@ -284,12 +284,12 @@ pub struct BeamOnPlane {
     /// The plane's reference frame.
     pub frame: PlaneFrame,
     /// The plane: a parameter block of [`PLANE_UNKNOWNS`].
-    pub plane: usize,
+    pub plane: pingcal_ba::ParameterKey,
     /// The mount: a parameter block of 8.
-    pub mount: usize,
+    pub mount: pingcal_ba::ParameterKey,
     /// The servo time offset: a parameter block of 1, or None (τ = 0; see
     /// [`crate::beam::BeamOnBall::time_offset`]).
-    pub time_offset: Option<usize>,
+    pub time_offset: Option<pingcal_ba::ParameterKey>,
 }
 
 /// A plane beam's residual and its derivatives: `e`, `∂e/∂plane`, `∂e/∂θ`, `∂e/∂τ`.
@@ -428,7 +428,7 @@ impl pingcal_ba::Residual for BeamOnPlane {
 
 /// The flatness prior on a plane's bend: a [`pingcal_ba::ParameterPrior`] of σ
 /// [`FLATNESS_MM`] at zero on the bend coefficients of parameter block `plane`.
-pub fn flatness_prior(plane: usize) -> pingcal_ba::ParameterPrior {
+pub fn flatness_prior(plane: pingcal_ba::ParameterKey) -> pingcal_ba::ParameterPrior {
     pingcal_ba::ParameterPrior {
         parameter: plane,
         components: vec![3, 4, 5],
@@ -1299,9 +1299,9 @@ mod tests {
                 sigma: 7.0,
                 servo_zero_deg: mount.servo_zero_deg,
                 frame: PlaneFrame::new(n, bp.point, 1200.0),
-                plane: 0,
-                mount: 1,
-                time_offset: Some(2),
+                plane: pingcal_ba::ParameterKey(0),
+                mount: pingcal_ba::ParameterKey(1),
+                time_offset: Some(pingcal_ba::ParameterKey(2)),
             };
             let plane = vec![0.05, -0.02, n.dot(&bp.point) + 20.0, 1.5, -2.0, 0.7];
             let th = mount.to_params();

@@ -71,7 +71,9 @@ use crate::context::{PipelineError, Result};
 use crate::progress::Reporter;
 use nalgebra::{DMatrix, Matrix3, Vector3};
 use pingcal_ba::solver::{self, Precision, VarianceComponent};
-use pingcal_ba::{ParameterBlock, ParameterPrior, ParameterValue, Problem, ResidualBlock};
+use pingcal_ba::{
+    ParameterBlock, ParameterKey, ParameterPrior, ParameterValue, PointKey, Problem, ResidualBlock,
+};
 use pingcal_geometry::{opk_sigma_deg, Rigid3, Sim3};
 use pingcal_lrf::beam::{beam_range_residual, BeamOnBall};
 use pingcal_lrf::cloud::BeamReading;
@@ -282,9 +284,14 @@ fn asked(project: &Project) -> [bool; 8] {
     free
 }
 
-/// The joint problem's parameter blocks: the extrinsic, then the mount.
-const EXTRINSIC: usize = 0;
-const MOUNT: usize = 1;
+/// The joint problem's own parameter blocks: the extrinsic and the mount come first, so
+/// that the cofactors' first 14 rows are the extrinsic's 6 (δω, δt) and the mount's 8; the
+/// planes and the servo time offset follow.
+#[derive(Clone, Copy, Debug)]
+struct Keys {
+    extrinsic: ParameterKey,
+    mount: ParameterKey,
+}
 
 /// The beams on the control balls left out of the joint problem at its start.
 #[derive(Clone, Copy, Debug)]
@@ -313,6 +320,8 @@ struct Joint {
     /// The servo time offset's parameter block, where the servo turned during the scans
     /// (a continuous sweep); see [`TimeOffset`].
     time_offset: Option<TimeOffset>,
+    /// The extrinsic's and the mount's blocks.
+    keys: Keys,
     options: solver::Options,
 }
 
@@ -320,7 +329,7 @@ struct Joint {
 #[derive(Clone, Debug)]
 struct TimeOffset {
     /// Its parameter block (after the planes').
-    block: usize,
+    block: ParameterKey,
     /// Where its prior is centred: the project's value (s).
     prior: f64,
     /// Estimated (else held, and why in `held`).
@@ -350,10 +359,11 @@ impl Joint {
         let theta0 = input.mount0.to_params();
         let tau0 = input.mount0.servo_time_offset_s;
         let mut base = adj.solved.problem.clone();
-        base.parameters = vec![
-            ParameterBlock::pose("camera_from_lrf", input.start),
-            ParameterBlock::vector("lrf mount", theta0.to_vec()),
-        ];
+        base.parameters.clear();
+        let keys = Keys {
+            extrinsic: base.add_parameter(ParameterBlock::pose("camera_from_lrf", input.start)),
+            mount: base.add_parameter(ParameterBlock::vector("lrf mount", theta0.to_vec())),
+        };
         base.residuals.clear();
         let (mut beams, mut grazing, mut silhouette) = (Vec::new(), 0, 0);
         // the ball finder's footprint (its sphere fits leave out the same beams)
@@ -372,9 +382,9 @@ impl Joint {
                     radius,
                     sigma: input.noise.sigma(readings[i].range_mm).max(1e-3),
                     servo_zero_deg: input.mount0.servo_zero_deg,
-                    ball: k,
-                    extrinsic: EXTRINSIC,
-                    mount: MOUNT,
+                    ball: PointKey(k),
+                    extrinsic: keys.extrinsic,
+                    mount: keys.mount,
                     time_offset: None,
                     half_width_mm: fit.beam_half_width(readings[i].range_mm),
                 };
@@ -393,7 +403,7 @@ impl Joint {
                 project.path.display()
             )));
         }
-        let mut planes = plane_beams(input, readings, &mut base);
+        let mut planes = plane_beams(input, readings, keys.mount, &mut base);
         let time_offset = time_offset_block(input, readings, &mut base);
         if let Some(t) = &time_offset {
             beams.iter_mut().for_each(|b| b.time_offset = Some(t.block));
@@ -420,6 +430,7 @@ impl Joint {
             prior_theta: input.prior.to_params(),
             sweep_deg,
             time_offset,
+            keys,
             options,
         };
         Ok((
@@ -437,11 +448,11 @@ impl Joint {
     /// solution and the pass's start, or an earlier solution).
     fn problem_from(&self, start: &Problem, free: &[bool; 8], prior: &[f64; 8]) -> Problem {
         let mut p = start.clone();
-        p.parameters[MOUNT].fixed = free.iter().map(|f| !f).collect();
+        p[self.keys.mount].fixed = free.iter().map(|f| !f).collect();
         // the servo time offset under the weak prior while the mount's is weak
         let weak = prior == &PRIOR_SIGMA;
         if let Some(t) = &self.time_offset {
-            p.parameters[t.block].fixed = vec![!t.free];
+            p[t.block].fixed = vec![!t.free];
         }
         p.residuals = (self.beams.iter().cloned())
             .map(ResidualBlock::new)
@@ -454,7 +465,7 @@ impl Joint {
         let components: Vec<usize> = (0..8).filter(|&k| free[k]).collect();
         if !components.is_empty() {
             p.residuals.push(ResidualBlock::new(ParameterPrior {
-                parameter: MOUNT,
+                parameter: self.keys.mount,
                 value: components.iter().map(|&k| self.prior_theta[k]).collect(),
                 sigma: components.iter().map(|&k| prior[k]).collect(),
                 components,
@@ -490,15 +501,15 @@ impl Joint {
     fn tau(&self, p: &Problem) -> f64 {
         self.time_offset
             .as_ref()
-            .map_or(0.0, |t| match &p.parameters[t.block].value {
+            .map_or(0.0, |t| match &p[t.block].value {
                 ParameterValue::Vector(v) => v[0],
                 _ => unreachable!("the time offset is a vector block"),
             })
     }
 
     /// The parameter blocks of the planes, in order.
-    fn plane_blocks(&self) -> impl Iterator<Item = usize> + '_ {
-        let mut seen: Vec<usize> = self.planes.iter().map(|b| b.plane).collect();
+    fn plane_blocks(&self) -> impl Iterator<Item = ParameterKey> + '_ {
+        let mut seen: Vec<ParameterKey> = self.planes.iter().map(|b| b.plane).collect();
         seen.sort_unstable();
         seen.dedup();
         seen.into_iter()
@@ -520,6 +531,7 @@ impl Joint {
 fn plane_beams(
     input: &JointInput,
     readings: &[BeamReading],
+    mount: ParameterKey,
     base: &mut Problem,
 ) -> Vec<BeamOnPlane> {
     if input.planes.is_empty()
@@ -542,21 +554,21 @@ fn plane_beams(
     );
     let planes = room::drop_thin_planes(&mut obs, input.planes);
     let frames = PlaneFrame::of_beams(readings, &obs, &input.mount0, &planes);
-    let first = base.parameters.len();
-    for (k, (_, d)) in planes.iter().enumerate() {
-        let mut v = vec![0.0; room::PLANE_UNKNOWNS];
-        v[2] = *d;
-        base.parameters
-            .push(ParameterBlock::vector(format!("plane {}", k + 1), v));
-    }
+    let keys: Vec<ParameterKey> = (planes.iter().enumerate())
+        .map(|(k, (_, d))| {
+            let mut v = vec![0.0; room::PLANE_UNKNOWNS];
+            v[2] = *d;
+            base.add_parameter(ParameterBlock::vector(format!("plane {}", k + 1), v))
+        })
+        .collect();
     obs.iter()
         .map(|o| BeamOnPlane {
             reading: readings[o.reading],
             sigma: o.sigma,
             servo_zero_deg: input.mount0.servo_zero_deg,
             frame: frames[o.plane],
-            plane: first + o.plane,
-            mount: MOUNT,
+            plane: keys[o.plane],
+            mount,
             time_offset: None,
         })
         .collect()
@@ -575,8 +587,7 @@ fn time_offset_block(
     if !readings.iter().any(|r| r.servo_rate_deg_s != 0.0) {
         return None;
     }
-    let block = base.parameters.len();
-    base.parameters.push(ParameterBlock::vector(
+    let block = base.add_parameter(ParameterBlock::vector(
         "servo time offset",
         vec![input.mount0.servo_time_offset_s],
     ));
@@ -590,11 +601,11 @@ fn time_offset_block(
 
 /// Each plane beam's `n·p − d` (mm) at the solution of `p` (NaN where undefined).
 fn plane_errors(joint: &Joint, p: &Problem) -> Vec<f64> {
-    let (_, theta) = solution(p);
+    let (_, theta) = joint.solution(p);
     let tau = joint.tau(p);
     (joint.planes.iter())
         .map(|b| {
-            let ParameterValue::Vector(v) = &p.parameters[b.plane].value else {
+            let ParameterValue::Vector(v) = &p[b.plane].value else {
                 return f64::NAN;
             };
             b.error(v, &theta, tau).unwrap_or(f64::NAN)
@@ -604,12 +615,12 @@ fn plane_errors(joint: &Joint, p: &Problem) -> Vec<f64> {
 
 /// The planes of a solved joint problem (unit normal, offset), in block order.
 fn solved_planes(joint: &Joint, p: &Problem) -> Vec<(Vector3<f64>, f64)> {
-    let mut out: Vec<(usize, (Vector3<f64>, f64))> = Vec::new();
+    let mut out: Vec<(ParameterKey, (Vector3<f64>, f64))> = Vec::new();
     for b in &joint.planes {
         if out.iter().any(|(k, _)| *k == b.plane) {
             continue;
         }
-        if let ParameterValue::Vector(v) = &p.parameters[b.plane].value {
+        if let ParameterValue::Vector(v) = &p[b.plane].value {
             out.push((b.plane, (b.frame.normal_at(v[0], v[1]).0, v[2])));
         }
     }
@@ -617,24 +628,26 @@ fn solved_planes(joint: &Joint, p: &Problem) -> Vec<(Vector3<f64>, f64)> {
     out.into_iter().map(|(_, p)| p).collect()
 }
 
-/// The extrinsic and the mount of a solved joint problem.
-fn solution(p: &Problem) -> (Rigid3, [f64; 8]) {
-    let ParameterValue::Pose(ext) = p.parameters[EXTRINSIC].value else {
-        unreachable!("the extrinsic is a pose block")
-    };
-    let ParameterValue::Vector(theta) = &p.parameters[MOUNT].value else {
-        unreachable!("the mount is a vector block")
-    };
-    (ext, std::array::from_fn(|k| theta[k]))
+impl Joint {
+    /// The extrinsic and the mount of a solved joint problem.
+    fn solution(&self, p: &Problem) -> (Rigid3, [f64; 8]) {
+        let ParameterValue::Pose(ext) = p[self.keys.extrinsic].value else {
+            unreachable!("the extrinsic is a pose block")
+        };
+        let ParameterValue::Vector(theta) = &p[self.keys.mount].value else {
+            unreachable!("the mount is a vector block")
+        };
+        (ext, std::array::from_fn(|k| theta[k]))
+    }
 }
 
 /// Each beam's `e` (mm) at the solution of `p` (NaN where undefined).
 fn beam_errors(joint: &Joint, p: &Problem) -> Vec<f64> {
-    let (ext, theta) = solution(p);
+    let (ext, theta) = joint.solution(p);
     let tau = joint.tau(p);
     (joint.beams.iter())
         .map(|b| {
-            b.range_error(&p.points[b.ball].position, &ext, &theta, tau)
+            b.range_error(&p[b.ball].position, &ext, &theta, tau)
                 .unwrap_or(f64::NAN)
         })
         .collect()
@@ -660,7 +673,7 @@ fn estimability(
         let cov = &prec.parameters_covariance / prec.sigma0.powi(2).max(f64::MIN_POSITIVE);
         // the servo time offset: the same two tests, on its own row (k = 8)
         let tau = (joint.time_offset.as_ref().filter(|t| t.free)).and_then(|t| {
-            let i = prec.parameter_offsets[t.block];
+            let i = prec.parameter_offsets[t.block.0];
             time_offset_not_estimable(i, &cov, free).map(|(rank, why)| (rank, 8, why))
         });
         let worst = (0..8)
@@ -916,12 +929,12 @@ fn second_start(
         .map(|k| if free[k] { step(6 + k) } else { 0.0 })
         .collect();
     let tau = joint.time_offset.as_ref().filter(|t| t.free);
-    let tau_delta = tau.map(|t| step(prec.parameter_offsets[t.block]));
+    let tau_delta = tau.map(|t| step(prec.parameter_offsets[t.block.0]));
     let mut q = p.clone();
-    q.parameters[EXTRINSIC].plus(&ext_delta);
-    q.parameters[MOUNT].plus(&delta);
+    q[joint.keys.extrinsic].plus(&ext_delta);
+    q[joint.keys.mount].plus(&delta);
     if let (Some(t), Some(d)) = (tau, tau_delta) {
-        q.parameters[t.block].plus(&[d]);
+        q[t.block].plus(&[d]);
     }
     // both solved to the solver's tightest tolerances: the first solution is polished (it
     // was near), the second started afresh
@@ -942,8 +955,8 @@ fn second_start(
     let last = joint.last.as_ref();
     let (cost1, cost2) = (summary1.final_cost, summary2.final_cost);
     // the unknowns' differences in σ's of the first solution
-    let (e1, t1) = solution(p);
-    let (e2, t2) = solution(&q);
+    let (e1, t1) = joint.solution(p);
+    let (e2, t2) = joint.solution(&q);
     let dr = pingcal_geometry::log_so3(&(e2.rotation * e1.rotation.transpose()));
     let dt = e2.translation - e1.translation;
     let mut z: f64 = 0.0;
@@ -955,7 +968,7 @@ fn second_start(
         z = z.max((t2[k] - t1[k]).abs() / cov[(6 + k, 6 + k)].max(1e-30).sqrt());
     }
     if let Some(t) = tau {
-        let i = prec.parameter_offsets[t.block];
+        let i = prec.parameter_offsets[t.block.0];
         z = z.max((joint.tau(&q) - joint.tau(p)).abs() / cov[(i, i)].max(1e-30).sqrt());
     }
     let same = z <= SAME_MINIMUM_Z;
@@ -1066,7 +1079,7 @@ fn finish(
     let bundle = &input.adj.precision;
     let chi2 = input.adj.sigma0_a_priori.powi(2) * bundle.redundancy as f64
         + chi2_lrf
-        + joint.prior_chi2(free, &solution(&p).1, joint.tau(&p));
+        + joint.prior_chi2(free, &joint.solution(&p).1, joint.tau(&p));
     // the covariances with every group weighted by its own variance component
     let mut p = p;
     let estimate = solver::estimate_variance_components(
@@ -1079,7 +1092,7 @@ fn finish(
     let prec = estimate.precision;
     let redundancy = prec.redundancy;
     let sigma0 = (chi2 / redundancy.max(1) as f64).sqrt();
-    let (ext, theta) = solution(&p);
+    let (ext, theta) = joint.solution(&p);
     let cov = prec.parameters_covariance.clone();
     let mount_model = MountModel {
         servo_time_offset_s: joint.tau(&p),
@@ -1108,8 +1121,9 @@ fn finish(
         mount: (0..8)
             .map(|k| mount_estimate(k, &theta, &cov, held))
             .collect(),
-        time_offset: (joint.time_offset.as_ref())
-            .map(|t| time_offset_estimate(t, joint.tau(&p), &cov, prec.parameter_offsets[t.block])),
+        time_offset: (joint.time_offset.as_ref()).map(|t| {
+            time_offset_estimate(t, joint.tau(&p), &cov, prec.parameter_offsets[t.block.0])
+        }),
         mount_model,
         mount_cov: DMatrix::from_fn(8, 8, |a, b| {
             if free[a] && free[b] {

@@ -8,6 +8,7 @@
 //! σ factor.
 
 use super::layout::{BlockCols, Layout};
+use crate::keys::{ImageKey, ParameterKey, PointKey};
 use crate::problem::{Problem, ProblemError};
 use crate::residual::{Block, Residual, Value};
 use nalgebra::{DMatrix, Matrix2x3, Vector2};
@@ -190,7 +191,7 @@ pub(crate) fn constraint_residual(
         .evaluate(&values, &mut r, Some(&mut full))
         .then_some(())?;
     for (f, b) in full.iter_mut().zip(&blocks) {
-        if let crate::residual::Block::Pose(i) = *b {
+        if let crate::residual::Block::Pose(crate::keys::ImageKey(i)) = *b {
             if let Some(t) = centre_tangent(problem, i) {
                 *f = &*f * DMatrix::from_column_slice(6, 6, t.as_slice());
             }
@@ -427,12 +428,12 @@ fn block_values<'a>(problem: &'a Problem, blocks: &[Block]) -> Option<Vec<Value<
     blocks
         .iter()
         .map(|b| match *b {
-            Block::Point(p) => problem.points.get(p).map(|x| Value::Point(&x.position)),
-            Block::Pose(i) => problem
+            Block::Point(PointKey(p)) => problem.points.get(p).map(|x| Value::Point(&x.position)),
+            Block::Pose(ImageKey(i)) => problem
                 .images
                 .get(i)
                 .map(|im| Value::Pose(&im.camera_from_object)),
-            Block::Parameter(k) => problem.parameters.get(k).map(|pb| pb.as_value()),
+            Block::Parameter(ParameterKey(k)) => problem.parameters.get(k).map(|pb| pb.as_value()),
         })
         .collect()
 }

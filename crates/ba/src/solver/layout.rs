@@ -17,6 +17,7 @@
 //! with b) is fixed for the whole adjustment, so its symbolic Cholesky factorization is
 //! computed once and reused at every iteration.
 
+use crate::keys::{ImageKey, ParameterKey, PointKey};
 use crate::problem::{Observation, Problem};
 use crate::residual::Block;
 
@@ -435,7 +436,7 @@ impl Blocks {
                 continue;
             }
             for b in blocks {
-                if let Block::Point(p) = b {
+                if let Block::Point(PointKey(p)) = b {
                     add_point(p, &mut point_slot);
                 }
             }
@@ -478,21 +479,23 @@ impl Blocks {
             .map(|(residual, _)| {
                 (residual.blocks().into_iter())
                     .map(|b| match b {
-                        Block::Point(p) => match (self.point_slot[p], free_point_index[p]) {
-                            (Some(s), _) => BlockCols {
-                                place: Place::Reduced(s),
-                                cols: self.point_axes[p].clone(),
-                            },
-                            (None, f) if f != u32::MAX => BlockCols {
-                                place: Place::Eliminated(f),
-                                cols: vec![0, 1, 2],
-                            },
-                            _ => BlockCols {
-                                place: Place::Fixed,
-                                cols: Vec::new(),
-                            },
-                        },
-                        Block::Pose(i) => match self.image_slot[i] {
+                        Block::Point(PointKey(p)) => {
+                            match (self.point_slot[p], free_point_index[p]) {
+                                (Some(s), _) => BlockCols {
+                                    place: Place::Reduced(s),
+                                    cols: self.point_axes[p].clone(),
+                                },
+                                (None, f) if f != u32::MAX => BlockCols {
+                                    place: Place::Eliminated(f),
+                                    cols: vec![0, 1, 2],
+                                },
+                                _ => BlockCols {
+                                    place: Place::Fixed,
+                                    cols: Vec::new(),
+                                },
+                            }
+                        }
+                        Block::Pose(ImageKey(i)) => match self.image_slot[i] {
                             // (δω, δC): the residual's Jacobian is taken to these columns
                             // by `evaluate::constraint_residual`.
                             Some(s) => BlockCols {
@@ -509,7 +512,7 @@ impl Blocks {
                                 cols: Vec::new(),
                             },
                         },
-                        Block::Parameter(k) => match self.parameter_slot[k] {
+                        Block::Parameter(ParameterKey(k)) => match self.parameter_slot[k] {
                             Some(s) => BlockCols {
                                 place: Place::Reduced(s),
                                 cols: self.parameter_free[k].clone(),
