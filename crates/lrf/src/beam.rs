@@ -321,20 +321,7 @@ mod tests {
     use rand::Rng;
 
     fn random_case(g: &mut impl Rng) -> (BeamReading, MountModel, Vector3<f64>) {
-        let mount = MountModel {
-            offset_mm: [
-                g.random_range(-20.0..20.0),
-                g.random_range(-20.0..20.0),
-                g.random_range(-20.0..20.0),
-            ],
-            tilt_x_deg: g.random_range(-1.0..1.0),
-            tilt_z_deg: g.random_range(-1.0..1.0),
-            servo_zero_deg: g.random_range(-3.0..3.0),
-            servo_scale: g.random_range(-0.005..0.005),
-            range_offset_mm: g.random_range(-25.0..25.0),
-            range_scale: g.random_range(-0.01..0.01),
-            servo_time_offset_s: g.random_range(-0.05..0.05),
-        };
+        let mount = crate::sensor::tests::random_mount(g);
         let reading = BeamReading {
             servo_deg: g.random_range(-80.0..80.0),
             alpha_rad: g.random_range(-1.5f64..1.5),

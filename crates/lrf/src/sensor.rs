@@ -579,8 +579,28 @@ impl LrfSensor {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
+
+    /// A mount with every term of the model set, drawn from `g` (offsets ±20 mm, tilts ±1°,
+    /// servo zero ±3°, servo scale ±0.5 %, range offset ±25 mm, range scale ±1 %, servo time
+    /// offset ±50 ms): the beam models' derivative tests.
+    pub(crate) fn random_mount(g: &mut impl Rng) -> MountModel {
+        MountModel {
+            offset_mm: [
+                g.random_range(-20.0..20.0),
+                g.random_range(-20.0..20.0),
+                g.random_range(-20.0..20.0),
+            ],
+            tilt_x_deg: g.random_range(-1.0..1.0),
+            tilt_z_deg: g.random_range(-1.0..1.0),
+            servo_zero_deg: g.random_range(-3.0..3.0),
+            servo_scale: g.random_range(-0.005..0.005),
+            range_offset_mm: g.random_range(-25.0..25.0),
+            range_scale: g.random_range(-0.01..0.01),
+            servo_time_offset_s: g.random_range(-0.05..0.05),
+        }
+    }
 
     #[test]
     fn a_mount_beyond_any_mounts_bounds_is_refused_with_the_bound() {
