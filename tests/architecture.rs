@@ -10,8 +10,6 @@
 //! - the binary's crate holds no mathematics: no linear algebra of its own (no nalgebra or
 //!   faer in its `[dependencies]`, no solve, decomposition or inverse called in its
 //!   sources); fits, estimators and transforms live in the library they belong to;
-//! - the pipeline's modules read in one order (`PIPELINE_LAYERS`): each uses only the
-//!   modules before it and nothing of its crate root;
 //! - libraries never print: no `println!`/`eprintln!` outside the binary's `commands` and
 //!   `main.rs` (tests, examples and doc comments aside).
 //!
@@ -292,109 +290,6 @@ fn the_checker_sees_a_cycle() {
     assert_eq!(c.len(), 2, "{c:?}");
     assert!(c.iter().any(|s| s.starts_with("crate: a → b → a")), "{c:?}");
     assert!(c.iter().any(|s| s.starts_with("outer: x → y → x")), "{c:?}");
-}
-
-/// The pipeline crate's top modules in the order a reader takes them (its lib.rs doc):
-/// the shared modules, lowest first, then the steps in the order they run, then what
-/// gathers and writes their results.
-const PIPELINE_LAYERS: [&str; 26] = [
-    "ids",
-    "progress",
-    "context",
-    "scene",
-    "adjust",
-    "detect",
-    "network",
-    "matching",
-    "bundle",
-    "lrf",
-    "extrinsic",
-    "joint",
-    "joint_starts",
-    "final_lrf",
-    "stages",
-    "verdict",
-    "conventions",
-    "results",
-    "report",
-    "overlays",
-    "rectify",
-    "exports",
-    "outcome",
-    "out_folders",
-    "result_set",
-    "sphere_calib",
-];
-
-/// Where the top modules under `src` break `layers`: a module not in the list, a
-/// reference to a later module (or its own layer's peer after it), or to an item of the
-/// crate root (what lib.rs defines is for the crate's callers, not its modules).
-fn layer_breaks(src: &Path, layers: &[&str]) -> Vec<String> {
-    let mut files = Vec::new();
-    modules(src, &[], &mut files);
-    let top: BTreeSet<String> = files
-        .iter()
-        .filter_map(|(m, _)| m.first().cloned())
-        .collect();
-    let rank = |m: &str| layers.iter().position(|l| *l == m);
-    let mut out = Vec::new();
-    for m in &top {
-        if rank(m).is_none() && m != "test_support" {
-            out.push(format!("{m}: not in the layers"));
-        }
-    }
-    for (m, path) in &files {
-        let Some(own) = m.first() else { continue };
-        let Some(r_own) = rank(own) else { continue };
-        for r in references(m, &code(path)) {
-            let Some(first) = r.first() else { continue };
-            if first == own {
-                continue;
-            }
-            match rank(first) {
-                Some(k) if k < r_own => {}
-                Some(_) => out.push(format!("{own} uses {first}, a later layer")),
-                None if top.contains(first) => {}
-                None => out.push(format!("{own} uses the crate root's {first}")),
-            }
-        }
-    }
-    out.sort();
-    out.dedup();
-    out
-}
-
-#[test]
-fn the_pipeline_reads_in_its_layers() {
-    let src = workspace().join("crates/pipeline/src");
-    let breaks = layer_breaks(&src, &PIPELINE_LAYERS);
-    assert!(breaks.is_empty(), "{}", breaks.join("\n"));
-}
-
-#[test]
-fn the_layer_checker_sees_a_later_layer_and_a_root_item() {
-    let dir = std::env::temp_dir().join(format!("pingcal-layers-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(dir.join("src")).unwrap();
-    std::fs::write(
-        dir.join("src/lib.rs"),
-        "pub mod a; pub mod b; pub mod c; pub struct Root;",
-    )
-    .unwrap();
-    std::fs::write(dir.join("src/a.rs"), "use crate::b::thing;\n").unwrap();
-    std::fs::write(dir.join("src/b.rs"), "use super::{a, Root};\n").unwrap();
-    std::fs::write(dir.join("src/c.rs"), "// crate::b in a comment\n").unwrap();
-    let breaks = layer_breaks(&dir.join("src"), &["a", "b"]);
-    let _ = std::fs::remove_dir_all(&dir);
-    assert_eq!(
-        breaks,
-        [
-            "a uses b, a later layer",
-            "b uses the crate root's Root",
-            "c: not in the layers"
-        ],
-        "{breaks:?}"
-    );
 }
 
 /// The pingcal crates a crate's Cargo.toml names under `[dependencies]`.

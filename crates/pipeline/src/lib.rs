@@ -23,9 +23,8 @@
 //! bundle-adjustment problem and back, for every step that adjusts). After step 7,
 //! [`stages`] gathers what the steps produced for those that judge and write it, and
 //! [`outcome`] is what the caller writes. Each module uses only modules before it in
-//! `tests/architecture.rs`'s `PIPELINE_LAYERS` (shared modules first, then the steps in
-//! their order) and no item of this crate root, which only runs the steps
-//! ([`calibrate`]); that test checks it.
+//! `tests/layers.rs`'s `ORDER` (shared modules first, then the steps in their order) and no
+//! item of this crate root, which only runs the steps ([`calibrate`]); that test checks it.
 
 //! Every failure is a [`PipelineError`]: one line that names the file, image, target or ball
 //! concerned and what was expected. Nothing is written until every step has succeeded.
