@@ -706,3 +706,38 @@ impl Residual for PointPrior {
         "control"
     }
 }
+
+impl Problem {
+    /// Appends a parameter block and returns its key.
+    pub fn add_parameter(&mut self, block: ParameterBlock) -> ParameterKey {
+        self.parameters.push(block);
+        ParameterKey(self.parameters.len() - 1)
+    }
+}
+
+impl std::ops::Index<PointKey> for Problem {
+    type Output = Point;
+    fn index(&self, k: PointKey) -> &Point {
+        &self.points[k.0]
+    }
+}
+
+impl std::ops::Index<ImageKey> for Problem {
+    type Output = Image;
+    fn index(&self, k: ImageKey) -> &Image {
+        &self.images[k.0]
+    }
+}
+
+impl std::ops::Index<ParameterKey> for Problem {
+    type Output = ParameterBlock;
+    fn index(&self, k: ParameterKey) -> &ParameterBlock {
+        &self.parameters[k.0]
+    }
+}
+
+impl std::ops::IndexMut<ParameterKey> for Problem {
+    fn index_mut(&mut self, k: ParameterKey) -> &mut ParameterBlock {
+        &mut self.parameters[k.0]
+    }
+}
