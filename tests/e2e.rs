@@ -1531,9 +1531,18 @@ fn a_continuous_sweeps_servo_time_offset_is_estimated() {
         (value - want).abs() <= 3.0 * sigma,
         "time offset {value} s ± {sigma}, truth {want} s"
     );
-    // the model every LRF output uses carries it
+    // the model every LRF output uses carries it, and the report's mount table in seconds
     let model = num(&r["lrf_model"]["servo_time_offset_s"], "lrf_model's offset");
     assert_eq!(model, value);
+    let report = fs::read_to_string(out.join("report.html")).unwrap();
+    let row = report
+        .split("<tr")
+        .find(|r| r.contains(">time_offset_s<"))
+        .unwrap_or_else(|| panic!("no time_offset_s row in the report's mount table"));
+    assert!(
+        row.contains("<td class=\"l\">s</td>"),
+        "the time offset's unit: {row}"
+    );
     let joint = (r["methods"].as_array().expect("methods").iter())
         .find(|m| m["method"] == "joint")
         .expect("the joint method");

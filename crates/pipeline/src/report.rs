@@ -323,6 +323,7 @@ fn mount_rows(results: &Results) -> Vec<rp::MountRow> {
             unit: match m.name.as_str() {
                 "tilt_x" | "tilt_z" => "°",
                 "servo_scale" | "range_scale" => "",
+                super::joint::TIME_OFFSET_NAME => "s",
                 _ => "mm",
             }
             .into(),
