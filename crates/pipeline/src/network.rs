@@ -154,10 +154,11 @@ fn starts_to_try(project: &Project, asked: Start) -> Result<Vec<Start>> {
 pub const SUSPECT_START_RMS_PX: f64 = 1.0;
 
 /// The first start of [`starts_to_try`] that orients every image at an RMS of at most
-/// [`SUSPECT_START_RMS_PX`] (else, of those that orient the most images, the one of the
-/// lowest RMS): which one, the initialiser's solution and the scene in the main image's
-/// frame, and one warning for each start that failed or was passed over. When none works,
-/// the error gives each one's reason and what the project could add.
+/// [`SUSPECT_START_RMS_PX`] (else the first that orients the most images, unless its RMS is
+/// suspect and a later one orients as many at a lower RMS): which one, the initialiser's
+/// solution and the scene in the main image's frame, and one warning for each start that
+/// failed or was passed over. When none works, the error gives each one's reason and what
+/// the project could add.
 fn first_start(
     project: &Project,
     dets: &Detections,
@@ -179,19 +180,24 @@ fn first_start(
             // a start that leaves images out is kept only until one orients more, one of a
             // suspect RMS until one orients as many at a lower RMS
             Ok((init, scene)) => {
-                let better = best.as_ref().is_none_or(|b| {
-                    let (n, nb) = (scene.oriented().len(), b.2.oriented().len());
-                    n > nb || (n == nb && init.problem.rms_px() < b.1.problem.rms_px())
-                });
-                if let Some(b) = best.as_ref().filter(|_| better) {
+                let (rms, n) = (init.problem.rms_px(), scene.oriented().len());
+                // as many images as the suspect start before it, at a lower RMS
+                let lower = |b: &(Start, Initialised, Scene)| {
+                    let rms_b = b.1.problem.rms_px();
+                    n == b.2.oriented().len() && rms_b > SUSPECT_START_RMS_PX && rms < rms_b
+                };
+                let better = best
+                    .as_ref()
+                    .is_none_or(|b| n > b.2.oriented().len() || lower(b));
+                if let Some(b) = best.as_ref().filter(|b| lower(b)) {
                     passed_over.push(format!(
                         "{} oriented {} images at RMS {:.3} px; {} oriented {} at RMS {:.3} px, which is kept",
                         b.0.describe(),
                         b.2.oriented().len(),
                         b.1.problem.rms_px(),
                         s.describe(),
-                        scene.oriented().len(),
-                        init.problem.rms_px()
+                        n,
+                        rms
                     ));
                 }
                 if better {
