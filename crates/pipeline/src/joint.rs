@@ -332,10 +332,15 @@ struct TimeOffset {
     block: ParameterKey,
     /// Where its prior is centred: the project's value (s).
     prior: f64,
-    /// Estimated (else held, and why in `held`).
-    free: bool,
-    /// Why it is held.
+    /// Why it is held (None: estimated).
     held: Option<String>,
+}
+
+impl TimeOffset {
+    /// Estimated, not held.
+    fn free(&self) -> bool {
+        self.held.is_none()
+    }
 }
 
 impl Joint {
@@ -452,7 +457,7 @@ impl Joint {
         // the servo time offset under the weak prior while the mount's is weak
         let weak = prior == &PRIOR_SIGMA;
         if let Some(t) = &self.time_offset {
-            p[t.block].fixed = vec![!t.free];
+            p[t.block].fixed = vec![!t.free()];
         }
         p.residuals = (self.beams.iter().cloned())
             .map(ResidualBlock::new)
@@ -471,7 +476,7 @@ impl Joint {
                 components,
             }));
         }
-        if let Some(t) = self.time_offset.as_ref().filter(|t| t.free) {
+        if let Some(t) = self.time_offset.as_ref().filter(|t| t.free()) {
             p.residuals.push(ResidualBlock::new(ParameterPrior {
                 parameter: t.block,
                 components: vec![0],
@@ -488,7 +493,7 @@ impl Joint {
 
     /// χ² of the final adjustment's plausible-range prior on the free mount components.
     fn prior_chi2(&self, free: &[bool; 8], theta: &[f64; 8], tau: f64) -> f64 {
-        let tau_chi2 = (self.time_offset.as_ref().filter(|t| t.free))
+        let tau_chi2 = (self.time_offset.as_ref().filter(|t| t.free()))
             .map_or(0.0, |t| ((tau - t.prior) / TIME_OFFSET_PLAUSIBLE_S).powi(2));
         (0..8)
             .filter(|&k| free[k])
@@ -594,7 +599,6 @@ fn time_offset_block(
     Some(TimeOffset {
         block,
         prior: input.prior.servo_time_offset_s,
-        free: true,
         held: None,
     })
 }
@@ -664,7 +668,7 @@ fn estimability(
     held: &mut [Option<String>; 8],
 ) -> Result<bool> {
     let mut any = false;
-    let tau_free = |j: &Joint| j.time_offset.as_ref().is_some_and(|t| t.free);
+    let tau_free = |j: &Joint| j.time_offset.as_ref().is_some_and(|t| t.free());
     while free.iter().any(|&f| f) || tau_free(joint) {
         let p = joint.problem_from(at, free, &PRIOR_SIGMA);
         let prec = solver::precision(&p)
@@ -672,7 +676,7 @@ fn estimability(
         // the cofactors of (extrinsic, mount): the covariance with σ0 = 1
         let cov = &prec.parameters_covariance / prec.sigma0.powi(2).max(f64::MIN_POSITIVE);
         // the servo time offset: the same two tests, on its own row (k = 8)
-        let tau = (joint.time_offset.as_ref().filter(|t| t.free)).and_then(|t| {
+        let tau = (joint.time_offset.as_ref().filter(|t| t.free())).and_then(|t| {
             let i = prec.parameter_offsets[t.block.0];
             time_offset_not_estimable(i, &cov, free).map(|(rank, why)| (rank, 8, why))
         });
@@ -685,7 +689,6 @@ fn estimability(
         any = true;
         if k == 8 {
             let t = joint.time_offset.as_mut().expect("tested above");
-            t.free = false;
             t.held = Some(why);
             continue;
         }
@@ -928,7 +931,7 @@ fn second_start(
     let delta: Vec<f64> = (0..8)
         .map(|k| if free[k] { step(6 + k) } else { 0.0 })
         .collect();
-    let tau = joint.time_offset.as_ref().filter(|t| t.free);
+    let tau = joint.time_offset.as_ref().filter(|t| t.free());
     let tau_delta = tau.map(|t| step(prec.parameter_offsets[t.block.0]));
     let mut q = p.clone();
     q[joint.keys.extrinsic].plus(&ext_delta);
@@ -1402,28 +1405,35 @@ fn mount_estimate(
     cov: &DMatrix<f64>,
     held: &[Option<String>; 8],
 ) -> MountEstimate {
-    let i = 6 + k;
-    let estimated = held[k].is_none();
-    MountEstimate {
-        name: MOUNT_PARAM_NAMES[k],
-        value: to_unit(k, theta[k]),
-        sigma: estimated.then(|| to_unit(k, cov[(i, i)].max(0.0).sqrt())),
-        held: held[k].clone(),
-        corr_extrinsic: estimated
-            .then(|| std::array::from_fn(|j| cov[(i, j)] / (cov[(i, i)] * cov[(j, j)]).sqrt())),
-    }
+    let unit = |v: f64| to_unit(k, v);
+    let name = MOUNT_PARAM_NAMES[k];
+    estimate_of_row(name, unit(theta[k]), unit, cov, 6 + k, &held[k])
 }
 
 /// The servo time offset's outcome: its value `tau` (s), its σ and its correlations with
 /// the extrinsic from `cov` (its row `i`), or why it was held.
 fn time_offset_estimate(t: &TimeOffset, tau: f64, cov: &DMatrix<f64>, i: usize) -> MountEstimate {
+    estimate_of_row(TIME_OFFSET_NAME, tau, |v| v, cov, i, &t.held)
+}
+
+/// The outcome of the unknown at row `i` of `cov` (value and σ in the unit `unit` makes of
+/// the vector's): its σ and its correlations with the extrinsic (the first 6 rows) when it
+/// was estimated (`held` None), else why it was held.
+fn estimate_of_row(
+    name: &'static str,
+    value: f64,
+    unit: impl Fn(f64) -> f64,
+    cov: &DMatrix<f64>,
+    i: usize,
+    held: &Option<String>,
+) -> MountEstimate {
+    let estimated = held.is_none();
     MountEstimate {
-        name: TIME_OFFSET_NAME,
-        value: tau,
-        sigma: t.free.then(|| cov[(i, i)].max(0.0).sqrt()),
-        held: t.held.clone(),
-        corr_extrinsic: t
-            .free
+        name,
+        value,
+        sigma: estimated.then(|| unit(cov[(i, i)].max(0.0).sqrt())),
+        held: held.clone(),
+        corr_extrinsic: estimated
             .then(|| std::array::from_fn(|j| cov[(i, j)] / (cov[(i, i)] * cov[(j, j)]).sqrt())),
     }
 }
