@@ -123,6 +123,11 @@ impl MountParam {
         MOUNT_PARAM_NAMES[self.index()]
     }
 
+    /// The parameter of that name ([`MountParam::name`]), if there is one.
+    pub fn named(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|p| p.name() == name)
+    }
+
     /// A value of the vector in the unit reports give it (degrees for the tilts).
     pub fn in_report_unit(self, v: f64) -> f64 {
         match self {

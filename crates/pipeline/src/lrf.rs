@@ -20,7 +20,7 @@ use pingcal_lrf::cloud_file::{
 };
 use pingcal_lrf::room::{mount_from_room_refinding, RoomMount, RoomOptions};
 use pingcal_lrf::scan::{mask_lines_beyond, open_scan_file, ScanHeader, ScanLine};
-use pingcal_lrf::sensor::RangeNoise;
+use pingcal_lrf::sensor::{MountParam, RangeNoise};
 use pingcal_project::{Project, ProjectBag, ProjectLrf};
 use pingcal_rosbag::assemble::{read_scans, ServoMotion, ServoSource, Topics};
 
@@ -299,11 +299,7 @@ pub fn describe_room(r: &RoomMount) -> String {
         .parameters
         .iter()
         .map(|p| {
-            let u = match p.name {
-                "tilt_x" | "tilt_z" => "°",
-                "servo_scale" | "range_scale" => "",
-                _ => " mm",
-            };
+            let u = MountParam::named(p.name).map_or(" mm", MountParam::unit);
             match p.sigma {
                 Some(s) => format!("{} {:.4} ± {:.4}{u}", p.name, p.value, s),
                 None => format!("{} held", p.name),

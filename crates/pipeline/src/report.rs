@@ -8,6 +8,7 @@ use super::results::Results;
 use super::scene::{image_file, main_image, PointKind, SceneCamera};
 use crate::progress::Reporter;
 use crate::stages::Stages;
+use pingcal_lrf::sensor::MountParam;
 use pingcal_report as rp;
 
 /// Most cloud points drawn in the report (an even subsample).
@@ -320,11 +321,10 @@ fn mount_rows(results: &Results) -> Vec<rp::MountRow> {
             name: m.name.clone(),
             value: m.value,
             sigma: m.sigma,
-            unit: match m.name.as_str() {
-                "tilt_x" | "tilt_z" => "°",
-                "servo_scale" | "range_scale" => "",
-                super::joint::TIME_OFFSET_NAME => "s",
-                _ => "mm",
+            unit: match MountParam::named(&m.name) {
+                Some(p) => p.unit().trim_start(),
+                None if m.name == super::joint::TIME_OFFSET_NAME => "s",
+                None => "mm",
             }
             .into(),
             held: m.held.clone(),

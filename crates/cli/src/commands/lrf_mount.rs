@@ -11,6 +11,7 @@ use pingcal_lrf::ball_finder::{find_walls, FinderOptions};
 use pingcal_lrf::cloud::{Cloud, MountModel};
 use pingcal_lrf::cloud_file::{read_cloud_file_in, read_lrf_model, CloudUnit};
 use pingcal_lrf::room::{mount_from_room_refinding, RoomMount, RoomOptions};
+use pingcal_lrf::sensor::MountParam;
 use pingcal_lrf::RangeNoise;
 use std::path::PathBuf;
 
@@ -116,11 +117,7 @@ pub fn run(args: Args) -> CmdResult {
 
 /// The unit of a parameter in print.
 fn unit(name: &str) -> &'static str {
-    match name {
-        "tilt_x" | "tilt_z" => "°",
-        "servo_scale" | "range_scale" => "",
-        _ => " mm",
-    }
+    MountParam::named(name).map_or(" mm", MountParam::unit)
 }
 
 fn print_estimate(r: &RoomMount) {
