@@ -1494,14 +1494,7 @@ fn a_far_range_in_a_projects_scan_is_masked_with_a_warning_quiet_or_not() {
     fields[k] = "999999".into();
     lines[at] = fields.join(",");
     fs::write(&scan, lines.join("\n") + "\n").unwrap();
-    let out = w.dir.join("out");
-    let run = w.run(&[
-        "calibrate",
-        s(&p.join("project.toml")),
-        "--out",
-        s(&out),
-        "--quiet",
-    ]);
+    let (run, out) = w.calibrate(&p, &[]);
     warns(
         &run,
         &[

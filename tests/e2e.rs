@@ -1448,14 +1448,7 @@ fn a_half_sweep_names_the_mount_parameters_it_cannot_estimate() {
         "half",
         "[lrf]\nservo_start_deg = -90.0\nservo_end_deg = 90.0\nmount_offset_mm = [8.0, -5.0, 12.0]\nmount_tilt_x_deg = 0.4\nrange_offset_mm = 12.0\n",
     );
-    let out = w.dir.join("out");
-    let run = w.run(&[
-        "calibrate",
-        s(&p.join("project.toml")),
-        "--out",
-        s(&out),
-        "--quiet",
-    ]);
+    let (run, out) = w.calibrate(&p, &[]);
     assert!(run.success(), "calibrate failed: {}", run.stderr);
     let r = read_json(&out.join("results.json"));
     let mount = r["lrf_mount"].as_array().expect("results.lrf_mount");
@@ -1502,14 +1495,7 @@ fn a_continuous_sweeps_servo_time_offset_is_estimated() {
         "sweep",
         "[lrf]\ncontinuous_sweep = true\nservo_passes = 2\nservo_step_deg = 0.25\nservo_time_offset_s = 0.02\n",
     );
-    let out = w.dir.join("out");
-    let run = w.run(&[
-        "calibrate",
-        s(&p.join("project.toml")),
-        "--out",
-        s(&out),
-        "--quiet",
-    ]);
+    let (run, out) = w.calibrate(&p, &[]);
     assert!(
         run.calibrated(&out.join("results.json")),
         "calibrate failed: {}",
@@ -1572,16 +1558,7 @@ fn a_start_in_another_minimum_gives_way_to_a_better_one() {
         s(&p),
     ]);
     assert!(sim.success(), "simulate failed: {}", sim.stderr);
-    let out = w.dir.join("out");
-    let run = w.run(&[
-        "calibrate",
-        s(&p.join("project.toml")),
-        "--out",
-        s(&out),
-        "--quiet",
-        "--seed",
-        "10",
-    ]);
+    let (run, out) = w.calibrate(&p, &["--seed", "10"]);
     assert!(run.success(), "calibrate: {}", run.stderr);
     let r = read_json(&out.join("results.json"));
     assert_eq!(

@@ -214,19 +214,26 @@ impl Work {
         p
     }
 
-    /// `pingcal ARGS` with stdout and stderr captured in files of this folder.
-    /// Runs `pingcal calibrate PROJECT/project.toml --out DIR/out --quiet`, which must fail
-    /// cleanly naming every needle (see [`assert_clean_failure`]); returns the error line.
-    pub fn calibrate_fails(&self, project: &Path, needles: &[&str]) -> String {
+    /// `pingcal calibrate PROJECT/project.toml --out DIR/out --quiet EXTRA…`: the run and
+    /// the output folder.
+    pub fn calibrate(&self, project: &Path, extra: &[&str]) -> (Run, PathBuf) {
         let out = self.dir.join("out");
         let toml = project.join("project.toml");
-        let run = self.run(&[
+        let mut args = vec![
             "calibrate",
             toml.to_str().expect("UTF-8 path"),
             "--out",
             out.to_str().expect("UTF-8 path"),
             "--quiet",
-        ]);
+        ];
+        args.extend_from_slice(extra);
+        (self.run(&args), out)
+    }
+
+    /// Runs `pingcal calibrate PROJECT/project.toml --out DIR/out --quiet`, which must fail
+    /// cleanly naming every needle (see [`assert_clean_failure`]); returns the error line.
+    pub fn calibrate_fails(&self, project: &Path, needles: &[&str]) -> String {
+        let (run, out) = self.calibrate(project, &[]);
         assert_clean_failure(&run, &out, needles)
     }
 
@@ -238,6 +245,7 @@ impl Work {
         out
     }
 
+    /// `pingcal ARGS` with stdout and stderr captured in files of this folder.
     pub fn run(&self, args: &[&str]) -> Run {
         run(args, &self.dir)
     }
