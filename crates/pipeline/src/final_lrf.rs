@@ -23,7 +23,7 @@
 
 use super::extrinsic::match_by_extrinsic;
 use super::ids::{PointId, SphereId};
-use super::joint::{JointOutcome, LrfView};
+use super::joint::{unmeasured_labels, JointOutcome, LrfView};
 use super::lrf::{self, LrfData};
 use super::scene::Scene;
 use crate::context::Options;
@@ -93,6 +93,7 @@ pub fn through_estimate(
         seen_twice_rejected: lrf.found.seen_twice_rejected(),
         seen_twice_kept: lrf.found.seen_twice_kept(),
         rejected_at_unmatched: 0,
+        unmeasured_labels: unmeasured_labels(project, scene, &lrf, &pairs, &j.camera_from_lrf),
     };
     let balls = j.ball_centres.len();
     j.notes.push(format!(

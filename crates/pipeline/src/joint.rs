@@ -242,7 +242,7 @@ pub struct JointOutcome {
 /// What the LRF step gave the joint adjustment's pass: the spheres found in the cloud
 /// through its start mount and how many were matched (the verdict judges these, not those
 /// of the project's mount, when the joint adjustment's result is the one given).
-#[derive(Clone, Copy, Debug, Default)]
+#[derive(Clone, Debug, Default)]
 pub struct LrfView {
     /// The pass (1: the project's mount; more: the cloud again through an estimate).
     pub pass: usize,
@@ -259,6 +259,10 @@ pub struct LrfView {
     /// a ball the cloud's residual mount error spoilt (beams through it, a fit lost), which
     /// a cloud through a better mount may give back.
     pub rejected_at_unmatched: usize,
+    /// Labels (`[balls] labels`) of balls the images did not measure where a sphere matched
+    /// to no ball lies in the main image ([`super::matching::unmeasured_labels_at`]): those
+    /// spheres are balls the photographs missed, not spurious ones.
+    pub unmeasured_labels: Vec<String>,
 }
 
 /// The balls of the joint adjustment: (LRF sphere, scene point, name, is a check ball).
@@ -1159,6 +1163,13 @@ fn finish(
             seen_twice_rejected: input.lrf.found.seen_twice_rejected(),
             seen_twice_kept: input.lrf.found.seen_twice_kept(),
             rejected_at_unmatched: rejected_at_unmatched(input, &ext),
+            unmeasured_labels: unmeasured_labels(
+                input.project,
+                input.scene,
+                input.lrf,
+                &input.ext.pairs,
+                &ext,
+            ),
         },
         planes,
         convergence: second.summary,
@@ -1227,6 +1238,22 @@ fn log_outcome(out: &JointOutcome, rep: &Reporter) {
         "joint: convergence: {}",
         out.convergence.describe()
     ));
+}
+
+/// The labels of balls the images did not measure where a sphere of `lrf` matched to none of
+/// `pairs` lies through `camera_from_lrf` ([`super::matching::unmeasured_labels_at`]).
+pub fn unmeasured_labels(
+    project: &Project,
+    scene: &Scene,
+    lrf: &LrfData,
+    pairs: &[(SphereId, PointId)],
+    camera_from_lrf: &Rigid3,
+) -> Vec<String> {
+    let unmatched: Vec<Vector3<f64>> = (lrf.found.balls.iter().enumerate())
+        .filter(|&(s, _)| !pairs.iter().any(|&(q, _)| q.0 == s))
+        .map(|(_, b)| b.centre)
+        .collect();
+    super::matching::unmeasured_labels_at(project, scene, &unmatched, camera_from_lrf)
 }
 
 /// How many balls of the model have no sphere but a rejected candidate near where

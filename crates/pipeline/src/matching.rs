@@ -31,6 +31,7 @@ use crate::progress::Reporter;
 use nalgebra::{Vector2, Vector3};
 use pingcal_ba::initial::intersection::{intersect, IntersectionOptions, Ray};
 use pingcal_ba::solver;
+use pingcal_geometry::Rigid3;
 use pingcal_project::Project;
 use pingcal_targets::driveback::{assign, Predicted};
 use pingcal_targets::{Target, TargetKind};
@@ -635,6 +636,45 @@ fn names_by_label(
     names
 }
 
+/// The labels (`[balls] labels`) of balls the images did not measure near which, in the main
+/// image, one of `centres` (LRF frame) projects through `camera_from_lrf` (the scene's frame
+/// from the LRF's), within the label rule's reach (3 ball radii, at least 10 px): an LRF
+/// sphere there is the labelled ball that the photographs missed, not a spurious sphere.
+/// Empty without labels or without an oriented main image.
+pub fn unmeasured_labels_at(
+    project: &Project,
+    scene: &Scene,
+    centres: &[Vector3<f64>],
+    camera_from_lrf: &Rigid3,
+) -> Vec<String> {
+    let f = &project.file;
+    let main = main_image(project);
+    let Some(pose) = scene.poses[main] else {
+        return Vec::new();
+    };
+    let mc = scene.camera_of[main];
+    let measured =
+        |id: &str| (scene.points.iter()).any(|p| p.kind == PointKind::Ball && p.name == id);
+    let projected: Vec<(Vector2<f64>, f64)> = (centres.iter())
+        .filter_map(|c| {
+            let xc = pose.transform(&camera_from_lrf.transform(c));
+            let uv = scene.cameras[mc].project(&scene.intrinsics[mc], &xc)?;
+            let r_px =
+                0.5 * f.balls.diameter_mm * scene.cameras[mc].focal_px(&scene.intrinsics[mc])
+                    / xc.y;
+            (xc.y > 0.0).then_some((uv, (3.0 * r_px).max(10.0)))
+        })
+        .collect();
+    (f.balls.labels.iter())
+        .filter(|l| !measured(&l.id))
+        .filter(|l| {
+            let lp = Vector2::new(l.x, l.y);
+            (projected.iter()).any(|(uv, reach)| (uv - lp).norm() <= *reach)
+        })
+        .map(|l| l.id.clone())
+        .collect()
+}
+
 /// A quick adjustment of the scene as it stands (no rig, no snooping); measurements more
 /// than `3 ·` [`TOL_PX`] from their point afterwards are dropped (a coded one beyond the reach
 /// of its own ring as a named blunder, [`coded_blunder`]), and points left with fewer than
@@ -828,4 +868,54 @@ pub(super) fn implausible_principal_distance(project: &Project) -> Option<String
             ),
         })
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::adjust::tests::fixture;
+    use pingcal_project::BallLabel;
+
+    /// A sphere matched to no ball is explained by the label of a ball the images did not
+    /// measure only when it projects within the label rule's reach of that label, and a
+    /// measured ball's label explains nothing.
+    #[test]
+    fn an_unmatched_sphere_at_an_unmeasured_label_is_that_ball() {
+        let (mut project, _, mut scene) = fixture();
+        let main = main_image(&project);
+        let mc = scene.camera_of[main];
+        let pixel = |scene: &Scene, x: Vector3<f64>| {
+            let xc = scene.poses[main].unwrap().transform(&x);
+            scene.cameras[mc]
+                .project(&scene.intrinsics[mc], &xc)
+                .unwrap()
+        };
+        let measured = Vector3::new(-100.0, 1500.0, 50.0);
+        scene.points.push(ScenePoint {
+            name: "B1".into(),
+            kind: PointKind::Ball,
+            position: measured,
+            obs: Vec::new(),
+        });
+        let missed = Vector3::new(200.0, 1500.0, -80.0);
+        for (id, at) in [("B1", measured), ("B2", missed)] {
+            let uv = pixel(&scene, at);
+            project.file.balls.labels.push(BallLabel {
+                id: id.into(),
+                x: uv.x + 3.0,
+                y: uv.y - 2.0,
+            });
+        }
+        let id = Rigid3::identity();
+        let at = |p: &Project, c: &[Vector3<f64>]| unmeasured_labels_at(p, &scene, c, &id);
+        assert_eq!(at(&project, &[missed]), vec!["B2".to_string()]);
+        assert!(at(&project, &[measured]).is_empty(), "B1 is measured");
+        let far = Vector3::new(600.0, 1500.0, 300.0);
+        assert!(at(&project, &[far]).is_empty(), "far from both");
+        project.file.balls.labels.clear();
+        assert!(
+            at(&project, &[missed]).is_empty(),
+            "no labels, no explanation"
+        );
+    }
 }

@@ -30,7 +30,7 @@
 //! values).
 
 use super::bundle::Adjusted;
-use super::joint::JointOutcome;
+use super::joint::{self, JointOutcome};
 use crate::stages::Stages;
 use nalgebra::{DMatrix, Matrix3, Vector3};
 use pingcal_ba::camera::ModelKind;
@@ -239,7 +239,9 @@ pub fn judge(st: &Stages) -> Verdict {
             passed,
         });
     });
-    reasons.extend(unmatched(st));
+    let (unmatched_reasons, unmatched_notes) = unmatched(st);
+    reasons.extend(unmatched_reasons);
+    notes.extend(unmatched_notes);
     if let Some(d) = &st.adjusted.lens_doubt {
         reasons.insert(0, d.clone());
     }
@@ -587,8 +589,10 @@ fn correlation_test(st: &Stages, test: &mut Test) {
     }
 }
 
-/// Check balls the project names that were not judged, and spheres matched to no ball.
-fn unmatched(st: &Stages) -> Vec<String> {
+/// Check balls the project names that were not judged, and spheres matched to no ball (the
+/// reasons), and the unmatched spheres that lie where a labelled ball the images did not
+/// measure is (the notes: such a sphere is that ball, not a spurious one).
+fn unmatched(st: &Stages) -> (Vec<String>, Vec<String>) {
     let mut out = Vec::new();
     // the joint adjustment's own view of the LRF when its result is the one given (it may
     // have looked at the cloud again through its estimated mount)
@@ -631,12 +635,29 @@ fn unmatched(st: &Stages) -> Vec<String> {
         || st.lrf.found.balls.len().saturating_sub(st.ext.pairs.len()),
         |j| j.lrf_view.spheres.saturating_sub(j.lrf_view.matched),
     );
-    if extra > 0 {
+    let labelled = match (joint, &st.ext.spheres) {
+        (Some(j), _) => j.lrf_view.unmeasured_labels.clone(),
+        (None, Some(e)) => joint::unmeasured_labels(
+            st.project,
+            st.scene,
+            st.lrf,
+            &st.ext.pairs,
+            &e.registration.camera_from_lrf.rigid(),
+        ),
+        (None, None) => Vec::new(),
+    };
+    let explained = labelled.len().min(extra);
+    if extra > explained {
         out.push(format!(
-            "{extra} sphere(s) found in the LRF cloud match no ball of the photogrammetric model (spurious spheres, or balls the images did not measure)"
+            "{} sphere(s) found in the LRF cloud match no ball of the photogrammetric model (spurious spheres, or balls the images did not measure)",
+            extra - explained
         ));
     }
-    out
+    let notes = (explained > 0).then(|| format!(
+        "{explained} sphere(s) found in the LRF cloud lie where the main image's label of a ball the images did not measure is ({}): that ball, seen by the LRF only, takes no part",
+        labelled.join(", ")
+    ));
+    (out, notes.into_iter().collect())
 }
 
 #[cfg(test)]
