@@ -70,15 +70,18 @@ fn main() {
         Command::Register(a) => commands::register::run(a),
         Command::SphereCalib(a) => commands::sphere_calib::run(a),
     };
-    if let Err(e) = result {
+    match result {
+        Ok(()) => {}
         // `calibrate`'s verdicts end with codes of their own (3 doubtful, 4 failed)
-        if let Some(x) = e.downcast_ref::<commands::Exit>() {
+        Err(commands::CmdError::Exit(x)) => {
             if !x.message.is_empty() {
                 eprintln!("pingcal: {}", x.message);
             }
             std::process::exit(x.code);
         }
-        eprintln!("pingcal: error: {e}");
-        std::process::exit(1);
+        Err(e) => {
+            eprintln!("pingcal: error: {e}");
+            std::process::exit(1);
+        }
     }
 }

@@ -17,8 +17,70 @@ pub mod simulate;
 pub mod sphere_calib;
 pub mod targets;
 
-/// The error every command returns: printed by `main` as one line.
-pub type CmdError = Box<dyn std::error::Error + Send + Sync>;
+/// The error every command returns, printed by `main` as one line: each library's own error
+/// converts into it (`?`), a command's own message is [`CmdError::Message`], and a verdict's
+/// end with a code of its own is [`CmdError::Exit`].
+#[derive(Debug, thiserror::Error)]
+pub enum CmdError {
+    /// A command's end with an exit code of its own (see [`Exit`]).
+    #[error("{0}")]
+    Exit(#[from] Exit),
+    /// A command's own one-line message.
+    #[error("{0}")]
+    Message(String),
+    /// Reading or writing a file (the message names it where the command knows it).
+    #[error("{0}")]
+    Io(#[from] std::io::Error),
+    /// A JSON file that does not parse, or a value that does not serialise.
+    #[error("{0}")]
+    Json(#[from] serde_json::Error),
+    /// The project file or its layout.
+    #[error("{0}")]
+    Project(#[from] pingcal_project::ProjectError),
+    /// The calibration pipeline.
+    #[error("{0}")]
+    Pipeline(#[from] pingcal_pipeline::PipelineError),
+    /// The LRF's files and fits.
+    #[error("{0}")]
+    Lrf(#[from] pingcal_lrf::LrfError),
+    /// A ROS bag.
+    #[error("{0}")]
+    Rosbag(#[from] pingcal_rosbag::RosbagError),
+    /// The simulator.
+    #[error("{0}")]
+    Sim(#[from] pingcal_sim::SimError),
+    /// The target detector's images.
+    #[error("{0}")]
+    Targets(#[from] pingcal_targets::TargetError),
+    /// A BAL problem file.
+    #[error("{0}")]
+    Bal(#[from] pingcal_ba::bal::BalError),
+    /// A pingcal measurement file.
+    #[error("{0}")]
+    Measurements(#[from] pingcal_ba::io::measurements::MeasurementError),
+    /// DBAT's camera and measurement files.
+    #[error("{0}")]
+    Dbat(#[from] pingcal_ba::io::dbat::DbatError),
+    /// The bundle adjustment's solver.
+    #[error("{0}")]
+    Solve(#[from] pingcal_ba::solver::SolveError),
+    /// The planner.
+    #[error("{0}")]
+    Plan(#[from] pingcal_plan::PlanError),
+}
+
+impl From<String> for CmdError {
+    fn from(m: String) -> Self {
+        CmdError::Message(m)
+    }
+}
+
+impl From<&str> for CmdError {
+    fn from(m: &str) -> Self {
+        CmdError::Message(m.to_string())
+    }
+}
+
 /// The result every command returns.
 pub type CmdResult = Result<(), CmdError>;
 
