@@ -1487,6 +1487,65 @@ fn a_half_sweep_names_the_mount_parameters_it_cannot_estimate() {
     );
 }
 
+/// Issue 40: when the project's mount is so far off that the spheres of its cloud match too
+/// few balls for the two-step method (here the scan plane's tilt stated 6.3° off and ten of
+/// the sixteen balls named check balls: through that mount the six balls matched are all
+/// check balls), the calibration does not stop there. With the joint adjustment asked for,
+/// step 6 runs again on the cloud through the mount the room's walls, floor and ceiling give
+/// (all sixteen balls match there), says so in the two-step method's notes, and the joint
+/// adjustment's extrinsic is within 5σ of the truth.
+#[test]
+fn a_mount_too_far_off_for_the_two_step_start_starts_from_the_rooms() {
+    let w = Work::new("room_fallback");
+    let p = w.simulate(
+        "tilted",
+        "[render]\nsupersampling = 2\n[lrf]\nservo_step_deg = 0.3515625\n",
+    );
+    let toml = p.join("project.toml");
+    replace_once(
+        &toml,
+        "mount_tilt_x_deg = 0.0\n",
+        "mount_tilt_x_deg = -6.0\n",
+    );
+    replace_once(
+        &toml,
+        "check = [\"B4\", \"B9\", \"B11\", \"B12\", \"B15\"]",
+        "check = [\"B2\", \"B4\", \"B5\", \"B7\", \"B9\", \"B11\", \"B12\", \"B14\", \"B15\", \"B16\"]",
+    );
+    // the premise: the two-step method alone stops for want of control balls
+    replace_once(&toml, "method = \"all\"", "method = \"spheres\"");
+    let why = w.calibrate_fails(&p, &["control balls are left"]);
+    replace_once(&toml, "method = \"spheres\"", "method = \"all\"");
+    let (run, out) = w.calibrate(&p, &[]);
+    assert!(
+        run.calibrated(&out.join("results.json")),
+        "calibrate failed: {}",
+        run.stderr
+    );
+    let r = read_json(&out.join("results.json"));
+    let spheres = (r["methods"].as_array().expect("methods").iter())
+        .find(|m| m["method"] == "spheres")
+        .expect("the two-step method's entry");
+    let note = spheres["notes"][0].as_str().unwrap_or_default();
+    assert!(
+        note.contains("through the mount the room's planes gave")
+            && note.contains("control balls are left"),
+        "the two-step method's notes: {spheres}\n(alone it said: {why})"
+    );
+    let truth = read_json(&p.join("truth.json"));
+    let offset_y = truth["lrf_mount"]["offset_mm"][1].as_f64().unwrap();
+    for k in 0..3 {
+        let want = num(&truth["extrinsic"]["translation_mm"][k], "true t")
+            + num(&truth["extrinsic"]["rotation"][k][1], "true R") * offset_y;
+        let got = num(&r["extrinsic"]["translation_mm"][k], "t");
+        let sigma = num(&r["extrinsic"]["sigma_translation_mm"][k], "σ of t");
+        assert!(
+            (got - want).abs() <= 5.0 * sigma + 0.5,
+            "t[{k}] = {got} mm ± {sigma}, truth {want} mm"
+        );
+    }
+}
+
 /// Issue 37: a continuous sweep, forward then back, whose servo stamps are 20 ms late
 /// against the scanner's. The joint adjustment estimates the time offset with its σ
 /// (results.json's `lrf_mount` entry `time_offset_s`, and the `lrf_model` every LRF output

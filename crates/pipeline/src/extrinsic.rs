@@ -54,6 +54,10 @@ pub struct Extrinsics {
     pub corner: Option<std::result::Result<CornerOutcome, String>>,
     /// Check balls used.
     pub check_ids: Vec<String>,
+    /// Why the methods ran on the cloud through the mount the room's planes gave rather than
+    /// the project's (None: the project's, as always unless they failed there; see
+    /// `pingcal_pipeline::calibrate`).
+    pub through_room: Option<String>,
 }
 
 /// The balls of the scene with their positions and covariances from the bundle adjustment.
@@ -395,6 +399,7 @@ pub fn spheres_by_extrinsic(
         spheres: None,
         corner: None,
         check_ids,
+        through_room: None,
     })
 }
 
@@ -444,6 +449,7 @@ fn run_methods(
         spheres,
         corner,
         check_ids,
+        through_room: None,
     })
 }
 

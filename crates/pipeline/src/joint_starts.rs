@@ -280,9 +280,10 @@ fn insignificant_mount(out: &joint::JointOutcome, prior: &MountModel) -> Option<
 /// ([`absurd`]), the project's mount with the two-step method's extrinsic. Each start runs
 /// its passes ([`JointRun::passes`]). A result that is absurd from every start is no
 /// result: "the joint adjustment did not converge from any start", and the calibration
-/// fails. The priors stay at the project's mount throughout, and the two-step method's
-/// results stay those of the project's mount: they are the paper's method as the user gave
-/// it.
+/// fails. The priors stay at `prior`, the project's mount, throughout (also when `lrf` is
+/// the cloud through the room's mount because step 6 failed on the project's, see
+/// `crate::calibrate`), and the two-step method's results stay those of `lrf`'s mount: the
+/// paper's method as the user gave it.
 ///
 /// **The simpler model.** When the estimated mount and range parameters are insignificant
 /// ([`insignificant_mount`]), the joint adjustment is run once more with every one held at
@@ -291,7 +292,7 @@ fn insignificant_mount(out: &joint::JointOutcome, prior: &MountModel) -> Option<
 pub(crate) fn run_joint(
     project: &Project,
     (dets, scene, adjusted): (&scene::Detections, &scene::Scene, &bundle::Adjusted),
-    lrf: &lrf::LrfData,
+    (lrf, prior): (&lrf::LrfData, MountModel),
     ext: &extrinsic::Extrinsics,
     opts: &Options,
     rep: &Reporter,
@@ -303,7 +304,7 @@ pub(crate) fn run_joint(
     };
     let run = JointRun {
         project,
-        prior: lrf.mount,
+        prior,
         dets,
         scene,
         adjusted,

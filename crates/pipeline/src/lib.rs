@@ -66,6 +66,46 @@ pub use stages::Stages;
 
 use pingcal_project::Project;
 
+/// Step 6 again on the cloud through the mount the room's planes give, when it `failed` on
+/// the project's mount and the joint adjustment is asked for: under a mount error of
+/// centimetres and a degree the spheres of the project's cloud may match too few balls to
+/// start from (a ball seen twice, centres moved by the range errors), while the room's
+/// walls, floor and ceiling give the mount without any ball. The methods then run on that
+/// cloud, which [`extrinsic::Extrinsics::through_room`] says with the reason; the joint
+/// adjustment's priors stay at the project's mount. None when the joint adjustment is not
+/// asked for, the room gives no mount, or step 6 fails there too.
+fn through_room(
+    project: &Project,
+    inputs: extrinsic::Inputs<'_>,
+    failed: &PipelineError,
+    opts: &Options,
+    rep: &Reporter,
+) -> Option<(lrf::LrfData, extrinsic::Extrinsics)> {
+    let (scene, adjusted, lrf, dets) = inputs;
+    if !project.file.method.joint() {
+        return None;
+    }
+    rep.log(format!(
+        "the extrinsic through the project's mount failed ({failed}): trying the mount the room's planes give"
+    ));
+    let room = lrf::room_mount(project, lrf, opts.seed, rep)?;
+    let lrf_r = lrf::through_mount(project, lrf, room.mount, opts, rep)?;
+    match extrinsic::extrinsics(project, (scene, adjusted, &lrf_r, dets), opts, rep) {
+        Ok(mut ext) => {
+            ext.through_room = Some(format!(
+                "the two-step methods and the joint adjustment's start use the LRF cloud through the mount the room's planes gave: through the project's mount, {failed}"
+            ));
+            Some((lrf_r, ext))
+        }
+        Err(e) => {
+            rep.log(format!(
+                "the extrinsic through the room's mount failed too ({e})"
+            ));
+            None
+        }
+    }
+}
+
 /// Runs the whole calibration of `project`.
 pub fn calibrate(project: &Project, opts: &Options, rep: &Reporter) -> Result<Outcome> {
     lrf::check_mount(project)?;
@@ -96,12 +136,25 @@ pub fn calibrate(project: &Project, opts: &Options, rep: &Reporter) -> Result<Ou
     let lrf = lrf::lrf_spheres(project, opts, rep).map_err(blame_lens)?;
     timing.push(("LRF spheres".into(), t.elapsed().as_secs_f64()));
     let t = std::time::Instant::now();
-    let ext = extrinsic::extrinsics(project, (&scene, &adjusted, &lrf, &dets), opts, rep)
-        .map_err(blame_lens)?;
+    let prior = lrf.mount;
+    let (lrf, ext) =
+        match extrinsic::extrinsics(project, (&scene, &adjusted, &lrf, &dets), opts, rep) {
+            Ok(ext) => (lrf, ext),
+            Err(e) => {
+                match through_room(project, (&scene, &adjusted, &lrf, &dets), &e, opts, rep) {
+                    Some((lrf_r, ext_r)) => {
+                        scene.warnings.extend(ext_r.through_room.clone());
+                        (lrf_r, ext_r)
+                    }
+                    None => return Err(blame_lens(e)),
+                }
+            }
+        };
     timing.push(("extrinsic".into(), t.elapsed().as_secs_f64()));
     let t = std::time::Instant::now();
     let mut joint = if project.file.method.joint() {
-        let r = joint_starts::run_joint(project, (&dets, &scene, &adjusted), &lrf, &ext, opts, rep);
+        let inputs = (&dets, &scene, &adjusted);
+        let r = joint_starts::run_joint(project, inputs, (&lrf, prior), &ext, opts, rep);
         if let Err(e) = &r {
             rep.log(format!("joint adjustment failed: {e}"));
         }

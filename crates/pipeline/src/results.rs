@@ -600,10 +600,11 @@ fn methods(
             sigma0: Some(r.sigma0),
             variance_components: Vec::new(),
             error: None,
-            notes: ev
-                .loo_skipped
-                .iter()
-                .map(|(id, why)| format!("leave-one-out skipped {id}: {why}"))
+            notes: (ext.through_room.iter().cloned())
+                .chain(
+                    (ev.loo_skipped.iter())
+                        .map(|(id, why)| format!("leave-one-out skipped {id}: {why}")),
+                )
                 .collect(),
         });
     }
