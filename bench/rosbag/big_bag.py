@@ -3,7 +3,7 @@ the simulated project's whole sweep (SIM_DIR/scans/S00.csv) repeated until the b
 SIZE_MB, each repetition 1,000 s after the one before, as /scan (sensor_msgs/LaserScan) and
 /joint_states (two messages per scan, the servo standing still while it scans).
 
-    python big_bag.py SIM_DIR OUT.bag|OUT.mcap|OUT.zstd.mcap SIZE_MB
+    python big_bag.py SIM_DIR OUT.bag|OUT.mcap|OUT.zstd.mcap|OUT.db3 SIZE_MB
 
 OUT.zstd.mcap is written by the `mcap` package's writer with zstd chunks (as rosbag2's MCAP
 writer does by default); SIZE_MB then counts the messages' bytes before compression.
@@ -75,7 +75,8 @@ elif zstd:
 else:
     tmp = out.with_suffix(".dir")
     shutil.rmtree(tmp, ignore_errors=True)
-    w = Writer2(tmp, version=9, storage_plugin=StoragePlugin.MCAP)
+    plugin = StoragePlugin.SQLITE3 if out.suffix == ".db3" else StoragePlugin.MCAP
+    w = Writer2(tmp, version=9, storage_plugin=plugin)
     w.open()
 cs = w.add_connection("/scan", "sensor_msgs/msg/LaserScan", typestore=ts)
 cj = w.add_connection("/joint_states", "sensor_msgs/msg/JointState", typestore=ts)
@@ -101,7 +102,7 @@ while written < size_mb * 1e6:
     rep += 1
 w.close()
 if not ros1 and not zstd:
-    (stored,) = [p for p in tmp.iterdir() if p.suffix == ".mcap"]
+    (stored,) = [p for p in tmp.iterdir() if p.suffix in (".mcap", ".db3")]
     shutil.move(stored, out)
     shutil.rmtree(tmp)
 print(f"{out}: {rep} sweeps, {rep * len(scans)} scans, {out.stat().st_size / 1e6:.0f} MB")
