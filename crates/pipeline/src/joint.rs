@@ -288,13 +288,53 @@ fn asked(project: &Project) -> [bool; 8] {
     free
 }
 
-/// The joint problem's own parameter blocks: the extrinsic and the mount come first, so
-/// that the cofactors' first 14 rows are the extrinsic's 6 (δω, δt) and the mount's 8; the
+/// The joint problem's own parameter blocks: the extrinsic (δω, δt) and the mount's 8; the
 /// planes and the servo time offset follow.
 #[derive(Clone, Copy, Debug)]
 struct Keys {
     extrinsic: ParameterKey,
     mount: ParameterKey,
+}
+
+/// Where the extrinsic's 6 unknowns (δω, δt) and the mount's 8 are among the rows of a
+/// precision's parameter covariance: read from the solver's offsets of their blocks
+/// (`Precision::parameter_offsets`), not from the order the blocks were added in.
+#[derive(Clone, Copy, Debug)]
+struct Rows {
+    extrinsic: usize,
+    mount: usize,
+}
+
+impl Rows {
+    fn of(keys: &Keys, prec: &Precision) -> Self {
+        Rows {
+            extrinsic: prec.parameter_offsets[keys.extrinsic.0],
+            mount: prec.parameter_offsets[keys.mount.0],
+        }
+    }
+
+    /// The row of the extrinsic's unknown `k` (0–2 δω, 3–5 δt).
+    fn ext(&self, k: usize) -> usize {
+        self.extrinsic + k
+    }
+
+    /// The row of mount parameter `k` ([`MountParam::index`]).
+    fn mount(&self, k: usize) -> usize {
+        self.mount + k
+    }
+
+    /// The extrinsic's rows and those of the free mount parameters, each with its name.
+    fn named(&self, free: &[bool; 8]) -> Vec<(usize, String)> {
+        let ext = ["ω", "φ", "κ", "tx", "ty", "tz"];
+        (0..6)
+            .map(|k| (self.ext(k), format!("the extrinsic's {}", ext[k])))
+            .chain(
+                (0..8)
+                    .filter(|&k| free[k])
+                    .map(|k| (self.mount(k), MOUNT_PARAM_NAMES[k].to_string())),
+            )
+            .collect()
+    }
 }
 
 /// The beams on the control balls left out of the joint problem at its start.
@@ -679,14 +719,15 @@ fn estimability(
             .map_err(|e| PipelineError::new(format!("joint adjustment: {e}")))?;
         // the cofactors of (extrinsic, mount): the covariance with σ0 = 1
         let cov = &prec.parameters_covariance / prec.sigma0.powi(2).max(f64::MIN_POSITIVE);
+        let rows = Rows::of(&joint.keys, &prec);
         // the servo time offset: the same two tests, on its own row (k = 8)
         let tau = (joint.time_offset.as_ref().filter(|t| t.free())).and_then(|t| {
             let i = prec.parameter_offsets[t.block.0];
-            time_offset_not_estimable(i, &cov, free).map(|(rank, why)| (rank, 8, why))
+            time_offset_not_estimable(i, &cov, rows, free).map(|(rank, why)| (rank, 8, why))
         });
         let worst = (0..8)
             .filter(|&k| free[k])
-            .filter_map(|k| not_estimable(k, &cov, free).map(|(rank, why)| (rank, k, why)))
+            .filter_map(|k| not_estimable(k, &cov, rows, free).map(|(rank, why)| (rank, k, why)))
             .chain(tau)
             .max_by(|a, b| a.0.total_cmp(&b.0));
         let Some((_, k, why)) = worst else { break };
@@ -927,13 +968,14 @@ fn second_start(
     use rand::Rng;
     let mut g = pingcal_geometry::consensus::rng(seed ^ 0x5ec0_57a7);
     let cov = &prec.parameters_covariance;
+    let rows = Rows::of(&joint.keys, prec);
     let mut step = |k: usize| {
         let sign = if g.random_bool(0.5) { 1.0 } else { -1.0 };
         sign * SECOND_START_Z * cov[(k, k)].max(0.0).sqrt()
     };
-    let ext_delta: Vec<f64> = (0..6).map(&mut step).collect();
+    let ext_delta: Vec<f64> = (0..6).map(|k| step(rows.ext(k))).collect();
     let delta: Vec<f64> = (0..8)
-        .map(|k| if free[k] { step(6 + k) } else { 0.0 })
+        .map(|k| if free[k] { step(rows.mount(k)) } else { 0.0 })
         .collect();
     let tau = joint.time_offset.as_ref().filter(|t| t.free());
     let tau_delta = tau.map(|t| step(prec.parameter_offsets[t.block.0]));
@@ -969,10 +1011,12 @@ fn second_start(
     let mut z: f64 = 0.0;
     for k in 0..6 {
         let d = if k < 3 { dr[k] } else { dt[k - 3] };
-        z = z.max(d.abs() / cov[(k, k)].max(1e-30).sqrt());
+        let i = rows.ext(k);
+        z = z.max(d.abs() / cov[(i, i)].max(1e-30).sqrt());
     }
     for k in (0..8).filter(|&k| free[k]) {
-        z = z.max((t2[k] - t1[k]).abs() / cov[(6 + k, 6 + k)].max(1e-30).sqrt());
+        let i = rows.mount(k);
+        z = z.max((t2[k] - t1[k]).abs() / cov[(i, i)].max(1e-30).sqrt());
     }
     if let Some(t) = tau {
         let i = prec.parameter_offsets[t.block.0];
@@ -1101,6 +1145,7 @@ fn finish(
     let sigma0 = (chi2 / redundancy.max(1) as f64).sqrt();
     let (ext, theta) = joint.solution(&p);
     let cov = prec.parameters_covariance.clone();
+    let rows = Rows::of(&joint.keys, &prec);
     let mount_model = MountModel {
         servo_time_offset_s: joint.tau(&p),
         ..MountModel::from_params(&theta, input.mount0.servo_zero_deg)
@@ -1116,7 +1161,7 @@ fn finish(
     };
     let check = check_table(&sim, &pick(&lrf_points, true), &pick(&cam_points, true));
     let control = check_table(&sim, &pick(&lrf_points, false), &pick(&cam_points, false));
-    let ecov = cov.view((0, 0), (6, 6)).into_owned();
+    let ecov = DMatrix::from_fn(6, 6, |a, b| cov[(rows.ext(a), rows.ext(b))]);
     let rot_cov = Matrix3::from_fn(|a, b| ecov[(a, b)]);
     let rms = |e: Vec<f64>| (e.iter().map(|e| e * e).sum::<f64>() / e.len().max(1) as f64).sqrt();
     let planes = solved_planes(joint, &p);
@@ -1126,15 +1171,20 @@ fn finish(
         sigma_opk_deg: opk_sigma_deg(&ext.rotation, &rot_cov),
         extrinsic_cov: ecov,
         mount: (0..8)
-            .map(|k| mount_estimate(k, &theta, &cov, held))
+            .map(|k| mount_estimate(k, &theta, &cov, rows, held))
             .collect(),
         time_offset: (joint.time_offset.as_ref()).map(|t| {
-            time_offset_estimate(t, joint.tau(&p), &cov, prec.parameter_offsets[t.block.0])
+            time_offset_estimate(
+                t,
+                joint.tau(&p),
+                (&cov, rows),
+                prec.parameter_offsets[t.block.0],
+            )
         }),
         mount_model,
         mount_cov: DMatrix::from_fn(8, 8, |a, b| {
             if free[a] && free[b] {
-                cov[(6 + a, 6 + b)]
+                cov[(rows.mount(a), rows.mount(b))]
             } else {
                 0.0
             }
@@ -1324,8 +1374,13 @@ fn unit(k: usize) -> &'static str {
 /// Why parameter `k` cannot be estimated, judged on the cofactors `cov` of the extrinsic
 /// (6: δω, δt) and the mount (8; with the weak priors on): None when it can. The second value
 /// ranks how badly (larger: worse).
-fn not_estimable(k: usize, cov: &DMatrix<f64>, free: &[bool; 8]) -> Option<(f64, String)> {
-    let i = 6 + k;
+fn not_estimable(
+    k: usize,
+    cov: &DMatrix<f64>,
+    rows: Rows,
+    free: &[bool; 8],
+) -> Option<(f64, String)> {
+    let i = rows.mount(k);
     let sd = cov[(i, i)].max(0.0).sqrt();
     let share = sd / PRIOR_SIGMA[k];
     if !(share <= MAX_PRIOR_SHARE) {
@@ -1334,7 +1389,7 @@ fn not_estimable(k: usize, cov: &DMatrix<f64>, free: &[bool; 8]) -> Option<(f64,
             to_unit(k, sd), to_unit(k, PRIOR_SIGMA[k]), u = unit(k)
         )));
     }
-    correlated(i, cov, free).map(|(other, r)| {
+    correlated(i, cov, rows, free).map(|(other, r)| {
         (
             r.abs(),
             format!("it is correlated with {other} at ρ = {r:.4}: the data cannot tell them apart"),
@@ -1342,22 +1397,15 @@ fn not_estimable(k: usize, cov: &DMatrix<f64>, free: &[bool; 8]) -> Option<(f64,
     })
 }
 
-/// The first unknown among the extrinsic's and the free mount parameters (the cofactors'
-/// first 14 rows) that unknown `i` is correlated with beyond [`MAX_CORRELATION`]: its name
-/// and the correlation.
-fn correlated(i: usize, cov: &DMatrix<f64>, free: &[bool; 8]) -> Option<(String, f64)> {
-    (0..14)
-        .filter(|&j| j != i && (j < 6 || free[j - 6]))
-        .find_map(|j| {
+/// The first unknown among the extrinsic's and the free mount parameters (their `rows`)
+/// that unknown `i` is correlated with beyond [`MAX_CORRELATION`]: its name and the
+/// correlation.
+fn correlated(i: usize, cov: &DMatrix<f64>, rows: Rows, free: &[bool; 8]) -> Option<(String, f64)> {
+    (rows.named(free).into_iter())
+        .filter(|&(j, _)| j != i)
+        .find_map(|(j, other)| {
             let r = cov[(i, j)] / (cov[(i, i)] * cov[(j, j)]).sqrt();
-            (r.abs() > MAX_CORRELATION).then(|| {
-                let other = if j < 6 {
-                    format!("the extrinsic's {}", ["ω", "φ", "κ", "tx", "ty", "tz"][j])
-                } else {
-                    MOUNT_PARAM_NAMES[j - 6].to_string()
-                };
-                (other, r)
-            })
+            (r.abs() > MAX_CORRELATION).then_some((other, r))
         })
 }
 
@@ -1370,6 +1418,7 @@ fn correlated(i: usize, cov: &DMatrix<f64>, free: &[bool; 8]) -> Option<(String,
 fn time_offset_not_estimable(
     i: usize,
     cov: &DMatrix<f64>,
+    rows: Rows,
     free: &[bool; 8],
 ) -> Option<(f64, String)> {
     const WHY: &str = "a sweep in one direction at one speed turns every beam by the same angle, which the extrinsic's rotation about the servo axis takes; sweep forward and back (or at two speeds) to estimate it";
@@ -1380,7 +1429,7 @@ fn time_offset_not_estimable(
             "the data do not determine it (σ {sd:.3} s against a prior of {TIME_OFFSET_PRIOR_SIGMA_S} s): {WHY}"
         )));
     }
-    correlated(i, cov, free).map(|(other, r)| {
+    correlated(i, cov, rows, free).map(|(other, r)| {
         (
             r.abs(),
             format!("it is correlated with {other} at ρ = {r:.4}: {WHY}"),
@@ -1430,27 +1479,40 @@ fn mount_estimate(
     k: usize,
     theta: &[f64; 8],
     cov: &DMatrix<f64>,
+    rows: Rows,
     held: &[Option<String>; 8],
 ) -> MountEstimate {
     let unit = |v: f64| to_unit(k, v);
     let name = MOUNT_PARAM_NAMES[k];
-    estimate_of_row(name, unit(theta[k]), unit, cov, 6 + k, &held[k])
+    estimate_of_row(
+        name,
+        unit(theta[k]),
+        unit,
+        (cov, rows),
+        rows.mount(k),
+        &held[k],
+    )
 }
 
 /// The servo time offset's outcome: its value `tau` (s), its σ and its correlations with
 /// the extrinsic from `cov` (its row `i`), or why it was held.
-fn time_offset_estimate(t: &TimeOffset, tau: f64, cov: &DMatrix<f64>, i: usize) -> MountEstimate {
-    estimate_of_row(TIME_OFFSET_NAME, tau, |v| v, cov, i, &t.held)
+fn time_offset_estimate(
+    t: &TimeOffset,
+    tau: f64,
+    (cov, rows): (&DMatrix<f64>, Rows),
+    i: usize,
+) -> MountEstimate {
+    estimate_of_row(TIME_OFFSET_NAME, tau, |v| v, (cov, rows), i, &t.held)
 }
 
 /// The outcome of the unknown at row `i` of `cov` (value and σ in the unit `unit` makes of
-/// the vector's): its σ and its correlations with the extrinsic (the first 6 rows) when it
-/// was estimated (`held` None), else why it was held.
+/// the vector's): its σ and its correlations with the extrinsic (its `rows`) when it was
+/// estimated (`held` None), else why it was held.
 fn estimate_of_row(
     name: &'static str,
     value: f64,
     unit: impl Fn(f64) -> f64,
-    cov: &DMatrix<f64>,
+    (cov, rows): (&DMatrix<f64>, Rows),
     i: usize,
     held: &Option<String>,
 ) -> MountEstimate {
@@ -1460,8 +1522,12 @@ fn estimate_of_row(
         value,
         sigma: estimated.then(|| unit(cov[(i, i)].max(0.0).sqrt())),
         held: held.clone(),
-        corr_extrinsic: estimated
-            .then(|| std::array::from_fn(|j| cov[(i, j)] / (cov[(i, i)] * cov[(j, j)]).sqrt())),
+        corr_extrinsic: estimated.then(|| {
+            std::array::from_fn(|k| {
+                let j = rows.ext(k);
+                cov[(i, j)] / (cov[(i, i)] * cov[(j, j)]).sqrt()
+            })
+        }),
     }
 }
 
