@@ -5,7 +5,7 @@
 # over wall time, from a warm page cache) and peak RSS for: reading and decoding every scan
 # (the read_bag example: the reader alone), --list, and a full conversion to a scan file
 # (reading plus writing ~0.9 GB of CSV).
-#   bash bench/rosbag/run.sh [SIZE_MB]      (from the repository root; EXTS="bag mcap zstd.mcap")
+#   bash bench/rosbag/run.sh [SIZE_MB]      (from the repository root; EXTS="bag mcap zstd.mcap db3")
 # ZSTD_C=1 also times the reader built with the C zstd (feature pingcal-rosbag/zstd-c).
 # SIZE_MB counts the messages' bytes; for a zstd MCAP of about 1 GB on disk give 3750.
 # Wall times need an otherwise idle machine: the reader decompresses on one thread while it
