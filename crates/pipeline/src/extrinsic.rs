@@ -20,7 +20,7 @@ use super::scene::{main_image, Detections, PointKind, Scene};
 use crate::context::{Options, PipelineError, Result};
 use crate::progress::Reporter;
 use nalgebra::{Matrix3, Vector2, Vector3};
-use pingcal_geometry::Sim3;
+use pingcal_geometry::{Rigid3, Sim3};
 use pingcal_lrf::corner_baseline::{fan_baseline, BaselineInput};
 use pingcal_lrf::correspondence::{match_balls, MatchOptions};
 use pingcal_lrf::registration::{
@@ -302,6 +302,22 @@ pub fn spheres_only(
     run_methods(project, inputs, opts, rep, true, false)
 }
 
+/// The labels of balls the images did not measure where a sphere of `lrf` matched to none of
+/// `pairs` lies through `camera_from_lrf` ([`super::matching::unmeasured_labels_at`]).
+pub fn unmeasured_labels(
+    project: &Project,
+    scene: &Scene,
+    lrf: &LrfData,
+    pairs: &[(SphereId, PointId)],
+    camera_from_lrf: &Rigid3,
+) -> Vec<String> {
+    let unmatched: Vec<Vector3<f64>> = (lrf.found.balls.iter().enumerate())
+        .filter(|&(s, _)| !pairs.iter().any(|&(q, _)| q.0 == s))
+        .map(|(_, b)| b.centre)
+        .collect();
+    super::matching::unmeasured_labels_at(project, scene, &unmatched, camera_from_lrf)
+}
+
 /// The spheres of `lrf` matched one to one to the balls `balls` (scene point, centre in the
 /// photogrammetric frame) that `camera_from_lrf` puts within `radius` of them, nearest pairs
 /// first: with the extrinsic and the LRF's model near the truth, a sphere of the right ball
@@ -310,7 +326,7 @@ pub fn spheres_only(
 pub fn match_by_extrinsic(
     lrf: &LrfData,
     balls: &[(PointId, Vector3<f64>)],
-    camera_from_lrf: &pingcal_geometry::Rigid3,
+    camera_from_lrf: &Rigid3,
     radius: f64,
 ) -> Vec<(SphereId, PointId)> {
     let mut candidates: Vec<(f64, usize, usize)> = Vec::new();
@@ -347,7 +363,7 @@ pub fn spheres_by_extrinsic(
     scene: &Scene,
     adj: &Adjusted,
     lrf: &LrfData,
-    camera_from_lrf: &pingcal_geometry::Rigid3,
+    camera_from_lrf: &Rigid3,
     rep: &Reporter,
 ) -> Result<Extrinsics> {
     let cam_balls = camera_balls(scene, adj);

@@ -21,9 +21,9 @@
 //! Without a joint adjustment (it did not run, or failed) the outputs use the cloud of the
 //! project's mount, the two-step method's view.
 
-use super::extrinsic::match_by_extrinsic;
+use super::extrinsic::{match_by_extrinsic, unmeasured_labels};
 use super::ids::{PointId, SphereId};
-use super::joint::{unmeasured_labels, JointOutcome, LrfView};
+use super::joint::{JointOutcome, LrfView};
 use super::lrf::{self, LrfData};
 use super::scene::Scene;
 use crate::context::Options;

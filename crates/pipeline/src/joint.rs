@@ -1213,7 +1213,7 @@ fn finish(
             seen_twice_rejected: input.lrf.found.seen_twice_rejected(),
             seen_twice_kept: input.lrf.found.seen_twice_kept(),
             rejected_at_unmatched: rejected_at_unmatched(input, &ext),
-            unmeasured_labels: unmeasured_labels(
+            unmeasured_labels: super::extrinsic::unmeasured_labels(
                 input.project,
                 input.scene,
                 input.lrf,
@@ -1288,22 +1288,6 @@ fn log_outcome(out: &JointOutcome, rep: &Reporter) {
         "joint: convergence: {}",
         out.convergence.describe()
     ));
-}
-
-/// The labels of balls the images did not measure where a sphere of `lrf` matched to none of
-/// `pairs` lies through `camera_from_lrf` ([`super::matching::unmeasured_labels_at`]).
-pub fn unmeasured_labels(
-    project: &Project,
-    scene: &Scene,
-    lrf: &LrfData,
-    pairs: &[(SphereId, PointId)],
-    camera_from_lrf: &Rigid3,
-) -> Vec<String> {
-    let unmatched: Vec<Vector3<f64>> = (lrf.found.balls.iter().enumerate())
-        .filter(|&(s, _)| !pairs.iter().any(|&(q, _)| q.0 == s))
-        .map(|(_, b)| b.centre)
-        .collect();
-    super::matching::unmeasured_labels_at(project, scene, &unmatched, camera_from_lrf)
 }
 
 /// How many balls of the model have no sphere but a rejected candidate near where

@@ -582,8 +582,17 @@ fn names_by_column(uv: &[Option<Vector2<f64>>]) -> Vec<String> {
     names
 }
 
-/// With labels: each label takes the nearest ball within 3 ball radii (in pixels at that
-/// ball) of its position in the main image; balls no label takes are B?1, B?2, …
+/// How far from its label a ball at `depth` (mm along the main camera's axis) may project
+/// and still take it: 3 ball radii in pixels at that depth, at least 10 px.
+fn label_reach_px(project: &Project, scene: &Scene, depth: f64) -> f64 {
+    let mc = scene.camera_of[main_image(project)];
+    let focal = scene.cameras[mc].focal_px(&scene.intrinsics[mc]);
+    let r_px = 0.5 * project.file.balls.diameter_mm * focal / depth;
+    (3.0 * r_px).max(10.0)
+}
+
+/// With labels: each label takes the nearest ball within [`label_reach_px`] of its position
+/// in the main image; balls no label takes are B?1, B?2, …
 fn names_by_label(
     project: &Project,
     scene: &Scene,
@@ -592,10 +601,7 @@ fn names_by_label(
     rep: &Reporter,
 ) -> Vec<String> {
     let f = &project.file;
-    let ball_d = f.balls.diameter_mm;
-    let main = main_image(project);
-    let mc = scene.camera_of[main];
-    let pose = scene.poses[main].expect("main image oriented");
+    let pose = scene.poses[main_image(project)].expect("main image oriented");
     let mut names: Vec<Option<String>> = vec![None; balls.len()];
     for l in &f.balls.labels {
         let lp = Vector2::new(l.x, l.y);
@@ -605,16 +611,13 @@ fn names_by_label(
             .min_by(|a, b| a.1.total_cmp(&b.1));
         let Some((k, d)) = best else { continue };
         let depth = pose.transform(&scene.points[balls[k]].position).y;
-        let r_px = 0.5 * ball_d * scene.cameras[mc].focal_px(&scene.intrinsics[mc]) / depth;
-        if d <= (3.0 * r_px).max(10.0) {
+        let reach = label_reach_px(project, scene, depth);
+        if d <= reach {
             names[k] = Some(l.id.clone());
         } else {
             rep.log(format!(
-                "  label {} at ({:.0}, {:.0}) in the main image: no ball within {:.0} px (nearest {d:.0} px)",
-                l.id,
-                l.x,
-                l.y,
-                (3.0 * r_px).max(10.0)
+                "  label {} at ({:.0}, {:.0}) in the main image: no ball within {reach:.0} px (nearest {d:.0} px)",
+                l.id, l.x, l.y,
             ));
         }
     }
@@ -638,9 +641,9 @@ fn names_by_label(
 
 /// The labels (`[balls] labels`) of balls the images did not measure near which, in the main
 /// image, one of `centres` (LRF frame) projects through `camera_from_lrf` (the scene's frame
-/// from the LRF's), within the label rule's reach (3 ball radii, at least 10 px): an LRF
-/// sphere there is the labelled ball that the photographs missed, not a spurious sphere.
-/// Empty without labels or without an oriented main image.
+/// from the LRF's), within the label rule's reach (3 ball radii at its depth, at least 10 px): an LRF sphere there
+/// is the labelled ball that the photographs missed, not a spurious sphere. Empty without
+/// labels or without an oriented main image.
 pub fn unmeasured_labels_at(
     project: &Project,
     scene: &Scene,
@@ -659,10 +662,7 @@ pub fn unmeasured_labels_at(
         .filter_map(|c| {
             let xc = pose.transform(&camera_from_lrf.transform(c));
             let uv = scene.cameras[mc].project(&scene.intrinsics[mc], &xc)?;
-            let r_px =
-                0.5 * f.balls.diameter_mm * scene.cameras[mc].focal_px(&scene.intrinsics[mc])
-                    / xc.y;
-            (xc.y > 0.0).then_some((uv, (3.0 * r_px).max(10.0)))
+            (xc.y > 0.0).then(|| (uv, label_reach_px(project, scene, xc.y)))
         })
         .collect();
     (f.balls.labels.iter())

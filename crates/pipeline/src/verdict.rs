@@ -30,7 +30,8 @@
 //! values).
 
 use super::bundle::Adjusted;
-use super::joint::{self, JointOutcome};
+use super::extrinsic;
+use super::joint::JointOutcome;
 use crate::stages::Stages;
 use nalgebra::{DMatrix, Matrix3, Vector3};
 use pingcal_ba::camera::ModelKind;
@@ -637,7 +638,7 @@ fn unmatched(st: &Stages) -> (Vec<String>, Vec<String>) {
     );
     let labelled = match (joint, &st.ext.spheres) {
         (Some(j), _) => j.lrf_view.unmeasured_labels.clone(),
-        (None, Some(e)) => joint::unmeasured_labels(
+        (None, Some(e)) => extrinsic::unmeasured_labels(
             st.project,
             st.scene,
             st.lrf,
