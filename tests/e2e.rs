@@ -7,7 +7,7 @@
 
 use crate::common;
 
-use common::{read_json, replace_once, Work, OUTPUTS};
+use common::{read_json, replace_once, two_step_method, Work, LRF_AS_STATED, OUTPUTS};
 use serde_json::Value;
 use std::fs;
 use std::path::{Path, PathBuf};
@@ -1170,11 +1170,7 @@ fn verdict_is_ok_on_a_clean_simulation_and_doubtful_with_an_unknown_mount_offset
         .unwrap()
         .contains("mount_offset_mm = [0.0, 0.0, 0.0]"));
     // The paper's two steps, which cannot absorb a mount error (the joint adjustment below).
-    replace_once(
-        &q.join("project.toml"),
-        "method = \"all\"",
-        "method = \"spheres\"",
-    );
+    two_step_method(&q);
     // (seed 3 of the RANSAC: with the mount error the label-free ball correspondence can be
     // ambiguous for other seeds, which issues 13 and 19 deal with)
     let calibrate = |out: &Path| {
@@ -1313,14 +1309,11 @@ fn only_station(text: &str, keep: &str) -> String {
 #[test]
 fn a_field_too_sparse_for_a_relative_start_starts_from_its_layout_or_its_stereo_head() {
     let w = Work::new("sparse_field_starts");
-    // the starts are the images' business: an LRF mounted as the project states and the
-    // two-step method (a third of the joint adjustment's time) give an ok verdict
-    let p = w.simulate(
-        "sparse",
-        "[targets]\ncoded = 10\n[distances]\ncount = 3\n[lrf]\nmount_errors = false\n",
-    );
+    // the starts are the images' business: the LRF as stated, the two-step method
+    let config = format!("[targets]\ncoded = 10\n[distances]\ncount = 3\n{LRF_AS_STATED}");
+    let p = w.simulate("sparse", &config);
+    two_step_method(&p);
     let toml = p.join("project.toml");
-    replace_once(&toml, "method = \"all\"", "method = \"spheres\"");
     let calibrate = |name: &str, start: &str| -> Value {
         let out = w.dir.join(name);
         let run = w.run(&[
@@ -1513,7 +1506,7 @@ fn a_mount_too_far_off_for_the_two_step_start_starts_from_the_rooms() {
         "check = [\"B2\", \"B4\", \"B5\", \"B7\", \"B9\", \"B11\", \"B12\", \"B14\", \"B15\", \"B16\"]",
     );
     // the premise: the two-step method alone stops for want of control balls
-    replace_once(&toml, "method = \"all\"", "method = \"spheres\"");
+    two_step_method(&p);
     let why = w.calibrate_fails(&p, &["control balls are left"]);
     replace_once(&toml, "method = \"spheres\"", "method = \"all\"");
     let (run, out) = w.calibrate(&p, &[]);
@@ -1611,11 +1604,10 @@ fn a_continuous_sweeps_servo_time_offset_is_estimated() {
 fn a_start_in_another_minimum_gives_way_to_a_better_one() {
     let w = Work::new("suspect_start");
     let cfg = w.dir.join("blur.toml");
-    // the start is the images' business: an LRF mounted as the project states and the
-    // two-step method (a third of the joint adjustment's time) give an ok verdict
+    // the start is the images' business: the LRF as stated, the two-step method
     fs::write(
         &cfg,
-        "[render]\nblur_sigma_px = 0.9\n[lrf]\nmount_errors = false\n",
+        format!("[render]\nblur_sigma_px = 0.9\n{LRF_AS_STATED}"),
     )
     .unwrap();
     let p = w.dir.join("sim");
@@ -1629,11 +1621,7 @@ fn a_start_in_another_minimum_gives_way_to_a_better_one() {
         s(&p),
     ]);
     assert!(sim.success(), "simulate failed: {}", sim.stderr);
-    replace_once(
-        &p.join("project.toml"),
-        "method = \"all\"",
-        "method = \"spheres\"",
-    );
+    two_step_method(&p);
     let (run, out) = w.calibrate(&p, &["--seed", "10"]);
     assert!(run.success(), "calibrate: {}", run.stderr);
     let r = read_json(&out.join("results.json"));
