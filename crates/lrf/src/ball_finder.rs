@@ -255,26 +255,38 @@ fn point_sigma(cloud: &Cloud, noise: &RangeNoise, i: usize) -> f64 {
         .max(0.5)
 }
 
-/// Planes through three points of the sub-sample `sample` (cloud indices), for
-/// [`consensus::find`]; the residual is the distance in units of `k_sigma` × the point's
-/// range σ. Three independent draws may repeat a point: no plane then.
-struct WallSamples<'a> {
-    cloud: &'a Cloud,
-    sample: &'a [usize],
-    sigma: &'a [f64],
+/// Planes through three points of a sub-sample of the cloud, for [`consensus::find`]; the
+/// residual is the distance in units of `k_sigma` × the point's range σ. Three independent
+/// draws may repeat a point: no plane then. The sub-sample's points and σ's are copied out
+/// of the cloud in its order (each hypothesis visits them all: in place they would be
+/// random reads over the whole cloud).
+struct WallSamples {
+    points: Vec<Vector3<f64>>,
+    sigma: Vec<f64>,
     k_sigma: f64,
 }
 
-impl Estimator for WallSamples<'_> {
+impl WallSamples {
+    /// The points `sample` (cloud indices) of `cloud` with their σ's.
+    fn gather(cloud: &Cloud, sample: &[usize], sigma: &[f64], k_sigma: f64) -> Self {
+        WallSamples {
+            points: sample.iter().map(|&i| cloud.points[i]).collect(),
+            sigma: sample.iter().map(|&i| sigma[i]).collect(),
+            k_sigma,
+        }
+    }
+}
+
+impl Estimator for WallSamples {
     type Model = (Vector3<f64>, f64);
     fn len(&self) -> usize {
-        self.sample.len()
+        self.points.len()
     }
     fn sample_size(&self) -> usize {
         3
     }
     fn fit(&self, s: &[usize], planes: &mut Vec<(Vector3<f64>, f64)>) {
-        let [a, b, c] = [0, 1, 2].map(|k| self.cloud.points[self.sample[s[k]]]);
+        let [a, b, c] = [0, 1, 2].map(|k| self.points[s[k]]);
         let nrm = (b - a).cross(&(c - a));
         if nrm.norm() < 1e-9 {
             return;
@@ -283,8 +295,7 @@ impl Estimator for WallSamples<'_> {
         planes.push((nrm, nrm.dot(&a)));
     }
     fn residual(&self, (nrm, d): &(Vector3<f64>, f64), k: usize) -> f64 {
-        let i = self.sample[k];
-        (nrm.dot(&self.cloud.points[i]) - d).abs() / (self.k_sigma * self.sigma[i])
+        (nrm.dot(&self.points[k]) - d).abs() / (self.k_sigma * self.sigma[k])
     }
 }
 
@@ -320,12 +331,7 @@ fn remove_planes(
         if planes.len() >= opt.max_planes || sample.len() < min_count {
             break;
         }
-        let walls = WallSamples {
-            cloud,
-            sample: &sample,
-            sigma: &sigma,
-            k_sigma: opt.plane_k_sigma,
-        };
+        let walls = WallSamples::gather(cloud, &sample, &sigma, opt.plane_k_sigma);
         let opts = ConsensusOptions {
             sampling: Sampling::Independent,
             ..ConsensusOptions::ransac(1.0, 300)
