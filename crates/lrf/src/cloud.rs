@@ -367,7 +367,11 @@ mod tests {
         assert_eq!((again.points.len(), origins.len()), (n, n));
         for (i, r) in readings.iter().enumerate() {
             let pose = mount.scanner_at(r.servo_deg_through(&mount));
-            assert_eq!(again.points[i], pose.point(r.range_mm, r.alpha_rad), "beam {i}");
+            assert_eq!(
+                again.points[i],
+                pose.point(r.range_mm, r.alpha_rad),
+                "beam {i}"
+            );
             assert_eq!(origins[i], pose.origin(), "beam {i}");
         }
         assert_eq!(again.readings.as_deref(), Some(&readings[..]));
