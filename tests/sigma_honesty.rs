@@ -27,6 +27,7 @@ use pingcal_pipeline::verdict::chi2_quantile;
 use serde_json::Value;
 use std::path::PathBuf;
 use std::process::Command;
+use std::sync::OnceLock;
 
 // The small field of tests/plan.rs: five convergent stations, half the supersampling, a
 // 0.35° servo step.
@@ -46,6 +47,17 @@ fn rms_bounds(n: usize) -> (f64, f64) {
 
 fn num(v: &Value) -> f64 {
     v.as_f64().unwrap_or_else(|| panic!("not a number: {v}"))
+}
+
+/// Seeds of `fast`'s plan of the small field.
+pub(crate) const FAST_SEEDS: usize = 10;
+
+/// `pingcal plan --seeds 10 --no-sensitivity` of the small field, made once per test binary:
+/// `fast`'s sample, and the planner test's evidence that a seed's calibration is the same in
+/// any plan (`crate::plan`).
+pub(crate) fn small_plan() -> &'static Value {
+    static PLAN: OnceLock<Value> = OnceLock::new();
+    PLAN.get_or_init(|| plan("small", Some(SMALL), FAST_SEEDS))
 }
 
 /// Runs `pingcal plan --seeds n --no-sensitivity` (with `config`, None: the paper's field)
@@ -189,8 +201,7 @@ fn wilson_hilferty_matches_tabulated_quantiles() {
 
 #[test]
 fn fast() {
-    let seeds = 10;
-    check(&plan("small", Some(SMALL), seeds), seeds);
+    check(small_plan(), FAST_SEEDS);
 }
 
 #[test]
