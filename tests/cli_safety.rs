@@ -339,7 +339,7 @@ fn ids_given_twice_are_refused() {
         "check = [\"B4\", \"B9\",",
         "check = [\"B4\", \"B9\", \"B9\",",
     );
-    w.calibrate_fails(&p, &["project.toml", "'B9' appears twice"]);
+    w.calibrate_fails(&p, "input", &["project.toml", "'B9' appears twice"]);
 }
 
 /// Item 7: calibrate's cloud.ply held 400 drawn points per sphere among the scan points;
@@ -912,9 +912,11 @@ fn assert_calibrated(l: &Value, verdict: &str) {
     );
 }
 
-/// A project that could not be calibrated: `verdict` `error`, the error, nothing written.
+/// A project that could not be calibrated: `verdict` `error`, the error (every one of these
+/// projects misses an image: an `input` error), nothing written.
 fn assert_error(l: &Value, needle: &str) {
     assert_eq!(l["verdict"], "error", "{l}");
+    assert_eq!(l["error_kind"], "input", "{l}");
     assert_eq!(l["ok"], Value::Bool(false), "{l}");
     assert_eq!(l["results_written"], Value::Bool(false), "{l}");
     assert!(l["error"].as_str().expect("error").contains(needle), "{l}");

@@ -585,7 +585,7 @@ fn missing_image() {
     let w = Work::new("missing_image");
     let p = w.project("project");
     fs::remove_file(p.join("images/S03_left.png")).unwrap();
-    w.calibrate_fails(&p, &["S03_left.png"]);
+    w.calibrate_fails(&p, "input", &["S03_left.png"]);
 }
 
 /// An intersection angle that leaves the network without targets: the images it could not
@@ -600,6 +600,7 @@ fn an_intersection_angle_that_refuses_every_target_is_named() {
     fs::write(&toml, text).unwrap();
     w.calibrate_fails(
         &p,
+        "data",
         &[
             "left out of the network",
             "under 89°",
@@ -614,7 +615,7 @@ fn missing_scan() {
     let w = Work::new("missing_scan");
     let p = w.project("project");
     fs::remove_file(p.join("scans/S00.csv")).unwrap();
-    w.calibrate_fails(&p, &["S00.csv"]);
+    w.calibrate_fails(&p, "input", &["S00.csv"]);
 }
 
 /// An image of the wrong size for its camera: both sizes and the image named.
@@ -624,7 +625,7 @@ fn image_of_the_wrong_size() {
     let p = w.project("project");
     fs::write(p.join("images/S02_right.png"), common::gray_png(640, 480)).unwrap();
     // the detect step prints sizes as W×H (crates/pipeline/src/detect.rs)
-    w.calibrate_fails(&p, &["S02_right.png", "640×480", "1280×720"]);
+    w.calibrate_fails(&p, "input", &["S02_right.png", "640×480", "1280×720"]);
 }
 
 /// A truncated image: named, no panic.
@@ -635,7 +636,7 @@ fn corrupt_image() {
     let f = p.join("images/S04_left.png");
     let bytes = fs::read(&f).unwrap();
     fs::write(&f, &bytes[..5000]).unwrap();
-    w.calibrate_fails(&p, &["S04_left.png"]);
+    w.calibrate_fails(&p, "input", &["S04_left.png"]);
 }
 
 /// A scan line that is not numbers: the file and the line named.
@@ -651,7 +652,7 @@ fn malformed_scan_line() {
     let (_servo, ranges) = rest.split_once(',').expect("a scan line");
     lines[99] = format!("{stamp},forty-five,{ranges}");
     fs::write(&f, lines.join("\n") + "\n").unwrap();
-    w.calibrate_fails(&p, &["S00.csv", "100"]);
+    w.calibrate_fails(&p, "input", &["S00.csv", "100"]);
 }
 
 /// A distance to a target no image shows: the calibration still finishes (the other distances
@@ -712,7 +713,7 @@ fn no_distance_left_to_fix_the_scale() {
         rest.trim_start()
     );
     fs::write(&toml, text).unwrap();
-    let err = w.calibrate_fails(&p, &["998", "999", "scale"]);
+    let err = w.calibrate_fails(&p, "data", &["998", "999", "scale"]);
     eprintln!("{err}");
 }
 
@@ -726,7 +727,7 @@ fn fewer_than_three_balls_seen_by_both_sensors() {
     let head: Vec<&str> = text.lines().take(36).collect(); // 6 header lines + 30 scans
     assert!(head[35].split(',').count() > 100, "line 36 is a scan");
     fs::write(&f, head.join("\n") + "\n").unwrap();
-    let err = w.calibrate_fails(&p, &["balls", "at least 3", "S00.csv"]);
+    let err = w.calibrate_fails(&p, "data", &["balls", "at least 3", "S00.csv"]);
     eprintln!("{err}");
 }
 
@@ -750,7 +751,7 @@ fn main_station_not_in_the_images() {
         ),
     )
     .unwrap();
-    w.calibrate_fails(&p, &["S99", "main_station"]);
+    w.calibrate_fails(&p, "input", &["S99", "main_station"]);
 }
 
 /// A value of the wrong type in project.toml: the file and the line named.
@@ -765,7 +766,7 @@ fn project_file_syntax_error() {
         .position(|l| l == "width = 1280")
         .expect("a camera width");
     fs::write(&toml, text.replacen("width = 1280", "width = \"wide\"", 1)).unwrap();
-    w.calibrate_fails(&p, &["project.toml", &format!("line {line}")]);
+    w.calibrate_fails(&p, "input", &["project.toml", &format!("line {line}")]);
 }
 
 /// Two projects in one run, one broken: the good one is written, the bad one reported,
@@ -1269,13 +1270,15 @@ fn a_unit_mistake_is_named_when_no_ball_is_found() {
         fs::write(&toml, edited).unwrap();
         // a wrong principal distance may stop the network before the balls are looked for
         // (no distance left to fix the scale): the cause must be named either way
-        let mut all = if name == "c_um" {
-            vec![]
+        // (the principal distance is refused as the project loads: an input error; the
+        // others are found in the data)
+        let (mut all, kind) = if name == "c_um" {
+            (vec![], "input")
         } else {
-            vec!["no ball was found"]
+            (vec!["no ball was found"], "data")
         };
         all.extend_from_slice(needles);
-        let err = w.calibrate_fails(&p, &all);
+        let err = w.calibrate_fails(&p, kind, &all);
         eprintln!("{name}: {err}");
     }
 }
@@ -1426,7 +1429,11 @@ fn a_field_too_sparse_for_a_relative_start_starts_from_its_layout_or_its_stereo_
         format!("{head}{rest}").replace("layout = \"layout.csv\"\n", ""),
     )
     .unwrap();
-    w.calibrate_fails(&p, &["relative orientation failed", "[targets] layout"]);
+    w.calibrate_fails(
+        &p,
+        "data",
+        &["relative orientation failed", "[targets] layout"],
+    );
     replace_once(
         &toml,
         "ring_outer = 3.0\n",
@@ -1507,7 +1514,7 @@ fn a_mount_too_far_off_for_the_two_step_start_starts_from_the_rooms() {
     );
     // the premise: the two-step method alone stops for want of control balls
     two_step_method(&p);
-    let why = w.calibrate_fails(&p, &["control balls are left"]);
+    let why = w.calibrate_fails(&p, "data", &["control balls are left"]);
     replace_once(&toml, "method = \"spheres\"", "method = \"all\"");
     let (run, out) = w.calibrate(&p, &[]);
     assert!(

@@ -241,11 +241,23 @@ impl Work {
         (self.run(&args), out)
     }
 
-    /// Runs `pingcal calibrate PROJECT/project.toml --out DIR/out --quiet`, which must fail
-    /// cleanly naming every needle (see [`assert_clean_failure`]); returns the error line.
-    pub fn calibrate_fails(&self, project: &Path, needles: &[&str]) -> String {
-        let (run, out) = self.calibrate(project, &[]);
-        assert_clean_failure(&run, &out, needles)
+    /// Runs `pingcal calibrate PROJECT/project.toml --out DIR/out --quiet --json`, which must
+    /// fail cleanly naming every needle (see [`assert_clean_failure`]), with a JSON line whose
+    /// `error` is the error line's message and whose `error_kind` is `kind` (`input`, `data`
+    /// or `adjustment`); returns the error line.
+    pub fn calibrate_fails(&self, project: &Path, kind: &str, needles: &[&str]) -> String {
+        let (run, out) = self.calibrate(project, &["--json"]);
+        let err = assert_clean_failure(&run, &out, needles);
+        let lines: Vec<serde_json::Value> = (run.stdout.lines())
+            .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("{l:?}: {e}")))
+            .collect();
+        assert_eq!(lines.len(), 1, "one JSON line: {}", run.stdout);
+        let l = &lines[0];
+        assert_eq!(l["verdict"], "error", "{l}");
+        assert_eq!(l["error_kind"], kind, "{l}\n{err}");
+        let message = l["error"].as_str().expect("error");
+        assert!(err.ends_with(message), "{l}\n{err}");
+        err
     }
 
     /// `pingcal simulate --seed SEED --config <config> --out <dir>/<name>` with the simulator

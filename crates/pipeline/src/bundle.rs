@@ -126,7 +126,7 @@ fn drop_undetermined(
     name: &str,
 ) -> Result<Vec<Rejection>> {
     let Some(j) = scene.points.position(|p| p.name == name) else {
-        return Err(PipelineError::new(format!(
+        return Err(PipelineError::Data(format!(
             "final bundle adjustment: point '{name}' is not determined by its rays"
         )));
     };
@@ -138,7 +138,7 @@ fn drop_undetermined(
             .iter()
             .any(|d| measured(scene, d.from) && measured(scene, d.to));
         if f.distances.iter().any(|d| d.from == n || d.to == n) && !left {
-            return Err(PipelineError::new(format!(
+            return Err(PipelineError::Data(format!(
                 "{}: coded target {n} of the distances is not determined by its rays after data snooping, and no other distance is left to fix the scale: it needs more images in which it is measured well",
                 project.path.display()
             )));
@@ -191,7 +191,7 @@ fn unusable_distances(project: &Project, scene: &Scene) -> Result<Vec<String>> {
     if warnings.len() == f.distances.len() {
         // targets unidentified in the oriented images: a principal distance no lens has
         // (a value in µm or in pixels) is the likeliest cause, and is named
-        return Err(PipelineError::new(format!(
+        return Err(PipelineError::Data(format!(
             "{}: no distance is left to fix the scale of the network: {}{}",
             project.path.display(),
             if warnings.is_empty() {
@@ -209,7 +209,7 @@ fn unusable_distances(project: &Project, scene: &Scene) -> Result<Vec<String>> {
 /// beside it: such a value (in µm, in pixels) makes a network whose failures, a point
 /// behind a camera or no convergence, would otherwise hide their cause.
 fn failed(project: &Project, e: impl std::fmt::Display) -> PipelineError {
-    PipelineError::new(format!(
+    PipelineError::Adjustment(format!(
         "final bundle adjustment: {e}{}",
         super::matching::implausible_principal_distance(project).unwrap_or_default()
     ))
@@ -239,7 +239,7 @@ impl Rounds<'_> {
                 if let Err(e @ PrecisionError::NotDeterminable(_)) =
                     solver::check_intrinsics(&sp.problem)
                 {
-                    return Err(PipelineError::new(format!(
+                    return Err(PipelineError::Data(format!(
                         "{}: final bundle adjustment: {e} (the calibrated parameters are each [[cameras]] entry's free list)",
                         self.project.path.display()
                     )));
@@ -308,7 +308,7 @@ impl Rounds<'_> {
         )
         .map_err(|e| match e {
             VarianceError::Solve(e) => failed(self.project, e),
-            VarianceError::Precision(e) => PipelineError::new(format!(
+            VarianceError::Precision(e) => PipelineError::Adjustment(format!(
                 "{}: the network's precision cannot be computed: {e}",
                 self.project.path.display()
             )),

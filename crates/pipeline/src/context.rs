@@ -2,15 +2,51 @@
 //! failure ([`PipelineError`], one line). The lowest module of the pipeline after the
 //! typed ids and the progress: every step imports from here, none from the crate root.
 
-/// Why a calibration failed: one line.
+/// Why a calibration failed: one line that names the file, image, target or ball and what
+/// was expected, of one of three kinds that say what to do about it ([`PipelineError::kind`]:
+/// `pingcal calibrate --json` gives it as `error_kind`).
 #[derive(Debug, thiserror::Error)]
-#[error("{0}")]
-pub struct PipelineError(pub String);
+pub enum PipelineError {
+    /// An input cannot be used as given: a file that does not read, a setting out of its
+    /// range, an image of the wrong size, a point cloud where the method needs the beams.
+    /// Mend the project.
+    #[error("{0}")]
+    Input(String),
+    /// The data do not allow a step: too few coded targets, balls or beams seen, no distance
+    /// left for the scale, a network that does not orient, a camera parameter the images do
+    /// not determine. Take more (or better spread) data, or ask for less.
+    #[error("{0}")]
+    Data(String),
+    /// An adjustment failed on data that passed the checks before it: a singular system, no
+    /// convergence, a precision that cannot be computed.
+    #[error("{0}")]
+    Adjustment(String),
+}
 
 impl PipelineError {
-    /// An error from a message.
-    pub fn new(msg: impl Into<String>) -> Self {
-        Self(msg.into())
+    /// `input`, `data` or `adjustment`.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            PipelineError::Input(_) => "input",
+            PipelineError::Data(_) => "data",
+            PipelineError::Adjustment(_) => "adjustment",
+        }
+    }
+
+    /// The one-line message.
+    pub fn message(&self) -> &str {
+        match self {
+            PipelineError::Input(m) | PipelineError::Data(m) | PipelineError::Adjustment(m) => m,
+        }
+    }
+
+    /// The same kind of error with `f` of its message.
+    pub fn map_message(self, f: impl FnOnce(String) -> String) -> Self {
+        match self {
+            PipelineError::Input(m) => PipelineError::Input(f(m)),
+            PipelineError::Data(m) => PipelineError::Data(f(m)),
+            PipelineError::Adjustment(m) => PipelineError::Adjustment(f(m)),
+        }
     }
 }
 

@@ -28,7 +28,7 @@ pub fn detector(project: &Project, opts: &Options) -> Result<Detector> {
         measure_saturated: t.measure_saturated || opts.measure_saturated,
         ..DetectParams::default()
     })
-    .map_err(|e| PipelineError::new(format!("{}: [targets] {e}", project.path.display())))
+    .map_err(|e| PipelineError::Input(format!("{}: [targets] {e}", project.path.display())))
 }
 
 /// Detects every image of the project; an image of the wrong size for its camera is an error.
@@ -41,14 +41,14 @@ pub fn detect_all(project: &Project, opts: &Options, rep: &Reporter) -> Result<D
         .par_iter()
         .zip(&f.images)
         .map(|(path, im)| {
-            let img = load_image(path).map_err(|e| PipelineError::new(e.to_string()))?;
+            let img = load_image(path).map_err(|e| PipelineError::Input(e.to_string()))?;
             let cam = f
                 .cameras
                 .iter()
                 .find(|c| c.id == im.camera)
                 .expect("validated camera");
             if img.width != cam.width as usize || img.height != cam.height as usize {
-                return Err(PipelineError::new(format!(
+                return Err(PipelineError::Input(format!(
                     "{}: the image is {}×{} pixels, but camera '{}' is {}×{} (project.toml [[cameras]])",
                     path.display(),
                     img.width,

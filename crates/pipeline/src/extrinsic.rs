@@ -146,7 +146,7 @@ fn match_spheres(
     let lrf_centres: Vec<Vector3<f64>> = lrf.found.balls.iter().map(|b| b.centre).collect();
     let cam_centres: Vec<Vector3<f64>> = cam_balls.iter().map(|b| b.1).collect();
     let too_few = |n: usize| {
-        PipelineError::new(format!(
+        PipelineError::Data(format!(
             "{}: only {n} balls were found by both sensors (LRF: {} spheres in {}; photographs: {} balls); at least 3 are needed for the extrinsic",
             project.path.display(),
             lrf_centres.len(),
@@ -158,7 +158,7 @@ fn match_spheres(
         if lrf_centres.len() < 3 || cam_centres.len() < 3 {
             too_few(lrf_centres.len().min(cam_centres.len()))
         } else {
-            PipelineError::new(format!(
+            PipelineError::Data(format!(
                 "{}: the LRF spheres cannot be matched to the balls of the photographs: {e}",
                 project.path.display()
             ))
@@ -232,7 +232,7 @@ fn sphere_method(
     let matched = m.cam_points.len();
     let control = matched - check_ids.len();
     if control < 3 {
-        return Err(PipelineError::new(format!(
+        return Err(PipelineError::Data(format!(
             "{}: only {control} control balls are left after taking the check balls ({}) out of the {} matched; at least 3 are needed",
             project.path.display(),
             check_ids.join(", "),
@@ -252,7 +252,7 @@ fn sphere_method(
             ..RegistrationOptions::default()
         },
     )
-    .map_err(|e| PipelineError::new(format!("sphere registration: {e}")))?;
+    .map_err(|e| PipelineError::Adjustment(format!("sphere registration: {e}")))?;
     let table = if ev.check.rows.is_empty() {
         &ev.leave_one_out
     } else {
@@ -371,7 +371,7 @@ pub fn spheres_by_extrinsic(
     let radius = 0.5 * project.file.balls.diameter_mm;
     let mut pairs = match_by_extrinsic(lrf, &centres, camera_from_lrf, radius);
     if pairs.len() < 3 {
-        return Err(PipelineError::new(format!(
+        return Err(PipelineError::Data(format!(
             "only {} LRF spheres lie within a ball's radius of where the estimated extrinsic puts a ball",
             pairs.len()
         )));
@@ -448,7 +448,7 @@ fn run_methods(
             )),
             Err(e) => {
                 if !with_spheres {
-                    return Err(PipelineError::new(format!("corner baseline: {e}")));
+                    return Err(PipelineError::Adjustment(format!("corner baseline: {e}")));
                 }
                 rep.log(format!("corner baseline failed: {e}"));
             }

@@ -399,7 +399,7 @@ impl Joint {
             ..
         } = *input;
         let readings = lrf.cloud.readings.as_ref().ok_or_else(|| {
-            PipelineError::new(format!(
+            PipelineError::Input(format!(
                 "{}: the joint adjustment needs the LRF's beams (pingcal-scan CSV files), not a point cloud: use method = \"spheres\"",
                 project.path.display()
             ))
@@ -447,7 +447,7 @@ impl Joint {
             }
         }
         if beams.is_empty() {
-            return Err(PipelineError::new(format!(
+            return Err(PipelineError::Data(format!(
                 "{}: the joint adjustment has no LRF beam on a control ball",
                 project.path.display()
             )));
@@ -567,9 +567,9 @@ impl Joint {
     /// Adjusts `p` and returns its precision and what the solver did.
     fn solve(&self, p: &mut Problem) -> Result<(Precision, solver::Summary)> {
         let summary = solver::solve(p, &self.options, |_| {})
-            .map_err(|e| PipelineError::new(format!("joint adjustment: {e}")))?;
+            .map_err(|e| PipelineError::Adjustment(format!("joint adjustment: {e}")))?;
         let prec = solver::precision(p)
-            .map_err(|e| PipelineError::new(format!("joint adjustment: {e}")))?;
+            .map_err(|e| PipelineError::Adjustment(format!("joint adjustment: {e}")))?;
         Ok((prec, summary))
     }
 }
@@ -716,7 +716,7 @@ fn estimability(
     while free.iter().any(|&f| f) || tau_free(joint) {
         let p = joint.problem_from(at, free, &PRIOR_SIGMA);
         let prec = solver::precision(&p)
-            .map_err(|e| PipelineError::new(format!("joint adjustment: {e}")))?;
+            .map_err(|e| PipelineError::Adjustment(format!("joint adjustment: {e}")))?;
         // the cofactors of (extrinsic, mount): the covariance with σ0 = 1
         let cov = &prec.parameters_covariance / prec.sigma0.powi(2).max(f64::MIN_POSITIVE);
         let rows = Rows::of(&joint.keys, &prec);
@@ -995,7 +995,7 @@ fn second_start(
     };
     let solve = |p: &mut Problem| {
         solver::solve(p, &tight, |_| {})
-            .map_err(|e| PipelineError::new(format!("joint adjustment: {e}")))
+            .map_err(|e| PipelineError::Adjustment(format!("joint adjustment: {e}")))
     };
     let summary2 = solve(&mut q)?;
     let mut p1 = p.clone();
@@ -1139,7 +1139,7 @@ fn finish(
         &joint.group_of,
         &OBSERVATION_GROUPS,
     )
-    .map_err(|e| PipelineError::new(format!("joint adjustment: {e}")))?;
+    .map_err(|e| PipelineError::Adjustment(format!("joint adjustment: {e}")))?;
     let prec = estimate.precision;
     let redundancy = prec.redundancy;
     let sigma0 = (chi2 / redundancy.max(1) as f64).sqrt();

@@ -85,7 +85,7 @@ impl JointRun<'_> {
             hold_mount,
             seed: self.opts.seed,
         };
-        joint::joint_adjustment(&input, self.rep).map_err(|e| e.0)
+        joint::joint_adjustment(&input, self.rep).map_err(|e| e.to_string())
     }
 
     /// The passes of the joint adjustment from one start (the cloud `lrf` through the start
@@ -142,7 +142,7 @@ impl JointRun<'_> {
                 &out.camera_from_lrf,
                 self.rep,
             )
-            .map_err(|e| e.0)
+            .map_err(|e| e.to_string())
             .and_then(|ext2| {
                 let planes = if planes2.is_empty() { planes } else { &planes2 };
                 self.pass(&lrf2, &ext2, out.camera_from_lrf, k + 1, planes, gate, None)
@@ -333,7 +333,7 @@ pub(crate) fn run_joint(
             .and_then(|lrf_r| {
                 let ext_r =
                     extrinsic::spheres_only(project, (scene, adjusted, &lrf_r, dets), opts, rep)
-                        .map_err(|e| e.0)?;
+                        .map_err(|e| e.to_string())?;
                 let Some(ev_r) = &ext_r.spheres else {
                     return Err("no sphere method on the room's cloud".to_string());
                 };

@@ -27,7 +27,9 @@
 //! item of this crate root, which only runs the steps ([`calibrate`]); that test checks it.
 
 //! Every failure is a [`PipelineError`]: one line that names the file, image, target or ball
-//! concerned and what was expected. Nothing is written until every step has succeeded.
+//! concerned and what was expected, of a kind that says what to do about it (an input to
+//! mend, data that do not allow a step, an adjustment that failed). Nothing is written until
+//! every step has succeeded.
 
 pub mod adjust;
 pub mod bundle;
@@ -129,7 +131,7 @@ pub fn calibrate(project: &Project, opts: &Options, rep: &Reporter) -> Result<Ou
     // A step after the bundle that fails while the camera model cannot hold the lens most
     // likely fails because of it: the error says so.
     let blame_lens = |e: PipelineError| match &adjusted.lens_doubt {
-        Some(d) => PipelineError(format!("{e}; but first: {d}")),
+        Some(d) => e.map_message(|m| format!("{m}; but first: {d}")),
         None => e,
     };
     let t = std::time::Instant::now();

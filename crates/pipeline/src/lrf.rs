@@ -52,7 +52,7 @@ fn beyond(max_range_mm: f64) -> String {
 /// failure.
 pub fn check_mount(project: &Project) -> Result<()> {
     check_lrf_mount(&project.file.lrf)
-        .map_err(|e| PipelineError::new(format!("{}: {e}", project.path.display())))
+        .map_err(|e| PipelineError::Input(format!("{}: {e}", project.path.display())))
 }
 
 /// [`check_mount`] of an `[lrf]` table: the error names the entry, not the file.
@@ -75,7 +75,7 @@ pub fn check_lrf_mount(l: &ProjectLrf) -> std::result::Result<(), String> {
 pub fn mount_of(project: &Project) -> Result<MountModel> {
     if let Some(path) = &project.lrf_model_path {
         return read_lrf_model(path).map_err(|e| {
-            PipelineError::new(format!("{}: [lrf] lrf_model: {e}", project.path.display()))
+            PipelineError::Input(format!("{}: [lrf] lrf_model: {e}", project.path.display()))
         });
     }
     Ok(mount_of_lrf(&project.file.lrf))
@@ -101,7 +101,7 @@ fn bag_scans(
     bag: &ProjectBag,
     rep: &Reporter,
 ) -> Result<Vec<(ScanHeader, Vec<ScanLine>)>> {
-    let err = |e: pingcal_rosbag::RosbagError| PipelineError::new(e.to_string());
+    let err = |e: pingcal_rosbag::RosbagError| PipelineError::Input(e.to_string());
     let mut bags = Vec::new();
     for p in &project.bag_paths {
         for f in pingcal_rosbag::bag_files(p).map_err(err)? {
@@ -129,7 +129,7 @@ fn bag_scans(
         source,
     };
     let motion = ServoMotion::parse(bag.servo_motion.as_deref().unwrap_or("auto"))
-        .map_err(|e| PipelineError::new(format!("[lrf.bag] {e}")))?;
+        .map_err(|e| PipelineError::Input(format!("[lrf.bag] {e}")))?;
     let mut runs: Vec<(ScanHeader, Vec<ScanLine>)> = Vec::new();
     let done = read_scans(&bags, &topics, motion, &mut |h, l| {
         match runs.last_mut() {
@@ -145,7 +145,7 @@ fn bag_scans(
         rep.log(format!("[lrf.bag] topic {}: {note}", topics.scan));
     }
     if runs.is_empty() {
-        return Err(PipelineError::new(format!(
+        return Err(PipelineError::Input(format!(
             "[lrf.bag] topic {}: no scan lies within the servo messages",
             topics.scan
         )));
@@ -161,7 +161,7 @@ pub fn lrf_spheres(project: &Project, opts: &Options, rep: &Reporter) -> Result<
     let mut cloud = Cloud::default();
     let mut scans = None;
     for path in &project.scan_paths {
-        let err = |e: pingcal_lrf::LrfError| PipelineError::new(e.to_string());
+        let err = |e: pingcal_lrf::LrfError| PipelineError::Input(e.to_string());
         if file_kind(path) == CloudFileKind::Scans {
             // read once: the lines make the cloud and are kept for the corner baseline
             let mut reader = open_scan_file(path).map_err(err)?;
@@ -193,7 +193,7 @@ pub fn lrf_spheres(project: &Project, opts: &Options, rep: &Reporter) -> Result<
             let unit: CloudUnit = match l.cloud_unit.as_deref() {
                 Some(u) => u
                     .parse()
-                    .map_err(|e| PipelineError::new(format!("[lrf] cloud_unit: {e}")))?,
+                    .map_err(|e| PipelineError::Input(format!("[lrf] cloud_unit: {e}")))?,
                 None => CloudUnit::default(),
             };
             let (mut c, warnings) = read_cloud_file_in(path, &mount, unit).map_err(err)?;
@@ -234,10 +234,10 @@ pub fn lrf_spheres(project: &Project, opts: &Options, rep: &Reporter) -> Result<
     }
     let noise = match (&l.noise, l.noise_sigma_mm) {
         (Some(n), _) => {
-            RangeNoise::named(n).map_err(|e| PipelineError::new(format!("[lrf] noise: {e}")))?
+            RangeNoise::named(n).map_err(|e| PipelineError::Input(format!("[lrf] noise: {e}")))?
         }
         (None, Some([a, b])) => RangeNoise::linear(a, b)
-            .map_err(|e| PipelineError::new(format!("[lrf] noise_sigma_mm: {e}")))?,
+            .map_err(|e| PipelineError::Input(format!("[lrf] noise_sigma_mm: {e}")))?,
         (None, None) => {
             RangeNoise::from_datasheet(l.accuracy_near_mm, l.accuracy_far_fraction, 3.0)
         }

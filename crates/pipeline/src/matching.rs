@@ -521,7 +521,7 @@ pub fn classify_balls(
         .filter(|&j| scene.points[j].kind == PointKind::Ball)
         .collect();
     if balls.is_empty() {
-        return Err(PipelineError::new(format!(
+        return Err(PipelineError::Data(format!(
             "{}: no ball was found in two or more oriented images (balls of {ball_d} mm; targets of {dot_d} mm){}",
             project.path.display(),
             no_ball_diagnosis(project, dets, scene)
@@ -691,8 +691,9 @@ pub fn refine(
         threads: opts.threads,
         ..solver::Options::default()
     };
-    solver::solve(&mut sp.problem, &options, |_| {})
-        .map_err(|e| PipelineError::new(format!("bundle adjustment during matching: {e}")))?;
+    solver::solve(&mut sp.problem, &options, |_| {}).map_err(|e| {
+        PipelineError::Adjustment(format!("bundle adjustment during matching: {e}"))
+    })?;
     sp.write_back(scene);
     let limit = 3.0 * TOL_PX;
     let mut drop: Vec<(PointId, DetectionId, f64)> = Vec::new();

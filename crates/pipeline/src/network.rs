@@ -36,7 +36,7 @@ pub fn initial_network(
     let f = &project.file;
     let seen = coded_tracks(dets);
     if seen.len() < 5 {
-        return Err(PipelineError::new(format!(
+        return Err(PipelineError::Data(format!(
             "{}: only {} coded targets were read in two or more images; at least 5 are needed to orient the images (are the targets {} and large enough in the images?)",
             project.path.display(),
             seen.len(),
@@ -51,7 +51,7 @@ pub fn initial_network(
             .iter()
             .map(|d| format!("{}–{}", d.from, d.to))
             .collect();
-        return Err(PipelineError::new(format!(
+        return Err(PipelineError::Data(format!(
             "{}: no measured distance joins two coded targets read in two or more images ([[distances]]: {}); the scale of the network is undefined",
             project.path.display(),
             if list.is_empty() { "none".into() } else { list.join(", ") }
@@ -126,7 +126,7 @@ fn starts_to_try(project: &Project, asked: Start) -> Result<Vec<Start>> {
     let layout = project.layout.is_some();
     let stereo = project.file.stereo.is_some();
     let refuse = |what: &str| {
-        Err(PipelineError::new(format!(
+        Err(PipelineError::Input(format!(
             "{}: --start {what}",
             project.path.display()
         )))
@@ -174,7 +174,7 @@ fn first_start(
         let tried = try_start(s, project, sp, options).and_then(|init| {
             into_main_frame(project, dets, start.clone(), sp, &init)
                 .map(|scene| (init, scene))
-                .map_err(|e| e.0)
+                .map_err(|e| e.to_string())
         });
         match tried {
             // a start that leaves images out is kept only until one orients more, one of a
@@ -235,7 +235,7 @@ fn first_start(
     if project.file.stereo.is_none() {
         missing.push("describe the stereo head in [stereo] (its nominal baseline starts it)");
     }
-    Err(PipelineError::new(format!(
+    Err(PipelineError::Data(format!(
         "{}: initial orientation: {}{}",
         project.path.display(),
         failed.join("; "),
@@ -524,7 +524,7 @@ fn into_main_frame(
             .find(|(n, _)| n == image_file(project, main))
             .map(|(_, w)| w.clone())
             .unwrap_or_else(|| "unknown".into());
-        return Err(PipelineError::new(format!(
+        return Err(PipelineError::Data(format!(
             "{}: the main image could not be oriented: {why}",
             image_file(project, main)
         )));

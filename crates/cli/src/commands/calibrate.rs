@@ -19,7 +19,7 @@
 use super::preflight::{check_out_dir, check_threads};
 use super::progress::reporter;
 use super::result_set;
-use super::{CmdResult, Exit};
+use super::{CmdError, CmdResult, Exit};
 use indicatif::MultiProgress;
 use pingcal_pipeline::network::Start;
 use pingcal_pipeline::verdict::Status;
@@ -120,9 +120,19 @@ pub fn calibrate_one(
     path: &Path,
     opts: &pipeline::Options,
     rep: &Reporter,
-) -> Result<Outcome, String> {
-    let project = Project::load(path).map_err(|e| e.to_string())?;
-    pipeline::calibrate(&project, opts, rep).map_err(|e| e.to_string())
+) -> Result<Outcome, CmdError> {
+    let project = Project::load(path)?;
+    Ok(pipeline::calibrate(&project, opts, rep)?)
+}
+
+/// The `error_kind` of the JSON line of a project that could not be calibrated
+/// (docs/batch.md): the pipeline's kind ([`pipeline::PipelineError::kind`]: `input`, `data`
+/// or `adjustment`), `input` for a project file that does not load.
+fn error_kind(e: &CmdError) -> &'static str {
+    match e {
+        CmdError::Pipeline(p) => p.kind(),
+        _ => "input",
+    }
 }
 
 /// What became of one project of a run, from best to worst (the order of the exit codes:
@@ -253,13 +263,15 @@ pub fn json_line(path: &Path, dir: &Path, o: &Outcome, secs: f64) -> String {
 }
 
 /// The JSON line of a project that could not be calibrated: `verdict` `error`, the message
-/// in `error` (and as the one reason), nothing written into `out`.
-fn error_json_line(path: &Path, dir: &Path, e: &str, secs: f64) -> String {
+/// in `error` (and as the one reason) and its kind in `error_kind` ([`error_kind`], or
+/// `output` for results that could not be written), nothing written into `out`.
+fn error_json_line(path: &Path, dir: &Path, (kind, e): (&str, &str), secs: f64) -> String {
     serde_json::json!({
         "project": path.display().to_string(),
         "verdict": Fate::Error.as_str(),
         "reasons": [e],
         "error": e,
+        "error_kind": kind,
         "ok": false,
         "results_written": false,
         "out": dir.display().to_string(),
@@ -288,19 +300,23 @@ fn calibrate_project(
 ) -> Done {
     let t0 = std::time::Instant::now();
     let dir = lock.dir();
-    let r = calibrate_one(path, opts, rep).and_then(|o| {
-        write_outputs(lock, &o)
-            .map(|()| o)
-            .map_err(|e| e.to_string())
-    });
+    let r = match calibrate_one(path, opts, rep) {
+        Ok(o) => match write_outputs(lock, &o) {
+            Ok(()) => Ok(o),
+            Err(e) => Err(("output", e.to_string())),
+        },
+        Err(e) => Err((error_kind(&e), e.to_string())),
+    };
     let secs = t0.elapsed().as_secs_f64();
     let o = match r {
         Ok(o) => o,
-        Err(e) => {
+        Err((kind, e)) => {
             let e = kept_note(e, dir);
             return Done {
                 fate: Fate::Error,
-                line: args.json.then(|| error_json_line(path, dir, &e, secs)),
+                line: args
+                    .json
+                    .then(|| error_json_line(path, dir, (kind, &e), secs)),
                 error: Some(e),
                 // the warnings logged before the failure (ranges masked, files beside the
                 // project's) often say why: a quiet run shows them too
