@@ -813,6 +813,7 @@ fn a_full_disk_leaves_the_earlier_set() {
         "--quiet",
         "--seed",
         "2",
+        "--json",
     ]);
     let after = read_all(&disk);
     let dirs: Vec<String> = fs::read_dir(&disk)
@@ -823,6 +824,8 @@ fn a_full_disk_leaves_the_earlier_set() {
     let _ = std::process::Command::new("umount").arg(s(&disk)).status();
     assert!(first.success(), "{}", ctx(&first));
     fails(&second, &["No space left on device", "left as they were"]);
+    let line: Value = serde_json::from_str(second.stdout.trim()).expect("one JSON line");
+    assert_eq!(line["error_kind"], "output", "{line}");
     assert!(before.len() > 20, "{} files", before.len());
     let names = |v: &[(PathBuf, Vec<u8>)]| v.iter().map(|f| f.0.clone()).collect::<Vec<_>>();
     assert_eq!(

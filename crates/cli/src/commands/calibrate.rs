@@ -125,16 +125,6 @@ pub fn calibrate_one(
     Ok(pipeline::calibrate(&project, opts, rep)?)
 }
 
-/// The `error_kind` of the JSON line of a project that could not be calibrated
-/// (docs/batch.md): the pipeline's kind ([`pipeline::PipelineError::kind`]: `input`, `data`
-/// or `adjustment`), `input` for a project file that does not load.
-fn error_kind(e: &CmdError) -> &'static str {
-    match e {
-        CmdError::Pipeline(p) => p.kind(),
-        _ => "input",
-    }
-}
-
 /// What became of one project of a run, from best to worst (the order of the exit codes:
 /// the worst project of a batch decides).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
@@ -263,8 +253,9 @@ pub fn json_line(path: &Path, dir: &Path, o: &Outcome, secs: f64) -> String {
 }
 
 /// The JSON line of a project that could not be calibrated: `verdict` `error`, the message
-/// in `error` (and as the one reason) and its kind in `error_kind` ([`error_kind`], or
-/// `output` for results that could not be written), nothing written into `out`.
+/// in `error` (and as the one reason) and its kind in `error_kind` (the pipeline's, `input`
+/// for a project file that does not load, `output` for results that could not be written:
+/// docs/batch.md), nothing written into `out`.
 fn error_json_line(path: &Path, dir: &Path, (kind, e): (&str, &str), secs: f64) -> String {
     serde_json::json!({
         "project": path.display().to_string(),
@@ -305,7 +296,9 @@ fn calibrate_project(
             Ok(()) => Ok(o),
             Err(e) => Err(("output", e.to_string())),
         },
-        Err(e) => Err((error_kind(&e), e.to_string())),
+        // the pipeline's kind of error; a project file that does not load is an input's
+        Err(CmdError::Pipeline(e)) => Err((e.kind(), e.to_string())),
+        Err(e) => Err(("input", e.to_string())),
     };
     let secs = t0.elapsed().as_secs_f64();
     let o = match r {
