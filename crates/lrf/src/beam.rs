@@ -348,7 +348,7 @@ pub fn fit_sphere_to_beams(
     let mut set = chosen(start);
     let mut c = *start;
     for _ in 0..REFIT_ROUNDS {
-        let solved = fit_on(&set, mount, radius, &c, noise)?;
+        let solved = fit_on(&set, c, (mount, radius, noise))?;
         c = solved.0;
         let again = chosen(&c);
         if again == set {
@@ -356,25 +356,23 @@ pub fn fit_sphere_to_beams(
         }
         set = again;
     }
-    fit_on(&set, mount, radius, &c, noise)
+    fit_on(&set, c, (mount, radius, noise))
 }
 
 /// Rounds of choosing the beams of [`fit_sphere_to_beams`].
 pub const REFIT_ROUNDS: usize = 5;
 
-/// [`fit_sphere_to_beams`] on a fixed set of beams.
+/// [`fit_sphere_to_beams`] on a fixed set of beams, from `start`.
 fn fit_on(
     readings: &[BeamReading],
-    mount: &MountModel,
-    radius: f64,
-    start: &Vector3<f64>,
-    noise: &RangeNoise,
+    start: Vector3<f64>,
+    (mount, radius, noise): (&MountModel, f64, &RangeNoise),
 ) -> Option<(Vector3<f64>, Matrix3<f64>)> {
     let n = readings.len();
     if n < 4 {
         return None;
     }
-    let mut c = *start;
+    let mut c = start;
     let mut info = Matrix3::zeros();
     let mut chi2 = 0.0;
     for _ in 0..20 {
