@@ -1365,19 +1365,40 @@ fn not_estimable(
     rows: Rows,
     free: &[bool; 8],
 ) -> Option<(f64, String)> {
-    let i = rows.mount(k);
+    let undetermined = |sd: f64| {
+        format!(
+        "the data do not determine it (σ {:.3}{u} against a prior of {:.3}{u}: the sweep and the balls leave it free)",
+        to_unit(k, sd), to_unit(k, PRIOR_SIGMA[k]), u = unit(k)
+    )
+    };
+    let row = (rows.mount(k), PRIOR_SIGMA[k]);
+    row_not_estimable(
+        row,
+        (cov, rows, free),
+        undetermined,
+        "the data cannot tell them apart",
+    )
+}
+
+/// The two tests of an unknown at row `i` of the cofactors `cov` under a weak prior of
+/// `prior_sigma`: its σ beyond [`MAX_PRIOR_SHARE`] of the prior (`undetermined` of its σ
+/// says so; ranked above every correlation), or its correlation with the extrinsic or a free
+/// mount parameter beyond [`MAX_CORRELATION`] (said with `why_correlated`, ranked by |ρ|).
+fn row_not_estimable(
+    (i, prior_sigma): (usize, f64),
+    (cov, rows, free): (&DMatrix<f64>, Rows, &[bool; 8]),
+    undetermined: impl FnOnce(f64) -> String,
+    why_correlated: &str,
+) -> Option<(f64, String)> {
     let sd = cov[(i, i)].max(0.0).sqrt();
-    let share = sd / PRIOR_SIGMA[k];
+    let share = sd / prior_sigma;
     if !(share <= MAX_PRIOR_SHARE) {
-        return Some((1e6 + share, format!(
-            "the data do not determine it (σ {:.3}{u} against a prior of {:.3}{u}: the sweep and the balls leave it free)",
-            to_unit(k, sd), to_unit(k, PRIOR_SIGMA[k]), u = unit(k)
-        )));
+        return Some((1e6 + share, undetermined(sd)));
     }
     correlated(i, cov, rows, free).map(|(other, r)| {
         (
             r.abs(),
-            format!("it is correlated with {other} at ρ = {r:.4}: the data cannot tell them apart"),
+            format!("it is correlated with {other} at ρ = {r:.4}: {why_correlated}"),
         )
     })
 }
@@ -1407,19 +1428,11 @@ fn time_offset_not_estimable(
     free: &[bool; 8],
 ) -> Option<(f64, String)> {
     const WHY: &str = "a sweep in one direction at one speed turns every beam by the same angle, which the extrinsic's rotation about the servo axis takes; sweep forward and back (or at two speeds) to estimate it";
-    let sd = cov[(i, i)].max(0.0).sqrt();
-    let share = sd / TIME_OFFSET_PRIOR_SIGMA_S;
-    if !(share <= MAX_PRIOR_SHARE) {
-        return Some((1e6 + share, format!(
-            "the data do not determine it (σ {sd:.3} s against a prior of {TIME_OFFSET_PRIOR_SIGMA_S} s): {WHY}"
-        )));
-    }
-    correlated(i, cov, rows, free).map(|(other, r)| {
-        (
-            r.abs(),
-            format!("it is correlated with {other} at ρ = {r:.4}: {WHY}"),
-        )
-    })
+    let undetermined = |sd: f64| {
+        format!("the data do not determine it (σ {sd:.3} s against a prior of {TIME_OFFSET_PRIOR_SIGMA_S} s): {WHY}")
+    };
+    let row = (i, TIME_OFFSET_PRIOR_SIGMA_S);
+    row_not_estimable(row, (cov, rows, free), undetermined, WHY)
 }
 
 /// What the joint adjustment starts from.
