@@ -155,28 +155,24 @@ impl Cloud {
     /// million-beam cloud is made again several times per calibration.
     pub fn through(&self, mount: &MountModel) -> Option<Cloud> {
         let readings = self.readings.as_ref()?;
-        let chunks: Vec<Vec<(Vector3<f64>, Vector3<f64>)>> = readings
+        let (points, origins) = readings
             .par_chunks(THROUGH_CHUNK)
-            .map(|chunk| {
+            .flat_map_iter(|chunk| {
                 let mut last: Option<(u64, ScannerPose)> = None;
-                chunk
-                    .iter()
-                    .map(|r| {
-                        let servo = r.servo_deg_through(mount);
-                        let pose = match last {
-                            Some((bits, pose)) if bits == servo.to_bits() => pose,
-                            _ => {
-                                let pose = mount.scanner_at(servo);
-                                last = Some((servo.to_bits(), pose));
-                                pose
-                            }
-                        };
-                        (pose.point(r.range_mm, r.alpha_rad), pose.origin())
-                    })
-                    .collect()
+                chunk.iter().map(move |r| {
+                    let servo = r.servo_deg_through(mount);
+                    let pose = match last {
+                        Some((bits, pose)) if bits == servo.to_bits() => pose,
+                        _ => {
+                            let pose = mount.scanner_at(servo);
+                            last = Some((servo.to_bits(), pose));
+                            pose
+                        }
+                    };
+                    (pose.point(r.range_mm, r.alpha_rad), pose.origin())
+                })
             })
-            .collect();
-        let (points, origins) = chunks.into_iter().flatten().unzip();
+            .unzip();
         Some(Cloud {
             points,
             origins: Some(origins),
@@ -336,16 +332,7 @@ mod tests {
     /// between those of a stop-and-go one.
     #[test]
     fn a_cloud_made_again_is_each_beams_own_point_bit_for_bit() {
-        let mount = MountModel {
-            offset_mm: [7.0, -2.0, 4.0],
-            tilt_x_deg: 0.4,
-            tilt_z_deg: -0.3,
-            servo_zero_deg: 1.5,
-            servo_scale: 0.002,
-            range_offset_mm: 12.0,
-            range_scale: 0.001,
-            servo_time_offset_s: 0.03,
-        };
+        let mount = crate::sensor::tests::random_mount(&mut pingcal_geometry::consensus::rng(7));
         let n = 2 * THROUGH_CHUNK + 777;
         let readings: Vec<BeamReading> = (0..n)
             .map(|i| BeamReading {
