@@ -33,13 +33,6 @@ impl PipelineError {
         }
     }
 
-    /// The one-line message.
-    pub fn message(&self) -> &str {
-        match self {
-            PipelineError::Input(m) | PipelineError::Data(m) | PipelineError::Adjustment(m) => m,
-        }
-    }
-
     /// The same kind of error with `f` of its message.
     pub fn map_message(self, f: impl FnOnce(String) -> String) -> Self {
         match self {
