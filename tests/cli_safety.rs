@@ -60,12 +60,7 @@ fn a_batch_writes_each_project_into_its_own_folder() {
         "--json",
     ]);
     assert!(run.success(), "{}", ctx(&run));
-    let lines: Vec<Value> = run
-        .stdout
-        .lines()
-        .filter(|l| !l.trim().is_empty())
-        .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("{l:?}: {e}")))
-        .collect();
+    let lines = run.json_lines();
     assert_eq!(lines.len(), 2, "{}", ctx(&run));
     let mut outs: Vec<String> = lines
         .iter()
@@ -889,15 +884,6 @@ fn bad_project(w: &Work) -> String {
     s(&bad.join("project.toml")).to_string()
 }
 
-/// The JSON lines of a `--json` run's stdout.
-fn json_lines(run: &Run) -> Vec<Value> {
-    run.stdout
-        .lines()
-        .filter(|l| !l.trim().is_empty())
-        .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("{l:?}: {e}")))
-        .collect()
-}
-
 /// A calibrated project's JSON line: its verdict, its reasons and `results.json`'s agree,
 /// and the results are in `out`.
 fn assert_calibrated(l: &Value, verdict: &str) {
@@ -966,7 +952,7 @@ fn calibrate_says_its_verdict_in_the_json_line_and_the_exit_code() {
     // failed and bad alone, --json
     let run = w.run(&["calibrate", &failed, "--out", &out("f"), "--json"]);
     assert_eq!(run.code, Some(4), "{}", ctx(&run));
-    let lines = json_lines(&run);
+    let lines = run.json_lines();
     assert_eq!(lines.len(), 1, "{}", ctx(&run));
     assert_calibrated(&lines[0], "failed");
     assert!(lines[0]["reasons"][0]
@@ -974,7 +960,7 @@ fn calibrate_says_its_verdict_in_the_json_line_and_the_exit_code() {
         .is_some_and(|r| r.contains("the sphere method gave no extrinsic")));
     let run = w.run(&["calibrate", &bad, "--out", &out("b"), "--json"]);
     assert_eq!(run.code, Some(1), "{}", ctx(&run));
-    let lines = json_lines(&run);
+    let lines = run.json_lines();
     assert_eq!(lines.len(), 1, "{}", ctx(&run));
     assert_error(&lines[0], "S03_left.png");
     // all four: one line each in the order given, the worst (not calibrated) decides
@@ -982,7 +968,7 @@ fn calibrate_says_its_verdict_in_the_json_line_and_the_exit_code() {
     let all = [&ok, &doubtful, &failed, &bad].map(String::as_str);
     let run = w.run(&[&["calibrate"], &all[..], &["--out", s(&batch), "--json"]].concat());
     assert_eq!(run.code, Some(1), "{}", ctx(&run));
-    let lines = json_lines(&run);
+    let lines = run.json_lines();
     assert_eq!(lines.len(), 4, "{}", ctx(&run));
     for (l, p) in lines.iter().zip(all) {
         assert_eq!(l["project"], p, "{}", ctx(&run));
@@ -1003,7 +989,7 @@ fn accept_doubtful_exits_0_when_the_worst_verdict_is_doubtful() {
     let args = ["calibrate", &ok, &doubtful, "--out", s(&out), "--json"];
     let run = w.run(&args);
     assert_eq!(run.code, Some(3), "{}", ctx(&run));
-    let lines = json_lines(&run);
+    let lines = run.json_lines();
     assert_eq!(lines.len(), 2, "{}", ctx(&run));
     assert_calibrated(&lines[0], "ok");
     assert_calibrated(&lines[1], "doubtful");
@@ -1016,7 +1002,7 @@ fn accept_doubtful_exits_0_when_the_worst_verdict_is_doubtful() {
     );
     let run = w.run(&[&args[..], &["--accept-doubtful"]].concat());
     assert_eq!(run.code, Some(0), "{}", ctx(&run));
-    let lines = json_lines(&run);
+    let lines = run.json_lines();
     assert_eq!(lines.len(), 2, "{}", ctx(&run));
     assert_calibrated(&lines[1], "doubtful");
     let help = w.run(&["calibrate", "--help"]);

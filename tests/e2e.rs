@@ -798,12 +798,7 @@ fn batch_with_one_bad_project() {
             "stderr line {l:?}: {ctx}"
         );
     }
-    let lines: Vec<Value> = run
-        .stdout
-        .lines()
-        .filter(|l| !l.trim().is_empty())
-        .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("{l:?} is not JSON: {e}")))
-        .collect();
+    let lines = run.json_lines();
     assert_eq!(lines.len(), 2, "one JSON line per project: {ctx}");
     let find = |dir: &Path| {
         let name = s(&dir.join("project.toml")).to_string();

@@ -248,9 +248,7 @@ impl Work {
     pub fn calibrate_fails(&self, project: &Path, kind: &str, needles: &[&str]) -> String {
         let (run, out) = self.calibrate(project, &["--json"]);
         let err = assert_clean_failure(&run, &out, needles);
-        let lines: Vec<serde_json::Value> = (run.stdout.lines())
-            .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("{l:?}: {e}")))
-            .collect();
+        let lines = run.json_lines();
         assert_eq!(lines.len(), 1, "one JSON line: {}", run.stdout);
         let l = &lines[0];
         assert_eq!(l["verdict"], "error", "{l}");
@@ -304,6 +302,14 @@ impl Run {
     /// Exit code 0.
     pub fn success(&self) -> bool {
         self.code == Some(0)
+    }
+
+    /// The JSON lines of a `--json` run's stdout.
+    pub fn json_lines(&self) -> Vec<serde_json::Value> {
+        (self.stdout.lines())
+            .filter(|l| !l.trim().is_empty())
+            .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("{l:?}: {e}")))
+            .collect()
     }
 
     /// A calibration that wrote its results, whatever its verdict: the exit code is the
