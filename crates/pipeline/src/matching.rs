@@ -641,7 +641,7 @@ fn names_by_label(
 
 /// The labels (`[balls] labels`) of balls the images did not measure near which, in the main
 /// image, one of `centres` (LRF frame) projects through `camera_from_lrf` (the scene's frame
-/// from the LRF's), within the label rule's reach ([`label_reach_px`]: 3 ball radii at its
+/// from the LRF's), within the label rule's reach (`label_reach_px`: 3 ball radii at its
 /// depth, at least 10 px): an LRF sphere there is the labelled ball that the photographs
 /// missed, not a spurious sphere. Empty without labels or without an oriented main image.
 pub fn unmeasured_labels_at(
