@@ -768,22 +768,14 @@ fn a_full_disk_leaves_the_earlier_set() {
     let p = w.quick_project("project");
     let disk = w.dir.join("disk");
     fs::create_dir_all(&disk).unwrap();
-    let mount = |size: &str| {
+    let mount = |options: &str| {
         std::process::Command::new("mount")
-            .args([
-                "-t",
-                "tmpfs",
-                "-o",
-                &format!("size={size}"),
-                "tmpfs",
-                s(&disk),
-            ])
+            .args(["-t", "tmpfs", "-o", options, "tmpfs", s(&disk)])
             .output()
             .map(|o| o.status.success())
             .unwrap_or(false)
     };
-    // one set is about 50 MB (cloud.ply and overlays/ the most): 80 MB hold one, not two
-    if !mount("80m") {
+    if !mount("size=512m") {
         eprintln!("a_full_disk_leaves_the_earlier_set: skipped: cannot mount a tmpfs here");
         return;
     }
@@ -799,6 +791,14 @@ fn a_full_disk_leaves_the_earlier_set() {
             .collect()
     };
     let first = w.run(&["calibrate", s(&toml), "--out", s(&out), "--quiet"]);
+    // the disk shrunk to hold one set and half of another (in whole pages per file, as
+    // tmpfs counts them), so the second run's new set cannot be written beside the first
+    let pages: u64 = walk(&disk)
+        .iter()
+        .map(|f| fs::metadata(f).unwrap().len().div_ceil(4096))
+        .sum();
+    let size = (pages + pages / 2 + 16) * 4096;
+    let shrunk = mount(&format!("remount,size={size}"));
     let before = read_all(&disk);
     let second = w.run(&[
         "calibrate",
@@ -818,6 +818,7 @@ fn a_full_disk_leaves_the_earlier_set() {
         .collect();
     let _ = std::process::Command::new("umount").arg(s(&disk)).status();
     assert!(first.success(), "{}", ctx(&first));
+    assert!(shrunk, "the tmpfs could not be shrunk to {size} bytes");
     fails(&second, &["No space left on device", "left as they were"]);
     let line: Value = serde_json::from_str(second.stdout.trim()).expect("one JSON line");
     assert_eq!(line["error_kind"], "output", "{line}");

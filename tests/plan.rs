@@ -9,18 +9,6 @@ use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-/// The small field, as a `simulation.toml` gives it (also sigma_honesty's).
-pub(crate) const SMALL: &str = "\
-[stations]
-convergent = 5
-
-[render]
-supersampling = 2
-
-[lrf]
-servo_step_deg = 0.3515625
-";
-
 fn dir(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("pingcal-plan-test-{name}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&d);
@@ -49,7 +37,7 @@ fn num(v: &Value) -> f64 {
 #[test]
 fn plan_predicts_ranks_removals_and_repeats_itself() {
     let d = dir("small");
-    std::fs::write(d.join("small.toml"), SMALL).unwrap();
+    std::fs::write(d.join("small.toml"), crate::common::SMALL_FIELD).unwrap();
     let args = [
         "plan",
         "--config",

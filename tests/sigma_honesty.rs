@@ -29,9 +29,8 @@ use std::path::PathBuf;
 use std::process::Command;
 use std::sync::OnceLock;
 
-// The small field of tests/plan.rs: five convergent stations, half the supersampling, a
-// 0.35° servo step.
-use crate::plan::SMALL;
+// The small field: five convergent stations, half the supersampling, a 0.35° servo step.
+use crate::common::SMALL_FIELD;
 
 /// Standard normal quantile of 0.995 (two-sided α = 1 %).
 const Z: f64 = 2.575_829_303_549;
@@ -57,7 +56,7 @@ pub(crate) const FAST_SEEDS: usize = 10;
 /// any plan (`crate::plan`).
 pub(crate) fn small_plan() -> &'static Value {
     static PLAN: OnceLock<Value> = OnceLock::new();
-    PLAN.get_or_init(|| plan("small", Some(SMALL), FAST_SEEDS))
+    PLAN.get_or_init(|| plan("small", Some(SMALL_FIELD), FAST_SEEDS))
 }
 
 /// Runs `pingcal plan --seeds n --no-sensitivity` (with `config`, None: the paper's field)

@@ -62,19 +62,37 @@ pub fn pristine() -> &'static Path {
     PRISTINE.get_or_init(|| simulate_once("pristine", None))
 }
 
-/// The simulated project of the same seed on a rig whose LRF mount is exactly as the project
-/// states (`[lrf] mount_errors = false`), with `method = "spheres"`: its verdict is ok
-/// without the joint adjustment, at about a third of the pristine project's time. For the
-/// tests of what a run does with its files, folders, exit codes and batches, where the
-/// method does not matter. Made on first use.
+/// The quick simulated project: the small field ([`SMALL_FIELD`]) of the same seed on a rig
+/// whose LRF mount is exactly as the project states (`[lrf] mount_errors = false`, as
+/// [`LRF_AS_STATED`]), with `method = "spheres"`: its verdict is ok without the joint
+/// adjustment, and it simulates and calibrates in about a third of the pristine project's
+/// time. For the tests of what a run does with its files, folders, exit codes and batches,
+/// where neither the method nor the field's size matters. Made on first use.
 pub fn quick_pristine() -> &'static Path {
     static QUICK: OnceLock<PathBuf> = OnceLock::new();
     QUICK.get_or_init(|| {
-        let dir = simulate_once("quick", Some(LRF_AS_STATED));
+        let dir = simulate_once(
+            "quick",
+            Some(&format!("{SMALL_FIELD}mount_errors = false\n")),
+        );
         two_step_method(&dir);
         dir
     })
 }
+
+/// A small field, as a `simulation.toml` gives it: five convergent stations, half the
+/// rendering's supersampling, a 0.35° servo step (a quarter of the beams). The planner's and
+/// σ-honesty's field and the quick project's.
+pub const SMALL_FIELD: &str = "\
+[stations]
+convergent = 5
+
+[render]
+supersampling = 2
+
+[lrf]
+servo_step_deg = 0.3515625
+";
 
 /// The simulator configuration (to append to a test's own) of an LRF mounted exactly as the
 /// project states: with [`two_step_method`] the verdict is ok without the joint adjustment,
