@@ -660,7 +660,7 @@ fn malformed_scan_line() {
 #[test]
 fn distance_to_an_unseen_target() {
     let w = Work::new("distance_to_an_unseen_target");
-    let p = w.project("project");
+    let p = w.quick_project("project");
     let toml = p.join("project.toml");
     let mut text = fs::read_to_string(&toml).unwrap();
     let k = text.matches("[[distances]]").count();
@@ -1124,8 +1124,9 @@ fn verdict_is_ok_on_a_clean_simulation_and_doubtful_with_an_unknown_mount_offset
         report.contains("Verdict: ok"),
         "report.html shows no verdict"
     );
-    // a stereo baseline entered in centimetres: the adjusted rig says otherwise
-    let p = w.project("project");
+    // a stereo baseline entered in centimetres: the adjusted rig says otherwise (the quick
+    // project: the check is the images')
+    let p = w.quick_project("project");
     let text = fs::read_to_string(p.join("project.toml")).unwrap();
     let line = text
         .lines()
@@ -1160,7 +1161,12 @@ fn verdict_is_ok_on_a_clean_simulation_and_doubtful_with_an_unknown_mount_offset
         "{v}"
     );
 
-    let q = w.simulate("offset", "[lrf]\nmount_offset_mm = [0.0, 0.0, 25.0]\n");
+    // (the small field's rendering and beams: the offset's effects are the LRF's, and a
+    // quarter of the beams show them as plainly)
+    let q = w.simulate(
+        "offset",
+        "[render]\nsupersampling = 2\n[lrf]\nmount_offset_mm = [0.0, 0.0, 25.0]\nservo_step_deg = 0.3515625\n",
+    );
     // the simulator's project leaves the mount at zero, as a user who does not know it would
     assert!(fs::read_to_string(q.join("project.toml"))
         .unwrap()
@@ -1307,8 +1313,11 @@ fn only_station(text: &str, keep: &str) -> String {
 #[test]
 fn a_field_too_sparse_for_a_relative_start_starts_from_its_layout_or_its_stereo_head() {
     let w = Work::new("sparse_field_starts");
-    // the starts are the images' business: the LRF as stated, the two-step method
-    let config = format!("[targets]\ncoded = 10\n[distances]\ncount = 3\n{LRF_AS_STATED}");
+    // the starts are the images' business: half the supersampling, the LRF as stated (a
+    // quarter of the beams), the two-step method
+    let config = format!(
+        "[targets]\ncoded = 10\n[distances]\ncount = 3\n[render]\nsupersampling = 2\n{LRF_AS_STATED}servo_step_deg = 0.3515625\n"
+    );
     let p = w.simulate("sparse", &config);
     two_step_method(&p);
     let toml = p.join("project.toml");
@@ -1447,7 +1456,7 @@ fn a_half_sweep_names_the_mount_parameters_it_cannot_estimate() {
     let w = Work::new("half_sweep");
     let p = w.simulate(
         "half",
-        "[lrf]\nservo_start_deg = -90.0\nservo_end_deg = 90.0\nmount_offset_mm = [8.0, -5.0, 12.0]\nmount_tilt_x_deg = 0.4\nrange_offset_mm = 12.0\n",
+        "[render]\nsupersampling = 2\n[lrf]\nservo_start_deg = -90.0\nservo_end_deg = 90.0\nmount_offset_mm = [8.0, -5.0, 12.0]\nmount_tilt_x_deg = 0.4\nrange_offset_mm = 12.0\n",
     );
     let (run, out) = w.calibrate(&p, &[]);
     assert!(run.success(), "calibrate failed: {}", run.stderr);
@@ -1553,7 +1562,7 @@ fn a_continuous_sweeps_servo_time_offset_is_estimated() {
     let w = Work::new("time_offset");
     let p = w.simulate(
         "sweep",
-        "[lrf]\ncontinuous_sweep = true\nservo_passes = 2\nservo_step_deg = 0.25\nservo_time_offset_s = 0.02\n",
+        "[render]\nsupersampling = 2\n[lrf]\ncontinuous_sweep = true\nservo_passes = 2\nservo_step_deg = 0.25\nservo_time_offset_s = 0.02\n",
     );
     let (run, out) = w.calibrate(&p, &[]);
     assert!(
@@ -1606,10 +1615,11 @@ fn a_continuous_sweeps_servo_time_offset_is_estimated() {
 fn a_start_in_another_minimum_gives_way_to_a_better_one() {
     let w = Work::new("suspect_start");
     let cfg = w.dir.join("blur.toml");
-    // the start is the images' business: the LRF as stated, the two-step method
+    // the start is the images' business: the LRF as stated (a quarter of the beams), the
+    // two-step method
     fs::write(
         &cfg,
-        format!("[render]\nblur_sigma_px = 0.9\n{LRF_AS_STATED}"),
+        format!("[render]\nblur_sigma_px = 0.9\n{LRF_AS_STATED}servo_step_deg = 0.3515625\n"),
     )
     .unwrap();
     let p = w.dir.join("sim");
