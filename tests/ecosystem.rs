@@ -371,7 +371,9 @@ fn frame_names_come_from_the_project() {
 }
 
 /// The simulated field through a fisheye (`pingcal simulate --camera-model M`), simulated
-/// once per test binary per model.
+/// once per test binary per model: half the supersampling and the LRF as stated (a quarter
+/// of the beams), calibrated by the two-step method, since what is checked is the camera's
+/// model and its exports, not the LRF's.
 fn fisheye_set(model: &'static str) -> PathBuf {
     static SETS: std::sync::Mutex<Vec<(&'static str, PathBuf)>> = std::sync::Mutex::new(Vec::new());
     let mut sets = SETS.lock().unwrap_or_else(|e| e.into_inner());
@@ -382,6 +384,15 @@ fn fisheye_set(model: &'static str) -> PathBuf {
     let log = common::root().join(format!("ecosystem-{model}-log"));
     std::fs::create_dir_all(&log).expect("log folder");
     let seed = common::SEED.to_string();
+    let config = log.join("fisheye.toml");
+    std::fs::write(
+        &config,
+        format!(
+            "[render]\nsupersampling = 2\n{}servo_step_deg = 0.3515625\n",
+            common::LRF_AS_STATED
+        ),
+    )
+    .expect("write the simulator configuration");
     let args = [
         "simulate",
         "--out",
@@ -390,6 +401,8 @@ fn fisheye_set(model: &'static str) -> PathBuf {
         &seed,
         "--camera-model",
         model,
+        "--config",
+        config.to_str().unwrap(),
     ];
     let run = common::run(&args, &log);
     assert!(
@@ -397,6 +410,7 @@ fn fisheye_set(model: &'static str) -> PathBuf {
         "simulate --camera-model {model} failed: {}",
         run.stderr
     );
+    common::two_step_method(&dir);
     sets.push((model, dir.clone()));
     dir
 }
