@@ -821,46 +821,6 @@ fn batch_with_one_bad_project() {
     read_json(&good.join("results/results.json"));
 }
 
-/// Seed 14 of the simulator: data snooping takes point P62 down to no rays (the stereo pair of
-/// one station, then the lone ray left), and the adjustment's precision used to fail with "point
-/// 'P62' is not determined". Such a point is dropped, its measurements reported as rejected, and
-/// the calibration goes on.
-#[test]
-fn point_left_undetermined_by_data_snooping_is_dropped() {
-    let w = common::Work::new("seed14");
-    let project = w.dir.join("project");
-    let sim = w.run(&["simulate", "--out", s(&project), "--seed", "14"]);
-    assert!(sim.success(), "simulate: {}", sim.stderr);
-    let out = w.dir.join("out");
-    let run = w.run(&[
-        "calibrate",
-        s(&project.join("project.toml")),
-        "--out",
-        s(&out),
-    ]);
-    assert!(run.success(), "calibrate failed: {}", run.stderr);
-    assert!(out.join("results.json").is_file(), "no results.json");
-    // When a point was dropped, the report lists its measurements with the reason.
-    if let Some(line) = run
-        .stderr
-        .lines()
-        .find(|l| l.contains("dropped: after data snooping"))
-    {
-        let name = line
-            .split("point ")
-            .nth(1)
-            .and_then(|r| r.split_whitespace().next())
-            .expect("point name");
-        eprintln!("dropped: {name}");
-        let report = std::fs::read_to_string(out.join("report.html")).expect("report.html");
-        assert!(
-            report.contains(&format!("image point {name} in"))
-                && report.contains("too few rays to determine it"),
-            "the report does not list the dropped point {name}"
-        );
-    }
-}
-
 /// ω, φ, κ (degrees) of a rotation in pingcal's one convention, written out here from the
 /// convention's definition (passive factors, `R = R_ω R_φ R_κ`: R₀₂ = −sin φ,
 /// R₁₂ = sin ω cos φ, R₂₂ = cos ω cos φ, R₀₁ = cos φ sin κ, R₀₀ = cos φ cos κ), not taken

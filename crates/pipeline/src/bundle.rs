@@ -411,3 +411,50 @@ pub fn final_adjustment(
         lens_doubt: None,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::adjust::tests::fixture;
+
+    /// A point the network no longer determines leaves the scene, and each of its
+    /// measurements is a rejection naming its image and the reason (what the report lists).
+    #[test]
+    fn an_undetermined_point_is_dropped_with_its_measurements_as_rejections() {
+        let (project, dets, mut scene) = fixture();
+        let rejected = drop_undetermined(&project, &dets, &mut scene, "3").expect("dropped");
+        assert_eq!(scene.points.len(), 2);
+        assert!(scene.points.iter().all(|p| p.name != "3"));
+        let images: Vec<&str> = rejected.iter().map(|r| r.image.as_str()).collect();
+        assert_eq!(images, ["a.png", "c.png"]);
+        for r in &rejected {
+            assert_eq!(r.point, "3");
+            assert_eq!(r.uv, [70.0, 40.0]);
+            assert!(
+                r.reason.contains("too few rays to determine it"),
+                "{}",
+                r.reason
+            );
+        }
+    }
+
+    /// A coded target of the only distance cannot go: nothing would fix the scale, and the
+    /// error names it; a name not in the scene is an error too.
+    #[test]
+    fn the_last_distances_target_is_not_dropped_silently() {
+        let (project, dets, mut scene) = fixture();
+        let Err(PipelineError::Data(e)) = drop_undetermined(&project, &dets, &mut scene, "1")
+        else {
+            panic!("dropping the distance's end passed");
+        };
+        assert!(
+            e.contains("coded target 1 of the distances") && e.contains("no other distance"),
+            "{e}"
+        );
+        let Err(PipelineError::Data(e)) = drop_undetermined(&project, &dets, &mut scene, "P9")
+        else {
+            panic!("an unknown point passed");
+        };
+        assert!(e.contains("'P9' is not determined"), "{e}");
+    }
+}
