@@ -10,6 +10,7 @@ use crate::common;
 use common::{adjusted_free_network, realisation, to_convergence, truth};
 use pingcal_ba::problem::Distance;
 use pingcal_ba::solver::{points_covariance, precision, solve, PrecisionError};
+use rayon::prelude::*;
 
 #[test]
 fn reported_sigmas_match_the_monte_carlo_errors() {
@@ -74,51 +75,55 @@ fn reported_sigmas_match_the_monte_carlo_errors() {
 fn joint_point_covariance_matches_the_monte_carlo_errors() {
     let truth = truth();
     let runs = 100;
-    let (mut joint, mut dof) = (0.0, 0usize);
-    // Per network: the mean of dᵀΣ_d⁻¹d / 3 over its neighbour pairs, with and without.
-    let (mut with_cross, mut without_cross) = (Vec::new(), Vec::new());
-    for run in 0..runs {
-        let mut p = realisation(&truth, 7000 + run);
-        solve(&mut p, &to_convergence(), |_| {}).unwrap();
-        let prec = precision(&p).unwrap();
-        let free: Vec<usize> = (0..p.points.len())
-            .filter(|&q| !p.points[q].fixed)
-            .collect();
-        let cov = points_covariance(&p, &free).unwrap();
-        let err = |q: usize| p.points[q].position - truth.points[q].position;
-        let e = nalgebra::DVector::from_iterator(
-            3 * free.len(),
-            free.iter()
-                .flat_map(|&q| err(q).iter().copied().collect::<Vec<_>>()),
-        );
-        let block = |a: usize, b: usize| cov.fixed_view::<3, 3>(3 * a, 3 * b).into_owned();
-        for (k, &q) in free.iter().enumerate() {
-            let c = prec.point_covariances[q].unwrap();
-            let d = (block(k, k) - c).abs().max();
-            assert!(
-                d <= 1e-9 * c.abs().max(),
-                "point {q}: the diagonal block differs by {d}"
+    // One network per run, the runs in parallel (each seeded by its number); per run:
+    // eᵀΣ⁻¹e of all its free points and their count, and the mean of dᵀΣ_d⁻¹d / 3 over its
+    // neighbour pairs with and without the cross terms. Summed in the runs' order.
+    let per_run: Vec<(f64, usize, f64, f64)> = (0..runs)
+        .into_par_iter()
+        .map(|run| {
+            let mut p = realisation(&truth, 7000 + run);
+            solve(&mut p, &to_convergence(), |_| {}).unwrap();
+            let prec = precision(&p).unwrap();
+            let free: Vec<usize> = (0..p.points.len())
+                .filter(|&q| !p.points[q].fixed)
+                .collect();
+            let cov = points_covariance(&p, &free).unwrap();
+            let err = |q: usize| p.points[q].position - truth.points[q].position;
+            let e = nalgebra::DVector::from_iterator(
+                3 * free.len(),
+                free.iter()
+                    .flat_map(|&q| err(q).iter().copied().collect::<Vec<_>>()),
             );
-        }
-        let ch = cov
-            .clone()
-            .cholesky()
-            .expect("a positive definite covariance");
-        joint += e.dot(&ch.solve(&e));
-        dof += e.len();
-        let (mut w, mut o) = (0.0, 0.0);
-        for k in 1..free.len() {
-            let d = err(free[k]) - err(free[k - 1]);
-            let own = block(k, k) + block(k - 1, k - 1);
-            let cross = block(k, k - 1) + block(k - 1, k);
-            let z2 = |m: nalgebra::Matrix3<f64>| d.dot(&(m.try_inverse().unwrap() * d));
-            w += z2(own - cross);
-            o += z2(own);
-        }
-        let pairs = 3.0 * (free.len() - 1) as f64;
-        with_cross.push(w / pairs);
-        without_cross.push(o / pairs);
-    }
+            let block = |a: usize, b: usize| cov.fixed_view::<3, 3>(3 * a, 3 * b).into_owned();
+            for (k, &q) in free.iter().enumerate() {
+                let c = prec.point_covariances[q].unwrap();
+                let d = (block(k, k) - c).abs().max();
+                assert!(
+                    d <= 1e-9 * c.abs().max(),
+                    "point {q}: the diagonal block differs by {d}"
+                );
+            }
+            let ch = cov
+                .clone()
+                .cholesky()
+                .expect("a positive definite covariance");
+            let (mut w, mut o) = (0.0, 0.0);
+            for k in 1..free.len() {
+                let d = err(free[k]) - err(free[k - 1]);
+                let own = block(k, k) + block(k - 1, k - 1);
+                let cross = block(k, k - 1) + block(k - 1, k);
+                let z2 = |m: nalgebra::Matrix3<f64>| d.dot(&(m.try_inverse().unwrap() * d));
+                w += z2(own - cross);
+                o += z2(own);
+            }
+            let pairs = 3.0 * (free.len() - 1) as f64;
+            (e.dot(&ch.solve(&e)), e.len(), w / pairs, o / pairs)
+        })
+        .collect();
+    let joint: f64 = per_run.iter().map(|r| r.0).sum();
+    let dof: usize = per_run.iter().map(|r| r.1).sum();
+    let with_cross: Vec<f64> = per_run.iter().map(|r| r.2).collect();
+    let without_cross: Vec<f64> = per_run.iter().map(|r| r.3).collect();
     let vj = joint / dof as f64;
     let tol = 5.0 * (2.0 / dof as f64).sqrt();
     // The differences of one network are correlated, the networks independent: the

@@ -373,16 +373,29 @@ pub fn points_covariance_with(
     all.sort_unstable();
     all.dedup();
     let sub = c.q_cc.restricted(&all);
+    // Each point's rows as positions in `all`, looked up once.
     let at = |i: usize| all.binary_search(&i).expect("a row of the points");
+    let rows: Vec<(Vec<(usize, [f64; 3])>, Option<Matrix3<f64>>)> = rows
+        .into_iter()
+        .map(|(r, v)| (r.into_iter().map(|(i, y)| (at(i), y)).collect(), v))
+        .collect();
+    // Block (a, b) is Y_aᵀ Q Y_b. With T_a = Q Y_a (all rows × 3, Q symmetric), made once
+    // per point a, each block is Y_bᵀ T_a over b's rows only.
     let mut q = DMatrix::<f64>::zeros(3 * k, 3 * k);
+    let mut t = vec![[0.0; 3]; all.len()];
     for (a, (ra, va)) in rows.iter().enumerate() {
+        t.iter_mut().for_each(|r| *r = [0.0; 3]);
+        for &(i, yi) in ra {
+            for (tm, &qmi) in t.iter_mut().zip(sub.column(i).iter()) {
+                for u in 0..3 {
+                    tm[u] += qmi * yi[u];
+                }
+            }
+        }
         for (b, (rb, _)) in rows.iter().enumerate().skip(a) {
             let mut block = Matrix3::<f64>::zeros();
-            for &(i, yi) in ra {
-                for &(j, yj) in rb {
-                    let qij = sub[(at(i), at(j))];
-                    block += Matrix3::from_fn(|u, v| yi[u] * qij * yj[v]);
-                }
+            for &(j, yj) in rb {
+                block += Matrix3::from_fn(|u, v| t[j][u] * yj[v]);
             }
             if a == b {
                 block += va.unwrap_or_else(Matrix3::zeros);
