@@ -342,7 +342,8 @@ pub fn points_covariance_with(
         PrecisionError::DatumDefect("a free network: joint point covariances need a datum".into())
     })?;
     let (_, _, _, sigma0) = redundancy_and_sigma0(problem, &c)?;
-    // A_p as (row of δc, the 3 columns' values), and V_p⁻¹ for an eliminated point.
+    // A_p as (row of δc, the 3 columns' values), and V_p⁻¹ for an eliminated point (the
+    // rows as positions in Q_cc's restriction below, once that is made).
     type PointRows = (Vec<(usize, [f64; 3])>, Option<Matrix3<f64>>);
     let rows: Vec<PointRows> = points
         .iter()
@@ -375,7 +376,7 @@ pub fn points_covariance_with(
     let sub = c.q_cc.restricted(&all);
     // Each point's rows as positions in `all`, looked up once.
     let at = |i: usize| all.binary_search(&i).expect("a row of the points");
-    let rows: Vec<(Vec<(usize, [f64; 3])>, Option<Matrix3<f64>>)> = rows
+    let rows: Vec<PointRows> = rows
         .into_iter()
         .map(|(r, v)| (r.into_iter().map(|(i, y)| (at(i), y)).collect(), v))
         .collect();
