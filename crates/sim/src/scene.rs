@@ -430,13 +430,15 @@ impl TestField {
                 *best = Some(h);
             }
         };
+        // A surface's normal is computed for the hit that wins only (below): most surface
+        // hits near a target or a ball lose to it.
         for (i, s) in self.surfaces.iter().enumerate() {
             if let Some((t, u, v)) = s.intersect(o, d, T_MIN) {
                 consider(
                     Hit {
                         t,
                         kind: HitKind::Surface { index: i, u, v },
-                        normal: s.normal(u, v),
+                        normal: V3::zeros(),
                     },
                     &mut best,
                 );
@@ -534,6 +536,14 @@ impl TestField {
                     }
                 }
             }
+        }
+        if let Some(Hit {
+            kind: HitKind::Surface { index, u, v },
+            normal,
+            ..
+        }) = &mut best
+        {
+            *normal = self.surfaces[*index].normal(*u, *v);
         }
         best
     }
