@@ -418,32 +418,40 @@ fn ray_cylinder(o: &V3, d: &V3, foot: &V3, axis: &V3, len: f64, r: f64, t_min: f
     None
 }
 
+/// The least ray parameter of a hit (mm): a ray starting on a surface does not hit it.
+const CAST_T_MIN: f64 = 1e-6;
+
 impl TestField {
+    /// The nearest of the surfaces' hits (the first of equal ones), its normal left zero:
+    /// [`Self::cast`] computes it for the hit that wins only, since most surface hits near
+    /// a target or a ball lose to it.
+    fn nearest_surface(&self, o: &V3, d: &V3) -> Option<Hit> {
+        let mut best: Option<Hit> = None;
+        for (i, s) in self.surfaces.iter().enumerate() {
+            if let Some((t, u, v)) = s.intersect(o, d, CAST_T_MIN) {
+                if best.is_none_or(|b| t < b.t) {
+                    best = Some(Hit {
+                        t,
+                        kind: HitKind::Surface { index: i, u, v },
+                        normal: V3::zeros(),
+                    });
+                }
+            }
+        }
+        best
+    }
+
     /// Casts a unit ray from `o` along `d` against the three surfaces and the given objects
     /// (all objects when `objects` is `None`). Targets are stickers: where a target and
     /// its own surface are within 0.5 mm of each other, the target wins.
     pub fn cast(&self, o: &V3, d: &V3, objects: Option<&[Object]>) -> Option<Hit> {
-        const T_MIN: f64 = 1e-6;
-        let mut best: Option<Hit> = None;
+        const T_MIN: f64 = CAST_T_MIN;
         let consider = |h: Hit, best: &mut Option<Hit>| {
             if best.is_none_or(|b| h.t < b.t) {
                 *best = Some(h);
             }
         };
-        // A surface's normal is computed for the hit that wins only (below): most surface
-        // hits near a target or a ball lose to it.
-        for (i, s) in self.surfaces.iter().enumerate() {
-            if let Some((t, u, v)) = s.intersect(o, d, T_MIN) {
-                consider(
-                    Hit {
-                        t,
-                        kind: HitKind::Surface { index: i, u, v },
-                        normal: V3::zeros(),
-                    },
-                    &mut best,
-                );
-            }
-        }
+        let mut best = self.nearest_surface(o, d);
         let check_target = |i: usize, best: &mut Option<Hit>| {
             let tg = &self.targets[i];
             let dn = d.dot(&tg.normal);
