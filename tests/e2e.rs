@@ -7,7 +7,9 @@
 
 use crate::common;
 
-use common::{read_json, replace_once, two_step_method, Work, LRF_AS_STATED, OUTPUTS};
+use common::{
+    read_json, replace_once, two_step_method, Work, LRF_AS_STATED, OUTPUTS, QUARTER_BEAMS,
+};
 use serde_json::Value;
 use std::fs;
 use std::path::{Path, PathBuf};
@@ -1125,7 +1127,7 @@ fn verdict_is_ok_on_a_clean_simulation_and_doubtful_with_an_unknown_mount_offset
     // quarter of the beams show them as plainly)
     let q = w.simulate(
         "offset",
-        "[render]\nsupersampling = 2\n[lrf]\nmount_offset_mm = [0.0, 0.0, 25.0]\nservo_step_deg = 0.3515625\n",
+        &format!("[render]\nsupersampling = 2\n[lrf]\nmount_offset_mm = [0.0, 0.0, 25.0]\n{QUARTER_BEAMS}"),
     );
     // the simulator's project leaves the mount at zero, as a user who does not know it would
     assert!(fs::read_to_string(q.join("project.toml"))
@@ -1276,7 +1278,7 @@ fn a_field_too_sparse_for_a_relative_start_starts_from_its_layout_or_its_stereo_
     // the starts are the images' business: half the supersampling, the LRF as stated (a
     // quarter of the beams), the two-step method
     let config = format!(
-        "[targets]\ncoded = 10\n[distances]\ncount = 3\n[render]\nsupersampling = 2\n{LRF_AS_STATED}servo_step_deg = 0.3515625\n"
+        "[targets]\ncoded = 10\n[distances]\ncount = 3\n[render]\nsupersampling = 2\n{LRF_AS_STATED}{QUARTER_BEAMS}"
     );
     let p = w.simulate("sparse", &config);
     two_step_method(&p);
@@ -1463,7 +1465,7 @@ fn a_mount_too_far_off_for_the_two_step_start_starts_from_the_rooms() {
     let w = Work::new("room_fallback");
     let p = w.simulate(
         "tilted",
-        "[render]\nsupersampling = 2\n[lrf]\nservo_step_deg = 0.3515625\n",
+        &format!("[render]\nsupersampling = 2\n[lrf]\n{QUARTER_BEAMS}"),
     );
     let toml = p.join("project.toml");
     replace_once(
@@ -1579,7 +1581,7 @@ fn a_start_in_another_minimum_gives_way_to_a_better_one() {
     // two-step method
     fs::write(
         &cfg,
-        format!("[render]\nblur_sigma_px = 0.9\n{LRF_AS_STATED}servo_step_deg = 0.3515625\n"),
+        format!("[render]\nblur_sigma_px = 0.9\n{LRF_AS_STATED}{QUARTER_BEAMS}"),
     )
     .unwrap();
     let p = w.dir.join("sim");

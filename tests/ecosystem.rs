@@ -388,8 +388,9 @@ fn fisheye_set(model: &'static str) -> PathBuf {
     std::fs::write(
         &config,
         format!(
-            "[render]\nsupersampling = 2\n{}servo_step_deg = 0.3515625\n",
-            common::LRF_AS_STATED
+            "[render]\nsupersampling = 2\n{}{}",
+            common::LRF_AS_STATED,
+            common::QUARTER_BEAMS
         ),
     )
     .expect("write the simulator configuration");

@@ -94,6 +94,10 @@ supersampling = 2
 servo_step_deg = 0.3515625
 ";
 
+/// The simulator configuration's `[lrf]` line of a 0.35° servo step: a quarter of the default
+/// sweep's beams (the small field's), for the cases whose subject is not the LRF's precision.
+pub const QUARTER_BEAMS: &str = "servo_step_deg = 0.3515625\n";
+
 /// The simulator configuration (to append to a test's own) of an LRF mounted exactly as the
 /// project states: with [`two_step_method`] the verdict is ok without the joint adjustment,
 /// at about a third of its time, for the tests of what does not depend on the LRF's mount.

@@ -694,7 +694,7 @@ mod tests {
             let clear = (readings.iter())
                 .filter(|r| {
                     !beam_range_residual(r, &mount, c, scene.radius)
-                        .at_silhouette(FitOptions::default().beam_half_width(r.range_mm))
+                        .at_silhouette(gate.beam_half_width(r.range_mm))
                 })
                 .count();
             let Some((fit, _)) =

@@ -445,7 +445,6 @@ impl TestField {
     /// (all objects when `objects` is `None`). Targets are stickers: where a target and
     /// its own surface are within 0.5 mm of each other, the target wins.
     pub fn cast(&self, o: &V3, d: &V3, objects: Option<&[Object]>) -> Option<Hit> {
-        const T_MIN: f64 = CAST_T_MIN;
         let consider = |h: Hit, best: &mut Option<Hit>| {
             if best.is_none_or(|b| h.t < b.t) {
                 *best = Some(h);
@@ -459,7 +458,7 @@ impl TestField {
                 return; // seen from behind
             }
             let t = (tg.centre - o).dot(&tg.normal) / dn;
-            if t <= T_MIN {
+            if t <= CAST_T_MIN {
                 return;
             }
             let q = o + d * t - tg.centre;
@@ -498,7 +497,7 @@ impl TestField {
         // own surface, never against a ball in front of them).
         for &i in &balls_to_check {
             let bl = &self.balls[i];
-            if let Some(t) = ray_sphere(o, d, &bl.centre, bl.radius, T_MIN) {
+            if let Some(t) = ray_sphere(o, d, &bl.centre, bl.radius, CAST_T_MIN) {
                 let p = o + d * t;
                 consider(
                     Hit {
@@ -516,7 +515,7 @@ impl TestField {
                 &bl.axis,
                 bl.stem_length,
                 bl.stem_radius,
-                T_MIN,
+                CAST_T_MIN,
             ) {
                 let p = o + d * t;
                 let w = p - bl.foot;
