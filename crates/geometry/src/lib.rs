@@ -10,6 +10,7 @@
 //! | [`umeyama`](mod@umeyama) | the closed-form (weighted) rigid or similarity transform between point sets |
 //! | [`dlt`] | Hartley normalisation and the normalised-DLT homography |
 //! | [`plane`] | the least-squares plane of a point set |
+//! | [`least_squares`] | small dense nonlinear least squares: Gauss–Newton or Levenberg–Marquardt on a few unknowns' normal equations |
 //! | [`consensus`] | robust estimation: an [`Estimator`] trait, MSAC / RANSAC with local optimisation, seeded ChaCha streams |
 //! | [`stats`] | the χ² quantile every σ0 bound and honest-σ band uses |
 //!
@@ -37,6 +38,7 @@
 
 pub mod consensus;
 pub mod dlt;
+pub mod least_squares;
 pub mod opk;
 pub mod plane;
 pub mod rigid;

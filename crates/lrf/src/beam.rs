@@ -45,6 +45,7 @@ use crate::cloud::BeamReading;
 use crate::sensor::{servo_rotation, MountModel, RangeNoise};
 use crate::sphere_fit::FitOptions;
 use nalgebra::{Matrix3, Vector3};
+use pingcal_geometry::least_squares::{minimize, Normal, Options, Strategy};
 
 /// The clamp of grazing beams: the root `√(ρ² − h²)` is held at least κρ.
 pub const GRAZING_KAPPA: f64 = 0.3;
@@ -362,7 +363,9 @@ pub fn fit_sphere_to_beams(
 /// Rounds of choosing the beams of [`fit_sphere_to_beams`].
 pub const REFIT_ROUNDS: usize = 5;
 
-/// [`fit_sphere_to_beams`] on a fixed set of beams, from `start`.
+/// [`fit_sphere_to_beams`] on a fixed set of beams, from `start`: Gauss–Newton on the
+/// ranges weighted by their σ (at most 20 steps, until one is under 1e-6 mm); the covariance
+/// from the normal matrix of the last step, scaled by σ₀² when σ₀ > 1.
 fn fit_on(
     readings: &[BeamReading],
     start: Vector3<f64>,
@@ -372,29 +375,34 @@ fn fit_on(
     if n < 4 {
         return None;
     }
-    let mut c = start;
-    let mut info = Matrix3::zeros();
-    let mut chi2 = 0.0;
-    for _ in 0..20 {
-        let (mut h, mut g) = (Matrix3::zeros(), Vector3::zeros());
-        chi2 = 0.0;
+    let mut normal = |c: &Vector3<f64>| {
+        let (mut h, mut g, mut chi2) = (Matrix3::zeros(), Vector3::zeros(), 0.0);
         for r in readings {
-            let b = beam_range_residual(r, mount, &c, radius);
+            let b = beam_range_residual(r, mount, c, radius);
             let s = noise.sigma(r.range_mm).max(1e-3);
             let j = Vector3::from(b.d_centre) / s;
             h += j * j.transpose();
             g += j * (b.e / s);
             chi2 += (b.e / s).powi(2);
         }
-        let step = h.try_inverse()? * g;
-        c -= step;
-        info = h;
-        if step.norm() < 1e-6 {
-            break;
-        }
-    }
-    let s0 = (chi2 / (n as f64 - 3.0).max(1.0)).sqrt();
-    Some((c, info.try_inverse()? * s0.max(1.0).powi(2)))
+        Some(Normal {
+            matrix: h,
+            gradient: g,
+            cost: chi2,
+        })
+    };
+    let options = Options {
+        strategy: Strategy::GaussNewton,
+        max_iterations: 20,
+        step_tolerance: (1e-6, 0.0),
+        cost_tolerance: 0.0,
+    };
+    let solved = minimize(start, &options, &mut normal)?;
+    let s0 = (solved.normal.cost / (n as f64 - 3.0).max(1.0)).sqrt();
+    Some((
+        solved.x,
+        solved.normal.matrix.try_inverse()? * s0.max(1.0).powi(2),
+    ))
 }
 
 #[cfg(test)]

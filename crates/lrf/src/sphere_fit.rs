@@ -24,6 +24,7 @@
 
 use crate::error::{LrfError, Result};
 use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
+use pingcal_geometry::least_squares::{minimize, Normal, Options, Strategy};
 
 /// One LRF beam: origin, unit direction and measured range (mm), with its range σ (mm).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -80,7 +81,7 @@ pub struct FitOptions {
     pub beam_width_b: f64,
     /// Residuals beyond `outlier_k · σ` are rejected (all fits).
     pub outlier_k: f64,
-    /// Maximum Gauss–Newton iterations per pass.
+    /// Maximum Levenberg–Marquardt iterations per pass.
     pub max_iter: usize,
     /// Remove the second-order (Box 1971) bias of the along-ray estimate.
     pub bias_correction: bool,
@@ -181,58 +182,27 @@ pub fn along_ray_hessian(ray: &Ray, c: &Vector3<f64>, radius: f64, s_min: f64) -
 /// The weighted residuals `r` and their Jacobian `J` at some parameters.
 type Linearized = (DVector<f64>, DMatrix<f64>);
 
-/// Solves min Σ r² by Levenberg–Marquardt; `f(params) -> (r, J)` with `r` already weighted.
+/// Solves min Σ r² by Levenberg–Marquardt (`pingcal_geometry::least_squares`, at most
+/// `max_iter` iterations, until a step is under 1e-10 of `1 + |x|` or the cost falls by less
+/// than 1e-14 of `1 + cost`); `f(params) -> (r, J)` with `r` already weighted.
 fn lm(
-    mut x: DVector<f64>,
+    x: DVector<f64>,
     max_iter: usize,
     f: &dyn Fn(&DVector<f64>) -> Linearized,
 ) -> Result<DVector<f64>> {
-    let (mut r, mut j) = f(&x);
-    let mut cost = r.norm_squared();
-    let mut lambda = 1e-6;
-    for _ in 0..max_iter {
-        let jt = j.transpose();
-        let g = &jt * &r;
-        let h = &jt * &j;
-        let mut improved = false;
-        for _ in 0..12 {
-            let mut a = h.clone();
-            for k in 0..a.nrows() {
-                a[(k, k)] += lambda * h[(k, k)].max(1e-12);
-            }
-            let Some(ch) = a.cholesky() else {
-                lambda *= 10.0;
-                continue;
-            };
-            let dx = ch.solve(&(-&g));
-            let xn = &x + &dx;
-            let (rn, jn) = f(&xn);
-            let cn = rn.norm_squared();
-            if cn.is_finite() && cn <= cost {
-                let small =
-                    dx.norm() < 1e-10 * (1.0 + x.norm()) || cost - cn < 1e-14 * (1.0 + cost);
-                x = xn;
-                r = rn;
-                j = jn;
-                cost = cn;
-                lambda = (lambda * 0.1).max(1e-12);
-                improved = true;
-                if small {
-                    return Ok(x);
-                }
-                break;
-            }
-            lambda *= 10.0;
-        }
-        if !improved {
-            break;
-        }
-    }
-    if x.iter().all(|v| v.is_finite()) {
-        Ok(x)
-    } else {
-        Err(LrfError::Degenerate("sphere fit diverged".into()))
-    }
+    let options = Options {
+        strategy: Strategy::LevenbergMarquardt,
+        max_iterations: max_iter,
+        step_tolerance: (1e-10, 1e-10),
+        cost_tolerance: 1e-14,
+    };
+    let mut normal = |x: &DVector<f64>| {
+        let (r, j) = f(x);
+        Some(Normal::from_jacobian(&r, &j))
+    };
+    minimize(x, &options, &mut normal)
+        .map(|s| s.x)
+        .ok_or_else(|| LrfError::Degenerate("sphere fit diverged".into()))
 }
 
 /// The linear (Kåsa) fit: `|p|² = 2 c·p + k`. Returns (centre, radius).

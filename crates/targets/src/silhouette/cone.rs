@@ -3,13 +3,14 @@
 //!
 //! The residual of unit ray `q` is `acos(q·ĉ) − asin(r/|c|)` (radians), its derivatives by
 //! the three coordinates of `c` analytic ([`cone_residuals`]). [`fit_cone`] is Gauss–Newton
-//! from a start, with the covariance `s² (JᵀJ)⁻¹` from the residuals' mean square; [`robust_fit`]
+//! from a start (`pingcal_geometry::least_squares`, steps never through the camera), with the covariance `s² (JᵀJ)⁻¹` from the residuals' mean square; [`robust_fit`]
 //! is the same by iteratively reweighted least squares with Tukey's biweight on a scale from
 //! the residuals' median absolute deviation, for outlines partly covered or crossed by other
 //! edges, and says which rays are inliers. Rays are in any right-handed camera frame; the
 //! centre comes out in that frame, in the radius' unit.
 
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::{Matrix3, Vector3, U3};
+use pingcal_geometry::least_squares::{minimize, Normal, Objective, Options, Strategy};
 
 type V3 = Vector3<f64>;
 
@@ -37,36 +38,56 @@ pub fn cone_residuals(q: &[V3], c: &V3, r: f64) -> Option<(Vec<f64>, Vec<V3>)> {
     Some((res, jac))
 }
 
-/// Weighted Gauss–Newton of the centre from `c0` (weights `w`, `None`: all 1); the centre
-/// and the normal matrix `Σ wᵢ Jᵢ Jᵢᵀ` at it.
-fn gauss_newton(q: &[V3], w: Option<&[f64]>, c0: V3, r: f64) -> Option<(V3, Matrix3<f64>)> {
-    let mut c = c0;
-    for _ in 0..30 {
-        let (res, jac) = cone_residuals(q, &c, r)?;
+/// The cone's least-squares problem: rays `q` with weights `w` (`None`: all 1), radius `r`.
+struct Cone<'a> {
+    q: &'a [V3],
+    w: Option<&'a [f64]>,
+    r: f64,
+}
+
+impl Objective<U3> for Cone<'_> {
+    fn normal(&mut self, c: &V3) -> Option<Normal<U3>> {
+        let (res, jac) = cone_residuals(self.q, c, self.r)?;
         let mut n = Matrix3::zeros();
         let mut g = V3::zeros();
+        let mut cost = 0.0;
         for (i, (e, j)) in res.iter().zip(&jac).enumerate() {
-            let wi = w.map_or(1.0, |w| w[i]);
+            let wi = self.w.map_or(1.0, |w| w[i]);
             n += j * j.transpose() * wi;
             g += j * (*e * wi);
+            cost += wi * e * e;
         }
-        let mut dx = n.try_inverse()? * (-g);
-        // never jump through the camera: at most half way towards it per step
-        let lim = 0.5 * (c.norm() - r);
-        if dx.norm() > lim {
-            dx *= lim / dx.norm();
-        }
-        c += dx;
-        if dx.norm() < 1e-10 * c.norm() {
-            break;
+        Some(Normal {
+            matrix: n,
+            gradient: g,
+            cost,
+        })
+    }
+
+    /// Never through the camera: at most half way towards it per step.
+    fn limit_step(&self, c: &V3, step: V3) -> V3 {
+        let lim = 0.5 * (c.norm() - self.r);
+        if step.norm() > lim {
+            step * (lim / step.norm())
+        } else {
+            step
         }
     }
-    let (_, jac) = cone_residuals(q, &c, r)?;
-    let mut n = Matrix3::zeros();
-    for (i, j) in jac.iter().enumerate() {
-        n += j * j.transpose() * w.map_or(1.0, |w| w[i]);
-    }
-    c.iter().all(|v| v.is_finite()).then_some((c, n))
+}
+
+/// Weighted Gauss–Newton of the centre from `c0` (weights `w`, `None`: all 1; at most 30
+/// steps, until one is under 1e-10 of the distance); the centre and the normal matrix
+/// `Σ wᵢ Jᵢ Jᵢᵀ` at it.
+fn gauss_newton(q: &[V3], w: Option<&[f64]>, c0: V3, r: f64) -> Option<(V3, Matrix3<f64>)> {
+    let options = Options {
+        strategy: Strategy::GaussNewton,
+        max_iterations: 30,
+        step_tolerance: (0.0, 1e-10),
+        cost_tolerance: 0.0,
+    };
+    let mut cone = Cone { q, w, r };
+    let c = minimize(c0, &options, &mut cone)?.x;
+    Some((c, cone.normal(&c)?.matrix))
 }
 
 /// Gauss–Newton fit of the centre to the rays; returns the centre, its covariance
