@@ -12,6 +12,7 @@
 
 use crate::camera::BalCamera;
 use crate::io::measurements::MAX_MAGNITUDE;
+use crate::keys::{CameraKey, ImageKey, PointKey};
 use crate::problem::{Camera, Image, Observation, Point, Problem};
 use nalgebra::{Vector2, Vector3};
 use pingcal_geometry::Rigid3;
@@ -195,8 +196,8 @@ pub fn parse_bal<R: BufRead>(reader: R, path: &str) -> Result<Problem, BalError>
         let x = t.f64("an image x coordinate")?;
         let y = t.f64("an image y coordinate")?;
         observations.push(Observation {
-            image: cam,
-            point: pt,
+            image: ImageKey(cam),
+            point: PointKey(pt),
             uv: Vector2::new(x, y),
             sigma: 1.0,
         });
@@ -217,7 +218,7 @@ pub fn parse_bal<R: BufRead>(reader: R, path: &str) -> Result<Problem, BalError>
         ));
         images.push(Image {
             name: format!("image{c}"),
-            camera: c,
+            camera: CameraKey(c),
             camera_from_object: Rigid3 {
                 rotation,
                 translation: Vector3::new(v[3], v[4], v[5]),

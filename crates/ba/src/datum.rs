@@ -339,6 +339,7 @@ fn describe_open(open: &[nalgebra::SVector<f64, 7>]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::keys::{CameraKey, PointKey};
     use crate::problem::{Distance, Image, Point, PointPrior};
 
     fn points(xyz: &[[f64; 3]], fixed: bool) -> Vec<Point> {
@@ -417,8 +418,8 @@ mod tests {
     /// A distance of 1 ± 0.01 between points 0 and 1.
     fn metre() -> Distance {
         Distance {
-            a: 0,
-            b: 1,
+            a: PointKey(0),
+            b: PointKey(1),
             value: 1.0,
             sigma: 0.01,
         }
@@ -446,7 +447,7 @@ mod tests {
         let mut mixed = two.clone();
         mixed.points.extend(points(&[[0.0, 1.0, 0.0]], false));
         mixed.point_priors.push(PointPrior {
-            point: 2,
+            point: PointKey(2),
             position: Vector3::new(0.0, 1.0, 0.0),
             sigma: Vector3::repeat(0.1),
         });
@@ -458,7 +459,7 @@ mod tests {
         let p = Problem {
             images: vec![Image {
                 name: "main".into(),
-                camera: 0,
+                camera: CameraKey(0),
                 camera_from_object: Default::default(),
                 fixed: true,
                 fixed_centre: [false; 3],

@@ -7,6 +7,7 @@
 //! residuals that grow toward the edge of the image, while the tangential ones stay small;
 //! a wrong principal point or decentring leaves tangential ones too.
 
+use crate::keys::CameraKey;
 use crate::problem::Problem;
 
 /// One ring of [`RadialProfile`].
@@ -67,7 +68,7 @@ pub fn radial_profile(
         dropped[ring_of((uv - pp).norm())] += 1;
     }
     for o in &problem.observations {
-        if problem.images[o.image].camera != camera {
+        if problem.images[o.image].camera != CameraKey(camera) {
             continue;
         }
         let Some(res) = problem.residual(o) else {
@@ -147,6 +148,7 @@ impl RadialProfile {
 mod tests {
     use super::*;
     use crate::camera::{CameraModel, FisheyeCamera, PhotogrammetricCamera};
+    use crate::keys::{ImageKey, PointKey};
     use crate::problem::{Camera, Image, Observation, Point};
     use nalgebra::Vector3;
     use std::sync::Arc;
@@ -169,8 +171,8 @@ mod tests {
                 if let Some(uv) = FisheyeCamera.project(&fisheye, &x, None, None) {
                     if (0.0..1279.0).contains(&uv.x) && (0.0..719.0).contains(&uv.y) {
                         obs.push(Observation {
-                            image: 0,
-                            point: points.len(),
+                            image: ImageKey(0),
+                            point: PointKey(points.len()),
                             uv,
                             sigma: 0.1,
                         });
@@ -191,7 +193,7 @@ mod tests {
             cameras: vec![Camera::new("cam", model, params)],
             images: vec![Image {
                 name: "a".into(),
-                camera: 0,
+                camera: CameraKey(0),
                 camera_from_object: crate::Rigid3::identity(),
                 fixed: false,
                 fixed_centre: [false; 3],

@@ -24,8 +24,8 @@
 //! items used most are re-exported at the crate root.
 //!
 //! ```
-//! use pingcal_ba::{precision, solve, Camera, CameraModel, Distance, Image, Observation,
-//!     Options, PhotogrammetricCamera, Point, PointPrior, Problem, Rigid3};
+//! use pingcal_ba::{precision, solve, Camera, CameraModel, Distance, Image, ImageKey,
+//!     Observation, Options, PhotogrammetricCamera, Point, PointKey, PointPrior, Problem, Rigid3};
 //! use nalgebra::Vector3;
 //! use std::sync::Arc;
 //!
@@ -51,26 +51,34 @@
 //!     })
 //!     .collect();
 //! let mut problem = Problem::default();
-//! // Start from nominal intrinsics: only c is known roughly.
+//! // Start from nominal intrinsics: only c is known roughly. Each block added returns its
+//! // typed key (CameraKey, ImageKey, PointKey): an observation names its image and point by
+//! // them, so that one cannot be passed for the other.
 //! let mut start = vec![0.0; 10];
 //! start[0] = 2.4;
-//! problem.cameras.push(Camera::new("cam", model.clone(), start));
-//! for (k, pose) in poses.iter().enumerate() {
-//!     problem.images.push(Image {
-//!         name: format!("station{k}"),
-//!         camera: 0,
-//!         camera_from_object: *pose, // here the truth; in practice from `initial`
-//!         fixed: false,
-//!         fixed_centre: [false; 3],
-//!     });
-//! }
+//! let camera = problem.add_camera(Camera::new("cam", model.clone(), start));
+//! let images: Vec<ImageKey> = poses
+//!     .iter()
+//!     .enumerate()
+//!     .map(|(k, pose)| {
+//!         problem.add_image(Image {
+//!             name: format!("station{k}"),
+//!             camera,
+//!             camera_from_object: *pose, // here the truth; in practice from `initial`
+//!             fixed: false,
+//!             fixed_centre: [false; 3],
+//!         })
+//!     })
+//!     .collect();
+//! let mut keys: Vec<PointKey> = Vec::new();
 //! for (p, x) in targets.iter().enumerate() {
-//!     problem.points.push(Point { name: format!("T{p}"), position: *x, fixed: false, fixed_axes: [false; 3] });
-//!     for (i, pose) in poses.iter().enumerate() {
+//!     let point = problem.add_point(Point::new(format!("T{p}"), *x));
+//!     keys.push(point);
+//!     for (&image, pose) in images.iter().zip(&poses) {
 //!         if let Some(uv) = model.project(&truth, &pose.transform(x), None, None) {
 //!             if uv.x > 0.0 && uv.x < 1279.0 && uv.y > 0.0 && uv.y < 719.0 {
 //!                 // σ = 0.1 px; the measurements are exact here.
-//!                 problem.observations.push(Observation { image: i, point: p, uv, sigma: 0.1 });
+//!                 problem.observations.push(Observation { image, point, uv, sigma: 0.1 });
 //!             }
 //!         }
 //!     }
@@ -78,13 +86,13 @@
 //! // The datum: three control points (1 mm) and a measured distance (0.1 mm).
 //! for p in [0, 29, 59] {
 //!     problem.point_priors.push(PointPrior {
-//!         point: p,
+//!         point: keys[p],
 //!         position: targets[p],
 //!         sigma: Vector3::repeat(1.0),
 //!     });
 //! }
 //! let d = (targets[2] - targets[50]).norm();
-//! problem.distances.push(Distance { a: 2, b: 50, value: d, sigma: 0.1 });
+//! problem.distances.push(Distance { a: keys[2], b: keys[50], value: d, sigma: 0.1 });
 //!
 //! let summary = solve(&mut problem, &Options::default(), |_| {}).expect("solves");
 //! assert!(summary.final_cost < 1e-6 * summary.initial_cost);
@@ -116,7 +124,7 @@ pub use pingcal_geometry as geometry;
 pub use pingcal_geometry::{Rigid3, Sim3};
 
 pub use camera::{CameraModel, PhotogrammetricCamera};
-pub use keys::{ImageKey, ParameterKey, PointKey};
+pub use keys::{CameraKey, ImageKey, ParameterKey, PointKey};
 pub use problem::{Camera, Distance, Image, Observation, Point, PointPrior, Problem};
 pub use residual::{
     Block, Jacobians, ParameterBlock, ParameterPrior, ParameterValue, PosePrior, Residual,

@@ -5,7 +5,7 @@
 //! [`crate::solver::solve`]; what is held fixed is said here too.
 
 use crate::camera::CameraModel;
-use crate::keys::{ImageKey, ParameterKey, PointKey};
+use crate::keys::{CameraKey, ImageKey, ParameterKey, PointKey};
 use crate::loss::Loss;
 use crate::residual::{
     Block, Jacobians, ParameterBlock, ParameterValue, Residual, ResidualBlock, Value,
@@ -56,8 +56,8 @@ impl Camera {
 pub struct Image {
     /// Name used in reports (e.g. the file name).
     pub name: String,
-    /// Index into [`Problem::cameras`].
-    pub camera: usize,
+    /// The camera.
+    pub camera: CameraKey,
     /// Exterior orientation: object → camera (`x_cam = R·X + t`).
     pub camera_from_object: Rigid3,
     /// Pose held fixed.
@@ -134,10 +134,10 @@ impl Point {
 /// An image measurement of a point, with its standard deviation in pixels.
 #[derive(Clone, Copy, Debug)]
 pub struct Observation {
-    /// Index into [`Problem::images`].
-    pub image: usize,
-    /// Index into [`Problem::points`].
-    pub point: usize,
+    /// The image.
+    pub image: ImageKey,
+    /// The point.
+    pub point: PointKey,
     /// Measured pixel coordinates.
     pub uv: Vector2<f64>,
     /// Standard deviation of each coordinate, pixels.
@@ -149,10 +149,10 @@ pub struct Observation {
 /// object-space unit.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Distance {
-    /// Index into [`Problem::points`].
-    pub a: usize,
-    /// Index into [`Problem::points`].
-    pub b: usize,
+    /// One end.
+    pub a: PointKey,
+    /// The other end.
+    pub b: PointKey,
     /// Measured distance.
     pub value: f64,
     /// Its standard deviation.
@@ -163,8 +163,8 @@ pub struct Distance {
 /// a standard deviation per axis (a fixed control point is a [`Point`] with `fixed`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PointPrior {
-    /// Index into [`Problem::points`].
-    pub point: usize,
+    /// The point.
+    pub point: PointKey,
     /// Measured coordinates.
     pub position: Vector3<f64>,
     /// Standard deviation of each coordinate.
@@ -192,9 +192,9 @@ pub struct Rig {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct RigMember {
     /// The member image (e.g. the right image of a station).
-    pub image: usize,
+    pub image: ImageKey,
     /// The base image of the same station (e.g. the left image).
-    pub base: usize,
+    pub base: ImageKey,
 }
 
 /// A bundle-adjustment problem.
@@ -353,10 +353,10 @@ impl Problem {
             }
         }
         for im in &self.images {
-            if im.camera >= self.cameras.len() {
+            if im.camera.0 >= self.cameras.len() {
                 return Err(ProblemError::UnknownCamera {
                     name: im.name.clone(),
-                    camera: im.camera,
+                    camera: im.camera.0,
                     count: self.cameras.len(),
                 });
             }
@@ -385,17 +385,17 @@ impl Problem {
     /// Every observation's image and point exist, its σ positive, its values finite.
     fn validate_observations(&self) -> Result<(), ProblemError> {
         for (index, o) in self.observations.iter().enumerate() {
-            if o.image >= self.images.len() {
+            if o.image.0 >= self.images.len() {
                 return Err(ProblemError::UnknownImage {
                     index,
-                    image: o.image,
+                    image: o.image.0,
                     count: self.images.len(),
                 });
             }
-            if o.point >= self.points.len() {
+            if o.point.0 >= self.points.len() {
                 return Err(ProblemError::UnknownPoint {
                     index,
-                    point: o.point,
+                    point: o.point.0,
                     count: self.points.len(),
                 });
             }
@@ -419,10 +419,10 @@ impl Problem {
         let np = self.points.len();
         for (k, d) in self.distances.iter().enumerate() {
             for p in [d.a, d.b] {
-                if p >= np {
+                if p.0 >= np {
                     return Err(ProblemError::UnknownPointIn {
                         what: format!("distance {k}"),
-                        point: p,
+                        point: p.0,
                         count: np,
                     });
                 }
@@ -449,7 +449,7 @@ impl Problem {
         let mut member_of = vec![false; self.images.len()];
         for rig in &self.rigs {
             for m in &rig.members {
-                if m.image >= self.images.len() || m.base >= self.images.len() {
+                if m.image.0 >= self.images.len() || m.base.0 >= self.images.len() {
                     return Err(ProblemError::BadConstraint(format!(
                         "rig '{}' refers to image {} but there are only {} images",
                         rig.name,
@@ -457,13 +457,13 @@ impl Problem {
                         self.images.len()
                     )));
                 }
-                if m.image == m.base || member_of[m.image] {
+                if m.image == m.base || member_of[m.image.0] {
                     return Err(ProblemError::BadConstraint(format!(
                         "rig '{}': image '{}' is its own base or a member twice",
                         rig.name, self.images[m.image].name
                     )));
                 }
-                member_of[m.image] = true;
+                member_of[m.image.0] = true;
             }
         }
         if let Some(i) = (0..self.images.len())
@@ -475,7 +475,7 @@ impl Problem {
             )));
         }
         for rig in &self.rigs {
-            if let Some(m) = rig.members.iter().find(|m| member_of[m.base]) {
+            if let Some(m) = rig.members.iter().find(|m| member_of[m.base.0]) {
                 return Err(ProblemError::BadConstraint(format!(
                     "rig '{}': base image '{}' is itself a rig member",
                     rig.name, self.images[m.base].name
@@ -489,10 +489,10 @@ impl Problem {
     fn validate_point_priors(&self) -> Result<(), ProblemError> {
         let np = self.points.len();
         for (k, c) in self.point_priors.iter().enumerate() {
-            if c.point >= np {
+            if c.point.0 >= np {
                 return Err(ProblemError::UnknownPointIn {
                     what: format!("control point {k}"),
-                    point: c.point,
+                    point: c.point.0,
                     count: np,
                 });
             }
@@ -651,10 +651,7 @@ impl Residual for Distance {
         1
     }
     fn blocks(&self) -> Vec<Block> {
-        vec![
-            Block::Point(PointKey(self.a)),
-            Block::Point(PointKey(self.b)),
-        ]
+        vec![Block::Point(self.a), Block::Point(self.b)]
     }
     /// `(|X_a − X_b| − value) / σ`; ∂/∂X_a = uᵀ/σ (u the unit vector from b to a), ∂/∂X_b its
     /// negative.
@@ -685,7 +682,7 @@ impl Residual for PointPrior {
         3
     }
     fn blocks(&self) -> Vec<Block> {
-        vec![Block::Point(PointKey(self.point))]
+        vec![Block::Point(self.point)]
     }
     /// `(X − position) / σ` per axis.
     fn evaluate(&self, values: &[Value], residual: &mut [f64], jacobians: Jacobians<'_>) -> bool {
@@ -708,6 +705,24 @@ impl Residual for PointPrior {
 }
 
 impl Problem {
+    /// Appends a camera and returns its key.
+    pub fn add_camera(&mut self, camera: Camera) -> CameraKey {
+        self.cameras.push(camera);
+        CameraKey(self.cameras.len() - 1)
+    }
+
+    /// Appends an image and returns its key.
+    pub fn add_image(&mut self, image: Image) -> ImageKey {
+        self.images.push(image);
+        ImageKey(self.images.len() - 1)
+    }
+
+    /// Appends an object point and returns its key.
+    pub fn add_point(&mut self, point: Point) -> PointKey {
+        self.points.push(point);
+        PointKey(self.points.len() - 1)
+    }
+
     /// Appends a parameter block and returns its key.
     pub fn add_parameter(&mut self, block: ParameterBlock) -> ParameterKey {
         self.parameters.push(block);
@@ -715,29 +730,47 @@ impl Problem {
     }
 }
 
-impl std::ops::Index<PointKey> for Problem {
-    type Output = Point;
-    fn index(&self, k: PointKey) -> &Point {
-        &self.points[k.0]
-    }
+/// `problem[key]`, `problem.points[key]`, `images[key]` …: a block by its key, in the
+/// problem or in a slice of blocks of that kind (and only of that kind).
+macro_rules! keyed {
+    ($key:ty, $block:ty, $field:ident) => {
+        impl std::ops::Index<$key> for Problem {
+            type Output = $block;
+            fn index(&self, k: $key) -> &$block {
+                &self.$field[k.0]
+            }
+        }
+        impl std::ops::IndexMut<$key> for Problem {
+            fn index_mut(&mut self, k: $key) -> &mut $block {
+                &mut self.$field[k.0]
+            }
+        }
+        impl std::ops::Index<$key> for [$block] {
+            type Output = $block;
+            fn index(&self, k: $key) -> &$block {
+                &self[k.0]
+            }
+        }
+        impl std::ops::IndexMut<$key> for [$block] {
+            fn index_mut(&mut self, k: $key) -> &mut $block {
+                &mut self[k.0]
+            }
+        }
+        impl std::ops::Index<$key> for Vec<$block> {
+            type Output = $block;
+            fn index(&self, k: $key) -> &$block {
+                &self[k.0]
+            }
+        }
+        impl std::ops::IndexMut<$key> for Vec<$block> {
+            fn index_mut(&mut self, k: $key) -> &mut $block {
+                &mut self[k.0]
+            }
+        }
+    };
 }
 
-impl std::ops::Index<ImageKey> for Problem {
-    type Output = Image;
-    fn index(&self, k: ImageKey) -> &Image {
-        &self.images[k.0]
-    }
-}
-
-impl std::ops::Index<ParameterKey> for Problem {
-    type Output = ParameterBlock;
-    fn index(&self, k: ParameterKey) -> &ParameterBlock {
-        &self.parameters[k.0]
-    }
-}
-
-impl std::ops::IndexMut<ParameterKey> for Problem {
-    fn index_mut(&mut self, k: ParameterKey) -> &mut ParameterBlock {
-        &mut self.parameters[k.0]
-    }
-}
+keyed!(PointKey, Point, points);
+keyed!(ImageKey, Image, images);
+keyed!(CameraKey, Camera, cameras);
+keyed!(ParameterKey, ParameterBlock, parameters);

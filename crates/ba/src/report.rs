@@ -165,7 +165,7 @@ impl AdjustmentReport {
             .collect();
         let mut rays = vec![0usize; problem.points.len()];
         for o in &problem.observations {
-            rays[o.point] += 1;
+            rays[o.point.0] += 1;
         }
         let object_points = problem
             .points

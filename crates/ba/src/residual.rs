@@ -405,15 +405,15 @@ mod tests {
         let a = Vector3::new(1.0, 2.0, 3.0);
         let b = Vector3::new(-0.5, 0.7, 2.2);
         let d = Distance {
-            a: 0,
-            b: 1,
+            a: PointKey(0),
+            b: PointKey(1),
             value: 2.0,
             sigma: 0.01,
         };
         let e = check_residual_jacobians(&d, &[Value::Point(&a), Value::Point(&b)], 1e-6);
         assert!(e.unwrap() < 1e-6, "distance {e:?}");
         let pr = PointPrior {
-            point: 0,
+            point: PointKey(0),
             position: Vector3::new(1.1, 1.9, 3.05),
             sigma: Vector3::new(0.01, 0.02, 0.03),
         };

@@ -13,6 +13,7 @@
 //! to the least-squares solution near the truth.
 
 use crate::camera::BalCamera;
+use crate::keys::{CameraKey, ImageKey, PointKey};
 use crate::problem::{Camera, Image, Observation, Point, Problem};
 use nalgebra::{Matrix3, Vector2, Vector3};
 use pingcal_geometry::exp_so3;
@@ -283,7 +284,7 @@ fn camera_and_image(
     let camera = Camera::new(format!("cam{c}"), model.clone(), vec![f, k1, k2]);
     let image = Image {
         name: format!("image{c}"),
-        camera: c,
+        camera: CameraKey(c),
         camera_from_object: Rigid3::from_rotation_and_centre(r, centre),
         fixed: false,
         fixed_centre: [false; 3],
@@ -310,8 +311,8 @@ fn observe(
             .expect("in front");
         let e = Vector2::new(noise.sample(rng), noise.sample(rng));
         observations.push(Observation {
-            image: c,
-            point: p,
+            image: ImageKey(c),
+            point: PointKey(p),
             uv: uv + e,
             sigma: 1.0,
         });

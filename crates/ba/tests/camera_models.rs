@@ -14,6 +14,7 @@
 //! * the mean χ² of the image residuals matches the redundancy (5 sd).
 
 use crate::common;
+use pingcal_ba::CameraKey;
 
 use common::{observe, realisation, to_convergence, truth, SIGMA_PX};
 use nalgebra::Vector3;
@@ -171,7 +172,7 @@ fn room_network(model: Arc<dyn CameraModel>, params: Vec<f64>) -> Problem {
         let roll = [0.0, std::f64::consts::FRAC_PI_2, 0.7][k % 3];
         p.images.push(Image {
             name: format!("S{k:02}"),
-            camera: 0,
+            camera: CameraKey(0),
             camera_from_object: pingcal_geometry::Rigid3::looking_at(centre, look, roll),
             fixed: false,
             fixed_centre: [false; 3],

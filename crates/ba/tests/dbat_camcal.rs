@@ -348,7 +348,7 @@ fn dbat_model_in_dbat_metric_gives_dbat_sigma0() {
         p.observations
             .iter()
             .map(|o| {
-                (dbat_residual(io, &poses[o.image], &pts[o.point], &o.uv, sz) / sigma_mm)
+                (dbat_residual(io, &poses[o.image.0], &pts[o.point.0], &o.uv, sz) / sigma_mm)
                     .norm_squared()
             })
             .sum::<f64>()
@@ -365,7 +365,7 @@ fn dbat_model_in_dbat_metric_gives_dbat_sigma0() {
             let f = |io: &[f64], pose: &pingcal_geometry::Rigid3, x: &nalgebra::Vector3<f64>| {
                 dbat_residual(io, pose, x, &o.uv, sz) / sigma_mm
             };
-            let (pose, x) = (poses[o.image], pts[o.point]);
+            let (pose, x) = (poses[o.image.0], pts[o.point.0]);
             let r = f(&io, &pose, &x);
             let mut cols: Vec<(usize, nalgebra::Vector2<f64>)> = Vec::with_capacity(18);
             for k in 0..9 {
@@ -381,15 +381,15 @@ fn dbat_model_in_dbat_metric_gives_dbat_sigma0() {
                 let a = f(&io, &pose.plus(&d), &x);
                 d[k] = -hk;
                 let b = f(&io, &pose.plus(&d), &x);
-                cols.push((9 + 6 * o.image + k, (a - b) / (2.0 * hk)));
+                cols.push((9 + 6 * o.image.0 + k, (a - b) / (2.0 * hk)));
             }
-            if pcol[o.point] != usize::MAX {
+            if pcol[o.point.0] != usize::MAX {
                 for k in 0..3 {
                     let (mut a, mut b) = (x, x);
                     a[k] += 1e-4;
                     b[k] -= 1e-4;
                     cols.push((
-                        pcol[o.point] + k,
+                        pcol[o.point.0] + k,
                         (f(&io, &pose, &a) - f(&io, &pose, &b)) / 2e-4,
                     ));
                 }
@@ -447,7 +447,7 @@ fn dbat_model_in_dbat_metric_gives_dbat_sigma0() {
     // through the inverse Jacobian of DBAT's correction with respect to the mark (mm → px).
     let mut px_cost = 0.0;
     for o in &p.observations {
-        let (pose, x) = (poses[o.image], pts[o.point]);
+        let (pose, x) = (poses[o.image.0], pts[o.point.0]);
         let r = dbat_residual(&io, &pose, &x, &o.uv, sz);
         let mut j = nalgebra::Matrix2::zeros();
         for k in 0..2 {

@@ -3,6 +3,8 @@
 //! is not refused.
 
 use crate::common;
+use pingcal_ba::CameraKey;
+use pingcal_ba::ImageKey;
 
 use pingcal_ba::problem::Problem;
 use pingcal_ba::solver::{
@@ -23,7 +25,7 @@ fn single_image(truth: &Problem, keep: &[usize], free: &[&str]) -> Problem {
     let mut p = truth.clone();
     p.images.truncate(1);
     p.observations
-        .retain(|o| o.image == 0 && keep.contains(&o.point));
+        .retain(|o| o.image == ImageKey(0) && keep.contains(&o.point.0));
     p.cameras[0].params[3..].iter_mut().for_each(|v| *v = 0.0);
     let (model, params) = (p.cameras[0].model.clone(), p.cameras[0].params.clone());
     for o in &mut p.observations {
@@ -113,7 +115,7 @@ fn a_large_network_is_judged_with_the_sparse_factor() {
     p.cameras.truncate(1);
     p.cameras[0].name = "street".into();
     for im in &mut p.images {
-        im.camera = 0;
+        im.camera = CameraKey(0);
     }
     let n = 6 * p.images.len() + p.cameras[0].params.len();
     assert!(n > MAX_CHECK_UNKNOWNS);
@@ -122,10 +124,10 @@ fn a_large_network_is_judged_with_the_sparse_factor() {
     spare.name = "spare".into();
     p.cameras.push(spare);
     let lone = 150;
-    p.images[lone].camera = 1;
+    p.images[lone].camera = CameraKey(1);
     let mut kept = 0;
     p.observations.retain(|o| {
-        if o.image != lone {
+        if o.image != ImageKey(lone) {
             return true;
         }
         kept += 1;

@@ -281,8 +281,8 @@ fn the_datum_check_counts_held_coordinates() {
     // The six single coordinates and a distance for the scale.
     let mut scaled = six.clone();
     scaled.distances.push(Distance {
-        a: 12,
-        b: 5,
+        a: PointKey(12),
+        b: PointKey(5),
         value: (scaled.points[12].position - scaled.points[5].position).norm(),
         sigma: 0.01,
     });
@@ -307,13 +307,13 @@ fn every_solver_reaches_the_same_minimum() {
     let mut base = network(Some(5), &DATUM_A);
     base.points[33].fixed_axes = [true, false, false];
     base.distances.push(Distance {
-        a: 70,
-        b: 33,
+        a: PointKey(70),
+        b: PointKey(33),
         value: (truth().points[70].position - truth().points[33].position).norm(),
         sigma: 0.05,
     });
     base.point_priors.push(PointPrior {
-        point: 70,
+        point: PointKey(70),
         position: truth().points[70].position,
         sigma: Vector3::new(2.0, 2.0, 2.0),
     });
@@ -622,7 +622,7 @@ fn generic_residuals_on_partly_held_points_agree_with_a_stiff_prior() {
         let h = pt.held();
         pt.fixed_axes = [false; 3];
         stiff.point_priors.push(PointPrior {
-            point: p,
+            point: PointKey(p),
             position: pt.position,
             sigma: Vector3::from_fn(|a, _| if h[a] { STIFF } else { LOOSE }),
         });

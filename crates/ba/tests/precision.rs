@@ -6,6 +6,7 @@
 //! defined is reported as a datum defect.
 
 use crate::common;
+use pingcal_ba::PointKey;
 
 use common::{adjusted_free_network, realisation, to_convergence, truth};
 use pingcal_ba::problem::Distance;
@@ -159,14 +160,14 @@ fn distances_fix_the_scale_and_their_absence_is_a_named_datum_defect() {
     let d1 = (t.points[0].position - t.points[40].position).norm();
     let d2 = (t.points[12].position - t.points[70].position).norm();
     p.distances.push(Distance {
-        a: 0,
-        b: 40,
+        a: PointKey(0),
+        b: PointKey(40),
         value: d1 + 0.05,
         sigma: 0.1,
     });
     p.distances.push(Distance {
-        a: 12,
-        b: 70,
+        a: PointKey(12),
+        b: PointKey(70),
         value: d2,
         sigma: 0.1,
     });
@@ -251,8 +252,8 @@ fn free_network_by_inner_constraints() {
     minimal.images[0].fixed = true;
     let l = (minimal.points[0].position - minimal.points[40].position).norm();
     minimal.distances.push(Distance {
-        a: 0,
-        b: 40,
+        a: PointKey(0),
+        b: PointKey(40),
         value: l,
         sigma: 1e-3,
     });
@@ -299,8 +300,8 @@ fn a_distance_point_without_rays_is_named_undetermined_not_a_datum_defect() {
     }
     for (a, b) in [(0, 40), (12, 70)] {
         p.distances.push(Distance {
-            a,
-            b,
+            a: PointKey(a),
+            b: PointKey(b),
             value: (t.points[a].position - t.points[b].position).norm(),
             sigma: 0.1,
         });
@@ -311,8 +312,8 @@ fn a_distance_point_without_rays_is_named_undetermined_not_a_datum_defect() {
         let mut q = p.clone();
         let mut seen = 0;
         q.observations.retain(|o| {
-            let lose = o.point == 40 && seen >= keep;
-            seen += (o.point == 40) as usize;
+            let lose = o.point == PointKey(40) && seen >= keep;
+            seen += (o.point == PointKey(40)) as usize;
             !lose
         });
         match precision(&q) {
@@ -336,7 +337,7 @@ fn variance_components_recover_each_groups_sigma() {
     use pingcal_ba::solver::{estimate_variance_components, variance_components};
     use rand_distr::{Distribution, Normal};
     let truth = truth();
-    let group_of: Vec<usize> = truth.observations.iter().map(|o| o.point % 2).collect();
+    let group_of: Vec<usize> = truth.observations.iter().map(|o| o.point.0 % 2).collect();
     let names = ["half", "thrice"];
     let n = Normal::new(0.0, 1.0).unwrap();
     let runs = 40;

@@ -103,10 +103,7 @@ impl Residual for UserDistance {
         1
     }
     fn blocks(&self) -> Vec<Block> {
-        vec![
-            Block::Point(PointKey(self.0.a)),
-            Block::Point(PointKey(self.0.b)),
-        ]
+        vec![Block::Point(self.0.a), Block::Point(self.0.b)]
     }
     fn evaluate(&self, v: &[Value], r: &mut [f64], j: Option<&mut [DMatrix<f64>]>) -> bool {
         let d = v[0].point().unwrap() - v[1].point().unwrap();
@@ -266,8 +263,8 @@ fn every_linear_solver_finds_the_same_minimum_with_the_new_blocks() {
 fn a_distance_written_by_a_user_is_adjusted_exactly_as_the_built_in_one() {
     let truth = common::truth();
     let d = Distance {
-        a: 3,
-        b: 50,
+        a: PointKey(3),
+        b: PointKey(50),
         value: (truth.points[3].position - truth.points[50].position).norm() + 0.2,
         sigma: 0.1,
     };

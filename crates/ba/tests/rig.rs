@@ -5,6 +5,7 @@
 //! image not tied to the rig keeps its own pose.
 
 use crate::common;
+use pingcal_ba::CameraKey;
 
 use common::{observe, to_convergence, truth, SIGMA_PX};
 use nalgebra::{Vector2, Vector3};
@@ -35,14 +36,14 @@ fn stereo_truth() -> (Problem, Rigid3) {
         let pose = rig.compose(&p.images[i].camera_from_object);
         p.images.push(Image {
             name: format!("{}-right", p.images[i].name),
-            camera: 1,
+            camera: CameraKey(1),
             camera_from_object: pose,
             fixed: false,
             fixed_centre: [false; 3],
         });
         members.push(RigMember {
-            image: n_left + i,
-            base: i,
+            image: ImageKey(n_left + i),
+            base: ImageKey(i),
         });
     }
     // The right images see through the right camera.

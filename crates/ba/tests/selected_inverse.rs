@@ -8,6 +8,7 @@
 //! ~1e-8 relative. 1e-6 relative (the figure) leaves a margin of 100.
 
 use crate::common;
+use pingcal_ba::PointKey;
 
 use common::{adjusted_free_network, realisation, to_convergence, truth};
 use pingcal_ba::problem::{Distance, Problem};
@@ -100,8 +101,8 @@ fn same_precision(sparse: &Precision, dense: &Precision) {
 fn with_distance(mut p: Problem, a: usize, b: usize) -> Problem {
     let l = (p.points[a].position - p.points[b].position).norm();
     p.distances.push(Distance {
-        a,
-        b,
+        a: PointKey(a),
+        b: PointKey(b),
         value: l,
         sigma: 0.05 * l,
     });

@@ -6,6 +6,7 @@ use pingcal_ba::solver::{
     solve, CgOptions, LinearSolverKind, Options, Preconditioner, SchurProduct, Termination,
 };
 use pingcal_ba::synthetic::{SyntheticBal, Visibility};
+use pingcal_ba::PointKey;
 
 fn tight(kind: LinearSolverKind, threads: usize) -> Options {
     Options {
@@ -104,7 +105,11 @@ fn a_point_behind_a_camera_is_named() {
     let mut p = s.generate().unwrap().problem;
     // Move point 7 onto the projection plane of its first camera: the BAL model cannot
     // image it there.
-    let o = *p.observations.iter().find(|o| o.point == 7).unwrap();
+    let o = *p
+        .observations
+        .iter()
+        .find(|o| o.point == PointKey(7))
+        .unwrap();
     let pose = p.images[o.image].camera_from_object;
     let xc = pose.transform(&p.points[7].position);
     let on_plane = nalgebra::Vector3::new(xc.x, xc.y, 0.0);

@@ -19,6 +19,7 @@ use super::scene::{
 };
 use nalgebra::{Matrix2x3, Vector2};
 use pingcal_ba::problem::{Camera, Distance, Image, Observation, Point, Problem, Rig, RigMember};
+use pingcal_ba::{CameraKey, ImageKey, PointKey};
 use pingcal_geometry::Rigid3;
 use pingcal_project::Project;
 use pingcal_targets::ball::{sphere_centre_from_ellipse, CameraRays, FnCamera};
@@ -49,19 +50,19 @@ pub struct ProblemMap {
     /// Problem observation → (scene point, detection).
     pub observations: Vec<(PointId, DetectionId)>,
     /// Scene image → problem image.
-    image_slot: IdVec<ImageId, Option<usize>>,
+    image_slot: IdVec<ImageId, Option<ImageKey>>,
     /// Scene point → problem point (None: fewer than two rays in oriented images).
-    point_slot: IdVec<PointId, Option<usize>>,
+    point_slot: IdVec<PointId, Option<PointKey>>,
 }
 
 impl ProblemMap {
     /// The problem image of scene image `i`.
-    pub fn image(&self, i: ImageId) -> Option<usize> {
+    pub fn image(&self, i: ImageId) -> Option<ImageKey> {
         self.image_slot[i]
     }
 
     /// The problem point of scene point `j`.
-    pub fn point(&self, j: PointId) -> Option<usize> {
+    pub fn point(&self, j: PointId) -> Option<PointKey> {
         self.point_slot[j]
     }
 }
@@ -221,11 +222,11 @@ impl SceneProblem {
         for (i, im) in project.file.images.iter().enumerate() {
             let i = ImageId(i);
             if let Some(pose) = scene.poses[i] {
-                self.map.image_slot[i] = Some(self.problem.images.len());
+                self.map.image_slot[i] = Some(ImageKey(self.problem.images.len()));
                 self.map.images.push(i);
                 self.problem.images.push(Image {
                     name: im.file.clone(),
-                    camera: scene.camera_of[i].0,
+                    camera: CameraKey(scene.camera_of[i].0),
                     camera_from_object: pose,
                     fixed: datum == Datum::MainImage && i == main,
                     fixed_centre: [false; 3],
@@ -247,7 +248,7 @@ impl SceneProblem {
                 continue;
             }
             let pj = self.problem.points.len();
-            self.map.point_slot[j] = Some(pj);
+            self.map.point_slot[j] = Some(PointKey(pj));
             self.map.points.push(j);
             self.problem.points.push(Point {
                 name: p.name.clone(),
@@ -270,7 +271,7 @@ impl SceneProblem {
                 }
                 self.problem.observations.push(Observation {
                     image: self.map.image_slot[d.image].expect("filtered"),
-                    point: pj,
+                    point: PointKey(pj),
                     uv,
                     sigma,
                 });
@@ -469,8 +470,8 @@ accuracy_far_fraction = 0.03
         assert_eq!(sp.map.point(PointId(2)), None, "one ray in oriented images");
         assert_eq!(sp.problem.observations.len(), 4);
         for (ob, (j, d)) in sp.problem.observations.iter().zip(&sp.map.observations) {
-            assert_eq!(sp.map.images[ob.image], d.image);
-            assert_eq!(sp.map.points[ob.point], *j);
+            assert_eq!(sp.map.images[ob.image.0], d.image);
+            assert_eq!(sp.map.points[ob.point.0], *j);
             assert_eq!(ob.uv.x, dets.target(*d).x);
         }
         assert_eq!(sp.problem.distances.len(), 1);

@@ -73,7 +73,7 @@ fn camera_balls(scene: &Scene, adj: &Adjusted) -> CameraBalls {
         let Some(k) = adj.solved.map.point(j) else {
             continue;
         };
-        let cov = adj.precision.point_covariances[k].unwrap_or(Matrix3::identity());
+        let cov = adj.precision.point_covariances[k.0].unwrap_or(Matrix3::identity());
         cam_balls.push((j, p.position, cov));
     }
     cam_balls

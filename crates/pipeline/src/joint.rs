@@ -72,7 +72,7 @@ use crate::progress::Reporter;
 use nalgebra::{DMatrix, Matrix3, Vector3};
 use pingcal_ba::solver::{self, Precision, VarianceComponent};
 use pingcal_ba::{
-    ParameterBlock, ParameterKey, ParameterPrior, ParameterValue, PointKey, Problem, ResidualBlock,
+    ParameterBlock, ParameterKey, ParameterPrior, ParameterValue, Problem, ResidualBlock,
 };
 use pingcal_geometry::{opk_sigma_deg, Rigid3, Sim3};
 use pingcal_lrf::beam::{fit_sphere_to_beams, BeamOnBall};
@@ -431,7 +431,7 @@ impl Joint {
                     radius,
                     sigma: input.noise.sigma(readings[i].range_mm).max(1e-3),
                     servo_zero_deg: input.mount0.servo_zero_deg,
-                    ball: PointKey(k),
+                    ball: k,
                     extrinsic: keys.extrinsic,
                     mount: keys.mount,
                     time_offset: None,
@@ -827,7 +827,7 @@ fn ball_points(
         let Some(k) = input.adj.solved.map.point(point) else {
             continue;
         };
-        let Some(cov) = prec.point_covariances[k] else {
+        let Some(cov) = prec.point_covariances[k.0] else {
             continue;
         };
         let ball = &input.lrf.found.balls[s.0];
@@ -857,7 +857,7 @@ fn ball_centres(input: &JointInput, p: &Problem, prec: &Precision) -> Vec<(Point
         .filter(|(_, q)| q.kind == PointKind::Ball)
         .filter_map(|(j, q)| {
             let k = input.adj.solved.map.point(j)?;
-            let cov = prec.point_covariances[k]?;
+            let cov = prec.point_covariances[k.0]?;
             let obs = PointObs {
                 id: q.name.clone(),
                 xyz: p.points[k].position,

@@ -19,6 +19,7 @@ use nalgebra::{Matrix3, Vector3};
 use pingcal_ba::initial::incremental::{initialise, IncrementalOptions, Initialised};
 use pingcal_ba::problem::{PointPrior, Problem};
 use pingcal_ba::solver;
+use pingcal_ba::{ImageKey, PointKey};
 use pingcal_geometry::rigid::Sim3;
 use pingcal_geometry::umeyama::umeyama;
 use pingcal_geometry::Rigid3;
@@ -319,7 +320,7 @@ fn with_layout(
         pt.position = Vector3::from(*xyz);
         known[k] = true;
         problem.point_priors.push(PointPrior {
-            point: k,
+            point: PointKey(k),
             position: pt.position,
             sigma: Vector3::repeat(sigma),
         });
@@ -339,7 +340,7 @@ fn with_layout(
 fn stereo_pairs(
     project: &Project,
     sp: &SceneProblem,
-) -> std::result::Result<Vec<(usize, usize)>, String> {
+) -> std::result::Result<Vec<(ImageKey, ImageKey)>, String> {
     let f = &project.file;
     let (base_cam, member_cam) = rig_cameras(project).ok_or("no [stereo] head")?;
     let slot = |station: &str, cam: &str| {
@@ -348,7 +349,7 @@ fn stereo_pairs(
             .position(|im| im.station == station && im.camera == cam)
             .and_then(|i| sp.map.image(ImageId(i)))
     };
-    let seen = |i: usize| -> BTreeSet<usize> {
+    let seen = |i: ImageKey| -> BTreeSet<PointKey> {
         sp.problem
             .observations
             .iter()
@@ -357,7 +358,7 @@ fn stereo_pairs(
             .collect()
     };
     let stations: BTreeSet<&str> = f.images.iter().map(|im| im.station.as_str()).collect();
-    let mut pairs: Vec<(usize, usize, usize)> = stations
+    let mut pairs: Vec<(usize, ImageKey, ImageKey)> = stations
         .iter()
         .filter_map(|st| Some((slot(st, base_cam)?, slot(st, member_cam)?)))
         .map(|(a, b)| (seen(a).intersection(&seen(b)).count(), a, b))
@@ -376,8 +377,8 @@ fn stereo_pairs(
 fn with_stereo_pair(
     project: &Project,
     sp: &SceneProblem,
-    base: usize,
-    member: usize,
+    base: ImageKey,
+    member: ImageKey,
 ) -> std::result::Result<(Problem, Vec<bool>), String> {
     let stereo = project.file.stereo.as_ref().ok_or("no [stereo] head")?;
     let (base_cam, _) = rig_cameras(project).ok_or("no [stereo] head")?;
@@ -391,8 +392,8 @@ fn with_stereo_pair(
     problem.images[base].camera_from_object = Rigid3::identity();
     problem.images[member].camera_from_object = member_from_base;
     let mut known = vec![false; problem.images.len()];
-    known[base] = true;
-    known[member] = true;
+    known[base.0] = true;
+    known[member.0] = true;
     Ok((problem, known))
 }
 

@@ -8,6 +8,7 @@ use super::results::Results;
 use super::scene::{image_file, main_image, PointKind, SceneCamera};
 use crate::progress::Reporter;
 use crate::stages::Stages;
+use pingcal_ba::ImageKey;
 use pingcal_lrf::sensor::MountParam;
 use pingcal_report as rp;
 
@@ -77,7 +78,7 @@ fn no_sigma_note(st: &Stages, s: usize) -> &'static str {
     } else if p
         .rigs
         .iter()
-        .any(|r| r.members.iter().any(|m| m.image == s))
+        .any(|r| r.members.iter().any(|m| m.image == ImageKey(s)))
     {
         "rig member: follows its base image through the rig"
     } else {
@@ -196,7 +197,7 @@ fn image_residuals(st: &Stages) -> Vec<rp::ImageResiduals> {
     for (o, ob) in p.observations.iter().enumerate() {
         let (j, _) = map.observations[o];
         let Some(r) = p.residual(ob) else { continue };
-        images[ob.image].points.push(rp::ImagePoint {
+        images[ob.image.0].points.push(rp::ImagePoint {
             label: scene.points[j].name.clone(),
             kind: scene.points[j].kind.as_str().into(),
             x: ob.uv.x,
@@ -213,7 +214,7 @@ fn image_residuals(st: &Stages) -> Vec<rp::ImageResiduals> {
             .position(|im| im.file == r.image)
             .and_then(|i| map.image(ImageId(i)));
         if let Some(s) = slot {
-            images[s].points.push(rp::ImagePoint {
+            images[s.0].points.push(rp::ImagePoint {
                 label: r.point.clone(),
                 kind: "rejected".into(),
                 x: r.uv[0],
@@ -256,7 +257,7 @@ fn network(st: &Stages) -> rp::Network {
         .iter_enumerated()
         .filter_map(|(j, pt)| {
             let k = adj.solved.map.point(j)?;
-            let s = adj.precision.point_sigma(k).unwrap_or_default();
+            let s = adj.precision.point_sigma(k.0).unwrap_or_default();
             Some(rp::NetworkPoint {
                 label: pt.name.clone(),
                 kind: pt.kind.as_str().into(),

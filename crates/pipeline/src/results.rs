@@ -815,10 +815,10 @@ pub fn assemble(st: &Stages, verdict: Verdict, time_s: Vec<(String, f64)>) -> Re
         let Some(k) = adj.solved.map.point(j) else {
             continue;
         };
-        let sig = sigma3(&adj.precision.point_covariances[k]);
+        let sig = sigma3(&adj.precision.point_covariances[k.0]);
         let xyz = [p.position.x, p.position.y, p.position.z];
         if p.kind == PointKind::Ball {
-            let bundle = adj.precision.point_covariances[k].map(|cov| PointObs {
+            let bundle = adj.precision.point_covariances[k.0].map(|cov| PointObs {
                 id: p.name.clone(),
                 xyz: p.position,
                 cov,

@@ -23,6 +23,7 @@
 //! Run `cargo test -p pingcal-targets --release --test targets panel_bundle:: -- --nocapture`.
 
 use crate::panel;
+use pingcal_ba::{ImageKey, PointKey};
 
 use nalgebra::Vector3;
 use panel::panel;
@@ -226,7 +227,12 @@ fn panel_3d_rms_after_self_calibrating_bundle_and_similarity() {
     // coded targets farthest apart: 7 datum parameters, none of which constrains the shape.
     p.point_priors.clear();
     let busiest = (0..p.images.len())
-        .max_by_key(|&k| p.observations.iter().filter(|o| o.image == k).count())
+        .max_by_key(|&k| {
+            p.observations
+                .iter()
+                .filter(|o| o.image == ImageKey(k))
+                .count()
+        })
         .unwrap();
     p.images[busiest].fixed = true;
     let coded_pts: Vec<(usize, Vector3<f64>)> = p
@@ -249,8 +255,8 @@ fn panel_3d_rms_after_self_calibrating_bundle_and_similarity() {
         }
     }
     p.distances.push(pingcal_ba::problem::Distance {
-        a: far.0,
-        b: far.1,
+        a: PointKey(far.0),
+        b: PointKey(far.1),
         value: far.2,
         sigma: 0.001,
     });

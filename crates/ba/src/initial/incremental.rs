@@ -27,6 +27,7 @@
 use super::intersection::{intersect, IntersectionError, IntersectionOptions, Ray};
 use super::relative::{relative_orientation_radial, RelativeError, RelativeOptions};
 use super::resection::{resect, similarity_transform, ResectionOptions};
+use crate::keys::{ImageKey, PointKey};
 use crate::problem::{Distance, PointPrior, Problem, ProblemError};
 use crate::solver::{solve, Options, Rejection};
 use nalgebra::Vector3;
@@ -368,14 +369,14 @@ impl<'a> State<'a> {
         let (mut uv, mut x) = (Vec::new(), Vec::new());
         for &o in &self.by_image[i] {
             let ob = &self.problem.observations[o];
-            if let Some(p) = self.points[ob.point] {
+            if let Some(p) = self.points[ob.point.0] {
                 uv.push(ob.uv);
                 x.push(p);
             }
         }
         match resect(
             cam.model.as_ref(),
-            &self.params[im.camera],
+            &self.params[im.camera.0],
             &uv,
             &x,
             &options.resection,
@@ -407,12 +408,12 @@ impl<'a> State<'a> {
                 .iter()
                 .filter_map(|&o| {
                     let ob = &self.problem.observations[o];
-                    let pose = self.poses[ob.image]?;
+                    let pose = self.poses[ob.image.0]?;
                     let cam = &self.problem.cameras[self.problem.images[ob.image].camera];
                     Some(Ray {
                         camera_from_object: pose,
                         model: cam.model.as_ref(),
-                        params: &self.params[self.problem.images[ob.image].camera],
+                        params: &self.params[self.problem.images[ob.image].camera.0],
                         uv: ob.uv,
                     })
                 })
@@ -499,14 +500,21 @@ impl<'a> State<'a> {
             }
         }
         for d in &p.distances {
-            if let (Some(a), Some(b)) = (point_map[d.a], point_map[d.b]) {
-                sub.distances.push(Distance { a, b, ..*d });
+            if let (Some(a), Some(b)) = (point_map[d.a.0], point_map[d.b.0]) {
+                sub.distances.push(Distance {
+                    a: PointKey(a),
+                    b: PointKey(b),
+                    ..*d
+                });
             }
         }
         if self.control_frame {
             for c in &p.point_priors {
-                if let Some(point) = point_map[c.point] {
-                    sub.point_priors.push(PointPrior { point, ..*c });
+                if let Some(point) = point_map[c.point.0] {
+                    sub.point_priors.push(PointPrior {
+                        point: PointKey(point),
+                        ..*c
+                    });
                 }
             }
         }
@@ -515,10 +523,10 @@ impl<'a> State<'a> {
             if self.rejected[k].is_some() {
                 continue;
             }
-            if let (Some(i), Some(j)) = (image_map[o.image], point_map[o.point]) {
+            if let (Some(i), Some(j)) = (image_map[o.image.0], point_map[o.point.0]) {
                 let mut o = *o;
-                o.image = i;
-                o.point = j;
+                o.image = ImageKey(i);
+                o.point = PointKey(j);
                 // Leave out what does not project at the current estimate.
                 if sub.residual(&o).is_some() {
                     sub.observations.push(o);
@@ -566,7 +574,7 @@ impl<'a> State<'a> {
         for (k, r) in res.iter().enumerate() {
             if *r > threshold {
                 let j = sub.observations[k].point;
-                let e = worst.entry(j).or_insert(k);
+                let e = worst.entry(j.0).or_insert(k);
                 if res[*e] < *r {
                     *e = k;
                 }
@@ -593,15 +601,15 @@ impl<'a> State<'a> {
                 ),
             };
             self.rejected[o] = Some((r, rejection));
-            self.by_image[ob.image].retain(|&x| x != o);
-            self.by_point[ob.point].retain(|&x| x != o);
+            self.by_image[ob.image.0].retain(|&x| x != o);
+            self.by_point[ob.point.0].retain(|&x| x != o);
         }
         // Points left with fewer than two rays are undetermined again.
         for j in 0..self.points.len() {
             if self.points[j].is_some() && !self.known[j] {
                 let rays = self.by_point[j]
                     .iter()
-                    .filter(|&&o| self.poses[self.problem.observations[o].image].is_some())
+                    .filter(|&&o| self.poses[self.problem.observations[o].image.0].is_some())
                     .count();
                 if rays < 2 {
                     self.points[j] = None;
@@ -647,17 +655,20 @@ impl<'a> State<'a> {
                 continue;
             }
             let ob = self.problem.observations[o];
-            let (Some(pose), Some(x)) = (self.poses[ob.image], self.points[ob.point]) else {
+            let (Some(pose), Some(x)) = (self.poses[ob.image.0], self.points[ob.point.0]) else {
                 continue;
             };
             let c = self.problem.images[ob.image].camera;
             let model = &self.problem.cameras[c].model;
-            let Some(uv) = model.project(&self.params[c], &pose.transform(&x), None, None) else {
+            let Some(uv) = model.project(&self.params[c.0], &pose.transform(&x), None, None) else {
                 continue;
             };
             if (uv - ob.uv).norm() <= threshold_px {
                 self.rejected[o] = None;
-                for list in [&mut self.by_image[ob.image], &mut self.by_point[ob.point]] {
+                for list in [
+                    &mut self.by_image[ob.image.0],
+                    &mut self.by_point[ob.point.0],
+                ] {
                     list.push(o);
                     list.sort_unstable();
                 }
@@ -787,7 +798,7 @@ impl<'a> State<'a> {
         for obs in &self.by_point {
             for (a, &oa) in obs.iter().enumerate() {
                 for &ob in &obs[a + 1..] {
-                    let (ia, ib) = (p.observations[oa].image, p.observations[ob].image);
+                    let (ia, ib) = (p.observations[oa].image.0, p.observations[ob].image.0);
                     let (key, pair) = if ia < ib {
                         ((ia, ib), (oa, ob))
                     } else {
@@ -847,7 +858,7 @@ impl<'a> State<'a> {
             let ray = |o: usize| {
                 let ob = &p.observations[o];
                 let cam = p.images[ob.image].camera;
-                p.cameras[cam].model.unproject(&self.params[cam], &ob.uv)
+                p.cameras[cam].model.unproject(&self.params[cam.0], &ob.uv)
             };
             let (mut d1, mut d2) = (Vec::new(), Vec::new());
             for &(oa, ob) in obs {
@@ -886,7 +897,7 @@ impl<'a> State<'a> {
             .distances
             .iter()
             .filter_map(|d| {
-                let (a, b) = (self.points[d.a]?, self.points[d.b]?);
+                let (a, b) = (self.points[d.a.0]?, self.points[d.b.0]?);
                 let l = (a - b).norm();
                 (l > 0.0).then(|| d.value / l)
             })
@@ -1023,8 +1034,8 @@ impl<'a> State<'a> {
         let mut by_image = vec![Vec::new(); ni];
         let mut by_point = vec![Vec::new(); np];
         for (k, o) in problem.observations.iter().enumerate() {
-            by_image[o.image].push(k);
-            by_point[o.point].push(k);
+            by_image[o.image.0].push(k);
+            by_point[o.point.0].push(k);
         }
         Self {
             problem,
@@ -1051,7 +1062,7 @@ impl<'a> State<'a> {
     fn determined_points_seen(&self, i: usize) -> usize {
         self.by_image[i]
             .iter()
-            .filter(|&&o| self.points[self.problem.observations[o].point].is_some())
+            .filter(|&&o| self.points[self.problem.observations[o].point.0].is_some())
             .count()
     }
 
@@ -1239,6 +1250,7 @@ mod tests {
     use super::*;
     use crate::camera::{CameraModel, PhotogrammetricCamera};
     use crate::initial::resection::tests::look_at;
+    use crate::keys::CameraKey;
     use crate::problem::{Camera, Image, Observation, Point};
     use nalgebra::Vector2;
     use rand::Rng;
@@ -1296,7 +1308,7 @@ mod tests {
             );
             truth.images.push(Image {
                 name: format!("S{i}"),
-                camera: 0,
+                camera: CameraKey(0),
                 camera_from_object: look_at(centre, target, rng.random_range(-0.3..0.3)),
                 fixed: false,
                 fixed_centre: [false; 3],
@@ -1313,8 +1325,8 @@ mod tests {
                 ) {
                     if uv.x > 0.0 && uv.y > 0.0 && uv.x < 1279.0 && uv.y < 719.0 {
                         truth.observations.push(Observation {
-                            image: i,
-                            point: j,
+                            image: ImageKey(i),
+                            point: PointKey(j),
                             uv: uv + Vector2::new(n.sample(&mut rng), n.sample(&mut rng)),
                             sigma: noise_px,
                         });
@@ -1411,8 +1423,8 @@ mod tests {
         }
         for (a, b) in [(0, 1), (2, 3)] {
             p2.distances.push(Distance {
-                a,
-                b,
+                a: PointKey(a),
+                b: PointKey(b),
                 value: (truth.points[a].position - truth.points[b].position).norm(),
                 sigma: 0.05,
             });
@@ -1604,8 +1616,8 @@ mod tests {
         }
         for o in &b.observations {
             let mut o = *o;
-            o.image += ni;
-            o.point += np;
+            o.image.0 += ni;
+            o.point.0 += np;
             p.observations.push(o);
         }
         let init = initialise(&p, &[], &[], &IncrementalOptions::default()).unwrap();
@@ -1638,7 +1650,7 @@ mod tests {
         // An extra image that sees only two points of its own.
         p.images.push(Image {
             name: "lonely".into(),
-            camera: 0,
+            camera: CameraKey(0),
             camera_from_object: Rigid3::identity(),
             fixed: false,
             fixed_centre: [false; 3],
@@ -1651,8 +1663,8 @@ mod tests {
                 fixed_axes: [false; 3],
             });
             p.observations.push(Observation {
-                image: 12,
-                point: 60 + k,
+                image: ImageKey(12),
+                point: PointKey(60 + k),
                 uv: Vector2::new(100.0 + 50.0 * k as f64, 100.0),
                 sigma: 0.1,
             });
@@ -1698,8 +1710,8 @@ mod tests {
                 .project(&cam.params, &pose.transform(&x), None, None)
                 .unwrap();
             p.observations.push(Observation {
-                image: i,
-                point: j,
+                image: ImageKey(i),
+                point: PointKey(j),
                 uv,
                 sigma: 0.1,
             });

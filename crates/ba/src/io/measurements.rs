@@ -85,6 +85,7 @@ use crate::camera::{
     BrownBackwardCamera, CameraModel, FisheyeCamera, OpenCvCamera, PhotogrammetricCamera,
     PHOTOGRAMMETRIC_PARAMS,
 };
+use crate::keys::{CameraKey, ImageKey, PointKey};
 use crate::problem::{Camera, Image, Observation, Point, PointPrior, Problem};
 use nalgebra::{Vector2, Vector3};
 use pingcal_geometry::Rigid3;
@@ -726,7 +727,7 @@ impl Builder {
             known_poses.push(im.pose.is_some());
             self.problem.images.push(Image {
                 name: im.name.clone(),
-                camera,
+                camera: CameraKey(camera),
                 camera_from_object: im.pose.map(|p| p.to_pose()).unwrap_or_default(),
                 fixed: im.fixed,
                 fixed_centre,
@@ -782,8 +783,8 @@ impl Builder {
                 });
             }
             self.problem.observations.push(Observation {
-                image,
-                point,
+                image: ImageKey(image),
+                point: PointKey(point),
                 uv: Vector2::new(ip.x, ip.y),
                 sigma: ip.sigma_px,
             });
@@ -857,8 +858,8 @@ impl Builder {
                 });
             }
             self.problem.distances.push(crate::problem::Distance {
-                a,
-                b,
+                a: PointKey(a),
+                b: PointKey(b),
                 value: d.mm,
                 sigma: d.sigma_mm,
             });
@@ -871,7 +872,7 @@ impl Builder {
         for cp in control_points {
             if let (Some(s), false) = (cp.sigma_mm, cp.fixed) {
                 self.problem.point_priors.push(PointPrior {
-                    point: self.point_index[&cp.id],
+                    point: PointKey(self.point_index[&cp.id]),
                     position: Vector3::from(cp.xyz),
                     sigma: Vector3::from(s),
                 });
@@ -887,8 +888,8 @@ fn warnings(problem: &Problem, known_points: &[bool]) -> Vec<Warning> {
     let mut per_image = vec![0usize; problem.images.len()];
     let mut per_point = vec![0usize; problem.points.len()];
     for o in &problem.observations {
-        per_image[o.image] += 1;
-        per_point[o.point] += 1;
+        per_image[o.image.0] += 1;
+        per_point[o.point.0] += 1;
     }
     for (im, &n) in problem.images.iter().zip(&per_image) {
         if n < 3 {
@@ -1012,7 +1013,10 @@ mod tests {
         assert_eq!(b.problem.distances.len(), 1);
         assert_eq!(b.problem.distances[0].value, 1000.12);
         assert_eq!(b.problem.point_priors.len(), 1);
-        assert_eq!(b.problem.point_priors[0].point, b.point_index["18"]);
+        assert_eq!(
+            b.problem.point_priors[0].point,
+            PointKey(b.point_index["18"])
+        );
         let p17 = b.point_index["17"];
         assert!(b.problem.points[p17].fixed && b.known_points[p17]);
         let p18 = b.point_index["18"];

@@ -292,6 +292,7 @@ fn similar_pairs(layout: &Layout) -> (Vec<(u32, u32, f64)>, f64) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::keys::CameraKey;
     use crate::synthetic::{SyntheticBal, Visibility};
 
     fn street(cameras: usize) -> crate::problem::Problem {
@@ -345,7 +346,7 @@ mod tests {
     fn shared_intrinsics_join_one_cluster() {
         let mut problem = street(60);
         for image in &mut problem.images {
-            image.camera = 0;
+            image.camera = CameraKey(0);
         }
         let layout = Layout::new(&problem);
         let shared = layout.camera_slot[0]

@@ -31,6 +31,7 @@ use super::precision::{
 use super::selected_inverse::Factored;
 use super::sigma::PrecisionError;
 use crate::datum::{check, Datum};
+use crate::keys::CameraKey;
 use crate::problem::Problem;
 use nalgebra::DMatrix;
 
@@ -226,7 +227,11 @@ fn describe(problem: &Problem, named: &[&IntrinsicRow]) -> String {
     let parts: Vec<String> = by_camera
         .iter()
         .map(|(c, list)| {
-            let images = problem.images.iter().filter(|i| i.camera == *c).count();
+            let images = problem
+                .images
+                .iter()
+                .filter(|i| i.camera == CameraKey(*c))
+                .count();
             format!(
                 "{} of camera '{}' ({} image{})",
                 and_list(list),

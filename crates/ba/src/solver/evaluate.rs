@@ -325,16 +325,16 @@ fn linearize_observation(
     let nc = jc.len() / 2;
     let (j0, j1) = jc.split_at_mut(nc);
     let projected = Projected { x, rx, xc, dxc };
-    let mut col = pose_columns(problem, layout, o.image, &projected, j0, j1);
-    if layout.camera_slot[im.camera].is_some() {
-        for &k in &layout.camera_free[im.camera] {
+    let mut col = pose_columns(problem, layout, o.image.0, &projected, j0, j1);
+    if layout.camera_slot[im.camera.0].is_some() {
+        for &k in &layout.camera_free[im.camera.0] {
             j0[col] = ji[k] * scale;
             j1[col] = ji[n + k] * scale;
             col += 1;
         }
     }
     // A point in the reduced system: the columns of its free coordinates only.
-    for (k, &axis) in layout.point_axes[o.point].iter().enumerate() {
+    for (k, &axis) in layout.point_axes[o.point.0].iter().enumerate() {
         j0[col + k] = jp[(0, axis)];
         j1[col + k] = jp[(1, axis)];
     }

@@ -180,7 +180,7 @@ impl Layout {
             obs_ncols: columns.ncols,
             obs_jc_offset: columns.jc_offset,
             obs_segs: columns.segs,
-            obs_point: observations.iter().map(|o| o.point as u32).collect(),
+            obs_point: observations.iter().map(|o| o.point.0 as u32).collect(),
             obs_order,
             jc_len: columns.jc_len,
             obs_w_offset: columns.w_offset,
@@ -372,7 +372,7 @@ impl Blocks {
             problem.cameras.iter().map(|c| c.free_indices()).collect();
         let mut images_of_camera = vec![0usize; problem.cameras.len()];
         for im in &problem.images {
-            images_of_camera[im.camera] += 1;
+            images_of_camera[im.camera.0] += 1;
         }
         let image_rig = rig_bases(problem);
         let mut dim = Vec::new();
@@ -395,11 +395,17 @@ impl Blocks {
             }
             let pd = pose_dim(&image_centre_axes[i]);
             let c = im.camera;
-            let own_camera = images_of_camera[c] == 1 && !camera_free[c].is_empty();
-            let slot = new_block(pd + if own_camera { camera_free[c].len() } else { 0 });
+            let own_camera = images_of_camera[c.0] == 1 && !camera_free[c.0].is_empty();
+            let slot = new_block(
+                pd + if own_camera {
+                    camera_free[c.0].len()
+                } else {
+                    0
+                },
+            );
             image_slot[i] = Some(slot);
             if own_camera {
-                camera_slot[c] = Some(Slot {
+                camera_slot[c.0] = Some(Slot {
                     off: pd as u16,
                     ..slot
                 });
@@ -575,9 +581,9 @@ impl Blocks {
             ncols += len;
         };
         // A rig member's image point depends on its base image's pose and the rig.
-        let (pose_image, rig) = match self.image_rig[o.image] {
+        let (pose_image, rig) = match self.image_rig[o.image.0] {
             Some((r, base)) => (base, self.rig_slot[r]),
-            None => (o.image, None),
+            None => (o.image.0, None),
         };
         if let Some(s) = self.image_slot[pose_image] {
             push(s, pose_dim(&self.image_centre_axes[pose_image]) as u16);
@@ -586,11 +592,11 @@ impl Blocks {
             push(s, 6);
         }
         let camera = problem.images[o.image].camera;
-        if let Some(s) = self.camera_slot[camera] {
-            push(s, self.camera_free[camera].len() as u16);
+        if let Some(s) = self.camera_slot[camera.0] {
+            push(s, self.camera_free[camera.0].len() as u16);
         }
-        if let Some(s) = self.point_slot[o.point] {
-            push(s, self.point_axes[o.point].len() as u16);
+        if let Some(s) = self.point_slot[o.point.0] {
+            push(s, self.point_axes[o.point.0].len() as u16);
         }
         (segs, ns, ncols)
     }
@@ -607,7 +613,7 @@ fn rig_bases(problem: &Problem) -> Vec<Option<(usize, usize)>> {
     let mut image_rig = vec![None; problem.images.len()];
     for (r, rig) in problem.rigs.iter().enumerate() {
         for m in &rig.members {
-            image_rig[m.image] = Some((r, m.base));
+            image_rig[m.image.0] = Some((r, m.base.0));
         }
     }
     image_rig
@@ -620,14 +626,14 @@ fn rig_bases(problem: &Problem) -> Vec<Option<(usize, usize)>> {
 fn internal_order(problem: &Problem, blocks: &Blocks) -> Vec<u32> {
     let mut first_seen = vec![u32::MAX; problem.points.len()];
     for ob in &problem.observations {
-        let own = blocks.image_rig[ob.image].map_or(ob.image, |(_, base)| base);
-        let key = blocks.image_slot[own].map_or(u32::MAX - 1, |s| s.block);
-        first_seen[ob.point] = first_seen[ob.point].min(key);
+        let own = blocks.image_rig[ob.image.0].map_or(ob.image, |(_, base)| ImageKey(base));
+        let key = blocks.image_slot[own.0].map_or(u32::MAX - 1, |s| s.block);
+        first_seen[ob.point.0] = first_seen[ob.point.0].min(key);
     }
     let mut obs_order: Vec<u32> = (0..problem.observations.len() as u32).collect();
     obs_order.sort_by_key(|&o| {
         let ob = &problem.observations[o as usize];
-        (first_seen[ob.point], ob.point, ob.image)
+        (first_seen[ob.point.0], ob.point, ob.image)
     });
     obs_order
 }
@@ -643,7 +649,7 @@ fn number_free_points(
 ) -> (Vec<u32>, Vec<usize>) {
     let mut free_point_index = vec![u32::MAX; problem.points.len()];
     let mut free_points = Vec::new();
-    let observed = observations.iter().map(|o| o.point);
+    let observed = observations.iter().map(|o| o.point.0);
     for p in observed.chain(0..problem.points.len()) {
         if !problem.points[p].is_held()
             && point_slot[p].is_none()
@@ -665,7 +671,7 @@ fn point_observations(
 ) -> (Vec<usize>, Vec<u32>) {
     let mut counts = vec![0usize; n_free + 1];
     for o in observations {
-        let f = free_point_index[o.point];
+        let f = free_point_index[o.point.0];
         if f != u32::MAX {
             counts[f as usize + 1] += 1;
         }
@@ -677,7 +683,7 @@ fn point_observations(
     let mut fp_obs = vec![0u32; *counts.last().unwrap()];
     let mut fill = counts;
     for (oi, o) in observations.iter().enumerate() {
-        let f = free_point_index[o.point];
+        let f = free_point_index[o.point.0];
         if f != u32::MAX {
             fp_obs[fill[f as usize]] = oi as u32;
             fill[f as usize] += 1;
@@ -767,6 +773,7 @@ fn scalar_pattern(col_blocks: &[Vec<u32>], blocks: &Blocks) -> (Vec<usize>, Vec<
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::keys::CameraKey;
     use crate::problem::{Distance, Rig, RigMember};
     use crate::synthetic::SyntheticBal;
 
@@ -784,7 +791,7 @@ mod tests {
         .problem;
         for (i, im) in p.images.iter_mut().enumerate() {
             if i % 3 == 1 {
-                im.camera = 0;
+                im.camera = CameraKey(0);
             }
         }
         p.images[5].fixed = true;
@@ -795,8 +802,8 @@ mod tests {
         p.points.push(p.points[3].clone());
         p.points.last_mut().unwrap().fixed = false;
         let distance = |a, b| Distance {
-            a,
-            b,
+            a: PointKey(a),
+            b: PointKey(b),
             value: 1.0,
             sigma: 0.1,
         };
@@ -806,7 +813,10 @@ mod tests {
             member_from_base: p.images[7].camera_from_object,
             fixed,
             members: (members.iter())
-                .map(|&(image, base)| RigMember { image, base })
+                .map(|&(image, base)| RigMember {
+                    image: ImageKey(image),
+                    base: ImageKey(base),
+                })
                 .collect(),
         };
         p.rigs = vec![rig(false, &[(8, 6), (9, 7)]), rig(true, &[(11, 10)])];
@@ -872,13 +882,13 @@ mod tests {
         assert!(order.iter().enumerate().all(|(k, &o)| k == o as usize));
         for k in 0..l.obs_order.len() {
             let ob = &p.observations[l.obs_order[k] as usize];
-            assert_eq!(l.obs_point[k] as usize, ob.point);
-            if k > 0 && l.obs_point[k - 1] as usize != ob.point {
-                assert!(!l.obs_point[..k - 1].contains(&(ob.point as u32)));
+            assert_eq!(l.obs_point[k] as usize, ob.point.0);
+            if k > 0 && l.obs_point[k - 1] as usize != ob.point.0 {
+                assert!(!l.obs_point[..k - 1].contains(&(ob.point.0 as u32)));
             }
             let cols: u16 = l.segs(k).iter().map(|s| s.len).sum();
             assert_eq!(cols, l.obs_ncols[k]);
-            if let Some((0, _)) = l.image_rig[ob.image] {
+            if let Some((0, _)) = l.image_rig[ob.image.0] {
                 // Base pose, then the free rig's relative pose.
                 assert_eq!(l.segs(k)[1].block, l.rig_slot[0].unwrap().block);
             }

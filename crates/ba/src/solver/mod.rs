@@ -733,6 +733,7 @@ mod tests {
     //! (camera model ∘ pose update ∘ point), through the same step mapping the solver uses.
     use super::*;
     use crate::camera::PhotogrammetricCamera;
+    use crate::keys::{CameraKey, ImageKey, PointKey};
     use crate::problem::{Camera, Image, Observation, Point};
     use nalgebra::{Vector2, Vector3};
     use pingcal_geometry::exp_so3;
@@ -752,7 +753,7 @@ mod tests {
             let r = exp_so3(&Vector3::new(0.1 * k as f64, -0.05, 0.2 - 0.1 * k as f64));
             images.push(Image {
                 name: format!("i{k}"),
-                camera: cam,
+                camera: CameraKey(cam),
                 camera_from_object: Rigid3::from_rotation_and_centre(
                     r,
                     Vector3::new(0.3 * k as f64, -2.0, 0.1),
@@ -780,8 +781,8 @@ mod tests {
                 // weights) are not trivial.
                 let uv = Vector2::new(600.0 + 13.0 * p as f64, 300.0 + 7.0 * i as f64);
                 observations.push(Observation {
-                    image: i,
-                    point: p,
+                    image: ImageKey(i),
+                    point: PointKey(p),
                     uv,
                     sigma: 0.5,
                 });
@@ -804,24 +805,24 @@ mod tests {
         use crate::problem::{Distance, PointPrior};
         let mut problem = small_problem(crate::loss::Loss::Cauchy(4.0));
         problem.distances.push(Distance {
-            a: 0,
-            b: 3,
+            a: PointKey(0),
+            b: PointKey(3),
             value: 0.55,
             sigma: 0.01,
         });
         problem.distances.push(Distance {
-            a: 3,
-            b: 5,
+            a: PointKey(3),
+            b: PointKey(5),
             value: 0.5,
             sigma: 0.02,
         }); // 5 is fixed
         problem.point_priors.push(PointPrior {
-            point: 1,
+            point: PointKey(1),
             position: Vector3::new(-0.29, 0.61, -0.21),
             sigma: Vector3::new(0.01, 0.02, 0.03),
         });
         problem.point_priors.push(PointPrior {
-            point: 3,
+            point: PointKey(3),
             position: Vector3::new(0.11, 0.49, 0.01),
             sigma: Vector3::new(0.05, 0.05, 0.05),
         });
@@ -833,7 +834,10 @@ mod tests {
             name: "stereo".into(),
             member_from_base: rig_pose,
             fixed: false,
-            members: vec![crate::problem::RigMember { image: 2, base: 0 }],
+            members: vec![crate::problem::RigMember {
+                image: ImageKey(2),
+                base: ImageKey(0),
+            }],
         });
         problem.sync_rigs();
         let layout = Layout::new(&problem);
@@ -970,6 +974,7 @@ mod tests {
 mod schur_tests {
     //! The Schur-complement step equals the step from the full damped normal equations.
     use super::*;
+    use crate::keys::{CameraKey, PointKey};
     use crate::synthetic::SyntheticBal;
     use nalgebra::{DMatrix, DVector};
 
@@ -990,25 +995,25 @@ mod schur_tests {
         problem.images[0].fixed = true;
         problem.points[3].fixed = true;
         // A camera shared by two images: its intrinsics get a block of their own.
-        problem.images[4].camera = 3;
+        problem.images[4].camera = CameraKey(3);
         // A distance (its points join the reduced system) and two control points, one on an
         // eliminated point and one on a reduced one.
         use crate::problem::{Distance, PointPrior};
         let d0 = (problem.points[7].position - problem.points[9].position).norm();
         problem.distances.push(Distance {
-            a: 7,
-            b: 9,
+            a: PointKey(7),
+            b: PointKey(9),
             value: d0 + 0.01,
             sigma: 0.005,
         });
         let (x10, x9) = (problem.points[10].position, problem.points[9].position);
         problem.point_priors.push(PointPrior {
-            point: 10,
+            point: PointKey(10),
             position: x10 + Vector3::new(0.01, 0.0, -0.02),
             sigma: Vector3::new(0.02, 0.03, 0.04),
         });
         problem.point_priors.push(PointPrior {
-            point: 9,
+            point: PointKey(9),
             position: x9,
             sigma: Vector3::new(0.1, 0.1, 0.1),
         });
@@ -1070,7 +1075,7 @@ mod schur_tests {
             let x = problem.points[pr.point].position;
             for k in 0..3 {
                 r[m + 1 + 3 * q + k] = (x[k] - pr.position[k]) / pr.sigma[k];
-                j[(m + 1 + 3 * q + k, col_of(pr.point) + k)] = 1.0 / pr.sigma[k];
+                j[(m + 1 + 3 * q + k, col_of(pr.point.0) + k)] = 1.0 / pr.sigma[k];
             }
         }
         (j, r)

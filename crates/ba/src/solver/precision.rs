@@ -927,7 +927,7 @@ fn undetermined_distance_point(
             v[p] += jp.transpose() * jp;
         }
     }
-    let with_prior: Vec<usize> = problem.point_priors.iter().map(|c| c.point).collect();
+    let with_prior: Vec<usize> = problem.point_priors.iter().map(|c| c.point.0).collect();
     (0..problem.points.len()).find(|&p| {
         if layout.point_slot[p].is_none() || with_prior.contains(&p) {
             return false;

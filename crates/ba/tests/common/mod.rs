@@ -7,6 +7,8 @@ use nalgebra::{Vector2, Vector3};
 use pingcal_ba::camera::PhotogrammetricCamera;
 use pingcal_ba::problem::{Camera, Image, Observation, Point, Problem};
 use pingcal_ba::solver::Options;
+use pingcal_ba::CameraKey;
+use pingcal_ba::{ImageKey, PointKey};
 use pingcal_geometry::exp_so3;
 use pingcal_geometry::Rigid3;
 use rand_distr::{Distribution, Normal};
@@ -51,7 +53,7 @@ pub fn truth() -> Problem {
         ][k % 4];
         images.push(Image {
             name: format!("S{k:02}"),
-            camera: 0,
+            camera: CameraKey(0),
             camera_from_object: look_at(centre, target, roll),
             fixed: false,
             fixed_centre: [false; 3],
@@ -94,8 +96,8 @@ pub fn observe(p: &mut Problem, images: std::ops::Range<usize>) {
             if let Some(uv) = cam.model.project(&cam.params, &xc, None, None) {
                 if uv.x > 5.0 && uv.x < 1274.0 && uv.y > 5.0 && uv.y < 714.0 {
                     p.observations.push(Observation {
-                        image: i,
-                        point: q,
+                        image: ImageKey(i),
+                        point: PointKey(q),
                         uv,
                         sigma: SIGMA_PX,
                     });
