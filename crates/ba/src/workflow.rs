@@ -7,14 +7,74 @@
 //! the start-up could not do (images not oriented, points not determined or refused by
 //! their intersection angle) and the rejections are returned for the caller to tell.
 
-use crate::datum;
-use crate::initial::incremental::{initialise, IncrementalOptions, Step};
+use crate::datum::{self, DatumError};
+use crate::initial::incremental::{initialise, IncrementalOptions, InitError, Step};
 use crate::initial::intersection::IntersectionOptions;
 use crate::io::measurements::Built;
 use crate::loss::Loss;
 use crate::problem::Problem;
 use crate::report::AdjustmentReport;
-use crate::solver::{self, Options, Precision, Rejection, Summary};
+use crate::solver::{
+    self, Options, Precision, PrecisionError, Rejection, SnoopError, SolveError, Summary,
+};
+
+/// Why a measurement file was not adjusted, or has no precision: one line naming the file
+/// (where the failure is the file's) and what was expected.
+#[derive(Debug, thiserror::Error)]
+pub enum WorkflowError {
+    /// The datum diagnosis found the datum missing or defined twice.
+    #[error("{file}: {error}")]
+    Datum {
+        /// The measurement file.
+        file: String,
+        /// What is wrong with the datum.
+        #[source]
+        error: DatumError,
+    },
+    /// Nothing fixes the network (no control point, no fixed image, no distance) and a free
+    /// network was not asked for.
+    #[error("{file}: the datum is not defined: no control point, no fixed image and no distance, so the network's scale is free (the result would be at an arbitrary scale): fix an image (\"fixed\": true, with its pose) and give a distance, give control points, or ask for --free-network")]
+    NoDatum {
+        /// The measurement file.
+        file: String,
+    },
+    /// The start-up found no initial values.
+    #[error("{file}: no initial values: {error}")]
+    Initial {
+        /// The measurement file.
+        file: String,
+        /// Why.
+        #[source]
+        error: InitError,
+    },
+    /// A camera-model parameter the network cannot determine, named before the adjustment.
+    #[error("{file}: {error}")]
+    NotDeterminable {
+        /// The measurement file.
+        file: String,
+        /// The parameter and why.
+        #[source]
+        error: PrecisionError,
+    },
+    /// The adjustment with data snooping failed.
+    #[error("{0}")]
+    Snooping(#[from] SnoopError),
+    /// The adjustment failed.
+    #[error("{0}")]
+    Solve(#[from] SolveError),
+    /// The adjusted network's precision could not be computed.
+    #[error("{0}")]
+    Precision(#[from] PrecisionError),
+    /// `--precision` of an adjusted problem could not be computed.
+    #[error("{file}: no precision: {error} (the adjustment itself is done)")]
+    NoPrecision {
+        /// The problem file.
+        file: String,
+        /// Why.
+        #[source]
+        error: PrecisionError,
+    },
+}
 
 /// How to adjust a measurement file.
 #[derive(Clone, Debug)]
@@ -61,17 +121,25 @@ pub struct Adjusted {
 }
 
 /// Adjusts `built` (read from `source`, named in every error) with `options`.
-pub fn adjust(built: &Built, source: &str, options: &AdjustOptions) -> Result<Adjusted, String> {
+pub fn adjust(
+    built: &Built,
+    source: &str,
+    options: &AdjustOptions,
+) -> Result<Adjusted, WorkflowError> {
+    let file = || source.to_string();
     if options.check_datum || options.free_network {
-        datum::check(&built.problem, options.free_network).map_err(|e| format!("{source}: {e}"))?;
+        datum::check(&built.problem, options.free_network).map_err(|error| {
+            WorkflowError::Datum {
+                file: file(),
+                error,
+            }
+        })?;
     }
     // A file that fixes nothing is adjusted as a free network: without a distance its scale
     // is arbitrary, which is a datum left undefined unless asked for.
     let arbitrary_scale = !datum::has_datum(&built.problem) && built.problem.distances.is_empty();
     if arbitrary_scale && !options.free_network {
-        return Err(format!(
-            "{source}: the datum is not defined: no control point, no fixed image and no distance, so the network's scale is free (the result would be at an arbitrary scale): fix an image (\"fixed\": true, with its pose) and give a distance, give control points, or ask for --free-network"
-        ));
+        return Err(WorkflowError::NoDatum { file: file() });
     }
     let init_options = IncrementalOptions {
         bundle: options.solver.clone(),
@@ -87,12 +155,18 @@ pub fn adjust(built: &Built, source: &str, options: &AdjustOptions) -> Result<Ad
         &built.known_poses,
         &init_options,
     )
-    .map_err(|e| format!("{source}: no initial values: {e}"))?;
+    .map_err(|error| WorkflowError::Initial {
+        file: file(),
+        error,
+    })?;
     let mut problem = init.problem;
     // a camera-model parameter the network cannot determine: named before the adjustment
     let estimability_not_checked = match solver::check_intrinsics(&problem) {
-        Err(e @ solver::PrecisionError::NotDeterminable(_)) => {
-            return Err(format!("{source}: {e}"));
+        Err(error @ PrecisionError::NotDeterminable(_)) => {
+            return Err(WorkflowError::NotDeterminable {
+                file: file(),
+                error,
+            });
         }
         Ok(solver::Estimability::NotChecked(n)) => Some(n),
         // any other defect is named by the adjustment's precision
@@ -112,15 +186,13 @@ pub fn adjust(built: &Built, source: &str, options: &AdjustOptions) -> Result<Ad
     let (summary, precision) = match options.snoop {
         Some(w) => {
             let max_rejections = problem.observations.len() / 10;
-            let r = solver::adjust_with_snooping(&mut problem, &options.solver, w, max_rejections)
-                .map_err(|e| e.to_string())?;
+            let r = solver::adjust_with_snooping(&mut problem, &options.solver, w, max_rejections)?;
             rejected.extend(r.rejected);
             (r.summary, r.precision)
         }
         None => {
-            let summary =
-                solver::solve(&mut problem, &options.solver, |_| {}).map_err(|e| e.to_string())?;
-            let precision = solver::precision(&problem).map_err(|e| e.to_string())?;
+            let summary = solver::solve(&mut problem, &options.solver, |_| {})?;
+            let precision = solver::precision(&problem)?;
             (summary, precision)
         }
     };
@@ -159,10 +231,15 @@ pub struct PrecisionSummary {
 }
 
 /// The precision of an adjusted problem (read from `source`), summarised.
-pub fn precision_summary(problem: &Problem, source: &str) -> Result<PrecisionSummary, String> {
+pub fn precision_summary(
+    problem: &Problem,
+    source: &str,
+) -> Result<PrecisionSummary, WorkflowError> {
     let t = std::time::Instant::now();
-    let prec = solver::precision(problem)
-        .map_err(|e| format!("{source}: no precision: {e} (the adjustment itself is done)"))?;
+    let prec = solver::precision(problem).map_err(|error| WorkflowError::NoPrecision {
+        file: source.to_string(),
+        error,
+    })?;
     let time_s = t.elapsed().as_secs_f64();
     let median = |mut v: Vec<f64>| {
         v.sort_by(f64::total_cmp);

@@ -26,6 +26,7 @@
 //! millimetres as the sensor reports them, and no return when the true range is beyond the
 //! maximum or the reading outside `[min_range, max_range]`.
 
+use crate::error::LrfError;
 use crate::scan::{short, ScanHeader, MIN_VALID_RANGE_MM};
 use nalgebra::{Matrix3, Vector3};
 use rand::Rng;
@@ -178,7 +179,7 @@ impl MountModel {
     /// further is the same plane turned over), a servo zero beyond ±360°, a scale error of
     /// 0.5 or more, or any value not finite. `names` spells the values as the caller's user
     /// wrote them: offset, tilt x, tilt z, servo zero, servo scale, range offset, range scale.
-    pub fn check(&self, names: [&str; 7]) -> Result<(), String> {
+    pub fn check(&self, names: [&str; 7]) -> Result<(), LrfError> {
         let o = self.offset_mm;
         let offset = format!("[{}, {}, {}]", short(o[0]), short(o[1]), short(o[2]));
         let worst = o.iter().fold(
@@ -238,16 +239,16 @@ impl MountModel {
                 size <= bound
             };
             if !within {
-                return Err(format!(
+                return Err(LrfError::Invalid(format!(
                     "{name} = {shown}: beyond the bound of a mount, ±{bound}{unit}"
-                ));
+                )));
             }
         }
         if !(self.servo_time_offset_s.abs() <= MAX_SERVO_TIME_OFFSET_S) {
-            return Err(format!(
+            return Err(LrfError::Invalid(format!(
                 "servo_time_offset_s = {}: beyond the bound of a rig, ±{MAX_SERVO_TIME_OFFSET_S} s",
                 short(self.servo_time_offset_s)
-            ));
+            )));
         }
         Ok(())
     }
@@ -432,7 +433,7 @@ impl RangeNoise {
 
     /// A named profile of [`NOISE_PROFILES`] (case and `-`/`_` ignored); an unknown name is
     /// an error listing the known ones.
-    pub fn named(name: &str) -> Result<Self, String> {
+    pub fn named(name: &str) -> Result<Self, LrfError> {
         let key = |s: &str| s.to_ascii_uppercase().replace(['-', '_'], "");
         let k = key(name);
         let p = match NOISE_PROFILES.iter().position(|n| key(n) == k) {
@@ -448,21 +449,21 @@ impl RangeNoise {
             },
             Some(3) => RangeNoise::Linear { a_mm: 10.0, b: 0.0 },
             _ => {
-                return Err(format!(
+                return Err(LrfError::Invalid(format!(
                     "unknown noise profile {name:?} (known: {})",
                     NOISE_PROFILES.join(", ")
-                ))
+                )))
             }
         };
         Ok(p)
     }
 
     /// The linear profile σ = `a_mm` + `b` · r, with `a_mm` > 0 and `b` ≥ 0 (finite).
-    pub fn linear(a_mm: f64, b: f64) -> Result<Self, String> {
+    pub fn linear(a_mm: f64, b: f64) -> Result<Self, LrfError> {
         if !(a_mm > 0.0 && a_mm.is_finite() && b >= 0.0 && b.is_finite()) {
-            return Err(format!(
+            return Err(LrfError::Invalid(format!(
                 "noise σ = a + b·r with a = {a_mm} mm, b = {b}: expected a > 0 and b ≥ 0"
-            ));
+            )));
         }
         Ok(RangeNoise::Linear { a_mm, b })
     }
@@ -625,11 +626,11 @@ pub(crate) mod tests {
             range_scale: 0.003,
             ..MountModel::default()
         };
-        assert_eq!(ok.check(names), Ok(()));
+        assert!(ok.check(names).is_ok());
         let bad = |edit: fn(&mut MountModel)| {
             let mut m = ok;
             edit(&mut m);
-            m.check(names).unwrap_err()
+            m.check(names).unwrap_err().to_string()
         };
         assert_eq!(
             bad(|m| m.offset_mm[0] = 1e308),
@@ -731,7 +732,7 @@ pub(crate) mod tests {
             (10.0, 50.0 / 3.0)
         );
         assert_eq!(RangeNoise::named("VLP-16").unwrap().sigma(50_000.0), 10.0);
-        let e = RangeNoise::named("LMS-111").unwrap_err();
+        let e = RangeNoise::named("LMS-111").unwrap_err().to_string();
         assert_eq!(
             e,
             "unknown noise profile \"LMS-111\" (known: URG-04LX, UTM-30LX, UST-10LX, VLP-16)"

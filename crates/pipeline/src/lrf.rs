@@ -56,7 +56,7 @@ pub fn check_mount(project: &Project) -> Result<()> {
 }
 
 /// [`check_mount`] of an `[lrf]` table: the error names the entry, not the file.
-pub fn check_lrf_mount(l: &ProjectLrf) -> std::result::Result<(), String> {
+pub fn check_lrf_mount(l: &ProjectLrf) -> std::result::Result<(), pingcal_lrf::LrfError> {
     mount_of_lrf(l)
         .check([
             "mount_offset_mm",
@@ -67,7 +67,7 @@ pub fn check_lrf_mount(l: &ProjectLrf) -> std::result::Result<(), String> {
             "range_offset_mm",
             "range_scale",
         ])
-        .map_err(|e| format!("[lrf] {e}"))
+        .map_err(|e| pingcal_lrf::LrfError::Invalid(format!("[lrf] {e}")))
 }
 
 /// The mount model of the project: its `[lrf] lrf_model` file's, or its `mount_*` and

@@ -2,6 +2,7 @@
 //! `--out`), and for a batch one distinct folder per project ([`out_dirs`]), or the run is
 //! refused before any work.
 
+use crate::context::PipelineError;
 use std::path::{Path, PathBuf};
 
 /// Where the outputs of a project run alone go: `out`, or `results/` beside its file (see
@@ -44,7 +45,7 @@ fn folder_name(dir: &Path) -> String {
 /// holds several of the batch's project files, each file's stem is added (`proj-x`,
 /// `proj-y`; without `--out`: `results-x`, `results-y` beside them). A project file given
 /// twice, or two projects that would still share a folder, refuse the run.
-pub fn out_dirs(projects: &[PathBuf], out: Option<&Path>) -> Result<Vec<PathBuf>, String> {
+pub fn out_dirs(projects: &[PathBuf], out: Option<&Path>) -> Result<Vec<PathBuf>, PipelineError> {
     if projects.len() == 1 {
         return Ok(vec![out_dir(&projects[0], out)]);
     }
@@ -56,11 +57,11 @@ pub fn out_dirs(projects: &[PathBuf], out: Option<&Path>) -> Result<Vec<PathBuf>
         .collect();
     for (k, f) in files.iter().enumerate() {
         if let Some(j) = files[..k].iter().position(|g| g == f) {
-            return Err(format!(
+            return Err(PipelineError::Input(format!(
                 "{} and {}: the same project file is given twice",
                 projects[j].display(),
                 projects[k].display()
-            ));
+            )));
         }
     }
     let shares_folder = |k: usize| folders.iter().filter(|f| **f == folders[k]).count() > 1;
@@ -100,12 +101,12 @@ pub fn out_dirs(projects: &[PathBuf], out: Option<&Path>) -> Result<Vec<PathBuf>
     let key = |d: &Path| std::path::absolute(d).unwrap_or_else(|_| d.to_path_buf());
     for k in 0..dirs.len() {
         if let Some(j) = (0..k).find(|&j| key(&dirs[j]) == key(&dirs[k])) {
-            return Err(format!(
+            return Err(PipelineError::Input(format!(
                 "{} and {} would both write into {}: give them separate --out folders",
                 projects[j].display(),
                 projects[k].display(),
                 dirs[k].display()
-            ));
+            )));
         }
     }
     Ok(dirs)
@@ -192,7 +193,7 @@ mod tests {
         );
         assert_eq!(out_dirs(&projects[2..3], None).unwrap(), [p("c/results")]);
         let twice = [p("c/x.toml"), root.join("c/../c/x.toml")];
-        let e = out_dirs(&twice, Some(&out)).unwrap_err();
+        let e = out_dirs(&twice, Some(&out)).unwrap_err().to_string();
         assert!(e.contains("x.toml") && e.contains("given twice"), "{e}");
         std::fs::remove_dir_all(&root).unwrap();
     }
@@ -215,7 +216,7 @@ mod tests {
             root.join("b/proj/project.toml"),
             root.join("a-proj/project.toml"),
         ];
-        let e = out_dirs(&projects, Some(&out)).unwrap_err();
+        let e = out_dirs(&projects, Some(&out)).unwrap_err().to_string();
         assert!(
             e.contains("a/proj/project.toml")
                 && e.contains("a-proj/project.toml")

@@ -57,6 +57,69 @@ pub fn real_dir(dir: &Path) -> PathBuf {
     fs::canonicalize(dir).unwrap_or_else(|_| dir.to_path_buf())
 }
 
+/// Why outputs could not be written: one line naming the file or folder.
+#[derive(Debug, thiserror::Error)]
+pub enum OutputError {
+    /// A file or folder that cannot be created, written, locked or resolved.
+    #[error("{}: cannot {action}: {error}", path.display())]
+    Io {
+        /// The file or folder the user asked for (never a temporary one).
+        path: PathBuf,
+        /// `create`, `write`, `lock` or `resolve`.
+        action: &'static str,
+        /// What the system said.
+        #[source]
+        error: std::io::Error,
+    },
+    /// Another pingcal process is writing into the folder.
+    #[error("{}: another pingcal (process {pid}) is writing into this folder (lock {}): wait for it, or choose another --out", dir.display(), lock.display())]
+    Busy {
+        /// The output folder.
+        dir: PathBuf,
+        /// The other process.
+        pid: u32,
+        /// Its lock file.
+        lock: PathBuf,
+    },
+    /// Another run took the folder's lock at the same instant.
+    #[error("{}: cannot take the lock {}: another run takes it at the same time", dir.display(), lock.display())]
+    Contended {
+        /// The output folder.
+        dir: PathBuf,
+        /// The lock file.
+        lock: PathBuf,
+    },
+    /// A chain of more than 40 symbolic links.
+    #[error("{}: too many levels of symbolic links", path.display())]
+    SymlinkLoop {
+        /// The path given.
+        path: PathBuf,
+    },
+    /// A path that names no file (`/`, `..`).
+    #[error("{}: not a file name", path.display())]
+    NotAFileName {
+        /// The path given.
+        path: PathBuf,
+    },
+    /// results.json could not be serialised.
+    #[error("{0}")]
+    Json(#[from] serde_json::Error),
+}
+
+impl OutputError {
+    /// The [`OutputError::Io`] of `action` on `path`.
+    fn io<'a>(
+        path: &'a Path,
+        action: &'static str,
+    ) -> impl FnOnce(std::io::Error) -> OutputError + 'a {
+        move |error| OutputError::Io {
+            path: path.to_path_buf(),
+            action,
+            error,
+        }
+    }
+}
+
 /// The lock of an output folder, held for a whole run; released when dropped. Writing a
 /// result set takes one ([`write_set`]), so a set is never
 /// written into a folder another run holds.
@@ -69,10 +132,9 @@ pub struct FolderLock {
 impl FolderLock {
     /// Takes the lock of output folder `dir`, or says which process holds it. A stale lock
     /// (its process gone) is taken over and the killed run's leftovers removed.
-    pub fn take(given: &Path) -> Result<FolderLock, String> {
+    pub fn take(given: &Path) -> Result<FolderLock, OutputError> {
         if let Some(parent) = given.parent().filter(|p| !p.as_os_str().is_empty()) {
-            fs::create_dir_all(parent)
-                .map_err(|e| format!("{}: cannot create: {e}", parent.display()))?;
+            fs::create_dir_all(parent).map_err(OutputError::io(parent, "create"))?;
         }
         let dir = real_dir(given);
         let path = sibling(&dir, "pingcal-lock");
@@ -91,11 +153,11 @@ impl FolderLock {
                         .and_then(|s| s.trim().parse::<u32>().ok());
                     match pid {
                         Some(pid) if alive(pid) => {
-                            return Err(format!(
-                                "{}: another pingcal (process {pid}) is writing into this folder (lock {}): wait for it, or choose another --out",
-                                dir.display(),
-                                path.display()
-                            ))
+                            return Err(OutputError::Busy {
+                                dir,
+                                pid,
+                                lock: path,
+                            })
                         }
                         // a lock without a process number, seconds old: one being taken
                         // this instant where hard links are not supported
@@ -106,14 +168,10 @@ impl FolderLock {
                         }
                     }
                 }
-                Err(e) => return Err(format!("{}: cannot lock: {e}", path.display())),
+                Err(e) => return Err(OutputError::io(&path, "lock")(e)),
             }
         }
-        Err(format!(
-            "{}: cannot take the lock {}: another run takes it at the same time",
-            dir.display(),
-            path.display()
-        ))
+        Err(OutputError::Contended { dir, lock: path })
     }
 }
 
@@ -350,9 +408,9 @@ fn rescue_users(old: &Path, dir: &Path) {
 /// The set of `files` written into the locked output folder: swapped in as one
 /// ([`swap_in`]), or where the swap does not apply, file by file (see the module doc); an
 /// error leaves the earlier set as it was.
-pub fn write_set(lock: &FolderLock, files: &[SetFile]) -> Result<(), String> {
+pub fn write_set(lock: &FolderLock, files: &[SetFile]) -> Result<(), OutputError> {
     let dir = lock.dir();
-    fs::create_dir_all(dir).map_err(|e| format!("{}: cannot create: {e}", dir.display()))?;
+    fs::create_dir_all(dir).map_err(OutputError::io(dir, "create"))?;
     if swap_in(dir, files)? {
         return Ok(());
     }
@@ -360,7 +418,7 @@ pub fn write_set(lock: &FolderLock, files: &[SetFile]) -> Result<(), String> {
         files.iter().map(|(rel, b)| (dir.join(rel), *b)).collect();
     // Through symlinks, the file behind them is replaced and the link stays a link.
     for (path, _) in &mut paths {
-        if let WriteTarget::Replace(t) = write_target(path).map_err(|e| e.to_string())? {
+        if let WriteTarget::Replace(t) = write_target(path)? {
             *path = t;
         }
     }
@@ -373,12 +431,11 @@ pub fn write_set(lock: &FolderLock, files: &[SetFile]) -> Result<(), String> {
             for (p, _) in &paths[..=k] {
                 let _ = fs::remove_file(partial(p));
             }
-            return Err(format!("{}: cannot write: {e}", path.display()));
+            return Err(OutputError::io(path, "write")(e));
         }
     }
     for (path, _) in &paths {
-        fs::rename(partial(path), path)
-            .map_err(|e| format!("{}: cannot write: {e}", path.display()))?;
+        fs::rename(partial(path), path).map_err(OutputError::io(path, "write"))?;
     }
     remove_stale_overlays(dir, files);
     Ok(())
@@ -455,12 +512,12 @@ fn write_file(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
 /// Writes the result set `files` as output folder `dir` by the swap (see the module doc).
 /// `Ok(false)`: the swap does not apply here (the folder holds more, or the system cannot
 /// exchange), nothing was changed; the caller writes file by file.
-pub fn swap_in(dir: &Path, files: &[SetFile]) -> Result<bool, String> {
+pub fn swap_in(dir: &Path, files: &[SetFile]) -> Result<bool, OutputError> {
     let dir = real_dir(dir);
     let carry = dir.exists() && !only_ours(&dir);
     let new = sibling(&dir, &format!("pingcal-new-{}", std::process::id()));
     let _ = fs::remove_dir_all(&new);
-    let cleanup = |e: String| {
+    let cleanup = |e: OutputError| {
         let _ = fs::remove_dir_all(&new);
         e
     };
@@ -474,7 +531,7 @@ pub fn swap_in(dir: &Path, files: &[SetFile]) -> Result<bool, String> {
     }
     for (rel, bytes) in files {
         write_file(&new.join(rel), bytes)
-            .map_err(|e| cleanup(format!("{}: cannot write: {e}", dir.join(rel).display())))?;
+            .map_err(|e| cleanup(OutputError::io(&dir.join(rel), "write")(e)))?;
     }
     if carry && !carry_users(&dir, &new).unwrap_or(false) {
         let _ = fs::remove_dir_all(&new);
@@ -483,7 +540,7 @@ pub fn swap_in(dir: &Path, files: &[SetFile]) -> Result<bool, String> {
     if !dir.exists() {
         return fs::rename(&new, &dir)
             .map(|()| true)
-            .map_err(|e| cleanup(format!("{}: cannot write: {e}", dir.display())));
+            .map_err(|e| cleanup(OutputError::io(&dir, "write")(e)));
     }
     match exchange(&new, &dir) {
         Ok(()) => {
@@ -510,8 +567,11 @@ pub fn swap_in(dir: &Path, files: &[SetFile]) -> Result<bool, String> {
 /// fails before or while writing leaves the outputs of an earlier run as they were. `lock`:
 /// the folder's, taken before the run began (a second run into it is refused before any
 /// work).
-pub fn write_outcome(lock: &FolderLock, outcome: &crate::outcome::Outcome) -> Result<(), String> {
-    let json = serde_json::to_string_pretty(&outcome.results).map_err(|e| e.to_string())? + "\n";
+pub fn write_outcome(
+    lock: &FolderLock,
+    outcome: &crate::outcome::Outcome,
+) -> Result<(), OutputError> {
+    let json = serde_json::to_string_pretty(&outcome.results)? + "\n";
     let html = pingcal_report::render_html(&outcome.report);
     let mut set: Vec<SetFile> = outcome
         .exports
@@ -533,8 +593,8 @@ pub fn write_outcome(lock: &FolderLock, outcome: &crate::outcome::Outcome) -> Re
 /// Through symlinks: the file behind the links is replaced (the temporary file beside it)
 /// and the link stays a link; a device or FIFO behind `path` (`/dev/stdout`) is written
 /// straight, with no temporary file ([`write_target`]).
-pub fn write_atomic(path: &std::path::Path, bytes: &[u8]) -> Result<(), String> {
-    let cannot = |e: std::io::Error| format!("{}: cannot write: {e}", path.display());
+pub fn write_atomic(path: &std::path::Path, bytes: &[u8]) -> Result<(), OutputError> {
+    let cannot = |e: std::io::Error| OutputError::io(path, "write")(e);
     let target = match write_target(path)? {
         WriteTarget::Direct(p) => {
             use std::io::Write;
@@ -569,11 +629,10 @@ pub enum WriteTarget {
 /// The file a write to `path` must replace, following symlinks (also dangling ones, whose
 /// target is created), or [`WriteTarget::Direct`] when `path` leads to something that is not
 /// a regular file nor a folder.
-pub fn write_target(path: &std::path::Path) -> Result<WriteTarget, String> {
+pub fn write_target(path: &std::path::Path) -> Result<WriteTarget, OutputError> {
     match std::fs::metadata(path) {
         Ok(m) if m.is_file() => {
-            let t = std::fs::canonicalize(path)
-                .map_err(|e| format!("{}: cannot resolve: {e}", path.display()))?;
+            let t = std::fs::canonicalize(path).map_err(OutputError::io(path, "resolve"))?;
             return Ok(WriteTarget::Replace(t));
         }
         Ok(m) if !m.is_dir() => return Ok(WriteTarget::Direct(path.to_path_buf())),
@@ -583,8 +642,7 @@ pub fn write_target(path: &std::path::Path) -> Result<WriteTarget, String> {
     for _ in 0..40 {
         match std::fs::symlink_metadata(&p) {
             Ok(m) if m.file_type().is_symlink() => {
-                let t = std::fs::read_link(&p)
-                    .map_err(|e| format!("{}: cannot resolve: {e}", path.display()))?;
+                let t = std::fs::read_link(&p).map_err(OutputError::io(path, "resolve"))?;
                 p = match p.parent() {
                     Some(d) if t.is_relative() => d.join(t),
                     _ => t,
@@ -593,22 +651,21 @@ pub fn write_target(path: &std::path::Path) -> Result<WriteTarget, String> {
             _ => return Ok(WriteTarget::Replace(p)),
         }
     }
-    Err(format!(
-        "{}: too many levels of symbolic links",
-        path.display()
-    ))
+    Err(OutputError::SymlinkLoop {
+        path: path.to_path_buf(),
+    })
 }
 
 /// The temporary file [`write_atomic`] (and a streaming writer) writes `path` through:
 /// `.NAME.partial` in the same folder, renamed onto `path` once complete.
-pub fn partial_path(path: &std::path::Path) -> Result<std::path::PathBuf, String> {
+pub fn partial_path(path: &std::path::Path) -> Result<std::path::PathBuf, OutputError> {
     let dir = path
         .parent()
         .filter(|p| !p.as_os_str().is_empty())
         .unwrap_or(std::path::Path::new("."));
-    let name = path
-        .file_name()
-        .ok_or_else(|| format!("{}: not a file name", path.display()))?;
+    let name = path.file_name().ok_or_else(|| OutputError::NotAFileName {
+        path: path.to_path_buf(),
+    })?;
     Ok(dir.join(format!(".{}.partial", name.to_string_lossy())))
 }
 
@@ -817,7 +874,7 @@ mod tests {
         for round in 0..20 {
             let dir = base.join(format!("out{round}"));
             let barrier = std::sync::Barrier::new(16);
-            let results: Vec<Result<FolderLock, String>> = std::thread::scope(|s| {
+            let results: Vec<Result<FolderLock, OutputError>> = std::thread::scope(|s| {
                 let takers: Vec<_> = (0..16)
                     .map(|_| {
                         s.spawn(|| {
@@ -832,7 +889,7 @@ mod tests {
             assert_eq!(held, 1, "round {round}: {held} takers hold the lock");
             for e in results.iter().filter_map(|r| r.as_ref().err()) {
                 assert!(
-                    e.contains(&format!("process {}", std::process::id())),
+                    matches!(e, OutputError::Busy { pid, .. } if *pid == std::process::id()),
                     "round {round}: {e}"
                 );
             }
@@ -869,7 +926,10 @@ mod tests {
         assert!(!lock.exists());
         fs::write(&lock, "").unwrap();
         let e = FolderLock::take(&dir).unwrap_err();
-        assert!(e.contains("another run takes it at the same time"), "{e}");
+        assert!(matches!(e, OutputError::Contended { .. }), "{e}");
+        assert!(e
+            .to_string()
+            .contains("another run takes it at the same time"));
         fs::remove_dir_all(&base).unwrap();
     }
 

@@ -17,6 +17,7 @@ use super::preflight::{check_out_file, check_threads};
 use super::{write_atomic, CmdResult};
 use pingcal_ba::loss::Loss;
 use pingcal_ba::solver::{self, Iteration, LinearSolverKind, Options};
+use pingcal_ba::workflow::WorkflowError;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -344,7 +345,7 @@ fn write_bal_json(
     out: &std::path::Path,
     problem: &pingcal_ba::problem::Problem,
     summary: &solver::Summary,
-    precision: &Option<Result<pingcal_ba::workflow::PrecisionSummary, String>>,
+    precision: &Option<Result<pingcal_ba::workflow::PrecisionSummary, WorkflowError>>,
     threads: usize,
 ) -> CmdResult {
     let mut json = serde_json::json!({
@@ -373,7 +374,7 @@ fn write_bal_json(
     });
     match &precision {
         Some(Ok(p)) => json["precision"] = serde_json::to_value(p)?,
-        Some(Err(e)) => json["precision_error"] = e.clone().into(),
+        Some(Err(e)) => json["precision_error"] = e.to_string().into(),
         None => {}
     }
     write_atomic(out, serde_json::to_string_pretty(&json)?.as_bytes())?;
@@ -422,7 +423,7 @@ fn bal_precision(
     problem: &pingcal_ba::problem::Problem,
     source: &str,
     quiet: bool,
-) -> Result<pingcal_ba::workflow::PrecisionSummary, String> {
+) -> Result<pingcal_ba::workflow::PrecisionSummary, WorkflowError> {
     let out = pingcal_ba::workflow::precision_summary(problem, source)?;
     if !quiet {
         println!(

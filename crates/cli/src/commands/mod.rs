@@ -64,9 +64,15 @@ pub enum CmdError {
     /// The bundle adjustment's solver.
     #[error("{0}")]
     Solve(#[from] pingcal_ba::solver::SolveError),
+    /// A measurement file's adjustment (`pingcal ba`).
+    #[error("{0}")]
+    Workflow(#[from] pingcal_ba::workflow::WorkflowError),
     /// The planner.
     #[error("{0}")]
     Plan(#[from] pingcal_plan::PlanError),
+    /// Writing the outputs.
+    #[error("{0}")]
+    Output(#[from] pingcal_pipeline::result_set::OutputError),
 }
 
 impl From<String> for CmdError {

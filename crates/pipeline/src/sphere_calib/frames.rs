@@ -4,6 +4,7 @@
 
 use super::camera::Camera;
 use super::image::{self, ImageSphere};
+use crate::context::PipelineError;
 use nalgebra::{Matrix3, Vector3};
 use pingcal_lrf::ball_finder::{find_balls, FinderOptions};
 use pingcal_lrf::cloud_file::{read_cloud_file_in, CloudUnit};
@@ -143,27 +144,27 @@ pub fn read_frame(
     image: &str,
     id: &str,
     s: &Setup,
-) -> Result<Frame, String> {
+) -> Result<Frame, PipelineError> {
     let cloud_path = dir.join(cloud);
     let image_path = dir.join(image);
     // errors name the frame and say what to do
     let (points, warnings) = read_cloud_file_in(&cloud_path, &MountModel::default(), s.unit)
         .map_err(|e| {
-            format!(
+            PipelineError::Input(format!(
                 "{e} (frame {id}'s cloud: give its points, or take the frame out of the project)"
-            )
+            ))
         })?;
     let img = pingcal_targets::load_colour(&image_path)
-        .map_err(|e| format!("{e} (frame {id}'s photograph)"))?;
+        .map_err(|e| PipelineError::Input(format!("{e} (frame {id}'s photograph)")))?;
     let (cw, ch) = (s.cam.width as usize, s.cam.height as usize);
     if (img.width(), img.height()) != (cw, ch) {
-        return Err(format!(
+        return Err(PipelineError::Input(format!(
             "{}: {} × {} pixels, but the camera {} is {cw} × {ch} (frame {id}): give the camera file of the camera that took these images",
             image_path.display(),
             img.width(),
             img.height(),
             s.cam_name,
-        ));
+        )));
     }
     let mut f = Frame {
         id: id.to_string(),

@@ -38,6 +38,7 @@ pub use frames::{Frame, LidarSphere};
 pub use image::{closed_form_centre, ImageSphere};
 pub use json::{results_json, v};
 
+use crate::context::PipelineError;
 use frames::{read_frame, Setup};
 use nalgebra::{Matrix3, Vector3};
 use pingcal_lrf::cloud_file::CloudUnit;
@@ -201,9 +202,9 @@ fn closed_form(frames: &[Frame], name: &str) -> Result<Option<ClosedForm>, Strin
 }
 
 /// Runs the calibration of one project (no output written).
-pub fn calibrate(project: &Path, seed: u64) -> Result<Outcome, String> {
+pub fn calibrate(project: &Path, seed: u64) -> Result<Outcome, PipelineError> {
     let name = project.display().to_string();
-    let l = load(project)?;
+    let l = load(project).map_err(PipelineError::Input)?;
     let dir = project.parent().unwrap_or(Path::new("."));
     let setup = Setup {
         cam: &l.cam,
@@ -220,12 +221,12 @@ pub fn calibrate(project: &Path, seed: u64) -> Result<Outcome, String> {
         .par_iter()
         .zip(&ids)
         .map(|(fr, id)| read_frame(dir, &fr.cloud, &fr.image, id, &setup))
-        .collect::<Result<Vec<Frame>, String>>()?;
+        .collect::<Result<Vec<Frame>, PipelineError>>()?;
     let radius = l.file.sphere_diameter_mm / 2.0;
     select::choose(&mut frames, &l.cam, radius, seed);
     let (lidar, camera) = point_lists(&frames);
     if lidar.len() < 3 {
-        return Err(format!(
+        return Err(PipelineError::Data(format!(
             "{name}: {} of {} frames have the sphere in both the cloud and the image, at least 3 are needed: {}",
             lidar.len(),
             frames.len(),
@@ -234,11 +235,11 @@ pub fn calibrate(project: &Path, seed: u64) -> Result<Outcome, String> {
                 .filter_map(|f| f.skipped.as_ref().map(|s| format!("{}: {s}", f.id)))
                 .collect::<Vec<_>>()
                 .join("; ")
-        ));
+        )));
     }
     let opt = RegistrationOptions::default();
     let sensors = registration::evaluate(&lidar, &camera, &[], &[], &opt)
-        .map_err(|e| format!("{name}: registration: {e}"))?;
+        .map_err(|e| registration_error(&name, e))?;
     let sensor_sigma0 = sensors.registration.sigma0;
     // the a-posteriori variance factor when the sensors' σ's fail: the estimate is the same
     // (the weights only scale), every σ and the leave-one-out test take the data's scatter
@@ -253,12 +254,12 @@ pub fn calibrate(project: &Path, seed: u64) -> Result<Outcome, String> {
                 ..opt
             };
             let ev = registration::evaluate(&lidar, &camera, &[], &[], &opt)
-                .map_err(|e| format!("{name}: registration: {e}"))?;
+                .map_err(|e| registration_error(&name, e))?;
             (ev, lidar, camera)
         }
         None => (sensors, lidar, camera),
     };
-    let closed_form = closed_form(&frames, &name)?;
+    let closed_form = closed_form(&frames, &name).map_err(PipelineError::Adjustment)?;
     let verdict = verdict::judge(
         &frames,
         &evaluation,
@@ -279,6 +280,17 @@ pub fn calibrate(project: &Path, seed: u64) -> Result<Outcome, String> {
         sensor_sigma0,
         sigma_scale,
     })
+}
+
+/// A registration's failure as the pipeline's: too few or collinear centres are the data's
+/// (take more frames, spread the sphere), anything else the adjustment's.
+fn registration_error(name: &str, e: pingcal_lrf::LrfError) -> PipelineError {
+    use pingcal_lrf::LrfError::{Collinear, TooFewPoints};
+    let message = format!("{name}: registration: {e}");
+    match e {
+        Collinear { .. } | TooFewPoints { .. } => PipelineError::Data(message),
+        _ => PipelineError::Adjustment(message),
+    }
 }
 
 /// The centres with every σ times `k`.
