@@ -76,21 +76,45 @@ pub struct Synthetic {
     pub truth: Problem,
 }
 
+/// Why a synthetic problem cannot be generated as asked.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum SyntheticError {
+    /// Fewer than 2 cameras, no point, or fewer than 2 observations per point.
+    #[error("need at least 2 cameras, 1 point and 2 observations per point")]
+    TooSmall,
+    /// More observations per point than cameras.
+    #[error(
+        "{obs_per_point} observations per point need at least as many cameras (got {cameras})"
+    )]
+    TooFewCameras {
+        /// Observations asked per point.
+        obs_per_point: usize,
+        /// Cameras asked.
+        cameras: usize,
+    },
+    /// A negative or non-finite noise, or a negative perturbation.
+    #[error("noise and perturbation must be non-negative")]
+    NegativeNoise,
+    /// No place found for a point seen by enough cameras (in 100 tries a point).
+    #[error("could not place points visible in enough cameras")]
+    Unplaceable,
+}
+
 impl SyntheticBal {
     /// Generates the problem. Fails if the sizes are inconsistent.
-    pub fn generate(&self) -> Result<Synthetic, String> {
+    pub fn generate(&self) -> Result<Synthetic, SyntheticError> {
         if self.cameras < 2 || self.points == 0 || self.obs_per_point < 2 {
-            return Err("need at least 2 cameras, 1 point and 2 observations per point".into());
+            return Err(SyntheticError::TooSmall);
         }
         if self.obs_per_point > self.cameras {
-            return Err(format!(
-                "{} observations per point need at least as many cameras (got {})",
-                self.obs_per_point, self.cameras
-            ));
+            return Err(SyntheticError::TooFewCameras {
+                obs_per_point: self.obs_per_point,
+                cameras: self.cameras,
+            });
         }
         // Written as `!(ok)` so that NaN fails the comparisons and is rejected with them.
         if !(self.noise_px >= 0.0 && self.noise_px.is_finite() && self.perturbation >= 0.0) {
-            return Err("noise and perturbation must be non-negative".into());
+            return Err(SyntheticError::NegativeNoise);
         }
         let mut rng = pingcal_geometry::consensus::rng(self.seed);
         let n01 = Normal::new(0.0, 1.0).unwrap();
@@ -128,7 +152,7 @@ impl SyntheticBal {
         while p < self.points {
             attempts += 1;
             if attempts > 100 * self.points + 1000 {
-                return Err("could not place points visible in enough cameras".into());
+                return Err(SyntheticError::Unplaceable);
             }
             let x = Vector3::new(
                 rng.random_range(-1.0..length + 1.0),

@@ -2,21 +2,27 @@
 //! it, renamed onto it once complete, so an interrupted or failed run never leaves a partial
 //! project looking complete. The folder must not exist, or be empty.
 
+use crate::SimError;
 use std::path::Path;
 
+/// The [`SimError::Io`] of `path` saying `what`.
+fn io(path: &Path, what: impl std::fmt::Display) -> SimError {
+    SimError::Io {
+        path: path.display().to_string(),
+        what: what.to_string(),
+    }
+}
+
 /// Fails unless `out` does not exist or is an empty folder.
-pub fn check_out(out: &Path) -> Result<(), String> {
+pub fn check_out(out: &Path) -> Result<(), SimError> {
     if out.exists() {
         let empty = out.is_dir()
             && std::fs::read_dir(out)
-                .map_err(|e| format!("{}: {e}", out.display()))?
+                .map_err(|e| io(out, e))?
                 .next()
                 .is_none();
         if !empty {
-            return Err(format!(
-                "{}: already exists and is not an empty folder",
-                out.display()
-            ));
+            return Err(io(out, "already exists and is not an empty folder"));
         }
     }
     Ok(())
@@ -27,17 +33,16 @@ pub fn check_out(out: &Path) -> Result<(), String> {
 /// partial folder looking complete.
 pub fn into_place<T>(
     out: &Path,
-    write: impl FnOnce(&Path) -> Result<T, String>,
-) -> Result<T, String> {
+    write: impl FnOnce(&Path) -> Result<T, SimError>,
+) -> Result<T, SimError> {
     let parent = out
         .parent()
         .filter(|p| !p.as_os_str().is_empty())
         .unwrap_or(Path::new("."));
-    std::fs::create_dir_all(parent)
-        .map_err(|e| format!("{}: cannot create: {e}", parent.display()))?;
+    std::fs::create_dir_all(parent).map_err(|e| io(parent, format!("cannot create: {e}")))?;
     let name = out
         .file_name()
-        .ok_or_else(|| format!("{}: not a folder name", out.display()))?;
+        .ok_or_else(|| io(out, "not a folder name"))?;
     let tmp = parent.join(format!(
         ".{}.partial-{}",
         name.to_string_lossy(),
@@ -52,13 +57,13 @@ pub fn into_place<T>(
         }
     };
     if out.exists() {
-        std::fs::remove_dir(out).map_err(|e| format!("{}: {e}", out.display()))?;
+        std::fs::remove_dir(out).map_err(|e| io(out, e))?;
     }
     if let Err(e) = std::fs::rename(&tmp, out) {
         let _ = std::fs::remove_dir_all(&tmp);
-        return Err(format!(
-            "{}: cannot rename the finished project into place: {e}",
-            out.display()
+        return Err(io(
+            out,
+            format!("cannot rename the finished project into place: {e}"),
         ));
     }
     Ok(value)
@@ -70,11 +75,11 @@ pub fn simulate_sphere_calib_into(
     out: &Path,
     cfg: &crate::sphere_calib::SphereCalibConfig,
     seed: u64,
-) -> Result<crate::sphere_calib::SphereCalibSummary, String> {
+) -> Result<crate::sphere_calib::SphereCalibSummary, SimError> {
     check_out(out)?;
-    let sim = crate::sphere_calib::SphereCalibSim::new(cfg, seed).map_err(|e| e.to_string())?;
+    let sim = crate::sphere_calib::SphereCalibSim::new(cfg, seed)?;
     into_place(out, |tmp| {
-        crate::sphere_calib::write_sphere_calib(&sim, tmp).map_err(|e| e.to_string())
+        crate::sphere_calib::write_sphere_calib(&sim, tmp)
     })
 }
 
@@ -86,19 +91,19 @@ pub fn simulate_into(
     cfg: &crate::SimConfig,
     seed: u64,
     config_file: Option<&Path>,
-) -> Result<(crate::ProjectSummary, crate::Simulation, [f64; 2]), String> {
+) -> Result<(crate::ProjectSummary, crate::Simulation, [f64; 2]), SimError> {
     check_out(out)?;
     let t0 = std::time::Instant::now();
     let sim = crate::Simulation::new(cfg, seed).map_err(|e| match config_file {
-        Some(p) if matches!(e, crate::SimError::Invalid(_)) => {
-            format!("{}: {e}", p.display())
-        }
-        _ => e.to_string(),
+        // an impossible value of the configuration file names the file
+        Some(p) if matches!(e, SimError::Invalid(_)) => SimError::Config {
+            file: p.display().to_string(),
+            what: e.to_string(),
+        },
+        _ => e,
     })?;
     let t_scene = t0.elapsed().as_secs_f64();
-    let summary = into_place(out, |tmp| {
-        crate::write_project(&sim, tmp).map_err(|e| e.to_string())
-    })?;
+    let summary = into_place(out, |tmp| crate::write_project(&sim, tmp))?;
     Ok((
         summary,
         sim,

@@ -70,6 +70,9 @@ pub enum CmdError {
     /// The planner.
     #[error("{0}")]
     Plan(#[from] pingcal_plan::PlanError),
+    /// A synthetic BAL problem's sizes (`pingcal gen-bal`).
+    #[error("{0}")]
+    Synthetic(#[from] pingcal_ba::synthetic::SyntheticError),
     /// Writing the outputs.
     #[error("{0}")]
     Output(#[from] pingcal_pipeline::result_set::OutputError),
