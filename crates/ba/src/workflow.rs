@@ -265,3 +265,44 @@ pub fn precision_summary(
         median_point_sigma: point,
     })
 }
+
+/// The JSON of an adjusted BAL problem, as `pingcal ba --out` writes it: the solver's
+/// summary, the sizes, the threads, and the precision ([`precision_summary`]) or why there is
+/// none (`precision_error`).
+pub fn run_json(
+    problem: &Problem,
+    summary: &Summary,
+    precision: Option<&Result<PrecisionSummary, WorkflowError>>,
+    threads: usize,
+) -> Result<serde_json::Value, serde_json::Error> {
+    let mut json = serde_json::json!({
+        "initial_cost": summary.initial_cost,
+        "final_cost": summary.final_cost,
+        "iterations": summary.iterations,
+        "successful_steps": summary.successful_steps,
+        "time_s": summary.time_s,
+        "linear_solver_time_s": summary.linear_solver_time_s,
+        "evaluation_time_s": summary.evaluation_time_s,
+        "schur_time_s": summary.schur_time_s,
+        "setup_time_s": summary.setup_time_s,
+        "linear_solver": summary.linear_solver.kind,
+        "linear_solver_reason": summary.linear_solver.reason,
+        "schur_product": summary.schur_product,
+        "reduced_dimension": summary.reduced_dimension,
+        "reduced_nonzeros": summary.reduced_nonzeros,
+        "linear_iterations": summary.linear_iterations,
+        "clusters": summary.clusters,
+        "termination": summary.termination,
+        "rms_px": problem.rms_px(),
+        "cameras": problem.images.len(),
+        "points": problem.points.len(),
+        "observations": problem.observations.len(),
+        "threads": threads,
+    });
+    match precision {
+        Some(Ok(p)) => json["precision"] = serde_json::to_value(p)?,
+        Some(Err(e)) => json["precision_error"] = e.to_string().into(),
+        None => {}
+    }
+    Ok(json)
+}

@@ -340,7 +340,7 @@ fn bal_options(args: &Args) -> Options {
     }
 }
 
-/// `--out` of a BAL problem: the summary, the sizes and the precision (or why none).
+/// `--out` of a BAL problem ([`pingcal_ba::workflow::run_json`]).
 fn write_bal_json(
     out: &std::path::Path,
     problem: &pingcal_ba::problem::Problem,
@@ -348,35 +348,7 @@ fn write_bal_json(
     precision: &Option<Result<pingcal_ba::workflow::PrecisionSummary, WorkflowError>>,
     threads: usize,
 ) -> CmdResult {
-    let mut json = serde_json::json!({
-        "initial_cost": summary.initial_cost,
-        "final_cost": summary.final_cost,
-        "iterations": summary.iterations,
-        "successful_steps": summary.successful_steps,
-        "time_s": summary.time_s,
-        "linear_solver_time_s": summary.linear_solver_time_s,
-        "evaluation_time_s": summary.evaluation_time_s,
-        "schur_time_s": summary.schur_time_s,
-        "setup_time_s": summary.setup_time_s,
-        "linear_solver": summary.linear_solver.kind,
-        "linear_solver_reason": summary.linear_solver.reason,
-        "schur_product": summary.schur_product,
-        "reduced_dimension": summary.reduced_dimension,
-        "reduced_nonzeros": summary.reduced_nonzeros,
-        "linear_iterations": summary.linear_iterations,
-        "clusters": summary.clusters,
-        "termination": summary.termination,
-        "rms_px": problem.rms_px(),
-        "cameras": problem.images.len(),
-        "points": problem.points.len(),
-        "observations": problem.observations.len(),
-        "threads": threads,
-    });
-    match &precision {
-        Some(Ok(p)) => json["precision"] = serde_json::to_value(p)?,
-        Some(Err(e)) => json["precision_error"] = e.to_string().into(),
-        None => {}
-    }
+    let json = pingcal_ba::workflow::run_json(problem, summary, precision.as_ref(), threads)?;
     write_atomic(out, serde_json::to_string_pretty(&json)?.as_bytes())?;
     Ok(())
 }
