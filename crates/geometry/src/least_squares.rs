@@ -173,6 +173,14 @@ where
 {
     let mut normal = objective.normal(&x)?;
     let mut iterations = 0;
+    if options.max_iterations == 0 {
+        return Some(Solution {
+            x,
+            normal,
+            iterations,
+            converged: false,
+        });
+    }
     loop {
         let dx = normal.matrix.clone().try_inverse()? * -&normal.gradient;
         let dx = objective.limit_step(&x, dx);
@@ -337,6 +345,21 @@ mod tests {
         )
         .unwrap();
         assert!((s.x.x - 5.0).abs() < 1e-9, "{}", s.x);
+    }
+
+    #[test]
+    fn no_iteration_asked_is_no_step_taken() {
+        for strategy in [Strategy::GaussNewton, Strategy::LevenbergMarquardt] {
+            let options = Options {
+                max_iterations: 0,
+                ..options(strategy)
+            };
+            let s = minimize(Vector2::new(-1.2, 1.0), &options, &mut rosenbrock).unwrap();
+            assert_eq!(
+                (s.x, s.iterations, s.converged),
+                (Vector2::new(-1.2, 1.0), 0, false)
+            );
+        }
     }
 
     #[test]
