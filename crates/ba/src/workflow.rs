@@ -28,7 +28,6 @@ pub enum WorkflowError {
         /// The measurement file.
         file: String,
         /// What is wrong with the datum.
-        #[source]
         error: DatumError,
     },
     /// Nothing fixes the network (no control point, no fixed image, no distance) and a free
@@ -44,7 +43,6 @@ pub enum WorkflowError {
         /// The measurement file.
         file: String,
         /// Why.
-        #[source]
         error: InitError,
     },
     /// A camera-model parameter the network cannot determine, named before the adjustment.
@@ -53,17 +51,16 @@ pub enum WorkflowError {
         /// The measurement file.
         file: String,
         /// The parameter and why.
-        #[source]
         error: PrecisionError,
     },
     /// The adjustment with data snooping failed.
-    #[error("{0}")]
+    #[error(transparent)]
     Snooping(#[from] SnoopError),
     /// The adjustment failed.
-    #[error("{0}")]
+    #[error(transparent)]
     Solve(#[from] SolveError),
     /// The adjusted network's precision could not be computed.
-    #[error("{0}")]
+    #[error(transparent)]
     Precision(#[from] PrecisionError),
     /// `--precision` of an adjusted problem could not be computed.
     #[error("{file}: no precision: {error} (the adjustment itself is done)")]
@@ -71,7 +68,6 @@ pub enum WorkflowError {
         /// The problem file.
         file: String,
         /// Why.
-        #[source]
         error: PrecisionError,
     },
 }

@@ -30,7 +30,8 @@
 //! multiplies λ by 10 and is tried again, 12 times at most, from λ = 1e-6. It suits starts far
 //! from the answer and problems with flat directions.
 //!
-//! Both stop when `|δ| < absolute + relative · |x|` ([`Options::step_tolerance`]), when
+//! Both stop when the problem's own test says a step was small ([`Options::small_step`], on
+//! `|δ|` and `|x|` before and after the step: e.g. `|δ| < 10⁻¹⁰ (1 + |x|)`), when
 //! Levenberg–Marquardt's cost falls by less than [`Options::cost_tolerance`] of `1 + cost`,
 //! when Levenberg–Marquardt finds no step that lowers the cost, or after
 //! [`Options::max_iterations`]. The work is bounded by `max_iterations` (times 12 trial
@@ -106,16 +107,27 @@ pub enum Strategy {
     LevenbergMarquardt,
 }
 
-/// When to stop, and how to step.
+/// The lengths a step test reads.
 #[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Step {
+    /// `|δ|`.
+    pub length: f64,
+    /// `|x|` before the step.
+    pub from: f64,
+    /// `|x|` after the step.
+    pub to: f64,
+}
+
+/// When to stop, and how to step.
+#[derive(Clone, Copy, Debug)]
 pub struct Options {
     /// The step rule.
     pub strategy: Strategy,
     /// Iterations (normal equations solved and a step taken) at most.
     pub max_iterations: usize,
-    /// `(absolute, relative)`: converged when `|δ| < absolute + relative · |x|`, `x` after
-    /// the step.
-    pub step_tolerance: (f64, f64),
+    /// Converged when this says the step taken was small (e.g.
+    /// `|s| s.length < 1e-10 * (1.0 + s.from)`).
+    pub small_step: fn(Step) -> bool,
     /// Levenberg–Marquardt only: converged when the cost falls by less than this fraction of
     /// `1 + cost`.
     pub cost_tolerance: f64,
@@ -155,12 +167,21 @@ where
     solution.x.iter().all(|v| v.is_finite()).then_some(solution)
 }
 
-/// Whether a step `dx` to `x` is below the tolerance.
-fn small_step<D: Dim>(dx: &OVector<f64, D>, x: &OVector<f64, D>, (abs, rel): (f64, f64)) -> bool
+/// Whether the step `dx` from `from` to `to` is small by the options' test.
+fn small_step<D: Dim>(
+    options: &Options,
+    dx: &OVector<f64, D>,
+    from: &OVector<f64, D>,
+    to: &OVector<f64, D>,
+) -> bool
 where
     DefaultAllocator: Allocator<D>,
 {
-    dx.norm() < abs + rel * x.norm()
+    (options.small_step)(Step {
+        length: dx.norm(),
+        from: from.norm(),
+        to: to.norm(),
+    })
 }
 
 fn gauss_newton<D: Dim>(
@@ -184,9 +205,10 @@ where
     loop {
         let dx = normal.matrix.clone().try_inverse()? * -&normal.gradient;
         let dx = objective.limit_step(&x, dx);
+        let from = x.clone();
         x += &dx;
         iterations += 1;
-        let converged = small_step(&dx, &x, options.step_tolerance);
+        let converged = small_step(options, &dx, &from, &x);
         if converged || iterations >= options.max_iterations {
             return Some(Solution {
                 x,
@@ -230,7 +252,7 @@ where
                 continue;
             };
             if at_trial.cost.is_finite() && at_trial.cost <= normal.cost {
-                converged = small_step(&dx, &trial, options.step_tolerance)
+                converged = small_step(options, &dx, &x, &trial)
                     || normal.cost - at_trial.cost < options.cost_tolerance * (1.0 + normal.cost);
                 x = trial;
                 normal = at_trial;
@@ -276,7 +298,7 @@ mod tests {
         Options {
             strategy,
             max_iterations: 100,
-            step_tolerance: (1e-12, 1e-12),
+            small_step: |s| s.length < 1e-12 * (1.0 + s.to),
             cost_tolerance: 0.0,
         }
     }

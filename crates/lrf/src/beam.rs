@@ -326,7 +326,8 @@ impl pingcal_ba::Residual for BeamOnBall {
 /// the fit converged on it, and the set chosen again at the solution until it no longer
 /// changes (at most [`REFIT_ROUNDS`] times). Choosing it at every step instead let the
 /// mixed pixels just inside the gate, many mm long, push the centre about and in and out
-/// of the set. None when fewer than four beams are left or the normal matrix is singular.
+/// of the set. None when fewer than four beams are left, the normal matrix is singular or
+/// the centre is not finite.
 pub fn fit_sphere_to_beams(
     readings: &[BeamReading],
     mount: &MountModel,
@@ -365,7 +366,8 @@ pub const REFIT_ROUNDS: usize = 5;
 
 /// [`fit_sphere_to_beams`] on a fixed set of beams, from `start`: Gauss–Newton on the
 /// ranges weighted by their σ (at most 20 steps, until one is under 1e-6 mm); the covariance
-/// from the normal matrix of the last step, scaled by σ₀² when σ₀ > 1.
+/// from the normal matrix of the last step, scaled by σ₀² when σ₀ > 1. `None` with fewer
+/// than 4 beams, a singular normal matrix or a centre that is not finite.
 fn fit_on(
     readings: &[BeamReading],
     start: Vector3<f64>,
@@ -394,7 +396,7 @@ fn fit_on(
     let options = Options {
         strategy: Strategy::GaussNewton,
         max_iterations: 20,
-        step_tolerance: (1e-6, 0.0),
+        small_step: |s| s.length < 1e-6,
         cost_tolerance: 0.0,
     };
     let solved = minimize(start, &options, &mut normal)?;

@@ -193,7 +193,7 @@ fn lm(
     let options = Options {
         strategy: Strategy::LevenbergMarquardt,
         max_iterations: max_iter,
-        step_tolerance: (1e-10, 1e-10),
+        small_step: |s| s.length < 1e-10 * (1.0 + s.from),
         cost_tolerance: 1e-14,
     };
     let mut normal = |x: &DVector<f64>| {

@@ -68,7 +68,6 @@ pub enum OutputError {
         /// `create`, `write`, `lock` or `resolve`.
         action: &'static str,
         /// What the system said.
-        #[source]
         error: std::io::Error,
     },
     /// Another pingcal process is writing into the folder.
@@ -102,7 +101,7 @@ pub enum OutputError {
         path: PathBuf,
     },
     /// results.json could not be serialised.
-    #[error("{0}")]
+    #[error(transparent)]
     Json(#[from] serde_json::Error),
 }
 

@@ -626,8 +626,8 @@ fn rig_bases(problem: &Problem) -> Vec<Option<(usize, usize)>> {
 fn internal_order(problem: &Problem, blocks: &Blocks) -> Vec<u32> {
     let mut first_seen = vec![u32::MAX; problem.points.len()];
     for ob in &problem.observations {
-        let own = blocks.image_rig[ob.image.0].map_or(ob.image, |(_, base)| ImageKey(base));
-        let key = blocks.image_slot[own.0].map_or(u32::MAX - 1, |s| s.block);
+        let own = blocks.image_rig[ob.image.0].map_or(ob.image.0, |(_, base)| base);
+        let key = blocks.image_slot[own].map_or(u32::MAX - 1, |s| s.block);
         first_seen[ob.point.0] = first_seen[ob.point.0].min(key);
     }
     let mut obs_order: Vec<u32> = (0..problem.observations.len() as u32).collect();

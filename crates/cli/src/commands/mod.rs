@@ -23,58 +23,58 @@ pub mod targets;
 #[derive(Debug, thiserror::Error)]
 pub enum CmdError {
     /// A command's end with an exit code of its own (see [`Exit`]).
-    #[error("{0}")]
+    #[error(transparent)]
     Exit(#[from] Exit),
     /// A command's own one-line message.
     #[error("{0}")]
     Message(String),
     /// Reading or writing a file (the message names it where the command knows it).
-    #[error("{0}")]
+    #[error(transparent)]
     Io(#[from] std::io::Error),
     /// A JSON file that does not parse, or a value that does not serialise.
-    #[error("{0}")]
+    #[error(transparent)]
     Json(#[from] serde_json::Error),
     /// The project file or its layout.
-    #[error("{0}")]
+    #[error(transparent)]
     Project(#[from] pingcal_project::ProjectError),
     /// The calibration pipeline.
-    #[error("{0}")]
+    #[error(transparent)]
     Pipeline(#[from] pingcal_pipeline::PipelineError),
     /// The LRF's files and fits.
-    #[error("{0}")]
+    #[error(transparent)]
     Lrf(#[from] pingcal_lrf::LrfError),
     /// A ROS bag.
-    #[error("{0}")]
+    #[error(transparent)]
     Rosbag(#[from] pingcal_rosbag::RosbagError),
     /// The simulator.
-    #[error("{0}")]
+    #[error(transparent)]
     Sim(#[from] pingcal_sim::SimError),
     /// The target detector's images.
-    #[error("{0}")]
+    #[error(transparent)]
     Targets(#[from] pingcal_targets::TargetError),
     /// A BAL problem file.
-    #[error("{0}")]
+    #[error(transparent)]
     Bal(#[from] pingcal_ba::bal::BalError),
     /// A pingcal measurement file.
-    #[error("{0}")]
+    #[error(transparent)]
     Measurements(#[from] pingcal_ba::io::measurements::MeasurementError),
     /// DBAT's camera and measurement files.
-    #[error("{0}")]
+    #[error(transparent)]
     Dbat(#[from] pingcal_ba::io::dbat::DbatError),
     /// The bundle adjustment's solver.
-    #[error("{0}")]
+    #[error(transparent)]
     Solve(#[from] pingcal_ba::solver::SolveError),
     /// A measurement file's adjustment (`pingcal ba`).
-    #[error("{0}")]
+    #[error(transparent)]
     Workflow(#[from] pingcal_ba::workflow::WorkflowError),
     /// The planner.
-    #[error("{0}")]
+    #[error(transparent)]
     Plan(#[from] pingcal_plan::PlanError),
     /// A synthetic BAL problem's sizes (`pingcal gen-bal`).
-    #[error("{0}")]
+    #[error(transparent)]
     Synthetic(#[from] pingcal_ba::synthetic::SyntheticError),
     /// Writing the outputs.
-    #[error("{0}")]
+    #[error(transparent)]
     Output(#[from] pingcal_pipeline::result_set::OutputError),
 }
 

@@ -169,7 +169,7 @@ fn point_lists(frames: &[Frame]) -> (Vec<PointObs>, Vec<PointObs>) {
 }
 
 /// The published method on the frames used: its own camera centres, unit weights, SVD.
-fn closed_form(frames: &[Frame], name: &str) -> Result<Option<ClosedForm>, String> {
+fn closed_form(frames: &[Frame], name: &str) -> Result<Option<ClosedForm>, PipelineError> {
     let mut lidar = Vec::new();
     let mut cam = Vec::new();
     for f in frames.iter().filter(|f| f.skipped.is_none()) {
@@ -184,13 +184,13 @@ fn closed_form(frames: &[Frame], name: &str) -> Result<Option<ClosedForm>, Strin
     }
     let xyz = |p: &[PointObs]| p.iter().map(|p| p.xyz).collect::<Vec<V3>>();
     let svd = registration::umeyama(&xyz(&lidar), &xyz(&cam), None, false)
-        .map_err(|e| format!("{name}: closed form: {e}"))?;
+        .map_err(|e| registration_error(name, "closed form", e))?;
     let opt = RegistrationOptions {
         posterior: true,
         ..Default::default()
     };
     let mut reg = registration::register(&lidar, &cam, &opt)
-        .map_err(|e| format!("{name}: closed form: {e}"))?;
+        .map_err(|e| registration_error(name, "closed form", e))?;
     // unweighted least squares and the SVD are the same estimate: keep the SVD's numbers
     debug_assert!((reg.camera_from_lrf.translation - svd.translation).norm() < 1e-6);
     reg.camera_from_lrf = svd;
@@ -239,7 +239,7 @@ pub fn calibrate(project: &Path, seed: u64) -> Result<Outcome, PipelineError> {
     }
     let opt = RegistrationOptions::default();
     let sensors = registration::evaluate(&lidar, &camera, &[], &[], &opt)
-        .map_err(|e| registration_error(&name, e))?;
+        .map_err(|e| registration_error(&name, "registration", e))?;
     let sensor_sigma0 = sensors.registration.sigma0;
     // the a-posteriori variance factor when the sensors' σ's fail: the estimate is the same
     // (the weights only scale), every σ and the leave-one-out test take the data's scatter
@@ -254,12 +254,12 @@ pub fn calibrate(project: &Path, seed: u64) -> Result<Outcome, PipelineError> {
                 ..opt
             };
             let ev = registration::evaluate(&lidar, &camera, &[], &[], &opt)
-                .map_err(|e| registration_error(&name, e))?;
+                .map_err(|e| registration_error(&name, "registration", e))?;
             (ev, lidar, camera)
         }
         None => (sensors, lidar, camera),
     };
-    let closed_form = closed_form(&frames, &name).map_err(PipelineError::Adjustment)?;
+    let closed_form = closed_form(&frames, &name)?;
     let verdict = verdict::judge(
         &frames,
         &evaluation,
@@ -282,11 +282,11 @@ pub fn calibrate(project: &Path, seed: u64) -> Result<Outcome, PipelineError> {
     })
 }
 
-/// A registration's failure as the pipeline's: too few or collinear centres are the data's
-/// (take more frames, spread the sphere), anything else the adjustment's.
-fn registration_error(name: &str, e: pingcal_lrf::LrfError) -> PipelineError {
+/// A registration's (`what`) failure as the pipeline's: too few or collinear centres are
+/// the data's (take more frames, spread the sphere), anything else the adjustment's.
+fn registration_error(name: &str, what: &str, e: pingcal_lrf::LrfError) -> PipelineError {
     use pingcal_lrf::LrfError::{Collinear, TooFewPoints};
-    let message = format!("{name}: registration: {e}");
+    let message = format!("{name}: {what}: {e}");
     match e {
         Collinear { .. } | TooFewPoints { .. } => PipelineError::Data(message),
         _ => PipelineError::Adjustment(message),

@@ -82,7 +82,7 @@ fn gauss_newton(q: &[V3], w: Option<&[f64]>, c0: V3, r: f64) -> Option<(V3, Matr
     let options = Options {
         strategy: Strategy::GaussNewton,
         max_iterations: 30,
-        step_tolerance: (0.0, 1e-10),
+        small_step: |s| s.length < 1e-10 * s.to,
         cost_tolerance: 0.0,
     };
     let mut cone = Cone { q, w, r };
