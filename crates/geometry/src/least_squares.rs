@@ -160,9 +160,10 @@ pub fn minimize<D: Dim>(
 where
     DefaultAllocator: Allocator<D, D> + Allocator<D>,
 {
+    let start = objective.normal(&x0)?;
     let solution = match options.strategy {
-        Strategy::GaussNewton => gauss_newton(x0, options, objective)?,
-        Strategy::LevenbergMarquardt => levenberg_marquardt(x0, options, objective)?,
+        Strategy::GaussNewton => gauss_newton((x0, start), options, objective)?,
+        Strategy::LevenbergMarquardt => levenberg_marquardt((x0, start), options, objective)?,
     };
     solution.x.iter().all(|v| v.is_finite()).then_some(solution)
 }
@@ -184,52 +185,47 @@ where
     })
 }
 
+/// Gauss–Newton from `x` and its normal equations; the normal equations kept are those of
+/// the point the last step was taken from (none is formed after the last step).
 fn gauss_newton<D: Dim>(
-    mut x: OVector<f64, D>,
+    (mut x, mut normal): (OVector<f64, D>, Normal<D>),
     options: &Options,
     objective: &mut impl Objective<D>,
 ) -> Option<Solution<D>>
 where
     DefaultAllocator: Allocator<D, D> + Allocator<D>,
 {
-    let mut normal = objective.normal(&x)?;
     let mut iterations = 0;
-    if options.max_iterations == 0 {
-        return Some(Solution {
-            x,
-            normal,
-            iterations,
-            converged: false,
-        });
-    }
-    loop {
+    let mut converged = false;
+    while iterations < options.max_iterations {
         let dx = normal.matrix.clone().try_inverse()? * -&normal.gradient;
         let dx = objective.limit_step(&x, dx);
         let from = x.clone();
         x += &dx;
         iterations += 1;
-        let converged = small_step(options, &dx, &from, &x);
-        if converged || iterations >= options.max_iterations {
-            return Some(Solution {
-                x,
-                normal,
-                iterations,
-                converged,
-            });
+        converged = small_step(options, &dx, &from, &x);
+        if converged || iterations == options.max_iterations {
+            break;
         }
         normal = objective.normal(&x)?;
     }
+    Some(Solution {
+        x,
+        normal,
+        iterations,
+        converged,
+    })
 }
 
+/// Levenberg–Marquardt from `x` and its normal equations.
 fn levenberg_marquardt<D: Dim>(
-    mut x: OVector<f64, D>,
+    (mut x, mut normal): (OVector<f64, D>, Normal<D>),
     options: &Options,
     objective: &mut impl Objective<D>,
 ) -> Option<Solution<D>>
 where
     DefaultAllocator: Allocator<D, D> + Allocator<D>,
 {
-    let mut normal = objective.normal(&x)?;
     let mut lambda = 1e-6;
     let mut iterations = 0;
     let mut converged = false;

@@ -23,7 +23,7 @@
 //! repeated until the set is stable.
 
 use crate::error::{LrfError, Result};
-use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
+use nalgebra::{DMatrix, DVector, Dyn, Matrix3, Vector3};
 use pingcal_geometry::least_squares::{minimize, Normal, Options, Strategy};
 
 /// One LRF beam: origin, unit direction and measured range (mm), with its range σ (mm).
@@ -184,12 +184,13 @@ type Linearized = (DVector<f64>, DMatrix<f64>);
 
 /// Solves min Σ r² by Levenberg–Marquardt (`pingcal_geometry::least_squares`, at most
 /// `max_iter` iterations, until a step is under 1e-10 of `1 + |x|` or the cost falls by less
-/// than 1e-14 of `1 + cost`); `f(params) -> (r, J)` with `r` already weighted.
+/// than 1e-14 of `1 + cost`); `f(params) -> (r, J)` with `r` already weighted. Returns the
+/// parameters and the normal equations `JᵀJ`, `Jᵀr`, `rᵀr` at them.
 fn lm(
     x: DVector<f64>,
     max_iter: usize,
     f: &dyn Fn(&DVector<f64>) -> Linearized,
-) -> Result<DVector<f64>> {
+) -> Result<(DVector<f64>, Normal<Dyn>)> {
     let options = Options {
         strategy: Strategy::LevenbergMarquardt,
         max_iterations: max_iter,
@@ -201,7 +202,7 @@ fn lm(
         Some(Normal::from_jacobian(&r, &j))
     };
     minimize(x, &options, &mut normal)
-        .map(|s| s.x)
+        .map(|s| (s.x, s.normal))
         .ok_or_else(|| LrfError::Degenerate("sphere fit diverged".into()))
 }
 
@@ -397,7 +398,7 @@ fn refine_along_ray(
         }
         (r, j)
     };
-    let x = lm(DVector::from_column_slice(c.as_slice()), opt.max_iter, &f)?;
+    let (x, _) = lm(DVector::from_column_slice(c.as_slice()), opt.max_iter, &f)?;
     Ok(Vector3::new(x[0], x[1], x[2]))
 }
 
@@ -564,19 +565,19 @@ pub fn free_radius_along_ray(
         }
         (r, j)
     };
-    let x = lm(
+    let (x, at) = lm(
         DVector::from_column_slice(&[c.x, c.y, c.z, radius]),
         opt.max_iter,
         &f,
     )?;
-    let (r, j) = f(&x);
-    let inv = (j.transpose() * &j)
+    let inv = at
+        .matrix
         .try_inverse()
         .filter(|m| m.iter().all(|v| v.is_finite()) && m[(3, 3)] >= 0.0)
         .ok_or_else(|| {
             LrfError::Degenerate("free-radius fit: the rays do not determine the radius".into())
         })?;
-    let sigma0 = (r.norm_squared() / (rays.len() - 4) as f64).sqrt();
+    let sigma0 = (at.cost / (rays.len() - 4) as f64).sqrt();
     if !(x[3] > 0.0 && x[3].is_finite()) {
         return Err(LrfError::Degenerate(
             "free-radius fit: no positive radius".into(),
@@ -680,7 +681,7 @@ fn orth_passes(
         if n_par == 4 {
             x0.push(rad);
         }
-        let x = lm(DVector::from_vec(x0), opt.max_iter, &f)?;
+        let (x, _) = lm(DVector::from_vec(x0), opt.max_iter, &f)?;
         c = Vector3::new(x[0], x[1], x[2]);
         if n_par == 4 {
             rad = x[3].abs();

@@ -3,8 +3,9 @@
 //!
 //! The residual of unit ray `q` is `acos(q·ĉ) − asin(r/|c|)` (radians), its derivatives by
 //! the three coordinates of `c` analytic ([`cone_residuals`]). [`fit_cone`] is Gauss–Newton
-//! from a start (`pingcal_geometry::least_squares`, steps never through the camera), with the covariance `s² (JᵀJ)⁻¹` from the residuals' mean square; [`robust_fit`]
-//! is the same by iteratively reweighted least squares with Tukey's biweight on a scale from
+//! from a start (`pingcal_geometry::least_squares`, steps never through the camera), with
+//! the covariance `s² (JᵀJ)⁻¹` from the residuals' mean square; [`robust_fit`] is the same
+//! by iteratively reweighted least squares with Tukey's biweight on a scale from
 //! the residuals' median absolute deviation, for outlines partly covered or crossed by other
 //! edges, and says which rays are inliers. Rays are in any right-handed camera frame; the
 //! centre comes out in that frame, in the radius' unit.
@@ -76,28 +77,25 @@ impl Objective<U3> for Cone<'_> {
 }
 
 /// Weighted Gauss–Newton of the centre from `c0` (weights `w`, `None`: all 1; at most 30
-/// steps, until one is under 1e-10 of the distance); the centre and the normal matrix
-/// `Σ wᵢ Jᵢ Jᵢᵀ` at it.
-fn gauss_newton(q: &[V3], w: Option<&[f64]>, c0: V3, r: f64) -> Option<(V3, Matrix3<f64>)> {
+/// steps, until one is under 1e-10 of the distance).
+fn gauss_newton(q: &[V3], w: Option<&[f64]>, c0: V3, r: f64) -> Option<V3> {
     let options = Options {
         strategy: Strategy::GaussNewton,
         max_iterations: 30,
         small_step: |s| s.length < 1e-10 * s.to,
         cost_tolerance: 0.0,
     };
-    let mut cone = Cone { q, w, r };
-    let c = minimize(c0, &options, &mut cone)?.x;
-    Some((c, cone.normal(&c)?.matrix))
+    Some(minimize(c0, &options, &mut Cone { q, w, r })?.x)
 }
 
 /// Gauss–Newton fit of the centre to the rays; returns the centre, its covariance
 /// `s²(JᵀJ)⁻¹` with s² the residuals' mean square over n − 3, and s (radians).
 pub fn fit_cone(q: &[V3], c0: V3, r: f64) -> Option<(V3, Matrix3<f64>, f64)> {
-    let (c, n) = gauss_newton(q, None, c0, r)?;
-    let (res, _) = cone_residuals(q, &c, r)?;
-    let dof = res.len().checked_sub(3).filter(|&d| d > 0)?;
-    let s2 = res.iter().map(|e| e * e).sum::<f64>() / dof as f64;
-    let cov = n.try_inverse()? * s2;
+    let c = gauss_newton(q, None, c0, r)?;
+    let at = Cone { q, w: None, r }.normal(&c)?;
+    let dof = q.len().checked_sub(3).filter(|&d| d > 0)?;
+    let s2 = at.cost / dof as f64;
+    let cov = at.matrix.try_inverse()? * s2;
     Some((c, cov, s2.sqrt()))
 }
 
@@ -148,7 +146,7 @@ fn nearest(places: &[Vec<V3>], c: &V3, r: f64) -> (Vec<V3>, Vec<usize>) {
 /// the start may be poor.
 fn trimmed(places: &[Vec<V3>], c0: V3, r: f64) -> Option<V3> {
     let h = places.len().div_ceil(2).max(6);
-    let (mut c, _) = gauss_newton(&nearest(places, &c0, r).0, None, c0, r)?;
+    let mut c = gauss_newton(&nearest(places, &c0, r).0, None, c0, r)?;
     let mut last: Vec<usize> = Vec::new();
     for _ in 0..20 {
         let (q, _) = nearest(places, &c, r);
@@ -161,7 +159,7 @@ fn trimmed(places: &[Vec<V3>], c0: V3, r: f64) -> Option<V3> {
             break;
         }
         let sub: Vec<V3> = idx.iter().map(|&i| q[i]).collect();
-        c = gauss_newton(&sub, None, c, r)?.0;
+        c = gauss_newton(&sub, None, c, r)?;
         last = idx;
     }
     Some(c)
@@ -211,7 +209,7 @@ pub fn robust_fit_choosing(
         if w.iter().filter(|&&x| x > 0.0).count() < 6 {
             return None;
         }
-        let (cn, _) = gauss_newton(&q, Some(&w), c, r)?;
+        let cn = gauss_newton(&q, Some(&w), c, r)?;
         let moved = (cn - c).norm();
         c = cn;
         let settled = (s - sigma).abs() < 0.01 * s && moved < 1e-7 * c.norm();
