@@ -44,7 +44,7 @@ pub struct RadialProfile {
 /// Observations that do not project are left out.
 pub fn radial_profile(
     problem: &Problem,
-    camera: usize,
+    camera: CameraKey,
     (width, height): (u32, u32),
     rings: usize,
     rejected: &[nalgebra::Vector2<f64>],
@@ -68,7 +68,7 @@ pub fn radial_profile(
         dropped[ring_of((uv - pp).norm())] += 1;
     }
     for o in &problem.observations {
-        if problem.images[o.image].camera != CameraKey(camera) {
+        if problem.images[o.image].camera != camera {
             continue;
         }
         let Some(res) = problem.residual(o) else {
@@ -202,14 +202,14 @@ mod tests {
             observations: obs.clone(),
             ..Problem::default()
         };
-        let wrong = radial_profile(&problem(pinhole, c), 0, (1280, 720), 5, &[]);
+        let wrong = radial_profile(&problem(pinhole, c), CameraKey(0), (1280, 720), 5, &[]);
         let (inner, outer) = wrong.grows_radially().expect("a radial pattern");
         assert!(
             outer.radial_px > 10.0 * inner.radial_px.max(0.01),
             "{wrong:?}"
         );
         let right_problem = problem(Arc::new(FisheyeCamera), fisheye.to_vec());
-        let right = radial_profile(&right_problem, 0, (1280, 720), 5, &[]);
+        let right = radial_profile(&right_problem, CameraKey(0), (1280, 720), 5, &[]);
         assert!(right.grows_radially().is_none(), "{right:?}");
         assert!(right.rings.iter().all(|r| r.radial_px < 1e-9));
         assert!(right.rejections_grow().is_none());
@@ -223,7 +223,7 @@ mod tests {
             .map(|o| o.uv)
             .filter(|uv| (uv - nalgebra::Vector2::new(639.5, 359.5)).norm() > 0.8 * r_far)
             .collect();
-        let removed = radial_profile(&right_problem, 0, (1280, 720), 5, &outer);
+        let removed = radial_profile(&right_problem, CameraKey(0), (1280, 720), 5, &outer);
         let (_, ring) = removed.rejections_grow().expect("removals at the edge");
         assert!(ring.rejected > 0, "{removed:?}");
     }

@@ -159,7 +159,7 @@ pub fn lens_doubt(project: &Project, adjusted: &Adjusted) -> Option<String> {
             .collect();
         let profile = pingcal_ba::diagnostics::radial_profile(
             problem,
-            k,
+            pingcal_ba::CameraKey(k),
             (c.width, c.height),
             5,
             &rejected,

@@ -31,7 +31,6 @@ use super::precision::{
 use super::selected_inverse::Factored;
 use super::sigma::PrecisionError;
 use crate::datum::{check, Datum};
-use crate::keys::CameraKey;
 use crate::problem::Problem;
 use nalgebra::DMatrix;
 
@@ -227,11 +226,7 @@ fn describe(problem: &Problem, named: &[&IntrinsicRow]) -> String {
     let parts: Vec<String> = by_camera
         .iter()
         .map(|(c, list)| {
-            let images = problem
-                .images
-                .iter()
-                .filter(|i| i.camera == CameraKey(*c))
-                .count();
+            let images = problem.images.iter().filter(|i| i.camera.0 == *c).count();
             format!(
                 "{} of camera '{}' ({} image{})",
                 and_list(list),

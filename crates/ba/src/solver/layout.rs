@@ -394,18 +394,12 @@ impl Blocks {
                 image_centre_axes[i] = Some(im.free_centre_axes());
             }
             let pd = pose_dim(&image_centre_axes[i]);
-            let c = im.camera;
-            let own_camera = images_of_camera[c.0] == 1 && !camera_free[c.0].is_empty();
-            let slot = new_block(
-                pd + if own_camera {
-                    camera_free[c.0].len()
-                } else {
-                    0
-                },
-            );
+            let c = im.camera.0;
+            let own_camera = images_of_camera[c] == 1 && !camera_free[c].is_empty();
+            let slot = new_block(pd + if own_camera { camera_free[c].len() } else { 0 });
             image_slot[i] = Some(slot);
             if own_camera {
-                camera_slot[c.0] = Some(Slot {
+                camera_slot[c] = Some(Slot {
                     off: pd as u16,
                     ..slot
                 });
