@@ -1366,10 +1366,8 @@ fn not_estimable(
     free: &[bool; 8],
 ) -> Option<(f64, String)> {
     let undetermined = |sd: f64| {
-        format!(
-        "the data do not determine it (σ {:.3}{u} against a prior of {:.3}{u}: the sweep and the balls leave it free)",
-        to_unit(k, sd), to_unit(k, PRIOR_SIGMA[k]), u = unit(k)
-    )
+        let (sd, prior, u) = (to_unit(k, sd), to_unit(k, PRIOR_SIGMA[k]), unit(k));
+        format!("the data do not determine it (σ {sd:.3}{u} against a prior of {prior:.3}{u}: the sweep and the balls leave it free)")
     };
     let row = (rows.mount(k), PRIOR_SIGMA[k]);
     row_not_estimable(

@@ -107,11 +107,8 @@ pub enum OutputError {
 
 impl OutputError {
     /// The [`OutputError::Io`] of `action` on `path`.
-    fn io<'a>(
-        path: &'a Path,
-        action: &'static str,
-    ) -> impl FnOnce(std::io::Error) -> OutputError + 'a {
-        move |error| OutputError::Io {
+    fn io(path: &Path, action: &'static str, error: std::io::Error) -> OutputError {
+        OutputError::Io {
             path: path.to_path_buf(),
             action,
             error,
@@ -133,7 +130,7 @@ impl FolderLock {
     /// (its process gone) is taken over and the killed run's leftovers removed.
     pub fn take(given: &Path) -> Result<FolderLock, OutputError> {
         if let Some(parent) = given.parent().filter(|p| !p.as_os_str().is_empty()) {
-            fs::create_dir_all(parent).map_err(OutputError::io(parent, "create"))?;
+            fs::create_dir_all(parent).map_err(|e| OutputError::io(parent, "create", e))?;
         }
         let dir = real_dir(given);
         let path = sibling(&dir, "pingcal-lock");
@@ -167,7 +164,7 @@ impl FolderLock {
                         }
                     }
                 }
-                Err(e) => return Err(OutputError::io(&path, "lock")(e)),
+                Err(e) => return Err(OutputError::io(&path, "lock", e)),
             }
         }
         Err(OutputError::Contended { dir, lock: path })
@@ -409,7 +406,7 @@ fn rescue_users(old: &Path, dir: &Path) {
 /// error leaves the earlier set as it was.
 pub fn write_set(lock: &FolderLock, files: &[SetFile]) -> Result<(), OutputError> {
     let dir = lock.dir();
-    fs::create_dir_all(dir).map_err(OutputError::io(dir, "create"))?;
+    fs::create_dir_all(dir).map_err(|e| OutputError::io(dir, "create", e))?;
     if swap_in(dir, files)? {
         return Ok(());
     }
@@ -430,11 +427,11 @@ pub fn write_set(lock: &FolderLock, files: &[SetFile]) -> Result<(), OutputError
             for (p, _) in &paths[..=k] {
                 let _ = fs::remove_file(partial(p));
             }
-            return Err(OutputError::io(path, "write")(e));
+            return Err(OutputError::io(path, "write", e));
         }
     }
     for (path, _) in &paths {
-        fs::rename(partial(path), path).map_err(OutputError::io(path, "write"))?;
+        fs::rename(partial(path), path).map_err(|e| OutputError::io(path, "write", e))?;
     }
     remove_stale_overlays(dir, files);
     Ok(())
@@ -530,7 +527,7 @@ pub fn swap_in(dir: &Path, files: &[SetFile]) -> Result<bool, OutputError> {
     }
     for (rel, bytes) in files {
         write_file(&new.join(rel), bytes)
-            .map_err(|e| cleanup(OutputError::io(&dir.join(rel), "write")(e)))?;
+            .map_err(|e| cleanup(OutputError::io(&dir.join(rel), "write", e)))?;
     }
     if carry && !carry_users(&dir, &new).unwrap_or(false) {
         let _ = fs::remove_dir_all(&new);
@@ -539,7 +536,7 @@ pub fn swap_in(dir: &Path, files: &[SetFile]) -> Result<bool, OutputError> {
     if !dir.exists() {
         return fs::rename(&new, &dir)
             .map(|()| true)
-            .map_err(|e| cleanup(OutputError::io(&dir, "write")(e)));
+            .map_err(|e| cleanup(OutputError::io(&dir, "write", e)));
     }
     match exchange(&new, &dir) {
         Ok(()) => {
@@ -593,7 +590,7 @@ pub fn write_outcome(
 /// and the link stays a link; a device or FIFO behind `path` (`/dev/stdout`) is written
 /// straight, with no temporary file ([`write_target`]).
 pub fn write_atomic(path: &std::path::Path, bytes: &[u8]) -> Result<(), OutputError> {
-    let cannot = |e: std::io::Error| OutputError::io(path, "write")(e);
+    let cannot = |e| OutputError::io(path, "write", e);
     let target = match write_target(path)? {
         WriteTarget::Direct(p) => {
             use std::io::Write;
@@ -631,7 +628,7 @@ pub enum WriteTarget {
 pub fn write_target(path: &std::path::Path) -> Result<WriteTarget, OutputError> {
     match std::fs::metadata(path) {
         Ok(m) if m.is_file() => {
-            let t = std::fs::canonicalize(path).map_err(OutputError::io(path, "resolve"))?;
+            let t = std::fs::canonicalize(path).map_err(|e| OutputError::io(path, "resolve", e))?;
             return Ok(WriteTarget::Replace(t));
         }
         Ok(m) if !m.is_dir() => return Ok(WriteTarget::Direct(path.to_path_buf())),
@@ -641,7 +638,7 @@ pub fn write_target(path: &std::path::Path) -> Result<WriteTarget, OutputError> 
     for _ in 0..40 {
         match std::fs::symlink_metadata(&p) {
             Ok(m) if m.file_type().is_symlink() => {
-                let t = std::fs::read_link(&p).map_err(OutputError::io(path, "resolve"))?;
+                let t = std::fs::read_link(&p).map_err(|e| OutputError::io(path, "resolve", e))?;
                 p = match p.parent() {
                     Some(d) if t.is_relative() => d.join(t),
                     _ => t,
