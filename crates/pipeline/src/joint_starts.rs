@@ -34,6 +34,9 @@ struct JointRun<'a> {
     scene: &'a scene::Scene,
     adjusted: &'a bundle::Adjusted,
     opts: &'a Options,
+    /// The joint adjustment's observation groups ([`joint::BUILT_IN`] unless the caller
+    /// gives its own).
+    groups: &'a [joint::GroupBuilder],
     rep: &'a Reporter,
     /// Passes after the first that look at the LRF again, at most: [`JOINT_REFINEMENTS`],
     /// or none while the camera's model cannot hold its lens ([`refinements`]).
@@ -85,7 +88,7 @@ impl JointRun<'_> {
             hold_mount,
             seed: self.opts.seed,
         };
-        joint::joint_adjustment(&input, self.rep).map_err(|e| e.to_string())
+        joint::joint_adjustment(&input, self.groups, self.rep).map_err(|e| e.to_string())
     }
 
     /// The passes of the joint adjustment from one start (the cloud `lrf` through the start
@@ -294,7 +297,7 @@ pub(crate) fn run_joint(
     (dets, scene, adjusted): (&scene::Detections, &scene::Scene, &bundle::Adjusted),
     (lrf, prior): (&lrf::LrfData, MountModel),
     ext: &extrinsic::Extrinsics,
-    opts: &Options,
+    (opts, groups): (&Options, &[joint::GroupBuilder]),
     rep: &Reporter,
 ) -> std::result::Result<joint::JointOutcome, joint::JointError> {
     let Some(ev) = &ext.spheres else {
@@ -309,6 +312,7 @@ pub(crate) fn run_joint(
         scene,
         adjusted,
         opts,
+        groups,
         rep,
         refinements: refinements(adjusted),
     };
