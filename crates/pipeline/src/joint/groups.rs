@@ -1,6 +1,6 @@
 //! The joint adjustment's observation groups: one trait, so that a kind of observation joins
 //! the adjustment, its outlier rounds, its χ² and its outcome in one file and one line of
-//! [`BUILT_IN`].
+//! [`super::BUILT_IN`].
 //!
 //! **What a group is.** A set of observations of one kind (the beams on the control balls,
 //! the beams on the room's planes, …) that become residual blocks of the one joint problem
@@ -19,12 +19,12 @@
 //!   `√(Σ e² / n)`, and its blunder test compares each observation's standardised
 //!   residual `w` (Baarda's, from the joint redundancy numbers) with the group's own σ0
 //!   (`√(Σ (e/σ)² / Σ r)`, at least 1): beyond [`super::BEAM_REJECT`] it is a gross error
-//!   ([`super::rounds`]) and [`ObservationGroup::retain`] removes it;
+//!   (the outlier rounds) and [`ObservationGroup::retain`] removes it;
 //! - what it left out before the adjustment and why ([`ObservationGroup::left_out`]), and
 //!   its notes.
 //!
 //! **Where a group is registered.** A [`GroupBuilder`] makes a group from the joint
-//! adjustment's input (or none, when the data have no such observations); [`BUILT_IN`] lists
+//! adjustment's input (or none, when the data have no such observations); [`super::BUILT_IN`] lists
 //! the built-in ones in the order their residuals and blocks enter the problem; a run uses
 //! that list unless its caller gives its own (`pingcal_pipeline::calibrate_with_groups`: a
 //! test adds a taped distance between two balls this way).
@@ -85,12 +85,6 @@ pub struct GroupContext<'a, 'b> {
 /// without them).
 pub type GroupBuilder =
     fn(&GroupContext, &mut Problem) -> Result<Option<Box<dyn ObservationGroup>>>;
-
-/// The built-in groups, in the order their blocks and residuals enter the joint problem.
-pub const BUILT_IN: [GroupBuilder; 2] = [
-    super::ball_beams::BallBeams::build,
-    super::plane_beams::PlaneBeams::build,
-];
 
 /// A group of observations of the joint adjustment: see the module doc.
 pub trait ObservationGroup: std::fmt::Debug + Send + Sync {

@@ -82,7 +82,7 @@ mod rounds;
 
 pub use ball_beams::{AT_SILHOUETTE, GRAZING, NAME as BALL_BEAMS};
 pub use convergence::{Convergence, SAME_MINIMUM_Z, SECOND_START_Z};
-pub use groups::{GroupBuilder, GroupOutcome, ObservationGroup, BUILT_IN};
+pub use groups::{GroupBuilder, GroupOutcome, ObservationGroup};
 pub use outcome::{JointOutcome, LrfView, MountEstimate};
 
 use super::bundle::Adjusted;
@@ -97,6 +97,11 @@ use pingcal_geometry::Rigid3;
 use pingcal_lrf::room::Gate;
 use pingcal_lrf::sensor::{MountModel, MountParam, RangeNoise, MOUNT_PARAM_NAMES};
 use pingcal_project::Project;
+
+/// The built-in observation groups, in the order their blocks and residuals enter the joint
+/// problem: a new kind of observation is its file and one line here.
+pub const BUILT_IN: [GroupBuilder; 2] =
+    [ball_beams::BallBeams::build, plane_beams::PlaneBeams::build];
 
 /// σ of the weak prior on each mount parameter while estimability is tested, in the
 /// parameter's unit (mm, rad, 1): far wider than any real error, so that the prior only

@@ -117,7 +117,7 @@ pub struct LrfView {
     /// a cloud through a better mount may give back.
     pub rejected_at_unmatched: usize,
     /// Labels (`[balls] labels`) of balls the images did not measure where a sphere matched
-    /// to no ball lies in the main image ([`super::matching::unmeasured_labels_at`]): those
+    /// to no ball lies in the main image ([`crate::matching::unmeasured_labels_at`]): those
     /// spheres are balls the photographs missed, not spurious ones.
     pub unmeasured_labels: Vec<String>,
 }
