@@ -963,7 +963,7 @@ mod tests {
         [o.fx * xd + o.cx, o.fy * yd + o.cy]
     }
 
-    /// The README's example project (two cameras, `[stereo]` left and right).
+    /// The documented example project (docs/project.md: two cameras, `[stereo]` left and right).
     fn example_project(main_camera: &str) -> Project {
         let mut file = crate::test_support::readme_project_file();
         file.main_camera = main_camera.into();

@@ -14,8 +14,8 @@
 //! when unknown), `parse` (text to [`ProjectFile`], errors with the line) and `validate`
 //! (the file against itself).
 //!
-//! The README's section "The project file" has a complete, commented example; the tests
-//! of this crate parse and validate that very text, so it cannot drift.
+//! docs/project.md has a complete, commented example; the tests of this crate parse and
+//! validate that very text, so it cannot drift.
 
 #[macro_use]
 mod closed_sets;
