@@ -12,7 +12,9 @@ use nalgebra::Vector3;
 use pingcal_ba::residual::check_residual_jacobians;
 use pingcal_ba::{Block, Jacobians, PointKey, Problem, Residual};
 use pingcal_ba::{ResidualBlock, Value};
-use pingcal_pipeline::joint::groups::{At, GroupContext, ObservationGroup, SensorKeys};
+use pingcal_pipeline::joint::groups::{
+    retain_flagged, At, GroupContext, ObservationGroup, SensorKeys,
+};
 use pingcal_pipeline::joint::{GroupBuilder, BUILT_IN};
 use pingcal_pipeline::{Options, PipelineError, Reporter};
 use serde_json::Value as Json;
@@ -127,9 +129,7 @@ impl ObservationGroup for TapedDistance {
     }
 
     fn retain(&mut self, keep: &[bool]) {
-        let mut it = keep.iter();
-        self.tapes
-            .retain(|_| *it.next().expect("one flag per tape"));
+        retain_flagged(&mut self.tapes, keep);
     }
 
     fn as_any(&self) -> &dyn Any {

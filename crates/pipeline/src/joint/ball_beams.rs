@@ -4,7 +4,7 @@
 //! reaches its silhouette, are left out and counted; the check balls' beams are left out so
 //! that the check points stay independent of the estimate.
 
-use super::groups::{At, GroupContext, ObservationGroup, SensorKeys};
+use super::groups::{retain_flagged, At, GroupContext, ObservationGroup, SensorKeys};
 use super::joint_balls;
 use crate::context::{PipelineError, Result};
 use pingcal_ba::{Problem, ResidualBlock};
@@ -124,9 +124,7 @@ impl ObservationGroup for BallBeams {
     }
 
     fn retain(&mut self, keep: &[bool]) {
-        let mut it = keep.iter();
-        self.beams
-            .retain(|_| *it.next().expect("one flag per beam"));
+        retain_flagged(&mut self.beams, keep);
     }
 
     fn left_out(&self) -> Vec<(&'static str, usize)> {

@@ -166,6 +166,14 @@ impl GroupOutcome {
     }
 }
 
+/// Keeps the `items` flagged `true` in `keep` (one flag per item, in order): what an
+/// [`ObservationGroup::retain`] does with its observations.
+pub fn retain_flagged<T>(items: &mut Vec<T>, keep: &[bool]) {
+    assert_eq!(items.len(), keep.len(), "one flag per observation");
+    let mut it = keep.iter();
+    items.retain(|_| *it.next().expect("one flag per observation"));
+}
+
 /// `Σ (e/σ)²` of `errors` with the σ's `sigmas`.
 pub fn chi2(errors: &[f64], sigmas: &[f64]) -> f64 {
     errors

@@ -4,7 +4,7 @@
 //! mount ([`pingcal_lrf::room::BeamOnPlane`]). They constrain the mount parameters the balls
 //! leave loose; with no mount parameter asked for they fix nothing and are left out.
 
-use super::groups::{At, GroupContext, ObservationGroup, Plane, SensorKeys};
+use super::groups::{retain_flagged, At, GroupContext, ObservationGroup, Plane, SensorKeys};
 use super::{asked, PLANE_BEAMS};
 use crate::context::Result;
 use pingcal_ba::{ParameterBlock, ParameterKey, ParameterValue, Problem, ResidualBlock};
@@ -129,9 +129,7 @@ impl ObservationGroup for PlaneBeams {
     }
 
     fn retain(&mut self, keep: &[bool]) {
-        let mut it = keep.iter();
-        self.beams
-            .retain(|_| *it.next().expect("one flag per plane beam"));
+        retain_flagged(&mut self.beams, keep);
     }
 
     fn notes(&self, at: &At) -> Vec<String> {
