@@ -10,12 +10,13 @@
 use super::scene::{silhouette_is_ellipse, BallFit, Detections, ImageMeasurements};
 use crate::context::{Options, PipelineError, Result};
 use crate::progress::Reporter;
-use pingcal_project::Project;
+use pingcal_project::{Project, ProjectCamera};
 use pingcal_targets::detect::BallMode;
 use pingcal_targets::ellipse::Ellipse;
 use pingcal_targets::refusal::{counts, why_nothing, Refusal};
 use pingcal_targets::{load_image, DetectParams, Detector, GrayImage, TargetKind};
 use rayon::prelude::*;
+use std::path::Path;
 
 /// The detector of `project`: its code family and ring, balls told later, saturated targets
 /// measured when `[targets] measure_saturated` or `opts.measure_saturated` asks.
@@ -47,36 +48,10 @@ pub fn detect_all(project: &Project, opts: &Options, rep: &Reporter) -> Result<D
                 .iter()
                 .find(|c| c.id == im.camera)
                 .expect("validated camera");
-            if img.width != cam.width as usize || img.height != cam.height as usize {
-                return Err(PipelineError::Input(format!(
-                    "{}: the image is {}×{} pixels, but camera '{}' is {}×{} (project.toml [[cameras]])",
-                    path.display(),
-                    img.width,
-                    img.height,
-                    cam.id,
-                    cam.width,
-                    cam.height
-                )));
-            }
-            let d = detector.detect(&img);
-            let keep_edges = !silhouette_is_ellipse(cam.model.kind());
-            let ball_fits = d
-                .targets
-                .iter()
-                .map(|t| {
-                    (t.kind == TargetKind::Plain && t.ellipse.radius() >= 2.0)
-                        .then(|| ball_fit(&img, &t.ellipse, keep_edges))
-                        .flatten()
-                })
-                .collect();
+            check_size(path, &img, cam)?;
+            let measured = measure(&detector, &img, cam);
             pb.advance(1);
-            let dets = ImageMeasurements {
-                width: d.width,
-                height: d.height,
-                targets: d.targets.into(),
-                ball_fits,
-            };
-            Ok((dets, d.refused))
+            Ok(measured)
         })
         .collect();
     pb.finish();
@@ -86,8 +61,59 @@ pub fn detect_all(project: &Project, opts: &Options, rep: &Reporter) -> Result<D
         .into_iter()
         .unzip();
     let dets: Detections = dets.into();
+    log_detections(project, &dets, &refused, rep);
+    Ok(dets)
+}
+
+/// An error naming the image and its camera when `img` is not of `cam`'s size.
+fn check_size(path: &Path, img: &GrayImage, cam: &ProjectCamera) -> Result<()> {
+    if img.width != cam.width as usize || img.height != cam.height as usize {
+        return Err(PipelineError::Input(format!(
+            "{}: the image is {}×{} pixels, but camera '{}' is {}×{} (project.toml [[cameras]])",
+            path.display(),
+            img.width,
+            img.height,
+            cam.id,
+            cam.width,
+            cam.height
+        )));
+    }
+    Ok(())
+}
+
+/// The targets of one image of camera `cam`, with the ball fit of every plain blob of two
+/// pixels' radius or more, and the candidates the detector refused.
+fn measure(
+    detector: &Detector,
+    img: &GrayImage,
+    cam: &ProjectCamera,
+) -> (ImageMeasurements, Vec<Refusal>) {
+    let d = detector.detect(img);
+    let keep_edges = !silhouette_is_ellipse(cam.model.kind());
+    let ball_fits = d
+        .targets
+        .iter()
+        .map(|t| {
+            (t.kind == TargetKind::Plain && t.ellipse.radius() >= 2.0)
+                .then(|| ball_fit(img, &t.ellipse, keep_edges))
+                .flatten()
+        })
+        .collect();
+    let dets = ImageMeasurements {
+        width: d.width,
+        height: d.height,
+        targets: d.targets.into(),
+        ball_fits,
+    };
+    (dets, d.refused)
+}
+
+/// Logs what was detected: each image without targets and why, then the counts of coded
+/// targets, numbers read, round blobs, saturated targets and refused candidates.
+fn log_detections(project: &Project, dets: &Detections, refused: &[Vec<Refusal>], rep: &Reporter) {
+    let f = &project.file;
     let (mut coded, mut ids, mut plain, mut saturated) = (0, 0, 0, 0);
-    for d in &dets {
+    for d in dets {
         for t in &d.targets {
             saturated += usize::from(t.saturated);
             match t.kind {
@@ -122,7 +148,6 @@ pub fn detect_all(project: &Project, opts: &Options, rep: &Reporter) -> Result<D
         },
         if refused.is_empty() { "none".into() } else { refused.join(", ") }
     ));
-    Ok(dets)
 }
 
 /// The ball fit of a plain blob outlined by `seed`, with its edge points when `keep_edges` (none

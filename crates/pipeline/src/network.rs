@@ -11,7 +11,7 @@
 use super::adjust::{rig_cameras, Datum, SceneProblem};
 use super::ids::{DetectionId, IdVec, ImageId, PointId};
 use super::scene::{
-    coded_blunder, image_file, main_image, Detections, PointKind, Scene, ScenePoint,
+    coded_blunder, image_file, main_image, CodedBlunder, Detections, PointKind, Scene, ScenePoint,
 };
 use crate::context::{Options, PipelineError, Result};
 use crate::progress::Reporter;
@@ -36,28 +36,10 @@ pub fn initial_network(
 ) -> Result<Scene> {
     let f = &project.file;
     let seen = coded_tracks(dets);
-    if seen.len() < 5 {
-        return Err(PipelineError::Data(format!(
-            "{}: only {} coded targets were read in two or more images; at least 5 are needed to orient the images (are the targets {} and large enough in the images?)",
-            project.path.display(),
-            seen.len(),
-            f.targets.family
-        )));
-    }
+    enough_coded_targets(project, seen.len())?;
     let start = starting_scene(project, &seen);
     let sp = SceneProblem::build(project, dets, &start, Datum::Free, None);
-    if sp.problem.distances.is_empty() {
-        let list: Vec<String> = f
-            .distances
-            .iter()
-            .map(|d| format!("{}–{}", d.from, d.to))
-            .collect();
-        return Err(PipelineError::Data(format!(
-            "{}: no measured distance joins two coded targets read in two or more images ([[distances]]: {}); the scale of the network is undefined",
-            project.path.display(),
-            if list.is_empty() { "none".into() } else { list.join(", ") }
-        )));
-    }
+    scaled_by_a_distance(project, &sp)?;
     let mut options = IncrementalOptions {
         bundle: solver::Options {
             max_iterations: 50,
@@ -83,22 +65,66 @@ pub fn initial_network(
         ));
     }
     log_blunders(project, dets, &scene, 0, rep);
-    if !init.refused_by_angle.is_empty() {
-        let list: Vec<String> = (init.refused_by_angle.iter())
-            .map(|(name, a)| format!("{name} ({a:.2}°)"))
-            .collect();
-        let why = format!(
-            "{} coded target(s) left out of the network: their rays meet at under {min_angle}° ([network] min_intersection_angle_deg)",
-            list.len()
-        );
-        rep.log(format!("  {why}: {}", list.join(", ")));
-        // an image left unoriented may be so for want of those targets
-        for (_, reason) in &mut scene.unoriented {
-            reason.push_str(&format!("; {why}"));
-        }
-    }
+    note_refused_by_angle(&init, min_angle, &mut scene, rep);
     scene.start = start_used.describe().into();
     scene.warnings = failed;
+    log_network(project, &scene, &init, rep);
+    Ok(scene)
+}
+
+/// An error unless at least 5 coded targets (`seen` of them) were read in two or more
+/// images: fewer cannot orient the images.
+fn enough_coded_targets(project: &Project, seen: usize) -> Result<()> {
+    if seen < 5 {
+        return Err(PipelineError::Data(format!(
+            "{}: only {} coded targets were read in two or more images; at least 5 are needed to orient the images (are the targets {} and large enough in the images?)",
+            project.path.display(),
+            seen,
+            project.file.targets.family
+        )));
+    }
+    Ok(())
+}
+
+/// An error unless a measured distance of `sp` joins two of its coded targets: without
+/// one the network's scale is undefined.
+fn scaled_by_a_distance(project: &Project, sp: &SceneProblem) -> Result<()> {
+    if sp.problem.distances.is_empty() {
+        let list: Vec<String> = (project.file.distances.iter())
+            .map(|d| format!("{}–{}", d.from, d.to))
+            .collect();
+        return Err(PipelineError::Data(format!(
+            "{}: no measured distance joins two coded targets read in two or more images ([[distances]]: {}); the scale of the network is undefined",
+            project.path.display(),
+            if list.is_empty() { "none".into() } else { list.join(", ") }
+        )));
+    }
+    Ok(())
+}
+
+/// Logs the coded targets that the initialiser left out because their rays meet at under
+/// `min_angle` degrees, and adds that to the reason of every image left unoriented (it may
+/// be so for want of them).
+fn note_refused_by_angle(init: &Initialised, min_angle: f64, scene: &mut Scene, rep: &Reporter) {
+    if init.refused_by_angle.is_empty() {
+        return;
+    }
+    let list: Vec<String> = (init.refused_by_angle.iter())
+        .map(|(name, a)| format!("{name} ({a:.2}°)"))
+        .collect();
+    let why = format!(
+        "{} coded target(s) left out of the network: their rays meet at under {min_angle}° ([network] min_intersection_angle_deg)",
+        list.len()
+    );
+    rep.log(format!("  {why}: {}", list.join(", ")));
+    for (_, reason) in &mut scene.unoriented {
+        reason.push_str(&format!("; {why}"));
+    }
+}
+
+/// Logs the network's warnings, the images left unoriented and why, and one line of how it
+/// started, how many images and points it has and its RMS.
+fn log_network(project: &Project, scene: &Scene, init: &Initialised, rep: &Reporter) {
     for w in &scene.warnings {
         rep.log(format!("warning: {w}"));
     }
@@ -116,7 +142,6 @@ pub fn initial_network(
         scene.points.len(),
         init.problem.rms_px()
     ));
-    Ok(scene)
 }
 
 pub use crate::context::Start;
@@ -178,36 +203,8 @@ fn first_start(
                 .map_err(|e| e.to_string())
         });
         match tried {
-            // a start that leaves images out is kept only until one orients more, one of a
-            // suspect RMS until one orients as many at a lower RMS
             Ok((init, scene)) => {
-                let (rms, n) = (init.problem.rms_px(), scene.oriented().len());
-                // as many images as the suspect start before it, at a lower RMS
-                let lower = |b: &(Start, Initialised, Scene)| {
-                    let rms_b = b.1.problem.rms_px();
-                    n == b.2.oriented().len() && rms_b > SUSPECT_START_RMS_PX && rms < rms_b
-                };
-                let better = best
-                    .as_ref()
-                    .is_none_or(|b| n > b.2.oriented().len() || lower(b));
-                if let Some(b) = best.as_ref().filter(|b| lower(b)) {
-                    passed_over.push(format!(
-                        "{} oriented {} images at RMS {:.3} px; {} oriented {} at RMS {:.3} px, which is kept",
-                        b.0.describe(),
-                        b.2.oriented().len(),
-                        b.1.problem.rms_px(),
-                        s.describe(),
-                        n,
-                        rms
-                    ));
-                }
-                if better {
-                    best = Some((s, init, scene));
-                }
-                let done = |b: &(Start, Initialised, Scene)| {
-                    b.2.unoriented.is_empty() && b.1.problem.rms_px() <= SUSPECT_START_RMS_PX
-                };
-                if best.as_ref().is_some_and(done) {
+                if keep_if_better(&mut best, (s, init, scene), &mut passed_over) {
                     break;
                 }
             }
@@ -229,6 +226,53 @@ fn first_start(
             .collect();
         return Ok((s, init, scene, warnings));
     }
+    Err(no_start(project, asked, &failed))
+}
+
+/// A start that worked, with its initialiser's solution and its scene.
+type Started = (Start, Initialised, Scene);
+
+/// Makes `tried` the `best` start when there is none yet, when it orients more images, or
+/// when the best one's RMS is suspect and `tried` orients as many at a lower RMS (which
+/// `passed_over` then says). True when the best start now orients every image at an RMS
+/// of at most [`SUSPECT_START_RMS_PX`]: no later start is tried.
+fn keep_if_better(
+    best: &mut Option<Started>,
+    tried: Started,
+    passed_over: &mut Vec<String>,
+) -> bool {
+    let (s, init, scene) = tried;
+    let (rms, n) = (init.problem.rms_px(), scene.oriented().len());
+    // as many images as the suspect start before it, at a lower RMS
+    let lower = |b: &Started| {
+        let rms_b = b.1.problem.rms_px();
+        n == b.2.oriented().len() && rms_b > SUSPECT_START_RMS_PX && rms < rms_b
+    };
+    let better = best
+        .as_ref()
+        .is_none_or(|b| n > b.2.oriented().len() || lower(b));
+    if let Some(b) = best.as_ref().filter(|b| lower(b)) {
+        passed_over.push(format!(
+            "{} oriented {} images at RMS {:.3} px; {} oriented {} at RMS {:.3} px, which is kept",
+            b.0.describe(),
+            b.2.oriented().len(),
+            b.1.problem.rms_px(),
+            s.describe(),
+            n,
+            rms
+        ));
+    }
+    if better {
+        *best = Some((s, init, scene));
+    }
+    let done =
+        |b: &Started| b.2.unoriented.is_empty() && b.1.problem.rms_px() <= SUSPECT_START_RMS_PX;
+    best.as_ref().is_some_and(done)
+}
+
+/// The error when no start worked: each one's reason (`failed`) and, in `auto`, what the
+/// project could add to start otherwise.
+fn no_start(project: &Project, asked: Start, failed: &[String]) -> PipelineError {
     let mut missing = Vec::new();
     if project.layout.is_none() {
         missing.push("name the coded targets' approximate coordinates in [targets] layout");
@@ -236,7 +280,7 @@ fn first_start(
     if project.file.stereo.is_none() {
         missing.push("describe the stereo head in [stereo] (its nominal baseline starts it)");
     }
-    Err(PipelineError::Data(format!(
+    PipelineError::Data(format!(
         "{}: initial orientation: {}{}",
         project.path.display(),
         failed.join("; "),
@@ -245,7 +289,7 @@ fn first_start(
         } else {
             format!("; to start otherwise, {}", missing.join(", or "))
         }
-    )))
+    ))
 }
 
 /// One start of the initialiser on the coded targets' problem `sp`.
@@ -519,50 +563,15 @@ fn into_main_frame(
     }
     let main = main_image(project);
     let Some(main_pose) = poses[main] else {
-        let why = init
-            .unoriented_images
-            .iter()
-            .find(|(n, _)| n == image_file(project, main))
-            .map(|(_, w)| w.clone())
-            .unwrap_or_else(|| "unknown".into());
-        return Err(PipelineError::Data(format!(
-            "{}: the main image could not be oriented: {why}",
-            image_file(project, main)
-        )));
+        return Err(main_not_oriented(project, init));
     };
     // into the main image's frame: X' = R X + t; image poses P' = P ∘ M⁻¹
     let to_main = main_pose.inverse();
     for p in poses.iter_mut().flatten() {
         *p = p.compose(&to_main);
     }
-    let rejected = |d: &DetectionId, name: &str| {
-        let file = image_file(project, d.image);
-        (init.rejected_observations.iter())
-            .find(|(i, p, _)| i == file && p == name)
-            .map(|r| r.2)
-    };
-    let mut points = IdVec::new();
-    let mut blunders = Vec::new();
-    for (k, &j) in sp.map.points.iter().enumerate() {
-        let p = &scene.points[j];
-        for (d, off) in p
-            .obs
-            .iter()
-            .filter_map(|d| Some((*d, rejected(d, &p.name)?)))
-        {
-            if let PointKind::Coded(n) = p.kind {
-                blunders.extend(coded_blunder(project, dets, d, n, off, "network start"));
-            }
-        }
-        let Some(m) = init.point_map[k] else { continue };
-        let mut p = p.clone();
-        p.position = main_pose.transform(&init.problem.points[m].position);
-        p.obs
-            .retain(|d| poses[d.image].is_some() && rejected(d, &p.name).is_none());
-        if p.obs.len() >= 2 {
-            points.push(p);
-        }
-    }
+    let (points, blunders) =
+        points_in_main_frame(project, dets, (&scene, sp, init), &poses, &main_pose);
     scene.unoriented = init
         .unoriented_images
         .iter()
@@ -585,6 +594,63 @@ fn into_main_frame(
         scene.add_blunder(b);
     }
     Ok(scene)
+}
+
+/// The error when the initialiser left the main image unoriented, with its reason.
+fn main_not_oriented(project: &Project, init: &Initialised) -> PipelineError {
+    let main = main_image(project);
+    let why = init
+        .unoriented_images
+        .iter()
+        .find(|(n, _)| n == image_file(project, main))
+        .map(|(_, w)| w.clone())
+        .unwrap_or_else(|| "unknown".into());
+    PipelineError::Data(format!(
+        "{}: the main image could not be oriented: {why}",
+        image_file(project, main)
+    ))
+}
+
+/// The points of `start` that the initialiser determined, moved by `main_pose` into the main
+/// image's frame, without the measurements it rejected or of images `poses` leaves
+/// unoriented (two or more measurements left); and the named blunders among the coded
+/// measurements it rejected ([`coded_blunder`]).
+fn points_in_main_frame(
+    project: &Project,
+    dets: &Detections,
+    (start, sp, init): (&Scene, &SceneProblem, &Initialised),
+    poses: &IdVec<ImageId, Option<Rigid3>>,
+    main_pose: &Rigid3,
+) -> (IdVec<PointId, ScenePoint>, Vec<CodedBlunder>) {
+    let rejected = |d: &DetectionId, name: &str| {
+        let file = image_file(project, d.image);
+        (init.rejected_observations.iter())
+            .find(|(i, p, _)| i == file && p == name)
+            .map(|r| r.2)
+    };
+    let mut points = IdVec::new();
+    let mut blunders = Vec::new();
+    for (k, &j) in sp.map.points.iter().enumerate() {
+        let p = &start.points[j];
+        for (d, off) in p
+            .obs
+            .iter()
+            .filter_map(|d| Some((*d, rejected(d, &p.name)?)))
+        {
+            if let PointKind::Coded(n) = p.kind {
+                blunders.extend(coded_blunder(project, dets, d, n, off, "network start"));
+            }
+        }
+        let Some(m) = init.point_map[k] else { continue };
+        let mut p = p.clone();
+        p.position = main_pose.transform(&init.problem.points[m].position);
+        p.obs
+            .retain(|d| poses[d.image].is_some() && rejected(d, &p.name).is_none());
+        if p.obs.len() >= 2 {
+            points.push(p);
+        }
+    }
+    (points, blunders)
 }
 
 /// Logs the named blunders of `scene` from the `from`-th on: one line each.
