@@ -326,3 +326,93 @@ pub fn new_points(dets: &Detections, scene: &mut Scene, kind: TargetKind) -> usi
     }
     added
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::network::tests::{blob, Field};
+
+    /// Two rays that cross give the crossing; rays that meet behind a camera, nearly
+    /// parallel rays, and rays that pass more than 4 · [`TOL_PX`] apart (seen from camera
+    /// a, principal distance 1000 px) give none.
+    #[test]
+    fn rays_meet_only_ahead_of_both_cameras_and_within_the_tolerance() {
+        let x = Vector3::new(30.0, 2000.0, -40.0);
+        let ray = |c: Vector3<f64>, to: Vector3<f64>| WorldRay {
+            centre: c,
+            dir: (to - c).normalize(),
+        };
+        let (ca, cb) = (
+            Vector3::new(-400.0, 0.0, 0.0),
+            Vector3::new(400.0, 0.0, 0.0),
+        );
+        let met = ray_meeting(&ray(ca, x), &ray(cb, x), 1000.0).expect("they cross");
+        assert!((met - x).norm() < 1e-9, "{met}");
+        // rays looking ahead whose lines cross 2 m behind the cameras
+        let behind = Vector3::new(0.0, -2000.0, 0.0);
+        let away = |c: Vector3<f64>| ray(c, 2.0 * c - behind);
+        assert!(
+            ray_meeting(&away(ca), &away(cb), 1000.0).is_none(),
+            "behind"
+        );
+        let far = Vector3::new(0.0, 1e7, 0.0);
+        assert!(
+            ray_meeting(&ray(ca, far), &ray(cb, far), 1000.0).is_none(),
+            "parallel"
+        );
+        // 20 mm apart at 2 m: 10 px from camera a, beyond 8 px
+        let skew = ray(cb, x + Vector3::new(0.0, 0.0, 20.0));
+        assert!(ray_meeting(&ray(ca, x), &skew, 1000.0).is_none());
+        let near = ray(cb, x + Vector3::new(0.0, 0.0, 12.0));
+        assert!(ray_meeting(&ray(ca, x), &near, 1000.0).is_some(), "6 px");
+    }
+
+    /// With the images oriented and the coded targets measured, the plain blobs of five
+    /// images become the six plain points: each at its true position, measured by its own
+    /// blob in every image it projects into. A seventh point whose blobs are in two images
+    /// only (fewer than [`MIN_RAYS`]) is not made, and no blob is taken twice.
+    #[test]
+    fn new_points_intersect_the_plain_blobs_of_a_field_made_in_memory() {
+        let field = Field::new();
+        let mut dets = field.detections(true);
+        let lone = Vector3::new(250.0, 2100.0, -250.0);
+        let mut scene = field.scene_with_coded(&dets, &[0, 1, 2, 3, 4]);
+        for i in [ImageId(1), ImageId(3)] {
+            let uv = scene.project_into(i, &lone).expect("in view");
+            let mut targets: Vec<Target> = dets[i].targets.iter().cloned().collect();
+            targets.push(blob(uv, None));
+            dets[i].ball_fits = vec![None; targets.len()].into();
+            dets[i].targets = targets.into();
+        }
+        let coded = scene.points.len();
+        let added = new_points(&dets, &mut scene, TargetKind::Plain);
+        assert_eq!(added, field.plain.len());
+        let oriented = scene.oriented();
+        let mut taken = DetectionSet::empty(&dets);
+        for p in scene.points.iter().skip(coded) {
+            assert_eq!(p.kind, PointKind::Plain);
+            let truth = (field.plain.iter())
+                .find(|x| (*x - p.position).norm() < 1e-3)
+                .unwrap_or_else(|| panic!("{} at {} is no plain point", p.name, p.position));
+            let visible = (oriented.iter())
+                .filter(|&&i| scene.project_into(i, truth).is_some())
+                .count();
+            assert_eq!(p.obs.len(), visible, "{}: one ray per image", p.name);
+            for &d in &p.obs {
+                assert!(!taken.contains(d), "{}: a blob taken twice", p.name);
+                taken.insert(d);
+                let uv = scene.project_into(d.image, truth).expect("in view");
+                let t = dets.target(d);
+                assert!(
+                    (uv - Vector2::new(t.x, t.y)).norm() < 1e-6,
+                    "{}: another's blob",
+                    p.name
+                );
+            }
+        }
+        assert!(scene
+            .points
+            .iter()
+            .all(|p| (p.position - lone).norm() > 100.0));
+    }
+}
