@@ -140,3 +140,42 @@ pub fn add_points(
     name_balls(project, scene, &balls, rep);
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::ids::ImageId;
+    use crate::network::tests::Field;
+
+    /// After the quick adjustment, a coded measurement moved 15 px off its target (what the
+    /// adjustment leaves of it is beyond 3 · [`TOL_PX`]) is dropped from its point, and every
+    /// exact measurement stays. Whether it is also a named blunder depends on its own code
+    /// ring's reach (3 dot semi-axes): with dots of 3 px its residual is within 9 px, a poor
+    /// centre; with dots of 1 px it is beyond 3 px, a number read where its target is not.
+    #[test]
+    fn refine_drops_a_measurement_far_from_its_point_and_names_it_beyond_its_ring() {
+        let field = Field::new();
+        for (dot_px, named) in [(3.0, false), (1.0, true)] {
+            let mut dets = field.detections(false);
+            let mut scene = field.scene_with_coded(&dets, &[0, 1, 2, 3, 4]);
+            let off = scene.points[PointId(6)].obs[3];
+            assert_eq!(off.image, ImageId(3));
+            let t = &mut dets[off.image].targets[off.det];
+            t.x += 15.0;
+            t.ellipse.a = dot_px;
+            let before: usize = scene.points.iter().map(|p| p.obs.len()).sum();
+            refine(&field.project, &dets, &mut scene, &Options::default()).expect("adjusted");
+            let after: usize = scene.points.iter().map(|p| p.obs.len()).sum();
+            assert_eq!(after, before - 1, "dots of {dot_px} px");
+            assert!(!scene.points[PointId(6)].obs.contains(&off));
+            assert_eq!(
+                scene.blunders.len(),
+                usize::from(named),
+                "dots of {dot_px} px"
+            );
+            if let Some(b) = scene.blunders.first() {
+                assert_eq!((b.det, b.number, b.stage), (off, 7, "matching"));
+            }
+        }
+    }
+}

@@ -194,4 +194,18 @@ mod tests {
             "no labels, no explanation"
         );
     }
+
+    /// Without labels the balls are B1, B2, … from left to right in the main image (then top
+    /// to bottom at one column), and a ball that does not project into it comes last.
+    #[test]
+    fn without_labels_balls_are_numbered_by_column_then_row() {
+        let uv = [
+            Some(Vector2::new(300.0, 50.0)),
+            None,
+            Some(Vector2::new(100.0, 400.0)),
+            Some(Vector2::new(300.0, 20.0)),
+            Some(Vector2::new(200.0, 10.0)),
+        ];
+        assert_eq!(names_by_column(&uv), ["B4", "B5", "B1", "B3", "B2"]);
+    }
 }
