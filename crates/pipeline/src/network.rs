@@ -1039,4 +1039,28 @@ accuracy_far_fraction = 0.03
             && b.stage == "coincident numbers"
             && b.why.contains("target 1")));
     }
+
+    /// Without a layout or a stereo head, `auto` tries the relative orientation only, and
+    /// asking for the layout's or the stereo head's start is refused, naming the file and
+    /// what the project lacks.
+    #[test]
+    fn the_starts_tried_are_those_the_project_allows() {
+        let field = Field::new();
+        let p = &field.project;
+        assert_eq!(starts_to_try(p, Start::Auto).unwrap(), [Start::Relative]);
+        assert_eq!(
+            starts_to_try(p, Start::Relative).unwrap(),
+            [Start::Relative]
+        );
+        let e = starts_to_try(p, Start::Layout).unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "project.toml: --start layout: the project names no [targets] layout"
+        );
+        let e = starts_to_try(p, Start::Stereo).unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "project.toml: --start stereo: the project has no [stereo] head"
+        );
+    }
 }
