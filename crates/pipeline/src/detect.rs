@@ -10,12 +10,13 @@
 use super::scene::{silhouette_is_ellipse, BallFit, Detections, ImageMeasurements};
 use crate::context::{Options, PipelineError, Result};
 use crate::progress::Reporter;
-use pingcal_project::Project;
+use pingcal_project::{Project, ProjectCamera};
 use pingcal_targets::detect::BallMode;
 use pingcal_targets::ellipse::Ellipse;
 use pingcal_targets::refusal::{counts, why_nothing, Refusal};
 use pingcal_targets::{load_image, DetectParams, Detector, GrayImage, TargetKind};
 use rayon::prelude::*;
+use std::path::Path;
 
 /// The detector of `project`: its code family and ring, balls told later, saturated targets
 /// measured when `[targets] measure_saturated` or `opts.measure_saturated` asks.
@@ -47,36 +48,10 @@ pub fn detect_all(project: &Project, opts: &Options, rep: &Reporter) -> Result<D
                 .iter()
                 .find(|c| c.id == im.camera)
                 .expect("validated camera");
-            if img.width != cam.width as usize || img.height != cam.height as usize {
-                return Err(PipelineError::Input(format!(
-                    "{}: the image is {}×{} pixels, but camera '{}' is {}×{} (project.toml [[cameras]])",
-                    path.display(),
-                    img.width,
-                    img.height,
-                    cam.id,
-                    cam.width,
-                    cam.height
-                )));
-            }
-            let d = detector.detect(&img);
-            let keep_edges = !silhouette_is_ellipse(cam.model.kind());
-            let ball_fits = d
-                .targets
-                .iter()
-                .map(|t| {
-                    (t.kind == TargetKind::Plain && t.ellipse.radius() >= 2.0)
-                        .then(|| ball_fit(&img, &t.ellipse, keep_edges))
-                        .flatten()
-                })
-                .collect();
+            check_size(path, &img, cam)?;
+            let measured = measure(&detector, &img, cam);
             pb.advance(1);
-            let dets = ImageMeasurements {
-                width: d.width,
-                height: d.height,
-                targets: d.targets.into(),
-                ball_fits,
-            };
-            Ok((dets, d.refused))
+            Ok(measured)
         })
         .collect();
     pb.finish();
@@ -86,8 +61,59 @@ pub fn detect_all(project: &Project, opts: &Options, rep: &Reporter) -> Result<D
         .into_iter()
         .unzip();
     let dets: Detections = dets.into();
+    log_detections(project, &dets, &refused, rep);
+    Ok(dets)
+}
+
+/// An error naming the image and its camera when `img` is not of `cam`'s size.
+fn check_size(path: &Path, img: &GrayImage, cam: &ProjectCamera) -> Result<()> {
+    if img.width != cam.width as usize || img.height != cam.height as usize {
+        return Err(PipelineError::Input(format!(
+            "{}: the image is {}×{} pixels, but camera '{}' is {}×{} (project.toml [[cameras]])",
+            path.display(),
+            img.width,
+            img.height,
+            cam.id,
+            cam.width,
+            cam.height
+        )));
+    }
+    Ok(())
+}
+
+/// The targets of one image of camera `cam`, with the ball fit of every plain blob of two
+/// pixels' radius or more, and the candidates the detector refused.
+fn measure(
+    detector: &Detector,
+    img: &GrayImage,
+    cam: &ProjectCamera,
+) -> (ImageMeasurements, Vec<Refusal>) {
+    let d = detector.detect(img);
+    let keep_edges = !silhouette_is_ellipse(cam.model.kind());
+    let ball_fits = d
+        .targets
+        .iter()
+        .map(|t| {
+            (t.kind == TargetKind::Plain && t.ellipse.radius() >= 2.0)
+                .then(|| ball_fit(img, &t.ellipse, keep_edges))
+                .flatten()
+        })
+        .collect();
+    let dets = ImageMeasurements {
+        width: d.width,
+        height: d.height,
+        targets: d.targets.into(),
+        ball_fits,
+    };
+    (dets, d.refused)
+}
+
+/// Logs what was detected: each image without targets and why, then the counts of coded
+/// targets, numbers read, round blobs, saturated targets and refused candidates.
+fn log_detections(project: &Project, dets: &Detections, refused: &[Vec<Refusal>], rep: &Reporter) {
+    let f = &project.file;
     let (mut coded, mut ids, mut plain, mut saturated) = (0, 0, 0, 0);
-    for d in &dets {
+    for d in dets {
         for t in &d.targets {
             saturated += usize::from(t.saturated);
             match t.kind {
@@ -122,7 +148,6 @@ pub fn detect_all(project: &Project, opts: &Options, rep: &Reporter) -> Result<D
         },
         if refused.is_empty() { "none".into() } else { refused.join(", ") }
     ));
-    Ok(dets)
 }
 
 /// The ball fit of a plain blob outlined by `seed`, with its edge points when `keep_edges` (none
@@ -242,5 +267,90 @@ mod tests {
                 t.y
             );
         }
+    }
+
+    /// A white disc of radius 10 px centred at (100.3, 90.6) on a grey ground, with the
+    /// edge's coverage by 4 × 4 samples a pixel.
+    fn disc() -> GrayImage {
+        let n = 200usize;
+        let mut img = GrayImage::new(n, n, 0.3);
+        for y in 0..n {
+            for x in 0..n {
+                let inside = (0..16)
+                    .filter(|s| {
+                        let u = x as f64 + (f64::from(s % 4) - 1.5) / 4.0 - 100.3;
+                        let v = y as f64 + (f64::from(s / 4) - 1.5) / 4.0 - 90.6;
+                        u.hypot(v) <= 10.0
+                    })
+                    .count();
+                img.data[y * n + x] = 0.3 + 0.6 * inside as f32 / 16.0;
+            }
+        }
+        img
+    }
+
+    /// Each image's measurement has one ball fit per target: a fit of the silhouette for a
+    /// plain blob (here a disc, fitted where it is), none for a coded target.
+    #[test]
+    fn a_plain_blob_gets_a_ball_fit_and_a_coded_target_none() {
+        let project =
+            crate::test_support::project(crate::test_support::readme_project_file(), Vec::new());
+        let plain = detector(&project, &Options::default()).unwrap();
+        let cam = &project.file.cameras[0];
+        let (m, _) = measure(&plain, &disc(), cam);
+        assert_eq!(m.targets.len(), 1, "{:?}", m.targets);
+        let t = m.targets.iter().next().unwrap();
+        assert_eq!(t.kind, TargetKind::Plain);
+        let fit = m
+            .ball_fits
+            .iter()
+            .next()
+            .unwrap()
+            .as_ref()
+            .expect("a ball fit");
+        let e = fit.ellipse;
+        assert!(
+            (e.cx - 100.3).abs() < 0.1 && (e.cy - 90.6).abs() < 0.1,
+            "({}, {})",
+            e.cx,
+            e.cy
+        );
+        let (img, _) = saturated_target();
+        let asking = Options {
+            measure_saturated: true,
+            ..Options::default()
+        };
+        let saturated = detector(&project, &asking).unwrap();
+        let (m, _) = measure(&saturated, &img, cam);
+        assert_eq!(m.ball_fits.len(), m.targets.len());
+        for (t, f) in m.targets.iter().zip(m.ball_fits.iter()) {
+            if t.kind == TargetKind::Coded {
+                assert!(f.is_none(), "a coded target has no ball fit");
+            }
+        }
+        assert!(m.targets.iter().any(|t| t.kind == TargetKind::Coded));
+    }
+
+    /// An image of another size than its camera's is refused with one line naming the file,
+    /// both sizes and the camera.
+    #[test]
+    fn an_image_of_the_wrong_size_is_refused_naming_both_sizes() {
+        let file = crate::test_support::readme_project_file();
+        let cam = &file.cameras[0];
+        let img = GrayImage::new(cam.width as usize + 1, cam.height as usize, 0.5);
+        let e = check_size(Path::new("images/a.png"), &img, cam)
+            .expect_err("one pixel wider")
+            .to_string();
+        let want = format!(
+            "images/a.png: the image is {}×{} pixels, but camera '{}' is {}×{}",
+            cam.width + 1,
+            cam.height,
+            cam.id,
+            cam.width,
+            cam.height
+        );
+        assert!(e.starts_with(&want), "{e}");
+        let right = GrayImage::new(cam.width as usize, cam.height as usize, 0.5);
+        assert!(check_size(Path::new("images/a.png"), &right, cam).is_ok());
     }
 }

@@ -546,3 +546,124 @@ fn corner_method(
         notes: res.notes,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use pingcal_geometry::opk::from_opk_deg;
+    use pingcal_lrf::ball_finder::{Ball, FindResult};
+
+    /// A camera-from-LRF transform of a few degrees about each axis and a few hundred mm.
+    fn camera_from_lrf() -> Rigid3 {
+        Rigid3::new(
+            from_opk_deg([3.0, -5.0, 7.0]),
+            Vector3::new(120.0, -80.0, 45.0),
+        )
+    }
+
+    /// Eight balls around the LRF (LRF frame, mm): every 45° of azimuth, at 1.4–2.6 m and
+    /// heights of ±0.4 m, so that no two are alike.
+    fn balls_around_the_lrf() -> Vec<Vector3<f64>> {
+        (0..8)
+            .map(|k| {
+                let a = f64::from(k) * std::f64::consts::FRAC_PI_4 + 0.1;
+                let r = 1400.0 + 170.0 * f64::from(k);
+                let z = 400.0 * (1.3 * f64::from(k)).sin();
+                Vector3::new(r * a.cos(), r * a.sin(), z)
+            })
+            .collect()
+    }
+
+    /// The LRF's data with a sphere at each of `centres` (LRF frame) and nothing else.
+    fn lrf_with_spheres(centres: &[Vector3<f64>]) -> LrfData {
+        let balls = (centres.iter())
+            .map(|c| Ball {
+                centre: *c,
+                cov: Matrix3::identity(),
+                inliers: Vec::new(),
+                cluster_points: 0,
+                rejected_points: 0,
+                sigma0: 1.0,
+                range_mm: c.norm(),
+                support: Default::default(),
+            })
+            .collect();
+        LrfData {
+            cloud: Default::default(),
+            found: FindResult {
+                balls,
+                ..FindResult::default()
+            },
+            scans: None,
+            mount: Default::default(),
+            noise: Default::default(),
+        }
+    }
+
+    /// Ranges 32 mm too long move every sphere's centre 32 mm along its line of sight, which
+    /// changes the distances between balls on opposite sides by up to 64 mm, beyond the
+    /// distance invariants' 20 mm: matched as fitted, the balls are not all paired; with the
+    /// offsets tried, every LRF sphere is paired with its own ball (the camera's list in
+    /// another order) and the log names the offset.
+    #[test]
+    fn ranges_too_long_by_a_constant_still_match_every_ball() {
+        let lrf_true = balls_around_the_lrf();
+        let t = camera_from_lrf();
+        // the camera's list in another order: cam[k] is ball order[k]
+        let order = [5, 2, 7, 0, 3, 6, 1, 4];
+        let cam: Vec<Vector3<f64>> = order.iter().map(|&k| t.transform(&lrf_true[k])).collect();
+        let long: Vec<Vector3<f64>> = (lrf_true.iter())
+            .map(|c| c + c.normalize() * 32.0)
+            .collect();
+        let as_fitted = match_balls(&long, &cam, &MatchOptions::default());
+        assert!(
+            as_fitted.as_ref().map_or(true, |m| m.pairs.len() < 8),
+            "the offset should defeat the invariants: {as_fitted:?}"
+        );
+        let rep = Reporter::silent();
+        let m = match_tolerating_range_offset(&long, &cam, &rep).expect("matched");
+        let mut pairs = m.pairs.clone();
+        pairs.sort();
+        let truth: Vec<(usize, usize)> = (0..8)
+            .map(|l| (l, order.iter().position(|&k| k == l).expect("in order")))
+            .collect();
+        assert_eq!(pairs, truth);
+        assert!(m.rms_mm < 1e-6, "exact after the correction: {}", m.rms_mm);
+        let lines = rep.lines();
+        assert!(
+            lines.iter().any(|l| l.contains("range offset of +32 mm")),
+            "{lines:?}"
+        );
+    }
+
+    /// Through a known extrinsic each sphere takes the ball it lands on, nearest first, one
+    /// to one: of two spheres within reach of one ball the nearer takes it, a sphere 60 mm
+    /// from every ball (beyond the 19 mm reach) takes none, and a ball no sphere reaches
+    /// stays unpaired.
+    #[test]
+    fn spheres_take_the_balls_they_land_on_nearest_first_one_to_one() {
+        let t = camera_from_lrf();
+        let inv = t.inverse();
+        let balls: Vec<(PointId, Vector3<f64>)> = (balls_around_the_lrf().iter().take(4))
+            .enumerate()
+            .map(|(k, c)| (PointId(k), t.transform(c)))
+            .collect();
+        let at = |k: usize, off: Vector3<f64>| inv.transform(&(balls[k].1 + off));
+        let lrf = lrf_with_spheres(&[
+            at(2, Vector3::new(0.0, 0.0, 3.0)),
+            at(0, Vector3::new(8.0, 0.0, 0.0)),
+            at(0, Vector3::new(0.0, 2.0, 0.0)),
+            at(1, Vector3::new(0.0, 0.0, -5.0)),
+            at(3, Vector3::new(60.0, 0.0, 0.0)),
+        ]);
+        let pairs = match_by_extrinsic(&lrf, &balls, &t, 19.0);
+        assert_eq!(
+            pairs,
+            vec![
+                (SphereId(0), PointId(2)),
+                (SphereId(2), PointId(0)),
+                (SphereId(3), PointId(1)),
+            ]
+        );
+    }
+}

@@ -11,7 +11,7 @@
 use super::adjust::{rig_cameras, Datum, SceneProblem};
 use super::ids::{DetectionId, IdVec, ImageId, PointId};
 use super::scene::{
-    coded_blunder, image_file, main_image, Detections, PointKind, Scene, ScenePoint,
+    coded_blunder, image_file, main_image, CodedBlunder, Detections, PointKind, Scene, ScenePoint,
 };
 use crate::context::{Options, PipelineError, Result};
 use crate::progress::Reporter;
@@ -36,28 +36,10 @@ pub fn initial_network(
 ) -> Result<Scene> {
     let f = &project.file;
     let seen = coded_tracks(dets);
-    if seen.len() < 5 {
-        return Err(PipelineError::Data(format!(
-            "{}: only {} coded targets were read in two or more images; at least 5 are needed to orient the images (are the targets {} and large enough in the images?)",
-            project.path.display(),
-            seen.len(),
-            f.targets.family
-        )));
-    }
+    enough_coded_targets(project, seen.len())?;
     let start = starting_scene(project, &seen);
     let sp = SceneProblem::build(project, dets, &start, Datum::Free, None);
-    if sp.problem.distances.is_empty() {
-        let list: Vec<String> = f
-            .distances
-            .iter()
-            .map(|d| format!("{}–{}", d.from, d.to))
-            .collect();
-        return Err(PipelineError::Data(format!(
-            "{}: no measured distance joins two coded targets read in two or more images ([[distances]]: {}); the scale of the network is undefined",
-            project.path.display(),
-            if list.is_empty() { "none".into() } else { list.join(", ") }
-        )));
-    }
+    scaled_by_a_distance(project, &sp)?;
     let mut options = IncrementalOptions {
         bundle: solver::Options {
             max_iterations: 50,
@@ -83,22 +65,66 @@ pub fn initial_network(
         ));
     }
     log_blunders(project, dets, &scene, 0, rep);
-    if !init.refused_by_angle.is_empty() {
-        let list: Vec<String> = (init.refused_by_angle.iter())
-            .map(|(name, a)| format!("{name} ({a:.2}°)"))
-            .collect();
-        let why = format!(
-            "{} coded target(s) left out of the network: their rays meet at under {min_angle}° ([network] min_intersection_angle_deg)",
-            list.len()
-        );
-        rep.log(format!("  {why}: {}", list.join(", ")));
-        // an image left unoriented may be so for want of those targets
-        for (_, reason) in &mut scene.unoriented {
-            reason.push_str(&format!("; {why}"));
-        }
-    }
+    note_refused_by_angle(&init, min_angle, &mut scene, rep);
     scene.start = start_used.describe().into();
     scene.warnings = failed;
+    log_network(project, &scene, &init, rep);
+    Ok(scene)
+}
+
+/// An error unless at least 5 coded targets (`seen` of them) were read in two or more
+/// images: fewer cannot orient the images.
+fn enough_coded_targets(project: &Project, seen: usize) -> Result<()> {
+    if seen < 5 {
+        return Err(PipelineError::Data(format!(
+            "{}: only {} coded targets were read in two or more images; at least 5 are needed to orient the images (are the targets {} and large enough in the images?)",
+            project.path.display(),
+            seen,
+            project.file.targets.family
+        )));
+    }
+    Ok(())
+}
+
+/// An error unless a measured distance of `sp` joins two of its coded targets: without
+/// one the network's scale is undefined.
+fn scaled_by_a_distance(project: &Project, sp: &SceneProblem) -> Result<()> {
+    if sp.problem.distances.is_empty() {
+        let list: Vec<String> = (project.file.distances.iter())
+            .map(|d| format!("{}–{}", d.from, d.to))
+            .collect();
+        return Err(PipelineError::Data(format!(
+            "{}: no measured distance joins two coded targets read in two or more images ([[distances]]: {}); the scale of the network is undefined",
+            project.path.display(),
+            if list.is_empty() { "none".into() } else { list.join(", ") }
+        )));
+    }
+    Ok(())
+}
+
+/// Logs the coded targets that the initialiser left out because their rays meet at under
+/// `min_angle` degrees, and adds that to the reason of every image left unoriented (it may
+/// be so for want of them).
+fn note_refused_by_angle(init: &Initialised, min_angle: f64, scene: &mut Scene, rep: &Reporter) {
+    if init.refused_by_angle.is_empty() {
+        return;
+    }
+    let list: Vec<String> = (init.refused_by_angle.iter())
+        .map(|(name, a)| format!("{name} ({a:.2}°)"))
+        .collect();
+    let why = format!(
+        "{} coded target(s) left out of the network: their rays meet at under {min_angle}° ([network] min_intersection_angle_deg)",
+        list.len()
+    );
+    rep.log(format!("  {why}: {}", list.join(", ")));
+    for (_, reason) in &mut scene.unoriented {
+        reason.push_str(&format!("; {why}"));
+    }
+}
+
+/// Logs the network's warnings, the images left unoriented and why, and one line of how it
+/// started, how many images and points it has and its RMS.
+fn log_network(project: &Project, scene: &Scene, init: &Initialised, rep: &Reporter) {
     for w in &scene.warnings {
         rep.log(format!("warning: {w}"));
     }
@@ -116,7 +142,6 @@ pub fn initial_network(
         scene.points.len(),
         init.problem.rms_px()
     ));
-    Ok(scene)
 }
 
 pub use crate::context::Start;
@@ -178,36 +203,8 @@ fn first_start(
                 .map_err(|e| e.to_string())
         });
         match tried {
-            // a start that leaves images out is kept only until one orients more, one of a
-            // suspect RMS until one orients as many at a lower RMS
             Ok((init, scene)) => {
-                let (rms, n) = (init.problem.rms_px(), scene.oriented().len());
-                // as many images as the suspect start before it, at a lower RMS
-                let lower = |b: &(Start, Initialised, Scene)| {
-                    let rms_b = b.1.problem.rms_px();
-                    n == b.2.oriented().len() && rms_b > SUSPECT_START_RMS_PX && rms < rms_b
-                };
-                let better = best
-                    .as_ref()
-                    .is_none_or(|b| n > b.2.oriented().len() || lower(b));
-                if let Some(b) = best.as_ref().filter(|b| lower(b)) {
-                    passed_over.push(format!(
-                        "{} oriented {} images at RMS {:.3} px; {} oriented {} at RMS {:.3} px, which is kept",
-                        b.0.describe(),
-                        b.2.oriented().len(),
-                        b.1.problem.rms_px(),
-                        s.describe(),
-                        n,
-                        rms
-                    ));
-                }
-                if better {
-                    best = Some((s, init, scene));
-                }
-                let done = |b: &(Start, Initialised, Scene)| {
-                    b.2.unoriented.is_empty() && b.1.problem.rms_px() <= SUSPECT_START_RMS_PX
-                };
-                if best.as_ref().is_some_and(done) {
+                if keep_if_better(&mut best, (s, init, scene), &mut passed_over) {
                     break;
                 }
             }
@@ -229,6 +226,53 @@ fn first_start(
             .collect();
         return Ok((s, init, scene, warnings));
     }
+    Err(no_start(project, asked, &failed))
+}
+
+/// A start that worked, with its initialiser's solution and its scene.
+type Started = (Start, Initialised, Scene);
+
+/// Makes `tried` the `best` start when there is none yet, when it orients more images, or
+/// when the best one's RMS is suspect and `tried` orients as many at a lower RMS (which
+/// `passed_over` then says). True when the best start now orients every image at an RMS
+/// of at most [`SUSPECT_START_RMS_PX`]: no later start is tried.
+fn keep_if_better(
+    best: &mut Option<Started>,
+    tried: Started,
+    passed_over: &mut Vec<String>,
+) -> bool {
+    let (s, init, scene) = tried;
+    let (rms, n) = (init.problem.rms_px(), scene.oriented().len());
+    // as many images as the suspect start before it, at a lower RMS
+    let lower = |b: &Started| {
+        let rms_b = b.1.problem.rms_px();
+        n == b.2.oriented().len() && rms_b > SUSPECT_START_RMS_PX && rms < rms_b
+    };
+    let better = best
+        .as_ref()
+        .is_none_or(|b| n > b.2.oriented().len() || lower(b));
+    if let Some(b) = best.as_ref().filter(|b| lower(b)) {
+        passed_over.push(format!(
+            "{} oriented {} images at RMS {:.3} px; {} oriented {} at RMS {:.3} px, which is kept",
+            b.0.describe(),
+            b.2.oriented().len(),
+            b.1.problem.rms_px(),
+            s.describe(),
+            n,
+            rms
+        ));
+    }
+    if better {
+        *best = Some((s, init, scene));
+    }
+    let done =
+        |b: &Started| b.2.unoriented.is_empty() && b.1.problem.rms_px() <= SUSPECT_START_RMS_PX;
+    best.as_ref().is_some_and(done)
+}
+
+/// The error when no start worked: each one's reason (`failed`) and, in `auto`, what the
+/// project could add to start otherwise.
+fn no_start(project: &Project, asked: Start, failed: &[String]) -> PipelineError {
     let mut missing = Vec::new();
     if project.layout.is_none() {
         missing.push("name the coded targets' approximate coordinates in [targets] layout");
@@ -236,7 +280,7 @@ fn first_start(
     if project.file.stereo.is_none() {
         missing.push("describe the stereo head in [stereo] (its nominal baseline starts it)");
     }
-    Err(PipelineError::Data(format!(
+    PipelineError::Data(format!(
         "{}: initial orientation: {}{}",
         project.path.display(),
         failed.join("; "),
@@ -245,7 +289,7 @@ fn first_start(
         } else {
             format!("; to start otherwise, {}", missing.join(", or "))
         }
-    )))
+    ))
 }
 
 /// One start of the initialiser on the coded targets' problem `sp`.
@@ -519,50 +563,15 @@ fn into_main_frame(
     }
     let main = main_image(project);
     let Some(main_pose) = poses[main] else {
-        let why = init
-            .unoriented_images
-            .iter()
-            .find(|(n, _)| n == image_file(project, main))
-            .map(|(_, w)| w.clone())
-            .unwrap_or_else(|| "unknown".into());
-        return Err(PipelineError::Data(format!(
-            "{}: the main image could not be oriented: {why}",
-            image_file(project, main)
-        )));
+        return Err(main_not_oriented(project, init));
     };
     // into the main image's frame: X' = R X + t; image poses P' = P ∘ M⁻¹
     let to_main = main_pose.inverse();
     for p in poses.iter_mut().flatten() {
         *p = p.compose(&to_main);
     }
-    let rejected = |d: &DetectionId, name: &str| {
-        let file = image_file(project, d.image);
-        (init.rejected_observations.iter())
-            .find(|(i, p, _)| i == file && p == name)
-            .map(|r| r.2)
-    };
-    let mut points = IdVec::new();
-    let mut blunders = Vec::new();
-    for (k, &j) in sp.map.points.iter().enumerate() {
-        let p = &scene.points[j];
-        for (d, off) in p
-            .obs
-            .iter()
-            .filter_map(|d| Some((*d, rejected(d, &p.name)?)))
-        {
-            if let PointKind::Coded(n) = p.kind {
-                blunders.extend(coded_blunder(project, dets, d, n, off, "network start"));
-            }
-        }
-        let Some(m) = init.point_map[k] else { continue };
-        let mut p = p.clone();
-        p.position = main_pose.transform(&init.problem.points[m].position);
-        p.obs
-            .retain(|d| poses[d.image].is_some() && rejected(d, &p.name).is_none());
-        if p.obs.len() >= 2 {
-            points.push(p);
-        }
-    }
+    let (points, blunders) =
+        points_in_main_frame(project, dets, (&scene, sp, init), &poses, &main_pose);
     scene.unoriented = init
         .unoriented_images
         .iter()
@@ -585,6 +594,63 @@ fn into_main_frame(
         scene.add_blunder(b);
     }
     Ok(scene)
+}
+
+/// The error when the initialiser left the main image unoriented, with its reason.
+fn main_not_oriented(project: &Project, init: &Initialised) -> PipelineError {
+    let main = main_image(project);
+    let why = init
+        .unoriented_images
+        .iter()
+        .find(|(n, _)| n == image_file(project, main))
+        .map(|(_, w)| w.clone())
+        .unwrap_or_else(|| "unknown".into());
+    PipelineError::Data(format!(
+        "{}: the main image could not be oriented: {why}",
+        image_file(project, main)
+    ))
+}
+
+/// The points of `start` that the initialiser determined, moved by `main_pose` into the main
+/// image's frame, without the measurements it rejected or of images `poses` leaves
+/// unoriented (two or more measurements left); and the named blunders among the coded
+/// measurements it rejected ([`coded_blunder`]).
+fn points_in_main_frame(
+    project: &Project,
+    dets: &Detections,
+    (start, sp, init): (&Scene, &SceneProblem, &Initialised),
+    poses: &IdVec<ImageId, Option<Rigid3>>,
+    main_pose: &Rigid3,
+) -> (IdVec<PointId, ScenePoint>, Vec<CodedBlunder>) {
+    let rejected = |d: &DetectionId, name: &str| {
+        let file = image_file(project, d.image);
+        (init.rejected_observations.iter())
+            .find(|(i, p, _)| i == file && p == name)
+            .map(|r| r.2)
+    };
+    let mut points = IdVec::new();
+    let mut blunders = Vec::new();
+    for (k, &j) in sp.map.points.iter().enumerate() {
+        let p = &start.points[j];
+        for (d, off) in p
+            .obs
+            .iter()
+            .filter_map(|d| Some((*d, rejected(d, &p.name)?)))
+        {
+            if let PointKind::Coded(n) = p.kind {
+                blunders.extend(coded_blunder(project, dets, d, n, off, "network start"));
+            }
+        }
+        let Some(m) = init.point_map[k] else { continue };
+        let mut p = p.clone();
+        p.position = main_pose.transform(&init.problem.points[m].position);
+        p.obs
+            .retain(|d| poses[d.image].is_some() && rejected(d, &p.name).is_none());
+        if p.obs.len() >= 2 {
+            points.push(p);
+        }
+    }
+    (points, blunders)
 }
 
 /// Logs the named blunders of `scene` from the `from`-th on: one line each.
@@ -672,11 +738,256 @@ pub fn coincident_coded(project: &Project, dets: &Detections, scene: &mut Scene)
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
-    use crate::adjust::tests::{fixture, target};
+    use crate::adjust::tests::{fixture, project_of, target};
     use crate::scene::ImageMeasurements;
     use pingcal_targets::ellipse::Ellipse;
+    use pingcal_targets::Target;
+
+    /// Five images of one camera (1000 × 800 px, principal distance 1000 px) from stations
+    /// S0–S4 on an arc 800 mm wide, S2 the main one; the distance between coded targets 1 and
+    /// 12 is `{D12}`, replaced by the true one.
+    const FIELD: &str = r#"
+version = 1
+name = "field in memory"
+method = "spheres"
+main_station = "S2"
+main_camera = "cam"
+[targets]
+family = "aicon14"
+dot_radius_mm = 5.0
+[balls]
+diameter_mm = 38.0
+[[cameras]]
+id = "cam"
+model = "photogrammetric"
+width = 1000
+height = 800
+pixel_size_mm = 0.01
+free = []
+initial = { c_mm = 10.0 }
+[[images]]
+file = "s0.png"
+camera = "cam"
+station = "S0"
+[[images]]
+file = "s1.png"
+camera = "cam"
+station = "S1"
+[[images]]
+file = "s2.png"
+camera = "cam"
+station = "S2"
+[[images]]
+file = "s3.png"
+camera = "cam"
+station = "S3"
+[[images]]
+file = "s4.png"
+camera = "cam"
+station = "S4"
+[[distances]]
+from = 1
+to = 12
+distance_mm = {D12}
+sigma_mm = 0.1
+[lrf]
+model = "urg"
+station = "S2"
+scans = ["scan.csv"]
+max_range_mm = 4000.0
+accuracy_near_mm = 30.0
+accuracy_far_fraction = 0.03
+"#;
+
+    /// A small field made in memory, in the main image's frame (its camera at the origin,
+    /// X right, Y forward, Z up): twelve coded targets 1–12 and six plain targets on an
+    /// uneven wall about 2 m ahead, and the true poses of the five images of [`FIELD`].
+    pub(crate) struct Field {
+        pub project: Project,
+        pub poses: Vec<Rigid3>,
+        pub coded: Vec<(u32, Vector3<f64>)>,
+        pub plain: Vec<Vector3<f64>>,
+    }
+
+    impl Field {
+        pub(crate) fn new() -> Self {
+            let coded: Vec<(u32, Vector3<f64>)> = (1..=12u32)
+                .map(|n| {
+                    let (col, row) = (f64::from((n - 1) % 4), f64::from((n - 1) / 4));
+                    // an uneven wall: depth varies by ±250 mm, no three targets in a line
+                    let x = -540.0 + 360.0 * col + 23.0 * row;
+                    let z = -300.0 + 300.0 * row - 17.0 * col;
+                    let y = 2000.0 + 250.0 * ((0.7 * f64::from(n)).sin());
+                    (n, Vector3::new(x, y, z))
+                })
+                .collect();
+            let plain = (0..6)
+                .map(|k| {
+                    let k = f64::from(k);
+                    Vector3::new(-450.0 + 180.0 * k, 1900.0 + 60.0 * k, 150.0 - 70.0 * k)
+                })
+                .collect();
+            let centres = [
+                Vector3::new(-800.0, 150.0, 0.0),
+                Vector3::new(-400.0, 0.0, 300.0),
+                Vector3::zeros(),
+                Vector3::new(400.0, 0.0, -300.0),
+                Vector3::new(800.0, 150.0, 100.0),
+            ];
+            let aim = Vector3::new(0.0, 2000.0, 0.0);
+            let poses = (centres.iter())
+                .map(|c| Rigid3::looking_at(*c, aim, 0.0))
+                .collect();
+            let d12 = (coded[0].1 - coded[11].1).norm();
+            let project = project_of(&FIELD.replace("{D12}", &format!("{d12:.12}")));
+            Field {
+                project,
+                poses,
+                coded,
+                plain,
+            }
+        }
+
+        /// A scene of the project with every image at its true pose and no point.
+        pub(crate) fn oriented_scene(&self) -> Scene {
+            let mut scene = Scene::new(&self.project);
+            for (k, pose) in self.poses.iter().enumerate() {
+                scene.poses[ImageId(k)] = Some(*pose);
+            }
+            scene
+        }
+
+        /// The detections of the field, exact: in every image, the coded targets then the
+        /// plain ones that project into it (`plain`: whether the plain ones are there).
+        pub(crate) fn detections(&self, plain: bool) -> Detections {
+            let scene = self.oriented_scene();
+            (0..self.poses.len())
+                .map(|i| {
+                    let i = ImageId(i);
+                    let coded = (self.coded.iter())
+                        .filter_map(|(n, x)| Some(blob(scene.project_into(i, x)?, Some(*n))));
+                    let plains = (self.plain.iter().filter(|_| plain))
+                        .filter_map(|x| Some(blob(scene.project_into(i, x)?, None)));
+                    let targets: Vec<Target> = coded.chain(plains).collect();
+                    ImageMeasurements {
+                        width: 1000,
+                        height: 800,
+                        ball_fits: vec![None; targets.len()].into(),
+                        targets: targets.into(),
+                    }
+                })
+                .collect::<Vec<_>>()
+                .into()
+        }
+    }
+
+    impl Field {
+        /// [`Field::oriented_scene`] with the coded targets as points at their true
+        /// positions, measured by their detections in `images` (those reading their number).
+        pub(crate) fn scene_with_coded(&self, dets: &Detections, images: &[usize]) -> Scene {
+            let mut scene = self.oriented_scene();
+            for &(n, x) in &self.coded {
+                let obs = (images.iter())
+                    .flat_map(|&i| {
+                        let i = ImageId(i);
+                        (dets[i].targets.iter_enumerated())
+                            .filter(move |(_, t)| t.id == Some(n))
+                            .map(move |(k, _)| DetectionId::new(i, k))
+                    })
+                    .collect();
+                scene.points.push(ScenePoint {
+                    name: n.to_string(),
+                    kind: PointKind::Coded(n),
+                    position: x,
+                    obs,
+                });
+            }
+            scene
+        }
+    }
+
+    /// A detection at `uv`: a coded target reading `number`, or a plain one without.
+    pub(crate) fn blob(uv: nalgebra::Vector2<f64>, number: Option<u32>) -> Target {
+        let mut t = target(uv.x, number.unwrap_or(0));
+        t.y = uv.y;
+        t.ellipse = Ellipse::circle(uv.x, uv.y, 3.0);
+        t.centroid = [uv.x, uv.y];
+        t.id = number;
+        if number.is_none() {
+            t.kind = TargetKind::Plain;
+        }
+        t
+    }
+
+    /// The largest distance (mm) between a camera centre of `a` and of `b`, and the largest
+    /// angle (degrees) between their rotations.
+    fn pose_error(a: &Rigid3, b: &Rigid3) -> (f64, f64) {
+        let dr = a.rotation * b.rotation.transpose();
+        let cos = ((dr.trace() - 1.0) / 2.0).clamp(-1.0, 1.0);
+        ((a.centre() - b.centre()).norm(), cos.acos().to_degrees())
+    }
+
+    /// From exact image points of twelve coded targets in five images, the initial network
+    /// finds every image's pose and every target's position in the main image's frame and
+    /// at the scale of the one distance: the relative start, resection and intersection
+    /// recover the truth to a micrometre (exact data leave only the solver's tolerance).
+    #[test]
+    fn the_initial_network_recovers_a_small_field_made_in_memory() {
+        let field = Field::new();
+        let dets = field.detections(false);
+        let rep = Reporter::silent();
+        let scene = initial_network(&field.project, &dets, &Options::default(), &rep)
+            .expect("the field orients");
+        assert!(scene.unoriented.is_empty(), "{:?}", scene.unoriented);
+        for (k, truth) in field.poses.iter().enumerate() {
+            let got = scene.poses[ImageId(k)].expect("oriented");
+            let (dc, da) = pose_error(&got, truth);
+            assert!(dc < 1e-3 && da < 1e-6, "image {k}: {dc} mm, {da}°");
+        }
+        assert_eq!(scene.points.len(), field.coded.len());
+        for p in &scene.points {
+            let PointKind::Coded(n) = p.kind else {
+                panic!("{} is not coded", p.name)
+            };
+            let truth = field.coded[n as usize - 1].1;
+            assert!((p.position - truth).norm() < 1e-3, "target {n}");
+        }
+        assert!(scene.blunders.is_empty() && scene.warnings.is_empty());
+        let lines = rep.lines();
+        assert!(
+            lines
+                .iter()
+                .any(|l| l.contains("5 of 5 images oriented, 12 coded targets")),
+            "{lines:?}"
+        );
+    }
+
+    /// The network is refused before any work with fewer than five coded targets read twice,
+    /// and without a distance that joins two of them (its scale would be undefined); each
+    /// error names the project file.
+    #[test]
+    fn a_network_without_five_coded_targets_or_a_scale_is_refused() {
+        let mut field = Field::new();
+        field.coded.truncate(4);
+        let dets = field.detections(false);
+        let rep = Reporter::silent();
+        let e = initial_network(&field.project, &dets, &Options::default(), &rep)
+            .expect_err("four targets")
+            .to_string();
+        assert!(e.starts_with("project.toml: only 4 coded targets"), "{e}");
+        let mut field = Field::new();
+        field.project.file.distances[0].to = 13;
+        let dets = field.detections(false);
+        let e = initial_network(&field.project, &dets, &Options::default(), &rep)
+            .expect_err("no distance joins two targets")
+            .to_string();
+        assert!(
+            e.contains("([[distances]]: 1–13); the scale of the network is undefined"),
+            "{e}"
+        );
+    }
 
     /// Two coded points that the images put within a code ring of each other (3 dot radii: 9
     /// px for these 3 px dots) are one target read as two numbers: the one read in fewer images
@@ -727,5 +1038,29 @@ mod tests {
         assert!(scene.blunders.iter().all(|b| b.number == 3
             && b.stage == "coincident numbers"
             && b.why.contains("target 1")));
+    }
+
+    /// Without a layout or a stereo head, `auto` tries the relative orientation only, and
+    /// asking for the layout's or the stereo head's start is refused, naming the file and
+    /// what the project lacks.
+    #[test]
+    fn the_starts_tried_are_those_the_project_allows() {
+        let field = Field::new();
+        let p = &field.project;
+        assert_eq!(starts_to_try(p, Start::Auto).unwrap(), [Start::Relative]);
+        assert_eq!(
+            starts_to_try(p, Start::Relative).unwrap(),
+            [Start::Relative]
+        );
+        let e = starts_to_try(p, Start::Layout).unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "project.toml: --start layout: the project names no [targets] layout"
+        );
+        let e = starts_to_try(p, Start::Stereo).unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "project.toml: --start stereo: the project has no [stereo] head"
+        );
     }
 }

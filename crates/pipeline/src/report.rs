@@ -609,6 +609,30 @@ fn group_lines(results: &Results) -> Vec<(String, String)> {
 
 /// The summary table at the top of the report.
 fn summary(st: &Stages, results: &Results) -> Vec<(String, String)> {
+    let mut summary = headline_rows(st, results);
+    if !results.bundle.variance_components.is_empty() {
+        summary.push((
+            "bundle σ0 per group (re-weighted by it)".to_string(),
+            components(&results.bundle.variance_components),
+        ));
+    }
+    if let Some(j) = results
+        .methods
+        .iter()
+        .find(|m| !m.variance_components.is_empty())
+    {
+        summary.push((
+            format!("{} σ0 of the LRF beams (re-weighted by it)", j.method),
+            components(&j.variance_components),
+        ));
+    }
+    summary.extend(ball_correction_row(st));
+    summary
+}
+
+/// The summary's rows that every run has: the project, the method, the check-point error,
+/// the extrinsic, the bundle's fit and size, the balls found and matched.
+fn headline_rows(st: &Stages, results: &Results) -> Vec<(String, String)> {
     let f = &st.project.file;
     let balls = st
         .scene
@@ -616,7 +640,7 @@ fn summary(st: &Stages, results: &Results) -> Vec<(String, String)> {
         .iter()
         .filter(|p| p.kind == PointKind::Ball)
         .count();
-    let mut summary = vec![
+    vec![
         ("project".to_string(), f.name.clone()),
         ("method".to_string(), f.method.to_string()),
         (
@@ -655,49 +679,41 @@ fn summary(st: &Stages, results: &Results) -> Vec<(String, String)> {
                 st.pairs_out.len()
             ),
         ),
-    ];
-    let components = |v: &[pingcal_ba::solver::VarianceComponent]| {
-        v.iter()
-            .map(|c| {
-                format!(
-                    "{} {:.2} (r {:.0}{})",
-                    c.group,
-                    c.sigma0,
-                    c.redundancy,
-                    if c.reweighted { "" } else { ", kept" }
-                )
-            })
-            .collect::<Vec<_>>()
-            .join(", ")
-    };
-    if !results.bundle.variance_components.is_empty() {
-        summary.push((
-            "bundle σ0 per group (re-weighted by it)".to_string(),
-            components(&results.bundle.variance_components),
-        ));
-    }
-    if let Some(j) = results
-        .methods
-        .iter()
-        .find(|m| !m.variance_components.is_empty())
-    {
-        summary.push((
-            format!("{} σ0 of the LRF beams (re-weighted by it)", j.method),
-            components(&j.variance_components),
-        ));
-    }
-    let shifts = &st.adjusted.solved.ball_shifts_px;
-    if !shifts.is_empty() {
-        let mut s = shifts.clone();
-        s.sort_by(|a, b| a.total_cmp(b));
-        summary.push((
-            "ball eccentricity correction".to_string(),
+    ]
+}
+
+/// Variance components as the summary shows them: group, σ0, redundancy, and whether the
+/// group was re-weighted by it.
+fn components(v: &[pingcal_ba::solver::VarianceComponent]) -> String {
+    v.iter()
+        .map(|c| {
             format!(
-                "median {:.3} px, max {:.3} px",
-                s[s.len() / 2],
-                s[s.len() - 1]
-            ),
-        ));
+                "{} {:.2} (r {:.0}{})",
+                c.group,
+                c.sigma0,
+                c.redundancy,
+                if c.reweighted { "" } else { ", kept" }
+            )
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// The summary's row of the balls' eccentricity correction: median and largest shift, when
+/// the bundle corrected any.
+fn ball_correction_row(st: &Stages) -> Option<(String, String)> {
+    let shifts = &st.adjusted.solved.ball_shifts_px;
+    if shifts.is_empty() {
+        return None;
     }
-    summary
+    let mut s = shifts.clone();
+    s.sort_by(|a, b| a.total_cmp(b));
+    Some((
+        "ball eccentricity correction".to_string(),
+        format!(
+            "median {:.3} px, max {:.3} px",
+            s[s.len() / 2],
+            s[s.len() - 1]
+        ),
+    ))
 }

@@ -2,7 +2,8 @@
 //!
 //! The shared modules (ids, progress, context, scene, adjust) come first, then the steps in
 //! the order they run, then what gathers and writes their results. This test reads
-//! `src/*.rs`, collects every `super::X` and `crate::X` path outside comments, and fails
+//! `src/*.rs` and the files of a module's folder (`src/matching/`, `src/sphere_calib/`) as
+//! that module's, collects every `super::X` and `crate::X` path outside comments, and fails
 //! when a module uses a later one, when the modules' uses form a cycle, when a module is
 //! missing from [`ORDER`], when a module's library code uses an item of the crate root
 //! (lib.rs only runs the steps and re-exports for the crate's callers: a step that
@@ -144,57 +145,69 @@ fn find_cycle(g: &BTreeMap<String, Vec<String>>) -> Option<Vec<String>> {
         .find_map(|m| visit(m, g, &mut state, &mut Vec::new()))
 }
 
-fn pipeline_files() -> BTreeMap<String, String> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
-    let mut files = BTreeMap::new();
-    for e in std::fs::read_dir(&dir).expect("src") {
-        let path = e.expect("entry").path();
-        let name = path
-            .file_stem()
-            .expect("name")
-            .to_string_lossy()
-            .into_owned();
-        if name == "test_support" {
-            continue;
-        }
-        if path.extension().is_some_and(|x| x == "rs") {
-            let src = std::fs::read_to_string(&path).expect("readable source");
-            files.insert(name, src);
-        } else if path.is_dir() {
-            // a module of several files (`joint/`): its files' uses are the module's
-            files.insert(name, folder_source(&path));
-        }
-    }
-    files
-}
-
-/// The `.rs` files of the module folder `dir`, one after another (in name order), as the
-/// crate sees them: in a file beside `mod.rs`, `super::` is the folder's module itself, so
-/// its uses of its siblings are not uses of the crate's modules.
-fn folder_source(dir: &Path) -> String {
-    let mut paths: Vec<_> = std::fs::read_dir(dir)
-        .expect("module folder")
+/// The library code and the test code of the `.rs` files under `dir`, a module's folder
+/// (`mod.rs` and submodules). In a submodule `super::` is the module, not the crate: it is
+/// read as `self::`, which names no sibling of the module.
+fn folder_parts(dir: &Path, lib: &mut String, tests: &mut String) {
+    let mut paths: Vec<_> = (std::fs::read_dir(dir).expect("a module's folder"))
         .map(|e| e.expect("entry").path())
         .collect();
     paths.sort();
-    let mut src = String::new();
-    for p in paths {
-        assert!(
-            !p.is_dir(),
-            "{}: this test reads module folders one level deep",
-            p.display()
-        );
-        if p.extension().is_some_and(|x| x == "rs") {
-            let text = std::fs::read_to_string(&p).expect("readable source");
-            if p.file_name().is_some_and(|n| n == "mod.rs") {
-                src.push_str(&text);
-            } else {
-                src.push_str(&text.replace("super::", "self::"));
+    for path in paths {
+        if path.is_dir() {
+            folder_parts(&path, lib, tests);
+        } else if path.extension().is_some_and(|x| x == "rs") {
+            let mut src = std::fs::read_to_string(&path).expect("readable source");
+            if !path.ends_with("mod.rs") {
+                src = src.replace("super::", "self::");
             }
-            src.push('\n');
+            let (l, t) = src.split_once("\n#[cfg(test)]").unwrap_or((&src, ""));
+            lib.push_str(l);
+            lib.push('\n');
+            tests.push_str(t);
+            tests.push('\n');
         }
     }
-    src
+}
+
+/// Module → its source: `src/X.rs`, or `src/X/mod.rs`, with the files of its folder
+/// `src/X/`, so that a module split into files is checked as one: the library code of all
+/// its files, then their tests after one `#[cfg(test)]`.
+fn pipeline_files() -> BTreeMap<String, String> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+    let mut files = BTreeMap::new();
+    let mut folders = BTreeMap::new();
+    for e in std::fs::read_dir(&dir).expect("src") {
+        let path = e.expect("entry").path();
+        if path.is_dir() {
+            let name = path
+                .file_name()
+                .expect("name")
+                .to_string_lossy()
+                .into_owned();
+            let (mut lib, mut tests) = (String::new(), String::new());
+            folder_parts(&path, &mut lib, &mut tests);
+            folders.insert(name, (lib, tests));
+        } else if path.extension().is_some_and(|x| x == "rs") {
+            let name = path
+                .file_stem()
+                .expect("name")
+                .to_string_lossy()
+                .into_owned();
+            if name == "test_support" {
+                continue;
+            }
+            let src = std::fs::read_to_string(&path).expect("readable source");
+            files.insert(name, src);
+        }
+    }
+    for (name, (lib, tests)) in folders {
+        let root = files.remove(&name).unwrap_or_default();
+        let (root_lib, root_tests) = root.split_once("\n#[cfg(test)]").unwrap_or((&root, ""));
+        let text = format!("{root_lib}\n{lib}\n#[cfg(test)]{root_tests}\n{tests}");
+        files.insert(name, text);
+    }
+    files
 }
 
 #[test]

@@ -4,7 +4,7 @@
 //! left out, named, never guessed.
 
 use super::camera::Camera;
-use super::consensus::{consensus, tolerance, Pick};
+use super::consensus::{consensus, tolerance, Consensus, Pick};
 use super::frames::Frame;
 use super::image::{at_prediction, ImageSphere};
 use nalgebra::Vector3;
@@ -39,22 +39,57 @@ pub fn choose(frames: &mut [Frame], cam: &Camera, radius: f64, seed: u64) -> Opt
         .map(|f| f.candidates.iter().map(|c| c.centre).collect())
         .collect();
     let Some(c) = consensus(&lidar, &cams, seed) else {
-        for f in frames.iter_mut().filter(|f| f.skipped.is_none()) {
-            let why = match f.candidates.len() {
-                0 => format!("{}: no sphere silhouette found", f.image_path.display()),
-                n => format!(
-                    "{}: {n} sphere silhouette{} found, but too few frames agree on one rigid transform with the lidar to choose",
-                    f.image_path.display(),
-                    if n == 1 { "" } else { "s" }
-                ),
-            };
-            f.skip(why);
-        }
+        skip_without_consensus(frames);
         return None;
     };
     let t = c.camera_from_lidar;
-    // frames whose choice is open are searched again where `t` puts the lidar's sphere
-    let again: Vec<(usize, Option<ImageSphere>)> = frames
+    let again = search_again(frames, &c, cam, radius);
+    for (i, f) in frames.iter_mut().enumerate() {
+        if f.skipped.is_some() {
+            continue;
+        }
+        match &c.picks[i] {
+            Pick::Chosen(k) => chosen_by_consensus(f, *k),
+            Pick::NoLidar => {}
+            pick => {
+                let again = again
+                    .iter()
+                    .find(|(j, _)| *j == i)
+                    .and_then(|(_, s)| s.clone());
+                open_pick(f, pick, again, &t, cam);
+            }
+        }
+    }
+    Some(t)
+}
+
+/// Without a consensus, every frame not yet skipped is skipped: no silhouette, or too few
+/// frames agreeing to choose among its silhouettes.
+fn skip_without_consensus(frames: &mut [Frame]) {
+    for f in frames.iter_mut().filter(|f| f.skipped.is_none()) {
+        let why = match f.candidates.len() {
+            0 => format!("{}: no sphere silhouette found", f.image_path.display()),
+            n => format!(
+                "{}: {n} sphere silhouette{} found, but too few frames agree on one rigid transform with the lidar to choose",
+                f.image_path.display(),
+                if n == 1 { "" } else { "s" }
+            ),
+        };
+        f.skip(why);
+    }
+}
+
+/// The frames whose choice the consensus `c` left open, searched again where its transform
+/// puts the lidar's sphere: per frame index, the silhouette found nearest the prediction
+/// within the tolerance, if any.
+fn search_again(
+    frames: &[Frame],
+    c: &Consensus,
+    cam: &Camera,
+    radius: f64,
+) -> Vec<(usize, Option<ImageSphere>)> {
+    let t = c.camera_from_lidar;
+    frames
         .par_iter()
         .enumerate()
         .filter(|(i, f)| {
@@ -75,54 +110,48 @@ pub fn choose(frames: &mut [Frame], cam: &Camera, radius: f64, seed: u64) -> Opt
                 .min_by(|a, b| (a.centre - p).norm().total_cmp(&(b.centre - p).norm()));
             (i, near)
         })
-        .collect();
-    for (i, f) in frames.iter_mut().enumerate() {
-        if f.skipped.is_some() {
-            continue;
-        }
-        match &c.picks[i] {
-            Pick::Chosen(k) => {
-                f.image = Some(f.candidates[*k].clone());
-                f.chosen_by = Some("consensus");
-                let others = f.candidates.len() - 1;
-                if others > 0 {
-                    f.warnings.push(format!(
-                        "{}: {others} other round outline{} than the ball's, which the lidar tells apart",
-                        f.image_path.display(),
-                        if others == 1 { "" } else { "s" }
-                    ));
-                }
-            }
-            Pick::NoLidar => {}
-            pick => {
-                let again = again
-                    .iter()
-                    .find(|(j, _)| *j == i)
-                    .and_then(|(_, s)| s.clone());
-                match (pick, again) {
-                    (Pick::Ambiguous(ks), _) => f.skip(format!(
-                        "{}: {} silhouettes where the lidar's sphere is, at {}: which one is the ball is not known (take the other ball out of the scene)",
-                        f.image_path.display(),
-                        ks.len(),
-                        ks.iter().map(|&k| at(&f.candidates[k])).collect::<Vec<_>>().join(" and ")
-                    )),
-                    (_, Some(s)) => {
-                        f.image = Some(s);
-                        f.chosen_by = Some("predicted");
-                    }
-                    (Pick::Missing(near), None) => {
-                        let p = t.transform(&f.lidar.as_ref().expect("a lidar sphere").centre);
-                        let where_ = cam.project(&p).map_or("outside the image".into(), |(x, y)| format!("at ({x:.0}, {y:.0}) px"));
-                        f.skip(format!(
-                            "{}: no sphere silhouette where the lidar's sphere is ({where_}){}",
-                            f.image_path.display(),
-                            near.map_or(String::new(), |d| format!("; the nearest silhouette is {d:.0} mm from it"))
-                        ))
-                    }
-                    _ => {}
-                }
-            }
-        }
+        .collect()
+}
+
+/// Frame `f` takes its candidate `k`, which the consensus chose; the other round outlines
+/// are a warning.
+fn chosen_by_consensus(f: &mut Frame, k: usize) {
+    f.image = Some(f.candidates[k].clone());
+    f.chosen_by = Some("consensus");
+    let others = f.candidates.len() - 1;
+    if others > 0 {
+        f.warnings.push(format!(
+            "{}: {others} other round outline{} than the ball's, which the lidar tells apart",
+            f.image_path.display(),
+            if others == 1 { "" } else { "s" }
+        ));
     }
-    Some(t)
+}
+
+/// Frame `f`, whose choice the consensus left open (`pick`), takes the silhouette the search
+/// at the prediction found (`again`), or is skipped with the reason: two silhouettes where
+/// the lidar's sphere is, or none there (where `t` puts it in the image).
+fn open_pick(f: &mut Frame, pick: &Pick, again: Option<ImageSphere>, t: &Sim3, cam: &Camera) {
+    match (pick, again) {
+        (Pick::Ambiguous(ks), _) => f.skip(format!(
+            "{}: {} silhouettes where the lidar's sphere is, at {}: which one is the ball is not known (take the other ball out of the scene)",
+            f.image_path.display(),
+            ks.len(),
+            ks.iter().map(|&k| at(&f.candidates[k])).collect::<Vec<_>>().join(" and ")
+        )),
+        (_, Some(s)) => {
+            f.image = Some(s);
+            f.chosen_by = Some("predicted");
+        }
+        (Pick::Missing(near), None) => {
+            let p = t.transform(&f.lidar.as_ref().expect("a lidar sphere").centre);
+            let where_ = cam.project(&p).map_or("outside the image".into(), |(x, y)| format!("at ({x:.0}, {y:.0}) px"));
+            f.skip(format!(
+                "{}: no sphere silhouette where the lidar's sphere is ({where_}){}",
+                f.image_path.display(),
+                near.map_or(String::new(), |d| format!("; the nearest silhouette is {d:.0} mm from it"))
+            ))
+        }
+        _ => {}
+    }
 }

@@ -79,6 +79,31 @@ pub fn judge(
             mean.sqrt()
         ));
     }
+    let (s, f) = pooled_sphere_fits(frames);
+    if f > 0.0 {
+        let b = sigma0_bound(f).max(SPHERE_PROFILE_TOLERANCE);
+        let v = (s / f).sqrt();
+        test("sphere fits sigma0", v, b, format!(
+            "the lidar sphere fits' pooled σ0 {v:.2} exceeds {b:.2}: the lidar's noise profile is too optimistic for these ranges (set noise or noise_sigma_mm in [lidar])"
+        ));
+    }
+    left_out(frames, &mut reasons, &mut notes);
+    Verdict {
+        status: if reasons.is_empty() {
+            Status::Ok
+        } else {
+            Status::Doubtful
+        },
+        reasons,
+        notes,
+        checks,
+        alpha: ALPHA,
+    }
+}
+
+/// The lidar sphere fits of the frames used, pooled: the sum of σ0² · dof and the sum of
+/// dof (inliers − 3) over the fits with redundancy and a finite σ0.
+fn pooled_sphere_fits(frames: &[Frame]) -> (f64, f64) {
     let (mut s, mut f) = (0.0, 0.0);
     for l in frames
         .iter()
@@ -91,13 +116,11 @@ pub fn judge(
             f += dof;
         }
     }
-    if f > 0.0 {
-        let b = sigma0_bound(f).max(SPHERE_PROFILE_TOLERANCE);
-        let v = (s / f).sqrt();
-        test("sphere fits sigma0", v, b, format!(
-            "the lidar sphere fits' pooled σ0 {v:.2} exceeds {b:.2}: the lidar's noise profile is too optimistic for these ranges (set noise or noise_sigma_mm in [lidar])"
-        ));
-    }
+    (s, f)
+}
+
+/// A note for each frame left out, with why; and a reason when more than half of them are.
+fn left_out(frames: &[Frame], reasons: &mut Vec<String>, notes: &mut Vec<String>) {
     let left: Vec<&Frame> = frames.iter().filter(|f| f.skipped.is_some()).collect();
     for f in &left {
         notes.push(format!(
@@ -112,16 +135,5 @@ pub fn judge(
             left.len(),
             frames.len()
         ));
-    }
-    Verdict {
-        status: if reasons.is_empty() {
-            Status::Ok
-        } else {
-            Status::Doubtful
-        },
-        reasons,
-        notes,
-        checks,
-        alpha: ALPHA,
     }
 }
