@@ -30,12 +30,11 @@ use crate::stages::Stages;
 use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
 use pingcal_ba::camera::forms::{form, opencv_of_photogrammetric, Ecosystem, Source};
 use pingcal_ba::camera::refit::{grid_pixels, GridRays};
-use pingcal_ba::camera::ModelKind;
 use pingcal_ba::solver::VarianceComponent;
 use pingcal_geometry::to_opk;
 use pingcal_geometry::{Rigid3, Sim3};
 use pingcal_lrf::registration::{CheckRow, PointObs};
-use pingcal_project::{CameraModel, Intrinsics, Project};
+use pingcal_project::{Intrinsics, Project};
 use serde::Serialize;
 
 /// The extrinsic as `results.json` writes it.
@@ -212,7 +211,7 @@ pub struct CameraJson {
 impl CameraJson {
     /// The camera's model, built for its sensor.
     pub fn model(&self) -> std::sync::Arc<dyn pingcal_ba::camera::CameraModel> {
-        self.params.model.kind().model(
+        self.params.model.model(
             self.opencv.image_width,
             self.opencv.image_height,
             self.pixel_size_mm,
@@ -639,9 +638,9 @@ fn methods(
 /// order and B2 dropped; the OpenCV and Kannala–Brandt models as they are; the others
 /// fitted over the image).
 pub fn opencv_of(params: &Intrinsics, width: u32, height: u32, pixel_mm: f64) -> OpenCvJson {
-    let kind = params.model.kind();
+    let kind = params.model;
     let p = &params.values;
-    let (k, dist, name) = if kind == ModelKind::Photogrammetric {
+    let (k, dist, name) = if kind.opencv_closed_form() {
         let (k, d) = opencv_of_photogrammetric(p, width, height, pixel_mm);
         (k, d.to_vec(), "plumb_bob")
     } else {
@@ -670,7 +669,7 @@ pub fn opencv_of(params: &Intrinsics, width: u32, height: u32, pixel_mm: f64) ->
         cy: k[3],
         dist,
         distortion_model: name,
-        opencv_dropped_b2: (kind == ModelKind::Photogrammetric).then(|| p[9]),
+        opencv_dropped_b2: kind.opencv_closed_form().then(|| p[9]),
         image_width: width,
         image_height: height,
     }
@@ -700,7 +699,7 @@ fn camera_json(project: &Project, scene: &Scene, adj: &Adjusted, c: CameraId) ->
     let params = Intrinsics::new(cam.model, p.clone()).expect("the model's parameters");
     CameraJson {
         id: cam.id.clone(),
-        model_name: (cam.model != CameraModel::Photogrammetric).then(|| cam.model.as_str()),
+        model_name: (!cam.model.is_default()).then(|| cam.model.name()),
         sigma,
         high_correlations: high,
         opencv: opencv_of(&params, cam.width, cam.height, cam.pixel_size_mm),
