@@ -64,6 +64,10 @@ pub struct SampleLens {
     pub held: &'static [&'static str],
 }
 
+/// ∂(separable parameters)/∂(the model's) over the parameters named, given all the
+/// model's values ([`ModelKind::separable_jacobian`]).
+pub type SeparableJacobian = fn(&[f64], &[&str]) -> Vec<Vec<f64>>;
+
 /// One model's line in the [`REGISTRY`].
 #[derive(Clone, Copy)]
 pub struct ModelEntry {
@@ -93,7 +97,7 @@ pub struct ModelEntry {
     pub nominal: fn(&mut [f64], f64, [f64; 4]),
     /// Its parameters' map to those a network separates, where they differ
     /// ([`ModelKind::separable_jacobian`]).
-    pub separable: Option<fn(&[f64], &[&str]) -> Vec<Vec<f64>>>,
+    pub separable: Option<SeparableJacobian>,
     /// What is wrong with a set of its parameter values that no lens can have, if anything.
     pub check: fn(&[f64]) -> Option<String>,
     /// Its forms in other ecosystems' files ([`forms::form`]).
