@@ -89,7 +89,7 @@ fn camera(
     let keys = pingcal_project::intrinsics::keys(pc.model);
     let p = keys.iter().map(|n| c[*n].as_f64().unwrap()).collect();
     (
-        pc.model.kind().model(pc.width, pc.height, pc.pixel_size_mm),
+        pc.model.model(pc.width, pc.height, pc.pixel_size_mm),
         p,
         pc.width,
         pc.height,

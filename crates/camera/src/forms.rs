@@ -61,6 +61,51 @@ impl Form {
     }
 }
 
+/// OpenCV's names of its pinhole model's distortion coefficients, in its order.
+pub const OPENCV_COEFFICIENTS: [&str; 12] = [
+    "k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6", "s1", "s2", "s3", "s4",
+];
+
+impl Form {
+    /// Whether it is OpenCV's fisheye model (`cv::fisheye`).
+    pub fn is_opencv_fisheye(&self) -> bool {
+        self.camera_model == "fisheye"
+    }
+
+    /// The names of its distortion coefficients [`Form::coeffs`] in the file's order.
+    pub fn coefficient_names(&self) -> &'static [&'static str] {
+        match self.distortion_model {
+            "fisheye" | "equidistant" => &["k1", "k2", "k3", "k4"],
+            "radtan" => &["k1", "k2", "r1", "r2"],
+            "none" => &[],
+            _ => &OPENCV_COEFFICIENTS[..self.coeffs.len().min(12)],
+        }
+    }
+
+    /// Fx, fy, cx, cy and OpenCV's twelve coefficients when it is OpenCV's pinhole model
+    /// (`None` for a fisheye or a double sphere).
+    pub fn opencv_pinhole(&self) -> Option<([f64; 4], [f64; 12])> {
+        if self.camera_model != "pinhole" || self.kind != ModelKind::OpenCv {
+            return None;
+        }
+        let mut dist = [0.0; 12];
+        dist.copy_from_slice(&self.params[4..16]);
+        Some((self.k(), dist))
+    }
+
+    /// Its intrinsics as Kalibr's camchain lists them: `[xi, alpha, fu, fv, pu, pv]` for
+    /// `ds`, `[fu, fv, pu, pv]` otherwise.
+    pub fn kalibr_intrinsics(&self) -> Vec<f64> {
+        match self.camera_model {
+            "ds" => {
+                let p = &self.params;
+                vec![p[4], p[5], p[0], p[1], p[2], p[3]]
+            }
+            _ => self.k().to_vec(),
+        }
+    }
+}
+
 /// The OpenCV parameter slice (16) of pinhole intrinsics `k` and coefficients.
 fn opencv_params(k: [f64; 4], d: &[f64]) -> Vec<f64> {
     let mut p = vec![0.0; 16];
@@ -203,34 +248,9 @@ pub struct Source<'a> {
 }
 
 impl Source<'_> {
-    /// Fx, fy, cx, cy and OpenCV's five coefficients to start a pinhole fit from.
-    fn pinhole_start(&self) -> ([f64; 4], Vec<f64>) {
-        match self.kind {
-            ModelKind::Photogrammetric | ModelKind::BrownBackward => {
-                let (k, d) = opencv_of_photogrammetric(
-                    self.params,
-                    self.width,
-                    self.height,
-                    self.pixel_size_mm,
-                );
-                // Brown backward's coefficients correct the measured point: start from none
-                let d = if self.kind == ModelKind::BrownBackward {
-                    [0.0; 5]
-                } else {
-                    d
-                };
-                (k, d.to_vec())
-            }
-            ModelKind::OpenCv => {
-                let p = self.params;
-                ([p[0], p[1], p[2], p[3]], p[4..16].to_vec())
-            }
-            ModelKind::KannalaBrandt | ModelKind::DoubleSphere => {
-                let m = self.kind.model(self.width, self.height, self.pixel_size_mm);
-                let (f, c) = (m.focal_px(self.params), m.principal_point_px(self.params));
-                ([f, f, c.x, c.y], vec![0.0; 5])
-            }
-        }
+    /// The photogrammetric parameters' closed-form pinhole ([`opencv_of_photogrammetric`]).
+    fn closed_form(&self) -> ([f64; 4], [f64; 5]) {
+        opencv_of_photogrammetric(self.params, self.width, self.height, self.pixel_size_mm)
     }
 
     /// A Kannala–Brandt start (fx fy cx cy, no distortion).
@@ -242,80 +262,95 @@ impl Source<'_> {
 }
 
 /// The camera `src` as `eco`'s file holds it, with its loss; `None` where a fit fails (a
-/// grid the source model gives no ray on).
+/// grid the source model gives no ray on). Each model's forms are its registry line's
+/// ([`super::kind::ModelEntry::forms`]).
 pub fn form(src: &Source, eco: Ecosystem) -> Option<Form> {
-    let g = src.grid;
-    let p = src.params;
-    match (src.kind, eco) {
-        (ModelKind::Photogrammetric, Ecosystem::OpenCv | Ecosystem::Ros) => {
-            let (k, d) = opencv_of_photogrammetric(p, src.width, src.height, src.pixel_size_mm);
-            Some(pinhole(k, &d, false, g, false))
-        }
-        (ModelKind::BrownBackward, Ecosystem::OpenCv | Ecosystem::Ros) => {
-            let (k, d) = src.pinhole_start();
-            best_pinhole(g, k, &d, 5)
-        }
-        (ModelKind::OpenCv, Ecosystem::OpenCv) => Some(pinhole(
-            [p[0], p[1], p[2], p[3]],
-            &p[4..16],
-            false,
-            g,
-            false,
-        )),
-        (ModelKind::OpenCv, Ecosystem::Ros) => {
-            let f = pinhole([p[0], p[1], p[2], p[3]], &p[4..16], false, g, false);
+    (src.kind.entry().forms)(src, eco)
+}
+
+/// Kalibr's radtan: k1 k2 r1 r2 (OpenCV's k1 k2 p1 p2, no k3), fitted from `k`, `d`.
+fn radtan(g: &GridRays, k: [f64; 4], d: &[f64]) -> Option<Form> {
+    let mut f = best_pinhole(g, k, d, 4)?;
+    f.distortion_model = "radtan";
+    f.coeffs.truncate(4);
+    Some(f)
+}
+
+/// The photogrammetric model: OpenCV's and ROS's pinhole in closed form, Kalibr's radtan
+/// fitted.
+pub(crate) fn photogrammetric_forms(src: &Source, eco: Ecosystem) -> Option<Form> {
+    let (k, d) = src.closed_form();
+    match eco {
+        Ecosystem::OpenCv | Ecosystem::Ros => Some(pinhole(k, &d, false, src.grid, false)),
+        Ecosystem::Kalibr => radtan(src.grid, k, &d),
+    }
+}
+
+/// Brown backward: every form fitted, from the closed form's intrinsics and no distortion
+/// (its coefficients correct the measured point).
+pub(crate) fn brown_backward_forms(src: &Source, eco: Ecosystem) -> Option<Form> {
+    let (k, _) = src.closed_form();
+    match eco {
+        Ecosystem::OpenCv | Ecosystem::Ros => best_pinhole(src.grid, k, &[0.0; 5], 5),
+        Ecosystem::Kalibr => radtan(src.grid, k, &[0.0; 5]),
+    }
+}
+
+/// OpenCV's model: itself in OpenCV's file, in ROS's unless it has a thin prism (then
+/// the rational model fitted), Kalibr's radtan fitted.
+pub(crate) fn opencv_forms(src: &Source, eco: Ecosystem) -> Option<Form> {
+    let (g, p) = (src.grid, src.params);
+    let k = [p[0], p[1], p[2], p[3]];
+    match eco {
+        Ecosystem::OpenCv => Some(pinhole(k, &p[4..16], false, g, false)),
+        Ecosystem::Ros => {
+            let f = pinhole(k, &p[4..16], false, g, false);
             if f.distortion_model != "thin_prism" {
                 return Some(f);
             }
-            best_pinhole(g, [p[0], p[1], p[2], p[3]], &p[4..16], 8)
+            best_pinhole(g, k, &p[4..16], 8)
         }
-        (ModelKind::KannalaBrandt, Ecosystem::OpenCv) => {
-            Some(equidistant(p.to_vec(), false, g, "fisheye", "fisheye"))
-        }
-        (ModelKind::KannalaBrandt, Ecosystem::Ros) => {
-            Some(equidistant(p.to_vec(), false, g, "equidistant", "pinhole"))
-        }
-        (ModelKind::KannalaBrandt, Ecosystem::Kalibr) => {
-            Some(equidistant(p.to_vec(), false, g, "equidistant", "pinhole"))
-        }
-        (ModelKind::DoubleSphere, Ecosystem::OpenCv | Ecosystem::Ros) => {
-            let (fitted, _) = refit(
-                g,
-                &super::FisheyeCamera,
-                &src.equidistant_start(),
-                &[true; 8],
-            )?;
-            let (name, cam) = match eco {
-                Ecosystem::OpenCv => ("fisheye", "fisheye"),
-                _ => ("equidistant", "pinhole"),
-            };
-            Some(equidistant(fitted, true, g, name, cam))
-        }
-        (ModelKind::DoubleSphere, Ecosystem::Kalibr) => {
-            let loss = g.loss(&super::DoubleSphereCamera, p);
-            Some(Form {
+        Ecosystem::Kalibr => radtan(g, k, &p[4..16]),
+    }
+}
+
+/// Kannala–Brandt: itself everywhere (OpenCV's fisheye, ROS's and Kalibr's equidistant).
+pub(crate) fn kannala_brandt_forms(src: &Source, eco: Ecosystem) -> Option<Form> {
+    let (name, cam) = match eco {
+        Ecosystem::OpenCv => ("fisheye", "fisheye"),
+        Ecosystem::Ros | Ecosystem::Kalibr => ("equidistant", "pinhole"),
+    };
+    Some(equidistant(src.params.to_vec(), false, src.grid, name, cam))
+}
+
+/// The double sphere: itself in Kalibr's `ds`, a fitted Kannala–Brandt in OpenCV's and
+/// ROS's files.
+pub(crate) fn double_sphere_forms(src: &Source, eco: Ecosystem) -> Option<Form> {
+    let g = src.grid;
+    let (name, cam) = match eco {
+        Ecosystem::OpenCv => ("fisheye", "fisheye"),
+        Ecosystem::Ros => ("equidistant", "pinhole"),
+        Ecosystem::Kalibr => {
+            let loss = g.loss(&super::DoubleSphereCamera, src.params);
+            return Some(Form {
                 kind: ModelKind::DoubleSphere,
-                params: p.to_vec(),
+                params: src.params.to_vec(),
                 distortion_model: "none",
                 camera_model: "ds",
                 coeffs: Vec::new(),
                 fitted: false,
                 intrinsics_fitted: false,
                 loss,
-            })
+            });
         }
-        (
-            ModelKind::Photogrammetric | ModelKind::BrownBackward | ModelKind::OpenCv,
-            Ecosystem::Kalibr,
-        ) => {
-            // Kalibr's radtan: k1 k2 r1 r2 (OpenCV's k1 k2 p1 p2, no k3)
-            let (k, d) = src.pinhole_start();
-            let mut f = best_pinhole(g, k, &d, 4)?;
-            f.distortion_model = "radtan";
-            f.coeffs.truncate(4);
-            Some(f)
-        }
-    }
+    };
+    let (fitted, _) = refit(
+        g,
+        &super::FisheyeCamera,
+        &src.equidistant_start(),
+        &[true; 8],
+    )?;
+    Some(equidistant(fitted, true, g, name, cam))
 }
 
 #[cfg(test)]

@@ -42,7 +42,7 @@ pub mod brown_backward;
 pub mod double_sphere;
 pub mod fisheye;
 pub mod forms;
-mod kind;
+pub mod kind;
 pub mod opencv;
 mod photogrammetric;
 pub mod refit;
@@ -51,7 +51,7 @@ pub use bal::BalCamera;
 pub use brown_backward::{BrownBackwardCamera, BROWN_BACKWARD_PARAMS};
 pub use double_sphere::{DoubleSphereCamera, DOUBLE_SPHERE_PARAMS};
 pub use fisheye::{FisheyeCamera, FISHEYE_PARAMS};
-pub use kind::ModelKind;
+pub use kind::{LensClass, ModelEntry, ModelKind, SampleLens, MM_KEYS, REGISTRY};
 pub use opencv::{
     opencv_from_photogrammetric, photogrammetric_from_opencv, ConversionError, OpenCvCamera,
     OPENCV_PARAMS,

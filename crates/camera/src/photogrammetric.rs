@@ -44,6 +44,9 @@ pub struct PhotogrammetricCamera {
 }
 
 impl PhotogrammetricCamera {
+    /// Its [`CameraModel::name`].
+    pub const NAME: &'static str = "photogrammetric";
+
     /// A camera of `width × height` pixels of pitch `pixel_size_mm`.
     pub fn new(width: u32, height: u32, pixel_size_mm: f64) -> Self {
         Self {
@@ -117,7 +120,7 @@ impl PhotogrammetricCamera {
 
 impl CameraModel for PhotogrammetricCamera {
     fn name(&self) -> &'static str {
-        "photogrammetric"
+        Self::NAME
     }
 
     fn parameter_names(&self) -> &'static [&'static str] {

@@ -14,8 +14,7 @@
 
 use super::ids::{DetectionId, IdVec, ImageId, PointId};
 use super::scene::{
-    main_image, silhouette_is_ellipse, target_sigma, Detections, PointKind, Scene, SceneCamera,
-    SIGMA_FACTOR,
+    main_image, target_sigma, Detections, PointKind, Scene, SceneCamera, SIGMA_FACTOR,
 };
 use nalgebra::{Matrix2x3, Vector2};
 use pingcal_ba::problem::{Camera, Distance, Image, Observation, Point, Problem, Rig, RigMember};
@@ -149,19 +148,19 @@ fn measurement(
 
 /// The image of a flat target's centre: the detected centre, corrected for the lens's
 /// shift of a dot's fitted centre under the wide-angle and fisheye models
-/// ([`pingcal_targets::dot`]; where [`super::scene::silhouette_is_ellipse`], the
+/// ([`pingcal_targets::dot`]; where [`pingcal_ba::camera::ModelKind::silhouette_is_ellipse`], the
 /// photogrammetric and backward Brown lenses, that shift is thousandths of a pixel and the
 /// detected centre is taken as it is).
 fn flat_centre(t: &Target, rays: &dyn CameraRays, cam: &SceneCamera) -> Vector2<f64> {
     let raw = Vector2::new(t.x, t.y);
-    if silhouette_is_ellipse(cam.kind) {
+    if cam.kind.silhouette_is_ellipse() {
         return raw;
     }
     dot_centre_through_lens(&t.ellipse, rays).map_or(raw, |p| Vector2::new(p[0], p[1]))
 }
 
 /// The image of a ball's centre and its σ (px) from the silhouette's edge points (kept for
-/// the wide-angle and fisheye models, [`super::scene::silhouette_is_ellipse`]): the
+/// the wide-angle and fisheye models, [`pingcal_ba::camera::ModelKind::silhouette_is_ellipse`]): the
 /// cone fitted to their rays ([`sphere_centre_from_edges`]), its centre projected, the
 /// covariance carried through the projection's Jacobian, σ the RMS of the two axes times
 /// [`SIGMA_FACTOR`] as every image point's. None without edge points or when the fit fails.

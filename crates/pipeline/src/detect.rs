@@ -7,7 +7,7 @@
 //! ([`pingcal_targets::ball::fit_ball_silhouette`]), so that no image needs to be kept in
 //! memory for the eccentricity correction of the balls.
 
-use super::scene::{silhouette_is_ellipse, BallFit, Detections, ImageMeasurements};
+use super::scene::{BallFit, Detections, ImageMeasurements};
 use crate::context::{Options, PipelineError, Result};
 use crate::progress::Reporter;
 use pingcal_project::{Project, ProjectCamera};
@@ -89,7 +89,7 @@ fn measure(
     cam: &ProjectCamera,
 ) -> (ImageMeasurements, Vec<Refusal>) {
     let d = detector.detect(img);
-    let keep_edges = !silhouette_is_ellipse(cam.model.kind());
+    let keep_edges = !cam.model.silhouette_is_ellipse();
     let ball_fits = d
         .targets
         .iter()

@@ -95,7 +95,7 @@ pub fn export_loss(c: &CameraJson) -> Option<ExportLoss> {
     let model = c.model();
     let grid = GridRays::of(model.as_ref(), &c.params.values, &grid_pixels(w, h));
     let src = Source {
-        kind: c.params.model.kind(),
+        kind: c.params.model,
         params: &c.params.values,
         width: w,
         height: h,
@@ -116,8 +116,8 @@ pub fn export_loss(c: &CameraJson) -> Option<ExportLoss> {
 fn drops(c: &CameraJson, f: &Form) -> String {
     let model = c.params.model;
     let v = |k: &str| num(c.params.get(k).unwrap_or(0.0));
-    match (model.kind(), f.fitted) {
-        (pingcal_ba::camera::ModelKind::Photogrammetric, false) => format!(
+    match (model.opencv_closed_form(), f.fitted) {
+        (true, false) => format!(
             "B2 = {} dropped (no shear in OpenCV's model) and B1 = {} kept to first order only (in fx)",
             v("b2"),
             v("b1")
@@ -518,12 +518,8 @@ fn cv_matrix(out: &mut String, name: &str, rows: usize, cols: usize, data: &[f64
 
 /// The OpenCV pinhole camera of a form, for the stereo geometry (`None` for a fisheye).
 fn cv_camera(f: &Form) -> Option<CvCamera> {
-    if f.camera_model != "pinhole" || f.kind != pingcal_ba::camera::ModelKind::OpenCv {
-        return None;
-    }
-    let mut dist = [0.0; 12];
-    dist.copy_from_slice(&f.params[4..16]);
-    Some(CvCamera { k: f.k(), dist })
+    let (k, dist) = f.opencv_pinhole()?;
+    Some(CvCamera { k, dist })
 }
 
 fn k_data(f: &Form) -> [f64; 9] {
@@ -544,15 +540,17 @@ fn file_stem(id: &str) -> String {
 /// that model loses ([`export_loss`]) in its comment.
 pub fn opencv_camera_yaml(c: &CameraJson, loss: &ExportLoss) -> String {
     let f = &loss.opencv;
-    let what = match f.camera_model {
-        "fisheye" => "OpenCV's fisheye model (cv::fisheye, k1 k2 k3 k4)".to_string(),
-        _ => format!(
+    let what = if f.is_opencv_fisheye() {
+        format!(
+            "OpenCV's fisheye model (cv::fisheye, {})",
+            f.coefficient_names().join(" ")
+        )
+    } else {
+        format!(
             "OpenCV's pinhole model with {} distortion ({})",
             f.distortion_model,
-            ["k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6", "s1", "s2", "s3", "s4"]
-                [..f.coeffs.len()]
-                .join(", ")
-        ),
+            f.coefficient_names().join(", ")
+        )
     };
     let mut s = format!(
         "%YAML:1.0\n---\n# camera '{}' in {what}; written by pingcal calibrate\n# {}\ncamera_name: \"{}\"\ncamera_model: \"{}\"\ndistortion_model: \"{}\"\nimage_width: {}\nimage_height: {}\n",
@@ -693,11 +691,7 @@ pub fn ros_camera_info(c: &CameraJson, rect: &RosRectification, loss: &ExportLos
         "# ROS camera_info of camera '{}' (camera_calibration_parsers' YAML, as camera_info_manager reads it), written by pingcal calibrate:\n# {same} ({}: {}); {}\n# {}\nimage_width: {}\nimage_height: {}\ncamera_name: {:?}\n",
         c.id,
         f.distortion_model,
-        match f.distortion_model {
-            "equidistant" => "k1 k2 k3 k4",
-            "rational_polynomial" => "k1 k2 p1 p2 k3 k4 k5 k6",
-            _ => "k1 k2 p1 p2 k3",
-        },
+        f.coefficient_names().join(" "),
         rect.what,
         loss_comment(c, f, loss),
         c.opencv.image_width,
@@ -727,14 +721,7 @@ fn kalibr_camera(
     overlaps: &[usize],
 ) {
     let k = &loss.kalibr;
-    let (intrinsics, model) = match k.camera_model {
-        // Kalibr's ds: [xi, alpha, fu, fv, pu, pv]
-        "ds" => {
-            let p = &k.params;
-            (vec![p[4], p[5], p[0], p[1], p[2], p[3]], "ds")
-        }
-        _ => (k.k().to_vec(), "pinhole"),
-    };
+    let (intrinsics, model) = (k.kalibr_intrinsics(), k.camera_model);
     let same_k = match (k.fitted, k.intrinsics_fitted) {
         (true, false) => " (fx fy cx cy as opencv/'s)",
         _ => "",
@@ -1023,8 +1010,7 @@ mod tests {
     fn model_camera(id: &str, params: Intrinsics) -> CameraJson {
         CameraJson {
             id: id.into(),
-            model_name: (params.model != CameraModel::Photogrammetric)
-                .then(|| params.model.as_str()),
+            model_name: (params.model != CameraModel::Photogrammetric).then(|| params.model.name()),
             opencv: opencv_of(&params, 1280, 720, 0.00375),
             params,
             sigma: Default::default(),

@@ -388,8 +388,8 @@ fn methods(st: &Stages, results: &Results) -> Vec<rp::MethodResult> {
 
 /// The units of model `m`'s parameters, in its slice order.
 fn units(m: pingcal_project::CameraModel) -> Vec<String> {
-    let names = m.kind().parameter_names();
-    if m.kind().in_mm() {
+    let names = m.parameter_names();
+    if m.in_mm() {
         return UNITS.iter().map(|s| s.to_string()).collect();
     }
     names
@@ -437,8 +437,8 @@ fn intrinsics(st: &Stages, results: &Results) -> Vec<rp::Intrinsics> {
         .enumerate()
         .map(|(c, (cj, values))| {
             let cam = &f.cameras[c];
-            let names = cam.model.kind().parameter_names();
-            let photogrammetric = cam.model.kind().in_mm();
+            let names = cam.model.parameter_names();
+            let photogrammetric = cam.model.in_mm();
             rp::Intrinsics {
                 camera: cj.id.clone(),
                 names: names.iter().map(|s| s.to_string()).collect(),
@@ -461,7 +461,7 @@ fn intrinsics(st: &Stages, results: &Results) -> Vec<rp::Intrinsics> {
                     width: cj.opencv.image_width,
                     height: cj.opencv.image_height,
                 }),
-                model: cam.model.as_str().into(),
+                model: cam.model.name().into(),
                 lens_curve: (!photogrammetric)
                     .then(|| lens_curve(&st.scene.cameras[crate::ids::CameraId(c)], values))
                     .flatten(),

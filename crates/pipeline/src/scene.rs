@@ -59,21 +59,8 @@ pub struct BallFit {
     /// σ of the ellipse's centre (px).
     pub sigma_px: f64,
     /// The sub-pixel edge points, in order around the outline: kept only for a camera whose
-    /// balls are fitted to them ([`silhouette_is_ellipse`] false), empty otherwise.
+    /// balls are fitted to them ([`ModelKind::silhouette_is_ellipse`] false), empty otherwise.
     pub edges: Vec<(f64, f64)>,
-}
-
-/// Whether a ball's centre through a lens of model `kind` is taken from its silhouette's
-/// fitted ellipse (the cone through 72 of its points), rather than from the cone fitted to
-/// the edge points themselves. The photogrammetric (Brown) models keep the ellipse: their
-/// results stay as they were. Through the wide-angle and fisheye models (OpenCV rational,
-/// Kannala–Brandt, double sphere) the outline is no ellipse; the edge points are kept and
-/// fitted in ray space ([`pingcal_targets::silhouette::sphere_centre_from_edges`]): exact
-/// whatever the outline's shape, robust to edge points of a stem or a neighbouring target,
-/// and with a covariance of its own per ball. (The ellipse's cone is not biased by the
-/// shape either: within 2·10⁻⁴ px of the exact centre on exact fisheye outlines.)
-pub fn silhouette_is_ellipse(kind: ModelKind) -> bool {
-    matches!(kind, ModelKind::Photogrammetric | ModelKind::BrownBackward)
 }
 
 /// The detections of every project image.
@@ -166,8 +153,8 @@ impl SceneCamera {
     /// The camera of project camera `c`.
     pub fn of(c: &ProjectCamera) -> Self {
         SceneCamera {
-            kind: c.model.kind(),
-            model: c.model.kind().model(c.width, c.height, c.pixel_size_mm),
+            kind: c.model,
+            model: c.model.model(c.width, c.height, c.pixel_size_mm),
             width: c.width,
             height: c.height,
             pixel_size_mm: c.pixel_size_mm,

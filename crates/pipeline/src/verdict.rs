@@ -34,7 +34,7 @@ use super::extrinsic;
 use super::joint::JointOutcome;
 use crate::stages::Stages;
 use nalgebra::{DMatrix, Matrix3, Vector3};
-use pingcal_ba::camera::ModelKind;
+use pingcal_ba::camera::{LensClass, ModelKind};
 use pingcal_ba::solver::IntrinsicsPrecision;
 use pingcal_geometry::{skew, Sim3};
 use pingcal_lrf::registration::{CheckRow, Evaluation, PointObs};
@@ -170,7 +170,7 @@ pub fn lens_doubt(project: &Project, adjusted: &Adjusted) -> Option<String> {
                 / cam.model.focal_px(&cam.params))
             .atan()
             .to_degrees();
-        let perspective = !matches!(c.model.kind(), ModelKind::KannalaBrandt | ModelKind::DoubleSphere);
+        let perspective = c.model.perspective();
         let what = match (profile.grows_radially(), profile.rejections_grow()) {
             _ if sigma0_fails && perspective && fov_deg > PERSPECTIVE_FOV_DEG => format!(
                 "the adjustment fails (σ0 {:.1}) and the lens sees {fov_deg:.0}° across the image's diagonal even before its distortion, beyond the {PERSPECTIVE_FOV_DEG:.0}° a perspective model with polynomial distortion holds",
@@ -195,9 +195,11 @@ pub fn lens_doubt(project: &Project, adjusted: &Adjusted) -> Option<String> {
             ),
             _ => return None,
         };
-        let others: Vec<String> = ["kannala-brandt", "double-sphere", "opencv"]
+        // the fisheye models, then the wide-angle ones
+        let others: Vec<String> = [LensClass::Fisheye, LensClass::WideAngle]
             .iter()
-            .filter(|m| **m != c.model.as_str())
+            .flat_map(|l| ModelKind::ALL.into_iter().filter(move |m| m.lens() == *l))
+            .filter(|m| *m != c.model)
             .map(|m| format!("\"{m}\""))
             .collect();
         Some(format!(
@@ -520,12 +522,9 @@ fn separable_correlation(st: &Stages, ip: &IntrinsicsPrecision) -> Vec<Vec<f64>>
     let Some(cam) = st.project.file.cameras.iter().find(|c| c.id == ip.camera) else {
         return ip.correlation.clone();
     };
-    let kind = cam.model.kind();
-    if kind != pingcal_ba::camera::ModelKind::DoubleSphere {
-        return ip.correlation.clone();
-    }
+    let kind = cam.model;
     let names: Vec<&str> = ip.names.iter().map(String::as_str).collect();
-    let values = cam.model.kind().parameter_names().iter().map(|n| {
+    let values = cam.model.parameter_names().iter().map(|n| {
         // the adjusted values of the free parameters, the start of the held ones
         names
             .iter()
@@ -533,7 +532,9 @@ fn separable_correlation(st: &Stages, ip: &IntrinsicsPrecision) -> Vec<Vec<f64>>
             .map_or(0.0, |k| ip.values[k])
     });
     let values: Vec<f64> = values.collect();
-    let j = kind.separable_jacobian(&values, &names);
+    let Some(j) = kind.separable_jacobian(&values, &names) else {
+        return ip.correlation.clone();
+    };
     let n = names.len();
     let cov = |a: usize, b: usize| ip.correlation[a][b] * ip.sigmas[a] * ip.sigmas[b];
     let c2: Vec<Vec<f64>> = (0..n)

@@ -102,14 +102,33 @@ struct CameraToml {
     params: KeyedValues,
 }
 
-/// Only the model's word (`fisheye` is read as `kannala-brandt`).
+/// Only the model's word (an alias is read as its model's name).
 #[derive(Deserialize)]
 struct ModelWord {
     model: Option<String>,
 }
 
-/// What a file in no form pingcal reads is told.
-pub const FORMATS: &str = "a camera.toml (model = \"photogrammetric\", \"brown-backward\", \"opencv\", \"kannala-brandt\" (or \"fisheye\") or \"double-sphere\"), a ROS camera_info or OpenCV YAML, or a Kalibr camchain YAML (docs/sphere-calib.md)";
+/// What a file in no form pingcal reads is told: the forms, and the models a camera.toml
+/// names (the camera crate's registry, with the other words it reads for each).
+pub fn formats() -> String {
+    let words: Vec<String> = CameraModel::ALL
+        .iter()
+        .map(|m| {
+            let aliases: Vec<String> = m
+                .entry()
+                .aliases
+                .iter()
+                .map(|a| format!("\"{a}\""))
+                .collect();
+            match aliases.is_empty() {
+                true => format!("\"{m}\""),
+                false => format!("\"{m}\" (or {})", aliases.join(" or ")),
+            }
+        })
+        .collect();
+    let (last, rest) = words.split_last().expect("the registry has models");
+    format!("a camera.toml (model = {} or {last}), a ROS camera_info or OpenCV YAML, or a Kalibr camchain YAML (docs/sphere-calib.md)", rest.join(", "))
+}
 
 /// A model in pixels from its `fx fy cx cy` and then its other values in its key order
 /// (missing ones 0).
@@ -118,6 +137,16 @@ fn pixel_model(model: CameraModel, k: [f64; 4], rest: &[f64]) -> Intrinsics {
     values[..4].copy_from_slice(&k);
     values[4..4 + rest.len()].copy_from_slice(rest);
     Intrinsics { model, values }
+}
+
+impl Intrinsics {
+    /// The photogrammetric model's ten values `[c, xp, yp, K1, K2, K3, P1, P2, B1, B2]`.
+    pub fn photogrammetric(values: [f64; 10]) -> Self {
+        Self {
+            model: CameraModel::Photogrammetric,
+            values: values.to_vec(),
+        }
+    }
 }
 
 impl CameraFile {
@@ -159,7 +188,7 @@ impl CameraFile {
         }
         Err(invalid(
             file,
-            format!("not a camera file pingcal reads: expected {FORMATS}"),
+            format!("not a camera file pingcal reads: expected {}", formats()),
         ))
     }
 
@@ -168,21 +197,21 @@ impl CameraFile {
         let word = toml::from_str::<ModelWord>(text)
             .map_err(|e| syntax(file, text, e))?
             .model;
-        let t: CameraToml = if word.as_deref() == Some("fisheye") {
-            let kb = text.replacen("\"fisheye\"", "\"kannala-brandt\"", 1);
-            toml::from_str(&kb).map_err(|e| syntax(file, text, e))?
+        let alias = word
+            .as_deref()
+            .and_then(|w| CameraModel::from_file_word(w).map(|m| (w, m)))
+            .filter(|(w, m)| m.name() != *w);
+        let t: CameraToml = if let Some((w, m)) = alias {
+            let named = text.replacen(&format!("\"{w}\""), &format!("\"{m}\""), 1);
+            toml::from_str(&named).map_err(|e| syntax(file, text, e))?
         } else {
             toml::from_str(text).map_err(|e| syntax(file, text, e))?
         };
         if let Some(e) = Intrinsics::unknown_key(t.model, &t.params) {
             return Err(invalid(file, format!("[params] {e}")));
         }
-        let photogrammetric = t.model.kind().in_mm();
-        let required: &[&str] = if photogrammetric {
-            &["c_mm"]
-        } else {
-            &["fx", "fy", "cx", "cy"]
-        };
+        let photogrammetric = t.model.in_mm();
+        let required = &keys(t.model)[..t.model.required_parameters().len()];
         if let Some(k) = required.iter().find(|k| t.params.get(k).is_none()) {
             return Err(invalid(
                 file,
@@ -235,7 +264,7 @@ impl CameraFile {
         if cams.is_empty() {
             return Err(invalid(
                 file,
-                format!("a YAML file with neither camera_matrix (ROS camera_info, OpenCV) nor cam0 (Kalibr camchain): expected {FORMATS}"),
+                format!("a YAML file with neither camera_matrix (ROS camera_info, OpenCV) nor cam0 (Kalibr camchain): expected {}", formats()),
             ));
         }
         let name = match (entry, cams.as_slice()) {
@@ -267,7 +296,7 @@ impl CameraFile {
             ));
         }
         let i = &self.intrinsics;
-        if i.model.kind().in_mm() {
+        if i.model.in_mm() {
             let p = self.pixel_size_mm;
             if !(p > 0.0 && p.is_finite()) {
                 return Err(invalid(
@@ -301,12 +330,7 @@ impl CameraFile {
             model: self.intrinsics.model,
             width: self.width,
             height: self.height,
-            pixel_size_mm: self
-                .intrinsics
-                .model
-                .kind()
-                .in_mm()
-                .then_some(self.pixel_size_mm),
+            pixel_size_mm: self.intrinsics.model.in_mm().then_some(self.pixel_size_mm),
             params: self.intrinsics.to_table(),
         })
         .expect("a camera file always serialises")

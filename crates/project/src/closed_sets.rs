@@ -171,34 +171,9 @@ impl TargetFamily {
     }
 }
 
-closed_set! {
-    /// A camera's model (`[[cameras]] model`); each is a [`pingcal_camera::ModelKind`].
-    pub enum CameraModel {
-        /// The ten-parameter photogrammetric model (c, xp, yp, K1-K3, P1, P2, B1, B2; mm).
-        Photogrammetric = "photogrammetric",
-        /// The same ten parameters as a correction of the measured point (DBAT).
-        BrownBackward = "brown-backward",
-        /// OpenCV's pinhole with the rational model (fx fy cx cy k1 k2 p1 p2 k3-k6 s1-s4; px).
-        OpenCv = "opencv",
-        /// Kannala-Brandt, equidistant (fx fy cx cy k1-k4; px).
-        KannalaBrandt = "kannala-brandt",
-        /// The double sphere (fx fy cx cy xi alpha; px).
-        DoubleSphere = "double-sphere",
-    }
-}
-
-impl CameraModel {
-    /// The camera crate's kind of this model.
-    pub fn kind(self) -> pingcal_camera::ModelKind {
-        match self {
-            CameraModel::Photogrammetric => pingcal_camera::ModelKind::Photogrammetric,
-            CameraModel::BrownBackward => pingcal_camera::ModelKind::BrownBackward,
-            CameraModel::OpenCv => pingcal_camera::ModelKind::OpenCv,
-            CameraModel::KannalaBrandt => pingcal_camera::ModelKind::KannalaBrandt,
-            CameraModel::DoubleSphere => pingcal_camera::ModelKind::DoubleSphere,
-        }
-    }
-}
+/// A camera's model (`[[cameras]] model`): the camera crate's registry names them
+/// ([`pingcal_camera::kind`]), and reads and refuses a word as the closed sets here do.
+pub type CameraModel = pingcal_camera::ModelKind;
 
 closed_set! {
     /// A camera parameter as named in a camera's `free` list: those of every model (each
@@ -268,17 +243,12 @@ impl Parameter {
     /// Its position in the parameter slice of `model`, if it is one of its parameters.
     pub fn index_in(self, model: CameraModel) -> Option<usize> {
         let name = self.as_str();
-        model
-            .kind()
-            .parameter_names()
-            .iter()
-            .position(|n| *n == name)
+        model.parameter_names().iter().position(|n| *n == name)
     }
 
     /// The parameters of `model`, in its slice order.
     pub fn of(model: CameraModel) -> Vec<Parameter> {
         model
-            .kind()
             .parameter_names()
             .iter()
             .map(|n| Parameter::from_word(n).expect("every model's names are parameters"))

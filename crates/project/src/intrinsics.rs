@@ -1,11 +1,9 @@
 //! A camera's parameter values as files write them: a table of keys, each model's own.
 //!
-//! | model | keys, in slice order | units |
-//! |---|---|---|
-//! | `photogrammetric`, `brown-backward` | `c_mm`, `xp_mm`, `yp_mm`, `k1`, `k2`, `k3`, `p1`, `p2`, `b1`, `b2` | mm, mm⁻², …, as Australis |
-//! | `opencv` | `fx`, `fy`, `cx`, `cy`, `k1`, `k2`, `p1`, `p2`, `k3`, `k4`, `k5`, `k6`, `s1`, `s2`, `s3`, `s4` | px (coefficients unitless) |
-//! | `kannala-brandt` | `fx`, `fy`, `cx`, `cy`, `k1`, `k2`, `k3`, `k4` | px |
-//! | `double-sphere` | `fx`, `fy`, `cx`, `cy`, `xi`, `alpha` | px |
+//! Each model's keys, in its slice order, are its line's in the camera crate's registry
+//! ([`pingcal_camera::ModelKind::keys`]): the photogrammetric models' `c_mm`, `xp_mm`,
+//! `yp_mm`, `k1` … `b2` (mm, mm⁻², …, as Australis), the others' their parameters' names
+//! (px; coefficients unitless).
 //!
 //! [`KeyedValues`] is such a table as read (the keys in the file's order, nothing checked);
 //! [`Intrinsics`] is a model with one value per parameter in the model's slice order, what
@@ -19,16 +17,12 @@ use serde::{Deserialize, Deserializer, Serialize, Serializer};
 use std::fmt;
 
 /// The keys of the two photogrammetric models' parameters in files.
-pub const PHOTOGRAMMETRIC_KEYS: [&str; 10] = [
-    "c_mm", "xp_mm", "yp_mm", "k1", "k2", "k3", "p1", "p2", "b1", "b2",
-];
+pub const PHOTOGRAMMETRIC_KEYS: [&str; 10] = pingcal_camera::MM_KEYS;
 
-/// The keys of `model`'s parameters in files, in its slice order (see the module doc).
+/// The keys of `model`'s parameters in files, in its slice order (see the module doc; the
+/// camera crate's registry holds them, [`pingcal_camera::ModelKind::keys`]).
 pub fn keys(model: CameraModel) -> &'static [&'static str] {
-    match model {
-        CameraModel::Photogrammetric | CameraModel::BrownBackward => &PHOTOGRAMMETRIC_KEYS,
-        _ => model.kind().parameter_names(),
-    }
+    model.keys()
 }
 
 /// A table of numbers as a file gives it: keys and values in the file's order.
@@ -90,14 +84,6 @@ pub struct Intrinsics {
 }
 
 impl Intrinsics {
-    /// The photogrammetric model's ten values `[c, xp, yp, K1, K2, K3, P1, P2, B1, B2]`.
-    pub fn photogrammetric(values: [f64; 10]) -> Self {
-        Self {
-            model: CameraModel::Photogrammetric,
-            values: values.to_vec(),
-        }
-    }
-
     /// `values` of `model`; `None` when their number is not the model's.
     pub fn new(model: CameraModel, values: Vec<f64>) -> Option<Self> {
         (values.len() == keys(model).len()).then_some(Self { model, values })
@@ -173,7 +159,7 @@ mod tests {
     #[test]
     fn every_model_has_its_keys_and_a_table_round_trips() {
         for m in CameraModel::ALL {
-            assert_eq!(keys(m).len(), m.kind().parameter_names().len(), "{m}");
+            assert_eq!(keys(m).len(), m.parameter_names().len(), "{m}");
             let values: Vec<f64> = (0..keys(m).len()).map(|k| k as f64 + 0.5).collect();
             let i = Intrinsics::new(m, values.clone()).unwrap();
             let back = Intrinsics::from_table(m, &i.to_table(), &vec![0.0; values.len()]);

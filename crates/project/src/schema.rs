@@ -199,8 +199,9 @@ pub struct BallLabel {
 pub struct ProjectCamera {
     /// Camera id used by images.
     pub id: String,
-    /// The camera model (`photogrammetric`, the default, `opencv`, `kannala-brandt`, …).
-    #[serde(default = "photogrammetric")]
+    /// The camera model: one of [`pingcal_camera::ModelKind::NAMES`], by default
+    /// [`pingcal_camera::ModelKind::DEFAULT`].
+    #[serde(default = "default_model")]
     pub model: CameraModel,
     /// Width in pixels.
     pub width: u32,
@@ -216,8 +217,8 @@ pub struct ProjectCamera {
     pub free: Vec<Parameter>,
 }
 
-fn photogrammetric() -> CameraModel {
-    CameraModel::Photogrammetric
+fn default_model() -> CameraModel {
+    CameraModel::DEFAULT
 }
 
 impl ProjectCamera {
@@ -225,20 +226,19 @@ impl ProjectCamera {
     /// point at the image centre, the focal length the project gives (`c_mm` or `fx`, `fy`),
     /// for the double sphere ξ = −0.2, α = ½ ([`pingcal_camera::ModelKind::nominal`]).
     pub fn nominal(&self) -> Vec<f64> {
-        let kind = self.model.kind();
-        let focal_px = match self.model {
-            CameraModel::Photogrammetric | CameraModel::BrownBackward => {
-                self.initial.get("c_mm").unwrap_or(0.0) / self.pixel_size_mm
-            }
-            _ => {
-                let (fx, fy) = (self.initial.get("fx"), self.initial.get("fy"));
-                let f = fx.or(fy).unwrap_or(0.0);
-                0.5 * (fx.unwrap_or(f) + fy.unwrap_or(f))
-            }
+        let focal_px = if self.model.in_mm() {
+            self.initial.get("c_mm").unwrap_or(0.0) / self.pixel_size_mm
+        } else {
+            let (fx, fy) = (self.initial.get("fx"), self.initial.get("fy"));
+            let f = fx.or(fy).unwrap_or(0.0);
+            0.5 * (fx.unwrap_or(f) + fy.unwrap_or(f))
         };
-        let mut p = kind.nominal(focal_px, self.width, self.height, self.pixel_size_mm);
-        if self.model == CameraModel::DoubleSphere {
-            // `nominal` scales fx, fy by 1 + ξ; the project's own fx, fy are taken as given
+        let mut p = self
+            .model
+            .nominal(focal_px, self.width, self.height, self.pixel_size_mm);
+        if !self.model.in_mm() {
+            // `nominal` may scale fx, fy (the double sphere's by 1 + ξ, for the scale on
+            // its axis); the project's own fx, fy are taken as given
             p[0] = focal_px;
             p[1] = focal_px;
         }

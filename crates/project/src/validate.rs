@@ -7,7 +7,6 @@
 //! entry and its value. The closed sets (`method`, `family`, `model`, `free`) are refused
 //! earlier, while reading (see `closed_sets.rs`).
 
-use crate::closed_sets::CameraModel;
 use crate::intrinsics::Intrinsics;
 use crate::schema::{
     ProjectBag, ProjectBalls, ProjectCamera, ProjectDistance, ProjectFile, ProjectFrames,
@@ -211,10 +210,7 @@ fn validate_camera(c: &ProjectCamera) -> Result<(), String> {
     if let Some((k, v)) = c.initial.0.iter().find(|(_, v)| !v.is_finite()) {
         return Err(format!("initial {k} = {v}: not a finite number"));
     }
-    let focal: &[&str] = match c.model {
-        CameraModel::Photogrammetric | CameraModel::BrownBackward => &["c_mm"],
-        _ => &["fx", "fy"],
-    };
+    let focal = &c.model.keys()[..c.model.focal_parameters().len()];
     for k in focal {
         match c.initial.get(k) {
             Some(v) if v > 0.0 => {}
@@ -237,16 +233,11 @@ fn validate_camera(c: &ProjectCamera) -> Result<(), String> {
         return Err(format!(
             "free: '{p}' is not a parameter of model '{}' (its parameters: {})",
             c.model,
-            c.model.kind().parameter_names().join(", ")
+            c.model.parameter_names().join(", ")
         ));
     }
-    if c.model == CameraModel::DoubleSphere {
-        let alpha = c.intrinsics().values[5];
-        if !(0.0..1.0).contains(&alpha) {
-            return Err(format!(
-                "initial alpha = {alpha}: the double sphere's α lies in [0, 1)"
-            ));
-        }
+    if let Some(e) = c.model.check(&c.intrinsics().values) {
+        return Err(format!("initial {e}"));
     }
     plausible_initial(c)
 }
@@ -257,7 +248,7 @@ fn validate_camera(c: &ProjectCamera) -> Result<(), String> {
 /// affinity and shear under [`MAX_AFFINITY`]. Each bound is named in the error.
 fn plausible_initial(c: &ProjectCamera) -> Result<(), String> {
     let v = c.intrinsics().values;
-    if !c.model.kind().in_mm() {
+    if !c.model.in_mm() {
         return plausible_initial_px(c, &v);
     }
     let p = Photogrammetric::of(&v);

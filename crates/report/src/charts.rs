@@ -5,6 +5,7 @@ use crate::fmt::{c, escape, num, DEG, PX, RATIO, SIGMA_MM};
 use crate::plot::{axes_with, nice_step, open_chart, svg_open, Frame, MARGIN_LEFT, MARGIN_TOP};
 use crate::section::{h2, none};
 use crate::{ImageResiduals, Intrinsics, MethodResult, ReportData};
+use pingcal_camera::ModelKind;
 use std::fmt::Write;
 
 /// Colours of series (methods, cameras).
@@ -360,12 +361,14 @@ fn delta_r_um(k: [f64; 3], r: f64) -> f64 {
     1000.0 * r * r2 * (k[0] + r2 * (k[1] + r2 * k[2]))
 }
 
-/// K1 K2 K3 of a camera of a photogrammetric model and its largest radius, when it has both.
+/// K1 K2 K3 of a camera of a model in mm (the photogrammetric ones) and its largest
+/// radius, when it has both.
 fn radial(cam: &Intrinsics) -> Option<([f64; 3], f64)> {
-    if !matches!(
-        cam.model.as_str(),
-        "" | "photogrammetric" | "brown-backward"
-    ) {
+    let kind = match cam.model.as_str() {
+        "" => Some(ModelKind::DEFAULT),
+        name => ModelKind::from_name(name),
+    };
+    if !kind.is_some_and(ModelKind::in_mm) {
         return None;
     }
     let get = |n: &str| {

@@ -360,7 +360,7 @@ pub struct Intrinsics {
     /// The same camera in OpenCV's pinhole model (None: not converted).
     #[serde(default)]
     pub opencv: Option<OpenCvParams>,
-    /// The camera model's name (`photogrammetric`, `kannala-brandt`, …).
+    /// The camera model's name ([`pingcal_camera::ModelKind::name`]).
     #[serde(default)]
     pub model: String,
     /// The lens's mapping for models without K1–K3: (radius from the principal point in

@@ -520,7 +520,7 @@ fn intrinsics(side: &str, rng: &mut Rng) -> Intrinsics {
             width: 1280,
             height: 720,
         }),
-        model: "photogrammetric".into(),
+        model: pingcal_camera::ModelKind::DEFAULT.name().into(),
         lens_curve: None,
     }
 }

@@ -232,11 +232,10 @@ impl Default for DistanceConfig {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Intrinsics {
-    /// The parameters of `[camera] model` in its order: for the photogrammetric model
-    /// `[c, xp, yp, K1, K2, K3, P1, P2, B1, B2]` (mm, mm⁻², mm⁻⁴, mm⁻⁶, mm⁻¹, unitless);
-    /// `opencv` `[fx, fy, cx, cy, k1, k2, p1, p2, k3, k4, k5, k6, s1, s2, s3, s4]`,
-    /// `kannala-brandt` `[fx, fy, cx, cy, k1, k2, k3, k4]`, `double-sphere` `[fx, fy, cx,
-    /// cy, xi, alpha]` (px).
+    /// The parameters of `[camera] model` in its order
+    /// ([`pingcal_ba::camera::ModelKind::parameter_names`]): for the photogrammetric model
+    /// `[c, xp, yp, K1, K2, K3, P1, P2, B1, B2]` (mm, mm⁻², mm⁻⁴, mm⁻⁶, mm⁻¹, unitless),
+    /// for the models in pixels fx, fy, cx, cy and then their distortion's.
     pub params: Vec<f64>,
 }
 
@@ -244,8 +243,8 @@ pub struct Intrinsics {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct CameraConfig {
-    /// The camera model (`photogrammetric`, the default; `opencv`, `kannala-brandt`,
-    /// `double-sphere`: [`CameraConfig::for_model`] gives each a lens).
+    /// The camera model (by default the photogrammetric one; [`CameraConfig::for_model`]
+    /// gives each model its lens).
     pub model: CameraModel,
     /// Image width in pixels.
     pub width: u32,
@@ -269,20 +268,17 @@ pub struct CameraConfig {
 impl Default for CameraConfig {
     fn default() -> Self {
         Self {
-            model: CameraModel::Photogrammetric,
+            model: CameraModel::DEFAULT,
             width: 1280,
             height: 720,
             pixel_size_mm: 0.00375,
-            // Barrel distortion of a ~90° lens: K1 r² ≈ −15 % at the image corner (r = 2.75 mm).
+            // The default model's sample lens (the camera crate's registry): barrel
+            // distortion of a ~90° lens, K1 r² ≈ −15 % at the image corner (r = 2.75 mm).
             left: Intrinsics {
-                params: vec![
-                    2.45, 0.012, -0.009, -0.021, 4.0e-4, -2.0e-6, 1.5e-4, -1.0e-4, 1.0e-4, 0.0,
-                ],
+                params: CameraModel::DEFAULT.sample().left.to_vec(),
             },
             right: Intrinsics {
-                params: vec![
-                    2.452, -0.010, 0.007, -0.020, 3.6e-4, -1.0e-6, -1.2e-4, 0.8e-4, -0.5e-4, 0.0,
-                ],
+                params: CameraModel::DEFAULT.sample().right.to_vec(),
             },
             right_offset_mm: [120.0, 0.4, -0.3],
             right_opk_deg: [0.15, -0.25, 0.1],
@@ -292,62 +288,20 @@ impl Default for CameraConfig {
 }
 
 impl CameraConfig {
-    /// The head with lenses of `model` on the default sensor (1280 × 720, 3.75 µm):
-    ///
-    /// | model | lens | left camera |
-    /// |---|---|---|
-    /// | `photogrammetric` | the MYNT EYE D1000's ~90° lens | the default |
-    /// | `opencv` | a 120° (horizontal) wide-angle lens, rational radial model | fx 611, k1 0.05, k4 0.3 |
-    /// | `kannala-brandt` | a 190° fisheye | fx 374, k1 0.02, k2 −0.005, k3 0.001, k4 −1e-4 |
-    /// | `double-sphere` | a 190° fisheye | fx 317, ξ −0.2, α 0.59 |
-    ///
-    /// The right camera's lens differs from the left's by a few tenths of a percent, as two
-    /// lenses of one make do.
+    /// The head with lenses of `model` on the default sensor (1280 × 720, 3.75 µm): the
+    /// model's sample lenses in the camera crate's registry
+    /// ([`pingcal_ba::camera::ModelKind::sample`]; the photogrammetric model's are the
+    /// default head's). The nominal focal length is the default's for the models in mm,
+    /// for the others the left lens's scale on the axis rounded to whole pixels.
     pub fn for_model(model: CameraModel) -> Self {
         let base = CameraConfig::default();
-        let (left, right): (Vec<f64>, Vec<f64>) = match model {
-            CameraModel::Photogrammetric => return base,
-            CameraModel::BrownBackward => (
-                vec![
-                    2.45, 0.012, -0.009, 0.021, -3.0e-4, 1.0e-6, -1.5e-4, 1.0e-4, 1.0e-4, 0.0,
-                ],
-                vec![
-                    2.452, -0.010, 0.007, 0.020, -2.7e-4, 0.5e-6, 1.2e-4, -0.8e-4, -0.5e-4, 0.0,
-                ],
-            ),
-            CameraModel::OpenCv => (
-                vec![
-                    611.0, 611.3, 641.2, 358.9, 0.05, 0.0, 1.5e-4, -1.0e-4, 0.0, 0.3, 0.0, 0.0,
-                    0.0, 0.0, 0.0, 0.0,
-                ],
-                vec![
-                    611.8, 611.6, 637.9, 361.4, 0.048, 0.0, -1.2e-4, 0.8e-4, 0.0, 0.297, 0.0, 0.0,
-                    0.0, 0.0, 0.0, 0.0,
-                ],
-            ),
-            CameraModel::KannalaBrandt => (
-                vec![374.0, 374.2, 641.2, 358.9, 0.02, -0.005, 0.001, -1.0e-4],
-                vec![374.6, 374.5, 637.9, 361.4, 0.019, -0.0048, 0.0009, -0.9e-4],
-            ),
-            CameraModel::DoubleSphere => (
-                vec![317.0, 317.2, 641.2, 358.9, -0.2, 0.59],
-                vec![317.5, 317.4, 637.9, 361.4, -0.198, 0.591],
-            ),
-        };
-        let f_px = 0.5 * (left[0] + left[1]);
-        let nominal_c_mm = match model.kind().in_mm() {
-            true => base.nominal_c_mm,
-            false => {
-                (f_px
-                    / (1.0
-                        + if model == CameraModel::DoubleSphere {
-                            left[4]
-                        } else {
-                            0.0
-                        }))
-                .round()
-                    * base.pixel_size_mm
-            }
+        let lens = model.sample();
+        let (left, right) = (lens.left.to_vec(), lens.right.to_vec());
+        let nominal_c_mm = if model.in_mm() {
+            base.nominal_c_mm
+        } else {
+            let m = model.model(base.width, base.height, base.pixel_size_mm);
+            m.focal_px(&left).round() * base.pixel_size_mm
         };
         CameraConfig {
             model,
@@ -983,7 +937,7 @@ fn validate_camera(c: &CameraConfig) -> Result<(), ConfigError> {
     }
     pos("camera.pixel_size_mm", c.pixel_size_mm)?;
     pos("camera.nominal_c_mm", c.nominal_c_mm)?;
-    let n = c.model.kind().parameter_names().len();
+    let n = c.model.parameter_names().len();
     for (name, i) in [("left", &c.left), ("right", &c.right)] {
         if i.params.len() != n {
             return Err(ConfigError::new(
@@ -992,7 +946,7 @@ fn validate_camera(c: &CameraConfig) -> Result<(), ConfigError> {
                 format!(
                     "must be the {n} parameters of model '{}' ({})",
                     c.model,
-                    c.model.kind().parameter_names().join(", ")
+                    c.model.parameter_names().join(", ")
                 ),
             ));
         }

@@ -41,10 +41,12 @@ impl SimCamera {
         }
     }
 
-    /// The photogrammetric model of this sensor (for the photogrammetric camera's own
-    /// field-of-view test).
-    fn photogrammetric(&self) -> PhotogrammetricCamera {
-        PhotogrammetricCamera::new(self.width, self.height, self.pixel_size_mm)
+    /// The photogrammetric model of this sensor when the camera's model is that type (for
+    /// its own field-of-view test: its forward distortion polynomial folds back far outside
+    /// the field of view).
+    fn photogrammetric(&self) -> Option<PhotogrammetricCamera> {
+        (self.model.name() == PhotogrammetricCamera::NAME)
+            .then(|| PhotogrammetricCamera::new(self.width, self.height, self.pixel_size_mm))
     }
 }
 
@@ -103,10 +105,9 @@ impl CameraUnit {
     /// exceeds it are outside the image even when the distortion polynomial (which folds
     /// back far outside the field of view) maps them inside.
     pub fn max_ideal_radius_mm(&self) -> f64 {
-        if self.model.kind != ModelKind::Photogrammetric {
+        let Some(cam) = self.model.photogrammetric() else {
             return 0.0;
-        }
-        let cam = self.model.photogrammetric();
+        };
         let (w, h) = (cam.width as f64 - 1.0, cam.height as f64 - 1.0);
         let mut r: f64 = 0.0;
         for (u, v) in [
@@ -133,7 +134,7 @@ impl CameraUnit {
     /// lens plane): the model projects it, and the pixel's own ray is the point's (no fold
     /// of the distortion brings it there).
     pub fn project_in_view(&self, xc: &V3, r_max: f64) -> Option<nalgebra::Vector2<f64>> {
-        if self.model.kind != ModelKind::Photogrammetric {
+        if self.model.name() != PhotogrammetricCamera::NAME {
             let uv = self.model.project(&self.params, xc, None, None)?;
             let ray = self.model.unproject(&self.params, &uv)?;
             return ((ray - xc.normalize()).norm() < 1e-6).then_some(uv);
@@ -166,7 +167,7 @@ impl StereoRig {
     /// The head from the configuration.
     pub fn from_config(cfg: &SimConfig) -> Self {
         let c = &cfg.camera;
-        let model = SimCamera::new(c.model.kind(), c.width, c.height, c.pixel_size_mm);
+        let model = SimCamera::new(c.model, c.width, c.height, c.pixel_size_mm);
         let o = c.right_opk_deg;
         // Right camera orientation relative to left: x_right = R_rel (x_left − C_right).
         let r_rel = from_opk(o[0].to_radians(), o[1].to_radians(), o[2].to_radians());

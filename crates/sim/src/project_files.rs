@@ -85,11 +85,8 @@ impl PoseJson {
 pub struct TruthCamera {
     /// `left` / `right`.
     pub id: String,
-    /// The camera model (absent: photogrammetric).
-    #[serde(
-        default = "photogrammetric",
-        skip_serializing_if = "is_photogrammetric"
-    )]
+    /// The camera model (absent: the default, [`CameraModel::DEFAULT`]).
+    #[serde(default = "default_model", skip_serializing_if = "is_default_model")]
     pub model: CameraModel,
     /// Width in pixels.
     pub width: u32,
@@ -102,18 +99,18 @@ pub struct TruthCamera {
     pub params: KeyedValues,
 }
 
-fn photogrammetric() -> CameraModel {
-    CameraModel::Photogrammetric
+fn default_model() -> CameraModel {
+    CameraModel::DEFAULT
 }
 
-fn is_photogrammetric(m: &CameraModel) -> bool {
-    *m == CameraModel::Photogrammetric
+fn is_default_model(m: &CameraModel) -> bool {
+    m.is_default()
 }
 
 impl TruthCamera {
     /// The true parameters, in the model's slice order (a key the file lacks is 0).
     pub fn intrinsics(&self) -> Intrinsics {
-        let zeros = vec![0.0; self.model.kind().parameter_names().len()];
+        let zeros = vec![0.0; self.model.parameter_names().len()];
         Intrinsics::from_table(self.model, &self.params, &zeros)
     }
 }
@@ -432,28 +429,25 @@ fn ball_labels(sim: &Simulation) -> Vec<BallLabel> {
 
 /// The start a user of the simulated head would write into the project file: the nominal
 /// focal length (`[camera] nominal_c_mm`), the principal point at the image centre, no
-/// distortion (the double sphere's nominal ξ, α); and the parameters to self-calibrate:
-/// all, but for the OpenCV model those its lens does not have (k2, k3, k5, k6 and the thin
-/// prism, held at 0 as a user holds the terms a lens does not need).
+/// distortion (the model's nominal start, [`pingcal_ba::camera::ModelKind::nominal`]); and
+/// the parameters to self-calibrate: all but those the model's sample lens does not have
+/// ([`pingcal_ba::camera::SampleLens::held`]: held at 0 as a user holds the terms a lens
+/// does not need).
 fn initial_and_free(cfg: &crate::config::CameraConfig) -> (Intrinsics, Vec<Parameter>) {
     let model = cfg.model;
-    let values = match model {
-        CameraModel::Photogrammetric | CameraModel::BrownBackward => {
-            let mut v = vec![0.0; 10];
-            v[0] = cfg.nominal_c_mm;
-            v
-        }
-        _ => model.kind().nominal(
+    let values = if model.in_mm() {
+        let mut v = vec![0.0; model.parameter_names().len()];
+        v[0] = cfg.nominal_c_mm;
+        v
+    } else {
+        model.nominal(
             cfg.nominal_c_mm / cfg.pixel_size_mm,
             cfg.width,
             cfg.height,
             cfg.pixel_size_mm,
-        ),
+        )
     };
-    let held: &[&str] = match model {
-        CameraModel::OpenCv => &["k2", "k3", "k5", "k6", "s1", "s2", "s3", "s4"],
-        _ => &[],
-    };
+    let held = model.sample().held;
     let free = Parameter::of(model)
         .into_iter()
         .filter(|p| !held.contains(&p.as_str()))

@@ -701,7 +701,7 @@ pub fn to_measurements(
         format: None,
         cameras: vec![CameraSpec {
             name: camera.name.clone(),
-            model: "photogrammetric".into(),
+            model: crate::camera::PhotogrammetricCamera::NAME.into(),
             width: camera.width,
             height: camera.height,
             pixel_size_mm: camera.pixel_size_mm,

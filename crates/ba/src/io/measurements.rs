@@ -40,15 +40,12 @@
 //!
 //! * `format` is optional on reading; the writer always writes it. A UTF-8 byte-order mark
 //!   at the start is skipped. Numbers beyond ±[`MAX_MAGNITUDE`] (1e12) are refused.
-//! * `model` (default `"photogrammetric"`) and the names its `intrinsics` may hold (missing
-//!   ones are 0):
-//!
-//!   | model | type | intrinsics | required |
-//!   |---|---|---|---|
-//!   | `photogrammetric` | [`PhotogrammetricCamera`] | `c, xp, yp, K1, K2, K3, P1, P2, B1, B2` | `c` |
-//!   | `brown_backward` | [`BrownBackwardCamera`] | the same names | `c` |
-//!   | `opencv` | [`OpenCvCamera`] | `fx, fy, cx, cy, k1, k2, p1, p2, k3, k4, k5, k6, s1, s2, s3, s4` | `fx, fy, cx, cy` |
-//!   | `fisheye` | [`FisheyeCamera`] | `fx, fy, cx, cy, k1, k2, k3, k4` | `fx, fy, cx, cy` |
+//! * `model` (default: the photogrammetric model's) is a camera model's own name
+//!   ([`crate::camera::CameraModel::name`], one line each in the camera crate's registry,
+//!   [`crate::camera::kind::REGISTRY`]), and `intrinsics` holds values of its parameters by
+//!   their names ([`crate::camera::CameraModel::parameter_names`]; missing ones are 0). The
+//!   focal length and principal point are required: `c` for the models in mm, `fx, fy, cx,
+//!   cy` for those in pixels ([`crate::camera::ModelKind::required_parameters`]).
 //!
 //!   `calibrate` lists the ones adjusted (self-calibration); the others are held fixed. An
 //!   empty or missing `calibrate` holds the camera fixed. `width`, `height` and
@@ -81,10 +78,7 @@
 //! Points and images without known coordinates or poses are left at zero / identity and
 //! are flagged in [`Built::known_points`] / [`Built::known_poses`] for the initialiser.
 
-use crate::camera::{
-    BrownBackwardCamera, CameraModel, FisheyeCamera, OpenCvCamera, PhotogrammetricCamera,
-    PHOTOGRAMMETRIC_PARAMS,
-};
+use crate::camera::{CameraModel, ModelKind, PhotogrammetricCamera, PHOTOGRAMMETRIC_PARAMS};
 use crate::keys::{CameraKey, ImageKey, PointKey};
 use crate::problem::{Camera, Image, Observation, Point, PointPrior, Problem};
 use nalgebra::{Vector2, Vector3};
@@ -128,7 +122,8 @@ pub struct Measurements {
 pub struct CameraSpec {
     /// Name, referred to by images.
     pub name: String,
-    /// Camera model: `photogrammetric` (default), `brown_backward`, `opencv`, `fisheye`.
+    /// Camera model: a model's own name ([`CameraModel::name`]; by default the
+    /// photogrammetric model's).
     #[serde(default = "default_model")]
     pub model: String,
     /// Image width, pixels.
@@ -145,7 +140,7 @@ pub struct CameraSpec {
 }
 
 fn default_model() -> String {
-    "photogrammetric".into()
+    PhotogrammetricCamera::NAME.into()
 }
 
 /// Exterior orientation as written in the file.
@@ -302,12 +297,14 @@ pub enum MeasurementError {
         message: String,
     },
     /// An unsupported camera model.
-    #[error("camera '{camera}': unknown model '{model}' (expected one of photogrammetric, brown_backward, opencv, fisheye)")]
+    #[error("camera '{camera}': unknown model '{model}' (expected one of {expected})")]
     UnknownModel {
         /// The camera's name.
         camera: String,
         /// The `model` given.
         model: String,
+        /// The models' names, comma-separated.
+        expected: String,
     },
     /// An intrinsic name that the model does not have.
     #[error("camera '{camera}': unknown intrinsic parameter '{name}' for model {model} (expected one of {expected})")]
@@ -519,18 +516,15 @@ impl CameraSpec {
     /// the models, their intrinsics and the required ones).
     pub fn build(&self) -> Result<Camera, MeasurementError> {
         let (w, h, ps) = (self.width, self.height, self.pixel_size_mm);
-        let (model, required): (Arc<dyn CameraModel>, &[&str]) = match self.model.as_str() {
-            "photogrammetric" => (Arc::new(PhotogrammetricCamera::new(w, h, ps)), &["c"]),
-            "brown_backward" => (Arc::new(BrownBackwardCamera::new(w, h, ps)), &["c"]),
-            "opencv" => (Arc::new(OpenCvCamera), &["fx", "fy", "cx", "cy"]),
-            "fisheye" => (Arc::new(FisheyeCamera), &["fx", "fy", "cx", "cy"]),
-            _ => {
-                return Err(MeasurementError::UnknownModel {
-                    camera: self.name.clone(),
-                    model: self.model.clone(),
-                })
+        let kind = ModelKind::from_model_name(&self.model).ok_or_else(|| {
+            MeasurementError::UnknownModel {
+                camera: self.name.clone(),
+                model: self.model.clone(),
+                expected: ModelKind::ALL.map(ModelKind::model_name).join(", "),
             }
-        };
+        })?;
+        let model: Arc<dyn CameraModel> = kind.model(w, h, ps);
+        let required = kind.required_parameters();
         let bad = |message: String| MeasurementError::BadCamera {
             camera: self.name.clone(),
             message,

@@ -43,9 +43,9 @@ pub struct Args {
     /// stop: a `simulation.toml` to edit into your plan. An existing file is not replaced.
     #[arg(long)]
     pub write_config: Option<PathBuf>,
-    /// The head's lenses, as `pingcal simulate --camera-model`: `opencv` (120° wide angle),
-    /// `kannala-brandt` or `double-sphere` (190° fisheyes); replaces `[camera]` of
-    /// `--config` with that lens's defaults (docs/formats.md, "Camera models").
+    /// The head's lenses, as `pingcal simulate --camera-model`: a camera model's name (a
+    /// 120° wide-angle lens, 190° fisheyes); replaces `[camera]` of `--config` with that
+    /// lens's defaults (docs/formats.md, "Camera models").
     #[arg(long)]
     pub camera_model: Option<String>,
 }

@@ -47,11 +47,10 @@ pub struct Args {
     /// bricks, tiles, bright round plates, every fourth frame across the image's border).
     #[arg(long, value_enum)]
     scene: Option<SphereScene>,
-    /// The stereo head's lenses: `photogrammetric` (the default MYNT-like ~90° lens),
-    /// `opencv` (a 120° wide-angle lens, rational model), `kannala-brandt` or
-    /// `double-sphere` (190° fisheyes); replaces `[camera]` of `--config` with that lens's
-    /// defaults and grows the target dots as much as the lens is wider (docs/formats.md,
-    /// "Camera models").
+    /// The stereo head's lenses: a camera model's name (a word not one lists them), each
+    /// with its sample lens (the default MYNT-like ~90° lens, a 120° wide-angle lens, 190°
+    /// fisheyes); replaces `[camera]` of `--config` with that lens's defaults and grows the
+    /// target dots as much as the lens is wider (docs/formats.md, "Camera models").
     #[arg(long)]
     camera_model: Option<String>,
 }
@@ -71,7 +70,7 @@ pub fn with_camera_model(
     name: Option<&str>,
 ) -> Result<pingcal_sim::SimConfig, String> {
     let Some(m) = name else { return Ok(cfg) };
-    let model = pingcal_project::CameraModel::from_word(m).ok_or_else(|| {
+    let model = pingcal_project::CameraModel::from_name(m).ok_or_else(|| {
         format!(
             "--camera-model {m}: expected one of {}",
             pingcal_project::CameraModel::NAMES.join(", ")

@@ -80,7 +80,7 @@ pub(crate) fn implausible_principal_distance(project: &Project) -> Option<String
     project.file.cameras.iter().enumerate().find_map(|(k, c)| {
         let focal_px = SceneCamera::of(c).focal_px(&c.intrinsics().values);
         let rel = focal_px / c.width as f64;
-        (!(0.1..=20.0).contains(&rel)).then(|| match c.model.kind().in_mm() {
+        (!(0.1..=20.0).contains(&rel)).then(|| match c.model.in_mm() {
             true => {
                 let width = c.width as f64 * c.pixel_size_mm;
                 format!(

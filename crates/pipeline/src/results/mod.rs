@@ -29,11 +29,10 @@ use crate::stages::Stages;
 use nalgebra::{Matrix3, Vector3};
 use pingcal_ba::camera::forms::{form, opencv_of_photogrammetric, Ecosystem, Source};
 use pingcal_ba::camera::refit::{grid_pixels, GridRays};
-use pingcal_ba::camera::ModelKind;
 use pingcal_ba::solver::VarianceComponent;
 use pingcal_geometry::Sim3;
 use pingcal_lrf::registration::{CheckRow, PointObs};
-use pingcal_project::{CameraModel, Intrinsics, Project};
+use pingcal_project::{Intrinsics, Project};
 use serde::Serialize;
 
 mod transforms;
@@ -162,7 +161,7 @@ pub struct CameraJson {
 impl CameraJson {
     /// The camera's model, built for its sensor.
     pub fn model(&self) -> std::sync::Arc<dyn pingcal_ba::camera::CameraModel> {
-        self.params.model.kind().model(
+        self.params.model.model(
             self.opencv.image_width,
             self.opencv.image_height,
             self.pixel_size_mm,
@@ -475,9 +474,9 @@ fn methods(
 /// order and B2 dropped; the OpenCV and Kannala–Brandt models as they are; the others
 /// fitted over the image).
 pub fn opencv_of(params: &Intrinsics, width: u32, height: u32, pixel_mm: f64) -> OpenCvJson {
-    let kind = params.model.kind();
+    let kind = params.model;
     let p = &params.values;
-    let (k, dist, name) = if kind == ModelKind::Photogrammetric {
+    let (k, dist, name) = if kind.opencv_closed_form() {
         let (k, d) = opencv_of_photogrammetric(p, width, height, pixel_mm);
         (k, d.to_vec(), "plumb_bob")
     } else {
@@ -506,7 +505,7 @@ pub fn opencv_of(params: &Intrinsics, width: u32, height: u32, pixel_mm: f64) ->
         cy: k[3],
         dist,
         distortion_model: name,
-        opencv_dropped_b2: (kind == ModelKind::Photogrammetric).then(|| p[9]),
+        opencv_dropped_b2: kind.opencv_closed_form().then(|| p[9]),
         image_width: width,
         image_height: height,
     }
@@ -536,7 +535,7 @@ fn camera_json(project: &Project, scene: &Scene, adj: &Adjusted, c: CameraId) ->
     let params = Intrinsics::new(cam.model, p.clone()).expect("the model's parameters");
     CameraJson {
         id: cam.id.clone(),
-        model_name: (cam.model != CameraModel::Photogrammetric).then(|| cam.model.as_str()),
+        model_name: (!cam.model.is_default()).then(|| cam.model.name()),
         sigma,
         high_correlations: high,
         opencv: opencv_of(&params, cam.width, cam.height, cam.pixel_size_mm),

@@ -32,11 +32,7 @@ impl Camera {
     /// `pingcal calibrate` builds it.
     pub fn from_file(c: &CameraFile) -> Self {
         Camera {
-            model: c
-                .intrinsics
-                .model
-                .kind()
-                .model(c.width, c.height, c.pixel_size_mm),
+            model: c.intrinsics.model.model(c.width, c.height, c.pixel_size_mm),
             params: c.intrinsics.values.clone(),
             width: c.width,
             height: c.height,

@@ -113,7 +113,7 @@ fn load(project: &Path) -> Result<Loaded, String> {
     let cam_text = String::from_utf8(cam_bytes).map_err(|_| {
         format!(
             "{cam_name}: not a camera file pingcal reads (not text): expected {}",
-            pingcal_project::camera_file::FORMATS
+            pingcal_project::camera_file::formats()
         )
     })?;
     let cam = Camera::from_file(

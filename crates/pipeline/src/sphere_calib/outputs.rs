@@ -20,7 +20,6 @@ use crate::exports::{
 };
 use crate::report::check_rows;
 use crate::results::{extrinsic_json, opencv_of, CameraJson, ExtrinsicJson};
-use pingcal_project::CameraModel;
 use pingcal_report as rp;
 use pingcal_report::overlay::{render_png, GreyImage, OverlayOptions, OverlayPoint, PointKind};
 use rayon::prelude::*;
@@ -101,7 +100,7 @@ pub fn camera_export(cam: &Camera) -> Option<(CameraJson, ExportLoss)> {
     let i = &cam.file.intrinsics;
     let c = CameraJson {
         id: CAMERA_ID.into(),
-        model_name: (i.model != CameraModel::Photogrammetric).then(|| i.model.as_str()),
+        model_name: (!i.model.is_default()).then(|| i.model.name()),
         params: i.clone(),
         sigma: BTreeMap::new(),
         high_correlations: Vec::new(),
