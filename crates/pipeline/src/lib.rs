@@ -110,7 +110,6 @@ fn through_room(
 
 /// Runs the whole calibration of `project`.
 pub fn calibrate(project: &Project, opts: &Options, rep: &Reporter) -> Result<Outcome> {
-    lrf::check_mount(project)?;
     let t0 = std::time::Instant::now();
     let dets = detect::detect_all(project, opts, rep)?;
     let mut timing = vec![("detection".to_string(), t0.elapsed().as_secs_f64())];
