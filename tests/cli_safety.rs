@@ -464,7 +464,7 @@ fn noise_profiles_default_to_the_urg_and_unknown_names_list_the_known() {
     let run = w.run(&["cloud", s(&scan), "--noise-sigma", "0,0.01"]);
     fails(
         &run,
-        &["--noise-sigma: noise σ = a + b·r", "expected a > 0"],
+        &["--noise-sigma = [0, 0.01]: expected 0 < a", "(σ = a + b·r)"],
     );
 }
 
