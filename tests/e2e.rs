@@ -7,6 +7,8 @@
 
 use crate::common;
 
+mod observation_group;
+
 use common::{
     read_json, replace_once, two_step_method, Work, LRF_AS_STATED, OUTPUTS, QUARTER_BEAMS,
 };

@@ -390,14 +390,13 @@ fn bag_read(b: &[u8]) -> Outcome {
 
 const MARKS: &str = "# Mark points\n# image id, point id, x, y, sxy\n1, 1, 100.5, 200.5, 0.1\n1, 2, 300, 220, 0.1\n1, 3, 500.25, 410, 0.1\n2, 1, 120, 205, 0.1\n2, 2, 310, 230, 0.1\n2, 3, 520, 400, 0.2\n";
 
+/// The documented example project file (it was the README's): docs/project.md's first
+/// ```toml block.
 fn readme_project() -> String {
-    let readme = include_str!("../../README.md");
-    let at = readme
-        .find("## The project file")
-        .expect("the README's project section");
-    let start = readme[at..].find("```toml").expect("a toml block") + at + "```toml".len();
-    let end = readme[start..].find("```").expect("the block's end") + start;
-    readme[start..end].trim_start().to_string()
+    let doc = include_str!("../../docs/project.md");
+    let start = doc.find("```toml").expect("a toml block") + "```toml".len();
+    let end = doc[start..].find("```").expect("the block's end") + start;
+    doc[start..end].trim_start().to_string()
 }
 
 fn scan_seed() -> Vec<u8> {

@@ -34,6 +34,9 @@ struct JointRun<'a> {
     scene: &'a scene::Scene,
     adjusted: &'a bundle::Adjusted,
     opts: &'a Options,
+    /// The joint adjustment's observation groups ([`joint::BUILT_IN`] unless the caller
+    /// gives its own).
+    groups: &'a [joint::GroupBuilder],
     rep: &'a Reporter,
     /// Passes after the first that look at the LRF again, at most: [`JOINT_REFINEMENTS`],
     /// or none while the camera's model cannot hold its lens ([`refinements`]).
@@ -85,7 +88,7 @@ impl JointRun<'_> {
             hold_mount,
             seed: self.opts.seed,
         };
-        joint::joint_adjustment(&input, self.rep).map_err(|e| e.to_string())
+        joint::joint_adjustment(&input, self.groups, self.rep).map_err(|e| e.to_string())
     }
 
     /// The passes of the joint adjustment from one start (the cloud `lrf` through the start
@@ -294,7 +297,7 @@ pub(crate) fn run_joint(
     (dets, scene, adjusted): (&scene::Detections, &scene::Scene, &bundle::Adjusted),
     (lrf, prior): (&lrf::LrfData, MountModel),
     ext: &extrinsic::Extrinsics,
-    opts: &Options,
+    (opts, groups): (&Options, &[joint::GroupBuilder]),
     rep: &Reporter,
 ) -> std::result::Result<joint::JointOutcome, joint::JointError> {
     let Some(ev) = &ext.spheres else {
@@ -309,6 +312,7 @@ pub(crate) fn run_joint(
         scene,
         adjusted,
         opts,
+        groups,
         rep,
         refinements: refinements(adjusted),
     };
@@ -321,40 +325,7 @@ pub(crate) fn run_joint(
         .flat_map(|r| r.planes.iter().map(|p| (p.normal, p.offset_mm)))
         .collect();
     let mut tried: Vec<String> = Vec::new();
-    let mut found = None;
-    if let Some(r) = &room {
-        let gate = pingcal_lrf::room::Gate::Sigma {
-            k: pingcal_lrf::room::GATE_K,
-            sigma0: r.sigma0,
-            floor_mm: pingcal_lrf::room::RoomOptions::default().gate_floor_mm,
-        };
-        let attempt = lrf::through_mount(project, lrf, r.mount, opts, rep)
-            .ok_or_else(|| "the cloud has no readings".to_string())
-            .and_then(|lrf_r| {
-                let ext_r =
-                    extrinsic::spheres_only(project, (scene, adjusted, &lrf_r, dets), opts, rep)
-                        .map_err(|e| e.to_string())?;
-                let Some(ev_r) = &ext_r.spheres else {
-                    return Err("no sphere method on the room's cloud".to_string());
-                };
-                let start = ev_r.registration.camera_from_lrf.rigid();
-                run.passes(&lrf_r, &ext_r, start, &planes, gate)
-            });
-        match attempt.map(|o| (absurd(&o, diameter), o)) {
-            Ok((None, mut o)) => {
-                o.notes.insert(0, "started from the mount the room's planes gave (the cloud through it, its spheres matched by the distance invariants)".into());
-                found = Some(o);
-            }
-            Ok((Some(why), _)) => tried.push(format!("from the room's mount, {why}")),
-            Err(e) => tried.push(format!("from the room's mount, {e}")),
-        }
-        if !tried.is_empty() {
-            rep.log(format!(
-                "joint: {}: starting again from the project's mount",
-                tried[0]
-            ));
-        }
-    }
+    let found = (room.as_ref()).and_then(|r| from_room(&run, r, lrf, &planes, &mut tried));
     let out = match found {
         Some(o) => o,
         None => {
@@ -377,6 +348,59 @@ pub(crate) fn run_joint(
         }
     };
     Ok(simpler_if_insignificant(&run, out, lrf, ext))
+}
+
+/// The joint adjustment's passes from the mount the room's planes gave (`room`): the cloud
+/// through it, its spheres matched by the distance invariants, their registration the
+/// extrinsic's start, the planes' beams gated by the room's σ0. None, with the reason pushed
+/// on `tried`, when that start fails or its result is absurd for the field.
+fn from_room(
+    run: &JointRun,
+    room: &pingcal_lrf::room::RoomMount,
+    lrf: &lrf::LrfData,
+    planes: &[(nalgebra::Vector3<f64>, f64)],
+    tried: &mut Vec<String>,
+) -> Option<joint::JointOutcome> {
+    let (project, opts, rep) = (run.project, run.opts, run.rep);
+    let gate = pingcal_lrf::room::Gate::Sigma {
+        k: pingcal_lrf::room::GATE_K,
+        sigma0: room.sigma0,
+        floor_mm: pingcal_lrf::room::RoomOptions::default().gate_floor_mm,
+    };
+    let attempt = lrf::through_mount(project, lrf, room.mount, opts, rep)
+        .ok_or_else(|| "the cloud has no readings".to_string())
+        .and_then(|lrf_r| {
+            let inputs = (run.scene, run.adjusted, &lrf_r, run.dets);
+            let ext_r =
+                extrinsic::spheres_only(project, inputs, opts, rep).map_err(|e| e.to_string())?;
+            let Some(ev_r) = &ext_r.spheres else {
+                return Err("no sphere method on the room's cloud".to_string());
+            };
+            let start = ev_r.registration.camera_from_lrf.rigid();
+            run.passes(&lrf_r, &ext_r, start, planes, gate)
+        });
+    let diameter = project.file.balls.diameter_mm;
+    let found = match attempt.map(|o| (absurd(&o, diameter), o)) {
+        Ok((None, mut o)) => {
+            o.notes.insert(0, "started from the mount the room's planes gave (the cloud through it, its spheres matched by the distance invariants)".into());
+            Some(o)
+        }
+        Ok((Some(why), _)) => {
+            tried.push(format!("from the room's mount, {why}"));
+            None
+        }
+        Err(e) => {
+            tried.push(format!("from the room's mount, {e}"));
+            None
+        }
+    };
+    if !tried.is_empty() {
+        rep.log(format!(
+            "joint: {}: starting again from the project's mount",
+            tried[0]
+        ));
+    }
+    found
 }
 
 /// The error of a joint adjustment absurd from every start in `tried`.

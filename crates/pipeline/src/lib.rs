@@ -110,23 +110,20 @@ fn through_room(
 
 /// Runs the whole calibration of `project`.
 pub fn calibrate(project: &Project, opts: &Options, rep: &Reporter) -> Result<Outcome> {
-    let t0 = std::time::Instant::now();
-    let dets = detect::detect_all(project, opts, rep)?;
-    let mut timing = vec![("detection".to_string(), t0.elapsed().as_secs_f64())];
-    let t = std::time::Instant::now();
-    let mut scene = network::initial_network(project, &dets, opts, rep)?;
-    timing.push(("initial orientation".into(), t.elapsed().as_secs_f64()));
-    let t = std::time::Instant::now();
-    matching::add_points(project, &dets, &mut scene, opts, rep)?;
-    timing.push(("matching".into(), t.elapsed().as_secs_f64()));
-    let t = std::time::Instant::now();
-    let mut adjusted = bundle::final_adjustment(project, &dets, &mut scene, opts, rep)?;
-    adjusted.lens_doubt = verdict::lens_doubt(project, &adjusted);
-    if let Some(w) = &adjusted.lens_doubt {
-        rep.log(format!("warning: {w}"));
-        scene.warnings.push(w.clone());
-    }
-    timing.push(("bundle adjustment".into(), t.elapsed().as_secs_f64()));
+    calibrate_with_groups(project, opts, &joint::BUILT_IN, rep)
+}
+
+/// Runs the whole calibration of `project` with the joint adjustment's observation groups
+/// that `groups` make ([`joint::BUILT_IN`] and a caller's own: [`joint::groups`] says what a
+/// group is).
+pub fn calibrate_with_groups(
+    project: &Project,
+    opts: &Options,
+    groups: &[joint::GroupBuilder],
+    rep: &Reporter,
+) -> Result<Outcome> {
+    let mut timing = Vec::new();
+    let (dets, mut scene, adjusted) = camera_side(project, opts, rep, &mut timing)?;
     // A step after the bundle that fails while the camera model cannot hold the lens most
     // likely fails because of it: the error says so.
     let blame_lens = |e: PipelineError| match &adjusted.lens_doubt {
@@ -155,7 +152,7 @@ pub fn calibrate(project: &Project, opts: &Options, rep: &Reporter) -> Result<Ou
     let t = std::time::Instant::now();
     let mut joint = if project.file.method.joint() {
         let inputs = (&dets, &scene, &adjusted);
-        let r = joint_starts::run_joint(project, inputs, (&lrf, prior), &ext, opts, rep);
+        let r = joint_starts::run_joint(project, inputs, (&lrf, prior), &ext, (opts, groups), rep);
         if let Err(e) = &r {
             rep.log(format!("joint adjustment failed: {e}"));
         }
@@ -178,12 +175,6 @@ pub fn calibrate(project: &Project, opts: &Options, rep: &Reporter) -> Result<Ou
         Some(r) => (&r.lrf, &r.pairs[..]),
         None => (&lrf, &ext.pairs[..]),
     };
-    let line = timing
-        .iter()
-        .map(|(n, s)| format!("{n} {s:.2} s"))
-        .collect::<Vec<_>>()
-        .join(", ");
-    rep.log(format!("time: {line}"));
     let stages = Stages {
         project,
         dets: &dets,
@@ -195,8 +186,49 @@ pub fn calibrate(project: &Project, opts: &Options, rep: &Reporter) -> Result<Ou
         lrf_out,
         pairs_out,
     };
-    let verdict = verdict::judge(&stages);
-    let expected_check_error_mm = verdict::expected_check_error_mm(&stages);
+    Ok(outputs(&stages, timing, rep))
+}
+
+/// Steps 1–4, the camera's side: detection, the initial network, matching and the final
+/// bundle adjustment (with its doubt about the lens, logged and warned), each step's time
+/// pushed on `timing`.
+fn camera_side(
+    project: &Project,
+    opts: &Options,
+    rep: &Reporter,
+    timing: &mut Vec<(String, f64)>,
+) -> Result<(scene::Detections, scene::Scene, bundle::Adjusted)> {
+    let t0 = std::time::Instant::now();
+    let dets = detect::detect_all(project, opts, rep)?;
+    timing.push(("detection".to_string(), t0.elapsed().as_secs_f64()));
+    let t = std::time::Instant::now();
+    let mut scene = network::initial_network(project, &dets, opts, rep)?;
+    timing.push(("initial orientation".into(), t.elapsed().as_secs_f64()));
+    let t = std::time::Instant::now();
+    matching::add_points(project, &dets, &mut scene, opts, rep)?;
+    timing.push(("matching".into(), t.elapsed().as_secs_f64()));
+    let t = std::time::Instant::now();
+    let mut adjusted = bundle::final_adjustment(project, &dets, &mut scene, opts, rep)?;
+    adjusted.lens_doubt = verdict::lens_doubt(project, &adjusted);
+    if let Some(w) = &adjusted.lens_doubt {
+        rep.log(format!("warning: {w}"));
+        scene.warnings.push(w.clone());
+    }
+    timing.push(("bundle adjustment".into(), t.elapsed().as_secs_f64()));
+    Ok((dets, scene, adjusted))
+}
+
+/// The verdict, the overlays, results.json, the report, the cloud and the exports of the
+/// stages (`timing`: each step's time, logged and kept in the results).
+fn outputs(stages: &Stages, mut timing: Vec<(String, f64)>, rep: &Reporter) -> Outcome {
+    let line = timing
+        .iter()
+        .map(|(n, s)| format!("{n} {s:.2} s"))
+        .collect::<Vec<_>>()
+        .join(", ");
+    rep.log(format!("time: {line}"));
+    let verdict = verdict::judge(stages);
+    let expected_check_error_mm = verdict::expected_check_error_mm(stages);
     rep.log(format!(
         "verdict: {}{}",
         verdict.status.as_str(),
@@ -207,22 +239,23 @@ pub fn calibrate(project: &Project, opts: &Options, rep: &Reporter) -> Result<Ou
         }
     ));
     let t = std::time::Instant::now();
-    let drawn = overlays::draw(&stages, rep);
+    let drawn = overlays::draw(stages, rep);
     let secs = t.elapsed().as_secs_f64();
     rep.log(format!("time: overlays {secs:.2} s"));
     timing.push(("overlays".into(), secs));
-    let results = results::assemble(&stages, verdict, timing);
+    let results = results::assemble(stages, verdict, timing);
     let losses: Vec<_> = results.cameras.iter().map(exports::export_loss).collect();
     let loss_rows = exports::report_rows(&results, &losses);
-    let report = report::build(&stages, &results, drawn.report, loss_rows, rep);
-    let cloud_ply = results::cloud_ply(lrf_out, 0.5 * project.file.balls.diameter_mm);
+    let report = report::build(stages, &results, drawn.report, loss_rows, rep);
+    let diameter = stages.project.file.balls.diameter_mm;
+    let cloud_ply = results::cloud_ply(stages.lrf_out, 0.5 * diameter);
     let exports = exports::exports(&results, &losses);
-    Ok(Outcome {
+    Outcome {
         results,
         report,
         cloud_ply,
         exports,
         expected_check_error_mm,
         overlays: drawn.files,
-    })
+    }
 }

@@ -54,7 +54,7 @@ pub fn build(
         title: format!("pingcal calibration — {}", f.name),
         generator: results.generator.clone(),
         verdict: Some(verdict(&results.verdict)),
-        summary: summary(st, results),
+        summary: [summary(st, results), group_lines(results)].concat(),
         steps: rep.lines(),
         images: image_residuals(st),
         network: network(st),
@@ -583,6 +583,28 @@ pub fn verdict(v: &crate::verdict::Verdict) -> rp::VerdictView {
             .collect(),
         alpha: v.alpha,
     }
+}
+
+/// The summary's line of every observation group of a method's adjustment (the joint
+/// adjustment's beams on the balls, on the planes, …): its χ² with the a-priori σ's, its
+/// observations, those removed and left out, its RMS.
+fn group_lines(results: &Results) -> Vec<(String, String)> {
+    (results.methods.iter())
+        .flat_map(|m| m.observation_groups.iter().map(move |g| (m, g)))
+        .map(|(m, g)| {
+            let left: String = (g.left_out.iter())
+                .filter(|l| l.count > 0)
+                .map(|l| format!("; {} {} left out", l.count, l.reason))
+                .collect();
+            (
+                format!("{} χ² of the {}", m.method, g.group),
+                format!(
+                    "{:.1} over {} observations ({} rejected{left}), RMS {:.2} {}",
+                    g.chi2, g.observations, g.rejected, g.rms, g.unit
+                ),
+            )
+        })
+        .collect()
 }
 
 /// The summary table at the top of the report.

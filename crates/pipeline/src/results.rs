@@ -99,6 +99,12 @@ pub struct MethodJson {
     /// Joint only: the beams' σ0 against the sensor's σ(r) (their variance component), by
     /// which they were re-weighted before the extrinsic's covariance was taken.
     pub variance_components: Vec<VarianceComponent>,
+    /// Joint only: every observation group of the adjustment (the beams on the balls, on
+    /// the planes, …) with its observations, those removed as gross errors and left out, its
+    /// χ² with the a-priori σ's and its RMS: the lines σ0's χ² is the sum of (with the
+    /// bundle's and the priors').
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub observation_groups: Vec<super::joint::GroupOutcome>,
     /// Why the method failed.
     pub error: Option<String>,
     /// What it chose and why.
@@ -475,6 +481,7 @@ fn failed(method: &str, e: &str) -> MethodJson {
         leave_one_out: Vec::new(),
         sigma0: None,
         variance_components: Vec::new(),
+        observation_groups: Vec::new(),
         error: Some(e.to_string()),
         notes: Vec::new(),
     }
@@ -486,29 +493,45 @@ fn joint_json(j: &JointOutcome, ext: &Extrinsics) -> MethodJson {
     let sim = Sim3::new(1.0, t.rotation, t.translation);
     MethodJson {
         method: "joint".into(),
-        extrinsic: Some(extrinsic_json(&sim, Some(j.sigma_translation_mm), Some(j.sigma_opk_deg))),
+        extrinsic: Some(extrinsic_json(
+            &sim,
+            Some(j.sigma_translation_mm),
+            Some(j.sigma_opk_deg),
+        )),
         check_points: j.check.rows.clone(),
         mean_check_error_mm: Some(j.check.mean_mm),
         sd_check_error_mm: Some(j.check.sd_mm),
-        check_points_source: if ext.check_ids.is_empty() { "none".into() } else { "check".into() },
+        check_points_source: if ext.check_ids.is_empty() {
+            "none".into()
+        } else {
+            "check".into()
+        },
         control_points: j.control.rows.clone(),
         leave_one_out: Vec::new(),
         sigma0: Some(j.sigma0),
         variance_components: j.variance_components.clone(),
+        observation_groups: j.groups.clone(),
         error: None,
-        notes: std::iter::once(format!(
-            "{} LRF beams on {} control balls ({} removed as gross errors, {} grazing and {} at a ball's silhouette left out); RMS beam residual {:.2} mm; redundancy {}",
-            j.beams,
-            j.control.rows.len(),
-            j.beams_rejected,
-            j.beams_grazing,
-            j.beams_silhouette,
-            j.rms_beam_mm,
-            j.redundancy
-        ))
-        .chain(j.notes.iter().cloned())
-        .collect(),
+        notes: std::iter::once(joint_note(j))
+            .chain(j.notes.iter().cloned())
+            .collect(),
     }
+}
+
+/// The joint adjustment's first note: its beams on the balls, the balls, its redundancy.
+fn joint_note(j: &JointOutcome) -> String {
+    let beams = j.group(super::joint::BALL_BEAMS);
+    let count = |f: fn(&super::joint::GroupOutcome) -> usize| beams.map_or(0, f);
+    format!(
+        "{} LRF beams on {} control balls ({} removed as gross errors, {} grazing and {} at a ball's silhouette left out); RMS beam residual {:.2} mm; redundancy {}",
+        count(|g| g.observations),
+        j.control.rows.len(),
+        count(|g| g.rejected),
+        count(|g| g.left_out(super::joint::GRAZING)),
+        count(|g| g.left_out(super::joint::AT_SILHOUETTE)),
+        beams.map_or(0.0, |g| g.rms),
+        j.redundancy
+    )
 }
 
 /// The LRF model of `results.json`'s `lrf_model`.
@@ -599,6 +622,7 @@ fn methods(
             leave_one_out: ev.leave_one_out.rows.clone(),
             sigma0: Some(r.sigma0),
             variance_components: Vec::new(),
+            observation_groups: Vec::new(),
             error: None,
             notes: (ext.through_room.iter().cloned())
                 .chain(
@@ -625,6 +649,7 @@ fn methods(
                 leave_one_out: Vec::new(),
                 sigma0: None,
                 variance_components: Vec::new(),
+                observation_groups: Vec::new(),
                 error: None,
                 notes: c.notes.clone(),
             },
@@ -938,7 +963,7 @@ mod tests {
         [o.fx * xd + o.cx, o.fy * yd + o.cy]
     }
 
-    /// The README's example project (two cameras, `[stereo]` left and right).
+    /// The documented example project (docs/project.md: two cameras, `[stereo]` left and right).
     fn example_project(main_camera: &str) -> Project {
         let mut file = crate::test_support::readme_project_file();
         file.main_camera = main_camera.into();

@@ -1,15 +1,15 @@
-//! What the library's unit tests share (the pipeline's among them): a project from the README's example project file
+//! What the library's unit tests share (the pipeline's among them): a project from the documented example project file (docs/project.md)
 //! (so the example is also checked to parse), with no images or scan files behind it.
 
 use pingcal_project::{Project, ProjectFile};
 
-/// The README's example `project.toml`, parsed.
+/// The documented example `project.toml` (it was the README's): docs/project.md's first
+/// ```toml block, parsed.
 pub fn readme_project_file() -> ProjectFile {
-    let readme = include_str!("../../../README.md");
-    let at = readme.find("## The project file").unwrap();
-    let start = readme[at..].find("```toml\n").unwrap() + at + 8;
-    let len = readme[start..].find("```").unwrap();
-    ProjectFile::parse(&readme[start..start + len], "x.toml").unwrap()
+    let doc = include_str!("../../../docs/project.md");
+    let start = doc.find("```toml\n").unwrap() + 8;
+    let len = doc[start..].find("```").unwrap();
+    ProjectFile::parse(&doc[start..start + len], "x.toml").unwrap()
 }
 
 /// A project of `file` in the current folder, with the given bags and nothing else.

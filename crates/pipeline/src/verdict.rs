@@ -46,8 +46,8 @@ pub const ALPHA: f64 = 0.01;
 /// z of the standard normal at 1 − [`ALPHA`].
 const Z_1_MINUS_ALPHA: f64 = 2.326_347_874_040_841;
 /// How optimistic the sphere centres' σ's are known to be: over simulator seeds 1–40 the
-/// RMS of (true error / reported σ) of the sphere method's extrinsic is 1.14 (README,
-/// "Accuracy on the paper-matched simulation"; mixed pixels at a ball's rim). The
+/// RMS of (true error / reported σ) of the sphere method's extrinsic is 1.14 (docs/accuracy.md,
+/// "On the paper-matched simulation"; mixed pixels at a ball's rim). The
 /// This many LRF candidates seen twice (see `pingcal_lrf::ball_finder::Rejected::seen_twice`)
 /// make the verdict doubtful: one may be a ball beside its own reflection or two balls
 /// touching, several are a cloud whose sweeps do not agree.

@@ -149,20 +149,52 @@ fn pipeline_files() -> BTreeMap<String, String> {
     let mut files = BTreeMap::new();
     for e in std::fs::read_dir(&dir).expect("src") {
         let path = e.expect("entry").path();
+        let name = path
+            .file_stem()
+            .expect("name")
+            .to_string_lossy()
+            .into_owned();
+        if name == "test_support" {
+            continue;
+        }
         if path.extension().is_some_and(|x| x == "rs") {
-            let name = path
-                .file_stem()
-                .expect("name")
-                .to_string_lossy()
-                .into_owned();
-            if name == "test_support" {
-                continue;
-            }
             let src = std::fs::read_to_string(&path).expect("readable source");
             files.insert(name, src);
+        } else if path.is_dir() {
+            // a module of several files (`joint/`): its files' uses are the module's
+            files.insert(name, folder_source(&path));
         }
     }
     files
+}
+
+/// The `.rs` files of the module folder `dir`, one after another (in name order), as the
+/// crate sees them: in a file beside `mod.rs`, `super::` is the folder's module itself, so
+/// its uses of its siblings are not uses of the crate's modules.
+fn folder_source(dir: &Path) -> String {
+    let mut paths: Vec<_> = std::fs::read_dir(dir)
+        .expect("module folder")
+        .map(|e| e.expect("entry").path())
+        .collect();
+    paths.sort();
+    let mut src = String::new();
+    for p in paths {
+        assert!(
+            !p.is_dir(),
+            "{}: this test reads module folders one level deep",
+            p.display()
+        );
+        if p.extension().is_some_and(|x| x == "rs") {
+            let text = std::fs::read_to_string(&p).expect("readable source");
+            if p.file_name().is_some_and(|n| n == "mod.rs") {
+                src.push_str(&text);
+            } else {
+                src.push_str(&text.replace("super::", "self::"));
+            }
+            src.push('\n');
+        }
+    }
+    src
 }
 
 #[test]

@@ -17,8 +17,8 @@
 //! values the pipeline uses: [`LrfSettings`]). Every refusal of a project happens in
 //! [`Project::load`], before the pipeline reads an image.
 //!
-//! The README's section "The project file" has a complete, commented example; the tests
-//! of this crate parse and validate that very text, so it cannot drift.
+//! docs/project.md has a complete, commented example; the tests of this crate parse and
+//! validate that very text, so it cannot drift.
 
 #[macro_use]
 mod closed_sets;

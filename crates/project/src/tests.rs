@@ -1,4 +1,4 @@
-//! Tests of the crate: the README's example parses and validates; every closed set refuses
+//! Tests of the crate: the documented example (docs/project.md) parses and validates; every closed set refuses
 //! an unknown word at parse time with the file, the line, the value and the words allowed;
 //! invalid values are named; the parser never panics.
 
@@ -6,16 +6,12 @@ use super::*;
 use pingcal_lrf::sensor::NoiseProfile;
 use pingcal_lrf::settings::ServoMotion;
 
-/// The README's example: the first ```toml block after the heading "## The project file".
+/// The documented example (it was the README's): the first ```toml block of docs/project.md.
 fn readme_example() -> String {
-    let readme = include_str!("../../../README.md");
-    let at = readme
-        .find("## The project file")
-        .expect("README has a section '## The project file'");
-    let rest = &readme[at..];
+    let rest = include_str!("../../../docs/project.md");
     let start = rest
         .find("```toml\n")
-        .expect("a toml block in that section")
+        .expect("docs/project.md has a toml block")
         + 8;
     let len = rest[start..].find("```").expect("the block ends");
     rest[start..start + len].to_string()
