@@ -5,7 +5,8 @@
 //!   without a cycle — so each module can be read after the ones it uses;
 //! - the crates depend on each other one way: the libraries never on the binary's crate,
 //!   `geometry` and `camera` on no other pingcal crate, `ba` only on those two, the LRF, target and
-//!   project crates never on the simulator, and the bag reader (`rosbag`) only on `lrf`
+//!   project crates never on the simulator (the project's reader builds the LRF's settings
+//!   with the LRF crate's types), and the bag reader (`rosbag`) only on `lrf`
 //!   (and what it builds on);
 //! - the binary's crate holds no mathematics: no linear algebra of its own (no nalgebra or
 //!   faer in its `[dependencies]`, no solve, decomposition or inverse called in its
@@ -334,7 +335,7 @@ fn crates_depend_one_way() {
         ("ba", &["geometry", "camera"]),
         ("targets", &["geometry", "camera", "ba"]),
         ("lrf", &["geometry", "camera", "ba"]),
-        ("project", &["geometry", "camera", "ba"]),
+        ("project", &["geometry", "camera", "ba", "lrf"]),
         ("report", &["geometry", "camera", "ba"]),
         (
             "sim",

@@ -464,7 +464,7 @@ fn noise_profiles_default_to_the_urg_and_unknown_names_list_the_known() {
     let run = w.run(&["cloud", s(&scan), "--noise-sigma", "0,0.01"]);
     fails(
         &run,
-        &["--noise-sigma: noise σ = a + b·r", "expected a > 0"],
+        &["--noise-sigma = [0, 0.01]: expected 0 < a", "(σ = a + b·r)"],
     );
 }
 
@@ -1700,4 +1700,99 @@ fn fuzz_the_readers() {
             .collect::<Vec<_>>()
             .join("\n")
     );
+}
+
+/// Issue 49: every closed-set key of project.toml given a wrong word — the LRF's `noise`,
+/// `cloud_unit` and `servo_motion` as the others — is refused while the file is read: one
+/// line naming the file, the line and the words allowed, and nothing before it (no step
+/// ran, no image was read: a run that is not quiet logs its steps on stderr), no output.
+#[test]
+fn a_wrong_word_of_any_closed_set_is_refused_at_load_before_any_step() {
+    let w = Work::new("closed_set_words");
+    let bag = "[lrf.bag]\nfiles = [\"run.bag\"]\nscan_topic = \"/scan\"\nservo_topic = \"/joint_states\"\nservo_joint = \"servo\"\nservo_motion = \"auto\"\n";
+    // (key, the first line starting with this, its replacement, the words allowed); a
+    // replacement ending in the line it replaces inserts the wrong word before it
+    let cases: [(&str, &str, &str, &str); 8] = [
+        (
+            "method",
+            "method = ",
+            "method = \"bogus\"",
+            "spheres, corner",
+        ),
+        (
+            "family",
+            "family = ",
+            "family = \"bogus\"",
+            "aicon14, aicon12",
+        ),
+        (
+            "model",
+            "model = \"photogrammetric\"",
+            "model = \"bogus\"",
+            "photogrammetric",
+        ),
+        ("free", "free = [", "free = [\"bogus\"]", "c, xp, yp"),
+        (
+            "noise",
+            "max_range_mm = ",
+            "noise = \"bogus\"",
+            "URG-04LX, UTM-30LX, UST-10LX, VLP-16",
+        ),
+        (
+            "cloud_unit",
+            "max_range_mm = ",
+            "cloud_unit = \"bogus\"",
+            "mm, m",
+        ),
+        (
+            "self_calibrate",
+            "max_range_mm = ",
+            "self_calibrate = [\"bogus\"]",
+            "offset_x, offset_y",
+        ),
+        (
+            "servo_motion",
+            "servo_motion = ",
+            "servo_motion = \"bogus\"",
+            "auto, stop-and-go, continuous",
+        ),
+    ];
+    for (key, start, wrong, allowed) in cases {
+        let toml = edited(&w, key, |t| {
+            let mut done = false;
+            let mut out = String::new();
+            for l in (t + bag).lines() {
+                if !done && l.starts_with(start) {
+                    done = true;
+                    out += wrong;
+                    out += "\n";
+                    if l.starts_with(&format!("{key} = ")) {
+                        continue;
+                    }
+                }
+                out += l;
+                out += "\n";
+            }
+            out
+        });
+        let text = fs::read_to_string(&toml).unwrap();
+        let at = text.find("\"bogus\"").expect("the wrong word");
+        let line = text[..at].matches('\n').count() + 1;
+        let run = w.run(&["calibrate", s(&toml), "--out", s(&w.dir.join("out"))]);
+        let out = w.dir.join("out");
+        let err = assert_clean_failure(
+            &run,
+            &out,
+            &[
+                &format!("{}: line {line}: {key}", s(&toml)),
+                "\"bogus\"",
+                &format!("expected one of {allowed}"),
+            ],
+        );
+        assert_eq!(
+            run.stderr.trim(),
+            err,
+            "{key}: something ran before the refusal"
+        );
+    }
 }

@@ -9,14 +9,18 @@ use crate::scan::Masked;
 /// Reads one file into a cloud: `.ply` (ascii or binary), `.pcd` ([`crate::pcd`]), `.xyz`/`.txt`/`.pts` (text
 /// columns) or, for anything else, the `pingcal-scan` CSV.
 pub fn read_cloud_file(path: &std::path::Path, mount: &MountModel) -> Result<Cloud> {
-    read_cloud_file_masked(path, mount).map(|(c, _)| c)
+    read_cloud_file_masked(path, file_kind(path), mount).map(|(c, _)| c)
 }
 
-/// [`read_cloud_file`], with the ranges of a scan file masked for being beyond any range
-/// finder ([`crate::scan::ScanReader::masked`]).
-fn read_cloud_file_masked(path: &std::path::Path, mount: &MountModel) -> Result<(Cloud, Masked)> {
+/// [`read_cloud_file`] of a file of kind `kind`, with the ranges of a scan file masked for
+/// being beyond any range finder ([`crate::scan::ScanReader::masked`]).
+fn read_cloud_file_masked(
+    path: &std::path::Path,
+    kind: CloudFileKind,
+    mount: &MountModel,
+) -> Result<(Cloud, Masked)> {
     let none = Masked::default();
-    match file_kind(path) {
+    match kind {
         CloudFileKind::Ply => Ok((crate::ply::read_ply_file(path)?, none)),
         CloudFileKind::Xyz => Ok((crate::xyz::read_xyz_file(path)?, none)),
         CloudFileKind::Pcd => Ok((crate::pcd::read_pcd_file(path)?, none)),
@@ -64,6 +68,34 @@ pub enum CloudFileKind {
     Xyz,
     /// Anything else: `pingcal-scan` CSV.
     Scans,
+}
+
+/// A file of LRF data and its kind, told once from its extension ([`file_kind`]) and
+/// carried with it: a project's `[lrf] scans` entries are classified as they are loaded.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct CloudPath {
+    /// The file.
+    pub path: std::path::PathBuf,
+    /// What it is read as.
+    pub kind: CloudFileKind,
+}
+
+impl CloudPath {
+    /// `path`, classified by its extension.
+    pub fn new(path: std::path::PathBuf) -> Self {
+        let kind = file_kind(&path);
+        CloudPath { path, kind }
+    }
+
+    /// Whether it is a `pingcal-scan` file (the scans as the LRF reported them).
+    pub fn is_scans(&self) -> bool {
+        self.kind == CloudFileKind::Scans
+    }
+
+    /// The cloud of the file ([`read_cloud_file_in`]).
+    pub fn read_in(&self, mount: &MountModel, unit: CloudUnit) -> Result<(Cloud, Vec<String>)> {
+        read_kind_in(&self.path, self.kind, mount, unit)
+    }
 }
 
 /// The kind of a cloud file, by its extension.
@@ -119,6 +151,31 @@ impl CloudUnit {
     }
 }
 
+impl CloudUnit {
+    /// Every unit, as the files spell them.
+    pub const NAMES: [&'static str; 2] = ["mm", "m"];
+
+    /// The unit spelled `word`, if any.
+    pub fn from_word(word: &str) -> Option<Self> {
+        [CloudUnit::Mm, CloudUnit::M]
+            .into_iter()
+            .find(|u| u.name() == word)
+    }
+}
+
+impl serde::Serialize for CloudUnit {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        s.serialize_str(self.name())
+    }
+}
+
+impl<'de> serde::Deserialize<'de> for CloudUnit {
+    /// `mm` or `m`, anything else refused with the words allowed.
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        crate::words::deserialize(d, &Self::NAMES, Self::from_word)
+    }
+}
+
 impl std::str::FromStr for CloudUnit {
     type Err = String;
     fn from_str(s: &str) -> std::result::Result<Self, String> {
@@ -157,8 +214,17 @@ pub fn read_cloud_file_in(
     mount: &MountModel,
     unit: CloudUnit,
 ) -> Result<(Cloud, Vec<String>)> {
-    let kind = file_kind(path);
-    let (mut c, masked) = read_cloud_file_masked(path, mount)?;
+    read_kind_in(path, file_kind(path), mount, unit)
+}
+
+/// [`read_cloud_file_in`] of a file already classified as `kind`.
+fn read_kind_in(
+    path: &std::path::Path,
+    kind: CloudFileKind,
+    mount: &MountModel,
+    unit: CloudUnit,
+) -> Result<(Cloud, Vec<String>)> {
+    let (mut c, masked) = read_cloud_file_masked(path, kind, mount)?;
     let mut warnings = Vec::new();
     if kind == CloudFileKind::Scans {
         warnings.extend(masked_warning(path, &masked));

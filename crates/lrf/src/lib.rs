@@ -13,6 +13,8 @@
 //! - [`scan`]: the `pingcal-scan` CSV format, streaming reader and writer.
 //! - [`sensor`]: the LRF as a sensor: beam geometry (eq. 2 plus the mount model), the range
 //!   noise profiles (URG-04LX by default, UTM-30LX, UST-10LX, VLP-16, σ = a + b·r), and the forward model a simulator needs (rays, readings).
+//! - [`settings`]: the sensor's settings resolved once, for the project file and the
+//!   command line alike: the range noise, the servo source and motion.
 //! - [`cloud`]: scans to a 3D cloud through the sensor's beam geometry.
 //! - [`cloud_file`]: [`cloud_file::read_cloud_file`] reads scans, PLY, PCD or XYZ into a cloud.
 //! - [`ply`], [`xyz`], [`pcd`]: PLY (ascii/binary), text and PCD (ascii, binary,
@@ -51,9 +53,11 @@ pub mod registration;
 pub mod room;
 pub mod scan;
 pub mod sensor;
+pub mod settings;
 pub mod simulate;
 pub mod sphere_fit;
 pub mod sphere_size;
+mod words;
 pub mod xyz;
 
 pub use cloud::Cloud;

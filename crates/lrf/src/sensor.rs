@@ -19,7 +19,7 @@
 //! **Range noise** ([`RangeNoise`]). The URG-04LX datasheet gives ±30 mm under 1 m and
 //! ±3 % of the range beyond; read as ±3σ bounds this is σ = 10 mm up to 1 m and 1 % of the
 //! range beyond (continuous at 1 m), Gaussian along the ray. Other sensors: the named
-//! profiles of [`NOISE_PROFILES`] ([`RangeNoise::named`]) and σ = a + b·r
+//! profiles of [`NoiseProfile`] ([`NoiseProfile::noise`]) and σ = a + b·r
 //! ([`RangeNoise::linear`]).
 //!
 //! **A reading** ([`LrfSensor::read`]): the true range plus noise, rounded to whole
@@ -405,13 +405,90 @@ pub const NOISE_PROFILES: [&str; 4] = ["URG-04LX", "UTM-30LX", "UST-10LX", "VLP-
 /// 60 m, UST-10LX 30 m, VLP-16 100 m.
 pub const PROFILE_MAX_RANGE_MM: [f64; 4] = [5600.0, 60_000.0, 30_000.0, 100_000.0];
 
-/// The longest range of the sensor of a named profile ([`PROFILE_MAX_RANGE_MM`]); `None`
-/// for an unknown name.
-pub fn profile_max_range_mm(name: &str) -> Option<f64> {
-    let key = |s: &str| s.to_ascii_uppercase().replace(['-', '_'], "");
-    let k = key(name);
-    let i = NOISE_PROFILES.iter().position(|n| key(n) == k)?;
-    Some(PROFILE_MAX_RANGE_MM[i])
+/// A named range-noise profile ([`NOISE_PROFILES`]): the word of a project's `[lrf] noise`,
+/// sphere-calib's `[lidar] noise` and the commands' `--noise`. Read with case and `-`/`_`
+/// ignored (`urg_04lx` is the URG-04LX), written as [`NOISE_PROFILES`] spells it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum NoiseProfile {
+    /// Hokuyo URG-04LX.
+    Urg04lx,
+    /// Hokuyo UTM-30LX.
+    Utm30lx,
+    /// Hokuyo UST-10LX.
+    Ust10lx,
+    /// Velodyne VLP-16.
+    Vlp16,
+}
+
+impl NoiseProfile {
+    /// Every profile, in the order of [`NOISE_PROFILES`].
+    pub const ALL: [Self; 4] = [Self::Urg04lx, Self::Utm30lx, Self::Ust10lx, Self::Vlp16];
+
+    /// Its name, as [`NOISE_PROFILES`] spells it.
+    pub const fn name(self) -> &'static str {
+        NOISE_PROFILES[self as usize]
+    }
+
+    /// The profile named `word` (case and `-`/`_` ignored), if any.
+    pub fn from_word(word: &str) -> Option<Self> {
+        let key = |s: &str| s.to_ascii_uppercase().replace(['-', '_'], "");
+        let k = key(word);
+        Self::ALL.into_iter().find(|p| key(p.name()) == k)
+    }
+
+    /// The range noise of the sensor (its datasheet accuracies read as 3σ).
+    pub fn noise(self) -> RangeNoise {
+        match self {
+            NoiseProfile::Urg04lx => RangeNoise::urg_04lx(),
+            NoiseProfile::Utm30lx => RangeNoise::Step {
+                sigma_near_mm: 10.0,
+                sigma_far_mm: 50.0 / 3.0,
+                near_limit_mm: 10_000.0,
+            },
+            NoiseProfile::Ust10lx => RangeNoise::Linear {
+                a_mm: 40.0 / 3.0,
+                b: 0.0,
+            },
+            NoiseProfile::Vlp16 => RangeNoise::Linear { a_mm: 10.0, b: 0.0 },
+        }
+    }
+
+    /// The longest range the sensor reports, mm ([`PROFILE_MAX_RANGE_MM`]).
+    pub fn max_range_mm(self) -> f64 {
+        PROFILE_MAX_RANGE_MM[self as usize]
+    }
+}
+
+impl std::fmt::Display for NoiseProfile {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for NoiseProfile {
+    type Err = LrfError;
+
+    /// The profile named `s`; an unknown name is an error listing the known ones.
+    fn from_str(s: &str) -> Result<Self, LrfError> {
+        Self::from_word(s).ok_or_else(|| {
+            LrfError::Invalid(format!(
+                "unknown noise profile {s:?} (known: {})",
+                NOISE_PROFILES.join(", ")
+            ))
+        })
+    }
+}
+
+impl serde::Serialize for NoiseProfile {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(self.name())
+    }
+}
+
+impl<'de> serde::Deserialize<'de> for NoiseProfile {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        crate::words::deserialize(d, &NOISE_PROFILES, Self::from_word)
+    }
 }
 
 impl Default for RangeNoise {
@@ -434,28 +511,7 @@ impl RangeNoise {
     /// A named profile of [`NOISE_PROFILES`] (case and `-`/`_` ignored); an unknown name is
     /// an error listing the known ones.
     pub fn named(name: &str) -> Result<Self, LrfError> {
-        let key = |s: &str| s.to_ascii_uppercase().replace(['-', '_'], "");
-        let k = key(name);
-        let p = match NOISE_PROFILES.iter().position(|n| key(n) == k) {
-            Some(0) => RangeNoise::urg_04lx(),
-            Some(1) => RangeNoise::Step {
-                sigma_near_mm: 10.0,
-                sigma_far_mm: 50.0 / 3.0,
-                near_limit_mm: 10_000.0,
-            },
-            Some(2) => RangeNoise::Linear {
-                a_mm: 40.0 / 3.0,
-                b: 0.0,
-            },
-            Some(3) => RangeNoise::Linear { a_mm: 10.0, b: 0.0 },
-            _ => {
-                return Err(LrfError::Invalid(format!(
-                    "unknown noise profile {name:?} (known: {})",
-                    NOISE_PROFILES.join(", ")
-                )))
-            }
-        };
-        Ok(p)
+        name.parse::<NoiseProfile>().map(NoiseProfile::noise)
     }
 
     /// The linear profile σ = `a_mm` + `b` · r, with `a_mm` > 0 and `b` ≥ 0 (finite).

@@ -417,15 +417,16 @@ accuracy_far_fraction = 0.03
 
     /// The project of project-file text `text`, with no files behind it.
     pub(crate) fn project_of(text: &str) -> Project {
+        let file = ProjectFile::parse(text, "project.toml").expect("valid project");
         Project {
             path: "project.toml".into(),
             dir: ".".into(),
             image_paths: Vec::new(),
-            scan_paths: Vec::new(),
+            scans: Vec::new(),
             layout: None,
             bag_paths: Vec::new(),
-            lrf_model_path: None,
-            file: ProjectFile::parse(text, "project.toml").expect("valid project"),
+            lrf: pingcal_project::LrfSettings::of(&file.lrf).expect("a valid [lrf]"),
+            file,
         }
     }
 

@@ -122,7 +122,6 @@ pub fn calibrate_with_groups(
     groups: &[joint::GroupBuilder],
     rep: &Reporter,
 ) -> Result<Outcome> {
-    lrf::check_mount(project)?;
     let mut timing = Vec::new();
     let (dets, mut scene, adjusted) = camera_side(project, opts, rep, &mut timing)?;
     // A step after the bundle that fails while the camera model cannot hold the lens most

@@ -3,7 +3,9 @@
 //! Every scan file of `[lrf] scans` is read (`pingcal-scan` CSV through the mount model of
 //! the project, or a PLY / XYZ cloud already in the LRF frame) into one cloud; the balls are
 //! found and fitted by [`pingcal_lrf::ball_finder`] with the ball diameter of the project and
-//! the URG noise model from the datasheet accuracies (taken as 3σ). Scan files are read once:
+//! the range noise the project resolved at load ([`pingcal_project::LrfSettings`]: a named
+//! profile, σ = a + b·r, or the datasheet accuracies taken as 3σ). Every file of `scans` was
+//! classified at load (scan file or cloud) and is read as such. Scan files are read once:
 //! their lines make the cloud and are kept for the corner baseline. The bags of
 //! `[lrf.bag]` are read as `pingcal scans` reads them ([`pingcal_rosbag::assemble`]), and
 //! their scans join the cloud in the same way. Ranges beyond the sensor's `[lrf]
@@ -14,15 +16,12 @@ use crate::context::{Options, PipelineError, Result};
 use crate::progress::Reporter;
 use pingcal_lrf::ball_finder::{find_balls, find_walls, FindResult, FinderOptions};
 use pingcal_lrf::cloud::{Cloud, MountModel};
-use pingcal_lrf::cloud_file::{
-    file_kind, masked_warning, non_empty, read_cloud_file_in, read_lrf_model, CloudFileKind,
-    CloudUnit,
-};
+use pingcal_lrf::cloud_file::{masked_warning, non_empty, CloudPath};
 use pingcal_lrf::room::{mount_from_room_refinding, RoomMount, RoomOptions};
 use pingcal_lrf::scan::{mask_lines_beyond, open_scan_file, ScanHeader, ScanLine};
 use pingcal_lrf::sensor::{MountParam, RangeNoise};
-use pingcal_project::{Project, ProjectBag, ProjectLrf};
-use pingcal_rosbag::assemble::{read_scans, ServoMotion, ServoSource, Topics};
+use pingcal_project::{BagServo, Project, ProjectBag};
+use pingcal_rosbag::assemble::{read_scans, Topics};
 
 /// Rejected clusters smaller than this are counted, not listed one by one (a 38 mm ball
 /// at 1.5 m gives well over 100 points in a slow sweep).
@@ -47,51 +46,6 @@ fn beyond(max_range_mm: f64) -> String {
     format!("beyond the sensor's [lrf] max_range_mm = {max_range_mm}")
 }
 
-/// Refuses a mount of `[lrf]` beyond the bounds of any mount ([`MountModel::check`]), before
-/// any work: a value such as 1e308 would otherwise run the whole pipeline into an unrelated
-/// failure.
-pub fn check_mount(project: &Project) -> Result<()> {
-    check_lrf_mount(&project.file.lrf)
-        .map_err(|e| PipelineError::Input(format!("{}: {e}", project.path.display())))
-}
-
-/// [`check_mount`] of an `[lrf]` table: the error names the entry, not the file.
-pub fn check_lrf_mount(l: &ProjectLrf) -> std::result::Result<(), pingcal_lrf::LrfError> {
-    mount_of_lrf(l)
-        .check([
-            "mount_offset_mm",
-            "mount_tilt_x_deg",
-            "mount_tilt_z_deg",
-            "servo_zero_deg",
-            "servo_scale",
-            "range_offset_mm",
-            "range_scale",
-        ])
-        .map_err(|e| pingcal_lrf::LrfError::Invalid(format!("[lrf] {e}")))
-}
-
-/// The mount model of the project: its `[lrf] lrf_model` file's, or its `mount_*` and
-/// `servo_zero_deg` keys'.
-pub fn mount_of(project: &Project) -> Result<MountModel> {
-    if let Some(path) = &project.lrf_model_path {
-        return read_lrf_model(path).map_err(|e| {
-            PipelineError::Input(format!("{}: [lrf] lrf_model: {e}", project.path.display()))
-        });
-    }
-    Ok(mount_of_lrf(&project.file.lrf))
-}
-
-/// The mount model of an `[lrf]` table.
-fn mount_of_lrf(l: &ProjectLrf) -> MountModel {
-    MountModel {
-        offset_mm: l.mount_offset_mm,
-        tilt_x_deg: l.mount_tilt_x_deg,
-        tilt_z_deg: l.mount_tilt_z_deg,
-        servo_zero_deg: l.servo_zero_deg,
-        ..MountModel::default()
-    }
-}
-
 /// The scans of the `[lrf.bag]` bags, with the servo held or interpolated as `servo_motion`
 /// says (absent: told from the data), in runs of one beam geometry (a driver may change it
 /// between messages: each scan keeps its own); what was skipped or masked, and the motion
@@ -99,6 +53,7 @@ fn mount_of_lrf(l: &ProjectLrf) -> MountModel {
 fn bag_scans(
     project: &Project,
     bag: &ProjectBag,
+    servo: &BagServo,
     rep: &Reporter,
 ) -> Result<Vec<(ScanHeader, Vec<ScanLine>)>> {
     let err = |e: pingcal_rosbag::RosbagError| PipelineError::Input(e.to_string());
@@ -108,30 +63,13 @@ fn bag_scans(
             bags.push(pingcal_rosbag::Bag::open(&f).map_err(err)?);
         }
     }
-    let source = match (&bag.servo_joint, &bag.servo_tf_child) {
-        (Some(j), _) => ServoSource::Joint(j.clone()),
-        (None, Some(child)) => {
-            let a = bag.servo_axis.unwrap_or([0.0, 1.0, 0.0]);
-            let n = a.iter().map(|v| v * v).sum::<f64>().sqrt();
-            ServoSource::Tf {
-                child: child.clone(),
-                axis: a.map(|v| v / n),
-            }
-        }
-        (None, None) => ServoSource::Numeric {
-            scale: bag.servo_scale.unwrap_or(1.0),
-            offset: bag.servo_offset.unwrap_or(0.0),
-        },
-    };
     let topics = Topics {
         scan: bag.scan_topic.clone(),
         servo: bag.servo_topic.clone(),
-        source,
+        source: servo.source.clone(),
     };
-    let motion = ServoMotion::parse(bag.servo_motion.as_deref().unwrap_or("auto"))
-        .map_err(|e| PipelineError::Input(format!("[lrf.bag] {e}")))?;
     let mut runs: Vec<(ScanHeader, Vec<ScanLine>)> = Vec::new();
-    let done = read_scans(&bags, &topics, motion, &mut |h, l| {
+    let done = read_scans(&bags, &topics, servo.motion, &mut |h, l| {
         match runs.last_mut() {
             Some((last, lines)) if last == h && lines[0].ranges_mm.len() == l.ranges_mm.len() => {
                 lines.push(l)
@@ -156,64 +94,30 @@ fn bag_scans(
 /// Reads the scans and finds the spheres.
 pub fn lrf_spheres(project: &Project, opts: &Options, rep: &Reporter) -> Result<LrfData> {
     let l = &project.file.lrf;
-    let mount = mount_of(project)?;
-    let pb = rep.task("LRF cloud and spheres", project.scan_paths.len() as u64 + 1);
+    let mount = project.lrf.mount;
+    let pb = rep.task("LRF cloud and spheres", project.scans.len() as u64 + 1);
     let mut cloud = Cloud::default();
     let mut scans = None;
-    for path in &project.scan_paths {
-        let err = |e: pingcal_lrf::LrfError| PipelineError::Input(e.to_string());
-        if file_kind(path) == CloudFileKind::Scans {
+    for file in &project.scans {
+        if file.is_scans() {
             // read once: the lines make the cloud and are kept for the corner baseline
-            let mut reader = open_scan_file(path).map_err(err)?;
-            let header = reader.header();
-            let mut lines = reader
-                .by_ref()
-                .collect::<std::result::Result<Vec<_>, _>>()
-                .map_err(err)?;
-            if let Some(w) = masked_warning(path, &reader.masked()) {
-                rep.log(format!("warning: {w}"));
-            }
-            let masked = mask_lines_beyond(&mut lines, l.max_range_mm);
-            if masked.count > 0 {
-                rep.log(format!(
-                    "warning: {}: {}",
-                    path.display(),
-                    masked.describe(&beyond(l.max_range_mm))
-                ));
-            }
+            let (header, lines) = scan_file(&file.path, l.max_range_mm, rep)?;
             let mut c = Cloud::default();
             for line in &lines {
                 c.push_scan(&header, line, &mount);
             }
-            cloud.extend(non_empty(c, path).map_err(err)?);
+            let err = |e: pingcal_lrf::LrfError| PipelineError::Input(e.to_string());
+            cloud.extend(non_empty(c, &file.path).map_err(err)?);
             if scans.is_none() {
                 scans = Some((header, lines));
             }
         } else {
-            let unit: CloudUnit = match l.cloud_unit.as_deref() {
-                Some(u) => u
-                    .parse()
-                    .map_err(|e| PipelineError::Input(format!("[lrf] cloud_unit: {e}")))?,
-                None => CloudUnit::default(),
-            };
-            let (mut c, warnings) = read_cloud_file_in(path, &mount, unit).map_err(err)?;
-            for w in warnings {
-                rep.log(format!("warning: {w}"));
-            }
-            let n = c.mask_beyond(l.max_range_mm);
-            if n > 0 {
-                rep.log(format!(
-                    "warning: {}: {n} point(s) {} masked",
-                    path.display(),
-                    beyond(l.max_range_mm)
-                ));
-            }
-            cloud.extend(c);
+            cloud.extend(cloud_file(file, project, rep)?);
         }
         pb.advance(1);
     }
-    if let Some(bag) = &l.bag {
-        for (header, mut lines) in bag_scans(project, bag, rep)? {
+    if let (Some(bag), Some(servo)) = (&l.bag, &project.lrf.bag) {
+        for (header, mut lines) in bag_scans(project, bag, servo, rep)? {
             let masked = mask_lines_beyond(&mut lines, l.max_range_mm);
             if masked.count > 0 {
                 rep.log(format!(
@@ -232,18 +136,59 @@ pub fn lrf_spheres(project: &Project, opts: &Options, rep: &Reporter) -> Result<
             }
         }
     }
-    let noise = match (&l.noise, l.noise_sigma_mm) {
-        (Some(n), _) => {
-            RangeNoise::named(n).map_err(|e| PipelineError::Input(format!("[lrf] noise: {e}")))?
-        }
-        (None, Some([a, b])) => RangeNoise::linear(a, b)
-            .map_err(|e| PipelineError::Input(format!("[lrf] noise_sigma_mm: {e}")))?,
-        (None, None) => {
-            RangeNoise::from_datasheet(l.accuracy_near_mm, l.accuracy_far_fraction, 3.0)
-        }
-    };
     pb.finish();
+    let noise = project.lrf.noise;
     Ok(spheres_in(project, cloud, scans, mount, noise, opts, rep))
+}
+
+/// The header and lines of the scan file `path`, its ranges beyond `max_range_mm` (and
+/// beyond any range finder) masked, with warnings.
+fn scan_file(
+    path: &std::path::Path,
+    max_range_mm: f64,
+    rep: &Reporter,
+) -> Result<(ScanHeader, Vec<ScanLine>)> {
+    let err = |e: pingcal_lrf::LrfError| PipelineError::Input(e.to_string());
+    let mut reader = open_scan_file(path).map_err(err)?;
+    let header = reader.header();
+    let mut lines = reader
+        .by_ref()
+        .collect::<std::result::Result<Vec<_>, _>>()
+        .map_err(err)?;
+    if let Some(w) = masked_warning(path, &reader.masked()) {
+        rep.log(format!("warning: {w}"));
+    }
+    let masked = mask_lines_beyond(&mut lines, max_range_mm);
+    if masked.count > 0 {
+        rep.log(format!(
+            "warning: {}: {}",
+            path.display(),
+            masked.describe(&beyond(max_range_mm))
+        ));
+    }
+    Ok((header, lines))
+}
+
+/// The cloud of a cloud file of `[lrf] scans` (PLY, PCD, XYZ) in the project's unit, its
+/// points beyond `max_range_mm` masked, with warnings.
+fn cloud_file(file: &CloudPath, project: &Project, rep: &Reporter) -> Result<Cloud> {
+    let err = |e: pingcal_lrf::LrfError| PipelineError::Input(e.to_string());
+    let (mut c, warnings) = file
+        .read_in(&project.lrf.mount, project.lrf.cloud_unit)
+        .map_err(err)?;
+    for w in warnings {
+        rep.log(format!("warning: {w}"));
+    }
+    let max = project.file.lrf.max_range_mm;
+    let n = c.mask_beyond(max);
+    if n > 0 {
+        rep.log(format!(
+            "warning: {}: {n} point(s) {} masked",
+            file.path.display(),
+            beyond(max)
+        ));
+    }
+    Ok(c)
 }
 
 /// The LRF's mount from the room's planes ([`pingcal_lrf::room`]): the walls the ball finder
@@ -375,7 +320,7 @@ fn spheres_in(
     rep.log(format!(
         "LRF: {} points from {} file(s); {} spheres fitted ({} to {} beams each, fit sigma0 {:.2} to {:.2}, median {:.2}), {} clusters rejected",
         cloud.len(),
-        project.scan_paths.len(),
+        project.scans.len(),
         found.balls.len(),
         inl.first().copied().unwrap_or(0),
         inl.last().copied().unwrap_or(0),
@@ -417,6 +362,12 @@ mod tests {
         crate::test_support::project(file, vec![data.join(name)])
     }
 
+    /// The scans of the bags of `p`.
+    fn scans_of(p: &Project) -> Vec<(ScanHeader, Vec<ScanLine>)> {
+        let (bag, servo) = (p.file.lrf.bag.as_ref(), p.lrf.bag.as_ref());
+        bag_scans(p, bag.unwrap(), servo.unwrap(), &Reporter::silent()).unwrap()
+    }
+
     fn bag(servo_topic: &str) -> ProjectBag {
         ProjectBag {
             files: vec!["fixture".into()],
@@ -435,7 +386,6 @@ mod tests {
     /// joint does) gives the JointState's scans; a geometry change keeps every scan.
     #[test]
     fn a_project_bag_reads_the_servo_from_tf_and_keeps_each_geometry() {
-        let rep = Reporter::silent();
         let joint = project_with_bag(
             "ros1.bag",
             ProjectBag {
@@ -451,10 +401,7 @@ mod tests {
                 ..bag("/tf")
             },
         );
-        let (a, b) = (
-            bag_scans(&joint, joint.file.lrf.bag.as_ref().unwrap(), &rep).unwrap(),
-            bag_scans(&tf, tf.file.lrf.bag.as_ref().unwrap(), &rep).unwrap(),
-        );
+        let (a, b) = (scans_of(&joint), scans_of(&tf));
         assert_eq!((a.len(), b.len()), (1, 1));
         assert_eq!(a[0].0, b[0].0);
         assert_eq!(a[0].1.len(), 5);
@@ -474,7 +421,7 @@ mod tests {
                 ..bag("/joint_states")
             },
         );
-        let runs = bag_scans(&g, g.file.lrf.bag.as_ref().unwrap(), &rep).unwrap();
+        let runs = scans_of(&g);
         let sizes: Vec<(usize, usize)> = runs
             .iter()
             .map(|(_, l)| (l.len(), l[0].ranges_mm.len()))

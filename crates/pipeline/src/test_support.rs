@@ -17,11 +17,11 @@ pub fn project(file: ProjectFile, bag_paths: Vec<std::path::PathBuf>) -> Project
     Project {
         path: "x.toml".into(),
         dir: ".".into(),
-        file,
         image_paths: Vec::new(),
-        scan_paths: Vec::new(),
+        scans: Vec::new(),
         layout: None,
         bag_paths,
-        lrf_model_path: None,
+        lrf: pingcal_project::LrfSettings::of(&file.lrf).expect("a valid [lrf]"),
+        file,
     }
 }

@@ -10,9 +10,12 @@
 //! pipeline, which reports them in the same one-line style.
 //!
 //! The modules, in the order a file goes through them: `schema` (the tables of the file),
-//! `closed_sets` (the words `method`, `family`, `model` and `free` take, refused at parse time
-//! when unknown), `parse` (text to [`ProjectFile`], errors with the line) and `validate`
-//! (the file against itself).
+//! `closed_sets` (the words `method`, `family`, `model`, `free` and `self_calibrate` take,
+//! refused at parse time when unknown, as the LRF's words are: `[lrf] noise`, `cloud_unit`,
+//! `[lrf.bag] servo_motion`), `parse` (text to [`ProjectFile`], errors with the line),
+//! `validate` (the file against itself) and `settings` (the `[lrf]` keys resolved into the
+//! values the pipeline uses: [`LrfSettings`]). Every refusal of a project happens in
+//! [`Project::load`], before the pipeline reads an image.
 //!
 //! docs/project.md has a complete, commented example; the tests of this crate parse and
 //! validate that very text, so it cannot drift.
@@ -24,6 +27,7 @@ pub mod intrinsics;
 mod layout;
 mod parse;
 mod schema;
+pub mod settings;
 pub mod sphere_calib;
 mod validate;
 pub mod yaml;
@@ -37,8 +41,10 @@ pub use schema::{
     ProjectFrames, ProjectImage, ProjectLrf, ProjectNetwork, ProjectStereo, ProjectTargets,
     PARAMETER_NAMES,
 };
+pub use settings::{BagServo, LrfSettings};
 pub use sphere_calib::{SphereCalibFile, SphereCalibFrame, SphereCalibLidar};
 
+use pingcal_lrf::cloud_file::{read_lrf_model, CloudPath};
 use std::path::{Path, PathBuf};
 
 /// Why a project cannot be used: one line naming the file, and the entry and value.
@@ -123,14 +129,15 @@ pub struct Project {
     pub file: ProjectFile,
     /// Image paths, resolved, in the order of `file.images`.
     pub image_paths: Vec<PathBuf>,
-    /// Scan paths, resolved.
-    pub scan_paths: Vec<PathBuf>,
+    /// `[lrf] scans`, resolved and classified (scan file or cloud), in their order.
+    pub scans: Vec<CloudPath>,
     /// The coded targets' layout (`[targets] layout`), read.
     pub layout: Option<Layout>,
     /// `[lrf.bag]` files (bag files or ROS 2 bag folders), resolved.
     pub bag_paths: Vec<PathBuf>,
-    /// `[lrf] lrf_model`, resolved.
-    pub lrf_model_path: Option<PathBuf>,
+    /// The `[lrf]` settings, resolved: the range noise, the clouds' unit, the bag's servo,
+    /// and the mount (the `lrf_model` file's when the project names one).
+    pub lrf: LrfSettings,
 }
 
 impl Project {
@@ -142,7 +149,7 @@ impl Project {
             what: format!("cannot read the project file: {e}"),
         })?;
         let file = ProjectFile::parse(&text, &name)?;
-        file.validate(&name)?;
+        let mut lrf = file.checked(&name)?;
         let dir = path
             .parent()
             .map(Path::to_path_buf)
@@ -206,19 +213,22 @@ impl Project {
             .map(|(k, s)| format!("[lrf.bag] files[{k}] \"{s}\""))
             .collect();
         once_each(&bag_paths, &bag_names, &name)?;
-        let lrf_model_path = match &file.lrf.lrf_model {
-            Some(rel) => Some(resolve(rel, format!("[lrf] lrf_model \"{rel}\""))?),
-            None => None,
-        };
+        if let Some(rel) = &file.lrf.lrf_model {
+            let p = resolve(rel, format!("[lrf] lrf_model \"{rel}\""))?;
+            lrf.mount = read_lrf_model(&p).map_err(|e| ProjectError::Invalid {
+                path: name.clone(),
+                what: format!("[lrf] lrf_model: {e}"),
+            })?;
+        }
         Ok(Project {
             path: path.to_path_buf(),
             dir,
             file,
             image_paths,
-            scan_paths,
+            scans: scan_paths.into_iter().map(CloudPath::new).collect(),
             layout,
             bag_paths,
-            lrf_model_path,
+            lrf,
         })
     }
 

@@ -2,12 +2,16 @@
 //!
 //! One struct per table of the file, named `Project…` after it, with serde's
 //! `deny_unknown_fields` so a misspelt key is refused. The closed sets (`method`, `family`,
-//! `model`, `free`) are the enums of [`crate::closed_sets`]; the rest is plain numbers and
+//! `model`, `free`, `self_calibrate`) are the enums of [`crate::closed_sets`], those of the
+//! LRF (`[lrf] noise`, `cloud_unit`, `[lrf.bag] servo_motion`) the LRF crate's; the rest is plain numbers and
 //! strings, checked after reading by [`ProjectFile::validate`]. Defaults are serde's
 //! `default` attributes below and nothing else.
 
 use crate::closed_sets::{CameraModel, Method, MountParameter, Parameter, TargetFamily};
 use crate::intrinsics::{Intrinsics, KeyedValues};
+use pingcal_lrf::cloud_file::CloudUnit;
+use pingcal_lrf::sensor::NoiseProfile;
+use pingcal_lrf::settings::ServoMotion;
 use serde::{Deserialize, Serialize};
 
 /// Names of the ten photogrammetric parameters, in the order of [`CameraParams::to_slice`].
@@ -376,7 +380,7 @@ pub struct ProjectLrf {
     /// Unit of the coordinates of the cloud files among `scans` (PLY, PCD, XYZ): `"mm"`
     /// (absent: the default) or `"m"`. Scan files are always mm.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub cloud_unit: Option<String>,
+    pub cloud_unit: Option<CloudUnit>,
     /// Maximum range (mm).
     pub max_range_mm: f64,
     /// Datasheet accuracy under 1 m (± mm, taken as 3σ).
@@ -386,7 +390,7 @@ pub struct ProjectLrf {
     /// Named range-noise profile (`"URG-04LX"`, `"UTM-30LX"`, `"UST-10LX"`, `"VLP-16"`)
     /// instead of the `accuracy_*` keys' profile.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub noise: Option<String>,
+    pub noise: Option<NoiseProfile>,
     /// Linear range-noise profile σ = a + b·r (`[a_mm, b]`) instead of the `accuracy_*` keys'.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub noise_sigma_mm: Option<[f64; 2]>,
@@ -452,7 +456,7 @@ pub struct ProjectBag {
     /// (the last angle before each scan is held) or `"continuous"` (interpolated at each
     /// beam's time).
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub servo_motion: Option<String>,
+    pub servo_motion: Option<ServoMotion>,
 }
 
 impl ProjectLrf {

@@ -27,6 +27,8 @@
 
 use crate::parse::{invalid, syntax};
 use crate::ProjectError;
+use pingcal_lrf::cloud_file::CloudUnit;
+use pingcal_lrf::sensor::{NoiseProfile, RangeNoise};
 use serde::{Deserialize, Serialize};
 
 /// `sphere-calib.toml`.
@@ -56,10 +58,10 @@ pub struct SphereCalibFile {
 #[serde(deny_unknown_fields)]
 pub struct SphereCalibLidar {
     /// Unit of the clouds' coordinates: `m` or `mm`.
-    pub unit: String,
+    pub unit: CloudUnit,
     /// A named range-noise profile (`URG-04LX`, `UTM-30LX`, `UST-10LX`, `VLP-16`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub noise: Option<String>,
+    pub noise: Option<NoiseProfile>,
     /// Or a linear profile σ = a + b·r: `[a_mm, b]`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub noise_sigma_mm: Option<[f64; 2]>,
@@ -84,6 +86,12 @@ pub struct SphereCalibFrame {
 impl SphereCalibFile {
     /// Parses and checks the text of a sphere-calib project; `file` names it in errors.
     pub fn parse(text: &str, file: &str) -> Result<Self, ProjectError> {
+        Self::read(text, file).map(|(f, _)| f)
+    }
+
+    /// [`SphereCalibFile::parse`], with the lidar's range noise it resolved
+    /// ([`SphereCalibFile::noise`]).
+    pub fn read(text: &str, file: &str) -> Result<(Self, RangeNoise), ProjectError> {
         let f: SphereCalibFile = toml::from_str(text).map_err(|e| syntax(file, text, e))?;
         if f.version != 1 {
             return Err(invalid(
@@ -98,18 +106,7 @@ impl SphereCalibFile {
                 format!("sphere_diameter_mm = {d}: expected a positive number of mm"),
             ));
         }
-        if !matches!(f.lidar.unit.as_str(), "m" | "mm") {
-            return Err(invalid(
-                file,
-                format!("[lidar] unit = {:?}: expected one of m, mm", f.lidar.unit),
-            ));
-        }
-        if f.lidar.noise.is_some() && f.lidar.noise_sigma_mm.is_some() {
-            return Err(invalid(
-                file,
-                "[lidar]: give noise or noise_sigma_mm, not both".into(),
-            ));
-        }
+        let noise = f.noise(file)?;
         if f.frames.len() < 3 {
             return Err(invalid(
                 file,
@@ -125,7 +122,25 @@ impl SphereCalibFile {
                 return Err(invalid(file, format!("[[frames]] id {id:?} given twice")));
             }
         }
-        Ok(f)
+        Ok((f, noise))
+    }
+
+    /// The lidar's range noise: `[lidar] noise`'s profile or `noise_sigma_mm`'s σ = a + b·r
+    /// ([`pingcal_lrf::settings::range_noise`]), one of them given; `file` names the file in
+    /// errors.
+    pub fn noise(&self, file: &str) -> Result<RangeNoise, ProjectError> {
+        let l = &self.lidar;
+        pingcal_lrf::settings::range_noise(
+            l.noise,
+            l.noise_sigma_mm,
+            ["[lidar] noise", "[lidar] noise_sigma_mm"],
+        )
+        .and_then(|n| {
+            n.ok_or_else(|| {
+                "[lidar]: give the sensor's noise (a profile name, e.g. noise = \"VLP-16\") or noise_sigma_mm = [a, b]".to_string()
+            })
+        })
+        .map_err(|what| invalid(file, what))
     }
 
     /// The frames' ids: each one's `id`, or `F1`, `F2`, … by position.
@@ -198,7 +213,33 @@ image = "c.png"
         let e = SphereCalibFile::parse(&PROJECT.replace("\"m\"", "\"cm\""), "p.toml")
             .unwrap_err()
             .to_string();
-        assert!(e.contains("unit = \"cm\": expected one of m, mm"), "{e}");
+        assert_eq!(e, "p.toml: line 6: unit = \"cm\": expected one of mm, m");
+        let e = SphereCalibFile::parse(&PROJECT.replace("VLP-16", "bogus"), "p.toml")
+            .unwrap_err()
+            .to_string();
+        assert_eq!(
+            e,
+            "p.toml: line 7: noise = \"bogus\": expected one of URG-04LX, UTM-30LX, UST-10LX, VLP-16"
+        );
+        let both = PROJECT.replace(
+            "noise = \"VLP-16\"",
+            "noise = \"VLP-16\"\nnoise_sigma_mm = [10.0, 0.0]",
+        );
+        let e = SphereCalibFile::parse(&both, "p.toml")
+            .unwrap_err()
+            .to_string();
+        assert_eq!(
+            e,
+            "p.toml: [lidar] noise and [lidar] noise_sigma_mm: give one, a named profile or [a, b]"
+        );
+        let none = PROJECT.replace("noise = \"VLP-16\"", "");
+        let e = SphereCalibFile::parse(&none, "p.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("p.toml: [lidar]: give the sensor's noise"),
+            "{e}"
+        );
         let e = SphereCalibFile::parse(&PROJECT.replace("image = \"a.png\"", ""), "p.toml")
             .unwrap_err()
             .to_string();

@@ -3,6 +3,8 @@
 //! invalid values are named; the parser never panics.
 
 use super::*;
+use pingcal_lrf::sensor::NoiseProfile;
+use pingcal_lrf::settings::ServoMotion;
 
 /// The documented example (it was the README's): the first ```toml block of docs/project.md.
 fn readme_example() -> String {
@@ -522,7 +524,10 @@ fn an_lrf_bag_section_is_read_and_checked() {
     let e = check(&|q| q.lrf.bag.as_mut().unwrap().servo_tf_child = Some("servo_link".into()));
     assert!(e.contains("servo_tf_child: give one"), "{e}");
     let e = check(&|q| q.lrf.bag.as_mut().unwrap().servo_axis = Some([0.0, 1.0, 0.0]));
-    assert!(e.contains("servo_axis: only for a tf servo topic"), "{e}");
+    assert!(
+        e.contains("[lrf.bag] servo_axis = [0.0, 1.0, 0.0]: only for a tf servo topic"),
+        "{e}"
+    );
     let tf = |axis: [f64; 3]| {
         move |q: &mut ProjectFile| {
             let b = q.lrf.bag.as_mut().unwrap();
@@ -540,21 +545,16 @@ fn an_lrf_bag_section_is_read_and_checked() {
         "{e}"
     );
     let e = check(&|q| {
-        q.lrf.noise = Some("UTM-30LX".into());
+        q.lrf.noise = Some(NoiseProfile::Utm30lx);
         q.lrf.noise_sigma_mm = Some([10.0, 0.0])
     });
     assert!(
-        e.contains("[lrf] noise and noise_sigma_mm: give one"),
+        e.contains("[lrf] noise and [lrf] noise_sigma_mm: give one"),
         "{e}"
     );
     let e = check(&|q| q.lrf.noise_sigma_mm = Some([-1.0, 0.0]));
     assert!(
-        e.contains("[lrf] noise_sigma_mm = [-1, 0]: expected a > 0 mm"),
-        "{e}"
-    );
-    let e = check(&|q| q.lrf.cloud_unit = Some("cm".into()));
-    assert!(
-        e.contains("[lrf] cloud_unit = \"cm\": expected \"m\" or \"mm\""),
+        e.contains("[lrf] noise_sigma_mm = [-1, 0]: expected 0 < a"),
         "{e}"
     );
     let e = check(&|q| q.lrf.bag.as_mut().unwrap().files.clear());
@@ -574,15 +574,10 @@ fn an_lrf_bag_section_is_read_and_checked() {
     });
     assert!(e.contains("the scale not 0"), "{e}");
     let mut q = p.clone();
-    q.lrf.bag.as_mut().unwrap().servo_motion = Some("stop-and-go".into());
+    q.lrf.bag.as_mut().unwrap().servo_motion = Some(ServoMotion::StopAndGo);
     q.validate("p.toml").unwrap();
     let again = ProjectFile::parse(&q.to_toml_string(), "again").unwrap();
     assert_eq!(again, q);
-    let e = check(&|q| q.lrf.bag.as_mut().unwrap().servo_motion = Some("jerky".into()));
-    assert!(
-        e.contains("[lrf.bag] servo_motion = \"jerky\": expected \"auto\", \"stop-and-go\" or \"continuous\""),
-        "{e}"
-    );
     let t = text.replace("servo_joint = ", "servo_jiont = ");
     assert!(ProjectFile::parse(&t, "p.toml").is_err());
 }
@@ -715,4 +710,114 @@ fn a_file_listed_twice_under_two_spellings_is_refused() {
         "{e}"
     );
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Issue 49: every closed-set key of the file given a wrong word is refused while the file
+/// is read, in one line naming the file, the line, the key and its value, and the words
+/// allowed — the LRF's words (`noise`, `cloud_unit`, `servo_motion`) as the others.
+#[test]
+fn every_closed_set_key_refuses_a_wrong_word_with_its_line_and_the_words_allowed() {
+    let bag = "\n[lrf.bag]\nfiles = [\"run.bag\"]\nscan_topic = \"/scan\"\nservo_topic = \"/joint_states\"\nservo_joint = \"servo\"\nservo_motion = \"auto\"\n";
+    let example = readme_example() + bag;
+    let max = "max_range_mm = 5600.0";
+    let own = "self_calibrate = [\"offset_x\"";
+    let cases = [
+        (
+            "method = \"both\"",
+            "method = \"bogus\"".to_string(),
+            "method = \"bogus\": expected one of spheres, corner, both, joint, all",
+        ),
+        (
+            "family = \"aicon14\"",
+            "family = \"bogus\"".into(),
+            "family = \"bogus\": expected one of aicon14, aicon12",
+        ),
+        (
+            "model = \"photogrammetric\"",
+            "model = \"bogus\"".into(),
+            "model = \"bogus\": expected one of photogrammetric",
+        ),
+        (
+            "free = [\"c\", ",
+            "free = [\"bogus\", \"c\", ".into(),
+            "free: \"bogus\": expected one of c, xp, yp, K1",
+        ),
+        (
+            max,
+            format!("noise = \"bogus\"\n{max}"),
+            "noise = \"bogus\": expected one of URG-04LX, UTM-30LX, UST-10LX, VLP-16",
+        ),
+        (
+            max,
+            format!("cloud_unit = \"bogus\"\n{max}"),
+            "cloud_unit = \"bogus\": expected one of mm, m",
+        ),
+        (
+            own,
+            "self_calibrate = [\"bogus\", \"offset_x\"".into(),
+            "self_calibrate: \"bogus\": expected one of offset_x, offset_y, offset_z, tilt_x, tilt_z, servo_scale, range_offset, range_scale",
+        ),
+        (
+            "servo_motion = \"auto\"",
+            "servo_motion = \"bogus\"".into(),
+            "servo_motion = \"bogus\": expected one of auto, stop-and-go, continuous",
+        ),
+    ];
+    for (from, to, message) in cases {
+        let at = example.find(from).unwrap_or_else(|| panic!("{from:?}"));
+        // the wrong word's line: the replaced line, or the line inserted after it
+        let line = 1 + example[..at].matches('\n').count() + usize::from(to.starts_with(from));
+        let text = example.replacen(from, &to, 1);
+        let e = ProjectFile::parse(&text, "project.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(!e.contains('\n'), "{e}");
+        let head = format!("project.toml: line {line}: {message}");
+        assert!(e.starts_with(&head), "{e}\nnot\n{head}");
+    }
+    // a profile's name is read with case and -/_ ignored, and written as spelt
+    let text = example.replacen(max, &format!("noise = \"utm_30lx\"\n{max}"), 1);
+    let p = ProjectFile::parse(&text, "project.toml").unwrap();
+    assert_eq!(p.lrf.noise, Some(NoiseProfile::Utm30lx));
+    assert!(p.to_toml_string().contains("noise = \"UTM-30LX\""));
+}
+
+/// The `[lrf]` settings are resolved while the file is checked: the noise of the
+/// `accuracy_*` keys, of a profile or of σ = a + b·r, and the bag's servo.
+#[test]
+fn the_lrf_settings_are_resolved_once_at_validation() {
+    use pingcal_lrf::sensor::RangeNoise;
+    use pingcal_lrf::settings::ServoSource;
+    let mut p = ProjectFile::parse(&readme_example(), "p.toml").unwrap();
+    let s = p.checked("p.toml").unwrap();
+    assert_eq!(s.noise, RangeNoise::from_datasheet(30.0, 0.03, 3.0));
+    assert!(s.bag.is_none());
+    p.lrf.noise = Some(NoiseProfile::Vlp16);
+    assert_eq!(
+        p.checked("p.toml").unwrap().noise,
+        NoiseProfile::Vlp16.noise()
+    );
+    p.lrf.noise = None;
+    p.lrf.noise_sigma_mm = Some([5.0, 0.002]);
+    assert_eq!(p.checked("p.toml").unwrap().noise.sigma(1000.0), 7.0);
+    p.lrf.bag = Some(ProjectBag {
+        files: vec!["run.bag".into()],
+        scan_topic: "/scan".into(),
+        servo_topic: "/tf".into(),
+        servo_joint: None,
+        servo_scale: None,
+        servo_offset: None,
+        servo_tf_child: Some("servo_link".into()),
+        servo_axis: Some([0.0, 0.0, -3.0]),
+        servo_motion: Some(ServoMotion::Continuous),
+    });
+    let bag = p.checked("p.toml").unwrap().bag.unwrap();
+    assert_eq!(
+        bag.source,
+        ServoSource::Tf {
+            child: "servo_link".into(),
+            axis: [0.0, 0.0, -1.0]
+        }
+    );
+    assert_eq!(bag.motion, ServoMotion::Continuous);
 }

@@ -4,14 +4,17 @@
 //! (an image's camera, the stereo pair, the main camera and station, the LRF's station),
 //! one image per camera per station. [`ProjectFile::validate`] runs one check per part of
 //! the file, in the order of the file, and reports the first failure as one line naming the
-//! entry and its value. The closed sets (`method`, `family`, `model`, `free`) are refused
-//! earlier, while reading (see `closed_sets.rs`).
+//! entry and its value. The closed sets (`method`, `family`, `model`, `free`,
+//! `self_calibrate`, and the LRF's `noise`, `cloud_unit`, `servo_motion`) are refused
+//! earlier, while reading (see `closed_sets.rs`); the `[lrf]` settings made of several keys
+//! (the range noise, the bag's servo) are resolved here, once ([`LrfSettings`]).
 
 use crate::intrinsics::Intrinsics;
 use crate::schema::{
     ProjectBag, ProjectBalls, ProjectCamera, ProjectDistance, ProjectFile, ProjectFrames,
     ProjectImage, ProjectLrf, ProjectNetwork, ProjectStereo, ProjectTargets,
 };
+use crate::settings::LrfSettings;
 use crate::{MountParameter, ProjectError};
 use std::collections::{BTreeMap, BTreeSet};
 
@@ -24,14 +27,20 @@ type Stations<'a> = BTreeMap<&'a str, BTreeSet<&'a str>>;
 impl ProjectFile {
     /// Checks the file against itself (not the files it names); `file` names it in errors.
     pub fn validate(&self, file: &str) -> Result<(), ProjectError> {
+        self.checked(file).map(|_| ())
+    }
+
+    /// [`ProjectFile::validate`], and the `[lrf]` settings it resolved.
+    pub(crate) fn checked(&self, file: &str) -> Result<LrfSettings, ProjectError> {
         self.check().map_err(|what| ProjectError::Invalid {
             path: file.to_string(),
             what,
         })
     }
 
-    /// The checks in order; the first failure, as the error's text.
-    fn check(&self) -> Result<(), String> {
+    /// The checks in order; the first failure, as the error's text; else the `[lrf]`
+    /// settings.
+    fn check(&self) -> Result<LrfSettings, String> {
         if self.version != 1 {
             return Err(format!(
                 "version = {}: this pingcal reads version 1",
@@ -53,9 +62,10 @@ impl ProjectFile {
         let stations = validate_images(&self.images, &cameras)?;
         validate_main_station(&self.main_station, &self.main_camera, &stations)?;
         validate_distances(&self.distances)?;
-        validate_lrf(&self.lrf, &self.main_station)?;
+        let settings = validate_lrf(&self.lrf, &self.main_station)?;
         validate_frames(&self.frames)?;
-        validate_network(&self.network)
+        validate_network(&self.network)?;
+        Ok(settings)
     }
 }
 
@@ -498,10 +508,7 @@ fn validate_distances(distances: &[ProjectDistance]) -> Result<(), String> {
 /// Smallest `max_range_mm` taken as a range in millimetres (a 2D LRF reaches metres).
 const MIN_MAX_RANGE_MM: f64 = 100.0;
 
-/// `[lrf]`: scans, taken from the main station, a positive range and accuracy, a maximum
-/// range in millimetres, a servo resolution in degrees, a finite mount.
-/// `[lrf.bag]`: files, the two topics, and the servo as a joint or as a finite scale
-/// and offset, not both.
+/// `[lrf.bag]`: files and the two topics (its servo keys are [`LrfSettings::of`]'s).
 fn validate_bag(b: &ProjectBag) -> Result<(), String> {
     if b.files.is_empty() {
         return Err("[lrf.bag] files: no bag".into());
@@ -509,43 +516,13 @@ fn validate_bag(b: &ProjectBag) -> Result<(), String> {
     if b.scan_topic.trim().is_empty() || b.servo_topic.trim().is_empty() {
         return Err("[lrf.bag] scan_topic and servo_topic must name topics".into());
     }
-    let numeric = b.servo_scale.is_some() || b.servo_offset.is_some();
-    let tf = b.servo_tf_child.is_some();
-    if [b.servo_joint.is_some(), numeric, tf]
-        .iter()
-        .filter(|x| **x)
-        .count()
-        > 1
-    {
-        return Err("[lrf.bag] servo_joint, servo_scale/servo_offset and servo_tf_child: give one, the joint of a JointState topic, the scale and offset of a numeric one or the child frame of a tf topic".into());
-    }
-    if b.servo_axis.is_some() && !tf {
-        return Err("[lrf.bag] servo_axis: only for a tf servo topic (with servo_tf_child)".into());
-    }
-    if let Some(a) = b.servo_axis {
-        let norm = a.iter().map(|v| v * v).sum::<f64>().sqrt();
-        if !(norm.is_finite() && norm > 0.0) {
-            return Err(format!(
-                "[lrf.bag] servo_axis = {a:?}: expected three finite numbers, not all 0"
-            ));
-        }
-    }
-    if let Some(m) = &b.servo_motion {
-        if !["auto", "stop-and-go", "continuous"].contains(&m.as_str()) {
-            return Err(format!(
-                "[lrf.bag] servo_motion = {m:?}: expected \"auto\", \"stop-and-go\" or \"continuous\""
-            ));
-        }
-    }
-    let scale = b.servo_scale.unwrap_or(1.0);
-    let offset = b.servo_offset.unwrap_or(0.0);
-    if !(scale.is_finite() && scale != 0.0 && offset.is_finite()) {
-        return Err(format!("[lrf.bag] servo_scale = {scale}, servo_offset = {offset}: expected finite numbers, the scale not 0"));
-    }
     Ok(())
 }
 
-fn validate_lrf(l: &ProjectLrf, main_station: &str) -> Result<(), String> {
+/// `[lrf]`: scans, taken from the main station, the settings [`LrfSettings::of`] resolves,
+/// a positive range and accuracy, a maximum range in millimetres, a servo resolution in
+/// degrees, a finite mount; the settings.
+fn validate_lrf(l: &ProjectLrf, main_station: &str) -> Result<LrfSettings, String> {
     match &l.bag {
         None if l.scans.is_empty() => {
             return Err("[lrf] scans: no scan file (and no [lrf.bag])".into())
@@ -553,25 +530,7 @@ fn validate_lrf(l: &ProjectLrf, main_station: &str) -> Result<(), String> {
         Some(b) => validate_bag(b)?,
         None => {}
     }
-    if l.noise.is_some() && l.noise_sigma_mm.is_some() {
-        return Err("[lrf] noise and noise_sigma_mm: give one, a named profile or [a, b]".into());
-    }
-    if let Some([a, b]) = l.noise_sigma_mm {
-        if !(a > 0.0 && a.is_finite() && b >= 0.0 && b.is_finite()) {
-            return Err(format!(
-                "[lrf] noise_sigma_mm = [{a}, {b}]: expected a > 0 mm and b >= 0"
-            ));
-        }
-        at_most("[lrf] noise_sigma_mm a", a, MAX_LENGTH_MM, " mm")?;
-        at_most("[lrf] noise_sigma_mm b", b, 1.0, " (of the range)")?;
-    }
-    if let Some(u) = &l.cloud_unit {
-        if u != "m" && u != "mm" {
-            return Err(format!(
-                "[lrf] cloud_unit = \"{u}\": expected \"m\" or \"mm\""
-            ));
-        }
-    }
+    let settings = LrfSettings::of(l)?;
     if l.station != main_station {
         return Err(format!(
             "[lrf] station = \"{}\" but main_station = \"{main_station}\": the LRF scans from the main station",
@@ -638,5 +597,6 @@ fn validate_lrf(l: &ProjectLrf, main_station: &str) -> Result<(), String> {
             "[lrf] lrf_model = \"{file}\" and the mount_* / servo_zero_deg keys both give the mount: keep one"
         ));
     }
-    Ok(())
+    settings.check_mount()?;
+    Ok(settings)
 }

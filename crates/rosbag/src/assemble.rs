@@ -43,29 +43,7 @@ use crate::msgs::{self, JointState};
 use crate::{Bag, RawMessage};
 use pingcal_lrf::scan::{ScanHeader, ScanLine, MIN_VALID_RANGE_MM};
 
-/// Where the servo angle comes from.
-#[derive(Debug, Clone, PartialEq)]
-pub enum ServoSource {
-    /// `sensor_msgs/JointState`: the position (radians) of the named joint.
-    Joint(String),
-    /// A numeric `std_msgs` topic: degrees = value · `scale` + `offset` (e.g. Dynamixel
-    /// ticks with scale 360/4096). Such messages have no stamp: the bag's record time is
-    /// used.
-    Numeric {
-        /// Degrees per unit.
-        scale: f64,
-        /// Degrees at value 0.
-        offset: f64,
-    },
-    /// `tf2_msgs/TFMessage`: the rotation of the named child frame about `axis` (unit
-    /// vector in the parent frame), degrees.
-    Tf {
-        /// The child frame.
-        child: String,
-        /// The servo axis.
-        axis: [f64; 3],
-    },
-}
+pub use pingcal_lrf::settings::ServoSource;
 
 /// The topics to read and how.
 #[derive(Debug, Clone, PartialEq)]

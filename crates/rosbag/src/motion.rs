@@ -23,40 +23,7 @@
 //! A servo that never moves is stop-and-go. A continuous sweep whose servo publishes once
 //! per scan in step with the scanner looks like rule 2 to the data: say `continuous` then.
 
-/// How the servo moves while the scanner sweeps.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum ServoMotion {
-    /// Tell from the servo series ([`classify`]).
-    #[default]
-    Auto,
-    /// The servo stands still during each scan: zero-order hold of its last angle.
-    StopAndGo,
-    /// The servo turns while the scanner sweeps: interpolated at each beam's time.
-    Continuous,
-}
-
-impl ServoMotion {
-    /// The name as the command line and the project file spell it.
-    pub fn name(self) -> &'static str {
-        match self {
-            ServoMotion::Auto => "auto",
-            ServoMotion::StopAndGo => "stop-and-go",
-            ServoMotion::Continuous => "continuous",
-        }
-    }
-
-    /// Parses `auto`, `stop-and-go` or `continuous`.
-    pub fn parse(s: &str) -> Result<Self, String> {
-        match s {
-            "auto" => Ok(ServoMotion::Auto),
-            "stop-and-go" => Ok(ServoMotion::StopAndGo),
-            "continuous" => Ok(ServoMotion::Continuous),
-            other => Err(format!(
-                "servo motion {other:?}: expected auto, stop-and-go or continuous"
-            )),
-        }
-    }
-}
+pub use pingcal_lrf::settings::ServoMotion;
 
 /// The servo angle over time: samples in time order (nanoseconds, degrees).
 #[derive(Debug, Clone, Default, PartialEq)]

@@ -31,6 +31,7 @@ use crate::{rng_for, SimConfig, SimError};
 use nalgebra::{Vector2, Vector3};
 use pingcal_ba::camera::CameraModel;
 use pingcal_geometry::{from_opk_deg, Rigid3};
+use pingcal_lrf::sensor::NoiseProfile;
 use pingcal_lrf::RangeNoise;
 use pingcal_project::{CameraFile, SphereCalibFile, SphereCalibFrame, SphereCalibLidar};
 use rand::Rng;
@@ -64,7 +65,7 @@ pub struct SphereCalibConfig {
     pub noise: RangeNoise,
     /// The noise profile's name as the project file gives it; `None`: the project gives
     /// `noise` as `noise_sigma_mm` (then it must be [`RangeNoise::Linear`]).
-    pub noise_name: Option<String>,
+    pub noise_name: Option<NoiseProfile>,
     /// No return beyond this range, mm.
     pub max_range_mm: f64,
     /// Image formation (blur, vignetting, noise, sub-pixel rays).
@@ -108,8 +109,8 @@ impl Default for SphereCalibConfig {
             lidar_height_mm: 1100.0,
             wall_mm: 12_000.0,
             azimuth_step_deg: 0.2,
-            noise: RangeNoise::named("VLP-16").expect("a known profile"),
-            noise_name: Some("VLP-16".into()),
+            noise: NoiseProfile::Vlp16.noise(),
+            noise_name: Some(NoiseProfile::Vlp16),
             max_range_mm: 100_000.0,
             render: RenderConfig::default(),
             scene: SphereScene::Clean,
@@ -541,8 +542,8 @@ impl SphereCalibSim {
             camera_entry: None,
             sphere_diameter_mm: 2.0 * self.config.sphere_radius_mm,
             lidar: SphereCalibLidar {
-                unit: "m".into(),
-                noise: self.config.noise_name.clone(),
+                unit: pingcal_lrf::cloud_file::CloudUnit::M,
+                noise: self.config.noise_name,
                 noise_sigma_mm: match (&self.config.noise_name, self.config.noise) {
                     (None, RangeNoise::Linear { a_mm, b }) => Some([a_mm, b]),
                     _ => None,

@@ -10,10 +10,8 @@
 use super::CmdResult;
 use pingcal_lrf::ball_finder::{find_balls, FinderOptions};
 use pingcal_lrf::cloud::{Cloud, MountModel};
-use pingcal_lrf::cloud_file::{
-    extent_mm, file_kind, read_cloud_file_in, read_lrf_model, CloudFileKind, CloudUnit,
-};
-use pingcal_lrf::sensor::{profile_max_range_mm, PROFILE_MAX_RANGE_MM};
+use pingcal_lrf::cloud_file::{extent_mm, read_lrf_model, CloudPath, CloudUnit};
+use pingcal_lrf::sensor::NoiseProfile;
 use pingcal_lrf::RangeNoise;
 use std::path::PathBuf;
 
@@ -138,7 +136,7 @@ pub fn run(args: Args) -> CmdResult {
         .into());
     }
     let mount = mount_of(&args)?;
-    let noise = noise_of(&args)?;
+    let (noise, profile) = noise_of(&args.noise, &args.noise_sigma)?;
     for (option, file) in [("--out", &args.out), ("--balls", &args.balls)] {
         if let Some(f) = file {
             super::preflight::check_out_file(option, f)?;
@@ -151,10 +149,11 @@ pub fn run(args: Args) -> CmdResult {
             );
         }
     }
-    let profile_max = match (&args.noise, &args.noise_sigma) {
-        (Some(n), _) => profile_max_range_mm(n),
+    // the sensor's reach: the named profile's (URG-04LX's by default), none for a line
+    let profile_max = match (profile, &args.noise_sigma) {
+        (Some(p), _) => Some(p.max_range_mm()),
         (None, Some(_)) => None,
-        (None, None) => Some(PROFILE_MAX_RANGE_MM[0]),
+        (None, None) => Some(NoiseProfile::Urg04lx.max_range_mm()),
     };
     let cloud = read_clouds(&args, &mount, profile_max)?;
     let extent = extent_mm(&cloud);
@@ -241,20 +240,32 @@ fn mount_of(args: &Args) -> Result<MountModel, super::CmdError> {
     Ok(mount)
 }
 
-/// The range noise: `--noise`'s profile, `--noise-sigma A,B`, or the URG-04LX's.
-fn noise_of(args: &Args) -> Result<RangeNoise, super::CmdError> {
-    Ok(match (&args.noise, &args.noise_sigma) {
-        (Some(n), _) => RangeNoise::named(n).map_err(|e| format!("--noise: {e}"))?,
-        (None, Some(v)) if v.len() == 2 => {
-            RangeNoise::linear(v[0], v[1]).map_err(|e| format!("--noise-sigma: {e}"))?
+/// The range noise of `--noise` (a profile's name) or `--noise-sigma A,B`, or the
+/// URG-04LX's when neither is given ([`pingcal_lrf::settings::range_noise`], as a project's
+/// `[lrf]`); with the named profile, if any. `pingcal lrf-mount` reads its flags with it
+/// too.
+pub(crate) fn noise_of(
+    noise: &Option<String>,
+    noise_sigma: &Option<Vec<f64>>,
+) -> Result<(RangeNoise, Option<NoiseProfile>), String> {
+    let profile = noise
+        .as_deref()
+        .map(str::parse::<NoiseProfile>)
+        .transpose()
+        .map_err(|e| format!("--noise: {e}"))?;
+    let line = match noise_sigma.as_deref() {
+        None => None,
+        Some(&[a, b]) => Some([a, b]),
+        Some(v) => {
+            return Err(format!(
+                "--noise-sigma: expected two numbers A,B, found {}",
+                v.len()
+            ))
         }
-        (None, Some(v)) => {
-            return Err(
-                format!("--noise-sigma: expected two numbers A,B, found {}", v.len()).into(),
-            )
-        }
-        (None, None) => RangeNoise::urg_04lx(),
-    })
+    };
+    let noise = pingcal_lrf::settings::range_noise(profile, line, ["--noise", "--noise-sigma"])?
+        .unwrap_or_else(RangeNoise::urg_04lx);
+    Ok((noise, profile))
 }
 
 /// Every `--scans` file read through `mount` into one cloud; ranges beyond the sensor's
@@ -266,12 +277,15 @@ fn read_clouds(
 ) -> Result<Cloud, super::CmdError> {
     let mut cloud = Cloud::default();
     for f in &args.scans {
-        let (mut c, warnings) = read_cloud_file_in(f, mount, args.unit)?;
+        let file = CloudPath::new(f.clone());
+        let (mut c, warnings) = file.read_in(mount, args.unit)?;
         for w in warnings {
             eprintln!("pingcal: warning: {w}");
         }
-        let scans = file_kind(f) == CloudFileKind::Scans;
-        if let Some(max) = args.max_range_mm.or(profile_max.filter(|_| scans)) {
+        if let Some(max) = args
+            .max_range_mm
+            .or(profile_max.filter(|_| file.is_scans()))
+        {
             let n = c.mask_beyond(max);
             if n > 0 {
                 eprintln!(

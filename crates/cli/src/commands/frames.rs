@@ -42,7 +42,7 @@ pub struct Args {
     pub sphere_diameter_mm: f64,
     /// The lidar's range-noise profile (`VLP-16`, `UTM-30LX`, `UST-10LX`, `URG-04LX`).
     #[arg(long, default_value = "VLP-16")]
-    pub noise: String,
+    pub noise: pingcal_lrf::sensor::NoiseProfile,
     /// The folder to write (created if absent).
     #[arg(long)]
     pub out: PathBuf,
@@ -264,8 +264,8 @@ pub fn run(args: Args) -> CmdResult {
         camera_entry: None,
         sphere_diameter_mm: args.sphere_diameter_mm,
         lidar: SphereCalibLidar {
-            unit: "m".into(),
-            noise: Some(args.noise.clone()),
+            unit: pingcal_lrf::cloud_file::CloudUnit::M,
+            noise: Some(args.noise),
             noise_sigma_mm: None,
             model: None,
         },

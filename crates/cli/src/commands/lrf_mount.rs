@@ -12,7 +12,6 @@ use pingcal_lrf::cloud::{Cloud, MountModel};
 use pingcal_lrf::cloud_file::{read_cloud_file_in, read_lrf_model, CloudUnit};
 use pingcal_lrf::room::{mount_from_room_refinding, RoomMount, RoomOptions};
 use pingcal_lrf::sensor::MountParam;
-use pingcal_lrf::RangeNoise;
 use std::path::PathBuf;
 
 /// Arguments of `pingcal lrf-mount`.
@@ -41,24 +40,9 @@ pub struct Args {
     pub seed: u64,
 }
 
-/// The range noise of `--noise` / `--noise-sigma`.
-fn noise_of(args: &Args) -> Result<RangeNoise, String> {
-    match (&args.noise, &args.noise_sigma) {
-        (Some(n), _) => RangeNoise::named(n).map_err(|e| format!("--noise: {e}")),
-        (None, Some(v)) if v.len() == 2 => {
-            RangeNoise::linear(v[0], v[1]).map_err(|e| format!("--noise-sigma: {e}"))
-        }
-        (None, Some(v)) => Err(format!(
-            "--noise-sigma: expected two numbers A,B, found {}",
-            v.len()
-        )),
-        (None, None) => Ok(RangeNoise::urg_04lx()),
-    }
-}
-
 /// Runs the command.
 pub fn run(args: Args) -> CmdResult {
-    let noise = noise_of(&args)?;
+    let (noise, _) = super::cloud::noise_of(&args.noise, &args.noise_sigma)?;
     let start = match &args.lrf_model {
         Some(p) => read_lrf_model(p)?,
         None => MountModel::default(),

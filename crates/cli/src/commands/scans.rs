@@ -19,6 +19,7 @@
 
 use super::CmdResult;
 use pingcal_lrf::scan::{ScanHeader, ScanWriter};
+use pingcal_lrf::settings::{KeyStyle, ServoKeys};
 use pingcal_rosbag::assemble::{names_on_topic, read_scans, ServoMotion, ServoSource, Topics};
 use pingcal_rosbag::{bag_files, Bag};
 use std::path::{Path, PathBuf};
@@ -103,28 +104,24 @@ fn list(bags: &[Bag]) -> CmdResult {
     Ok(())
 }
 
+/// The servo source the flags give ([`ServoSource::from_keys`], as a project's `[lrf.bag]`).
 fn source(args: &Args) -> Result<ServoSource, String> {
-    if let Some(j) = &args.servo_joint {
-        return Ok(ServoSource::Joint(j.clone()));
-    }
-    if let Some(child) = &args.servo_tf_child {
-        let a = &args.servo_axis;
-        let norm = a.iter().map(|v| v * v).sum::<f64>().sqrt();
-        if a.len() != 3 || !(norm > 0.0) || !norm.is_finite() {
-            return Err("--servo-axis: expected three numbers x,y,z, not all 0".into());
-        }
-        let axis = [a[0] / norm, a[1] / norm, a[2] / norm];
-        return Ok(ServoSource::Tf {
-            child: child.clone(),
-            axis,
-        });
-    }
-    let scale = args.servo_scale.unwrap_or(1.0);
-    let offset = args.servo_offset.unwrap_or(0.0);
-    if !(scale.is_finite() && scale != 0.0 && offset.is_finite()) {
-        return Err(format!("--servo-scale {scale} / --servo-offset {offset}: expected finite numbers, the scale not 0"));
-    }
-    Ok(ServoSource::Numeric { scale, offset })
+    let a = &args.servo_axis;
+    let &[x, y, z] = a.as_slice() else {
+        return Err(format!(
+            "--servo-axis: expected three numbers x,y,z, found {}",
+            a.len()
+        ));
+    };
+    let keys = ServoKeys {
+        joint: args.servo_joint.as_deref(),
+        scale: args.servo_scale,
+        offset: args.servo_offset,
+        tf_child: args.servo_tf_child.as_deref(),
+        // the flag has a default: it is the axis only of a tf servo topic
+        axis: args.servo_tf_child.is_some().then_some([x, y, z]),
+    };
+    ServoSource::from_keys(&keys, KeyStyle::Flags)
 }
 
 /// Refuses an output file that is one of the bags (it would be replaced).

@@ -104,7 +104,7 @@ struct Loaded {
 fn load(project: &Path) -> Result<Loaded, String> {
     let name = project.display().to_string();
     let text = std::fs::read_to_string(project).map_err(|e| format!("{name}: cannot read: {e}"))?;
-    let file = SphereCalibFile::parse(&text, &name).map_err(|e| e.to_string())?;
+    let (file, noise) = SphereCalibFile::read(&text, &name).map_err(|e| e.to_string())?;
     let dir = project.parent().unwrap_or(Path::new("."));
     let cam_path = dir.join(&file.camera);
     let cam_name = cam_path.display().to_string();
@@ -120,22 +120,7 @@ fn load(project: &Path) -> Result<Loaded, String> {
         &CameraFile::read(&cam_text, &cam_name, file.camera_entry.as_deref())
             .map_err(|e| e.to_string())?,
     );
-    let noise = match (&file.lidar.noise, file.lidar.noise_sigma_mm) {
-        (Some(n), _) => RangeNoise::named(n).map_err(|e| format!("{name}: [lidar] noise: {e}"))?,
-        (None, Some([a, b])) => {
-            RangeNoise::linear(a, b).map_err(|e| format!("{name}: [lidar] noise_sigma_mm: {e}"))?
-        }
-        (None, None) => {
-            return Err(format!(
-                "{name}: [lidar]: give the sensor's noise (a profile name, e.g. noise = \"VLP-16\") or noise_sigma_mm = [a, b]"
-            ))
-        }
-    };
-    let unit: CloudUnit = file
-        .lidar
-        .unit
-        .parse()
-        .map_err(|e| format!("{name}: [lidar] unit: {e}"))?;
+    let unit = file.lidar.unit;
     Ok(Loaded {
         file,
         cam,
