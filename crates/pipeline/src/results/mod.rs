@@ -759,8 +759,8 @@ mod tests {
     use super::transforms::inverse_update_jacobian;
     use super::*;
     use nalgebra::{UnitQuaternion, Vector3};
-    use pingcal_geometry::Rigid3;
     use pingcal_ba::camera::{CameraModel, PhotogrammetricCamera};
+    use pingcal_geometry::Rigid3;
 
     /// OpenCV's projection (x right, y down, z forward) of a point in its camera frame.
     fn opencv_project(o: &OpenCvJson, p: &Vector3<f64>) -> [f64; 2] {
