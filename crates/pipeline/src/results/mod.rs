@@ -271,7 +271,7 @@ pub struct Results {
     /// Balls.
     pub balls: Vec<BallJson>,
     /// Targets (label, kind, position mm, σ mm).
-    pub targets: Vec<(String, String, [f64; 3], [f64; 3])>,
+    pub targets: Vec<TargetRow>,
     /// Seconds per step, in order. Not written to `results.json`, so that the same input
     /// and seed give the same bytes (the step log of the report has the times).
     #[serde(skip)]
@@ -636,13 +636,43 @@ impl<'a> BallSides<'a> {
 
 /// `results.json` from what the steps produced.
 pub fn assemble(st: &Stages, verdict: Verdict, time_s: Vec<(String, f64)>) -> Results {
-    let (project, scene, adj, ext) = (st.project, st.scene, st.adjusted, st.ext);
-    let f = &project.file;
-    let methods = methods(ext, st.joint);
+    let (project, scene, adj) = (st.project, st.scene, st.adjusted);
+    let methods = methods(st.ext, st.joint);
     let primary = methods
         .iter()
         .find(|m| m.extrinsic.is_some())
         .expect("the pipeline fails unless one method succeeded");
+    let (balls, targets) = points_json(st);
+    Results {
+        generator: format!("pingcal {}", env!("CARGO_PKG_VERSION")),
+        verdict,
+        project: project.file.name.clone(),
+        conventions: conventions(project),
+        extrinsic: primary.extrinsic.clone().expect("found above"),
+        check_points: primary.check_points.clone(),
+        mean_check_error_mm: primary.mean_check_error_mm.unwrap_or(f64::NAN),
+        methods,
+        lrf_mount: match st.joint {
+            Some(Ok(j)) => Some(mount_json(j)),
+            _ => None,
+        },
+        lrf_model: lrf_model_of(st),
+        bundle: bundle_json(st),
+        cameras: scene
+            .intrinsics
+            .ids()
+            .map(|c| camera_json(project, scene, adj, c))
+            .collect(),
+        balls,
+        targets,
+        time_s,
+    }
+}
+
+/// The balls (with both sensors' sides, sorted naturally by name) and the targets of the
+/// final bundle adjustment, with their σ's.
+fn points_json(st: &Stages) -> (Vec<BallJson>, Vec<TargetRow>) {
+    let (scene, adj, ext) = (st.scene, st.adjusted, st.ext);
     let mut balls = Vec::new();
     let mut targets = Vec::new();
     let side = BallSides::of(st);
@@ -664,65 +694,51 @@ pub fn assemble(st: &Stages, verdict: Verdict, time_s: Vec<(String, f64)>) -> Re
         }
     }
     balls.sort_by_key(|b| natural(&b.id));
+    (balls, targets)
+}
+
+/// A target of `results.json`: label, kind, position (mm), σ (mm).
+pub type TargetRow = (String, String, [f64; 3], [f64; 3]);
+
+/// The bundle adjustment's summary of `results.json`.
+fn bundle_json(st: &Stages) -> BundleJson {
+    let (project, scene, adj) = (st.project, st.scene, st.adjusted);
     let rig_cov = adj.precision.rig_covariances.first().copied().flatten();
     let rig = adj
         .rig
         .as_ref()
         .and_then(|r| rig_of(project, r, rig_cov.as_ref()));
-    Results {
-        generator: format!("pingcal {}", env!("CARGO_PKG_VERSION")),
-        verdict,
-        project: f.name.clone(),
-        conventions: conventions(project),
-        extrinsic: primary.extrinsic.clone().expect("found above"),
-        check_points: primary.check_points.clone(),
-        mean_check_error_mm: primary.mean_check_error_mm.unwrap_or(f64::NAN),
-        methods,
-        lrf_mount: match st.joint {
-            Some(Ok(j)) => Some(mount_json(j)),
-            _ => None,
-        },
-        lrf_model: lrf_model_of(st),
-        bundle: BundleJson {
-            sigma0: adj.sigma0_a_priori,
-            variance_components: adj.variance_components.clone(),
-            rms_image_px: adj.precision.rms_image_px,
-            images: adj.solved.problem.images.len(),
-            unoriented_images: scene
-                .unoriented
-                .iter()
-                .map(|(i, w)| (image_file(project, *i).to_string(), w.clone()))
-                .collect(),
-            network_start: scene.start.clone(),
-            points: adj.solved.problem.points.len(),
-            observations: adj.solved.problem.observations.len(),
-            distances: adj.solved.problem.distances.len(),
-            iterations: adj.iterations,
-            redundancy: adj.precision.redundancy,
-            rejected: adj.rejected.len(),
-            coded_blunders: (scene.blunders.iter())
-                .map(|b| {
-                    let t = st.dets.target(b.det);
-                    CodedBlunderJson {
-                        image: image_file(project, b.det.image).to_string(),
-                        number: b.number,
-                        x: t.x,
-                        y: t.y,
-                        stage: b.stage.to_string(),
-                        why: b.why.clone(),
-                    }
-                })
-                .collect(),
-            rig,
-        },
-        cameras: scene
-            .intrinsics
-            .ids()
-            .map(|c| camera_json(project, scene, adj, c))
+    BundleJson {
+        sigma0: adj.sigma0_a_priori,
+        variance_components: adj.variance_components.clone(),
+        rms_image_px: adj.precision.rms_image_px,
+        images: adj.solved.problem.images.len(),
+        unoriented_images: scene
+            .unoriented
+            .iter()
+            .map(|(i, w)| (image_file(project, *i).to_string(), w.clone()))
             .collect(),
-        balls,
-        targets,
-        time_s,
+        network_start: scene.start.clone(),
+        points: adj.solved.problem.points.len(),
+        observations: adj.solved.problem.observations.len(),
+        distances: adj.solved.problem.distances.len(),
+        iterations: adj.iterations,
+        redundancy: adj.precision.redundancy,
+        rejected: adj.rejected.len(),
+        coded_blunders: (scene.blunders.iter())
+            .map(|b| {
+                let t = st.dets.target(b.det);
+                CodedBlunderJson {
+                    image: image_file(project, b.det.image).to_string(),
+                    number: b.number,
+                    x: t.x,
+                    y: t.y,
+                    stage: b.stage.to_string(),
+                    why: b.why.clone(),
+                }
+            })
+            .collect(),
+        rig,
     }
 }
 
