@@ -304,6 +304,8 @@ struct Rounds<'a> {
     rig: Option<Rigid3>,
     rejected: Vec<Rejection>,
     rejected_distances: Vec<RejectedDistance>,
+    /// Why the distances are no longer tested ([`Rounds::disagree`]).
+    distances_disagree: Option<String>,
     iterations: usize,
 }
 
@@ -322,6 +324,50 @@ impl Rounds<'_> {
             })
         });
         sp
+    }
+
+    /// Data snooping on `sp`'s problem: at most `max_rej` observations, of which one distance
+    /// in all the rounds (a typo is one value), none once the distances disagree.
+    fn snoop(
+        &self,
+        sp: &mut SceneProblem,
+        max_rej: usize,
+    ) -> std::result::Result<solver::SnoopResult, SnoopError> {
+        let limits = solver::SnoopLimits {
+            total: max_rej,
+            distances_and_control: match self.distances_disagree {
+                Some(_) => 0,
+                None => 1usize.saturating_sub(self.rejected_distances.len()),
+            },
+        };
+        solver::adjust_with_snooping_limited(
+            &mut sp.problem,
+            &self.options,
+            self.snoop_critical,
+            limits,
+        )
+    }
+
+    /// Whether a distance still fails the test after one was rejected (its w beyond the
+    /// critical value, over σ0 when above 1): the distances then disagree with the network
+    /// as a whole, which is no typo — a camera model that does not fit the lens, distances
+    /// in another unit — and every distance is kept, untested, from the round run again on.
+    fn disagree(&mut self, prec: &Precision, rep: &Reporter) -> bool {
+        let scale = prec.sigma0.max(1.0);
+        let worst = (prec.distance_standardized.iter())
+            .map(|w| w.abs() / scale)
+            .filter(|w| w.is_finite())
+            .fold(0.0, f64::max);
+        if self.distances_disagree.is_some() || worst <= self.snoop_critical {
+            return false;
+        }
+        let why = format!(
+            "the distances disagree with the network beyond their σ's (a standardized residual of {worst:.1} left after one was rejected): more than a typo — a camera model that does not fit the lens, or distances in another unit? Every distance is kept and only the image points are tested"
+        );
+        rep.log(format!("  warning: {why}"));
+        self.distances_disagree = Some(why);
+        self.rejected_distances.clear();
+        true
     }
 
     /// Records and logs the distances data snooping rejected in a round.
@@ -357,12 +403,8 @@ impl Rounds<'_> {
                     )));
                 }
             }
-            match solver::adjust_with_snooping(
-                &mut sp.problem,
-                &self.options,
-                self.snoop_critical,
-                max_rej,
-            ) {
+            match self.snoop(&mut sp, max_rej) {
+                Ok(r) if self.disagree(&r.precision, rep) => {}
                 Ok(r) => break (sp, r),
                 Err(SnoopError::Precision(PrecisionError::PointUndetermined(name))) => {
                     self.rejected.extend(drop_undetermined(
@@ -464,6 +506,7 @@ pub fn final_adjustment(
         rig: initial_rig(project, scene),
         rejected: Vec::new(),
         rejected_distances: Vec::new(),
+        distances_disagree: None,
         iterations: 0,
     };
     let pb = rep.task("bundle adjustment", 3);
@@ -472,6 +515,7 @@ pub fn final_adjustment(
         pb.advance(1);
     }
     let (sp, estimate) = rounds.last(scene)?;
+    scene.warnings.extend(rounds.distances_disagree.take());
     let solver::VarianceEstimate {
         components: variance_components,
         sigma0_a_priori,
@@ -600,6 +644,7 @@ mod tests {
             rig: None,
             rejected: Vec::new(),
             rejected_distances: Vec::new(),
+            distances_disagree: None,
             iterations: 0,
         };
         assert_eq!(rounds.problem(&scene).problem.distances.len(), 1);

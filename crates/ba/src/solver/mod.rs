@@ -34,7 +34,8 @@ pub use free_network::MAX_FREE_NETWORK_UNKNOWNS;
 pub use iterative::{CgOptions, Preconditioner};
 pub use linear::LinearSolverKind;
 pub use outliers::{
-    adjust_with_snooping, ControlRejection, DistanceRejection, Rejection, SnoopError, SnoopResult,
+    adjust_with_snooping, adjust_with_snooping_limited, ControlRejection, DistanceRejection,
+    Rejection, SnoopError, SnoopLimits, SnoopResult,
 };
 pub use precision::{
     free_network_precision_bordered, points_covariance, points_covariance_with, precision,

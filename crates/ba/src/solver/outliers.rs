@@ -118,15 +118,30 @@ enum Worst {
     Control(usize),
 }
 
-/// The largest |w| of every kind of observation, divided by `scale` (σ0 when above 1).
-fn worst(prec: &Precision, scale: f64) -> Option<(Worst, f64)> {
+/// How many observations data snooping may remove ([`adjust_with_snooping_limited`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SnoopLimits {
+    /// Observations of every kind together.
+    pub total: usize,
+    /// Distances and control points together: once this many are removed, the others are no
+    /// longer tested (a typo is one value; several values of the object that disagree with
+    /// the network are not typos, and whether they are is for the caller to judge, e.g. from
+    /// their w's in the result's precision).
+    pub distances_and_control: usize,
+}
+
+/// The largest |w| of every kind of observation, divided by `scale` (σ0 when above 1); the
+/// distances and control points only when `object` (they may still be removed).
+fn worst(prec: &Precision, scale: f64, object: bool) -> Option<(Worst, f64)> {
     let largest = |w: &[f64]| w.iter().fold(f64::NAN, |m, x| m.max(x.abs()));
     let images = (prec.standardized_residuals.iter().enumerate())
         .map(|(o, w)| (Worst::Image(o), largest(w)));
-    let distances =
-        (prec.distance_standardized.iter().enumerate()).map(|(k, w)| (Worst::Distance(k), w.abs()));
+    let distances = (prec.distance_standardized.iter().enumerate())
+        .map(|(k, w)| (Worst::Distance(k), w.abs()))
+        .filter(|_| object);
     let control = (prec.control_standardized.iter().enumerate())
-        .map(|(k, w)| (Worst::Control(k), largest(w)));
+        .map(|(k, w)| (Worst::Control(k), largest(w)))
+        .filter(|_| object);
     images
         .chain(distances)
         .chain(control)
@@ -277,6 +292,21 @@ pub fn adjust_with_snooping(
     critical: f64,
     max_rejections: usize,
 ) -> Result<SnoopResult, SnoopError> {
+    let limits = SnoopLimits {
+        total: max_rejections,
+        distances_and_control: usize::MAX,
+    };
+    adjust_with_snooping_limited(problem, options, critical, limits)
+}
+
+/// [`adjust_with_snooping`] removing at most `limits.distances_and_control` distances and
+/// control points.
+pub fn adjust_with_snooping_limited(
+    problem: &mut Problem,
+    options: &Options,
+    critical: f64,
+    limits: SnoopLimits,
+) -> Result<SnoopResult, SnoopError> {
     let mut removed = Removed::default();
     loop {
         let summary = solve(problem, options, |_| {})?;
@@ -287,8 +317,9 @@ pub fn adjust_with_snooping(
             (p, _) => p?,
         };
         let scale = prec.sigma0.max(1.0);
-        match worst(&prec, scale) {
-            Some((what, m)) if m > critical && removed.len() < max_rejections => {
+        let object = removed.distances.len() + removed.control.len() < limits.distances_and_control;
+        match worst(&prec, scale, object) {
+            Some((what, m)) if m > critical && removed.len() < limits.total => {
                 let reason = if scale > 1.0 {
                     format!("standardized residual {m:.2} (÷ sigma0 {scale:.3}) > {critical:.2}")
                 } else {
