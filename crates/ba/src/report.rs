@@ -4,7 +4,7 @@
 //! The same content as JSON for programs.
 
 use crate::problem::Problem;
-use crate::solver::{Precision, Rejection, Summary};
+use crate::solver::{ControlRejection, DistanceRejection, Precision, Rejection, Summary};
 use pingcal_geometry::to_opk;
 use serde::Serialize;
 use std::fmt::Write;
@@ -101,6 +101,12 @@ pub struct AdjustmentReport {
     /// caller passed to [`AdjustmentReport::new`] (in [`crate::workflow`], the initialiser's
     /// start-up rejections, then data snooping's).
     pub rejected: Vec<Rejection>,
+    /// Distances left out as gross errors by data snooping, in order (empty from
+    /// [`AdjustmentReport::new`]; [`crate::workflow`] fills it in).
+    pub rejected_distances: Vec<DistanceRejection>,
+    /// Control points left out as gross errors by data snooping, in order (as
+    /// `rejected_distances`).
+    pub rejected_control_points: Vec<ControlRejection>,
 }
 
 impl AdjustmentReport {
@@ -198,6 +204,8 @@ impl AdjustmentReport {
             exterior,
             object_points,
             rejected: rejected.to_vec(),
+            rejected_distances: Vec::new(),
+            rejected_control_points: Vec::new(),
         }
     }
 
@@ -287,6 +295,41 @@ impl AdjustmentReport {
                 );
             }
         }
+        self.rejected_measurements_text(&mut t);
         t
+    }
+
+    /// The text of the distances and control points left out.
+    fn rejected_measurements_text(&self, t: &mut String) {
+        if !self.rejected_distances.is_empty() {
+            let _ = writeln!(t, "\nREJECTED DISTANCES");
+            for d in &self.rejected_distances {
+                let _ = writeln!(
+                    t,
+                    "  {} – {} given as {:.4} (σ {}), adjusted {:.4} without it (w = {:.1}): {}",
+                    d.a, d.b, d.given, d.sigma, d.estimated, d.w, d.reason
+                );
+            }
+        }
+        if !self.rejected_control_points.is_empty() {
+            let _ = writeln!(t, "\nREJECTED CONTROL POINTS");
+            for c in &self.rejected_control_points {
+                let _ = writeln!(
+                    t,
+                    "  {} given at ({:.4}, {:.4}, {:.4}), adjusted ({:.4}, {:.4}, {:.4}) without it (w = {:.1}, {:.1}, {:.1}): {}",
+                    c.point,
+                    c.given[0],
+                    c.given[1],
+                    c.given[2],
+                    c.estimated[0],
+                    c.estimated[1],
+                    c.estimated[2],
+                    c.w[0],
+                    c.w[1],
+                    c.w[2],
+                    c.reason
+                );
+            }
+        }
     }
 }

@@ -15,7 +15,8 @@ use crate::loss::Loss;
 use crate::problem::Problem;
 use crate::report::AdjustmentReport;
 use crate::solver::{
-    self, Options, Precision, PrecisionError, Rejection, SnoopError, SolveError, Summary,
+    self, ControlRejection, DistanceRejection, Options, Precision, PrecisionError, Rejection,
+    SnoopError, SolveError, Summary,
 };
 
 /// Why a measurement file was not adjusted, or has no precision: one line naming the file
@@ -112,6 +113,10 @@ pub struct Adjusted {
     pub precision: Precision,
     /// Image points rejected by the start-up's bundles and by data snooping.
     pub rejected: Vec<Rejection>,
+    /// Distances rejected by data snooping.
+    pub rejected_distances: Vec<DistanceRejection>,
+    /// Control points rejected by data snooping.
+    pub rejected_control_points: Vec<ControlRejection>,
     /// The adjustment report.
     pub report: AdjustmentReport,
 }
@@ -179,11 +184,14 @@ pub fn adjust(
         .collect();
     // The start-up bundles' rejections are reported with the adjustment's own.
     let mut rejected = init.rejections;
+    let (mut rejected_distances, mut rejected_control_points) = (Vec::new(), Vec::new());
     let (summary, precision) = match options.snoop {
         Some(w) => {
             let max_rejections = problem.observations.len() / 10;
             let r = solver::adjust_with_snooping(&mut problem, &options.solver, w, max_rejections)?;
             rejected.extend(r.rejected);
+            rejected_distances = r.rejected_distances;
+            rejected_control_points = r.rejected_control_points;
             (r.summary, r.precision)
         }
         None => {
@@ -192,7 +200,9 @@ pub fn adjust(
             (summary, precision)
         }
     };
-    let report = AdjustmentReport::new(&problem, &initial, &summary, &precision, &rejected);
+    let mut report = AdjustmentReport::new(&problem, &initial, &summary, &precision, &rejected);
+    report.rejected_distances = rejected_distances.clone();
+    report.rejected_control_points = rejected_control_points.clone();
     Ok(Adjusted {
         steps: init.steps,
         unoriented_images: init.unoriented_images,
@@ -204,6 +214,8 @@ pub fn adjust(
         summary,
         precision,
         rejected,
+        rejected_distances,
+        rejected_control_points,
         report,
     })
 }

@@ -13,4 +13,5 @@ mod recovery;
 mod residuals;
 mod rig;
 mod selected_inverse;
+mod snooping;
 mod solver_bal;

@@ -9,8 +9,11 @@
 //!   measurement is corrected by the cone fit of [`pingcal_targets::ball`] with the current
 //!   intrinsics ([`super::adjust`]), and the adjustment is run twice so that the correction
 //!   uses calibrated intrinsics.
-//! - Gross errors: data snooping (Baarda's w, Pope's τ when σ0 > 1) removes one image point
-//!   at a time ([`pingcal_ba::solver::adjust_with_snooping`]).
+//! - Gross errors: data snooping (Baarda's w, Pope's τ when σ0 > 1) removes one observation
+//!   at a time, the worst of the image points and the measured distances alike
+//!   ([`pingcal_ba::solver::adjust_with_snooping`]): a distance given wrong (a typo) is named
+//!   as the blunder and left out of the later rounds ([`RejectedDistance`]), not the image
+//!   points of its targets.
 
 use super::adjust::{rig_cameras, Datum, SceneProblem};
 use super::ids::ImageId;
@@ -18,10 +21,12 @@ use super::scene::{coded_blunder, image_file, Detections, PointKind, Scene};
 use crate::context::{Options, PipelineError, Result};
 use crate::progress::Reporter;
 use pingcal_ba::solver::{
-    self, Precision, PrecisionError, Rejection, SnoopError, VarianceComponent, VarianceError,
+    self, DistanceRejection, Precision, PrecisionError, Rejection, SnoopError, VarianceComponent,
+    VarianceError,
 };
 use pingcal_geometry::Rigid3;
 use pingcal_project::Project;
+use serde::Serialize;
 
 /// The adjusted network.
 pub struct Adjusted {
@@ -41,6 +46,8 @@ pub struct Adjusted {
     pub iterations: usize,
     /// Why each `[[distances]]` entry left out of the adjustment was left out.
     pub unused_distances: Vec<String>,
+    /// The `[[distances]]` entries data snooping found to be gross errors, left out.
+    pub rejected_distances: Vec<RejectedDistance>,
     /// The σ0 of each group of observations ([`OBSERVATION_GROUPS`], then the distances)
     /// relative to its a-priori σ, by which the last adjustment re-weighted it.
     pub variance_components: Vec<VarianceComponent>,
@@ -48,6 +55,65 @@ pub struct Adjusted {
     /// (`verdict::lens_doubt`, set by the pipeline after this step): its model cannot hold
     /// the lens.
     pub lens_doubt: Option<String>,
+}
+
+/// A `[[distances]]` entry that data snooping found to be a gross error (its standardized
+/// residual the largest of all observations and beyond the critical value): left out of the
+/// adjustment, named in the log, results.json (`bundle.rejected_distances`), the report and
+/// the verdict.
+#[derive(Clone, Debug, Serialize)]
+pub struct RejectedDistance {
+    /// Its place in the project's `[[distances]]`, from 0.
+    pub entry: usize,
+    /// Its `from` coded target.
+    pub from: u32,
+    /// Its `to` coded target.
+    pub to: u32,
+    /// The distance given (`distance_mm`).
+    pub given_mm: f64,
+    /// Its σ given (`sigma_mm`).
+    pub sigma_mm: f64,
+    /// The distance between the two targets as the adjustment without it puts them.
+    pub adjusted_mm: f64,
+    /// Its standardized residual (Baarda's w) when it was rejected.
+    pub w: f64,
+    /// The test, with its figures.
+    pub why: String,
+}
+
+impl RejectedDistance {
+    /// What the log, the report and the verdict say of it.
+    pub fn warning(&self) -> String {
+        format!(
+            "distances[{}]: the distance {} – {} given as {:.3} mm was measured as {:.3} mm ({:+.3} mm, w = {:.1}): a typo? it was left out",
+            self.entry,
+            self.from,
+            self.to,
+            self.given_mm,
+            self.adjusted_mm,
+            self.given_mm - self.adjusted_mm,
+            self.w
+        )
+    }
+
+    /// The project's entry that `r` (whose ends are named by their coded numbers) is.
+    fn of(project: &Project, r: &DistanceRejection) -> Option<Self> {
+        let (a, b) = (r.a.parse::<u32>().ok()?, r.b.parse::<u32>().ok()?);
+        let entry = project.file.distances.iter().position(|d| {
+            d.distance_mm == r.given && ((d.from, d.to) == (a, b) || (d.from, d.to) == (b, a))
+        })?;
+        let d = &project.file.distances[entry];
+        Some(RejectedDistance {
+            entry,
+            from: d.from,
+            to: d.to,
+            given_mm: d.distance_mm,
+            sigma_mm: d.sigma_mm,
+            adjusted_mm: r.estimated,
+            w: r.w,
+            why: r.reason.clone(),
+        })
+    }
 }
 
 /// The groups of image observations whose variance components the final adjustment
@@ -118,12 +184,14 @@ fn name_blunders(project: &Project, dets: &Detections, scene: &mut Scene, reject
 /// down to one, and then that one too (`pingcal_ba::solver::adjust_with_snooping` drops a lone
 /// ray but keeps the point, which the precision then finds undetermined), or when its rays are
 /// nearly parallel. A coded target that a distance refers to goes too, unless no distance would
-/// be left to fix the scale: that is an error naming it.
+/// be left to fix the scale (those data snooping `rejected` do not count): that is an error
+/// naming it.
 fn drop_undetermined(
     project: &Project,
     dets: &Detections,
     scene: &mut Scene,
     name: &str,
+    rejected: &[RejectedDistance],
 ) -> Result<Vec<Rejection>> {
     let Some(j) = scene.points.position(|p| p.name == name) else {
         return Err(PipelineError::Data(format!(
@@ -133,10 +201,11 @@ fn drop_undetermined(
     let p = scene.points.remove(j);
     if let PointKind::Coded(n) = p.kind {
         let f = &project.file;
-        let left = f
-            .distances
-            .iter()
-            .any(|d| measured(scene, d.from) && measured(scene, d.to));
+        let left = (f.distances.iter().enumerate()).any(|(k, d)| {
+            !rejected.iter().any(|r| r.entry == k)
+                && measured(scene, d.from)
+                && measured(scene, d.to)
+        });
         if f.distances.iter().any(|d| d.from == n || d.to == n) && !left {
             return Err(PipelineError::Data(format!(
                 "{}: coded target {n} of the distances is not determined by its rays after data snooping, and no other distance is left to fix the scale: it needs more images in which it is measured well",
@@ -169,11 +238,19 @@ fn measured(scene: &Scene, n: u32) -> bool {
 
 /// The distances that cannot take part in the adjustment, one warning each (naming the entry
 /// and its target not identified in two or more oriented images); an error when none is left
-/// to fix the scale (the project has no control points, so the distances are the only scale).
-fn unusable_distances(project: &Project, scene: &Scene) -> Result<Vec<String>> {
+/// to fix the scale (the project has no control points, so the distances are the only scale),
+/// those data snooping `rejected` counted as gone.
+fn unusable_distances(
+    project: &Project,
+    scene: &Scene,
+    rejected: &[RejectedDistance],
+) -> Result<Vec<String>> {
     let f = &project.file;
     let mut warnings = Vec::new();
-    for (k, d) in f.distances.iter().enumerate() {
+    // a rejected entry is named by its own warning (RejectedDistance::warning)
+    for (k, d) in
+        (f.distances.iter().enumerate()).filter(|(k, _)| rejected.iter().all(|r| r.entry != *k))
+    {
         let missing: Vec<String> = [d.from, d.to]
             .into_iter()
             .filter(|&n| !measured(scene, n))
@@ -188,16 +265,19 @@ fn unusable_distances(project: &Project, scene: &Scene) -> Result<Vec<String>> {
             ));
         }
     }
-    if warnings.len() == f.distances.len() {
+    if warnings.len() + rejected.len() == f.distances.len() {
+        let why: Vec<String> = (warnings.iter().cloned())
+            .chain(rejected.iter().map(RejectedDistance::warning))
+            .collect();
         // targets unidentified in the oriented images: a principal distance no lens has
         // (a value in µm or in pixels) is the likeliest cause, and is named
         return Err(PipelineError::Data(format!(
             "{}: no distance is left to fix the scale of the network: {}{}",
             project.path.display(),
-            if warnings.is_empty() {
+            if why.is_empty() {
                 "the project has no [[distances]]".to_string()
             } else {
-                warnings.join("; ")
+                why.join("; ")
             },
             super::matching::implausible_principal_distance(project).unwrap_or_default()
         )));
@@ -223,16 +303,94 @@ struct Rounds<'a> {
     snoop_critical: f64,
     rig: Option<Rigid3>,
     rejected: Vec<Rejection>,
+    rejected_distances: Vec<RejectedDistance>,
+    /// Why the distances are no longer tested ([`Rounds::disagree`]).
+    distances_disagree: Option<String>,
     iterations: usize,
 }
 
 impl Rounds<'_> {
+    /// The problem of the scene's current state, without the distances rejected so far.
+    fn problem(&self, scene: &Scene) -> SceneProblem {
+        let mut sp =
+            SceneProblem::build(self.project, self.dets, scene, Datum::MainImage, self.rig);
+        let (points, rejected) = (&sp.problem.points, &self.rejected_distances);
+        let number = |p: pingcal_ba::PointKey| points[p].name.parse::<u32>().ok();
+        sp.problem.distances.retain(|d| {
+            let ends = (number(d.a), number(d.b));
+            !rejected.iter().any(|r| {
+                r.given_mm == d.value
+                    && (ends == (Some(r.from), Some(r.to)) || ends == (Some(r.to), Some(r.from)))
+            })
+        });
+        sp
+    }
+
+    /// Data snooping on `sp`'s problem: at most `max_rej` observations, of which one distance
+    /// in all the rounds (a typo is one value), none once the distances disagree.
+    fn snoop(
+        &self,
+        sp: &mut SceneProblem,
+        max_rej: usize,
+    ) -> std::result::Result<solver::SnoopResult, SnoopError> {
+        let limits = solver::SnoopLimits {
+            total: max_rej,
+            distances_and_control: match self.distances_disagree {
+                Some(_) => 0,
+                None => 1usize.saturating_sub(self.rejected_distances.len()),
+            },
+        };
+        solver::adjust_with_snooping_limited(
+            &mut sp.problem,
+            &self.options,
+            self.snoop_critical,
+            limits,
+        )
+    }
+
+    /// Whether a distance still fails the test after one was rejected (its w beyond the
+    /// critical value, over σ0 when above 1): the distances then disagree with the network
+    /// as a whole, which is no typo — a camera model that does not fit the lens, distances
+    /// in another unit — and every distance is kept, untested, from the round run again on.
+    fn disagree(&mut self, prec: &Precision, rep: &Reporter) -> bool {
+        let scale = prec.sigma0.max(1.0);
+        let worst = (prec.distance_standardized.iter())
+            .map(|w| w.abs() / scale)
+            .filter(|w| w.is_finite())
+            .fold(0.0, f64::max);
+        if self.distances_disagree.is_some() || worst <= self.snoop_critical {
+            return false;
+        }
+        let why = format!(
+            "the distances disagree with the network beyond their σ's (a standardized residual of {worst:.1} left after one was rejected): more than a typo — a camera model that does not fit the lens, or distances in another unit? Every distance is kept and only the image points are tested"
+        );
+        rep.log(format!("  warning: {why}"));
+        self.distances_disagree = Some(why);
+        self.rejected_distances.clear();
+        true
+    }
+
+    /// Records and logs the distances data snooping rejected in a round.
+    fn distances_rejected(&mut self, rejected: &[DistanceRejection], rep: &Reporter) {
+        for r in rejected {
+            // every distance of the problem is a [[distances]] entry between coded targets
+            let Some(d) = RejectedDistance::of(self.project, r) else {
+                rep.log(format!(
+                    "  warning: the distance {} – {} given as {} mm was rejected (w = {:.1})",
+                    r.a, r.b, r.given, r.w
+                ));
+                continue;
+            };
+            rep.log(format!("  warning: {}", d.warning()));
+            self.rejected_distances.push(d);
+        }
+    }
+
     /// One adjustment with data snooping; the solution goes into the scene and the rejected
     /// image points out of it. A point left undetermined is dropped and the round run again.
     fn snooping_round(&mut self, scene: &mut Scene, round: usize, rep: &Reporter) -> Result<()> {
         let (sp, r) = loop {
-            let mut sp =
-                SceneProblem::build(self.project, self.dets, scene, Datum::MainImage, self.rig);
+            let mut sp = self.problem(scene);
             let max_rej = sp.problem.observations.len() / 20;
             if round == 0 {
                 // a camera parameter the network cannot determine: named before solving
@@ -245,16 +403,17 @@ impl Rounds<'_> {
                     )));
                 }
             }
-            match solver::adjust_with_snooping(
-                &mut sp.problem,
-                &self.options,
-                self.snoop_critical,
-                max_rej,
-            ) {
+            match self.snoop(&mut sp, max_rej) {
+                Ok(r) if self.disagree(&r.precision, rep) => {}
                 Ok(r) => break (sp, r),
                 Err(SnoopError::Precision(PrecisionError::PointUndetermined(name))) => {
-                    self.rejected
-                        .extend(drop_undetermined(self.project, self.dets, scene, &name)?);
+                    self.rejected.extend(drop_undetermined(
+                        self.project,
+                        self.dets,
+                        scene,
+                        &name,
+                        &self.rejected_distances,
+                    )?);
                     rep.log(format!(
                         "  point {name} dropped: after data snooping its rays no longer determine it"
                     ));
@@ -262,6 +421,7 @@ impl Rounds<'_> {
                 Err(e) => return Err(failed(self.project, e)),
             }
         };
+        self.distances_rejected(&r.rejected_distances, rep);
         self.iterations += r.summary.iterations;
         sp.write_back(scene);
         self.rig = sp
@@ -275,12 +435,16 @@ impl Rounds<'_> {
         super::network::log_blunders(self.project, self.dets, scene, before, rep);
         remove_rejected(self.project, scene, &r.rejected);
         rep.log(format!(
-            "  bundle round {}: {} iterations, sigma0 {:.3}, RMS {:.3} px, {} image points rejected",
+            "  bundle round {}: {} iterations, sigma0 {:.3}, RMS {:.3} px, {} image points rejected{}",
             round + 1,
             r.summary.iterations,
             r.precision.sigma0,
             r.precision.rms_image_px,
-            r.rejected.len()
+            r.rejected.len(),
+            match r.rejected_distances.len() {
+                0 => String::new(),
+                n => format!(", {n} distances rejected"),
+            }
         ));
         self.rejected.extend(r.rejected);
         Ok(())
@@ -292,8 +456,7 @@ impl Rounds<'_> {
     /// one σ0 for all would let the group whose a-priori σ is most pessimistic (the targets)
     /// scale down the covariance of what another group determines (the balls' centres).
     fn last(&mut self, scene: &mut Scene) -> Result<(SceneProblem, solver::VarianceEstimate)> {
-        let mut sp =
-            SceneProblem::build(self.project, self.dets, scene, Datum::MainImage, self.rig);
+        let mut sp = self.problem(scene);
         let group_of: Vec<usize> = sp
             .map
             .observations
@@ -327,7 +490,7 @@ pub fn final_adjustment(
     opts: &Options,
     rep: &Reporter,
 ) -> Result<Adjusted> {
-    let unused_distances = unusable_distances(project, scene)?;
+    let unused_distances = unusable_distances(project, scene, &[])?;
     for w in &unused_distances {
         rep.log(format!("warning: {w}"));
     }
@@ -342,6 +505,8 @@ pub fn final_adjustment(
         snoop_critical: opts.snoop_critical,
         rig: initial_rig(project, scene),
         rejected: Vec::new(),
+        rejected_distances: Vec::new(),
+        distances_disagree: None,
         iterations: 0,
     };
     let pb = rep.task("bundle adjustment", 3);
@@ -350,6 +515,7 @@ pub fn final_adjustment(
         pb.advance(1);
     }
     let (sp, estimate) = rounds.last(scene)?;
+    scene.warnings.extend(rounds.distances_disagree.take());
     let solver::VarianceEstimate {
         components: variance_components,
         sigma0_a_priori,
@@ -359,7 +525,7 @@ pub fn final_adjustment(
     pb.finish();
     // a coded target of a distance may have been dropped by data snooping
     let mut unused_distances = unused_distances;
-    for w in unusable_distances(project, scene)? {
+    for w in unusable_distances(project, scene, &rounds.rejected_distances)? {
         if !unused_distances.contains(&w) {
             rep.log(format!("warning: {w}"));
             unused_distances.push(w);
@@ -407,6 +573,7 @@ pub fn final_adjustment(
         rig,
         iterations: rounds.iterations,
         unused_distances,
+        rejected_distances: rounds.rejected_distances,
         variance_components,
         lens_doubt: None,
     })
@@ -422,7 +589,7 @@ mod tests {
     #[test]
     fn an_undetermined_point_is_dropped_with_its_measurements_as_rejections() {
         let (project, dets, mut scene) = fixture();
-        let rejected = drop_undetermined(&project, &dets, &mut scene, "3").expect("dropped");
+        let rejected = drop_undetermined(&project, &dets, &mut scene, "3", &[]).expect("dropped");
         assert_eq!(scene.points.len(), 2);
         assert!(scene.points.iter().all(|p| p.name != "3"));
         let images: Vec<&str> = rejected.iter().map(|r| r.image.as_str()).collect();
@@ -438,12 +605,66 @@ mod tests {
         }
     }
 
+    /// A distance data snooping rejected is the project's entry (its ends in either order),
+    /// named with the values given and adjusted; the later rounds' problems leave it out, and
+    /// when it was the last distance the adjustment is refused by name rather than left
+    /// without a scale.
+    #[test]
+    fn a_rejected_distance_is_named_left_out_and_not_the_last_scale() {
+        let (project, dets, scene) = fixture();
+        let snooped = DistanceRejection {
+            a: "2".into(),
+            b: "1".into(),
+            given: 100.0,
+            sigma: 0.1,
+            estimated: 95.0,
+            w: -41.0,
+            reason: "standardized residual 41.00 > 3.29".into(),
+        };
+        let d = RejectedDistance::of(&project, &snooped).expect("the project's entry");
+        assert_eq!((d.entry, d.from, d.to), (0, 1, 2));
+        let warning = d.warning();
+        assert!(
+            warning.contains("distances[0]: the distance 1 – 2 given as 100.000 mm was measured as 95.000 mm (+5.000 mm, w = -41.0): a typo?"),
+            "{warning}"
+        );
+        let other = DistanceRejection {
+            given: 101.0,
+            ..snooped
+        };
+        assert!(
+            RejectedDistance::of(&project, &other).is_none(),
+            "another value"
+        );
+        let mut rounds = Rounds {
+            project: &project,
+            dets: &dets,
+            options: solver::Options::default(),
+            snoop_critical: 3.29,
+            rig: None,
+            rejected: Vec::new(),
+            rejected_distances: Vec::new(),
+            distances_disagree: None,
+            iterations: 0,
+        };
+        assert_eq!(rounds.problem(&scene).problem.distances.len(), 1);
+        rounds.rejected_distances.push(d.clone());
+        assert!(rounds.problem(&scene).problem.distances.is_empty());
+        let Err(PipelineError::Data(e)) = unusable_distances(&project, &scene, &[d]) else {
+            panic!("the scale was left undetermined");
+        };
+        assert!(
+            e.contains("no distance is left to fix the scale") && e.contains("a typo?"),
+            "{e}"
+        );
+    }
+
     /// A coded target of the only distance cannot go: nothing would fix the scale, and the
     /// error names it; a name not in the scene is an error too.
     #[test]
     fn the_last_distances_target_is_not_dropped_silently() {
         let (project, dets, mut scene) = fixture();
-        let Err(PipelineError::Data(e)) = drop_undetermined(&project, &dets, &mut scene, "1")
+        let Err(PipelineError::Data(e)) = drop_undetermined(&project, &dets, &mut scene, "1", &[])
         else {
             panic!("dropping the distance's end passed");
         };
@@ -451,7 +672,7 @@ mod tests {
             e.contains("coded target 1 of the distances") && e.contains("no other distance"),
             "{e}"
         );
-        let Err(PipelineError::Data(e)) = drop_undetermined(&project, &dets, &mut scene, "P9")
+        let Err(PipelineError::Data(e)) = drop_undetermined(&project, &dets, &mut scene, "P9", &[])
         else {
             panic!("an unknown point passed");
         };

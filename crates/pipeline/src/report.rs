@@ -495,6 +495,16 @@ fn rejections(st: &Stages) -> Vec<rp::Rejection> {
             }
         })
         .collect();
+    rejected.extend((adj.rejected_distances.iter()).map(|d| rp::Rejection {
+        what: format!(
+            "distances[{}]: {} – {} given as {:.3} mm",
+            d.entry, d.from, d.to, d.given_mm
+        ),
+        why: format!(
+            "the adjustment without it puts the targets {:.3} mm apart; {}: a typo? left out",
+            d.adjusted_mm, d.why
+        ),
+    }));
     rejected.extend(
         (adj.rejected.iter())
             .filter(|r| !blunders.contains(&(r.image.clone(), r.point.clone())))

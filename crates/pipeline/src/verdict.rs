@@ -248,6 +248,8 @@ pub fn judge(st: &Stages) -> Verdict {
     if let Some(d) = &st.adjusted.lens_doubt {
         reasons.insert(0, d.clone());
     }
+    // a distance given wrong (a typo), found and left out by data snooping
+    reasons.extend((st.adjusted.rejected_distances.iter()).map(|d| d.warning()));
     let kept_twice = match st.joint {
         Some(Ok(j)) => j.lrf_view.seen_twice_kept,
         _ => st.lrf.found.seen_twice_kept(),

@@ -101,8 +101,7 @@ pub(crate) fn precision(
         .collect();
     let (standardized_residuals, redundancy_numbers, constraint_q) =
         standardized_residuals(layout, lin, &j, &q, &r);
-    let (distance_redundancy_numbers, residual_redundancy_numbers, residual_standardized) =
-        super::sigma::split_constraint_redundancy(problem, lin, constraint_q);
+    let by_kind = super::sigma::split_constraint_redundancy(problem, lin, constraint_q);
     let (parameters_covariance, parameter_offsets) =
         parameters_covariance(problem, layout, s02, &q);
     Ok(Precision {
@@ -118,9 +117,12 @@ pub(crate) fn precision(
         point_covariances,
         standardized_residuals,
         redundancy_numbers,
-        distance_redundancy_numbers,
-        residual_redundancy_numbers,
-        residual_standardized,
+        distance_redundancy_numbers: by_kind.distance_redundancy_numbers,
+        distance_standardized: by_kind.distance_standardized,
+        control_redundancy_numbers: by_kind.control_redundancy_numbers,
+        control_standardized: by_kind.control_standardized,
+        residual_redundancy_numbers: by_kind.residual_redundancy_numbers,
+        residual_standardized: by_kind.residual_standardized,
         parameters_covariance,
         parameter_offsets,
     })

@@ -33,7 +33,10 @@ pub use estimability::{check_intrinsics, Estimability, MAX_CHECK_UNKNOWNS, NULL_
 pub use free_network::MAX_FREE_NETWORK_UNKNOWNS;
 pub use iterative::{CgOptions, Preconditioner};
 pub use linear::LinearSolverKind;
-pub use outliers::{adjust_with_snooping, Rejection, SnoopError, SnoopResult};
+pub use outliers::{
+    adjust_with_snooping, adjust_with_snooping_limited, ControlRejection, DistanceRejection,
+    Rejection, SnoopError, SnoopLimits, SnoopResult,
+};
 pub use precision::{
     free_network_precision_bordered, points_covariance, points_covariance_with, precision,
     precision_with, CofactorMethod,

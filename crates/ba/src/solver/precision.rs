@@ -800,8 +800,7 @@ fn assemble(
             aqa.iter().map(|v| (1.0 - v).max(0.0)).collect()
         })
         .collect();
-    let (distance_redundancy_numbers, residual_redundancy_numbers, residual_standardized) =
-        super::sigma::split_constraint_redundancy(problem, lin, constraint_q);
+    let by_kind = super::sigma::split_constraint_redundancy(problem, lin, constraint_q);
     let (parameters_covariance, parameter_offsets) = parameters_covariance(problem, layout, s02, q);
     Precision {
         cofactors,
@@ -816,9 +815,12 @@ fn assemble(
         point_covariances,
         standardized_residuals,
         redundancy_numbers,
-        distance_redundancy_numbers,
-        residual_redundancy_numbers,
-        residual_standardized,
+        distance_redundancy_numbers: by_kind.distance_redundancy_numbers,
+        distance_standardized: by_kind.distance_standardized,
+        control_redundancy_numbers: by_kind.control_redundancy_numbers,
+        control_standardized: by_kind.control_standardized,
+        residual_redundancy_numbers: by_kind.residual_redundancy_numbers,
+        residual_standardized: by_kind.residual_standardized,
         parameters_covariance,
         parameter_offsets,
     }

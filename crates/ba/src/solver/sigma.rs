@@ -91,14 +91,27 @@ pub struct Precision {
     pub standardized_residuals: Vec<[f64; 2]>,
     /// Per image observation (problem order): the redundancy numbers of u and v,
     /// `q_vv = 1 − (A Q Aᵀ)_ii` in whitened units (the share of the observation's own error
-    /// that shows in its residual). With those of the distances they add up to the
-    /// redundancy, less the control coordinates' share (not given). 0 where the observation
+    /// that shows in its residual). With those of the distances, the control coordinates
+    /// and the residuals they add up to the redundancy. 0 where the observation
     /// has no redundancy.
     #[serde(skip)]
     pub redundancy_numbers: Vec<[f64; 2]>,
     /// Per distance (problem order): its redundancy number.
     #[serde(skip)]
     pub distance_redundancy_numbers: Vec<f64>,
+    /// Per distance (problem order): its standardized residual `w = v / (σ √q_vv)` with the
+    /// a-priori σ, as [`Precision::standardized_residuals`] for the image points; NaN where
+    /// the distance has no redundancy (the only distance of a network fixed by a distance).
+    #[serde(skip)]
+    pub distance_standardized: Vec<f64>,
+    /// Per weighted control point ([`Problem::point_priors`], problem order): the redundancy
+    /// numbers of its X, Y and Z.
+    #[serde(skip)]
+    pub control_redundancy_numbers: Vec<[f64; 3]>,
+    /// Per weighted control point (problem order): the standardized residuals of X, Y and Z
+    /// (NaN where a coordinate has no redundancy).
+    #[serde(skip)]
+    pub control_standardized: Vec<[f64; 3]>,
     /// Per residual of [`Problem::residuals`]: the redundancy numbers of its components.
     #[serde(skip)]
     pub residual_redundancy_numbers: Vec<Vec<f64>>,
@@ -302,27 +315,48 @@ pub(crate) fn pose_sigmas(
         .collect()
 }
 
-/// From every constraint's redundancy numbers (in the order of [`Problem::constraints`]):
-/// the distances' (one each), and the redundancy numbers and standardized residuals of
-/// [`Problem::residuals`] (the control points' are not given).
+/// The redundancy numbers and standardized residuals of every constraint, by kind
+/// ([`split_constraint_redundancy`]).
+pub(crate) struct ConstraintRedundancy {
+    /// [`Precision::distance_redundancy_numbers`].
+    pub distance_redundancy_numbers: Vec<f64>,
+    /// [`Precision::distance_standardized`].
+    pub distance_standardized: Vec<f64>,
+    /// [`Precision::control_redundancy_numbers`].
+    pub control_redundancy_numbers: Vec<[f64; 3]>,
+    /// [`Precision::control_standardized`].
+    pub control_standardized: Vec<[f64; 3]>,
+    /// [`Precision::residual_redundancy_numbers`].
+    pub residual_redundancy_numbers: Vec<Vec<f64>>,
+    /// [`Precision::residual_standardized`].
+    pub residual_standardized: Vec<Vec<f64>>,
+}
+
+/// From every constraint's redundancy numbers `q` (in the order of
+/// [`Problem::constraints`]): those of the distances, the control points and
+/// [`Problem::residuals`], each with its standardized residuals `r / √q_vv` (whitened: the
+/// residual over its σ; NaN where the component has no redundancy).
 pub(crate) fn split_constraint_redundancy(
     problem: &Problem,
     lin: &Linearization,
-    mut q: Vec<Vec<f64>>,
-) -> (Vec<f64>, Vec<Vec<f64>>, Vec<Vec<f64>>) {
-    let first_residual = problem.distances.len() + problem.point_priors.len();
-    let residuals = q.split_off(first_residual);
-    let distances = q
-        .iter()
-        .take(problem.distances.len())
-        .map(|v| v[0])
-        .collect();
-    let standardized = (residuals.iter().zip(&lin.constraints[first_residual..]))
+    q: Vec<Vec<f64>>,
+) -> ConstraintRedundancy {
+    let standardized: Vec<Vec<f64>> = (q.iter().zip(&lin.constraints))
         .map(|(qv, c)| {
             (qv.iter().zip(&c.r))
                 .map(|(&q, &r)| if q > 1e-9 { r / q.sqrt() } else { f64::NAN })
                 .collect()
         })
         .collect();
-    (distances, residuals, standardized)
+    let nd = problem.distances.len();
+    let first_residual = nd + problem.point_priors.len();
+    let three = |v: &Vec<f64>| -> [f64; 3] { std::array::from_fn(|k| v[k]) };
+    ConstraintRedundancy {
+        distance_redundancy_numbers: q[..nd].iter().map(|v| v[0]).collect(),
+        distance_standardized: standardized[..nd].iter().map(|v| v[0]).collect(),
+        control_redundancy_numbers: q[nd..first_residual].iter().map(three).collect(),
+        control_standardized: standardized[nd..first_residual].iter().map(three).collect(),
+        residual_standardized: standardized[first_residual..].to_vec(),
+        residual_redundancy_numbers: q[first_residual..].to_vec(),
+    }
 }

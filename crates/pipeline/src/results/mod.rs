@@ -110,6 +110,9 @@ pub struct BundleJson {
     pub redundancy: i64,
     /// Image points rejected by data snooping.
     pub rejected: usize,
+    /// `[[distances]]` entries rejected by data snooping (a distance given wrong): each with
+    /// its place in the list, its targets, the values given and adjusted, and its w.
+    pub rejected_distances: Vec<crate::bundle::RejectedDistance>,
     /// Coded numbers read where the network puts no such target (named blunders), removed.
     pub coded_blunders: Vec<CodedBlunderJson>,
     /// Stereo rig, left → right camera frame.
@@ -725,6 +728,7 @@ fn bundle_json(st: &Stages) -> BundleJson {
         iterations: adj.iterations,
         redundancy: adj.precision.redundancy,
         rejected: adj.rejected.len(),
+        rejected_distances: adj.rejected_distances.clone(),
         coded_blunders: (scene.blunders.iter())
             .map(|b| {
                 let t = st.dets.target(b.det);
