@@ -615,3 +615,37 @@ fn no_function_outside_tests_is_too_long() {
         found.join("\n")
     );
 }
+
+/// The longest a file of the pipeline may be, in lines of non-test code (issue 49: rooms of
+/// one job each).
+const PIPELINE_MAX_FILE_LINES: usize = 800;
+
+/// The longest a function of the pipeline may be (issue 49): a step a reader holds in their
+/// head.
+const PIPELINE_MAX_FUNCTION_LINES: usize = 80;
+
+/// No file of `crates/pipeline` has more than [`PIPELINE_MAX_FILE_LINES`] lines of
+/// non-test code, and no function there more than [`PIPELINE_MAX_FUNCTION_LINES`] lines.
+#[test]
+fn the_pipelines_files_and_functions_are_short() {
+    let dir = workspace().join("crates/pipeline");
+    let mut files = Vec::new();
+    modules(&dir.join("src"), &[], &mut files);
+    let mut found = Vec::new();
+    for (_, path) in files {
+        let rel = path.strip_prefix(&dir).unwrap().display().to_string();
+        let text = code(&path);
+        let n = text.lines().count();
+        if n > PIPELINE_MAX_FILE_LINES {
+            found.push(format!("crates/pipeline/{rel}: {n} lines of non-test code"));
+        }
+        for (f, line, n) in long_functions(&text, PIPELINE_MAX_FUNCTION_LINES) {
+            found.push(format!("crates/pipeline/{rel}:{line}: {f} has {n} lines"));
+        }
+    }
+    assert!(
+        found.is_empty(),
+        "the pipeline's files over {PIPELINE_MAX_FILE_LINES} lines or functions over {PIPELINE_MAX_FUNCTION_LINES} (split them by job):\n{}",
+        found.join("\n")
+    );
+}

@@ -536,6 +536,38 @@ pub fn final_adjustment(
         scene.warnings.push(w);
     }
     let rig = sp.problem.rigs.first().map(|r| r.member_from_base);
+    log_adjustment(
+        &sp,
+        scene,
+        (sigma0_a_priori, &precision),
+        &variance_components,
+        rounds.rejected.len(),
+        rep,
+    );
+    Ok(Adjusted {
+        solved: sp,
+        precision,
+        sigma0_a_priori,
+        rejected: rounds.rejected,
+        rig,
+        iterations: rounds.iterations,
+        unused_distances,
+        rejected_distances: rounds.rejected_distances,
+        variance_components,
+        lens_doubt: None,
+    })
+}
+
+/// The final adjustment's two log lines: its size, σ0, RMS and rejections, and its
+/// variance components.
+fn log_adjustment(
+    sp: &SceneProblem,
+    scene: &Scene,
+    (sigma0_a_priori, precision): (f64, &solver::Precision),
+    variance_components: &[solver::VarianceComponent],
+    rejected: usize,
+    rep: &Reporter,
+) {
     rep.log(format!(
         "bundle adjustment: {} images, {} points ({} balls), {} image points, {} distances; sigma0 {:.3}, RMS {:.3} px, {} rejected",
         sp.problem.images.len(),
@@ -545,7 +577,7 @@ pub fn final_adjustment(
         sp.problem.distances.len(),
         sigma0_a_priori,
         precision.rms_image_px,
-        rounds.rejected.len()
+        rejected
     ));
     rep.log(format!(
         "bundle adjustment: variance components (σ0 of each group against its a-priori σ) {}",
@@ -565,18 +597,6 @@ pub fn final_adjustment(
             .collect::<Vec<_>>()
             .join(", ")
     ));
-    Ok(Adjusted {
-        solved: sp,
-        precision,
-        sigma0_a_priori,
-        rejected: rounds.rejected,
-        rig,
-        iterations: rounds.iterations,
-        unused_distances,
-        rejected_distances: rounds.rejected_distances,
-        variance_components,
-        lens_doubt: None,
-    })
 }
 
 #[cfg(test)]

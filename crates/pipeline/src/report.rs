@@ -473,7 +473,7 @@ fn intrinsics(st: &Stages, results: &Results) -> Vec<rp::Intrinsics> {
 /// What was left out and why: coded numbers named blunders, image points, LRF clusters,
 /// unmatched LRF spheres.
 fn rejections(st: &Stages) -> Vec<rp::Rejection> {
-    let (adj, lrf) = (st.adjusted, st.lrf_out);
+    let adj = st.adjusted;
     let blunders: Vec<(String, String)> = (st.scene.blunders.iter())
         .map(|b| {
             (
@@ -513,6 +513,15 @@ fn rejections(st: &Stages) -> Vec<rp::Rejection> {
                 why: r.reason.clone(),
             }),
     );
+    rejected.extend(lrf_rejections(st));
+    rejected
+}
+
+/// The report's rows of what the LRF step left out: small clusters (counted), larger
+/// clusters with their reasons, and spheres matched to no ball.
+fn lrf_rejections(st: &Stages) -> Vec<rp::Rejection> {
+    let lrf = st.lrf_out;
+    let mut rejected = Vec::new();
     let small = lrf
         .found
         .rejected
