@@ -46,6 +46,7 @@ pub mod kind;
 pub mod opencv;
 mod photogrammetric;
 pub mod refit;
+pub mod sensor;
 
 pub use bal::BalCamera;
 pub use brown_backward::{BrownBackwardCamera, BROWN_BACKWARD_PARAMS};
@@ -57,6 +58,7 @@ pub use opencv::{
     OPENCV_PARAMS,
 };
 pub use photogrammetric::{PhotogrammetricCamera, PHOTOGRAMMETRIC_PARAMS};
+pub use sensor::{CameraAt, SensorCamera};
 
 use nalgebra::{Matrix2x3, Vector2, Vector3};
 

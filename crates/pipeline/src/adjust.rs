@@ -14,14 +14,15 @@
 
 use super::ids::{DetectionId, IdVec, ImageId, PointId};
 use super::scene::{
-    main_image, target_sigma, Detections, PointKind, Scene, SceneCamera, SIGMA_FACTOR,
+    main_image, sensor_camera, target_sigma, Detections, PointKind, Scene, SIGMA_FACTOR,
 };
 use nalgebra::{Matrix2x3, Vector2};
+use pingcal_ba::camera::{CameraModel, SensorCamera};
 use pingcal_ba::problem::{Camera, Distance, Image, Observation, Point, Problem, Rig, RigMember};
 use pingcal_ba::{CameraKey, ImageKey, PointKey};
 use pingcal_geometry::Rigid3;
 use pingcal_project::Project;
-use pingcal_targets::ball::{sphere_centre_from_ellipse, CameraRays, FnCamera};
+use pingcal_targets::ball::{sphere_centre_from_ellipse, CameraRays};
 use pingcal_targets::dot::dot_centre_through_lens;
 use pingcal_targets::silhouette::sphere_centre_from_edges;
 use pingcal_targets::Target;
@@ -86,7 +87,7 @@ pub fn ba_cameras(project: &Project, params: &[Vec<f64>]) -> Vec<Camera> {
         .iter()
         .zip(params)
         .map(|(c, p)| {
-            let mut cam = Camera::new(c.id.clone(), SceneCamera::of(c).model, p.clone());
+            let mut cam = Camera::new(c.id.clone(), sensor_camera(c).model, p.clone());
             cam.fixed = c.free_flags().iter().map(|free| !free).collect();
             cam
         })
@@ -110,21 +111,12 @@ fn measurement(
     dets: &Detections,
     d: DetectionId,
     kind: PointKind,
-    cam: &SceneCamera,
+    cam: &SensorCamera,
     params: &[f64],
     radius: f64,
 ) -> (Vector2<f64>, f64, f64) {
     let t = dets.target(d);
-    let rays = FnCamera(
-        |x: f64, y: f64| {
-            cam.unproject(params, &Vector2::new(x, y))
-                .map(|r| [r.x, r.y, r.z])
-        },
-        |r: [f64; 3]| {
-            cam.project(params, &nalgebra::Vector3::from(r))
-                .map(|p| [p.x, p.y])
-        },
-    );
+    let rays = cam.at(params);
     if kind != PointKind::Ball {
         return (flat_centre(t, &rays, cam), target_sigma(t), 0.0);
     }
@@ -151,7 +143,7 @@ fn measurement(
 /// ([`pingcal_targets::dot`]; where [`pingcal_ba::camera::ModelKind::silhouette_is_ellipse`], the
 /// photogrammetric and backward Brown lenses, that shift is thousandths of a pixel and the
 /// detected centre is taken as it is).
-fn flat_centre(t: &Target, rays: &dyn CameraRays, cam: &SceneCamera) -> Vector2<f64> {
+fn flat_centre(t: &Target, rays: &dyn CameraRays, cam: &SensorCamera) -> Vector2<f64> {
     let raw = Vector2::new(t.x, t.y);
     if cam.kind.silhouette_is_ellipse() {
         return raw;
@@ -167,7 +159,7 @@ fn flat_centre(t: &Target, rays: &dyn CameraRays, cam: &SceneCamera) -> Vector2<
 fn centre_from_edges(
     edges: &[(f64, f64)],
     rays: &dyn CameraRays,
-    cam: &SceneCamera,
+    cam: &SensorCamera,
     params: &[f64],
     radius: f64,
 ) -> Option<(Vector2<f64>, f64)> {

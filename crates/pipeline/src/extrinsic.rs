@@ -20,6 +20,7 @@ use super::scene::{main_image, Detections, PointKind, Scene};
 use crate::context::{Options, PipelineError, Result};
 use crate::progress::Reporter;
 use nalgebra::{Matrix3, Vector2, Vector3};
+use pingcal_ba::camera::CameraModel;
 use pingcal_geometry::{Rigid3, Sim3};
 use pingcal_lrf::corner_baseline::{fan_baseline, BaselineInput};
 use pingcal_lrf::correspondence::{match_balls, MatchOptions};

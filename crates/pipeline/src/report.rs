@@ -5,9 +5,10 @@
 use super::ids::{ImageId, SphereId};
 use super::lrf::MIN_REPORTED_CLUSTER;
 use super::results::Results;
-use super::scene::{image_file, main_image, PointKind, SceneCamera};
+use super::scene::{image_file, main_image, PointKind};
 use crate::progress::Reporter;
 use crate::stages::Stages;
+use pingcal_ba::camera::{CameraModel, SensorCamera};
 use pingcal_ba::ImageKey;
 use pingcal_lrf::sensor::MountParam;
 use pingcal_report as rp;
@@ -405,7 +406,7 @@ fn units(m: pingcal_project::CameraModel) -> Vec<String> {
 /// The lens curve of camera `cam` at `values` (models without K1–K3): radius (px) and
 /// angle off the axis (°) of the rays along the image's longest half-diagonal from the
 /// principal point, as far as the model gives rays; and its focal length (px).
-fn lens_curve(cam: &SceneCamera, values: &[f64]) -> Option<(Vec<(f64, f64)>, f64)> {
+fn lens_curve(cam: &SensorCamera, values: &[f64]) -> Option<(Vec<(f64, f64)>, f64)> {
     let pp = cam.model.principal_point_px(values);
     let corners = [
         (0.0, 0.0),

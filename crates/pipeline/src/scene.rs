@@ -13,13 +13,14 @@
 
 use super::ids::{CameraId, DetIdx, DetectionId, IdVec, ImageId, PointId};
 use nalgebra::{Vector2, Vector3};
-use pingcal_ba::camera::{CameraModel, ModelKind};
+#[cfg(doc)]
+use pingcal_ba::camera::ModelKind;
+use pingcal_ba::camera::{CameraModel, SensorCamera};
 use pingcal_geometry::Rigid3;
 use pingcal_project::Project;
 use pingcal_project::ProjectCamera;
 use pingcal_targets::ellipse::Ellipse;
 use pingcal_targets::Target;
-use std::sync::Arc;
 
 /// The detector's σ of a centre is about half the scatter seen against truth (issue 4's
 /// Monte Carlo); image points are weighted with twice that σ, and never below
@@ -133,61 +134,17 @@ pub struct ScenePoint {
     pub obs: Vec<DetectionId>,
 }
 
-/// A project camera as the steps use it: its model ([`pingcal_ba::camera::ModelKind`],
-/// the project's `model`) and its sensor.
-#[derive(Clone, Debug)]
-pub struct SceneCamera {
-    /// Which model the project names.
-    pub kind: ModelKind,
-    /// The model, built for the sensor.
-    pub model: Arc<dyn CameraModel>,
-    /// Width in pixels.
-    pub width: u32,
-    /// Height in pixels.
-    pub height: u32,
-    /// Pixel pitch (mm).
-    pub pixel_size_mm: f64,
-}
-
-impl SceneCamera {
-    /// The camera of project camera `c`.
-    pub fn of(c: &ProjectCamera) -> Self {
-        SceneCamera {
-            kind: c.model,
-            model: c.model.model(c.width, c.height, c.pixel_size_mm),
-            width: c.width,
-            height: c.height,
-            pixel_size_mm: c.pixel_size_mm,
-        }
-    }
-
-    /// Projects `xc` (camera frame) to pixels ([`CameraModel::project`]).
-    pub fn project(&self, params: &[f64], xc: &Vector3<f64>) -> Option<Vector2<f64>> {
-        self.model.project(params, xc, None, None)
-    }
-
-    /// The unit ray through pixel `uv` ([`CameraModel::unproject`]).
-    pub fn unproject(&self, params: &[f64], uv: &Vector2<f64>) -> Option<Vector3<f64>> {
-        self.model.unproject(params, uv)
-    }
-
-    /// The focal length in pixels at `params` ([`CameraModel::focal_px`]).
-    pub fn focal_px(&self, params: &[f64]) -> f64 {
-        self.model.focal_px(params)
-    }
-
-    /// The focal length in mm at `params`: the image scale that turns a size in pixels at
-    /// a depth into millimetres (`size_px · pixel pitch · depth / focal_mm`).
-    pub fn focal_mm(&self, params: &[f64]) -> f64 {
-        self.focal_px(params) * self.pixel_size_mm
-    }
+/// The camera of project camera `c`: its model ([`pingcal_ba::camera::ModelKind`], the
+/// project's `model`) built for its sensor.
+pub fn sensor_camera(c: &ProjectCamera) -> SensorCamera {
+    SensorCamera::new(c.model, c.width, c.height, c.pixel_size_mm)
 }
 
 /// The photogrammetric scene as it grows through the steps.
 #[derive(Clone, Debug)]
 pub struct Scene {
     /// The model of each project camera with its sensor.
-    pub cameras: IdVec<CameraId, SceneCamera>,
+    pub cameras: IdVec<CameraId, SensorCamera>,
     /// The camera of each project image.
     pub camera_of: IdVec<ImageId, CameraId>,
     /// Intrinsics of each project camera.
@@ -255,7 +212,7 @@ impl Scene {
     pub fn new(project: &Project) -> Self {
         let f = &project.file;
         Scene {
-            cameras: f.cameras.iter().map(SceneCamera::of).collect(),
+            cameras: f.cameras.iter().map(sensor_camera).collect(),
             camera_of: f
                 .images
                 .iter()
@@ -327,9 +284,8 @@ impl Scene {
         if xc.y <= 0.0 {
             return None;
         }
-        let uv = cam.project(&self.intrinsics[c], &xc)?;
-        let (w, h) = (cam.width as f64, cam.height as f64);
-        (uv.x >= -0.5 && uv.y >= -0.5 && uv.x <= w - 0.5 && uv.y <= h - 0.5).then_some(uv)
+        let uv = cam.project(&self.intrinsics[c], &xc, None, None)?;
+        cam.on_image(&uv).then_some(uv)
     }
 }
 

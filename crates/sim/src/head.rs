@@ -7,83 +7,18 @@
 
 use crate::config::{SimConfig, StationConfig};
 use nalgebra::{Matrix3, Vector3};
-use pingcal_ba::camera::{CameraModel, ModelKind, PhotogrammetricCamera};
+use pingcal_ba::camera::{CameraModel, PhotogrammetricCamera, SensorCamera};
 use pingcal_geometry::from_opk;
 use pingcal_geometry::Rigid3;
-use std::sync::Arc;
 
 type V3 = Vector3<f64>;
 
-/// A simulated camera's model and sensor: a [`CameraModel`] of any [`ModelKind`] that also
-/// knows its image size.
-#[derive(Debug, Clone)]
-pub struct SimCamera {
-    /// The model's kind.
-    pub kind: ModelKind,
-    /// Width in pixels.
-    pub width: u32,
-    /// Height in pixels.
-    pub height: u32,
-    /// Pixel pitch (mm).
-    pub pixel_size_mm: f64,
-    model: Arc<dyn CameraModel>,
-}
-
-impl SimCamera {
-    /// A camera of model `kind` on a `width × height` sensor of pitch `pixel_size_mm`.
-    pub fn new(kind: ModelKind, width: u32, height: u32, pixel_size_mm: f64) -> Self {
-        Self {
-            kind,
-            width,
-            height,
-            pixel_size_mm,
-            model: kind.model(width, height, pixel_size_mm),
-        }
-    }
-
-    /// The photogrammetric model of this sensor when the camera's model is that type (for
-    /// its own field-of-view test: its forward distortion polynomial folds back far outside
-    /// the field of view).
-    fn photogrammetric(&self) -> Option<PhotogrammetricCamera> {
-        (self.model.name() == PhotogrammetricCamera::NAME)
-            .then(|| PhotogrammetricCamera::new(self.width, self.height, self.pixel_size_mm))
-    }
-}
-
-impl CameraModel for SimCamera {
-    fn name(&self) -> &'static str {
-        self.model.name()
-    }
-
-    fn parameter_names(&self) -> &'static [&'static str] {
-        self.model.parameter_names()
-    }
-
-    fn project(
-        &self,
-        params: &[f64],
-        xc: &V3,
-        jac_point: Option<&mut nalgebra::Matrix2x3<f64>>,
-        jac_params: Option<&mut [f64]>,
-    ) -> Option<nalgebra::Vector2<f64>> {
-        self.model.project(params, xc, jac_point, jac_params)
-    }
-
-    fn unproject(&self, params: &[f64], uv: &nalgebra::Vector2<f64>) -> Option<V3> {
-        self.model.unproject(params, uv)
-    }
-
-    fn pixel_size_mm(&self) -> Option<f64> {
-        Some(self.pixel_size_mm)
-    }
-
-    fn focal_px(&self, params: &[f64]) -> f64 {
-        self.model.focal_px(params)
-    }
-
-    fn principal_point_px(&self, params: &[f64]) -> nalgebra::Vector2<f64> {
-        self.model.principal_point_px(params)
-    }
+/// The photogrammetric model of `cam`'s sensor when the camera's model is that type (for
+/// its own field-of-view test: its forward distortion polynomial folds back far outside the
+/// field of view).
+fn photogrammetric(cam: &SensorCamera) -> Option<PhotogrammetricCamera> {
+    (cam.model.name() == PhotogrammetricCamera::NAME)
+        .then(|| PhotogrammetricCamera::new(cam.width, cam.height, cam.pixel_size_mm))
 }
 
 /// One camera of the head: its model and true parameters.
@@ -92,7 +27,7 @@ pub struct CameraUnit {
     /// `left` or `right`.
     pub id: String,
     /// The model and its sensor.
-    pub model: SimCamera,
+    pub model: SensorCamera,
     /// True parameters, in the model's slice order (the photogrammetric model's
     /// `[c, xp, yp, K1, K2, K3, P1, P2, B1, B2]`).
     pub params: Vec<f64>,
@@ -105,7 +40,7 @@ impl CameraUnit {
     /// exceeds it are outside the image even when the distortion polynomial (which folds
     /// back far outside the field of view) maps them inside.
     pub fn max_ideal_radius_mm(&self) -> f64 {
-        let Some(cam) = self.model.photogrammetric() else {
+        let Some(cam) = photogrammetric(&self.model) else {
             return 0.0;
         };
         let (w, h) = (cam.width as f64 - 1.0, cam.height as f64 - 1.0);
@@ -167,7 +102,7 @@ impl StereoRig {
     /// The head from the configuration.
     pub fn from_config(cfg: &SimConfig) -> Self {
         let c = &cfg.camera;
-        let model = SimCamera::new(c.model, c.width, c.height, c.pixel_size_mm);
+        let model = SensorCamera::new(c.model, c.width, c.height, c.pixel_size_mm);
         let o = c.right_opk_deg;
         // Right camera orientation relative to left: x_right = R_rel (x_left − C_right).
         let r_rel = from_opk(o[0].to_radians(), o[1].to_radians(), o[2].to_radians());

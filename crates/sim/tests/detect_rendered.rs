@@ -21,7 +21,7 @@
 //!   detector's noise and bias.
 //! * **Balls**: the silhouette of a sphere is an ellipse whose centre is not the image of
 //!   the sphere's centre; `pingcal_targets::ball::sphere_centre_from_ellipse` with the true
-//!   camera (as `FnCamera` closures) corrects it. Both errors are reported. In the field
+//!   camera (its two maps, `SensorCamera::at`) corrects it. Both errors are reported. In the field
 //!   (1.3–2.5 m) the eccentricity is under 0.1 px, so a second test puts balls at 0.45 m
 //!   towards the image corners, where it is ~0.5 px.
 //!
@@ -40,9 +40,7 @@ use pingcal_sim::render::{render_image, RayTable};
 use pingcal_sim::scene::{HitKind, TestField};
 use pingcal_sim::stations::{CameraUnit, Station};
 use pingcal_sim::{SimConfig, Simulation};
-use pingcal_targets::ball::{
-    fit_ball_silhouette, sphere_centre_from_ellipse, CameraRays, FnCamera,
-};
+use pingcal_targets::ball::{fit_ball_silhouette, sphere_centre_from_ellipse, CameraRays};
 use pingcal_targets::{DetectParams, Detector, GrayImage, TargetKind};
 
 type V3 = Vector3<f64>;
@@ -245,18 +243,7 @@ fn median(v: &[f64]) -> f64 {
 
 /// The true camera's two maps, as the ball correction wants them.
 fn rays_of(cam: &CameraUnit) -> impl CameraRays + '_ {
-    FnCamera(
-        |x: f64, y: f64| {
-            cam.model
-                .unproject(&cam.params, &Vector2::new(x, y))
-                .map(|r| [r.x, r.y, r.z])
-        },
-        |r: [f64; 3]| {
-            cam.model
-                .project(&cam.params, &V3::new(r[0], r[1], r[2]), None, None)
-                .map(|p| [p.x, p.y])
-        },
-    )
+    cam.model.at(&cam.params)
 }
 
 /// The detector's settings for these images. The simulated MYNT EYE (f ≈ 653 px) sees the

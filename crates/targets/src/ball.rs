@@ -3,8 +3,9 @@
 //! about r²/(Z² − r²) of the off-axis distance; docs/method.md "A ball in an image", Luhmann 2014, Matsuoka & Maruyama
 //! 2016). The correction needs the camera's interior orientation, which lives in another crate
 //! and is known only after calibration, so it is exposed as a function of the camera's two maps
-//! (pixel → ray and ray → pixel), through the small trait [`CameraRays`] (closures work too,
-//! via [`FnCamera`]).
+//! (pixel → ray and ray → pixel), through the small trait [`CameraRays`]: a camera of pingcal's
+//! models at its values ([`pingcal_camera::CameraAt`]) is one, and closures are too, via
+//! [`FnCamera`].
 //!
 //! Method: the rays through the silhouette form a right circular cone whose axis passes through
 //! the sphere's centre. With unit rays qᵢ through outline points, the axis w and half-angle α
@@ -29,6 +30,17 @@ pub trait CameraRays {
     fn pixel_to_ray(&self, x: f64, y: f64) -> Option<[f64; 3]>;
     /// The image point of a ray (pixels); `None` when it does not reach the image plane.
     fn ray_to_pixel(&self, ray: [f64; 3]) -> Option<[f64; 2]>;
+}
+
+/// A camera of pingcal's models at its intrinsic values: the model's own maps.
+impl CameraRays for pingcal_camera::CameraAt<'_> {
+    fn pixel_to_ray(&self, x: f64, y: f64) -> Option<[f64; 3]> {
+        self.ray(x, y).map(|r| [r.x, r.y, r.z])
+    }
+    fn ray_to_pixel(&self, ray: [f64; 3]) -> Option<[f64; 2]> {
+        self.pixel(&nalgebra::Vector3::from(ray))
+            .map(|p| [p.x, p.y])
+    }
 }
 
 /// [`CameraRays`] from two closures.

@@ -2,7 +2,8 @@
 
 use super::sizes::blob_sizes;
 use super::MIN_RAYS;
-use crate::scene::{image_file, Detections, Scene, SceneCamera};
+use crate::scene::{image_file, sensor_camera, Detections, Scene};
+use pingcal_ba::camera::CameraModel;
 use pingcal_project::Project;
 
 /// Why no ball was found, as far as the scene tells: a clause to append to the error
@@ -78,7 +79,7 @@ fn factor(x: f64) -> String {
 /// 600 mm lens on a 36 mm sensor is 17), as an error clause.
 pub(crate) fn implausible_principal_distance(project: &Project) -> Option<String> {
     project.file.cameras.iter().enumerate().find_map(|(k, c)| {
-        let focal_px = SceneCamera::of(c).focal_px(&c.intrinsics().values);
+        let focal_px = sensor_camera(c).focal_px(&c.intrinsics().values);
         let rel = focal_px / c.width as f64;
         (!(0.1..=20.0).contains(&rel)).then(|| match c.model.in_mm() {
             true => {

@@ -5,6 +5,7 @@ use crate::ids::PointId;
 use crate::progress::Reporter;
 use crate::scene::{main_image, PointKind, Scene};
 use nalgebra::{Vector2, Vector3};
+use pingcal_ba::camera::CameraModel;
 use pingcal_geometry::Rigid3;
 use pingcal_project::Project;
 
@@ -17,7 +18,7 @@ pub fn name_balls(project: &Project, scene: &mut Scene, balls: &[PointId], rep: 
         .iter()
         .map(|&j| {
             let xc = pose.transform(&scene.points[j].position);
-            scene.cameras[mc].project(&scene.intrinsics[mc], &xc)
+            scene.cameras[mc].project(&scene.intrinsics[mc], &xc, None, None)
         })
         .collect();
     let names = if project.file.balls.labels.is_empty() {
@@ -131,7 +132,7 @@ pub fn unmeasured_labels_at(
     let projected: Vec<(Vector2<f64>, f64)> = (centres.iter())
         .filter_map(|c| {
             let xc = pose.transform(&camera_from_lrf.transform(c));
-            let uv = scene.cameras[mc].project(&scene.intrinsics[mc], &xc)?;
+            let uv = scene.cameras[mc].project(&scene.intrinsics[mc], &xc, None, None)?;
             (xc.y > 0.0).then(|| (uv, label_reach_px(project, scene, xc.y)))
         })
         .collect();
@@ -163,7 +164,7 @@ mod tests {
         let pixel = |scene: &Scene, x: Vector3<f64>| {
             let xc = scene.poses[main].unwrap().transform(&x);
             scene.cameras[mc]
-                .project(&scene.intrinsics[mc], &xc)
+                .project(&scene.intrinsics[mc], &xc, None, None)
                 .unwrap()
         };
         let measured = Vector3::new(-100.0, 1500.0, 50.0);

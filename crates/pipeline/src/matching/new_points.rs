@@ -5,6 +5,7 @@ use super::{MIN_RAYS, MIN_RAYS_NUMBERED, TOL_PX};
 use crate::ids::{DetIdx, DetectionId, IdVec, ImageId};
 use crate::scene::{DetectionSet, Detections, PointKind, Scene, ScenePoint};
 use nalgebra::{Vector2, Vector3};
+use pingcal_ba::camera::CameraModel;
 use pingcal_ba::initial::intersection::{intersect, IntersectionOptions, Ray};
 use pingcal_targets::{Target, TargetKind};
 

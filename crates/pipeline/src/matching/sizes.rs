@@ -3,6 +3,7 @@
 
 use crate::scene::{Detections, PointKind, Scene, ScenePoint};
 use nalgebra::Vector2;
+use pingcal_ba::camera::CameraModel;
 
 /// Median size (mm) of a point's blobs: the angle between the rays through the two ends of
 /// the blob's major axis (through the camera's model, so that a fisheye's compression
@@ -22,7 +23,7 @@ pub fn blob_diameter_mm(dets: &Detections, scene: &Scene, p: &ScenePoint) -> Opt
             let q1 = cam.unproject(params, &(centre + half))?;
             let q2 = cam.unproject(params, &(centre - half))?;
             let angle = q1.angle(&q2);
-            cam.project(params, &xc)
+            cam.project(params, &xc, None, None)
                 .map(|_| 2.0 * xc.norm() * (0.5 * angle).tan())
         })
         .collect();

@@ -4,25 +4,22 @@
 //! the model's own `project` and `unproject`, in pingcal's camera frame (X right, Y forward,
 //! Z up), so distortion is exact whatever the model.
 
-use nalgebra::{Vector2, Vector3};
-use pingcal_ba::camera::CameraModel;
+use nalgebra::Vector3;
+use pingcal_ba::camera::SensorCamera;
 use pingcal_project::CameraFile;
 use pingcal_targets::ball::CameraRays;
-use std::sync::Arc;
 
 type V3 = Vector3<f64>;
 
-/// A camera with known intrinsics.
+/// A camera with known intrinsics: the model built for its sensor, the values, and the file
+/// they were read from. Every pixel ↔ ray is the sensor camera's ([`SensorCamera::ray`],
+/// [`SensorCamera::pixel`]) at these values.
 #[derive(Debug)]
 pub struct Camera {
-    /// The model.
-    pub model: Arc<dyn CameraModel>,
+    /// The model built for the sensor (its width, height and pitch).
+    pub sensor: SensorCamera,
     /// Its parameters, in the model's order.
     pub params: Vec<f64>,
-    /// Image width, px.
-    pub width: u32,
-    /// Image height, px.
-    pub height: u32,
     /// The file it was read from, as read.
     pub file: CameraFile,
 }
@@ -32,41 +29,25 @@ impl Camera {
     /// `pingcal calibrate` builds it.
     pub fn from_file(c: &CameraFile) -> Self {
         Camera {
-            model: c.intrinsics.model.model(c.width, c.height, c.pixel_size_mm),
+            sensor: SensorCamera::new(c.intrinsics.model, c.width, c.height, c.pixel_size_mm),
             params: c.intrinsics.values.clone(),
-            width: c.width,
-            height: c.height,
             file: c.clone(),
         }
     }
 
-    /// The unit ray through a pixel.
+    /// The unit ray through a pixel ([`SensorCamera::ray`]).
     pub fn ray(&self, x: f64, y: f64) -> Option<V3> {
-        self.model
-            .unproject(&self.params, &Vector2::new(x, y))
-            .map(|r| r.normalize())
-            .filter(|r| r.iter().all(|v| v.is_finite()))
+        self.sensor.ray(&self.params, x, y)
     }
 
-    /// The pixel of a point (or direction) of the camera frame.
+    /// The pixel of a point (or direction) of the camera frame ([`SensorCamera::pixel`]).
     pub fn project(&self, p: &V3) -> Option<(f64, f64)> {
-        self.model
-            .project(&self.params, p, None, None)
-            .map(|uv| (uv.x, uv.y))
-            .filter(|(x, y)| x.is_finite() && y.is_finite())
+        self.sensor.pixel(&self.params, p)
     }
 
-    /// The focal length in pixels at the image's centre: one over the angle between the
-    /// rays of the centre pixel and its neighbour.
+    /// The focal length in pixels at the image's centre ([`SensorCamera::centre_focal_px`]).
     pub fn f_px(&self) -> f64 {
-        let (cx, cy) = (
-            (f64::from(self.width) - 1.0) / 2.0,
-            (f64::from(self.height) - 1.0) / 2.0,
-        );
-        match (self.ray(cx, cy), self.ray(cx + 1.0, cy)) {
-            (Some(a), Some(b)) if a.angle(&b) > 0.0 => 1.0 / a.angle(&b),
-            _ => f64::NAN,
-        }
+        self.sensor.centre_focal_px(&self.params)
     }
 }
 

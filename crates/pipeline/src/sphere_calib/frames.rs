@@ -156,7 +156,7 @@ pub fn read_frame(
         })?;
     let img = pingcal_targets::load_colour(&image_path)
         .map_err(|e| PipelineError::Input(format!("{e} (frame {id}'s photograph)")))?;
-    let (cw, ch) = (s.cam.width as usize, s.cam.height as usize);
+    let (cw, ch) = (s.cam.sensor.width as usize, s.cam.sensor.height as usize);
     if (img.width(), img.height()) != (cw, ch) {
         return Err(PipelineError::Input(format!(
             "{}: {} × {} pixels, but the camera {} is {cw} × {ch} (frame {id}): give the camera file of the camera that took these images",

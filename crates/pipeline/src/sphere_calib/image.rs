@@ -100,7 +100,7 @@ pub fn image_sphere(f: Fit, cam: &Camera, r: f64) -> ImageSphere {
 
 /// The options of the image side for a sphere of radius `r` (mm) in `cam`'s images.
 pub fn options(cam: &Camera, r: f64) -> SilhouetteOptions {
-    SilhouetteOptions::new(r, cam.width as usize, cam.height as usize)
+    SilhouetteOptions::new(r, cam.sensor.width as usize, cam.sensor.height as usize)
 }
 
 /// Every silhouette of a sphere of radius `r` in `img` (see

@@ -82,10 +82,10 @@ fn frame_json(o: &Outcome, f: &Frame) -> serde_json::Value {
 fn camera_json(o: &Outcome) -> serde_json::Value {
     serde_json::json!({
         "file": o.camera_path,
-        "model": o.camera.model.name(),
-        "parameters": o.camera.model.parameter_names().iter().zip(&o.camera.params).map(|(n, p)| (n.to_string(), *p)).collect::<std::collections::BTreeMap<String, f64>>(),
-        "width": o.camera.width,
-        "height": o.camera.height,
+        "model": o.camera.sensor.model.name(),
+        "parameters": o.camera.sensor.model.parameter_names().iter().zip(&o.camera.params).map(|(n, p)| (n.to_string(), *p)).collect::<std::collections::BTreeMap<String, f64>>(),
+        "width": o.camera.sensor.width,
+        "height": o.camera.sensor.height,
     })
 }
 

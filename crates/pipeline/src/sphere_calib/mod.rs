@@ -298,6 +298,7 @@ pub fn sd(c: &Matrix3<f64>) -> [f64; 3] {
 mod tests {
     use super::*;
     use nalgebra::Vector3;
+    use pingcal_ba::camera::CameraModel;
 
     /// The camera of `pingcal simulate` (its distortion is strong: −15 % at the corner).
     fn camera() -> Camera {
@@ -315,7 +316,7 @@ mod tests {
             .map(|i| {
                 let phi = std::f64::consts::TAU * i as f64 / n as f64;
                 let q = u * alpha.cos() + (e1 * phi.cos() + e2 * phi.sin()) * alpha.sin();
-                let p = cam.model.project(&cam.params, &q, None, None).unwrap();
+                let p = cam.sensor.project(&cam.params, &q, None, None).unwrap();
                 (q, (p.x, p.y))
             })
             .unzip()

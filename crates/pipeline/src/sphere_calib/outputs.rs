@@ -104,7 +104,12 @@ pub fn camera_export(cam: &Camera) -> Option<(CameraJson, ExportLoss)> {
         params: i.clone(),
         sigma: BTreeMap::new(),
         high_correlations: Vec::new(),
-        opencv: opencv_of(i, cam.width, cam.height, cam.file.pixel_size_mm),
+        opencv: opencv_of(
+            i,
+            cam.sensor.width,
+            cam.sensor.height,
+            cam.file.pixel_size_mm,
+        ),
         pixel_size_mm: cam.file.pixel_size_mm,
     };
     let loss = export_loss(&c)?;
@@ -374,9 +379,9 @@ fn summary(o: &Outcome) -> Vec<(String, String)> {
             format!(
                 "{} ({} model, {} × {} px)",
                 o.camera_path,
-                o.camera.model.name(),
-                o.camera.width,
-                o.camera.height
+                o.camera.sensor.model.name(),
+                o.camera.sensor.width,
+                o.camera.sensor.height
             ),
         ),
         ("lidar noise".into(), format!("{:?}", o.noise)),
@@ -400,7 +405,7 @@ pub fn report(o: &Outcome, overlays: Vec<rp::Overlay>) -> rp::SphereCalibReport 
             &check_rows(&cf.leave_one_out.rows, "loo"),
         ));
     }
-    let names = o.camera.model.parameter_names();
+    let names = o.camera.sensor.model.parameter_names();
     let data = rp::ReportData {
         title: format!("pingcal sphere-calib — {}", o.name),
         generator: format!("pingcal {}", env!("CARGO_PKG_VERSION")),
@@ -408,7 +413,7 @@ pub fn report(o: &Outcome, overlays: Vec<rp::Overlay>) -> rp::SphereCalibReport 
         summary: summary(o),
         methods,
         intrinsics: vec![rp::Intrinsics {
-            camera: format!("{} ({})", o.camera_path, o.camera.model.name()),
+            camera: format!("{} ({})", o.camera_path, o.camera.sensor.model.name()),
             names: names.iter().map(|s| s.to_string()).collect(),
             units: vec![String::new(); names.len()],
             values: o.camera.params.clone(),
