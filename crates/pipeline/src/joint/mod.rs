@@ -83,7 +83,7 @@ mod rounds;
 pub use ball_beams::{AT_SILHOUETTE, GRAZING, NAME as BALL_BEAMS};
 pub use convergence::{Convergence, SAME_MINIMUM_Z, SECOND_START_Z};
 pub use groups::{GroupBuilder, GroupOutcome, ObservationGroup};
-pub use outcome::{JointOutcome, LrfView, MountEstimate};
+pub use outcome::{BallBeamCounts, JointOutcome, LrfView, MountEstimate};
 
 use super::bundle::Adjusted;
 use super::extrinsic::Extrinsics;

@@ -128,6 +128,19 @@ impl JointOutcome {
         self.groups.iter().find(|g| g.group == name)
     }
 
+    /// The beams on the control balls: used, removed as gross errors, left out as grazing and
+    /// at a silhouette, and their RMS (all 0 when the adjustment had no such group).
+    pub fn ball_beams(&self) -> BallBeamCounts {
+        let g = self.group(ball_beams::NAME);
+        BallBeamCounts {
+            used: g.map_or(0, |g| g.observations),
+            rejected: g.map_or(0, |g| g.rejected),
+            grazing: g.map_or(0, |g| g.left_out(ball_beams::GRAZING)),
+            silhouette: g.map_or(0, |g| g.left_out(ball_beams::AT_SILHOUETTE)),
+            rms_mm: g.map_or(0.0, |g| g.rms),
+        }
+    }
+
     /// Whether an estimated mount parameter is more than `z` σ from its value in `start`.
     pub fn moved_mount(&self, start: &MountModel, z: f64) -> bool {
         let start = start.to_params();
@@ -140,10 +153,8 @@ impl JointOutcome {
     /// Why the cloud this pass saw looks distorted by a mount error, if it does: many beams
     /// judged grazing, balls seen twice, spheres that match no ball.
     pub fn distorted_cloud(&self) -> Option<String> {
-        let beams = self.group(ball_beams::NAME);
-        let count = |f: fn(&GroupOutcome) -> usize| beams.map_or(0, f);
-        let grazing = count(|g| g.left_out(ball_beams::GRAZING));
-        let used = count(|g| g.observations) + grazing + count(|g| g.rejected);
+        let b = self.ball_beams();
+        let (grazing, used) = (b.grazing, b.used + b.grazing + b.rejected);
         let v = &self.lrf_view;
         let twice = v.seen_twice_rejected + v.seen_twice_kept;
         if grazing as f64 > 0.2 * used as f64 {
@@ -165,6 +176,21 @@ impl JointOutcome {
             None
         }
     }
+}
+
+/// The beams on the control balls of an outcome ([`JointOutcome::ball_beams`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BallBeamCounts {
+    /// Beams in the final adjustment.
+    pub used: usize,
+    /// Beams removed as gross errors.
+    pub rejected: usize,
+    /// Beams left out as grazing the ball.
+    pub grazing: usize,
+    /// Beams left out because their footprint reaches the ball's silhouette.
+    pub silhouette: usize,
+    /// RMS of their residuals at the final solution (mm).
+    pub rms_mm: f64,
 }
 
 /// The outcome of the solved joint problem `p` (see the module doc): σ0 with the a-priori
@@ -395,16 +421,15 @@ fn log_outcome(out: &JointOutcome, rep: &Reporter) {
             )
         })
         .collect();
-    let beams = out.group(ball_beams::NAME);
-    let count = |f: fn(&GroupOutcome) -> usize| beams.map_or(0, f);
+    let b = out.ball_beams();
     rep.log(format!(
         "joint: {} beams ({} rejected, {} grazing, {} at a silhouette){others}, sigma0 {:.3}, RMS beam {:.2} mm; mean check error {:.2} mm (sd {:.2}) on {} balls",
-        count(|g| g.observations),
-        count(|g| g.rejected),
-        count(|g| g.left_out(ball_beams::GRAZING)),
-        count(|g| g.left_out(ball_beams::AT_SILHOUETTE)),
+        b.used,
+        b.rejected,
+        b.grazing,
+        b.silhouette,
         out.sigma0,
-        beams.map_or(0.0, |g| g.rms),
+        b.rms_mm,
         out.check.mean_mm,
         out.check.sd_mm,
         out.check.rows.len()

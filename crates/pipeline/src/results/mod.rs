@@ -333,16 +333,15 @@ fn joint_json(j: &JointOutcome, ext: &Extrinsics) -> MethodJson {
 
 /// The joint adjustment's first note: its beams on the balls, the balls, its redundancy.
 fn joint_note(j: &JointOutcome) -> String {
-    let beams = j.group(super::joint::BALL_BEAMS);
-    let count = |f: fn(&super::joint::GroupOutcome) -> usize| beams.map_or(0, f);
+    let b = j.ball_beams();
     format!(
         "{} LRF beams on {} control balls ({} removed as gross errors, {} grazing and {} at a ball's silhouette left out); RMS beam residual {:.2} mm; redundancy {}",
-        count(|g| g.observations),
+        b.used,
         j.control.rows.len(),
-        count(|g| g.rejected),
-        count(|g| g.left_out(super::joint::GRAZING)),
-        count(|g| g.left_out(super::joint::AT_SILHOUETTE)),
-        beams.map_or(0.0, |g| g.rms),
+        b.rejected,
+        b.grazing,
+        b.silhouette,
+        b.rms_mm,
         j.redundancy
     )
 }
