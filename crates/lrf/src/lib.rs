@@ -33,6 +33,7 @@
 //! - [`corner`]: the Fan et al. 2019 baseline (scan lines on a room corner, P3P with
 //!   orthogonal edges, corner frame from target planes, DLT + resection, composition).
 //! - [`corner_baseline`]: the whole Fan et al. 2019 baseline from pipeline data in one call.
+//! - [`fixed`]: a fixed 2D LRF's beams on planes and balls as bundle-adjustment residuals.
 //! - [`simulate`]: test and benchmark support: scans of a scene of planes and balls,
 //!   through [`sensor`] (no production module uses it).
 //! - [`error`]: the error type; every failure names the file and line, or the points.
@@ -46,6 +47,7 @@ pub mod corner;
 pub mod corner_baseline;
 pub mod correspondence;
 pub mod error;
+pub mod fixed;
 pub mod lzf;
 pub mod pcd;
 pub mod ply;

@@ -1,0 +1,453 @@
+//! A fixed 2D LRF: a scanner bolted to the camera head, its scans taken at stations of the
+//! head whose images orient it in the field, and its beams as observations of a bundle
+//! adjustment.
+//!
+//! **Geometry.** A beam of angle α and range r lies in the scan plane, the LRF frame's XY
+//! plane (the rotating LRF's at β = 0: `x = r cos α, y = r sin α, z = 0`). At a station whose
+//! main image has the pose `P = camera_from_object` (the bundle's image pose, object = the
+//! photogrammetric frame), the LRF with the extrinsic `E = camera_from_lrf` casts the ray
+//!
+//! ```text
+//! o = R_Pᵀ (t_E − t_P),   u = R_Pᵀ R_E (cos α, sin α, 0)
+//! ```
+//!
+//! in the object frame. The range the model predicts, `r̂`, is where the ray meets the
+//! surface the beam is on: a plane `n·x = d` (`r̂ = (d − n·o) / (n·u)`) or a ball's sphere of
+//! radius R about `c` (the near root of `|o + r̂u − c| = R`). The range model is
+//! `r = (1 + s)·r̂ + k` (range offset k, scale s, the rotating LRF's last two mount
+//! parameters), so the residual is `e = r − (1 + s)·r̂ − k`, whitened by the sensor's σ(r).
+//!
+//! **Blocks.** The station's image pose ([`pingcal_ba::Block::Pose`] of its main image), the
+//! extrinsic (a pose parameter block), the range model (a vector block `[k, s]`) and the
+//! surface: a plane (a vector block of 3 about a [`PlaneFrame`]: the local turn `(a, b)` of
+//! its normal and its offset `d`, as the rotating LRF's room planes without their bend) or a
+//! ball's centre ([`pingcal_ba::Block::Point`]). Both poses take the solver's left update
+//! (`R ← exp([δω]×)R, t ← t + δt`); the Jacobians are analytic and checked by central
+//! differences in the tests.
+
+use crate::beam::GRAZING_KAPPA;
+use crate::room::PlaneFrame;
+use nalgebra::{Matrix3, Vector3};
+use pingcal_ba::{Block, Jacobians, ParameterKey, PointKey, Residual, Value};
+use pingcal_geometry::{skew, Rigid3};
+
+type V3 = Vector3<f64>;
+
+/// The variance-component group of the beams on the field's planes.
+pub const FIXED_PLANE_GROUP: &str = "LRF beams on planes";
+/// The variance-component group of the beams on the balls.
+pub const FIXED_BALL_GROUP: &str = "LRF beams on balls";
+
+/// Unknowns of a plane of a fixed LRF's adjustment: the turn of its normal `(a, b)` and its
+/// offset `d` (mm) about its [`PlaneFrame`].
+pub const FIXED_PLANE_UNKNOWNS: usize = 3;
+
+/// A beam of a fixed LRF: its station (the index of the station's image pose in the
+/// adjustment's problem is the caller's), angle and range.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FixedBeam {
+    /// Beam angle α (radians).
+    pub alpha_rad: f64,
+    /// Measured range (mm).
+    pub range_mm: f64,
+    /// Its σ (mm).
+    pub sigma: f64,
+}
+
+impl FixedBeam {
+    /// The beam's point in the LRF frame at range `r`.
+    pub fn point_at(&self, r: f64) -> V3 {
+        V3::new(r * self.alpha_rad.cos(), r * self.alpha_rad.sin(), 0.0)
+    }
+
+    /// The beam's unit direction in the LRF frame.
+    pub fn direction(&self) -> V3 {
+        self.point_at(1.0)
+    }
+
+    /// The measured point in the object frame at the station pose `camera_from_object` and
+    /// the extrinsic, with the range model `[k, s]` taken out of the range.
+    pub fn object_point(&self, camera_from_object: &Rigid3, e: &Rigid3, range: [f64; 2]) -> V3 {
+        let r = (self.range_mm - range[0]) / (1.0 + range[1]);
+        camera_from_object
+            .inverse()
+            .transform(&e.transform(&self.point_at(r)))
+    }
+}
+
+/// The ray of a beam in the object frame and its derivatives with respect to the station
+/// pose's and the extrinsic's left updates (δω, δt): `(o, u, ∂o/∂P, ∂u/∂P, ∂o/∂E, ∂u/∂E)`,
+/// each derivative a 3 × 6 matrix.
+struct Ray {
+    o: V3,
+    u: V3,
+    do_dp: nalgebra::Matrix3x6<f64>,
+    du_dp: nalgebra::Matrix3x6<f64>,
+    do_de: nalgebra::Matrix3x6<f64>,
+    du_de: nalgebra::Matrix3x6<f64>,
+}
+
+fn ray(beam: &FixedBeam, p: &Rigid3, e: &Rigid3) -> Ray {
+    let rpt: Matrix3<f64> = p.rotation.transpose();
+    let oc = e.translation - p.translation;
+    let uc = e.rotation * beam.direction();
+    let mut r = Ray {
+        o: rpt * oc,
+        u: rpt * uc,
+        do_dp: Default::default(),
+        du_dp: Default::default(),
+        do_de: Default::default(),
+        du_de: Default::default(),
+    };
+    // under P ← (exp(δω)R_P, t_P + δt): v_obj = R_Pᵀ exp(−δω) v  ⇒  ∂/∂δω = R_Pᵀ [v]×
+    r.do_dp
+        .fixed_view_mut::<3, 3>(0, 0)
+        .copy_from(&(rpt * skew(&oc)));
+    r.do_dp.fixed_view_mut::<3, 3>(0, 3).copy_from(&(-rpt));
+    r.du_dp
+        .fixed_view_mut::<3, 3>(0, 0)
+        .copy_from(&(rpt * skew(&uc)));
+    // under E ← (exp(δω)R_E, t_E + δt): u_c = exp(δω) R_E u_l ⇒ ∂u_c/∂δω = −[u_c]×
+    r.do_de.fixed_view_mut::<3, 3>(0, 3).copy_from(&rpt);
+    r.du_de
+        .fixed_view_mut::<3, 3>(0, 0)
+        .copy_from(&(-rpt * skew(&uc)));
+    r
+}
+
+/// A surface the beam meets: the predicted range and its derivatives with respect to the
+/// ray's origin, its direction and the surface's own unknowns.
+struct Hit {
+    r: f64,
+    dr_do: V3,
+    dr_du: V3,
+    dr_surface: Vec<f64>,
+}
+
+/// The range along the ray `(o, u)` to the plane of local unknowns `plane` about `frame`.
+fn plane_hit(frame: &PlaneFrame, plane: &[f64], o: &V3, u: &V3) -> Option<Hit> {
+    let (n, dn_a, dn_b) = frame.normal_at(plane[0], plane[1]);
+    let s = n.dot(u);
+    if s.abs() < 1e-9 {
+        return None;
+    }
+    let r = (plane[2] - n.dot(o)) / s;
+    // r = (d − n·o)/s:  ∂r = (∂d − ∂n·o − n·∂o)/s − r (∂n·u + n·∂u)/s
+    let dn = |dn: &V3| (-dn.dot(o) - r * dn.dot(u)) / s;
+    Some(Hit {
+        r,
+        dr_do: -n / s,
+        dr_du: -n * (r / s),
+        dr_surface: vec![dn(&dn_a), dn(&dn_b), 1.0 / s],
+    })
+}
+
+/// The range along the ray `(o, u)` to the near side of the sphere of `radius` about `c`;
+/// None when the ray misses it or grazes it (the root's discriminant under
+/// [`GRAZING_KAPPA`] of the radius).
+fn sphere_hit(c: &V3, radius: f64, o: &V3, u: &V3) -> Option<Hit> {
+    let w = o - c;
+    let b = u.dot(&w);
+    let q = b * b - w.norm_squared() + radius * radius;
+    if q <= 0.0 {
+        return None;
+    }
+    let sq = q.sqrt();
+    if sq < GRAZING_KAPPA * radius {
+        return None;
+    }
+    let r = -b - sq;
+    // ∂r = −∂b − (b ∂b − w·∂w)/sq,  ∂b = ∂u·w + u·∂w,  ∂w = ∂o − ∂c
+    let k = 1.0 + b / sq;
+    let dr_dw = -u * k + w / sq;
+    let dr_du = -w * k;
+    Some(Hit {
+        r,
+        dr_do: dr_dw,
+        dr_du,
+        dr_surface: (-dr_dw).iter().copied().collect(),
+    })
+}
+
+/// What a fixed beam's residual is on: a plane or a ball.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Surface {
+    /// A plane: its parameter block (of [`FIXED_PLANE_UNKNOWNS`]) about its frame.
+    Plane(ParameterKey, PlaneFrame),
+    /// A ball: its centre's point and its radius (mm).
+    Ball(PointKey, f64),
+}
+
+/// A fixed LRF's beam on a plane or a ball as an observation of a bundle adjustment
+/// ([`pingcal_ba::Residual`]; see the module doc): blocks (station pose, extrinsic, range
+/// model, surface).
+#[derive(Clone, Copy, Debug)]
+pub struct FixedBeamOn {
+    /// The beam.
+    pub beam: FixedBeam,
+    /// The image whose pose is the station's.
+    pub station: pingcal_ba::ImageKey,
+    /// The extrinsic `camera_from_lrf` (a pose block).
+    pub extrinsic: ParameterKey,
+    /// The range model `[k, s]` (a vector block of 2).
+    pub range: ParameterKey,
+    /// What the beam is on.
+    pub surface: Surface,
+}
+
+/// The residual `e = r − (1 + s)·r̂ − k` and its derivatives (station pose, extrinsic, range
+/// model, surface).
+type Evaluated = (f64, [f64; 6], [f64; 6], [f64; 2], Vec<f64>);
+
+impl FixedBeamOn {
+    /// `e` (mm, not whitened) and its derivatives at these values; None where the beam
+    /// misses or grazes its surface.
+    fn at(&self, p: &Rigid3, e: &Rigid3, range: &[f64], surface: &Value) -> Option<Evaluated> {
+        let ray = ray(&self.beam, p, e);
+        let hit = match (&self.surface, surface) {
+            (Surface::Plane(_, frame), Value::Vector(v)) if v.len() == FIXED_PLANE_UNKNOWNS => {
+                plane_hit(frame, v, &ray.o, &ray.u)?
+            }
+            (Surface::Ball(_, radius), Value::Point(c)) => sphere_hit(c, *radius, &ray.o, &ray.u)?,
+            _ => return None,
+        };
+        let (k, s) = (*range.first()?, *range.get(1)?);
+        let gain = 1.0 + s;
+        let res = self.beam.range_mm - gain * hit.r - k;
+        if !res.is_finite() {
+            return None;
+        }
+        let row = |dodx: &nalgebra::Matrix3x6<f64>, dudx: &nalgebra::Matrix3x6<f64>| {
+            let v = dodx.transpose() * hit.dr_do + dudx.transpose() * hit.dr_du;
+            std::array::from_fn(|j| -gain * v[j])
+        };
+        let d_pose = row(&ray.do_dp, &ray.du_dp);
+        let d_ext = row(&ray.do_de, &ray.du_de);
+        let d_surface = hit.dr_surface.iter().map(|v| -gain * v).collect();
+        Some((res, d_pose, d_ext, [-1.0, -hit.r], d_surface))
+    }
+
+    /// `e = r − (1 + s)·r̂ − k` (mm, not whitened) at the station pose, the extrinsic, the
+    /// range model and the surface's value; None where undefined.
+    pub fn error(&self, p: &Rigid3, e: &Rigid3, range: &[f64], surface: &Value) -> Option<f64> {
+        self.at(p, e, range, surface).map(|a| a.0)
+    }
+}
+
+impl Residual for FixedBeamOn {
+    fn dim(&self) -> usize {
+        1
+    }
+
+    fn blocks(&self) -> Vec<Block> {
+        vec![
+            Block::Pose(self.station),
+            Block::Parameter(self.extrinsic),
+            Block::Parameter(self.range),
+            match self.surface {
+                Surface::Plane(k, _) => Block::Parameter(k),
+                Surface::Ball(k, _) => Block::Point(k),
+            },
+        ]
+    }
+
+    fn evaluate(&self, values: &[Value], residual: &mut [f64], jacobians: Jacobians<'_>) -> bool {
+        let (Some(p), Some(e), Some(range)) =
+            (values[0].pose(), values[1].pose(), values[2].vector())
+        else {
+            return false;
+        };
+        let Some((res, dp, de, dr, ds)) = self.at(p, e, range, &values[3]) else {
+            return false;
+        };
+        let sigma = self.beam.sigma;
+        residual[0] = res / sigma;
+        if let Some(j) = jacobians {
+            for k in 0..6 {
+                j[0][(0, k)] = dp[k] / sigma;
+                j[1][(0, k)] = de[k] / sigma;
+            }
+            for (k, v) in dr.iter().enumerate() {
+                j[2][(0, k)] = v / sigma;
+            }
+            for (k, v) in ds.iter().enumerate() {
+                j[3][(0, k)] = v / sigma;
+            }
+        }
+        true
+    }
+
+    fn group(&self) -> &str {
+        match self.surface {
+            Surface::Plane(..) => FIXED_PLANE_GROUP,
+            Surface::Ball(..) => FIXED_BALL_GROUP,
+        }
+    }
+}
+
+/// A point lying on a plane of a fixed LRF's adjustment (a target on the wall that defines
+/// it): `e = n·X − d`, whitened by σ (the wall's flatness and the target's thickness); blocks
+/// (point, plane).
+#[derive(Clone, Copy, Debug)]
+pub struct PointOnPlane {
+    /// The point.
+    pub point: PointKey,
+    /// The plane's block and frame.
+    pub plane: ParameterKey,
+    /// The plane's frame.
+    pub frame: PlaneFrame,
+    /// σ (mm).
+    pub sigma: f64,
+    /// Its variance-component group.
+    pub group: &'static str,
+}
+
+impl PointOnPlane {
+    /// `n·X − d` (mm) at these values.
+    pub fn error(&self, x: &V3, plane: &[f64]) -> f64 {
+        let (n, _, _) = self.frame.normal_at(plane[0], plane[1]);
+        n.dot(x) - plane[2]
+    }
+}
+
+impl Residual for PointOnPlane {
+    fn dim(&self) -> usize {
+        1
+    }
+
+    fn blocks(&self) -> Vec<Block> {
+        vec![Block::Point(self.point), Block::Parameter(self.plane)]
+    }
+
+    fn evaluate(&self, values: &[Value], residual: &mut [f64], jacobians: Jacobians<'_>) -> bool {
+        let (Some(x), Some(pl)) = (values[0].point(), values[1].vector()) else {
+            return false;
+        };
+        if pl.len() != FIXED_PLANE_UNKNOWNS {
+            return false;
+        }
+        let (n, dn_a, dn_b) = self.frame.normal_at(pl[0], pl[1]);
+        residual[0] = (n.dot(x) - pl[2]) / self.sigma;
+        if let Some(j) = jacobians {
+            for k in 0..3 {
+                j[0][(0, k)] = n[k] / self.sigma;
+            }
+            j[1][(0, 0)] = dn_a.dot(x) / self.sigma;
+            j[1][(0, 1)] = dn_b.dot(x) / self.sigma;
+            j[1][(0, 2)] = -1.0 / self.sigma;
+        }
+        true
+    }
+
+    fn group(&self) -> &str {
+        self.group
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use pingcal_ba::residual::check_residual_jacobians;
+    use pingcal_geometry::from_opk;
+
+    fn pose(opk: [f64; 3], t: [f64; 3]) -> Rigid3 {
+        let r = |d: f64| d.to_radians();
+        Rigid3::new(from_opk(r(opk[0]), r(opk[1]), r(opk[2])), V3::from(t))
+    }
+
+    /// A station looking at a wall, an extrinsic with a few degrees and centimetres.
+    fn setup() -> (Rigid3, Rigid3, FixedBeam) {
+        let p = pose([12.0, -7.0, 31.0], [150.0, -80.0, 900.0]);
+        let e = pose([-14.0, 1.5, 3.0], [60.0, 25.0, -70.0]);
+        let beam = FixedBeam {
+            alpha_rad: 0.3,
+            range_mm: 0.0,
+            sigma: 10.0,
+        };
+        (p, e, beam)
+    }
+
+    #[test]
+    fn the_beam_on_a_plane_has_the_jacobians_central_differences_give() {
+        let (p, e, mut beam) = setup();
+        let ray = ray(&beam, &p, &e);
+        // a plane the ray meets at 1.8 m, not square to it
+        let hit = ray.o + ray.u * 1800.0;
+        let n = (-ray.u + V3::new(0.2, -0.1, 0.3)).normalize();
+        let frame = PlaneFrame::new(n, hit, 500.0);
+        let plane = [0.01, -0.02, n.dot(&hit) + 5.0];
+        beam.range_mm = 1830.0;
+        let res = FixedBeamOn {
+            beam,
+            station: pingcal_ba::ImageKey(0),
+            extrinsic: ParameterKey(0),
+            range: ParameterKey(1),
+            surface: Surface::Plane(ParameterKey(2), frame),
+        };
+        let range = [12.0, 0.004];
+        let values = [
+            Value::Pose(&p),
+            Value::Pose(&e),
+            Value::Vector(&range),
+            Value::Vector(&plane),
+        ];
+        let worst = check_residual_jacobians(&res, &values, 1e-6).expect("defined");
+        assert!(worst < 1e-6, "worst relative Jacobian error {worst}");
+    }
+
+    #[test]
+    fn the_beam_on_a_ball_has_the_jacobians_central_differences_give() {
+        let (p, e, mut beam) = setup();
+        let ray = ray(&beam, &p, &e);
+        // a ball of radius 19 mm whose centre is 8 mm off the ray, 1.2 m along it
+        let side = ray.u.cross(&V3::z()).normalize();
+        let c = ray.o + ray.u * 1200.0 + side * 8.0;
+        beam.range_mm = 1185.0;
+        let res = FixedBeamOn {
+            beam,
+            station: pingcal_ba::ImageKey(0),
+            extrinsic: ParameterKey(0),
+            range: ParameterKey(1),
+            surface: Surface::Ball(PointKey(0), 19.0),
+        };
+        let range = [-6.0, 0.01];
+        let values = [
+            Value::Pose(&p),
+            Value::Pose(&e),
+            Value::Vector(&range),
+            Value::Point(&c),
+        ];
+        let worst = check_residual_jacobians(&res, &values, 1e-6).expect("defined");
+        assert!(worst < 1e-6, "worst relative Jacobian error {worst}");
+        // the predicted range is the near side's: 1200 − √(19² − 8²)
+        let (e0, ..) = res.at(&p, &e, &range, &values[3]).expect("hits");
+        let r_hat = 1200.0 - (19.0f64.powi(2) - 64.0).sqrt();
+        assert!((e0 - (1185.0 - 1.01 * r_hat + 6.0)).abs() < 1e-6, "{e0}");
+    }
+
+    #[test]
+    fn a_point_on_a_plane_has_the_jacobians_central_differences_give() {
+        let frame = PlaneFrame::new(V3::new(0.1, 0.9, 0.2), V3::new(0.0, 2000.0, 300.0), 800.0);
+        let res = PointOnPlane {
+            point: PointKey(0),
+            plane: ParameterKey(0),
+            frame,
+            sigma: 2.0,
+            group: "targets on planes",
+        };
+        let x = V3::new(300.0, 2010.0, 500.0);
+        let plane = [0.02, 0.01, 2100.0];
+        let values = [Value::Point(&x), Value::Vector(&plane)];
+        let worst = check_residual_jacobians(&res, &values, 1e-6).expect("defined");
+        assert!(worst < 1e-6, "worst relative Jacobian error {worst}");
+    }
+
+    #[test]
+    fn the_measured_point_lies_where_the_model_predicts_it() {
+        let (p, e, mut beam) = setup();
+        let ray = ray(&beam, &p, &e);
+        beam.range_mm = 1500.0 * 1.004 + 12.0;
+        let x = beam.object_point(&p, &e, [12.0, 0.004]);
+        assert!((x - (ray.o + ray.u * 1500.0)).norm() < 1e-9);
+    }
+}
