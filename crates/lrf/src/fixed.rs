@@ -142,20 +142,23 @@ fn plane_hit(frame: &PlaneFrame, plane: &[f64], o: &V3, u: &V3) -> Option<Hit> {
     })
 }
 
-/// The range along the ray `(o, u)` to the near side of the sphere of `radius` about `c`;
-/// None when the ray misses it or grazes it (the root's discriminant under
-/// [`GRAZING_KAPPA`] of the radius).
+/// The range along the ray `(o, u)` to the near side of the sphere of `radius` about `c`
+/// (a ray that misses it: to its closest approach).
 fn sphere_hit(c: &V3, radius: f64, o: &V3, u: &V3) -> Option<Hit> {
     let w = o - c;
     let b = u.dot(&w);
     let q = b * b - w.norm_squared() + radius * radius;
     if q <= 0.0 {
-        return None;
+        // a ray that misses: the range of its closest approach (continuous with the
+        // tangent ray's), so that an adjustment's step past the rim stays defined
+        return Some(Hit {
+            r: -b,
+            dr_do: -u,
+            dr_du: -w,
+            dr_surface: u.iter().copied().collect(),
+        });
     }
     let sq = q.sqrt();
-    if sq < GRAZING_KAPPA * radius {
-        return None;
-    }
     let r = -b - sq;
     // ∂r = −∂b − (b ∂b − w·∂w)/sq,  ∂b = ∂u·w + u·∂w,  ∂w = ∂o − ∂c
     let k = 1.0 + b / sq;
@@ -225,6 +228,22 @@ impl FixedBeamOn {
         let d_ext = row(&ray.do_de, &ray.du_de);
         let d_surface = hit.dr_surface.iter().map(|v| -gain * v).collect();
         Some((res, d_pose, d_ext, [-1.0, -hit.r], d_surface))
+    }
+
+    /// Whether the beam grazes its ball at these values (the root's half-chord under
+    /// [`GRAZING_KAPPA`] of the radius: its range is a footprint effect more than a
+    /// distance), or misses it, the ball's centre at `c`; false on a plane.
+    pub fn grazes(&self, p: &Rigid3, e: &Rigid3, c: &V3) -> bool {
+        match &self.surface {
+            Surface::Ball(_, radius) => {
+                let ray = ray(&self.beam, p, e);
+                let w = ray.o - c;
+                let b = ray.u.dot(&w);
+                let q = b * b - w.norm_squared() + radius * radius;
+                q <= 0.0 || q.sqrt() < GRAZING_KAPPA * radius
+            }
+            _ => false,
+        }
     }
 
     /// `e = r − (1 + s)·r̂ − k` (mm, not whitened) at the station pose, the extrinsic, the
@@ -344,6 +363,63 @@ impl Residual for PointOnPlane {
     }
 }
 
+/// A weighted prior on some components of a pose parameter block (the extrinsic), in its
+/// local update's coordinates: `r = (log(R R₀ᵀ), t − t₀)` component-wise over σ. A weak one
+/// makes the normal equations regular while what the data determine is tested; components
+/// not listed are free of it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PoseBlockPrior {
+    /// The pose parameter block.
+    pub parameter: ParameterKey,
+    /// Where the prior is centred.
+    pub value: Rigid3,
+    /// The components it constrains (0–2 δω, 3–5 δt).
+    pub components: Vec<usize>,
+    /// Their σ's (rad, mm).
+    pub sigma: Vec<f64>,
+}
+
+impl Residual for PoseBlockPrior {
+    fn dim(&self) -> usize {
+        self.components.len()
+    }
+
+    fn blocks(&self) -> Vec<Block> {
+        vec![Block::Parameter(self.parameter)]
+    }
+
+    fn evaluate(&self, values: &[Value], residual: &mut [f64], jacobians: Jacobians<'_>) -> bool {
+        let Some(x) = values[0].pose() else {
+            return false;
+        };
+        if self.sigma.len() != self.components.len() || self.components.iter().any(|&c| c > 5) {
+            return false;
+        }
+        let phi = pingcal_geometry::log_so3(&(x.rotation * self.value.rotation.transpose()));
+        let dt = x.translation - self.value.translation;
+        let jl = pingcal_ba::residual::left_jacobian_inverse(&phi);
+        for (i, (&c, &s)) in self.components.iter().zip(&self.sigma).enumerate() {
+            residual[i] = if c < 3 { phi[c] } else { dt[c - 3] } / s;
+        }
+        if let Some(j) = jacobians {
+            for (i, (&c, &s)) in self.components.iter().zip(&self.sigma).enumerate() {
+                if c < 3 {
+                    for k in 0..3 {
+                        j[0][(i, k)] = jl[(c, k)] / s;
+                    }
+                } else {
+                    j[0][(i, c)] = 1.0 / s;
+                }
+            }
+        }
+        true
+    }
+
+    fn group(&self) -> &str {
+        "parameter priors"
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -439,6 +515,19 @@ mod tests {
         let plane = [0.02, 0.01, 2100.0];
         let values = [Value::Point(&x), Value::Vector(&plane)];
         let worst = check_residual_jacobians(&res, &values, 1e-6).expect("defined");
+        assert!(worst < 1e-6, "worst relative Jacobian error {worst}");
+    }
+
+    #[test]
+    fn the_pose_prior_has_the_jacobians_central_differences_give() {
+        let (_, e, _) = setup();
+        let prior = PoseBlockPrior {
+            parameter: ParameterKey(0),
+            value: pose([-10.0, 2.0, 1.0], [50.0, 20.0, -60.0]),
+            components: vec![0, 2, 4, 5],
+            sigma: vec![0.2, 0.1, 100.0, 50.0],
+        };
+        let worst = check_residual_jacobians(&prior, &[Value::Pose(&e)], 1e-6).expect("defined");
         assert!(worst < 1e-6, "worst relative Jacobian error {worst}");
     }
 

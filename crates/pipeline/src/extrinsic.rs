@@ -151,7 +151,7 @@ fn match_spheres(
             "{}: only {n} balls were found by both sensors (LRF: {} spheres in {}; photographs: {} balls); at least 3 are needed for the extrinsic",
             project.path.display(),
             lrf_centres.len(),
-            f.lrf.scans.join(", "),
+            (f.lrf.scans.iter().map(|s| s.file()).collect::<Vec<_>>()).join(", "),
             cam_centres.len()
         ))
     };

@@ -39,6 +39,7 @@ pub mod detect;
 pub mod exports;
 pub mod extrinsic;
 pub mod final_lrf;
+pub mod fixed_lrf;
 pub mod ids;
 pub mod joint;
 pub mod joint_starts;
@@ -130,6 +131,28 @@ pub fn calibrate_with_groups(
         Some(d) => e.map_message(|m| format!("{m}; but first: {d}")),
         None => e,
     };
+    if project.file.lrf.kind() == pingcal_project::LrfKind::Fixed {
+        let t = std::time::Instant::now();
+        let (lrf, ext, joint) =
+            fixed_lrf::calibrate_fixed(project, (&dets, &scene, &adjusted), opts, rep)
+                .map_err(blame_lens)?;
+        if let Some(Err(e)) = &joint {
+            rep.log(format!("joint adjustment failed: {e}"));
+        }
+        timing.push(("fixed LRF".into(), t.elapsed().as_secs_f64()));
+        let stages = Stages {
+            project,
+            dets: &dets,
+            scene: &scene,
+            adjusted: &adjusted,
+            lrf: &lrf,
+            ext: &ext,
+            joint: &joint,
+            lrf_out: &lrf,
+            pairs_out: &ext.pairs,
+        };
+        return Ok(outputs(&stages, timing, rep));
+    }
     let t = std::time::Instant::now();
     let lrf = lrf::lrf_spheres(project, opts, rep).map_err(blame_lens)?;
     timing.push(("LRF spheres".into(), t.elapsed().as_secs_f64()));

@@ -143,7 +143,7 @@ pub fn lrf_spheres(project: &Project, opts: &Options, rep: &Reporter) -> Result<
 
 /// The header and lines of the scan file `path`, its ranges beyond `max_range_mm` (and
 /// beyond any range finder) masked, with warnings.
-fn scan_file(
+pub(crate) fn scan_file(
     path: &std::path::Path,
     max_range_mm: f64,
     rep: &Reporter,

@@ -221,6 +221,10 @@ pub(crate) fn check_points_bound(n: f64) -> f64 {
 /// the one given, their failures are notes (see the module doc).
 const TWO_STEP: &str = "two-step";
 
+/// The start of a fixed LRF's note that an extrinsic component was held (the data do not
+/// determine it).
+pub const HELD_EXTRINSIC: &str = "held: the extrinsic's";
+
 /// Judges the calibration of `st`.
 pub fn judge(st: &Stages) -> Verdict {
     let (mut checks, mut reasons, mut notes) = (Vec::new(), Vec::new(), Vec::new());
@@ -274,10 +278,18 @@ pub fn judge(st: &Stages) -> Verdict {
         Some(Ok(j)) => {
             reasons.extend(j.convergence.doubt());
             notes.extend(j.hold_mount.clone());
+            // a fixed LRF's extrinsic component that the data do not determine is held at
+            // its start: the extrinsic is then not a calibration in that component
+            reasons.extend(
+                (j.notes.iter())
+                    .filter(|n| n.starts_with(HELD_EXTRINSIC))
+                    .cloned(),
+            );
         }
         None => {}
     }
-    let status = if st.ext.spheres.is_none() {
+    let fixed = st.project.file.lrf.kind() == pingcal_project::LrfKind::Fixed;
+    let status = if st.ext.spheres.is_none() && !(fixed && joint_given) {
         reasons.insert(
             0,
             "the sphere method gave no extrinsic (only the corner baseline did)".into(),

@@ -1,6 +1,6 @@
 //! # The closed sets of the project file
 //!
-//! Five entries of `project.toml` take one word of a fixed list: `method`, `[targets]
+//! Six entries of `project.toml` take one word of a fixed list: `method`, `[lrf] kind`, `[targets]
 //! family`, a camera's `model`, the words of its `free` list and those of `[lrf]
 //! self_calibrate`. Each is an enum here, so a
 //! misspelling is refused while the file is read, with the line, the value and the words
@@ -73,6 +73,16 @@ macro_rules! closed_set {
             }
         }
     };
+}
+
+closed_set! {
+    /// The kind of LRF (`[lrf] kind`).
+    pub enum LrfKind {
+        /// A 2D scanner turned by a servo: a sweep of the room from the main station.
+        Rotating = "rotating",
+        /// A 2D scanner bolted to the head: one scan plane, at the stations of the head.
+        Fixed = "fixed",
+    }
 }
 
 closed_set! {

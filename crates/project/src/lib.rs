@@ -33,13 +33,13 @@ mod validate;
 pub mod yaml;
 
 pub use camera_file::{CameraFile, CameraFormat};
-pub use closed_sets::{CameraModel, Method, MountParameter, Parameter, TargetFamily};
+pub use closed_sets::{CameraModel, LrfKind, Method, MountParameter, Parameter, TargetFamily};
 pub use intrinsics::{Intrinsics, KeyedValues};
 pub use layout::{Layout, LayoutError};
 pub use schema::{
     BallLabel, CameraParams, ProjectBag, ProjectBalls, ProjectCamera, ProjectDistance, ProjectFile,
     ProjectFrames, ProjectImage, ProjectLrf, ProjectNetwork, ProjectStereo, ProjectTargets,
-    PARAMETER_NAMES,
+    ScanAtStation, ScanEntry, PARAMETER_NAMES,
 };
 pub use settings::{BagServo, LrfSettings};
 pub use sphere_calib::{SphereCalibFile, SphereCalibFrame, SphereCalibLidar};
@@ -179,7 +179,7 @@ impl Project {
             .scans
             .iter()
             .enumerate()
-            .map(|(k, s)| resolve(s, format!("[lrf] scans[{k}] \"{s}\"")))
+            .map(|(k, s)| resolve(s.file(), format!("[lrf] scans[{k}] \"{s}\"")))
             .collect::<Result<Vec<_>, _>>()?;
         let images: Vec<String> = (file.images.iter().enumerate())
             .map(|(k, im)| format!("images[{k}] file \"{}\"", im.file))

@@ -7,7 +7,7 @@
 //! strings, checked after reading by [`ProjectFile::validate`]. Defaults are serde's
 //! `default` attributes below and nothing else.
 
-use crate::closed_sets::{CameraModel, Method, MountParameter, Parameter, TargetFamily};
+use crate::closed_sets::{CameraModel, LrfKind, Method, MountParameter, Parameter, TargetFamily};
 use crate::intrinsics::{Intrinsics, KeyedValues};
 use pingcal_lrf::cloud_file::CloudUnit;
 use pingcal_lrf::sensor::NoiseProfile;
@@ -368,12 +368,18 @@ pub struct ProjectDistance {
 pub struct ProjectLrf {
     /// Sensor model, for reports.
     pub model: String,
-    /// Station where it scanned (the main station).
+    /// The kind of LRF: `"rotating"` (a 2D scanner turned by a servo; the default) or
+    /// `"fixed"` (a 2D scanner bolted to the head, its scans taken at stations of the head).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub kind: Option<LrfKind>,
+    /// Station where it scanned (a rotating LRF: the main station; a fixed LRF: the station
+    /// of every scan file listed without its own).
     pub station: String,
     /// Scan files (`pingcal-scan` CSV, or PLY / PCD / XYZ clouds), relative to project.toml
-    /// (may be empty when `[lrf.bag]` names bags).
+    /// (may be empty when `[lrf.bag]` names bags): each a path, or `{ file, station }` for
+    /// a fixed LRF's scans at the stations of the head.
     #[serde(default)]
-    pub scans: Vec<String>,
+    pub scans: Vec<ScanEntry>,
     /// ROS bags to read the scans from, besides `scans` (`[lrf.bag]`).
     #[serde(default)]
     pub bag: Option<ProjectBag>,
@@ -423,6 +429,67 @@ pub struct ProjectLrf {
     /// mount before the balls and as constraints of the joint adjustment (absent: true).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub room_planes: Option<bool>,
+}
+
+/// One entry of `[lrf] scans`: a path (taken at `[lrf] station`), or a path and the station
+/// where the head stood (a fixed LRF).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum ScanEntry {
+    /// A path, relative to project.toml.
+    File(String),
+    /// A path and its station.
+    AtStation(ScanAtStation),
+}
+
+/// `{ file, station }` of `[lrf] scans`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ScanAtStation {
+    /// The path, relative to project.toml.
+    pub file: String,
+    /// The station where the head stood (a station of `[[images]]`).
+    pub station: String,
+}
+
+impl ScanEntry {
+    /// Its path, relative to project.toml.
+    pub fn file(&self) -> &str {
+        match self {
+            ScanEntry::File(f) => f,
+            ScanEntry::AtStation(s) => &s.file,
+        }
+    }
+
+    /// Its station, or `default` (`[lrf] station`) when the entry gives none.
+    pub fn station<'a>(&'a self, default: &'a str) -> &'a str {
+        match self {
+            ScanEntry::File(_) => default,
+            ScanEntry::AtStation(s) => &s.station,
+        }
+    }
+}
+
+impl std::fmt::Display for ScanEntry {
+    /// The path, as messages name the entry.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.file())
+    }
+}
+
+impl ProjectLrf {
+    /// The kind (absent: rotating).
+    pub fn kind(&self) -> LrfKind {
+        self.kind.unwrap_or(LrfKind::Rotating)
+    }
+
+    /// Each scan entry's station, in order.
+    pub fn scan_stations(&self) -> Vec<&str> {
+        self.scans
+            .iter()
+            .map(|s| s.station(&self.station))
+            .collect()
+    }
 }
 
 /// `[lrf.bag]`: ROS 1 / ROS 2 bags holding the LRF's scans and the servo angle (as

@@ -456,9 +456,9 @@ fn the_layout_is_read_with_the_project_and_its_errors_named() {
     p.lrf
         .scans
         .iter()
-        .for_each(|s| std::fs::write(dir.join(s.replace('/', "_")), b"").unwrap());
+        .for_each(|s| std::fs::write(dir.join(s.file().replace('/', "_")), b"").unwrap());
     for s in &mut p.lrf.scans {
-        *s = s.replace('/', "_");
+        *s = ScanEntry::File(s.file().replace('/', "_"));
     }
     p.targets.layout = Some("layout.csv".into());
     let toml = dir.join("project.toml");
@@ -680,7 +680,7 @@ fn a_file_listed_twice_under_two_spellings_is_refused() {
         std::fs::write(dir.join(&im.file), b"").unwrap();
     }
     for s in &base.lrf.scans {
-        std::fs::write(dir.join(s), b"").unwrap();
+        std::fs::write(dir.join(s.file()), b"").unwrap();
     }
     let toml = dir.join("project.toml");
     let load = |p: &ProjectFile| {

@@ -15,7 +15,7 @@ use crate::schema::{
     ProjectImage, ProjectLrf, ProjectNetwork, ProjectStereo, ProjectTargets,
 };
 use crate::settings::LrfSettings;
-use crate::{MountParameter, ProjectError};
+use crate::{LrfKind, Method, MountParameter, ProjectError};
 use std::collections::{BTreeMap, BTreeSet};
 
 /// Camera ids of `[[cameras]]`.
@@ -63,6 +63,7 @@ impl ProjectFile {
         validate_main_station(&self.main_station, &self.main_camera, &stations)?;
         validate_distances(&self.distances)?;
         let settings = validate_lrf(&self.lrf, &self.main_station)?;
+        validate_lrf_kind(self, &stations)?;
         validate_frames(&self.frames)?;
         validate_network(&self.network)?;
         Ok(settings)
@@ -475,6 +476,67 @@ fn validate_main_station(
     }
 }
 
+/// `[lrf] kind` and the stations of `[lrf] scans`: a rotating LRF sweeps the room from the
+/// main station (its scans name no other); a fixed LRF's scans are each at a station with
+/// an image of the main camera (which orients the head there), scan files (not clouds, not
+/// bags: its beams need their angles), and its extrinsic comes from the joint adjustment
+/// (the sphere method needs a sweep: `method` is `joint`, `all` or `corner`).
+fn validate_lrf_kind(f: &ProjectFile, stations: &Stations) -> Result<(), String> {
+    let l = &f.lrf;
+    let at = |k: usize| format!("[lrf] scans[{k}] \"{}\"", l.scans[k]);
+    match l.kind() {
+        LrfKind::Rotating => {
+            for (k, st) in l.scan_stations().into_iter().enumerate() {
+                if st != f.main_station {
+                    return Err(format!(
+                        "{}: station = \"{st}\" but a rotating LRF sweeps the room from the main station \"{}\" (a scanner bolted to the head: [lrf] kind = \"fixed\")",
+                        at(k),
+                        f.main_station
+                    ));
+                }
+            }
+        }
+        LrfKind::Fixed => {
+            if l.bag.is_some() {
+                return Err("[lrf.bag] with [lrf] kind = \"fixed\": a fixed LRF reads scan files; convert the bag's scans with `pingcal scans` and list them with their stations".into());
+            }
+            if matches!(f.method, Method::Spheres | Method::Both) {
+                return Err(format!(
+                    "method = \"{}\" with [lrf] kind = \"fixed\": the sphere method needs a rotating LRF's sweep; a fixed LRF is calibrated by the joint adjustment (method = \"joint\" or \"all\") or the corner baseline (\"corner\")",
+                    f.method
+                ));
+            }
+            for (k, st) in l.scan_stations().into_iter().enumerate() {
+                let lower = l.scans[k].file().to_ascii_lowercase();
+                if [".ply", ".pcd", ".xyz"].iter().any(|e| lower.ends_with(e)) {
+                    return Err(format!(
+                        "{}: a fixed LRF's scans are pingcal-scan CSV files (the beams' angles and ranges), not a point cloud",
+                        at(k)
+                    ));
+                }
+                match stations.get(st) {
+                    Some(c) if c.contains(f.main_camera.as_str()) => {}
+                    Some(_) => {
+                        return Err(format!(
+                            "{}: station \"{st}\" has no image of the main camera '{}', which orients the head there",
+                            at(k),
+                            f.main_camera
+                        ))
+                    }
+                    None => {
+                        return Err(format!(
+                            "{}: station \"{st}\" is not the station of any image (stations: {})",
+                            at(k),
+                            stations.keys().cloned().collect::<Vec<_>>().join(", ")
+                        ))
+                    }
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
 /// `[[distances]]`: two different targets, a positive length and σ.
 fn validate_distances(distances: &[ProjectDistance]) -> Result<(), String> {
     for (k, d) in distances.iter().enumerate() {
@@ -531,7 +593,7 @@ fn validate_lrf(l: &ProjectLrf, main_station: &str) -> Result<LrfSettings, Strin
         None => {}
     }
     let settings = LrfSettings::of(l)?;
-    if l.station != main_station {
+    if l.kind() == LrfKind::Rotating && l.station != main_station {
         return Err(format!(
             "[lrf] station = \"{}\" but main_station = \"{main_station}\": the LRF scans from the main station",
             l.station

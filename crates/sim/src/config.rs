@@ -7,7 +7,7 @@
 
 use pingcal_lrf::scan::ScanHeader;
 use pingcal_lrf::sensor::{LrfSensor, MountModel, RangeNoise};
-use pingcal_project::CameraModel;
+use pingcal_project::{CameraModel, LrfKind};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -413,6 +413,19 @@ impl Default for RenderConfig {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct LrfConfig {
+    /// `"rotating"` (the default: a sweep of the room from the main station) or `"fixed"`:
+    /// the scanner bolted to the head (its scan plane the LRF frame's XY plane as the
+    /// extrinsic puts it), `scans_per_station` scans at each of `scan_stations`, the servo
+    /// and mount keys unused (the range offset and scale still apply).
+    #[serde(skip_serializing_if = "is_rotating")]
+    pub kind: LrfKind,
+    /// A fixed LRF's stations (absent or empty: every station of the field, spread over
+    /// it); each must be a station's id (`S00`, `S01`, …).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub scan_stations: Vec<String>,
+    /// A fixed LRF's scans at each station (default 5).
+    #[serde(skip_serializing_if = "is_default_scans_per_station")]
+    pub scans_per_station: usize,
     /// Number of beams per scan.
     pub beams: usize,
     /// Angle of beam 0.
@@ -465,7 +478,9 @@ pub struct LrfConfig {
     /// Passes of the servo over `servo_start_deg`…`servo_end_deg` (default 1), alternately
     /// forward and back: scans of pass 2 go from the end back to the start.
     pub servo_passes: usize,
-    /// Extrinsic, `p_camera = R·p_lrf + t` with the main left camera: rotation ω, φ, κ.
+    /// Extrinsic, `p_camera = R·p_lrf + t` with the main left camera: rotation ω, φ, κ (a
+    /// fixed LRF left at this default is pitched [`FIXED_PITCH_DEG`] down:
+    /// [`LrfConfig::extrinsic_opk_deg_of_kind`]).
     pub extrinsic_opk_deg: [f64; 3],
     /// Extrinsic translation t.
     pub extrinsic_t_mm: [f64; 3],
@@ -506,9 +521,29 @@ pub const REALISTIC_MOUNT: MountModel = MountModel {
     servo_time_offset_s: 0.0,
 };
 
+/// Whether `kind` is the default, rotating (not written to simulation.toml).
+fn is_rotating(kind: &LrfKind) -> bool {
+    *kind == LrfKind::Rotating
+}
+
+/// How far a fixed LRF left at the default extrinsic is pitched down (degrees about the
+/// camera's X axis; [`LrfConfig::extrinsic_opk_deg_of_kind`]).
+pub const FIXED_PITCH_DEG: f64 = 20.0;
+
+/// A fixed LRF's scans at each station, by default.
+pub const SCANS_PER_STATION: usize = 5;
+
+/// Whether `n` is [`SCANS_PER_STATION`] (not written to simulation.toml).
+fn is_default_scans_per_station(n: &usize) -> bool {
+    *n == SCANS_PER_STATION
+}
+
 impl Default for LrfConfig {
     fn default() -> Self {
         Self {
+            kind: LrfKind::Rotating,
+            scan_stations: Vec::new(),
+            scans_per_station: SCANS_PER_STATION,
             beams: 682,
             angle_min_deg: -119.53125,
             angle_increment_deg: 0.3515625,
@@ -565,6 +600,14 @@ impl LrfConfig {
         if !self.mount_errors {
             return MountModel::default();
         }
+        if self.kind == LrfKind::Fixed {
+            // no servo, no mount: the scanner is the LRF frame; its ranges still err
+            return MountModel {
+                range_offset_mm: self.range_offset_mm,
+                range_scale: self.range_scale,
+                ..MountModel::default()
+            };
+        }
         MountModel {
             offset_mm: self.mount_offset_mm,
             tilt_x_deg: self.mount_tilt_x_deg,
@@ -576,6 +619,20 @@ impl LrfConfig {
             // the simulator turns its servo itself (`servo_time_offset_s` is in truth.json
             // on its own)
             servo_time_offset_s: 0.0,
+        }
+    }
+
+    /// The extrinsic's ω, φ, κ as the simulation uses them: `extrinsic_opk_deg`, except
+    /// that a fixed LRF left at the rotating default is pitched [`FIXED_PITCH_DEG`] down
+    /// (ω), as the field guide recommends for a fixed scanner in this field: its scan
+    /// plane then reaches the floor from every station, which fixes the plane's height and
+    /// tilts (a horizontal scan plane meets only the vertical walls, which cannot).
+    pub fn extrinsic_opk_deg_of_kind(&self) -> [f64; 3] {
+        let o = self.extrinsic_opk_deg;
+        if self.kind == LrfKind::Fixed && o == LrfConfig::default().extrinsic_opk_deg {
+            [o[0] - FIXED_PITCH_DEG, o[1], o[2]]
+        } else {
+            o
         }
     }
 
@@ -1115,6 +1172,13 @@ fn validate_lrf_servo(l: &LrfConfig) -> Result<(), ConfigError> {
             "lrf.servo_step_deg",
             l.servo_step_deg,
             "more than 100000 scans",
+        ));
+    }
+    if l.kind == LrfKind::Fixed && !(1..=1000).contains(&l.scans_per_station) {
+        return Err(ConfigError::new(
+            "lrf.scans_per_station",
+            l.scans_per_station,
+            "expected 1 to 1000 scans at each station",
         ));
     }
     validate_lrf_mount(l)

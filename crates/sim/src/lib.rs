@@ -54,6 +54,7 @@ pub use scene::TestField;
 pub use stations::{Station, StereoRig};
 
 use pingcal_geometry::Rigid3;
+use pingcal_project::LrfKind;
 use rand::SeedableRng;
 
 /// Errors of the simulator, each one line naming what is wrong.
@@ -112,8 +113,41 @@ pub struct Simulation {
     pub stations: Vec<Station>,
     /// World → LRF frame (at the main station).
     pub lrf_from_world: Rigid3,
-    /// The servo sweep at the main station.
+    /// The servo sweep at the main station (a rotating LRF; empty for a fixed one).
     pub scans: Vec<lrf::Scan>,
+    /// A fixed LRF's scans at each of its stations, in the order of `[lrf] scan_stations`
+    /// (empty for a rotating LRF).
+    pub fixed_scans: Vec<(String, Vec<lrf::Scan>)>,
+}
+
+/// A fixed LRF's stations (id, `left_from_world`): `[lrf] scan_stations` (each one of the
+/// field's), else every station of the field, main first.
+fn fixed_stations(
+    cfg: &SimConfig,
+    stations: &[Station],
+) -> Result<Vec<(String, Rigid3)>, SimError> {
+    if cfg.lrf.scan_stations.is_empty() {
+        return Ok((stations.iter())
+            .map(|s| (s.id.clone(), s.left_from_world))
+            .collect());
+    }
+    (cfg.lrf.scan_stations.iter())
+        .map(|id| {
+            let st = stations.iter().find(|s| &s.id == id).ok_or_else(|| {
+                SimError::Invalid(ConfigError::new(
+                    "lrf.scan_stations",
+                    id,
+                    format!(
+                        "not a station of the field (its stations: {})",
+                        (stations.iter().map(|s| s.id.as_str()))
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    ),
+                ))
+            })?;
+            Ok((st.id.clone(), st.left_from_world))
+        })
+        .collect()
 }
 
 impl Simulation {
@@ -129,7 +163,17 @@ impl Simulation {
             .expect("main station")
             .left_from_world;
         let lrf_from_world = lrf::lrf_from_world(&main, &cfg.lrf);
-        let scans = lrf::simulate_scans(&scene.transformed(&lrf_from_world), &cfg.lrf, seed);
+        let (scans, fixed_scans) = match cfg.lrf.kind {
+            LrfKind::Rotating => {
+                let scene_lrf = scene.transformed(&lrf_from_world);
+                (lrf::simulate_scans(&scene_lrf, &cfg.lrf, seed), Vec::new())
+            }
+            LrfKind::Fixed => {
+                let at = fixed_stations(cfg, &stations)?;
+                let fixed = lrf::simulate_fixed_scans(&scene, &at, &cfg.lrf, seed);
+                (Vec::new(), fixed)
+            }
+        };
         Ok(Self {
             config: cfg.clone(),
             seed,
@@ -138,6 +182,7 @@ impl Simulation {
             stations,
             lrf_from_world,
             scans,
+            fixed_scans,
         })
     }
 

@@ -62,7 +62,7 @@ pub struct Scan {
 
 /// The true extrinsic as a pose LRF → main left camera: `p_camera = R·p_lrf + t`.
 pub fn extrinsic(cfg: &LrfConfig) -> Rigid3 {
-    let o = cfg.extrinsic_opk_deg;
+    let o = cfg.extrinsic_opk_deg_of_kind();
     Rigid3 {
         rotation: from_opk(o[0].to_radians(), o[1].to_radians(), o[2].to_radians()),
         translation: V3::from(cfg.extrinsic_t_mm),
@@ -85,6 +85,44 @@ pub fn simulate_scans(scene_lrf: &TestField, cfg: &LrfConfig, seed: u64) -> Vec<
     (0..nscans)
         .into_par_iter()
         .map(|k| simulate_scan(scene_lrf, cfg, &sensor, &caps, seed, k))
+        .collect()
+}
+
+/// The configuration of a fixed LRF's scans at one station as a "sweep" of
+/// `scans_per_station` scans that stand at servo angle 0 (no servo noise, no motion): the
+/// scans of [`simulate_scans`] are then the scanner's at that station.
+pub fn fixed_config(cfg: &LrfConfig) -> LrfConfig {
+    LrfConfig {
+        servo_start_deg: 0.0,
+        servo_end_deg: 0.0,
+        servo_step_deg: 1.0,
+        servo_sigma_deg: 0.0,
+        servo_passes: cfg.scans_per_station.max(1),
+        continuous_sweep: false,
+        servo_time_offset_s: 0.0,
+        ..cfg.clone()
+    }
+}
+
+/// A fixed LRF's scans at each of `stations` (id, `left_from_world`) of the field `scene`
+/// (world frame): the scanner at `lrf_from_world(station)`, each station's scans from their
+/// own random stream (the seed and the station's place in the list).
+pub fn simulate_fixed_scans(
+    scene: &TestField,
+    stations: &[(String, Rigid3)],
+    cfg: &LrfConfig,
+    seed: u64,
+) -> Vec<(String, Vec<Scan>)> {
+    let fixed = fixed_config(cfg);
+    stations
+        .iter()
+        .enumerate()
+        .map(|(k, (id, left_from_world))| {
+            let lrf = lrf_from_world(left_from_world, cfg);
+            let stream = seed ^ (k as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+            let scans = simulate_scans(&scene.transformed(&lrf), &fixed, stream);
+            (id.clone(), scans)
+        })
         .collect()
 }
 

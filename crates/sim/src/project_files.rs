@@ -26,6 +26,7 @@ pub use pingcal_project::{
     ProjectCamera, ProjectDistance, ProjectFile, ProjectFrames, ProjectImage, ProjectLrf,
     ProjectStereo, ProjectTargets, TargetFamily,
 };
+use pingcal_project::{LrfKind, ScanAtStation, ScanEntry};
 
 /// A rigid transform as written in JSON: `y = rotation · x + translation_mm`.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -532,8 +533,21 @@ pub fn project_of(sim: &Simulation) -> ProjectFile {
             .collect(),
         lrf: ProjectLrf {
             model: "Hokuyo URG-04LX on Dynamixel MX-28T".into(),
+            kind: (cfg.lrf.kind == LrfKind::Fixed).then_some(LrfKind::Fixed),
             station: main.id.clone(),
-            scans: vec![format!("scans/{}.csv", main.id)],
+            scans: scan_files(sim)
+                .iter()
+                .map(|(station, _)| {
+                    let file = format!("scans/{station}.csv");
+                    match cfg.lrf.kind {
+                        LrfKind::Rotating => ScanEntry::File(file),
+                        LrfKind::Fixed => ScanEntry::AtStation(ScanAtStation {
+                            file,
+                            station: station.to_string(),
+                        }),
+                    }
+                })
+                .collect(),
             bag: None,
             cloud_unit: None,
             noise: None,
@@ -552,6 +566,19 @@ pub fn project_of(sim: &Simulation) -> ProjectFile {
         },
         frames: ProjectFrames::default(),
         network: Default::default(),
+    }
+}
+
+/// The scan files of the simulation: (station, its scans): the main station's sweep of a
+/// rotating LRF, or a fixed LRF's scans at each of its stations.
+fn scan_files(sim: &Simulation) -> Vec<(&str, &[crate::lrf::Scan])> {
+    if sim.fixed_scans.is_empty() {
+        let main = sim.stations.iter().find(|s| s.main).expect("main station");
+        vec![(main.id.as_str(), &sim.scans[..])]
+    } else {
+        (sim.fixed_scans.iter())
+            .map(|(id, scans)| (id.as_str(), &scans[..]))
+            .collect()
     }
 }
 
@@ -584,11 +611,12 @@ pub fn write_project(sim: &Simulation, dir: &Path) -> Result<ProjectSummary, Sim
         );
         write_png(&dir.join(image_file(&st.id, &cam.id)), &img)
     })?;
-    let main = sim.stations.iter().find(|s| s.main).expect("main station");
-    let scan_path = dir.join(format!("scans/{}.csv", main.id));
-    let csv = crate::lrf::write_scans_csv(Vec::new(), &sim.scans, &sim.config.lrf)
-        .map_err(|e| io(&scan_path, e))?;
-    std::fs::write(&scan_path, csv).map_err(|e| io(&scan_path, e))?;
+    for (station, scans) in scan_files(sim) {
+        let scan_path = dir.join(format!("scans/{station}.csv"));
+        let csv = crate::lrf::write_scans_csv(Vec::new(), scans, &sim.config.lrf)
+            .map_err(|e| io(&scan_path, e))?;
+        std::fs::write(&scan_path, csv).map_err(|e| io(&scan_path, e))?;
+    }
     let project = project_of(sim);
     let text = format!(
         "# pingcal project file, version 1, written by `pingcal simulate --seed {}`.\n# Paths are relative to this file; lengths in mm.\n\n{}",
@@ -609,7 +637,7 @@ pub fn write_project(sim: &Simulation, dir: &Path) -> Result<ProjectSummary, Sim
         .map_err(|e| io(&dir.join("simulation.toml"), e))?;
     Ok(ProjectSummary {
         images: jobs.len(),
-        scans: sim.scans.len(),
+        scans: scan_files(sim).iter().map(|(_, s)| s.len()).sum(),
         targets: sim.scene.targets.len(),
         coded: sim
             .scene

@@ -104,7 +104,7 @@ fn same_seed_gives_identical_files_and_another_seed_does_not() {
         }
     }
     // The scan file follows docs/formats.md.
-    let csv = std::fs::read_to_string(a.join(&project.lrf.scans[0])).unwrap();
+    let csv = std::fs::read_to_string(a.join(project.lrf.scans[0].file())).unwrap();
     assert!(csv.starts_with("# pingcal-scan v1\n"));
     let rows: Vec<&str> = csv.lines().filter(|l| !l.starts_with('#')).collect();
     assert_eq!(rows[0].split(',').count(), 2 + 682);

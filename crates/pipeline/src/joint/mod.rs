@@ -84,6 +84,7 @@ pub use ball_beams::{AT_SILHOUETTE, GRAZING, NAME as BALL_BEAMS};
 pub use convergence::{Convergence, SAME_MINIMUM_Z, SECOND_START_Z};
 pub use groups::{GroupBuilder, GroupOutcome, ObservationGroup};
 pub use outcome::{BallBeamCounts, JointOutcome, LrfView, MountEstimate};
+pub(crate) use rounds::keep_flags;
 
 use super::bundle::Adjusted;
 use super::extrinsic::Extrinsics;

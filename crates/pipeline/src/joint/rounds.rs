@@ -16,7 +16,7 @@ pub(super) type Rejected = Vec<usize>;
 /// standardised residual component `w` over the group's σ0 (from its own redundancy, at
 /// least 1) is at most [`BEAM_REJECT`]. `e` and `sigma` are the errors and their σ's, `w`
 /// and `q` the group's standardised residuals and redundancy numbers.
-pub(super) fn keep_flags(e: &[f64], sigma: &[f64], w: &[Vec<f64>], q: &[Vec<f64>]) -> Vec<bool> {
+pub(crate) fn keep_flags(e: &[f64], sigma: &[f64], w: &[Vec<f64>], q: &[Vec<f64>]) -> Vec<bool> {
     let vv: f64 = e.iter().zip(sigma).map(|(e, s)| (e / s).powi(2)).sum();
     let r: f64 = q.iter().map(|q| q.iter().sum::<f64>()).sum();
     let s0 = (vv / r.max(1.0)).sqrt().max(1.0);
