@@ -7,6 +7,7 @@
 
 use crate::common;
 
+mod fixed_lrf;
 mod observation_group;
 
 use common::{

@@ -266,6 +266,35 @@ pub fn judge(st: &Stages) -> Verdict {
             reasons.push(why);
         }
     }
+    let failed = joint_verdict(st, &mut reasons, &mut notes);
+    let fixed = st.project.file.lrf.kind() == pingcal_project::LrfKind::Fixed;
+    let status = if st.ext.spheres.is_none() && !(fixed && joint_given) {
+        reasons.insert(
+            0,
+            "the sphere method gave no extrinsic (only the corner baseline did)".into(),
+        );
+        Status::Failed
+    } else if failed {
+        Status::Failed
+    } else if reasons.is_empty() {
+        Status::Ok
+    } else {
+        Status::Doubtful
+    };
+    Verdict {
+        status,
+        reasons,
+        notes,
+        checks,
+        alpha: ALPHA,
+    }
+}
+
+/// The joint adjustment's part of the verdict: its failure (the calibration's failure when
+/// it did not converge), its doubts about convergence, a fixed LRF's extrinsic components
+/// the data do not determine (held at the start: not a calibration in them); whether the
+/// calibration failed.
+fn joint_verdict(st: &Stages, reasons: &mut Vec<String>, notes: &mut Vec<String>) -> bool {
     let mut failed = false;
     match st.joint {
         Some(Err(e)) if e.not_converged => {
@@ -288,27 +317,7 @@ pub fn judge(st: &Stages) -> Verdict {
         }
         None => {}
     }
-    let fixed = st.project.file.lrf.kind() == pingcal_project::LrfKind::Fixed;
-    let status = if st.ext.spheres.is_none() && !(fixed && joint_given) {
-        reasons.insert(
-            0,
-            "the sphere method gave no extrinsic (only the corner baseline did)".into(),
-        );
-        Status::Failed
-    } else if failed {
-        Status::Failed
-    } else if reasons.is_empty() {
-        Status::Ok
-    } else {
-        Status::Doubtful
-    };
-    Verdict {
-        status,
-        reasons,
-        notes,
-        checks,
-        alpha: ALPHA,
-    }
+    failed
 }
 
 type Test<'a> = dyn FnMut(&str, f64, f64, &dyn Fn(f64, f64) -> String) + 'a;

@@ -106,54 +106,9 @@ impl FixedProblem {
                 )
             })
             .collect();
-        let spheres: Vec<(V3, f64)> = balls.iter().map(|b| (b.centre, b.radius)).collect();
-        let mut beams: [Vec<BeamObs>; 2] = [Vec::new(), Vec::new()];
-        let mut check_beams = Vec::new();
-        let mut grazing = 0;
-        for (s, st) in stations.iter().enumerate() {
-            for (b, x) in st.beams.iter().zip(st.object_points(&e, [0.0, 0.0])) {
-                let gate = (3.0 * b.sigma).max(MIN_GATE_MM);
-                let Some(on) = on_what(&x, planes, &spheres, gate) else {
-                    continue;
-                };
-                let surface = match on {
-                    On::Plane(k) => Surface::Plane(frames[k].0, frames[k].1),
-                    On::Ball(k) => match adj.solved.map.point(balls[k].point) {
-                        Some(key) => Surface::Ball(key, balls[k].radius),
-                        None => continue,
-                    },
-                };
-                let residual = FixedBeamOn {
-                    beam: *b,
-                    station: st.key,
-                    extrinsic: ext,
-                    range,
-                    surface,
-                };
-                // a beam that misses or grazes its ball at the start is left out
-                let grazes = match on {
-                    On::Ball(k) => residual.grazes(&st.pose, &e, &balls[k].centre),
-                    On::Plane(_) => false,
-                };
-                if grazes || beam_error(&base, &residual, &e, &[0.0, 0.0]).is_nan() {
-                    grazing += 1;
-                    continue;
-                }
-                match on {
-                    On::Ball(k) if balls[k].check => check_beams.push((s, residual)),
-                    On::Ball(_) => beams[1].push(BeamObs {
-                        station: s,
-                        on,
-                        residual,
-                    }),
-                    On::Plane(_) => beams[0].push(BeamObs {
-                        station: s,
-                        on,
-                        residual,
-                    }),
-                }
-            }
-        }
+        let keys = (ext, range, &frames[..]);
+        let (beams, check_beams, grazing) =
+            classify(adj, stations, (planes, balls), keys, (&e, &base));
         if beams[0].is_empty() && beams[1].is_empty() {
             return Err(PipelineError::Data(
                 "no beam of the fixed LRF lies on a plane of the field or a control ball at the start: its scans do not see the field the targets define".into(),
@@ -274,6 +229,67 @@ impl FixedProblem {
         solver::solve(p, &self.options, |_| {}).map_err(|e| err(e.to_string()))?;
         solver::precision(p).map_err(|e| err(e.to_string()))
     }
+}
+
+/// The beams on planes and on control balls, on check balls, and how many missed or grazed
+/// their ball at the start `e`, of every station through `e`.
+#[allow(clippy::type_complexity)]
+fn classify(
+    adj: &Adjusted,
+    stations: &[Station],
+    (planes, balls): (&[FieldPlane], &[FieldBall]),
+    (ext, range, frames): (ParameterKey, ParameterKey, &[(ParameterKey, PlaneFrame)]),
+    (e, base): (&Rigid3, &Problem),
+) -> ([Vec<BeamObs>; 2], Vec<(usize, FixedBeamOn)>, usize) {
+    let spheres: Vec<(V3, f64)> = balls.iter().map(|b| (b.centre, b.radius)).collect();
+    let mut beams: [Vec<BeamObs>; 2] = [Vec::new(), Vec::new()];
+    let mut check_beams = Vec::new();
+    let mut grazing = 0;
+    for (s, st) in stations.iter().enumerate() {
+        for (b, x) in st.beams.iter().zip(st.object_points(e, [0.0, 0.0])) {
+            let gate = (3.0 * b.sigma).max(MIN_GATE_MM);
+            let Some(on) = on_what(&x, planes, &spheres, gate) else {
+                continue;
+            };
+            let surface = match on {
+                On::Plane(k) => Surface::Plane(frames[k].0, frames[k].1),
+                On::Ball(k) => match adj.solved.map.point(balls[k].point) {
+                    Some(key) => Surface::Ball(key, balls[k].radius),
+                    None => continue,
+                },
+            };
+            let residual = FixedBeamOn {
+                beam: *b,
+                station: st.key,
+                extrinsic: ext,
+                range,
+                surface,
+            };
+            // a beam that misses or grazes its ball at the start is left out
+            let grazes = match on {
+                On::Ball(k) => residual.grazes(&st.pose, e, &balls[k].centre),
+                On::Plane(_) => false,
+            };
+            if grazes || beam_error(base, &residual, e, &[0.0, 0.0]).is_nan() {
+                grazing += 1;
+                continue;
+            }
+            match on {
+                On::Ball(k) if balls[k].check => check_beams.push((s, residual)),
+                On::Ball(_) => beams[1].push(BeamObs {
+                    station: s,
+                    on,
+                    residual,
+                }),
+                On::Plane(_) => beams[0].push(BeamObs {
+                    station: s,
+                    on,
+                    residual,
+                }),
+            }
+        }
+    }
+    (beams, check_beams, grazing)
 }
 
 /// `e` of a beam at the solution of `p` (NaN where undefined).

@@ -305,32 +305,7 @@ pub fn joint_outcome(
     let chi2 = adj.sigma0_a_priori.powi(2) * adj.precision.redundancy as f64
         + chi2s.iter().sum::<f64>()
         + prior_chi2;
-    let errors = fp.errors(p);
-    let counts = [fp.beams[0].len(), fp.beams[1].len(), fp.targets.len()];
-    let groups = (0..3)
-        .map(|g| GroupOutcome {
-            group: GROUPS[g].to_string(),
-            unit: "mm".into(),
-            observations: counts[g],
-            rejected: rejected[g],
-            left_out: if g == 1 {
-                vec![
-                    LeftOut {
-                        reason: "on a check ball".into(),
-                        count: fp.check_beams.len(),
-                    },
-                    LeftOut {
-                        reason: "missed or grazed the ball at the start".into(),
-                        count: fp.grazing,
-                    },
-                ]
-            } else {
-                Vec::new()
-            },
-            chi2: chi2s[g],
-            rms: rms(&errors[g]),
-        })
-        .collect();
+    let groups = group_lines(fp, p, chi2s, rejected);
     let cuts = ball_cuts(stations, balls, &e, range);
     let sim = Sim3::new(1.0, e.rotation, e.translation);
     let (cl, cc) = sides(&cuts, balls, true);
@@ -338,25 +313,7 @@ pub fn joint_outcome(
     let (lrf_points, cam_points) = (cuts.iter())
         .map(|c| (c.lrf.clone(), c.cam.clone()))
         .unzip();
-    let mount = (0..2)
-        .map(|k| MountEstimate {
-            name: RANGE_NAMES[k],
-            value: range[k],
-            sigma: free[6 + k].then(|| range_cov[(k, k)].max(0.0).sqrt()),
-            held: held[6 + k].clone(),
-            corr_extrinsic: free[6 + k].then(|| {
-                let cross = prec.parameter_covariance(fp.range.0, fp.ext.0);
-                std::array::from_fn(|j| {
-                    let d = (range_cov[(k, k)] * ext_cov[(j, j)]).sqrt();
-                    if d > 0.0 {
-                        cross[(k, j)] / d
-                    } else {
-                        0.0
-                    }
-                })
-            }),
-        })
-        .collect();
+    let mount = range_estimates(fp, prec, (range, &range_cov, &ext_cov), (free, held));
     let mut mount_cov = DMatrix::zeros(8, 8);
     for a in 0..2 {
         for b in 0..2 {
@@ -394,6 +351,71 @@ pub fn joint_outcome(
                 .into(),
         ),
     }
+}
+
+/// Each group's line at the solution `p` (`chi2s` before the re-weighting, `rejected` per
+/// group).
+fn group_lines(
+    fp: &FixedProblem,
+    p: &Problem,
+    chi2s: [f64; 3],
+    rejected: [usize; 3],
+) -> Vec<GroupOutcome> {
+    let errors = fp.errors(p);
+    let counts = [fp.beams[0].len(), fp.beams[1].len(), fp.targets.len()];
+    (0..3)
+        .map(|g| GroupOutcome {
+            group: GROUPS[g].to_string(),
+            unit: "mm".into(),
+            observations: counts[g],
+            rejected: rejected[g],
+            left_out: if g == 1 {
+                vec![
+                    LeftOut {
+                        reason: "on a check ball".into(),
+                        count: fp.check_beams.len(),
+                    },
+                    LeftOut {
+                        reason: "missed or grazed the ball at the start".into(),
+                        count: fp.grazing,
+                    },
+                ]
+            } else {
+                Vec::new()
+            },
+            chi2: chi2s[g],
+            rms: rms(&errors[g]),
+        })
+        .collect()
+}
+
+/// The range model's two estimates (as the rotating LRF's mount entries), each with its σ
+/// and correlations with the extrinsic, or why it was held.
+fn range_estimates(
+    fp: &FixedProblem,
+    prec: &solver::Precision,
+    (range, range_cov, ext_cov): ([f64; 2], &DMatrix<f64>, &DMatrix<f64>),
+    (free, held): (&[bool; 8], &[Option<String>; 8]),
+) -> Vec<MountEstimate> {
+    (0..2)
+        .map(|k| MountEstimate {
+            name: RANGE_NAMES[k],
+            value: range[k],
+            sigma: free[6 + k].then(|| range_cov[(k, k)].max(0.0).sqrt()),
+            held: held[6 + k].clone(),
+            corr_extrinsic: free[6 + k].then(|| {
+                let cross = prec.parameter_covariance(fp.range.0, fp.ext.0);
+                std::array::from_fn(|j| {
+                    let d = (range_cov[(k, k)] * ext_cov[(j, j)]).sqrt();
+                    if d > 0.0 {
+                        cross[(k, j)] / d
+                    } else {
+                        0.0
+                    }
+                })
+            }),
+        })
+        .collect()
 }
 
 /// The joint adjustment's centre of every ball (its image rays and, for a control ball,
