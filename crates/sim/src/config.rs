@@ -479,7 +479,7 @@ pub struct LrfConfig {
     /// forward and back: scans of pass 2 go from the end back to the start.
     pub servo_passes: usize,
     /// Extrinsic, `p_camera = R·p_lrf + t` with the main left camera: rotation ω, φ, κ (a
-    /// fixed LRF left at this default is pitched [`FIXED_PITCH_DEG`] down:
+    /// fixed LRF left at this default faces forward, pitched [`FIXED_PITCH_DEG`] down:
     /// [`LrfConfig::extrinsic_opk_deg_of_kind`]).
     pub extrinsic_opk_deg: [f64; 3],
     /// Extrinsic translation t.
@@ -623,14 +623,17 @@ impl LrfConfig {
     }
 
     /// The extrinsic's ω, φ, κ as the simulation uses them: `extrinsic_opk_deg`, except
-    /// that a fixed LRF left at the rotating default is pitched [`FIXED_PITCH_DEG`] down
-    /// (ω), as the field guide recommends for a fixed scanner in this field: its scan
-    /// plane then reaches the floor from every station, which fixes the plane's height and
-    /// tilts (a horizontal scan plane meets only the vertical walls, which cannot).
+    /// that a fixed LRF left at the rotating default faces forward (κ − 90°: its fan,
+    /// centred on its beam α = 0, looks where the camera looks, as a robot's scanner does)
+    /// and is pitched [`FIXED_PITCH_DEG`] down (ω), as the field guide recommends for a
+    /// fixed scanner in this field: its scan plane then reaches the floor from every
+    /// station, which fixes the plane's height and tilts (a horizontal scan plane meets
+    /// only the vertical walls, which cannot), and from the main station it sees the
+    /// corner's two walls and floor (Fan et al.'s single shot).
     pub fn extrinsic_opk_deg_of_kind(&self) -> [f64; 3] {
         let o = self.extrinsic_opk_deg;
         if self.kind == LrfKind::Fixed && o == LrfConfig::default().extrinsic_opk_deg {
-            [o[0] - FIXED_PITCH_DEG, o[1], o[2]]
+            [o[0] + FIXED_PITCH_DEG, o[1], o[2] - 90.0]
         } else {
             o
         }

@@ -577,13 +577,16 @@ pub fn exports(r: &Results, losses: &[Option<ExportLoss>]) -> Vec<OutputFile> {
     let conv = &r.conventions;
     let (cam, lrf) = (&conv.tf_camera_frame, &conv.tf_lrf_frame);
     let mut out = ros_files(&r.extrinsic, cam, lrf);
-    out.extend(lrf_model_files(
-        &r.extrinsic,
-        &r.lrf_model.model,
-        &r.lrf_model.source,
-        cam,
-        lrf,
-    ));
+    // a fixed LRF has no servo chain: its URDF is the fixed joint of `ros_files`
+    if r.lrf_model.kind == pingcal_project::LrfKind::Rotating {
+        out.extend(lrf_model_files(
+            &r.extrinsic,
+            &r.lrf_model.model,
+            &r.lrf_model.source,
+            cam,
+            lrf,
+        ));
+    }
     let order = chain(r);
     let pair = match (&r.bundle.rig, order.as_slice()) {
         (Some(rig), &[a, b]) => match (&losses[a], &losses[b]) {

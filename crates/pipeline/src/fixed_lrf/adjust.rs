@@ -328,13 +328,19 @@ fn targets_on_planes(
     out
 }
 
-/// The final adjustment's rounds: adjusted, each group's gross errors removed (by its own
-/// σ0, [`keep_flags`]) and adjusted again, at most [`REJECT_ROUNDS`] times. Returns the
+/// The adjustment's rounds: adjusted, each group's gross errors removed (by its own σ0,
+/// [`keep_flags`]) and adjusted again, at most [`REJECT_ROUNDS`] times; with the weak
+/// priors on every free unknown (`weak`: the first pass, before what the data determine is
+/// known) or without them (the final one). Returns the
 /// solved problem, its precision and the observations removed per group.
-pub fn rounds(fp: &mut FixedProblem, free: &[bool; 8]) -> Result<(Problem, Precision, [usize; 3])> {
+pub fn rounds(
+    fp: &mut FixedProblem,
+    free: &[bool; 8],
+    weak: bool,
+) -> Result<(Problem, Precision, [usize; 3])> {
     let mut rejected = [0usize; 3];
     for round in 0..=REJECT_ROUNDS {
-        let mut p = fp.problem_from(&fp.base, free, false);
+        let mut p = fp.problem_from(&fp.base, free, weak);
         let prec = fp.solve(&mut p)?;
         let (errors, sigmas) = (fp.errors(&p), fp.sigmas());
         let (w, q) = (
@@ -380,8 +386,11 @@ pub fn estimability(
 ) -> Result<()> {
     while free.iter().any(|&f| f) {
         let p = fp.problem_from(at, free, true);
-        let prec = solver::precision(&p)
-            .map_err(|e| PipelineError::Adjustment(format!("fixed LRF adjustment: {e}")))?;
+        let prec = solver::precision(&p).map_err(|e| {
+            PipelineError::Adjustment(format!(
+                "fixed LRF adjustment (what the data determine): {e}"
+            ))
+        })?;
         let cov = &prec.parameters_covariance / prec.sigma0.powi(2).max(f64::MIN_POSITIVE);
         let row = |k: usize| match k {
             0..=5 => prec.parameter_offsets[fp.ext.0] + k,

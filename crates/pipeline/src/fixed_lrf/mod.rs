@@ -108,6 +108,15 @@ pub fn calibrate_fixed(
     let balls = field_balls(project, scene);
     let sigma = project.file.lrf.accuracy_near_mm / 3.0;
     let corners = start::corner_at_stations(&stations, scene, dets, sigma, opts.seed);
+    for (st, r) in &corners {
+        match r {
+            Ok(e) => rep.log(format!(
+                "  fixed LRF: the corner at {st} (Fan et al. 2019): t = ({:.1}, {:.1}, {:.1}) mm",
+                e.translation.x, e.translation.y, e.translation.z
+            )),
+            Err(why) => rep.log(format!("  fixed LRF: no corner at {st}: {why}")),
+        }
+    }
     let corner = outputs::corner_outcome(project, &stations, scene, &balls, &corners);
     if !project.file.method.joint() {
         let e = match &corner {
@@ -188,7 +197,10 @@ fn adjusted(
     let fail = |e: PipelineError| JointError::other(e.to_string());
     let mut free = [true; 8];
     let mut held: [Option<String>; 8] = Default::default();
-    let (p, _, mut rejected) = adjust::rounds(fp, &free).map_err(fail)?;
+    // the first pass under weak priors (an undetermined unknown would leave the normal
+    // equations singular), then held where the data do not determine it, then the final
+    // pass without the priors
+    let (p, _, mut rejected) = adjust::rounds(fp, &free, true).map_err(fail)?;
     adjust::estimability(fp, &p, &mut free, &mut held).map_err(fail)?;
     for (k, why) in held.iter().enumerate() {
         if let Some(why) = why {
@@ -200,12 +212,8 @@ fn adjusted(
             rep.log(format!("  fixed LRF: {name} held: {why}"));
         }
     }
-    let (mut p, more) = if held.iter().any(Option::is_some) {
-        let (p, _, more) = adjust::rounds(fp, &free).map_err(fail)?;
-        (p, more)
-    } else {
-        (p, [0; 3])
-    };
+    let _ = p;
+    let (mut p, _, more) = adjust::rounds(fp, &free, false).map_err(fail)?;
     rejected.iter_mut().zip(more).for_each(|(r, m)| *r += m);
     let chi2s = outputs::group_chi2s(fp, &p);
     let estimate = solver::estimate_variance_components(
@@ -214,7 +222,7 @@ fn adjusted(
         &fp.group_of,
         &OBSERVATION_GROUPS,
     )
-    .map_err(|e| JointError::other(format!("fixed LRF adjustment: {e}")))?;
+    .map_err(|e| JointError::other(format!("fixed LRF adjustment (variance components): {e}")))?;
     let _ = opts;
     let out = outputs::joint_outcome(
         fp,

@@ -383,8 +383,9 @@ fn group_lines(
             } else {
                 Vec::new()
             },
-            chi2: chi2s[g],
-            rms: rms(&errors[g]),
+            // + 0.0: an empty group's sums are −0.0, written as 0
+            chi2: chi2s[g] + 0.0,
+            rms: rms(&errors[g]) + 0.0,
         })
         .collect()
 }

@@ -63,6 +63,24 @@ impl FieldPlane {
         u >= b[0] && u <= b[1] && v >= b[2] && v <= b[3]
     }
 
+    /// The plane `n · x = d` bounded to ±`half` (mm) about its foot of the origin (for
+    /// tests of the steps that use planes).
+    #[cfg(test)]
+    pub(super) fn square(n: V3, d: f64, half: f64) -> Self {
+        let n = n.normalize();
+        let axis = if n.x.abs() < 0.6 { V3::x() } else { V3::y() };
+        let e1 = n.cross(&axis).normalize();
+        FieldPlane {
+            normal: n,
+            offset: d,
+            members: Vec::new(),
+            rms_mm: 1.0,
+            centre: n * d,
+            spread: half,
+            bounds: (e1, n.cross(&e1), [-half, half, -half, half]),
+        }
+    }
+
     /// Signed distance of `x` (mm).
     pub fn distance(&self, x: &V3) -> f64 {
         self.normal.dot(x) - self.offset
@@ -187,11 +205,12 @@ pub enum On {
 }
 
 /// What the point `x` (object frame) is on, within `gate` (mm) of the surface: a ball of
-/// `balls` (centre, radius) or, clear of every ball, the nearest plane of `planes`.
+/// `balls` (centre, radius; within the smaller of the gate and [`BALL_CLEARANCE_MM`]) or,
+/// clear of every ball, the nearest plane of `planes`.
 pub fn on_what(x: &V3, planes: &[FieldPlane], balls: &[(V3, f64)], gate: f64) -> Option<On> {
     for (k, (c, r)) in balls.iter().enumerate() {
         let d = (x - c).norm() - r;
-        if d.abs() <= gate {
+        if d.abs() <= gate.min(BALL_CLEARANCE_MM) {
             return Some(On::Ball(k));
         }
         if d < BALL_CLEARANCE_MM {
@@ -211,18 +230,7 @@ mod tests {
     use super::*;
 
     fn plane_of(n: V3, d: f64) -> FieldPlane {
-        let n = n.normalize();
-        let axis = if n.x.abs() < 0.6 { V3::x() } else { V3::y() };
-        let e1 = n.cross(&axis).normalize();
-        FieldPlane {
-            normal: n,
-            offset: d,
-            members: Vec::new(),
-            rms_mm: 1.0,
-            centre: n * d,
-            spread: 500.0,
-            bounds: (e1, n.cross(&e1), [-1000.0, 1000.0, -1000.0, 1000.0]),
-        }
+        FieldPlane::square(n, d, 1000.0)
     }
 
     /// A point near a ball is the ball's, or nobody's (its stem, the ball's rim); else the

@@ -351,6 +351,10 @@ fn joint_note(j: &JointOutcome) -> String {
 pub struct LrfModelJson {
     /// `joint adjustment` (estimated) or `project` (the project file's `[lrf]` mount).
     pub source: String,
+    /// `fixed` for a fixed LRF (its model is its range offset and scale: no servo, no
+    /// mount); absent for a rotating one.
+    #[serde(skip_serializing_if = "is_rotating")]
+    pub kind: pingcal_project::LrfKind,
     /// The model: `p = R_β (R_x(tilt_x) R_z(tilt_z) (r cos α, r sin α, 0) + offset)`,
     /// `β = (servo − servo_zero)(1 + servo_scale)`, `reported = r (1 + range_scale) +
     /// range_offset` (docs/lrf.md).
@@ -358,15 +362,23 @@ pub struct LrfModelJson {
     pub model: pingcal_lrf::MountModel,
 }
 
+/// Whether `kind` is rotating (not written to results.json, as before fixed LRFs).
+fn is_rotating(kind: &pingcal_project::LrfKind) -> bool {
+    *kind == pingcal_project::LrfKind::Rotating
+}
+
 /// The LRF model the outputs use (see [`Results::lrf_model`]).
 pub fn lrf_model_of(st: &Stages) -> LrfModelJson {
+    let kind = st.project.file.lrf.kind();
     match st.joint {
         Some(Ok(j)) => LrfModelJson {
             source: "joint adjustment".into(),
+            kind,
             model: j.mount_model,
         },
         _ => LrfModelJson {
             source: "project".into(),
+            kind,
             model: st.lrf.mount,
         },
     }
