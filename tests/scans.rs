@@ -217,54 +217,53 @@ fn a_ros2_bag_folder_reads_its_storage_files() {
 }
 
 /// A driver that changes the beam geometry between messages (`geometry.bag`: A A B A C,
-/// `make_fixtures.py`): no scan is lost or resampled; each geometry's scans are in a file of
-/// their own, every range and servo angle as recorded.
+/// `make_fixtures.py`): no scan is lost or resampled; all are in one file (`pingcal-scan`
+/// v4), each in its own geometry, every range and servo angle as recorded, and `pingcal
+/// cloud` reads it.
 #[test]
-fn a_changed_beam_geometry_keeps_every_scan_in_a_file_per_geometry() {
+fn a_changed_beam_geometry_keeps_every_scan_in_one_file() {
     // a folder of its own: the other tests look for .partial files in theirs
     let dir = tmp("geometry");
     std::fs::create_dir_all(&dir).unwrap();
     let out = dir.join("geometry.csv");
-    let more = [dir.join("geometry.g2.csv"), dir.join("geometry.g3.csv")];
-    for p in std::iter::once(&out).chain(&more) {
-        let _ = std::fs::remove_file(p);
-    }
+    let _ = std::fs::remove_file(&out);
     let b = data("geometry.bag");
     let (ok, stdout, stderr) = scans_by_joint(&b, &out);
     assert!(ok, "{stderr}");
-    assert!(stdout.starts_with("scans: 3 scans of 10 beams"), "{stdout}");
     assert!(
-        stdout.contains("scans: 1 scans of 11 beams from -10° → ")
-            && stdout.contains("scans: 1 scans of 10 beams from -5° → "),
+        stdout.starts_with("scans: 5 scans of 10 beams") && stdout.contains("(pingcal-scan v4)"),
         "{stdout}"
     );
     assert!(
-        stderr.contains("the beam geometry changes between scans"),
-        "{stderr}"
+        stdout.contains("scans: one file for every beam geometry"),
+        "{stdout}"
     );
-    // (file, scan indices k in the bag, beams, first angle)
-    let want: [(&Path, &[usize], usize, f64); 3] = [
-        (&out, &[0, 1, 3], 10, -10.0),
-        (&more[0], &[2], 11, -10.0),
-        (&more[1], &[4], 10, -5.0),
+    // (beams, first angle) of scans k = 0..4 in the bag
+    let want: [(usize, f64); 5] = [
+        (10, -10.0),
+        (10, -10.0),
+        (11, -10.0),
+        (10, -10.0),
+        (10, -5.0),
     ];
-    for (path, ks, n, a0) in want {
-        let (h, lines) = read(path);
+    let (h, lines) = read(&out);
+    assert_eq!(lines.len(), 5);
+    for (k, (l, (n, a0))) in lines.iter().zip(want).enumerate() {
+        let g = l.geometry_or(&h);
         assert_eq!(
-            (h.angle_min_deg, h.angle_increment_deg),
+            (g.angle_min_deg, g.angle_increment_deg),
             (a0, 1.0),
-            "{path:?}"
+            "scan {k}"
         );
-        assert_eq!(lines.len(), ks.len(), "{path:?}");
-        for (l, &k) in lines.iter().zip(ks) {
-            let ranges: Vec<f64> = (0..n).map(|i| (1000 + 10 * k + i) as f64).collect();
-            assert_eq!(l.ranges_mm, ranges, "{path:?} scan {k}");
-            assert!(
-                (l.servo_deg - 2.0 * k as f64).abs() < 1e-9,
-                "{path:?} scan {k}"
-            );
-        }
+        let ranges: Vec<f64> = (0..n).map(|i| (1000 + 10 * k + i) as f64).collect();
+        assert_eq!(l.ranges_mm, ranges, "scan {k}");
+        assert!((l.servo_deg - 2.0 * k as f64).abs() < 1e-9, "scan {k}");
     }
+    let (ok, stdout, stderr) = pingcal(&["cloud", out.to_str().unwrap()]);
+    assert!(
+        ok && stdout.starts_with("cloud: 51 points from 1 file(s)"),
+        "{stdout}{stderr}"
+    );
     let partial = std::fs::read_dir(&dir)
         .unwrap()
         .filter_map(Result::ok)
@@ -338,13 +337,18 @@ fn a_drivers_bag_is_converted_with_the_counts_named() {
     ] {
         assert!(stderr.contains(want), "{want}: {stderr}");
     }
+    // the beam count changes: one file, v4, every scan with its own count and intensities
     let text = std::fs::read_to_string(&out).unwrap();
-    assert!(text.starts_with("# pingcal-scan v3\n"), "{text}");
+    assert!(text.starts_with("# pingcal-scan v4\n"), "{text}");
     assert!(text.contains("# time_increment_s=0.0005\n"), "{text}");
     let (_, lines) = read(&out);
+    assert_eq!(lines.len(), 21);
     assert!(lines
         .iter()
         .all(|l| l.intensities.len() == l.ranges_mm.len()));
+    let counts: std::collections::BTreeSet<usize> =
+        lines.iter().map(|l| l.ranges_mm.len()).collect();
+    assert!(counts.len() > 1, "{counts:?}");
     let (ok, _, stderr) = run(args("servo"));
     assert!(!ok);
     assert!(

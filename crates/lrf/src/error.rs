@@ -81,6 +81,15 @@ impl LrfError {
             s
         }
     }
+    /// The refusal of a text file whose last line has no line break: it was cut short
+    /// (a copy or a recording stopped mid-way), and its last value may be cut mid-number.
+    pub(crate) fn cut_short(file: &str, line: usize) -> Self {
+        LrfError::parse(
+            file,
+            line,
+            "the last line does not end with a line break: the file was cut short (in the middle of a number?); copy it again whole",
+        )
+    }
     pub(crate) fn io(file: &str, source: std::io::Error) -> Self {
         LrfError::Io {
             file: file.to_string(),

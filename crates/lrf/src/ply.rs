@@ -291,6 +291,9 @@ fn next_line<R: BufRead>(input: &mut R, file: &str, line_no: &mut usize) -> Resu
             "end of file inside the PLY header (no `end_header`)",
         ));
     }
+    if !buf.ends_with(b"\n") && !buf.iter().all(u8::is_ascii_whitespace) {
+        return Err(LrfError::cut_short(file, *line_no));
+    }
     let s = std::str::from_utf8(&buf).map_err(|_| LrfError::parse(file, *line_no, "not text"))?;
     Ok(LrfError::without_bom(*line_no, s).trim().to_string())
 }

@@ -4,7 +4,7 @@
 
 use super::*;
 use pingcal_lrf::sensor::NoiseProfile;
-use pingcal_lrf::settings::ServoMotion;
+use pingcal_lrf::settings::{ServoMotion, Stamps};
 
 /// The documented example (it was the README's): the first ```toml block of docs/project.md.
 fn readme_example() -> String {
@@ -810,6 +810,7 @@ fn the_lrf_settings_are_resolved_once_at_validation() {
         servo_tf_child: Some("servo_link".into()),
         servo_axis: Some([0.0, 0.0, -3.0]),
         servo_motion: Some(ServoMotion::Continuous),
+        stamps: Some(Stamps::Record),
     });
     let bag = p.checked("p.toml").unwrap().bag.unwrap();
     assert_eq!(
@@ -820,4 +821,5 @@ fn the_lrf_settings_are_resolved_once_at_validation() {
         }
     );
     assert_eq!(bag.motion, ServoMotion::Continuous);
+    assert_eq!(bag.stamps, Stamps::Record);
 }

@@ -11,6 +11,7 @@
 //! ([`RosbagError`]); no input panics.
 
 pub mod assemble;
+pub mod clock;
 pub mod error;
 pub mod frames;
 mod mmap;
