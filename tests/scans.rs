@@ -563,3 +563,117 @@ fn frames_from_a_bag_make_a_project_sphere_calib_runs() {
         }
     }
 }
+
+/// Issue 53: bags written by `rosbags` (`make_clock_bags.py`) of a 360° scanner nodded by a
+/// servo, whose scans' header clock is ahead of the record times by 1e9 s, by 0.5 s, equal
+/// to them, or counts from the scanner's boot (the issue's bag); the servo a
+/// `std_msgs/Int32` with no header, or a JointState stamped on the scans' clock. With no
+/// option beyond the topics and the servo's scale and offset, `auto` picks the clock the
+/// bag needs and says so; every scan is in one file (v4, the beam count changes from scan
+/// to scan) with the source's servo angle and beam angles to 0.001°; and `--stamps header`
+/// on the 0.5 s bag shows what the wrong clock gives.
+#[test]
+fn two_clocks_in_one_bag_are_told_apart() {
+    let Some(py) = rosbags_python("two_clocks_in_one_bag_are_told_apart") else {
+        return;
+    };
+    let dir = tmp("clocks");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let writer =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/rosbag/make_clock_bags.py");
+    let o = Command::new(&py).arg(&writer).arg(&dir).output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let listing: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("clocks.json")).unwrap()).unwrap();
+    let int32 = [
+        "--servo-topic",
+        "/lidar_servo_angle",
+        "--servo-scale",
+        "1",
+        "--servo-offset",
+        "-90",
+    ];
+    let joint = ["--servo-topic", "/joint_states", "--servo-joint", "servo"];
+    for (name, case) in listing.as_object().unwrap() {
+        let bag = dir.join(name);
+        let want = case["scans"].as_array().unwrap();
+        for (servo, key) in [(&int32[..], "int32"), (&joint[..], "joint")] {
+            let out = dir.join(format!("{name}.{key}.csv"));
+            let mut args = vec![
+                "scans",
+                bag.to_str().unwrap(),
+                "--scan-topic",
+                "/scan",
+                "--out",
+                out.to_str().unwrap(),
+            ];
+            args.extend(servo);
+            let (ok, stdout, stderr) = pingcal(&args);
+            assert!(ok, "{name} {key}: {stderr}");
+            let clock = case[key].as_str().unwrap();
+            let said = format!("scans: time base: {clock} ");
+            assert!(stdout.contains(&said), "{name} {key}: {stdout}");
+            assert!(
+                stdout.starts_with(&format!("scans: {} scans of ", want.len()))
+                    && stdout.contains("(pingcal-scan v4)"),
+                "{name} {key}: {stdout}"
+            );
+            let (h, got) = read(&out);
+            assert_eq!(got.len(), want.len(), "{name} {key}");
+            for (k, (g, w)) in got.iter().zip(want).enumerate() {
+                let geo = g.geometry_or(&h);
+                let deg = |v: &serde_json::Value| v.as_f64().unwrap().to_degrees();
+                assert!(
+                    (g.servo_deg - w["servo_deg"].as_f64().unwrap()).abs() < 1e-3,
+                    "{name} {key} scan {k}: servo {} against {}",
+                    g.servo_deg,
+                    w["servo_deg"]
+                );
+                assert!((geo.angle_min_deg - deg(&w["angle_min"])).abs() < 1e-3);
+                assert!((geo.angle_increment_deg - deg(&w["angle_increment"])).abs() < 1e-3);
+                assert_eq!(g.ranges_mm.len() as u64, w["beams"].as_u64().unwrap());
+            }
+        }
+    }
+    // the wrong clock, asked for: the scans take the servo angle of half a second later
+    let bag = dir.join("clock_ahead_0.5.mcap");
+    let out = dir.join("forced.csv");
+    let mut args = vec![
+        "scans",
+        bag.to_str().unwrap(),
+        "--scan-topic",
+        "/scan",
+        "--out",
+        out.to_str().unwrap(),
+        "--stamps",
+        "header",
+    ];
+    args.extend(int32);
+    let (ok, stdout, stderr) = pingcal(&args);
+    assert!(ok, "{stderr}");
+    assert!(
+        stdout.contains("time base: header stamps (as asked (the servo topic has no header"),
+        "{stdout}"
+    );
+    let (_, got) = read(&out);
+    let want = listing["clock_ahead_0.5.mcap"]["scans"].as_array().unwrap();
+    let wrong = got
+        .iter()
+        .zip(want)
+        .filter(|(g, w)| (g.servo_deg - w["servo_deg"].as_f64().unwrap()).abs() > 1e-3)
+        .count();
+    assert!(wrong > got.len() / 2, "{wrong} of {}", got.len());
+    let (ok, _, stderr) = pingcal(&[&args[..6], &["--stamps", "sundial"]].concat());
+    assert!(
+        !ok && stderr.contains("expected auto, header or record"),
+        "{stderr}"
+    );
+    // the converted file of the issue's bag is one file `pingcal cloud` reads
+    let (ok, stdout, stderr) = pingcal(&[
+        "cloud",
+        dir.join("clock_boot.db3.int32.csv").to_str().unwrap(),
+    ]);
+    assert!(ok, "{stderr}");
+    assert!(stdout.starts_with("cloud: "), "{stdout}");
+}
