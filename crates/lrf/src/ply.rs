@@ -200,8 +200,13 @@ fn read_record<R: BufRead>(
 ) -> Result<()> {
     match format {
         Format::Ascii => {
-            let l = next_line(input, file, line_no)
-                .map_err(|_| LrfError::parse(file, *line_no, ends_after(k, el)))?;
+            let l = next_line(input, file, line_no).map_err(|e| {
+                if e.is_cut_short() {
+                    e
+                } else {
+                    LrfError::parse(file, *line_no, ends_after(k, el))
+                }
+            })?;
             ascii_record(&l, el, record).map_err(|m| LrfError::parse(file, *line_no, m))?;
         }
         f => binary_record(input, el, f == Format::BinBe, record).map_err(|m| match m {
