@@ -23,6 +23,9 @@ fn mutate_scans(path: &Path, f: impl Fn(&mut Vec<String>)) {
     std::fs::write(path, out).unwrap();
 }
 
+/// A change to a scan line's fields.
+type Mutation = fn(&mut Vec<String>);
+
 /// The demo's scan file (a simulated project's, v1) with its servo column in radians, and
 /// with its ranges in metres: `pingcal calibrate` refuses each when it loads the project
 /// (one error line, no output folder: the camera side never ran) and `pingcal cloud`
@@ -30,7 +33,7 @@ fn mutate_scans(path: &Path, f: impl Fn(&mut Vec<String>)) {
 #[test]
 fn unit_slips_in_a_scan_file_are_refused_at_load_naming_the_unit() {
     let w = Work::new("unit_slips");
-    let cases: [(&str, fn(&mut Vec<String>), [&str; 2]); 2] = [
+    let cases: [(&str, Mutation, [&str; 2]); 2] = [
         (
             "radians",
             |f| {

@@ -567,10 +567,12 @@ fn unit_slip(u: &UnitEvidence, mm_per_unit: f64) -> Option<String> {
         }
     }
     if u.returns == 0 && u.largest_mm > 0.0 {
-        let unit = match mm_per_unit {
-            m if m == 1.0 => "mm",
-            m if m == 10.0 => "cm",
-            _ => "m",
+        let unit = if mm_per_unit == 1.0 {
+            "mm"
+        } else if mm_per_unit == 10.0 {
+            "cm"
+        } else {
+            "m"
         };
         let largest = u.largest_mm / mm_per_unit;
         return Some(format!(
@@ -796,39 +798,8 @@ impl<R: BufRead> ScanReader<R> {
         }
         let mut ranges_mm = Vec::with_capacity(self.n_beams.unwrap_or(0));
         let mut masked = 0;
-        let mut intensities = Vec::new();
         let rest: Vec<&str> = fields.collect();
-        let mut range_fields = &rest[..];
-        // v4: each scan has n ranges, and n intensities or none
-        let n = self.n_beams.unwrap_or(0);
-        if self.sections && n > 0 && rest.len() != n {
-            if rest.len() != 2 * n {
-                return Err(LrfError::parse(
-                    file,
-                    line_no,
-                    format!(
-                        "expected {n} ranges, or {n} ranges and {n} intensities, found {} values",
-                        rest.len()
-                    ),
-                ));
-            }
-            intensities = parse_intensities(file, line_no, &rest[n..])?;
-            range_fields = &rest[..n];
-        } else if self.intensities && !self.sections {
-            let n = self.n_beams.unwrap_or(0);
-            if rest.len() != 2 * n {
-                return Err(LrfError::parse(
-                    file,
-                    line_no,
-                    format!(
-                        "expected {n} ranges and {n} intensities, found {} values",
-                        rest.len()
-                    ),
-                ));
-            }
-            intensities = parse_intensities(file, line_no, &rest[n..])?;
-            range_fields = &rest[..n];
-        }
+        let (range_fields, intensities) = self.ranges_and_intensities(&rest, line_no)?;
         for (i, f) in range_fields.iter().enumerate() {
             let v = parse_f64(file, line_no, &format!("range r{i}"), f)?;
             if v < 0.0 {
@@ -881,6 +852,40 @@ impl<R: BufRead> ScanReader<R> {
             intensities,
             geometry: self.geometry,
         })
+    }
+
+    /// A scan line's values after its servo columns: the ranges' fields and the
+    /// intensities (v3 with intensity columns: n of each; v4: n ranges, and n intensities or
+    /// none).
+    fn ranges_and_intensities<'t>(
+        &self,
+        rest: &'t [&'t str],
+        line_no: usize,
+    ) -> Result<(&'t [&'t str], Vec<f32>)> {
+        let file = self.file.as_str();
+        let n = self.n_beams.unwrap_or(0);
+        let with_i = if self.sections {
+            n > 0 && rest.len() != n
+        } else {
+            self.intensities
+        };
+        if !with_i {
+            return Ok((rest, Vec::new()));
+        }
+        if rest.len() != 2 * n {
+            let expected = if self.sections {
+                format!("{n} ranges, or {n} ranges and {n} intensities")
+            } else {
+                format!("{n} ranges and {n} intensities")
+            };
+            return Err(LrfError::parse(
+                file,
+                line_no,
+                format!("expected {expected}, found {} values", rest.len()),
+            ));
+        }
+        let intensities = parse_intensities(file, line_no, &rest[n..])?;
+        Ok((&rest[..n], intensities))
     }
 
     /// Refuses a scan earlier than the previous one, or an exact repeat of it (module doc).
@@ -1579,5 +1584,164 @@ mod tests {
         // a v3 writer needs the intensities
         let mut w = ScanWriter::new_v3(Vec::new(), &header, 3, &[]).unwrap();
         assert!(w.write_scan(0.0, 1.0, [1000.0, 0.0, 1.0]).is_err());
+    }
+
+    /// v4: one file for scans of several geometries (and with or without intensities),
+    /// written by `write_line_in` and read back scan by scan with its own geometry.
+    #[test]
+    fn v4_holds_scans_of_several_geometries_and_round_trips() {
+        let a = ScanHeader {
+            angle_min_deg: -10.0,
+            angle_increment_deg: 10.0,
+            mm_per_unit: 1.0,
+            time_increment_s: Some(0.001),
+        };
+        let b = ScanHeader {
+            angle_min_deg: -5.0,
+            angle_increment_deg: 5.0,
+            time_increment_s: Some(-0.002),
+            ..a
+        };
+        let line = |k: usize, n: usize, with_i: bool| ScanLine {
+            line: 0,
+            stamp_s: 0.1 * k as f64,
+            servo_deg: k as f64,
+            servo_end_deg: Some(k as f64 + 0.5),
+            ranges_mm: (0..n).map(|i| (1000 + 10 * k + i) as f64).collect(),
+            intensities: if with_i { vec![7.0; n] } else { vec![] },
+            geometry: None,
+        };
+        let scans = [
+            (a, line(0, 3, false)),
+            (a, line(1, 3, false)),
+            (b, line(2, 4, true)),
+            (a, line(3, 3, false)),
+        ];
+        let mut w = ScanWriter::new_v2(Vec::new(), &a, 3, &[]).unwrap();
+        for (g, l) in &scans[..2] {
+            w.write_line_in(g, l).unwrap();
+        }
+        assert!(!w.needs_v4(), "one geometry so far: still v2");
+        for (g, l) in &scans[2..] {
+            w.write_line_in(g, l).unwrap();
+        }
+        assert!(w.needs_v4());
+        let mut text = String::from_utf8(w.finish().unwrap()).unwrap();
+        text.replace_range(
+            VERSION_DIGIT_OFFSET as usize..VERSION_DIGIT_OFFSET as usize + 1,
+            "4",
+        );
+        assert!(text.starts_with("# pingcal-scan v4\n"), "{text}");
+        assert!(
+            text.contains("# geometry angle_min_deg=-5 angle_increment_deg=5 beams=4 time_increment_s=-0.002\n"),
+            "{text}"
+        );
+        let (h, v) = read_all(&text).unwrap();
+        assert_eq!(h, a);
+        assert_eq!(v.len(), 4);
+        for ((g, want), got) in scans.iter().zip(&v) {
+            assert_eq!(got.geometry_or(&h), *g);
+            assert_eq!(
+                (&got.ranges_mm, &got.intensities),
+                (&want.ranges_mm, &want.intensities)
+            );
+            assert_eq!(got.servo_end_deg, want.servo_end_deg);
+        }
+        // the same text under v3 is refused (the geometry line is a comment there, and the
+        // counts differ), as an older pingcal refuses v4
+        let e = read_all(&text.replacen("v4", "v3", 1))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("expected 3 ranges and 3 intensities") || e.contains("expected 3 ranges"),
+            "{e}"
+        );
+        // a geometry line must be whole and describe a scan
+        for (bad, want) in [
+            (
+                "beams=4 angle_min_deg=-5",
+                "needs angle_min_deg=, angle_increment_deg= and beams=",
+            ),
+            (
+                "angle_min_deg=-5 angle_increment_deg=200 beams=4",
+                "spans 600°",
+            ),
+            (
+                "angle_min_deg=-5 angle_increment_deg=5 beams=0",
+                "beams: expected a whole number above 0",
+            ),
+            (
+                "angle_min_deg=-5 angle_increment_deg=5 beams=4 colour=red",
+                "unknown key \"colour\"",
+            ),
+        ] {
+            let t = text.replace(
+                "angle_min_deg=-5 angle_increment_deg=5 beams=4 time_increment_s=-0.002",
+                bad,
+            );
+            let e = read_all(&t).unwrap_err().to_string();
+            assert!(e.starts_with("t.csv:9: ") && e.contains(want), "{bad}: {e}");
+        }
+        // a scan of the wrong count in a section
+        let t = text.replace("1020,1021,1022,1023,", "1020,1021,1022,");
+        let e = read_all(&t).unwrap_err().to_string();
+        assert!(
+            e.contains("expected 4 ranges, or 4 ranges and 4 intensities, found 7 values"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn a_servo_column_in_radians_or_ranges_in_metres_are_told() {
+        let slip = |text: &str| {
+            let mut r = ScanReader::new(text.as_bytes(), "t.csv").unwrap();
+            for l in r.by_ref() {
+                l.unwrap();
+            }
+            r.unit_slip()
+        };
+        assert_eq!(slip(GOOD), None);
+        let radians = GOOD
+            .replace("-45.056", "-3.1416")
+            .replace("-44.9", "3.1416");
+        let e = slip(&radians).unwrap();
+        assert!(
+            e.starts_with("the servo angles span -3.14…3.14: radians?"),
+            "{e}"
+        );
+        // a nod of a few degrees is degrees still when it spans less than π
+        assert_eq!(
+            slip(&GOOD.replace("-45.056", "-1.5").replace("-44.9", "1.5")),
+            None
+        );
+        let metres = GOOD
+            .replace("1532,1530,0", "1.532,1.53,0")
+            .replace("1531,7,1529", "5.6,0.007,1.529");
+        let e = slip(&metres).unwrap();
+        assert_eq!(
+            e,
+            "every range is under 20 mm, the largest 5.6: metres? the file says range_unit=mm; write # range_unit=m or the ranges in mm"
+        );
+        // the file's check names it
+        let mut r = ScanReader::new(metres.as_bytes(), "t.csv").unwrap();
+        for l in r.by_ref() {
+            l.unwrap();
+        }
+        assert!(check_units(&r)
+            .unwrap_err()
+            .to_string()
+            .starts_with("t.csv: every range"));
+    }
+
+    #[test]
+    fn a_last_line_without_a_line_break_is_refused_naming_it() {
+        let cut = &GOOD[..GOOD.len() - 3];
+        let e = read_all(cut).unwrap_err().to_string();
+        assert!(
+            e.starts_with("t.csv:8: the last line does not end with a line break"),
+            "{e}"
+        );
+        // trailing blanks without a line break are no data
+        assert_eq!(read_all(&format!("{GOOD}  ")).unwrap().1.len(), 2);
     }
 }

@@ -216,7 +216,14 @@ pub(crate) fn no_servo_samples(
 /// base `topics.stamps` gives ([`crate::clock::choose`]); a repeated time keeps its last
 /// sample; a value that is not a servo angle (not a number, beyond ±1e6°) is skipped.
 pub fn servo_series(bags: &[Bag], topics: &Topics) -> Result<ServoSeries> {
-    let record = crate::clock::choose(bags, topics, topics.stamps)?.record;
+    let record = crate::clock::choose(
+        bags,
+        &topics.scan,
+        &topics.servo,
+        &topics.source,
+        topics.stamps,
+    )?
+    .record;
     let types = servo_types(&topics.source);
     let mut samples = Vec::new();
     let mut names = ServoNames::default();

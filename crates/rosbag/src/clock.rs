@@ -20,7 +20,6 @@
 //!
 //! [`Clock::reason`] says which and why, with the lags.
 
-use crate::assemble::Topics;
 use crate::error::{Result, RosbagError};
 use crate::msgs::{self, JointState, LaserScan};
 use crate::{Bag, RawMessage};
@@ -113,9 +112,16 @@ fn lag_words(lag_s: f64) -> String {
     )
 }
 
-/// The time base for reading `topics` of `bags` as `asked` (module doc).
-pub fn choose(bags: &[Bag], topics: &Topics, asked: Stamps) -> Result<Clock> {
-    let headerless = matches!(topics.source, ServoSource::Numeric { .. });
+/// The time base for reading the scans of topic `scan` and the servo of topic `servo`
+/// (read as `source` says) from `bags` as `asked` (module doc).
+pub fn choose(
+    bags: &[Bag],
+    scan_topic: &str,
+    servo_topic: &str,
+    source: &ServoSource,
+    asked: Stamps,
+) -> Result<Clock> {
+    let headerless = matches!(source, ServoSource::Numeric { .. });
     match asked {
         Stamps::Record => {
             return Ok(Clock {
@@ -137,8 +143,8 @@ pub fn choose(bags: &[Bag], topics: &Topics, asked: Stamps) -> Result<Clock> {
     }
     let (mut scan, mut servo) = (Sample::default(), Sample::default());
     for bag in bags {
-        let read = bag.for_each(&[topics.scan.as_str(), topics.servo.as_str()], &mut |m| {
-            let s = if m.topic == topics.scan {
+        let read = bag.for_each(&[scan_topic, servo_topic], &mut |m| {
+            let s = if m.topic == scan_topic {
                 &mut scan
             } else {
                 &mut servo

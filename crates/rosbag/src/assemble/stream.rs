@@ -504,7 +504,13 @@ fn read_with_cap(
     cap: usize,
     f: &mut dyn FnMut(&ScanHeader, ScanLine) -> Result<()>,
 ) -> Result<Assembled> {
-    let clock = crate::clock::choose(bags, topics, topics.stamps)?;
+    let clock = crate::clock::choose(
+        bags,
+        &topics.scan,
+        &topics.servo,
+        &topics.source,
+        topics.stamps,
+    )?;
     let mut st = Stream::new(topics, motion, clock.record);
     st.cap = cap;
     st.done.passes = 1;
@@ -620,6 +626,54 @@ mod tests {
             }
             assert_eq!((a.scans, a.motion), (b.scans, b.motion), "{name}");
         }
+    }
+
+    /// The drivers' conventions for `time_increment` and `scan_time`: per beam, 0 with a
+    /// scan time (a turn per scan), negative (last beam first), the whole scan's time, and
+    /// nonsense.
+    #[test]
+    fn beams_are_timed_by_the_drivers_conventions() {
+        let scan = |ti: f32, st: f32| LaserScan {
+            stamp_ns: 0,
+            frame_id: String::new(),
+            angle_min: -std::f32::consts::PI,
+            angle_max: std::f32::consts::PI,
+            angle_increment: std::f32::consts::TAU / 360.0,
+            time_increment: ti,
+            scan_time: st,
+            range_min: 0.1,
+            range_max: 10.0,
+            ranges: vec![1.0; 360],
+            intensities: vec![],
+        };
+        let near = |a: f64, b: f64| (a - b).abs() < 1e-6 * b.abs().max(1e-9);
+        let (b, how) = beam_time_s(&scan(0.1 / 359.0, 0.1), None);
+        assert!(near(b, f64::from(0.1f32 / 359.0)) && how == BeamTiming::AsGiven);
+        let (b, how) = beam_time_s(&scan(0.0, 0.1), None);
+        assert!(
+            near(b, 0.1 / 360.0) && how == BeamTiming::FromScanTime,
+            "{b}"
+        );
+        let (b, how) = beam_time_s(&scan(0.0, 0.0), Some(0.1));
+        assert!(b == 0.0 && how == BeamTiming::AsGiven);
+        let (b, how) = beam_time_s(&scan(-0.1 / 359.0, 0.1), None);
+        assert!(near(b, -f64::from(0.1f32 / 359.0)) && how == BeamTiming::Reversed);
+        // the whole scan's time in time_increment: per beam it is a 360th, scan_time or not
+        for st in [0.1, 0.0] {
+            let (b, how) = beam_time_s(&scan(0.1, st), Some(0.1));
+            assert!(
+                near(b, f64::from(0.1f32) / 360.0) && how == BeamTiming::PerScan,
+                "{st}"
+            );
+        }
+        for ti in [f32::NAN, 1e30] {
+            assert_eq!(
+                beam_time_s(&scan(ti, 0.1), None),
+                (0.0, BeamTiming::Ignored)
+            );
+        }
+        // nothing to compare with: as given
+        assert_eq!(beam_time_s(&scan(0.1, 0.0), None).1, BeamTiming::AsGiven);
     }
 
     #[test]
