@@ -17,6 +17,11 @@ fn readme_example() -> String {
     rest[start..start + len].to_string()
 }
 
+
+/// A scan file of one scan, for the projects loaded here (a project's scan files are read
+/// through when it is loaded).
+const SCAN: &str = "# pingcal-scan v1\n# angle_min_deg=-10\n# angle_increment_deg=10\n# range_unit=mm\nstamp_s,servo_deg,r0\n0,0,1000\n";
+
 #[test]
 fn the_documented_example_is_valid() {
     let p = ProjectFile::parse(&readme_example(), "example.toml").unwrap();
@@ -456,7 +461,7 @@ fn the_layout_is_read_with_the_project_and_its_errors_named() {
     p.lrf
         .scans
         .iter()
-        .for_each(|s| std::fs::write(dir.join(s.replace('/', "_")), b"").unwrap());
+        .for_each(|s| std::fs::write(dir.join(s.replace('/', "_")), SCAN).unwrap());
     for s in &mut p.lrf.scans {
         *s = s.replace('/', "_");
     }
@@ -680,7 +685,7 @@ fn a_file_listed_twice_under_two_spellings_is_refused() {
         std::fs::write(dir.join(&im.file), b"").unwrap();
     }
     for s in &base.lrf.scans {
-        std::fs::write(dir.join(s), b"").unwrap();
+        std::fs::write(dir.join(s), SCAN).unwrap();
     }
     let toml = dir.join("project.toml");
     let load = |p: &ProjectFile| {
