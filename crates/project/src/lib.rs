@@ -159,7 +159,7 @@ fn check_scan_files(paths: &[PathBuf], entries: &[String], name: &str) -> Result
 
 impl Project {
     /// Reads, validates and checks that every named file exists, and reads the scan files
-    /// through ([`check_scan_files`]).
+    /// through ([`pingcal_lrf::scan::check_scan_file`]): a malformed line or a unit slip is refused here.
     pub fn load(path: &Path) -> Result<Self, ProjectError> {
         let name = path.display().to_string();
         let text = std::fs::read_to_string(path).map_err(|e| ProjectError::Io {

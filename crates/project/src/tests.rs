@@ -17,7 +17,6 @@ fn readme_example() -> String {
     rest[start..start + len].to_string()
 }
 
-
 /// A scan file of one scan, for the projects loaded here (a project's scan files are read
 /// through when it is loaded).
 const SCAN: &str = "# pingcal-scan v1\n# angle_min_deg=-10\n# angle_increment_deg=10\n# range_unit=mm\nstamp_s,servo_deg,r0\n0,0,1000\n";

@@ -17,8 +17,15 @@
 //! time and angle on the servo topic) is read once; a scan whose stamp repeats the scan
 //! before it is kept, one whose stamp goes back is dropped (a scan file is in time order);
 //! intensities are kept when there is one per beam; the beam geometry may change between
-//! scans (each scan comes with its own [`ScanHeader`]: the caller groups them, as a
-//! `pingcal-scan` file has one geometry). Several bags are read in the order given.
+//! scans (each scan comes with its own [`ScanHeader`]: a `pingcal-scan` v4 file holds them
+//! all). Several bags are read in the order given.
+//!
+//! **Time base.** Each topic's time is its header stamp or its record time, as
+//! [`Topics::stamps`] says (`auto`: [`crate::clock`], which tells two clocks apart).
+//! **Values no scan file holds** (a scan's beams beyond a turn, a servo value NaN or beyond
+//! ±1e6°) are skipped, counted and the first named ([`Assembled::bad_geometry`],
+//! [`Assembled::bad_servo`]): what is written, the readers read. **Beam timing** follows the
+//! drivers' `time_increment` / `scan_time` conventions ([`BeamTimings`]).
 //!
 //! **One pass.** The scan and servo topics are read together; a scan waits until the servo
 //! series is known past its last beam (by [`crate::motion::SLACK_NS`]: the messages of a
