@@ -175,3 +175,69 @@ fn bags_with_values_no_scan_file_holds_are_refused_naming_the_value() {
         run.stderr
     );
 }
+
+/// The simulated project's scans as a bag on two clocks (`make_clock_bags.py --project`:
+/// LaserScan header stamps from the scanner's boot, a `std_msgs/Float64` servo without
+/// header, record times from 1.7e9 s), read through `[lrf.bag]` with no option about time:
+/// the record times are chosen, said in the log, and the calibration is the CSV's to the
+/// byte (but the corner baseline's naming of its scan by line or by message).
+#[test]
+fn a_simulated_bag_on_two_clocks_calibrates_as_its_csv() {
+    let py = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../target/rosbags-venv/bin/python");
+    let ok = py.is_file()
+        && std::process::Command::new(&py)
+            .args(["-c", "import rosbags, numpy"])
+            .status()
+            .is_ok_and(|s| s.success());
+    if !ok {
+        println!(
+            "skipped: no {} with rosbags and numpy (bash tests/rosbag/setup.sh makes it)",
+            py.display()
+        );
+        return;
+    }
+    let w = Work::new("clocks_sim");
+    let p = w.quick_project("project");
+    let writer =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/rosbag/make_clock_bags.py");
+    let o = std::process::Command::new(&py)
+        .arg(&writer)
+        .arg("--project")
+        .arg(&p)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let (run, csv_out) = w.calibrate(&p, &[]);
+    assert!(run.success(), "{}", run.stderr);
+    let bag_out = w.dir.join("out-bag");
+    let toml = p.join("project-clocks.toml");
+    let run = w.run(&[
+        "calibrate",
+        toml.to_str().unwrap(),
+        "--out",
+        bag_out.to_str().unwrap(),
+    ]);
+    assert!(run.success(), "{}", run.stderr);
+    let log = format!("{}{}", run.stdout, run.stderr);
+    assert!(
+        log.contains("[lrf.bag] topic /scan: time base: record times (the scans' header stamps are 1.700e9 s behind their record times"),
+        "{log}"
+    );
+    let norm = |dir: &Path| {
+        let text = std::fs::read_to_string(dir.join("results.json")).unwrap();
+        let mut out = String::new();
+        for line in text.lines() {
+            // the corner baseline names its scan by file line (CSV) or message (bag)
+            match line.split_once("(file line ") {
+                Some((head, tail)) => {
+                    out.push_str(head);
+                    out.push_str(tail.split_once(',').map_or("", |(_, t)| t));
+                }
+                None => out.push_str(line),
+            }
+            out.push('\n');
+        }
+        out
+    };
+    assert!(norm(&csv_out) == norm(&bag_out), "results.json differ");
+}

@@ -2,6 +2,7 @@
 `rosbags` package), for tests/scans.rs (issue 53):
 
     python make_clock_bags.py OUT_DIR
+    python make_clock_bags.py --project SIM_DIR
 
 A 360-degree scanner nodded by a hobby servo, as in a real RPLIDAR recording: /scan
 (sensor_msgs/LaserScan, 0.1 s apart, a beam count that changes from scan to scan between 358
@@ -18,6 +19,13 @@ int32 seconds). The header stamps are the record times plus an offset:
 - clock_ahead_0.5.mcap: + 0.5 s;
 - clock_equal.mcap: + 0 (the recorder's clock);
 - clock_boot.db3: the scanner's boot time (the first scan stamped 168 s), as the issue's bag.
+
+The second form writes every scan of a simulated project (SIM_DIR/scans/S00.csv, v1) as
+SIM_DIR/bags/clocks.db3, on two clocks: /scan's header stamps from the scanner's boot (the
+first scan at 168 s), its record times from 1.7e9 s; /servo_deg (std_msgs/Float64, no
+header: the servo's degrees as the CSV gives them) 10 ms before each scan by the record
+clock; and SIM_DIR/project-clocks.toml, which reads them ([lrf.bag] with no `stamps` key:
+auto). Calibrated, it must give the CSV's results.
 
 OUT_DIR/clocks.json gives per bag the offset and the clock pingcal must choose with each
 servo topic, and per scan its record time, beam count, angle_min and angle_increment (the
@@ -122,5 +130,63 @@ def main(out_dir):
     (out / 'clocks.json').write_text(json.dumps(listing) + '\n')
 
 
+def project(sim_dir):
+    sim = Path(sim_dir)
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    T = ts.types
+    Time, Header = T['builtin_interfaces/msg/Time'], T['std_msgs/msg/Header']
+    header, scans = {}, []
+    for line in (sim / 'scans/S00.csv').read_text().splitlines():
+        if line.startswith('#'):
+            if '=' in line:
+                k, v = line[1:].split('=', 1)
+                header[k.strip()] = v.strip()
+        elif line.strip() and not line.startswith('stamp_s'):
+            f = line.split(',')
+            scans.append((f[0], f[1], [int(x) for x in f[2:]]))
+    amin = math.radians(float(header['angle_min_deg']))
+    inc = math.radians(float(header['angle_increment_deg']))
+    boot_ns = 168 * 10**9
+    msgs = []
+    for stamp, servo, ranges in scans:
+        sec, _, frac = stamp.partition('.')
+        t = int(sec) * 10**9 + int((frac + '000000000')[:9])
+        rec = T0_NS + t
+        n = len(ranges)
+        msgs.append(('/servo_deg', rec - LEAD_NS, T['std_msgs/msg/Float64'](data=float(servo)),
+                     'std_msgs/msg/Float64'))
+        h = boot_ns + t
+        scan = T['sensor_msgs/msg/LaserScan'](
+            header=Header(stamp=Time(sec=h // 10**9, nanosec=h % 10**9), frame_id='laser'),
+            angle_min=amin, angle_max=amin + (n - 1) * inc, angle_increment=inc,
+            time_increment=0.0, scan_time=0.0, range_min=0.02, range_max=30.0,
+            ranges=np.array([r / 1000.0 for r in ranges], dtype=np.float32),
+            intensities=np.zeros(0, dtype=np.float32))
+        msgs.append(('/scan', rec, scan, 'sensor_msgs/msg/LaserScan'))
+    msgs.sort(key=lambda m: m[1])
+    bags = sim / 'bags'
+    bags.mkdir(exist_ok=True)
+    tmp = bags / 'clocks.dir'
+    shutil.rmtree(tmp, ignore_errors=True)
+    w = Writer(tmp, version=9, storage_plugin=StoragePlugin.SQLITE3)
+    w.open()
+    conns = {}
+    for topic, ns, msg, ty in msgs:
+        if topic not in conns:
+            conns[topic] = w.add_connection(topic, ty, typestore=ts)
+        w.write(conns[topic], ns, ts.serialize_cdr(msg, ty))
+    w.close()
+    (stored,) = [p for p in tmp.iterdir() if p.suffix == '.db3']
+    shutil.move(stored, bags / 'clocks.db3')
+    shutil.rmtree(tmp)
+    text = (sim / 'project.toml').read_text()
+    lrf = text.replace('scans = ["scans/S00.csv"]\n', '') + (
+        '\n[lrf.bag]\nfiles = ["bags/clocks.db3"]\nscan_topic = "/scan"\nservo_topic = "/servo_deg"\n')
+    (sim / 'project-clocks.toml').write_text(lrf)
+
+
 if __name__ == '__main__':
-    main(sys.argv[1])
+    if sys.argv[1] == '--project':
+        project(sys.argv[2])
+    else:
+        main(sys.argv[1])
