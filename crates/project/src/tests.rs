@@ -766,6 +766,11 @@ fn every_closed_set_key_refuses_a_wrong_word_with_its_line_and_the_words_allowed
             "servo_motion = \"bogus\"".into(),
             "servo_motion = \"bogus\": expected one of auto, stop-and-go, continuous",
         ),
+        (
+            "servo_motion = \"auto\"",
+            "servo_motion = \"auto\"\nstamps = \"sundial\"".into(),
+            "stamps = \"sundial\": expected one of auto, header, record",
+        ),
     ];
     for (from, to, message) in cases {
         let at = example.find(from).unwrap_or_else(|| panic!("{from:?}"));
