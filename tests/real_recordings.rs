@@ -241,3 +241,72 @@ fn a_simulated_bag_on_two_clocks_calibrates_as_its_csv() {
     };
     assert!(norm(&csv_out) == norm(&bag_out), "results.json differ");
 }
+
+/// `pingcal calibrate` reads a `pingcal-scan` v4 file, each scan in its own geometry: the
+/// project's scans written again as v4, every other scan with one beam more before its
+/// first (a no return, the geometry starting one step earlier: a `# geometry` line before
+/// each scan), give the calibration of the v1 file to the byte (but the corner baseline's
+/// naming of its scan by file line). Read with the file's geometry, every beam of those
+/// scans would turn by a step.
+#[test]
+fn calibrate_reads_a_v4_scan_file_as_the_same_scans() {
+    let w = Work::new("v4_calibrate");
+    let p = w.quick_project("project");
+    let (run, v1_out) = w.calibrate(&p, &[]);
+    assert!(run.success(), "{}", run.stderr);
+    let scans = p.join("scans/S00.csv");
+    let text = std::fs::read_to_string(&scans).unwrap();
+    let (mut a0, mut inc, mut k) = (String::new(), String::new(), 0usize);
+    let mut out = String::new();
+    for line in text.lines() {
+        if let Some(v) = line.strip_prefix("# angle_min_deg=") {
+            a0 = v.to_string();
+        }
+        if let Some(v) = line.strip_prefix("# angle_increment_deg=") {
+            inc = v.to_string();
+        }
+        if line == "# pingcal-scan v1" {
+            out.push_str("# pingcal-scan v4\n");
+        } else if let Some(cols) = line.strip_prefix("stamp_s,servo_deg,") {
+            out.push_str(&format!("stamp_s,servo_deg,servo_end_deg,{cols}\n"));
+        } else if line.starts_with('#') || line.trim().is_empty() {
+            out.push_str(line);
+            out.push('\n');
+        } else {
+            let (stamp, rest) = line.split_once(',').unwrap();
+            let (servo, ranges) = rest.split_once(',').unwrap();
+            let n = ranges.split(',').count();
+            let (first, zero, beams) = if k % 2 == 1 {
+                let (a, d): (f64, f64) = (a0.parse().unwrap(), inc.parse().unwrap());
+                (format!("{}", a - d), "0,", n + 1)
+            } else {
+                (a0.clone(), "", n)
+            };
+            out.push_str(&format!(
+                "# geometry angle_min_deg={first} angle_increment_deg={inc} beams={beams}\n{stamp},{servo},{servo},{zero}{ranges}\n"
+            ));
+            k += 1;
+        }
+    }
+    std::fs::write(&scans, out).unwrap();
+    let v4_out = w.dir.join("out-v4");
+    let run = w.run(&[
+        "calibrate",
+        p.join("project.toml").to_str().unwrap(),
+        "--out",
+        v4_out.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert!(run.success(), "{}", run.stderr);
+    let norm = |dir: &Path| {
+        let text = std::fs::read_to_string(dir.join("results.json")).unwrap();
+        text.lines()
+            .map(|l| match l.split_once("(file line ") {
+                Some((head, tail)) => format!("{head}{}", tail.split_once(',').map_or("", |t| t.1)),
+                None => l.to_string(),
+            })
+            .collect::<Vec<_>>()
+            .join("\n")
+    };
+    assert!(norm(&v1_out) == norm(&v4_out), "results.json differ");
+}
