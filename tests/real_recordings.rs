@@ -310,3 +310,44 @@ fn calibrate_reads_a_v4_scan_file_as_the_same_scans() {
     };
     assert!(norm(&v1_out) == norm(&v4_out), "results.json differ");
 }
+
+/// A sphere-calib frame whose cloud was cut mid-number is refused naming the cloud file
+/// and its last line (it gave the unchanged verdict and no word).
+#[test]
+fn a_sphere_calib_cloud_cut_short_is_refused_naming_it() {
+    let w = Work::new("sphere_cut");
+    let d = w.dir.join("sc");
+    let run = w.run(&[
+        "simulate",
+        "--kind",
+        "sphere-calib",
+        "--frames",
+        "4",
+        "--seed",
+        "7",
+        "--out",
+        d.to_str().unwrap(),
+    ]);
+    assert!(run.success(), "{}", run.stderr);
+    let cloud = d.join("clouds/F01.xyz");
+    let bytes = std::fs::read(&cloud).unwrap();
+    // two thirds in, not just after a line break
+    let mut at = bytes.len() * 2 / 3;
+    while bytes[at - 1] == b'\n' {
+        at -= 1;
+    }
+    let cut = &bytes[..at];
+    std::fs::write(&cloud, cut).unwrap();
+    let line = cut.iter().filter(|&&b| b == b'\n').count() + 1;
+    let run = w.run(&[
+        "sphere-calib",
+        d.join("sphere-calib.toml").to_str().unwrap(),
+        "--out",
+        w.dir.join("out").to_str().unwrap(),
+    ]);
+    assert!(!run.success(), "{}", run.stdout);
+    let want = format!(
+        "F01.xyz:{line}: the last line does not end with a line break: the file was cut short"
+    );
+    assert!(run.stderr.contains(&want), "{want}: {}", run.stderr);
+}
