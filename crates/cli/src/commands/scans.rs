@@ -1,5 +1,5 @@
 //! `pingcal scans BAG... --scan-topic T --servo-topic T [--servo-joint NAME | --servo-scale S
-//! --servo-offset O | --servo-tf-child F --servo-axis x,y,z] [--servo-motion auto|stop-and-go|continuous]
+//! --servo-offset O | --servo-tf-child F --servo-axis x,y,z] [--servo-motion auto|stop-and-go|continuous] [--stamps auto|header|record]
 //! --out scans.csv`: the LRF's scans read from ROS 1 bags and ROS 2 bags (MCAP, sqlite3, or
 //! a bag folder) in one pass, as drivers publish them (empty scans, no-return ranges,
 //! messages stored twice, stamps that repeat or go back: counted in the summary), the servo
@@ -75,7 +75,8 @@ pub struct Args {
     /// clocks (it says which it used, and why).
     #[arg(long, default_value = "auto", value_parser = Stamps::parse)]
     pub stamps: Stamps,
-    /// The scan file to write (`pingcal-scan` v2 CSV).
+    /// The scan file to write (`pingcal-scan` v2 CSV; v3 with intensities, v4 when the beam
+    /// geometry changes between scans).
     #[arg(long, required_unless_present = "list")]
     pub out: Option<PathBuf>,
 }
