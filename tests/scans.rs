@@ -677,3 +677,58 @@ fn two_clocks_in_one_bag_are_told_apart() {
     assert!(ok, "{stderr}");
     assert!(stdout.starts_with("cloud: "), "{stdout}");
 }
+
+/// Issue 53: drivers time their beams in more than one way (`make_clock_bags.py
+/// --timing`: a continuous sweep at 30°/s and scans whose `time_increment` is 0.0025 s, 0
+/// with a `scan_time` of 0.1 s, −0.0025 s, or the whole scan's 0.05 s, in turn): each scan's
+/// first and last beam get the ramp's angle at their own time, every convention is counted
+/// in the summary, and the file (v4) keeps each scan's time between beams.
+#[test]
+fn the_drivers_beam_timings_are_met() {
+    let Some(py) = rosbags_python("the_drivers_beam_timings_are_met") else {
+        return;
+    };
+    let dir = tmp("timing");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let writer =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/rosbag/make_clock_bags.py");
+    let o = Command::new(&py)
+        .arg(&writer)
+        .arg("--timing")
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let out = dir.join("t.csv");
+    let (ok, stdout, stderr) = scans_by_joint(&dir.join("timing.mcap"), &out);
+    assert!(ok, "{stderr}");
+    for want in [
+        "servo motion: continuous",
+        "6 scan(s) with time_increment 0: the time between beams from scan_time",
+        "6 scan(s) with time_increment negative: the beams measured from the last to the first",
+        "6 scan(s) with time_increment longer than a scan per beam: taken as the whole scan's time",
+    ] {
+        assert!(stdout.contains(want), "{want}: {stdout}");
+    }
+    let (h, got) = read(&out);
+    assert_eq!(got.len(), 24);
+    let ramp = |t: f64| -10.0 + 30.0 * t;
+    let f32s = |v: f32| f64::from(v);
+    // seconds between beams, by the scan's convention
+    let beam = [
+        f32s(0.0025),
+        f32s(0.1) * f32s(1f32.to_radians()) / std::f64::consts::TAU,
+        -f32s(0.0025),
+        f32s(0.05) / 20.0,
+    ];
+    for (k, l) in got.iter().enumerate() {
+        let t = 0.1 + 0.1 * k as f64;
+        let b = beam[k % 4];
+        assert!((l.servo_deg - ramp(t)).abs() < 1e-6, "{k}: {}", l.servo_deg);
+        let end = l.servo_end_deg.unwrap();
+        assert!((end - ramp(t + 19.0 * b)).abs() < 1e-6, "{k}: {end}");
+        let ti = l.geometry_or(&h).time_increment_s.unwrap();
+        assert!((ti - b).abs() < 1e-9, "{k}: {ti} against {b}");
+    }
+}

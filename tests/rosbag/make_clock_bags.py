@@ -3,6 +3,7 @@
 
     python make_clock_bags.py OUT_DIR
     python make_clock_bags.py --project SIM_DIR
+    python make_clock_bags.py --timing OUT_DIR
 
 A 360-degree scanner nodded by a hobby servo, as in a real RPLIDAR recording: /scan
 (sensor_msgs/LaserScan, 0.1 s apart, a beam count that changes from scan to scan between 358
@@ -26,6 +27,12 @@ first scan at 168 s), its record times from 1.7e9 s; /servo_deg (std_msgs/Float6
 header: the servo's degrees as the CSV gives them) 10 ms before each scan by the record
 clock; and SIM_DIR/project-clocks.toml, which reads them ([lrf.bag] with no `stamps` key:
 auto). Calibrated, it must give the CSV's results.
+
+The third form writes OUT_DIR/timing.mcap: a continuous sweep (JointState `servo` at 50 Hz,
+30 deg/s from -10 deg, header stamps = record times) and 24 scans 0.1 s apart (20 beams, 1 deg
+apart) whose drivers time their beams four ways in turn: time_increment 0.0025 s;
+time_increment 0 with scan_time 0.1 s; time_increment -0.0025 s (the last beam first);
+time_increment 0.05 s, the whole scan's time.
 
 OUT_DIR/clocks.json gives per bag the offset and the clock pingcal must choose with each
 servo topic, and per scan its record time, beam count, angle_min and angle_increment (the
@@ -185,8 +192,56 @@ def project(sim_dir):
     (sim / 'project-clocks.toml').write_text(lrf)
 
 
+def timing(out_dir):
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    T = ts.types
+    Time, Header = T['builtin_interfaces/msg/Time'], T['std_msgs/msg/Header']
+
+    def hdr(ns, frame):
+        return Header(stamp=Time(sec=ns // 10**9, nanosec=ns % 10**9), frame_id=frame)
+
+    ramp = lambda ns: -10.0 + 30.0 * (ns - T0_NS) * 1e-9
+    msgs = []
+    for k in range(130):  # 2.6 s at 50 Hz
+        t = T0_NS + k * 20_000_000
+        msgs.append(('/joint_states', t,
+                     T['sensor_msgs/msg/JointState'](header=hdr(t, ''), name=['servo'],
+                                                     position=np.array([math.radians(ramp(t))]),
+                                                     velocity=np.zeros(0), effort=np.zeros(0)),
+                     'sensor_msgs/msg/JointState'))
+    n, inc = 20, math.radians(1.0)
+    conventions = [(0.0025, 0.1), (0.0, 0.1), (-0.0025, 0.1), (0.05, 0.1)]
+    for k in range(24):
+        # reversed beams end at the stamp: stamped later so that all lie within the servo's
+        t = T0_NS + 100_000_000 + k * 100_000_000
+        ti, st = conventions[k % 4]
+        r = np.array([(1500.0 + 5.0 * k + i) / 1000.0 for i in range(n)], dtype=np.float32)
+        msgs.append(('/scan', t, T['sensor_msgs/msg/LaserScan'](
+            header=hdr(t, 'laser'), angle_min=-math.pi / 4, angle_max=-math.pi / 4 + (n - 1) * inc,
+            angle_increment=inc, time_increment=ti, scan_time=st, range_min=0.02, range_max=30.0,
+            ranges=r, intensities=np.zeros(0, dtype=np.float32)), 'sensor_msgs/msg/LaserScan'))
+    msgs.sort(key=lambda m: m[1])
+    tmp = out / 'timing.dir'
+    shutil.rmtree(tmp, ignore_errors=True)
+    w = Writer(tmp, version=9, storage_plugin=StoragePlugin.MCAP)
+    w.open()
+    conns = {}
+    for topic, ns, msg, ty in msgs:
+        if topic not in conns:
+            conns[topic] = w.add_connection(topic, ty, typestore=ts)
+        w.write(conns[topic], ns, ts.serialize_cdr(msg, ty))
+    w.close()
+    (stored,) = [p for p in tmp.iterdir() if p.suffix == '.mcap']
+    shutil.move(stored, out / 'timing.mcap')
+    shutil.rmtree(tmp)
+
+
 if __name__ == '__main__':
     if sys.argv[1] == '--project':
         project(sys.argv[2])
+    elif sys.argv[1] == '--timing':
+        timing(sys.argv[2])
     else:
         main(sys.argv[1])
