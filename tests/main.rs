@@ -17,6 +17,7 @@ mod docs_commands;
 mod e2e;
 mod ecosystem;
 mod plan;
+mod real_recordings;
 mod scans;
 mod sigma_honesty;
 mod sphere_calib;

@@ -217,54 +217,53 @@ fn a_ros2_bag_folder_reads_its_storage_files() {
 }
 
 /// A driver that changes the beam geometry between messages (`geometry.bag`: A A B A C,
-/// `make_fixtures.py`): no scan is lost or resampled; each geometry's scans are in a file of
-/// their own, every range and servo angle as recorded.
+/// `make_fixtures.py`): no scan is lost or resampled; all are in one file (`pingcal-scan`
+/// v4), each in its own geometry, every range and servo angle as recorded, and `pingcal
+/// cloud` reads it.
 #[test]
-fn a_changed_beam_geometry_keeps_every_scan_in_a_file_per_geometry() {
+fn a_changed_beam_geometry_keeps_every_scan_in_one_file() {
     // a folder of its own: the other tests look for .partial files in theirs
     let dir = tmp("geometry");
     std::fs::create_dir_all(&dir).unwrap();
     let out = dir.join("geometry.csv");
-    let more = [dir.join("geometry.g2.csv"), dir.join("geometry.g3.csv")];
-    for p in std::iter::once(&out).chain(&more) {
-        let _ = std::fs::remove_file(p);
-    }
+    let _ = std::fs::remove_file(&out);
     let b = data("geometry.bag");
     let (ok, stdout, stderr) = scans_by_joint(&b, &out);
     assert!(ok, "{stderr}");
-    assert!(stdout.starts_with("scans: 3 scans of 10 beams"), "{stdout}");
     assert!(
-        stdout.contains("scans: 1 scans of 11 beams from -10° → ")
-            && stdout.contains("scans: 1 scans of 10 beams from -5° → "),
+        stdout.starts_with("scans: 5 scans of 10 beams") && stdout.contains("(pingcal-scan v4)"),
         "{stdout}"
     );
     assert!(
-        stderr.contains("the beam geometry changes between scans"),
-        "{stderr}"
+        stdout.contains("scans: one file for every beam geometry"),
+        "{stdout}"
     );
-    // (file, scan indices k in the bag, beams, first angle)
-    let want: [(&Path, &[usize], usize, f64); 3] = [
-        (&out, &[0, 1, 3], 10, -10.0),
-        (&more[0], &[2], 11, -10.0),
-        (&more[1], &[4], 10, -5.0),
+    // (beams, first angle) of scans k = 0..4 in the bag
+    let want: [(usize, f64); 5] = [
+        (10, -10.0),
+        (10, -10.0),
+        (11, -10.0),
+        (10, -10.0),
+        (10, -5.0),
     ];
-    for (path, ks, n, a0) in want {
-        let (h, lines) = read(path);
+    let (h, lines) = read(&out);
+    assert_eq!(lines.len(), 5);
+    for (k, (l, (n, a0))) in lines.iter().zip(want).enumerate() {
+        let g = l.geometry_or(&h);
         assert_eq!(
-            (h.angle_min_deg, h.angle_increment_deg),
+            (g.angle_min_deg, g.angle_increment_deg),
             (a0, 1.0),
-            "{path:?}"
+            "scan {k}"
         );
-        assert_eq!(lines.len(), ks.len(), "{path:?}");
-        for (l, &k) in lines.iter().zip(ks) {
-            let ranges: Vec<f64> = (0..n).map(|i| (1000 + 10 * k + i) as f64).collect();
-            assert_eq!(l.ranges_mm, ranges, "{path:?} scan {k}");
-            assert!(
-                (l.servo_deg - 2.0 * k as f64).abs() < 1e-9,
-                "{path:?} scan {k}"
-            );
-        }
+        let ranges: Vec<f64> = (0..n).map(|i| (1000 + 10 * k + i) as f64).collect();
+        assert_eq!(l.ranges_mm, ranges, "scan {k}");
+        assert!((l.servo_deg - 2.0 * k as f64).abs() < 1e-9, "scan {k}");
     }
+    let (ok, stdout, stderr) = pingcal(&["cloud", out.to_str().unwrap()]);
+    assert!(
+        ok && stdout.starts_with("cloud: 51 points from 1 file(s)"),
+        "{stdout}{stderr}"
+    );
     let partial = std::fs::read_dir(&dir)
         .unwrap()
         .filter_map(Result::ok)
@@ -338,13 +337,18 @@ fn a_drivers_bag_is_converted_with_the_counts_named() {
     ] {
         assert!(stderr.contains(want), "{want}: {stderr}");
     }
+    // the beam count changes: one file, v4, every scan with its own count and intensities
     let text = std::fs::read_to_string(&out).unwrap();
-    assert!(text.starts_with("# pingcal-scan v3\n"), "{text}");
+    assert!(text.starts_with("# pingcal-scan v4\n"), "{text}");
     assert!(text.contains("# time_increment_s=0.0005\n"), "{text}");
     let (_, lines) = read(&out);
+    assert_eq!(lines.len(), 21);
     assert!(lines
         .iter()
         .all(|l| l.intensities.len() == l.ranges_mm.len()));
+    let counts: std::collections::BTreeSet<usize> =
+        lines.iter().map(|l| l.ranges_mm.len()).collect();
+    assert!(counts.len() > 1, "{counts:?}");
     let (ok, _, stderr) = run(args("servo"));
     assert!(!ok);
     assert!(
@@ -557,5 +561,174 @@ fn frames_from_a_bag_make_a_project_sphere_calib_runs() {
             );
             assert!((a - b).abs() < 5.0, "{kind}: t[{i}] {a} against {b}");
         }
+    }
+}
+
+/// Issue 53: bags written by `rosbags` (`make_clock_bags.py`) of a 360° scanner nodded by a
+/// servo, whose scans' header clock is ahead of the record times by 1e9 s, by 0.5 s, equal
+/// to them, or counts from the scanner's boot (the issue's bag); the servo a
+/// `std_msgs/Int32` with no header, or a JointState stamped on the scans' clock. With no
+/// option beyond the topics and the servo's scale and offset, `auto` picks the clock the
+/// bag needs and says so; every scan is in one file (v4, the beam count changes from scan
+/// to scan) with the source's servo angle and beam angles to 0.001°; and `--stamps header`
+/// on the 0.5 s bag shows what the wrong clock gives.
+#[test]
+fn two_clocks_in_one_bag_are_told_apart() {
+    let Some(py) = rosbags_python("two_clocks_in_one_bag_are_told_apart") else {
+        return;
+    };
+    let dir = tmp("clocks");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let writer =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/rosbag/make_clock_bags.py");
+    let o = Command::new(&py).arg(&writer).arg(&dir).output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let listing: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("clocks.json")).unwrap()).unwrap();
+    let int32 = [
+        "--servo-topic",
+        "/lidar_servo_angle",
+        "--servo-scale",
+        "1",
+        "--servo-offset",
+        "-90",
+    ];
+    let joint = ["--servo-topic", "/joint_states", "--servo-joint", "servo"];
+    for (name, case) in listing.as_object().unwrap() {
+        let bag = dir.join(name);
+        let want = case["scans"].as_array().unwrap();
+        for (servo, key) in [(&int32[..], "int32"), (&joint[..], "joint")] {
+            let out = dir.join(format!("{name}.{key}.csv"));
+            let mut args = vec![
+                "scans",
+                bag.to_str().unwrap(),
+                "--scan-topic",
+                "/scan",
+                "--out",
+                out.to_str().unwrap(),
+            ];
+            args.extend(servo);
+            let (ok, stdout, stderr) = pingcal(&args);
+            assert!(ok, "{name} {key}: {stderr}");
+            let clock = case[key].as_str().unwrap();
+            let said = format!("scans: time base: {clock} ");
+            assert!(stdout.contains(&said), "{name} {key}: {stdout}");
+            assert!(
+                stdout.starts_with(&format!("scans: {} scans of ", want.len()))
+                    && stdout.contains("(pingcal-scan v4)"),
+                "{name} {key}: {stdout}"
+            );
+            let (h, got) = read(&out);
+            assert_eq!(got.len(), want.len(), "{name} {key}");
+            for (k, (g, w)) in got.iter().zip(want).enumerate() {
+                let geo = g.geometry_or(&h);
+                let deg = |v: &serde_json::Value| v.as_f64().unwrap().to_degrees();
+                assert!(
+                    (g.servo_deg - w["servo_deg"].as_f64().unwrap()).abs() < 1e-3,
+                    "{name} {key} scan {k}: servo {} against {}",
+                    g.servo_deg,
+                    w["servo_deg"]
+                );
+                assert!((geo.angle_min_deg - deg(&w["angle_min"])).abs() < 1e-3);
+                assert!((geo.angle_increment_deg - deg(&w["angle_increment"])).abs() < 1e-3);
+                assert_eq!(g.ranges_mm.len() as u64, w["beams"].as_u64().unwrap());
+            }
+        }
+    }
+    // the wrong clock, asked for: the scans take the servo angle of half a second later
+    let bag = dir.join("clock_ahead_0.5.mcap");
+    let out = dir.join("forced.csv");
+    let mut args = vec![
+        "scans",
+        bag.to_str().unwrap(),
+        "--scan-topic",
+        "/scan",
+        "--out",
+        out.to_str().unwrap(),
+        "--stamps",
+        "header",
+    ];
+    args.extend(int32);
+    let (ok, stdout, stderr) = pingcal(&args);
+    assert!(ok, "{stderr}");
+    assert!(
+        stdout.contains("time base: header stamps (as asked (the servo topic has no header"),
+        "{stdout}"
+    );
+    let (_, got) = read(&out);
+    let want = listing["clock_ahead_0.5.mcap"]["scans"].as_array().unwrap();
+    let wrong = got
+        .iter()
+        .zip(want)
+        .filter(|(g, w)| (g.servo_deg - w["servo_deg"].as_f64().unwrap()).abs() > 1e-3)
+        .count();
+    assert!(wrong > got.len() / 2, "{wrong} of {}", got.len());
+    let (ok, _, stderr) = pingcal(&[&args[..6], &["--stamps", "sundial"]].concat());
+    assert!(
+        !ok && stderr.contains("expected auto, header or record"),
+        "{stderr}"
+    );
+    // the converted file of the issue's bag is one file `pingcal cloud` reads
+    let (ok, stdout, stderr) = pingcal(&[
+        "cloud",
+        dir.join("clock_boot.db3.int32.csv").to_str().unwrap(),
+    ]);
+    assert!(ok, "{stderr}");
+    assert!(stdout.starts_with("cloud: "), "{stdout}");
+}
+
+/// Issue 53: drivers time their beams in more than one way (`make_clock_bags.py
+/// --timing`: a continuous sweep at 30°/s and scans whose `time_increment` is 0.0025 s, 0
+/// with a `scan_time` of 0.1 s, −0.0025 s, or the whole scan's 0.05 s, in turn): each scan's
+/// first and last beam get the ramp's angle at their own time, every convention is counted
+/// in the summary, and the file (v4) keeps each scan's time between beams.
+#[test]
+fn the_drivers_beam_timings_are_met() {
+    let Some(py) = rosbags_python("the_drivers_beam_timings_are_met") else {
+        return;
+    };
+    let dir = tmp("timing");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let writer =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/rosbag/make_clock_bags.py");
+    let o = Command::new(&py)
+        .arg(&writer)
+        .arg("--timing")
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let out = dir.join("t.csv");
+    let (ok, stdout, stderr) = scans_by_joint(&dir.join("timing.mcap"), &out);
+    assert!(ok, "{stderr}");
+    for want in [
+        "servo motion: continuous",
+        "6 scan(s) with time_increment 0: the time between beams from scan_time",
+        "6 scan(s) with time_increment negative: the beams measured from the last to the first",
+        "6 scan(s) with time_increment longer than a scan per beam: taken as the whole scan's time",
+    ] {
+        assert!(stdout.contains(want), "{want}: {stdout}");
+    }
+    let (h, got) = read(&out);
+    assert_eq!(got.len(), 24);
+    let ramp = |t: f64| -10.0 + 30.0 * t;
+    let f32s = |v: f32| f64::from(v);
+    // seconds between beams, by the scan's convention
+    let beam = [
+        f32s(0.0025),
+        f32s(0.1) * f32s(1f32.to_radians()) / std::f64::consts::TAU,
+        -f32s(0.0025),
+        f32s(0.05) / 20.0,
+    ];
+    for (k, l) in got.iter().enumerate() {
+        let t = 0.1 + 0.1 * k as f64;
+        let b = beam[k % 4];
+        assert!((l.servo_deg - ramp(t)).abs() < 1e-6, "{k}: {}", l.servo_deg);
+        let end = l.servo_end_deg.unwrap();
+        assert!((end - ramp(t + 19.0 * b)).abs() < 1e-6, "{k}: {end}");
+        let ti = l.geometry_or(&h).time_increment_s.unwrap();
+        assert!((ti - b).abs() < 1e-9, "{k}: {ti} against {b}");
     }
 }

@@ -77,8 +77,10 @@ fn servo_rate_deg_s(header: &ScanHeader, scan: &ScanLine) -> f64 {
     let (Some(end), Some(dt)) = (scan.servo_end_deg, header.time_increment_s) else {
         return 0.0;
     };
+    // a negative time between beams (v4: measured from the last beam to the first) gives
+    // the rate its sign
     let span_s = dt * scan.ranges_mm.len().saturating_sub(1) as f64;
-    if span_s > 0.0 {
+    if span_s != 0.0 {
         (end - scan.servo_deg) / span_s
     } else {
         0.0
@@ -111,8 +113,10 @@ impl Cloud {
     }
 
     /// Appends the valid beams of one scan (eq. 2 + mount), each at its own servo angle
-    /// ([`ScanLine::servo_deg_at`]: constant for a stop-and-go scan).
+    /// ([`ScanLine::servo_deg_at`]: constant for a stop-and-go scan), in the scan's own beam
+    /// geometry where it has one ([`ScanLine::geometry`]), else the file's `header`.
     pub fn push_scan(&mut self, header: &ScanHeader, scan: &ScanLine, mount: &MountModel) {
+        let header = &scan.geometry_or(header);
         if self.readings.is_none() && self.points.is_empty() {
             self.readings = Some(Vec::new());
         }
@@ -266,6 +270,7 @@ mod tests {
             servo_end_deg: None,
             ranges_mm: vec![1000.0, 0.0, 1000.0],
             intensities: vec![],
+            geometry: None,
         };
         let c = Cloud::from_scans(&h, vec![Ok(s)], &MountModel::default()).unwrap();
         assert_eq!(c.len(), 2);
@@ -290,6 +295,7 @@ mod tests {
             servo_end_deg: Some(10.5),
             ranges_mm: vec![1000.0, 1200.0, 1400.0],
             intensities: vec![],
+            geometry: None,
         };
         let mount = MountModel {
             offset_mm: [5.0, 1.0, -3.0],
@@ -320,6 +326,7 @@ mod tests {
             servo_end_deg: None,
             ranges_mm: vec![1000.0],
             intensities: vec![],
+            geometry: None,
         };
         let c = Cloud::from_scans(&h, vec![Ok(rest)], &mount).unwrap();
         let p0 = mount.scanner_at(11.0).point(1000.0, (-10f64).to_radians());
@@ -379,6 +386,7 @@ mod tests {
             servo_end_deg: None,
             ranges_mm: vec![1000.0, 9000.0, 2000.0],
             intensities: Vec::new(),
+            geometry: None,
         };
         let mount = MountModel {
             offset_mm: [5.0, 0.0, 0.0],
@@ -411,6 +419,7 @@ mod tests {
             servo_end_deg: Some(90.0),
             ranges_mm: vec![1000.0, 1000.0, 1000.0],
             intensities: vec![],
+            geometry: None,
         };
         let mount = MountModel::default();
         let c = Cloud::from_scans(&h, vec![Ok(s.clone())], &mount).unwrap();
@@ -422,6 +431,7 @@ mod tests {
                 servo_end_deg: None,
                 ranges_mm: (0..3).map(|k| if k == i { 1000.0 } else { 0.0 }).collect(),
                 intensities: vec![],
+                geometry: None,
                 ..s.clone()
             };
             let q = Cloud::from_scans(&h, vec![Ok(one)], &mount).unwrap().points[0];

@@ -28,6 +28,7 @@ fn read_cloud_file_masked(
             let mut reader = crate::scan::open_scan_file(path)?;
             let header = reader.header();
             let c = Cloud::from_scans(&header, reader.by_ref(), mount)?;
+            crate::scan::check_units(&reader)?;
             let masked = reader.masked();
             if c.is_empty() && masked.count > 0 {
                 return Err(LrfError::Empty {

@@ -55,6 +55,7 @@ impl Line2 {
 
 /// The returns of one scan as points `(r cos α, r sin α)` in its scan plane (mm).
 pub fn scan_plane_points(header: &ScanHeader, scan: &ScanLine) -> Vec<Vector2<f64>> {
+    let header = scan.geometry_or(header);
     scan.ranges_mm
         .iter()
         .enumerate()

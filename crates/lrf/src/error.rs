@@ -61,6 +61,9 @@ pub enum LrfError {
     Invalid(String),
 }
 
+/// What [`LrfError::cut_short`] says.
+const CUT_SHORT: &str = "the last line does not end with a line break: the file was cut short (in the middle of a number?); copy it again whole";
+
 /// Result alias used throughout the crate.
 pub type Result<T> = std::result::Result<T, LrfError>;
 
@@ -80,6 +83,16 @@ impl LrfError {
         } else {
             s
         }
+    }
+    /// The refusal of a text file whose last line has no line break: it was cut short
+    /// (a copy or a recording stopped mid-way), and its last value may be cut mid-number.
+    pub(crate) fn cut_short(file: &str, line: usize) -> Self {
+        LrfError::parse(file, line, CUT_SHORT)
+    }
+
+    /// Whether this is the refusal of [`LrfError::cut_short`].
+    pub(crate) fn is_cut_short(&self) -> bool {
+        matches!(self, LrfError::Parse { msg, .. } if msg == CUT_SHORT)
     }
     pub(crate) fn io(file: &str, source: std::io::Error) -> Self {
         LrfError::Io {

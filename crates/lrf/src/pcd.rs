@@ -450,6 +450,13 @@ fn decode_ascii(body: &[u8], h: &Header, file: &str, out: &mut Points) -> Result
     }
     let mut rec = 0;
     let mut l = data_line;
+    // a last line without a line break was cut short (in the middle of a number?)
+    if let Some(tail) = body.rsplit(|&b| b == b'\n').next() {
+        if !tail.iter().all(u8::is_ascii_whitespace) {
+            let lines = body.iter().filter(|&&b| b == b'\n').count();
+            return Err(LrfError::cut_short(file, data_line + lines + 1));
+        }
+    }
     for line in body.split(|&b| b == b'\n') {
         l += 1;
         let s =

@@ -200,8 +200,13 @@ fn read_record<R: BufRead>(
 ) -> Result<()> {
     match format {
         Format::Ascii => {
-            let l = next_line(input, file, line_no)
-                .map_err(|_| LrfError::parse(file, *line_no, ends_after(k, el)))?;
+            let l = next_line(input, file, line_no).map_err(|e| {
+                if e.is_cut_short() {
+                    e
+                } else {
+                    LrfError::parse(file, *line_no, ends_after(k, el))
+                }
+            })?;
             ascii_record(&l, el, record).map_err(|m| LrfError::parse(file, *line_no, m))?;
         }
         f => binary_record(input, el, f == Format::BinBe, record).map_err(|m| match m {
@@ -290,6 +295,9 @@ fn next_line<R: BufRead>(input: &mut R, file: &str, line_no: &mut usize) -> Resu
             *line_no,
             "end of file inside the PLY header (no `end_header`)",
         ));
+    }
+    if !buf.ends_with(b"\n") && !buf.iter().all(u8::is_ascii_whitespace) {
+        return Err(LrfError::cut_short(file, *line_no));
     }
     let s = std::str::from_utf8(&buf).map_err(|_| LrfError::parse(file, *line_no, "not text"))?;
     Ok(LrfError::without_bom(*line_no, s).trim().to_string())

@@ -66,8 +66,40 @@
 //! **Beam timing.** The optional header key `# time_increment_s=` (written from a bag's
 //! `LaserScan.time_increment`, and by the simulator for a continuous sweep) gives the time
 //! between two beams of a scan: beam i was measured at `stamp_s + i · time_increment_s`.
-//! Earlier readers ignore the key.
+//! Earlier readers ignore the key. (In v4 it may be negative: the beams were measured
+//! from the last to the first, as some drivers publish them.)
 //!
+//! **Version 4: one file for a recording whose beam geometry changes.** Some drivers
+//! (RPLIDAR, YDLIDAR) publish a different beam count, first angle or step from scan to
+//! scan. `# pingcal-scan v4` is v3 (a `servo_end_deg` column; intensities optional) in
+//! which a line `# geometry angle_min_deg=A angle_increment_deg=D beams=N` (and optionally
+//! `time_increment_s=T`) may stand before any scan: the scans after it, until the next such
+//! line, have that geometry and N ranges each, optionally followed by N intensities. The
+//! first geometry is the header's, as in v3. v1, v2 and v3 files are read unchanged (in
+//! them a `# geometry` line is a comment, as before); an older pingcal refuses a v4 file
+//! instead of reading its scans with the wrong angles. Each scan read from a later
+//! geometry carries it ([`ScanLine::geometry`]).
+//!
+//! ```text
+//! # pingcal-scan v4
+//! # angle_min_deg=-180
+//! # angle_increment_deg=1
+//! # range_unit=mm
+//! stamp_s,servo_deg,servo_end_deg,r0,r1,...,r359
+//! 0.000,-18.000000,-17.900000,1532,1530,...
+//! # geometry angle_min_deg=-179.5 angle_increment_deg=0.99 beams=362
+//! 0.100,-17.900000,-17.800000,1533,1529,...
+//! ```
+//!
+//! **Units the data contradict.** A reader that read every scan can tell
+//! ([`ScanReader::unit_slip`]) a servo column in radians (every angle within ±2π and a
+//! sweep of more than π: a sweep of a few degrees calibrates nothing) and ranges in metres
+//! in a file that says millimetres (every range under 20 mm, none a return): the callers
+//! refuse the file naming the likely unit.
+//!
+//! **A file cut short.** A file whose last line has no line break was cut (a copy or a
+//! recording stopped mid-way, possibly in the middle of a number): it is refused, naming
+//! the file and the line, not read as far as it goes.
 //! ```text
 //! # pingcal-scan v3
 //! # angle_min_deg=-119.53125
@@ -90,6 +122,21 @@ pub const MAX_RANGE_MM: f64 = 1e6;
 
 /// The beams of a scan span at most this many degrees (one turn).
 pub const MAX_SPAN_DEG: f64 = 360.0;
+
+/// A servo angle beyond ± this many degrees is refused (a corrupt line).
+pub const MAX_SERVO_DEG: f64 = 1e6;
+
+/// A time stamp beyond ± this many seconds is refused (a corrupt line).
+pub const MAX_STAMP_S: f64 = 1e12;
+
+/// Whether `n_beams` beams `increment_deg` apart from `angle_min_deg` are a scan a
+/// `pingcal-scan` file can hold: the first within ±[`MAX_SPAN_DEG`], all within one turn
+/// (what the readers check, for the writers that check before writing).
+pub fn geometry_ok(angle_min_deg: f64, increment_deg: f64, n_beams: usize) -> bool {
+    angle_min_deg.abs() <= MAX_SPAN_DEG
+        && increment_deg != 0.0
+        && increment_deg.abs() * n_beams.saturating_sub(1) as f64 <= MAX_SPAN_DEG
+}
 
 /// The header of a scan file: the beam geometry shared by all lines.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -137,9 +184,17 @@ pub struct ScanLine {
     /// One intensity per beam in the scanner's unit (`pingcal-scan` v3), or empty when the
     /// scanner gave none.
     pub intensities: Vec<f32>,
+    /// The scan's own beam geometry when it is not the file's (`pingcal-scan` v4, a
+    /// `# geometry` line); `None`: the file's header.
+    pub geometry: Option<ScanHeader>,
 }
 
 impl ScanLine {
+    /// The beam geometry of this scan: its own ([`ScanLine::geometry`]) or the file's.
+    pub fn geometry_or(&self, file: &ScanHeader) -> ScanHeader {
+        self.geometry.unwrap_or(*file)
+    }
+
     /// The servo angle of beam `i`, degrees: linear in the beam index from `servo_deg` at
     /// the first beam to `servo_end_deg` at the last.
     pub fn servo_deg_at(&self, i: usize) -> f64 {
@@ -237,7 +292,38 @@ pub struct ScanReader<R: BufRead> {
     previous_text: String,
     /// Ranges beyond [`MAX_RANGE_MM`] masked so far.
     masked: Masked,
+    /// `pingcal-scan` v4: `# geometry` lines may change the geometry between scans.
+    sections: bool,
+    /// The geometry of the scans now being read, once a `# geometry` line set it.
+    geometry: Option<ScanHeader>,
+    /// What the scans read so far show of their units ([`ScanReader::unit_slip`]).
+    units: UnitEvidence,
 }
+
+/// What the scans of a file show of their units: the servo angles' extremes, the largest
+/// range (mm, before ranges under 20 mm are read as no return) and the ranges of 20 mm or
+/// more.
+#[derive(Debug, Clone, Copy, Default)]
+struct UnitEvidence {
+    servo: Option<(f64, f64)>,
+    largest_mm: f64,
+    returns: usize,
+}
+
+impl UnitEvidence {
+    fn servo(&mut self, deg: f64) {
+        let (lo, hi) = self.servo.unwrap_or((deg, deg));
+        self.servo = Some((lo.min(deg), hi.max(deg)));
+    }
+}
+
+/// Servo angles all within this many units of 0, over a sweep of more than
+/// [`RADIANS_SPAN`], are likely radians (2π and a little).
+pub const RADIANS_BOUND: f64 = 6.3;
+/// The sweep (largest minus smallest servo angle) above which angles within
+/// [`RADIANS_BOUND`] are likely radians: π (a sweep of 3.1° in degrees calibrates
+/// nothing).
+pub const RADIANS_SPAN: f64 = 3.1;
 
 fn read_line<R: BufRead>(
     input: &mut R,
@@ -251,6 +337,9 @@ fn read_line<R: BufRead>(
         .map_err(|e| LrfError::io(file, e))?;
     if n == 0 {
         return Ok(None);
+    }
+    if !buf.ends_with(b"\n") && !buf.iter().all(u8::is_ascii_whitespace) {
+        return Err(LrfError::cut_short(file, line_no));
     }
     let s =
         std::str::from_utf8(buf).map_err(|_| LrfError::parse(file, line_no, "not UTF-8 text"))?;
@@ -362,11 +451,12 @@ impl HeaderSoFar {
                 "1" => 1,
                 "2" => 2,
                 "3" => 3,
+                "4" => 4,
                 v => {
                     return Err(LrfError::parse(
                         file,
                         line_no,
-                        format!("pingcal-scan version {v:?}: this pingcal reads v1, v2 and v3"),
+                        format!("pingcal-scan version {v:?}: this pingcal reads v1, v2, v3 and v4"),
                     ))
                 }
             });
@@ -408,7 +498,8 @@ impl HeaderSoFar {
             }
             "time_increment_s" => {
                 let ti = parse_f64(file, line_no, k, v)?;
-                if ti < 0.0 {
+                // v4 may time the beams from the last to the first
+                if ti < 0.0 && self.version != Some(4) {
                     return Err(LrfError::parse(
                         file,
                         line_no,
@@ -440,13 +531,56 @@ impl HeaderSoFar {
     fn columns(&mut self, t: &str, line_no: usize, file: &str) -> Result<()> {
         let cols: Vec<&str> = t.split(',').map(str::trim).collect();
         self.sweep = self.version.is_some_and(|v| v >= 2);
-        let (n, with_i) = column_line(&cols, self.sweep, self.version == Some(3))
+        let (n, with_i) = column_line(&cols, self.sweep, self.version.is_some_and(|v| v >= 3))
             .map_err(|e| LrfError::parse(file, line_no, e))?;
         self.n_beams = Some(n);
         self.intensities = with_i;
         self.columns_line = line_no;
         Ok(())
     }
+}
+
+/// Refuses `n_beams` beams `increment_deg` apart that span more than a turn.
+fn check_span(file: &str, increment_deg: f64, n_beams: usize, line_no: usize) -> Result<()> {
+    let span = increment_deg.abs() * n_beams.saturating_sub(1) as f64;
+    if !(span <= MAX_SPAN_DEG) {
+        return Err(LrfError::parse(
+            file,
+            line_no,
+            format!(
+                "angle_increment_deg = {} over {n_beams} beams spans {}°: the beams of a scan span at most {MAX_SPAN_DEG}° (a wrong header?)",
+                short(increment_deg),
+                short(span)
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// [`ScanReader::unit_slip`] of what the scans showed, in a file of `mm_per_unit`.
+fn unit_slip(u: &UnitEvidence, mm_per_unit: f64) -> Option<String> {
+    if let Some((lo, hi)) = u.servo {
+        if lo >= -RADIANS_BOUND && hi <= RADIANS_BOUND && hi - lo > RADIANS_SPAN {
+            return Some(format!(
+                "the servo angles span {lo:.2}…{hi:.2}: radians? the scan file's column is degrees (servo_deg); convert them (× 180/π)"
+            ));
+        }
+    }
+    if u.returns == 0 && u.largest_mm > 0.0 {
+        let unit = if mm_per_unit == 1.0 {
+            "mm"
+        } else if mm_per_unit == 10.0 {
+            "cm"
+        } else {
+            "m"
+        };
+        let largest = u.largest_mm / mm_per_unit;
+        return Some(format!(
+            "every range is under {MIN_VALID_RANGE_MM} mm, the largest {}: metres? the file says range_unit={unit}; write # range_unit=m or the ranges in mm",
+            short(largest)
+        ));
+    }
+    None
 }
 
 impl<R: BufRead> ScanReader<R> {
@@ -488,7 +622,7 @@ impl<R: BufRead> ScanReader<R> {
             increment,
             mm_per_unit,
             n_beams,
-            version: _,
+            version,
             sweep,
             intensities,
             time_increment_s,
@@ -525,6 +659,9 @@ impl<R: BufRead> ScanReader<R> {
             previous: None,
             previous_text: String::new(),
             masked: Masked::default(),
+            sections: version == Some(4),
+            geometry: None,
+            units: UnitEvidence::default(),
         };
         if let Some(n) = n_beams {
             reader.check_span(n, columns_line)?;
@@ -549,18 +686,75 @@ impl<R: BufRead> ScanReader<R> {
 
     /// Refuses beams that span more than a turn, once their number is known.
     fn check_span(&self, n_beams: usize, line_no: usize) -> Result<()> {
-        let span = self.header.angle_increment_deg.abs() * n_beams.saturating_sub(1) as f64;
-        if !(span <= MAX_SPAN_DEG) {
-            return Err(LrfError::parse(
-                &self.file,
-                line_no,
-                format!(
-                    "angle_increment_deg = {} over {n_beams} beams spans {}°: the beams of a scan span at most {MAX_SPAN_DEG}° (a wrong header?)",
-                    short(self.header.angle_increment_deg),
-                    short(span)
-                ),
-            ));
+        check_span(
+            &self.file,
+            self.header.angle_increment_deg,
+            n_beams,
+            line_no,
+        )
+    }
+
+    /// The unit the scans read so far likely have where the file says another (module
+    /// doc): the servo column in radians, or the ranges in metres; `None` when the data
+    /// agree with the file. Meaningful once every scan has been read.
+    pub fn unit_slip(&self) -> Option<String> {
+        unit_slip(&self.units, self.header.mm_per_unit)
+    }
+
+    /// A v4 `# geometry …` line: the geometry of the scans after it.
+    fn geometry_line(&mut self, rest: &str, line_no: usize) -> Result<()> {
+        let file = self.file.as_str();
+        let mut h = HeaderSoFar::new();
+        h.version = Some(4);
+        let mut beams = None;
+        for word in rest.split_whitespace() {
+            let Some((k, v)) = word.split_once('=') else {
+                return Err(LrfError::parse(
+                    file,
+                    line_no,
+                    format!("a geometry line: expected key=value words, found {word:?}"),
+                ));
+            };
+            match k {
+                "beams" => match v.parse::<usize>() {
+                    Ok(n) if n > 0 => beams = Some(n),
+                    _ => {
+                        return Err(LrfError::parse(
+                            file,
+                            line_no,
+                            format!("beams: expected a whole number above 0, found {v:?}"),
+                        ))
+                    }
+                },
+                "angle_min_deg" | "angle_increment_deg" | "time_increment_s" => {
+                    h.key_value(k, v, line_no, file)?
+                }
+                _ => {
+                    return Err(LrfError::parse(
+                        file,
+                        line_no,
+                        format!("a geometry line: unknown key {k:?} (expected angle_min_deg, angle_increment_deg, beams, time_increment_s)"),
+                    ))
+                }
+            }
         }
+        let (Some(angle_min_deg), Some(angle_increment_deg), Some(n)) =
+            (h.angle_min, h.increment, beams)
+        else {
+            return Err(LrfError::parse(
+                file,
+                line_no,
+                "a geometry line needs angle_min_deg=, angle_increment_deg= and beams=",
+            ));
+        };
+        check_span(file, angle_increment_deg, n, line_no)?;
+        self.geometry = Some(ScanHeader {
+            angle_min_deg,
+            angle_increment_deg,
+            mm_per_unit: self.header.mm_per_unit,
+            time_increment_s: h.time_increment_s,
+        });
+        self.n_beams = Some(n);
         Ok(())
     }
 
@@ -590,9 +784,9 @@ impl<R: BufRead> ScanReader<R> {
         };
         let end = servo_end_deg.unwrap_or(servo_deg);
         for (what, v, max) in [
-            ("stamp_s", stamp_s, 1e12),
-            ("servo_deg", servo_deg, 1e6),
-            ("servo_end_deg", end, 1e6),
+            ("stamp_s", stamp_s, MAX_STAMP_S),
+            ("servo_deg", servo_deg, MAX_SERVO_DEG),
+            ("servo_end_deg", end, MAX_SERVO_DEG),
         ] {
             if v.abs() > max {
                 return Err(LrfError::parse(
@@ -604,24 +798,8 @@ impl<R: BufRead> ScanReader<R> {
         }
         let mut ranges_mm = Vec::with_capacity(self.n_beams.unwrap_or(0));
         let mut masked = 0;
-        let mut intensities = Vec::new();
         let rest: Vec<&str> = fields.collect();
-        let mut range_fields = &rest[..];
-        if self.intensities {
-            let n = self.n_beams.unwrap_or(0);
-            if rest.len() != 2 * n {
-                return Err(LrfError::parse(
-                    file,
-                    line_no,
-                    format!(
-                        "expected {n} ranges and {n} intensities, found {} values",
-                        rest.len()
-                    ),
-                ));
-            }
-            intensities = parse_intensities(file, line_no, &rest[n..])?;
-            range_fields = &rest[..n];
-        }
+        let (range_fields, intensities) = self.ranges_and_intensities(&rest, line_no)?;
         for (i, f) in range_fields.iter().enumerate() {
             let v = parse_f64(file, line_no, &format!("range r{i}"), f)?;
             if v < 0.0 {
@@ -637,6 +815,8 @@ impl<R: BufRead> ScanReader<R> {
                 ranges_mm.push(0.0);
                 continue;
             }
+            self.units.largest_mm = self.units.largest_mm.max(mm);
+            self.units.returns += usize::from(mm >= MIN_VALID_RANGE_MM);
             ranges_mm.push(if mm < MIN_VALID_RANGE_MM { 0.0 } else { mm });
         }
         if ranges_mm.is_empty() {
@@ -661,6 +841,8 @@ impl<R: BufRead> ScanReader<R> {
             _ => {}
         }
         self.masked.add(masked, line_no);
+        self.units.servo(servo_deg);
+        self.units.servo(end);
         Ok(ScanLine {
             line: line_no,
             stamp_s,
@@ -668,7 +850,42 @@ impl<R: BufRead> ScanReader<R> {
             servo_end_deg,
             ranges_mm,
             intensities,
+            geometry: self.geometry,
         })
+    }
+
+    /// A scan line's values after its servo columns: the ranges' fields and the
+    /// intensities (v3 with intensity columns: n of each; v4: n ranges, and n intensities or
+    /// none).
+    fn ranges_and_intensities<'t>(
+        &self,
+        rest: &'t [&'t str],
+        line_no: usize,
+    ) -> Result<(&'t [&'t str], Vec<f32>)> {
+        let file = self.file.as_str();
+        let n = self.n_beams.unwrap_or(0);
+        let with_i = if self.sections {
+            n > 0 && rest.len() != n
+        } else {
+            self.intensities
+        };
+        if !with_i {
+            return Ok((rest, Vec::new()));
+        }
+        if rest.len() != 2 * n {
+            let expected = if self.sections {
+                format!("{n} ranges, or {n} ranges and {n} intensities")
+            } else {
+                format!("{n} ranges and {n} intensities")
+            };
+            return Err(LrfError::parse(
+                file,
+                line_no,
+                format!("expected {expected}, found {} values", rest.len()),
+            ));
+        }
+        let intensities = parse_intensities(file, line_no, &rest[n..])?;
+        Ok((&rest[..n], intensities))
     }
 
     /// Refuses a scan earlier than the previous one, or an exact repeat of it (module doc).
@@ -711,6 +928,12 @@ impl<R: BufRead> ScanReader<R> {
                 }
             };
             let t = line.trim();
+            if self.sections {
+                if let Some(rest) = t.strip_prefix("# geometry ") {
+                    self.geometry_line(rest, line_no)?;
+                    continue;
+                }
+            }
             if t.is_empty() || t.starts_with('#') {
                 continue;
             }
@@ -747,6 +970,26 @@ pub fn open_scan_file(
     ScanReader::new(std::io::BufReader::with_capacity(1 << 16, f), &name)
 }
 
+/// The refusal of a scan file whose data contradict its units ([`ScanReader::unit_slip`]),
+/// once `reader` has read every scan.
+pub fn check_units<R: BufRead>(reader: &ScanReader<R>) -> Result<()> {
+    match reader.unit_slip() {
+        Some(slip) => Err(LrfError::Invalid(format!("{}: {slip}", reader.file))),
+        None => Ok(()),
+    }
+}
+
+/// Reads the scan file `path` through, as a project's scan files are checked when it is
+/// loaded (before any image is read): the first malformed line, or data that contradict
+/// the file's units ([`ScanReader::unit_slip`]), refused.
+pub fn check_scan_file(path: &std::path::Path) -> Result<()> {
+    let mut reader = open_scan_file(path)?;
+    for line in reader.by_ref() {
+        line?;
+    }
+    check_units(&reader)
+}
+
 /// A streaming writer of the `pingcal-scan` format: the header (with optional extra
 /// `# key=value` lines) when created, then one scan per [`ScanWriter::write_scan`] (v1, or
 /// v2 made by [`ScanWriter::new_v2`]). Time stamps are written with 3 decimals, servo
@@ -757,7 +1000,17 @@ pub struct ScanWriter<W: Write> {
     sweep: bool,
     /// v3: intensity columns after the ranges.
     intensities: Option<usize>,
+    /// The geometry and beam count of the scans now written ([`ScanWriter::write_line_in`]).
+    section: (ScanHeader, usize),
+    /// A `# geometry` line, or a scan whose intensities the column line does not have, was
+    /// written: the file is v4 ([`ScanWriter::needs_v4`]).
+    amended: bool,
 }
+
+/// The byte offset of the version digit in every `pingcal-scan` file this writer starts
+/// (`# pingcal-scan v` is 16 bytes): a writer of a seekable file that learns late that it
+/// needs v4 ([`ScanWriter::needs_v4`]) puts `4` there, the rest of the file being the same.
+pub const VERSION_DIGIT_OFFSET: u64 = 16;
 
 impl<W: Write> ScanWriter<W> {
     /// Writes a v1 header: the beam geometry of `header`, ranges in mm, the `extra` lines
@@ -828,7 +1081,62 @@ impl<W: Write> ScanWriter<W> {
             out,
             sweep,
             intensities: (version == 3).then_some(n_beams),
+            section: (*header, n_beams),
+            // beams timed from the last to the first: v4 only
+            amended: header.time_increment_s.is_some_and(|t| t < 0.0),
         })
+    }
+
+    /// Writes one scan of beam geometry `geometry` (a v2 or v3 writer): when its geometry
+    /// or beam count differs from the scans before it, a `# geometry` line first; its
+    /// intensities when it has one per beam. The file is then v4 ([`ScanWriter::needs_v4`])
+    /// when a geometry line was written or a scan's intensities differ from the column line.
+    pub fn write_line_in(&mut self, geometry: &ScanHeader, s: &ScanLine) -> std::io::Result<()> {
+        if !self.sweep {
+            return Err(std::io::Error::new(
+                std::io::ErrorKind::InvalidInput,
+                "scans of several geometries need a pingcal-scan v2 or v3 writer",
+            ));
+        }
+        let n = s.ranges_mm.len();
+        if (*geometry, n) != self.section {
+            write!(
+                self.out,
+                "# geometry angle_min_deg={} angle_increment_deg={} beams={n}",
+                geometry.angle_min_deg, geometry.angle_increment_deg
+            )?;
+            if let Some(ti) = geometry.time_increment_s {
+                write!(self.out, " time_increment_s={ti}")?;
+            }
+            writeln!(self.out)?;
+            self.section = (*geometry, n);
+            self.amended = true;
+        }
+        let with_i = s.intensities.len() == n;
+        if with_i != self.intensities.is_some() {
+            self.amended = true;
+        }
+        let end = s.servo_end_deg.unwrap_or(s.servo_deg);
+        write!(self.out, "{:.3},{:.6},{end:.6}", s.stamp_s, s.servo_deg)?;
+        self.write_ranges(s.ranges_mm.iter().copied())?;
+        if with_i {
+            self.write_intensities(&s.intensities)?;
+        }
+        writeln!(self.out)
+    }
+
+    /// True when the scans written need `# pingcal-scan v4` ([`ScanWriter::write_line_in`]).
+    pub fn needs_v4(&self) -> bool {
+        self.amended
+    }
+
+    fn write_intensities(&mut self, intensities: &[f32]) -> std::io::Result<()> {
+        for v in intensities {
+            // non-finite intensities are not written (the reader refuses them): 0
+            let v = if v.is_finite() { *v } else { 0.0 };
+            write!(self.out, ",{v}")?;
+        }
+        Ok(())
     }
 
     /// Writes one scan taken with the servo at `servo_deg`: its time stamp (s), servo
@@ -913,11 +1221,7 @@ impl<W: Write> ScanWriter<W> {
         }
         write!(self.out, "{:.3},{:.6},{end:.6}", s.stamp_s, s.servo_deg)?;
         self.write_ranges(s.ranges_mm.iter().copied())?;
-        for v in &s.intensities {
-            // non-finite intensities are not written (the reader refuses them): 0
-            let v = if v.is_finite() { *v } else { 0.0 };
-            write!(self.out, ",{v}")?;
-        }
+        self.write_intensities(&s.intensities)?;
         writeln!(self.out)
     }
 
@@ -1121,6 +1425,7 @@ mod tests {
                 servo_end_deg: None,
                 ranges_mm: vec![1000.0, 0.0, 2500.0],
                 intensities: vec![],
+                geometry: None,
             },
             ScanLine {
                 line: 0,
@@ -1129,6 +1434,7 @@ mod tests {
                 servo_end_deg: None,
                 ranges_mm: vec![1001.0, 30.0, 0.0],
                 intensities: vec![],
+                geometry: None,
             },
         ];
         let mut out = Vec::new();
@@ -1170,6 +1476,7 @@ mod tests {
             servo_end_deg: Some(12.0),
             ranges_mm: vec![1000.0, 0.0, 2500.0],
             intensities: vec![],
+            geometry: None,
         }];
         let mut out = Vec::new();
         write_scans(&mut out, &ScanHeader::URG_04LX, &scans).unwrap();
@@ -1197,10 +1504,10 @@ mod tests {
             e.starts_with("t.csv:6: a v2 column line: expected `stamp_s,servo_deg,servo_end_deg"),
             "{e}"
         );
-        let e = read_all(&GOOD.replace("v1", "v4")).unwrap_err().to_string();
+        let e = read_all(&GOOD.replace("v1", "v5")).unwrap_err().to_string();
         assert_eq!(
             e,
-            "t.csv:1: pingcal-scan version \"4\": this pingcal reads v1, v2 and v3"
+            "t.csv:1: pingcal-scan version \"5\": this pingcal reads v1, v2, v3 and v4"
         );
         let t = GOOD.replace("servo_deg,r0", "servo_deg,servo_end_deg,r0");
         let e = read_all(&t).unwrap_err().to_string();
@@ -1222,6 +1529,7 @@ mod tests {
             servo_end_deg: Some(10.0),
             ranges_mm: vec![1000.0, 0.0, 2500.0],
             intensities: vec![812.0, 0.0, 47.25],
+            geometry: None,
         }];
         let mut out = Vec::new();
         write_scans(&mut out, &header, &scans).unwrap();
@@ -1276,5 +1584,164 @@ mod tests {
         // a v3 writer needs the intensities
         let mut w = ScanWriter::new_v3(Vec::new(), &header, 3, &[]).unwrap();
         assert!(w.write_scan(0.0, 1.0, [1000.0, 0.0, 1.0]).is_err());
+    }
+
+    /// v4: one file for scans of several geometries (and with or without intensities),
+    /// written by `write_line_in` and read back scan by scan with its own geometry.
+    #[test]
+    fn v4_holds_scans_of_several_geometries_and_round_trips() {
+        let a = ScanHeader {
+            angle_min_deg: -10.0,
+            angle_increment_deg: 10.0,
+            mm_per_unit: 1.0,
+            time_increment_s: Some(0.001),
+        };
+        let b = ScanHeader {
+            angle_min_deg: -5.0,
+            angle_increment_deg: 5.0,
+            time_increment_s: Some(-0.002),
+            ..a
+        };
+        let line = |k: usize, n: usize, with_i: bool| ScanLine {
+            line: 0,
+            stamp_s: 0.1 * k as f64,
+            servo_deg: k as f64,
+            servo_end_deg: Some(k as f64 + 0.5),
+            ranges_mm: (0..n).map(|i| (1000 + 10 * k + i) as f64).collect(),
+            intensities: if with_i { vec![7.0; n] } else { vec![] },
+            geometry: None,
+        };
+        let scans = [
+            (a, line(0, 3, false)),
+            (a, line(1, 3, false)),
+            (b, line(2, 4, true)),
+            (a, line(3, 3, false)),
+        ];
+        let mut w = ScanWriter::new_v2(Vec::new(), &a, 3, &[]).unwrap();
+        for (g, l) in &scans[..2] {
+            w.write_line_in(g, l).unwrap();
+        }
+        assert!(!w.needs_v4(), "one geometry so far: still v2");
+        for (g, l) in &scans[2..] {
+            w.write_line_in(g, l).unwrap();
+        }
+        assert!(w.needs_v4());
+        let mut text = String::from_utf8(w.finish().unwrap()).unwrap();
+        text.replace_range(
+            VERSION_DIGIT_OFFSET as usize..VERSION_DIGIT_OFFSET as usize + 1,
+            "4",
+        );
+        assert!(text.starts_with("# pingcal-scan v4\n"), "{text}");
+        assert!(
+            text.contains("# geometry angle_min_deg=-5 angle_increment_deg=5 beams=4 time_increment_s=-0.002\n"),
+            "{text}"
+        );
+        let (h, v) = read_all(&text).unwrap();
+        assert_eq!(h, a);
+        assert_eq!(v.len(), 4);
+        for ((g, want), got) in scans.iter().zip(&v) {
+            assert_eq!(got.geometry_or(&h), *g);
+            assert_eq!(
+                (&got.ranges_mm, &got.intensities),
+                (&want.ranges_mm, &want.intensities)
+            );
+            assert_eq!(got.servo_end_deg, want.servo_end_deg);
+        }
+        // the same text under v3 is refused (the geometry line is a comment there, and the
+        // counts differ), as an older pingcal refuses v4
+        let e = read_all(&text.replacen("v4", "v3", 1))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("expected 3 ranges and 3 intensities") || e.contains("expected 3 ranges"),
+            "{e}"
+        );
+        // a geometry line must be whole and describe a scan
+        for (bad, want) in [
+            (
+                "beams=4 angle_min_deg=-5",
+                "needs angle_min_deg=, angle_increment_deg= and beams=",
+            ),
+            (
+                "angle_min_deg=-5 angle_increment_deg=200 beams=4",
+                "spans 600°",
+            ),
+            (
+                "angle_min_deg=-5 angle_increment_deg=5 beams=0",
+                "beams: expected a whole number above 0",
+            ),
+            (
+                "angle_min_deg=-5 angle_increment_deg=5 beams=4 colour=red",
+                "unknown key \"colour\"",
+            ),
+        ] {
+            let t = text.replace(
+                "angle_min_deg=-5 angle_increment_deg=5 beams=4 time_increment_s=-0.002",
+                bad,
+            );
+            let e = read_all(&t).unwrap_err().to_string();
+            assert!(e.starts_with("t.csv:9: ") && e.contains(want), "{bad}: {e}");
+        }
+        // a scan of the wrong count in a section
+        let t = text.replace("1020,1021,1022,1023,", "1020,1021,1022,");
+        let e = read_all(&t).unwrap_err().to_string();
+        assert!(
+            e.contains("expected 4 ranges, or 4 ranges and 4 intensities, found 7 values"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn a_servo_column_in_radians_or_ranges_in_metres_are_told() {
+        let slip = |text: &str| {
+            let mut r = ScanReader::new(text.as_bytes(), "t.csv").unwrap();
+            for l in r.by_ref() {
+                l.unwrap();
+            }
+            r.unit_slip()
+        };
+        assert_eq!(slip(GOOD), None);
+        let radians = GOOD
+            .replace("-45.056", "-3.1416")
+            .replace("-44.9", "3.1416");
+        let e = slip(&radians).unwrap();
+        assert!(
+            e.starts_with("the servo angles span -3.14…3.14: radians?"),
+            "{e}"
+        );
+        // a nod of a few degrees is degrees still when it spans less than π
+        assert_eq!(
+            slip(&GOOD.replace("-45.056", "-1.5").replace("-44.9", "1.5")),
+            None
+        );
+        let metres = GOOD
+            .replace("1532,1530,0", "1.532,1.53,0")
+            .replace("1531,7,1529", "5.6,0.007,1.529");
+        let e = slip(&metres).unwrap();
+        assert_eq!(
+            e,
+            "every range is under 20 mm, the largest 5.6: metres? the file says range_unit=mm; write # range_unit=m or the ranges in mm"
+        );
+        // the file's check names it
+        let mut r = ScanReader::new(metres.as_bytes(), "t.csv").unwrap();
+        for l in r.by_ref() {
+            l.unwrap();
+        }
+        assert!(check_units(&r)
+            .unwrap_err()
+            .to_string()
+            .starts_with("t.csv: every range"));
+    }
+
+    #[test]
+    fn a_last_line_without_a_line_break_is_refused_naming_it() {
+        let cut = &GOOD[..GOOD.len() - 3];
+        let e = read_all(cut).unwrap_err().to_string();
+        assert!(
+            e.starts_with("t.csv:8: the last line does not end with a line break"),
+            "{e}"
+        );
+        // trailing blanks without a line break are no data
+        assert_eq!(read_all(&format!("{GOOD}  ")).unwrap().1.len(), 2);
     }
 }

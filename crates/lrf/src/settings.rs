@@ -9,10 +9,11 @@
 //!   σ = a + b·r, refused when both are given or the line is not a noise;
 //! - [`ServoSource::from_keys`]: where a bag's servo angle comes from (a JointState's joint,
 //!   a numeric topic's scale and offset, a tf child frame about an axis);
-//! - [`ServoMotion`]: how the servo moves while the scanner sweeps.
+//! - [`ServoMotion`]: how the servo moves while the scanner sweeps;
+//! - [`Stamps`]: whose time a bag's messages are taken at.
 //!
 //! The words of the closed sets ([`NoiseProfile`], [`crate::cloud_file::CloudUnit`],
-//! [`ServoMotion`]) are refused while a file is read, with the words allowed.
+//! [`ServoMotion`], [`Stamps`]) are refused while a file is read, with the words allowed.
 
 use crate::sensor::{NoiseProfile, RangeNoise};
 
@@ -60,6 +61,56 @@ impl serde::Serialize for ServoMotion {
 
 impl<'de> serde::Deserialize<'de> for ServoMotion {
     /// One of [`ServoMotion::NAMES`], anything else refused with the words allowed.
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        crate::words::deserialize(d, &Self::NAMES, Self::from_word)
+    }
+}
+
+/// Whose time a bag's messages are taken at (`[lrf.bag] stamps`, `--stamps`): a message's
+/// header stamp (the driver's clock) or the bag's record time (the recorder's clock).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Stamps {
+    /// Tell from the data (`pingcal_rosbag::clock`): the header stamps where both topics'
+    /// keep the clock the other topic's times keep, else the record times.
+    #[default]
+    Auto,
+    /// The header stamps (a topic without a header, e.g. `std_msgs/Int32`, has only its
+    /// record times).
+    Header,
+    /// The bag's record times, for every topic.
+    Record,
+}
+
+impl Stamps {
+    /// Every choice, as the command line and the project file spell them.
+    pub const NAMES: [&'static str; 3] = ["auto", "header", "record"];
+
+    /// The name as the command line and the project file spell it.
+    pub fn name(self) -> &'static str {
+        Self::NAMES[self as usize]
+    }
+
+    /// The choice spelled `word`, if any.
+    pub fn from_word(word: &str) -> Option<Self> {
+        [Self::Auto, Self::Header, Self::Record]
+            .into_iter()
+            .find(|m| m.name() == word)
+    }
+
+    /// Parses `auto`, `header` or `record`.
+    pub fn parse(s: &str) -> Result<Self, String> {
+        Self::from_word(s).ok_or_else(|| format!("stamps {s:?}: expected auto, header or record"))
+    }
+}
+
+impl serde::Serialize for Stamps {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(self.name())
+    }
+}
+
+impl<'de> serde::Deserialize<'de> for Stamps {
+    /// One of [`Stamps::NAMES`], anything else refused with the words allowed.
     fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
         crate::words::deserialize(d, &Self::NAMES, Self::from_word)
     }

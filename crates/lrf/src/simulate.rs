@@ -279,6 +279,7 @@ impl LrfScene {
                     servo_end_deg: None,
                     ranges_mm,
                     intensities: vec![],
+                    geometry: None,
                 }
             })
             .collect()

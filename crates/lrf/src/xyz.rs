@@ -54,6 +54,9 @@ fn lines<R: BufRead>(
         {
             return Ok(());
         }
+        if !buf.ends_with(b"\n") && !buf.iter().all(u8::is_ascii_whitespace) {
+            return Err(LrfError::cut_short(file, n));
+        }
         let s =
             std::str::from_utf8(&buf).map_err(|_| LrfError::parse(file, n, "not UTF-8 text"))?;
         f(n, LrfError::without_bom(n, s))?;

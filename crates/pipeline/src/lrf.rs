@@ -67,6 +67,7 @@ fn bag_scans(
         scan: bag.scan_topic.clone(),
         servo: bag.servo_topic.clone(),
         source: servo.source.clone(),
+        stamps: servo.stamps,
     };
     let mut runs: Vec<(ScanHeader, Vec<ScanLine>)> = Vec::new();
     let done = read_scans(&bags, &topics, servo.motion, &mut |h, l| {
@@ -413,6 +414,7 @@ mod tests {
             servo_tf_child: None,
             servo_axis: None,
             servo_motion: None,
+            stamps: None,
         }
     }
 

@@ -140,8 +140,26 @@ pub struct Project {
     pub lrf: LrfSettings,
 }
 
+/// Reads every `pingcal-scan` file of `[lrf] scans` through
+/// ([`pingcal_lrf::scan::check_scan_file`]): a malformed line, a file cut short, or data
+/// that contradict the file's units (a servo column in radians, ranges in metres) are
+/// refused here, before the camera side runs, naming the entry and the file.
+fn check_scan_files(paths: &[PathBuf], entries: &[String], name: &str) -> Result<(), ProjectError> {
+    for (p, entry) in paths.iter().zip(entries) {
+        if !CloudPath::new(p.clone()).is_scans() {
+            continue;
+        }
+        pingcal_lrf::scan::check_scan_file(p).map_err(|e| ProjectError::Invalid {
+            path: name.to_string(),
+            what: format!("{entry}: {e}"),
+        })?;
+    }
+    Ok(())
+}
+
 impl Project {
-    /// Reads, validates and checks that every named file exists.
+    /// Reads, validates and checks that every named file exists, and reads the scan files
+    /// through ([`pingcal_lrf::scan::check_scan_file`]): a malformed line or a unit slip is refused here.
     pub fn load(path: &Path) -> Result<Self, ProjectError> {
         let name = path.display().to_string();
         let text = std::fs::read_to_string(path).map_err(|e| ProjectError::Io {
@@ -189,6 +207,7 @@ impl Project {
             .map(|(k, s)| format!("[lrf] scans[{k}] \"{s}\""))
             .collect();
         once_each(&scan_paths, &scans, &name)?;
+        check_scan_files(&scan_paths, &scans, &name)?;
         let layout = match &file.targets.layout {
             None => None,
             Some(rel) => {

@@ -11,7 +11,7 @@ use crate::closed_sets::{CameraModel, LrfKind, Method, MountParameter, Parameter
 use crate::intrinsics::{Intrinsics, KeyedValues};
 use pingcal_lrf::cloud_file::CloudUnit;
 use pingcal_lrf::sensor::NoiseProfile;
-use pingcal_lrf::settings::ServoMotion;
+use pingcal_lrf::settings::{ServoMotion, Stamps};
 use serde::{Deserialize, Serialize};
 
 /// Names of the ten photogrammetric parameters, in the order of [`CameraParams::to_slice`].
@@ -524,6 +524,10 @@ pub struct ProjectBag {
     /// beam's time).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub servo_motion: Option<ServoMotion>,
+    /// Whose time the messages are taken at: `"auto"` (absent: the header stamps unless the
+    /// two topics keep different clocks), `"header"` or `"record"` (the bag's record times).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stamps: Option<Stamps>,
 }
 
 impl ProjectLrf {

@@ -12,7 +12,7 @@
 use crate::schema::{ProjectBag, ProjectLrf};
 use pingcal_lrf::cloud_file::CloudUnit;
 use pingcal_lrf::sensor::{MountModel, RangeNoise};
-use pingcal_lrf::settings::{range_noise, KeyStyle, ServoKeys, ServoMotion, ServoSource};
+use pingcal_lrf::settings::{range_noise, KeyStyle, ServoKeys, ServoMotion, ServoSource, Stamps};
 
 /// The σ's a datasheet's ± accuracy is read as (`[lrf] accuracy_near_mm`, …).
 pub const DATASHEET_SIGMAS: f64 = 3.0;
@@ -53,6 +53,8 @@ pub struct BagServo {
     pub source: ServoSource,
     /// `servo_motion` (absent: auto).
     pub motion: ServoMotion,
+    /// `stamps` (absent: auto).
+    pub stamps: Stamps,
 }
 
 impl LrfSettings {
@@ -108,6 +110,7 @@ impl BagServo {
         Ok(BagServo {
             source,
             motion: b.servo_motion.unwrap_or_default(),
+            stamps: b.stamps.unwrap_or_default(),
         })
     }
 }

@@ -4,7 +4,7 @@
 
 use super::*;
 use pingcal_lrf::sensor::NoiseProfile;
-use pingcal_lrf::settings::ServoMotion;
+use pingcal_lrf::settings::{ServoMotion, Stamps};
 
 /// The documented example (it was the README's): the first ```toml block of docs/project.md.
 fn readme_example() -> String {
@@ -16,6 +16,10 @@ fn readme_example() -> String {
     let len = rest[start..].find("```").expect("the block ends");
     rest[start..start + len].to_string()
 }
+
+/// A scan file of one scan, for the projects loaded here (a project's scan files are read
+/// through when it is loaded).
+const SCAN: &str = "# pingcal-scan v1\n# angle_min_deg=-10\n# angle_increment_deg=10\n# range_unit=mm\nstamp_s,servo_deg,r0\n0,0,1000\n";
 
 #[test]
 fn the_documented_example_is_valid() {
@@ -456,7 +460,7 @@ fn the_layout_is_read_with_the_project_and_its_errors_named() {
     p.lrf
         .scans
         .iter()
-        .for_each(|s| std::fs::write(dir.join(s.file().replace('/', "_")), b"").unwrap());
+        .for_each(|s| std::fs::write(dir.join(s.file().replace('/', "_")), SCAN).unwrap());
     for s in &mut p.lrf.scans {
         *s = ScanEntry::File(s.file().replace('/', "_"));
     }
@@ -680,7 +684,7 @@ fn a_file_listed_twice_under_two_spellings_is_refused() {
         std::fs::write(dir.join(&im.file), b"").unwrap();
     }
     for s in &base.lrf.scans {
-        std::fs::write(dir.join(s.file()), b"").unwrap();
+        std::fs::write(dir.join(s.file()), SCAN).unwrap();
     }
     let toml = dir.join("project.toml");
     let load = |p: &ProjectFile| {
@@ -762,6 +766,11 @@ fn every_closed_set_key_refuses_a_wrong_word_with_its_line_and_the_words_allowed
             "servo_motion = \"bogus\"".into(),
             "servo_motion = \"bogus\": expected one of auto, stop-and-go, continuous",
         ),
+        (
+            "servo_motion = \"auto\"",
+            "servo_motion = \"auto\"\nstamps = \"sundial\"".into(),
+            "stamps = \"sundial\": expected one of auto, header, record",
+        ),
     ];
     for (from, to, message) in cases {
         let at = example.find(from).unwrap_or_else(|| panic!("{from:?}"));
@@ -810,6 +819,7 @@ fn the_lrf_settings_are_resolved_once_at_validation() {
         servo_tf_child: Some("servo_link".into()),
         servo_axis: Some([0.0, 0.0, -3.0]),
         servo_motion: Some(ServoMotion::Continuous),
+        stamps: Some(Stamps::Record),
     });
     let bag = p.checked("p.toml").unwrap().bag.unwrap();
     assert_eq!(
@@ -820,4 +830,5 @@ fn the_lrf_settings_are_resolved_once_at_validation() {
         }
     );
     assert_eq!(bag.motion, ServoMotion::Continuous);
+    assert_eq!(bag.stamps, Stamps::Record);
 }

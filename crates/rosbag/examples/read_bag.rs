@@ -30,6 +30,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         scan: scan.clone(),
         servo: servo.clone(),
         source: ServoSource::Joint(joint.clone()),
+        stamps: pingcal_rosbag::clock::Stamps::Auto,
     };
     let (mut beams, mut sum) = (0u64, 0f64);
     let done = read_scans(&bags, &topics, ServoMotion::Auto, &mut |_, line| {

@@ -17,8 +17,15 @@
 //! time and angle on the servo topic) is read once; a scan whose stamp repeats the scan
 //! before it is kept, one whose stamp goes back is dropped (a scan file is in time order);
 //! intensities are kept when there is one per beam; the beam geometry may change between
-//! scans (each scan comes with its own [`ScanHeader`]: the caller groups them, as a
-//! `pingcal-scan` file has one geometry). Several bags are read in the order given.
+//! scans (each scan comes with its own [`ScanHeader`]: a `pingcal-scan` v4 file holds them
+//! all). Several bags are read in the order given.
+//!
+//! **Time base.** Each topic's time is its header stamp or its record time, as
+//! [`Topics::stamps`] says (`auto`: [`crate::clock`], which tells two clocks apart).
+//! **Values no scan file holds** (a scan's beams beyond a turn, a servo value NaN or beyond
+//! ±1e6°) are skipped, counted and the first named ([`Assembled::bad_geometry`],
+//! [`Assembled::bad_servo`]): what is written, the readers read. **Beam timing** follows the
+//! drivers' `time_increment` / `scan_time` conventions ([`BeamTimings`]).
 //!
 //! **One pass.** The scan and servo topics are read together; a scan waits until the servo
 //! series is known past its last beam (by [`crate::motion::SLACK_NS`]: the messages of a
@@ -43,7 +50,7 @@ use crate::msgs::{self, JointState};
 use crate::{Bag, RawMessage};
 use pingcal_lrf::scan::{ScanHeader, ScanLine, MIN_VALID_RANGE_MM};
 
-pub use pingcal_lrf::settings::ServoSource;
+pub use pingcal_lrf::settings::{ServoSource, Stamps};
 
 /// The topics to read and how.
 #[derive(Debug, Clone, PartialEq)]
@@ -54,6 +61,8 @@ pub struct Topics {
     pub servo: String,
     /// How the servo topic's messages give the angle.
     pub source: ServoSource,
+    /// Whose time the messages are taken at ([`crate::clock`]).
+    pub stamps: Stamps,
 }
 
 pub(crate) fn expect_type(bag: &Bag, m: &RawMessage, expected: &[&str]) -> Result<()> {
@@ -121,14 +130,17 @@ impl ServoNames {
     }
 }
 
-/// The servo samples one message gives (time ns, degrees), the names it held in `names`;
-/// false when the message has no sample of the servo asked for.
+/// The servo samples one message gives (time ns: its header stamp, or its record time
+/// when `record`; degrees), the names it held in `names`; false when the message has no
+/// sample of the servo asked for.
 pub(crate) fn servo_samples(
     m: &RawMessage,
     source: &ServoSource,
+    record: bool,
     out: &mut Vec<(i64, f64)>,
     names: &mut ServoNames,
 ) -> std::result::Result<bool, String> {
+    let at = |stamp_ns: i64| if record { m.time_ns } else { stamp_ns };
     match source {
         ServoSource::Joint(name) => {
             let js = JointState::decode(m.data, m.encoding)?;
@@ -140,7 +152,7 @@ pub(crate) fn servo_samples(
                 .position
                 .get(k)
                 .ok_or_else(|| format!("joint {name} has no position"))?;
-            out.push((js.stamp_ns, joint_deg(*p)));
+            out.push((at(js.stamp_ns), joint_deg(*p)));
         }
         ServoSource::Numeric { scale, offset } => {
             let v = msgs::decode_numeric(m.msg_type, m.data, m.encoding)?;
@@ -151,7 +163,7 @@ pub(crate) fn servo_samples(
             for t in msgs::decode_tf(m.data, m.encoding)? {
                 names.add(&t.child_frame_id);
                 if t.child_frame_id == *child {
-                    out.push((t.stamp_ns, msgs::twist_deg(t.rotation, *axis)));
+                    out.push((at(t.stamp_ns), msgs::twist_deg(t.rotation, *axis)));
                     hit = true;
                 }
             }
@@ -207,9 +219,18 @@ pub(crate) fn no_servo_samples(
     RosbagError::topic(&files, &topics.servo, what)
 }
 
-/// Reads the servo samples of all `bags` (a pass of its own), sorted by time; a repeated
-/// time keeps its last sample.
+/// Reads the servo samples of all `bags` (a pass of its own), sorted by time, at the time
+/// base `topics.stamps` gives ([`crate::clock::choose`]); a repeated time keeps its last
+/// sample; a value that is not a servo angle (not a number, beyond ±1e6°) is skipped.
 pub fn servo_series(bags: &[Bag], topics: &Topics) -> Result<ServoSeries> {
+    let record = crate::clock::choose(
+        bags,
+        &topics.scan,
+        &topics.servo,
+        &topics.source,
+        topics.stamps,
+    )?
+    .record;
     let types = servo_types(&topics.source);
     let mut samples = Vec::new();
     let mut names = ServoNames::default();
@@ -218,8 +239,9 @@ pub fn servo_series(bags: &[Bag], topics: &Topics) -> Result<ServoSeries> {
         let mut index = 0u64;
         bag.for_each(&[topics.servo.as_str()], &mut |m| {
             expect_type(bag, m, &types)?;
-            servo_samples(m, &topics.source, &mut samples, &mut names)
+            servo_samples(m, &topics.source, record, &mut samples, &mut names)
                 .map_err(|e| decode_err(bag, m, index, e))?;
+            samples.retain(|&(_, d)| servo_value_ok(d));
             index += 1;
             Ok(())
         })?;
@@ -234,6 +256,13 @@ pub fn servo_series(bags: &[Bag], topics: &Topics) -> Result<ServoSeries> {
     }
     Ok(series)
 }
+
+/// A servo angle a scan file can hold: a number within ±[`MAX_SERVO_DEG`].
+pub fn servo_value_ok(deg: f64) -> bool {
+    deg.abs() <= MAX_SERVO_DEG
+}
+
+pub use pingcal_lrf::scan::MAX_SERVO_DEG;
 
 /// The shortest decimal with at most `max_decimals` decimals near `approx` that `same`
 /// accepts, else `approx`.
@@ -317,9 +346,52 @@ pub fn joint_deg(p: f64) -> f64 {
     shortest_decimal(p.to_degrees(), 9, |c| c.to_radians() == p)
 }
 
+/// Messages skipped for a value a scan file cannot hold: how many, and the first (its
+/// message number and the value).
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct Skipped {
+    /// Messages skipped.
+    pub count: u64,
+    /// "message K: VALUE" of the first.
+    pub first: Option<String>,
+}
+
+impl Skipped {
+    /// Counts message `index`, naming it and its value (`what`) when it is the first.
+    pub fn add(&mut self, index: u64, what: impl FnOnce() -> String) {
+        self.count += 1;
+        if self.first.is_none() {
+            self.first = Some(format!("message {index}: {}", what()));
+        }
+    }
+}
+
+/// How the scans' beams were timed where the driver's `time_increment` is not the plain
+/// time between beams: scans counted by convention.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct BeamTimings {
+    /// `time_increment` 0: the time between beams from `scan_time` (a turn per scan).
+    pub from_scan_time: u64,
+    /// `time_increment` negative: the beams measured from the last to the first.
+    pub reversed: u64,
+    /// `time_increment` the whole scan's time (longer than a scan per beam): divided by the
+    /// beams.
+    pub per_scan: u64,
+    /// `time_increment` not a number, or longer than a scan either way: not used.
+    pub ignored: u64,
+}
+
 /// What [`read_scans`] did.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Assembled {
+    /// The time base used ([`crate::clock`]), and why.
+    pub clock: crate::clock::Clock,
+    /// Scans skipped because their beams are no scan (an angle or a step beyond a turn).
+    pub bad_geometry: Skipped,
+    /// Servo values skipped: not a number, or beyond ±1e6°.
+    pub bad_servo: Skipped,
+    /// Scans whose beams were timed by a convention of their driver.
+    pub timing: BeamTimings,
     /// Scans given to the caller.
     pub scans: u64,
     /// Scans skipped because they start before the first servo sample.
@@ -354,11 +426,38 @@ impl Assembled {
     /// What was met and done, one line each, in words (warnings start with `warning: `):
     /// the servo motion and why, and every count that is not 0.
     pub fn notes(&self) -> Vec<String> {
-        let mut out = vec![format!(
-            "servo motion: {} ({})",
-            self.motion.name(),
-            self.motion_reason
-        )];
+        let mut out = vec![
+            format!("time base: {} ({})", self.clock.name(), self.clock.reason),
+            format!(
+                "servo motion: {} ({})",
+                self.motion.name(),
+                self.motion_reason
+            ),
+        ];
+        let t = &self.timing;
+        for (n, what) in [
+            (t.from_scan_time, "time_increment 0: the time between beams from scan_time (a turn per scan)"),
+            (t.reversed, "time_increment negative: the beams measured from the last to the first"),
+            (t.per_scan, "time_increment longer than a scan per beam: taken as the whole scan's time, divided by the beams"),
+        ] {
+            if n > 0 {
+                out.push(format!("{n} scan(s) with {what}"));
+            }
+        }
+        for (s, what) in [
+            (&self.bad_geometry, "scan(s) whose beams a scan file cannot hold (an angle or a step beyond a turn) skipped"),
+            (&self.bad_servo, "servo value(s) not a number or beyond ±1e6° skipped"),
+        ] {
+            if let Some(first) = &s.first {
+                out.push(format!("warning: {} {what} (the first: {first})", s.count));
+            }
+        }
+        if t.ignored > 0 {
+            out.push(format!(
+                "warning: {} scan(s) with a time_increment that is not a number or longer than a scan: their beams are taken at the scan's stamp",
+                t.ignored
+            ));
+        }
         let m = &self.masked;
         if m.total() > 0 {
             let parts: Vec<String> = [

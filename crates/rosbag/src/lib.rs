@@ -3,7 +3,8 @@
 //! decoders of the messages a rotating 2D range finder publishes ([`msgs`]) and the
 //! assembly of its scans, as drivers publish them, with the servo angle held (stop-and-go)
 //! or interpolated at each beam's time (continuous), in one pass ([`assemble`],
-//! [`motion`]).
+//! [`motion`]), each topic at its header stamps or its record times ([`clock`]: two clocks
+//! in one bag told apart).
 //!
 //! A bag is never loaded whole: ROS 1 bags and MCAP files are memory-mapped and read in
 //! file order, one chunk decompressed at a time; `.db3` bags are read one row at a time.
@@ -11,6 +12,7 @@
 //! ([`RosbagError`]); no input panics.
 
 pub mod assemble;
+pub mod clock;
 pub mod error;
 pub mod frames;
 mod mmap;

@@ -5,7 +5,7 @@
 
 use pingcal_lrf::cloud::{Cloud, MountModel};
 use pingcal_lrf::scan::{open_scan_file, ScanHeader, ScanLine};
-use pingcal_rosbag::assemble::{read_scans, Assembled, ServoMotion, ServoSource, Topics};
+use pingcal_rosbag::assemble::{read_scans, Assembled, ServoMotion, ServoSource, Stamps, Topics};
 use pingcal_rosbag::{Bag, RosbagError};
 use std::path::{Path, PathBuf};
 
@@ -31,6 +31,7 @@ fn joint(name: &str) -> Topics {
         scan: "/scan".into(),
         servo: "/joint_states".into(),
         source: ServoSource::Joint(name.into()),
+        stamps: Stamps::Auto,
     }
 }
 
@@ -42,6 +43,7 @@ fn ticks() -> Topics {
             scale: 0.087890625,
             offset: -180.0,
         },
+        stamps: Stamps::Auto,
     }
 }
 
@@ -53,6 +55,7 @@ fn tf() -> Topics {
             child: "servo_link".into(),
             axis: [0.0, 1.0, 0.0],
         },
+        stamps: Stamps::Auto,
     }
 }
 
@@ -362,6 +365,7 @@ mod drivers {
             scan: "/scan".into(),
             servo: servo.into(),
             source,
+            stamps: Stamps::Auto,
         };
         [
             (

@@ -1,5 +1,5 @@
 //! `pingcal scans BAG... --scan-topic T --servo-topic T [--servo-joint NAME | --servo-scale S
-//! --servo-offset O | --servo-tf-child F --servo-axis x,y,z] [--servo-motion auto|stop-and-go|continuous]
+//! --servo-offset O | --servo-tf-child F --servo-axis x,y,z] [--servo-motion auto|stop-and-go|continuous] [--stamps auto|header|record]
 //! --out scans.csv`: the LRF's scans read from ROS 1 bags and ROS 2 bags (MCAP, sqlite3, or
 //! a bag folder) in one pass, as drivers publish them (empty scans, no-return ranges,
 //! messages stored twice, stamps that repeat or go back: counted in the summary), the servo
@@ -10,17 +10,20 @@
 //! frames of tf topics.
 //!
 //! A driver may change the beam geometry (count, first angle, step) between messages: no
-//! scan is dropped or resampled for it; the scans of the first geometry go to `--out`, those
-//! of each further one to a file of its own beside it (`scans.g2.csv`, `scans.g3.csv`, …),
-//! since a `pingcal-scan` file has one geometry; the project lists them all.
+//! scan is dropped or resampled for it; every scan goes to `--out` in its own geometry, the
+//! file then `pingcal-scan` v4 (a `# geometry` line where the geometry changes): one bag, one
+//! file. Whose time the messages are taken at (`--stamps`: header stamps or record times) is
+//! chosen as `pingcal_rosbag::clock` says, and printed with the reason.
 //!
 //! The output is written to `.NAME.partial` beside it and renamed when complete, as the
 //! other commands write theirs: a failed run leaves an earlier file untouched.
 
 use super::CmdResult;
-use pingcal_lrf::scan::{ScanHeader, ScanWriter};
+use pingcal_lrf::scan::{ScanHeader, ScanLine, ScanWriter, VERSION_DIGIT_OFFSET};
 use pingcal_lrf::settings::{KeyStyle, ServoKeys};
-use pingcal_rosbag::assemble::{names_on_topic, read_scans, ServoMotion, ServoSource, Topics};
+use pingcal_rosbag::assemble::{
+    names_on_topic, read_scans, ServoMotion, ServoSource, Stamps, Topics,
+};
 use pingcal_rosbag::{bag_files, Bag};
 use std::path::{Path, PathBuf};
 
@@ -66,7 +69,14 @@ pub struct Args {
     /// servo messages and says which it used.
     #[arg(long, default_value = "auto", value_parser = ServoMotion::parse)]
     pub servo_motion: ServoMotion,
-    /// The scan file to write (`pingcal-scan` v2 CSV).
+    /// Whose time the messages are taken at: `header` their header stamps (a topic
+    /// without a header, e.g. std_msgs/Int32, has only its record times), `record` the
+    /// bag's record times, `auto` the header stamps unless the two topics keep different
+    /// clocks (it says which it used, and why).
+    #[arg(long, default_value = "auto", value_parser = Stamps::parse)]
+    pub stamps: Stamps,
+    /// The scan file to write (`pingcal-scan` v2 CSV; v3 with intensities, v4 when the beam
+    /// geometry changes between scans).
     #[arg(long, required_unless_present = "list")]
     pub out: Option<PathBuf>,
 }
@@ -137,24 +147,8 @@ fn check_not_an_input(out: &Path, bags: &[PathBuf]) -> Result<(), String> {
     Ok(())
 }
 
-/// The file of the `k`-th beam geometry (from 2): `scans.csv` → `scans.g2.csv`.
-fn geometry_path(out: &Path, k: usize) -> PathBuf {
-    let stem = out
-        .file_stem()
-        .map_or_else(String::new, |s| s.to_string_lossy().into_owned());
-    let name = match out.extension() {
-        Some(e) => format!("{stem}.g{k}.{}", e.to_string_lossy()),
-        None => format!("{stem}.g{k}"),
-    };
-    out.with_file_name(name)
-}
-
-/// One output file: the scans of one beam geometry.
-struct GeometryFile {
-    header: ScanHeader,
-    beams: usize,
-    /// v3: the scans carry intensities.
-    intensities: bool,
+/// The scan file being written: a temporary one renamed when complete.
+struct ScanFile {
     /// The path named on the output.
     path: PathBuf,
     /// The file written: a temporary one, or a device or FIFO written straight.
@@ -162,22 +156,25 @@ struct GeometryFile {
     /// What `tmp` is renamed onto once complete (the file behind any symlink); None when
     /// written straight.
     target: Option<PathBuf>,
-    scans: u64,
+    /// The first scan's beams, first angle and version (2, or 3 with intensities).
+    beams: usize,
+    angle_min_deg: f64,
+    version: u8,
     writer: ScanWriter<std::io::BufWriter<std::fs::File>>,
 }
 
-impl GeometryFile {
+impl ScanFile {
+    /// Starts the file with the geometry of its first scan, `line`.
     fn create(
         header: &ScanHeader,
-        beams: usize,
-        intensities: bool,
-        path: PathBuf,
+        line: &ScanLine,
+        path: &Path,
         extra: &str,
     ) -> Result<Self, String> {
-        super::preflight::check_out_file("--out", &path)?;
+        super::preflight::check_out_file("--out", path)?;
         // through symlinks the file behind them is replaced; a device or FIFO is written
         // straight
-        let (tmp, target) = match super::write_target(&path).map_err(|e| e.to_string())? {
+        let (tmp, target) = match super::write_target(path).map_err(|e| e.to_string())? {
             super::WriteTarget::Direct(p) => (p, None),
             super::WriteTarget::Replace(t) => {
                 (super::partial_path(&t).map_err(|e| e.to_string())?, Some(t))
@@ -186,6 +183,8 @@ impl GeometryFile {
         let cannot = |e: std::io::Error| format!("{}: cannot write: {e}", path.display());
         let file = std::fs::File::create(&tmp).map_err(cannot)?;
         let w = std::io::BufWriter::with_capacity(1 << 16, file);
+        let beams = line.ranges_mm.len();
+        let intensities = !line.intensities.is_empty();
         let writer = if intensities {
             ScanWriter::new_v3(w, header, beams, &[extra])
         } else {
@@ -193,24 +192,57 @@ impl GeometryFile {
         }
         .map_err(cannot)?;
         Ok(Self {
-            header: *header,
-            beams,
-            intensities,
-            path,
+            path: path.to_path_buf(),
             tmp,
             target,
-            scans: 0,
+            beams,
+            angle_min_deg: header.angle_min_deg,
+            version: if intensities { 3 } else { 2 },
             writer,
         })
     }
 
-    /// Completes the file; gives (temporary file, its target) when it is to be renamed.
-    fn finish(self) -> Result<Option<(PathBuf, PathBuf)>, String> {
+    /// Writes one scan in its own geometry (a `# geometry` line where it changes: the
+    /// file becomes v4); a device or FIFO written straight cannot be made v4 afterwards and
+    /// is refused then.
+    fn write(&mut self, header: &ScanHeader, line: &ScanLine) -> Result<(), String> {
         let cannot = |e: std::io::Error| format!("{}: cannot write: {e}", self.path.display());
+        let before = self.writer.needs_v4();
+        self.writer.write_line_in(header, line).map_err(cannot)?;
+        if !before && self.writer.needs_v4() && self.target.is_none() {
+            return Err(format!(
+                "{}: the beam geometry changes at scan message {}: the file must be pingcal-scan v4, which a device or pipe written straight cannot be made afterwards; write to a file",
+                self.path.display(),
+                line.line
+            ));
+        }
+        Ok(())
+    }
+
+    /// The version the file has: v4 when scans of several geometries were written.
+    fn version(&self) -> u8 {
+        if self.writer.needs_v4() {
+            4
+        } else {
+            self.version
+        }
+    }
+
+    /// Completes the file (v4 put in its first line where needed); gives (temporary file,
+    /// its target) when it is to be renamed.
+    fn finish(self) -> Result<Option<(PathBuf, PathBuf)>, String> {
+        use std::io::{Seek, SeekFrom, Write};
+        let cannot = |e: std::io::Error| format!("{}: cannot write: {e}", self.path.display());
+        let v4 = self.writer.needs_v4();
         let w = self.writer.finish().map_err(cannot)?;
-        let file = w.into_inner().map_err(|e| cannot(e.into_error()))?;
+        let mut file = w.into_inner().map_err(|e| cannot(e.into_error()))?;
         match self.target {
             Some(t) => {
+                if v4 {
+                    file.seek(SeekFrom::Start(VERSION_DIGIT_OFFSET))
+                        .and_then(|_| file.write_all(b"4"))
+                        .map_err(cannot)?;
+                }
                 file.sync_all().map_err(cannot)?;
                 Ok(Some((self.tmp, t)))
             }
@@ -224,17 +256,20 @@ impl GeometryFile {
     }
 }
 
-/// What [`write_scans`] wrote: per file its path, scans, beams and first angle, and what
-/// the reading met.
+/// What [`write_scans`] wrote: the file, its scans, version, the first scan's beams and
+/// first angle, and what the reading met.
 struct Written {
-    files: Vec<(PathBuf, u64, usize, f64)>,
+    path: PathBuf,
+    scans: u64,
+    version: u8,
+    beams: usize,
+    angle_min_deg: f64,
     done: pingcal_rosbag::assemble::Assembled,
 }
 
-/// Writes the scans of `bags` to `out`'s temporary file, and the scans of every further beam
-/// geometry (a driver may change it between messages) to a file of its own
-/// ([`geometry_path`]); renames them all once every one is complete, and removes them on a
-/// failure.
+/// Writes the scans of `bags` to `out`'s temporary file, every scan in its own beam
+/// geometry (a driver may change it between messages: the file is then v4), and renames it
+/// once complete; removes it on a failure.
 fn write_scans(
     bags: &[Bag],
     topics: &Topics,
@@ -248,72 +283,60 @@ fn write_scans(
         topics.scan,
         topics.servo
     );
-    let mut files: Vec<GeometryFile> = Vec::new();
+    let mut file: Option<ScanFile> = None;
+    let mut scans = 0u64;
+    let io = |msg: String| pingcal_rosbag::RosbagError::Io {
+        file: out.display().to_string(),
+        msg,
+    };
     let result = read_scans(bags, topics, motion, &mut |h, line| {
-        let beams = line.ranges_mm.len();
-        let with_i = !line.intensities.is_empty();
-        let k = match files
-            .iter()
-            .position(|f| f.header == *h && f.beams == beams && f.intensities == with_i)
-        {
-            Some(k) => k,
-            None => {
-                let path = match files.len() {
-                    0 => out.to_path_buf(),
-                    n => geometry_path(out, n + 1),
-                };
-                let f = GeometryFile::create(h, beams, with_i, path, &extra).map_err(|msg| {
-                    pingcal_rosbag::RosbagError::Io {
-                        file: out.display().to_string(),
-                        msg,
-                    }
-                })?;
-                files.push(f);
-                files.len() - 1
-            }
+        let f = match &mut file {
+            Some(f) => f,
+            None => file.insert(ScanFile::create(h, &line, out, &extra).map_err(io)?),
         };
-        let f = &mut files[k];
-        f.scans += 1;
-        f.writer
-            .write_line(&line)
-            .map_err(|e| pingcal_rosbag::RosbagError::Io {
-                file: f.path.display().to_string(),
-                msg: format!("cannot write: {e}"),
-            })
+        scans += 1;
+        f.write(h, &line).map_err(io)
     });
-    // every temporary file, removed on any failure from here on
-    let partials: Vec<PathBuf> = files
-        .iter()
-        .filter_map(|f| f.partial().map(Path::to_path_buf))
-        .collect();
+    // the temporary file, removed on any failure from here on
+    let partial = file
+        .as_ref()
+        .and_then(|f| f.partial().map(Path::to_path_buf));
     let cleanup = |e: super::CmdError| {
-        for p in &partials {
+        if let Some(p) = &partial {
             let _ = std::fs::remove_file(p);
         }
         e
     };
     let done = result.map_err(|e| cleanup(e.into()))?;
-    if files.is_empty() {
+    let Some(f) = file else {
+        let skipped: Vec<String> = done
+            .notes()
+            .into_iter()
+            .filter_map(|n| n.strip_prefix("warning: ").map(str::to_string))
+            .collect();
         return Err(format!(
-            "{}: topic {}: no scan lies within the servo messages ({} before the first, {} after the last, {} empty)",
-            names.join(", "), topics.scan, done.before_servo, done.after_servo, done.empty_scans
+            "{}: topic {}: no scan lies within the servo messages ({} before the first, {} after the last, {} empty){}",
+            names.join(", "),
+            topics.scan,
+            done.before_servo,
+            done.after_servo,
+            done.empty_scans,
+            if skipped.is_empty() { String::new() } else { format!("; {}", skipped.join("; ")) }
         )
         .into());
-    }
-    let summary: Vec<_> = files
-        .iter()
-        .map(|f| (f.path.clone(), f.scans, f.beams, f.header.angle_min_deg))
-        .collect();
-    let mut finished = Vec::new();
-    for f in files {
-        finished.extend(f.finish().map_err(|e| cleanup(e.into()))?);
-    }
-    for (tmp, target) in finished {
+    };
+    let (path, version, beams, angle_min_deg) =
+        (f.path.clone(), f.version(), f.beams, f.angle_min_deg);
+    if let Some((tmp, target)) = f.finish().map_err(|e| cleanup(e.into()))? {
         std::fs::rename(&tmp, &target)
             .map_err(|e| cleanup(format!("{}: cannot write: {e}", target.display()).into()))?;
     }
     Ok(Written {
-        files: summary,
+        path,
+        scans,
+        version,
+        beams,
+        angle_min_deg,
         done,
     })
 }
@@ -334,18 +357,17 @@ pub fn run(args: Args) -> CmdResult {
         scan: scan.clone(),
         servo: servo.clone(),
         source: source(&args)?,
+        stamps: args.stamps,
     };
-    let Written { files, done } = write_scans(&bags, &topics, args.servo_motion, out)?;
-    let Some((first, more)) = files.split_first() else {
-        return Err(format!("topic {scan}: no scan written").into());
-    };
+    let w = write_scans(&bags, &topics, args.servo_motion, out)?;
+    let done = &w.done;
     println!(
         "scans: {} scans of {} beams from {} bag(s), servo from {servo} → {} (pingcal-scan v{}); {} skipped before the servo messages, {} after, {} empty, {} duplicate(s), {} ranges masked",
-        first.1,
-        first.2,
+        w.scans,
+        w.beams,
         bags.len(),
-        first.0.display(),
-        if done.with_intensities > 0 { 3 } else { 2 },
+        w.path.display(),
+        w.version,
         done.before_servo,
         done.after_servo,
         done.empty_scans,
@@ -358,16 +380,11 @@ pub fn run(args: Args) -> CmdResult {
             None => println!("scans: {note}"),
         }
     }
-    if !more.is_empty() {
-        eprintln!(
-            "pingcal: warning: topic {scan}: the beam geometry changes between scans; the scans of each other geometry are in a file of their own (list them all in [lrf] scans):"
+    if w.version == 4 {
+        println!(
+            "scans: one file for every beam geometry (pingcal-scan v4: a `# geometry` line where it changes; the first scan's {} beams from {}°)",
+            w.beams, w.angle_min_deg
         );
-        for (path, n, beams, a0) in more {
-            println!(
-                "scans: {n} scans of {beams} beams from {a0}° → {}",
-                path.display()
-            );
-        }
     }
     Ok(())
 }

@@ -116,10 +116,12 @@ fn station_image(project: &Project, station: &str) -> Result<ImageId> {
 fn beams_of(header: &ScanHeader, lines: &[ScanLine], noise: &RangeNoise) -> Vec<FixedBeam> {
     let mut beams = Vec::new();
     for line in lines {
+        // a v4 file's scan may have a geometry of its own
+        let geometry = line.geometry_or(header);
         for (i, &r) in line.ranges_mm.iter().enumerate() {
             if r > 0.0 && r.is_finite() {
                 beams.push(FixedBeam {
-                    alpha_rad: header.beam_angle_deg(i).to_radians(),
+                    alpha_rad: geometry.beam_angle_deg(i).to_radians(),
                     range_mm: r,
                     sigma: noise.sigma(r).max(1.0),
                 });

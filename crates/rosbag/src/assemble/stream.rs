@@ -3,7 +3,7 @@
 
 use super::{
     angle_deg, decode_err, expect_type, no_messages, no_servo_samples, range_mm_counted, seconds,
-    servo_samples, servo_types, Assembled, ServoNames, Topics, MAX_PENDING_SCANS,
+    servo_samples, servo_types, servo_value_ok, Assembled, ServoNames, Topics, MAX_PENDING_SCANS,
 };
 use crate::error::{Result, RosbagError};
 use crate::motion::{classify, Decision, Inserted, ServoMotion, ServoSeries, SLACK_NS};
@@ -16,24 +16,93 @@ use std::collections::{HashSet, VecDeque};
 /// itself, or nearly: a bag read twice is told by its stamps going back instead).
 const DUPLICATE_WINDOW: usize = 4_096;
 
-/// The beam geometry of a scan, as the message gives it.
+/// The beam geometry of a scan, as the message gives it, and the time between its beams
+/// as the driver's conventions give it ([`beam_time_s`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Geometry {
     n: usize,
     angle_min: f32,
     angle_increment: f32,
-    time_increment: f32,
+    /// Seconds from one beam to the next (negative: the beams measured last to first), 0
+    /// when unknown: the message's `float32` exactly, where it is used as given.
+    beam_s: f64,
+    /// The message's `time_increment`, when `beam_s` is it.
+    given: Option<f32>,
 }
 
 impl Geometry {
     fn header(&self) -> ScanHeader {
+        // the float32 as its shortest decimal (module doc of `assemble`)
+        let decimal = match self.given {
+            Some(ti) => seconds(ti.abs()).copysign(f64::from(ti)),
+            None => self.beam_s,
+        };
         ScanHeader {
             angle_min_deg: angle_deg(self.angle_min),
             angle_increment_deg: angle_deg(self.angle_increment),
             mm_per_unit: 1.0,
-            time_increment_s: (self.time_increment > 0.0).then(|| seconds(self.time_increment)),
+            time_increment_s: (self.beam_s != 0.0).then_some(decimal),
         }
     }
+}
+
+/// How the time between beams was found, for the counts of [`Assembled`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum BeamTiming {
+    /// `time_increment` as the message gives it (or 0 with no `scan_time` either).
+    AsGiven,
+    /// `time_increment` 0: from `scan_time` and the beam step (a turn per `scan_time`).
+    FromScanTime,
+    /// `time_increment` negative: the beams measured from the last to the first.
+    Reversed,
+    /// `time_increment` the whole scan's time: divided by the beams.
+    PerScan,
+    /// `time_increment` not a number, or longer than a scan whichever way it is read:
+    /// ignored.
+    Ignored,
+}
+
+/// The time from one beam to the next (s) as the drivers' conventions give it, and how:
+/// `time_increment` per beam; 0 with a `scan_time`: the beams' share of a turn per
+/// `scan_time`; negative: the beams were measured from the last to the first; so long that
+/// the beams would outlast the scan period (`scan_time`, else `period_s`, the time since
+/// the scan before) by half: the whole scan's time, divided by the beams.
+fn beam_time_s(s: &LaserScan, period_s: Option<f64>) -> (f64, BeamTiming) {
+    let ti = f64::from(s.time_increment);
+    let st = f64::from(s.scan_time);
+    let n = s.ranges.len();
+    let period = if st.is_finite() && st > 0.0 {
+        Some(st)
+    } else {
+        period_s.filter(|p| *p > 0.0)
+    };
+    let fits = |b: f64| period.is_none_or(|p| b.abs() * n.saturating_sub(1) as f64 <= 1.5 * p);
+    if !ti.is_finite() {
+        return (0.0, BeamTiming::Ignored);
+    }
+    if ti == 0.0 {
+        return match period {
+            Some(p) if st > 0.0 => {
+                let share = f64::from(s.angle_increment).abs() / std::f64::consts::TAU;
+                (p * share, BeamTiming::FromScanTime)
+            }
+            _ => (0.0, BeamTiming::AsGiven),
+        };
+    }
+    let given = ti;
+    if fits(given) {
+        let how = if ti < 0.0 {
+            BeamTiming::Reversed
+        } else {
+            BeamTiming::AsGiven
+        };
+        return (given, how);
+    }
+    let per_beam = given / n.max(1) as f64;
+    if fits(per_beam) {
+        return (per_beam, BeamTiming::PerScan);
+    }
+    (0.0, BeamTiming::Ignored)
 }
 
 /// A scan waiting for its servo angle.
@@ -43,6 +112,11 @@ struct Pending {
     end_off_ns: f64,
     header: ScanHeader,
     line: ScanLine,
+}
+
+/// A `float32` as its shortest decimal, in e-notation when huge or tiny.
+fn short32(v: f32) -> String {
+    pingcal_lrf::scan::short(format!("{v}").parse().unwrap_or(f64::NAN))
 }
 
 /// A 128-bit hash of a message's bytes (two multiplicative lanes over 8-byte words): the
@@ -73,6 +147,8 @@ fn identity(data: &[u8]) -> u128 {
 
 struct Stream<'a> {
     topics: &'a Topics,
+    /// Every topic at its record times ([`crate::clock`]), else at its header stamps.
+    record: bool,
     series: ServoSeries,
     /// The servo series is complete (read in a pass of its own).
     servo_complete: bool,
@@ -107,9 +183,10 @@ struct Stream<'a> {
 }
 
 impl<'a> Stream<'a> {
-    fn new(topics: &'a Topics, asked: ServoMotion) -> Self {
+    fn new(topics: &'a Topics, asked: ServoMotion, record: bool) -> Self {
         Stream {
             topics,
+            record,
             series: ServoSeries::default(),
             servo_complete: false,
             servo_until: i64::MIN,
@@ -144,9 +221,21 @@ impl<'a> Stream<'a> {
         expect_type(bag, m, &servo_types(&self.topics.source))?;
         self.servo_messages += 1;
         self.samples.clear();
-        servo_samples(m, &self.topics.source, &mut self.samples, &mut self.names)
-            .map_err(|e| decode_err(bag, m, index, e))?;
+        let record = self.record;
+        servo_samples(
+            m,
+            &self.topics.source,
+            record,
+            &mut self.samples,
+            &mut self.names,
+        )
+        .map_err(|e| decode_err(bag, m, index, e))?;
         for &(t, d) in &self.samples {
+            if !servo_value_ok(d) {
+                // a scan file holds no such angle: skipped, counted, the first named
+                self.done.bad_servo.add(index, || format!("{d:e}"));
+                continue;
+            }
             if self.series.insert(t, d) == Inserted::Duplicate {
                 self.done.duplicate_servo += 1;
             }
@@ -155,38 +244,50 @@ impl<'a> Stream<'a> {
         Ok(())
     }
 
-    /// Checks a scan's geometry; `None` for an empty scan (counted).
-    fn geometry(&mut self, s: &LaserScan) -> std::result::Result<Option<Geometry>, String> {
+    /// Checks a scan's geometry; `None` for an empty scan or one whose beams a scan file
+    /// cannot hold (counted, the first named: `index` is its message number).
+    fn geometry(&mut self, s: &LaserScan, stamp_ns: i64, index: u64) -> Option<Geometry> {
+        let period_s = self
+            .last_stamp
+            .map(|t| stamp_ns.saturating_sub(t) as f64 * 1e-9);
+        let (beam_s, timing) = beam_time_s(s, period_s);
         let g = Geometry {
             n: s.ranges.len(),
             angle_min: s.angle_min,
             angle_increment: s.angle_increment,
-            time_increment: s.time_increment,
+            beam_s,
+            given: matches!(timing, BeamTiming::AsGiven | BeamTiming::Reversed)
+                .then_some(s.time_increment),
         };
         if g.n == 0 {
             self.done.empty_scans += 1;
-            return Ok(None);
+            return None;
         }
-        if !(g.angle_increment != 0.0 || g.n == 1)
-            || !g.angle_min.is_finite()
-            || !g.angle_increment.is_finite()
-        {
-            return Err(format!(
-                "{} beams from {} rad in steps of {} rad: not a scan",
-                g.n, g.angle_min, g.angle_increment
-            ));
+        let h = g.header();
+        if !pingcal_lrf::scan::geometry_ok(h.angle_min_deg, h.angle_increment_deg, g.n) {
+            self.done.bad_geometry.add(index, || {
+                format!(
+                    "angle_min {} rad, angle_increment {} rad over {} beams",
+                    short32(s.angle_min),
+                    short32(s.angle_increment),
+                    g.n
+                )
+            });
+            return None;
         }
-        let ti = f64::from(s.time_increment);
-        if !ti.is_finite() || ti < 0.0 {
-            return Err(format!(
-                "time_increment {ti} s: expected a finite value ≥ 0"
-            ));
+        let t = &mut self.done.timing;
+        match timing {
+            BeamTiming::AsGiven => {}
+            BeamTiming::FromScanTime => t.from_scan_time += 1,
+            BeamTiming::Reversed => t.reversed += 1,
+            BeamTiming::PerScan => t.per_scan += 1,
+            BeamTiming::Ignored => t.ignored += 1,
         }
         if self.geometry.is_some_and(|last| last != g) {
             self.done.geometry_changes += 1;
         }
         self.geometry = Some(g);
-        Ok(Some(g))
+        Some(g)
     }
 
     fn scan(&mut self, bag: &Bag, m: &RawMessage, index: u64) -> Result<()> {
@@ -203,28 +304,27 @@ impl<'a> Stream<'a> {
             }
         }
         let s = LaserScan::decode(m.data, m.encoding).map_err(|e| decode_err(bag, m, index, e))?;
+        let stamp_ns = if self.record { m.time_ns } else { s.stamp_ns };
         if self.decision.is_none() {
             // every scan's stamp, empty or out of order too, tells how the servo keeps time
-            self.scan_stamps.push(s.stamp_ns);
+            self.scan_stamps.push(stamp_ns);
         }
         if self.stamps_only {
             return Ok(());
         }
-        let at =
-            |e: String| RosbagError::topic(bag.name(), m.topic, format!("message {index}: {e}"));
-        let Some(g) = self.geometry(&s).map_err(at)? else {
+        let Some(g) = self.geometry(&s, stamp_ns, index) else {
             return Ok(());
         };
         match self.last_stamp {
-            Some(t) if s.stamp_ns < t => {
+            Some(t) if stamp_ns < t => {
                 self.done.backward_stamps += 1;
                 return Ok(());
             }
-            Some(t) if s.stamp_ns == t => self.done.repeated_stamps += 1,
+            Some(t) if stamp_ns == t => self.done.repeated_stamps += 1,
             _ => {}
         }
-        self.last_stamp = Some(s.stamp_ns);
-        self.scan_until = self.scan_until.max(s.stamp_ns);
+        self.last_stamp = Some(stamp_ns);
+        self.scan_until = self.scan_until.max(stamp_ns);
         let masked = &mut self.done.masked;
         let ranges_mm: Vec<f64> = s
             .ranges
@@ -238,16 +338,17 @@ impl<'a> Stream<'a> {
             Vec::new()
         };
         self.pending.push_back(Pending {
-            stamp_ns: s.stamp_ns,
-            end_off_ns: (g.n - 1) as f64 * f64::from(s.time_increment) * 1e9,
+            stamp_ns,
+            end_off_ns: (g.n - 1) as f64 * g.beam_s * 1e9,
             header: g.header(),
             line: ScanLine {
                 line: usize::try_from(index + 1).unwrap_or(usize::MAX),
-                stamp_s: s.stamp_ns as f64 * 1e-9,
+                stamp_s: stamp_ns as f64 * 1e-9,
                 servo_deg: 0.0,
                 servo_end_deg: None,
                 ranges_mm,
                 intensities,
+                geometry: None,
             },
         });
         Ok(())
@@ -295,7 +396,10 @@ impl<'a> Stream<'a> {
             0
         };
         while let Some(p) = self.pending.front() {
-            let last_beam = p.stamp_ns.saturating_add(p.end_off_ns.ceil() as i64);
+            // the beams measured last to first end at the stamp
+            let last_beam = p
+                .stamp_ns
+                .saturating_add(p.end_off_ns.max(0.0).ceil() as i64);
             let known =
                 end || self.servo_complete || self.servo_until > last_beam.saturating_add(SLACK_NS);
             if !known {
@@ -326,7 +430,11 @@ impl<'a> Stream<'a> {
         let s = &self.series;
         let first = *s.times_ns.first()?;
         let last = *s.times_ns.last()?;
-        if p.stamp_ns < first {
+        // the first beam measured (the last one of a scan measured last to first)
+        let earliest = p
+            .stamp_ns
+            .saturating_add(p.end_off_ns.min(0.0).floor() as i64);
+        if earliest < first {
             self.done.before_servo += 1;
             return None;
         }
@@ -396,7 +504,14 @@ fn read_with_cap(
     cap: usize,
     f: &mut dyn FnMut(&ScanHeader, ScanLine) -> Result<()>,
 ) -> Result<Assembled> {
-    let mut st = Stream::new(topics, motion);
+    let clock = crate::clock::choose(
+        bags,
+        &topics.scan,
+        &topics.servo,
+        &topics.source,
+        topics.stamps,
+    )?;
+    let mut st = Stream::new(topics, motion, clock.record);
     st.cap = cap;
     st.done.passes = 1;
     match st.pass(bags, f) {
@@ -404,7 +519,7 @@ fn read_with_cap(
             // two passes: the servo series and the scans' stamps first, then the scans;
             // the scans already given are not given again
             let given = st.done.scans;
-            let mut first = Stream::new(topics, motion);
+            let mut first = Stream::new(topics, motion, clock.record);
             first.stamps_only = true;
             first.pass(bags, &mut |_, _| Ok(()))?;
             if first.series.times_ns.is_empty() {
@@ -419,7 +534,7 @@ fn read_with_cap(
                 .decision
                 .take()
                 .or_else(|| classify(&first.series, &first.scan_stamps, i64::MAX, true));
-            st = Stream::new(topics, motion);
+            st = Stream::new(topics, motion, clock.record);
             st.cap = cap;
             st.done.passes = 2;
             st.skip = given;
@@ -432,15 +547,30 @@ fn read_with_cap(
         other => other?,
     }
     if st.series.times_ns.is_empty() {
+        if let Some(first) = &st.done.bad_servo.first {
+            let files: Vec<&str> = bags.iter().map(Bag::name).collect();
+            return Err(RosbagError::topic(
+                &files.join(", "),
+                &topics.servo,
+                format!(
+                    "no servo angle a scan file can hold: {} value(s) not a number or beyond ±1e6° (the first: {first})",
+                    st.done.bad_servo.count
+                ),
+            ));
+        }
         return Err(no_servo_samples(bags, topics, st.servo_messages, &st.names));
     }
     if st.geometry.is_none() && st.done.empty_scans == 0 {
         let files: Vec<&str> = bags.iter().map(Bag::name).collect();
-        return Err(RosbagError::topic(
-            &files.join(", "),
-            &topics.scan,
-            "no LaserScan messages in any of the bags",
-        ));
+        let bad = &st.done.bad_geometry;
+        let what = match &bad.first {
+            Some(first) => format!(
+                "no scan a scan file can hold: {} scan(s) with an angle or a step beyond a turn (the first: {first})",
+                bad.count
+            ),
+            None => "no LaserScan messages in any of the bags".into(),
+        };
+        return Err(RosbagError::topic(&files.join(", "), &topics.scan, what));
     }
     st.flush(true, f)?;
     let d = st.decision.take().unwrap_or(Decision {
@@ -449,6 +579,7 @@ fn read_with_cap(
     });
     st.done.motion = d.motion;
     st.done.motion_reason = d.reason;
+    st.done.clock = clock;
     Ok(st.done)
 }
 
@@ -466,6 +597,7 @@ mod tests {
             scan: "/scan".into(),
             servo: "/joint_states".into(),
             source: ServoSource::Joint("servo".into()),
+            stamps: crate::clock::Stamps::Auto,
         };
         let mut lines = Vec::new();
         let done = read_with_cap(&bags, &topics, motion, cap, &mut |_, l| {
@@ -494,6 +626,54 @@ mod tests {
             }
             assert_eq!((a.scans, a.motion), (b.scans, b.motion), "{name}");
         }
+    }
+
+    /// The drivers' conventions for `time_increment` and `scan_time`: per beam, 0 with a
+    /// scan time (a turn per scan), negative (last beam first), the whole scan's time, and
+    /// nonsense.
+    #[test]
+    fn beams_are_timed_by_the_drivers_conventions() {
+        let scan = |ti: f32, st: f32| LaserScan {
+            stamp_ns: 0,
+            frame_id: String::new(),
+            angle_min: -std::f32::consts::PI,
+            angle_max: std::f32::consts::PI,
+            angle_increment: std::f32::consts::TAU / 360.0,
+            time_increment: ti,
+            scan_time: st,
+            range_min: 0.1,
+            range_max: 10.0,
+            ranges: vec![1.0; 360],
+            intensities: vec![],
+        };
+        let near = |a: f64, b: f64| (a - b).abs() < 1e-6 * b.abs().max(1e-9);
+        let (b, how) = beam_time_s(&scan(0.1 / 359.0, 0.1), None);
+        assert!(near(b, f64::from(0.1f32 / 359.0)) && how == BeamTiming::AsGiven);
+        let (b, how) = beam_time_s(&scan(0.0, 0.1), None);
+        assert!(
+            near(b, 0.1 / 360.0) && how == BeamTiming::FromScanTime,
+            "{b}"
+        );
+        let (b, how) = beam_time_s(&scan(0.0, 0.0), Some(0.1));
+        assert!(b == 0.0 && how == BeamTiming::AsGiven);
+        let (b, how) = beam_time_s(&scan(-0.1 / 359.0, 0.1), None);
+        assert!(near(b, -f64::from(0.1f32 / 359.0)) && how == BeamTiming::Reversed);
+        // the whole scan's time in time_increment: per beam it is a 360th, scan_time or not
+        for st in [0.1, 0.0] {
+            let (b, how) = beam_time_s(&scan(0.1, st), Some(0.1));
+            assert!(
+                near(b, f64::from(0.1f32) / 360.0) && how == BeamTiming::PerScan,
+                "{st}"
+            );
+        }
+        for ti in [f32::NAN, 1e30] {
+            assert_eq!(
+                beam_time_s(&scan(ti, 0.1), None),
+                (0.0, BeamTiming::Ignored)
+            );
+        }
+        // nothing to compare with: as given
+        assert_eq!(beam_time_s(&scan(0.1, 0.0), None).1, BeamTiming::AsGiven);
     }
 
     #[test]
