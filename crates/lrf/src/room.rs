@@ -892,10 +892,8 @@ fn normal_equations(
         g[i] += r / sigma;
         nm[(i, i)] += 1.0 / (sigma * sigma);
     };
-    for j in 0..8 {
-        if f.free[j] {
-            prior(j, theta[j] - f.prior_at[j], f.prior_sigma[j]);
-        }
+    for (j, &t) in theta.iter().enumerate().filter(|(j, _)| f.free[*j]) {
+        prior(j, t - f.prior_at[j], f.prior_sigma[j]);
     }
     for (k, v) in planes.values.iter().enumerate() {
         for (j, &vj) in v.iter().enumerate().take(PLANE_UNKNOWNS).skip(3) {
