@@ -118,5 +118,31 @@ fn refusals_name_what_the_scans_lack() {
         ) && err.lines().count() == 1,
         "{err}"
     );
+    // the options, each refused for what it names, before any work
+    let model = d.join("nomodel.json");
+    std::fs::write(&model, "{\"a\": 1}\n").unwrap();
+    let s = scans.to_str().unwrap();
+    let cases: [(Vec<&str>, &str); 4] = [
+        (
+            vec![s, "--lrf-model", model.to_str().unwrap()],
+            "nomodel.json: no `lrf_model` block",
+        ),
+        (
+            vec![s, "--out", d.to_str().unwrap()],
+            "is a folder, expected a file name",
+        ),
+        (
+            vec![s, "--noise", "FOO"],
+            "--noise: unknown noise profile \"FOO\"",
+        ),
+        (vec!["missing.csv"], "missing.csv: No such file"),
+    ];
+    for (args, cause) in cases {
+        let (ok, _, err) = lrf_mount(&args);
+        assert!(
+            !ok && err.contains(cause) && err.lines().count() == 1,
+            "{args:?}: {err}"
+        );
+    }
     let _ = std::fs::remove_dir_all(&d);
 }
