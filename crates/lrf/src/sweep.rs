@@ -9,8 +9,8 @@
 //! narrower the sweep, the less of it. What such a sweep determines is found, as for a full
 //! turn, from the adjustment's covariance ([`crate::room`]). But a parameter held at its
 //! start for want of data is held at a value a real rig's error off, and the parameters
-//! correlated with it would take up that error (in a simulated ±18° nod, tilts held at zero
-//! moved the range offset by up to 3σ). So after a partial sweep the held ones are freed
+//! correlated with it would take up that error (in a simulated ±18° nod, the offsets held
+//! at zero moved the range offset by up to 3σ). So after a partial sweep the held ones are freed
 //! again under priors of a real rig's error ([`RIG_ERROR`]) at their start: the estimated
 //! parameters carry that uncertainty in their σ's, and one whose σ is then no better than
 //! a real rig's error is held too, with the reason.
