@@ -16,6 +16,7 @@ mod cloud_input;
 mod docs_commands;
 mod e2e;
 mod ecosystem;
+mod lrf_mount;
 mod plan;
 mod real_recordings;
 mod scans;

@@ -664,3 +664,86 @@ fn spherecalib_example_3_finds_the_ball_in_every_photograph() {
         o.evaluation.leave_one_out.mean_mm
     );
 }
+
+/// Issue 53: sixteen frames of the sphere carried along a shallow arc at one height, every
+/// position within 143 mm of the chord through the two ends (under the 150 mm off a line a
+/// triple needs to give a rotation): the refusal names the line and the distance and what
+/// to do, not a disagreement among the frames.
+#[test]
+fn frames_along_a_shallow_arc_are_refused_for_their_line() {
+    use pingcal_sim::sphere_calib::{write_sphere_calib, SphereCalibSim};
+    let cfg = SphereCalibConfig {
+        frames: 16,
+        ..SphereCalibConfig::default()
+    };
+    let mut sim = SphereCalibSim::new(&cfg, 3).unwrap();
+    // 4 m ahead, 1.5 m to either side, the middle 143 mm farther than the ends
+    sim.centres_lidar = (0..16)
+        .map(|k| {
+            let s = -1.0 + 2.0 * k as f64 / 15.0;
+            Vector3::new(4000.0 + 143.0 * (1.0 - s * s), 1500.0 * s, 0.0)
+        })
+        .collect();
+    let dir = std::env::temp_dir().join(format!("pingcal-spherecalib-arc-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    write_sphere_calib(&sim, &dir).unwrap();
+    let err = match calibrate(&dir.join("sphere-calib.toml"), 1) {
+        Err(e) => e.to_string(),
+        Ok(o) => panic!("calibrated: {:?}", o.verdict),
+    };
+    let _ = std::fs::remove_dir_all(&dir);
+    assert!(
+        err.contains("the sphere's 16 positions lie within")
+            && err.contains("mm of a line")
+            && err.contains("move it up and down as well as across")
+            && !err.contains("agree"),
+        "{err}"
+    );
+    // the distance is the lidar's centres' (a few mm of fit noise on the 143 mm)
+    let mm: f64 = err
+        .split("lie within ")
+        .nth(1)
+        .and_then(|t| t.split(' ').next())
+        .and_then(|t| t.parse().ok())
+        .unwrap_or_else(|| panic!("{err}"));
+    assert!((mm - 143.0).abs() <= 10.0, "{err}");
+}
+
+/// Issue 53 on real frames: three of SphereCalib's example 3 (S3, S4, S5), whose lidar
+/// centres lie within 8 mm of a line, are refused for the line, not for a disagreement.
+#[test]
+fn real_frames_on_a_line_are_refused_for_their_line() {
+    let data = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/data/spherecalib-ex3-cam2");
+    if !data.join("sphere-calib.toml").exists() {
+        eprintln!("skipped: {} is absent", data.display());
+        return;
+    }
+    let d = data.canonicalize().unwrap();
+    let mut text = format!(
+        "version = 1\ncamera = \"{}\"\nsphere_diameter_mm = 600.0\n\n[lidar]\nunit = \"m\"\nnoise = \"VLP-16\"\n",
+        d.join("camera.toml").display()
+    );
+    for s in [3, 4, 5] {
+        text += &format!(
+            "\n[[frames]]\nid = \"S{s}\"\ncloud = \"{}\"\nimage = \"{}\"\n",
+            d.join(format!("clouds/L1_S{s}.xyz")).display(),
+            d.join(format!("images/C2_S{s}.png")).display()
+        );
+    }
+    let dir = std::env::temp_dir().join(format!("pingcal-spherecalib-line-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let project = dir.join("line.toml");
+    std::fs::write(&project, text).unwrap();
+    let err = match calibrate(&project, 1) {
+        Err(e) => e.to_string(),
+        Ok(o) => panic!("calibrated: {:?}", o.verdict),
+    };
+    let _ = std::fs::remove_dir_all(&dir);
+    assert!(
+        err.contains("the sphere's 3 positions lie within 8 mm of a line (the lidar's centres, the line through frames S4 and S5)")
+            && err.contains("move it up and down as well as across"),
+        "{err}"
+    );
+}

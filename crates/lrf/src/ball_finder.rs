@@ -301,13 +301,57 @@ impl Estimator for WallSamples {
 
 /// Of a wall's points within the plane gate, at least this fraction lie within 1 σ of it
 /// (0.69 for Gaussian range noise at a 2.5 σ gate, 0.4 for points spread evenly).
-const WALL_CORE_FRACTION: f64 = 0.55;
+pub const WALL_CORE_FRACTION: f64 = 0.55;
 
 /// The large planes of `cloud` (walls, floor, ceiling) as step 1 of [`find_balls`] finds
 /// them with the same options and seed: unit normal and offset, `n·x = d`.
 pub fn find_walls(cloud: &Cloud, opt: &FinderOptions) -> Vec<(Vector3<f64>, f64)> {
+    find_walls_explained(cloud, opt).0
+}
+
+/// A plane the wall search found and did not take for a wall ([`find_walls_explained`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RefusedPlane {
+    /// Points of the search's sub-sample within its gate.
+    pub points: usize,
+    /// Of those, the fraction within 1σ of it (a wall's scatter: at least
+    /// [`WALL_CORE_FRACTION`]).
+    pub core_fraction: f64,
+    /// Its points' smaller in-plane spread (mm).
+    pub spread_mm: f64,
+    /// The smallest spread a wall needs (mm).
+    pub min_spread_mm: f64,
+}
+
+impl RefusedPlane {
+    /// Why it is not a wall, in words.
+    pub fn reason(&self) -> String {
+        if self.core_fraction < WALL_CORE_FRACTION {
+            format!(
+                "{} points scattered about it unlike range noise ({:.0} % within 1σ, {:.0} % needed)",
+                self.points,
+                100.0 * self.core_fraction,
+                100.0 * WALL_CORE_FRACTION
+            )
+        } else {
+            format!(
+                "{} points {:.0} mm across, under the {:.0} mm a wall needs",
+                self.points, self.spread_mm, self.min_spread_mm
+            )
+        }
+    }
+}
+
+/// [`find_walls`], with the planes it found and did not take for walls (too narrow, or
+/// scattered unlike range noise), in the order found.
+pub fn find_walls_explained(
+    cloud: &Cloud,
+    opt: &FinderOptions,
+) -> (Vec<(Vector3<f64>, f64)>, Vec<RefusedPlane>) {
     let mut rng = pingcal_geometry::consensus::rng(opt.seed);
-    remove_planes(cloud, opt, &mut rng).0
+    let mut refused = Vec::new();
+    let planes = remove_planes(cloud, opt, &mut rng, &mut refused).0;
+    (planes, refused)
 }
 
 /// Removes large planes; returns the planes and a mask of the points kept.
@@ -315,6 +359,7 @@ fn remove_planes(
     cloud: &Cloud,
     opt: &FinderOptions,
     rng: &mut SeededRng,
+    refused: &mut Vec<RefusedPlane>,
 ) -> (Vec<(Vector3<f64>, f64)>, Vec<bool>) {
     let n = cloud.len();
     let mut keep = vec![true; n];
@@ -363,7 +408,14 @@ fn remove_planes(
         let gated = z.iter().filter(|&&v| v <= opt.plane_k_sigma).count().max(1);
         let core = z.iter().filter(|&&v| v <= 1.0).count();
         let wall_like = core as f64 / gated as f64 >= WALL_CORE_FRACTION;
-        if !wall_like || plane.spreads()[1] < opt.min_wall_spread_mm.max(0.5 * opt.diameter_mm) {
+        let min_spread = opt.min_wall_spread_mm.max(0.5 * opt.diameter_mm);
+        if !wall_like || plane.spreads()[1] < min_spread {
+            refused.push(RefusedPlane {
+                points: best.inliers.len(),
+                core_fraction: core as f64 / gated as f64,
+                spread_mm: plane.spreads()[1],
+                min_spread_mm: min_spread,
+            });
             // not a wall (a table top, a box side, a person's back…): its points stay in
             // the cloud, but the search for walls goes on without them
             let drop: std::collections::HashSet<usize> =
@@ -951,7 +1003,7 @@ fn verdict(s: &Support, radius: f64, opt: &FinderOptions) -> Option<String> {
 pub fn find_balls(cloud: &Cloud, opt: &FinderOptions) -> FindResult {
     let mut rng = pingcal_geometry::consensus::rng(opt.seed);
     let (planes, keep) = if opt.remove_planes {
-        remove_planes(cloud, opt, &mut rng)
+        remove_planes(cloud, opt, &mut rng, &mut Vec::new())
     } else {
         (Vec::new(), vec![true; cloud.len()])
     };

@@ -27,6 +27,8 @@
 //!   cloud shows, if any.
 //! - [`room`]: the mount self-calibrated from the room's planes (walls, floor, ceiling seen
 //!   from both half-sweeps), and the beam-on-plane observation the joint adjustment adds.
+//! - [`sweep`]: what a servo sweep (a full turn, a nod, a partial sweep) can tell of the
+//!   mount: its extent, and the estimated parameters that lean on undetermined ones.
 //! - [`registration`]: Horn/Umeyama closed form, weighted least squares with the covariances of
 //!   both sides (optional scale), σ of R and t, control/check table, leave-one-out.
 //! - [`correspondence`]: automatic ball matching by pairwise-distance invariants, RANSAC over triples.
@@ -59,6 +61,7 @@ pub mod settings;
 pub mod simulate;
 pub mod sphere_fit;
 pub mod sphere_size;
+pub mod sweep;
 mod words;
 pub mod xyz;
 

@@ -60,10 +60,12 @@
 //! [`MAX_CORRELATION`], is held at its start and named with the reason, one at a time,
 //! before the next association round.
 
+use crate::ball_finder::{FinderOptions, RefusedPlane};
 use crate::beam::{rot_x, rot_z, servo_rotation_dot};
 use crate::cloud::{BeamReading, Cloud};
 use crate::error::{LrfError, Result};
 use crate::sensor::{servo_rotation, MountModel, MountParam, RangeNoise, MOUNT_PARAM_NAMES};
+use crate::sweep::{vaguer_than_a_rig, Sweep, RIG_ERROR};
 use nalgebra::{DMatrix, DVector, Vector3};
 use rayon::prelude::*;
 
@@ -103,6 +105,50 @@ pub const MERGE_DISTANCE_MM: f64 = 150.0;
 
 /// A plane with fewer beams than this is not used.
 pub const MIN_PLANE_BEAMS: usize = 100;
+
+/// The smallest in-plane spread (mm, the smaller standard deviation of its points) of a
+/// plane the mount from the room takes for a wall ([`room_finder`]). The ball finder asks
+/// 250 mm, so that a table or a box side stays in the cloud beside the balls; to the mount
+/// any flat surface is a plane, and a nod sees each wall as a band: ±18° at 1.2 m is a band
+/// of 225 mm RMS, ±5° one of 60 mm.
+pub const ROOM_PLANE_MIN_SPREAD_MM: f64 = 50.0;
+
+/// The wall finder's options for the mount from the room: `base` with planes down to
+/// [`ROOM_PLANE_MIN_SPREAD_MM`] across.
+pub fn room_finder(base: FinderOptions) -> FinderOptions {
+    FinderOptions {
+        min_wall_spread_mm: ROOM_PLANE_MIN_SPREAD_MM,
+        ..base
+    }
+}
+
+/// Why the wall search found no plane in a cloud of `points` points, one line: the flat
+/// surfaces it refused (`refused`, [`crate::ball_finder::find_walls_explained`]) and why,
+/// or that none holds enough of the points.
+pub fn why_no_walls(points: usize, refused: &[RefusedPlane], min_fraction: f64) -> String {
+    let head = format!("no wall, floor or ceiling was found in the cloud's {points} points");
+    if refused.is_empty() {
+        return format!(
+            "{head}: no flat surface holds {:.0} % of them; the mount cannot be found from the room",
+            100.0 * min_fraction
+        );
+    }
+    let reasons: Vec<String> = refused.iter().take(4).map(|r| r.reason()).collect();
+    let scatter = refused
+        .iter()
+        .any(|r| r.core_fraction < crate::ball_finder::WALL_CORE_FRACTION);
+    format!(
+        "{head}: {} flat surface{} refused: {}{}; the mount cannot be found from the room",
+        refused.len(),
+        if refused.len() == 1 { " was" } else { "s were" },
+        reasons.join("; "),
+        if scatter {
+            " (a scanner noisier than the noise profile scatters a wall so: give its profile)"
+        } else {
+            ""
+        }
+    )
+}
 
 /// A beam's point through a mount, its ray (origin and direction), and their derivatives
 /// with respect to the mount parameters ([`MountModel::to_params`] order; see the module
@@ -488,6 +534,74 @@ pub enum Gate {
     },
 }
 
+/// What the association makes of one reading ([`associate`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Placed {
+    /// Within the gate of no plane, or of two.
+    Off,
+    /// Within the gate of this plane, but another is met as near: an edge of the room.
+    Edge,
+    /// Within the gate of this plane, which it grazes.
+    Grazing,
+    /// On a plane.
+    On(PlaneObs),
+}
+
+/// Reading `i` (`r`) against `planes` through `mount` (see the module doc).
+fn place(
+    (i, r): (usize, &BeamReading),
+    mount: &MountModel,
+    planes: &[(V3, f64)],
+    gate: Gate,
+    opts: &RoomOptions,
+) -> Placed {
+    let pose = mount.scanner_at(r.servo_deg_through(mount));
+    let (o, u) = (pose.origin(), pose.direction(r.alpha_rad, 0.0));
+    // the range at which the ray meets each plane, and the gate there (its σ at
+    // that range: a σ that followed the reading's own noise would bias the fit)
+    let meets: Vec<Option<(f64, f64)>> = planes
+        .iter()
+        .map(|(n, d)| {
+            let t = (d - n.dot(&o)) / n.dot(&u);
+            (t.is_finite() && t > 0.0).then(|| {
+                let sigma = opts.noise.sigma(t).max(0.5);
+                let g = match gate {
+                    Gate::First(mm) => mm.max(3.0 * sigma),
+                    Gate::Sigma {
+                        k,
+                        sigma0,
+                        floor_mm,
+                    } => (k * sigma * sigma0.max(1.0)).max(floor_mm),
+                };
+                (t, g)
+            })
+        })
+        .collect();
+    // the reading within the gate of one plane: its range misfit r̂ − r at most g
+    let r_true = (r.range_mm - mount.range_offset_mm) / (1.0 + mount.range_scale);
+    let mut hits =
+        (0..planes.len()).filter(|&k| meets[k].is_some_and(|(t, g)| (r_true - t).abs() <= g));
+    let (Some(k), None) = (hits.next(), hits.next()) else {
+        return Placed::Off;
+    };
+    let (t, g) = meets[k].expect("a hit meets its plane");
+    // an edge of the room, judged on the rays alone (the noise must not decide which
+    // side of the cut a reading falls): another plane met within twice the gates
+    let edge = (0..planes.len())
+        .any(|j| j != k && meets[j].is_some_and(|(tj, gj)| (tj - t).abs() <= 2.0 * g.max(gj)));
+    if edge {
+        Placed::Edge
+    } else if planes[k].0.dot(&u).abs() < opts.min_cos_incidence {
+        Placed::Grazing
+    } else {
+        Placed::On(PlaneObs {
+            reading: i,
+            plane: k,
+            sigma: opts.noise.sigma(t).max(0.5),
+        })
+    }
+}
+
 /// The beams of `readings` on `planes` through `mount` (see the module doc), at most
 /// `opts.max_beams_per_plane` per plane, in reading order within each plane.
 pub fn associate(
@@ -500,48 +614,9 @@ pub fn associate(
     let per: Vec<Option<PlaneObs>> = readings
         .par_iter()
         .enumerate()
-        .map(|(i, r)| {
-            let pose = mount.scanner_at(r.servo_deg_through(mount));
-            let (o, u) = (pose.origin(), pose.direction(r.alpha_rad, 0.0));
-            // the range at which the ray meets each plane, and the gate there (its σ at
-            // that range: a σ that followed the reading's own noise would bias the fit)
-            let meets: Vec<Option<(f64, f64)>> = planes
-                .iter()
-                .map(|(n, d)| {
-                    let t = (d - n.dot(&o)) / n.dot(&u);
-                    (t.is_finite() && t > 0.0).then(|| {
-                        let sigma = opts.noise.sigma(t).max(0.5);
-                        let g = match gate {
-                            Gate::First(mm) => mm.max(3.0 * sigma),
-                            Gate::Sigma {
-                                k,
-                                sigma0,
-                                floor_mm,
-                            } => (k * sigma * sigma0.max(1.0)).max(floor_mm),
-                        };
-                        (t, g)
-                    })
-                })
-                .collect();
-            // the reading within the gate of one plane: its range misfit r̂ − r at most g
-            let r_true = (r.range_mm - mount.range_offset_mm) / (1.0 + mount.range_scale);
-            let mut hits = (0..planes.len())
-                .filter(|&k| meets[k].is_some_and(|(t, g)| (r_true - t).abs() <= g));
-            let (Some(k), None) = (hits.next(), hits.next()) else {
-                return None;
-            };
-            let (t, g) = meets[k].expect("a hit meets its plane");
-            // an edge of the room, judged on the rays alone (the noise must not decide which
-            // side of the cut a reading falls): another plane met within twice the gates
-            let edge = (0..planes.len()).any(|j| {
-                j != k && meets[j].is_some_and(|(tj, gj)| (tj - t).abs() <= 2.0 * g.max(gj))
-            });
-            let grazing = planes[k].0.dot(&u).abs() < opts.min_cos_incidence;
-            (!edge && !grazing).then(|| PlaneObs {
-                reading: i,
-                plane: k,
-                sigma: opts.noise.sigma(t).max(0.5),
-            })
+        .map(|ir| match place(ir, mount, planes, gate, opts) {
+            Placed::On(o) => Some(o),
+            _ => None,
         })
         .collect();
     let mut by_plane: Vec<Vec<PlaneObs>> = vec![Vec::new(); planes.len()];
@@ -554,6 +629,48 @@ pub fn associate(
         out.extend(obs.into_iter().step_by(stride));
     }
     out
+}
+
+/// Why no plane kept [`MIN_PLANE_BEAMS`] beams ([`associate`] through `mount` with `gate`):
+/// one line with the beams within a gate, those at an edge or grazing, and the most any
+/// plane kept.
+fn why_no_plane(
+    readings: &[BeamReading],
+    mount: &MountModel,
+    planes: &[(V3, f64)],
+    gate: Gate,
+    opts: &RoomOptions,
+) -> String {
+    let placed: Vec<Placed> = readings
+        .par_iter()
+        .enumerate()
+        .map(|ir| place(ir, mount, planes, gate, opts))
+        .collect();
+    let count = |f: &dyn Fn(&Placed) -> bool| placed.iter().filter(|p| f(p)).count();
+    let mut per = vec![0usize; planes.len()];
+    for p in &placed {
+        if let Placed::On(o) = p {
+            per[o.plane] += 1;
+        }
+    }
+    let (edge, grazing) = (
+        count(&|p| *p == Placed::Edge),
+        count(&|p| *p == Placed::Grazing),
+    );
+    let on = count(&|p| matches!(p, Placed::On(_)));
+    let gate_text = match gate {
+        Gate::First(mm) => format!("{mm:.0} mm (or 3σ)"),
+        Gate::Sigma { k, .. } => format!("{k}σ"),
+    };
+    format!(
+        "{} plane{} found in the cloud's {} beams, but none has {MIN_PLANE_BEAMS} beams on it through the mount: {} beams are within {gate_text} of one plane ({} at most on one), {edge} more lie where two planes meet (an edge of the room) and {grazing} more graze their plane (incidence over {:.0}°); the mount cannot be found from the room",
+        planes.len(),
+        if planes.len() == 1 { " was" } else { "s were" },
+        readings.len(),
+        on,
+        per.iter().max().copied().unwrap_or(0),
+        opts.min_cos_incidence.acos().to_degrees()
+    )
 }
 
 /// The planes of `planes` with at least [`MIN_PLANE_BEAMS`] beams in `obs`; the beams of the
@@ -648,6 +765,8 @@ pub struct RoomMount {
     /// Searches for the walls (1: the walls as given; more: found again through the
     /// estimate, see [`mount_from_room_refinding`]).
     pub wall_searches: usize,
+    /// The servo angles the scans span.
+    pub sweep: Sweep,
 }
 
 /// The unit of parameter `k` in reports (degrees for the tilts).
@@ -714,6 +833,9 @@ struct Fixed<'a> {
     zero: f64,
     free: &'a [bool; 8],
     prior_at: [f64; 8],
+    /// σ of each free component's prior ([`WEAK_PRIOR_SIGMA`], or a real rig's error for
+    /// what a partial sweep does not determine).
+    prior_sigma: [f64; 8],
 }
 
 /// The normal equations of the whitened residuals at `theta` and `planes`, with the weak
@@ -770,10 +892,8 @@ fn normal_equations(
         g[i] += r / sigma;
         nm[(i, i)] += 1.0 / (sigma * sigma);
     };
-    for j in 0..8 {
-        if f.free[j] {
-            prior(j, theta[j] - f.prior_at[j], WEAK_PRIOR_SIGMA[j]);
-        }
+    for (j, &t) in theta.iter().enumerate().filter(|(j, _)| f.free[*j]) {
+        prior(j, t - f.prior_at[j], f.prior_sigma[j]);
     }
     for (k, v) in planes.values.iter().enumerate() {
         for (j, &vj) in v.iter().enumerate().take(PLANE_UNKNOWNS).skip(3) {
@@ -832,12 +952,24 @@ fn adjust(
     planes: &Planes,
     free: &[bool; 8],
 ) -> Option<Solution> {
+    adjust_with(readings, obs, (start, &WEAK_PRIOR_SIGMA), planes, free)
+}
+
+/// [`adjust`] with the free components' priors of σ `prior_sigma` at `start`.
+fn adjust_with(
+    readings: &[BeamReading],
+    obs: &[PlaneObs],
+    (start, prior_sigma): (&MountModel, &[f64; 8]),
+    planes: &Planes,
+    free: &[bool; 8],
+) -> Option<Solution> {
     let f = Fixed {
         readings,
         obs,
         zero: start.servo_zero_deg,
         free,
         prior_at: start.to_params(),
+        prior_sigma: *prior_sigma,
     };
     let (mut theta, mut planes) = (f.prior_at, planes.clone());
     let mut kept = vec![true; obs.len()];
@@ -872,18 +1004,38 @@ fn adjust(
 
 /// Why mount parameter `k` is not determined by the solution's cofactors (with the weak
 /// priors), if it is not; the first value ranks how badly.
-fn not_determined(k: usize, q: &DMatrix<f64>, free: &[bool; 8]) -> Option<(f64, String)> {
+fn not_determined(
+    k: usize,
+    q: &DMatrix<f64>,
+    free: &[bool; 8],
+    sweep: &Sweep,
+) -> Option<(f64, String)> {
     let sd = q[(k, k)].max(0.0).sqrt();
     let share = sd / WEAK_PRIOR_SIGMA[k];
     let u = MountParam::at(k).unit();
+    // a full turn's words are the room's; a partial sweep's name the sweep and what to do
+    let partial = |why: String| match sweep.is_full_turn() {
+        true => why,
+        false => format!(
+            "the sweep is {}: {}; {}",
+            sweep.describe(),
+            why.replacen("the room does not", "it does not", 1)
+                .replacen(
+                    "the room cannot tell them apart",
+                    "it cannot tell them apart",
+                    1
+                ),
+            sweep.advice(k)
+        ),
+    };
     if !(share <= MAX_PRIOR_SHARE) {
         return Some((
             1e6 + share,
-            format!(
+            partial(format!(
                 "the room does not determine it (σ {:.4}{u} against a prior of {:.4}{u})",
                 to_unit(k, sd),
                 to_unit(k, WEAK_PRIOR_SIGMA[k])
-            ),
+            )),
         ));
     }
     for j in 0..q.nrows() {
@@ -904,9 +1056,9 @@ fn not_determined(k: usize, q: &DMatrix<f64>, free: &[bool; 8]) -> Option<(f64, 
             };
             return Some((
                 r.abs(),
-                format!(
+                partial(format!(
                     "it is correlated with {other} at ρ = {r:.4}: the room cannot tell them apart"
-                ),
+                )),
             ));
         }
     }
@@ -999,23 +1151,34 @@ fn mount_from_room_at(
     }
     let mut mount = mount_with(start, from, &free);
     let mut gate = Gate::First(opts.first_gate_mm);
+    let sweep = Sweep::of(readings).unwrap_or(Sweep {
+        min_deg: -180.0,
+        max_deg: 180.0,
+    });
     let (mut sol, mut obs, mut rounds) = (None, Vec::new(), 0);
     for _ in 0..opts.rounds.max(1) {
         rounds += 1;
         obs = associate(readings, &mount, &planes, gate, opts);
+        let found = planes.clone();
         planes = drop_thin_planes(&mut obs, &planes);
         if planes.is_empty() {
-            return Err(LrfError::Degenerate(format!(
-                "no plane of the room has {MIN_PLANE_BEAMS} beams on it: the mount cannot be found from the room"
-            )));
+            let why = why_no_plane(readings, &mount, &found, gate, opts);
+            return Err(LrfError::Degenerate(why));
         }
         let frames = PlaneFrame::of_beams(readings, &obs, &mount, &planes);
         let at = mount_with(start, &mount, &free);
         let pl = Planes::new(frames, &planes);
         let first = adjust(readings, &obs, &at, &pl, &free).ok_or_else(singular)?;
         // held before the next association, so that no undetermined parameter wanders
-        // and moves the gates
-        let s = hold_undetermined(readings, &obs, start, &pl, (&mut free, &mut held), first)?;
+        // and moves the gates; then those that a real error in the held ones would move
+        let fh = (&mut free, &mut held);
+        let s = hold_undetermined(readings, &obs, start, &pl, fh, first, &sweep)?;
+        let weak: [bool; 8] = std::array::from_fn(|k| opts.estimate[k] && k != origin && !free[k]);
+        let fh = (&mut free, &mut held);
+        let s = match sweep.is_full_turn() {
+            true => s,
+            false => soften_held(readings, &obs, start, &pl, fh, weak, s, &sweep)?,
+        };
         mount = MountModel::from_params(&s.theta, start.servo_zero_deg);
         planes = s.planes.flat();
         gate = Gate::Sigma {
@@ -1028,6 +1191,7 @@ fn mount_from_room_at(
     let s = sol.expect("at least one round");
     let mut out = summarise(&s, &obs, readings, start, held);
     out.rounds = rounds;
+    out.sweep = sweep;
     Ok(out)
 }
 
@@ -1044,11 +1208,14 @@ fn hold_undetermined(
     planes: &Planes,
     (free, held): (&mut [bool; 8], &mut [Option<String>; 8]),
     mut s: Solution,
+    sweep: &Sweep,
 ) -> Result<Solution> {
     loop {
         let worst = (0..8)
             .filter(|&k| free[k])
-            .filter_map(|k| not_determined(k, &s.cofactors, free).map(|(rank, why)| (rank, k, why)))
+            .filter_map(|k| {
+                not_determined(k, &s.cofactors, free, sweep).map(|(rank, why)| (rank, k, why))
+            })
             .max_by(|a, b| a.0.total_cmp(&b.0));
         let Some((_, k, why)) = worst else {
             return Ok(s);
@@ -1061,6 +1228,61 @@ fn hold_undetermined(
             free,
         );
         s = adjust(readings, obs, &at, planes, free).ok_or_else(singular)?;
+    }
+}
+
+/// A partial sweep's last adjustment ([`crate::sweep`]): the parameters held for want of
+/// data (`weak`) free again under priors of a real rig's error ([`RIG_ERROR`]) at their
+/// start, so that what is estimated carries their uncertainty in its σ; an estimated
+/// parameter whose σ is then more than a real rig's error is held too (the worst first,
+/// one at a time), the sweep telling no more of it than a rig's tolerance does.
+#[allow(clippy::too_many_arguments)]
+fn soften_held(
+    readings: &[BeamReading],
+    obs: &[PlaneObs],
+    start: &MountModel,
+    planes: &Planes,
+    (free, held): (&mut [bool; 8], &mut [Option<String>; 8]),
+    mut weak: [bool; 8],
+    s: Solution,
+    sweep: &Sweep,
+) -> Result<Solution> {
+    if !weak.iter().any(|&w| w) {
+        return Ok(s);
+    }
+    let current = MountModel::from_params(&s.theta, start.servo_zero_deg);
+    loop {
+        let open: [bool; 8] = std::array::from_fn(|k| free[k] || weak[k]);
+        let sigma: [f64; 8] = std::array::from_fn(|k| {
+            if weak[k] {
+                RIG_ERROR[k]
+            } else {
+                WEAK_PRIOR_SIGMA[k]
+            }
+        });
+        let at = mount_with(start, &current, free);
+        let soft = adjust_with(readings, obs, (&at, &sigma), planes, &open).ok_or_else(singular)?;
+        let sd = |k: usize| soft.cofactors[(k, k)].max(0.0).sqrt() * soft.sigma0;
+        let worst = (0..8)
+            .filter(|&k| free[k] && sd(k) > RIG_ERROR[k])
+            .max_by(|&a, &b| (sd(a) / RIG_ERROR[a]).total_cmp(&(sd(b) / RIG_ERROR[b])));
+        let Some(k) = worst else {
+            for j in (0..8).filter(|&j| weak[j]) {
+                let p = MountParam::at(j);
+                let kept = "kept within a real rig's error";
+                if let Some(why) = held[j].as_mut().filter(|w| !w.contains(kept)) {
+                    why.push_str(&format!(
+                        " ({kept}, {:.3}{}, of its start)",
+                        p.in_report_unit(RIG_ERROR[j]),
+                        p.unit()
+                    ));
+                }
+            }
+            return Ok(soft);
+        };
+        let weak_names: Vec<usize> = (0..8).filter(|&j| weak[j]).collect();
+        held[k] = Some(vaguer_than_a_rig(k, sd(k), &weak_names, sweep));
+        (free[k], weak[k]) = (false, true);
     }
 }
 
@@ -1143,6 +1365,10 @@ fn summarise(
         rejected: obs.len() - kept,
         rounds: 0,
         wall_searches: 1,
+        sweep: Sweep {
+            min_deg: -180.0,
+            max_deg: 180.0,
+        },
     }
 }
 
@@ -1354,6 +1580,49 @@ mod tests {
         assert_eq!(est.planes.len(), 5, "{:?}", est.planes);
         assert_eq!(est.wall_searches, 2);
         assert_within_3_sigma(&est, &truth);
+    }
+
+    /// The refusals name what the data lack: a plane given where the room has none (5 m
+    /// off, behind a wall) keeps no beam, and the message says so with the counts; a wall search that
+    /// refused what it found names each surface and why.
+    #[test]
+    fn refusals_name_the_planes_and_the_beams_they_lack() {
+        let (_, cloud) = five_plane_room();
+        let start = MountModel::default();
+        let opts = RoomOptions::default();
+        let off = [(V3::new(1.0, 0.0, 0.0), 5000.0)];
+        let e = mount_from_room(&cloud, &off, &start, &opts)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("1 plane was found in the cloud's")
+                && e.contains("none has 100 beams on it through the mount: 0 beams are within 60 mm (or 3σ) of one plane"),
+            "{e}"
+        );
+        let e = mount_from_room(&cloud, &[], &start, &opts)
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("no wall, floor or ceiling was found"), "{e}");
+        let refused = [
+            RefusedPlane {
+                points: 900,
+                core_fraction: 0.41,
+                spread_mm: 800.0,
+                min_spread_mm: 50.0,
+            },
+            RefusedPlane {
+                points: 700,
+                core_fraction: 0.7,
+                spread_mm: 30.0,
+                min_spread_mm: 50.0,
+            },
+        ];
+        let w = why_no_walls(20_000, &refused, 0.03);
+        assert_eq!(
+            w,
+            "no wall, floor or ceiling was found in the cloud's 20000 points: 2 flat surfaces were refused: 900 points scattered about it unlike range noise (41 % within 1σ, 55 % needed); 700 points 30 mm across, under the 50 mm a wall needs (a scanner noisier than the noise profile scatters a wall so: give its profile); the mount cannot be found from the room"
+        );
+        assert!(why_no_walls(5, &[], 0.03).contains("no flat surface holds 3 % of them"));
     }
 
     fn assert_within_3_sigma(est: &RoomMount, truth: &MountModel) {

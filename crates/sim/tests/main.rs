@@ -3,6 +3,7 @@
 
 mod detect_rendered;
 mod lrf_noise;
+mod nod;
 mod project;
 mod render_centroids;
 mod scene;

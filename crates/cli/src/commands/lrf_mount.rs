@@ -1,16 +1,19 @@
 //! `pingcal lrf-mount SCANS... [--out mount.json] [--lrf-model START.json] [--noise P |
 //! --noise-sigma A,B] [--seed N]`: the rotating LRF's mount and range errors from the room it
 //! scanned, with no camera and no ball (`pingcal_lrf::room`): the walls, floor and ceiling
-//! seen from both half-sweeps of a full turn made to coincide. Prints every parameter with
-//! its σ, or why the room does not determine it, and the planes; `--out` writes them as JSON
-//! whose `lrf_model` block `pingcal cloud --lrf-model` and a project's `[lrf] lrf_model`
-//! read.
+//! seen at several servo angles (both halves of a full turn, a nod, any sweep) made to
+//! coincide. Prints the sweep, every parameter with its σ or why the sweep or the room does
+//! not determine it, and the planes; `--out` writes them as JSON whose `lrf_model` block
+//! `pingcal cloud --lrf-model` and a project's `[lrf] lrf_model` read. When no wall is found,
+//! the refusal names the surfaces the search refused and why.
 
 use super::CmdResult;
-use pingcal_lrf::ball_finder::{find_walls, FinderOptions};
+use pingcal_lrf::ball_finder::{find_walls, find_walls_explained, FinderOptions};
 use pingcal_lrf::cloud::{Cloud, MountModel};
 use pingcal_lrf::cloud_file::{read_cloud_file_in, read_lrf_model, CloudUnit};
-use pingcal_lrf::room::{mount_from_room_refinding, RoomMount, RoomOptions};
+use pingcal_lrf::room::{
+    mount_from_room_refinding, room_finder, why_no_walls, RoomMount, RoomOptions,
+};
 use pingcal_lrf::sensor::MountParam;
 use std::path::PathBuf;
 
@@ -18,7 +21,8 @@ use std::path::PathBuf;
 #[derive(clap::Args)]
 #[command(allow_negative_numbers = true)]
 pub struct Args {
-    /// Scan files (`pingcal-scan` CSV) of a full turn of the servo in a room.
+    /// Scan files (`pingcal-scan` CSV) of the servo's sweep in a room: a full turn, a nod or
+    /// any sweep that sees a plane at several servo angles.
     #[arg(required = true)]
     pub scans: Vec<PathBuf>,
     /// Write the estimate as JSON (its `lrf_model` block is what `pingcal cloud --lrf-model`
@@ -65,19 +69,24 @@ pub fn run(args: Args) -> CmdResult {
         }
         cloud.extend(c);
     }
-    let finder = FinderOptions {
+    let finder = room_finder(FinderOptions {
         noise,
         seed: args.seed,
         ..FinderOptions::default()
-    };
-    let walls = find_walls(&cloud, &finder);
+    });
+    let names: Vec<String> = args.scans.iter().map(|p| p.display().to_string()).collect();
+    let (walls, refused) = find_walls_explained(&cloud, &finder);
+    if walls.is_empty() {
+        let why = why_no_walls(cloud.len(), &refused, finder.plane_min_fraction);
+        return Err(format!("{}: {why}", names.join(", ")).into());
+    }
     let opts = RoomOptions {
         noise,
         ..RoomOptions::default()
     };
-    let names: Vec<String> = args.scans.iter().map(|p| p.display().to_string()).collect();
     let r = mount_from_room_refinding(&cloud, &walls, &start, &opts, |c| find_walls(c, &finder))
         .map_err(|e| format!("{}: {e}", names.join(", ")))?;
+    println!("sweep: {}", r.sweep.describe());
     print_estimate(&r);
     if let Some(out) = &args.out {
         let json = estimate_json(&r, &names);
@@ -185,5 +194,6 @@ fn estimate_json(r: &RoomMount, scans: &[String]) -> serde_json::Value {
         "beams": r.beams,
         "beams_rejected": r.rejected,
         "wall_searches": r.wall_searches,
+        "sweep_deg": [r.sweep.min_deg, r.sweep.max_deg],
     })
 }

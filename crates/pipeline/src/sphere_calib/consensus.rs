@@ -43,7 +43,7 @@ pub const MAX_CANDIDATES: usize = 4;
 /// Triples of frames tried, at most.
 pub const MAX_TRIPLES: usize = 3000;
 /// A triple whose lidar centres are within this of one line (mm) gives no rotation.
-const MIN_HEIGHT_MM: f64 = 150.0;
+pub const MIN_HEIGHT_MM: f64 = 150.0;
 
 /// The tolerance of a camera centre `c` (mm): [`TOL_MM`] + [`TOL_FRACTION`] of its range,
 /// at most [`TOL_MAX_MM`].
@@ -62,6 +62,48 @@ pub enum Pick {
     Ambiguous(Vec<usize>),
     /// The frame has no lidar sphere.
     NoLidar,
+}
+
+/// Why there is no consensus.
+#[derive(Clone, Debug, PartialEq)]
+pub enum NoConsensus {
+    /// Only this many frames have both a lidar sphere and a silhouette (3 are needed).
+    TooFewFrames(usize),
+    /// No three of the lidar's sphere positions span [`MIN_HEIGHT_MM`] off a line: every
+    /// one of them lies within `within_mm` of the line through the two farthest apart
+    /// (frames `ends`, indices), so no triple gives a rotation.
+    OnALine {
+        /// The positions (frames with both a lidar sphere and a silhouette).
+        positions: usize,
+        /// The largest distance of a position from the line (mm).
+        within_mm: f64,
+        /// The two frames the line passes through.
+        ends: [usize; 2],
+    },
+    /// Triples were tried, and in none do the silhouettes' distances agree with the lidar's.
+    NoAgreement,
+}
+
+/// The line through the two farthest apart of `points` (indices into them) and the largest
+/// distance of any of them from it (mm).
+pub fn line_through(points: &[V3]) -> Option<([usize; 2], f64)> {
+    let mut ends = None;
+    let mut longest = 0.0;
+    for a in 0..points.len() {
+        for b in a + 1..points.len() {
+            let d = (points[b] - points[a]).norm();
+            if d > longest {
+                (longest, ends) = (d, Some([a, b]));
+            }
+        }
+    }
+    let [a, b] = ends?;
+    let u = (points[b] - points[a]) / longest;
+    let off = |p: &V3| {
+        let v = p - points[a];
+        (v - u * u.dot(&v)).norm()
+    };
+    Some(([a, b], points.iter().map(off).fold(0.0, f64::max)))
 }
 
 /// The consensus.
@@ -202,18 +244,25 @@ fn best_of_triple(
 }
 
 /// The consensus of `lidar` (each frame's lidar centre, if any) and `cams` (each frame's
-/// silhouettes' centres, best first); `None` when fewer than three frames have both, or no
-/// triple agrees.
-pub fn consensus(lidar: &[Option<V3>], cams: &[Vec<V3>], seed: u64) -> Option<Consensus> {
+/// silhouettes' centres, best first), or why there is none: fewer than three frames have
+/// both, their lidar positions lie near one line, or no triple agrees.
+pub fn consensus(
+    lidar: &[Option<V3>],
+    cams: &[Vec<V3>],
+    seed: u64,
+) -> Result<Consensus, NoConsensus> {
     let usable: Vec<usize> = (0..lidar.len())
         .filter(|&i| lidar[i].is_some() && !cams[i].is_empty())
         .collect();
     if usable.len() < 3 {
-        return None;
+        return Err(NoConsensus::TooFewFrames(usable.len()));
     }
     let mut best: Option<((usize, f64), Sim3)> = None;
+    let mut spread_triples = 0usize;
     for t in triples(usable.len(), seed) {
         let f = t.map(|k| usable[k]);
+        let l = f.map(|i| lidar[i].expect("frames with a lidar sphere"));
+        spread_triples += usize::from(spread([&l[0], &l[1], &l[2]]));
         if let Some((s, tr)) = best_of_triple(f, lidar, cams) {
             if best
                 .as_ref()
@@ -223,7 +272,16 @@ pub fn consensus(lidar: &[Option<V3>], cams: &[Vec<V3>], seed: u64) -> Option<Co
             }
         }
     }
-    let (_, mut t) = best?;
+    if spread_triples == 0 {
+        let points: Vec<V3> = usable.iter().filter_map(|&i| lidar[i]).collect();
+        let (ends, within_mm) = line_through(&points).ok_or(NoConsensus::NoAgreement)?;
+        return Err(NoConsensus::OnALine {
+            positions: points.len(),
+            within_mm,
+            ends: ends.map(|k| usable[k]),
+        });
+    }
+    let (_, mut t) = best.ok_or(NoConsensus::NoAgreement)?;
     for _ in 0..2 {
         let p = picks(&t, lidar, cams);
         let (src, dst): (Vec<V3>, Vec<V3>) = p
@@ -239,7 +297,7 @@ pub fn consensus(lidar: &[Option<V3>], cams: &[Vec<V3>], seed: u64) -> Option<Co
             _ => break,
         }
     }
-    Some(Consensus {
+    Ok(Consensus {
         picks: picks(&t, lidar, cams),
         camera_from_lidar: t,
     })
@@ -297,5 +355,77 @@ mod tests {
             "{:?}",
             c.picks[2]
         );
+    }
+
+    /// Sixteen positions along a shallow arc at one height, each within 143 mm of the
+    /// chord through the two ends (the real frames of issue 53's report): no triple spans 150 mm off
+    /// a line, and the refusal names the line and the distance, not a disagreement; the
+    /// same arc made deep enough gives a consensus.
+    #[test]
+    fn positions_near_a_line_are_named_as_such() {
+        let t = Sim3::new(
+            1.0,
+            from_opk_deg([3.0, -88.0, 5.0]),
+            V3::new(120.0, -60.0, 2500.0),
+        );
+        // an arc of radius R over ±φ has a sagitta R(1 − cos φ); 143 mm here
+        let arc = |sag: f64| -> Vec<Option<V3>> {
+            let phi: f64 = 0.5;
+            let r = sag / (1.0 - phi.cos());
+            (0..16)
+                .map(|k| {
+                    let a = -phi + 2.0 * phi * k as f64 / 15.0;
+                    Some(V3::new(
+                        4000.0 - r * (1.0 - a.cos()) + 143.0,
+                        r * a.sin(),
+                        200.0,
+                    ))
+                })
+                .collect()
+        };
+        let run = |lidar: &[Option<V3>]| {
+            let cams: Vec<Vec<V3>> = lidar
+                .iter()
+                .flatten()
+                .map(|l| vec![t.transform(l)])
+                .collect();
+            consensus(lidar, &cams, 1)
+        };
+        match run(&arc(143.0)) {
+            Err(NoConsensus::OnALine {
+                positions,
+                within_mm,
+                ends,
+            }) => {
+                assert_eq!((positions, ends), (16, [0, 15]));
+                // the positions next to the middle (at ±φ/15): R (cos(φ/15) − cos φ) off the
+                // chord, R = 143 mm / (1 − cos φ)
+                let (phi, sag) = (0.5f64, 143.0);
+                let near = sag * ((phi / 15.0).cos() - phi.cos()) / (1.0 - phi.cos());
+                assert!((within_mm - near).abs() < 1e-6, "{within_mm} {near}");
+            }
+            other => panic!("{other:?}"),
+        }
+        // twice as deep: triples span the 150 mm, and the frames agree
+        let c = run(&arc(400.0)).expect("a consensus");
+        assert!(
+            c.picks.iter().all(|p| *p == Pick::Chosen(0)),
+            "{:?}",
+            c.picks
+        );
+        // silhouettes 10 m apart from frame to frame: in no triple do the distances agree
+        let deep = arc(400.0);
+        let far: Vec<Vec<V3>> = (0..16)
+            .map(|k| vec![V3::new(10_000.0 * k as f64, 0.0, 3000.0)])
+            .collect();
+        assert!(matches!(
+            consensus(&deep, &far, 1),
+            Err(NoConsensus::NoAgreement)
+        ));
+        // two frames: too few, whatever their places
+        assert!(matches!(
+            run(&arc(400.0)[..2]),
+            Err(NoConsensus::TooFewFrames(2))
+        ));
     }
 }

@@ -208,7 +208,8 @@ pub fn calibrate(project: &Path, seed: u64) -> Result<Outcome, PipelineError> {
         .map(|(fr, id)| read_frame(dir, &fr.cloud, &fr.image, id, &setup))
         .collect::<Result<Vec<Frame>, PipelineError>>()?;
     let radius = l.file.sphere_diameter_mm / 2.0;
-    select::choose(&mut frames, &l.cam, radius, seed);
+    select::choose(&mut frames, &l.cam, radius, seed)
+        .map_err(|why| PipelineError::Data(format!("{name}: {why}")))?;
     let (lidar, camera) = point_lists(&frames);
     if lidar.len() < 3 {
         return Err(PipelineError::Data(format!(

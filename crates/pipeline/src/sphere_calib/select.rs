@@ -4,7 +4,7 @@
 //! left out, named, never guessed.
 
 use super::camera::Camera;
-use super::consensus::{consensus, tolerance, Consensus, Pick};
+use super::consensus::{consensus, tolerance, Consensus, NoConsensus, Pick, MIN_HEIGHT_MM};
 use super::frames::Frame;
 use super::image::{at_prediction, ImageSphere};
 use nalgebra::Vector3;
@@ -23,8 +23,14 @@ fn at(s: &ImageSphere) -> String {
 }
 
 /// Chooses every frame's silhouette (sets `image`, `chosen_by`, or `skipped`); returns the
-/// consensus transform, if there is one.
-pub fn choose(frames: &mut [Frame], cam: &Camera, radius: f64, seed: u64) -> Option<Sim3> {
+/// consensus transform, if there is one, and an error naming the line when the sphere's
+/// positions lie too near one to give a rotation ([`NoConsensus::OnALine`]).
+pub fn choose(
+    frames: &mut [Frame],
+    cam: &Camera,
+    radius: f64,
+    seed: u64,
+) -> Result<Option<Sim3>, String> {
     let lidar: Vec<Option<V3>> = frames
         .iter()
         .map(|f| {
@@ -38,9 +44,15 @@ pub fn choose(frames: &mut [Frame], cam: &Camera, radius: f64, seed: u64) -> Opt
         .iter()
         .map(|f| f.candidates.iter().map(|c| c.centre).collect())
         .collect();
-    let Some(c) = consensus(&lidar, &cams, seed) else {
-        skip_without_consensus(frames);
-        return None;
+    let c = match consensus(&lidar, &cams, seed) {
+        Ok(c) => c,
+        Err(why) => {
+            skip_without_consensus(frames, &why);
+            return match why {
+                NoConsensus::OnALine { .. } => Err(on_a_line(frames, &why)),
+                _ => Ok(None),
+            };
+        }
     };
     let t = c.camera_from_lidar;
     let again = search_again(frames, &c, cam, radius);
@@ -60,17 +72,44 @@ pub fn choose(frames: &mut [Frame], cam: &Camera, radius: f64, seed: u64) -> Opt
             }
         }
     }
-    Some(t)
+    Ok(Some(t))
 }
 
-/// Without a consensus, every frame not yet skipped is skipped: no silhouette, or too few
-/// frames agreeing to choose among its silhouettes.
-fn skip_without_consensus(frames: &mut [Frame]) {
+/// The refusal of positions near a line ([`NoConsensus::OnALine`]), one line naming the
+/// line, the distance and what to do.
+fn on_a_line(frames: &[Frame], why: &NoConsensus) -> String {
+    let NoConsensus::OnALine {
+        positions,
+        within_mm,
+        ends,
+    } = why
+    else {
+        return String::new();
+    };
+    format!(
+        "the sphere's {positions} positions lie within {within_mm:.0} mm of a line (the lidar's centres, the line through frames {} and {}), under the {MIN_HEIGHT_MM:.0} mm off it a rotation needs: move it up and down as well as across",
+        frames[ends[0]].id, frames[ends[1]].id
+    )
+}
+
+/// Without a consensus, every frame not yet skipped is skipped: no silhouette, or no
+/// consensus to choose among its silhouettes, for the reason `cause` gives.
+fn skip_without_consensus(frames: &mut [Frame], cause: &NoConsensus) {
+    let because = match cause {
+        NoConsensus::TooFewFrames(n) => format!(
+            "only {n} frame{} have both a lidar sphere and a silhouette, and 3 are needed to choose",
+            if *n == 1 { "" } else { "s" }
+        ),
+        NoConsensus::OnALine { .. } => on_a_line(frames, cause),
+        NoConsensus::NoAgreement => {
+            "in no three frames do the silhouettes' distances agree with the lidar's spheres' (a wrong diameter, or not the same ball)".into()
+        }
+    };
     for f in frames.iter_mut().filter(|f| f.skipped.is_none()) {
         let why = match f.candidates.len() {
             0 => format!("{}: no sphere silhouette found", f.image_path.display()),
             n => format!(
-                "{}: {n} sphere silhouette{} found, but too few frames agree on one rigid transform with the lidar to choose",
+                "{}: {n} sphere silhouette{} found, but there is no consensus to choose: {because}",
                 f.image_path.display(),
                 if n == 1 { "" } else { "s" }
             ),
