@@ -42,11 +42,14 @@ def distance(a, b):
     return len(common), np.sqrt(np.mean(d ** 2)), np.max(d)
 
 
-def calibrate(corners, camera, flags):
+def calibrate(corners, camera, flags, full=False):
     views = [v.astype(np.float32).reshape(-1, 1, 2) for n, v in sorted(corners.items()) if n.startswith(camera)]
     obj = np.zeros((COLS * ROWS, 3), np.float32)
     obj[:, :2] = np.mgrid[0:COLS, 0:ROWS].T.reshape(-1, 2) * SQUARE
-    rms, k, _, _, _ = cv2.calibrateCamera([obj] * len(views), views, (640, 480), np.eye(3), None, flags=flags)
+    rms, k, dist, _, _ = cv2.calibrateCamera([obj] * len(views), views, (640, 480), np.eye(3), None, flags=flags)
+    if full:
+        return {"views": len(views), "rms_px": float(rms), "fx": float(k[0, 0]), "fy": float(k[1, 1]),
+                "cx": float(k[0, 2]), "cy": float(k[1, 2]), "dist_k1_k2_p1_p2_k3": [float(x) for x in dist.ravel()[:5]]}
     return len(views), rms, k[0, 0], k[1, 1]
 
 
@@ -73,3 +76,14 @@ print()
 print("pingcal's σ per corner (px, per coordinate): median %.3f" % np.median(
     np.concatenate([np.array(r["corners"])[:, 2] for r in ours.values() if r["found"]])))
 print("pingcal's detection time per image (ms, 1 thread, this machine): median %.1f" % np.median([r["ms"] for r in ours.values()]))
+
+# cv2.calibrateCamera on pingcal's corners (the images SB finds): OpenCV's adjustment of the
+# same measurements as pingcal's, for the Rust test of the self-calibration.
+on_ours = {n: v for n, v in sets["pingcal"].items() if n in sb}
+doc = {"what": "cv2.calibrateCamera (flags 0) on pingcal's chessboard corners of the images "
+               "findChessboardCornersSB finds; OpenCV's output, made by bench/boards/compare.py",
+       "opencv": cv2.__version__,
+       "calibrations": {cam: calibrate(on_ours, cam, 0, full=True) for cam in ("left", "right")}}
+with open(os.path.join(here, "opencv-on-pingcal-corners.json"), "w") as f:
+    json.dump(doc, f, indent=1)
+    f.write("\n")
