@@ -35,6 +35,7 @@
 //!    the local square side (3 to 7 px half width); its σ from the residuals of that fit.
 
 pub mod grid;
+pub mod printable;
 pub mod refine;
 pub mod saddles;
 
@@ -52,6 +53,23 @@ pub struct Chessboard {
 }
 
 impl Chessboard {
+    /// The inner corners `COLSxROWS` (`9x6`, also with `×` or `X`), as a command line
+    /// gives them.
+    pub fn parse_inner_corners(text: &str) -> Result<(usize, usize), String> {
+        let parts: Vec<&str> = text.split(['x', 'X', '×']).map(str::trim).collect();
+        match parts[..] {
+            [c, r] => match (c.parse::<usize>(), r.parse::<usize>()) {
+                (Ok(c), Ok(r)) if c >= 2 && r >= 2 => Ok((c, r)),
+                _ => Err(format!(
+                    "board '{text}': expected the inner corners as COLSxROWS, each at least 2 (e.g. 9x6)"
+                )),
+            },
+            _ => Err(format!(
+                "board '{text}': expected the inner corners as COLSxROWS (e.g. 9x6)"
+            )),
+        }
+    }
+
     /// The number of inner corners.
     pub fn corner_count(&self) -> usize {
         self.cols * self.rows
