@@ -21,6 +21,8 @@
 //!
 //! ## The detector
 //!
+//! 0. The image's own scale first; when it finds no board, the image halved and quartered
+//!    (a blurred board: a large image, a soft lens), the corners refined on the image itself.
 //! 1. [`saddles`]: x-corner candidates: the saddle response `f_xy² − f_xx f_yy` of the
 //!    image smoothed at σ = 1.5 px, local maxima, kept where a ring of samples around them
 //!    changes sign four times (two dark and two light sectors, opposite each other), with the
@@ -159,8 +161,13 @@ pub enum BoardMiss {
     },
 }
 
+/// The image's own scale first, then halved and quartered (each pixel the mean of 2 × 2 or
+/// 4 × 4): a blurred board (a large image, a soft lens) has corners too wide for the
+/// candidates' scale. The corners are refined on the image itself.
+const LEVELS: [usize; 3] = [1, 2, 4];
+
 /// Finds the chessboard `board` in `img`: every inner corner, sub-pixel with its σ,
-/// numbered as the module doc says; or why not.
+/// numbered as the module doc says; or why not (the reason at the image's own scale).
 pub fn detect_chessboard(img: &GrayImage, board: &Chessboard) -> Result<BoardDetection, BoardMiss> {
     if board.cols < 2 || board.rows < 2 {
         return Err(BoardMiss::BadBoard {
@@ -168,6 +175,27 @@ pub fn detect_chessboard(img: &GrayImage, board: &Chessboard) -> Result<BoardDet
             rows: board.rows,
         });
     }
+    let mut first_miss = None;
+    for k in LEVELS {
+        if img.width / k < 32 || img.height / k < 32 {
+            break;
+        }
+        let level = (k > 1).then(|| downsample(img, k));
+        match find_grid(level.as_ref().unwrap_or(img), board) {
+            Ok(numbered) => return Ok(refined(img, board, &numbered, k)),
+            Err(miss) => {
+                first_miss.get_or_insert(miss);
+            }
+        }
+    }
+    Err(first_miss.unwrap_or(BoardMiss::TooFewCandidates {
+        found: 0,
+        needed: board.corner_count(),
+    }))
+}
+
+/// The board's grid numbered, at the pixel of `img`.
+fn find_grid(img: &GrayImage, board: &Chessboard) -> Result<grid::Numbered, BoardMiss> {
     let candidates = saddles::find(img);
     if candidates.len() < board.corner_count() {
         return Err(BoardMiss::TooFewCandidates {
@@ -176,14 +204,30 @@ pub fn detect_chessboard(img: &GrayImage, board: &Chessboard) -> Result<BoardDet
         });
     }
     let grown = grid::grow_board(&candidates, board)?;
-    let numbered = grid::number(img, &grown, board);
-    let corners = numbered
+    Ok(grid::number(img, &grown, board))
+}
+
+/// The corners of `numbered`, found at level `k` (positions `k` times coarser), refined on
+/// `img` with a window up to `k` times the usual.
+fn refined(
+    img: &GrayImage,
+    board: &Chessboard,
+    numbered: &grid::Numbered,
+    k: usize,
+) -> BoardDetection {
+    let kf = k as f64;
+    // A level pixel's centre x is the mean of the image's k pixels from k·x on.
+    let cells: Vec<[f64; 2]> = numbered
         .cells
+        .iter()
+        .map(|p| [kf * p[0] + 0.5 * (kf - 1.0), kf * p[1] + 0.5 * (kf - 1.0)])
+        .collect();
+    let corners = cells
         .iter()
         .enumerate()
         .map(|(id, &p)| {
-            let spacing = grid::local_spacing(&numbered.cells, board, id);
-            let fit = refine::refine(img, p, spacing);
+            let spacing = grid::local_spacing(&cells, board, id);
+            let fit = refine::refine(img, p, spacing, k);
             BoardCorner {
                 id,
                 col: id % board.cols,
@@ -193,8 +237,27 @@ pub fn detect_chessboard(img: &GrayImage, board: &Chessboard) -> Result<BoardDet
             }
         })
         .collect();
-    Ok(BoardDetection {
+    BoardDetection {
         corners,
         symmetric: numbered.symmetric,
-    })
+    }
+}
+
+/// `img` with each `k × k` block averaged (the last partial row and column dropped).
+fn downsample(img: &GrayImage, k: usize) -> GrayImage {
+    let (w, h) = (img.width / k, img.height / k);
+    let mut out = GrayImage::new(w, h, 0.0);
+    let norm = 1.0 / (k * k) as f32;
+    for y in 0..h {
+        for x in 0..w {
+            let mut s = 0.0;
+            for yy in y * k..(y + 1) * k {
+                for xx in x * k..(x + 1) * k {
+                    s += img.get(xx, yy);
+                }
+            }
+            out.data[y * w + x] = s * norm;
+        }
+    }
+    out
 }

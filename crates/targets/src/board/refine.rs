@@ -23,20 +23,21 @@ pub struct SubPixel {
 }
 
 /// The half width of the gradient window for a corner whose nearest neighbour on the board
-/// is `spacing` px away: a third of it, 3 to 7 px.
-pub fn half_window(spacing: f64) -> i64 {
+/// is `spacing` px away: a third of it, 3 to `7 · scale` px (`scale` > 1 for a board found
+/// on a coarser level of the image, whose corners are as wide).
+pub fn half_window(spacing: f64, scale: usize) -> i64 {
     if spacing.is_finite() {
-        ((spacing / 3.0).round() as i64).clamp(3, 7)
+        ((spacing / 3.0).round() as i64).clamp(3, 7 * scale.max(1) as i64)
     } else {
         5
     }
 }
 
-/// Refines `start` (px) in `img`; the local square side is `spacing` px. A fit that runs
-/// away (further than the window from the start) keeps the start, with a σ of half the
-/// window.
-pub fn refine(img: &GrayImage, start: [f64; 2], spacing: f64) -> SubPixel {
-    let half = half_window(spacing);
+/// Refines `start` (px) in `img`; the local square side is `spacing` px, the board was
+/// found at level `scale` ([`half_window`]). A fit that runs away (further than the window
+/// from the start) keeps the start, with a σ of half the window.
+pub fn refine(img: &GrayImage, start: [f64; 2], spacing: f64, scale: usize) -> SubPixel {
+    let half = half_window(spacing, scale);
     let mut q = Vector2::new(start[0], start[1]);
     for _ in 0..MAX_ITERATIONS {
         let Some((normal, rhs)) = normal_equations(img, q, half) else {
