@@ -21,7 +21,9 @@ fn a_chessboard_is_printed_with_its_squares_at_true_size() {
     assert_eq!(run.code, Some(0), "{}", run.stderr);
     let svg = std::fs::read_to_string(&out).expect("the SVG");
     // 10 × 7 squares, 35 of them black, each 25 mm on a side (the page is in millimetres).
-    let squares = svg.matches(r#"width="25.0000" height="25.0000" fill="black""#).count();
+    let squares = svg
+        .matches(r#"width="25.0000" height="25.0000" fill="black""#)
+        .count();
     assert_eq!(squares, 35, "{}", &svg[..svg.len().min(2000)]);
     let run = w.run(&[
         "targets",

@@ -118,6 +118,12 @@ pub fn run(args: Args) -> CmdResult {
 
 /// `--board`: the chessboard in each image, a line per image, the corners in `--out`.
 fn boards(spec: &str, args: &Args) -> CmdResult {
+    if args.debug.is_some() || args.why || args.saturated || args.no_balls {
+        return Err(
+            "--board looks for a chessboard: --debug, --why, --saturated and --no-balls are for targets"
+                .into(),
+        );
+    }
     let (cols, rows) = Chessboard::parse_inner_corners(spec)?;
     let board = Chessboard {
         cols,
