@@ -306,8 +306,8 @@ pub struct Numbered {
 
 /// Numbers `grown`: of the turns of the grid that give the board's shape, those whose
 /// corner 0 has white diagonal squares; of those, the one whose corner 0 is nearest the
-/// image's top-left corner.
-pub fn number(img: &GrayImage, grown: &Grown, board: &Chessboard) -> Numbered {
+/// image's top-left corner. `None` when the grid has not the board's shape.
+pub fn number(img: &GrayImage, grown: &Grown, board: &Chessboard) -> Option<Numbered> {
     let (ni, nj) = (grown.ni, grown.nj);
     let (c, r) = (board.cols, board.rows);
     // Each turn maps (col, row) to (i, j) of the grown grid, keeping the handedness.
@@ -342,18 +342,15 @@ pub fn number(img: &GrayImage, grown: &Grown, board: &Chessboard) -> Numbered {
         white
     };
     let symmetric = pool.len() > 1;
-    let best = pool
-        .into_iter()
-        .min_by(|a, b| {
-            let da = a[0][0].hypot(a[0][1]);
-            let db = b[0][0].hypot(b[0][1]);
-            da.total_cmp(&db)
-        })
-        .expect("a grid of the board's shape has a turn that fits it");
-    Numbered {
+    let best = pool.into_iter().min_by(|a, b| {
+        let da = a[0][0].hypot(a[0][1]);
+        let db = b[0][0].hypot(b[0][1]);
+        da.total_cmp(&db)
+    })?;
+    Some(Numbered {
         cells: best.clone(),
         symmetric,
-    }
+    })
 }
 
 /// Whether the square between corners 0, 1, cols and cols + 1 is lighter than the one

@@ -204,7 +204,12 @@ fn find_grid(img: &GrayImage, board: &Chessboard) -> Result<grid::Numbered, Boar
         });
     }
     let grown = grid::grow_board(&candidates, board)?;
-    Ok(grid::number(img, &grown, board))
+    grid::number(img, &grown, board).ok_or(BoardMiss::WrongGrid {
+        cols: board.cols,
+        rows: board.rows,
+        found_cols: grown.ni,
+        found_rows: grown.nj,
+    })
 }
 
 /// The corners of `numbered`, found at level `k` (positions `k` times coarser), refined on
