@@ -250,6 +250,39 @@ fn a_board_too_blurred_for_the_images_own_scale_is_found_on_a_coarser_one() {
     assert!(rms < 0.35, "RMS {rms} px");
 }
 
+#[test]
+fn images_without_a_board_are_refused_with_a_reason_and_never_a_panic() {
+    use rand::Rng;
+    let mut rng = rand::rngs::StdRng::seed_from_u64(40);
+    let noise = GrayImage {
+        width: 320,
+        height: 240,
+        data: (0..320 * 240).map(|_| rng.random::<f32>()).collect(),
+    };
+    let flat = GrayImage::new(320, 240, 0.5);
+    let tiny = GrayImage::new(5, 3, 0.5);
+    let empty = GrayImage::new(0, 0, 0.0);
+    for (what, img) in [
+        ("noise", &noise),
+        ("flat", &flat),
+        ("tiny", &tiny),
+        ("empty", &empty),
+    ] {
+        match detect_chessboard(img, &NINE_BY_SIX) {
+            Err(miss) => println!("{what}: {miss}"),
+            Ok(d) => panic!("{what}: a board of {} corners", d.corners.len()),
+        }
+    }
+    let bad = Chessboard {
+        cols: 1,
+        ..NINE_BY_SIX
+    };
+    assert!(matches!(
+        detect_chessboard(&flat, &bad),
+        Err(BoardMiss::BadBoard { .. })
+    ));
+}
+
 mod real {
     //! The OpenCV sample photographs against OpenCV's corners.
 

@@ -29,7 +29,7 @@ pub struct Grown {
 /// The grid of `board`'s size grown over `cands`, or the largest grid found.
 pub fn grow_board(cands: &[Saddle], board: &Chessboard) -> Result<Grown, BoardMiss> {
     let mut tried = vec![false; cands.len()];
-    let mut largest = (0, 0);
+    let mut largest = (0, 0, 0);
     let mut larger = false;
     let limit = (board.cols, board.rows);
     for _ in 0..MAX_SEEDS {
@@ -52,8 +52,8 @@ pub fn grow_board(cands: &[Saddle], board: &Chessboard) -> Result<Grown, BoardMi
             }
             return Ok(Grown { ni, nj, pos });
         }
-        if cells.len() > largest.0 * largest.1 {
-            largest = (ni, nj);
+        if cells.len() > largest.0 {
+            largest = (cells.len(), ni, nj);
         }
     }
     if larger {
@@ -65,8 +65,9 @@ pub fn grow_board(cands: &[Saddle], board: &Chessboard) -> Result<Grown, BoardMi
     Err(BoardMiss::WrongGrid {
         cols: board.cols,
         rows: board.rows,
-        found_cols: largest.0,
-        found_rows: largest.1,
+        found: largest.0,
+        found_cols: largest.1,
+        found_rows: largest.2,
     })
 }
 
@@ -332,6 +333,9 @@ pub fn number(img: &GrayImage, grown: &Grown, board: &Chessboard) -> Option<Numb
                 .collect()
         })
         .collect();
+    if !squares_alternate(img, &labelled[0], board) {
+        return None;
+    }
     let white: Vec<&Vec<[f64; 2]>> = labelled
         .iter()
         .filter(|cells| origin_is_white(img, cells, board))
@@ -351,6 +355,35 @@ pub fn number(img: &GrayImage, grown: &Grown, board: &Chessboard) -> Option<Numb
         cells: best.clone(),
         symmetric,
     })
+}
+
+/// Whether the squares between the corners alternate light and dark as a chessboard's do:
+/// every one of the lighter colour's squares lighter than the mid-level between the two
+/// colours' means, every one of the other darker, and the two means apart by a tenth of the
+/// range at least (a grid grown over noise or texture does not).
+fn squares_alternate(img: &GrayImage, cells: &[[f64; 2]], board: &Chessboard) -> bool {
+    let c = board.cols;
+    let mut parity = [Vec::new(), Vec::new()];
+    for row in 0..board.rows - 1 {
+        for col in 0..c - 1 {
+            let ids = [
+                row * c + col,
+                row * c + col + 1,
+                (row + 1) * c + col,
+                (row + 1) * c + col + 1,
+            ];
+            let x = ids.iter().map(|&k| cells[k][0]).sum::<f64>() / 4.0;
+            let y = ids.iter().map(|&k| cells[k][1]).sum::<f64>() / 4.0;
+            parity[(row + col) % 2].push(mean_around(img, x, y));
+        }
+    }
+    let mean = |v: &[f32]| v.iter().sum::<f32>() / v.len().max(1) as f32;
+    let (a, b) = (mean(&parity[0]), mean(&parity[1]));
+    let (light, dark) = if a > b { (0, 1) } else { (1, 0) };
+    let mid = 0.5 * (a + b);
+    (a - b).abs() > 0.1
+        && parity[light].iter().all(|&v| v > mid)
+        && parity[dark].iter().all(|&v| v < mid)
 }
 
 /// Whether the square between corners 0, 1, cols and cols + 1 is lighter than the one

@@ -148,12 +148,14 @@ pub enum BoardMiss {
     },
     /// The largest grid found is not the board (partly out of the image, covered, or
     /// another board).
-    #[error("no grid of {cols} × {rows} inner corners: the largest found is {found_cols} × {found_rows} (board partly outside the image, covered or of another size?)")]
+    #[error("no grid of {cols} × {rows} inner corners: the largest found has {found} corners over {found_cols} × {found_rows} (board partly outside the image, covered or of another size?)")]
     WrongGrid {
         /// Board columns.
         cols: usize,
         /// Board rows.
         rows: usize,
+        /// Corners of the largest grid grown.
+        found: usize,
         /// Columns of the largest grid grown.
         found_cols: usize,
         /// Rows of the largest grid grown.
@@ -207,6 +209,7 @@ fn find_grid(img: &GrayImage, board: &Chessboard) -> Result<grid::Numbered, Boar
     grid::number(img, &grown, board).ok_or(BoardMiss::WrongGrid {
         cols: board.cols,
         rows: board.rows,
+        found: grown.ni * grown.nj,
         found_cols: grown.ni,
         found_rows: grown.nj,
     })
