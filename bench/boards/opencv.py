@@ -72,9 +72,13 @@ def main():
         "images": images,
         "calibrations": calibrations,
     }
+    # One line per image (its corners on it): a short file and a readable diff.
+    text = json.dumps({k: v for k, v in doc.items() if k != "images"}, indent=1)
+    rows = ",\n  ".join(json.dumps(i) for i in images)
+    text = text[:-2] + ',\n "images": [\n  ' + rows + "\n ]\n}\n"
+    json.loads(text)
     with open(out, "w") as f:
-        json.dump(doc, f, indent=1)
-        f.write("\n")
+        f.write(text)
     for cam, c in calibrations.items():
         for k in ("fix_aspect_ratio", "free"):
             r = c[k]
