@@ -11,6 +11,7 @@ mod common;
 mod fuzz;
 
 mod architecture;
+mod boards;
 mod cli_safety;
 mod cloud_input;
 mod docs_commands;

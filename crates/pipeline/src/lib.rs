@@ -6,6 +6,7 @@
 //! | 2 | [`network`] | the coded targets' image points → initial orientation of every image (relative start, resection, intersection, bundle), scaled by the distances, moved into the main image's frame |
 //! | 3 | [`matching`] | plain targets and balls: known points projected into every image ("driveback"), new points by multi-image epipolar matching; balls told from targets by their size in millimetres |
 //! | 4 | [`bundle`] | the final self-calibrating adjustment: distances, stereo rig, main image as datum, ball centres corrected for the sphere's eccentricity, data snooping, precision |
+//! | 4b | [`board_camera`] | a project whose field is a board (issue 51): the camera self-calibrated from the board's corners, each placement an image of its own pose, the corners held as control points of the board's frame |
 //! | 5 | [`lrf`] | the LRF cloud from the scans and the spheres fitted to the balls |
 //! | 6 | [`extrinsic`] | spheres ↔ balls by distance invariants, the 3D conformal transform with σ, control / check / leave-one-out tables; the Fan et al. 2019 corner baseline |
 //! | 7 | [`joint`], [`joint_starts`] | the joint adjustment: image points, distances and the LRF beams on the balls together, the extrinsic and the LRF's mount, range errors and servo timing among the unknowns, what the data cannot determine held and named; started from the room's mount, else the project's, with passes through each estimate, the simpler model where the mount is insignificant |
@@ -32,6 +33,7 @@
 //! every step has succeeded.
 
 pub mod adjust;
+pub mod board_camera;
 pub mod bundle;
 pub mod context;
 pub mod conventions;

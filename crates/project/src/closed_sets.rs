@@ -1,8 +1,8 @@
 //! # The closed sets of the project file
 //!
-//! Six entries of `project.toml` take one word of a fixed list: `method`, `[lrf] kind`, `[targets]
-//! family`, a camera's `model`, the words of its `free` list and those of `[lrf]
-//! self_calibrate`. Each is an enum here, so a
+//! Nine entries of `project.toml` take one word of a fixed list: `method`, `[lrf] kind`,
+//! `[targets] family`, a camera's `model`, the words of its `free` list, those of `[lrf]
+//! self_calibrate`, and `[board]`'s `kind`, `dictionary` and `tag_family`. Each is an enum here, so a
 //! misspelling is refused while the file is read, with the line, the value and the words
 //! allowed (`project.toml: line 3: method = "joint2": expected one of spheres, corner, both, joint, all`),
 //! and the pipeline matches on variants instead of comparing strings.
@@ -178,6 +178,70 @@ impl TargetFamily {
     /// The family whose code ring has `bits` bits, if there is one.
     pub fn from_code_bits(bits: u32) -> Option<Self> {
         Self::ALL.into_iter().find(|f| f.code_bits() == bits)
+    }
+}
+
+closed_set! {
+    /// The kind of a calibration board (`[board] kind`).
+    pub enum BoardKind {
+        /// A chessboard (OpenCV, MATLAB, ROS camera_calibration).
+        Chessboard = "chessboard",
+        /// A ChArUco board (OpenCV): ArUco markers in the chessboard's white squares.
+        Charuco = "charuco",
+        /// Kalibr's AprilGrid.
+        Aprilgrid = "aprilgrid",
+    }
+}
+
+closed_set! {
+    /// A ChArUco board's marker dictionary (`[board] dictionary`), OpenCV's names.
+    pub enum ArucoDictionary {
+        /// 4 × 4 bits, 50 markers.
+        Dict4x4_50 = "DICT_4X4_50",
+        /// 4 × 4 bits, 100 markers.
+        Dict4x4_100 = "DICT_4X4_100",
+        /// 4 × 4 bits, 250 markers.
+        Dict4x4_250 = "DICT_4X4_250",
+        /// 4 × 4 bits, 1000 markers.
+        Dict4x4_1000 = "DICT_4X4_1000",
+        /// 5 × 5 bits, 50 markers.
+        Dict5x5_50 = "DICT_5X5_50",
+        /// 5 × 5 bits, 100 markers.
+        Dict5x5_100 = "DICT_5X5_100",
+        /// 5 × 5 bits, 250 markers.
+        Dict5x5_250 = "DICT_5X5_250",
+        /// 5 × 5 bits, 1000 markers.
+        Dict5x5_1000 = "DICT_5X5_1000",
+        /// 6 × 6 bits, 50 markers.
+        Dict6x6_50 = "DICT_6X6_50",
+        /// 6 × 6 bits, 100 markers.
+        Dict6x6_100 = "DICT_6X6_100",
+        /// 6 × 6 bits, 250 markers.
+        Dict6x6_250 = "DICT_6X6_250",
+        /// 6 × 6 bits, 1000 markers.
+        Dict6x6_1000 = "DICT_6X6_1000",
+        /// 7 × 7 bits, 50 markers.
+        Dict7x7_50 = "DICT_7X7_50",
+        /// 7 × 7 bits, 100 markers.
+        Dict7x7_100 = "DICT_7X7_100",
+        /// 7 × 7 bits, 250 markers.
+        Dict7x7_250 = "DICT_7X7_250",
+        /// 7 × 7 bits, 1000 markers.
+        Dict7x7_1000 = "DICT_7X7_1000",
+        /// The original ArUco dictionary.
+        ArucoOriginal = "DICT_ARUCO_ORIGINAL",
+    }
+}
+
+closed_set! {
+    /// An AprilTag family (`[board] tag_family`).
+    pub enum TagFamily {
+        /// 36-bit tags of Hamming distance 11 (Kalibr's AprilGrid).
+        Tag36h11 = "tag36h11",
+        /// 25-bit tags of Hamming distance 9.
+        Tag25h9 = "tag25h9",
+        /// 16-bit tags of Hamming distance 5.
+        Tag16h5 = "tag16h5",
     }
 }
 

@@ -21,8 +21,9 @@
 //! validate that very text, so it cannot drift.
 
 #[macro_use]
-mod closed_sets;
+pub mod board;
 pub mod camera_file;
+mod closed_sets;
 pub mod intrinsics;
 mod layout;
 mod parse;
@@ -32,8 +33,12 @@ pub mod sphere_calib;
 mod validate;
 pub mod yaml;
 
+pub use board::{Board, ProjectBoard};
 pub use camera_file::{CameraFile, CameraFormat};
-pub use closed_sets::{CameraModel, LrfKind, Method, MountParameter, Parameter, TargetFamily};
+pub use closed_sets::{
+    ArucoDictionary, BoardKind, CameraModel, LrfKind, Method, MountParameter, Parameter, TagFamily,
+    TargetFamily,
+};
 pub use intrinsics::{Intrinsics, KeyedValues};
 pub use layout::{Layout, LayoutError};
 pub use schema::{
@@ -222,6 +227,14 @@ impl Project {
                 Some(layout)
             }
         };
+        // `[board] from`: Kalibr's file read and checked now (the table was checked with
+        // the rest of the file).
+        if let Some(b) = file.board.as_ref().filter(|b| b.from.is_some()) {
+            b.resolve(&dir).map_err(|what| ProjectError::Invalid {
+                path: name.clone(),
+                what,
+            })?;
+        }
         let bags = file.lrf.bag.as_ref().map_or(&[][..], |b| &b.files[..]);
         let bag_paths = bags
             .iter()

@@ -35,6 +35,9 @@ pub struct ProjectFile {
     pub main_camera: String,
     /// Coded targets.
     pub targets: ProjectTargets,
+    /// A calibration board (`[board]`, [`crate::board`]); optional.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub board: Option<crate::board::ProjectBoard>,
     /// Balls.
     pub balls: ProjectBalls,
     /// Cameras with initial intrinsics.

@@ -832,3 +832,78 @@ fn the_lrf_settings_are_resolved_once_at_validation() {
     assert_eq!(bag.motion, ServoMotion::Continuous);
     assert_eq!(bag.stamps, Stamps::Record);
 }
+
+/// Issue 51: `[board]`, its words refused at parse time with the line, its keys checked with
+/// the file, and Kalibr's `target.yaml` read at load.
+#[test]
+fn a_board_is_read_from_its_table_or_from_kalibrs_target_file() {
+    let board = "\n[board]\nkind = \"chessboard\"\ninner_corners = [9, 6]\nsquare_mm = 25.0\n";
+    let text = readme_example() + board;
+    let p = ProjectFile::parse(&text, "project.toml").unwrap();
+    p.validate("project.toml").unwrap();
+    assert_eq!(
+        p.board.as_ref().unwrap().table().unwrap(),
+        Board::Chessboard {
+            cols: 9,
+            rows: 6,
+            square_mm: 25.0
+        }
+    );
+    assert_eq!(ProjectFile::parse(&p.to_toml_string(), "again").unwrap(), p);
+    let line = 1 + text.matches('\n').count() - 3;
+    let e = ProjectFile::parse(
+        &text.replace("\"chessboard\"", "\"checkerboard\""),
+        "project.toml",
+    )
+    .unwrap_err()
+    .to_string();
+    assert_eq!(
+        e,
+        format!("project.toml: line {line}: kind = \"checkerboard\": expected one of chessboard, charuco, aprilgrid")
+    );
+    let e = ProjectFile::parse(&text.replace("square_mm = 25.0\n", ""), "project.toml")
+        .unwrap()
+        .validate("project.toml")
+        .unwrap_err()
+        .to_string();
+    assert_eq!(
+        e,
+        "project.toml: [board] kind = \"chessboard\" needs square_mm"
+    );
+    // `from`: Kalibr's file, read when the project is loaded; no other key beside it.
+    let dir = std::env::temp_dir().join(format!("pingcal-project-board-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let mut p = ProjectFile::parse(&readme_example(), "example.toml").unwrap();
+    for im in &mut p.images {
+        im.file = im.file.replace('/', "_");
+        std::fs::write(dir.join(&im.file), b"").unwrap();
+    }
+    for s in &mut p.lrf.scans {
+        *s = s.replace('/', "_");
+        std::fs::write(dir.join(&*s), b"").unwrap();
+    }
+    p.board = Some(ProjectBoard {
+        from: Some("target.yaml".into()),
+        ..Default::default()
+    });
+    let toml = dir.join("project.toml");
+    std::fs::write(&toml, p.to_toml_string()).unwrap();
+    std::fs::write(
+        dir.join("target.yaml"),
+        "target_type: 'aprilgrid'\ntagCols: 6\ntagRows: 6\ntagSize: 0.088\ntagSpacing: 0.3\n",
+    )
+    .unwrap();
+    Project::load(&toml).unwrap();
+    std::fs::write(dir.join("target.yaml"), "target_type: 'circlegrid'\n").unwrap();
+    let e = Project::load(&toml).unwrap_err().to_string();
+    assert!(
+        e.contains("[board] from = \"target.yaml\"") && e.contains("checkerboard and aprilgrid"),
+        "{e}"
+    );
+    p.board.as_mut().unwrap().square_mm = Some(20.0);
+    std::fs::write(&toml, p.to_toml_string()).unwrap();
+    let e = Project::load(&toml).unwrap_err().to_string();
+    assert!(e.contains("give no other [board] key beside it"), "{e}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -48,6 +48,9 @@ impl ProjectFile {
             ));
         }
         validate_targets(&self.targets)?;
+        if let Some(b) = self.board.as_ref().filter(|b| b.from.is_none()) {
+            b.table()?;
+        }
         validate_balls(&self.balls)?;
         let cameras = validate_cameras(&self.cameras)?;
         if let Some(s) = &self.stereo {

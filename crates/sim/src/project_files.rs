@@ -470,6 +470,7 @@ pub fn project_of(sim: &Simulation) -> ProjectFile {
         method: Method::All,
         main_station: main.id.clone(),
         main_camera: "left".into(),
+        board: None,
         targets: ProjectTargets {
             family: TargetFamily::from_code_bits(cfg.targets.code_bits)
                 .expect("validated: targets.code_bits is 12 or 14"),

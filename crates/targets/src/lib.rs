@@ -40,10 +40,13 @@
 //! - [`detect`]: the top-level detector.
 //! - [`driveback`]: identification by projection.
 //! - [`homography`], [`printable`], [`overlay`].
+//! - [`board`]: chessboards of known layout: x-corners, the grid, sub-pixel corners with
+//!   their σ, numbered by the board ([`board::detect_chessboard`]).
 
 pub mod aicon;
 pub mod ball;
 pub mod blobs;
+pub mod board;
 pub mod candidates;
 pub mod centre;
 pub mod detect;

@@ -48,7 +48,7 @@ impl PageSize {
         }
     }
 
-    fn name(self) -> &'static str {
+    pub(crate) fn name(self) -> &'static str {
         match self {
             PageSize::A4 => "A4",
             PageSize::A3 => "A3",
@@ -144,11 +144,11 @@ pub struct Page {
 }
 
 /// Margin on every side (mm): inside what office printers can print.
-const MARGIN: f64 = 10.0;
+pub(crate) const MARGIN: f64 = 10.0;
 /// Height of the header (mm).
-const HEADER: f64 = 8.0;
+pub(crate) const HEADER: f64 = 8.0;
 /// Height of the footer with the scale bar (mm).
-const FOOTER: f64 = 16.0;
+pub(crate) const FOOTER: f64 = 16.0;
 /// The scale bar's length (mm).
 pub const SCALE_BAR_MM: f64 = 100.0;
 /// The scale bar's height (mm).
@@ -332,6 +332,13 @@ fn header_and_scale_bar(spec: &SheetSpec, k: usize, n: usize) -> Vec<Shape> {
         ),
         centred: false,
     }];
+    out.extend(scale_bar(ph));
+    out
+}
+
+/// The 100 mm scale bar at the foot of a page `ph` mm high, with its ticks and labels.
+pub(crate) fn scale_bar(ph: f64) -> Vec<Shape> {
+    let mut out = Vec::new();
     let (x, y) = (MARGIN, ph - MARGIN - SCALE_BAR_HEIGHT_MM - 4.0);
     out.push(Shape::Rect {
         x,

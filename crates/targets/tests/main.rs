@@ -5,6 +5,7 @@ mod decode_reference;
 mod panel;
 
 mod bad_input;
+mod boards;
 mod candidates_exact;
 mod code_tables;
 mod panel_bundle;

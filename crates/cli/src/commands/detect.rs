@@ -1,3 +1,7 @@
+//! `pingcal detect IMAGE... --board 9x6 [--out FILE]`: a chessboard of those inner corners in
+//! each image instead: its corners numbered as the board's layout, with their σ, or the
+//! one-line reason it was not found.
+//!
 //! `pingcal detect IMAGE... [--out FILE] [--debug DIR] [--why] [--saturated]`: targets (coded,
 //! plain) and balls found in images, as the JSON of docs/formats.md (pixel origin at the centre of the
 //! top-left pixel, x to the right, y down), and the candidates refused by reason.
@@ -9,6 +13,7 @@
 //! add a `warning:` line (stderr) giving their count and share of saturated samples.
 
 use super::CmdResult;
+use pingcal_targets::board::{detect_chessboard, Chessboard};
 use pingcal_targets::detect::BallMode;
 use pingcal_targets::refusal::{counts, Refusal, RefusalReason};
 use pingcal_targets::{load_image, DetectParams, Detector, ImageDetections};
@@ -42,6 +47,10 @@ pub struct Args {
     /// ring_inner` and `ring_outer` of project.toml (AICON: 2,3).
     #[arg(long, value_delimiter = ',', num_args = 2, default_values_t = [2.0, 3.0])]
     pub ring: Vec<f64>,
+    /// Look for a chessboard of these inner corners (COLSxROWS, e.g. `9x6`, as the project's
+    /// `[board] inner_corners`) instead of targets and balls.
+    #[arg(long)]
+    pub board: Option<String>,
     /// The images contain no ping-pong balls (do not classify large blobs as balls).
     #[arg(long)]
     pub no_balls: bool,
@@ -49,6 +58,9 @@ pub struct Args {
 
 /// Runs the command.
 pub fn run(args: Args) -> CmdResult {
+    if let Some(board) = &args.board {
+        return boards(board, &args);
+    }
     let mut params = DetectParams {
         code_bits: args.bits.clone(),
         ring: (args.ring[0], args.ring[1]),
@@ -101,6 +113,73 @@ pub fn run(args: Args) -> CmdResult {
     if let Some(w) = saturated_warning(&detections) {
         eprintln!("{w}");
     }
+    Ok(())
+}
+
+/// `--board`: the chessboard in each image, a line per image, the corners in `--out`.
+fn boards(spec: &str, args: &Args) -> CmdResult {
+    if args.debug.is_some() || args.why || args.saturated || args.no_balls {
+        return Err(
+            "--board looks for a chessboard: --debug, --why, --saturated and --no-balls are for targets"
+                .into(),
+        );
+    }
+    let (cols, rows) = Chessboard::parse_inner_corners(spec)?;
+    let board = Chessboard {
+        cols,
+        rows,
+        square_mm: 1.0,
+    };
+    let mut images = Vec::new();
+    let mut found = 0;
+    for path in &args.images {
+        let img = load_image(path)?;
+        let entry = match detect_chessboard(&img, &board) {
+            Ok(d) => {
+                found += 1;
+                let mut sigmas: Vec<f64> = d.corners.iter().map(|c| c.sigma_px).collect();
+                sigmas.sort_by(f64::total_cmp);
+                println!(
+                    "{}: chessboard {cols} × {rows}: {} corners, median σ {:.3} px{}",
+                    path.display(),
+                    d.corners.len(),
+                    sigmas[sigmas.len() / 2],
+                    if d.symmetric {
+                        " (symmetric board: corner 0 is the one nearer the image's top left)"
+                    } else {
+                        ""
+                    }
+                );
+                let corners: Vec<serde_json::Value> = d
+                    .corners
+                    .iter()
+                    .map(|c| {
+                        serde_json::json!({"id": c.id, "col": c.col, "row": c.row,
+                            "x": c.uv[0], "y": c.uv[1], "sigma_px": c.sigma_px})
+                    })
+                    .collect();
+                serde_json::json!({"file": path.display().to_string(), "width": img.width,
+                    "height": img.height, "found": true, "symmetric": d.symmetric, "corners": corners})
+            }
+            Err(miss) => {
+                println!("{}: no chessboard {cols} × {rows}: {miss}", path.display());
+                serde_json::json!({"file": path.display().to_string(), "width": img.width,
+                    "height": img.height, "found": false, "reason": miss.to_string()})
+            }
+        };
+        images.push(entry);
+    }
+    if let Some(out) = &args.out {
+        let doc = serde_json::json!({
+            "board": {"kind": "chessboard", "inner_corners": [cols, rows]},
+            "images": images,
+        });
+        super::write_atomic(out, serde_json::to_string_pretty(&doc)?.as_bytes())?;
+    }
+    println!(
+        "detect: chessboard {cols} × {rows} found in {found} of {} images",
+        args.images.len()
+    );
     Ok(())
 }
 
@@ -312,6 +391,7 @@ mod tests {
             bits: vec![14],
             ring: vec![2.0, 3.0],
             no_balls: false,
+            board: None,
         };
         let s = summary(&args, std::slice::from_ref(&d));
         assert!(

@@ -1,8 +1,12 @@
 //! `pingcal targets --ids 2-80 --plain 40 --dot-radius-mm 4 --out targets.pdf`: AICON-style
 //! coded targets and plain targets at true size on A4, A3 or Letter pages, each page with a
 //! 100 mm scale bar; PDF or SVG by the file's extension (one SVG file per page).
+//! `pingcal targets --board 9x6 --square-mm 25 --out board.pdf`: a chessboard at true size
+//! on one page instead, with the same scale bar.
 
 use super::CmdResult;
+use pingcal_targets::board::printable::chessboard_page;
+use pingcal_targets::board::Chessboard;
 use pingcal_targets::sheet::{self, PageSize, SheetSpec};
 use std::path::{Path, PathBuf};
 
@@ -34,6 +38,14 @@ pub struct Args {
     /// No longer accepted: it was the dot's diameter, which the project calls a radius.
     #[arg(long, hide = true, allow_hyphen_values = true)]
     pub dot_mm: Option<f64>,
+    /// A chessboard instead of targets: its inner corners as COLSxROWS (e.g. `9x6`), as the
+    /// project's `[board] inner_corners`.
+    #[arg(long)]
+    pub board: Option<String>,
+    /// The chessboard's square side (mm), as the project's `[board] square_mm` (with
+    /// `--board`).
+    #[arg(long, allow_hyphen_values = true)]
+    pub square_mm: Option<f64>,
     /// Output file: `.pdf`, or `.svg` (with more than one page, `NAME-1.svg`, `NAME-2.svg`, …).
     #[arg(long)]
     pub out: PathBuf,
@@ -47,6 +59,12 @@ pub fn run(args: Args) -> CmdResult {
             d / 2.0
         )
         .into());
+    }
+    if let Some(board) = &args.board {
+        return print_board(board, &args);
+    }
+    if args.square_mm.is_some() {
+        return Err("--square-mm is the chessboard's square: give it with --board".into());
     }
     let spec = SheetSpec {
         bits: args.bits,
@@ -97,6 +115,40 @@ pub fn run(args: Args) -> CmdResult {
             .map(|f| f.display().to_string())
             .collect::<Vec<_>>()
             .join(", ")
+    );
+    Ok(())
+}
+
+/// `--board`: one page with the chessboard at true size.
+fn print_board(board: &str, args: &Args) -> CmdResult {
+    let (cols, rows) = Chessboard::parse_inner_corners(board)?;
+    let Some(square_mm) = args.square_mm else {
+        return Err("--board needs --square-mm, the side of a square as printed (mm)".into());
+    };
+    let board = Chessboard {
+        cols,
+        rows,
+        square_mm,
+    };
+    let size = PageSize::parse(&args.page)?;
+    let page = chessboard_page(&board, size)?;
+    let bytes = match args.out.extension().and_then(|e| e.to_str()) {
+        Some(e) if e.eq_ignore_ascii_case("pdf") => sheet::to_pdf(&[page], size),
+        Some(e) if e.eq_ignore_ascii_case("svg") => sheet::to_svg(&page, size).into_bytes(),
+        _ => {
+            return Err(format!(
+                "--out {}: expected a .pdf or .svg file name",
+                args.out.display()
+            )
+            .into())
+        }
+    };
+    super::preflight::check_out_file("--out", &args.out)?;
+    super::write_atomic(&args.out, &bytes)?;
+    println!(
+        "targets: a chessboard of {cols} × {rows} inner corners, {square_mm} mm squares, on one {} page, written to {} (print at 100 %, then measure the 100 mm scale bar)",
+        args.page.to_uppercase(),
+        args.out.display()
     );
     Ok(())
 }
