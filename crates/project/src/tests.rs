@@ -880,8 +880,8 @@ fn a_board_is_read_from_its_table_or_from_kalibrs_target_file() {
         std::fs::write(dir.join(&im.file), b"").unwrap();
     }
     for s in &mut p.lrf.scans {
-        *s = s.replace('/', "_");
-        std::fs::write(dir.join(&*s), b"").unwrap();
+        *s = ScanEntry::File(s.file().replace('/', "_"));
+        std::fs::write(dir.join(s.file()), SCAN).unwrap();
     }
     p.board = Some(ProjectBoard {
         from: Some("target.yaml".into()),
