@@ -76,3 +76,26 @@ fn a_horizontal_scan_plane_among_vertical_walls_is_named_not_ok() {
         "{reasons}"
     );
 }
+
+/// One station facing the corner, its scan reaching the floor (Fan et al.'s single shot):
+/// the joint adjustment's result with its σ, each translation component within 5σ of the
+/// truth, and the corner baseline beside it in results.json's methods.
+#[test]
+fn one_station_facing_the_corner_gives_the_single_shot_and_the_corner_beside_it() {
+    let w = Work::new("fixed_lrf_single_shot");
+    let project = w.simulate("p", "[lrf]\nkind = \"fixed\"\nscan_stations = [\"S00\"]\n");
+    let (run, out) = w.calibrate(&project, &["--accept-doubtful"]);
+    assert!(run.success(), "{}\n{}", run.stdout, run.stderr);
+    let r = read(&out.join("results.json"));
+    let truth = read(&project.join("truth.json"));
+    let methods = r["methods"].as_array().expect("methods");
+    let of = |name: &str| methods.iter().find(|m| m["method"] == name).expect(name);
+    let (joint, corner) = (of("joint"), of("corner"));
+    assert!(corner["extrinsic"].is_object(), "the corner baseline: {}", corner["error"]);
+    let (je, te) = (transform(&joint["extrinsic"]), transform(&truth["extrinsic"]));
+    for k in 0..3 {
+        let s = joint["extrinsic"]["sigma_translation_mm"][k].as_f64().expect("σ");
+        let d = je.1[k] - te.1[k];
+        assert!(s > 0.0 && d.abs() <= 5.0 * s, "t[{k}] off by {d:.2} mm, σ {s:.2}");
+    }
+}
