@@ -91,11 +91,23 @@ fn one_station_facing_the_corner_gives_the_single_shot_and_the_corner_beside_it(
     let methods = r["methods"].as_array().expect("methods");
     let of = |name: &str| methods.iter().find(|m| m["method"] == name).expect(name);
     let (joint, corner) = (of("joint"), of("corner"));
-    assert!(corner["extrinsic"].is_object(), "the corner baseline: {}", corner["error"]);
-    let (je, te) = (transform(&joint["extrinsic"]), transform(&truth["extrinsic"]));
+    assert!(
+        corner["extrinsic"].is_object(),
+        "the corner baseline: {}",
+        corner["error"]
+    );
+    let (je, te) = (
+        transform(&joint["extrinsic"]),
+        transform(&truth["extrinsic"]),
+    );
     for k in 0..3 {
-        let s = joint["extrinsic"]["sigma_translation_mm"][k].as_f64().expect("σ");
+        let s = joint["extrinsic"]["sigma_translation_mm"][k]
+            .as_f64()
+            .expect("σ");
         let d = je.1[k] - te.1[k];
-        assert!(s > 0.0 && d.abs() <= 5.0 * s, "t[{k}] off by {d:.2} mm, σ {s:.2}");
+        assert!(
+            s > 0.0 && d.abs() <= 5.0 * s,
+            "t[{k}] off by {d:.2} mm, σ {s:.2}"
+        );
     }
 }

@@ -142,18 +142,13 @@ pub fn calibrate_with_groups(
             rep.log(format!("joint adjustment failed: {e}"));
         }
         timing.push(("fixed LRF".into(), t.elapsed().as_secs_f64()));
-        let stages = Stages {
-            project,
-            dets: &dets,
-            scene: &scene,
-            adjusted: &adjusted,
-            lrf: &lrf,
-            ext: &ext,
-            joint: &joint,
-            lrf_out: &lrf,
-            pairs_out: &ext.pairs,
-        };
-        return Ok(outputs(&stages, timing, rep));
+        let camera = (&dets, &scene, &adjusted);
+        let out = (&lrf, &ext.pairs[..]);
+        return Ok(outputs(
+            &stages(project, camera, (&lrf, &ext, &joint), out),
+            timing,
+            rep,
+        ));
     }
     let t = std::time::Instant::now();
     let lrf = lrf::lrf_spheres(project, opts, rep).map_err(blame_lens)?;
@@ -200,18 +195,39 @@ pub fn calibrate_with_groups(
         Some(r) => (&r.lrf, &r.pairs[..]),
         None => (&lrf, &ext.pairs[..]),
     };
-    let stages = Stages {
+    let camera = (&dets, &scene, &adjusted);
+    let st = stages(project, camera, (&lrf, &ext, &joint), (lrf_out, pairs_out));
+    Ok(outputs(&st, timing, rep))
+}
+
+/// What the steps produced, for those that judge and write it: the camera's side, the LRF's
+/// (its data, the two-step methods, the joint adjustment) and the LRF data the outputs use.
+#[allow(clippy::type_complexity)]
+fn stages<'a>(
+    project: &'a Project,
+    (dets, scene, adjusted): (
+        &'a scene::Detections,
+        &'a scene::Scene,
+        &'a bundle::Adjusted,
+    ),
+    (lrf, ext, joint): (
+        &'a lrf::LrfData,
+        &'a extrinsic::Extrinsics,
+        &'a Option<std::result::Result<joint::JointOutcome, joint::JointError>>,
+    ),
+    (lrf_out, pairs_out): (&'a lrf::LrfData, &'a [(ids::SphereId, ids::PointId)]),
+) -> Stages<'a> {
+    Stages {
         project,
-        dets: &dets,
-        scene: &scene,
-        adjusted: &adjusted,
-        lrf: &lrf,
-        ext: &ext,
-        joint: &joint,
+        dets,
+        scene,
+        adjusted,
+        lrf,
+        ext,
+        joint,
         lrf_out,
         pairs_out,
-    };
-    Ok(outputs(&stages, timing, rep))
+    }
 }
 
 /// Steps 1–4, the camera's side: detection, the initial network, matching and the final

@@ -190,7 +190,33 @@ pub fn starts(
             .then(b.on_planes.cmp(&a.on_planes))
             .then(a.rms_mm.total_cmp(&b.rms_mm))
     });
+    // starts the beams cannot tell apart (a mirrored fit of one station's scan line to the
+    // corner): the most upright scanner first, Fan's assumption of a rough prior
+    if let Some(best) = out.first().cloned() {
+        let tied = |s: &Start| {
+            s.planes_hit.min(3) == best.planes_hit.min(3)
+                && s.on_planes as f64 >= TIE_SHARE * best.on_planes as f64
+        };
+        let k = (0..out.len())
+            .filter(|&k| tied(&out[k]))
+            .max_by(|&a, &b| {
+                upright(&out[a])
+                    .total_cmp(&upright(&out[b]))
+                    .then(b.cmp(&a))
+            })
+            .unwrap_or(0);
+        out.swap(0, k);
+    }
     out
+}
+
+/// Starts within this share of the best's beams on the planes are tied.
+pub const TIE_SHARE: f64 = 0.97;
+
+/// How upright a start's scanner is: its frame's Z (the scan plane's normal) along the
+/// camera's Z (up).
+fn upright(s: &Start) -> f64 {
+    s.camera_from_lrf.rotation[(2, 2)]
 }
 
 /// A beam for the refinement: the station's `object_from_camera` and the beam's point in
