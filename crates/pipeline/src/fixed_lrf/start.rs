@@ -367,7 +367,13 @@ mod tests {
             e.translation
         );
         let (n, rms, hit) = fit_of(&beams, &planes, &[], &e);
-        assert_eq!((n, hit), (beams.len(), 3));
+        // every beam but those where two planes meet ([`super::super::planes::EDGE_CLEARANCE_MM`])
+        assert_eq!(hit, 3);
+        assert!(
+            n as f64 >= 0.9 * beams.len() as f64,
+            "{n} of {}",
+            beams.len()
+        );
         // the tether to the start pulls a little (its weight is some 1e-4 of the beams')
         assert!(rms < 0.05, "{rms}");
     }
