@@ -10,12 +10,12 @@
 //! reported, not assumed. Each plane is bounded by its targets' extent and [`MARGIN_MM`]:
 //! a beam beyond it (past a wall's end, through a door) is not taken to be on it.
 //!
-//! **Beams.** Through an extrinsic, each beam's point is on the nearest plane (of all, the
-//! bounds aside) when within the gate and the plane's bounds, unless it is within [`BALL_CLEARANCE_MM`] of a ball's surface (the ball, its stem):
+//! **Beams.** Through an extrinsic, each beam's point is on the nearest plane within the
+//! gate, unless it is within [`BALL_CLEARANCE_MM`] of a ball's surface (the ball, its stem):
 //! then it is on the ball if within the gate of its sphere, else on neither; and a beam
 //! within [`EDGE_CLEARANCE_MM`] of two planes (where a wall meets the floor or another wall)
 //! is on neither: its footprint mixes them (on the simulator's noiseless corner, such
-//! beams were off by up to 43 mm, the rest within 0.3 mm).
+//! beams were off by up to 43 mm, the rest within 2 mm).
 
 use crate::ids::PointId;
 use crate::scene::{PointKind, Scene};
@@ -31,15 +31,11 @@ pub const PLANE_TOL_MM: f64 = 10.0;
 pub const MIN_PLANE_TARGETS: usize = 6;
 /// Smallest spread of a plane's targets along each in-plane axis (RMS, mm).
 pub const MIN_SPREAD_MM: f64 = 100.0;
-/// How far beyond its targets' extent a plane reaches (mm): a wall goes on past its last
-/// target, and the floor's few targets sit near the corner; with 400 mm the simulator's
-/// floor kept a quarter of its beams and the adjustment settled 6 mm off on noiseless data.
-pub const MARGIN_MM: f64 = 3000.0;
+/// How far beyond its targets' extent a plane reaches (mm).
+pub const MARGIN_MM: f64 = 400.0;
 /// Beams within this of two planes (where walls and the floor meet) are on neither: the
-/// beam's footprint spans both, and its range mixes them (mm; a far beam at grazing
-/// incidence stretches its footprint over centimetres: with 40 mm the simulator's noiseless
-/// floor kept 2.3 mm RMS, with 100 mm 1.2 mm).
-pub const EDGE_CLEARANCE_MM: f64 = 100.0;
+/// beam's footprint spans both, and its range mixes them (mm).
+pub const EDGE_CLEARANCE_MM: f64 = 40.0;
 /// Beams within this of a ball's surface are not taken to be on a plane (mm).
 pub const BALL_CLEARANCE_MM: f64 = 40.0;
 /// Most planes looked for.
@@ -227,16 +223,16 @@ pub fn on_what(x: &V3, planes: &[FieldPlane], balls: &[(V3, f64)], gate: f64) ->
             return None;
         }
     }
-    // the nearest plane of all, bounded or not: a point beyond one plane's targets is still
-    // on that plane's surface, not on the next plane it happens to be near
     let mut near: Vec<(usize, f64)> = (planes.iter().enumerate())
+        .filter(|(_, p)| p.contains(x))
         .map(|(k, p)| (k, p.distance(x).abs()))
+        .filter(|(_, d)| *d <= gate.max(EDGE_CLEARANCE_MM))
         .collect();
     near.sort_by(|a, b| a.1.total_cmp(&b.1));
     match near.as_slice() {
         // where two planes meet, a beam's footprint spans both: a mixed range, on neither
         [_, second, ..] if second.1 <= EDGE_CLEARANCE_MM => None,
-        [(k, d), ..] if *d <= gate && planes[*k].contains(x) => Some(On::Plane(*k)),
+        [(k, d), ..] if *d <= gate => Some(On::Plane(*k)),
         _ => None,
     }
 }
