@@ -306,6 +306,7 @@ pub struct ScanReader<R: BufRead> {
 #[derive(Debug, Clone, Copy, Default)]
 struct UnitEvidence {
     servo: Option<(f64, f64)>,
+    scans: usize,
     largest_mm: f64,
     returns: usize,
 }
@@ -314,6 +315,46 @@ impl UnitEvidence {
     fn servo(&mut self, deg: f64) {
         let (lo, hi) = self.servo.unwrap_or((deg, deg));
         self.servo = Some((lo.min(deg), hi.max(deg)));
+    }
+}
+
+/// A rotating LRF's scans whose servo angles all lie within this (degrees) did not turn:
+/// a scanner bolted to the head ([`ServoSpan::kind_slip`]).
+pub const STANDING_SERVO_DEG: f64 = 0.5;
+
+/// A fixed LRF's servo column is ignored, but one that spans more than this (degrees) is a
+/// rotating LRF's sweep ([`ServoSpan::kind_slip`]).
+pub const TURNING_SERVO_DEG: f64 = 1.0;
+
+/// The servo angles a scan file's scans went through: the smallest and largest (degrees,
+/// each scan's first and last beam) over how many scans.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ServoSpan {
+    /// The smallest servo angle (degrees).
+    pub lo: f64,
+    /// The largest (degrees).
+    pub hi: f64,
+    /// Scans read.
+    pub scans: usize,
+}
+
+impl ServoSpan {
+    /// Why these scans are not of the LRF kind the project says (`fixed`: a scanner bolted
+    /// to the head, else one turned by a servo): a rotating LRF's scans that never turned,
+    /// or a fixed LRF's that did; None when they agree.
+    pub fn kind_slip(&self, fixed: bool) -> Option<String> {
+        let span = self.hi - self.lo;
+        if fixed && span > TURNING_SERVO_DEG {
+            return Some(format!(
+                "the servo angles span {span:.1}°: a rotating LRF's sweep, not a fixed scanner's scans ([lrf] kind = \"rotating\", the default)"
+            ));
+        }
+        (!fixed && self.scans > 1 && span < STANDING_SERVO_DEG).then(|| {
+            format!(
+                "the servo angle of all {} scans is within {span:.2}° of {:.2}°: a scanner that did not turn; a 2D LRF bolted to the head is [lrf] kind = \"fixed\", its scans listed with their stations",
+                self.scans, self.lo
+            )
+        })
     }
 }
 
@@ -701,6 +742,15 @@ impl<R: BufRead> ScanReader<R> {
         unit_slip(&self.units, self.header.mm_per_unit)
     }
 
+    /// The servo angles the scans read so far went through; None before any.
+    pub fn servo_span(&self) -> Option<ServoSpan> {
+        (self.units.servo).map(|(lo, hi)| ServoSpan {
+            lo,
+            hi,
+            scans: self.units.scans,
+        })
+    }
+
     /// A v4 `# geometry …` line: the geometry of the scans after it.
     fn geometry_line(&mut self, rest: &str, line_no: usize) -> Result<()> {
         let file = self.file.as_str();
@@ -843,6 +893,7 @@ impl<R: BufRead> ScanReader<R> {
         self.masked.add(masked, line_no);
         self.units.servo(servo_deg);
         self.units.servo(end);
+        self.units.scans += 1;
         Ok(ScanLine {
             line: line_no,
             stamp_s,
@@ -981,13 +1032,15 @@ pub fn check_units<R: BufRead>(reader: &ScanReader<R>) -> Result<()> {
 
 /// Reads the scan file `path` through, as a project's scan files are checked when it is
 /// loaded (before any image is read): the first malformed line, or data that contradict
-/// the file's units ([`ScanReader::unit_slip`]), refused.
-pub fn check_scan_file(path: &std::path::Path) -> Result<()> {
+/// the file's units ([`ScanReader::unit_slip`]), refused; else the servo angles its scans
+/// went through (for [`ServoSpan::kind_slip`]).
+pub fn check_scan_file(path: &std::path::Path) -> Result<Option<ServoSpan>> {
     let mut reader = open_scan_file(path)?;
     for line in reader.by_ref() {
         line?;
     }
-    check_units(&reader)
+    check_units(&reader)?;
+    Ok(reader.servo_span())
 }
 
 /// A streaming writer of the `pingcal-scan` format: the header (with optional extra
@@ -1261,6 +1314,32 @@ mod tests {
     }
 
     const GOOD: &str = "# pingcal-scan v1\n# angle_min_deg=-119.53125\n# angle_increment_deg=0.3515625\n# range_unit=mm\n# sensor=URG-04LX\nstamp_s,servo_deg,r0,r1,r2\n0.000,-45.056,1532,1530,0\n0.100,-44.9,1531,7,1529\n";
+
+    /// A rotating LRF's scans that never turned, and a fixed LRF's that did, are named; a
+    /// sweep, a fixed LRF's standing servo, and one scan are not.
+    #[test]
+    fn a_servo_that_never_turned_or_did_is_named_against_the_kind() {
+        let standing = ServoSpan {
+            lo: 0.0,
+            hi: 0.0,
+            scans: 5,
+        };
+        assert!(standing.kind_slip(false).unwrap().contains("did not turn"));
+        assert_eq!(standing.kind_slip(true), None);
+        let sweep = ServoSpan {
+            lo: -180.0,
+            hi: 179.9,
+            scans: 4096,
+        };
+        assert!(sweep.kind_slip(true).unwrap().contains("span 359.9°"));
+        assert_eq!(sweep.kind_slip(false), None);
+        let one = ServoSpan {
+            lo: 3.0,
+            hi: 3.0,
+            scans: 1,
+        };
+        assert_eq!(one.kind_slip(false), None);
+    }
 
     #[test]
     fn reads_header_and_lines() {

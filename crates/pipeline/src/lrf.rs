@@ -103,12 +103,6 @@ pub fn lrf_spheres(project: &Project, opts: &Options, rep: &Reporter) -> Result<
         if file.is_scans() {
             // read once: the lines make the cloud and are kept for the corner baseline
             let (header, lines) = scan_file(&file.path, l.max_range_mm, rep)?;
-            if let Some(why) = standing_servo(&lines) {
-                return Err(PipelineError::Input(format!(
-                    "{}: {why}: a scanner that did not turn; a 2D LRF bolted to the head is [lrf] kind = \"fixed\", its scans listed with their stations",
-                    file.path.display()
-                )));
-            }
             let mut c = Cloud::default();
             for line in &lines {
                 c.push_scan(&header, line, &mount);
@@ -146,34 +140,6 @@ pub fn lrf_spheres(project: &Project, opts: &Options, rep: &Reporter) -> Result<
     pb.finish();
     let noise = project.lrf.noise;
     Ok(spheres_in(project, cloud, scans, mount, noise, opts, rep))
-}
-
-/// The servo's span below which a rotating LRF's scans did not turn (degrees).
-pub const STANDING_SERVO_DEG: f64 = 0.5;
-
-/// Why the servo angles of `lines` say the scanner did not turn (every one within
-/// [`STANDING_SERVO_DEG`] of the others, over more than one scan); None when it turned.
-pub fn standing_servo(lines: &[ScanLine]) -> Option<String> {
-    let (lo, hi) = servo_range(lines)?;
-    (lines.len() > 1 && hi - lo < STANDING_SERVO_DEG).then(|| {
-        format!(
-            "the servo angle of all {} scans is within {:.2}° of {lo:.2}°",
-            lines.len(),
-            hi - lo
-        )
-    })
-}
-
-/// The smallest and largest servo angle of `lines` (degrees), None without lines.
-pub fn servo_range(lines: &[ScanLine]) -> Option<(f64, f64)> {
-    let angles = lines
-        .iter()
-        .flat_map(|l| [Some(l.servo_deg), l.servo_end_deg])
-        .flatten();
-    let (lo, hi) = angles.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
-        (a.min(v), b.max(v))
-    });
-    (hi >= lo).then_some((lo, hi))
 }
 
 /// The header and lines of the scan file `path`, its ranges beyond `max_range_mm` (and

@@ -146,18 +146,30 @@ pub struct Project {
 }
 
 /// Reads every `pingcal-scan` file of `[lrf] scans` through
-/// ([`pingcal_lrf::scan::check_scan_file`]): a malformed line, a file cut short, or data
-/// that contradict the file's units (a servo column in radians, ranges in metres) are
-/// refused here, before the camera side runs, naming the entry and the file.
-fn check_scan_files(paths: &[PathBuf], entries: &[String], name: &str) -> Result<(), ProjectError> {
+/// ([`pingcal_lrf::scan::check_scan_file`]): a malformed line, a file cut short, data that
+/// contradict the file's units (a servo column in radians, ranges in metres), or a servo
+/// that contradicts the LRF's `kind` (a rotating LRF's that never turned, a fixed one's that
+/// did: [`pingcal_lrf::scan::ServoSpan::kind_slip`]) are refused here, before the camera
+/// side runs, naming the entry and the file.
+fn check_scan_files(
+    paths: &[PathBuf],
+    entries: &[String],
+    name: &str,
+    kind: LrfKind,
+) -> Result<(), ProjectError> {
+    let refuse = |entry: &str, what: String| ProjectError::Invalid {
+        path: name.to_string(),
+        what: format!("{entry}: {what}"),
+    };
     for (p, entry) in paths.iter().zip(entries) {
         if !CloudPath::new(p.clone()).is_scans() {
             continue;
         }
-        pingcal_lrf::scan::check_scan_file(p).map_err(|e| ProjectError::Invalid {
-            path: name.to_string(),
-            what: format!("{entry}: {e}"),
-        })?;
+        let span =
+            pingcal_lrf::scan::check_scan_file(p).map_err(|e| refuse(entry, e.to_string()))?;
+        if let Some(why) = span.and_then(|s| s.kind_slip(kind == LrfKind::Fixed)) {
+            return Err(refuse(entry, format!("{}: {why}", p.display())));
+        }
     }
     Ok(())
 }
@@ -212,7 +224,7 @@ impl Project {
             .map(|(k, s)| format!("[lrf] scans[{k}] \"{s}\""))
             .collect();
         once_each(&scan_paths, &scans, &name)?;
-        check_scan_files(&scan_paths, &scans, &name)?;
+        check_scan_files(&scan_paths, &scans, &name, file.lrf.kind())?;
         let layout = match &file.targets.layout {
             None => None,
             Some(rel) => {

@@ -907,3 +907,49 @@ fn a_board_is_read_from_its_table_or_from_kalibrs_target_file() {
     assert!(e.contains("give no other [board] key beside it"), "{e}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A scan file whose servo contradicts `[lrf] kind` is refused at load, naming the entry:
+/// a rotating LRF's scans that never turned, a fixed LRF's that swept; the same files with
+/// the other kind load.
+#[test]
+fn a_scan_file_of_the_other_lrf_kind_is_refused_at_load() {
+    let dir = std::env::temp_dir().join(format!("pingcal-project-kind-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(dir.join("images")).unwrap();
+    std::fs::create_dir_all(dir.join("scans")).unwrap();
+    let base = ProjectFile::parse(&readme_example(), "example.toml").unwrap();
+    for im in &base.images {
+        std::fs::write(dir.join(&im.file), b"").unwrap();
+    }
+    let head = "# pingcal-scan v1\n# angle_min_deg=-10\n# angle_increment_deg=10\n# range_unit=mm\nstamp_s,servo_deg,r0\n";
+    let standing = format!("{head}0,0,1000\n0.1,0,1000\n0.2,0.1,1000\n");
+    let sweeping = format!("{head}0,-90,1000\n0.1,0,1000\n0.2,90,1000\n");
+    let toml = dir.join("project.toml");
+    let load = |scan: &str, kind: Option<LrfKind>| {
+        for s in &base.lrf.scans {
+            std::fs::write(dir.join(s.file()), scan).unwrap();
+        }
+        let mut p = base.clone();
+        p.lrf.kind = kind;
+        p.lrf.station = p.main_station.clone();
+        p.method = Method::All;
+        std::fs::write(&toml, p.to_toml_string()).unwrap();
+        Project::load(&toml)
+    };
+    let e = load(&standing, None).unwrap_err().to_string();
+    assert!(
+        e.contains("[lrf] scans[0]")
+            && e.contains("within 0.10° of 0.00°: a scanner that did not turn"),
+        "{e}"
+    );
+    let e = load(&sweeping, Some(LrfKind::Fixed))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("[lrf] scans[0]") && e.contains("span 180.0°: a rotating LRF's sweep"),
+        "{e}"
+    );
+    load(&sweeping, None).unwrap();
+    load(&standing, Some(LrfKind::Fixed)).unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -67,13 +67,6 @@ pub fn read_stations(
         };
         let name = path.path.display().to_string();
         let (header, lines) = crate::lrf::scan_file(&path.path, l.max_range_mm, rep)?;
-        if let Some(span) = (crate::lrf::servo_range(&lines).map(|(lo, hi)| hi - lo))
-            .filter(|s| *s > TURNING_SERVO_DEG)
-        {
-            return Err(PipelineError::Input(format!(
-                "{name}: the servo angles span {span:.1}°: a rotating LRF's sweep, not a fixed scanner's scans ([lrf] kind = \"rotating\", the default)"
-            )));
-        }
         let beams = beams_of(&header, &lines, noise);
         if beams.is_empty() {
             return Err(PipelineError::Input(format!(
@@ -93,10 +86,6 @@ pub fn read_stations(
     }
     Ok(out)
 }
-
-/// A fixed LRF's servo column is ignored, but one that spans more than this (degrees) is
-/// a rotating LRF's sweep given as fixed.
-pub const TURNING_SERVO_DEG: f64 = 1.0;
 
 /// The image of the main camera at `station`.
 fn station_image(project: &Project, station: &str) -> Result<ImageId> {
