@@ -144,19 +144,19 @@ fn plane_hit(frame: &PlaneFrame, plane: &[f64], o: &V3, u: &V3) -> Option<Hit> {
 
 /// The range along the ray `(o, u)` to the near side of the sphere of `radius` about `c`
 /// (a ray that misses it: to its closest approach).
-fn sphere_hit(c: &V3, radius: f64, o: &V3, u: &V3) -> Option<Hit> {
+fn sphere_hit(c: &V3, radius: f64, o: &V3, u: &V3) -> Hit {
     let w = o - c;
     let b = u.dot(&w);
     let q = b * b - w.norm_squared() + radius * radius;
     if q <= 0.0 {
         // a ray that misses: the range of its closest approach (continuous with the
         // tangent ray's), so that an adjustment's step past the rim stays defined
-        return Some(Hit {
+        return Hit {
             r: -b,
             dr_do: -u,
             dr_du: -w,
             dr_surface: u.iter().copied().collect(),
-        });
+        };
     }
     let sq = q.sqrt();
     let r = -b - sq;
@@ -164,12 +164,12 @@ fn sphere_hit(c: &V3, radius: f64, o: &V3, u: &V3) -> Option<Hit> {
     let k = 1.0 + b / sq;
     let dr_dw = -u * k + w / sq;
     let dr_du = -w * k;
-    Some(Hit {
+    Hit {
         r,
         dr_do: dr_dw,
         dr_du,
         dr_surface: (-dr_dw).iter().copied().collect(),
-    })
+    }
 }
 
 /// What a fixed beam's residual is on: a plane or a ball.
@@ -211,7 +211,7 @@ impl FixedBeamOn {
             (Surface::Plane(_, frame), Value::Vector(v)) if v.len() == FIXED_PLANE_UNKNOWNS => {
                 plane_hit(frame, v, &ray.o, &ray.u)?
             }
-            (Surface::Ball(_, radius), Value::Point(c)) => sphere_hit(c, *radius, &ray.o, &ray.u)?,
+            (Surface::Ball(_, radius), Value::Point(c)) => sphere_hit(c, *radius, &ray.o, &ray.u),
             _ => return None,
         };
         let (k, s) = (*range.first()?, *range.get(1)?);

@@ -117,7 +117,7 @@ pub fn calibrate_fixed(
             Err(why) => rep.log(format!("  fixed LRF: no corner at {st}: {why}")),
         }
     }
-    let corner = outputs::corner_outcome(project, &stations, scene, &balls, &corners);
+    let corner = outputs::corner_outcome(project, &stations, &balls, &corners);
     if !project.file.method.joint() {
         let e = match &corner {
             Some(Ok(c)) => c.camera_from_lrf.rigid(),
@@ -129,7 +129,7 @@ pub fn calibrate_fixed(
             }
         };
         let data = outputs::lrf_data(project, &stations, &e, [0.0; 2], &balls);
-        let ext = outputs::extrinsics(project, &data, &balls, scene, corner);
+        let ext = outputs::extrinsics(project, &data, scene, corner);
         return Ok((data.0, ext, None));
     }
     let starts = start::starts(&stations, &planes, &ball_spheres(&balls), &corners);
@@ -150,7 +150,7 @@ pub fn calibrate_fixed(
         (&planes, &balls),
         best.camera_from_lrf,
     )?;
-    let joint = adjusted(&mut fp, adj, (&stations, &planes, &balls), opts, rep)
+    let joint = adjusted(&mut fp, adj, (&stations, &planes, &balls), rep)
         .map_err(|e| PipelineError::Adjustment(e.to_string()))?;
     let (e, range) = (
         joint.camera_from_lrf,
@@ -160,7 +160,7 @@ pub fn calibrate_fixed(
         ],
     );
     let data = outputs::lrf_data(project, &stations, &e, range, &balls);
-    let ext = outputs::extrinsics(project, &data, &balls, scene, corner);
+    let ext = outputs::extrinsics(project, &data, scene, corner);
     Ok((data.0, ext, Some(Ok(joint))))
 }
 
@@ -191,7 +191,6 @@ fn adjusted(
     fp: &mut FixedProblem,
     adj: &Adjusted,
     field: (&[Station], &[FieldPlane], &[FieldBall]),
-    opts: &Options,
     rep: &Reporter,
 ) -> std::result::Result<JointOutcome, JointError> {
     let fail = |e: PipelineError| JointError::other(e.to_string());
@@ -212,7 +211,6 @@ fn adjusted(
             rep.log(format!("  fixed LRF: {name} held: {why}"));
         }
     }
-    let _ = p;
     let (mut p, _, more) = adjust::rounds(fp, &free, false).map_err(fail)?;
     rejected.iter_mut().zip(more).for_each(|(r, m)| *r += m);
     let chi2s = outputs::group_chi2s(fp, &p);
@@ -223,7 +221,6 @@ fn adjusted(
         &OBSERVATION_GROUPS,
     )
     .map_err(|e| JointError::other(format!("fixed LRF adjustment (variance components): {e}")))?;
-    let _ = opts;
     let out = outputs::joint_outcome(
         fp,
         adj,

@@ -140,7 +140,6 @@ fn sides(cuts: &[BallCut], balls: &[FieldBall], check: bool) -> (Vec<PointObs>, 
 pub fn corner_outcome(
     project: &Project,
     stations: &[Station],
-    _scene: &Scene,
     balls: &[FieldBall],
     corners: &[(String, Result<Rigid3, String>)],
 ) -> Option<Result<CornerOutcome, String>> {
@@ -240,7 +239,6 @@ pub fn lrf_data(
 pub fn extrinsics(
     project: &Project,
     (lrf, pairs): &(LrfData, Vec<(SphereId, PointId)>),
-    balls: &[FieldBall],
     scene: &Scene,
     corner: Option<Result<CornerOutcome, String>>,
 ) -> Extrinsics {
@@ -254,7 +252,6 @@ pub fn extrinsics(
     let cam_points = (pairs.iter())
         .map(|&(_, p)| PointObs::new(scene.points[p].name.clone(), scene.points[p].position, 0.0))
         .collect();
-    let _ = balls;
     Extrinsics {
         pairs: pairs.clone(),
         match_rms_mm: 0.0,
@@ -277,7 +274,6 @@ pub fn group_chi2s(fp: &FixedProblem, p: &Problem) -> [f64; 3] {
 const GROUPS: [&str; 3] = [super::PLANE_GROUP, super::BALL_GROUP, super::TARGETS_GROUP];
 
 /// The joint adjustment's outcome (see the module doc).
-#[allow(clippy::too_many_arguments)]
 pub fn joint_outcome(
     fp: &FixedProblem,
     adj: &Adjusted,
@@ -292,14 +288,7 @@ pub fn joint_outcome(
     let range_cov = prec.parameter_covariance(fp.range.0, fp.range.0);
     let prior_chi2: f64 = (0..2)
         .filter(|&k| free[6 + k])
-        .map(|k| {
-            (range[k]
-                / [
-                    super::adjust::RANGE_PLAUSIBLE[0],
-                    super::adjust::RANGE_PLAUSIBLE[1],
-                ][k])
-                .powi(2)
-        })
+        .map(|k| (range[k] / super::adjust::RANGE_PLAUSIBLE[k]).powi(2))
         .sum();
     let redundancy = prec.redundancy;
     let chi2 = adj.sigma0_a_priori.powi(2) * adj.precision.redundancy as f64
@@ -341,7 +330,7 @@ pub fn joint_outcome(
         control: check_table(&sim, &ol, &oc),
         lrf_points,
         cam_points,
-        ball_centres: ball_centres(fp, adj, balls, p, prec),
+        ball_centres: ball_centres(adj, balls, p, prec),
         notes: notes(fp, p, (stations, planes), held),
         lrf_view: LrfView::default(),
         planes: Vec::new(),
@@ -422,7 +411,6 @@ fn range_estimates(
 /// The joint adjustment's centre of every ball (its image rays and, for a control ball,
 /// its beams), with its covariance.
 fn ball_centres(
-    _fp: &FixedProblem,
     adj: &Adjusted,
     balls: &[FieldBall],
     p: &Problem,

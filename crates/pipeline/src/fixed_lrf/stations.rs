@@ -19,8 +19,6 @@ use pingcal_project::Project;
 pub struct Station {
     /// The station's id (`[[images]] station`).
     pub id: String,
-    /// The scan file (as `[lrf] scans` names it).
-    pub file: String,
     /// The station's image of the main camera.
     pub image: ImageId,
     /// Its pose in the bundle's problem.
@@ -75,7 +73,6 @@ pub fn read_stations(
         }
         out.push(Station {
             id: station.to_string(),
-            file: entry.to_string(),
             image,
             key,
             pose,
