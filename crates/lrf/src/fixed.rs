@@ -12,16 +12,21 @@
 //! ```
 //!
 //! in the object frame. The range the model predicts, `r̂`, is where the ray meets the
-//! surface the beam is on: a plane `n·x = d` (`r̂ = (d − n·o) / (n·u)`) or a ball's sphere of
-//! radius R about `c` (the near root of `|o + r̂u − c| = R`). The range model is
+//! surface the beam is on: a wall, floor or ceiling, `n·x = d + b(x)`, or a ball's sphere of
+//! radius R about `c` (the near root of `|o + r̂u − c| = R`). No wall is flat to the
+//! millimetre, so a plane bends smoothly, as the rotating LRF's room planes do
+//! ([`crate::room`]) and with the terms of a panel held at its edges besides: `b = Σ c_j
+//! β_j(ũ, ṽ)` over [`bend_basis`] in its frame's coordinates, each coefficient under a prior
+//! of [`crate::room::FLATNESS_MM`], fixed mostly by the targets on it; the ray meets
+//! it at `r̂ = t₀ + b(h)/s` (first order in b), `t₀ = (d − n·o)/s`, `s = n·u`, `h = o + t₀u`.
+//! A target on the plane has the misfit `n·X − d − b(X)`. The range model is
 //! `r = (1 + s)·r̂ + k` (range offset k, scale s, the rotating LRF's last two mount
 //! parameters), so the residual is `e = r − (1 + s)·r̂ − k`, whitened by the sensor's σ(r).
 //!
 //! **Blocks.** The station's image pose ([`pingcal_ba::Block::Pose`] of its main image), the
 //! extrinsic (a pose parameter block), the range model (a vector block `[k, s]`) and the
-//! surface: a plane (a vector block of 3 about a [`PlaneFrame`]: the local turn `(a, b)` of
-//! its normal and its offset `d`, as the rotating LRF's room planes without their bend) or a
-//! ball's centre ([`pingcal_ba::Block::Point`]). Both poses take the solver's left update
+//! surface: a plane (a vector block of [`FIXED_PLANE_UNKNOWNS`] about a [`PlaneFrame`]: the
+//! local turn `(a, b)` of its normal, its offset `d` and its bend) or a ball's centre ([`pingcal_ba::Block::Point`]). Both poses take the solver's left update
 //! (`R ← exp([δω]×)R, t ← t + δt`); the Jacobians are analytic and checked by central
 //! differences in the tests.
 
@@ -38,9 +43,48 @@ pub const FIXED_PLANE_GROUP: &str = "LRF beams on planes";
 /// The variance-component group of the beams on the balls.
 pub const FIXED_BALL_GROUP: &str = "LRF beams on balls";
 
-/// Unknowns of a plane of a fixed LRF's adjustment: the turn of its normal `(a, b)` and its
-/// offset `d` (mm) about its [`PlaneFrame`].
-pub const FIXED_PLANE_UNKNOWNS: usize = 3;
+/// Terms of a fixed LRF's plane's bend: `ũ², ṽ², ũṽ, ũ²ṽ, ũṽ², ũ²ṽ²` ([`bend_basis`]).
+pub const BEND_TERMS: usize = 6;
+
+/// Unknowns of a plane of a fixed LRF's adjustment: the turn of its normal `(a, b)`, its
+/// offset `d` and its [`BEND_TERMS`] bend coefficients (mm) about its [`PlaneFrame`].
+pub const FIXED_PLANE_UNKNOWNS: usize = 3 + BEND_TERMS;
+
+/// The bend's basis at `x` in `frame`'s scaled coordinates `ũ, ṽ` and its gradients: the
+/// tensor product of `{1, ũ, ũ²}` and `{1, ṽ, ṽ²}` without the plane's own `1, ũ, ṽ`. A
+/// panel held at its edges bows between them as `ũ²ṽ²` does; the room planes' quadratic
+/// bend alone (`ũ², ṽ², ũṽ`) left a pillow-shaped wall's 3 mm as a 2.5 mm bias in the fixed
+/// scanner's height where the beams and the targets see different parts of the wall.
+pub fn bend_basis(frame: &PlaneFrame, x: &V3) -> ([f64; BEND_TERMS], [V3; BEND_TERMS]) {
+    let d = x - frame.centre;
+    let (u, v) = (
+        frame.e1.dot(&d) / frame.scale,
+        frame.e2.dot(&d) / frame.scale,
+    );
+    let (gu, gv) = (frame.e1 / frame.scale, frame.e2 / frame.scale);
+    (
+        [u * u, v * v, u * v, u * u * v, u * v * v, u * u * v * v],
+        [
+            gu * (2.0 * u),
+            gv * (2.0 * v),
+            gu * v + gv * u,
+            gu * (2.0 * u * v) + gv * (u * u),
+            gu * (v * v) + gv * (2.0 * u * v),
+            gu * (2.0 * u * v * v) + gv * (2.0 * u * u * v),
+        ],
+    )
+}
+
+/// The flatness prior on a plane's bend: σ [`crate::room::FLATNESS_MM`] at zero on each of
+/// the [`BEND_TERMS`] coefficients of parameter block `plane`.
+pub fn flatness_prior(plane: ParameterKey) -> pingcal_ba::ParameterPrior {
+    pingcal_ba::ParameterPrior {
+        parameter: plane,
+        components: (3..FIXED_PLANE_UNKNOWNS).collect(),
+        value: vec![0.0; BEND_TERMS],
+        sigma: vec![crate::room::FLATNESS_MM; BEND_TERMS],
+    }
+}
 
 /// A beam of a fixed LRF: its station (the index of the station's image pose in the
 /// adjustment's problem is the caller's), angle and range.
@@ -124,21 +168,31 @@ struct Hit {
     dr_surface: Vec<f64>,
 }
 
-/// The range along the ray `(o, u)` to the plane of local unknowns `plane` about `frame`.
+/// The range along the ray `(o, u)` to the bent plane of local unknowns `plane` about
+/// `frame` (see the module doc).
 fn plane_hit(frame: &PlaneFrame, plane: &[f64], o: &V3, u: &V3) -> Option<Hit> {
     let (n, dn_a, dn_b) = frame.normal_at(plane[0], plane[1]);
     let s = n.dot(u);
     if s.abs() < 1e-9 {
         return None;
     }
-    let r = (plane[2] - n.dot(o)) / s;
-    // r = (d − n·o)/s:  ∂r = (∂d − ∂n·o − n·∂o)/s − r (∂n·u + n·∂u)/s
-    let dn = |dn: &V3| (-dn.dot(o) - r * dn.dot(u)) / s;
+    let t0 = (plane[2] - n.dot(o)) / s;
+    let h = o + u * t0;
+    let (basis, grads) = bend_basis(frame, &h);
+    let bend: f64 = (0..BEND_TERMS).map(|j| plane[3 + j] * basis[j]).sum();
+    let g: V3 = (0..BEND_TERMS).map(|j| grads[j] * plane[3 + j]).sum();
+    let gu = g.dot(u);
+    // r = t₀ + b(h)/s: ∂r = ∂t₀ + ∇b·∂h/s − b ∂s/s², ∂h = ∂o + t₀ ∂u + u ∂t₀;
+    // ∂t₀ = (∂d − ∂n·h − n·∂o − t₀ n·∂u)/s
+    let dt0_to_r = 1.0 + gu / s;
+    let dn = |dn: &V3| -dn.dot(&h) / s * dt0_to_r - bend * dn.dot(u) / (s * s);
+    let mut dr_surface = vec![dn(&dn_a), dn(&dn_b), dt0_to_r / s];
+    dr_surface.extend(basis.iter().map(|b| b / s));
     Some(Hit {
-        r,
-        dr_do: -n / s,
-        dr_du: -n * (r / s),
-        dr_surface: vec![dn(&dn_a), dn(&dn_b), 1.0 / s],
+        r: t0 + bend / s,
+        dr_do: -n / s * dt0_to_r + g / s,
+        dr_du: -n * (t0 / s) * dt0_to_r + g * (t0 / s) - n * (bend / (s * s)),
+        dr_surface,
     })
 }
 
@@ -305,7 +359,7 @@ impl Residual for FixedBeamOn {
 }
 
 /// A point lying on a plane of a fixed LRF's adjustment (a target on the wall that defines
-/// it): `e = n·X − d`, whitened by σ (the wall's flatness and the target's thickness); blocks
+/// it): `e = n·X − d − b(X)` (the plane's bend, see the module doc), whitened by σ (the wall's flatness and the target's thickness); blocks
 /// (point, plane).
 #[derive(Clone, Copy, Debug)]
 pub struct PointOnPlane {
@@ -322,10 +376,21 @@ pub struct PointOnPlane {
 }
 
 impl PointOnPlane {
-    /// `n·X − d` (mm) at these values.
-    pub fn error(&self, x: &V3, plane: &[f64]) -> f64 {
+    /// `n·X − d − b(X)` (mm) at these values, and `b(X)`'s basis and gradient.
+    fn at(&self, x: &V3, plane: &[f64]) -> (f64, [f64; BEND_TERMS], V3) {
         let (n, _, _) = self.frame.normal_at(plane[0], plane[1]);
-        n.dot(x) - plane[2]
+        let (basis, grads) = bend_basis(&self.frame, x);
+        let bend: f64 = (0..BEND_TERMS).map(|j| plane[3 + j] * basis[j]).sum();
+        let g: V3 = (0..BEND_TERMS).map(|j| grads[j] * plane[3 + j]).sum();
+        (n.dot(x) - plane[2] - bend, basis, g)
+    }
+
+    /// `n·X − d − b(X)` (mm) at these values (NaN for a plane of the wrong size).
+    pub fn error(&self, x: &V3, plane: &[f64]) -> f64 {
+        if plane.len() != FIXED_PLANE_UNKNOWNS {
+            return f64::NAN;
+        }
+        self.at(x, plane).0
     }
 }
 
@@ -346,14 +411,19 @@ impl Residual for PointOnPlane {
             return false;
         }
         let (n, dn_a, dn_b) = self.frame.normal_at(pl[0], pl[1]);
-        residual[0] = (n.dot(x) - pl[2]) / self.sigma;
+        let (e, basis, g) = self.at(x, pl);
+        residual[0] = e / self.sigma;
         if let Some(j) = jacobians {
+            let dx = n - g;
             for k in 0..3 {
-                j[0][(0, k)] = n[k] / self.sigma;
+                j[0][(0, k)] = dx[k] / self.sigma;
             }
             j[1][(0, 0)] = dn_a.dot(x) / self.sigma;
             j[1][(0, 1)] = dn_b.dot(x) / self.sigma;
             j[1][(0, 2)] = -1.0 / self.sigma;
+            for (k, b) in basis.iter().enumerate() {
+                j[1][(0, 3 + k)] = -b / self.sigma;
+            }
         }
         true
     }
@@ -451,7 +521,17 @@ mod tests {
         let hit = ray.o + ray.u * 1800.0;
         let n = (-ray.u + V3::new(0.2, -0.1, 0.3)).normalize();
         let frame = PlaneFrame::new(n, hit, 500.0);
-        let plane = [0.01, -0.02, n.dot(&hit) + 5.0];
+        let plane = [
+            0.01,
+            -0.02,
+            n.dot(&hit) + 5.0,
+            1.5,
+            -2.0,
+            0.7,
+            0.4,
+            -0.9,
+            1.1,
+        ];
         beam.range_mm = 1830.0;
         let res = FixedBeamOn {
             beam,
@@ -512,7 +592,7 @@ mod tests {
             group: "targets on planes",
         };
         let x = V3::new(300.0, 2010.0, 500.0);
-        let plane = [0.02, 0.01, 2100.0];
+        let plane = [0.02, 0.01, 2100.0, -1.2, 0.8, 2.5, -0.6, 1.3, 0.9];
         let values = [Value::Point(&x), Value::Vector(&plane)];
         let worst = check_residual_jacobians(&res, &values, 1e-6).expect("defined");
         assert!(worst < 1e-6, "worst relative Jacobian error {worst}");

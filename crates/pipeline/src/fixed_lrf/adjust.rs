@@ -4,7 +4,7 @@
 //! plane's targets on it; what the data do not determine held and named; gross errors
 //! removed by each group's own σ0 as the rotating LRF's adjustment does.
 
-use super::planes::{on_what, FieldPlane, On};
+use super::planes::{adjustment_reach, on_what, BallOnStem, FieldPlane, On};
 use super::stations::Station;
 use super::{RANGE_NAMES, TARGETS_GROUP, UNKNOWN_NAMES, WEAK_PRIOR};
 use crate::bundle::Adjusted;
@@ -17,7 +17,8 @@ use pingcal_ba::solver::{self, Precision};
 use pingcal_ba::{ParameterBlock, ParameterKey, ParameterPrior, ParameterValue, Problem};
 use pingcal_ba::{ResidualBlock, Value};
 use pingcal_geometry::Rigid3;
-use pingcal_lrf::fixed::{FixedBeamOn, PointOnPlane, PoseBlockPrior, Surface};
+use pingcal_lrf::fixed::{self, FIXED_PLANE_UNKNOWNS};
+use pingcal_lrf::fixed::{FixedBeam, FixedBeamOn, PointOnPlane, PoseBlockPrior, Surface};
 use pingcal_lrf::room::PlaneFrame;
 
 type V3 = Vector3<f64>;
@@ -61,6 +62,8 @@ pub struct FixedProblem {
     pub ext: ParameterKey,
     /// The range model's block.
     pub range: ParameterKey,
+    /// The planes' blocks.
+    pub planes: Vec<ParameterKey>,
     /// The extrinsic where the adjustment started (where the weak priors are centred, and
     /// where a held component stays).
     pub start: Rigid3,
@@ -78,9 +81,21 @@ pub struct FixedProblem {
     pub options: solver::Options,
 }
 
-/// The gate within which a beam is on a surface at the start: the beam's 3σ, at least
-/// this (mm).
+/// A beam meeting its plane at a larger incidence than this cosine's is left out: its
+/// footprint stretches along the plane and its range carries it more than the plane's
+/// distance (the rotating LRF's room planes use the same bound,
+/// [`pingcal_lrf::room::RoomOptions::min_cos_incidence`]).
+pub const MIN_COS_INCIDENCE: f64 = 0.3;
+
+/// The gate within which a beam is on a surface at the start: [`GATE_SIGMAS`] of the
+/// beam's σ, at least this (mm).
 pub const MIN_GATE_MM: f64 = 30.0;
+
+/// The gate in the beam's σ's: wide, because it is centred on the start's prediction, not
+/// the truth, and cuts a beam's noise unevenly by the start's error (with 3σ the
+/// simulator's extrinsic was pulled 1.3 mm towards its start); what lies beyond the noise
+/// the rounds' gross-error test removes.
+pub const GATE_SIGMAS: f64 = 5.0;
 
 impl FixedProblem {
     /// The problem of the stations' beams through the start `e` on `planes` and `balls`.
@@ -99,7 +114,8 @@ impl FixedProblem {
         let frames: Vec<(ParameterKey, PlaneFrame)> = (planes.iter())
             .map(|pl| {
                 let frame = PlaneFrame::new(pl.normal, pl.centre, pl.spread);
-                let v = vec![0.0, 0.0, pl.normal.dot(&pl.centre)];
+                let mut v = vec![0.0; FIXED_PLANE_UNKNOWNS];
+                v[2] = pl.normal.dot(&pl.centre);
                 (
                     base.add_parameter(ParameterBlock::vector("plane", v)),
                     frame,
@@ -122,6 +138,7 @@ impl FixedProblem {
             base,
             ext,
             range,
+            planes: frames.iter().map(|(k, _)| *k).collect(),
             start: e,
             beams,
             targets,
@@ -149,7 +166,11 @@ impl FixedProblem {
             .flatten()
             .map(|o| ResidualBlock::new(o.residual));
         let targets = self.targets.iter().map(|t| ResidualBlock::new(*t));
+        let flat = (self.planes.iter()).map(|&k| ResidualBlock::new(fixed::flatness_prior(k)));
         p.residuals = beams.chain(targets).collect();
+        // after the observations: the rounds read the residuals' standardized values and
+        // redundancy numbers in this order
+        p.residuals.extend(flat);
         let ext: Vec<usize> = (0..6).filter(|&k| free[k] && weak).collect();
         if !ext.is_empty() {
             p.residuals.push(ResidualBlock::new(PoseBlockPrior {
@@ -241,25 +262,41 @@ fn classify(
     (ext, range, frames): (ParameterKey, ParameterKey, &[(ParameterKey, PlaneFrame)]),
     (e, base): (&Rigid3, &Problem),
 ) -> ([Vec<BeamObs>; 2], Vec<(usize, FixedBeamOn)>, usize) {
-    let spheres: Vec<(V3, f64)> = balls.iter().map(|b| (b.centre, b.radius)).collect();
+    let spheres: Vec<BallOnStem> = (balls.iter())
+        .map(|b| BallOnStem::new(b.centre, b.radius, planes))
+        .collect();
     let mut beams: [Vec<BeamObs>; 2] = [Vec::new(), Vec::new()];
     let mut check_beams = Vec::new();
     let mut grazing = 0;
     for (s, st) in stations.iter().enumerate() {
-        for (b, x) in st.beams.iter().zip(st.object_points(e, [0.0, 0.0])) {
-            let gate = (3.0 * b.sigma).max(MIN_GATE_MM);
-            let Some(on) = on_what(&x, planes, &spheres, gate) else {
+        for (b, ray) in st.beams.iter().zip(st.rays(e, [0.0, 0.0])) {
+            let gate = (GATE_SIGMAS * b.sigma).max(MIN_GATE_MM);
+            let Some((on, predicted)) = on_what(&ray, planes, &spheres, adjustment_reach(gate))
+            else {
                 continue;
             };
+            // σ at the range the surface predicts, not the one measured: weights from the
+            // noisy range favour the beams whose noise shortened them (a range bias of
+            // −2σ²/r, 0.4 mm at 2 m for the URG, that the range scale and the extrinsic took)
+            let beam = FixedBeam {
+                sigma: st.noise.sigma(predicted).max(1.0),
+                ..*b
+            };
             let surface = match on {
-                On::Plane(k) => Surface::Plane(frames[k].0, frames[k].1),
+                On::Plane(k) => {
+                    if planes[k].normal.dot(&ray.dir).abs() < MIN_COS_INCIDENCE {
+                        grazing += 1;
+                        continue;
+                    }
+                    Surface::Plane(frames[k].0, frames[k].1)
+                }
                 On::Ball(k) => match adj.solved.map.point(balls[k].point) {
                     Some(key) => Surface::Ball(key, balls[k].radius),
                     None => continue,
                 },
             };
             let residual = FixedBeamOn {
-                beam: *b,
+                beam,
                 station: st.key,
                 extrinsic: ext,
                 range,

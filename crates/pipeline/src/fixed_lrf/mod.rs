@@ -117,7 +117,7 @@ pub fn calibrate_fixed(
             Err(why) => rep.log(format!("  fixed LRF: no corner at {st}: {why}")),
         }
     }
-    let corner = outputs::corner_outcome(project, &stations, &balls, &corners);
+    let corner = outputs::corner_outcome(project, &stations, (&planes, &balls), &corners);
     if !project.file.method.joint() {
         let e = match &corner {
             Some(Ok(c)) => c.camera_from_lrf.rigid(),
@@ -128,11 +128,11 @@ pub fn calibrate_fixed(
                 ))
             }
         };
-        let data = outputs::lrf_data(project, &stations, &e, [0.0; 2], &balls);
+        let data = outputs::lrf_data(project, &stations, &e, [0.0; 2], (&planes, &balls));
         let ext = outputs::extrinsics(project, &data, scene, corner);
         return Ok((data.0, ext, None));
     }
-    let starts = start::starts(&stations, &planes, &ball_spheres(&balls), &corners);
+    let starts = start::starts(&stations, &planes, &ball_spheres(&balls, &planes), &corners);
     let best = starts
         .first()
         .ok_or_else(|| PipelineError::Data("the fixed LRF: no start of the adjustment".into()))?;
@@ -159,7 +159,7 @@ pub fn calibrate_fixed(
             joint.mount_model.range_scale,
         ],
     );
-    let data = outputs::lrf_data(project, &stations, &e, range, &balls);
+    let data = outputs::lrf_data(project, &stations, &e, range, (&planes, &balls));
     let ext = outputs::extrinsics(project, &data, scene, corner);
     Ok((data.0, ext, Some(Ok(joint))))
 }
@@ -181,8 +181,10 @@ fn field_balls(project: &Project, scene: &Scene) -> Vec<FieldBall> {
 }
 
 /// Centre and radius of every ball.
-fn ball_spheres(balls: &[FieldBall]) -> Vec<(nalgebra::Vector3<f64>, f64)> {
-    balls.iter().map(|b| (b.centre, b.radius)).collect()
+fn ball_spheres(balls: &[FieldBall], planes: &[FieldPlane]) -> Vec<planes::BallOnStem> {
+    (balls.iter())
+        .map(|b| planes::BallOnStem::new(b.centre, b.radius, planes))
+        .collect()
 }
 
 /// The adjustment's rounds, what the data determine, the rounds again without what they do

@@ -3,7 +3,7 @@
 //! the main station's LRF frame, the corner baseline, and the joint adjustment's outcome.
 
 use super::adjust::{beam_error, FieldBall, FixedProblem};
-use super::planes::{FieldPlane, On};
+use super::planes::{adjustment_reach, on_what, BallOnStem, FieldPlane, On};
 use super::stations::Station;
 use super::{RANGE_NAMES, UNKNOWN_NAMES};
 use crate::bundle::Adjusted;
@@ -19,6 +19,7 @@ use pingcal_ba::solver::{self, VarianceEstimate};
 use pingcal_ba::Problem;
 use pingcal_geometry::{opk_sigma_deg, Rigid3, Sim3};
 use pingcal_lrf::ball_finder::{Ball, FindResult, Support};
+use pingcal_lrf::beam::GRAZING_KAPPA;
 use pingcal_lrf::cloud::Cloud;
 use pingcal_lrf::registration::{check_table, PointObs};
 use pingcal_lrf::sensor::MountModel;
@@ -28,6 +29,12 @@ type V3 = Vector3<f64>;
 
 /// Fewest beams of one station on a ball for its row of the check tables.
 pub const MIN_BALL_BEAMS: usize = 6;
+/// Fewest distinct beam directions of one station on a ball for its row of the check
+/// tables: a cut's centre is a circle's, and a circle through two or three directions (a
+/// ping-pong ball 1.5 m from a URG holds about four beams, their rims mixed with the wall)
+/// is not determined by them, whatever its linearised σ says (on the simulator such cuts
+/// were 20–120 mm off and failed the check in 3 seeds of 10).
+pub const MIN_BALL_DIRECTIONS: usize = 6;
 
 /// One ball cut by one station's scans: its centre fitted in the LRF frame from those beams
 /// alone, and the photogrammetric ball in that station's camera frame.
@@ -40,35 +47,48 @@ struct BallCut {
     beams: usize,
 }
 
-/// Every ball the stations' scans cut (beams within the gate of where `e` puts it), fitted.
+/// Every ball the stations' scans cut, fitted: the beams on it as the adjustment decides
+/// them through `e` ([`on_what`]: the ray meets its sphere within the gate, clear of its
+/// stem), less those that graze it ([`GRAZING_KAPPA`]: their footprint mixes it with what
+/// is behind); a cut with fewer than [`MIN_BALL_BEAMS`] beams or [`MIN_BALL_DIRECTIONS`]
+/// directions is left out.
 fn ball_cuts(
     stations: &[Station],
-    balls: &[FieldBall],
+    (planes, balls): (&[FieldPlane], &[FieldBall]),
     e: &Rigid3,
     range: [f64; 2],
 ) -> Vec<BallCut> {
+    let stems: Vec<BallOnStem> = (balls.iter())
+        .map(|b| BallOnStem::new(b.centre, b.radius, planes))
+        .collect();
     let mut out = Vec::new();
     for (s, st) in stations.iter().enumerate() {
-        let points: Vec<(V3, f64)> = (st.beams.iter())
-            .map(|b| {
-                (
-                    b.point_at((b.range_mm - range[0]) / (1.0 + range[1])),
-                    b.sigma,
-                )
-            })
-            .collect();
-        for (k, ball) in balls.iter().enumerate() {
-            let cam = st.pose.transform(&ball.centre);
-            let c0 = e.inverse().transform(&cam);
-            let on: Vec<(V3, f64)> = (points.iter())
-                .filter(|(x, s)| {
-                    ((x - c0).norm() - ball.radius).abs() <= (3.0 * s).max(super::MIN_GATE_MM)
-                })
-                .copied()
-                .collect();
-            if on.len() < MIN_BALL_BEAMS {
+        let mut on: Vec<Vec<(V3, f64, u64)>> = vec![Vec::new(); balls.len()];
+        for (b, ray) in st.beams.iter().zip(st.rays(e, range)) {
+            let gate = (super::adjust::GATE_SIGMAS * b.sigma).max(super::MIN_GATE_MM);
+            let Some((On::Ball(k), _)) = on_what(&ray, planes, &stems, adjustment_reach(gate))
+            else {
+                continue;
+            };
+            let w = ray.origin - balls[k].centre;
+            let along = -ray.dir.dot(&w);
+            let half_chord2 = balls[k].radius.powi(2) - (w.norm_squared() - along * along);
+            if half_chord2 < (GRAZING_KAPPA * balls[k].radius).powi(2) {
                 continue;
             }
+            let x = b.point_at((b.range_mm - range[0]) / (1.0 + range[1]));
+            on[k].push((x, b.sigma, b.alpha_rad.to_bits()));
+        }
+        for (k, (ball, on)) in balls.iter().zip(&on).enumerate() {
+            let mut directions: Vec<u64> = on.iter().map(|p| p.2).collect();
+            directions.sort_unstable();
+            directions.dedup();
+            if on.len() < MIN_BALL_BEAMS || directions.len() < MIN_BALL_DIRECTIONS {
+                continue;
+            }
+            let cam = st.pose.transform(&ball.centre);
+            let c0 = e.inverse().transform(&cam);
+            let on: Vec<(V3, f64)> = on.iter().map(|&(x, s, _)| (x, s)).collect();
             let (c, cov) = fit_centre(&on, ball.radius, c0);
             let id = format!("{} at {}", ball.name, st.id);
             out.push(BallCut {
@@ -140,7 +160,7 @@ fn sides(cuts: &[BallCut], balls: &[FieldBall], check: bool) -> (Vec<PointObs>, 
 pub fn corner_outcome(
     project: &Project,
     stations: &[Station],
-    balls: &[FieldBall],
+    (planes, balls): (&[FieldPlane], &[FieldBall]),
     corners: &[(String, Result<Rigid3, String>)],
 ) -> Option<Result<CornerOutcome, String>> {
     if !matches!(project.file.method, Method::Corner | Method::All) {
@@ -162,7 +182,7 @@ pub fn corner_outcome(
         .iter()
         .position(|s| &s.id == st)
         .expect("a station's corner");
-    let cuts: Vec<BallCut> = ball_cuts(&stations[k..=k], balls, e, [0.0; 2]);
+    let cuts: Vec<BallCut> = ball_cuts(&stations[k..=k], (planes, balls), e, [0.0; 2]);
     let check = balls.iter().any(|b| b.check);
     let (l, c) = sides(&cuts, balls, check);
     let sim = Sim3::new(1.0, e.rotation, e.translation);
@@ -184,7 +204,7 @@ pub fn lrf_data(
     stations: &[Station],
     e: &Rigid3,
     range: [f64; 2],
-    balls: &[FieldBall],
+    (planes, balls): (&[FieldPlane], &[FieldBall]),
 ) -> (LrfData, Vec<(SphereId, PointId)>) {
     let inv = e.inverse();
     let mut cloud = Cloud::default();
@@ -197,7 +217,7 @@ pub fn lrf_data(
         }
     }
     cloud.origins = Some(origins);
-    let cuts = ball_cuts(stations, balls, e, range);
+    let cuts = ball_cuts(stations, (planes, balls), e, range);
     let mut found = FindResult::default();
     let mut pairs = Vec::new();
     for cut in &cuts {
@@ -295,7 +315,7 @@ pub fn joint_outcome(
         + chi2s.iter().sum::<f64>()
         + prior_chi2;
     let groups = group_lines(fp, p, chi2s, rejected);
-    let cuts = ball_cuts(stations, balls, &e, range);
+    let cuts = ball_cuts(stations, (planes, balls), &e, range);
     let sim = Sim3::new(1.0, e.rotation, e.translation);
     let (cl, cc) = sides(&cuts, balls, true);
     let (ol, oc) = sides(&cuts, balls, false);

@@ -10,12 +10,17 @@
 //! reported, not assumed. Each plane is bounded by its targets' extent and [`MARGIN_MM`]:
 //! a beam beyond it (past a wall's end, through a door) is not taken to be on it.
 //!
-//! **Beams.** Through an extrinsic, each beam's point is on the nearest plane within the
-//! gate, unless it is within [`BALL_CLEARANCE_MM`] of a ball's surface (the ball, its stem):
-//! then it is on the ball if within the gate of its sphere, else on neither; and a beam
-//! within [`EDGE_CLEARANCE_MM`] of two planes (where a wall meets the floor or another wall)
-//! is on neither: its footprint mixes them (on the simulator's noiseless corner, such
-//! beams were off by up to 43 mm, the rest within 2 mm).
+//! **Beams.** Through an extrinsic, each beam's ray (its origin and direction in the object
+//! frame) is decided first, its range only last, so that no reading's noise decides which
+//! side of a cut a beam falls (the rotating LRF's room planes learnt it: such a cut biased
+//! the range offset by 2σ; here the extrinsic's height and pitch by 3σ). A ray that passes
+//! within [`BALL_CLEARANCE_MM`] of a ball is on the ball if it meets its sphere, else on
+//! nothing (the ball's rim and stem, mixed with the wall behind). Otherwise its surface is
+//! the first plane it meets within that plane's reach (the room is convex where the beams
+//! see it), unless another plane passes within [`EDGE_CLEARANCE_MM`] of that point (where
+//! a wall meets the floor or another wall: the footprint mixes the two; on the simulator's
+//! noiseless corner such beams were off by up to 43 mm, the rest within 2 mm). Last, the
+//! measured range must be within the gate of the predicted one.
 
 use crate::ids::PointId;
 use crate::scene::{PointKind, Scene};
@@ -31,13 +36,30 @@ pub const PLANE_TOL_MM: f64 = 10.0;
 pub const MIN_PLANE_TARGETS: usize = 6;
 /// Smallest spread of a plane's targets along each in-plane axis (RMS, mm).
 pub const MIN_SPREAD_MM: f64 = 100.0;
-/// How far beyond its targets' extent a plane reaches (mm).
+/// How far beyond its targets' extent a plane reaches when the start is searched (mm): a
+/// candidate extrinsic is ranked by the beams it puts near the targets.
 pub const MARGIN_MM: f64 = 400.0;
-/// Beams within this of two planes (where walls and the floor meet) are on neither: the
-/// beam's footprint spans both, and its range mixes them (mm).
+/// How far beyond its targets' extent a plane reaches in the adjustment, where the start
+/// is known (mm): a wall goes on past its last target and the floor's few targets sit near
+/// the corner; with [`MARGIN_MM`] the simulator's floor kept a quarter of its beams, and
+/// beams past one wall's targets went to the next plane they were near (the noiseless
+/// simulation settled 6.4 mm and 0.32° off; with this reach, 0.3 mm and 0.01°).
+pub const REACH_MM: f64 = 3000.0;
+/// Beams within this of two planes (where walls and the floor meet) are on neither in the
+/// adjustment: the beam's footprint spans both, and its range mixes them (mm; a far beam at
+/// grazing incidence stretches its footprint over centimetres: with 40 mm the simulator's
+/// noiseless extrinsic settled 1 mm off, with 100 mm 0.4 mm).
 pub const EDGE_CLEARANCE_MM: f64 = 40.0;
-/// Beams within this of a ball's surface are not taken to be on a plane (mm).
+/// The same clearance when starts are ranked by the beams they put on the planes (mm): a
+/// count, not a measurement, to which the beams near an edge still testify; one station's
+/// scan line reaches the floor near the corner only, and with [`EDGE_CLEARANCE_MM`] the
+/// upside-down fit of it hit more planes than the true one.
+pub const START_EDGE_MM: f64 = 10.0;
+/// Beams within this of a ball's surface or its stem are not taken to be on a plane (mm).
 pub const BALL_CLEARANCE_MM: f64 = 40.0;
+/// A ball's stem stands off the nearest plane within this (mm); a ball farther from every
+/// plane stands on something the targets do not show, and only the ball is cleared.
+pub const MAX_STEM_MM: f64 = 600.0;
 /// Most planes looked for.
 const MAX_PLANES: usize = 8;
 
@@ -56,17 +78,18 @@ pub struct FieldPlane {
     pub centre: V3,
     /// RMS spread of its targets about the centroid (mm).
     pub spread: f64,
-    /// In-plane axes and the targets' extent along them, widened by [`MARGIN_MM`].
+    /// In-plane axes and the targets' extent along them.
     bounds: (V3, V3, [f64; 4]),
 }
 
 impl FieldPlane {
-    /// Whether `x`'s foot on the plane lies within its bounds.
-    pub fn contains(&self, x: &V3) -> bool {
+    /// Whether `x`'s foot on the plane lies within its targets' extent widened by `reach`
+    /// (mm).
+    pub fn contains(&self, x: &V3, reach: f64) -> bool {
         let (e1, e2, b) = &self.bounds;
         let d = x - self.centre;
         let (u, v) = (e1.dot(&d), e2.dot(&d));
-        u >= b[0] && u <= b[1] && v >= b[2] && v <= b[3]
+        u >= b[0] - reach && u <= b[1] + reach && v >= b[2] - reach && v <= b[3] + reach
     }
 
     /// The plane `n · x = d` bounded to ±`half` (mm) about its foot of the origin (for
@@ -180,12 +203,6 @@ fn field_plane(left: &[(PointId, V3)], on: &[usize]) -> Option<FieldPlane> {
         let (u, v) = (e1.dot(&d), e2.dot(&d));
         b = [b[0].min(u), b[1].max(u), b[2].min(v), b[3].max(v)];
     }
-    let b = [
-        b[0] - MARGIN_MM,
-        b[1] + MARGIN_MM,
-        b[2] - MARGIN_MM,
-        b[3] + MARGIN_MM,
-    ];
     let spread = (pts.iter())
         .map(|x| (x - plane.centroid).norm_squared())
         .sum::<f64>()
@@ -210,31 +227,150 @@ pub enum On {
     Ball(usize),
 }
 
-/// What the point `x` (object frame) is on, within `gate` (mm) of the surface: a ball of
-/// `balls` (centre, radius; within the smaller of the gate and [`BALL_CLEARANCE_MM`]) or,
-/// clear of every ball, the nearest plane of `planes`.
-pub fn on_what(x: &V3, planes: &[FieldPlane], balls: &[(V3, f64)], gate: f64) -> Option<On> {
-    for (k, (c, r)) in balls.iter().enumerate() {
-        let d = (x - c).norm() - r;
-        if d.abs() <= gate.min(BALL_CLEARANCE_MM) {
-            return Some(On::Ball(k));
-        }
-        if d < BALL_CLEARANCE_MM {
-            return None;
+/// A beam in the object frame: its ray's origin and unit direction, and its measured range
+/// (mm, the range model taken out).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BeamRay {
+    /// The ray's origin (the scanner's centre).
+    pub origin: V3,
+    /// Its unit direction.
+    pub dir: V3,
+    /// The measured range.
+    pub range: f64,
+}
+
+impl BeamRay {
+    /// The measured point.
+    pub fn point(&self) -> V3 {
+        self.origin + self.dir * self.range
+    }
+}
+
+/// A ball of the field on its stem: the stem stands off the nearest plane along its
+/// normal, as the field guide builds them.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BallOnStem {
+    /// The ball's centre.
+    pub centre: V3,
+    /// Its radius (mm).
+    pub radius: f64,
+    /// The stem's foot: the centre's foot on the nearest plane within [`MAX_STEM_MM`], or
+    /// the centre itself.
+    pub foot: V3,
+}
+
+impl BallOnStem {
+    /// The ball of `centre` and `radius` on its stem off the nearest of `planes`.
+    pub fn new(centre: V3, radius: f64, planes: &[FieldPlane]) -> Self {
+        let foot = (planes.iter())
+            .map(|p| (p.distance(&centre), p))
+            .filter(|(d, p)| d.abs() <= MAX_STEM_MM && p.contains(&centre, MARGIN_MM))
+            .min_by(|a, b| a.0.abs().total_cmp(&b.0.abs()))
+            .map_or(centre, |(d, p)| centre - p.normal * d);
+        BallOnStem {
+            centre,
+            radius,
+            foot,
         }
     }
-    let mut near: Vec<(usize, f64)> = (planes.iter().enumerate())
-        .filter(|(_, p)| p.contains(x))
-        .map(|(k, p)| (k, p.distance(x).abs()))
-        .filter(|(_, d)| *d <= gate.max(EDGE_CLEARANCE_MM))
-        .collect();
-    near.sort_by(|a, b| a.1.total_cmp(&b.1));
-    match near.as_slice() {
-        // where two planes meet, a beam's footprint spans both: a mixed range, on neither
-        [_, second, ..] if second.1 <= EDGE_CLEARANCE_MM => None,
-        [(k, d), ..] if *d <= gate => Some(On::Plane(*k)),
-        _ => None,
+
+    /// The closest the ray `(o, u)` (u unit, ahead of o) comes to the ball's stem, the
+    /// segment from its centre to its foot (mm).
+    fn stem_distance(&self, o: &V3, u: &V3) -> f64 {
+        let d = self.foot - self.centre;
+        let w = o - self.centre;
+        let (b, dd, e, cc) = (u.dot(&d), u.dot(&w), d.dot(&w), d.norm_squared());
+        if cc < 1e-9 {
+            let t = (-dd).max(0.0);
+            return (w + u * t).norm();
+        }
+        let denom = cc - b * b;
+        let mut s = if denom > 1e-9 {
+            ((e - b * dd) / denom).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        let mut t = b * s - dd;
+        if t < 0.0 {
+            t = 0.0;
+            s = (e / cc).clamp(0.0, 1.0);
+        }
+        (w + u * t - d * s).norm()
     }
+}
+
+/// How far a beam may be from a surface and still be on it: the gate on its range, how far
+/// past its targets a plane reaches, and the clearance of an edge (all mm).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Reach {
+    /// The gate on the range.
+    pub gate: f64,
+    /// How far beyond its targets' extent a plane reaches.
+    pub reach: f64,
+    /// The clearance of an edge where two planes meet.
+    pub edge: f64,
+}
+
+/// The [`Reach`] of the adjustment, where the start is known: `gate`, [`REACH_MM`],
+/// [`EDGE_CLEARANCE_MM`].
+pub fn adjustment_reach(gate: f64) -> Reach {
+    Reach {
+        gate,
+        reach: REACH_MM,
+        edge: EDGE_CLEARANCE_MM,
+    }
+}
+
+/// The [`Reach`] of the starts' ranking: `gate`, [`MARGIN_MM`], [`START_EDGE_MM`].
+pub fn start_reach(gate: f64) -> Reach {
+    Reach {
+        gate,
+        reach: MARGIN_MM,
+        edge: START_EDGE_MM,
+    }
+}
+
+/// What the beam `ray` is on (see the module doc): a ball of `balls` whose sphere it meets
+/// within the smaller of `gate` and [`BALL_CLEARANCE_MM`] (a ray within that of the ball or
+/// its stem that does not: nothing), or, clear of every ball, the first plane of `planes` it meets within the plane's bounds widened by
+/// `reach`, if its range is within `gate` of that plane's and no other plane passes within
+/// `edge` of the point; with the range the surface predicts.
+pub fn on_what(
+    ray: &BeamRay,
+    planes: &[FieldPlane],
+    balls: &[BallOnStem],
+    lim: Reach,
+) -> Option<(On, f64)> {
+    let Reach { gate, reach, edge } = lim;
+    let (o, u) = (&ray.origin, &ray.dir);
+    for (k, ball) in balls.iter().enumerate() {
+        let r = ball.radius;
+        if ball.stem_distance(o, u) > r + BALL_CLEARANCE_MM {
+            continue;
+        }
+        // near the ball or its stem: on the ball if the ray meets its sphere within the
+        // gate, else on nothing (the rim, the stem: mixed with what is behind)
+        let w = o - ball.centre;
+        let along = -u.dot(&w);
+        let miss2 = w.norm_squared() - along * along;
+        let t = along - (r * r - miss2).max(0.0).sqrt();
+        return (along > 0.0
+            && miss2 < r * r
+            && (ray.range - t).abs() <= gate.min(BALL_CLEARANCE_MM))
+        .then_some((On::Ball(k), t));
+    }
+    let (k, t) = (planes.iter().enumerate())
+        .filter_map(|(k, p)| {
+            let s = p.normal.dot(u);
+            let t = (p.offset - p.normal.dot(o)) / s;
+            (s.abs() > 1e-9 && t > 0.0 && p.contains(&(o + u * t), reach)).then_some((k, t))
+        })
+        .min_by(|a, b| a.1.total_cmp(&b.1))?;
+    let x = o + u * t;
+    // where two planes meet, a beam's footprint spans both: a mixed range, on neither
+    let edge = (planes.iter().enumerate())
+        .any(|(j, p)| j != k && p.distance(&x).abs() <= edge && p.contains(&x, reach));
+    (!edge && (ray.range - t).abs() <= gate).then_some((On::Plane(k), t))
 }
 
 #[cfg(test)]
@@ -245,43 +381,47 @@ mod tests {
         FieldPlane::square(n, d, 1000.0)
     }
 
-    /// A point near a ball is the ball's, or nobody's (its stem, the ball's rim); else the
-    /// nearest plane's within the gate and the plane's bounds.
+    /// A ray near a ball is the ball's, or nobody's (its stem, the ball's rim); else the
+    /// first plane's it meets within the plane's bounds, if its range is within the gate.
     #[test]
-    fn a_point_is_on_the_nearest_surface_within_the_gate() {
+    fn a_beam_is_on_the_first_surface_its_ray_meets() {
         let planes = [plane_of(V3::x(), 0.0), plane_of(V3::z(), 0.0)];
-        let balls = [(V3::new(60.0, 500.0, 400.0), 19.0)];
-        let gate = 30.0;
+        let balls = [BallOnStem::new(V3::new(60.0, 500.0, 400.0), 19.0, &planes)];
         assert_eq!(
-            on_what(&V3::new(5.0, 300.0, 600.0), &planes, &balls, gate),
-            Some(On::Plane(0))
+            balls[0].foot,
+            V3::new(0.0, 500.0, 400.0),
+            "on a stem off the wall"
         );
-        assert_eq!(
-            on_what(&V3::new(300.0, 300.0, -8.0), &planes, &balls, gate),
-            Some(On::Plane(1))
-        );
-        assert_eq!(
-            on_what(&V3::new(41.0, 500.0, 400.0), &planes, &balls, gate),
-            Some(On::Ball(0))
-        );
-        // the stem between the ball and the wall
-        assert_eq!(
-            on_what(&V3::new(20.0, 500.0, 370.0), &planes, &balls, gate),
-            None
-        );
+        let gate = Reach {
+            gate: 30.0,
+            reach: MARGIN_MM,
+            edge: EDGE_CLEARANCE_MM,
+        };
+        // a ray from inside the corner towards the point `to`, its range `extra` past it
+        let beam = |to: V3, extra: f64| {
+            let origin = V3::new(800.0, 300.0, 500.0);
+            let dir = (to - origin).normalize();
+            BeamRay {
+                origin,
+                dir,
+                range: (to - origin).norm() + extra,
+            }
+        };
+        let on = |to: V3, extra: f64| on_what(&beam(to, extra), &planes, &balls, gate).map(|o| o.0);
+        assert_eq!(on(V3::new(0.0, 300.0, 600.0), 5.0), Some(On::Plane(0)));
+        assert_eq!(on(V3::new(300.0, 300.0, 0.0), -8.0), Some(On::Plane(1)));
+        // the range decides only last: too far from the plane the ray meets
+        assert_eq!(on(V3::new(0.0, 300.0, 600.0), 45.0), None);
+        // the ball, whose sphere the ray meets 19 mm before its centre
+        assert_eq!(on(V3::new(60.0, 500.0, 400.0), -19.0), Some(On::Ball(0)));
+        // the ray passes 30 mm from the ball's centre: its rim, nobody's
+        assert_eq!(on(V3::new(60.0, 500.0, 430.0), 0.0), None);
+        // the wall just beside the stem's foot, and 100 mm from it
+        assert_eq!(on(V3::new(0.0, 530.0, 400.0), 0.0), None);
+        assert_eq!(on(V3::new(0.0, 600.0, 400.0), 0.0), Some(On::Plane(0)));
         // where the wall meets the floor
-        assert_eq!(
-            on_what(&V3::new(12.0, 300.0, 25.0), &planes, &balls, gate),
-            None
-        );
+        assert_eq!(on(V3::new(0.0, 300.0, 25.0), 0.0), None);
         // beyond the wall's end
-        assert_eq!(
-            on_what(&V3::new(5.0, 3000.0, 600.0), &planes, &balls, gate),
-            None
-        );
-        assert_eq!(
-            on_what(&V3::new(200.0, 300.0, 600.0), &planes, &balls, gate),
-            None
-        );
+        assert_eq!(on(V3::new(0.0, 3000.0, 600.0), 0.0), None);
     }
 }

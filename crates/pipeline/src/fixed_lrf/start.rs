@@ -4,7 +4,7 @@
 //! closest-plane fit whose gate narrows from [`GATES_MM`]'s first to its last); the one
 //! that puts the most beams on the planes wins (then the smallest RMS).
 
-use super::planes::{on_what, FieldPlane, On};
+use super::planes::{on_what, start_reach, BallOnStem, BeamRay, FieldPlane, On};
 use super::stations::Station;
 use crate::scene::{Detections, PointKind, Scene};
 use nalgebra::{Matrix3, Matrix6, Vector2, Vector3, Vector6};
@@ -156,7 +156,7 @@ fn axis_turns() -> Vec<Matrix3<f64>> {
 pub fn starts(
     stations: &[Station],
     planes: &[FieldPlane],
-    balls: &[(V3, f64)],
+    balls: &[BallOnStem],
     corners: &[(String, Result<Rigid3, String>)],
 ) -> Vec<Start> {
     let beams = sampled_beams(stations);
@@ -223,6 +223,19 @@ fn upright(s: &Start) -> f64 {
 /// the LRF frame.
 type Sampled = (Rigid3, V3);
 
+/// A sampled beam's ray and measured point in the object frame through `e`.
+fn sampled_ray(object_from_camera: &Rigid3, p: &V3, e: &Rigid3) -> (BeamRay, V3) {
+    let x = object_from_camera.transform(&e.transform(p));
+    let origin = object_from_camera.transform(&e.translation);
+    let range = p.norm();
+    let ray = BeamRay {
+        origin,
+        dir: (x - origin) / range.max(f64::MIN_POSITIVE),
+        range,
+    };
+    (ray, x)
+}
+
 /// At most [`MAX_BEAMS`] beams of all stations, taken evenly.
 fn sampled_beams(stations: &[Station]) -> Vec<Sampled> {
     let total: usize = stations.iter().map(|s| s.beams.len()).sum();
@@ -235,15 +248,16 @@ fn sampled_beams(stations: &[Station]) -> Vec<Sampled> {
 }
 
 /// The extrinsic refined from `e` on the planes (see the module doc).
-fn refine(beams: &[Sampled], planes: &[FieldPlane], balls: &[(V3, f64)], e0: Rigid3) -> Rigid3 {
+fn refine(beams: &[Sampled], planes: &[FieldPlane], balls: &[BallOnStem], e0: Rigid3) -> Rigid3 {
     let mut e = e0;
     for gate in GATES_MM {
         for _ in 0..ITERATIONS {
             let mut h = Matrix6::<f64>::zeros();
             let mut g = Vector6::<f64>::zeros();
             for (obj_from_cam, p) in beams {
-                let x = obj_from_cam.transform(&e.transform(p));
-                let Some(On::Plane(k)) = on_what(&x, planes, balls, gate) else {
+                let (ray, x) = sampled_ray(obj_from_cam, p, &e);
+                let Some((On::Plane(k), _)) = on_what(&ray, planes, balls, start_reach(gate))
+                else {
                     continue;
                 };
                 let n = planes[k].normal;
@@ -285,15 +299,15 @@ fn refine(beams: &[Sampled], planes: &[FieldPlane], balls: &[(V3, f64)], e0: Rig
 fn fit_of(
     beams: &[Sampled],
     planes: &[FieldPlane],
-    balls: &[(V3, f64)],
+    balls: &[BallOnStem],
     e: &Rigid3,
 ) -> (usize, f64, usize) {
     let gate = GATES_MM[GATES_MM.len() - 1];
     let (mut n, mut ss) = (0usize, 0.0);
     let mut per_plane = vec![0usize; planes.len()];
     for (obj_from_cam, p) in beams {
-        let x = obj_from_cam.transform(&e.transform(p));
-        if let Some(On::Plane(k)) = on_what(&x, planes, balls, gate) {
+        let (ray, x) = sampled_ray(obj_from_cam, p, e);
+        if let Some((On::Plane(k), _)) = on_what(&ray, planes, balls, start_reach(gate)) {
             n += 1;
             per_plane[k] += 1;
             ss += planes[k].distance(&x).powi(2);
@@ -345,7 +359,7 @@ mod tests {
                     .filter_map(|p| {
                         let s = p.normal.dot(&u);
                         let t = (p.offset - p.normal.dot(&o)) / s;
-                        (s.abs() > 1e-6 && t > 0.0 && p.contains(&(o + u * t))).then_some(t)
+                        (s.abs() > 1e-6 && t > 0.0 && p.contains(&(o + u * t), 0.0)).then_some(t)
                     })
                     .fold(f64::INFINITY, f64::min);
                 if r.is_finite() && r < 5000.0 {

@@ -1,6 +1,7 @@
 //! A fixed LRF's stations: each scan file of `[lrf] scans` with its station, the station's
 //! main-camera image (whose pose orients the head there) and the scans' beams.
 
+use super::planes::BeamRay;
 use crate::adjust::SceneProblem;
 use crate::context::{PipelineError, Result};
 use crate::ids::ImageId;
@@ -29,8 +30,10 @@ pub struct Station {
     pub header: ScanHeader,
     /// The scans as read (ranges beyond the sensor's maximum masked).
     pub lines: Vec<ScanLine>,
-    /// Every beam with a return, with its σ.
+    /// Every beam with a return, with its σ at the measured range.
     pub beams: Vec<FixedBeam>,
+    /// The sensor's range noise (σ at a range).
+    pub noise: RangeNoise,
 }
 
 impl Station {
@@ -38,6 +41,20 @@ impl Station {
     pub fn object_points(&self, e: &Rigid3, range: [f64; 2]) -> Vec<Vector3<f64>> {
         (self.beams.iter())
             .map(|b| b.object_point(&self.pose, e, range))
+            .collect()
+    }
+
+    /// Its beams' rays in the object frame through the extrinsic `e`, their ranges with the
+    /// range model `[k, s]` taken out.
+    pub fn rays(&self, e: &Rigid3, range: [f64; 2]) -> Vec<BeamRay> {
+        let object_from_camera = self.pose.inverse();
+        let origin = object_from_camera.transform(&e.translation);
+        (self.beams.iter())
+            .map(|b| BeamRay {
+                origin,
+                dir: object_from_camera.rotation * (e.rotation * b.direction()),
+                range: (b.range_mm - range[0]) / (1.0 + range[1]),
+            })
             .collect()
     }
 }
@@ -79,6 +96,7 @@ pub fn read_stations(
             header,
             lines,
             beams,
+            noise: *noise,
         });
     }
     Ok(out)
