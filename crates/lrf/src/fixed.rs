@@ -598,6 +598,40 @@ mod tests {
         assert!(worst < 1e-6, "worst relative Jacobian error {worst}");
     }
 
+    /// A panel held at its edges bowing between them (the simulator's pillow, `16 h s(1−s)
+    /// q(1−q)` over the panel) lies in the span of the plane and its bend when the frame's
+    /// axes run along the edges, wherever the frame's centre and scale are.
+    #[test]
+    fn a_pillow_along_the_frames_axes_is_in_the_bends_span() {
+        let (w, h, bulge) = (2500.0, 2000.0, 3.0);
+        let frame = PlaneFrame {
+            normal: V3::z(),
+            e1: V3::x(),
+            e2: V3::y(),
+            centre: V3::new(700.0, 600.0, 0.0),
+            scale: 540.0,
+        };
+        let mut rows = Vec::new();
+        let mut rhs = Vec::new();
+        for i in 0..=20 {
+            for j in 0..=20 {
+                let (u, v) = (w * i as f64 / 20.0, h * j as f64 / 20.0);
+                let (s, q) = (u / w, v / h);
+                rhs.push(16.0 * bulge * s * (1.0 - s) * q * (1.0 - q));
+                let x = V3::new(u, v, 0.0);
+                let (basis, _) = bend_basis(&frame, &x);
+                let mut row = vec![1.0, u, v];
+                row.extend(basis);
+                rows.push(row);
+            }
+        }
+        let a = nalgebra::DMatrix::from_fn(rows.len(), 3 + BEND_TERMS, |r, c| rows[r][c]);
+        let b = nalgebra::DVector::from_vec(rhs);
+        let fit = a.clone().svd(true, true).solve(&b, 1e-12).expect("solves");
+        let worst = (a * fit - b).amax();
+        assert!(worst < 1e-6, "the pillow misses the bend's span by {worst} mm");
+    }
+
     #[test]
     fn the_pose_prior_has_the_jacobians_central_differences_give() {
         let (_, e, _) = setup();

@@ -513,3 +513,25 @@ fn not_determined(
         )
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A wall's frame runs along the floor, the floor's along the wall most square to it; a
+    /// plane with no other square to it keeps the default frame.
+    #[test]
+    fn a_planes_frame_runs_along_its_edge() {
+        let wall = FieldPlane::square(V3::new(-0.72, 0.69, 0.0), 0.0, 1000.0);
+        let floor = FieldPlane::square(V3::z(), 0.0, 1000.0);
+        let planes = [wall.clone(), floor];
+        let f = edge_frame(&planes, 0);
+        let along = wall.normal.cross(&V3::z()).normalize();
+        assert!(f.e1.cross(&along).norm() < 1e-12, "{:?}", f.e1);
+        assert!(f.e2.cross(&V3::z()).norm() < 1e-12, "{:?}", f.e2);
+        let g = edge_frame(&planes, 1);
+        assert!(g.e1.cross(&along).norm() < 1e-12, "{:?}", g.e1);
+        let alone = edge_frame(&planes[..1], 0);
+        assert_eq!(alone, PlaneFrame::new(wall.normal, wall.centre, wall.spread));
+    }
+}
