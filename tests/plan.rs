@@ -139,6 +139,58 @@ fn plan_predicts_ranks_removals_and_repeats_itself() {
     std::fs::remove_dir_all(&d).unwrap();
 }
 
+/// A fixed LRF's plan (issue 50): its scans at three of the small field's stations;
+/// removing a station takes its scans with its images, so each removal calibrates and
+/// says what the station is worth (before, a scan station without its images broke every
+/// removal).
+#[test]
+fn a_fixed_lrfs_plan_removes_a_stations_scans_with_it() {
+    let d = dir("fixed");
+    let config = format!(
+        "{}kind = \"fixed\"\nscan_stations = [\"S00\", \"S01\", \"S02\"]\n",
+        crate::common::SMALL_FIELD
+    );
+    std::fs::write(d.join("fixed.toml"), config).unwrap();
+    let args = [
+        "plan",
+        "--config",
+        "fixed.toml",
+        "--seeds",
+        "1",
+        "--quiet",
+        "--out",
+        "p.json",
+    ];
+    let (ok, stdout, stderr) = run(&d, &args);
+    assert!(ok, "plan failed\nstdout: {stdout}\nstderr: {stderr}");
+    let p: Value = serde_json::from_str(&std::fs::read_to_string(d.join("p.json")).unwrap())
+        .expect("plan.json is JSON");
+    assert_eq!(p["calibrated"], 1, "{stdout}");
+    let sens = p["sensitivity"].as_array().unwrap();
+    let stations: Vec<&Value> = (sens.iter())
+        .filter(|s| s["removed"].as_str().unwrap().starts_with("station"))
+        .collect();
+    assert_eq!(stations.len(), 5, "{sens:?}");
+    for s in &stations {
+        assert!(s["failed"].is_null(), "{s}");
+        assert!(num(&s["translation_sigma_growth"]) > 0.9, "{s}");
+    }
+    // a station with scans is worth more to the extrinsic than one with images only
+    let growth = |id: &str| {
+        (stations.iter())
+            .find(|s| s["removed"] == format!("station {id}"))
+            .map(|s| num(&s["translation_sigma_growth"]))
+            .expect("a station's row")
+    };
+    let with_scans = growth("S01").max(growth("S02"));
+    let without = ["S03", "S04", "S05"].map(growth);
+    assert!(
+        without.iter().all(|&g| g < with_scans),
+        "S01/S02 {with_scans} vs {without:?}"
+    );
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
 #[test]
 fn bad_plans_are_refused_in_one_line() {
     let d = dir("bad");

@@ -629,7 +629,10 @@ mod tests {
         let b = nalgebra::DVector::from_vec(rhs);
         let fit = a.clone().svd(true, true).solve(&b, 1e-12).expect("solves");
         let worst = (a * fit - b).amax();
-        assert!(worst < 1e-6, "the pillow misses the bend's span by {worst} mm");
+        assert!(
+            worst < 1e-6,
+            "the pillow misses the bend's span by {worst} mm"
+        );
     }
 
     #[test]

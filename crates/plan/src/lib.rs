@@ -198,6 +198,18 @@ fn without(project: &Project, removed: &Removed) -> Project {
             let mut k = keep.iter();
             p.image_paths
                 .retain(|_| *k.next().expect("one flag per image"));
+            // a fixed LRF's scans at the station go with its images
+            let lrf = &p.file.lrf;
+            let keep: Vec<bool> = (lrf.scans.iter())
+                .map(|s| s.station(&lrf.station) != id.as_str())
+                .collect();
+            let mut k = keep.iter();
+            p.file
+                .lrf
+                .scans
+                .retain(|_| *k.next().expect("one flag per scan"));
+            let mut k = keep.iter();
+            p.scans.retain(|_| *k.next().expect("one flag per scan"));
         }
         Removed::Distance(i) => {
             p.file.distances.remove(*i);

@@ -532,6 +532,9 @@ mod tests {
         let g = edge_frame(&planes, 1);
         assert!(g.e1.cross(&along).norm() < 1e-12, "{:?}", g.e1);
         let alone = edge_frame(&planes[..1], 0);
-        assert_eq!(alone, PlaneFrame::new(wall.normal, wall.centre, wall.spread));
+        assert_eq!(
+            alone,
+            PlaneFrame::new(wall.normal, wall.centre, wall.spread)
+        );
     }
 }
