@@ -471,23 +471,41 @@ fn notes(
         })
         .collect();
     let (e, range) = fp.solution(p);
+    let err = |o: &super::adjust::BeamObs| beam_error(p, &o.residual, &e, &range);
     for (s, st) in stations.iter().enumerate() {
-        let count = |g: usize| fp.beams[g].iter().filter(|o| o.station == s).count();
-        out.push(format!(
-            "station {}: {} beams, {} on the planes, {} on control balls",
-            st.id,
-            st.beams.len(),
-            count(0),
-            count(1)
-        ));
+        let mut line = format!("station {}: {} beams", st.id, st.beams.len());
+        let mut on = 0;
+        for (g, what) in [(0, "plane"), (1, "ball")] {
+            let mut seen: Vec<usize> = (fp.beams[g].iter())
+                .filter(|o| o.station == s)
+                .map(|o| match o.on {
+                    On::Plane(k) | On::Ball(k) => k,
+                })
+                .collect();
+            seen.sort_unstable();
+            seen.dedup();
+            for k in seen {
+                let errs: Vec<f64> = (fp.beams[g].iter())
+                    .filter(|o| {
+                        o.station == s && matches!(o.on, On::Plane(j) | On::Ball(j) if j == k)
+                    })
+                    .map(err)
+                    .collect();
+                on += errs.len();
+                line += &format!("; {what} {k}: {} (RMS {:.1} mm)", errs.len(), rms(&errs));
+            }
+        }
+        line += &format!("; {} on neither", st.beams.len() - on);
+        out.push(line);
     }
     for (k, pl) in planes.iter().enumerate() {
-        let errs: Vec<f64> = (fp.beams[0].iter())
+        let on: Vec<&super::adjust::BeamObs> = (fp.beams[0].iter())
             .filter(|o| o.on == On::Plane(k))
-            .map(|o| beam_error(p, &o.residual, &e, &range))
             .collect();
+        let errs: Vec<f64> = on.iter().map(|o| err(o)).collect();
+        let bend = bend_mm(fp, p, k);
         out.push(format!(
-            "plane {k}: {} targets flat to {:.2} mm RMS; {} beams on it, RMS {:.1} mm",
+            "plane {k}: {} targets flat to {:.2} mm RMS, its bend up to {bend:.1} mm over them (from the plane tangent at their centre); {} beams on it, RMS {:.1} mm",
             pl.members.len(),
             pl.rms_mm,
             errs.len(),
@@ -495,6 +513,24 @@ fn notes(
         ));
     }
     out
+}
+
+/// The largest bend of plane `k` at its targets (its departure from the flat plane through
+/// its frame's centre, mm) at the solution of `p`: where the targets measure the wall's
+/// shape (beyond them the bend is the beams' alone, and noisy).
+fn bend_mm(fp: &FixedProblem, p: &Problem, k: usize) -> f64 {
+    let key = fp.planes[k];
+    let pingcal_ba::ParameterValue::Vector(v) = &p[key].value else {
+        return f64::NAN;
+    };
+    (fp.targets.iter())
+        .filter(|t| t.plane == key)
+        .map(|t| {
+            let (basis, _) =
+                pingcal_lrf::fixed::bend_basis(&t.frame, &p.points[t.point.0].position);
+            basis.iter().zip(&v[3..]).map(|(b, c)| b * c).sum::<f64>()
+        })
+        .fold(0.0f64, |m, b| m.max(b.abs()))
 }
 
 /// The second start: from the solution with every free extrinsic unknown moved by 1 σ
