@@ -732,3 +732,57 @@ fn the_drivers_beam_timings_are_met() {
         assert!((ti - b).abs() < 1e-9, "{k}: {ti} against {b}");
     }
 }
+
+/// `--fixed` (issue 50): a fixed LRF's bag, no servo topic: every scan of the bag as read,
+/// each at servo 0, with the ranges and stamps the servo read gives the same scans; the
+/// file is one a fixed LRF's project takes (its servo never turns) and a rotating one's
+/// refuses. A servo flag beside `--fixed` is refused.
+#[test]
+fn a_fixed_lrfs_bag_gives_its_scans_at_servo_zero() {
+    let (_, want) = read(&data("scans.csv"));
+    for bag in ["ros1.bag", "ros2.mcap", "ros2.db3"] {
+        let out = tmp(&format!("fixed-{bag}.csv"));
+        let path = data(bag);
+        let args = [
+            "scans",
+            path.to_str().unwrap(),
+            "--scan-topic",
+            "/scan",
+            "--fixed",
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        let (ok, stdout, stderr) = pingcal(&args);
+        assert!(ok, "{bag}: {stdout}\n{stderr}");
+        assert!(stdout.contains("a fixed LRF: servo 0"), "{stdout}");
+        let (_, got) = read(&out);
+        assert!(got.len() >= want.len(), "{bag}: {} scans", got.len());
+        assert!(got.iter().all(|l| l.servo_deg == 0.0), "{bag}");
+        for w in &want {
+            let g = (got.iter())
+                .find(|g| g.stamp_s == w.stamp_s)
+                .unwrap_or_else(|| panic!("{bag}: no scan at {}", w.stamp_s));
+            assert_eq!(g.ranges_mm, w.ranges_mm, "{bag} at {}", w.stamp_s);
+        }
+        let span = pingcal_lrf::scan::check_scan_file(&out)
+            .expect("a valid scan file")
+            .expect("its servo span");
+        assert_eq!(span.kind_slip(true), None, "{bag}");
+        assert!(span.kind_slip(false).is_some(), "{bag}");
+    }
+    let path = data("ros1.bag");
+    let out = tmp("fixed-refused.csv");
+    let (ok, _, stderr) = pingcal(&[
+        "scans",
+        path.to_str().unwrap(),
+        "--scan-topic",
+        "/scan",
+        "--fixed",
+        "--servo-topic",
+        "/joint_states",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(!ok && stderr.contains("--fixed"), "{stderr}");
+    assert!(!out.exists());
+}

@@ -501,7 +501,7 @@ fn validate_lrf_kind(f: &ProjectFile, stations: &Stations) -> Result<(), String>
         }
         LrfKind::Fixed => {
             if l.bag.is_some() {
-                return Err("[lrf.bag] with [lrf] kind = \"fixed\": a fixed LRF reads scan files; convert the bag's scans with `pingcal scans` and list them with their stations".into());
+                return Err("[lrf.bag] with [lrf] kind = \"fixed\": a fixed LRF reads one scan file per station; convert each station's bag with `pingcal scans BAG --scan-topic TOPIC --fixed --out S00.csv` and list the files with their stations".into());
             }
             if matches!(f.method, Method::Spheres | Method::Both) {
                 return Err(format!(

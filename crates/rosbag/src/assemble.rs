@@ -545,6 +545,18 @@ pub fn read_scans(
     stream::read(bags, topics, motion, f)
 }
 
+/// Reads the scans of a fixed LRF (no servo) on the topic `scan` of all `bags` in order and
+/// gives each one, with its own beam geometry and at servo 0, to `f`: what a fixed LRF's
+/// scan file holds (`pingcal scans --fixed`).
+pub fn read_fixed_scans(
+    bags: &[Bag],
+    scan: &str,
+    stamps: Stamps,
+    f: &mut dyn FnMut(&ScanHeader, ScanLine) -> Result<()>,
+) -> Result<Assembled> {
+    stream::read_fixed(bags, scan, stamps, f)
+}
+
 /// The names the messages of a servo-like topic hold (at most its first 1,000 messages
 /// are read): a JointState topic's joint names, a tf topic's frames as `parent→child`;
 /// empty for other types.

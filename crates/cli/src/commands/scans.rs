@@ -7,7 +7,8 @@
 //! `pingcal-scan` v2 CSV (one servo angle at the first and one at the last beam of each
 //! scan), v3 when the scans carry intensities. `pingcal scans BAG... --list` prints each
 //! bag's topics, types and message counts, and the joints of JointState topics and the
-//! frames of tf topics.
+//! frames of tf topics. `pingcal scans BAG... --scan-topic T --fixed --out S00.csv` reads a
+//! fixed LRF's scans (no servo: every scan at servo 0), one file per station of the head.
 //!
 //! A driver may change the beam geometry (count, first angle, step) between messages: no
 //! scan is dropped or resampled for it; every scan goes to `--out` in its own geometry, the
@@ -22,7 +23,7 @@ use super::CmdResult;
 use pingcal_lrf::scan::{ScanHeader, ScanLine, ScanWriter, VERSION_DIGIT_OFFSET};
 use pingcal_lrf::settings::{KeyStyle, ServoKeys};
 use pingcal_rosbag::assemble::{
-    names_on_topic, read_scans, ServoMotion, ServoSource, Stamps, Topics,
+    names_on_topic, read_fixed_scans, read_scans, ServoMotion, ServoSource, Stamps, Topics,
 };
 use pingcal_rosbag::{bag_files, Bag};
 use std::path::{Path, PathBuf};
@@ -42,8 +43,12 @@ pub struct Args {
     pub scan_topic: Option<String>,
     /// The servo topic: `sensor_msgs/JointState` (with --servo-joint), `tf2_msgs/TFMessage`
     /// (with --servo-tf-child) or a numeric `std_msgs` type (Float32, Float64, Int32, UInt16).
-    #[arg(long, required_unless_present = "list")]
+    #[arg(long, required_unless_present_any = ["list", "fixed"])]
     pub servo_topic: Option<String>,
+    /// A fixed LRF (`[lrf] kind = "fixed"`): no servo topic; every scan is written at servo
+    /// 0 (record one bag per station of the head and list each file with its station).
+    #[arg(long, conflicts_with_all = ["servo_topic", "servo_joint", "servo_scale", "servo_offset", "servo_tf_child", "list"])]
+    pub fixed: bool,
     /// The servo's joint name in the JointState messages (positions in radians).
     #[arg(long, conflicts_with_all = ["servo_scale", "servo_offset", "servo_tf_child"])]
     pub servo_joint: Option<String>,
@@ -270,18 +275,23 @@ struct Written {
 /// Writes the scans of `bags` to `out`'s temporary file, every scan in its own beam
 /// geometry (a driver may change it between messages: the file is then v4), and renames it
 /// once complete; removes it on a failure.
-fn write_scans(
-    bags: &[Bag],
-    topics: &Topics,
-    motion: ServoMotion,
-    out: &Path,
-) -> Result<Written, super::CmdError> {
+/// How the scans are read: with a servo topic, or a fixed LRF's.
+enum Reading {
+    /// A rotating LRF: the topics and how the servo moves.
+    Servo(Topics, ServoMotion),
+    /// A fixed LRF: its scan topic, and whose time the messages are taken at.
+    Fixed(String, Stamps),
+}
+
+fn write_scans(bags: &[Bag], reading: &Reading, out: &Path) -> Result<Written, super::CmdError> {
     let names: Vec<&str> = bags.iter().map(Bag::name).collect();
+    let (scan_topic, servo) = match reading {
+        Reading::Servo(t, _) => (t.scan.as_str(), t.servo.as_str()),
+        Reading::Fixed(scan, _) => (scan.as_str(), "none: a fixed LRF"),
+    };
     let extra = format!(
-        "source=pingcal scans {} (scans {}, servo {})",
+        "source=pingcal scans {} (scans {scan_topic}, servo {servo})",
         names.join(" "),
-        topics.scan,
-        topics.servo
     );
     let mut file: Option<ScanFile> = None;
     let mut scans = 0u64;
@@ -289,14 +299,18 @@ fn write_scans(
         file: out.display().to_string(),
         msg,
     };
-    let result = read_scans(bags, topics, motion, &mut |h, line| {
+    let mut write = |h: &ScanHeader, line: ScanLine| {
         let f = match &mut file {
             Some(f) => f,
             None => file.insert(ScanFile::create(h, &line, out, &extra).map_err(io)?),
         };
         scans += 1;
         f.write(h, &line).map_err(io)
-    });
+    };
+    let result = match reading {
+        Reading::Servo(topics, motion) => read_scans(bags, topics, *motion, &mut write),
+        Reading::Fixed(scan, stamps) => read_fixed_scans(bags, scan, *stamps, &mut write),
+    };
     // the temporary file, removed on any failure from here on
     let partial = file
         .as_ref()
@@ -317,7 +331,7 @@ fn write_scans(
         return Err(format!(
             "{}: topic {}: no scan lies within the servo messages ({} before the first, {} after the last, {} empty){}",
             names.join(", "),
-            topics.scan,
+            scan_topic,
             done.before_servo,
             done.after_servo,
             done.empty_scans,
@@ -347,29 +361,50 @@ pub fn run(args: Args) -> CmdResult {
     if args.list {
         return list(&bags);
     }
-    let (Some(scan), Some(servo), Some(out)) = (&args.scan_topic, &args.servo_topic, &args.out)
-    else {
-        return Err("--scan-topic, --servo-topic and --out are needed (or --list)".into());
+    let (Some(scan), Some(out)) = (&args.scan_topic, &args.out) else {
+        return Err("--scan-topic and --out are needed (or --list)".into());
+    };
+    let servo = match (&args.servo_topic, args.fixed) {
+        (Some(servo), _) => Some(servo),
+        (None, true) => None,
+        (None, false) => {
+            return Err("--servo-topic is needed (or --fixed for a fixed LRF)".into());
+        }
     };
     super::preflight::check_out_file("--out", out)?;
     check_not_an_input(out, &args.bags)?;
-    let topics = Topics {
-        scan: scan.clone(),
-        servo: servo.clone(),
-        source: source(&args)?,
-        stamps: args.stamps,
+    let reading = match servo {
+        Some(servo) => Reading::Servo(
+            Topics {
+                scan: scan.clone(),
+                servo: servo.clone(),
+                source: source(&args)?,
+                stamps: args.stamps,
+            },
+            args.servo_motion,
+        ),
+        None => Reading::Fixed(scan.clone(), args.stamps),
     };
-    let w = write_scans(&bags, &topics, args.servo_motion, out)?;
+    let w = write_scans(&bags, &reading, out)?;
     let done = &w.done;
+    let from = match servo {
+        Some(servo) => format!("servo from {servo}"),
+        None => "a fixed LRF: servo 0".into(),
+    };
+    let skipped = match servo {
+        Some(_) => format!(
+            "{} skipped before the servo messages, {} after, ",
+            done.before_servo, done.after_servo
+        ),
+        None => String::new(),
+    };
     println!(
-        "scans: {} scans of {} beams from {} bag(s), servo from {servo} → {} (pingcal-scan v{}); {} skipped before the servo messages, {} after, {} empty, {} duplicate(s), {} ranges masked",
+        "scans: {} scans of {} beams from {} bag(s), {from} → {} (pingcal-scan v{}); {skipped}{} empty, {} duplicate(s), {} ranges masked",
         w.scans,
         w.beams,
         bags.len(),
         w.path.display(),
         w.version,
-        done.before_servo,
-        done.after_servo,
         done.empty_scans,
         done.duplicate_scans,
         done.masked.total()

@@ -175,6 +175,8 @@ struct Stream<'a> {
     cap: usize,
     /// The first of two passes: the servo series and the scans' stamps only.
     stamps_only: bool,
+    /// A fixed LRF: no servo; every scan is given as read, at servo 0.
+    fixed: bool,
     /// How long after the last servo message a stop-and-go scan still holds its angle, ns
     /// (the median servo interval, once the series is complete).
     hold_limit: Option<i64>,
@@ -212,6 +214,7 @@ impl<'a> Stream<'a> {
             overflow: false,
             cap: MAX_PENDING_SCANS,
             stamps_only: false,
+            fixed: false,
             hold_limit: None,
             next_classify: 2,
         }
@@ -361,6 +364,13 @@ impl<'a> Stream<'a> {
         end: bool,
         f: &mut dyn FnMut(&ScanHeader, ScanLine) -> Result<()>,
     ) -> Result<()> {
+        if self.fixed {
+            while let Some(p) = self.pending.pop_front() {
+                self.done.scans += 1;
+                f(&p.header, p.line)?;
+            }
+            return Ok(());
+        }
         let forced = self.servo_complete && self.pending.len() > self.cap;
         if !end && !forced && self.pending.len() > self.cap {
             self.overflow = true;
@@ -580,6 +590,52 @@ fn read_with_cap(
     st.done.motion = d.motion;
     st.done.motion_reason = d.reason;
     st.done.clock = clock;
+    Ok(st.done)
+}
+
+/// [`crate::assemble::read_fixed_scans`]: one pass over the scan topic, every scan at
+/// servo 0, at its header stamps unless `stamps` asks for the record times.
+pub fn read_fixed(
+    bags: &[Bag],
+    scan: &str,
+    stamps: crate::clock::Stamps,
+    f: &mut dyn FnMut(&ScanHeader, ScanLine) -> Result<()>,
+) -> Result<Assembled> {
+    let topics = Topics {
+        scan: scan.to_string(),
+        servo: String::new(),
+        source: crate::assemble::ServoSource::Joint(String::new()),
+        stamps,
+    };
+    let record = stamps == crate::clock::Stamps::Record;
+    let mut st = Stream::new(&topics, ServoMotion::StopAndGo, record);
+    st.fixed = true;
+    // the pass reads the scan topic only
+    st.servo_complete = true;
+    st.done.passes = 1;
+    st.pass(bags, f)?;
+    if st.geometry.is_none() && st.done.empty_scans == 0 {
+        let files: Vec<&str> = bags.iter().map(Bag::name).collect();
+        let what = match &st.done.bad_geometry.first {
+            Some(first) => format!(
+                "no scan a scan file can hold: {} scan(s) with an angle or a step beyond a turn (the first: {first})",
+                st.done.bad_geometry.count
+            ),
+            None => "no LaserScan messages in any of the bags".into(),
+        };
+        return Err(RosbagError::topic(&files.join(", "), scan, what));
+    }
+    st.flush(true, f)?;
+    st.done.motion = ServoMotion::StopAndGo;
+    st.done.motion_reason = "a fixed LRF: no servo".into();
+    st.done.clock = crate::clock::Clock {
+        record,
+        reason: if record {
+            "record times, as asked".into()
+        } else {
+            "a fixed LRF has no servo topic to keep another clock".into()
+        },
+    };
     Ok(st.done)
 }
 
