@@ -510,13 +510,6 @@ fn validate_lrf_kind(f: &ProjectFile, stations: &Stations) -> Result<(), String>
                 ));
             }
             for (k, st) in l.scan_stations().into_iter().enumerate() {
-                let lower = l.scans[k].file().to_ascii_lowercase();
-                if [".ply", ".pcd", ".xyz"].iter().any(|e| lower.ends_with(e)) {
-                    return Err(format!(
-                        "{}: a fixed LRF's scans are pingcal-scan CSV files (the beams' angles and ranges), not a point cloud",
-                        at(k)
-                    ));
-                }
                 match stations.get(st) {
                     Some(c) if c.contains(f.main_camera.as_str()) => {}
                     Some(_) => {

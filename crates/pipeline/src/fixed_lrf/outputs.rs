@@ -240,7 +240,10 @@ pub fn lrf_data(
         });
     }
     let main = &project.file.main_station;
-    let scans = (stations.iter().find(|s| &s.id == main)).map(|s| (s.header, s.lines.clone()));
+    let scans = (stations
+        .iter()
+        .find(|s| &s.id == main && !s.lines.is_empty()))
+    .map(|s| (s.header, s.lines.clone()));
     let lrf = LrfData {
         cloud,
         found,

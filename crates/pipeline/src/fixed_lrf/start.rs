@@ -71,6 +71,10 @@ pub fn corner_at_stations(
     let mount = MountModel::default();
     (stations.iter())
         .flat_map(|st| {
+            if st.lines.is_empty() {
+                let why = "its scans are a cloud of 2D points: the corner's single shot needs the scan lines as the sensor reported them";
+                return vec![(st.id.clone(), Err(why.to_string()))];
+            }
             let targets: Vec<(String, V3)> = (scene.points.iter())
                 .filter(|p| p.kind != PointKind::Ball)
                 .map(|p| (p.name.clone(), st.pose.transform(&p.position)))

@@ -28,7 +28,8 @@ pub struct Station {
     pub pose: Rigid3,
     /// The scans' beam geometry.
     pub header: ScanHeader,
-    /// The scans as read (ranges beyond the sensor's maximum masked).
+    /// The scans as read (ranges beyond the sensor's maximum masked); none when the station's
+    /// file is a cloud of 2D points (its `header` then holds no geometry).
     pub lines: Vec<ScanLine>,
     /// Every beam with a return, with its σ at the measured range.
     pub beams: Vec<FixedBeam>,
@@ -81,8 +82,27 @@ pub fn read_stations(
             )));
         };
         let name = path.path.display().to_string();
-        let (header, lines) = crate::lrf::scan_file(&path.path, l.max_range_mm, rep)?;
-        let beams = beams_of(&header, &lines, noise);
+        let (header, lines, beams) = if path.is_scans() {
+            let (header, lines) = crate::lrf::scan_file(&path.path, l.max_range_mm, rep)?;
+            let beams = beams_of(&header, &lines, noise);
+            (header, lines, beams)
+        } else {
+            // the 2D points of a cloud: beams without the scans' order (no corner there)
+            let (cloud, warnings) = (path.read_in(&Default::default(), project.lrf.cloud_unit))
+                .map_err(|e| PipelineError::Input(e.to_string()))?;
+            for w in warnings {
+                rep.log(format!("warning: {w}"));
+            }
+            let beams = beams_of_points(&cloud, l.max_range_mm, noise)
+                .map_err(|why| PipelineError::Input(format!("{name}: {why}")))?;
+            let none = ScanHeader {
+                angle_min_deg: 0.0,
+                angle_increment_deg: 0.0,
+                mm_per_unit: 1.0,
+                time_increment_s: None,
+            };
+            (none, Vec::new(), beams)
+        };
         if beams.is_empty() {
             return Err(PipelineError::Input(format!(
                 "{name}: no beam with a return in any scan"
@@ -116,6 +136,53 @@ fn station_image(project: &Project, station: &str) -> Result<ImageId> {
         })
 }
 
+/// How far a fixed LRF's cloud point may lie off its scan plane (mm): the plane is `z = 0`
+/// of the scanner's frame, and a 2D scan's points lie in it exactly (a driver's projection
+/// writes z = 0) but for the file's rounding.
+pub const SCAN_PLANE_TOLERANCE_MM: f64 = 1.0;
+
+/// The beams of a fixed LRF's cloud of 2D points (the scanner's frame, mm): each point's
+/// angle and range in the scan plane, those beyond `max_range_mm` left out; why not when a
+/// point lies off the scan plane or a ray does not start at the scanner.
+fn beams_of_points(
+    cloud: &pingcal_lrf::cloud::Cloud,
+    max_range_mm: f64,
+    noise: &RangeNoise,
+) -> std::result::Result<Vec<FixedBeam>, String> {
+    if let Some(origins) = &cloud.origins {
+        if let Some((k, o)) =
+            (origins.iter().enumerate()).find(|(_, o)| o.norm() > SCAN_PLANE_TOLERANCE_MM)
+        {
+            return Err(format!(
+                "point {} has its ray start at ({:.1}, {:.1}, {:.1}) mm: a fixed LRF's cloud is one station's scans in the scanner's frame, every ray from its centre",
+                k + 1, o.x, o.y, o.z
+            ));
+        }
+    }
+    let mut beams = Vec::new();
+    for (k, x) in cloud.points.iter().enumerate() {
+        if x.z.abs() > SCAN_PLANE_TOLERANCE_MM {
+            return Err(format!(
+                "point {} lies {:.1} mm off the scan plane (z = 0 of the scanner's frame, within {SCAN_PLANE_TOLERANCE_MM} mm): a fixed LRF's cloud holds its scans' 2D points in the scanner's frame",
+                k + 1,
+                x.z
+            ));
+        }
+        let r = x.x.hypot(x.y);
+        if r > 0.0 && r <= max_range_mm {
+            beams.push(FixedBeam {
+                alpha_rad: x.y.atan2(x.x),
+                range_mm: r,
+                sigma: noise.sigma(r).max(1.0),
+            });
+        }
+    }
+    if beams.is_empty() {
+        return Err("no point with a range (every one at the scanner's centre or beyond [lrf] max_range_mm)".into());
+    }
+    Ok(beams)
+}
+
 /// The beams with a return of `lines`, each with its σ.
 fn beams_of(header: &ScanHeader, lines: &[ScanLine], noise: &RangeNoise) -> Vec<FixedBeam> {
     let mut beams = Vec::new();
@@ -133,4 +200,53 @@ fn beams_of(header: &ScanHeader, lines: &[ScanLine], noise: &RangeNoise) -> Vec<
         }
     }
     beams
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use pingcal_lrf::cloud::Cloud;
+
+    fn cloud(points: &[[f64; 3]]) -> Cloud {
+        Cloud {
+            points: points.iter().map(|p| Vector3::from(*p)).collect(),
+            origins: None,
+            readings: None,
+        }
+    }
+
+    /// A cloud's 2D points become beams of their angle and range; a point off the scan
+    /// plane, or a ray that does not start at the scanner, is refused naming the point.
+    #[test]
+    fn a_clouds_points_in_the_scan_plane_are_its_beams() {
+        let noise = RangeNoise::urg_04lx();
+        let beams = beams_of_points(
+            &cloud(&[[1000.0, 1000.0, 0.4], [0.0, -500.0, 0.0], [9e9, 0.0, 0.0]]),
+            5600.0,
+            &noise,
+        )
+        .expect("beams");
+        assert_eq!(
+            beams.len(),
+            2,
+            "the one beyond the maximum range is left out"
+        );
+        assert!((beams[0].alpha_rad - std::f64::consts::FRAC_PI_4).abs() < 1e-12);
+        assert!((beams[0].range_mm - 2f64.sqrt() * 1000.0).abs() < 1e-9);
+        assert!((beams[1].alpha_rad + std::f64::consts::FRAC_PI_2).abs() < 1e-12);
+        let off = beams_of_points(
+            &cloud(&[[1000.0, 0.0, 0.0], [800.0, 10.0, 25.0]]),
+            5600.0,
+            &noise,
+        )
+        .expect_err("off the plane");
+        assert!(
+            off.contains("point 2 lies 25.0 mm off the scan plane"),
+            "{off}"
+        );
+        let mut moved = cloud(&[[1000.0, 0.0, 0.0]]);
+        moved.origins = Some(vec![Vector3::new(0.0, 0.0, 300.0)]);
+        let why = beams_of_points(&moved, 5600.0, &noise).expect_err("a ray elsewhere");
+        assert!(why.contains("point 1 has its ray start"), "{why}");
+    }
 }
