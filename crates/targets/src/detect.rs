@@ -8,6 +8,7 @@ use crate::confidence::ReadMargins;
 use crate::ellipse::{Ellipse, Frame};
 use crate::image_io::{load_image, GrayImage};
 use crate::refusal::{Refusal, RefusalReason, GLYPH_INK, GLYPH_PAPER, GLYPH_RADIUS, GLYPH_STROKE};
+use crate::refusal::{GLYPH_BRIGHT_REACH, GLYPH_PAPER_REACH};
 use crate::TargetError;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -254,17 +255,18 @@ impl Detector {
 
     /// Whether the blob outlined by `seed` is the inside of a printed glyph (see
     /// [`crate::refusal`]): on the circle of [`GLYPH_RADIUS`] radii, more than half the samples
-    /// (a quarter when the stroke is ink) are at least half way from the darkest sample of the
+    /// (a quarter or more when the stroke is ink) are at least half way from the darkest sample of the
     /// circle at 1.3 radii (the stroke) to the blob's middle; and either the blob is
     /// `saturated` (in a flat render the paper and the inside of the letters both are), or the
-    /// paper on the circle (the upper eighth of its bright samples) is the blob's own level to within [`GLYPH_PAPER`] of the stroke's
+    /// paper (the upper eighth of the bright samples, each ray's brightest out to
+    /// [`GLYPH_PAPER_REACH`] radii) is the blob's own level to within [`GLYPH_PAPER`] of the stroke's
     /// contrast (the paper around a letter is the paper inside it) and the stroke is ink, as
     /// dark as [`GLYPH_INK`] of the paper or darker, or (with more than half the circle bright)
     /// at least [`GLYPH_STROKE`] radii wide (the median over 32 rays of where the profile
     /// climbs back to the half-way level).
     fn is_glyph(&self, img: &GrayImage, seed: &Ellipse, fg: f32, saturated: bool) -> bool {
         const K: usize = 32;
-        let outer = seed.scaled(GLYPH_RADIUS + 0.1);
+        let outer = seed.scaled(GLYPH_PAPER_REACH + 0.1);
         if !img.inside(outer.cx - outer.a, outer.cy - outer.a, 1.0)
             || !img.inside(outer.cx + outer.a, outer.cy + outer.a, 1.0)
         {
@@ -281,24 +283,36 @@ impl Detector {
             return false;
         }
         let level = stroke + 0.5 * (fg - stroke);
+        // each ray's brightest between GLYPH_RADIUS and GLYPH_BRIGHT_REACH radii: a circle at
+        // one radius may run along the anti-aliased outer edge of a thin stroke (a digit's
+        // bowl at 150 dpi)
         let mut v = [0.0f32; K];
         for (vk, &t) in v.iter_mut().zip(trig.iter()) {
-            *vk = at(GLYPH_RADIUS, t);
+            *vk = at(GLYPH_RADIUS, t).max(at(GLYPH_BRIGHT_REACH, t));
         }
         // A letter's stem or tail beside its bowl ('b', 'g', 'e' at 300 dpi) hides up to
         // three quarters of the circle: with an ink stroke, a quarter of it bright will do.
         let bright = v.iter().filter(|&&x| x >= level).count();
         let ink = stroke <= GLYPH_INK * fg;
-        if bright * 2 <= K && !(ink && bright * 4 > K) {
+        if bright * 2 <= K && !(ink && bright * 4 >= K) {
             return false;
         }
         if saturated {
             return true;
         }
+        // the paper: the upper eighth of the bright samples, each ray's brightest out to
+        // GLYPH_PAPER_REACH radii (the circle at GLYPH_RADIUS crosses the anti-aliased edges
+        // of the neighbouring letters, and of a narrow counter's own stroke: a '0' whose
+        // inside is twice as tall as wide)
+        let mut w = v;
+        for (wk, &t) in w.iter_mut().zip(trig.iter()) {
+            for rho in [GLYPH_RADIUS + 0.25, GLYPH_PAPER_REACH] {
+                *wk = wk.max(at(rho, t));
+            }
+        }
         v.sort_by(|a, b| a.total_cmp(b));
-        // the paper: the upper eighth of the circle's bright samples (the circle crosses the
-        // anti-aliased edges of the neighbouring letters)
-        let paper = v[K - 1 - bright / 8];
+        w.sort_by(|a, b| a.total_cmp(b));
+        let paper = w[K - 1 - bright / 8];
         if (paper - fg).abs() > GLYPH_PAPER * (fg - stroke) {
             return false;
         }

@@ -53,6 +53,7 @@ pub mod detect;
 pub mod dot;
 pub mod driveback;
 pub mod ellipse;
+pub mod glyphs;
 pub mod homography;
 pub mod image_checks;
 pub mod image_io;

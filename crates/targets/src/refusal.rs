@@ -48,6 +48,13 @@ pub const GLYPH_STROKE: f64 = 1.42;
 /// Printed ink is at most this fraction of the paper's level (the black rim of a
 /// retro-reflective target in a flash's hot spot is 0.2 to 0.27 of its dot's, on the panel).
 pub const GLYPH_INK: f32 = 0.12;
+/// The glyph test looks for bright paper out to this many radii (a printed plain target's
+/// black square reaches 2 radii: the test must stay inside it).
+pub const GLYPH_BRIGHT_REACH: f64 = 1.9;
+/// The glyph test takes the paper around a glyph from out to this many radii of its inside
+/// (a printed plain target's black disc reaches farther, and the test does not get this far
+/// for it: its circle at [`GLYPH_RADIUS`] is dark all round).
+pub const GLYPH_PAPER_REACH: f64 = 2.25;
 /// The paper around a glyph is the paper inside it: their levels differ by at most this
 /// fraction of the stroke's contrast.
 pub const GLYPH_PAPER: f32 = 0.12;

@@ -10,6 +10,7 @@
 //! whether the printer scaled the page (print at 100 %, no fit-to-page).
 
 use crate::aicon::CodeTable;
+use crate::glyphs::Segment;
 use crate::printable::SQUARE_HALF;
 use crate::TargetError;
 use std::f64::consts::PI;
@@ -120,8 +121,8 @@ pub enum Shape {
         /// Fill.
         white: bool,
     },
-    /// Black Helvetica text with its baseline at `y`; centred on `x` when `centred`, else
-    /// starting at `x`.
+    /// Black text with its baseline at `y`, drawn as the outlines of the font pingcal embeds
+    /// ([`crate::glyphs`]); centred on `x` when `centred`, else starting at `x`.
     Text {
         /// Anchor x.
         x: f64,
@@ -425,16 +426,27 @@ pub fn to_svg(page: &Page, size: PageSize) -> String {
                 size,
                 text,
                 centred,
-            } => writeln!(
-                s,
-                r#"<text x="{x:.4}" y="{y:.4}" font-family="Helvetica, Arial, sans-serif" font-size="{size:.4}"{}>{}</text>"#,
-                if *centred {
-                    r#" text-anchor="middle""#
-                } else {
-                    ""
-                },
-                xml_escape(text)
-            ),
+            } => {
+                let mut d = String::new();
+                for seg in text_outline(*x, *y, *size, text, *centred) {
+                    let _ = match seg {
+                        Segment::Move(x, y) => write!(d, "M{x:.4} {y:.4}"),
+                        Segment::Line(x, y) => write!(d, "L{x:.4} {y:.4}"),
+                        Segment::Cubic(p) => write!(
+                            d,
+                            "C{:.4} {:.4} {:.4} {:.4} {:.4} {:.4}",
+                            p[0], p[1], p[2], p[3], p[4], p[5]
+                        ),
+                        Segment::Close => write!(d, "Z"),
+                    };
+                }
+                // the text itself for readers and search, the outline for the eye
+                writeln!(
+                    s,
+                    r#"<path d="{d}" fill="black"><title>{}</title></path>"#,
+                    xml_escape(text)
+                )
+            }
         };
     }
     let _ = writeln!(s, "</svg>");
@@ -463,37 +475,25 @@ fn svg_sector(cx: f64, cy: f64, r0: f64, r1: f64, a0: f64, a1: f64) -> String {
 /// Points per millimetre (PDF's unit is 1/72 in).
 const PT_PER_MM: f64 = 72.0 / 25.4;
 
-/// Helvetica's advance width of a character, in em (the standard 14 fonts' metrics: digits
-/// are 0.556 em; other characters are only ever left-aligned, so an average is enough).
-fn helvetica_width(c: char) -> f64 {
-    if c.is_ascii_digit() {
-        0.556
-    } else {
-        0.5
-    }
-}
-
-/// A PDF document of `pages` (vector shapes, the text in the standard Helvetica font, which
-/// every PDF reader has).
+/// A PDF document of `pages` (vector shapes, the text as outlines of the font pingcal embeds,
+/// [`crate::glyphs`]: the same on every machine).
 pub fn to_pdf(pages: &[Page], size: PageSize) -> Vec<u8> {
-    use pdf_writer::{Content, Finish, Name, Pdf, Rect, Ref};
+    use pdf_writer::{Content, Finish, Pdf, Rect, Ref};
     let (w, h) = size.mm();
     let (wpt, hpt) = ((w * PT_PER_MM) as f32, (h * PT_PER_MM) as f32);
     let mut pdf = Pdf::new();
-    let (catalog, tree, font) = (Ref::new(1), Ref::new(2), Ref::new(3));
+    let (catalog, tree) = (Ref::new(1), Ref::new(2));
     let page_ref = |k: usize| Ref::new(4 + 2 * k as i32);
     let content_ref = |k: usize| Ref::new(5 + 2 * k as i32);
     pdf.catalog(catalog).pages(tree);
     pdf.pages(tree)
         .kids((0..pages.len()).map(page_ref))
         .count(pages.len() as i32);
-    pdf.type1_font(font).base_font(Name(b"Helvetica"));
     for (k, page) in pages.iter().enumerate() {
         let mut p = pdf.page(page_ref(k));
         p.media_box(Rect::new(0.0, 0.0, wpt, hpt));
         p.parent(tree);
         p.contents(content_ref(k));
-        p.resources().fonts().pair(Name(b"F1"), font);
         p.finish();
         let mut c = Content::new();
         // page millimetres, y down → points, y up
@@ -508,7 +508,6 @@ pub fn to_pdf(pages: &[Page], size: PageSize) -> Vec<u8> {
 
 /// One shape into a content stream whose user space is page millimetres, y down.
 fn pdf_shape(c: &mut pdf_writer::Content, sh: &Shape) {
-    use pdf_writer::{Name, Str};
     let gray = |white: bool| if white { 1.0 } else { 0.0 };
     match sh {
         Shape::Rect { x, y, w, h, white } => {
@@ -544,25 +543,40 @@ fn pdf_shape(c: &mut pdf_writer::Content, sh: &Shape) {
             text,
             centred,
         } => {
-            let width: f64 = text.chars().map(helvetica_width).sum::<f64>() * size;
-            let left = if *centred { x - width / 2.0 } else { *x };
-            let ascii: Vec<u8> = text.bytes().filter(|b| (0x20..0x7f).contains(b)).collect();
             c.set_fill_gray(0.0);
-            c.begin_text();
-            c.set_font(Name(b"F1"), 1.0);
-            // text space: size mm per unit, y up again (the page's y is down)
-            c.set_text_matrix([
-                *size as f32,
-                0.0,
-                0.0,
-                -*size as f32,
-                left as f32,
-                *y as f32,
-            ]);
-            c.show(Str(&ascii));
-            c.end_text();
+            let mut any = false;
+            for seg in text_outline(*x, *y, *size, text, *centred) {
+                any = true;
+                match seg {
+                    Segment::Move(x, y) => c.move_to(x as f32, y as f32),
+                    Segment::Line(x, y) => c.line_to(x as f32, y as f32),
+                    Segment::Cubic(p) => c.cubic_to(
+                        p[0] as f32,
+                        p[1] as f32,
+                        p[2] as f32,
+                        p[3] as f32,
+                        p[4] as f32,
+                        p[5] as f32,
+                    ),
+                    Segment::Close => c.close_path(),
+                };
+            }
+            if any {
+                c.fill_nonzero();
+            }
         }
     }
+}
+
+/// The outline of a text shape: `text` at `size` on the baseline `y`, centred on `x` or
+/// starting at it ([`crate::glyphs`]).
+fn text_outline(x: f64, y: f64, size: f64, text: &str, centred: bool) -> Vec<Segment> {
+    let left = if centred {
+        x - crate::glyphs::width(text, size) / 2.0
+    } else {
+        x
+    };
+    crate::glyphs::outline(text, left, y, size)
 }
 
 /// The arc of radius `r` about (cx, cy) from angle `a0` to `a1` as cubic Béziers of at most
