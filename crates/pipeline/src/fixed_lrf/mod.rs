@@ -36,7 +36,7 @@ mod planes;
 mod start;
 mod stations;
 
-pub use adjust::MIN_GATE_MM;
+pub use adjust::{GATE_SIGMAS, MIN_GATE_MM};
 pub use planes::{FieldPlane, MIN_PLANE_TARGETS, PLANE_TOL_MM};
 pub use start::GATES_MM;
 pub use stations::Station;

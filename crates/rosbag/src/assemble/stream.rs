@@ -570,17 +570,8 @@ fn read_with_cap(
         }
         return Err(no_servo_samples(bags, topics, st.servo_messages, &st.names));
     }
-    if st.geometry.is_none() && st.done.empty_scans == 0 {
-        let files: Vec<&str> = bags.iter().map(Bag::name).collect();
-        let bad = &st.done.bad_geometry;
-        let what = match &bad.first {
-            Some(first) => format!(
-                "no scan a scan file can hold: {} scan(s) with an angle or a step beyond a turn (the first: {first})",
-                bad.count
-            ),
-            None => "no LaserScan messages in any of the bags".into(),
-        };
-        return Err(RosbagError::topic(&files.join(", "), &topics.scan, what));
+    if let Some(e) = no_scan(bags, &topics.scan, &st) {
+        return Err(e);
     }
     st.flush(true, f)?;
     let d = st.decision.take().unwrap_or(Decision {
@@ -591,6 +582,23 @@ fn read_with_cap(
     st.done.motion_reason = d.reason;
     st.done.clock = clock;
     Ok(st.done)
+}
+
+/// The error of a read that met no scan a file can hold (none, or only bad geometries; an
+/// empty scan counts as met).
+fn no_scan(bags: &[Bag], topic: &str, st: &Stream) -> Option<RosbagError> {
+    if st.geometry.is_some() || st.done.empty_scans > 0 {
+        return None;
+    }
+    let files: Vec<&str> = bags.iter().map(Bag::name).collect();
+    let what = match &st.done.bad_geometry.first {
+        Some(first) => format!(
+            "no scan a scan file can hold: {} scan(s) with an angle or a step beyond a turn (the first: {first})",
+            st.done.bad_geometry.count
+        ),
+        None => "no LaserScan messages in any of the bags".into(),
+    };
+    Some(RosbagError::topic(&files.join(", "), topic, what))
 }
 
 /// [`crate::assemble::read_fixed_scans`]: one pass over the scan topic, every scan at
@@ -614,16 +622,8 @@ pub fn read_fixed(
     st.servo_complete = true;
     st.done.passes = 1;
     st.pass(bags, f)?;
-    if st.geometry.is_none() && st.done.empty_scans == 0 {
-        let files: Vec<&str> = bags.iter().map(Bag::name).collect();
-        let what = match &st.done.bad_geometry.first {
-            Some(first) => format!(
-                "no scan a scan file can hold: {} scan(s) with an angle or a step beyond a turn (the first: {first})",
-                st.done.bad_geometry.count
-            ),
-            None => "no LaserScan messages in any of the bags".into(),
-        };
-        return Err(RosbagError::topic(&files.join(", "), scan, what));
+    if let Some(e) = no_scan(bags, scan, &st) {
+        return Err(e);
     }
     st.flush(true, f)?;
     st.done.motion = ServoMotion::StopAndGo;
