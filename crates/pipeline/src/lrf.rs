@@ -17,7 +17,7 @@ use crate::progress::Reporter;
 use pingcal_lrf::ball_finder::{find_balls, find_walls, FindResult, FinderOptions};
 use pingcal_lrf::cloud::{Cloud, MountModel};
 use pingcal_lrf::cloud_file::{masked_warning, non_empty, CloudPath};
-use pingcal_lrf::room::{mount_from_room_refinding, RoomMount, RoomOptions};
+use pingcal_lrf::room::{mount_from_room_refinding, room_finder, RoomMount, RoomOptions};
 use pingcal_lrf::scan::{mask_lines_beyond, open_scan_file, ScanHeader, ScanLine};
 use pingcal_lrf::sensor::{MountParam, RangeNoise};
 use pingcal_project::{BagServo, Project, ProjectBag};
@@ -226,8 +226,17 @@ pub fn room_mount(
         seed,
         ..FinderOptions::default()
     };
+    // the planes the ball finder removed; where it found none (a nodding scanner's sweep
+    // holds each wall in a band, narrower than the ball finder's walls), the room's own
+    // search ([`room_finder`]), as `pingcal lrf-mount` searches
+    let (walls, finder) = if lrf.found.planes.is_empty() {
+        let room = room_finder(finder);
+        (find_walls(&lrf.cloud, &room), room)
+    } else {
+        (lrf.found.planes.clone(), finder)
+    };
     let find = |c: &Cloud| find_walls(c, &finder);
-    match mount_from_room_refinding(&lrf.cloud, &lrf.found.planes, &lrf.mount, &opts, find) {
+    match mount_from_room_refinding(&lrf.cloud, &walls, &lrf.mount, &opts, find) {
         Ok(r) => {
             rep.log(format!("LRF mount from the room: {}", describe_room(&r)));
             r.parameters.iter().any(|p| p.sigma.is_some()).then_some(r)
