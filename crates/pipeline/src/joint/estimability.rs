@@ -8,7 +8,7 @@
 use super::groups::SensorKeys;
 use super::problem::Joint;
 use super::{
-    to_unit, unit, FULL_TURN_DEG, MAX_CORRELATION, MAX_PRIOR_SHARE, PRIOR_SIGMA,
+    to_unit, unit, FULL_TURN_DEG, MAX_CORRELATION, MAX_PRIOR_SHARE, PLAUSIBLE, PRIOR_SIGMA,
     TIME_OFFSET_PRIOR_SIGMA_S,
 };
 use crate::context::{PipelineError, Result};
@@ -96,6 +96,7 @@ pub(super) fn estimability(
             continue;
         }
         free[k] = false;
+        let why = format!("{why}{}", consider(k, &cov, rows));
         held[k] = Some(if joint.sweep_deg < FULL_TURN_DEG {
             format!(
                 "{why}; the servo turned through {:.0}° only: a full turn sees every ball twice, from both sides, which is what tells the scanner's offsets and its range offset from the extrinsic",
@@ -106,6 +107,25 @@ pub(super) fn estimability(
         });
     }
     Ok(any)
+}
+
+/// What holding mount parameter `k` at the project's value costs: were the value off by the
+/// parameter's plausible size ([`PLAUSIBLE`]), the extrinsic would move by `Σ_xk / Σ_kk` times
+/// it (the shift of the extrinsic given the parameter, from the cofactors `cov` with the weak
+/// priors on), whatever its σ says; the largest translation and rotation, as a clause.
+fn consider(k: usize, cov: &DMatrix<f64>, rows: Rows) -> String {
+    let kk = cov[(rows.mount(k), rows.mount(k))];
+    if kk <= 0.0 || !kk.is_finite() {
+        return String::new();
+    }
+    let moved = |j: usize| (cov[(rows.ext(j), rows.mount(k))] / kk * PLAUSIBLE[k]).abs();
+    let t = (3..6).map(moved).fold(0.0f64, f64::max);
+    let r = (0..3).map(moved).fold(0.0f64, f64::max).to_degrees();
+    format!(
+        "; held at the project's value: were it off by its plausible {:.3}{}, the extrinsic would move by up to {t:.1} mm and {r:.2}°",
+        to_unit(k, PLAUSIBLE[k]),
+        unit(k)
+    )
 }
 
 /// Why parameter `k` cannot be estimated, judged on the cofactors `cov` of the extrinsic
