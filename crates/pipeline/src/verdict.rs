@@ -306,6 +306,7 @@ fn joint_verdict(st: &Stages, reasons: &mut Vec<String>, notes: &mut Vec<String>
         )),
         Some(Ok(j)) => {
             reasons.extend(j.convergence.doubt());
+            reasons.extend(held_costs(j));
             notes.extend(j.hold_mount.clone());
             // a fixed LRF's extrinsic component that the data do not determine is held at
             // its start: the extrinsic is then not a calibration in that component
@@ -318,6 +319,36 @@ fn joint_verdict(st: &Stages, reasons: &mut Vec<String>, notes: &mut Vec<String>
         None => {}
     }
     failed
+}
+
+/// A held mount parameter costs more than the extrinsic's σ's show when, were its held
+/// value off by its plausible size, some component of the extrinsic would move by more than
+/// this many of its σ.
+pub const HELD_SHIFT_SIGMAS: f64 = 3.0;
+
+/// The mount parameters the joint adjustment held for want of data whose plausible error
+/// would move a component of the extrinsic beyond [`HELD_SHIFT_SIGMAS`] of its σ: one reason
+/// each.
+fn held_costs(j: &JointOutcome) -> Vec<String> {
+    let sd = |i: usize| {
+        j.extrinsic_cov[(i, i)]
+            .max(0.0)
+            .sqrt()
+            .max(f64::MIN_POSITIVE)
+    };
+    (j.held_shifts.iter().enumerate())
+        .filter_map(|(k, s)| s.map(|s| (k, s)))
+        .filter_map(|(k, s)| {
+            let times = (0..6).map(|i| s[i].abs() / sd(i)).fold(0.0f64, f64::max);
+            let [t, r] = crate::joint::largest_shift(s);
+            (times > HELD_SHIFT_SIGMAS).then(|| {
+                format!(
+                    "{} is held for want of data, and were it off by its plausible size the extrinsic would move by up to {t:.1} mm and {r:.2}°, {times:.0}× its σ: the σ's do not hold that error (record a sweep that determines it: a full turn of the servo sees every ball from both sides)",
+                    pingcal_lrf::sensor::MOUNT_PARAM_NAMES[k]
+                )
+            })
+        })
+        .collect()
 }
 
 type Test<'a> = dyn FnMut(&str, f64, f64, &dyn Fn(f64, f64) -> String) + 'a;

@@ -362,6 +362,7 @@ pub fn joint_outcome(
             "a fixed LRF has no servo and no mount: its range offset and scale are its model"
                 .into(),
         ),
+        held_shifts: [None; 8],
     }
 }
 

@@ -67,7 +67,7 @@ pub(super) fn estimability(
     joint: &mut Joint,
     at: &Problem,
     free: &mut [bool; 8],
-    held: &mut [Option<String>; 8],
+    (held, shifts): (&mut [Option<String>; 8], &mut [Option<[f64; 6]>; 8]),
 ) -> Result<bool> {
     let mut any = false;
     let tau_free = |j: &Joint| j.time_offset.as_ref().is_some_and(|t| t.free());
@@ -96,7 +96,16 @@ pub(super) fn estimability(
             continue;
         }
         free[k] = false;
-        let why = format!("{why}{}", consider(k, &cov, rows));
+        let shift = consider(k, &cov, rows);
+        shifts[k] = shift;
+        let why = match shift.map(largest_shift) {
+            Some([t, r]) => format!(
+                "{why}; held at the project's value: were it off by its plausible {:.3}{}, the extrinsic would move by up to {t:.1} mm and {r:.2}°",
+                to_unit(k, PLAUSIBLE[k]),
+                unit(k)
+            ),
+            None => why,
+        };
         held[k] = Some(if joint.sweep_deg < FULL_TURN_DEG {
             format!(
                 "{why}; the servo turned through {:.0}° only: a full turn sees every ball twice, from both sides, which is what tells the scanner's offsets and its range offset from the extrinsic",
@@ -110,22 +119,20 @@ pub(super) fn estimability(
 }
 
 /// What holding mount parameter `k` at the project's value costs: were the value off by the
-/// parameter's plausible size ([`PLAUSIBLE`]), the extrinsic would move by `Σ_xk / Σ_kk` times
-/// it (the shift of the extrinsic given the parameter, from the cofactors `cov` with the weak
-/// priors on), whatever its σ says; the largest translation and rotation, as a clause.
-fn consider(k: usize, cov: &DMatrix<f64>, rows: Rows) -> String {
+/// parameter's plausible size ([`PLAUSIBLE`]), the extrinsic (δω rad, δt mm) would move by
+/// `Σ_xk / Σ_kk` times it (the shift of the extrinsic given the parameter, from the cofactors
+/// `cov` with the weak priors on), whatever its σ says.
+fn consider(k: usize, cov: &DMatrix<f64>, rows: Rows) -> Option<[f64; 6]> {
     let kk = cov[(rows.mount(k), rows.mount(k))];
-    if kk <= 0.0 || !kk.is_finite() {
-        return String::new();
-    }
-    let moved = |j: usize| (cov[(rows.ext(j), rows.mount(k))] / kk * PLAUSIBLE[k]).abs();
-    let t = (3..6).map(moved).fold(0.0f64, f64::max);
-    let r = (0..3).map(moved).fold(0.0f64, f64::max).to_degrees();
-    format!(
-        "; held at the project's value: were it off by its plausible {:.3}{}, the extrinsic would move by up to {t:.1} mm and {r:.2}°",
-        to_unit(k, PLAUSIBLE[k]),
-        unit(k)
-    )
+    (kk > 0.0 && kk.is_finite())
+        .then(|| std::array::from_fn(|j| cov[(rows.ext(j), rows.mount(k))] / kk * PLAUSIBLE[k]))
+}
+
+/// The largest translation (mm) and rotation (degrees) of an extrinsic shift (δω rad, δt mm).
+pub fn largest_shift(s: [f64; 6]) -> [f64; 2] {
+    let t = s[3..].iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let r = s[..3].iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    [t, r.to_degrees()]
 }
 
 /// Why parameter `k` cannot be estimated, judged on the cofactors `cov` of the extrinsic

@@ -74,6 +74,7 @@
 mod ball_beams;
 mod convergence;
 mod estimability;
+pub use estimability::largest_shift;
 pub mod groups;
 mod outcome;
 mod plane_beams;
@@ -235,7 +236,8 @@ pub fn joint_adjustment(
     // not determine it, and adjusted again without it
     let (p, prec, mut rejected) = rounds::final_rounds(&mut joint, &free)?;
     pb.advance(1);
-    let any_held = estimability::estimability(&mut joint, &p, &mut free, &mut held)?;
+    let mut shifts = [None; 8];
+    let any_held = estimability::estimability(&mut joint, &p, &mut free, (&mut held, &mut shifts))?;
     for (k, why) in held.iter().enumerate() {
         if let (Some(why), true) = (why, asked[k]) {
             rep.log(format!("  joint: {} held: {why}", MOUNT_PARAM_NAMES[k]));
@@ -253,7 +255,8 @@ pub fn joint_adjustment(
     };
     let second = convergence::second_start(&joint, &p, &prec, &free, input.seed)?;
     pb.advance(1);
-    let out = outcome::finish(input, &joint, (&free, &held), rejected, second, rep)?;
+    let mut out = outcome::finish(input, &joint, (&free, &held), rejected, second, rep)?;
+    out.held_shifts = shifts;
     pb.finish();
     Ok(out)
 }

@@ -94,6 +94,10 @@ pub struct JointOutcome {
     pub convergence: Convergence,
     /// Why every mount parameter was held (the simpler model chosen), if it was.
     pub hold_mount: Option<String>,
+    /// Per mount parameter held because the data do not determine it: how far the
+    /// extrinsic (δω rad, δt mm, as `extrinsic_cov`) would move were its held value off by
+    /// its plausible size.
+    pub held_shifts: [Option<[f64; 6]>; 8],
 }
 
 /// What the LRF step gave the joint adjustment's pass: the spheres found in the cloud
@@ -255,6 +259,7 @@ pub(super) fn finish(
         planes: (joint.group::<PlaneBeams>()).map_or_else(Vec::new, |g| g.solved(&p)),
         convergence: second.summary,
         hold_mount: input.hold_mount.map(String::from),
+        held_shifts: [None; 8],
     };
     log_outcome(&out, rep);
     Ok(out)
