@@ -9,6 +9,7 @@ use crate::common;
 
 mod fixed_lrf;
 mod observation_group;
+mod rig_check;
 
 use common::{
     read_json, replace_once, two_step_method, Work, LRF_AS_STATED, OUTPUTS, QUARTER_BEAMS,
