@@ -786,3 +786,75 @@ fn a_fixed_lrfs_bag_gives_its_scans_at_servo_zero() {
     assert!(!ok && stderr.contains("--fixed"), "{stderr}");
     assert!(!out.exists());
 }
+
+/// `--from` / `--to` (issue 50: one station of a robot that stopped at several in one
+/// recording): only the scans in the window, in seconds after the bag's first scan; a window
+/// that holds none, or ends before it starts, refused in one line.
+#[test]
+fn a_time_window_takes_one_stations_scans() {
+    let path = data("ros1.bag");
+    let bag = path.to_str().unwrap();
+    let (_, all) = {
+        let out = tmp("window-all.csv");
+        let (ok, o, e) = pingcal(&[
+            "scans",
+            bag,
+            "--scan-topic",
+            "/scan",
+            "--fixed",
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert!(ok, "{o}\n{e}");
+        read(&out)
+    };
+    let t0 = all[0].stamp_s;
+    let (a, b) = (all[1].stamp_s - t0, all[3].stamp_s - t0);
+    let out = tmp("window.csv");
+    let (from, to) = (format!("{}", a - 0.01), format!("{}", b + 0.01));
+    let (ok, o, e) = pingcal(&[
+        "scans",
+        bag,
+        "--scan-topic",
+        "/scan",
+        "--fixed",
+        "--from",
+        &from,
+        "--to",
+        &to,
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(ok, "{o}\n{e}");
+    let (_, got) = read(&out);
+    let want: Vec<f64> = all[1..=3].iter().map(|l| l.stamp_s).collect();
+    assert_eq!(got.iter().map(|l| l.stamp_s).collect::<Vec<_>>(), want);
+    let none = tmp("window-none.csv");
+    let (ok, _, e) = pingcal(&[
+        "scans",
+        bag,
+        "--scan-topic",
+        "/scan",
+        "--fixed",
+        "--from",
+        "100000",
+        "--out",
+        none.to_str().unwrap(),
+    ]);
+    assert!(!ok && e.contains("no scan between --from and --to"), "{e}");
+    assert!(!none.exists());
+    let (ok, _, e) = pingcal(&[
+        "scans",
+        bag,
+        "--scan-topic",
+        "/scan",
+        "--fixed",
+        "--from",
+        "5",
+        "--to",
+        "1",
+        "--out",
+        none.to_str().unwrap(),
+    ]);
+    assert!(!ok && e.contains("--to 1 is before --from 5"), "{e}");
+}

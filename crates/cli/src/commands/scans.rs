@@ -80,6 +80,13 @@ pub struct Args {
     /// clocks (it says which it used, and why).
     #[arg(long, default_value = "auto", value_parser = Stamps::parse)]
     pub stamps: Stamps,
+    /// Only the scans from this many seconds after the first scan on (one station of a
+    /// robot that stopped at several in one recording).
+    #[arg(long, value_parser = seconds)]
+    pub from: Option<f64>,
+    /// Only the scans up to this many seconds after the first scan.
+    #[arg(long, value_parser = seconds)]
+    pub to: Option<f64>,
     /// The scan file to write (`pingcal-scan` v2 CSV; v3 with intensities, v4 when the beam
     /// geometry changes between scans).
     #[arg(long, required_unless_present = "list")]
@@ -275,6 +282,16 @@ struct Written {
 /// Writes the scans of `bags` to `out`'s temporary file, every scan in its own beam
 /// geometry (a driver may change it between messages: the file is then v4), and renames it
 /// once complete; removes it on a failure.
+/// A `--from` / `--to` value: seconds, finite and not negative.
+fn seconds(v: &str) -> Result<f64, String> {
+    match v.parse::<f64>() {
+        Ok(s) if s.is_finite() && s >= 0.0 => Ok(s),
+        _ => Err(format!(
+            "expected seconds after the first scan (0 or more), found {v:?}"
+        )),
+    }
+}
+
 /// How the scans are read: with a servo topic, or a fixed LRF's.
 enum Reading {
     /// A rotating LRF: the topics and how the servo moves.
@@ -283,7 +300,12 @@ enum Reading {
     Fixed(String, Stamps),
 }
 
-fn write_scans(bags: &[Bag], reading: &Reading, out: &Path) -> Result<Written, super::CmdError> {
+fn write_scans(
+    bags: &[Bag],
+    reading: &Reading,
+    window: [Option<f64>; 2],
+    out: &Path,
+) -> Result<Written, super::CmdError> {
     let names: Vec<&str> = bags.iter().map(Bag::name).collect();
     let (scan_topic, servo) = match reading {
         Reading::Servo(t, _) => (t.scan.as_str(), t.servo.as_str()),
@@ -299,7 +321,14 @@ fn write_scans(bags: &[Bag], reading: &Reading, out: &Path) -> Result<Written, s
         file: out.display().to_string(),
         msg,
     };
+    let (mut first, mut span) = (None::<f64>, 0.0f64);
     let mut write = |h: &ScanHeader, line: ScanLine| {
+        // the window, in seconds after the first scan given
+        let after = line.stamp_s - *first.get_or_insert(line.stamp_s);
+        span = span.max(after);
+        if window[0].is_some_and(|a| after < a) || window[1].is_some_and(|b| after > b) {
+            return Ok(());
+        }
         let f = match &mut file {
             Some(f) => f,
             None => file.insert(ScanFile::create(h, &line, out, &extra).map_err(io)?),
@@ -322,6 +351,13 @@ fn write_scans(bags: &[Bag], reading: &Reading, out: &Path) -> Result<Written, s
         e
     };
     let done = result.map_err(|e| cleanup(e.into()))?;
+    if file.is_none() && first.is_some() {
+        return Err(format!(
+            "{}: topic {scan_topic}: no scan between --from and --to: the scans span 0 to {span:.3} s after the first",
+            names.join(", ")
+        )
+        .into());
+    }
     let Some(f) = file else {
         let skipped: Vec<String> = done
             .notes()
@@ -385,7 +421,12 @@ pub fn run(args: Args) -> CmdResult {
         ),
         None => Reading::Fixed(scan.clone(), args.stamps),
     };
-    let w = write_scans(&bags, &reading, out)?;
+    if let (Some(a), Some(b)) = (args.from, args.to) {
+        if b < a {
+            return Err(format!("--to {b} is before --from {a}").into());
+        }
+    }
+    let w = write_scans(&bags, &reading, [args.from, args.to], out)?;
     let done = &w.done;
     let from = match servo {
         Some(servo) => format!("servo from {servo}"),
