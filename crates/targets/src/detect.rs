@@ -283,9 +283,9 @@ impl Detector {
             return false;
         }
         let level = stroke + 0.5 * (fg - stroke);
-        // each ray's brightest between GLYPH_RADIUS and GLYPH_BRIGHT_REACH radii: a circle at
-        // one radius may run along the anti-aliased outer edge of a thin stroke (a digit's
-        // bowl at 150 dpi)
+        // each ray's brighter sample of the two at GLYPH_RADIUS and GLYPH_BRIGHT_REACH radii: a
+        // circle at one radius may run along the anti-aliased outer edge of a thin stroke (a
+        // digit's bowl at 150 dpi)
         let mut v = [0.0f32; K];
         for (vk, &t) in v.iter_mut().zip(trig.iter()) {
             *vk = at(GLYPH_RADIUS, t).max(at(GLYPH_BRIGHT_REACH, t));

@@ -80,11 +80,12 @@ pub struct Args {
     /// clocks (it says which it used, and why).
     #[arg(long, default_value = "auto", value_parser = Stamps::parse)]
     pub stamps: Stamps,
-    /// Only the scans from this many seconds after the first scan on (one station of a
-    /// robot that stopped at several in one recording).
+    /// Only the scans from this many seconds after the first scan read on (the first a file
+    /// can hold; with a servo, the first within its messages): one station of a robot that
+    /// stopped at several in one recording.
     #[arg(long, value_parser = seconds)]
     pub from: Option<f64>,
-    /// Only the scans up to this many seconds after the first scan.
+    /// Only the scans up to this many seconds after the first scan read.
     #[arg(long, value_parser = seconds)]
     pub to: Option<f64>,
     /// The scan file to write (`pingcal-scan` v2 CSV; v3 with intensities, v4 when the beam
@@ -355,6 +356,14 @@ fn write_scans(
         return Err(format!(
             "{}: topic {scan_topic}: no scan between --from and --to: the scans span 0 to {span:.3} s after the first",
             names.join(", ")
+        )
+        .into());
+    }
+    if file.is_none() && matches!(reading, Reading::Fixed(..)) {
+        return Err(format!(
+            "{}: topic {scan_topic}: no scan with a beam ({} empty)",
+            names.join(", "),
+            done.empty_scans
         )
         .into());
     }

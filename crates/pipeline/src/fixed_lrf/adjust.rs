@@ -75,6 +75,8 @@ pub struct FixedProblem {
     pub check_beams: Vec<(usize, FixedBeamOn)>,
     /// Beams on a ball that miss or graze it at the start, left out.
     pub grazing: usize,
+    /// Beams meeting their plane beyond [`MIN_COS_INCIDENCE`] at the start, left out.
+    pub oblique: usize,
     /// Per image observation of `base`, its group.
     pub group_of: Vec<usize>,
     /// The solver's options.
@@ -123,7 +125,7 @@ impl FixedProblem {
             })
             .collect();
         let keys = (ext, range, &frames[..]);
-        let (beams, check_beams, grazing) =
+        let (beams, check_beams, [grazing, oblique]) =
             classify(adj, stations, (planes, balls), keys, (&e, &base));
         if beams[0].is_empty() && beams[1].is_empty() {
             return Err(PipelineError::Data(
@@ -144,6 +146,7 @@ impl FixedProblem {
             targets,
             check_beams,
             grazing,
+            oblique,
             group_of,
             options: solver::Options {
                 max_iterations: 100,
@@ -253,7 +256,8 @@ impl FixedProblem {
 }
 
 /// The beams on planes and on control balls, on check balls, and how many missed or grazed
-/// their ball at the start `e`, of every station through `e`.
+/// their ball and how many met their plane beyond [`MIN_COS_INCIDENCE`] at the start `e`, of
+/// every station through `e`.
 #[allow(clippy::type_complexity)]
 fn classify(
     adj: &Adjusted,
@@ -261,13 +265,13 @@ fn classify(
     (planes, balls): (&[FieldPlane], &[FieldBall]),
     (ext, range, frames): (ParameterKey, ParameterKey, &[(ParameterKey, PlaneFrame)]),
     (e, base): (&Rigid3, &Problem),
-) -> ([Vec<BeamObs>; 2], Vec<(usize, FixedBeamOn)>, usize) {
+) -> ([Vec<BeamObs>; 2], Vec<(usize, FixedBeamOn)>, [usize; 2]) {
     let spheres: Vec<BallOnStem> = (balls.iter())
         .map(|b| BallOnStem::new(b.centre, b.radius, planes))
         .collect();
     let mut beams: [Vec<BeamObs>; 2] = [Vec::new(), Vec::new()];
     let mut check_beams = Vec::new();
-    let mut grazing = 0;
+    let (mut grazing, mut oblique) = (0, 0);
     for (s, st) in stations.iter().enumerate() {
         for (b, ray) in st.beams.iter().zip(st.rays(e, [0.0, 0.0])) {
             let gate = (GATE_SIGMAS * b.sigma).max(MIN_GATE_MM);
@@ -285,7 +289,7 @@ fn classify(
             let surface = match on {
                 On::Plane(k) => {
                     if planes[k].normal.dot(&ray.dir).abs() < MIN_COS_INCIDENCE {
-                        grazing += 1;
+                        oblique += 1;
                         continue;
                     }
                     Surface::Plane(frames[k].0, frames[k].1)
@@ -326,7 +330,7 @@ fn classify(
             }
         }
     }
-    (beams, check_beams, grazing)
+    (beams, check_beams, [grazing, oblique])
 }
 
 /// The frame of plane `k` with its axes along its edges: the first along the line where it

@@ -3,7 +3,7 @@
 //! the main station's LRF frame, the corner baseline, and the joint adjustment's outcome.
 
 use super::adjust::{beam_error, FieldBall, FixedProblem};
-use super::planes::{adjustment_reach, on_what, BallOnStem, FieldPlane, On};
+use super::planes::{adjustment_reach, on_what, BallOnStem, BeamRay, FieldPlane, On};
 use super::stations::Station;
 use super::{RANGE_NAMES, UNKNOWN_NAMES};
 use crate::bundle::Adjusted;
@@ -35,6 +35,13 @@ pub const MIN_BALL_BEAMS: usize = 6;
 /// is not determined by them, whatever its linearised σ says (on the simulator such cuts
 /// were 20–120 mm off and failed the check in 3 seeds of 10).
 pub const MIN_BALL_DIRECTIONS: usize = 6;
+/// How far the corner baseline may put a ball from where its station's beams see it, when
+/// its check table chooses the ball's beams (mm): one scan line fixes the extrinsic to
+/// centimetres (2–14 mm and up to 1.7° on the simulator, about 45 mm at 1.5 m).
+pub const CORNER_SLACK_MM: f64 = 50.0;
+/// Beam directions of a cut are counted in bins of this (degrees): a tenth of a degree, under
+/// the URG's 0.35° step and over a cloud point's angular noise.
+pub const DIRECTION_BIN_DEG: f64 = 0.1;
 
 /// One ball cut by one station's scans: its centre fitted in the LRF frame from those beams
 /// alone, and the photogrammetric ball in that station's camera frame.
@@ -51,36 +58,50 @@ struct BallCut {
 /// them through `e` ([`on_what`]: the ray meets its sphere within the gate, clear of its
 /// stem), less those that graze it ([`GRAZING_KAPPA`]: their footprint mixes it with what
 /// is behind); a cut with fewer than [`MIN_BALL_BEAMS`] beams or [`MIN_BALL_DIRECTIONS`]
-/// directions is left out.
+/// directions is left out. `slack` (mm): how far `e` may put a ball from where the beams see
+/// it (the corner baseline's, whose error is centimetres): a ball's beams are then those whose
+/// rays meet its sphere widened by the slack and whose points lie within the gate and the
+/// slack of its surface; 0 for the adjustment's own estimate.
 fn ball_cuts(
     stations: &[Station],
     (planes, balls): (&[FieldPlane], &[FieldBall]),
-    e: &Rigid3,
-    range: [f64; 2],
+    (e, range): (&Rigid3, [f64; 2]),
+    slack: f64,
 ) -> Vec<BallCut> {
     let stems: Vec<BallOnStem> = (balls.iter())
         .map(|b| BallOnStem::new(b.centre, b.radius, planes))
         .collect();
     let mut out = Vec::new();
     for (s, st) in stations.iter().enumerate() {
-        let mut on: Vec<Vec<(V3, f64, u64)>> = vec![Vec::new(); balls.len()];
+        let mut on: Vec<Vec<(V3, f64, i64)>> = vec![Vec::new(); balls.len()];
         for (b, ray) in st.beams.iter().zip(st.rays(e, range)) {
             let gate = (super::adjust::GATE_SIGMAS * b.sigma).max(super::MIN_GATE_MM);
-            let Some((On::Ball(k), _)) = on_what(&ray, planes, &stems, adjustment_reach(gate))
-            else {
-                continue;
+            let k = if slack > 0.0 {
+                // a ball whose sphere widened by the slack the ray meets, its point within the
+                // gate and the slack of the ball's surface
+                balls.iter().position(|bl| {
+                    let w = ray.origin - bl.centre;
+                    let along = -ray.dir.dot(&w);
+                    let miss2 = w.norm_squared() - along * along;
+                    along > 0.0
+                        && miss2 < (bl.radius + slack).powi(2)
+                        && ((ray.point() - bl.centre).norm() - bl.radius).abs() <= gate + slack
+                })
+            } else {
+                match on_what(&ray, planes, &stems, adjustment_reach(gate)) {
+                    Some((On::Ball(k), _)) if !grazes(&ray, &balls[k]) => Some(k),
+                    _ => None,
+                }
             };
-            let w = ray.origin - balls[k].centre;
-            let along = -ray.dir.dot(&w);
-            let half_chord2 = balls[k].radius.powi(2) - (w.norm_squared() - along * along);
-            if half_chord2 < (GRAZING_KAPPA * balls[k].radius).powi(2) {
-                continue;
-            }
+            let Some(k) = k else { continue };
             let x = b.point_at((b.range_mm - range[0]) / (1.0 + range[1]));
-            on[k].push((x, b.sigma, b.alpha_rad.to_bits()));
+            // the direction in bins of DIRECTION_BIN_DEG: a cloud's points give each beam's
+            // angle with the noise of its point, a scan file exactly
+            let bin = (b.alpha_rad.to_degrees() / DIRECTION_BIN_DEG).round() as i64;
+            on[k].push((x, b.sigma, bin));
         }
         for (k, (ball, on)) in balls.iter().zip(&on).enumerate() {
-            let mut directions: Vec<u64> = on.iter().map(|p| p.2).collect();
+            let mut directions: Vec<i64> = on.iter().map(|p| p.2).collect();
             directions.sort_unstable();
             directions.dedup();
             if on.len() < MIN_BALL_BEAMS || directions.len() < MIN_BALL_DIRECTIONS {
@@ -109,6 +130,15 @@ fn ball_cuts(
         }
     }
     out
+}
+
+/// Whether the ray grazes the ball (its half-chord under [`GRAZING_KAPPA`] of the radius:
+/// its footprint mixes the ball with what is behind) or misses it.
+fn grazes(ray: &BeamRay, ball: &FieldBall) -> bool {
+    let w = ray.origin - ball.centre;
+    let along = -ray.dir.dot(&w);
+    let half_chord2 = ball.radius.powi(2) - (w.norm_squared() - along * along);
+    half_chord2 < (GRAZING_KAPPA * ball.radius).powi(2)
 }
 
 /// The centre of the sphere of `radius` through the points (each with its σ), from `c0`
@@ -182,7 +212,12 @@ pub fn corner_outcome(
         .iter()
         .position(|s| &s.id == st)
         .expect("a station's corner");
-    let cuts: Vec<BallCut> = ball_cuts(&stations[k..=k], (planes, balls), e, [0.0; 2]);
+    let cuts: Vec<BallCut> = ball_cuts(
+        &stations[k..=k],
+        (planes, balls),
+        (e, [0.0; 2]),
+        CORNER_SLACK_MM,
+    );
     let check = balls.iter().any(|b| b.check);
     let (l, c) = sides(&cuts, balls, check);
     let sim = Sim3::new(1.0, e.rotation, e.translation);
@@ -217,7 +252,7 @@ pub fn lrf_data(
         }
     }
     cloud.origins = Some(origins);
-    let cuts = ball_cuts(stations, (planes, balls), e, range);
+    let cuts = ball_cuts(stations, (planes, balls), (e, range), 0.0);
     let mut found = FindResult::default();
     let mut pairs = Vec::new();
     for cut in &cuts {
@@ -318,7 +353,7 @@ pub fn joint_outcome(
         + chi2s.iter().sum::<f64>()
         + prior_chi2;
     let groups = group_lines(fp, p, chi2s, rejected);
-    let cuts = ball_cuts(stations, (planes, balls), &e, range);
+    let cuts = ball_cuts(stations, (planes, balls), (&e, range), 0.0);
     let sim = Sim3::new(1.0, e.rotation, e.translation);
     let (cl, cc) = sides(&cuts, balls, true);
     let (ol, oc) = sides(&cuts, balls, false);
@@ -382,8 +417,12 @@ fn group_lines(
             unit: "mm".into(),
             observations: counts[g],
             rejected: rejected[g],
-            left_out: if g == 1 {
-                vec![
+            left_out: match g {
+                0 => vec![LeftOut {
+                    reason: "at grazing incidence".into(),
+                    count: fp.oblique,
+                }],
+                1 => vec![
                     LeftOut {
                         reason: "on a check ball".into(),
                         count: fp.check_beams.len(),
@@ -392,9 +431,8 @@ fn group_lines(
                         reason: "missed or grazed the ball at the start".into(),
                         count: fp.grazing,
                     },
-                ]
-            } else {
-                Vec::new()
+                ],
+                _ => Vec::new(),
             },
             // + 0.0: an empty group's sums are −0.0, written as 0
             chi2: chi2s[g] + 0.0,

@@ -7,13 +7,14 @@
 //! least squares and its members are the targets within `max(PLANE_TOL_MM / 2, 3 × RMS)`;
 //! then the next, among the targets left. The RMS of a plane's targets about it is its
 //! flatness as the photographs measure it (a wall's bulge, a target off the wall): it is
-//! reported, not assumed. Each plane is bounded by its targets' extent and [`MARGIN_MM`]:
-//! a beam beyond it (past a wall's end, through a door) is not taken to be on it.
+//! reported, not assumed. Each plane is bounded by its targets' extent widened by a reach —
+//! [`REACH_MM`] in the adjustment (a wall goes on past its last target), [`MARGIN_MM`] when
+//! starts are ranked: a beam beyond it is not taken to be on it.
 //!
 //! **Beams.** Through an extrinsic, each beam's ray (its origin and direction in the object
 //! frame) is decided first, its range only last, so that no reading's noise decides which
 //! side of a cut a beam falls (the rotating LRF's room planes learnt it: such a cut biased
-//! the range offset by 2σ; here the extrinsic's height and pitch by 3σ). A ray that passes
+//! the range offset by 2σ). A ray that passes
 //! within [`BALL_CLEARANCE_MM`] of a ball is on the ball if it meets its sphere, else on
 //! nothing (the ball's rim and stem, mixed with the wall behind). Otherwise its surface is
 //! the first plane it meets within that plane's reach (the room is convex where the beams
