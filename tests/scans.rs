@@ -793,68 +793,35 @@ fn a_fixed_lrfs_bag_gives_its_scans_at_servo_zero() {
 #[test]
 fn a_time_window_takes_one_stations_scans() {
     let path = data("ros1.bag");
-    let bag = path.to_str().unwrap();
-    let (_, all) = {
-        let out = tmp("window-all.csv");
-        let (ok, o, e) = pingcal(&[
+    // `pingcal scans ros1.bag --scan-topic /scan --fixed EXTRA… --out OUT`
+    let fixed = |extra: &[&str], out: &Path| {
+        let head = [
             "scans",
-            bag,
+            path.to_str().unwrap(),
             "--scan-topic",
             "/scan",
             "--fixed",
-            "--out",
-            out.to_str().unwrap(),
-        ]);
-        assert!(ok, "{o}\n{e}");
-        read(&out)
+        ];
+        let tail = ["--out", out.to_str().unwrap()];
+        pingcal(&[&head[..], extra, &tail[..]].concat())
     };
+    let all_out = tmp("window-all.csv");
+    let (ok, o, e) = fixed(&[], &all_out);
+    assert!(ok, "{o}\n{e}");
+    let (_, all) = read(&all_out);
     let t0 = all[0].stamp_s;
     let (a, b) = (all[1].stamp_s - t0, all[3].stamp_s - t0);
     let out = tmp("window.csv");
     let (from, to) = (format!("{}", a - 0.01), format!("{}", b + 0.01));
-    let (ok, o, e) = pingcal(&[
-        "scans",
-        bag,
-        "--scan-topic",
-        "/scan",
-        "--fixed",
-        "--from",
-        &from,
-        "--to",
-        &to,
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let (ok, o, e) = fixed(&["--from", &from, "--to", &to], &out);
     assert!(ok, "{o}\n{e}");
     let (_, got) = read(&out);
     let want: Vec<f64> = all[1..=3].iter().map(|l| l.stamp_s).collect();
     assert_eq!(got.iter().map(|l| l.stamp_s).collect::<Vec<_>>(), want);
     let none = tmp("window-none.csv");
-    let (ok, _, e) = pingcal(&[
-        "scans",
-        bag,
-        "--scan-topic",
-        "/scan",
-        "--fixed",
-        "--from",
-        "100000",
-        "--out",
-        none.to_str().unwrap(),
-    ]);
+    let (ok, _, e) = fixed(&["--from", "100000"], &none);
     assert!(!ok && e.contains("no scan between --from and --to"), "{e}");
     assert!(!none.exists());
-    let (ok, _, e) = pingcal(&[
-        "scans",
-        bag,
-        "--scan-topic",
-        "/scan",
-        "--fixed",
-        "--from",
-        "5",
-        "--to",
-        "1",
-        "--out",
-        none.to_str().unwrap(),
-    ]);
+    let (ok, _, e) = fixed(&["--from", "5", "--to", "1"], &none);
     assert!(!ok && e.contains("--to 1 is before --from 5"), "{e}");
 }
