@@ -75,6 +75,26 @@ pub fn bend_basis(frame: &PlaneFrame, x: &V3) -> ([f64; BEND_TERMS], [V3; BEND_T
     )
 }
 
+/// The bend `b(x)` of a plane of local unknowns `plane` (the bend's coefficients from index
+/// 3) about `frame`, with its basis and its gradient `∇b` at `x`.
+pub fn bend_at(frame: &PlaneFrame, plane: &[f64], x: &V3) -> (f64, [f64; BEND_TERMS], V3) {
+    let (basis, grads) = bend_basis(frame, x);
+    let c = &plane[3..3 + BEND_TERMS];
+    let bend = (0..BEND_TERMS).map(|j| c[j] * basis[j]).sum();
+    let g = (0..BEND_TERMS).map(|j| grads[j] * c[j]).sum();
+    (bend, basis, g)
+}
+
+/// Whether the ray `o + t u` (u unit) grazes the sphere of `radius` about `c` (its
+/// half-chord under [`GRAZING_KAPPA`] of the radius: its range is a footprint effect more
+/// than a distance) or misses it.
+pub fn grazes_sphere(o: &V3, u: &V3, c: &V3, radius: f64) -> bool {
+    let w = o - c;
+    let b = u.dot(&w);
+    let q = b * b - w.norm_squared() + radius * radius;
+    q <= 0.0 || q.sqrt() < GRAZING_KAPPA * radius
+}
+
 /// The flatness prior on a plane's bend: σ [`crate::room::FLATNESS_MM`] at zero on each of
 /// the [`BEND_TERMS`] coefficients of parameter block `plane`.
 pub fn flatness_prior(plane: ParameterKey) -> pingcal_ba::ParameterPrior {
@@ -178,9 +198,7 @@ fn plane_hit(frame: &PlaneFrame, plane: &[f64], o: &V3, u: &V3) -> Option<Hit> {
     }
     let t0 = (plane[2] - n.dot(o)) / s;
     let h = o + u * t0;
-    let (basis, grads) = bend_basis(frame, &h);
-    let bend: f64 = (0..BEND_TERMS).map(|j| plane[3 + j] * basis[j]).sum();
-    let g: V3 = (0..BEND_TERMS).map(|j| grads[j] * plane[3 + j]).sum();
+    let (bend, basis, g) = bend_at(frame, plane, &h);
     let gu = g.dot(u);
     // r = t₀ + b(h)/s: ∂r = ∂t₀ + ∇b·∂h/s − b ∂s/s², ∂h = ∂o + t₀ ∂u + u ∂t₀;
     // ∂t₀ = (∂d − ∂n·h − n·∂o − t₀ n·∂u)/s
@@ -291,10 +309,7 @@ impl FixedBeamOn {
         match &self.surface {
             Surface::Ball(_, radius) => {
                 let ray = ray(&self.beam, p, e);
-                let w = ray.o - c;
-                let b = ray.u.dot(&w);
-                let q = b * b - w.norm_squared() + radius * radius;
-                q <= 0.0 || q.sqrt() < GRAZING_KAPPA * radius
+                grazes_sphere(&ray.o, &ray.u, c, *radius)
             }
             _ => false,
         }
@@ -379,9 +394,7 @@ impl PointOnPlane {
     /// `n·X − d − b(X)` (mm) at these values, and `b(X)`'s basis and gradient.
     fn at(&self, x: &V3, plane: &[f64]) -> (f64, [f64; BEND_TERMS], V3) {
         let (n, _, _) = self.frame.normal_at(plane[0], plane[1]);
-        let (basis, grads) = bend_basis(&self.frame, x);
-        let bend: f64 = (0..BEND_TERMS).map(|j| plane[3 + j] * basis[j]).sum();
-        let g: V3 = (0..BEND_TERMS).map(|j| grads[j] * plane[3 + j]).sum();
+        let (bend, basis, g) = bend_at(&self.frame, plane, x);
         (n.dot(x) - plane[2] - bend, basis, g)
     }
 

@@ -3,7 +3,7 @@
 //! the main station's LRF frame, the corner baseline, and the joint adjustment's outcome.
 
 use super::adjust::{beam_error, FieldBall, FixedProblem};
-use super::planes::{adjustment_reach, on_what, BallOnStem, BeamRay, FieldPlane, On};
+use super::planes::{adjustment_reach, on_what, BallOnStem, FieldPlane, On};
 use super::stations::Station;
 use super::{RANGE_NAMES, UNKNOWN_NAMES};
 use crate::bundle::Adjusted;
@@ -19,8 +19,8 @@ use pingcal_ba::solver::{self, VarianceEstimate};
 use pingcal_ba::Problem;
 use pingcal_geometry::{opk_sigma_deg, Rigid3, Sim3};
 use pingcal_lrf::ball_finder::{Ball, FindResult, Support};
-use pingcal_lrf::beam::GRAZING_KAPPA;
 use pingcal_lrf::cloud::Cloud;
+use pingcal_lrf::fixed::grazes_sphere;
 use pingcal_lrf::registration::{check_table, PointObs};
 use pingcal_lrf::sensor::MountModel;
 use pingcal_project::{Method, Project};
@@ -56,7 +56,7 @@ struct BallCut {
 
 /// Every ball the stations' scans cut, fitted: the beams on it as the adjustment decides
 /// them through `e` ([`on_what`]: the ray meets its sphere within the gate, clear of its
-/// stem), less those that graze it ([`GRAZING_KAPPA`]: their footprint mixes it with what
+/// stem), less those that graze it ([`grazes_sphere`]: their footprint mixes it with what
 /// is behind); a cut with fewer than [`MIN_BALL_BEAMS`] beams or [`MIN_BALL_DIRECTIONS`]
 /// directions is left out. `slack` (mm): how far `e` may put a ball from where the beams see
 /// it (the corner baseline's, whose error is centimetres): a ball's beams are then those whose
@@ -89,7 +89,16 @@ fn ball_cuts(
                 })
             } else {
                 match on_what(&ray, planes, &stems, adjustment_reach(gate)) {
-                    Some((On::Ball(k), _)) if !grazes(&ray, &balls[k]) => Some(k),
+                    Some((On::Ball(k), _))
+                        if !grazes_sphere(
+                            &ray.origin,
+                            &ray.dir,
+                            &balls[k].centre,
+                            balls[k].radius,
+                        ) =>
+                    {
+                        Some(k)
+                    }
                     _ => None,
                 }
             };
@@ -130,15 +139,6 @@ fn ball_cuts(
         }
     }
     out
-}
-
-/// Whether the ray grazes the ball (its half-chord under [`GRAZING_KAPPA`] of the radius:
-/// its footprint mixes the ball with what is behind) or misses it.
-fn grazes(ray: &BeamRay, ball: &FieldBall) -> bool {
-    let w = ray.origin - ball.centre;
-    let along = -ray.dir.dot(&w);
-    let half_chord2 = ball.radius.powi(2) - (w.norm_squared() - along * along);
-    half_chord2 < (GRAZING_KAPPA * ball.radius).powi(2)
 }
 
 /// The centre of the sphere of `radius` through the points (each with its σ), from `c0`
@@ -567,11 +567,7 @@ fn bend_mm(fp: &FixedProblem, p: &Problem, k: usize) -> f64 {
     };
     (fp.targets.iter())
         .filter(|t| t.plane == key)
-        .map(|t| {
-            let (basis, _) =
-                pingcal_lrf::fixed::bend_basis(&t.frame, &p.points[t.point.0].position);
-            basis.iter().zip(&v[3..]).map(|(b, c)| b * c).sum::<f64>()
-        })
+        .map(|t| pingcal_lrf::fixed::bend_at(&t.frame, v, &p.points[t.point.0].position).0)
         .fold(0.0f64, |m, b| m.max(b.abs()))
 }
 

@@ -27,7 +27,7 @@ use crate::ids::PointId;
 use crate::scene::{PointKind, Scene};
 use nalgebra::Vector3;
 use pingcal_geometry::consensus::{self, ConsensusOptions, Estimator};
-use pingcal_geometry::Plane;
+use pingcal_geometry::{Plane, Rigid3};
 
 type V3 = Vector3<f64>;
 
@@ -241,6 +241,16 @@ pub struct BeamRay {
 }
 
 impl BeamRay {
+    /// The beam of unit direction `dir` (LRF frame) and range `range` of a scanner at the
+    /// extrinsic `e` on a head at `object_from_camera`.
+    pub fn of(object_from_camera: &Rigid3, e: &Rigid3, dir: &V3, range: f64) -> Self {
+        BeamRay {
+            origin: object_from_camera.transform(&e.translation),
+            dir: object_from_camera.rotation * (e.rotation * dir),
+            range,
+        }
+    }
+
     /// The measured point.
     pub fn point(&self) -> V3 {
         self.origin + self.dir * self.range

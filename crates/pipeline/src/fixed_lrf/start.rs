@@ -229,15 +229,14 @@ type Sampled = (Rigid3, V3);
 
 /// A sampled beam's ray and measured point in the object frame through `e`.
 fn sampled_ray(object_from_camera: &Rigid3, p: &V3, e: &Rigid3) -> (BeamRay, V3) {
-    let x = object_from_camera.transform(&e.transform(p));
-    let origin = object_from_camera.transform(&e.translation);
     let range = p.norm();
-    let ray = BeamRay {
-        origin,
-        dir: (x - origin) / range.max(f64::MIN_POSITIVE),
+    let ray = BeamRay::of(
+        object_from_camera,
+        e,
+        &(p / range.max(f64::MIN_POSITIVE)),
         range,
-    };
-    (ray, x)
+    );
+    (ray, ray.point())
 }
 
 /// At most [`MAX_BEAMS`] beams of all stations, taken evenly.

@@ -49,12 +49,10 @@ impl Station {
     /// range model `[k, s]` taken out.
     pub fn rays(&self, e: &Rigid3, range: [f64; 2]) -> Vec<BeamRay> {
         let object_from_camera = self.pose.inverse();
-        let origin = object_from_camera.transform(&e.translation);
         (self.beams.iter())
-            .map(|b| BeamRay {
-                origin,
-                dir: object_from_camera.rotation * (e.rotation * b.direction()),
-                range: (b.range_mm - range[0]) / (1.0 + range[1]),
+            .map(|b| {
+                let r = (b.range_mm - range[0]) / (1.0 + range[1]);
+                BeamRay::of(&object_from_camera, e, &b.direction(), r)
             })
             .collect()
     }
