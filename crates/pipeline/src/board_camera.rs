@@ -74,8 +74,27 @@ pub fn calibrate(
             views.len()
         )));
     }
+    let poses = (views.iter())
+        .map(|v| start_pose(camera.model.clone(), initial, board, v))
+        .collect::<Result<Vec<_>>>()?;
+    let mut problem = board_problem(camera, (initial, fixed), board, views, &poses);
+    solve(&mut problem, &Options::default(), |_| {})
+        .map_err(|e| PipelineError::Adjustment(format!("the board's adjustment: {e}")))?;
+    summarise(&problem, views)
+}
+
+/// The board's adjustment problem: the camera at `params` with those `fixed` held, the
+/// board's corners as fixed points, an image per view at its pose in `poses` (image `k` is
+/// view `k`) observing its corners with their σ's.
+pub fn board_problem(
+    camera: &SensorCamera,
+    (params, fixed): (&[f64], &[bool]),
+    board: &Chessboard,
+    views: &[BoardView],
+    poses: &[Rigid3],
+) -> Problem {
     let mut problem = Problem::default();
-    let mut cam = Camera::new("board camera", camera.model.clone(), initial.to_vec());
+    let mut cam = Camera::new("board camera", camera.model.clone(), params.to_vec());
     cam.fixed = fixed.to_vec();
     let cam_key = problem.add_camera(cam);
     let points: Vec<_> = (0..board.corner_count())
@@ -86,12 +105,11 @@ pub fn calibrate(
             problem.add_point(p)
         })
         .collect();
-    for view in views {
-        let pose = start_pose(camera.model.clone(), initial, board, view)?;
+    for (view, pose) in views.iter().zip(poses) {
         let image = problem.add_image(Image {
             name: view.name.clone(),
             camera: cam_key,
-            camera_from_object: pose,
+            camera_from_object: *pose,
             fixed: false,
             fixed_centre: [false; 3],
         });
@@ -104,9 +122,7 @@ pub fn calibrate(
             });
         }
     }
-    solve(&mut problem, &Options::default(), |_| {})
-        .map_err(|e| PipelineError::Adjustment(format!("the board's adjustment: {e}")))?;
-    summarise(&problem, views)
+    problem
 }
 
 /// The placement's pose from a resection through the initial intrinsics.
@@ -142,10 +158,9 @@ fn start_pose(
         })
 }
 
-/// The adjusted problem as the calibration's result.
-fn summarise(problem: &Problem, views: &[BoardView]) -> Result<BoardCalibration> {
-    let prec = precision(problem)
-        .map_err(|e| PipelineError::Adjustment(format!("the board's precision: {e}")))?;
+/// The σ's of the (one) camera's parameters of `problem` at its precision `prec`, in the
+/// model's order (0 for those held).
+pub fn intrinsic_sigmas(problem: &Problem, prec: &pingcal_ba::solver::Precision) -> Vec<f64> {
     let cam = &problem.cameras[0];
     let mut sigmas = vec![0.0; cam.params.len()];
     if let Some(ip) = prec.intrinsics.first() {
@@ -155,6 +170,15 @@ fn summarise(problem: &Problem, views: &[BoardView]) -> Result<BoardCalibration>
             }
         }
     }
+    sigmas
+}
+
+/// The adjusted problem as the calibration's result.
+fn summarise(problem: &Problem, views: &[BoardView]) -> Result<BoardCalibration> {
+    let prec = precision(problem)
+        .map_err(|e| PipelineError::Adjustment(format!("the board's precision: {e}")))?;
+    let cam = &problem.cameras[0];
+    let sigmas = intrinsic_sigmas(problem, &prec);
     let mut per_image = vec![(0.0, 0usize); problem.images.len()];
     for o in &problem.observations {
         if let Some(r) = problem.residual(o) {

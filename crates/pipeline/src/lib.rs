@@ -34,6 +34,7 @@
 
 pub mod adjust;
 pub mod board_camera;
+pub mod board_lrf;
 pub mod bundle;
 pub mod context;
 pub mod conventions;

@@ -16,7 +16,7 @@ use std::path::Path;
 
 /// The modules of the pipeline crate, lowest first (`lib.rs`, the root that runs them, is
 /// apart; `test_support.rs` serves the unit tests).
-const ORDER: [&str; 28] = [
+const ORDER: [&str; 29] = [
     "ids",
     "progress",
     "context",
@@ -43,6 +43,7 @@ const ORDER: [&str; 28] = [
     "exports",
     "outcome",
     "sphere_calib",
+    "board_lrf",
     "out_folders",
     "result_set",
 ];

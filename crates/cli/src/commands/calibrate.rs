@@ -172,15 +172,15 @@ impl Fate {
 }
 
 /// One project's end: its fate, its stdout line (summary or JSON) and its stderr lines.
-struct Done {
-    fate: Fate,
+pub(crate) struct Done {
+    pub(crate) fate: Fate,
     /// The summary or JSON line (none for a project that errored without `--json`).
-    line: Option<String>,
+    pub(crate) line: Option<String>,
     /// Why it could not be calibrated (fate [`Fate::Error`]).
-    error: Option<String>,
+    pub(crate) error: Option<String>,
     /// What stderr must carry when the step log was not shown: the warnings and the
     /// verdict's reasons, each starting with the project's path.
-    stderr: Vec<String>,
+    pub(crate) stderr: Vec<String>,
 }
 
 /// The one-line summary of a finished project: its verdict first.
@@ -256,7 +256,12 @@ pub fn json_line(path: &Path, dir: &Path, o: &Outcome, secs: f64) -> String {
 /// in `error` (and as the one reason) and its kind in `error_kind` (the pipeline's, `input`
 /// for a project file that does not load, `output` for results that could not be written:
 /// docs/batch.md), nothing written into `out`.
-fn error_json_line(path: &Path, dir: &Path, (kind, e): (&str, &str), secs: f64) -> String {
+pub(crate) fn error_json_line(
+    path: &Path,
+    dir: &Path,
+    (kind, e): (&str, &str),
+    secs: f64,
+) -> String {
     serde_json::json!({
         "project": path.display().to_string(),
         "verdict": Fate::Error.as_str(),
@@ -272,7 +277,7 @@ fn error_json_line(path: &Path, dir: &Path, (kind, e): (&str, &str), secs: f64) 
 }
 
 /// The warnings of the step log of the project at `path`, each naming it, for stderr.
-fn warnings(path: &Path, rep: &Reporter) -> Vec<String> {
+pub(crate) fn warnings(path: &Path, rep: &Reporter) -> Vec<String> {
     (rep.lines().iter())
         .filter(|l| l.starts_with("warning: "))
         .map(|w| format!("{}: {w}", path.display()))
@@ -291,6 +296,17 @@ fn calibrate_project(
 ) -> Done {
     let t0 = std::time::Instant::now();
     let dir = lock.dir();
+    // a board project (`[board]`) takes the board's calibration
+    if let Ok(project) = Project::load(path).map(Box::new) {
+        if project.file.board.is_some() {
+            let how = super::calibrate_board::How {
+                json: args.json,
+                shown,
+                t0,
+            };
+            return super::calibrate_board::calibrate_board(&project, lock, opts, rep, how);
+        }
+    }
     let r = match calibrate_one(path, opts, rep) {
         Ok(o) => match write_outputs(lock, &o) {
             Ok(()) => Ok(o),
@@ -435,7 +451,7 @@ fn finish(done: &[Done], accept_doubtful: bool) -> CmdResult {
 
 /// A failure's message, with a note when `dir` holds the results of an earlier run (left
 /// as they were: they are not this run's).
-fn kept_note(e: String, dir: &Path) -> String {
+pub(crate) fn kept_note(e: String, dir: &Path) -> String {
     if dir.join("results.json").is_file() {
         format!(
             "{e} (the earlier results in {} are left as they were)",

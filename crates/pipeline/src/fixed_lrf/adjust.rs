@@ -471,7 +471,7 @@ pub fn estimability(
 
 /// Why unknown `k` is not determined (σ under the weak prior, correlation), with a rank
 /// (larger: worse); None when it is.
-fn not_determined(
+pub fn not_determined(
     k: usize,
     cov: &DMatrix<f64>,
     row: &dyn Fn(usize) -> usize,

@@ -36,10 +36,10 @@ mod planes;
 mod start;
 mod stations;
 
-pub use adjust::{GATE_SIGMAS, MIN_GATE_MM};
+pub use adjust::{not_determined, GATE_SIGMAS, MIN_GATE_MM};
 pub use planes::{FieldPlane, MIN_PLANE_TARGETS, PLANE_TOL_MM};
-pub use start::GATES_MM;
-pub use stations::Station;
+pub use start::{axis_turns, GATES_MM};
+pub use stations::{read_beams, Station};
 
 use crate::bundle::{Adjusted, OBSERVATION_GROUPS};
 use crate::context::{Options, PipelineError, Result};

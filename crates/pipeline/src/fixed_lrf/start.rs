@@ -140,7 +140,7 @@ fn same_pose(a: &Rigid3, b: &Rigid3) -> bool {
 
 /// The 24 rotations that take the camera frame's axes onto its axes (any way a scanner can
 /// be bolted on, to the nearest right angle).
-fn axis_turns() -> Vec<Matrix3<f64>> {
+pub fn axis_turns() -> Vec<Matrix3<f64>> {
     let mut out: Vec<Matrix3<f64>> = Vec::new();
     for o in [0.0, 90.0, 180.0, 270.0] {
         for p in [0.0, 90.0, 180.0, 270.0] {

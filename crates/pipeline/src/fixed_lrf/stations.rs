@@ -79,33 +79,7 @@ pub fn read_stations(
                 project.file.images[image.0].file
             )));
         };
-        let name = path.path.display().to_string();
-        let (header, lines, beams) = if path.is_scans() {
-            let (header, lines) = crate::lrf::scan_file(&path.path, l.max_range_mm, rep)?;
-            let beams = beams_of(&header, &lines, noise);
-            (header, lines, beams)
-        } else {
-            // the 2D points of a cloud: beams without the scans' order (no corner there)
-            let (cloud, warnings) = (path.read_in(&Default::default(), project.lrf.cloud_unit))
-                .map_err(|e| PipelineError::Input(e.to_string()))?;
-            for w in warnings {
-                rep.log(format!("warning: {w}"));
-            }
-            let beams = beams_of_points(&cloud, l.max_range_mm, noise)
-                .map_err(|why| PipelineError::Input(format!("{name}: {why}")))?;
-            let none = ScanHeader {
-                angle_min_deg: 0.0,
-                angle_increment_deg: 0.0,
-                mm_per_unit: 1.0,
-                time_increment_s: None,
-            };
-            (none, Vec::new(), beams)
-        };
-        if beams.is_empty() {
-            return Err(PipelineError::Input(format!(
-                "{name}: no beam with a return in any scan"
-            )));
-        }
+        let (header, lines, beams) = read_beams(project, path, noise, rep)?;
         out.push(Station {
             id: station.to_string(),
             image,
@@ -118,6 +92,46 @@ pub fn read_stations(
         });
     }
     Ok(out)
+}
+
+/// The beams of one scan file of `[lrf] scans` (`path`, as the project resolved it): a
+/// `pingcal-scan` file's scans, or a cloud's 2D points (its `header` then holds no
+/// geometry); each with its σ from `noise`. An error names the file that holds no return.
+pub fn read_beams(
+    project: &Project,
+    path: &pingcal_lrf::cloud_file::CloudPath,
+    noise: &RangeNoise,
+    rep: &Reporter,
+) -> Result<(ScanHeader, Vec<ScanLine>, Vec<FixedBeam>)> {
+    let l = &project.file.lrf;
+    let name = path.path.display().to_string();
+    let (header, lines, beams) = if path.is_scans() {
+        let (header, lines) = crate::lrf::scan_file(&path.path, l.max_range_mm, rep)?;
+        let beams = beams_of(&header, &lines, noise);
+        (header, lines, beams)
+    } else {
+        // the 2D points of a cloud: beams without the scans' order (no corner there)
+        let (cloud, warnings) = (path.read_in(&Default::default(), project.lrf.cloud_unit))
+            .map_err(|e| PipelineError::Input(e.to_string()))?;
+        for w in warnings {
+            rep.log(format!("warning: {w}"));
+        }
+        let beams = beams_of_points(&cloud, l.max_range_mm, noise)
+            .map_err(|why| PipelineError::Input(format!("{name}: {why}")))?;
+        let none = ScanHeader {
+            angle_min_deg: 0.0,
+            angle_increment_deg: 0.0,
+            mm_per_unit: 1.0,
+            time_increment_s: None,
+        };
+        (none, Vec::new(), beams)
+    };
+    if beams.is_empty() {
+        return Err(PipelineError::Input(format!(
+            "{name}: no beam with a return in any scan"
+        )));
+    }
+    Ok((header, lines, beams))
 }
 
 /// The image of the main camera at `station`.
