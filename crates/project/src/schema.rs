@@ -33,12 +33,21 @@ pub struct ProjectFile {
     pub main_station: String,
     /// The camera whose frame is the photogrammetric frame (`left`).
     pub main_camera: String,
-    /// Coded targets.
+    /// Coded targets; a project with `[board]` may leave the table out
+    /// ([`ProjectTargets::absent`]).
+    #[serde(
+        default = "ProjectTargets::absent",
+        skip_serializing_if = "ProjectTargets::is_absent"
+    )]
     pub targets: ProjectTargets,
     /// A calibration board (`[board]`, [`crate::board`]); optional.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub board: Option<crate::board::ProjectBoard>,
-    /// Balls.
+    /// Balls; a project with `[board]` may leave the table out ([`ProjectBalls::absent`]).
+    #[serde(
+        default = "ProjectBalls::absent",
+        skip_serializing_if = "ProjectBalls::is_absent"
+    )]
     pub balls: ProjectBalls,
     /// Cameras with initial intrinsics.
     pub cameras: Vec<ProjectCamera>,
@@ -160,6 +169,27 @@ pub struct ProjectTargets {
     pub measure_saturated: bool,
 }
 
+impl ProjectTargets {
+    /// No `[targets]` table (a board's project): no dot, so nothing to detect;
+    /// [`ProjectFile::validate`] accepts it beside `[board]` only.
+    pub fn absent() -> Self {
+        ProjectTargets {
+            family: TargetFamily::Aicon14,
+            dot_radius_mm: 0.0,
+            ring_inner: default_ring_inner(),
+            ring_outer: default_ring_outer(),
+            layout: None,
+            layout_sigma_mm: default_layout_sigma(),
+            measure_saturated: false,
+        }
+    }
+
+    /// Whether this is [`ProjectTargets::absent`] (not written).
+    pub fn is_absent(&self) -> bool {
+        *self == Self::absent()
+    }
+}
+
 fn default_layout_sigma() -> f64 {
     20.0
 }
@@ -184,6 +214,23 @@ pub struct ProjectBalls {
     /// Where numbered balls are in the main image (optional).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub labels: Vec<BallLabel>,
+}
+
+impl ProjectBalls {
+    /// No `[balls]` table (a board's project): no ball; [`ProjectFile::validate`] accepts
+    /// it beside `[board]` only.
+    pub fn absent() -> Self {
+        ProjectBalls {
+            diameter_mm: 0.0,
+            check: Vec::new(),
+            labels: Vec::new(),
+        }
+    }
+
+    /// Whether this is [`ProjectBalls::absent`] (not written).
+    pub fn is_absent(&self) -> bool {
+        *self == Self::absent()
+    }
 }
 
 /// A ball's number and its approximate position in the main image (pixels, origin at the

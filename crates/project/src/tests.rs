@@ -953,3 +953,32 @@ fn a_scan_file_of_the_other_lrf_kind_is_refused_at_load() {
     load(&standing, Some(LrfKind::Fixed)).unwrap();
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Issue 51: a board's project needs no `[targets]` or `[balls]` (written without them, read
+/// back the same); any other project still needs both, refused naming the table.
+#[test]
+fn a_board_project_needs_no_targets_or_balls_and_another_needs_both() {
+    let mut p = ProjectFile::parse(&readme_example(), "example.toml").unwrap();
+    p.targets = ProjectTargets::absent();
+    p.balls = ProjectBalls::absent();
+    let text = p.to_toml_string();
+    assert!(
+        !text.contains("[targets]") && !text.contains("[balls]"),
+        "{text}"
+    );
+    let again = ProjectFile::parse(&text, "p.toml").unwrap();
+    assert_eq!(again, p);
+    let e = again.validate("p.toml").unwrap_err().to_string();
+    assert_eq!(
+        e,
+        "p.toml: missing [targets] (the coded targets' family and dot_radius_mm), or a [board]"
+    );
+    let mut with_targets = again.clone();
+    with_targets.targets = ProjectFile::parse(&readme_example(), "x").unwrap().targets;
+    let e = with_targets.validate("p.toml").unwrap_err().to_string();
+    assert_eq!(e, "p.toml: missing [balls] (diameter_mm), or a [board]");
+    let board = "\n[board]\nkind = \"chessboard\"\ninner_corners = [9, 6]\nsquare_mm = 25.0\n";
+    let p = ProjectFile::parse(&(text + board), "p.toml").unwrap();
+    p.validate("p.toml").unwrap();
+    assert!(p.targets.is_absent() && p.balls.is_absent());
+}

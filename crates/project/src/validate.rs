@@ -47,11 +47,26 @@ impl ProjectFile {
                 self.version
             ));
         }
-        validate_targets(&self.targets)?;
+        // a board's project needs no targets or balls; any other needs both tables
+        let board = self.board.is_some();
+        if !(board && self.targets.is_absent()) {
+            if self.targets.is_absent() {
+                return Err(
+                    "missing [targets] (the coded targets' family and dot_radius_mm), or a [board]"
+                        .into(),
+                );
+            }
+            validate_targets(&self.targets)?;
+        }
         if let Some(b) = self.board.as_ref().filter(|b| b.from.is_none()) {
             b.table()?;
         }
-        validate_balls(&self.balls)?;
+        if !(board && self.balls.is_absent()) {
+            if self.balls.is_absent() {
+                return Err("missing [balls] (diameter_mm), or a [board]".into());
+            }
+            validate_balls(&self.balls)?;
+        }
         let cameras = validate_cameras(&self.cameras)?;
         if let Some(s) = &self.stereo {
             validate_stereo(s, &cameras)?;

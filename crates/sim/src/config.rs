@@ -7,7 +7,7 @@
 
 use pingcal_lrf::scan::ScanHeader;
 use pingcal_lrf::sensor::{LrfSensor, MountModel, RangeNoise};
-use pingcal_project::{CameraModel, LrfKind};
+use pingcal_project::{Board, BoardKind, CameraModel, LrfKind, ProjectBoard};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -57,6 +57,74 @@ pub struct SimConfig {
     pub render: RenderConfig,
     /// The 2D LRF and its servo.
     pub lrf: LrfConfig,
+    /// Which field: the room (the default, not written when it is) or a board in several
+    /// placements ([`crate::board_field`]).
+    #[serde(skip_serializing_if = "FieldConfig::is_default")]
+    pub field: FieldConfig,
+    /// The board of a board field, as a project's `[board]` (absent: [`default_board`]);
+    /// only with `[field] kind = "board"`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub board: Option<ProjectBoard>,
+}
+
+/// What kind of field is simulated (`[field] kind`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum FieldKind {
+    /// The room corner of targets and balls, seen by the stereo head's stations.
+    #[default]
+    Room,
+    /// A board in several placements before the head's left camera and a fixed LRF.
+    Board,
+}
+
+/// `[field]`: the room (default) or a board field ([`crate::board_field`]).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct FieldConfig {
+    /// `"room"` (default) or `"board"`.
+    pub kind: FieldKind,
+    /// Placements of the board (a board field).
+    pub placements: usize,
+    /// The board centre's distance from the camera, mm, stratified over the placements.
+    pub range_mm: [f64; 2],
+    /// The board's turn away from facing the camera about its horizontal and its vertical
+    /// axis, at most, degrees (0: every board vertical and square to the camera's forward
+    /// axis, the "vertical boards" case).
+    pub max_tilt_deg: f64,
+    /// The board as printed over the board as given (`[board] square_mm`): 0.925 is a page
+    /// printed "fit to page", its 20 mm squares 18.5 mm.
+    pub print_scale: f64,
+}
+
+impl Default for FieldConfig {
+    fn default() -> Self {
+        Self {
+            kind: FieldKind::Room,
+            placements: 8,
+            range_mm: [500.0, 1100.0],
+            max_tilt_deg: 35.0,
+            print_scale: 1.0,
+        }
+    }
+}
+
+impl FieldConfig {
+    /// Whether every key has its default (the table is then not written).
+    pub fn is_default(&self) -> bool {
+        *self == FieldConfig::default()
+    }
+}
+
+/// The board of a board field without `[board]`: a chessboard of 7 × 5 inner corners and
+/// 60 mm squares (a 480 × 360 mm pattern).
+pub fn default_board() -> ProjectBoard {
+    ProjectBoard {
+        kind: Some(BoardKind::Chessboard),
+        inner_corners: Some([7, 5]),
+        square_mm: Some(60.0),
+        ..ProjectBoard::default()
+    }
 }
 
 /// The room corner: vertex at the world origin, wall 1 along +X (plane y ≈ 0), wall 2 along
@@ -732,7 +800,44 @@ impl SimConfig {
         validate_stations(&self.stations)?;
         validate_render(&self.render)?;
         validate_lrf_ranges(&self.lrf)?;
-        validate_lrf_servo(&self.lrf)
+        validate_lrf_servo(&self.lrf)?;
+        validate_field(&self.field)?;
+        self.board_of_field().map(|_| ())
+    }
+
+    /// The board of a board field, resolved: `[board]` (a chessboard's table) or
+    /// [`default_board`]; `None` for a room. `[board]` beside a room, a board read `from` a
+    /// file or of another kind than a chessboard is refused.
+    pub fn board_of_field(&self) -> Result<Option<Board>, ConfigError> {
+        if self.field.kind == FieldKind::Room {
+            return match &self.board {
+                Some(_) => Err(ConfigError::new(
+                    "board",
+                    "a table",
+                    "only for [field] kind = \"board\" (the room's field is its targets)",
+                )),
+                None => Ok(None),
+            };
+        }
+        let given = self.board.clone().unwrap_or_else(default_board);
+        if let Some(f) = &given.from {
+            return Err(ConfigError::new(
+                "board.from",
+                f,
+                "the simulator needs the board's own keys (kind, inner_corners, square_mm)",
+            ));
+        }
+        let board = given
+            .table()
+            .map_err(|e| ConfigError::new("board", "the table", e))?;
+        match board {
+            Board::Chessboard { .. } => Ok(Some(board)),
+            _ => Err(ConfigError::new(
+                "board.kind",
+                given.kind.map_or(String::new(), |k| k.to_string()),
+                "the board field simulates chessboards only (kind = \"chessboard\")",
+            )),
+        }
     }
 }
 
@@ -779,6 +884,41 @@ fn finite3(key: &str, v: [f64; 3]) -> Result<(), ConfigError> {
             "must be finite numbers",
         ))
     }
+}
+
+/// `[field]`: the placements, their ranges and tilts, the print scale (checked whatever
+/// the kind; the defaults pass).
+fn validate_field(f: &FieldConfig) -> Result<(), ConfigError> {
+    if !(3..=100).contains(&f.placements) {
+        return Err(ConfigError::new(
+            "field.placements",
+            f.placements,
+            "expected 3 to 100 placements of the board",
+        ));
+    }
+    range("field.range_mm", f.range_mm)?;
+    if !(f.range_mm[0] >= 200.0 && f.range_mm[1] <= 2000.0) {
+        return Err(ConfigError::new(
+            "field.range_mm",
+            format!("[{}, {}]", f.range_mm[0], f.range_mm[1]),
+            "expected distances from 200 to 2000 mm (the wall stands at 2500 mm)",
+        ));
+    }
+    if !(f.max_tilt_deg.is_finite() && (0.0..=60.0).contains(&f.max_tilt_deg)) {
+        return Err(ConfigError::new(
+            "field.max_tilt_deg",
+            f.max_tilt_deg,
+            "expected 0 to 60 degrees",
+        ));
+    }
+    if !(f.print_scale.is_finite() && (0.5..=1.5).contains(&f.print_scale)) {
+        return Err(ConfigError::new(
+            "field.print_scale",
+            f.print_scale,
+            "expected the printed size over the given one, 0.5 to 1.5",
+        ));
+    }
+    Ok(())
 }
 
 /// `[room]`: sizes, tilt, bulge and albedos.
@@ -1289,10 +1429,49 @@ mod tests {
             ("[render]\nsupersampling = 0\n", "render.supersampling = 0: must be between 1 and 64"),
             ("[lrf]\nmin_range_mm = 6000.0\n", "lrf.min_range_mm = 6000: not under lrf.max_range_mm (5600)"),
             ("[lrf]\nservo_end_deg = -200.0\n", "lrf.servo_end_deg = -200: must not be under lrf.servo_start_deg (-180)"),
+            ("[field]\nkind = \"board\"\nplacements = 2\n", "field.placements = 2: expected 3 to 100 placements of the board"),
+            ("[field]\nrange_mm = [100.0, 900.0]\n", "field.range_mm = [100, 900]: expected distances from 200 to 2000 mm (the wall stands at 2500 mm)"),
+            ("[field]\nmax_tilt_deg = 70.0\n", "field.max_tilt_deg = 70: expected 0 to 60 degrees"),
+            ("[field]\nprint_scale = 0.0\n", "field.print_scale = 0: expected the printed size over the given one, 0.5 to 1.5"),
+            ("[board]\nkind = \"chessboard\"\ninner_corners = [7, 5]\nsquare_mm = 20.0\n", "board = a table: only for [field] kind = \"board\" (the room's field is its targets)"),
+            ("[field]\nkind = \"board\"\n[board]\nkind = \"chessboard\"\ninner_corners = [7, 5]\n", "board = the table: [board] kind = \"chessboard\" needs square_mm"),
+            ("[field]\nkind = \"board\"\n[board]\nkind = \"aprilgrid\"\ntags = [6, 6]\ntag_mm = 88.0\ntag_spacing = 0.3\n", "board.kind = aprilgrid: the board field simulates chessboards only (kind = \"chessboard\")"),
+            ("[field]\nkind = \"board\"\n[board]\nfrom = \"target.yaml\"\n", "board.from = target.yaml: the simulator needs the board's own keys (kind, inner_corners, square_mm)"),
         ];
         for (toml, want) in cases {
             assert_eq!(SimConfig::from_toml_str(toml).unwrap_err(), want, "{toml}");
         }
+    }
+
+    /// `[field]` and `[board]` are written only for a board field: a room's configuration
+    /// reads and writes as before; a board field's round-trips.
+    #[test]
+    fn a_room_writes_no_field_and_a_board_field_round_trips() {
+        let room = SimConfig::default().to_toml_string();
+        assert!(
+            !room.contains("[field]") && !room.contains("[board]"),
+            "{room}"
+        );
+        let text = "[field]\nkind = \"board\"\nprint_scale = 0.925\n[board]\nkind = \"chessboard\"\ninner_corners = [9, 6]\nsquare_mm = 20.0\n";
+        let cfg = SimConfig::from_toml_str(text).unwrap();
+        assert_eq!(cfg.field.kind, FieldKind::Board);
+        assert_eq!(
+            cfg.board_of_field().unwrap(),
+            Some(Board::Chessboard {
+                cols: 9,
+                rows: 6,
+                square_mm: 20.0
+            })
+        );
+        assert_eq!(
+            SimConfig::from_toml_str(&cfg.to_toml_string()).unwrap(),
+            cfg
+        );
+        let e = SimConfig::from_toml_str("[field]\nkind = \"boards\"\n").unwrap_err();
+        assert!(
+            e.contains("boards") && e.contains("room") && e.contains("board"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -14,6 +14,7 @@
 //! | [`lrf`] | the Hokuyo URG-04LX on a Dynamixel MX-28T: scans through `pingcal_lrf::sensor` (the calibration's own sensor model), with footprint and servo |
 //! | [`project_files`] | `project.toml`, PNG images, scan CSV, `truth.json` |
 //! | [`sphere_calib`] | a data set for the single-sphere calibration (issue 15): a 16-beam spinning lidar and the camera seeing one large sphere moved to N places, clouds, images, `truth.json` |
+//! | [`board_field`] | a board field (issue 51): a chessboard in N placements before the head's left camera and a fixed 2D LRF, images, 2D clouds (PCD), `truth.json` |
 //! | [`sphere_clutter`] | its harder scene (issue 36): a shaded sphere with a highlight on a stand, bricks, tiles and bright round plates, frames cut by the border |
 //!
 //! ## Frames (all lengths in mm)
@@ -36,6 +37,7 @@
 //! ```
 //! Same configuration and seed ⇒ byte-identical files.
 
+pub mod board_field;
 pub mod coded_target;
 pub mod config;
 pub mod head;
@@ -154,6 +156,13 @@ impl Simulation {
     /// Builds the scene, stations and LRF scans for `cfg` and `seed`.
     pub fn new(cfg: &SimConfig, seed: u64) -> Result<Self, SimError> {
         cfg.validate()?;
+        if cfg.field.kind == config::FieldKind::Board {
+            return Err(SimError::Invalid(ConfigError::new(
+                "field.kind",
+                "board",
+                "a board field is simulated by board_field::BoardFieldSim",
+            )));
+        }
         let scene = TestField::build(cfg, seed)?;
         let stations = stations::build_stations(cfg, &scene, seed)?;
         let rig = StereoRig::from_config(cfg);

@@ -83,6 +83,19 @@ pub fn simulate_sphere_calib_into(
     })
 }
 
+/// Simulates a board field (`[field] kind = "board"`) with `cfg` and `seed` into `out`
+/// (which must not exist, or be an empty folder), through a hidden temporary folder renamed
+/// at the end.
+pub fn simulate_board_field_into(
+    out: &Path,
+    cfg: &crate::SimConfig,
+    seed: u64,
+) -> Result<crate::board_field::BoardFieldSummary, SimError> {
+    check_out(out)?;
+    let sim = crate::board_field::BoardFieldSim::new(cfg, seed)?;
+    into_place(out, |tmp| crate::board_field::write_board_field(&sim, tmp))
+}
+
 /// Simulates with `cfg` and `seed` and writes the project into `out` (which must not exist,
 /// or be an empty folder), through a hidden temporary folder renamed at the end. Also
 /// returns the seconds spent on the scene and LRF sweep, and on rendering and writing.

@@ -434,7 +434,7 @@ fn ball_labels(sim: &Simulation) -> Vec<BallLabel> {
 /// the parameters to self-calibrate: all but those the model's sample lens does not have
 /// ([`pingcal_ba::camera::SampleLens::held`]: held at 0 as a user holds the terms a lens
 /// does not need).
-fn initial_and_free(cfg: &crate::config::CameraConfig) -> (Intrinsics, Vec<Parameter>) {
+pub(crate) fn initial_and_free(cfg: &crate::config::CameraConfig) -> (Intrinsics, Vec<Parameter>) {
     let model = cfg.model;
     let values = if model.in_mm() {
         let mut v = vec![0.0; model.parameter_names().len()];

@@ -8,6 +8,11 @@
 //! and the camera's images of one large sphere moved to N places, `sphere-calib.toml`,
 //! `camera.toml` and `truth.json`.
 //!
+//! `pingcal simulate --config sim.toml` with `[field] kind = "board"`: a board field
+//! (issue 51, `pingcal_sim::board_field`): a chessboard in `[field] placements` before the
+//! head's left camera and a fixed 2D LRF, `project.toml`, `images/P1.png` …, `lasers/P1.pcd`
+//! … and `truth.json`.
+//!
 //! The project is written into a hidden temporary folder beside DIR and renamed to DIR at
 //! the end, so an interrupted run never leaves a partial project looking complete.
 
@@ -150,6 +155,19 @@ pub fn run(args: Args) -> CmdResult {
     };
     cfg = with_camera_model(cfg, args.camera_model.as_deref())?;
     let out = &args.out;
+    if cfg.field.kind == pingcal_sim::config::FieldKind::Board {
+        let s = pingcal_sim::place::simulate_board_field_into(out, &cfg, args.seed)?;
+        println!(
+            "simulate: wrote {} (a board field: {} placements of the board, {} LRF points, at least {} beams on the board in every scan; seed {}) in {:.1} s",
+            out.join("project.toml").display(),
+            s.placements,
+            s.points,
+            s.min_board_beams,
+            args.seed,
+            t0.elapsed().as_secs_f64()
+        );
+        return Ok(());
+    }
     let (summary, sim, _) =
         pingcal_sim::place::simulate_into(out, &cfg, args.seed, args.config.as_deref())?;
     println!(
