@@ -954,26 +954,31 @@ mod tests {
     #[test]
     fn a_small_field_writes_loadable_files_byte_identical_for_the_same_seed() {
         let cfg = SimConfig::from_toml_str(
-            "[field]\nkind = \"board\"\nplacements = 3\n[lrf]\nscans_per_station = 2\n[camera]\nwidth = 640\nheight = 360\npixel_size_mm = 0.0075\n",
+            "[field]\nkind = \"board\"\nplacements = 3\nprint_scale = 0.925\n[board]\nkind = \"chessboard\"\ninner_corners = [9, 6]\nsquare_mm = 20.0\n[lrf]\nscans_per_station = 2\n",
         )
         .unwrap();
         let base = std::env::temp_dir().join(format!("pingcal-board-field-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&base);
         let dirs = [base.join("a"), base.join("b")];
+        let sim = BoardFieldSim::new(&cfg, 7).unwrap();
         for d in &dirs {
-            let sim = BoardFieldSim::new(&cfg, 7).unwrap();
-            write_board_field(&sim, d).unwrap();
+            write_board_field(&BoardFieldSim::new(&cfg, 7).unwrap(), d).unwrap();
         }
         let project = pingcal_project::Project::load(&dirs[0].join("project.toml")).unwrap();
         assert_eq!(project.file.images.len(), 3);
         assert_eq!(project.file.lrf.kind(), LrfKind::Fixed);
         let truth = read_board_truth(&dirs[0].join("truth.json")).unwrap();
         assert_eq!(truth.placements.len(), 3);
-        for p in &truth.placements {
-            let bytes = std::fs::read(dirs[0].join(&p.scan)).unwrap();
-            let cloud = pingcal_lrf::pcd::read_pcd(&bytes, &p.scan).unwrap();
-            assert_eq!(cloud.points.len(), p.points);
-            assert!(cloud.points.iter().all(|q| q.z == 0.0));
+        // the clouds read as the pipeline reads a fixed LRF's clouds (in the project's unit)
+        let unit = project.file.lrf.cloud_unit.unwrap();
+        for (k, (p, path)) in truth.placements.iter().zip(&project.scans).enumerate() {
+            let (cloud, warnings) = path.read_in(&MountModel::default(), unit).unwrap();
+            assert!(warnings.is_empty(), "{warnings:?}");
+            let beams = sim.scans(k).points;
+            assert_eq!((cloud.points.len(), beams.len()), (p.points, p.points));
+            for (q, b) in cloud.points.iter().zip(&beams) {
+                assert!(q.z == 0.0 && (q.x - b[0]).abs() < 2e-3 && (q.y - b[1]).abs() < 2e-3);
+            }
         }
         for f in [
             "project.toml",
@@ -989,6 +994,33 @@ mod tests {
                 std::fs::read(dirs[1].join(f)).unwrap(),
             );
             assert!(a == b, "{f} differs between two runs of one seed");
+        }
+        // truth.json's pose is the printed board's: the corners found in P1 are its
+        // corners' projections (and the project gives the square as given)
+        assert_eq!(project.file.board.as_ref().unwrap().square_mm, Some(20.0));
+        assert_eq!(
+            (truth.board.square_mm_given, truth.board.print_scale),
+            (20.0, 0.925)
+        );
+        let printed = pingcal_targets::board::Chessboard {
+            cols: 9,
+            rows: 6,
+            square_mm: truth.board.square_mm_printed,
+        };
+        let img = image::open(dirs[0].join("images/P1.png"))
+            .unwrap()
+            .to_luma8();
+        let det = pingcal_targets::board::detect_chessboard(&grey(&img), &printed).unwrap();
+        let pose = truth.placements[0].camera_from_board.to_pose();
+        for c in &det.corners {
+            let x = pose.transform(&V3::from(printed.board_point(c.id)));
+            let uv = sim
+                .camera
+                .model
+                .project(&sim.camera.params, &x, None, None)
+                .unwrap();
+            let e = (uv - Vector2::new(c.uv[0], c.uv[1])).norm();
+            assert!(e < 0.3, "corner {}: {e:.3} px off", c.id);
         }
         // simulation.toml re-reads to the configuration
         let text = std::fs::read_to_string(dirs[0].join("simulation.toml")).unwrap();
