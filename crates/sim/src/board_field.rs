@@ -336,10 +336,32 @@ impl BoardFieldSim {
                 && p.x > SIDE_WALL_X_MM + 100.0
         });
         clear
+            && self.corner_0_top_left(pose)
             && self.panel_in_image(pose)
             && self
                 .chord_mm(pose)
                 .is_some_and(|l| l >= 0.5 * (self.board.pattern()[2] - self.board.pattern()[0]))
+    }
+
+    /// Whether inner corner 0 images nearer the image's top-left corner than the board's
+    /// three other outer inner corners: a board the same after a half (or quarter) turn is
+    /// numbered by the detector from that corner (`pingcal_targets::board`), so the truth's
+    /// numbering is the detector's.
+    fn corner_0_top_left(&self, pose: &Rigid3) -> bool {
+        let b = self.board.printed();
+        let (c, r) = (b.cols, b.rows);
+        let dist = |id: usize| {
+            let x = pose.transform(&V3::from(b.board_point(id)));
+            (self
+                .camera
+                .model
+                .project(&self.camera.params, &x, None, None))
+            .map_or(f64::INFINITY, |uv| uv.norm())
+        };
+        let d0 = dist(0);
+        [c - 1, (r - 1) * c, r * c - 1]
+            .iter()
+            .all(|&id| d0 < dist(id))
     }
 
     /// Points along the panel's outline in the camera frame, `per_edge` per edge.
