@@ -271,7 +271,7 @@ impl BoardFieldSim {
         for (k, &stratum) in strata.iter().enumerate() {
             let pose = sim.place(k, stratum).ok_or_else(|| {
                 bad(format!(
-                    "placement P{}: no place for the {:.0} × {:.0} mm panel at {:.0}–{:.0} mm wholly in the image (20 px margin) and crossed by the scan plane along half the pattern in {TRIES} tries: try a longer [field] range_mm, a smaller board or a smaller max_tilt_deg",
+                    "placement P{}: no place for the {:.0} × {:.0} mm panel at {:.0}–{:.0} mm wholly in the image (20 px margin) and crossed by the scan plane along half the pattern in {TRIES} tries: try larger distances in [field] range_mm, a smaller board or a smaller max_tilt_deg",
                     k + 1,
                     sim.board.panel()[2] - sim.board.panel()[0],
                     sim.board.panel()[3] - sim.board.panel()[1],

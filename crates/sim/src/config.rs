@@ -802,6 +802,14 @@ impl SimConfig {
         validate_lrf_ranges(&self.lrf)?;
         validate_lrf_servo(&self.lrf)?;
         validate_field(&self.field)?;
+        if self.field.kind == FieldKind::Board && !(1..=1000).contains(&self.lrf.scans_per_station)
+        {
+            return Err(ConfigError::new(
+                "lrf.scans_per_station",
+                self.lrf.scans_per_station,
+                "expected 1 to 1000 scans at each placement of the board",
+            ));
+        }
         self.board_of_field().map(|_| ())
     }
 
@@ -1446,6 +1454,7 @@ mod tests {
             ("[field]\nkind = \"board\"\nplacements = 2\n", "field.placements = 2: expected 3 to 100 placements of the board"),
             ("[field]\nplacements = 5\n", "field.placements = given: a key of a board field: set [field] kind = \"board\""),
             ("[field]\nrange_mm = [100.0, 900.0]\n", "field.range_mm = [100, 900]: expected distances from 200 to 2000 mm (the wall stands at 2500 mm)"),
+            ("[field]\nkind = \"board\"\n[lrf]\nscans_per_station = 0\n", "lrf.scans_per_station = 0: expected 1 to 1000 scans at each placement of the board"),
             ("[field]\nmax_tilt_deg = 70.0\n", "field.max_tilt_deg = 70: expected 0 to 60 degrees"),
             ("[field]\nprint_scale = 0.0\n", "field.print_scale = 0: expected the printed size over the given one, 0.5 to 1.5"),
             ("[board]\nkind = \"chessboard\"\ninner_corners = [7, 5]\nsquare_mm = 20.0\n", "board = a table: only for [field] kind = \"board\" (the room's field is its targets)"),
