@@ -11,6 +11,7 @@ mod common;
 mod fuzz;
 
 mod architecture;
+mod board_field;
 mod boards;
 mod cli_safety;
 mod cloud_input;

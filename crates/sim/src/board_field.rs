@@ -271,7 +271,7 @@ impl BoardFieldSim {
         for (k, &stratum) in strata.iter().enumerate() {
             let pose = sim.place(k, stratum).ok_or_else(|| {
                 bad(format!(
-                    "placement P{}: no place for the {:.0} × {:.0} mm panel at {:.0}–{:.0} mm wholly in the image (20 px margin) and crossed by the scan plane along half the pattern in {TRIES} tries: try a longer [field] range_mm, a smaller board or a smaller max_tilt_deg",
+                    "placement P{}: no place for the {:.0} × {:.0} mm panel at {:.0}–{:.0} mm wholly in the image (20 px margin) and crossed by the scan plane along half the pattern in {TRIES} tries: try larger distances in [field] range_mm, a smaller board or a smaller max_tilt_deg",
                     k + 1,
                     sim.board.panel()[2] - sim.board.panel()[0],
                     sim.board.panel()[3] - sim.board.panel()[1],
@@ -336,10 +336,32 @@ impl BoardFieldSim {
                 && p.x > SIDE_WALL_X_MM + 100.0
         });
         clear
+            && self.corner_0_top_left(pose)
             && self.panel_in_image(pose)
             && self
                 .chord_mm(pose)
                 .is_some_and(|l| l >= 0.5 * (self.board.pattern()[2] - self.board.pattern()[0]))
+    }
+
+    /// Whether inner corner 0 images nearer the image's top-left corner than the board's
+    /// three other outer inner corners: a board the same after a half (or quarter) turn is
+    /// numbered by the detector from that corner (`pingcal_targets::board`), so the truth's
+    /// numbering is the detector's.
+    fn corner_0_top_left(&self, pose: &Rigid3) -> bool {
+        let b = self.board.printed();
+        let (c, r) = (b.cols, b.rows);
+        let dist = |id: usize| {
+            let x = pose.transform(&V3::from(b.board_point(id)));
+            (self
+                .camera
+                .model
+                .project(&self.camera.params, &x, None, None))
+            .map_or(f64::INFINITY, |uv| uv.norm())
+        };
+        let d0 = dist(0);
+        [c - 1, (r - 1) * c, r * c - 1]
+            .iter()
+            .all(|&id| d0 < dist(id))
     }
 
     /// Points along the panel's outline in the camera frame, `per_edge` per edge.
@@ -954,26 +976,31 @@ mod tests {
     #[test]
     fn a_small_field_writes_loadable_files_byte_identical_for_the_same_seed() {
         let cfg = SimConfig::from_toml_str(
-            "[field]\nkind = \"board\"\nplacements = 3\n[lrf]\nscans_per_station = 2\n[camera]\nwidth = 640\nheight = 360\npixel_size_mm = 0.0075\n",
+            "[field]\nkind = \"board\"\nplacements = 3\nprint_scale = 0.925\n[board]\nkind = \"chessboard\"\ninner_corners = [9, 6]\nsquare_mm = 20.0\n[lrf]\nscans_per_station = 2\n",
         )
         .unwrap();
         let base = std::env::temp_dir().join(format!("pingcal-board-field-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&base);
         let dirs = [base.join("a"), base.join("b")];
+        let sim = BoardFieldSim::new(&cfg, 7).unwrap();
         for d in &dirs {
-            let sim = BoardFieldSim::new(&cfg, 7).unwrap();
-            write_board_field(&sim, d).unwrap();
+            write_board_field(&BoardFieldSim::new(&cfg, 7).unwrap(), d).unwrap();
         }
         let project = pingcal_project::Project::load(&dirs[0].join("project.toml")).unwrap();
         assert_eq!(project.file.images.len(), 3);
         assert_eq!(project.file.lrf.kind(), LrfKind::Fixed);
         let truth = read_board_truth(&dirs[0].join("truth.json")).unwrap();
         assert_eq!(truth.placements.len(), 3);
-        for p in &truth.placements {
-            let bytes = std::fs::read(dirs[0].join(&p.scan)).unwrap();
-            let cloud = pingcal_lrf::pcd::read_pcd(&bytes, &p.scan).unwrap();
-            assert_eq!(cloud.points.len(), p.points);
-            assert!(cloud.points.iter().all(|q| q.z == 0.0));
+        // the clouds read as the pipeline reads a fixed LRF's clouds (in the project's unit)
+        let unit = project.file.lrf.cloud_unit.unwrap();
+        for (k, (p, path)) in truth.placements.iter().zip(&project.scans).enumerate() {
+            let (cloud, warnings) = path.read_in(&MountModel::default(), unit).unwrap();
+            assert!(warnings.is_empty(), "{warnings:?}");
+            let beams = sim.scans(k).points;
+            assert_eq!((cloud.points.len(), beams.len()), (p.points, p.points));
+            for (q, b) in cloud.points.iter().zip(&beams) {
+                assert!(q.z == 0.0 && (q.x - b[0]).abs() < 2e-3 && (q.y - b[1]).abs() < 2e-3);
+            }
         }
         for f in [
             "project.toml",
@@ -989,6 +1016,33 @@ mod tests {
                 std::fs::read(dirs[1].join(f)).unwrap(),
             );
             assert!(a == b, "{f} differs between two runs of one seed");
+        }
+        // truth.json's pose is the printed board's: the corners found in P1 are its
+        // corners' projections (and the project gives the square as given)
+        assert_eq!(project.file.board.as_ref().unwrap().square_mm, Some(20.0));
+        assert_eq!(
+            (truth.board.square_mm_given, truth.board.print_scale),
+            (20.0, 0.925)
+        );
+        let printed = pingcal_targets::board::Chessboard {
+            cols: 9,
+            rows: 6,
+            square_mm: truth.board.square_mm_printed,
+        };
+        let img = image::open(dirs[0].join("images/P1.png"))
+            .unwrap()
+            .to_luma8();
+        let det = pingcal_targets::board::detect_chessboard(&grey(&img), &printed).unwrap();
+        let pose = truth.placements[0].camera_from_board.to_pose();
+        for c in &det.corners {
+            let x = pose.transform(&V3::from(printed.board_point(c.id)));
+            let uv = sim
+                .camera
+                .model
+                .project(&sim.camera.params, &x, None, None)
+                .unwrap();
+            let e = (uv - Vector2::new(c.uv[0], c.uv[1])).norm();
+            assert!(e < 0.3, "corner {}: {e:.3} px off", c.id);
         }
         // simulation.toml re-reads to the configuration
         let text = std::fs::read_to_string(dirs[0].join("simulation.toml")).unwrap();

@@ -802,6 +802,14 @@ impl SimConfig {
         validate_lrf_ranges(&self.lrf)?;
         validate_lrf_servo(&self.lrf)?;
         validate_field(&self.field)?;
+        if self.field.kind == FieldKind::Board && !(1..=1000).contains(&self.lrf.scans_per_station)
+        {
+            return Err(ConfigError::new(
+                "lrf.scans_per_station",
+                self.lrf.scans_per_station,
+                "expected 1 to 1000 scans at each placement of the board",
+            ));
+        }
         self.board_of_field().map(|_| ())
     }
 
@@ -810,6 +818,20 @@ impl SimConfig {
     /// file or of another kind than a chessboard is refused.
     pub fn board_of_field(&self) -> Result<Option<Board>, ConfigError> {
         if self.field.kind == FieldKind::Room {
+            let (f, d) = (&self.field, FieldConfig::default());
+            let board_keys = [
+                ("field.placements", f.placements != d.placements),
+                ("field.range_mm", f.range_mm != d.range_mm),
+                ("field.max_tilt_deg", f.max_tilt_deg != d.max_tilt_deg),
+                ("field.print_scale", f.print_scale != d.print_scale),
+            ];
+            if let Some((key, _)) = board_keys.iter().find(|(_, given)| *given) {
+                return Err(ConfigError::new(
+                    *key,
+                    "given",
+                    "a key of a board field: set [field] kind = \"board\"",
+                ));
+            }
             return match &self.board {
                 Some(_) => Err(ConfigError::new(
                     "board",
@@ -1430,7 +1452,9 @@ mod tests {
             ("[lrf]\nmin_range_mm = 6000.0\n", "lrf.min_range_mm = 6000: not under lrf.max_range_mm (5600)"),
             ("[lrf]\nservo_end_deg = -200.0\n", "lrf.servo_end_deg = -200: must not be under lrf.servo_start_deg (-180)"),
             ("[field]\nkind = \"board\"\nplacements = 2\n", "field.placements = 2: expected 3 to 100 placements of the board"),
+            ("[field]\nplacements = 5\n", "field.placements = given: a key of a board field: set [field] kind = \"board\""),
             ("[field]\nrange_mm = [100.0, 900.0]\n", "field.range_mm = [100, 900]: expected distances from 200 to 2000 mm (the wall stands at 2500 mm)"),
+            ("[field]\nkind = \"board\"\n[lrf]\nscans_per_station = 0\n", "lrf.scans_per_station = 0: expected 1 to 1000 scans at each placement of the board"),
             ("[field]\nmax_tilt_deg = 70.0\n", "field.max_tilt_deg = 70: expected 0 to 60 degrees"),
             ("[field]\nprint_scale = 0.0\n", "field.print_scale = 0: expected the printed size over the given one, 0.5 to 1.5"),
             ("[board]\nkind = \"chessboard\"\ninner_corners = [7, 5]\nsquare_mm = 20.0\n", "board = a table: only for [field] kind = \"board\" (the room's field is its targets)"),

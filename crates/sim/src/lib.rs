@@ -160,7 +160,7 @@ impl Simulation {
             return Err(SimError::Invalid(ConfigError::new(
                 "field.kind",
                 "board",
-                "a board field is simulated by board_field::BoardFieldSim",
+                "this is the room's simulation; a board field is written by `pingcal simulate --config` (board_field)",
             )));
         }
         let scene = TestField::build(cfg, seed)?;

@@ -86,13 +86,22 @@ pub fn simulate_sphere_calib_into(
 /// Simulates a board field (`[field] kind = "board"`) with `cfg` and `seed` into `out`
 /// (which must not exist, or be an empty folder), through a hidden temporary folder renamed
 /// at the end.
+/// An impossible placement names `config_file` when given.
 pub fn simulate_board_field_into(
     out: &Path,
     cfg: &crate::SimConfig,
     seed: u64,
+    config_file: Option<&Path>,
 ) -> Result<crate::board_field::BoardFieldSummary, SimError> {
     check_out(out)?;
-    let sim = crate::board_field::BoardFieldSim::new(cfg, seed)?;
+    let sim =
+        crate::board_field::BoardFieldSim::new(cfg, seed).map_err(|e| match (config_file, e) {
+            (Some(p), SimError::Config { what, .. }) => SimError::Config {
+                file: p.display().to_string(),
+                what: format!("[field] kind = \"board\": {what}"),
+            },
+            (_, e) => e,
+        })?;
     into_place(out, |tmp| crate::board_field::write_board_field(&sim, tmp))
 }
 

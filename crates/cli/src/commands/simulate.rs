@@ -156,7 +156,12 @@ pub fn run(args: Args) -> CmdResult {
     cfg = with_camera_model(cfg, args.camera_model.as_deref())?;
     let out = &args.out;
     if cfg.field.kind == pingcal_sim::config::FieldKind::Board {
-        let s = pingcal_sim::place::simulate_board_field_into(out, &cfg, args.seed)?;
+        let s = pingcal_sim::place::simulate_board_field_into(
+            out,
+            &cfg,
+            args.seed,
+            args.config.as_deref(),
+        )?;
         println!(
             "simulate: wrote {} (a board field: {} placements of the board, {} LRF points, at least {} beams on the board in every scan; seed {}) in {:.1} s",
             out.join("project.toml").display(),
