@@ -299,7 +299,8 @@ impl BoardFieldSim {
             let el = rng.random_range(-25.0f64..25.0).to_radians();
             let c = V3::new(el.cos() * az.sin(), el.cos() * az.cos(), el.sin()) * range;
             let about_vertical = signs.0 * f.max_tilt_deg * rng.random_range(0.3..=1.0);
-            let about_horizontal = signs.1 * f.max_tilt_deg * rng.random_range(0.3..=1.0);
+            let pitch = f.max_pitch_deg.unwrap_or(f.max_tilt_deg);
+            let about_horizontal = signs.1 * pitch * rng.random_range(0.3..=1.0);
             let roll = rng.random_range(-MAX_ROLL_DEG..=MAX_ROLL_DEG);
             let rotation = turn(V3::z(), about_vertical)
                 * turn(V3::x(), about_horizontal)
@@ -557,7 +558,7 @@ impl BoardFieldSim {
         self.lrf.sensor()
     }
 
-    /// Placement `k`'s `scans_per_station` scans: every beam cast in the scan plane against
+    /// Placement `k`'s `[field] scans_per_placement` scans: every beam cast in the scan plane against
     /// the panel, floor and walls, read through the sensor (range noise, offset and scale,
     /// mm rounding, range limits), each scan from its own random stream.
     pub fn scans(&self, k: usize) -> PlacementScans {
@@ -568,7 +569,7 @@ impl BoardFieldSim {
             board_beams: Vec::new(),
             on_board: Vec::new(),
         };
-        for s in 0..self.lrf.scans_per_station.max(1) {
+        for s in 0..self.config.field.scans_per_placement.max(1) {
             let mut rng = rng_for(self.seed, "board-field-lrf", (k * 1000 + s) as u64);
             let mut on = 0;
             for i in 0..sensor.beams {
@@ -944,7 +945,10 @@ mod tests {
             assert!(sim.panel_in_image(pose), "P{}", k + 1);
             assert!(sim.chord_mm(pose).is_some(), "P{}", k + 1);
             let scans = sim.scans(k);
-            assert_eq!(scans.board_beams.len(), sim.lrf.scans_per_station);
+            assert_eq!(
+                scans.board_beams.len(),
+                sim.config.field.scans_per_placement
+            );
             for (s, &n) in scans.board_beams.iter().enumerate() {
                 assert!(n >= 30, "P{} scan {s}: {n} beams on the board", k + 1);
             }
@@ -976,7 +980,7 @@ mod tests {
     #[test]
     fn a_small_field_writes_loadable_files_byte_identical_for_the_same_seed() {
         let cfg = SimConfig::from_toml_str(
-            "[field]\nkind = \"board\"\nplacements = 3\nprint_scale = 0.925\n[board]\nkind = \"chessboard\"\ninner_corners = [9, 6]\nsquare_mm = 20.0\n[lrf]\nscans_per_station = 2\n",
+            "[field]\nkind = \"board\"\nplacements = 3\nprint_scale = 0.925\nscans_per_placement = 2\n[board]\nkind = \"chessboard\"\ninner_corners = [9, 6]\nsquare_mm = 20.0\n",
         )
         .unwrap();
         let base = std::env::temp_dir().join(format!("pingcal-board-field-{}", std::process::id()));

@@ -90,8 +90,16 @@ pub struct FieldConfig {
     pub range_mm: [f64; 2],
     /// The board's turn away from facing the camera about its horizontal and its vertical
     /// axis, at most, degrees (0: every board vertical and square to the camera's forward
-    /// axis, the "vertical boards" case).
+    /// axis).
     pub max_tilt_deg: f64,
+    /// The turn about the horizontal axis alone, at most, degrees (absent: `max_tilt_deg`;
+    /// 0: every board vertical, turned only about the vertical, the usual way before a
+    /// horizontal scan).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub max_pitch_deg: Option<f64>,
+    /// The LRF's scans of each placement (the board held still for a second before a 10 Hz
+    /// scanner: 10).
+    pub scans_per_placement: usize,
     /// The board as printed over the board as given (`[board] square_mm`): 0.925 is a page
     /// printed "fit to page", its 20 mm squares 18.5 mm.
     pub print_scale: f64,
@@ -104,6 +112,8 @@ impl Default for FieldConfig {
             placements: 8,
             range_mm: [500.0, 1100.0],
             max_tilt_deg: 35.0,
+            max_pitch_deg: None,
+            scans_per_placement: 10,
             print_scale: 1.0,
         }
     }
@@ -802,14 +812,6 @@ impl SimConfig {
         validate_lrf_ranges(&self.lrf)?;
         validate_lrf_servo(&self.lrf)?;
         validate_field(&self.field)?;
-        if self.field.kind == FieldKind::Board && !(1..=1000).contains(&self.lrf.scans_per_station)
-        {
-            return Err(ConfigError::new(
-                "lrf.scans_per_station",
-                self.lrf.scans_per_station,
-                "expected 1 to 1000 scans at each placement of the board",
-            ));
-        }
         self.board_of_field().map(|_| ())
     }
 
@@ -823,6 +825,11 @@ impl SimConfig {
                 ("field.placements", f.placements != d.placements),
                 ("field.range_mm", f.range_mm != d.range_mm),
                 ("field.max_tilt_deg", f.max_tilt_deg != d.max_tilt_deg),
+                ("field.max_pitch_deg", f.max_pitch_deg != d.max_pitch_deg),
+                (
+                    "field.scans_per_placement",
+                    f.scans_per_placement != d.scans_per_placement,
+                ),
                 ("field.print_scale", f.print_scale != d.print_scale),
             ];
             if let Some((key, _)) = board_keys.iter().find(|(_, given)| *given) {
@@ -931,6 +938,23 @@ fn validate_field(f: &FieldConfig) -> Result<(), ConfigError> {
             "field.max_tilt_deg",
             f.max_tilt_deg,
             "expected 0 to 60 degrees",
+        ));
+    }
+    if let Some(p) = f
+        .max_pitch_deg
+        .filter(|p| !(p.is_finite() && (0.0..=60.0).contains(p)))
+    {
+        return Err(ConfigError::new(
+            "field.max_pitch_deg",
+            p,
+            "expected 0 to 60 degrees",
+        ));
+    }
+    if !(1..=1000).contains(&f.scans_per_placement) {
+        return Err(ConfigError::new(
+            "field.scans_per_placement",
+            f.scans_per_placement,
+            "expected 1 to 1000 scans at each placement of the board",
         ));
     }
     if !(f.print_scale.is_finite() && (0.5..=1.5).contains(&f.print_scale)) {
@@ -1454,7 +1478,7 @@ mod tests {
             ("[field]\nkind = \"board\"\nplacements = 2\n", "field.placements = 2: expected 3 to 100 placements of the board"),
             ("[field]\nplacements = 5\n", "field.placements = given: a key of a board field: set [field] kind = \"board\""),
             ("[field]\nrange_mm = [100.0, 900.0]\n", "field.range_mm = [100, 900]: expected distances from 200 to 2000 mm (the wall stands at 2500 mm)"),
-            ("[field]\nkind = \"board\"\n[lrf]\nscans_per_station = 0\n", "lrf.scans_per_station = 0: expected 1 to 1000 scans at each placement of the board"),
+            ("[field]\nkind = \"board\"\nscans_per_placement = 0\n", "field.scans_per_placement = 0: expected 1 to 1000 scans at each placement of the board"),
             ("[field]\nmax_tilt_deg = 70.0\n", "field.max_tilt_deg = 70: expected 0 to 60 degrees"),
             ("[field]\nprint_scale = 0.0\n", "field.print_scale = 0: expected the printed size over the given one, 0.5 to 1.5"),
             ("[board]\nkind = \"chessboard\"\ninner_corners = [7, 5]\nsquare_mm = 20.0\n", "board = a table: only for [field] kind = \"board\" (the room's field is its targets)"),

@@ -28,7 +28,7 @@ use crate::board_camera::{self, BoardCalibration, BoardView};
 use crate::context::{Options, PipelineError, Result};
 use crate::progress::Reporter;
 use crate::verdict::{chi2_quantile, chi2_upper, Check, Status, Verdict, ALPHA};
-use adjust::{BoardAdjustment, Input, Start};
+use adjust::{BoardAdjustment, Input, LeftOut, Start};
 use consensus::{Cut, Extent};
 use nalgebra::{DMatrix, Vector3};
 use pingcal_ba::camera::SensorCamera;
@@ -94,8 +94,8 @@ pub struct BoardOutcome {
     pub adjustment: BoardAdjustment,
     /// Per view, its beams' errors at the solution (mm).
     pub errors: Vec<Vec<f64>>,
-    /// Per view, the RMS of its beams' errors through the adjustment without them (mm).
-    pub leave_one_out: Vec<Option<f64>>,
+    /// Per view, its beams through the adjustment without them.
+    pub leave_one_out: Vec<Option<LeftOut>>,
     /// The extrinsic in the LRF's metric scale.
     pub camera_from_lrf: Rigid3,
     /// The covariance of its `[δω, t]`.
@@ -332,7 +332,7 @@ pub fn joint(
     camera: &BoardCalibration,
     range: [f64; 2],
     rep: &Reporter,
-) -> Result<(BoardAdjustment, Vec<Option<f64>>)> {
+) -> Result<(BoardAdjustment, Vec<Option<LeftOut>>)> {
     let (start, on_board) = start(input, camera, range, rep)?;
     let adjustment = adjust::adjust(input, &start, &on_board)?;
     let loo = adjust::leave_one_out(input, &adjustment)?;
@@ -347,10 +347,7 @@ fn start(
     rep: &Reporter,
 ) -> Result<(Start, Vec<Vec<usize>>)> {
     let cuts: Vec<Cut> = (camera.placements.iter().zip(input.beams))
-        .map(|(p, beams)| Cut {
-            camera_from_board: p.camera_from_board,
-            beams,
-        })
+        .map(|(p, beams)| Cut::new(p.camera_from_board, beams))
         .collect();
     let turns = crate::fixed_lrf::axis_turns();
     let found = consensus::consensus(&cuts, &turns, Vector3::zeros(), range, input.extent)
@@ -381,6 +378,8 @@ fn start(
             .collect(),
         camera_from_lrf: found.camera_from_lrf,
         range,
+        scales: [1.0, 1.0],
+        nominal: found.nominal,
     };
     Ok((start, found.on_board))
 }
@@ -433,8 +432,7 @@ pub fn judge(o: &BoardOutcome) -> Verdict {
             (vv / r.max(1.0)).sqrt()
         ));
     }
-    let s0 = (vv / r.max(1.0)).sqrt().max(1.0);
-    reasons.extend(leave_one_out_reasons(o, s0));
+    reasons.extend(leave_one_out_reasons(o));
     if let Some((scale, sigma)) = a.board_scale() {
         if (scale - 1.0).abs() > SCALE_TOLERANCE && (scale - 1.0).abs() > 3.29 * sigma {
             reasons.push(format!(
@@ -460,27 +458,19 @@ pub fn judge(o: &BoardOutcome) -> Verdict {
 }
 
 /// The placements whose beams, through the adjustment without them, miss the board by more
-/// than their σ's allow (χ² of their errors over the `1 − α` quantile, σ's scaled by `s0`).
-fn leave_one_out_reasons(o: &BoardOutcome, s0: f64) -> Vec<String> {
-    let a = &o.adjustment;
+/// than their σ's and the other placements' extrinsic allow ([`LeftOut::chi2`] over the
+/// quantile of [`LOO_Z`]).
+fn leave_one_out_reasons(o: &BoardOutcome) -> Vec<String> {
     let mut out = Vec::new();
     for p in &o.placements {
-        let Some(v) = p.view else { continue };
-        let Some(rms) = o.leave_one_out[v] else {
+        let Some(l) = p.view.and_then(|v| o.leave_one_out[v]) else {
             continue;
         };
-        let on = &a.on_board[v];
-        let sigma = (on
-            .iter()
-            .map(|&i| o.placements_beam_sigma(v, i).powi(2))
-            .sum::<f64>()
-            / on.len() as f64)
-            .sqrt();
-        let chi2 = on.len() as f64 * (rms / (sigma * s0)).powi(2);
-        if chi2 > chi2_quantile(on.len() as f64, LOO_Z) {
+        let bound = chi2_quantile(l.beams as f64, LOO_Z);
+        if l.chi2 > bound {
             out.push(format!(
-                "station {}: its beams miss the board by {rms:.1} mm RMS through the extrinsic of the other placements (their σ {sigma:.1} mm): did the board or the rig move between its photograph and its scan?",
-                p.station
+                "station {}: its {} beams miss the board by {:.1} mm RMS through the extrinsic of the other placements (χ² {:.0} against {bound:.0}): did the board or the rig move between its photograph and its scan?",
+                p.station, l.beams, l.rms_mm, l.chi2
             ));
         }
     }

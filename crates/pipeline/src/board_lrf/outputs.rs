@@ -118,7 +118,8 @@ fn station_json(o: &BoardOutcome, p: &super::Placement) -> serde_json::Value {
         "board_beams": a.on_board[v].len(),
         "board_beams_rms_mm": rms,
         "board_beams_rejected": a.rejected[v],
-        "loo_rms_mm": o.leave_one_out[v],
+        "loo_rms_mm": o.leave_one_out[v].map(|l| l.rms_mm),
+        "loo_chi2": o.leave_one_out[v].map(|l| l.chi2),
         "camera_from_board": extrinsic_json(&metric.into(), None, None),
         "note": p.note,
     })
@@ -162,6 +163,7 @@ pub fn results_json(o: &BoardOutcome) -> serde_json::Value {
             "observations": prec.observations,
             "unknowns": prec.unknowns,
             "rms_image_px": prec.rms_image_px,
+            "variance_components": {"corners": a.scales[0], "beams": a.scales[1]},
         },
         "camera_from_board_only": {
             "rms_px": o.camera_only.rms_px,
