@@ -329,3 +329,38 @@ fn aprilgrids_a_third_out_of_the_image_give_their_visible_corners_with_their_ids
     assert_eq!(score.wrong, 0);
     assert!(score.rms() < 0.1, "RMS {} px", score.rms());
 }
+
+/// A board drawn by OpenCV itself, upside down and in perspective (`fixtures/opencv_charuco.py`
+/// made the image, its true corners and OpenCV's `CharucoDetector` corners): every corner
+/// with OpenCV's id, near the truth and near OpenCV's.
+#[test]
+fn an_opencv_drawn_charuco_board_gives_opencvs_ids() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures");
+    let img = pingcal_targets::load_image(&dir.join("opencv_charuco.png")).expect("the fixture");
+    let text = std::fs::read_to_string(dir.join("opencv_charuco.json")).expect("the fixture");
+    let json: serde_json::Value = serde_json::from_str(&text).expect("json");
+    let b = Charuco {
+        cols: 6,
+        rows: 4,
+        square_mm: 40.0,
+        marker_mm: 30.0,
+        dictionary: MarkerDictionary::named("DICT_5X5_100").unwrap(),
+    };
+    let det = detect_charuco(&img, &b).unwrap_or_else(|e| panic!("{e}"));
+    let at = |key: &str, id: usize| {
+        let p = &json[key][id.to_string()];
+        [p[0].as_f64().unwrap(), p[1].as_f64().unwrap()]
+    };
+    let mut truth = Score::default();
+    truth.add(&det, |id| at("truth", id), b.corner_count());
+    let mut opencv = Score::default();
+    opencv.add(&det, |id| at("corners", id), b.corner_count());
+    println!(
+        "OpenCV's board: to the truth {truth:?}, RMS {:.3} px; to OpenCV's corners RMS {:.3} px",
+        truth.rms(),
+        opencv.rms()
+    );
+    assert_eq!((truth.found, truth.wrong), (24, 0));
+    assert_eq!((opencv.found, opencv.wrong), (24, 0));
+    assert!(truth.rms() < 0.1, "RMS {} px", truth.rms());
+}

@@ -130,7 +130,7 @@ pub fn detect_aprilgrid(
         })
     };
     let pitch = (1.0 + board.spacing) * board.tag_mm;
-    let tags = agreeing(tags, plane, pitch)?;
+    let tags = agreeing(tags, plane, pitch, fam.name())?;
     let mut corners = Vec::new();
     for tag in &tags {
         let side_px = (0..4)

@@ -156,7 +156,12 @@ pub fn detect_charuco(
         .into_iter()
         .filter(|m| m.id < board.marker_count())
         .collect();
-    let markers = agreeing(read, |k| board.marker_corners(k), board.square_mm)?;
+    let markers = agreeing(
+        read,
+        |k| board.marker_corners(k),
+        board.square_mm,
+        dict.name(),
+    )?;
     let side_px = marker_side_px(&markers) * board.square_mm / board.marker_mm;
     let margin_px = side_px * 0.5 * (1.0 - board.marker_mm / board.square_mm);
     let half = ((0.8 * margin_px).floor() as i64).clamp(2, 7);
@@ -268,9 +273,11 @@ pub(crate) fn agreeing(
     read: Vec<Marker>,
     plane: impl Fn(usize) -> [[f64; 2]; 4],
     square_mm: f64,
+    dictionary: &'static str,
 ) -> Result<Vec<Marker>, MarkerMiss> {
     if read.len() < MIN_MARKERS {
         return Err(MarkerMiss::TooFewMarkers {
+            dictionary,
             found: read.len(),
             needed: MIN_MARKERS,
         });
@@ -287,6 +294,7 @@ pub(crate) fn agreeing(
     let threshold = (0.25 * square_mm * side_px / side_mm).max(3.0);
     let fit =
         ransac_homography(&src, &dst, threshold, 200, 51).ok_or(MarkerMiss::TooFewMarkers {
+            dictionary,
             found: 0,
             needed: MIN_MARKERS,
         })?;
@@ -298,6 +306,7 @@ pub(crate) fn agreeing(
         .collect();
     if kept.len() < MIN_MARKERS {
         return Err(MarkerMiss::Disagreeing {
+            dictionary,
             found: kept.len(),
             needed: MIN_MARKERS,
         });

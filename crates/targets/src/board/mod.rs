@@ -157,16 +157,20 @@ pub enum MarkerMiss {
     #[error("{0}")]
     BadBoard(String),
     /// Too few of the board's markers read.
-    #[error("{found} of the board's markers read, at least {needed} needed (board out of view, too small, or of another dictionary?)")]
+    #[error("{found} of the board's {dictionary} markers read, at least {needed} needed (board out of view, too small, or of another dictionary?)")]
     TooFewMarkers {
+        /// The board's dictionary (or tag family).
+        dictionary: &'static str,
         /// Markers read.
         found: usize,
         /// Needed.
         needed: usize,
     },
     /// Markers read, but too few agree on the board's plane.
-    #[error("only {found} of the markers read lie on one plane as the board's layout says, at least {needed} needed (another board layout?)")]
+    #[error("only {found} of the {dictionary} markers read lie on one plane as the board's layout says, at least {needed} needed (another board layout?)")]
     Disagreeing {
+        /// The board's dictionary (or tag family).
+        dictionary: &'static str,
         /// Markers agreeing.
         found: usize,
         /// Needed.
