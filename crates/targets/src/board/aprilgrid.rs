@@ -162,3 +162,41 @@ pub fn detect_aprilgrid(
         markers: tags.len(),
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Kalibr's `GridCalibrationTargetAprilgrid` for 2 × 2 tags: points 0, 1, 5, 4 are tag 0's
+    /// (bottom-left, bottom-right, top-right, top-left), 2, 3, 7, 6 tag 1's, 8, 9, 13, 12
+    /// tag 2's; point `(c, r)` at `((c / 2)·(1 + s)·t + (c % 2)·t, …)`.
+    #[test]
+    fn the_numbering_and_frame_are_kalibrs() {
+        let g = Aprilgrid {
+            cols: 2,
+            rows: 2,
+            tag_mm: 10.0,
+            spacing: 0.3,
+            family: MarkerDictionary::named("tag36h11").unwrap(),
+        };
+        // tag_points: top-left, top-right, bottom-right, bottom-left.
+        assert_eq!(g.tag_points(0), [4, 5, 1, 0]);
+        assert_eq!(g.tag_points(1), [6, 7, 3, 2]);
+        assert_eq!(g.tag_points(2), [12, 13, 9, 8]);
+        assert_eq!(g.board_point(0), [0.0, 0.0, 0.0]);
+        assert_eq!(g.board_point(1), [10.0, 0.0, 0.0]);
+        assert_eq!(g.board_point(2), [13.0, 0.0, 0.0]);
+        assert_eq!(g.board_point(4), [0.0, 10.0, 0.0]);
+        assert_eq!(g.board_point(15), [23.0, 23.0, 0.0]);
+        // Tag 0's border is black, its top-left code cell (id 0's code starts 0xd: 1101…)
+        // white, the gap white, the gap's crossing black.
+        let cell = 1.0;
+        assert!(!g.is_white(0.5, 0.5));
+        assert!(g.is_white(2.0 + 0.5 * cell, 10.0 - 2.0 - 0.5 * cell));
+        assert!(!g.is_white(2.0 + 2.5 * cell, 10.0 - 2.0 - 0.5 * cell));
+        assert!(g.is_white(11.5, 5.0));
+        assert!(!g.is_white(11.5, 11.5));
+        assert!(!g.is_white(-1.5, -1.5));
+        assert!(g.is_white(-4.0, 5.0));
+    }
+}

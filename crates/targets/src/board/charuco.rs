@@ -313,3 +313,36 @@ pub(crate) fn agreeing(
     }
     Ok(kept)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// OpenCV 5.1's `CharucoBoard((5, 4), 0.04, 0.03, DICT_4X4_50)` (mm here):
+    /// `getChessboardCorners()` and `getObjPoints()` of its first markers.
+    #[test]
+    fn the_layout_is_opencvs() {
+        let b = Charuco {
+            cols: 4,
+            rows: 3,
+            square_mm: 40.0,
+            marker_mm: 30.0,
+            dictionary: MarkerDictionary::named("DICT_4X4_50").unwrap(),
+        };
+        assert_eq!(b.board_point(0), [40.0, 40.0, 0.0]);
+        assert_eq!(b.board_point(1), [80.0, 40.0, 0.0]);
+        assert_eq!(b.board_point(4), [40.0, 80.0, 0.0]);
+        assert_eq!(b.marker_count(), 10);
+        assert_eq!(b.marker_corners(0)[0], [45.0, 5.0]);
+        assert_eq!(b.marker_corners(0)[2], [75.0, 35.0]);
+        assert_eq!(b.marker_corners(1)[0], [125.0, 5.0]);
+        assert_eq!(b.marker_corners(2)[0], [5.0, 45.0]);
+        // The top-left square is black, its right neighbour white around marker 0.
+        assert_eq!(b.is_white(20.0, 20.0), Some(false));
+        assert_eq!(b.is_white(42.0, 20.0), Some(true));
+        for k in 0..b.marker_count() {
+            let (x, y) = b.marker_square(k);
+            assert_eq!(b.marker_in(x, y), Some(k));
+        }
+    }
+}
