@@ -364,3 +364,47 @@ fn an_opencv_drawn_charuco_board_gives_opencvs_ids() {
     assert_eq!((opencv.found, opencv.wrong), (24, 0));
     assert!(truth.rms() < 0.1, "RMS {} px", truth.rms());
 }
+
+/// Boards too small for every corner (ChArUco squares of 24 and 28 px, marker cells of 2.2
+/// to 3.5 px; AprilGrid tags of 24 px, cells of 2.4 px), in stronger perspective: corners
+/// are lost, never given a wrong id.
+#[test]
+fn small_boards_lose_corners_but_never_give_a_wrong_id() {
+    let persp = |k: usize| {
+        [
+            8e-4 * (k as f64 - 3.5) / 3.5,
+            -6e-4 * ((k % 3) as f64 - 1.0),
+        ]
+    };
+    let mut score = Score::default();
+    for dict in ["DICT_4X4_50", "DICT_5X5_100", "DICT_6X6_250"] {
+        let b = charuco(dict);
+        for (k, scale) in [1.2, 1.4]
+            .into_iter()
+            .cycle()
+            .take(ANGLES.len())
+            .enumerate()
+        {
+            let h = view([70.0, 50.0], scale, ANGLES[k], [320.0, 240.0], persp(k));
+            let img = render(charuco_shade(&b), &h, 640, 480, 500 + k as u64);
+            score.expected += b.corner_count();
+            if let Ok(det) = detect_charuco(&img, &b) {
+                score.add(&det, |id| project(&h, b.board_point(id)), 0);
+            }
+        }
+    }
+    let g = aprilgrid();
+    for k in 0..ANGLES.len() {
+        let mid = [78.0, 58.5];
+        let flip = Matrix3::new(1.0, 0.0, 0.0, 0.0, -1.0, 2.0 * mid[1], 0.0, 0.0, 1.0);
+        let h = view(mid, 0.8, ANGLES[k], [320.0, 240.0], persp(k)) * flip;
+        let img = render(aprilgrid_shade(&g), &h, 640, 480, 600 + k as u64);
+        score.expected += g.corner_count();
+        if let Ok(det) = detect_aprilgrid(&img, &g) {
+            score.add(&det, |id| project(&h, g.board_point(id)), 0);
+        }
+    }
+    println!("small boards: {score:?}, RMS {:.3} px", score.rms());
+    assert_eq!(score.wrong, 0);
+    assert!(score.found > score.expected / 2, "{score:?}");
+}

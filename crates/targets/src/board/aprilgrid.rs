@@ -25,7 +25,7 @@
 //! homography the others agree on, dropped; each tag's four corners refined sub-pixel
 //! ([`super::refine::refine_in`], a window inside the gap) with their σ.
 
-use super::charuco::{agreeing, refined_corner};
+use super::charuco::{agreeing, consistent, refined_corner};
 use super::markers::{find_markers, MarkerDictionary};
 use super::{BoardCorner, MarkerBoardDetection, MarkerMiss};
 use crate::raster::GrayImage;
@@ -158,7 +158,7 @@ pub fn detect_aprilgrid(
     }
     corners.sort_by_key(|c| c.id);
     Ok(MarkerBoardDetection {
-        corners,
+        corners: consistent(corners, |id| board.board_point(id), 2.5 * pitch),
         markers: tags.len(),
     })
 }

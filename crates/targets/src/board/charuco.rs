@@ -203,9 +203,59 @@ pub fn detect_charuco(
         }
     }
     Ok(MarkerBoardDetection {
-        corners,
+        corners: consistent(corners, |id| board.board_point(id), 3.0 * board.square_mm),
         markers: markers.len(),
     })
+}
+
+/// Neighbours a corner needs for [`consistent`] to check it.
+const MIN_NEIGHBOURS: usize = 4;
+
+/// The corners that agree with their neighbours: each corner's position predicted by the
+/// homography of the corners within `radius_mm` of it on the board (itself left out) must
+/// lie within max(0.5 px, 4 σ) of it. The worst corner off its prediction is dropped and the
+/// rest checked again; a corner with fewer than [`MIN_NEIGHBOURS`] neighbours is dropped
+/// (a refinement drawn to a marker's edge must not pass as the corner).
+pub(crate) fn consistent(
+    mut corners: Vec<BoardCorner>,
+    point: impl Fn(usize) -> [f64; 3],
+    radius_mm: f64,
+) -> Vec<BoardCorner> {
+    loop {
+        let mut worst: Option<(usize, f64)> = None;
+        for (i, c) in corners.iter().enumerate() {
+            let p = point(c.id);
+            let (src, dst): (Vec<[f64; 2]>, Vec<[f64; 2]>) = corners
+                .iter()
+                .filter(|o| o.id != c.id)
+                .filter(|o| {
+                    let q = point(o.id);
+                    (q[0] - p[0]).hypot(q[1] - p[1]) <= radius_mm
+                })
+                .map(|o| {
+                    let q = point(o.id);
+                    ([q[0], q[1]], o.uv)
+                })
+                .unzip();
+            let off = if src.len() < MIN_NEIGHBOURS {
+                f64::INFINITY
+            } else {
+                fit_homography(&src, &dst)
+                    .and_then(|h| h.apply([p[0], p[1]]))
+                    .map_or(f64::INFINITY, |q| (q[0] - c.uv[0]).hypot(q[1] - c.uv[1]))
+            };
+            let excess = off / (4.0 * c.sigma_px).max(0.5);
+            if excess > 1.0 && worst.is_none_or(|(_, e)| excess > e) {
+                worst = Some((i, excess));
+            }
+        }
+        match worst {
+            Some((i, _)) => {
+                corners.remove(i);
+            }
+            None => return corners,
+        }
+    }
 }
 
 /// A corner refined from `start` with a window of half width `half`, kept when its window
