@@ -394,10 +394,10 @@ fn small_boards_lose_corners_but_never_give_a_wrong_id() {
         }
     }
     let g = aprilgrid();
-    for k in 0..ANGLES.len() {
+    for (k, angle) in ANGLES.into_iter().enumerate() {
         let mid = [78.0, 58.5];
         let flip = Matrix3::new(1.0, 0.0, 0.0, 0.0, -1.0, 2.0 * mid[1], 0.0, 0.0, 1.0);
-        let h = view(mid, 0.8, ANGLES[k], [320.0, 240.0], persp(k)) * flip;
+        let h = view(mid, 0.8, angle, [320.0, 240.0], persp(k)) * flip;
         let img = render(aprilgrid_shade(&g), &h, 640, 480, 600 + k as u64);
         score.expected += g.corner_count();
         if let Ok(det) = detect_aprilgrid(&img, &g) {
