@@ -408,3 +408,105 @@ fn small_boards_lose_corners_but_never_give_a_wrong_id() {
     assert_eq!(score.wrong, 0);
     assert!(score.found > score.expected / 2, "{score:?}");
 }
+
+/// The rectangles of a printed page at `ppm` px a mm (each pixel its exact black cover;
+/// text and discs left out), blurred and with noise as the rendered boards.
+fn rasterise(
+    page: &pingcal_targets::sheet::Page,
+    size: (f64, f64),
+    ppm: f64,
+    seed: u64,
+) -> GrayImage {
+    use pingcal_targets::sheet::Shape;
+    let (w, h) = ((size.0 * ppm) as usize, (size.1 * ppm) as usize);
+    let mut img = GrayImage::new(w, h, WHITE);
+    for shape in &page.shapes {
+        if let Shape::Rect {
+            x,
+            y,
+            w: rw,
+            h: rh,
+            white,
+        } = *shape
+        {
+            let (x0, x1, y0, y1) = (x * ppm, (x + rw) * ppm, y * ppm, (y + rh) * ppm);
+            let tone = if white { WHITE } else { BLACK };
+            for py in (y0.floor().max(0.0) as usize)..(y1.ceil() as usize).min(h) {
+                let cy = (y1.min(py as f64 + 1.0) - y0.max(py as f64)).max(0.0);
+                for px in (x0.floor().max(0.0) as usize)..(x1.ceil() as usize).min(w) {
+                    let cx = (x1.min(px as f64 + 1.0) - x0.max(px as f64)).max(0.0);
+                    let a = (cx * cy) as f32;
+                    let v = &mut img.data[py * w + px];
+                    *v = *v * (1.0 - a) + tone * a;
+                }
+            }
+        }
+    }
+    blurred(img, 2, seed)
+}
+
+/// The printed pages read back: every corner found with its id, at the board's own spacing
+/// (the page's frame: ChArUco's y down the page, the AprilGrid's up it); a board too large
+/// for the page upright is turned a quarter and still read whole.
+#[test]
+fn printed_charuco_and_aprilgrid_pages_read_back_whole_at_their_size() {
+    use pingcal_targets::board::printable::{aprilgrid_page, charuco_page};
+    use pingcal_targets::sheet::PageSize;
+    let a4 = PageSize::A4.mm();
+    let ppm = 3.0;
+    let check =
+        |det: &MarkerBoardDetection, point: &dyn Fn(usize) -> [f64; 3], flip: f64, turned: bool| {
+            let c0 = det.corners[0];
+            let p0 = point(c0.id);
+            for c in &det.corners {
+                let p = point(c.id);
+                let d = [(p[0] - p0[0]) * ppm, flip * (p[1] - p0[1]) * ppm];
+                let e = [c.uv[0] - c0.uv[0], c.uv[1] - c0.uv[1]];
+                if turned {
+                    let (dl, el) = (d[0].hypot(d[1]), e[0].hypot(e[1]));
+                    assert!(
+                        (dl - el).abs() < 0.3,
+                        "corner {}: {el} px from corner {}, expected {dl}",
+                        c.id,
+                        c0.id
+                    );
+                } else {
+                    assert!(
+                        (d[0] - e[0]).hypot(d[1] - e[1]) < 0.3,
+                        "corner {}: {e:?} from corner {}, expected {d:?}",
+                        c.id,
+                        c0.id
+                    );
+                }
+            }
+        };
+    let b = charuco("DICT_5X5_100");
+    let page = charuco_page(&b, PageSize::A4).expect("fits");
+    let det = detect_charuco(&rasterise(&page, a4, ppm, 700), &b).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(det.corners.len(), b.corner_count());
+    check(&det, &|id| b.board_point(id), 1.0, false);
+    let big = Charuco {
+        cols: 12,
+        rows: 8,
+        square_mm: 15.0,
+        marker_mm: 11.0,
+        ..b
+    };
+    let page = charuco_page(&big, PageSize::A4).expect("fits turned");
+    let det =
+        detect_charuco(&rasterise(&page, a4, ppm, 701), &big).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(det.corners.len(), big.corner_count());
+    check(&det, &|id| big.board_point(id), 1.0, true);
+    let g = aprilgrid();
+    let page = aprilgrid_page(&g, PageSize::A4).expect("fits");
+    let det =
+        detect_aprilgrid(&rasterise(&page, a4, ppm, 702), &g).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(det.corners.len(), g.corner_count());
+    check(&det, &|id| g.board_point(id), -1.0, false);
+    let too_big = Charuco {
+        square_mm: 40.0,
+        ..big
+    };
+    let e = charuco_page(&too_big, PageSize::A4).expect_err("too large");
+    assert!(e.to_string().contains("does not fit"), "{e}");
+}
