@@ -25,7 +25,7 @@
 //! homography the others agree on, dropped; each tag's four corners refined sub-pixel
 //! ([`super::refine::refine_in`], a window inside the gap) with their σ.
 
-use super::charuco::{agreeing, consistent, refined_corner};
+use super::marker_board::{agreeing, consistent, refined_corner};
 use super::markers::{find_markers, MarkerDictionary};
 use super::{BoardCorner, MarkerBoardDetection, MarkerMiss};
 use crate::raster::GrayImage;

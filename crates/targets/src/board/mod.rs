@@ -47,6 +47,7 @@
 pub mod aprilgrid;
 pub mod charuco;
 pub mod grid;
+mod marker_board;
 pub mod markers;
 pub mod printable;
 pub mod refine;
