@@ -2,7 +2,10 @@
 """Writes tables.rs: the square markers' codes as OpenCV draws them.
 
     python3 -m venv /tmp/v && /tmp/v/bin/pip install opencv-python-headless
-    /tmp/v/bin/python crates/targets/src/board/codes/generate.py > crates/targets/src/board/codes/tables.rs
+    cargo info kornia-apriltag@0.2.0     # fetches the crate's source into ~/.cargo/registry
+    /tmp/v/bin/python crates/targets/src/board/codes/generate.py \
+        ~/.cargo/registry/src/*/kornia-apriltag-0.2.0/src/family/tag36h11.rs \
+        > crates/targets/src/board/codes/tables.rs && cargo fmt --all
 
 Each marker is drawn by `cv2.aruco.generateImageMarker` (one black border cell) and its
 n x n inner cells read at their centres, row-major from the top-left, the first cell the
