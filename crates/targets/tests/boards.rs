@@ -66,7 +66,7 @@ fn blur_and_noise(img: GrayImage, seed: u64) -> GrayImage {
 
 /// `passes` passes of the binomial [1 2 1]/4 (σ ≈ √(passes / 2) px) and Gaussian noise of
 /// 0.01.
-fn blurred(mut img: GrayImage, passes: usize, seed: u64) -> GrayImage {
+pub(crate) fn blurred(mut img: GrayImage, passes: usize, seed: u64) -> GrayImage {
     let (w, h) = (img.width, img.height);
     for _ in 0..passes {
         let src = img.data.clone();

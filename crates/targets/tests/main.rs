@@ -8,6 +8,7 @@ mod bad_input;
 mod boards;
 mod candidates_exact;
 mod code_tables;
+mod marker_boards;
 mod panel_bundle;
 mod png_fast_path;
 mod printed_sheet;

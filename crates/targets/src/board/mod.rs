@@ -1,10 +1,18 @@
-//! # Boards: chessboards of known layout
+//! # Boards: chessboards, ChArUco boards and AprilGrids of known layout
 //!
 //! A calibration board is a planar field of known layout: a chessboard of `cols × rows`
 //! inner corners and square side `square_mm`. [`detect_chessboard`] finds every inner
 //! corner of one board in an image, sub-pixel, with its σ, and numbers them by the board's
 //! layout; a board it cannot find whole is refused with a one-line reason
 //! ([`BoardMiss`]).
+//!
+//! Boards with markers number their corners by the markers read, so a board partly out of
+//! the image, covered or upside down gives its visible corners with their ids
+//! ([`MarkerBoardDetection`], or a one-line [`MarkerMiss`]): [`charuco::detect_charuco`]
+//! (OpenCV's ChArUco layout and frame, [`charuco`]) and [`aprilgrid::detect_aprilgrid`]
+//! (Kalibr's AprilGrid layout and frame, [`aprilgrid`]), both with the square markers of
+//! [`markers`] (OpenCV's ArUco dictionaries, the AprilTag library's tag36h11; no crate: see
+//! [`markers`] and `docs/boards.md`).
 //!
 //! ## Numbering (the same as OpenCV's `findChessboardCornersSB`)
 //!
@@ -36,12 +44,25 @@
 //!    point of those lines, iterated, as OpenCV's `cornerSubPix`), in a window of a third of
 //!    the local square side (3 to 7 px half width); its σ from the residuals of that fit.
 
+pub mod aprilgrid;
+pub mod charuco;
 pub mod grid;
+mod marker_board;
+pub mod markers;
 pub mod printable;
 pub mod refine;
 pub mod saddles;
 
 use crate::raster::GrayImage;
+
+/// The code tables of [`markers`], generated (`codes/generate.py`).
+mod codes {
+    pub(crate) mod tables;
+}
+
+pub use aprilgrid::{detect_aprilgrid, Aprilgrid};
+pub use charuco::{detect_charuco, Charuco};
+pub use markers::MarkerDictionary;
 
 /// A chessboard: `cols × rows` inner corners, squares `square_mm` on a side.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -94,10 +115,11 @@ impl Chessboard {
     }
 }
 
-/// One inner corner of a detected board.
+/// One corner of a detected board.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BoardCorner {
-    /// `row · cols + col` (see the module doc).
+    /// `row · cols + col` (see the module doc; an AprilGrid's [`aprilgrid`] point id, its
+    /// `cols` the points of a row, `2 ·` the tags').
     pub id: usize,
     /// Column, `0..cols`.
     pub col: usize,
@@ -117,6 +139,44 @@ pub struct BoardDetection {
     /// The board is symmetric under a half (or quarter) turn, so corner 0 was chosen as the
     /// one nearer the image's top-left corner rather than by the colour of its squares.
     pub symmetric: bool,
+}
+
+/// A board with markers found in an image: its visible corners, in id order.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MarkerBoardDetection {
+    /// The corners found, ascending ids (each id at most once); their points in the board's
+    /// frame are the board's `board_point(id)`.
+    pub corners: Vec<BoardCorner>,
+    /// The markers (tags) read and taken.
+    pub markers: usize,
+}
+
+/// Why no board with markers was found: one line for the log.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum MarkerMiss {
+    /// The board's description is unusable.
+    #[error("{0}")]
+    BadBoard(String),
+    /// Too few of the board's markers read.
+    #[error("{found} of the board's {dictionary} markers read, at least {needed} needed (board out of view, too small, or of another dictionary?)")]
+    TooFewMarkers {
+        /// The board's dictionary (or tag family).
+        dictionary: &'static str,
+        /// Markers read.
+        found: usize,
+        /// Needed.
+        needed: usize,
+    },
+    /// Markers read, but too few agree on the board's plane.
+    #[error("only {found} of the {dictionary} markers read lie on one plane as the board's layout says, at least {needed} needed (another board layout?)")]
+    Disagreeing {
+        /// The board's dictionary (or tag family).
+        dictionary: &'static str,
+        /// Markers agreeing.
+        found: usize,
+        /// Needed.
+        needed: usize,
+    },
 }
 
 /// Why no board was found: one line for the log.

@@ -37,7 +37,13 @@ pub fn half_window(spacing: f64, scale: usize) -> i64 {
 /// found at level `scale` ([`half_window`]). A fit that runs away (further than the window
 /// from the start) keeps the start, with a σ of half the window.
 pub fn refine(img: &GrayImage, start: [f64; 2], spacing: f64, scale: usize) -> SubPixel {
-    let half = half_window(spacing, scale);
+    refine_in(img, start, half_window(spacing, scale))
+}
+
+/// Refines `start` (px) in `img` with a gradient window of half width `half` px (for corners
+/// whose neighbourhood is not a plain chessboard's: a marker's edge nearer than a third of
+/// the square). A fit that runs away keeps the start, with a σ of half the window.
+pub fn refine_in(img: &GrayImage, start: [f64; 2], half: i64) -> SubPixel {
     let mut q = Vector2::new(start[0], start[1]);
     for _ in 0..MAX_ITERATIONS {
         let Some((normal, rhs)) = normal_equations(img, q, half) else {
