@@ -10,7 +10,7 @@ use crate::context::{PipelineError, Result};
 use pingcal_ba::camera::SensorCamera;
 use pingcal_ba::initial::resection::{resect, ResectionOptions};
 use pingcal_ba::{precision, solve, Camera, Image, Observation, Options, Point, Problem, Rigid3};
-use pingcal_targets::board::{BoardDetection, Chessboard};
+use pingcal_targets::board::{BoardDetection, PlanarBoard};
 use std::sync::Arc;
 
 /// The fewest placements: two views of a plane fix a pinhole's focal and principal point
@@ -65,7 +65,7 @@ pub fn calibrate(
     camera: &SensorCamera,
     initial: &[f64],
     fixed: &[bool],
-    board: &Chessboard,
+    board: &PlanarBoard,
     views: &[BoardView],
 ) -> Result<BoardCalibration> {
     if views.len() < MIN_PLACEMENTS {
@@ -89,7 +89,7 @@ pub fn calibrate(
 pub fn board_problem(
     camera: &SensorCamera,
     (params, fixed): (&[f64], &[bool]),
-    board: &Chessboard,
+    board: &PlanarBoard,
     views: &[BoardView],
     poses: &[Rigid3],
 ) -> Problem {
@@ -129,7 +129,7 @@ pub fn board_problem(
 fn start_pose(
     model: Arc<dyn pingcal_ba::CameraModel>,
     initial: &[f64],
-    board: &Chessboard,
+    board: &PlanarBoard,
     view: &BoardView,
 ) -> Result<Rigid3> {
     let uv: Vec<_> = view
@@ -214,7 +214,7 @@ fn summarise(problem: &Problem, views: &[BoardView]) -> Result<BoardCalibration>
 mod tests {
     use super::*;
     use pingcal_ba::camera::{ModelKind, OpenCvCamera};
-    use pingcal_targets::board::{detect_chessboard, BoardCorner};
+    use pingcal_targets::board::{detect_chessboard, BoardCorner, Chessboard};
     use std::path::Path;
 
     const BOARD: Chessboard = Chessboard {
@@ -285,7 +285,14 @@ mod tests {
             })
             .collect();
         let (initial, fixed) = five_term(500.0, 320.0, 240.0);
-        let cal = calibrate(&camera, &initial, &fixed, &BOARD, &views).expect("calibrates");
+        let cal = calibrate(
+            &camera,
+            &initial,
+            &fixed,
+            &PlanarBoard::Chessboard(BOARD),
+            &views,
+        )
+        .expect("calibrates");
         for (k, t) in truth.iter().enumerate().take(9) {
             let z = (cal.params[k] - t) / cal.sigmas[k];
             assert!(
@@ -360,7 +367,14 @@ mod tests {
                 })
                 .collect();
             let (initial, fixed) = five_term(500.0, 320.0, 240.0);
-            let cal = calibrate(&camera, &initial, &fixed, &BOARD, &views).expect("calibrates");
+            let cal = calibrate(
+                &camera,
+                &initial,
+                &fixed,
+                &PlanarBoard::Chessboard(BOARD),
+                &views,
+            )
+            .expect("calibrates");
             let theirs = &reference["calibrations"][side]["free"];
             let same = &on_ours["calibrations"][side];
             let f = |k: &str| theirs[k].as_f64().expect("number");

@@ -100,6 +100,54 @@ pub enum Board {
     },
 }
 
+impl Board {
+    /// The board as the detectors take it ([`pingcal_targets::board::PlanarBoard`]); an
+    /// error names a dictionary or tag family the detectors do not read.
+    pub fn planar(&self) -> Result<pingcal_targets::board::PlanarBoard, String> {
+        use pingcal_targets::board::{
+            Aprilgrid, Charuco, Chessboard, MarkerDictionary, PlanarBoard,
+        };
+        let named = |word: &str| MarkerDictionary::named(word).map_err(|e| format!("[board]: {e}"));
+        Ok(match *self {
+            Board::Chessboard {
+                cols,
+                rows,
+                square_mm,
+            } => PlanarBoard::Chessboard(Chessboard {
+                cols,
+                rows,
+                square_mm,
+            }),
+            Board::Charuco {
+                cols,
+                rows,
+                square_mm,
+                marker_mm,
+                dictionary,
+            } => PlanarBoard::Charuco(Charuco {
+                cols,
+                rows,
+                square_mm,
+                marker_mm,
+                dictionary: named(dictionary.as_str())?,
+            }),
+            Board::Aprilgrid {
+                cols,
+                rows,
+                tag_mm,
+                spacing,
+                family,
+            } => PlanarBoard::Aprilgrid(Aprilgrid {
+                cols,
+                rows,
+                tag_mm,
+                spacing,
+                family: named(family.as_str())?,
+            }),
+        })
+    }
+}
+
 impl ProjectBoard {
     /// The board: the table's, or `from`'s file read (relative to `dir`). Errors are one
     /// line starting with `[board]`.

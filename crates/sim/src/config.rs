@@ -859,14 +859,10 @@ impl SimConfig {
         let board = given
             .table()
             .map_err(|e| ConfigError::new("board", "the table", e))?;
-        match board {
-            Board::Chessboard { .. } => Ok(Some(board)),
-            _ => Err(ConfigError::new(
-                "board.kind",
-                given.kind.map_or(String::new(), |k| k.to_string()),
-                "the board field simulates chessboards only (kind = \"chessboard\")",
-            )),
-        }
+        board
+            .planar()
+            .map_err(|e| ConfigError::new("board", "the table", e))?;
+        Ok(Some(board))
     }
 }
 
@@ -1483,7 +1479,7 @@ mod tests {
             ("[field]\nprint_scale = 0.0\n", "field.print_scale = 0: expected the printed size over the given one, 0.5 to 1.5"),
             ("[board]\nkind = \"chessboard\"\ninner_corners = [7, 5]\nsquare_mm = 20.0\n", "board = a table: only for [field] kind = \"board\" (the room's field is its targets)"),
             ("[field]\nkind = \"board\"\n[board]\nkind = \"chessboard\"\ninner_corners = [7, 5]\n", "board = the table: [board] kind = \"chessboard\" needs square_mm"),
-            ("[field]\nkind = \"board\"\n[board]\nkind = \"aprilgrid\"\ntags = [6, 6]\ntag_mm = 88.0\ntag_spacing = 0.3\n", "board.kind = aprilgrid: the board field simulates chessboards only (kind = \"chessboard\")"),
+            ("[field]\nkind = \"board\"\n[board]\nkind = \"aprilgrid\"\ntags = [6, 6]\ntag_mm = 88.0\ntag_spacing = 0.3\ntag_family = \"tag16h5\"\n", "board = the table: [board]: marker dictionary 'tag16h5': not one pingcal reads (it reads DICT_4X4_50, DICT_4X4_100, DICT_4X4_250, DICT_4X4_1000, DICT_5X5_50, DICT_5X5_100, DICT_5X5_250, DICT_5X5_1000, DICT_6X6_50, DICT_6X6_100, DICT_6X6_250, DICT_6X6_1000, DICT_7X7_50, DICT_7X7_100, DICT_7X7_250, DICT_7X7_1000, DICT_ARUCO_ORIGINAL, tag36h11)"),
             ("[field]\nkind = \"board\"\n[board]\nfrom = \"target.yaml\"\n", "board.from = target.yaml: the simulator needs the board's own keys (kind, inner_corners, square_mm)"),
         ];
         for (toml, want) in cases {

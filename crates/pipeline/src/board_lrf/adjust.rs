@@ -36,7 +36,7 @@ use pingcal_ba::{ParameterValue, Problem, ResidualBlock, Value};
 use pingcal_geometry::Rigid3;
 use pingcal_lrf::fixed::{FixedBeam, FixedBeamOn, PoseBlockPrior, Surface, FIXED_PLANE_UNKNOWNS};
 use pingcal_lrf::room::PlaneFrame;
-use pingcal_targets::board::Chessboard;
+use pingcal_targets::board::PlanarBoard;
 
 type V3 = Vector3<f64>;
 
@@ -54,7 +54,7 @@ pub struct Input<'a> {
     /// Its parameters held (the project's `free` left out).
     pub fixed: &'a [bool],
     /// The board.
-    pub board: &'a Chessboard,
+    pub board: &'a PlanarBoard,
     /// The placements' views.
     pub views: &'a [BoardView],
     /// Each view's scan (its beams).

@@ -34,8 +34,8 @@ use nalgebra::{DMatrix, Vector3};
 use pingcal_ba::camera::SensorCamera;
 use pingcal_geometry::Rigid3;
 use pingcal_lrf::fixed::FixedBeam;
-use pingcal_project::{Board, Project};
-use pingcal_targets::board::{detect_chessboard, Chessboard};
+use pingcal_project::Project;
+use pingcal_targets::board::PlanarBoard;
 use rayon::prelude::*;
 use std::path::PathBuf;
 
@@ -75,7 +75,7 @@ pub struct BoardOutcome {
     /// The project file's name.
     pub name: String,
     /// The board.
-    pub board: Chessboard,
+    pub board: PlanarBoard,
     /// The main camera's id.
     pub camera_id: String,
     /// Its model on its sensor.
@@ -110,30 +110,13 @@ pub struct BoardOutcome {
     pub warnings: Vec<String>,
 }
 
-/// The project's board as a chessboard; another kind is not detected yet.
-fn chessboard(project: &Project) -> Result<Chessboard> {
-    let b =
-        project.file.board.as_ref().ok_or_else(|| {
-            PipelineError::Input(format!("{}: no [board]", project.path.display()))
-        })?;
-    let board = b
-        .resolve(&project.dir)
-        .map_err(|e| PipelineError::Input(format!("{}: {e}", project.path.display())))?;
-    match board {
-        Board::Chessboard {
-            cols,
-            rows,
-            square_mm,
-        } => Ok(Chessboard {
-            cols,
-            rows,
-            square_mm,
-        }),
-        other => Err(PipelineError::Input(format!(
-            "{}: [board] {other:?}: pingcal calibrates from chessboards so far (ChArUco and AprilGrid boards are read, not yet detected)",
-            project.path.display()
-        ))),
-    }
+/// The project's board.
+fn planar_board(project: &Project) -> Result<PlanarBoard> {
+    let name = project.path.display();
+    let b = (project.file.board.as_ref())
+        .ok_or_else(|| PipelineError::Input(format!("{name}: no [board]")))?;
+    (b.resolve(&project.dir).and_then(|b| b.planar()))
+        .map_err(|e| PipelineError::Input(format!("{name}: {e}")))
 }
 
 /// The main camera's images with their stations and scans (`[lrf] scans` by station).
@@ -160,7 +143,7 @@ fn placements(project: &Project) -> Vec<Placement> {
 /// Step 1: the board in every placement's photograph (in parallel); the views found.
 fn find_boards(
     placements: &mut [Placement],
-    board: &Chessboard,
+    board: &PlanarBoard,
     camera: &SensorCamera,
     rep: &Reporter,
 ) -> Result<Vec<BoardView>> {
@@ -174,7 +157,8 @@ fn find_boards(
                     p.image, img.width, img.height, camera.width, camera.height
                 ));
             }
-            detect_chessboard(&img, board)
+            board
+                .detect(&img)
                 .map(|detection| BoardView {
                     name: p.image.clone(),
                     detection,
@@ -203,9 +187,8 @@ fn find_boards(
     if views.len() < board_camera::MIN_PLACEMENTS {
         let why: Vec<_> = placements.iter().filter_map(|p| p.note.clone()).collect();
         return Err(PipelineError::Data(format!(
-            "the board of {} × {} inner corners was found in {} of {} photographs, at least {} are needed ({})",
-            board.cols,
-            board.rows,
+            "the {} was found in {} of {} photographs, at least {} are needed ({})",
+            board.describe(),
             views.len(),
             placements.len(),
             board_camera::MIN_PLACEMENTS,
@@ -229,22 +212,9 @@ fn read_scans(project: &Project, placements: &mut [Placement], rep: &Reporter) -
     Ok(())
 }
 
-/// Where a beam counts as on the board: the pattern's outer squares (inner corners at `(col,
-/// row)·square`, the squares one more each way), a quarter square in from their edge (a
-/// beam's footprint across the board's edge reads a mix of it and what is behind).
-pub fn extent(board: &Chessboard) -> Extent {
-    let (sq, inset) = (board.square_mm, 0.25 * board.square_mm);
-    [
-        -sq + inset,
-        board.cols as f64 * sq - inset,
-        -sq + inset,
-        board.rows as f64 * sq - inset,
-    ]
-}
-
 /// Runs the board project's calibration (see the module doc).
 pub fn calibrate_board(project: &Project, _opts: &Options, rep: &Reporter) -> Result<BoardOutcome> {
-    let board = chessboard(project)?;
+    let board = planar_board(project)?;
     let f = &project.file;
     let cam = (f.cameras.iter())
         .find(|c| c.id == f.main_camera)
@@ -255,10 +225,8 @@ pub fn calibrate_board(project: &Project, _opts: &Options, rep: &Reporter) -> Re
     let fixed: Vec<bool> = cam.free_flags().iter().map(|f| !f).collect();
     let mut placements = placements(project);
     rep.log(format!(
-        "board: chessboard {} × {} inner corners, {} mm squares; {} photographs of {}",
-        board.cols,
-        board.rows,
-        board.square_mm,
+        "board: {}; {} photographs of {}",
+        board.describe(),
         placements.len(),
         f.main_camera
     ));
@@ -270,7 +238,7 @@ pub fn calibrate_board(project: &Project, _opts: &Options, rep: &Reporter) -> Re
         camera_only.rms_px, camera_only.corners, camera_only.sigma0
     ));
     read_scans(project, &mut placements, rep)?;
-    let extent = extent(&board);
+    let extent = board.extent();
     let view_beams: Vec<&[FixedBeam]> = (placements.iter())
         .filter(|p| p.view.is_some())
         .map(|p| &p.beams[..])
@@ -436,8 +404,8 @@ pub fn judge(o: &BoardOutcome) -> Verdict {
     if let Some((scale, sigma)) = a.board_scale() {
         if (scale - 1.0).abs() > SCALE_TOLERANCE && (scale - 1.0).abs() > 3.29 * sigma {
             reasons.push(format!(
-                "the board's scale against the LRF's ranges is {scale:.4} ± {sigma:.4}: the board is not the size [board] square_mm = {} gives (printed at {:.1} % of it, a \"fit to page\" print?); measure a square and give its size; the extrinsic's translation is given in the LRF's metric scale",
-                o.board.square_mm,
+                "the board's scale against the LRF's ranges is {scale:.4} ± {sigma:.4}: the board is not the size [board] gives ({}; printed at {:.1} % of it, a \"fit to page\" print?); measure it and give its size; the extrinsic's translation is given in the LRF's metric scale",
+                o.board.describe(),
                 100.0 * scale
             ));
         }

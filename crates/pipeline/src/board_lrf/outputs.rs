@@ -20,6 +20,7 @@ use crate::results::{extrinsic_json, opencv_of, CameraJson, ExtrinsicJson};
 use crate::sphere_calib::outputs::{conventions as sphere_conventions, TF_CAMERA, THUMB_WIDTH};
 use pingcal_report as rp;
 use pingcal_report::overlay::{render_png, GreyImage, OverlayOptions, OverlayPoint, PointKind};
+use pingcal_targets::board::PlanarBoard;
 use rayon::prelude::*;
 use serde_json::json;
 
@@ -125,6 +126,31 @@ fn station_json(o: &BoardOutcome, p: &super::Placement) -> serde_json::Value {
     })
 }
 
+/// The board in `[board]`'s keys.
+fn board_json(b: &PlanarBoard) -> serde_json::Value {
+    match b {
+        PlanarBoard::Chessboard(b) => json!({
+            "kind": "chessboard",
+            "inner_corners": [b.cols, b.rows],
+            "square_mm": b.square_mm,
+        }),
+        PlanarBoard::Charuco(b) => json!({
+            "kind": "charuco",
+            "inner_corners": [b.cols, b.rows],
+            "square_mm": b.square_mm,
+            "marker_mm": b.marker_mm,
+            "dictionary": b.dictionary.name(),
+        }),
+        PlanarBoard::Aprilgrid(b) => json!({
+            "kind": "aprilgrid",
+            "tags": [b.cols, b.rows],
+            "tag_mm": b.tag_mm,
+            "tag_spacing": b.spacing,
+            "tag_family": b.family.name(),
+        }),
+    }
+}
+
 /// `results.json` of a board project.
 pub fn results_json(o: &BoardOutcome) -> serde_json::Value {
     let a = &o.adjustment;
@@ -147,11 +173,7 @@ pub fn results_json(o: &BoardOutcome) -> serde_json::Value {
         "project": o.name,
         "method": "board",
         "conventions": conventions(),
-        "board": {
-            "kind": "chessboard",
-            "inner_corners": [o.board.cols, o.board.rows],
-            "square_mm": o.board.square_mm,
-        },
+        "board": board_json(&o.board),
         "cameras": [camera_json(o)],
         "extrinsic": extrinsic(o),
         "held": held,
@@ -301,13 +323,7 @@ fn summary(o: &BoardOutcome) -> Vec<(String, String)> {
     let (e, se) = (o.camera_from_lrf.opk_deg(), o.sigma_opk_deg);
     let used = a.on_board.iter().filter(|b| !b.is_empty()).count();
     let mut rows = vec![
-        (
-            "board".into(),
-            format!(
-                "chessboard {} × {} inner corners, {} mm squares",
-                o.board.cols, o.board.rows, o.board.square_mm
-            ),
-        ),
+        ("board".into(), o.board.describe()),
         (
             "placements with the board / its beams".into(),
             format!("{} / {used} of {}", o.views.len(), o.placements.len()),

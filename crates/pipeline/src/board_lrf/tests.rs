@@ -6,7 +6,7 @@
 use super::*;
 use pingcal_ba::camera::{ModelKind, OpenCvCamera};
 use pingcal_geometry::from_opk_deg;
-use pingcal_targets::board::{BoardCorner, BoardDetection};
+use pingcal_targets::board::{BoardCorner, BoardDetection, Chessboard, PlanarBoard};
 use rand::{Rng, SeedableRng};
 
 type V3 = Vector3<f64>;
@@ -179,14 +179,20 @@ fn made(seed: u64, n: usize, scale: f64, tilt_deg: [f64; 2]) -> Made {
 fn run(m: &Made) -> (BoardAdjustment, Vec<Option<LeftOut>>) {
     let mut initial = vec![0.0; 16];
     initial[..4].copy_from_slice(&[550.0, 550.0, 320.0, 240.0]);
-    let cal = board_camera::calibrate(&m.camera, &initial, &m.fixed, &BOARD, &m.views)
-        .expect("the camera");
+    let cal = board_camera::calibrate(
+        &m.camera,
+        &initial,
+        &m.fixed,
+        &PlanarBoard::Chessboard(BOARD),
+        &m.views,
+    )
+    .expect("the camera");
     let beams: Vec<&[FixedBeam]> = m.beams.iter().map(|b| &b[..]).collect();
-    let extent = extent(&BOARD);
+    let extent = PlanarBoard::Chessboard(BOARD).extent();
     let input = Input {
         camera: &m.camera,
         fixed: &m.fixed,
-        board: &BOARD,
+        board: &PlanarBoard::Chessboard(BOARD),
         views: &m.views,
         beams: &beams,
         extent: &extent,
@@ -274,4 +280,3 @@ fn vertical_boards_before_a_horizontal_scan_hold_its_height_and_tilts() {
         a.held
     );
 }
-

@@ -49,6 +49,7 @@ pub mod charuco;
 pub mod grid;
 mod marker_board;
 pub mod markers;
+pub mod planar;
 pub mod printable;
 pub mod refine;
 pub mod saddles;
@@ -63,6 +64,7 @@ mod codes {
 pub use aprilgrid::{detect_aprilgrid, Aprilgrid};
 pub use charuco::{detect_charuco, Charuco};
 pub use markers::MarkerDictionary;
+pub use planar::PlanarBoard;
 
 /// A chessboard: `cols × rows` inner corners, squares `square_mm` on a side.
 #[derive(Clone, Copy, Debug, PartialEq)]
