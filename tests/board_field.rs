@@ -1,14 +1,18 @@
 //! `pingcal simulate` of a board field (issue 51, `[field] kind = "board"`): the files of a
 //! small field are written, load as `pingcal calibrate` loads a project, and the detector
-//! finds the board in every image; a bad key is refused naming it.
+//! finds the board in every image; a bad key is refused naming it. `pingcal calibrate` of a
+//! board project: its results, overlays, report and exports; a board given the wrong size
+//! refused, a wrong square named by the verdict.
 
-use crate::common::Work;
+use crate::common::{copy_dir, read_json, replace_once, Work};
 use pingcal_sim::board_field::read_board_truth;
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
 
 #[test]
 fn a_small_board_field_is_written_and_loads() {
     let w = Work::new("board-field");
-    let config = "[field]\nkind = \"board\"\nplacements = 3\n[lrf]\nscans_per_station = 2\n";
+    let config = "[field]\nkind = \"board\"\nplacements = 3\nscans_per_placement = 2\n";
     let dir = w.simulate("field", config);
     let project = pingcal_project::Project::load(&dir.join("project.toml")).unwrap();
     assert_eq!(project.file.images.len(), 3);
@@ -51,4 +55,122 @@ fn a_small_board_field_is_written_and_loads() {
         run.stderr
     );
     assert!(!out.exists());
+}
+
+/// The default board field (8 placements of a 7 × 5 chessboard before a fixed LRF), made once
+/// per test run.
+fn board_field() -> &'static Path {
+    static FIELD: OnceLock<(Work, PathBuf)> = OnceLock::new();
+    let (_, dir) = FIELD.get_or_init(|| {
+        let w = Work::new("board-calibrate-field");
+        let dir = w.simulate("field", "[field]\nkind = \"board\"\n");
+        (w, dir)
+    });
+    dir
+}
+
+/// A copy of the board field in `w` with `[board] square_mm = 60.0` made `square` (and the
+/// inner corners `corners`).
+fn board_given(w: &Work, corners: &str, square: &str) -> PathBuf {
+    let dir = w.dir.join("given");
+    copy_dir(board_field(), &dir);
+    let toml = dir.join("project.toml");
+    replace_once(&toml, "inner_corners = [7, 5]", corners);
+    replace_once(&toml, "square_mm = 60.0", square);
+    dir
+}
+
+/// The board project calibrates: verdict ok, the extrinsic within 5 mm and 0.3° of the truth,
+/// every station's beams on the board (`board_beams`, `board_beams_rms_mm` near the
+/// scanner's 10 mm σ), the board's scale 1 within 4σ; the overlays, the report and the ROS,
+/// OpenCV and Kalibr files written with them.
+#[test]
+fn a_board_project_calibrates_with_its_beams_on_the_board() {
+    let w = Work::new("board-calibrate");
+    let (run, out) = w.calibrate(board_field(), &[]);
+    assert!(run.success(), "{}\n{}", run.stdout, run.stderr);
+    assert!(run.stdout.contains("verdict ok"), "{}", run.stdout);
+    let r = read_json(&out.join("results.json"));
+    let t = read_json(&board_field().join("truth.json"));
+    assert_eq!(r["method"], "board");
+    assert_eq!(r["verdict"]["status"], "ok", "{}", r["verdict"]);
+    let (e, tr) = (&r["extrinsic"], &t["extrinsic"]);
+    let dt: f64 = (0..3)
+        .map(|k| {
+            (e["translation_mm"][k].as_f64().unwrap() - tr["translation_mm"][k].as_f64().unwrap())
+                .powi(2)
+        })
+        .sum::<f64>()
+        .sqrt();
+    assert!(dt < 5.0, "|Δt| {dt} mm: {e}");
+    for k in 0..3 {
+        let d = e["opk_deg"][k].as_f64().unwrap() - tr["opk_deg"][k].as_f64().unwrap();
+        assert!(d.abs() < 0.3, "opk {k}: {d}°");
+    }
+    let stations = r["stations"].as_array().unwrap();
+    assert_eq!(stations.len(), 8);
+    for s in stations {
+        let n = s["board_beams"].as_u64().unwrap();
+        let rms = s["board_beams_rms_mm"].as_f64().unwrap();
+        assert!(n > 300 && (7.0..15.0).contains(&rms), "{s}");
+    }
+    let (scale, sd) = (
+        r["board_scale"].as_f64().unwrap(),
+        r["board_scale_sigma"].as_f64().unwrap(),
+    );
+    assert!((scale - 1.0).abs() < 4.0 * sd, "{scale} ± {sd}");
+    for f in [
+        "report.html",
+        "overlays/P1.png",
+        "ros/laser_joint.urdf",
+        "opencv/camera_left.yaml",
+        "kalibr/camchain.yaml",
+    ] {
+        assert!(out.join(f).is_file(), "{f} missing");
+    }
+}
+
+/// A board given with the wrong number of inner corners is found in no photograph: the
+/// calibration is refused with the detector's reason for each image.
+#[test]
+fn a_board_of_the_wrong_size_is_refused() {
+    let w = Work::new("board-wrong-size");
+    let dir = board_given(&w, "inner_corners = [9, 6]", "square_mm = 60.0");
+    w.calibrate_fails(
+        &dir,
+        "data",
+        &["the chessboard 9 × 6 inner corners, 60 mm squares was found in 0 of 8 photographs"],
+    );
+}
+
+/// A board given with the wrong square (50 mm for its 60): the LRF's metric ranges show it
+/// (the board's scale 1.2, named by the verdict), and the extrinsic stays metric.
+#[test]
+fn a_wrong_square_is_named_by_the_verdict() {
+    let w = Work::new("board-wrong-square");
+    let dir = board_given(&w, "inner_corners = [7, 5]", "square_mm = 50.0");
+    let (run, out) = w.calibrate(&dir, &["--accept-doubtful"]);
+    assert!(run.success(), "{}", run.stderr);
+    let r = read_json(&out.join("results.json"));
+    assert_eq!(r["verdict"]["status"], "doubtful");
+    let reasons = r["verdict"]["reasons"].to_string();
+    assert!(
+        reasons.contains("the board's scale against the LRF's ranges is 1.2"),
+        "{reasons}"
+    );
+    let (scale, sd) = (
+        r["board_scale"].as_f64().unwrap(),
+        r["board_scale_sigma"].as_f64().unwrap(),
+    );
+    assert!((scale - 1.2).abs() < 4.0 * sd, "{scale} ± {sd}");
+    let t = read_json(&board_field().join("truth.json"));
+    let dt: f64 = (0..3)
+        .map(|k| {
+            (r["extrinsic"]["translation_mm"][k].as_f64().unwrap()
+                - t["extrinsic"]["translation_mm"][k].as_f64().unwrap())
+            .powi(2)
+        })
+        .sum::<f64>()
+        .sqrt();
+    assert!(dt < 5.0, "|Δt| {dt} mm");
 }

@@ -356,7 +356,7 @@ fn solve_components(
 }
 
 /// The state at `a`'s solution, to start the next pass from.
-fn state(a: &BoardAdjustment) -> Start {
+pub fn state(a: &BoardAdjustment) -> Start {
     Start {
         params: a.problem.cameras[0].params.clone(),
         poses: (a.problem.images.iter())

@@ -301,11 +301,44 @@ pub fn joint(
     range: [f64; 2],
     rep: &Reporter,
 ) -> Result<(BoardAdjustment, Vec<Option<LeftOut>>)> {
-    let (start, on_board) = start(input, camera, range, rep)?;
-    let adjustment = adjust::adjust(input, &start, &on_board)?;
+    let (start, mut on_board) = start(input, camera, range, rep)?;
+    let mut adjustment = adjust::adjust(input, &start, &on_board)?;
+    for _ in 1..PASSES {
+        // the beams on the board again, through the adjustment's extrinsic and range model:
+        // the search's are chosen through its start, which a board of another size than
+        // given (or a range offset) leaves centimetres off
+        let at = adjust::state(&adjustment);
+        let again: Vec<Vec<usize>> = (at.poses.iter().zip(input.beams))
+            .map(|(pose, beams)| {
+                let cut = Cut::new(*pose, beams);
+                consensus::segment(&cut, &at.camera_from_lrf, at.range, input.extent, None)
+            })
+            .collect();
+        if again == on_board {
+            break;
+        }
+        rep.log(format!(
+            "board: the beams on the board through the adjustment: {} (were {})",
+            again.iter().map(Vec::len).sum::<usize>(),
+            on_board.iter().map(Vec::len).sum::<usize>()
+        ));
+        on_board = again;
+        adjustment = adjust::adjust(
+            input,
+            &Start {
+                nominal: start.nominal,
+                ..at
+            },
+            &on_board,
+        )?;
+    }
     let loo = adjust::leave_one_out(input, &adjustment)?;
     Ok((adjustment, loo))
 }
+
+/// The most passes of the joint adjustment (each after the beams on the board are chosen
+/// again through the last one).
+pub const PASSES: usize = 3;
 
 /// Step 3: the consensus over the placements' scans, the adjustment's start.
 fn start(
