@@ -335,7 +335,8 @@ fn crates_depend_one_way() {
         ("ba", &["geometry", "camera"]),
         ("targets", &["geometry", "camera", "ba"]),
         ("lrf", &["geometry", "camera", "ba"]),
-        ("project", &["geometry", "camera", "ba", "lrf"]),
+        // a project's `[board]` resolves to the detectors' board (`Board::planar`)
+        ("project", &["geometry", "camera", "ba", "targets", "lrf"]),
         ("report", &["geometry", "camera", "ba"]),
         (
             "sim",

@@ -2,7 +2,6 @@
 
 pub mod ba;
 pub mod calibrate;
-pub mod calibrate_board;
 pub mod cloud;
 pub mod demo;
 pub mod detect;
