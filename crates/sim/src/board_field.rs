@@ -37,7 +37,7 @@
 use crate::config::{default_board, FieldKind, LrfConfig};
 use crate::head::{CameraUnit, StereoRig};
 use crate::project_files::{initial_and_free, io, write_png, PoseJson, TruthCamera};
-use crate::render::{expose, Radiance, RayTable};
+use crate::render::{render_rays, RayTable};
 use crate::{rng_for, SimConfig, SimError};
 use nalgebra::{Matrix3, Rotation3, Vector2, Vector3};
 use pingcal_ba::camera::CameraModel;
@@ -51,7 +51,6 @@ use pingcal_project::{
 use pingcal_targets::board::PlanarBoard;
 use rand::seq::SliceRandom;
 use rand::Rng;
-use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::fmt::Write as _;
 use std::path::Path;
@@ -506,54 +505,21 @@ impl BoardFieldSim {
     /// The 8-bit image of placement `k`.
     pub fn image(&self, k: usize, table: &RayTable) -> image::GrayImage {
         let cam = &self.camera;
-        let (w, h) = (cam.model.width, cam.model.height);
         // a pixel's footprint on the board at distance 1, generously (the distortion
         // stretches the pixels towards the border)
         let px_angle = 3.0 / cam.model.focal_px(&cam.params).max(1.0);
-        let n = self.config.render.supersampling.max(1);
-        let mut data = vec![0.0; (w * h) as usize];
-        data.par_chunks_mut(w as usize)
-            .enumerate()
-            .for_each(|(v, row)| {
-                for (u, px) in row.iter_mut().enumerate() {
-                    let Some(ray) = table.ray(u as u32, v as u32) else {
-                        continue;
-                    };
-                    let near =
-                        self.on_board_plane(k, &V3::zeros(), &ray)
-                            .is_some_and(|(x, y, t)| {
-                                let db = self.placements[k].rotation.transpose() * ray;
-                                let fp = t * px_angle / db.z.abs().max(0.1);
-                                self.board.near_edge(x, y, fp)
-                            });
-                    *px = if near {
-                        let mut acc = 0.0;
-                        for j in 0..n {
-                            for i in 0..n {
-                                let uv = Vector2::new(
-                                    u as f64 - 0.5 + (i as f64 + 0.5) / n as f64,
-                                    v as f64 - 0.5 + (j as f64 + 0.5) / n as f64,
-                                );
-                                if let Some(d) = cam.model.unproject(&cam.params, &uv) {
-                                    acc += self.radiance(k, &d.normalize());
-                                }
-                            }
-                        }
-                        acc / (n * n) as f64
-                    } else {
-                        self.radiance(k, &ray)
-                    };
-                }
-            });
-        let rad = Radiance {
-            x0: 0,
-            y0: 0,
-            width: w,
-            height: h,
-            data,
+        let near_edge = |ray: &V3| {
+            self.on_board_plane(k, &V3::zeros(), ray)
+                .is_some_and(|(x, y, t)| {
+                    let db = self.placements[k].rotation.transpose() * ray;
+                    let fp = t * px_angle / db.z.abs().max(0.1);
+                    self.board.near_edge(x, y, fp)
+                })
         };
-        let bytes = expose(rad, w, h, &self.config.render, self.seed, k as u64);
-        image::GrayImage::from_raw(w, h, bytes).expect("buffer size")
+        let at = (self.seed, k as u64);
+        render_rays(cam, table, &self.config.render, at, near_edge, |d| {
+            self.radiance(k, d)
+        })
     }
 
     /// The sensor of the fixed LRF.

@@ -365,6 +365,58 @@ pub fn blur(img: &mut Radiance, sigma: f64) {
         });
 }
 
+/// An image rendered ray by ray: each pixel's radiance along its ray of `table`
+/// (`radiance`), the mean over `supersampling × supersampling` sub-pixel rays where
+/// `near_edge` says an edge crosses the pixel; then blurred, vignetted, noised and
+/// quantised ([`expose`], image `index` of `seed`).
+pub fn render_rays(
+    cam: &CameraUnit,
+    table: &RayTable,
+    render: &RenderConfig,
+    (seed, index): (u64, u64),
+    near_edge: impl Fn(&V3) -> bool + Sync,
+    radiance: impl Fn(&V3) -> f64 + Sync,
+) -> image::GrayImage {
+    let (w, h) = (cam.model.width, cam.model.height);
+    let n = render.supersampling.max(1);
+    let mut data = vec![0.0; (w * h) as usize];
+    data.par_chunks_mut(w as usize)
+        .enumerate()
+        .for_each(|(v, row)| {
+            for (u, px) in row.iter_mut().enumerate() {
+                let Some(ray) = table.ray(u as u32, v as u32) else {
+                    continue;
+                };
+                if !near_edge(&ray) {
+                    *px = radiance(&ray);
+                    continue;
+                }
+                let mut acc = 0.0;
+                for j in 0..n {
+                    for i in 0..n {
+                        let uv = Vector2::new(
+                            u as f64 - 0.5 + (i as f64 + 0.5) / n as f64,
+                            v as f64 - 0.5 + (j as f64 + 0.5) / n as f64,
+                        );
+                        if let Some(d) = cam.model.unproject(&cam.params, &uv) {
+                            acc += radiance(&d.normalize());
+                        }
+                    }
+                }
+                *px = acc / (n * n) as f64;
+            }
+        });
+    let rad = Radiance {
+        x0: 0,
+        y0: 0,
+        width: w,
+        height: h,
+        data,
+    };
+    let bytes = expose(rad, w, h, render, seed, index);
+    image::GrayImage::from_raw(w, h, bytes).expect("buffer size")
+}
+
 /// Blur, vignetting, noise and 8-bit quantisation of a full-image radiance.
 /// `seed` and `stream_index` choose the noise (one independent stream per image row).
 pub fn expose(

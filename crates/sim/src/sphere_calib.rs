@@ -25,10 +25,10 @@
 use crate::config::RenderConfig;
 use crate::head::{CameraUnit, StereoRig};
 use crate::project_files::{io, write_png, PoseJson};
-use crate::render::{expose, Radiance, RayTable};
+use crate::render::{render_rays, RayTable};
 use crate::sphere_clutter::{self as clutter, Clutter};
 use crate::{rng_for, SimConfig, SimError};
-use nalgebra::{Vector2, Vector3};
+use nalgebra::Vector3;
 use pingcal_ba::camera::CameraModel;
 use pingcal_geometry::{from_opk_deg, Rigid3};
 use pingcal_lrf::sensor::NoiseProfile;
@@ -465,7 +465,6 @@ impl SphereCalibSim {
     /// The 8-bit image of frame `k`.
     pub fn image(&self, k: usize, table: &RayTable) -> image::GrayImage {
         let cam = &self.camera;
-        let (w, h) = (cam.model.width, cam.model.height);
         let lidar_from_camera = self.camera_from_lidar.inverse();
         let origin = lidar_from_camera.translation;
         let rot = lidar_from_camera.rotation;
@@ -473,45 +472,14 @@ impl SphereCalibSim {
         let axis = c_cam.normalize();
         let alpha = (self.config.sphere_radius_mm / c_cam.norm()).asin();
         let px_angle = cam.model.pixel_size_mm / cam.params[0];
-        let n = self.config.render.supersampling.max(1);
-        let mut data = vec![0.0; (w * h) as usize];
-        data.par_chunks_mut(w as usize)
-            .enumerate()
-            .for_each(|(v, row)| {
-                for (u, px) in row.iter_mut().enumerate() {
-                    let Some(ray) = table.ray(u as u32, v as u32) else {
-                        continue;
-                    };
-                    let near = (ray.dot(&axis).clamp(-1.0, 1.0).acos() - alpha).abs()
-                        < 3.0 * px_angle / ray.y.max(0.1).powi(2);
-                    *px = if near {
-                        let mut acc = 0.0;
-                        for j in 0..n {
-                            for i in 0..n {
-                                let uv = Vector2::new(
-                                    u as f64 - 0.5 + (i as f64 + 0.5) / n as f64,
-                                    v as f64 - 0.5 + (j as f64 + 0.5) / n as f64,
-                                );
-                                if let Some(d) = cam.model.unproject(&cam.params, &uv) {
-                                    acc += self.radiance_of(k, &origin, &(rot * d.normalize()));
-                                }
-                            }
-                        }
-                        acc / (n * n) as f64
-                    } else {
-                        self.radiance_of(k, &origin, &(rot * ray))
-                    };
-                }
-            });
-        let rad = Radiance {
-            x0: 0,
-            y0: 0,
-            width: w,
-            height: h,
-            data,
+        let near_edge = |ray: &V3| {
+            (ray.dot(&axis).clamp(-1.0, 1.0).acos() - alpha).abs()
+                < 3.0 * px_angle / ray.y.max(0.1).powi(2)
         };
-        let bytes = expose(rad, w, h, &self.config.render, self.seed, k as u64);
-        image::GrayImage::from_raw(w, h, bytes).expect("buffer size")
+        let at = (self.seed, k as u64);
+        render_rays(cam, table, &self.config.render, at, near_edge, |d| {
+            self.radiance_of(k, &origin, &(rot * d))
+        })
     }
 
     /// The camera file of the data set (the true intrinsics).

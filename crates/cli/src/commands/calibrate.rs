@@ -322,39 +322,63 @@ fn calibrate_project(
     let o = match r {
         Ok(o) => o,
         Err((kind, e)) => {
-            let e = kept_note(e, dir);
-            return Done {
-                fate: Fate::Error,
-                line: args
-                    .json
-                    .then(|| error_json_line(path, dir, (kind, &e), secs)),
-                error: Some(e),
-                // the warnings logged before the failure (ranges masked, files beside the
-                // project's) often say why: a quiet run shows them too
-                stderr: match shown {
-                    true => Vec::new(),
-                    false => warnings(path, rep),
-                },
-            };
+            return Done::error((path, dir), (kind, e), secs, (args.json, shown), rep)
         }
     };
-    let v = &o.results.verdict;
-    let mut stderr = Vec::new();
-    if !shown {
-        let name = path.display();
-        stderr.extend(warnings(path, rep));
-        for why in &v.reasons {
-            stderr.push(format!("{name}: {}: {why}", v.status.as_str()));
+    let line = match args.json {
+        true => json_line(path, dir, &o, secs),
+        false => summary_line(path, dir, &o, secs),
+    };
+    Done::calibrated(path, &o.results.verdict, line, shown, rep)
+}
+
+impl Done {
+    /// A project not calibrated (`kind` of error `e`, a note added when `dir` holds an
+    /// earlier run's results), its JSON line with `json`; the warnings logged before the
+    /// failure (ranges masked, files beside the project's) often say why: a run that did not
+    /// show the log (`shown`) gives them too.
+    fn error(
+        (path, dir): (&Path, &Path),
+        (kind, e): (&str, String),
+        secs: f64,
+        (json, shown): (bool, bool),
+        rep: &Reporter,
+    ) -> Done {
+        let e = kept_note(e, dir);
+        Done {
+            fate: Fate::Error,
+            line: json.then(|| error_json_line(path, dir, (kind, &e), secs)),
+            error: Some(e),
+            stderr: match shown {
+                true => Vec::new(),
+                false => warnings(path, rep),
+            },
         }
     }
-    Done {
-        fate: Fate::of(v.status),
-        line: Some(match args.json {
-            true => json_line(path, dir, &o, secs),
-            false => summary_line(path, dir, &o, secs),
-        }),
-        error: None,
-        stderr,
+
+    /// A calibrated project of verdict `v` and stdout `line`; a run that did not show the
+    /// log (`shown`) gives the warnings and the verdict's reasons on stderr.
+    fn calibrated(
+        path: &Path,
+        v: &pipeline::verdict::Verdict,
+        line: String,
+        shown: bool,
+        rep: &Reporter,
+    ) -> Done {
+        let mut stderr = Vec::new();
+        if !shown {
+            let name = path.display();
+            stderr.extend(warnings(path, rep));
+            for why in &v.reasons {
+                stderr.push(format!("{name}: {}: {why}", v.status.as_str()));
+            }
+        }
+        Done {
+            fate: Fate::of(v.status),
+            line: Some(line),
+            error: None,
+            stderr,
+        }
     }
 }
 
@@ -451,40 +475,14 @@ fn calibrate_board(
     let o = match r {
         Ok(o) => o,
         Err((kind, e)) => {
-            let e = kept_note(e, dir);
-            return Done {
-                fate: Fate::Error,
-                line: how
-                    .json
-                    .then(|| error_json_line(path, dir, (kind, &e), secs)),
-                error: Some(e),
-                stderr: match how.shown {
-                    true => Vec::new(),
-                    false => warnings(path, rep),
-                },
-            };
+            return Done::error((path, dir), (kind, e), secs, (how.json, how.shown), rep)
         }
     };
-    let mut stderr = Vec::new();
-    if !how.shown {
-        stderr.extend(warnings(path, rep));
-        for why in &o.verdict.reasons {
-            stderr.push(format!(
-                "{}: {}: {why}",
-                path.display(),
-                o.verdict.status.as_str()
-            ));
-        }
-    }
-    Done {
-        fate: Fate::of(o.verdict.status),
-        line: Some(match how.json {
-            true => board_json_line(path, dir, &o, secs),
-            false => board_summary_line(path, dir, &o, secs),
-        }),
-        error: None,
-        stderr,
-    }
+    let line = match how.json {
+        true => board_json_line(path, dir, &o, secs),
+        false => board_summary_line(path, dir, &o, secs),
+    };
+    Done::calibrated(path, &o.verdict, line, how.shown, rep)
 }
 
 /// Runs the command.

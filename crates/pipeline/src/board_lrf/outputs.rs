@@ -17,9 +17,9 @@ use crate::exports::{
     RosRectification,
 };
 use crate::results::{extrinsic_json, opencv_of, CameraJson, ExtrinsicJson};
-use crate::sphere_calib::outputs::{conventions as sphere_conventions, TF_CAMERA, THUMB_WIDTH};
+use crate::sphere_calib::outputs::{conventions as sphere_conventions, drawn, TF_CAMERA};
 use pingcal_report as rp;
-use pingcal_report::overlay::{render_png, GreyImage, OverlayOptions, OverlayPoint, PointKind};
+use pingcal_report::overlay::{OverlayPoint, PointKind};
 use pingcal_targets::board::PlanarBoard;
 use rayon::prelude::*;
 use serde_json::json;
@@ -270,33 +270,18 @@ pub fn overlays(o: &BoardOutcome) -> (Vec<(String, Vec<u8>)>, Vec<rp::Overlay>) 
     let drawn: Vec<_> = (o.placements.par_iter())
         .filter_map(|p| {
             let v = p.view?;
-            let img = pingcal_targets::load_image(&p.image_path).ok()?;
-            let grey = GreyImage {
-                width: img.width as u32,
-                height: img.height as u32,
-                pixels: pingcal_targets::image_io::to_luma8(&img).into_raw(),
-            };
-            let pts = overlay_points(o, p, v);
-            let full = render_png(&grey, &pts, &OverlayOptions::default());
-            let small = OverlayOptions {
-                max_width: Some(THUMB_WIDTH),
-                labels: false,
-                small_file: true,
-                ..Default::default()
-            };
-            let thumb = render_png(&grey, &pts, &small);
             let caption = format!(
                 "{}: {} beams on the board (magenta), {} corners (green)",
                 p.station,
                 o.adjustment.on_board[v].len(),
                 o.views[v].detection.corners.len()
             );
-            let name = format!("overlays/{}.png", file_stem(&p.station));
-            Some((
-                name,
-                full.png,
-                rp::Overlay::of(&p.station, &caption, false, &thumb),
-            ))
+            drawn(
+                &p.image_path,
+                &overlay_points(o, p, v),
+                &p.station,
+                &caption,
+            )
         })
         .collect();
     let mut files = Vec::new();
@@ -306,14 +291,6 @@ pub fn overlays(o: &BoardOutcome) -> (Vec<(String, Vec<u8>)>, Vec<rp::Overlay>) 
         report.push(ov);
     }
     (files, report)
-}
-
-/// A file name made of a station id (letters, digits, `_ - .`; anything else becomes `_`).
-fn file_stem(id: &str) -> String {
-    id.replace(
-        |c: char| !(c.is_ascii_alphanumeric() || "_-.".contains(c)),
-        "_",
-    )
 }
 
 /// The report's summary lines.

@@ -228,24 +228,6 @@ pub fn overlays(o: &Outcome) -> (Vec<(String, Vec<u8>)>, Vec<rp::Overlay>) {
         .frames
         .par_iter()
         .map(|f| {
-            let img = pingcal_targets::load_image(&f.image_path).ok()?;
-            let grey = GreyImage {
-                width: img.width as u32,
-                height: img.height as u32,
-                pixels: pingcal_targets::image_io::to_luma8(&img).into_raw(),
-            };
-            let pts = overlay_points(o, f);
-            let full = render_png(&grey, &pts, &OverlayOptions::default());
-            let thumb = render_png(
-                &grey,
-                &pts,
-                &OverlayOptions {
-                    max_width: Some(THUMB_WIDTH),
-                    labels: false,
-                    small_file: true,
-                    ..Default::default()
-                },
-            );
             let caption = match (&f.skipped, &f.image) {
                 (None, Some(s)) => format!(
                     "used; silhouette at ({:.0}, {:.0}) px, r {:.0} px, {:.0} % of its outline used",
@@ -257,8 +239,7 @@ pub fn overlays(o: &Outcome) -> (Vec<(String, Vec<u8>)>, Vec<rp::Overlay>) {
                 (Some(why), _) => format!("left out: {why}"),
                 _ => "not used".into(),
             };
-            let name = format!("overlays/{}.png", file_stem(&f.id));
-            Some((name.clone(), full.png, rp::Overlay::of(&f.id, &caption, false, &thumb)))
+            drawn(&f.image_path, &overlay_points(o, f), &f.id, &caption)
         })
         .collect();
     let mut files = Vec::new();
@@ -268,6 +249,33 @@ pub fn overlays(o: &Outcome) -> (Vec<(String, Vec<u8>)>, Vec<rp::Overlay>) {
         report.push(ov);
     }
     (files, report)
+}
+
+/// The photograph at `path` with the points `pts` drawn: `overlays/<id>.png` at full
+/// resolution and the report's thumbnail of [`THUMB_WIDTH`] with `caption`; None when the
+/// photograph cannot be read again.
+pub fn drawn(
+    path: &std::path::Path,
+    pts: &[OverlayPoint],
+    id: &str,
+    caption: &str,
+) -> Option<(String, Vec<u8>, rp::Overlay)> {
+    let img = pingcal_targets::load_image(path).ok()?;
+    let grey = GreyImage {
+        width: img.width as u32,
+        height: img.height as u32,
+        pixels: pingcal_targets::image_io::to_luma8(&img).into_raw(),
+    };
+    let full = render_png(&grey, pts, &OverlayOptions::default());
+    let small = OverlayOptions {
+        max_width: Some(THUMB_WIDTH),
+        labels: false,
+        small_file: true,
+        ..Default::default()
+    };
+    let thumb = render_png(&grey, pts, &small);
+    let name = format!("overlays/{}.png", file_stem(id));
+    Some((name, full.png, rp::Overlay::of(id, caption, false, &thumb)))
 }
 
 /// A file name made of a frame id (letters, digits, `_ - .`; anything else becomes `_`).
