@@ -174,3 +174,69 @@ fn a_wrong_square_is_named_by_the_verdict() {
         .sqrt();
     assert!(dt < 5.0, "|Δt| {dt} mm");
 }
+
+/// `pingcal detect --board FILE` and `pingcal targets --board FILE` with a board a file
+/// describes: a simulated ChArUco board found in its photographs by its project's `[board]`,
+/// an AprilGrid by Kalibr's `target.yaml`, and a ChArUco board printed at true size.
+#[test]
+fn boards_with_markers_are_found_and_printed_from_a_file() {
+    let w = Work::new("board-files");
+    let charuco = "kind = \"charuco\"\ninner_corners = [7, 5]\nsquare_mm = 60.0\nmarker_mm = 45.0\ndictionary = \"DICT_5X5_100\"";
+    let config = format!(
+        "[field]\nkind = \"board\"\nplacements = 3\nscans_per_placement = 1\n[board]\n{charuco}\n"
+    );
+    let dir = w.simulate("charuco", &config);
+    let project = dir.join("project.toml");
+    let images: Vec<String> = (1..=3)
+        .map(|k| dir.join(format!("images/P{k}.png")).display().to_string())
+        .collect();
+    let mut args = vec!["detect", "--board", project.to_str().unwrap()];
+    args.extend(images.iter().map(String::as_str));
+    let run = w.run(&args);
+    assert!(run.success(), "{}", run.stderr);
+    assert!(
+        run.stdout.contains("detect: ChArUco board 7 × 5 inner corners, 60 mm squares, 45 mm DICT_5X5_100 markers found in 3 of 3 images"),
+        "{}",
+        run.stdout
+    );
+    let small = w.dir.join("small.toml");
+    std::fs::write(
+        &small,
+        "[board]\nkind = \"charuco\"\ninner_corners = [5, 3]\nsquare_mm = 30.0\nmarker_mm = 22.0\ndictionary = \"DICT_4X4_50\"\n",
+    )
+    .unwrap();
+    let svg = w.dir.join("charuco.svg");
+    let run = w.run(&[
+        "targets",
+        "--board",
+        small.to_str().unwrap(),
+        "--out",
+        svg.to_str().unwrap(),
+    ]);
+    assert!(run.success(), "{}", run.stderr);
+    assert!(svg.is_file());
+    let yaml = w.dir.join("target.yaml");
+    std::fs::write(
+        &yaml,
+        "target_type: 'aprilgrid'\ntagCols: 6\ntagRows: 4\ntagSize: 0.06\ntagSpacing: 0.3\n",
+    )
+    .unwrap();
+    let grid = w.simulate(
+        "aprilgrid",
+        "[field]\nkind = \"board\"\nplacements = 3\nscans_per_placement = 1\n[board]\nkind = \"aprilgrid\"\ntags = [6, 4]\ntag_mm = 60.0\ntag_spacing = 0.3\n",
+    );
+    let image = grid.join("images/P1.png");
+    let run = w.run(&[
+        "detect",
+        "--board",
+        yaml.to_str().unwrap(),
+        image.to_str().unwrap(),
+    ]);
+    assert!(run.success(), "{}", run.stderr);
+    assert!(
+        run.stdout
+            .contains("AprilGrid 6 × 4 tag36h11 tags of 60 mm, spacing 0.3 found in 1 of 1 images"),
+        "{}",
+        run.stdout
+    );
+}

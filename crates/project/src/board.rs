@@ -148,6 +148,40 @@ impl Board {
     }
 }
 
+/// The board a file describes, for the commands that take one (`pingcal detect --board`,
+/// `pingcal targets --board`): Kalibr's `target.yaml` (`.yaml`, `.yml`), or a TOML file with
+/// a `[board]` table (a project file; its other tables are not read), resolved as a
+/// project's `[board]`. Errors are one line naming the file.
+pub fn board_file(path: &Path) -> Result<Board, String> {
+    let name = path.display();
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let yaml = (path.extension().and_then(|e| e.to_str()))
+        .is_some_and(|e| e.eq_ignore_ascii_case("yaml") || e.eq_ignore_ascii_case("yml"));
+    if yaml {
+        let file = path.file_name().map(|f| f.to_string_lossy().into_owned());
+        let b = ProjectBoard {
+            from: file,
+            ..Default::default()
+        };
+        return b.resolve(dir).map_err(|e| format!("{name}: {e}"));
+    }
+    #[derive(Deserialize)]
+    struct WithBoard {
+        board: Option<ProjectBoard>,
+    }
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{name}: {e}"))?;
+    let file: WithBoard = toml::from_str(&text).map_err(|e| {
+        format!(
+            "{name}: not a TOML file with a [board] table: {}",
+            e.message()
+        )
+    })?;
+    let board = file
+        .board
+        .ok_or_else(|| format!("{name}: no [board] table"))?;
+    board.resolve(dir).map_err(|e| format!("{name}: {e}"))
+}
+
 impl ProjectBoard {
     /// The board: the table's, or `from`'s file read (relative to `dir`). Errors are one
     /// line starting with `[board]`.

@@ -33,7 +33,7 @@ pub mod sphere_calib;
 mod validate;
 pub mod yaml;
 
-pub use board::{Board, ProjectBoard};
+pub use board::{board_file, Board, ProjectBoard};
 pub use camera_file::{CameraFile, CameraFormat};
 pub use closed_sets::{
     ArucoDictionary, BoardKind, CameraModel, LrfKind, Method, MountParameter, Parameter, TagFamily,

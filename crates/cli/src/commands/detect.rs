@@ -1,6 +1,7 @@
 //! `pingcal detect IMAGE... --board 9x6 [--out FILE]`: a chessboard of those inner corners in
 //! each image instead: its corners numbered as the board's layout, with their σ, or the
-//! one-line reason it was not found.
+//! one-line reason it was not found; `--board FILE` any board a file describes (a project
+//! file's `[board]`, Kalibr's `target.yaml`: ChArUco boards and AprilGrids too).
 //!
 //! `pingcal detect IMAGE... [--out FILE] [--debug DIR] [--why] [--saturated]`: targets (coded,
 //! plain) and balls found in images, as the JSON of docs/formats.md (pixel origin at the centre of the
@@ -13,7 +14,7 @@
 //! add a `warning:` line (stderr) giving their count and share of saturated samples.
 
 use super::CmdResult;
-use pingcal_targets::board::{detect_chessboard, Chessboard};
+use pingcal_targets::board::{Chessboard, PlanarBoard};
 use pingcal_targets::detect::BallMode;
 use pingcal_targets::refusal::{counts, Refusal, RefusalReason};
 use pingcal_targets::{load_image, DetectParams, Detector, ImageDetections};
@@ -47,8 +48,9 @@ pub struct Args {
     /// ring_inner` and `ring_outer` of project.toml (AICON: 2,3).
     #[arg(long, value_delimiter = ',', num_args = 2, default_values_t = [2.0, 3.0])]
     pub ring: Vec<f64>,
-    /// Look for a chessboard of these inner corners (COLSxROWS, e.g. `9x6`, as the project's
-    /// `[board] inner_corners`) instead of targets and balls.
+    /// Look for a board instead of targets and balls: a chessboard of these inner corners
+    /// (COLSxROWS, e.g. `9x6`, as the project's `[board] inner_corners`), or any board a
+    /// file describes (a project file's `[board]`, Kalibr's `target.yaml`).
     #[arg(long)]
     pub board: Option<String>,
     /// The images contain no ping-pong balls (do not classify large blobs as balls).
@@ -120,27 +122,22 @@ pub fn run(args: Args) -> CmdResult {
 fn boards(spec: &str, args: &Args) -> CmdResult {
     if args.debug.is_some() || args.why || args.saturated || args.no_balls {
         return Err(
-            "--board looks for a chessboard: --debug, --why, --saturated and --no-balls are for targets"
+            "--board looks for a board: --debug, --why, --saturated and --no-balls are for targets"
                 .into(),
         );
     }
-    let (cols, rows) = Chessboard::parse_inner_corners(spec)?;
-    let board = Chessboard {
-        cols,
-        rows,
-        square_mm: 1.0,
-    };
+    let (board, label) = board_spec(spec)?;
     let mut images = Vec::new();
     let mut found = 0;
     for path in &args.images {
         let img = load_image(path)?;
-        let entry = match detect_chessboard(&img, &board) {
+        let entry = match board.detect(&img) {
             Ok(d) => {
                 found += 1;
                 let mut sigmas: Vec<f64> = d.corners.iter().map(|c| c.sigma_px).collect();
                 sigmas.sort_by(f64::total_cmp);
                 println!(
-                    "{}: chessboard {cols} × {rows}: {} corners, median σ {:.3} px{}",
+                    "{}: {label}: {} corners, median σ {:.3} px{}",
                     path.display(),
                     d.corners.len(),
                     sigmas[sigmas.len() / 2],
@@ -162,25 +159,51 @@ fn boards(spec: &str, args: &Args) -> CmdResult {
                     "height": img.height, "found": true, "symmetric": d.symmetric, "corners": corners})
             }
             Err(miss) => {
-                println!("{}: no chessboard {cols} × {rows}: {miss}", path.display());
+                println!("{}: no {label}: {miss}", path.display());
                 serde_json::json!({"file": path.display().to_string(), "width": img.width,
-                    "height": img.height, "found": false, "reason": miss.to_string()})
+                    "height": img.height, "found": false, "reason": miss})
             }
         };
         images.push(entry);
     }
     if let Some(out) = &args.out {
         let doc = serde_json::json!({
-            "board": {"kind": "chessboard", "inner_corners": [cols, rows]},
+            "board": label,
             "images": images,
         });
         super::write_atomic(out, serde_json::to_string_pretty(&doc)?.as_bytes())?;
     }
     println!(
-        "detect: chessboard {cols} × {rows} found in {found} of {} images",
+        "detect: {label} found in {found} of {} images",
         args.images.len()
     );
     Ok(())
+}
+
+/// The board of `--board`: `COLSxROWS` (a chessboard of those inner corners, e.g. `9x6`), or a
+/// file that describes one (a project file's `[board]`, Kalibr's `target.yaml`:
+/// [`pingcal_project::board_file`]); with the words that name it in the output.
+pub fn board_spec(spec: &str) -> Result<(PlanarBoard, String), String> {
+    if let Ok((cols, rows)) = Chessboard::parse_inner_corners(spec) {
+        let board = Chessboard {
+            cols,
+            rows,
+            square_mm: 1.0,
+        };
+        return Ok((
+            PlanarBoard::Chessboard(board),
+            format!("chessboard {cols} × {rows}"),
+        ));
+    }
+    let path = std::path::Path::new(spec);
+    if !path.is_file() {
+        let why = Chessboard::parse_inner_corners(spec).expect_err("not COLSxROWS");
+        return Err(format!(
+            "{why}, or a file that describes a board (a project file's [board], Kalibr's target.yaml)"
+        ));
+    }
+    let board = pingcal_project::board_file(path)?.planar()?;
+    Ok((board, board.describe()))
 }
 
 /// For an image in which no target was found, the warning that says why, on one line:

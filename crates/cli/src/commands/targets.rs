@@ -5,8 +5,8 @@
 //! on one page instead, with the same scale bar.
 
 use super::CmdResult;
-use pingcal_targets::board::printable::chessboard_page;
-use pingcal_targets::board::Chessboard;
+use pingcal_targets::board::printable::{aprilgrid_page, charuco_page, chessboard_page};
+use pingcal_targets::board::{Chessboard, PlanarBoard};
 use pingcal_targets::sheet::{self, PageSize, SheetSpec};
 use std::path::{Path, PathBuf};
 
@@ -38,8 +38,10 @@ pub struct Args {
     /// No longer accepted: it was the dot's diameter, which the project calls a radius.
     #[arg(long, hide = true, allow_hyphen_values = true)]
     pub dot_mm: Option<f64>,
-    /// A chessboard instead of targets: its inner corners as COLSxROWS (e.g. `9x6`), as the
-    /// project's `[board] inner_corners`.
+    /// A board instead of targets: a chessboard's inner corners as COLSxROWS (e.g. `9x6`, as
+    /// the project's `[board] inner_corners`, with `--square-mm`), or a file that describes a
+    /// board (a project file's `[board]`, Kalibr's `target.yaml`: ChArUco boards and AprilGrids
+    /// too).
     #[arg(long)]
     pub board: Option<String>,
     /// The chessboard's square side (mm), as the project's `[board] square_mm` (with
@@ -119,19 +121,39 @@ pub fn run(args: Args) -> CmdResult {
     Ok(())
 }
 
-/// `--board`: one page with the chessboard at true size.
-fn print_board(board: &str, args: &Args) -> CmdResult {
-    let (cols, rows) = Chessboard::parse_inner_corners(board)?;
-    let Some(square_mm) = args.square_mm else {
-        return Err("--board needs --square-mm, the side of a square as printed (mm)".into());
-    };
-    let board = Chessboard {
-        cols,
-        rows,
-        square_mm,
+/// `--board`: one page with the board at true size: a chessboard of `COLSxROWS` inner
+/// corners and `--square-mm`, or the board a file describes.
+fn print_board(spec: &str, args: &Args) -> CmdResult {
+    let board = match Chessboard::parse_inner_corners(spec) {
+        Ok((cols, rows)) => {
+            let Some(square_mm) = args.square_mm else {
+                return Err("--board needs --square-mm, the side of a square as printed (mm)".into());
+            };
+            PlanarBoard::Chessboard(Chessboard {
+                cols,
+                rows,
+                square_mm,
+            })
+        }
+        Err(_) if Path::new(spec).is_file() => {
+            if args.square_mm.is_some() {
+                return Err(format!("--square-mm is for --board COLSxROWS: {spec} gives the board's sizes").into());
+            }
+            pingcal_project::board_file(Path::new(spec))?.planar()?
+        }
+        Err(why) => {
+            return Err(format!(
+                "{why}, or a file that describes a board (a project file's [board], Kalibr's target.yaml)"
+            )
+            .into())
+        }
     };
     let size = PageSize::parse(&args.page)?;
-    let page = chessboard_page(&board, size)?;
+    let page = match &board {
+        PlanarBoard::Chessboard(b) => chessboard_page(b, size)?,
+        PlanarBoard::Charuco(b) => charuco_page(b, size)?,
+        PlanarBoard::Aprilgrid(b) => aprilgrid_page(b, size)?,
+    };
     let bytes = match args.out.extension().and_then(|e| e.to_str()) {
         Some(e) if e.eq_ignore_ascii_case("pdf") => sheet::to_pdf(&[page], size),
         Some(e) if e.eq_ignore_ascii_case("svg") => sheet::to_svg(&page, size).into_bytes(),
@@ -146,7 +168,8 @@ fn print_board(board: &str, args: &Args) -> CmdResult {
     super::preflight::check_out_file("--out", &args.out)?;
     super::write_atomic(&args.out, &bytes)?;
     println!(
-        "targets: a chessboard of {cols} × {rows} inner corners, {square_mm} mm squares, on one {} page, written to {} (print at 100 %, then measure the 100 mm scale bar)",
+        "targets: a {}, on one {} page, written to {} (print at 100 %, then measure the 100 mm scale bar)",
+        board.describe(),
         args.page.to_uppercase(),
         args.out.display()
     );
