@@ -216,6 +216,12 @@ fn read_scans(project: &Project, placements: &mut [Placement], rep: &Reporter) -
 pub fn calibrate_board(project: &Project, _opts: &Options, rep: &Reporter) -> Result<BoardOutcome> {
     let board = planar_board(project)?;
     let f = &project.file;
+    if f.lrf.kind() != pingcal_project::LrfKind::Fixed {
+        return Err(PipelineError::Input(format!(
+            "{}: a board project calibrates a fixed LRF ([lrf] kind = \"fixed\", its scans at the board's placements); a rotating LRF before a board is not supported",
+            project.path.display()
+        )));
+    }
     let cam = (f.cameras.iter())
         .find(|c| c.id == f.main_camera)
         .ok_or_else(|| {
