@@ -18,11 +18,13 @@
 //!
 //! **What the data determine.** With a weak prior on each of the 8 sensor unknowns
 //! ([`crate::fixed_lrf::WEAK_PRIOR`]) the cofactors tell which of them the placements do
-//! not fix (σ near the prior's, or a correlation that leaves only a combination): those are
-//! held at the start, one at a time, and named ([`crate::fixed_lrf::not_determined`]; boards
-//! all vertical in front of a horizontal scan cannot fix the scanner's height and its two
-//! tilts). Gross errors are removed in rounds by their standardised residuals
-//! ([`crate::joint::keep_flags`]).
+//! not fix (σ near the prior's, or a correlation that leaves only a combination,
+//! [`crate::fixed_lrf::not_determined`]; or known only beyond [`LOOSE_SIGMA`]): those are
+//! held, one at a time, judged at the search's start, and named; the extrinsic's at the axis
+//! turn nearest the search's estimate (a scanner bolted on square to the camera), the range
+//! model's at the project's. Boards all vertical in front of a horizontal scan cannot fix the
+//! scanner's height and its two tilts. Gross errors are removed in rounds by their standardised residuals
+//! (the joint adjustment's `keep_flags`).
 
 use crate::board_camera::{board_problem, BoardView};
 use crate::context::{PipelineError, Result};
