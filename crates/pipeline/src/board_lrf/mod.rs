@@ -212,9 +212,8 @@ fn read_scans(project: &Project, placements: &mut [Placement], rep: &Reporter) -
     Ok(())
 }
 
-/// Runs the board project's calibration (see the module doc).
-pub fn calibrate_board(project: &Project, _opts: &Options, rep: &Reporter) -> Result<BoardOutcome> {
-    let board = planar_board(project)?;
+/// The project's main camera; an error when its LRF is not a fixed one.
+fn main_camera(project: &Project) -> Result<&pingcal_project::ProjectCamera> {
     let f = &project.file;
     if f.lrf.kind() != pingcal_project::LrfKind::Fixed {
         return Err(PipelineError::Input(format!(
@@ -222,11 +221,18 @@ pub fn calibrate_board(project: &Project, _opts: &Options, rep: &Reporter) -> Re
             project.path.display()
         )));
     }
-    let cam = (f.cameras.iter())
+    (f.cameras.iter())
         .find(|c| c.id == f.main_camera)
         .ok_or_else(|| {
             PipelineError::Input(format!("main_camera {} is not a camera", f.main_camera))
-        })?;
+        })
+}
+
+/// Runs the board project's calibration (see the module doc).
+pub fn calibrate_board(project: &Project, _opts: &Options, rep: &Reporter) -> Result<BoardOutcome> {
+    let board = planar_board(project)?;
+    let f = &project.file;
+    let cam = main_camera(project)?;
     let sensor = crate::scene::sensor_camera(cam);
     let fixed: Vec<bool> = cam.free_flags().iter().map(|f| !f).collect();
     let mut placements = placements(project);
