@@ -126,7 +126,7 @@ pub fn board_problem(
 }
 
 /// The placement's pose from a resection through the initial intrinsics.
-fn start_pose(
+pub fn start_pose(
     model: Arc<dyn pingcal_ba::CameraModel>,
     initial: &[f64],
     board: &PlanarBoard,

@@ -140,7 +140,7 @@ fn boards(spec: &str, args: &Args) -> CmdResult {
                     "{}: {label}: {} corners, median σ {:.3} px{}",
                     path.display(),
                     d.corners.len(),
-                    sigmas[sigmas.len() / 2],
+                    sigmas.get(sigmas.len() / 2).copied().unwrap_or(f64::NAN),
                     if d.symmetric {
                         " (symmetric board: corner 0 is the one nearer the image's top left)"
                     } else {

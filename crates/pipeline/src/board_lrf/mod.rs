@@ -144,7 +144,7 @@ fn placements(project: &Project) -> Vec<Placement> {
 fn find_boards(
     placements: &mut [Placement],
     board: &PlanarBoard,
-    camera: &SensorCamera,
+    (camera, initial): (&SensorCamera, &[f64]),
     rep: &Reporter,
 ) -> Result<Vec<BoardView>> {
     let found: Vec<std::result::Result<BoardView, String>> = placements
@@ -157,13 +157,17 @@ fn find_boards(
                     p.image, img.width, img.height, camera.width, camera.height
                 ));
             }
-            board
+            let view = board
                 .detect(&img)
                 .map(|detection| BoardView {
                     name: p.image.clone(),
                     detection,
                 })
-                .map_err(|miss| format!("{}: no board: {miss}", p.image))
+                .map_err(|miss| format!("{}: no board: {miss}", p.image))?;
+            // a board found whose pose cannot be started is left out, not the calibration
+            board_camera::start_pose(camera.model.clone(), initial, board, &view)
+                .map(|_| view)
+                .map_err(|e| format!("{e}: left out"))
         })
         .collect();
     let mut views = Vec::new();
@@ -242,9 +246,9 @@ pub fn calibrate_board(project: &Project, _opts: &Options, rep: &Reporter) -> Re
         placements.len(),
         f.main_camera
     ));
-    let views = find_boards(&mut placements, &board, &sensor, rep)?;
-    let camera_only =
-        board_camera::calibrate(&sensor, &cam.intrinsics().values, &fixed, &board, &views)?;
+    let initial = cam.intrinsics().values;
+    let views = find_boards(&mut placements, &board, (&sensor, &initial), rep)?;
+    let camera_only = board_camera::calibrate(&sensor, &initial, &fixed, &board, &views)?;
     rep.log(format!(
         "board: the camera from the board alone: RMS {:.3} px over {} corners, σ0 {:.2}",
         camera_only.rms_px, camera_only.corners, camera_only.sigma0
@@ -397,10 +401,15 @@ fn start(
     Ok((start, found.on_board))
 }
 
-/// The placements' notes: no scan, or no segment of its scan on the board.
+/// The placements' notes: left out (no board), no scan, or no segment of its scan on the
+/// board; each a warning.
 fn note_placements(o: &mut BoardOutcome) {
     for p in &mut o.placements {
-        let Some(v) = p.view else { continue };
+        let Some(v) = p.view else {
+            // left out: the detector's reason, or why its pose could not be started
+            o.warnings.extend(p.note.clone());
+            continue;
+        };
         if p.scan.is_none() {
             p.note = Some(format!("station {}: no scan ([lrf] scans)", p.station));
         } else if o.adjustment.on_board[v].is_empty() {

@@ -9,6 +9,10 @@ use super::{
 };
 use crate::raster::GrayImage;
 
+/// The fewest corners of a board found: fewer fix its pose poorly (a resection needs 4 in
+/// general position; a few more make it checkable).
+pub const MIN_CORNERS: usize = 6;
+
 /// A calibration board of any kind.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum PlanarBoard {
@@ -142,8 +146,19 @@ impl PlanarBoard {
     }
 
     /// Finds the board in `img`: its corners, numbered by the board's layout, with their
-    /// σ; or why not, in one line.
+    /// σ (at least [`MIN_CORNERS`]); or why not, in one line.
     pub fn detect(&self, img: &GrayImage) -> Result<BoardDetection, String> {
+        let found = self.detect_any(img)?;
+        match found.corners.len() {
+            n if n < MIN_CORNERS => Err(format!(
+                "{n} of the board's corners found, at least {MIN_CORNERS} needed (the board too small, too far or mostly out of view?)"
+            )),
+            _ => Ok(found),
+        }
+    }
+
+    /// [`PlanarBoard::detect`] without the least number of corners.
+    fn detect_any(&self, img: &GrayImage) -> Result<BoardDetection, String> {
         match self {
             PlanarBoard::Chessboard(b) => detect_chessboard(img, b).map_err(|m| m.to_string()),
             PlanarBoard::Charuco(b) => detect_charuco(img, b)
