@@ -12,12 +12,10 @@ RMS of error/σ per component over the seeds (within 0.7–1.4 for 10 seeds is w
 gives, about ±0.3 from sampling alone). A component held (not determined) has no σ and is
 left out of the RMS.
 """
-import argparse, json, math, os, subprocess, tempfile
+import argparse, json, math, os, sys, tempfile
 
-def rot_err_deg(a, b):
-    m = [[sum(a[i][k] * b[j][k] for k in range(3)) for j in range(3)] for i in range(3)]
-    c = max(-1.0, min(1.0, (m[0][0] + m[1][1] + m[2][2] - 1) / 2))
-    return math.degrees(math.acos(c))
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
+from seeds_common import rot_err_deg, simulate_and_calibrate  # noqa: E402
 
 def main():
     ap = argparse.ArgumentParser()
@@ -38,11 +36,7 @@ def main():
     worst_t, worst_r, ok, all_cut = 0.0, 0.0, 0, 0
     print("seed  |dt| mm  dR deg   z(tx ty tz)            z(omega phi kappa)   beams in scans  scale     verdict")
     for s in range(lo, hi + 1):
-        p, o = os.path.join(work, f"p{s}"), os.path.join(work, f"o{s}")
-        subprocess.run([a.bin, "simulate", "--out", p, "--seed", str(s), "--config", cfg],
-                       check=True, capture_output=True)
-        r = subprocess.run([a.bin, "calibrate", os.path.join(p, "project.toml"), "--out", o,
-                            "--quiet", "--accept-doubtful"], capture_output=True, text=True)
+        p, o, r = simulate_and_calibrate(a.bin, work, s, cfg)
         if not os.path.exists(os.path.join(o, "results.json")):
             print(f"{s:4d}  failed: {r.stderr.strip().splitlines()[-1] if r.stderr.strip() else r.returncode}")
             continue

@@ -10,13 +10,10 @@ Without --config the default fixed-LRF simulation (`[lrf] kind = "fixed"`). Prin
 per seed and the RMS of error/σ per component over the seeds (its bounds in issue 50: within
 0.7–1.4 for 10 seeds is what a correct σ gives, about ±0.3 from sampling alone).
 """
-import argparse, json, math, os, subprocess, sys, tempfile
+import argparse, json, math, os, sys, tempfile
 
-def rot_err_deg(a, b):
-    # angle of a·bᵀ
-    m = [[sum(a[i][k] * b[j][k] for k in range(3)) for j in range(3)] for i in range(3)]
-    c = max(-1.0, min(1.0, (m[0][0] + m[1][1] + m[2][2] - 1) / 2))
-    return math.degrees(math.acos(c))
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
+from seeds_common import rot_err_deg, simulate_and_calibrate  # noqa: E402
 
 def main():
     ap = argparse.ArgumentParser()
@@ -36,11 +33,7 @@ def main():
     worst_t, worst_r, ok = 0.0, 0.0, 0
     print("seed  |dt| mm  dR deg   z(tx ty tz)            z(omega phi kappa)          verdict")
     for s in range(lo, hi + 1):
-        p, o = os.path.join(work, f"p{s}"), os.path.join(work, f"o{s}")
-        subprocess.run([a.bin, "simulate", "--out", p, "--seed", str(s), "--config", cfg],
-                       check=True, capture_output=True)
-        r = subprocess.run([a.bin, "calibrate", os.path.join(p, "project.toml"), "--out", o,
-                            "--quiet", "--accept-doubtful"], capture_output=True, text=True)
+        p, o, r = simulate_and_calibrate(a.bin, work, s, cfg)
         if r.returncode != 0:
             print(f"{s:4d}  failed: {r.stderr.strip().splitlines()[-1] if r.stderr.strip() else r.returncode}")
             continue
