@@ -147,15 +147,22 @@ fn find_boards(
     (camera, initial): (&SensorCamera, &[f64]),
     rep: &Reporter,
 ) -> Result<Vec<BoardView>> {
+    // an image that cannot be read, or of another size than its camera, is the project's
+    // error; a photograph without the board is left out with the reason
     let found: Vec<std::result::Result<BoardView, String>> = placements
         .par_iter()
         .map(|p| {
-            let img = pingcal_targets::load_image(&p.image_path).map_err(|e| e.to_string())?;
+            let img = pingcal_targets::load_image(&p.image_path)
+                .map_err(|e| PipelineError::Input(e.to_string()))?;
             if (img.width as u32, img.height as u32) != (camera.width, camera.height) {
-                return Err(format!(
-                    "{}: {} × {} px, the camera is {} × {}",
-                    p.image, img.width, img.height, camera.width, camera.height
-                ));
+                return Err(PipelineError::Input(format!(
+                    "{}: {} × {} px, but its camera is {} × {}",
+                    p.image_path.display(),
+                    img.width,
+                    img.height,
+                    camera.width,
+                    camera.height
+                )));
             }
             let view = board
                 .detect(&img)
@@ -163,13 +170,15 @@ fn find_boards(
                     name: p.image.clone(),
                     detection,
                 })
-                .map_err(|miss| format!("{}: no board: {miss}", p.image))?;
+                .map_err(|miss| format!("{}: no board: {miss}", p.image));
             // a board found whose pose cannot be started is left out, not the calibration
-            board_camera::start_pose(camera.model.clone(), initial, board, &view)
-                .map(|_| view)
-                .map_err(|e| format!("{e}: left out"))
+            Ok(view.and_then(|view| {
+                board_camera::start_pose(camera.model.clone(), initial, board, &view)
+                    .map(|_| view)
+                    .map_err(|e| format!("{e}: left out"))
+            }))
         })
-        .collect();
+        .collect::<Result<_>>()?;
     let mut views = Vec::new();
     for (p, r) in placements.iter_mut().zip(found) {
         match r {
