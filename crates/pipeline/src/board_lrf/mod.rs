@@ -312,6 +312,7 @@ pub fn calibrate_board(project: &Project, _opts: &Options, rep: &Reporter) -> Re
         warnings: Vec::new(),
     };
     note_placements(&mut o);
+    o.warnings.extend(other_cameras(project));
     o.verdict = judge(&o);
     log_outcome(&o, rep);
     Ok(o)
@@ -408,6 +409,22 @@ fn start(
         nominal: found.nominal,
     };
     Ok((start, found.on_board))
+}
+
+/// A board project calibrates its main camera: the images of the others, unused, named.
+fn other_cameras(project: &Project) -> Option<String> {
+    let f = &project.file;
+    let others: std::collections::BTreeSet<&str> = (f.images.iter())
+        .filter(|im| im.camera != f.main_camera)
+        .map(|im| im.camera.as_str())
+        .collect();
+    (!others.is_empty()).then(|| {
+        format!(
+            "the images of camera {} are not used: a board project calibrates its main camera ({}) and the LRF",
+            others.into_iter().collect::<Vec<_>>().join(", "),
+            f.main_camera
+        )
+    })
 }
 
 /// The placements' notes: left out (no board), no scan, or no segment of its scan on the
