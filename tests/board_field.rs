@@ -240,3 +240,32 @@ fn boards_with_markers_are_found_and_printed_from_a_file() {
         run.stdout
     );
 }
+
+/// A board project with a rotating LRF is refused in one line (its sweep is not a fixed
+/// scanner's scans at the placements), and one whose photograph cannot be read names it.
+#[test]
+fn a_board_project_refuses_a_rotating_lrf_and_an_unreadable_photograph() {
+    let w = Work::new("board-refusals");
+    let dir = board_given(&w, "inner_corners = [7, 5]", "square_mm = 60.0");
+    let toml = dir.join("project.toml");
+    let text = std::fs::read_to_string(&toml).unwrap();
+    let first = text.find("[[lrf.scans]]").unwrap();
+    let second = first + 1 + text[first + 1..].find("[[lrf.scans]]").unwrap();
+    let rotating = text[..second].replacen("kind = \"fixed\"", "kind = \"rotating\"", 1);
+    std::fs::write(&toml, &rotating).unwrap();
+    w.calibrate_fails(
+        &dir,
+        "input",
+        &[
+            "a board project calibrates a fixed LRF",
+            "a rotating LRF before a board is not supported",
+        ],
+    );
+    std::fs::write(&toml, &text).unwrap();
+    std::fs::write(dir.join("images/P4.png"), b"not an image").unwrap();
+    w.calibrate_fails(
+        &dir,
+        "input",
+        &["images/P4.png", "not a TIFF, PNG or JPEG image"],
+    );
+}
