@@ -336,7 +336,35 @@ fn summary(o: &BoardOutcome) -> Vec<(String, String)> {
     for why in a.held.iter().flatten() {
         rows.push(("held".into(), why.clone()));
     }
+    rows.extend(
+        o.placements
+            .iter()
+            .map(|p| (format!("station {}", p.station), station_line(o, p))),
+    );
     rows
+}
+
+/// A station's line of the report: its corners, its beams on the board and their RMS, the
+/// leave-one-out RMS and χ²; or why it was left out.
+fn station_line(o: &BoardOutcome, p: &super::Placement) -> String {
+    let Some(v) = p.view else {
+        return format!("left out: {}", p.note.clone().unwrap_or_default());
+    };
+    let e = &o.errors[v];
+    let rms = (e.iter().map(|e| e * e).sum::<f64>() / e.len().max(1) as f64).sqrt();
+    let loo = match o.leave_one_out[v] {
+        Some(l) => format!(
+            "; left out, its beams miss the board by {:.1} mm RMS (χ² {:.0} over {})",
+            l.rms_mm, l.chi2, l.beams
+        ),
+        None => String::new(),
+    };
+    format!(
+        "{} corners (RMS {:.3} px), {} beams on the board (RMS {rms:.1} mm){loo}",
+        o.views[v].detection.corners.len(),
+        o.camera_only.placements[v].rms_px,
+        o.adjustment.on_board[v].len()
+    )
 }
 
 /// The report's data.
