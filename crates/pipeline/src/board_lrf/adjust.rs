@@ -339,10 +339,13 @@ fn solve_components(
     start: &Start,
     on_board: &[Vec<usize>],
     free: &[bool; 8],
-    weak: bool,
 ) -> Result<BoardAdjustment> {
     let mut start = start.clone();
-    let mut a = solve(build(input, &start, on_board, free, weak), on_board, &start)?;
+    let mut a = solve(
+        build(input, &start, on_board, free, false),
+        on_board,
+        &start,
+    )?;
     for _ in 0..COMPONENT_ITERATIONS {
         let s0 = components(input, &a);
         if s0.iter().all(|s| (s - 1.0).abs() < COMPONENT_TOLERANCE) {
@@ -352,7 +355,11 @@ fn solve_components(
             scales: [0, 1].map(|g| start.scales[g] * s0[g]),
             ..state(&a)
         };
-        a = solve(build(input, &start, on_board, free, weak), on_board, &start)?;
+        a = solve(
+            build(input, &start, on_board, free, false),
+            on_board,
+            &start,
+        )?;
     }
     Ok(a)
 }
@@ -378,12 +385,11 @@ fn rounds(
     start: &Start,
     on_board: &[Vec<usize>],
     free: &[bool; 8],
-    weak: bool,
 ) -> Result<BoardAdjustment> {
     let mut on = on_board.to_vec();
     let mut rejected = vec![0; on.len()];
     for round in 0..=REJECT_ROUNDS {
-        let mut a = solve_components(input, start, &on, free, weak)?;
+        let mut a = solve_components(input, start, &on, free)?;
         let errors = a.errors(input);
         let (e, sigma): (Vec<f64>, Vec<f64>) = (errors.iter().zip(&on).enumerate())
             .flat_map(|(k, (e, on))| {
@@ -458,7 +464,7 @@ fn estimability(
 /// the range offset mm, the board's scale): a tilt known to 2° is not a tilt calibrated.
 pub const LOOSE_SIGMA: [f64; 8] = [0.0175, 0.0175, 0.0175, 50.0, 50.0, 50.0, 50.0, 0.05];
 
-/// Why unknown `k` of σ `sd` (in the weak pass's cofactors) is held although the weak prior
+/// Why unknown `k` of σ `sd` (in the cofactors with weak priors) is held although the weak prior
 /// bounds it, with a rank below every [`not_determined`] one; None when it is tight enough.
 fn too_loose(k: usize, sd: f64) -> Option<(f64, usize, String)> {
     (sd > LOOSE_SIGMA[k]).then(|| {
@@ -510,17 +516,18 @@ pub fn adjust(input: &Input, start: &Start, on_board: &[Vec<usize>]) -> Result<B
     let mut free = [true; 8];
     let mut held: [Option<String>; 8] = Default::default();
     estimability(input, start, on_board, &mut free, &mut held)?;
-    let from = held_at_start(start.clone(), start, &free);
-    let mut a = rounds(input, &from, on_board, &free, false)?;
+    let from = held_at_nominal(start, &free);
+    let mut a = rounds(input, &from, on_board, &free)?;
     a.held = held;
     Ok(a)
 }
 
-/// `at` with the unknowns not `free` put back to their values at `start`: what the data do
-/// not determine is held where the search put it, not where the weak pass's noise moved it
-/// within its prior.
-fn held_at_start(at: Start, start: &Start, free: &[bool; 8]) -> Start {
-    let (e, e0) = (at.camera_from_lrf, start.nominal);
+/// `start` with the extrinsic's unknowns not `free` put at the nominal mount (the axis turn
+/// nearest the search's estimate, [`Start::nominal`]): what the data do not determine is
+/// held where a scanner bolted on square to the camera has it, not where the search's prior
+/// left it. The range model's held unknowns stay at the project's (the start's).
+fn held_at_nominal(start: &Start, free: &[bool; 8]) -> Start {
+    let (e, e0) = (start.camera_from_lrf, start.nominal);
     let mut dw = pingcal_geometry::so3::log_so3(&(e.rotation * e0.rotation.transpose()));
     let mut t = e.translation;
     for k in 0..3 {
@@ -532,14 +539,9 @@ fn held_at_start(at: Start, start: &Start, free: &[bool; 8]) -> Start {
         }
     }
     let rotation = pingcal_geometry::so3::exp_so3(&dw) * e0.rotation;
-    let range = [0, 1].map(|k| match free[6 + k] {
-        true => at.range[k],
-        false => start.range[k],
-    });
     Start {
         camera_from_lrf: Rigid3::new(rotation, t),
-        range,
-        ..at
+        ..start.clone()
     }
 }
 

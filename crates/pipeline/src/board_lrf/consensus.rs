@@ -202,42 +202,40 @@ fn board_point(board_from_camera: &Rigid3, e: &Rigid3, range: [f64; 2], b: &Fixe
     board_from_camera.transform(&e.transform(&b.point_at(r)))
 }
 
-/// The beams of `cut` on its board through `e`: within `gate` mm of its plane (None: within
-/// [`FINAL_GATE_SIGMAS`] σ of each beam) and inside `extent` (grown by the gate, or by
-/// [`EXTENT_SLACK_MM`] at the last), the
-/// longest run of them with no gap over [`MAX_GAP_DEG`], at the last gate less its ends
-/// ([`EDGE_TRIM_DEG`]); empty when it has fewer than [`MIN_BEAMS`].
+/// The beams of a scan (`beams`, the board at `camera_from_board`) on the board through `e`
+/// and the range model `range`: within [`FINAL_GATE_SIGMAS`] σ of each beam of its plane and
+/// inside `extent` grown by [`EXTENT_SLACK_MM`], the longest run of them with no gap over
+/// [`MAX_GAP_DEG`] less its ends ([`EDGE_TRIM_DEG`]); empty when it has fewer than
+/// [`MIN_BEAMS`]. (The wide gates take whole pieces: [`piece_on_board`].)
 pub fn segment(
-    cut: &Cut,
+    (camera_from_board, beams): (&Rigid3, &[FixedBeam]),
     e: &Rigid3,
     range: [f64; 2],
     extent: &Extent,
-    gate: Option<f64>,
 ) -> Vec<usize> {
-    let inv = cut.camera_from_board.inverse();
-    let grow = gate.unwrap_or(EXTENT_SLACK_MM);
-    let mut on: Vec<usize> = (0..cut.beams.len())
+    let inv = camera_from_board.inverse();
+    let grow = EXTENT_SLACK_MM;
+    let mut on: Vec<usize> = (0..beams.len())
         .filter(|&i| {
-            let b = &cut.beams[i];
+            let b = &beams[i];
             let q = board_point(&inv, e, range, b);
-            let g = gate.unwrap_or(FINAL_GATE_SIGMAS * b.sigma);
-            q.z.abs() < g
+            q.z.abs() < FINAL_GATE_SIGMAS * b.sigma
                 && (extent[0] - grow..=extent[1] + grow).contains(&q.x)
                 && (extent[2] - grow..=extent[3] + grow).contains(&q.y)
         })
         .collect();
-    on.sort_by(|&a, &b| cut.beams[a].alpha_rad.total_cmp(&cut.beams[b].alpha_rad));
+    let angle = |i: &usize| beams[*i].alpha_rad;
+    on.sort_by(|a, b| angle(a).total_cmp(&angle(b)));
     let gap = MAX_GAP_DEG.to_radians();
     let mut best: &[usize] = &[];
-    for run in on.chunk_by(|&a, &b| cut.beams[b].alpha_rad - cut.beams[a].alpha_rad <= gap) {
+    for run in on.chunk_by(|a, b| angle(b) - angle(a) <= gap) {
         if run.len() > best.len() {
             best = run;
         }
     }
     let mut best = best.to_vec();
-    if gate.is_none() && !best.is_empty() {
-        let angle = |i: &usize| cut.beams[*i].alpha_rad;
-        let (lo, hi) = (angle(&best[0]), angle(&best[best.len() - 1]));
+    if let (Some(first), Some(last)) = (best.first(), best.last()) {
+        let (lo, hi) = (angle(first), angle(last));
         let trim = EDGE_TRIM_DEG.to_radians();
         best.retain(|i| angle(i) > lo + trim && angle(i) < hi - trim);
     }
@@ -311,7 +309,7 @@ fn from_start(cuts: &[Cut], start: &Rigid3, range: [f64; 2], extent: &Extent) ->
             let on: Vec<_> = (cuts.iter())
                 .map(|c| match gate {
                     Some(g) => piece_on_board(c, &e, range, extent, g),
-                    None => segment(c, &e, range, extent, None),
+                    None => segment((&c.camera_from_board, c.beams), &e, range, extent),
                 })
                 .collect();
             if on.iter().all(Vec::is_empty) {
@@ -321,7 +319,7 @@ fn from_start(cuts: &[Cut], start: &Rigid3, range: [f64; 2], extent: &Extent) ->
         }
     }
     let on_board = (cuts.iter())
-        .map(|c| segment(c, &e, range, extent, None))
+        .map(|c| segment((&c.camera_from_board, c.beams), &e, range, extent))
         .collect();
     let nominal = (crate::fixed_lrf::axis_turns().into_iter())
         .min_by(|a, b| {

@@ -336,8 +336,7 @@ pub fn joint(
         let at = adjust::state(&adjustment);
         let again: Vec<Vec<usize>> = (at.poses.iter().zip(input.beams))
             .map(|(pose, beams)| {
-                let cut = Cut::new(*pose, beams);
-                consensus::segment(&cut, &at.camera_from_lrf, at.range, input.extent, None)
+                consensus::segment((pose, beams), &at.camera_from_lrf, at.range, input.extent)
             })
             .collect();
         if again == on_board {
