@@ -49,6 +49,22 @@ impl Charuco {
         self.cols * self.rows
     }
 
+    /// Why the board cannot be made of its dictionary: more white squares than markers in it;
+    /// None when it can.
+    pub fn too_many_markers(&self) -> Option<String> {
+        let dict = &self.dictionary;
+        (self.marker_count() > dict.len()).then(|| {
+            format!(
+                "a ChArUco board of {} × {} inner corners has {} markers; {} has {}",
+                self.cols,
+                self.rows,
+                self.marker_count(),
+                dict.name(),
+                dict.len()
+            )
+        })
+    }
+
     /// The number of markers: the white squares.
     pub fn marker_count(&self) -> usize {
         ((self.cols + 1) * (self.rows + 1)) / 2
@@ -139,15 +155,8 @@ pub fn detect_charuco(
             board.cols, board.rows, board.marker_mm, board.square_mm
         )));
     }
-    if board.marker_count() > dict.len() {
-        return Err(MarkerMiss::BadBoard(format!(
-            "a ChArUco board of {} × {} inner corners has {} markers; {} has {}",
-            board.cols,
-            board.rows,
-            board.marker_count(),
-            dict.name(),
-            dict.len()
-        )));
+    if let Some(why) = board.too_many_markers() {
+        return Err(MarkerMiss::BadBoard(why));
     }
     let read: Vec<Marker> = find_markers(img, dict, 1)
         .into_iter()

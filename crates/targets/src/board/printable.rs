@@ -23,77 +23,43 @@ pub fn chessboard_page(
         )));
     }
     let (w, h) = ((board.cols + 1) as f64 * s, (board.rows + 1) as f64 * s);
-    let (pw, ph) = page.mm();
-    let (rw, rh) = (pw - 2.0 * MARGIN, ph - 2.0 * MARGIN - HEADER - FOOTER);
-    let turned = !(w <= rw && h <= rh);
-    let (bw, bh) = if turned { (h, w) } else { (w, h) };
-    if bw > rw || bh > rh {
-        return Err(TargetError::Invalid(format!(
-            "a chessboard of {} × {} inner corners with {s} mm squares is {w} × {h} mm: it does not fit on {} paper ({rw:.0} × {rh:.0} mm inside the margins); choose a larger page or smaller squares",
-            board.cols, board.rows, page.name()
-        )));
-    }
-    let (x0, y0) = ((pw - bw) / 2.0, MARGIN + HEADER + (rh - bh) / 2.0);
-    // Square (a, b) of the board, and corner (col, row), on the page.
-    let place = |a: f64, b: f64| {
-        if turned {
-            (x0 + (board.rows as f64 + 1.0 - b) * s - s, y0 + a * s)
-        } else {
-            (x0 + a * s, y0 + b * s)
-        }
-    };
-    let mut shapes = vec![Shape::Text {
-        x: MARGIN,
-        y: MARGIN + 3.5,
-        size: 3.5,
-        text: format!(
-            "pingcal chessboard - inner_corners = [{}, {}] - square_mm = {s} - print at 100 %, no fit to page, and glue flat",
-            board.cols, board.rows
-        ),
-        centred: false,
-    }];
-    for b in 0..=board.rows {
-        for a in 0..=board.cols {
-            // Square (a, b) is white when a + b is even: (0, 0) and (1, 1) are corner 0's.
-            if (a + b) % 2 == 1 {
-                let (x, y) = place(a as f64, b as f64);
-                shapes.push(Shape::Rect {
-                    x,
-                    y,
-                    w: s,
-                    h: s,
-                    white: false,
-                });
-            }
-        }
-    }
-    let (cx, cy) = if turned {
-        (x0 + board.rows as f64 * s, y0 + s)
-    } else {
-        (x0 + s, y0 + s)
-    };
-    shapes.push(Shape::Text {
-        x: cx,
-        y: cy - s - 1.5,
-        size: 3.0,
-        text: "corner 0 below".into(),
-        centred: true,
-    });
-    shapes.extend(crate::sheet::scale_bar(ph));
-    Ok(crate::sheet::Page { shapes })
+    // Square (a, b) is white when a + b is even: (0, 0) and (1, 1) are corner 0's.
+    let rects: Vec<BoardRect> = (0..=board.rows)
+        .flat_map(|b| {
+            (0..=board.cols)
+                .filter(move |a| (a + b) % 2 == 1)
+                .map(move |a| (a as f64 * s, b as f64 * s, s, s, false))
+        })
+        .collect();
+    let title = format!(
+        "pingcal chessboard - inner_corners = [{}, {}] - square_mm = {s} - print at 100 %, no fit to page, and glue flat",
+        board.cols, board.rows
+    );
+    let what = format!(
+        "a chessboard of {} × {} inner corners with {s} mm squares",
+        board.cols, board.rows
+    );
+    // corner 0 is the board's point (s, s); the label a square and 1.5 mm above it
+    let corner_0 = ((s, s), -s - 1.5, "corner 0 below");
+    board_page(&what, title, (w, h), (&rects, &[corner_0]), page)
 }
 
 /// A black or white rectangle of a board, in the printed board's millimetres (x right, y
 /// down the page, from the top-left of the board's extent).
 type BoardRect = (f64, f64, f64, f64, bool);
 
-/// The page of a board `w × h` mm drawn as `rects` (in order), upright or turned a quarter,
-/// whichever fits, under the header `title`; `what` names the board in a refusal.
+/// A label of a board's page: the board's point it names (printed mm, as [`BoardRect`]), the
+/// page's vertical offset of the text from it (mm), the text.
+type BoardLabel<'a> = ((f64, f64), f64, &'a str);
+
+/// The page of a board `w × h` mm drawn as `rects` (in order) with its `labels`, upright or
+/// turned a quarter, whichever fits, under the header `title`; `what` names the board in a
+/// refusal.
 fn board_page(
     what: &str,
     title: String,
     (w, h): (f64, f64),
-    rects: &[BoardRect],
+    (rects, labels): (&[BoardRect], &[BoardLabel]),
     page: PageSize,
 ) -> Result<crate::sheet::Page, TargetError> {
     let (pw, ph) = page.mm();
@@ -122,6 +88,20 @@ fn board_page(
             (x0 + x, y0 + y, rw, rh)
         };
         Shape::Rect { x, y, w, h, white }
+    }));
+    shapes.extend(labels.iter().map(|&((x, y), dy, text)| {
+        let (x, y) = if turned {
+            (x0 + bw - y, y0 + x)
+        } else {
+            (x0 + x, y0 + y)
+        };
+        Shape::Text {
+            x,
+            y: y + dy,
+            size: 3.0,
+            text: text.into(),
+            centred: true,
+        }
     }));
     shapes.extend(crate::sheet::scale_bar(ph));
     Ok(crate::sheet::Page { shapes })
@@ -161,17 +141,10 @@ pub fn charuco_page(board: &Charuco, page: PageSize) -> Result<crate::sheet::Pag
             board.cols, board.rows
         )));
     }
-    let dict = &board.dictionary;
-    if board.marker_count() > dict.len() {
-        return Err(TargetError::Invalid(format!(
-            "a ChArUco board of {} × {} inner corners has {} markers; {} has {}",
-            board.cols,
-            board.rows,
-            board.marker_count(),
-            dict.name(),
-            dict.len()
-        )));
+    if let Some(why) = board.too_many_markers() {
+        return Err(TargetError::Invalid(why));
     }
+    let dict = &board.dictionary;
     let mut rects = Vec::new();
     let mut k = 0;
     for y in 0..=board.rows {
@@ -197,7 +170,7 @@ pub fn charuco_page(board: &Charuco, page: PageSize) -> Result<crate::sheet::Pag
         "a ChArUco board of {} × {} inner corners with {s} mm squares",
         board.cols, board.rows
     );
-    board_page(&what, title, size, &rects, page)
+    board_page(&what, title, size, (&rects, &[]), page)
 }
 
 /// The page of the AprilGrid `board` (Kalibr's layout, [`super::aprilgrid`]) on paper
@@ -245,7 +218,7 @@ pub fn aprilgrid_page(
         "an AprilGrid of {} × {} tags of {t} mm",
         board.cols, board.rows
     );
-    board_page(&what, title, (w, h), &rects, page)
+    board_page(&what, title, (w, h), (&rects, &[]), page)
 }
 
 #[cfg(test)]
