@@ -206,7 +206,7 @@ fn board_point(board_from_camera: &Rigid3, e: &Rigid3, range: [f64; 2], b: &Fixe
 /// and the range model `range`: within [`FINAL_GATE_SIGMAS`] σ of each beam of its plane and
 /// inside `extent` grown by [`EXTENT_SLACK_MM`], the longest run of them with no gap over
 /// [`MAX_GAP_DEG`] less its ends ([`EDGE_TRIM_DEG`]); empty when it has fewer than
-/// [`MIN_BEAMS`]. (The wide gates take whole pieces: [`piece_on_board`].)
+/// [`MIN_BEAMS`]. (The wide gates take whole pieces instead.)
 pub fn segment(
     (camera_from_board, beams): (&Rigid3, &[FixedBeam]),
     e: &Rigid3,
