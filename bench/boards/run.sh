@@ -13,4 +13,5 @@ cargo build --release -q -p pingcal-targets --example board_corners
 out="$(mktemp)"
 "$root/target/release/examples/board_corners" 9 6 "$data"/*.jpg > "$out"
 "$py" "$here/compare.py" "$out" "$data"
+"$py" "$here/edges.py" "$out"
 rm -f "$out"
