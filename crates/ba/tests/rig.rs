@@ -200,3 +200,72 @@ fn a_rig_base_with_held_centre_coordinates_agrees_with_a_stiff_prior() {
     let e = solve(&mut member, &opts, |_| {}).unwrap_err().to_string();
     assert!(e.contains("rig member") && e.contains("base image"), "{e}");
 }
+
+/// Two rigs on one base camera (a stereo pair and a third camera): the joint covariance of
+/// both rigs' updates ([`pingcal_ba::solver::Precision::rigs_and_parameters_covariance`])
+/// has each rig's own covariance on its diagonal and, between them, the cross-covariance a
+/// pair's relative pose needs: the same from the sparse selected inversion as from the
+/// dense inverse, and not zero (both rest on the same base poses).
+#[test]
+fn two_rigs_have_one_joint_covariance() {
+    use pingcal_ba::solver::{precision_with, CofactorMethod};
+    let (mut p, _) = stereo_truth();
+    let third = Camera::new(
+        "third",
+        p.cameras[0].model.clone(),
+        p.cameras[0].params.clone(),
+    );
+    p.cameras.push(third);
+    let side = Rigid3::from_rotation_and_centre(
+        exp_so3(&Vector3::new(0.0, 0.0, 8f64.to_radians())),
+        Vector3::new(-60.0, 10.0, 5.0),
+    );
+    let n_left = p.rigs[0].members.len();
+    let first = p.images.len();
+    let mut members = Vec::new();
+    for i in 0..n_left {
+        p.images.push(Image {
+            name: format!("{}-third", p.images[i].name),
+            camera: CameraKey(2),
+            camera_from_object: side.compose(&p.images[i].camera_from_object),
+            fixed: false,
+            fixed_centre: [false; 3],
+        });
+        members.push(RigMember {
+            image: ImageKey(first + i),
+            base: ImageKey(i),
+        });
+    }
+    let n = p.images.len();
+    observe(&mut p, first..n);
+    p.rigs.push(Rig {
+        name: "third".into(),
+        member_from_base: side,
+        fixed: false,
+        members,
+    });
+    // Noise, so that σ0 (and every covariance) is not 0; solved again.
+    let mut rng = pingcal_geometry::consensus::rng(52);
+    let normal = Normal::new(0.0, 1.0).unwrap();
+    for o in &mut p.observations {
+        o.uv += Vector2::new(normal.sample(&mut rng), normal.sample(&mut rng)) * SIGMA_PX;
+    }
+    solve(&mut p, &to_convergence(), |_| {}).unwrap();
+    let sparse = precision_with(&p, CofactorMethod::Sparse).unwrap();
+    let dense = precision_with(&p, CofactorMethod::Dense).unwrap();
+    let joint = &sparse.rigs_and_parameters_covariance;
+    assert_eq!(joint.shape(), (12, 12));
+    let scale = joint.diagonal().max();
+    for r in 0..2 {
+        let own = sparse.rig_covariances[r].unwrap();
+        let block = joint.fixed_view::<6, 6>(6 * r, 6 * r);
+        assert!((block - own).norm() <= 1e-9 * scale, "rig {r}'s own block");
+    }
+    let diff = (joint - &dense.rigs_and_parameters_covariance).norm();
+    assert!(
+        diff <= 1e-8 * scale,
+        "sparse against dense: {diff} (scale {scale})"
+    );
+    let cross = joint.view((0, 6), (6, 6)).norm();
+    assert!(cross > 1e-3 * scale, "the rigs look uncorrelated: {cross}");
+}

@@ -19,8 +19,8 @@ use super::evaluate::Linearization;
 use super::layout::Layout;
 use super::layout::Place;
 use super::sigma::{
-    intrinsics_precision, parameters_covariance, pose_sigmas, rig_covariances, Precision,
-    PrecisionError,
+    intrinsics_precision, parameters_covariance, pose_sigmas, rig_covariances,
+    rigs_and_parameters_covariance, Precision, PrecisionError,
 };
 use crate::problem::Problem;
 use nalgebra::{DMatrix, Matrix3, Vector3};
@@ -125,6 +125,7 @@ pub(crate) fn precision(
         residual_standardized: by_kind.residual_standardized,
         parameters_covariance,
         parameter_offsets,
+        rigs_and_parameters_covariance: rigs_and_parameters_covariance(problem, layout, s02, &q),
     })
 }
 

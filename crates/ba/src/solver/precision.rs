@@ -33,9 +33,9 @@ use super::selected_inverse::{
     CofactorLookup, DenseInverse, Factored, SelectedError, SelectedInverse,
 };
 use super::sigma::{
-    intrinsics_precision, parameters_covariance, pose_sigmas, rig_covariances, Precision,
-    PrecisionError, BORDERED_DENSE, DENSE, DENSE_CHOLESKY, MAX_DENSE_PRECISION, SELECTED,
-    TRANSFORMED, TRANSFORMED_DENSE,
+    intrinsics_precision, parameters_covariance, pose_sigmas, rig_covariances,
+    rigs_and_parameters_covariance, Precision, PrecisionError, BORDERED_DENSE, DENSE,
+    DENSE_CHOLESKY, MAX_DENSE_PRECISION, SELECTED, TRANSFORMED, TRANSFORMED_DENSE,
 };
 use crate::problem::Problem;
 use nalgebra::{DMatrix, Matrix2, Matrix2x3, Matrix3};
@@ -823,6 +823,7 @@ fn assemble(
         residual_standardized: by_kind.residual_standardized,
         parameters_covariance,
         parameter_offsets,
+        rigs_and_parameters_covariance: rigs_and_parameters_covariance(problem, layout, s02, q),
     }
 }
 

@@ -128,6 +128,12 @@ pub struct Precision {
     /// than blocks).
     #[serde(skip)]
     pub parameter_offsets: Vec<usize>,
+    /// The joint covariance (σ0²-scaled) of every rig's update `(δω, δt)` (6 rows each, in
+    /// [`Problem::rigs`]' order, zero for a held rig) followed by every parameter block's
+    /// (as [`Precision::parameters_covariance`], its offsets shifted by 6 per rig): the
+    /// cross-covariances a pair of sensors' relative pose needs. Empty without rigs.
+    #[serde(skip)]
+    pub rigs_and_parameters_covariance: DMatrix<f64>,
 }
 
 impl Precision {
@@ -256,6 +262,47 @@ pub(crate) fn parameters_covariance(
         }
     }
     (cov, offsets)
+}
+
+/// [`Precision::rigs_and_parameters_covariance`] from the cofactors `q` (empty without rigs).
+pub(crate) fn rigs_and_parameters_covariance(
+    problem: &Problem,
+    layout: &Layout,
+    s02: f64,
+    q: &dyn CofactorLookup,
+) -> DMatrix<f64> {
+    let n_rigs = problem.rigs.len();
+    if n_rigs == 0 {
+        return DMatrix::zeros(0, 0);
+    }
+    // (row in the covariance, row in the reduced system) of every free component
+    let mut rows = Vec::new();
+    for (r, slot) in layout.rig_slot.iter().enumerate() {
+        if let Some(s) = slot {
+            let o = layout.slot_offset(*s);
+            rows.extend((0..6).map(|i| (6 * r + i, o + i)));
+        }
+    }
+    let mut offset = 6 * n_rigs;
+    for (k, slot) in layout.parameter_slot.iter().enumerate() {
+        if let Some(s) = slot {
+            let o = layout.slot_offset(*s);
+            for (i, &c) in layout.parameter_free[k].iter().enumerate() {
+                rows.push((offset + c, o + i));
+            }
+        }
+        offset += problem.parameters[k].tangent_dim();
+    }
+    rows.sort_by_key(|&(_, reduced)| reduced);
+    let reduced: Vec<usize> = rows.iter().map(|&(_, r)| r).collect();
+    let sub = q.restricted(&reduced);
+    let mut cov = DMatrix::zeros(offset, offset);
+    for (x, &(a, _)) in rows.iter().enumerate() {
+        for (y, &(b, _)) in rows.iter().enumerate() {
+            cov[(a, b)] = s02 * sub[(x, y)];
+        }
+    }
+    cov
 }
 
 pub(crate) fn rig_covariances(
