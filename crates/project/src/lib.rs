@@ -43,8 +43,8 @@ pub use intrinsics::{Intrinsics, KeyedValues};
 pub use layout::{Layout, LayoutError};
 pub use schema::{
     BallLabel, CameraParams, ProjectBag, ProjectBalls, ProjectCamera, ProjectDistance, ProjectFile,
-    ProjectFrames, ProjectImage, ProjectLrf, ProjectNetwork, ProjectStereo, ProjectTargets,
-    ScanAtStation, ScanEntry, PARAMETER_NAMES,
+    ProjectFrames, ProjectImage, ProjectLrf, ProjectNetwork, ProjectRig, ProjectRigCamera,
+    ProjectStereo, ProjectTargets, ScanAtStation, ScanEntry, PARAMETER_NAMES,
 };
 pub use settings::{BagServo, LrfSettings};
 pub use sphere_calib::{SphereCalibFile, SphereCalibFrame, SphereCalibLidar};

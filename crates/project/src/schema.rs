@@ -54,6 +54,10 @@ pub struct ProjectFile {
     /// The stereo head (optional for a mono camera).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub stereo: Option<ProjectStereo>,
+    /// More cameras on the head (`[rig]`, issue 52): each one's pose relative to the main
+    /// camera, estimated (started at the given pose) or held at it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rig: Option<ProjectRig>,
     /// Images.
     pub images: Vec<ProjectImage>,
     /// Caliper distances between coded targets.
@@ -384,6 +388,35 @@ pub struct ProjectStereo {
     pub right: String,
     /// Nominal baseline (mm), an initial value.
     pub baseline_mm: f64,
+}
+
+/// `[rig]`: the head's cameras beyond `[stereo]`'s pair (or beside a single main camera),
+/// each rigidly mounted: its images of a station follow the main camera's image of that
+/// station through one relative pose, shared by all stations.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ProjectRig {
+    /// `[[rig.cameras]]`.
+    pub cameras: Vec<ProjectRigCamera>,
+}
+
+/// `[[rig.cameras]]`: a camera of `[[cameras]]` on the head, with its pose relative to the
+/// main camera.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ProjectRigCamera {
+    /// The camera's id in `[[cameras]]`.
+    pub id: String,
+    /// Its rotation relative to the main camera (ω, φ, κ; degrees): `x_cam = R (x_main − C)`
+    /// with `R = R_ω R_φ R_κ`; `[0, 0, 60]` faces 60° to the side about the head's up axis.
+    pub opk_deg: [f64; 3],
+    /// Its projection centre `C` in the main camera's frame (X right, Y forward, Z up; mm).
+    pub t_mm: [f64; 3],
+    /// Hold the pose at these values (a head calibrated before) instead of estimating it;
+    /// by default estimated, started where the images' own orientations put it (these
+    /// values where no station orients both cameras).
+    #[serde(default)]
+    pub hold: bool,
 }
 
 /// `[[images]]`.

@@ -12,7 +12,7 @@
 use crate::intrinsics::Intrinsics;
 use crate::schema::{
     ProjectBag, ProjectBalls, ProjectCamera, ProjectDistance, ProjectFile, ProjectFrames,
-    ProjectImage, ProjectLrf, ProjectNetwork, ProjectStereo, ProjectTargets,
+    ProjectImage, ProjectLrf, ProjectNetwork, ProjectRig, ProjectStereo, ProjectTargets,
 };
 use crate::settings::LrfSettings;
 use crate::{LrfKind, Method, MountParameter, ProjectError};
@@ -70,6 +70,9 @@ impl ProjectFile {
         let cameras = validate_cameras(&self.cameras)?;
         if let Some(s) = &self.stereo {
             validate_stereo(s, &cameras)?;
+        }
+        if let Some(r) = &self.rig {
+            validate_rig(r, &cameras, self)?;
         }
         if !cameras.contains(self.main_camera.as_str()) {
             return Err(format!(
@@ -421,6 +424,38 @@ fn short(v: f64) -> String {
     } else {
         format!("{v}")
     }
+}
+
+/// `[rig]`: cameras of `[[cameras]]`, each once, neither the main camera nor one of
+/// `[stereo]`, at finite poses.
+fn validate_rig(r: &ProjectRig, cameras: &CameraIds, f: &ProjectFile) -> Result<(), String> {
+    for (i, c) in r.cameras.iter().enumerate() {
+        let at = format!("[[rig.cameras]] id = \"{}\"", c.id);
+        if !cameras.contains(c.id.as_str()) {
+            return Err(format!("{at}: the camera is not in [[cameras]]"));
+        }
+        let stereo = f.stereo.as_ref();
+        if c.id == f.main_camera || stereo.is_some_and(|s| s.left == c.id || s.right == c.id) {
+            return Err(format!(
+                "{at}: the main camera and [stereo]'s pair are on the head already; [rig] lists the others"
+            ));
+        }
+        if r.cameras[..i].iter().any(|o| o.id == c.id) {
+            return Err(format!("{at}: listed twice"));
+        }
+        if !c.opk_deg.iter().chain(&c.t_mm).all(|v| v.is_finite()) {
+            return Err(format!(
+                "{at}: opk_deg and t_mm must be finite numbers (degrees, mm)"
+            ));
+        }
+        at_most(
+            &format!("{at} t_mm"),
+            c.t_mm.iter().map(|v| v.abs()).fold(0.0, f64::max),
+            MAX_LENGTH_MM,
+            " mm",
+        )?;
+    }
+    Ok(())
 }
 
 /// `[stereo]`: two different cameras of `[[cameras]]`.

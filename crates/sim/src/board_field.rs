@@ -588,6 +588,7 @@ impl BoardFieldSim {
                 free,
             }],
             stereo: None,
+            rig: None,
             images: (0..n)
                 .map(|k| ProjectImage {
                     file: files(k).1,

@@ -51,6 +51,9 @@ pub struct SimConfig {
     pub distances: DistanceConfig,
     /// The stereo head.
     pub camera: CameraConfig,
+    /// More cameras on the head (`[[rig.cameras]]`); none by default, and then not written.
+    #[serde(skip_serializing_if = "RigConfig::is_empty")]
+    pub rig: RigConfig,
     /// The camera stations.
     pub stations: StationConfig,
     /// Image formation.
@@ -389,6 +392,40 @@ impl CameraConfig {
             ..base
         }
     }
+}
+
+/// `[rig]`: the head's cameras beyond the stereo pair (issue 52).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+#[serde(default, deny_unknown_fields)]
+pub struct RigConfig {
+    /// `[[rig.cameras]]`, each with its pose relative to the left camera.
+    pub cameras: Vec<RigCameraConfig>,
+}
+
+impl RigConfig {
+    /// No extra camera (the default head).
+    pub fn is_empty(&self) -> bool {
+        self.cameras.is_empty()
+    }
+}
+
+/// `[[rig.cameras]]`: a camera of the head beside the stereo pair, of `[camera] model` on
+/// its sensor.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RigCameraConfig {
+    /// Its id (the images are `S00_<id>.png`, …), not `left` or `right`.
+    pub id: String,
+    /// Its rotation relative to the left camera (ω, φ, κ), degrees, as
+    /// `camera.right_opk_deg`: `[0, 0, 60]` turns it 60° to the side about the head's up
+    /// axis.
+    pub opk_deg: [f64; 3],
+    /// Its projection centre in the left camera's frame (X right, Y forward, Z up), mm, as
+    /// `camera.right_offset_mm`.
+    pub t_mm: [f64; 3],
+    /// Its true intrinsics (absent: the left camera's).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub params: Option<Vec<f64>>,
 }
 
 /// An explicitly placed extra station.
@@ -807,6 +844,7 @@ impl SimConfig {
         validate_ball_placements(&self.balls)?;
         validate_distances(&self.distances)?;
         validate_camera(&self.camera)?;
+        validate_rig(&self.camera, &self.rig)?;
         validate_stations(&self.stations)?;
         validate_render(&self.render)?;
         validate_lrf_ranges(&self.lrf)?;
@@ -1203,6 +1241,46 @@ fn validate_camera(c: &CameraConfig) -> Result<(), ConfigError> {
     }
     finite3("camera.right_offset_mm", c.right_offset_mm)?;
     finite3("camera.right_opk_deg", c.right_opk_deg)?;
+    Ok(())
+}
+
+/// `[[rig.cameras]]`: distinct ids other than the pair's, finite poses, intrinsics of the
+/// model's count.
+fn validate_rig(c: &CameraConfig, r: &RigConfig) -> Result<(), ConfigError> {
+    let n = c.model.parameter_names().len();
+    for (i, cam) in r.cameras.iter().enumerate() {
+        let key = |k: &str| format!("rig.cameras[{i}].{k}");
+        let taken = ["left", "right"].contains(&cam.id.as_str())
+            || r.cameras[..i].iter().any(|o| o.id == cam.id);
+        if cam.id.is_empty()
+            || taken
+            || !cam
+                .id
+                .chars()
+                .all(|ch| ch.is_ascii_alphanumeric() || ch == '_' || ch == '-')
+        {
+            return Err(ConfigError::new(
+                key("id"),
+                format!("{:?}", cam.id),
+                "must be a new camera id of letters, digits, '_' or '-' (not left, right or another camera's)",
+            ));
+        }
+        finite3(&key("opk_deg"), cam.opk_deg)?;
+        finite3(&key("t_mm"), cam.t_mm)?;
+        if let Some(p) = &cam.params {
+            if p.len() != n || !p.iter().all(|v| v.is_finite()) || p[0] <= 0.0 {
+                return Err(ConfigError::new(
+                    key("params"),
+                    format!("{p:?}"),
+                    format!(
+                        "must be the {n} finite parameters of model '{}' ({}), the first positive",
+                        c.model,
+                        c.model.parameter_names().join(", ")
+                    ),
+                ));
+            }
+        }
+    }
     Ok(())
 }
 

@@ -1,5 +1,5 @@
-//! The stereo head (MYNT EYE D1000-like): its two cameras with their true parameters, the
-//! rig's relative pose, and the pose of the main station's left camera. Below both the
+//! The head: the stereo pair (MYNT EYE D1000-like) and any cameras of `[[rig.cameras]]`,
+//! with their true parameters and poses relative to the left camera, and the pose of the main station's left camera. Below both the
 //! scene (which places the targets where the main image sees them) and the station plan.
 //!
 //! Poses are world → camera (`x_cam = R·X + t`, [`Rigid3`]), camera frame X right, Y forward
@@ -89,13 +89,20 @@ impl CameraUnit {
     }
 }
 
-/// The stereo head: left and right cameras and the right camera's pose in the left frame.
+/// The head: the stereo pair (left, index 0; right, index 1) and any cameras of
+/// `[[rig.cameras]]` after them, each with its pose relative to the left camera.
 #[derive(Debug, Clone)]
 pub struct StereoRig {
-    /// Left camera (index 0) and right camera (index 1).
-    pub cameras: [CameraUnit; 2],
-    /// Left-camera frame → right-camera frame.
-    pub right_from_left: Rigid3,
+    /// Left, right, then the `[[rig.cameras]]` in order.
+    pub cameras: Vec<CameraUnit>,
+    /// Per camera: left-camera frame → that camera's frame (the identity for the left).
+    pub camera_from_left: Vec<Rigid3>,
+}
+
+/// `x_cam = R_rel (x_left − C)` for a camera at `centre` (left frame) turned by `opk_deg`.
+fn from_left(opk_deg: [f64; 3], centre: [f64; 3]) -> Rigid3 {
+    let [o, p, k] = opk_deg.map(f64::to_radians);
+    Rigid3::from_rotation_and_centre(from_opk(o, p, k), V3::from(centre))
 }
 
 impl StereoRig {
@@ -103,25 +110,32 @@ impl StereoRig {
     pub fn from_config(cfg: &SimConfig) -> Self {
         let c = &cfg.camera;
         let model = SensorCamera::new(c.model, c.width, c.height, c.pixel_size_mm);
-        let o = c.right_opk_deg;
-        // Right camera orientation relative to left: x_right = R_rel (x_left − C_right).
-        let r_rel = from_opk(o[0].to_radians(), o[1].to_radians(), o[2].to_radians());
-        let right_from_left = Rigid3::from_rotation_and_centre(r_rel, V3::from(c.right_offset_mm));
-        Self {
-            cameras: [
-                CameraUnit {
-                    id: "left".into(),
-                    model: model.clone(),
-                    params: c.left.params.clone(),
-                },
-                CameraUnit {
-                    id: "right".into(),
-                    model,
-                    params: c.right.params.clone(),
-                },
-            ],
-            right_from_left,
+        let unit = |id: &str, params: &[f64]| CameraUnit {
+            id: id.into(),
+            model: model.clone(),
+            params: params.to_vec(),
+        };
+        let mut cameras = vec![unit("left", &c.left.params), unit("right", &c.right.params)];
+        let mut camera_from_left = vec![
+            Rigid3::identity(),
+            from_left(c.right_opk_deg, c.right_offset_mm),
+        ];
+        for extra in &cfg.rig.cameras {
+            cameras.push(unit(
+                &extra.id,
+                extra.params.as_deref().unwrap_or(&c.left.params),
+            ));
+            camera_from_left.push(from_left(extra.opk_deg, extra.t_mm));
         }
+        Self {
+            cameras,
+            camera_from_left,
+        }
+    }
+
+    /// Left-camera frame → right-camera frame.
+    pub fn right_from_left(&self) -> Rigid3 {
+        self.camera_from_left[1]
     }
 }
 

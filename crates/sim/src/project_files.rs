@@ -24,7 +24,7 @@ use std::path::Path;
 pub use pingcal_project::{
     BallLabel, CameraModel, Intrinsics, KeyedValues, Method, Parameter, ProjectBalls,
     ProjectCamera, ProjectDistance, ProjectFile, ProjectFrames, ProjectImage, ProjectLrf,
-    ProjectStereo, ProjectTargets, TargetFamily,
+    ProjectRig, ProjectRigCamera, ProjectStereo, ProjectTargets, TargetFamily,
 };
 use pingcal_project::{LrfKind, ScanAtStation, ScanEntry};
 
@@ -225,6 +225,12 @@ pub struct Truth {
     /// `left_to_right`).
     #[serde(alias = "left_to_right")]
     pub right_from_left: PoseJson,
+    /// Every sensor of the head but the reference (the main, left camera): the right camera,
+    /// the `[[rig.cameras]]` and the LRF, each with `camera_from_sensor` in the reference
+    /// camera's photogrammetric frame as `extrinsic` (the LRF's in the frame a calibration
+    /// defines, [`Truth::extrinsic_as_calibrated`]); results.json's `sensors` are these.
+    #[serde(default)]
+    pub sensors: Vec<TruthSensor>,
     /// Image poses.
     pub images: Vec<TruthImage>,
     /// Targets.
@@ -235,6 +241,17 @@ pub struct Truth {
     pub distances: Vec<crate::scene::Distance>,
     /// The corner's planes.
     pub surfaces: Vec<TruthSurface>,
+}
+
+/// A sensor of the head in truth.json's `sensors`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TruthSensor {
+    /// Its id: a camera's, or `lrf`.
+    pub id: String,
+    /// `camera`, or the LRF's kind (`rotating`, `fixed`).
+    pub kind: String,
+    /// `p_reference = rotation · p_sensor + translation_mm`.
+    pub camera_from_sensor: PoseJson,
 }
 
 impl Truth {
@@ -323,7 +340,7 @@ pub fn truth_of(sim: &Simulation) -> Truth {
         }
     }
     let checks = &sim.config.balls.check_balls;
-    Truth {
+    let mut truth = Truth {
         seed: sim.seed,
         generator: format!("pingcal-sim {}", env!("CARGO_PKG_VERSION")),
         conventions: vec![
@@ -356,7 +373,8 @@ pub fn truth_of(sim: &Simulation) -> Truth {
                     .to_table(),
             })
             .collect(),
-        right_from_left: PoseJson::from_pose(&sim.rig.right_from_left),
+        right_from_left: PoseJson::from_pose(&sim.rig.right_from_left()),
+        sensors: Vec::new(),
         images,
         targets: sim
             .scene
@@ -398,7 +416,31 @@ pub fn truth_of(sim: &Simulation) -> Truth {
                 size_mm: [s.u_max, s.v_max],
             })
             .collect(),
-    }
+    };
+    truth.sensors = truth_sensors(sim, &truth);
+    truth
+}
+
+/// truth.json's `sensors`: every camera of the head after the left one, then the LRF.
+fn truth_sensors(sim: &Simulation, truth: &Truth) -> Vec<TruthSensor> {
+    let cameras = (sim.rig.cameras.iter().zip(&sim.rig.camera_from_left)).skip(1);
+    let mut out: Vec<TruthSensor> = cameras
+        .map(|(c, from_left)| TruthSensor {
+            id: c.id.clone(),
+            kind: "camera".into(),
+            camera_from_sensor: PoseJson::from_pose(&from_left.inverse()),
+        })
+        .collect();
+    out.push(TruthSensor {
+        id: "lrf".into(),
+        kind: match sim.config.lrf.kind {
+            LrfKind::Rotating => "rotating",
+            LrfKind::Fixed => "fixed",
+        }
+        .into(),
+        camera_from_sensor: truth.extrinsic_as_calibrated(),
+    });
+    out
 }
 
 /// Where each ball is in the main image, to the nearest pixel, as a user would note it on
@@ -509,6 +551,16 @@ pub fn project_of(sim: &Simulation) -> ProjectFile {
             left: "left".into(),
             right: "right".into(),
             baseline_mm: 120.0,
+        }),
+        rig: (!cfg.rig.is_empty()).then(|| ProjectRig {
+            cameras: (cfg.rig.cameras.iter())
+                .map(|c| ProjectRigCamera {
+                    id: c.id.clone(),
+                    opk_deg: c.opk_deg.map(|v| v.round()),
+                    t_mm: c.t_mm.map(|v| v.round()),
+                    hold: false,
+                })
+                .collect(),
         }),
         images: sim
             .stations

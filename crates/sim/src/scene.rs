@@ -749,7 +749,9 @@ impl MainView {
             "left",
             cfg.stations.min_wall_clearance_mm,
         )?;
-        let [camera, _] = crate::head::StereoRig::from_config(cfg).cameras;
+        let camera = crate::head::StereoRig::from_config(cfg)
+            .cameras
+            .swap_remove(0);
         let r_max = camera.max_ideal_radius_mm();
         Ok(Self {
             pose,

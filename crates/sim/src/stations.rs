@@ -28,12 +28,13 @@ pub struct Station {
 }
 
 impl Station {
-    /// World → camera pose of camera `cam` (0 left, 1 right) of `rig` at this station.
+    /// World → camera pose of camera `cam` (0 left, 1 right, then `[[rig.cameras]]`) of
+    /// `rig` at this station.
     pub fn camera_pose(&self, rig: &StereoRig, cam: usize) -> Rigid3 {
         if cam == 0 {
             self.left_from_world
         } else {
-            rig.right_from_left.compose(&self.left_from_world)
+            rig.camera_from_left[cam].compose(&self.left_from_world)
         }
     }
 }
@@ -110,7 +111,7 @@ pub fn build_stations(
     }
     let rig = StereoRig::from_config(cfg);
     for (st, key) in out.iter().zip(&keys) {
-        for cam in 0..2 {
+        for cam in 0..rig.cameras.len() {
             let c = st.camera_pose(&rig, cam).centre();
             check_inside(
                 &scene.surfaces,
