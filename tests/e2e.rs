@@ -9,6 +9,7 @@ use crate::common;
 
 mod fixed_lrf;
 mod observation_group;
+mod rig;
 mod rig_check;
 
 use common::{

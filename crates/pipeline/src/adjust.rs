@@ -16,7 +16,7 @@ use super::ids::{DetectionId, IdVec, ImageId, PointId};
 use super::scene::{
     main_image, sensor_camera, target_sigma, Detections, PointKind, Scene, SIGMA_FACTOR,
 };
-use nalgebra::{Matrix2x3, Vector2};
+use nalgebra::{Matrix2x3, Vector2, Vector3};
 use pingcal_ba::camera::{CameraModel, SensorCamera};
 use pingcal_ba::problem::{Camera, Distance, Image, Observation, Point, Problem, Rig, RigMember};
 use pingcal_ba::{CameraKey, ImageKey, PointKey};
@@ -105,6 +105,52 @@ pub fn rig_cameras(project: &Project) -> Option<(&str, &str)> {
     })
 }
 
+/// A camera of the head whose image of every station follows the base camera's image of
+/// that station through one relative pose: `[stereo]`'s other camera (its base the main
+/// camera's side of the pair), then each of `[[rig.cameras]]` (its base the main camera).
+#[derive(Clone, Debug, PartialEq)]
+pub struct HeadCamera<'a> {
+    /// Its id.
+    pub camera: &'a str,
+    /// The camera whose images it follows.
+    pub base: &'a str,
+    /// Its rig's name in the problem: `stereo` for `[stereo]`'s pair, else the camera's id.
+    pub rig: &'a str,
+    /// `member_from_base` as the project gives it (`[[rig.cameras]]`'s `opk_deg`, `t_mm`);
+    /// None for `[stereo]`, which gives a baseline only.
+    pub nominal: Option<Rigid3>,
+    /// Held at `nominal` (`hold = true`).
+    pub held: bool,
+}
+
+/// The head's cameras that follow another ([`HeadCamera`]), `[stereo]`'s first.
+pub fn head_cameras(project: &Project) -> Vec<HeadCamera<'_>> {
+    let f = &project.file;
+    let mut out: Vec<HeadCamera> = (rig_cameras(project).into_iter())
+        .map(|(base, member)| HeadCamera {
+            camera: member,
+            base,
+            rig: "stereo",
+            nominal: None,
+            held: false,
+        })
+        .collect();
+    for c in f.rig.iter().flat_map(|r| &r.cameras) {
+        let [o, p, k] = c.opk_deg.map(f64::to_radians);
+        out.push(HeadCamera {
+            camera: &c.id,
+            base: &f.main_camera,
+            rig: &c.id,
+            nominal: Some(Rigid3::from_rotation_and_centre(
+                pingcal_geometry::from_opk(o, p, k),
+                Vector3::from(c.t_mm),
+            )),
+            held: c.hold,
+        });
+    }
+    out
+}
+
 /// The measurement of detection `d` for point kind `kind`: the detected centre, or for a
 /// ball the image of the sphere's centre; with its σ and the correction applied.
 fn measurement(
@@ -178,14 +224,16 @@ fn centre_from_edges(
 }
 
 impl SceneProblem {
-    /// The problem of the scene's current state. `rig`: the stereo rig pose to use (None: no
-    /// rig constraint). Distances whose targets are missing are left out.
+    /// The problem of the scene's current state. `rigs`: the pose (`member_from_base`) of
+    /// each of the [`head_cameras`] to tie to its base camera, in their order (empty, or
+    /// None for a camera: its images are free). Distances whose targets are missing are
+    /// left out.
     pub fn build(
         project: &Project,
         dets: &Detections,
         scene: &Scene,
         datum: Datum,
-        rig: Option<Rigid3>,
+        rigs: &[Option<Rigid3>],
     ) -> Self {
         let mut sp = SceneProblem {
             problem: Problem {
@@ -202,9 +250,12 @@ impl SceneProblem {
         sp.add_images(project, scene, datum);
         sp.add_points(project, dets, scene);
         sp.add_distances(project, scene);
-        if let Some(rig_pose) = rig {
-            sp.add_rig(project, rig_pose);
+        for (head, pose) in head_cameras(project).iter().zip(rigs) {
+            if let Some(pose) = pose {
+                sp.add_rig(project, head, *pose);
+            }
         }
+        sp.problem.sync_rigs();
         sp
     }
 
@@ -285,21 +336,19 @@ impl SceneProblem {
         }
     }
 
-    /// The stereo rig: the member image of every station follows its base image.
-    fn add_rig(&mut self, project: &Project, rig_pose: Rigid3) {
-        let Some((base_cam, member_cam)) = rig_cameras(project) else {
-            return;
-        };
+    /// A rig of the head: `head`'s image of every station follows its base camera's image
+    /// of that station through `member_from_base` (held where the project holds it).
+    fn add_rig(&mut self, project: &Project, head: &HeadCamera, member_from_base: Rigid3) {
         let f = &project.file;
         let mut members = Vec::new();
         for (i, im) in f.images.iter().enumerate() {
-            if im.camera != *member_cam {
+            if im.camera != head.camera {
                 continue;
             }
             let base = f
                 .images
                 .iter()
-                .position(|b| b.station == im.station && b.camera == *base_cam);
+                .position(|b| b.station == im.station && b.camera == head.base);
             let slot = |i: usize| self.map.image_slot[ImageId(i)];
             if let (Some(mi), Some(bi)) = (slot(i), base.and_then(slot)) {
                 members.push(RigMember {
@@ -310,13 +359,26 @@ impl SceneProblem {
         }
         if !members.is_empty() {
             self.problem.rigs.push(Rig {
-                name: "stereo".into(),
-                member_from_base: rig_pose,
-                fixed: false,
+                name: head.rig.into(),
+                member_from_base: match (head.held, head.nominal) {
+                    (true, Some(nominal)) => nominal,
+                    _ => member_from_base,
+                },
+                fixed: head.held,
                 members,
             });
-            self.problem.sync_rigs();
         }
+    }
+
+    /// The solved pose of each of the [`head_cameras`] that has a rig in the problem.
+    pub fn rig_poses(&self, project: &Project) -> Vec<Option<Rigid3>> {
+        (head_cameras(project).iter())
+            .map(|h| {
+                (self.problem.rigs.iter())
+                    .find(|r| r.name == h.rig)
+                    .map(|r| r.member_from_base)
+            })
+            .collect()
     }
 
     /// Copies the solution into the scene: poses, point positions, intrinsics.
@@ -455,7 +517,7 @@ accuracy_far_fraction = 0.03
     #[test]
     fn the_map_names_the_scene_objects_of_the_problem() {
         let (project, dets, scene) = fixture();
-        let sp = SceneProblem::build(&project, &dets, &scene, Datum::MainImage, None);
+        let sp = SceneProblem::build(&project, &dets, &scene, Datum::MainImage, &[]);
         assert_eq!(sp.map.images, vec![ImageId(0), ImageId(1)]);
         assert_eq!(sp.map.image(ImageId(2)), None);
         assert_eq!(sp.map.points, vec![PointId(0), PointId(1)]);
@@ -473,14 +535,14 @@ accuracy_far_fraction = 0.03
             vec![false, true],
             "the main image (station S1) is the datum"
         );
-        let free = SceneProblem::build(&project, &dets, &scene, Datum::Free, None);
+        let free = SceneProblem::build(&project, &dets, &scene, Datum::Free, &[]);
         assert!(free.problem.images.iter().all(|im| !im.fixed));
     }
 
     #[test]
     fn write_back_moves_the_scene_to_the_solution() {
         let (project, dets, mut scene) = fixture();
-        let mut sp = SceneProblem::build(&project, &dets, &scene, Datum::MainImage, None);
+        let mut sp = SceneProblem::build(&project, &dets, &scene, Datum::MainImage, &[]);
         sp.problem.points[1].position = Vector3::new(7.0, 8.0, 9.0);
         sp.problem.images[0].camera_from_object.translation = Vector3::new(1.0, 2.0, 3.0);
         sp.problem.cameras[0].params[0] = 5.5;
@@ -691,10 +753,10 @@ accuracy_far_fraction = 0.03
                 .expect("converges");
             k1_k4_distance(&sp.problem)
         };
-        let mut sp = SceneProblem::build(&project, &dets, &scene, Datum::MainImage, None);
+        let mut sp = SceneProblem::build(&project, &dets, &scene, Datum::MainImage, &[]);
         let corrected = solve(&mut sp);
         // the same network with the detected centres as they are
-        let mut raw = SceneProblem::build(&project, &dets, &scene, Datum::MainImage, None);
+        let mut raw = SceneProblem::build(&project, &dets, &scene, Datum::MainImage, &[]);
         for (ob, (_, d)) in raw
             .problem
             .observations

@@ -3,8 +3,10 @@
 //! - Datum: the main image is held fixed (its camera frame is the photogrammetric frame);
 //!   the measured distances (observation equations with their σ) give the scale.
 //! - Intrinsics: the parameters each camera frees in the project, shared by its images.
-//! - Stereo head: with `[stereo]`, the right image of every station follows its left image
-//!   through one rig pose, adjusted with everything else.
+//! - The head: with `[stereo]`, the right image of every station follows its left image
+//!   through one rig pose, adjusted with everything else; so does each camera of `[rig]`
+//!   follow the main camera's image (held where the project holds its pose). Cameras that
+//!   share no view of the field are tied through the field.
 //! - Balls: the centre of a ball's silhouette is not the image of its centre; each ball
 //!   measurement is corrected by the cone fit of [`pingcal_targets::ball`] with the current
 //!   intrinsics ([`super::adjust`]), and the adjustment is run twice so that the correction
@@ -15,11 +17,12 @@
 //!   as the blunder and left out of the later rounds ([`RejectedDistance`]), not the image
 //!   points of its targets.
 
-use super::adjust::{rig_cameras, Datum, SceneProblem};
+use super::adjust::{head_cameras, Datum, SceneProblem};
 use super::ids::ImageId;
 use super::scene::{coded_blunder, image_file, Detections, PointKind, Scene};
 use crate::context::{Options, PipelineError, Result};
 use crate::progress::Reporter;
+use nalgebra::Matrix6;
 use pingcal_ba::solver::{
     self, DistanceRejection, Precision, PrecisionError, Rejection, SnoopError, VarianceComponent,
     VarianceError,
@@ -40,8 +43,9 @@ pub struct Adjusted {
     pub sigma0_a_priori: f64,
     /// Image points removed as gross errors.
     pub rejected: Vec<Rejection>,
-    /// The stereo rig (left → right camera frame), when there is one.
-    pub rig: Option<Rigid3>,
+    /// The pose (`member_from_base`) of each of the head's cameras that follow another
+    /// ([`super::adjust::head_cameras`], `[stereo]`'s first), where its rig was adjusted.
+    pub rigs: Vec<Option<Rigid3>>,
     /// Iterations of all final adjustments.
     pub iterations: usize,
     /// Why each `[[distances]]` entry left out of the adjustment was left out.
@@ -55,6 +59,22 @@ pub struct Adjusted {
     /// (`verdict::lens_doubt`, set by the pipeline after this step): its model cannot hold
     /// the lens.
     pub lens_doubt: Option<String>,
+}
+
+impl Adjusted {
+    /// The adjusted rig of the head camera `camera` (`member_from_base`) and its covariance
+    /// (of the update `(δω, δt)`, None where it was held), when the adjustment had it.
+    pub fn rig_of(
+        &self,
+        camera: &str,
+        project: &Project,
+    ) -> Option<(Rigid3, Option<Matrix6<f64>>)> {
+        let heads = head_cameras(project);
+        let head = heads.iter().find(|h| h.camera == camera)?;
+        let k = (self.solved.problem.rigs.iter()).position(|r| r.name == head.rig)?;
+        let cov = self.precision.rig_covariances.get(k).copied().flatten();
+        Some((self.solved.problem.rigs[k].member_from_base, cov))
+    }
 }
 
 /// A `[[distances]]` entry that data snooping found to be a gross error (its standardized
@@ -121,25 +141,29 @@ impl RejectedDistance {
 /// balls' silhouettes corrected for eccentricity (another measurement, with its own σ).
 pub const OBSERVATION_GROUPS: [&str; 2] = ["targets", "balls"];
 
-/// The rig pose (base → member camera frame) from the main station, or the first station
-/// where both cameras are oriented.
-fn initial_rig(project: &Project, scene: &Scene) -> Option<Rigid3> {
+/// Each head camera's rig pose (base → member camera frame,
+/// [`super::adjust::head_cameras`]'s order) from the main station, or the first station
+/// where both cameras are oriented; else the project's nominal pose (`[rig]`; None for
+/// `[stereo]`).
+fn initial_rigs(project: &Project, scene: &Scene) -> Vec<Option<Rigid3>> {
     let f = &project.file;
-    let (base_cam, member_cam) = rig_cameras(project)?;
     let mut stations: Vec<&str> = vec![f.main_station.as_str()];
     stations.extend(f.images.iter().map(|im| im.station.as_str()));
-    for s in stations {
-        let pose_of = |cam: &str| {
-            f.images
-                .iter()
-                .position(|im| im.station == s && im.camera == cam)
-                .and_then(|i| scene.poses[ImageId(i)])
-        };
-        if let (Some(b), Some(m)) = (pose_of(base_cam), pose_of(member_cam)) {
-            return Some(m.compose(&b.inverse()));
-        }
-    }
-    None
+    let pose_of = |s: &str, cam: &str| {
+        f.images
+            .iter()
+            .position(|im| im.station == s && im.camera == cam)
+            .and_then(|i| scene.poses[ImageId(i)])
+    };
+    (head_cameras(project).iter())
+        .map(|h| {
+            let from_images = stations.iter().find_map(|s| {
+                let (b, m) = (pose_of(s, h.base)?, pose_of(s, h.camera)?);
+                Some(m.compose(&b.inverse()))
+            });
+            from_images.or(h.nominal)
+        })
+        .collect()
 }
 
 /// Removes rejected measurements from the scene (a point has one measurement per image).
@@ -301,7 +325,7 @@ struct Rounds<'a> {
     dets: &'a Detections,
     options: solver::Options,
     snoop_critical: f64,
-    rig: Option<Rigid3>,
+    rigs: Vec<Option<Rigid3>>,
     rejected: Vec<Rejection>,
     rejected_distances: Vec<RejectedDistance>,
     /// Why the distances are no longer tested ([`Rounds::disagree`]).
@@ -313,7 +337,7 @@ impl Rounds<'_> {
     /// The problem of the scene's current state, without the distances rejected so far.
     fn problem(&self, scene: &Scene) -> SceneProblem {
         let mut sp =
-            SceneProblem::build(self.project, self.dets, scene, Datum::MainImage, self.rig);
+            SceneProblem::build(self.project, self.dets, scene, Datum::MainImage, &self.rigs);
         let (points, rejected) = (&sp.problem.points, &self.rejected_distances);
         let number = |p: pingcal_ba::PointKey| points[p].name.parse::<u32>().ok();
         sp.problem.distances.retain(|d| {
@@ -424,12 +448,10 @@ impl Rounds<'_> {
         self.distances_rejected(&r.rejected_distances, rep);
         self.iterations += r.summary.iterations;
         sp.write_back(scene);
-        self.rig = sp
-            .problem
-            .rigs
-            .first()
-            .map(|r| r.member_from_base)
-            .or(self.rig);
+        let solved = sp.rig_poses(self.project);
+        for (rig, solved) in self.rigs.iter_mut().zip(solved) {
+            *rig = solved.or(*rig);
+        }
         let before = scene.blunders.len();
         name_blunders(self.project, self.dets, scene, &r.rejected);
         super::network::log_blunders(self.project, self.dets, scene, before, rep);
@@ -503,7 +525,7 @@ pub fn final_adjustment(
             ..solver::Options::default()
         },
         snoop_critical: opts.snoop_critical,
-        rig: initial_rig(project, scene),
+        rigs: initial_rigs(project, scene),
         rejected: Vec::new(),
         rejected_distances: Vec::new(),
         distances_disagree: None,
@@ -535,7 +557,7 @@ pub fn final_adjustment(
         rep.log(format!("warning: {w}"));
         scene.warnings.push(w);
     }
-    let rig = sp.problem.rigs.first().map(|r| r.member_from_base);
+    let rigs = sp.rig_poses(project);
     log_adjustment(
         &sp,
         scene,
@@ -549,7 +571,7 @@ pub fn final_adjustment(
         precision,
         sigma0_a_priori,
         rejected: rounds.rejected,
-        rig,
+        rigs,
         iterations: rounds.iterations,
         unused_distances,
         rejected_distances: rounds.rejected_distances,
@@ -661,7 +683,7 @@ mod tests {
             dets: &dets,
             options: solver::Options::default(),
             snoop_critical: 3.29,
-            rig: None,
+            rigs: Vec::new(),
             rejected: Vec::new(),
             rejected_distances: Vec::new(),
             distances_disagree: None,

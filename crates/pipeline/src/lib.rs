@@ -43,6 +43,7 @@ pub mod exports;
 pub mod extrinsic;
 pub mod final_lrf;
 pub mod fixed_lrf;
+pub mod head;
 pub mod ids;
 pub mod joint;
 pub mod joint_starts;

@@ -66,7 +66,7 @@ pub fn refine(
     scene: &mut Scene,
     opts: &Options,
 ) -> Result<()> {
-    let mut sp = SceneProblem::build(project, dets, scene, Datum::MainImage, None);
+    let mut sp = SceneProblem::build(project, dets, scene, Datum::MainImage, &[]);
     let options = solver::Options {
         max_iterations: 30,
         threads: opts.threads,

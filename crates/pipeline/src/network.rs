@@ -38,7 +38,7 @@ pub fn initial_network(
     let seen = coded_tracks(dets);
     enough_coded_targets(project, seen.len())?;
     let start = starting_scene(project, &seen);
-    let sp = SceneProblem::build(project, dets, &start, Datum::Free, None);
+    let sp = SceneProblem::build(project, dets, &start, Datum::Free, &[]);
     scaled_by_a_distance(project, &sp)?;
     let mut options = IncrementalOptions {
         bundle: solver::Options {

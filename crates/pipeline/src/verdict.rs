@@ -702,7 +702,9 @@ fn unmatched(st: &Stages) -> (Vec<String>, Vec<String>) {
             ));
         }
     }
-    if let (Some(s), Some(rig)) = (&st.project.file.stereo, &st.adjusted.rig) {
+    let stereo = crate::adjust::rig_cameras(st.project)
+        .and_then(|(_, member)| st.adjusted.rig_of(member, st.project));
+    if let (Some(s), Some((rig, _))) = (&st.project.file.stereo, stereo) {
         let adjusted = rig.centre().norm();
         if (adjusted - s.baseline_mm).abs() > BASELINE_TOLERANCE * s.baseline_mm {
             out.push(format!(

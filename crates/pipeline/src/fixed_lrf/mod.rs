@@ -44,6 +44,7 @@ pub use stations::{read_beams, Station};
 use crate::bundle::{Adjusted, OBSERVATION_GROUPS};
 use crate::context::{Options, PipelineError, Result};
 use crate::extrinsic::Extrinsics;
+use crate::head::HeadPoses;
 use crate::joint::{JointError, JointOutcome};
 use crate::lrf::LrfData;
 use crate::progress::Reporter;
@@ -150,7 +151,7 @@ pub fn calibrate_fixed(
         (&planes, &balls),
         best.camera_from_lrf,
     )?;
-    let joint = adjusted(&mut fp, adj, (&stations, &planes, &balls), rep)
+    let joint = adjusted(&mut fp, (project, adj), (&stations, &planes, &balls), rep)
         .map_err(|e| PipelineError::Adjustment(e.to_string()))?;
     let (e, range) = (
         joint.camera_from_lrf,
@@ -191,7 +192,7 @@ fn ball_spheres(balls: &[FieldBall], planes: &[FieldPlane]) -> Vec<planes::BallO
 /// not, the variance components, and the outcome.
 fn adjusted(
     fp: &mut FixedProblem,
-    adj: &Adjusted,
+    (project, adj): (&Project, &Adjusted),
     field: (&[Station], &[FieldPlane], &[FieldBall]),
     rep: &Reporter,
 ) -> std::result::Result<JointOutcome, JointError> {
@@ -223,7 +224,7 @@ fn adjusted(
         &OBSERVATION_GROUPS,
     )
     .map_err(|e| JointError::other(format!("fixed LRF adjustment (variance components): {e}")))?;
-    let out = outputs::joint_outcome(
+    let mut out = outputs::joint_outcome(
         fp,
         adj,
         field,
@@ -231,6 +232,7 @@ fn adjusted(
         (&free, &held),
         (chi2s, rejected),
     );
+    out.head = HeadPoses::of_problem(project, &p, &estimate.precision, Some((fp.ext, "fixed")));
     outputs::log_outcome(&out, rep);
     Ok(out)
 }

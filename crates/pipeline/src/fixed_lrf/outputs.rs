@@ -8,6 +8,7 @@ use super::stations::Station;
 use super::{RANGE_NAMES, UNKNOWN_NAMES};
 use crate::bundle::Adjusted;
 use crate::extrinsic::{CornerOutcome, Extrinsics};
+use crate::head::HeadPoses;
 use crate::ids::{PointId, SphereId};
 use crate::joint::groups::{rms, LeftOut};
 use crate::joint::{Convergence, GroupOutcome, JointOutcome, LrfView, MountEstimate};
@@ -398,6 +399,7 @@ pub fn joint_outcome(
                 .into(),
         ),
         held_shifts: [None; 8],
+        head: HeadPoses::default(),
     }
 }
 

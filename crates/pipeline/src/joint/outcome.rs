@@ -12,6 +12,7 @@ use super::rounds::Rejected;
 use super::{joint_balls, to_unit, JointInput, TIME_OFFSET_NAME};
 use crate::bundle::OBSERVATION_GROUPS;
 use crate::context::{PipelineError, Result};
+use crate::head::HeadPoses;
 use crate::ids::PointId;
 use crate::progress::Reporter;
 use crate::scene::PointKind;
@@ -98,6 +99,9 @@ pub struct JointOutcome {
     /// extrinsic (δω rad, δt mm, as `extrinsic_cov`) would move were its held value off by
     /// its plausible size.
     pub held_shifts: [Option<[f64; 6]>; 8],
+    /// The head's cameras and the LRF from this adjustment, with their joint covariance
+    /// ([`crate::head`]); `sensors` of results.json.
+    pub head: HeadPoses,
 }
 
 /// What the LRF step gave the joint adjustment's pass: the spheres found in the cloud
@@ -260,6 +264,12 @@ pub(super) fn finish(
         convergence: second.summary,
         hold_mount: input.hold_mount.map(String::from),
         held_shifts: [None; 8],
+        head: HeadPoses::of_problem(
+            input.project,
+            &p,
+            &prec,
+            Some((joint.keys.extrinsic, "rotating")),
+        ),
     };
     log_outcome(&out, rep);
     Ok(out)

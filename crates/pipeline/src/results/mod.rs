@@ -17,6 +17,7 @@
 //! `conventions` block ([`conventions`]) says in words which frame is which and which way
 //! every transform maps, for the programs and people that read the file.
 
+use super::adjust::rig_cameras;
 use super::bundle::Adjusted;
 pub use super::conventions::{conventions, ConventionsJson};
 use super::extrinsic::Extrinsics;
@@ -35,8 +36,10 @@ use pingcal_lrf::registration::{CheckRow, PointObs};
 use pingcal_project::{Intrinsics, Project};
 use serde::Serialize;
 
+mod sensors;
 mod transforms;
 
+pub use sensors::{SensorJson, SensorPairJson};
 pub use transforms::{
     cv_from_photogrammetric, extrinsic_json, matrix_4x4, quaternion_xyzw, rig_json, transform_json,
     ExtrinsicJson, RigJson, TransformJson,
@@ -267,6 +270,13 @@ pub struct Results {
     /// tables and every export use: the joint adjustment's estimate when its result is the
     /// one given, else the project's (`pingcal cloud --lrf-model results.json` reads it).
     pub lrf_model: LrfModelJson,
+    /// Every sensor of the head but the reference (main) camera: the cameras that follow
+    /// it (`[stereo]`, `[rig]`), then the LRF, each with `camera_from_sensor` and its σ's
+    /// ([`crate::head`]).
+    pub sensors: Vec<sensors::SensorJson>,
+    /// Every pair of `sensors`: `a_from_b` composed from their transforms, with σ's from
+    /// the joint covariance.
+    pub sensor_pairs: Vec<sensors::SensorPairJson>,
     /// The bundle adjustment.
     pub bundle: BundleJson,
     /// Intrinsics.
@@ -657,12 +667,14 @@ pub fn assemble(st: &Stages, verdict: Verdict, time_s: Vec<(String, f64)>) -> Re
         .find(|m| m.extrinsic.is_some())
         .expect("the pipeline fails unless one method succeeded");
     let (balls, targets) = points_json(st);
+    let extrinsic = primary.extrinsic.clone().expect("found above");
+    let (sensors, sensor_pairs) = sensors::sensors_json(st, &extrinsic);
     Results {
         generator: format!("pingcal {}", env!("CARGO_PKG_VERSION")),
         verdict,
         project: project.file.name.clone(),
         conventions: conventions(project),
-        extrinsic: primary.extrinsic.clone().expect("found above"),
+        extrinsic,
         check_points: primary.check_points.clone(),
         mean_check_error_mm: primary.mean_check_error_mm.unwrap_or(f64::NAN),
         methods,
@@ -671,6 +683,8 @@ pub fn assemble(st: &Stages, verdict: Verdict, time_s: Vec<(String, f64)>) -> Re
             _ => None,
         },
         lrf_model: lrf_model_of(st),
+        sensors,
+        sensor_pairs,
         bundle: bundle_json(st),
         cameras: scene
             .intrinsics
@@ -717,11 +731,8 @@ pub type TargetRow = (String, String, [f64; 3], [f64; 3]);
 /// The bundle adjustment's summary of `results.json`.
 fn bundle_json(st: &Stages) -> BundleJson {
     let (project, scene, adj) = (st.project, st.scene, st.adjusted);
-    let rig_cov = adj.precision.rig_covariances.first().copied().flatten();
-    let rig = adj
-        .rig
-        .as_ref()
-        .and_then(|r| rig_of(project, r, rig_cov.as_ref()));
+    let stereo = rig_cameras(project).and_then(|(_, member)| adj.rig_of(member, project));
+    let rig = stereo.and_then(|(r, cov)| rig_of(project, &r, cov.as_ref()));
     BundleJson {
         sigma0: adj.sigma0_a_priori,
         variance_components: adj.variance_components.clone(),

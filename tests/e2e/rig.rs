@@ -1,0 +1,122 @@
+//! The head as a list of sensors (issue 52): results.json's `sensors` (every sensor but the
+//! main camera, with σ's) and `sensor_pairs` (composed, with σ's from the joint covariance),
+//! against the simulator's truth, on the shared calibration (a stereo head) and on a head
+//! with a third camera facing 60° to the side (`[[rig.cameras]]`).
+
+use crate::common::{calibration, read_json, Work};
+use nalgebra::{Matrix3, Rotation3, Vector3};
+use serde_json::Value;
+use std::path::Path;
+
+/// Per component, |error| / σ beyond this fails: 4σ, a false alarm of 6e-5 per component
+/// (some 0.1 % over the 18 components of the three-camera head).
+const Z_MAX: f64 = 4.0;
+
+fn rotation(v: &Value) -> Matrix3<f64> {
+    Matrix3::from_fn(|a, b| v["rotation"][a][b].as_f64().expect("a rotation entry"))
+}
+
+fn vector(v: &Value) -> Vector3<f64> {
+    Vector3::from_fn(|a, _| v[a].as_f64().expect("a number"))
+}
+
+/// Each sensor of `results` against the same id of `truth`: per component within
+/// [`Z_MAX`] σ, |Δt| ≤ 3 mm and ΔR ≤ 0.2° (issue 52's bounds); the LRF's entry is
+/// `extrinsic`; returns the ids.
+fn sensors_agree_with_truth(results: &Value, truth: &Value) -> Vec<String> {
+    let truth_of = |id: &str| {
+        (truth["sensors"]
+            .as_array()
+            .expect("truth.json sensors")
+            .iter())
+        .find(|s| s["id"] == id)
+        .unwrap_or_else(|| panic!("no sensor {id} in truth.json"))["camera_from_sensor"]
+            .clone()
+    };
+    let mut ids = Vec::new();
+    for s in results["sensors"].as_array().expect("results.json sensors") {
+        let id = s["id"].as_str().expect("an id").to_string();
+        let (e, t) = (&s["camera_from_sensor"], truth_of(&id));
+        let dt = vector(&e["translation_mm"]) - vector(&t["translation_mm"]);
+        let dr = Rotation3::from_matrix_unchecked(rotation(e) * rotation(&t).transpose());
+        let angle = dr.angle().to_degrees();
+        assert!(
+            dt.norm() <= 3.0 && angle <= 0.2,
+            "{id}: |dt| {} mm, dR {angle}°",
+            dt.norm()
+        );
+        let dopk = vector(&e["opk_deg"]) - vector(&t["opk_deg"]);
+        for k in 0..3 {
+            let zt = dt[k] / e["sigma_translation_mm"][k].as_f64().expect("a σ");
+            let zr = dopk[k] / e["sigma_rotation_deg"][k].as_f64().expect("a σ");
+            assert!(
+                zt.abs() <= Z_MAX && zr.abs() <= Z_MAX,
+                "{id} component {k}: z {zt}, {zr}"
+            );
+        }
+        if id == "lrf" {
+            assert_eq!(e, &results["extrinsic"], "the LRF's entry is the extrinsic");
+        }
+        ids.push(id);
+    }
+    ids
+}
+
+/// Every pair's `a_from_b` is `camera_from_a⁻¹ · camera_from_b` to 1e-9, with σ's.
+fn pairs_are_compositions(results: &Value) {
+    let pose = |id: &Value| {
+        let s = (results["sensors"].as_array().unwrap().iter())
+            .find(|s| &s["id"] == id)
+            .expect("the pair's sensor is listed");
+        let e = &s["camera_from_sensor"];
+        (rotation(e), vector(&e["translation_mm"]))
+    };
+    let n = results["sensors"].as_array().unwrap().len();
+    let pairs = results["sensor_pairs"].as_array().expect("sensor_pairs");
+    assert_eq!(pairs.len(), n * (n - 1) / 2);
+    for p in pairs {
+        let ((ra, ta), (rb, tb)) = (pose(&p["a"]), pose(&p["b"]));
+        let r = ra.transpose() * rb;
+        let t = ra.transpose() * (tb - ta);
+        let e = &p["a_from_b"];
+        assert!((rotation(e) - r).norm() < 1e-9, "{p}");
+        assert!((vector(&e["translation_mm"]) - t).norm() < 1e-9, "{p}");
+        assert!(
+            e["sigma_translation_mm"][0]
+                .as_f64()
+                .is_some_and(|s| s > 0.0),
+            "{p}"
+        );
+    }
+}
+
+fn truth_of(project: &Path) -> Value {
+    read_json(&project.join("truth.json"))
+}
+
+/// The shared calibration of the stereo head: the right camera and the LRF.
+#[test]
+fn a_stereo_heads_sensors_and_their_pair() {
+    let c = calibration();
+    let r = read_json(&c.out.join("results.json"));
+    let ids = sensors_agree_with_truth(&r, &truth_of(&c.project));
+    assert_eq!(ids, ["right", "lrf"]);
+    pairs_are_compositions(&r);
+}
+
+/// A third camera facing 60° to the side, sharing part of its view with the pair: its
+/// images follow the left camera's through its own rig, estimated with the others.
+#[test]
+fn a_third_camera_on_the_head() {
+    let w = Work::new("rig_third_camera");
+    let config =
+        "[[rig.cameras]]\nid = \"side\"\nopk_deg = [0.0, 0.0, 60.0]\nt_mm = [60.0, -25.0, 10.0]\n";
+    let p = w.simulate("p", config);
+    let (run, out) = w.calibrate(&p, &[]);
+    assert!(run.success(), "{}\n{}", run.stdout, run.stderr);
+    let r = read_json(&out.join("results.json"));
+    assert_eq!(r["verdict"]["status"], "ok", "{}", r["verdict"]);
+    let ids = sensors_agree_with_truth(&r, &truth_of(&p));
+    assert_eq!(ids, ["right", "side", "lrf"]);
+    pairs_are_compositions(&r);
+}
