@@ -181,8 +181,9 @@ fn check(test: &str, name: &str, extra: Option<&Path>) {
     }
 }
 
-/// Runs `check.py CHECK OUT [EXTRA]` on output folder `out`.
-fn check_in(test: &str, name: &str, out: &Path, extra: Option<&Path>) {
+/// Runs `check.py CHECK OUT [EXTRA]` on output folder `out` (skipped, saying why, without
+/// the venv).
+pub(crate) fn check_in(test: &str, name: &str, out: &Path, extra: Option<&Path>) {
     let Some(py) = python(test) else { return };
     let mut cmd = Command::new(py);
     cmd.arg(workspace().join("tests/ecosystem/check.py"))
@@ -241,6 +242,15 @@ fn ros_commands_and_launch_files_publish_the_extrinsic() {
 #[test]
 fn urdf_joint_composes_back_to_the_extrinsic() {
     check("urdf", "urdf", None);
+}
+
+/// `ros/head.urdf`, parsed by `urdf_parser_py`: a fixed joint per sensor of `sensors`
+/// (the right camera's optical frame, the LRF's) composes back to its `camera_from_sensor`,
+/// and the pair is the composition of the two; Kalibr's chain is `sensors`' too.
+#[test]
+fn head_urdf_composes_back_to_every_sensor() {
+    check("head", "head", None);
+    check("chain", "chain", None);
 }
 
 /// Kalibr's camchain, read by PyYAML: its radtan refit (cv2.projectPoints with k3 = 0,

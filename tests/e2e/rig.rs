@@ -119,4 +119,8 @@ fn a_third_camera_on_the_head() {
     let ids = sensors_agree_with_truth(&r, &truth_of(&p));
     assert_eq!(ids, ["right", "side", "lrf"]);
     pairs_are_compositions(&r);
+    // ros/head.urdf and Kalibr's three-camera chain, read by their ecosystems' own code
+    for check in ["head", "chain"] {
+        crate::ecosystem::check_in("a_third_camera_on_the_head", check, &out, None);
+    }
 }

@@ -2,7 +2,7 @@
 
     python check.py CHECK RESULTS_DIR [PROBE_JSON | PROJECT_TOML]
 
-CHECK is one of opencv, stereo, transforms, ros, urdf, kalibr, camera_info, lrf_model.
+CHECK is one of opencv, stereo, transforms, ros, urdf, head, kalibr, chain, camera_info, lrf_model.
 RESULTS_DIR holds results.json and ros/, opencv/, kalibr/ as `pingcal calibrate` wrote
 them; the third argument is, for opencv, kalibr and camera_info, PROBE_JSON (3D points in
 the LRF frame and pingcal's own projection of them; the rays of pingcal's model through a
@@ -231,6 +231,79 @@ def check_urdf(d):
     back = (C.T @ (rot @ (pts.T / 1000.0) + xyz[:, None])).T * 1000.0
     want = (np.array(e["rotation"]) @ pts.T).T + np.array(e["translation_mm"])
     bound("urdf_composed_back_m", np.abs(back - want).max() / 1000.0, 1e-9)
+
+
+def sensor_to_optical(r, s):
+    """The optical-frame joint (R, t in mm) of sensor `s` rebuilt from its photogrammetric
+    camera_from_sensor: a camera's child frame is its optical frame (C R C^T, C t), the
+    LRF's its own (C R, C t)."""
+    e = s["camera_from_sensor"]
+    rot, t = np.array(e["rotation"]), np.array(e["translation_mm"])
+    return (C @ rot @ C.T if s["kind"] == "camera" else C @ rot), C @ t
+
+
+def check_head(d):
+    """ros/head.urdf parsed by urdf_parser_py: one fixed joint per sensor of results.json's
+    sensors from the main camera's optical frame, each composed (R = Rz(yaw) Ry(pitch)
+    Rx(roll)) back to the sensor's camera_from_sensor in mm; every pair's a_from_b is the
+    composition of its two sensors'."""
+    from scipy.spatial.transform import Rotation
+    from urdf_parser_py.urdf import URDF
+
+    r = results(d)
+    conv = r["conventions"]
+    robot = URDF.from_xml_string((d / "ros" / "head.urdf").read_text().encode())
+    assert len(robot.joints) == len(r["sensors"]), (len(robot.joints), len(r["sensors"]))
+    worst_t, worst_r = 0.0, 0.0
+    for joint, s in zip(robot.joints, r["sensors"]):
+        child = f"{s['id']}_optical" if s["kind"] == "camera" else conv["tf_lrf_frame"]
+        assert joint.type == "fixed" and (joint.parent, joint.child) == (conv["tf_camera_frame"], child), (joint.parent, joint.child)
+        rot = Rotation.from_euler("xyz", joint.origin.rpy).as_matrix()
+        want_r, want_t = sensor_to_optical(r, s)
+        worst_r = max(worst_r, np.abs(rot - want_r).max())
+        worst_t = max(worst_t, np.abs(np.array(joint.origin.xyz) - want_t / 1000.0).max())
+    bound("head_urdf_R", worst_r, 1e-12)
+    bound("head_urdf_t_m", worst_t, 1e-12)
+    pose = {s["id"]: s["camera_from_sensor"] for s in r["sensors"]}
+    worst = 0.0
+    for p in r["sensor_pairs"]:
+        a, b, e = pose[p["a"]], pose[p["b"]], p["a_from_b"]
+        ra, rb = np.array(a["rotation"]), np.array(b["rotation"])
+        want = np.eye(4)
+        want[:3, :3] = ra.T @ rb
+        want[:3, 3] = ra.T @ (np.array(b["translation_mm"]) - np.array(a["translation_mm"]))
+        worst = max(worst, np.abs(np.array(e["matrix_4x4"]) - want).max())
+    bound("sensor_pairs_composed_mm", worst, 1e-9)
+
+
+def check_chain(d):
+    """camchain.yaml read back with PyYAML for a head of more than two cameras: cam0 the
+    main (or left) camera, then every camera of results.json's sensors; each T_cn_cnm1
+    (p_camn = T p_camn-1, OpenCV frames, m) rebuilt here from the sensors' photogrammetric
+    camera_from_sensor."""
+    import yaml
+
+    r = results(d)
+    chain = yaml.safe_load((d / "kalibr" / "camchain.yaml").read_text())
+    rig = r["bundle"]["rig"]
+    ids = [rig["left"], rig["right"]] if rig else [r["conventions"]["main_camera"]]
+    ids += [s["id"] for s in r["sensors"] if s["kind"] == "camera" and s["id"] not in ids]
+    assert sorted(chain) == sorted(f"cam{n}" for n in range(len(ids))), sorted(chain)
+
+    def main_from(cid):
+        if cid == r["conventions"]["main_camera"]:
+            return np.eye(4)
+        s = next(s for s in r["sensors"] if s["id"] == cid)
+        m = np.eye(4)
+        m[:3, :3], t = sensor_to_optical(r, s)
+        m[:3, 3] = t / 1000.0
+        return m
+
+    worst = 0.0
+    for n in range(1, len(ids)):
+        want = np.linalg.inv(main_from(ids[n])) @ main_from(ids[n - 1])
+        worst = max(worst, np.abs(np.array(chain[f"cam{n}"]["T_cn_cnm1"]) - want).max())
+    bound("kalibr_chain_T_cn_cnm1", worst, 1e-9)
 
 
 def stated_losses(text):
@@ -498,6 +571,8 @@ def main():
         "transforms": lambda: check_transforms(d),
         "ros": lambda: check_ros(d),
         "urdf": lambda: check_urdf(d),
+        "head": lambda: check_head(d),
+        "chain": lambda: check_chain(d),
         "kalibr": lambda: check_kalibr(d, sys.argv[3]),
         "camera_info": lambda: check_camera_info(d, sys.argv[3]),
         "lrf_model": lambda: check_lrf_model(d, sys.argv[3]),

@@ -31,6 +31,7 @@ use nalgebra::{Matrix3, Matrix3x4, Vector3};
 
 use std::fmt::Write;
 
+mod head;
 mod lrf_model;
 
 pub use lrf_model::{lrf_model_files, lrf_model_urdf, mount_tilt, LrfChainNames, SERVO_AXIS};
@@ -538,19 +539,24 @@ fn kalibr_camera(
 /// `kalibr/camchain.yaml`: `cams` in order (cam0, cam1), each with its [`export_loss`], and
 /// for a rig cam1's `T_cn_cnm1` (`p_cam1 = T p_cam0`, OpenCV frames, metres).
 pub fn kalibr_camchain(cams: &[(&CameraJson, &ExportLoss)], rig: Option<&RigJson>) -> String {
+    let link = rig.map(|r| {
+        (
+            matrix3(&r.opencv.rotation),
+            Vector3::from(r.opencv.translation_mm) / 1000.0,
+        )
+    });
+    let links: Vec<_> = (0..cams.len()).map(|n| link.filter(|_| n == 1)).collect();
+    kalibr_chain(cams, &links)
+}
+
+/// `kalibr/camchain.yaml` of `cams` in order, `links[n]` cam n's `T_cn_cnm1` (`p_camn = R
+/// p_camn-1 + t`, OpenCV frames, t in m; None: not written).
+fn kalibr_chain(cams: &[(&CameraJson, &ExportLoss)], links: &[Link]) -> String {
     let mut out = String::from("# Kalibr camchain written by pingcal calibrate; the rostopics are placeholders: set them to your image topics\n");
     for (n, (c, loss)) in cams.iter().enumerate() {
         let _ = writeln!(out, "cam{n}:");
-        if n > 0 {
-            if let Some(r) = rig {
-                let rot = &r.opencv.rotation;
-                let t = r.opencv.translation_mm.map(|v| v / 1000.0);
-                let _ = writeln!(out, "  T_cn_cnm1:");
-                for i in 0..3 {
-                    let _ = writeln!(out, "  - [{}, {}]", nums(&rot[i]), num(t[i]));
-                }
-                let _ = writeln!(out, "  - [0.0, 0.0, 0.0, 1.0]");
-            }
+        if let Some(Some((rot, t))) = links.get(n).filter(|_| n > 0) {
+            head::write_t_cn_cnm1(&mut out, rot, t);
         }
         let overlaps: Vec<usize> = (0..cams.len()).filter(|&k| k != n).collect();
         kalibr_camera(&mut out, n, c, loss, &overlaps);
@@ -558,17 +564,47 @@ pub fn kalibr_camchain(cams: &[(&CameraJson, &ExportLoss)], rig: Option<&RigJson
     out
 }
 
+/// A camera's `T_cn_cnm1` in Kalibr's chain (rotation, translation in m).
+type Link = Option<(Matrix3<f64>, Vector3<f64>)>;
+
 /// The indices (into `r.cameras`) of the cameras in Kalibr's order: left and right of the
-/// rig, else the main camera alone.
+/// rig, else the main camera alone; then the cameras of `[rig]` (`sensors`' cameras not
+/// yet in the chain).
 fn chain(r: &Results) -> Vec<usize> {
     let find = |id: &str| r.cameras.iter().position(|c| c.id == id);
-    match &r.bundle.rig {
+    let mut order: Vec<usize> = match &r.bundle.rig {
         Some(rig) => [&rig.left, &rig.right]
             .iter()
             .filter_map(|id| find(id))
             .collect(),
         None => find(&r.conventions.main_camera).into_iter().collect(),
+    };
+    for s in r.sensors.iter().filter(|s| s.kind == "camera") {
+        if let Some(i) = find(&s.id).filter(|i| !order.contains(i)) {
+            order.push(i);
+        }
     }
+    order
+}
+
+/// Each camera's `T_cn_cnm1` along `order` (in `cams`' order): cam1's of the stereo rig
+/// where it has one (`bundle.rig`), every other from `sensors` ([`head::t_cn_cnm1`]).
+fn chain_links(r: &Results, order: &[usize]) -> Vec<Link> {
+    (0..order.len())
+        .map(|n| {
+            if n == 0 {
+                return None;
+            }
+            if let (1, Some(rig)) = (n, &r.bundle.rig) {
+                return Some((
+                    matrix3(&rig.opencv.rotation),
+                    Vector3::from(rig.opencv.translation_mm) / 1000.0,
+                ));
+            }
+            let (prev, next) = (&r.cameras[order[n - 1]].id, &r.cameras[order[n]].id);
+            head::t_cn_cnm1(r, prev, next)
+        })
+        .collect()
 }
 
 /// Every file of `ros/`, `opencv/` and `kalibr/` for `r` (a camera whose `losses` entry is
@@ -630,14 +666,19 @@ pub fn exports(r: &Results, losses: &[Option<ExportLoss>]) -> Vec<OutputFile> {
             out.push(("opencv/stereo.yaml".into(), y));
         }
     }
-    let cams: Vec<(&CameraJson, &ExportLoss)> = order
-        .iter()
+    let order: Vec<usize> = (order.into_iter())
+        .filter(|&i| losses[i].is_some())
+        .collect();
+    let cams: Vec<(&CameraJson, &ExportLoss)> = (order.iter())
         .filter_map(|&i| losses[i].as_ref().map(|l| (&r.cameras[i], l)))
         .collect();
     out.push((
         "kalibr/camchain.yaml".into(),
-        kalibr_camchain(&cams, r.bundle.rig.as_ref()),
+        kalibr_chain(&cams, &chain_links(r, &order)),
     ));
+    if let Some(urdf) = head::head_urdf(r) {
+        out.push(("ros/head.urdf".into(), urdf));
+    }
     out
 }
 

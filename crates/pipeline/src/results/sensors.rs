@@ -36,11 +36,20 @@ pub struct SensorPairJson {
 }
 
 /// The head's sensors from the joint adjustment when it gave the result, else the bundle's
-/// rigs with the LRF of `extrinsic` (the result given) beside them.
+/// rigs with the LRF of `extrinsic` (the result given) beside them. The cameras' poses are
+/// the bundle's in both, as `bundle.rig`, the overlays and every export have them (the
+/// joint adjustment's beams move them by about a thousandth of their σ); their covariance
+/// is the joint adjustment's.
 fn head_of(st: &Stages, extrinsic: &ExtrinsicJson) -> HeadPoses {
     if let Some(Ok(j)) = st.joint {
         if !j.head.sensors.is_empty() {
-            return j.head.clone();
+            let mut head = j.head.clone();
+            for s in head.sensors.iter_mut().filter(|s| s.kind == "camera") {
+                if let Some((pose, _)) = st.adjusted.rig_of(&s.id, st.project) {
+                    s.block = pose;
+                }
+            }
+            return head;
         }
     }
     let adj = st.adjusted;
