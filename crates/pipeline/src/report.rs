@@ -68,6 +68,24 @@ pub fn build(
         exterior: exterior(st),
         distances: distances(st),
         rig: results.bundle.rig.as_ref().map(rig),
+        sensors: (results.sensors.iter())
+            .map(|s| sensor_row(s.id.clone(), s.kind.clone(), &s.camera_from_sensor))
+            .collect(),
+        sensor_pairs: (results.sensor_pairs.iter())
+            .map(|p| sensor_row(format!("{} ← {}", p.a, p.b), String::new(), &p.a_from_b))
+            .collect(),
+    }
+}
+
+/// A row of the report's sensors table.
+fn sensor_row(name: String, kind: String, e: &crate::results::ExtrinsicJson) -> rp::SensorRow {
+    rp::SensorRow {
+        name,
+        kind,
+        translation_mm: e.translation_mm,
+        opk_deg: e.opk_deg,
+        sigma_translation_mm: e.sigma_translation_mm,
+        sigma_opk_deg: e.sigma_rotation_deg,
     }
 }
 

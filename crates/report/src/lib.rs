@@ -21,6 +21,7 @@
 //! | `points` | Point precision | σX σY σZ of every point, their RMS, and the relative precision | `tables.rs` |
 //! | `distances` | Distances | measured and adjusted distances, the residual and its ratio to the a-priori σ | `tables.rs` |
 //! | `rig` | Stereo rig | the rig's relative orientation with σ | `tables.rs` |
+//! | `sensors` | Sensors of the head | every sensor's pose to the main camera and every pair's, with σ | `tables.rs` |
 //! | `cloud` | LRF cloud | the LRF cloud in X–Y and X–Z with the fitted spheres at true scale | `render/cloud.rs` |
 //! | `overlays` | LRF on the images | the LRF's points drawn on the photographs ([`overlay`]) | `overlay_section.rs` |
 //! | `intrinsics` | Intrinsics | per camera: parameters, σ, free/fixed, high correlations | `render/intrinsics.rs` |
@@ -105,6 +106,13 @@ pub struct ReportData {
     /// The stereo rig's relative orientation (None: no rig).
     #[serde(default)]
     pub rig: Option<RigOrientation>,
+    /// Every sensor of the head but the main camera (results.json's `sensors`), then every
+    /// pair (`sensor_pairs`).
+    #[serde(default)]
+    pub sensors: Vec<SensorRow>,
+    /// Every pair of sensors' relative pose.
+    #[serde(default)]
+    pub sensor_pairs: Vec<SensorRow>,
     /// What each export's camera model loses against pingcal's, per camera and file
     /// (shown in the `opencv` section).
     #[serde(default)]
@@ -165,6 +173,24 @@ pub struct RigOrientation {
     /// σ of the small rotations of R about the right camera's axes, degrees (None: not
     /// computed).
     pub sigma_rotation_deg: Option<[f64; 3]>,
+}
+
+/// A sensor's pose relative to the main camera (`p_main = R p_sensor + t`), or a pair's
+/// (`p_a = R p_b + t`), with σ's.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+pub struct SensorRow {
+    /// The sensor's id, or a pair's `a ← b`.
+    pub name: String,
+    /// `camera`, `rotating`, `fixed`; empty for a pair.
+    pub kind: String,
+    /// t in mm.
+    pub translation_mm: [f64; 3],
+    /// ω, φ, κ of R in degrees.
+    pub opk_deg: [f64; 3],
+    /// σ of t (None: not known).
+    pub sigma_translation_mm: Option<[f64; 3]>,
+    /// σ of ω, φ, κ, degrees (None: not known).
+    pub sigma_opk_deg: Option<[f64; 3]>,
 }
 
 /// Whether to trust the calibration: `ok`, `doubtful` or `failed`, why, and the tests.

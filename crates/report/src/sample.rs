@@ -652,6 +652,32 @@ pub fn sample_report(cloud_points: usize) -> ReportData {
             sigma_translation_mm: Some([0.21, 0.35, 0.18]),
             sigma_rotation_deg: Some([0.011, 0.004, 0.009]),
         }),
+        sensors: vec![
+            crate::SensorRow {
+                name: "right".into(),
+                kind: "camera".into(),
+                translation_mm: [120.1, -0.4, 0.2],
+                opk_deg: [-0.12, 0.31, -0.05],
+                sigma_translation_mm: Some([0.015, 0.031, 0.014]),
+                sigma_opk_deg: Some([0.002, 0.0003, 0.0024]),
+            },
+            crate::SensorRow {
+                name: "lrf".into(),
+                kind: "rotating".into(),
+                translation_mm: [71.8, 9.5, 90.2],
+                opk_deg: [89.2, 0.6, 1.2],
+                sigma_translation_mm: Some([0.78, 1.0, 1.07]),
+                sigma_opk_deg: Some([0.058, 0.059, 0.043]),
+            },
+        ],
+        sensor_pairs: vec![crate::SensorRow {
+            name: "right ← lrf".into(),
+            kind: String::new(),
+            translation_mm: [-47.7, 9.4, 90.6],
+            opk_deg: [89.3, 0.3, 1.3],
+            sigma_translation_mm: Some([0.78, 1.0, 1.07]),
+            sigma_opk_deg: Some([0.058, 0.059, 0.043]),
+        }],
     }
 }
 

@@ -7,7 +7,7 @@ use std::cmp::Ordering;
 use std::fmt::Write;
 
 /// Section ids and headings, in document order.
-pub(crate) const SECTIONS: [(&str, &str); 21] = [
+pub(crate) const SECTIONS: [(&str, &str); 22] = [
     ("summary", "Summary"),
     ("extrinsic", "Extrinsic calibration"),
     ("extrinsic_precision", "Extrinsic precision"),
@@ -20,6 +20,7 @@ pub(crate) const SECTIONS: [(&str, &str); 21] = [
     ("points", "Point precision"),
     ("distances", "Distances"),
     ("rig", "Stereo rig"),
+    ("sensors", "Sensors of the head"),
     ("cloud", "LRF cloud"),
     ("overlays", "LRF on the images"),
     ("intrinsics", "Intrinsics"),

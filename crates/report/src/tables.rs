@@ -177,6 +177,32 @@ pub(crate) fn rig(o: &mut String, d: &ReportData) {
     o.push_str("</section>\n");
 }
 
+/// Every sensor's pose to the main camera and every pair's, with σ's (results.json's
+/// `sensors` and `sensor_pairs`).
+pub(crate) fn sensors(o: &mut String, d: &ReportData) {
+    h2(o, "sensors");
+    if d.sensors.is_empty() {
+        none(o, "no sensor of the head but the main camera");
+        o.push_str("</section>\n");
+        return;
+    }
+    o.push_str("<p class=\"note\">Each sensor's <code>p_main = R · p_sensor + t</code> in the main camera's photogrammetric frame (X right, Y forward, Z up; a camera's own frame likewise, the LRF's its own), then each pair's <code>p_a = R · p_b + t</code>; t in mm, ω φ κ of R in degrees, with σ's from the joint adjustment's covariance (a pair's with the two sensors' cross-covariance; — where they came from separate adjustments).</p>\n<table>\n<tr><th class=\"l\">sensor</th><th class=\"l\">kind</th><th>X (mm)</th><th>Y (mm)</th><th>Z (mm)</th><th>ω (°)</th><th>φ (°)</th><th>κ (°)</th><th>σX (mm)</th><th>σY (mm)</th><th>σZ (mm)</th><th>σω (°)</th><th>σφ (°)</th><th>σκ (°)</th></tr>\n");
+    for r in d.sensors.iter().chain(&d.sensor_pairs) {
+        let _ = write!(
+            o,
+            "<tr><td class=\"l\">{}</td><td class=\"l\">{}</td>",
+            escape(&r.name),
+            escape(&r.kind)
+        );
+        cells(o, Some(r.translation_mm), MM);
+        cells(o, Some(r.opk_deg), DEG);
+        cells(o, r.sigma_translation_mm, SIGMA_MM);
+        cells(o, r.sigma_opk_deg, DEG);
+        o.push_str("</tr>\n");
+    }
+    o.push_str("</table>\n</section>\n");
+}
+
 /// Every camera in OpenCV's pinhole model with (k1, k2, p1, p2, k3).
 pub(crate) fn opencv(o: &mut String, d: &ReportData) {
     h2(o, "opencv");

@@ -221,6 +221,16 @@ fn user_strings_are_escaped() {
             right: s(),
             ..Default::default()
         }),
+        sensors: vec![pingcal_report::SensorRow {
+            name: s(),
+            kind: s(),
+            translation_mm: [f64::NAN, f64::INFINITY, 1.0],
+            ..Default::default()
+        }],
+        sensor_pairs: vec![pingcal_report::SensorRow {
+            name: s(),
+            ..Default::default()
+        }],
         export_losses: vec![ExportLossRow {
             camera: s(),
             files: s(),

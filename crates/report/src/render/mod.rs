@@ -107,6 +107,7 @@ pub(crate) fn document(d: &ReportData) -> String {
     tables::points(&mut o, d);
     tables::distances(&mut o, d);
     tables::rig(&mut o, d);
+    tables::sensors(&mut o, d);
     cloud(&mut o, d);
     crate::overlay_section::overlays(&mut o, d);
     intrinsics(&mut o, d);
