@@ -151,6 +151,31 @@ pub fn head_cameras(project: &Project) -> Vec<HeadCamera<'_>> {
     out
 }
 
+/// Each head camera's rig pose (base → member camera frame,
+/// [`super::adjust::head_cameras`]'s order) from the main station, or the first station
+/// where both cameras are oriented; else the project's nominal pose (`[rig]`; None for
+/// `[stereo]`).
+pub fn rig_starts(project: &Project, scene: &Scene) -> Vec<Option<Rigid3>> {
+    let f = &project.file;
+    let mut stations: Vec<&str> = vec![f.main_station.as_str()];
+    stations.extend(f.images.iter().map(|im| im.station.as_str()));
+    let pose_of = |s: &str, cam: &str| {
+        f.images
+            .iter()
+            .position(|im| im.station == s && im.camera == cam)
+            .and_then(|i| scene.poses[ImageId(i)])
+    };
+    (head_cameras(project).iter())
+        .map(|h| {
+            let from_images = stations.iter().find_map(|s| {
+                let (b, m) = (pose_of(s, h.base)?, pose_of(s, h.camera)?);
+                Some(m.compose(&b.inverse()))
+            });
+            from_images.or(h.nominal)
+        })
+        .collect()
+}
+
 /// The measurement of detection `d` for point kind `kind`: the detected centre, or for a
 /// ball the image of the sphere's centre; with its σ and the correction applied.
 fn measurement(

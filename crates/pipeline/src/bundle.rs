@@ -141,31 +141,6 @@ impl RejectedDistance {
 /// balls' silhouettes corrected for eccentricity (another measurement, with its own σ).
 pub const OBSERVATION_GROUPS: [&str; 2] = ["targets", "balls"];
 
-/// Each head camera's rig pose (base → member camera frame,
-/// [`super::adjust::head_cameras`]'s order) from the main station, or the first station
-/// where both cameras are oriented; else the project's nominal pose (`[rig]`; None for
-/// `[stereo]`).
-fn initial_rigs(project: &Project, scene: &Scene) -> Vec<Option<Rigid3>> {
-    let f = &project.file;
-    let mut stations: Vec<&str> = vec![f.main_station.as_str()];
-    stations.extend(f.images.iter().map(|im| im.station.as_str()));
-    let pose_of = |s: &str, cam: &str| {
-        f.images
-            .iter()
-            .position(|im| im.station == s && im.camera == cam)
-            .and_then(|i| scene.poses[ImageId(i)])
-    };
-    (head_cameras(project).iter())
-        .map(|h| {
-            let from_images = stations.iter().find_map(|s| {
-                let (b, m) = (pose_of(s, h.base)?, pose_of(s, h.camera)?);
-                Some(m.compose(&b.inverse()))
-            });
-            from_images.or(h.nominal)
-        })
-        .collect()
-}
-
 /// Removes rejected measurements from the scene (a point has one measurement per image).
 fn remove_rejected(project: &Project, scene: &mut Scene, rejected: &[Rejection]) {
     for r in rejected {
@@ -525,7 +500,7 @@ pub fn final_adjustment(
             ..solver::Options::default()
         },
         snoop_critical: opts.snoop_critical,
-        rigs: initial_rigs(project, scene),
+        rigs: super::adjust::rig_starts(project, scene),
         rejected: Vec::new(),
         rejected_distances: Vec::new(),
         distances_disagree: None,

@@ -39,9 +39,9 @@ pub use names::{name_balls, unmeasured_labels_at};
 pub use new_points::new_points;
 pub use sizes::blob_diameter_mm;
 
-use crate::adjust::{Datum, SceneProblem};
+use crate::adjust::{head_cameras, rig_starts, Datum, SceneProblem};
 use crate::context::{Options, PipelineError, Result};
-use crate::ids::{DetectionId, PointId};
+use crate::ids::{DetectionId, ImageId, PointId};
 use crate::progress::Reporter;
 use crate::scene::{coded_blunder, Detections, PointKind, Scene};
 use pingcal_ba::solver;
@@ -123,6 +123,7 @@ pub fn add_points(
     pb.advance(1);
     refine(project, dets, scene, opts)?;
     let a3 = driveback(dets, scene, TOL_PX);
+    place_rig_members(project, dets, scene, rep);
     pb.finish();
     rep.log(format!(
         "matching: {} measurements added by driveback, {} new points by multi-image matching",
@@ -139,6 +140,70 @@ pub fn add_points(
     let balls = classify_balls(project, dets, scene, rep)?;
     name_balls(project, scene, &balls, rep);
     Ok(())
+}
+
+/// Fewest points of the network a rig member placed through its rig must measure to stay.
+pub const MIN_PLACED_POINTS: usize = 2;
+
+/// The images of the head's cameras ([`head_cameras`]) that the network start left
+/// unoriented — too few points of their own to be resected — whose station's base image
+/// is oriented: each is put at the base image's pose through its rig's start
+/// ([`rig_starts`]: the images' own orientations at other stations, else the project's
+/// pose), given the network's points at their projections (driveback), and kept when it
+/// then measures [`MIN_PLACED_POINTS`] or more of them; the final adjustment's rig ties it
+/// to its base image. A camera that sees only a few targets at each station is tied to the
+/// field this way. Returns how many were placed.
+pub fn place_rig_members(
+    project: &Project,
+    dets: &Detections,
+    scene: &mut Scene,
+    rep: &Reporter,
+) -> usize {
+    let f = &project.file;
+    let starts = rig_starts(project, scene);
+    let mut placed = Vec::new();
+    for (head, start) in head_cameras(project).iter().zip(starts) {
+        let Some(member_from_base) = start else {
+            continue;
+        };
+        for (i, why) in scene.unoriented.clone() {
+            let im = &f.images[i.0];
+            let base = (f.images.iter())
+                .position(|b| b.station == im.station && b.camera == head.base)
+                .and_then(|b| scene.poses[ImageId(b)]);
+            if let (true, Some(base)) = (im.camera == head.camera, base) {
+                scene.poses[i] = Some(member_from_base.compose(&base));
+                placed.push((i, why));
+            }
+        }
+    }
+    if placed.is_empty() {
+        return 0;
+    }
+    driveback(dets, scene, TOL_PX);
+    let mut kept = 0;
+    for (i, why) in placed {
+        let seen = scene
+            .points
+            .iter()
+            .filter(|p| p.obs.iter().any(|d| d.image == i))
+            .count();
+        let file = &f.images[i.0].file;
+        if seen >= MIN_PLACED_POINTS {
+            scene.unoriented.retain(|(u, _)| *u != i);
+            rep.log(format!(
+                "  {file}: placed through its rig (it {why}); it measures {seen} points of the network"
+            ));
+            kept += 1;
+        } else {
+            scene.poses[i] = None;
+            for p in scene.points.iter_mut() {
+                p.obs.retain(|d| d.image != i);
+            }
+        }
+    }
+    scene.points.retain(|p| p.obs.len() >= 2);
+    kept
 }
 
 #[cfg(test)]
