@@ -128,3 +128,47 @@ fn a_third_camera_on_the_head() {
         crate::ecosystem::check_in("a_third_camera_on_the_head", check, &out, None);
     }
 }
+
+/// A grey PNG of `w × h` pixels, all one value: a camera that sees nothing.
+fn blank_png(path: &Path, w: u32, h: u32) {
+    let file = std::fs::File::create(path).expect("create the image");
+    let mut enc = png::Encoder::new(std::io::BufWriter::new(file), w, h);
+    enc.set_color(png::ColorType::Grayscale);
+    enc.set_depth(png::BitDepth::Eight);
+    let mut writer = enc.write_header().expect("png header");
+    writer
+        .write_image_data(&vec![60u8; (w * h) as usize])
+        .expect("png data");
+}
+
+/// A `[rig]` camera none of whose images can join the adjustment (it sees nothing): the
+/// verdict names it, and `sensors` leaves it out rather than giving a pose nobody measured.
+#[test]
+fn a_head_camera_that_sees_nothing_is_named() {
+    let w = Work::new("rig_blind_camera");
+    let p = w.project("p");
+    let toml = p.join("project.toml");
+    let mut text = std::fs::read_to_string(&toml).expect("project.toml");
+    text.push_str("\n[[cameras]]\nid = \"blind\"\nmodel = \"photogrammetric\"\nwidth = 1280\nheight = 720\npixel_size_mm = 0.00375\nfree = [\"c\"]\n\n[cameras.initial]\nc_mm = 2.45\n\n[[rig.cameras]]\nid = \"blind\"\nopk_deg = [0.0, 0.0, 180.0]\nt_mm = [0.0, -50.0, 0.0]\n");
+    for st in ["S00", "S01", "S02"] {
+        let file = format!("images/{st}_blind.png");
+        blank_png(&p.join(&file), 1280, 720);
+        text.push_str(&format!(
+            "\n[[images]]\nfile = \"{file}\"\ncamera = \"blind\"\nstation = \"{st}\"\n"
+        ));
+    }
+    std::fs::write(&toml, text).expect("write project.toml");
+    let (run, out) = w.calibrate(&p, &["--accept-doubtful"]);
+    assert!(run.success(), "{}\n{}", run.stdout, run.stderr);
+    let r = read_json(&out.join("results.json"));
+    assert_eq!(r["verdict"]["status"], "doubtful", "{}", r["verdict"]);
+    let reasons = r["verdict"]["reasons"].to_string();
+    assert!(
+        reasons.contains("camera 'blind' of the head: none of its 3 images is in the adjustment"),
+        "{reasons}"
+    );
+    let ids: Vec<&str> = (r["sensors"].as_array().unwrap().iter())
+        .map(|s| s["id"].as_str().unwrap())
+        .collect();
+    assert_eq!(ids, ["right", "lrf"]);
+}

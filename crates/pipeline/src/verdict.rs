@@ -267,6 +267,7 @@ pub fn judge(st: &Stages) -> Verdict {
         }
     }
     reasons.extend(misplaced_images(st));
+    reasons.extend(head_cameras_left_out(st));
     let failed = joint_verdict(st, &mut reasons, &mut notes);
     let fixed = st.project.file.lrf.kind() == pingcal_project::LrfKind::Fixed;
     let status = if st.ext.spheres.is_none() && !(fixed && joint_given) {
@@ -358,6 +359,24 @@ fn held_costs(j: &JointOutcome) -> Vec<String> {
 pub const MIN_MISPLACED: usize = 4;
 /// See [`MIN_MISPLACED`].
 pub const MISPLACED_SHARE: f64 = 0.5;
+
+/// The head's cameras (`[stereo]`'s other one, `[rig]`'s) that no rig of the adjustment
+/// holds — none of their images could be oriented, nor placed through the rig: their pose
+/// to the main camera is not a result, and `sensors` leaves them out. One reason each.
+fn head_cameras_left_out(st: &Stages) -> Vec<String> {
+    (crate::adjust::head_cameras(st.project).iter())
+        .filter(|h| st.adjusted.rig_of(h.camera, st.project).is_none())
+        .map(|h| {
+            let images = (st.project.file.images.iter())
+                .filter(|im| im.camera == h.camera)
+                .count();
+            format!(
+                "camera '{}' of the head: none of its {images} images is in the adjustment with its station's '{}' image (bundle.unoriented_images says why): its pose to the main camera is not estimated and results.json's sensors leave it out",
+                h.camera, h.base
+            )
+        })
+        .collect()
+}
 
 /// The images whose coded targets the network mostly puts elsewhere (the demo with one
 /// station's left and right images swapped: every coded reading of one of them a blunder,

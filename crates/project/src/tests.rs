@@ -982,3 +982,44 @@ fn a_board_project_needs_no_targets_or_balls_and_another_needs_both() {
     p.validate("p.toml").unwrap();
     assert!(p.targets.is_absent() && p.balls.is_absent());
 }
+
+/// `[[rig.cameras]]`: a camera of `[[cameras]]` once, not the main camera nor one of
+/// `[stereo]`'s, at a finite pose; each wrong entry is named with what is expected.
+#[test]
+fn a_rig_camera_is_checked() {
+    use crate::{ProjectCamera, ProjectRig, ProjectRigCamera};
+    let side = |id: &str| ProjectRigCamera {
+        id: id.into(),
+        opk_deg: [0.0, 0.0, 60.0],
+        t_mm: [60.0, -25.0, 10.0],
+        hold: false,
+    };
+    let with = |cams: Vec<ProjectRigCamera>| {
+        move |p: &mut ProjectFile| {
+            let mut third: ProjectCamera = p.cameras[0].clone();
+            third.id = "side".into();
+            p.cameras.push(third);
+            p.rig = Some(ProjectRig {
+                cameras: cams.clone(),
+            });
+        }
+    };
+    let e = err_of(with(vec![side("nope")]));
+    assert!(
+        e.contains("[[rig.cameras]] id = \"nope\": the camera is not in [[cameras]]"),
+        "{e}"
+    );
+    let e = err_of(with(vec![side("right")]));
+    assert!(e.contains("[rig] lists the others"), "{e}");
+    let e = err_of(with(vec![side("side"), side("side")]));
+    assert!(e.contains("listed twice"), "{e}");
+    let mut bad = side("side");
+    bad.t_mm[1] = f64::NAN;
+    let e = err_of(with(vec![bad]));
+    assert!(e.contains("opk_deg and t_mm must be finite"), "{e}");
+    let mut p = ProjectFile::parse(&readme_example(), "example.toml").unwrap();
+    with(vec![side("side")])(&mut p);
+    let text = toml::to_string(&p).unwrap();
+    let back = ProjectFile::parse(&text, "again.toml").unwrap();
+    assert_eq!(back.rig, p.rig, "written and read back");
+}
