@@ -16,7 +16,7 @@ use std::path::Path;
 
 /// The modules of the pipeline crate, lowest first (`lib.rs`, the root that runs them, is
 /// apart; `test_support.rs` serves the unit tests).
-const ORDER: [&str; 29] = [
+const ORDER: [&str; 30] = [
     "ids",
     "progress",
     "context",
@@ -26,6 +26,7 @@ const ORDER: [&str; 29] = [
     "network",
     "matching",
     "bundle",
+    "head",
     "board_camera",
     "lrf",
     "extrinsic",

@@ -225,11 +225,6 @@ pub(crate) fn intrinsics_precision(
     out
 }
 
-/// Standard deviations of every free pose: rotation about the camera axes and the
-/// projection centre C = −Rᵀt, whose derivative with respect to (δω, δt) is
-/// `[−Rᵀ[t]×, −Rᵀ]`.
-/// Each rig's `(δω, δt)` covariance ([`Precision::rig_covariances`]) from the cofactors `q`
-/// of the reduced system.
 /// The joint covariance of the parameter blocks' updates and the blocks' offsets in it
 /// ([`Precision::parameters_covariance`]).
 pub(crate) fn parameters_covariance(
@@ -242,26 +237,9 @@ pub(crate) fn parameters_covariance(
     for pb in &problem.parameters {
         offsets.push(offsets.last().unwrap() + pb.tangent_dim());
     }
-    // (row in the covariance, row in the reduced system) of every free component
     let mut rows = Vec::new();
-    for (k, slot) in layout.parameter_slot.iter().enumerate() {
-        if let Some(s) = slot {
-            let o = layout.slot_offset(*s);
-            for (i, &c) in layout.parameter_free[k].iter().enumerate() {
-                rows.push((offsets[k] + c, o + i));
-            }
-        }
-    }
-    let n = *offsets.last().unwrap();
-    let reduced: Vec<usize> = rows.iter().map(|&(_, r)| r).collect();
-    let sub = q.restricted(&reduced);
-    let mut cov = DMatrix::zeros(n, n);
-    for (x, &(a, _)) in rows.iter().enumerate() {
-        for (y, &(b, _)) in rows.iter().enumerate() {
-            cov[(a, b)] = s02 * sub[(x, y)];
-        }
-    }
-    (cov, offsets)
+    let n = parameter_rows(problem, layout, 0, &mut rows);
+    (covariance_of(&rows, n, s02, q), offsets)
 }
 
 /// [`Precision::rigs_and_parameters_covariance`] from the cofactors `q` (empty without rigs).
@@ -275,7 +253,6 @@ pub(crate) fn rigs_and_parameters_covariance(
     if n_rigs == 0 {
         return DMatrix::zeros(0, 0);
     }
-    // (row in the covariance, row in the reduced system) of every free component
     let mut rows = Vec::new();
     for (r, slot) in layout.rig_slot.iter().enumerate() {
         if let Some(s) = slot {
@@ -283,7 +260,21 @@ pub(crate) fn rigs_and_parameters_covariance(
             rows.extend((0..6).map(|i| (6 * r + i, o + i)));
         }
     }
-    let mut offset = 6 * n_rigs;
+    let n = parameter_rows(problem, layout, 6 * n_rigs, &mut rows);
+    // sorted, so that the selected inverse reads them from its pattern where it can
+    rows.sort_by_key(|&(_, reduced)| reduced);
+    covariance_of(&rows, n, s02, q)
+}
+
+/// Appends (row in the covariance, row in the reduced system) of every free component of
+/// the parameter blocks, the first block's rows from `first` on; returns where they end.
+fn parameter_rows(
+    problem: &Problem,
+    layout: &Layout,
+    first: usize,
+    rows: &mut Vec<(usize, usize)>,
+) -> usize {
+    let mut offset = first;
     for (k, slot) in layout.parameter_slot.iter().enumerate() {
         if let Some(s) = slot {
             let o = layout.slot_offset(*s);
@@ -293,10 +284,20 @@ pub(crate) fn rigs_and_parameters_covariance(
         }
         offset += problem.parameters[k].tangent_dim();
     }
-    rows.sort_by_key(|&(_, reduced)| reduced);
+    offset
+}
+
+/// The `n × n` covariance `s02 · q` on `rows` (row in the covariance, row in the reduced
+/// system); zero elsewhere (held components).
+fn covariance_of(
+    rows: &[(usize, usize)],
+    n: usize,
+    s02: f64,
+    q: &dyn CofactorLookup,
+) -> DMatrix<f64> {
     let reduced: Vec<usize> = rows.iter().map(|&(_, r)| r).collect();
     let sub = q.restricted(&reduced);
-    let mut cov = DMatrix::zeros(offset, offset);
+    let mut cov = DMatrix::zeros(n, n);
     for (x, &(a, _)) in rows.iter().enumerate() {
         for (y, &(b, _)) in rows.iter().enumerate() {
             cov[(a, b)] = s02 * sub[(x, y)];
@@ -305,6 +306,8 @@ pub(crate) fn rigs_and_parameters_covariance(
     cov
 }
 
+/// Each rig's `(δω, δt)` covariance ([`Precision::rig_covariances`]) from the cofactors `q`
+/// of the reduced system.
 pub(crate) fn rig_covariances(
     layout: &Layout,
     s02: f64,
@@ -320,6 +323,9 @@ pub(crate) fn rig_covariances(
         .collect()
 }
 
+/// Standard deviations of every free pose: rotation about the camera axes and the
+/// projection centre C = −Rᵀt, whose derivative with respect to (δω, δt) is
+/// `[−Rᵀ[t]×, −Rᵀ]`.
 pub(crate) fn pose_sigmas(
     problem: &Problem,
     layout: &Layout,
