@@ -80,12 +80,17 @@ fn pairs_are_compositions(results: &Value) {
         let e = &p["a_from_b"];
         assert!((rotation(e) - r).norm() < 1e-9, "{p}");
         assert!((vector(&e["translation_mm"]) - t).norm() < 1e-9, "{p}");
-        assert!(
-            e["sigma_translation_mm"][0]
-                .as_f64()
-                .is_some_and(|s| s > 0.0),
-            "{p}"
-        );
+        let kind = |id: &Value| {
+            let s = (results["sensors"].as_array().unwrap().iter()).find(|s| &s["id"] == id);
+            s.expect("listed")["kind"].clone()
+        };
+        if kind(&p["a"]) != "camera" && kind(&p["b"]) != "camera" {
+            // two range sensors of separate adjustments: no cross-covariance, no σ
+            assert!(e["sigma_translation_mm"].is_null(), "{p}");
+        } else {
+            let sigma = e["sigma_translation_mm"][0].as_f64();
+            assert!(sigma.is_some_and(|s| s > 0.0), "{p}");
+        }
     }
 }
 
@@ -103,14 +108,18 @@ fn a_stereo_heads_sensors_and_their_pair() {
     pairs_are_compositions(&r);
 }
 
-/// A third camera facing 60° to the side, sharing part of its view with the pair: its
-/// images follow the left camera's through its own rig, estimated with the others; those
-/// that see too few of the network's points to be resected join it through the rig.
+/// A third camera facing 60° to the side, sharing part of its view with the pair, and a
+/// fixed 2D LRF beside the rotating one (`[[lrfs]]`): the camera's images follow the left
+/// camera's through its own rig, estimated with the others (those that see too few of the
+/// network's points to be resected join it through the rig); the fixed LRF is calibrated
+/// against the same camera side, its outputs under `lrfs/fixed/`, its pose in `sensors`.
 #[test]
-fn a_third_camera_on_the_head() {
+fn a_third_camera_and_a_second_lrf_on_the_head() {
     let w = Work::new("rig_third_camera");
-    let config =
-        "[[rig.cameras]]\nid = \"side\"\nopk_deg = [0.0, 0.0, 60.0]\nt_mm = [60.0, -25.0, 10.0]\n";
+    let config = concat!(
+        "[[rig.cameras]]\nid = \"side\"\nopk_deg = [0.0, 0.0, 60.0]\nt_mm = [60.0, -25.0, 10.0]\n",
+        "\n[[lrfs]]\nid = \"fixed\"\nkind = \"fixed\"\n"
+    );
     let p = w.simulate("p", config);
     let (run, out) = w.calibrate(&p, &[]);
     assert!(run.success(), "{}\n{}", run.stdout, run.stderr);
@@ -121,11 +130,22 @@ fn a_third_camera_on_the_head() {
     let unoriented = &r["bundle"]["unoriented_images"];
     assert_eq!(unoriented.as_array().map(Vec::len), Some(0), "{unoriented}");
     let ids = sensors_agree_with_truth(&r, &truth_of(&p));
-    assert_eq!(ids, ["right", "side", "lrf"]);
+    assert_eq!(ids, ["right", "side", "lrf", "fixed"]);
     pairs_are_compositions(&r);
+    let fixed = read_json(&out.join("lrfs/fixed/results.json"));
+    assert_eq!(fixed["verdict"]["status"], "ok", "{}", fixed["verdict"]);
+    assert_eq!(fixed["lrf_model"]["kind"], "fixed");
+    let entry = (r["sensors"].as_array().unwrap().iter()).find(|s| s["id"] == "fixed");
+    assert_eq!(entry.unwrap()["camera_from_sensor"], fixed["extrinsic"]);
+    assert!(out.join("lrfs/fixed/cloud.ply").is_file());
     // ros/head.urdf and Kalibr's three-camera chain, read by their ecosystems' own code
     for check in ["head", "chain"] {
-        crate::ecosystem::check_in("a_third_camera_on_the_head", check, &out, None);
+        crate::ecosystem::check_in(
+            "a_third_camera_and_a_second_lrf_on_the_head",
+            check,
+            &out,
+            None,
+        );
     }
 }
 

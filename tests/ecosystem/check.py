@@ -255,8 +255,12 @@ def check_head(d):
     robot = URDF.from_xml_string((d / "ros" / "head.urdf").read_text().encode())
     assert len(robot.joints) == len(r["sensors"]), (len(robot.joints), len(r["sensors"]))
     worst_t, worst_r = 0.0, 0.0
+    first_range = next((s["id"] for s in r["sensors"] if s["kind"] != "camera"), None)
     for joint, s in zip(robot.joints, r["sensors"]):
-        child = f"{s['id']}_optical" if s["kind"] == "camera" else conv["tf_lrf_frame"]
+        if s["kind"] == "camera":
+            child = f"{s['id']}_optical"
+        else:
+            child = conv["tf_lrf_frame"] if s["id"] == first_range else s["id"]
         assert joint.type == "fixed" and (joint.parent, joint.child) == (conv["tf_camera_frame"], child), (joint.parent, joint.child)
         rot = Rotation.from_euler("xyz", joint.origin.rpy).as_matrix()
         want_r, want_t = sensor_to_optical(r, s)
@@ -265,9 +269,13 @@ def check_head(d):
     bound("head_urdf_R", worst_r, 1e-12)
     bound("head_urdf_t_m", worst_t, 1e-12)
     pose = {s["id"]: s["camera_from_sensor"] for s in r["sensors"]}
+    kind = {s["id"]: s["kind"] for s in r["sensors"]}
     worst = 0.0
     for p in r["sensor_pairs"]:
         a, b, e = pose[p["a"]], pose[p["b"]], p["a_from_b"]
+        if p["a_from_b"]["sigma_translation_mm"] is None:
+            # two range sensors of separate adjustments: no cross-covariance, no σ
+            assert pose[p["a"]] is not None and "camera" not in (kind[p["a"]], kind[p["b"]]), p
         ra, rb = np.array(a["rotation"]), np.array(b["rotation"])
         want = np.eye(4)
         want[:3, :3] = ra.T @ rb

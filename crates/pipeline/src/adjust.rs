@@ -505,6 +505,7 @@ accuracy_far_fraction = 0.03
             layout: None,
             bag_paths: Vec::new(),
             lrf: pingcal_project::LrfSettings::of(&file.lrf).expect("a valid [lrf]"),
+            range_sensors: Vec::new(),
             file,
         }
     }

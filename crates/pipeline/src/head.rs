@@ -30,7 +30,7 @@ const STEP: f64 = 1e-6;
 /// One sensor of the head, as the adjustment holds it.
 #[derive(Clone, Debug, PartialEq)]
 pub struct HeadSensor {
-    /// A camera's id, or `lrf`.
+    /// A camera's id, or the LRF's (`[lrf] id`, by default `lrf`).
     pub id: String,
     /// `camera` or the LRF's kind (`rotating`, `fixed`).
     pub kind: String,
@@ -102,7 +102,7 @@ impl HeadPoses {
         if let Some((key, kind)) = extrinsic {
             if let ParameterValue::Pose(pose) = problem.parameters[key.0].value {
                 sensors.push(HeadSensor {
-                    id: "lrf".into(),
+                    id: project.file.lrf.id().into(),
                     kind: kind.into(),
                     block: pose,
                     inverted: false,
@@ -142,7 +142,7 @@ impl HeadPoses {
         let mut head = Self::of_problem(project, problem, prec, None);
         if let Some((pose, cov, kind)) = lrf {
             head.sensors.push(HeadSensor {
-                id: "lrf".into(),
+                id: project.file.lrf.id().into(),
                 kind: kind.into(),
                 block: pose,
                 inverted: false,

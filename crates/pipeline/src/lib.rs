@@ -54,6 +54,7 @@ pub mod out_folders;
 pub mod outcome;
 pub mod overlays;
 pub mod progress;
+pub mod range_sensors;
 pub mod rectify;
 pub mod report;
 pub mod result_set;
@@ -128,7 +129,52 @@ pub fn calibrate_with_groups(
     rep: &Reporter,
 ) -> Result<Outcome> {
     let mut timing = Vec::new();
-    let (dets, mut scene, adjusted) = camera_side(project, opts, rep, &mut timing)?;
+    let (dets, scene, adjusted) = camera_side(project, opts, rep, &mut timing)?;
+    let camera = (&dets, &scene, &adjusted);
+    let others = range_sensors(project, camera, (opts, groups), rep);
+    let mut out = range_side(project, camera, (opts, groups), &others, timing, rep)?;
+    out.range_sensors = others;
+    Ok(out)
+}
+
+/// Each of `[[lrfs]]` calibrated against the camera side as its own project's `[lrf]`
+/// ([`Project::range_sensors`]), its failure kept as its reason.
+fn range_sensors(
+    project: &Project,
+    camera: (&scene::Detections, &scene::Scene, &bundle::Adjusted),
+    settings: (&Options, &[joint::GroupBuilder]),
+    rep: &Reporter,
+) -> Vec<outcome::RangeSensor> {
+    (project.range_sensors.iter())
+        .map(|p| {
+            let id = p.file.lrf.id().to_string();
+            rep.log(format!("range sensor '{id}' ([[lrfs]]):"));
+            let outcome =
+                range_side(p, camera, settings, &[], Vec::new(), rep).map_err(|e| e.to_string());
+            if let Err(e) = &outcome {
+                rep.log(format!("range sensor '{id}' was not calibrated: {e}"));
+            }
+            outcome::RangeSensor {
+                id,
+                kind: p.file.lrf.kind().as_str().to_string(),
+                outcome,
+            }
+        })
+        .collect()
+}
+
+/// Steps 5–10 for `project`'s `[lrf]` against the camera side `camera`, with the other
+/// range sensors `others` (already calibrated) taken into the verdict and `sensors`.
+fn range_side(
+    project: &Project,
+    camera: (&scene::Detections, &scene::Scene, &bundle::Adjusted),
+    (opts, groups): (&Options, &[joint::GroupBuilder]),
+    others: &[outcome::RangeSensor],
+    mut timing: Vec<(String, f64)>,
+    rep: &Reporter,
+) -> Result<Outcome> {
+    let (dets, scene, adjusted) = camera;
+    let mut scene = scene.clone();
     // A step after the bundle that fails while the camera model cannot hold the lens most
     // likely fails because of it: the error says so.
     let blame_lens = |e: PipelineError| match &adjusted.lens_doubt {
@@ -138,42 +184,37 @@ pub fn calibrate_with_groups(
     if project.file.lrf.kind() == pingcal_project::LrfKind::Fixed {
         let t = std::time::Instant::now();
         let (lrf, ext, joint) =
-            fixed_lrf::calibrate_fixed(project, (&dets, &scene, &adjusted), opts, rep)
+            fixed_lrf::calibrate_fixed(project, (dets, &scene, adjusted), opts, rep)
                 .map_err(blame_lens)?;
         if let Some(Err(e)) = &joint {
             rep.log(format!("joint adjustment failed: {e}"));
         }
         timing.push(("fixed LRF".into(), t.elapsed().as_secs_f64()));
-        let camera = (&dets, &scene, &adjusted);
+        let camera = (dets, &scene, adjusted);
         let out = (&lrf, &ext.pairs[..]);
-        return Ok(outputs(
-            &stages(project, camera, (&lrf, &ext, &joint), out),
-            timing,
-            rep,
-        ));
+        let st = stages(project, camera, (&lrf, &ext, &joint), out);
+        return Ok(outputs(&st, others, timing, rep));
     }
     let t = std::time::Instant::now();
     let lrf = lrf::lrf_spheres(project, opts, rep).map_err(blame_lens)?;
     timing.push(("LRF spheres".into(), t.elapsed().as_secs_f64()));
     let t = std::time::Instant::now();
     let prior = lrf.mount;
-    let (lrf, ext) =
-        match extrinsic::extrinsics(project, (&scene, &adjusted, &lrf, &dets), opts, rep) {
-            Ok(ext) => (lrf, ext),
-            Err(e) => {
-                match through_room(project, (&scene, &adjusted, &lrf, &dets), &e, opts, rep) {
-                    Some((lrf_r, ext_r)) => {
-                        scene.warnings.extend(ext_r.through_room.clone());
-                        (lrf_r, ext_r)
-                    }
-                    None => return Err(blame_lens(e)),
-                }
+    let (lrf, ext) = match extrinsic::extrinsics(project, (&scene, adjusted, &lrf, dets), opts, rep)
+    {
+        Ok(ext) => (lrf, ext),
+        Err(e) => match through_room(project, (&scene, adjusted, &lrf, dets), &e, opts, rep) {
+            Some((lrf_r, ext_r)) => {
+                scene.warnings.extend(ext_r.through_room.clone());
+                (lrf_r, ext_r)
             }
-        };
+            None => return Err(blame_lens(e)),
+        },
+    };
     timing.push(("extrinsic".into(), t.elapsed().as_secs_f64()));
     let t = std::time::Instant::now();
     let mut joint = if project.file.method.joint() {
-        let inputs = (&dets, &scene, &adjusted);
+        let inputs = (dets, &scene, adjusted);
         let r = joint_starts::run_joint(project, inputs, (&lrf, prior), &ext, (opts, groups), rep);
         if let Err(e) = &r {
             rep.log(format!("joint adjustment failed: {e}"));
@@ -197,9 +238,9 @@ pub fn calibrate_with_groups(
         Some(r) => (&r.lrf, &r.pairs[..]),
         None => (&lrf, &ext.pairs[..]),
     };
-    let camera = (&dets, &scene, &adjusted);
+    let camera = (dets, &scene, adjusted);
     let st = stages(project, camera, (&lrf, &ext, &joint), (lrf_out, pairs_out));
-    Ok(outputs(&st, timing, rep))
+    Ok(outputs(&st, others, timing, rep))
 }
 
 /// What the steps produced, for those that judge and write it: the camera's side, the LRF's
@@ -263,14 +304,20 @@ fn camera_side(
 
 /// The verdict, the overlays, results.json, the report, the cloud and the exports of the
 /// stages (`timing`: each step's time, logged and kept in the results).
-fn outputs(stages: &Stages, mut timing: Vec<(String, f64)>, rep: &Reporter) -> Outcome {
+fn outputs(
+    stages: &Stages,
+    others: &[outcome::RangeSensor],
+    mut timing: Vec<(String, f64)>,
+    rep: &Reporter,
+) -> Outcome {
     let line = timing
         .iter()
         .map(|(n, s)| format!("{n} {s:.2} s"))
         .collect::<Vec<_>>()
         .join(", ");
     rep.log(format!("time: {line}"));
-    let verdict = verdict::judge(stages);
+    let mut verdict = verdict::judge(stages);
+    range_sensors::judge(&mut verdict, others);
     let expected_check_error_mm = verdict::expected_check_error_mm(stages);
     rep.log(format!(
         "verdict: {}{}",
@@ -286,7 +333,8 @@ fn outputs(stages: &Stages, mut timing: Vec<(String, f64)>, rep: &Reporter) -> O
     let secs = t.elapsed().as_secs_f64();
     rep.log(format!("time: overlays {secs:.2} s"));
     timing.push(("overlays".into(), secs));
-    let results = results::assemble(stages, verdict, timing);
+    let mut results = results::assemble(stages, verdict, timing);
+    range_sensors::add_sensors(&mut results, others);
     let losses: Vec<_> = results.cameras.iter().map(exports::export_loss).collect();
     let loss_rows = exports::report_rows(&results, &losses);
     let report = report::build(stages, &results, drawn.report, loss_rows, rep);
@@ -300,5 +348,6 @@ fn outputs(stages: &Stages, mut timing: Vec<(String, f64)>, rep: &Reporter) -> O
         exports,
         expected_check_error_mm,
         overlays: drawn.files,
+        range_sensors: Vec::new(),
     }
 }

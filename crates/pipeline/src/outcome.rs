@@ -20,4 +20,17 @@ pub struct Outcome {
     /// The LRF drawn on the images ([`crate::overlays`]): `overlays/<image>.png` below the output
     /// folder, and its bytes.
     pub overlays: Vec<(String, Vec<u8>)>,
+    /// Each of `[[lrfs]]`, calibrated against the same camera side: its outputs are written
+    /// under `lrfs/<id>/`, its pose joins `results.json`'s `sensors`.
+    pub range_sensors: Vec<RangeSensor>,
+}
+
+/// One of `[[lrfs]]`: its id and kind, and its calibration's outcome or why there is none.
+pub struct RangeSensor {
+    /// Its id (`[[lrfs]] id`).
+    pub id: String,
+    /// `rotating` or `fixed`.
+    pub kind: String,
+    /// Its own outcome (its results.json lists the cameras and it), or the error.
+    pub outcome: std::result::Result<Outcome, String>,
 }

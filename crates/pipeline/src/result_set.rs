@@ -567,20 +567,40 @@ pub fn write_outcome(
     lock: &FolderLock,
     outcome: &crate::outcome::Outcome,
 ) -> Result<(), OutputError> {
+    let mut owned: Vec<(PathBuf, Vec<u8>)> = Vec::new();
+    let mut shared: Vec<(PathBuf, &[u8])> = Vec::new();
+    outcome_files(outcome, Path::new(""), &mut owned, &mut shared)?;
+    for other in &outcome.range_sensors {
+        if let Ok(o) = &other.outcome {
+            let below = PathBuf::from("lrfs").join(&other.id);
+            outcome_files(o, &below, &mut owned, &mut shared)?;
+        }
+    }
+    let mut set: Vec<SetFile> = shared;
+    set.extend(owned.iter().map(|(p, b)| (p.clone(), b.as_slice())));
+    write_set(lock, &set)
+}
+
+/// The files of `outcome` below `below`: the exports, overlays and `cloud.ply` borrowed
+/// into `shared`, `report.html` and `results.json` made into `owned`.
+fn outcome_files<'a>(
+    outcome: &'a crate::outcome::Outcome,
+    below: &Path,
+    owned: &mut Vec<(PathBuf, Vec<u8>)>,
+    shared: &mut Vec<(PathBuf, &'a [u8])>,
+) -> Result<(), OutputError> {
     let json = serde_json::to_string_pretty(&outcome.results)? + "\n";
     let html = pingcal_report::render_html(&outcome.report);
-    let mut set: Vec<SetFile> = outcome
-        .exports
-        .iter()
-        .map(|(rel, text)| (PathBuf::from(rel), text.as_bytes()))
-        .collect();
-    for (rel, bytes) in &outcome.overlays {
-        set.push((PathBuf::from(rel), bytes.as_slice()));
+    for (rel, text) in &outcome.exports {
+        shared.push((below.join(rel), text.as_bytes()));
     }
-    set.push(("cloud.ply".into(), &outcome.cloud_ply));
-    set.push(("report.html".into(), html.as_bytes()));
-    set.push(("results.json".into(), json.as_bytes()));
-    write_set(lock, &set)
+    for (rel, bytes) in &outcome.overlays {
+        shared.push((below.join(rel), bytes.as_slice()));
+    }
+    shared.push((below.join("cloud.ply"), &outcome.cloud_ply));
+    owned.push((below.join("report.html"), html.into_bytes()));
+    owned.push((below.join("results.json"), json.into_bytes()));
+    Ok(())
 }
 
 /// Writes `bytes` to `path` atomically (temporary file in the same folder, then rename),

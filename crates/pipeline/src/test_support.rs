@@ -22,6 +22,7 @@ pub fn project(file: ProjectFile, bag_paths: Vec<std::path::PathBuf>) -> Project
         layout: None,
         bag_paths,
         lrf: pingcal_project::LrfSettings::of(&file.lrf).expect("a valid [lrf]"),
+        range_sensors: Vec::new(),
         file,
     }
 }

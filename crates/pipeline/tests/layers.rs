@@ -16,7 +16,7 @@ use std::path::Path;
 
 /// The modules of the pipeline crate, lowest first (`lib.rs`, the root that runs them, is
 /// apart; `test_support.rs` serves the unit tests).
-const ORDER: [&str; 30] = [
+const ORDER: [&str; 31] = [
     "ids",
     "progress",
     "context",
@@ -43,6 +43,7 @@ const ORDER: [&str; 30] = [
     "rectify",
     "exports",
     "outcome",
+    "range_sensors",
     "sphere_calib",
     "board_lrf",
     "out_folders",

@@ -143,6 +143,10 @@ pub struct Project {
     /// The `[lrf]` settings, resolved: the range noise, the clouds' unit, the bag's servo,
     /// and the mount (the `lrf_model` file's when the project names one).
     pub lrf: LrfSettings,
+    /// Each of `[[lrfs]]` as a project of its own: this one's file with that sensor as its
+    /// `[lrf]` (and its id as the tf frame of its outputs), resolved and checked as `[lrf]`
+    /// is; calibrated against the same camera side.
+    pub range_sensors: Vec<Project>,
 }
 
 /// Reads every `pingcal-scan` file of `[lrf] scans` through
@@ -184,6 +188,26 @@ impl Project {
             what: format!("cannot read the project file: {e}"),
         })?;
         let file = ProjectFile::parse(&text, &name)?;
+        let mut project = Self::resolved(path, file.clone())?;
+        for k in 0..file.lrfs.len() {
+            let one = file.with_range_sensor(k);
+            let id = one.lrf.id().to_string();
+            let sensor = Self::resolved(path, one).map_err(|e| match e {
+                ProjectError::Invalid { path, what } => ProjectError::Invalid {
+                    path,
+                    what: format!("[[lrfs]] id = \"{id}\" (checked as its own [lrf]): {what}"),
+                },
+                other => other,
+            })?;
+            project.range_sensors.push(sensor);
+        }
+        Ok(project)
+    }
+
+    /// `file` (read from `path`) validated and its files resolved, without `[[lrfs]]`'s
+    /// projects ([`Project::load`] adds them).
+    fn resolved(path: &Path, file: ProjectFile) -> Result<Self, ProjectError> {
+        let name = path.display().to_string();
         let mut lrf = file.checked(&name)?;
         let dir = path
             .parent()
@@ -273,6 +297,7 @@ impl Project {
             layout,
             bag_paths,
             lrf,
+            range_sensors: Vec::new(),
         })
     }
 

@@ -65,6 +65,10 @@ pub struct ProjectFile {
     pub distances: Vec<ProjectDistance>,
     /// The LRF.
     pub lrf: ProjectLrf,
+    /// More range sensors on the head (`[[lrfs]]`, issue 52): each a table of `[lrf]`'s keys
+    /// with its `id`, calibrated against the same camera side as `[lrf]`.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub lrfs: Vec<ProjectLrf>,
     /// Names of the frames in the ROS outputs (optional).
     #[serde(default, skip_serializing_if = "ProjectFrames::is_default")]
     pub frames: ProjectFrames,
@@ -449,6 +453,10 @@ pub struct ProjectDistance {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ProjectLrf {
+    /// Its id: required for each of `[[lrfs]]` (its results are under `lrfs/<id>/`, its
+    /// tf frame is the id); `[lrf]`'s is `lrf` when absent.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub id: Option<String>,
     /// Sensor model, for reports.
     pub model: String,
     /// The kind of LRF: `"rotating"` (a 2D scanner turned by a servo; the default) or
@@ -560,7 +568,25 @@ impl std::fmt::Display for ScanEntry {
     }
 }
 
+impl ProjectFile {
+    /// This file with the `k`-th of `[[lrfs]]` as its `[lrf]` (no `[[lrfs]]`), its id the
+    /// tf frame of that sensor's outputs.
+    pub fn with_range_sensor(&self, k: usize) -> ProjectFile {
+        let mut f = self.clone();
+        let lrf = f.lrfs.swap_remove(k);
+        f.frames.lrf = lrf.id().to_string();
+        f.lrf = lrf;
+        f.lrfs.clear();
+        f
+    }
+}
+
 impl ProjectLrf {
+    /// Its id (`[lrf]`'s absent one is `lrf`).
+    pub fn id(&self) -> &str {
+        self.id.as_deref().unwrap_or("lrf")
+    }
+
     /// The kind (absent: rotating).
     pub fn kind(&self) -> LrfKind {
         self.kind.unwrap_or(LrfKind::Rotating)

@@ -1023,3 +1023,44 @@ fn a_rig_camera_is_checked() {
     let back = ProjectFile::parse(&text, "again.toml").unwrap();
     assert_eq!(back.rig, p.rig, "written and read back");
 }
+
+/// `[[lrfs]]`: each needs its own id, new and of letters, digits, `_` or `-`; `[lrf] id`
+/// (absent: `lrf`) is another's; written and read back. (Each sensor's other keys are
+/// checked as `[lrf]`'s when the project is loaded, as a project of its own.)
+#[test]
+fn more_range_sensors_need_their_own_ids() {
+    let with = |ids: Vec<Option<&'static str>>| {
+        move |p: &mut ProjectFile| {
+            p.lrfs = ids
+                .iter()
+                .map(|id| {
+                    let mut l = p.lrf.clone();
+                    l.id = id.map(String::from);
+                    l
+                })
+                .collect();
+        }
+    };
+    let e = err_of(with(vec![None]));
+    assert!(e.contains("[[lrfs]] entry 0: no id"), "{e}");
+    let e = err_of(with(vec![Some("lrf")]));
+    assert!(
+        e.contains("[[lrfs]] id = \"lrf\": expected a new id"),
+        "{e}"
+    );
+    let e = err_of(with(vec![Some("a b")]));
+    assert!(e.contains("letters, digits"), "{e}");
+    let e = err_of(with(vec![Some("two"), Some("two")]));
+    assert!(e.contains("[[lrfs]] id = \"two\""), "{e}");
+    let mut p = ProjectFile::parse(&readme_example(), "example.toml").unwrap();
+    with(vec![Some("floor_lrf")])(&mut p);
+    p.validate("p.toml").unwrap();
+    let back = ProjectFile::parse(&toml::to_string(&p).unwrap(), "again.toml").unwrap();
+    assert_eq!(back.lrfs, p.lrfs, "written and read back");
+    let one = p.with_range_sensor(0);
+    assert_eq!(
+        (one.lrf.id(), one.frames.lrf.as_str()),
+        ("floor_lrf", "floor_lrf")
+    );
+    assert!(one.lrfs.is_empty());
+}

@@ -83,6 +83,7 @@ impl ProjectFile {
         let stations = validate_images(&self.images, &cameras)?;
         validate_main_station(&self.main_station, &self.main_camera, &stations)?;
         validate_distances(&self.distances)?;
+        validate_lrf_ids(self)?;
         let settings = validate_lrf(&self.lrf, &self.main_station)?;
         validate_lrf_kind(self, &stations)?;
         validate_frames(&self.frames)?;
@@ -454,6 +455,39 @@ fn validate_rig(r: &ProjectRig, cameras: &CameraIds, f: &ProjectFile) -> Result<
             MAX_LENGTH_MM,
             " mm",
         )?;
+    }
+    Ok(())
+}
+
+/// `[lrf] id` (absent: `lrf`) and each of `[[lrfs]]`'s (required): distinct, of letters,
+/// digits, `_` or `-` (the name of its results' folder and of its tf frame). The rest of
+/// each of `[[lrfs]]` is checked as `[lrf]` is, in a project of its own
+/// ([`crate::Project::load`]).
+fn validate_lrf_ids(f: &ProjectFile) -> Result<(), String> {
+    let safe = |id: &str| {
+        !id.is_empty()
+            && id
+                .chars()
+                .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
+    };
+    if !safe(f.lrf.id()) {
+        return Err(format!(
+            "[lrf] id = \"{}\": expected letters, digits, '_' or '-'",
+            f.lrf.id().escape_debug()
+        ));
+    }
+    for (k, l) in f.lrfs.iter().enumerate() {
+        let Some(id) = &l.id else {
+            return Err(format!("[[lrfs]] entry {k}: no id (each range sensor of [[lrfs]] needs its own, e.g. id = \"lrf2\")"));
+        };
+        let taken = id == f.lrf.id() || f.lrfs[..k].iter().any(|o| o.id.as_ref() == Some(id));
+        if taken || !safe(id) {
+            return Err(format!(
+                "[[lrfs]] id = \"{}\": expected a new id of letters, digits, '_' or '-' (not [lrf]'s \"{}\" nor another's)",
+                id.escape_debug(),
+                f.lrf.id()
+            ));
+        }
     }
     Ok(())
 }

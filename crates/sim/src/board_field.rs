@@ -598,6 +598,7 @@ impl BoardFieldSim {
                 .collect(),
             distances: Vec::new(),
             lrf: ProjectLrf {
+                id: None,
                 model: "Hokuyo URG-04LX, fixed (simulated)".into(),
                 kind: Some(LrfKind::Fixed),
                 station: "P1".into(),
@@ -625,6 +626,7 @@ impl BoardFieldSim {
                 lrf_model: None,
                 room_planes: None,
             },
+            lrfs: Vec::new(),
             frames: ProjectFrames::default(),
             network: Default::default(),
         }

@@ -60,6 +60,10 @@ pub struct SimConfig {
     pub render: RenderConfig,
     /// The 2D LRF and its servo.
     pub lrf: LrfConfig,
+    /// More range sensors on the head (`[[lrfs]]`, issue 52): each `id` and `[lrf]`'s keys
+    /// (`kind`, `extrinsic_opk_deg`, `extrinsic_t_mm`, …); none by default, then not written.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub lrfs: Vec<RangeSensorConfig>,
     /// Which field: the room (the default, not written when it is) or a board in several
     /// placements ([`crate::board_field`]).
     #[serde(skip_serializing_if = "FieldConfig::is_default")]
@@ -391,6 +395,38 @@ impl CameraConfig {
             nominal_c_mm,
             ..base
         }
+    }
+}
+
+/// One of `[[lrfs]]`: its id and its keys as `[lrf]` has them (one flat table).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "toml::Table", into = "toml::Table")]
+pub struct RangeSensorConfig {
+    /// Its id (the project's `[[lrfs]] id`, its scans under `scans/<id>/`).
+    pub id: String,
+    /// Its keys, as `[lrf]`'s.
+    pub lrf: LrfConfig,
+}
+
+impl TryFrom<toml::Table> for RangeSensorConfig {
+    type Error = String;
+
+    fn try_from(mut t: toml::Table) -> Result<Self, String> {
+        let id = match t.remove("id") {
+            Some(toml::Value::String(id)) => id,
+            _ => return Err("each of [[lrfs]] needs its id = \"…\"".into()),
+        };
+        let lrf = LrfConfig::deserialize(toml::Value::Table(t))
+            .map_err(|e| format!("[[lrfs]] id = \"{id}\": {e}"))?;
+        Ok(Self { id, lrf })
+    }
+}
+
+impl From<RangeSensorConfig> for toml::Table {
+    fn from(r: RangeSensorConfig) -> Self {
+        let mut t = toml::Table::try_from(&r.lrf).expect("an LRF's keys serialise");
+        t.insert("id".into(), toml::Value::String(r.id));
+        t
     }
 }
 
@@ -849,6 +885,7 @@ impl SimConfig {
         validate_render(&self.render)?;
         validate_lrf_ranges(&self.lrf)?;
         validate_lrf_servo(&self.lrf)?;
+        validate_range_sensors(&self.lrfs)?;
         validate_field(&self.field)?;
         self.board_of_field().map(|_| ())
     }
@@ -1244,6 +1281,34 @@ fn validate_camera(c: &CameraConfig) -> Result<(), ConfigError> {
     Ok(())
 }
 
+/// `[[lrfs]]`: distinct ids of letters, digits, `_` or `-` other than `lrf`, each sensor's
+/// keys as `[lrf]`'s are checked (an error names its entry).
+fn validate_range_sensors(lrfs: &[RangeSensorConfig]) -> Result<(), ConfigError> {
+    for (k, r) in lrfs.iter().enumerate() {
+        let safe = !r.id.is_empty()
+            && r.id
+                .chars()
+                .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-');
+        if !safe || r.id == "lrf" || lrfs[..k].iter().any(|o| o.id == r.id) {
+            return Err(ConfigError::new(
+                format!("lrfs[{k}].id"),
+                format!("{:?}", r.id),
+                "must be a new id of letters, digits, '_' or '-' (not \"lrf\" nor another's)",
+            ));
+        }
+        let named = |e: ConfigError| {
+            ConfigError::new(
+                format!("lrfs[{k}] ({})", r.id),
+                e.to_string(),
+                "as [lrf]'s keys",
+            )
+        };
+        validate_lrf_ranges(&r.lrf).map_err(named)?;
+        validate_lrf_servo(&r.lrf).map_err(named)?;
+    }
+    Ok(())
+}
+
 /// `[[rig.cameras]]`: distinct ids other than the pair's, finite poses, intrinsics of the
 /// model's count.
 fn validate_rig(c: &CameraConfig, r: &RigConfig) -> Result<(), ConfigError> {
@@ -1620,5 +1685,36 @@ mod tests {
         let l = LrfConfig::default();
         assert_eq!(l.range_sigma_mm(500.0), 10.0);
         assert!((l.range_sigma_mm(3000.0) - 30.0).abs() < 1e-12);
+    }
+
+    /// `[[rig.cameras]]` and `[[lrfs]]` (issue 52): read with their keys, written and read
+    /// back the same; a bad entry named.
+    #[test]
+    fn more_cameras_and_range_sensors_round_trip_and_are_checked() {
+        let text = "[[rig.cameras]]\nid = \"side\"\nopk_deg = [0.0, 0.0, 60.0]\nt_mm = [60.0, -25.0, 10.0]\n\n[[lrfs]]\nid = \"floor\"\nkind = \"fixed\"\nextrinsic_t_mm = [-40.0, 30.0, -150.0]\n";
+        let cfg = SimConfig::from_toml_str(text).unwrap();
+        cfg.validate().unwrap();
+        assert_eq!(cfg.rig.cameras[0].opk_deg, [0.0, 0.0, 60.0]);
+        assert_eq!(cfg.lrfs[0].id, "floor");
+        assert_eq!(cfg.lrfs[0].lrf.kind, LrfKind::Fixed);
+        assert_eq!(cfg.lrfs[0].lrf.extrinsic_t_mm, [-40.0, 30.0, -150.0]);
+        assert_eq!(cfg.lrfs[0].lrf.beams, LrfConfig::default().beams);
+        let back = SimConfig::from_toml_str(&cfg.to_toml_string()).unwrap();
+        assert_eq!(back, cfg);
+        let e = SimConfig::from_toml_str("[[lrfs]]\nkind = \"fixed\"\n").unwrap_err();
+        assert!(e.contains("needs its id"), "{e}");
+        let e = SimConfig::from_toml_str("[[lrfs]]\nid = \"x\"\nbeamz = 3\n").unwrap_err();
+        assert!(
+            e.contains("[[lrfs]] id = \"x\"") && e.contains("beamz"),
+            "{e}"
+        );
+        let mut twice = cfg.clone();
+        twice.lrfs.push(twice.lrfs[0].clone());
+        let e = twice.validate().unwrap_err().to_string();
+        assert!(e.contains("lrfs[1].id"), "{e}");
+        let mut same = cfg.clone();
+        same.rig.cameras[0].id = "right".into();
+        let e = same.validate().unwrap_err().to_string();
+        assert!(e.contains("rig.cameras[0].id"), "{e}");
     }
 }

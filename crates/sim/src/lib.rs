@@ -55,9 +55,10 @@ pub use project_files::{read_truth, write_project, ProjectSummary, Truth};
 pub use scene::TestField;
 pub use stations::{Station, StereoRig};
 
+use config::LrfConfig;
 use pingcal_geometry::Rigid3;
 use pingcal_project::LrfKind;
-use rand::SeedableRng;
+use rand::{RngCore, SeedableRng};
 
 /// Errors of the simulator, each one line naming what is wrong.
 #[derive(Debug, thiserror::Error)]
@@ -120,20 +121,69 @@ pub struct Simulation {
     /// A fixed LRF's scans at each of its stations, in the order of `[lrf] scan_stations`
     /// (empty for a rotating LRF).
     pub fixed_scans: Vec<(String, Vec<lrf::Scan>)>,
+    /// Each of `[[lrfs]]` with its scans of the same field.
+    pub range_sensors: Vec<RangeSensorSim>,
+}
+
+/// One of `[[lrfs]]`, simulated: its keys and its scans, as [`Simulation`]'s for `[lrf]`.
+#[derive(Debug, Clone)]
+pub struct RangeSensorSim {
+    /// Its id.
+    pub id: String,
+    /// Its keys.
+    pub config: LrfConfig,
+    /// World → its frame (at the main station).
+    pub lrf_from_world: Rigid3,
+    /// A rotating one's sweep (empty for a fixed one).
+    pub scans: Vec<lrf::Scan>,
+    /// A fixed one's scans at each of its stations (empty for a rotating one).
+    pub fixed_scans: Vec<(String, Vec<lrf::Scan>)>,
+}
+
+/// A range sensor of keys `lrf_cfg` on the head: world → its frame at the main station,
+/// and its scans of `scene` (a rotating one's sweep, or a fixed one's at its stations),
+/// their noise drawn from `seed`.
+#[allow(clippy::type_complexity)]
+fn range_scans(
+    lrf_cfg: &LrfConfig,
+    (scene, stations): (&TestField, &[Station]),
+    seed: u64,
+) -> Result<(Rigid3, Vec<lrf::Scan>, Vec<(String, Vec<lrf::Scan>)>), SimError> {
+    let main = stations
+        .iter()
+        .find(|s| s.main)
+        .expect("main station")
+        .left_from_world;
+    let lrf_from_world = lrf::lrf_from_world(&main, lrf_cfg);
+    Ok(match lrf_cfg.kind {
+        LrfKind::Rotating => {
+            let scene_lrf = scene.transformed(&lrf_from_world);
+            (
+                lrf_from_world,
+                lrf::simulate_scans(&scene_lrf, lrf_cfg, seed),
+                Vec::new(),
+            )
+        }
+        LrfKind::Fixed => {
+            let at = fixed_stations(lrf_cfg, stations)?;
+            let fixed = lrf::simulate_fixed_scans(scene, &at, lrf_cfg, seed);
+            (lrf_from_world, Vec::new(), fixed)
+        }
+    })
 }
 
 /// A fixed LRF's stations (id, `left_from_world`): `[lrf] scan_stations` (each one of the
 /// field's), else every station of the field, main first.
 fn fixed_stations(
-    cfg: &SimConfig,
+    lrf_cfg: &LrfConfig,
     stations: &[Station],
 ) -> Result<Vec<(String, Rigid3)>, SimError> {
-    if cfg.lrf.scan_stations.is_empty() {
+    if lrf_cfg.scan_stations.is_empty() {
         return Ok((stations.iter())
             .map(|s| (s.id.clone(), s.left_from_world))
             .collect());
     }
-    (cfg.lrf.scan_stations.iter())
+    (lrf_cfg.scan_stations.iter())
         .map(|id| {
             let st = stations.iter().find(|s| &s.id == id).ok_or_else(|| {
                 SimError::Invalid(ConfigError::new(
@@ -166,23 +216,23 @@ impl Simulation {
         let scene = TestField::build(cfg, seed)?;
         let stations = stations::build_stations(cfg, &scene, seed)?;
         let rig = StereoRig::from_config(cfg);
-        let main = stations
-            .iter()
-            .find(|s| s.main)
-            .expect("main station")
-            .left_from_world;
-        let lrf_from_world = lrf::lrf_from_world(&main, &cfg.lrf);
-        let (scans, fixed_scans) = match cfg.lrf.kind {
-            LrfKind::Rotating => {
-                let scene_lrf = scene.transformed(&lrf_from_world);
-                (lrf::simulate_scans(&scene_lrf, &cfg.lrf, seed), Vec::new())
-            }
-            LrfKind::Fixed => {
-                let at = fixed_stations(cfg, &stations)?;
-                let fixed = lrf::simulate_fixed_scans(&scene, &at, &cfg.lrf, seed);
-                (Vec::new(), fixed)
-            }
-        };
+        let (lrf_from_world, scans, fixed_scans) =
+            range_scans(&cfg.lrf, (&scene, &stations), seed)?;
+        let range_sensors = (cfg.lrfs.iter())
+            .map(|r| {
+                // its own noise: a seed of its own, drawn from the run's and its id
+                let own = rng_for(seed, &format!("lrfs.{}", r.id), 0).next_u64();
+                let (lrf_from_world, scans, fixed_scans) =
+                    range_scans(&r.lrf, (&scene, &stations), own)?;
+                Ok(RangeSensorSim {
+                    id: r.id.clone(),
+                    config: r.lrf.clone(),
+                    lrf_from_world,
+                    scans,
+                    fixed_scans,
+                })
+            })
+            .collect::<Result<Vec<_>, SimError>>()?;
         Ok(Self {
             config: cfg.clone(),
             seed,
@@ -192,6 +242,7 @@ impl Simulation {
             lrf_from_world,
             scans,
             fixed_scans,
+            range_sensors,
         })
     }
 

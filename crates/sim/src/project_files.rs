@@ -260,13 +260,17 @@ impl Truth {
     /// servo axis (Y) by the mount's `offset_y`, which no calibration can tell from the
     /// extrinsic's ty: `t' = t + R·(0, offset_y, 0)`. Compare estimates with this one.
     pub fn extrinsic_as_calibrated(&self) -> PoseJson {
-        let mut e = self.extrinsic;
-        let oy = self.lrf_mount.offset_mm[1];
-        for k in 0..3 {
-            e.translation_mm[k] += e.rotation[k][1] * oy;
-        }
-        e
+        as_calibrated(self.extrinsic, self.lrf_mount.offset_mm[1])
     }
+}
+
+/// `extrinsic` moved along its servo axis (Y) by the mount's `offset_y` (see
+/// [`Truth::extrinsic_as_calibrated`]).
+fn as_calibrated(mut e: PoseJson, offset_y: f64) -> PoseJson {
+    for k in 0..3 {
+        e.translation_mm[k] += e.rotation[k][1] * offset_y;
+    }
+    e
 }
 
 /// What was written.
@@ -433,14 +437,29 @@ fn truth_sensors(sim: &Simulation, truth: &Truth) -> Vec<TruthSensor> {
         .collect();
     out.push(TruthSensor {
         id: "lrf".into(),
-        kind: match sim.config.lrf.kind {
-            LrfKind::Rotating => "rotating",
-            LrfKind::Fixed => "fixed",
-        }
-        .into(),
+        kind: kind_name(sim.config.lrf.kind).into(),
         camera_from_sensor: truth.extrinsic_as_calibrated(),
     });
+    for r in &sim.range_sensors {
+        let mount = r.config.mount();
+        out.push(TruthSensor {
+            id: r.id.clone(),
+            kind: kind_name(r.config.kind).into(),
+            camera_from_sensor: as_calibrated(
+                PoseJson::from_pose(&crate::lrf::extrinsic(&r.config)),
+                mount.offset_mm[1],
+            ),
+        });
+    }
     out
+}
+
+/// `rotating` or `fixed`.
+fn kind_name(k: LrfKind) -> &'static str {
+    match k {
+        LrfKind::Rotating => "rotating",
+        LrfKind::Fixed => "fixed",
+    }
 }
 
 /// Where each ball is in the main image, to the nearest pixel, as a user would note it on
@@ -584,41 +603,85 @@ pub fn project_of(sim: &Simulation) -> ProjectFile {
                 sigma_mm: d.sigma_mm,
             })
             .collect(),
-        lrf: ProjectLrf {
-            model: "Hokuyo URG-04LX on Dynamixel MX-28T".into(),
-            kind: (cfg.lrf.kind == LrfKind::Fixed).then_some(LrfKind::Fixed),
-            station: main.id.clone(),
-            scans: scan_files(sim)
-                .iter()
-                .map(|(station, _)| {
-                    let file = format!("scans/{station}.csv");
-                    match cfg.lrf.kind {
-                        LrfKind::Rotating => ScanEntry::File(file),
-                        LrfKind::Fixed => ScanEntry::AtStation(ScanAtStation {
-                            file,
-                            station: station.to_string(),
-                        }),
-                    }
-                })
-                .collect(),
-            bag: None,
-            cloud_unit: None,
-            noise: None,
-            noise_sigma_mm: None,
-            max_range_mm: cfg.lrf.max_range_mm,
-            accuracy_near_mm: cfg.lrf.accuracy_near_mm,
-            accuracy_far_fraction: cfg.lrf.accuracy_far_fraction,
-            mount_offset_mm: [0.0; 3],
-            mount_tilt_x_deg: 0.0,
-            mount_tilt_z_deg: 0.0,
-            servo_zero_deg: 0.0,
-            servo_resolution_deg: cfg.lrf.servo_resolution_deg,
-            self_calibrate: None,
-            lrf_model: None,
-            room_planes: None,
-        },
+        lrf: project_lrf(None, &cfg.lrf, &main.id, &scan_files(sim)),
+        lrfs: (sim.range_sensors.iter())
+            .map(|r| {
+                project_lrf(
+                    Some(&r.id),
+                    &r.config,
+                    &main.id,
+                    &range_scan_files(r, &main.id),
+                )
+            })
+            .collect(),
         frames: ProjectFrames::default(),
         network: Default::default(),
+    }
+}
+
+/// A range sensor's table of the project (`[lrf]`, or one of `[[lrfs]]` with its `id`, its
+/// scan files then under `scans/<id>/`): its keys `c` as a user of the simulated head would
+/// write them (no mount values: the calibration estimates them), its scan files `files`.
+fn project_lrf(
+    id: Option<&str>,
+    c: &crate::config::LrfConfig,
+    main_station: &str,
+    files: &[(&str, &[crate::lrf::Scan])],
+) -> ProjectLrf {
+    ProjectLrf {
+        id: id.map(String::from),
+        model: "Hokuyo URG-04LX on Dynamixel MX-28T".into(),
+        kind: (c.kind == LrfKind::Fixed).then_some(LrfKind::Fixed),
+        station: main_station.to_string(),
+        scans: (files.iter())
+            .map(|(station, _)| {
+                let file = scan_path(id, station);
+                match c.kind {
+                    LrfKind::Rotating => ScanEntry::File(file),
+                    LrfKind::Fixed => ScanEntry::AtStation(ScanAtStation {
+                        file,
+                        station: station.to_string(),
+                    }),
+                }
+            })
+            .collect(),
+        bag: None,
+        cloud_unit: None,
+        noise: None,
+        noise_sigma_mm: None,
+        max_range_mm: c.max_range_mm,
+        accuracy_near_mm: c.accuracy_near_mm,
+        accuracy_far_fraction: c.accuracy_far_fraction,
+        mount_offset_mm: [0.0; 3],
+        mount_tilt_x_deg: 0.0,
+        mount_tilt_z_deg: 0.0,
+        servo_zero_deg: 0.0,
+        servo_resolution_deg: c.servo_resolution_deg,
+        self_calibrate: None,
+        lrf_model: None,
+        room_planes: None,
+    }
+}
+
+/// The scan file of station `station` of `[lrf]` (`id` None) or of one of `[[lrfs]]`.
+fn scan_path(id: Option<&str>, station: &str) -> String {
+    match id {
+        None => format!("scans/{station}.csv"),
+        Some(id) => format!("scans/{id}/{station}.csv"),
+    }
+}
+
+/// [`scan_files`] of one of `[[lrfs]]` (`main`: the main station's id).
+fn range_scan_files<'a>(
+    r: &'a crate::RangeSensorSim,
+    main: &'a str,
+) -> Vec<(&'a str, &'a [crate::lrf::Scan])> {
+    if r.fixed_scans.is_empty() {
+        vec![(main, &r.scans[..])]
+    } else {
+        (r.fixed_scans.iter())
+            .map(|(id, scans)| (id.as_str(), &scans[..]))
+            .collect()
     }
 }
 
@@ -665,10 +728,21 @@ pub fn write_project(sim: &Simulation, dir: &Path) -> Result<ProjectSummary, Sim
         write_png(&dir.join(image_file(&st.id, &cam.id)), &img)
     })?;
     for (station, scans) in scan_files(sim) {
-        let scan_path = dir.join(format!("scans/{station}.csv"));
+        let scan_path = dir.join(scan_path(None, station));
         let csv = crate::lrf::write_scans_csv(Vec::new(), scans, &sim.config.lrf)
             .map_err(|e| io(&scan_path, e))?;
         std::fs::write(&scan_path, csv).map_err(|e| io(&scan_path, e))?;
+    }
+    let main = sim.stations.iter().find(|s| s.main).expect("main station");
+    for r in &sim.range_sensors {
+        let folder = dir.join("scans").join(&r.id);
+        std::fs::create_dir_all(&folder).map_err(|e| io(&folder, e))?;
+        for (station, scans) in range_scan_files(r, &main.id) {
+            let path = dir.join(scan_path(Some(&r.id), station));
+            let csv = crate::lrf::write_scans_csv(Vec::new(), scans, &r.config)
+                .map_err(|e| io(&path, e))?;
+            std::fs::write(&path, csv).map_err(|e| io(&path, e))?;
+        }
     }
     let project = project_of(sim);
     let text = format!(

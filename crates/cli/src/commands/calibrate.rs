@@ -214,8 +214,18 @@ pub fn summary_line(path: &Path, dir: &Path, o: &Outcome, secs: f64) -> String {
             if n == 1 { "" } else { "s" }
         ),
     };
+    // each of [[lrfs]]: its translation, or why it has none (its verdict is in the main one)
+    let others: String = (o.range_sensors.iter())
+        .map(|x| match &x.outcome {
+            Ok(xo) => {
+                let t = xo.results.extrinsic.translation_mm;
+                format!("; {} t = ({:.1}, {:.1}, {:.1}) mm", x.id, t[0], t[1], t[2])
+            }
+            Err(_) => format!("; {} not calibrated", x.id),
+        })
+        .collect();
     format!(
-        "calibrate: {}: verdict {verdict}; sigma0 {:.3}, RMS {:.3} px, {} images; mean check error: {}; t = ({:.1}, {:.1}, {:.1}) mm; wrote {} in {:.1} s",
+        "calibrate: {}: verdict {verdict}; sigma0 {:.3}, RMS {:.3} px, {} images; mean check error: {}; t = ({:.1}, {:.1}, {:.1}) mm{others}; wrote {} in {:.1} s",
         path.display(),
         r.bundle.sigma0,
         r.bundle.rms_image_px,

@@ -24,12 +24,16 @@ pub(super) fn joint_of(e: &ExtrinsicJson, camera: bool) -> (Matrix3<f64>, Vector
     }
 }
 
-/// The tf frame of sensor `id`: a camera's `<id>_optical`, the LRF's `lrf_frame`.
-pub(super) fn frame_of(id: &str, kind: &str, lrf_frame: &str) -> String {
+/// The tf frame of sensor `id` of `r`: a camera's `<id>_optical`, `[lrf]`'s the project's
+/// LRF frame (`tf_lrf_frame`), each of `[[lrfs]]`'s its id.
+pub(super) fn frame_of(r: &Results, id: &str, kind: &str) -> String {
+    let first_range = r.sensors.iter().find(|s| s.kind != "camera");
     if kind == "camera" {
         format!("{id}_optical")
+    } else if first_range.is_some_and(|s| s.id == id) {
+        r.conventions.tf_lrf_frame.clone()
     } else {
-        lrf_frame.to_string()
+        id.to_string()
     }
 }
 
@@ -42,11 +46,11 @@ pub fn head_urdf(r: &Results) -> Option<String> {
     let conv = &r.conventions;
     let parent = &conv.tf_camera_frame;
     let mut out = format!(
-        "<?xml version=\"1.0\"?>\n<!-- Every sensor of the head as a fixed joint from '{parent}', the main camera '{}''s optical frame (written by pingcal calibrate, results.json's sensors): a camera's child frame is its optical frame '<id>_optical' (x right, y down, z forward), the LRF's '{}'; p_parent = R p_child + t, t in m. A rotating LRF's servo chain below its frame is in lrf_model.urdf. Copy the <joint>s into your robot's URDF (its links are yours). -->\n<robot name=\"pingcal_head\">\n  <link name=\"{parent}\"/>\n",
+        "<?xml version=\"1.0\"?>\n<!-- Every sensor of the head as a fixed joint from '{parent}', the main camera '{}''s optical frame (written by pingcal calibrate, results.json's sensors): a camera's child frame is its optical frame '<id>_optical' (x right, y down, z forward), [lrf]'s '{}', each of [[lrfs]]'s its id; p_parent = R p_child + t, t in m. A rotating LRF's servo chain below its frame is in lrf_model.urdf. Copy the <joint>s into your robot's URDF (its links are yours). -->\n<robot name=\"pingcal_head\">\n  <link name=\"{parent}\"/>\n",
         conv.main_camera, conv.tf_lrf_frame
     );
     for s in &r.sensors {
-        let child = frame_of(&s.id, &s.kind, &conv.tf_lrf_frame);
+        let child = frame_of(r, &s.id, &s.kind);
         let (rot, t) = joint_of(&s.camera_from_sensor, s.kind == "camera");
         let xyz: Vec<String> = t.iter().map(|v| num(v / 1000.0)).collect();
         let _ = write!(

@@ -36,7 +36,7 @@ use pingcal_lrf::registration::{CheckRow, PointObs};
 use pingcal_project::{Intrinsics, Project};
 use serde::Serialize;
 
-mod sensors;
+pub mod sensors;
 mod transforms;
 
 pub use sensors::{SensorJson, SensorPairJson};

@@ -57,10 +57,7 @@ fn head_of(st: &Stages, extrinsic: &ExtrinsicJson) -> HeadPoses {
         Some(LrfKind::Fixed) => "fixed",
         _ => "rotating",
     };
-    let lrf = Rigid3::new(
-        nalgebra::Matrix3::from_fn(|a, b| extrinsic.rotation[a][b]),
-        nalgebra::Vector3::from(extrinsic.translation_mm),
-    );
+    let lrf = pose(extrinsic);
     HeadPoses::with_separate_lrf(
         st.project,
         &adj.solved.problem,
@@ -69,7 +66,8 @@ fn head_of(st: &Stages, extrinsic: &ExtrinsicJson) -> HeadPoses {
     )
 }
 
-fn json(t: &WithSigma) -> ExtrinsicJson {
+/// `t` as results.json writes a transform.
+pub fn json(t: &WithSigma) -> ExtrinsicJson {
     let sim = Sim3::new(1.0, t.pose.rotation, t.pose.translation);
     extrinsic_json(&sim, t.sigma_translation_mm, t.sigma_rotation_deg)
 }
@@ -84,7 +82,7 @@ pub fn sensors_json(
         .map(|(k, s)| SensorJson {
             id: s.id.clone(),
             kind: s.kind.clone(),
-            camera_from_sensor: if s.id == "lrf" {
+            camera_from_sensor: if s.kind != "camera" {
                 extrinsic.clone()
             } else {
                 json(&head.sensor(k))
@@ -101,4 +99,12 @@ pub fn sensors_json(
         })
         .collect();
     (sensors, pairs)
+}
+
+/// The transform of `e`.
+pub fn pose(e: &ExtrinsicJson) -> Rigid3 {
+    Rigid3::new(
+        nalgebra::Matrix3::from_fn(|a, b| e.rotation[a][b]),
+        nalgebra::Vector3::from(e.translation_mm),
+    )
 }
