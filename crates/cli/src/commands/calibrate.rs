@@ -259,6 +259,24 @@ pub fn json_line(path: &Path, dir: &Path, o: &Outcome, secs: f64) -> String {
         "translation_mm": r.extrinsic.translation_mm,
         "sigma_translation_mm": r.extrinsic.sigma_translation_mm,
         "sigma0": r.bundle.sigma0,
+        "range_sensors": o.range_sensors.iter().map(|x| match &x.outcome {
+            Ok(xo) => serde_json::json!({
+                "id": x.id,
+                "kind": x.kind,
+                "verdict": xo.results.verdict.status.as_str(),
+                "translation_mm": xo.results.extrinsic.translation_mm,
+                "sigma_translation_mm": xo.results.extrinsic.sigma_translation_mm,
+                "error": null,
+            }),
+            Err(e) => serde_json::json!({
+                "id": x.id,
+                "kind": x.kind,
+                "verdict": "error",
+                "translation_mm": null,
+                "sigma_translation_mm": null,
+                "error": e,
+            }),
+        }).collect::<Vec<_>>(),
         "time_s": secs,
     })
     .to_string()
