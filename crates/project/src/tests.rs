@@ -1057,6 +1057,15 @@ fn more_range_sensors_need_their_own_ids() {
     p.validate("p.toml").unwrap();
     let back = ProjectFile::parse(&toml::to_string(&p).unwrap(), "again.toml").unwrap();
     assert_eq!(back.lrfs, p.lrfs, "written and read back");
+    let mut board = p.clone();
+    board.board = Some(crate::board::ProjectBoard {
+        kind: Some(crate::BoardKind::Chessboard),
+        inner_corners: Some([9, 6]),
+        square_mm: Some(25.0),
+        ..Default::default()
+    });
+    let e = board.validate("b.toml").unwrap_err().to_string();
+    assert!(e.contains("[[lrfs]] with [board]"), "{e}");
     let one = p.with_range_sensor(0);
     assert_eq!(
         (one.lrf.id(), one.frames.lrf.as_str()),

@@ -476,6 +476,9 @@ fn validate_lrf_ids(f: &ProjectFile) -> Result<(), String> {
             f.lrf.id().escape_debug()
         ));
     }
+    if f.board.is_some() && !f.lrfs.is_empty() {
+        return Err("[[lrfs]] with [board]: a board project calibrates its camera and one LRF ([lrf]); calibrate each other range sensor in a board project of its own".into());
+    }
     for (k, l) in f.lrfs.iter().enumerate() {
         let Some(id) = &l.id else {
             return Err(format!("[[lrfs]] entry {k}: no id (each range sensor of [[lrfs]] needs its own, e.g. id = \"lrf2\")"));
