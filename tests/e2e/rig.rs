@@ -80,18 +80,39 @@ fn pairs_are_compositions(results: &Value) {
         let e = &p["a_from_b"];
         assert!((rotation(e) - r).norm() < 1e-9, "{p}");
         assert!((vector(&e["translation_mm"]) - t).norm() < 1e-9, "{p}");
-        let kind = |id: &Value| {
-            let s = (results["sensors"].as_array().unwrap().iter()).find(|s| &s["id"] == id);
-            s.expect("listed")["kind"].clone()
-        };
-        if kind(&p["a"]) != "camera" && kind(&p["b"]) != "camera" {
-            // two range sensors of separate adjustments: no cross-covariance, no σ
-            assert!(e["sigma_translation_mm"].is_null(), "{p}");
-        } else {
-            let sigma = e["sigma_translation_mm"][0].as_f64();
-            assert!(sigma.is_some_and(|s| s > 0.0), "{p}");
-        }
+        let sigma = e["sigma_translation_mm"][0].as_f64();
+        assert!(sigma.is_some_and(|s| s > 0.0), "{p}");
     }
+}
+
+/// The pair `a`, `b` of `results` against the truth's composition: per component within
+/// [`Z_MAX`] of its σ (the two range sensors' pair's σ's come from one problem holding both
+/// adjustments).
+fn pair_agrees_with_truth(results: &Value, truth: &Value, (a, b): (&str, &str)) {
+    let of = |id: &str| {
+        let s = (truth["sensors"].as_array().unwrap().iter()).find(|s| s["id"] == id);
+        let e = &s.expect("in truth")["camera_from_sensor"];
+        (rotation(e), vector(&e["translation_mm"]))
+    };
+    let ((ra, ta), (rb, tb)) = (of(a), of(b));
+    let t_true = ra.transpose() * (tb - ta);
+    let pair = (results["sensor_pairs"].as_array().unwrap().iter())
+        .find(|p| p["a"] == a && p["b"] == b)
+        .expect("the pair");
+    let e = &pair["a_from_b"];
+    let dt = vector(&e["translation_mm"]) - t_true;
+    for k in 0..3 {
+        let z = dt[k] / e["sigma_translation_mm"][k].as_f64().expect("a σ");
+        assert!(z.abs() <= Z_MAX, "{a} ← {b} component {k}: z {z}");
+    }
+    // the rotation's error angle against the σ's of its three angles together
+    let dr = Rotation3::from_matrix_unchecked(rotation(e) * (ra.transpose() * rb).transpose());
+    let sr = vector(&e["sigma_rotation_deg"]).norm();
+    let angle = dr.angle().to_degrees();
+    assert!(
+        angle <= Z_MAX * sr,
+        "{a} ← {b}: rotation off by {angle}° (σ's {sr}°)"
+    );
 }
 
 fn truth_of(project: &Path) -> Value {
@@ -132,6 +153,7 @@ fn a_third_camera_and_a_second_lrf_on_the_head() {
     let ids = sensors_agree_with_truth(&r, &truth_of(&p));
     assert_eq!(ids, ["right", "side", "lrf", "fixed"]);
     pairs_are_compositions(&r);
+    pair_agrees_with_truth(&r, &truth_of(&p), ("lrf", "fixed"));
     let fixed = read_json(&out.join("lrfs/fixed/results.json"));
     assert_eq!(fixed["verdict"]["status"], "ok", "{}", fixed["verdict"]);
     assert_eq!(fixed["lrf_model"]["kind"], "fixed");

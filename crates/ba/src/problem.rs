@@ -774,3 +774,128 @@ keyed!(PointKey, Point, points);
 keyed!(ImageKey, Image, images);
 keyed!(CameraKey, Camera, cameras);
 keyed!(ParameterKey, ParameterBlock, parameters);
+
+/// A residual of another problem whose own parameter blocks (from `base` on) stand `offset`
+/// places later in the problem it is appended to ([`Problem::append_sensor`]); everything
+/// else as the original.
+#[derive(Debug)]
+struct Shifted {
+    inner: Arc<dyn Residual>,
+    base: usize,
+    offset: usize,
+}
+
+impl Residual for Shifted {
+    fn dim(&self) -> usize {
+        self.inner.dim()
+    }
+
+    fn blocks(&self) -> Vec<Block> {
+        (self.inner.blocks().into_iter())
+            .map(|b| match b {
+                Block::Parameter(k) if k.0 >= self.base => {
+                    Block::Parameter(ParameterKey(k.0 + self.offset))
+                }
+                other => other,
+            })
+            .collect()
+    }
+
+    fn evaluate(&self, values: &[Value], residual: &mut [f64], jacobians: Jacobians<'_>) -> bool {
+        self.inner.evaluate(values, residual, jacobians)
+    }
+
+    fn group(&self) -> &str {
+        self.inner.group()
+    }
+}
+
+impl Problem {
+    /// Appends what `other` adds to a problem both were built from (the first
+    /// `base_parameters` parameter blocks and `base_residuals` residuals are that problem's,
+    /// and its images, points and observations are this one's too): `other`'s further
+    /// parameter blocks, and its further residuals with their σ factors, their parameter
+    /// keys moved to follow this problem's blocks. Two sensors' adjustments of one bundle
+    /// so become one problem (its covariance holds both sensors' cross terms). Returns the
+    /// offset by which `other`'s keys beyond the base moved.
+    pub fn append_sensor(
+        &mut self,
+        other: &Problem,
+        base_parameters: usize,
+        base_residuals: usize,
+    ) -> usize {
+        let offset = self.parameters.len() - base_parameters;
+        self.parameters
+            .extend(other.parameters[base_parameters..].iter().cloned());
+        for r in &other.residuals[base_residuals..] {
+            let moves = (r.residual.blocks().iter())
+                .any(|b| matches!(b, Block::Parameter(k) if k.0 >= base_parameters));
+            let residual: Arc<dyn Residual> = if moves && offset > 0 {
+                Arc::new(Shifted {
+                    inner: r.residual.clone(),
+                    base: base_parameters,
+                    offset,
+                })
+            } else {
+                r.residual.clone()
+            };
+            self.residuals.push(ResidualBlock {
+                residual,
+                sigma_scale: r.sigma_scale,
+            });
+        }
+        offset
+    }
+}
+
+#[cfg(test)]
+mod append_tests {
+    use super::*;
+    use crate::residual::ParameterPrior;
+
+    fn with_sensor(base: &Problem, value: f64) -> Problem {
+        let mut p = base.clone();
+        let k = ParameterKey(p.parameters.len());
+        p.parameters
+            .push(ParameterBlock::vector("sensor", vec![value, 2.0 * value]));
+        p.residuals.push(ResidualBlock {
+            residual: Arc::new(ParameterPrior {
+                parameter: k,
+                components: vec![0, 1],
+                value: vec![0.0, 0.0],
+                sigma: vec![1.0, 4.0],
+            }),
+            sigma_scale: 3.0,
+        });
+        p
+    }
+
+    /// Two sensors' problems of one base become one: the second's block follows the
+    /// first's, its residual reads it there (and keeps its σ factor), the first's is as it
+    /// was; a base block stays where it is.
+    #[test]
+    fn a_second_sensors_blocks_follow_the_firsts() {
+        let mut base = Problem::default();
+        base.parameters
+            .push(ParameterBlock::vector("shared", vec![7.0]));
+        let (mut a, b) = (with_sensor(&base, 1.0), with_sensor(&base, 5.0));
+        let offset = a.append_sensor(&b, 1, 0);
+        assert_eq!((offset, a.parameters.len(), a.residuals.len()), (1, 3, 2));
+        assert_eq!(
+            a.residuals[0].residual.blocks(),
+            vec![Block::Parameter(ParameterKey(1))]
+        );
+        let moved = &a.residuals[1];
+        assert_eq!(
+            moved.residual.blocks(),
+            vec![Block::Parameter(ParameterKey(2))]
+        );
+        assert_eq!(moved.sigma_scale, 3.0);
+        let ParameterValue::Vector(v) = &a.parameters[2].value else {
+            panic!("a vector block")
+        };
+        let mut r = [0.0; 2];
+        assert!(moved.residual.evaluate(&[Value::Vector(v)], &mut r, None));
+        assert_eq!(r, [5.0, 10.0 / 4.0]);
+    }
+}

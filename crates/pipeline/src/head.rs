@@ -65,6 +65,19 @@ pub struct HeadPoses {
     pub cov: Option<DMatrix<f64>>,
     /// Where the joint covariance is not known: each sensor's own 6 × 6.
     pub own: Vec<DMatrix<f64>>,
+    /// The adjustment the range sensor's pose came from, to join it with another range
+    /// sensor's adjustment of the same bundle ([`crate::range_sensors`]).
+    pub adjustment: Option<Adjustment>,
+}
+
+/// A range sensor's adjustment: its solved problem (the bundle's with the sensor's blocks and
+/// observations, each group at its variance component) and its extrinsic's block.
+#[derive(Clone, Debug)]
+pub struct Adjustment {
+    /// The solved problem.
+    pub problem: std::sync::Arc<Problem>,
+    /// The extrinsic's block in it.
+    pub extrinsic: ParameterKey,
 }
 
 /// A transform with the σ's of its ω, φ, κ (degrees) and t (mm); σ None where they are not
@@ -127,6 +140,10 @@ impl HeadPoses {
             own: own_blocks(&cov),
             sensors,
             cov: Some(cov),
+            adjustment: extrinsic.map(|(key, _)| Adjustment {
+                problem: std::sync::Arc::new(problem.clone()),
+                extrinsic: key,
+            }),
         }
     }
 
@@ -151,6 +168,24 @@ impl HeadPoses {
             head.cov = None;
         }
         head
+    }
+
+    /// Range sensors (`camera_from_lrf` blocks `poses`, ids and kinds) with the joint
+    /// covariance `cov` of their blocks' updates (6 rows each, in order).
+    pub fn of_range_sensors(poses: Vec<(String, String, Rigid3)>, cov: DMatrix<f64>) -> Self {
+        HeadPoses {
+            sensors: (poses.into_iter())
+                .map(|(id, kind, block)| HeadSensor {
+                    id,
+                    kind,
+                    block,
+                    inverted: false,
+                })
+                .collect(),
+            own: own_blocks(&cov),
+            cov: Some(cov),
+            adjustment: None,
+        }
     }
 
     /// `camera_from_sensor` of sensor `k` with its σ's.
@@ -268,6 +303,7 @@ mod tests {
             own: own_blocks(&cov),
             sensors,
             cov: Some(cov),
+            adjustment: None,
         }
     }
 

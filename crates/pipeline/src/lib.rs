@@ -334,7 +334,17 @@ fn outputs(
     rep.log(format!("time: overlays {secs:.2} s"));
     timing.push(("overlays".into(), secs));
     let mut results = results::assemble(stages, verdict, timing);
+    let head = match stages.joint {
+        Some(Ok(j)) => Some(j.head.clone()),
+        _ => None,
+    };
     range_sensors::add_sensors(&mut results, others);
+    let base = &stages.adjusted.solved.problem;
+    range_sensors::joint_pairs(
+        &mut results,
+        (head.as_ref(), others),
+        (base.parameters.len(), base.residuals.len()),
+    );
     let losses: Vec<_> = results.cameras.iter().map(exports::export_loss).collect();
     let loss_rows = exports::report_rows(&results, &losses);
     let report = report::build(stages, &results, drawn.report, loss_rows, rep);
@@ -349,5 +359,6 @@ fn outputs(
         expected_check_error_mm,
         overlays: drawn.files,
         range_sensors: Vec::new(),
+        head,
     }
 }

@@ -23,6 +23,8 @@ pub struct Outcome {
     /// Each of `[[lrfs]]`, calibrated against the same camera side: its outputs are written
     /// under `lrfs/<id>/`, its pose joins `results.json`'s `sensors`.
     pub range_sensors: Vec<RangeSensor>,
+    /// The head's sensors as the joint adjustment gave them (None when it gave no result).
+    pub head: Option<crate::head::HeadPoses>,
 }
 
 /// One of `[[lrfs]]`: its id and kind, and its calibration's outcome or why there is none.

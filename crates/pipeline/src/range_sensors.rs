@@ -3,8 +3,18 @@
 //! ([`pingcal_project::Project::range_sensors`]; its outputs are written under
 //! `lrfs/<id>/`); here its pose joins results.json's `sensors`, its pairs with the cameras
 //! (from its own adjustment with them: σ's with the cross-covariances) and with the range
-//! sensors before it (composed, σ's null: separate adjustments) join `sensor_pairs`, and a
-//! sensor not calibrated, or whose own verdict is not `ok`, is a reason of the main verdict.
+//! sensors before it (composed) join `sensor_pairs`, and a sensor not calibrated, or whose
+//! own verdict is not `ok`, is a reason of the main verdict.
+//!
+//! **Two range sensors' pair.** Each range sensor was adjusted with the cameras on its own;
+//! their relative pose's σ needs the covariance between their extrinsics, which neither
+//! adjustment has. The two adjustments are of one bundle, so their problems are joined into
+//! one ([`pingcal_ba::Problem::append_sensor`]: the bundle's images, points and observations
+//! once, each sensor's blocks and observations at their own variance components) and its
+//! covariance is taken at the two solutions ([`joint_pairs`]): the poses stay those each
+//! adjustment gave (as every other output has them), their pair's σ's come from the one
+//! problem. Where that cannot be had (a sensor without its adjustment, a covariance that
+//! fails) the pair's σ's stay null.
 
 use crate::head::WithSigma;
 use crate::outcome::RangeSensor;
@@ -53,7 +63,7 @@ pub fn add_sensors(results: &mut Results, others: &[RangeSensor]) {
 /// One of `[[lrfs]]` into `sensors` and `pairs`: its entry and its pairs with the cameras
 /// as its own calibration gave them (one adjustment with the cameras: σ's with the
 /// cross-covariances), and its pairs with the range sensors before it composed from the two
-/// entries, with null σ's (separate adjustments).
+/// entries (their σ's from [`joint_pairs`]).
 fn add_range_sensor(
     other: &crate::outcome::RangeSensor,
     sensors: &mut Vec<SensorJson>,
@@ -88,4 +98,60 @@ fn add_range_sensor(
         });
     }
     sensors.push(entry.clone());
+}
+
+/// The σ's of every pair of range sensors (`[lrf]`'s, `main`, and `others`') from one problem
+/// holding every range sensor's adjustment of the bundle (`base`: the bundle problem's
+/// parameter blocks and residuals, which every adjustment begins with); null where a sensor
+/// has no adjustment or the covariance cannot be had.
+pub fn joint_pairs(
+    results: &mut Results,
+    (main, others): (Option<&crate::head::HeadPoses>, &[RangeSensor]),
+    (base_parameters, base_residuals): (usize, usize),
+) {
+    let Some(first) = main.and_then(|h| h.adjustment.as_ref()) else {
+        return;
+    };
+    let mut problem = (*first.problem).clone();
+    let mut keys = vec![(
+        results.sensors.iter().find(|s| s.kind != "camera"),
+        first.extrinsic,
+    )];
+    for other in others {
+        let Ok(o) = &other.outcome else { continue };
+        let Some(adj) = o.head.as_ref().and_then(|h| h.adjustment.as_ref()) else {
+            continue;
+        };
+        let offset = problem.append_sensor(&adj.problem, base_parameters, base_residuals);
+        let key = pingcal_ba::ParameterKey(adj.extrinsic.0 + offset);
+        keys.push((results.sensors.iter().find(|s| s.id == other.id), key));
+    }
+    if keys.len() < 2 {
+        return;
+    }
+    let Ok(prec) = pingcal_ba::solver::precision(&problem) else {
+        return;
+    };
+    let rows: Vec<usize> = (keys.iter())
+        .flat_map(|(_, k)| (0..6).map(move |i| (k.0, i)))
+        .map(|(k, i)| prec.parameter_offsets[k] + i)
+        .collect();
+    let cov = nalgebra::DMatrix::from_fn(rows.len(), rows.len(), |a, b| {
+        prec.parameters_covariance[(rows[a], rows[b])]
+    });
+    let Some(poses) = (keys.iter())
+        .map(|(s, _)| s.map(|s| (s.id.clone(), s.kind.clone(), pose(&s.camera_from_sensor))))
+        .collect::<Option<Vec<_>>>()
+    else {
+        return;
+    };
+    let head = crate::head::HeadPoses::of_range_sensors(poses, cov);
+    for a in 0..head.sensors.len() {
+        for b in a + 1..head.sensors.len() {
+            let (ia, ib) = (&head.sensors[a].id, &head.sensors[b].id);
+            if let Some(p) = (results.sensor_pairs.iter_mut()).find(|p| &p.a == ia && &p.b == ib) {
+                p.a_from_b = json(&head.pair(a, b));
+            }
+        }
+    }
 }
