@@ -69,7 +69,7 @@ fn transforms(project: &Project) -> BTreeMap<String, String> {
         ("extrinsic.opencv", "p_opencv = R_cv p_lrf + t_cv, R_cv = C R, t_cv = C t (mm)".into()),
         ("bundle.rig", "p_right = R p_left + t in the photogrammetric frames (mm)".into()),
         ("sensors", "camera_from_sensor: p_photogrammetric = R p_sensor + t, the sensor's frame its own (a camera's photogrammetric frame, the LRF frame); the cameras' poses those of the bundle (bundle.rig, the exports), every sigma from the joint adjustment's covariance when it gave the result; sigma_rotation_deg of opk_deg; the LRF's is extrinsic".into()),
-        ("sensor_pairs", "a_from_b: p_a = R p_b + t = camera_from_a^-1 camera_from_b, with sigmas from the joint covariance of a and b (null where they came from separate adjustments)".into()),
+        ("sensor_pairs", "a_from_b: p_a = R p_b + t = camera_from_a^-1 camera_from_b, with sigmas from the joint covariance of a and b (two range sensors: of one problem holding both their adjustments; null where none can be had)".into()),
         ("bundle.rig.opencv", "p_right_opencv = R_cv p_left_opencv + t_cv, R_cv = C R C^T, t_cv = C t (mm): stereoCalibrate's R and T".into()),
         ("ros/", format!(
             "tf from parent '{cam}' to child '{lrf}': the child's pose in the parent, i.e. p_{cam} = R_cv p_{lrf} + t_cv / 1000 (m)"
