@@ -6,8 +6,9 @@ head, the side camera alone, the LRF with the left camera alone) beside the join
     python3 bench/rig/seeds.py [--seeds 1-10] [--config bench/rig/side-camera.toml]
                                [--binary target/release/pingcal] [--work DIR]
 
-Per seed and sensor: |Δt| (mm), ΔR (°), each component's error over its σ; per sensor the
-worst of those and the RMS of error/σ; then per sensor the joint σ's beside the pair-alone
+Per seed and sensor: |Δt| (mm), ΔR (°), each component's error over its σ (and for two
+range sensors their pair's t against the truth's composition); per sensor the worst of those
+and the RMS of error/σ; then per sensor the joint σ's beside the pair-alone
 σ's (their ratio, ≤ 1 where the joint adjustment is no worse) and the true errors of both.
 Not in CI.
 """
@@ -76,6 +77,28 @@ def errors(results, truth):
     return out
 
 
+def pair_errors(results, truth):
+    """Per pair of range sensors (both not cameras): (a, b, z of t, |dt|, σ t) of a_from_b
+    against the truth's composition."""
+    tr = {s["id"]: s["camera_from_sensor"] for s in truth["sensors"]}
+    kinds = {s["id"]: s["kind"] for s in results.get("sensors", [])}
+    out = []
+    for p in results.get("sensor_pairs", []):
+        a, b = p["a"], p["b"]
+        if kinds.get(a) == "camera" or kinds.get(b) == "camera" or a not in tr or b not in tr:
+            continue
+        ra, ta = tr[a]["rotation"], tr[a]["translation_mm"]
+        tb = tr[b]["translation_mm"]
+        d = [tb[k] - ta[k] for k in range(3)]
+        t_true = [sum(ra[k][i] * d[k] for k in range(3)) for i in range(3)]
+        e = p["a_from_b"]
+        dt = [e["translation_mm"][i] - t_true[i] for i in range(3)]
+        st = e["sigma_translation_mm"]
+        z = [dt[i] / st[i] for i in range(3)] if st else None
+        out.append((a, b, z, math.sqrt(sum(x * x for x in dt)), st))
+    return out
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--seeds", default="1-10")
@@ -84,13 +107,17 @@ def main():
     ap.add_argument("--work", default=None)
     a = ap.parse_args()
     work = a.work or tempfile.mkdtemp(prefix="pingcal-rig-")
-    joint_rows, alone_rows = {}, {}
+    joint_rows, alone_rows, pair_rows = {}, {}, {}
     print("seed  sensor  |dt| mm  dR deg   z(tx ty tz)            z(omega phi kappa)   verdict")
     for seed in seeds_of(a.seeds):
         p, o, r = simulate_and_calibrate(a.binary, work, seed, a.config)
         truth = json.load(open(os.path.join(p, "truth.json")))
         res = json.load(open(os.path.join(o, "results.json")))
         joint = errors(res, truth)
+        for a_, b_, z, dtn, st in pair_errors(res, truth):
+            zs = " ".join(f"{x:+.2f}" for x in z) if z else "no sigma"
+            print(f"{seed:4d}  pair {a_} <- {b_}: |dt| {dtn:.3f} mm, z(t) {zs}")
+            pair_rows.setdefault(f"{a_}<-{b_}", []).append((dtn, z))
         for sid, e in joint.items():
             joint_rows.setdefault(sid, []).append(e)
             z = " ".join(f"{x:+.2f}" for x in e[2]) + "   " + " ".join(f"{x:+.2f}" for x in e[3])
@@ -109,6 +136,11 @@ def main():
             e = errors(out, truth).get(sid)
             if e:
                 alone_rows.setdefault(sid, []).append(e)
+    print()
+    for name, rows in pair_rows.items():
+        zs = [r[1] for r in rows if r[1]]
+        rms = [math.sqrt(sum(z[k] ** 2 for z in zs) / len(zs)) for k in range(3)] if zs else []
+        print(f"pair {name}: worst |dt| {max(r[0] for r in rows):.3f} mm, RMS error/sigma of t " + " ".join(f"{x:.2f}" for x in rms))
     print()
     print("sensor  worst |dt| mm  worst dR deg  RMS error/sigma (tx ty tz omega phi kappa)")
     for sid, rows in joint_rows.items():
