@@ -160,6 +160,12 @@ fn a_third_camera_and_a_second_lrf_on_the_head() {
     let entry = (r["sensors"].as_array().unwrap().iter()).find(|s| s["id"] == "fixed");
     assert_eq!(entry.unwrap()["camera_from_sensor"], fixed["extrinsic"]);
     assert!(out.join("lrfs/fixed/cloud.ply").is_file());
+    let report = std::fs::read_to_string(out.join("report.html")).expect("report.html");
+    assert!(
+        report.contains("range sensor &#39;fixed&#39;")
+            && report.contains("lrfs/fixed/report.html"),
+        "the main report names the second LRF and its report"
+    );
     // ros/head.urdf and Kalibr's three-camera chain, read by their ecosystems' own code
     for check in ["head", "chain"] {
         crate::ecosystem::check_in(

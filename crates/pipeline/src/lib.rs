@@ -347,7 +347,8 @@ fn outputs(
     );
     let losses: Vec<_> = results.cameras.iter().map(exports::export_loss).collect();
     let loss_rows = exports::report_rows(&results, &losses);
-    let report = report::build(stages, &results, drawn.report, loss_rows, rep);
+    let mut report = report::build(stages, &results, drawn.report, loss_rows, rep);
+    report.summary.extend(range_sensors::summary(others));
     let diameter = stages.project.file.balls.diameter_mm;
     let cloud_ply = results::cloud_ply(stages.lrf_out, 0.5 * diameter);
     let exports = exports::exports(&results, &losses);

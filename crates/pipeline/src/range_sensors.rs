@@ -53,6 +53,31 @@ fn in_doubt(others: &[RangeSensor]) -> Vec<String> {
         .collect()
 }
 
+/// The report's summary lines of `others`: each one's verdict and translation, or why it
+/// was not calibrated, and where its own report is.
+pub fn summary(others: &[RangeSensor]) -> Vec<(String, String)> {
+    (others.iter())
+        .map(|r| {
+            let line = match &r.outcome {
+                Ok(o) => {
+                    let t = o.results.extrinsic.translation_mm;
+                    format!(
+                        "a {} 2D LRF, verdict {}; t = ({:.1}, {:.1}, {:.1}) mm; its report: lrfs/{}/report.html",
+                        r.kind,
+                        o.results.verdict.status.as_str(),
+                        t[0],
+                        t[1],
+                        t[2],
+                        r.id
+                    )
+                }
+                Err(e) => format!("not calibrated: {e}"),
+            };
+            (format!("range sensor '{}'", r.id), line)
+        })
+        .collect()
+}
+
 /// `results`' `sensors` and `sensor_pairs` with each of `others`.
 pub fn add_sensors(results: &mut Results, others: &[RangeSensor]) {
     for other in others {
