@@ -63,8 +63,9 @@ pub struct HeadPoses {
     /// The covariance of the updates; None where the cross-covariances are not known (the
     /// rigs from one adjustment and the LRF from another).
     pub cov: Option<DMatrix<f64>>,
-    /// Where the joint covariance is not known: each sensor's own 6 × 6.
-    pub own: Vec<DMatrix<f64>>,
+    /// Each sensor's own 6 × 6 (None where this adjustment does not have it: an LRF from
+    /// another).
+    pub own: Vec<Option<DMatrix<f64>>>,
     /// The adjustment the range sensor's pose came from, to join it with another range
     /// sensor's adjustment of the same bundle ([`crate::range_sensors`]).
     pub adjustment: Option<Adjustment>,
@@ -148,25 +149,23 @@ impl HeadPoses {
     }
 
     /// The head's rigs of the bundle `problem` (with `prec`'s joint covariance of them) and
-    /// an LRF from another adjustment (`camera_from_lrf` with its own 6 × 6 covariance of
-    /// (δω, δt)): no cross-covariance between the LRF and the cameras.
+    /// an LRF from another adjustment (`camera_from_lrf` of kind `kind`): its covariance is
+    /// not this one's, so neither its own σ's nor its pairs' are had here.
     pub fn with_separate_lrf(
         project: &Project,
         problem: &Problem,
         prec: &Precision,
-        lrf: Option<(Rigid3, DMatrix<f64>, &str)>,
+        (pose, kind): (Rigid3, &str),
     ) -> Self {
         let mut head = Self::of_problem(project, problem, prec, None);
-        if let Some((pose, cov, kind)) = lrf {
-            head.sensors.push(HeadSensor {
-                id: project.file.lrf.id().into(),
-                kind: kind.into(),
-                block: pose,
-                inverted: false,
-            });
-            head.own.push(cov);
-            head.cov = None;
-        }
+        head.sensors.push(HeadSensor {
+            id: project.file.lrf.id().into(),
+            kind: kind.into(),
+            block: pose,
+            inverted: false,
+        });
+        head.own.push(None);
+        head.cov = None;
         head
     }
 
@@ -188,12 +187,12 @@ impl HeadPoses {
         }
     }
 
-    /// `camera_from_sensor` of sensor `k` with its σ's.
+    /// `camera_from_sensor` of sensor `k` with its σ's (None where they are not known).
     pub fn sensor(&self, k: usize) -> WithSigma {
         let s = &self.sensors[k];
         let pose = s.camera_from_sensor(&[0.0; 6]);
-        let sigmas = propagate(&self.own[k], |d| s.camera_from_sensor(d));
-        with(pose, Some(sigmas))
+        let sigmas = (self.own[k].as_ref()).map(|c| propagate(c, |d| s.camera_from_sensor(d)));
+        with(pose, sigmas)
     }
 
     /// `a_from_b = camera_from_a⁻¹ · camera_from_b` with its σ's from the joint covariance
@@ -226,9 +225,9 @@ fn camera(head: &HeadCamera, member_from_base: Rigid3) -> HeadSensor {
 }
 
 /// Each sensor's own 6 × 6 block of `cov`.
-fn own_blocks(cov: &DMatrix<f64>) -> Vec<DMatrix<f64>> {
+fn own_blocks(cov: &DMatrix<f64>) -> Vec<Option<DMatrix<f64>>> {
     (0..cov.nrows() / 6)
-        .map(|k| cov.view((6 * k, 6 * k), (6, 6)).into_owned())
+        .map(|k| Some(cov.view((6 * k, 6 * k), (6, 6)).into_owned()))
         .collect()
 }
 
@@ -388,9 +387,12 @@ mod tests {
             DMatrix::identity(6, 6),
         );
         h.sensors.push(lrf(Rigid3::identity()));
-        h.own.push(DMatrix::identity(6, 6));
+        h.own.push(Some(DMatrix::identity(6, 6)));
         h.cov = None;
         assert!(h.pair(0, 1).sigma_translation_mm.is_none());
         assert!(h.sensor(1).sigma_translation_mm.is_some());
+        // an LRF whose covariance this adjustment does not have: no σ of its own either
+        h.own[1] = None;
+        assert!(h.sensor(1).sigma_translation_mm.is_none());
     }
 }

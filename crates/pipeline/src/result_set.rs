@@ -591,16 +591,40 @@ fn outcome_files<'a>(
 ) -> Result<(), OutputError> {
     let json = serde_json::to_string_pretty(&outcome.results)? + "\n";
     let html = pingcal_report::render_html(&outcome.report);
-    for (rel, text) in &outcome.exports {
-        shared.push((below.join(rel), text.as_bytes()));
-    }
-    for (rel, bytes) in &outcome.overlays {
-        shared.push((below.join(rel), bytes.as_slice()));
-    }
+    push_files(below, (&outcome.exports, &outcome.overlays), shared);
     shared.push((below.join("cloud.ply"), &outcome.cloud_ply));
     owned.push((below.join("report.html"), html.into_bytes()));
     owned.push((below.join("results.json"), json.into_bytes()));
     Ok(())
+}
+
+/// The exports (`ros/`, `opencv/`, `kalibr/`) and the overlays of a run below `below`.
+fn push_files<'a>(
+    below: &Path,
+    (exports, overlays): (&'a [crate::exports::OutputFile], &'a [(String, Vec<u8>)]),
+    set: &mut Vec<SetFile<'a>>,
+) {
+    for (rel, text) in exports {
+        set.push((below.join(rel), text.as_bytes()));
+    }
+    for (rel, bytes) in overlays {
+        set.push((below.join(rel), bytes.as_slice()));
+    }
+}
+
+/// Writes the outputs of a one-camera, one-range-sensor run (`pingcal sphere-calib`, a
+/// board project) into `lock`'s folder, all or none ([`write_set`]): its exports, overlays,
+/// `report.html` and `results.json` (the text `json`).
+pub fn write_outputs(
+    lock: &FolderLock,
+    out: &crate::sphere_calib::outputs::Outputs,
+    json: &str,
+) -> Result<(), OutputError> {
+    let mut set: Vec<SetFile> = Vec::new();
+    push_files(Path::new(""), (&out.exports, &out.overlays), &mut set);
+    set.push(("report.html".into(), out.report_html.as_bytes()));
+    set.push(("results.json".into(), json.as_bytes()));
+    write_set(lock, &set)
 }
 
 /// Writes `bytes` to `path` atomically (temporary file in the same folder, then rename),

@@ -23,7 +23,7 @@ use super::{CmdError, CmdResult, Exit};
 use indicatif::MultiProgress;
 use pingcal_pipeline::board_lrf::{self, outputs as board_outputs, BoardOutcome};
 use pingcal_pipeline::network::Start;
-use pingcal_pipeline::result_set::{write_set, FolderLock, SetFile};
+use pingcal_pipeline::result_set::FolderLock;
 use pingcal_pipeline::verdict::Status;
 use pingcal_pipeline::{self as pipeline, Options, Outcome, Reporter};
 use pingcal_project::Project;
@@ -431,15 +431,7 @@ fn write_board(lock: &FolderLock, o: &BoardOutcome) -> Result<(), String> {
     let json = serde_json::to_string_pretty(&board_outputs::results_json(o))
         .map_err(|e| e.to_string())?
         + "\n";
-    let mut set: Vec<SetFile> = (out.exports.iter())
-        .map(|(rel, text)| (PathBuf::from(rel), text.as_bytes()))
-        .collect();
-    for (rel, bytes) in &out.overlays {
-        set.push((PathBuf::from(rel), bytes.as_slice()));
-    }
-    set.push(("report.html".into(), out.report_html.as_bytes()));
-    set.push(("results.json".into(), json.as_bytes()));
-    write_set(lock, &set).map_err(|e| e.to_string())
+    result_set::write_outputs(lock, &out, &json).map_err(|e| e.to_string())
 }
 
 /// The one-line summary of a calibrated board project.

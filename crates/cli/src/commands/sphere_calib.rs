@@ -4,7 +4,7 @@
 //!
 //! Writes `results.json`, `report.html`, `overlays/`, `ros/`, `opencv/` and `kalibr/` into DIR
 //! (default `results/` beside the project) as calibrate writes its set: all or none, swapped
-//! in at once under the folder's lock ([`super::result_set::write_set`]). An existing
+//! in at once under the folder's lock ([`super::result_set::write_outputs`]). An existing
 //! `results.json` is never replaced unless `--overwrite` is given: without it the run stops
 //! before any work.
 //!
@@ -13,8 +13,8 @@
 //! reasons), unless `--accept-doubtful`; 1 on an error (no results).
 
 use super::preflight::check_out_dir;
-use super::result_set::write_set;
-use super::result_set::{FolderLock, SetFile};
+use super::result_set::write_outputs;
+use super::result_set::FolderLock;
 use super::{CmdResult, Exit};
 use pingcal_pipeline::sphere_calib::{calibrate, outputs::outputs, results_json, sd, Outcome};
 use pingcal_pipeline::verdict::Status;
@@ -126,17 +126,7 @@ pub fn run(args: Args) -> CmdResult {
     }
     let out = outputs(&o);
     let json = serde_json::to_string_pretty(&results_json(&o))? + "\n";
-    let mut set: Vec<SetFile> = out
-        .exports
-        .iter()
-        .map(|(rel, text)| (PathBuf::from(rel), text.as_bytes()))
-        .collect();
-    for (rel, bytes) in &out.overlays {
-        set.push((PathBuf::from(rel), bytes.as_slice()));
-    }
-    set.push(("report.html".into(), out.report_html.as_bytes()));
-    set.push(("results.json".into(), json.as_bytes()));
-    write_set(&lock, &set)?;
+    write_outputs(&lock, &out, &json)?;
     if !args.quiet {
         print_frames(&o);
     }

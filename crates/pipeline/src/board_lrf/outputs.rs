@@ -27,16 +27,9 @@ use serde_json::json;
 /// The tf frame of the LRF.
 pub const TF_LRF: &str = "lrf";
 
-/// Everything written besides `results.json`.
-#[derive(Debug)]
-pub struct Outputs {
-    /// `ros/`, `opencv/`, `kalibr/` files.
-    pub exports: Vec<OutputFile>,
-    /// `overlays/<station>.png` and their bytes.
-    pub overlays: Vec<(String, Vec<u8>)>,
-    /// `report.html`.
-    pub report_html: String,
-}
+/// Everything written besides `results.json`: sphere-calib's kind of outputs (its overlays
+/// `overlays/<station>.png`).
+pub use crate::sphere_calib::outputs::Outputs;
 
 /// `results.json`'s `conventions`: the sphere-calib run's (one camera, one range sensor),
 /// the range sensor being the LRF (its scan plane the XY plane of its frame).

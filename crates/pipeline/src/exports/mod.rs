@@ -373,9 +373,16 @@ fn flat<const R: usize, const C: usize>(m: &nalgebra::SMatrix<f64, R, C>) -> Vec
 /// a degenerate pair or fisheye cameras (whose rectification `cv::fisheye` computes
 /// otherwise; pingcal does not write it).
 fn stereo_of(left: &Form, right: &Form, size: (u32, u32), rig: &RigJson) -> Option<StereoCv> {
-    let r = matrix3(&rig.opencv.rotation);
-    let t = Vector3::from(rig.opencv.translation_mm);
+    let (r, t) = rig_cv(rig);
     stereo_cv(&cv_camera(left)?, &cv_camera(right)?, size, &r, &t)
+}
+
+/// The stereo rig in OpenCV's camera frames: `p_right = R p_left + t`, t in mm.
+fn rig_cv(rig: &RigJson) -> (Matrix3<f64>, Vector3<f64>) {
+    (
+        matrix3(&rig.opencv.rotation),
+        Vector3::from(rig.opencv.translation_mm),
+    )
 }
 
 /// `opencv/stereo.yaml` for the rig (left = camera 1, right = camera 2), or `None` for a
@@ -387,8 +394,7 @@ pub fn opencv_stereo_yaml(
 ) -> Option<String> {
     let (w, h) = (left.opencv.image_width, left.opencv.image_height);
     let s = stereo_of(lf, rf, (w, h), rig)?;
-    let r = matrix3(&rig.opencv.rotation);
-    let t = Vector3::from(rig.opencv.translation_mm);
+    let (r, t) = rig_cv(rig);
     let mut out = format!(
         "%YAML:1.0\n---\n# stereo pair: camera 1 = '{}' (left), camera 2 = '{}' (right); p_2 = R p_1 + T in OpenCV camera frames, T in mm; R1 R2 P1 P2 Q as cv2.stereoRectify gives them (CALIB_ZERO_DISPARITY, alpha -1); written by pingcal calibrate\nleft_camera: \"{}\"\nright_camera: \"{}\"\ntranslation_unit: \"mm\"\nimage_width: {w}\nimage_height: {h}\n",
         left.id, right.id, left.id, right.id
@@ -540,10 +546,8 @@ fn kalibr_camera(
 /// for a rig cam1's `T_cn_cnm1` (`p_cam1 = T p_cam0`, OpenCV frames, metres).
 pub fn kalibr_camchain(cams: &[(&CameraJson, &ExportLoss)], rig: Option<&RigJson>) -> String {
     let link = rig.map(|r| {
-        (
-            matrix3(&r.opencv.rotation),
-            Vector3::from(r.opencv.translation_mm) / 1000.0,
-        )
+        let (rot, t) = rig_cv(r);
+        (rot, t / 1000.0)
     });
     let links: Vec<_> = (0..cams.len()).map(|n| link.filter(|_| n == 1)).collect();
     kalibr_chain(cams, &links)
@@ -596,10 +600,8 @@ fn chain_links(r: &Results, order: &[usize]) -> Vec<Link> {
                 return None;
             }
             if let (1, Some(rig)) = (n, &r.bundle.rig) {
-                return Some((
-                    matrix3(&rig.opencv.rotation),
-                    Vector3::from(rig.opencv.translation_mm) / 1000.0,
-                ));
+                let (rot, t) = rig_cv(rig);
+                return Some((rot, t / 1000.0));
             }
             let (prev, next) = (&r.cameras[order[n - 1]].id, &r.cameras[order[n]].id);
             head::t_cn_cnm1(r, prev, next)

@@ -6,7 +6,6 @@
 use super::transforms::{extrinsic_json, ExtrinsicJson};
 use crate::head::{HeadPoses, WithSigma};
 use crate::stages::Stages;
-use nalgebra::DMatrix;
 use pingcal_geometry::{Rigid3, Sim3};
 use pingcal_project::LrfKind;
 use serde::Serialize;
@@ -58,12 +57,7 @@ fn head_of(st: &Stages, extrinsic: &ExtrinsicJson) -> HeadPoses {
         _ => "rotating",
     };
     let lrf = pose(extrinsic);
-    HeadPoses::with_separate_lrf(
-        st.project,
-        &adj.solved.problem,
-        &adj.precision,
-        Some((lrf, DMatrix::zeros(6, 6), kind)),
-    )
+    HeadPoses::with_separate_lrf(st.project, &adj.solved.problem, &adj.precision, (lrf, kind))
 }
 
 /// `t` as results.json writes a transform.
